@@ -1,0 +1,111 @@
+// accura: identification of the complete model from measured poses (method.md section 3):
+// closed-form registration of the measurement frame, identifiability analysis, weighted
+// Levenberg-Marquardt (Ceres) with the analytic parameter Jacobian, uncertainties.
+#pragma once
+
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "accura/calib/measurements.h"
+#include "accura/calib/robot.h"
+
+namespace accura {
+
+struct IdentifyOptions {
+  /// Parameter groups to identify (see parameterGroups()): "geometric" (= base, tool,
+  /// offsets, lengths, angles) and/or single groups and "joint_compliance".
+  std::vector<std::string> groups = {"geometric"};
+  /// Closed-form registration of T_world_base (and the tool point) before the iterations:
+  /// the measurement frame may be anywhere. Only when "base" is identified.
+  bool register_frame = true;
+  /// Standard deviations used when the data has no std columns: position (mm) and
+  /// orientation (deg). NaN (the default): estimated from the residuals (variance
+  /// components, one re-solve), reported in the summary.
+  double position_std_mm = std::numeric_limits<double>::quiet_NaN();
+  double orientation_std_deg = std::numeric_limits<double>::quiet_NaN();
+  /// Robust loss on the weighted residual of each pose: "none", "huber" or "cauchy";
+  /// loss_scale in units of the residual's standard deviation.
+  std::string loss = "none";
+  double loss_scale = 3.0;
+  /// A parameter whose scaled Jacobian column lies within this relative distance of the span
+  /// of the parameters kept before it (1 = orthogonal, 0 = dependent) is fixed and reported.
+  double dependence_tol = 1e-3;
+  int max_iterations = 200;
+  /// Ceres' relative cost-change and parameter-change tolerances.
+  double function_tolerance = 1e-14;
+  double parameter_tolerance = 1e-12;
+
+  /// True when the options are usable; otherwise *error says why.
+  bool IsValid(std::string* error) const;
+};
+
+/// Error statistics of a model against measurements. Position error: Euclidean distance
+/// (mm); orientation error: rotation angle (deg), only when the data has orientation.
+struct ErrorStats {
+  int n = 0;
+  double rms_mm = 0, mean_mm = 0, max_mm = 0, p95_mm = 0;
+  bool has_orientation = false;
+  double rot_rms_deg = 0, rot_mean_deg = 0, rot_max_deg = 0, rot_p95_deg = 0;
+};
+
+struct FixedParameter {
+  std::string name;
+  std::string reason;
+};
+
+struct ParameterEstimate {
+  std::string name, group, unit;
+  double value = 0;  ///< deviation from nominal, display units
+  double sigma = 0;  ///< one standard deviation, display units
+};
+
+struct IdentifySummary {
+  std::string termination;     ///< Ceres' termination reason and message
+  int iterations = 0;
+  double initial_cost = 0;     ///< 1/2 sum of squared weighted residuals, after registration
+  double final_cost = 0;
+  double registration_rms_mm = 0;   ///< position RMS right after the closed-form registration
+  double condition_number = 0;      ///< of the column-scaled weighted Jacobian, kept params
+  double condition_number_all = 0;  ///< the same with every candidate (inf when singular)
+  double observability_index = 0;   ///< O1 = (prod sigma_i)^(1/p) / sqrt(m), scaled Jacobian
+  double variance_factor = 0;       ///< s0^2 = weighted RSS / (m - p); ~1 with correct stds
+  std::string weighting;            ///< how residuals were weighted (file stds, given, estimated)
+  double position_std_mm = 0;       ///< the position std used when not from the file
+  double orientation_std_deg = 0;
+  int equations = 0, parameters_free = 0;
+  std::vector<FixedParameter> fixed;
+  std::vector<ParameterEstimate> parameters;
+  std::vector<int> downweighted_lines;  ///< source lines the robust loss down-weighted
+  ErrorStats fit;
+
+  /// One line: termination, iterations, cost before/after, fit RMS, condition number.
+  std::string BriefReport() const;
+};
+
+/// Identifies the parameters named by options.groups starting from `start` (nominal or
+/// previously calibrated; its deviations are the initial guess) on `data`.
+/// Returns the calibrated model. Throws InputError when the data is too small for the
+/// parameters asked for, ArgumentError on invalid options, NumericalError when the
+/// registration is degenerate (collinear points) or the solver fails.
+RobotModel identify(const RobotModel& start, const MeasurementSet& data,
+                    const IdentifyOptions& options, IdentifySummary* summary);
+
+/// Errors of `model` against `data`.
+ErrorStats evaluate(const RobotModel& model, const MeasurementSet& data);
+
+/// Per-row position errors (mm) of `model` against `data`.
+std::vector<double> positionErrors(const RobotModel& model, const MeasurementSet& data);
+
+/// Closed-form registration: T_world_base (and, with estimate_tool, the tool point) that
+/// best maps the model's tool points onto the measured points (Kabsch with alternating
+/// tool-point least squares). Throws NumericalError for fewer than 3 non-collinear points.
+/// Returns the position RMS (mm) after registration.
+double registerFrame(RobotModel& model, const MeasurementSet& data, bool estimate_tool);
+
+/// Summary statistics of a list of non-negative errors (RMS, mean, max, 95th percentile
+/// by nearest rank).
+void summarize(const std::vector<double>& errors, double* rms, double* mean, double* max,
+               double* p95);
+
+}  // namespace accura

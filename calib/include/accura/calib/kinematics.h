@@ -1,0 +1,102 @@
+// accura: forward kinematics, gravity loads and the analytic parameter Jacobian of the
+// complete model (method.md sections 2-3).
+//
+// Style: a constant RobotModel and a per-thread KinematicWorkspace; free functions.
+// Joint values q are what the controller reads: degrees (revolute) or mm (prismatic).
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <string>
+#include <vector>
+
+#include "accura/calib/robot.h"
+
+namespace accura {
+
+/// What the model needs to know about a measured pose besides q.
+struct PoseContext {
+  double payload_kg = 0;  ///< payload mass at the robot's payload centre of mass
+};
+
+/// Scratch space for one thread. Sized on first use; reuse it across calls.
+struct KinematicWorkspace {
+  std::vector<Eigen::Isometry3d> T_base_frame;  ///< frames 0..n in the base frame
+  Eigen::VectorXd theta_rad;                    ///< DH angles actually used
+  Eigen::VectorXd d_mm;                         ///< DH d actually used
+  Eigen::VectorXd load;                         ///< gravity torque (N*m) / force (N) per joint
+};
+
+/// Gravity load on each joint at q (nominal geometry; link masses and payload_kg):
+/// revolute joint i: torque (N*m) about axis z_{i-1} exerted by gravity on links i..n and
+/// the payload; prismatic joint i: force (N) along z_{i-1}. Gravity is the robot's
+/// gravity_base vector.
+Eigen::VectorXd gravityLoads(const RobotModel& model, const Eigen::VectorXd& q_deg_mm,
+                             const PoseContext& context);
+
+/// T_world_tcp of the complete model at q (mm). Throws ArgumentError when q.size() != dof.
+Eigen::Isometry3d forwardKinematics(const RobotModel& model, const Eigen::VectorXd& q_deg_mm,
+                                    const PoseContext& context, KinematicWorkspace& ws);
+/// Convenience overload with its own workspace and zero payload.
+Eigen::Isometry3d forwardKinematics(const RobotModel& model, const Eigen::VectorXd& q_deg_mm);
+
+/// T_base_flange of the complete model, joint deviations included, base and tool excluded.
+Eigen::Isometry3d flangePose(const RobotModel& model, const Eigen::VectorXd& q_deg_mm,
+                             const PoseContext& context, KinematicWorkspace& ws);
+
+// ---------------------------------------------------------------------------------------
+// Parameters of the complete model
+
+/// Which physical quantity a parameter is.
+enum class ParamKind {
+  kBaseX, kBaseY, kBaseZ, kBaseRx, kBaseRy, kBaseRz,
+  kToolX, kToolY, kToolZ, kToolRx, kToolRy, kToolRz,
+  kOffset,      ///< joint zero of a revolute joint: dtheta
+  kTheta,       ///< dtheta of a prismatic joint (rotation about its axis)
+  kD,           ///< dd: DH d of a revolute DH link, or the joint zero of a prismatic one
+  kA, kAlpha,
+  kBeta,        ///< Hayati beta
+  kCompliance,
+};
+
+/// One scalar parameter. Internal units: mm, rad, rad/(N*m) or mm/N.
+struct ParamInfo {
+  ParamKind kind;
+  int joint = -1;          ///< 0-based joint index for per-joint parameters, else -1
+  std::string name;        ///< e.g. "base_x", "tool_rz", "j2_beta", "j3_compliance"
+  std::string group;       ///< base, tool, offsets, lengths, twists, joint_compliance
+  std::string unit;        ///< display unit: mm, deg, urad/Nm, um/N
+  double display_scale;    ///< display value = internal value * display_scale
+};
+
+/// Every parameter the model can carry, in a fixed order: base (6), tool (6), per joint
+/// offset, then the form's geometric parameters (DH revolute: d, a, alpha; Hayati revolute:
+/// a, alpha, beta; prismatic: theta, a, alpha [, beta]), then compliance per joint.
+/// The order is also the priority used when dependent parameters are fixed.
+std::vector<ParamInfo> parameterLayout(const RobotModel& model);
+
+/// Reads / writes a parameter value (internal units) in the deviations.
+double getParameter(const Deviations& dev, const ParamInfo& p);
+void setParameter(Deviations& dev, const ParamInfo& p, double value);
+
+/// Group names accepted by --params, with their meaning (for help texts and errors).
+std::vector<std::pair<std::string, std::string>> parameterGroups();
+
+/// Analytic parameter Jacobian (method.md eq. 26-31) of the tool pose at q:
+/// J (6 x layout.size()), rows [dp_world (mm); dphi_world (rad)], column k the derivative
+/// with respect to layout[k] in internal units. Each column is the small motion of one
+/// intermediate frame carried to the tool: a translation along unit axis u adds u to dp;
+/// a rotation about u through point o adds u x (p_tcp - o) to dp and u to dphi.
+/// Also returns T_world_tcp. Throws ArgumentError on size mismatch.
+Eigen::Isometry3d parameterJacobian(const RobotModel& model, const std::vector<ParamInfo>& layout,
+                                    const Eigen::VectorXd& q_deg_mm, const PoseContext& context,
+                                    KinematicWorkspace& ws, Eigen::MatrixXd& J);
+
+/// Geometric (joint-space) Jacobian of T_world_tcp at q: rows [dp (mm); dphi (rad)], column
+/// i per degree (revolute) or per mm (prismatic) of q_i.
+Eigen::Matrix<double, 6, Eigen::Dynamic> jointJacobian(const RobotModel& model,
+                                                       const Eigen::VectorXd& q_deg_mm,
+                                                       const PoseContext& context,
+                                                       KinematicWorkspace& ws);
+
+}  // namespace accura

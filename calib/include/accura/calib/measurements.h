@@ -1,0 +1,61 @@
+// accura: measured poses (laser tracker, CMM) read from CSV. Format: docs/measurement-format.md.
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "accura/calib/kinematics.h"
+#include "accura/calib/robot.h"
+
+namespace accura {
+
+/// One measured pose.
+struct Measurement {
+  int line = 0;                  ///< 1-based line in the source file
+  Eigen::VectorXd q;             ///< joint values: deg (revolute) or mm (prismatic)
+  Eigen::Vector3d p_world_mm = Eigen::Vector3d::Zero();  ///< measured tool point, world
+  bool has_orientation = false;
+  Eigen::Quaterniond R_world_tcp = Eigen::Quaterniond::Identity();  ///< normalised
+  /// One standard deviation per world axis; NaN where the file gives none.
+  Eigen::Vector3d std_mm = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
+  Eigen::Vector3d std_rot_deg = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
+  double weight = 1.0;           ///< relative weight (> 0); 1 when the file has none
+  PoseContext context;           ///< payload_kg (0 when the file has no payload column)
+  double temp_c = std::numeric_limits<double>::quiet_NaN();   ///< NaN when absent
+  double time_s = std::numeric_limits<double>::quiet_NaN();   ///< NaN when absent
+  std::vector<int> dir;          ///< +1/-1 per joint; empty when absent
+};
+
+/// A whole file of measurements and what its header held.
+struct MeasurementSet {
+  std::string file;
+  std::vector<Measurement> rows;
+  bool has_orientation = false;
+  bool has_std_position = false;
+  bool has_std_orientation = false;
+  bool has_weight = false;
+  bool has_payload = false;
+  bool has_temperature = false;
+  bool has_direction = false;
+  bool has_time = false;
+  std::vector<std::string> unknown_columns;  ///< header names accura does not use, in order
+};
+
+/// Reads a measurement CSV for `robot` (its dof and joint limits are checked).
+/// Throws InputError "FILE:LINE:COLUMN: expected ..., found ..." on: unreadable file, missing
+/// or duplicate column, incomplete column group (qw without qx, std_x without std_y, ...),
+/// a q column beyond the robot's joints, wrong field count, a field that is not a finite
+/// number, a joint value outside its limits, dir not +1/-1, weight or std <= 0, a quaternion
+/// whose norm is not 1 within 1e-3, and a file with no data row.
+MeasurementSet readMeasurementsCsv(const std::string& path, const RobotDefinition& robot);
+
+/// Writes measurements in the same format (every column the set has; fixed formatting:
+/// q with 6 decimals, positions 6 decimals (mm), quaternions 9 decimals) through a
+/// temporary file renamed into place. `comments` lines are written first, each prefixed "# ".
+void writeMeasurementsCsv(const std::string& path, const MeasurementSet& set, int dof,
+                          const std::vector<std::string>& comments = {});
+
+}  // namespace accura

@@ -1,0 +1,115 @@
+// accura: the robot definition (nominal data read from robots/*.xml) and the complete
+// kinematic model (nominal data plus identified deviations).
+//
+// Link transform of joint i (1-based), from frame i-1 to frame i:
+//   DH form:     A_i = Rz(theta_i) Tz(d_i) Tx(a_i) Rx(alpha_i)            (Paul 1981)
+//   Hayati form: A_i = Rz(theta_i) Tz(d_i) Tx(a_i) Rx(alpha_i) Ry(beta_i)  (beta nominal 0)
+//   revolute:  theta_i = theta0_i + direction_i * q_i + dtheta_i,  d_i = d0_i + dd_i
+//   prismatic: theta_i = theta0_i + dtheta_i,  d_i = d0_i + direction_i * q_i + dd_i
+// In the Hayati form the nominal d_i is kept as a constant and its error is not a parameter
+// (it is replaced by beta_i); at nominal both forms give exactly the same transform.
+// Tool pose in the world: T_world_tcp = T_world_base * A_1 ... A_n * T_flange_tcp.
+#pragma once
+
+#include <Eigen/Geometry>
+#include <string>
+#include <vector>
+
+#include "accura/calib/geometry.h"
+
+namespace accura {
+
+enum class JointType { kRevolute, kPrismatic };
+enum class LinkForm { kDH, kHayati };
+
+/// One joint and the link it moves, as in the robot file.
+struct JointSpec {
+  std::string name;
+  JointType type = JointType::kRevolute;
+  double a_mm = 0;
+  double alpha_deg = 0;
+  double d_mm = 0;
+  double theta0_deg = 0;
+  int direction = 1;          ///< +1 or -1: sign between q (controller) and theta / d
+  double lower = 0;           ///< joint limit on q: deg (revolute) or mm (prismatic)
+  double upper = 0;
+  double mass_kg = 0;         ///< mass of link i (moved by joint i)
+  Eigen::Vector3d com_mm = Eigen::Vector3d::Zero();  ///< centre of mass in DH frame i
+};
+
+/// Nominal robot, as read from a robot file.
+struct RobotDefinition {
+  std::string name;
+  std::string source;  ///< where the data comes from (free text)
+  std::vector<JointSpec> joints;
+  Eigen::Isometry3d T_world_base = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d T_flange_tcp = Eigen::Isometry3d::Identity();
+  Eigen::Vector3d payload_com_mm = Eigen::Vector3d::Zero();  ///< in the flange frame
+  /// Gravity in the robot base frame (m/s^2): the mounting (floor, wall, ceiling) is a
+  /// property of the installation, independent of where a tracker stands.
+  Eigen::Vector3d gravity_base = Eigen::Vector3d(0, 0, -9.80665);
+
+  int dof() const { return static_cast<int>(joints.size()); }
+};
+
+/// Angle between consecutive joint axes below which the Hayati form is used (deg).
+/// Link i (1 <= i < n) uses Hayati when the angle between z_{i-1} and z_i, i.e. alpha_i
+/// taken modulo 180 deg, is below this threshold. The last link always uses DH: its d is the
+/// flange distance, which is well defined.
+constexpr double kHayatiThresholdDeg = 2.0;
+
+/// Form selection for a whole robot.
+enum class FormPolicy {
+  kAuto,    ///< Hayati for (nearly) parallel consecutive axes, DH elsewhere (the default)
+  kDHOnly,  ///< classic DH everywhere (only to demonstrate its ill-conditioning)
+};
+
+/// The forms chosen for each link under a policy.
+std::vector<LinkForm> chooseLinkForms(const RobotDefinition& robot, FormPolicy policy);
+
+/// Deviations of one link from nominal (internal units: mm, rad).
+struct LinkDeviation {
+  double dtheta_rad = 0;  ///< joint zero offset (revolute) / rotation about z (prismatic)
+  double dd_mm = 0;       ///< DH d error (zero offset for prismatic joints)
+  double da_mm = 0;
+  double dalpha_rad = 0;
+  double dbeta_rad = 0;   ///< Hayati beta (only in the Hayati form)
+};
+
+/// Every deviation the complete model can carry. Zero everywhere = the nominal robot.
+/// Base and tool deviations are right-multiplied corrections:
+///   T_world_base = T_world_base_nominal * Trans(base_mm) * Exp(base_rot_rad)
+///   T_flange_tcp = T_flange_tcp_nominal * Trans(tool_mm) * Exp(tool_rot_rad)
+struct Deviations {
+  Eigen::Vector3d base_mm = Eigen::Vector3d::Zero();
+  Eigen::Vector3d base_rot_rad = Eigen::Vector3d::Zero();  ///< rotation vector
+  Eigen::Vector3d tool_mm = Eigen::Vector3d::Zero();
+  Eigen::Vector3d tool_rot_rad = Eigen::Vector3d::Zero();  ///< rotation vector
+  std::vector<LinkDeviation> links;                        ///< one per joint
+  /// Joint compliance c_i: dtheta_i = c_i * tau_i (rad per N*m; for a prismatic joint
+  /// dd_i = c_i * f_i, mm per N), tau_i the gravity torque about axis i (see gravityLoads).
+  std::vector<double> compliance;
+
+  /// Zero deviations sized for `dof` joints.
+  static Deviations zero(int dof);
+};
+
+/// The complete model: nominal definition, link forms, deviations. Immutable once built;
+/// per-thread scratch space lives in KinematicWorkspace (kinematics.h).
+struct RobotModel {
+  RobotDefinition nominal;
+  std::vector<LinkForm> forms;
+  Deviations deviations;
+
+  /// The nominal model of a robot (zero deviations) with forms chosen by `policy`.
+  static RobotModel fromDefinition(const RobotDefinition& robot,
+                                   FormPolicy policy = FormPolicy::kAuto);
+  int dof() const { return nominal.dof(); }
+  /// Calibrated T_world_base and T_flange_tcp (nominal with base/tool deviations applied).
+  Eigen::Isometry3d T_world_base() const;
+  Eigen::Isometry3d T_flange_tcp() const;
+  /// Throws ArgumentError when sizes disagree (forms, links, compliance vs dof).
+  void validate() const;
+};
+
+}  // namespace accura

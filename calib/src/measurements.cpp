@@ -1,0 +1,694 @@
+// accura: measurement CSV files (docs/measurement-format.md).
+#include "accura/calib/measurements.h"
+
+#include <algorithm>
+#include <cerrno>
+#include <charconv>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <limits>
+#include <string_view>
+#include <system_error>
+
+#include "accura/calib/errors.h"
+
+namespace accura {
+namespace {
+
+// ---------------------------------------------------------------------------------------
+// Small text helpers
+
+std::string_view trim(std::string_view s) {
+  const auto is_space = [](char c) { return c == ' ' || c == '\t'; };
+  while (!s.empty() && is_space(s.front())) s.remove_prefix(1);
+  while (!s.empty() && is_space(s.back())) s.remove_suffix(1);
+  return s;
+}
+
+std::string toLower(std::string_view s) {
+  std::string out(s);
+  for (char& c : out) {
+    if (c >= 'A' && c <= 'Z') c = static_cast<char>(c - 'A' + 'a');
+  }
+  return out;
+}
+
+std::vector<std::string_view> splitFields(std::string_view line) {
+  std::vector<std::string_view> fields;
+  std::size_t start = 0;
+  for (;;) {
+    const std::size_t comma = line.find(',', start);
+    if (comma == std::string_view::npos) {
+      fields.push_back(line.substr(start));
+      return fields;
+    }
+    fields.push_back(line.substr(start, comma - start));
+    start = comma + 1;
+  }
+}
+
+/// A field as shown in messages: 'text' (shortened when long) or "an empty field".
+std::string shown(std::string_view field) {
+  field = trim(field);
+  if (field.empty()) return "an empty field";
+  constexpr std::size_t kMax = 40;
+  if (field.size() > kMax) return "'" + std::string(field.substr(0, kMax)) + "...'";
+  return "'" + std::string(field) + "'";
+}
+
+/// Shortest text that reads back as the same double ("40", "-155", "0.1").
+std::string shortest(double v) {
+  char buf[64];
+  const auto res = std::to_chars(buf, buf + sizeof(buf), v);
+  if (res.ec != std::errc()) return std::to_string(v);
+  return std::string(buf, res.ptr);
+}
+
+/// Parses a whole field as a finite double (C locale; spaces around it allowed; a leading
+/// '+' allowed). On failure returns false and sets `why` to "expected ..., found ...".
+bool parseNumber(std::string_view field, double& value, std::string& why) {
+  std::string_view text = trim(field);
+  if (text.empty()) {
+    why = "expected a number, found an empty field";
+    return false;
+  }
+  std::string_view digits = text;
+  if (digits.size() > 1 && digits[0] == '+' && digits[1] != '+' && digits[1] != '-') {
+    digits.remove_prefix(1);
+  }
+  double v = 0;
+  const auto res = std::from_chars(digits.data(), digits.data() + digits.size(), v,
+                                   std::chars_format::general);
+  if (res.ec == std::errc::invalid_argument || res.ptr != digits.data() + digits.size()) {
+    why = "expected a number, found " + shown(text);
+    return false;
+  }
+  if (res.ec == std::errc::result_out_of_range) {
+    why = "expected a finite number within the range of a double, found " + shown(text);
+    return false;
+  }
+  if (res.ec != std::errc() || !std::isfinite(v)) {
+    why = "expected a finite number, found " + shown(text);
+    return false;
+  }
+  value = v;
+  return true;
+}
+
+/// "q1..q6" (or "q1" for a one-axis robot).
+std::string rangeName(const std::string& prefix, int n) {
+  if (n == 1) return prefix + "1";
+  return prefix + "1.." + prefix + std::to_string(n);
+}
+
+std::string joinNames(const std::vector<std::string>& names, bool quoted) {
+  std::string out;
+  for (std::size_t i = 0; i < names.size(); ++i) {
+    if (i > 0) out += ", ";
+    out += quoted ? "'" + names[i] + "'" : names[i];
+  }
+  return out;
+}
+
+// ---------------------------------------------------------------------------------------
+// Columns
+
+enum class Role {
+  kUnknown,
+  kQ, kX, kY, kZ,
+  kQw, kQx, kQy, kQz,
+  kA, kB, kC,
+  kStdX, kStdY, kStdZ, kStdMm,
+  kStdRx, kStdRy, kStdRz, kStdDeg,
+  kWeight, kPayload, kTemp, kDir, kTime,
+};
+
+struct Column {
+  Role role = Role::kUnknown;
+  int joint = -1;    ///< 0-based joint index for q and dir columns
+  std::string name;  ///< as written in the header (trimmed)
+};
+
+Role fixedRole(const std::string& key) {
+  static const std::pair<const char*, Role> kNames[] = {
+      {"x", Role::kX},           {"y", Role::kY},           {"z", Role::kZ},
+      {"qw", Role::kQw},         {"qx", Role::kQx},         {"qy", Role::kQy},
+      {"qz", Role::kQz},         {"a", Role::kA},           {"b", Role::kB},
+      {"c", Role::kC},           {"std_x", Role::kStdX},    {"std_y", Role::kStdY},
+      {"std_z", Role::kStdZ},    {"std_mm", Role::kStdMm},  {"std_rx", Role::kStdRx},
+      {"std_ry", Role::kStdRy},  {"std_rz", Role::kStdRz},  {"std_deg", Role::kStdDeg},
+      {"weight", Role::kWeight}, {"payload_kg", Role::kPayload},
+      {"temp_c", Role::kTemp},   {"time_s", Role::kTime},
+  };
+  for (const auto& [name, role] : kNames) {
+    if (key == name) return role;
+  }
+  return Role::kUnknown;
+}
+
+/// If `key` is PREFIX followed by digits only, returns true and the digits.
+bool indexedName(const std::string& key, const std::string& prefix, std::string& digits) {
+  if (key.size() <= prefix.size() || key.compare(0, prefix.size(), prefix) != 0) return false;
+  digits = key.substr(prefix.size());
+  return std::all_of(digits.begin(), digits.end(), [](char c) { return c >= '0' && c <= '9'; });
+}
+
+/// 1-based index of "q3" / "dir3", or 0 when the digits are not a joint of the robot
+/// ("q0", "q07", "q7" on a six-axis robot).
+int jointNumber(const std::string& digits, int dof) {
+  if (digits.empty() || digits[0] == '0' || digits.size() > 4) return 0;
+  const int k = std::stoi(digits);
+  return k <= dof ? k : 0;
+}
+
+struct Layout {
+  std::vector<Column> columns;
+  std::vector<int> q_col;    ///< field index (0-based) of q_i, -1 when missing
+  std::vector<int> dir_col;  ///< field index of dir_i, -1 when missing
+  int col[static_cast<int>(Role::kTime) + 1];  ///< field index per fixed role, -1 = absent
+
+  int at(Role r) const { return col[static_cast<int>(r)]; }
+  bool has(Role r) const { return at(r) >= 0; }
+};
+
+class Reader {
+ public:
+  Reader(const std::string& path, const RobotDefinition& robot)
+      : path_(path), robot_(robot), dof_(robot.dof()) {}
+
+  MeasurementSet read();
+
+ private:
+  [[noreturn]] void fail(int line, int column, const std::string& message) const {
+    throw InputError(path_, line, column, message);
+  }
+  std::string loadFile() const;
+  void parseHeader(std::string_view text, int line);
+  void checkGroups(int line) const;
+  void requireGroup(int line, const std::string& what, const std::vector<Role>& roles,
+                    const std::vector<std::string>& names) const;
+  Measurement parseRow(std::string_view text, int line) const;
+
+  const std::string& path_;
+  const RobotDefinition& robot_;
+  const int dof_;
+  Layout layout_{};
+  MeasurementSet set_;
+};
+
+std::string Reader::loadFile() const {
+  errno = 0;
+  std::FILE* f = std::fopen(path_.c_str(), "rb");
+  if (f == nullptr) {
+    fail(0, 0, "cannot open file: " + std::string(std::strerror(errno ? errno : ENOENT)));
+  }
+  std::string content;
+  char buf[65536];
+  for (;;) {
+    const std::size_t n = std::fread(buf, 1, sizeof(buf), f);
+    content.append(buf, n);
+    if (n < sizeof(buf)) break;
+  }
+  const bool bad = std::ferror(f) != 0;
+  const int err = errno;
+  std::fclose(f);
+  if (bad) fail(0, 0, "cannot open file: " + std::string(std::strerror(err ? err : EIO)));
+  return content;
+}
+
+void Reader::parseHeader(std::string_view text, int line) {
+  std::fill(std::begin(layout_.col), std::end(layout_.col), -1);
+  layout_.q_col.assign(static_cast<std::size_t>(dof_), -1);
+  layout_.dir_col.assign(static_cast<std::size_t>(dof_), -1);
+
+  const std::vector<std::string_view> fields = splitFields(text);
+  std::vector<std::string> keys;
+  for (std::size_t i = 0; i < fields.size(); ++i) {
+    const int column = static_cast<int>(i) + 1;
+    Column c;
+    c.name = std::string(trim(fields[i]));
+    if (c.name.empty()) fail(line, column, "expected a column name, found an empty field");
+    const std::string key = toLower(c.name);
+    const auto dup = std::find(keys.begin(), keys.end(), key);
+    if (dup != keys.end()) {
+      fail(line, column,
+           "column '" + c.name + "': expected each column name once, found a duplicate of column " +
+               std::to_string(dup - keys.begin() + 1));
+    }
+    keys.push_back(key);
+
+    std::string digits;
+    if (indexedName(key, "q", digits) || indexedName(key, "dir", digits)) {
+      const bool is_q = key[0] == 'q';
+      const int k = jointNumber(digits, dof_);
+      if (k == 0) {
+        fail(line, column,
+             "column '" + c.name + "': expected " + (is_q ? "joint" : "direction") +
+                 " columns " + rangeName(is_q ? "q" : "dir", dof_) + " for this " +
+                 std::to_string(dof_) + "-axis robot, found '" + c.name + "'");
+      }
+      c.role = is_q ? Role::kQ : Role::kDir;
+      c.joint = k - 1;
+      (is_q ? layout_.q_col : layout_.dir_col)[static_cast<std::size_t>(k - 1)] =
+          static_cast<int>(i);
+    } else {
+      c.role = fixedRole(key);
+      if (c.role == Role::kUnknown) {
+        set_.unknown_columns.push_back(c.name);
+      } else {
+        layout_.col[static_cast<int>(c.role)] = static_cast<int>(i);
+      }
+    }
+    layout_.columns.push_back(std::move(c));
+  }
+  checkGroups(line);
+}
+
+/// A group of columns that must appear together (all or none).
+void Reader::requireGroup(int line, const std::string& what, const std::vector<Role>& roles,
+                          const std::vector<std::string>& names) const {
+  std::vector<std::string> found, missing;
+  for (std::size_t i = 0; i < roles.size(); ++i) {
+    (layout_.has(roles[i]) ? found : missing).push_back(names[i]);
+  }
+  if (!found.empty() && !missing.empty()) {
+    fail(line, 0,
+         "incomplete " + what + " columns: expected " + joinNames(names, false) +
+             " together, found " + joinNames(found, false) + " (missing " +
+             joinNames(missing, true) + ")");
+  }
+}
+
+void Reader::checkGroups(int line) const {
+  const Layout& L = layout_;
+  // Required columns.
+  std::vector<std::string> missing;
+  for (int i = 0; i < dof_; ++i) {
+    if (L.q_col[static_cast<std::size_t>(i)] < 0) missing.push_back("q" + std::to_string(i + 1));
+  }
+  if (!L.has(Role::kX)) missing.push_back("x");
+  if (!L.has(Role::kY)) missing.push_back("y");
+  if (!L.has(Role::kZ)) missing.push_back("z");
+  if (!missing.empty()) {
+    std::string msg = std::string(missing.size() == 1 ? "missing column " : "missing columns ") +
+                      joinNames(missing, true) + " (expected " + rangeName("q", dof_) +
+                      ", x, y, z)";
+    if (L.columns.size() == 1 &&
+        L.columns[0].name.find_first_of(";\t") != std::string::npos) {
+      msg += "; the delimiter is ',', found a header with ';' or tabs";
+    }
+    fail(line, 0, msg);
+  }
+
+  // Orientation: qw,qx,qy,qz or a,b,c.
+  const bool any_quat = L.has(Role::kQw) || L.has(Role::kQx) || L.has(Role::kQy) ||
+                        L.has(Role::kQz);
+  const bool any_abc = L.has(Role::kA) || L.has(Role::kB) || L.has(Role::kC);
+  if (any_quat && any_abc) {
+    fail(line, 0, "expected orientation as either qw, qx, qy, qz or a, b, c, found both");
+  }
+  requireGroup(line, "orientation", {Role::kQw, Role::kQx, Role::kQy, Role::kQz},
+               {"qw", "qx", "qy", "qz"});
+  requireGroup(line, "orientation", {Role::kA, Role::kB, Role::kC}, {"a", "b", "c"});
+
+  // Standard deviations.
+  const bool any_std_xyz = L.has(Role::kStdX) || L.has(Role::kStdY) || L.has(Role::kStdZ);
+  if (any_std_xyz && L.has(Role::kStdMm)) {
+    fail(line, 0,
+         "expected position standard deviations as either std_x, std_y, std_z or std_mm, "
+         "found both");
+  }
+  requireGroup(line, "position standard deviation", {Role::kStdX, Role::kStdY, Role::kStdZ},
+               {"std_x", "std_y", "std_z"});
+  const bool any_std_r = L.has(Role::kStdRx) || L.has(Role::kStdRy) || L.has(Role::kStdRz);
+  if (any_std_r && L.has(Role::kStdDeg)) {
+    fail(line, 0,
+         "expected orientation standard deviations as either std_rx, std_ry, std_rz or "
+         "std_deg, found both");
+  }
+  requireGroup(line, "orientation standard deviation",
+               {Role::kStdRx, Role::kStdRy, Role::kStdRz}, {"std_rx", "std_ry", "std_rz"});
+  if ((any_std_r || L.has(Role::kStdDeg)) && !any_quat && !any_abc) {
+    int first = -1;
+    for (Role r : {Role::kStdRx, Role::kStdRy, Role::kStdRz, Role::kStdDeg}) {
+      if (L.has(r) && (first < 0 || L.at(r) < first)) first = L.at(r);
+    }
+    const std::string& name = L.columns[static_cast<std::size_t>(first)].name;
+    fail(line, first + 1,
+         "column '" + name +
+             "': expected orientation columns (qw, qx, qy, qz or a, b, c) with an orientation "
+             "standard deviation, found none");
+  }
+
+  // Directions: all or none.
+  std::vector<std::string> dir_found, dir_missing;
+  for (int i = 0; i < dof_; ++i) {
+    const std::string name = "dir" + std::to_string(i + 1);
+    (L.dir_col[static_cast<std::size_t>(i)] >= 0 ? dir_found : dir_missing).push_back(name);
+  }
+  if (!dir_found.empty() && !dir_missing.empty()) {
+    fail(line, 0,
+         "incomplete direction columns: expected " + rangeName("dir", dof_) +
+             " together, found " + joinNames(dir_found, false) + " (missing " +
+             joinNames(dir_missing, true) + ")");
+  }
+}
+
+Measurement Reader::parseRow(std::string_view text, int line) const {
+  const Layout& L = layout_;
+  const std::vector<std::string_view> fields = splitFields(text);
+  if (fields.size() != L.columns.size()) {
+    fail(line, 0,
+         "expected " + std::to_string(L.columns.size()) + " fields as in the header, found " +
+             std::to_string(fields.size()));
+  }
+
+  Measurement m;
+  m.line = line;
+  m.q = Eigen::VectorXd::Zero(dof_);
+  if (set_.has_direction) m.dir.assign(static_cast<std::size_t>(dof_), 1);
+  double value[static_cast<int>(Role::kTime) + 1] = {};
+
+  for (std::size_t i = 0; i < fields.size(); ++i) {
+    const Column& c = L.columns[i];
+    if (c.role == Role::kUnknown) continue;
+    const int column = static_cast<int>(i) + 1;
+    const std::string where = "column '" + c.name + "': ";
+    double v = 0;
+    std::string why;
+    if (!parseNumber(fields[i], v, why)) fail(line, column, where + why);
+
+    switch (c.role) {
+      case Role::kQ: {
+        const JointSpec& joint = robot_.joints[static_cast<std::size_t>(c.joint)];
+        if (v < joint.lower || v > joint.upper) {
+          const char* unit = joint.type == JointType::kRevolute ? " deg" : " mm";
+          fail(line, column,
+               where + "joint value " + shortest(v) + unit + " is outside the joint limits [" +
+                   shortest(joint.lower) + ", " + shortest(joint.upper) + "]" + unit);
+        }
+        m.q[c.joint] = v;
+        break;
+      }
+      case Role::kDir:
+        if (v != 1.0 && v != -1.0) {
+          fail(line, column, where + "expected +1 or -1, found " + shown(fields[i]));
+        }
+        m.dir[static_cast<std::size_t>(c.joint)] = v > 0 ? 1 : -1;
+        break;
+      case Role::kStdX: case Role::kStdY: case Role::kStdZ: case Role::kStdMm:
+      case Role::kStdRx: case Role::kStdRy: case Role::kStdRz: case Role::kStdDeg:
+        if (!(v > 0)) {
+          fail(line, column, where + "expected a standard deviation > 0, found " +
+                                 shown(fields[i]));
+        }
+        break;
+      case Role::kWeight:
+        if (!(v > 0)) fail(line, column, where + "expected a weight > 0, found " + shown(fields[i]));
+        break;
+      case Role::kPayload:
+        if (!(v >= 0)) {
+          fail(line, column, where + "expected a payload mass >= 0 kg, found " +
+                                 shown(fields[i]));
+        }
+        break;
+      default:
+        break;
+    }
+    if (c.role != Role::kQ && c.role != Role::kDir) value[static_cast<int>(c.role)] = v;
+  }
+
+  const auto val = [&value](Role r) { return value[static_cast<int>(r)]; };
+  m.p_world_mm = Eigen::Vector3d(val(Role::kX), val(Role::kY), val(Role::kZ));
+
+  if (L.has(Role::kQw)) {
+    const Eigen::Quaterniond q(val(Role::kQw), val(Role::kQx), val(Role::kQy), val(Role::kQz));
+    const double norm = q.norm();
+    if (!(std::abs(norm - 1.0) <= 1e-3)) {
+      fail(line, L.at(Role::kQw) + 1,
+           "columns 'qw', 'qx', 'qy', 'qz': expected a unit quaternion (norm 1 within 1e-3), "
+           "found norm " + shortest(norm));
+    }
+    m.has_orientation = true;
+    m.R_world_tcp = q.normalized();
+  } else if (L.has(Role::kA)) {
+    constexpr double kDeg = 3.14159265358979323846 / 180.0;
+    const Eigen::Matrix3d R =
+        (Eigen::AngleAxisd(val(Role::kA) * kDeg, Eigen::Vector3d::UnitZ()) *
+         Eigen::AngleAxisd(val(Role::kB) * kDeg, Eigen::Vector3d::UnitY()) *
+         Eigen::AngleAxisd(val(Role::kC) * kDeg, Eigen::Vector3d::UnitX()))
+            .toRotationMatrix();
+    m.has_orientation = true;
+    m.R_world_tcp = Eigen::Quaterniond(R).normalized();
+  }
+
+  if (L.has(Role::kStdX)) {
+    m.std_mm = Eigen::Vector3d(val(Role::kStdX), val(Role::kStdY), val(Role::kStdZ));
+  } else if (L.has(Role::kStdMm)) {
+    m.std_mm = Eigen::Vector3d::Constant(val(Role::kStdMm));
+  }
+  if (L.has(Role::kStdRx)) {
+    m.std_rot_deg = Eigen::Vector3d(val(Role::kStdRx), val(Role::kStdRy), val(Role::kStdRz));
+  } else if (L.has(Role::kStdDeg)) {
+    m.std_rot_deg = Eigen::Vector3d::Constant(val(Role::kStdDeg));
+  }
+  if (L.has(Role::kWeight)) m.weight = val(Role::kWeight);
+  if (L.has(Role::kPayload)) m.context.payload_kg = val(Role::kPayload);
+  if (L.has(Role::kTemp)) m.temp_c = val(Role::kTemp);
+  if (L.has(Role::kTime)) m.time_s = val(Role::kTime);
+  return m;
+}
+
+MeasurementSet Reader::read() {
+  if (dof_ < 1) throw ArgumentError("readMeasurementsCsv: the robot has no joints");
+  set_.file = path_;
+  const std::string content = loadFile();
+
+  bool have_header = false;
+  bool saw_anything = false;
+  int line = 0;
+  std::size_t pos = 0;
+  while (pos < content.size()) {
+    std::size_t end = content.find('\n', pos);
+    if (end == std::string::npos) end = content.size();
+    std::string_view text(content.data() + pos, end - pos);
+    pos = end + 1;
+    ++line;
+    if (!text.empty() && text.back() == '\r') text.remove_suffix(1);
+    if (line == 1 && text.substr(0, 3) == "\xEF\xBB\xBF") text.remove_prefix(3);  // UTF-8 BOM
+    const std::string_view trimmed = trim(text);
+    if (trimmed.empty()) continue;
+    saw_anything = true;
+    if (trimmed.front() == '#') continue;
+
+    if (!have_header) {
+      parseHeader(text, line);
+      have_header = true;
+      set_.has_orientation = layout_.has(Role::kQw) || layout_.has(Role::kA);
+      set_.has_std_position = layout_.has(Role::kStdX) || layout_.has(Role::kStdMm);
+      set_.has_std_orientation = layout_.has(Role::kStdRx) || layout_.has(Role::kStdDeg);
+      set_.has_weight = layout_.has(Role::kWeight);
+      set_.has_payload = layout_.has(Role::kPayload);
+      set_.has_temperature = layout_.has(Role::kTemp);
+      set_.has_direction = layout_.dir_col[0] >= 0;
+      set_.has_time = layout_.has(Role::kTime);
+      continue;
+    }
+    set_.rows.push_back(parseRow(text, line));
+  }
+
+  if (!have_header) {
+    fail(0, 0,
+         "expected a header row (" + rangeName("q", dof_) + ", x, y, z), found " +
+             (saw_anything ? "only comments and blank lines" : "an empty file"));
+  }
+  if (set_.rows.empty()) fail(0, 0, "expected at least one data row, found none");
+  return std::move(set_);
+}
+
+// ---------------------------------------------------------------------------------------
+// Writing
+
+void appendFixed(std::string& out, double v, int decimals) {
+  char buf[512];  // "%.9f" of the largest double is about 320 characters
+  std::snprintf(buf, sizeof(buf), "%.*f", decimals, v);
+  const char* text = buf;
+  // Print -0.000000 as 0.000000 so that output does not depend on the sign of a tiny value.
+  if (buf[0] == '-' && std::strspn(buf + 1, "0.") == std::strlen(buf + 1)) text = buf + 1;
+  out += text;
+}
+
+void requireFinite(double v, std::size_t row, const char* what) {
+  if (!std::isfinite(v)) {
+    throw ArgumentError("writeMeasurementsCsv: row " + std::to_string(row + 1) + ": " + what +
+                        " is not finite");
+  }
+}
+
+/// Values that must read back as > 0 must also print as > 0 with 6 decimals.
+void requirePositive(double v, std::size_t row, const char* what) {
+  requireFinite(v, row, what);
+  if (!(v >= 0.5e-6)) {
+    throw ArgumentError("writeMeasurementsCsv: row " + std::to_string(row + 1) + ": " + what +
+                        " must be at least 0.000001 to be written, got " + std::to_string(v));
+  }
+}
+
+void writeFileAtomically(const std::string& path, const std::string& content) {
+  const std::string tmp = path + ".tmp";
+  errno = 0;
+  std::FILE* f = std::fopen(tmp.c_str(), "wb");
+  if (f == nullptr) {
+    throw InputError(path, 0, 0,
+                     "cannot write file: " + tmp + ": " + std::strerror(errno ? errno : EIO));
+  }
+  bool ok = std::fwrite(content.data(), 1, content.size(), f) == content.size();
+  ok = std::fflush(f) == 0 && ok;
+  int err = errno;
+  ok = std::fclose(f) == 0 && ok;
+  if (!ok) {
+    if (err == 0) err = errno ? errno : EIO;
+    std::remove(tmp.c_str());
+    throw InputError(path, 0, 0, "cannot write file: " + tmp + ": " + std::strerror(err));
+  }
+  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+    err = errno ? errno : EIO;
+    std::remove(tmp.c_str());
+    throw InputError(path, 0, 0,
+                     "cannot write file: renaming " + tmp + ": " + std::strerror(err));
+  }
+}
+
+}  // namespace
+
+MeasurementSet readMeasurementsCsv(const std::string& path, const RobotDefinition& robot) {
+  return Reader(path, robot).read();
+}
+
+void writeMeasurementsCsv(const std::string& path, const MeasurementSet& set, int dof,
+                          const std::vector<std::string>& comments) {
+  if (dof < 1) throw ArgumentError("writeMeasurementsCsv: expected dof >= 1, got " +
+                                   std::to_string(dof));
+  if (set.rows.empty()) {
+    throw ArgumentError("writeMeasurementsCsv: expected at least one measurement, got none");
+  }
+  const auto n = static_cast<std::size_t>(dof);
+
+  // Check everything before writing anything: the file must read back.
+  for (std::size_t r = 0; r < set.rows.size(); ++r) {
+    const Measurement& m = set.rows[r];
+    if (m.q.size() != dof) {
+      throw ArgumentError("writeMeasurementsCsv: row " + std::to_string(r + 1) + ": expected " +
+                          std::to_string(dof) + " joint values, got " +
+                          std::to_string(m.q.size()));
+    }
+    for (int i = 0; i < dof; ++i) requireFinite(m.q[i], r, "a joint value");
+    for (int i = 0; i < 3; ++i) requireFinite(m.p_world_mm[i], r, "the position");
+    if (set.has_orientation) {
+      for (int i = 0; i < 4; ++i) requireFinite(m.R_world_tcp.coeffs()[i], r, "the quaternion");
+      if (!(m.R_world_tcp.norm() > 0.5)) {
+        throw ArgumentError("writeMeasurementsCsv: row " + std::to_string(r + 1) +
+                            ": expected a unit quaternion, got norm " +
+                            std::to_string(m.R_world_tcp.norm()));
+      }
+    }
+    if (set.has_std_position) {
+      for (int i = 0; i < 3; ++i) requirePositive(m.std_mm[i], r, "std_mm");
+    }
+    if (set.has_std_orientation) {
+      for (int i = 0; i < 3; ++i) requirePositive(m.std_rot_deg[i], r, "std_rot_deg");
+    }
+    if (set.has_weight) requirePositive(m.weight, r, "the weight");
+    if (set.has_payload) {
+      requireFinite(m.context.payload_kg, r, "payload_kg");
+      if (m.context.payload_kg < -0.5e-6) {
+        throw ArgumentError("writeMeasurementsCsv: row " + std::to_string(r + 1) +
+                            ": expected payload_kg >= 0, got " +
+                            std::to_string(m.context.payload_kg));
+      }
+    }
+    if (set.has_temperature) requireFinite(m.temp_c, r, "temp_c");
+    if (set.has_time) requireFinite(m.time_s, r, "time_s");
+    if (set.has_direction) {
+      if (m.dir.size() != n) {
+        throw ArgumentError("writeMeasurementsCsv: row " + std::to_string(r + 1) +
+                            ": expected " + std::to_string(dof) + " directions, got " +
+                            std::to_string(m.dir.size()));
+      }
+      for (int d : m.dir) {
+        if (d != 1 && d != -1) {
+          throw ArgumentError("writeMeasurementsCsv: row " + std::to_string(r + 1) +
+                              ": expected directions +1 or -1, got " + std::to_string(d));
+        }
+      }
+    }
+  }
+
+  std::string out;
+  for (const std::string& comment : comments) {
+    std::size_t start = 0;
+    for (;;) {  // one "# " line per line of the comment
+      const std::size_t nl = comment.find('\n', start);
+      std::string piece = comment.substr(start, nl == std::string::npos ? nl : nl - start);
+      if (!piece.empty() && piece.back() == '\r') piece.pop_back();
+      out += piece.empty() ? "#" : "# " + piece;
+      out += '\n';
+      if (nl == std::string::npos) break;
+      start = nl + 1;
+    }
+  }
+
+  std::vector<std::string> header;
+  for (int i = 1; i <= dof; ++i) header.push_back("q" + std::to_string(i));
+  for (const char* s : {"x", "y", "z"}) header.emplace_back(s);
+  if (set.has_orientation) for (const char* s : {"qw", "qx", "qy", "qz"}) header.emplace_back(s);
+  if (set.has_std_position) for (const char* s : {"std_x", "std_y", "std_z"}) header.emplace_back(s);
+  if (set.has_std_orientation) {
+    for (const char* s : {"std_rx", "std_ry", "std_rz"}) header.emplace_back(s);
+  }
+  if (set.has_weight) header.emplace_back("weight");
+  if (set.has_payload) header.emplace_back("payload_kg");
+  if (set.has_temperature) header.emplace_back("temp_c");
+  if (set.has_direction) {
+    for (int i = 1; i <= dof; ++i) header.push_back("dir" + std::to_string(i));
+  }
+  if (set.has_time) header.emplace_back("time_s");
+  for (std::size_t i = 0; i < header.size(); ++i) {
+    if (i > 0) out += ',';
+    out += header[i];
+  }
+  out += '\n';
+
+  for (const Measurement& m : set.rows) {
+    bool first = true;
+    const auto field = [&out, &first](double v, int decimals) {
+      if (!first) out += ',';
+      first = false;
+      appendFixed(out, v, decimals);
+    };
+    for (int i = 0; i < dof; ++i) field(m.q[i], 6);
+    for (int i = 0; i < 3; ++i) field(m.p_world_mm[i], 6);
+    if (set.has_orientation) {
+      const Eigen::Quaterniond q = m.R_world_tcp.normalized();
+      field(q.w(), 9);
+      field(q.x(), 9);
+      field(q.y(), 9);
+      field(q.z(), 9);
+    }
+    if (set.has_std_position) for (int i = 0; i < 3; ++i) field(m.std_mm[i], 6);
+    if (set.has_std_orientation) for (int i = 0; i < 3; ++i) field(m.std_rot_deg[i], 6);
+    if (set.has_weight) field(m.weight, 6);
+    if (set.has_payload) field(m.context.payload_kg, 6);
+    if (set.has_temperature) field(m.temp_c, 6);
+    if (set.has_direction) {
+      for (int d : m.dir) out += d > 0 ? ",1" : ",-1";
+    }
+    if (set.has_time) field(m.time_s, 6);
+    out += '\n';
+  }
+
+  writeFileAtomically(path, out);
+}
+
+}  // namespace accura

@@ -1,0 +1,67 @@
+#include "accura/calib/robot.h"
+
+#include <cmath>
+
+#include "accura/calib/errors.h"
+
+namespace accura {
+
+std::vector<LinkForm> chooseLinkForms(const RobotDefinition& robot, FormPolicy policy) {
+  const int n = robot.dof();
+  std::vector<LinkForm> forms(n, LinkForm::kDH);
+  if (policy == FormPolicy::kDHOnly) return forms;
+  const double threshold = std::sin(kHayatiThresholdDeg * kDegToRad);
+  for (int i = 0; i + 1 < n; ++i) {
+    // angle between z_{i-1} and z_i is alpha_i (mod 180 deg)
+    if (std::abs(std::sin(robot.joints[i].alpha_deg * kDegToRad)) < threshold) {
+      forms[i] = LinkForm::kHayati;
+    }
+  }
+  return forms;
+}
+
+Deviations Deviations::zero(int dof) {
+  Deviations d;
+  d.links.assign(dof, LinkDeviation{});
+  d.compliance.assign(dof, 0.0);
+  return d;
+}
+
+RobotModel RobotModel::fromDefinition(const RobotDefinition& robot, FormPolicy policy) {
+  RobotModel m;
+  m.nominal = robot;
+  m.forms = chooseLinkForms(robot, policy);
+  m.deviations = Deviations::zero(robot.dof());
+  return m;
+}
+
+Eigen::Isometry3d RobotModel::T_world_base() const {
+  Eigen::Isometry3d T = nominal.T_world_base;
+  T.translate(deviations.base_mm);
+  T.rotate(expSO3(deviations.base_rot_rad));
+  return T;
+}
+
+Eigen::Isometry3d RobotModel::T_flange_tcp() const {
+  Eigen::Isometry3d T = nominal.T_flange_tcp;
+  T.translate(deviations.tool_mm);
+  T.rotate(expSO3(deviations.tool_rot_rad));
+  return T;
+}
+
+void RobotModel::validate() const {
+  const size_t n = nominal.joints.size();
+  if (n == 0) throw ArgumentError("robot model has no joints");
+  if (forms.size() != n)
+    throw ArgumentError("robot model: expected " + std::to_string(n) + " link forms, got " +
+                        std::to_string(forms.size()));
+  if (deviations.links.size() != n)
+    throw ArgumentError("robot model: expected " + std::to_string(n) +
+                        " link deviations, got " + std::to_string(deviations.links.size()));
+  if (deviations.compliance.size() != n)
+    throw ArgumentError("robot model: expected " + std::to_string(n) +
+                        " compliance values, got " +
+                        std::to_string(deviations.compliance.size()));
+}
+
+}  // namespace accura

@@ -1,0 +1,325 @@
+#include "accura/calib/robot_io.h"
+
+#include <tinyxml2.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <set>
+#include <sstream>
+
+#include "accura/calib/errors.h"
+#include "accura/calib/kinematics.h"
+
+namespace fs = std::filesystem;
+
+namespace accura {
+namespace {
+
+using tinyxml2::XMLElement;
+
+class Reader {
+ public:
+  explicit Reader(std::string file) : file_(std::move(file)) {}
+
+  [[noreturn]] void fail(const XMLElement* e, const std::string& msg) const {
+    throw InputError(file_, e ? e->GetLineNum() : 0, 0, msg);
+  }
+
+  // Checks that `e` has only the attributes in `allowed`.
+  void checkAttributes(const XMLElement* e, const std::set<std::string>& allowed) const {
+    for (const tinyxml2::XMLAttribute* a = e->FirstAttribute(); a; a = a->Next()) {
+      if (!allowed.count(a->Name())) {
+        std::string list;
+        for (const auto& s : allowed) list += (list.empty() ? "" : ", ") + s;
+        fail(e, "<" + std::string(e->Name()) + ">: unknown attribute '" + a->Name() +
+                    "' (expected one of: " + list + ")");
+      }
+    }
+  }
+
+  std::string text(const XMLElement* e, const char* name, bool required = true) const {
+    const char* v = e->Attribute(name);
+    if (!v) {
+      if (required) fail(e, "<" + std::string(e->Name()) + ">: missing attribute '" + name + "'");
+      return {};
+    }
+    return v;
+  }
+
+  double number(const XMLElement* e, const char* name) const {
+    const std::string s = text(e, name);
+    char* end = nullptr;
+    const double v = std::strtod(s.c_str(), &end);
+    while (end && (*end == ' ' || *end == '\t')) ++end;
+    if (s.empty() || end == s.c_str() || *end != '\0' || !std::isfinite(v)) {
+      fail(e, "<" + std::string(e->Name()) + "> attribute '" + name +
+                  "': expected a finite number, found '" + s + "'");
+    }
+    return v;
+  }
+
+  Eigen::Isometry3d pose(const XMLElement* e) const {
+    checkAttributes(e, {"x_mm", "y_mm", "z_mm", "a_deg", "b_deg", "c_deg"});
+    XyzAbc p;
+    p.x_mm = number(e, "x_mm");
+    p.y_mm = number(e, "y_mm");
+    p.z_mm = number(e, "z_mm");
+    p.a_deg = number(e, "a_deg");
+    p.b_deg = number(e, "b_deg");
+    p.c_deg = number(e, "c_deg");
+    return toIsometry(p);
+  }
+
+  const XMLElement* child(const XMLElement* parent, const char* name, bool required) const {
+    const XMLElement* c = parent->FirstChildElement(name);
+    if (!c && required) fail(parent, "<" + std::string(parent->Name()) + ">: missing <" + name + "> element");
+    if (c && c->NextSiblingElement(name))
+      fail(c->NextSiblingElement(name), "<" + std::string(name) + "> given twice");
+    return c;
+  }
+
+  const std::string& file() const { return file_; }
+
+ private:
+  std::string file_;
+};
+
+std::string fmt(double v) {
+  if (v == 0.0) return "0";  // also folds -0
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.12g", v);
+  return buf;
+}
+
+void writePose(std::ostream& out, const char* tag, const Eigen::Isometry3d& T,
+               const std::string& indent) {
+  const XyzAbc p = toXyzAbc(T);
+  out << indent << "<" << tag << " x_mm=\"" << fmt(p.x_mm) << "\" y_mm=\"" << fmt(p.y_mm)
+      << "\" z_mm=\"" << fmt(p.z_mm) << "\" a_deg=\"" << fmt(p.a_deg) << "\" b_deg=\""
+      << fmt(p.b_deg) << "\" c_deg=\"" << fmt(p.c_deg) << "\"/>\n";
+}
+
+std::string xmlEscape(const std::string& s) {
+  std::string o;
+  for (char c : s) {
+    switch (c) {
+      case '&': o += "&amp;"; break;
+      case '<': o += "&lt;"; break;
+      case '>': o += "&gt;"; break;
+      case '"': o += "&quot;"; break;
+      default: o += c;
+    }
+  }
+  return o;
+}
+
+std::string robotsDir() {
+  if (const char* env = std::getenv("ACCURA_ROBOTS_DIR")) return env;
+  return ACCURA_ROBOTS_DIR;
+}
+
+}  // namespace
+
+RobotModel readRobotFile(const std::string& path) {
+  std::ifstream probe(path);
+  if (!probe) throw InputError(path, 0, 0, "cannot open robot file");
+  tinyxml2::XMLDocument doc;
+  const tinyxml2::XMLError err = doc.LoadFile(path.c_str());
+  Reader R(path);
+  if (err != tinyxml2::XML_SUCCESS) {
+    throw InputError(path, doc.ErrorLineNum(), 0,
+                     std::string("malformed XML: ") + (doc.ErrorStr() ? doc.ErrorStr() : ""));
+  }
+  const XMLElement* root = doc.RootElement();
+  if (!root || std::string(root->Name()) != "robot")
+    R.fail(root, "expected root element <robot>, found <" +
+                     std::string(root ? root->Name() : "nothing") + ">");
+  R.checkAttributes(root, {"name", "source"});
+  for (const XMLElement* c = root->FirstChildElement(); c; c = c->NextSiblingElement()) {
+    static const std::set<std::string> known = {"base", "tool", "payload", "gravity", "joints",
+                                                "calibration"};
+    if (!known.count(c->Name()))
+      R.fail(c, "unknown element <" + std::string(c->Name()) +
+                    "> in <robot> (expected base, tool, payload, gravity, joints, calibration)");
+  }
+  RobotDefinition def;
+  def.name = R.text(root, "name");
+  def.source = R.text(root, "source", false);
+  def.T_world_base = R.pose(R.child(root, "base", true));
+  def.T_flange_tcp = R.pose(R.child(root, "tool", true));
+  const XMLElement* payload = R.child(root, "payload", true);
+  R.checkAttributes(payload, {"com_x_mm", "com_y_mm", "com_z_mm"});
+  def.payload_com_mm = Eigen::Vector3d(R.number(payload, "com_x_mm"), R.number(payload, "com_y_mm"),
+                                       R.number(payload, "com_z_mm"));
+  if (const XMLElement* g = R.child(root, "gravity", false)) {
+    R.checkAttributes(g, {"x", "y", "z"});
+    def.gravity_base = Eigen::Vector3d(R.number(g, "x"), R.number(g, "y"), R.number(g, "z"));
+  }
+  const XMLElement* joints = R.child(root, "joints", true);
+  for (const XMLElement* j = joints->FirstChildElement(); j; j = j->NextSiblingElement()) {
+    if (std::string(j->Name()) != "joint")
+      R.fail(j, "expected <joint> in <joints>, found <" + std::string(j->Name()) + ">");
+    R.checkAttributes(j, {"name", "type", "a_mm", "alpha_deg", "d_mm", "theta0_deg", "direction",
+                          "lower", "upper", "mass_kg", "com_x_mm", "com_y_mm", "com_z_mm"});
+    JointSpec s;
+    s.name = R.text(j, "name");
+    const std::string type = R.text(j, "type");
+    if (type == "revolute") s.type = JointType::kRevolute;
+    else if (type == "prismatic") s.type = JointType::kPrismatic;
+    else R.fail(j, "<joint> attribute 'type': expected 'revolute' or 'prismatic', found '" + type + "'");
+    s.a_mm = R.number(j, "a_mm");
+    s.alpha_deg = R.number(j, "alpha_deg");
+    s.d_mm = R.number(j, "d_mm");
+    s.theta0_deg = R.number(j, "theta0_deg");
+    const double dir = R.number(j, "direction");
+    if (dir != 1.0 && dir != -1.0)
+      R.fail(j, "<joint> attribute 'direction': expected 1 or -1, found '" + R.text(j, "direction") + "'");
+    s.direction = static_cast<int>(dir);
+    s.lower = R.number(j, "lower");
+    s.upper = R.number(j, "upper");
+    if (!(s.lower < s.upper))
+      R.fail(j, "<joint> '" + s.name + "': expected lower < upper, found lower " + fmt(s.lower) +
+                    ", upper " + fmt(s.upper));
+    s.mass_kg = R.number(j, "mass_kg");
+    if (s.mass_kg < 0) R.fail(j, "<joint> attribute 'mass_kg': expected >= 0, found " + fmt(s.mass_kg));
+    s.com_mm = Eigen::Vector3d(R.number(j, "com_x_mm"), R.number(j, "com_y_mm"), R.number(j, "com_z_mm"));
+    def.joints.push_back(s);
+  }
+  if (def.joints.empty()) R.fail(joints, "<joints>: expected at least one <joint>, found none");
+
+  FormPolicy policy = FormPolicy::kAuto;
+  const XMLElement* cal = R.child(root, "calibration", false);
+  if (cal) {
+    R.checkAttributes(cal, {"form", "data"});
+    const std::string form = R.text(cal, "form");
+    if (form == "dh") policy = FormPolicy::kDHOnly;
+    else if (form != "auto") R.fail(cal, "<calibration> attribute 'form': expected 'auto' or 'dh', found '" + form + "'");
+  }
+  RobotModel model = RobotModel::fromDefinition(def, policy);
+  if (cal) {
+    const std::vector<ParamInfo> layout = parameterLayout(model);
+    std::set<std::string> seen;
+    for (const XMLElement* p = cal->FirstChildElement(); p; p = p->NextSiblingElement()) {
+      if (std::string(p->Name()) != "parameter")
+        R.fail(p, "expected <parameter> in <calibration>, found <" + std::string(p->Name()) + ">");
+      R.checkAttributes(p, {"name", "value", "sigma", "unit"});
+      const std::string name = R.text(p, "name");
+      auto it = std::find_if(layout.begin(), layout.end(),
+                             [&](const ParamInfo& info) { return info.name == name; });
+      if (it == layout.end())
+        R.fail(p, "<parameter>: unknown parameter name '" + name + "' for this robot and form '" +
+                      (policy == FormPolicy::kDHOnly ? "dh" : "auto") + "'");
+      if (!seen.insert(name).second) R.fail(p, "<parameter> '" + name + "' given twice");
+      const std::string unit = R.text(p, "unit");
+      if (unit != it->unit)
+        R.fail(p, "<parameter> '" + name + "': expected unit '" + it->unit + "', found '" + unit + "'");
+      setParameter(model.deviations, *it, R.number(p, "value") / it->display_scale);
+      if (p->Attribute("sigma")) {
+        const std::string s = R.text(p, "sigma");
+        if (s != "nan") R.number(p, "sigma");  // validated, informative only
+      }
+    }
+  }
+  return model;
+}
+
+void writeRobotFile(const std::string& path, const RobotModel& model,
+                    const std::vector<ParameterRecord>& records, const std::string& comment) {
+  model.validate();
+  std::ostringstream out;
+  out << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n";
+  if (!comment.empty()) {
+    std::string c = comment;
+    for (size_t pos; (pos = c.find("--")) != std::string::npos;) c.replace(pos, 2, "- -");
+    out << "<!--\n" << c << "\n-->\n";
+  }
+  const RobotDefinition& d = model.nominal;
+  out << "<robot name=\"" << xmlEscape(d.name) << "\"";
+  if (!d.source.empty()) out << " source=\"" << xmlEscape(d.source) << "\"";
+  out << ">\n";
+  writePose(out, "base", d.T_world_base, "  ");
+  writePose(out, "tool", d.T_flange_tcp, "  ");
+  out << "  <payload com_x_mm=\"" << fmt(d.payload_com_mm.x()) << "\" com_y_mm=\""
+      << fmt(d.payload_com_mm.y()) << "\" com_z_mm=\"" << fmt(d.payload_com_mm.z()) << "\"/>\n";
+  out << "  <gravity x=\"" << fmt(d.gravity_base.x()) << "\" y=\"" << fmt(d.gravity_base.y())
+      << "\" z=\"" << fmt(d.gravity_base.z()) << "\"/>\n";
+  out << "  <joints>\n";
+  for (const JointSpec& j : d.joints) {
+    out << "    <joint name=\"" << xmlEscape(j.name) << "\" type=\""
+        << (j.type == JointType::kRevolute ? "revolute" : "prismatic") << "\" a_mm=\""
+        << fmt(j.a_mm) << "\" alpha_deg=\"" << fmt(j.alpha_deg) << "\" d_mm=\"" << fmt(j.d_mm)
+        << "\" theta0_deg=\"" << fmt(j.theta0_deg) << "\" direction=\"" << j.direction
+        << "\"\n           lower=\"" << fmt(j.lower) << "\" upper=\"" << fmt(j.upper)
+        << "\" mass_kg=\"" << fmt(j.mass_kg) << "\" com_x_mm=\"" << fmt(j.com_mm.x())
+        << "\" com_y_mm=\"" << fmt(j.com_mm.y()) << "\" com_z_mm=\"" << fmt(j.com_mm.z())
+        << "\"/>\n";
+  }
+  out << "  </joints>\n";
+  const bool dh = model.forms != chooseLinkForms(d, FormPolicy::kAuto);
+  const std::vector<ParamInfo> layout = parameterLayout(model);
+  std::map<std::string, const ParameterRecord*> by_name;
+  for (const auto& r : records) by_name[r.name] = &r;
+  std::ostringstream params;
+  for (const ParamInfo& p : layout) {
+    const double v = getParameter(model.deviations, p) * p.display_scale;
+    auto it = by_name.find(p.name);
+    if (v == 0.0 && it == by_name.end()) continue;
+    params << "    <parameter name=\"" << p.name << "\" value=\"" << fmt(v) << "\"";
+    if (it != by_name.end()) {
+      params << " sigma=\"" << (std::isfinite(it->second->sigma) ? fmt(it->second->sigma) : "nan") << "\"";
+    }
+    params << " unit=\"" << p.unit << "\"/>\n";
+  }
+  if (!params.str().empty() || dh) {
+    out << "  <calibration form=\"" << (dh ? "dh" : "auto") << "\">\n" << params.str()
+        << "  </calibration>\n";
+  }
+  out << "</robot>\n";
+
+  const std::string tmp = path + ".tmp";
+  {
+    std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
+    if (!f) throw InputError(tmp, 0, 0, "cannot write file");
+    f << out.str();
+    f.flush();
+    if (!f) {
+      std::remove(tmp.c_str());
+      throw InputError(tmp, 0, 0, "write failed");
+    }
+  }
+  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+    std::remove(tmp.c_str());
+    throw InputError(path, 0, 0, "cannot rename temporary file into place");
+  }
+}
+
+std::vector<std::string> bundledRobotNames() {
+  std::vector<std::string> names;
+  std::error_code ec;
+  for (const auto& e : fs::directory_iterator(robotsDir(), ec)) {
+    if (e.path().extension() == ".xml") names.push_back(e.path().stem().string());
+  }
+  std::sort(names.begin(), names.end());
+  return names;
+}
+
+std::string resolveRobotPath(const std::string& name_or_path) {
+  std::error_code ec;
+  if (fs::is_regular_file(name_or_path, ec)) return name_or_path;
+  const fs::path dir = robotsDir();
+  for (const std::string& candidate : {name_or_path, name_or_path + ".xml"}) {
+    const fs::path p = dir / candidate;
+    if (name_or_path.find('/') == std::string::npos && fs::is_regular_file(p, ec)) return p.string();
+  }
+  std::string list;
+  for (const auto& n : bundledRobotNames()) list += (list.empty() ? "" : ", ") + n;
+  throw InputError("--robot: expected a robot file or one of the bundled robots (" + list +
+                   "), found '" + name_or_path + "'");
+}
+
+}  // namespace accura

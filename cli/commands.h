@@ -1,0 +1,60 @@
+// accura command line: one function per subcommand. Each returns the process exit code and
+// throws accura::InputError / ArgumentError / NumericalError on bad input (main prints them).
+#pragma once
+
+#include <CLI/CLI.hpp>
+#include <string>
+#include <vector>
+
+namespace accura::cli {
+
+struct FkArgs {
+  std::string robot;
+  std::string q;
+  double payload_kg = 0;
+};
+int runFk(const FkArgs& args);
+
+struct SimulateArgs {
+  std::string robot;
+  int poses = 300;
+  unsigned long long seed = 1;
+  std::string effects = "geometric";
+  double noise_mm = 0.02;
+  double noise_deg = 0.002;
+  bool orientation = false;
+  bool write_std = false;
+  std::string payloads = "0";
+  std::string station;  // empty: default station (unless effects == none)
+  std::string tool;     // empty: the robot's tool
+  double error_scale = 1.0;
+  std::string out;
+  std::string truth;
+};
+int runSimulate(const SimulateArgs& args);
+
+struct IdentifyArgs {
+  std::string robot;
+  std::string data;
+  std::string validate;
+  double holdout = 0.2;
+  std::string base;
+  std::string tool;
+  std::string params = "geometric";
+  std::string form = "auto";
+  std::string loss = "none";
+  double loss_scale = 3.0;
+  double std_mm = -1;   // <0: from the data or estimated
+  double std_deg = -1;
+  std::string out;
+  std::string json;
+  bool quiet = false;
+};
+int runIdentify(const IdentifyArgs& args);
+
+/// Splits "a,b,c" into trimmed items (empty items are an InputError naming `what`).
+std::vector<std::string> splitList(const std::string& text, const std::string& what);
+/// Parses a comma-separated list of numbers (InputError naming `what` on a bad item).
+std::vector<double> parseNumbers(const std::string& text, const std::string& what);
+
+}  // namespace accura::cli

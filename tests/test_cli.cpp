@@ -1,0 +1,141 @@
+// The accura command: output against the library, the identify summary JSON, and a clear
+// message with a non-zero exit for each class of bad input.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <cstdlib>
+#include <nlohmann/json.hpp>
+
+#include "accura/calib/kinematics.h"
+#include "test_util.h"
+
+namespace accura {
+namespace {
+
+struct CliRun {
+  int code;
+  std::string out, err;
+};
+
+CliRun run(const std::string& args) {
+  const std::string dir = test::tempDir("cli_run");
+  const std::string cmd = std::string(ACCURA_CLI) + " " + args + " >" + dir + "/out 2>" + dir + "/err";
+  const int status = std::system(cmd.c_str());
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, test::readText(dir + "/out"), test::readText(dir + "/err")};
+}
+
+TEST(Cli, FkPrintsThePoseOfTheLibrary) {
+  const CliRun r = run("fk --robot kuka_kr16 --q 10,-80,70,20,30,40");
+  ASSERT_EQ(r.code, 0) << r.err;
+  const RobotModel m = test::loadBundled("kuka_kr16");
+  Eigen::VectorXd q(6);
+  q << 10, -80, 70, 20, 30, 40;
+  const XyzAbc p = toXyzAbc(forwardKinematics(m, q));
+  double x, y, z, a, b, c;
+  ASSERT_EQ(std::sscanf(r.out.c_str(), "x=%lf y=%lf z=%lf A=%lf B=%lf C=%lf", &x, &y, &z, &a, &b, &c), 6) << r.out;
+  EXPECT_NEAR(x, p.x_mm, 1e-4);
+  EXPECT_NEAR(y, p.y_mm, 1e-4);
+  EXPECT_NEAR(z, p.z_mm, 1e-4);
+  EXPECT_NEAR(a, p.a_deg, 1e-5);
+  EXPECT_NEAR(b, p.b_deg, 1e-5);
+  EXPECT_NEAR(c, p.c_deg, 1e-5);
+}
+
+TEST(Cli, FkRejectsWrongJointCountAndLimits) {
+  CliRun r = run("fk --robot kuka_kr16 --q 1,2,3");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("--q: expected 6 joint values for KUKA KR 16, found 3"), std::string::npos) << r.err;
+  r = run("fk --robot kuka_kr16 --q 0,50,0,0,0,0");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("joint 2 (A2): expected a value within [-155, 35], found 50"), std::string::npos) << r.err;
+  r = run("fk --robot nosuchrobot --q 0");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("found 'nosuchrobot'"), std::string::npos) << r.err;
+}
+
+TEST(Cli, SimulateIdentifyWritesModelAndSummary) {
+  const std::string dir = test::tempDir("cli_e2e");
+  CliRun r = run("simulate --robot kuka_kr16 --poses 150 --seed 3 --tool 80,40,150 --out " + dir + "/fit.csv --truth " + dir + "/truth.xml");
+  ASSERT_EQ(r.code, 0) << r.err;
+  r = run("simulate --robot " + dir + "/truth.xml --effects none --poses 100 --seed 4 --out " + dir + "/val.csv");
+  ASSERT_EQ(r.code, 0) << r.err;
+  r = run("identify --robot kuka_kr16 --tool 80,40,150 --data " + dir + "/fit.csv --validate " + dir +
+          "/val.csv --out " + dir + "/cal.xml --json " + dir + "/s.json");
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto j = nlohmann::json::parse(test::readText(dir + "/s.json"));
+  for (const char* k : {"n", "rms_mm", "mean_mm", "max_mm", "p95_mm"}) {
+    EXPECT_TRUE(j["fit"].contains(k)) << k;
+    EXPECT_TRUE(j["validation"].contains(k)) << k;
+    EXPECT_TRUE(j["nominal_validation"].contains(k)) << k;
+  }
+  EXPECT_EQ(j["validation"]["n"], 100);
+  const double floor = 0.02 * std::sqrt(3.0);
+  EXPECT_LT(j["validation"]["rms_mm"].get<double>(), 1.25 * floor);
+  EXPECT_GT(j["nominal_validation"]["rms_mm"].get<double>(), 0.5);
+  EXPECT_LE(j["validation"]["p95_mm"].get<double>(), j["validation"]["max_mm"].get<double>());
+  EXPECT_GT(j["identifiability"]["condition_number"].get<double>(), 1.0);
+  bool j1d = false;
+  for (const auto& f : j["identifiability"]["fixed"]) j1d |= f["name"] == "j1_d";
+  EXPECT_TRUE(j1d);
+  for (const auto& p : j["parameters"]) {
+    EXPECT_TRUE(p.contains("name") && p.contains("value") && p.contains("sigma") && p.contains("unit"));
+    EXPECT_GT(p["sigma"].get<double>(), 0.0) << p["name"];
+  }
+  // the calibrated model is accepted as --robot and predicts the validation poses
+  r = run("identify --robot " + dir + "/cal.xml --params base --data " + dir + "/val.csv --holdout 0 --out " + dir +
+          "/cal2.xml --json " + dir + "/s2.json");
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto j2 = nlohmann::json::parse(test::readText(dir + "/s2.json"));
+  EXPECT_LT(j2["fit"]["rms_mm"].get<double>(), 1.25 * floor);
+}
+
+struct BadCase {
+  const char* name;
+  const char* csv;
+  const char* expect;  // substring of stderr, including file:line:column
+};
+
+TEST(Cli, BadMeasurementFilesGiveLocationAndNonZeroExit) {
+  const std::string dir = test::tempDir("cli_bad");
+  const std::string head = "q1,q2,q3,q4,q5,q6,x,y,z\n";
+  const BadCase cases[] = {
+      {"non_number", "q1,q2,q3,q4,q5,q6,x,y,z\n0,0,abc,0,0,0,1,2,3\n", "non_number.csv:2:3: column 'q3': expected a number, found 'abc'"},
+      {"missing_column", "q1,q2,q3,q5,q6,x,y,z\n0,0,0,0,0,1,2,3\n", "missing_column.csv:1: missing column 'q4'"},
+      {"nan", "q1,q2,q3,q4,q5,q6,x,y,z\n0,0,0,0,0,0,1,nan,3\n", "nan.csv:2:8: column 'y': expected a finite number, found 'nan'"},
+      {"limits", "q1,q2,q3,q4,q5,q6,x,y,z\n0,40,0,0,0,0,1,2,3\n", "limits.csv:2:2: column 'q2': joint value 40 deg is outside the joint limits [-155, 35] deg"},
+      {"fields", "q1,q2,q3,q4,q5,q6,x,y,z\n0,0,0,0,0,0,1,2\n", "fields.csv:2: expected 9 fields as in the header, found 8"},
+  };
+  for (const BadCase& c : cases) {
+    const std::string path = dir + "/" + c.name + ".csv";
+    test::writeText(path, c.csv);
+    const CliRun r = run("identify --robot kuka_kr16 --data " + path + " --out " + dir + "/x.xml");
+    EXPECT_EQ(r.code, 1) << c.name;
+    EXPECT_NE(r.err.find(c.expect), std::string::npos) << c.name << ": " << r.err;
+    EXPECT_FALSE(std::filesystem::exists(dir + "/x.xml")) << c.name;
+  }
+  // too few rows for the parameters asked for
+  std::string few = head;
+  for (int i = 0; i < 5; ++i) few += std::to_string(i) + ",-" + std::to_string(10 * i) + ",10,0,20,0,1000,20,500\n";
+  test::writeText(dir + "/few.csv", few);
+  const CliRun r = run("identify --robot kuka_kr16 --holdout 0 --data " + dir + "/few.csv --out " + dir + "/x.xml");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("few.csv: too few rows for the parameters asked for: 5 rows give 15 equations"), std::string::npos) << r.err;
+}
+
+TEST(Cli, BadOptionsAreReported) {
+  const std::string dir = test::tempDir("cli_opts");
+  CliRun r = run("simulate --robot kuka_kr16 --poses 20 --out " + dir + "/d.csv");
+  ASSERT_EQ(r.code, 0) << r.err;
+  r = run("identify --robot kuka_kr16 --data " + dir + "/d.csv --params geometric,gravity_magic --out " + dir + "/x.xml");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("unknown parameter group 'gravity_magic'"), std::string::npos) << r.err;
+  r = run("identify --robot kuka_kr16 --data " + dir + "/d.csv --base 1,2,x --out " + dir + "/x.xml");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("--base: expected a number, found 'x'"), std::string::npos) << r.err;
+  r = run("simulate --robot kuka_kr16 --effects geometric,warp --out " + dir + "/e.csv");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("unknown effect 'warp'"), std::string::npos) << r.err;
+}
+
+}  // namespace
+}  // namespace accura

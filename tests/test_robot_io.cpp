@@ -1,0 +1,125 @@
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "accura/calib/errors.h"
+#include "accura/calib/kinematics.h"
+#include "accura/calib/robot_io.h"
+#include "test_util.h"
+
+namespace accura {
+namespace {
+
+TEST(RobotIo, BundledRobotsLoad) {
+  const auto names = bundledRobotNames();
+  for (const char* n : {"abb_irb120", "kuka_kr16", "scara", "ur10"})
+    EXPECT_NE(std::find(names.begin(), names.end(), n), names.end()) << n;
+  const RobotModel kr16 = test::loadBundled("kuka_kr16");
+  ASSERT_EQ(kr16.dof(), 6);
+  EXPECT_EQ(kr16.nominal.joints[0].direction, -1);
+  EXPECT_DOUBLE_EQ(kr16.nominal.joints[1].lower, -155);
+  EXPECT_DOUBLE_EQ(kr16.nominal.joints[0].mass_kg, 80);
+  EXPECT_DOUBLE_EQ(kr16.nominal.payload_com_mm.z(), 100);
+  EXPECT_EQ(kr16.forms[1], LinkForm::kHayati);  // A2-A3 parallel
+  EXPECT_EQ(kr16.forms[0], LinkForm::kDH);
+  const RobotModel scara = test::loadBundled("scara");
+  bool prismatic = false;
+  for (const auto& j : scara.nominal.joints) prismatic |= j.type == JointType::kPrismatic;
+  EXPECT_TRUE(prismatic);
+}
+
+TEST(RobotIo, CalibratedModelRoundTrip) {
+  RobotModel m = test::loadBundled("ur10");
+  std::mt19937_64 rng(4);
+  std::normal_distribution<double> n(0, 1);
+  for (const ParamInfo& p : parameterLayout(m)) setParameter(m.deviations, p, 1e-3 * n(rng) * (p.unit == "mm" ? 100 : 1));
+  const std::string dir = test::tempDir("robot_io");
+  const std::string path = dir + "/cal.xml";
+  writeRobotFile(path, m, {}, "test -- comment");
+  const RobotModel back = readRobotFile(path);
+  for (double q : {0.0, 30.0, -75.0}) {
+    const Eigen::VectorXd qv = Eigen::VectorXd::Constant(6, q);
+    EXPECT_LT((forwardKinematics(m, qv).matrix() - forwardKinematics(back, qv).matrix()).cwiseAbs().maxCoeff(), 1e-8);
+  }
+  // written twice: byte-identical (deterministic output)
+  writeRobotFile(dir + "/cal2.xml", back, {}, "test -- comment");
+  EXPECT_EQ(test::readText(path), test::readText(dir + "/cal2.xml"));
+  EXPECT_FALSE(std::filesystem::exists(path + ".tmp"));
+}
+
+void expectRobotError(const std::string& name, const std::string& xml, int line, const std::string& words) {
+  const std::string dir = test::tempDir("robot_bad");
+  const std::string path = dir + "/" + name + ".xml";
+  test::writeText(path, xml);
+  try {
+    readRobotFile(path);
+    FAIL() << "expected InputError for " << name;
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.file(), path);
+    EXPECT_EQ(e.line(), line) << e.what();
+    EXPECT_NE(std::string(e.what()).find(words), std::string::npos) << e.what();
+  }
+}
+
+const char* kHead =
+    "<robot name=\"t\">\n"
+    "  <base x_mm=\"0\" y_mm=\"0\" z_mm=\"0\" a_deg=\"0\" b_deg=\"0\" c_deg=\"0\"/>\n"
+    "  <tool x_mm=\"0\" y_mm=\"0\" z_mm=\"0\" a_deg=\"0\" b_deg=\"0\" c_deg=\"0\"/>\n"
+    "  <payload com_x_mm=\"0\" com_y_mm=\"0\" com_z_mm=\"0\"/>\n"
+    "  <joints>\n";
+
+TEST(RobotIo, BadFilesGiveFileLineAndWhat) {
+  const std::string good_joint =
+      "    <joint name=\"j\" type=\"revolute\" a_mm=\"1\" alpha_deg=\"90\" d_mm=\"0\" theta0_deg=\"0\" direction=\"1\" "
+      "lower=\"-10\" upper=\"10\" mass_kg=\"1\" com_x_mm=\"0\" com_y_mm=\"0\" com_z_mm=\"0\"/>\n";
+  expectRobotError("unknown_attr", std::string(kHead) +
+                       "    <joint name=\"j\" type=\"revolute\" a_mm=\"1\" alpha_deg=\"90\" d_mm=\"0\" theta0_deg=\"0\" direction=\"1\" "
+                       "lower=\"-10\" upper=\"10\" mass_kg=\"1\" com_x_mm=\"0\" com_y_mm=\"0\" com_z_mm=\"0\" colour=\"red\"/>\n"
+                       "  </joints>\n</robot>\n",
+                   6, "unknown attribute 'colour'");
+  expectRobotError("bad_number", std::string(kHead) +
+                       "    <joint name=\"j\" type=\"revolute\" a_mm=\"1,5\" alpha_deg=\"90\" d_mm=\"0\" theta0_deg=\"0\" direction=\"1\" "
+                       "lower=\"-10\" upper=\"10\" mass_kg=\"1\" com_x_mm=\"0\" com_y_mm=\"0\" com_z_mm=\"0\"/>\n"
+                       "  </joints>\n</robot>\n",
+                   6, "'a_mm': expected a finite number, found '1,5'");
+  expectRobotError("bad_direction", std::string(kHead) +
+                       "    <joint name=\"j\" type=\"revolute\" a_mm=\"1\" alpha_deg=\"90\" d_mm=\"0\" theta0_deg=\"0\" direction=\"2\" "
+                       "lower=\"-10\" upper=\"10\" mass_kg=\"1\" com_x_mm=\"0\" com_y_mm=\"0\" com_z_mm=\"0\"/>\n"
+                       "  </joints>\n</robot>\n",
+                   6, "expected 1 or -1, found '2'");
+  expectRobotError("limits", std::string(kHead) +
+                       "    <joint name=\"j\" type=\"revolute\" a_mm=\"1\" alpha_deg=\"90\" d_mm=\"0\" theta0_deg=\"0\" direction=\"1\" "
+                       "lower=\"10\" upper=\"-10\" mass_kg=\"1\" com_x_mm=\"0\" com_y_mm=\"0\" com_z_mm=\"0\"/>\n"
+                       "  </joints>\n</robot>\n",
+                   6, "expected lower < upper");
+  expectRobotError("missing", std::string(kHead) +
+                       "    <joint name=\"j\" type=\"revolute\" a_mm=\"1\" alpha_deg=\"90\" theta0_deg=\"0\" direction=\"1\" "
+                       "lower=\"-10\" upper=\"10\" mass_kg=\"1\" com_x_mm=\"0\" com_y_mm=\"0\" com_z_mm=\"0\"/>\n"
+                       "  </joints>\n</robot>\n",
+                   6, "missing attribute 'd_mm'");
+  expectRobotError("malformed", std::string(kHead) + good_joint + "    <joint name=\"k\" a_mm=1/>\n  </joints>\n</robot>\n", 7,
+                   "malformed XML");
+  expectRobotError("unknown_param", std::string(kHead) + good_joint +
+                       "  </joints>\n  <calibration form=\"auto\">\n    <parameter name=\"j9_a\" value=\"1\" unit=\"mm\"/>\n"
+                       "  </calibration>\n</robot>\n",
+                   9, "unknown parameter name 'j9_a'");
+  expectRobotError("wrong_unit", std::string(kHead) + good_joint +
+                       "  </joints>\n  <calibration form=\"auto\">\n    <parameter name=\"j1_a\" value=\"1\" unit=\"deg\"/>\n"
+                       "  </calibration>\n</robot>\n",
+                   9, "expected unit 'mm', found 'deg'");
+}
+
+TEST(RobotIo, ResolveByNameOrPath) {
+  EXPECT_NE(resolveRobotPath("kuka_kr16").find("robots/kuka_kr16.xml"), std::string::npos);
+  EXPECT_NE(resolveRobotPath("ur10.xml").find("robots/ur10.xml"), std::string::npos);
+  try {
+    resolveRobotPath("kr1000");
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("found 'kr1000'"), std::string::npos);
+    EXPECT_NE(std::string(e.what()).find("kuka_kr16"), std::string::npos);
+  }
+}
+
+}  // namespace
+}  // namespace accura
