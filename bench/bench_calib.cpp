@@ -1,0 +1,369 @@
+// accura benchmarks: forward kinematics, the analytic parameter Jacobian and the
+// identification of the complete KUKA KR 16 model, each next to a peer measured in the same
+// run (a hand-written naive DH chain, central finite differences, fewer poses / the
+// registration alone), so that ratios can be read from one table. Single-threaded.
+//
+// Every simulated data set and model is built once, outside the timed loops (cached in
+// function-local statics). Results are consumed with benchmark::DoNotOptimize.
+#include <benchmark/benchmark.h>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <memory>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "accura/calib/geometry.h"
+#include "accura/calib/identify.h"
+#include "accura/calib/kinematics.h"
+#include "accura/calib/measurements.h"
+#include "accura/calib/robot.h"
+#include "accura/calib/robot_io.h"
+#include "accura/calib/simulate.h"
+
+namespace {
+
+using accura::RobotModel;
+
+constexpr int kPoses = 1000;
+const accura::XyzAbc kTool = {80, 40, 150, 0, 0, 0};  // tracker target on the flange (mm)
+
+accura::SimulateOptions campaignOptions(int poses) {
+  accura::SimulateOptions o;
+  o.poses = poses;
+  o.seed = 21;
+  o.noise_mm = 0.02;
+  o.tool = kTool;
+  o.set_tool = true;
+  return o;
+}
+
+/// The nominal KR 16 with the nominal target offset on the flange.
+RobotModel nominalKr16() {
+  RobotModel m = accura::readRobotFile(accura::resolveRobotPath("kuka_kr16"));
+  m.nominal.T_flange_tcp = accura::toIsometry(kTool);
+  return m;
+}
+
+// ---------------------------------------------------------------------------------------
+// The peer of forward kinematics: what a user writes by hand. Each link is the product of
+// four generic 4x4 matrices Rz(theta) Tz(d) Tx(a) Rx(alpha), multiplied in turn; base and
+// tool are 4x4 matrices too, so that it computes the same quantity (T_world_tcp).
+
+struct NaiveLink {
+  double theta0_rad, d_mm, a_mm, alpha_rad;
+  int direction;
+};
+
+struct NaiveRobot {
+  std::vector<NaiveLink> links;
+  Eigen::Matrix4d T_world_base, T_flange_tcp;
+};
+
+Eigen::Matrix4d rotZ(double t) {
+  Eigen::Matrix4d M = Eigen::Matrix4d::Identity();
+  M(0, 0) = std::cos(t); M(0, 1) = -std::sin(t);
+  M(1, 0) = std::sin(t); M(1, 1) = std::cos(t);
+  return M;
+}
+Eigen::Matrix4d rotX(double t) {
+  Eigen::Matrix4d M = Eigen::Matrix4d::Identity();
+  M(1, 1) = std::cos(t); M(1, 2) = -std::sin(t);
+  M(2, 1) = std::sin(t); M(2, 2) = std::cos(t);
+  return M;
+}
+Eigen::Matrix4d transZ(double d) {
+  Eigen::Matrix4d M = Eigen::Matrix4d::Identity();
+  M(2, 3) = d;
+  return M;
+}
+Eigen::Matrix4d transX(double a) {
+  Eigen::Matrix4d M = Eigen::Matrix4d::Identity();
+  M(0, 3) = a;
+  return M;
+}
+
+Eigen::Matrix4d naiveForwardKinematics(const NaiveRobot& robot, const Eigen::VectorXd& q_deg) {
+  Eigen::Matrix4d T = robot.T_world_base;
+  for (size_t i = 0; i < robot.links.size(); ++i) {
+    const NaiveLink& L = robot.links[i];
+    const double theta = L.theta0_rad + L.direction * q_deg[static_cast<Eigen::Index>(i)] * accura::kDegToRad;
+    T = T * rotZ(theta) * transZ(L.d_mm) * transX(L.a_mm) * rotX(L.alpha_rad);
+  }
+  return T * robot.T_flange_tcp;
+}
+
+NaiveRobot naiveFrom(const RobotModel& model) {
+  NaiveRobot r;
+  for (const accura::JointSpec& j : model.nominal.joints)
+    r.links.push_back({j.theta0_deg * accura::kDegToRad, j.d_mm, j.a_mm, j.alpha_deg * accura::kDegToRad,
+                       j.direction});
+  r.T_world_base = model.nominal.T_world_base.matrix();
+  r.T_flange_tcp = model.nominal.T_flange_tcp.matrix();
+  return r;
+}
+
+// ---------------------------------------------------------------------------------------
+// Shared data of the FK and Jacobian benchmarks: 1000 random joint vectors of the KR 16
+// (within its limits, from simulateMeasurements) and the models.
+
+struct KinematicsData {
+  RobotModel nominal;          // nominal KR 16 (+ nominal tool)
+  RobotModel truth;            // the same with non-zero geometric deviations (perturbModel)
+  RobotModel truth_compliant;  // geometric deviations and joint compliance
+  NaiveRobot naive;            // the nominal DH chain for the hand-written FK
+  std::vector<accura::ParamInfo> layout;  // the full parameter layout
+  std::vector<Eigen::VectorXd> q;
+  std::vector<accura::PoseContext> context;
+  double naive_max_diff_mm = 0;  // hand-written FK vs accura's FK at nominal
+};
+
+const KinematicsData& kinematicsData() {
+  static const std::unique_ptr<KinematicsData> data = [] {
+    auto d = std::make_unique<KinematicsData>();
+    d->nominal = nominalKr16();
+    accura::SimulateOptions o = campaignOptions(kPoses);
+    d->truth = accura::perturbModel(d->nominal, o);
+    accura::SimulateOptions oc = o;
+    oc.effects = {"geometric", "joint_compliance"};
+    oc.payloads_kg = {0, 8, 16};
+    d->truth_compliant = accura::perturbModel(d->nominal, oc);
+    d->naive = naiveFrom(d->nominal);
+    d->layout = accura::parameterLayout(d->truth);
+    const accura::MeasurementSet set = accura::simulateMeasurements(d->truth_compliant, oc);
+    for (const accura::Measurement& m : set.rows) {
+      d->q.push_back(m.q);
+      d->context.push_back(m.context);  // payloads 0, 8, 16 kg cycled
+    }
+    // the peer must compute the same thing: compare at nominal
+    accura::KinematicWorkspace ws;
+    for (size_t i = 0; i < d->q.size(); ++i) {
+      const Eigen::Isometry3d T = accura::forwardKinematics(d->nominal, d->q[i], {}, ws);
+      const Eigen::Matrix4d N = naiveForwardKinematics(d->naive, d->q[i]);
+      d->naive_max_diff_mm = std::max(d->naive_max_diff_mm, (T.matrix() - N).cwiseAbs().maxCoeff());
+    }
+    return d;
+  }();
+  return *data;
+}
+
+// ---------------------------------------------------------------------------------------
+// 1. Forward kinematics
+
+void fkAccura(benchmark::State& state, const RobotModel& model, bool with_payload) {
+  const KinematicsData& d = kinematicsData();
+  accura::KinematicWorkspace ws;
+  const accura::PoseContext no_payload;
+  double sum = 0;
+  for (auto _ : state) {
+    for (size_t i = 0; i < d.q.size(); ++i) {
+      const Eigen::Isometry3d T =
+          accura::forwardKinematics(model, d.q[i], with_payload ? d.context[i] : no_payload, ws);
+      benchmark::DoNotOptimize(T);
+      sum += T.translation().x();
+    }
+  }
+  benchmark::DoNotOptimize(sum);
+  state.SetItemsProcessed(state.iterations() * static_cast<int64_t>(d.q.size()));
+  state.counters["poses"] = static_cast<double>(d.q.size());
+  state.counters["ns_per_pose"] = benchmark::Counter(
+      static_cast<double>(state.iterations() * d.q.size()),
+      benchmark::Counter::kIsRate | benchmark::Counter::kInvert, benchmark::Counter::kIs1000);
+}
+
+void BM_FK_Accura(benchmark::State& state) { fkAccura(state, kinematicsData().truth, false); }
+void BM_FK_Accura_Compliance(benchmark::State& state) {
+  fkAccura(state, kinematicsData().truth_compliant, true);
+}
+
+void BM_FK_NaiveDH4x4_Peer(benchmark::State& state) {
+  const KinematicsData& d = kinematicsData();
+  double sum = 0;
+  for (auto _ : state) {
+    for (size_t i = 0; i < d.q.size(); ++i) {
+      const Eigen::Matrix4d T = naiveForwardKinematics(d.naive, d.q[i]);
+      benchmark::DoNotOptimize(T);
+      sum += T(0, 3);
+    }
+  }
+  benchmark::DoNotOptimize(sum);
+  state.SetItemsProcessed(state.iterations() * static_cast<int64_t>(d.q.size()));
+  state.counters["poses"] = static_cast<double>(d.q.size());
+  state.counters["max_diff_vs_accura_mm"] = d.naive_max_diff_mm;  // at nominal: same chain
+}
+
+// ---------------------------------------------------------------------------------------
+// 2. Parameter Jacobian (full layout: base, tool, per-joint geometry, compliance)
+
+/// Central finite differences of forwardKinematics, two FK calls per column. Same layout,
+/// units and row convention as parameterJacobian: [dp_world (mm); dphi_world (rad)].
+double fdStep(const accura::ParamInfo& p) {
+  if (p.unit == "mm") return 1e-4;      // mm
+  if (p.unit == "deg") return 1e-6;     // rad internally
+  if (p.unit == "urad/Nm") return 1e-9; // rad/(N*m): loads are up to ~1e3 N*m
+  return 1e-7;                          // mm/N
+}
+
+void finiteDifferenceJacobian(RobotModel& model, const std::vector<accura::ParamInfo>& layout,
+                              const Eigen::VectorXd& q, const accura::PoseContext& context,
+                              accura::KinematicWorkspace& ws, Eigen::MatrixXd& J) {
+  J.resize(6, static_cast<Eigen::Index>(layout.size()));
+  for (size_t k = 0; k < layout.size(); ++k) {
+    const accura::ParamInfo& p = layout[k];
+    const double v0 = accura::getParameter(model.deviations, p);
+    const double h = fdStep(p);
+    accura::setParameter(model.deviations, p, v0 + h);
+    const Eigen::Isometry3d Tp = accura::forwardKinematics(model, q, context, ws);
+    accura::setParameter(model.deviations, p, v0 - h);
+    const Eigen::Isometry3d Tm = accura::forwardKinematics(model, q, context, ws);
+    accura::setParameter(model.deviations, p, v0);
+    const Eigen::Index c = static_cast<Eigen::Index>(k);
+    J.col(c).head<3>() = (Tp.translation() - Tm.translation()) / (2 * h);
+    J.col(c).tail<3>() = accura::logSO3(Tp.linear() * Tm.linear().transpose()) / (2 * h);
+  }
+}
+
+/// Largest column-relative difference between the analytic and the FD Jacobian.
+double jacobianAgreement(const KinematicsData& d, int poses) {
+  RobotModel model = d.truth_compliant;
+  accura::KinematicWorkspace ws;
+  Eigen::MatrixXd Ja, Jf;
+  double worst = 0;
+  for (int i = 0; i < poses; ++i) {
+    accura::parameterJacobian(model, d.layout, d.q[i], d.context[i], ws, Ja);
+    finiteDifferenceJacobian(model, d.layout, d.q[i], d.context[i], ws, Jf);
+    for (Eigen::Index c = 0; c < Ja.cols(); ++c) {
+      const double scale = std::max(Ja.col(c).norm(), 1e-12);
+      worst = std::max(worst, (Ja.col(c) - Jf.col(c)).norm() / scale);
+    }
+  }
+  return worst;
+}
+
+void BM_Jacobian_Accura(benchmark::State& state) {
+  const KinematicsData& d = kinematicsData();
+  const RobotModel& model = d.truth_compliant;
+  accura::KinematicWorkspace ws;
+  Eigen::MatrixXd J;
+  for (auto _ : state) {
+    for (size_t i = 0; i < d.q.size(); ++i) {
+      const Eigen::Isometry3d T = accura::parameterJacobian(model, d.layout, d.q[i], d.context[i], ws, J);
+      benchmark::DoNotOptimize(T);
+      benchmark::DoNotOptimize(J.data());
+      benchmark::ClobberMemory();
+    }
+  }
+  state.SetItemsProcessed(state.iterations() * static_cast<int64_t>(d.q.size()));
+  state.counters["columns"] = static_cast<double>(d.layout.size());
+  state.counters["poses"] = static_cast<double>(d.q.size());
+}
+
+void BM_Jacobian_CentralFD_Peer(benchmark::State& state) {
+  const KinematicsData& d = kinematicsData();
+  RobotModel model = d.truth_compliant;  // a mutable copy: the FD perturbs its deviations
+  accura::KinematicWorkspace ws;
+  Eigen::MatrixXd J;
+  for (auto _ : state) {
+    for (size_t i = 0; i < d.q.size(); ++i) {
+      finiteDifferenceJacobian(model, d.layout, d.q[i], d.context[i], ws, J);
+      benchmark::DoNotOptimize(J.data());
+      benchmark::ClobberMemory();
+    }
+  }
+  state.SetItemsProcessed(state.iterations() * static_cast<int64_t>(d.q.size()));
+  state.counters["columns"] = static_cast<double>(d.layout.size());
+  state.counters["poses"] = static_cast<double>(d.q.size());
+  // outside the timed loop: the peer computes the same matrix
+  state.counters["max_rel_diff_vs_analytic"] = jacobianAgreement(d, 50);
+}
+
+// ---------------------------------------------------------------------------------------
+// 3. Identification of the complete KR 16 model
+
+struct IdentifyCase {
+  RobotModel start;  // nominal + nominal target offset; the tracker frame is unknown
+  RobotModel truth;
+  accura::MeasurementSet data, validation;
+  accura::IdentifyOptions options;
+};
+
+const IdentifyCase& identifyCase(int poses, bool compliance) {
+  static std::map<std::pair<int, bool>, std::unique_ptr<IdentifyCase>> cache;
+  auto& slot = cache[{poses, compliance}];
+  if (!slot) {
+    auto c = std::make_unique<IdentifyCase>();
+    accura::SimulateOptions o = campaignOptions(poses);
+    if (compliance) {
+      o.effects = {"geometric", "joint_compliance"};
+      o.payloads_kg = {0, 8, 16};
+      c->options.groups = {"geometric", "joint_compliance"};
+    }
+    c->start = nominalKr16();
+    c->truth = accura::perturbModel(c->start, o);
+    c->data = accura::simulateMeasurements(c->truth, o);
+    o.seed += 1000;
+    o.poses = 300;
+    c->validation = accura::simulateMeasurements(c->truth, o);
+    slot = std::move(c);
+  }
+  return *slot;
+}
+
+void identifyBench(benchmark::State& state, bool compliance) {
+  const int poses = static_cast<int>(state.range(0));
+  const IdentifyCase& c = identifyCase(poses, compliance);
+  accura::IdentifySummary s;
+  RobotModel cal;
+  for (auto _ : state) {
+    cal = accura::identify(c.start, c.data, c.options, &s);
+    benchmark::DoNotOptimize(cal.deviations.base_mm.data());
+    benchmark::ClobberMemory();
+  }
+  const accura::ErrorStats floor = accura::evaluate(c.truth, c.validation);
+  const accura::ErrorStats val = accura::evaluate(cal, c.validation);
+  state.counters["poses"] = poses;
+  state.counters["params"] = s.parameters_free;
+  state.counters["iters"] = s.iterations;
+  state.counters["reg_rms_mm"] = s.registration_rms_mm;
+  state.counters["fit_rms_mm"] = s.fit.rms_mm;
+  state.counters["val_rms_mm"] = val.rms_mm;      // independent poses, calibrated model
+  state.counters["floor_rms_mm"] = floor.rms_mm;  // the same poses, the true robot (noise only)
+  state.counters["cond"] = s.condition_number;
+  state.counters["converged"] = s.termination.find("CONVERGENCE") != std::string::npos ? 1 : 0;
+}
+
+void BM_Identify_Geometric(benchmark::State& state) { identifyBench(state, false); }
+void BM_Identify_GeometricCompliance(benchmark::State& state) { identifyBench(state, true); }
+
+/// The closed-form registration alone (T_world_base and the tool point), as identify()
+/// does it first: one flangePose per row plus the alternating Kabsch / tool rounds.
+void BM_RegisterFrame(benchmark::State& state) {
+  const int poses = static_cast<int>(state.range(0));
+  const IdentifyCase& c = identifyCase(poses, false);
+  double rms = 0;
+  for (auto _ : state) {
+    RobotModel m = c.start;
+    rms = accura::registerFrame(m, c.data, /*estimate_tool=*/true);
+    benchmark::DoNotOptimize(m.deviations.base_mm.data());
+    benchmark::DoNotOptimize(rms);
+  }
+  state.counters["poses"] = poses;
+  state.counters["reg_rms_mm"] = rms;
+}
+
+}  // namespace
+
+BENCHMARK(BM_FK_Accura)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_FK_Accura_Compliance)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_FK_NaiveDH4x4_Peer)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_Jacobian_Accura)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_Jacobian_CentralFD_Peer)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_Identify_Geometric)->Arg(1000)->Arg(300)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_RegisterFrame)->Arg(1000)->Arg(300)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_Identify_GeometricCompliance)->Arg(1000)->Unit(benchmark::kMillisecond);
+
+BENCHMARK_MAIN();

@@ -1,0 +1,39 @@
+#!/usr/bin/env bash
+# Installs the Debian packages accura needs, when they are missing (as root or with sudo).
+set -euo pipefail
+
+packages=(
+  build-essential cmake pkg-config
+  libeigen3-dev       # linear algebra, transforms
+  libceres-dev        # Levenberg-Marquardt for the identification
+  libtinyxml2-dev     # robot files and XML programs
+  libassimp-dev       # CAD meshes of the cell (reach and clearance checks)
+  libgtest-dev        # tests
+  libbenchmark-dev    # bench/
+  libcli11-dev        # command-line parsing
+  nlohmann-json3-dev  # JSON reports
+)
+
+missing=()
+for p in "${packages[@]}"; do
+  if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
+    missing+=("$p")
+  fi
+done
+if [ ${#missing[@]} -eq 0 ]; then
+  echo "install-deps: all ${#packages[@]} packages present"
+  exit 0
+fi
+
+if [ "$(id -u)" -eq 0 ]; then
+  SUDO=()
+elif command -v sudo >/dev/null 2>&1; then
+  SUDO=(sudo)
+else
+  echo "install-deps: missing packages (${missing[*]}) and neither root nor sudo available" >&2
+  exit 1
+fi
+echo "install-deps: installing ${missing[*]}"
+export DEBIAN_FRONTEND=noninteractive
+"${SUDO[@]}" apt-get update -qq
+"${SUDO[@]}" apt-get install -y -qq --no-install-recommends "${missing[@]}"
