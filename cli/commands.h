@@ -1,5 +1,7 @@
-// accura command line: one function per subcommand. Each returns the process exit code and
-// throws accura::InputError / ArgumentError / NumericalError on bad input (main prints them).
+// accura command line. Each subcommand lives in its own file and is added to the app by an
+// add...Command(app) function (listed in main.cpp). Its callback stores the process exit code
+// in exitCode() and throws accura::InputError / ArgumentError / NumericalError on bad input
+// (main prints them and sets the exit code).
 #pragma once
 
 #include <CLI/CLI.hpp>
@@ -13,7 +15,6 @@ struct FkArgs {
   std::string q;
   double payload_kg = 0;
 };
-int runFk(const FkArgs& args);
 
 struct SimulateArgs {
   std::string robot;
@@ -31,7 +32,6 @@ struct SimulateArgs {
   std::string out;
   std::string truth;
 };
-int runSimulate(const SimulateArgs& args);
 
 struct IdentifyArgs {
   std::string robot;
@@ -50,7 +50,16 @@ struct IdentifyArgs {
   std::string json;
   bool quiet = false;
 };
-int runIdentify(const IdentifyArgs& args);
+
+/// The exit code a subcommand's callback leaves for main (0 unless set).
+int& exitCode();
+
+void addFkCommand(CLI::App& app);
+void addSimulateCommand(CLI::App& app);
+void addIdentifyCommand(CLI::App& app);
+
+/// Writes text through a temporary file renamed into place (InputError on failure).
+void writeTextAtomically(const std::string& path, const std::string& text);
 
 /// Splits "a,b,c" into trimmed items (empty items are an InputError naming `what`).
 std::vector<std::string> splitList(const std::string& text, const std::string& what);

@@ -1,11 +1,8 @@
-#include "commands.h"
-
 #include <cmath>
 #include <cstdio>
-#include <fstream>
 #include <iostream>
+#include <memory>
 #include <nlohmann/json.hpp>
-#include <set>
 #include <sstream>
 
 #include "accura/calib/errors.h"
@@ -14,165 +11,12 @@
 #include "accura/calib/measurements.h"
 #include "accura/calib/robot_io.h"
 #include "accura/calib/simulate.h"
+#include "cli_util.h"
+#include "commands.h"
 
 namespace accura::cli {
 namespace {
-
 using nlohmann::ordered_json;
-
-std::string trim(const std::string& s) {
-  const auto b = s.find_first_not_of(" \t");
-  if (b == std::string::npos) return "";
-  return s.substr(b, s.find_last_not_of(" \t") - b + 1);
-}
-
-std::string fmt(const char* f, double v) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, f, v);
-  return buf;
-}
-
-// JSON number or null for NaN / inf (JSON has neither).
-ordered_json num(double v) { return std::isfinite(v) ? ordered_json(v) : ordered_json(nullptr); }
-
-ordered_json statsJson(const ErrorStats& s) {
-  ordered_json j;
-  j["n"] = s.n;
-  j["rms_mm"] = num(s.rms_mm);
-  j["mean_mm"] = num(s.mean_mm);
-  j["max_mm"] = num(s.max_mm);
-  j["p95_mm"] = num(s.p95_mm);
-  if (s.has_orientation) {
-    j["rot_rms_deg"] = num(s.rot_rms_deg);
-    j["rot_mean_deg"] = num(s.rot_mean_deg);
-    j["rot_max_deg"] = num(s.rot_max_deg);
-    j["rot_p95_deg"] = num(s.rot_p95_deg);
-  }
-  return j;
-}
-
-void writeTextAtomically(const std::string& path, const std::string& text) {
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
-    if (!f) throw InputError(tmp, 0, 0, "cannot write file");
-    f << text;
-    f.flush();
-    if (!f) {
-      std::remove(tmp.c_str());
-      throw InputError(tmp, 0, 0, "write failed");
-    }
-  }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-    std::remove(tmp.c_str());
-    throw InputError(path, 0, 0, "cannot rename temporary file into place");
-  }
-}
-
-RobotModel loadRobot(const std::string& name) { return readRobotFile(resolveRobotPath(name)); }
-
-void warnUnknownColumns(const MeasurementSet& set) {
-  if (set.unknown_columns.empty()) return;
-  std::string list;
-  for (const auto& c : set.unknown_columns) list += (list.empty() ? "" : ", ") + c;
-  std::cerr << "accura: warning: " << set.file << ": columns not used by accura: " << list << "\n";
-}
-
-void printStatsRow(const std::string& label, const ErrorStats& s) {
-  std::printf("  %-12s %9.4f %9.4f %9.4f %9.4f", label.c_str(), s.rms_mm, s.mean_mm, s.p95_mm, s.max_mm);
-  if (s.has_orientation)
-    std::printf("   %8.5f %8.5f %8.5f %8.5f", s.rot_rms_deg, s.rot_mean_deg, s.rot_p95_deg, s.rot_max_deg);
-  std::printf("\n");
-}
-
-}  // namespace
-
-std::vector<std::string> splitList(const std::string& text, const std::string& what) {
-  std::vector<std::string> out;
-  std::stringstream ss(text);
-  std::string item;
-  while (std::getline(ss, item, ',')) {
-    item = trim(item);
-    if (item.empty()) throw InputError(what + ": expected a comma-separated list, found an empty item in '" + text + "'");
-    out.push_back(item);
-  }
-  if (out.empty()) throw InputError(what + ": expected a comma-separated list, found nothing");
-  return out;
-}
-
-std::vector<double> parseNumbers(const std::string& text, const std::string& what) {
-  std::vector<double> v;
-  for (const auto& item : splitList(text, what)) {
-    char* end = nullptr;
-    const double x = std::strtod(item.c_str(), &end);
-    if (end == item.c_str() || *end != '\0' || !std::isfinite(x))
-      throw InputError(what + ": expected a number, found '" + item + "'");
-    v.push_back(x);
-  }
-  return v;
-}
-
-int runFk(const FkArgs& a) {
-  const RobotModel model = loadRobot(a.robot);
-  const std::vector<double> q = parseNumbers(a.q, "--q");
-  if (static_cast<int>(q.size()) != model.dof())
-    throw InputError("--q: expected " + std::to_string(model.dof()) + " joint values for " +
-                     model.nominal.name + ", found " + std::to_string(q.size()));
-  Eigen::VectorXd qv = Eigen::Map<const Eigen::VectorXd>(q.data(), static_cast<Eigen::Index>(q.size()));
-  for (int i = 0; i < model.dof(); ++i) {
-    const JointSpec& j = model.nominal.joints[i];
-    if (qv[i] < j.lower || qv[i] > j.upper)
-      throw InputError("--q: joint " + std::to_string(i + 1) + " (" + j.name + "): expected a value within [" +
-                       fmt("%g", j.lower) + ", " + fmt("%g", j.upper) + "], found " + fmt("%g", qv[i]));
-  }
-  if (!(a.payload_kg >= 0)) throw InputError("--payload-kg: expected a mass >= 0");
-  KinematicWorkspace ws;
-  PoseContext ctx;
-  ctx.payload_kg = a.payload_kg;
-  const XyzAbc p = toXyzAbc(forwardKinematics(model, qv, ctx, ws));
-  std::printf("x=%.4f y=%.4f z=%.4f A=%.5f B=%.5f C=%.5f\n", p.x_mm, p.y_mm, p.z_mm, p.a_deg, p.b_deg, p.c_deg);
-  return 0;
-}
-
-int runSimulate(const SimulateArgs& a) {
-  const RobotModel nominal = loadRobot(a.robot);
-  SimulateOptions o;
-  o.poses = a.poses;
-  o.seed = a.seed;
-  o.effects = splitList(a.effects, "--effects");
-  o.noise_mm = a.noise_mm;
-  o.noise_deg = a.noise_deg;
-  o.orientation = a.orientation;
-  o.write_std = a.write_std;
-  o.payloads_kg = parseNumbers(a.payloads, "--payloads");
-  o.error_scale = a.error_scale;
-  const bool none = o.effects.size() == 1 && o.effects[0] == "none";
-  if (!a.station.empty()) {
-    o.station = parseXyzAbc(a.station, "--station");
-  } else {
-    o.set_station = !none;
-  }
-  if (!a.tool.empty()) {
-    o.tool = parseXyzAbc(a.tool, "--tool");
-    o.set_tool = true;
-  }
-  std::string why;
-  if (!o.IsValid(&why)) throw InputError("simulate: " + why);
-  const RobotModel truth = perturbModel(nominal, o);
-  const MeasurementSet set = simulateMeasurements(truth, o);
-  std::vector<std::string> comments = {
-      "accura simulate: " + nominal.nominal.name + ", " + std::to_string(o.poses) + " poses, seed " +
-          std::to_string(o.seed) + ", effects " + a.effects,
-      "noise " + fmt("%g", o.noise_mm) + " mm" + (o.orientation ? ", " + fmt("%g", o.noise_deg) + " deg" : std::string()) +
-          " (1 sigma per axis); payloads " + a.payloads + " kg"};
-  writeMeasurementsCsv(a.out, set, truth.dof(), comments);
-  if (!a.truth.empty()) {
-    writeRobotFile(a.truth, truth, {}, "accura simulate: the real robot behind " + a.out + " (seed " + std::to_string(o.seed) + ")");
-  }
-  std::printf("wrote %d simulated poses of %s to %s%s\n", o.poses, nominal.nominal.name.c_str(), a.out.c_str(),
-              a.truth.empty() ? "" : (" and the real robot to " + a.truth).c_str());
-  return 0;
-}
 
 int runIdentify(const IdentifyArgs& a) {
   RobotModel start = loadRobot(a.robot);
@@ -335,6 +179,34 @@ int runIdentify(const IdentifyArgs& a) {
     writeTextAtomically(a.json, j.dump(2) + "\n");
   }
   return 0;
+}
+
+}  // namespace
+
+void addIdentifyCommand(CLI::App& app) {
+  auto id = std::make_shared<IdentifyArgs>();
+  auto* cid = app.add_subcommand("identify", "identify the robot's parameters from measurements");
+  cid->add_option("--robot", id->robot, "nominal or calibrated robot (file or bundled name)")->required();
+  cid->add_option("--data", id->data, "measurement CSV to fit")->required();
+  cid->add_option("--validate", id->validate, "held-out measurement CSV (same station)");
+  cid->add_option("--holdout", id->holdout,
+                  "without --validate: fraction of the poses held out for validation (every k-th)")
+      ->capture_default_str();
+  cid->add_option("--base", id->base, "nominal T_world_base x,y,z,A,B,C (mm, deg)");
+  cid->add_option("--tool", id->tool, "nominal T_flange_tcp x,y,z[,A,B,C] (mm, deg)");
+  cid->add_option("--params", id->params,
+                  "parameter groups: geometric (default) = base,tool,offsets,lengths,angles; joint_compliance")
+      ->capture_default_str();
+  cid->add_option("--form", id->form, "auto (Hayati for parallel axes) or dh (force classic DH)")
+      ->capture_default_str();
+  cid->add_option("--loss", id->loss, "robust loss: none, huber, cauchy")->capture_default_str();
+  cid->add_option("--loss-scale", id->loss_scale, "robust loss scale (residual sigmas)")->capture_default_str();
+  cid->add_option("--std-mm", id->std_mm, "position std (mm) when the data has no std columns");
+  cid->add_option("--std-deg", id->std_deg, "orientation std (deg) when the data has no std columns");
+  cid->add_option("--out", id->out, "calibrated model file to write")->required();
+  cid->add_option("--json", id->json, "summary JSON to write");
+  cid->add_flag("--quiet", id->quiet, "print only the summary line and the validation");
+  cid->callback([=]() { exitCode() = runIdentify(*id); });
 }
 
 }  // namespace accura::cli

@@ -1,0 +1,50 @@
+#include "cli_util.h"
+
+#include <cmath>
+#include <cstdio>
+#include <iostream>
+
+#include "accura/calib/robot_io.h"
+
+namespace accura::cli {
+std::string fmt(const char* f, double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, f, v);
+  return buf;
+}
+
+nlohmann::ordered_json num(double v) { return std::isfinite(v) ? nlohmann::ordered_json(v) : nlohmann::ordered_json(nullptr); }
+
+nlohmann::ordered_json statsJson(const ErrorStats& s) {
+  nlohmann::ordered_json j;
+  j["n"] = s.n;
+  j["rms_mm"] = num(s.rms_mm);
+  j["mean_mm"] = num(s.mean_mm);
+  j["max_mm"] = num(s.max_mm);
+  j["p95_mm"] = num(s.p95_mm);
+  if (s.has_orientation) {
+    j["rot_rms_deg"] = num(s.rot_rms_deg);
+    j["rot_mean_deg"] = num(s.rot_mean_deg);
+    j["rot_max_deg"] = num(s.rot_max_deg);
+    j["rot_p95_deg"] = num(s.rot_p95_deg);
+  }
+  return j;
+}
+
+RobotModel loadRobot(const std::string& name) { return readRobotFile(resolveRobotPath(name)); }
+
+void warnUnknownColumns(const MeasurementSet& set) {
+  if (set.unknown_columns.empty()) return;
+  std::string list;
+  for (const auto& c : set.unknown_columns) list += (list.empty() ? "" : ", ") + c;
+  std::cerr << "accura: warning: " << set.file << ": columns not used by accura: " << list << "\n";
+}
+
+void printStatsRow(const std::string& label, const ErrorStats& s) {
+  std::printf("  %-12s %9.4f %9.4f %9.4f %9.4f", label.c_str(), s.rms_mm, s.mean_mm, s.p95_mm, s.max_mm);
+  if (s.has_orientation)
+    std::printf("   %8.5f %8.5f %8.5f %8.5f", s.rot_rms_deg, s.rot_mean_deg, s.rot_p95_deg, s.rot_max_deg);
+  std::printf("\n");
+}
+
+}  // namespace accura::cli

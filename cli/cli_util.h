@@ -1,0 +1,26 @@
+// Helpers shared by the subcommands (internal to the command-line tool).
+#pragma once
+
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "accura/calib/identify.h"
+#include "accura/calib/measurements.h"
+#include "accura/calib/robot.h"
+
+namespace accura::cli {
+
+/// printf-style formatting of one number.
+std::string fmt(const char* format, double v);
+/// JSON number, or null for NaN / inf (JSON has neither).
+nlohmann::ordered_json num(double v);
+/// {n, rms_mm, mean_mm, max_mm, p95_mm[, rot_*_deg]}
+nlohmann::ordered_json statsJson(const ErrorStats& s);
+/// Reads --robot (a path or a bundled robot name).
+RobotModel loadRobot(const std::string& name_or_path);
+/// Prints a warning listing the columns of a measurement file accura does not use.
+void warnUnknownColumns(const MeasurementSet& set);
+/// One row of an accuracy table: RMS mean p95 max (mm[, deg]).
+void printStatsRow(const std::string& label, const ErrorStats& s);
+
+}  // namespace accura::cli

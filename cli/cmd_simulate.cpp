@@ -1,0 +1,86 @@
+#include <cmath>
+#include <cstdio>
+#include <iostream>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "accura/calib/errors.h"
+#include "accura/calib/identify.h"
+#include "accura/calib/kinematics.h"
+#include "accura/calib/measurements.h"
+#include "accura/calib/robot_io.h"
+#include "accura/calib/simulate.h"
+#include "cli_util.h"
+#include "commands.h"
+
+namespace accura::cli {
+namespace {
+using nlohmann::ordered_json;
+
+int runSimulate(const SimulateArgs& a) {
+  const RobotModel nominal = loadRobot(a.robot);
+  SimulateOptions o;
+  o.poses = a.poses;
+  o.seed = a.seed;
+  o.effects = splitList(a.effects, "--effects");
+  o.noise_mm = a.noise_mm;
+  o.noise_deg = a.noise_deg;
+  o.orientation = a.orientation;
+  o.write_std = a.write_std;
+  o.payloads_kg = parseNumbers(a.payloads, "--payloads");
+  o.error_scale = a.error_scale;
+  const bool none = o.effects.size() == 1 && o.effects[0] == "none";
+  if (!a.station.empty()) {
+    o.station = parseXyzAbc(a.station, "--station");
+  } else {
+    o.set_station = !none;
+  }
+  if (!a.tool.empty()) {
+    o.tool = parseXyzAbc(a.tool, "--tool");
+    o.set_tool = true;
+  }
+  std::string why;
+  if (!o.IsValid(&why)) throw InputError("simulate: " + why);
+  const RobotModel truth = perturbModel(nominal, o);
+  const MeasurementSet set = simulateMeasurements(truth, o);
+  std::vector<std::string> comments = {
+      "accura simulate: " + nominal.nominal.name + ", " + std::to_string(o.poses) + " poses, seed " +
+          std::to_string(o.seed) + ", effects " + a.effects,
+      "noise " + fmt("%g", o.noise_mm) + " mm" + (o.orientation ? ", " + fmt("%g", o.noise_deg) + " deg" : std::string()) +
+          " (1 sigma per axis); payloads " + a.payloads + " kg"};
+  writeMeasurementsCsv(a.out, set, truth.dof(), comments);
+  if (!a.truth.empty()) {
+    writeRobotFile(a.truth, truth, {}, "accura simulate: the real robot behind " + a.out + " (seed " + std::to_string(o.seed) + ")");
+  }
+  std::printf("wrote %d simulated poses of %s to %s%s\n", o.poses, nominal.nominal.name.c_str(), a.out.c_str(),
+              a.truth.empty() ? "" : (" and the real robot to " + a.truth).c_str());
+  return 0;
+}
+
+}  // namespace
+
+void addSimulateCommand(CLI::App& app) {
+  auto sim = std::make_shared<SimulateArgs>();
+  auto* csim = app.add_subcommand("simulate", "measurements of a perturbed robot, as a tracker sees it");
+  csim->add_option("--robot", sim->robot, "nominal robot (file or bundled name)")->required();
+  csim->add_option("--poses", sim->poses, "number of measured poses")->capture_default_str();
+  csim->add_option("--seed", sim->seed, "random seed (errors and poses)")->capture_default_str();
+  csim->add_option("--effects", sim->effects,
+                   "errors of the real robot: geometric, joint_compliance, or none (the robot as given)")
+      ->capture_default_str();
+  csim->add_option("--noise-mm", sim->noise_mm, "position noise, 1 sigma per axis (mm)")->capture_default_str();
+  csim->add_option("--noise-deg", sim->noise_deg, "orientation noise, 1 sigma per axis (deg)")->capture_default_str();
+  csim->add_flag("--orientation", sim->orientation, "also measure the orientation (6D tracker)");
+  csim->add_flag("--std", sim->write_std, "write std columns (the noise levels)");
+  csim->add_option("--payloads", sim->payloads, "payload masses cycled over the poses (kg)")->capture_default_str();
+  csim->add_option("--station", sim->station,
+                   "T_world_base of the real robot, x,y,z,A,B,C (default: 3 m away, turned 30 deg)");
+  csim->add_option("--tool", sim->tool, "the measured target on the flange, T_flange_tcp x,y,z[,A,B,C] (mm, deg)");
+  csim->add_option("--error-scale", sim->error_scale, "scale of the random geometric errors")->capture_default_str();
+  csim->add_option("--out", sim->out, "measurement CSV to write")->required();
+  csim->add_option("--truth", sim->truth, "write the real robot as a calibrated model file");
+  csim->callback([=]() { exitCode() = runSimulate(*sim); });
+}
+
+}  // namespace accura::cli

@@ -1,0 +1,67 @@
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <sstream>
+
+#include "accura/calib/errors.h"
+#include "commands.h"
+
+namespace accura::cli {
+namespace {
+std::string trim(const std::string& s) {
+  const auto b = s.find_first_not_of(" \t");
+  if (b == std::string::npos) return "";
+  return s.substr(b, s.find_last_not_of(" \t") - b + 1);
+}
+}  // namespace
+
+int& exitCode() {
+  static int code = 0;
+  return code;
+}
+
+void writeTextAtomically(const std::string& path, const std::string& text) {
+  const std::string tmp = path + ".tmp";
+  {
+    std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
+    if (!f) throw InputError(tmp, 0, 0, "cannot write file");
+    f << text;
+    f.flush();
+    if (!f) {
+      std::remove(tmp.c_str());
+      throw InputError(tmp, 0, 0, "write failed");
+    }
+  }
+  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+    std::remove(tmp.c_str());
+    throw InputError(path, 0, 0, "cannot rename temporary file into place");
+  }
+}
+
+std::vector<std::string> splitList(const std::string& text, const std::string& what) {
+  std::vector<std::string> out;
+  std::stringstream ss(text);
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    item = trim(item);
+    if (item.empty()) throw InputError(what + ": expected a comma-separated list, found an empty item in '" + text + "'");
+    out.push_back(item);
+  }
+  if (out.empty()) throw InputError(what + ": expected a comma-separated list, found nothing");
+  return out;
+}
+
+std::vector<double> parseNumbers(const std::string& text, const std::string& what) {
+  std::vector<double> v;
+  for (const auto& item : splitList(text, what)) {
+    char* end = nullptr;
+    const double x = std::strtod(item.c_str(), &end);
+    if (end == item.c_str() || *end != '\0' || !std::isfinite(x))
+      throw InputError(what + ": expected a number, found '" + item + "'");
+    v.push_back(x);
+  }
+  return v;
+}
+
+}  // namespace accura::cli
