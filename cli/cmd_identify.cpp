@@ -7,6 +7,7 @@
 
 #include "accura/calib/errors.h"
 #include "accura/calib/identify.h"
+#include "accura/calib/import.h"
 #include "accura/calib/kinematics.h"
 #include "accura/calib/measurements.h"
 #include "accura/calib/robot_io.h"
@@ -33,12 +34,20 @@ int runIdentify(const IdentifyArgs& a) {
   if (!a.base.empty()) start.nominal.T_world_base = toIsometry(parseXyzAbc(a.base, "--base"));
   if (!a.tool.empty()) start.nominal.T_flange_tcp = toIsometry(parseXyzAbc(a.tool, "--tool"));
 
-  MeasurementSet data = readMeasurementsCsv(a.data, start.nominal);
+  auto readData = [&](const std::string& path, const std::string& map) {
+    if (map.empty()) return readMeasurementsCsv(path, start.nominal);
+    return readMappedMeasurements(path, readMeasurementMapping(map, start.nominal), start.nominal);
+  };
+  if (a.validate_station != "same" && a.validate_station != "new")
+    throw InputError("--validate-station: expected 'same' or 'new', found '" + a.validate_station + "'");
+  if (a.validate_station == "new" && a.validate.empty())
+    throw InputError("--validate-station new: expected a --validate file measured from another station");
+  MeasurementSet data = readData(a.data, a.map);
   warnUnknownColumns(data);
   MeasurementSet validation;
   std::string validation_source;
   if (!a.validate.empty()) {
-    validation = readMeasurementsCsv(a.validate, start.nominal);
+    validation = readData(a.validate, a.validate_map.empty() ? a.map : a.validate_map);
     warnUnknownColumns(validation);
     validation_source = a.validate;
   } else {
@@ -78,7 +87,19 @@ int runIdentify(const IdentifyArgs& a) {
 
   const bool has_val = !validation.rows.empty();
   ErrorStats val, nom_val;
-  if (has_val) {
+  std::string station_note;
+  if (has_val && a.validate_station == "new") {
+    // another station: re-register it (6 parameters), robot parameters held fixed
+    IdentifySummary st, nst;
+    const RobotModel cal_st = registerStation(calibrated, validation, &st);
+    const RobotModel nom_st = registerStation(nominal_registered, validation, &nst);
+    const Eigen::Isometry3d moved = calibrated.T_world_base().inverse() * cal_st.T_world_base();
+    station_note = "validation station re-registered on " + a.validate + " (6 parameters, robot held fixed): base moved " +
+                   fmt("%.3f", moved.translation().norm()) + " mm, " +
+                   fmt("%.4f", Eigen::AngleAxisd(moved.linear()).angle() * kRadToDeg) + " deg";
+    val = evaluate(cal_st, validation);
+    nom_val = evaluate(nom_st, validation);
+  } else if (has_val) {
     val = evaluate(calibrated, validation);
     nom_val = evaluate(nominal_registered, validation);
   }
@@ -117,6 +138,7 @@ int runIdentify(const IdentifyArgs& a) {
   printStatsRow("fit", s.fit);
   if (has_val) {
     std::printf("validation on %s, %d poses:\n", validation_source.c_str(), val.n);
+    if (!station_note.empty()) std::printf("  %s\n", station_note.c_str());
     printStatsRow("nominal", nom_val);
     printStatsRow("calibrated", val);
     if (val.rms_mm > 0)
@@ -148,6 +170,8 @@ int runIdentify(const IdentifyArgs& a) {
     j["robot"] = calibrated.nominal.name;
     j["data"] = a.data;
     j["validation_source"] = has_val ? ordered_json(validation_source) : ordered_json(nullptr);
+    j["validation_station"] = has_val ? ordered_json(station_note.empty() ? "same as the fit" : station_note)
+                                      : ordered_json(nullptr);
     j["orientation"] = orient;
     j["groups"] = opt.groups;
     j["fit"] = statsJson(s.fit);
@@ -173,7 +197,9 @@ int runIdentify(const IdentifyArgs& a) {
                    {"variance_factor", num(s.variance_factor)},
                    {"weighting", s.weighting},
                    {"position_std_mm", num(s.position_std_mm)},
-                   {"orientation_std_deg", num(s.orientation_std_deg)}};
+                   {"orientation_std_deg", num(s.orientation_std_deg)},
+                   {"model_error_mm", num(s.model_error_mm)},
+                   {"model_error_deg", num(s.model_error_deg)}};
     j["downweighted_lines"] = s.downweighted_lines;
     j["unused_columns"] = data.unknown_columns;
     writeTextAtomically(a.json, j.dump(2) + "\n");
@@ -189,6 +215,12 @@ void addIdentifyCommand(CLI::App& app) {
   cid->add_option("--robot", id->robot, "nominal or calibrated robot (file or bundled name)")->required();
   cid->add_option("--data", id->data, "measurement CSV to fit")->required();
   cid->add_option("--validate", id->validate, "held-out measurement CSV (same station)");
+  cid->add_option("--map", id->map, "mapping file: how to read --data (and --validate) as exported by the instrument");
+  cid->add_option("--validate-map", id->validate_map, "mapping file for --validate when it differs from --map");
+  cid->add_option("--validate-station", id->validate_station,
+                  "same: --validate was measured from the fit's station; new: re-register the station (6 "
+                  "parameters) on it with the robot's parameters held fixed")
+      ->capture_default_str();
   cid->add_option("--holdout", id->holdout,
                   "without --validate: fraction of the poses held out for validation (every k-th)")
       ->capture_default_str();

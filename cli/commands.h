@@ -37,6 +37,9 @@ struct IdentifyArgs {
   std::string robot;
   std::string data;
   std::string validate;
+  std::string map;             // mapping file for --data (and --validate) exports
+  std::string validate_map;    // mapping file for --validate when it differs
+  std::string validate_station = "same";  // same | new: re-register the station on --validate
   double holdout = 0.2;
   std::string base;
   std::string tool;

@@ -339,18 +339,25 @@ RobotModel identify(const RobotModel& start, const MeasurementSet& data,
   const bool estimate_rot = orientation && !file_rot_std && std::isnan(rot_std_deg);
   if (std::isnan(pos_std)) pos_std = 0.05;          // starting value, re-estimated below
   if (std::isnan(rot_std_deg)) rot_std_deg = 0.005;  // starting value, re-estimated below
+  // Unmodelled error: when the stds of the data (or given ones) explain the residuals badly
+  // (variance factor of a component type > kModelErrorFactor), an additive isotropic term
+  // tau is estimated for that type so that sum e^2 / (s^2 + tau^2) equals its share of the
+  // redundancy (variance-component estimation); weights become 1 / sqrt(s^2 + tau^2).
+  double tau_pos_mm = 0, tau_rot_rad = 0;
   std::vector<RowWeights> weights(data.rows.size());
+  auto baseStd = [&](const Measurement& r, int k) {  // mm or rad, before the weight column
+    return k < 3 ? (file_pos_std ? r.std_mm[k] : pos_std)
+                 : (file_rot_std ? r.std_rot_deg[k - 3] : rot_std_deg) * kDegToRad;
+  };
   auto makeWeights = [&]() {
     for (size_t i = 0; i < data.rows.size(); ++i) {
       const Measurement& r = data.rows[i];
       RowWeights& w = weights[i];
       w.dim = dim;
       const double sw = std::sqrt(r.weight);
-      for (int k = 0; k < 3; ++k) {
-        const double s = file_pos_std ? r.std_mm[k] : pos_std;
-        w.w[k] = sw / s;
-        const double sr = (file_rot_std ? r.std_rot_deg[k] : rot_std_deg) * kDegToRad;
-        w.w[3 + k] = sw / sr;
+      for (int k = 0; k < 6; ++k) {
+        const double s = baseStd(r, k), tau = k < 3 ? tau_pos_mm : tau_rot_rad;
+        w.w[k] = sw / std::sqrt(s * s + tau * tau);
       }
     }
   };
@@ -513,22 +520,80 @@ RobotModel identify(const RobotModel& start, const MeasurementSet& data,
   };
 
   ceres::Solver::Summary cs;
-  const bool robust = options.loss != "none";
   {
     Eigen::MatrixXd J0;
     Eigen::VectorXd r0;
     stackedJacobian(model, layout, data, weights, &J0, &r0);
     summary.initial_cost = 0.5 * r0.squaredNorm();
   }
-  if (estimate_pos || estimate_rot) {
-    // Variance components: solve, re-estimate the stds from the residuals, solve again.
-    for (int round = 0; round < 3; ++round) {
-      solve(false, &cs);
-      double sp = pos_std, sr = rot_std_deg;
-      componentStd(robust, &sp, &sr);
-      const double change = std::abs(std::log(sp / pos_std)) + (orientation ? std::abs(std::log(sr / rot_std_deg)) : 0.0);
-      if (estimate_pos) pos_std = std::max(sp, 1e-6);
-      if (estimate_rot) rot_std_deg = std::max(sr, 1e-9);
+  const bool robust = options.loss != "none";
+  // tau^2 for one component type (k0 = 0 position, 3 orientation): the root of
+  // sum e^2 / (s^2 + tau^2) = share, by bisection (the left side falls with tau^2).
+  auto modelErrorTerm = [&](int k0) {
+    std::vector<double> e2, s2;
+    KinematicWorkspace ws;
+    const double a = options.loss_scale * std::sqrt(double(dim));
+    for (size_t i = 0; i < data.rows.size(); ++i) {
+      const Measurement& r = data.rows[i];
+      const Eigen::Isometry3d T = forwardKinematics(model, r.q, r.context, ws);
+      Vector6d e;
+      e.head<3>() = T.translation() - r.p_world_mm;
+      e.tail<3>() = orientation ? logSO3(T.linear() * r.R_world_tcp.toRotationMatrix().transpose())
+                                : Eigen::Vector3d::Zero().eval();
+      // with a robust loss, rows it down-weights do not inflate the model-error term
+      if (robust && weights[i].w.cwiseProduct(e).norm() > a) continue;  // e.tail = 0 without orientation
+      for (int k = k0; k < k0 + 3; ++k) {
+        e2.push_back(e[k] * e[k] * r.weight);
+        const double s = baseStd(r, k);
+        s2.push_back(s * s);
+      }
+    }
+    const double share = double(e2.size()) * std::max(1.0, double(m_eq - p_free)) / double(m_eq);
+    auto f = [&](double t2) {
+      double sum = 0;
+      for (size_t i = 0; i < e2.size(); ++i) sum += e2[i] / (s2[i] + t2);
+      return sum - share;
+    };
+    if (f(0) <= 0) return 0.0;
+    double lo = 0, hi = 1e-30;
+    for (double v : e2) hi = std::max(hi, v);
+    hi *= 4;  // f(hi) < 0: every term below 1/4
+    for (int it = 0; it < 200 && hi - lo > 1e-12 * hi; ++it) {
+      const double mid = 0.5 * (lo + hi);
+      (f(mid) > 0 ? lo : hi) = mid;
+    }
+    return std::sqrt(0.5 * (lo + hi));
+  };
+  const bool file_or_given_pos = !estimate_pos, file_or_given_rot = orientation && !estimate_rot;
+  if (estimate_pos || estimate_rot || options.model_error) {
+    // Variance components: solve, re-estimate from the residuals, solve again.
+    for (int round = 0; round < 4; ++round) {
+      solve(robust, &cs);
+      double change = 0;
+      if (estimate_pos || estimate_rot) {
+        double sp = pos_std, sr = rot_std_deg;
+        componentStd(robust, &sp, &sr);
+        if (estimate_pos) {
+          change += std::abs(std::log(sp / pos_std));
+          pos_std = std::max(sp, 1e-6);
+        }
+        if (estimate_rot) {
+          change += std::abs(std::log(sr / rot_std_deg));
+          rot_std_deg = std::max(sr, 1e-9);
+        }
+      }
+      if (options.model_error) {
+        if (file_or_given_pos) {
+          const double t = modelErrorTerm(0);
+          change += std::abs(t - tau_pos_mm) / std::max(t, 1e-9);
+          tau_pos_mm = t;
+        }
+        if (file_or_given_rot) {
+          const double t = modelErrorTerm(3);
+          change += std::abs(t - tau_rot_rad) / std::max(t, 1e-12);
+          tau_rot_rad = t;
+        }
+      }
       makeWeights();
       if (change < 0.01) break;
     }
@@ -549,6 +614,14 @@ RobotModel identify(const RobotModel& start, const MeasurementSet& data,
     else summary.weighting += "; orientation: std given";
   }
   if (data.has_weight) summary.weighting += "; times the per-row weight column";
+  summary.model_error_mm = tau_pos_mm;
+  summary.model_error_deg = tau_rot_rad * kRadToDeg;
+  if (tau_pos_mm > 0 || tau_rot_rad > 0) {
+    char buf[200];
+    std::snprintf(buf, sizeof buf, "; plus an unmodelled-error term estimated from the residuals: %.4g mm, %.4g deg",
+                  tau_pos_mm, tau_rot_rad * kRadToDeg);
+    summary.weighting += buf;
+  }
   summary.position_std_mm = file_pos_std ? std::numeric_limits<double>::quiet_NaN() : pos_std;
   summary.orientation_std_deg = (orientation && !file_rot_std) ? rot_std_deg : std::numeric_limits<double>::quiet_NaN();
 
@@ -592,6 +665,13 @@ RobotModel identify(const RobotModel& start, const MeasurementSet& data,
   summary.fit = evaluate(model, data);
   if (summary_out) *summary_out = summary;
   return model;
+}
+
+RobotModel registerStation(const RobotModel& model, const MeasurementSet& data,
+                           IdentifySummary* summary) {
+  IdentifyOptions o;
+  o.groups = {"base"};
+  return identify(model, data, o, summary);
 }
 
 }  // namespace accura

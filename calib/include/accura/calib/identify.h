@@ -24,6 +24,12 @@ struct IdentifyOptions {
   /// components, one re-solve), reported in the summary.
   double position_std_mm = std::numeric_limits<double>::quiet_NaN();
   double orientation_std_deg = std::numeric_limits<double>::quiet_NaN();
+  /// When the data's (or the given) stds explain the residuals badly, estimate an additive
+  /// unmodelled-error std per component type (position, orientation) and weight each row by
+  /// 1 / sqrt(std^2 + tau^2): the instrument's stds alone would over-trust the most precise
+  /// rows when the model, not the instrument, limits the fit. tau = 0 when the stds
+  /// already explain the residuals.
+  bool model_error = true;
   /// Robust loss on the weighted residual of each pose: "none", "huber" or "cauchy";
   /// loss_scale in units of the residual's standard deviation.
   std::string loss = "none";
@@ -73,6 +79,8 @@ struct IdentifySummary {
   std::string weighting;            ///< how residuals were weighted (file stds, given, estimated)
   double position_std_mm = 0;       ///< the position std used when not from the file
   double orientation_std_deg = 0;
+  double model_error_mm = 0;        ///< the unmodelled-error term (0: none needed)
+  double model_error_deg = 0;
   int equations = 0, parameters_free = 0;
   std::vector<FixedParameter> fixed;
   std::vector<ParameterEstimate> parameters;
@@ -90,6 +98,12 @@ struct IdentifySummary {
 /// registration is degenerate (collinear points) or the solver fails.
 RobotModel identify(const RobotModel& start, const MeasurementSet& data,
                     const IdentifyOptions& options, IdentifySummary* summary);
+
+/// Re-registers the measurement station: T_world_base alone (6 parameters: closed-form
+/// registration, then weighted least squares) is identified on `data`, every other parameter
+/// held at its value in `model`. For validation data measured from another tracker station.
+RobotModel registerStation(const RobotModel& model, const MeasurementSet& data,
+                           IdentifySummary* summary);
 
 /// Errors of `model` against `data`.
 ErrorStats evaluate(const RobotModel& model, const MeasurementSet& data);

@@ -1,0 +1,115 @@
+// Instrument exports read through mapping files: conventions, units, decimal comma, errors.
+#include <gtest/gtest.h>
+
+#include "accura/calib/errors.h"
+#include "accura/calib/import.h"
+#include "test_util.h"
+
+namespace accura {
+namespace {
+
+Eigen::Matrix3d R(char axis, double deg) {
+  const Eigen::Vector3d a = axis == 'x' ? Eigen::Vector3d::UnitX() : axis == 'y' ? Eigen::Vector3d::UnitY() : Eigen::Vector3d::UnitZ();
+  return Eigen::AngleAxisd(deg * kDegToRad, a).toRotationMatrix();
+}
+
+TEST(Import, RotationConventions) {
+  const Eigen::Vector3d a(10, -25, 40);
+  const Eigen::Vector3d r = a * kDegToRad;
+  EXPECT_TRUE(rotationFromAngles("euler_intrinsic_xyz", r).isApprox(R('x', 10) * R('y', -25) * R('z', 40), 1e-12));
+  EXPECT_TRUE(rotationFromAngles("euler_extrinsic_xyz", r).isApprox(R('z', 40) * R('y', -25) * R('x', 10), 1e-12));
+  EXPECT_TRUE(rotationFromAngles("kuka_abc", r).isApprox(R('z', 10) * R('y', -25) * R('x', 40), 1e-12));
+  EXPECT_TRUE(rotationFromAngles("euler_intrinsic_zyz", r).isApprox(R('z', 10) * R('y', -25) * R('z', 40), 1e-12));
+  EXPECT_THROW(rotationFromAngles("euler_intrinsic_xqz", r), ArgumentError);
+}
+
+const char* kMap =
+    "# test export\n"
+    "delimiter = ;\n"
+    "decimal = ,\n"
+    "joints = J1, J2, J3, J4, J5, J6\n"
+    "joint_unit = rad\n"
+    "position = Pos X, Pos Y, Pos Z\n"
+    "position_unit = m\n"
+    "orientation = euler_intrinsic_xyz: RX, RY, RZ\n"
+    "orientation_unit = deg\n"
+    "position_std = SX, SY, SZ\n"
+    "orientation_std = SR\n"
+    "temperature_c = T\n"
+    "ignore = Stamp\n";
+
+RobotDefinition kr16() { return test::loadBundled("kuka_kr16").nominal; }
+
+TEST(Import, ReadsDecimalCommaRadiansMetresAndEulerStds) {
+  const std::string dir = test::tempDir("import_ok");
+  test::writeText(dir + "/e.map", kMap);
+  test::writeText(dir + "/e.csv",
+                  "Stamp;J1;J2;J3;J4;J5;J6;Pos X;Pos Y;Pos Z;RX;RY;RZ;SX;SY;SZ;SR;T;Extra\n"
+                  "1;0,5;-1;1,2;0;0,3;-0,1;1,25;-0,5;0,75;10;-25;40;0,00001;0,00002;0,00003;0,002;21,5;x\n");
+  const MeasurementMapping m = readMeasurementMapping(dir + "/e.map", kr16());
+  const MeasurementSet s = readMappedMeasurements(dir + "/e.csv", m, kr16());
+  ASSERT_EQ(s.rows.size(), 1u);
+  const Measurement& r = s.rows[0];
+  EXPECT_NEAR(r.q[0], 0.5 * 180 / kPi, 1e-9);
+  EXPECT_NEAR(r.q[1], -180 / kPi, 1e-9);
+  EXPECT_NEAR(r.p_world_mm.x(), 1250, 1e-9);
+  EXPECT_NEAR(r.p_world_mm.y(), -500, 1e-9);
+  EXPECT_NEAR(r.p_world_mm.z(), 750, 1e-9);
+  EXPECT_NEAR(r.std_mm.z(), 0.03, 1e-12);
+  EXPECT_TRUE(r.R_world_tcp.toRotationMatrix().isApprox(R('x', 10) * R('y', -25) * R('z', 40), 1e-12));
+  EXPECT_NEAR(r.temp_c, 21.5, 1e-12);
+  // isotropic Euler stds: the world-axis stds follow from J = [x0, Rx y0, Rx Ry z0] (columns
+  // the world directions of the three rotation axes), Sigma = s^2 J J^T.
+  Eigen::Matrix3d J;
+  J.col(0) = Eigen::Vector3d::UnitX();
+  J.col(1) = R('x', 10) * Eigen::Vector3d::UnitY();
+  J.col(2) = R('x', 10) * R('y', -25) * Eigen::Vector3d::UnitZ();
+  const Eigen::Matrix3d S = 0.002 * 0.002 * J * J.transpose();
+  for (int k = 0; k < 3; ++k) EXPECT_NEAR(r.std_rot_deg[k], std::sqrt(S(k, k)), 1e-9);
+  ASSERT_EQ(s.unknown_columns.size(), 1u);
+  EXPECT_EQ(s.unknown_columns[0], "Extra");
+}
+
+void expectError(const std::string& map, const std::string& csv, const std::string& file_suffix, int line, int col,
+                 const std::string& words) {
+  const std::string dir = test::tempDir("import_bad");
+  test::writeText(dir + "/e.map", map);
+  test::writeText(dir + "/e.csv", csv);
+  try {
+    const MeasurementMapping m = readMeasurementMapping(dir + "/e.map", kr16());
+    readMappedMeasurements(dir + "/e.csv", m, kr16());
+    FAIL() << "expected InputError: " << words;
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.file(), dir + "/" + file_suffix) << e.what();
+    EXPECT_EQ(e.line(), line) << e.what();
+    EXPECT_EQ(e.column(), col) << e.what();
+    EXPECT_NE(std::string(e.what()).find(words), std::string::npos) << e.what();
+  }
+}
+
+TEST(Import, BadMappingsAndRowsSayWhereAndWhat) {
+  const std::string header = "Stamp;J1;J2;J3;J4;J5;J6;Pos X;Pos Y;Pos Z;RX;RY;RZ;SX;SY;SZ;SR;T\n";
+  const std::string row = "1;0;-1;1;0;0,3;0;1;0;1;0;0;0;0,1;0,1;0,1;0,1;20\n";
+  std::string m = kMap;
+  expectError(std::string(m).replace(m.find("joint_unit = rad"), 16, "joint_unit = grad"), header + row, "e.map", 5, 14,
+              "key 'joint_unit': expected 'deg' or 'rad', found 'grad'");
+  expectError(m + "colour = red\n", header + row, "e.map", 14, 1, "unknown key 'colour'");
+  expectError(std::string(m).replace(m.find(", J6\n"), 5, "\n"), header + row, "e.map", 4, 10,
+              "key 'joints': expected 6 column names, found 5");
+  expectError(std::string(m).replace(m.find("euler_intrinsic_xyz"), 19, "euler_sideways_xyz"), header + row, "e.map",
+              8, 15, "expected a convention");
+  expectError(m, "Stamp;J1;J2;J3;J4;J5;J6;Pos X;Pos Y;RX;RY;RZ;SX;SY;SZ;SR;T\n" + row, "e.csv", 1, 0,
+              "missing column 'Pos Z' (mapped as position in");
+  expectError(m, header + "1;0;-1;1;0;0.3;0;1;0;1;0;0;0;0,1;0,1;0,1;0,1;20\n", "e.csv", 2, 6,
+              "column 'J5': expected a number with ',' as decimal mark, found '0.3'");
+  expectError(m, header + "1;0;-1;1;0;0,3;0;1;0;1;0;0;0;0,1;0,1;0,1;0,1\n", "e.csv", 2, 0,
+              "expected 18 fields as in the header, found 17");
+  expectError(m, header + "1;0;1;1;0;0,3;0;1;0;1;0;0;0;0,1;0,1;0,1;0,1;20\n", "e.csv", 2, 3,
+              "column 'J2': joint value 57.2958 deg is outside the joint limits [-155, 35] deg");
+  expectError(m, header + "1;0;-1;1;0;0,3;0;1;0;1;0;0;0;0;0,1;0,1;0,1;20\n", "e.csv", 2, 14,
+              "expected a standard deviation > 0");
+  expectError(m, header, "e.csv", 0, 0, "expected at least one data row");
+}
+
+}  // namespace
+}  // namespace accura
