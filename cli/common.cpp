@@ -5,6 +5,7 @@
 #include <sstream>
 
 #include "accura/calib/errors.h"
+#include "accura/calib/file_io.h"
 #include "commands.h"
 
 namespace accura::cli {
@@ -22,21 +23,7 @@ int& exitCode() {
 }
 
 void writeTextAtomically(const std::string& path, const std::string& text) {
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
-    if (!f) throw InputError(tmp, 0, 0, "cannot write file");
-    f << text;
-    f.flush();
-    if (!f) {
-      std::remove(tmp.c_str());
-      throw InputError(tmp, 0, 0, "write failed");
-    }
-  }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-    std::remove(tmp.c_str());
-    throw InputError(path, 0, 0, "cannot rename temporary file into place");
-  }
+  writeFileAtomically(path, text);
 }
 
 std::vector<std::string> splitList(const std::string& text, const std::string& what) {

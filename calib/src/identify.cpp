@@ -288,8 +288,6 @@ RobotModel identify(const RobotModel& start, const MeasurementSet& data,
   start.validate();
   IdentifySummary summary;
   RobotModel model = start;
-  const std::vector<ParamInfo> layout = parameterLayout(model);
-  const size_t P = layout.size();
   const bool orientation = !data.rows.empty() && std::all_of(data.rows.begin(), data.rows.end(),
                                                              [](const Measurement& r) { return r.has_orientation; });
   std::set<std::string> groups;
@@ -300,17 +298,19 @@ RobotModel identify(const RobotModel& start, const MeasurementSet& data,
       groups.insert(g);
     }
   }
-  // Candidate parameters: in a requested group; tool rotation only with orientation data.
-  std::vector<bool> candidate(P, false);
-  for (size_t k = 0; k < P; ++k) {
-    const ParamInfo& p = layout[k];
+  // The candidate parameters: those of the requested groups (tool rotation only with
+  // orientation data). Every other deviation stays as it is in `start` and is not part of
+  // the problem (nor of the Jacobian).
+  std::vector<ParamInfo> layout;
+  for (const ParamInfo& p : parameterLayout(model)) {
     if (!groups.count(p.group)) continue;
     if (!orientation && (p.kind == ParamKind::kToolRx || p.kind == ParamKind::kToolRy ||
                          p.kind == ParamKind::kToolRz))
       continue;
-    candidate[k] = true;
+    layout.push_back(p);
   }
-  const int n_candidates = static_cast<int>(std::count(candidate.begin(), candidate.end(), true));
+  const size_t P = layout.size();
+  const int n_candidates = static_cast<int>(P);
   const int dim = orientation ? 6 : 3;
   const int m_eq = dim * static_cast<int>(data.rows.size());
   if (m_eq < n_candidates + 1) {
@@ -365,8 +365,7 @@ RobotModel identify(const RobotModel& start, const MeasurementSet& data,
 
   // 3. Identifiability on the scaled weighted Jacobian at the starting point.
   std::vector<int> cand_idx;
-  for (size_t k = 0; k < P; ++k)
-    if (candidate[k]) cand_idx.push_back(static_cast<int>(k));
+  for (size_t k = 0; k < P; ++k) cand_idx.push_back(static_cast<int>(k));
   Eigen::MatrixXd Jfull;
   stackedJacobian(model, layout, data, weights, &Jfull, nullptr);
   const Eigen::Index m = Jfull.rows();

@@ -13,6 +13,7 @@
 #include <sstream>
 
 #include "accura/calib/errors.h"
+#include "accura/calib/file_io.h"
 #include "accura/calib/kinematics.h"
 
 namespace fs = std::filesystem;
@@ -281,21 +282,7 @@ void writeRobotFile(const std::string& path, const RobotModel& model,
   }
   out << "</robot>\n";
 
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
-    if (!f) throw InputError(tmp, 0, 0, "cannot write file");
-    f << out.str();
-    f.flush();
-    if (!f) {
-      std::remove(tmp.c_str());
-      throw InputError(tmp, 0, 0, "write failed");
-    }
-  }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-    std::remove(tmp.c_str());
-    throw InputError(path, 0, 0, "cannot rename temporary file into place");
-  }
+  writeFileAtomically(path, out.str());
 }
 
 std::vector<std::string> bundledRobotNames() {
