@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <iostream>
 
+#include "accura/calib/import.h"
 #include "accura/calib/robot_io.h"
 
 namespace accura::cli {
@@ -45,6 +46,14 @@ void printStatsRow(const std::string& label, const ErrorStats& s) {
   if (s.has_orientation)
     std::printf("   %8.5f %8.5f %8.5f %8.5f", s.rot_rms_deg, s.rot_mean_deg, s.rot_p95_deg, s.rot_max_deg);
   std::printf("\n");
+}
+
+MeasurementSet readMeasurements(const std::string& path, const std::string& map_path, const RobotDefinition& robot) {
+  MeasurementSet set = map_path.empty()
+                           ? readMeasurementsCsv(path, robot)
+                           : readMappedMeasurements(path, readMeasurementMapping(map_path, robot), robot);
+  warnUnknownColumns(set);
+  return set;
 }
 
 }  // namespace accura::cli

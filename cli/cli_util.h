@@ -18,6 +18,9 @@ nlohmann::ordered_json num(double v);
 nlohmann::ordered_json statsJson(const ErrorStats& s);
 /// Reads --robot (a path or a bundled robot name).
 RobotModel loadRobot(const std::string& name_or_path);
+/// Reads a measurement file: accura's CSV format, or an instrument export through the mapping
+/// file `map_path` when it is not empty (docs/measurement-mapping.md). Warns about unused columns.
+MeasurementSet readMeasurements(const std::string& path, const std::string& map_path, const RobotDefinition& robot);
 /// Prints a warning listing the columns of a measurement file accura does not use.
 void warnUnknownColumns(const MeasurementSet& set);
 /// One row of an accuracy table: RMS mean p95 max (mm[, deg]).

@@ -34,21 +34,15 @@ int runIdentify(const IdentifyArgs& a) {
   if (!a.base.empty()) start.nominal.T_world_base = toIsometry(parseXyzAbc(a.base, "--base"));
   if (!a.tool.empty()) start.nominal.T_flange_tcp = toIsometry(parseXyzAbc(a.tool, "--tool"));
 
-  auto readData = [&](const std::string& path, const std::string& map) {
-    if (map.empty()) return readMeasurementsCsv(path, start.nominal);
-    return readMappedMeasurements(path, readMeasurementMapping(map, start.nominal), start.nominal);
-  };
   if (a.validate_station != "same" && a.validate_station != "new")
     throw InputError("--validate-station: expected 'same' or 'new', found '" + a.validate_station + "'");
   if (a.validate_station == "new" && a.validate.empty())
     throw InputError("--validate-station new: expected a --validate file measured from another station");
-  MeasurementSet data = readData(a.data, a.map);
-  warnUnknownColumns(data);
+  MeasurementSet data = readMeasurements(a.data, a.map, start.nominal);
   MeasurementSet validation;
   std::string validation_source;
   if (!a.validate.empty()) {
-    validation = readData(a.validate, a.validate_map.empty() ? a.map : a.validate_map);
-    warnUnknownColumns(validation);
+    validation = readMeasurements(a.validate, a.validate_map.empty() ? a.map : a.validate_map, start.nominal);
     validation_source = a.validate;
   } else {
     if (!(a.holdout >= 0 && a.holdout < 0.9))

@@ -60,6 +60,11 @@ int& exitCode();
 void addFkCommand(CLI::App& app);
 void addSimulateCommand(CLI::App& app);
 void addIdentifyCommand(CLI::App& app);
+void addConvertCommand(CLI::App& app);
+void addCompensateCommand(CLI::App& app);
+void addBatchCommand(CLI::App& app);
+void addDiagnoseCommand(CLI::App& app);
+void addSelfcheckCommand(CLI::App& app);
 
 /// Writes text through a temporary file renamed into place (InputError on failure).
 void writeTextAtomically(const std::string& path, const std::string& text);

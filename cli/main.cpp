@@ -16,6 +16,11 @@ int main(int argc, char** argv) {
   addFkCommand(app);
   addSimulateCommand(app);
   addIdentifyCommand(app);
+  addConvertCommand(app);
+  addCompensateCommand(app);
+  addBatchCommand(app);
+  addDiagnoseCommand(app);
+  addSelfcheckCommand(app);
 
   try {
     try {

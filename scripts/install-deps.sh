@@ -10,8 +10,10 @@ packages=(
   libassimp-dev       # CAD meshes of the cell (reach and clearance checks)
   libgtest-dev        # tests
   libbenchmark-dev    # bench/
+  liborocos-kdl-dev   # bench/: the IK peer (KDL ChainIkSolverPos_NR_JL)
   libcli11-dev        # command-line parsing
   nlohmann-json3-dev  # JSON reports
+  chromium            # tests: renders the diagnosis report headless and checks the screenshot
 )
 
 missing=()

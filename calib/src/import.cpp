@@ -408,6 +408,9 @@ MeasurementSet readMappedMeasurements(const std::string& path, const Measurement
         throw InputError(path, ln, c + 1, "column '" + header[c] + "': expected +1 or -1, found " + trim(f[c]));
       r.dir.push_back(static_cast<int>(d));
     }
+    // the model's context (kinematics.h): temperature and approach directions, when given
+    if (tc >= 0) r.context.temp_c = r.temp_c;
+    r.context.dir = r.dir;
     set.rows.push_back(r);
   }
   if (set.rows.empty()) throw InputError(path, 0, 0, "expected at least one data row, found none");

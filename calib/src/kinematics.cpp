@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 
 #include "accura/calib/errors.h"
 
@@ -40,20 +42,78 @@ struct LinkValues {
   double theta, d, a, alpha, beta;
 };
 
-// DH values of link i with deviations and the load-dependent compliance term.
-LinkValues linkValues(const RobotModel& model, int i, double q, double load) {
+// Thermal length scale (1 + alpha (temp_c - T_ref)) of the model in `context`.
+double thermalScale(const RobotModel& model, const PoseContext& context) {
+  const double alpha = model.deviations.thermal_alpha_per_k;
+  if (alpha == 0.0) return 1.0;
+  return 1.0 + alpha * (context.temp_c - kThermalReferenceC);
+}
+
+// Approach direction of joint i (0 when unknown).
+double direction(const PoseContext& context, int i) {
+  if (context.dir.empty()) return 0.0;
+  if (static_cast<int>(context.dir.size()) <= i)
+    throw ArgumentError("pose context: expected " + std::to_string(i + 1) + " or more approach directions, got " +
+                        std::to_string(context.dir.size()));
+  return context.dir[static_cast<size_t>(i)] >= 0 ? 1.0 : -1.0;
+}
+
+// The joint-space terms of the effect catalogue for joint i at q (deg or mm): rad for a
+// revolute joint, mm for a prismatic one.
+double jointEffects(const RobotModel& model, int i, double q, const PoseContext& context) {
+  const Deviations& dev = model.deviations;
+  const bool revolute = model.nominal.joints[i].type == JointType::kRevolute;
+  const double qi = revolute ? q * kDegToRad : q;
+  double t = 0;
+  if (dev.joint_scale[i] != 0.0) t += dev.joint_scale[i] * qi;
+  if (dev.backlash[i] != 0.0) t += 0.5 * dev.backlash[i] * direction(context, i);
+  if (revolute) {
+    const int H = dev.gear_harmonics;
+    for (int h = 1; h <= H; ++h) {
+      const double s = dev.gear_sin[i * H + h - 1], c = dev.gear_cos[i * H + h - 1];
+      if (s != 0.0) t += s * std::sin(h * qi);
+      if (c != 0.0) t += c * std::cos(h * qi);
+    }
+  }
+  return t;
+}
+
+// True when any joint-space effect of the catalogue (gear, scale, backlash) is non-zero.
+bool anyJointEffects(const Deviations& d) {
+  // OR of the bit patterns without the sign bit: zero only when every value is +-0 (a short
+  // dependency chain and no branches: this runs on every forward kinematics call)
+  std::uint64_t acc = 0;
+  auto fold = [&acc](const std::vector<double>& v) {
+    for (double x : v) {
+      std::uint64_t bits;
+      std::memcpy(&bits, &x, sizeof bits);
+      acc |= bits;
+    }
+  };
+  fold(d.joint_scale);
+  fold(d.backlash);
+  fold(d.gear_sin);
+  fold(d.gear_cos);
+  return (acc & ~(std::uint64_t(1) << 63)) != 0;
+}
+
+// DH values of link i with deviations, the load-dependent compliance term and, when
+// `effects`, the joint-space effects of the catalogue; `scale` is the thermal length scale.
+LinkValues linkValues(const RobotModel& model, int i, double q, double load, const PoseContext& context,
+                      double scale, bool effects) {
   const JointSpec& j = model.nominal.joints[i];
   const LinkDeviation& dev = model.deviations.links[i];
   const double c = model.deviations.compliance[i];
+  const double extra = effects ? jointEffects(model, i, q, context) : 0.0;
   LinkValues v;
   v.theta = j.theta0_deg * kDegToRad + dev.dtheta_rad;
-  v.d = j.d_mm + dev.dd_mm;
+  v.d = (j.d_mm + dev.dd_mm) * scale;
   if (j.type == JointType::kRevolute) {
-    v.theta += j.direction * q * kDegToRad + c * load;
+    v.theta += j.direction * q * kDegToRad + c * load + extra;
   } else {
-    v.d += j.direction * q + c * load;
+    v.d += j.direction * q + c * load + extra;
   }
-  v.a = j.a_mm + dev.da_mm;
+  v.a = (j.a_mm + dev.da_mm) * scale;
   v.alpha = j.alpha_deg * kDegToRad + dev.dalpha_rad;
   v.beta = dev.dbeta_rad;
   return v;
@@ -81,9 +141,11 @@ void computeFrames(const RobotModel& model, const Eigen::VectorXd& q, const Pose
   } else {
     ws.load.setZero(n);
   }
+  const double scale = thermalScale(model, context);
+  const bool effects = anyJointEffects(model.deviations);
   ws.T_base_frame[0].setIdentity();
   for (int i = 0; i < n; ++i) {
-    const LinkValues v = linkValues(model, i, q[i], ws.load[i]);
+    const LinkValues v = linkValues(model, i, q[i], ws.load[i], context, scale, effects);
     ws.theta_rad[i] = v.theta;
     ws.d_mm[i] = v.d;
     ws.T_base_frame[i + 1] = ws.T_base_frame[i] * linkTransform(v.theta, v.d, v.a, v.alpha, v.beta);
@@ -158,7 +220,17 @@ std::vector<std::pair<std::string, std::string>> parameterGroups() {
       {"lengths", "DH lengths a and d (mm)"},
       {"angles", "DH twists alpha, Hayati beta, prismatic theta (deg)"},
       {"joint_compliance", "dtheta_i = c_i * tau_i, tau_i the gravity torque (urad/Nm)"},
+      {"gear_periodic", "dtheta_i = sum_h s_ih sin(h q_i) + c_ih cos(h q_i), h = 1..H (deg)"},
+      {"joint_scale", "dtheta_i = k_i q_i, gear ratio or encoder scale error (ppm)"},
+      {"backlash", "dtheta_i = (b_i / 2) dir_i, from the dirN columns (deg; mm for prismatic joints)"},
+      {"thermal", "a_i, d_i scale by 1 + alpha (temp_c - 20 C), one alpha per robot (ppm/K)"},
   };
+}
+
+const std::vector<std::string>& effectCatalogue() {
+  static const std::vector<std::string> names = {"joint_compliance", "gear_periodic", "joint_scale", "backlash",
+                                                 "thermal"};
+  return names;
 }
 
 std::vector<ParamInfo> parameterLayout(const RobotModel& model) {
@@ -195,6 +267,23 @@ std::vector<ParamInfo> parameterLayout(const RobotModel& model) {
     L.push_back({ParamKind::kCompliance, i, "j" + std::to_string(i + 1) + "_compliance",
                  "joint_compliance", revolute ? "urad/Nm" : "um/N", revolute ? 1e6 : 1e3});
   }
+  const int H = model.deviations.gear_harmonics;
+  for (int i = 0; i < model.dof(); ++i) {
+    if (model.nominal.joints[i].type != JointType::kRevolute) continue;
+    const std::string j = "j" + std::to_string(i + 1) + "_gear_";
+    for (int h = 1; h <= H; ++h) {
+      L.push_back({ParamKind::kGearSin, i, j + "s" + std::to_string(h), "gear_periodic", "deg", deg, h});
+      L.push_back({ParamKind::kGearCos, i, j + "c" + std::to_string(h), "gear_periodic", "deg", deg, h});
+    }
+  }
+  for (int i = 0; i < model.dof(); ++i)
+    L.push_back({ParamKind::kJointScale, i, "j" + std::to_string(i + 1) + "_scale", "joint_scale", "ppm", 1e6});
+  for (int i = 0; i < model.dof(); ++i) {
+    const bool revolute = model.nominal.joints[i].type == JointType::kRevolute;
+    L.push_back({ParamKind::kBacklash, i, "j" + std::to_string(i + 1) + "_backlash", "backlash",
+                 revolute ? "deg" : "mm", revolute ? deg : 1.0});
+  }
+  L.push_back({ParamKind::kThermal, -1, "thermal_alpha", "thermal", "ppm/K", 1e6});
   return L;
 }
 
@@ -213,6 +302,7 @@ double* slot(Deviations& dev, const ParamInfo& p) {
     case ParamKind::kToolRx: return &dev.tool_rot_rad[0];
     case ParamKind::kToolRy: return &dev.tool_rot_rad[1];
     case ParamKind::kToolRz: return &dev.tool_rot_rad[2];
+    case ParamKind::kThermal: return &dev.thermal_alpha_per_k;
     default: break;
   }
   if (p.joint < 0 || p.joint >= static_cast<int>(dev.links.size()))
@@ -226,6 +316,18 @@ double* slot(Deviations& dev, const ParamInfo& p) {
     case ParamKind::kAlpha: return &L.dalpha_rad;
     case ParamKind::kBeta: return &L.dbeta_rad;
     case ParamKind::kCompliance: return &dev.compliance[p.joint];
+    case ParamKind::kJointScale: return &dev.joint_scale[p.joint];
+    case ParamKind::kBacklash: return &dev.backlash[p.joint];
+    case ParamKind::kGearSin:
+    case ParamKind::kGearCos: {
+      const int H = dev.gear_harmonics;
+      if (p.harmonic < 1 || p.harmonic > H)
+        throw ArgumentError("parameter " + p.name + ": harmonic out of range 1.." + std::to_string(H));
+      std::vector<double>& v = p.kind == ParamKind::kGearSin ? dev.gear_sin : dev.gear_cos;
+      const size_t k = static_cast<size_t>(p.joint * H + p.harmonic - 1);
+      if (k >= v.size()) throw ArgumentError("parameter " + p.name + ": gear_periodic values not sized");
+      return &v[k];
+    }
     default: break;
   }
   throw ArgumentError("parameter " + p.name + ": unknown kind");
@@ -256,6 +358,8 @@ Eigen::Isometry3d parameterJacobian(const RobotModel& model, const std::vector<P
       T_w_flange.linear() * model.nominal.T_flange_tcp.linear();
   const Eigen::Matrix3d R_w_basenom = model.nominal.T_world_base.linear();
 
+  const double scale = thermalScale(model, context);
+
   J.setZero(6, static_cast<Eigen::Index>(layout.size()));
   auto translation = [&](Eigen::Index col, const Eigen::Vector3d& u) { J.col(col).head<3>() = u; };
   auto rotation = [&](Eigen::Index col, const Eigen::Vector3d& u, const Eigen::Vector3d& o) {
@@ -263,7 +367,23 @@ Eigen::Isometry3d parameterJacobian(const RobotModel& model, const std::vector<P
     J.col(col).tail<3>() = u;
   };
   // Intermediate frames of link i in the world: M0 = F_{i-1}, M1 = M0 Rz Tz, M2 = M1 Tx,
-  // M3 = M2 Rx. Computed on demand.
+  // M3 = M2 Rx: the axes and origins the columns need, once per link.
+  // Columns of ws.link_axes[i]: z0, o0, x1, o2, y3.
+  ws.link_axes.resize(static_cast<size_t>(n));
+  for (int i = 0; i < n; ++i) {
+    Eigen::Matrix<double, 3, 5>& A = ws.link_axes[static_cast<size_t>(i)];
+    const Eigen::Matrix3d R0 = T_wb.linear() * ws.T_base_frame[i].linear();
+    A.col(0) = R0.col(2);
+    A.col(1) = T_wb * ws.T_base_frame[i].translation();
+    const double ct = std::cos(ws.theta_rad[i]), st = std::sin(ws.theta_rad[i]);
+    // M1 = M0 Rz(theta) Tz(d): x axis and origin
+    A.col(2) = R0 * Eigen::Vector3d(ct, st, 0);
+    const double a = (model.nominal.joints[i].a_mm + model.deviations.links[i].da_mm) * scale;
+    A.col(3) = A.col(1) + ws.d_mm[i] * A.col(0) + a * A.col(2);
+    // y axis of M3 = M2 Rx(alpha): Rz(theta) Rx(alpha) e_y in frame i-1
+    const double alpha = model.nominal.joints[i].alpha_deg * kDegToRad + model.deviations.links[i].dalpha_rad;
+    A.col(4) = R0 * Eigen::Vector3d(-st * std::cos(alpha), ct * std::cos(alpha), std::sin(alpha));
+  }
   for (size_t k = 0; k < layout.size(); ++k) {
     const ParamInfo& P = layout[k];
     const Eigen::Index col = static_cast<Eigen::Index>(k);
@@ -292,45 +412,64 @@ Eigen::Isometry3d parameterJacobian(const RobotModel& model, const std::vector<P
         rotation(col, T_w_tcp.linear() * Jr_tool.col(a), p);
         continue;
       }
+      case ParamKind::kThermal: {
+        // d/d alpha: every link length moves by (temp_c - T_ref) times its value
+        const double dT = context.temp_c - kThermalReferenceC;
+        Eigen::Vector3d u = Eigen::Vector3d::Zero();
+        for (int i = 0; i < n; ++i) {
+          const JointSpec& js = model.nominal.joints[i];
+          const LinkDeviation& ld = model.deviations.links[i];
+          u += (js.a_mm + ld.da_mm) * ws.link_axes[static_cast<size_t>(i)].col(2);
+          u += (js.d_mm + ld.dd_mm) * ws.link_axes[static_cast<size_t>(i)].col(0);
+        }
+        translation(col, dT * u);
+        continue;
+      }
       default:
         break;
     }
     const int i = P.joint;
-    const Eigen::Isometry3d M0 = T_wb * ws.T_base_frame[i];
+    if (i < 0 || i >= n) throw ArgumentError("parameterJacobian: parameter " + P.name + " has no joint of this robot");
     const bool revolute = model.nominal.joints[i].type == JointType::kRevolute;
-    const Eigen::Vector3d z0 = M0.linear().col(2);
-    const Eigen::Vector3d o0 = M0.translation();
-    const double ct = std::cos(ws.theta_rad[i]), st = std::sin(ws.theta_rad[i]);
-    // M1 = M0 Rz(theta) Tz(d): x axis and origin
-    const Eigen::Vector3d x1 = M0.linear() * Eigen::Vector3d(ct, st, 0);
-    const Eigen::Vector3d o1 = o0 + ws.d_mm[i] * z0;
-    const double a = model.nominal.joints[i].a_mm + model.deviations.links[i].da_mm;
-    const Eigen::Vector3d o2 = o1 + a * x1;
+    const Eigen::Matrix<double, 3, 5>& A = ws.link_axes[static_cast<size_t>(i)];
+    const Eigen::Vector3d z0 = A.col(0), o0 = A.col(1), x1 = A.col(2), o2 = A.col(3);
+    // the joint's own motion: rotation about z0 through o0, or translation along z0
+    auto jointMotion = [&](double factor) {
+      if (revolute) rotation(col, z0, o0); else translation(col, z0);
+      J.col(col) *= factor;
+    };
+    const double q_joint = revolute ? q[i] * kDegToRad : q[i];
     switch (P.kind) {
       case ParamKind::kOffset:
       case ParamKind::kTheta:
         rotation(col, z0, o0);
         break;
       case ParamKind::kD:
-        translation(col, z0);
+        translation(col, scale * z0);
         break;
       case ParamKind::kA:
-        translation(col, x1);
+        translation(col, scale * x1);
         break;
       case ParamKind::kAlpha:
         rotation(col, x1, o2);
         break;
-      case ParamKind::kBeta: {
-        // y axis of M3 = M2 Rx(alpha): Rz(theta) Rx(alpha) e_y in frame i-1
-        const double alpha = model.nominal.joints[i].alpha_deg * kDegToRad +
-                             model.deviations.links[i].dalpha_rad;
-        const Eigen::Vector3d y3_local(-st * std::cos(alpha), ct * std::cos(alpha), std::sin(alpha));
-        rotation(col, M0.linear() * y3_local, o2);
+      case ParamKind::kBeta:
+        rotation(col, A.col(4), o2);
         break;
-      }
       case ParamKind::kCompliance:
-        if (revolute) rotation(col, z0, o0); else translation(col, z0);
-        J.col(col) *= ws.load[i];
+        jointMotion(ws.load[i]);
+        break;
+      case ParamKind::kGearSin:
+        jointMotion(std::sin(P.harmonic * q_joint));
+        break;
+      case ParamKind::kGearCos:
+        jointMotion(std::cos(P.harmonic * q_joint));
+        break;
+      case ParamKind::kJointScale:
+        jointMotion(q_joint);
+        break;
+      case ParamKind::kBacklash:
+        jointMotion(0.5 * direction(context, i));
         break;
       default:
         throw ArgumentError("parameterJacobian: unexpected parameter " + P.name);
@@ -352,11 +491,18 @@ Eigen::Matrix<double, 6, Eigen::Dynamic> jointJacobian(const RobotModel& model,
     const Eigen::Isometry3d M0 = T_wb * ws.T_base_frame[i];
     const Eigen::Vector3d z = M0.linear().col(2);
     const JointSpec& j = model.nominal.joints[i];
+    // d(theta or d)/dq: the direction plus the q-dependent effects (joint_scale, gear)
+    const Deviations& dev = model.deviations;
+    double rate = j.direction + dev.joint_scale[i];
     if (j.type == JointType::kRevolute) {
-      Jq.col(i).head<3>() = z.cross(p - M0.translation()) * (j.direction * kDegToRad);
-      Jq.col(i).tail<3>() = z * (j.direction * kDegToRad);
+      const double qi = q[i] * kDegToRad;
+      const int H = dev.gear_harmonics;
+      for (int h = 1; h <= H; ++h)
+        rate += h * (dev.gear_sin[i * H + h - 1] * std::cos(h * qi) - dev.gear_cos[i * H + h - 1] * std::sin(h * qi));
+      Jq.col(i).head<3>() = z.cross(p - M0.translation()) * (rate * kDegToRad);
+      Jq.col(i).tail<3>() = z * (rate * kDegToRad);
     } else {
-      Jq.col(i).head<3>() = z * j.direction;
+      Jq.col(i).head<3>() = z * rate;
       Jq.col(i).tail<3>().setZero();
     }
   }

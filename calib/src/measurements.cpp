@@ -457,6 +457,9 @@ Measurement Reader::parseRow(std::string_view text, int line) const {
   if (L.has(Role::kPayload)) m.context.payload_kg = val(Role::kPayload);
   if (L.has(Role::kTemp)) m.temp_c = val(Role::kTemp);
   if (L.has(Role::kTime)) m.time_s = val(Role::kTime);
+  // The model's context (kinematics.h): temperature and approach directions, when given.
+  if (L.has(Role::kTemp)) m.context.temp_c = m.temp_c;
+  m.context.dir = m.dir;
   return m;
 }
 

@@ -20,10 +20,18 @@ std::vector<LinkForm> chooseLinkForms(const RobotDefinition& robot, FormPolicy p
   return forms;
 }
 
-Deviations Deviations::zero(int dof) {
+Deviations Deviations::zero(int dof, int gear_harmonics) {
+  if (gear_harmonics < 1 || gear_harmonics > kMaxGearHarmonics)
+    throw ArgumentError("gear harmonics: expected 1.." + std::to_string(kMaxGearHarmonics) + ", got " +
+                        std::to_string(gear_harmonics));
   Deviations d;
   d.links.assign(dof, LinkDeviation{});
   d.compliance.assign(dof, 0.0);
+  d.gear_harmonics = gear_harmonics;
+  d.gear_sin.assign(static_cast<size_t>(dof * gear_harmonics), 0.0);
+  d.gear_cos.assign(static_cast<size_t>(dof * gear_harmonics), 0.0);
+  d.joint_scale.assign(dof, 0.0);
+  d.backlash.assign(dof, 0.0);
   return d;
 }
 
@@ -62,6 +70,19 @@ void RobotModel::validate() const {
     throw ArgumentError("robot model: expected " + std::to_string(n) +
                         " compliance values, got " +
                         std::to_string(deviations.compliance.size()));
+  const int H = deviations.gear_harmonics;
+  if (H < 1 || H > kMaxGearHarmonics)
+    throw ArgumentError("robot model: gear harmonics must be 1.." + std::to_string(kMaxGearHarmonics) +
+                        ", got " + std::to_string(H));
+  const auto check = [&](const std::vector<double>& v, size_t expected, const char* what) {
+    if (v.size() != expected)
+      throw ArgumentError(std::string("robot model: expected ") + std::to_string(expected) + " " + what +
+                          " values, got " + std::to_string(v.size()));
+  };
+  check(deviations.gear_sin, n * static_cast<size_t>(H), "gear_periodic sine");
+  check(deviations.gear_cos, n * static_cast<size_t>(H), "gear_periodic cosine");
+  check(deviations.joint_scale, n, "joint_scale");
+  check(deviations.backlash, n, "backlash");
 }
 
 }  // namespace accura

@@ -15,8 +15,14 @@
 namespace accura {
 
 /// What the model needs to know about a measured pose besides q.
+/// A default PoseContext is the reference state: no payload, the thermal reference
+/// temperature (no expansion), approach directions unknown (no backlash term: the middle of
+/// the backlash band).
 struct PoseContext {
-  double payload_kg = 0;  ///< payload mass at the robot's payload centre of mass
+  double payload_kg = 0;                 ///< payload mass at the robot's payload centre of mass
+  double temp_c = kThermalReferenceC;    ///< temperature of the arm (deg C), for `thermal`
+  /// Approach direction of each joint, +1 or -1 (for `backlash`); empty when unknown.
+  std::vector<int> dir;
 };
 
 /// Scratch space for one thread. Sized on first use; reuse it across calls.
@@ -25,6 +31,8 @@ struct KinematicWorkspace {
   Eigen::VectorXd theta_rad;                    ///< DH angles actually used
   Eigen::VectorXd d_mm;                         ///< DH d actually used
   Eigen::VectorXd load;                         ///< gravity torque (N*m) / force (N) per joint
+  /// parameterJacobian's per-link axes in the world (z0, o0, x1, o2, y3 as columns)
+  std::vector<Eigen::Matrix<double, 3, 5>> link_axes;
 };
 
 /// Gravity load on each joint at q (nominal geometry; link masses and payload_kg):
@@ -57,6 +65,11 @@ enum class ParamKind {
   kA, kAlpha,
   kBeta,        ///< Hayati beta
   kCompliance,
+  kGearSin,     ///< gear_periodic: coefficient of sin(h q_i), h = ParamInfo::harmonic
+  kGearCos,     ///< gear_periodic: coefficient of cos(h q_i)
+  kJointScale,  ///< joint_scale k_i
+  kBacklash,    ///< backlash b_i (full width)
+  kThermal,     ///< thermal expansion coefficient alpha (one per robot, joint = -1)
 };
 
 /// One scalar parameter. Internal units: mm, rad, rad/(N*m) or mm/N.
@@ -64,14 +77,19 @@ struct ParamInfo {
   ParamKind kind;
   int joint = -1;          ///< 0-based joint index for per-joint parameters, else -1
   std::string name;        ///< e.g. "base_x", "tool_rz", "j2_beta", "j3_compliance"
-  std::string group;       ///< base, tool, offsets, lengths, twists, joint_compliance
-  std::string unit;        ///< display unit: mm, deg, urad/Nm, um/N
+  std::string group;       ///< base, tool, offsets, lengths, angles, or an effect name
+                           ///< (joint_compliance, gear_periodic, joint_scale, backlash, thermal)
+  std::string unit;        ///< display unit: mm, deg, urad/Nm, um/N, ppm, ppm/K
   double display_scale;    ///< display value = internal value * display_scale
+  int harmonic = 0;        ///< 1..H for kGearSin / kGearCos, else 0
 };
 
 /// Every parameter the model can carry, in a fixed order: base (6), tool (6), per joint
 /// offset, then the form's geometric parameters (DH revolute: d, a, alpha; Hayati revolute:
-/// a, alpha, beta; prismatic: theta, a, alpha [, beta]), then compliance per joint.
+/// a, alpha, beta; prismatic: theta, a, alpha [, beta]), then compliance per joint, then the
+/// effect catalogue: gear_periodic per revolute joint (jN_gear_s1, jN_gear_c1, ... up to
+/// harmonic H; deg), joint_scale per joint (jN_scale; ppm), backlash per joint
+/// (jN_backlash; deg or mm), thermal (thermal_alpha; ppm/K).
 /// The order is also the priority used when dependent parameters are fixed.
 std::vector<ParamInfo> parameterLayout(const RobotModel& model);
 
@@ -81,6 +99,10 @@ void setParameter(Deviations& dev, const ParamInfo& p, double value);
 
 /// Group names accepted by --params, with their meaning (for help texts and errors).
 std::vector<std::pair<std::string, std::string>> parameterGroups();
+
+/// The effect catalogue (docs/diagnosis.md): joint_compliance, gear_periodic, joint_scale,
+/// backlash, thermal; each is also a parameter group.
+const std::vector<std::string>& effectCatalogue();
 
 /// Analytic parameter Jacobian (method.md eq. 26-31) of the tool pose at q:
 /// J (6 x layout.size()), rows [dp_world (mm); dphi_world (rad)], column k the derivative
@@ -93,7 +115,8 @@ Eigen::Isometry3d parameterJacobian(const RobotModel& model, const std::vector<P
                                     KinematicWorkspace& ws, Eigen::MatrixXd& J);
 
 /// Geometric (joint-space) Jacobian of T_world_tcp at q: rows [dp (mm); dphi (rad)], column
-/// i per degree (revolute) or per mm (prismatic) of q_i.
+/// i per degree (revolute) or per mm (prismatic) of q_i. Includes the joint_scale and
+/// gear_periodic terms (they depend on q); neglects compliance (its load depends on q too).
 Eigen::Matrix<double, 6, Eigen::Dynamic> jointJacobian(const RobotModel& model,
                                                        const Eigen::VectorXd& q_deg_mm,
                                                        const PoseContext& context,

@@ -67,6 +67,14 @@ enum class FormPolicy {
 /// The forms chosen for each link under a policy.
 std::vector<LinkForm> chooseLinkForms(const RobotDefinition& robot, FormPolicy policy);
 
+/// Default number of harmonics of the gear_periodic effect (harmonics 1 and 2).
+constexpr int kDefaultGearHarmonics = 2;
+/// Largest number of harmonics of the gear_periodic effect.
+constexpr int kMaxGearHarmonics = 4;
+/// Reference temperature of the thermal effect (deg C): the link lengths of the robot file
+/// (and their identified deviations) are the lengths at this temperature.
+constexpr double kThermalReferenceC = 20.0;
+
 /// Deviations of one link from nominal (internal units: mm, rad).
 struct LinkDeviation {
   double dtheta_rad = 0;  ///< joint zero offset (revolute) / rotation about z (prismatic)
@@ -90,8 +98,27 @@ struct Deviations {
   /// dd_i = c_i * f_i, mm per N), tau_i the gravity torque about axis i (see gravityLoads).
   std::vector<double> compliance;
 
-  /// Zero deviations sized for `dof` joints.
-  static Deviations zero(int dof);
+  // The effect catalogue beyond geometry and compliance (docs/diagnosis.md). Every term is
+  // added to the DH angle theta_i of a revolute joint, or to d_i of a prismatic one.
+  /// Number of harmonics H of gear_periodic (per joint 2H values below).
+  int gear_harmonics = kDefaultGearHarmonics;
+  /// gear_periodic: dtheta_i = sum_{h=1..H} (gear_sin[i*H+h-1] sin(h q_i) +
+  /// gear_cos[i*H+h-1] cos(h q_i)), q_i in rad (rad; revolute joints only, zero and not a
+  /// parameter for prismatic joints).
+  std::vector<double> gear_sin, gear_cos;
+  /// joint_scale: dtheta_i = k_i q_i (q_i in rad; prismatic: dd_i = k_i q_i, q_i in mm);
+  /// dimensionless (gear ratio or encoder scale error).
+  std::vector<double> joint_scale;
+  /// backlash: dtheta_i = (b_i / 2) dir_i, dir_i = +1/-1 the approach direction of the pose
+  /// (PoseContext::dir); b_i the full width (rad; mm for prismatic joints).
+  std::vector<double> backlash;
+  /// thermal: the link lengths a_i and d_i (nominal plus deviation; for a prismatic joint the
+  /// constant part of d_i) scale by (1 + thermal_alpha * (temp_c - kThermalReferenceC)),
+  /// 1/K; one coefficient for the whole arm. Base and tool are not scaled.
+  double thermal_alpha_per_k = 0;
+
+  /// Zero deviations sized for `dof` joints and `gear_harmonics` harmonics (1..4).
+  static Deviations zero(int dof, int gear_harmonics = kDefaultGearHarmonics);
 };
 
 /// The complete model: nominal definition, link forms, deviations. Immutable once built;
@@ -108,7 +135,8 @@ struct RobotModel {
   /// Calibrated T_world_base and T_flange_tcp (nominal with base/tool deviations applied).
   Eigen::Isometry3d T_world_base() const;
   Eigen::Isometry3d T_flange_tcp() const;
-  /// Throws ArgumentError when sizes disagree (forms, links, compliance vs dof).
+  /// Throws ArgumentError when sizes disagree (forms, links, compliance, effect vectors vs
+  /// dof and gear_harmonics) or gear_harmonics is outside 1..kMaxGearHarmonics.
   void validate() const;
 };
 

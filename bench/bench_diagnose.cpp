@@ -1,0 +1,93 @@
+// accura benchmark: the diagnosis of 500 measured poses of a KUKA KR 16 with the whole effect
+// catalogue (joint_compliance, gear_periodic with 2 harmonics, joint_scale, backlash,
+// thermal; 5-fold cross-validation), next to its peers measured in the same run: one
+// identification of the complete geometric model on the same poses, and the diagnosis with a
+// separate validation set. Single-threaded. Target (issue 4): the diagnosis under 5 s.
+//
+// The data sets are simulated once, outside the timed loops. Results are consumed with
+// benchmark::DoNotOptimize.
+#include <benchmark/benchmark.h>
+
+#include <memory>
+#include <string>
+
+#include "accura/calib/diagnose.h"
+#include "accura/calib/geometry.h"
+#include "accura/calib/identify.h"
+#include "accura/calib/robot_io.h"
+#include "accura/calib/simulate.h"
+
+namespace {
+
+using accura::MeasurementSet;
+using accura::RobotModel;
+
+const accura::XyzAbc kTarget = {80, 40, 150, 0, 0, 0};  // tracker reflector on the flange (mm)
+
+struct Campaign {
+  RobotModel nominal;
+  MeasurementSet fit, validation;
+};
+
+// KR 16 with geometric errors and joint compliance under 0, 8 and 16 kg; 500 poses with std
+// columns (0.02 mm), and 200 held-out poses of the same robot.
+const Campaign& campaign() {
+  static const std::unique_ptr<Campaign> c = [] {
+    auto out = std::make_unique<Campaign>();
+    out->nominal = accura::readRobotFile(accura::resolveRobotPath("kuka_kr16"));
+    out->nominal.nominal.T_flange_tcp = accura::toIsometry(kTarget);
+    accura::SimulateOptions o;
+    o.poses = 500;
+    o.seed = 7;
+    o.noise_mm = 0.02;
+    o.effects = {"geometric", "joint_compliance"};
+    o.payloads_kg = {0, 8, 16};
+    o.tool = kTarget;
+    o.set_tool = true;
+    o.write_std = true;
+    const RobotModel truth = accura::perturbModel(out->nominal, o);
+    out->fit = accura::simulateMeasurements(truth, o);
+    o.poses = 200;
+    o.seed = 8;
+    out->validation = accura::simulateMeasurements(truth, o);
+    return out;
+  }();
+  return *c;
+}
+
+void BM_Diagnose500PosesWholeCatalogueCrossValidated(benchmark::State& state) {
+  const Campaign& c = campaign();
+  std::string verdict;
+  for (auto _ : state) {
+    const accura::Diagnosis d = accura::diagnose(c.nominal, c.fit, nullptr, accura::DiagnoseOptions{});
+    verdict = d.verdict.effect;
+    benchmark::DoNotOptimize(d.verdict.validation_rms_after_mm);
+  }
+  state.SetLabel("verdict " + verdict);
+}
+BENCHMARK(BM_Diagnose500PosesWholeCatalogueCrossValidated)->Unit(benchmark::kMillisecond)->MinTime(2.0);
+
+void BM_Diagnose500PosesWholeCatalogueValidationSet(benchmark::State& state) {
+  const Campaign& c = campaign();
+  for (auto _ : state) {
+    const accura::Diagnosis d = accura::diagnose(c.nominal, c.fit, &c.validation, accura::DiagnoseOptions{});
+    benchmark::DoNotOptimize(d.verdict.validation_rms_after_mm);
+  }
+}
+BENCHMARK(BM_Diagnose500PosesWholeCatalogueValidationSet)->Unit(benchmark::kMillisecond)->MinTime(2.0);
+
+// Peer: one identification of the complete geometric model on the same 500 poses.
+void BM_IdentifyGeometric500Poses(benchmark::State& state) {
+  const Campaign& c = campaign();
+  accura::IdentifyOptions o;
+  o.groups = {"geometric"};
+  for (auto _ : state) {
+    const RobotModel m = accura::identify(c.nominal, c.fit, o, nullptr);
+    benchmark::DoNotOptimize(m.deviations.base_mm);
+  }
+}
+BENCHMARK(BM_IdentifyGeometric500Poses)->Unit(benchmark::kMillisecond)->MinTime(2.0);
+
+}  // namespace
+
+BENCHMARK_MAIN();

@@ -1,0 +1,449 @@
+// accura post-processor benchmarks: the IK of the complete model next to orocos KDL's
+// ChainIkSolverPos_NR_JL (Newton-Raphson with joint limits, the pseudo-inverse velocity
+// solver) on the same chain and the same targets, and the compensation throughput (points per
+// second on one core). Single-threaded.
+//
+// The chain: a KUKA KR 16 with every geometric error of simulate.h (error scale 1, the base
+// registered in the cell to 0.5 mm, a 250 mm torch), built for KDL from the same DH values
+// (Rz(theta0 + dtheta) Tz(d) Tx(a) Rx(alpha) Ry(beta) per link, base and tool as fixed
+// segments, metres). Joint compliance is left out of the IK comparison (KDL cannot represent a
+// load-dependent joint angle); the compensation benchmarks include it. Both solvers converge to
+// 1 um and 1 urad (KDL: eps = 1e-6 per twist component, in metres and radians).
+//
+// Targets: (a) path-following: three LIN moves across the workspace (4.4 m, 70-100 deg of
+// reorientation each) every 1 mm, each solve seeded with the previous solution; (b) random
+// well-conditioned poses, seeded 0.5 deg per joint away from the joints they came from;
+// (c) the same poses cold: accura with the Status/Turn of the joints and no seed, KDL (which
+// has no notion of a configuration) from the middle of the joint ranges. A solve succeeds
+// when the solver says so and the pose is within 1 um / 1 urad (checked with accura's FK,
+// and for KDL also within the joint limits).
+//
+// The run ends with the ratios of the side-by-side pairs (KDL time / accura time).
+#include <benchmark/benchmark.h>
+
+#include <Eigen/Dense>
+#include <cmath>
+#include <cstdio>
+#include <kdl/chain.hpp>
+#include <kdl/chainfksolverpos_recursive.hpp>
+#include <kdl/chainiksolverpos_nr_jl.hpp>
+#include <kdl/chainiksolvervel_pinv.hpp>
+#include <map>
+#include <memory>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "accura/calib/geometry.h"
+#include "accura/calib/kinematics.h"
+#include "accura/calib/robot_io.h"
+#include "accura/calib/simulate.h"
+#include "accura/postproc/compensate.h"
+
+namespace {
+
+using accura::RobotModel;
+using accura::postproc::Compensator;
+using accura::postproc::Configuration;
+using accura::postproc::IkOptions;
+using accura::postproc::IkResult;
+using accura::postproc::IkStatus;
+using accura::postproc::KinematicSolver;
+
+constexpr double kDeg = accura::kDegToRad;
+
+RobotModel controllerModel() {
+  RobotModel m = accura::readRobotFile(accura::resolveRobotPath("kuka_kr16"));
+  m.nominal.T_flange_tcp = accura::toIsometry({20, 0, 250, 0, -30, 0});
+  return m;
+}
+
+/// The real robot: every geometric error; `compliance` adds joint compliance.
+RobotModel realModel(bool compliance) {
+  accura::SimulateOptions o;
+  o.effects = compliance ? std::vector<std::string>{"geometric", "joint_compliance"}
+                         : std::vector<std::string>{"geometric"};
+  o.seed = 3;
+  o.set_station = false;  // the cell frame: the robot registered in it to 0.5 mm
+  RobotModel m = accura::perturbModel(controllerModel(), o);
+  m.deviations.base_mm = Eigen::Vector3d(0.4, -0.3, 0.2);
+  m.deviations.base_rot_rad = Eigen::Vector3d(1e-4, -5e-5, 2e-4);
+  return m;
+}
+
+KDL::Frame toKdl(const Eigen::Isometry3d& T) {
+  const Eigen::Matrix3d& R = T.linear();
+  return KDL::Frame(KDL::Rotation(R(0, 0), R(0, 1), R(0, 2), R(1, 0), R(1, 1), R(1, 2), R(2, 0), R(2, 1), R(2, 2)),
+                    KDL::Vector(T.translation().x() * 1e-3, T.translation().y() * 1e-3, T.translation().z() * 1e-3));
+}
+
+/// The same chain for KDL (metres, radians).
+KDL::Chain kdlChain(const RobotModel& m) {
+  KDL::Chain chain;
+  chain.addSegment(KDL::Segment(KDL::Joint(KDL::Joint::None), toKdl(m.T_world_base())));
+  for (int i = 0; i < m.dof(); ++i) {
+    const accura::JointSpec& j = m.nominal.joints[static_cast<size_t>(i)];
+    const accura::LinkDeviation& d = m.deviations.links[static_cast<size_t>(i)];
+    // KDL's joint offset does not enter Joint::pose in this version: theta0 goes into the tip
+    const KDL::Frame tip = KDL::Frame(KDL::Rotation::RotZ(j.theta0_deg * kDeg + d.dtheta_rad)) *
+                           KDL::Frame(KDL::Vector(0, 0, (j.d_mm + d.dd_mm) * 1e-3)) *
+                           KDL::Frame(KDL::Vector((j.a_mm + d.da_mm) * 1e-3, 0, 0)) *
+                           KDL::Frame(KDL::Rotation::RotX(j.alpha_deg * kDeg + d.dalpha_rad)) *
+                           KDL::Frame(KDL::Rotation::RotY(d.dbeta_rad));
+    chain.addSegment(KDL::Segment(KDL::Joint(KDL::Joint::RotZ, j.direction), tip));
+  }
+  chain.addSegment(KDL::Segment(KDL::Joint(KDL::Joint::None), toKdl(m.T_flange_tcp())));
+  return chain;
+}
+
+Eigen::Isometry3d pose(double x, double y, double z, double a, double b, double c) {
+  return accura::toIsometry({x, y, z, a, b, c});
+}
+
+/// Everything built once: models, solvers, targets.
+struct Setup {
+  RobotModel controller = controllerModel();
+  RobotModel real = realModel(false);
+  RobotModel real_compliant = realModel(true);
+  KinematicSolver solver{real};
+  Compensator compensator{controller, real_compliant};
+  KDL::Chain chain = kdlChain(real);
+  KDL::JntArray q_min, q_max, q_mid;
+  std::unique_ptr<KDL::ChainFkSolverPos_recursive> kdl_fk;
+  std::unique_ptr<KDL::ChainIkSolverVel_pinv> kdl_vel;
+  std::unique_ptr<KDL::ChainIkSolverPos_NR_JL> kdl_ik;
+  // (a) path-following
+  std::vector<Eigen::Isometry3d> path;
+  Eigen::VectorXd path_q0;        ///< the real solution at the first point (accura, KDL)
+  Eigen::VectorXd path_q0_comp;   ///< the same for the compliant model
+  // (b), (c) random poses
+  std::vector<Eigen::Isometry3d> targets;
+  std::vector<Eigen::VectorXd> truth, nearby;
+  std::vector<Configuration> configs;
+  std::string error;
+
+  Setup() {
+    const int n = real.dof();
+    q_min.resize(n);
+    q_max.resize(n);
+    q_mid.resize(n);
+    for (int i = 0; i < n; ++i) {
+      const accura::JointSpec& j = real.nominal.joints[static_cast<size_t>(i)];
+      q_min(i) = j.lower * kDeg;
+      q_max(i) = j.upper * kDeg;
+      q_mid(i) = 0.5 * (j.lower + j.upper) * kDeg;
+    }
+    kdl_fk = std::make_unique<KDL::ChainFkSolverPos_recursive>(chain);
+    kdl_vel = std::make_unique<KDL::ChainIkSolverVel_pinv>(chain);
+    kdl_ik = std::make_unique<KDL::ChainIkSolverPos_NR_JL>(chain, q_min, q_max, *kdl_fk, *kdl_vel, 100, 1e-6);
+
+    // the same chain: KDL's FK equals accura's at random joints
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<double> u(0.1, 0.9), v(-1, 1);
+    for (int k = 0; k < 100; ++k) {
+      Eigen::VectorXd q(n);
+      for (int i = 0; i < n; ++i) q[i] = (q_min(i) + u(rng) * (q_max(i) - q_min(i))) / kDeg;
+      KDL::Frame f;
+      kdl_fk->JntToCart(toKdlJoints(q), f);
+      const Eigen::Vector3d p = solver.forward(q).translation() * 1e-3;
+      if ((p - Eigen::Vector3d(f.p.x(), f.p.y(), f.p.z())).norm() > 1e-10) error = "the KDL chain differs from accura's";
+    }
+
+    // (a) three LIN moves every 1 mm
+    const std::vector<Eigen::Isometry3d> corners = {pose(900, -1100, 300, -30, 150, 10), pose(1000, 1000, 700, 40, 120, -20),
+                                                    pose(1250, 300, 1150, 0, 110, 30), pose(700, -900, 900, -60, 170, 0)};
+    for (size_t c = 0; c + 1 < corners.size(); ++c) {
+      accura::postproc::PathSegment s;
+      s.T_world_start = corners[c];
+      s.T_world_end = corners[c + 1];
+      const int m = static_cast<int>(std::ceil(accura::postproc::pathLength(s)));
+      for (int i = (c == 0 ? 0 : 1); i <= m; ++i) path.push_back(accura::postproc::interpolate(s, double(i) / m));
+    }
+    const IkResult r0 = solver.inverse(path.front(), Configuration{}, Eigen::VectorXd(), IkOptions{});
+    const IkResult r0c =
+        compensator.real().inverse(path.front(), Configuration{}, Eigen::VectorXd(), IkOptions{});
+    if (r0.status != IkStatus::kOk || r0c.status != IkStatus::kOk) error = "the path start is not reachable";
+    path_q0 = r0.q;
+    path_q0_comp = r0c.q;
+
+    // (b), (c) random well-conditioned poses (10% margin from the limits, scaled sigma_min
+    // >= 1e-3) and seeds 0.5 deg per joint away
+    IkOptions o;
+    o.compute_singular_value = true;
+    while (targets.size() < 1000) {
+      Eigen::VectorXd q(n);
+      for (int i = 0; i < n; ++i) q[i] = (q_min(i) + u(rng) * (q_max(i) - q_min(i))) / kDeg;
+      const Eigen::Isometry3d T = solver.forward(q);
+      const IkResult check = solver.inverse(T, Configuration{}, q, o);
+      if (check.status != IkStatus::kOk || check.min_singular_value < 1e-3) continue;
+      Eigen::VectorXd s = q;
+      for (int i = 0; i < n; ++i) s[i] += 0.5 * v(rng);
+      targets.push_back(T);
+      truth.push_back(q);
+      nearby.push_back(s);
+      configs.push_back(accura::postproc::kukaConfiguration(real, q));
+    }
+  }
+
+  static KDL::JntArray toKdlJoints(const Eigen::VectorXd& q_deg) {
+    KDL::JntArray q(static_cast<unsigned>(q_deg.size()));
+    for (int i = 0; i < q_deg.size(); ++i) q(i) = q_deg[i] * kDeg;
+    return q;
+  }
+
+  /// Within 1 um / 1 urad (accura's FK) and the joint limits.
+  bool reached(const Eigen::VectorXd& q_deg, const Eigen::Isometry3d& T) const {
+    for (int i = 0; i < q_deg.size(); ++i)
+      if (q_deg[i] * kDeg < q_min(i) - 1e-12 || q_deg[i] * kDeg > q_max(i) + 1e-12) return false;
+    const Eigen::Isometry3d F = solver.forward(q_deg);
+    return (F.translation() - T.translation()).norm() <= 1.8e-3 &&  // KDL: 1 um per component
+           accura::logSO3(F.linear() * T.linear().transpose()).norm() <= 1.8e-6;
+  }
+
+  bool kdlSolve(const KDL::JntArray& seed, const Eigen::Isometry3d& T, KDL::JntArray& out) const {
+    out.resize(seed.rows());
+    const int rc = kdl_ik->CartToJnt(seed, toKdl(T), out);
+    if (rc < 0) return false;
+    Eigen::VectorXd q(out.rows());
+    for (unsigned i = 0; i < out.rows(); ++i) q[i] = out(i) / kDeg;
+    return reached(q, T);
+  }
+};
+
+const Setup& setup() {
+  static const Setup s;
+  return s;
+}
+
+void rate(benchmark::State& state, long ok, long total) {
+  state.counters["success_%"] = total ? 100.0 * ok / total : 0;
+  state.SetItemsProcessed(total);
+}
+
+// ---------------------------------------------------------------------------------------
+// (a) path-following, seeded with the previous solution
+
+void BM_PathWarm_Accura(benchmark::State& state) {
+  const Setup& s = setup();
+  if (!s.error.empty()) return state.SkipWithError(s.error.c_str());
+  const IkOptions o;
+  Eigen::VectorXd q = s.path_q0;
+  size_t k = 0;
+  long ok = 0, total = 0;
+  for (auto _ : state) {
+    const IkResult r = s.solver.inverse(s.path[k], Configuration{}, q, o);
+    benchmark::DoNotOptimize(r.q.data());
+    ++total;
+    if (r.status == IkStatus::kOk) {
+      ++ok;
+      q = r.q;
+    }
+    if (++k == s.path.size()) {
+      k = 0;
+      q = s.path_q0;
+    }
+  }
+  rate(state, ok, total);
+}
+BENCHMARK(BM_PathWarm_Accura);
+
+void BM_PathWarm_KDL(benchmark::State& state) {
+  const Setup& s = setup();
+  if (!s.error.empty()) return state.SkipWithError(s.error.c_str());
+  KDL::JntArray q = Setup::toKdlJoints(s.path_q0), out;
+  size_t k = 0;
+  long ok = 0, total = 0;
+  for (auto _ : state) {
+    const bool good = s.kdlSolve(q, s.path[k], out);
+    benchmark::DoNotOptimize(out.data.data());
+    ++total;
+    if (good) {
+      ++ok;
+      q = out;
+    }
+    if (++k == s.path.size()) {
+      k = 0;
+      q = Setup::toKdlJoints(s.path_q0);
+    }
+  }
+  rate(state, ok, total);
+}
+BENCHMARK(BM_PathWarm_KDL);
+
+// ---------------------------------------------------------------------------------------
+// (b) random poses, seeded 0.5 deg per joint away
+
+void BM_NearbyWarm_Accura(benchmark::State& state) {
+  const Setup& s = setup();
+  if (!s.error.empty()) return state.SkipWithError(s.error.c_str());
+  const IkOptions o;
+  size_t k = 0;
+  long ok = 0, total = 0;
+  for (auto _ : state) {
+    const IkResult r = s.solver.inverse(s.targets[k], Configuration{}, s.nearby[k], o);
+    benchmark::DoNotOptimize(r.q.data());
+    ++total;
+    if (r.status == IkStatus::kOk) ++ok;
+    if (++k == s.targets.size()) k = 0;
+  }
+  rate(state, ok, total);
+}
+BENCHMARK(BM_NearbyWarm_Accura);
+
+void BM_NearbyWarm_KDL(benchmark::State& state) {
+  const Setup& s = setup();
+  if (!s.error.empty()) return state.SkipWithError(s.error.c_str());
+  std::vector<KDL::JntArray> seeds;
+  for (const Eigen::VectorXd& q : s.nearby) seeds.push_back(Setup::toKdlJoints(q));
+  KDL::JntArray out;
+  size_t k = 0;
+  long ok = 0, total = 0;
+  for (auto _ : state) {
+    const bool good = s.kdlSolve(seeds[k], s.targets[k], out);
+    benchmark::DoNotOptimize(out.data.data());
+    ++total;
+    if (good) ++ok;
+    if (++k == s.targets.size()) k = 0;
+  }
+  rate(state, ok, total);
+}
+BENCHMARK(BM_NearbyWarm_KDL);
+
+// ---------------------------------------------------------------------------------------
+// (c) the same poses, cold
+
+void BM_Cold_Accura(benchmark::State& state) {
+  const Setup& s = setup();
+  if (!s.error.empty()) return state.SkipWithError(s.error.c_str());
+  const IkOptions o;
+  size_t k = 0;
+  long ok = 0, total = 0;
+  for (auto _ : state) {
+    const IkResult r = s.solver.inverse(s.targets[k], s.configs[k], Eigen::VectorXd(), o);
+    benchmark::DoNotOptimize(r.q.data());
+    ++total;
+    if (r.status == IkStatus::kOk) ++ok;
+    if (++k == s.targets.size()) k = 0;
+  }
+  rate(state, ok, total);
+}
+BENCHMARK(BM_Cold_Accura);
+
+void BM_Cold_KDL(benchmark::State& state) {
+  const Setup& s = setup();
+  if (!s.error.empty()) return state.SkipWithError(s.error.c_str());
+  KDL::JntArray out;
+  size_t k = 0;
+  long ok = 0, total = 0;
+  for (auto _ : state) {
+    const bool good = s.kdlSolve(s.q_mid, s.targets[k], out);
+    benchmark::DoNotOptimize(out.data.data());
+    ++total;
+    if (good) ++ok;
+    if (++k == s.targets.size()) k = 0;
+  }
+  rate(state, ok, total);
+}
+BENCHMARK(BM_Cold_KDL);
+
+// ---------------------------------------------------------------------------------------
+// Compensation throughput (the real model with joint compliance)
+
+/// Points along the path, each compensated continuing from the previous point's joints:
+/// q' = IK_real(target), command = FK_controller(q').
+void BM_Compensation_PathPoints(benchmark::State& state) {
+  const Setup& s = setup();
+  if (!s.error.empty()) return state.SkipWithError(s.error.c_str());
+  const IkOptions o;
+  Eigen::VectorXd q = s.path_q0_comp;
+  size_t k = 0;
+  long ok = 0, total = 0;
+  for (auto _ : state) {
+    const accura::postproc::PoseCompensation r = s.compensator.pose(s.path[k], Configuration{}, q, o);
+    benchmark::DoNotOptimize(r.T_world_tcp_command.data());
+    ++total;
+    if (r.status == IkStatus::kOk) {
+      ++ok;
+      q = r.q_real;
+    }
+    if (++k == s.path.size()) {
+      k = 0;
+      q = s.path_q0_comp;
+    }
+  }
+  rate(state, ok, total);
+}
+BENCHMARK(BM_Compensation_PathPoints);
+
+/// Program targets with their Status/Turn and no seed (PTP targets after an unknown position).
+void BM_Compensation_ColdTargets(benchmark::State& state) {
+  const Setup& s = setup();
+  if (!s.error.empty()) return state.SkipWithError(s.error.c_str());
+  const IkOptions o;
+  size_t k = 0;
+  long ok = 0, total = 0;
+  for (auto _ : state) {
+    const accura::postproc::PoseCompensation r = s.compensator.pose(s.targets[k], s.configs[k], Eigen::VectorXd(), o);
+    benchmark::DoNotOptimize(r.T_world_tcp_command.data());
+    ++total;
+    if (r.status == IkStatus::kOk) ++ok;
+    if (++k == s.targets.size()) k = 0;
+  }
+  rate(state, ok, total);
+}
+BENCHMARK(BM_Compensation_ColdTargets);
+
+/// One long LIN (2.1 m, 97 deg of reorientation) with its auxiliary points for 0.05 mm:
+/// items = mm of path.
+void BM_Compensation_LongLinSegment(benchmark::State& state) {
+  const Setup& s = setup();
+  if (!s.error.empty()) return state.SkipWithError(s.error.c_str());
+  accura::postproc::PathSegment seg;
+  seg.T_world_start = pose(900, -1100, 300, -30, 150, 10);
+  seg.T_world_end = pose(1000, 1000, 700, 40, 120, -20);
+  const accura::postproc::DensifyOptions o;
+  long ok = 0, total = 0;
+  int points = 0;
+  for (auto _ : state) {
+    const accura::postproc::SegmentCompensation r = s.compensator.segment(seg, Configuration{}, s.path_q0_comp, o);
+    benchmark::DoNotOptimize(r.commanded.data());
+    ++total;
+    if (r.status == IkStatus::kOk) ++ok;
+    points = r.points_added;
+  }
+  state.counters["success_%"] = total ? 100.0 * ok / total : 0;
+  state.counters["points_added"] = points;
+  state.SetItemsProcessed(static_cast<int64_t>(total * accura::postproc::pathLength(seg)));
+}
+BENCHMARK(BM_Compensation_LongLinSegment)->Unit(benchmark::kMillisecond);
+
+// ---------------------------------------------------------------------------------------
+
+/// The console output, plus the time per solve of every benchmark for the ratios.
+class RatioReporter : public benchmark::ConsoleReporter {
+ public:
+  std::map<std::string, double> ns;
+  void ReportRuns(const std::vector<Run>& runs) override {
+    for (const Run& r : runs)
+      if (!r.error_occurred && r.iterations > 0) ns[r.benchmark_name()] = r.GetAdjustedRealTime();
+    ConsoleReporter::ReportRuns(runs);
+  }
+};
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  benchmark::Initialize(&argc, argv);
+  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+  RatioReporter reporter;
+  benchmark::RunSpecifiedBenchmarks(&reporter);
+  std::printf("\nKDL time / accura time (same chain, same targets, same tolerance):\n");
+  for (const char* pair : {"PathWarm", "NearbyWarm", "Cold"}) {
+    const std::string a = std::string("BM_") + pair + "_Accura", k = std::string("BM_") + pair + "_KDL";
+    if (reporter.ns.count(a) && reporter.ns.count(k) && reporter.ns[a] > 0)
+      std::printf("  %-10s %6.1f x   (accura %.2f us, KDL %.2f us per solve)\n", pair, reporter.ns[k] / reporter.ns[a],
+                  reporter.ns[a] * 1e-3, reporter.ns[k] * 1e-3);
+  }
+  benchmark::Shutdown();
+  return 0;
+}

@@ -1,0 +1,128 @@
+// accura batch: every program of a tree compensated, in parallel, into a mirrored tree.
+#include <unistd.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <functional>
+#include <iostream>
+#include <memory>
+#include <nlohmann/json.hpp>
+
+#include "accura/calib/errors.h"
+#include "accura/postproc/batch.h"
+#include "accura/postproc/job.h"
+#include "cli_util.h"
+#include "commands.h"
+
+namespace fs = std::filesystem;
+
+namespace accura::cli {
+
+// Defined in cmd_compensate.cpp.
+std::function<postproc::JobSettings()> addJobOptions(CLI::App* c);
+nlohmann::ordered_json jobReportJson(const postproc::JobReport& r, const std::string& relative_to);
+
+namespace {
+
+/// Exit status of a batch in which some programs were not converted.
+constexpr int kSomeFailed = 2;
+
+struct BatchArgs {
+  std::function<postproc::JobSettings()> settings;
+  std::string in;
+  std::string out;
+  std::string config;
+  int jobs = 1;
+  std::string json;
+};
+
+std::string statusWord(const postproc::BatchFileResult& r) {
+  switch (r.status) {
+    case postproc::BatchFileResult::Status::kConverted: return "converted";
+    case postproc::BatchFileResult::Status::kSkipped: return "skipped";
+    case postproc::BatchFileResult::Status::kFailed: return "FAILED";
+  }
+  return "?";
+}
+
+int runBatch(const BatchArgs& a) {
+  using namespace postproc;
+  BatchOptions o;
+  o.job = a.settings();
+  o.config_path = a.config;
+  o.jobs = a.jobs;
+  if (a.jobs < 1) throw InputError("--jobs: expected at least 1, found " + std::to_string(a.jobs));
+  if (!a.json.empty()) {
+    const fs::path j = fs::weakly_canonical(fs::absolute(a.json));
+    const fs::path in = fs::weakly_canonical(fs::absolute(a.in));
+    if (j.string().rfind(in.string() + "/", 0) == 0) throw InputError("--json: " + a.json + " is inside the input tree, which is never modified");
+  }
+  installInterruptCleanup();
+  const bool tty = ::isatty(2) != 0;
+  const auto progress = [&](const BatchFileResult& r, int done, int total) {
+    if (tty) {
+      const int width = 30;
+      const int filled = total ? done * width / total : width;
+      if (r.status == BatchFileResult::Status::kFailed)
+        std::fprintf(stderr, "\r\033[KFAILED %s: %s\n", r.input.c_str(), r.message.c_str());
+      std::fprintf(stderr, "\r\033[K[%s%s] %d/%d %s", std::string(static_cast<size_t>(filled), '#').c_str(),
+                   std::string(static_cast<size_t>(width - filled), '.').c_str(), done, total, r.input.c_str());
+      if (done == total) std::fprintf(stderr, "\n");
+    } else {
+      std::fprintf(stderr, "accura batch: [%d/%d] %s %s%s\n", done, total, statusWord(r).c_str(), r.input.c_str(),
+                   r.message.empty() ? "" : (": " + r.message).c_str());
+    }
+    std::fflush(stderr);
+  };
+  const BatchResult res = postproc::runBatch(a.in, a.out, o, progress);
+  for (const auto& r : res.files) {
+    if (r.status == BatchFileResult::Status::kConverted) {
+      std::printf("converted %s: %d targets corrected (max %.4f mm), %d point(s) added, path error %.4f -> %.4f mm\n", r.input.c_str(),
+                  r.report.targets_corrected, r.report.max_correction_mm, r.report.points_added, r.report.max_error_uncompensated_mm,
+                  r.report.max_error_after_mm);
+    } else {
+      std::printf("%s %s: %s\n", statusWord(r).c_str(), r.input.c_str(), r.message.c_str());
+    }
+  }
+  std::printf("accura batch: %d converted, %d failed, %d skipped, %zu programs in %s\n", res.converted, res.failed, res.skipped,
+              res.files.size(), a.in.c_str());
+  if (!a.json.empty()) {
+    nlohmann::ordered_json j;
+    j["in"] = a.in;
+    j["out"] = a.out;
+    j["robot"] = o.job.calibrated.nominal.name;
+    j["converted"] = res.converted;
+    j["failed"] = res.failed;
+    j["skipped"] = res.skipped;
+    nlohmann::ordered_json files = nlohmann::ordered_json::array();
+    for (const auto& r : res.files) {
+      nlohmann::ordered_json f;
+      f["input"] = r.input;
+      f["status"] = statusWord(r) == "FAILED" ? "failed" : statusWord(r);
+      f["outputs"] = r.outputs;
+      if (!r.message.empty()) f["message"] = r.message;
+      if (r.status == BatchFileResult::Status::kConverted) f.update(jobReportJson(r.report, a.in));
+      files.push_back(f);
+    }
+    j["files"] = files;
+    writeFilesAtomically({{a.json, j.dump(2) + "\n"}});
+    std::printf("wrote %s\n", a.json.c_str());
+  }
+  return res.failed == 0 ? 0 : kSomeFailed;
+}
+
+}  // namespace
+
+void addBatchCommand(CLI::App& app) {
+  auto args = std::make_shared<BatchArgs>();
+  auto* c = app.add_subcommand("batch", "compensate every program (*.src, *.xml) of a directory tree into a mirrored tree");
+  args->settings = addJobOptions(c);
+  c->add_option("--in", args->in, "directory of programs (read only)")->required();
+  c->add_option("--out", args->out, "output directory (the same relative paths); not inside --in")->required();
+  c->add_option("--config", args->config, "$config.dat for every program: TOOL_DATA, BASE_DATA, global points");
+  c->add_option("--jobs", args->jobs, "programs compensated in parallel")->capture_default_str();
+  c->add_option("--json", args->json, "report of every program");
+  c->callback([=]() { exitCode() = runBatch(*args); });
+}
+
+}  // namespace accura::cli

@@ -1,0 +1,115 @@
+// accura post-processor: compensation of a whole program (frames, discrete compensation of
+// every Cartesian target, auxiliary points on LIN/CIRC segments) on top of compensate.h.
+//
+// Frames (docs/program-formats.md, "Frames"):
+//   world       the calibrated model's world: the frame its base was measured in (tracker,
+//               cell). The OLP placed the robot at its nominal base T_world_robroot there
+//               (the robot file's <base>, or --base).
+//   $WORLD      the controller's world; T_robroot_kukaworld = inverse($ROBROOT), $ROBROOT the
+//               robot base in the controller's $WORLD (identity unless --robroot: KUKA's
+//               default, $WORLD = robot base).
+//   $BASE       the program's base frame relative to $WORLD; targets are T_base_tcp.
+//   So T_world_tcp = T_world_robroot * inverse($ROBROOT) * $BASE * target.
+//   controller  nominal kinematics at T_world_robroot with the program's $TOOL.
+//   real        the calibrated model (its base, kinematics, compliance, ...) with the
+//               calibrated tool when the program's $TOOL equals the model's nominal tool
+//               within 1e-3 mm and 1e-3 deg (the tool that was calibrated), else with the
+//               program's $TOOL taken as exact.
+#pragma once
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "accura/calib/kinematics.h"
+#include "accura/calib/robot.h"
+#include "accura/postproc/compensate.h"
+#include "accura/postproc/program.h"
+
+namespace accura::postproc {
+
+struct JobSettings {
+  RobotModel calibrated;  ///< the real robot (a calibrated model written by accura identify)
+  /// Where the OLP placed the robot in the model's world (mm, deg); empty: the robot file's
+  /// <base> (calibrated.nominal.T_world_base).
+  std::optional<XyzAbc> robroot_in_world;
+  /// The controller's $ROBROOT (robot base in the controller's $WORLD); empty: identity.
+  std::optional<XyzAbc> robroot_in_kukaworld;
+  double tol_mm = 0.05;  ///< bound on the predicted path error of LIN/CIRC segments
+  PoseContext context;   ///< payload, temperature of the real robot while it runs the program
+  /// The program's tool is the calibrated one when it equals the model's nominal tool within
+  /// these (mm, deg).
+  double tool_match_mm = 1e-3;
+  double tool_match_deg = 1e-3;
+  /// The calibrated base may differ from the nominal base by at most this much (mm, deg):
+  /// more means the model was measured in another frame (a tracker's) and --base is needed.
+  double max_base_offset_mm = 50;
+  double max_base_offset_deg = 5;
+  /// $TOOL / $BASE (T_flange_tcp; $BASE relative to $WORLD; mm, deg) for the motions before
+  /// the program sets them (programs that rely on the frames active on the controller).
+  std::optional<XyzAbc> initial_tool, initial_base;
+  /// IK convergence for the written values: far below their last digit (1e-4 mm, 1e-5 deg),
+  /// so that the digits written do not depend on the iterations that led there (the same
+  /// bytes on every machine). Newton converges quadratically: about one more iteration.
+  IkOptions ik = [] {
+    IkOptions o;
+    o.tol_mm = 1e-7;
+    o.tol_rad = 1e-10;
+    return o;
+  }();
+  DensifyOptions densify;  ///< tol_mm is taken from tol_mm above
+};
+
+/// One corrected target (in the program's base frame).
+struct TargetReport {
+  SourceLocation where;     ///< of the target's value
+  SourceLocation motion;    ///< of the motion statement
+  std::string name;         ///< point name, empty for an inline target
+  std::string role;         ///< "end" or "aux"
+  std::string motion_type;  ///< PTP, LIN, CIRC, SPTP, ...
+  double correction_mm = 0;   ///< |command - desired|
+  double correction_deg = 0;  ///< rotation angle between command and desired
+  double dx_mm = 0, dy_mm = 0, dz_mm = 0;  ///< command - desired, in the program's base frame
+  bool calibrated_tool = false;            ///< the real model used the calibrated tool
+};
+
+/// One LIN / CIRC segment.
+struct SegmentReport {
+  SourceLocation motion;
+  std::string motion_type;
+  double length_mm = 0;
+  double max_error_uncompensated_mm = 0;  ///< the program as it was
+  double max_error_before_mm = 0;         ///< endpoints compensated, no auxiliary points
+  double max_error_after_mm = 0;          ///< with the auxiliary points written
+  int points_added = 0;
+  std::string note;  ///< why no points were added although needed, ...
+};
+
+struct ProgramIssue {
+  SourceLocation where;
+  std::string message;
+};
+
+struct JobReport {
+  std::vector<TargetReport> targets;
+  std::vector<SegmentReport> segments;
+  std::vector<ProgramIssue> warnings;  ///< left unchanged, path not checked, ...
+  std::vector<ProgramIssue> errors;    ///< why the program was not written
+  int targets_corrected = 0;
+  int points_added = 0;
+  double max_correction_mm = 0, rms_correction_mm = 0, max_correction_deg = 0;
+  double max_error_uncompensated_mm = 0, max_error_before_mm = 0, max_error_after_mm = 0;
+  XyzAbc robroot_in_world;          ///< the nominal base used
+  XyzAbc calibrated_base_in_world;  ///< the calibrated model's base
+};
+
+/// Compensates every target of `program` (see the file comment): returns the program with
+/// the corrected targets marked `modified` and the auxiliary points inserted (marked
+/// `inserted`, before their motion). Fills `report` (may be null). Throws InputError listing
+/// every problem with its location (file:line:column) when a target cannot be compensated
+/// (unreachable, singular, joint limits, its S/T configuration would change, an unknown tool
+/// or base, a malformed or run-time target on a LIN/CIRC), ArgumentError on invalid settings.
+/// Deterministic: the same inputs give the same output on every run and thread.
+Program compensateProgram(const Program& program, const JobSettings& settings, JobReport* report);
+
+}  // namespace accura::postproc

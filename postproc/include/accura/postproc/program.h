@@ -1,0 +1,169 @@
+// accura post-processor: the program representation shared by the KRL and the XML readers and
+// writers (docs/program-formats.md).
+//
+// A Program is the motion model of a robot program: its motions in textual order, each with its
+// target(s), motion type, approximation, speed, and the tool and base frames active when it
+// runs. Everything else a program holds (logic, I/O, comments, folds) is kept by the KRL reader
+// as text (KrlSource) and written back byte for byte; the XML format carries the motion model
+// only.
+//
+// Units: mm and deg (targets, frames), m/s (path speed), percent (PTP speed). Frames: a
+// Cartesian target is T_base_tcp: the tool ($TOOL, T_flange_tcp) in the program's base frame
+// ($BASE, relative to the controller's $WORLD).
+#pragma once
+
+#include <array>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "accura/calib/geometry.h"
+
+namespace accura::postproc {
+
+/// A place in a program file: 1-based line and column (column counts bytes).
+struct SourceLocation {
+  std::string file;
+  int line = 0;
+  int column = 0;
+  /// "file:line:column" (parts that are unknown are left out).
+  std::string str() const;
+};
+
+/// The motion types of the model. kSpl is a spline segment (SPL inside SPLINE ... ENDSPLINE):
+/// its path is not a line or a circle, so only its end point is compensated.
+enum class MotionType { kPtp, kLin, kCirc, kSpl };
+
+/// Approximation (blending) flags as written after a motion (KRL C_PTP, C_DIS, ...).
+enum class Approximation { kCPtp, kCDis, kCVel, kCOri, kCSpl };
+/// "C_PTP", "C_DIS", ...
+const char* toString(Approximation a);
+/// Parses "C_PTP", "C_DIS", ... (case-insensitive); false when `text` is none of them.
+bool parseApproximation(const std::string& text, Approximation* out);
+
+/// A robot target as the program gives it: Cartesian (E6POS, POS, FRAME) or axis-specific
+/// (E6AXIS, AXIS). Components the program leaves out are empty (a partial aggregate: the
+/// controller takes them from the current position).
+struct Target {
+  enum class Kind { kCartesian, kAxis };
+  Kind kind = Kind::kCartesian;
+  std::string name;  ///< declared name as written (XP1), empty for an inline aggregate
+  std::string type;  ///< E6POS, POS, FRAME, E6AXIS, AXIS (upper case); empty when untyped
+  std::array<std::optional<double>, 6> pose;  ///< X, Y, Z (mm), A, B, C (deg)
+  std::optional<int> status;                  ///< KUKA S
+  std::optional<int> turn;                    ///< KUKA T
+  std::array<std::optional<double>, 6> axes;  ///< A1..A6 (deg; mm for prismatic joints)
+  std::array<std::optional<double>, 6> ext;   ///< E1..E6 (external axes, deg or mm)
+  SourceLocation where;                       ///< where the value is written
+  int value_id = -1;  ///< KRL: index of the aggregate's text in KrlSource::values (-1: none)
+  bool modified = false;  ///< changed by the compensator (the writers rewrite its value)
+
+  /// True when X, Y, Z, A, B and C are all given.
+  bool completePose() const;
+  /// The pose (all six components must be given; ArgumentError otherwise).
+  XyzAbc xyzAbc() const;
+  /// Sets X..C (keeps S, T, external axes).
+  void setPose(const XyzAbc& p);
+};
+
+/// The tool ($TOOL) or base ($BASE) frame active at a motion, and where it came from.
+struct FrameSetting {
+  enum class Source {
+    kUnset,     ///< the program has not set it before this motion
+    kInline,    ///< an inline aggregate ($TOOL = {X ..})
+    kData,      ///< TOOL_DATA[n] / BASE_DATA[n] (value known only with the $config.dat)
+    kNull,      ///< $NULLFRAME (TOOL_DATA[0] / BASE_DATA[0]: flange / world)
+    kUnknown,   ///< set by something accura cannot evaluate (see `text`)
+  };
+  Source source = Source::kUnset;
+  int index = 0;                ///< for kData: n of TOOL_DATA[n] / BASE_DATA[n]
+  std::optional<XyzAbc> value;  ///< the frame when known (mm, deg)
+  std::string text;             ///< how the program said it (KRL expression: "TOOL_DATA[1]")
+  std::string note;             ///< for kUnknown: why accura cannot evaluate it
+  SourceLocation where;         ///< where it was set
+
+  bool known() const { return value.has_value(); }
+};
+
+/// One motion statement.
+struct Motion {
+  MotionType type = MotionType::kPtp;
+  bool spline = false;    ///< SPTP / SLIN / SCIRC / SPL (KUKA spline motions)
+  bool relative = false;  ///< PTP_REL / LIN_REL / CIRC_REL (not compensated)
+  Target target;          ///< end point
+  std::optional<Target> aux;  ///< CIRC auxiliary point
+  std::optional<double> circ_angle_deg;  ///< CIRC ... CA angle (not compensated)
+  std::vector<Approximation> approximation;  ///< as written, in order (empty: exact stop)
+  /// Blending parameter of the first approximation flag when known: C_DIS $APO.CDIS (mm),
+  /// C_PTP $APO.CPTP (%), C_VEL $APO.CVEL (%), C_ORI $APO.CORI (deg).
+  std::optional<double> approximation_value;
+  std::optional<double> vel_m_s;      ///< path speed of LIN/CIRC ($VEL.CP, m/s)
+  std::optional<double> vel_percent;  ///< PTP speed ($VEL_AXIS, percent)
+  FrameSetting tool;   ///< T_flange_tcp active at this motion
+  FrameSetting base;   ///< T_world_base (program base, relative to the controller's $WORLD)
+  bool external_tcp = false;  ///< IPO_FRAME #TCP (stationary tool): not compensated
+  /// Why the target cannot be evaluated (an undeclared name, an expression computed at run
+  /// time, a point changed at run time); empty when it can.
+  std::string target_problem;
+  std::string statement;  ///< the statement as written (for messages)
+  SourceLocation where;   ///< of the statement
+  int statement_id = -1;  ///< KRL: index in KrlSource::statements
+  bool inserted = false;  ///< an auxiliary point added by the compensator (before statement_id)
+  int trigger_count = 0;  ///< KRL: TRIGGER statements bound to this motion (since the last one)
+};
+
+/// Text spans of a KRL program, for writing it back byte for byte with only the corrected
+/// values changed and the auxiliary points inserted.
+struct KrlSource {
+  struct Component {
+    std::string name;   ///< upper case (X, Y, ..., S, T, E1, A1)
+    size_t begin = 0;   ///< value text [begin, end) in the file
+    size_t end = 0;
+    double value = 0;   ///< as read
+  };
+  struct Value {        ///< an aggregate {...} holding a target
+    int file = 0;       ///< 0: .src, 1: .dat
+    size_t begin = 0;   ///< '{'
+    size_t end = 0;     ///< one past '}'
+    std::vector<Component> components;  ///< in written order
+  };
+  struct Statement {    ///< a motion statement line
+    int file = 0;
+    size_t line_begin = 0;   ///< first byte of the line
+    size_t code_begin = 0;   ///< first non-blank byte
+    size_t code_end = 0;     ///< end of the code (before a comment and trailing blanks)
+    std::string eol;         ///< the line's end ("\n", "\r\n" or "" at the end of the file)
+    /// Target expressions in the statement ([begin, end) in the file): end point, and the
+    /// auxiliary point first for CIRC.
+    std::vector<std::pair<size_t, size_t>> targets;
+  };
+  std::string src_path, dat_path;  ///< as given to the reader ("" when there is no .dat)
+  std::string src_text, dat_text;  ///< the files' bytes
+  std::vector<Value> values;
+  std::vector<Statement> statements;
+};
+
+/// A program: the motion model, plus the KRL text when read from KRL.
+struct Program {
+  std::string name;    ///< program name (KRL DEF name, XML name attribute)
+  std::string robot;   ///< robot name (XML; empty when not given)
+  std::vector<Motion> motions;
+  std::shared_ptr<const KrlSource> krl;  ///< set by the KRL reader
+  std::string source_file;               ///< the file the program was read from
+};
+
+/// Number formats for values the post-processor writes (fixed decimals, never "-0"):
+/// lengths %.4f (mm, 0.1 um), angles %.5f (deg, ~0.2 urad), speeds and other values %.4f.
+std::string formatMm(double v);
+std::string formatDeg(double v);
+std::string formatFixed(double v, int decimals);
+
+/// A TOOL_DATA / BASE_DATA table (index -> frame), e.g. from $config.dat.
+struct FrameTables {
+  std::vector<std::optional<XyzAbc>> tool;  ///< [n] = TOOL_DATA[n]
+  std::vector<std::optional<XyzAbc>> base;  ///< [n] = BASE_DATA[n]
+  std::string file;                          ///< where they were read from
+};
+
+}  // namespace accura::postproc

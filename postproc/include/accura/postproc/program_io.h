@@ -1,0 +1,39 @@
+// accura post-processor: reading and writing programs in either format, chosen by the file
+// extension (.src: KUKA KRL with its .dat; .xml: the XML program format).
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "accura/postproc/program.h"
+
+namespace accura::postproc {
+
+enum class ProgramFormat { kKrl, kXml };
+
+/// The format of a program file by its extension (case-insensitive): .src -> KRL, .xml -> XML.
+/// Throws InputError for any other extension.
+ProgramFormat programFormat(const std::string& path);
+
+struct ProgramReadOptions {
+  std::string dat_path;     ///< KRL: the .dat (empty: found next to the .src)
+  std::string config_path;  ///< $config.dat: TOOL_DATA / BASE_DATA (and global points for KRL)
+};
+
+/// Reads a program in the format of its extension. Throws InputError (file:line:column).
+Program readProgram(const std::string& path, const ProgramReadOptions& options = {});
+
+/// One output file: where it goes and its bytes.
+struct OutputFile {
+  std::string path;
+  std::string text;
+};
+
+/// The files of `program` written as `format`: XML -> `path`; KRL -> `path` (the .src) and
+/// `dat_path` (empty: `path` with the extension .dat) when the program has a .dat (a program
+/// read from KRL without .dat gets none; a new KRL program always gets one). Throws
+/// ArgumentError when the program cannot be written in that format.
+std::vector<OutputFile> renderProgram(const Program& program, ProgramFormat format, const std::string& path,
+                                      const std::string& dat_path = "");
+
+}  // namespace accura::postproc

@@ -1,0 +1,147 @@
+// Batch compensation (see batch.h); the atomic writing is in batch_write.cpp.
+#include "accura/postproc/batch.h"
+
+#include <tinyxml2.h>
+
+#include <algorithm>
+#include <atomic>
+#include <filesystem>
+#include <mutex>
+#include <thread>
+
+#include "accura/calib/errors.h"
+
+namespace fs = std::filesystem;
+
+namespace accura::postproc {
+namespace {
+
+std::string relativeSlash(const fs::path& p) {
+  std::string s = p.generic_string();
+  return s;
+}
+
+bool isHidden(const fs::path& p) {
+  const std::string n = p.filename().string();
+  return !n.empty() && n[0] == '.';
+}
+
+std::string lower(std::string s) {
+  for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return s;
+}
+
+// An .xml file whose root element is <program>.
+bool isXmlProgram(const std::string& path) {
+  tinyxml2::XMLDocument doc;
+  if (doc.LoadFile(path.c_str()) != tinyxml2::XML_SUCCESS) return true;  // let the reader report it
+  const tinyxml2::XMLElement* root = doc.RootElement();
+  return root && std::string(root->Name()) == "program";
+}
+
+bool inside(const fs::path& child, const fs::path& parent) {
+  auto c = child.begin();
+  for (auto p = parent.begin(); p != parent.end(); ++p, ++c) {
+    if (p->empty()) continue;
+    if (c == child.end() || *c != *p) return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+std::vector<std::string> findPrograms(const std::string& in_dir) {
+  std::vector<std::string> out;
+  std::error_code ec;
+  fs::recursive_directory_iterator it(in_dir, fs::directory_options::none, ec), end;
+  if (ec) throw InputError(in_dir, 0, 0, "cannot list the directory: " + ec.message());
+  for (; it != end; it.increment(ec)) {
+    if (ec) throw InputError(in_dir, 0, 0, "cannot list the directory: " + ec.message());
+    const fs::path p = it->path();
+    if (isHidden(p)) {
+      if (it->is_directory(ec)) it.disable_recursion_pending();
+      continue;
+    }
+    if (!it->is_regular_file(ec)) continue;
+    const std::string ext = lower(p.extension().string());
+    if (ext != ".src" && ext != ".xml") continue;
+    out.push_back(relativeSlash(fs::relative(p, in_dir)));
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+std::vector<OutputFile> compensateFile(const std::string& in_path, const std::string& out_path,
+                                       const ProgramReadOptions& read, const JobSettings& job, JobReport* report) {
+  const ProgramFormat format = programFormat(in_path);
+  const Program program = readProgram(in_path, read);
+  const Program compensated = compensateProgram(program, job, report);
+  std::string dat_out;
+  if (compensated.krl && !compensated.krl->dat_path.empty())
+    dat_out = (fs::path(out_path).parent_path() / fs::path(compensated.krl->dat_path).filename()).string();
+  return renderProgram(compensated, format, out_path, dat_out);
+}
+
+BatchResult runBatch(const std::string& in_dir, const std::string& out_dir, const BatchOptions& options,
+                     const std::function<void(const BatchFileResult&, int, int)>& progress) {
+  std::error_code ec;
+  if (!fs::is_directory(in_dir, ec)) throw InputError(in_dir + ": expected a directory of programs (--in), found none");
+  if (options.jobs < 1) throw InputError("--jobs: expected at least 1, found " + std::to_string(options.jobs));
+  const fs::path in_abs = fs::weakly_canonical(fs::absolute(in_dir));
+  const fs::path out_abs = fs::weakly_canonical(fs::absolute(out_dir));
+  if (inside(out_abs, in_abs))
+    throw InputError(out_dir + ": the output directory is inside the input tree " + in_dir + ", which is never modified: choose another --out");
+  if (inside(in_abs, out_abs))
+    throw InputError(out_dir + ": the output directory contains the input tree " + in_dir + ": choose another --out");
+  const std::vector<std::string> files = findPrograms(in_dir);
+  BatchResult result;
+  result.files.resize(files.size());
+  std::atomic<size_t> next{0};
+  std::mutex mutex;
+  int done = 0;
+  ProgramReadOptions read;
+  read.config_path = options.config_path;
+
+  auto work = [&]() {
+    for (;;) {
+      if (interruptRequested()) return;
+      const size_t i = next.fetch_add(1);
+      if (i >= files.size()) return;
+      BatchFileResult& r = result.files[i];
+      r.input = files[i];
+      const fs::path in_path = fs::path(in_dir) / files[i];
+      const fs::path out_path = fs::path(out_dir) / files[i];
+      try {
+        if (lower(in_path.extension().string()) == ".xml" && !isXmlProgram(in_path.string())) {
+          r.status = BatchFileResult::Status::kSkipped;
+          r.message = "not an XML program (its root element is not <program>)";
+        } else {
+          std::vector<OutputFile> out = compensateFile(in_path.string(), out_path.string(), read, options.job, &r.report);
+          fs::create_directories(out_path.parent_path());
+          writeFilesAtomically(out);
+          for (const auto& f : out) r.outputs.push_back(relativeSlash(fs::relative(f.path, out_dir)));
+          r.status = BatchFileResult::Status::kConverted;
+        }
+      } catch (const std::exception& e) {
+        r.status = BatchFileResult::Status::kFailed;
+        r.message = e.what();
+      }
+      std::lock_guard<std::mutex> lock(mutex);
+      ++done;
+      if (progress) progress(r, done, static_cast<int>(files.size()));
+    }
+  };
+  const int n = std::max(1, std::min<int>(options.jobs, static_cast<int>(std::max<size_t>(1, files.size()))));
+  std::vector<std::thread> threads;
+  for (int t = 1; t < n; ++t) threads.emplace_back(work);
+  work();
+  for (auto& t : threads) t.join();
+  for (const auto& r : result.files) {
+    if (r.status == BatchFileResult::Status::kConverted) ++result.converted;
+    else if (r.status == BatchFileResult::Status::kSkipped) ++result.skipped;
+    else ++result.failed;
+  }
+  return result;
+}
+
+}  // namespace accura::postproc

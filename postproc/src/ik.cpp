@@ -1,0 +1,961 @@
+// Inverse kinematics of the complete model: closed-form seeds of the nominal geometry (all
+// branches), Newton's method on the complete model, KUKA Status/Turn. docs/compensation.md.
+#include <Eigen/Cholesky>
+#include <Eigen/LU>
+#include <Eigen/SVD>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <sstream>
+
+#include "accura/calib/errors.h"
+#include "accura/calib/geometry.h"
+#include "accura/postproc/compensate.h"
+#include "closed_form.h"
+#include "kinematic_chain.h"
+#include "small_linalg.h"
+
+namespace accura::postproc {
+
+using detail::ChainFrames;
+using detail::ClosedForm;
+using detail::ClosedFormKind;
+using detail::Jac6N;
+using detail::KinematicChain;
+using detail::kMaxDof;
+using detail::VecN;
+
+const char* toString(IkStatus status) {
+  switch (status) {
+    case IkStatus::kOk: return "ok";
+    case IkStatus::kUnreachable: return "unreachable";
+    case IkStatus::kJointLimits: return "joint limits";
+    case IkStatus::kSingular: return "singular";
+    case IkStatus::kNoConfiguration: return "not reachable on the configuration asked for";
+    case IkStatus::kNotConverged: return "not converged";
+  }
+  return "unknown";
+}
+
+bool IkOptions::IsValid(std::string* error) const {
+  auto fail = [&](const std::string& m) {
+    if (error) *error = m;
+    return false;
+  };
+  if (!(tol_mm > 0 && tol_mm <= 1)) return fail("IK position tolerance must be in (0, 1] mm, got " + std::to_string(tol_mm));
+  if (!(tol_rad > 0 && tol_rad <= 1e-3))
+    return fail("IK orientation tolerance must be in (0, 1e-3] rad, got " + std::to_string(tol_rad));
+  if (max_iterations < 1 || max_iterations > 10000)
+    return fail("IK iterations must be in 1..10000, got " + std::to_string(max_iterations));
+  if (!(joint_margin >= 0 && joint_margin < 90))
+    return fail("joint margin must be in [0, 90) deg or mm, got " + std::to_string(joint_margin));
+  if (!(singular_threshold >= 0 && singular_threshold < 1))
+    return fail("singular threshold must be in [0, 1), got " + std::to_string(singular_threshold));
+  return true;
+}
+
+bool configurationMatches(const Configuration& asked, const Configuration& actual) {
+  if (asked.status >= 0 && asked.status != actual.status) return false;
+  if (asked.turn >= 0 && asked.turn != actual.turn) return false;
+  return true;
+}
+
+namespace {
+
+double wrap180(double deg) {
+  if (deg >= -180.0 && deg < 180.0) return deg;
+  double w = std::fmod(deg + 180.0, 360.0);
+  if (w < 0) w += 360.0;
+  return w - 180.0;  // [-180, 180)
+}
+
+/// What the Status bits need: the nominal geometry of the first five links.
+struct StatusGeometry {
+  bool defined = false;
+  std::array<double, 5> theta0{}, d{}, a{}, ca{}, sa{}, dir{};
+  std::array<bool, 5> trig{};  ///< link i needs cos / sin of its angle
+  int last = 0;                ///< last of links 2..5 that moves the wrist point
+  double c01 = 1, s01 = 0;     ///< cos / sin of theta0 of link 1
+  double q3_stretched_deg = 0;
+
+  explicit StatusGeometry(const RobotDefinition& robot) {
+    if (robot.dof() < 6) return;
+    for (int i = 0; i < 6; ++i)
+      if (robot.joints[static_cast<size_t>(i)].type != JointType::kRevolute) return;
+    defined = true;
+    for (int i = 0; i < 5; ++i) {
+      const JointSpec& j = robot.joints[static_cast<size_t>(i)];
+      theta0[i] = j.theta0_deg * kDegToRad;
+      d[i] = j.d_mm;
+      a[i] = j.a_mm;
+      ca[i] = std::cos(j.alpha_deg * kDegToRad);
+      sa[i] = std::sin(j.alpha_deg * kDegToRad);
+      dir[i] = j.direction;
+    }
+    c01 = std::cos(theta0[0]);
+    s01 = std::sin(theta0[0]);
+    for (int i = 1; i < 5; ++i)
+      if (a[i] != 0 || d[i] != 0) last = i;
+    for (int i = 1; i < 5; ++i) trig[i] = i < last || (i == last && a[i] != 0);
+    // stretched: the frame-3 position of the wrist point, (a3, -sin(alpha3) d4), turned by
+    // theta3 points along the upper arm (a2, 0)
+    const double gamma = std::atan2(-sa[2] * d[3], a[2]);
+    const double theta3 = (a[1] >= 0 ? 0.0 : kPi) - gamma;
+    q3_stretched_deg = wrap180((theta3 - theta0[2]) * kRadToDeg / dir[2]);
+  }
+
+  /// The other elbow solution for the same wrist point (the planar arm of joints 2 and 3
+  /// mirrored about the line to the wrist point), at least 1 deg from the stretched arm.
+  void mirrorElbow(double* q) const {
+    const double L3 = std::hypot(a[2], -sa[2] * d[3]);
+    const double gamma = std::atan2(-sa[2] * d[3], a[2]);
+    // beta: the angle of the forearm against the upper arm (0 stretched)
+    const double theta3 = theta0[2] + dir[2] * q[2] * kDegToRad;
+    double beta = std::remainder(theta3 + gamma - (a[1] >= 0 ? 0.0 : kPi), 2 * kPi);
+    if (std::abs(beta) < kDegToRad) beta = beta < 0 ? -kDegToRad : kDegToRad;
+    const double a2 = std::abs(a[1]);
+    const double dtheta2 = 2 * std::atan2(L3 * std::sin(beta), a2 + L3 * std::cos(beta));
+    q[1] += dtheta2 * kRadToDeg / dir[1];
+    q[2] -= 2 * beta * kRadToDeg / dir[2];
+  }
+
+  /// The other solution of joint 1 for the same wrist point: theta1 reflected about the
+  /// wrist point's azimuth (the two theta1 solutions are symmetric about it), at least 1 deg
+  /// away.
+  void mirrorShoulder(double* q) const {
+    const Eigen::Vector2d p = wristInFrame1(q);
+    double dtheta1 = std::remainder(2 * std::atan2(p.y(), p.x()) + kPi, 2 * kPi);
+    if (std::abs(dtheta1) < kDegToRad) dtheta1 = dtheta1 < 0 ? -kDegToRad : kDegToRad;
+    q[0] += dtheta1 * kRadToDeg / dir[0];
+  }
+
+  /// x, y of the wrist point (origin of DH frame 5, nominal) in the base turned by theta1.
+  /// `cos_nominal`, `sin_nominal` (optional): cos / sin of theta0 + direction q per link.
+  Eigen::Vector2d wristInFrame1(const double* q, const double* cos_nominal = nullptr,
+                                const double* sin_nominal = nullptr) const {
+    // The wrist point (origin of DH frame 5) in DH frame 1: links 2..5. The A1 frame is the
+    // base turned by dir1 q1 = theta1 - theta0_1, so the wrist point's coordinates there are
+    // Rz(theta0_1) ((a1, 0, d1) + Rx(alpha1) o): no angle of joint 1 is needed.
+    Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
+    Eigen::Vector3d o = Eigen::Vector3d::Zero();
+    for (int i = 1; i <= last; ++i) {
+      double ct = 1, st = 0;
+      if (trig[i] && cos_nominal) {
+        ct = cos_nominal[i];
+        st = sin_nominal[i];
+      } else if (trig[i]) {
+        const double th = theta0[i] + dir[i] * q[i] * kDegToRad;
+        ct = std::cos(th);
+        st = std::sin(th);
+      }
+      const Eigen::Vector3d x = ct * R.col(0) + st * R.col(1);
+      o += a[i] * x + d[i] * R.col(2);
+      if (i < last) {
+        const Eigen::Vector3d y = -st * R.col(0) + ct * R.col(1);
+        const Eigen::Vector3d z = R.col(2);
+        R.col(0) = x;
+        R.col(1) = ca[i] * y + sa[i] * z;
+        R.col(2) = -sa[i] * y + ca[i] * z;
+      }
+    }
+    return Eigen::Vector2d(a[0] + o.x(), ca[0] * o.y() - sa[0] * o.z());
+  }
+
+  /// The Status; `x_a1` (optional): the wrist point's x in the A1 frame (mm).
+  int status(const double* q, double* x_a1 = nullptr, const double* cos_nominal = nullptr,
+             const double* sin_nominal = nullptr) const {
+    if (!defined) return -1;
+    const Eigen::Vector2d p = wristInFrame1(q, cos_nominal, sin_nominal);
+    const double x = c01 * p.x() - s01 * p.y();
+    if (x_a1) *x_a1 = x;
+    return (x < 0 ? 1 : 0) | elbowWristBits(q);
+  }
+  /// Bits 1 and 2 (they need no kinematics).
+  int elbowWristBits(const double* q) const {
+    int s = 0;
+    if (wrap180(q[2] - q3_stretched_deg) >= 0) s |= 2;
+    if (wrap180(q[4]) < 0) s |= 4;
+    return s;
+  }
+};
+
+int turnBits(const double* q, int n) {
+  int t = 0;
+  for (int i = 0; i < n && i < 30; ++i)
+    if (q[i] < 0) t |= 1 << i;
+  return t;
+}
+
+bool hasDeviationsBeyondBaseTool(const RobotModel& m) {
+  const Deviations& d = m.deviations;
+  for (const LinkDeviation& l : d.links)
+    if (l.dtheta_rad != 0 || l.dd_mm != 0 || l.da_mm != 0 || l.dalpha_rad != 0 || l.dbeta_rad != 0) return true;
+  for (const std::vector<double>* v : {&d.compliance, &d.gear_sin, &d.gear_cos, &d.joint_scale, &d.backlash})
+    for (double x : *v)
+      if (x != 0) return true;
+  return d.thermal_alpha_per_k != 0;
+}
+
+std::string formatPose(const Eigen::Isometry3d& T) {
+  const XyzAbc p = toXyzAbc(T);
+  std::ostringstream s;
+  s.setf(std::ios::fixed);
+  s.precision(3);
+  s << "{X " << p.x_mm << ", Y " << p.y_mm << ", Z " << p.z_mm << ", A " << p.a_deg << ", B " << p.b_deg
+    << ", C " << p.c_deg << "}";
+  return s.str();
+}
+
+}  // namespace
+
+Configuration kukaConfiguration(const RobotModel& model, const Eigen::VectorXd& q) {
+  if (q.size() != model.dof())
+    throw ArgumentError("kukaConfiguration: expected " + std::to_string(model.dof()) + " joint values, got " +
+                        std::to_string(q.size()));
+  const StatusGeometry g(model.nominal);
+  Configuration c;
+  c.status = g.status(q.data());
+  c.turn = turnBits(q.data(), model.dof());
+  return c;
+}
+
+// ---------------------------------------------------------------------------------------
+
+struct KinematicSolver::Impl {
+  RobotModel model;
+  KinematicChain chain;
+  /// The nominal links with this model's base and tool: where the closed form is exact.
+  KinematicChain nominal_chain;
+  ClosedForm closed_form;
+  StatusGeometry status_geometry;
+  bool exact_closed_form = false;  ///< no deviations beyond base and tool
+  int n = 0;
+  std::array<bool, kMaxDof> revolute{};
+  std::array<double, kMaxDof> lower{}, upper{}, theta0{}, dir{};
+  Eigen::Isometry3d T_base_world, T_tcp_flange;
+  double L = 1;  ///< length scale (mm)
+
+  static RobotModel nominalLinks(const RobotModel& m) {
+    RobotModel r = m;
+    const Deviations d = m.deviations;
+    r.deviations = Deviations::zero(m.dof(), d.gear_harmonics);
+    r.deviations.base_mm = d.base_mm;
+    r.deviations.base_rot_rad = d.base_rot_rad;
+    r.deviations.tool_mm = d.tool_mm;
+    r.deviations.tool_rot_rad = d.tool_rot_rad;
+    return r;
+  }
+
+  explicit Impl(const RobotModel& m)
+      : model(m), chain(m), nominal_chain(nominalLinks(m)), closed_form(m.nominal), status_geometry(m.nominal) {
+    n = m.dof();
+    for (int i = 0; i < n; ++i) {
+      const JointSpec& j = m.nominal.joints[static_cast<size_t>(i)];
+      revolute[i] = j.type == JointType::kRevolute;
+      lower[i] = j.lower;
+      upper[i] = j.upper;
+      theta0[i] = j.theta0_deg * kDegToRad;
+      dir[i] = j.direction;
+    }
+    T_base_world = m.T_world_base().inverse();
+    T_tcp_flange = m.T_flange_tcp().inverse();
+    L = chain.length_scale_mm();
+    exact_closed_form = closed_form.kind() != ClosedFormKind::kNone && !hasDeviationsBeyondBaseTool(m);
+    selfCheck();
+  }
+
+  // The prepared chain must compute calib's forward kinematics: compare at three joint
+  // vectors and two contexts.
+  void selfCheck() const {
+    KinematicWorkspace ws;
+    ChainFrames f;
+    PoseContext loaded;
+    loaded.payload_kg = 7.5;
+    loaded.temp_c = 27.0;
+    loaded.dir.assign(static_cast<size_t>(n), 1);
+    for (int i = 0; i < n; i += 2) loaded.dir[static_cast<size_t>(i)] = -1;
+    const PoseContext plain;
+    for (int k = 0; k < 3; ++k) {
+      Eigen::VectorXd q(n);
+      for (int i = 0; i < n; ++i) {
+        const double u = k == 0 ? 0.5 : (k == 1 ? 0.2 + 0.07 * i : 0.9 - 0.11 * i);
+        q[i] = lower[i] + std::clamp(u, 0.0, 1.0) * (upper[i] - lower[i]);
+      }
+      for (const PoseContext* ctx : std::array<const PoseContext*, 2>{&plain, &loaded}) {
+        const Eigen::Isometry3d T_calib = forwardKinematics(model, q, *ctx, ws);
+        chain.evaluate(q.data(), *ctx, f);
+        const double dp = (T_calib.translation() - f.T_world_tcp.translation()).norm();
+        const double dr = (T_calib.linear() - f.T_world_tcp.linear()).norm();
+        if (!(dp < 1e-9 * L && dr < 1e-11))
+          throw NumericalError("kinematic solver: the prepared chain disagrees with calib's forward kinematics by " +
+                               std::to_string(dp) + " mm (a model effect the solver does not know)");
+      }
+    }
+  }
+
+  Configuration configurationOf(const double* q) const {
+    Configuration c;
+    c.status = status_geometry.status(q);
+    c.turn = turnBits(q, n);
+    return c;
+  }
+
+  double margin(int i, const IkOptions& o) const { return std::min(o.joint_margin, 0.49 * (upper[i] - lower[i])); }
+
+  /// Moves revolute joints by multiples of 360 deg into [lower + margin - slack,
+  /// upper - margin + slack]. Per joint: a value with the sign the Turn bits `turn` ask for
+  /// (-1: any) when there is one, else when `strict` is false any value; among those the one
+  /// nearest to `ref`. False when a joint has no value.
+  bool fitLimits(VecN& q, int turn, const VecN& ref, const IkOptions& o, bool strict, double slack = 0) const {
+    for (int i = 0; i < n; ++i) {
+      const double m = margin(i, o);
+      const double lo = lower[i] + m - slack, hi = upper[i] - m + slack;
+      const bool check_sign = turn >= 0;
+      const bool want_negative = check_sign && ((turn >> i) & 1);
+      if (!revolute[i]) {
+        if (q[i] < lo || q[i] > hi) return false;
+        if (strict && check_sign && (q[i] < 0) != want_negative) return false;
+        continue;
+      }
+      // q itself: within the limits, the sign asked for, and no other value nearer to ref
+      if (q[i] >= lo && q[i] <= hi && (!check_sign || (q[i] < 0) == want_negative) && std::abs(q[i] - ref[i]) <= 180.0)
+        continue;
+      double best = 0, best_any = 0;
+      bool found = false, found_any = false;
+      const double base = q[i] - 360.0 * std::round(q[i] / 360.0);
+      for (int k = -3; k <= 3; ++k) {
+        const double v = base + 360.0 * k;
+        if (v < lo || v > hi) continue;
+        if (!found_any || std::abs(v - ref[i]) < std::abs(best_any - ref[i])) best_any = v;
+        found_any = true;
+        if (check_sign && (v < 0) != want_negative) continue;
+        if (!found || std::abs(v - ref[i]) < std::abs(best - ref[i])) best = v;
+        found = true;
+      }
+      if (found) {
+        q[i] = best;
+      } else if (found_any && !strict) {
+        q[i] = best_any;
+      } else {
+        return false;
+      }
+    }
+    return true;
+  }
+
+  VecN midRange() const {
+    VecN q(n);
+    for (int i = 0; i < n; ++i) q[i] = 0.5 * (lower[i] + upper[i]);
+    return q;
+  }
+
+  // Row and column scaling of the Jacobian: position rows / L, columns per rad (revolute)
+  // or per L mm (prismatic): dimensionless.
+  void scaled(const Jac6N& J, Jac6N& Js) const {
+    Js = J;
+    Js.topRows<3>() /= L;
+    for (int i = 0; i < n; ++i) Js.col(i) *= revolute[i] ? kRadToDeg : L;
+  }
+
+  /// Smallest singular value of the scaled Jacobian below t? (Cholesky of the Gram matrix
+  /// shifted by t^2: it fails exactly when some singular value is <= t.)
+  bool singularBelow(const Jac6N& J, double t) const {
+    if (n == 6) {
+      // A^T A (same singular values as A A^T for a square A): dot products of the columns,
+      // weighted by the scaling, lower triangle only
+      double col[6][6];
+      for (int c = 0; c < 6; ++c) {
+        const double k = revolute[c] ? kRadToDeg : L;
+        for (int r = 0; r < 3; ++r) col[c][r] = J(r, c) * (k / L);
+        for (int r = 3; r < 6; ++r) col[c][r] = J(r, c) * k;
+      }
+      Eigen::Matrix<double, 6, 6> G;
+      for (int i = 0; i < 6; ++i)
+        for (int j = 0; j <= i; ++j) {
+          double v = 0;
+          for (int r = 0; r < 6; ++r) v += col[i][r] * col[j][r];
+          G(i, j) = v;
+        }
+      G.diagonal().array() -= t * t;
+      return !detail::positiveDefinite6(G);
+    }
+    Jac6N Js;
+    scaled(J, Js);
+    if (n > 6) {
+      Eigen::Matrix<double, 6, 6> G;
+      G.triangularView<Eigen::Lower>() = Js * Js.transpose();
+      G.diagonal().array() -= t * t;
+      return !detail::positiveDefinite6(G);
+    }
+    Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxDof, kMaxDof> G = Js.transpose() * Js;
+    G.diagonal().array() -= t * t;
+    Eigen::LLT<decltype(G)> llt(G);
+    return llt.info() != Eigen::Success;
+  }
+
+  double minSingularValue(const Jac6N& J) const {
+    Jac6N Js;
+    scaled(J, Js);
+    const Eigen::MatrixXd A = Js;
+    Eigen::JacobiSVD<Eigen::MatrixXd> svd(A);
+    const auto& s = svd.singularValues();
+    return s[s.size() - 1];
+  }
+
+  // --- Newton's method on the complete model --------------------------------------------
+
+  struct Newton {
+    bool converged = false;
+    int iterations = 0;
+    double ep = 0, er = 0;  ///< final position (mm) and rotation (rad) errors
+  };
+
+  static void poseErr(const Eigen::Isometry3d& T_target, const Eigen::Isometry3d& T, Vector6d& e) {
+    e.head<3>() = T_target.translation() - T.translation();
+    const Eigen::Matrix3d dR = T_target.linear() * T.linear().transpose();
+    // rotation vector of dR: half the skew part is sin(angle) times the axis; below 0.1
+    // (5.7 deg) scale it by angle / sin(angle) = asin(s) / s from its series (next term
+    // 35 s^8 / 1152 < 4e-10 relative); logSO3 otherwise
+    const Eigen::Vector3d half(0.5 * (dR(2, 1) - dR(1, 2)), 0.5 * (dR(0, 2) - dR(2, 0)), 0.5 * (dR(1, 0) - dR(0, 1)));
+    const double s2 = half.squaredNorm();
+    if (s2 < 0.01 && dR.trace() > 0) {
+      e.tail<3>() = half * (1 + s2 * (1.0 / 6 + s2 * (3.0 / 40 + s2 * (5.0 / 112))));
+    } else {
+      e.tail<3>() = logSO3(dR);
+    }
+  }
+
+  double meritScaled(const Vector6d& e) const {
+    return std::sqrt(e.head<3>().squaredNorm() / (L * L) + e.tail<3>().squaredNorm());
+  }
+
+  /// Newton's method, then Levenberg-Marquardt when a Newton step does not reduce the error.
+  /// Newton reuses its Jacobian while each step gains at least a factor 5 (near the solution
+  /// an iteration costs one FK). Every evaluation after the first counts as an iteration.
+  /// `f` holds the frames at q on entry when `f_valid`, and on return.
+  Newton newton(VecN& q, const Eigen::Isometry3d& T_target, const PoseContext& ctx, const IkOptions& o,
+                int max_iterations, ChainFrames& f, bool f_valid = false) const {
+    using MatN = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxDof, kMaxDof>;
+    Newton r;
+    if (!f_valid) chain.evaluate(q.data(), ctx, f);
+    // frames at q (cur) and of the trial (tmp); swapped on acceptance, copied back at the end
+    ChainFrames ft;
+    ChainFrames* cur = &f;
+    ChainFrames* tmp = &ft;
+    struct CopyBack {
+      ChainFrames*& cur;
+      ChainFrames& f;
+      ~CopyBack() {
+        if (cur != &f) f = *cur;
+      }
+    } copy_back{cur, f};
+    Vector6d e;
+    poseErr(T_target, f.T_world_tcp, e);
+    double merit = meritScaled(e);
+    auto done = [&]() {
+      r.ep = e.head<3>().norm();
+      r.er = e.tail<3>().norm();
+      r.converged = r.ep <= o.tol_mm && r.er <= o.tol_rad;
+      return r.converged || r.iterations >= max_iterations;
+    };
+    VecN qt(n), dq(n);
+    Vector6d et;
+    Jac6N J, Js;
+    auto trial = [&](const VecN& step) {
+      qt = q + step;
+      chain.evaluate(qt.data(), ctx, *tmp, cur);
+      poseErr(T_target, tmp->T_world_tcp, et);
+      ++r.iterations;
+      const double mt = meritScaled(et);
+      if (!(mt < merit)) return false;
+      q = qt;
+      std::swap(cur, tmp);
+      e = et;
+      merit = mt;
+      return true;
+    };
+    auto limitStep = [&](VecN& step) {
+      double s = 1;
+      for (int i = 0; i < n; ++i) {
+        const double lim = revolute[i] ? 20.0 : 0.1 * L;  // deg / mm
+        if (std::abs(step[i]) * s > lim) s = lim / std::abs(step[i]);
+      }
+      step *= s;
+    };
+
+    if (n == 6) {
+      // Newton with a square Jacobian
+      detail::Lu6 lu;
+      bool fresh = false, have = false;
+      while (!done()) {
+        if (!have) {
+          chain.jacobian(*cur, J);
+          if (!lu.factor(Eigen::Matrix<double, 6, 6>(J))) break;
+          have = fresh = true;
+        }
+        dq = lu.solve(e);
+        if (!dq.allFinite()) break;
+        limitStep(dq);
+        const double before = merit;
+        if (trial(dq)) {
+          fresh = false;
+          if (merit > 0.2 * before) have = false;  // slow: refresh the Jacobian
+        } else if (!fresh) {
+          have = false;  // retry with the Jacobian at q
+        } else {
+          break;  // no descent along a fresh Newton step: Levenberg-Marquardt
+        }
+      }
+      if (done()) return r;
+    }
+
+    // Levenberg-Marquardt in scaled variables: (Js^T Js + lambda I) dx = Js^T es
+    double lambda = -1;
+    while (!done()) {
+      chain.jacobian(*cur, J);
+      scaled(J, Js);
+      const MatN A = Js.transpose() * Js;
+      Vector6d es = e;
+      es.head<3>() /= L;
+      const VecN g = Js.transpose() * es;
+      const double scale = std::max(1e-12, A.diagonal().maxCoeff());
+      if (lambda < 0) lambda = 1e-6 * scale;
+      bool accepted = false;
+      while (!accepted && !done()) {
+        MatN M = A;
+        M.diagonal().array() += lambda;
+        const VecN dx = M.ldlt().solve(g);
+        for (int i = 0; i < n; ++i) dq[i] = dx[i] * (revolute[i] ? kRadToDeg : L);
+        if (!dq.allFinite()) return r;
+        limitStep(dq);
+        if (trial(dq)) {
+          accepted = true;
+          lambda = std::max(lambda / 5, 1e-15 * scale);
+        } else {
+          lambda *= 4;
+          if (lambda > 1e6 * scale) return r;  // a local minimum of the error: stop
+        }
+      }
+    }
+    return r;
+  }
+
+  // --- closed-form seeds ------------------------------------------------------------------
+
+  std::array<double, 6> thetaOf(const VecN& q) const {
+    std::array<double, 6> t{};
+    for (int i = 0; i < 6; ++i) t[i] = theta0[i] + dir[i] * q[i] * kDegToRad;
+    return t;
+  }
+
+  VecN qOf(const detail::ThetaSolution& s) const {
+    VecN q(n);
+    for (int i = 0; i < 6; ++i) q[i] = (s.theta[i] - theta0[i]) * kRadToDeg / dir[i];
+    return q;
+  }
+
+  /// A closed-form seed of branch `branch`, corrected for the model's deviations: the
+  /// closed form is exact for the nominal links, so solve it for the target moved by the
+  /// difference between the nominal and the complete model at the seed,
+  /// T' = FK_nominal(q) FK_complete(q)^-1 T (twice). The branch code keeps the branch; near a
+  /// singularity this handles the large redistribution between joints (A4 / A6 at A5 ~ 0)
+  /// that Newton's method does poorly.
+  void correctSeed(VecN& q, int branch, const Eigen::Isometry3d& T_target, const PoseContext& ctx) const {
+    ChainFrames fr, fn;
+    double last_step = std::numeric_limits<double>::infinity();
+    for (int pass = 0; pass < 8; ++pass) {
+      chain.evaluate(q.data(), ctx, fr);
+      nominal_chain.evaluate(q.data(), ctx, fn);
+      const Eigen::Isometry3d T_moved = fn.T_world_tcp * fr.T_world_tcp.inverse() * T_target;
+      detail::ThetaSolution s;
+      if (!closed_form.solveBranch(T_base_world * T_moved * T_tcp_flange, thetaOf(q), branch, s)) return;
+      VecN qn = qOf(s);
+      // keep the representation (multiple of 360 deg) of q
+      for (int i = 0; i < 6; ++i) qn[i] += 360.0 * std::round((q[i] - qn[i]) / 360.0);
+      const double step = (qn - q).cwiseAbs().maxCoeff();
+      if (!(step < last_step)) return;  // not contracting (next to a singularity): keep q
+      q = qn;
+      last_step = step;
+      if (step < 1e-4) return;  // deg: Newton takes it from here
+    }
+  }
+
+  struct Start {
+    VecN q;
+    int branch = -1;
+    bool corrected = false;
+    bool status_mismatch = false;
+    double distance = 0;
+  };
+
+  /// Closed-form seeds for T_world_tcp, every branch, each joint moved by 360 deg where that
+  /// puts it within the limits (a seed may lie up to kSeedSlackDeg outside: the real solution
+  /// may be inside); the Turn bits asked for choose among the values, else nearest to ref.
+  static constexpr double kSeedSlackDeg = 5.0;
+  /// A warm start's solution is taken without the closed form when no joint moved more
+  /// than this from the seed (deg / mm).
+  static constexpr double kWarmAcceptDeg = 2.0;
+  void closedFormStarts(const Eigen::Isometry3d& T_world_tcp, const Configuration& config, const VecN& ref,
+                        const IkOptions& o, bool correct_all, const PoseContext& ctx, std::vector<Start>& starts,
+                        int& outside_limits, int& branches) const {
+    std::array<detail::ThetaSolution, 8> sols;
+    const Eigen::Isometry3d T06 = T_base_world * T_world_tcp * T_tcp_flange;
+    branches = closed_form.solve(T06, thetaOf(ref), sols);
+    outside_limits = 0;
+    for (int k = 0; k < branches; ++k) {
+      Start st;
+      st.q = qOf(sols[k]);
+      st.branch = sols[k].branch;
+      if (!fitLimits(st.q, config.turn, ref, o, false, kSeedSlackDeg)) {
+        ++outside_limits;
+        continue;
+      }
+      bool duplicate = false;
+      for (const Start& s : starts) duplicate = duplicate || (s.q - st.q).cwiseAbs().maxCoeff() < 1e-9;
+      if (duplicate) continue;
+      st.status_mismatch = config.status >= 0 && configurationOf(st.q.data()).status != config.status;
+      if (correct_all) {
+        // "nearest to the seed" is decided on the corrected seeds: next to a singularity the
+        // nominal seeds may be degrees from the real solutions
+        correctSeed(st.q, st.branch, T_world_tcp, ctx);
+        st.corrected = true;
+      }
+      st.distance = (st.q - ref).squaredNorm();
+      starts.push_back(st);
+    }
+    std::stable_sort(starts.begin(), starts.end(), [](const Start& x, const Start& y) {
+      if (x.status_mismatch != y.status_mismatch) return !x.status_mismatch;
+      return x.distance < y.distance;
+    });
+  }
+
+  /// Starts for a robot without a closed form: the reference, then a fixed low-discrepancy
+  /// set (Halton) over the joint ranges.
+  std::vector<Start> multiStarts(const VecN& ref) const {
+    std::vector<Start> s(1);
+    s[0].q = ref;
+    static const int primes[kMaxDof] = {2, 3, 5, 7, 11, 13, 17, 19, 23, 29, 31, 37};
+    for (int k = 1; k <= 48; ++k) {
+      Start st;
+      st.q.resize(n);
+      for (int i = 0; i < n; ++i) {
+        double f = 1, r = 0;
+        for (int x = k; x > 0; x /= primes[i]) {
+          f /= primes[i];
+          r += f * (x % primes[i]);
+        }
+        st.q[i] = lower[i] + r * (upper[i] - lower[i]);
+      }
+      s.push_back(st);
+    }
+    return s;
+  }
+
+  // --- the solver -------------------------------------------------------------------------
+
+  IkResult inverse(const Eigen::Isometry3d& T_target, const Configuration& config, const Eigen::VectorXd& seed,
+                   const IkOptions& o, const PoseContext& ctx) const {
+    std::string why;
+    if (!o.IsValid(&why)) throw ArgumentError(why);
+    if (seed.size() != 0 && seed.size() != n)
+      throw ArgumentError("IK seed: expected " + std::to_string(n) + " joint values, got " + std::to_string(seed.size()));
+    if (seed.size() != 0 && !seed.allFinite()) throw ArgumentError("IK seed: not finite");
+    if (!T_target.matrix().allFinite()) throw ArgumentError("IK target: not finite");
+    ChainFrames f;
+    const VecN ref = seed.size() ? VecN(seed) : midRange();
+    int iterations = 0;
+
+    std::vector<IkResult> other_configuration;  // converged solutions on other configurations
+    IkResult singular_solution;                 // the first singular one on the configuration
+    bool have_singular = false;
+    int limit_failures = 0;
+    // A converged q (frames in f): limits, singularity, configuration. Returns true when
+    // `out` is the answer.
+    auto finish = [&](VecN q, Newton nt, bool warm, IkResult& out) -> bool {
+      const VecN q_converged = q;
+      if (!fitLimits(q, config.turn, ref, o, false)) {
+        if (!warm) ++limit_failures;
+        return false;
+      }
+      if (warm && (q - ref).cwiseAbs().maxCoeff() > kWarmAcceptDeg) return false;
+      IkResult r;
+      double x_a1 = 0;
+      r.configuration.status = status_geometry.status(q.data(), &x_a1, f.cos_nominal.data(), f.sin_nominal.data());
+      r.configuration.turn = turnBits(q.data(), n);
+      // warm: accepted only next to the seed and on its Status (else another solution may be
+      // nearer: next to a singularity two branches come close; the closed form decides)
+      if (warm) {
+        if (status_geometry.defined) {
+          if ((r.configuration.status & 6) != status_geometry.elbowWristBits(ref.data())) return false;
+          // bit 0: x_a1 moves by at most L per rad of joint motion; recompute only when the
+          // move could have crossed 0
+          double moved_rad = 0;
+          for (int i = 0; i < std::min(n, 5); ++i) moved_rad += std::abs(q[i] - ref[i]) * kDegToRad;
+          if (std::abs(x_a1) <= L * moved_rad &&
+              (status_geometry.status(ref.data()) & 1) != (r.configuration.status & 1))
+            return false;
+        }
+      }
+      if (q != q_converged) {
+        // moved by 360 deg: the same pose unless an effect depends on q itself (joint_scale)
+        nt = newton(q, T_target, ctx, o, 5, f);
+        iterations += nt.iterations;
+        if (!nt.converged) return false;
+      }
+      r.q = q;
+      r.position_error_mm = nt.ep;
+      r.rotation_error_rad = nt.er;
+      Jac6N J;
+      chain.jacobian(f, J);
+      const bool singular = o.singular_threshold > 0 && singularBelow(J, o.singular_threshold);
+      if (singular || o.compute_singular_value) r.min_singular_value = minSingularValue(J);
+      if (!configurationMatches(config, r.configuration)) {
+        if (warm) return false;
+        r.status = IkStatus::kNoConfiguration;
+        r.message = "reached with S " + std::to_string(r.configuration.status) + " T " +
+                    std::to_string(r.configuration.turn) + ", not with the configuration asked for (S " +
+                    std::to_string(config.status) + " T " + std::to_string(config.turn) + ")";
+        other_configuration.push_back(r);
+        return false;
+      }
+      if (singular) {
+        // with a Status asked for, another start may find a regular solution on it: keep
+        // this one and go on; with any Status the nearest solution decides: report it
+        if (!warm && config.status < 0) {
+          out = r;
+          out.status = IkStatus::kSingular;
+          std::ostringstream m;
+          m << "singular: the smallest scaled singular value of the Jacobian is " << r.min_singular_value
+            << ", below " << o.singular_threshold;
+          out.message = m.str();
+          return true;
+        }
+        if (!warm && !have_singular) {
+          singular_solution = r;
+          singular_solution.status = IkStatus::kSingular;
+          std::ostringstream m;
+          m << "singular: the smallest scaled singular value of the Jacobian is " << r.min_singular_value
+            << ", below " << o.singular_threshold;
+          singular_solution.message = m.str();
+          have_singular = true;
+        }
+        return false;
+      }
+      r.status = IkStatus::kOk;
+      out = std::move(r);
+      return true;
+    };
+
+    IkResult res;
+    // 1. warm start: Newton from the seed, accepted when it stays near the seed
+    if (seed.size()) {
+      VecN q = ref;
+      const Newton nt = newton(q, T_target, ctx, o, std::min(o.max_iterations, 12), f);
+      iterations += nt.iterations;
+      if (nt.converged && finish(q, nt, true, res)) {
+        res.iterations = iterations;
+        return res;
+      }
+    }
+
+    // 2. closed-form seeds (or a fixed set of starts): those with the Status asked for
+    //    first, each group nearest to the reference first
+    std::vector<Start> starts;
+    int outside_limits = 0, branches = 0;
+    const bool closed = closed_form.kind() != ClosedFormKind::kNone;
+    if (closed) {
+      const bool correct_all = !exact_closed_form && seed.size() && config.status < 0;
+      closedFormStarts(T_target, config, ref, o, correct_all, ctx, starts, outside_limits, branches);
+    } else {
+      starts = multiStarts(ref);
+      branches = static_cast<int>(starts.size());
+    }
+    bool any_converged = false;
+    double best_ep = std::numeric_limits<double>::infinity(), best_er = best_ep;
+    auto attempt = [&](VecN q, int branch, bool corrected, int max_iterations) -> bool {
+      if (closed && !exact_closed_form && branch >= 0 && !corrected) correctSeed(q, branch, T_target, ctx);
+      const Newton nt = newton(q, T_target, ctx, o, max_iterations, f);
+      iterations += nt.iterations;
+      if (!nt.converged) {
+        if (nt.ep / o.tol_mm + nt.er / o.tol_rad < best_ep / o.tol_mm + best_er / o.tol_rad) {
+          best_ep = nt.ep;
+          best_er = nt.er;
+        }
+        return false;
+      }
+      any_converged = true;
+      return finish(q, nt, false, res);
+    };
+    for (const Start& st : starts) {
+      if (attempt(st.q, st.branch, st.corrected, o.max_iterations)) {
+        res.iterations = iterations;
+        return res;
+      }
+    }
+    if (have_singular) {
+      singular_solution.iterations = iterations;
+      return singular_solution;
+    }
+    // 3. Status asked for but only found on other configurations: next to a boundary (the
+    //    arm stretched, A5 ~ 0) the nominal seeds of both sides may lead to the same side.
+    //    Mirror the converged solutions across the boundary and try again.
+    if (config.status >= 0 && status_geometry.defined) {
+      const std::vector<IkResult> found = other_configuration;
+      for (const IkResult& r : found) {
+        const int differ = r.configuration.status ^ config.status;
+        if (differ == 0) continue;
+        VecN q = r.q;
+        if (differ & 1) status_geometry.mirrorShoulder(q.data());
+        if (differ & 2) status_geometry.mirrorElbow(q.data());
+        if (differ & 4) {
+          const double side = (config.status & 4) ? -1.0 : 1.0;
+          q[4] = side * std::max(std::abs(wrap180(q[4])), 1.0);
+        }
+        if (attempt(q, -1, false, o.max_iterations)) {
+          res.iterations = iterations;
+          return res;
+        }
+      }
+    }
+    // 4. next to a singularity of the nominal links (the wrist point near the first axis, a
+    //    branch the nominal robot cannot reach) the closed-form seeds can miss a solution the
+    //    real robot has: Newton / Levenberg-Marquardt from a fixed set of starts, the seed
+    //    (or the middle of the ranges) first. Only reached when everything above failed.
+    if (closed) {
+      const bool none = branches == 0;  // far outside the workspace: a short search
+      const std::vector<Start> more = multiStarts(ref);
+      const size_t count = none ? 8 : more.size();
+      for (size_t k = 0; k < count && k < more.size(); ++k) {
+        if (attempt(more[k].q, -1, true, none ? std::min(o.max_iterations, 30) : o.max_iterations)) {
+          res.iterations = iterations;
+          return res;
+        }
+      }
+    }
+    if (!other_configuration.empty()) {
+      IkResult r = other_configuration.front();
+      r.iterations = iterations;
+      return r;
+    }
+    IkResult fail;
+    fail.iterations = iterations;
+    std::ostringstream m;
+    const std::string margin_note =
+        o.joint_margin > 0 ? " (margin " + std::to_string(o.joint_margin) + ")" : std::string();
+    if (closed && branches == 0) {
+      fail.status = IkStatus::kUnreachable;
+      m << "unreachable: " << formatPose(T_target) << " is outside the workspace";
+    } else if (any_converged && limit_failures > 0) {
+      fail.status = IkStatus::kJointLimits;
+      m << "reachable only outside the joint limits" << margin_note;
+    } else if (starts.empty()) {
+      fail.status = IkStatus::kJointLimits;
+      m << "reachable only outside the joint limits" << margin_note << " (" << outside_limits << " of "
+        << branches << " branches)";
+    } else {
+      // every start ended in a local minimum of the error or ran out of iterations
+      fail.status = best_ep > 10 * o.tol_mm || best_er > 10 * o.tol_rad ? IkStatus::kUnreachable
+                                                                       : IkStatus::kNotConverged;
+      m << (fail.status == IkStatus::kUnreachable ? "unreachable: " : "not converged: ") << formatPose(T_target)
+        << ", smallest error " << best_ep << " mm, " << best_er << " rad after Newton from " << starts.size()
+        << " start(s)";
+    }
+    fail.message = m.str();
+    return fail;
+  }
+};
+
+KinematicSolver::KinematicSolver(const RobotModel& model) : impl_(std::make_shared<const Impl>(model)) {}
+KinematicSolver::~KinematicSolver() = default;
+KinematicSolver::KinematicSolver(const KinematicSolver&) = default;
+KinematicSolver& KinematicSolver::operator=(const KinematicSolver&) = default;
+
+const RobotModel& KinematicSolver::model() const { return impl_->model; }
+int KinematicSolver::dof() const { return impl_->n; }
+
+const char* KinematicSolver::closedForm() const {
+  switch (impl_->closed_form.kind()) {
+    case ClosedFormKind::kSphericalWrist: return "spherical_wrist";
+    case ClosedFormKind::kThreeParallel: return "three_parallel";
+    case ClosedFormKind::kNone: break;
+  }
+  return "none";
+}
+
+Eigen::Isometry3d KinematicSolver::forward(const Eigen::VectorXd& q, const PoseContext& context) const {
+  if (q.size() != impl_->n)
+    throw ArgumentError("expected " + std::to_string(impl_->n) + " joint values, got " + std::to_string(q.size()));
+  ChainFrames f;
+  impl_->chain.evaluate(q.data(), context, f);
+  return f.T_world_tcp;
+}
+
+Eigen::Isometry3d KinematicSolver::jacobian(const Eigen::VectorXd& q, const PoseContext& context,
+                                            Eigen::Matrix<double, 6, Eigen::Dynamic>& J) const {
+  if (q.size() != impl_->n)
+    throw ArgumentError("expected " + std::to_string(impl_->n) + " joint values, got " + std::to_string(q.size()));
+  ChainFrames f;
+  impl_->chain.evaluate(q.data(), context, f);
+  Jac6N Jn;
+  impl_->chain.jacobian(f, Jn);
+  J = Jn;
+  return f.T_world_tcp;
+}
+
+IkResult KinematicSolver::inverse(const Eigen::Isometry3d& T_world_tcp, const Configuration& config,
+                                  const Eigen::VectorXd& seed, const IkOptions& options,
+                                  const PoseContext& context) const {
+  return impl_->inverse(T_world_tcp, config, seed, options, context);
+}
+
+std::vector<Eigen::VectorXd> KinematicSolver::closedFormSolutions(const Eigen::Isometry3d& T_world_tcp) const {
+  std::vector<Eigen::VectorXd> out;
+  const Impl& m = *impl_;
+  if (m.closed_form.kind() == ClosedFormKind::kNone) return out;
+  std::array<detail::ThetaSolution, 8> sols;
+  std::array<double, 6> theta_ref{};
+  const VecN mid = m.midRange();
+  for (int i = 0; i < 6; ++i) theta_ref[i] = m.theta0[i] + m.dir[i] * mid[i] * kDegToRad;
+  const int k = m.closed_form.solve(m.T_base_world * T_world_tcp * m.T_tcp_flange, theta_ref, sols);
+  ChainFrames f;
+  Vector6d e;
+  for (int s = 0; s < k; ++s) {
+    // only exact solutions of the nominal links (not the seeds clamped at the workspace's
+    // boundary)
+    const VecN q0 = m.qOf(sols[s]);
+    m.nominal_chain.evaluate(q0.data(), PoseContext{}, f);
+    Impl::poseErr(T_world_tcp, f.T_world_tcp, e);
+    if (!(e.head<3>().norm() < 1e-6 * m.L && e.tail<3>().norm() < 1e-9)) continue;
+    // every representation of every joint within the limits
+    std::vector<Eigen::VectorXd> partial{Eigen::VectorXd(6)};
+    for (int i = 0; i < 6; ++i) {
+      const double q = wrap180((sols[s].theta[i] - m.theta0[i]) * kRadToDeg / m.dir[i]);
+      std::vector<Eigen::VectorXd> next;
+      for (const Eigen::VectorXd& p : partial)
+        for (int r = -3; r <= 3; ++r) {
+          const double v = q + 360.0 * r;
+          if (v < m.lower[i] || v > m.upper[i]) continue;
+          Eigen::VectorXd x = p;
+          x[i] = v;
+          next.push_back(x);
+        }
+      partial.swap(next);
+    }
+    for (const Eigen::VectorXd& p : partial) out.push_back(p);
+  }
+  return out;
+}
+
+IkResult inverseKinematics(const RobotModel& model, const Eigen::Isometry3d& T_world_tcp, const Configuration& config,
+                           const Eigen::VectorXd& seed, const IkOptions& options, double payload_kg) {
+  PoseContext ctx;
+  ctx.payload_kg = payload_kg;
+  return inverseKinematics(model, T_world_tcp, config, seed, options, ctx);
+}
+
+IkResult inverseKinematics(const RobotModel& model, const Eigen::Isometry3d& T_world_tcp, const Configuration& config,
+                           const Eigen::VectorXd& seed, const IkOptions& options, const PoseContext& context) {
+  return KinematicSolver(model).inverse(T_world_tcp, config, seed, options, context);
+}
+
+}  // namespace accura::postproc

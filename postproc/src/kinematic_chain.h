@@ -1,0 +1,89 @@
+// Internal: a RobotModel prepared for fast forward kinematics and joint Jacobians (the hot
+// path of the IK). Computes exactly what calib's forwardKinematics / jointJacobian compute
+// (every effect of the complete model); KinematicSolver checks the two against each other
+// when it is built.
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <array>
+#include <vector>
+
+#include "accura/calib/kinematics.h"
+#include "accura/calib/robot.h"
+
+namespace accura::postproc::detail {
+
+constexpr int kMaxDof = 12;
+using VecN = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxDof, 1>;
+using Jac6N = Eigen::Matrix<double, 6, Eigen::Dynamic, 0, 6, kMaxDof>;
+
+/// Frames of one evaluation, in the world: joint i (0-based) turns about z[i] through o[i].
+struct ChainFrames {
+  std::array<Eigen::Vector3d, kMaxDof> o;
+  std::array<Eigen::Vector3d, kMaxDof> z;
+  std::array<double, kMaxDof> rate;  ///< d(theta_i or d_i)/dq_i (per rad / per mm)
+  Eigen::Isometry3d T_world_tcp;
+  /// The nominal DH angle of each link (theta0 + direction q) and its cosine / sine: the
+  /// next evaluation starts from them when it is near; the gravity loads and the KUKA Status
+  /// use them.
+  std::array<double, kMaxDof> theta_nominal, cos_nominal, sin_nominal;
+};
+
+class KinematicChain {
+ public:
+  explicit KinematicChain(const RobotModel& model);
+
+  int dof() const { return n_; }
+  /// Frames and T_world_tcp at q (deg / mm). The cosine and sine of each link's angle come
+  /// from those of its nominal angle by the angle-addition formulas (the deviations are small;
+  /// series of the difference, 1e-18 relative), and with `near` (frames of a previous
+  /// evaluation, not `f`) the nominal ones too when within 0.1 rad: calls to sin / cos only
+  /// where that does not hold.
+  void evaluate(const double* q, const PoseContext& context, ChainFrames& f,
+                const ChainFrames* near = nullptr) const;
+  /// Joint Jacobian from frames: rows [dp mm; dphi rad], columns per deg (revolute) or mm.
+  void jacobian(const ChainFrames& f, Jac6N& J) const;
+  /// Sum of the nominal link lengths |a_i| + |d_i| and the tool offset (mm, >= 1): the length
+  /// that scales position rows against rotation rows.
+  double length_scale_mm() const { return length_scale_mm_; }
+
+ private:
+  struct Link {
+    bool revolute = true;
+    double dir = 1;
+    double theta_c = 0;  ///< theta0 + dtheta (rad)
+    double d_c = 0;      ///< d0 + dd (mm, before the thermal scale)
+    double a = 0;        ///< a0 + da (mm, before the thermal scale)
+    Eigen::Matrix3d M = Eigen::Matrix3d::Identity();  ///< Rx(alpha) Ry(beta)
+    bool beta = false;                                 ///< beta != 0 (else M = Rx(alpha))
+    double ca = 1, sa = 0;                             ///< cos / sin alpha
+    double compliance = 0;
+    double joint_scale = 0;
+    double half_backlash = 0;
+    bool gear = false;
+    std::array<double, kMaxGearHarmonics> gs{}, gc{};
+    // nominal geometry for the gravity loads
+    double nom_theta0 = 0, nom_d = 0, nom_a = 0, nom_ca = 1, nom_sa = 0;
+    double mass = 0;
+    Eigen::Vector3d com = Eigen::Vector3d::Zero();
+  };
+
+  void gravityLoads(const double* q, double payload_kg, double* load, const ChainFrames& f) const;
+
+  int n_ = 0;
+  int harmonics_ = 0;
+  std::vector<Link> links_;
+  Eigen::Matrix3d R_world_base_;
+  Eigen::Vector3d t_world_base_;
+  Eigen::Isometry3d T_flange_tcp_;
+  double thermal_alpha_ = 0;
+  bool compliant_ = false;
+  bool backlash_ = false;
+  bool any_joint_effect_ = false;  ///< joint_scale or gear_periodic somewhere
+  Eigen::Vector3d gravity_ = Eigen::Vector3d::Zero();
+  Eigen::Vector3d payload_com_ = Eigen::Vector3d::Zero();
+  double length_scale_mm_ = 1;
+};
+
+}  // namespace accura::postproc::detail

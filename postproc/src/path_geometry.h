@@ -1,0 +1,35 @@
+// Internal: the controller's path interpolation (LIN, CIRC) and the geometric deviation from
+// a path. docs/compensation.md.
+#pragma once
+
+#include <Eigen/Geometry>
+
+#include "accura/postproc/compensate.h"
+
+namespace accura::postproc::detail {
+
+/// A segment prepared for interpolation: LIN p(s) = p0 + s (p1 - p0); CIRC p(s) = c +
+/// r (cos(s A) e1 + sin(s A) e2), e1 towards the start, e2 = n x e1, A the arc angle through
+/// the auxiliary point. Orientation: slerp from start to end over s.
+struct PathGeometry {
+  PathType type = PathType::kLin;
+  Eigen::Vector3d p0, p1;
+  Eigen::Vector3d c, n, e1, e2;
+  double r = 0, arc = 0;  ///< radius (mm), arc angle (rad, in (0, 2 pi))
+  Eigen::Quaterniond q0, q1;
+  double length_mm = 0, rotation_rad = 0;
+
+  /// Throws NumericalError for a CIRC whose points are (nearly) collinear or coincide.
+  explicit PathGeometry(const PathSegment& s);
+  Eigen::Vector3d position(double s) const;
+  Eigen::Isometry3d pose(double s) const;
+  /// The deviation of a point from the curve as a vector whose norm is the distance to the
+  /// whole line / whole circle: LIN the component perpendicular to the line, CIRC
+  /// (height above the plane, distance from the axis - r, 0). A smooth function of the point
+  /// (away from the circle's axis), used for the interpolation bound.
+  Eigen::Vector3d deviation(const Eigen::Vector3d& p) const;
+  /// Distance to the curve piece itself (segment / arc, ends included).
+  double distance(const Eigen::Vector3d& p) const;
+};
+
+}  // namespace accura::postproc::detail

@@ -1,0 +1,76 @@
+#include "accura/postproc/program.h"
+
+#include <cctype>
+#include <cmath>
+#include <cstdio>
+
+#include "accura/calib/errors.h"
+
+namespace accura::postproc {
+
+std::string SourceLocation::str() const {
+  std::string s = formatLocation(file, line, column);
+  // formatLocation ends with ": "; a location on its own has no separator.
+  if (s.size() >= 2) s.resize(s.size() - 2);
+  return s;
+}
+
+const char* toString(Approximation a) {
+  switch (a) {
+    case Approximation::kCPtp: return "C_PTP";
+    case Approximation::kCDis: return "C_DIS";
+    case Approximation::kCVel: return "C_VEL";
+    case Approximation::kCOri: return "C_ORI";
+    case Approximation::kCSpl: return "C_SPL";
+  }
+  return "?";
+}
+
+bool parseApproximation(const std::string& text, Approximation* out) {
+  std::string u;
+  for (char c : text) u += static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+  static const Approximation all[] = {Approximation::kCPtp, Approximation::kCDis, Approximation::kCVel,
+                                      Approximation::kCOri, Approximation::kCSpl};
+  for (Approximation a : all) {
+    if (u == toString(a)) {
+      *out = a;
+      return true;
+    }
+  }
+  return false;
+}
+
+bool Target::completePose() const {
+  for (const auto& c : pose)
+    if (!c) return false;
+  return true;
+}
+
+XyzAbc Target::xyzAbc() const {
+  if (!completePose()) throw ArgumentError("Target::xyzAbc: the pose of " + (name.empty() ? std::string("an inline target") : name) + " is partial");
+  return XyzAbc{*pose[0], *pose[1], *pose[2], *pose[3], *pose[4], *pose[5]};
+}
+
+void Target::setPose(const XyzAbc& p) {
+  pose = {p.x_mm, p.y_mm, p.z_mm, p.a_deg, p.b_deg, p.c_deg};
+}
+
+std::string formatFixed(double v, int decimals) {
+  if (!std::isfinite(v)) throw ArgumentError("formatFixed: not a finite number");
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.*f", decimals, v);
+  std::string s = buf;
+  // Never "-0.0000": a value that rounds to zero is written without a sign.
+  if (s[0] == '-') {
+    bool zero = true;
+    for (size_t i = 1; i < s.size(); ++i)
+      if (s[i] != '0' && s[i] != '.') zero = false;
+    if (zero) s.erase(0, 1);
+  }
+  return s;
+}
+
+std::string formatMm(double v) { return formatFixed(v, 4); }
+std::string formatDeg(double v) { return formatFixed(v, 5); }
+
+}  // namespace accura::postproc

@@ -1,0 +1,51 @@
+#include "accura/postproc/program_io.h"
+
+#include <cctype>
+#include <filesystem>
+
+#include "accura/calib/errors.h"
+#include "accura/postproc/krl.h"
+#include "accura/postproc/xml_program.h"
+
+namespace fs = std::filesystem;
+
+namespace accura::postproc {
+
+ProgramFormat programFormat(const std::string& path) {
+  std::string ext = fs::path(path).extension().string();
+  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  if (ext == ".src") return ProgramFormat::kKrl;
+  if (ext == ".xml") return ProgramFormat::kXml;
+  throw InputError(path + ": expected a program file ending in .src (KUKA KRL) or .xml (accura XML program), found '" +
+                   fs::path(path).extension().string() + "'");
+}
+
+Program readProgram(const std::string& path, const ProgramReadOptions& options) {
+  if (programFormat(path) == ProgramFormat::kKrl) {
+    KrlReadOptions o;
+    o.dat_path = options.dat_path;
+    o.config_path = options.config_path;
+    return readKrl(path, o);
+  }
+  if (!options.dat_path.empty()) throw InputError("--dat: only for KRL programs (.src), found the XML program " + path);
+  if (!options.config_path.empty()) {
+    const FrameTables tables = readKrlFrameTables(options.config_path);
+    return readXmlProgram(path, &tables);
+  }
+  return readXmlProgram(path);
+}
+
+std::vector<OutputFile> renderProgram(const Program& program, ProgramFormat format, const std::string& path,
+                                      const std::string& dat_path) {
+  if (format == ProgramFormat::kXml) {
+    Program p = program;
+    return {{path, writeXmlProgram(p)}};
+  }
+  const KrlText t = writeKrl(program);
+  std::vector<OutputFile> out = {{path, t.src}};
+  const bool has_dat = program.krl ? !program.krl->dat_path.empty() : true;
+  if (has_dat) out.push_back({dat_path.empty() ? fs::path(path).replace_extension(".dat").string() : dat_path, t.dat});
+  return out;
+}
+
+}  // namespace accura::postproc

@@ -1,0 +1,479 @@
+// XML programs (see xml_program.h, postproc/schema/accura-program.xsd).
+#include "accura/postproc/xml_program.h"
+
+#include <tinyxml2.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <fstream>
+#include <sstream>
+
+#include "accura/calib/errors.h"
+
+namespace accura::postproc {
+namespace {
+
+using tinyxml2::XMLElement;
+
+const char* const kPoseAttrs[] = {"x_mm", "y_mm", "z_mm", "a_deg", "b_deg", "c_deg"};
+const char* const kAxisAttrs[] = {"a1", "a2", "a3", "a4", "a5", "a6"};
+const char* const kExtAttrs[] = {"e1", "e2", "e3", "e4", "e5", "e6"};
+const char* const kMotionElements[] = {"ptp", "lin", "circ", "sptp", "slin", "scirc", "spl"};
+
+std::set<std::string> targetAttrs(bool cartesian) {
+  std::set<std::string> s = {"name", "type"};
+  for (const char* a : cartesian ? kPoseAttrs : kAxisAttrs) s.insert(a);
+  for (const char* a : kExtAttrs) s.insert(a);
+  if (cartesian) {
+    s.insert("s");
+    s.insert("t");
+  }
+  return s;
+}
+
+std::set<std::string> frameAttrs() {
+  std::set<std::string> s = {"source", "index", "text"};
+  for (const char* a : kPoseAttrs) s.insert(a);
+  return s;
+}
+
+std::set<std::string> motionAttrs() {
+  return {"vel_percent", "vel_m_s", "approx", "approx_value", "ca_deg", "relative", "external_tcp"};
+}
+
+std::string xmlEscape(const std::string& s) {
+  std::string o;
+  for (char c : s) {
+    switch (c) {
+      case '&': o += "&amp;"; break;
+      case '<': o += "&lt;"; break;
+      case '>': o += "&gt;"; break;
+      case '"': o += "&quot;"; break;
+      default: o += c;
+    }
+  }
+  return o;
+}
+
+class Reader {
+ public:
+  Reader(std::string file, const std::string& text) : file_(std::move(file)) {
+    std::string line;
+    std::istringstream in(text);
+    while (std::getline(in, line)) lines_.push_back(line);
+  }
+
+  int column(const XMLElement* e) const {
+    if (!e) return 0;
+    const int l = e->GetLineNum();
+    if (l <= 0 || l > static_cast<int>(lines_.size())) return 0;
+    const size_t p = lines_[static_cast<size_t>(l - 1)].find(std::string("<") + e->Name());
+    return p == std::string::npos ? 0 : static_cast<int>(p) + 1;
+  }
+
+  SourceLocation loc(const XMLElement* e) const {
+    SourceLocation s;
+    s.file = file_;
+    s.line = e ? e->GetLineNum() : 0;
+    s.column = column(e);
+    return s;
+  }
+
+  [[noreturn]] void fail(const XMLElement* e, const std::string& msg) const {
+    const SourceLocation s = loc(e);
+    throw InputError(s.file, s.line, s.column, msg);
+  }
+
+  void checkAttributes(const XMLElement* e, const std::set<std::string>& allowed) const {
+    for (const tinyxml2::XMLAttribute* a = e->FirstAttribute(); a; a = a->Next()) {
+      if (!allowed.count(a->Name())) {
+        std::string list;
+        for (const auto& s : allowed) list += (list.empty() ? "" : ", ") + s;
+        fail(e, "<" + std::string(e->Name()) + ">: unknown attribute '" + a->Name() + "' (expected one of: " + list + ")");
+      }
+    }
+  }
+
+  std::optional<std::string> text(const XMLElement* e, const char* name) const {
+    const char* v = e->Attribute(name);
+    if (!v) return std::nullopt;
+    return std::string(v);
+  }
+
+  std::optional<double> number(const XMLElement* e, const char* name) const {
+    const auto s = text(e, name);
+    if (!s) return std::nullopt;
+    char* end = nullptr;
+    const double v = std::strtod(s->c_str(), &end);
+    if (s->empty() || end == s->c_str() || *end != '\0' || !std::isfinite(v))
+      fail(e, "<" + std::string(e->Name()) + "> attribute '" + name + "': expected a finite number, found '" + *s + "'");
+    return v;
+  }
+
+  std::optional<int> integer(const XMLElement* e, const char* name) const {
+    const auto v = number(e, name);
+    if (!v) return std::nullopt;
+    if (*v != std::floor(*v) || *v < 0 || *v > 1e6)
+      fail(e, "<" + std::string(e->Name()) + "> attribute '" + name + "': expected a non-negative integer, found '" + *text(e, name) + "'");
+    return static_cast<int>(*v);
+  }
+
+  bool flag(const XMLElement* e, const char* name) const {
+    const auto s = text(e, name);
+    if (!s) return false;
+    if (*s == "true") return true;
+    if (*s == "false") return false;
+    fail(e, "<" + std::string(e->Name()) + "> attribute '" + name + "': expected 'true' or 'false', found '" + *s + "'");
+  }
+
+  const std::string& file() const { return file_; }
+
+ private:
+  std::string file_;
+  std::vector<std::string> lines_;
+};
+
+bool hasAnyValue(const XMLElement* e) {
+  for (const tinyxml2::XMLAttribute* a = e->FirstAttribute(); a; a = a->Next()) {
+    const std::string n = a->Name();
+    if (n != "name" && n != "type") return true;
+  }
+  return false;
+}
+
+// <pose>, <aux> (Cartesian) or <axes>
+Target readTarget(const Reader& R, const XMLElement* e, bool cartesian) {
+  R.checkAttributes(e, targetAttrs(cartesian));
+  Target t;
+  t.kind = cartesian ? Target::Kind::kCartesian : Target::Kind::kAxis;
+  t.where = R.loc(e);
+  if (const auto n = R.text(e, "name")) t.name = *n;
+  if (const auto ty = R.text(e, "type")) {
+    std::string u;
+    for (char c : *ty) u += static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+    const bool ok = cartesian ? (u == "E6POS" || u == "POS" || u == "FRAME") : (u == "E6AXIS" || u == "AXIS");
+    if (!ok)
+      R.fail(e, "<" + std::string(e->Name()) + "> attribute 'type': expected " +
+                    (cartesian ? "E6POS, POS or FRAME" : "E6AXIS or AXIS") + ", found '" + *ty + "'");
+    t.type = u;
+  }
+  for (int k = 0; k < 6; ++k) {
+    if (cartesian) t.pose[k] = R.number(e, kPoseAttrs[k]);
+    else t.axes[k] = R.number(e, kAxisAttrs[k]);
+    t.ext[k] = R.number(e, kExtAttrs[k]);
+  }
+  if (cartesian) {
+    t.status = R.integer(e, "s");
+    t.turn = R.integer(e, "t");
+  }
+  return t;
+}
+
+FrameSetting readFrame(const Reader& R, const XMLElement* e, bool is_tool, const FrameTables* tables) {
+  R.checkAttributes(e, frameAttrs());
+  FrameSetting s;
+  s.where = R.loc(e);
+  const auto source = R.text(e, "source");
+  if (!source) R.fail(e, "<" + std::string(e->Name()) + ">: missing attribute 'source' (inline, data, null or unknown)");
+  std::array<std::optional<double>, 6> v;
+  int given = 0;
+  for (int k = 0; k < 6; ++k) {
+    v[k] = R.number(e, kPoseAttrs[k]);
+    if (v[k]) ++given;
+  }
+  if (given != 0 && given != 6)
+    R.fail(e, "<" + std::string(e->Name()) + ">: expected all of x_mm, y_mm, z_mm, a_deg, b_deg, c_deg or none, found " +
+                  std::to_string(given) + " of them");
+  const std::string table = is_tool ? "TOOL_DATA" : "BASE_DATA";
+  if (*source == "inline") {
+    if (given != 6) R.fail(e, "<" + std::string(e->Name()) + " source=\"inline\">: expected x_mm, y_mm, z_mm, a_deg, b_deg, c_deg");
+    s.source = FrameSetting::Source::kInline;
+  } else if (*source == "data") {
+    const auto idx = R.integer(e, "index");
+    if (!idx || *idx < 1) R.fail(e, "<" + std::string(e->Name()) + " source=\"data\">: expected attribute 'index' >= 1");
+    s.source = FrameSetting::Source::kData;
+    s.index = *idx;
+    s.text = table + "[" + std::to_string(*idx) + "]";
+    if (given == 0 && tables) {
+      const auto& tab = is_tool ? tables->tool : tables->base;
+      if (*idx < static_cast<int>(tab.size()) && tab[static_cast<size_t>(*idx)]) s.value = tab[static_cast<size_t>(*idx)];
+    }
+  } else if (*source == "null") {
+    if (given) R.fail(e, "<" + std::string(e->Name()) + " source=\"null\">: expected no pose attributes");
+    s.source = FrameSetting::Source::kNull;
+    s.value = XyzAbc{};
+    s.text = "$NULLFRAME";
+  } else if (*source == "unknown") {
+    const auto t = R.text(e, "text");
+    if (!t) R.fail(e, "<" + std::string(e->Name()) + " source=\"unknown\">: expected attribute 'text'");
+    s.source = FrameSetting::Source::kUnknown;
+    s.text = *t;
+  } else {
+    R.fail(e, "<" + std::string(e->Name()) + "> attribute 'source': expected inline, data, null or unknown, found '" + *source + "'");
+  }
+  if (s.source != FrameSetting::Source::kData && e->Attribute("index"))
+    R.fail(e, "<" + std::string(e->Name()) + ">: attribute 'index' is only for source=\"data\"");
+  if (s.source != FrameSetting::Source::kUnknown && e->Attribute("text"))
+    R.fail(e, "<" + std::string(e->Name()) + ">: attribute 'text' is only for source=\"unknown\"");
+  if (given == 6) s.value = XyzAbc{*v[0], *v[1], *v[2], *v[3], *v[4], *v[5]};
+  if (s.source == FrameSetting::Source::kInline) s.text = "inline frame";
+  return s;
+}
+
+std::string describe(const XMLElement* e) { return e ? "<" + std::string(e->Name()) + ">" : "nothing"; }
+
+Motion readMotion(const Reader& R, const XMLElement* e) {
+  R.checkAttributes(e, motionAttrs());
+  const std::string n = e->Name();
+  Motion m;
+  m.where = R.loc(e);
+  m.spline = n == "sptp" || n == "slin" || n == "scirc" || n == "spl";
+  if (n == "ptp" || n == "sptp") m.type = MotionType::kPtp;
+  else if (n == "lin" || n == "slin") m.type = MotionType::kLin;
+  else if (n == "circ" || n == "scirc") m.type = MotionType::kCirc;
+  else m.type = MotionType::kSpl;
+  m.statement = "<" + n + ">";
+  m.vel_percent = R.number(e, "vel_percent");
+  m.vel_m_s = R.number(e, "vel_m_s");
+  if (const auto a = R.text(e, "approx")) {
+    std::istringstream in(*a);
+    std::string w;
+    while (in >> w) {
+      Approximation x;
+      if (!parseApproximation(w, &x))
+        R.fail(e, "<" + n + "> attribute 'approx': expected C_PTP, C_DIS, C_VEL, C_ORI or C_SPL, found '" + w + "'");
+      m.approximation.push_back(x);
+    }
+  }
+  m.approximation_value = R.number(e, "approx_value");
+  if (m.approximation_value && m.approximation.empty())
+    R.fail(e, "<" + n + ">: attribute 'approx_value' needs 'approx'");
+  m.circ_angle_deg = R.number(e, "ca_deg");
+  if (m.circ_angle_deg && m.type != MotionType::kCirc) R.fail(e, "<" + n + ">: attribute 'ca_deg' is only for circ and scirc");
+  m.relative = R.flag(e, "relative");
+  m.external_tcp = R.flag(e, "external_tcp");
+  if (m.type == MotionType::kSpl && m.relative) R.fail(e, "<spl>: attribute 'relative' is not allowed");
+
+  const XMLElement* c = e->FirstChildElement();
+  if (m.type == MotionType::kCirc) {
+    if (!c || std::string(c->Name()) != "aux")
+      R.fail(c ? c : e, "<" + n + ">: expected an <aux> (auxiliary point) first, found " + describe(c));
+    if (hasAnyValue(c)) {
+      m.aux = readTarget(R, c, true);
+    } else {
+      R.checkAttributes(c, {"name"});
+      if (!c->Attribute("name")) R.fail(c, "<aux>: expected a name or the pose attributes");
+      Target t;
+      t.name = c->Attribute("name");
+      t.where = R.loc(c);
+      m.aux = t;
+      m.target_problem = t.name + " is declared outside the program";
+    }
+    c = c->NextSiblingElement();
+  }
+  if (!c) R.fail(e, "<" + n + ">: expected a target (<pose>, <axes> or <ref>), found nothing");
+  const std::string cn = c->Name();
+  if ((cn == "pose" || cn == "axes") && !hasAnyValue(c))
+    R.fail(c, "<" + cn + ">: expected the target's values (a target declared elsewhere is a <ref name=\"..\"/>)");
+  if (cn == "pose") {
+    m.target = readTarget(R, c, true);
+  } else if (cn == "axes") {
+    m.target = readTarget(R, c, false);
+  } else if (cn == "ref") {
+    R.checkAttributes(c, {"name"});
+    const auto name = R.text(c, "name");
+    if (!name || name->empty()) R.fail(c, "<ref>: expected attribute 'name'");
+    m.target.name = *name;
+    m.target.where = R.loc(c);
+    if (m.target_problem.empty()) m.target_problem = *name + " is declared outside the program";
+  } else {
+    R.fail(c, "<" + n + ">: expected a target (<pose>, <axes> or <ref>), found <" + cn + ">");
+  }
+  if (c->NextSiblingElement()) R.fail(c->NextSiblingElement(), "<" + n + ">: expected one target, found another element " + describe(c->NextSiblingElement()));
+  if (m.relative && m.target_problem.empty()) m.target_problem = "a relative motion";
+  if (m.type != MotionType::kPtp && cn == "axes")
+    R.fail(c, "<" + n + ">: expected a Cartesian target (<pose>), found <axes>");
+  return m;
+}
+
+void writeFrame(std::ostream& out, const char* tag, const FrameSetting& s) {
+  out << "    <" << tag << " source=\"";
+  switch (s.source) {
+    case FrameSetting::Source::kInline: out << "inline\""; break;
+    case FrameSetting::Source::kData: out << "data\" index=\"" << s.index << "\""; break;
+    case FrameSetting::Source::kNull: out << "null\""; break;
+    case FrameSetting::Source::kUnknown: out << "unknown\" text=\"" << xmlEscape(s.text) << "\""; break;
+    case FrameSetting::Source::kUnset: return;
+  }
+  if (s.value && s.source != FrameSetting::Source::kNull) {
+    const XyzAbc& v = *s.value;
+    out << " x_mm=\"" << formatMm(v.x_mm) << "\" y_mm=\"" << formatMm(v.y_mm) << "\" z_mm=\"" << formatMm(v.z_mm)
+        << "\" a_deg=\"" << formatDeg(v.a_deg) << "\" b_deg=\"" << formatDeg(v.b_deg) << "\" c_deg=\"" << formatDeg(v.c_deg) << "\"";
+  }
+  out << "/>\n";
+}
+
+bool sameFrame(const FrameSetting& a, const FrameSetting& b) {
+  std::ostringstream x, y;
+  writeFrame(x, "f", a);
+  writeFrame(y, "f", b);
+  return a.source == b.source && x.str() == y.str();
+}
+
+void writeTarget(std::ostream& out, const char* tag, const Target& t) {
+  out << "      <" << tag;
+  if (!t.name.empty()) out << " name=\"" << xmlEscape(t.name) << "\"";
+  if (!t.type.empty()) out << " type=\"" << t.type << "\"";
+  if (t.kind == Target::Kind::kCartesian) {
+    for (int k = 0; k < 6; ++k)
+      if (t.pose[k]) out << " " << kPoseAttrs[k] << "=\"" << (k < 3 ? formatMm(*t.pose[k]) : formatDeg(*t.pose[k])) << "\"";
+    if (t.status) out << " s=\"" << *t.status << "\"";
+    if (t.turn) out << " t=\"" << *t.turn << "\"";
+  } else {
+    for (int k = 0; k < 6; ++k)
+      if (t.axes[k]) out << " " << kAxisAttrs[k] << "=\"" << formatFixed(*t.axes[k], 4) << "\"";
+  }
+  for (int k = 0; k < 6; ++k)
+    if (t.ext[k]) out << " " << kExtAttrs[k] << "=\"" << formatFixed(*t.ext[k], 4) << "\"";
+  out << "/>\n";
+}
+
+bool hasValues(const Target& t) {
+  for (int k = 0; k < 6; ++k)
+    if (t.pose[k] || t.axes[k]) return true;
+  return false;
+}
+
+}  // namespace
+
+const std::map<std::string, std::set<std::string>>& xmlProgramVocabulary() {
+  static const std::map<std::string, std::set<std::string>> v = [] {
+    std::map<std::string, std::set<std::string>> m;
+    m["program"] = {"name", "version"};
+    m["robot"] = {"name"};
+    m["motions"] = {};
+    m["tool"] = frameAttrs();
+    m["base"] = frameAttrs();
+    for (const char* n : kMotionElements) m[n] = motionAttrs();
+    m["pose"] = targetAttrs(true);
+    m["aux"] = targetAttrs(true);
+    m["axes"] = targetAttrs(false);
+    m["ref"] = {"name"};
+    return m;
+  }();
+  return v;
+}
+
+Program parseXmlProgram(const std::string& text, const std::string& file, const FrameTables* tables) {
+  tinyxml2::XMLDocument doc;
+  Reader R(file, text);
+  if (doc.Parse(text.c_str(), text.size()) != tinyxml2::XML_SUCCESS)
+    throw InputError(file, doc.ErrorLineNum(), 0, std::string("malformed XML: ") + (doc.ErrorStr() ? doc.ErrorStr() : ""));
+  const XMLElement* root = doc.RootElement();
+  if (!root || std::string(root->Name()) != "program")
+    R.fail(root, "expected root element <program>, found " + describe(root));
+  R.checkAttributes(root, {"name", "version"});
+  const auto version = R.text(root, "version");
+  if (!version) R.fail(root, "<program>: missing attribute 'version' (1)");
+  if (*version != "1") R.fail(root, "<program> attribute 'version': expected 1, found '" + *version + "'");
+  Program p;
+  p.source_file = file;
+  if (const auto n = R.text(root, "name")) p.name = *n;
+  const XMLElement* motions = nullptr;
+  for (const XMLElement* c = root->FirstChildElement(); c; c = c->NextSiblingElement()) {
+    const std::string n = c->Name();
+    if (n == "robot") {
+      R.checkAttributes(c, {"name"});
+      if (!c->Attribute("name")) R.fail(c, "<robot>: missing attribute 'name'");
+      if (!p.robot.empty()) R.fail(c, "<robot> given twice");
+      p.robot = c->Attribute("name");
+    } else if (n == "motions") {
+      if (motions) R.fail(c, "<motions> given twice");
+      R.checkAttributes(c, {});
+      motions = c;
+    } else {
+      R.fail(c, "unknown element <" + n + "> in <program> (expected robot, motions)");
+    }
+  }
+  if (!motions) R.fail(root, "<program>: missing <motions> element");
+  FrameSetting tool, base;
+  for (const XMLElement* c = motions->FirstChildElement(); c; c = c->NextSiblingElement()) {
+    const std::string n = c->Name();
+    if (n == "tool") {
+      tool = readFrame(R, c, true, tables);
+    } else if (n == "base") {
+      base = readFrame(R, c, false, tables);
+    } else {
+      bool motion = false;
+      for (const char* k : kMotionElements) motion = motion || n == k;
+      if (!motion) R.fail(c, "unknown element <" + n + "> in <motions> (expected tool, base, ptp, lin, circ, sptp, slin, scirc, spl)");
+      Motion m = readMotion(R, c);
+      m.tool = tool;
+      m.base = base;
+      p.motions.push_back(std::move(m));
+    }
+  }
+  return p;
+}
+
+Program readXmlProgram(const std::string& path, const FrameTables* tables) {
+  std::ifstream f(path, std::ios::binary);
+  if (!f) throw InputError(path, 0, 0, "cannot read the XML program");
+  const std::string text((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  return parseXmlProgram(text, path, tables);
+}
+
+std::string writeXmlProgram(const Program& p) {
+  std::ostringstream out;
+  out << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n";
+  out << "<program";
+  if (!p.name.empty()) out << " name=\"" << xmlEscape(p.name) << "\"";
+  out << " version=\"1\">\n";
+  if (!p.robot.empty()) out << "  <robot name=\"" << xmlEscape(p.robot) << "\"/>\n";
+  out << "  <motions>\n";
+  FrameSetting tool, base;
+  for (const Motion& m : p.motions) {
+    if (m.tool.source != FrameSetting::Source::kUnset && !sameFrame(m.tool, tool)) writeFrame(out, "tool", m.tool);
+    tool = m.tool;
+    if (m.base.source != FrameSetting::Source::kUnset && !sameFrame(m.base, base)) writeFrame(out, "base", m.base);
+    base = m.base;
+    std::string tag;
+    switch (m.type) {
+      case MotionType::kPtp: tag = "ptp"; break;
+      case MotionType::kLin: tag = "lin"; break;
+      case MotionType::kCirc: tag = "circ"; break;
+      case MotionType::kSpl: tag = "spl"; break;
+    }
+    if (m.spline && m.type != MotionType::kSpl) tag = "s" + tag;
+    out << "    <" << tag;
+    if (m.vel_percent) out << " vel_percent=\"" << formatFixed(*m.vel_percent, 4) << "\"";
+    if (m.vel_m_s) out << " vel_m_s=\"" << formatFixed(*m.vel_m_s, 4) << "\"";
+    if (!m.approximation.empty()) {
+      out << " approx=\"";
+      for (size_t k = 0; k < m.approximation.size(); ++k) out << (k ? " " : "") << toString(m.approximation[k]);
+      out << "\"";
+      if (m.approximation_value) out << " approx_value=\"" << formatFixed(*m.approximation_value, 4) << "\"";
+    }
+    if (m.circ_angle_deg) out << " ca_deg=\"" << formatDeg(*m.circ_angle_deg) << "\"";
+    if (m.relative) out << " relative=\"true\"";
+    if (m.external_tcp) out << " external_tcp=\"true\"";
+    out << ">\n";
+    auto refOrValue = [&](const char* tag_name, const Target& t, bool aux) {
+      if (hasValues(t)) {
+        writeTarget(out, tag_name, t);
+        return;
+      }
+      if (t.name.empty())
+        throw ArgumentError(m.where.str() + ": cannot write this motion's target as XML: " +
+                            (m.target_problem.empty() ? std::string("it has no value") : m.target_problem));
+      out << "      <" << (aux ? "aux" : "ref") << " name=\"" << xmlEscape(t.name) << "\"/>\n";
+    };
+    if (m.aux) refOrValue("aux", *m.aux, true);
+    refOrValue(m.target.kind == Target::Kind::kAxis ? "axes" : "pose", m.target, false);
+    out << "    </" << tag << ">\n";
+  }
+  out << "  </motions>\n</program>\n";
+  return out.str();
+}
+
+}  // namespace accura::postproc

@@ -1,0 +1,213 @@
+// accura batch: a tree with a bad file (the others converted, the bad one reported, exit code
+// non-zero), the input tree unchanged (content hash before and after), --jobs 1 and --jobs 2
+// byte-identical, the mirrored layout, no temporary files left, an interrupted run leaving no
+// half-written file; and the atomic writer on its own.
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <thread>
+
+#include "accura/calib/errors.h"
+#include "accura/postproc/batch.h"
+#include "test_util.h"
+
+namespace fs = std::filesystem;
+
+namespace accura::postproc {
+namespace {
+
+struct CliRun {
+  int code;
+  std::string out, err;
+};
+
+CliRun accura(const std::string& dir, const std::string& args) {
+  const std::string cmd = "cd '" + dir + "' && " + std::string(ACCURA_CLI) + " " + args + " >.stdout 2>.stderr";
+  const int status = std::system(cmd.c_str());
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, test::readText(dir + "/.stdout"), test::readText(dir + "/.stderr")};
+}
+
+std::string golden(const std::string& rel) { return test::sourcePath("tests/golden/" + rel); }
+
+void copy(const std::string& from, const std::string& to) {
+  fs::create_directories(fs::path(to).parent_path());
+  test::writeText(to, test::readText(from));
+}
+
+// Every regular file of a tree: relative path -> content (a content "hash" that cannot collide).
+std::map<std::string, std::string> snapshot(const std::string& dir) {
+  std::map<std::string, std::string> m;
+  for (const auto& e : fs::recursive_directory_iterator(dir))
+    if (e.is_regular_file()) m[fs::relative(e.path(), dir).generic_string()] = test::readText(e.path().string());
+  return m;
+}
+
+// A tree of programs: the golden seam (KRL, CRLF) in three places, an XML program, a program
+// with a malformed target, an unreachable one, and a robot file (not a program).
+std::string makeTree(const std::string& root, int extra_copies = 0) {
+  const std::string in = root + "/in";
+  copy(golden("compensate/seam.src"), in + "/seam.src");
+  copy(golden("compensate/seam.dat"), in + "/seam.dat");
+  copy(golden("compensate/seam.src"), in + "/cell2/Seam_B.SRC");
+  copy(golden("compensate/seam.dat"), in + "/cell2/Seam_B.dat");
+  copy(golden("compensate/seam.src"), in + "/cell2/deep/seam.src");
+  copy(golden("compensate/seam.dat"), in + "/cell2/deep/seam.dat");
+  copy(golden("xml/weld_seam.xml"), in + "/cell2/weld_seam.xml");
+  copy(golden("compensate/kr16_real.xml"), in + "/robot_model.xml");
+  test::writeText(in + "/cell2/broken.src", "DEF broken( )\n$TOOL={X 0,Y 0,Z 100,A 0,B 0,C 0}\n$BASE=$NULLFRAME\nLIN {X 1000,Y 0,Z 800,A 0,B 90,Q 0}\nEND\n");
+  test::writeText(in + "/far.src", "DEF far( )\n$TOOL={X 0,Y 0,Z 100,A 0,B 0,C 0}\n$BASE=$NULLFRAME\nPTP {X 5000,Y 0,Z 800,A 0,B 90,C 0}\nEND\n");
+  for (int k = 0; k < extra_copies; ++k) {
+    copy(golden("compensate/seam.src"), in + "/many/p" + std::to_string(k) + ".src");
+    copy(golden("compensate/seam.dat"), in + "/many/p" + std::to_string(k) + ".dat");
+  }
+  copy(golden("compensate/kr16_real.xml"), root + "/model.xml");
+  copy(golden("compensate/$config.dat"), root + "/$config.dat");
+  return in;
+}
+
+TEST(Batch, FindsProgramsSorted) {
+  const std::string root = test::tempDir("batch_find");
+  const std::string in = makeTree(root);
+  test::writeText(in + "/.hidden/x.src", "");
+  const std::vector<std::string> expected = {"cell2/Seam_B.SRC", "cell2/broken.src", "cell2/deep/seam.src", "cell2/weld_seam.xml",
+                                             "far.src", "robot_model.xml", "seam.src"};
+  EXPECT_EQ(findPrograms(in), expected);
+}
+
+TEST(Batch, ABadFileIsReportedTheRestConvertedInputUnchanged) {
+  const std::string root = test::tempDir("batch_tree");
+  const std::string in = makeTree(root);
+  const auto before = snapshot(in);
+  const std::string common = "batch --robot model.xml --config '$config.dat' --in in --tol 0.02";
+  const CliRun r1 = accura(root, common + " --out out1 --jobs 1 --json report1.json");
+  const CliRun r2 = accura(root, common + " --out out2 --jobs 2 --json report2.json");
+  EXPECT_EQ(r1.code, 2) << r1.err;
+  EXPECT_EQ(r2.code, 2) << r2.err;
+  EXPECT_EQ(snapshot(in), before);  // the input tree is never modified
+
+  // --jobs 1 and --jobs 2: byte-identical outputs, summary and report (but its out path)
+  const auto out1 = snapshot(root + "/out1"), out2 = snapshot(root + "/out2");
+  EXPECT_EQ(out1, out2);
+  EXPECT_EQ(r1.out.substr(0, r1.out.find("wrote report")), r2.out.substr(0, r2.out.find("wrote report")));
+  std::string j1 = test::readText(root + "/report1.json"), j2 = test::readText(root + "/report2.json");
+  j1.replace(j1.find("\"out1\""), 6, "\"out\"");
+  j2.replace(j2.find("\"out2\""), 6, "\"out\"");
+  EXPECT_EQ(j1, j2);
+
+  // the mirrored tree: every good program, nothing for the bad ones, no temporary file
+  std::vector<std::string> files;
+  for (const auto& [path, text] : out1) files.push_back(path);
+  const std::vector<std::string> expected = {"cell2/Seam_B.SRC", "cell2/Seam_B.dat", "cell2/deep/seam.dat", "cell2/deep/seam.src",
+                                             "cell2/weld_seam.xml", "seam.dat", "seam.src"};
+  EXPECT_EQ(files, expected);
+  // each KRL program equals the single-program compensation (the golden)
+  EXPECT_EQ(out1.at("seam.src"), test::readText(golden("compensate/expected/seam.src")));
+  EXPECT_EQ(out1.at("seam.dat"), test::readText(golden("compensate/expected/seam.dat")));
+  EXPECT_EQ(out1.at("cell2/deep/seam.dat"), test::readText(golden("compensate/expected/seam.dat")));
+  EXPECT_EQ(out1.at("cell2/Seam_B.SRC"), test::readText(golden("compensate/expected/seam.src")));
+
+  // the report: the bad files with their errors (file:line:column), in sorted order
+  EXPECT_NE(r1.out.find("FAILED cell2/broken.src: in/cell2/broken.src:4:32: expected a component of a Cartesian target"),
+            std::string::npos)
+      << r1.out;
+  EXPECT_NE(r1.out.find("FAILED far.src: in/far.src:4:1: "), std::string::npos) << r1.out;
+  EXPECT_NE(r1.out.find("skipped robot_model.xml: not an XML program"), std::string::npos) << r1.out;
+  EXPECT_NE(r1.out.find("accura batch: 4 converted, 2 failed, 1 skipped, 7 programs in in"), std::string::npos) << r1.out;
+  EXPECT_LT(r1.out.find("cell2/Seam_B.SRC"), r1.out.find("cell2/broken.src"));
+  EXPECT_LT(r1.out.find("cell2/broken.src"), r1.out.find("far.src"));
+  const nlohmann::json report = nlohmann::json::parse(j1);
+  EXPECT_EQ(report["converted"], 4);
+  EXPECT_EQ(report["failed"], 2);
+  ASSERT_EQ(report["files"].size(), 7u);
+  EXPECT_EQ(report["files"][1]["input"], "cell2/broken.src");
+  EXPECT_EQ(report["files"][1]["status"], "failed");
+  EXPECT_EQ(report["files"][0]["status"], "converted");
+  EXPECT_EQ(report["files"][0]["outputs"], nlohmann::json({"cell2/Seam_B.SRC", "cell2/Seam_B.dat"}));
+  EXPECT_EQ(report["files"][0]["segments"].size(), 5u);
+  EXPECT_EQ(report["files"][0]["segments"][0]["file"], "cell2/Seam_B.SRC");
+  // progress lines on stderr (not a terminal here): one per program
+  int lines = 0;
+  for (size_t p = r1.err.find("accura batch: ["); p != std::string::npos; p = r1.err.find("accura batch: [", p + 1)) ++lines;
+  EXPECT_EQ(lines, 7) << r1.err;
+}
+
+TEST(Batch, AllConvertedExitsZeroAndTheOutputMayNotBeInsideTheInput) {
+  const std::string root = test::tempDir("batch_ok");
+  copy(golden("compensate/seam.src"), root + "/in/a/seam.src");
+  copy(golden("compensate/seam.dat"), root + "/in/a/seam.dat");
+  copy(golden("compensate/kr16_real.xml"), root + "/model.xml");
+  copy(golden("compensate/$config.dat"), root + "/$config.dat");
+  CliRun r = accura(root, "batch --robot model.xml --config '$config.dat' --in in --out out --jobs 3");
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(fs::exists(root + "/out/a/seam.src"));
+  const auto before = snapshot(root + "/in");
+  r = accura(root, "batch --robot model.xml --config '$config.dat' --in in --out in/compensated");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("the output directory is inside the input tree"), std::string::npos) << r.err;
+  EXPECT_EQ(snapshot(root + "/in"), before);
+  r = accura(root, "batch --robot model.xml --in in --out out --jobs 0");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("--jobs: expected at least 1, found 0"), std::string::npos) << r.err;
+}
+
+// SIGINT in the middle of a run: exit 130 (or 0 when it finished first); no temporary file;
+// every output file there is complete (equal to the uninterrupted run's).
+TEST(Batch, AnInterruptedRunLeavesNoHalfWrittenFile) {
+  const std::string root = test::tempDir("batch_sigint");
+  const std::string in = makeTree(root, 40);
+  const CliRun ref = accura(root, "batch --robot model.xml --config '$config.dat' --in in --out ref --jobs 2");
+  ASSERT_EQ(ref.code, 2) << ref.err;
+  const auto reference = snapshot(root + "/ref");
+  const auto before = snapshot(in);
+  for (int delay_ms : {30, 120}) {
+    const std::string out = root + "/out" + std::to_string(delay_ms);
+    const pid_t pid = fork();
+    ASSERT_GE(pid, 0);
+    if (pid == 0) {
+      if (chdir(root.c_str()) != 0) _exit(99);
+      const std::string outarg = "out" + std::to_string(delay_ms);
+      execl(ACCURA_CLI, ACCURA_CLI, "batch", "--robot", "model.xml", "--config", "$config.dat", "--in", "in", "--out",
+            outarg.c_str(), "--jobs", "2", static_cast<char*>(nullptr));
+      _exit(98);
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(delay_ms));
+    kill(pid, SIGINT);
+    int status = 0;
+    waitpid(pid, &status, 0);
+    ASSERT_TRUE(WIFEXITED(status));
+    const int code = WEXITSTATUS(status);
+    EXPECT_TRUE(code == 130 || code == 2) << code;
+    if (!fs::exists(out)) continue;  // interrupted before the first file
+    for (const auto& [path, text] : snapshot(out)) {
+      EXPECT_EQ(path.find("accura-tmp"), std::string::npos) << path;
+      ASSERT_TRUE(reference.count(path)) << path;
+      EXPECT_EQ(text, reference.at(path)) << path;
+    }
+  }
+  EXPECT_EQ(snapshot(in), before);
+}
+
+TEST(Batch, AtomicWriterWritesAllOrNothing) {
+  const std::string dir = test::tempDir("batch_atomic");
+  test::writeText(dir + "/a.txt", "old");
+  writeFilesAtomically({{dir + "/a.txt", "new a"}, {dir + "/b.txt", "new b"}});
+  EXPECT_EQ(test::readText(dir + "/a.txt"), "new a");
+  EXPECT_EQ(test::readText(dir + "/b.txt"), "new b");
+  // the second file cannot be written: the first stays as it was, no temporary file is left
+  EXPECT_THROW(writeFilesAtomically({{dir + "/a.txt", "newer"}, {dir + "/missing/c.txt", "c"}}), InputError);
+  EXPECT_EQ(test::readText(dir + "/a.txt"), "new a");
+  std::vector<std::string> names;
+  for (const auto& e : fs::directory_iterator(dir)) names.push_back(e.path().filename().string());
+  std::sort(names.begin(), names.end());
+  EXPECT_EQ(names, (std::vector<std::string>{"a.txt", "b.txt"}));
+}
+
+}  // namespace
+}  // namespace accura::postproc

@@ -1,0 +1,336 @@
+// accura compensate / convert on the command line: the compensated golden program byte for
+// byte (only corrected targets and inserted points differ from the input), checked by a
+// simulated execution of the written file; the report; clear errors; inputs never touched.
+//
+// The golden files tests/golden/compensate/expected/ were written by
+//   cd tests/golden/compensate && accura compensate --robot kr16_real.xml --in seam.src
+//     --config '$config.dat' --out expected --tol 0.02 --json expected/report.json
+// after checking them by hand and with the simulated execution below. kr16_real.xml is the
+// "real" KR 16 of `accura simulate --seed 11 --effects geometric,joint_compliance --station
+// 0,0,0,0,0,0 --tool <TOOL_DATA[1]>`, with small base errors added by hand.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <cstdlib>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "accura/calib/robot_io.h"
+#include "accura/postproc/compensate.h"
+#include "accura/postproc/krl.h"
+#include "accura/postproc/xml_program.h"
+#include "test_util.h"
+
+namespace accura::postproc {
+namespace {
+
+struct CliRun {
+  int code;
+  std::string out, err;
+};
+
+// Runs accura in `dir` (relative paths in the arguments).
+CliRun accura(const std::string& dir, const std::string& args) {
+  const std::string cmd = "cd '" + dir + "' && " + std::string(ACCURA_CLI) + " " + args + " >.stdout 2>.stderr";
+  const int status = std::system(cmd.c_str());
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, test::readText(dir + "/.stdout"), test::readText(dir + "/.stderr")};
+}
+
+std::string golden(const std::string& rel) { return test::sourcePath("tests/golden/compensate/" + rel); }
+
+// A temporary directory with the golden inputs.
+std::string inputs(const std::string& name) {
+  const std::string dir = test::tempDir(name);
+  for (const char* f : {"seam.src", "seam.dat", "$config.dat", "kr16_real.xml"}) test::writeText(dir + "/" + f, test::readText(golden(f)));
+  return dir;
+}
+
+std::vector<std::string> lines(const std::string& text) {
+  std::vector<std::string> out;
+  std::istringstream in(text);
+  std::string l;
+  while (std::getline(in, l)) out.push_back(l);
+  return out;
+}
+
+std::string trimmed(const std::string& s) {
+  const size_t b = s.find_first_not_of(" \t");
+  return b == std::string::npos ? "" : s.substr(b);
+}
+
+TEST(CompensateCli, GoldenProgramByteForByte) {
+  const std::string dir = inputs("comp_golden");
+  const CliRun r = accura(dir, "compensate --robot kr16_real.xml --in seam.src --config '$config.dat' --out expected --tol 0.02 --json expected/report.json");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(test::readText(dir + "/expected/seam.src"), test::readText(golden("expected/seam.src")));
+  EXPECT_EQ(test::readText(dir + "/expected/seam.dat"), test::readText(golden("expected/seam.dat")));
+  EXPECT_EQ(test::readText(dir + "/expected/report.json"), test::readText(golden("expected/report.json")));
+  // the inputs are untouched
+  for (const char* f : {"seam.src", "seam.dat", "$config.dat", "kr16_real.xml"})
+    EXPECT_EQ(test::readText(dir + "/" + f), test::readText(golden(f))) << f;
+  EXPECT_NE(r.err.find("warning: seam.src:47:1: the predicted path error"), std::string::npos) << r.err;
+}
+
+TEST(CompensateCli, OnlyCorrectedTargetsAndInsertedPointsDiffer) {
+  const nlohmann::json report = nlohmann::json::parse(test::readText(golden("expected/report.json")));
+  const int added = report["totals"]["points_added"];
+  ASSERT_GT(added, 0);
+  // .src: every input line is in the output, in order; the output's other lines are inserted
+  // motions (inline targets), or the inline LIN whose numbers changed
+  const auto in = lines(test::readText(golden("seam.src")));
+  const auto out = lines(test::readText(golden("expected/seam.src")));
+  ASSERT_EQ(out.size(), in.size() + static_cast<size_t>(added));
+  size_t i = 0;
+  int inserted = 0, changed = 0;
+  for (size_t o = 0; o < out.size(); ++o) {
+    if (i < in.size() && out[o] == in[i]) {
+      ++i;
+      continue;
+    }
+    const std::string t = trimmed(out[o]);
+    const bool motion = t.rfind("LIN {", 0) == 0 || t.rfind("CIRC {", 0) == 0 || t.rfind("lin {", 0) == 0;
+    ASSERT_TRUE(motion) << "unexpected line " << o + 1 << ": " << out[o];
+    if (i < in.size() && o + 1 < out.size() && out[o + 1] != in[i] && trimmed(in[i]).rfind("lin {", 0) == 0 &&
+        trimmed(out[o + 1]).rfind("lin {", 0) != 0) {
+      ++changed;  // the inline target itself, corrected
+      ++i;
+    } else {
+      ++inserted;
+    }
+    EXPECT_EQ(out[o].back(), '\r') << "CRLF kept";
+  }
+  EXPECT_EQ(i, in.size());
+  EXPECT_EQ(inserted + changed, added + changed);
+  // .dat: same number of lines, only the E6POS declarations differ, and in them only X..C
+  const auto din = lines(test::readText(golden("seam.dat")));
+  const auto dout = lines(test::readText(golden("expected/seam.dat")));
+  ASSERT_EQ(din.size(), dout.size());
+  int decl_changed = 0;
+  for (size_t k = 0; k < din.size(); ++k) {
+    if (din[k] == dout[k]) continue;
+    ASSERT_EQ(din[k].rfind("DECL E6POS XP", 0), 0u) << din[k];
+    EXPECT_EQ(din[k].substr(din[k].find(",S ")), dout[k].substr(dout[k].find(",S "))) << "S, T, E1..E6 unchanged";
+    ++decl_changed;
+  }
+  EXPECT_EQ(decl_changed, 6);
+}
+
+// The written program, run by a simulated controller (nominal model, LIN/CIRC interpolation,
+// nominal IK) on the simulated real robot (the model file): the real tool follows the intended
+// path (the input program's) within the tolerance; the input program as it is misses it by
+// about 2 mm.
+TEST(CompensateCli, TheGoldenProgramFollowsTheIntendedPathInSimulation) {
+  KrlReadOptions o;
+  o.config_path = golden("$config.dat");
+  const Program in = readKrl(golden("seam.src"), o);
+  const Program out = readKrl(golden("expected/seam.src"), o);
+  const nlohmann::json report = nlohmann::json::parse(test::readText(golden("expected/report.json")));
+  const RobotModel real = readRobotFile(golden("kr16_real.xml"));
+  RobotModel controller = RobotModel::fromDefinition(real.nominal);
+  const Eigen::Isometry3d T_world_base1 = toIsometry(*in.motions[1].base.value);
+  controller.nominal.T_flange_tcp = toIsometry(*in.motions[1].tool.value);
+  ASSERT_LT((controller.nominal.T_flange_tcp.translation() - real.nominal.T_flange_tcp.translation()).norm(), 1e-6);
+
+  auto world = [&](const Target& t) { return T_world_base1 * toIsometry(t.xyzAbc()); };
+  auto segment = [&](const Motion& m, const Eigen::Isometry3d& start) {
+    PathSegment s;
+    s.type = m.type == MotionType::kCirc ? PathType::kCirc : PathType::kLin;
+    s.T_world_start = start;
+    if (m.aux) s.T_world_aux = world(*m.aux);
+    s.T_world_end = world(m.target);
+    return s;
+  };
+  const double tol = 0.02;
+  size_t o_index = 0;
+  size_t seg = 0;
+  for (size_t k = 0; k < in.motions.size(); ++k) {
+    const Motion& mi = in.motions[k];
+    const bool path = mi.type == MotionType::kLin || mi.type == MotionType::kCirc;
+    if (!path) {
+      ++o_index;
+      continue;
+    }
+    const int added = report["segments"][seg]["points_added"];
+    const double after = report["segments"][seg]["max_error_after_mm"];
+    ++seg;
+    // intended: from the previous input target to this one
+    const PathSegment intended = segment(mi, world(in.motions[k - 1].target));
+    // commanded: the written points, from the previous written target
+    std::vector<PathSegment> commanded;
+    Eigen::Isometry3d start = world(out.motions[o_index - 1].target);
+    for (int a = 0; a <= added; ++a) {
+      const Motion& mo = out.motions[o_index + static_cast<size_t>(a)];
+      commanded.push_back(segment(mo, start));
+      start = commanded.back().T_world_end;
+    }
+    o_index += static_cast<size_t>(added) + 1;
+    // the controller starts on the configuration of the previous target
+    const Target& prev = in.motions[k - 1].target;
+    const Configuration config{prev.status.value_or(-1), prev.turn.value_or(-1)};
+    const IkResult q0 = inverseKinematics(controller, commanded.front().T_world_start, config, Eigen::VectorXd(), IkOptions{});
+    ASSERT_EQ(q0.status, IkStatus::kOk) << q0.message;
+    const double error = maxPathDeviation(simulateExecution(controller, real, commanded, q0.q, 1.0), {intended});
+    EXPECT_LE(error, after + 0.002) << "segment " << seg;  // as predicted in the report
+    if (mi.trigger_count == 0) {
+      EXPECT_LE(error, tol + 0.002) << "segment " << seg;
+    }
+    // the program as it was
+    const IkResult qu = inverseKinematics(controller, intended.T_world_start, config, Eigen::VectorXd(), IkOptions{});
+    ASSERT_EQ(qu.status, IkStatus::kOk);
+    const double uncompensated = maxPathDeviation(simulateExecution(controller, real, {intended}, qu.q, 1.0), {intended});
+    EXPECT_GT(uncompensated, 1.0) << "segment " << seg;
+    EXPECT_NEAR(uncompensated, report["segments"][seg - 1]["max_error_uncompensated_mm"].get<double>(), 0.01);
+  }
+  EXPECT_EQ(seg, report["segments"].size());
+  EXPECT_EQ(o_index, out.motions.size());
+}
+
+TEST(CompensateCli, ConvertKrlToXmlAndBack) {
+  const std::string dir = inputs("comp_convert");
+  CliRun r = accura(dir, "convert --in seam.src --config '$config.dat' --out seam.xml");
+  ASSERT_EQ(r.code, 0) << r.err;
+  r = accura(dir, "convert --in seam.xml --out back/seam.src");
+  EXPECT_EQ(r.code, 1);  // the directory back/ does not exist: nothing written
+  EXPECT_FALSE(std::ifstream(dir + "/back/seam.src").good());
+  r = accura(dir, "convert --in seam.xml --out seam_back.src");
+  ASSERT_EQ(r.code, 0) << r.err;
+  r = accura(dir, "convert --in seam_back.src --config '$config.dat' --out seam_back.xml");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(test::readText(dir + "/seam_back.xml"), test::readText(dir + "/seam.xml"));
+  // the compensated XML program equals the compensated KRL program converted
+  r = accura(dir, "compensate --robot kr16_real.xml --in seam.xml --out out_xml --tol 0.02");
+  ASSERT_EQ(r.code, 0) << r.err;
+  r = accura(dir, "convert --in '" + golden("expected/seam.src") + "' --config '$config.dat' --out golden.xml");
+  ASSERT_EQ(r.code, 0) << r.err;
+  // the same corrected points (the XML carries the frames with 4 decimals: 1e-4 mm apart).
+  // The XML has no TRIGGER: its LIN XP3 gets an auxiliary point the KRL one does not.
+  const Program a = readXmlProgram(dir + "/out_xml/seam.xml");
+  const Program b = readXmlProgram(dir + "/golden.xml");
+  EXPECT_EQ(a.motions.size(), b.motions.size() + 1);
+  int named = 0;
+  for (const Motion& mb : b.motions) {
+    if (mb.target.name.empty() || mb.target.kind != Target::Kind::kCartesian) continue;
+    for (const Motion& ma : a.motions) {
+      if (ma.target.name != mb.target.name) continue;
+      ++named;
+      for (int c = 0; c < 6; ++c) EXPECT_NEAR(*ma.target.pose[c], *mb.target.pose[c], 2e-3) << mb.target.name;
+    }
+  }
+  EXPECT_EQ(named, 5);
+  r = accura(dir, "convert --in seam.src --out seam.src");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("the output would overwrite the input"), std::string::npos) << r.err;
+}
+
+// FreeCAD's compact KRL sets neither $TOOL nor $BASE: the controller's active frames are
+// given on the command line; the numbers of the inline targets change, their comments stay.
+TEST(CompensateCli, ProgramsWithoutFramesTakeThemFromTheCommandLine) {
+  const std::string dir = inputs("comp_freecad");
+  test::writeText(dir + "/Trajectory.src", test::readText(test::sourcePath("tests/golden/krl/freecad/Trajectory.src")));
+  CliRun r = accura(dir, "compensate --robot kr16_real.xml --in Trajectory.src --out o");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("Trajectory.src:17:1: the tool of this motion is not known: $TOOL is not set before this motion"), std::string::npos)
+      << r.err;
+  r = accura(dir, "compensate --robot kr16_real.xml --in Trajectory.src --out o --program-tool 0,0,200,0,0,0 --program-base 0,0,0,0,0,0");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.err.find("Trajectory.src:17:1: LIN after a position that is not known"), std::string::npos) << r.err;
+  const auto in = lines(test::readText(dir + "/Trajectory.src"));
+  const auto out = lines(test::readText(dir + "/o/Trajectory.src"));
+  ASSERT_EQ(in.size(), out.size());
+  int changed = 0;
+  for (size_t k = 0; k < in.size(); ++k) {
+    if (in[k] == out[k]) continue;
+    ++changed;
+    EXPECT_EQ(in[k].rfind("LIN {X ", 0), 0u) << in[k];
+    EXPECT_EQ(in[k].substr(in[k].find('}')), out[k].substr(out[k].find('}'))) << "the comment after the target stays";
+  }
+  EXPECT_EQ(changed, 3);
+  EXPECT_FALSE(std::ifstream(dir + "/o/Trajectory.dat").good());  // no .dat in, none out
+}
+
+// A partial target takes its missing components from where the program meant the robot to
+// be (the previous target as written, not as corrected): it is compensated exactly like the
+// complete target, and written complete.
+TEST(CompensateCli, PartialTargetsAreCompletedFromTheIntendedPosition) {
+  const std::string dir = inputs("comp_partial");
+  const std::string head =
+      "DEF p( )\n$TOOL={X 107.147003,Y 6.19999992E-05,Z 313.237,A 0.0,B 45.0,C 0.0}\n$BASE={X 950,Y -400,Z 300,A 90,B 0,C 0}\n"
+      "PTP {X 1050,Y -250,Z 550,A 178.1,B 29.9,C -179.3,S 2,T 11}\n";
+  test::writeText(dir + "/partial.src", head + "LIN {Z 420}\nEND\n");
+  test::writeText(dir + "/full.src", head + "LIN {X 1050,Y -250,Z 420,A 178.1,B 29.9,C -179.3}\nEND\n");
+  for (const char* p : {"partial.src", "full.src"}) {
+    const CliRun r = accura(dir, std::string("compensate --robot kr16_real.xml --in ") + p + " --out out");
+    ASSERT_EQ(r.code, 0) << r.err;
+  }
+  const auto partial = lines(test::readText(dir + "/out/partial.src"));
+  const auto full = lines(test::readText(dir + "/out/full.src"));
+  ASSERT_EQ(partial.size(), 6u);
+  EXPECT_EQ(partial, full);
+  EXPECT_EQ(partial[4].rfind("LIN {X 1050.", 0), 0u) << partial[4];
+}
+
+TEST(CompensateCli, ErrorsNameThePlaceAndWriteNothing) {
+  const std::string dir = inputs("comp_err");
+  // the output directory is the input's: the outputs would overwrite the inputs
+  CliRun r = accura(dir, "compensate --robot kr16_real.xml --in seam.src --config '$config.dat' --out .");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("the output would overwrite the input"), std::string::npos) << r.err;
+  EXPECT_EQ(test::readText(dir + "/seam.src"), test::readText(golden("seam.src")));
+  EXPECT_EQ(test::readText(dir + "/seam.dat"), test::readText(golden("seam.dat")));
+  // TOOL_DATA without the $config.dat
+  r = accura(dir, "compensate --robot kr16_real.xml --in seam.src --out o1");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("seam.src:31:1: the tool of this motion is not known: $TOOL is TOOL_DATA[1] (set at seam.src:30:1), whose value needs the $config.dat (--config)"),
+            std::string::npos)
+      << r.err;
+  EXPECT_FALSE(std::ifstream(dir + "/o1/seam.src").good());
+  // an unreachable target and a malformed one
+  std::string dat = test::readText(golden("seam.dat"));
+  dat.replace(dat.find("X 400.0,Y -50.0"), 15, "X 4000.0,Y -50.0");
+  test::writeText(dir + "/far.src", test::readText(golden("seam.src")));
+  test::writeText(dir + "/far.dat", dat);
+  r = accura(dir, "compensate --robot kr16_real.xml --in far.src --config '$config.dat' --out o2");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("accura: error: far.src:54:1: the LIN to XP4 cannot be compensated: unreachable"), std::string::npos) << r.err;
+  EXPECT_FALSE(std::ifstream(dir + "/o2/far.src").good());
+  // a model measured in a tracker's frame, without --base
+  std::string model = test::readText(golden("kr16_real.xml"));
+  model.replace(model.find("name=\"base_x\" value=\"0.84\""), 26, "name=\"base_x\" value=\"2400\"");
+  test::writeText(dir + "/tracker.xml", model);
+  r = accura(dir, "compensate --robot tracker.xml --in seam.src --config '$config.dat' --out o3");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("is 2400.0001 mm and 0.02502 deg from the nominal base"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("give --base x,y,z,A,B,C"), std::string::npos) << r.err;
+  // ... with --base it works, and gives the golden's values (the same base error)
+  r = accura(dir, "compensate --robot tracker.xml --base 2399.16,0,0,0,0,0 --in seam.src --config '$config.dat' --out o4 --tol 0.02");
+  ASSERT_EQ(r.code, 0) << r.err;
+  KrlReadOptions o;
+  o.config_path = golden("$config.dat");
+  const Program shifted = readKrl(dir + "/o4/seam.src", o), expected = readKrl(golden("expected/seam.src"), o);
+  ASSERT_EQ(shifted.motions.size(), expected.motions.size());
+  for (size_t k = 0; k < shifted.motions.size(); ++k)
+    for (int c = 0; c < 6; ++c)
+      if (expected.motions[k].target.pose[c]) {
+        EXPECT_NEAR(*shifted.motions[k].target.pose[c], *expected.motions[k].target.pose[c], 2e-3) << k;
+      }
+  // a CIRC whose points are collinear
+  test::writeText(dir + "/circ.src",
+                  "DEF circ( )\n$TOOL={X 0,Y 0,Z 200,A 0,B 0,C 0}\n$BASE={X 900,Y -350,Z 250,A 0,B 0,C 0}\n"
+                  "PTP {X 100,Y 0,Z 150,A 160,B 10,C 170,S 2,T 10}\n"
+                  "CIRC {X 150,Y 0,Z 150,A 160,B 10,C 170}, {X 200,Y 0,Z 150,A 160,B 10,C 170}\nEND\n");
+  r = accura(dir, "compensate --robot kr16_real.xml --in circ.src --out o6");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("circ.src:5:1: this motion cannot be compensated: CIRC: start, auxiliary and end point are collinear"), std::string::npos)
+      << r.err;
+  // bad options
+  r = accura(dir, "compensate --robot kr16_real.xml --in seam.src --config '$config.dat' --out o5 --tol -1");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("--tol: expected a positive distance (mm), found -1"), std::string::npos) << r.err;
+  r = accura(dir, "compensate --robot kr16_real.xml --in seam.txt --out o5");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("expected a program file ending in .src (KUKA KRL) or .xml"), std::string::npos) << r.err;
+}
+
+}  // namespace
+}  // namespace accura::postproc

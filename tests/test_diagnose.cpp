@@ -1,0 +1,307 @@
+// The diagnosis (diagnose.h): verdicts on simulated robots whose withheld effect is known,
+// the reported held-out errors against identify + evaluate, the noise floor from each source,
+// confounding, `unexplained` with what it follows, the JSON keys, the command line, and the
+// selfcheck on a small grid.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <nlohmann/json.hpp>
+#include <set>
+
+#include "accura/calib/diagnose.h"
+#include "accura/calib/errors.h"
+#include "accura/calib/identify.h"
+#include "accura/calib/kinematics.h"
+#include "accura/calib/simulate.h"
+#include "test_util.h"
+
+namespace accura {
+namespace {
+
+const XyzAbc kTarget = {80, 40, 150, 0, 0, 0};  // tracker reflector on the flange (mm)
+
+RobotModel nominalWithTarget(const std::string& robot) {
+  RobotModel m = test::loadBundled(robot);
+  m.nominal.T_flange_tcp = toIsometry(kTarget);
+  return m;
+}
+
+SimulateOptions campaign(std::uint64_t seed, const std::vector<std::string>& effects, int poses = 250) {
+  SimulateOptions o;
+  o.poses = poses;
+  o.seed = seed;
+  o.noise_mm = 0.02;
+  o.effects = effects;
+  o.payloads_kg = {0, 8, 16};
+  o.tool = kTarget;
+  o.set_tool = true;
+  o.write_std = true;
+  return o;
+}
+
+// The reported baseline is the held-out error of the complete geometric model identified on
+// the fit data; the reported final error is that of the model with the selected effect.
+TEST(Diagnose, HeldOutErrorsAreThoseOfTheIdentifiedModels) {
+  const RobotModel nominal = nominalWithTarget("kuka_kr16");
+  SimulateOptions o = campaign(21, {"geometric", "joint_compliance"});
+  const RobotModel truth = perturbModel(nominal, o);
+  const MeasurementSet fit = simulateMeasurements(truth, o);
+  SimulateOptions ov = o;
+  ov.poses = 150;
+  ov.seed = 22;
+  const MeasurementSet val = simulateMeasurements(truth, ov);
+  const Diagnosis d = diagnose(nominal, fit, &val, DiagnoseOptions{});
+
+  IdentifyOptions io;
+  io.groups = {"geometric"};
+  const ErrorStats geometric = evaluate(identify(nominal, fit, io, nullptr), val);
+  EXPECT_NEAR(d.baseline.rms_mm, geometric.rms_mm, 1e-4 * geometric.rms_mm);
+  EXPECT_NEAR(d.baseline.max_mm, geometric.max_mm, 1e-4 * geometric.max_mm);
+  EXPECT_GT(d.baseline.rms_mm, 0.2);  // compliance under 16 kg: tenths of a millimetre
+
+  ASSERT_EQ(d.verdict.effect, "joint_compliance");
+  io.groups = {"geometric", "joint_compliance"};
+  const ErrorStats with = evaluate(identify(nominal, fit, io, nullptr), val);
+  // the diagnosis fits the selected joints only: within 3% of the whole group
+  EXPECT_NEAR(d.verdict.validation_rms_after_mm, with.rms_mm, 0.03 * with.rms_mm);
+  // the joints that carry gravity torque (A2, A3 and the wrist), never A1 (vertical axis)
+  const std::set<int> joints(d.verdict.joints.begin(), d.verdict.joints.end());
+  EXPECT_TRUE(joints.count(2) && joints.count(3)) << diagnosisText(d);
+  EXPECT_FALSE(joints.count(1));
+  // noise floor from the std columns: sqrt(3) * 0.02 mm
+  EXPECT_NEAR(d.noise_floor_mm, std::sqrt(3.0) * 0.02, 1e-12);
+  EXPECT_NE(d.noise_floor_source.find("std columns"), std::string::npos);
+  // what remains is at the noise floor
+  EXPECT_LT(d.verdict.validation_rms_after_mm, 1.1 * d.noise_floor_mm);
+  // the identified compliance of A2 within 3 sigma of the truth
+  bool found = false;
+  for (const EffectEvidence& e : d.selected)
+    for (const EffectParameter& p : e.parameters)
+      if (p.name == "j2_compliance") {
+        found = true;
+        EXPECT_NEAR(p.value, truth.deviations.compliance[1] * 1e6, 3 * p.sigma + 1e-9) << p.value << " +- " << p.sigma;
+      }
+  EXPECT_TRUE(found);
+}
+
+TEST(Diagnose, NoiseFloorFromRepeatedPosesOrAGivenValue) {
+  const RobotModel nominal = nominalWithTarget("kuka_kr16");
+  SimulateOptions o = campaign(31, {"geometric"}, 300);
+  o.write_std = false;
+  o.repeat_every = 3;  // 100 repeated poses: 300 degrees of freedom
+  o.noise_mm = 0.03;
+  const RobotModel truth = perturbModel(nominal, o);
+  const MeasurementSet fit = simulateMeasurements(truth, o);
+  const Diagnosis d = diagnose(nominal, fit, nullptr, DiagnoseOptions{});
+  EXPECT_NE(d.noise_floor_source.find("repeated poses"), std::string::npos) << d.noise_floor_source;
+  EXPECT_EQ(d.noise_floor_dof, 300.0);
+  // pooled scatter of pairs estimates sigma with a relative sd of 1/sqrt(2*300) = 4%: 15% is 3.7 sd
+  EXPECT_NEAR(d.noise_std_axis_mm, 0.03, 0.15 * 0.03);
+  EXPECT_EQ(d.verdict.effect, "none") << diagnosisText(d);
+
+  DiagnoseOptions given;
+  given.noise_std_mm = 0.025;
+  const Diagnosis g = diagnose(nominal, fit, nullptr, given);
+  EXPECT_NEAR(g.noise_floor_mm, std::sqrt(3.0) * 0.025, 1e-12);
+  EXPECT_NE(g.noise_floor_source.find("given"), std::string::npos);
+}
+
+// An effect outside the catalogue: A5 turning with A4. The verdict is `unexplained` and says
+// the residual follows q4 through joint 5, rather than blaming the nearest catalogued effect.
+TEST(Diagnose, OutOfCatalogueCouplingIsUnexplainedAndFollowsItsJoint) {
+  const RobotModel nominal = nominalWithTarget("kuka_kr16");
+  SimulateOptions o = campaign(41, {"geometric", "unmodelled_coupling"});
+  const RobotModel truth = perturbModel(nominal, o);
+  const MeasurementSet fit = simulateMeasurements(truth, o);
+  const Diagnosis d = diagnose(nominal, fit, nullptr, DiagnoseOptions{});
+  ASSERT_EQ(d.verdict.effect, "unexplained") << diagnosisText(d);
+  ASSERT_FALSE(d.verdict.correlates.empty());
+  EXPECT_EQ(d.verdict.correlates[0].rfind("q4 ", 0), 0u) << d.verdict.correlates[0];
+  EXPECT_EQ(d.verdict.joints, std::vector<int>{5});
+  EXPECT_GT(d.verdict.validation_rms_after_mm, 2 * d.noise_floor_mm);
+}
+
+// Joint 2 confined to 40 deg: a scale error of A2 and its first harmonics look alike there.
+TEST(Diagnose, ConfoundedEffectsAreNamedWithWhatSeparatesThem) {
+  RobotModel nominal = nominalWithTarget("kuka_kr16");
+  nominal.nominal.joints[1].lower = -100;
+  nominal.nominal.joints[1].upper = -60;
+  SimulateOptions o = campaign(51, {"geometric"});
+  RobotModel truth = perturbModel(nominal, o);
+  truth.deviations.joint_scale[1] = 4e-4;
+  const MeasurementSet fit = simulateMeasurements(truth, o);
+  const Diagnosis d = diagnose(nominal, fit, nullptr, DiagnoseOptions{});
+  bool found = false;
+  for (const Confounding& c : d.confounded) {
+    const std::set<std::string> pair = {c.effect_a, c.effect_b};
+    if (pair == std::set<std::string>{"joint_scale", "gear_periodic"}) {
+      found = true;
+      EXPECT_GT(c.canonical_correlation, 0.9);
+      EXPECT_NE(c.separate_by.find("range of joint j2"), std::string::npos) << c.separate_by;
+    }
+  }
+  EXPECT_TRUE(found) << diagnosisText(d);
+}
+
+// Without a temp_c column thermal cannot be tested: it is reported so, never guessed.
+TEST(Diagnose, EffectsWithoutTheirContextColumnAreNotTestable) {
+  const RobotModel nominal = nominalWithTarget("kuka_kr16");
+  SimulateOptions o = campaign(61, {"geometric", "backlash"});
+  const RobotModel truth = perturbModel(nominal, o);
+  MeasurementSet fit = simulateMeasurements(truth, o);
+  fit.has_temperature = false;
+  for (Measurement& r : fit.rows) {
+    r.temp_c = std::numeric_limits<double>::quiet_NaN();
+    r.context.temp_c = kThermalReferenceC;
+  }
+  const Diagnosis d = diagnose(nominal, fit, nullptr, DiagnoseOptions{});
+  EXPECT_EQ(d.verdict.effect, "backlash");
+  bool thermal_seen = false;
+  for (const EffectEvidence& e : d.ranking)
+    if (e.effect == "thermal") {
+      thermal_seen = true;
+      EXPECT_FALSE(e.testable);
+      EXPECT_NE(e.note.find("no temp_c column"), std::string::npos) << e.note;
+    }
+  EXPECT_TRUE(thermal_seen);
+}
+
+TEST(Diagnose, BadInputIsAClearError) {
+  const RobotModel nominal = nominalWithTarget("kuka_kr16");
+  SimulateOptions o = campaign(71, {"geometric"}, 20);
+  const MeasurementSet small = simulateMeasurements(perturbModel(nominal, o), o);
+  try {
+    diagnose(nominal, small, nullptr, DiagnoseOptions{});
+    FAIL() << "expected InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("at least 30 measured poses, found 20"), std::string::npos) << e.what();
+  }
+  DiagnoseOptions bad;
+  bad.effects = {"gravity_waves"};
+  std::string why;
+  EXPECT_FALSE(bad.IsValid(&why));
+  EXPECT_NE(why.find("unknown effect 'gravity_waves'"), std::string::npos) << why;
+  bad = DiagnoseOptions{};
+  bad.folds = 1;
+  EXPECT_FALSE(bad.IsValid(&why));
+}
+
+// The selfcheck on one robot and one seed: every injected effect gets its verdict, and the
+// estimated shrink agrees with the same models measured on fresh poses.
+TEST(Diagnose, SelfcheckGetsEveryVerdictRight) {
+  SelfcheckOptions o;
+  o.robots = {"kuka_kr16"};
+  o.seeds = {9};
+  o.noise_mm = {0.02};
+  o.poses = 250;
+  o.truth_poses = 300;
+  int cases = 0;
+  const SelfcheckResult r = runSelfcheck(o, [&](const SelfcheckCase&) { ++cases; });
+  EXPECT_EQ(cases, 7);
+  for (const SelfcheckCase& c : r.cases) {
+    EXPECT_EQ(c.verdict, c.expected) << c.injected << "\n" << r.shrinkTable();
+    // estimated (cross-validated or validation set) against fresh poses: within 15%
+    EXPECT_NEAR(c.estimated_after_mm, c.true_after_mm, 0.15 * c.true_after_mm) << c.injected;
+    EXPECT_NEAR(c.estimated_before_mm, c.true_before_mm, 0.15 * c.true_before_mm) << c.injected;
+  }
+  EXPECT_EQ(r.right, 7);
+  EXPECT_NE(r.confusionTable().find("right verdicts: 7 of 7 (100.0%)"), std::string::npos) << r.confusionTable();
+}
+
+// identify --params accepts the catalogue names: backlash fitted on backlash data.
+TEST(Diagnose, IdentifyFitsCatalogueGroups) {
+  const RobotModel nominal = nominalWithTarget("kuka_kr16");
+  SimulateOptions o = campaign(81, {"geometric", "backlash"}, 300);
+  const RobotModel truth = perturbModel(nominal, o);
+  const MeasurementSet fit = simulateMeasurements(truth, o);
+  IdentifyOptions io;
+  io.groups = {"geometric", "backlash"};
+  IdentifySummary s;
+  identify(nominal, fit, io, &s);
+  int checked = 0;
+  for (const ParameterEstimate& p : s.parameters) {
+    if (p.group != "backlash") continue;
+    const int j = std::stoi(p.name.substr(1, 1)) - 1;
+    EXPECT_NEAR(p.value, truth.deviations.backlash[j] * kRadToDeg, 3 * p.sigma) << p.name;
+    ++checked;
+  }
+  EXPECT_EQ(checked, 6);
+  EXPECT_LT(s.fit.rms_mm, 1.1 * std::sqrt(3.0) * 0.02);
+}
+
+// ---------------------------------------------------------------------------------------
+// Command line and JSON
+
+struct CliRun {
+  int code;
+  std::string out, err;
+};
+
+CliRun run(const std::string& args) {
+  const std::string dir = test::tempDir("diag_cli_run");
+  const std::string cmd = std::string(ACCURA_CLI) + " " + args + " >" + dir + "/out 2>" + dir + "/err";
+  const int status = std::system(cmd.c_str());
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, test::readText(dir + "/out"), test::readText(dir + "/err")};
+}
+
+TEST(Diagnose, CommandWritesJsonWithTheNamedKeysAndAReport) {
+  const std::string dir = test::tempDir("diag_cli");
+  CliRun r = run("simulate --robot kuka_kr16 --tool 80,40,150 --effects geometric,thermal --poses 250 --seed 5 --std --out " +
+                 dir + "/fit.csv --truth " + dir + "/truth.xml");
+  ASSERT_EQ(r.code, 0) << r.err;
+  r = run("simulate --robot " + dir + "/truth.xml --effects none --poses 120 --seed 6 --std --out " + dir + "/val.csv");
+  ASSERT_EQ(r.code, 0) << r.err;
+  r = run("diagnose --robot kuka_kr16 --tool 80,40,150 --data " + dir + "/fit.csv --validate " + dir + "/val.csv --json " + dir +
+          "/diag.json --report " + dir + "/diag.html");
+  ASSERT_EQ(r.code, 0) << r.err;
+  const nlohmann::json j = nlohmann::json::parse(test::readText(dir + "/diag.json"));
+  EXPECT_NEAR(j["noise_floor_mm"].get<double>(), std::sqrt(3.0) * 0.02, 1e-9);
+  ASSERT_TRUE(j["baseline"].contains("validation_rms_mm"));
+  ASSERT_TRUE(j["baseline"].contains("validation_max_mm"));
+  ASSERT_TRUE(j["ranking"].is_array());
+  ASSERT_EQ(j["ranking"].size(), 5u);
+  std::set<std::string> effects;
+  for (const auto& e : j["ranking"]) {
+    effects.insert(e["effect"].get<std::string>());
+    EXPECT_TRUE(e["joints"].is_array());
+    EXPECT_TRUE(e.contains("validation_rms_before_mm"));
+    EXPECT_TRUE(e.contains("validation_rms_after_mm"));
+  }
+  EXPECT_EQ(effects, (std::set<std::string>{"joint_compliance", "gear_periodic", "joint_scale", "backlash", "thermal"}));
+  ASSERT_TRUE(j["selected"].is_array());
+  EXPECT_EQ(j["verdict"]["effect"], "thermal");
+  EXPECT_TRUE(j["verdict"]["joints"].is_array());
+  EXPECT_LT(j["verdict"]["validation_rms_after_mm"].get<double>(), j["baseline"]["validation_rms_mm"].get<double>());
+  ASSERT_TRUE(j["where"].is_object());
+  EXPECT_EQ(j["where"]["fields"].size(), 2u);
+  EXPECT_EQ(j["where"]["joints"].size(), 6u);
+  EXPECT_FALSE(j["where"]["correlation"].empty());
+  // the top of the ranking is the verdict; its RMS is the one of the selection
+  EXPECT_EQ(j["ranking"][0]["effect"], "thermal");
+  // thermal alpha of the truth within 3 sigma
+  const std::string truth = test::readText(dir + "/truth.xml");
+  const auto pos = truth.find("thermal_alpha\" value=\"");
+  ASSERT_NE(pos, std::string::npos);
+  const double alpha_true = std::stod(truth.substr(pos + 22));
+  const auto& p = j["ranking"][0]["parameters"][0];
+  EXPECT_EQ(p["name"], "thermal_alpha");
+  EXPECT_NEAR(p["value"].get<double>(), alpha_true, 3 * p["sigma"].get<double>());
+  // the report is one self-contained page: inline SVG, nothing fetched
+  const std::string html = test::readText(dir + "/diag.html");
+  EXPECT_NE(html.find("<svg"), std::string::npos);
+  for (const char* ref : {"<script", "src=", "href=", "url(", "@import"}) EXPECT_EQ(html.find(ref), std::string::npos) << ref;
+}
+
+TEST(Diagnose, CommandRejectsBadOptionsWithExitCode1) {
+  CliRun r = run("diagnose --robot kuka_kr16 --data /nonexistent.csv --json /tmp/x.json --effects thermal,nonsense");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("unknown effect 'nonsense'"), std::string::npos) << r.err;
+  r = run("diagnose --robot kuka_kr16 --data /nonexistent.csv --json /tmp/x.json");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("/nonexistent.csv"), std::string::npos) << r.err;
+}
+
+}  // namespace
+}  // namespace accura

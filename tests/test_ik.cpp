@@ -1,0 +1,648 @@
+// Inverse kinematics of the complete model (postproc/src/ik.cpp): the prepared chain against
+// calib, the closed forms, KUKA Status/Turn, round trips FK -> IK (cold and warm) on three
+// robots, every branch, and the cases that must be reported instead of solved.
+#include <gtest/gtest.h>
+
+#include <Eigen/Dense>
+#include <cmath>
+#include <random>
+#include <map>
+#include <set>
+
+#include "accura/calib/errors.h"
+#include "accura/calib/geometry.h"
+#include "accura/calib/kinematics.h"
+#include "accura/calib/simulate.h"
+#include "accura/postproc/compensate.h"
+#include "../postproc/src/small_linalg.h"
+#include "test_util.h"
+
+namespace accura {
+namespace {
+
+using postproc::Configuration;
+using postproc::IkOptions;
+using postproc::IkResult;
+using postproc::IkStatus;
+using postproc::KinematicSolver;
+
+/// A "real" robot: every geometric error, joint compliance, the base 3 m away (tracker
+/// station) and a tool.
+RobotModel realModel(const std::string& name, std::uint64_t seed = 7) {
+  RobotModel m = test::loadBundled(name);
+  SimulateOptions o;
+  o.effects = {"geometric", "joint_compliance"};
+  o.seed = seed;
+  o.tool = {60, -20, 180, 0, 0, 0};
+  o.set_tool = true;
+  return perturbModel(m, o);
+}
+
+/// The nominal robot with a base and a tool that are not the identity.
+RobotModel nominalModel(const std::string& name) {
+  RobotModel m = test::loadBundled(name);
+  m.nominal.T_world_base = toIsometry({500, -300, 100, 20, 0.5, -0.3});
+  m.nominal.T_flange_tcp = toIsometry({60, -20, 180, 10, -5, 0});
+  return m;
+}
+
+Eigen::VectorXd randomJoints(const RobotModel& m, std::mt19937& rng, double margin = 0.02) {
+  std::uniform_real_distribution<double> u(0, 1);
+  Eigen::VectorXd q(m.dof());
+  for (int i = 0; i < m.dof(); ++i) {
+    const JointSpec& j = m.nominal.joints[static_cast<size_t>(i)];
+    q[i] = j.lower + (margin + (1 - 2 * margin) * u(rng)) * (j.upper - j.lower);
+  }
+  return q;
+}
+
+double positionError(const RobotModel& m, const Eigen::VectorXd& q, const Eigen::Isometry3d& T, double payload = 0) {
+  KinematicWorkspace ws;
+  PoseContext c;
+  c.payload_kg = payload;
+  return (forwardKinematics(m, q, c, ws).translation() - T.translation()).norm();
+}
+
+double rotationError(const RobotModel& m, const Eigen::VectorXd& q, const Eigen::Isometry3d& T) {
+  KinematicWorkspace ws;
+  return logSO3(forwardKinematics(m, q, PoseContext{}, ws).linear() * T.linear().transpose()).norm();
+}
+
+/// Smallest singular value of the scaled Jacobian (independent of the solver: calib's
+/// jointJacobian, Eigen's SVD). Same scaling as IkOptions::singular_threshold.
+double scaledSigmaMin(const RobotModel& m, const Eigen::VectorXd& q) {
+  KinematicWorkspace ws;
+  Eigen::MatrixXd J = jointJacobian(m, q, PoseContext{}, ws);
+  double L = 0;
+  for (const JointSpec& j : m.nominal.joints) L += std::abs(j.a_mm) + std::abs(j.d_mm);
+  L += m.T_flange_tcp().translation().norm();
+  J.topRows(3) /= L;
+  J *= kRadToDeg;
+  Eigen::JacobiSVD<Eigen::MatrixXd> svd(J);
+  return svd.singularValues().minCoeff();
+}
+
+// ---------------------------------------------------------------------------------------
+
+TEST(IkChain, ForwardAndJacobianEqualCalibWithEveryEffect) {
+  std::mt19937 rng(11);
+  for (const std::string name : {"kuka_kr16", "ur10", "scara", "abb_irb120"}) {
+    RobotModel m = realModel(name);
+    // every effect of the catalogue, non-zero
+    Deviations& d = m.deviations;
+    for (int i = 0; i < m.dof(); ++i) {
+      d.joint_scale[static_cast<size_t>(i)] = 2e-4 * (i + 1);
+      d.backlash[static_cast<size_t>(i)] = 1e-4 * (i + 1);
+      for (int h = 0; h < d.gear_harmonics; ++h) {
+        d.gear_sin[static_cast<size_t>(i * d.gear_harmonics + h)] = 3e-5 * (h + 1);
+        d.gear_cos[static_cast<size_t>(i * d.gear_harmonics + h)] = -2e-5 * (i + 1);
+      }
+    }
+    if (m.nominal.joints[2].type == JointType::kPrismatic) {
+      d.gear_sin[static_cast<size_t>(2 * d.gear_harmonics)] = 0;  // revolute joints only
+    }
+    d.thermal_alpha_per_k = 11e-6;
+    const KinematicSolver solver(m);
+    for (int k = 0; k < 20; ++k) {
+      const Eigen::VectorXd q = randomJoints(m, rng);
+      PoseContext c;
+      c.payload_kg = 5.0 * (k % 3);
+      c.temp_c = 15.0 + k;
+      if (k % 2) c.dir.assign(static_cast<size_t>(m.dof()), k % 4 == 1 ? 1 : -1);
+      KinematicWorkspace ws;
+      const Eigen::Isometry3d T_calib = forwardKinematics(m, q, c, ws);
+      const Eigen::Isometry3d T = solver.forward(q, c);
+      EXPECT_LT((T.translation() - T_calib.translation()).norm(), 1e-9) << name;
+      EXPECT_LT((T.linear() - T_calib.linear()).norm(), 1e-12) << name;
+      Eigen::Matrix<double, 6, Eigen::Dynamic> J;
+      solver.jacobian(q, c, J);
+      const Eigen::MatrixXd J_calib = jointJacobian(m, q, c, ws);
+      EXPECT_LT((J - J_calib).norm(), 1e-9 * J_calib.norm()) << name;
+    }
+  }
+}
+
+TEST(IkChain, JacobianMatchesFiniteDifferences) {
+  // without compliance the joint Jacobian is the exact derivative of the pose
+  RobotModel m = realModel("kuka_kr16");
+  std::fill(m.deviations.compliance.begin(), m.deviations.compliance.end(), 0.0);
+  m.deviations.joint_scale[1] = 3e-4;
+  m.deviations.gear_sin[4] = 2e-4;
+  const KinematicSolver solver(m);
+  std::mt19937 rng(5);
+  for (int k = 0; k < 10; ++k) {
+    const Eigen::VectorXd q = randomJoints(m, rng);
+    Eigen::Matrix<double, 6, Eigen::Dynamic> J;
+    const Eigen::Isometry3d T = solver.jacobian(q, PoseContext{}, J);
+    const double h = 1e-5;  // deg
+    for (int i = 0; i < m.dof(); ++i) {
+      Eigen::VectorXd qp = q, qm = q;
+      qp[i] += h;
+      qm[i] -= h;
+      const Eigen::Isometry3d Tp = solver.forward(qp), Tm = solver.forward(qm);
+      const Eigen::Vector3d dp = (Tp.translation() - Tm.translation()) / (2 * h);
+      const Eigen::Vector3d dr = logSO3(Tp.linear() * Tm.linear().transpose()) / (2 * h);
+      EXPECT_LT((dp - J.col(i).head<3>()).norm(), 1e-6 * (1 + dp.norm())) << "joint " << i;
+      EXPECT_LT((dr - J.col(i).tail<3>()).norm(), 1e-9) << "joint " << i;
+    }
+    (void)T;
+  }
+}
+
+TEST(IkChain, SmallLinearAlgebraEqualsEigen) {
+  std::mt19937 rng(3);
+  std::normal_distribution<double> g(0, 1);
+  for (int k = 0; k < 50; ++k) {
+    Eigen::Matrix<double, 6, 6> A;
+    for (int i = 0; i < 36; ++i) A.data()[i] = g(rng);
+    Eigen::Matrix<double, 6, 1> b;
+    for (int i = 0; i < 6; ++i) b[i] = g(rng);
+    postproc::detail::Lu6 lu;
+    ASSERT_TRUE(lu.factor(A));
+    const Eigen::Matrix<double, 6, 1> x = lu.solve(b);
+    const Eigen::Matrix<double, 6, 1> x_eigen = A.fullPivLu().solve(b);
+    EXPECT_LT((x - x_eigen).norm(), 1e-9 * (1 + x_eigen.norm()));
+    // positive definite: A A^T - t^2 I with t below / above the smallest singular value
+    const double smin = Eigen::JacobiSVD<Eigen::Matrix<double, 6, 6>>(A).singularValues().minCoeff();
+    Eigen::Matrix<double, 6, 6> G = A * A.transpose();
+    Eigen::Matrix<double, 6, 6> below = G, above = G;
+    below.diagonal().array() -= 0.9 * smin * 0.9 * smin;
+    above.diagonal().array() -= 1.1 * smin * 1.1 * smin;
+    EXPECT_TRUE(postproc::detail::positiveDefinite6(below));
+    EXPECT_FALSE(postproc::detail::positiveDefinite6(above));
+  }
+  Eigen::Matrix<double, 6, 6> S = Eigen::Matrix<double, 6, 6>::Identity();
+  S.row(3) = S.row(2);
+  postproc::detail::Lu6 lu;
+  EXPECT_FALSE(lu.factor(S));
+}
+
+// ---------------------------------------------------------------------------------------
+
+TEST(IkClosedForm, ExactForNominalRobots) {
+  std::mt19937 rng(21);
+  for (const std::string name : {"kuka_kr16", "abb_irb120", "ur10"}) {
+    const RobotModel m = nominalModel(name);
+    const KinematicSolver solver(m);
+    EXPECT_STREQ(solver.closedForm(), name == "ur10" ? "three_parallel" : "spherical_wrist");
+    int poses = 0;
+    for (int k = 0; k < 100; ++k) {
+      const Eigen::VectorXd q = randomJoints(m, rng);
+      if (scaledSigmaMin(m, q) < 1e-3) continue;
+      ++poses;
+      const Eigen::Isometry3d T = solver.forward(q);
+      const std::vector<Eigen::VectorXd> sols = solver.closedFormSolutions(T);
+      bool found = false;
+      std::set<int> statuses;
+      for (const Eigen::VectorXd& s : sols) {
+        EXPECT_LT(positionError(m, s, T), 1e-8) << name;
+        EXPECT_LT(rotationError(m, s, T), 1e-11) << name;
+        found = found || (s - q).cwiseAbs().maxCoeff() < 1e-7;
+        statuses.insert(postproc::kukaConfiguration(m, s).status);
+      }
+      EXPECT_TRUE(found) << name << " q = " << q.transpose();
+    }
+    EXPECT_GT(poses, 80) << name;
+  }
+}
+
+TEST(IkClosedForm, NoneForAScara) {
+  const KinematicSolver solver(test::loadBundled("scara"));
+  EXPECT_STREQ(solver.closedForm(), "none");
+}
+
+// ---------------------------------------------------------------------------------------
+
+TEST(KukaConfiguration, HomeAndBitsByDefinition) {
+  const RobotModel m = test::loadBundled("kuka_kr16");
+  Eigen::VectorXd home(6);
+  home << 0, -90, 90, 0, 0, 0;
+  // KUKA's usual home: basic area, A3 above the stretched angle, A5 = 0 (not negative);
+  // Turn: only A2 negative. Programs carry S 'B010' T 'B000010' there.
+  const Configuration c = postproc::kukaConfiguration(m, home);
+  EXPECT_EQ(c.status, 2);
+  EXPECT_EQ(c.turn, 2);
+  Eigen::VectorXd q = home;
+  q[4] = -30;  // A5 negative: bit 2, and Turn bit 4
+  EXPECT_EQ(postproc::kukaConfiguration(m, q).status, 6);
+  EXPECT_EQ(postproc::kukaConfiguration(m, q).turn, 2 | 16);
+  q[4] = 200;  // A5 = 200 = -160 in [-180, 180): negative
+  EXPECT_EQ(postproc::kukaConfiguration(m, q).status & 4, 4);
+  EXPECT_EQ(postproc::kukaConfiguration(m, q).turn & 16, 0);
+}
+
+TEST(KukaConfiguration, MatchesAGeometricComputation) {
+  // bit 0: the wrist point (DH frame 5 of calib's nominal FK) in the base turned by A1;
+  // bit 1: A3 against the angle at which the origin of DH frame 4 (the wrist point on a
+  // spherical wrist) is farthest from the A2 axis (a search over A3); bit 2: the sign of A5.
+  std::mt19937 rng(8);
+  for (const std::string name : {"kuka_kr16", "abb_irb120", "ur10"}) {
+    const RobotModel m = test::loadBundled(name);
+    const JointSpec& j1 = m.nominal.joints[0];
+    KinematicWorkspace ws;
+    // the stretched A3: maximise |o5 - o1| over q3 (golden section on the nominal FK)
+    auto reach = [&](double q3) {
+      Eigen::VectorXd q = Eigen::VectorXd::Zero(6);
+      q[2] = q3;
+      forwardKinematics(m, q, PoseContext{}, ws);
+      return (ws.T_base_frame[4].translation() - ws.T_base_frame[1].translation()).norm();
+    };
+    double a = -180, b = 180;
+    // coarse scan then golden section
+    double best = a;
+    for (double x = -180; x < 180; x += 1)
+      if (reach(x) > reach(best)) best = x;
+    a = best - 1;
+    b = best + 1;
+    for (int it = 0; it < 100; ++it) {
+      const double c1 = b - 0.618033988749895 * (b - a), c2 = a + 0.618033988749895 * (b - a);
+      if (reach(c1) > reach(c2)) b = c2; else a = c1;
+    }
+    const double phi = 0.5 * (a + b);
+    if (name == "kuka_kr16") {
+      EXPECT_NEAR(phi, -std::atan2(35, 670) * kRadToDeg, 1e-4);
+    }
+    for (int k = 0; k < 200; ++k) {
+      const Eigen::VectorXd q = randomJoints(m, rng);
+      forwardKinematics(m, q, PoseContext{}, ws);
+      const Eigen::Vector3d w = ws.T_base_frame[5].translation();
+      const double a1 = j1.direction * q[0] * kDegToRad;  // the base turned with A1
+      const double x_a1 = std::cos(a1) * w.x() + std::sin(a1) * w.y();
+      if (std::abs(x_a1) < 1e-6 || std::abs(q[2] - phi) < 1e-3) continue;
+      int s = 0;
+      if (x_a1 < 0) s |= 1;
+      double d3 = std::remainder(q[2] - phi, 360.0);
+      if (d3 >= 0) s |= 2;
+      if (std::remainder(q[4], 360.0) < 0) s |= 4;
+      int t = 0;
+      for (int i = 0; i < 6; ++i)
+        if (q[i] < 0) t |= 1 << i;
+      const Configuration c = postproc::kukaConfiguration(m, q);
+      EXPECT_EQ(c.status, s) << name << " q " << q.transpose();
+      EXPECT_EQ(c.turn, t) << name;
+    }
+  }
+}
+
+TEST(KukaConfiguration, UndefinedStatusWithoutSixRevoluteJoints) {
+  const RobotModel m = test::loadBundled("scara");
+  Eigen::VectorXd q(4);
+  q << -10, 20, 50, -30;
+  const Configuration c = postproc::kukaConfiguration(m, q);
+  EXPECT_EQ(c.status, -1);
+  EXPECT_EQ(c.turn, 1 | 8);
+  EXPECT_THROW(postproc::kukaConfiguration(m, Eigen::VectorXd(3)), ArgumentError);
+}
+
+// ---------------------------------------------------------------------------------------
+// Round trips
+
+struct RoundTripStats {
+  int well_conditioned = 0, ok = 0, near_singular = 0, near_singular_ok = 0;
+};
+
+/// FK -> IK on random joints: cold (S/T of the joints asked for, no seed) and warm (seed a
+/// few degrees away, any configuration). Well-conditioned targets (scaled sigma_min >= 1e-3)
+/// must all be solved, to 1 um and 1 urad, on the configuration asked for and on the joints
+/// they came from; near-singular ones must never give a wrong point.
+RoundTripStats roundTrip(const RobotModel& m, int count, std::uint64_t seed, bool warm) {
+  const KinematicSolver solver(m);
+  std::mt19937 rng(static_cast<unsigned>(seed));
+  std::uniform_real_distribution<double> u(-1, 1);
+  const IkOptions o;
+  RoundTripStats st;
+  for (int k = 0; k < count; ++k) {
+    const Eigen::VectorXd q = randomJoints(m, rng);
+    const Eigen::Isometry3d T = solver.forward(q);
+    const Configuration c = postproc::kukaConfiguration(m, q);
+    Eigen::VectorXd s;
+    if (warm) {
+      s = q;
+      for (int i = 0; i < m.dof(); ++i) s[i] += 3.0 * u(rng);
+    }
+    const IkResult r = solver.inverse(T, warm ? Configuration{} : c, s, o);
+    const bool well = scaledSigmaMin(m, q) >= 1e-3;
+    if (r.status == IkStatus::kOk) {
+      // never a wrong point: checked with calib's FK, not the solver's
+      EXPECT_LE(positionError(m, r.q, T), o.tol_mm);
+      EXPECT_LE(rotationError(m, r.q, T), o.tol_rad * 1.0001);
+      EXPECT_TRUE(postproc::configurationMatches(warm ? Configuration{} : c, r.configuration));
+    }
+    if (well) {
+      ++st.well_conditioned;
+      if (r.status == IkStatus::kOk) {
+        ++st.ok;
+        if (warm) {
+          // the solution nearest to the seed: at least as near as the joints the pose came
+          // from (next to a singularity another branch can be nearer)
+          EXPECT_LE((r.q - s).norm(), (q - s).norm() + 0.02) << "q " << q.transpose() << " got " << r.q.transpose();
+        } else {
+          // the joints the pose came from: S/T fix them up to 360 deg on a joint whose range
+          // exceeds 360 deg without a sign change (ABB axis 6: -400..400)
+          for (int i = 0; i < m.dof(); ++i)
+            EXPECT_LT(std::abs(std::remainder(r.q[i] - q[i], 360.0)), 0.06)
+                << "joint " << i + 1 << ": q " << q.transpose() << " got " << r.q.transpose();
+        }
+      } else {
+        ADD_FAILURE() << toString(r.status) << ": " << r.message << " for q " << q.transpose();
+      }
+    } else {
+      ++st.near_singular;
+      if (r.status == IkStatus::kOk) ++st.near_singular_ok;
+      if (r.q.size()) {
+        EXPECT_LE(positionError(m, r.q, T), o.tol_mm);
+      }
+    }
+  }
+  return st;
+}
+
+class IkRoundTrip : public ::testing::TestWithParam<std::string> {};
+
+TEST_P(IkRoundTrip, ColdOnNominalAndRealModels) {
+  for (const bool real : {false, true}) {
+    const RobotModel m = real ? realModel(GetParam()) : nominalModel(GetParam());
+    const RoundTripStats st = roundTrip(m, 300, 100 + real, false);
+    EXPECT_EQ(st.ok, st.well_conditioned) << GetParam() << (real ? " real" : " nominal");
+    EXPECT_GT(st.well_conditioned, 250);
+  }
+}
+
+TEST_P(IkRoundTrip, WarmOnNominalAndRealModels) {
+  for (const bool real : {false, true}) {
+    const RobotModel m = real ? realModel(GetParam()) : nominalModel(GetParam());
+    const RoundTripStats st = roundTrip(m, 300, 200 + real, true);
+    EXPECT_EQ(st.ok, st.well_conditioned) << GetParam() << (real ? " real" : " nominal");
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Robots, IkRoundTrip, ::testing::Values("kuka_kr16", "abb_irb120", "ur10"));
+
+TEST(Ik, WithPayloadTheCompliantModelIsSolved) {
+  const RobotModel m = realModel("kuka_kr16");
+  const KinematicSolver solver(m);
+  std::mt19937 rng(9);
+  PoseContext c;
+  c.payload_kg = 16;
+  for (int k = 0; k < 30; ++k) {
+    const Eigen::VectorXd q = randomJoints(m, rng, 0.1);
+    if (scaledSigmaMin(m, q) < 1e-3) continue;
+    const Eigen::Isometry3d T = solver.forward(q, c);
+    const IkResult r = solver.inverse(T, postproc::kukaConfiguration(m, q), Eigen::VectorXd(), IkOptions{}, c);
+    ASSERT_EQ(r.status, IkStatus::kOk) << r.message;
+    EXPECT_LE(positionError(m, r.q, T, 16), 1e-3);
+    // the same pose without the payload needs other joints (the arm sags less)
+    const IkResult r0 = solver.inverse(T, postproc::kukaConfiguration(m, q), Eigen::VectorXd(), IkOptions{});
+    ASSERT_EQ(r0.status, IkStatus::kOk);
+    EXPECT_GT((r0.q - r.q).norm(), 1e-3);
+  }
+}
+
+TEST(Ik, ScaraWithoutClosedFormByMultiStart) {
+  const RobotModel m = realModel("scara");
+  const KinematicSolver solver(m);
+  std::mt19937 rng(4);
+  int ok = 0;
+  for (int k = 0; k < 40; ++k) {
+    const Eigen::VectorXd q = randomJoints(m, rng, 0.05);
+    const Eigen::Isometry3d T = solver.forward(q);
+    const IkResult r = solver.inverse(T, Configuration{}, Eigen::VectorXd(), IkOptions{});
+    if (r.status == IkStatus::kOk) {
+      ++ok;
+      EXPECT_LE(positionError(m, r.q, T), 1e-3);
+      EXPECT_LE(rotationError(m, r.q, T), 1e-6);
+    }
+  }
+  EXPECT_EQ(ok, 40);
+}
+
+TEST(Ik, WarmStartFromTheSolutionTakesNoIteration) {
+  const RobotModel m = realModel("kuka_kr16");
+  const KinematicSolver solver(m);
+  Eigen::VectorXd q(6);
+  q << 20, -80, 100, 30, 45, -60;
+  const IkResult r = solver.inverse(solver.forward(q), Configuration{}, q, IkOptions{});
+  ASSERT_EQ(r.status, IkStatus::kOk);
+  EXPECT_EQ(r.iterations, 0);
+  EXPECT_EQ((r.q - q).norm(), 0.0);
+}
+
+// ---------------------------------------------------------------------------------------
+// Every branch
+
+TEST(Ik, EveryStatusBranchIsReproducedOnTheRealRobot) {
+  // poses where all eight Status values exist within the limits: each asked for with its
+  // Turn gives the real robot's solution on that branch, distinct from the others
+  const RobotModel real = realModel("kuka_kr16");
+  const RobotModel nominal = test::loadBundled("kuka_kr16");
+  const KinematicSolver solver(real);
+  std::mt19937 rng(12);
+  int poses = 0;
+  for (int k = 0; k < 4000 && poses < 3; ++k) {
+    const Eigen::VectorXd q0 = randomJoints(real, rng, 0.05);
+    const Eigen::Isometry3d T = solver.forward(q0);
+    // the configurations that exist: from the closed form (nominal links, real base/tool)
+    std::map<int, int> turn_of_status;
+    bool well = true;
+    for (const Eigen::VectorXd& s : solver.closedFormSolutions(T)) {
+      const Configuration c = postproc::kukaConfiguration(nominal, s);
+      if (!turn_of_status.count(c.status)) turn_of_status[c.status] = c.turn;
+      well = well && scaledSigmaMin(real, s) > 1e-2;
+    }
+    if (turn_of_status.size() != 8 || !well) continue;
+    ++poses;
+    std::vector<Eigen::VectorXd> solutions;
+    for (const auto& [status, turn] : turn_of_status) {
+      const IkResult r = solver.inverse(T, Configuration{status, turn}, Eigen::VectorXd(), IkOptions{});
+      ASSERT_EQ(r.status, IkStatus::kOk) << "S " << status << " T " << turn << ": " << r.message;
+      EXPECT_EQ(r.configuration.status, status);
+      EXPECT_EQ(r.configuration.turn, turn);
+      EXPECT_LE(positionError(real, r.q, T), 1e-3);
+      EXPECT_LE(rotationError(real, r.q, T), 1e-6);
+      solutions.push_back(r.q);
+    }
+    for (size_t i = 0; i < solutions.size(); ++i)
+      for (size_t j = i + 1; j < solutions.size(); ++j) EXPECT_GT((solutions[i] - solutions[j]).norm(), 1.0);
+  }
+  EXPECT_EQ(poses, 3);
+}
+
+// ---------------------------------------------------------------------------------------
+// Reported, not solved
+
+TEST(Ik, UnreachableTargetIsReported) {
+  for (const std::string name : {"kuka_kr16", "ur10", "abb_irb120"}) {
+    const RobotModel m = realModel(name);
+    const KinematicSolver solver(m);
+    Eigen::Isometry3d T = m.T_world_base() * toIsometry({5000, 0, 500, 0, 90, 0});
+    for (const Eigen::VectorXd& seed : std::vector<Eigen::VectorXd>{Eigen::VectorXd(), Eigen::VectorXd::Zero(6)}) {
+      const IkResult r = solver.inverse(T, Configuration{}, seed, IkOptions{});
+      EXPECT_EQ(r.status, IkStatus::kUnreachable) << name << ": " << r.message;
+      EXPECT_EQ(r.q.size(), 0);
+      EXPECT_FALSE(r.message.empty());
+    }
+  }
+  // just beyond the stretched arm: 5 mm further than the real robot reaches
+  const RobotModel m = realModel("kuka_kr16");
+  const KinematicSolver solver(m);
+  Eigen::VectorXd q(6);
+  q << 0, -30, -2.99, 0, 60, 0;
+  // stretch: search A3 for the farthest flange, then push the target outwards
+  double best = -2.99, far = 0;
+  for (double a3 = -4; a3 <= -2; a3 += 0.01) {
+    q[2] = a3;
+    const double r = (solver.forward(q).translation() - m.T_world_base().translation()).norm();
+    if (r > far) {
+      far = r;
+      best = a3;
+    }
+  }
+  q[2] = best;
+  Eigen::Isometry3d T = solver.forward(q);
+  const Eigen::Vector3d out = (T.translation() - m.T_world_base().translation()).normalized();
+  T.translation() += 5 * out;
+  const IkResult r = solver.inverse(T, Configuration{}, Eigen::VectorXd(), IkOptions{});
+  EXPECT_EQ(r.status, IkStatus::kUnreachable) << toString(r.status) << ": " << r.message;
+}
+
+TEST(Ik, TargetBeyondTheJointLimitsIsReported) {
+  RobotModel m = nominalModel("kuka_kr16");
+  Eigen::VectorXd q(6);
+  q << 30, -70, 80, 20, 40, 10;
+  const Eigen::Isometry3d T = KinematicSolver(m).forward(q);
+  // A1 limited to +-10 deg: both A1 solutions (30 and 30 + 180 - ...) are outside
+  m.nominal.joints[0].lower = -10;
+  m.nominal.joints[0].upper = 10;
+  const KinematicSolver solver(m);
+  for (const Eigen::VectorXd& seed : std::vector<Eigen::VectorXd>{Eigen::VectorXd(), q}) {
+    const IkResult r = solver.inverse(T, Configuration{}, seed, IkOptions{});
+    EXPECT_EQ(r.status, IkStatus::kJointLimits) << toString(r.status) << ": " << r.message;
+    EXPECT_EQ(r.q.size(), 0);
+  }
+  // a joint margin: A5 = 115 is within -130..130, not with 20 deg of margin: on the
+  // configuration asked for there is no solution (another configuration may have one)
+  const RobotModel full = nominalModel("kuka_kr16");
+  Eigen::VectorXd q5 = q;
+  q5[4] = 115;
+  const KinematicSolver full_solver(full);
+  const Eigen::Isometry3d T5 = full_solver.forward(q5);
+  IkOptions o;
+  o.joint_margin = 20;
+  const IkResult r = full_solver.inverse(T5, postproc::kukaConfiguration(full, q5), Eigen::VectorXd(), o);
+  EXPECT_TRUE(r.status == IkStatus::kJointLimits || r.status == IkStatus::kNoConfiguration) << toString(r.status);
+  if (r.q.size()) {
+    EXPECT_NE(r.configuration, postproc::kukaConfiguration(full, q5));
+    for (int i = 0; i < 6; ++i) {
+      EXPECT_GE(r.q[i], full.nominal.joints[i].lower + 20);
+      EXPECT_LE(r.q[i], full.nominal.joints[i].upper - 20);
+    }
+  }
+  // without the margin it is solved
+  const IkResult r0 = full_solver.inverse(T5, postproc::kukaConfiguration(full, q5), Eigen::VectorXd(), IkOptions{});
+  EXPECT_EQ(r0.status, IkStatus::kOk);
+}
+
+TEST(Ik, ConfigurationThatDoesNotExistIsReported) {
+  const RobotModel m = realModel("kuka_kr16");
+  const KinematicSolver solver(m);
+  Eigen::VectorXd q(6);
+  q << 100, -80, 90, 20, 40, 10;
+  const Eigen::Isometry3d T = solver.forward(q);
+  Configuration c = postproc::kukaConfiguration(m, q);
+  // A1 = 100 cannot be negative within -185..185 (-260 is outside): Turn bit 0 set is
+  // impossible on this branch
+  c.turn |= 1;
+  const IkResult r = solver.inverse(T, c, Eigen::VectorXd(), IkOptions{});
+  EXPECT_NE(r.status, IkStatus::kOk);
+  if (r.q.size()) {
+    EXPECT_EQ(r.status, IkStatus::kNoConfiguration);
+    EXPECT_FALSE(postproc::configurationMatches(c, r.configuration));
+    EXPECT_LE(positionError(m, r.q, T), 1e-3);  // a valid solution, on another configuration
+  }
+}
+
+TEST(Ik, SingularPosesAreReportedWithACorrectSolution) {
+  for (const bool real : {false, true}) {
+    const RobotModel m = real ? realModel("kuka_kr16") : nominalModel("kuka_kr16");
+    const KinematicSolver solver(m);
+    // wrist: A5 = 0 (A4 and A6 aligned); elbow: A3 at the stretched angle
+    Eigen::VectorXd wrist(6), elbow(6);
+    wrist << 20, -70, 80, 30, 0, 40;
+    elbow << 20, -40, -std::atan2(35, 670) * kRadToDeg, 30, 50, 40;
+    for (const Eigen::VectorXd& q : std::vector<Eigen::VectorXd>{wrist, elbow}) {
+      const Eigen::Isometry3d T = solver.forward(q);
+      const IkResult r = solver.inverse(T, Configuration{}, Eigen::VectorXd(), IkOptions{});
+      if (!real) {
+        EXPECT_EQ(r.status, IkStatus::kSingular) << toString(r.status) << " " << r.message;
+      }
+      if (r.status == IkStatus::kSingular) {
+        EXPECT_LT(r.min_singular_value, IkOptions{}.singular_threshold);
+        ASSERT_EQ(r.q.size(), 6);
+        EXPECT_LE(positionError(m, r.q, T), 1e-3);
+      } else {
+        // the real robot's singularity is elsewhere: then the point must be right
+        ASSERT_EQ(r.status, IkStatus::kOk) << r.message;
+        EXPECT_LE(positionError(m, r.q, T), 1e-3);
+      }
+    }
+    // next to the wrist singularity but above the threshold: solved
+    Eigen::VectorXd q = wrist;
+    q[4] = 3;
+    const IkResult r = solver.inverse(solver.forward(q), postproc::kukaConfiguration(m, q), Eigen::VectorXd(), IkOptions{});
+    EXPECT_EQ(r.status, IkStatus::kOk) << r.message;
+  }
+}
+
+TEST(Ik, SingularValueGrowsWithA5) {
+  // the scale the threshold refers to: sigma_min against A5 near the wrist singularity
+  const RobotModel m = test::loadBundled("kuka_kr16");
+  IkOptions o;
+  o.compute_singular_value = true;
+  o.singular_threshold = 0;
+  const KinematicSolver solver(m);
+  double prev = 0;
+  for (const double a5 : {0.05, 0.2, 1.0, 5.0}) {
+    Eigen::VectorXd q(6);
+    q << 20, -70, 80, 30, a5, 40;
+    const IkResult r = solver.inverse(solver.forward(q), postproc::kukaConfiguration(m, q), q, o);
+    ASSERT_EQ(r.status, IkStatus::kOk);
+    EXPECT_NEAR(r.min_singular_value, scaledSigmaMin(m, r.q), 1e-9);
+    EXPECT_GT(r.min_singular_value, prev);
+    prev = r.min_singular_value;
+  }
+}
+
+TEST(Ik, BadArgumentsThrow) {
+  const KinematicSolver solver(test::loadBundled("kuka_kr16"));
+  const Eigen::Isometry3d T = solver.forward(Eigen::VectorXd::Zero(6));
+  EXPECT_THROW(solver.inverse(T, Configuration{}, Eigen::VectorXd::Zero(5), IkOptions{}), ArgumentError);
+  IkOptions o;
+  o.tol_mm = 0;
+  EXPECT_THROW(solver.inverse(T, Configuration{}, Eigen::VectorXd(), o), ArgumentError);
+  std::string why;
+  EXPECT_FALSE(o.IsValid(&why));
+  EXPECT_NE(why.find("tolerance"), std::string::npos);
+  o = IkOptions{};
+  o.max_iterations = 0;
+  EXPECT_FALSE(o.IsValid(&why));
+  EXPECT_THROW(solver.forward(Eigen::VectorXd::Zero(4)), ArgumentError);
+  Eigen::Isometry3d bad = T;
+  bad.translation().x() = std::nan("");
+  EXPECT_THROW(solver.inverse(bad, Configuration{}, Eigen::VectorXd(), IkOptions{}), ArgumentError);
+}
+
+TEST(Ik, FreeFunctionEqualsSolver) {
+  const RobotModel m = realModel("abb_irb120");
+  Eigen::VectorXd q(6);
+  q << 10, 20, -30, 40, 50, 60;
+  const Eigen::Isometry3d T = KinematicSolver(m).forward(q);
+  const Configuration c = postproc::kukaConfiguration(m, q);
+  const IkResult a = postproc::inverseKinematics(m, T, c, Eigen::VectorXd(), IkOptions{});
+  const IkResult b = KinematicSolver(m).inverse(T, c, Eigen::VectorXd(), IkOptions{});
+  ASSERT_EQ(a.status, IkStatus::kOk);
+  EXPECT_EQ((a.q - b.q).norm(), 0.0);
+  EXPECT_LT((a.q - q).cwiseAbs().maxCoeff(), 1e-3);
+}
+
+}  // namespace
+}  // namespace accura

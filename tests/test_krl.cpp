@@ -1,0 +1,448 @@
+// KRL reader and writer: realistic programs (inline forms, spline inline forms, an OLP's
+// expert KRL; CRLF and LF, mixed case, folds, logic, I/O) read and written back byte for byte;
+// the motion model read from them against the values in the files; only corrected values and
+// inserted points change; malformed targets are errors with file:line:column.
+#include <gtest/gtest.h>
+
+#include "accura/calib/errors.h"
+#include "accura/postproc/krl.h"
+#include "accura/postproc/xml_program.h"
+#include "test_util.h"
+
+namespace accura::postproc {
+namespace {
+
+std::string golden(const std::string& rel) { return test::sourcePath("tests/golden/krl/" + rel); }
+std::string config() { return golden("config/$config.dat"); }
+
+Program read(const std::string& rel, bool with_config = false) {
+  KrlReadOptions o;
+  if (with_config) o.config_path = config();
+  return readKrl(golden(rel), o);
+}
+
+// The error of reading `src` (and `dat`) from a temporary directory.
+InputError readError(const std::string& src, const std::string& dat = "") {
+  const std::string dir = test::tempDir("krl_err");
+  test::writeText(dir + "/p.src", src);
+  if (!dat.empty()) test::writeText(dir + "/p.dat", dat);
+  try {
+    readKrl(dir + "/p.src");
+  } catch (const InputError& e) {
+    return e;
+  }
+  ADD_FAILURE() << "expected an InputError for:\n" << src;
+  return InputError("none");
+}
+
+TEST(Krl, NumberFormatsAreFixedAndNeverNegativeZero) {
+  EXPECT_EQ(formatMm(1.23456), "1.2346");
+  EXPECT_EQ(formatMm(-2.5), "-2.5000");
+  EXPECT_EQ(formatMm(-0.00004), "0.0000");
+  EXPECT_EQ(formatMm(-0.0), "0.0000");
+  EXPECT_EQ(formatDeg(-1e-7), "0.00000");
+  EXPECT_EQ(formatDeg(-179.999996), "-180.00000");
+  EXPECT_EQ(formatFixed(0.02, 4), "0.0200");
+}
+
+TEST(Krl, RealisticProgramsAreWrittenBackByteForByte) {
+  for (const std::string rel : {"kss8_inline/weld_seam.src", "robodk/Pick_Place.src", "spline/glue_bead.src", "freecad/Trajectory.src",
+                                "krc2/palette.src"}) {
+    for (bool cfg : {false, true}) {
+      const Program p = read(rel, cfg);
+      ASSERT_TRUE(p.krl) << rel;
+      const KrlText t = writeKrl(p);
+      EXPECT_EQ(t.src, test::readText(golden(rel))) << rel;
+      EXPECT_EQ(t.src, p.krl->src_text) << rel;
+      if (!p.krl->dat_path.empty()) {
+        EXPECT_EQ(t.dat, test::readText(p.krl->dat_path)) << rel;
+      }
+    }
+  }
+  // the test files are what they claim to be
+  EXPECT_NE(test::readText(golden("kss8_inline/weld_seam.src")).find("\r\n"), std::string::npos);
+  EXPECT_NE(test::readText(golden("kss8_inline/weld_seam.src")).find('\xfc'), std::string::npos);  // cp1252 comment
+  EXPECT_EQ(test::readText(golden("robodk/Pick_Place.src")).find('\r'), std::string::npos);
+  EXPECT_NE(test::readText(golden("robodk/Pick_Place.src")).back(), '\n');
+}
+
+TEST(Krl, InlineFormsGiveTheMotionModel) {
+  const Program p = read("kss8_inline/weld_seam.src", true);
+  EXPECT_EQ(p.name, "weld_seam");
+  ASSERT_EQ(p.motions.size(), 7u);
+  const MotionType types[] = {MotionType::kPtp, MotionType::kPtp, MotionType::kLin, MotionType::kLin,
+                              MotionType::kCirc, MotionType::kLin, MotionType::kPtp};
+  for (size_t i = 0; i < 7; ++i) EXPECT_EQ(p.motions[i].type, types[i]) << i;
+  // PTP HOME: XHOME from the $config.dat, FHOME: TOOL_NO 0, BASE_NO 0
+  const Motion& home = p.motions[0];
+  EXPECT_TRUE(home.target_problem.empty()) << home.target_problem;
+  EXPECT_EQ(home.target.kind, Target::Kind::kAxis);
+  EXPECT_EQ(*home.target.axes[1], -90.0);
+  EXPECT_EQ(*home.target.axes[4], 45.0);
+  EXPECT_EQ(home.tool.source, FrameSetting::Source::kNull);
+  EXPECT_EQ(home.where.line, 26);
+  EXPECT_EQ(home.where.column, 1);
+  // LIN P2 CONT: XP2 from the .dat, FP2 -> TOOL_DATA[1], BASE_DATA[1]; LCPDAT1 APO_DIST 10
+  const Motion& p2 = p.motions[2];
+  EXPECT_EQ(p2.target.name, "XP2");
+  EXPECT_EQ(*p2.target.pose[0], 1210.5);
+  EXPECT_EQ(*p2.target.pose[1], -180.25);
+  EXPECT_EQ(*p2.target.pose[3], 178.100006);
+  EXPECT_EQ(*p2.target.status, 2);
+  EXPECT_EQ(*p2.target.turn, 11);
+  EXPECT_EQ(*p2.target.ext[0], 0.0);
+  EXPECT_EQ(p2.target.where.file, golden("kss8_inline/weld_seam.dat"));
+  EXPECT_EQ(p2.target.where.line, 21);
+  ASSERT_EQ(p2.approximation.size(), 2u);
+  EXPECT_EQ(p2.approximation[0], Approximation::kCDis);
+  EXPECT_EQ(*p2.approximation_value, 10.0);
+  EXPECT_EQ(*p2.vel_m_s, 0.5);
+  EXPECT_EQ(p2.tool.source, FrameSetting::Source::kData);
+  EXPECT_EQ(p2.tool.index, 1);
+  EXPECT_EQ(p2.tool.value->x_mm, 107.147003);
+  EXPECT_EQ(p2.tool.value->y_mm, 6.19999992E-05);
+  EXPECT_EQ(p2.tool.value->b_deg, 45.0);
+  EXPECT_EQ(p2.base.index, 1);
+  EXPECT_EQ(p2.base.value->x_mm, 950.0);
+  EXPECT_EQ(p2.base.value->a_deg, 90.0);
+  // LIN P3 without approximation, 0.02 m/s
+  EXPECT_TRUE(p.motions[3].approximation.empty());
+  EXPECT_EQ(*p.motions[3].vel_m_s, 0.02);
+  // CIRC XP4, XP5
+  const Motion& c = p.motions[4];
+  ASSERT_TRUE(c.aux);
+  EXPECT_EQ(c.aux->name, "XP4");
+  EXPECT_EQ(*c.aux->pose[0], 1260.5);
+  EXPECT_EQ(*c.target.pose[0], 1310.5);
+  EXPECT_EQ(c.where.line, 62);
+}
+
+TEST(Krl, WithoutTheConfigGlobalNamesStayUnresolved) {
+  const Program p = read("kss8_inline/weld_seam.src");
+  EXPECT_NE(p.motions[0].target_problem.find("XHOME is not declared"), std::string::npos) << p.motions[0].target_problem;
+  EXPECT_EQ(p.motions[0].tool.source, FrameSetting::Source::kUnknown);
+  EXPECT_EQ(p.motions[0].tool.text, "TOOL_DATA[FHOME.TOOL_NO]");
+  EXPECT_EQ(p.motions[2].tool.source, FrameSetting::Source::kData);
+  EXPECT_EQ(p.motions[2].tool.index, 1);
+  EXPECT_FALSE(p.motions[2].tool.value);
+  EXPECT_TRUE(p.motions[2].target_problem.empty());
+}
+
+TEST(Krl, SplineInlineFormsReadTheWithClause) {
+  const Program p = read("spline/glue_bead.src", true);
+  ASSERT_EQ(p.motions.size(), 5u);
+  const Motion& sptp = p.motions[1];
+  EXPECT_TRUE(sptp.spline);
+  EXPECT_EQ(sptp.type, MotionType::kPtp);
+  EXPECT_EQ(*sptp.vel_percent, 100.0);
+  EXPECT_EQ(sptp.tool.index, 2);
+  EXPECT_EQ(sptp.tool.value->z_mm, 245.0);
+  EXPECT_EQ(sptp.base.index, 3);
+  EXPECT_EQ(sptp.base.value->x_mm, 1020.25);
+  const Motion& slin = p.motions[2];
+  EXPECT_EQ(slin.type, MotionType::kLin);
+  EXPECT_EQ(slin.target.name, "XP2");  // declared in lower case: DECL e6pos xP2={x 412.5,...}
+  EXPECT_EQ(*slin.target.pose[0], 412.5);
+  EXPECT_EQ(*slin.target.pose[2], 20.0);
+  ASSERT_EQ(slin.approximation.size(), 1u);
+  EXPECT_EQ(slin.approximation[0], Approximation::kCSpl);
+  EXPECT_EQ(*slin.approximation_value, 5.0);
+  EXPECT_EQ(*slin.vel_m_s, 0.1);
+  const Motion& scirc = p.motions[3];
+  EXPECT_EQ(scirc.type, MotionType::kCirc);
+  EXPECT_EQ(scirc.aux->name, "XP3");
+  EXPECT_EQ(*scirc.aux->pose[1], -288.25);
+  EXPECT_EQ(scirc.target.name, "XP4");
+  // a WITH clause is valid for its motion only: the last SPTP HOME uses FHOME (tool 0)
+  EXPECT_EQ(p.motions[4].tool.source, FrameSetting::Source::kNull);
+}
+
+TEST(Krl, OlderInlineFormsWithBinaryStatusAndTurn) {
+  // KRC2 inline forms: BAS(#PTP_DAT), BAS(#FRAMES), BAS(#VEL_PTP,v); the .dat is PALETTE.DAT
+  const Program p = read("krc2/palette.src", true);
+  EXPECT_EQ(p.krl->dat_path, golden("krc2/PALETTE.DAT"));
+  ASSERT_EQ(p.motions.size(), 4u);
+  const Motion& p1 = p.motions[1];
+  EXPECT_EQ(*p1.target.status, 2);  // S 'B010'
+  EXPECT_EQ(*p1.target.turn, 10);   // T 'B1010'
+  EXPECT_EQ(p1.tool.index, 2);
+  EXPECT_EQ(p1.tool.value->z_mm, 245.0);
+  EXPECT_EQ(p1.base.index, 2);
+  EXPECT_EQ(*p1.vel_percent, 80.0);
+  EXPECT_EQ(*p1.approximation_value, 50.0);  // PPDAT1 APO_DIST
+  EXPECT_EQ(*p.motions[2].vel_m_s, 0.3);
+  EXPECT_EQ(p.motions[3].tool.source, FrameSetting::Source::kNull);  // FHOME: TOOL_NO 0
+  // a corrected value keeps the literal style of S and T
+  Program q = p;
+  q.motions[2].target.setPose(XyzAbc{512.6, 210, 120, 12.5, 5, 172});
+  q.motions[2].target.modified = true;
+  const KrlText t = writeKrl(q);
+  EXPECT_NE(t.dat.find("DECL E6POS XP2={X 512.6000,Y 210.0000,Z 120.0000,A 12.50000,B 5.00000,C 172.00000,S 'B010',T 'B1010',E1 0.0"),
+            std::string::npos)
+      << t.dat;
+}
+
+TEST(Krl, ExpertKrlWithMixedCaseAndPartialTargets) {
+  const Program p = read("robodk/Pick_Place.src");
+  EXPECT_EQ(p.name, "Pick_Place");
+  ASSERT_EQ(p.motions.size(), 9u);
+  EXPECT_EQ(p.motions[0].target.kind, Target::Kind::kAxis);
+  EXPECT_EQ(*p.motions[0].target.axes[2], 90.0);
+  EXPECT_EQ(p.motions[0].approximation[0], Approximation::kCPtp);
+  EXPECT_EQ(*p.motions[0].approximation_value, 5.0);  // $apo.cptp = 5
+  EXPECT_EQ(p.motions[1].type, MotionType::kLin);     // "Lin ... c_dis"
+  EXPECT_EQ(p.motions[1].approximation[0], Approximation::kCDis);
+  EXPECT_EQ(*p.motions[1].approximation_value, 1.0);
+  EXPECT_EQ(*p.motions[1].vel_m_s, 0.5);
+  EXPECT_EQ(p.motions[1].tool.source, FrameSetting::Source::kInline);
+  EXPECT_EQ(p.motions[1].tool.value->z_mm, 200.0);
+  EXPECT_EQ(p.motions[4].type, MotionType::kPtp);  // "ptp {X ..,S 2,T 10}"
+  EXPECT_EQ(*p.motions[4].target.status, 2);
+  EXPECT_EQ(*p.motions[4].target.turn, 11);
+  const Target& partial = p.motions[6].target;  // LIN {Z 650.000}
+  EXPECT_FALSE(partial.completePose());
+  EXPECT_FALSE(partial.pose[0]);
+  EXPECT_EQ(*partial.pose[2], 650.0);
+  EXPECT_EQ(p.motions[7].type, MotionType::kCirc);  // "circ {..},{..} C_DIS"
+  EXPECT_EQ(*p.motions[7].aux->pose[1], 400.0);
+  EXPECT_EQ(*p.motions[7].target.pose[0], 1300.0);
+}
+
+TEST(Krl, OnlyCorrectedValuesChange) {
+  Program p = read("kss8_inline/weld_seam.src", true);
+  const std::string dat = test::readText(golden("kss8_inline/weld_seam.dat"));
+  Target& t = p.motions[2].target;  // XP2
+  t.setPose(XyzAbc{1211.0, -180.12344, 612.75, 178.2, 29.9, -179.30001});
+  t.modified = true;
+  const KrlText out = writeKrl(p);
+  EXPECT_EQ(out.src, p.krl->src_text);
+  const std::string before =
+      "DECL E6POS XP2={X 1210.5,Y -180.25,Z 612.75,A 178.100006,B 29.8999996,C -179.300003,S 2,T 11,E1 0.0,E2 0.0,E3 0.0,E4 0.0,E5 0.0,E6 0.0}";
+  const std::string after =
+      "DECL E6POS XP2={X 1211.0000,Y -180.1234,Z 612.7500,A 178.20000,B 29.90000,C -179.30001,S 2,T 11,E1 0.0,E2 0.0,E3 0.0,E4 0.0,E5 0.0,E6 0.0}";
+  std::string expected = dat;
+  ASSERT_NE(expected.find(before), std::string::npos);
+  expected.replace(expected.find(before), before.size(), after);
+  EXPECT_EQ(out.dat, expected);
+}
+
+TEST(Krl, AChangedTurnIsWrittenTheStatusKept) {
+  Program p = read("kss8_inline/weld_seam.src", true);
+  Target& t = p.motions[3].target;  // XP3, S 2, T 11
+  t.turn = 10;
+  t.modified = true;
+  const KrlText out = writeKrl(p);
+  EXPECT_NE(out.dat.find("DECL E6POS XP3={X 1210.5000,Y 20.2500,Z 612.7500,A 178.10001,B 29.90000,C -179.30000,S 2,T 10,E1 0.0,"),
+            std::string::npos)
+      << out.dat;
+}
+
+TEST(Krl, InsertedPointsCopyTheirMotionStatement) {
+  Program p = read("spline/glue_bead.src", true);
+  // an auxiliary point before SLIN XP2 and before the SCIRC
+  Motion ins = p.motions[2];
+  ins.inserted = true;
+  Target t;
+  t.setPose(XyzAbc{412.5, -388.25, 90.0, -12.5, 2.5, 177.75});
+  t.status = 2;
+  t.turn = 2;
+  ins.target = t;
+  Motion circ = p.motions[3];
+  circ.inserted = true;
+  circ.aux = t;
+  circ.target = t;
+  std::vector<Motion> m = p.motions;
+  m.insert(m.begin() + 3, circ);
+  m.insert(m.begin() + 2, ins);
+  p.motions = m;
+  const KrlText out = writeKrl(p);
+  const std::string src = p.krl->src_text;
+  const std::string slin = "  SLIN XP2 WITH $VEL = SVEL_CP(0.1, , LCPDAT1)";
+  const std::string agg = "{X 412.5000,Y -388.2500,Z 90.0000,A -12.50000,B 2.50000,C 177.75000,S 2,T 2}";
+  std::string expected = src;
+  const size_t at = expected.find(slin);
+  ASSERT_NE(at, std::string::npos);
+  const size_t eol = expected.find('\n', at);
+  std::string line = expected.substr(at, eol + 1 - at);
+  line.replace(line.find("XP2"), 3, agg);
+  expected.insert(at, line);
+  const size_t at2 = expected.find("  SCIRC XP3, XP4");
+  ASSERT_NE(at2, std::string::npos);
+  std::string line2 = expected.substr(at2, expected.find('\n', at2) + 1 - at2);
+  line2.replace(line2.find("XP3, XP4"), 8, agg + ", " + agg);
+  expected.insert(at2, line2);
+  EXPECT_EQ(out.src, expected);
+  EXPECT_EQ(out.dat, p.krl->dat_text);
+}
+
+TEST(Krl, APartialAggregateIsCompletedWhenCorrected) {
+  Program p = read("robodk/Pick_Place.src");
+  Target& t = p.motions[6].target;  // LIN {Z 650.000}
+  t.setPose(XyzAbc{1100.01, 300.02, 650.03, -150.0, 8.0, 172.0});
+  t.modified = true;
+  const KrlText out = writeKrl(p);
+  std::string expected = p.krl->src_text;
+  const std::string before = "LIN {Z 650.000}";
+  expected.replace(expected.find(before), before.size(), "LIN {X 1100.0100,Y 300.0200,Z 650.0300,A -150.00000,B 8.00000,C 172.00000}");
+  EXPECT_EQ(out.src, expected);
+}
+
+TEST(Krl, OnePointWithTwoDifferentCorrectionsIsAnError) {
+  const std::string dir = test::tempDir("krl_twice");
+  test::writeText(dir + "/p.src", "DEF p( )\n$TOOL={X 0,Y 0,Z 100,A 0,B 0,C 0}\n$BASE=$NULLFRAME\nLIN XP1\nLIN XP2\nLIN XP1\nEND\n");
+  test::writeText(dir + "/p.dat", "DEFDAT p\nDECL E6POS XP1={X 1000,Y 0,Z 800,A 0,B 90,C 0}\nDECL E6POS XP2={X 1000,Y 100,Z 800,A 0,B 90,C 0}\nENDDAT\n");
+  Program p = readKrl(dir + "/p.src");
+  ASSERT_EQ(p.motions.size(), 3u);
+  EXPECT_EQ(p.motions[0].target.value_id, p.motions[2].target.value_id);
+  p.motions[0].target.setPose(XyzAbc{1000.1, 0, 800, 0, 90, 0});
+  p.motions[0].target.modified = true;
+  p.motions[2].target.setPose(XyzAbc{1000.2, 0, 800, 0, 90, 0});
+  p.motions[2].target.modified = true;
+  try {
+    writeKrl(p);
+    FAIL() << "expected an ArgumentError";
+  } catch (const ArgumentError& e) {
+    EXPECT_NE(std::string(e.what()).find("XP1 needs a different correction here than at " + dir + "/p.src:4:1"), std::string::npos) << e.what();
+  }
+  // the same correction twice is fine
+  p.motions[2].target.setPose(XyzAbc{1000.1, 0, 800, 0, 90, 0});
+  const KrlText out = writeKrl(p);
+  EXPECT_NE(out.dat.find("DECL E6POS XP1={X 1000.1000,Y 0.0000,Z 800.0000,A 0.00000,B 90.00000,C 0.00000}"), std::string::npos) << out.dat;
+}
+
+TEST(Krl, FrameTablesFromTheConfig) {
+  const FrameTables t = readKrlFrameTables(config());
+  ASSERT_GE(t.tool.size(), 4u);
+  ASSERT_TRUE(t.tool[1]);
+  EXPECT_EQ(t.tool[1]->z_mm, 313.237);
+  EXPECT_EQ(t.tool[2]->x_mm, -12.5);
+  EXPECT_EQ(t.tool[2]->b_deg, -30.0);
+  ASSERT_GE(t.base.size(), 4u);
+  EXPECT_EQ(t.base[3]->a_deg, -90.0);
+  EXPECT_FALSE(t.tool.size() > 4 && t.tool[4]);
+}
+
+TEST(Krl, FramesAndPointsChangedInTheProgram) {
+  const std::string dir = test::tempDir("krl_frames");
+  test::writeText(dir + "/p.src",
+                  "DEF p( )\n"
+                  "TOOL_DATA[4]={X 1,Y 2,Z 3,A 0,B 0,C 0}\n"
+                  "BAS(#TOOL,4)\n"
+                  "$BASE={X 10,Y 20,Z 30,A 0,B 0,C 0}\n"
+                  "$BASE={Z 40}\n"
+                  "LIN XP1\n"
+                  "XP1={X 5,Y 6,Z 7,A 0,B 0,C 0}\n"
+                  "LIN XP1\n"
+                  "XP1.X=8\n"
+                  "PTP XP1\n"
+                  "$TOOL=$TOOL:{X 1}\n"
+                  "LIN {X 1,Y 2,Z 3,A 0,B 0,C 0}\n"
+                  "END\n");
+  test::writeText(dir + "/p.dat", "DEFDAT p\nDECL E6POS XP1={X 1000,Y 0,Z 800,A 0,B 90,C 0}\nENDDAT\n");
+  const Program p = readKrl(dir + "/p.src");
+  ASSERT_EQ(p.motions.size(), 4u);
+  EXPECT_EQ(p.motions[0].tool.index, 4);
+  EXPECT_EQ(p.motions[0].tool.value->z_mm, 3.0);
+  EXPECT_EQ(p.motions[0].base.value->x_mm, 10.0);  // partial frame: the other components kept
+  EXPECT_EQ(p.motions[0].base.value->z_mm, 40.0);
+  EXPECT_EQ(*p.motions[0].target.pose[0], 1000.0);
+  EXPECT_EQ(p.motions[1].target.where.file, dir + "/p.src");  // the new value, in the .src
+  EXPECT_EQ(p.motions[1].target.where.line, 7);
+  EXPECT_EQ(*p.motions[1].target.pose[0], 5.0);
+  EXPECT_NE(p.motions[2].target_problem.find("XP1 is changed at run time (" + dir + "/p.src:9:1)"), std::string::npos)
+      << p.motions[2].target_problem;
+  EXPECT_EQ(p.motions[3].tool.source, FrameSetting::Source::kUnknown);
+  EXPECT_EQ(p.motions[3].tool.text, "$TOOL:{X 1}");
+}
+
+TEST(Krl, MalformedTargetsAreErrorsWithTheirPlace) {
+  struct Case {
+    std::string src, dat;
+    int line, column;
+    std::string message;
+  };
+  const std::vector<Case> cases = {
+      {"DEF p( )\nLIN {X 10, Q 5}\nEND\n", "", 2, 12, "expected a component of a Cartesian target (X, Y, Z, A, B, C, S, T, E1..E6), found 'Q'"},
+      {"DEF p( )\n  lin {X 10,Y 2,x 3}\nEND\n", "", 2, 17, "component x given twice in this aggregate"},
+      {"DEF p( )\nLIN {X abc}\nEND\n", "", 2, 8, "expected a number for X, found 'abc'"},
+      {"DEF p( )\nLIN {X 1,Y 2\nEND\n", "", 2, 13, "expected ',' or '}' after the value of Y, found the end of the statement"},
+      {"DEF p( )\nLIN\nEND\n", "", 2, 4, "expected a target after LIN, found the end of the statement"},
+      {"DEF p( )\nLIN {A1 0,A2 -90,A3 90,A4 0,A5 0,A6 0}\nEND\n", "", 2, 5, "expected a Cartesian target for LIN (E6POS, POS, FRAME), found an axis target"},
+      {"DEF p( )\nCIRC XP1 XP2\nEND\n", "DEFDAT p\nDECL E6POS XP1={X 1}\nENDDAT\n", 2, 10, "expected ',' between the auxiliary point and the end point of CIRC, found 'XP2'"},
+      {"DEF p( )\nLIN XP1\nEND\n", "DEFDAT p\nDECL E6POS XP1={X 1,Y 2,Z 3,A 0,B 0,S 2,C 9,E7 0}\nENDDAT\n", 2, 45,
+       "expected a component of E6POS (X, Y, Z, A, B, C, S, T, E1..E6), found 'E7'"},
+      {"DEF p( )\nEND\n", "DEFDAT p\nDECL POS XP1={X 1,Y 2,Z 3,A 0,B 0,C 9,S 2,T 1.5}\nENDDAT\n", 2, 45, "expected a non-negative integer for T, found '1.5'"},
+      {"DEF p( )\nEND\n", "DEFDAT p\nDECL E6AXIS XP1={X 1}\nENDDAT\n", 2, 18, "expected a component of E6AXIS (A1..A6, E1..E6), found 'X'"},
+      {"DEF p( )\nEND\n", "DEFDAT p\nDECL FRAME F1={X 1,S 2}\nENDDAT\n", 2, 20, "expected a component of FRAME (X, Y, Z, A, B, C), found 'S'"},
+      {"DEF p( )\n$OUT[1]=TRUE\nMSG=\"open\nEND\n", "", 3, 5, "expected a closing '\"' for this string, found the end of the line"},
+      {"DEF p( )\nPTP XP1 C_PTP XYZ\nEND\n", "", 2, 15, "expected an approximation flag (C_PTP, C_DIS, C_VEL, C_ORI, C_SPL) or WITH after the target, found 'XYZ'"},
+      {"; no program here\n$OUT[1]=TRUE\n", "", 0, 0, "expected a KRL program (DEF name( ) ... END), found no DEF line"},
+      {"DEF p( )\nSPL {X 1,Y 2,Z 3}\nEND\n", "", 2, 1, "expected SPL inside a SPLINE ... ENDSPLINE block, found it outside"},
+  };
+  for (const Case& c : cases) {
+    const InputError e = readError(c.src, c.dat);
+    EXPECT_EQ(e.line(), c.line) << e.what();
+    EXPECT_EQ(e.column(), c.column) << e.what();
+    EXPECT_EQ(e.message(), c.message) << e.what();
+    const bool in_dat = !c.dat.empty() && e.file().size() > 4 && e.file().substr(e.file().size() - 4) == ".dat";
+    EXPECT_EQ(in_dat, c.dat.find("E7") != std::string::npos || c.dat.find("T 1.5") != std::string::npos ||
+                          c.dat.find("E6AXIS") != std::string::npos || c.dat.find("FRAME F1") != std::string::npos)
+        << e.what();
+  }
+  // a binary file
+  const std::string dir = test::tempDir("krl_bin");
+  test::writeText(dir + "/b.src", std::string("DEF b( )\nLIN {X 1}\n\0\0", 22));
+  try {
+    readKrl(dir + "/b.src");
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.line(), 3);
+    EXPECT_NE(e.message().find("NUL byte"), std::string::npos);
+  }
+}
+
+TEST(Krl, UnknownStatementsPassThroughAndRunTimeTargetsAreFlagged) {
+  const std::string dir = test::tempDir("krl_pass");
+  const std::string src =
+      "DEF p( )\n"
+      "DECL INT I\n"
+      "INTERRUPT DECL 3 WHEN $STOPMESS==TRUE DO IR_STOPM ( )\n"
+      "TRIGGER WHEN DISTANCE=1 DELAY=0 DO $OUT[3]=TRUE\n"
+      "$TOOL=TOOL_DATA[1]\n"
+      "LIN XP1:{X 10} C_DIS\n"
+      "PTP $AXIS_ACT\n"
+      "LIN_REL {Z 10} #TOOL\n"
+      "CIRC {X 1,Y 2,Z 3,A 0,B 0,C 0}, {X 2,Y 2,Z 3,A 0,B 0,C 0}, CA 90.5\n"
+      "SWITCH I\nCASE 1\n  ANIN ON A=FACTOR*$ANIN[1]\nENDSWITCH\n"
+      "END\n";
+  test::writeText(dir + "/p.src", src);
+  const Program p = readKrl(dir + "/p.src");
+  ASSERT_EQ(p.motions.size(), 4u);
+  EXPECT_EQ(p.motions[0].target_problem, "the target 'XP1:{X 10}' is computed at run time");
+  EXPECT_EQ(p.motions[0].trigger_count, 1);
+  EXPECT_EQ(p.motions[1].target_problem, "the target is the system variable $AXIS_ACT");
+  EXPECT_TRUE(p.motions[2].relative);
+  EXPECT_EQ(p.motions[2].target_problem, "a relative motion (LIN_REL)");
+  EXPECT_EQ(*p.motions[3].circ_angle_deg, 90.5);
+  EXPECT_EQ(writeKrl(p).src, src);
+}
+
+TEST(Krl, ANewProgramFromTheMotionModelReadsBackTheSame) {
+  // KRL -> motion model -> new KRL (no text kept) -> motion model: the same motions
+  for (const std::string rel : {"kss8_inline/weld_seam.src", "robodk/Pick_Place.src", "spline/glue_bead.src"}) {
+    Program p = read(rel, true);
+    const std::string xml = writeXmlProgram(p);
+    p.krl.reset();
+    const KrlText t = writeKrl(p);
+    const std::string dir = test::tempDir("krl_new");
+    test::writeText(dir + "/" + p.name + ".src", t.src);
+    test::writeText(dir + "/" + p.name + ".dat", t.dat);
+    KrlReadOptions o;
+    o.config_path = config();
+    const Program q = readKrl(dir + "/" + p.name + ".src", o);
+    EXPECT_EQ(writeXmlProgram(q), xml) << rel << "\n" << t.src;
+  }
+}
+
+}  // namespace
+}  // namespace accura::postproc

@@ -1,0 +1,224 @@
+// XML programs: the reader against hand-written values, byte-identical write-back of the
+// canonical form, KRL -> XML -> KRL keeping the motion model, the vocabulary against the schema
+// file, and errors with file:line:column.
+#include <gtest/gtest.h>
+#include <tinyxml2.h>
+
+#include <functional>
+
+#include "accura/calib/errors.h"
+#include "accura/postproc/krl.h"
+#include "accura/postproc/xml_program.h"
+#include "test_util.h"
+
+namespace accura::postproc {
+namespace {
+
+std::string golden(const std::string& rel) { return test::sourcePath("tests/golden/" + rel); }
+
+TEST(XmlProgram, ReadsEveryElementOfTheFormat) {
+  FrameTables tables;
+  tables.base.resize(4);
+  tables.base[3] = XyzAbc{1020.25, -35.5, 410, -90, 0, 0};
+  const Program p = readXmlProgram(golden("xml/cell_program.xml"), &tables);
+  EXPECT_EQ(p.name, "cell_program");
+  EXPECT_EQ(p.robot, "KUKA KR 16");
+  ASSERT_EQ(p.motions.size(), 7u);
+  const Motion& home = p.motions[0];
+  EXPECT_EQ(home.type, MotionType::kPtp);
+  EXPECT_EQ(home.target.kind, Target::Kind::kAxis);
+  EXPECT_EQ(home.target.name, "XHOME");
+  EXPECT_EQ(*home.target.axes[1], -90.0);
+  EXPECT_EQ(*home.target.ext[0], 0.0);
+  EXPECT_FALSE(home.target.ext[1]);
+  EXPECT_EQ(*home.vel_percent, 50.0);
+  EXPECT_EQ(home.tool.source, FrameSetting::Source::kInline);
+  EXPECT_EQ(home.tool.value->z_mm, 200.0);
+  EXPECT_EQ(home.base.source, FrameSetting::Source::kNull);
+  EXPECT_EQ(home.where.line, 8);
+  EXPECT_EQ(home.where.column, 5);
+  const Motion& lin = p.motions[1];
+  EXPECT_EQ(lin.base.source, FrameSetting::Source::kData);
+  EXPECT_EQ(lin.base.index, 3);
+  EXPECT_EQ(lin.base.value->x_mm, 1020.25);  // resolved from the tables
+  EXPECT_EQ(*lin.target.pose[1], -20.5);
+  EXPECT_EQ(*lin.target.pose[5], -179.5);
+  EXPECT_EQ(*lin.target.status, 2);
+  EXPECT_EQ(*lin.target.turn, 35);
+  EXPECT_EQ(lin.approximation, std::vector<Approximation>{Approximation::kCDis});
+  EXPECT_EQ(*lin.approximation_value, 5.0);
+  EXPECT_EQ(*lin.vel_m_s, 0.25);
+  const Target& partial = p.motions[2].target;
+  EXPECT_FALSE(partial.pose[0]);
+  EXPECT_EQ(*partial.pose[2], 45.25);
+  const Motion& circ = p.motions[3];
+  EXPECT_EQ(circ.type, MotionType::kCirc);
+  EXPECT_EQ(*circ.aux->pose[0], 150.0);
+  EXPECT_EQ(*circ.target.pose[0], 200.0);
+  EXPECT_EQ(*circ.circ_angle_deg, 90.0);
+  const Motion& slin = p.motions[4];
+  EXPECT_TRUE(slin.spline);
+  EXPECT_TRUE(slin.external_tcp);
+  EXPECT_EQ(slin.tool.source, FrameSetting::Source::kUnknown);
+  EXPECT_EQ(slin.tool.text, "STOOL2(FX)");
+  EXPECT_TRUE(p.motions[5].relative);
+  EXPECT_EQ(p.motions[5].target_problem, "a relative motion");
+  EXPECT_EQ(p.motions[6].target.name, "XPARK");
+  EXPECT_EQ(p.motions[6].target_problem, "XPARK is declared outside the program");
+}
+
+TEST(XmlProgram, CanonicalFilesAreWrittenBackByteForByte) {
+  const std::string text = test::readText(golden("xml/weld_seam.xml"));
+  const Program p = readXmlProgram(golden("xml/weld_seam.xml"));
+  EXPECT_EQ(writeXmlProgram(p), text);
+  // a hand-written file becomes canonical once, then stays
+  const std::string once = writeXmlProgram(readXmlProgram(golden("xml/cell_program.xml")));
+  EXPECT_EQ(writeXmlProgram(parseXmlProgram(once, "once.xml")), once);
+  EXPECT_NE(once.find("<pose z_mm=\"45.2500\"/>"), std::string::npos) << once;
+  EXPECT_NE(once.find("<tool source=\"unknown\" text=\"STOOL2(FX)\"/>"), std::string::npos) << once;
+}
+
+TEST(XmlProgram, KrlToXmlToKrlKeepsTheMotions) {
+  KrlReadOptions o;
+  o.config_path = golden("krl/config/$config.dat");
+  const Program krl = readKrl(golden("krl/kss8_inline/weld_seam.src"), o);
+  const std::string xml = writeXmlProgram(krl);
+  EXPECT_EQ(xml, test::readText(golden("xml/weld_seam.xml")));
+  const Program back = parseXmlProgram(xml, "weld_seam.xml");
+  ASSERT_EQ(back.motions.size(), krl.motions.size());
+  for (size_t i = 0; i < krl.motions.size(); ++i) {
+    const Motion& a = krl.motions[i];
+    const Motion& b = back.motions[i];
+    EXPECT_EQ(a.type, b.type) << i;
+    EXPECT_EQ(a.target.name, b.target.name) << i;
+    EXPECT_EQ(a.target.kind, b.target.kind) << i;
+    for (int k = 0; k < 6; ++k) {
+      EXPECT_EQ(a.target.pose[k].has_value(), b.target.pose[k].has_value()) << i;
+      if (a.target.pose[k]) {
+        EXPECT_NEAR(*a.target.pose[k], *b.target.pose[k], 0.5e-4) << i;  // 4-5 decimals
+      }
+      if (a.target.axes[k]) {
+        EXPECT_NEAR(*a.target.axes[k], *b.target.axes[k], 0.5e-4) << i;
+      }
+    }
+    EXPECT_EQ(a.target.status, b.target.status) << i;
+    EXPECT_EQ(a.approximation, b.approximation) << i;
+    EXPECT_EQ(a.tool.source, b.tool.source) << i;
+    EXPECT_EQ(a.tool.index, b.tool.index) << i;
+    EXPECT_EQ(a.base.index, b.base.index) << i;
+  }
+  // and to KRL again: a new .src/.dat with the same points
+  const KrlText t = writeKrl(back);
+  EXPECT_NE(t.src.find("\nLIN XP2 C_DIS C_DIS\n"), std::string::npos) << t.src;
+  EXPECT_NE(t.src.find("\nCIRC XP4, XP5\n"), std::string::npos) << t.src;
+  EXPECT_NE(t.src.find("\n$TOOL=TOOL_DATA[1]\n"), std::string::npos) << t.src;
+  EXPECT_NE(t.dat.find("DECL E6POS XP4={X 1260.5000,Y 70.2500,Z 612.7500,A 178.10001,B 29.90000,C -179.30000,S 2,T 11,"),
+            std::string::npos)
+      << t.dat;
+}
+
+// element -> attributes declared in the schema (attributes of the element's type, its
+// attribute groups, resolved).
+std::map<std::string, std::set<std::string>> schemaVocabulary(const std::string& path) {
+  tinyxml2::XMLDocument doc;
+  EXPECT_EQ(doc.LoadFile(path.c_str()), tinyxml2::XML_SUCCESS);
+  const tinyxml2::XMLElement* schema = doc.RootElement();
+  std::map<std::string, const tinyxml2::XMLElement*> types, groups;
+  for (const auto* e = schema->FirstChildElement(); e; e = e->NextSiblingElement()) {
+    const std::string n = e->Name();
+    if (n == "xs:complexType") types[e->Attribute("name")] = e;
+    if (n == "xs:attributeGroup") groups[e->Attribute("name")] = e;
+  }
+  std::function<void(const tinyxml2::XMLElement*, std::set<std::string>&)> attrs = [&](const tinyxml2::XMLElement* t,
+                                                                                        std::set<std::string>& out) {
+    for (const auto* c = t->FirstChildElement(); c; c = c->NextSiblingElement()) {
+      const std::string n = c->Name();
+      if (n == "xs:attribute") out.insert(c->Attribute("name"));
+      if (n == "xs:attributeGroup") attrs(groups.at(c->Attribute("ref")), out);
+    }
+  };
+  std::map<std::string, std::set<std::string>> v;
+  std::function<void(const tinyxml2::XMLElement*)> walk = [&](const tinyxml2::XMLElement* e) {
+    for (const auto* c = e->FirstChildElement(); c; c = c->NextSiblingElement()) {
+      if (std::string(c->Name()) == "xs:element") {
+        std::set<std::string>& out = v[c->Attribute("name")];
+        if (c->Attribute("type")) {
+          const tinyxml2::XMLElement* t = types.at(c->Attribute("type"));
+          attrs(t, out);
+          walk(t);
+        } else if (const auto* ct = c->FirstChildElement("xs:complexType")) {
+          attrs(ct, out);
+          walk(ct);
+        }
+      } else {
+        walk(c);
+      }
+    }
+  };
+  walk(schema);
+  return v;
+}
+
+TEST(XmlProgram, TheSchemaFileDeclaresWhatTheReaderAccepts) {
+  const auto schema = schemaVocabulary(test::sourcePath("postproc/schema/accura-program.xsd"));
+  const auto& reader = xmlProgramVocabulary();
+  EXPECT_EQ(schema.size(), reader.size());
+  for (const auto& [element, attributes] : reader) {
+    ASSERT_TRUE(schema.count(element)) << "<" << element << "> is not in the schema";
+    EXPECT_EQ(schema.at(element), attributes) << "<" << element << ">";
+  }
+}
+
+TEST(XmlProgram, ErrorsNameFileLineAndColumn) {
+  struct Case {
+    std::string body;  // inside <motions>
+    int line, column;
+    std::string message;
+  };
+  const std::string head = "<?xml version=\"1.0\"?>\n<program version=\"1\">\n  <motions>\n";
+  const std::vector<Case> cases = {
+      {"    <lin><pose x_mm=\"1\" y_mm=\"abc\"/></lin>\n", 4, 10, "<pose> attribute 'y_mm': expected a finite number, found 'abc'"},
+      {"    <lin speed=\"1\"><pose x_mm=\"1\"/></lin>\n", 4, 5,
+       "<lin>: unknown attribute 'speed' (expected one of: approx, approx_value, ca_deg, external_tcp, relative, vel_m_s, vel_percent)"},
+      {"    <move/>\n", 4, 5, "unknown element <move> in <motions> (expected tool, base, ptp, lin, circ, sptp, slin, scirc, spl)"},
+      {"    <lin/>\n", 4, 5, "<lin>: expected a target (<pose>, <axes> or <ref>), found nothing"},
+      {"    <lin><axes a1=\"0\"/></lin>\n", 4, 10, "<lin>: expected a Cartesian target (<pose>), found <axes>"},
+      {"    <circ><pose x_mm=\"1\"/></circ>\n", 4, 11, "<circ>: expected an <aux> (auxiliary point) first, found <pose>"},
+      {"    <ptp><pose x_mm=\"1\" s=\"-1\"/></ptp>\n", 4, 10, "<pose> attribute 's': expected a non-negative integer, found '-1'"},
+      {"    <tool source=\"inline\" x_mm=\"1\"/>\n", 4, 5,
+       "<tool>: expected all of x_mm, y_mm, z_mm, a_deg, b_deg, c_deg or none, found 1 of them"},
+      {"    <base source=\"data\"/>\n", 4, 5, "<base source=\"data\">: expected attribute 'index' >= 1"},
+      {"    <lin approx=\"C_DIS FAST\"><pose x_mm=\"1\"/></lin>\n", 4, 5,
+       "<lin> attribute 'approx': expected C_PTP, C_DIS, C_VEL, C_ORI or C_SPL, found 'FAST'"},
+      {"    <ptp><pose/></ptp>\n", 4, 10, "<pose>: expected the target's values (a target declared elsewhere is a <ref name=\"..\"/>)"},
+  };
+  for (const Case& c : cases) {
+    const std::string text = head + c.body + "  </motions>\n</program>\n";
+    try {
+      parseXmlProgram(text, "bad.xml");
+      ADD_FAILURE() << "expected an InputError for " << c.body;
+    } catch (const InputError& e) {
+      EXPECT_EQ(e.file(), "bad.xml");
+      EXPECT_EQ(e.line(), c.line) << e.what();
+      EXPECT_EQ(e.column(), c.column) << e.what();
+      EXPECT_EQ(e.message(), c.message) << e.what();
+    }
+  }
+  try {
+    parseXmlProgram("<?xml version=\"1.0\"?>\n<program version=\"2\"><motions/></program>\n", "v.xml");
+    ADD_FAILURE();
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.message(), "<program> attribute 'version': expected 1, found '2'");
+    EXPECT_EQ(e.line(), 2);
+  }
+  try {
+    parseXmlProgram("<?xml version=\"1.0\"?>\n<program version=\"1\">\n<motions>\n</program>\n", "m.xml");
+    ADD_FAILURE();
+  } catch (const InputError& e) {
+    EXPECT_NE(e.message().find("malformed XML"), std::string::npos);
+    EXPECT_EQ(e.line(), 3);  // tinyxml2 names the element left open
+  }
+}
+
+}  // namespace
+}  // namespace accura::postproc
