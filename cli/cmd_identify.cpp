@@ -221,7 +221,8 @@ void addIdentifyCommand(CLI::App& app) {
   cid->add_option("--base", id->base, "nominal T_world_base x,y,z,A,B,C (mm, deg)");
   cid->add_option("--tool", id->tool, "nominal T_flange_tcp x,y,z[,A,B,C] (mm, deg)");
   cid->add_option("--params", id->params,
-                  "parameter groups: geometric (default) = base,tool,offsets,lengths,angles; joint_compliance")
+                  "parameter groups: geometric (default) = base,tool,offsets,lengths,angles; and the effect catalogue: "
+                  "joint_compliance, gear_periodic, joint_scale, backlash, thermal")
       ->capture_default_str();
   cid->add_option("--form", id->form, "auto (Hayati for parallel axes) or dh (force classic DH)")
       ->capture_default_str();

@@ -67,7 +67,8 @@ void addSimulateCommand(CLI::App& app) {
   csim->add_option("--poses", sim->poses, "number of measured poses")->capture_default_str();
   csim->add_option("--seed", sim->seed, "random seed (errors and poses)")->capture_default_str();
   csim->add_option("--effects", sim->effects,
-                   "errors of the real robot: geometric, joint_compliance, or none (the robot as given)")
+                   "errors of the real robot: geometric and effects of the catalogue (joint_compliance, gear_periodic, "
+                   "joint_scale, backlash, thermal), or none (the robot as given)")
       ->capture_default_str();
   csim->add_option("--noise-mm", sim->noise_mm, "position noise, 1 sigma per axis (mm)")->capture_default_str();
   csim->add_option("--noise-deg", sim->noise_deg, "orientation noise, 1 sigma per axis (deg)")->capture_default_str();

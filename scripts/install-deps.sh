@@ -14,6 +14,7 @@ packages=(
   libcli11-dev        # command-line parsing
   nlohmann-json3-dev  # JSON reports
   chromium            # tests: renders the diagnosis report headless and checks the screenshot
+  libpng-dev          # tests: decodes that screenshot
 )
 
 missing=()

@@ -1,8 +1,8 @@
 // The diagnosis report renders in headless Chromium (Debian's chromium) and its screenshot is
 // not blank: the baseline's bar and the hottest cell of the error map are drawn in their
 // colours. Skipped (GTEST_SKIP) only when no chromium executable can be found.
-#include <dlfcn.h>
 #include <gtest/gtest.h>
+#include <png.h>
 #include <sys/wait.h>
 
 #include <cstdint>
@@ -44,79 +44,19 @@ struct Image {
   std::vector<std::uint8_t> rgb;  // 3 bytes per pixel
 };
 
-std::uint32_t be32(const std::uint8_t* p) {
-  return (std::uint32_t(p[0]) << 24) | (std::uint32_t(p[1]) << 16) | (std::uint32_t(p[2]) << 8) | p[3];
-}
-
-// Minimal PNG reader: 8-bit RGB or RGBA, not interlaced (what Chromium writes). The zlib
-// stream is inflated by the system's zlib (Debian's zlib1g, which every system has), loaded
-// at run time. Returns false with *why on anything else.
+// Decodes a PNG file (any format libpng reads) into 8-bit RGB. Returns false with *why.
 bool decodePng(const std::string& bytes, Image* img, std::string* why) {
-  const auto* p = reinterpret_cast<const std::uint8_t*>(bytes.data());
-  if (bytes.size() < 8 || std::memcmp(p, "\x89PNG\r\n\x1a\n", 8) != 0) return (*why = "not a PNG file", false);
-  size_t pos = 8;
-  int depth = 0, colour = -1, interlace = 0;
-  std::string idat;
-  while (pos + 12 <= bytes.size()) {
-    const std::uint32_t len = be32(p + pos);
-    const std::string type(bytes.data() + pos + 4, 4);
-    if (pos + 12 + len > bytes.size()) return (*why = "truncated chunk " + type, false);
-    const std::uint8_t* data = p + pos + 8;
-    if (type == "IHDR") {
-      img->width = static_cast<int>(be32(data));
-      img->height = static_cast<int>(be32(data + 4));
-      depth = data[8];
-      colour = data[9];
-      interlace = data[12];
-    } else if (type == "IDAT") {
-      idat.append(reinterpret_cast<const char*>(data), len);
-    } else if (type == "IEND") {
-      break;
-    }
-    pos += 12 + len;
-  }
-  if (depth != 8 || (colour != 2 && colour != 6) || interlace != 0)
-    return (*why = "unsupported PNG (depth " + std::to_string(depth) + ", colour type " + std::to_string(colour) + ")", false);
-  const int bpp = colour == 6 ? 4 : 3;
-  const size_t stride = static_cast<size_t>(img->width) * bpp;
-  std::vector<std::uint8_t> raw((stride + 1) * static_cast<size_t>(img->height));
-  void* z = dlopen("libz.so.1", RTLD_NOW);
-  if (!z) return (*why = "cannot load libz.so.1", false);
-  using Uncompress = int (*)(unsigned char*, unsigned long*, const unsigned char*, unsigned long);
-  auto uncompress = reinterpret_cast<Uncompress>(dlsym(z, "uncompress"));
-  if (!uncompress) return (*why = "libz.so.1 has no uncompress", false);
-  unsigned long out_len = raw.size();
-  const int rc = uncompress(raw.data(), &out_len, reinterpret_cast<const unsigned char*>(idat.data()), idat.size());
-  if (rc != 0 || out_len != raw.size()) return (*why = "zlib error " + std::to_string(rc), false);
-  // undo the per-row filters (PNG spec, section 9)
-  std::vector<std::uint8_t> cur(stride), prev(stride, 0);
-  img->rgb.resize(static_cast<size_t>(img->width) * img->height * 3);
-  for (int y = 0; y < img->height; ++y) {
-    const std::uint8_t* row = raw.data() + static_cast<size_t>(y) * (stride + 1);
-    const int filter = row[0];
-    for (size_t x = 0; x < stride; ++x) {
-      const int a = x >= static_cast<size_t>(bpp) ? cur[x - bpp] : 0;
-      const int b = prev[x];
-      const int c = x >= static_cast<size_t>(bpp) ? prev[x - bpp] : 0;
-      int pred = 0;
-      switch (filter) {
-        case 0: pred = 0; break;
-        case 1: pred = a; break;
-        case 2: pred = b; break;
-        case 3: pred = (a + b) / 2; break;
-        case 4: {
-          const int pp = a + b - c, pa = std::abs(pp - a), pb = std::abs(pp - b), pc = std::abs(pp - c);
-          pred = (pa <= pb && pa <= pc) ? a : (pb <= pc ? b : c);
-          break;
-        }
-        default: return (*why = "bad filter " + std::to_string(filter), false);
-      }
-      cur[x] = static_cast<std::uint8_t>(row[1 + x] + pred);
-    }
-    for (int x = 0; x < img->width; ++x)
-      for (int k = 0; k < 3; ++k) img->rgb[(static_cast<size_t>(y) * img->width + x) * 3 + k] = cur[static_cast<size_t>(x) * bpp + k];
-    std::swap(cur, prev);
-  }
+  png_image image;
+  std::memset(&image, 0, sizeof image);
+  image.version = PNG_IMAGE_VERSION;
+  if (!png_image_begin_read_from_memory(&image, bytes.data(), bytes.size()))
+    return (*why = std::string("not a readable PNG: ") + image.message, false);
+  image.format = PNG_FORMAT_RGB;
+  img->width = static_cast<int>(image.width);
+  img->height = static_cast<int>(image.height);
+  img->rgb.resize(PNG_IMAGE_SIZE(image));
+  if (!png_image_finish_read(&image, nullptr, img->rgb.data(), 0, nullptr))
+    return (*why = std::string("PNG decoding failed: ") + image.message, false);
   return true;
 }
 
