@@ -244,6 +244,28 @@ TEST(Identify, OptionsAreValidated) {
   o.groups = {"base"};
   o.loss = "l1";
   EXPECT_FALSE(o.IsValid(&why));
+  o.loss = "none";
+  o.groups = {"geometric", "gear_periodic:j1+j2"};
+  EXPECT_TRUE(o.IsValid(&why)) << why;
+  o.groups = {"gear_periodic:1+2"};
+  EXPECT_FALSE(o.IsValid(&why));
+  EXPECT_NE(why.find("expected joints as j1+j2+..., found '1'"), std::string::npos) << why;
+}
+
+TEST(Identify, AGroupCanBeRestrictedToSomeJoints) {
+  SimulateOptions sim = kr16Campaign();
+  sim.effects = {"geometric", "joint_compliance"};
+  sim.payloads_kg = {0, 16};
+  Campaign c = makeCampaign("kuka_kr16", sim, 200, 10);
+  c.nominal.nominal.T_flange_tcp = toIsometry(sim.tool);
+  IdentifyOptions opt;
+  opt.groups = {"geometric", "joint_compliance:j2+j3"};
+  IdentifySummary s;
+  identify(c.nominal, c.fit, opt, &s);
+  std::vector<std::string> compliance;
+  for (const auto& p : s.parameters)
+    if (p.group == "joint_compliance") compliance.push_back(p.name);
+  EXPECT_EQ(compliance, (std::vector<std::string>{"j2_compliance", "j3_compliance"}));
 }
 
 }  // namespace

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <map>
 #include <set>
 #include <sstream>
@@ -15,6 +16,33 @@
 #include "accura/calib/kinematics.h"
 
 namespace accura {
+
+namespace {
+// A --params item: a group name, optionally restricted to some joints: "gear_periodic:j1+j2".
+// Returns false with *error on a malformed item. `joints` is empty when all joints are meant.
+bool parseGroupSpec(const std::string& spec, std::string* name, std::set<int>* joints, std::string* error) {
+  const size_t colon = spec.find(':');
+  *name = spec.substr(0, colon);
+  joints->clear();
+  if (colon == std::string::npos) return true;
+  std::string rest = spec.substr(colon + 1);
+  size_t pos = 0;
+  while (pos <= rest.size()) {
+    const size_t plus = rest.find('+', pos);
+    const std::string item = rest.substr(pos, plus == std::string::npos ? std::string::npos : plus - pos);
+    int j = 0;
+    if (item.size() < 2 || item[0] != 'j' || item.find_first_not_of("0123456789", 1) != std::string::npos ||
+        (j = std::atoi(item.c_str() + 1)) < 1) {
+      *error = "parameter group '" + spec + "': expected joints as j1+j2+..., found '" + item + "'";
+      return false;
+    }
+    joints->insert(j);
+    if (plus == std::string::npos) break;
+    pos = plus + 1;
+  }
+  return true;
+}
+}  // namespace
 
 bool IdentifyOptions::IsValid(std::string* error) const {
   auto fail = [&](const std::string& m) {
@@ -25,10 +53,13 @@ bool IdentifyOptions::IsValid(std::string* error) const {
   std::set<std::string> known;
   for (const auto& g : parameterGroups()) known.insert(g.first);
   for (const auto& g : groups) {
-    if (!known.count(g)) {
+    std::string name, why;
+    std::set<int> joints;
+    if (!parseGroupSpec(g, &name, &joints, &why)) return fail(why);
+    if (!known.count(name)) {
       std::string list;
       for (const auto& k : parameterGroups()) list += (list.empty() ? "" : ", ") + k.first;
-      return fail("unknown parameter group '" + g + "' (expected one of: " + list + ")");
+      return fail("unknown parameter group '" + name + "' (expected one of: " + list + ")");
     }
   }
   if (!(std::isnan(position_std_mm) || position_std_mm > 0))
@@ -290,12 +321,15 @@ RobotModel identify(const RobotModel& start, const MeasurementSet& data,
   RobotModel model = start;
   const bool orientation = !data.rows.empty() && std::all_of(data.rows.begin(), data.rows.end(),
                                                              [](const Measurement& r) { return r.has_orientation; });
-  std::set<std::string> groups;
+  std::map<std::string, std::set<int>> groups;  // group -> joints (1-based; empty: all)
   for (const auto& g : options.groups) {
-    if (g == "geometric") {
-      for (const char* s : {"base", "tool", "offsets", "lengths", "angles"}) groups.insert(s);
+    std::string name, why;
+    std::set<int> joints;
+    parseGroupSpec(g, &name, &joints, &why);  // validated by IsValid
+    if (name == "geometric") {
+      for (const char* s : {"base", "tool", "offsets", "lengths", "angles"}) groups[s] = joints;
     } else {
-      groups.insert(g);
+      groups[name] = joints;
     }
   }
   // The candidate parameters: those of the requested groups (tool rotation only with
@@ -303,7 +337,9 @@ RobotModel identify(const RobotModel& start, const MeasurementSet& data,
   // the problem (nor of the Jacobian).
   std::vector<ParamInfo> layout;
   for (const ParamInfo& p : parameterLayout(model)) {
-    if (!groups.count(p.group)) continue;
+    auto g = groups.find(p.group);
+    if (g == groups.end()) continue;
+    if (!g->second.empty() && !g->second.count(p.joint + 1)) continue;
     if (!orientation && (p.kind == ParamKind::kToolRx || p.kind == ParamKind::kToolRy ||
                          p.kind == ParamKind::kToolRz))
       continue;

@@ -14,7 +14,8 @@ namespace accura {
 
 struct IdentifyOptions {
   /// Parameter groups to identify (see parameterGroups()): "geometric" (= base, tool,
-  /// offsets, lengths, angles) and/or single groups and "joint_compliance".
+  /// offsets, lengths, angles) and/or single groups and the effects ("joint_compliance", ...).
+  /// A group may be restricted to some joints: "gear_periodic:j1+j2".
   std::vector<std::string> groups = {"geometric"};
   /// Closed-form registration of T_world_base (and the tool point) before the iterations:
   /// the measurement frame may be anywhere. Only when "base" is identified.
