@@ -11,14 +11,18 @@
 // 1 um and 1 urad (KDL: eps = 1e-6 per twist component, in metres and radians).
 //
 // Targets: (a) path-following: three LIN moves across the workspace (4.4 m, 70-100 deg of
-// reorientation each) every 1 mm, each solve seeded with the previous solution; (b) random
+// reorientation each) every 1 mm (PathWarm) and every 20 mm (Path20Warm: program targets
+// along a seam), each solve seeded with the previous solution; (b) random
 // well-conditioned poses, seeded 0.5 deg per joint away from the joints they came from;
 // (c) the same poses cold: accura with the Status/Turn of the joints and no seed, KDL (which
 // has no notion of a configuration) from the middle of the joint ranges. A solve succeeds
 // when the solver says so and the pose is within 1 um / 1 urad (checked with accura's FK,
 // and for KDL also within the joint limits).
 //
-// The run ends with the ratios of the side-by-side pairs (KDL time / accura time).
+// accura runs with its default options, which include the singularity certificate
+// (IkOptions::singular_threshold); the *_AccuraNoSingularCheck variants turn it off to do
+// exactly KDL's job (converge within the limits). The run ends with the ratios of the
+// side-by-side pairs (KDL time / accura time).
 #include <benchmark/benchmark.h>
 
 #include <Eigen/Dense>
@@ -31,6 +35,7 @@
 #include <map>
 #include <memory>
 #include <random>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -112,8 +117,8 @@ struct Setup {
   std::unique_ptr<KDL::ChainFkSolverPos_recursive> kdl_fk;
   std::unique_ptr<KDL::ChainIkSolverVel_pinv> kdl_vel;
   std::unique_ptr<KDL::ChainIkSolverPos_NR_JL> kdl_ik;
-  // (a) path-following
-  std::vector<Eigen::Isometry3d> path;
+  // (a) path-following: every 1 mm, and every 20 mm (program targets along a seam)
+  std::vector<Eigen::Isometry3d> path, path20;
   Eigen::VectorXd path_q0;        ///< the real solution at the first point (accura, KDL)
   Eigen::VectorXd path_q0_comp;   ///< the same for the compliant model
   // (b), (c) random poses
@@ -159,6 +164,7 @@ struct Setup {
       const int m = static_cast<int>(std::ceil(accura::postproc::pathLength(s)));
       for (int i = (c == 0 ? 0 : 1); i <= m; ++i) path.push_back(accura::postproc::interpolate(s, double(i) / m));
     }
+    for (size_t i = 0; i < path.size(); i += 20) path20.push_back(path[i]);
     const IkResult r0 = solver.inverse(path.front(), Configuration{}, Eigen::VectorXd(), IkOptions{});
     const IkResult r0c =
         compensator.real().inverse(path.front(), Configuration{}, Eigen::VectorXd(), IkOptions{});
@@ -223,60 +229,79 @@ void rate(benchmark::State& state, long ok, long total) {
 // ---------------------------------------------------------------------------------------
 // (a) path-following, seeded with the previous solution
 
-void BM_PathWarm_Accura(benchmark::State& state) {
+/// accura's IK options: the defaults, or without the singularity check (`check` false: the
+/// same job as KDL's solver, which does not look for singularities).
+IkOptions ikOptions(bool check) {
+  IkOptions o;
+  if (!check) o.singular_threshold = 0;
+  return o;
+}
+
+void pathWarmAccura(benchmark::State& state, const std::vector<Eigen::Isometry3d>& path, bool check = true) {
   const Setup& s = setup();
   if (!s.error.empty()) return state.SkipWithError(s.error.c_str());
-  const IkOptions o;
+  const IkOptions o = ikOptions(check);
   Eigen::VectorXd q = s.path_q0;
   size_t k = 0;
   long ok = 0, total = 0;
   for (auto _ : state) {
-    const IkResult r = s.solver.inverse(s.path[k], Configuration{}, q, o);
+    const IkResult r = s.solver.inverse(path[k], Configuration{}, q, o);
     benchmark::DoNotOptimize(r.q.data());
     ++total;
     if (r.status == IkStatus::kOk) {
       ++ok;
       q = r.q;
     }
-    if (++k == s.path.size()) {
+    if (++k == path.size()) {
       k = 0;
       q = s.path_q0;
     }
   }
   rate(state, ok, total);
 }
-BENCHMARK(BM_PathWarm_Accura);
 
-void BM_PathWarm_KDL(benchmark::State& state) {
+void pathWarmKdl(benchmark::State& state, const std::vector<Eigen::Isometry3d>& path) {
   const Setup& s = setup();
   if (!s.error.empty()) return state.SkipWithError(s.error.c_str());
   KDL::JntArray q = Setup::toKdlJoints(s.path_q0), out;
   size_t k = 0;
   long ok = 0, total = 0;
   for (auto _ : state) {
-    const bool good = s.kdlSolve(q, s.path[k], out);
+    const bool good = s.kdlSolve(q, path[k], out);
     benchmark::DoNotOptimize(out.data.data());
     ++total;
     if (good) {
       ++ok;
       q = out;
     }
-    if (++k == s.path.size()) {
+    if (++k == path.size()) {
       k = 0;
       q = Setup::toKdlJoints(s.path_q0);
     }
   }
   rate(state, ok, total);
 }
+
+void BM_PathWarm_Accura(benchmark::State& state) { pathWarmAccura(state, setup().path); }
+BENCHMARK(BM_PathWarm_Accura);
+void BM_PathWarm_AccuraNoSingularCheck(benchmark::State& state) { pathWarmAccura(state, setup().path, false); }
+BENCHMARK(BM_PathWarm_AccuraNoSingularCheck);
+void BM_PathWarm_KDL(benchmark::State& state) { pathWarmKdl(state, setup().path); }
 BENCHMARK(BM_PathWarm_KDL);
+void BM_Path20Warm_Accura(benchmark::State& state) { pathWarmAccura(state, setup().path20); }
+BENCHMARK(BM_Path20Warm_Accura);
+void BM_Path20Warm_AccuraNoSingularCheck(benchmark::State& state) { pathWarmAccura(state, setup().path20, false); }
+BENCHMARK(BM_Path20Warm_AccuraNoSingularCheck);
+void BM_Path20Warm_KDL(benchmark::State& state) { pathWarmKdl(state, setup().path20); }
+BENCHMARK(BM_Path20Warm_KDL);
 
 // ---------------------------------------------------------------------------------------
 // (b) random poses, seeded 0.5 deg per joint away
 
-void BM_NearbyWarm_Accura(benchmark::State& state) {
+void nearbyWarmAccura(benchmark::State& state, bool check) {
   const Setup& s = setup();
   if (!s.error.empty()) return state.SkipWithError(s.error.c_str());
-  const IkOptions o;
+  const IkOptions o = ikOptions(check);
   size_t k = 0;
   long ok = 0, total = 0;
   for (auto _ : state) {
@@ -288,7 +313,10 @@ void BM_NearbyWarm_Accura(benchmark::State& state) {
   }
   rate(state, ok, total);
 }
+void BM_NearbyWarm_Accura(benchmark::State& state) { nearbyWarmAccura(state, true); }
 BENCHMARK(BM_NearbyWarm_Accura);
+void BM_NearbyWarm_AccuraNoSingularCheck(benchmark::State& state) { nearbyWarmAccura(state, false); }
+BENCHMARK(BM_NearbyWarm_AccuraNoSingularCheck);
 
 void BM_NearbyWarm_KDL(benchmark::State& state) {
   const Setup& s = setup();
@@ -419,15 +447,26 @@ BENCHMARK(BM_Compensation_LongLinSegment)->Unit(benchmark::kMillisecond);
 
 // ---------------------------------------------------------------------------------------
 
-/// The console output, plus the time per solve of every benchmark for the ratios.
+/// The console output, plus the CPU time per solve of every benchmark for the ratios.
 class RatioReporter : public benchmark::ConsoleReporter {
  public:
   std::map<std::string, double> ns;
   void ReportRuns(const std::vector<Run>& runs) override {
-    for (const Run& r : runs)
-      if (!r.error_occurred && r.iterations > 0) ns[r.benchmark_name()] = r.GetAdjustedRealTime();
+    // with --benchmark_repetitions the medians are used
+    for (const Run& r : runs) {
+      if (r.error_occurred || r.iterations <= 0) continue;
+      std::string name = r.benchmark_name();
+      const bool median = name.size() > 7 && name.compare(name.size() - 7, 7, "_median") == 0;
+      if (median) name.resize(name.size() - 7);
+      // CPU time: single-threaded, and the machine may be shared (other jobs preempt us)
+      if (median || !medians_.count(name)) ns[name] = r.GetAdjustedCPUTime();
+      if (median) medians_.insert(name);
+    }
     ConsoleReporter::ReportRuns(runs);
   }
+
+ private:
+  std::set<std::string> medians_;
 };
 
 }  // namespace
@@ -437,12 +476,15 @@ int main(int argc, char** argv) {
   if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
   RatioReporter reporter;
   benchmark::RunSpecifiedBenchmarks(&reporter);
-  std::printf("\nKDL time / accura time (same chain, same targets, same tolerance):\n");
-  for (const char* pair : {"PathWarm", "NearbyWarm", "Cold"}) {
-    const std::string a = std::string("BM_") + pair + "_Accura", k = std::string("BM_") + pair + "_KDL";
-    if (reporter.ns.count(a) && reporter.ns.count(k) && reporter.ns[a] > 0)
-      std::printf("  %-10s %6.1f x   (accura %.2f us, KDL %.2f us per solve)\n", pair, reporter.ns[k] / reporter.ns[a],
-                  reporter.ns[a] * 1e-3, reporter.ns[k] * 1e-3);
+  std::printf("\nKDL CPU time / accura CPU time (same chain, same targets, same tolerance):\n");
+  for (const char* pair : {"PathWarm", "Path20Warm", "NearbyWarm", "Cold"}) {
+    const std::string k = std::string("BM_") + pair + "_KDL";
+    for (const char* variant : {"_Accura", "_AccuraNoSingularCheck"}) {
+      const std::string a = std::string("BM_") + pair + variant;
+      if (reporter.ns.count(a) && reporter.ns.count(k) && reporter.ns[a] > 0)
+        std::printf("  %-10s %-22s %6.1f x   (accura %.2f us, KDL %.2f us per solve)\n", pair, variant + 1,
+                    reporter.ns[k] / reporter.ns[a], reporter.ns[a] * 1e-3, reporter.ns[k] * 1e-3);
+    }
   }
   benchmark::Shutdown();
   return 0;

@@ -86,7 +86,7 @@ PoseCompensation Compensator::pose(const Eigen::Isometry3d& T_desired, const Con
                                    const Eigen::VectorXd& seed, const IkOptions& options,
                                    const PoseContext& context) const {
   PoseCompensation out;
-  const IkResult r = real_.inverse(T_desired, config, seed, options, context);
+  const IkResult r = real_.inversePolished(T_desired, config, seed, options, context, 1e-9, 1e-12);
   const bool have_q = r.status == IkStatus::kOk || (r.status == IkStatus::kNoConfiguration && r.q.size() > 0);
   if (!have_q) {
     out.status = r.status;
@@ -265,7 +265,9 @@ SegmentCompensation Compensator::segment(const PathSegment& intended_segment, co
   // uncompensated: the controller runs the intended segment from its own solution
   {
     IkOptions o = options.ik;
-    const IkResult r0 = controller_.inverse(intended_segment.T_world_start, start.configuration, start.q_real, o);
+    // the controller continues from the joints the robot stands on: the solution nearest to
+    // them, whatever its S/T (a joint at exactly 0 deg flips a T bit on a hair's difference)
+    const IkResult r0 = controller_.inverse(intended_segment.T_world_start, Configuration{}, start.q_real, o);
     if (r0.status != IkStatus::kOk)
       return failed(r0.status, "the controller cannot reach the start of the segment: " + r0.message);
     const Prediction p = w.predict(intended, r0.q, sampleCount(intended, options.sample_step_mm, options.sample_step_deg));

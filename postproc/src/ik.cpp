@@ -434,7 +434,8 @@ struct KinematicSolver::Impl {
   /// an iteration costs one FK). Every evaluation after the first counts as an iteration.
   /// `f` holds the frames at q on entry when `f_valid`, and on return.
   Newton newton(VecN& q, const Eigen::Isometry3d& T_target, const PoseContext& ctx, const IkOptions& o,
-                int max_iterations, ChainFrames& f, bool f_valid = false) const {
+                int max_iterations, ChainFrames& f, bool f_valid = false, double polish_mm = 0,
+                double polish_rad = 0) const {
     using MatN = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxDof, kMaxDof>;
     Newton r;
     if (!f_valid) chain.evaluate(q.data(), ctx, f);
@@ -452,11 +453,18 @@ struct KinematicSolver::Impl {
     Vector6d e;
     poseErr(T_target, f.T_world_tcp, e);
     double merit = meritScaled(e);
+    // converged at the tolerance; then, when polishing, up to kPolishSteps more while they
+    // gain (a step that does not reduce the error ends it, converged)
+    int polish_left = kPolishSteps;
     auto done = [&]() {
       r.ep = e.head<3>().norm();
       r.er = e.tail<3>().norm();
       r.converged = r.ep <= o.tol_mm && r.er <= o.tol_rad;
-      return r.converged || r.iterations >= max_iterations;
+      if (r.converged) {
+        const bool polished = polish_mm <= 0 || (r.ep <= polish_mm && r.er <= polish_rad);
+        return polished || polish_left-- <= 0;
+      }
+      return r.iterations >= max_iterations;
     };
     VecN qt(n), dq(n);
     Vector6d et;
@@ -500,6 +508,8 @@ struct KinematicSolver::Impl {
         if (trial(dq)) {
           fresh = false;
           if (merit > 0.2 * before) have = false;  // slow: refresh the Jacobian
+        } else if (r.converged) {
+          return r;  // polishing reached the rounding level
         } else if (!fresh) {
           have = false;  // retry with the Jacobian at q
         } else {
@@ -531,6 +541,8 @@ struct KinematicSolver::Impl {
         if (trial(dq)) {
           accepted = true;
           lambda = std::max(lambda / 5, 1e-15 * scale);
+        } else if (r.converged) {
+          return r;  // polishing reached the rounding level
         } else {
           lambda *= 4;
           if (lambda > 1e6 * scale) return r;  // a local minimum of the error: stop
@@ -593,8 +605,12 @@ struct KinematicSolver::Impl {
   /// may be inside); the Turn bits asked for choose among the values, else nearest to ref.
   static constexpr double kSeedSlackDeg = 5.0;
   /// A warm start's solution is taken without the closed form when no joint moved more
-  /// than this from the seed (deg / mm).
+  /// than kWarmAcceptDeg from the seed, or up to kWarmMaxDeg where the scaled Jacobian's
+  /// smallest singular value exceeds the move in rad (deg / mm).
   static constexpr double kWarmAcceptDeg = 2.0;
+  static constexpr double kWarmMaxDeg = 10.0;
+  /// Newton steps after convergence while polishing (Compensator: to 1e-9 mm, 1e-12 rad).
+  static constexpr int kPolishSteps = 3;
   void closedFormStarts(const Eigen::Isometry3d& T_world_tcp, const Configuration& config, const VecN& ref,
                         const IkOptions& o, bool correct_all, const PoseContext& ctx, std::vector<Start>& starts,
                         int& outside_limits, int& branches) const {
@@ -654,7 +670,7 @@ struct KinematicSolver::Impl {
   // --- the solver -------------------------------------------------------------------------
 
   IkResult inverse(const Eigen::Isometry3d& T_target, const Configuration& config, const Eigen::VectorXd& seed,
-                   const IkOptions& o, const PoseContext& ctx) const {
+                   const IkOptions& o, const PoseContext& ctx, double polish_mm = 0, double polish_rad = 0) const {
     std::string why;
     if (!o.IsValid(&why)) throw ArgumentError(why);
     if (seed.size() != 0 && seed.size() != n)
@@ -677,9 +693,11 @@ struct KinematicSolver::Impl {
         if (!warm) ++limit_failures;
         return false;
       }
-      if (warm && (q - ref).cwiseAbs().maxCoeff() > kWarmAcceptDeg) return false;
+      const double moved_deg = warm ? (q - ref).cwiseAbs().maxCoeff() : 0.0;
+      if (warm && moved_deg > kWarmMaxDeg) return false;
       IkResult r;
       double x_a1 = 0;
+      chain.fillNominal(q.data(), f, status_geometry.last + 1);
       r.configuration.status = status_geometry.status(q.data(), &x_a1, f.cos_nominal.data(), f.sin_nominal.data());
       r.configuration.turn = turnBits(q.data(), n);
       // warm: accepted only next to the seed and on its Status (else another solution may be
@@ -698,7 +716,7 @@ struct KinematicSolver::Impl {
       }
       if (q != q_converged) {
         // moved by 360 deg: the same pose unless an effect depends on q itself (joint_scale)
-        nt = newton(q, T_target, ctx, o, 5, f);
+        nt = newton(q, T_target, ctx, o, 5, f, false, polish_mm, polish_rad);
         iterations += nt.iterations;
         if (!nt.converged) return false;
       }
@@ -707,6 +725,11 @@ struct KinematicSolver::Impl {
       r.rotation_error_rad = nt.er;
       Jac6N J;
       chain.jacobian(f, J);
+      // warm and more than kWarmAcceptDeg from the seed: taken only where the Jacobian is
+      // regular enough that no other solution can be nearer (another solution of the same pose
+      // is about sigma_min rad away or more; docs/compensation.md)
+      if (warm && moved_deg > kWarmAcceptDeg && singularBelow(J, std::max(o.singular_threshold, moved_deg * kDegToRad)))
+        return false;
       const bool singular = o.singular_threshold > 0 && singularBelow(J, o.singular_threshold);
       if (singular || o.compute_singular_value) r.min_singular_value = minSingularValue(J);
       if (!configurationMatches(config, r.configuration)) {
@@ -750,7 +773,7 @@ struct KinematicSolver::Impl {
     // 1. warm start: Newton from the seed, accepted when it stays near the seed
     if (seed.size()) {
       VecN q = ref;
-      const Newton nt = newton(q, T_target, ctx, o, std::min(o.max_iterations, 12), f);
+      const Newton nt = newton(q, T_target, ctx, o, std::min(o.max_iterations, 12), f, false, polish_mm, polish_rad);
       iterations += nt.iterations;
       if (nt.converged && finish(q, nt, true, res)) {
         res.iterations = iterations;
@@ -774,7 +797,7 @@ struct KinematicSolver::Impl {
     double best_ep = std::numeric_limits<double>::infinity(), best_er = best_ep;
     auto attempt = [&](VecN q, int branch, bool corrected, int max_iterations) -> bool {
       if (closed && !exact_closed_form && branch >= 0 && !corrected) correctSeed(q, branch, T_target, ctx);
-      const Newton nt = newton(q, T_target, ctx, o, max_iterations, f);
+      const Newton nt = newton(q, T_target, ctx, o, max_iterations, f, false, polish_mm, polish_rad);
       iterations += nt.iterations;
       if (!nt.converged) {
         if (nt.ep / o.tol_mm + nt.er / o.tol_rad < best_ep / o.tol_mm + best_er / o.tol_rad) {
@@ -906,6 +929,12 @@ IkResult KinematicSolver::inverse(const Eigen::Isometry3d& T_world_tcp, const Co
                                   const Eigen::VectorXd& seed, const IkOptions& options,
                                   const PoseContext& context) const {
   return impl_->inverse(T_world_tcp, config, seed, options, context);
+}
+
+IkResult KinematicSolver::inversePolished(const Eigen::Isometry3d& T_world_tcp, const Configuration& config,
+                                          const Eigen::VectorXd& seed, const IkOptions& options,
+                                          const PoseContext& context, double polish_mm, double polish_rad) const {
+  return impl_->inverse(T_world_tcp, config, seed, options, context, polish_mm, polish_rad);
 }
 
 std::vector<Eigen::VectorXd> KinematicSolver::closedFormSolutions(const Eigen::Isometry3d& T_world_tcp) const {

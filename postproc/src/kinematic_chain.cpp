@@ -1,5 +1,6 @@
 #include "kinematic_chain.h"
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 
@@ -146,22 +147,25 @@ void KinematicChain::evaluate(const double* q, const PoseContext& context, Chain
   if (backlash_ && !context.dir.empty() && static_cast<int>(context.dir.size()) < n_)
     throw ArgumentError("pose context: expected " + std::to_string(n_) + " approach directions, got " +
                         std::to_string(context.dir.size()));
-  // nominal angles: from the near evaluation, else from the library
-  for (int i = 0; i < n_; ++i) {
-    const Link& L = links_[static_cast<size_t>(i)];
-    const size_t k = static_cast<size_t>(i);
-    const double th = L.revolute ? L.nom_theta0 + L.dir * q[i] * kDegToRad : L.nom_theta0;
-    f.theta_nominal[k] = th;
-    if (near) {
-      cosSinFrom(th, near->theta_nominal[k], near->cos_nominal[k], near->sin_nominal[k], f.cos_nominal[k],
-                 f.sin_nominal[k]);
-    } else {
-      f.cos_nominal[k] = std::cos(th);
-      f.sin_nominal[k] = std::sin(th);
-    }
-  }
   std::array<double, kMaxDof> load{};
-  if (compliant_) gravityLoads(q, context.payload_kg, load.data(), f);
+  f.nominal_valid = compliant_;
+  if (compliant_) {
+    // nominal angles (from the near evaluation, else from the library), then the loads
+    for (int i = 0; i < n_; ++i) {
+      const Link& L = links_[static_cast<size_t>(i)];
+      const size_t k = static_cast<size_t>(i);
+      const double th = L.revolute ? L.nom_theta0 + L.dir * q[i] * kDegToRad : L.nom_theta0;
+      f.theta_nominal[k] = th;
+      if (near) {
+        cosSinFrom(th, near->theta_nominal[k], near->cos_nominal[k], near->sin_nominal[k], f.cos_nominal[k],
+                   f.sin_nominal[k]);
+      } else {
+        f.cos_nominal[k] = std::cos(th);
+        f.sin_nominal[k] = std::sin(th);
+      }
+    }
+    gravityLoads(q, context.payload_kg, load.data(), f);
+  }
   const double scale = thermal_alpha_ == 0.0 ? 1.0 : 1.0 + thermal_alpha_ * (context.temp_c - kThermalReferenceC);
   // the frame as plain numbers: columns x, y, z and origin o (scalar code: measurably faster
   // than 3-vector expressions here)
@@ -200,9 +204,19 @@ void KinematicChain::evaluate(const double* q, const PoseContext& context, Chain
     } else {
       d += L.dir * q[i] + L.compliance * load[k] + extra;
     }
-    // the link's angle is its nominal one plus small deviations
     double ct, st;
-    cosSinFrom(theta, f.theta_nominal[k], f.cos_nominal[k], f.sin_nominal[k], ct, st);
+    if (compliant_) {
+      // the link's angle is its nominal one plus small deviations
+      cosSinFrom(theta, f.theta_nominal[k], f.cos_nominal[k], f.sin_nominal[k], ct, st);
+    } else if (near) {
+      cosSinFrom(theta, near->theta[k], near->cos_theta[k], near->sin_theta[k], ct, st);
+    } else {
+      ct = std::cos(theta);
+      st = std::sin(theta);
+    }
+    f.theta[k] = theta;
+    f.cos_theta[k] = ct;
+    f.sin_theta[k] = st;
     // R Rz(theta): x' = c x + s y, y' = -s x + c y
     const double xa = ct * x0 + st * y0, xb = ct * x1 + st * y1, xc = ct * x2 + st * y2;
     const double ya = ct * y0 - st * x0, yb = ct * y1 - st * x1, yc = ct * y2 - st * x2;
@@ -238,6 +252,18 @@ void KinematicChain::evaluate(const double* q, const PoseContext& context, Chain
   f.T_world_tcp.linear().noalias() = R * T_flange_tcp_.linear();
   f.T_world_tcp.translation() = Eigen::Vector3d(o0, o1, o2) + R * T_flange_tcp_.translation();
   f.T_world_tcp.makeAffine();
+}
+
+void KinematicChain::fillNominal(const double* q, ChainFrames& f, int count) const {
+  if (f.nominal_valid) return;
+  for (int i = 0; i < std::min(count, n_); ++i) {
+    const Link& L = links_[static_cast<size_t>(i)];
+    const size_t k = static_cast<size_t>(i);
+    const double th = L.revolute ? L.nom_theta0 + L.dir * q[i] * kDegToRad : L.nom_theta0;
+    f.theta_nominal[k] = th;
+    cosSinFrom(th, f.theta[k], f.cos_theta[k], f.sin_theta[k], f.cos_nominal[k], f.sin_nominal[k]);
+  }
+  f.nominal_valid = count >= n_;
 }
 
 void KinematicChain::jacobian(const ChainFrames& f, Jac6N& J) const {

@@ -24,10 +24,14 @@ struct ChainFrames {
   std::array<Eigen::Vector3d, kMaxDof> z;
   std::array<double, kMaxDof> rate;  ///< d(theta_i or d_i)/dq_i (per rad / per mm)
   Eigen::Isometry3d T_world_tcp;
-  /// The nominal DH angle of each link (theta0 + direction q) and its cosine / sine: the
-  /// next evaluation starts from them when it is near; the gravity loads and the KUKA Status
-  /// use them.
+  /// The DH angle of each link and its cosine / sine: the next evaluation starts from them
+  /// when it is near.
+  std::array<double, kMaxDof> theta, cos_theta, sin_theta;
+  /// The nominal DH angle of each link (theta0 + direction q) and its cosine / sine (gravity
+  /// loads, KUKA Status): valid when `nominal_valid` (always for a compliant model; else see
+  /// KinematicChain::fillNominal).
   std::array<double, kMaxDof> theta_nominal, cos_nominal, sin_nominal;
+  bool nominal_valid = false;
 };
 
 class KinematicChain {
@@ -35,13 +39,16 @@ class KinematicChain {
   explicit KinematicChain(const RobotModel& model);
 
   int dof() const { return n_; }
-  /// Frames and T_world_tcp at q (deg / mm). The cosine and sine of each link's angle come
-  /// from those of its nominal angle by the angle-addition formulas (the deviations are small;
-  /// series of the difference, 1e-18 relative), and with `near` (frames of a previous
-  /// evaluation, not `f`) the nominal ones too when within 0.1 rad: calls to sin / cos only
-  /// where that does not hold.
+  /// Frames and T_world_tcp at q (deg / mm). With `near` (frames of a previous evaluation,
+  /// not `f`) the cosine and sine of an angle within 0.1 rad of its value there come from the
+  /// angle-addition formulas (series of the difference, 1e-18 relative) instead of calls to
+  /// sin / cos; for a compliant model the link angles come that way from the nominal ones
+  /// (which the gravity loads need).
   void evaluate(const double* q, const PoseContext& context, ChainFrames& f,
                 const ChainFrames* near = nullptr) const;
+  /// Fills the nominal angles of the first `count` links of `f` (evaluated at q) when they
+  /// are not valid.
+  void fillNominal(const double* q, ChainFrames& f, int count) const;
   /// Joint Jacobian from frames: rows [dp mm; dphi rad], columns per deg (revolute) or mm.
   void jacobian(const ChainFrames& f, Jac6N& J) const;
   /// Sum of the nominal link lengths |a_i| + |d_i| and the tool offset (mm, >= 1): the length

@@ -30,9 +30,10 @@ namespace accura::postproc {
 ///   Status: bit 0 set when the wrist point (origin of DH frame 5: the intersection of the
 ///           wrist axes on a spherical wrist) has a negative x in the A1 frame (the base
 ///           frame turned with A1): the "overhead area"; bit 1 set when A3 >= phi, phi the
-///           A3 angle at which the arm is stretched (wrist point on the line through the A2
-///           and A3 axes; phi = 0 when A3 and A4 have no offset); bit 2 set when A5, taken
-///           into [-180, 180), is negative.
+///           A3 angle at which the arm is stretched (the origin of DH frame 4, the wrist point
+///           on a spherical wrist, on the line through the A2 and A3 axes; phi = 0 when A3 and
+///           A4 have no offset, -2.99 deg on a KR 16); bit 2 set when A5, taken into
+///           [-180, 180), is negative. (KUKA's home {0, -90, 90, 0, 0, 0}: S 2, T 2.)
 /// Status is computed from the nominal geometry (what the controller computes) and is
 /// defined for robots with 6 or more joints, the first 6 revolute; otherwise -1.
 struct Configuration {
@@ -55,9 +56,10 @@ struct IkOptions {
   int max_iterations = 100;
   double joint_margin = 0; ///< required distance from the joint limits (deg or mm)
   /// A solution whose scaled joint Jacobian (docs/compensation.md: position rows divided by
-  /// the robot's reach, columns per radian) has a smallest singular value below this is
-  /// reported as kSingular (dimensionless; on a KR 16 the wrist gives about 0.064 |A5|, A5
-  /// in rad, so 1e-4 is A5 within about 0.09 deg of 0).
+  /// the sum of the link lengths and the tool offset, columns per radian) has a smallest
+  /// singular value below this is
+  /// reported as kSingular (dimensionless; on a KR 16 the wrist gives about 0.25 |A5|, A5
+  /// in rad, so 1e-4 is A5 within about 0.02 deg of 0; 0 turns the check off).
   double singular_threshold = 1e-4;
   /// Compute IkResult::min_singular_value exactly (an SVD, about 10 us) for every solution;
   /// otherwise only for singular ones.
@@ -135,17 +137,25 @@ class KinematicSolver {
   struct Impl;
 
  private:
+  friend class Compensator;
+  /// inverse(), then polished to polish_mm / polish_rad (see compensatePose).
+  IkResult inversePolished(const Eigen::Isometry3d& T_world_tcp, const Configuration& config,
+                           const Eigen::VectorXd& seed, const IkOptions& options, const PoseContext& context,
+                           double polish_mm, double polish_rad) const;
   std::shared_ptr<const Impl> impl_;
 };
 
 /// Inverse kinematics of the complete model `model` (base, tool, deviations, every effect in
-/// `context`) for T_world_tcp. `config`: the S/T branch to take (-1: any; then the solution
-/// nearest to `seed` when a seed is given, else nearest to the middle of the joint ranges).
-/// `seed`: optional warm start (empty = cold). Seeds: the closed form of the nominal geometry
-/// (all branches), refined by Newton's method on the complete model until the pose error is
-/// below tol_mm and tol_rad; with a seed, Newton from the seed first.
+/// `context`) for T_world_tcp, converged to tol_mm and tol_rad on the complete model.
+/// `config`: the S/T branch to take (-1 parts: any). `seed`: optional warm start (empty =
+/// cold). With a seed and any Status, the solution continuing from the seed: Newton from the
+/// seed when it stays within 2 deg of it (10 deg where the Jacobian is well conditioned) on
+/// the seed's Status, else the closed-form branch nearest to the seed; without a seed, the
+/// branch nearest to the middle of the joint ranges. Seeds: the closed form of the nominal
+/// links (all 8 branches) corrected for the deviations, then Newton's method (and
+/// Levenberg-Marquardt) on the complete model; docs/compensation.md has the whole order.
 /// Never returns a wrong point: status says why there is none. Throws ArgumentError when the
-/// seed has the wrong size or the options are invalid.
+/// seed has the wrong size, the target is not finite or the options are invalid.
 /// Each call prepares the model (a few us); use KinematicSolver for many calls.
 IkResult inverseKinematics(const RobotModel& model, const Eigen::Isometry3d& T_world_tcp,
                            const Configuration& config, const Eigen::VectorXd& seed,
@@ -156,7 +166,9 @@ IkResult inverseKinematics(const RobotModel& model, const Eigen::Isometry3d& T_w
 
 /// Discrete compensation of one pose: q' = IK_real(desired), command = FK_controller(q').
 /// The controller's own IK, asked for `command` with `configuration`, returns q', so the
-/// real robot lands on the desired pose.
+/// real robot lands on the desired pose. Once within the IK tolerance, q' is polished (a few
+/// more Newton steps while they gain) to about 1e-9 mm and 1e-12 rad, so that the command is
+/// the exact solution far below any printed resolution: the same output on every machine.
 struct PoseCompensation {
   IkStatus status = IkStatus::kNotConverged;
   std::string message;
@@ -171,6 +183,8 @@ struct PoseCompensation {
   double correction_mm = 0;          ///< |command - desired| position
   double correction_deg = 0;         ///< rotation angle between command and desired
 };
+/// Throws ArgumentError for invalid options, a seed of the wrong size or models of different
+/// joint counts.
 PoseCompensation compensatePose(const RobotModel& controller, const RobotModel& real,
                                 const Eigen::Isometry3d& T_world_tcp_desired,
                                 const Configuration& config, const Eigen::VectorXd& seed,
@@ -224,6 +238,10 @@ struct SegmentCompensation {
   double max_error_bound_mm = 0;
   int points_added = 0;            ///< commanded.size() - 1: new targets inserted
 };
+/// Greedy: each piece as long as the tolerance allows (docs/compensation.md). Failures
+/// (unreachable, singular, tolerance not met within max_points_per_segment) come back in
+/// `status` / `message` with `commanded` empty. Throws ArgumentError for invalid options and
+/// NumericalError for a CIRC without a circle (collinear points).
 SegmentCompensation compensateSegment(const RobotModel& controller, const RobotModel& real,
                                       const PathSegment& intended, const Configuration& config,
                                       const Eigen::VectorXd& seed, const DensifyOptions& options,
@@ -278,7 +296,8 @@ std::vector<Eigen::Isometry3d> simulateExecution(const RobotModel& controller,
                                                  double payload_kg = 0);
 
 /// Largest distance (mm) from the sampled poses' positions to the intended path (the union
-/// of the intended segments' curves: line segments and circular arcs).
+/// of the intended segments' curves: line segments and circular arcs). Throws ArgumentError
+/// when `intended` is empty.
 double maxPathDeviation(const std::vector<Eigen::Isometry3d>& samples,
                         const std::vector<PathSegment>& intended);
 
