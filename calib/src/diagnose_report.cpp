@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "accura/calib/diagnose.h"
+#include "accura/calib/text.h"
 
 namespace accura {
 namespace {
@@ -92,19 +93,7 @@ ordered_json arrayOf(const std::vector<double>& v) {
 // ---------------------------------------------------------------------------------------
 // HTML helpers
 
-std::string esc(const std::string& s) {
-  std::string o;
-  for (char c : s) {
-    switch (c) {
-      case '&': o += "&amp;"; break;
-      case '<': o += "&lt;"; break;
-      case '>': o += "&gt;"; break;
-      case '"': o += "&quot;"; break;
-      default: o += c;
-    }
-  }
-  return o;
-}
+std::string esc(const std::string& s) { return xmlEscape(s); }
 
 // Colour of t in [0, 1]: a perceptual ramp from dark blue through green to yellow.
 std::string ramp(double t) {

@@ -323,9 +323,9 @@ RobotModel identify(const RobotModel& start, const MeasurementSet& data,
                                                              [](const Measurement& r) { return r.has_orientation; });
   std::map<std::string, std::set<int>> groups;  // group -> joints (1-based; empty: all)
   for (const auto& g : options.groups) {
-    std::string name, why;
+    std::string name, spec_error;
     std::set<int> joints;
-    parseGroupSpec(g, &name, &joints, &why);  // validated by IsValid
+    parseGroupSpec(g, &name, &joints, &spec_error);  // validated by IsValid
     if (name == "geometric") {
       for (const char* s : {"base", "tool", "offsets", "lengths", "angles"}) groups[s] = joints;
     } else {

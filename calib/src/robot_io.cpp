@@ -14,6 +14,7 @@
 
 #include "accura/calib/errors.h"
 #include "accura/calib/file_io.h"
+#include "accura/calib/text.h"
 #include "accura/calib/kinematics.h"
 
 namespace fs = std::filesystem;
@@ -103,20 +104,6 @@ void writePose(std::ostream& out, const char* tag, const Eigen::Isometry3d& T,
   out << indent << "<" << tag << " x_mm=\"" << fmt(p.x_mm) << "\" y_mm=\"" << fmt(p.y_mm)
       << "\" z_mm=\"" << fmt(p.z_mm) << "\" a_deg=\"" << fmt(p.a_deg) << "\" b_deg=\""
       << fmt(p.b_deg) << "\" c_deg=\"" << fmt(p.c_deg) << "\"/>\n";
-}
-
-std::string xmlEscape(const std::string& s) {
-  std::string o;
-  for (char c : s) {
-    switch (c) {
-      case '&': o += "&amp;"; break;
-      case '<': o += "&lt;"; break;
-      case '>': o += "&gt;"; break;
-      case '"': o += "&quot;"; break;
-      default: o += c;
-    }
-  }
-  return o;
 }
 
 std::string robotsDir() {

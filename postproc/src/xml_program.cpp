@@ -2,6 +2,7 @@
 #include "accura/postproc/xml_program.h"
 
 #include <tinyxml2.h>
+#include "accura/calib/text.h"
 
 #include <cmath>
 #include <cstdlib>
@@ -39,20 +40,6 @@ std::set<std::string> frameAttrs() {
 
 std::set<std::string> motionAttrs() {
   return {"vel_percent", "vel_m_s", "approx", "approx_value", "ca_deg", "relative", "external_tcp"};
-}
-
-std::string xmlEscape(const std::string& s) {
-  std::string o;
-  for (char c : s) {
-    switch (c) {
-      case '&': o += "&amp;"; break;
-      case '<': o += "&lt;"; break;
-      case '>': o += "&gt;"; break;
-      case '"': o += "&quot;"; break;
-      default: o += c;
-    }
-  }
-  return o;
 }
 
 class Reader {
