@@ -25,17 +25,9 @@
 namespace accura::postproc {
 namespace {
 
-struct CliRun {
-  int code;
-  std::string out, err;
-};
-
+using test::CliRun;
 // Runs accura in `dir` (relative paths in the arguments).
-CliRun accura(const std::string& dir, const std::string& args) {
-  const std::string cmd = "cd '" + dir + "' && " + std::string(ACCURA_CLI) + " " + args + " >.stdout 2>.stderr";
-  const int status = std::system(cmd.c_str());
-  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, test::readText(dir + "/.stdout"), test::readText(dir + "/.stderr")};
-}
+CliRun accura(const std::string& dir, const std::string& args) { return test::runAccuraIn(dir, args); }
 
 std::string golden(const std::string& rel) { return test::sourcePath("tests/golden/compensate/" + rel); }
 

@@ -19,15 +19,6 @@
 namespace accura {
 namespace {
 
-Eigen::VectorXd randomQ(const RobotModel& m, std::mt19937_64& rng) {
-  Eigen::VectorXd q(m.dof());
-  for (int i = 0; i < m.dof(); ++i) {
-    std::uniform_real_distribution<double> u(m.nominal.joints[i].lower, m.nominal.joints[i].upper);
-    q[i] = u(rng);
-  }
-  return q;
-}
-
 PoseContext randomContext(int dof, std::mt19937_64& rng) {
   PoseContext c;
   c.payload_kg = std::uniform_real_distribution<double>(0, 12)(rng);
@@ -53,7 +44,7 @@ TEST(Effects, JointEffectsEqualAShiftedJointValue) {
       const int i = static_cast<int>(rng() % static_cast<unsigned>(n));
       const JointSpec& j = base.nominal.joints[i];
       const bool revolute = j.type == JointType::kRevolute;
-      const Eigen::VectorXd q = randomQ(base, rng);
+      const Eigen::VectorXd q = test::randomQ(base, rng);
       const PoseContext ctx = randomContext(n, rng);
       const double qi = revolute ? q[i] * kDegToRad : q[i];
       // expected joint-space term (rad or mm) of each effect, written from the formulas
@@ -137,7 +128,7 @@ TEST(Effects, ThermalScalesEveryLinkLengthAboutTheReferenceTemperature) {
     cold.deviations.thermal_alpha_per_k = 0;
     KinematicWorkspace ws;
     for (int k = 0; k < 5; ++k) {
-      const Eigen::VectorXd q = randomQ(m, rng);
+      const Eigen::VectorXd q = test::randomQ(m, rng);
       EXPECT_LT(poseDiff(forwardKinematics(m, q, warm, ws), forwardKinematics(scaled, q, warm, ws)), 1e-9) << name;
       EXPECT_LT(poseDiff(forwardKinematics(m, q, reference, ws), forwardKinematics(cold, q, reference, ws)), 1e-12)
           << name;
@@ -171,7 +162,7 @@ TEST(Effects, ParameterJacobianOfEveryEffectMatchesCentralDifferences) {
       const std::vector<ParamInfo> layout = parameterLayout(m);
       KinematicWorkspace ws;
       for (int trial = 0; trial < 3; ++trial) {
-        const Eigen::VectorXd q = randomQ(m, rng);
+        const Eigen::VectorXd q = test::randomQ(m, rng);
         const PoseContext ctx = randomContext(m.dof(), rng);
         Eigen::MatrixXd J;
         const Eigen::Isometry3d T0 = parameterJacobian(m, layout, q, ctx, ws, J);
@@ -215,7 +206,7 @@ TEST(Effects, JointJacobianIncludesScaleAndGearTerms) {
   }
   KinematicWorkspace ws;
   const PoseContext ctx = randomContext(6, rng);
-  const Eigen::VectorXd q = randomQ(m, rng);
+  const Eigen::VectorXd q = test::randomQ(m, rng);
   const auto Jq = jointJacobian(m, q, ctx, ws);
   for (int i = 0; i < 6; ++i) {
     const double h = 1e-5;
@@ -258,7 +249,7 @@ TEST(Effects, ModelWithEffectsRoundTripsThroughARobotFile) {
   const RobotModel back = readRobotFile(dir + "/m.xml");
   KinematicWorkspace ws;
   for (int k = 0; k < 5; ++k) {
-    const Eigen::VectorXd q = randomQ(m, rng);
+    const Eigen::VectorXd q = test::randomQ(m, rng);
     const PoseContext ctx = randomContext(6, rng);
     // parameters are written with 10 significant digits or better: positions agree to 1e-4 mm
     EXPECT_LT((forwardKinematics(m, q, ctx, ws).translation() - forwardKinematics(back, q, ctx, ws).translation()).norm(),

@@ -76,15 +76,6 @@ TEST(Kinematics, WrongJointCountIsAnArgumentError) {
   }
 }
 
-Eigen::VectorXd randomQ(const RobotModel& m, std::mt19937_64& rng) {
-  Eigen::VectorXd q(m.dof());
-  for (int i = 0; i < m.dof(); ++i) {
-    std::uniform_real_distribution<double> u(m.nominal.joints[i].lower, m.nominal.joints[i].upper);
-    q[i] = u(rng);
-  }
-  return q;
-}
-
 TEST(Kinematics, HayatiFormEqualsDhAtNominal) {
   std::mt19937_64 rng(3);
   for (const char* name : {"kuka_kr16", "ur10", "scara", "abb_irb120"}) {
@@ -94,7 +85,7 @@ TEST(Kinematics, HayatiFormEqualsDhAtNominal) {
     for (LinkForm f : autoForm.forms) hayati += f == LinkForm::kHayati;
     EXPECT_GT(hayati, 0) << name << " has parallel axes, so some link must use the Hayati form";
     for (int k = 0; k < 20; ++k) {
-      const Eigen::VectorXd q = randomQ(autoForm, rng);
+      const Eigen::VectorXd q = test::randomQ(autoForm, rng);
       const Eigen::Matrix4d a = forwardKinematics(autoForm, q).matrix();
       const Eigen::Matrix4d b = forwardKinematics(dhForm, q).matrix();
       EXPECT_LT((a - b).cwiseAbs().maxCoeff(), 1e-9) << name;
@@ -135,7 +126,7 @@ TEST(Kinematics, ParameterJacobianMatchesCentralDifferences) {
       PoseContext ctx;
       ctx.payload_kg = 7.5;
       for (int trial = 0; trial < 5; ++trial) {
-        const Eigen::VectorXd q = randomQ(m, rng);
+        const Eigen::VectorXd q = test::randomQ(m, rng);
         Eigen::MatrixXd J;
         const Eigen::Isometry3d T0 = parameterJacobian(m, layout, q, ctx, ws, J);
         EXPECT_LT((T0.matrix() - forwardKinematics(m, q, ctx, ws).matrix()).cwiseAbs().maxCoeff(), 1e-9);
@@ -170,7 +161,7 @@ TEST(Kinematics, JointJacobianMatchesCentralDifferences) {
     randomDeviations(m, rng);
     for (auto& c : m.deviations.compliance) c = 0;  // jointJacobian neglects compliance
     KinematicWorkspace ws;
-    const Eigen::VectorXd q = randomQ(m, rng);
+    const Eigen::VectorXd q = test::randomQ(m, rng);
     const auto Jq = jointJacobian(m, q, PoseContext{}, ws);
     for (int i = 0; i < m.dof(); ++i) {
       const double h = 1e-5;
@@ -206,7 +197,7 @@ TEST(Kinematics, GravityLoadsAreMinusTheGradientOfPotentialEnergy) {
       return V;  // J (mm -> m)
     };
     for (int trial = 0; trial < 5; ++trial) {
-      const Eigen::VectorXd q = randomQ(m, rng);
+      const Eigen::VectorXd q = test::randomQ(m, rng);
       const Eigen::VectorXd tau = gravityLoads(m, q, ctx);
       for (int i = 0; i < m.dof(); ++i) {
         const bool revolute = m.nominal.joints[i].type == JointType::kRevolute;

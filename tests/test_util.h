@@ -1,7 +1,11 @@
 // Helpers shared by the tests.
 #pragma once
 
+#include <sys/wait.h>
+
 #include <cstdio>
+#include <cstdlib>
+#include <random>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -41,6 +45,29 @@ inline void writeText(const std::string& path, const std::string& text) {
 inline std::string readText(const std::string& path) {
   std::ifstream f(path, std::ios::binary);
   return std::string((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+}
+
+/// Random joint values uniformly within the joint limits.
+inline Eigen::VectorXd randomQ(const RobotModel& m, std::mt19937_64& rng) {
+  Eigen::VectorXd q(m.dof());
+  for (int i = 0; i < m.dof(); ++i) {
+    std::uniform_real_distribution<double> u(m.nominal.joints[i].lower, m.nominal.joints[i].upper);
+    q[i] = u(rng);
+  }
+  return q;
+}
+
+/// Exit code, standard output and standard error of one run of the accura command.
+struct CliRun {
+  int code;
+  std::string out, err;
+};
+
+/// Runs `accura ARGS` in directory `dir` (relative paths in ARGS are relative to it).
+inline CliRun runAccuraIn(const std::string& dir, const std::string& args) {
+  const std::string cmd = "cd '" + dir + "' && " + std::string(ACCURA_CLI) + " " + args + " >.stdout 2>.stderr";
+  const int status = std::system(cmd.c_str());
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, readText(dir + "/.stdout"), readText(dir + "/.stderr")};
 }
 
 }  // namespace accura::test
