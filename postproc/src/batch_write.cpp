@@ -5,7 +5,9 @@
 
 #include <atomic>
 #include <cerrno>
+#include <chrono>
 #include <csignal>
+#include <ctime>
 #include <cstring>
 #include <filesystem>
 #include <mutex>
@@ -42,7 +44,17 @@ void writeStderr(const char* msg) {
 }
 
 // Removes every temporary file that is being written (not those being renamed into place).
+// A slot stays kReserved from its reservation until its file is open; once g_interrupted is
+// set no new slot is handed out (acquireSlot), so waiting (bounded: the handler may run on
+// the very thread that holds the slot) for the kReserved ones lets their files be unlinked too.
 void unlinkWriting() {
+  for (int spin = 0; spin < 2000; ++spin) {  // at most ~200 ms
+    bool reserved = false;
+    for (Slot& s : g_slots) reserved = reserved || s.state.load() == kReserved;
+    if (!reserved) break;
+    struct timespec ts{0, 100000};  // 0.1 ms; nanosleep is async-signal-safe
+    ::nanosleep(&ts, nullptr);
+  }
   for (Slot& s : g_slots)
     if (s.state.load() == kWriting) ::unlink(s.path);
 }
@@ -58,7 +70,7 @@ extern "C" void onInterrupt(int) {
   bool committing = false;
   for (Slot& s : g_slots) {
     const int st = s.state.load();
-    if (st == kWriting) ::unlink(s.path);
+    if (st == kWriting || st == kReserved) ::unlink(s.path);
     if (st == kCommitting) committing = true;
   }
   // A program's files being renamed into place: that thread finishes and exits.
@@ -72,8 +84,11 @@ int acquireSlot(const std::string& path) {
       int expected = kFree;
       if (g_slots[i].state.compare_exchange_strong(expected, kReserved)) {
         std::memcpy(g_slots[i].path, path.c_str(), path.size() + 1);
-        g_slots[i].state.store(kWriting);
-        return i;
+        if (g_interrupted.load()) {  // interrupted: no new temporary file; the handler exits
+          g_slots[i].state.store(kFree);
+          for (;;) std::this_thread::sleep_for(std::chrono::seconds(1));
+        }
+        return i;  // stays kReserved until its file is open (writeFilesAtomically)
       }
     }
     std::this_thread::yield();  // more files in flight than slots: wait for one
@@ -127,6 +142,7 @@ void writeFilesAtomically(const std::vector<OutputFile>& files) {
       slots.push_back(slot);
       temps.push_back(tmp);
       const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+      g_slots[slot].state.store(kWriting);
       if (fd < 0) throw InputError(f.path, 0, 0, std::string("cannot write file: ") + std::strerror(errno));
       try {
         writeAll(fd, f.text, f.path);
