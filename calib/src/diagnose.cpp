@@ -537,12 +537,8 @@ bool solveSpd(const Eigen::MatrixXd& M, const Eigen::VectorXd& v, Eigen::LLT<Eig
 Diagnoser::Eval Diagnoser::evaluate(const std::vector<int>& S, bool leverage) const {
   Eval ev;
   const Eigen::Index s = static_cast<Eigen::Index>(S.size());
-  Eigen::MatrixXd AS(s, s);
-  Eigen::VectorXd bS(s);
-  for (Eigen::Index a = 0; a < s; ++a) {
-    bS[a] = b_[S[a]];
-    for (Eigen::Index c = 0; c < s; ++c) AS(a, c) = A_(S[a], S[c]);
-  }
+  const Eigen::MatrixXd AS = A_(S, S);  // the normal equations of the blocks in S
+  const Eigen::VectorXd bS = b_(S);
   Eigen::LLT<Eigen::MatrixXd> llt;
   Eigen::VectorXd x;
   if (has_val_) {
@@ -583,12 +579,8 @@ Diagnoser::Eval Diagnoser::evaluate(const std::vector<int>& S, bool leverage) co
 // times the variance factor) when asked.
 Eigen::VectorXd Diagnoser::fitAll(const std::vector<int>& S, double* chi2, Eigen::VectorXd* sigma) const {
   const Eigen::Index s = static_cast<Eigen::Index>(S.size());
-  Eigen::MatrixXd AS(s, s);
-  Eigen::VectorXd bS(s);
-  for (Eigen::Index a = 0; a < s; ++a) {
-    bS[a] = b_[S[a]];
-    for (Eigen::Index c = 0; c < s; ++c) AS(a, c) = A_(S[a], S[c]);
-  }
+  const Eigen::MatrixXd AS = A_(S, S);  // the normal equations of the blocks in S
+  const Eigen::VectorXd bS = b_(S);
   Eigen::LLT<Eigen::MatrixXd> llt;
   Eigen::VectorXd x;
   if (!solveSpd(AS, bS, &llt, &x)) throw NumericalError("diagnose: the normal matrix of the fit is singular");
