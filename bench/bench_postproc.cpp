@@ -114,6 +114,7 @@ struct Setup {
   Compensator compensator{controller, real_compliant};
   KDL::Chain chain = kdlChain(real);
   KDL::JntArray q_min, q_max, q_mid;
+  Eigen::VectorXd q_mid_deg;     ///< the middle of the joint ranges (deg): KDL's cold seed
   std::unique_ptr<KDL::ChainFkSolverPos_recursive> kdl_fk;
   std::unique_ptr<KDL::ChainIkSolverVel_pinv> kdl_vel;
   std::unique_ptr<KDL::ChainIkSolverPos_NR_JL> kdl_ik;
@@ -132,11 +133,13 @@ struct Setup {
     q_min.resize(n);
     q_max.resize(n);
     q_mid.resize(n);
+    q_mid_deg.resize(n);
     for (int i = 0; i < n; ++i) {
       const accura::JointSpec& j = real.nominal.joints[static_cast<size_t>(i)];
       q_min(i) = j.lower * kDeg;
       q_max(i) = j.upper * kDeg;
       q_mid(i) = 0.5 * (j.lower + j.upper) * kDeg;
+      q_mid_deg[i] = 0.5 * (j.lower + j.upper);
     }
     kdl_fk = std::make_unique<KDL::ChainFkSolverPos_recursive>(chain);
     kdl_vel = std::make_unique<KDL::ChainIkSolverVel_pinv>(chain);
@@ -206,13 +209,15 @@ struct Setup {
            accura::logSO3(F.linear() * T.linear().transpose()).norm() <= 1.8e-6;
   }
 
+  /// KDL's solve alone (the timed part): true when KDL reports success.
   bool kdlSolve(const KDL::JntArray& seed, const Eigen::Isometry3d& T, KDL::JntArray& out) const {
     out.resize(seed.rows());
-    const int rc = kdl_ik->CartToJnt(seed, toKdl(T), out);
-    if (rc < 0) return false;
-    Eigen::VectorXd q(out.rows());
-    for (unsigned i = 0; i < out.rows(); ++i) q[i] = out(i) / kDeg;
-    return reached(q, T);
+    return kdl_ik->CartToJnt(seed, toKdl(T), out) >= 0;
+  }
+  static Eigen::VectorXd fromKdl(const KDL::JntArray& q) {
+    Eigen::VectorXd v(q.rows());
+    for (unsigned i = 0; i < q.rows(); ++i) v[i] = q(i) / kDeg;
+    return v;
   }
 };
 
@@ -237,141 +242,195 @@ IkOptions ikOptions(bool check) {
   return o;
 }
 
-void pathWarmAccura(benchmark::State& state, const std::vector<Eigen::Isometry3d>& path, bool check = true) {
+/// One pass over `path` as the timed loop does it (each solve seeded with the previous
+/// solution), untimed, every solution checked with reached(): the success rate reported.
+/// `solve(seed, target, out)` returns whether the solver claimed success.
+template <class Solve>
+double verifiedPathPass(const std::vector<Eigen::Isometry3d>& path, const Eigen::VectorXd& q0, Solve solve,
+                        double* evals = nullptr) {
+  const Setup& s = setup();
+  Eigen::VectorXd q = q0, out;
+  long ok = 0, n_evals = 0;
+  for (const Eigen::Isometry3d& T : path) {
+    int e = 0;
+    if (solve(q, T, out, e)) {
+      if (s.reached(out, T)) ++ok;
+      q = out;
+    }
+    n_evals += e;
+  }
+  if (evals) *evals = path.empty() ? 0 : static_cast<double>(n_evals) / static_cast<double>(path.size());
+  return path.empty() ? 0 : 100.0 * static_cast<double>(ok) / static_cast<double>(path.size());
+}
+
+/// `workspace`: with an IkWorkspace carried along the path (the frames and Jacobian of the
+/// previous solution are reused); without: the stateless call, seed only.
+void pathWarmAccura(benchmark::State& state, const std::vector<Eigen::Isometry3d>& path, bool check = true,
+                    bool workspace = true) {
   const Setup& s = setup();
   if (!s.error.empty()) return state.SkipWithError(s.error.c_str());
   const IkOptions o = ikOptions(check);
+  accura::postproc::IkWorkspace ws;
+  auto solve = [&](const Eigen::Isometry3d& T, const Eigen::VectorXd& seed) {
+    return workspace ? s.solver.inverse(T, Configuration{}, seed, o, {}, ws) : s.solver.inverse(T, Configuration{}, seed, o);
+  };
+  double evals = 0;
+  const double verified = verifiedPathPass(
+      path, s.path_q0,
+      [&](const Eigen::VectorXd& seed, const Eigen::Isometry3d& T, Eigen::VectorXd& out, int& e) {
+        const IkResult r = solve(T, seed);
+        out = r.q;
+        e = 1 + r.iterations;  // FK evaluations (with a reused workspace, one of them stored)
+        return r.status == IkStatus::kOk;
+      },
+      &evals);
+  ws.clear();
   Eigen::VectorXd q = s.path_q0;
   size_t k = 0;
-  long ok = 0, total = 0;
+  long total = 0;
   for (auto _ : state) {
-    const IkResult r = s.solver.inverse(path[k], Configuration{}, q, o);
+    const IkResult r = solve(path[k], q);
     benchmark::DoNotOptimize(r.q.data());
     ++total;
-    if (r.status == IkStatus::kOk) {
-      ++ok;
-      q = r.q;
-    }
+    if (r.status == IkStatus::kOk) q = r.q;
     if (++k == path.size()) {
       k = 0;
       q = s.path_q0;
     }
   }
-  rate(state, ok, total);
+  state.counters["success_%"] = verified;
+  state.counters["fk_evals"] = evals;
+  state.SetItemsProcessed(total);
 }
 
 void pathWarmKdl(benchmark::State& state, const std::vector<Eigen::Isometry3d>& path) {
   const Setup& s = setup();
   if (!s.error.empty()) return state.SkipWithError(s.error.c_str());
+  const double verified = verifiedPathPass(
+      path, s.path_q0, [&](const Eigen::VectorXd& seed, const Eigen::Isometry3d& T, Eigen::VectorXd& out, int&) {
+        KDL::JntArray o;
+        const bool good = s.kdlSolve(Setup::toKdlJoints(seed), T, o);
+        out = Setup::fromKdl(o);
+        return good;
+      });
   KDL::JntArray q = Setup::toKdlJoints(s.path_q0), out;
   size_t k = 0;
-  long ok = 0, total = 0;
+  long total = 0;
   for (auto _ : state) {
     const bool good = s.kdlSolve(q, path[k], out);
     benchmark::DoNotOptimize(out.data.data());
     ++total;
-    if (good) {
-      ++ok;
-      q = out;
-    }
+    if (good) q = out;
     if (++k == path.size()) {
       k = 0;
       q = Setup::toKdlJoints(s.path_q0);
     }
   }
-  rate(state, ok, total);
+  state.counters["success_%"] = verified;
+  state.SetItemsProcessed(total);
 }
 
 void BM_PathWarm_Accura(benchmark::State& state) { pathWarmAccura(state, setup().path); }
 BENCHMARK(BM_PathWarm_Accura);
 void BM_PathWarm_AccuraNoSingularCheck(benchmark::State& state) { pathWarmAccura(state, setup().path, false); }
 BENCHMARK(BM_PathWarm_AccuraNoSingularCheck);
+void BM_PathWarm_AccuraStateless(benchmark::State& state) { pathWarmAccura(state, setup().path, true, false); }
+BENCHMARK(BM_PathWarm_AccuraStateless);
 void BM_PathWarm_KDL(benchmark::State& state) { pathWarmKdl(state, setup().path); }
 BENCHMARK(BM_PathWarm_KDL);
 void BM_Path20Warm_Accura(benchmark::State& state) { pathWarmAccura(state, setup().path20); }
 BENCHMARK(BM_Path20Warm_Accura);
 void BM_Path20Warm_AccuraNoSingularCheck(benchmark::State& state) { pathWarmAccura(state, setup().path20, false); }
 BENCHMARK(BM_Path20Warm_AccuraNoSingularCheck);
+void BM_Path20Warm_AccuraStateless(benchmark::State& state) { pathWarmAccura(state, setup().path20, true, false); }
+BENCHMARK(BM_Path20Warm_AccuraStateless);
 void BM_Path20Warm_KDL(benchmark::State& state) { pathWarmKdl(state, setup().path20); }
 BENCHMARK(BM_Path20Warm_KDL);
 
 // ---------------------------------------------------------------------------------------
 // (b) random poses, seeded 0.5 deg per joint away
 
-void nearbyWarmAccura(benchmark::State& state, bool check) {
+/// One untimed pass over the 1 000 targets, every solution checked with reached(): the
+/// success rate reported. `solve(k, out)` returns whether the solver claimed success.
+template <class Solve>
+double verifiedPass(Solve solve) {
+  const Setup& s = setup();
+  long ok = 0;
+  Eigen::VectorXd out;
+  for (size_t k = 0; k < s.targets.size(); ++k)
+    if (solve(k, out) && s.reached(out, s.targets[k])) ++ok;
+  return s.targets.empty() ? 0 : 100.0 * static_cast<double>(ok) / static_cast<double>(s.targets.size());
+}
+
+/// accura on the 1 000 targets: seeded with `seeds` (empty vectors: cold, with the targets'
+/// Status/Turn).
+void targetsAccura(benchmark::State& state, const std::vector<Eigen::VectorXd>& seeds, bool cold, bool check) {
   const Setup& s = setup();
   if (!s.error.empty()) return state.SkipWithError(s.error.c_str());
   const IkOptions o = ikOptions(check);
+  const Eigen::VectorXd none;
+  auto solve = [&](size_t k) {
+    return s.solver.inverse(s.targets[k], cold ? s.configs[k] : Configuration{}, cold ? none : seeds[k], o);
+  };
+  const double verified = verifiedPass([&](size_t k, Eigen::VectorXd& out) {
+    const IkResult r = solve(k);
+    out = r.q;
+    return r.status == IkStatus::kOk;
+  });
   size_t k = 0;
-  long ok = 0, total = 0;
+  long total = 0;
   for (auto _ : state) {
-    const IkResult r = s.solver.inverse(s.targets[k], Configuration{}, s.nearby[k], o);
+    const IkResult r = solve(k);
     benchmark::DoNotOptimize(r.q.data());
     ++total;
-    if (r.status == IkStatus::kOk) ++ok;
     if (++k == s.targets.size()) k = 0;
   }
-  rate(state, ok, total);
+  state.counters["success_%"] = verified;
+  state.SetItemsProcessed(total);
 }
-void BM_NearbyWarm_Accura(benchmark::State& state) { nearbyWarmAccura(state, true); }
-BENCHMARK(BM_NearbyWarm_Accura);
-void BM_NearbyWarm_AccuraNoSingularCheck(benchmark::State& state) { nearbyWarmAccura(state, false); }
-BENCHMARK(BM_NearbyWarm_AccuraNoSingularCheck);
 
-void BM_NearbyWarm_KDL(benchmark::State& state) {
+/// KDL on the 1 000 targets from `seeds` (one seed for all when it has one element).
+void targetsKdl(benchmark::State& state, const std::vector<Eigen::VectorXd>& seeds) {
   const Setup& s = setup();
   if (!s.error.empty()) return state.SkipWithError(s.error.c_str());
-  std::vector<KDL::JntArray> seeds;
-  for (const Eigen::VectorXd& q : s.nearby) seeds.push_back(Setup::toKdlJoints(q));
+  std::vector<KDL::JntArray> kdl_seeds;
+  for (const Eigen::VectorXd& q : seeds) kdl_seeds.push_back(Setup::toKdlJoints(q));
+  auto seedOf = [&](size_t k) -> const KDL::JntArray& { return kdl_seeds[kdl_seeds.size() == 1 ? 0 : k]; };
+  const double verified = verifiedPass([&](size_t k, Eigen::VectorXd& out) {
+    KDL::JntArray o;
+    const bool good = s.kdlSolve(seedOf(k), s.targets[k], o);
+    out = Setup::fromKdl(o);
+    return good;
+  });
   KDL::JntArray out;
   size_t k = 0;
-  long ok = 0, total = 0;
+  long total = 0;
   for (auto _ : state) {
-    const bool good = s.kdlSolve(seeds[k], s.targets[k], out);
+    const bool good = s.kdlSolve(seedOf(k), s.targets[k], out);
+    benchmark::DoNotOptimize(good);
     benchmark::DoNotOptimize(out.data.data());
     ++total;
-    if (good) ++ok;
     if (++k == s.targets.size()) k = 0;
   }
-  rate(state, ok, total);
+  state.counters["success_%"] = verified;
+  state.SetItemsProcessed(total);
 }
+
+// (b) random poses, seeded 0.5 deg per joint away
+void BM_NearbyWarm_Accura(benchmark::State& state) { targetsAccura(state, setup().nearby, false, true); }
+BENCHMARK(BM_NearbyWarm_Accura);
+void BM_NearbyWarm_AccuraNoSingularCheck(benchmark::State& state) {
+  targetsAccura(state, setup().nearby, false, false);
+}
+BENCHMARK(BM_NearbyWarm_AccuraNoSingularCheck);
+void BM_NearbyWarm_KDL(benchmark::State& state) { targetsKdl(state, setup().nearby); }
 BENCHMARK(BM_NearbyWarm_KDL);
 
-// ---------------------------------------------------------------------------------------
-// (c) the same poses, cold
-
-void BM_Cold_Accura(benchmark::State& state) {
-  const Setup& s = setup();
-  if (!s.error.empty()) return state.SkipWithError(s.error.c_str());
-  const IkOptions o;
-  size_t k = 0;
-  long ok = 0, total = 0;
-  for (auto _ : state) {
-    const IkResult r = s.solver.inverse(s.targets[k], s.configs[k], Eigen::VectorXd(), o);
-    benchmark::DoNotOptimize(r.q.data());
-    ++total;
-    if (r.status == IkStatus::kOk) ++ok;
-    if (++k == s.targets.size()) k = 0;
-  }
-  rate(state, ok, total);
-}
+// (c) the same poses, cold: accura with the targets' Status/Turn and no seed, KDL from the
+// middle of the joint ranges
+void BM_Cold_Accura(benchmark::State& state) { targetsAccura(state, {}, true, true); }
 BENCHMARK(BM_Cold_Accura);
-
-void BM_Cold_KDL(benchmark::State& state) {
-  const Setup& s = setup();
-  if (!s.error.empty()) return state.SkipWithError(s.error.c_str());
-  KDL::JntArray out;
-  size_t k = 0;
-  long ok = 0, total = 0;
-  for (auto _ : state) {
-    const bool good = s.kdlSolve(s.q_mid, s.targets[k], out);
-    benchmark::DoNotOptimize(out.data.data());
-    ++total;
-    if (good) ++ok;
-    if (++k == s.targets.size()) k = 0;
-  }
-  rate(state, ok, total);
-}
+void BM_Cold_KDL(benchmark::State& state) { targetsKdl(state, {setup().q_mid_deg}); }
 BENCHMARK(BM_Cold_KDL);
 
 // ---------------------------------------------------------------------------------------
@@ -479,7 +538,7 @@ int main(int argc, char** argv) {
   std::printf("\nKDL CPU time / accura CPU time (same chain, same targets, same tolerance):\n");
   for (const char* pair : {"PathWarm", "Path20Warm", "NearbyWarm", "Cold"}) {
     const std::string k = std::string("BM_") + pair + "_KDL";
-    for (const char* variant : {"_Accura", "_AccuraNoSingularCheck"}) {
+    for (const char* variant : {"_Accura", "_AccuraNoSingularCheck", "_AccuraStateless"}) {
       const std::string a = std::string("BM_") + pair + variant;
       if (reporter.ns.count(a) && reporter.ns.count(k) && reporter.ns[a] > 0)
         std::printf("  %-10s %-22s %6.1f x   (accura %.2f us, KDL %.2f us per solve)\n", pair, variant + 1,

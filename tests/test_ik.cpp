@@ -14,6 +14,7 @@
 #include "accura/calib/kinematics.h"
 #include "accura/calib/simulate.h"
 #include "accura/postproc/compensate.h"
+#include "../postproc/src/kinematic_chain.h"
 #include "../postproc/src/small_linalg.h"
 #include "test_util.h"
 
@@ -642,6 +643,146 @@ TEST(Ik, FreeFunctionEqualsSolver) {
   ASSERT_EQ(a.status, IkStatus::kOk);
   EXPECT_EQ((a.q - b.q).norm(), 0.0);
   EXPECT_LT((a.q - q).cwiseAbs().maxCoeff(), 1e-3);
+}
+
+// ---------------------------------------------------------------------------------------
+// IkWorkspace: path following that reuses the previous solution's frames and Jacobian, and
+// the singularity certificate it carries along (KinematicChain::scaledJacobianLipschitz)
+
+/// Joint-space path from qa to qb in `steps` steps, as Cartesian targets of model m.
+std::vector<Eigen::Isometry3d> jointLineTargets(const KinematicSolver& s, const Eigen::VectorXd& qa,
+                                                const Eigen::VectorXd& qb, int steps) {
+  std::vector<Eigen::Isometry3d> out;
+  for (int i = 0; i <= steps; ++i) out.push_back(s.forward(qa + (qb - qa) * (double(i) / steps)));
+  return out;
+}
+
+/// Follows `targets` from q0, each solve seeded with the last kOk solution, with or without a
+/// workspace.
+std::vector<IkResult> follow(const KinematicSolver& s, const std::vector<Eigen::Isometry3d>& targets,
+                             const Eigen::VectorXd& q0, const IkOptions& o, bool workspace,
+                             const PoseContext& ctx = {}) {
+  postproc::IkWorkspace ws;
+  std::vector<IkResult> out;
+  Eigen::VectorXd q = q0;
+  for (const Eigen::Isometry3d& T : targets) {
+    out.push_back(workspace ? s.inverse(T, Configuration{}, q, o, ctx, ws) : s.inverse(T, Configuration{}, q, o, ctx));
+    if (out.back().status == IkStatus::kOk) q = out.back().q;
+  }
+  return out;
+}
+
+TEST(IkWorkspace, PathFollowingEqualsTheStatelessSolveThroughAWristSingularity) {
+  // A5 from 25 to -25 deg through the wrist singularity, 0.1 deg per step, with a threshold
+  // high enough that a band of points is singular: the certificate carried in the workspace
+  // must never hide one. Geometric model (the certificate's shortcut applies) and the
+  // compliant one (only the frames are reused).
+  RobotModel geometric = test::loadBundled("kuka_kr16");
+  {
+    SimulateOptions so;
+    so.effects = {"geometric"};
+    so.seed = 11;
+    geometric = perturbModel(geometric, so);
+  }
+  for (const RobotModel& m : {geometric, realModel("kuka_kr16", 5)}) {
+    const KinematicSolver s(m);
+    Eigen::VectorXd qa(6), qb(6);
+    qa << 20, -70, 80, 30, 25, 40;
+    qb << 35, -60, 70, 45, -25, 60;
+    const std::vector<Eigen::Isometry3d> targets = jointLineTargets(s, qa, qb, 500);
+    IkOptions o;
+    o.singular_threshold = 0.03;
+    const std::vector<IkResult> with = follow(s, targets, qa, o, true);
+    const std::vector<IkResult> without = follow(s, targets, qa, o, false);
+    int singular = 0, ok = 0;
+    for (size_t k = 0; k < targets.size(); ++k) {
+      ASSERT_EQ(with[k].status, without[k].status) << k;
+      if (with[k].status == IkStatus::kSingular) ++singular;
+      if (with[k].status != IkStatus::kOk) continue;
+      ++ok;
+      EXPECT_LT((with[k].q - without[k].q).cwiseAbs().maxCoeff(), 1e-9) << k;
+      EXPECT_EQ(with[k].configuration.status, without[k].configuration.status) << k;
+      EXPECT_EQ(with[k].configuration.turn, without[k].configuration.turn) << k;
+      // independent: calib's Jacobian and Eigen's SVD
+      EXPECT_GT(scaledSigmaMin(m, with[k].q), o.singular_threshold * (1 - 1e-9)) << k;
+      EXPECT_LE(positionError(m, with[k].q, targets[k]), 1e-3);
+    }
+    // every point is solved or reported singular (the band around A5 = 0)
+    EXPECT_EQ(ok + singular, static_cast<int>(targets.size()));
+    EXPECT_GT(singular, 5);
+    EXPECT_GT(ok, 250);
+  }
+}
+
+TEST(IkWorkspace, NotUsedForAnotherSolverOrContext) {
+  const RobotModel a = realModel("kuka_kr16", 3), b = realModel("kuka_kr16", 4);
+  const KinematicSolver sa(a), sb(b);
+  Eigen::VectorXd q(6);
+  q << 10, -80, 95, 20, 40, -30;
+  postproc::IkWorkspace ws;
+  const IkResult ra = sa.inverse(sa.forward(q), Configuration{}, q, IkOptions{}, PoseContext{}, ws);
+  ASSERT_EQ(ra.status, IkStatus::kOk);
+  EXPECT_TRUE(ws.holdsSolution());
+  // b's target from a's solution as the seed: the stored frames are a's, not b's
+  Eigen::VectorXd q2 = q;
+  q2[0] += 1;
+  const Eigen::Isometry3d Tb = sb.forward(q2);
+  const IkResult rb = sb.inverse(Tb, Configuration{}, ra.q, IkOptions{}, PoseContext{}, ws);
+  ASSERT_EQ(rb.status, IkStatus::kOk);
+  EXPECT_LE(positionError(b, rb.q, Tb), 1e-3);
+  EXPECT_LT((rb.q - q2).cwiseAbs().maxCoeff(), 1e-4);  // deg (1 um at ~1 m: 6e-5 deg)
+  // the same solver with another payload (the compliant model bends differently)
+  PoseContext heavy;
+  heavy.payload_kg = 16;
+  const IkResult rh = sb.inverse(Tb, Configuration{}, rb.q, IkOptions{}, heavy, ws);
+  ASSERT_EQ(rh.status, IkStatus::kOk);
+  EXPECT_LE(positionError(b, rh.q, Tb, 16), 1e-3);
+  EXPECT_GT((rh.q - rb.q).cwiseAbs().maxCoeff(), 1e-4);  // the payload moved the solution
+  // a failed solve clears it
+  Eigen::Isometry3d far = Tb;
+  far.translation() *= 10;
+  EXPECT_NE(sb.inverse(far, Configuration{}, rh.q, IkOptions{}, heavy, ws).status, IkStatus::kOk);
+  EXPECT_FALSE(ws.holdsSolution());
+}
+
+TEST(IkChain, ScaledJacobianLipschitzBoundHolds) {
+  // ||Js(q1) - Js(q0)||_2 <= sum_k B_k |dq_k| (rad), with Js from calib's jointJacobian; the
+  // bound is what lets a path skip the singularity test, so it must hold everywhere.
+  for (const char* name : {"kuka_kr16", "ur10", "abb_irb120"}) {
+    RobotModel m = nominalModel(name);
+    SimulateOptions so;
+    so.effects = {"geometric"};
+    so.seed = 2;
+    m = perturbModel(m, so);
+    const postproc::detail::KinematicChain chain(m);
+    const std::vector<double>& B = chain.scaledJacobianLipschitz();
+    ASSERT_EQ(static_cast<int>(B.size()), m.dof()) << name;
+    const double L = chain.length_scale_mm();
+    auto scaledJ = [&](const Eigen::VectorXd& q) {
+      KinematicWorkspace ws;
+      Eigen::MatrixXd J = jointJacobian(m, q, PoseContext{}, ws);
+      J.topRows(3) /= L;
+      return Eigen::MatrixXd(J * kRadToDeg);
+    };
+    std::mt19937 rng(5);
+    std::normal_distribution<double> step(0, 3);  // deg
+    double tightest = 0;
+    for (int k = 0; k < 300; ++k) {
+      const Eigen::VectorXd q0 = randomJoints(m, rng);
+      Eigen::VectorXd q1 = q0;
+      double bound = 0;
+      for (int i = 0; i < m.dof(); ++i) {
+        q1[i] += step(rng);
+        bound += B[static_cast<size_t>(i)] * std::abs(q1[i] - q0[i]) * kDegToRad;
+      }
+      const double change = (scaledJ(q1) - scaledJ(q0)).jacobiSvd().singularValues()[0];
+      EXPECT_LE(change, bound) << name << " sample " << k;
+      tightest = std::max(tightest, change / bound);
+    }
+    EXPECT_GT(tightest, 0.1) << name;  // a bound, not a wild overestimate
+  }
+  // a compliant model has no such bound (its angles depend on the gravity load)
+  EXPECT_TRUE(postproc::detail::KinematicChain(realModel("kuka_kr16")).scaledJacobianLipschitz().empty());
 }
 
 }  // namespace

@@ -116,12 +116,13 @@ std::vector<Eigen::Isometry3d> Compensator::execute(const std::vector<PathSegmen
   o.tol_mm = 1e-5;
   o.tol_rad = 1e-8;
   Eigen::VectorXd q = q_controller_start;
+  IkWorkspace ws;  // each solve continues from the previous solution
   for (size_t k = 0; k < commanded.size(); ++k) {
     const PathGeometry g(commanded[k]);
     const int m = sampleCount(g, step_mm, 0.5);
     for (int i = (k == 0 ? 0 : 1); i <= m; ++i) {
       const Eigen::Isometry3d C = g.pose(static_cast<double>(i) / m);
-      const IkResult r = controller_.inverse(C, Configuration{}, q, o);
+      const IkResult r = controller_.inverse(C, Configuration{}, q, o, PoseContext{}, ws);
       if (r.status != IkStatus::kOk) {
         std::ostringstream s;
         s << "simulated execution: the controller cannot follow segment " << k + 1 << " at "
@@ -172,12 +173,13 @@ struct SegmentWork {
   Prediction predict(const PathGeometry& cmd, const Eigen::VectorXd& q_start, int m) const {
     Prediction p;
     Eigen::VectorXd q = q_start;
+    IkWorkspace ws;  // each solve continues from the previous solution
     Eigen::Vector3d D_prev2 = Eigen::Vector3d::Zero(), D_prev = Eigen::Vector3d::Zero();
     double max_second = 0;
     for (int i = 0; i <= m; ++i) {
       const double s = static_cast<double>(i) / m;
       if (i > 0) {
-        const IkResult r = comp.controller().inverse(cmd.pose(s), Configuration{}, q, controller_ik);
+        const IkResult r = comp.controller().inverse(cmd.pose(s), Configuration{}, q, controller_ik, PoseContext{}, ws);
         if (r.status != IkStatus::kOk) {
           p.status = r.status;
           std::ostringstream msg;

@@ -4,6 +4,8 @@
 #include <Eigen/LU>
 #include <Eigen/SVD>
 #include <algorithm>
+#include <atomic>
+#include <cstdint>
 #include <cmath>
 #include <limits>
 #include <sstream>
@@ -221,6 +223,50 @@ Configuration kukaConfiguration(const RobotModel& model, const Eigen::VectorXd& 
 
 // ---------------------------------------------------------------------------------------
 
+/// The stored solution of an IkWorkspace: the solver that found it (Impl::id; 0 = none), its
+/// joint values and context, the frames and joint Jacobian there.
+struct IkWorkspace::Data {
+  std::uint64_t solver_id = 0;
+  VecN q;
+  double payload_kg = 0, temp_c = 0;
+  std::vector<int> dir;
+  ChainFrames f;
+  Jac6N J;
+  /// Singularity certificate (KinematicSolver::Impl::singularAt): at cert_q the scaled
+  /// Jacobian's smallest singular value was shown to exceed cert_level (solver cert_solver_id;
+  /// 0 = none); next_level is the level the next certificate tries.
+  std::uint64_t cert_solver_id = 0;
+  VecN cert_q;
+  double cert_level = 0;
+  double next_level = 0.1;
+  /// The stored solution's Status bit 0 and a lower bound of |x_a1| (mm; finish()).
+  double x_a1_abs_lo = 0;
+  bool x_a1_negative = false;
+
+  bool holds(std::uint64_t id, const Eigen::VectorXd& seed, const PoseContext& ctx) const {
+    if (solver_id == 0 || solver_id != id || seed.size() != q.size()) return false;
+    for (Eigen::Index i = 0; i < seed.size(); ++i)
+      if (seed[i] != q[i]) return false;
+    return ctx.payload_kg == payload_kg && ctx.temp_c == temp_c && ctx.dir == dir;
+  }
+};
+
+IkWorkspace::IkWorkspace() : data_(std::make_unique<Data>()) {}
+IkWorkspace::~IkWorkspace() = default;
+IkWorkspace::IkWorkspace(IkWorkspace&&) noexcept = default;
+IkWorkspace& IkWorkspace::operator=(IkWorkspace&&) noexcept = default;
+void IkWorkspace::clear() {
+  if (data_) {
+    data_->solver_id = 0;
+    data_->cert_solver_id = 0;
+  }
+}
+bool IkWorkspace::holdsSolution() const { return data_ && data_->solver_id != 0; }
+
+namespace {
+std::atomic<std::uint64_t> next_solver_id{1};
+}  // namespace
+
 struct KinematicSolver::Impl {
   RobotModel model;
   KinematicChain chain;
@@ -234,6 +280,8 @@ struct KinematicSolver::Impl {
   std::array<double, kMaxDof> lower{}, upper{}, theta0{}, dir{};
   Eigen::Isometry3d T_base_world, T_tcp_flange;
   double L = 1;  ///< length scale (mm)
+  /// Identifies this prepared model in IkWorkspace (unique in the process).
+  const std::uint64_t id = next_solver_id.fetch_add(1);
 
   static RobotModel nominalLinks(const RobotModel& m) {
     RobotModel r = m;
@@ -393,6 +441,33 @@ struct KinematicSolver::Impl {
     return llt.info() != Eigen::Success;
   }
 
+  /// singularBelow(J, t) for the Jacobian J at q, skipped where a certificate stored in the
+  /// workspace proves the answer: sigma_min(Js(q)) >= cert_level - B sum|q - cert_q| > t
+  /// (Weyl: sigma_min moves by at most ||dJs||_2; B from scaledJacobianLipschitz, so only for
+  /// chains where it is known). Otherwise the test runs at a higher level first, so that the
+  /// next points along a path are covered: about one full test per degree of joint motion
+  /// where sigma_min is large, every point next to a singularity.
+  bool singularAt(const Jac6N& J, const VecN& q, double t, IkWorkspace::Data* ws) const {
+    const std::vector<double>& B = chain.scaledJacobianLipschitz();
+    if (!ws || B.empty()) return singularBelow(J, t);
+    if (ws->cert_solver_id == id) {
+      double change = 0;  // bound of ||Js(q) - Js(cert_q)||_2
+      for (int i = 0; i < n; ++i) change += B[static_cast<size_t>(i)] * std::abs(q[i] - ws->cert_q[i]) * kDegToRad;
+      if (ws->cert_level - change > t) return false;
+    }
+    // the level: raised slowly while it holds, halved where it does not
+    const double level = std::max(ws->next_level, 2 * t);
+    if (level < 1 && !singularBelow(J, level)) {
+      ws->cert_solver_id = id;
+      ws->cert_q = q;
+      ws->cert_level = level;
+      ws->next_level = std::min(0.5, 1.25 * level);
+      return false;
+    }
+    ws->next_level = std::max(0.5 * level, 2 * t);
+    return singularBelow(J, t);
+  }
+
   double minSingularValue(const Jac6N& J) const {
     Jac6N Js;
     scaled(J, Js);
@@ -433,9 +508,10 @@ struct KinematicSolver::Impl {
   /// Newton reuses its Jacobian while each step gains at least a factor 5 (near the solution
   /// an iteration costs one FK). Every evaluation after the first counts as an iteration.
   /// `f` holds the frames at q on entry when `f_valid`, and on return.
+  /// `J0` (optional, with `f_valid`): the joint Jacobian at q.
   Newton newton(VecN& q, const Eigen::Isometry3d& T_target, const PoseContext& ctx, const IkOptions& o,
                 int max_iterations, ChainFrames& f, bool f_valid = false, double polish_mm = 0,
-                double polish_rad = 0) const {
+                double polish_rad = 0, const Jac6N* J0 = nullptr) const {
     using MatN = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxDof, kMaxDof>;
     Newton r;
     if (!f_valid) chain.evaluate(q.data(), ctx, f);
@@ -497,7 +573,12 @@ struct KinematicSolver::Impl {
       bool fresh = false, have = false;
       while (!done()) {
         if (!have) {
-          chain.jacobian(*cur, J);
+          if (J0 && f_valid && cur == &f) {
+            J = *J0;
+          } else {
+            chain.jacobian(*cur, J);
+          }
+          J0 = nullptr;
           if (!lu.factor(Eigen::Matrix<double, 6, 6>(J))) break;
           have = fresh = true;
         }
@@ -670,14 +751,22 @@ struct KinematicSolver::Impl {
   // --- the solver -------------------------------------------------------------------------
 
   IkResult inverse(const Eigen::Isometry3d& T_target, const Configuration& config, const Eigen::VectorXd& seed,
-                   const IkOptions& o, const PoseContext& ctx, double polish_mm = 0, double polish_rad = 0) const {
+                   const IkOptions& o, const PoseContext& ctx, double polish_mm = 0, double polish_rad = 0,
+                   IkWorkspace::Data* ws = nullptr) const {
     std::string why;
     if (!o.IsValid(&why)) throw ArgumentError(why);
     if (seed.size() != 0 && seed.size() != n)
       throw ArgumentError("IK seed: expected " + std::to_string(n) + " joint values, got " + std::to_string(seed.size()));
     if (seed.size() != 0 && !seed.allFinite()) throw ArgumentError("IK seed: not finite");
     if (!T_target.matrix().allFinite()) throw ArgumentError("IK target: not finite");
-    ChainFrames f;
+    // with a workspace: its frames and Jacobian are those of the seed when it holds the seed;
+    // it holds the answer only when the answer is kOk (stored in finish)
+    const bool reuse = ws && ws->holds(id, seed, ctx);
+    if (ws) ws->solver_id = 0;
+    ChainFrames f_local;
+    ChainFrames& f = ws ? ws->f : f_local;
+    Jac6N J_local;
+    Jac6N& J = ws ? ws->J : J_local;
     const VecN ref = seed.size() ? VecN(seed) : midRange();
     int iterations = 0;
 
@@ -696,23 +785,32 @@ struct KinematicSolver::Impl {
       const double moved_deg = warm ? (q - ref).cwiseAbs().maxCoeff() : 0.0;
       if (warm && moved_deg > kWarmMaxDeg) return false;
       IkResult r;
-      double x_a1 = 0;
-      chain.fillNominal(q.data(), f, status_geometry.last + 1);
-      r.configuration.status = status_geometry.status(q.data(), &x_a1, f.cos_nominal.data(), f.sin_nominal.data());
+      // Status bit 0 is the sign of x_a1, the wrist point's x in the A1 frame (mm), which moves
+      // by at most L per rad of joint motion: with the seed's |x_a1| (at least x_a1_abs_lo)
+      // from the workspace and a move too small to reach 0, the bit is the seed's and no
+      // kinematics is needed; the workspace then keeps the smaller bound
+      double moved_rad = 0;
+      if (warm)
+        for (int i = 0; i < std::min(n, 5); ++i) moved_rad += std::abs(q[i] - ref[i]) * kDegToRad;
+      double x_a1 = 0, x_a1_abs_lo = 0;
+      const bool bit0_known = warm && reuse && status_geometry.defined && ws->x_a1_abs_lo > L * moved_rad;
+      if (bit0_known) {
+        r.configuration.status = (ws->x_a1_negative ? 1 : 0) | status_geometry.elbowWristBits(q.data());
+        x_a1_abs_lo = ws->x_a1_abs_lo - L * moved_rad;
+      } else {
+        chain.fillNominal(q.data(), f, status_geometry.last + 1);
+        r.configuration.status = status_geometry.status(q.data(), &x_a1, f.cos_nominal.data(), f.sin_nominal.data());
+        x_a1_abs_lo = std::abs(x_a1);
+      }
       r.configuration.turn = turnBits(q.data(), n);
       // warm: accepted only next to the seed and on its Status (else another solution may be
       // nearer: next to a singularity two branches come close; the closed form decides)
-      if (warm) {
-        if (status_geometry.defined) {
-          if ((r.configuration.status & 6) != status_geometry.elbowWristBits(ref.data())) return false;
-          // bit 0: x_a1 moves by at most L per rad of joint motion; recompute only when the
-          // move could have crossed 0
-          double moved_rad = 0;
-          for (int i = 0; i < std::min(n, 5); ++i) moved_rad += std::abs(q[i] - ref[i]) * kDegToRad;
-          if (std::abs(x_a1) <= L * moved_rad &&
-              (status_geometry.status(ref.data()) & 1) != (r.configuration.status & 1))
-            return false;
-        }
+      if (warm && status_geometry.defined) {
+        if ((r.configuration.status & 6) != status_geometry.elbowWristBits(ref.data())) return false;
+        // bit 0: recomputed for the seed only when the move could have crossed 0
+        if (!bit0_known && std::abs(x_a1) <= L * moved_rad &&
+            (status_geometry.status(ref.data()) & 1) != (r.configuration.status & 1))
+          return false;
       }
       if (q != q_converged) {
         // moved by 360 deg: the same pose unless an effect depends on q itself (joint_scale)
@@ -723,14 +821,13 @@ struct KinematicSolver::Impl {
       r.q = q;
       r.position_error_mm = nt.ep;
       r.rotation_error_rad = nt.er;
-      Jac6N J;
       chain.jacobian(f, J);
       // warm and more than kWarmAcceptDeg from the seed: taken only where the Jacobian is
       // regular enough that no other solution can be nearer (another solution of the same pose
       // is about sigma_min rad away or more; docs/compensation.md)
       if (warm && moved_deg > kWarmAcceptDeg && singularBelow(J, std::max(o.singular_threshold, moved_deg * kDegToRad)))
         return false;
-      const bool singular = o.singular_threshold > 0 && singularBelow(J, o.singular_threshold);
+      const bool singular = o.singular_threshold > 0 && singularAt(J, q, o.singular_threshold, ws);
       if (singular || o.compute_singular_value) r.min_singular_value = minSingularValue(J);
       if (!configurationMatches(config, r.configuration)) {
         if (warm) return false;
@@ -765,6 +862,16 @@ struct KinematicSolver::Impl {
         return false;
       }
       r.status = IkStatus::kOk;
+      if (ws) {
+        // f and J are at q: keep them for a solve seeded with this solution
+        ws->solver_id = id;
+        ws->q = q;
+        ws->payload_kg = ctx.payload_kg;
+        ws->temp_c = ctx.temp_c;
+        ws->dir = ctx.dir;
+        ws->x_a1_abs_lo = status_geometry.defined ? x_a1_abs_lo : 0.0;
+        ws->x_a1_negative = (r.configuration.status & 1) != 0;
+      }
       out = std::move(r);
       return true;
     };
@@ -773,7 +880,9 @@ struct KinematicSolver::Impl {
     // 1. warm start: Newton from the seed, accepted when it stays near the seed
     if (seed.size()) {
       VecN q = ref;
-      const Newton nt = newton(q, T_target, ctx, o, std::min(o.max_iterations, 12), f, false, polish_mm, polish_rad);
+      // (the Jacobian is copied in: finish() overwrites J)
+      const Newton nt =
+          newton(q, T_target, ctx, o, std::min(o.max_iterations, 12), f, reuse, polish_mm, polish_rad, reuse ? &J : nullptr);
       iterations += nt.iterations;
       if (nt.converged && finish(q, nt, true, res)) {
         res.iterations = iterations;
@@ -931,10 +1040,23 @@ IkResult KinematicSolver::inverse(const Eigen::Isometry3d& T_world_tcp, const Co
   return impl_->inverse(T_world_tcp, config, seed, options, context);
 }
 
+IkResult KinematicSolver::inverse(const Eigen::Isometry3d& T_world_tcp, const Configuration& config,
+                                  const Eigen::VectorXd& seed, const IkOptions& options, const PoseContext& context,
+                                  IkWorkspace& workspace) const {
+  if (!workspace.data_) workspace.data_ = std::make_unique<IkWorkspace::Data>();  // moved from
+  return impl_->inverse(T_world_tcp, config, seed, options, context, 0, 0, workspace.data_.get());
+}
+
 IkResult KinematicSolver::inversePolished(const Eigen::Isometry3d& T_world_tcp, const Configuration& config,
                                           const Eigen::VectorXd& seed, const IkOptions& options,
-                                          const PoseContext& context, double polish_mm, double polish_rad) const {
-  return impl_->inverse(T_world_tcp, config, seed, options, context, polish_mm, polish_rad);
+                                          const PoseContext& context, double polish_mm, double polish_rad,
+                                          IkWorkspace* workspace) const {
+  IkWorkspace::Data* ws = nullptr;
+  if (workspace) {
+    if (!workspace->data_) workspace->data_ = std::make_unique<IkWorkspace::Data>();
+    ws = workspace->data_.get();
+  }
+  return impl_->inverse(T_world_tcp, config, seed, options, context, polish_mm, polish_rad, ws);
 }
 
 std::vector<Eigen::VectorXd> KinematicSolver::closedFormSolutions(const Eigen::Isometry3d& T_world_tcp) const {

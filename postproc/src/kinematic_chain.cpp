@@ -108,6 +108,24 @@ KinematicChain::KinematicChain(const RobotModel& model) {
   thermal_alpha_ = dev.thermal_alpha_per_k;
   gravity_ = model.nominal.gravity_base;
   payload_com_ = model.nominal.payload_com_mm;
+  bool plain = !compliant_ && !any_joint_effect_ && !backlash_ && thermal_alpha_ == 0.0;
+  for (const Link& L : links_) plain = plain && L.revolute;
+  if (plain) {
+    std::vector<double> rho(static_cast<size_t>(n_));
+    double reach = T_flange_tcp_.translation().norm();  // >= |p - o_i|, from the tool inwards
+    for (int i = n_ - 1; i >= 0; --i) {
+      const Link& L = links_[static_cast<size_t>(i)];
+      reach += std::abs(L.a) + std::abs(L.d_c);
+      rho[static_cast<size_t>(i)] = reach / length_scale_mm_;
+    }
+    jacobian_lipschitz_.resize(static_cast<size_t>(n_));
+    for (int k = 0; k < n_; ++k) {
+      const double rk = rho[static_cast<size_t>(k)];
+      double sum = (k + 1) * rk * rk;
+      for (int i = k + 1; i < n_; ++i) sum += 1 + rho[static_cast<size_t>(i)] * rho[static_cast<size_t>(i)];
+      jacobian_lipschitz_[static_cast<size_t>(k)] = std::sqrt(sum);
+    }
+  }
 }
 
 void KinematicChain::gravityLoads(const double* q, double payload_kg, double* load, const ChainFrames& f) const {

@@ -54,6 +54,15 @@ class KinematicChain {
   /// Sum of the nominal link lengths |a_i| + |d_i| and the tool offset (mm, >= 1): the length
   /// that scales position rows against rotation rows.
   double length_scale_mm() const { return length_scale_mm_; }
+  /// For a chain whose link angles are theta_c + direction q (revolute joints only; no
+  /// compliance, joint_scale, gear_periodic, backlash or thermal scale): per joint k a bound
+  /// B_k with ||Js(q1) - Js(q0)||_2 <= sum_k B_k |q1_k - q0_k| (rad), Js the joint Jacobian
+  /// with its position rows divided by length_scale_mm() and columns per rad. Turning joint k
+  /// rotates every later column rigidly about axis k (norm <= sqrt(1 + rho_i^2)) and moves the
+  /// tool point, hence the position part of every column i <= k, by at most rho_k:
+  /// B_k = sqrt(sum_{i>k} (1 + rho_i^2) + (k + 1) rho_k^2), rho_i = (|tool| + sum_{j>=i}
+  /// |a_j| + |d_j|) / L >= |p - o_i| / L. Empty for any other chain.
+  const std::vector<double>& scaledJacobianLipschitz() const { return jacobian_lipschitz_; }
 
  private:
   struct Link {
@@ -91,6 +100,7 @@ class KinematicChain {
   Eigen::Vector3d gravity_ = Eigen::Vector3d::Zero();
   Eigen::Vector3d payload_com_ = Eigen::Vector3d::Zero();
   double length_scale_mm_ = 1;
+  std::vector<double> jacobian_lipschitz_;
 };
 
 }  // namespace accura::postproc::detail

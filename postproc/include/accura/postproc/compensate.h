@@ -95,6 +95,35 @@ struct IkResult {
   std::string message;            ///< why, when status != kOk
 };
 
+/// One thread's scratch for following a path with a KinematicSolver (the per-thread `Data`
+/// next to the constant model): the frames and the joint Jacobian of the last solution that
+/// inverse() returned with it. Pass the same workspace to successive inverse() calls along a
+/// path, each seeded with the previous solution: when the seed is that solution bit for bit
+/// (same solver, same PoseContext), Newton starts from the stored frames and Jacobian instead
+/// of evaluating the model at the seed again (one forward kinematics and one Jacobian fewer
+/// per solve). In every other case it is simply not used. The answer is the same as without
+/// it to rounding (the stored frames equal a fresh evaluation to ~1e-15 relative). Not
+/// shareable between threads while in use; cheap to create (one allocation).
+class IkWorkspace {
+ public:
+  IkWorkspace();
+  ~IkWorkspace();
+  IkWorkspace(IkWorkspace&&) noexcept;
+  IkWorkspace& operator=(IkWorkspace&&) noexcept;
+  IkWorkspace(const IkWorkspace&) = delete;
+  IkWorkspace& operator=(const IkWorkspace&) = delete;
+  /// Forget the stored solution.
+  void clear();
+  /// True when it holds a solution (of any solver).
+  bool holdsSolution() const;
+
+  struct Data;
+
+ private:
+  friend class KinematicSolver;
+  std::unique_ptr<Data> data_;
+};
+
 /// A robot model prepared for fast repeated forward and inverse kinematics: chain constants,
 /// the closed-form solver of its nominal geometry when it has one, and the joint limits.
 /// Construction checks the prepared chain against calib's forwardKinematics (throws
@@ -126,6 +155,12 @@ class KinematicSolver {
   IkResult inverse(const Eigen::Isometry3d& T_world_tcp, const Configuration& config,
                    const Eigen::VectorXd& seed, const IkOptions& options,
                    const PoseContext& context = {}) const;
+  /// The same, continuing along a path with `workspace` (see IkWorkspace): faster when
+  /// `seed` is the solution the previous call with this workspace returned; on kOk the
+  /// workspace holds this solution, otherwise it is cleared.
+  IkResult inverse(const Eigen::Isometry3d& T_world_tcp, const Configuration& config,
+                   const Eigen::VectorXd& seed, const IkOptions& options, const PoseContext& context,
+                   IkWorkspace& workspace) const;
 
   /// Every closed-form solution of the nominal links (with this model's base and tool)
   /// within the joint limits, each joint on every representation within its limits (so a
@@ -141,7 +176,7 @@ class KinematicSolver {
   /// inverse(), then polished to polish_mm / polish_rad (see compensatePose).
   IkResult inversePolished(const Eigen::Isometry3d& T_world_tcp, const Configuration& config,
                            const Eigen::VectorXd& seed, const IkOptions& options, const PoseContext& context,
-                           double polish_mm, double polish_rad) const;
+                           double polish_mm, double polish_rad, IkWorkspace* workspace = nullptr) const;
   std::shared_ptr<const Impl> impl_;
 };
 
