@@ -409,21 +409,13 @@ struct KinematicSolver::Impl {
   /// shifted by t^2: it fails exactly when some singular value is <= t.)
   bool singularBelow(const Jac6N& J, double t) const {
     if (n == 6) {
-      // A^T A (same singular values as A A^T for a square A): dot products of the columns,
-      // weighted by the scaling, lower triangle only
-      double col[6][6];
-      for (int c = 0; c < 6; ++c) {
-        const double k = revolute[c] ? kRadToDeg : L;
-        for (int r = 0; r < 3; ++r) col[c][r] = J(r, c) * (k / L);
-        for (int r = 3; r < 6; ++r) col[c][r] = J(r, c) * k;
-      }
+      // A^T A (same singular values as A A^T for a square A), A the scaled Jacobian as a
+      // fixed-size matrix (vectorised product)
+      Eigen::Matrix<double, 6, 6> A = J.leftCols<6>();
+      A.topRows<3>() *= 1.0 / L;
+      for (int c = 0; c < 6; ++c) A.col(c) *= revolute[c] ? kRadToDeg : L;
       Eigen::Matrix<double, 6, 6> G;
-      for (int i = 0; i < 6; ++i)
-        for (int j = 0; j <= i; ++j) {
-          double v = 0;
-          for (int r = 0; r < 6; ++r) v += col[i][r] * col[j][r];
-          G(i, j) = v;
-        }
+      G.noalias() = A.transpose() * A;
       G.diagonal().array() -= t * t;
       return !detail::positiveDefinite6(G);
     }
@@ -447,7 +439,8 @@ struct KinematicSolver::Impl {
   /// chains where it is known). Otherwise the test runs at a higher level first, so that the
   /// next points along a path are covered: about one full test per degree of joint motion
   /// where sigma_min is large, every point next to a singularity.
-  bool singularAt(const Jac6N& J, const VecN& q, double t, IkWorkspace::Data* ws) const {
+  /// `last_step_change`: the bound of the Jacobian's change from the seed to q.
+  bool singularAt(const Jac6N& J, const VecN& q, double t, IkWorkspace::Data* ws, double last_step_change) const {
     const std::vector<double>& B = chain.scaledJacobianLipschitz();
     if (!ws || B.empty()) return singularBelow(J, t);
     if (ws->cert_solver_id == id) {
@@ -455,9 +448,11 @@ struct KinematicSolver::Impl {
       for (int i = 0; i < n; ++i) change += B[static_cast<size_t>(i)] * std::abs(q[i] - ws->cert_q[i]) * kDegToRad;
       if (ws->cert_level - change > t) return false;
     }
-    // the level: raised slowly while it holds, halved where it does not
+    if (!(last_step_change >= 0)) last_step_change = 0;
+    // the level: raised slowly while it holds, halved where it does not; not tried when the
+    // region it would certify could not reach as far as the last step went (long steps)
     const double level = std::max(ws->next_level, 2 * t);
-    if (level < 1 && !singularBelow(J, level)) {
+    if (level < 1 && level - t > 1.5 * last_step_change && !singularBelow(J, level)) {
       ws->cert_solver_id = id;
       ws->cert_q = q;
       ws->cert_level = level;
@@ -827,7 +822,11 @@ struct KinematicSolver::Impl {
       // is about sigma_min rad away or more; docs/compensation.md)
       if (warm && moved_deg > kWarmAcceptDeg && singularBelow(J, std::max(o.singular_threshold, moved_deg * kDegToRad)))
         return false;
-      const bool singular = o.singular_threshold > 0 && singularAt(J, q, o.singular_threshold, ws);
+      double step_change = 0;  // bound of the scaled Jacobian's change since the seed
+      if (warm && ws && !chain.scaledJacobianLipschitz().empty())
+        for (int i = 0; i < n; ++i)
+          step_change += chain.scaledJacobianLipschitz()[static_cast<size_t>(i)] * std::abs(q[i] - ref[i]) * kDegToRad;
+      const bool singular = o.singular_threshold > 0 && singularAt(J, q, o.singular_threshold, ws, step_change);
       if (singular || o.compute_singular_value) r.min_singular_value = minSingularValue(J);
       if (!configurationMatches(config, r.configuration)) {
         if (warm) return false;
