@@ -262,6 +262,69 @@ TEST(CompensateCli, PartialTargetsAreCompletedFromTheIntendedPosition) {
   EXPECT_EQ(partial[4].rfind("LIN {X 1050.", 0), 0u) << partial[4];
 }
 
+// A target next to a T-bit boundary: joint A6 within a fraction of a degree of 0, where the
+// correction moves it across 0. The written T is the one of the joints the controller will
+// take (its IK of the written pose on the written S/T puts the real tool on the intended
+// pose), changed only for such joints and with a warning per target.
+TEST(CompensateCli, TurnBitOfAJointNextToZeroIsRewrittenWithAWarning) {
+  const std::string dir = inputs("comp_tbit");
+  const RobotModel real = readRobotFile(golden("kr16_real.xml"));
+  RobotModel controller = RobotModel::fromDefinition(real.nominal);
+  const XyzAbc tool = toXyzAbc(real.nominal.T_flange_tcp);
+  XyzAbc base;
+  base.x_mm = 950;
+  base.y_mm = -400;
+  base.z_mm = 300;
+  base.a_deg = 90;
+  const Eigen::Isometry3d T_world_base1 = toIsometry(base);
+  std::ostringstream src;
+  src.setf(std::ios::fixed);
+  src.precision(6);
+  src << "DEF tbit( )\n$TOOL={X " << tool.x_mm << ",Y " << tool.y_mm << ",Z " << tool.z_mm << ",A " << tool.a_deg << ",B " << tool.b_deg
+      << ",C " << tool.c_deg << "}\n$BASE={X 950,Y -400,Z 300,A 90,B 0,C 0}\n";
+  std::vector<Configuration> asked;
+  for (int k = -15; k <= 15; ++k) {
+    Eigen::VectorXd q(6);
+    q << 10, -80, 95, 30, 45, 0.02 * k + 0.001;  // deg, never exactly 0
+    const Configuration c = kukaConfiguration(controller, q);
+    asked.push_back(c);
+    const XyzAbc t = toXyzAbc(T_world_base1.inverse() * KinematicSolver(controller).forward(q));
+    src << "PTP {X " << t.x_mm << ",Y " << t.y_mm << ",Z " << t.z_mm << ",A " << t.a_deg << ",B " << t.b_deg << ",C " << t.c_deg << ",S " << c.status
+        << ",T " << c.turn << "}\n";
+  }
+  src << "END\n";
+  test::writeText(dir + "/tbit.src", src.str());
+  const CliRun r = accura(dir, "compensate --robot kr16_real.xml --in tbit.src --out out");
+  ASSERT_EQ(r.code, 0) << r.err;
+  const Program in = readKrl(dir + "/tbit.src");
+  const Program out = readKrl(dir + "/out/tbit.src");
+  ASSERT_EQ(out.motions.size(), asked.size());
+  const KinematicSolver ctl(controller), rl(real);
+  int flipped = 0;
+  for (size_t k = 0; k < out.motions.size(); ++k) {
+    const Target& t = out.motions[k].target;
+    ASSERT_TRUE(t.status && t.turn);
+    EXPECT_EQ(*t.status, asked[k].status) << k;
+    // the controller on the written S/T reaches the written pose with joints whose T is the
+    // written one, and the real robot there is on the intended pose
+    const IkResult qc = ctl.inverse(T_world_base1 * toIsometry(t.xyzAbc()), Configuration{*t.status, *t.turn},
+                                    Eigen::VectorXd(), IkOptions{});
+    ASSERT_EQ(qc.status, IkStatus::kOk) << k << " " << qc.message;
+    EXPECT_EQ(kukaConfiguration(controller, qc.q).turn, *t.turn) << k;
+    const Eigen::Isometry3d intended = T_world_base1 * toIsometry(in.motions[k].target.xyzAbc());
+    EXPECT_LT((rl.forward(qc.q).translation() - intended.translation()).norm(), 1e-3) << k;
+    if (*t.turn != asked[k].turn) {
+      ++flipped;
+      EXPECT_EQ(*t.turn ^ asked[k].turn, 1 << 5) << "only A6's bit: " << k;
+      EXPECT_LT(std::abs(qc.q[5]), 1.0) << k;
+    }
+  }
+  EXPECT_GT(flipped, 0);  // the grid straddles the correction of A6
+  size_t warnings = 0;
+  for (size_t p = r.err.find("T of "); p != std::string::npos; p = r.err.find("T of ", p + 1)) ++warnings;
+  EXPECT_EQ(warnings, static_cast<size_t>(flipped)) << r.err;
+}
+
 TEST(CompensateCli, ErrorsNameThePlaceAndWriteNothing) {
   const std::string dir = inputs("comp_err");
   // the output directory is the input's: the outputs would overwrite the inputs
