@@ -12,6 +12,7 @@
 #include "accura/postproc/batch.h"
 #include "accura/postproc/job.h"
 #include "cli_util.h"
+#include "cmd_check.h"
 #include "commands.h"
 
 namespace fs = std::filesystem;
@@ -34,6 +35,8 @@ struct BatchArgs {
   std::string config;
   int jobs = 1;
   std::string json;
+  std::function<std::optional<CellCheck>()> cell;  // --cell: every program checked before it is written (cmd_check.cpp)
+  bool warn_only = false;
 };
 
 std::string statusWord(const postproc::BatchFileResult& r) {
@@ -51,6 +54,9 @@ int runBatch(const BatchArgs& a) {
   o.job = a.settings();
   o.config_path = a.config;
   o.jobs = a.jobs;
+  const std::optional<CellCheck> cell = a.cell();
+  if (a.warn_only && !cell) throw InputError("--warn-only: expected together with --cell, found it without");
+  if (cell) o.cell = CellCheckSettings{cell->cell, cell->options, a.warn_only};
   if (a.jobs < 1) throw InputError("--jobs: expected at least 1, found " + std::to_string(a.jobs));
   if (!a.json.empty()) {
     const fs::path j = fs::weakly_canonical(fs::absolute(a.json));
@@ -77,9 +83,10 @@ int runBatch(const BatchArgs& a) {
   const BatchResult res = postproc::runBatch(a.in, a.out, o, progress);
   for (const auto& r : res.files) {
     if (r.status == BatchFileResult::Status::kConverted) {
-      std::printf("converted %s: %d targets corrected (max %.4f mm), %d point(s) added, path error %.4f -> %.4f mm\n", r.input.c_str(),
+      std::printf("converted %s: %d targets corrected (max %.4f mm), %d point(s) added, path error %.4f -> %.4f mm%s\n", r.input.c_str(),
                   r.report.targets_corrected, r.report.max_correction_mm, r.report.points_added, r.report.max_error_uncompensated_mm,
-                  r.report.max_error_after_mm);
+                  r.report.max_error_after_mm, r.check ? (r.check->passed() ? "; checks passed" : "; checks FAILED, written because of --warn-only") : "");
+      if (!r.message.empty()) std::fprintf(stderr, "accura: warning: %s: %s\n", r.input.c_str(), r.message.c_str());
     } else {
       std::printf("%s %s: %s\n", statusWord(r).c_str(), r.input.c_str(), r.message.c_str());
     }
@@ -91,6 +98,10 @@ int runBatch(const BatchArgs& a) {
     j["in"] = a.in;
     j["out"] = a.out;
     j["robot"] = o.job.calibrated.nominal.name;
+    if (cell) {
+      j["cell"] = cell->cell_path;
+      j["warn_only"] = a.warn_only;
+    }
     j["converted"] = res.converted;
     j["failed"] = res.failed;
     j["skipped"] = res.skipped;
@@ -101,7 +112,8 @@ int runBatch(const BatchArgs& a) {
       f["status"] = statusWord(r) == "FAILED" ? "failed" : statusWord(r);
       f["outputs"] = r.outputs;
       if (!r.message.empty()) f["message"] = r.message;
-      if (r.status == BatchFileResult::Status::kConverted) f.update(jobReportJson(r.report, a.in));
+      if (r.status == BatchFileResult::Status::kConverted || r.check) f.update(jobReportJson(r.report, a.in));
+      if (r.check) f["check"] = checkReportJson(*r.check, a.in);
       files.push_back(f);
     }
     j["files"] = files;
@@ -115,13 +127,17 @@ int runBatch(const BatchArgs& a) {
 
 void addBatchCommand(CLI::App& app) {
   auto args = std::make_shared<BatchArgs>();
-  auto* c = app.add_subcommand("batch", "compensate every program (*.src, *.xml) of a directory tree into a mirrored tree");
+  auto* c = app.add_subcommand("batch",
+                               "compensate every program (*.src, *.xml) of a directory tree into a mirrored tree (with --cell: each checked "
+                               "in the cell before it is written)");
   args->settings = addJobOptions(c);
   c->add_option("--in", args->in, "directory of programs (read only)")->required();
   c->add_option("--out", args->out, "output directory (the same relative paths); not inside --in")->required();
   c->add_option("--config", args->config, "$config.dat for every program: TOOL_DATA, BASE_DATA, global points");
   c->add_option("--jobs", args->jobs, "programs compensated in parallel")->capture_default_str();
-  c->add_option("--json", args->json, "report of every program");
+  c->add_option("--json", args->json, "report of every program (with --cell: its check)");
+  args->cell = addCellOptions(c, false, false);
+  c->add_flag("--warn-only", args->warn_only, "with --cell: write the programs that fail a check anyway (their report says so)");
   c->callback([=]() { exitCode() = runBatch(*args); });
 }
 

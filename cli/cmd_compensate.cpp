@@ -12,7 +12,9 @@
 #include "accura/postproc/batch.h"
 #include "accura/postproc/job.h"
 #include "accura/postproc/program_io.h"
+#include "accura/postproc/check.h"
 #include "cli_util.h"
+#include "cmd_check.h"
 #include "commands.h"
 
 namespace fs = std::filesystem;
@@ -44,6 +46,8 @@ struct CompensateArgs {
   std::string config;
   std::string out;
   std::string json;
+  std::function<std::optional<CellCheck>()> cell;  // --cell: checks before writing (cmd_check.cpp)
+  bool warn_only = false;
 };
 
 // Rounded to 1e-6 (nm, udeg): the report is the same on every machine.
@@ -80,6 +84,13 @@ bool sameFile(const std::string& a, const std::string& b) {
 int runCompensate(const CompensateArgs& a) {
   using namespace postproc;
   const JobSettings settings = a.settings();
+  // --cell: the program is checked in its cell before anything is written (the shared logic
+  // of compensate --cell and batch --cell: compensateAndCheckFile); its robot placement is
+  // where the OLP placed the robot (unless --base says it)
+  const std::optional<CellCheck> cell = a.cell();
+  if (a.warn_only && !cell) throw InputError("--warn-only: expected together with --cell, found it without");
+  std::optional<CellCheckSettings> cell_settings;
+  if (cell) cell_settings = CellCheckSettings{cell->cell, cell->options, a.warn_only};
   ProgramReadOptions read;
   read.dat_path = a.dat;
   read.config_path = a.config;
@@ -89,7 +100,8 @@ int runCompensate(const CompensateArgs& a) {
     throw InputError("--out: expected a directory, found the file " + a.out);
   const std::string out_path = (fs::path(a.out) / fs::path(a.in).filename()).string();
   JobReport report;
-  const std::vector<OutputFile> files = compensateFile(a.in, out_path, read, settings, &report);
+  CheckedProgram checked = compensateAndCheckFile(a.in, out_path, read, settings, cell_settings ? &*cell_settings : nullptr, &report);
+  const std::vector<OutputFile>& files = checked.files;
   std::vector<std::string> inputs = {a.in};
   if (!a.dat.empty()) inputs.push_back(a.dat);
   if (!a.config.empty()) inputs.push_back(a.config);
@@ -103,9 +115,15 @@ int runCompensate(const CompensateArgs& a) {
   if (!a.json.empty())
     for (const auto& in : inputs)
       if (sameFile(a.json, in)) throw InputError("--json: " + a.json + " would overwrite the input " + in);
+  // a violation keeps the program off the disk (exit kCheckFailed, report printed and in
+  // --json) unless --warn-only.
+  const std::optional<postproc::CheckReport>& check = checked.check;
+  const bool blocked = !checked.write;
   installInterruptCleanup();
-  fs::create_directories(a.out);
-  writeFilesAtomically(files);
+  if (!blocked) {
+    fs::create_directories(a.out);
+    writeFilesAtomically(files);
+  }
   for (const auto& w : report.warnings) std::cerr << "accura: warning: " << w.where.str() << ": " << w.message << "\n";
   std::printf("accura compensate: %s, tol %.4f mm\n", a.in.c_str(), settings.tol_mm);
   for (const auto& s : report.segments) {
@@ -118,20 +136,26 @@ int runCompensate(const CompensateArgs& a) {
   if (!report.segments.empty())
     std::printf("largest path error: %.4f mm as programmed -> %.4f mm endpoints compensated -> %.4f mm written\n",
                 report.max_error_uncompensated_mm, report.max_error_before_mm, report.max_error_after_mm);
-  for (const auto& f : files) std::printf("wrote %s\n", f.path.c_str());
+  if (check) printCheckReport(*check, a.in);
+  if (blocked) std::printf("not written: the program failed the checks of %s (--warn-only writes it anyway)\n", cell->cell_path.c_str());
+  else if (check && !check->passed()) std::fprintf(stderr, "accura: warning: the program failed the checks of %s; written because of --warn-only\n", cell->cell_path.c_str());
+  if (!blocked)
+    for (const auto& f : files) std::printf("wrote %s\n", f.path.c_str());
   if (!a.json.empty()) {
     nlohmann::ordered_json j;
     j["program"] = a.in;
     nlohmann::ordered_json outs = nlohmann::ordered_json::array();
-    for (const auto& f : files) outs.push_back(f.path);
+    if (!blocked)
+      for (const auto& f : files) outs.push_back(f.path);
     j["outputs"] = outs;
     j["robot"] = settings.calibrated.nominal.name;
     j["tol_mm"] = rounded(settings.tol_mm);
     j.update(jobReportJson(report, ""));
+    if (check) j["check"] = checkReportJson(*check);
     writeFilesAtomically({{a.json, j.dump(2) + "\n"}});
     std::printf("wrote %s\n", a.json.c_str());
   }
-  return 0;
+  return blocked ? kCheckFailed : 0;
 }
 
 postproc::JobSettings jobSettings(const JobArgs& a) {
@@ -230,6 +254,8 @@ void addCompensateCommand(CLI::App& app) {
   c->add_option("--config", args->config, "$config.dat: TOOL_DATA, BASE_DATA and global points such as XHOME");
   c->add_option("--out", args->out, "output directory (the program keeps its file names)")->required();
   c->add_option("--json", args->json, "report: per target its correction, per segment the path error before and after");
+  args->cell = addCellOptions(c, false, false);
+  c->add_flag("--warn-only", args->warn_only, "with --cell: write the program even when a check fails (exit 0, warnings)");
   c->callback([=]() { exitCode() = runCompensate(*args); });
 }
 

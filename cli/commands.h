@@ -65,6 +65,7 @@ void addCompensateCommand(CLI::App& app);
 void addBatchCommand(CLI::App& app);
 void addDiagnoseCommand(CLI::App& app);
 void addSelfcheckCommand(CLI::App& app);
+void addCheckCommand(CLI::App& app);
 
 /// Writes text through a temporary file renamed into place (InputError on failure).
 void writeTextAtomically(const std::string& path, const std::string& text);

@@ -21,6 +21,7 @@ int main(int argc, char** argv) {
   addBatchCommand(app);
   addDiagnoseCommand(app);
   addSelfcheckCommand(app);
+  addCheckCommand(app);
 
   try {
     try {

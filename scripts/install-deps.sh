@@ -8,6 +8,7 @@ packages=(
   libceres-dev        # Levenberg-Marquardt for the identification
   libtinyxml2-dev     # robot files and XML programs
   libassimp-dev       # CAD meshes of the cell (reach and clearance checks)
+  libfcl-dev          # distance queries robot <-> cell meshes (clearance checks, BVH of OBBRSS)
   libgtest-dev        # tests
   libbenchmark-dev    # bench/
   liborocos-kdl-dev   # bench/: the IK peer (KDL ChainIkSolverPos_NR_JL)
@@ -15,6 +16,8 @@ packages=(
   nlohmann-json3-dev  # JSON reports
   chromium            # tests: renders the diagnosis report headless and checks the screenshot
   libpng-dev          # tests: decodes that screenshot
+  freecad-python3     # plugin/freecad: FreeCAD's Robot workbench, run headless (freecadcmd) by the
+                      # plug-in's FreeCAD test (151 packages, ~250 MB download, ~1.5 min to install)
 )
 
 missing=()

@@ -7,6 +7,8 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -184,6 +186,112 @@ TEST(Batch, AnInterruptedRunLeavesNoHalfWrittenFile) {
     }
   }
   EXPECT_EQ(snapshot(in), before);
+}
+
+// accura batch --cell: a tree with the golden seam twice and a copy of it whose retreat (its
+// last LIN) goes to 40 mm under the seam's end XP3 instead of up and away: the torch (capsule of
+// tests/data/cell/seam_cell.xml, radius 15 mm ending at the TCP) drives into the plate, whose
+// top is 30 mm under XP3. That program fails with its first violation (file:line, clearance,
+// by how much: the same as accura compensate --cell reports for it alone) and is not written;
+// the others are converted, checked (passed) and equal to the single-program outputs of
+// accura compensate --cell; --jobs 1 and --jobs 2 give the same bytes; --warn-only writes it.
+TEST(Batch, CellCheckFailsTheProgramWhosePathTouchesAFixture) {
+  const std::string root = test::tempDir("batch_cell");
+  const std::string in = root + "/in";
+  copy(golden("compensate/seam.src"), in + "/seam.src");
+  copy(golden("compensate/seam.dat"), in + "/seam.dat");
+  copy(golden("compensate/seam.src"), in + "/sub/seam.src");
+  copy(golden("compensate/seam.dat"), in + "/sub/seam.dat");
+  std::string touch = test::readText(golden("compensate/seam.src"));
+  const std::string retreat = "lin {X 400.0,Y 150.0,Z 600.0,A 150.0,B 20.0,C -170.0}";
+  const size_t at = touch.find(retreat);
+  ASSERT_NE(at, std::string::npos);
+  touch.replace(at, retreat.size(), "lin {X 400.0,Y -250.0,Z 380.0,A 150.0,B 25.0,C -175.0}");  // XP3 - 40 mm in z
+  const int touch_line = 1 + static_cast<int>(std::count(touch.begin(), touch.begin() + static_cast<long>(at), '\n'));
+  test::writeText(in + "/touch.src", touch);
+  copy(golden("compensate/seam.dat"), in + "/touch.dat");
+  copy(golden("compensate/kr16_real.xml"), root + "/model.xml");
+  copy(golden("compensate/$config.dat"), root + "/$config.dat");
+  for (const char* f : {"seam_cell.xml", "plate_m.obj"}) copy(test::sourcePath(std::string("tests/data/cell/") + f), root + "/cell/" + f);
+  const auto before = snapshot(in);
+  const std::string common = "--robot model.xml --config '$config.dat' --tol 0.02 --cell cell/seam_cell.xml";
+
+  // the single-program runs: the seam passes, the touching copy fails (nothing written)
+  const CliRun one = accura(root, "compensate " + common + " --in in/seam.src --out single");
+  ASSERT_EQ(one.code, 0) << one.out << one.err;
+  const CliRun one_touch = accura(root, "compensate " + common + " --in in/touch.src --out single_touch --json single_touch.json");
+  ASSERT_EQ(one_touch.code, 2) << one_touch.out << one_touch.err;
+  const nlohmann::json single = nlohmann::json::parse(test::readText(root + "/single_touch.json"));
+  ASSERT_FALSE(single["check"]["violations"].empty());
+  const nlohmann::json& first = single["check"]["violations"][0];
+  EXPECT_EQ(first["check"], "clearance");
+  EXPECT_EQ(first["line"], touch_line);
+  EXPECT_EQ(first["obstacle"], "plate");
+  EXPECT_EQ(first["robot_part"], "tool");
+  EXPECT_GT(first["excess"].get<double>(), 0.0);
+
+  const CliRun r1 = accura(root, "batch " + common + " --in in --out out1 --jobs 1 --json report1.json");
+  const CliRun r2 = accura(root, "batch " + common + " --in in --out out2 --jobs 2 --json report2.json");
+  EXPECT_EQ(r1.code, 2) << r1.out << r1.err;  // not every program converted
+  EXPECT_EQ(r2.code, 2) << r2.out << r2.err;
+  EXPECT_EQ(snapshot(in), before);
+  const auto out1 = snapshot(root + "/out1"), out2 = snapshot(root + "/out2");
+  EXPECT_EQ(out1, out2);
+  std::string j1 = test::readText(root + "/report1.json"), j2 = test::readText(root + "/report2.json");
+  j1.replace(j1.find("\"out1\""), 6, "\"out\"");
+  j2.replace(j2.find("\"out2\""), 6, "\"out\"");
+  EXPECT_EQ(j1, j2);
+
+  // the failing program is not written; the others equal the single-program output
+  std::vector<std::string> files;
+  for (const auto& [path, text] : out1) files.push_back(path);
+  EXPECT_EQ(files, (std::vector<std::string>{"seam.dat", "seam.src", "sub/seam.dat", "sub/seam.src"}));
+  EXPECT_EQ(out1.at("seam.src"), test::readText(root + "/single/seam.src"));
+  EXPECT_EQ(out1.at("seam.dat"), test::readText(root + "/single/seam.dat"));
+  EXPECT_EQ(out1.at("sub/seam.src"), test::readText(root + "/single/seam.src"));
+  EXPECT_EQ(out1.at("seam.src"), test::readText(golden("compensate/expected/seam.src")));  // the check changes no byte
+
+  // the report names the violation: file:line, the check, by how much
+  const std::string where = "in/touch.src:" + std::to_string(touch_line) + ":";
+  const size_t failed = r1.out.find("FAILED touch.src: failed the checks of cell/seam_cell.xml: " + where);
+  ASSERT_NE(failed, std::string::npos) << r1.out;
+  const std::string line = r1.out.substr(failed, r1.out.find('\n', failed) - failed);
+  EXPECT_NE(line.find("clearance: tool is "), std::string::npos) << line;
+  EXPECT_NE(line.find("from plate"), std::string::npos) << line;
+  char excess[64];
+  std::snprintf(excess, sizeof excess, "(short by %.3f mm)", first["excess"].get<double>());
+  EXPECT_NE(line.find(excess), std::string::npos) << line << " / " << excess;
+  EXPECT_NE(r1.out.find("accura batch: 2 converted, 1 failed, 0 skipped, 3 programs in in"), std::string::npos) << r1.out;
+  const nlohmann::json report = nlohmann::json::parse(j1);
+  EXPECT_EQ(report["cell"], "cell/seam_cell.xml");
+  ASSERT_EQ(report["files"].size(), 3u);
+  for (int k : {0, 1}) {
+    EXPECT_EQ(report["files"][k]["status"], "converted");
+    EXPECT_TRUE(report["files"][k]["check"]["passed"].get<bool>());
+    EXPECT_TRUE(report["files"][k]["check"]["violations"].empty());
+  }
+  const nlohmann::json& t = report["files"][2];
+  EXPECT_EQ(t["input"], "touch.src");
+  EXPECT_EQ(t["status"], "failed");
+  EXPECT_TRUE(t["outputs"].empty());
+  EXPECT_FALSE(t["check"]["passed"].get<bool>());
+  // the same check as the single-program run, the file named relative to the tree
+  nlohmann::json expected = single["check"]["violations"];
+  for (auto& v : expected) v["file"] = "touch.src";
+  EXPECT_EQ(t["check"]["violations"], expected);
+
+  // --warn-only: every program written (the touching one as compensate --warn-only writes it), exit 0
+  const CliRun w = accura(root, "batch " + common + " --warn-only --in in --out outw --jobs 2 --json reportw.json");
+  EXPECT_EQ(w.code, 0) << w.out << w.err;
+  const CliRun one_w = accura(root, "compensate " + common + " --warn-only --in in/touch.src --out single_w");
+  ASSERT_EQ(one_w.code, 0) << one_w.err;
+  EXPECT_EQ(test::readText(root + "/outw/touch.src"), test::readText(root + "/single_w/touch.src"));
+  EXPECT_EQ(test::readText(root + "/outw/seam.src"), out1.at("seam.src"));
+  const nlohmann::json rw = nlohmann::json::parse(test::readText(root + "/reportw.json"));
+  EXPECT_EQ(rw["converted"], 3);
+  EXPECT_EQ(rw["files"][2]["status"], "converted");
+  EXPECT_FALSE(rw["files"][2]["check"]["passed"].get<bool>());
+  EXPECT_NE(w.err.find("touch.src: failed the checks"), std::string::npos) << w.err;
 }
 
 TEST(Batch, AtomicWriterWritesAllOrNothing) {

@@ -10,6 +10,7 @@
 #include <thread>
 
 #include "accura/calib/errors.h"
+#include "accura/calib/geometry.h"
 
 namespace fs = std::filesystem;
 
@@ -71,15 +72,63 @@ std::vector<std::string> findPrograms(const std::string& in_dir) {
   return out;
 }
 
-std::vector<OutputFile> compensateFile(const std::string& in_path, const std::string& out_path,
-                                       const ProgramReadOptions& read, const JobSettings& job, JobReport* report) {
-  const ProgramFormat format = programFormat(in_path);
-  const Program program = readProgram(in_path, read);
+namespace {
+
+std::vector<OutputFile> compensateAndRender(const Program& program, ProgramFormat format, const std::string& out_path,
+                                            const JobSettings& job, JobReport* report) {
   const Program compensated = compensateProgram(program, job, report);
   std::string dat_out;
   if (compensated.krl && !compensated.krl->dat_path.empty())
     dat_out = (fs::path(out_path).parent_path() / fs::path(compensated.krl->dat_path).filename()).string();
   return renderProgram(compensated, format, out_path, dat_out);
+}
+
+}  // namespace
+
+std::vector<OutputFile> compensateFile(const std::string& in_path, const std::string& out_path,
+                                       const ProgramReadOptions& read, const JobSettings& job, JobReport* report) {
+  const ProgramFormat format = programFormat(in_path);
+  return compensateAndRender(readProgram(in_path, read), format, out_path, job, report);
+}
+
+JobSettings placedInCell(const JobSettings& job, const Cell& cell) {
+  JobSettings placed = job;
+  if (cell.T_world_base && !placed.robroot_in_world) placed.robroot_in_world = toXyzAbc(*cell.T_world_base);
+  return placed;
+}
+
+CheckedProgram compensateAndCheckFile(const std::string& in_path, const std::string& out_path, const ProgramReadOptions& read,
+                                      const JobSettings& job, const CellCheckSettings* cell, JobReport* report) {
+  const ProgramFormat format = programFormat(in_path);
+  const Program program = readProgram(in_path, read);
+  CheckedProgram out;
+  if (!cell) {
+    out.files = compensateAndRender(program, format, out_path, job, report);
+    return out;
+  }
+  const JobSettings placed = placedInCell(job, cell->cell);
+  out.files = compensateAndRender(program, format, out_path, placed, report);
+  // the program as read (its targets are where the tool must go): docs/checks.md, "intended"
+  out.check = checkProgram(program, placed, cell->cell, cell->options);
+  out.write = out.check->passed() || cell->warn_only;
+  return out;
+}
+
+std::string firstCheckProblem(const CheckReport& check) {
+  if (check.passed()) return "";
+  const size_t n = check.violations.size(), u = check.unchecked.size();
+  std::string counts = std::to_string(n) + " violation(s)" + (u ? ", " + std::to_string(u) + " motion(s) not checked" : "");
+  if (n > 0) {
+    const CheckViolation& v = check.violations.front();
+    std::string deepest;  // the first violation is where the clearance gets short: how short it gets
+    if (v.kind == CheckKind::kClearance)
+      for (const MotionCheck& m : check.motions)
+        if (m.motion_index == v.motion_index && m.min_clearance_mm < v.value)
+          deepest = "; smallest clearance on this motion " + formatFixed(m.min_clearance_mm, 3) + " mm";
+    return v.where.str() + ": " + v.message + " [" + v.motion_type + deepest + "; " + counts + "]";
+  }
+  const ProgramIssue& w = check.unchecked.front();
+  return w.where.str() + ": " + w.message + " [" + counts + "]";
 }
 
 BatchResult runBatch(const std::string& in_dir, const std::string& out_dir, const BatchOptions& options,
@@ -116,11 +165,18 @@ BatchResult runBatch(const std::string& in_dir, const std::string& out_dir, cons
           r.status = BatchFileResult::Status::kSkipped;
           r.message = "not an XML program (its root element is not <program>)";
         } else {
-          std::vector<OutputFile> out = compensateFile(in_path.string(), out_path.string(), read, options.job, &r.report);
-          fs::create_directories(out_path.parent_path());
-          writeFilesAtomically(out);
-          for (const auto& f : out) r.outputs.push_back(relativeSlash(fs::relative(f.path, out_dir)));
-          r.status = BatchFileResult::Status::kConverted;
+          CheckedProgram out = compensateAndCheckFile(in_path.string(), out_path.string(), read, options.job,
+                                                      options.cell ? &*options.cell : nullptr, &r.report);
+          r.check = std::move(out.check);
+          if (r.check && !r.check->passed()) r.message = "failed the checks of " + options.cell->cell.file + ": " + firstCheckProblem(*r.check);
+          if (out.write) {
+            fs::create_directories(out_path.parent_path());
+            writeFilesAtomically(out.files);
+            for (const auto& f : out.files) r.outputs.push_back(relativeSlash(fs::relative(f.path, out_dir)));
+            r.status = BatchFileResult::Status::kConverted;
+          } else {
+            r.status = BatchFileResult::Status::kFailed;
+          }
         }
       } catch (const std::exception& e) {
         r.status = BatchFileResult::Status::kFailed;

@@ -9,9 +9,12 @@
 #pragma once
 
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
+#include "accura/postproc/cell.h"
+#include "accura/postproc/check.h"
 #include "accura/postproc/job.h"
 #include "accura/postproc/program_io.h"
 
@@ -28,18 +31,61 @@ void installInterruptCleanup();
 /// True once SIGINT / SIGTERM arrived (workers stop taking new files).
 bool interruptRequested();
 
+/// The checks of a program in its cell before it is written (accura compensate --cell and
+/// accura batch --cell; docs/checks.md).
+struct CellCheckSettings {
+  Cell cell;
+  CheckOptions options;
+  /// Write a program that fails the checks anyway (its report still says it failed).
+  bool warn_only = false;
+};
+
+/// A compensated program, rendered but not written, and its check.
+struct CheckedProgram {
+  std::vector<OutputFile> files;     ///< the rendered output (.src and .dat, or .xml)
+  std::optional<CheckReport> check;  ///< with a cell: the check of the program
+  /// False when the program failed its check (a violation or a motion that could not be
+  /// checked) and warn_only is not set: it must not be written.
+  bool write = true;
+};
+
+/// The job for a program checked in `cell`: the cell's robot placement (<robot>) becomes
+/// job.robroot_in_world when that is not set (it is where the OLP placed the robot).
+JobSettings placedInCell(const JobSettings& job, const Cell& cell);
+
+/// Compensates one program file as compensateFile does and, with `cell` (may be null), checks
+/// the program read from the file in the cell (checkProgram, CheckMode of cell->options) with
+/// the job placed in the cell (placedInCell) — what accura compensate --cell and accura batch
+/// --cell both do. Nothing is written. Throws like compensateFile and checkProgram (InputError
+/// when the cell's placement and job.robroot_in_world disagree).
+CheckedProgram compensateAndCheckFile(const std::string& in_path, const std::string& out_path, const ProgramReadOptions& read,
+                                      const JobSettings& job, const CellCheckSettings* cell, JobReport* report);
+
+/// One line for people: the first violation of a failed check ("file:line:column: check:
+/// ... (short by ...)"; for a clearance, the smallest clearance at the samples of that motion
+/// when it is smaller) or, without violations, the first motion that could not be checked,
+/// and how many there are; empty when the check passed.
+std::string firstCheckProblem(const CheckReport& check);
+
 struct BatchOptions {
   JobSettings job;
   std::string config_path;  ///< $config.dat for every program (empty: none)
   int jobs = 1;             ///< worker threads (>= 1)
+  /// Every program is checked in this cell before it is written (compensateAndCheckFile): a
+  /// program that fails is reported as kFailed with its first violation and not written
+  /// (unless warn_only: then it is written, kConverted, its check saying it failed).
+  std::optional<CellCheckSettings> cell;
 };
 
 struct BatchFileResult {
   std::string input;                 ///< path relative to the input directory ('/' separated)
   std::vector<std::string> outputs;  ///< paths written (relative to the output directory)
   enum class Status { kConverted, kFailed, kSkipped } status = Status::kFailed;
-  std::string message;  ///< the error (kFailed) or why it was skipped
-  JobReport report;     ///< kConverted
+  /// The error (kFailed: firstCheckProblem when the check failed), why it was skipped, or
+  /// (kConverted with warn_only) the check's first problem.
+  std::string message;
+  JobReport report;                  ///< kConverted, and kFailed by the check
+  std::optional<CheckReport> check;  ///< with a cell, once the program was compensated
 };
 
 struct BatchResult {
@@ -52,8 +98,9 @@ struct BatchResult {
 std::vector<std::string> findPrograms(const std::string& in_dir);
 
 /// Compensates every program of `in_dir` into the same relative path under `out_dir` (created
-/// as needed), `options.jobs` at a time. A file that fails is reported in its result and
-/// skipped; the others go on. An .xml file whose root element is not <program> is skipped.
+/// as needed), `options.jobs` at a time (the outputs do not depend on it). A file that fails
+/// (reading, compensation, or the check in options.cell) is reported in its result and not
+/// written; the others go on. An .xml file whose root element is not <program> is skipped.
 /// The input tree is only read. `progress` (may be empty) is called after each file, from the
 /// worker thread, one call at a time. Throws InputError when `in_dir` is not a directory or
 /// `out_dir` is inside it.

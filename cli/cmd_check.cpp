@@ -1,0 +1,220 @@
+// accura check: reach, joint-limit, singularity and clearance checks of a program in its cell
+// (docs/checks.md), and the --cell options accura compensate shares.
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <functional>
+#include <iostream>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <optional>
+
+#include "accura/calib/errors.h"
+#include "accura/postproc/batch.h"
+#include "accura/postproc/cell.h"
+#include "accura/postproc/check.h"
+#include "accura/postproc/job.h"
+#include "accura/postproc/program_io.h"
+#include "cli_util.h"
+#include "cmd_check.h"
+#include "commands.h"
+
+namespace fs = std::filesystem;
+
+namespace accura::cli {
+
+// Defined in cmd_compensate.cpp.
+std::function<postproc::JobSettings()> addJobOptions(CLI::App* c);
+
+namespace {
+
+struct CellArgs {
+  std::string cell;
+  double joint_margin_deg = 0, singular_threshold = 0, min_clearance_mm = 0;
+  bool as_written = false;
+  CLI::Option* o_margin = nullptr;
+  CLI::Option* o_singular = nullptr;
+  CLI::Option* o_clearance = nullptr;
+};
+
+nlohmann::ordered_json rounded(double v) {
+  if (!std::isfinite(v)) return nullptr;
+  const double r = std::round(v * 1e6) / 1e6;
+  return r == 0 ? 0.0 : r;
+}
+
+std::optional<CellCheck> cellCheck(const CellArgs& a) {
+  if (a.cell.empty()) return std::nullopt;
+  CellCheck c;
+  c.cell_path = a.cell;
+  c.cell = postproc::readCellFile(a.cell);
+  c.options.thresholds = c.cell.thresholds;
+  if (a.o_margin->count()) {
+    if (!(a.joint_margin_deg >= 0) || !std::isfinite(a.joint_margin_deg))
+      throw InputError("--joint-margin-deg: expected a margin >= 0 (deg), found " + fmt("%g", a.joint_margin_deg));
+    c.options.thresholds.joint_margin_deg = a.joint_margin_deg;
+  }
+  if (a.o_singular->count()) {
+    if (!(a.singular_threshold >= 0) || !std::isfinite(a.singular_threshold))
+      throw InputError("--singular-threshold: expected a value >= 0, found " + fmt("%g", a.singular_threshold));
+    c.options.thresholds.singular_threshold = a.singular_threshold;
+  }
+  if (a.o_clearance->count()) {
+    if (!(a.min_clearance_mm >= 0) || !std::isfinite(a.min_clearance_mm))
+      throw InputError("--min-clearance-mm: expected a distance >= 0 (mm), found " + fmt("%g", a.min_clearance_mm));
+    c.options.thresholds.min_clearance_mm = a.min_clearance_mm;
+  }
+  c.options.mode = a.as_written ? postproc::CheckMode::kAsWritten : postproc::CheckMode::kIntended;
+  return c;
+}
+
+struct CheckArgs {
+  std::function<postproc::JobSettings()> settings;
+  std::function<std::optional<CellCheck>()> cell;
+  std::string in, dat, config, json;
+};
+
+int runCheck(const CheckArgs& a) {
+  using namespace postproc;
+  const JobSettings settings = a.settings();
+  const std::optional<CellCheck> cc = a.cell();
+  postproc::ProgramReadOptions read;
+  read.dat_path = a.dat;
+  read.config_path = a.config;
+  const Program program = readProgram(a.in, read);
+  if (!a.json.empty()) {
+    std::error_code ec;
+    for (const std::string& in : {a.in, a.dat, a.config, cc->cell_path})
+      if (!in.empty() && fs::exists(a.json, ec) && fs::equivalent(a.json, in, ec))
+        throw InputError("--json: " + a.json + " would overwrite the input " + in);
+  }
+  const CheckReport r = checkProgram(program, settings, cc->cell, cc->options);
+  printCheckReport(r, a.in);
+  if (!a.json.empty()) {
+    nlohmann::ordered_json j;
+    j["program"] = a.in;
+    j["cell"] = cc->cell_path;
+    j["robot"] = settings.calibrated.nominal.name;
+    j.update(checkReportJson(r));
+    writeFilesAtomically({{a.json, j.dump(2) + "\n"}});
+    std::printf("wrote %s\n", a.json.c_str());
+  }
+  return r.passed() ? 0 : kCheckFailed;
+}
+
+}  // namespace
+
+std::function<std::optional<CellCheck>()> addCellOptions(CLI::App* c, bool required, bool as_written_flag) {
+  auto args = std::make_shared<CellArgs>();
+  CellArgs& a = *args;
+  auto* o = c->add_option("--cell", a.cell, "cell file (docs/cell-format.md): meshes, robot placement, link and tool geometry, thresholds");
+  if (required) o->required();
+  a.o_margin = c->add_option("--joint-margin-deg", a.joint_margin_deg, "required distance of every joint from its limits (deg; mm for prismatic); default: the cell file's, else 1");
+  a.o_singular = c->add_option("--singular-threshold", a.singular_threshold,
+                               "smallest allowed sigma_min of the scaled joint Jacobian (dimensionless, docs/checks.md); default: the cell file's, else 0.005");
+  a.o_clearance = c->add_option("--min-clearance-mm", a.min_clearance_mm, "required distance robot <-> cell meshes (mm); default: the cell file's, else 5");
+  if (as_written_flag)
+    c->add_flag("--as-written", a.as_written,
+              "the program runs as written (already compensated): joints from the controller's nominal IK; default: its targets are where the tool must go (IK of the calibrated model)");
+  return [args]() { return cellCheck(*args); };
+}
+
+nlohmann::ordered_json checkReportJson(const postproc::CheckReport& r, const std::string& relative_to) {
+  using nlohmann::ordered_json;
+  const auto file = [&](const std::string& f) {
+    if (relative_to.empty() || f.empty()) return f;
+    std::error_code ec;
+    const fs::path rel = fs::relative(f, relative_to, ec);
+    return ec || rel.empty() ? f : rel.generic_string();
+  };
+  ordered_json j;
+  j["passed"] = r.passed();
+  j["mode"] = postproc::toString(r.mode);
+  j["thresholds"] = {{"joint_margin_deg", rounded(r.thresholds.joint_margin_deg)},
+                     {"singular_threshold", rounded(r.thresholds.singular_threshold)},
+                     {"min_clearance_mm", rounded(r.thresholds.min_clearance_mm)}};
+  ordered_json v = ordered_json::array();
+  for (const auto& x : r.violations) {
+    ordered_json e;
+    e["check"] = postproc::toString(x.kind);
+    e["motion_index"] = x.motion_index;
+    e["file"] = file(x.where.file);
+    e["line"] = x.where.line;
+    e["motion"] = x.motion_type;
+    e["on_path"] = x.on_path;
+    e["s"] = rounded(x.s);
+    e["arc_mm"] = rounded(x.arc_mm);
+    e["tcp_world_mm"] = {rounded(x.p_world_tcp_mm.x()), rounded(x.p_world_tcp_mm.y()), rounded(x.p_world_tcp_mm.z())};
+    ordered_json q = ordered_json::array();
+    for (int i = 0; i < x.q.size(); ++i) q.push_back(rounded(x.q[i]));
+    e["joints"] = q;
+    e["value"] = rounded(x.value);
+    e["limit"] = rounded(x.limit);
+    e["excess"] = rounded(x.excess);
+    e["unit"] = x.unit;
+    if (x.joint >= 0) e["joint"] = x.joint + 1;
+    if (!x.robot_part.empty()) e["robot_part"] = x.robot_part;
+    if (!x.obstacle.empty()) e["obstacle"] = x.obstacle;
+    e["message"] = x.message;
+    v.push_back(e);
+  }
+  j["violations"] = v;
+  ordered_json m = ordered_json::array();
+  for (const auto& x : r.motions) {
+    ordered_json e;
+    e["motion_index"] = x.motion_index;
+    e["line"] = x.where.line;
+    e["motion"] = x.motion_type;
+    e["checked"] = x.checked;
+    if (!x.note.empty()) e["note"] = x.note;
+    e["samples"] = x.samples;
+    e["length_mm"] = rounded(x.length_mm);
+    e["min_clearance_mm"] = rounded(x.min_clearance_mm);
+    e["min_sigma"] = rounded(x.min_sigma);
+    e["min_joint_margin"] = rounded(x.min_joint_margin);
+    m.push_back(e);
+  }
+  j["motions"] = m;
+  auto issues = [&](const std::vector<postproc::ProgramIssue>& list) {
+    ordered_json a = ordered_json::array();
+    for (const auto& w : list) a.push_back({{"file", file(w.where.file)}, {"line", w.where.line}, {"message", w.message}});
+    return a;
+  };
+  j["unchecked"] = issues(r.unchecked);
+  j["warnings"] = issues(r.warnings);
+  j["totals"] = {{"samples", r.samples},
+                 {"distance_queries", r.distance_queries},
+                 {"min_clearance_mm", rounded(r.min_clearance_mm)},
+                 {"min_sigma", rounded(r.min_sigma)},
+                 {"min_joint_margin", rounded(r.min_joint_margin)}};
+  return j;
+}
+
+void printCheckReport(const postproc::CheckReport& r, const std::string& program) {
+  for (const auto& w : r.warnings) std::cerr << "accura: warning: " << w.where.str() << ": " << w.message << "\n";
+  std::printf("accura check: %s (%s; joint margin %.3f, sigma_min >= %.6f, clearance >= %.3f mm)\n", program.c_str(),
+              postproc::toString(r.mode), r.thresholds.joint_margin_deg, r.thresholds.singular_threshold, r.thresholds.min_clearance_mm);
+  for (const auto& v : r.violations)
+    std::printf("  VIOLATION %s: motion %d (%s): %s\n", v.where.str().c_str(), v.motion_index + 1, v.motion_type.c_str(), v.message.c_str());
+  for (const auto& u : r.unchecked) std::printf("  NOT CHECKED %s: %s\n", u.where.str().c_str(), u.message.c_str());
+  auto val = [](double v) { return std::isfinite(v) ? fmt("%.3f", v) : std::string("-"); };
+  std::printf("%zu motion(s), %d configuration(s) evaluated, %lld distance queries; smallest clearance %s mm, sigma_min %s, joint margin %s\n",
+              r.motions.size(), r.samples, r.distance_queries, val(r.min_clearance_mm).c_str(),
+              std::isfinite(r.min_sigma) ? fmt("%.6f", r.min_sigma).c_str() : "-", val(r.min_joint_margin).c_str());
+  std::printf("%s: %zu violation(s), %zu motion(s) not checked\n", r.passed() ? "PASSED" : "FAILED", r.violations.size(), r.unchecked.size());
+}
+
+void addCheckCommand(CLI::App& app) {
+  auto args = std::make_shared<CheckArgs>();
+  auto* c = app.add_subcommand("check", "check a program in its cell: reach, joint limits, singularities, clearance (exit 2 on a violation)");
+  args->settings = addJobOptions(c);
+  c->remove_option(c->get_option("--tol"));  // the compensation's path tolerance: not used by the checks
+  args->cell = addCellOptions(c, true, true);
+  c->add_option("--in", args->in, "program: PROG.src (KRL, with PROG.dat next to it) or PROG.xml")->required();
+  c->add_option("--dat", args->dat, "the KRL .dat (default: the .src's name with .dat)");
+  c->add_option("--config", args->config, "$config.dat: TOOL_DATA, BASE_DATA and global points such as XHOME");
+  c->add_option("--json", args->json, "report: every violation (where, joints, which check, by how much) and per motion the margins");
+  c->callback([=]() { exitCode() = runCheck(*args); });
+}
+
+}  // namespace accura::cli

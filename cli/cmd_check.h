@@ -1,0 +1,36 @@
+// The --cell options and the check report of accura check, shared with accura compensate
+// (defined in cmd_check.cpp).
+#pragma once
+
+#include <CLI/CLI.hpp>
+#include <functional>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+
+#include "accura/postproc/cell.h"
+#include "accura/postproc/check.h"
+
+namespace accura::cli {
+
+/// A cell and the options of its checks, from the command line.
+struct CellCheck {
+  std::string cell_path;
+  postproc::Cell cell;
+  postproc::CheckOptions options;
+};
+
+/// Exit status of accura check / compensate --cell when a check fails.
+constexpr int kCheckFailed = 2;
+
+/// Adds --cell (required or not), --joint-margin-deg, --singular-threshold,
+/// --min-clearance-mm and, with `as_written_flag`, --as-written; the function reads the cell
+/// (empty without --cell).
+std::function<std::optional<CellCheck>()> addCellOptions(CLI::App* c, bool required, bool as_written_flag);
+/// The JSON of a check report (docs/checks.md, "Report"); file names relative to
+/// `relative_to` when it is not empty (accura batch: the input tree).
+nlohmann::ordered_json checkReportJson(const postproc::CheckReport& r, const std::string& relative_to = "");
+/// Prints the report (violations on stdout, warnings on stderr).
+void printCheckReport(const postproc::CheckReport& r, const std::string& program);
+
+}  // namespace accura::cli

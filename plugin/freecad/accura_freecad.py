@@ -1,0 +1,266 @@
+"""accura for FreeCAD's Robot workbench: compensate and densify a trajectory with a calibrated
+model through the accura plug-in (libaccura_plugin.so, via plugin/python/accura_plugin.py), add
+the result to the document as a new trajectory, and export it as KUKA KRL.
+
+Runs in FreeCAD (GUI or headless `freecadcmd`); the macro AccuraCompensate.FCMacro calls it on
+the selection. Steps (README "The plug-in"):
+
+    import accura_freecad as af
+    new, summary = af.compensate_trajectory(doc, robot, trajectory, "kr16_calibrated.xml", tol_mm=0.05)
+    af.export_krl(new, "/path/seam_accura.src", tool=af.placement_to_xyzabc(robot.Tool))
+
+Conventions (the mapping between FreeCAD and accura):
+- Kinematics. FreeCAD's Robot6Axis reads a kinematic table (CSV: a, alpha, d, theta, rotDir,
+  maxAngle, minAngle, AxisVelocity; one row per axis) and builds a KDL chain of
+  Segment(RotZ, Frame::DH(a, alpha, d, theta)): link i = Rz(rotDir_i * q_i) Rz(theta_i) Tz(d_i)
+  Tx(a_i) Rx(alpha_i), which is accura's DH link (robot.h) with theta0 = theta and
+  direction = rotDir; limits are [minAngle, maxAngle] deg. kinematic_csv() writes that table
+  from an accura robot file (accura's KR 16 comes from FreeCAD's kr_16.csv; accura's Hayati
+  links equal their DH form at nominal, so the table is exact), and
+  check_kinematics() compares FreeCAD's forward kinematics with the model's at several axis
+  positions before anything is compensated. FreeCAD applies the limits to rotDir * q, so for an
+  axis with rotDir -1 the table holds accura's limits mirrored (maxAngle = -lower, minAngle =
+  -upper): FreeCAD's own IK then keeps q within accura's limits.
+- Frames. The robot object's Tcp is the flange in the robot base frame; its `Tool` placement is
+  the tool (T_flange_tcp, accura's $TOOL). Waypoint poses are the TCP (flange * Tool) in the
+  robot base frame ($BASE = $WORLD = robot base: the controller's defaults). The robot
+  object's Placement (where it stands in the document) is not used. Angles: FreeCAD's
+  Rotation.toEuler() is (yaw, pitch, roll) = Rz Ry Rx = KUKA (A, B, C).
+- Motions. Waypoint types PTP and LIN as FreeCAD has them; a circle is two consecutive CIRC
+  waypoints: the auxiliary point, then the end point. A LIN/CIRC run is compensated as one path
+  from the waypoint before it; PTP waypoints are compensated as points.
+"""
+import math
+import os
+import sys
+import tempfile
+import xml.etree.ElementTree as ET
+
+import FreeCAD as App
+import Robot
+
+_here = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, os.path.join(os.path.dirname(_here), "python"))
+import accura_plugin  # noqa: E402
+
+
+class AccuraFreeCADError(Exception):
+    pass
+
+
+def placement_to_xyzabc(p):
+    """(x, y, z, A, B, C) mm / deg of a FreeCAD Placement (A, B, C = yaw, pitch, roll)."""
+    a, b, c = p.Rotation.toEuler()
+    return (p.Base.x, p.Base.y, p.Base.z, a, b, c)
+
+
+def xyzabc_to_placement(x):
+    return App.Placement(App.Vector(x[0], x[1], x[2]), App.Rotation(x[3], x[4], x[5]))
+
+
+def _compose(a, b):
+    """Placement a * b."""
+    return a.multiply(b)
+
+
+def kinematic_csv(robot_xml, csv_path, axis_velocity_deg_s=100.0):
+    """Writes FreeCAD's kinematic table of an accura robot file (6 revolute joints, DH form at
+    nominal). The table's last column (AxisVelocity) is not in accura's files: FreeCAD uses it
+    only for its own simulation timing."""
+    root = ET.parse(robot_xml).getroot()
+    joints = root.find("joints").findall("joint")
+    if len(joints) != 6 or any(j.get("type", "revolute") != "revolute" for j in joints):
+        raise AccuraFreeCADError("%s: FreeCAD's Robot6Axis needs 6 revolute joints, found %d joints" % (robot_xml, len(joints)))
+    rows = ["a    ,alpha ,d    ,theta,rotDir,maxAngle ,minAngle ,AxisVelocity"]
+    for j in joints:
+        direction = int(j.get("direction", "1"))
+        lower, upper = float(j.get("lower")), float(j.get("upper"))
+        if direction < 0:  # FreeCAD's limits are on rotDir * q
+            lower, upper = -upper, -lower
+        rows.append("%s,%s,%s,%s,%d,%r,%r,%r" % (j.get("a_mm"), j.get("alpha_deg"), j.get("d_mm"), j.get("theta0_deg"),
+                                                  direction, upper, lower, axis_velocity_deg_s))
+    _write_atomically(csv_path, "\n".join(rows) + "\n")
+    return csv_path
+
+
+def check_kinematics(doc, robot, model, tol_mm=1e-6, tol_deg=1e-6):
+    """Largest position (mm) and angle (deg) difference between FreeCAD's forward kinematics of
+    `robot` (Tcp * Tool) and the model's controller at a few axis positions. Raises when they
+    differ by more than the tolerances: the document's robot is not the model's robot."""
+    # the probe gets its own copy of the table: the file is included in the document, and
+    # removing the probe removes its included file
+    fd, table = tempfile.mkstemp(prefix="accura_kinematics_", suffix=".csv")
+    with os.fdopen(fd, "wb") as f, open(robot.RobotKinematicFile, "rb") as g:
+        f.write(g.read())
+    probe = doc.addObject("Robot::RobotObject", "AccuraKinematicProbe")
+    worst_mm = worst_deg = 0.0
+    try:
+        probe.RobotKinematicFile = table
+        tool = robot.Tool
+        for q in ((0, -90, 90, 0, 0, 0), (20, -70, 100, 30, 40, -60), (-45, -110, 60, -90, -30, 120),
+                  (100, -30, 130, 170, 80, -170)):
+            for k in range(6):
+                setattr(probe, "Axis%d" % (k + 1), q[k])
+            qs = [getattr(probe, "Axis%d" % (k + 1)) for k in range(6)]  # as FreeCAD holds them
+            fc = _compose(probe.Tcp, tool)
+            ac = xyzabc_to_placement(model.forward_kinematics(qs, accura_plugin.CONTROLLER))
+            worst_mm = max(worst_mm, (fc.Base - ac.Base).Length)
+            d = fc.Rotation.multiply(ac.Rotation.inverted())
+            worst_deg = max(worst_deg, abs(math.degrees(d.Angle)))
+    finally:
+        doc.removeObject(probe.Name)
+        if os.path.exists(table):
+            os.unlink(table)
+    if worst_mm > tol_mm or worst_deg > tol_deg:
+        raise AccuraFreeCADError("the robot '%s' (%s) is not the model's robot: forward kinematics differ by %.6g mm and %.6g deg"
+                                 % (robot.Label, robot.RobotKinematicFile, worst_mm, worst_deg))
+    return worst_mm, worst_deg
+
+
+def load_model(robot, model_path, plugin_lib=None, payload_kg=0.0):
+    """The plug-in's model for `robot`: the calibrated model file, with the robot's Tool as $TOOL."""
+    plugin = accura_plugin.Plugin(plugin_lib)
+    return plugin.load(model_path, program_tool=placement_to_xyzabc(robot.Tool), payload_kg=payload_kg)
+
+
+def _runs(waypoints):
+    """Splits the waypoints into (start index, [motions]) runs (see the module comment)."""
+    runs, i, n = [], 0, len(waypoints)
+    while i < n:
+        motions, j = [], i + 1
+        while j < n and waypoints[j].Type in ("LIN", "CIRC"):
+            w = waypoints[j]
+            if w.Type == "LIN":
+                motions.append(("LIN", j))
+                j += 1
+            else:
+                if j + 1 >= n or waypoints[j + 1].Type != "CIRC":
+                    raise AccuraFreeCADError("waypoint %d (%s): a CIRC waypoint (the auxiliary point) must be followed by a "
+                                             "second CIRC waypoint (the end point)" % (j, w.Name))
+                motions.append(("CIRC", j, j + 1))
+                j += 2
+        runs.append((i, motions))
+        i = j
+    return runs
+
+
+def _waypoint(pose, like, name, type_=None):
+    return Robot.Waypoint(xyzabc_to_placement(pose), name=name, type=type_ or like.Type, vel=like.Velocity,
+                          cont=like.Cont, tool=like.Tool, base=like.Base)
+
+
+def compensate_trajectory(doc, robot, trajectory, model_path, tol_mm=0.05, plugin_lib=None, name=None, model=None,
+                          check=True):
+    """Adds to `doc` a new Robot::TrajectoryObject (`name`, default trajectory.Name + "_accura")
+    holding the trajectory compensated with the calibrated model and densified so that the
+    real robot's predicted path error is below tol_mm (mm). Returns (object, summary dict)."""
+    own = model is None
+    if own:
+        model = load_model(robot, model_path, plugin_lib)
+    try:
+        summary = {"tol_mm": tol_mm, "max_error_uncompensated_mm": 0.0, "max_error_before_mm": 0.0,
+                   "max_error_after_mm": 0.0, "points_added": 0}
+        if check:
+            summary["kinematics_mm"], summary["kinematics_deg"] = check_kinematics(doc, robot, model)
+        wps = trajectory.Trajectory.Waypoints
+        pose = [placement_to_xyzabc(w.Pos) for w in wps]
+        out = []
+        for start, motions in _runs(wps):
+            w0 = wps[start]
+            if not motions:
+                r = model.compensate_pose(pose[start])
+                out.append(_waypoint(r.command, w0, w0.Name))
+                continue
+            path = [("LIN", pose[m[1]]) if m[0] == "LIN" else ("CIRC", pose[m[1]], pose[m[2]]) for m in motions]
+            res, points, reports = model.compensate_path(pose[start], path, tol_mm=tol_mm)
+            out.append(_waypoint(res.start_command, w0, w0.Name))
+            for key in ("max_error_uncompensated_mm", "max_error_before_mm", "max_error_after_mm"):
+                summary[key] = max(summary[key], getattr(res, key))
+            summary["points_added"] += res.points_added
+            added = {}
+            for p in points:
+                m = motions[p.motion]
+                end_wp = wps[m[-1]]
+                if p.inserted:
+                    added[p.motion] = added.get(p.motion, 0) + 1
+                    label = "%s_a%d" % (end_wp.Name, added[p.motion])
+                else:
+                    label = end_wp.Name
+                if m[0] == "CIRC":
+                    out.append(_waypoint(p.aux, wps[m[1]], label + "_aux", "CIRC"))
+                    out.append(_waypoint(p.end, end_wp, label, "CIRC"))
+                else:
+                    out.append(_waypoint(p.end, end_wp, label, "LIN"))
+        obj = doc.addObject("Robot::TrajectoryObject", name or (trajectory.Name + "_accura"))
+        obj.Trajectory = Robot.Trajectory(out)
+        summary["waypoints_in"] = len(wps)
+        summary["waypoints_out"] = len(out)
+        doc.recompute()
+        return obj, summary
+    finally:
+        if own:
+            model.close()
+
+
+def _fmt(v, decimals):
+    s = "%.*f" % (decimals, v)
+    return "0." + "0" * decimals if s.lstrip("-") == "0." + "0" * decimals else s  # never "-0.0000"
+
+
+def _frame(x):
+    return "{X %s, Y %s, Z %s, A %s, B %s, C %s}" % (tuple(_fmt(v, 4) for v in x[:3]) + tuple(_fmt(v, 5) for v in x[3:]))
+
+
+def _write_atomically(path, text):
+    d = os.path.dirname(os.path.abspath(path))
+    os.makedirs(d, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix="." + os.path.basename(path) + ".", suffix=".accura-tmp", dir=d)
+    try:
+        with os.fdopen(fd, "w", newline="\n") as f:
+            f.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def export_krl(trajectory, src_path, tool, base=(0, 0, 0, 0, 0, 0), program_name=None):
+    """Writes the trajectory as a KUKA KRL program (src_path and the .dat next to it), the way
+    FreeCAD's KukaExporter lays it out (header, BAS(#INITMOV), $VEL.CP per motion, inline
+    targets) but deterministic (no time stamp) and at accura's resolution (0.1 um, 1e-5 deg), with
+    $BASE and $TOOL set so that the program says its frames. Waypoint types: PTP, LIN, and CIRC
+    pairs (auxiliary point, end point); Cont -> C_PTP / C_DIS. Each file is written to a
+    temporary file and renamed into place."""
+    name = program_name or os.path.splitext(os.path.basename(src_path))[0]
+    wps = trajectory.Trajectory.Waypoints
+    lines = ["&ACCESS RVP", "&REL 1", "DEF %s( )" % name, "",
+             ";- KUKA src file, generated by accura_freecad from the FreeCAD trajectory '%s'" % trajectory.Label, "",
+             "EXT BAS (BAS_COMMAND :IN,REAL :IN )", "BAS (#INITMOV,0 )",
+             "$BASE = " + _frame(base), "$TOOL = " + _frame(tool), ""]
+    i = 0
+    while i < len(wps):
+        w = wps[i]
+        p = placement_to_xyzabc(w.Pos)
+        if w.Type == "PTP":
+            lines.append("PTP %s%s ; %s" % (_frame(p), " C_PTP" if w.Cont else "", w.Name))
+            i += 1
+            continue
+        lines.append("$VEL.CP = %s ; m/s" % _fmt(w.Velocity / 1000.0, 4))
+        if w.Type == "LIN":
+            lines.append("LIN %s%s ; %s" % (_frame(p), " C_DIS" if w.Cont else "", w.Name))
+            i += 1
+        elif w.Type == "CIRC":
+            if i + 1 >= len(wps) or wps[i + 1].Type != "CIRC":
+                raise AccuraFreeCADError("waypoint %d (%s): a CIRC waypoint must be followed by its end point (CIRC)" % (i, w.Name))
+            e = wps[i + 1]
+            lines.append("CIRC %s, %s%s ; %s" % (_frame(p), _frame(placement_to_xyzabc(e.Pos)), " C_DIS" if e.Cont else "",
+                                                 e.Name))
+            i += 2
+        else:
+            raise AccuraFreeCADError("waypoint %d (%s): type %s cannot be exported (PTP, LIN, CIRC)" % (i, w.Name, w.Type))
+    lines += ["", "END", ""]
+    _write_atomically(src_path, "\n".join(lines))
+    dat = os.path.splitext(src_path)[0] + ".dat"
+    _write_atomically(dat, "&ACCESS RVP\n&REL 1\nDEFDAT %s PUBLIC\nENDDAT\n" % name)
+    return src_path, dat

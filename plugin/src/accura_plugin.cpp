@@ -1,0 +1,727 @@
+// accura plug-in: the C interface (plugin/include/accura_plugin.h) over calib and postproc.
+//
+// Every exported function runs its body inside guarded(): C++ exceptions (std::bad_alloc
+// included) become a status and a message stored for the calling thread in the handle.
+#include "accura_plugin.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <memory>
+#include <mutex>
+#include <nlohmann/json.hpp>
+#include <new>
+#include <optional>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <unordered_map>
+#include <utility>
+#include <vector>
+
+#include "accura/calib/errors.h"
+#include "accura/calib/geometry.h"
+#include "accura/calib/kinematics.h"
+#include "accura/calib/robot_io.h"
+#include "accura/postproc/batch.h"
+#include "accura/postproc/cell.h"
+#include "accura/postproc/check.h"
+#include "accura/postproc/compensate.h"
+#include "accura/postproc/job.h"
+#include "accura/postproc/program_io.h"
+
+#ifndef ACCURA_VERSION_MAJOR
+#define ACCURA_VERSION_MAJOR 0
+#define ACCURA_VERSION_MINOR 0
+#define ACCURA_VERSION_PATCH 0
+#endif
+
+namespace fs = std::filesystem;
+using namespace accura;
+using namespace accura::postproc;
+
+namespace {
+
+/// A failure with its status (thrown inside the guarded bodies).
+struct PluginError {
+  accura_status status;
+  std::string message;
+};
+
+[[noreturn]] void fail(accura_status s, const std::string& message) { throw PluginError{s, message}; }
+
+/// The immutable model of a handle: everything a compensation call needs.
+struct State {
+  JobSettings job;                       ///< the settings of accura compensate
+  Eigen::Isometry3d T_world_progbase;    ///< $BASE of the poses and paths in the world
+  Eigen::Isometry3d T_flange_tcp;        ///< $TOOL of the poses and paths
+  std::unique_ptr<Compensator> comp;     ///< controller and real model with that tool
+  bool calibrated_tool = false;
+  Eigen::Isometry3d T_world_robroot;
+};
+
+}  // namespace
+
+struct accura_model {
+  std::mutex mutex;                      ///< guards state (the pointer) and errors
+  std::shared_ptr<const State> state;
+  std::unordered_map<std::thread::id, std::string> errors;
+};
+
+namespace {
+
+void setError(accura_model* m, const std::string& message) noexcept {
+  if (!m) return;
+  try {
+    std::lock_guard<std::mutex> lock(m->mutex);
+    m->errors[std::this_thread::get_id()] = message;
+  } catch (...) {  // out of memory while storing the message: the status still says it
+  }
+}
+
+template <class F>
+accura_status guarded(accura_model* m, const char* fn, F&& body) noexcept {
+  try {
+    return body();
+  } catch (const PluginError& e) {
+    setError(m, std::string(fn) + ": " + e.message);
+    return e.status;
+  } catch (const InputError& e) {
+    setError(m, std::string(fn) + ": " + e.what());
+    return ACCURA_ERROR_INPUT;
+  } catch (const ArgumentError& e) {
+    setError(m, std::string(fn) + ": " + e.what());
+    return ACCURA_ERROR_INVALID_ARGUMENT;
+  } catch (const NumericalError& e) {
+    setError(m, std::string(fn) + ": " + e.what());
+    return ACCURA_ERROR_NUMERICAL;
+  } catch (const std::bad_alloc&) {
+    setError(m, std::string(fn) + ": out of memory");
+    return ACCURA_ERROR_OUT_OF_MEMORY;
+  } catch (const std::exception& e) {
+    setError(m, std::string(fn) + ": internal error: " + e.what());
+    return ACCURA_ERROR_INTERNAL;
+  } catch (...) {
+    setError(m, std::string(fn) + ": internal error: unknown exception");
+    return ACCURA_ERROR_INTERNAL;
+  }
+}
+
+void need(const void* p, const char* what) {
+  if (!p) fail(ACCURA_ERROR_NULL_ARGUMENT, std::string(what) + " is NULL");
+}
+
+std::shared_ptr<const State> stateOf(accura_model* m) {
+  std::shared_ptr<const State> s;
+  {
+    std::lock_guard<std::mutex> lock(m->mutex);
+    s = m->state;
+  }
+  if (!s) fail(ACCURA_ERROR_INVALID_ARGUMENT, "no model loaded on this handle (call accura_model_load first)");
+  return s;
+}
+
+XyzAbc toXyz(const accura_pose& p) { return {p.x_mm, p.y_mm, p.z_mm, p.a_deg, p.b_deg, p.c_deg}; }
+accura_pose toC(const XyzAbc& p) { return {p.x_mm, p.y_mm, p.z_mm, p.a_deg, p.b_deg, p.c_deg}; }
+
+Eigen::Isometry3d checkedPose(const accura_pose& p, const std::string& what) {
+  const double v[6] = {p.x_mm, p.y_mm, p.z_mm, p.a_deg, p.b_deg, p.c_deg};
+  for (double x : v)
+    if (!std::isfinite(x)) fail(ACCURA_ERROR_INVALID_ARGUMENT, what + ": expected finite x, y, z (mm), A, B, C (deg), found a NaN or infinity");
+  return toIsometry(toXyz(p));
+}
+
+Configuration configOf(const accura_configuration* c) {
+  if (!c) return {};
+  if (c->status < -1 || c->turn < -1)
+    fail(ACCURA_ERROR_INVALID_ARGUMENT, "configuration: expected S and T >= 0 or -1 (any), found S " + std::to_string(c->status) +
+                                            ", T " + std::to_string(c->turn));
+  return {c->status, c->turn};
+}
+
+accura_configuration toC(const Configuration& c) { return {c.status, c.turn}; }
+
+accura_status statusOf(IkStatus s) {
+  switch (s) {
+    case IkStatus::kOk: return ACCURA_OK;
+    case IkStatus::kUnreachable: return ACCURA_ERROR_UNREACHABLE;
+    case IkStatus::kJointLimits: return ACCURA_ERROR_JOINT_LIMITS;
+    case IkStatus::kSingular: return ACCURA_ERROR_SINGULAR;
+    case IkStatus::kNoConfiguration: return ACCURA_ERROR_NO_CONFIGURATION;
+    case IkStatus::kNotConverged: return ACCURA_ERROR_NOT_CONVERGED;
+  }
+  return ACCURA_ERROR_INTERNAL;
+}
+
+double angleDeg(const Eigen::Matrix3d& R) {
+  const double c = std::max(-1.0, std::min(1.0, (R.trace() - 1.0) / 2.0));
+  return std::acos(c) * kRadToDeg;
+}
+
+void copyString(char* dst, size_t cap, const std::string& s) {
+  if (cap == 0) return;
+  const size_t n = std::min(cap - 1, s.size());
+  std::memcpy(dst, s.data(), n);
+  dst[n] = '\0';
+}
+
+/// The controller model file given with the options must be the calibrated model's robot.
+void checkSameRobot(const RobotDefinition& calibrated, const RobotDefinition& controller, const std::string& path) {
+  auto differ = [&](const std::string& what) {
+    fail(ACCURA_ERROR_INPUT, path + ": expected the nominal robot of the calibrated model ('" + calibrated.name + "'), found '" +
+                                 controller.name + "' with another " + what);
+  };
+  if (calibrated.dof() != controller.dof()) differ("joint count (" + std::to_string(controller.dof()) + ")");
+  constexpr double kTol = 1e-9;  // mm and deg: the same numbers
+  for (int i = 0; i < calibrated.dof(); ++i) {
+    const JointSpec &a = calibrated.joints[i], &b = controller.joints[i];
+    const std::string j = "joint " + std::to_string(i + 1) + " ";
+    if (a.type != b.type) differ(j + "type");
+    if (std::fabs(a.a_mm - b.a_mm) > kTol || std::fabs(a.d_mm - b.d_mm) > kTol || std::fabs(a.alpha_deg - b.alpha_deg) > kTol ||
+        std::fabs(a.theta0_deg - b.theta0_deg) > kTol)
+      differ(j + "DH geometry");
+    if (a.direction != b.direction) differ(j + "direction");
+    if (std::fabs(a.lower - b.lower) > kTol || std::fabs(a.upper - b.upper) > kTol) differ(j + "limits");
+  }
+}
+
+/// A robot file path or a bundled robot name; a path that does not exist is named as such.
+std::string resolveModel(const std::string& name_or_path, const char* what) {
+  std::error_code ec;
+  const bool looks_like_path = name_or_path.find('/') != std::string::npos || fs::path(name_or_path).extension() == ".xml";
+  if (looks_like_path && !fs::exists(name_or_path, ec))
+    fail(ACCURA_ERROR_INPUT, name_or_path + ": the " + what + " file does not exist (expected a robot file, e.g. a calibrated model " +
+                                 "written by accura identify, or a bundled robot name)");
+  return resolveRobotPath(name_or_path);
+}
+
+std::shared_ptr<State> buildState(const std::string& calibrated_path, const accura_load_options& o) {
+  auto s = std::make_shared<State>();
+  JobSettings& job = s->job;
+  job.calibrated = readRobotFile(resolveModel(calibrated_path, "calibrated_model"));
+  if (job.calibrated.dof() > ACCURA_MAX_JOINTS)
+    fail(ACCURA_ERROR_INPUT, calibrated_path + ": expected at most " + std::to_string(ACCURA_MAX_JOINTS) + " joints, found " +
+                                 std::to_string(job.calibrated.dof()));
+  if (o.controller_model) {
+    const std::string p = o.controller_model;
+    const RobotModel controller = readRobotFile(resolveModel(p, "controller_model"));
+    checkSameRobot(job.calibrated.nominal, controller.nominal, p);
+  }
+  if (o.has_robroot_in_world) job.robroot_in_world = toXyz(o.robroot_in_world);
+  if (o.has_robroot_in_kukaworld) job.robroot_in_kukaworld = toXyz(o.robroot_in_kukaworld);
+  if (o.has_program_base) job.initial_base = toXyz(o.program_base);
+  if (o.has_program_tool) job.initial_tool = toXyz(o.program_tool);
+  for (const auto* p : {&o.robroot_in_world, &o.robroot_in_kukaworld, &o.program_base, &o.program_tool}) checkedPose(*p, "load options");
+  if (!(o.payload_kg >= 0) || !std::isfinite(o.payload_kg))
+    fail(ACCURA_ERROR_INVALID_ARGUMENT, "payload_kg: expected a finite mass >= 0 (kg), found " + std::to_string(o.payload_kg));
+  if (!std::isfinite(o.temp_c)) fail(ACCURA_ERROR_INVALID_ARGUMENT, "temp_c: expected a finite temperature (deg C)");
+  job.context.payload_kg = o.payload_kg;
+  job.context.temp_c = o.temp_c;
+
+  // Frames as compensateProgram takes them (job.h): T_world_tcp = T_world_robroot *
+  // inverse($ROBROOT) * $BASE * target.
+  s->T_world_robroot = job.robroot_in_world ? toIsometry(*job.robroot_in_world) : job.calibrated.nominal.T_world_base;
+  const Eigen::Isometry3d T_kworld_robroot =
+      job.robroot_in_kukaworld ? toIsometry(*job.robroot_in_kukaworld) : Eigen::Isometry3d::Identity();
+  const Eigen::Isometry3d T_kworld_progbase = job.initial_base ? toIsometry(*job.initial_base) : Eigen::Isometry3d::Identity();
+  s->T_world_progbase = s->T_world_robroot * T_kworld_robroot.inverse() * T_kworld_progbase;
+  const Eigen::Isometry3d d = s->T_world_robroot.inverse() * job.calibrated.T_world_base();
+  const double off_mm = d.translation().norm(), off_deg = angleDeg(d.linear());
+  if (off_mm > job.max_base_offset_mm || off_deg > job.max_base_offset_deg) {
+    std::ostringstream m;
+    m << calibrated_path << ": the calibrated base is " << off_mm << " mm and " << off_deg
+      << " deg from where the robot is placed: expected at most " << job.max_base_offset_mm << " mm and " << job.max_base_offset_deg
+      << " deg. The model was measured in another frame (a tracker's): set robroot_in_world to where the robot stands in that "
+         "frame according to the cell layout";
+    fail(ACCURA_ERROR_INPUT, m.str());
+  }
+  s->T_flange_tcp = job.initial_tool ? toIsometry(*job.initial_tool) : job.calibrated.nominal.T_flange_tcp;
+
+  RobotModel controller = RobotModel::fromDefinition(job.calibrated.nominal);
+  controller.nominal.T_world_base = s->T_world_robroot;
+  controller.nominal.T_flange_tcp = s->T_flange_tcp;
+  RobotModel real = job.calibrated;
+  const Eigen::Isometry3d& nominal_tool = job.calibrated.nominal.T_flange_tcp;
+  s->calibrated_tool = (s->T_flange_tcp.translation() - nominal_tool.translation()).norm() <= job.tool_match_mm &&
+                       angleDeg(s->T_flange_tcp.linear().transpose() * nominal_tool.linear()) <= job.tool_match_deg;
+  if (!s->calibrated_tool) {
+    real.nominal.T_flange_tcp = s->T_flange_tcp;
+    real.deviations.tool_mm.setZero();
+    real.deviations.tool_rot_rad.setZero();
+  }
+  s->comp = std::make_unique<Compensator>(controller, real);
+  return s;
+}
+
+void fillPoseResult(const State& s, const Eigen::Isometry3d& T_world_target, const PoseCompensation& pc, accura_pose_result* r) {
+  *r = accura_pose_result{};
+  r->status = statusOf(pc.status);
+  r->dof = s.job.calibrated.dof();
+  if (pc.status != IkStatus::kOk) return;
+  r->command = toC(toXyzAbc(s.T_world_progbase.inverse() * pc.T_world_tcp_command));
+  r->configuration = toC(pc.configuration);
+  r->configuration_changed = pc.configuration_changed ? 1 : 0;
+  r->correction_mm = (pc.T_world_tcp_command.translation() - T_world_target.translation()).norm();
+  r->correction_deg = angleDeg(pc.T_world_tcp_command.linear() * T_world_target.linear().transpose());
+  for (int i = 0; i < pc.q_real.size() && i < ACCURA_MAX_JOINTS; ++i) r->q_real[i] = pc.q_real[i];
+}
+
+const char* statusNameOf(accura_status s) {
+  switch (s) {
+    case ACCURA_OK: return "ACCURA_OK";
+    case ACCURA_ERROR_NULL_ARGUMENT: return "ACCURA_ERROR_NULL_ARGUMENT";
+    case ACCURA_ERROR_INVALID_ARGUMENT: return "ACCURA_ERROR_INVALID_ARGUMENT";
+    case ACCURA_ERROR_BUFFER_TOO_SMALL: return "ACCURA_ERROR_BUFFER_TOO_SMALL";
+    case ACCURA_ERROR_INPUT: return "ACCURA_ERROR_INPUT";
+    case ACCURA_ERROR_UNREACHABLE: return "ACCURA_ERROR_UNREACHABLE";
+    case ACCURA_ERROR_JOINT_LIMITS: return "ACCURA_ERROR_JOINT_LIMITS";
+    case ACCURA_ERROR_SINGULAR: return "ACCURA_ERROR_SINGULAR";
+    case ACCURA_ERROR_NO_CONFIGURATION: return "ACCURA_ERROR_NO_CONFIGURATION";
+    case ACCURA_ERROR_NOT_CONVERGED: return "ACCURA_ERROR_NOT_CONVERGED";
+    case ACCURA_ERROR_NUMERICAL: return "ACCURA_ERROR_NUMERICAL";
+    case ACCURA_ERROR_OUT_OF_MEMORY: return "ACCURA_ERROR_OUT_OF_MEMORY";
+    case ACCURA_ERROR_INTERNAL: return "ACCURA_ERROR_INTERNAL";
+  }
+  return nullptr;
+}
+
+bool sameFile(const std::string& a, const std::string& b) {
+  std::error_code ec;
+  if (fs::exists(a, ec) && fs::exists(b, ec)) return fs::equivalent(a, b, ec);
+  return fs::weakly_canonical(fs::absolute(a), ec) == fs::weakly_canonical(fs::absolute(b), ec);
+}
+
+void checkStructSize(size_t given, size_t expected, const char* what) {
+  if (given != expected)
+    fail(ACCURA_ERROR_INVALID_ARGUMENT, std::string(what) + ": struct_size " + std::to_string(given) + " does not match this library's " +
+                                            std::to_string(expected) + " (header and library of different versions?)");
+}
+
+}  // namespace
+
+extern "C" {
+
+ACCURA_API accura_status accura_version(int* major, int* minor, int* patch, int* abi_version) {
+  if (major) *major = ACCURA_VERSION_MAJOR;
+  if (minor) *minor = ACCURA_VERSION_MINOR;
+  if (patch) *patch = ACCURA_VERSION_PATCH;
+  if (abi_version) *abi_version = ACCURA_PLUGIN_ABI_VERSION;
+  return ACCURA_OK;
+}
+
+ACCURA_API accura_status accura_status_name(accura_status status, const char** name_out) {
+  if (!name_out) return ACCURA_ERROR_NULL_ARGUMENT;
+  const char* n = statusNameOf(status);
+  *name_out = n ? n : "ACCURA_STATUS_UNKNOWN";
+  return n ? ACCURA_OK : ACCURA_ERROR_INVALID_ARGUMENT;
+}
+
+ACCURA_API accura_status accura_last_error(const accura_model* model, const char** message_out) {
+  if (!model || !message_out) return ACCURA_ERROR_NULL_ARGUMENT;
+  accura_model* m = const_cast<accura_model*>(model);
+  try {
+    std::lock_guard<std::mutex> lock(m->mutex);
+    // the string stays in the map (and its buffer unchanged) until this thread's next failing
+    // call on the handle, which is later than the documented lifetime
+    std::string& e = m->errors[std::this_thread::get_id()];
+    *message_out = e.c_str();
+    return ACCURA_OK;
+  } catch (...) {
+    *message_out = "";
+    return ACCURA_ERROR_OUT_OF_MEMORY;
+  }
+}
+
+ACCURA_API accura_status accura_model_create(accura_model** model_out) {
+  if (!model_out) return ACCURA_ERROR_NULL_ARGUMENT;
+  *model_out = new (std::nothrow) accura_model();
+  return *model_out ? ACCURA_OK : ACCURA_ERROR_OUT_OF_MEMORY;
+}
+
+ACCURA_API accura_status accura_model_free(accura_model* model) {
+  delete model;  // nothing in the destructors throws
+  return ACCURA_OK;
+}
+
+ACCURA_API accura_status accura_load_options_init(accura_load_options* o, size_t struct_size) {
+  if (!o) return ACCURA_ERROR_NULL_ARGUMENT;
+  if (struct_size != sizeof(accura_load_options)) return ACCURA_ERROR_INVALID_ARGUMENT;
+  std::memset(o, 0, sizeof(*o));
+  o->struct_size = sizeof(*o);
+  o->temp_c = kThermalReferenceC;
+  return ACCURA_OK;
+}
+
+ACCURA_API accura_status accura_model_load(accura_model* model, const char* calibrated_model, const accura_load_options* options) {
+  if (!model) return ACCURA_ERROR_NULL_ARGUMENT;
+  return guarded(model, "accura_model_load", [&]() {
+    need(calibrated_model, "calibrated_model");
+    accura_load_options o;
+    accura_load_options_init(&o, sizeof(o));
+    if (options) {
+      checkStructSize(options->struct_size, sizeof(accura_load_options), "accura_load_options");
+      o = *options;
+    }
+    std::shared_ptr<const State> s = buildState(calibrated_model, o);
+    std::lock_guard<std::mutex> lock(model->mutex);
+    model->state = std::move(s);
+    return ACCURA_OK;
+  });
+}
+
+ACCURA_API accura_status accura_model_get_info(accura_model* model, accura_model_info* info) {
+  if (!model) return ACCURA_ERROR_NULL_ARGUMENT;
+  return guarded(model, "accura_model_get_info", [&]() {
+    need(info, "info");
+    const auto s = stateOf(model);
+    *info = accura_model_info{};
+    const RobotModel& m = s->job.calibrated;
+    info->dof = m.dof();
+    copyString(info->robot_name, sizeof(info->robot_name), m.nominal.name);
+    info->robroot_in_world = toC(toXyzAbc(s->T_world_robroot));
+    info->calibrated_base_in_world = toC(toXyzAbc(m.T_world_base()));
+    for (int i = 0; i < m.dof(); ++i) {
+      info->lower[i] = m.nominal.joints[i].lower;
+      info->upper[i] = m.nominal.joints[i].upper;
+    }
+    return ACCURA_OK;
+  });
+}
+
+ACCURA_API accura_status accura_forward_kinematics(accura_model* model, accura_which_model which, const double* q, size_t n_joints,
+                                                   accura_pose* pose_out) {
+  if (!model) return ACCURA_ERROR_NULL_ARGUMENT;
+  return guarded(model, "accura_forward_kinematics", [&]() {
+    need(q, "q");
+    need(pose_out, "pose_out");
+    const auto s = stateOf(model);
+    const int dof = s->job.calibrated.dof();
+    if (n_joints != static_cast<size_t>(dof))
+      fail(ACCURA_ERROR_INVALID_ARGUMENT, "expected " + std::to_string(dof) + " joint values, got " + std::to_string(n_joints));
+    if (which != ACCURA_CONTROLLER && which != ACCURA_REAL)
+      fail(ACCURA_ERROR_INVALID_ARGUMENT, "which: expected ACCURA_CONTROLLER (0) or ACCURA_REAL (1), found " + std::to_string(which));
+    Eigen::VectorXd qv(dof);
+    for (int i = 0; i < dof; ++i) {
+      if (!std::isfinite(q[i])) fail(ACCURA_ERROR_INVALID_ARGUMENT, "q[" + std::to_string(i) + "] is not finite");
+      qv[i] = q[i];
+    }
+    const Eigen::Isometry3d T = which == ACCURA_REAL ? s->comp->real().forward(qv, s->job.context) : s->comp->controller().forward(qv);
+    *pose_out = toC(toXyzAbc(s->T_world_progbase.inverse() * T));
+    return ACCURA_OK;
+  });
+}
+
+ACCURA_API accura_status accura_compensate_pose(accura_model* model, const accura_pose* target, const accura_configuration* configuration,
+                                                accura_pose_result* result) {
+  if (!model) return ACCURA_ERROR_NULL_ARGUMENT;
+  return guarded(model, "accura_compensate_pose", [&]() {
+    need(target, "target");
+    need(result, "result");
+    const auto s = stateOf(model);
+    const Eigen::Isometry3d T_world = s->T_world_progbase * checkedPose(*target, "target");
+    const PoseCompensation pc = s->comp->pose(T_world, configOf(configuration), Eigen::VectorXd(), s->job.ik, s->job.context);
+    fillPoseResult(*s, T_world, pc, result);
+    if (pc.status != IkStatus::kOk) fail(result->status, pc.message.empty() ? std::string(toString(pc.status)) : pc.message);
+    return ACCURA_OK;
+  });
+}
+
+ACCURA_API accura_status accura_compensate_poses(accura_model* model, const accura_pose* targets,
+                                                 const accura_configuration* configurations, size_t n, int continuous,
+                                                 accura_pose_result* results, size_t* n_ok) {
+  if (!model) return ACCURA_ERROR_NULL_ARGUMENT;
+  return guarded(model, "accura_compensate_poses", [&]() {
+    if (n_ok) *n_ok = 0;
+    if (n == 0) return ACCURA_OK;
+    need(targets, "targets");
+    need(results, "results");
+    const auto s = stateOf(model);
+    // validate everything first: a bad argument fails the call before any work
+    std::vector<Eigen::Isometry3d> T_world(n);
+    std::vector<Configuration> configs(n);
+    for (size_t i = 0; i < n; ++i) {
+      T_world[i] = s->T_world_progbase * checkedPose(targets[i], "targets[" + std::to_string(i) + "]");
+      configs[i] = configOf(configurations ? &configurations[i] : nullptr);
+    }
+    accura_status first = ACCURA_OK;
+    std::string first_message;
+    size_t ok = 0;
+    Eigen::VectorXd seed;
+    for (size_t i = 0; i < n; ++i) {
+      const PoseCompensation pc = s->comp->pose(T_world[i], configs[i], continuous ? seed : Eigen::VectorXd(), s->job.ik, s->job.context);
+      fillPoseResult(*s, T_world[i], pc, &results[i]);
+      if (pc.status == IkStatus::kOk) {
+        ++ok;
+        seed = pc.q_real;
+      } else if (first == ACCURA_OK) {
+        first = results[i].status;
+        first_message = "pose " + std::to_string(i) + ": " + (pc.message.empty() ? std::string(toString(pc.status)) : pc.message);
+      }
+    }
+    if (n_ok) *n_ok = ok;
+    if (first != ACCURA_OK) fail(first, first_message + " (" + std::to_string(n - ok) + " of " + std::to_string(n) + " poses failed)");
+    return ACCURA_OK;
+  });
+}
+
+ACCURA_API accura_status accura_compensate_path(accura_model* model, const accura_pose* start,
+                                                const accura_configuration* start_configuration, const accura_path_motion* motions,
+                                                size_t n_motions, double tol_mm, accura_path_point* points, size_t capacity,
+                                                accura_path_result* result, accura_motion_report* reports) {
+  if (!model) return ACCURA_ERROR_NULL_ARGUMENT;
+  return guarded(model, "accura_compensate_path", [&]() {
+    need(start, "start");
+    need(result, "result");
+    if (n_motions > 0) need(motions, "motions");
+    if (capacity > 0) need(points, "points");
+    *result = accura_path_result{};
+    result->failed_motion = -1;
+    if (!(tol_mm > 0) || !std::isfinite(tol_mm))
+      fail(ACCURA_ERROR_INVALID_ARGUMENT, "tol_mm: expected a positive distance (mm), found " + std::to_string(tol_mm));
+    const auto s = stateOf(model);
+    const Eigen::Isometry3d T_world_start = s->T_world_progbase * checkedPose(*start, "start");
+    std::vector<PathSegment> intended(n_motions);
+    for (size_t i = 0; i < n_motions; ++i) {
+      const std::string w = "motions[" + std::to_string(i) + "]";
+      if (motions[i].type != ACCURA_LIN && motions[i].type != ACCURA_CIRC)
+        fail(ACCURA_ERROR_INVALID_ARGUMENT, w + ".type: expected ACCURA_LIN (0) or ACCURA_CIRC (1), found " + std::to_string(motions[i].type));
+      intended[i].type = motions[i].type == ACCURA_CIRC ? PathType::kCirc : PathType::kLin;
+      intended[i].T_world_end = s->T_world_progbase * checkedPose(motions[i].end, w + ".end");
+      if (intended[i].type == PathType::kCirc) intended[i].T_world_aux = s->T_world_progbase * checkedPose(motions[i].aux, w + ".aux");
+    }
+    if (reports)
+      for (size_t i = 0; i < n_motions; ++i) reports[i] = accura_motion_report{};
+    const Compensator& comp = *s->comp;
+    const JobSettings& job = s->job;
+    const PoseCompensation p0 = comp.pose(T_world_start, configOf(start_configuration), Eigen::VectorXd(), job.ik, job.context);
+    if (p0.status != IkStatus::kOk)
+      fail(statusOf(p0.status), std::string("the start cannot be compensated: ") + toString(p0.status) + (p0.message.empty() ? "" : ": " + p0.message));
+    result->start_command = toC(toXyzAbc(s->T_world_progbase.inverse() * p0.T_world_tcp_command));
+    result->start_configuration = toC(p0.configuration);
+    DensifyOptions dens = job.densify;
+    dens.tol_mm = tol_mm;
+    dens.ik = job.ik;
+    Eigen::VectorXd q = p0.q_real;
+    std::vector<accura_path_point> out;
+    for (size_t i = 0; i < n_motions; ++i) {
+      PathSegment seg = intended[i];
+      seg.T_world_start = comp.real().forward(q, job.context);  // where the real robot is (as compensateProgram)
+      const SegmentCompensation sc = comp.segment(seg, Configuration{}, q, dens, job.context);
+      if (sc.status != IkStatus::kOk || sc.commanded.empty() || sc.q_real_end.size() != sc.commanded.size()) {
+        result->failed_motion = static_cast<int>(i);
+        fail(sc.status == IkStatus::kOk ? ACCURA_ERROR_INTERNAL : statusOf(sc.status),
+             "motion " + std::to_string(i) + " cannot be compensated: " + toString(sc.status) + (sc.message.empty() ? "" : ": " + sc.message));
+      }
+      for (size_t k = 0; k < sc.commanded.size(); ++k) {
+        accura_path_point p{};
+        p.type = motions[i].type;
+        p.end = toC(toXyzAbc(s->T_world_progbase.inverse() * sc.commanded[k].T_world_end));
+        if (seg.type == PathType::kCirc) p.aux = toC(toXyzAbc(s->T_world_progbase.inverse() * sc.commanded[k].T_world_aux));
+        p.configuration = toC(kukaConfiguration(comp.controller().model(), sc.q_real_end[k]));
+        p.motion = static_cast<int>(i);
+        p.inserted = k + 1 < sc.commanded.size() ? 1 : 0;
+        out.push_back(p);
+      }
+      if (reports) {
+        accura_motion_report& r = reports[i];
+        r.length_mm = pathLength(seg);
+        r.max_error_uncompensated_mm = sc.max_error_uncompensated_mm;
+        r.max_error_before_mm = sc.max_error_before_mm;
+        r.max_error_after_mm = sc.max_error_after_mm;
+        r.max_error_bound_mm = sc.max_error_bound_mm;
+        r.points_added = sc.points_added;
+      }
+      result->max_error_uncompensated_mm = std::max(result->max_error_uncompensated_mm, sc.max_error_uncompensated_mm);
+      result->max_error_before_mm = std::max(result->max_error_before_mm, sc.max_error_before_mm);
+      result->max_error_after_mm = std::max(result->max_error_after_mm, sc.max_error_after_mm);
+      result->max_error_bound_mm = std::max(result->max_error_bound_mm, sc.max_error_bound_mm);
+      result->points_added += sc.points_added;
+      q = sc.q_real_end.back();
+    }
+    result->n_points = out.size();
+    if (out.size() > capacity)
+      fail(ACCURA_ERROR_BUFFER_TOO_SMALL, "the path has " + std::to_string(out.size()) + " points, the buffer holds " + std::to_string(capacity));
+    std::copy(out.begin(), out.end(), points);
+    return ACCURA_OK;
+  });
+}
+
+ACCURA_API accura_status accura_program_options_init(accura_program_options* o, size_t struct_size) {
+  if (!o) return ACCURA_ERROR_NULL_ARGUMENT;
+  if (struct_size != sizeof(accura_program_options)) return ACCURA_ERROR_INVALID_ARGUMENT;
+  std::memset(o, 0, sizeof(*o));
+  o->struct_size = sizeof(*o);
+  o->tol_mm = 0.05;
+  return ACCURA_OK;
+}
+
+ACCURA_API accura_status accura_compensate_program(accura_model* model, const char* program_path, const char* out_dir,
+                                                   const accura_program_options* options, accura_program_summary* summary) {
+  if (!model) return ACCURA_ERROR_NULL_ARGUMENT;
+  return guarded(model, "accura_compensate_program", [&]() {
+    need(program_path, "program_path");
+    need(out_dir, "out_dir");
+    accura_program_options o;
+    accura_program_options_init(&o, sizeof(o));
+    if (options) {
+      checkStructSize(options->struct_size, sizeof(accura_program_options), "accura_program_options");
+      o = *options;
+    }
+    if (!(o.tol_mm > 0) || !std::isfinite(o.tol_mm))
+      fail(ACCURA_ERROR_INVALID_ARGUMENT, "tol_mm: expected a positive distance (mm), found " + std::to_string(o.tol_mm));
+    const auto s = stateOf(model);
+    JobSettings job = s->job;
+    job.tol_mm = o.tol_mm;
+    const std::string in = program_path, dir = out_dir;
+    programFormat(in);  // a clear error for another extension first
+    std::error_code ec;
+    if (!fs::exists(in, ec)) fail(ACCURA_ERROR_INPUT, in + ": the program file does not exist");
+    if (fs::exists(dir, ec) && !fs::is_directory(dir, ec)) fail(ACCURA_ERROR_INPUT, "out_dir: expected a directory, found the file " + dir);
+    ProgramReadOptions read;
+    if (o.dat_path) read.dat_path = o.dat_path;
+    if (o.config_path) read.config_path = o.config_path;
+    const std::string out_path = (fs::path(dir) / fs::path(in).filename()).string();
+    JobReport report;
+    const std::vector<OutputFile> files = compensateFile(in, out_path, read, job, &report);
+    if (!report.errors.empty()) {  // compensateFile throws on errors; kept as a safety net
+      std::string m;
+      for (const auto& e : report.errors) m += (m.empty() ? "" : "; ") + e.where.str() + ": " + e.message;
+      fail(ACCURA_ERROR_INPUT, m);
+    }
+    std::vector<std::string> inputs = {in, fs::path(in).replace_extension(".dat").string()};
+    if (!read.dat_path.empty()) inputs.push_back(read.dat_path);
+    if (!read.config_path.empty()) inputs.push_back(read.config_path);
+    const std::string json = o.json_report_path ? o.json_report_path : "";
+    for (const auto& f : files)
+      for (const auto& i : inputs)
+        if (fs::exists(i, ec) && sameFile(f.path, i)) fail(ACCURA_ERROR_INPUT, f.path + ": the output would overwrite the input " + i + ": choose another out_dir");
+    for (const auto& i : inputs)
+      if (!json.empty() && fs::exists(i, ec) && sameFile(json, i)) fail(ACCURA_ERROR_INPUT, json + ": the report would overwrite the input " + i);
+    fs::create_directories(dir);
+    writeFilesAtomically(files);
+    if (!json.empty()) {
+      nlohmann::ordered_json j;
+      j["program"] = in;
+      nlohmann::ordered_json outs = nlohmann::ordered_json::array();
+      for (const auto& f : files) outs.push_back(f.path);
+      j["outputs"] = outs;
+      j["robot"] = job.calibrated.nominal.name;
+      j["tol_mm"] = job.tol_mm;
+      j["targets_corrected"] = report.targets_corrected;
+      j["points_added"] = report.points_added;
+      j["segments"] = report.segments.size();
+      j["max_correction_mm"] = report.max_correction_mm;
+      j["rms_correction_mm"] = report.rms_correction_mm;
+      j["max_correction_deg"] = report.max_correction_deg;
+      j["max_error_uncompensated_mm"] = report.max_error_uncompensated_mm;
+      j["max_error_before_mm"] = report.max_error_before_mm;
+      j["max_error_after_mm"] = report.max_error_after_mm;
+      nlohmann::ordered_json warnings = nlohmann::ordered_json::array();
+      for (const auto& w : report.warnings) warnings.push_back(w.where.str() + ": " + w.message);
+      j["warnings"] = warnings;
+      writeFilesAtomically({{json, j.dump(2) + "\n"}});
+    }
+    if (summary) {
+      *summary = accura_program_summary{};
+      summary->targets_corrected = report.targets_corrected;
+      summary->points_added = report.points_added;
+      summary->segments = static_cast<int>(report.segments.size());
+      summary->warnings = static_cast<int>(report.warnings.size());
+      summary->max_correction_mm = report.max_correction_mm;
+      summary->rms_correction_mm = report.rms_correction_mm;
+      summary->max_correction_deg = report.max_correction_deg;
+      summary->max_error_uncompensated_mm = report.max_error_uncompensated_mm;
+      summary->max_error_before_mm = report.max_error_before_mm;
+      summary->max_error_after_mm = report.max_error_after_mm;
+      copyString(summary->output_path, sizeof(summary->output_path), files.empty() ? std::string() : files.front().path);
+    }
+    return ACCURA_OK;
+  });
+}
+
+ACCURA_API accura_status accura_check_options_init(accura_check_options* o, size_t struct_size) {
+  if (!o) return ACCURA_ERROR_NULL_ARGUMENT;
+  if (struct_size != sizeof(accura_check_options)) return ACCURA_ERROR_INVALID_ARGUMENT;
+  std::memset(o, 0, sizeof(*o));
+  o->struct_size = sizeof(*o);
+  o->use_cell_thresholds = 1;
+  const CheckThresholds t;
+  o->joint_margin_deg = t.joint_margin_deg;
+  o->singular_threshold = t.singular_threshold;
+  o->min_clearance_mm = t.min_clearance_mm;
+  return ACCURA_OK;
+}
+
+ACCURA_API accura_status accura_check_program(accura_model* model, const char* cell_path, const char* program_path,
+                                              const accura_check_options* options, accura_check_summary* summary,
+                                              accura_check_violation* violations, size_t capacity) {
+  if (!model) return ACCURA_ERROR_NULL_ARGUMENT;
+  return guarded(model, "accura_check_program", [&]() {
+    need(cell_path, "cell_path");
+    need(program_path, "program_path");
+    need(summary, "summary");
+    if (capacity > 0) need(violations, "violations");
+    accura_check_options o;
+    accura_check_options_init(&o, sizeof(o));
+    if (options) {
+      checkStructSize(options->struct_size, sizeof(accura_check_options), "accura_check_options");
+      o = *options;
+    }
+    const auto s = stateOf(model);
+    std::error_code ec;
+    if (!fs::exists(cell_path, ec)) fail(ACCURA_ERROR_INPUT, std::string(cell_path) + ": the cell file does not exist");
+    if (!fs::exists(program_path, ec)) fail(ACCURA_ERROR_INPUT, std::string(program_path) + ": the program file does not exist");
+    const Cell cell = readCellFile(cell_path);
+    ProgramReadOptions read;
+    if (o.dat_path) read.dat_path = o.dat_path;
+    if (o.config_path) read.config_path = o.config_path;
+    const Program program = readProgram(program_path, read);
+    CheckOptions co;
+    co.mode = o.as_written ? CheckMode::kAsWritten : CheckMode::kIntended;
+    if (o.use_cell_thresholds) {
+      co.thresholds = cell.thresholds;
+    } else {
+      co.thresholds.joint_margin_deg = o.joint_margin_deg;
+      co.thresholds.singular_threshold = o.singular_threshold;
+      co.thresholds.min_clearance_mm = o.min_clearance_mm;
+    }
+    std::string why;
+    if (!co.IsValid(&why)) fail(ACCURA_ERROR_INVALID_ARGUMENT, why);
+    const CheckReport r = checkProgram(program, s->job, cell, co);
+    *summary = accura_check_summary{};
+    summary->passed = r.passed() ? 1 : 0;
+    summary->n_violations = r.violations.size();
+    summary->unchecked = static_cast<int>(r.unchecked.size());
+    summary->samples = r.samples;
+    summary->min_clearance_mm = std::isfinite(r.min_clearance_mm) ? r.min_clearance_mm : 1e300;
+    summary->min_sigma = r.min_sigma;
+    summary->min_joint_margin = r.min_joint_margin;
+    for (size_t i = 0; i < r.violations.size() && i < capacity; ++i) {
+      const CheckViolation& v = r.violations[i];
+      accura_check_violation& c = violations[i];
+      c = accura_check_violation{};
+      c.kind = static_cast<int>(v.kind == CheckKind::kReach        ? ACCURA_CHECK_REACH
+                                : v.kind == CheckKind::kJointLimit ? ACCURA_CHECK_JOINT_LIMIT
+                                : v.kind == CheckKind::kSingularity ? ACCURA_CHECK_SINGULARITY
+                                                                    : ACCURA_CHECK_CLEARANCE);
+      c.motion_index = v.motion_index;
+      c.line = v.where.line;
+      c.column = v.where.column;
+      c.on_path = v.on_path ? 1 : 0;
+      c.s = v.s;
+      for (int k = 0; k < 3; ++k) c.p_world_tcp_mm[k] = v.p_world_tcp_mm[k];
+      c.value = v.value;
+      c.limit = v.limit;
+      c.joint = v.joint;
+      copyString(c.message, sizeof(c.message), v.message);
+    }
+    if (r.violations.size() > capacity)
+      fail(ACCURA_ERROR_BUFFER_TOO_SMALL,
+           std::to_string(r.violations.size()) + " violations, the buffer holds " + std::to_string(capacity) + " (summary->n_violations)");
+    return ACCURA_OK;
+  });
+}
+
+}  // extern "C"

@@ -1,0 +1,88 @@
+// accura post-processor: the robot cell (docs/cell-format.md): CAD meshes of the fixtures and
+// parts placed in the world, where the robot stands, the geometry of the robot's links and
+// tool, and the thresholds of the reach and clearance checks (check.h).
+//
+// Units: mm and deg at this interface (meshes are scaled to mm when they are read, from the
+// unit the cell file gives them). Frames: T_a_b maps frame b coordinates to frame a.
+//   world      the cell frame (the calibrated model's world; see job.h)
+//   object     the frame a mesh file's coordinates are in, placed by T_world_object
+//   link i     DH frame i of the robot (i = 1..n; frame i moves with joints 1..i, frame n is
+//              the flange), as calib's forwardKinematics computes it
+//              (KinematicWorkspace::T_base_frame[i]); the tool is in the flange frame.
+#pragma once
+
+#include <Eigen/Geometry>
+#include <array>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace accura::postproc {
+
+/// A triangle mesh (mm) in its own frame.
+struct Mesh {
+  std::vector<Eigen::Vector3d> vertices_mm;
+  std::vector<std::array<int, 3>> triangles;  ///< vertex indices, counter-clockwise
+  std::string file;                           ///< where it was read from (messages)
+};
+
+/// Reads every triangle of every mesh of a file assimp can read (STL, OBJ, PLY, 3MF, glTF,
+/// COLLADA, ...; the scene's node transforms are applied) and multiplies the coordinates by
+/// `scale_to_mm` (1 for mm, 1000 for m, 25.4 for inch). Polygons are triangulated; points and
+/// lines are ignored. Throws InputError naming the file when assimp cannot read it, when it
+/// holds no triangle, or when a coordinate is not finite; ArgumentError when scale_to_mm is
+/// not a positive finite number.
+Mesh loadMesh(const std::string& path, double scale_to_mm);
+
+/// A capsule: the points within radius_mm of the segment p0_mm-p1_mm (a sphere when the two
+/// coincide). Coordinates in the frame of the CellShape that holds it (mm).
+struct Capsule {
+  Eigen::Vector3d p0_mm = Eigen::Vector3d::Zero();
+  Eigen::Vector3d p1_mm = Eigen::Vector3d::Zero();
+  double radius_mm = 0;
+};
+
+/// One piece of geometry: a mesh or a capsule (exactly one of the two), in the shape's frame,
+/// placed in its parent frame (world for objects, DH frame i for links, flange for the tool).
+struct CellShape {
+  std::optional<Mesh> mesh;
+  std::optional<Capsule> capsule;
+  Eigen::Isometry3d T_parent_shape = Eigen::Isometry3d::Identity();
+  std::string name;  ///< for reports: "table", "link 3", "tool", ...
+  std::string file;  ///< the cell file
+  int line = 0;      ///< of its element in the cell file
+};
+
+/// Thresholds of the checks (check.h), with their defaults.
+struct CheckThresholds {
+  /// Required distance of every joint from its limits: deg (revolute), mm (prismatic).
+  double joint_margin_deg = 1.0;
+  /// Smallest singular value of the scaled joint Jacobian (dimensionless; docs/checks.md):
+  /// 0.005 is A5 within about 1.1 deg of 0 on a KR 16.
+  double singular_threshold = 0.005;
+  /// Required distance between the robot (links and tool) and every cell mesh (mm).
+  double min_clearance_mm = 5.0;
+};
+
+struct Cell {
+  std::string file;  ///< the cell file
+  /// Obstacles: fixtures, parts, fences (parent frame: world).
+  std::vector<CellShape> objects;
+  /// Where the robot stands in the cell (nominal T_world_base, the placement the OLP used);
+  /// empty when the cell file does not say (the robot file's <base> or --base is used).
+  std::optional<Eigen::Isometry3d> T_world_base;
+  /// Robot geometry: link_shapes[k].first is the DH frame index (1..n) the shape moves with.
+  std::vector<std::pair<int, CellShape>> link_shapes;
+  /// Tool geometry in the flange frame (frame n).
+  std::vector<CellShape> tool_shapes;
+  CheckThresholds thresholds;
+};
+
+/// Reads a cell file (docs/cell-format.md). Mesh paths are relative to the cell file's
+/// directory. Throws InputError with file:line:column and what was expected and found for a
+/// malformed file, an unknown element or attribute, a missing one, a bad number or unit, and
+/// for a mesh file assimp cannot read or without triangles (naming that file). Link indices
+/// are checked against the robot by the checks (check.h), not here.
+Cell readCellFile(const std::string& path);
+
+}  // namespace accura::postproc

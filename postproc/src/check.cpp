@@ -1,0 +1,703 @@
+// Reach and clearance checks of a program in its cell (check.h, docs/checks.md).
+#include "accura/postproc/check.h"
+
+#include <Eigen/SVD>
+#include <algorithm>
+#include <cmath>
+#include <functional>
+#include <limits>
+#include <map>
+#include <sstream>
+
+#include "accura/calib/errors.h"
+
+namespace accura::postproc {
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+/// The IK model's joint limits are widened by this much (deg / mm) so that a point beyond a
+/// limit still gets joint values and the report can say by how much.
+constexpr double kWidenDeg = 30.0;
+/// A distance made exact on demand (proven) is asked for this much (mm) beyond what the
+/// decision needs, so that a lower bound that comes back decides it with a margin far above
+/// rounding.
+constexpr double kRefineMarginMm = 1.0;
+
+double angleDeg(const Eigen::Matrix3d& R) {
+  const double c = std::max(-1.0, std::min(1.0, (R.trace() - 1.0) / 2.0));
+  return std::acos(c) * kRadToDeg;
+}
+
+bool sameTool(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
+  return (a.translation() - b.translation()).norm() <= 1e-3 && angleDeg(a.linear().transpose() * b.linear()) <= 1e-3;
+}
+
+std::string motionLabel(const Motion& m) {
+  std::string k;
+  switch (m.type) {
+    case MotionType::kPtp: k = "PTP"; break;
+    case MotionType::kLin: k = "LIN"; break;
+    case MotionType::kCirc: k = "CIRC"; break;
+    case MotionType::kSpl: return "SPL";
+  }
+  return m.spline ? "S" + k : k;
+}
+
+std::string num(double v, int decimals) { return formatFixed(v, decimals); }
+
+std::string jointsText(const Eigen::VectorXd& q) {
+  std::string s;
+  for (int i = 0; i < q.size(); ++i) s += (i ? ", " : "") + num(q[i], 3);
+  return "{" + s + "}";
+}
+
+/// Models for one tool.
+struct ToolModels {
+  RobotModel mode_model;           // whose IK and FK define the path (real or controller)
+  std::unique_ptr<KinematicSolver> ik;  // mode_model with widened limits
+};
+
+class Checker {
+ public:
+  Checker(const RobotModel& real, const RobotModel& controller, const Cell& cell, const CheckOptions& o,
+          const PoseContext& context, CheckReport& r)
+      : real_(real), controller_(controller), opt_(o), t_(o.thresholds), context_(context), r_(r), geometry_(cell, real) {
+    // scale of the singularity measure (docs/compensation.md, docs/checks.md)
+    L_mm_ = real.nominal.T_flange_tcp.translation().norm();
+    for (const auto& j : real.nominal.joints) L_mm_ += std::fabs(j.a_mm) + std::fabs(j.d_mm);
+    L_mm_ = std::max(L_mm_, 1.0);
+  }
+
+  const ToolModels& models(const Eigen::Isometry3d& tool) {
+    std::ostringstream key;
+    key.precision(17);
+    key << tool.matrix();
+    auto it = cache_.find(key.str());
+    if (it != cache_.end()) return it->second;
+    ToolModels m;
+    if (opt_.mode == CheckMode::kIntended) {
+      m.mode_model = real_;
+      if (!sameTool(tool, real_.nominal.T_flange_tcp)) {
+        m.mode_model.nominal.T_flange_tcp = tool;
+        m.mode_model.deviations.tool_mm.setZero();
+        m.mode_model.deviations.tool_rot_rad.setZero();
+      }
+    } else {
+      m.mode_model = controller_;
+      m.mode_model.nominal.T_flange_tcp = tool;
+    }
+    RobotModel wide = m.mode_model;
+    for (auto& j : wide.nominal.joints) {
+      j.lower -= kWidenDeg;
+      j.upper += kWidenDeg;
+    }
+    m.ik = std::make_unique<KinematicSolver>(wide);
+    return cache_.emplace(key.str(), std::move(m)).first->second;
+  }
+
+  /// sigma_min of the scaled joint Jacobian of the real model at q; `dominant`: the joints
+  /// with the largest share in the singular direction.
+  double sigmaMin(const Eigen::VectorXd& q, std::string* dominant) {
+    const Eigen::Matrix<double, 6, Eigen::Dynamic> J = jointJacobian(real_, q, context_, ws_);
+    Eigen::MatrixXd S = J;
+    for (int i = 0; i < S.cols(); ++i) {
+      if (real_.nominal.joints[static_cast<size_t>(i)].type == JointType::kRevolute) S.col(i) *= kRadToDeg;
+      else S.col(i) *= L_mm_;
+    }
+    S.topRows(3) /= L_mm_;
+    Eigen::JacobiSVD<Eigen::MatrixXd> svd(S, Eigen::ComputeFullV);
+    const Eigen::Index k = svd.singularValues().size() - 1;
+    if (dominant) {
+      const Eigen::VectorXd v = svd.matrixV().col(k).cwiseAbs();
+      dominant->clear();
+      for (int i = 0; i < v.size(); ++i)
+        if (v[i] >= 0.3) *dominant += (dominant->empty() ? "" : ", ") + real_.nominal.joints[static_cast<size_t>(i)].name;
+    }
+    return svd.singularValues()[k];
+  }
+
+  /// Smallest distance of a joint from its limits (deg / mm; negative outside) and which.
+  std::pair<double, int> jointMargin(const Eigen::VectorXd& q) const {
+    double best = kInf;
+    int which = -1;
+    for (int i = 0; i < q.size(); ++i) {
+      const JointSpec& j = real_.nominal.joints[static_cast<size_t>(i)];
+      const double m = std::min(q[i] - j.lower, j.upper - q[i]);
+      if (m < best) {
+        best = m;
+        which = i;
+      }
+    }
+    return {best, which};
+  }
+
+  struct Sample {
+    double s = 0;
+    Eigen::VectorXd q;
+    Eigen::VectorXd theta;  // rad (revolute) / mm (prismatic): what moves the geometry
+    Eigen::Vector3d p_tcp = Eigen::Vector3d::Zero();
+    /// per robot shape; exact below min_clearance + exact_band_mm, else possibly a lower
+    /// bound (lower_bound), made exact on demand by proven() (hence mutable)
+    mutable std::vector<CellGeometry::Distance> d;
+  };
+
+  Sample makeSample(double s, const Eigen::VectorXd& q, const ToolModels& tm) {
+    Sample x;
+    x.s = s;
+    x.q = q;
+    x.p_tcp = forwardKinematics(tm.mode_model, q, context_, ws_).translation();
+    // the real model's joint angles (rad) and d (mm) as used: what moves the geometry
+    forwardKinematics(real_, q, context_, ws_);
+    x.theta.resize(q.size());
+    for (int i = 0; i < q.size(); ++i)
+      x.theta[i] = real_.nominal.joints[static_cast<size_t>(i)].type == JointType::kRevolute ? ws_.theta_rad[i] : ws_.d_mm[i];
+    if (geometry_.robotShapes() > 0 && geometry_.objects() > 0)
+      x.d = geometry_.distances(q, context_, t_.min_clearance_mm + opt_.exact_band_mm, &r_.distance_queries);
+    ++r_.samples;
+    ++cur_->samples;
+    for (const auto& d : x.d) cur_->min_clearance_mm = std::min(cur_->min_clearance_mm, d.mm);
+    return x;
+  }
+
+  // ---- per-motion state
+  struct First {
+    std::optional<CheckViolation> v[4];
+  };
+
+  CheckViolation base(CheckKind kind, const WorldMotion& m, double s, double arc_mm, const Eigen::Vector3d& p,
+                      const Eigen::VectorXd& q) const {
+    CheckViolation v;
+    v.kind = kind;
+    v.motion_index = motion_index_;
+    v.where = m.where;
+    v.motion_type = m.label;
+    v.on_path = s < 1.0;
+    v.s = s;
+    v.arc_mm = arc_mm;
+    v.p_world_tcp_mm = p;
+    v.q = q;
+    return v;
+  }
+
+  std::string at(const CheckViolation& v) const {
+    std::string w = v.on_path ? "on the path at s " + num(v.s, 4) + " (" + num(v.arc_mm, 2) + " mm from its start)" : "at the end point";
+    return w + ", TCP (" + num(v.p_world_tcp_mm.x(), 2) + ", " + num(v.p_world_tcp_mm.y(), 2) + ", " + num(v.p_world_tcp_mm.z(), 2) +
+           ") mm";
+  }
+
+  void record(First& f, CheckViolation v) {
+    const int k = static_cast<int>(v.kind);
+    if (f.v[k] && f.v[k]->s <= v.s) return;
+    f.v[k] = std::move(v);
+  }
+
+  /// Joint limits and singularity at one configuration.
+  void pointChecks(First& f, const WorldMotion& m, double s, double arc_mm, const Eigen::Vector3d& p, const Eigen::VectorXd& q,
+                   bool singularity) {
+    const auto [margin, joint] = jointMargin(q);
+    cur_->min_joint_margin = std::min(cur_->min_joint_margin, margin);
+    if (margin < t_.joint_margin_deg) {
+      CheckViolation v = base(CheckKind::kJointLimit, m, s, arc_mm, p, q);
+      v.value = margin;
+      v.limit = t_.joint_margin_deg;
+      v.excess = t_.joint_margin_deg - margin;
+      const JointSpec& js = real_.nominal.joints[static_cast<size_t>(joint)];
+      v.unit = js.type == JointType::kRevolute ? "deg" : "mm";
+      v.joint = joint;
+      v.message = "joint limit: " + js.name + " = " + num(q[joint], 3) + " " + v.unit + " is " + num(margin, 3) + " " + v.unit +
+                  (margin < 0 ? " outside" : " inside") + " its limits [" + num(js.lower, 1) + ", " + num(js.upper, 1) + "]; required " +
+                  num(t_.joint_margin_deg, 3) + " " + v.unit + " inside (short by " + num(v.excess, 3) + " " + v.unit + ") " + at(v) +
+                  ", joints " + jointsText(q);
+      record(f, std::move(v));
+    }
+    if (singularity && t_.singular_threshold > 0) {
+      std::string dominant;
+      const double sigma = sigmaMin(q, &dominant);
+      cur_->min_sigma = std::min(cur_->min_sigma, sigma);
+      if (sigma < t_.singular_threshold) {
+        CheckViolation v = base(CheckKind::kSingularity, m, s, arc_mm, p, q);
+        v.value = sigma;
+        v.limit = t_.singular_threshold;
+        v.excess = t_.singular_threshold - sigma;
+        v.message = "singularity: sigma_min " + formatFixed(sigma, 6) + " below " + formatFixed(t_.singular_threshold, 6) +
+                    " (scaled joint Jacobian; the singular direction moves mostly " + dominant + ") " + at(v) + ", joints " + jointsText(q);
+        record(f, std::move(v));
+      }
+    }
+  }
+
+  void reach(First& f, const WorldMotion& m, double s, double arc_mm, const Eigen::Vector3d& p, const std::string& why) {
+    CheckViolation v = base(CheckKind::kReach, m, s, arc_mm, p, Eigen::VectorXd());
+    v.message = "reach: " + why + " " + at(v);
+    record(f, std::move(v));
+  }
+
+  /// The first robot shape closer than the minimum at a sample, or -1.
+  int clearanceViolation(const Sample& x) const {
+    int worst = -1;
+    for (size_t k = 0; k < x.d.size(); ++k)
+      if (x.d[k].mm < t_.min_clearance_mm && (worst < 0 || x.d[k].mm < x.d[static_cast<size_t>(worst)].mm)) worst = static_cast<int>(k);
+    return worst;
+  }
+
+  void clearance(First& f, const WorldMotion& m, const Sample& x, double arc_mm) {
+    const int k = clearanceViolation(x);
+    if (k < 0) return;
+    const CellGeometry::Distance& d = x.d[static_cast<size_t>(k)];
+    CheckViolation v = base(CheckKind::kClearance, m, x.s, arc_mm, x.p_tcp, x.q);
+    v.value = d.mm;
+    v.limit = t_.min_clearance_mm;
+    v.excess = t_.min_clearance_mm - d.mm;
+    v.unit = "mm";
+    v.robot_part = geometry_.robotShapeName(d.robot_shape);
+    v.obstacle = d.object >= 0 ? geometry_.objectName(d.object) : "";
+    v.message = "clearance: " + v.robot_part + " is " + num(d.mm, 3) + " mm from " + v.obstacle + (d.mm <= 0 ? " (in contact)" : "") +
+                ", required " + num(t_.min_clearance_mm, 3) + " mm (short by " + num(v.excess, 3) + " mm) " + at(v) + ", joints " +
+                jointsText(x.q);
+    record(f, std::move(v));
+  }
+
+  /// Is the clearance between samples a and b proven (docs/checks.md)? For each robot shape:
+  /// (d_a + d_b - M) / 2 >= min_clearance, M the bound on how far its points move. A distance
+  /// that is only a lower bound (far: Sample::d) and fails it is asked again, exact below what
+  /// the decision needs (plus kRefineMarginMm): the answer is then that of exact distances.
+  bool proven(const Sample& a, const Sample& b, double factor, bool* below_resolution) {
+    bool ok = true;
+    bool small = true;
+    for (size_t k = 0; k < a.d.size(); ++k) {
+      double M = 0;
+      for (int i = 0; i < a.theta.size(); ++i) M += std::fabs(b.theta[i] - a.theta[i]) * geometry_.leverArm(static_cast<int>(k), i);
+      M *= factor;
+      if (M > opt_.resolution_mm) small = false;
+      if (!ok) continue;  // not proven already: the other shapes cannot change that
+      const auto fails = [&]() { return 0.5 * (a.d[k].mm + b.d[k].mm - M) < t_.min_clearance_mm; };
+      // exact wherever a distance is below the value that would prove the interval
+      const auto refine = [&](const Sample& x, const Sample& other) {
+        if (!x.d[k].lower_bound || !fails()) return;
+        const double needed = 2 * t_.min_clearance_mm + M - other.d[k].mm + kRefineMarginMm;
+        x.d[k] = geometry_.distance(static_cast<int>(k), x.q, context_, needed, &r_.distance_queries);
+      };
+      refine(a, b);  // a exact, or at least enough to prove it
+      refine(b, a);  // then b likewise: what remains fails on exact values
+      if (fails()) ok = false;
+    }
+    *below_resolution = small;
+    return ok;
+  }
+
+  /// The first sample strictly inside (a, b) closer than the minimum, found by subdivision;
+  /// `mid(s, left)` makes the sample at s (nullopt when it cannot: reach).
+  std::optional<Sample> firstInside(const Sample& a, const Sample& b, double factor,
+                                    const std::function<std::optional<Sample>(double, const Sample&)>& mid, int depth) {
+    bool small = false;
+    if (proven(a, b, factor, &small) || small) return std::nullopt;
+    if (depth > 60) {
+      r_.warnings.push_back({cur_->where, "clearance subdivision stopped at depth 60 near s " + num(a.s, 9)});
+      return std::nullopt;
+    }
+    const std::optional<Sample> m = mid(0.5 * (a.s + b.s), a);
+    if (!m) return std::nullopt;  // reported by mid
+    if (auto left = firstInside(a, *m, factor, mid, depth + 1)) return left;
+    if (clearanceViolation(*m) >= 0) return m;
+    return firstInside(*m, b, factor, mid, depth + 1);
+  }
+
+  // ---- motions
+
+  void emit(First& f) {
+    std::vector<CheckViolation> v;
+    for (auto& x : f.v)
+      if (x) v.push_back(std::move(*x));
+    std::stable_sort(v.begin(), v.end(), [](const CheckViolation& a, const CheckViolation& b) { return a.s < b.s; });
+    for (auto& x : v) r_.violations.push_back(std::move(x));
+  }
+
+  void run(const std::vector<WorldMotion>& motions, const std::vector<int>& indices, const std::vector<bool>& start_unknown) {
+    std::optional<Sample> prev;
+    const ToolModels* prev_models = nullptr;
+    for (size_t mi = 0; mi < motions.size(); ++mi) {
+      const WorldMotion& m = motions[mi];
+      motion_index_ = indices[mi];
+      MotionCheck mc;
+      mc.motion_index = motion_index_;
+      mc.where = m.where;
+      mc.motion_type = m.label;
+      mc.checked = true;
+      mc.min_clearance_mm = kInf;
+      mc.min_sigma = kInf;
+      mc.min_joint_margin = kInf;
+      cur_ = &mc;
+      if (start_unknown[mi]) prev.reset();
+      const ToolModels& tm = models(m.T_flange_tcp);
+      First f;
+      try {
+        if (prev && prev_models != &tm) {
+          // the tool changed: the start is the same joint values with the new tool
+          prev = makeSample(0, prev->q, tm);
+        }
+        const bool cartesian_path = (m.type == MotionType::kLin || m.type == MotionType::kCirc);
+        if (!m.q_end.size() && !cartesian_path) {
+          ptpTo(f, m, tm, prev, solveEnd(f, m, tm, prev));
+        } else if (m.q_end.size() && !cartesian_path) {
+          ptpTo(f, m, tm, prev, m.q_end);
+        } else if (!prev) {
+          if (m.q_end.size()) ptpTo(f, m, tm, prev, m.q_end);
+          else ptpTo(f, m, tm, prev, solveEnd(f, m, tm, prev));
+          mc.note = m.label + " from a position that is not known (the first motion, or after one that could not be checked): its end point is checked, its path is not";
+          r_.warnings.push_back({m.where, mc.note});
+        } else {
+          path(f, m, tm, prev);
+        }
+      } catch (const NumericalError& e) {
+        mc.checked = false;
+        mc.note = std::string("cannot be checked: ") + e.what();
+        r_.unchecked.push_back({m.where, mc.note});
+        prev.reset();
+      }
+      prev_models = &tm;
+      emit(f);
+      r_.motions.push_back(mc);
+    }
+  }
+
+  /// IK of a Cartesian end point (reach, configuration); nullopt after a reach violation.
+  std::optional<Eigen::VectorXd> solveEnd(First& f, const WorldMotion& m, const ToolModels& tm, const std::optional<Sample>& prev) {
+    IkOptions o;
+    o.joint_margin = 0;
+    o.singular_threshold = 0;
+    const Eigen::VectorXd seed = prev ? prev->q : Eigen::VectorXd();
+    const IkResult ik = tm.ik->inverse(m.T_world_tcp_end, m.configuration, seed, o, context_);
+    if (ik.status == IkStatus::kOk) return ik.q;
+    std::string why = std::string(toString(ik.status)) + (ik.message.empty() ? "" : " (" + ik.message + ")");
+    if (ik.status == IkStatus::kJointLimits) why = "reachable only more than " + num(kWidenDeg, 0) + " deg/mm beyond the joint limits";
+    if (ik.status == IkStatus::kNoConfiguration && ik.q.size()) {
+      const Configuration c = ik.configuration;
+      why = "reachable only on configuration S " + std::to_string(c.status) + " T " + std::to_string(c.turn) + ", not on S " +
+            std::to_string(m.configuration.status) + " T " + std::to_string(m.configuration.turn) + " the target names";
+    }
+    reach(f, m, 1.0, 0.0, m.T_world_tcp_end.translation(), why);
+    return std::nullopt;
+  }
+
+  void ptpTo(First& f, const WorldMotion& m, const ToolModels& tm, std::optional<Sample>& prev, const std::optional<Eigen::VectorXd>& q_end) {
+    if (!q_end) {
+      prev.reset();
+      return;
+    }
+    Sample end = makeSample(1.0, *q_end, tm);
+    cur_->length_mm = prev ? (end.p_tcp - prev->p_tcp).norm() : 0.0;  // chord: the PTP path is not a line
+    pointChecks(f, m, 1.0, cur_->length_mm, end.p_tcp, end.q, true);
+    if (prev) {
+      // joint-space motion: q(s) = q_a + s (q_b - q_a); the bound is exact for it (factor 1)
+      const Eigen::VectorXd qa = prev->q, qb = *q_end;
+      Sample start = *prev;
+      start.s = 0;
+      auto mid = [&](double s, const Sample&) -> std::optional<Sample> { return makeSample(s, qa + s * (qb - qa), tm); };
+      if (auto v = firstInside(start, end, 1.0, mid, 0)) clearance(f, m, *v, (v->p_tcp - start.p_tcp).norm());
+    }
+    clearance(f, m, end, cur_->length_mm);
+    prev = end;
+  }
+
+  void path(First& f, const WorldMotion& m, const ToolModels& tm, std::optional<Sample>& prev) {
+    PathSegment seg;
+    seg.type = m.type == MotionType::kCirc ? PathType::kCirc : PathType::kLin;
+    seg.T_world_start = forwardKinematics(tm.mode_model, prev->q, context_, ws_);
+    seg.T_world_aux = m.T_world_tcp_aux;
+    seg.T_world_end = m.q_end.size() ? forwardKinematics(tm.mode_model, m.q_end, context_, ws_) : m.T_world_tcp_end;
+    const double length = pathLength(seg);
+    const double rot_deg = pathRotation(seg) * kRadToDeg;
+    cur_->length_mm = length;
+    const int n0 = std::max(1, static_cast<int>(std::ceil(std::max(length / opt_.sample_step_mm, rot_deg / opt_.sample_step_deg))));
+    IkOptions o;
+    o.joint_margin = 0;
+    o.singular_threshold = 0;
+    bool failed = false;
+    // IK at s continuing from `left` (the configuration of the start, as the controller does)
+    auto solve = [&](double s, const Sample& left) -> std::optional<Sample> {
+      const Eigen::Isometry3d T = interpolate(seg, s);
+      const IkResult ik = tm.ik->inverse(T, Configuration{}, left.q, o, context_);
+      if (ik.status != IkStatus::kOk) {
+        std::string why = std::string(toString(ik.status)) + (ik.message.empty() ? "" : " (" + ik.message + ")");
+        if (ik.status == IkStatus::kJointLimits) why = "reachable only more than " + num(kWidenDeg, 0) + " deg/mm beyond the joint limits";
+        reach(f, m, s, s * length, T.translation(), why);
+        failed = true;
+        return std::nullopt;
+      }
+      return makeSample(s, ik.q, tm);
+    };
+    // pre-samples: uniform, then bisected until no joint moves more than max_joint_step_deg
+    std::vector<Sample> xs;
+    Sample start = *prev;
+    start.s = 0;
+    xs.push_back(start);
+    std::function<bool(const Sample&, const Sample&, int, std::vector<Sample>&)> refine =
+        [&](const Sample& a, const Sample& b, int depth, std::vector<Sample>& out) -> bool {
+      if ((b.q - a.q).cwiseAbs().maxCoeff() <= opt_.max_joint_step_deg) {
+        out.push_back(b);
+        return true;
+      }
+      if (depth > 30) {  // a jump of the joint values: the path crosses a singularity
+        std::string dominant;
+        const double sigma = sigmaMin(b.q, &dominant);
+        CheckViolation v = base(CheckKind::kSingularity, m, b.s, b.s * length, b.p_tcp, b.q);
+        v.value = sigma;
+        v.limit = t_.singular_threshold;
+        v.excess = std::max(0.0, t_.singular_threshold - sigma);
+        v.message = "singularity: the joint values jump by " + num((b.q - a.q).cwiseAbs().maxCoeff(), 3) +
+                    " deg within s " + formatFixed(b.s - a.s, 9) + " (the path passes through a singularity; sigma_min " +
+                    formatFixed(sigma, 6) + ", direction " + dominant + ") " + at(v);
+        record(f, std::move(v));
+        failed = true;
+        return false;
+      }
+      const std::optional<Sample> mid = solve(0.5 * (a.s + b.s), a);
+      if (!mid) return false;
+      return refine(a, *mid, depth + 1, out) && refine(*mid, b, depth + 1, out);
+    };
+    for (int k = 1; k <= n0 && !failed; ++k) {
+      const std::optional<Sample> b = solve(static_cast<double>(k) / n0, xs.back());
+      if (!b) break;
+      if (!refine(xs.back(), *b, 0, xs)) break;
+    }
+    // point checks at every pre-sample but the start (the previous motion's end)
+    for (size_t k = 1; k < xs.size(); ++k) pointChecks(f, m, xs[k].s, xs[k].s * length, xs[k].p_tcp, xs[k].q, true);
+    // clearance: every pre-sample and the subdivision between them, first violation only
+    auto mid = [&](double s, const Sample& left) { return solve(s, left); };
+    for (size_t k = 1; k < xs.size(); ++k) {
+      if (auto v = firstInside(xs[k - 1], xs[k], opt_.cartesian_bound_factor, mid, 0)) {
+        clearance(f, m, *v, v->s * length);
+        break;
+      }
+      if (clearanceViolation(xs[k]) >= 0) {
+        clearance(f, m, xs[k], xs[k].s * length);
+        break;
+      }
+    }
+    if (failed || xs.back().s < 1.0) {
+      prev.reset();
+      return;
+    }
+    const Sample& end = xs.back();
+    if (m.configuration.status >= 0 && !m.q_end.size()) {
+      const Configuration got = kukaConfiguration(tm.mode_model, end.q);
+      if (got.status >= 0 && got.status != m.configuration.status)
+        reach(f, m, 1.0, length, end.p_tcp,
+              "the path arrives on S " + std::to_string(got.status) + ", the target names S " + std::to_string(m.configuration.status));
+    }
+    prev = end;
+  }
+
+ private:
+  const RobotModel& real_;
+  const RobotModel& controller_;
+  const CheckOptions& opt_;
+  const CheckThresholds& t_;
+  PoseContext context_;
+  CheckReport& r_;
+  CellGeometry geometry_;
+  double L_mm_ = 1;
+  KinematicWorkspace ws_;
+  std::map<std::string, ToolModels> cache_;
+  MotionCheck* cur_ = nullptr;
+  int motion_index_ = 0;
+};
+
+void finish(CheckReport& r) {
+  r.min_clearance_mm = kInf;
+  r.min_sigma = kInf;
+  r.min_joint_margin = kInf;
+  for (const auto& m : r.motions) {
+    r.min_clearance_mm = std::min(r.min_clearance_mm, m.min_clearance_mm);
+    r.min_sigma = std::min(r.min_sigma, m.min_sigma);
+    r.min_joint_margin = std::min(r.min_joint_margin, m.min_joint_margin);
+  }
+}
+
+CheckReport checkWorld(const RobotModel& real, const RobotModel& controller, const Cell& cell, const std::vector<WorldMotion>& motions,
+                       const std::vector<int>& indices, const std::vector<bool>& start_unknown, const CheckOptions& options,
+                       const PoseContext& context, CheckReport r) {
+  std::string why;
+  if (!options.IsValid(&why)) throw ArgumentError("check options: " + why);
+  if (real.dof() != controller.dof())
+    throw ArgumentError("check: the real model has " + std::to_string(real.dof()) + " joints, the controller " + std::to_string(controller.dof()));
+  real.validate();
+  controller.validate();
+  r.mode = options.mode;
+  r.thresholds = options.thresholds;
+  Checker c(real, controller, cell, options, context, r);
+  c.run(motions, indices, start_unknown);
+  finish(r);
+  return r;
+}
+
+}  // namespace
+
+const char* toString(CheckMode mode) { return mode == CheckMode::kIntended ? "intended" : "as_written"; }
+
+const char* toString(CheckKind kind) {
+  switch (kind) {
+    case CheckKind::kReach: return "reach";
+    case CheckKind::kJointLimit: return "joint_limit";
+    case CheckKind::kSingularity: return "singularity";
+    case CheckKind::kClearance: return "clearance";
+  }
+  return "?";
+}
+
+bool CheckOptions::IsValid(std::string* error) const {
+  auto bad = [&](const std::string& m) {
+    if (error) *error = m;
+    return false;
+  };
+  if (!(thresholds.joint_margin_deg >= 0) || !std::isfinite(thresholds.joint_margin_deg)) return bad("joint_margin_deg must be >= 0");
+  if (!(thresholds.singular_threshold >= 0) || !std::isfinite(thresholds.singular_threshold)) return bad("singular_threshold must be >= 0");
+  if (!(thresholds.min_clearance_mm >= 0) || !std::isfinite(thresholds.min_clearance_mm)) return bad("min_clearance_mm must be >= 0");
+  if (!(sample_step_mm > 0) || !std::isfinite(sample_step_mm)) return bad("sample_step_mm must be > 0");
+  if (!(sample_step_deg > 0) || !std::isfinite(sample_step_deg)) return bad("sample_step_deg must be > 0");
+  if (!(max_joint_step_deg > 0) || !std::isfinite(max_joint_step_deg)) return bad("max_joint_step_deg must be > 0");
+  if (!(resolution_mm > 0) || !std::isfinite(resolution_mm)) return bad("resolution_mm must be > 0");
+  if (!(cartesian_bound_factor >= 1) || !std::isfinite(cartesian_bound_factor)) return bad("cartesian_bound_factor must be >= 1");
+  if (!(exact_band_mm > 0)) return bad("exact_band_mm must be > 0 (infinity: every distance exact)");
+  return true;
+}
+
+CheckReport checkMotions(const RobotModel& real, const RobotModel& controller, const Cell& cell, const std::vector<WorldMotion>& motions,
+                         const CheckOptions& options, const PoseContext& context) {
+  std::vector<int> idx(motions.size());
+  for (size_t i = 0; i < motions.size(); ++i) idx[i] = static_cast<int>(i);
+  for (const auto& m : motions)
+    if (m.q_end.size() && m.q_end.size() != real.dof())
+      throw ArgumentError("checkMotions: an axis target has " + std::to_string(m.q_end.size()) + " values, the robot " + std::to_string(real.dof()) + " joints");
+  return checkWorld(real, controller, cell, motions, idx, std::vector<bool>(motions.size(), false), options, context, CheckReport{});
+}
+
+CheckReport checkProgram(const Program& program, const JobSettings& job, const Cell& cell, const CheckOptions& options) {
+  CheckReport r;
+  // frames, as compensateProgram (job.h)
+  Eigen::Isometry3d T_world_robroot = job.calibrated.nominal.T_world_base;
+  if (job.robroot_in_world) {
+    T_world_robroot = toIsometry(*job.robroot_in_world);
+    if (cell.T_world_base) {
+      const Eigen::Isometry3d d = cell.T_world_base->inverse() * T_world_robroot;
+      if (d.translation().norm() > 1e-3 || angleDeg(d.linear()) > 1e-3)
+        throw InputError(cell.file, 0, 0, "the robot placement of the cell file differs from --base: expected the same placement, found two (give one of them)");
+    }
+  } else if (cell.T_world_base) {
+    T_world_robroot = *cell.T_world_base;
+  }
+  {
+    const Eigen::Isometry3d d = T_world_robroot.inverse() * job.calibrated.T_world_base();
+    if (d.translation().norm() > job.max_base_offset_mm || angleDeg(d.linear()) > job.max_base_offset_deg)
+      throw InputError("the calibrated base is " + formatMm(d.translation().norm()) + " mm and " + formatDeg(angleDeg(d.linear())) +
+                       " deg from the robot placement in the cell: expected at most " + formatMm(job.max_base_offset_mm) + " mm and " +
+                       formatDeg(job.max_base_offset_deg) + " deg (the model was measured in another frame: give --base, or the cell's <robot>)");
+  }
+  const Eigen::Isometry3d T_kworld_robroot = job.robroot_in_kukaworld ? toIsometry(*job.robroot_in_kukaworld) : Eigen::Isometry3d::Identity();
+  const Eigen::Isometry3d T_world_kworld = T_world_robroot * T_kworld_robroot.inverse();
+  RobotModel controller = RobotModel::fromDefinition(job.calibrated.nominal);
+  controller.nominal.T_world_base = T_world_robroot;
+
+  std::vector<WorldMotion> wm;
+  std::vector<int> idx;
+  std::vector<bool> start_unknown;
+  std::map<int, MotionCheck> skipped;
+  bool unknown = false;  // the position before the next motion is not known
+  std::optional<Eigen::Isometry3d> T_world_flange;  // where the program meant the flange to be
+  std::optional<Eigen::VectorXd> q_known;
+  const int dof = job.calibrated.dof();
+  for (size_t i = 0; i < program.motions.size(); ++i) {
+    const Motion& m = program.motions[i];
+    auto skip = [&](const std::string& why) {
+      MotionCheck mc;
+      mc.motion_index = static_cast<int>(i);
+      mc.where = m.where;
+      mc.motion_type = motionLabel(m);
+      mc.checked = false;
+      mc.note = why;
+      mc.min_clearance_mm = kInf;
+      mc.min_sigma = kInf;
+      mc.min_joint_margin = kInf;
+      skipped[static_cast<int>(i)] = mc;
+      r.unchecked.push_back({m.where, motionLabel(m) + " not checked: " + why});
+      unknown = true;
+      T_world_flange.reset();
+      q_known.reset();
+    };
+    if (!m.target_problem.empty()) { skip(m.target_problem); continue; }
+    if (m.relative) { skip("relative motions (_REL) are not checked"); continue; }
+    if (m.external_tcp) { skip("external TCP (IPO_FRAME #TCP) is not supported"); continue; }
+    if (m.circ_angle_deg) { skip("CIRC with CA (circular angle) is not supported"); continue; }
+    if (m.type == MotionType::kSpl) { skip("spline segments (SPL) are not checked"); continue; }
+    std::optional<XyzAbc> tool = m.tool.value, base = m.base.value;
+    if (m.tool.source == FrameSetting::Source::kUnset && job.initial_tool) tool = job.initial_tool;
+    if (m.base.source == FrameSetting::Source::kUnset && job.initial_base) base = job.initial_base;
+    WorldMotion w;
+    w.type = m.type;
+    w.where = m.where;
+    w.label = motionLabel(m);
+    const Eigen::Isometry3d T_flange_tcp = tool ? toIsometry(*tool) : job.calibrated.nominal.T_flange_tcp;
+    w.T_flange_tcp = T_flange_tcp;
+    if (m.target.kind == Target::Kind::kAxis) {
+      Eigen::VectorXd q(dof);
+      bool known = true;
+      for (int k = 0; k < dof; ++k) {
+        if (k < 6 && m.target.axes[static_cast<size_t>(k)]) q[k] = *m.target.axes[static_cast<size_t>(k)];
+        else if (q_known) q[k] = (*q_known)[k];
+        else known = false;
+      }
+      if (!known) { skip("a partial axis target after an unknown position"); continue; }
+      if (m.type == MotionType::kCirc) { skip("CIRC to an axis target"); continue; }
+      w.q_end = q;
+      q_known = q;
+      KinematicWorkspace ws;
+      RobotModel flange = controller;
+      flange.nominal.T_flange_tcp = Eigen::Isometry3d::Identity();
+      T_world_flange = forwardKinematics(flange, q, PoseContext{}, ws);
+    } else {
+      if (!tool) { skip("the tool ($TOOL) of this motion is not known (--program-tool or --config)"); continue; }
+      if (!base) { skip("the base ($BASE) of this motion is not known (--program-base or --config)"); continue; }
+      const Eigen::Isometry3d T_world_progbase = T_world_kworld * toIsometry(*base);
+      auto complete = [&](Target t) -> std::optional<Eigen::Isometry3d> {
+        if (!t.completePose()) {
+          if (!T_world_flange) return std::nullopt;
+          const XyzAbc prevp = toXyzAbc(T_world_progbase.inverse() * *T_world_flange * T_flange_tcp);
+          const double p[6] = {prevp.x_mm, prevp.y_mm, prevp.z_mm, prevp.a_deg, prevp.b_deg, prevp.c_deg};
+          for (size_t k = 0; k < 6; ++k)
+            if (!t.pose[k]) t.pose[k] = p[k];
+        }
+        return T_world_progbase * toIsometry(t.xyzAbc());
+      };
+      const auto end = complete(m.target);
+      if (!end) { skip("a partial target after an unknown position"); continue; }
+      w.T_world_tcp_end = *end;
+      w.configuration = Configuration{m.target.status.value_or(-1), m.target.turn.value_or(-1)};
+      if (m.type == MotionType::kCirc) {
+        if (!m.aux) { skip("CIRC without an auxiliary point"); continue; }
+        const auto aux = complete(*m.aux);
+        if (!aux) { skip("a partial auxiliary point after an unknown position"); continue; }
+        w.T_world_tcp_aux = *aux;
+      }
+      T_world_flange = *end * T_flange_tcp.inverse();
+      q_known.reset();
+    }
+    wm.push_back(w);
+    idx.push_back(static_cast<int>(i));
+    start_unknown.push_back(unknown);
+    unknown = false;
+  }
+  CheckReport out = checkWorld(job.calibrated, controller, cell, wm, idx, start_unknown, options, job.context, r);
+  // motions in program order, the skipped ones included
+  std::vector<MotionCheck> all;
+  size_t k = 0;
+  for (size_t i = 0; i < program.motions.size(); ++i) {
+    auto it = skipped.find(static_cast<int>(i));
+    if (it != skipped.end()) all.push_back(it->second);
+    else if (k < out.motions.size()) all.push_back(out.motions[k++]);
+  }
+  out.motions = all;
+  finish(out);
+  return out;
+}
+
+}  // namespace accura::postproc

@@ -1,0 +1,398 @@
+// Cell geometry: meshes read with assimp (STL ASCII and binary, OBJ in metres, PLY quads), the
+// cell file and its errors (file:line), FCL distances against analytic distances and a
+// brute-force point/triangle distance, and the motion bound of the clearance subdivision.
+#include <gtest/gtest.h>
+
+#include <limits>
+#include <random>
+#include <set>
+
+#include "accura/calib/errors.h"
+#include "accura/calib/kinematics.h"
+#include "accura/postproc/cell.h"
+#include "accura/postproc/check.h"
+#include "test_util.h"
+
+namespace accura::postproc {
+namespace {
+
+std::string fixture(const std::string& name) { return test::sourcePath("tests/data/cell/" + name); }
+
+void bbox(const Mesh& m, Eigen::Vector3d* lo, Eigen::Vector3d* hi) {
+  *lo = m.vertices_mm.front();
+  *hi = *lo;
+  for (const auto& v : m.vertices_mm) {
+    *lo = lo->cwiseMin(v);
+    *hi = hi->cwiseMax(v);
+  }
+}
+
+double area(const Mesh& m) {
+  double a = 0;
+  for (const auto& t : m.triangles)
+    a += 0.5 * (m.vertices_mm[t[1]] - m.vertices_mm[t[0]]).cross(m.vertices_mm[t[2]] - m.vertices_mm[t[0]]).norm();
+  return a;
+}
+
+// Closest point on triangle abc to p (Ericson, Real-Time Collision Detection, 5.1.5).
+Eigen::Vector3d closestOnTriangle(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
+  const Eigen::Vector3d ab = b - a, ac = c - a, ap = p - a;
+  const double d1 = ab.dot(ap), d2 = ac.dot(ap);
+  if (d1 <= 0 && d2 <= 0) return a;
+  const Eigen::Vector3d bp = p - b;
+  const double d3 = ab.dot(bp), d4 = ac.dot(bp);
+  if (d3 >= 0 && d4 <= d3) return b;
+  const double vc = d1 * d4 - d3 * d2;
+  if (vc <= 0 && d1 >= 0 && d3 <= 0) return a + d1 / (d1 - d3) * ab;
+  const Eigen::Vector3d cp = p - c;
+  const double d5 = ab.dot(cp), d6 = ac.dot(cp);
+  if (d6 >= 0 && d5 <= d6) return c;
+  const double vb = d5 * d2 - d1 * d6;
+  if (vb <= 0 && d2 >= 0 && d6 <= 0) return a + d2 / (d2 - d6) * ac;
+  const double va = d3 * d6 - d5 * d4;
+  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) return b + (d4 - d3) / ((d4 - d3) + (d5 - d6)) * (c - b);
+  const double denom = 1.0 / (va + vb + vc);
+  return a + ab * (vb * denom) + ac * (vc * denom);
+}
+
+double bruteForceDistance(const Mesh& m, const Eigen::Isometry3d& T_world_mesh, const Eigen::Vector3d& p_world) {
+  const Eigen::Vector3d p = T_world_mesh.inverse() * p_world;
+  double best = 1e300;
+  for (const auto& t : m.triangles)
+    best = std::min(best, (closestOnTriangle(p, m.vertices_mm[t[0]], m.vertices_mm[t[1]], m.vertices_mm[t[2]]) - p).norm());
+  return best;
+}
+
+TEST(CellMesh, AsciiStlCube) {
+  const Mesh m = loadMesh(fixture("box_100mm.stl"), 1.0);
+  EXPECT_EQ(m.triangles.size(), 12u);
+  std::set<std::array<double, 3>> corners;
+  for (const auto& v : m.vertices_mm) corners.insert({v.x(), v.y(), v.z()});
+  EXPECT_EQ(corners.size(), 8u);
+  Eigen::Vector3d lo, hi;
+  bbox(m, &lo, &hi);
+  EXPECT_NEAR((lo - Eigen::Vector3d::Constant(-50)).norm(), 0, 1e-9);
+  EXPECT_NEAR((hi - Eigen::Vector3d::Constant(50)).norm(), 0, 1e-9);
+  EXPECT_NEAR(area(m), 6 * 100.0 * 100.0, 1e-6);
+}
+
+TEST(CellMesh, BinaryStlPost) {
+  const Mesh m = loadMesh(fixture("post_binary.stl"), 1.0);
+  EXPECT_EQ(m.triangles.size(), 12u);
+  Eigen::Vector3d lo, hi;
+  bbox(m, &lo, &hi);
+  EXPECT_NEAR((lo - Eigen::Vector3d(-5, -5, 0)).norm(), 0, 1e-4);
+  EXPECT_NEAR((hi - Eigen::Vector3d(5, 5, 600)).norm(), 0, 1e-4);
+  EXPECT_NEAR(area(m), 4 * 10.0 * 600.0 + 2 * 100.0, 1e-3);
+}
+
+TEST(CellMesh, ObjInMetresScaledToMm) {
+  const Mesh m = loadMesh(fixture("plate_m.obj"), 1000.0);
+  EXPECT_EQ(m.triangles.size(), 12u);
+  Eigen::Vector3d lo, hi;
+  bbox(m, &lo, &hi);
+  EXPECT_NEAR(lo.norm(), 0, 1e-6);
+  EXPECT_NEAR((hi - Eigen::Vector3d(200, 100, 50)).norm(), 0, 1e-4);
+  EXPECT_NEAR(area(m), 2 * (200.0 * 100 + 200.0 * 50 + 100.0 * 50), 1e-2);
+}
+
+TEST(CellMesh, PlyQuadsAreTriangulated) {
+  const Mesh m = loadMesh(fixture("box_quads.ply"), 25.4);  // as if the file were in inches
+  EXPECT_EQ(m.triangles.size(), 12u);
+  EXPECT_NEAR(area(m), 6 * (100.0 * 25.4) * (100.0 * 25.4), 1e-1);
+}
+
+TEST(CellMesh, ErrorsNameTheFile) {
+  for (const char* name : {"empty.stl", "not_a_mesh.obj", "missing.stl"}) {
+    try {
+      loadMesh(fixture(name), 1.0);
+      ADD_FAILURE() << name << " was read";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find(name), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("expected"), std::string::npos) << e.what();
+    }
+  }
+  EXPECT_THROW(loadMesh(fixture("box_100mm.stl"), 0.0), ArgumentError);
+}
+
+std::string writeCell(const std::string& dir, const std::string& body) {
+  const std::string path = dir + "/cell.xml";
+  test::writeText(path, "<?xml version=\"1.0\"?>\n<cell name=\"t\">\n" + body + "</cell>\n");
+  return path;
+}
+
+TEST(CellFile, ReadsObjectsRobotToolLinksAndThresholds) {
+  const std::string dir = test::tempDir("cell_read");
+  const std::string stl = fixture("box_100mm.stl"), obj = fixture("plate_m.obj");
+  const std::string path = writeCell(dir,
+                                     "  <thresholds joint_margin_deg=\"2.5\" min_clearance_mm=\"8\"/>\n"
+                                     "  <robot x_mm=\"100\" y_mm=\"-50\" z_mm=\"0\" a_deg=\"90\"/>\n"
+                                     "  <object name=\"box\" file=\"" + stl + "\" units=\"mm\" x_mm=\"1000\" z_mm=\"300\" c_deg=\"30\"/>\n"
+                                     "  <object name=\"plate\" file=\"" + obj + "\" units=\"m\"/>\n"
+                                     "  <link joint=\"3\"><capsule x0_mm=\"0\" y0_mm=\"0\" z0_mm=\"0\" x1_mm=\"0\" y1_mm=\"0\" z1_mm=\"-600\" radius_mm=\"90\"/></link>\n"
+                                     "  <tool file=\"" + stl + "\" units=\"cm\" z_mm=\"50\"/>\n");
+  const Cell c = readCellFile(path);
+  ASSERT_EQ(c.objects.size(), 2u);
+  EXPECT_EQ(c.objects[0].name, "box");
+  EXPECT_NEAR((c.objects[0].T_parent_shape.translation() - Eigen::Vector3d(1000, 0, 300)).norm(), 0, 1e-12);
+  EXPECT_NEAR((c.objects[0].T_parent_shape.linear() - rotationZYX(0, 0, 30 * kDegToRad)).norm(), 0, 1e-12);
+  EXPECT_EQ(c.objects[0].line, 5);
+  ASSERT_TRUE(c.T_world_base.has_value());
+  EXPECT_NEAR((c.T_world_base->translation() - Eigen::Vector3d(100, -50, 0)).norm(), 0, 1e-12);
+  EXPECT_NEAR((c.T_world_base->linear() - rotationZYX(kPi / 2, 0, 0)).norm(), 0, 1e-12);
+  ASSERT_EQ(c.link_shapes.size(), 1u);
+  EXPECT_EQ(c.link_shapes[0].first, 3);
+  ASSERT_TRUE(c.link_shapes[0].second.capsule.has_value());
+  EXPECT_EQ(c.link_shapes[0].second.capsule->radius_mm, 90);
+  ASSERT_EQ(c.tool_shapes.size(), 1u);
+  Eigen::Vector3d lo, hi;
+  bbox(*c.tool_shapes[0].mesh, &lo, &hi);
+  EXPECT_NEAR(hi.x(), 500, 1e-9);  // cm -> mm
+  EXPECT_EQ(c.thresholds.joint_margin_deg, 2.5);
+  EXPECT_EQ(c.thresholds.min_clearance_mm, 8);
+  EXPECT_EQ(c.thresholds.singular_threshold, CheckThresholds{}.singular_threshold);  // documented default
+}
+
+TEST(CellFile, ErrorsGiveFileLineExpectedFound) {
+  const std::string dir = test::tempDir("cell_errors");
+  const std::string stl = fixture("box_100mm.stl");
+  struct Case {
+    std::string body;
+    int line;
+    std::string says;
+  };
+  const std::vector<Case> cases = {
+      {"  <object name=\"a\" file=\"" + stl + "\" units=\"mm\"/>\n  <object name=\"b\" file=\"" + stl + "\" units=\"feet\"/>\n", 4,
+       "expected mm, cm, m or inch, found 'feet'"},
+      {"  <object name=\"a\" file=\"" + stl + "\" units=\"mm\" x_mm=\"1O0\"/>\n", 3, "expected a number, found '1O0'"},
+      {"  <object name=\"a\" file=\"" + stl + "\" units=\"mm\" color=\"red\"/>\n", 3, "found 'color'"},
+      {"\n\n  <fixture name=\"a\"/>\n", 5, "found <fixture>"},
+      {"  <object name=\"a\" file=\"" + stl + "\"/>\n", 3, "expected the attribute units"},
+      {"  <object name=\"a\" file=\"nowhere.stl\" units=\"mm\"/>\n", 3, "nowhere.stl"},
+      {"  <object name=\"a\" file=\"" + fixture("empty.stl") + "\" units=\"mm\"/>\n", 3, "empty.stl"},
+      {"  <tool><capsule x0_mm=\"0\" y0_mm=\"0\" z0_mm=\"0\" x1_mm=\"0\" y1_mm=\"0\" z1_mm=\"1\" radius_mm=\"-2\"/></tool>\n", 3,
+       "expected a positive radius"},
+      {"  <link joint=\"0\"><capsule x0_mm=\"0\" y0_mm=\"0\" z0_mm=\"0\" x1_mm=\"0\" y1_mm=\"0\" z1_mm=\"1\" radius_mm=\"2\"/></link>\n", 3,
+       "expected the joint number"},
+      {"  <object name=\"a\" file=\"" + stl + "\" units=\"mm\">\n", 0, "expected well-formed XML"},
+  };
+  for (const Case& c : cases) {
+    const std::string path = writeCell(dir, c.body);
+    try {
+      readCellFile(path);
+      ADD_FAILURE() << "accepted: " << c.body;
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find(c.says), std::string::npos) << e.what();
+      EXPECT_EQ(e.file(), path);
+      if (c.line > 0) EXPECT_EQ(e.line(), c.line) << e.what();
+      else EXPECT_GT(e.line(), 0) << e.what();
+    }
+  }
+}
+
+RobotModel kr16() { return test::loadBundled("kuka_kr16"); }
+
+TEST(CellDistance, FclSphereToBoxEqualsAnalyticAndBruteForce) {
+  Cell cell;
+  CellShape box;
+  box.mesh = loadMesh(fixture("box_100mm.stl"), 1.0);
+  box.name = "box";
+  box.T_parent_shape = toIsometry(XyzAbc{800, -200, 400, 30, -20, 10});
+  cell.objects.push_back(box);
+  const CellGeometry g(cell, kr16());
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> u(-150, 150);
+  int outside = 0;
+  for (int k = 0; k < 200; ++k) {
+    const Eigen::Vector3d p_box(u(rng), u(rng), u(rng));
+    const Eigen::Vector3d excess = (p_box.cwiseAbs() - Eigen::Vector3d::Constant(50)).cwiseMax(0.0);
+    if (excess.norm() == 0) continue;  // inside the (hollow) box: not a surface distance
+    ++outside;
+    const double radius = 3.0;
+    const double analytic = std::max(0.0, excess.norm() - radius);
+    const Eigen::Vector3d p_world = box.T_parent_shape * p_box;
+    EXPECT_NEAR(g.sphereDistance(p_world, radius, 0), analytic, 1e-6) << p_box.transpose();
+    EXPECT_NEAR(bruteForceDistance(*box.mesh, box.T_parent_shape, p_world) - radius, excess.norm() - radius, 1e-9);
+  }
+  EXPECT_GT(outside, 150);
+}
+
+// A sphere on the flange against the box: CellGeometry::distances places the tool with the
+// robot's forward kinematics.
+TEST(CellDistance, ToolSphereOnTheRobot) {
+  const RobotModel robot = kr16();
+  Cell cell;
+  CellShape box;
+  box.mesh = loadMesh(fixture("box_100mm.stl"), 1.0);
+  box.name = "box";
+  box.T_parent_shape = toIsometry(XyzAbc{1100, 0, 900, 0, 0, 0});
+  cell.objects.push_back(box);
+  CellShape tool;
+  tool.capsule = Capsule{Eigen::Vector3d(0, 0, 120), Eigen::Vector3d(0, 0, 120), 20};
+  tool.name = "tool";
+  cell.tool_shapes.push_back(tool);
+  const CellGeometry g(cell, robot);
+  std::mt19937_64 rng(7);
+  for (int k = 0; k < 50; ++k) {
+    Eigen::VectorXd q = test::randomQ(robot, rng);
+    RobotModel flange = robot;
+    flange.nominal.T_flange_tcp = Eigen::Isometry3d::Identity();
+    const Eigen::Vector3d c_world = forwardKinematics(flange, q) * Eigen::Vector3d(0, 0, 120);
+    const Eigen::Vector3d p_box = c_world - Eigen::Vector3d(1100, 0, 900);
+    const Eigen::Vector3d excess = (p_box.cwiseAbs() - Eigen::Vector3d::Constant(50)).cwiseMax(0.0);
+    if (excess.norm() == 0) continue;
+    const double expected = std::max(0.0, excess.norm() - 20);
+    const auto d = g.distances(q, PoseContext{}, 1e9);
+    ASSERT_EQ(d.size(), 1u);
+    EXPECT_NEAR(d[0].mm, expected, 1e-6);
+    // beyond exact_below_mm a lower bound may come back, never more than the distance
+    const auto lb = g.distances(q, PoseContext{}, 0.0);
+    EXPECT_LE(lb[0].mm, expected + 1e-9);
+  }
+}
+
+// The bounded query (check.h: CellGeometry::distances with exact_below_mm): below the bound
+// it gives the unbounded query's distance bit for bit (and the same object), at or above it a
+// lower bound in [bound, distance]. Several objects (an STL box, the post, the plate OBJ in
+// metres, a capsule) and robot shapes of every kind (tool sphere, tool mesh, link capsule), so
+// that the cull by bounding boxes, the bound carried from one object to the next, shape/mesh
+// and mesh/mesh queries are all exercised; distance() of one shape equals distances().
+TEST(CellDistance, BoundedQueryIsExactBelowTheBoundAndALowerBoundAbove) {
+  const RobotModel robot = kr16();
+  Cell cell;
+  auto object = [&](const std::string& file, double scale, const XyzAbc& at, const std::string& name) {
+    CellShape o;
+    o.mesh = loadMesh(fixture(file), scale);
+    o.T_parent_shape = toIsometry(at);
+    o.name = name;
+    cell.objects.push_back(o);
+  };
+  object("box_100mm.stl", 1.0, {1100, 0, 900, 0, 0, 0}, "box");
+  object("post_binary.stl", 1.0, {900, 400, 300, 30, 0, 0}, "post");
+  object("plate_m.obj", 1000.0, {1000, -500, 500, 0, 0, 0}, "plate");
+  CellShape pillar;
+  pillar.capsule = Capsule{Eigen::Vector3d(600, -700, 0), Eigen::Vector3d(600, -700, 1500), 80};
+  pillar.name = "pillar";
+  cell.objects.push_back(pillar);
+  CellShape sphere;
+  sphere.capsule = Capsule{Eigen::Vector3d(0, 0, 120), Eigen::Vector3d(0, 0, 120), 20};
+  sphere.name = "tool";
+  cell.tool_shapes.push_back(sphere);
+  CellShape tool_mesh;
+  tool_mesh.mesh = loadMesh(fixture("box_100mm.stl"), 0.5);
+  tool_mesh.T_parent_shape = toIsometry(XyzAbc{0, 0, 40, 0, 0, 0});
+  tool_mesh.name = "tool body";
+  cell.tool_shapes.push_back(tool_mesh);
+  CellShape arm;
+  arm.capsule = Capsule{Eigen::Vector3d::Zero(), Eigen::Vector3d(0, 0, -400), 60};
+  arm.name = "link 3";
+  cell.link_shapes.emplace_back(3, arm);
+  const CellGeometry g(cell, robot);
+  ASSERT_EQ(g.robotShapes(), 3);
+  std::mt19937_64 rng(11);
+  int below = 0, above = 0, second_object = 0;
+  for (int k = 0; k < 300; ++k) {
+    const Eigen::VectorXd q = test::randomQ(robot, rng);
+    const auto exact = g.distances(q, PoseContext{}, std::numeric_limits<double>::infinity());
+    for (double bound : {20.0, 105.0, 400.0}) {
+      const auto d = g.distances(q, PoseContext{}, bound);
+      ASSERT_EQ(d.size(), 3u);
+      for (int s = 0; s < 3; ++s) {
+        const auto& e = exact[static_cast<size_t>(s)];
+        const auto& b = d[static_cast<size_t>(s)];
+        EXPECT_FALSE(e.lower_bound);
+        EXPECT_EQ(b.robot_shape, s);
+        if (e.mm < bound) {
+          ++below;
+          if (e.object > 0) ++second_object;
+          EXPECT_EQ(b.mm, e.mm) << "q " << q.transpose() << " shape " << s << " bound " << bound;  // bit for bit
+          EXPECT_EQ(b.object, e.object);
+          EXPECT_FALSE(b.lower_bound);
+        } else {
+          ++above;
+          EXPECT_TRUE(b.lower_bound);
+          EXPECT_GE(b.mm, bound);
+          EXPECT_LE(b.mm, e.mm);
+        }
+        const auto one = g.distance(s, q, PoseContext{}, bound);
+        EXPECT_EQ(one.mm, b.mm);
+        EXPECT_EQ(one.object, b.object);
+        EXPECT_EQ(one.lower_bound, b.lower_bound);
+      }
+    }
+  }
+  // both sides of the bound were exercised, and objects other than the first nearest
+  EXPECT_GT(below, 150);
+  EXPECT_GT(above, 150);
+  EXPECT_GT(second_object, 20);
+  EXPECT_THROW(g.distance(3, Eigen::VectorXd::Zero(6), PoseContext{}, 1.0), ArgumentError);
+}
+
+// The motion bound of the subdivision: no point of a shape moves further than
+// sum_i |dtheta_i| leverArm(shape, i) when the joints move linearly from q_a to q_b.
+TEST(CellDistance, MotionBoundHoldsOnRandomMoves) {
+  const RobotModel robot = kr16();
+  Cell cell;
+  for (int j = 1; j <= 6; ++j) {
+    CellShape s;
+    s.capsule = Capsule{Eigen::Vector3d(30, -40, 10), Eigen::Vector3d(-200, 50, -300), 60};
+    s.name = "link " + std::to_string(j);
+    cell.link_shapes.emplace_back(j, s);
+  }
+  CellShape tool;
+  tool.capsule = Capsule{Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(0, 100, 250), 15};
+  tool.name = "tool";
+  cell.tool_shapes.push_back(tool);
+  CellShape floor;
+  floor.capsule = Capsule{Eigen::Vector3d(0, 0, -5000), Eigen::Vector3d(0, 0, -5000), 1};
+  floor.name = "far";
+  cell.objects.push_back(floor);
+  const CellGeometry g(cell, robot);
+  ASSERT_EQ(g.robotShapes(), 7);
+  EXPECT_EQ(g.leverArm(0, 1), 0.0);  // joint 2 does not move link 1
+  std::mt19937_64 rng(3);
+  std::uniform_real_distribution<double> step(-8, 8);
+  KinematicWorkspace ws;
+  double tightest = 0;
+  for (int k = 0; k < 200; ++k) {
+    const Eigen::VectorXd qa = test::randomQ(robot, rng);
+    Eigen::VectorXd qb = qa;
+    for (int i = 0; i < 6; ++i) qb[i] += step(rng);
+    for (int s = 0; s < 7; ++s) {
+      const int frame = s < 6 ? s + 1 : 6;
+      const Capsule& cap = s < 6 ? cell.link_shapes[static_cast<size_t>(s)].second.capsule.value() : tool.capsule.value();
+      double bound = 0;
+      for (int i = 0; i < 6; ++i) bound += std::fabs(qb[i] - qa[i]) * kDegToRad * g.leverArm(s, i);
+      // the path length of surface points of the capsule (end caps, farthest from the axes)
+      double moved = 0;
+      for (const Eigen::Vector3d& c : std::vector<Eigen::Vector3d>{cap.p0_mm, cap.p1_mm})
+        for (const Eigen::Vector3d& dir : std::vector<Eigen::Vector3d>{Eigen::Vector3d::UnitX(), Eigen::Vector3d::UnitY(), Eigen::Vector3d::UnitZ(),
+                                                                     -Eigen::Vector3d::UnitX(), -Eigen::Vector3d::UnitY(), -Eigen::Vector3d::UnitZ()}) {
+          const Eigen::Vector3d p = c + cap.radius_mm * dir;
+          double len = 0;
+          Eigen::Vector3d last;
+          for (int t = 0; t <= 50; ++t) {
+            forwardKinematics(robot, qa + (qb - qa) * (t / 50.0), PoseContext{}, ws);
+            const Eigen::Vector3d w = ws.T_base_frame[static_cast<size_t>(frame)] * p;
+            if (t > 0) len += (w - last).norm();
+            last = w;
+          }
+          moved = std::max(moved, len);
+        }
+      EXPECT_LE(moved, bound) << "shape " << s;
+      tightest = std::max(tightest, moved / bound);
+    }
+  }
+  EXPECT_GT(tightest, 0.3);  // a bound, but not a uselessly loose one
+}
+
+TEST(CellDistance, LinkOutsideTheRobotIsAnError) {
+  Cell cell;
+  CellShape s;
+  s.capsule = Capsule{Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitZ(), 1};
+  cell.link_shapes.emplace_back(7, s);
+  EXPECT_THROW(CellGeometry(cell, kr16()), ArgumentError);
+}
+
+}  // namespace
+}  // namespace accura::postproc

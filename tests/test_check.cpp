@@ -1,0 +1,518 @@
+// Reach and clearance checks (check.h): the subdivision finds a contact that the samples of the
+// path miss, a path that touches a fixture (library and command line), a point that the
+// compensation pushes into the joint-limit margin (library, accura check and accura compensate
+// --cell with and without --warn-only), and the singularity measure against finite differences.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "accura/calib/errors.h"
+#include "accura/calib/kinematics.h"
+#include "accura/calib/robot_io.h"
+#include "accura/postproc/cell.h"
+#include "accura/postproc/check.h"
+#include "accura/postproc/compensate.h"
+#include "accura/postproc/program_io.h"
+#include "test_util.h"
+
+namespace accura::postproc {
+namespace {
+
+std::string fixture(const std::string& name) { return test::sourcePath("tests/data/cell/" + name); }
+RobotModel kr16() { return test::loadBundled("kuka_kr16"); }
+
+// The post of tests/data/cell/post_binary.stl (x, y in [-5, 5], z in [0, 600] mm) placed at
+// (1200, y_post, 500): the clearance of a sphere of radius r centred at p.
+double postClearance(const Eigen::Vector3d& p, double y_post, double r) {
+  const Eigen::Vector3d lo(1195, y_post - 5, 500), hi(1205, y_post + 5, 1100);
+  return std::max(0.0, (lo - p).cwiseMax(p - hi).cwiseMax(0.0).norm() - r);
+}
+
+Cell postCell(double y_post, double tool_radius_mm) {
+  Cell cell;
+  CellShape post;
+  post.mesh = loadMesh(fixture("post_binary.stl"), 1.0);
+  post.name = "post";
+  post.T_parent_shape = toIsometry(XyzAbc{1200, y_post, 500, 0, 0, 0});
+  cell.objects.push_back(post);
+  CellShape tool;
+  tool.capsule = Capsule{Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero(), tool_radius_mm};
+  tool.name = "tool";
+  cell.tool_shapes.push_back(tool);
+  return cell;
+}
+
+WorldMotion cartesian(MotionType type, const XyzAbc& p, int line) {
+  WorldMotion m;
+  m.type = type;
+  m.T_world_tcp_end = toIsometry(p);
+  m.where.line = line;
+  m.label = type == MotionType::kLin ? "LIN" : "PTP";
+  return m;
+}
+
+// The TCP moves along x at y = 0; the post's face is at y = 13: the sphere (r 10) passes it
+// at 3 mm, closer than the 5 mm asked for, over x in (1187.5, 1212.5). With one sample at each
+// end of the 600 mm path (both about 300 mm clear) sampling alone misses it; the subdivision
+// finds it.
+TEST(CheckClearance, SubdivisionFindsWhatTheSamplesMiss) {
+  const RobotModel robot = kr16();
+  const double y_post = 18, radius = 10;
+  const Cell cell = postCell(y_post, radius);
+  CheckOptions o;
+  o.thresholds.min_clearance_mm = 5;
+  o.sample_step_mm = 1000;  // no pre-sampling: the two end points only
+  o.sample_step_deg = 1000;
+  o.max_joint_step_deg = 1000;
+  const std::vector<WorldMotion> motions = {cartesian(MotionType::kPtp, {900, 0, 800, 0, 90, 0}, 1),
+                                            cartesian(MotionType::kLin, {1500, 0, 800, 0, 90, 0}, 2)};
+  // the samples a plain sampling would look at
+  EXPECT_GT(postClearance({900, 0, 800}, y_post, radius), 250);
+  EXPECT_GT(postClearance({1500, 0, 800}, y_post, radius), 250);
+
+  const CheckReport r = checkMotions(robot, robot, cell, motions, o);
+  ASSERT_EQ(r.violations.size(), 1u);
+  const CheckViolation& v = r.violations[0];
+  EXPECT_EQ(v.kind, CheckKind::kClearance);
+  EXPECT_EQ(v.motion_index, 1);
+  EXPECT_EQ(v.where.line, 2);
+  EXPECT_TRUE(v.on_path);
+  EXPECT_EQ(v.obstacle, "post");
+  EXPECT_EQ(v.robot_part, "tool");
+  // the reported distance is the analytic one at the reported TCP position
+  EXPECT_NEAR(v.value, postClearance(v.p_world_tcp_mm, y_post, radius), 1e-3);
+  EXPECT_LT(v.value, 5.0);
+  EXPECT_NEAR(v.excess, 5.0 - v.value, 1e-12);
+  EXPECT_NEAR(v.p_world_tcp_mm.y(), 0, 1e-3);
+  EXPECT_NEAR(v.p_world_tcp_mm.z(), 800, 1e-3);
+  EXPECT_NEAR(v.arc_mm, v.p_world_tcp_mm.x() - 900, 1e-3);
+  // first: closer than 5 mm there, so past the analytic crossing of 5 mm at
+  // x = 1200 - 5 - sqrt(15^2 - 13^2) = 1187.517; and everything before it is proven clear to
+  // within the resolution (0.01 mm), so not past the crossing of 4.99 mm (x = 1187.543)
+  const double x_cross = 1200 - 5 - std::sqrt(15.0 * 15.0 - 13.0 * 13.0);
+  const double x_cross_res = 1200 - 5 - std::sqrt(std::pow(15.0 - o.resolution_mm, 2) - 13.0 * 13.0);
+  EXPECT_GT(v.p_world_tcp_mm.x(), x_cross);
+  EXPECT_LE(v.p_world_tcp_mm.x(), x_cross_res + 1e-6);
+  ASSERT_EQ(v.q.size(), 6);
+  EXPECT_GT(r.distance_queries, 10);
+  EXPECT_FALSE(r.passed());
+}
+
+// A CIRC (horizontal circle of radius 200 mm about (1200, 0, 800) through (1200, 200, 800)) that
+// passes the post 3 mm too close at its auxiliary point: the violation is on the circle, at the
+// analytic distance, and the part of the arc before it is clear.
+TEST(CheckClearance, CircPassesThePost) {
+  const RobotModel robot = kr16();
+  const double y_post = 218, radius = 10;
+  const Cell cell = postCell(y_post, radius);
+  CheckOptions o;
+  o.thresholds.min_clearance_mm = 5;
+  WorldMotion circ = cartesian(MotionType::kCirc, {1400, 0, 800, 0, 90, 0}, 2);
+  circ.T_world_tcp_aux = toIsometry(XyzAbc{1200, 200, 800, 0, 90, 0});
+  circ.label = "CIRC";
+  const CheckReport r = checkMotions(robot, robot, cell, {cartesian(MotionType::kPtp, {1000, 0, 800, 0, 90, 0}, 1), circ}, o);
+  ASSERT_EQ(r.violations.size(), 1u);
+  const CheckViolation& v = r.violations[0];
+  EXPECT_EQ(v.kind, CheckKind::kClearance);
+  EXPECT_NEAR((v.p_world_tcp_mm - Eigen::Vector3d(1200, 0, 800)).norm(), 200, 1e-3);
+  EXPECT_NEAR(v.value, postClearance(v.p_world_tcp_mm, y_post, radius), 1e-3);
+  EXPECT_LT(v.value, 5);
+  // arc length from the start = 200 mm * the angle swept from (1000, 0)
+  const double angle = std::atan2(v.p_world_tcp_mm.y(), 1200 - v.p_world_tcp_mm.x());
+  EXPECT_NEAR(v.arc_mm, 200 * angle, 1e-2);
+  EXPECT_NEAR(v.s, angle / kPi, 1e-5);
+  // before it the arc is clear: the analytic clearance at every 0.1 mm of arc before it
+  for (double a = 0; a < angle - 1e-4; a += 0.1 / 200) {
+    const Eigen::Vector3d p(1200 - 200 * std::cos(a), 200 * std::sin(a), 800);
+    ASSERT_GE(postClearance(p, y_post, radius), 5 - o.resolution_mm) << a;
+  }
+}
+
+// A PTP that turns A1 from -40 to 40 deg sweeps a sphere (radius 50 mm) on link 3 past a 100 mm
+// cube placed 3 mm beyond the sphere's circle at A1 = 0: the link geometry and the joint-space
+// path. The reported distance is the analytic sphere/cube distance at the reported joints, and
+// the joint path before it is clear.
+TEST(CheckClearance, PtpSweepsALinkPastACube) {
+  const RobotModel robot = kr16();
+  Eigen::VectorXd qa(6), qb(6);
+  qa << -40, -90, 90, 0, 45, 0;
+  qb = qa;
+  qb[0] = 40;
+  KinematicWorkspace ws;
+  auto center = [&](const Eigen::VectorXd& q) {
+    forwardKinematics(robot, q, PoseContext{}, ws);
+    return Eigen::Vector3d(ws.T_base_frame[3].translation());
+  };
+  Eigen::VectorXd q0 = qa;
+  q0[0] = 0;
+  const Eigen::Vector3d c0 = center(q0);
+  const Eigen::Vector3d radial = Eigen::Vector3d(c0.x(), c0.y(), 0).normalized();
+  const Eigen::Vector3d cube = c0 + radial * (50 + 50 + 3);  // cube face 3 mm beyond the sphere
+  Cell cell;
+  CellShape box;
+  box.mesh = loadMesh(fixture("box_100mm.stl"), 1.0);
+  box.name = "cube";
+  box.T_parent_shape = Eigen::Isometry3d::Identity();
+  box.T_parent_shape.translation() = cube;
+  box.T_parent_shape.linear() = Eigen::AngleAxisd(std::atan2(radial.y(), radial.x()), Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  cell.objects.push_back(box);
+  CellShape link;
+  link.capsule = Capsule{Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero(), 50};
+  link.name = "link 3";
+  cell.link_shapes.emplace_back(3, link);
+  auto clearance = [&](const Eigen::VectorXd& q) {
+    const Eigen::Vector3d p = box.T_parent_shape.inverse() * center(q);
+    return std::max(0.0, (p.cwiseAbs() - Eigen::Vector3d::Constant(50)).cwiseMax(0.0).norm() - 50);
+  };
+  EXPECT_NEAR(clearance(q0), 3.0, 1e-9);
+  WorldMotion a, b;
+  a.q_end = qa;
+  b.q_end = qb;
+  a.label = b.label = "PTP";
+  b.where.line = 7;
+  CheckOptions o;
+  o.thresholds.min_clearance_mm = 5;
+  o.thresholds.singular_threshold = 0;
+  const CheckReport r = checkMotions(robot, robot, cell, {a, b}, o);
+  ASSERT_EQ(r.violations.size(), 1u);
+  const CheckViolation& v = r.violations[0];
+  EXPECT_EQ(v.kind, CheckKind::kClearance);
+  EXPECT_EQ(v.robot_part, "link 3");
+  EXPECT_EQ(v.obstacle, "cube");
+  EXPECT_EQ(v.where.line, 7);
+  EXPECT_NEAR(v.value, clearance(v.q), 1e-6);
+  EXPECT_LT(v.value, 5);
+  EXPECT_NEAR(v.q[0], -40 + 80 * v.s, 1e-9);  // on the joint-space line
+  for (double s = 0; s < v.s - 1e-9; s += 0.0005) ASSERT_GE(clearance(qa + s * (qb - qa)), 5 - o.resolution_mm) << s;
+}
+
+// The bounded distance queries (CheckOptions::exact_band_mm, docs/checks.md "Distance
+// queries") change nothing but the cost: against every distance exact (band infinite), the
+// default band (100 mm) and a band of 1 um (nearly every distance a lower bound, made exact on
+// demand wherever a proof needs it) give the same violations, bit for bit, after the same
+// samples (the same subdivision). The cell: the post (tilted) and a cube (turned), a tool
+// sphere and a link-3 sphere; the motions: a LIN past the post, a CIRC around it and a PTP sweeping A1, with the
+// default pre-sampling and with none (the subdivision alone).
+TEST(CheckClearance, BoundedQueriesGiveTheViolationsOfExactOnes) {
+  const RobotModel robot = kr16();
+  Cell cell = postCell(18, 10);
+  // tilted: the bounding boxes are loose, so near the objects the bounds are far from exact
+  cell.objects[0].T_parent_shape = toIsometry(XyzAbc{1200, 18, 500, 0, 20, 0});
+  CellShape box;
+  box.mesh = loadMesh(fixture("box_100mm.stl"), 1.0);
+  box.name = "cube";
+  box.T_parent_shape = toIsometry(XyzAbc{700, 700, 1200, 20, 45, 30});
+  cell.objects.push_back(box);
+  CellShape link;
+  link.capsule = Capsule{Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero(), 50};
+  link.name = "link 3";
+  cell.link_shapes.emplace_back(3, link);
+  WorldMotion circ = cartesian(MotionType::kCirc, {900, 0, 800, 0, 90, 0}, 4);
+  circ.T_world_tcp_aux = toIsometry(XyzAbc{1200, 300, 800, 0, 90, 0});
+  circ.label = "CIRC";
+  WorldMotion sweep;
+  sweep.q_end = (Eigen::VectorXd(6) << 60, -90, 90, 0, 45, 0).finished();
+  sweep.label = "PTP";
+  sweep.where.line = 5;
+  const std::vector<WorldMotion> motions = {cartesian(MotionType::kPtp, {900, 0, 800, 0, 90, 0}, 1),
+                                            cartesian(MotionType::kLin, {1500, 0, 800, 0, 90, 0}, 2), circ, sweep};
+  for (bool presample : {true, false}) {
+    CheckOptions o;
+    o.thresholds.min_clearance_mm = 5;
+    o.thresholds.singular_threshold = 0;
+    if (!presample) o.sample_step_mm = o.sample_step_deg = o.max_joint_step_deg = 1000;
+    o.exact_band_mm = std::numeric_limits<double>::infinity();
+    const CheckReport exact = checkMotions(robot, robot, cell, motions, o);
+    ASSERT_GE(exact.violations.size(), 1u);
+    EXPECT_EQ(exact.violations[0].kind, CheckKind::kClearance);
+    for (double band : {100.0, 1e-3}) {
+      o.exact_band_mm = band;
+      const CheckReport r = checkMotions(robot, robot, cell, motions, o);
+      SCOPED_TRACE("presample " + std::to_string(presample) + ", band " + std::to_string(band));
+      EXPECT_EQ(r.samples, exact.samples);
+      ASSERT_EQ(r.motions.size(), exact.motions.size());
+      for (size_t m = 0; m < r.motions.size(); ++m) EXPECT_EQ(r.motions[m].samples, exact.motions[m].samples) << m;
+      ASSERT_EQ(r.violations.size(), exact.violations.size());
+      for (size_t k = 0; k < r.violations.size(); ++k) {
+        const CheckViolation &a = r.violations[k], &b = exact.violations[k];
+        EXPECT_EQ(a.kind, b.kind);
+        EXPECT_EQ(a.motion_index, b.motion_index);
+        EXPECT_EQ(a.s, b.s);
+        EXPECT_EQ(a.arc_mm, b.arc_mm);
+        EXPECT_EQ(a.p_world_tcp_mm, b.p_world_tcp_mm);
+        EXPECT_EQ(a.q, b.q);
+        EXPECT_EQ(a.value, b.value);
+        EXPECT_EQ(a.excess, b.excess);
+        EXPECT_EQ(a.robot_part, b.robot_part);
+        EXPECT_EQ(a.obstacle, b.obstacle);
+        EXPECT_EQ(a.message, b.message);
+      }
+      // per motion the smallest clearance is exact where it is below the band, else a lower bound
+      for (size_t m = 0; m < r.motions.size(); ++m) {
+        if (exact.motions[m].min_clearance_mm < 5 + band) {
+          EXPECT_EQ(r.motions[m].min_clearance_mm, exact.motions[m].min_clearance_mm) << m;
+        } else {
+          EXPECT_LE(r.motions[m].min_clearance_mm, exact.motions[m].min_clearance_mm) << m;
+        }
+      }
+      // far objects answered by their bounds: fewer FCL queries for the same answer (the
+      // default band: 282 instead of 3182 with the pre-sampling)
+      EXPECT_LT(r.distance_queries, exact.distance_queries);
+    }
+  }
+  {
+    CheckOptions bad;
+    bad.exact_band_mm = 0;
+    std::string why;
+    EXPECT_FALSE(bad.IsValid(&why));
+    EXPECT_NE(why.find("exact_band_mm"), std::string::npos);
+  }
+}
+
+// A path that touches the fixture, through accura check on a KRL program.
+TEST(CheckClearance, PathTouchingAFixtureOnTheCommandLine) {
+  const std::string dir = test::tempDir("check_touch");
+  test::writeText(dir + "/post.stl", test::readText(fixture("post_binary.stl")));
+  auto cell = [&](double y_post) {
+    std::ostringstream s;
+    s << "<?xml version=\"1.0\"?>\n<cell name=\"touch\">\n"
+      << "  <thresholds min_clearance_mm=\"5\"/>\n"
+      << "  <object name=\"post\" file=\"post.stl\" units=\"mm\" x_mm=\"1200\" y_mm=\"" << y_post << "\" z_mm=\"500\"/>\n"
+      << "  <tool><capsule x0_mm=\"0\" y0_mm=\"0\" z0_mm=\"0\" x1_mm=\"0\" y1_mm=\"0\" z1_mm=\"0\" radius_mm=\"10\"/></tool>\n"
+      << "</cell>\n";
+    return s.str();
+  };
+  test::writeText(dir + "/near.xml", cell(12));   // the sphere overlaps the post by 3 mm
+  test::writeText(dir + "/far.xml", cell(118));   // 103 mm clear
+  test::writeText(dir + "/seam.src",
+                  "DEF seam( )\n"
+                  "$TOOL = {X 0, Y 0, Z 0, A 0, B 0, C 0}\n"
+                  "$BASE = {X 0, Y 0, Z 0, A 0, B 0, C 0}\n"
+                  "PTP {X 900, Y 0, Z 800, A 0, B 90, C 0}\n"
+                  "LIN {X 1500, Y 0, Z 800, A 0, B 90, C 0}\n"
+                  "END\n");
+  const test::CliRun bad = test::runAccuraIn(dir, "check --robot kuka_kr16 --cell near.xml --in seam.src --json near.json");
+  EXPECT_EQ(bad.code, 2) << bad.out << bad.err;
+  EXPECT_NE(bad.out.find("FAILED"), std::string::npos) << bad.out;
+  const auto j = nlohmann::json::parse(test::readText(dir + "/near.json"));
+  EXPECT_FALSE(j["passed"].get<bool>());
+  ASSERT_EQ(j["violations"].size(), 1u);
+  const auto& v = j["violations"][0];
+  EXPECT_EQ(v["check"], "clearance");
+  EXPECT_EQ(v["line"], 5);
+  EXPECT_EQ(v["motion"], "LIN");
+  EXPECT_EQ(v["obstacle"], "post");
+  const Eigen::Vector3d p(v["tcp_world_mm"][0].get<double>(), v["tcp_world_mm"][1].get<double>(), v["tcp_world_mm"][2].get<double>());
+  EXPECT_NEAR(v["value"].get<double>(), postClearance(p, 12, 10), 2e-3);
+  // the first point closer than 5 mm: sqrt(dx^2 + 7^2) - 10 = 5 -> dx = 13.27 mm before the post
+  EXPECT_NEAR(p.x(), 1200 - 5 - std::sqrt(15.0 * 15.0 - 7.0 * 7.0), 2.0);
+  EXPECT_EQ(j["violations"][0]["joints"].size(), 6u);
+
+  const test::CliRun good = test::runAccuraIn(dir, "check --robot kuka_kr16 --cell far.xml --in seam.src --json far.json");
+  EXPECT_EQ(good.code, 0) << good.out << good.err;
+  const auto g = nlohmann::json::parse(test::readText(dir + "/far.json"));
+  EXPECT_TRUE(g["passed"].get<bool>());
+  // the sample at x = 1200 (1 mm steps from x = 900) is the closest: 118 - 5 - 10 mm
+  EXPECT_NEAR(g["totals"]["min_clearance_mm"].get<double>(), 103.0, 1e-3);
+
+  // bad input: a cell file error names file and line; exit 1
+  test::writeText(dir + "/broken.xml", "<?xml version=\"1.0\"?>\n<cell>\n  <object name=\"p\" file=\"post.stl\" units=\"yards\"/>\n</cell>\n");
+  const test::CliRun err = test::runAccuraIn(dir, "check --robot kuka_kr16 --cell broken.xml --in seam.src");
+  EXPECT_EQ(err.code, 1);
+  EXPECT_NE(err.err.find("broken.xml:3"), std::string::npos) << err.err;
+  EXPECT_NE(err.err.find("found 'yards'"), std::string::npos) << err.err;
+}
+
+// The real robot's A1 zero is 1 deg off: a target the nominal robot reaches with A1 = 183.5 deg
+// (1.5 deg inside the 185 deg limit) needs A1 = 184.5 deg on the real one (theta1 = -q1 + 1 deg),
+// 0.5 deg inside: short of the 1 deg margin by 0.5 deg.
+struct ReachCase {
+  RobotModel nominal = kr16();
+  RobotModel real;
+  Eigen::VectorXd q_nominal;
+  std::string program;
+  ReachCase() {
+    real = nominal;
+    real.deviations.links[0].dtheta_rad = 1.0 * kDegToRad;
+    q_nominal.resize(6);
+    q_nominal << 183.5, -80, 100, 20, 40, 30;
+    const XyzAbc p = toXyzAbc(forwardKinematics(nominal, q_nominal));
+    const Configuration c = kukaConfiguration(nominal, q_nominal);
+    char buf[512];
+    std::snprintf(buf, sizeof buf,
+                  "DEF reach( )\n$TOOL = {X 0, Y 0, Z 0, A 0, B 0, C 0}\n$BASE = {X 0, Y 0, Z 0, A 0, B 0, C 0}\n"
+                  "PTP {X %.6f, Y %.6f, Z %.6f, A %.6f, B %.6f, C %.6f, S %d, T %d}\nEND\n",
+                  p.x_mm, p.y_mm, p.z_mm, p.a_deg, p.b_deg, p.c_deg, c.status, c.turn);
+    program = buf;
+  }
+};
+
+TEST(CheckReach, CompensationPushesAPointIntoTheJointMargin) {
+  const ReachCase rc;
+  const std::string dir = test::tempDir("check_reach_lib");
+  test::writeText(dir + "/reach.src", rc.program);
+  const Program prog = readProgram(dir + "/reach.src");
+  Cell cell;  // no geometry: reach, limits and singularities only
+  CheckOptions o;
+  o.thresholds.joint_margin_deg = 1.0;
+  JobSettings job;
+  job.calibrated = rc.nominal;
+  const CheckReport ok = checkProgram(prog, job, cell, o);
+  EXPECT_TRUE(ok.passed());
+  EXPECT_NEAR(ok.min_joint_margin, 1.5, 1e-4);  // 185 - 183.5
+
+  job.calibrated = rc.real;
+  const CheckReport r = checkProgram(prog, job, cell, o);
+  ASSERT_EQ(r.violations.size(), 1u);
+  const CheckViolation& v = r.violations[0];
+  EXPECT_EQ(v.kind, CheckKind::kJointLimit);
+  EXPECT_EQ(v.joint, 0);
+  EXPECT_EQ(v.unit, "deg");
+  EXPECT_FALSE(v.on_path);
+  EXPECT_EQ(v.where.line, 4);
+  ASSERT_EQ(v.q.size(), 6);
+  EXPECT_NEAR(v.q[0], 184.5, 1e-4);
+  for (int i = 1; i < 6; ++i) EXPECT_NEAR(v.q[i], rc.q_nominal[i], 1e-4);
+  EXPECT_NEAR(v.value, 0.5, 1e-4);
+  EXPECT_NEAR(v.excess, 0.5, 1e-4);
+}
+
+TEST(CheckReach, CompensateWithCellKeepsAFailingProgramOffTheDisk) {
+  const ReachCase rc;
+  const std::string dir = test::tempDir("check_reach_cli");
+  test::writeText(dir + "/reach.src", rc.program);
+  writeRobotFile(dir + "/real.xml", rc.real);
+  test::writeText(dir + "/cell.xml", "<?xml version=\"1.0\"?>\n<cell name=\"empty\">\n  <thresholds joint_margin_deg=\"1\"/>\n</cell>\n");
+  // the compensation alone succeeds (184.5 deg is within the limits)
+  const test::CliRun plain = test::runAccuraIn(dir, "compensate --robot real.xml --in reach.src --out plain");
+  EXPECT_EQ(plain.code, 0) << plain.err;
+  EXPECT_TRUE(std::filesystem::exists(dir + "/plain/reach.src"));
+  // with the cell it fails: exit 2, report, nothing written but the JSON report
+  const test::CliRun blocked = test::runAccuraIn(dir, "compensate --robot real.xml --cell cell.xml --in reach.src --out out --json out.json");
+  EXPECT_EQ(blocked.code, 2) << blocked.out << blocked.err;
+  EXPECT_FALSE(std::filesystem::exists(dir + "/out/reach.src"));
+  EXPECT_NE(blocked.out.find("joint limit: A1"), std::string::npos) << blocked.out;
+  const auto j = nlohmann::json::parse(test::readText(dir + "/out.json"));
+  EXPECT_TRUE(j["outputs"].empty());
+  ASSERT_EQ(j["check"]["violations"].size(), 1u);
+  EXPECT_EQ(j["check"]["violations"][0]["check"], "joint_limit");
+  EXPECT_EQ(j["check"]["violations"][0]["joint"], 1);
+  EXPECT_NEAR(j["check"]["violations"][0]["excess"].get<double>(), 0.5, 1e-4);
+  // --joint-margin-deg 0.4 on the command line overrides the cell's 1 deg: passes
+  const test::CliRun loose = test::runAccuraIn(dir, "compensate --robot real.xml --cell cell.xml --joint-margin-deg 0.4 --in reach.src --out loose");
+  EXPECT_EQ(loose.code, 0) << loose.out << loose.err;
+  EXPECT_TRUE(std::filesystem::exists(dir + "/loose/reach.src"));
+  // --warn-only writes it, exit 0, with a warning
+  const test::CliRun warned = test::runAccuraIn(dir, "compensate --robot real.xml --cell cell.xml --warn-only --in reach.src --out warned");
+  EXPECT_EQ(warned.code, 0) << warned.err;
+  EXPECT_TRUE(std::filesystem::exists(dir + "/warned/reach.src"));
+  EXPECT_EQ(test::readText(dir + "/warned/reach.src"), test::readText(dir + "/plain/reach.src"));
+  EXPECT_NE(warned.err.find("failed the checks"), std::string::npos) << warned.err;
+  // the compensated program, run as written by the nominal controller, puts the real robot on
+  // the same joints: accura check --as-written finds the same violation
+  const test::CliRun as_written = test::runAccuraIn(dir, "check --robot real.xml --cell cell.xml --as-written --in plain/reach.src --json aw.json");
+  EXPECT_EQ(as_written.code, 2) << as_written.out << as_written.err;
+  const auto aw = nlohmann::json::parse(test::readText(dir + "/aw.json"));
+  ASSERT_EQ(aw["violations"].size(), 1u);
+  EXPECT_NEAR(aw["violations"][0]["joints"][0].get<double>(), 184.5, 1e-3);
+}
+
+// The golden seam (tests/golden/compensate) in its cell (tests/data/cell/seam_cell.xml): the
+// torch's tip (capsule radius 15 mm ending at the nominal TCP) passes about 30 mm over the
+// plate's top, so the smallest clearance is about 30 - 15 = 15 mm (exactly: below). With the
+// default 5 mm the program passes and is written byte for byte as without --cell; asking for
+// 20 mm fails it and nothing is written.
+TEST(CheckClearance, CompensateTheGoldenSeamInItsCell) {
+  const std::string dir = test::tempDir("check_seam");
+  for (const char* f : {"seam.src", "seam.dat", "$config.dat", "kr16_real.xml"})
+    test::writeText(dir + "/" + f, test::readText(test::sourcePath(std::string("tests/golden/compensate/") + f)));
+  for (const char* f : {"seam_cell.xml", "plate_m.obj"}) test::writeText(dir + "/" + f, test::readText(fixture(f)));
+  const std::string base = "compensate --robot kr16_real.xml --in seam.src --config '$config.dat' --tol 0.02 --cell seam_cell.xml ";
+  const test::CliRun ok = test::runAccuraIn(dir, base + "--out ok --json ok.json");
+  ASSERT_EQ(ok.code, 0) << ok.out << ok.err;
+  EXPECT_EQ(test::readText(dir + "/ok/seam.src"), test::readText(test::sourcePath("tests/golden/compensate/expected/seam.src")));
+  EXPECT_EQ(test::readText(dir + "/ok/seam.dat"), test::readText(test::sourcePath("tests/golden/compensate/expected/seam.dat")));
+  const auto j = nlohmann::json::parse(test::readText(dir + "/ok.json"));
+  EXPECT_TRUE(j["check"]["passed"].get<bool>());
+  // the torch capsule is in the flange frame (nominal tool); the calibrated tool puts the real
+  // TCP on XP3, so the capsule's end is where the nominal TCP point lands then: at XP3 (world
+  // T_world_base1 * XP3) the flange is T_world_tcp * inverse(calibrated T_flange_tcp)
+  const RobotModel real = readRobotFile(dir + "/kr16_real.xml");
+  const Eigen::Isometry3d T_world_xp3 = toIsometry(XyzAbc{950, -400, 300, 90, 0, 0}) * toIsometry(XyzAbc{400, -250, 420, 150, 29.8999996, -179.300003});
+  const Eigen::Vector3d tip = T_world_xp3 * real.T_flange_tcp().inverse() * Eigen::Vector3d(107.147003, 0, 313.237);
+  ASSERT_NEAR(tip.z(), 720, 2.0);  // about 30 mm over the plate's top (z 690)
+  EXPECT_NEAR(j["check"]["totals"]["min_clearance_mm"].get<double>(), tip.z() - 15 - 690, 2e-3);
+  const test::CliRun bad = test::runAccuraIn(dir, base + "--min-clearance-mm 20 --out bad --json bad.json");
+  EXPECT_EQ(bad.code, 2) << bad.out << bad.err;
+  EXPECT_FALSE(std::filesystem::exists(dir + "/bad/seam.src"));
+  const auto b = nlohmann::json::parse(test::readText(dir + "/bad.json"));
+  ASSERT_FALSE(b["check"]["violations"].empty());
+  const auto& v = b["check"]["violations"][0];
+  EXPECT_EQ(v["check"], "clearance");
+  EXPECT_EQ(v["robot_part"], "tool");
+  EXPECT_EQ(v["obstacle"], "plate");
+  EXPECT_LT(v["value"].get<double>(), 20.0);
+  EXPECT_GE(v["value"].get<double>(), tip.z() - 15 - 690 - 2e-3);
+}
+
+// sigma_min of the scaled joint Jacobian at A5 = 0.5 deg, against the singular values of a
+// central-difference Jacobian of the forward kinematics.
+TEST(CheckSingularity, SigmaMinMatchesFiniteDifferences) {
+  const RobotModel robot = kr16();
+  Eigen::VectorXd q(6);
+  q << 10, -80, 100, 30, 0.5, 20;
+  WorldMotion m;
+  m.type = MotionType::kPtp;
+  m.q_end = q;
+  m.label = "PTP";
+  CheckOptions o;
+  o.thresholds.singular_threshold = 0.005;
+  const CheckReport r = checkMotions(robot, robot, Cell{}, {m}, o);
+  ASSERT_EQ(r.violations.size(), 1u);
+  EXPECT_EQ(r.violations[0].kind, CheckKind::kSingularity);
+  double L = 0;
+  for (const auto& j : robot.nominal.joints) L += std::fabs(j.a_mm) + std::fabs(j.d_mm);
+  EXPECT_NEAR(L, 2478, 1e-9);  // KR 16: a 260 + 680 + 35, d 675 + 670 + 158; no tool offset
+  Eigen::Matrix<double, 6, 6> J;
+  const double h_deg = 1e-3;
+  for (int i = 0; i < 6; ++i) {
+    Eigen::VectorXd qp = q, qm = q;
+    qp[i] += h_deg;
+    qm[i] -= h_deg;
+    const Eigen::Isometry3d Tp = forwardKinematics(robot, qp), Tm = forwardKinematics(robot, qm);
+    const double h_rad = 2 * h_deg * kDegToRad;
+    J.block<3, 1>(0, i) = (Tp.translation() - Tm.translation()) / h_rad / L;
+    J.block<3, 1>(3, i) = logSO3(Tp.linear() * Tm.linear().transpose()) / h_rad;
+  }
+  const double sigma_fd = Eigen::JacobiSVD<Eigen::Matrix<double, 6, 6>>(J).singularValues()[5];
+  EXPECT_NEAR(r.violations[0].value, sigma_fd, 1e-8);
+  EXPECT_LT(sigma_fd, 0.005);
+  EXPECT_NEAR(sigma_fd, 0.25 * 0.5 * kDegToRad, 0.5e-3);  // docs/compensation.md: about 0.25 |A5|
+  // away from it: no violation
+  m.q_end[4] = 30;
+  EXPECT_TRUE(checkMotions(robot, robot, Cell{}, {m}, o).passed());
+}
+
+TEST(CheckProgram, CellPlacementAgainstBaseOption) {
+  const ReachCase rc;
+  const std::string dir = test::tempDir("check_place");
+  test::writeText(dir + "/reach.src", rc.program);
+  const Program prog = readProgram(dir + "/reach.src");
+  Cell cell;
+  cell.file = "cell.xml";
+  cell.T_world_base = toIsometry(XyzAbc{0, 0, 10, 0, 0, 0});
+  JobSettings job;
+  job.calibrated = rc.nominal;
+  job.robroot_in_world = XyzAbc{0, 0, 0, 0, 0, 0};
+  EXPECT_THROW(checkProgram(prog, job, cell, CheckOptions{}), InputError);
+  // a placement 60 mm from the calibrated base: the model was measured elsewhere
+  job.robroot_in_world.reset();
+  cell.T_world_base = toIsometry(XyzAbc{0, 0, 60, 0, 0, 0});
+  EXPECT_THROW(checkProgram(prog, job, cell, CheckOptions{}), InputError);
+}
+
+}  // namespace
+}  // namespace accura::postproc

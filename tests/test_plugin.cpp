@@ -1,0 +1,502 @@
+// The plug-in's C interface (plugin/include/accura_plugin.h, issue 6): the same numbers as the
+// C++ API for the same input, the same files as `accura compensate`, error statuses and
+// messages for bad input, and concurrent use of one handle from several threads.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <cmath>
+#include <cstring>
+#include <nlohmann/json.hpp>
+#include <thread>
+
+#include "accura/calib/errors.h"
+#include "accura/calib/geometry.h"
+#include "accura/calib/robot_io.h"
+#include "accura/postproc/compensate.h"
+#include "accura/postproc/job.h"
+#include "accura_plugin.h"
+#include "test_util.h"
+
+namespace accura {
+namespace {
+
+using namespace postproc;
+
+const std::string kModel = "tests/data/plugin/kr16_calibrated.xml";
+const XyzAbc kTorch = {20, 0, 250, 0, -30, 0};  // the model's (calibrated) tool
+
+accura_pose cpose(double x, double y, double z, double a, double b, double c) { return {x, y, z, a, b, c}; }
+accura_pose cpose(const XyzAbc& p) { return {p.x_mm, p.y_mm, p.z_mm, p.a_deg, p.b_deg, p.c_deg}; }
+XyzAbc xyz(const accura_pose& p) { return {p.x_mm, p.y_mm, p.z_mm, p.a_deg, p.b_deg, p.c_deg}; }
+
+double positionDiff(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) { return (a.translation() - b.translation()).norm(); }
+double angleDiffRad(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
+  return Eigen::AngleAxisd(a.linear() * b.linear().transpose()).angle();
+}
+
+std::string lastError(const accura_model* m) {
+  const char* msg = nullptr;
+  EXPECT_EQ(accura_last_error(m, &msg), ACCURA_OK);
+  return msg ? msg : "";
+}
+
+/// A handle with the model loaded (checked).
+struct Handle {
+  accura_model* m = nullptr;
+  explicit Handle(const std::string& model, const accura_load_options* o = nullptr) {
+    EXPECT_EQ(accura_model_create(&m), ACCURA_OK);
+    EXPECT_EQ(accura_model_load(m, model.c_str(), o), ACCURA_OK) << lastError(m);
+  }
+  Handle() { EXPECT_EQ(accura_model_create(&m), ACCURA_OK); }
+  ~Handle() { accura_model_free(m); }
+  Handle(const Handle&) = delete;
+  Handle& operator=(const Handle&) = delete;
+};
+
+/// Targets on the KR 16's usual working area (program base frame), each reachable with S 2.
+std::vector<accura_pose> targets() {
+  std::vector<accura_pose> t;
+  for (int i = 0; i < 24; ++i) {
+    const double f = i / 23.0;
+    t.push_back(cpose(900 + 400 * f, -500 + 1000 * std::sin(3 * f), 400 + 500 * f * f, 20 * std::cos(5 * f), 150 - 40 * f,
+                      -15 + 30 * f));
+  }
+  return t;
+}
+
+TEST(Plugin, VersionAndStatusNames) {
+  int major = -1, minor = -1, patch = -1, abi = -1;
+  ASSERT_EQ(accura_version(&major, &minor, &patch, &abi), ACCURA_OK);
+  EXPECT_EQ(abi, ACCURA_PLUGIN_ABI_VERSION);
+  EXPECT_EQ(major, 0);
+  EXPECT_EQ(minor, 1);
+  EXPECT_EQ(accura_version(nullptr, nullptr, nullptr, nullptr), ACCURA_OK);
+  const char* name = nullptr;
+  EXPECT_EQ(accura_status_name(ACCURA_ERROR_UNREACHABLE, &name), ACCURA_OK);
+  EXPECT_STREQ(name, "ACCURA_ERROR_UNREACHABLE");
+  EXPECT_EQ(accura_status_name(static_cast<accura_status>(99), &name), ACCURA_ERROR_INVALID_ARGUMENT);
+  EXPECT_STREQ(name, "ACCURA_STATUS_UNKNOWN");
+  EXPECT_EQ(accura_status_name(ACCURA_OK, nullptr), ACCURA_ERROR_NULL_ARGUMENT);
+}
+
+// The C call and the C++ API (Compensator, as compensateProgram sets it up) give the same
+// command for the same input: a program base frame off the robot base and, once, a tool that
+// is not the calibrated one.
+TEST(Plugin, PosesEqualTheCppApi) {
+  const RobotModel calibrated = readRobotFile(test::sourcePath(kModel));
+  const XyzAbc base = {150, -80, 30, 12, 0, 0};  // $BASE relative to $WORLD (= robot base)
+  const XyzAbc other_tool = {0, 0, 180, 0, 0, 0};
+  for (const bool calibrated_tool : {true, false}) {
+    accura_load_options o;
+    ASSERT_EQ(accura_load_options_init(&o, sizeof(o)), ACCURA_OK);
+    o.has_program_base = 1;
+    o.program_base = cpose(base);
+    o.has_program_tool = 1;
+    o.program_tool = cpose(calibrated_tool ? kTorch : other_tool);
+    o.payload_kg = 8;
+    Handle h(test::sourcePath(kModel), &o);
+
+    RobotModel controller = RobotModel::fromDefinition(calibrated.nominal);
+    controller.nominal.T_flange_tcp = toIsometry(calibrated_tool ? kTorch : other_tool);
+    RobotModel real = calibrated;
+    if (!calibrated_tool) {
+      real.nominal.T_flange_tcp = toIsometry(other_tool);
+      real.deviations.tool_mm.setZero();
+      real.deviations.tool_rot_rad.setZero();
+    }
+    const Compensator comp(controller, real);
+    PoseContext context;
+    context.payload_kg = 8;
+    const JobSettings defaults;
+    const Eigen::Isometry3d T_world_base = toIsometry(base);
+
+    const std::vector<accura_pose> t = targets();
+    std::vector<accura_pose_result> r(t.size());
+    size_t n_ok = 0;
+    ASSERT_EQ(accura_compensate_poses(h.m, t.data(), nullptr, t.size(), 0, r.data(), &n_ok), ACCURA_OK) << lastError(h.m);
+    EXPECT_EQ(n_ok, t.size());
+    double max_correction = 0;
+    for (size_t i = 0; i < t.size(); ++i) {
+      const Eigen::Isometry3d T_world = T_world_base * toIsometry(xyz(t[i]));
+      const PoseCompensation pc = comp.pose(T_world, Configuration{}, Eigen::VectorXd(), defaults.ik, context);
+      ASSERT_EQ(pc.status, IkStatus::kOk) << i;
+      const Eigen::Isometry3d cmd = T_world_base * toIsometry(xyz(r[i].command));
+      EXPECT_LT(positionDiff(cmd, pc.T_world_tcp_command), 1e-9) << i;
+      EXPECT_LT(angleDiffRad(cmd, pc.T_world_tcp_command), 1e-11) << i;
+      EXPECT_NEAR(r[i].correction_mm, pc.correction_mm, 1e-9);
+      EXPECT_EQ(r[i].configuration.status, pc.configuration.status);
+      EXPECT_EQ(r[i].configuration.turn, pc.configuration.turn);
+      for (int k = 0; k < 6; ++k) EXPECT_NEAR(r[i].q_real[k], pc.q_real[k], 1e-9);
+      max_correction = std::max(max_correction, r[i].correction_mm);
+      // the single call gives the same bytes as the list
+      accura_pose_result one;
+      ASSERT_EQ(accura_compensate_pose(h.m, &t[i], nullptr, &one), ACCURA_OK);
+      EXPECT_EQ(std::memcmp(&one.command, &r[i].command, sizeof(accura_pose)), 0);
+      // forward kinematics through the C interface: FK_real(q') = target, FK_controller(q') = command
+      accura_pose fr, fc;
+      ASSERT_EQ(accura_forward_kinematics(h.m, ACCURA_REAL, r[i].q_real, 6, &fr), ACCURA_OK);
+      ASSERT_EQ(accura_forward_kinematics(h.m, ACCURA_CONTROLLER, r[i].q_real, 6, &fc), ACCURA_OK);
+      EXPECT_LT(positionDiff(toIsometry(xyz(fr)), toIsometry(xyz(t[i]))), 1e-6);
+      EXPECT_LT(positionDiff(toIsometry(xyz(fc)), toIsometry(xyz(r[i].command))), 1e-9);
+    }
+    // the KR 16's simulated errors move points by millimetres
+    EXPECT_GT(max_correction, 0.5);
+    EXPECT_LT(max_correction, 10);
+  }
+}
+
+// A path through the C interface equals the C++ segment chain (each segment from the real
+// joints where the previous one ended).
+TEST(Plugin, PathEqualsTheCppApi) {
+  const RobotModel calibrated = readRobotFile(test::sourcePath(kModel));
+  Handle h(test::sourcePath(kModel));
+  const accura_pose start = cpose(1100, -250, 500, 0, 180, 0);
+  std::vector<accura_path_motion> motions(4);
+  motions[0] = {ACCURA_LIN, {}, cpose(1100, -50, 500, 0, 180, 0)};
+  motions[1] = {ACCURA_CIRC, cpose(1180, 30, 500, 0, 180, 0), cpose(1260, -50, 500, 0, 180, 0)};
+  motions[2] = {ACCURA_LIN, {}, cpose(1260, -250, 500, 0, 180, 0)};
+  motions[3] = {ACCURA_LIN, {}, cpose(1000, 1000, 700, 40, 120, -20)};
+  const double tol_mm = 0.05;
+  accura_path_result res;
+  std::vector<accura_motion_report> reports(motions.size());
+  ASSERT_EQ(accura_compensate_path(h.m, &start, nullptr, motions.data(), motions.size(), tol_mm, nullptr, 0, &res, reports.data()),
+            ACCURA_ERROR_BUFFER_TOO_SMALL);
+  std::vector<accura_path_point> points(res.n_points);
+  ASSERT_EQ(accura_compensate_path(h.m, &start, nullptr, motions.data(), motions.size(), tol_mm, points.data(), points.size(), &res,
+                                   reports.data()),
+            ACCURA_OK)
+      << lastError(h.m);
+
+  const Compensator comp(RobotModel::fromDefinition(calibrated.nominal), calibrated);
+  const JobSettings job;
+  DensifyOptions dens;
+  dens.tol_mm = tol_mm;
+  dens.ik = job.ik;
+  const PoseCompensation p0 = comp.pose(toIsometry(xyz(start)), Configuration{}, Eigen::VectorXd(), job.ik);
+  ASSERT_EQ(p0.status, IkStatus::kOk);
+  EXPECT_LT(positionDiff(toIsometry(xyz(res.start_command)), p0.T_world_tcp_command), 1e-9);
+  Eigen::VectorXd q = p0.q_real;
+  size_t k = 0;
+  int added = 0;
+  for (size_t i = 0; i < motions.size(); ++i) {
+    PathSegment s;
+    s.type = motions[i].type == ACCURA_CIRC ? PathType::kCirc : PathType::kLin;
+    s.T_world_start = comp.real().forward(q);
+    s.T_world_aux = toIsometry(xyz(motions[i].aux));
+    s.T_world_end = toIsometry(xyz(motions[i].end));
+    const SegmentCompensation sc = comp.segment(s, Configuration{}, q, dens);
+    ASSERT_EQ(sc.status, IkStatus::kOk) << sc.message;
+    EXPECT_DOUBLE_EQ(reports[i].max_error_after_mm, sc.max_error_after_mm);
+    EXPECT_DOUBLE_EQ(reports[i].max_error_uncompensated_mm, sc.max_error_uncompensated_mm);
+    EXPECT_EQ(reports[i].points_added, sc.points_added);
+    EXPECT_LE(sc.max_error_after_mm, tol_mm);
+    for (size_t j = 0; j < sc.commanded.size(); ++j, ++k) {
+      ASSERT_LT(k, points.size());
+      EXPECT_EQ(points[k].motion, static_cast<int>(i));
+      EXPECT_EQ(points[k].inserted, j + 1 < sc.commanded.size() ? 1 : 0);
+      EXPECT_LT(positionDiff(toIsometry(xyz(points[k].end)), sc.commanded[j].T_world_end), 1e-9);
+      EXPECT_LT(angleDiffRad(toIsometry(xyz(points[k].end)), sc.commanded[j].T_world_end), 1e-11);
+      if (s.type == PathType::kCirc) {
+        EXPECT_LT(positionDiff(toIsometry(xyz(points[k].aux)), sc.commanded[j].T_world_aux), 1e-9);
+      }
+    }
+    added += sc.points_added;
+    q = sc.q_real_end.back();
+  }
+  EXPECT_EQ(k, points.size());
+  EXPECT_EQ(res.points_added, added);
+  EXPECT_GE(added, 3);  // the CIRC and the long LIN need points
+  EXPECT_GT(res.max_error_uncompensated_mm, 0.5);
+  EXPECT_LE(res.max_error_after_mm, tol_mm);
+}
+
+// accura_compensate_program writes the same bytes as `accura compensate` with the same settings.
+TEST(Plugin, ProgramEqualsTheCommandLine) {
+  const std::string dir = test::tempDir("plugin_program");
+  const std::string src =
+      "DEF seam( )\n"
+      ";FOLD comments and logic are kept\n"
+      "$BASE = {X 0, Y 0, Z 0, A 0, B 0, C 0}\n"
+      "$TOOL = {X 20, Y 0, Z 250, A 0, B -30, C 0}\n"
+      "PTP {X 1100, Y -250, Z 500, A 0, B 180, C 0}\n"
+      "LIN {X 1100, Y -50, Z 500, A 0, B 180, C 0} C_DIS\n"
+      "CIRC {X 1180, Y 30, Z 500, A 0, B 180, C 0}, {X 1260, Y -50, Z 500, A 0, B 180, C 0}\n"
+      "LIN {X 1000, Y 1000, Z 700, A 40, B 120, C -20}\n"
+      "END\n";
+  test::writeText(dir + "/seam.src", src);
+  test::writeText(dir + "/seam.dat", "DEFDAT seam\nENDDAT\n");
+  Handle h(test::sourcePath(kModel));
+  accura_program_options o;
+  ASSERT_EQ(accura_program_options_init(&o, sizeof(o)), ACCURA_OK);
+  o.tol_mm = 0.05;
+  const std::string json = dir + "/report \"1\".json";  // a name JSON must escape
+  o.json_report_path = json.c_str();
+  accura_program_summary s;
+  ASSERT_EQ(accura_compensate_program(h.m, (dir + "/seam.src").c_str(), (dir + "/plugin").c_str(), &o, &s), ACCURA_OK) << lastError(h.m);
+  const test::CliRun cli = test::runAccuraIn(dir, "compensate --robot " + test::sourcePath(kModel) + " --in seam.src --out cli --tol 0.05");
+  ASSERT_EQ(cli.code, 0) << cli.err;
+  const std::string ours = test::readText(dir + "/plugin/seam.src");
+  EXPECT_EQ(ours, test::readText(dir + "/cli/seam.src"));
+  EXPECT_EQ(test::readText(dir + "/plugin/seam.dat"), test::readText(dir + "/cli/seam.dat"));
+  EXPECT_EQ(std::string(s.output_path), dir + "/plugin/seam.src");
+  const nlohmann::json report = nlohmann::json::parse(test::readText(json));
+  EXPECT_EQ(report["targets_corrected"].get<int>(), s.targets_corrected);
+  EXPECT_EQ(report["points_added"].get<int>(), s.points_added);
+  EXPECT_DOUBLE_EQ(report["max_error_after_mm"].get<double>(), s.max_error_after_mm);
+  EXPECT_EQ(report["outputs"][0].get<std::string>(), dir + "/plugin/seam.src");
+  EXPECT_EQ(test::readText(dir + "/seam.src"), src);  // the input is never modified
+  EXPECT_GE(s.points_added, 2);
+  EXPECT_LE(s.max_error_after_mm, 0.05);
+  EXPECT_GT(s.max_error_uncompensated_mm, 0.5);
+  EXPECT_NE(ours.find(";FOLD comments and logic are kept"), std::string::npos);
+  // no temporary file is left behind
+  for (const auto& e : std::filesystem::directory_iterator(dir + "/plugin"))
+    EXPECT_EQ(e.path().filename().string().find(".accura-tmp"), std::string::npos) << e.path();
+
+  // the same program as XML (accura convert): the same bytes as the command line too
+  const test::CliRun conv = test::runAccuraIn(dir, "convert --in seam.src --out seam.xml");
+  ASSERT_EQ(conv.code, 0) << conv.err;
+  o.json_report_path = nullptr;
+  ASSERT_EQ(accura_compensate_program(h.m, (dir + "/seam.xml").c_str(), (dir + "/plugin").c_str(), &o, &s), ACCURA_OK) << lastError(h.m);
+  const test::CliRun cli_xml =
+      test::runAccuraIn(dir, "compensate --robot " + test::sourcePath(kModel) + " --in seam.xml --out cli --tol 0.05");
+  ASSERT_EQ(cli_xml.code, 0) << cli_xml.err;
+  const std::string xml = test::readText(dir + "/plugin/seam.xml");
+  EXPECT_EQ(xml, test::readText(dir + "/cli/seam.xml"));
+  EXPECT_NE(xml.find("<program"), std::string::npos);
+  EXPECT_EQ(std::string(s.output_path), dir + "/plugin/seam.xml");
+
+  // writing onto the input is refused, and the input stays as it is
+  EXPECT_EQ(accura_compensate_program(h.m, (dir + "/seam.src").c_str(), dir.c_str(), &o, &s), ACCURA_ERROR_INPUT);
+  EXPECT_NE(lastError(h.m).find("overwrite"), std::string::npos) << lastError(h.m);
+  EXPECT_EQ(test::readText(dir + "/seam.src"), src);
+  // a malformed program: its file and line in the message
+  test::writeText(dir + "/bad.src", "DEF bad( )\nLIN {X 1100, Y -50, Z }\nEND\n");
+  EXPECT_EQ(accura_compensate_program(h.m, (dir + "/bad.src").c_str(), (dir + "/plugin").c_str(), &o, &s), ACCURA_ERROR_INPUT);
+  EXPECT_NE(lastError(h.m).find("bad.src:2"), std::string::npos) << lastError(h.m);
+  EXPECT_FALSE(std::filesystem::exists(dir + "/plugin/bad.src"));
+}
+
+TEST(Plugin, BadInputGivesStatusesAndMessages) {
+  Handle h;
+  const accura_pose t = cpose(1100, -250, 500, 0, 180, 0);
+  accura_pose_result r;
+  // no model yet
+  EXPECT_EQ(accura_compensate_pose(h.m, &t, nullptr, &r), ACCURA_ERROR_INVALID_ARGUMENT);
+  EXPECT_NE(lastError(h.m).find("no model loaded"), std::string::npos);
+  // missing file: the status and the path in the message
+  const std::string missing = "/tmp/accura_no_such_dir/model.xml";
+  EXPECT_EQ(accura_model_load(h.m, missing.c_str(), nullptr), ACCURA_ERROR_INPUT);
+  EXPECT_NE(lastError(h.m).find(missing), std::string::npos) << lastError(h.m);
+  // a malformed model file: file and line
+  const std::string dir = test::tempDir("plugin_bad");
+  test::writeText(dir + "/broken.xml", "<?xml version=\"1.0\"?>\n<robot name=\"x\">\n  <joints>\n</robot>\n");
+  EXPECT_EQ(accura_model_load(h.m, (dir + "/broken.xml").c_str(), nullptr), ACCURA_ERROR_INPUT);
+  EXPECT_NE(lastError(h.m).find("broken.xml:"), std::string::npos) << lastError(h.m);
+  // the controller model must be the calibrated model's robot
+  accura_load_options o;
+  ASSERT_EQ(accura_load_options_init(&o, sizeof(o)), ACCURA_OK);
+  o.controller_model = "ur10";
+  EXPECT_EQ(accura_model_load(h.m, test::sourcePath(kModel).c_str(), &o), ACCURA_ERROR_INPUT);
+  EXPECT_NE(lastError(h.m).find("nominal robot of the calibrated model"), std::string::npos) << lastError(h.m);
+  o.controller_model = "kuka_kr16";
+  EXPECT_EQ(accura_model_load(h.m, test::sourcePath(kModel).c_str(), &o), ACCURA_OK) << lastError(h.m);
+  // a failed load keeps the model that was there
+  EXPECT_EQ(accura_model_load(h.m, missing.c_str(), nullptr), ACCURA_ERROR_INPUT);
+  EXPECT_EQ(accura_compensate_pose(h.m, &t, nullptr, &r), ACCURA_OK);
+  // the calibrated base 3 m from the placement: the model was measured in another frame
+  o.controller_model = nullptr;
+  o.has_robroot_in_world = 1;
+  o.robroot_in_world = cpose(3000, 0, 0, 0, 0, 0);
+  EXPECT_EQ(accura_model_load(h.m, test::sourcePath(kModel).c_str(), &o), ACCURA_ERROR_INPUT);
+  EXPECT_NE(lastError(h.m).find("robroot_in_world"), std::string::npos) << lastError(h.m);
+  // wrong sizes
+  EXPECT_EQ(accura_load_options_init(&o, sizeof(o) + 8), ACCURA_ERROR_INVALID_ARGUMENT);
+  o.struct_size = sizeof(o) - 8;
+  EXPECT_EQ(accura_model_load(h.m, test::sourcePath(kModel).c_str(), &o), ACCURA_ERROR_INVALID_ARGUMENT);
+  EXPECT_NE(lastError(h.m).find("struct_size"), std::string::npos);
+  double q[6] = {0, -90, 90, 0, 0, 0};
+  accura_pose p;
+  EXPECT_EQ(accura_forward_kinematics(h.m, ACCURA_REAL, q, 5, &p), ACCURA_ERROR_INVALID_ARGUMENT);
+  EXPECT_NE(lastError(h.m).find("expected 6 joint values, got 5"), std::string::npos) << lastError(h.m);
+  EXPECT_EQ(accura_forward_kinematics(h.m, static_cast<accura_which_model>(7), q, 6, &p), ACCURA_ERROR_INVALID_ARGUMENT);
+  // NULL pointers
+  EXPECT_EQ(accura_model_create(nullptr), ACCURA_ERROR_NULL_ARGUMENT);
+  EXPECT_EQ(accura_compensate_pose(nullptr, &t, nullptr, &r), ACCURA_ERROR_NULL_ARGUMENT);
+  EXPECT_EQ(accura_compensate_pose(h.m, nullptr, nullptr, &r), ACCURA_ERROR_NULL_ARGUMENT);
+  EXPECT_EQ(accura_compensate_pose(h.m, &t, nullptr, nullptr), ACCURA_ERROR_NULL_ARGUMENT);
+  EXPECT_EQ(accura_compensate_poses(h.m, nullptr, nullptr, 3, 0, &r, nullptr), ACCURA_ERROR_NULL_ARGUMENT);
+  EXPECT_EQ(accura_forward_kinematics(h.m, ACCURA_REAL, nullptr, 6, &p), ACCURA_ERROR_NULL_ARGUMENT);
+  EXPECT_EQ(accura_compensate_path(h.m, &t, nullptr, nullptr, 2, 0.05, nullptr, 0, nullptr, nullptr), ACCURA_ERROR_NULL_ARGUMENT);
+  EXPECT_EQ(accura_compensate_program(h.m, nullptr, "/tmp", nullptr, nullptr), ACCURA_ERROR_NULL_ARGUMENT);
+  EXPECT_EQ(accura_model_get_info(h.m, nullptr), ACCURA_ERROR_NULL_ARGUMENT);
+  const char* msg = nullptr;
+  EXPECT_EQ(accura_last_error(nullptr, &msg), ACCURA_ERROR_NULL_ARGUMENT);
+  EXPECT_EQ(accura_model_free(nullptr), ACCURA_OK);
+  // out of memory: 2^40 poses need 128 TB of workspace (std::bad_alloc inside)
+  EXPECT_EQ(accura_compensate_poses(h.m, &t, nullptr, size_t(1) << 40, 0, &r, nullptr), ACCURA_ERROR_OUT_OF_MEMORY);
+  EXPECT_NE(lastError(h.m).find("out of memory"), std::string::npos) << lastError(h.m);
+  // values out of range
+  accura_pose nan_pose = t;
+  nan_pose.y_mm = std::nan("");
+  EXPECT_EQ(accura_compensate_pose(h.m, &nan_pose, nullptr, &r), ACCURA_ERROR_INVALID_ARGUMENT);
+  const accura_configuration bad_config = {-3, 0};
+  EXPECT_EQ(accura_compensate_pose(h.m, &t, &bad_config, &r), ACCURA_ERROR_INVALID_ARGUMENT);
+  accura_path_motion lin = {ACCURA_LIN, {}, cpose(1100, -50, 500, 0, 180, 0)};
+  accura_path_result pr;
+  EXPECT_EQ(accura_compensate_path(h.m, &t, nullptr, &lin, 1, 0, nullptr, 0, &pr, nullptr), ACCURA_ERROR_INVALID_ARGUMENT);
+  lin.type = 5;
+  EXPECT_EQ(accura_compensate_path(h.m, &t, nullptr, &lin, 1, 0.05, nullptr, 0, &pr, nullptr), ACCURA_ERROR_INVALID_ARGUMENT);
+  // per-pose statuses: the unreachable one fails, the others are computed
+  const accura_pose list[3] = {t, cpose(5000, 0, 0, 0, 180, 0), cpose(1260, -50, 500, 0, 180, 0)};
+  accura_pose_result rs[3];
+  size_t n_ok = 0;
+  EXPECT_EQ(accura_compensate_poses(h.m, list, nullptr, 3, 1, rs, &n_ok), ACCURA_ERROR_UNREACHABLE);
+  EXPECT_EQ(n_ok, 2u);
+  EXPECT_EQ(rs[0].status, ACCURA_OK);
+  EXPECT_EQ(rs[1].status, ACCURA_ERROR_UNREACHABLE);
+  EXPECT_EQ(rs[2].status, ACCURA_OK);
+  EXPECT_NE(lastError(h.m).find("pose 1"), std::string::npos) << lastError(h.m);
+  // a configuration the target cannot have: A1 negative (T bit 0) for a point at y < 0 on the
+  // base's x side is the other branch of A1 (A1 = q1 +- 180 deg), reachable or not; S 2 T 1
+  // differs from the one it has (T 2) and must come back as no configuration or as another
+  // status, never as success on the wrong branch
+  const accura_configuration st = {2, 1};
+  const accura_status s = accura_compensate_pose(h.m, &t, &st, &r);
+  if (s == ACCURA_OK) {
+    EXPECT_TRUE(r.configuration.turn == 1 || r.configuration_changed);
+  } else {
+    EXPECT_EQ(r.status, s);
+  }
+}
+
+// One handle, several threads at once: the results equal the single-threaded ones, and each
+// thread sees its own last error.
+TEST(Plugin, OneHandleFromSeveralThreads) {
+  Handle h(test::sourcePath(kModel));
+  const std::vector<accura_pose> t = targets();
+  std::vector<accura_pose_result> reference(t.size());
+  size_t n_ok = 0;
+  ASSERT_EQ(accura_compensate_poses(h.m, t.data(), nullptr, t.size(), 1, reference.data(), &n_ok), ACCURA_OK);
+  accura_path_motion lin = {ACCURA_LIN, {}, cpose(1000, 1000, 700, 40, 120, -20)};
+  const accura_pose start = cpose(1260, -250, 500, 0, 180, 0);
+  accura_path_result ref_path;
+  std::vector<accura_path_point> ref_points(16);
+  ASSERT_EQ(accura_compensate_path(h.m, &start, nullptr, &lin, 1, 0.05, ref_points.data(), 16, &ref_path, nullptr), ACCURA_OK);
+
+  constexpr int kThreads = 4, kRounds = 3;
+  std::atomic<int> mismatches{0}, wrong_messages{0};
+  std::vector<std::thread> threads;
+  for (int k = 0; k < kThreads; ++k) {
+    threads.emplace_back([&, k]() {
+      for (int round = 0; round < kRounds; ++round) {
+        std::vector<accura_pose_result> r(t.size());
+        size_t ok = 0;
+        if (accura_compensate_poses(h.m, t.data(), nullptr, t.size(), 1, r.data(), &ok) != ACCURA_OK) ++mismatches;
+        for (size_t i = 0; i < t.size(); ++i)
+          if (std::memcmp(&r[i], &reference[i], sizeof(accura_pose_result)) != 0) ++mismatches;
+        accura_path_result pr;
+        std::vector<accura_path_point> pts(16);
+        if (accura_compensate_path(h.m, &start, nullptr, &lin, 1, 0.05, pts.data(), 16, &pr, nullptr) != ACCURA_OK) ++mismatches;
+        if (pr.n_points != ref_path.n_points || std::memcmp(pts.data(), ref_points.data(), pr.n_points * sizeof(accura_path_point)) != 0)
+          ++mismatches;
+        // a failure of this thread's own: x = 5000 + 100 k mm
+        const accura_pose far = cpose(5000 + 100 * k, 0, 500, 0, 180, 0);
+        accura_pose_result fr;
+        if (accura_compensate_pose(h.m, &far, nullptr, &fr) != ACCURA_ERROR_UNREACHABLE) ++mismatches;
+        const std::string mine = "X " + std::to_string(5000 + 100 * k) + ".000";
+        const char* msg = nullptr;
+        accura_last_error(h.m, &msg);
+        if (!msg || std::string(msg).find(mine) == std::string::npos) ++wrong_messages;
+      }
+    });
+  }
+  // meanwhile the model is loaded again (the same file): calls in flight keep the model they
+  // started with, later ones get the new one; the numbers are the same
+  threads.emplace_back([&]() {
+    for (int round = 0; round < kRounds; ++round)
+      if (accura_model_load(h.m, test::sourcePath(kModel).c_str(), nullptr) != ACCURA_OK) ++mismatches;
+  });
+  for (auto& th : threads) th.join();
+  EXPECT_EQ(mismatches.load(), 0);
+  EXPECT_EQ(wrong_messages.load(), 0);
+  // this thread's last error is still its own (none of the workers' messages)
+  EXPECT_EQ(lastError(h.m).find("X 5"), std::string::npos) << lastError(h.m);
+}
+
+}  // namespace
+}  // namespace accura
+
+namespace accura {
+namespace {
+
+// The reach and clearance checks through the C interface: a LIN at z = 800 mm along x passes
+// a 10 x 10 mm post (tests/data/cell/post_binary.stl, x, y in [-5, 5], z in [0, 600] mm) placed
+// at x 1200, z 500 and y 12 (its face at y = 7 mm) or y 118 (face at 113 mm), with a sphere of
+// radius 10 mm as the tool: 3 mm into the post, or 103 mm clear.
+TEST(Plugin, CheckProgramInItsCell) {
+  const std::string dir = test::tempDir("plugin_check");
+  test::writeText(dir + "/post.stl", test::readText(test::sourcePath("tests/data/cell/post_binary.stl")));
+  auto cell = [&](const std::string& name, double y_post) {
+    test::writeText(dir + "/" + name,
+                    "<?xml version=\"1.0\"?>\n<cell name=\"post\">\n  <thresholds min_clearance_mm=\"5\"/>\n"
+                    "  <object name=\"post\" file=\"post.stl\" units=\"mm\" x_mm=\"1200\" y_mm=\"" + std::to_string(y_post) +
+                        "\" z_mm=\"500\"/>\n"
+                        "  <tool><capsule x0_mm=\"0\" y0_mm=\"0\" z0_mm=\"0\" x1_mm=\"0\" y1_mm=\"0\" z1_mm=\"0\" radius_mm=\"10\"/></tool>\n"
+                        "</cell>\n");
+  };
+  cell("near.xml", 12);
+  cell("far.xml", 118);
+  test::writeText(dir + "/seam.src",
+                  "DEF seam( )\n$TOOL = {X 0, Y 0, Z 0, A 0, B 0, C 0}\n$BASE = {X 0, Y 0, Z 0, A 0, B 0, C 0}\n"
+                  "PTP {X 900, Y 0, Z 800, A 0, B 90, C 0}\nLIN {X 1500, Y 0, Z 800, A 0, B 90, C 0}\nEND\n");
+  Handle h("kuka_kr16");
+  accura_check_options o;
+  ASSERT_EQ(accura_check_options_init(&o, sizeof(o)), ACCURA_OK);
+  accura_check_summary s;
+  accura_check_violation v[4];
+  ASSERT_EQ(accura_check_program(h.m, (dir + "/far.xml").c_str(), (dir + "/seam.src").c_str(), &o, &s, v, 4), ACCURA_OK) << lastError(h.m);
+  EXPECT_EQ(s.passed, 1);
+  EXPECT_EQ(s.n_violations, 0u);
+  EXPECT_NEAR(s.min_clearance_mm, 118 - 5 - 10, 1e-3);  // at the sample x = 1200
+
+  ASSERT_EQ(accura_check_program(h.m, (dir + "/near.xml").c_str(), (dir + "/seam.src").c_str(), &o, &s, nullptr, 0),
+            ACCURA_ERROR_BUFFER_TOO_SMALL);
+  EXPECT_EQ(s.n_violations, 1u);
+  ASSERT_EQ(accura_check_program(h.m, (dir + "/near.xml").c_str(), (dir + "/seam.src").c_str(), &o, &s, v, 4), ACCURA_OK) << lastError(h.m);
+  EXPECT_EQ(s.passed, 0);
+  ASSERT_EQ(s.n_violations, 1u);
+  EXPECT_EQ(v[0].kind, ACCURA_CHECK_CLEARANCE);
+  EXPECT_EQ(v[0].line, 5);
+  EXPECT_EQ(v[0].motion_index, 1);
+  EXPECT_EQ(v[0].on_path, 1);
+  EXPECT_DOUBLE_EQ(v[0].limit, 5.0);
+  // the first sample closer than 5 mm: sqrt(dx^2 + 7^2) - 10 = 5, dx = 13.27 mm before the post
+  EXPECT_NEAR(v[0].p_world_tcp_mm[0], 1200 - 5 - std::sqrt(15.0 * 15.0 - 7.0 * 7.0), 2.0);
+  const double dx = std::max(0.0, 1195 - v[0].p_world_tcp_mm[0]);
+  EXPECT_NEAR(v[0].value, std::sqrt(dx * dx + 49.0) - 10, 2e-3);
+  EXPECT_NE(std::string(v[0].message).find("post"), std::string::npos) << v[0].message;
+
+  // the thresholds of the call instead of the cell's: the first sample closer than 0.5 mm,
+  // sqrt(dx^2 + 7^2) - 10 = 0.5, dx = 7.83 mm before the post
+  o.use_cell_thresholds = 0;
+  o.min_clearance_mm = 0.5;
+  ASSERT_EQ(accura_check_program(h.m, (dir + "/near.xml").c_str(), (dir + "/seam.src").c_str(), &o, &s, v, 4), ACCURA_OK);
+  ASSERT_EQ(s.n_violations, 1u);
+  EXPECT_DOUBLE_EQ(v[0].limit, 0.5);
+  EXPECT_NEAR(v[0].p_world_tcp_mm[0], 1195 - std::sqrt(10.5 * 10.5 - 49.0), 1.0);
+  const double dx2 = std::max(0.0, 1195 - v[0].p_world_tcp_mm[0]);
+  EXPECT_NEAR(v[0].value, std::sqrt(dx2 * dx2 + 49.0) - 10, 2e-3);
+  EXPECT_LT(v[0].value, 0.5);
+  EXPECT_NEAR(s.min_clearance_mm, 0.0, 1e-9);  // the sphere touches the post: distance 0
+
+  // a missing cell file: the status and its path
+  EXPECT_EQ(accura_check_program(h.m, (dir + "/none.xml").c_str(), (dir + "/seam.src").c_str(), &o, &s, v, 4), ACCURA_ERROR_INPUT);
+  EXPECT_NE(lastError(h.m).find(dir + "/none.xml"), std::string::npos) << lastError(h.m);
+  test::writeText(dir + "/broken.xml", "<?xml version=\"1.0\"?>\n<cell>\n  <object name=\"p\" file=\"post.stl\" units=\"yards\"/>\n</cell>\n");
+  EXPECT_EQ(accura_check_program(h.m, (dir + "/broken.xml").c_str(), (dir + "/seam.src").c_str(), &o, &s, v, 4), ACCURA_ERROR_INPUT);
+  EXPECT_NE(lastError(h.m).find("broken.xml:3"), std::string::npos) << lastError(h.m);
+}
+
+}  // namespace
+}  // namespace accura
