@@ -56,7 +56,7 @@ int runBatch(const BatchArgs& a) {
   o.jobs = a.jobs;
   const std::optional<CellCheck> cell = a.cell();
   if (a.warn_only && !cell) throw InputError("--warn-only: expected together with --cell, found it without");
-  if (cell) o.cell = CellCheckSettings{cell->cell, cell->options, a.warn_only};
+  if (cell) o.cell = CellCheckSettings{cell->cell, cell->options, a.warn_only, nullptr};
   if (a.jobs < 1) throw InputError("--jobs: expected at least 1, found " + std::to_string(a.jobs));
   if (!a.json.empty()) {
     const fs::path j = fs::weakly_canonical(fs::absolute(a.json));

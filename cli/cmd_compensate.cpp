@@ -90,7 +90,7 @@ int runCompensate(const CompensateArgs& a) {
   const std::optional<CellCheck> cell = a.cell();
   if (a.warn_only && !cell) throw InputError("--warn-only: expected together with --cell, found it without");
   std::optional<CellCheckSettings> cell_settings;
-  if (cell) cell_settings = CellCheckSettings{cell->cell, cell->options, a.warn_only};
+  if (cell) cell_settings = CellCheckSettings{cell->cell, cell->options, a.warn_only, nullptr};
   ProgramReadOptions read;
   read.dat_path = a.dat;
   read.config_path = a.config;

@@ -496,6 +496,38 @@ TEST(CheckSingularity, SigmaMinMatchesFiniteDifferences) {
   EXPECT_TRUE(checkMotions(robot, robot, Cell{}, {m}, o).passed());
 }
 
+// A geometry prepared once (accura batch: the BVHs built once for every program) gives the
+// report of a geometry built for the check; one prepared for another robot is refused.
+TEST(CheckProgram, PreparedGeometryGivesTheSameReport) {
+  const std::string dir = test::tempDir("check_shared");
+  test::writeText(dir + "/seam.src",
+                  "DEF seam( )\n$TOOL = {X 0, Y 0, Z 0, A 0, B 0, C 0}\n$BASE = {X 0, Y 0, Z 0, A 0, B 0, C 0}\n"
+                  "PTP {X 900, Y 0, Z 800, A 0, B 90, C 0}\nLIN {X 1500, Y 0, Z 800, A 0, B 90, C 0}\nEND\n");
+  const Program prog = readProgram(dir + "/seam.src");
+  const Cell cell = postCell(12, 10);
+  JobSettings job;
+  job.calibrated = kr16();
+  CheckOptions o;
+  const CheckReport built = checkProgram(prog, job, cell, o);
+  const CellGeometry prepared(cell, job.calibrated);
+  const CheckReport shared = checkProgram(prog, job, cell, o, prepared);
+  ASSERT_EQ(built.violations.size(), 1u);
+  ASSERT_EQ(shared.violations.size(), 1u);
+  EXPECT_EQ(shared.violations[0].message, built.violations[0].message);
+  EXPECT_EQ(shared.violations[0].q, built.violations[0].q);
+  EXPECT_EQ(shared.violations[0].value, built.violations[0].value);
+  EXPECT_EQ(shared.samples, built.samples);
+  EXPECT_EQ(shared.distance_queries, built.distance_queries);
+  EXPECT_EQ(shared.min_clearance_mm, built.min_clearance_mm);
+  RobotModel other = job.calibrated;
+  other.deviations.links[1].da_mm = 0.5;
+  EXPECT_TRUE(prepared.madeFor(cell, job.calibrated));
+  EXPECT_FALSE(prepared.madeFor(cell, other));
+  EXPECT_FALSE(prepared.madeFor(Cell{}, job.calibrated));
+  job.calibrated = other;
+  EXPECT_THROW(checkProgram(prog, job, cell, o, prepared), ArgumentError);
+}
+
 TEST(CheckProgram, CellPlacementAgainstBaseOption) {
   const ReachCase rc;
   const std::string dir = test::tempDir("check_place");

@@ -109,7 +109,8 @@ CheckedProgram compensateAndCheckFile(const std::string& in_path, const std::str
   const JobSettings placed = placedInCell(job, cell->cell);
   out.files = compensateAndRender(program, format, out_path, placed, report);
   // the program as read (its targets are where the tool must go): docs/checks.md, "intended"
-  out.check = checkProgram(program, placed, cell->cell, cell->options);
+  out.check = cell->geometry ? checkProgram(program, placed, cell->cell, cell->options, *cell->geometry)
+                             : checkProgram(program, placed, cell->cell, cell->options);
   out.write = out.check->passed() || cell->warn_only;
   return out;
 }
@@ -150,6 +151,15 @@ BatchResult runBatch(const std::string& in_dir, const std::string& out_dir, cons
   int done = 0;
   ProgramReadOptions read;
   read.config_path = options.config_path;
+  // the cell's geometry (the BVHs of its meshes) built once for every program and thread
+  std::optional<CellCheckSettings> cell = options.cell;
+  if (cell && !cell->geometry) {
+    try {
+      cell->geometry = std::make_shared<const CellGeometry>(cell->cell, options.job.calibrated);
+    } catch (const ArgumentError& e) {
+      throw InputError(e.what());
+    }
+  }
 
   auto work = [&]() {
     for (;;) {
@@ -166,9 +176,9 @@ BatchResult runBatch(const std::string& in_dir, const std::string& out_dir, cons
           r.message = "not an XML program (its root element is not <program>)";
         } else {
           CheckedProgram out = compensateAndCheckFile(in_path.string(), out_path.string(), read, options.job,
-                                                      options.cell ? &*options.cell : nullptr, &r.report);
+                                                      cell ? &*cell : nullptr, &r.report);
           r.check = std::move(out.check);
-          if (r.check && !r.check->passed()) r.message = "failed the checks of " + options.cell->cell.file + ": " + firstCheckProblem(*r.check);
+          if (r.check && !r.check->passed()) r.message = "failed the checks of " + cell->cell.file + ": " + firstCheckProblem(*r.check);
           if (out.write) {
             fs::create_directories(out_path.parent_path());
             writeFilesAtomically(out.files);

@@ -32,17 +32,6 @@ bool sameTool(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
   return (a.translation() - b.translation()).norm() <= 1e-3 && angleDeg(a.linear().transpose() * b.linear()) <= 1e-3;
 }
 
-std::string motionLabel(const Motion& m) {
-  std::string k;
-  switch (m.type) {
-    case MotionType::kPtp: k = "PTP"; break;
-    case MotionType::kLin: k = "LIN"; break;
-    case MotionType::kCirc: k = "CIRC"; break;
-    case MotionType::kSpl: return "SPL";
-  }
-  return m.spline ? "S" + k : k;
-}
-
 std::string num(double v, int decimals) { return formatFixed(v, decimals); }
 
 std::string jointsText(const Eigen::VectorXd& q) {
@@ -59,9 +48,12 @@ struct ToolModels {
 
 class Checker {
  public:
+  /// `shared`: the geometry prepared for this cell and robot (copied: a copy shares the BVHs);
+  /// null: built here.
   Checker(const RobotModel& real, const RobotModel& controller, const Cell& cell, const CheckOptions& o,
-          const PoseContext& context, CheckReport& r)
-      : real_(real), controller_(controller), opt_(o), t_(o.thresholds), context_(context), r_(r), geometry_(cell, real) {
+          const PoseContext& context, CheckReport& r, const CellGeometry* shared)
+      : real_(real), controller_(controller), opt_(o), t_(o.thresholds), context_(context), r_(r),
+        geometry_(shared ? CellGeometry(*shared) : CellGeometry(cell, real)) {
     // scale of the singularity measure (docs/compensation.md, docs/checks.md)
     L_mm_ = real.nominal.T_flange_tcp.translation().norm();
     for (const auto& j : real.nominal.joints) L_mm_ += std::fabs(j.a_mm) + std::fabs(j.d_mm);
@@ -516,7 +508,7 @@ void finish(CheckReport& r) {
 
 CheckReport checkWorld(const RobotModel& real, const RobotModel& controller, const Cell& cell, const std::vector<WorldMotion>& motions,
                        const std::vector<int>& indices, const std::vector<bool>& start_unknown, const CheckOptions& options,
-                       const PoseContext& context, CheckReport r) {
+                       const PoseContext& context, CheckReport r, const CellGeometry* geometry) {
   std::string why;
   if (!options.IsValid(&why)) throw ArgumentError("check options: " + why);
   if (real.dof() != controller.dof())
@@ -525,7 +517,9 @@ CheckReport checkWorld(const RobotModel& real, const RobotModel& controller, con
   controller.validate();
   r.mode = options.mode;
   r.thresholds = options.thresholds;
-  Checker c(real, controller, cell, options, context, r);
+  if (geometry && !geometry->madeFor(cell, real))
+    throw ArgumentError("check: the prepared cell geometry was made for another cell or robot than the one checked");
+  Checker c(real, controller, cell, options, context, r, geometry);
   c.run(motions, indices, start_unknown);
   finish(r);
   return r;
@@ -569,10 +563,13 @@ CheckReport checkMotions(const RobotModel& real, const RobotModel& controller, c
   for (const auto& m : motions)
     if (m.q_end.size() && m.q_end.size() != real.dof())
       throw ArgumentError("checkMotions: an axis target has " + std::to_string(m.q_end.size()) + " values, the robot " + std::to_string(real.dof()) + " joints");
-  return checkWorld(real, controller, cell, motions, idx, std::vector<bool>(motions.size(), false), options, context, CheckReport{});
+  return checkWorld(real, controller, cell, motions, idx, std::vector<bool>(motions.size(), false), options, context, CheckReport{}, nullptr);
 }
 
-CheckReport checkProgram(const Program& program, const JobSettings& job, const Cell& cell, const CheckOptions& options) {
+namespace {
+
+CheckReport checkProgramWith(const Program& program, const JobSettings& job, const Cell& cell, const CheckOptions& options,
+                             const CellGeometry* geometry) {
   CheckReport r;
   // frames, as compensateProgram (job.h)
   Eigen::Isometry3d T_world_robroot = job.calibrated.nominal.T_world_base;
@@ -612,14 +609,14 @@ CheckReport checkProgram(const Program& program, const JobSettings& job, const C
       MotionCheck mc;
       mc.motion_index = static_cast<int>(i);
       mc.where = m.where;
-      mc.motion_type = motionLabel(m);
+      mc.motion_type = motionKeyword(m);
       mc.checked = false;
       mc.note = why;
       mc.min_clearance_mm = kInf;
       mc.min_sigma = kInf;
       mc.min_joint_margin = kInf;
       skipped[static_cast<int>(i)] = mc;
-      r.unchecked.push_back({m.where, motionLabel(m) + " not checked: " + why});
+      r.unchecked.push_back({m.where, motionKeyword(m) + " not checked: " + why});
       unknown = true;
       T_world_flange.reset();
       q_known.reset();
@@ -635,7 +632,7 @@ CheckReport checkProgram(const Program& program, const JobSettings& job, const C
     WorldMotion w;
     w.type = m.type;
     w.where = m.where;
-    w.label = motionLabel(m);
+    w.label = motionKeyword(m);
     const Eigen::Isometry3d T_flange_tcp = tool ? toIsometry(*tool) : job.calibrated.nominal.T_flange_tcp;
     w.T_flange_tcp = T_flange_tcp;
     if (m.target.kind == Target::Kind::kAxis) {
@@ -686,7 +683,7 @@ CheckReport checkProgram(const Program& program, const JobSettings& job, const C
     start_unknown.push_back(unknown);
     unknown = false;
   }
-  CheckReport out = checkWorld(job.calibrated, controller, cell, wm, idx, start_unknown, options, job.context, r);
+  CheckReport out = checkWorld(job.calibrated, controller, cell, wm, idx, start_unknown, options, job.context, r, geometry);
   // motions in program order, the skipped ones included
   std::vector<MotionCheck> all;
   size_t k = 0;
@@ -698,6 +695,17 @@ CheckReport checkProgram(const Program& program, const JobSettings& job, const C
   out.motions = all;
   finish(out);
   return out;
+}
+
+}  // namespace
+
+CheckReport checkProgram(const Program& program, const JobSettings& job, const Cell& cell, const CheckOptions& options) {
+  return checkProgramWith(program, job, cell, options, nullptr);
+}
+
+CheckReport checkProgram(const Program& program, const JobSettings& job, const Cell& cell, const CheckOptions& options,
+                         const CellGeometry& geometry) {
+  return checkProgramWith(program, job, cell, options, &geometry);
 }
 
 }  // namespace accura::postproc

@@ -145,6 +145,29 @@ CellGeometry::CellGeometry(const Cell& cell, const RobotModel& robot) : impl_(st
 }
 
 CellGeometry::~CellGeometry() = default;
+CellGeometry::CellGeometry(const CellGeometry& other) : impl_(std::make_unique<Impl>(*other.impl_)) {}
+
+bool CellGeometry::madeFor(const Cell& cell, const RobotModel& robot) const {
+  const Impl& I = *impl_;
+  if (robot.dof() != I.robot.dof()) return false;
+  if (robotShapes() != static_cast<int>(cell.link_shapes.size() + cell.tool_shapes.size()) || objects() != static_cast<int>(cell.objects.size()))
+    return false;
+  const int n = robot.dof();
+  Eigen::VectorXd q_mid(n);
+  for (int i = 0; i < n; ++i) q_mid[i] = 0.5 * (robot.nominal.joints[i].lower + robot.nominal.joints[i].upper);
+  KinematicWorkspace a, b;
+  forwardKinematics(robot, q_mid, PoseContext{}, a);
+  forwardKinematics(I.robot, q_mid, PoseContext{}, b);
+  if (!robot.T_world_base().isApprox(I.robot.T_world_base(), 1e-12) ||
+      (robot.T_world_base().translation() - I.robot.T_world_base().translation()).norm() > 1e-9)
+    return false;
+  for (int k = 0; k <= n; ++k) {
+    const Eigen::Isometry3d& Ta = a.T_base_frame[static_cast<size_t>(k)];
+    const Eigen::Isometry3d& Tb = b.T_base_frame[static_cast<size_t>(k)];
+    if ((Ta.translation() - Tb.translation()).norm() > 1e-9 || (Ta.linear() - Tb.linear()).norm() > 1e-9) return false;
+  }
+  return true;
+}
 CellGeometry::CellGeometry(CellGeometry&&) noexcept = default;
 CellGeometry& CellGeometry::operator=(CellGeometry&&) noexcept = default;
 

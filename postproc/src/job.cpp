@@ -25,17 +25,6 @@ bool sameTool(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b, double mm,
 /// Joints within this band of 0 (deg) may flip their T bit by the correction (see checkConfig).
 constexpr double kTurnBandDeg = 1.0;
 
-std::string motionName(const Motion& m) {
-  std::string k;
-  switch (m.type) {
-    case MotionType::kPtp: k = "PTP"; break;
-    case MotionType::kLin: k = "LIN"; break;
-    case MotionType::kCirc: k = "CIRC"; break;
-    case MotionType::kSpl: return "SPL";
-  }
-  return m.spline ? "S" + k : k;
-}
-
 std::string targetLabel(const Target& t) { return t.name.empty() ? std::string("the inline target") : t.name; }
 
 std::string frameHint(const FrameSetting& f, const char* var) {
@@ -142,7 +131,7 @@ class Job {
     tr.motion = m.where;
     tr.name = t.name;
     tr.role = role;
-    tr.motion_type = motionName(m);
+    tr.motion_type = motionKeyword(m);
     const Eigen::Vector3d d_world = command.translation() - desired.translation();
     tr.correction_mm = d_world.norm();
     tr.correction_deg = angleDeg(command.linear() * desired.linear().transpose());
@@ -206,9 +195,9 @@ class Job {
         };
         if (!m.target_problem.empty()) {
           if (m.type == MotionType::kPtp) {
-            warning(m.where, motionName(m) + " left unchanged: " + m.target_problem + "; the position after it is not known");
+            warning(m.where, motionKeyword(m) + " left unchanged: " + m.target_problem + "; the position after it is not known");
           } else {
-            error(m.where, "expected a target accura can correct for " + motionName(m) + ", found: " + m.target_problem);
+            error(m.where, "expected a target accura can correct for " + motionKeyword(m) + ", found: " + m.target_problem);
           }
           unknownAfter();
           out.motions.push_back(mo);
@@ -298,7 +287,7 @@ class Job {
 
         if (!path || !q_real) {
           if (path)
-            warning(m.where, motionName(m) + " after a position that is not known: its points are compensated, its path is not checked");
+            warning(m.where, motionKeyword(m) + " after a position that is not known: its points are compensated, its path is not checked");
           Eigen::Isometry3d T_cmd_aux = Eigen::Isometry3d::Identity();
           if (aux) {
             const Eigen::Isometry3d T_world_aux = T_world_progbase * toIsometry(aux->xyzAbc());
@@ -349,7 +338,7 @@ class Job {
         dens.ik = s_.ik;
         const SegmentCompensation sc = comp.segment(intended, config, *q_real, dens, s_.context);
         if (sc.status != IkStatus::kOk || sc.commanded.empty() || sc.q_real_end.size() != sc.commanded.size()) {
-          error(m.where, "the " + motionName(m) + " to " + targetLabel(end) + " cannot be compensated: " + toString(sc.status) +
+          error(m.where, "the " + motionKeyword(m) + " to " + targetLabel(end) + " cannot be compensated: " + toString(sc.status) +
                              (sc.message.empty() ? "" : " (" + sc.message + ")"));
           unknownAfter();
           out.motions.push_back(mo);
@@ -362,7 +351,7 @@ class Job {
         }
         SegmentReport sr;
         sr.motion = m.where;
-        sr.motion_type = motionName(m);
+        sr.motion_type = motionKeyword(m);
         sr.length_mm = pathLength(intended);
         sr.max_error_uncompensated_mm = sc.max_error_uncompensated_mm;
         sr.max_error_before_mm = sc.max_error_before_mm;

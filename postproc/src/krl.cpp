@@ -1456,19 +1456,6 @@ bool sameFrame(const FrameSetting& a, const FrameSetting& b) {
   return true;
 }
 
-std::string keyword(const Motion& m) {
-  std::string k;
-  switch (m.type) {
-    case MotionType::kPtp: k = "PTP"; break;
-    case MotionType::kLin: k = "LIN"; break;
-    case MotionType::kCirc: k = "CIRC"; break;
-    case MotionType::kSpl: return "SPL";
-  }
-  if (m.spline) k = "S" + k;
-  if (m.relative) k += "_REL";
-  return k;
-}
-
 std::string declType(const Target& t) {
   if (!t.type.empty()) return t.type;
   return t.kind == Target::Kind::kAxis ? "E6AXIS" : "E6POS";
@@ -1539,7 +1526,7 @@ KrlText generateKrl(const Program& p) {
       src << "$APO." << var << "=" << formatFixed(*m.approximation_value, 4) << "\n";
       apo[m.approximation.front()] = m.approximation_value;
     }
-    std::string line = keyword(m) + " ";
+    std::string line = motionKeyword(m) + " ";
     if (m.aux) line += targetText(*m.aux, m) + ", ";
     line += targetText(m.target, m);
     if (m.circ_angle_deg) line += ", CA " + formatDeg(*m.circ_angle_deg);

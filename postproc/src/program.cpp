@@ -70,6 +70,19 @@ std::string formatFixed(double v, int decimals) {
   return s;
 }
 
+std::string motionKeyword(const Motion& m) {
+  std::string k;
+  switch (m.type) {
+    case MotionType::kPtp: k = "PTP"; break;
+    case MotionType::kLin: k = "LIN"; break;
+    case MotionType::kCirc: k = "CIRC"; break;
+    case MotionType::kSpl: return "SPL";
+  }
+  if (m.spline) k = "S" + k;
+  if (m.relative) k += "_REL";
+  return k;
+}
+
 std::string formatMm(double v) { return formatFixed(v, 4); }
 std::string formatDeg(double v) { return formatFixed(v, 5); }
 

@@ -9,6 +9,7 @@
 #pragma once
 
 #include <functional>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -38,6 +39,10 @@ struct CellCheckSettings {
   CheckOptions options;
   /// Write a program that fails the checks anyway (its report still says it failed).
   bool warn_only = false;
+  /// CellGeometry(cell, job.calibrated), prepared once and shared by every program and thread
+  /// (the BVHs of the cell's meshes are built once); null: built for each program. runBatch
+  /// prepares it when it is null.
+  std::shared_ptr<const CellGeometry> geometry;
 };
 
 /// A compensated program, rendered but not written, and its check.
@@ -54,10 +59,11 @@ struct CheckedProgram {
 JobSettings placedInCell(const JobSettings& job, const Cell& cell);
 
 /// Compensates one program file as compensateFile does and, with `cell` (may be null), checks
-/// the program read from the file in the cell (checkProgram, CheckMode of cell->options) with
-/// the job placed in the cell (placedInCell) — what accura compensate --cell and accura batch
-/// --cell both do. Nothing is written. Throws like compensateFile and checkProgram (InputError
-/// when the cell's placement and job.robroot_in_world disagree).
+/// the program read from the file in the cell (checkProgram, CheckMode of cell->options, with
+/// cell->geometry when set) with the job placed in the cell (placedInCell) — what accura
+/// compensate --cell and accura batch --cell both do. Nothing is written. Throws like
+/// compensateFile and checkProgram (InputError when the cell's placement and
+/// job.robroot_in_world disagree).
 CheckedProgram compensateAndCheckFile(const std::string& in_path, const std::string& out_path, const ProgramReadOptions& read,
                                       const JobSettings& job, const CellCheckSettings* cell, JobReport* report);
 
@@ -100,7 +106,8 @@ std::vector<std::string> findPrograms(const std::string& in_dir);
 /// Compensates every program of `in_dir` into the same relative path under `out_dir` (created
 /// as needed), `options.jobs` at a time (the outputs do not depend on it). A file that fails
 /// (reading, compensation, or the check in options.cell) is reported in its result and not
-/// written; the others go on. An .xml file whose root element is not <program> is skipped.
+/// written; the others go on. With options.cell, the cell's geometry is prepared once (an
+/// InputError when its link shapes do not fit the robot). An .xml file whose root element is not <program> is skipped.
 /// The input tree is only read. `progress` (may be empty) is called after each file, from the
 /// worker thread, one call at a time. Throws InputError when `in_dir` is not a directory or
 /// `out_dir` is inside it.

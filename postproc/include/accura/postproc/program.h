@@ -153,6 +153,10 @@ struct Program {
   std::string source_file;               ///< the file the program was read from
 };
 
+/// The KRL keyword of a motion: PTP, LIN, CIRC, SPL, SPTP, SLIN, SCIRC; _REL appended for a
+/// relative motion (LIN_REL, SPTP_REL).
+std::string motionKeyword(const Motion& m);
+
 /// Number formats for values the post-processor writes (fixed decimals, never "-0"):
 /// lengths %.4f (mm, 0.1 um), angles %.5f (deg, ~0.2 urad), speeds and other values %.4f.
 std::string formatMm(double v);
