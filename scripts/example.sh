@@ -38,9 +38,11 @@ echo "diagnosis in $out: kr16_diagnosis.html (open it in a browser), kr16_diagno
 echo
 echo "== 5. compensate an off-line program (examples/seam.src/.dat, KSS 8 inline forms) with the"
 echo "      calibrated model: the robot stands where the tracker saw it (--base, the cell layout"
-echo "      in the tracker's frame); TOOL_DATA[1] is the calibrated tool (examples/\$config.dat)"
+echo "      in the tracker's frame); TOOL_DATA[1] is the calibrated tool (examples/\$config.dat);"
+echo "      checked in its cell (examples/cell: the fixture plate, the torch) before it is written"
 "$accura" compensate --robot "$out/kr16_calibrated.xml" --base 2400,-1700,-600,30,0.4,-0.3 \
   --in "$root/examples/seam.src" --config "$root/examples/\$config.dat" \
+  --cell "$root/examples/cell/seam_cell.xml" \
   --out "$out/compensated" --json "$out/seam_report.json"
 echo "what changed in the program (only the corrected points and the inserted auxiliary points):"
 diff -u "$root/examples/seam.dat" "$out/compensated/seam.dat" | grep '^[-+]DECL E6POS XP[23]' || true
