@@ -164,7 +164,7 @@ TEST(IkChain, SmallLinearAlgebraEqualsEigen) {
     const Eigen::Matrix<double, 6, 1> x_eigen = A.fullPivLu().solve(b);
     EXPECT_LT((x - x_eigen).norm(), 1e-9 * (1 + x_eigen.norm()));
     // positive definite: A A^T - t^2 I with t below / above the smallest singular value
-    const double smin = Eigen::JacobiSVD<Eigen::Matrix<double, 6, 6>>(A).singularValues().minCoeff();
+    const double smin = Eigen::JacobiSVD<Eigen::MatrixXd>(Eigen::MatrixXd(A)).singularValues().minCoeff();
     Eigen::Matrix<double, 6, 6> G = A * A.transpose();
     Eigen::Matrix<double, 6, 6> below = G, above = G;
     below.diagonal().array() -= 0.9 * smin * 0.9 * smin;
