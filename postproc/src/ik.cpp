@@ -564,6 +564,7 @@ struct KinematicSolver::Impl {
 
     if (n == 6) {
       // Newton with a square Jacobian
+      const double tol_merit = std::sqrt(o.tol_mm * o.tol_mm / (L * L) + o.tol_rad * o.tol_rad);
       detail::Lu6 lu;
       bool fresh = false, have = false;
       while (!done()) {
@@ -583,7 +584,9 @@ struct KinematicSolver::Impl {
         const double before = merit;
         if (trial(dq)) {
           fresh = false;
-          if (merit > 0.2 * before) have = false;  // slow: refresh the Jacobian
+          // slow, or still far from the tolerance (chord steps gain a fixed factor, a fresh
+          // Newton step squares the error): refresh the Jacobian
+          if (merit > 0.2 * before || merit > kRefreshAboveTol * tol_merit) have = false;
         } else if (r.converged) {
           return r;  // polishing reached the rounding level
         } else if (!fresh) {
@@ -687,6 +690,8 @@ struct KinematicSolver::Impl {
   static constexpr double kWarmMaxDeg = 10.0;
   /// Newton steps after convergence while polishing (Compensator: to 1e-9 mm, 1e-12 rad).
   static constexpr int kPolishSteps = 3;
+  /// Newton refreshes its Jacobian while the scaled error is above this many tolerances.
+  static constexpr double kRefreshAboveTol = 30.0;
   void closedFormStarts(const Eigen::Isometry3d& T_world_tcp, const Configuration& config, const VecN& ref,
                         const IkOptions& o, bool correct_all, const PoseContext& ctx, std::vector<Start>& starts,
                         int& outside_limits, int& branches) const {
