@@ -357,16 +357,47 @@ TEST(Plugin, BadInputGivesStatusesAndMessages) {
   EXPECT_EQ(rs[1].status, ACCURA_ERROR_UNREACHABLE);
   EXPECT_EQ(rs[2].status, ACCURA_OK);
   EXPECT_NE(lastError(h.m).find("pose 1"), std::string::npos) << lastError(h.m);
-  // a configuration the target cannot have: A1 negative (T bit 0) for a point at y < 0 on the
-  // base's x side is the other branch of A1 (A1 = q1 +- 180 deg), reachable or not; S 2 T 1
-  // differs from the one it has (T 2) and must come back as no configuration or as another
-  // status, never as success on the wrong branch
-  const accura_configuration st = {2, 1};
-  const accura_status s = accura_compensate_pose(h.m, &t, &st, &r);
-  if (s == ACCURA_OK) {
-    EXPECT_TRUE(r.configuration.turn == 1 || r.configuration_changed);
-  } else {
-    EXPECT_EQ(r.status, s);
+}
+
+// The configuration asked for is enforced as accura compensate does: a target reachable only on
+// another S/T is ACCURA_ERROR_NO_CONFIGURATION (never success on another arm posture); S and T
+// outside their bit ranges are invalid arguments.
+TEST(Plugin, TheConfigurationAskedForIsEnforced) {
+  Handle h(test::sourcePath(kModel));
+  // a pose of known joints: A1 30 deg, A5 45 deg, A6 60 deg (all far from 0)
+  const double q[6] = {30, -80, 95, 20, 45, 60};
+  accura_pose t;
+  ASSERT_EQ(accura_forward_kinematics(h.m, ACCURA_REAL, q, 6, &t), ACCURA_OK) << lastError(h.m);
+  accura_pose_result r;
+  // its own configuration, found by asking for any: then asked exactly, it is kept
+  ASSERT_EQ(accura_compensate_pose(h.m, &t, nullptr, &r), ACCURA_OK) << lastError(h.m);
+  const accura_configuration own = r.configuration;
+  EXPECT_EQ(own.turn & 1, 0);  // A1 positive
+  for (int i = 0; i < 6; ++i) EXPECT_NEAR(r.q_real[i], q[i], 1e-4) << i;  // deg: the same joints
+  ASSERT_EQ(accura_compensate_pose(h.m, &t, &own, &r), ACCURA_OK) << lastError(h.m);
+  EXPECT_EQ(r.configuration_changed, 0);
+  EXPECT_EQ(r.configuration.status, own.status);
+  EXPECT_EQ(r.configuration.turn, own.turn);
+  // A1 negative on the same Status (T bit 0): A1 = 30 - 360 is outside +-185 deg, so no solution
+  // has it; the compensation must not come back as success on A1 = 30 deg
+  const accura_configuration a1_negative = {own.status, own.turn | 1};
+  const accura_status s = accura_compensate_pose(h.m, &t, &a1_negative, &r);
+  EXPECT_EQ(s, ACCURA_ERROR_NO_CONFIGURATION) << lastError(h.m);
+  EXPECT_EQ(r.status, s);
+  EXPECT_NE(lastError(h.m).find("not with the configuration asked for"), std::string::npos) << lastError(h.m);
+  // in a list: that pose fails, its neighbours are computed
+  const accura_pose list[2] = {t, t};
+  const accura_configuration configs[2] = {own, a1_negative};
+  accura_pose_result rs[2];
+  size_t n_ok = 0;
+  EXPECT_EQ(accura_compensate_poses(h.m, list, configs, 2, 0, rs, &n_ok), ACCURA_ERROR_NO_CONFIGURATION);
+  EXPECT_EQ(n_ok, 1u);
+  EXPECT_EQ(rs[0].status, ACCURA_OK);
+  EXPECT_EQ(rs[1].status, ACCURA_ERROR_NO_CONFIGURATION);
+  // bits beyond their range: S has three, T one per joint (six)
+  for (const accura_configuration bad : {accura_configuration{8, 0}, accura_configuration{2, 64}, accura_configuration{-2, 0}}) {
+    EXPECT_EQ(accura_compensate_pose(h.m, &t, &bad, &r), ACCURA_ERROR_INVALID_ARGUMENT) << bad.status << " " << bad.turn;
+    EXPECT_NE(lastError(h.m).find("expected S in 0..7 and T in 0..63"), std::string::npos) << lastError(h.m);
   }
 }
 

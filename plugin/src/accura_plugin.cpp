@@ -133,12 +133,27 @@ Eigen::Isometry3d checkedPose(const accura_pose& p, const std::string& what) {
   return toIsometry(toXyz(p));
 }
 
-Configuration configOf(const accura_configuration* c) {
+/// S in 0..7 (three bits) or -1 (any), T in 0..2^dof - 1 (a bit per joint) or -1.
+Configuration configOf(const accura_configuration* c, int dof) {
   if (!c) return {};
-  if (c->status < -1 || c->turn < -1)
-    fail(ACCURA_ERROR_INVALID_ARGUMENT, "configuration: expected S and T >= 0 or -1 (any), found S " + std::to_string(c->status) +
-                                            ", T " + std::to_string(c->turn));
+  const long long max_turn = (1LL << std::min(dof, 30)) - 1;
+  if (c->status < -1 || c->status > 7 || c->turn < -1 || c->turn > max_turn)
+    fail(ACCURA_ERROR_INVALID_ARGUMENT, "configuration: expected S in 0..7 and T in 0.." + std::to_string(max_turn) +
+                                            " (a bit per joint), or -1 (any), found S " + std::to_string(c->status) + ", T " +
+                                            std::to_string(c->turn));
   return {c->status, c->turn};
+}
+
+/// The configuration rule of accura compensate (job.cpp): a compensation that lands on another
+/// S/T than asked is an error, except Turn bits of joints within kTurnBandDeg of 0 (the same arm
+/// posture; the result's configuration carries the new bits and configuration_changed is 1).
+void enforceConfiguration(const Configuration& asked, PoseCompensation& pc) {
+  if (pc.status != IkStatus::kOk || !pc.configuration_changed) return;
+  if (onlyTurnBitsNearZeroDiffer(asked, pc.configuration, pc.q_real)) return;
+  pc.status = IkStatus::kNoConfiguration;
+  pc.message = "reachable only with S " + std::to_string(pc.configuration.status) + ", T " +
+               std::to_string(pc.configuration.turn) + ", not with the configuration asked for (S " +
+               std::to_string(asked.status) + ", T " + std::to_string(asked.turn) + ")";
 }
 
 accura_configuration toC(const Configuration& c) { return {c.status, c.turn}; }
@@ -421,7 +436,9 @@ ACCURA_API accura_status accura_compensate_pose(accura_model* model, const accur
     need(result, "result");
     const auto s = stateOf(model);
     const Eigen::Isometry3d T_world = s->T_world_progbase * checkedPose(*target, "target");
-    const PoseCompensation pc = s->comp->pose(T_world, configOf(configuration), Eigen::VectorXd(), s->job.ik, s->job.context);
+    const Configuration asked = configOf(configuration, s->job.calibrated.dof());
+    PoseCompensation pc = s->comp->pose(T_world, asked, Eigen::VectorXd(), s->job.ik, s->job.context);
+    enforceConfiguration(asked, pc);
     fillPoseResult(*s, T_world, pc, result);
     if (pc.status != IkStatus::kOk) fail(result->status, pc.message.empty() ? std::string(toString(pc.status)) : pc.message);
     return ACCURA_OK;
@@ -443,14 +460,15 @@ ACCURA_API accura_status accura_compensate_poses(accura_model* model, const accu
     std::vector<Configuration> configs(n);
     for (size_t i = 0; i < n; ++i) {
       T_world[i] = s->T_world_progbase * checkedPose(targets[i], "targets[" + std::to_string(i) + "]");
-      configs[i] = configOf(configurations ? &configurations[i] : nullptr);
+      configs[i] = configOf(configurations ? &configurations[i] : nullptr, s->job.calibrated.dof());
     }
     accura_status first = ACCURA_OK;
     std::string first_message;
     size_t ok = 0;
     Eigen::VectorXd seed;
     for (size_t i = 0; i < n; ++i) {
-      const PoseCompensation pc = s->comp->pose(T_world[i], configs[i], continuous ? seed : Eigen::VectorXd(), s->job.ik, s->job.context);
+      PoseCompensation pc = s->comp->pose(T_world[i], configs[i], continuous ? seed : Eigen::VectorXd(), s->job.ik, s->job.context);
+      enforceConfiguration(configs[i], pc);
       fillPoseResult(*s, T_world[i], pc, &results[i]);
       if (pc.status == IkStatus::kOk) {
         ++ok;
@@ -495,7 +513,9 @@ ACCURA_API accura_status accura_compensate_path(accura_model* model, const accur
       for (size_t i = 0; i < n_motions; ++i) reports[i] = accura_motion_report{};
     const Compensator& comp = *s->comp;
     const JobSettings& job = s->job;
-    const PoseCompensation p0 = comp.pose(T_world_start, configOf(start_configuration), Eigen::VectorXd(), job.ik, job.context);
+    const Configuration asked_start = configOf(start_configuration, job.calibrated.dof());
+    PoseCompensation p0 = comp.pose(T_world_start, asked_start, Eigen::VectorXd(), job.ik, job.context);
+    enforceConfiguration(asked_start, p0);
     if (p0.status != IkStatus::kOk)
       fail(statusOf(p0.status), std::string("the start cannot be compensated: ") + toString(p0.status) + (p0.message.empty() ? "" : ": " + p0.message));
     result->start_command = toC(toXyzAbc(s->T_world_progbase.inverse() * p0.T_world_tcp_command));

@@ -62,6 +62,18 @@ bool configurationMatches(const Configuration& asked, const Configuration& actua
   return true;
 }
 
+bool onlyTurnBitsNearZeroDiffer(const Configuration& asked, const Configuration& actual, const Eigen::VectorXd& q) {
+  if (configurationMatches(asked, actual)) return false;
+  if (asked.status >= 0 && actual.status != asked.status) return false;
+  if (asked.turn < 0 || actual.turn < 0) return false;
+  const long long flipped = static_cast<long long>(asked.turn ^ actual.turn);
+  const int n = static_cast<int>(std::min<Eigen::Index>(q.size(), 30));
+  if (flipped >> n) return false;  // a bit beyond the joints
+  for (int i = 0; i < n; ++i)
+    if ((flipped >> i & 1) && !(std::fabs(q[i]) <= kTurnBandDeg)) return false;
+  return true;
+}
+
 namespace {
 
 double wrap180(double deg) {

@@ -22,9 +22,6 @@ bool sameTool(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b, double mm,
   return (a.translation() - b.translation()).norm() <= mm && angleDeg(a.linear().transpose() * b.linear()) <= deg;
 }
 
-/// Joints within this band of 0 (deg) may flip their T bit by the correction (see checkConfig).
-constexpr double kTurnBandDeg = 1.0;
-
 std::string targetLabel(const Target& t) { return t.name.empty() ? std::string("the inline target") : t.name; }
 
 std::string frameHint(const FrameSetting& f, const char* var) {
@@ -152,13 +149,7 @@ class Job {
     if (asked.status < 0 && asked.turn < 0) return true;
     const Configuration got = kukaConfiguration(comp.controller().model(), q);
     if (configurationMatches(asked, got)) return true;
-    bool only_near_zero = asked.status < 0 || got.status == asked.status;
-    if (only_near_zero && asked.turn >= 0 && got.turn >= 0) {
-      const int flipped = asked.turn ^ got.turn;
-      for (int i = 0; i < q.size() && i < 31; ++i)
-        if ((flipped >> i & 1) && std::fabs(q[i]) > kTurnBandDeg) only_near_zero = false;
-      if (flipped >> std::min<int>(static_cast<int>(q.size()), 31)) only_near_zero = false;
-    }
+    const bool only_near_zero = onlyTurnBitsNearZeroDiffer(asked, got, q);
     if (only_near_zero) {
       warning(m.where, "T of " + targetLabel(t) + " changed from " + std::to_string(asked.turn) + " to " + std::to_string(got.turn) +
                            ": the correction moves a joint that is within " + formatFixed(kTurnBandDeg, 1) + " deg of 0 across 0");

@@ -50,6 +50,14 @@ Configuration kukaConfiguration(const RobotModel& model, const Eigen::VectorXd& 
 /// True when `actual` satisfies `asked` (every part of `asked` that is not -1 is equal).
 bool configurationMatches(const Configuration& asked, const Configuration& actual);
 
+/// Joints within this band of 0 (deg) may flip their Turn bit by a correction: the same arm
+/// posture, and the controller needs the new sign to find the joints.
+constexpr double kTurnBandDeg = 1.0;
+/// True when `actual` (the configuration of joints `q`, deg) differs from `asked` only in Turn
+/// bits of joints within kTurnBandDeg of 0: the Status (when asked) equal, every other Turn
+/// bit asked for equal. False when they match exactly (nothing differs) or differ otherwise.
+bool onlyTurnBitsNearZeroDiffer(const Configuration& asked, const Configuration& actual, const Eigen::VectorXd& q);
+
 struct IkOptions {
   double tol_mm = 1e-3;    ///< position convergence: 1 um
   double tol_rad = 1e-6;   ///< orientation convergence: 1 urad
