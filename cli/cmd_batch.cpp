@@ -1,4 +1,6 @@
 // accura batch: every program of a tree compensated, in parallel, into a mirrored tree.
+#include <algorithm>
+#include <thread>
 #include <unistd.h>
 
 #include <cstdio>
@@ -33,7 +35,7 @@ struct BatchArgs {
   std::string in;
   std::string out;
   std::string config;
-  int jobs = 1;
+  int jobs = std::max(1u, std::thread::hardware_concurrency());  // the outputs do not depend on it
   std::string json;
   std::function<std::optional<CellCheck>()> cell;  // --cell: every program checked before it is written (cmd_check.cpp)
   bool warn_only = false;
@@ -134,7 +136,7 @@ void addBatchCommand(CLI::App& app) {
   c->add_option("--in", args->in, "directory of programs (read only)")->required();
   c->add_option("--out", args->out, "output directory (the same relative paths); not inside --in")->required();
   c->add_option("--config", args->config, "$config.dat for every program: TOOL_DATA, BASE_DATA, global points");
-  c->add_option("--jobs", args->jobs, "programs compensated in parallel")->capture_default_str();
+  c->add_option("--jobs", args->jobs, "programs compensated in parallel (default: the number of cores)")->capture_default_str();
   c->add_option("--json", args->json, "report of every program (with --cell: its check)");
   args->cell = addCellOptions(c, false, false);
   c->add_flag("--warn-only", args->warn_only, "with --cell: write the programs that fail a check anyway (their report says so)");

@@ -137,7 +137,10 @@ int runCompensate(const CompensateArgs& a) {
     std::printf("largest path error: %.4f mm as programmed -> %.4f mm endpoints compensated -> %.4f mm written\n",
                 report.max_error_uncompensated_mm, report.max_error_before_mm, report.max_error_after_mm);
   if (check) printCheckReport(*check, a.in);
-  if (blocked) std::printf("not written: the program failed the checks of %s (--warn-only writes it anyway)\n", cell->cell_path.c_str());
+  if (!checked.compensation_error.empty())
+    std::printf("not written: the program failed the checks of %s and cannot be compensated (so not even with --warn-only): %s\n",
+                cell->cell_path.c_str(), checked.compensation_error.c_str());
+  else if (blocked) std::printf("not written: the program failed the checks of %s (--warn-only writes it anyway)\n", cell->cell_path.c_str());
   else if (check && !check->passed()) std::fprintf(stderr, "accura: warning: the program failed the checks of %s; written because of --warn-only\n", cell->cell_path.c_str());
   if (!blocked)
     for (const auto& f : files) std::printf("wrote %s\n", f.path.c_str());
@@ -151,6 +154,7 @@ int runCompensate(const CompensateArgs& a) {
     j["robot"] = settings.calibrated.nominal.name;
     j["tol_mm"] = rounded(settings.tol_mm);
     j.update(jobReportJson(report, ""));
+    if (!checked.compensation_error.empty()) j["compensation_error"] = checked.compensation_error;
     if (check) j["check"] = checkReportJson(*check);
     writeFilesAtomically({{a.json, j.dump(2) + "\n"}});
     std::printf("wrote %s\n", a.json.c_str());

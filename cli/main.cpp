@@ -2,6 +2,7 @@
 #include <CLI/CLI.hpp>
 #include <exception>
 #include <iostream>
+#include <string>
 
 #include "accura/calib/errors.h"
 #include "commands.h"
@@ -23,11 +24,32 @@ int main(int argc, char** argv) {
   addSelfcheckCommand(app);
   addCheckCommand(app);
 
+  // an unknown command is named as such (CLI11 would only say that a subcommand is required)
+  if (argc > 1 && argv[1][0] != '-') {
+    bool known = false;
+    std::string names;
+    for (const CLI::App* sub : app.get_subcommands({})) {
+      known = known || sub->get_name() == argv[1];
+      names += (names.empty() ? "" : ", ") + sub->get_name();
+    }
+    if (!known) {
+      std::cerr << "accura: error: expected a command (" << names << "), found '" << argv[1] << "'\n";
+      return 1;
+    }
+  }
   try {
     try {
       app.parse(argc, argv);  // runs the chosen subcommand's callback
-    } catch (const CLI::ParseError& e) {
+    } catch (const CLI::CallForHelp& e) {
       return app.exit(e);
+    } catch (const CLI::CallForAllHelp& e) {
+      return app.exit(e);
+    } catch (const CLI::CallForVersion& e) {
+      return app.exit(e);
+    } catch (const CLI::ParseError& e) {
+      // bad usage: exit status 1 like any other bad input, with a pointer to the help
+      std::cerr << "accura: error: " << e.what() << " (see accura --help, accura <command> --help)\n";
+      return 1;
     }
     return exitCode();
   } catch (const accura::InputError& e) {

@@ -153,28 +153,43 @@ TEST(CellFile, ReadsObjectsRobotToolLinksAndThresholds) {
   EXPECT_EQ(c.thresholds.singular_threshold, CheckThresholds{}.singular_threshold);  // documented default
 }
 
-TEST(CellFile, ErrorsGiveFileLineExpectedFound) {
+// Every error names file:line:column (1-based; the column of the attribute's name for an
+// attribute, of the element's '<' for an element) and what was expected and found. The
+// expected column is where the test's own text has that attribute or tag (`at`: the
+// occurrence of the needle on the error's line, `nth` counting from 0 for a repeated one).
+TEST(CellFile, ErrorsGiveFileLineColumnExpectedFound) {
   const std::string dir = test::tempDir("cell_errors");
   const std::string stl = fixture("box_100mm.stl");
   struct Case {
     std::string body;
     int line;
+    std::string at;  // the attribute or tag the error is at ("" : no column, malformed XML)
     std::string says;
+    int nth = 0;
   };
+  const std::string cap = "<capsule x0_mm=\"0\" y0_mm=\"0\" z0_mm=\"0\" x1_mm=\"0\" y1_mm=\"0\" z1_mm=\"1\" radius_mm=\"2\"/>";
   const std::vector<Case> cases = {
-      {"  <object name=\"a\" file=\"" + stl + "\" units=\"mm\"/>\n  <object name=\"b\" file=\"" + stl + "\" units=\"feet\"/>\n", 4,
+      {"  <object name=\"a\" file=\"" + stl + "\" units=\"mm\"/>\n  <object name=\"b\" file=\"" + stl + "\" units=\"feet\"/>\n", 4, "units=",
        "expected mm, cm, m or inch, found 'feet'"},
-      {"  <object name=\"a\" file=\"" + stl + "\" units=\"mm\" x_mm=\"1O0\"/>\n", 3, "expected a number, found '1O0'"},
-      {"  <object name=\"a\" file=\"" + stl + "\" units=\"mm\" color=\"red\"/>\n", 3, "found 'color'"},
-      {"\n\n  <fixture name=\"a\"/>\n", 5, "found <fixture>"},
-      {"  <object name=\"a\" file=\"" + stl + "\"/>\n", 3, "expected the attribute units"},
-      {"  <object name=\"a\" file=\"nowhere.stl\" units=\"mm\"/>\n", 3, "nowhere.stl"},
-      {"  <object name=\"a\" file=\"" + fixture("empty.stl") + "\" units=\"mm\"/>\n", 3, "empty.stl"},
-      {"  <tool><capsule x0_mm=\"0\" y0_mm=\"0\" z0_mm=\"0\" x1_mm=\"0\" y1_mm=\"0\" z1_mm=\"1\" radius_mm=\"-2\"/></tool>\n", 3,
+      {"  <object name=\"a\" file=\"" + stl + "\" units=\"mm\" x_mm=\"1O0\"/>\n", 3, "x_mm=", "expected a number, found '1O0'"},
+      {"  <object name=\"a\" file=\"" + stl + "\" units=\"mm\" color=\"red\"/>\n", 3, "color=", "found 'color'"},
+      {"\n\n  <fixture name=\"a\"/>\n", 5, "<fixture", "found <fixture>"},
+      {"  <object name=\"a\" file=\"" + stl + "\"/>\n", 3, "<object", "expected the attribute units"},
+      {"  <object name=\"a\" file=\"nowhere.stl\" units=\"mm\"/>\n", 3, "file=", "nowhere.stl"},
+      {"  <object name=\"a\" file=\"" + fixture("empty.stl") + "\" units=\"mm\"/>\n", 3, "file=", "empty.stl"},
+      {"  <tool><capsule x0_mm=\"0\" y0_mm=\"0\" z0_mm=\"0\" x1_mm=\"0\" y1_mm=\"0\" z1_mm=\"1\" radius_mm=\"-2\"/></tool>\n", 3, "radius_mm=",
        "expected a positive radius"},
-      {"  <link joint=\"0\"><capsule x0_mm=\"0\" y0_mm=\"0\" z0_mm=\"0\" x1_mm=\"0\" y1_mm=\"0\" z1_mm=\"1\" radius_mm=\"2\"/></link>\n", 3,
-       "expected the joint number"},
-      {"  <object name=\"a\" file=\"" + stl + "\" units=\"mm\">\n", 0, "expected well-formed XML"},
+      {"  <link joint=\"0\">" + cap + "</link>\n", 3, "joint=", "expected the joint number"},
+      // two elements on one line: the second <object>'s name (a repeated name), and an attribute
+      // name that also occurs inside another attribute's value and a comment before it
+      {"  <object name=\"a\">" + cap + "</object> <object name=\"a\">" + cap + "</object>\n", 3, "name=", "expected a unique name", 1},
+      {"  <!-- <tool name=\"1\"> --><tool x_mm=\"name=\" name=\"1\"/>\n", 3, "name=", "found 'name'", 2},
+      // an attribute on a continuation line of its element
+      {"  <object name=\"a\"\n          file=\"" + stl + "\"\n   units=\"yards\"/>\n", 5, "units=", "found 'yards'"},
+      {"  <thresholds min_clearance_mm=\"-1\"/>\n", 3, "min_clearance_mm=", "expected a distance >= 0"},
+      {"  <robot/><robot x_mm=\"1\"/>\n", 3, "<robot", "found a second one", 1},
+      {"  <tool><sphere/></tool>\n", 3, "<sphere", "expected <capsule> children only"},
+      {"  <object name=\"a\" file=\"" + stl + "\" units=\"mm\">\n", 0, "", "expected well-formed XML"},
   };
   for (const Case& c : cases) {
     const std::string path = writeCell(dir, c.body);
@@ -184,10 +199,55 @@ TEST(CellFile, ErrorsGiveFileLineExpectedFound) {
     } catch (const InputError& e) {
       EXPECT_NE(std::string(e.what()).find(c.says), std::string::npos) << e.what();
       EXPECT_EQ(e.file(), path);
-      if (c.line > 0) EXPECT_EQ(e.line(), c.line) << e.what();
-      else EXPECT_GT(e.line(), 0) << e.what();
+      if (c.line == 0) {
+        EXPECT_GT(e.line(), 0) << e.what();  // tinyxml2 gives the line of malformed XML, not the column
+        continue;
+      }
+      // the expected column: the needle's occurrence on that line of the file's text
+      const std::string text = test::readText(path);
+      size_t start = 0;
+      for (int l = 1; l < c.line; ++l) start = text.find('\n', start) + 1;
+      const std::string line = text.substr(start, text.find('\n', start) - start);
+      size_t at = line.find(c.at);
+      for (int k = 0; k < c.nth; ++k) at = line.find(c.at, at + 1);
+      ASSERT_NE(at, std::string::npos) << c.at;
+      const int column = static_cast<int>(at) + 1;
+      EXPECT_EQ(e.line(), c.line) << e.what();
+      EXPECT_EQ(e.column(), column) << e.what();
+      EXPECT_EQ(std::string(e.what()).rfind(path + ":" + std::to_string(c.line) + ":" + std::to_string(column) + ": ", 0), 0u) << e.what();
     }
   }
+  // the columns of a few of them, counted by hand: "  <object name=..." has '<' at 3 and
+  // "name" at 11
+  try {
+    readCellFile(writeCell(dir, "  <object name=\"a\" units=\"mm\"/>\n"));
+    ADD_FAILURE();
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()).rfind(dir + "/cell.xml:3:20: <object>: expected units only with a file attribute", 0), 0u) << e.what();
+  }
+  try {
+    readCellFile(writeCell(dir, "  <object name=\"\"/>\n"));
+    ADD_FAILURE();
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()).rfind(dir + "/cell.xml:3:11: <object>: expected a non-empty attribute name, found an empty one", 0), 0u)
+        << e.what();
+  }
+  try {
+    readCellFile(writeCell(dir, "  <object/>\n"));
+    ADD_FAILURE();
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()).rfind(dir + "/cell.xml:3:3: <object>: expected a non-empty attribute name, found none", 0), 0u) << e.what();
+  }
+}
+
+// The <robot> element's position is kept for the message when it disagrees with --base.
+TEST(CellFile, RobotElementPosition) {
+  const std::string dir = test::tempDir("cell_robot_pos");
+  const Cell c = readCellFile(writeCell(dir, "  <thresholds/>\n    <robot z_mm=\"10\"/>\n"));
+  EXPECT_EQ(c.robot_line, 4);
+  EXPECT_EQ(c.robot_column, 5);
+  ASSERT_TRUE(c.T_world_base);
+  EXPECT_NEAR(c.T_world_base->translation().z(), 10, 1e-12);
 }
 
 RobotModel kr16() { return test::loadBundled("kuka_kr16"); }

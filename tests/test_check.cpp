@@ -1,10 +1,14 @@
 // Reach and clearance checks (check.h): the subdivision finds a contact that the samples of the
 // path miss, a path that touches a fixture (library and command line), a point that the
 // compensation pushes into the joint-limit margin (library, accura check and accura compensate
-// --cell with and without --warn-only), and the singularity measure against finite differences.
+// --cell with and without --warn-only) and one it pushes beyond a joint limit, an unreachable
+// target through check / compensate --cell / batch --cell, a LIN leaving the workspace, the
+// wrist and elbow singularities on a path, a cell without robot geometry, and the singularity
+// measure against finite differences.
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <filesystem>
 #include <limits>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -12,6 +16,7 @@
 #include "accura/calib/errors.h"
 #include "accura/calib/kinematics.h"
 #include "accura/calib/robot_io.h"
+#include "accura/postproc/batch.h"
 #include "accura/postproc/cell.h"
 #include "accura/postproc/check.h"
 #include "accura/postproc/compensate.h"
@@ -23,6 +28,56 @@ namespace {
 
 std::string fixture(const std::string& name) { return test::sourcePath("tests/data/cell/" + name); }
 RobotModel kr16() { return test::loadBundled("kuka_kr16"); }
+
+// Independent of the post-processor's IK: Newton's method on calib's forward kinematics with a
+// central-difference Jacobian (joints in deg; orientation error weighted 1000 mm/rad).
+// Returns the joint values that put the TCP at T (the residual is asserted by the callers).
+Eigen::VectorXd newtonIk(const RobotModel& robot, const Eigen::Isometry3d& T, Eigen::VectorXd q) {
+  const auto error = [&](const Eigen::Isometry3d& F, const Eigen::Isometry3d& G) {
+    Eigen::Matrix<double, 6, 1> e;
+    e.head<3>() = G.translation() - F.translation();
+    e.tail<3>() = 1000.0 * logSO3(G.linear() * F.linear().transpose());
+    return e;
+  };
+  for (int it = 0; it < 100; ++it) {
+    const Eigen::Matrix<double, 6, 1> e = error(forwardKinematics(robot, q), T);
+    if (e.norm() < 1e-10) break;
+    Eigen::MatrixXd J(6, q.size());
+    const double h_deg = 1e-4;
+    for (int i = 0; i < q.size(); ++i) {
+      Eigen::VectorXd qp = q, qm = q;
+      qp[i] += h_deg;
+      qm[i] -= h_deg;
+      J.col(i) = error(forwardKinematics(robot, qm), forwardKinematics(robot, qp)) / (2 * h_deg);
+    }
+    q += J.colPivHouseholderQr().solve(e);
+  }
+  return q;
+}
+
+double poseResidual(const RobotModel& robot, const Eigen::VectorXd& q, const Eigen::Isometry3d& T) {
+  const Eigen::Isometry3d F = forwardKinematics(robot, q);
+  return (F.translation() - T.translation()).norm() + 1000.0 * logSO3(T.linear() * F.linear().transpose()).norm();
+}
+
+// sigma_min of docs/checks.md from a central-difference Jacobian of the forward kinematics:
+// position rows / L (L = sum |a_i| + |d_i| + |tool offset|), columns per rad.
+double fdSigma(const RobotModel& robot, const Eigen::VectorXd& q) {
+  double L = robot.nominal.T_flange_tcp.translation().norm();
+  for (const auto& j : robot.nominal.joints) L += std::fabs(j.a_mm) + std::fabs(j.d_mm);
+  Eigen::Matrix<double, 6, 6> J;
+  const double h_deg = 1e-3;
+  for (int i = 0; i < 6; ++i) {
+    Eigen::VectorXd qp = q, qm = q;
+    qp[i] += h_deg;
+    qm[i] -= h_deg;
+    const Eigen::Isometry3d Tp = forwardKinematics(robot, qp), Tm = forwardKinematics(robot, qm);
+    const double h_rad = 2 * h_deg * kDegToRad;
+    J.block<3, 1>(0, i) = (Tp.translation() - Tm.translation()) / h_rad / L;
+    J.block<3, 1>(3, i) = logSO3(Tp.linear() * Tm.linear().transpose()) / h_rad;
+  }
+  return Eigen::JacobiSVD<Eigen::Matrix<double, 6, 6>>(J).singularValues()[5];
+}
 
 // The post of tests/data/cell/post_binary.stl (x, y in [-5, 5], z in [0, 600] mm) placed at
 // (1200, y_post, 500): the clearance of a sphere of radius r centred at p.
@@ -546,5 +601,425 @@ TEST(CheckProgram, CellPlacementAgainstBaseOption) {
   EXPECT_THROW(checkProgram(prog, job, cell, CheckOptions{}), InputError);
 }
 
+
+// ---- reach, wrist and elbow singularities along a path (docs/checks.md, "The checks")
+
+// The KR 16's reach: the wrist centre W (origin of DH frame 5, where axes 4, 5, 6 meet) is at
+// most r_max = |a2| + hypot(a3, d4) from the shoulder S (origin of DH frame 1, on axis 2), the
+// arm stretched (the elbow singularity); `w_flange`: W in the flange frame (constant).
+struct Stretch {
+  Eigen::Vector3d shoulder;
+  Eigen::Vector3d w_flange;
+  double r_max = 0;
+};
+Stretch kr16Stretch(const RobotModel& robot) {
+  KinematicWorkspace ws;
+  Eigen::VectorXd q(6);
+  q << 0, -60, 60, 20, 30, 40;  // A1 = 0: the shoulder in the x-z plane
+  const Eigen::Isometry3d F = forwardKinematics(robot, q, PoseContext{}, ws);
+  Stretch st;
+  st.shoulder = ws.T_base_frame[1].translation();
+  st.w_flange = F.inverse() * ws.T_base_frame[5].translation();
+  const auto& j = robot.nominal.joints;
+  st.r_max = std::fabs(j[1].a_mm) + std::hypot(j[2].a_mm, j[3].d_mm);
+  return st;
+}
+
+// A LIN at a fixed orientation (tool pointing down, so the wrist stays far from its
+// singularity) along +x at y 0, z 800. The wrist centre W(x) moves with the TCP; it is at
+// |W - S| = r rather than the maximum where x_at(r) says (a quadratic).
+struct StretchLine {
+  Stretch st;
+  static XyzAbc pose(double x) { return XyzAbc{x, 0, 800, 0, 0, 180}; }
+  double x_at(double r) const {
+    const Eigen::Vector3d e = toIsometry(pose(0)) * st.w_flange - st.shoulder;  // W(x) = W(0) + x (1, 0, 0)
+    return -e.x() + std::sqrt(r * r - e.y() * e.y() - e.z() * e.z());
+  }
+};
+
+// From x = 1300 to 2000 mm: the wrist centre leaves the workspace at x* = x_at(r_max). The check
+// reports `reach` on the path at the first sample beyond x*: the samples before it are
+// reachable, so it is at most one sample step (1 mm of path) past x*. (The arm gets within 1 mm
+// of the stretch only there: the last reachable sample is at sigma_min about 0.008, above the
+// threshold; the elbow singularity itself is the next test.)
+TEST(CheckReach, LinLeavesTheWorkspace) {
+  const RobotModel robot = kr16();
+  const StretchLine line{kr16Stretch(robot)};
+  EXPECT_NEAR(line.st.r_max, 680 + std::hypot(35.0, 670.0), 1e-9);
+  EXPECT_NEAR(line.st.shoulder.x(), 260, 1e-9);
+  EXPECT_NEAR(line.st.shoulder.z(), 675, 1e-9);
+  const double x_star = line.x_at(line.st.r_max);
+  ASSERT_GT(x_star, 1400);
+  ASSERT_LT(x_star, 1900);
+  CheckOptions o;  // defaults: 1 mm samples, sigma_min >= 0.005, margin 1 deg
+  const CheckReport r = checkMotions(robot, robot, Cell{},
+                                     {cartesian(MotionType::kPtp, line.pose(1300), 1), cartesian(MotionType::kLin, line.pose(2000), 2)}, o);
+  ASSERT_EQ(r.violations.size(), 1u);
+  const CheckViolation& v = r.violations[0];
+  EXPECT_EQ(v.kind, CheckKind::kReach);
+  EXPECT_EQ(v.motion_index, 1);
+  EXPECT_EQ(v.where.line, 2);
+  EXPECT_TRUE(v.on_path);
+  EXPECT_EQ(v.q.size(), 0);
+  EXPECT_GE(v.p_world_tcp_mm.x(), x_star);
+  EXPECT_LE(v.p_world_tcp_mm.x() - x_star, o.sample_step_mm + 1e-9);
+  EXPECT_NEAR((v.p_world_tcp_mm - Eigen::Vector3d(1300 + 700 * v.s, 0, 800)).norm(), 0, 1e-9);
+  EXPECT_NEAR(v.arc_mm, 700 * v.s, 1e-9);
+  EXPECT_NE(v.message.find("unreachable"), std::string::npos) << v.message;
+}
+
+// The elbow singularity: the same line, ending with the wrist centre 0.05 mm short of the full
+// stretch (still reachable). sigma_min falls monotonically as the arm stretches; the check
+// reports the first sample below 0.005, with the singular direction in A2, A3, and one sample
+// step (1 mm) earlier sigma_min is still above (a finite-difference sigma_min at an IK
+// solution of our own). Near the stretch the elbow angle from straight is delta ~ sqrt(2 (r_max
+// - r) r / (a2 l3)) and sigma_min ~ delta (a2 l3 / r) / L: the threshold is crossed within about
+// 0.3 mm of the stretch.
+TEST(CheckSingularity, LinStretchesTheArm) {
+  const RobotModel robot = kr16();
+  const StretchLine line{kr16Stretch(robot)};
+  const double x_end = line.x_at(line.st.r_max - 0.05);
+  CheckOptions o;
+  const CheckReport r = checkMotions(robot, robot, Cell{},
+                                     {cartesian(MotionType::kPtp, line.pose(1300), 1), cartesian(MotionType::kLin, line.pose(x_end), 2)}, o);
+  ASSERT_EQ(r.violations.size(), 1u);
+  const CheckViolation& v = r.violations[0];
+  const double length = x_end - 1300;
+  EXPECT_EQ(v.kind, CheckKind::kSingularity);
+  EXPECT_EQ(v.motion_index, 1);
+  EXPECT_TRUE(v.on_path);
+  ASSERT_EQ(v.q.size(), 6);
+  const double x_v = 1300 + v.s * length;
+  EXPECT_NEAR(v.p_world_tcp_mm.x(), x_v, 1e-3);  // FK of the IK's joints: within its 1 um
+  EXPECT_LT(poseResidual(robot, v.q, toIsometry(line.pose(x_v))), 1e-3);  // the IK's tolerance: 1 um, 1 urad
+  EXPECT_NEAR(v.value, fdSigma(robot, v.q), 1e-6);
+  EXPECT_LT(v.value, 0.005);
+  EXPECT_NEAR(v.excess, 0.005 - v.value, 1e-12);
+  const Eigen::Isometry3d T_before = toIsometry(line.pose(x_v - o.sample_step_mm));
+  const Eigen::VectorXd q_before = newtonIk(robot, T_before, v.q);
+  ASSERT_LT(poseResidual(robot, q_before, T_before), 1e-6);
+  EXPECT_GE(fdSigma(robot, q_before), 0.005);
+  EXPECT_NE(v.message.find("A2, A3"), std::string::npos) << v.message;
+  const double short_mm = line.st.r_max - (toIsometry(line.pose(x_v)) * line.st.w_flange - line.st.shoulder).norm();
+  EXPECT_GT(short_mm, 0.05);
+  EXPECT_LT(short_mm, 0.5);
+  EXPECT_LT(r.min_sigma, v.value);  // and lower still at the end
+}
+
+// A PTP to a Cartesian target outside the workspace: `reach` at the end point.
+TEST(CheckReach, PtpToATargetOutsideTheWorkspace) {
+  const RobotModel robot = kr16();
+  const Stretch st = kr16Stretch(robot);
+  const XyzAbc far{2000, 0, 800, 0, 90, 0};
+  EXPECT_GT((toIsometry(far) * st.w_flange - st.shoulder).norm(), st.r_max + 200);
+  const CheckReport r =
+      checkMotions(robot, robot, Cell{}, {cartesian(MotionType::kPtp, {1300, 0, 800, 0, 90, 0}, 1), cartesian(MotionType::kPtp, far, 2)}, CheckOptions{});
+  ASSERT_EQ(r.violations.size(), 1u);
+  const CheckViolation& v = r.violations[0];
+  EXPECT_EQ(v.kind, CheckKind::kReach);
+  EXPECT_EQ(v.motion_index, 1);
+  EXPECT_EQ(v.where.line, 2);
+  EXPECT_FALSE(v.on_path);
+  EXPECT_EQ(v.s, 1.0);
+  EXPECT_EQ(v.p_world_tcp_mm, Eigen::Vector3d(2000, 0, 800));
+  EXPECT_EQ(v.q.size(), 0);
+  EXPECT_NE(v.message.find("unreachable"), std::string::npos) << v.message;
+}
+
+// The wrist singularity: the TCP at the wrist centre, a LIN that only turns the tool about the
+// A5 axis from A5 = +9.9 to -9.9 deg (A1..A4, A6 fixed: A5(s) = 9.9 - 19.8 s, exactly). The
+// 19.8 deg turn is sampled every 0.5 deg: 40 samples, s = k/40. sigma_min ~ 0.25 |A5| (rad) is
+// below 0.005 first at the first k with fdSigma(q(k/40)) < 0.005: k = 18, A5 = 0.99 deg.
+TEST(CheckSingularity, LinThroughTheWristSingularity) {
+  const RobotModel robot = kr16();
+  const Stretch st = kr16Stretch(robot);
+  Eigen::Isometry3d T_flange_tcp = Eigen::Isometry3d::Identity();
+  T_flange_tcp.translation() = st.w_flange;
+  RobotModel with_tool = robot;
+  with_tool.nominal.T_flange_tcp = T_flange_tcp;
+  const auto q_at = [](double s) { return (Eigen::VectorXd(6) << 0, -90, 90, 0, 9.9 - 19.8 * s, 0).finished(); };
+  WorldMotion start;
+  start.q_end = q_at(0);
+  start.label = "PTP";
+  start.T_flange_tcp = T_flange_tcp;
+  start.where.line = 1;
+  WorldMotion lin;
+  lin.type = MotionType::kLin;
+  lin.label = "LIN";
+  lin.T_flange_tcp = T_flange_tcp;
+  lin.T_world_tcp_end = forwardKinematics(with_tool, q_at(1));
+  lin.where.line = 2;
+  // independent expectation: the first sample below the threshold
+  int k_first = -1;
+  for (int k = 1; k <= 40 && k_first < 0; ++k)
+    if (fdSigma(robot, q_at(k / 40.0)) < 0.005) k_first = k;
+  ASSERT_EQ(k_first, 18);  // A5 = 0.99 deg (at 1.485 deg sigma_min is 0.0065)
+  CheckOptions o;
+  const CheckReport r = checkMotions(robot, robot, Cell{}, {start, lin}, o);
+  ASSERT_EQ(r.violations.size(), 1u);
+  const CheckViolation& v = r.violations[0];
+  EXPECT_EQ(v.kind, CheckKind::kSingularity);
+  EXPECT_EQ(v.motion_index, 1);
+  EXPECT_TRUE(v.on_path);
+  EXPECT_DOUBLE_EQ(v.s, k_first / 40.0);
+  ASSERT_EQ(v.q.size(), 6);
+  for (int i = 0; i < 6; ++i) EXPECT_NEAR(v.q[i], q_at(v.s)[i], 1e-6) << i;
+  EXPECT_NEAR(v.value, fdSigma(robot, q_at(v.s)), 1e-6);
+  EXPECT_NEAR(v.value, 0.25 * 0.99 * kDegToRad, 0.5e-3);
+  EXPECT_NEAR(v.excess, 0.005 - v.value, 1e-12);
+  EXPECT_NE(v.message.find("A4, A6"), std::string::npos) << v.message;
+  EXPECT_EQ(r.motions[1].samples, 40);
+
+  // Exactly through the singularity the joint path is continuous (A5 through 0, A4 and A6
+  // fixed): without the threshold nothing is reported.
+  o.thresholds.singular_threshold = 0;
+  EXPECT_TRUE(checkMotions(robot, robot, Cell{}, {start, lin}, o).passed());
+
+  // Past it by a hair: the rotation axis tilted by eta = 1e-3 rad from the A5 axis toward the
+  // forearm axis, so the tool axis passes the forearm axis at eta (1 - cos 9.9 deg) = 1.5e-5
+  // rad. There A4 and A6 have to turn by 180 deg within a few 1e-5 rad of turn; within the IK's
+  // tolerance (1 urad) they are determined only to tol / |A5|, and the joint values of the
+  // samples jump: the joint-jump detection (bisection to 2^-30 of a sample interval) reports
+  // `singularity` on the path where the wrist is within 0.01 deg of straight.
+  KinematicWorkspace ws;
+  const Eigen::Isometry3d Ta = forwardKinematics(with_tool, q_at(0), PoseContext{}, ws);
+  const Eigen::Vector3d z4 = ws.T_base_frame[4].linear().col(2), z3 = ws.T_base_frame[3].linear().col(2);  // axes 5 and 4
+  const double eta = 1e-3;
+  WorldMotion miss = lin;
+  miss.T_world_tcp_end = Ta;
+  miss.T_world_tcp_end.linear() =
+      Eigen::AngleAxisd(-19.8 * kDegToRad, std::cos(eta) * z4 + std::sin(eta) * z3).toRotationMatrix() * Ta.linear();
+  {
+    Eigen::Isometry3d exact = Ta;  // with eta = 0 this is the LIN above
+    exact.linear() = Eigen::AngleAxisd(-19.8 * kDegToRad, z4).toRotationMatrix() * Ta.linear();
+    ASSERT_LT(poseResidual(with_tool, q_at(1), exact), 1e-9);
+  }
+  const CheckReport j = checkMotions(robot, robot, Cell{}, {start, miss}, o);
+  ASSERT_EQ(j.violations.size(), 1u);
+  const CheckViolation& jv = j.violations[0];
+  EXPECT_EQ(jv.kind, CheckKind::kSingularity);
+  EXPECT_TRUE(jv.on_path);
+  EXPECT_NE(jv.message.find("the joint values jump"), std::string::npos) << jv.message;
+  ASSERT_EQ(jv.q.size(), 6);
+  EXPECT_LT(std::fabs(jv.q[4]), 0.01);                  // A5 (deg): the wrist nearly straight
+  EXPECT_LT(std::fabs(jv.s - 0.5) * 19.8, 0.01);        // the turn (deg) from where it is straightest
+  EXPECT_NEAR(jv.value, fdSigma(robot, jv.q), 1e-6);    // sigma_min there
+  EXPECT_LT(jv.value, 0.25 * 0.01 * kDegToRad * 1.1);   // ~ 0.25 |A5|
+  EXPECT_EQ(jv.excess, 0.0);                            // the threshold is 0
+}
+
+// ---- compensation and check together (accura compensate --cell, accura batch --cell)
+
+std::string krlProgram(const std::string& name, const std::vector<std::string>& motions) {
+  std::string s = "DEF " + name + "( )\n$TOOL = {X 0, Y 0, Z 0, A 0, B 0, C 0}\n$BASE = {X 0, Y 0, Z 0, A 0, B 0, C 0}\n";
+  for (const auto& m : motions) s += m + "\n";
+  return s + "END\n";
+}
+
+// An unreachable target (2000 mm out along x: the wrist centre 1587 mm from the shoulder, reach
+// 1351 mm): accura check reports `reach` (exit 2); accura compensate alone cannot compensate it
+// (exit 1, bad input, unchanged); with --cell it reports it as the check does: exit 2, the
+// reach violation printed and in the --json `check` section, nothing written (not even with
+// --warn-only: there is no compensated program); accura batch --cell the same for that program
+// while the others are written.
+TEST(CheckReach, UnreachableTargetIsACheckFailureOfCompensateWithCell) {
+  const std::string dir = test::tempDir("check_unreach_cli");
+  const std::string prog = krlProgram("unreach", {"PTP {X 1300, Y 0, Z 800, A 0, B 90, C 0}", "PTP {X 2000, Y 0, Z 800, A 0, B 90, C 0}"});
+  test::writeText(dir + "/unreach.src", prog);
+  test::writeText(dir + "/cell.xml", "<?xml version=\"1.0\"?>\n<cell name=\"empty\">\n  <thresholds joint_margin_deg=\"1\"/>\n</cell>\n");
+  const test::CliRun check = test::runAccuraIn(dir, "check --robot kuka_kr16 --cell cell.xml --in unreach.src --json check.json");
+  EXPECT_EQ(check.code, 2) << check.out << check.err;
+  const auto c = nlohmann::json::parse(test::readText(dir + "/check.json"));
+  ASSERT_EQ(c["violations"].size(), 1u);
+  EXPECT_EQ(c["violations"][0]["check"], "reach");
+
+  const test::CliRun plain = test::runAccuraIn(dir, "compensate --robot kuka_kr16 --in unreach.src --out plain");
+  EXPECT_EQ(plain.code, 1) << plain.out << plain.err;
+  EXPECT_NE(plain.err.find("unreach.src:5"), std::string::npos) << plain.err;
+
+  const test::CliRun cell = test::runAccuraIn(dir, "compensate --robot kuka_kr16 --cell cell.xml --in unreach.src --out out --json out.json");
+  EXPECT_EQ(cell.code, 2) << cell.out << cell.err;
+  EXPECT_NE(cell.out.find("VIOLATION unreach.src:5"), std::string::npos) << cell.out;
+  EXPECT_NE(cell.out.find("reach: unreachable"), std::string::npos) << cell.out;
+  EXPECT_NE(cell.out.find("not written"), std::string::npos) << cell.out;
+  EXPECT_FALSE(std::filesystem::exists(dir + "/out/unreach.src"));
+  const auto j = nlohmann::json::parse(test::readText(dir + "/out.json"));
+  EXPECT_TRUE(j["outputs"].empty());
+  EXPECT_NE(j["compensation_error"].get<std::string>().find("unreach.src:5"), std::string::npos) << j.dump(2);
+  EXPECT_FALSE(j["check"]["passed"].get<bool>());
+  ASSERT_EQ(j["check"]["violations"].size(), 1u);
+  const auto& v = j["check"]["violations"][0];
+  EXPECT_EQ(v["check"], "reach");
+  EXPECT_EQ(v["line"], 5);
+  EXPECT_EQ(v["motion"], "PTP");
+  EXPECT_FALSE(v["on_path"].get<bool>());
+  EXPECT_EQ(v["tcp_world_mm"], nlohmann::json::array({2000.0, 0.0, 800.0}));
+  EXPECT_TRUE(v["joints"].empty());
+
+  const test::CliRun warned = test::runAccuraIn(dir, "compensate --robot kuka_kr16 --cell cell.xml --warn-only --in unreach.src --out warned");
+  EXPECT_EQ(warned.code, 2) << warned.out << warned.err;
+  EXPECT_FALSE(std::filesystem::exists(dir + "/warned/unreach.src"));
+
+  std::filesystem::create_directories(dir + "/in");
+  test::writeText(dir + "/in/unreach.src", prog);
+  test::writeText(dir + "/in/good.src", krlProgram("good", {"PTP {X 1300, Y 0, Z 800, A 0, B 90, C 0}", "LIN {X 1300, Y 100, Z 800, A 0, B 90, C 0}"}));
+  const test::CliRun batch = test::runAccuraIn(dir, "batch --robot kuka_kr16 --cell cell.xml --in in --out bout --json batch.json");
+  EXPECT_EQ(batch.code, 2) << batch.out << batch.err;
+  EXPECT_TRUE(std::filesystem::exists(dir + "/bout/good.src"));
+  EXPECT_FALSE(std::filesystem::exists(dir + "/bout/unreach.src"));
+  const auto b = nlohmann::json::parse(test::readText(dir + "/batch.json"));
+  bool seen = false;
+  for (const auto& f : b["files"]) {
+    if (f["input"] != "unreach.src") continue;
+    seen = true;
+    EXPECT_EQ(f["status"], "failed");
+    EXPECT_NE(f["message"].get<std::string>().find("reach: unreachable"), std::string::npos) << f.dump(2);
+    ASSERT_EQ(f["check"]["violations"].size(), 1u);
+    EXPECT_EQ(f["check"]["violations"][0]["check"], "reach");
+    EXPECT_EQ(f["check"]["violations"][0]["line"], 5);
+  }
+  EXPECT_TRUE(seen) << b.dump(2);
+}
+
+// Which compensation failures the check explains: every error at a motion the check reports.
+TEST(CheckReach, CompensationFailureExplainedByTheCheck) {
+  CheckReport check;
+  CheckViolation v;
+  v.where = SourceLocation{"p.src", 5, 1};
+  check.violations.push_back(v);
+  JobReport job;
+  EXPECT_FALSE(compensationFailureExplained(check, job));  // no error to explain
+  job.errors.push_back({SourceLocation{"p.src", 5, 1}, "cannot be compensated"});
+  EXPECT_TRUE(compensationFailureExplained(check, job));
+  job.errors.push_back({SourceLocation{"p.src", 7, 1}, "cannot be compensated"});
+  EXPECT_FALSE(compensationFailureExplained(check, job));  // line 7: the check says nothing
+  check.unchecked.push_back({SourceLocation{"p.src", 7, 1}, "not checked"});
+  EXPECT_TRUE(compensationFailureExplained(check, job));
+  check.violations.clear();
+  check.unchecked.clear();
+  EXPECT_FALSE(compensationFailureExplained(check, job));  // the check passed
+}
+
+// Issue 5's "a program whose compensation pushes a point out of reach": the nominal program has
+// A1 = 184.5 deg, within the limit of 185 deg (0.5 deg inside); the real robot's A1 zero is 1 deg
+// off and its upper arm 0.5 mm longer, so the calibrated model needs A1 beyond the limit to put
+// the TCP there. The excess is asserted against the calibrated model's own IK (Newton on calib's
+// forward kinematics).
+struct BeyondCase {
+  RobotModel nominal = kr16();
+  RobotModel real;
+  Eigen::VectorXd q_nominal, q_real;
+  std::string program;
+  BeyondCase() {
+    real = nominal;
+    real.deviations.links[0].dtheta_rad = 1.0 * kDegToRad;
+    real.deviations.links[1].da_mm = 0.5;
+    q_nominal.resize(6);
+    q_nominal << 184.5, -80, 100, 20, 40, 30;
+    const Eigen::Isometry3d T = forwardKinematics(nominal, q_nominal);
+    q_real = newtonIk(real, T, q_nominal);
+    const XyzAbc p = toXyzAbc(T);
+    const Configuration c = kukaConfiguration(nominal, q_nominal);
+    char buf[256];
+    std::snprintf(buf, sizeof buf, "PTP {X %.6f, Y %.6f, Z %.6f, A %.6f, B %.6f, C %.6f, S %d, T %d}", p.x_mm, p.y_mm, p.z_mm, p.a_deg,
+                  p.b_deg, p.c_deg, c.status, c.turn);
+    program = krlProgram("beyond", {buf});
+  }
+};
+
+TEST(CheckReach, CompensationPushesAPointBeyondAJointLimit) {
+  const BeyondCase bc;
+  ASSERT_LT(poseResidual(bc.real, bc.q_real, forwardKinematics(bc.nominal, bc.q_nominal)), 1e-6);
+  ASSERT_GT(bc.q_real[0], 185.0);  // beyond the limit on the real robot
+  const double excess_limit = bc.q_real[0] - 185.0;
+  const std::string dir = test::tempDir("check_beyond");
+  test::writeText(dir + "/beyond.src", bc.program);
+  const Program prog = readProgram(dir + "/beyond.src");
+  CheckOptions o;
+  o.thresholds.joint_margin_deg = 0.25;
+  JobSettings job;
+  job.calibrated = bc.nominal;
+  const CheckReport ok = checkProgram(prog, job, Cell{}, o);
+  EXPECT_TRUE(ok.passed());
+  EXPECT_NEAR(ok.min_joint_margin, 0.5, 1e-4);  // the nominal program: 185 - 184.5
+  job.calibrated = bc.real;
+  const CheckReport r = checkProgram(prog, job, Cell{}, o);
+  ASSERT_EQ(r.violations.size(), 1u);
+  const CheckViolation& v = r.violations[0];
+  EXPECT_EQ(v.kind, CheckKind::kJointLimit);
+  EXPECT_EQ(v.joint, 0);
+  EXPECT_EQ(v.where.line, 4);
+  ASSERT_EQ(v.q.size(), 6);
+  for (int i = 0; i < 6; ++i) EXPECT_NEAR(v.q[i], bc.q_real[i], 1e-4) << i;
+  EXPECT_NEAR(v.value, -excess_limit, 1e-4);       // outside the limit by this much
+  EXPECT_NEAR(v.excess, 0.25 + excess_limit, 1e-4);  // short of the 0.25 deg margin
+  EXPECT_NE(v.message.find("outside its limits"), std::string::npos) << v.message;
+
+  // on the command line: accura compensate alone fails (exit 1), with --cell it is the check's
+  // joint_limit violation (exit 2) with the same numbers
+  writeRobotFile(dir + "/real.xml", bc.real);
+  test::writeText(dir + "/cell.xml", "<?xml version=\"1.0\"?>\n<cell name=\"empty\">\n  <thresholds joint_margin_deg=\"0.25\"/>\n</cell>\n");
+  const test::CliRun plain = test::runAccuraIn(dir, "compensate --robot real.xml --in beyond.src --out plain");
+  EXPECT_EQ(plain.code, 1) << plain.out << plain.err;
+  const test::CliRun cell = test::runAccuraIn(dir, "compensate --robot real.xml --cell cell.xml --in beyond.src --out out --json out.json");
+  EXPECT_EQ(cell.code, 2) << cell.out << cell.err;
+  EXPECT_FALSE(std::filesystem::exists(dir + "/out/beyond.src"));
+  const auto j = nlohmann::json::parse(test::readText(dir + "/out.json"));
+  ASSERT_EQ(j["check"]["violations"].size(), 1u);
+  const auto& jv = j["check"]["violations"][0];
+  EXPECT_EQ(jv["check"], "joint_limit");
+  EXPECT_EQ(jv["joint"], 1);
+  EXPECT_NEAR(jv["value"].get<double>(), -excess_limit, 1e-4);
+  EXPECT_NEAR(jv["excess"].get<double>(), 0.25 + excess_limit, 1e-4);
+  EXPECT_NEAR(jv["joints"][0].get<double>(), bc.q_real[0], 1e-4);
+  EXPECT_FALSE(j["compensation_error"].get<std::string>().empty());
+}
+
+// A cell with objects but no robot geometry: nothing to measure the clearance with. The report
+// says so (a warning, printed and in the JSON), never a silent pass with 0 distance queries.
+TEST(CheckClearance, ObjectsWithoutRobotGeometryAreAWarning) {
+  const std::string dir = test::tempDir("check_nogeom");
+  test::writeText(dir + "/post.stl", test::readText(fixture("post_binary.stl")));
+  test::writeText(dir + "/cell.xml",
+                  "<?xml version=\"1.0\"?>\n<cell name=\"no robot geometry\">\n"
+                  "  <object name=\"post\" file=\"post.stl\" units=\"mm\" x_mm=\"1200\" y_mm=\"12\" z_mm=\"500\"/>\n</cell>\n");
+  test::writeText(dir + "/seam.src", krlProgram("seam", {"PTP {X 900, Y 0, Z 800, A 0, B 90, C 0}", "LIN {X 1500, Y 0, Z 800, A 0, B 90, C 0}"}));
+  const test::CliRun run = test::runAccuraIn(dir, "check --robot kuka_kr16 --cell cell.xml --in seam.src --json r.json");
+  EXPECT_EQ(run.code, 0) << run.out << run.err;  // nothing violated: a warning, not a failure
+  EXPECT_NE(run.err.find("warning: cell.xml: clearance not checked: the cell has 1 object(s) but no robot geometry"), std::string::npos)
+      << run.err;
+  const auto j = nlohmann::json::parse(test::readText(dir + "/r.json"));
+  EXPECT_EQ(j["totals"]["distance_queries"], 0);
+  bool warned = false;
+  for (const auto& w : j["warnings"]) warned = warned || w["message"].get<std::string>().find("clearance not checked") == 0;
+  EXPECT_TRUE(warned) << j.dump(2);
+  // with a tool the same cell is measured (the LIN passes the post at 12 - 10 = 2 mm) and no
+  // such warning
+  const Program prog = readProgram(dir + "/seam.src");
+  JobSettings job;
+  job.calibrated = kr16();
+  Cell cell = readCellFile(dir + "/cell.xml");
+  CheckReport none = checkProgram(prog, job, cell, CheckOptions{});
+  ASSERT_EQ(none.warnings.size(), 1u);
+  EXPECT_EQ(none.distance_queries, 0);
+  cell.tool_shapes = postCell(12, 10).tool_shapes;
+  const CheckReport with_tool = checkProgram(prog, job, cell, CheckOptions{});
+  for (const auto& w : with_tool.warnings) EXPECT_EQ(w.message.find("clearance not checked"), std::string::npos) << w.message;
+  EXPECT_GT(with_tool.distance_queries, 0);
+  EXPECT_NEAR(with_tool.min_clearance_mm, 0, 1e-6);  // the tool sphere overlaps the post
+}
+
+// The cell's <robot> and --base disagree: the error names the <robot> element (file:line:column).
+TEST(CheckProgram, CellPlacementConflictNamesTheRobotElement) {
+  const std::string dir = test::tempDir("check_place_cli");
+  test::writeText(dir + "/p.src", krlProgram("p", {"PTP {X 1300, Y 0, Z 800, A 0, B 90, C 0}"}));
+  test::writeText(dir + "/cell.xml", "<?xml version=\"1.0\"?>\n<cell name=\"c\">\n\n   <robot z_mm=\"10\"/>\n</cell>\n");
+  const test::CliRun run = test::runAccuraIn(dir, "check --robot kuka_kr16 --cell cell.xml --base 0,0,0,0,0,0 --in p.src");
+  EXPECT_EQ(run.code, 1) << run.out << run.err;
+  EXPECT_NE(run.err.find("cell.xml:4:4: <robot>: the robot placement of the cell file differs from --base"), std::string::npos) << run.err;
+  const test::CliRun comp = test::runAccuraIn(dir, "compensate --robot kuka_kr16 --cell cell.xml --base 0,0,0,0,0,0 --in p.src --out o");
+  EXPECT_EQ(comp.code, 1) << comp.out << comp.err;
+  EXPECT_NE(comp.err.find("cell.xml:4:4: <robot>"), std::string::npos) << comp.err;
+}
 }  // namespace
 }  // namespace accura::postproc

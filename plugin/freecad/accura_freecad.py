@@ -117,10 +117,13 @@ def check_kinematics(doc, robot, model, tol_mm=1e-6, tol_deg=1e-6):
     return worst_mm, worst_deg
 
 
-def load_model(robot, model_path, plugin_lib=None, payload_kg=0.0):
-    """The plug-in's model for `robot`: the calibrated model file, with the robot's Tool as $TOOL."""
+def load_model(robot, model_path, plugin_lib=None, payload_kg=0.0, robroot_in_world=None):
+    """The plug-in's model for `robot`: the calibrated model file, with the robot's Tool as $TOOL.
+    robroot_in_world (x, y, z mm, A, B, C deg): where the robot stands in the model's world, for a
+    model measured in another frame (a tracker's); None: the model's own base."""
     plugin = accura_plugin.Plugin(plugin_lib)
-    return plugin.load(model_path, program_tool=placement_to_xyzabc(robot.Tool), payload_kg=payload_kg)
+    return plugin.load(model_path, program_tool=placement_to_xyzabc(robot.Tool), payload_kg=payload_kg,
+                       robroot_in_world=robroot_in_world)
 
 
 def _runs(waypoints):
@@ -150,13 +153,13 @@ def _waypoint(pose, like, name, type_=None):
 
 
 def compensate_trajectory(doc, robot, trajectory, model_path, tol_mm=0.05, plugin_lib=None, name=None, model=None,
-                          check=True):
+                          check=True, robroot_in_world=None):
     """Adds to `doc` a new Robot::TrajectoryObject (`name`, default trajectory.Name + "_accura")
     holding the trajectory compensated with the calibrated model and densified so that the
     real robot's predicted path error is below tol_mm (mm). Returns (object, summary dict)."""
     own = model is None
     if own:
-        model = load_model(robot, model_path, plugin_lib)
+        model = load_model(robot, model_path, plugin_lib, robroot_in_world=robroot_in_world)
     try:
         summary = {"tol_mm": tol_mm, "max_error_uncompensated_mm": 0.0, "max_error_before_mm": 0.0,
                    "max_error_after_mm": 0.0, "points_added": 0}

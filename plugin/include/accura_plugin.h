@@ -3,7 +3,7 @@
  *
  * One header, C89/C99 compatible, no C++ types. Reference: docs/plugin.md.
  *
- * Units and frames (project-wide, ../shared/docs/method.md):
+ * Units and frames (project-wide, docs/method.md):
  *   lengths in mm, angles in deg; a pose is x, y, z (mm) and A, B, C (deg) with
  *   R = Rz(A) Ry(B) Rx(C) (KUKA). Joint values in deg (mm for prismatic joints).
  *   Poses given to and returned by the compensation calls are T_base_tcp: the tool ($TOOL)

@@ -107,12 +107,36 @@ CheckedProgram compensateAndCheckFile(const std::string& in_path, const std::str
     return out;
   }
   const JobSettings placed = placedInCell(job, cell->cell);
-  out.files = compensateAndRender(program, format, out_path, placed, report);
-  // the program as read (its targets are where the tool must go): docs/checks.md, "intended"
+  // the check first, on the program as read (its targets are where the tool must go:
+  // docs/checks.md, "intended"): it does not need the compensation, and it explains why a
+  // compensation fails (an unreachable target, a joint beyond its limit)
   out.check = cell->geometry ? checkProgram(program, placed, cell->cell, cell->options, *cell->geometry)
                              : checkProgram(program, placed, cell->cell, cell->options);
+  JobReport local;
+  JobReport* rep = report ? report : &local;
+  try {
+    out.files = compensateAndRender(program, format, out_path, placed, rep);
+  } catch (const InputError& e) {
+    if (!compensationFailureExplained(*out.check, *rep)) throw;
+    out.compensation_error = e.what();
+    out.files.clear();
+    out.write = false;
+    return out;
+  }
   out.write = out.check->passed() || cell->warn_only;
   return out;
+}
+
+bool compensationFailureExplained(const CheckReport& check, const JobReport& report) {
+  if (check.passed() || report.errors.empty()) return false;
+  const auto same = [](const SourceLocation& a, const SourceLocation& b) { return a.file == b.file && a.line == b.line; };
+  for (const ProgramIssue& e : report.errors) {
+    bool found = false;
+    for (const CheckViolation& v : check.violations) found = found || same(v.where, e.where);
+    for (const ProgramIssue& u : check.unchecked) found = found || same(u.where, e.where);
+    if (!found) return false;
+  }
+  return true;
 }
 
 std::string firstCheckProblem(const CheckReport& check) {
@@ -179,6 +203,7 @@ BatchResult runBatch(const std::string& in_dir, const std::string& out_dir, cons
                                                       cell ? &*cell : nullptr, &r.report);
           r.check = std::move(out.check);
           if (r.check && !r.check->passed()) r.message = "failed the checks of " + cell->cell.file + ": " + firstCheckProblem(*r.check);
+          if (!out.compensation_error.empty()) r.message += "; it cannot be compensated either: " + out.compensation_error;
           if (out.write) {
             fs::create_directories(out_path.parent_path());
             writeFilesAtomically(out.files);

@@ -3,12 +3,19 @@
 
 #include <tinyxml2.h>
 
+#include <algorithm>
+#include <cctype>
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
+#include <cstring>
 #include <fstream>
+#include <functional>
+#include <map>
 #include <set>
+#include <sstream>
+#include <tuple>
 
 #include "accura/calib/errors.h"
 #include "accura/calib/geometry.h"
@@ -18,19 +25,128 @@ namespace {
 
 using tinyxml2::XMLElement;
 
+/// Where elements and attributes are in the file's text: tinyxml2 gives lines only, the
+/// project's errors give file:line:column (1-based, in bytes).
+class TextPositions {
+ public:
+  TextPositions() = default;
+  TextPositions(std::string text, const tinyxml2::XMLDocument& doc) : text_(std::move(text)) {
+    line_start_.push_back(0);
+    for (size_t i = 0; i < text_.size(); ++i)
+      if (text_[i] == '\n') line_start_.push_back(i + 1);
+    // every element in document order: its '<tag' is the first one (outside comments, CDATA,
+    // declarations) at or after the previous element's and on or after its own line
+    size_t cursor = 0;
+    std::function<void(const XMLElement*)> visit = [&](const XMLElement* e) {
+      for (; e; e = e->NextSiblingElement()) {
+        const int line = e->GetLineNum();
+        size_t from = cursor;
+        if (line >= 1 && static_cast<size_t>(line) <= line_start_.size()) from = std::max(from, line_start_[static_cast<size_t>(line - 1)]);
+        const size_t at = findTag(e->Name(), from);
+        if (at != std::string::npos) {
+          element_[e] = at;
+          cursor = at + 1;
+        }
+        visit(e->FirstChildElement());
+      }
+    };
+    visit(doc.FirstChildElement());
+  }
+
+  /// 1-based line and column of the element's '<' ({line from tinyxml2, 0} when not found).
+  std::pair<int, int> element(const XMLElement* e) const {
+    const auto it = element_.find(e);
+    if (it == element_.end()) return {e ? e->GetLineNum() : 0, 0};
+    return lineColumn(it->second);
+  }
+
+  /// 1-based line and column of the attribute's name in the element's start tag (the
+  /// element's when it has no such attribute).
+  std::pair<int, int> attribute(const XMLElement* e, const std::string& name) const {
+    const auto it = element_.find(e);
+    if (it == element_.end()) {
+      for (const tinyxml2::XMLAttribute* a = e->FirstAttribute(); a; a = a->Next())
+        if (name == a->Name()) return {a->GetLineNum(), 0};
+      return element(e);
+    }
+    // the start tag: '<' name, then (whitespace name whitespace? '=' whitespace? quoted)* until '>' or '/>'
+    size_t p = it->second + 1 + std::strlen(e->Name());
+    const auto space = [&](size_t i) { return i < text_.size() && std::isspace(static_cast<unsigned char>(text_[i])); };
+    for (;;) {
+      while (space(p)) ++p;
+      if (p >= text_.size() || text_[p] == '>' || text_[p] == '/') break;
+      const size_t start = p;
+      while (p < text_.size() && !space(p) && text_[p] != '=' && text_[p] != '>' && text_[p] != '/') ++p;
+      if (text_.compare(start, p - start, name) == 0 && p - start == name.size()) return lineColumn(start);
+      while (space(p)) ++p;
+      if (p >= text_.size() || text_[p] != '=') break;
+      ++p;
+      while (space(p)) ++p;
+      if (p >= text_.size() || (text_[p] != '"' && text_[p] != '\'')) break;
+      const size_t close = text_.find(text_[p], p + 1);
+      if (close == std::string::npos) break;
+      p = close + 1;
+    }
+    return element(e);
+  }
+
+ private:
+  std::pair<int, int> lineColumn(size_t offset) const {
+    const auto it = std::upper_bound(line_start_.begin(), line_start_.end(), offset);
+    const size_t line = static_cast<size_t>(it - line_start_.begin());  // >= 1: line_start_[0] = 0
+    return {static_cast<int>(line), static_cast<int>(offset - line_start_[line - 1]) + 1};
+  }
+
+  /// The offset of the next "<name" followed by whitespace, '/' or '>' at or after `from`,
+  /// skipping comments, CDATA sections, declarations and processing instructions.
+  size_t findTag(const std::string& name, size_t from) const {
+    size_t p = from;
+    for (;;) {
+      p = text_.find('<', p);
+      if (p == std::string::npos) return p;
+      const auto skipTo = [&](const char* open, const char* close) {
+        if (text_.compare(p, std::strlen(open), open) != 0) return false;
+        const size_t end = text_.find(close, p + std::strlen(open));
+        p = end == std::string::npos ? text_.size() : end + std::strlen(close);
+        return true;
+      };
+      if (skipTo("<!--", "-->") || skipTo("<![CDATA[", "]]>") || skipTo("<?", "?>") || skipTo("<!", ">")) continue;
+      const size_t after = p + 1 + name.size();
+      if (text_.compare(p + 1, name.size(), name) == 0 &&
+          (after >= text_.size() || std::isspace(static_cast<unsigned char>(text_[after])) || text_[after] == '/' || text_[after] == '>'))
+        return p;
+      ++p;
+    }
+  }
+
+  std::string text_;
+  std::vector<size_t> line_start_;
+  std::map<const XMLElement*, size_t> element_;
+};
+
 class CellReader {
  public:
-  explicit CellReader(std::string file) : file_(std::move(file)) {}
+  CellReader(std::string file, const TextPositions& pos) : file_(std::move(file)), pos_(pos) {}
 
-  [[noreturn]] void fail(int line, const std::string& msg) const { throw InputError(file_, line, 0, msg); }
+  /// An error in the element (at its '<').
+  [[noreturn]] void fail(const XMLElement* e, const std::string& msg) const {
+    const auto [line, column] = e ? pos_.element(e) : std::pair<int, int>{0, 0};
+    throw InputError(file_, line, column, msg);
+  }
+  /// An error in one of its attributes (at the attribute's name).
+  [[noreturn]] void failAttribute(const XMLElement* e, const std::string& name, const std::string& msg) const {
+    const auto [line, column] = pos_.attribute(e, name);
+    throw InputError(file_, line, column, msg);
+  }
+  std::pair<int, int> where(const XMLElement* e) const { return pos_.element(e); }
 
   void checkAttributes(const XMLElement* e, const std::set<std::string>& allowed) const {
     for (const tinyxml2::XMLAttribute* a = e->FirstAttribute(); a; a = a->Next()) {
       if (allowed.count(a->Name())) continue;
       std::string list;
       for (const auto& s : allowed) list += (list.empty() ? "" : ", ") + s;
-      fail(a->GetLineNum(), std::string("<") + e->Name() + ">: expected one of the attributes " + (list.empty() ? "(none)" : list) +
-                                ", found '" + a->Name() + "'");
+      failAttribute(e, a->Name(), std::string("<") + e->Name() + ">: expected one of the attributes " + (list.empty() ? "(none)" : list) +
+                                      ", found '" + a->Name() + "'");
     }
   }
 
@@ -44,7 +160,7 @@ class CellReader {
     const tinyxml2::XMLAttribute* a = attr(e, name);
     if (!a) {
       if (fallback) return *fallback;
-      fail(e->GetLineNum(), std::string("<") + e->Name() + ">: expected the attribute " + name + ", found none");
+      fail(e, std::string("<") + e->Name() + ">: expected the attribute " + name + ", found none");
     }
     const char* text = a->Value();
     char* end = nullptr;
@@ -52,14 +168,17 @@ class CellReader {
     const double v = std::strtod(text, &end);
     while (end && *end == ' ') ++end;
     if (end == text || (end && *end != '\0') || errno == ERANGE || !std::isfinite(v))
-      fail(a->GetLineNum(), std::string("<") + e->Name() + "> " + name + ": expected a number, found '" + text + "'");
+      failAttribute(e, name, std::string("<") + e->Name() + "> " + name + ": expected a number, found '" + text + "'");
     return v;
   }
 
   std::string text(const XMLElement* e, const char* name) const {
     const tinyxml2::XMLAttribute* a = attr(e, name);
-    if (!a || std::string(a->Value()).empty())
-      fail(a ? a->GetLineNum() : e->GetLineNum(), std::string("<") + e->Name() + ">: expected a non-empty attribute " + name + ", found " + (a ? "an empty one" : "none"));
+    if (!a || std::string(a->Value()).empty()) {
+      const std::string msg = std::string("<") + e->Name() + ">: expected a non-empty attribute " + name + ", found " + (a ? "an empty one" : "none");
+      if (a) failAttribute(e, name, msg);
+      fail(e, msg);
+    }
     return a->Value();
   }
 
@@ -78,13 +197,13 @@ class CellReader {
 
   double unitScale(const XMLElement* e) const {
     const tinyxml2::XMLAttribute* a = attr(e, "units");
-    if (!a) fail(e->GetLineNum(), std::string("<") + e->Name() + ">: expected the attribute units (mm, cm, m or inch) with the mesh file, found none");
+    if (!a) fail(e, std::string("<") + e->Name() + ">: expected the attribute units (mm, cm, m or inch) with the mesh file, found none");
     const std::string u = a->Value();
     if (u == "mm") return 1.0;
     if (u == "cm") return 10.0;
     if (u == "m") return 1000.0;
     if (u == "inch" || u == "in") return 25.4;
-    fail(a->GetLineNum(), std::string("<") + e->Name() + "> units: expected mm, cm, m or inch, found '" + u + "'");
+    failAttribute(e, "units", std::string("<") + e->Name() + "> units: expected mm, cm, m or inch, found '" + u + "'");
   }
 
   /// The shapes of an <object>, <link> or <tool>: the mesh of its file attribute and its
@@ -100,58 +219,66 @@ class CellReader {
       try {
         s.mesh = loadMesh(path, scale);
       } catch (const InputError& err) {
-        fail(attr(e, "file")->GetLineNum(), std::string("<") + e->Name() + "> file '" + rel + "': " + err.what());
+        failAttribute(e, "file", std::string("<") + e->Name() + "> file '" + rel + "': " + err.what());
       }
       s.T_parent_shape = T;
       s.name = name;
       s.file = file_;
-      s.line = e->GetLineNum();
+      std::tie(s.line, s.column) = where(e);
       out.push_back(std::move(s));
     } else if (attr(e, "units")) {
-      fail(attr(e, "units")->GetLineNum(), std::string("<") + e->Name() + ">: expected units only with a file attribute, found units without file");
+      failAttribute(e, "units", std::string("<") + e->Name() + ">: expected units only with a file attribute, found units without file");
     }
     int k = 0;
     for (const XMLElement* c = e->FirstChildElement(); c; c = c->NextSiblingElement()) {
       if (std::string(c->Name()) != "capsule")
-        fail(c->GetLineNum(), std::string("<") + e->Name() + ">: expected <capsule> children only, found <" + c->Name() + ">");
+        fail(c, std::string("<") + e->Name() + ">: expected <capsule> children only, found <" + c->Name() + ">");
       checkAttributes(c, {"x0_mm", "y0_mm", "z0_mm", "x1_mm", "y1_mm", "z1_mm", "radius_mm"});
       Capsule cap;
       cap.p0_mm = {number(c, "x0_mm", nullptr), number(c, "y0_mm", nullptr), number(c, "z0_mm", nullptr)};
       cap.p1_mm = {number(c, "x1_mm", nullptr), number(c, "y1_mm", nullptr), number(c, "z1_mm", nullptr)};
       cap.radius_mm = number(c, "radius_mm", nullptr);
-      if (!(cap.radius_mm > 0)) fail(c->GetLineNum(), "<capsule> radius_mm: expected a positive radius (mm), found " + std::to_string(cap.radius_mm));
+      if (!(cap.radius_mm > 0)) failAttribute(c, "radius_mm", "<capsule> radius_mm: expected a positive radius (mm), found " + std::to_string(cap.radius_mm));
       CellShape s;
       s.capsule = cap;
       s.T_parent_shape = T;
       s.name = name + (k > 0 || attr(e, "file") ? " capsule " + std::to_string(k + 1) : "");
       s.file = file_;
-      s.line = c->GetLineNum();
+      std::tie(s.line, s.column) = where(c);
       out.push_back(std::move(s));
       ++k;
     }
     if (out.empty())
-      fail(e->GetLineNum(), std::string("<") + e->Name() + ">: expected a file attribute (a mesh) or <capsule> children, found neither");
+      fail(e, std::string("<") + e->Name() + ">: expected a file attribute (a mesh) or <capsule> children, found neither");
     return out;
   }
 
  private:
   std::string file_;
+  const TextPositions& pos_;
 };
 
 }  // namespace
 
 Cell readCellFile(const std::string& path) {
+  std::string text;
   {
-    std::ifstream probe(path);
-    if (!probe) throw InputError(path, 0, 0, "expected a cell file, cannot open it");
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw InputError(path, 0, 0, "expected a cell file, cannot open it");
+    std::ostringstream s;
+    s << in.rdbuf();
+    if (in.bad()) throw InputError(path, 0, 0, "expected a cell file, cannot read it");
+    text = s.str();
   }
   tinyxml2::XMLDocument doc;
-  if (doc.LoadFile(path.c_str()) != tinyxml2::XML_SUCCESS)
+  // the text read above (not the file again): the positions below are positions in it
+  if (doc.Parse(text.data(), text.size()) != tinyxml2::XML_SUCCESS)
     throw InputError(path, doc.ErrorLineNum(), 0, std::string("expected well-formed XML, found: ") + doc.ErrorStr());
-  CellReader R(path);
+  const TextPositions positions(text, doc);
+  CellReader R(path, positions);
   const XMLElement* root = doc.RootElement();
   if (!root || std::string(root->Name()) != "cell")
-    R.fail(root ? root->GetLineNum() : 0, std::string("expected the root element <cell>, found ") + (root ? "<" + std::string(root->Name()) + ">" : "none"));
+    R.fail(root, std::string("expected the root element <cell>, found ") + (root ? "<" + std::string(root->Name()) + ">" : "none"));
   R.checkAttributes(root, {"name"});
   const std::string dir = std::filesystem::path(path).parent_path().string();
   Cell cell;
@@ -161,39 +288,40 @@ Cell readCellFile(const std::string& path) {
   for (const XMLElement* e = root->FirstChildElement(); e; e = e->NextSiblingElement()) {
     const std::string tag = e->Name();
     if (tag == "thresholds") {
-      if (have_thresholds) R.fail(e->GetLineNum(), "expected one <thresholds>, found a second one");
+      if (have_thresholds) R.fail(e, "expected one <thresholds>, found a second one");
       have_thresholds = true;
       R.checkAttributes(e, {"joint_margin_deg", "singular_threshold", "min_clearance_mm"});
       CheckThresholds& t = cell.thresholds;
       t.joint_margin_deg = R.number(e, "joint_margin_deg", &t.joint_margin_deg);
       t.singular_threshold = R.number(e, "singular_threshold", &t.singular_threshold);
       t.min_clearance_mm = R.number(e, "min_clearance_mm", &t.min_clearance_mm);
-      if (t.joint_margin_deg < 0) R.fail(e->GetLineNum(), "<thresholds> joint_margin_deg: expected a margin >= 0, found " + std::to_string(t.joint_margin_deg));
-      if (t.singular_threshold < 0) R.fail(e->GetLineNum(), "<thresholds> singular_threshold: expected a value >= 0, found " + std::to_string(t.singular_threshold));
-      if (t.min_clearance_mm < 0) R.fail(e->GetLineNum(), "<thresholds> min_clearance_mm: expected a distance >= 0, found " + std::to_string(t.min_clearance_mm));
-      if (e->FirstChildElement()) R.fail(e->FirstChildElement()->GetLineNum(), "<thresholds>: expected no children, found <" + std::string(e->FirstChildElement()->Name()) + ">");
+      if (t.joint_margin_deg < 0) R.failAttribute(e, "joint_margin_deg", "<thresholds> joint_margin_deg: expected a margin >= 0, found " + std::to_string(t.joint_margin_deg));
+      if (t.singular_threshold < 0) R.failAttribute(e, "singular_threshold", "<thresholds> singular_threshold: expected a value >= 0, found " + std::to_string(t.singular_threshold));
+      if (t.min_clearance_mm < 0) R.failAttribute(e, "min_clearance_mm", "<thresholds> min_clearance_mm: expected a distance >= 0, found " + std::to_string(t.min_clearance_mm));
+      if (e->FirstChildElement()) R.fail(e->FirstChildElement(), "<thresholds>: expected no children, found <" + std::string(e->FirstChildElement()->Name()) + ">");
     } else if (tag == "robot") {
-      if (cell.T_world_base) R.fail(e->GetLineNum(), "expected one <robot>, found a second one");
+      if (cell.T_world_base) R.fail(e, "expected one <robot>, found a second one");
       R.checkAttributes(e, {"x_mm", "y_mm", "z_mm", "a_deg", "b_deg", "c_deg"});
       cell.T_world_base = R.placement(e);
-      if (e->FirstChildElement()) R.fail(e->FirstChildElement()->GetLineNum(), "<robot>: expected no children, found <" + std::string(e->FirstChildElement()->Name()) + ">");
+      std::tie(cell.robot_line, cell.robot_column) = R.where(e);
+      if (e->FirstChildElement()) R.fail(e->FirstChildElement(), "<robot>: expected no children, found <" + std::string(e->FirstChildElement()->Name()) + ">");
     } else if (tag == "object") {
       R.checkAttributes(e, {"name", "file", "units", "x_mm", "y_mm", "z_mm", "a_deg", "b_deg", "c_deg"});
       const std::string name = R.text(e, "name");
-      if (!names.insert(name).second) R.fail(e->GetLineNum(), "<object> name: expected a unique name, found '" + name + "' a second time");
+      if (!names.insert(name).second) R.failAttribute(e, "name", "<object> name: expected a unique name, found '" + name + "' a second time");
       for (auto& s : R.shapes(e, name, dir)) cell.objects.push_back(std::move(s));
     } else if (tag == "link") {
       R.checkAttributes(e, {"joint", "file", "units", "x_mm", "y_mm", "z_mm", "a_deg", "b_deg", "c_deg"});
       const double j = R.number(e, "joint", nullptr);
       if (j < 1 || j != std::floor(j) || j > 64)
-        R.fail(e->GetLineNum(), "<link> joint: expected the joint number 1..n whose DH frame the link moves with, found " + std::string(e->Attribute("joint")));
+        R.failAttribute(e, "joint", "<link> joint: expected the joint number 1..n whose DH frame the link moves with, found " + std::string(e->Attribute("joint")));
       const int joint = static_cast<int>(j);
       for (auto& s : R.shapes(e, "link " + std::to_string(joint), dir)) cell.link_shapes.emplace_back(joint, std::move(s));
     } else if (tag == "tool") {
       R.checkAttributes(e, {"file", "units", "x_mm", "y_mm", "z_mm", "a_deg", "b_deg", "c_deg"});
       for (auto& s : R.shapes(e, "tool", dir)) cell.tool_shapes.push_back(std::move(s));
     } else {
-      R.fail(e->GetLineNum(), "<cell>: expected <thresholds>, <robot>, <object>, <link> or <tool>, found <" + tag + ">");
+      R.fail(e, "<cell>: expected <thresholds>, <robot>, <object>, <link> or <tool>, found <" + tag + ">");
     }
   }
   return cell;

@@ -34,6 +34,11 @@ bool sameTool(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
 
 std::string num(double v, int decimals) { return formatFixed(v, decimals); }
 
+/// x,y,z,A,B,C (mm, deg), as --base takes it.
+std::string poseText(const XyzAbc& p) {
+  return num(p.x_mm, 3) + "," + num(p.y_mm, 3) + "," + num(p.z_mm, 3) + "," + num(p.a_deg, 3) + "," + num(p.b_deg, 3) + "," + num(p.c_deg, 3);
+}
+
 std::string jointsText(const Eigen::VectorXd& q) {
   std::string s;
   for (int i = 0; i < q.size(); ++i) s += (i ? ", " : "") + num(q[i], 3);
@@ -519,6 +524,12 @@ CheckReport checkWorld(const RobotModel& real, const RobotModel& controller, con
   r.thresholds = options.thresholds;
   if (geometry && !geometry->madeFor(cell, real))
     throw ArgumentError("check: the prepared cell geometry was made for another cell or robot than the one checked");
+  // objects but nothing of the robot to measure them against: say so, never a silent pass
+  if (!cell.objects.empty() && cell.link_shapes.empty() && cell.tool_shapes.empty())
+    r.warnings.push_back({SourceLocation{cell.file, 0, 0},
+                          "clearance not checked: the cell has " + std::to_string(cell.objects.size()) +
+                              " object(s) but no robot geometry (no <tool>, no <link>), so no distance was measured; add the tool "
+                              "and link geometry to the cell file to check the clearance"});
   Checker c(real, controller, cell, options, context, r, geometry);
   c.run(motions, indices, start_unknown);
   finish(r);
@@ -578,7 +589,9 @@ CheckReport checkProgramWith(const Program& program, const JobSettings& job, con
     if (cell.T_world_base) {
       const Eigen::Isometry3d d = cell.T_world_base->inverse() * T_world_robroot;
       if (d.translation().norm() > 1e-3 || angleDeg(d.linear()) > 1e-3)
-        throw InputError(cell.file, 0, 0, "the robot placement of the cell file differs from --base: expected the same placement, found two (give one of them)");
+        throw InputError(cell.file, cell.robot_line, cell.robot_column,
+                         "<robot>: the robot placement of the cell file differs from --base (" + poseText(toXyzAbc(*cell.T_world_base)) +
+                             " here, " + poseText(*job.robroot_in_world) + " given): expected the same placement, found two (give one of them)");
     }
   } else if (cell.T_world_base) {
     T_world_robroot = *cell.T_world_base;

@@ -83,7 +83,7 @@ CellGeometry::CellGeometry(const Cell& cell, const RobotModel& robot) : impl_(st
   const int n = robot.dof();
   for (const auto& ls : cell.link_shapes) {
     if (ls.first < 1 || ls.first > n)
-      throw ArgumentError(formatLocation(ls.second.file, ls.second.line, 0) + "<link> joint: expected 1.." + std::to_string(n) +
+      throw ArgumentError(formatLocation(ls.second.file, ls.second.line, ls.second.column) + "<link> joint: expected 1.." + std::to_string(n) +
                           " (the robot has " + std::to_string(n) + " joints), found " + std::to_string(ls.first));
     Impl::Shape s = Impl::make(ls.second);
     s.frame = ls.first;

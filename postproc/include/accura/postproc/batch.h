@@ -50,9 +50,19 @@ struct CheckedProgram {
   std::vector<OutputFile> files;     ///< the rendered output (.src and .dat, or .xml)
   std::optional<CheckReport> check;  ///< with a cell: the check of the program
   /// False when the program failed its check (a violation or a motion that could not be
-  /// checked) and warn_only is not set: it must not be written.
+  /// checked) and warn_only is not set, or when it could not be compensated: it must not be
+  /// written.
   bool write = true;
+  /// Not empty when the compensation failed where the check failed too
+  /// (compensationFailureExplained): its error (files is then empty and write false, even
+  /// with warn_only: there is nothing to write).
+  std::string compensation_error;
 };
+
+/// True when the check failed and every error of the compensation (report.errors) is at a
+/// motion (file and line) that the check reports: a violation or a motion it could not check
+/// (an unreachable target is a reach violation, a joint beyond its limit a joint_limit one).
+bool compensationFailureExplained(const CheckReport& check, const JobReport& report);
 
 /// The job for a program checked in `cell`: the cell's robot placement (<robot>) becomes
 /// job.robroot_in_world when that is not set (it is where the OLP placed the robot).
@@ -61,9 +71,12 @@ JobSettings placedInCell(const JobSettings& job, const Cell& cell);
 /// Compensates one program file as compensateFile does and, with `cell` (may be null), checks
 /// the program read from the file in the cell (checkProgram, CheckMode of cell->options, with
 /// cell->geometry when set) with the job placed in the cell (placedInCell) — what accura
-/// compensate --cell and accura batch --cell both do. Nothing is written. Throws like
-/// compensateFile and checkProgram (InputError when the cell's placement and
-/// job.robroot_in_world disagree).
+/// compensate --cell and accura batch --cell both do. Nothing is written. The check runs
+/// first; when the compensation then fails and the check explains it
+/// (compensationFailureExplained), the result has the check, no files, write false and the
+/// compensation's error (accura reports the check: exit 2, not 1). Throws like compensateFile
+/// (a compensation failure the check does not explain, or without a cell) and checkProgram
+/// (InputError when the cell's placement and job.robroot_in_world disagree).
 CheckedProgram compensateAndCheckFile(const std::string& in_path, const std::string& out_path, const ProgramReadOptions& read,
                                       const JobSettings& job, const CellCheckSettings* cell, JobReport* report);
 

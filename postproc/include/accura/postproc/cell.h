@@ -50,7 +50,8 @@ struct CellShape {
   Eigen::Isometry3d T_parent_shape = Eigen::Isometry3d::Identity();
   std::string name;  ///< for reports: "table", "link 3", "tool", ...
   std::string file;  ///< the cell file
-  int line = 0;      ///< of its element in the cell file
+  int line = 0;      ///< of its element in the cell file (1-based; 0: not from a file)
+  int column = 0;    ///< of its element's '<' on that line (1-based, bytes; 0: unknown)
 };
 
 /// Thresholds of the checks (check.h), with their defaults.
@@ -71,6 +72,9 @@ struct Cell {
   /// Where the robot stands in the cell (nominal T_world_base, the placement the OLP used);
   /// empty when the cell file does not say (the robot file's <base> or --base is used).
   std::optional<Eigen::Isometry3d> T_world_base;
+  /// Where the <robot> element is in the cell file (1-based line and column of its '<'; 0:
+  /// not from a file), for the message when it disagrees with --base.
+  int robot_line = 0, robot_column = 0;
   /// Robot geometry: link_shapes[k].first is the DH frame index (1..n) the shape moves with.
   std::vector<std::pair<int, CellShape>> link_shapes;
   /// Tool geometry in the flange frame (frame n).
@@ -80,9 +84,12 @@ struct Cell {
 
 /// Reads a cell file (docs/cell-format.md). Mesh paths are relative to the cell file's
 /// directory. Throws InputError with file:line:column and what was expected and found for a
-/// malformed file, an unknown element or attribute, a missing one, a bad number or unit, and
+/// malformed file (tinyxml2 gives its line only: column 0), an unknown element or attribute, a missing one, a bad number or unit, and
 /// for a mesh file assimp cannot read or without triangles (naming that file). Link indices
-/// are checked against the robot by the checks (check.h), not here.
+/// are checked against the robot by the checks (check.h), not here. The column (1-based, in
+/// bytes) is that of the attribute's name for an error in an attribute, of the element's '<'
+/// for an error in an element (tinyxml2 gives lines only: the reader finds the columns in the
+/// file's text).
 Cell readCellFile(const std::string& path);
 
 }  // namespace accura::postproc
