@@ -6,7 +6,10 @@
 // off by about a millimetre.
 #include <gtest/gtest.h>
 
+#include <cstdio>
+
 #include "accura/calib/geometry.h"
+#include "accura/calib/identify.h"
 #include "accura/calib/simulate.h"
 #include "accura/postproc/compensate.h"
 #include "test_util.h"
@@ -101,6 +104,75 @@ TEST(PathExecution, LongLinMovesAcrossTheWorkspace) {
   // a coarser tolerance: fewer points, still met
   const Execution coarse = execute(moves, 1, 0.2);
   EXPECT_LE(coarse.compensated_mm, 0.2 + 1e-3);
+}
+
+
+// The whole chain on a robot accura does not know: measure a simulated KR 16 (every geometric
+// error and joint compliance; tracker noise 0.02 mm), identify it, compensate the seam with the
+// identified model, and run the program on the true robot. The path error is bounded by the
+// tolerance plus the identified model's own error along the path (the distance between the
+// true and the identified tool at the joints the controller takes), and that model error is
+// small; the uncompensated program is off by about a millimetre on the same robot.
+TEST(PathExecution, IdentifiedModelOnTheTrueRobotWithinTolPlusTheModelError) {
+  RobotModel controller = test::loadBundled("kuka_kr16");
+  controller.nominal.T_flange_tcp = toIsometry({20, 0, 250, 0, -30, 0});  // the torch, measured at its TCP
+  SimulateOptions so;
+  so.effects = {"geometric", "joint_compliance"};
+  so.set_station = false;  // measured in the cell frame
+  so.seed = 8;
+  so.poses = 300;
+  so.noise_mm = 0.02;
+  const RobotModel truth = perturbModel(controller, so);
+  const MeasurementSet data = simulateMeasurements(truth, so);
+  IdentifyOptions io;
+  io.groups = {"geometric", "joint_compliance"};
+  IdentifySummary summary;
+  const RobotModel identified = identify(controller, data, io, &summary);
+
+  std::vector<PathSegment> seam(3);
+  seam[0].T_world_start = pose(1100, -250, 500, 0, 180, 0);
+  seam[0].T_world_end = pose(1100, -50, 500, 0, 180, 0);
+  seam[1].type = PathType::kCirc;
+  seam[1].T_world_start = seam[0].T_world_end;
+  seam[1].T_world_aux = pose(1180, 30, 500, 0, 180, 0);
+  seam[1].T_world_end = pose(1260, -50, 500, 0, 180, 0);
+  seam[2].T_world_start = seam[1].T_world_end;
+  seam[2].T_world_end = pose(1260, -250, 500, 0, 180, 0);
+  const double tol = 0.05;
+  const Compensator with_identified(controller, identified), with_truth(controller, truth);
+  DensifyOptions o;
+  o.tol_mm = tol;
+  std::vector<PathSegment> commanded;
+  Eigen::VectorXd q, q_start;
+  for (const PathSegment& s : seam) {
+    const SegmentCompensation r = with_identified.segment(s, Configuration{}, q, o);
+    ASSERT_EQ(r.status, IkStatus::kOk) << r.message;
+    if (q_start.size() == 0) q_start = r.q_real_start;
+    commanded.insert(commanded.end(), r.commanded.begin(), r.commanded.end());
+    q = r.q_real_end.back();
+  }
+  // the controller runs the commanded program once: the true tool and the identified model's
+  // tool at the same joints, sample by sample
+  const std::vector<Eigen::Isometry3d> on_truth = with_truth.execute(commanded, q_start, 0.1);
+  const std::vector<Eigen::Isometry3d> on_model = with_identified.execute(commanded, q_start, 0.1);
+  ASSERT_EQ(on_truth.size(), on_model.size());
+  double model_error = 0;
+  for (size_t k = 0; k < on_truth.size(); ++k)
+    model_error = std::max(model_error, (on_truth[k].translation() - on_model[k].translation()).norm());
+  const double deviation = maxPathDeviation(on_truth, seam);
+  EXPECT_LE(deviation, tol + model_error + 1e-3);
+  // the identification is good to about the noise (0.02 mm per axis): the model error is far
+  // below the robot's own error, and so is the path error on the true robot
+  EXPECT_LT(model_error, 0.1);
+  EXPECT_LT(deviation, 0.15);
+  const IkResult c0 = with_truth.controller().inverse(seam.front().T_world_start, Configuration{}, q_start, IkOptions{});
+  ASSERT_EQ(c0.status, IkStatus::kOk);
+  const double uncompensated = maxPathDeviation(with_truth.execute(seam, c0.q, 0.5), seam);
+  EXPECT_GT(uncompensated, 0.5);
+  EXPECT_GT(uncompensated, 8 * deviation);
+  std::printf("identified model: fit RMS %.4f mm; on the true robot: path error %.4f mm (tol %.2f + model error %.4f), "
+              "uncompensated %.3f mm\n",
+              summary.fit.rms_mm, deviation, tol, model_error, uncompensated);
 }
 
 }  // namespace
