@@ -23,6 +23,20 @@ Eigen::Isometry3d pose(double x, double y, double z, double a, double b, double 
   return toIsometry({x, y, z, a, b, c});
 }
 
+/// A 200 mm LIN, a half circle of radius 80 mm (CIRC), a 200 mm LIN back: 650 mm of seam.
+std::vector<PathSegment> shortSeam() {
+  std::vector<PathSegment> seam(3);
+  seam[0].T_world_start = pose(1100, -250, 500, 0, 180, 0);
+  seam[0].T_world_end = pose(1100, -50, 500, 0, 180, 0);
+  seam[1].type = PathType::kCirc;
+  seam[1].T_world_start = seam[0].T_world_end;
+  seam[1].T_world_aux = pose(1180, 30, 500, 0, 180, 0);
+  seam[1].T_world_end = pose(1260, -50, 500, 0, 180, 0);
+  seam[2].T_world_start = seam[1].T_world_end;
+  seam[2].T_world_end = pose(1260, -250, 500, 0, 180, 0);
+  return seam;
+}
+
 struct Execution {
   double compensated_mm = 0;    ///< largest distance of the real tool from the intended path
   double uncompensated_mm = 0;
@@ -68,16 +82,7 @@ Execution execute(const std::vector<PathSegment>& program, std::uint64_t seed, d
 }
 
 TEST(PathExecution, ShortSeamLinCircLin) {
-  // a 200 mm LIN, a half circle of radius 80 mm (CIRC), a 200 mm LIN back: 650 mm of seam
-  std::vector<PathSegment> seam(3);
-  seam[0].T_world_start = pose(1100, -250, 500, 0, 180, 0);
-  seam[0].T_world_end = pose(1100, -50, 500, 0, 180, 0);
-  seam[1].type = PathType::kCirc;
-  seam[1].T_world_start = seam[0].T_world_end;
-  seam[1].T_world_aux = pose(1180, 30, 500, 0, 180, 0);
-  seam[1].T_world_end = pose(1260, -50, 500, 0, 180, 0);
-  seam[2].T_world_start = seam[1].T_world_end;
-  seam[2].T_world_end = pose(1260, -250, 500, 0, 180, 0);
+  const std::vector<PathSegment> seam = shortSeam();
   for (const std::uint64_t seed : {1, 2, 3}) {
     const Execution r = execute(seam, seed, 0.05);
     EXPECT_LE(r.compensated_mm, 0.05 + 1e-3) << "seed " << seed;
@@ -129,15 +134,7 @@ TEST(PathExecution, IdentifiedModelOnTheTrueRobotWithinTolPlusTheModelError) {
   IdentifySummary summary;
   const RobotModel identified = identify(controller, data, io, &summary);
 
-  std::vector<PathSegment> seam(3);
-  seam[0].T_world_start = pose(1100, -250, 500, 0, 180, 0);
-  seam[0].T_world_end = pose(1100, -50, 500, 0, 180, 0);
-  seam[1].type = PathType::kCirc;
-  seam[1].T_world_start = seam[0].T_world_end;
-  seam[1].T_world_aux = pose(1180, 30, 500, 0, 180, 0);
-  seam[1].T_world_end = pose(1260, -50, 500, 0, 180, 0);
-  seam[2].T_world_start = seam[1].T_world_end;
-  seam[2].T_world_end = pose(1260, -250, 500, 0, 180, 0);
+  const std::vector<PathSegment> seam = shortSeam();
   const double tol = 0.05;
   const Compensator with_identified(controller, identified), with_truth(controller, truth);
   DensifyOptions o;
