@@ -194,8 +194,16 @@ void printCheckReport(const postproc::CheckReport& r, const std::string& program
   for (const auto& w : r.warnings) std::cerr << "accura: warning: " << w.where.str() << ": " << w.message << "\n";
   std::printf("accura check: %s (%s; joint margin %.3f, sigma_min >= %.6f, clearance >= %.3f mm)\n", program.c_str(),
               postproc::toString(r.mode), r.thresholds.joint_margin_deg, r.thresholds.singular_threshold, r.thresholds.min_clearance_mm);
-  for (const auto& v : r.violations)
-    std::printf("  VIOLATION %s: motion %d (%s): %s\n", v.where.str().c_str(), v.motion_index + 1, v.motion_type.c_str(), v.message.c_str());
+  for (const auto& v : r.violations) {
+    // the first violation is where the clearance gets short: how short it gets on the motion
+    std::string deepest;
+    if (v.kind == postproc::CheckKind::kClearance)
+      for (const auto& m : r.motions)
+        if (m.motion_index == v.motion_index && m.min_clearance_mm < v.value)
+          deepest = fmt(" (smallest clearance on this motion %.3f mm)", m.min_clearance_mm);
+    std::printf("  VIOLATION %s: motion %d (%s): %s%s\n", v.where.str().c_str(), v.motion_index + 1, v.motion_type.c_str(),
+                v.message.c_str(), deepest.c_str());
+  }
   for (const auto& u : r.unchecked) std::printf("  NOT CHECKED %s: %s\n", u.where.str().c_str(), u.message.c_str());
   auto val = [](double v) { return std::isfinite(v) ? fmt("%.3f", v) : std::string("-"); };
   std::printf("%zu motion(s), %d configuration(s) evaluated, %lld distance queries; smallest clearance %s mm, sigma_min %s, joint margin %s\n",
