@@ -170,11 +170,6 @@ accura_status statusOf(IkStatus s) {
   return ACCURA_ERROR_INTERNAL;
 }
 
-double angleDeg(const Eigen::Matrix3d& R) {
-  const double c = std::max(-1.0, std::min(1.0, (R.trace() - 1.0) / 2.0));
-  return std::acos(c) * kRadToDeg;
-}
-
 void copyString(char* dst, size_t cap, const std::string& s) {
   if (cap == 0) return;
   const size_t n = std::min(cap - 1, s.size());
@@ -243,7 +238,7 @@ std::shared_ptr<State> buildState(const std::string& calibrated_path, const accu
   const Eigen::Isometry3d T_kworld_progbase = job.initial_base ? toIsometry(*job.initial_base) : Eigen::Isometry3d::Identity();
   s->T_world_progbase = s->T_world_robroot * T_kworld_robroot.inverse() * T_kworld_progbase;
   const Eigen::Isometry3d d = s->T_world_robroot.inverse() * job.calibrated.T_world_base();
-  const double off_mm = d.translation().norm(), off_deg = angleDeg(d.linear());
+  const double off_mm = d.translation().norm(), off_deg = rotationAngleDeg(d.linear());
   if (off_mm > job.max_base_offset_mm || off_deg > job.max_base_offset_deg) {
     std::ostringstream m;
     m << calibrated_path << ": the calibrated base is " << off_mm << " mm and " << off_deg
@@ -257,15 +252,8 @@ std::shared_ptr<State> buildState(const std::string& calibrated_path, const accu
   RobotModel controller = RobotModel::fromDefinition(job.calibrated.nominal);
   controller.nominal.T_world_base = s->T_world_robroot;
   controller.nominal.T_flange_tcp = s->T_flange_tcp;
-  RobotModel real = job.calibrated;
-  const Eigen::Isometry3d& nominal_tool = job.calibrated.nominal.T_flange_tcp;
-  s->calibrated_tool = (s->T_flange_tcp.translation() - nominal_tool.translation()).norm() <= job.tool_match_mm &&
-                       angleDeg(s->T_flange_tcp.linear().transpose() * nominal_tool.linear()) <= job.tool_match_deg;
-  if (!s->calibrated_tool) {
-    real.nominal.T_flange_tcp = s->T_flange_tcp;
-    real.deviations.tool_mm.setZero();
-    real.deviations.tool_rot_rad.setZero();
-  }
+  const RobotModel real =
+      realModelForTool(job.calibrated, s->T_flange_tcp, job.tool_match_mm, job.tool_match_deg, &s->calibrated_tool);
   s->comp = std::make_unique<Compensator>(controller, real);
   return s;
 }
@@ -279,7 +267,7 @@ void fillPoseResult(const State& s, const Eigen::Isometry3d& T_world_target, con
   r->configuration = toC(pc.configuration);
   r->configuration_changed = pc.configuration_changed ? 1 : 0;
   r->correction_mm = (pc.T_world_tcp_command.translation() - T_world_target.translation()).norm();
-  r->correction_deg = angleDeg(pc.T_world_tcp_command.linear() * T_world_target.linear().transpose());
+  r->correction_deg = rotationAngleDeg(pc.T_world_tcp_command.linear() * T_world_target.linear().transpose());
   for (int i = 0; i < pc.q_real.size() && i < ACCURA_MAX_JOINTS; ++i) r->q_real[i] = pc.q_real[i];
 }
 

@@ -23,15 +23,6 @@ constexpr double kWidenDeg = 30.0;
 /// rounding.
 constexpr double kRefineMarginMm = 1.0;
 
-double angleDeg(const Eigen::Matrix3d& R) {
-  const double c = std::max(-1.0, std::min(1.0, (R.trace() - 1.0) / 2.0));
-  return std::acos(c) * kRadToDeg;
-}
-
-bool sameTool(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
-  return (a.translation() - b.translation()).norm() <= 1e-3 && angleDeg(a.linear().transpose() * b.linear()) <= 1e-3;
-}
-
 std::string num(double v, int decimals) { return formatFixed(v, decimals); }
 
 /// x,y,z,A,B,C (mm, deg), as --base takes it.
@@ -73,12 +64,8 @@ class Checker {
     if (it != cache_.end()) return it->second;
     ToolModels m;
     if (opt_.mode == CheckMode::kIntended) {
-      m.mode_model = real_;
-      if (!sameTool(tool, real_.nominal.T_flange_tcp)) {
-        m.mode_model.nominal.T_flange_tcp = tool;
-        m.mode_model.deviations.tool_mm.setZero();
-        m.mode_model.deviations.tool_rot_rad.setZero();
-      }
+      // the tool rule of compensateProgram, at JobSettings' default match tolerances
+      m.mode_model = realModelForTool(real_, tool, JobSettings{}.tool_match_mm, JobSettings{}.tool_match_deg);
     } else {
       m.mode_model = controller_;
       m.mode_model.nominal.T_flange_tcp = tool;
@@ -588,7 +575,7 @@ CheckReport checkProgramWith(const Program& program, const JobSettings& job, con
     T_world_robroot = toIsometry(*job.robroot_in_world);
     if (cell.T_world_base) {
       const Eigen::Isometry3d d = cell.T_world_base->inverse() * T_world_robroot;
-      if (d.translation().norm() > 1e-3 || angleDeg(d.linear()) > 1e-3)
+      if (d.translation().norm() > 1e-3 || rotationAngleDeg(d.linear()) > 1e-3)
         throw InputError(cell.file, cell.robot_line, cell.robot_column,
                          "<robot>: the robot placement of the cell file differs from --base (" + poseText(toXyzAbc(*cell.T_world_base)) +
                              " here, " + poseText(*job.robroot_in_world) + " given): expected the same placement, found two (give one of them)");
@@ -598,8 +585,8 @@ CheckReport checkProgramWith(const Program& program, const JobSettings& job, con
   }
   {
     const Eigen::Isometry3d d = T_world_robroot.inverse() * job.calibrated.T_world_base();
-    if (d.translation().norm() > job.max_base_offset_mm || angleDeg(d.linear()) > job.max_base_offset_deg)
-      throw InputError("the calibrated base is " + formatMm(d.translation().norm()) + " mm and " + formatDeg(angleDeg(d.linear())) +
+    if (d.translation().norm() > job.max_base_offset_mm || rotationAngleDeg(d.linear()) > job.max_base_offset_deg)
+      throw InputError("the calibrated base is " + formatMm(d.translation().norm()) + " mm and " + formatDeg(rotationAngleDeg(d.linear())) +
                        " deg from the robot placement in the cell: expected at most " + formatMm(job.max_base_offset_mm) + " mm and " +
                        formatDeg(job.max_base_offset_deg) + " deg (the model was measured in another frame: give --base, or the cell's <robot>)");
   }

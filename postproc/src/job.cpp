@@ -13,15 +13,6 @@
 namespace accura::postproc {
 namespace {
 
-double angleDeg(const Eigen::Matrix3d& R) {
-  const double c = std::max(-1.0, std::min(1.0, (R.trace() - 1.0) / 2.0));
-  return std::acos(c) * kRadToDeg;
-}
-
-bool sameTool(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b, double mm, double deg) {
-  return (a.translation() - b.translation()).norm() <= mm && angleDeg(a.linear().transpose() * b.linear()) <= deg;
-}
-
 std::string targetLabel(const Target& t) { return t.name.empty() ? std::string("the inline target") : t.name; }
 
 std::string frameHint(const FrameSetting& f, const char* var) {
@@ -47,7 +38,7 @@ class Job {
     r_.robroot_in_world = toXyzAbc(T_world_robroot_);
     r_.calibrated_base_in_world = toXyzAbc(s.calibrated.T_world_base());
     const Eigen::Isometry3d d = T_world_robroot_.inverse() * s.calibrated.T_world_base();
-    const double off_mm = d.translation().norm(), off_deg = angleDeg(d.linear());
+    const double off_mm = d.translation().norm(), off_deg = rotationAngleDeg(d.linear());
     if (off_mm > s.max_base_offset_mm || off_deg > s.max_base_offset_deg) {
       std::ostringstream m;
       const XyzAbc b = r_.robroot_in_world, c = r_.calibrated_base_in_world;
@@ -80,14 +71,8 @@ class Job {
     RobotModel controller = RobotModel::fromDefinition(s_.calibrated.nominal);
     controller.nominal.T_world_base = T_world_robroot_;
     controller.nominal.T_flange_tcp = tool;
-    RobotModel real = s_.calibrated;
     Models m;
-    m.calibrated_tool = sameTool(tool, s_.calibrated.nominal.T_flange_tcp, s_.tool_match_mm, s_.tool_match_deg);
-    if (!m.calibrated_tool) {
-      real.nominal.T_flange_tcp = tool;
-      real.deviations.tool_mm.setZero();
-      real.deviations.tool_rot_rad.setZero();
-    }
+    const RobotModel real = realModelForTool(s_.calibrated, tool, s_.tool_match_mm, s_.tool_match_deg, &m.calibrated_tool);
     m.comp = std::make_unique<Compensator>(controller, real);
     return cache_.emplace(key.str(), std::move(m)).first->second;
   }
@@ -131,7 +116,7 @@ class Job {
     tr.motion_type = motionKeyword(m);
     const Eigen::Vector3d d_world = command.translation() - desired.translation();
     tr.correction_mm = d_world.norm();
-    tr.correction_deg = angleDeg(command.linear() * desired.linear().transpose());
+    tr.correction_deg = rotationAngleDeg(command.linear() * desired.linear().transpose());
     const Eigen::Vector3d d_base = T_world_progbase.linear().transpose() * d_world;
     tr.dx_mm = d_base.x();
     tr.dy_mm = d_base.y();
@@ -445,6 +430,26 @@ class Job {
 };
 
 }  // namespace
+
+double rotationAngleDeg(const Eigen::Matrix3d& R) {
+  const double c = std::max(-1.0, std::min(1.0, (R.trace() - 1.0) / 2.0));
+  return std::acos(c) * kRadToDeg;
+}
+
+RobotModel realModelForTool(const RobotModel& calibrated, const Eigen::Isometry3d& T_flange_tcp, double match_mm,
+                            double match_deg, bool* calibrated_tool) {
+  const Eigen::Isometry3d& nominal_tool = calibrated.nominal.T_flange_tcp;
+  const bool same = (T_flange_tcp.translation() - nominal_tool.translation()).norm() <= match_mm &&
+                    rotationAngleDeg(T_flange_tcp.linear().transpose() * nominal_tool.linear()) <= match_deg;
+  if (calibrated_tool) *calibrated_tool = same;
+  RobotModel real = calibrated;
+  if (!same) {
+    real.nominal.T_flange_tcp = T_flange_tcp;
+    real.deviations.tool_mm.setZero();
+    real.deviations.tool_rot_rad.setZero();
+  }
+  return real;
+}
 
 Program compensateProgram(const Program& program, const JobSettings& settings, JobReport* report) {
   if (!(settings.tol_mm > 0) || !std::isfinite(settings.tol_mm))

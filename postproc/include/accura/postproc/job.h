@@ -112,4 +112,14 @@ struct JobReport {
 /// Deterministic: the same inputs give the same output on every run and thread.
 Program compensateProgram(const Program& program, const JobSettings& settings, JobReport* report);
 
+/// Rotation angle of R (deg, in [0, 180]).
+double rotationAngleDeg(const Eigen::Matrix3d& R);
+
+/// The real robot for a program tool (see "real" above): `calibrated` with its identified tool
+/// when T_flange_tcp is its nominal tool within match_mm (mm) and match_deg (deg), else
+/// `calibrated` with T_flange_tcp taken as exact (no tool deviations). `calibrated_tool`
+/// (optional) says which of the two.
+RobotModel realModelForTool(const RobotModel& calibrated, const Eigen::Isometry3d& T_flange_tcp, double match_mm,
+                            double match_deg, bool* calibrated_tool = nullptr);
+
 }  // namespace accura::postproc
