@@ -1,0 +1,426 @@
+// accura: the fits of the diagnosis: noise floor, baseline, candidate columns, linearised and exact held-out errors (diagnose.h, docs/diagnosis.md).
+#include "diagnose_internal.h"
+
+#include <Eigen/Cholesky>
+#include <Eigen/QR>
+#include <Eigen/SVD>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <numeric>
+#include <set>
+
+#include "accura/calib/errors.h"
+#include "accura/calib/identify.h"
+#include "accura/calib/kinematics.h"
+
+namespace accura {
+namespace diagnose_detail {
+
+void Diagnoser::noiseFloor() {
+  // Folds: repeated poses stay together.
+  const std::vector<std::vector<int>> groups = repeatGroups(fit_);
+  folds_ = o_.folds;
+  fold_.assign(m_, 0);
+  for (size_t g = 0; g < groups.size(); ++g)
+    for (int i : groups[g]) fold_[i] = static_cast<int>(g % static_cast<size_t>(folds_));
+  fold_poses_.assign(folds_, {});
+  for (int i = 0; i < m_; ++i) fold_poses_[fold_[i]].push_back(i);
+  if (!has_val_) out_.validation_method = std::to_string(folds_) + "-fold cross-validation over the poses of " + fit_.file;
+  else out_.validation_method = "validation set " + val_.file;
+
+  // Pooled within-pose scatter of the repeated poses (fit and validation data).
+  double ss = 0;
+  double dof = 0;
+  int n_groups = 0;
+  auto pool = [&](const MeasurementSet& set) {
+    for (const auto& g : repeatGroups(set)) {
+      if (g.size() < 2) continue;
+      Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+      for (int i : g) mean += set.rows[i].p_world_mm;
+      mean /= double(g.size());
+      for (int i : g) ss += (set.rows[i].p_world_mm - mean).squaredNorm();
+      dof += 3.0 * double(g.size() - 1);
+      ++n_groups;
+    }
+  };
+  pool(fit_);
+  if (has_val_) pool(val_);
+
+  double sigma = kNaN;  // per axis
+  bool per_row = false;
+  if (!std::isnan(o_.noise_std_mm)) {
+    sigma = o_.noise_std_mm;
+    out_.noise_floor_source = "given: " + fmtg("%.4g", sigma) + " mm per axis";
+  } else if (dof >= 30) {
+    sigma = std::sqrt(ss / dof);
+    out_.noise_floor_dof = dof;
+    out_.noise_floor_source = "repeated poses: " + std::to_string(n_groups) + " poses measured more than once, pooled scatter " +
+                              fmtg("%.4g", sigma) + " mm per axis (" + fmtg("%.0f", dof) + " degrees of freedom)";
+  } else if (fit_.has_std_position && (!has_val_ || val_.has_std_position)) {
+    per_row = true;
+    out_.noise_floor_source = "std columns of the data (the instrument's stated uncertainty)";
+  } else {
+    out_.noise_floor_known = false;
+    out_.noise_floor_source =
+        "unknown: no repeated poses (" + std::to_string(n_groups) + " found, at least 10 needed), no std columns and no "
+        "--noise-mm; estimated from the fit residual of the geometric model plus every testable effect, an upper "
+        "bound when an effect outside the catalogue is present; `unexplained` is then judged by the structure scan";
+  }
+  auto fill = [&](const MeasurementSet& set, std::vector<Eigen::Vector3d>* w, Eigen::VectorXd* var) {
+    w->assign(set.rows.size(), Eigen::Vector3d::Ones());
+    var->setZero(static_cast<Eigen::Index>(set.rows.size()));
+    for (size_t i = 0; i < set.rows.size(); ++i) {
+      const Measurement& r = set.rows[i];
+      Eigen::Vector3d s = Eigen::Vector3d::Constant(std::isnan(sigma) ? 1.0 : sigma);
+      if (set.has_std_position) s = r.std_mm;  // relative weights from the instrument
+      (*w)[i] = std::sqrt(r.weight) * s.cwiseInverse();
+      const Eigen::Vector3d sf = per_row ? r.std_mm : Eigen::Vector3d::Constant(std::isnan(sigma) ? 0.0 : sigma);
+      (*var)[static_cast<Eigen::Index>(i)] = sf.squaredNorm();
+    }
+  };
+  fill(fit_, &w_fit_, &var_fit_);
+  if (has_val_) fill(val_, &w_val_, &var_val_);
+  if (out_.noise_floor_known) {
+    const Eigen::VectorXd& v = has_val_ ? var_val_ : var_fit_;
+    out_.noise_floor_mm = std::sqrt(v.mean());
+    out_.noise_std_axis_mm = out_.noise_floor_mm / std::sqrt(3.0);
+  }
+}
+
+void Diagnoser::baseline() {
+  IdentifyOptions io;
+  io.groups = {"geometric"};
+  if (!fit_.has_std_position) {
+    // weights: the noise floor when known, else identify's variance components
+    if (out_.noise_floor_known) io.position_std_mm = out_.noise_std_axis_mm;
+  }
+  IdentifySummary s;
+  M0_ = identify(start_, fit_, io, &s);
+  layout_ = parameterLayout(M0_);
+  std::set<std::string> free;
+  for (const ParameterEstimate& p : s.parameters) free.insert(p.name);
+  for (size_t k = 0; k < layout_.size(); ++k)
+    if (free.count(layout_[k].name)) {
+      G_.push_back(static_cast<int>(cols_.size()));
+      cols_.push_back(static_cast<int>(k));
+    }
+  if (!fit_.has_std_position && !out_.noise_floor_known) {
+    // weights from the baseline's variance-component estimate (uniform: only their ratio matters)
+    for (auto& w : w_fit_) w = Eigen::Vector3d::Constant(1.0 / s.position_std_mm);
+    for (size_t i = 0; i < w_fit_.size(); ++i) w_fit_[i] *= std::sqrt(fit_.rows[i].weight);
+    if (has_val_)
+      for (size_t i = 0; i < w_val_.size(); ++i) w_val_[i] = Eigen::Vector3d::Constant(std::sqrt(val_.rows[i].weight) / s.position_std_mm);
+  }
+}
+
+// Candidate columns of the effects: testable ones, per (effect, joint) block.
+void Diagnoser::columns() {
+  auto both = [&](auto pred) { return pred(fit_) && (!has_val_ || pred(val_)); };
+  auto range = [&](const MeasurementSet& set, auto value) {
+    double lo = 1e300, hi = -1e300;
+    for (const Measurement& r : set.rows) {
+      lo = std::min(lo, value(r));
+      hi = std::max(hi, value(r));
+    }
+    return hi - lo;
+  };
+  for (const std::string& e : o_.effects) {
+    std::string why;
+    if (e == "thermal") {
+      if (!both([](const MeasurementSet& s) { return s.has_temperature; })) why = "the data has no temp_c column";
+      else if (range(fit_, [](const Measurement& r) { return r.context.temp_c; }) < 0.5)
+        why = "the temperature varies by less than 0.5 K over the fit data";
+    }
+    if (e == "backlash" && !both([](const MeasurementSet& s) { return s.has_direction; }))
+      why = "the data has no dir1..dirN columns";
+    if (!why.empty()) {
+      effect_note_[e] = "not testable: " + why;
+      continue;
+    }
+    out_.effects_tested.push_back(e);
+    std::map<int, Block> by_joint;
+    for (size_t k = 0; k < layout_.size(); ++k) {
+      const ParamInfo& p = layout_[k];
+      if (p.group != e) continue;
+      if (e == "backlash") {
+        // both directions must occur for the joint
+        bool plus = false, minus = false;
+        for (const Measurement& r : fit_.rows) (r.context.dir[static_cast<size_t>(p.joint)] > 0 ? plus : minus) = true;
+        if (!(plus && minus)) continue;
+      }
+      Block& b = by_joint[p.joint];
+      b.effect = e;
+      b.joint = p.joint;
+      b.cols.push_back(static_cast<int>(cols_.size()));
+      cols_.push_back(static_cast<int>(k));
+    }
+    for (auto& kv : by_joint) blocks_.push_back(kv.second);
+  }
+}
+
+void Diagnoser::linearise() {
+  const int C = static_cast<int>(cols_.size());
+  std::vector<ParamInfo> sub;
+  for (int c : cols_) sub.push_back(layout_[c]);
+  auto build = [&](const MeasurementSet& set, Eigen::MatrixXd* J, Eigen::VectorXd* r) {
+    const Eigen::Index m = static_cast<Eigen::Index>(set.rows.size());
+    J->resize(3 * m, C);
+    r->resize(3 * m);
+    KinematicWorkspace ws;
+    Eigen::MatrixXd J6;
+    for (Eigen::Index i = 0; i < m; ++i) {
+      const Measurement& row = set.rows[static_cast<size_t>(i)];
+      const Eigen::Isometry3d T = parameterJacobian(M0_, sub, row.q, row.context, ws, J6);
+      J->middleRows(3 * i, 3) = J6.topRows(3);
+      r->segment(3 * i, 3) = row.p_world_mm - T.translation();
+    }
+  };
+  Eigen::MatrixXd JF;
+  build(fit_, &JF, &rF_);
+  wF_.resize(3 * m_);
+  for (int i = 0; i < m_; ++i) wF_.segment(3 * i, 3) = w_fit_[i];
+  // weighted column norms: scale, and screen zero / dependent columns
+  Eigen::MatrixXd Jw = wF_.asDiagonal() * JF;
+  Eigen::VectorXd norms = Jw.colwise().norm();
+  double gmax = 0;
+  for (int c : G_) gmax = std::max(gmax, norms[c]);
+  // orthonormal basis of the geometric columns
+  Eigen::MatrixXd Gs(3 * m_, static_cast<Eigen::Index>(G_.size()));
+  for (size_t k = 0; k < G_.size(); ++k) Gs.col(static_cast<Eigen::Index>(k)) = Jw.col(G_[k]) / norms[G_[k]];
+  Eigen::HouseholderQR<Eigen::MatrixXd> qr(Gs);
+  Eigen::MatrixXd Q = qr.householderQ() * Eigen::MatrixXd::Identity(3 * m_, Gs.cols());
+  std::vector<bool> keep(static_cast<size_t>(C), true);
+  for (Block& b : blocks_) {
+    Eigen::MatrixXd Qb = Q;
+    std::vector<int> kept;
+    for (int c : b.cols) {
+      const std::string& name = layout_[cols_[c]].name;
+      if (!(norms[c] > 1e-12 * std::max(gmax, 1e-300))) {
+        keep[static_cast<size_t>(c)] = false;
+        effect_note_[b.effect + ":" + name] = name + " has no effect on these measurements";
+        continue;
+      }
+      Eigen::VectorXd v = Jw.col(c) / norms[c];
+      for (int pass = 0; pass < 2; ++pass) v -= Qb * (Qb.transpose() * v);
+      const double rho = v.norm();
+      if (rho < 1e-3) {
+        keep[static_cast<size_t>(c)] = false;
+        effect_note_[b.effect + ":" + name] =
+            name + " cannot be told from the geometric parameters (relative residual " + fmtg("%.2g", rho) + ")";
+        continue;
+      }
+      Qb.conservativeResize(Eigen::NoChange, Qb.cols() + 1);
+      Qb.col(Qb.cols() - 1) = v / rho;
+      kept.push_back(c);
+    }
+    b.cols = kept;
+  }
+  blocks_.erase(std::remove_if(blocks_.begin(), blocks_.end(), [](const Block& b) { return b.cols.empty(); }),
+                blocks_.end());
+  colscale_ = norms.cwiseMax(1e-300);
+  JF_ = JF * colscale_.cwiseInverse().asDiagonal();
+  Jw = wF_.asDiagonal() * JF_;
+  const Eigen::VectorXd rw = wF_.cwiseProduct(rF_);
+  A_ = Jw.transpose() * Jw;
+  b_ = Jw.transpose() * rw;
+  rr_ = rw.squaredNorm();
+  if (has_val_) {
+    build(val_, &JV_, &rV_);
+    JV_ = JV_ * colscale_.cwiseInverse().asDiagonal();
+  } else {
+    Af_.assign(folds_, Eigen::MatrixXd::Zero(C, C));
+    bf_.assign(folds_, Eigen::VectorXd::Zero(C));
+    for (int f = 0; f < folds_; ++f) {
+      for (int i : fold_poses_[f]) {
+        const Eigen::MatrixXd Ji = Jw.middleRows(3 * i, 3);
+        Af_[f].noalias() += Ji.transpose() * Ji;
+        bf_[f].noalias() += Ji.transpose() * rw.segment(3 * i, 3);
+      }
+    }
+  }
+}
+
+bool solveSpd(const Eigen::MatrixXd& M, const Eigen::VectorXd& v, Eigen::LLT<Eigen::MatrixXd>* llt,
+              Eigen::VectorXd* x) {
+  llt->compute(M);
+  if (llt->info() != Eigen::Success) return false;
+  const Eigen::VectorXd diag = llt->matrixLLT().diagonal();
+  // columns are scaled to unit norm: a pivot below 1e-7 means a condition number above 1e14
+  if (!(diag.minCoeff() > 1e-7 * diag.maxCoeff())) return false;
+  *x = llt->solve(v);
+  return x->allFinite();
+}
+
+Diagnoser::Eval Diagnoser::evaluate(const std::vector<int>& S, bool leverage) const {
+  Eval ev;
+  const Eigen::Index s = static_cast<Eigen::Index>(S.size());
+  const Eigen::MatrixXd AS = A_(S, S);  // the normal equations of the blocks in S
+  const Eigen::VectorXd bS = b_(S);
+  Eigen::LLT<Eigen::MatrixXd> llt;
+  Eigen::VectorXd x;
+  if (has_val_) {
+    if (!solveSpd(AS, bS, &llt, &x)) return ev;
+    const Eigen::MatrixXd JS = JV_(Eigen::all, S);
+    const Eigen::VectorXd e = rV_ - JS * x;
+    ev.d.resize(nv_);
+    for (int i = 0; i < nv_; ++i) ev.d[i] = e.segment(3 * i, 3).squaredNorm();
+    if (leverage) {
+      ev.lev.resize(nv_);
+      for (int i = 0; i < nv_; ++i)
+        ev.lev[i] = llt.matrixL().solve(Eigen::MatrixXd(JS.middleRows(3 * i, 3).transpose())).squaredNorm();
+    }
+  } else {
+    const Eigen::MatrixXd JS = JF_(Eigen::all, S);
+    ev.d.resize(m_);
+    if (leverage) ev.lev.resize(m_);
+    for (int f = 0; f < folds_; ++f) {
+      Eigen::MatrixXd M = AS;
+      Eigen::VectorXd v = bS;
+      for (Eigen::Index a = 0; a < s; ++a) {
+        v[a] -= bf_[f][S[a]];
+        for (Eigen::Index c = 0; c < s; ++c) M(a, c) -= Af_[f](S[a], S[c]);
+      }
+      if (!solveSpd(M, v, &llt, &x)) return ev;
+      for (int i : fold_poses_[f]) {
+        const Eigen::MatrixXd Ji = JS.middleRows(3 * i, 3);
+        ev.d[i] = (rF_.segment(3 * i, 3) - Ji * x).squaredNorm();
+        if (leverage) ev.lev[i] = llt.matrixL().solve(Eigen::MatrixXd(Ji.transpose())).squaredNorm();
+      }
+    }
+  }
+  ev.ok = true;
+  return ev;
+}
+
+// Linear fit on all fit data: parameter update (scaled) and weighted chi^2; sigma (scaled,
+// times the variance factor) when asked.
+Eigen::VectorXd Diagnoser::fitAll(const std::vector<int>& S, double* chi2, Eigen::VectorXd* sigma) const {
+  const Eigen::Index s = static_cast<Eigen::Index>(S.size());
+  const Eigen::MatrixXd AS = A_(S, S);  // the normal equations of the blocks in S
+  const Eigen::VectorXd bS = b_(S);
+  Eigen::LLT<Eigen::MatrixXd> llt;
+  Eigen::VectorXd x;
+  if (!solveSpd(AS, bS, &llt, &x)) throw NumericalError("diagnose: the normal matrix of the fit is singular");
+  const double c2 = std::max(0.0, rr_ - bS.dot(x));
+  if (chi2) *chi2 = c2;
+  if (sigma) {
+    const double dof = std::max(1.0, 3.0 * m_ - double(s));
+    const double s0 = c2 / dof;
+    const Eigen::MatrixXd inv = llt.solve(Eigen::MatrixXd::Identity(s, s));
+    *sigma = (s0 * inv.diagonal()).cwiseMax(0).cwiseSqrt();
+  }
+  return x;
+}
+
+std::vector<int> Diagnoser::withBlocks(const std::vector<int>& blocks) const {
+  std::vector<int> S = G_;
+  for (int b : blocks) S.insert(S.end(), blocks_[b].cols.begin(), blocks_[b].cols.end());
+  return S;
+}
+
+std::vector<EffectParameter> Diagnoser::parametersOf(const std::vector<int>& S, const std::string& effect) const {
+  Eigen::VectorXd sigma;
+  const Eigen::VectorXd x = fitAll(S, nullptr, &sigma);
+  std::vector<EffectParameter> out;
+  for (size_t k = 0; k < S.size(); ++k) {
+    const ParamInfo& p = layout_[cols_[S[k]]];
+    if (p.group != effect) continue;
+    const double internal = getParameter(M0_.deviations, p) + x[static_cast<Eigen::Index>(k)] / colscale_[S[k]];
+    out.push_back({p.name, p.unit, internal * p.display_scale, sigma[static_cast<Eigen::Index>(k)] / colscale_[S[k]] * p.display_scale});
+  }
+  return out;
+}
+
+// Gauss-Newton from M0 over the parameters S on the given fit rows.
+RobotModel Diagnoser::gnFit(const std::vector<int>& S, const std::vector<int>& rows) const {
+  RobotModel model = M0_;
+  std::vector<ParamInfo> sub;
+  Eigen::VectorXd scale(static_cast<Eigen::Index>(S.size()));
+  for (size_t k = 0; k < S.size(); ++k) {
+    sub.push_back(layout_[cols_[S[k]]]);
+    scale[static_cast<Eigen::Index>(k)] = colscale_[S[k]];
+  }
+  const Eigen::Index s = static_cast<Eigen::Index>(S.size());
+  KinematicWorkspace ws;
+  Eigen::MatrixXd J6;
+  Eigen::MatrixXd Jp(3, s);
+  for (int it = 0; it < 10; ++it) {
+    Eigen::MatrixXd A = Eigen::MatrixXd::Zero(s, s);
+    Eigen::VectorXd b = Eigen::VectorXd::Zero(s);
+    for (int i : rows) {
+      const Measurement& row = fit_.rows[static_cast<size_t>(i)];
+      const Eigen::Isometry3d T = parameterJacobian(model, sub, row.q, row.context, ws, J6);
+      Jp = w_fit_[i].asDiagonal() * J6.topRows(3) * scale.cwiseInverse().asDiagonal();
+      A.noalias() += Jp.transpose() * Jp;
+      b.noalias() += Jp.transpose() * w_fit_[i].cwiseProduct(row.p_world_mm - T.translation());
+    }
+    Eigen::LLT<Eigen::MatrixXd> llt;
+    Eigen::VectorXd dx;
+    if (!solveSpd(A, b, &llt, &dx)) throw NumericalError("diagnose: the refit's normal matrix is singular");
+    for (Eigen::Index k = 0; k < s; ++k)
+      setParameter(model.deviations, sub[static_cast<size_t>(k)],
+                   getParameter(model.deviations, sub[static_cast<size_t>(k)]) + dx[k] / scale[k]);
+    // scaled columns have unit weighted norm over all fit data: a step of 1e-9 is far below
+    // one standard deviation of any parameter
+    if (dx.cwiseAbs().maxCoeff() < 1e-9) break;
+  }
+  return model;
+}
+
+void Diagnoser::floorTest(const Eval& lin, const std::vector<double>& d, HeldOutStats* s) const {
+  if (!out_.noise_floor_known || !lin.ok || lin.lev.size() == 0) return;
+  const Eigen::VectorXd& var = has_val_ ? var_val_ : var_fit_;
+  double expected = 0, var_sum = 0, noise = 0, obs = 0;
+  for (size_t i = 0; i < d.size(); ++i) {
+    const double E = var[static_cast<Eigen::Index>(i)] + lin.lev[static_cast<Eigen::Index>(i)];
+    expected += E;
+    var_sum += 2.0 / 3.0 * E * E;  // |e|^2 = (E/3) chi^2_3
+    noise += var[static_cast<Eigen::Index>(i)];
+    obs += d[i];
+  }
+  if (std::isfinite(out_.noise_floor_dof)) var_sum += 2.0 / out_.noise_floor_dof * noise * noise;
+  s->expected_rms_mm = std::sqrt(expected / double(d.size()));
+  s->floor_z = var_sum > 0 ? (obs - expected) / std::sqrt(var_sum) : 0.0;
+  s->floor_p = upperTail(s->floor_z);
+}
+
+Diagnoser::Exact Diagnoser::exact(const std::vector<int>& S) {
+  Exact ex;
+  std::vector<int> all(static_cast<size_t>(m_));
+  std::iota(all.begin(), all.end(), 0);
+  ex.model_all = gnFit(S, all);
+  KinematicWorkspace ws;
+  if (has_val_) {
+    ex.e.resize(static_cast<size_t>(nv_));
+    for (int i = 0; i < nv_; ++i) {
+      const Measurement& r = val_.rows[static_cast<size_t>(i)];
+      ex.e[i] = r.p_world_mm - forwardKinematics(ex.model_all, r.q, r.context, ws).translation();
+    }
+  } else {
+    ex.e.resize(static_cast<size_t>(m_));
+    for (int f = 0; f < folds_; ++f) {
+      std::vector<int> train;
+      for (int i = 0; i < m_; ++i)
+        if (fold_[i] != f) train.push_back(i);
+      const RobotModel mf = gnFit(S, train);
+      for (int i : fold_poses_[f]) {
+        const Measurement& r = fit_.rows[static_cast<size_t>(i)];
+        ex.e[i] = r.p_world_mm - forwardKinematics(mf, r.q, r.context, ws).translation();
+      }
+    }
+  }
+  std::vector<double> mag, d;
+  for (const auto& e : ex.e) {
+    mag.push_back(e.norm());
+    d.push_back(e.squaredNorm());
+  }
+  statsOf(mag, &ex.stats);
+  floorTest(evaluate(S, true), d, &ex.stats);
+  return ex;
+}
+
+}  // namespace diagnose_detail
+}  // namespace accura
