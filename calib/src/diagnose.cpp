@@ -149,6 +149,11 @@ void Diagnoser::prepareData(const MeasurementSet& data, const MeasurementSet* va
   };
   prepare(data, &fit_);
   m_ = static_cast<int>(fit_.rows.size());
+  fit_has_rot_ = data.has_orientation;
+  for (const Measurement& r : data.rows) {
+    R_fit_.push_back(r.R_world_tcp);
+    rot_ok_.push_back(data.has_orientation && r.has_orientation);
+  }
   if (m_ < 30)
     throw InputError(data.file, 0, 0,
                      "the diagnosis needs at least 30 measured poses, found " + std::to_string(m_));
@@ -167,29 +172,40 @@ void Diagnoser::prepareData(const MeasurementSet& data, const MeasurementSet* va
   for (const JointSpec& j : start_.nominal.joints) out_.joint_names.push_back(j.name);
 }
 
-// Repeated poses: same joint values (within 1e-6 deg or mm), payload and directions.
-std::vector<std::vector<int>> repeatGroups(const MeasurementSet& set) {
-  const size_t m = set.rows.size();
-  std::vector<int> order(m);
+// Repeated joint configurations: every joint within `tol` (deg or mm, the file's units),
+// the same payload and directions. Sweep over the rows sorted by q1, union-find over the pairs.
+std::vector<std::vector<int>> repeatGroups(const MeasurementSet& set, double tol, std::vector<std::pair<int, int>>* pairs) {
+  const int m = static_cast<int>(set.rows.size());
+  std::vector<int> order(static_cast<size_t>(m));
   std::iota(order.begin(), order.end(), 0);
-  auto key_less = [&](int a, int b) {
-    const Measurement &A = set.rows[a], &B = set.rows[b];
-    for (Eigen::Index k = 0; k < A.q.size(); ++k)
-      if (std::abs(A.q[k] - B.q[k]) > 1e-6) return A.q[k] < B.q[k];
-    if (std::abs(A.context.payload_kg - B.context.payload_kg) > 1e-9) return A.context.payload_kg < B.context.payload_kg;
-    return A.dir < B.dir;
+  if (m == 0) return {};
+  std::sort(order.begin(), order.end(), [&](int a, int b) { return set.rows[a].q[0] < set.rows[b].q[0]; });
+  std::vector<int> parent(static_cast<size_t>(m));
+  std::iota(parent.begin(), parent.end(), 0);
+  auto find = [&](int x) {
+    while (parent[x] != x) x = parent[x] = parent[parent[x]];
+    return x;
   };
-  std::sort(order.begin(), order.end(), key_less);
-  std::vector<std::vector<int>> groups;
-  for (size_t k = 0; k < m;) {
-    size_t e = k + 1;
-    while (e < m && !key_less(order[k], order[e]) && !key_less(order[e], order[k])) ++e;
-    std::vector<int> g(order.begin() + static_cast<long>(k), order.begin() + static_cast<long>(e));
-    std::sort(g.begin(), g.end());
-    groups.push_back(g);
-    k = e;
+  if (pairs) pairs->clear();
+  for (int a = 0; a < m; ++a) {
+    const Measurement& A = set.rows[order[a]];
+    for (int b = a + 1; b < m; ++b) {
+      const Measurement& B = set.rows[order[b]];
+      if (B.q[0] - A.q[0] > tol) break;
+      bool same = std::abs(A.context.payload_kg - B.context.payload_kg) <= 1e-9 && A.dir == B.dir;
+      for (Eigen::Index k = 1; same && k < A.q.size(); ++k) same = std::abs(A.q[k] - B.q[k]) <= tol;
+      if (!same) continue;
+      const int i = std::min(order[a], order[b]), k = std::max(order[a], order[b]);
+      if (pairs) pairs->push_back({i, k});
+      parent[find(i)] = find(k);
+    }
   }
+  std::map<int, std::vector<int>> by_root;
+  for (int i = 0; i < m; ++i) by_root[find(i)].push_back(i);
+  std::vector<std::vector<int>> groups;
+  for (auto& kv : by_root) groups.push_back(kv.second);  // rows ascending within a group
   std::sort(groups.begin(), groups.end(), [](const auto& a, const auto& b) { return a.front() < b.front(); });
+  if (pairs) std::sort(pairs->begin(), pairs->end());
   return groups;
 }
 
@@ -213,6 +229,8 @@ Diagnosis Diagnoser::run() {
     }
     out_.correlations = after;
   }
+  spectra();
+  orientation();
   verdict();
   where();
   char tests[1024];

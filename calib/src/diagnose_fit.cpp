@@ -19,77 +19,6 @@
 namespace accura {
 namespace diagnose_detail {
 
-void Diagnoser::noiseFloor() {
-  // Folds: repeated poses stay together.
-  const std::vector<std::vector<int>> groups = repeatGroups(fit_);
-  folds_ = o_.folds;
-  fold_.assign(m_, 0);
-  for (size_t g = 0; g < groups.size(); ++g)
-    for (int i : groups[g]) fold_[i] = static_cast<int>(g % static_cast<size_t>(folds_));
-  fold_poses_.assign(folds_, {});
-  for (int i = 0; i < m_; ++i) fold_poses_[fold_[i]].push_back(i);
-  if (!has_val_) out_.validation_method = std::to_string(folds_) + "-fold cross-validation over the poses of " + fit_.file;
-  else out_.validation_method = "validation set " + val_.file;
-
-  // Pooled within-pose scatter of the repeated poses (fit and validation data).
-  double ss = 0;
-  double dof = 0;
-  int n_groups = 0;
-  auto pool = [&](const MeasurementSet& set) {
-    for (const auto& g : repeatGroups(set)) {
-      if (g.size() < 2) continue;
-      Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-      for (int i : g) mean += set.rows[i].p_world_mm;
-      mean /= double(g.size());
-      for (int i : g) ss += (set.rows[i].p_world_mm - mean).squaredNorm();
-      dof += 3.0 * double(g.size() - 1);
-      ++n_groups;
-    }
-  };
-  pool(fit_);
-  if (has_val_) pool(val_);
-
-  double sigma = kNaN;  // per axis
-  bool per_row = false;
-  if (!std::isnan(o_.noise_std_mm)) {
-    sigma = o_.noise_std_mm;
-    out_.noise_floor_source = "given: " + fmtg("%.4g", sigma) + " mm per axis";
-  } else if (dof >= 30) {
-    sigma = std::sqrt(ss / dof);
-    out_.noise_floor_dof = dof;
-    out_.noise_floor_source = "repeated poses: " + std::to_string(n_groups) + " poses measured more than once, pooled scatter " +
-                              fmtg("%.4g", sigma) + " mm per axis (" + fmtg("%.0f", dof) + " degrees of freedom)";
-  } else if (fit_.has_std_position && (!has_val_ || val_.has_std_position)) {
-    per_row = true;
-    out_.noise_floor_source = "std columns of the data (the instrument's stated uncertainty)";
-  } else {
-    out_.noise_floor_known = false;
-    out_.noise_floor_source =
-        "unknown: no repeated poses (" + std::to_string(n_groups) + " found, at least 10 needed), no std columns and no "
-        "--noise-mm; estimated from the fit residual of the geometric model plus every testable effect, an upper "
-        "bound when an effect outside the catalogue is present; `unexplained` is then judged by the structure scan";
-  }
-  auto fill = [&](const MeasurementSet& set, std::vector<Eigen::Vector3d>* w, Eigen::VectorXd* var) {
-    w->assign(set.rows.size(), Eigen::Vector3d::Ones());
-    var->setZero(static_cast<Eigen::Index>(set.rows.size()));
-    for (size_t i = 0; i < set.rows.size(); ++i) {
-      const Measurement& r = set.rows[i];
-      Eigen::Vector3d s = Eigen::Vector3d::Constant(std::isnan(sigma) ? 1.0 : sigma);
-      if (set.has_std_position) s = r.std_mm;  // relative weights from the instrument
-      (*w)[i] = std::sqrt(r.weight) * s.cwiseInverse();
-      const Eigen::Vector3d sf = per_row ? r.std_mm : Eigen::Vector3d::Constant(std::isnan(sigma) ? 0.0 : sigma);
-      (*var)[static_cast<Eigen::Index>(i)] = sf.squaredNorm();
-    }
-  };
-  fill(fit_, &w_fit_, &var_fit_);
-  if (has_val_) fill(val_, &w_val_, &var_val_);
-  if (out_.noise_floor_known) {
-    const Eigen::VectorXd& v = has_val_ ? var_val_ : var_fit_;
-    out_.noise_floor_mm = std::sqrt(v.mean());
-    out_.noise_std_axis_mm = out_.noise_floor_mm / std::sqrt(3.0);
-  }
-}
-
 void Diagnoser::baseline() {
   IdentifyOptions io;
   io.groups = {"geometric"};
@@ -99,6 +28,21 @@ void Diagnoser::baseline() {
   }
   IdentifySummary s;
   M0_ = identify(start_, fit_, io, &s);
+  // Robust estimation: Huber weights from the baseline's residual, refitted twice (IRLS).
+  std::vector<double> w0;
+  for (const Measurement& r : fit_.rows) w0.push_back(r.weight);
+  for (int pass = 0; pass < 2; ++pass) {
+    robustWeights(M0_);
+    bool changed = false;
+    for (int i = 0; i < m_; ++i) {
+      const double w = w0[static_cast<size_t>(i)] * robust_w_[static_cast<size_t>(i)];
+      changed = changed || w != fit_.rows[static_cast<size_t>(i)].weight;
+      fit_.rows[static_cast<size_t>(i)].weight = w;
+    }
+    if (!changed) break;
+    M0_ = identify(M0_, fit_, io, &s);
+  }
+  for (int i = 0; i < m_; ++i) w_fit_[static_cast<size_t>(i)] *= std::sqrt(robust_w_[static_cast<size_t>(i)]);
   layout_ = parameterLayout(M0_);
   std::set<std::string> free;
   for (const ParameterEstimate& p : s.parameters) free.insert(p.name);
@@ -231,15 +175,48 @@ void Diagnoser::linearise() {
     build(val_, &JV_, &rV_);
     JV_ = JV_ * colscale_.cwiseInverse().asDiagonal();
   } else {
-    Af_.assign(folds_, Eigen::MatrixXd::Zero(C, C));
-    bf_.assign(folds_, Eigen::VectorXd::Zero(C));
-    for (int f = 0; f < folds_; ++f) {
-      for (int i : fold_poses_[f]) {
-        const Eigen::MatrixXd Ji = Jw.middleRows(3 * i, 3);
-        Af_[f].noalias() += Ji.transpose() * Ji;
-        bf_[f].noalias() += Ji.transpose() * rw.segment(3 * i, 3);
-      }
+    buildScheme(&interleaved_);
+  }
+  blockedSchemes();
+}
+
+// Per-fold normal equations of a scheme: the sums over each fold's rows, so that a fold's
+// training system is the whole system minus its own part.
+void Diagnoser::buildScheme(Scheme* sc) const {
+  const Eigen::Index C = JF_.cols();
+  sc->Af.assign(sc->poses.size(), Eigen::MatrixXd::Zero(C, C));
+  sc->bf.assign(sc->poses.size(), Eigen::VectorXd::Zero(C));
+  for (size_t f = 0; f < sc->poses.size(); ++f) {
+    for (int i : sc->poses[f]) {
+      const Eigen::MatrixXd Ji = wF_.segment(3 * i, 3).asDiagonal() * JF_.middleRows(3 * i, 3);
+      sc->Af[f].noalias() += Ji.transpose() * Ji;
+      sc->bf[f].noalias() += Ji.transpose() * wF_.segment(3 * i, 3).cwiseProduct(rF_.segment(3 * i, 3));
     }
+  }
+}
+
+// The schemes that mimic new data: contiguous blocks of each joint's angle (the poses sorted by
+// q_j, cut into blocked_folds equal parts: each fold extrapolates to a joint range the training
+// did not see) and of the pose order (drift, a later session).
+void Diagnoser::blockedSchemes() {
+  const int K = o_.blocked_folds;
+  if (K < 2 || m_ < 2 * K) return;
+  auto cut = [&](const std::vector<int>& order, const std::string& name) {
+    Scheme sc;
+    sc.name = name;
+    sc.poses.assign(static_cast<size_t>(K), {});
+    for (int k = 0; k < m_; ++k) sc.poses[static_cast<size_t>(static_cast<long>(k) * K / m_)].push_back(order[static_cast<size_t>(k)]);
+    buildScheme(&sc);
+    blocked_.push_back(std::move(sc));
+  };
+  std::vector<int> order(static_cast<size_t>(m_));
+  std::iota(order.begin(), order.end(), 0);
+  cut(order, "pose order");
+  for (int j = 0; j < M0_.dof(); ++j) {
+    std::vector<int> by = order;
+    std::stable_sort(by.begin(), by.end(), [&](int a, int b) { return fit_.rows[a].q[j] < fit_.rows[b].q[j]; });
+    if (!(fit_.rows[by.back()].q[j] - fit_.rows[by.front()].q[j] > 1e-6)) continue;
+    cut(by, "q" + std::to_string(j + 1) + " blocks");
   }
 }
 
@@ -273,22 +250,35 @@ Diagnoser::Eval Diagnoser::evaluate(const std::vector<int>& S, bool leverage) co
         ev.lev[i] = llt.matrixL().solve(Eigen::MatrixXd(JS.middleRows(3 * i, 3).transpose())).squaredNorm();
     }
   } else {
-    const Eigen::MatrixXd JS = JF_(Eigen::all, S);
-    ev.d.resize(m_);
-    if (leverage) ev.lev.resize(m_);
-    for (int f = 0; f < folds_; ++f) {
-      Eigen::MatrixXd M = AS;
-      Eigen::VectorXd v = bS;
-      for (Eigen::Index a = 0; a < s; ++a) {
-        v[a] -= bf_[f][S[a]];
-        for (Eigen::Index c = 0; c < s; ++c) M(a, c) -= Af_[f](S[a], S[c]);
-      }
-      if (!solveSpd(M, v, &llt, &x)) return ev;
-      for (int i : fold_poses_[f]) {
-        const Eigen::MatrixXd Ji = JS.middleRows(3 * i, 3);
-        ev.d[i] = (rF_.segment(3 * i, 3) - Ji * x).squaredNorm();
-        if (leverage) ev.lev[i] = llt.matrixL().solve(Eigen::MatrixXd(Ji.transpose())).squaredNorm();
-      }
+    return cvEval(S, interleaved_, leverage);
+  }
+  ev.ok = true;
+  return ev;
+}
+
+// Held-out squared errors by cross-validation over the scheme's folds (linearised at M0).
+Diagnoser::Eval Diagnoser::cvEval(const std::vector<int>& S, const Scheme& scheme, bool leverage) const {
+  Eval ev;
+  const Eigen::Index s = static_cast<Eigen::Index>(S.size());
+  const Eigen::MatrixXd AS = A_(S, S);
+  const Eigen::VectorXd bS = b_(S);
+  Eigen::LLT<Eigen::MatrixXd> llt;
+  Eigen::VectorXd x;
+  const Eigen::MatrixXd JS = JF_(Eigen::all, S);
+  ev.d.resize(m_);
+  if (leverage) ev.lev.resize(m_);
+  for (size_t f = 0; f < scheme.poses.size(); ++f) {
+    Eigen::MatrixXd M = AS;
+    Eigen::VectorXd v = bS;
+    for (Eigen::Index a = 0; a < s; ++a) {
+      v[a] -= scheme.bf[f][S[a]];
+      for (Eigen::Index c = 0; c < s; ++c) M(a, c) -= scheme.Af[f](S[a], S[c]);
+    }
+    if (!solveSpd(M, v, &llt, &x)) return ev;
+    for (int i : scheme.poses[f]) {
+      const Eigen::MatrixXd Ji = JS.middleRows(3 * i, 3);
+      ev.d[i] = (rF_.segment(3 * i, 3) - Ji * x).squaredNorm();
+      if (leverage) ev.lev[i] = llt.matrixL().solve(Eigen::MatrixXd(Ji.transpose())).squaredNorm();
     }
   }
   ev.ok = true;

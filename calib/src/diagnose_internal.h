@@ -9,6 +9,7 @@
 
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <limits>
 #include <map>
 #include <string>
@@ -36,8 +37,10 @@ std::string fmtg(const char* f, double v);
 void statsOf(const std::vector<double>& e, HeldOutStats* s);
 /// What each effect needs to be told apart from the others.
 std::string separator(const std::string& effect, const std::vector<int>& joints);
-/// Repeated poses: same joint values (within 1e-6 deg or mm), payload and directions.
-std::vector<std::vector<int>> repeatGroups(const MeasurementSet& set);
+/// Repeated joint configurations: every joint within `tol` (deg or mm), the same payload and
+/// directions; groups of rows (ascending, groups by first row), and every pair (i < k) when asked.
+std::vector<std::vector<int>> repeatGroups(const MeasurementSet& set, double tol,
+                                           std::vector<std::pair<int, int>>* pairs = nullptr);
 /// Cholesky solve of a normal system with unit-scaled columns; false when it is singular
 /// (a pivot ratio below 1e-7, a condition number above 1e14).
 bool solveSpd(const Eigen::MatrixXd& M, const Eigen::VectorXd& v, Eigen::LLT<Eigen::MatrixXd>* llt,
@@ -63,6 +66,13 @@ class Diagnoser {
     Eigen::VectorXd d;          // held-out squared error per pose (mm^2)
     Eigen::VectorXd lev;        // prediction variance per held-out pose (mm^2), when asked
   };
+  /// Cross-validation folds with their per-fold normal equations (weighted, scaled columns).
+  struct Scheme {
+    std::string name;                       // "interleaved", "pose order", "q3 blocks"
+    std::vector<std::vector<int>> poses;    // fit rows held out in each fold
+    std::vector<Eigen::MatrixXd> Af;
+    std::vector<Eigen::VectorXd> bf;
+  };
   struct Exact {
     std::vector<Eigen::Vector3d> e;  // held-out residual per pose (measured - model)
     HeldOutStats stats;
@@ -71,10 +81,21 @@ class Diagnoser {
 
   void prepareData(const MeasurementSet& data, const MeasurementSet* validation);
   void noiseFloor();
+  void repeats();
   void baseline();
+  void robustWeights(const RobotModel& model);
   void columns();
   void linearise();
   Eval evaluate(const std::vector<int>& S, bool leverage = false) const;
+  Eval cvEval(const std::vector<int>& S, const Scheme& scheme, bool leverage) const;
+  void buildScheme(Scheme* s) const;
+  void blockedSchemes();
+  /// The checks an addition to the model must pass besides the held-out test: physically
+  /// plausible parameters and a gain that survives blocked cross-validation. Fills *why when not.
+  bool admissible(const std::vector<int>& cur, const std::vector<int>& add, std::string* why, double* blocked_gain,
+                  std::string* scheme) const;
+  std::vector<std::string> implausible(const std::vector<EffectParameter>& ps) const;
+  std::vector<Coverage> coverageOf(const std::string& effect, const std::vector<int>& joints) const;
   Eigen::VectorXd fitAll(const std::vector<int>& S, double* chi2, Eigen::VectorXd* sigma) const;
   RobotModel gnFit(const std::vector<int>& S, const std::vector<int>& rows) const;
   Exact exact(const std::vector<int>& S);
@@ -89,6 +110,9 @@ class Diagnoser {
     bool has_best_single = false;   // the best block of the first round, passing or not
     int best_single = -1;
     Eval best_single_eval;
+    std::vector<Rejected> rejected;  // passed the held-out test, failed admissible()
+    std::vector<double> blocked_gain;  // per selected block (NaN when not checked)
+    std::vector<std::string> blocked_scheme;
   };
   Forward forward(const std::vector<int>& candidates) const;
   void selection();
@@ -98,6 +122,8 @@ class Diagnoser {
   void verdict();
   void where();
   std::vector<Correlation> scan(const std::vector<Eigen::Vector3d>& E) const;
+  void spectra();
+  void orientation();
 
   // inputs
   DiagnoseOptions o_;
@@ -125,8 +151,14 @@ class Diagnoser {
   Eigen::MatrixXd A_;
   Eigen::VectorXd b_;
   double rr_ = 0;
-  std::vector<Eigen::MatrixXd> Af_;
-  std::vector<Eigen::VectorXd> bf_;
+  Scheme interleaved_;              // the ordinary cross-validation (fold_poses_)
+  std::vector<Scheme> blocked_;     // contiguous blocks of each joint's angle and of the pose order
+  // repeats, robust weights, orientation
+  std::vector<std::vector<int>> groups_;   // repeated configurations of the fit data
+  std::vector<double> robust_w_;           // per fit row (1: not down-weighted)
+  std::vector<Eigen::Quaterniond> R_fit_;  // measured orientation of the fit rows (6D data)
+  std::vector<bool> rot_ok_;               // row has a measured orientation
+  bool fit_has_rot_ = false;
   // results
   Diagnosis out_;
   Eval base_eval_;
@@ -141,6 +173,8 @@ class Diagnoser {
   std::vector<std::string> order_;  // selected effects, in order of first selection
   std::map<std::string, std::vector<int>> blocks_of_;
   std::map<std::string, double> drop_of_;
+  std::vector<double> sel_blocked_gain_;
+  std::vector<std::string> sel_blocked_scheme_;
 };
 
 }  // namespace accura::diagnose_detail

@@ -76,9 +76,25 @@ std::vector<Correlation> Diagnoser::scan(const std::vector<Eigen::Vector3d>& E) 
   scalar("payload_kg", set.has_payload, [](const Measurement& r) { return r.context.payload_kg; });
   scalar("temp_c", set.has_temperature, [](const Measurement& r) { return r.context.temp_c; });
   scalar("time_s", set.has_time, [](const Measurement& r) { return r.time_s; });
-  if (set.has_direction)
+  if (set.has_direction) {
     for (int j = 0; j < n; ++j)
       scalar("dir" + std::to_string(j + 1), true, [j](const Measurement& r) { return double(r.dir[static_cast<size_t>(j)]); });
+  } else {
+    // the approach direction from the pose sequence: sign of q_j(i) - q_j(i-1)
+    for (int j = 0; j < n; ++j) {
+      Eigen::VectorXd v(N);
+      for (int i = 0; i < N; ++i)
+        v[i] = i == 0 ? 1.0 : (set.rows[static_cast<size_t>(i)].q[j] >= set.rows[static_cast<size_t>(i - 1)].q[j] ? 1.0 : -1.0);
+      if (varies(v)) vars.push_back({"approach" + std::to_string(j + 1), {centred(v)}, v});
+    }
+  }
+  {
+    // the order of measurement (drift): linear and quadratic in the row index
+    Eigen::VectorXd v(N);
+    for (int i = 0; i < N; ++i) v[i] = N > 1 ? double(i) / double(N - 1) : 0.0;
+    const Eigen::VectorXd c = centred(v);
+    if (varies(v)) vars.push_back({"order", {c, centred(c.array().square().matrix())}, v});
+  }
 
   // folds for the regression
   std::vector<int> fold(static_cast<size_t>(N));

@@ -20,6 +20,118 @@ namespace accura {
 namespace diagnose_detail {
 
 
+// Physically implausible values of an effect's parameters (display units): a negative or absurd
+// joint compliance, a thermal coefficient of the wrong sign or above 50 ppm/K (steel 11-13,
+// aluminium 23), a gear or backlash amplitude above a degree, a scale error above 1%.
+std::vector<std::string> Diagnoser::implausible(const std::vector<EffectParameter>& ps) const {
+  std::vector<std::string> out;
+  std::map<std::string, double> gear_amp2;  // per joint and harmonic: s^2 + c^2 (deg^2)
+  for (const EffectParameter& p : ps) {
+    const std::string v = p.name + " = " + fmtg("%.4g", p.value) + " " + p.unit;
+    if (p.unit == "urad/Nm" || p.unit == "um/N") {
+      if (p.value < 0) out.push_back(v + ": a joint compliance cannot be negative");
+      else if (p.value > 500) out.push_back(v + ": above 500 " + p.unit + ", not a joint's stiffness");
+    } else if (p.unit == "ppm/K") {
+      if (p.value < 0) out.push_back(v + ": a thermal expansion coefficient of the wrong sign");
+      else if (p.value > 50) out.push_back(v + ": above 50 ppm/K, no arm material expands so much");
+    } else if (p.unit == "ppm") {
+      if (std::abs(p.value) > 1e4) out.push_back(v + ": a scale error above 1%");
+    } else if (p.name.find("backlash") != std::string::npos) {
+      if (p.value < 0) out.push_back(v + ": a backlash cannot be negative");
+      else if (p.value > 1) out.push_back(v + ": a backlash above a degree");
+    } else if (p.unit == "deg") {
+      // gear harmonics jN_sH / jN_cH: the amplitude of each harmonic
+      const size_t u = p.name.rfind('_');
+      if (u != std::string::npos && u + 2 <= p.name.size()) {
+        const std::string key = p.name.substr(0, u) + "_h" + p.name.substr(u + 2);
+        gear_amp2[key] += p.value * p.value;
+      }
+      if (std::abs(p.value) > 1) out.push_back(v + ": an amplitude above a degree");
+    }
+  }
+  for (const auto& kv : gear_amp2)
+    if (std::sqrt(kv.second) > 1 && out.empty())
+      out.push_back(kv.first + " amplitude " + fmtg("%.3g", std::sqrt(kv.second)) + " deg: above a degree");
+  return out;
+}
+
+// The ranges of the fit data an effect on these joints depends on.
+std::vector<Coverage> Diagnoser::coverageOf(const std::string& effect, const std::vector<int>& joints) const {
+  std::vector<Coverage> out;
+  auto range = [&](const std::string& name, const std::string& unit, auto get) {
+    Coverage c{name, unit, 1e300, -1e300};
+    for (const Measurement& r : fit_.rows) {
+      c.lo = std::min(c.lo, get(r));
+      c.hi = std::max(c.hi, get(r));
+    }
+    out.push_back(c);
+  };
+  if (effect == "thermal") {
+    range("temp_c", "C", [](const Measurement& r) { return r.context.temp_c; });
+    return out;
+  }
+  std::vector<int> js = joints;  // 1-based
+  if (effect == "joint_compliance") {
+    // the gravity torque on a joint depends on it and the joints after it
+    std::set<int> all;
+    for (int j : joints)
+      for (int k = j; k <= M0_.dof(); ++k) all.insert(k);
+    js.assign(all.begin(), all.end());
+  }
+  for (int j : js) {
+    const bool rev = M0_.nominal.joints[static_cast<size_t>(j - 1)].type == JointType::kRevolute;
+    range("q" + std::to_string(j), rev ? "deg" : "mm", [j](const Measurement& r) { return r.q[j - 1]; });
+  }
+  return out;
+}
+
+// Besides the held-out test, an addition must have physically plausible parameters and keep
+// its gain under blocked cross-validation (every scheme: contiguous blocks of each joint's
+// angle and of the pose order); a gain that vanishes or turns into a loss when a joint range
+// is held out would make new data worse.
+bool Diagnoser::admissible(const std::vector<int>& cur, const std::vector<int>& add, std::string* why,
+                           double* blocked_gain, std::string* scheme) const {
+  std::vector<int> with = cur;
+  with.insert(with.end(), add.begin(), add.end());
+  const std::vector<int> S = withBlocks(with);
+  std::set<std::string> effects;
+  for (int b : add) effects.insert(blocks_[static_cast<size_t>(b)].effect);
+  for (const std::string& e : effects) {
+    std::vector<EffectParameter> ps;
+    for (const EffectParameter& p : parametersOf(S, e)) {
+      // only the parameters of the blocks being added
+      for (int b : add) {
+        const Block& B = blocks_[static_cast<size_t>(b)];
+        for (int c : B.cols)
+          if (layout_[cols_[c]].name == p.name) ps.push_back(p);
+      }
+    }
+    const std::vector<std::string> bad = implausible(ps);
+    if (!bad.empty()) {
+      *why = "physically implausible: " + bad[0];
+      for (size_t k = 1; k < bad.size(); ++k) *why += "; " + bad[k];
+      return false;
+    }
+  }
+  *blocked_gain = kNaN;
+  const std::vector<int> S0 = withBlocks(cur);
+  for (const Scheme& sc : blocked_) {
+    const Eval e0 = cvEval(S0, sc, false), e1 = cvEval(S, sc, false);
+    if (!e0.ok || !e1.ok) continue;
+    const double g = pairedGain(e0.d, e1.d).gain;
+    if (std::isnan(*blocked_gain) || g < *blocked_gain) {
+      *blocked_gain = g;
+      *scheme = sc.name;
+    }
+  }
+  if (*blocked_gain <= 0) {
+    *why = "does not carry over to new joint ranges: blocked cross-validation (" + *scheme + ") gives a gain of " +
+           fmtg("%.1f", 100 * *blocked_gain) + "% (held-out error " + (*blocked_gain < 0 ? "worse" : "not better") + ")";
+    return false;
+  }
+  return true;
+}
+
 // Forward selection over the candidate blocks, starting from the baseline: each round adds
 // the block with the largest held-out gain if it passes the test; when no single block
 // passes, the remaining blocks of each effect are tried together (one candidate per effect),
@@ -36,16 +148,30 @@ Diagnoser::Forward Diagnoser::forward(const std::vector<int>& candidates) const 
     blocks.insert(blocks.end(), add.begin(), add.end());
     return evaluate(withBlocks(blocks));
   };
-  auto accept = [&](const std::vector<int>& add, const Eval& e) {
+  auto accept = [&](const std::vector<int>& add, const Eval& e, double blocked_gain, const std::string& scheme) {
     for (size_t k = 0; k < add.size(); ++k) {
       used[static_cast<size_t>(add[k])] = true;
       fw.blocks.push_back(add[k]);
       fw.drops.push_back(k == 0 ? fw.cur.d.mean() - e.d.mean() : 0.0);
+      fw.blocked_gain.push_back(blocked_gain);
+      fw.blocked_scheme.push_back(scheme);
     }
     fw.cur = e;
   };
+  auto reject = [&](const std::vector<int>& add, const std::string& why) {
+    Rejected r;
+    r.effect = blocks_[static_cast<size_t>(add[0])].effect;
+    for (int b : add) {
+      used[static_cast<size_t>(b)] = true;
+      if (blocks_[static_cast<size_t>(b)].joint >= 0) r.joints.push_back(blocks_[static_cast<size_t>(b)].joint + 1);
+    }
+    std::sort(r.joints.begin(), r.joints.end());
+    r.reason = why;
+    fw.rejected.push_back(r);
+  };
   std::set<std::string> selected_effects;
-  for (int step = 0; step < o_.max_steps; ++step) {
+  // rejected candidates do not count as steps
+  for (int step = 0; static_cast<int>(fw.blocks.size()) < o_.max_steps && step < o_.max_steps + static_cast<int>(B); ++step) {
     // two families, each with its own Bonferroni correction: blocks of effects already in
     // the model (is the effect on more joints?) and blocks of new effects
     int best[2] = {-1, -1}, tried[2] = {0, 0};
@@ -79,8 +205,14 @@ Diagnoser::Forward Diagnoser::forward(const std::vector<int>& candidates) const 
       if (passes && (pick < 0 || best_gain[fam].gain > best_gain[pick].gain)) pick = fam;
     }
     if (pick >= 0) {
+      std::string why, scheme;
+      double bg = kNaN;
+      if (!admissible(fw.blocks, {best[pick]}, &why, &bg, &scheme)) {
+        reject({best[pick]}, why);
+        continue;
+      }
       selected_effects.insert(blocks_[static_cast<size_t>(best[pick])].effect);
-      accept({best[pick]}, best_eval[pick]);
+      accept({best[pick]}, best_eval[pick], bg, scheme);
       continue;
     }
     // no single block passes: the remaining blocks of each effect together
@@ -104,8 +236,14 @@ Diagnoser::Forward Diagnoser::forward(const std::vector<int>& candidates) const 
       }
     }
     if (!best_group.empty() && group_gain.p < o_.alpha / double(groups_tried) && group_gain.gain >= o_.min_gain) {
+      std::string why, scheme;
+      double bg = kNaN;
+      if (!admissible(fw.blocks, best_group, &why, &bg, &scheme)) {
+        reject(best_group, why);
+        continue;
+      }
       selected_effects.insert(blocks_[static_cast<size_t>(best_group[0])].effect);
-      accept(best_group, group_eval);
+      accept(best_group, group_eval, bg, scheme);
       continue;
     }
     break;
@@ -129,6 +267,9 @@ void Diagnoser::selection() {
   sel_blocks_ = fw.blocks;
   sel_drop_ = fw.drops;
   last_round_ = fw.last_round;
+  sel_blocked_gain_ = fw.blocked_gain;
+  sel_blocked_scheme_ = fw.blocked_scheme;
+  out_.rejected = fw.rejected;
 }
 
 void Diagnoser::ranking() {
@@ -181,7 +322,15 @@ void Diagnoser::ranking() {
     fitAll(G_, &chi_without, nullptr);
     ev.delta_bic = chi_with - chi_without + double(S.size() - G_.size()) * std::log(3.0 * m_);
     ev.parameters = parametersOf(S, e);
-    if (!ev.significant) ev.note = "not significant: the best joint alone does not pass the test";
+    ev.implausible = implausible(ev.parameters);
+    if (!ev.significant) {
+      ev.note = "not significant: the best joint alone does not pass the test";
+      for (const Rejected& r : fw.rejected)
+        if (r.effect == e) {
+          ev.note = "not selected: " + jointList(r.joints) + (r.joints.empty() ? "" : " ") + r.reason;
+          break;
+        }
+    }
     out_.ranking.push_back(ev);
   }
   std::stable_sort(out_.ranking.begin(), out_.ranking.end(), [](const EffectEvidence& a, const EffectEvidence& b) {
@@ -310,6 +459,17 @@ void Diagnoser::shrink() {
     fitAll(withBlocks(before), &chi_without, nullptr);
     ev.delta_bic = chi_with - chi_without + double(S.size() - withBlocks(before).size()) * std::log(3.0 * m_);
     ev.parameters = parametersOf(S, e);
+    ev.implausible = implausible(ev.parameters);
+    ev.coverage = coverageOf(e, ev.joints);
+    ev.params = e;
+    for (size_t k = 0; k < ev.joints.size(); ++k) ev.params += (k ? "+j" : ":j") + std::to_string(ev.joints[k]);
+    for (size_t k = 0; k < sel_blocks_.size(); ++k)
+      if (blocks_[sel_blocks_[k]].effect == e &&
+          (std::isnan(ev.blocked_gain) || sel_blocked_gain_[k] < ev.blocked_gain)) {
+        ev.blocked_gain = sel_blocked_gain_[k];
+        ev.blocked_scheme = sel_blocked_scheme_[k];
+      }
+    out_.identify_params += "," + ev.params;
     out_.selected.push_back(ev);
     out_.shrink.push_back({e, ev.joints, ex.stats});
     last = std::move(ex);

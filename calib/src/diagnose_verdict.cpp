@@ -46,6 +46,13 @@ void Diagnoser::verdict() {
     std::sort(corr.begin(), corr.end(), [](const Correlation* a, const Correlation* b) { return a->r2_after > b->r2_after; });
     structured = !corr.empty();
   }
+  // the per-joint spectrum of the final residual: a peak significant after the Bonferroni
+  // correction over every joint and k, carrying at least 5% of the joint-projected variance
+  std::vector<const JointSpectrum*> peaks;
+  for (const JointSpectrum& sp : out_.spectra)
+    if (sp.peak_p < o_.alpha && sp.peak_share >= 0.05) peaks.push_back(&sp);
+  std::sort(peaks.begin(), peaks.end(), [](const JointSpectrum* a, const JointSpectrum* b) { return a->peak_share > b->peak_share; });
+  structured = structured || !peaks.empty();
   // Unexplained: above the noise floor, and structured: a variable of the pose or context
   // predicts it, or it is large (its excess over the expected RMS, in quadrature, is at least
   // the noise floor). Without a noise floor: when the structure scan finds a predictor.
@@ -62,6 +69,13 @@ void Diagnoser::verdict() {
   const bool large = excess_mm >= out_.noise_floor_mm;
   const bool significant_excess = out_.noise_floor_known && final_stats_.floor_p < o_.floor_alpha;
   above_floor_ = out_.noise_floor_known ? (significant_excess && (structured || large)) : structured;
+  // share of the gap (baseline MSE above what the floor and the parameters explain) that the
+  // selected effects take away
+  {
+    const double b2 = out_.baseline.rms_mm * out_.baseline.rms_mm, f2 = final_stats_.rms_mm * final_stats_.rms_mm;
+    const double gap = b2 - expected_ms;
+    v.explained_share = gap > 0 ? std::clamp((b2 - f2) / gap, 0.0, 1.0) : 0.0;
+  }
   std::string after = order.empty() ? std::string("the complete geometric model") : "the geometric model plus ";
   for (size_t k = 0; k < order.size(); ++k) after += (k ? ", " : "") + order[k];
   const std::string against =
@@ -76,6 +90,12 @@ void Diagnoser::verdict() {
     v.correlates.push_back(s + ")");
     if (v.correlates.size() >= 4) break;
   }
+  for (const JointSpectrum* sp : peaks) {
+    if (v.correlates.size() >= 6) break;
+    v.correlates.push_back("q" + std::to_string(sp->joint) + " at " + std::to_string(sp->peak_cycles) + " cycles/rev (" +
+                           fmtg("%.0f", sp->peak_amplitude_urad) + " urad, " + fmtg("%.0f", 100 * sp->peak_share) +
+                           "% of the residual projected on joint " + std::to_string(sp->joint) + ", p " + fmtg("%.2g", sp->peak_p) + ")");
+  }
   if (above_floor_) {
     v.effect = "unexplained";
     std::set<int> js;
@@ -89,8 +109,14 @@ void Diagnoser::verdict() {
     } else {
       v.explanation += " No single variable of the pose or context predicts it.";
     }
-    if (!order.empty())
-      v.explanation += " The selected effects explain only part of it; do not take them for the cause.";
+    if (!order.empty()) {
+      v.effects = order;
+      const double rest = std::sqrt(std::max(0.0, final_stats_.rms_mm * final_stats_.rms_mm - expected_ms));
+      v.explanation += " Partial explanation: " + after.substr(std::string("the geometric model plus ").size()) + " explain " +
+                       fmtg("%.0f", 100 * v.explained_share) + "% of the gap (held-out RMS " + fmtg("%.4f", out_.baseline.rms_mm) +
+                       " -> " + fmtg("%.4f", final_stats_.rms_mm) + " mm); the rest, " + fmtg("%.4f", rest) +
+                       " mm in quadrature above the floor, is unexplained; do not take them for the cause.";
+    }
   } else if (order.empty()) {
     v.effect = "none";
     if (significant_excess)
@@ -102,11 +128,20 @@ void Diagnoser::verdict() {
     for (const std::string& e : order)
       if (drop_of[e] > drop_of[best]) best = e;
     v.effect = best;
+    // every selected effect that takes at least 10% of the total drop is named as a cause
+    double total = 0;
+    for (const std::string& e : order) total += std::max(0.0, drop_of[e]);
+    v.effects.push_back(best);
+    for (const std::string& e : order)
+      if (e != best && total > 0 && drop_of[e] >= 0.1 * total) v.effects.push_back(e);
     for (int b : blocks_of[best])
       if (blocks_[b].joint >= 0) v.joints.push_back(blocks_[b].joint + 1);
     std::sort(v.joints.begin(), v.joints.end());
+    std::string also;
+    for (size_t k = 1; k < v.effects.size(); ++k) also += (k > 1 ? ", " : "") + v.effects[k];
     v.explanation = best + (v.joints.empty() ? std::string() : " (" + jointList(v.joints) + ")") +
-                    " causes the largest part of the gap: held-out RMS " + fmtg("%.4f", out_.baseline.rms_mm) + " -> " +
+                    (also.empty() ? "" : " and " + also + " together cause the gap (" + best + " the largest part)") +
+                    (also.empty() ? " causes the largest part of the gap" : "") + ": held-out RMS " + fmtg("%.4f", out_.baseline.rms_mm) + " -> " +
                     fmtg("%.4f", final_stats_.rms_mm) + " mm with " + after + "; " + against + ".";
     if (significant_excess)
       v.explanation += " What remains is slightly above the noise floor (" + fmtg("%.4f", excess_mm) +
