@@ -215,6 +215,7 @@ Diagnosis Diagnoser::run() {
   baseline();
   columns();
   linearise();
+  robust();
   selection();
   ranking();
   confounding();

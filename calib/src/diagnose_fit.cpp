@@ -19,30 +19,18 @@
 namespace accura {
 namespace diagnose_detail {
 
-void Diagnoser::baseline() {
+IdentifyOptions Diagnoser::baselineOptions() const {
   IdentifyOptions io;
   io.groups = {"geometric"};
-  if (!fit_.has_std_position) {
-    // weights: the noise floor when known, else identify's variance components
-    if (out_.noise_floor_known) io.position_std_mm = out_.noise_std_axis_mm;
-  }
+  // weights: the std columns, else the noise floor when known, else identify's variance components
+  if (!fit_.has_std_position && out_.noise_floor_known) io.position_std_mm = out_.noise_std_axis_mm;
+  return io;
+}
+
+void Diagnoser::baseline() {
   IdentifySummary s;
-  M0_ = identify(start_, fit_, io, &s);
-  // Robust estimation: Huber weights from the baseline's residual, refitted twice (IRLS).
-  std::vector<double> w0;
-  for (const Measurement& r : fit_.rows) w0.push_back(r.weight);
-  for (int pass = 0; pass < 2; ++pass) {
-    robustWeights(M0_);
-    bool changed = false;
-    for (int i = 0; i < m_; ++i) {
-      const double w = w0[static_cast<size_t>(i)] * robust_w_[static_cast<size_t>(i)];
-      changed = changed || w != fit_.rows[static_cast<size_t>(i)].weight;
-      fit_.rows[static_cast<size_t>(i)].weight = w;
-    }
-    if (!changed) break;
-    M0_ = identify(M0_, fit_, io, &s);
-  }
-  for (int i = 0; i < m_; ++i) w_fit_[static_cast<size_t>(i)] *= std::sqrt(robust_w_[static_cast<size_t>(i)]);
+  M0_ = identify(start_, fit_, baselineOptions(), &s);
+  robust_w_.assign(static_cast<size_t>(m_), 1.0);
   layout_ = parameterLayout(M0_);
   std::set<std::string> free;
   for (const ParameterEstimate& p : s.parameters) free.insert(p.name);
@@ -57,6 +45,39 @@ void Diagnoser::baseline() {
     for (size_t i = 0; i < w_fit_.size(); ++i) w_fit_[i] *= std::sqrt(fit_.rows[i].weight);
     if (has_val_)
       for (size_t i = 0; i < w_val_.size(); ++i) w_val_[i] = Eigen::Vector3d::Constant(std::sqrt(val_.rows[i].weight) / s.position_std_mm);
+  }
+}
+
+// Robust estimation (IRLS, two passes): Huber weights from the residual of the richest model
+// (the geometric baseline plus every testable effect, linearised), so that a catalogued effect
+// does not hide a gross outlier; the baseline is refitted with them and the linearisation
+// rebuilt at it.
+void Diagnoser::robust() {
+  if (!(o_.robust_k > 0) || blocks_.empty()) return;
+  std::vector<double> w0;
+  for (const Measurement& r : fit_.rows) w0.push_back(r.weight);
+  const std::vector<Eigen::Vector3d> wf0 = w_fit_;
+  std::vector<int> all(blocks_.size());
+  std::iota(all.begin(), all.end(), 0);
+  for (int pass = 0; pass < 2; ++pass) {
+    const std::vector<int> S = withBlocks(all);
+    Eigen::LLT<Eigen::MatrixXd> llt;
+    Eigen::VectorXd x;
+    if (!solveSpd(A_(S, S), b_(S), &llt, &x)) return;
+    const Eigen::VectorXd e = rF_ - JF_(Eigen::all, S) * x;
+    std::vector<double> mag(static_cast<size_t>(m_));
+    for (int i = 0; i < m_; ++i) mag[static_cast<size_t>(i)] = e.segment(3 * i, 3).norm();
+    robustWeights(mag);
+    bool changed = false;
+    for (int i = 0; i < m_; ++i) {
+      const double w = w0[static_cast<size_t>(i)] * robust_w_[static_cast<size_t>(i)];
+      changed = changed || w != fit_.rows[static_cast<size_t>(i)].weight;
+      fit_.rows[static_cast<size_t>(i)].weight = w;
+      w_fit_[static_cast<size_t>(i)] = wf0[static_cast<size_t>(i)] * std::sqrt(robust_w_[static_cast<size_t>(i)]);
+    }
+    if (!changed) break;
+    M0_ = identify(M0_, fit_, baselineOptions(), nullptr);
+    linearise();
   }
 }
 
@@ -199,6 +220,7 @@ void Diagnoser::buildScheme(Scheme* sc) const {
 // q_j, cut into blocked_folds equal parts: each fold extrapolates to a joint range the training
 // did not see) and of the pose order (drift, a later session).
 void Diagnoser::blockedSchemes() {
+  blocked_.clear();
   const int K = o_.blocked_folds;
   if (K < 2 || m_ < 2 * K) return;
   auto cut = [&](const std::vector<int>& order, const std::string& name) {
@@ -277,7 +299,9 @@ Diagnoser::Eval Diagnoser::cvEval(const std::vector<int>& S, const Scheme& schem
     if (!solveSpd(M, v, &llt, &x)) return ev;
     for (int i : scheme.poses[f]) {
       const Eigen::MatrixXd Ji = JS.middleRows(3 * i, 3);
-      ev.d[i] = (rF_.segment(3 * i, 3) - Ji * x).squaredNorm();
+      // robust held-out loss: a down-weighted row counts with its weight squared (about the
+      // squared cut-off for a gross outlier)
+      ev.d[i] = (rF_.segment(3 * i, 3) - Ji * x).squaredNorm() * robust_w_[static_cast<size_t>(i)] * robust_w_[static_cast<size_t>(i)];
       if (leverage) ev.lev[i] = llt.matrixL().solve(Eigen::MatrixXd(Ji.transpose())).squaredNorm();
     }
   }
@@ -360,19 +384,24 @@ RobotModel Diagnoser::gnFit(const std::vector<int>& S, const std::vector<int>& r
   return model;
 }
 
-void Diagnoser::floorTest(const Eval& lin, const std::vector<double>& d, HeldOutStats* s) const {
+void Diagnoser::floorTest(const Eval& lin, const std::vector<Eigen::Vector3d>& e, const std::vector<bool>& keep,
+                          HeldOutStats* s) const {
   if (!out_.noise_floor_known || !lin.ok || lin.lev.size() == 0) return;
   const Eigen::VectorXd& var = has_val_ ? var_val_ : var_fit_;
   double expected = 0, var_sum = 0, noise = 0, obs = 0;
-  for (size_t i = 0; i < d.size(); ++i) {
+  int n = 0;
+  for (size_t i = 0; i < keep.size(); ++i) {
+    if (!keep[i]) continue;
     const double E = var[static_cast<Eigen::Index>(i)] + lin.lev[static_cast<Eigen::Index>(i)];
     expected += E;
     var_sum += 2.0 / 3.0 * E * E;  // |e|^2 = (E/3) chi^2_3
     noise += var[static_cast<Eigen::Index>(i)];
-    obs += d[i];
+    obs += e[i].squaredNorm();
+    ++n;
   }
+  if (n == 0) return;
   if (std::isfinite(out_.noise_floor_dof)) var_sum += 2.0 / out_.noise_floor_dof * noise * noise;
-  s->expected_rms_mm = std::sqrt(expected / double(d.size()));
+  s->expected_rms_mm = std::sqrt(expected / double(n));
   s->floor_z = var_sum > 0 ? (obs - expected) / std::sqrt(var_sum) : 0.0;
   s->floor_p = upperTail(s->floor_z);
 }
@@ -402,13 +431,23 @@ Diagnoser::Exact Diagnoser::exact(const std::vector<int>& S) {
       }
     }
   }
+  // Under cross-validation the held-out rows are the fit rows: those the robust estimation
+  // down-weighted (gross outliers, glitches) are left out of the statistics and the floor test,
+  // and enter the scans with their residual scaled by their weight.
   std::vector<double> mag, d;
-  for (const auto& e : ex.e) {
-    mag.push_back(e.norm());
-    d.push_back(e.squaredNorm());
+  std::vector<bool> keep(ex.e.size(), true);
+  for (size_t i = 0; i < ex.e.size(); ++i) {
+    if (!has_val_ && robust_w_[i] < 1.0) {
+      keep[i] = false;
+      continue;
+    }
+    mag.push_back(ex.e[i].norm());
+    d.push_back(ex.e[i].squaredNorm());
   }
   statsOf(mag, &ex.stats);
-  floorTest(evaluate(S, true), d, &ex.stats);
+  floorTest(evaluate(S, true), ex.e, keep, &ex.stats);
+  if (!has_val_)
+    for (size_t i = 0; i < ex.e.size(); ++i) ex.e[i] *= robust_w_[i];
   return ex;
 }
 

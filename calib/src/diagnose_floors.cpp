@@ -7,7 +7,6 @@
 #include <numeric>
 
 #include "accura/calib/geometry.h"
-#include "accura/calib/identify.h"
 #include "diagnose_internal.h"
 
 namespace accura {
@@ -167,16 +166,14 @@ void Diagnoser::noiseFloor() {
   }
 }
 
-// Robust weights from the residual of `model` on the fit data: Huber's rule on each pose's 3D
-// residual with a robust scale (median |r| / median of chi_3). Multiplies the rows' weights.
-void Diagnoser::robustWeights(const RobotModel& model) {
+// Robust weights from the per-pose residual magnitudes (mm) of the fit rows: Huber's rule with a
+// robust scale (median |r| / median of chi_3).
+void Diagnoser::robustWeights(const std::vector<double>& e) {
   robust_w_.assign(static_cast<size_t>(m_), 1.0);
-  if (!(o_.robust_k > 0)) return;
-  const std::vector<double> e = positionErrors(model, fit_);
+  out_.downweighted.clear();
   const double s = median(e) / kChi3Median;
   if (!(s > 0)) return;
   const double cut = o_.robust_k * s;
-  out_.downweighted.clear();
   for (int i = 0; i < m_; ++i) {
     if (!(e[static_cast<size_t>(i)] > cut)) continue;
     robust_w_[static_cast<size_t>(i)] = cut / e[static_cast<size_t>(i)];

@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "accura/calib/diagnose.h"
+#include "accura/calib/identify.h"
 #include "accura/calib/kinematics.h"
 
 namespace accura::diagnose_detail {
@@ -82,8 +83,10 @@ class Diagnoser {
   void prepareData(const MeasurementSet& data, const MeasurementSet* validation);
   void noiseFloor();
   void repeats();
+  IdentifyOptions baselineOptions() const;
   void baseline();
-  void robustWeights(const RobotModel& model);
+  void robust();
+  void robustWeights(const std::vector<double>& residual_mm);
   void columns();
   void linearise();
   Eval evaluate(const std::vector<int>& S, bool leverage = false) const;
@@ -99,7 +102,8 @@ class Diagnoser {
   Eigen::VectorXd fitAll(const std::vector<int>& S, double* chi2, Eigen::VectorXd* sigma) const;
   RobotModel gnFit(const std::vector<int>& S, const std::vector<int>& rows) const;
   Exact exact(const std::vector<int>& S);
-  void floorTest(const Eval& lin, const std::vector<double>& d, HeldOutStats* s) const;
+  void floorTest(const Eval& lin, const std::vector<Eigen::Vector3d>& e, const std::vector<bool>& keep,
+                 HeldOutStats* s) const;
   std::vector<int> withBlocks(const std::vector<int>& blocks) const;
   std::vector<EffectParameter> parametersOf(const std::vector<int>& S, const std::string& effect) const;
   struct Forward {

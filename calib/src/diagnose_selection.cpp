@@ -91,6 +91,26 @@ std::vector<Coverage> Diagnoser::coverageOf(const std::string& effect, const std
 // is held out would make new data worse.
 bool Diagnoser::admissible(const std::vector<int>& cur, const std::vector<int>& add, std::string* why,
                            double* blocked_gain, std::string* scheme) const {
+  // A global function of one revolute joint's angle (gear harmonics, a scale error) fitted on
+  // less than about half a turn (0.45 turn, 162 deg) is an extrapolation wherever the data did
+  // not go: inside the range the geometric parameters compensate it, outside they do not.
+  for (int b : add) {
+    const Block& B = blocks_[static_cast<size_t>(b)];
+    if ((B.effect != "gear_periodic" && B.effect != "joint_scale") || B.joint < 0 ||
+        M0_.nominal.joints[static_cast<size_t>(B.joint)].type != JointType::kRevolute)
+      continue;
+    double lo = 1e300, hi = -1e300;
+    for (const Measurement& r : fit_.rows) {
+      lo = std::min(lo, r.q[B.joint]);
+      hi = std::max(hi, r.q[B.joint]);
+    }
+    if (hi - lo < 162.0) {
+      *why = "the fit data cover " + fmtg("%.0f", hi - lo) + " deg of joint " + std::to_string(B.joint + 1) +
+             " (" + fmtg("%.1f", lo) + ".." + fmtg("%.1f", hi) +
+             "): " + B.effect + " fitted on less than about half a turn does not carry over to the rest of the range";
+      return false;
+    }
+  }
   std::vector<int> with = cur;
   with.insert(with.end(), add.begin(), add.end());
   const std::vector<int> S = withBlocks(with);

@@ -133,7 +133,9 @@ void Diagnoser::verdict() {
     for (const std::string& e : order) total += std::max(0.0, drop_of[e]);
     v.effects.push_back(best);
     for (const std::string& e : order)
-      if (e != best && total > 0 && drop_of[e] >= 0.1 * total) v.effects.push_back(e);
+      if (e != best && total > 0 &&
+          (drop_of[e] >= 0.1 * total || std::sqrt(std::max(0.0, drop_of[e])) >= out_.noise_floor_mm))
+        v.effects.push_back(e);
     for (int b : blocks_of[best])
       if (blocks_[b].joint >= 0) v.joints.push_back(blocks_[b].joint + 1);
     std::sort(v.joints.begin(), v.joints.end());
