@@ -91,12 +91,13 @@ std::vector<Coverage> Diagnoser::coverageOf(const std::string& effect, const std
 // is held out would make new data worse.
 bool Diagnoser::admissible(const std::vector<int>& cur, const std::vector<int>& add, std::string* why,
                            double* blocked_gain, std::string* scheme) const {
-  // A global function of one revolute joint's angle (gear harmonics, a scale error) fitted on
-  // less than about half a turn (0.45 turn, 162 deg) is an extrapolation wherever the data did
-  // not go: inside the range the geometric parameters compensate it, outside they do not.
+  // Periodic terms of one revolute joint's angle fitted on less than about half a turn (0.45
+  // turn, 162 deg) are an extrapolation wherever the data did not go: inside the range the
+  // geometric parameters compensate them, outside they do not. (A scale error is linear in q:
+  // its extrapolation is the model itself; blocked cross-validation checks it.)
   for (int b : add) {
     const Block& B = blocks_[static_cast<size_t>(b)];
-    if ((B.effect != "gear_periodic" && B.effect != "joint_scale") || B.joint < 0 ||
+    if (B.effect != "gear_periodic" || B.joint < 0 ||
         M0_.nominal.joints[static_cast<size_t>(B.joint)].type != JointType::kRevolute)
       continue;
     double lo = 1e300, hi = -1e300;
