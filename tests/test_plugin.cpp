@@ -240,9 +240,9 @@ TEST(Plugin, ProgramEqualsTheCommandLine) {
   EXPECT_EQ(test::readText(dir + "/plugin/seam.dat"), test::readText(dir + "/cli/seam.dat"));
   EXPECT_EQ(std::string(s.output_path), dir + "/plugin/seam.src");
   const nlohmann::json report = nlohmann::json::parse(test::readText(json));
-  EXPECT_EQ(report["targets_corrected"].get<int>(), s.targets_corrected);
-  EXPECT_EQ(report["points_added"].get<int>(), s.points_added);
-  EXPECT_DOUBLE_EQ(report["max_error_after_mm"].get<double>(), s.max_error_after_mm);
+  EXPECT_EQ(report["totals"]["targets_corrected"].get<int>(), s.targets_corrected);
+  EXPECT_EQ(report["totals"]["points_added"].get<int>(), s.points_added);
+  EXPECT_NEAR(report["totals"]["max_error_after_mm"].get<double>(), s.max_error_after_mm, 0.5e-6);  // the report rounds to 1e-6 mm
   EXPECT_EQ(report["outputs"][0].get<std::string>(), dir + "/plugin/seam.src");
   EXPECT_EQ(test::readText(dir + "/seam.src"), src);  // the input is never modified
   EXPECT_GE(s.points_added, 2);
@@ -275,6 +275,55 @@ TEST(Plugin, ProgramEqualsTheCommandLine) {
   EXPECT_EQ(accura_compensate_program(h.m, (dir + "/bad.src").c_str(), (dir + "/plugin").c_str(), &o, &s), ACCURA_ERROR_INPUT);
   EXPECT_NE(lastError(h.m).find("bad.src:2"), std::string::npos) << lastError(h.m);
   EXPECT_FALSE(std::filesystem::exists(dir + "/plugin/bad.src"));
+}
+
+// The plug-in's report (json_report_path) is the report of `accura compensate --json`, byte
+// for byte, on the test programs: the golden seam with its $config.dat, the seam above and its
+// XML form (the same paths given to both, so that every file name in the reports agrees).
+TEST(Plugin, ReportEqualsTheCommandsByteForByte) {
+  const std::string dir = test::tempDir("plugin_report");
+  const std::string golden = test::sourcePath("tests/golden/compensate/");
+  for (const char* f : {"seam.src", "seam.dat", "$config.dat"}) test::writeText(dir + "/" + f, test::readText(golden + f));
+  test::writeText(dir + "/arc.src",
+                  "DEF arc( )\n$BASE = {X 0, Y 0, Z 0, A 0, B 0, C 0}\n$TOOL = {X 20, Y 0, Z 250, A 0, B -30, C 0}\n"
+                  "PTP {X 1100, Y -250, Z 500, A 0, B 180, C 0}\nLIN {X 1100, Y -50, Z 500, A 0, B 180, C 0} C_DIS\n"
+                  "CIRC {X 1180, Y 30, Z 500, A 0, B 180, C 0}, {X 1260, Y -50, Z 500, A 0, B 180, C 0}\nEND\n");
+  test::writeText(dir + "/arc.dat", "DEFDAT arc\nENDDAT\n");
+  ASSERT_EQ(test::runAccuraIn(dir, "convert --in arc.src --out arc.xml").code, 0);
+  struct Case {
+    std::string model, program, config;
+    double tol_mm;
+  };
+  const std::vector<Case> cases = {{golden + "kr16_real.xml", "seam.src", "$config.dat", 0.02},
+                                   {test::sourcePath(kModel), "arc.src", "", 0.05},
+                                   {test::sourcePath(kModel), "arc.xml", "", 0.05}};
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.program);
+    Handle h(c.model);
+    accura_program_options o;
+    ASSERT_EQ(accura_program_options_init(&o, sizeof(o)), ACCURA_OK);
+    o.tol_mm = c.tol_mm;
+    const std::string config = dir + "/" + c.config, plugin_json = dir + "/plugin.json", cli_json = dir + "/cli.json";
+    if (!c.config.empty()) o.config_path = config.c_str();
+    o.json_report_path = plugin_json.c_str();
+    const std::string in = dir + "/" + c.program, out = dir + "/out";
+    accura_program_summary s;
+    ASSERT_EQ(accura_compensate_program(h.m, in.c_str(), out.c_str(), &o, &s), ACCURA_OK) << lastError(h.m);
+    const test::CliRun cli = test::runAccuraIn(dir, "compensate --robot '" + c.model + "' --in '" + in + "' --out '" + out + "' --tol " +
+                                                        std::to_string(c.tol_mm) + (c.config.empty() ? "" : " --config '" + config + "'") +
+                                                        " --json '" + cli_json + "'");
+    ASSERT_EQ(cli.code, 0) << cli.err;
+    const std::string ours = test::readText(plugin_json), theirs = test::readText(cli_json);
+    EXPECT_EQ(ours, theirs);
+    // and it is the report the command documents: segments a list of objects, totals
+    const nlohmann::json j = nlohmann::json::parse(ours);
+    ASSERT_TRUE(j["segments"].is_array());
+    EXPECT_EQ(j["segments"].size(), j["totals"]["segments"].get<size_t>());
+    EXPECT_EQ(j["totals"]["targets_corrected"].get<int>(), s.targets_corrected);
+    EXPECT_EQ(j["totals"]["points_added"].get<int>(), s.points_added);
+    EXPECT_GE(j["segments"].size(), 1u);
+  }
+  std::filesystem::remove_all(dir);
 }
 
 TEST(Plugin, BadInputGivesStatusesAndMessages) {

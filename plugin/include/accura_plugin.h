@@ -274,7 +274,8 @@ typedef struct accura_program_options {
   const char* dat_path;    /* KRL: the .dat (NULL: next to the .src) */
   const char* config_path; /* $config.dat: TOOL_DATA / BASE_DATA (NULL: none) */
   double tol_mm;           /* path tolerance (mm, > 0; default 0.05) */
-  const char* json_report_path; /* NULL: none; else the report of `accura compensate --json` */
+  const char* json_report_path; /* NULL: none; else the report of `accura compensate --json`,
+                                   the same bytes for the same program and settings */
 } accura_program_options;
 ACCURA_API accura_status accura_program_options_init(accura_program_options* options, size_t struct_size);
 

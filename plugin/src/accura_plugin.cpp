@@ -11,7 +11,6 @@
 #include <filesystem>
 #include <memory>
 #include <mutex>
-#include <nlohmann/json.hpp>
 #include <new>
 #include <optional>
 #include <sstream>
@@ -30,6 +29,7 @@
 #include "accura/postproc/check.h"
 #include "accura/postproc/compensate.h"
 #include "accura/postproc/job.h"
+#include "accura/postproc/placement.h"
 #include "accura/postproc/program_io.h"
 
 #ifndef ACCURA_VERSION_MAJOR
@@ -56,10 +56,10 @@ struct PluginError {
 struct State {
   JobSettings job;                       ///< the settings of accura compensate
   Eigen::Isometry3d T_world_progbase;    ///< $BASE of the poses and paths in the world
-  Eigen::Isometry3d T_flange_tcp;        ///< $TOOL of the poses and paths
-  std::unique_ptr<Compensator> comp;     ///< controller and real model with that tool
-  bool calibrated_tool = false;
-  Eigen::Isometry3d T_world_robroot;
+  std::unique_ptr<ModelFactory> models;  ///< the placement and the models (placement.h)
+  /// The models of the $TOOL of the poses and paths, with their Compensator (built at load:
+  /// nothing in State changes afterwards, so that threads share it).
+  const ToolModels* tool = nullptr;
 };
 
 }  // namespace
@@ -230,31 +230,11 @@ std::shared_ptr<State> buildState(const std::string& calibrated_path, const accu
   job.context.payload_kg = o.payload_kg;
   job.context.temp_c = o.temp_c;
 
-  // Frames as compensateProgram takes them (job.h): T_world_tcp = T_world_robroot *
-  // inverse($ROBROOT) * $BASE * target.
-  s->T_world_robroot = job.robroot_in_world ? toIsometry(*job.robroot_in_world) : job.calibrated.nominal.T_world_base;
-  const Eigen::Isometry3d T_kworld_robroot =
-      job.robroot_in_kukaworld ? toIsometry(*job.robroot_in_kukaworld) : Eigen::Isometry3d::Identity();
+  // Frames and models as compensateProgram takes them (placement.h)
+  s->models = std::make_unique<ModelFactory>(job, placeRobot(job, "robroot_in_world (accura_load_options)"));
   const Eigen::Isometry3d T_kworld_progbase = job.initial_base ? toIsometry(*job.initial_base) : Eigen::Isometry3d::Identity();
-  s->T_world_progbase = s->T_world_robroot * T_kworld_robroot.inverse() * T_kworld_progbase;
-  const Eigen::Isometry3d d = s->T_world_robroot.inverse() * job.calibrated.T_world_base();
-  const double off_mm = d.translation().norm(), off_deg = rotationAngleDeg(d.linear());
-  if (off_mm > job.max_base_offset_mm || off_deg > job.max_base_offset_deg) {
-    std::ostringstream m;
-    m << calibrated_path << ": the calibrated base is " << off_mm << " mm and " << off_deg
-      << " deg from where the robot is placed: expected at most " << job.max_base_offset_mm << " mm and " << job.max_base_offset_deg
-      << " deg. The model was measured in another frame (a tracker's): set robroot_in_world to where the robot stands in that "
-         "frame according to the cell layout";
-    fail(ACCURA_ERROR_INPUT, m.str());
-  }
-  s->T_flange_tcp = job.initial_tool ? toIsometry(*job.initial_tool) : job.calibrated.nominal.T_flange_tcp;
-
-  RobotModel controller = RobotModel::fromDefinition(job.calibrated.nominal);
-  controller.nominal.T_world_base = s->T_world_robroot;
-  controller.nominal.T_flange_tcp = s->T_flange_tcp;
-  const RobotModel real =
-      realModelForTool(job.calibrated, s->T_flange_tcp, job.tool_match_mm, job.tool_match_deg, &s->calibrated_tool);
-  s->comp = std::make_unique<Compensator>(controller, real);
+  s->T_world_progbase = s->models->placement().T_world_kworld * T_kworld_progbase;
+  s->tool = &s->models->compensator(job.initial_tool ? toIsometry(*job.initial_tool) : job.calibrated.nominal.T_flange_tcp);
   return s;
 }
 
@@ -288,12 +268,6 @@ const char* statusNameOf(accura_status s) {
     case ACCURA_ERROR_INTERNAL: return "ACCURA_ERROR_INTERNAL";
   }
   return nullptr;
-}
-
-bool sameFile(const std::string& a, const std::string& b) {
-  std::error_code ec;
-  if (fs::exists(a, ec) && fs::exists(b, ec)) return fs::equivalent(a, b, ec);
-  return fs::weakly_canonical(fs::absolute(a), ec) == fs::weakly_canonical(fs::absolute(b), ec);
 }
 
 void checkStructSize(size_t given, size_t expected, const char* what) {
@@ -383,7 +357,7 @@ ACCURA_API accura_status accura_model_get_info(accura_model* model, accura_model
     const RobotModel& m = s->job.calibrated;
     info->dof = m.dof();
     copyString(info->robot_name, sizeof(info->robot_name), m.nominal.name);
-    info->robroot_in_world = toC(toXyzAbc(s->T_world_robroot));
+    info->robroot_in_world = toC(toXyzAbc(s->models->placement().T_world_robroot));
     info->calibrated_base_in_world = toC(toXyzAbc(m.T_world_base()));
     for (int i = 0; i < m.dof(); ++i) {
       info->lower[i] = m.nominal.joints[i].lower;
@@ -410,7 +384,7 @@ ACCURA_API accura_status accura_forward_kinematics(accura_model* model, accura_w
       if (!std::isfinite(q[i])) fail(ACCURA_ERROR_INVALID_ARGUMENT, "q[" + std::to_string(i) + "] is not finite");
       qv[i] = q[i];
     }
-    const Eigen::Isometry3d T = which == ACCURA_REAL ? s->comp->real().forward(qv, s->job.context) : s->comp->controller().forward(qv);
+    const Eigen::Isometry3d T = which == ACCURA_REAL ? s->tool->compensator->real().forward(qv, s->job.context) : s->tool->compensator->controller().forward(qv);
     *pose_out = toC(toXyzAbc(s->T_world_progbase.inverse() * T));
     return ACCURA_OK;
   });
@@ -425,7 +399,7 @@ ACCURA_API accura_status accura_compensate_pose(accura_model* model, const accur
     const auto s = stateOf(model);
     const Eigen::Isometry3d T_world = s->T_world_progbase * checkedPose(*target, "target");
     const Configuration asked = configOf(configuration, s->job.calibrated.dof());
-    PoseCompensation pc = s->comp->pose(T_world, asked, Eigen::VectorXd(), s->job.ik, s->job.context);
+    PoseCompensation pc = s->tool->compensator->pose(T_world, asked, Eigen::VectorXd(), s->job.ik, s->job.context);
     enforceConfiguration(asked, pc);
     fillPoseResult(*s, T_world, pc, result);
     if (pc.status != IkStatus::kOk) fail(result->status, pc.message.empty() ? std::string(toString(pc.status)) : pc.message);
@@ -455,7 +429,7 @@ ACCURA_API accura_status accura_compensate_poses(accura_model* model, const accu
     size_t ok = 0;
     Eigen::VectorXd seed;
     for (size_t i = 0; i < n; ++i) {
-      PoseCompensation pc = s->comp->pose(T_world[i], configs[i], continuous ? seed : Eigen::VectorXd(), s->job.ik, s->job.context);
+      PoseCompensation pc = s->tool->compensator->pose(T_world[i], configs[i], continuous ? seed : Eigen::VectorXd(), s->job.ik, s->job.context);
       enforceConfiguration(configs[i], pc);
       fillPoseResult(*s, T_world[i], pc, &results[i]);
       if (pc.status == IkStatus::kOk) {
@@ -499,7 +473,7 @@ ACCURA_API accura_status accura_compensate_path(accura_model* model, const accur
     }
     if (reports)
       for (size_t i = 0; i < n_motions; ++i) reports[i] = accura_motion_report{};
-    const Compensator& comp = *s->comp;
+    const Compensator& comp = *s->tool->compensator;
     const JobSettings& job = s->job;
     const Configuration asked_start = configOf(start_configuration, job.calibrated.dof());
     PoseCompensation p0 = comp.pose(T_world_start, asked_start, Eigen::VectorXd(), job.ik, job.context);
@@ -582,55 +556,19 @@ ACCURA_API accura_status accura_compensate_program(accura_model* model, const ch
     const auto s = stateOf(model);
     JobSettings job = s->job;
     job.tol_mm = o.tol_mm;
-    const std::string in = program_path, dir = out_dir;
-    programFormat(in);  // a clear error for another extension first
     std::error_code ec;
-    if (!fs::exists(in, ec)) fail(ACCURA_ERROR_INPUT, in + ": the program file does not exist");
-    if (fs::exists(dir, ec) && !fs::is_directory(dir, ec)) fail(ACCURA_ERROR_INPUT, "out_dir: expected a directory, found the file " + dir);
-    ProgramReadOptions read;
-    if (o.dat_path) read.dat_path = o.dat_path;
-    if (o.config_path) read.config_path = o.config_path;
-    const std::string out_path = (fs::path(dir) / fs::path(in).filename()).string();
-    JobReport report;
-    const std::vector<OutputFile> files = compensateFile(in, out_path, read, job, &report);
-    if (!report.errors.empty()) {  // compensateFile throws on errors; kept as a safety net
-      std::string m;
-      for (const auto& e : report.errors) m += (m.empty() ? "" : "; ") + e.where.str() + ": " + e.message;
-      fail(ACCURA_ERROR_INPUT, m);
-    }
-    std::vector<std::string> inputs = {in, fs::path(in).replace_extension(".dat").string()};
-    if (!read.dat_path.empty()) inputs.push_back(read.dat_path);
-    if (!read.config_path.empty()) inputs.push_back(read.config_path);
-    const std::string json = o.json_report_path ? o.json_report_path : "";
-    for (const auto& f : files)
-      for (const auto& i : inputs)
-        if (fs::exists(i, ec) && sameFile(f.path, i)) fail(ACCURA_ERROR_INPUT, f.path + ": the output would overwrite the input " + i + ": choose another out_dir");
-    for (const auto& i : inputs)
-      if (!json.empty() && fs::exists(i, ec) && sameFile(json, i)) fail(ACCURA_ERROR_INPUT, json + ": the report would overwrite the input " + i);
-    fs::create_directories(dir);
-    writeFilesAtomically(files);
-    if (!json.empty()) {
-      nlohmann::ordered_json j;
-      j["program"] = in;
-      nlohmann::ordered_json outs = nlohmann::ordered_json::array();
-      for (const auto& f : files) outs.push_back(f.path);
-      j["outputs"] = outs;
-      j["robot"] = job.calibrated.nominal.name;
-      j["tol_mm"] = job.tol_mm;
-      j["targets_corrected"] = report.targets_corrected;
-      j["points_added"] = report.points_added;
-      j["segments"] = report.segments.size();
-      j["max_correction_mm"] = report.max_correction_mm;
-      j["rms_correction_mm"] = report.rms_correction_mm;
-      j["max_correction_deg"] = report.max_correction_deg;
-      j["max_error_uncompensated_mm"] = report.max_error_uncompensated_mm;
-      j["max_error_before_mm"] = report.max_error_before_mm;
-      j["max_error_after_mm"] = report.max_error_after_mm;
-      nlohmann::ordered_json warnings = nlohmann::ordered_json::array();
-      for (const auto& w : report.warnings) warnings.push_back(w.where.str() + ": " + w.message);
-      j["warnings"] = warnings;
-      writeFilesAtomically({{json, j.dump(2) + "\n"}});
-    }
+    if (!fs::exists(program_path, ec)) fail(ACCURA_ERROR_INPUT, std::string(program_path) + ": the program file does not exist");
+    ProgramFileRequest request;
+    request.in_path = program_path;
+    request.out_dir = out_dir;
+    if (o.dat_path) request.read.dat_path = o.dat_path;
+    if (o.config_path) request.read.config_path = o.config_path;
+    if (o.json_report_path) request.json_path = o.json_report_path;
+    request.out_name = "out_dir";
+    request.json_name = "json_report_path";
+    const ProgramFileResult result = compensateProgramFile(request, job);
+    const JobReport& report = result.report;
+    const std::vector<OutputFile>& files = result.checked.files;
     if (summary) {
       *summary = accura_program_summary{};
       summary->targets_corrected = report.targets_corrected;
