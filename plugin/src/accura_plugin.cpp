@@ -29,6 +29,7 @@
 #include "accura/postproc/check.h"
 #include "accura/postproc/compensate.h"
 #include "accura/postproc/job.h"
+#include "accura/postproc/path_job.h"
 #include "accura/postproc/placement.h"
 #include "accura/postproc/program_io.h"
 
@@ -126,12 +127,15 @@ std::shared_ptr<const State> stateOf(accura_model* m) {
 XyzAbc toXyz(const accura_pose& p) { return {p.x_mm, p.y_mm, p.z_mm, p.a_deg, p.b_deg, p.c_deg}; }
 accura_pose toC(const XyzAbc& p) { return {p.x_mm, p.y_mm, p.z_mm, p.a_deg, p.b_deg, p.c_deg}; }
 
-Eigen::Isometry3d checkedPose(const accura_pose& p, const std::string& what) {
+/// The pose as given (finite, else ACCURA_ERROR_INVALID_ARGUMENT naming `what`).
+XyzAbc checkedXyz(const accura_pose& p, const std::string& what) {
   const double v[6] = {p.x_mm, p.y_mm, p.z_mm, p.a_deg, p.b_deg, p.c_deg};
   for (double x : v)
     if (!std::isfinite(x)) fail(ACCURA_ERROR_INVALID_ARGUMENT, what + ": expected finite x, y, z (mm), A, B, C (deg), found a NaN or infinity");
-  return toIsometry(toXyz(p));
+  return toXyz(p);
 }
+
+Eigen::Isometry3d checkedPose(const accura_pose& p, const std::string& what) { return toIsometry(checkedXyz(p, what)); }
 
 /// S in 0..7 (three bits) or -1 (any), T in 0..2^dof - 1 (a bit per joint) or -1.
 Configuration configOf(const accura_configuration* c, int dof) {
@@ -142,18 +146,6 @@ Configuration configOf(const accura_configuration* c, int dof) {
                                             " (a bit per joint), or -1 (any), found S " + std::to_string(c->status) + ", T " +
                                             std::to_string(c->turn));
   return {c->status, c->turn};
-}
-
-/// The configuration rule of accura compensate (job.cpp): a compensation that lands on another
-/// S/T than asked is an error, except Turn bits of joints within kTurnBandDeg of 0 (the same arm
-/// posture; the result's configuration carries the new bits and configuration_changed is 1).
-void enforceConfiguration(const Configuration& asked, PoseCompensation& pc) {
-  if (pc.status != IkStatus::kOk || !pc.configuration_changed) return;
-  if (onlyTurnBitsNearZeroDiffer(asked, pc.configuration, pc.q_real)) return;
-  pc.status = IkStatus::kNoConfiguration;
-  pc.message = "reachable only with S " + std::to_string(pc.configuration.status) + ", T " +
-               std::to_string(pc.configuration.turn) + ", not with the configuration asked for (S " +
-               std::to_string(asked.status) + ", T " + std::to_string(asked.turn) + ")";
 }
 
 accura_configuration toC(const Configuration& c) { return {c.status, c.turn}; }
@@ -270,6 +262,13 @@ const char* statusNameOf(accura_status s) {
   return nullptr;
 }
 
+void makeParentDir(const std::string& path) {
+  std::error_code ec;
+  const fs::path dir = fs::path(path).parent_path();
+  if (!dir.empty()) fs::create_directories(dir, ec);
+  if (ec) fail(ACCURA_ERROR_INPUT, dir.string() + ": cannot create the directory: " + ec.message());
+}
+
 void checkStructSize(size_t given, size_t expected, const char* what) {
   if (given != expected)
     fail(ACCURA_ERROR_INVALID_ARGUMENT, std::string(what) + ": struct_size " + std::to_string(given) + " does not match this library's " +
@@ -363,6 +362,22 @@ ACCURA_API accura_status accura_model_get_info(accura_model* model, accura_model
       info->lower[i] = m.nominal.joints[i].lower;
       info->upper[i] = m.nominal.joints[i].upper;
     }
+    return ACCURA_OK;
+  });
+}
+
+ACCURA_API accura_status accura_model_get_joints(accura_model* model, accura_joint* joints, size_t capacity, size_t* n_joints) {
+  if (!model) return ACCURA_ERROR_NULL_ARGUMENT;
+  return guarded(model, "accura_model_get_joints", [&]() {
+    if (capacity > 0) need(joints, "joints");
+    const auto s = stateOf(model);
+    const std::vector<JointSpec>& js = s->job.calibrated.nominal.joints;
+    if (n_joints) *n_joints = js.size();
+    for (size_t i = 0; i < js.size() && i < capacity; ++i)
+      joints[i] = {js[i].type == JointType::kPrismatic ? 1 : 0, js[i].a_mm, js[i].alpha_deg, js[i].d_mm, js[i].theta0_deg,
+                   js[i].direction, js[i].lower, js[i].upper};
+    if (capacity < js.size())
+      fail(ACCURA_ERROR_BUFFER_TOO_SMALL, "the robot has " + std::to_string(js.size()) + " joints, the buffer holds " + std::to_string(capacity));
     return ACCURA_OK;
   });
 }
@@ -473,54 +488,43 @@ ACCURA_API accura_status accura_compensate_path(accura_model* model, const accur
     }
     if (reports)
       for (size_t i = 0; i < n_motions; ++i) reports[i] = accura_motion_report{};
-    const Compensator& comp = *s->tool->compensator;
-    const JobSettings& job = s->job;
+    JobSettings job = s->job;
+    job.tol_mm = tol_mm;
     const Configuration asked_start = configOf(start_configuration, job.calibrated.dof());
-    PoseCompensation p0 = comp.pose(T_world_start, asked_start, Eigen::VectorXd(), job.ik, job.context);
-    enforceConfiguration(asked_start, p0);
-    if (p0.status != IkStatus::kOk)
-      fail(statusOf(p0.status), std::string("the start cannot be compensated: ") + toString(p0.status) + (p0.message.empty() ? "" : ": " + p0.message));
-    result->start_command = toC(toXyzAbc(s->T_world_progbase.inverse() * p0.T_world_tcp_command));
-    result->start_configuration = toC(p0.configuration);
-    DensifyOptions dens = job.densify;
-    dens.tol_mm = tol_mm;
-    dens.ik = job.ik;
-    Eigen::VectorXd q = p0.q_real;
+    const PathCompensation pc = compensatePath(*s->tool->compensator, T_world_start, asked_start, intended, job);
+    if (pc.start.status != IkStatus::kOk)
+      fail(statusOf(pc.start.status), std::string("the start cannot be compensated: ") + toString(pc.start.status) +
+                                          (pc.start.message.empty() ? "" : ": " + pc.start.message));
+    if (pc.failed_motion >= 0) {
+      const SegmentCompensation& sc = pc.segments.back();
+      result->failed_motion = pc.failed_motion;
+      fail(sc.status == IkStatus::kOk ? ACCURA_ERROR_INTERNAL : statusOf(sc.status), "motion " + std::to_string(pc.failed_motion) +
+           " cannot be compensated: " + toString(sc.status) + (sc.message.empty() ? "" : ": " + sc.message));
+    }
+    const auto inBase = [&](const Eigen::Isometry3d& T_world) { return toC(toXyzAbc(s->T_world_progbase.inverse() * T_world)); };
+    result->start_command = inBase(pc.start.T_world_tcp_command);
+    result->start_configuration = toC(pc.start.configuration);
     std::vector<accura_path_point> out;
     for (size_t i = 0; i < n_motions; ++i) {
-      PathSegment seg = intended[i];
-      seg.T_world_start = comp.real().forward(q, job.context);  // where the real robot is (as compensateProgram)
-      const SegmentCompensation sc = comp.segment(seg, Configuration{}, q, dens, job.context);
-      if (sc.status != IkStatus::kOk || sc.commanded.empty() || sc.q_real_end.size() != sc.commanded.size()) {
-        result->failed_motion = static_cast<int>(i);
-        fail(sc.status == IkStatus::kOk ? ACCURA_ERROR_INTERNAL : statusOf(sc.status),
-             "motion " + std::to_string(i) + " cannot be compensated: " + toString(sc.status) + (sc.message.empty() ? "" : ": " + sc.message));
-      }
+      const SegmentCompensation& sc = pc.segments[i];
       for (size_t k = 0; k < sc.commanded.size(); ++k) {
         accura_path_point p{};
         p.type = motions[i].type;
-        p.end = toC(toXyzAbc(s->T_world_progbase.inverse() * sc.commanded[k].T_world_end));
-        if (seg.type == PathType::kCirc) p.aux = toC(toXyzAbc(s->T_world_progbase.inverse() * sc.commanded[k].T_world_aux));
-        p.configuration = toC(kukaConfiguration(comp.controller().model(), sc.q_real_end[k]));
+        p.end = inBase(sc.commanded[k].T_world_end);
+        if (intended[i].type == PathType::kCirc) p.aux = inBase(sc.commanded[k].T_world_aux);
+        p.configuration = toC(kukaConfiguration(s->tool->compensator->controller().model(), sc.q_real_end[k]));
         p.motion = static_cast<int>(i);
         p.inserted = k + 1 < sc.commanded.size() ? 1 : 0;
         out.push_back(p);
       }
-      if (reports) {
-        accura_motion_report& r = reports[i];
-        r.length_mm = pathLength(seg);
-        r.max_error_uncompensated_mm = sc.max_error_uncompensated_mm;
-        r.max_error_before_mm = sc.max_error_before_mm;
-        r.max_error_after_mm = sc.max_error_after_mm;
-        r.max_error_bound_mm = sc.max_error_bound_mm;
-        r.points_added = sc.points_added;
-      }
+      if (reports)
+        reports[i] = {pathLength(pc.intended[i]), sc.max_error_uncompensated_mm, sc.max_error_before_mm, sc.max_error_after_mm,
+                      sc.max_error_bound_mm, sc.points_added};
       result->max_error_uncompensated_mm = std::max(result->max_error_uncompensated_mm, sc.max_error_uncompensated_mm);
       result->max_error_before_mm = std::max(result->max_error_before_mm, sc.max_error_before_mm);
       result->max_error_after_mm = std::max(result->max_error_after_mm, sc.max_error_after_mm);
       result->max_error_bound_mm = std::max(result->max_error_bound_mm, sc.max_error_bound_mm);
       result->points_added += sc.points_added;
-      q = sc.q_real_end.back();
     }
     result->n_points = out.size();
     if (out.size() > capacity)
@@ -666,6 +670,71 @@ ACCURA_API accura_status accura_check_program(accura_model* model, const char* c
     if (r.violations.size() > capacity)
       fail(ACCURA_ERROR_BUFFER_TOO_SMALL,
            std::to_string(r.violations.size()) + " violations, the buffer holds " + std::to_string(capacity) + " (summary->n_violations)");
+    return ACCURA_OK;
+  });
+}
+
+ACCURA_API accura_status accura_write_options_init(accura_write_options* o, size_t struct_size) {
+  if (!o) return ACCURA_ERROR_NULL_ARGUMENT;
+  if (struct_size != sizeof(accura_write_options)) return ACCURA_ERROR_INVALID_ARGUMENT;
+  std::memset(o, 0, sizeof(*o));
+  o->struct_size = sizeof(*o);
+  return ACCURA_OK;
+}
+
+ACCURA_API accura_status accura_write_program(accura_model* model, const char* path, const accura_program_motion* motions,
+                                              size_t n_motions, const accura_write_options* options) {
+  if (!model) return ACCURA_ERROR_NULL_ARGUMENT;
+  return guarded(model, "accura_write_program", [&]() {
+    need(path, "path");
+    need(options, "options");
+    if (n_motions > 0) need(motions, "motions");
+    checkStructSize(options->struct_size, sizeof(accura_write_options), "accura_write_options");
+    const ProgramFormat format = programFormat(path);
+    Program p;
+    p.name = options->program_name ? options->program_name : fs::path(path).stem().string();
+    std::shared_ptr<const State> s;
+    {
+      std::lock_guard<std::mutex> lock(model->mutex);
+      s = model->state;
+    }
+    if (s) p.robot = s->job.calibrated.nominal.name;
+    FrameSetting tool, base;
+    tool.source = base.source = FrameSetting::Source::kInline;
+    tool.value = checkedXyz(options->tool, "options.tool");
+    base.value = checkedXyz(options->base, "options.base");
+    for (size_t i = 0; i < n_motions; ++i) {
+      const accura_program_motion& c = motions[i];
+      const std::string w = "motions[" + std::to_string(i) + "]";
+      Motion m;
+      if (c.type != ACCURA_PTP && c.type != ACCURA_LIN && c.type != ACCURA_CIRC)
+        fail(ACCURA_ERROR_INVALID_ARGUMENT, w + ".type: expected ACCURA_LIN, ACCURA_CIRC or ACCURA_PTP, found " + std::to_string(c.type));
+      m.type = c.type == ACCURA_PTP ? MotionType::kPtp : c.type == ACCURA_CIRC ? MotionType::kCirc : MotionType::kLin;
+      m.target.setPose(checkedXyz(c.end, w + ".end"));
+      if (m.type == MotionType::kCirc) {
+        m.aux = Target{};
+        m.aux->setPose(checkedXyz(c.aux, w + ".aux"));
+      }
+      if (c.approximate) m.approximation = {m.type == MotionType::kPtp ? Approximation::kCPtp : Approximation::kCDis};
+      if (!std::isfinite(c.vel_m_s)) fail(ACCURA_ERROR_INVALID_ARGUMENT, w + ".vel_m_s: expected a finite speed (m/s)");
+      if (m.type != MotionType::kPtp && c.vel_m_s > 0) m.vel_m_s = c.vel_m_s;
+      m.tool = tool;
+      m.base = base;
+      p.motions.push_back(m);
+    }
+    makeParentDir(path);
+    writeFilesAtomically(renderProgram(p, format, path));
+    return ACCURA_OK;
+  });
+}
+
+ACCURA_API accura_status accura_write_file(accura_model* model, const char* path, const char* data, size_t size) {
+  if (!model) return ACCURA_ERROR_NULL_ARGUMENT;
+  return guarded(model, "accura_write_file", [&]() {
+    need(path, "path");
+    if (size > 0) need(data, "data");
+    makeParentDir(path);
+    writeFilesAtomically({{path, std::string(data ? data : "", size)}});
     return ACCURA_OK;
   });
 }

@@ -9,6 +9,7 @@
 #include "accura/calib/errors.h"
 #include "accura/calib/kinematics.h"
 #include "accura/postproc/krl.h"
+#include "accura/postproc/path_job.h"
 #include "accura/postproc/placement.h"
 
 namespace accura::postproc {
@@ -266,13 +267,9 @@ class Job {
         // LIN / CIRC with a known start: compensate the segment
         PathSegment intended;
         intended.type = m.type == MotionType::kCirc ? PathType::kCirc : PathType::kLin;
-        intended.T_world_start = comp.real().forward(*q_real, s_.context);
         intended.T_world_end = T_world_end;
         if (aux) intended.T_world_aux = T_world_progbase * toIsometry(aux->xyzAbc());
-        DensifyOptions dens = s_.densify;
-        dens.tol_mm = s_.tol_mm;
-        dens.ik = s_.ik;
-        const SegmentCompensation sc = comp.segment(intended, config, *q_real, dens, s_.context);
+        const SegmentCompensation sc = compensateSegmentFrom(comp, intended, config, *q_real, s_);
         if (sc.status != IkStatus::kOk || sc.commanded.empty() || sc.q_real_end.size() != sc.commanded.size()) {
           error(m.where, "the " + motionKeyword(m) + " to " + targetLabel(end) + " cannot be compensated: " + toString(sc.status) +
                              (sc.message.empty() ? "" : " (" + sc.message + ")"));
