@@ -202,5 +202,224 @@ TEST(Urdf, MassesAndCentresOfMassAreCarriedIntoDHFrames) {
   }
 }
 
+// A calibrated model with every geometric deviation non-zero (base, tool, offsets, lengths,
+// angles, Hayati betas) and, optionally, the effects URDF cannot hold.
+RobotModel perturbed(const std::string& robot, bool effects) {
+  RobotModel m = test::loadBundled(robot);
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> u(-1, 1);
+  for (const ParamInfo& p : parameterLayout(m)) {
+    const bool geometric = p.group == "base" || p.group == "tool" || p.group == "offsets" || p.group == "lengths" ||
+                           p.group == "angles";
+    if (!geometric && !effects) continue;
+    const double scale = p.unit == "mm" ? 0.5 : p.unit == "deg" ? 0.05 : 20.0;  // display units
+    setParameter(m.deviations, p, u(rng) * scale / p.display_scale);
+  }
+  return m;
+}
+
+// Every bundled robot: its exported URDF, read by the plain FK above, is the model's geometry
+// (URDF equivalence), and import(export) is the identity to 1e-9 mm.
+TEST(Urdf, BundledRobotsExportImportIdentity) {
+  const std::string dir = test::tempDir("urdf_bundled");
+  for (const std::string& name : bundledRobotNames()) {
+    for (bool calibrated : {false, true}) {
+      SCOPED_TRACE(name + (calibrated ? " calibrated" : " nominal"));
+      const RobotModel m = calibrated ? perturbed(name, false) : test::loadBundled(name);
+      const UrdfText u = modelToUrdf(m);
+      const std::string path = dir + "/" + name + ".urdf";
+      writeFileAtomically(path, u.text);
+      // independent FK of the written file
+      const Mismatch w = compareWithPlain(m, path, "world", "tool0");
+      EXPECT_LT(w.pos_mm, 1e-9);
+      EXPECT_LT(w.rot, 1e-12);
+      // import
+      const RobotModel back = readRobotFile(path);
+      ASSERT_EQ(back.dof(), m.dof());
+      std::mt19937_64 rng(1);
+      double worst = 0;
+      for (int s = 0; s < 200; ++s) {
+        const Eigen::VectorXd q = test::randomQ(m, rng);
+        worst = std::max(worst, (forwardKinematics(back, q).translation() - forwardKinematics(m, q).translation()).norm());
+        EXPECT_LT((forwardKinematics(back, q).linear() - forwardKinematics(m, q).linear()).cwiseAbs().maxCoeff(), 1e-12);
+      }
+      EXPECT_LT(worst, 1e-9);
+      for (int i = 0; i < m.dof(); ++i) {
+        EXPECT_EQ(back.nominal.joints[i].name, m.nominal.joints[i].name);
+        EXPECT_NEAR(back.nominal.joints[i].lower, m.nominal.joints[i].lower, 1e-9);
+        EXPECT_NEAR(back.nominal.joints[i].upper, m.nominal.joints[i].upper, 1e-9);
+        EXPECT_NEAR(back.nominal.joints[i].mass_kg, m.nominal.joints[i].mass_kg, 1e-12);
+      }
+      // gravity loads (masses and COMs through the URDF) agree at random q; they use the
+      // nominal geometry, so only the nominal model's are the same
+      for (int s = 0; s < 10 && !calibrated; ++s) {
+        const Eigen::VectorXd q = test::randomQ(m, rng);
+        EXPECT_LT((gravityLoads(back, q, PoseContext{}) - gravityLoads(m, q, PoseContext{})).cwiseAbs().maxCoeff(), 1e-9);
+      }
+      // check_urdf (urdfdom's own checker) loads it
+      const std::string cmd = "check_urdf '" + path + "' > '" + dir + "/check.txt' 2>&1";
+      EXPECT_EQ(std::system(cmd.c_str()), 0) << test::readText(dir + "/check.txt");
+      EXPECT_NE(test::readText(dir + "/check.txt").find("Successfully Parsed XML"), std::string::npos);
+    }
+  }
+  std::filesystem::remove_all(dir);
+}
+
+TEST(Urdf, ExportListsWhatUrdfCannotHold) {
+  const RobotModel m = perturbed("kuka_kr16", true);
+  const UrdfText u = modelToUrdf(m);
+  std::string all;
+  for (const auto& s : u.not_represented) all += s + "\n";
+  for (const char* group : {"joint_compliance", "gear_periodic", "joint_scale", "backlash", "thermal", "payload centre of mass",
+                            "inertia tensors", "effort and velocity"}) {
+    EXPECT_NE(all.find(group), std::string::npos) << group << " missing in:\n" << all;
+    EXPECT_NE(u.text.find(group), std::string::npos) << group << " missing in the XML comment";
+  }
+  // the geometry still round-trips: FK of the import equals the model without the effects
+  RobotModel geometric = m;
+  for (const ParamInfo& p : parameterLayout(m))
+    if (p.group != "base" && p.group != "tool" && p.group != "offsets" && p.group != "lengths" && p.group != "angles")
+      setParameter(geometric.deviations, p, 0.0);
+  const SerialChain chain = parseUrdfChain(u.text, "mem.urdf", "world:tool0");
+  const ChainComparison c = compareModelWithChain(geometric, chain, 100);
+  EXPECT_LT(c.max_position_mm, 1e-9);
+  // ... and differs from the full model (the effects are real and were left out, not ignored)
+  EXPECT_GT(compareModelWithChain(m, chain, 100).max_position_mm, 1e-3);
+}
+
+// ---- Errors ----
+
+std::string errorOf(const std::string& text, const std::string& chain = "") {
+  try {
+    parseUrdfChain(text, "bad.urdf", chain);
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "no error";
+}
+
+const char* kTwoJoint = R"(<robot name="r">
+  <link name="a"/>
+  <link name="b"/>
+  <link name="c"/>
+  <joint name="j1" type="revolute">
+    <parent link="a"/><child link="b"/>
+    <origin xyz="0 0 0.5" rpy="0 0 0"/>
+    <axis xyz="0 0 1"/>
+    <limit lower="-1" upper="1" effort="1" velocity="1"/>
+  </joint>
+  <joint name="j2" type="revolute">
+    <parent link="b"/><child link="c"/>
+    <origin xyz="0.3 0 0" rpy="0 0 0"/>
+    <axis xyz="0 1 0"/>
+    <limit lower="-1" upper="1" effort="1" velocity="1"/>
+  </joint>
+</robot>
+)";
+
+std::string replaced(std::string s, const std::string& from, const std::string& to) {
+  const size_t pos = s.find(from);
+  EXPECT_NE(pos, std::string::npos) << from;
+  return s.replace(pos, from.size(), to);
+}
+
+TEST(Urdf, MalformedFilesGiveFileAndLine) {
+  EXPECT_EQ(errorOf(kTwoJoint), "no error");
+  struct Case {
+    std::string text, expected;
+  };
+  const std::vector<Case> cases = {
+      {replaced(kTwoJoint, "</robot>", "</robt>"), "bad.urdf:1"},  // XML: tinyxml2 names the element left open
+      {replaced(kTwoJoint, "<axis xyz=\"0 1 0\"/>", "<axis xyz=\"0 1 0/>"), "bad.urdf:14"},        // XML: open quote
+      {replaced(kTwoJoint, "xyz=\"0.3 0 0\"", "xyz=\"0.3 0\""), "bad.urdf:13"},                     // 2 numbers
+      {replaced(kTwoJoint, "xyz=\"0.3 0 0\"", "xyz=\"0.3 nan 0\""), "bad.urdf:13"},                 // non-finite
+      {replaced(kTwoJoint, "xyz=\"0.3 0 0\"", "xyz=\"300 0 0\""), "bad.urdf:13"},                   // absurd
+      {replaced(kTwoJoint, "<axis xyz=\"0 1 0\"/>", "<axis xyz=\"0 0 0\"/>"), "bad.urdf:14"},       // zero axis
+      {replaced(kTwoJoint, "<child link=\"c\"/>", "<child link=\"x\"/>"), "bad.urdf:11"},           // unknown link
+      {replaced(kTwoJoint, "lower=\"-1\" upper=\"1\" effort=\"1\" velocity=\"1\"/>\n  </joint>\n</robot>",
+                "lower=\"1\" upper=\"-1\" effort=\"1\" velocity=\"1\"/>\n  </joint>\n</robot>"),
+       "bad.urdf:15"},                                                                                 // lower >= upper
+      {replaced(kTwoJoint, "type=\"revolute\">\n    <parent link=\"b\"/>", "type=\"hinge\">\n    <parent link=\"b\"/>"),
+       "bad.urdf:11"},                                                                                 // type
+      {replaced(kTwoJoint, "<parent link=\"b\"/><child link=\"c\"/>", "<parent link=\"b\"/><child link=\"b\"/>"),
+       "bad.urdf:11"},                                                                                 // self loop
+      {replaced(kTwoJoint, "<link name=\"c\"/>", "<link name=\"c\"><inertial><mass value=\"-2\"/>"
+                                                 "<inertia ixx=\"0\" ixy=\"0\" ixz=\"0\" iyy=\"0\" iyz=\"0\" izz=\"0\"/>"
+                                                 "</inertial></link>"),
+       "bad.urdf:4"},                                                                                  // mass
+      {replaced(kTwoJoint, " effort=\"1\" velocity=\"1\"/>\n  </joint>\n</robot>", "/>\n  </joint>\n</robot>"),
+       "bad.urdf:15"},                                                                                 // urdfdom: no effort
+  };
+  for (const Case& c : cases) {
+    const std::string e = errorOf(c.text);
+    EXPECT_EQ(e.rfind(c.expected + ":", 0), 0u) << "expected " << c.expected << ", got: " << e;
+  }
+  // missing file
+  EXPECT_THROW(readUrdfRobot("/nonexistent/robot.urdf"), InputError);
+}
+
+TEST(Urdf, LoopsMimicBranchesAndChainsAreNamed) {
+  // a second parent for link c: a closed loop
+  const std::string loop = replaced(kTwoJoint, "</robot>", R"(  <joint name="j3" type="fixed">
+    <parent link="a"/><child link="c"/>
+  </joint>
+</robot>)");
+  std::string e = errorOf(loop);
+  EXPECT_NE(e.find("bad.urdf:17"), std::string::npos) << e;
+  EXPECT_NE(e.find("'j3' closes a loop"), std::string::npos) << e;
+
+  // mimic joint on the chain
+  const std::string mimic = replaced(kTwoJoint, "<axis xyz=\"0 1 0\"/>", "<axis xyz=\"0 1 0\"/><mimic joint=\"j1\"/>");
+  e = errorOf(mimic);
+  EXPECT_NE(e.find("bad.urdf:11"), std::string::npos) << e;
+  EXPECT_NE(e.find("'j2'"), std::string::npos) << e;
+  EXPECT_NE(e.find("mimics joint 'j1'"), std::string::npos) << e;
+
+  // a moving branch off link b (moved by j1) on the chain a:c
+  const std::string branch = replaced(kTwoJoint, "</robot>", R"(  <link name="d"/>
+  <joint name="pan" type="continuous">
+    <parent link="b"/><child link="d"/>
+    <axis xyz="1 0 0"/>
+  </joint>
+</robot>)");
+  e = errorOf(branch, "a:c");
+  EXPECT_NE(e.find("bad.urdf:18"), std::string::npos) << e;
+  EXPECT_NE(e.find("'pan'"), std::string::npos) << e;
+  EXPECT_NE(e.find("branches off the chain"), std::string::npos) << e;
+  // without --chain the default cannot choose: the error says where and how
+  e = errorOf(branch);
+  EXPECT_NE(e.find("--chain"), std::string::npos) << e;
+  // the chain a:d is serial (j1, pan) and fine; c then branches off but below no chain joint's
+  // body other than j1's, which moves b: j2 is a branch of a:d
+  e = errorOf(branch, "a:d");
+  EXPECT_NE(e.find("'j2'"), std::string::npos) << e;
+  // unknown link in --chain
+  e = errorOf(kTwoJoint, "a:zz");
+  EXPECT_NE(e.find("no link 'zz'"), std::string::npos) << e;
+
+  // a prismatic and a continuous joint are fine; continuous gets -360..360 deg
+  const std::string mixed = replaced(replaced(kTwoJoint, "type=\"revolute\">\n    <parent link=\"a\"/>",
+                                              "type=\"prismatic\">\n    <parent link=\"a\"/>"),
+                                     "type=\"revolute\">\n    <parent link=\"b\"/>", "type=\"continuous\">\n    <parent link=\"b\"/>");
+  const SerialChain chain = parseUrdfChain(mixed, "mixed.urdf");
+  ASSERT_EQ(chain.joints.size(), 2u);
+  EXPECT_EQ(chain.joints[0].type, JointType::kPrismatic);
+  EXPECT_NEAR(chain.joints[0].lower, -1000, 1e-12);  // m -> mm
+  EXPECT_EQ(chain.joints[1].lower, -360);
+  const RobotModel m = modelFromChain(chain);
+  const Eigen::Vector2d q(250, 30);  // mm, deg
+  // tip: a -> (0,0,500 + 250) -> Tx(300) then Ry(30) at the tip's origin
+  EXPECT_LT((forwardKinematics(m, q).translation() - Eigen::Vector3d(300, 0, 750)).norm(), 1e-12);
+}
+
+TEST(Urdf, ConversionCheckCatchesAWrongModel) {
+  // modelFromChain's check is real: compareModelWithChain sees a 1 um change of one length.
+  const SerialChain chain = readUrdfChain(sourcePath("tests/data/urdf/irb2400.urdf"));
+  RobotModel m = modelFromChain(chain);
+  EXPECT_LT(compareModelWithChain(m, chain).max_position_mm, 1e-9);
+  m.deviations.links[2].da_mm = 1e-3;
+  EXPECT_GT(compareModelWithChain(m, chain).max_position_mm, 1e-4);
+}
+
 }  // namespace
 }  // namespace accura
