@@ -125,7 +125,7 @@ ChainComparison compareModelWithChain(const RobotModel& model, const SerialChain
   return c;
 }
 
-RobotModel modelFromChain(const SerialChain& chain, const RobotDefinition* reference) {
+RobotModel modelFromChain(const SerialChain& chain, const RobotDefinition* reference, FormPolicy policy) {
   const int n = static_cast<int>(chain.joints.size());
   if (n == 0) throw ArgumentError("serial chain '" + chain.name + "' (" + chain.source + "): no moving joint between '" +
                                   chain.root_link + "' and '" + chain.tip_link + "'");
@@ -153,7 +153,7 @@ RobotModel modelFromChain(const SerialChain& chain, const RobotDefinition* refer
   std::vector<Eigen::Isometry3d> R_frame;
   std::vector<LinkForm> ref_forms;
   if (reference) {
-    RobotModel ref = RobotModel::fromDefinition(*reference);
+    RobotModel ref = RobotModel::fromDefinition(*reference, policy);
     KinematicWorkspace ws;
     flangePose(ref, Eigen::VectorXd::Zero(n), PoseContext{}, ws);
     for (const auto& F : ws.T_base_frame) R_frame.push_back(reference->T_world_base * F);
@@ -204,7 +204,7 @@ RobotModel modelFromChain(const SerialChain& chain, const RobotDefinition* refer
       const Eigen::Vector3d& Pn = P[i + 1];
       const double s = z.cross(Zn).norm();
       const bool hayati = reference ? ref_forms[i] == LinkForm::kHayati
-                                    : s < std::sin(kHayatiThresholdDeg * kDegToRad);
+                                    : policy == FormPolicy::kAuto && s < std::sin(kHayatiThresholdDeg * kDegToRad);
       const Eigen::Vector3d x_hint = reference ? Eigen::Vector3d(R_frame[i + 1].linear().col(0)) : x_prev;
       if (hayati) {
         // Frame i's origin: where axis i+1 crosses the plane normal to z at height d.
@@ -268,7 +268,7 @@ RobotModel modelFromChain(const SerialChain& chain, const RobotDefinition* refer
 
   RobotModel model;
   if (reference) {
-    model = RobotModel::fromDefinition(*reference);
+    model = RobotModel::fromDefinition(*reference, policy);
     Deviations& dev = model.deviations;
     const Eigen::Isometry3d& Tb = reference->T_world_base;
     dev.base_mm = Tb.linear().transpose() * (F0.translation() - Tb.translation());
@@ -314,7 +314,7 @@ RobotModel modelFromChain(const SerialChain& chain, const RobotDefinition* refer
       for (int r = 0; r < 3; ++r) s.com_mm[r] = tidy(s.com_mm[r], 1.0);
       def.joints.push_back(s);
     }
-    model = RobotModel::fromDefinition(def);
+    model = RobotModel::fromDefinition(def, policy);
     for (int i = 0; i < n; ++i) {
       if (model.forms[static_cast<size_t>(i)] != links[i].form) {
         // The form follows from alpha (robot.h); a link right at the threshold may flip. The
