@@ -260,7 +260,7 @@ SerialChain urDeltaChain(const RobotDefinition& nominal, const UrDeltas& d) {
 
 RobotModel modelFromUrDeltas(const RobotDefinition& nominal, const UrDeltas& deltas) {
   const SerialChain chain = urDeltaChain(nominal, deltas);
-  RobotModel m = modelFromChain(chain, &nominal);
+  RobotModel m = modelFromChain(chain, &nominal, FormPolicy::kAuto, kUrCheckTolMm);
   m.nominal.source = nominal.source + "; calibrated with UR's factory DH deltas";
   return m;
 }
@@ -274,7 +274,7 @@ UrDeltasFromModel urDeltasFromModel(const RobotModel& model) {
   const SerialChain chain = flangeChain(model);
   RobotModel dh_model;
   try {
-    dh_model = modelFromChain(chain, &ur, FormPolicy::kDHOnly);
+    dh_model = modelFromChain(chain, &ur, FormPolicy::kDHOnly, kUrCheckTolMm);
   } catch (const ArgumentError& e) {
     throw ArgumentError(std::string("UR deltas of '") + model.nominal.name + "': " + e.what());
   }
@@ -374,7 +374,7 @@ RobotModel modelFromUrCalibrationYaml(const RobotDefinition& nominal, const std:
     chain.joints[i].lower = nominal.joints[i].lower;
     chain.joints[i].upper = nominal.joints[i].upper;
   }
-  RobotModel m = modelFromChain(chain, &nominal);
+  RobotModel m = modelFromChain(chain, &nominal, FormPolicy::kAuto, kUrCheckTolMm);
   m.nominal.source = nominal.source + "; calibrated with the ur_calibration YAML " + path;
   return m;
 }

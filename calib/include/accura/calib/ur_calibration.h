@@ -25,6 +25,10 @@
 
 namespace accura {
 
+/// Tolerance of the UR conversions' check (mm): the deltas' lengths of tens of metres cancel,
+/// and their own rounding reaches 1e-8 mm.
+constexpr double kUrCheckTolMm = 1e-6;
+
 /// DH deltas per joint, as in calibration.conf: rad and metres.
 struct UrDeltas {
   std::vector<double> theta_rad, a_m, d_m, alpha_rad;  ///< one per joint each
@@ -49,7 +53,7 @@ SerialChain urDeltaChain(const RobotDefinition& nominal, const UrDeltas& deltas)
 
 /// The calibrated accura model of a UR arm: `nominal` (the bundled robot, e.g. ur10.xml) with
 /// the deltas as deviations in its Hayati form (the lengths stay the arm's real lengths),
-/// checked: FK equals UR's formula to kChainCheckTolMm (modelFromChain). Throws ArgumentError
+/// checked: FK equals UR's formula to kUrCheckTolMm (modelFromChain). Throws ArgumentError
 /// (checkUrNominal), NumericalError when the check fails.
 RobotModel modelFromUrDeltas(const RobotDefinition& nominal, const UrDeltas& deltas);
 
