@@ -1,12 +1,15 @@
 // Helpers shared by the subcommands (internal to the command-line tool).
 #pragma once
 
+#include <CLI/CLI.hpp>
+#include <functional>
 #include <nlohmann/json.hpp>
 #include <string>
 
 #include "accura/calib/identify.h"
 #include "accura/calib/measurements.h"
 #include "accura/calib/robot.h"
+#include "accura/postproc/job.h"
 
 namespace accura::cli {
 
@@ -26,6 +29,10 @@ std::string& robotChainOption();
 MeasurementSet readMeasurements(const std::string& path, const std::string& map_path, const RobotDefinition& robot);
 /// Prints a warning listing the columns of a measurement file accura does not use.
 void warnUnknownColumns(const MeasurementSet& set);
+/// Adds the options that make a JobSettings (--robot, --tol, --base, --robroot, --payload-kg,
+/// --temp-c, --program-tool, --program-base) to a command (accura compensate, batch, check);
+/// the function returned reads them (InputError on a bad value). Defined in cmd_compensate.cpp.
+std::function<postproc::JobSettings()> addJobOptions(CLI::App* c);
 /// One row of an accuracy table: RMS mean p95 max (mm[, deg]).
 void printStatsRow(const std::string& label, const ErrorStats& s);
 
