@@ -13,6 +13,7 @@
 #include "accura/calib/file_io.h"
 #include "accura/calib/kinematics.h"
 #include "accura/calib/robot_io.h"
+#include "accura/calib/ur_calibration.h"
 #include "accura/calib/urdf.h"
 #include "test_util.h"
 
@@ -153,6 +154,16 @@ TEST(Urdf, KukaKr16ConvertsToTheKnownDH) {
   // A2 and A3 are parallel: Hayati there, DH elsewhere
   EXPECT_EQ(m.forms[1], LinkForm::kHayati);
   EXPECT_EQ(m.forms[0], LinkForm::kDH);
+  // The bundled kuka_kr16.xml (FreeCAD's DH table, an independent source) is the same robot:
+  // flange poses (tool0 = KUKA $FLANGE) agree at random joint vectors.
+  const RobotModel bundled = test::loadBundled("kuka_kr16");
+  std::mt19937_64 rng(8);
+  for (int s = 0; s < 200; ++s) {
+    const Eigen::VectorXd q = test::randomQ(bundled, rng);
+    const Eigen::Isometry3d A = forwardKinematics(bundled, q), B = forwardKinematics(m, q);
+    EXPECT_LT((A.translation() - B.translation()).norm(), 1e-9);
+    EXPECT_LT((A.linear() - B.linear()).cwiseAbs().maxCoeff(), 1e-12);
+  }
 }
 
 TEST(Urdf, Ur10BaseFrames) {
@@ -419,6 +430,43 @@ TEST(Urdf, ConversionCheckCatchesAWrongModel) {
   EXPECT_LT(compareModelWithChain(m, chain).max_position_mm, 1e-9);
   m.deviations.links[2].da_mm = 1e-3;
   EXPECT_GT(compareModelWithChain(m, chain).max_position_mm, 1e-4);
+}
+
+TEST(Urdf, CommandLine) {
+  const std::string dir = test::tempDir("urdf_cli");
+  // export: the file, and what it leaves out on stderr
+  test::CliRun r = test::runAccuraIn(dir, "export --robot kuka_kr16 --format urdf --out k.urdf");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.err.find("not represented: payload centre of mass (0, 0, 100) mm"), std::string::npos) << r.err;
+  EXPECT_NE(test::readText(dir + "/k.urdf").find("payload centre of mass"), std::string::npos);
+  // the URDF works wherever a robot does, with --chain; same flange pose as the robot file
+  const test::CliRun a = test::runAccuraIn(dir, "fk --robot k.urdf --chain base_link:flange --q 10,-80,70,20,30,40");
+  const test::CliRun b = test::runAccuraIn(dir, "fk --robot kuka_kr16 --q 10,-80,70,20,30,40");
+  ASSERT_EQ(a.code, 0) << a.err;
+  EXPECT_EQ(a.out, b.out);
+  r = test::runAccuraIn(dir, "fk --robot k.urdf --chain base_link:nowhere --q 0,0,0,0,0,0");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("no link 'nowhere'"), std::string::npos) << r.err;
+  r = test::runAccuraIn(dir, "fk --robot kuka_kr16 --chain a:b --q 0,0,0,0,0,0");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("expected a URDF robot"), std::string::npos) << r.err;
+  // a malformed URDF: file:line on stderr, exit code 1
+  test::writeText(dir + "/bad.urdf", replaced(kTwoJoint, "xyz=\"0.3 0 0\"", "xyz=\"0.3 0 zero\""));
+  r = test::runAccuraIn(dir, "fk --robot bad.urdf --q 0,0");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("bad.urdf:13:"), std::string::npos) << r.err;
+  // UR's factory calibration -> calibrated robot file -> usable everywhere; deltas back out
+  r = test::runAccuraIn(dir, "export --robot ur10 --ur-deltas " + sourcePath("tests/data/urdf/ur_forum_calibration.conf") +
+                                 " --format robot --out ur10_cal.xml");
+  ASSERT_EQ(r.code, 0) << r.err;
+  const RobotModel cal = readRobotFile(dir + "/ur10_cal.xml");
+  EXPECT_NE(cal.deviations.links[2].dbeta_rad, 0.0);
+  r = test::runAccuraIn(dir, "export --robot ur10_cal.xml --format ur-deltas --out back.conf");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.err.find("delta_d = -92.52"), std::string::npos) << r.err;  // flagged
+  const UrDeltas back = readUrCalibrationConf(dir + "/back.conf");
+  EXPECT_NEAR(back.d_m[2], -92.5270326908668181, 1e-6);  // m, through the robot file's 12 digits
+  std::filesystem::remove_all(dir);
 }
 
 }  // namespace

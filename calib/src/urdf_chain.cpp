@@ -125,7 +125,8 @@ ChainComparison compareModelWithChain(const RobotModel& model, const SerialChain
   return c;
 }
 
-RobotModel modelFromChain(const SerialChain& chain, const RobotDefinition* reference) {
+RobotModel modelFromChain(const SerialChain& chain, const RobotDefinition* reference, FormPolicy policy,
+                          double tol_mm) {
   const int n = static_cast<int>(chain.joints.size());
   if (n == 0) throw ArgumentError("serial chain '" + chain.name + "' (" + chain.source + "): no moving joint between '" +
                                   chain.root_link + "' and '" + chain.tip_link + "'");
@@ -153,7 +154,7 @@ RobotModel modelFromChain(const SerialChain& chain, const RobotDefinition* refer
   std::vector<Eigen::Isometry3d> R_frame;
   std::vector<LinkForm> ref_forms;
   if (reference) {
-    RobotModel ref = RobotModel::fromDefinition(*reference);
+    RobotModel ref = RobotModel::fromDefinition(*reference, policy);
     KinematicWorkspace ws;
     flangePose(ref, Eigen::VectorXd::Zero(n), PoseContext{}, ws);
     for (const auto& F : ws.T_base_frame) R_frame.push_back(reference->T_world_base * F);
@@ -204,7 +205,7 @@ RobotModel modelFromChain(const SerialChain& chain, const RobotDefinition* refer
       const Eigen::Vector3d& Pn = P[i + 1];
       const double s = z.cross(Zn).norm();
       const bool hayati = reference ? ref_forms[i] == LinkForm::kHayati
-                                    : s < std::sin(kHayatiThresholdDeg * kDegToRad);
+                                    : policy == FormPolicy::kAuto && s < std::sin(kHayatiThresholdDeg * kDegToRad);
       const Eigen::Vector3d x_hint = reference ? Eigen::Vector3d(R_frame[i + 1].linear().col(0)) : x_prev;
       if (hayati) {
         // Frame i's origin: where axis i+1 crosses the plane normal to z at height d.
@@ -268,7 +269,7 @@ RobotModel modelFromChain(const SerialChain& chain, const RobotDefinition* refer
 
   RobotModel model;
   if (reference) {
-    model = RobotModel::fromDefinition(*reference);
+    model = RobotModel::fromDefinition(*reference, policy);
     Deviations& dev = model.deviations;
     const Eigen::Isometry3d& Tb = reference->T_world_base;
     dev.base_mm = Tb.linear().transpose() * (F0.translation() - Tb.translation());
@@ -288,6 +289,21 @@ RobotModel modelFromChain(const SerialChain& chain, const RobotDefinition* refer
     const Eigen::Isometry3d& Tt = reference->T_flange_tcp;
     dev.tool_mm = Tt.linear().transpose() * (tool.translation() - Tt.translation());
     dev.tool_rot_rad = logSO3(Tt.linear().transpose() * tool.linear());
+    // Round-off to zero (1e-12 mm, 1e-15 rad): a deviation of a transform that is exact.
+    const auto zap = [](double& v, double tiny) { if (std::abs(v) < tiny) v = 0; };
+    for (int r = 0; r < 3; ++r) {
+      zap(dev.base_mm[r], 1e-12);
+      zap(dev.tool_mm[r], 1e-12);
+      zap(dev.base_rot_rad[r], 1e-15);
+      zap(dev.tool_rot_rad[r], 1e-15);
+    }
+    for (LinkDeviation& d : dev.links) {
+      zap(d.dd_mm, 1e-12);
+      zap(d.da_mm, 1e-12);
+      zap(d.dtheta_rad, 1e-15);
+      zap(d.dalpha_rad, 1e-15);
+      zap(d.dbeta_rad, 1e-15);
+    }
   } else {
     RobotDefinition def;
     def.name = chain.name;
@@ -314,7 +330,7 @@ RobotModel modelFromChain(const SerialChain& chain, const RobotDefinition* refer
       for (int r = 0; r < 3; ++r) s.com_mm[r] = tidy(s.com_mm[r], 1.0);
       def.joints.push_back(s);
     }
-    model = RobotModel::fromDefinition(def);
+    model = RobotModel::fromDefinition(def, policy);
     for (int i = 0; i < n; ++i) {
       if (model.forms[static_cast<size_t>(i)] != links[i].form) {
         // The form follows from alpha (robot.h); a link right at the threshold may flip. The
@@ -329,11 +345,12 @@ RobotModel modelFromChain(const SerialChain& chain, const RobotDefinition* refer
   model.validate();
 
   const ChainComparison c = compareModelWithChain(model, chain);
-  if (!(c.max_position_mm <= kChainCheckTolMm) || !(c.max_rotation_rad <= kChainCheckTolRad)) {
+  const double tol_rad = tol_mm * (kChainCheckTolRad / kChainCheckTolMm);
+  if (!(c.max_position_mm <= tol_mm) || !(c.max_rotation_rad <= tol_rad)) {
     throw NumericalError("converting the serial chain " + chain.root_link + ":" + chain.tip_link + " of '" +
                          chain.source + "' into accura's model: the model's FK differs from the chain's by " +
                          fmtNum(c.max_position_mm) + " mm / " + fmtNum(c.max_rotation_rad) +
-                         " rad (allowed " + fmtNum(kChainCheckTolMm) + " mm / " + fmtNum(kChainCheckTolRad) + " rad)");
+                         " rad (allowed " + fmtNum(tol_mm) + " mm / " + fmtNum(tol_rad) + " rad)");
   }
   return model;
 }

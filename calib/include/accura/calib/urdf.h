@@ -72,7 +72,13 @@ constexpr double kChainCheckTolRad = 1e-12;   ///< orientation of the tip (rad)
 /// else NumericalError naming the largest difference. Throws ArgumentError for an empty chain,
 /// a joint count differing from the reference's, a joint turning the other way than the
 /// reference's, or a non-last link whose reference form is DH but whose axes are parallel.
-RobotModel modelFromChain(const SerialChain& chain, const RobotDefinition* reference = nullptr);
+/// `policy` kDHOnly forces DH on every link (only to write DH tables such as UR's deltas,
+/// which is ill-conditioned for nearly parallel axes and fails for exactly parallel ones).
+/// `tol_mm`: the position tolerance of the check (the rotation's is tol_mm * 1e-3 rad/mm);
+/// looser only for chains whose own numbers are ill-conditioned (UR's DH deltas: lengths of
+/// tens of metres that cancel, 1e-6 mm).
+RobotModel modelFromChain(const SerialChain& chain, const RobotDefinition* reference = nullptr,
+                          FormPolicy policy = FormPolicy::kAuto, double tol_mm = kChainCheckTolMm);
 
 /// Largest tip position difference (mm) and rotation difference (rad) between the model and
 /// the chain over `samples` pseudo-random joint vectors within the limits (seeded, repeatable).
