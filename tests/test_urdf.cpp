@@ -365,6 +365,10 @@ TEST(Urdf, MalformedFilesGiveFileAndLine) {
     const std::string e = errorOf(c.text);
     EXPECT_EQ(e.rfind(c.expected + ":", 0), 0u) << "expected " << c.expected << ", got: " << e;
   }
+  // What only urdfdom checks (here a <dynamics> value) is mapped to the line of the joint its
+  // message names.
+  const std::string e = errorOf(replaced(kTwoJoint, "<axis xyz=\"0 1 0\"/>", "<axis xyz=\"0 1 0\"/><dynamics damping=\"x\"/>"));
+  EXPECT_EQ(e.rfind("bad.urdf:11: urdfdom rejected the file: damping value (x) is not a valid float", 0), 0u) << e;
   // missing file
   EXPECT_THROW(readUrdfRobot("/nonexistent/robot.urdf"), InputError);
 }
