@@ -116,12 +116,13 @@ struct PublicUrdf {
 };
 
 // Public industrial arm descriptions (tests/data/urdf/README.md): fixed joints, rpy offsets,
-// axes along -z, y, -x; default chains.
+// axes along -z, y, -x, links declared after their joints; default chains.
 TEST(Urdf, PublicDescriptionsMatchTheirOwnFK) {
   for (const PublicUrdf& u : {PublicUrdf{"kr16_2.urdf", "base_link", "tool0", 6},
                               PublicUrdf{"irb2400.urdf", "base_link", "tool0", 6},
                               PublicUrdf{"panda_arm.urdf", "panda_link0", "panda_link8", 7},
-                              PublicUrdf{"ur10.urdf", "world", "tool0", 6}}) {
+                              PublicUrdf{"ur10.urdf", "world", "tool0", 6},
+                              PublicUrdf{"ur5_robot.urdf", "base_link", "ee_link", 6}}) {
     SCOPED_TRACE(u.file);
     const std::string path = sourcePath(std::string("tests/data/urdf/") + u.file);
     const RobotModel m = readRobotFile(path);  // the .urdf dispatch, default chain
