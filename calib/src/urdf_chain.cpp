@@ -301,6 +301,9 @@ RobotModel modelFromChain(const SerialChain& chain, const RobotDefinition* refer
     def.source = chain.source + " (serial chain " + chain.root_link + ":" + chain.tip_link + ")";
     def.T_world_base = tidyPose(F0);
     def.T_flange_tcp = tidyPose(frames[n].inverse() * G_tip);
+    // ROS convention (REP-103): the root's z points up; gravity in the base (DH frame 0).
+    def.gravity_base = def.T_world_base.linear().transpose() * Eigen::Vector3d(0, 0, -9.80665);
+    for (int r = 0; r < 3; ++r) def.gravity_base[r] = tidy(def.gravity_base[r], 1.0);
     for (int i = 0; i < n; ++i) {
       const ChainJoint& cj = chain.joints[static_cast<size_t>(i)];
       const LinkParams& L = links[i];

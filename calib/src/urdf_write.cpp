@@ -37,10 +37,13 @@ UrdfText modelToUrdf(const RobotModel& model) {
   // What URDF cannot hold.
   {
     out.not_represented = urdf_detail::effectsLeftOut(model, "URDF");
+    // A URDF has no gravity: its root's z is up (REP-103). Say so when the model's is not.
     const Eigen::Vector3d g = model.nominal.gravity_base;
-    if ((g - Eigen::Vector3d(0, 0, -9.80665)).norm() > 0)
-      out.not_represented.push_back("gravity in the base frame (" + num(g.x()) + ", " + num(g.y()) + ", " + num(g.z()) +
-                                    ") m/s^2 (a URDF has no gravity; the mounting is the simulator's world)");
+    const Eigen::Vector3d g_world = model.T_world_base().linear() * g;
+    if ((g_world - Eigen::Vector3d(0, 0, -9.80665)).norm() > 1e-9)
+      out.not_represented.push_back("gravity (" + num(g.x()) + ", " + num(g.y()) + ", " + num(g.z()) +
+                                    ") m/s^2 in the base frame, not along -z of the URDF's root 'world' "
+                                    "(a URDF has no gravity; ROS takes the root's z as up)");
     const Eigen::Vector3d c = model.nominal.payload_com_mm;
     if (c.norm() > 0)
       out.not_represented.push_back("payload centre of mass (" + num(c.x()) + ", " + num(c.y()) + ", " + num(c.z()) +
