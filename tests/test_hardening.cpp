@@ -188,6 +188,11 @@ TEST(Hardening, PlyBodiesAreCheckedLineByLine) {
   EXPECT_EQ(type.line(), 4);
   EXPECT_EQ(type.column(), 10);
   EXPECT_EQ(type.message(), "expected a PLY type (char, uchar, short, ushort, int, uint, float, double, int8 .. float64), found 'flaot'");
+  const InputError scalar = meshError(s, "m.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+                                                  "element face 1\nproperty int vertex_indices\nend_header\n");
+  EXPECT_EQ(scalar.line(), 8);
+  EXPECT_EQ(scalar.column(), 10);
+  EXPECT_EQ(scalar.message(), "expected the vertex indices of a face as a list of an integer type (property list uchar int vertex_indices), found 'int'");
   const InputError no_end = meshError(s, "m.ply", "ply\nformat ascii 1.0\nelement vertex 0\n");
   EXPECT_EQ(no_end.line(), 4);
   EXPECT_EQ(no_end.message(), "expected the PLY header to end with 'end_header', found the end of the file");

@@ -191,8 +191,9 @@ class Checker {
     }
   }
   static bool isVertexIndexList(const PlyElement& e, const PlyProperty& p) {
-    return e.name == "face" && p.list && (p.name == "vertex_indices" || p.name == "vertex_index");
+    return e.name == "face" && p.list && isVertexIndices(p);
   }
+  static bool isVertexIndices(const PlyProperty& p) { return p.name == "vertex_indices" || p.name == "vertex_index"; }
 
   void ply() {
     Scanner s(d_, 0, 1);
@@ -245,6 +246,8 @@ class Checker {
         if (args.size() > 2) fail(args[2], "expected the end of the 'element' line, found " + quoted(args[2].text));
         for (const auto& other : elements)
           if (other.name == e.name) fail(args[0], "expected each element name once, found '" + e.name + "' a second time");
+        // assimp turns triangle strips into faces without checking their indices
+        if (e.name == "tristrips") fail(args[0], "expected the faces as element 'face', found 'tristrips' (not supported)");
         elements.push_back(std::move(e));
       } else if (keyword.text == "property") {
         if (elements.empty()) fail(keyword, "expected an 'element' line before the first property, found 'property'");
@@ -264,8 +267,9 @@ class Checker {
         if (args.size() > i + 2) fail(args[i + 2], "expected the end of the 'property' line, found " + quoted(args[i + 2].text));
         for (const auto& other : elements.back().properties)
           if (other.name == p.name) fail(args[i + 1], "expected each property name once per element, found '" + p.name + "' a second time");
-        if (isVertexIndexList(elements.back(), p) && isFloat(p.type))
-          fail(t, "expected an integer type for the vertex indices of a face, found " + quoted(t.text));
+        if (elements.back().name == "face" && isVertexIndices(p) && (!p.list || isFloat(p.type)))
+          fail(p.list ? t : args[0], "expected the vertex indices of a face as a list of an integer type (property list uchar int " + p.name + "), found " +
+                                         quoted(p.list ? t.text : args[0].text));
         elements.back().properties.push_back(std::move(p));
       } else {
         fail(keyword, "expected a PLY header line (format, element, property, comment, obj_info, end_header), found " + quoted(keyword.text));
@@ -510,6 +514,8 @@ class Checker {
           fail(s.here(), "'" + std::string(k) + "': expected " + std::to_string(least) + " or more vertex references, found " + std::to_string(n) + " (a truncated line?)");
         s.endLine(&w);
       } else if (k == "o" || k == "g" || k == "s" || k == "usemtl" || k == "mtllib") {
+        // materials are of no use here, and assimp would open whatever file mtllib names
+        if (k == "mtllib") mtllib_offsets_.push_back(static_cast<size_t>(keyword.text.data() - d_.data()));
         s.restOfLine();
       } else {
         fail(keyword, "expected an OBJ statement (v, vt, vn, vp, f, l, p, o, g, s, usemtl, mtllib, #), found " + quoted(k));
@@ -547,10 +553,14 @@ class Checker {
     }
   }
 
+  /// Where the OBJ's mtllib statements start (checkMeshBytes turns them into comments).
+  const std::vector<size_t>& mtllibOffsets() const { return mtllib_offsets_; }
+
  private:
   const std::string& path_;
   std::string_view d_;
   double scale_;
+  std::vector<size_t> mtllib_offsets_;
 };
 
 std::string lowerExtension(const std::string& path) {
@@ -607,12 +617,15 @@ void checkScene(const std::string& path, const aiScene& scene, double scale_to_m
   }
 }
 
-void checkMeshBytes(const std::string& path, const std::string& bytes, double scale_to_mm) {
+/// Checks a PLY, STL or OBJ file's bytes (throws InputError) and makes an OBJ's mtllib
+/// statements comments (the bytes assimp reads are these).
+void checkMeshBytes(const std::string& path, std::string& bytes, double scale_to_mm) {
   Checker c(path, bytes, scale_to_mm);
   const std::string ext = lowerExtension(path);
   if (ext == ".ply") c.ply();
   else if (ext == ".stl") c.stl();
   else if (ext == ".obj") c.obj();
+  for (const size_t at : c.mtllibOffsets()) bytes[at] = '#';
 }
 
 }  // namespace
