@@ -508,6 +508,24 @@ std::string diagnosisHtml(const Diagnosis& d) {
   if (!d.verdict.joints.empty()) h << " (" << esc(jointsText(d.verdict.joints)) << ")";
   h << "</b> &mdash; held-out RMS " << f("%.4f", d.baseline.rms_mm) << " &rarr; " << f("%.4f", d.verdict.validation_rms_after_mm)
     << " mm<br><span style=\"font-size:14px\">" << esc(d.verdict.explanation) << "</span></div>\n";
+  {
+    // floors, glitches, robust rows, what to identify
+    const Floors& fl = d.floors;
+    h << "<h2>Floors and outliers</h2>\n<p>instrument (std columns): "
+      << (fl.instrument_known ? f("%.4f", fl.instrument_rms_mm) + " mm" : std::string("unknown")) << "; repeatability: "
+      << (fl.repeat_dof > 0 ? f("%.4f", fl.repeat_rms_mm) + " mm 3D RMS" : std::string("unknown")) << " from " << fl.repeat_groups
+      << " configurations measured again, median pair distance " << f("%.4f", fl.median_pair_mm) << " mm; "
+      << fl.glitches.size() << " glitch pair(s); " << d.downweighted.size() << " row(s) down-weighted by the robust fit.</p>\n";
+    if (!fl.glitches.empty()) {
+      h << "<table><tr><th class=\"l\">glitch pair</th><th>distance (mm)</th><th>orientation jump (deg)</th></tr>\n";
+      for (const RepeatPair& p : fl.glitches)
+        h << "<tr><td class=\"l\">" << esc(rowRef(d.data_file, p.line_a, p.index_a)) << " / "
+          << esc(rowRef(d.data_file, p.line_b, p.index_b)) << "</td><td>" << f("%.3f", p.distance_mm) << "</td><td>"
+          << f("%.3f", p.rotation_deg) << "</td></tr>\n";
+      h << "</table>\n";
+    }
+    h << "<p>identify --params " << esc(d.identify_params) << "</p>\n";
+  }
 
   // shrink
   h << "<h2>How far it shrinks</h2>\n";

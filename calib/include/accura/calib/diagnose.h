@@ -3,22 +3,29 @@
 // effect of the catalogue (joint_compliance, gear_periodic, joint_scale, backlash, thermal)
 // causes it, how far it shrinks once that effect is modelled, and what remains against the
 // noise floor; `unexplained` when a structured residual remains that no catalogued effect
-// explains. Position data only (orientation columns are not used).
+// explains. Positions drive the fits; for 6D data the orientation residual is reported.
 //
 // Statistics, in short (the details and the reasons are in docs/diagnosis.md):
 // - held-out error: on --validate data, or by k-fold cross-validation over the poses
 //   (repeated poses stay in one fold); the ranking and selection use the model linearised at
 //   the baseline (one Gauss-Newton step from it, exact to about 1e-3 mm for these effect
 //   sizes), the shrink table and the verdict use exact non-linear refits;
-// - noise floor: a given value, else repeated poses (pooled within-pose scatter), else the
-//   std columns of the data; the output says which;
+// - floors, kept apart: the instrument's (std columns) and the repeatability from repeated joint
+//   configurations (every joint within repeat_tol); the verdict is judged against a given value,
+//   else the repeatability, else the std columns; repeat pairs that disagree grossly are glitches;
+// - robust estimation (Huber weights from the richest model's residual; the rows down-weighted
+//   are listed as file:line);
 // - forward selection over (effect, joint) blocks: the block with the largest held-out gain
 //   is added while a one-sided paired z-test of the per-pose held-out squared errors gives
 //   p < alpha / (number of blocks tried in that round) (Bonferroni) and the held-out mean
-//   squared error drops by at least min_gain;
+//   squared error drops by at least min_gain, *and* its parameters are physically plausible,
+//   a periodic term's joint is covered over at least 162 deg, and the gain stays positive under
+//   blocked cross-validation (contiguous blocks of each joint's angle and of the pose order);
+//   selected effects are reported with their coverage and as identify --params takes them;
 // - unexplained: the held-out squared errors of the final model exceed what noise and
-//   parameter uncertainty explain (z-test, p < floor_alpha); with no noise floor, when the
-//   residual is significantly predictable from the pose and context (the structure scan).
+//   parameter uncertainty explain (z-test, p < floor_alpha) and the excess is structured (the
+//   structure scan, or a significant peak of the per-joint spectrum, Bonferroni over joints and
+//   cycles per revolution), with the share the selected effects explain (partial explanation).
 #pragma once
 
 #include <cstdint>
