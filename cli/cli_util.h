@@ -19,8 +19,11 @@ std::string fmt(const char* format, double v);
 nlohmann::ordered_json num(double v);
 /// {n, rms_mm, mean_mm, max_mm, p95_mm[, rot_*_deg]}
 nlohmann::ordered_json statsJson(const ErrorStats& s);
-/// Reads --robot (a path or a bundled robot name).
+/// Reads --robot (a path or a bundled robot name; a .urdf through urdf.h, with --chain).
 RobotModel loadRobot(const std::string& name_or_path);
+/// The --chain ROOT:TIP option of every command with --robot (main.cpp adds it): which
+/// serial chain of a URDF robot to use; empty: the default chain.
+std::string& robotChainOption();
 /// Reads a measurement file: accura's CSV format, or an instrument export through the mapping
 /// file `map_path` when it is not empty (docs/measurement-mapping.md). Warns about unused columns.
 MeasurementSet readMeasurements(const std::string& path, const std::string& map_path, const RobotDefinition& robot);
