@@ -13,6 +13,8 @@ packages=(
   libbenchmark-dev    # bench/
   liborocos-kdl-dev   # bench/: the IK peer (KDL ChainIkSolverPos_NR_JL)
   libcli11-dev        # command-line parsing
+  liburdfdom-dev      # URDF import / export (urdfdom, the ROS parser; pulls console-bridge)
+  liburdfdom-tools    # tests: check_urdf loads every exported URDF
   nlohmann-json3-dev  # JSON reports
   chromium            # tests: renders the diagnosis report headless and checks the screenshot
   libpng-dev          # tests: decodes that screenshot

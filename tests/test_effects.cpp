@@ -10,6 +10,7 @@
 #include <random>
 
 #include "accura/calib/errors.h"
+#include "accura/calib/kinematic_core.h"
 #include "accura/calib/kinematics.h"
 #include "accura/calib/measurements.h"
 #include "accura/calib/robot_io.h"
@@ -329,6 +330,129 @@ TEST(Effects, SimulatedEffectsMatchTheModelAndCarryEveryContextColumn) {
   for (const Measurement& r : set.rows)
     max_dev = std::max(max_dev, (forwardKinematics(nominal, r.q, r.context, ws).translation() - r.p_world_mm).norm());
   EXPECT_GT(max_dev, 0.05);  // 200 urad per rad of A4 (up to 6 rad) on a 158 mm lever
+}
+
+}  // namespace
+}  // namespace accura
+
+namespace accura {
+namespace {
+
+// Central differences of the kinematic core itself (kinematic_core.h): every column of the
+// parameter Jacobian (geometry, compliance and every effect of the catalogue) and the joint
+// Jacobian, on every bundled robot in both forms (Hayati where axes are parallel, and DH
+// everywhere), in a context with payload, temperature and approach directions.
+TEST(KinematicCore, DerivativesOfEveryEffectOnEveryRobotInBothForms) {
+  std::mt19937_64 rng(31);
+  for (const char* name : {"kuka_kr16", "ur10", "scara", "abb_irb120"}) {
+    for (FormPolicy policy : {FormPolicy::kAuto, FormPolicy::kDHOnly}) {
+      RobotModel m = test::loadBundled(name, policy);
+      randomDeviations(m, rng);
+      const KinematicModel core(m);
+      const std::vector<ParamInfo> layout = parameterLayout(m);
+      KinematicFrames f, fp, fm;
+      LinkFrames links;
+      for (int trial = 0; trial < 2; ++trial) {
+        const Eigen::VectorXd q = test::randomQ(m, rng);
+        const PoseContext ctx = randomContext(m.dof(), rng);
+        Eigen::MatrixXd J;
+        core.parameterJacobian(layout, q.data(), ctx, f, links, J);
+        Eigen::VectorXd loads(m.dof());
+        for (int i = 0; i < m.dof(); ++i) loads[i] = links.load[static_cast<size_t>(i)];
+        for (size_t k = 0; k < layout.size(); ++k) {
+          const ParamInfo& P = layout[k];
+          const double x0 = getParameter(m.deviations, P);
+          double h = P.unit == "mm" ? 1e-4 : 1e-5;  // mm; rad or dimensionless
+          if (P.kind == ParamKind::kCompliance) h = 1e-6 / std::max(1.0, std::abs(loads[P.joint]));
+          if (P.kind == ParamKind::kThermal) h = 1e-8;  // 1/K
+          RobotModel mp = m, mm = m;
+          setParameter(mp.deviations, P, x0 + h);
+          setParameter(mm.deviations, P, x0 - h);
+          KinematicModel(mp).evaluate(q.data(), ctx, fp);
+          KinematicModel(mm).evaluate(q.data(), ctx, fm);
+          Vector6d fd;
+          fd.head<3>() = (fp.T_world_tcp.translation() - fm.T_world_tcp.translation()) / (2 * h);
+          fd.tail<3>() = logSO3(fp.T_world_tcp.linear() * fm.T_world_tcp.linear().transpose()) / (2 * h);
+          EXPECT_LT((J.col(static_cast<Eigen::Index>(k)) - fd).norm() / std::max(1.0, fd.norm()), 1e-6)
+              << name << (policy == FormPolicy::kDHOnly ? " DH " : " auto ") << P.name << "\nanalytic "
+              << J.col(static_cast<Eigen::Index>(k)).transpose() << "\nnumeric  " << fd.transpose();
+        }
+        // joint Jacobian (it neglects compliance: checked on the model without it)
+        RobotModel stiff = m;
+        for (double& c : stiff.deviations.compliance) c = 0;
+        const KinematicModel stiff_core(stiff);
+        stiff_core.evaluate(q.data(), ctx, f);
+        Jac6N Jq;
+        stiff_core.jacobian(f, Jq);
+        for (int i = 0; i < m.dof(); ++i) {
+          const double h = 1e-5;  // deg or mm
+          Eigen::VectorXd qp = q, qm = q;
+          qp[i] += h;
+          qm[i] -= h;
+          stiff_core.evaluate(qp.data(), ctx, fp);
+          stiff_core.evaluate(qm.data(), ctx, fm);
+          Vector6d fd;
+          fd.head<3>() = (fp.T_world_tcp.translation() - fm.T_world_tcp.translation()) / (2 * h);
+          fd.tail<3>() = logSO3(fp.T_world_tcp.linear() * fm.T_world_tcp.linear().transpose()) / (2 * h);
+          EXPECT_LT((Jq.col(i) - fd).norm() / std::max(1.0, fd.norm()), 1e-6)
+              << name << (policy == FormPolicy::kDHOnly ? " DH" : " auto") << " joint " << i + 1;
+        }
+      }
+    }
+  }
+}
+
+// An evaluation started from a nearby one (the angle-addition series) equals a fresh one.
+TEST(KinematicCore, EvaluationFromANearbyOneEqualsAFreshOne) {
+  std::mt19937_64 rng(32);
+  for (const char* name : {"kuka_kr16", "scara"}) {
+    RobotModel m = test::loadBundled(name);
+    randomDeviations(m, rng);
+    const KinematicModel core(m);
+    std::normal_distribution<double> step(0, 2);  // deg: inside and beyond the 0.1 rad series
+    for (int trial = 0; trial < 20; ++trial) {
+      const Eigen::VectorXd q0 = test::randomQ(m, rng);
+      Eigen::VectorXd q1 = q0;
+      for (int i = 0; i < m.dof(); ++i) q1[i] += step(rng) * (trial % 4 + 1);
+      const PoseContext ctx = randomContext(m.dof(), rng);
+      KinematicFrames f0, f1, fresh;
+      core.evaluate(q0.data(), ctx, f0);
+      core.evaluate(q1.data(), ctx, f1, &f0);
+      core.evaluate(q1.data(), ctx, fresh);
+      EXPECT_LT(poseDiff(f1.T_world_tcp, fresh.T_world_tcp), 1e-9) << name;  // mm (and rotation entries)
+    }
+  }
+}
+
+// The workspace keeps the model of the last call prepared: a change of any value must be
+// seen (compared with a fresh workspace every time).
+TEST(KinematicCore, WorkspaceNoticesEveryChangeOfTheModel) {
+  std::mt19937_64 rng(33);
+  RobotModel m = test::loadBundled("kuka_kr16");
+  randomDeviations(m, rng);
+  const PoseContext ctx = randomContext(m.dof(), rng);
+  const Eigen::VectorXd q = test::randomQ(m, rng);
+  KinematicWorkspace ws;
+  const std::vector<ParamInfo> layout = parameterLayout(m);
+  size_t moved_count = 0;
+  for (const ParamInfo& P : layout) {
+    const Eigen::Isometry3d before = forwardKinematics(m, q, ctx, ws);
+    RobotModel changed = m;
+    setParameter(changed.deviations, P, getParameter(m.deviations, P) + (P.unit == "mm" ? 0.1 : 1e-3));
+    KinematicWorkspace fresh;
+    const Eigen::Isometry3d expected = forwardKinematics(changed, q, ctx, fresh);
+    moved_count += poseDiff(before, expected) > 1e-9;  // the change moves the tool
+    EXPECT_EQ(poseDiff(forwardKinematics(changed, q, ctx, ws), expected), 0.0) << P.name;
+  }
+  // all but the compliance of joints without gravity load (A1 vertical, A6 on its axis)
+  EXPECT_GE(moved_count, layout.size() - 2);
+  RobotModel moved = m;
+  moved.nominal.joints[2].a_mm += 0.5;
+  forwardKinematics(m, q, ctx, ws);
+  KinematicWorkspace fresh;
+  EXPECT_EQ(poseDiff(forwardKinematics(moved, q, ctx, ws), forwardKinematics(moved, q, ctx, fresh)), 0.0);
+  moved.nominal.T_flange_tcp.translation().x() += 1;
+  EXPECT_EQ(poseDiff(forwardKinematics(moved, q, ctx, ws), forwardKinematics(moved, q, ctx, fresh)), 0.0);
 }
 
 }  // namespace

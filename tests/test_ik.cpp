@@ -1,5 +1,4 @@
-// Inverse kinematics of the complete model (postproc/src/ik.cpp): the prepared chain against
-// calib, the closed forms, KUKA Status/Turn, round trips FK -> IK (cold and warm) on three
+// Inverse kinematics of the complete model (calib/src/ik.cpp, on the kinematic core): the closed forms, KUKA Status/Turn, round trips FK -> IK (cold and warm) on three
 // robots, every branch, and the cases that must be reported instead of solved.
 #include <gtest/gtest.h>
 
@@ -14,18 +13,14 @@
 #include "accura/calib/kinematics.h"
 #include "accura/calib/simulate.h"
 #include "accura/postproc/compensate.h"
-#include "../postproc/src/kinematic_chain.h"
-#include "../postproc/src/small_linalg.h"
+#include "accura/calib/ik.h"
+#include "accura/calib/kinematic_core.h"
+#include "../calib/src/small_linalg.h"
 #include "test_util.h"
 
 namespace accura {
 namespace {
 
-using postproc::Configuration;
-using postproc::IkOptions;
-using postproc::IkResult;
-using postproc::IkStatus;
-using postproc::KinematicSolver;
 
 /// A "real" robot: every geometric error, joint compliance, the base 3 m away (tracker
 /// station) and a tool.
@@ -158,7 +153,7 @@ TEST(IkChain, SmallLinearAlgebraEqualsEigen) {
     for (int i = 0; i < 36; ++i) A.data()[i] = g(rng);
     Eigen::Matrix<double, 6, 1> b;
     for (int i = 0; i < 6; ++i) b[i] = g(rng);
-    postproc::detail::Lu6 lu;
+    detail::Lu6 lu;
     ASSERT_TRUE(lu.factor(A));
     const Eigen::Matrix<double, 6, 1> x = lu.solve(b);
     const Eigen::Matrix<double, 6, 1> x_eigen = A.fullPivLu().solve(b);
@@ -169,12 +164,12 @@ TEST(IkChain, SmallLinearAlgebraEqualsEigen) {
     Eigen::Matrix<double, 6, 6> below = G, above = G;
     below.diagonal().array() -= 0.9 * smin * 0.9 * smin;
     above.diagonal().array() -= 1.1 * smin * 1.1 * smin;
-    EXPECT_TRUE(postproc::detail::positiveDefinite6(below));
-    EXPECT_FALSE(postproc::detail::positiveDefinite6(above));
+    EXPECT_TRUE(detail::positiveDefinite6(below));
+    EXPECT_FALSE(detail::positiveDefinite6(above));
   }
   Eigen::Matrix<double, 6, 6> S = Eigen::Matrix<double, 6, 6>::Identity();
   S.row(3) = S.row(2);
-  postproc::detail::Lu6 lu;
+  detail::Lu6 lu;
   EXPECT_FALSE(lu.factor(S));
 }
 
@@ -199,7 +194,7 @@ TEST(IkClosedForm, ExactForNominalRobots) {
         EXPECT_LT(positionError(m, s, T), 1e-8) << name;
         EXPECT_LT(rotationError(m, s, T), 1e-11) << name;
         found = found || (s - q).cwiseAbs().maxCoeff() < 1e-7;
-        statuses.insert(postproc::kukaConfiguration(m, s).status);
+        statuses.insert(kukaConfiguration(m, s).status);
       }
       EXPECT_TRUE(found) << name << " q = " << q.transpose();
     }
@@ -220,16 +215,16 @@ TEST(KukaConfiguration, HomeAndBitsByDefinition) {
   home << 0, -90, 90, 0, 0, 0;
   // KUKA's usual home: basic area, A3 above the stretched angle, A5 = 0 (not negative);
   // Turn: only A2 negative. Programs carry S 'B010' T 'B000010' there.
-  const Configuration c = postproc::kukaConfiguration(m, home);
+  const Configuration c = kukaConfiguration(m, home);
   EXPECT_EQ(c.status, 2);
   EXPECT_EQ(c.turn, 2);
   Eigen::VectorXd q = home;
   q[4] = -30;  // A5 negative: bit 2, and Turn bit 4
-  EXPECT_EQ(postproc::kukaConfiguration(m, q).status, 6);
-  EXPECT_EQ(postproc::kukaConfiguration(m, q).turn, 2 | 16);
+  EXPECT_EQ(kukaConfiguration(m, q).status, 6);
+  EXPECT_EQ(kukaConfiguration(m, q).turn, 2 | 16);
   q[4] = 200;  // A5 = 200 = -160 in [-180, 180): negative
-  EXPECT_EQ(postproc::kukaConfiguration(m, q).status & 4, 4);
-  EXPECT_EQ(postproc::kukaConfiguration(m, q).turn & 16, 0);
+  EXPECT_EQ(kukaConfiguration(m, q).status & 4, 4);
+  EXPECT_EQ(kukaConfiguration(m, q).turn & 16, 0);
 }
 
 TEST(KukaConfiguration, MatchesAGeometricComputation) {
@@ -278,7 +273,7 @@ TEST(KukaConfiguration, MatchesAGeometricComputation) {
       int t = 0;
       for (int i = 0; i < 6; ++i)
         if (q[i] < 0) t |= 1 << i;
-      const Configuration c = postproc::kukaConfiguration(m, q);
+      const Configuration c = kukaConfiguration(m, q);
       EXPECT_EQ(c.status, s) << name << " q " << q.transpose();
       EXPECT_EQ(c.turn, t) << name;
     }
@@ -289,10 +284,10 @@ TEST(KukaConfiguration, UndefinedStatusWithoutSixRevoluteJoints) {
   const RobotModel m = test::loadBundled("scara");
   Eigen::VectorXd q(4);
   q << -10, 20, 50, -30;
-  const Configuration c = postproc::kukaConfiguration(m, q);
+  const Configuration c = kukaConfiguration(m, q);
   EXPECT_EQ(c.status, -1);
   EXPECT_EQ(c.turn, 1 | 8);
-  EXPECT_THROW(postproc::kukaConfiguration(m, Eigen::VectorXd(3)), ArgumentError);
+  EXPECT_THROW(kukaConfiguration(m, Eigen::VectorXd(3)), ArgumentError);
 }
 
 // ---------------------------------------------------------------------------------------
@@ -315,7 +310,7 @@ RoundTripStats roundTrip(const RobotModel& m, int count, std::uint64_t seed, boo
   for (int k = 0; k < count; ++k) {
     const Eigen::VectorXd q = randomJoints(m, rng);
     const Eigen::Isometry3d T = solver.forward(q);
-    const Configuration c = postproc::kukaConfiguration(m, q);
+    const Configuration c = kukaConfiguration(m, q);
     Eigen::VectorXd s;
     if (warm) {
       s = q;
@@ -327,7 +322,7 @@ RoundTripStats roundTrip(const RobotModel& m, int count, std::uint64_t seed, boo
       // never a wrong point: checked with calib's FK, not the solver's
       EXPECT_LE(positionError(m, r.q, T), o.tol_mm);
       EXPECT_LE(rotationError(m, r.q, T), o.tol_rad * 1.0001);
-      EXPECT_TRUE(postproc::configurationMatches(warm ? Configuration{} : c, r.configuration));
+      EXPECT_TRUE(configurationMatches(warm ? Configuration{} : c, r.configuration));
     }
     if (well) {
       ++st.well_conditioned;
@@ -389,11 +384,11 @@ TEST(Ik, WithPayloadTheCompliantModelIsSolved) {
     const Eigen::VectorXd q = randomJoints(m, rng, 0.1);
     if (scaledSigmaMin(m, q) < 1e-3) continue;
     const Eigen::Isometry3d T = solver.forward(q, c);
-    const IkResult r = solver.inverse(T, postproc::kukaConfiguration(m, q), Eigen::VectorXd(), IkOptions{}, c);
+    const IkResult r = solver.inverse(T, kukaConfiguration(m, q), Eigen::VectorXd(), IkOptions{}, c);
     ASSERT_EQ(r.status, IkStatus::kOk) << r.message;
     EXPECT_LE(positionError(m, r.q, T, 16), 1e-3);
     // the same pose without the payload needs other joints (the arm sags less)
-    const IkResult r0 = solver.inverse(T, postproc::kukaConfiguration(m, q), Eigen::VectorXd(), IkOptions{});
+    const IkResult r0 = solver.inverse(T, kukaConfiguration(m, q), Eigen::VectorXd(), IkOptions{});
     ASSERT_EQ(r0.status, IkStatus::kOk);
     EXPECT_GT((r0.q - r.q).norm(), 1e-3);
   }
@@ -446,7 +441,7 @@ TEST(Ik, EveryStatusBranchIsReproducedOnTheRealRobot) {
     std::map<int, int> turn_of_status;
     bool well = true;
     for (const Eigen::VectorXd& s : solver.closedFormSolutions(T)) {
-      const Configuration c = postproc::kukaConfiguration(nominal, s);
+      const Configuration c = kukaConfiguration(nominal, s);
       if (!turn_of_status.count(c.status)) turn_of_status[c.status] = c.turn;
       well = well && scaledSigmaMin(real, s) > 1e-2;
     }
@@ -529,17 +524,17 @@ TEST(Ik, TargetBeyondTheJointLimitsIsReported) {
   const Eigen::Isometry3d T5 = full_solver.forward(q5);
   IkOptions o;
   o.joint_margin = 20;
-  const IkResult r = full_solver.inverse(T5, postproc::kukaConfiguration(full, q5), Eigen::VectorXd(), o);
+  const IkResult r = full_solver.inverse(T5, kukaConfiguration(full, q5), Eigen::VectorXd(), o);
   EXPECT_TRUE(r.status == IkStatus::kJointLimits || r.status == IkStatus::kNoConfiguration) << toString(r.status);
   if (r.q.size()) {
-    EXPECT_NE(r.configuration, postproc::kukaConfiguration(full, q5));
+    EXPECT_NE(r.configuration, kukaConfiguration(full, q5));
     for (int i = 0; i < 6; ++i) {
       EXPECT_GE(r.q[i], full.nominal.joints[i].lower + 20);
       EXPECT_LE(r.q[i], full.nominal.joints[i].upper - 20);
     }
   }
   // without the margin it is solved
-  const IkResult r0 = full_solver.inverse(T5, postproc::kukaConfiguration(full, q5), Eigen::VectorXd(), IkOptions{});
+  const IkResult r0 = full_solver.inverse(T5, kukaConfiguration(full, q5), Eigen::VectorXd(), IkOptions{});
   EXPECT_EQ(r0.status, IkStatus::kOk);
 }
 
@@ -549,7 +544,7 @@ TEST(Ik, ConfigurationThatDoesNotExistIsReported) {
   Eigen::VectorXd q(6);
   q << 100, -80, 90, 20, 40, 10;
   const Eigen::Isometry3d T = solver.forward(q);
-  Configuration c = postproc::kukaConfiguration(m, q);
+  Configuration c = kukaConfiguration(m, q);
   // A1 = 100 cannot be negative within -185..185 (-260 is outside): Turn bit 0 set is
   // impossible on this branch
   c.turn |= 1;
@@ -557,7 +552,7 @@ TEST(Ik, ConfigurationThatDoesNotExistIsReported) {
   EXPECT_NE(r.status, IkStatus::kOk);
   if (r.q.size()) {
     EXPECT_EQ(r.status, IkStatus::kNoConfiguration);
-    EXPECT_FALSE(postproc::configurationMatches(c, r.configuration));
+    EXPECT_FALSE(configurationMatches(c, r.configuration));
     EXPECT_LE(positionError(m, r.q, T), 1e-3);  // a valid solution, on another configuration
   }
 }
@@ -589,7 +584,7 @@ TEST(Ik, SingularPosesAreReportedWithACorrectSolution) {
     // next to the wrist singularity but above the threshold: solved
     Eigen::VectorXd q = wrist;
     q[4] = 3;
-    const IkResult r = solver.inverse(solver.forward(q), postproc::kukaConfiguration(m, q), Eigen::VectorXd(), IkOptions{});
+    const IkResult r = solver.inverse(solver.forward(q), kukaConfiguration(m, q), Eigen::VectorXd(), IkOptions{});
     EXPECT_EQ(r.status, IkStatus::kOk) << r.message;
   }
 }
@@ -605,7 +600,7 @@ TEST(Ik, SingularValueGrowsWithA5) {
   for (const double a5 : {0.05, 0.2, 1.0, 5.0}) {
     Eigen::VectorXd q(6);
     q << 20, -70, 80, 30, a5, 40;
-    const IkResult r = solver.inverse(solver.forward(q), postproc::kukaConfiguration(m, q), q, o);
+    const IkResult r = solver.inverse(solver.forward(q), kukaConfiguration(m, q), q, o);
     ASSERT_EQ(r.status, IkStatus::kOk);
     EXPECT_NEAR(r.min_singular_value, scaledSigmaMin(m, r.q), 1e-9);
     EXPECT_GT(r.min_singular_value, prev);
@@ -637,8 +632,8 @@ TEST(Ik, FreeFunctionEqualsSolver) {
   Eigen::VectorXd q(6);
   q << 10, 20, -30, 40, 50, 60;
   const Eigen::Isometry3d T = KinematicSolver(m).forward(q);
-  const Configuration c = postproc::kukaConfiguration(m, q);
-  const IkResult a = postproc::inverseKinematics(m, T, c, Eigen::VectorXd(), IkOptions{});
+  const Configuration c = kukaConfiguration(m, q);
+  const IkResult a = inverseKinematics(m, T, c, Eigen::VectorXd(), IkOptions{});
   const IkResult b = KinematicSolver(m).inverse(T, c, Eigen::VectorXd(), IkOptions{});
   ASSERT_EQ(a.status, IkStatus::kOk);
   EXPECT_EQ((a.q - b.q).norm(), 0.0);
@@ -647,7 +642,7 @@ TEST(Ik, FreeFunctionEqualsSolver) {
 
 // ---------------------------------------------------------------------------------------
 // IkWorkspace: path following that reuses the previous solution's frames and Jacobian, and
-// the singularity certificate it carries along (KinematicChain::scaledJacobianLipschitz)
+// the singularity certificate it carries along (KinematicModel::scaledJacobianLipschitz)
 
 /// Joint-space path from qa to qb in `steps` steps, as Cartesian targets of model m.
 std::vector<Eigen::Isometry3d> jointLineTargets(const KinematicSolver& s, const Eigen::VectorXd& qa,
@@ -662,7 +657,7 @@ std::vector<Eigen::Isometry3d> jointLineTargets(const KinematicSolver& s, const 
 std::vector<IkResult> follow(const KinematicSolver& s, const std::vector<Eigen::Isometry3d>& targets,
                              const Eigen::VectorXd& q0, const IkOptions& o, bool workspace,
                              const PoseContext& ctx = {}) {
-  postproc::IkWorkspace ws;
+  IkWorkspace ws;
   std::vector<IkResult> out;
   Eigen::VectorXd q = q0;
   for (const Eigen::Isometry3d& T : targets) {
@@ -719,7 +714,7 @@ TEST(IkWorkspace, NotUsedForAnotherSolverOrContext) {
   const KinematicSolver sa(a), sb(b);
   Eigen::VectorXd q(6);
   q << 10, -80, 95, 20, 40, -30;
-  postproc::IkWorkspace ws;
+  IkWorkspace ws;
   const IkResult ra = sa.inverse(sa.forward(q), Configuration{}, q, IkOptions{}, PoseContext{}, ws);
   ASSERT_EQ(ra.status, IkStatus::kOk);
   EXPECT_TRUE(ws.holdsSolution());
@@ -754,7 +749,7 @@ TEST(IkChain, ScaledJacobianLipschitzBoundHolds) {
     so.effects = {"geometric"};
     so.seed = 2;
     m = perturbModel(m, so);
-    const postproc::detail::KinematicChain chain(m);
+    const KinematicModel chain(m);
     const std::vector<double>& B = chain.scaledJacobianLipschitz();
     ASSERT_EQ(static_cast<int>(B.size()), m.dof()) << name;
     const double L = chain.length_scale_mm();
@@ -782,7 +777,7 @@ TEST(IkChain, ScaledJacobianLipschitzBoundHolds) {
     EXPECT_GT(tightest, 0.1) << name;  // a bound, not a wild overestimate
   }
   // a compliant model has no such bound (its angles depend on the gravity load)
-  EXPECT_TRUE(postproc::detail::KinematicChain(realModel("kuka_kr16")).scaledJacobianLipschitz().empty());
+  EXPECT_TRUE(KinematicModel(realModel("kuka_kr16")).scaledJacobianLipschitz().empty());
 }
 
 }  // namespace

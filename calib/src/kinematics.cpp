@@ -6,6 +6,7 @@
 #include <cstring>
 
 #include "accura/calib/errors.h"
+#include "accura/calib/kinematic_core.h"
 
 namespace accura {
 namespace {
@@ -17,139 +18,107 @@ void checkJointCount(const RobotModel& model, const Eigen::VectorXd& q) {
   }
 }
 
-// Rz(theta) Tz(d) Tx(a) Rx(alpha) Ry(beta), written out (hot path).
-Eigen::Isometry3d linkTransform(double theta, double d, double a, double alpha, double beta) {
-  const double ct = std::cos(theta), st = std::sin(theta);
-  const double ca = std::cos(alpha), sa = std::sin(alpha);
-  Eigen::Isometry3d T;
-  Eigen::Matrix3d R;
-  R << ct, -st * ca, st * sa,
-       st, ct * ca, -ct * sa,
-       0, sa, ca;
-  if (beta != 0.0) {
-    const double cb = std::cos(beta), sb = std::sin(beta);
-    Eigen::Matrix3d Ry;
-    Ry << cb, 0, sb, 0, 1, 0, -sb, 0, cb;
-    R = R * Ry;
-  }
-  T.linear() = R;
-  T.translation() = Eigen::Vector3d(a * ct, a * st, d);
-  T.makeAffine();
-  return T;
+bool sameVector(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  return a[0] == b[0] && a[1] == b[1] && a[2] == b[2];
+}
+bool sameIsometry(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 4; ++c)
+      if (a(r, c) != b(r, c)) return false;
+  return true;
 }
 
-struct LinkValues {
-  double theta, d, a, alpha, beta;
+}  // namespace
+
+// Every value the kinematic core reads. A new field of the model must be compared here and
+// prepared in KinematicModel; the size checks below fail to compile until it is (x86-64).
+#if defined(__x86_64__) && defined(__GLIBCXX__)
+static_assert(sizeof(Deviations) == 256, "Deviations changed: compare the new field in sameKinematics()");
+static_assert(sizeof(JointSpec) == 128, "JointSpec changed: compare the new field in sameKinematics()");
+static_assert(sizeof(LinkDeviation) == 40, "LinkDeviation changed: compare the new field in sameKinematics()");
+#endif
+bool sameKinematics(const RobotModel& a, const RobotModel& b) {
+  const RobotDefinition &na = a.nominal, &nb = b.nominal;
+  if (na.joints.size() != nb.joints.size() || a.forms != b.forms) return false;
+  for (size_t i = 0; i < na.joints.size(); ++i) {
+    const JointSpec &x = na.joints[i], &y = nb.joints[i];
+    if (x.type != y.type || x.a_mm != y.a_mm || x.alpha_deg != y.alpha_deg || x.d_mm != y.d_mm ||
+        x.theta0_deg != y.theta0_deg || x.direction != y.direction || x.lower != y.lower || x.upper != y.upper ||
+        x.mass_kg != y.mass_kg || !sameVector(x.com_mm, y.com_mm))
+      return false;
+  }
+  if (!sameIsometry(na.T_world_base, nb.T_world_base) || !sameIsometry(na.T_flange_tcp, nb.T_flange_tcp) ||
+      !sameVector(na.payload_com_mm, nb.payload_com_mm) || !sameVector(na.gravity_base, nb.gravity_base))
+    return false;
+  const Deviations &p = a.deviations, &r = b.deviations;
+  if (!sameVector(p.base_mm, r.base_mm) || !sameVector(p.base_rot_rad, r.base_rot_rad) ||
+      !sameVector(p.tool_mm, r.tool_mm) || !sameVector(p.tool_rot_rad, r.tool_rot_rad) ||
+      p.gear_harmonics != r.gear_harmonics || p.thermal_alpha_per_k != r.thermal_alpha_per_k ||
+      p.compliance != r.compliance || p.gear_sin != r.gear_sin || p.gear_cos != r.gear_cos ||
+      p.joint_scale != r.joint_scale || p.backlash != r.backlash || p.links.size() != r.links.size())
+    return false;
+  for (size_t i = 0; i < p.links.size(); ++i) {
+    const LinkDeviation &x = p.links[i], &y = r.links[i];
+    if (x.dtheta_rad != y.dtheta_rad || x.dd_mm != y.dd_mm || x.da_mm != y.da_mm || x.dalpha_rad != y.dalpha_rad ||
+        x.dbeta_rad != y.dbeta_rad)
+      return false;
+  }
+  return true;
+}
+
+struct KinematicWorkspace::Prepared {
+  RobotModel from;  ///< the values `model` was prepared from
+  std::unique_ptr<KinematicModel> model;
+  KinematicFrames frames;
+  LinkFrames links;
 };
 
-// Thermal length scale (1 + alpha (temp_c - T_ref)) of the model in `context`.
-double thermalScale(const RobotModel& model, const PoseContext& context) {
-  const double alpha = model.deviations.thermal_alpha_per_k;
-  if (alpha == 0.0) return 1.0;
-  return 1.0 + alpha * (context.temp_c - kThermalReferenceC);
+KinematicWorkspace::KinematicWorkspace() = default;
+KinematicWorkspace::~KinematicWorkspace() = default;
+KinematicWorkspace::KinematicWorkspace(const KinematicWorkspace& o)
+    : T_base_frame(o.T_base_frame), theta_rad(o.theta_rad), d_mm(o.d_mm), load(o.load) {}
+KinematicWorkspace& KinematicWorkspace::operator=(const KinematicWorkspace& o) {
+  T_base_frame = o.T_base_frame;
+  theta_rad = o.theta_rad;
+  d_mm = o.d_mm;
+  load = o.load;
+  return *this;
+}
+KinematicWorkspace::KinematicWorkspace(KinematicWorkspace&&) noexcept = default;
+KinematicWorkspace& KinematicWorkspace::operator=(KinematicWorkspace&&) noexcept = default;
+
+KinematicWorkspace::Prepared& KinematicWorkspace::prepare(const RobotModel& model) {
+  if (prepared_ && prepared_->model && sameKinematics(prepared_->from, model)) return *prepared_;
+  if (!prepared_) prepared_ = std::make_unique<Prepared>();
+  prepared_->model.reset();
+  prepared_->model = std::make_unique<KinematicModel>(model);  // validates
+  prepared_->from = model;
+  return *prepared_;
 }
 
-// Approach direction of joint i (0 when unknown).
-double direction(const PoseContext& context, int i) {
-  if (context.dir.empty()) return 0.0;
-  if (static_cast<int>(context.dir.size()) <= i)
-    throw ArgumentError("pose context: expected " + std::to_string(i + 1) + " or more approach directions, got " +
-                        std::to_string(context.dir.size()));
-  return context.dir[static_cast<size_t>(i)] >= 0 ? 1.0 : -1.0;
-}
+namespace {
 
-// The joint-space terms of the effect catalogue for joint i at q (deg or mm): rad for a
-// revolute joint, mm for a prismatic one.
-double jointEffects(const RobotModel& model, int i, double q, const PoseContext& context) {
-  const Deviations& dev = model.deviations;
-  const bool revolute = model.nominal.joints[i].type == JointType::kRevolute;
-  const double qi = revolute ? q * kDegToRad : q;
-  double t = 0;
-  if (dev.joint_scale[i] != 0.0) t += dev.joint_scale[i] * qi;
-  if (dev.backlash[i] != 0.0) t += 0.5 * dev.backlash[i] * direction(context, i);
-  if (revolute) {
-    const int H = dev.gear_harmonics;
-    for (int h = 1; h <= H; ++h) {
-      const double s = dev.gear_sin[i * H + h - 1], c = dev.gear_cos[i * H + h - 1];
-      if (s != 0.0) t += s * std::sin(h * qi);
-      if (c != 0.0) t += c * std::cos(h * qi);
-    }
-  }
-  return t;
-}
-
-// True when any joint-space effect of the catalogue (gear, scale, backlash) is non-zero.
-bool anyJointEffects(const Deviations& d) {
-  // OR of the bit patterns without the sign bit: zero only when every value is +-0 (a short
-  // dependency chain and no branches: this runs on every forward kinematics call)
-  std::uint64_t acc = 0;
-  auto fold = [&acc](const std::vector<double>& v) {
-    for (double x : v) {
-      std::uint64_t bits;
-      std::memcpy(&bits, &x, sizeof bits);
-      acc |= bits;
-    }
-  };
-  fold(d.joint_scale);
-  fold(d.backlash);
-  fold(d.gear_sin);
-  fold(d.gear_cos);
-  return (acc & ~(std::uint64_t(1) << 63)) != 0;
-}
-
-// DH values of link i with deviations, the load-dependent compliance term and, when
-// `effects`, the joint-space effects of the catalogue; `scale` is the thermal length scale.
-LinkValues linkValues(const RobotModel& model, int i, double q, double load, const PoseContext& context,
-                      double scale, bool effects) {
-  const JointSpec& j = model.nominal.joints[i];
-  const LinkDeviation& dev = model.deviations.links[i];
-  const double c = model.deviations.compliance[i];
-  const double extra = effects ? jointEffects(model, i, q, context) : 0.0;
-  LinkValues v;
-  v.theta = j.theta0_deg * kDegToRad + dev.dtheta_rad;
-  v.d = (j.d_mm + dev.dd_mm) * scale;
-  if (j.type == JointType::kRevolute) {
-    v.theta += j.direction * q * kDegToRad + c * load + extra;
-  } else {
-    v.d += j.direction * q + c * load + extra;
-  }
-  v.a = (j.a_mm + dev.da_mm) * scale;
-  v.alpha = j.alpha_deg * kDegToRad + dev.dalpha_rad;
-  v.beta = dev.dbeta_rad;
-  return v;
-}
-
-bool anyCompliance(const RobotModel& model) {
-  for (double c : model.deviations.compliance)
-    if (c != 0.0) return true;
-  return false;
-}
-
-// Frames 0..n in the base frame, deviations included.
-// Loads are computed when a compliance is non-zero or `need_loads` (the Jacobian's
-// compliance columns need them even at zero compliance).
-void computeFrames(const RobotModel& model, const Eigen::VectorXd& q, const PoseContext& context,
-                   KinematicWorkspace& ws, bool need_loads = false) {
-  model.validate();
+// Evaluates the prepared model with its intermediate frames and publishes them in `ws`
+// (frames in the base frame, angles, lengths, loads).
+KinematicWorkspace::Prepared& evaluateFrames(const RobotModel& model, const Eigen::VectorXd& q,
+                                             const PoseContext& context, KinematicWorkspace& ws) {
   checkJointCount(model, q);
+  KinematicWorkspace::Prepared& P = ws.prepare(model);
+  P.model->evaluate(q.data(), context, P.frames, nullptr, &P.links);
   const int n = model.dof();
-  ws.T_base_frame.resize(n + 1);
+  const Eigen::Isometry3d T_base_world = P.model->T_world_base().inverse();
+  ws.T_base_frame.resize(static_cast<size_t>(n + 1));
   ws.theta_rad.resize(n);
   ws.d_mm.resize(n);
-  if (need_loads || anyCompliance(model)) {
-    ws.load = gravityLoads(model, q, context);
-  } else {
-    ws.load.setZero(n);
-  }
-  const double scale = thermalScale(model, context);
-  const bool effects = anyJointEffects(model.deviations);
-  ws.T_base_frame[0].setIdentity();
+  ws.load.resize(n);
+  for (int i = 0; i <= n; ++i)
+    ws.T_base_frame[static_cast<size_t>(i)] = T_base_world * P.links.T_world_frame[static_cast<size_t>(i)];
   for (int i = 0; i < n; ++i) {
-    const LinkValues v = linkValues(model, i, q[i], ws.load[i], context, scale, effects);
-    ws.theta_rad[i] = v.theta;
-    ws.d_mm[i] = v.d;
-    ws.T_base_frame[i + 1] = ws.T_base_frame[i] * linkTransform(v.theta, v.d, v.a, v.alpha, v.beta);
+    ws.theta_rad[i] = P.links.theta_rad[static_cast<size_t>(i)];
+    ws.d_mm[i] = P.links.d_mm[static_cast<size_t>(i)];
+    ws.load[i] = P.links.load[static_cast<size_t>(i)];
   }
+  return P;
 }
 
 }  // namespace
@@ -157,53 +126,24 @@ void computeFrames(const RobotModel& model, const Eigen::VectorXd& q, const Pose
 Eigen::VectorXd gravityLoads(const RobotModel& model, const Eigen::VectorXd& q,
                              const PoseContext& context) {
   checkJointCount(model, q);
-  const int n = model.dof();
-  // nominal geometry
-  std::vector<Eigen::Isometry3d> F(n + 1);
-  F[0].setIdentity();
-  for (int i = 0; i < n; ++i) {
-    const JointSpec& j = model.nominal.joints[i];
-    double theta = j.theta0_deg * kDegToRad, d = j.d_mm;
-    if (j.type == JointType::kRevolute) {
-      theta += j.direction * q[i] * kDegToRad;
-    } else {
-      d += j.direction * q[i];
-    }
-    F[i + 1] = F[i] * linkTransform(theta, d, j.a_mm, j.alpha_deg * kDegToRad, 0.0);
-  }
-  const Eigen::Vector3d g = model.nominal.gravity_base;
-  // Accumulate, from the tip inwards, the total mass and first moment (kg*mm) of links i..n
-  // and the payload.
-  double mass = context.payload_kg;
-  Eigen::Vector3d moment = context.payload_kg * (F[n] * model.nominal.payload_com_mm);
-  Eigen::VectorXd load(n);
-  for (int i = n - 1; i >= 0; --i) {
-    const JointSpec& j = model.nominal.joints[i];
-    mass += j.mass_kg;
-    moment += j.mass_kg * (F[i + 1] * j.com_mm);
-    const Eigen::Vector3d z = F[i].linear().col(2);
-    const Eigen::Vector3d o = F[i].translation();
-    if (j.type == JointType::kRevolute) {
-      // sum m_j (c_j - o) x g, in N*mm -> N*m
-      const Eigen::Vector3d r = moment - mass * o;
-      load[i] = z.dot(r.cross(g)) * 1e-3;
-    } else {
-      load[i] = z.dot(mass * g);
-    }
-  }
+  const KinematicModel km(model);
+  KinematicFrames f;
+  LinkFrames links;
+  km.evaluate(q.data(), context, f, nullptr, &links, true);
+  Eigen::VectorXd load(model.dof());
+  for (int i = 0; i < model.dof(); ++i) load[i] = links.load[static_cast<size_t>(i)];
   return load;
 }
 
 Eigen::Isometry3d flangePose(const RobotModel& model, const Eigen::VectorXd& q,
                              const PoseContext& context, KinematicWorkspace& ws) {
-  computeFrames(model, q, context, ws);
+  evaluateFrames(model, q, context, ws);
   return ws.T_base_frame.back();
 }
 
 Eigen::Isometry3d forwardKinematics(const RobotModel& model, const Eigen::VectorXd& q,
                                     const PoseContext& context, KinematicWorkspace& ws) {
-  computeFrames(model, q, context, ws);
-  return model.T_world_base() * ws.T_base_frame.back() * model.T_flange_tcp();
+  return evaluateFrames(model, q, context, ws).frames.T_world_tcp;
 }
 
 Eigen::Isometry3d forwardKinematics(const RobotModel& model, const Eigen::VectorXd& q) {
@@ -343,170 +283,21 @@ void setParameter(Deviations& dev, const ParamInfo& p, double value) { *slot(dev
 Eigen::Isometry3d parameterJacobian(const RobotModel& model, const std::vector<ParamInfo>& layout,
                                     const Eigen::VectorXd& q, const PoseContext& context,
                                     KinematicWorkspace& ws, Eigen::MatrixXd& J) {
-  const bool compliance_columns = std::any_of(layout.begin(), layout.end(), [](const ParamInfo& p) {
-    return p.kind == ParamKind::kCompliance;
-  });
-  computeFrames(model, q, context, ws, compliance_columns);
-  const int n = model.dof();
-  const Eigen::Isometry3d T_wb = model.T_world_base();
-  const Eigen::Isometry3d T_w_flange = T_wb * ws.T_base_frame[n];
-  const Eigen::Isometry3d T_w_tcp = T_w_flange * model.T_flange_tcp();
-  const Eigen::Vector3d p = T_w_tcp.translation();
-  const Eigen::Matrix3d Jr_base = rightJacobianSO3(model.deviations.base_rot_rad);
-  const Eigen::Matrix3d Jr_tool = rightJacobianSO3(model.deviations.tool_rot_rad);
-  const Eigen::Matrix3d R_w_toolnom =
-      T_w_flange.linear() * model.nominal.T_flange_tcp.linear();
-  const Eigen::Matrix3d R_w_basenom = model.nominal.T_world_base.linear();
-
-  const double scale = thermalScale(model, context);
-
-  J.setZero(6, static_cast<Eigen::Index>(layout.size()));
-  auto translation = [&](Eigen::Index col, const Eigen::Vector3d& u) { J.col(col).head<3>() = u; };
-  auto rotation = [&](Eigen::Index col, const Eigen::Vector3d& u, const Eigen::Vector3d& o) {
-    J.col(col).head<3>() = u.cross(p - o);
-    J.col(col).tail<3>() = u;
-  };
-  // Intermediate frames of link i in the world: M0 = F_{i-1}, M1 = M0 Rz Tz, M2 = M1 Tx,
-  // M3 = M2 Rx: the axes and origins the columns need, once per link.
-  // Columns of ws.link_axes[i]: z0, o0, x1, o2, y3.
-  ws.link_axes.resize(static_cast<size_t>(n));
-  for (int i = 0; i < n; ++i) {
-    Eigen::Matrix<double, 3, 5>& A = ws.link_axes[static_cast<size_t>(i)];
-    const Eigen::Matrix3d R0 = T_wb.linear() * ws.T_base_frame[i].linear();
-    A.col(0) = R0.col(2);
-    A.col(1) = T_wb * ws.T_base_frame[i].translation();
-    const double ct = std::cos(ws.theta_rad[i]), st = std::sin(ws.theta_rad[i]);
-    // M1 = M0 Rz(theta) Tz(d): x axis and origin
-    A.col(2) = R0 * Eigen::Vector3d(ct, st, 0);
-    const double a = (model.nominal.joints[i].a_mm + model.deviations.links[i].da_mm) * scale;
-    A.col(3) = A.col(1) + ws.d_mm[i] * A.col(0) + a * A.col(2);
-    // y axis of M3 = M2 Rx(alpha): Rz(theta) Rx(alpha) e_y in frame i-1
-    const double alpha = model.nominal.joints[i].alpha_deg * kDegToRad + model.deviations.links[i].dalpha_rad;
-    A.col(4) = R0 * Eigen::Vector3d(-st * std::cos(alpha), ct * std::cos(alpha), std::sin(alpha));
-  }
-  for (size_t k = 0; k < layout.size(); ++k) {
-    const ParamInfo& P = layout[k];
-    const Eigen::Index col = static_cast<Eigen::Index>(k);
-    switch (P.kind) {
-      case ParamKind::kBaseX:
-      case ParamKind::kBaseY:
-      case ParamKind::kBaseZ:
-        translation(col, R_w_basenom.col(static_cast<int>(P.kind) - static_cast<int>(ParamKind::kBaseX)));
-        continue;
-      case ParamKind::kBaseRx:
-      case ParamKind::kBaseRy:
-      case ParamKind::kBaseRz: {
-        const int a = static_cast<int>(P.kind) - static_cast<int>(ParamKind::kBaseRx);
-        rotation(col, T_wb.linear() * Jr_base.col(a), T_wb.translation());
-        continue;
-      }
-      case ParamKind::kToolX:
-      case ParamKind::kToolY:
-      case ParamKind::kToolZ:
-        translation(col, R_w_toolnom.col(static_cast<int>(P.kind) - static_cast<int>(ParamKind::kToolX)));
-        continue;
-      case ParamKind::kToolRx:
-      case ParamKind::kToolRy:
-      case ParamKind::kToolRz: {
-        const int a = static_cast<int>(P.kind) - static_cast<int>(ParamKind::kToolRx);
-        rotation(col, T_w_tcp.linear() * Jr_tool.col(a), p);
-        continue;
-      }
-      case ParamKind::kThermal: {
-        // d/d alpha: every link length moves by (temp_c - T_ref) times its value
-        const double dT = context.temp_c - kThermalReferenceC;
-        Eigen::Vector3d u = Eigen::Vector3d::Zero();
-        for (int i = 0; i < n; ++i) {
-          const JointSpec& js = model.nominal.joints[i];
-          const LinkDeviation& ld = model.deviations.links[i];
-          u += (js.a_mm + ld.da_mm) * ws.link_axes[static_cast<size_t>(i)].col(2);
-          u += (js.d_mm + ld.dd_mm) * ws.link_axes[static_cast<size_t>(i)].col(0);
-        }
-        translation(col, dT * u);
-        continue;
-      }
-      default:
-        break;
-    }
-    const int i = P.joint;
-    if (i < 0 || i >= n) throw ArgumentError("parameterJacobian: parameter " + P.name + " has no joint of this robot");
-    const bool revolute = model.nominal.joints[i].type == JointType::kRevolute;
-    const Eigen::Matrix<double, 3, 5>& A = ws.link_axes[static_cast<size_t>(i)];
-    const Eigen::Vector3d z0 = A.col(0), o0 = A.col(1), x1 = A.col(2), o2 = A.col(3);
-    // the joint's own motion: rotation about z0 through o0, or translation along z0
-    auto jointMotion = [&](double factor) {
-      if (revolute) rotation(col, z0, o0); else translation(col, z0);
-      J.col(col) *= factor;
-    };
-    const double q_joint = revolute ? q[i] * kDegToRad : q[i];
-    switch (P.kind) {
-      case ParamKind::kOffset:
-      case ParamKind::kTheta:
-        rotation(col, z0, o0);
-        break;
-      case ParamKind::kD:
-        translation(col, scale * z0);
-        break;
-      case ParamKind::kA:
-        translation(col, scale * x1);
-        break;
-      case ParamKind::kAlpha:
-        rotation(col, x1, o2);
-        break;
-      case ParamKind::kBeta:
-        rotation(col, A.col(4), o2);
-        break;
-      case ParamKind::kCompliance:
-        jointMotion(ws.load[i]);
-        break;
-      case ParamKind::kGearSin:
-        jointMotion(std::sin(P.harmonic * q_joint));
-        break;
-      case ParamKind::kGearCos:
-        jointMotion(std::cos(P.harmonic * q_joint));
-        break;
-      case ParamKind::kJointScale:
-        jointMotion(q_joint);
-        break;
-      case ParamKind::kBacklash:
-        jointMotion(0.5 * direction(context, i));
-        break;
-      default:
-        throw ArgumentError("parameterJacobian: unexpected parameter " + P.name);
-    }
-  }
-  return T_w_tcp;
+  checkJointCount(model, q);
+  KinematicWorkspace::Prepared& P = ws.prepare(model);
+  return P.model->parameterJacobian(layout, q.data(), context, P.frames, P.links, J);
 }
 
 Eigen::Matrix<double, 6, Eigen::Dynamic> jointJacobian(const RobotModel& model,
                                                        const Eigen::VectorXd& q,
                                                        const PoseContext& context,
                                                        KinematicWorkspace& ws) {
-  computeFrames(model, q, context, ws);
-  const int n = model.dof();
-  const Eigen::Isometry3d T_wb = model.T_world_base();
-  const Eigen::Vector3d p = (T_wb * ws.T_base_frame[n] * model.T_flange_tcp()).translation();
-  Eigen::Matrix<double, 6, Eigen::Dynamic> Jq(6, n);
-  for (int i = 0; i < n; ++i) {
-    const Eigen::Isometry3d M0 = T_wb * ws.T_base_frame[i];
-    const Eigen::Vector3d z = M0.linear().col(2);
-    const JointSpec& j = model.nominal.joints[i];
-    // d(theta or d)/dq: the direction plus the q-dependent effects (joint_scale, gear)
-    const Deviations& dev = model.deviations;
-    double rate = j.direction + dev.joint_scale[i];
-    if (j.type == JointType::kRevolute) {
-      const double qi = q[i] * kDegToRad;
-      const int H = dev.gear_harmonics;
-      for (int h = 1; h <= H; ++h)
-        rate += h * (dev.gear_sin[i * H + h - 1] * std::cos(h * qi) - dev.gear_cos[i * H + h - 1] * std::sin(h * qi));
-      Jq.col(i).head<3>() = z.cross(p - M0.translation()) * (rate * kDegToRad);
-      Jq.col(i).tail<3>() = z * (rate * kDegToRad);
-    } else {
-      Jq.col(i).head<3>() = z * rate;
-      Jq.col(i).tail<3>().setZero();
-    }
-  }
-  return Jq;
+  checkJointCount(model, q);
+  KinematicWorkspace::Prepared& P = ws.prepare(model);
+  P.model->evaluate(q.data(), context, P.frames);
+  Jac6N J;
+  P.model->jacobian(P.frames, J);
+  return J;
 }
 
 }  // namespace accura

@@ -7,6 +7,7 @@
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -25,15 +26,38 @@ struct PoseContext {
   std::vector<int> dir;
 };
 
-/// Scratch space for one thread. Sized on first use; reuse it across calls.
+class KinematicModel;
+
+/// Scratch space for one thread. Sized on first use; reuse it across calls. It keeps the
+/// model of the last call prepared (kinematic_core.h: twist cosines and sines, base, tool,
+/// effect tables), so calls with the same RobotModel values skip the preparation; a
+/// different model is detected by comparing its values. Copies start without it.
 struct KinematicWorkspace {
-  std::vector<Eigen::Isometry3d> T_base_frame;  ///< frames 0..n in the base frame
+  /// Frames 0..n in the base frame, deviations included (forwardKinematics, flangePose).
+  std::vector<Eigen::Isometry3d> T_base_frame;
   Eigen::VectorXd theta_rad;                    ///< DH angles actually used
   Eigen::VectorXd d_mm;                         ///< DH d actually used
   Eigen::VectorXd load;                         ///< gravity torque (N*m) / force (N) per joint
-  /// parameterJacobian's per-link axes in the world (z0, o0, x1, o2, y3 as columns)
-  std::vector<Eigen::Matrix<double, 3, 5>> link_axes;
+
+  KinematicWorkspace();
+  ~KinematicWorkspace();
+  KinematicWorkspace(const KinematicWorkspace&);
+  KinematicWorkspace& operator=(const KinematicWorkspace&);
+  KinematicWorkspace(KinematicWorkspace&&) noexcept;
+  KinematicWorkspace& operator=(KinematicWorkspace&&) noexcept;
+
+  /// The prepared model for `model` (prepared now unless the last one is for equal values)
+  /// and this thread's frames. Throws ArgumentError for an invalid model.
+  struct Prepared;
+  Prepared& prepare(const RobotModel& model);
+
+ private:
+  std::unique_ptr<Prepared> prepared_;
 };
+
+/// True when the two models have the same values in everything the kinematics reads
+/// (nominal links, masses, base, tool, payload centre, gravity, forms, every deviation).
+bool sameKinematics(const RobotModel& a, const RobotModel& b);
 
 /// Gravity load on each joint at q (nominal geometry; link masses and payload_kg):
 /// revolute joint i: torque (N*m) about axis z_{i-1} exerted by gravity on links i..n and

@@ -1,4 +1,5 @@
-#include "kinematic_chain.h"
+// The kinematic core: the one forward kinematics of the complete model (see kinematic_core.h).
+#include "accura/calib/kinematic_core.h"
 
 #include <algorithm>
 #include <cmath>
@@ -6,8 +7,9 @@
 
 #include "accura/calib/errors.h"
 #include "accura/calib/geometry.h"
+#include "accura/calib/kinematics.h"
 
-namespace accura::postproc::detail {
+namespace accura {
 namespace {
 
 /// cos and sin of theta from (c0, s0) = cos and sin of theta0 when |theta - theta0| < 0.1
@@ -42,13 +44,39 @@ inline void cosSinFrom(double theta, double theta0, double c0, double s0, double
   s = std::sin(theta);
 }
 
+/// The joint-space effects of the catalogue (docs/diagnosis.md) on link L at joint value
+/// `qi` (rad for a revolute joint, mm for a prismatic one) with approach direction `dir`
+/// (+1 / -1; 0 when unknown): returns the term added to theta_i (rad) or d_i (mm), and adds
+/// its derivative with respect to qi to `rate`. Every joint-space effect is written here
+/// once (its table in KinematicModel::Link; its parameter columns in parameterJacobian).
+inline double jointEffects(const KinematicModel::Link& L, int harmonics, double qi, double dir, double& rate) {
+  double t = 0;
+  // joint_scale: k_i q_i
+  if (L.joint_scale != 0.0) {
+    t += L.joint_scale * qi;
+    rate += L.joint_scale;
+  }
+  // backlash: (b_i / 2) dir_i
+  if (L.half_backlash != 0.0) t += L.half_backlash * dir;
+  // gear_periodic: sum_h s_h sin(h q_i) + c_h cos(h q_i)
+  if (L.gear) {
+    for (int h = 1; h <= harmonics; ++h) {
+      const double gs = L.gs[static_cast<size_t>(h - 1)], gc = L.gc[static_cast<size_t>(h - 1)];
+      const double sh = std::sin(h * qi), ch = std::cos(h * qi);
+      t += gs * sh + gc * ch;
+      rate += h * (gs * ch - gc * sh);
+    }
+  }
+  return t;
+}
+
 }  // namespace
 
-KinematicChain::KinematicChain(const RobotModel& model) {
+KinematicModel::KinematicModel(const RobotModel& model) {
   model.validate();
   n_ = model.dof();
   if (n_ > kMaxDof)
-    throw ArgumentError("kinematic solver: at most " + std::to_string(kMaxDof) + " joints, got " +
+    throw ArgumentError("kinematic model: at most " + std::to_string(kMaxDof) + " joints, got " +
                         std::to_string(n_));
   const Deviations& dev = model.deviations;
   harmonics_ = dev.gear_harmonics;
@@ -88,6 +116,7 @@ KinematicChain::KinematicChain(const RobotModel& model) {
         if (L.gs[static_cast<size_t>(h)] != 0.0 || L.gc[static_cast<size_t>(h)] != 0.0) L.gear = true;
       }
     }
+    L.any_effect = L.joint_scale != 0.0 || L.half_backlash != 0.0 || L.gear;
     if (L.compliance != 0.0) compliant_ = true;
     if (L.joint_scale != 0.0 || L.gear) any_joint_effect_ = true;
     L.nom_theta0 = j.theta0_deg * kDegToRad;
@@ -99,10 +128,14 @@ KinematicChain::KinematicChain(const RobotModel& model) {
     L.com = j.com_mm;
     length += std::abs(j.a_mm) + std::abs(j.d_mm);
   }
-  const Eigen::Isometry3d T_wb = model.T_world_base();
-  R_world_base_ = T_wb.linear();
-  t_world_base_ = T_wb.translation();
+  T_world_base_ = model.T_world_base();
+  R_world_base_ = T_world_base_.linear();
+  t_world_base_ = T_world_base_.translation();
   T_flange_tcp_ = model.T_flange_tcp();
+  R_world_basenom_ = model.nominal.T_world_base.linear();
+  R_flange_toolnom_ = model.nominal.T_flange_tcp.linear();
+  Jr_base_ = rightJacobianSO3(dev.base_rot_rad);
+  Jr_tool_ = rightJacobianSO3(dev.tool_rot_rad);
   length += T_flange_tcp_.translation().norm();
   length_scale_mm_ = std::max(1.0, length);
   thermal_alpha_ = dev.thermal_alpha_per_k;
@@ -128,8 +161,9 @@ KinematicChain::KinematicChain(const RobotModel& model) {
   }
 }
 
-void KinematicChain::gravityLoads(const double* q, double payload_kg, double* load, const ChainFrames& f) const {
-  // Nominal geometry, as calib's gravityLoads: frames F_0..F_n in the base frame.
+void KinematicModel::gravityLoads(const double* q, double payload_kg, double* load, const KinematicFrames& f) const {
+  // Nominal geometry: frames F_0..F_n in the base frame; from the tip inwards the total mass
+  // and first moment (kg*mm) of links i..n and the payload.
   std::array<Eigen::Matrix3d, kMaxDof + 1> R;
   std::array<Eigen::Vector3d, kMaxDof + 1> o;
   R[0].setIdentity();
@@ -152,6 +186,7 @@ void KinematicChain::gravityLoads(const double* q, double payload_kg, double* lo
     moment += L.mass * (R[i + 1] * L.com + o[i + 1]);
     const Eigen::Vector3d z = R[i].col(2);
     if (L.revolute) {
+      // sum m_j (c_j - o) x g, in N*mm -> N*m
       const Eigen::Vector3d r = moment - mass * o[i];
       load[i] = z.dot(r.cross(gravity_)) * 1e-3;
     } else {
@@ -160,21 +195,23 @@ void KinematicChain::gravityLoads(const double* q, double payload_kg, double* lo
   }
 }
 
-void KinematicChain::evaluate(const double* q, const PoseContext& context, ChainFrames& f,
-                              const ChainFrames* near) const {
+void KinematicModel::evaluate(const double* q, const PoseContext& context, KinematicFrames& f,
+                              const KinematicFrames* near, LinkFrames* links, bool need_loads) const {
   if (backlash_ && !context.dir.empty() && static_cast<int>(context.dir.size()) < n_)
     throw ArgumentError("pose context: expected " + std::to_string(n_) + " approach directions, got " +
                         std::to_string(context.dir.size()));
-  std::array<double, kMaxDof> load{};
+  std::array<double, kMaxDof> load_local{};
+  double* load = links ? links->load.data() : load_local.data();
   f.nominal_valid = compliant_;
-  if (compliant_) {
+  const bool loads = compliant_ || (need_loads && links);
+  if (loads) {
     // nominal angles (from the near evaluation, else from the library), then the loads
     for (int i = 0; i < n_; ++i) {
       const Link& L = links_[static_cast<size_t>(i)];
       const size_t k = static_cast<size_t>(i);
       const double th = L.revolute ? L.nom_theta0 + L.dir * q[i] * kDegToRad : L.nom_theta0;
       f.theta_nominal[k] = th;
-      if (near) {
+      if (near && near->nominal_valid) {
         cosSinFrom(th, near->theta_nominal[k], near->cos_nominal[k], near->sin_nominal[k], f.cos_nominal[k],
                    f.sin_nominal[k]);
       } else {
@@ -182,7 +219,10 @@ void KinematicChain::evaluate(const double* q, const PoseContext& context, Chain
         f.sin_nominal[k] = std::sin(th);
       }
     }
-    gravityLoads(q, context.payload_kg, load.data(), f);
+    f.nominal_valid = true;
+    gravityLoads(q, context.payload_kg, load, f);
+  } else if (links) {
+    std::fill(links->load.begin(), links->load.begin() + n_, 0.0);
   }
   const double scale = thermal_alpha_ == 0.0 ? 1.0 : 1.0 + thermal_alpha_ * (context.temp_c - kThermalReferenceC);
   // the frame as plain numbers: columns x, y, z and origin o (scalar code: measurably faster
@@ -197,23 +237,17 @@ void KinematicChain::evaluate(const double* q, const PoseContext& context, Chain
     const size_t k = static_cast<size_t>(i);
     f.o[k] = Eigen::Vector3d(o0, o1, o2);
     f.z[k] = Eigen::Vector3d(z0, z1, z2);
+    if (links) {
+      Eigen::Isometry3d& T = links->T_world_frame[k];
+      T.linear() << x0, y0, z0, x1, y1, z1, x2, y2, z2;
+      T.translation() = Eigen::Vector3d(o0, o1, o2);
+      T.makeAffine();
+    }
     double extra = 0, rate = L.dir;
-    if (effects) {
+    if (effects && L.any_effect) {
       const double qi = L.revolute ? q[i] * kDegToRad : q[i];
-      if (L.joint_scale != 0.0) {
-        extra += L.joint_scale * qi;
-        rate += L.joint_scale;
-      }
-      if (L.half_backlash != 0.0 && !context.dir.empty()) extra += L.half_backlash * (context.dir[k] >= 0 ? 1.0 : -1.0);
-      if (L.gear) {
-        for (int h = 1; h <= harmonics_; ++h) {
-          const double gs = L.gs[static_cast<size_t>(h - 1)], gc = L.gc[static_cast<size_t>(h - 1)];
-          const double sh = std::sin(h * qi), ch = std::cos(h * qi);
-          if (gs != 0.0) extra += gs * sh;
-          if (gc != 0.0) extra += gc * ch;
-          rate += h * (gs * ch - gc * sh);
-        }
-      }
+      const double dir = context.dir.empty() ? 0.0 : (context.dir[k] >= 0 ? 1.0 : -1.0);
+      extra = jointEffects(L, harmonics_, qi, dir, rate);
     }
     f.rate[k] = rate;
     double theta = L.theta_c, d = L.d_c * scale;
@@ -223,7 +257,7 @@ void KinematicChain::evaluate(const double* q, const PoseContext& context, Chain
       d += L.dir * q[i] + L.compliance * load[k] + extra;
     }
     double ct, st;
-    if (compliant_) {
+    if (loads) {
       // the link's angle is its nominal one plus small deviations
       cosSinFrom(theta, f.theta_nominal[k], f.cos_nominal[k], f.sin_nominal[k], ct, st);
     } else if (near) {
@@ -242,6 +276,13 @@ void KinematicChain::evaluate(const double* q, const PoseContext& context, Chain
     o0 += a * xa + d * z0;
     o1 += a * xb + d * z1;
     o2 += a * xc + d * z2;
+    if (links) {
+      links->x_after_theta[k] = Eigen::Vector3d(xa, xb, xc);
+      links->y_after_alpha[k] =
+          Eigen::Vector3d(L.ca * ya + L.sa * z0, L.ca * yb + L.sa * z1, L.ca * yc + L.sa * z2);
+      links->theta_rad[k] = theta;
+      links->d_mm[k] = d;
+    }
     if (L.beta) {
       // (R Rz) M
       const Eigen::Matrix3d& M = L.M;
@@ -267,12 +308,18 @@ void KinematicChain::evaluate(const double* q, const PoseContext& context, Chain
   }
   Eigen::Matrix3d R;
   R << x0, y0, z0, x1, y1, z1, x2, y2, z2;
+  if (links) {
+    Eigen::Isometry3d& T = links->T_world_frame[static_cast<size_t>(n_)];
+    T.linear() = R;
+    T.translation() = Eigen::Vector3d(o0, o1, o2);
+    T.makeAffine();
+  }
   f.T_world_tcp.linear().noalias() = R * T_flange_tcp_.linear();
   f.T_world_tcp.translation() = Eigen::Vector3d(o0, o1, o2) + R * T_flange_tcp_.translation();
   f.T_world_tcp.makeAffine();
 }
 
-void KinematicChain::fillNominal(const double* q, ChainFrames& f, int count) const {
+void KinematicModel::fillNominal(const double* q, KinematicFrames& f, int count) const {
   if (f.nominal_valid) return;
   for (int i = 0; i < std::min(count, n_); ++i) {
     const Link& L = links_[static_cast<size_t>(i)];
@@ -284,7 +331,7 @@ void KinematicChain::fillNominal(const double* q, ChainFrames& f, int count) con
   f.nominal_valid = count >= n_;
 }
 
-void KinematicChain::jacobian(const ChainFrames& f, Jac6N& J) const {
+void KinematicModel::jacobian(const KinematicFrames& f, Jac6N& J) const {
   J.resize(6, n_);
   const Eigen::Vector3d p = f.T_world_tcp.translation();
   for (int i = 0; i < n_; ++i) {
@@ -302,4 +349,127 @@ void KinematicChain::jacobian(const ChainFrames& f, Jac6N& J) const {
   }
 }
 
-}  // namespace accura::postproc::detail
+Eigen::Isometry3d KinematicModel::parameterJacobian(const std::vector<ParamInfo>& layout, const double* q,
+                                                    const PoseContext& context, KinematicFrames& f,
+                                                    LinkFrames& lf, Eigen::MatrixXd& J) const {
+  bool compliance_columns = false;
+  for (const ParamInfo& P : layout) compliance_columns = compliance_columns || P.kind == ParamKind::kCompliance;
+  evaluate(q, context, f, nullptr, &lf, compliance_columns);
+  const Eigen::Isometry3d& T_w_tcp = f.T_world_tcp;
+  const Eigen::Vector3d p = T_w_tcp.translation();
+  const double scale = thermal_alpha_ == 0.0 ? 1.0 : 1.0 + thermal_alpha_ * (context.temp_c - kThermalReferenceC);
+
+  J.setZero(6, static_cast<Eigen::Index>(layout.size()));
+  // Each column is the small motion of one intermediate frame carried to the tool: a
+  // translation along unit axis u adds u to dp; a rotation about u through point o adds
+  // u x (p_tcp - o) to dp and u to dphi.
+  auto translation = [&](Eigen::Index col, const Eigen::Vector3d& u) { J.col(col).head<3>() = u; };
+  auto rotation = [&](Eigen::Index col, const Eigen::Vector3d& u, const Eigen::Vector3d& o) {
+    J.col(col).head<3>() = u.cross(p - o);
+    J.col(col).tail<3>() = u;
+  };
+  for (size_t k = 0; k < layout.size(); ++k) {
+    const ParamInfo& P = layout[k];
+    const Eigen::Index col = static_cast<Eigen::Index>(k);
+    switch (P.kind) {
+      case ParamKind::kBaseX:
+      case ParamKind::kBaseY:
+      case ParamKind::kBaseZ:
+        translation(col, R_world_basenom_.col(static_cast<int>(P.kind) - static_cast<int>(ParamKind::kBaseX)));
+        continue;
+      case ParamKind::kBaseRx:
+      case ParamKind::kBaseRy:
+      case ParamKind::kBaseRz: {
+        const int a = static_cast<int>(P.kind) - static_cast<int>(ParamKind::kBaseRx);
+        rotation(col, R_world_base_ * Jr_base_.col(a), t_world_base_);
+        continue;
+      }
+      case ParamKind::kToolX:
+      case ParamKind::kToolY:
+      case ParamKind::kToolZ:
+        translation(col, lf.T_world_frame[static_cast<size_t>(n_)].linear() *
+                             R_flange_toolnom_.col(static_cast<int>(P.kind) - static_cast<int>(ParamKind::kToolX)));
+        continue;
+      case ParamKind::kToolRx:
+      case ParamKind::kToolRy:
+      case ParamKind::kToolRz: {
+        const int a = static_cast<int>(P.kind) - static_cast<int>(ParamKind::kToolRx);
+        rotation(col, T_w_tcp.linear() * Jr_tool_.col(a), p);
+        continue;
+      }
+      case ParamKind::kThermal: {
+        // d/d alpha: every link length moves by (temp_c - T_ref) times its value
+        const double dT = context.temp_c - kThermalReferenceC;
+        Eigen::Vector3d u = Eigen::Vector3d::Zero();
+        for (int i = 0; i < n_; ++i) {
+          const Link& L = links_[static_cast<size_t>(i)];
+          u += L.a * lf.x_after_theta[static_cast<size_t>(i)];
+          u += L.d_c * f.z[static_cast<size_t>(i)];
+        }
+        translation(col, dT * u);
+        continue;
+      }
+      default:
+        break;
+    }
+    const int i = P.joint;
+    if (i < 0 || i >= n_)
+      throw ArgumentError("parameterJacobian: parameter " + P.name + " has no joint of this robot");
+    const size_t ki = static_cast<size_t>(i);
+    const Link& L = links_[ki];
+    const Eigen::Vector3d& z0 = f.z[ki];
+    const Eigen::Vector3d& o0 = f.o[ki];
+    const Eigen::Vector3d& x1 = lf.x_after_theta[ki];
+    // origin after Rz(theta) Tz(d) Tx(a): the origin of frame i+1
+    const Eigen::Vector3d o2 = lf.T_world_frame[ki + 1].translation();
+    // the joint's own motion: rotation about z0 through o0, or translation along z0
+    auto jointMotion = [&](double factor) {
+      if (L.revolute) rotation(col, z0, o0); else translation(col, z0);
+      J.col(col) *= factor;
+    };
+    const double q_joint = L.revolute ? q[i] * kDegToRad : q[i];
+    switch (P.kind) {
+      case ParamKind::kOffset:
+      case ParamKind::kTheta:
+        rotation(col, z0, o0);
+        break;
+      case ParamKind::kD:
+        translation(col, scale * z0);
+        break;
+      case ParamKind::kA:
+        translation(col, scale * x1);
+        break;
+      case ParamKind::kAlpha:
+        rotation(col, x1, o2);
+        break;
+      case ParamKind::kBeta:
+        rotation(col, lf.y_after_alpha[ki], o2);
+        break;
+      case ParamKind::kCompliance:
+        jointMotion(lf.load[ki]);
+        break;
+      case ParamKind::kGearSin:
+        jointMotion(std::sin(P.harmonic * q_joint));
+        break;
+      case ParamKind::kGearCos:
+        jointMotion(std::cos(P.harmonic * q_joint));
+        break;
+      case ParamKind::kJointScale:
+        jointMotion(q_joint);
+        break;
+      case ParamKind::kBacklash: {
+        if (!context.dir.empty() && static_cast<int>(context.dir.size()) <= i)
+          throw ArgumentError("pose context: expected " + std::to_string(i + 1) +
+                              " or more approach directions, got " + std::to_string(context.dir.size()));
+        const double dir = context.dir.empty() ? 0.0 : (context.dir[ki] >= 0 ? 1.0 : -1.0);
+        jointMotion(0.5 * dir);
+        break;
+      }
+      default:
+        throw ArgumentError("parameterJacobian: unexpected parameter " + P.name);
+    }
+  }
+  return T_w_tcp;
+}
+
+}  // namespace accura

@@ -1,5 +1,6 @@
-// Inverse kinematics of the complete model: closed-form seeds of the nominal geometry (all
-// branches), Newton's method on the complete model, KUKA Status/Turn. docs/compensation.md.
+// Inverse kinematics of the complete model on the kinematic core: closed-form seeds of the
+// nominal geometry (all branches), Newton's method on the complete model, KUKA Status/Turn.
+// docs/compensation.md.
 #include <Eigen/Cholesky>
 #include <Eigen/LU>
 #include <Eigen/SVD>
@@ -12,20 +13,15 @@
 
 #include "accura/calib/errors.h"
 #include "accura/calib/geometry.h"
-#include "accura/postproc/compensate.h"
+#include "accura/calib/ik.h"
+#include "accura/calib/kinematic_core.h"
 #include "closed_form.h"
-#include "kinematic_chain.h"
 #include "small_linalg.h"
 
-namespace accura::postproc {
+namespace accura {
 
-using detail::ChainFrames;
 using detail::ClosedForm;
 using detail::ClosedFormKind;
-using detail::Jac6N;
-using detail::KinematicChain;
-using detail::kMaxDof;
-using detail::VecN;
 
 const char* toString(IkStatus status) {
   switch (status) {
@@ -242,7 +238,7 @@ struct IkWorkspace::Data {
   VecN q;
   double payload_kg = 0, temp_c = 0;
   std::vector<int> dir;
-  ChainFrames f;
+  KinematicFrames f;
   Jac6N J;
   /// Singularity certificate (KinematicSolver::Impl::singularAt): at cert_q the scaled
   /// Jacobian's smallest singular value was shown to exceed cert_level (solver cert_solver_id;
@@ -281,9 +277,9 @@ std::atomic<std::uint64_t> next_solver_id{1};
 
 struct KinematicSolver::Impl {
   RobotModel model;
-  KinematicChain chain;
+  KinematicModel chain;
   /// The nominal links with this model's base and tool: where the closed form is exact.
-  KinematicChain nominal_chain;
+  KinematicModel nominal_chain;
   ClosedForm closed_form;
   StatusGeometry status_geometry;
   bool exact_closed_form = false;  ///< no deviations beyond base and tool
@@ -321,36 +317,6 @@ struct KinematicSolver::Impl {
     T_tcp_flange = m.T_flange_tcp().inverse();
     L = chain.length_scale_mm();
     exact_closed_form = closed_form.kind() != ClosedFormKind::kNone && !hasDeviationsBeyondBaseTool(m);
-    selfCheck();
-  }
-
-  // The prepared chain must compute calib's forward kinematics: compare at three joint
-  // vectors and two contexts.
-  void selfCheck() const {
-    KinematicWorkspace ws;
-    ChainFrames f;
-    PoseContext loaded;
-    loaded.payload_kg = 7.5;
-    loaded.temp_c = 27.0;
-    loaded.dir.assign(static_cast<size_t>(n), 1);
-    for (int i = 0; i < n; i += 2) loaded.dir[static_cast<size_t>(i)] = -1;
-    const PoseContext plain;
-    for (int k = 0; k < 3; ++k) {
-      Eigen::VectorXd q(n);
-      for (int i = 0; i < n; ++i) {
-        const double u = k == 0 ? 0.5 : (k == 1 ? 0.2 + 0.07 * i : 0.9 - 0.11 * i);
-        q[i] = lower[i] + std::clamp(u, 0.0, 1.0) * (upper[i] - lower[i]);
-      }
-      for (const PoseContext* ctx : std::array<const PoseContext*, 2>{&plain, &loaded}) {
-        const Eigen::Isometry3d T_calib = forwardKinematics(model, q, *ctx, ws);
-        chain.evaluate(q.data(), *ctx, f);
-        const double dp = (T_calib.translation() - f.T_world_tcp.translation()).norm();
-        const double dr = (T_calib.linear() - f.T_world_tcp.linear()).norm();
-        if (!(dp < 1e-9 * L && dr < 1e-11))
-          throw NumericalError("kinematic solver: the prepared chain disagrees with calib's forward kinematics by " +
-                               std::to_string(dp) + " mm (a model effect the solver does not know)");
-      }
-    }
   }
 
   Configuration configurationOf(const double* q) const {
@@ -517,18 +483,18 @@ struct KinematicSolver::Impl {
   /// `f` holds the frames at q on entry when `f_valid`, and on return.
   /// `J0` (optional, with `f_valid`): the joint Jacobian at q.
   Newton newton(VecN& q, const Eigen::Isometry3d& T_target, const PoseContext& ctx, const IkOptions& o,
-                int max_iterations, ChainFrames& f, bool f_valid = false, double polish_mm = 0,
+                int max_iterations, KinematicFrames& f, bool f_valid = false, double polish_mm = 0,
                 double polish_rad = 0, const Jac6N* J0 = nullptr) const {
     using MatN = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxDof, kMaxDof>;
     Newton r;
     if (!f_valid) chain.evaluate(q.data(), ctx, f);
     // frames at q (cur) and of the trial (tmp); swapped on acceptance, copied back at the end
-    ChainFrames ft;
-    ChainFrames* cur = &f;
-    ChainFrames* tmp = &ft;
+    KinematicFrames ft;
+    KinematicFrames* cur = &f;
+    KinematicFrames* tmp = &ft;
     struct CopyBack {
-      ChainFrames*& cur;
-      ChainFrames& f;
+      KinematicFrames*& cur;
+      KinematicFrames& f;
       ~CopyBack() {
         if (cur != &f) f = *cur;
       }
@@ -664,7 +630,7 @@ struct KinematicSolver::Impl {
   /// singularity this handles the large redistribution between joints (A4 / A6 at A5 ~ 0)
   /// that Newton's method does poorly.
   void correctSeed(VecN& q, int branch, const Eigen::Isometry3d& T_target, const PoseContext& ctx) const {
-    ChainFrames fr, fn;
+    KinematicFrames fr, fn;
     double last_step = std::numeric_limits<double>::infinity();
     for (int pass = 0; pass < 8; ++pass) {
       chain.evaluate(q.data(), ctx, fr);
@@ -775,8 +741,8 @@ struct KinematicSolver::Impl {
     // it holds the answer only when the answer is kOk (stored in finish)
     const bool reuse = ws && ws->holds(id, seed, ctx);
     if (ws) ws->solver_id = 0;
-    ChainFrames f_local;
-    ChainFrames& f = ws ? ws->f : f_local;
+    KinematicFrames f_local;
+    KinematicFrames& f = ws ? ws->f : f_local;
     Jac6N J_local;
     Jac6N& J = ws ? ws->J : J_local;
     const VecN ref = seed.size() ? VecN(seed) : midRange();
@@ -1019,6 +985,7 @@ KinematicSolver::KinematicSolver(const KinematicSolver&) = default;
 KinematicSolver& KinematicSolver::operator=(const KinematicSolver&) = default;
 
 const RobotModel& KinematicSolver::model() const { return impl_->model; }
+const KinematicModel& KinematicSolver::kinematicModel() const { return impl_->chain; }
 int KinematicSolver::dof() const { return impl_->n; }
 
 const char* KinematicSolver::closedForm() const {
@@ -1033,7 +1000,7 @@ const char* KinematicSolver::closedForm() const {
 Eigen::Isometry3d KinematicSolver::forward(const Eigen::VectorXd& q, const PoseContext& context) const {
   if (q.size() != impl_->n)
     throw ArgumentError("expected " + std::to_string(impl_->n) + " joint values, got " + std::to_string(q.size()));
-  ChainFrames f;
+  KinematicFrames f;
   impl_->chain.evaluate(q.data(), context, f);
   return f.T_world_tcp;
 }
@@ -1042,7 +1009,7 @@ Eigen::Isometry3d KinematicSolver::jacobian(const Eigen::VectorXd& q, const Pose
                                             Eigen::Matrix<double, 6, Eigen::Dynamic>& J) const {
   if (q.size() != impl_->n)
     throw ArgumentError("expected " + std::to_string(impl_->n) + " joint values, got " + std::to_string(q.size()));
-  ChainFrames f;
+  KinematicFrames f;
   impl_->chain.evaluate(q.data(), context, f);
   Jac6N Jn;
   impl_->chain.jacobian(f, Jn);
@@ -1084,7 +1051,7 @@ std::vector<Eigen::VectorXd> KinematicSolver::closedFormSolutions(const Eigen::I
   const VecN mid = m.midRange();
   for (int i = 0; i < 6; ++i) theta_ref[i] = m.theta0[i] + m.dir[i] * mid[i] * kDegToRad;
   const int k = m.closed_form.solve(m.T_base_world * T_world_tcp * m.T_tcp_flange, theta_ref, sols);
-  ChainFrames f;
+  KinematicFrames f;
   Vector6d e;
   for (int s = 0; s < k; ++s) {
     // only exact solutions of the nominal links (not the seeds clamped at the workspace's
@@ -1125,4 +1092,4 @@ IkResult inverseKinematics(const RobotModel& model, const Eigen::Isometry3d& T_w
   return KinematicSolver(model).inverse(T_world_tcp, config, seed, options, context);
 }
 
-}  // namespace accura::postproc
+}  // namespace accura
