@@ -12,6 +12,8 @@ shift 2 || shift $#
 targets=("$@")
 if [ ${#targets[@]} -eq 0 ]; then targets=(krl krl_config xml_program robot measurements mapping cell mesh); fi
 export ASAN_OPTIONS="${ASAN_OPTIONS:-detect_leaks=1}"
+# leaks inside assimp itself (not accura's; findings/README.md) are suppressed
+export LSAN_OPTIONS="${LSAN_OPTIONS:-suppressions=$here/lsan.supp:print_suppressions=0}"
 export UBSAN_OPTIONS="${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}"
 status=0
 for t in "${targets[@]}"; do

@@ -169,26 +169,6 @@ void copyString(char* dst, size_t cap, const std::string& s) {
   dst[n] = '\0';
 }
 
-/// The controller model file given with the options must be the calibrated model's robot.
-void checkSameRobot(const RobotDefinition& calibrated, const RobotDefinition& controller, const std::string& path) {
-  auto differ = [&](const std::string& what) {
-    fail(ACCURA_ERROR_INPUT, path + ": expected the nominal robot of the calibrated model ('" + calibrated.name + "'), found '" +
-                                 controller.name + "' with another " + what);
-  };
-  if (calibrated.dof() != controller.dof()) differ("joint count (" + std::to_string(controller.dof()) + ")");
-  constexpr double kTol = 1e-9;  // mm and deg: the same numbers
-  for (int i = 0; i < calibrated.dof(); ++i) {
-    const JointSpec &a = calibrated.joints[i], &b = controller.joints[i];
-    const std::string j = "joint " + std::to_string(i + 1) + " ";
-    if (a.type != b.type) differ(j + "type");
-    if (std::fabs(a.a_mm - b.a_mm) > kTol || std::fabs(a.d_mm - b.d_mm) > kTol || std::fabs(a.alpha_deg - b.alpha_deg) > kTol ||
-        std::fabs(a.theta0_deg - b.theta0_deg) > kTol)
-      differ(j + "DH geometry");
-    if (a.direction != b.direction) differ(j + "direction");
-    if (std::fabs(a.lower - b.lower) > kTol || std::fabs(a.upper - b.upper) > kTol) differ(j + "limits");
-  }
-}
-
 /// A robot file path or a bundled robot name; a path that does not exist is named as such.
 std::string resolveModel(const std::string& name_or_path, const char* what) {
   std::error_code ec;
@@ -209,7 +189,7 @@ std::shared_ptr<State> buildState(const std::string& calibrated_path, const accu
   if (o.controller_model) {
     const std::string p = o.controller_model;
     const RobotModel controller = readRobotFile(resolveModel(p, "controller_model"));
-    checkSameRobot(job.calibrated.nominal, controller.nominal, p);
+    checkControllerRobot(job.calibrated.nominal, controller.nominal, p);
   }
   if (o.has_robroot_in_world) job.robroot_in_world = toXyz(o.robroot_in_world);
   if (o.has_robroot_in_kukaworld) job.robroot_in_kukaworld = toXyz(o.robroot_in_kukaworld);
@@ -243,7 +223,18 @@ void fillPoseResult(const State& s, const Eigen::Isometry3d& T_world_target, con
   for (int i = 0; i < pc.q_real.size() && i < ACCURA_MAX_JOINTS; ++i) r->q_real[i] = pc.q_real[i];
 }
 
-const char* statusNameOf(accura_status s) {
+/// The value a C caller gave an enum parameter or field, read as an int: any int is valid C,
+/// but loading a value outside the enum's range as the enum is undefined behaviour in C++
+/// (UBSan -fsanitize=enum reports it: issue 14's sanitizer build).
+template <class E>
+int cEnum(const E& e) {
+  static_assert(sizeof(E) == sizeof(int), "C enums are int-sized");
+  int v;
+  std::memcpy(&v, &e, sizeof v);
+  return v;
+}
+
+const char* statusNameOf(int s) {
   switch (s) {
     case ACCURA_OK: return "ACCURA_OK";
     case ACCURA_ERROR_NULL_ARGUMENT: return "ACCURA_ERROR_NULL_ARGUMENT";
@@ -289,7 +280,7 @@ ACCURA_API accura_status accura_version(int* major, int* minor, int* patch, int*
 
 ACCURA_API accura_status accura_status_name(accura_status status, const char** name_out) {
   if (!name_out) return ACCURA_ERROR_NULL_ARGUMENT;
-  const char* n = statusNameOf(status);
+  const char* n = statusNameOf(cEnum(status));
   *name_out = n ? n : "ACCURA_STATUS_UNKNOWN";
   return n ? ACCURA_OK : ACCURA_ERROR_INVALID_ARGUMENT;
 }
@@ -392,8 +383,9 @@ ACCURA_API accura_status accura_forward_kinematics(accura_model* model, accura_w
     const int dof = s->job.calibrated.dof();
     if (n_joints != static_cast<size_t>(dof))
       fail(ACCURA_ERROR_INVALID_ARGUMENT, "expected " + std::to_string(dof) + " joint values, got " + std::to_string(n_joints));
-    if (which != ACCURA_CONTROLLER && which != ACCURA_REAL)
-      fail(ACCURA_ERROR_INVALID_ARGUMENT, "which: expected ACCURA_CONTROLLER (0) or ACCURA_REAL (1), found " + std::to_string(which));
+    const int which_value = cEnum(which);
+    if (which_value != ACCURA_CONTROLLER && which_value != ACCURA_REAL)
+      fail(ACCURA_ERROR_INVALID_ARGUMENT, "which: expected ACCURA_CONTROLLER (0) or ACCURA_REAL (1), found " + std::to_string(which_value));
     Eigen::VectorXd qv(dof);
     for (int i = 0; i < dof; ++i) {
       if (!std::isfinite(q[i])) fail(ACCURA_ERROR_INVALID_ARGUMENT, "q[" + std::to_string(i) + "] is not finite");
@@ -480,8 +472,9 @@ ACCURA_API accura_status accura_compensate_path(accura_model* model, const accur
     std::vector<PathSegment> intended(n_motions);
     for (size_t i = 0; i < n_motions; ++i) {
       const std::string w = "motions[" + std::to_string(i) + "]";
-      if (motions[i].type != ACCURA_LIN && motions[i].type != ACCURA_CIRC)
-        fail(ACCURA_ERROR_INVALID_ARGUMENT, w + ".type: expected ACCURA_LIN (0) or ACCURA_CIRC (1), found " + std::to_string(motions[i].type));
+      const int type_value = cEnum(motions[i].type);
+      if (type_value != ACCURA_LIN && type_value != ACCURA_CIRC)
+        fail(ACCURA_ERROR_INVALID_ARGUMENT, w + ".type: expected ACCURA_LIN (0) or ACCURA_CIRC (1), found " + std::to_string(type_value));
       intended[i].type = motions[i].type == ACCURA_CIRC ? PathType::kCirc : PathType::kLin;
       intended[i].T_world_end = s->T_world_progbase * checkedPose(motions[i].end, w + ".end");
       if (intended[i].type == PathType::kCirc) intended[i].T_world_aux = s->T_world_progbase * checkedPose(motions[i].aux, w + ".aux");
@@ -707,8 +700,9 @@ ACCURA_API accura_status accura_write_program(accura_model* model, const char* p
       const accura_program_motion& c = motions[i];
       const std::string w = "motions[" + std::to_string(i) + "]";
       Motion m;
-      if (c.type != ACCURA_PTP && c.type != ACCURA_LIN && c.type != ACCURA_CIRC)
-        fail(ACCURA_ERROR_INVALID_ARGUMENT, w + ".type: expected ACCURA_LIN, ACCURA_CIRC or ACCURA_PTP, found " + std::to_string(c.type));
+      const int type_value = cEnum(c.type);
+      if (type_value != ACCURA_PTP && type_value != ACCURA_LIN && type_value != ACCURA_CIRC)
+        fail(ACCURA_ERROR_INVALID_ARGUMENT, w + ".type: expected ACCURA_LIN, ACCURA_CIRC or ACCURA_PTP, found " + std::to_string(type_value));
       m.type = c.type == ACCURA_PTP ? MotionType::kPtp : c.type == ACCURA_CIRC ? MotionType::kCirc : MotionType::kLin;
       m.target.setPose(checkedXyz(c.end, w + ".end"));
       if (m.type == MotionType::kCirc) {
