@@ -6,6 +6,7 @@
 #include <cstring>
 
 #include "accura/calib/errors.h"
+#include "accura/calib/joint_map.h"
 
 namespace accura {
 namespace {
@@ -75,6 +76,7 @@ double jointEffects(const RobotModel& model, int i, double q, const PoseContext&
       if (c != 0.0) t += c * std::cos(h * qi);
     }
   }
+  if (!dev.joint_map[i].empty()) t += jointMapValue(dev.joint_map[i], q);
   return t;
 }
 
@@ -94,6 +96,7 @@ bool anyJointEffects(const Deviations& d) {
   fold(d.backlash);
   fold(d.gear_sin);
   fold(d.gear_cos);
+  for (const JointMap& m : d.joint_map) fold(m.coef);
   return (acc & ~(std::uint64_t(1) << 63)) != 0;
 }
 
@@ -224,12 +227,13 @@ std::vector<std::pair<std::string, std::string>> parameterGroups() {
       {"joint_scale", "dtheta_i = k_i q_i, gear ratio or encoder scale error (ppm)"},
       {"backlash", "dtheta_i = (b_i / 2) dir_i, from the dirN columns (deg; mm for prismatic joints)"},
       {"thermal", "a_i, d_i scale by 1 + alpha (temp_c - 20 C), one alpha per robot (ppm/K)"},
+      {"joint_map", "dtheta_i = m_i(q_i), a smooth map over the joint's own angle where the fit data cover it (deg)"},
   };
 }
 
 const std::vector<std::string>& effectCatalogue() {
   static const std::vector<std::string> names = {"joint_compliance", "gear_periodic", "joint_scale", "backlash",
-                                                 "thermal"};
+                                                 "thermal", "joint_map"};
   return names;
 }
 
@@ -284,6 +288,13 @@ std::vector<ParamInfo> parameterLayout(const RobotModel& model) {
                  revolute ? "deg" : "mm", revolute ? deg : 1.0});
   }
   L.push_back({ParamKind::kThermal, -1, "thermal_alpha", "thermal", "ppm/K", 1e6});
+  for (int i = 0; i < model.dof(); ++i) {
+    const JointMap& jm = model.deviations.joint_map[static_cast<size_t>(i)];
+    const bool revolute = model.nominal.joints[i].type == JointType::kRevolute;
+    for (int k = 0; k < static_cast<int>(jm.coef.size()); ++k)
+      L.push_back({ParamKind::kJointMap, i, "j" + std::to_string(i + 1) + "_map_" + std::to_string(k), "joint_map",
+                   revolute ? "deg" : "mm", revolute ? deg : 1.0, 0, k});
+  }
   return L;
 }
 
@@ -318,6 +329,12 @@ double* slot(Deviations& dev, const ParamInfo& p) {
     case ParamKind::kCompliance: return &dev.compliance[p.joint];
     case ParamKind::kJointScale: return &dev.joint_scale[p.joint];
     case ParamKind::kBacklash: return &dev.backlash[p.joint];
+    case ParamKind::kJointMap: {
+      std::vector<double>& c = dev.joint_map[static_cast<size_t>(p.joint)].coef;
+      if (p.index < 0 || p.index >= static_cast<int>(c.size()))
+        throw ArgumentError("parameter " + p.name + ": joint map coefficient out of range");
+      return &c[static_cast<size_t>(p.index)];
+    }
     case ParamKind::kGearSin:
     case ParamKind::kGearCos: {
       const int H = dev.gear_harmonics;
@@ -471,6 +488,9 @@ Eigen::Isometry3d parameterJacobian(const RobotModel& model, const std::vector<P
       case ParamKind::kBacklash:
         jointMotion(0.5 * direction(context, i));
         break;
+      case ParamKind::kJointMap:
+        jointMotion(jointMapBasisValue(model.deviations.joint_map[static_cast<size_t>(i)], q[i], P.index));
+        break;
       default:
         throw ArgumentError("parameterJacobian: unexpected parameter " + P.name);
     }
@@ -499,9 +519,15 @@ Eigen::Matrix<double, 6, Eigen::Dynamic> jointJacobian(const RobotModel& model,
       const int H = dev.gear_harmonics;
       for (int h = 1; h <= H; ++h)
         rate += h * (dev.gear_sin[i * H + h - 1] * std::cos(h * qi) - dev.gear_cos[i * H + h - 1] * std::sin(h * qi));
+      double map_slope = 0;  // rad per deg
+      jointMapValue(dev.joint_map[static_cast<size_t>(i)], q[i], &map_slope);
+      rate += map_slope * kRadToDeg;
       Jq.col(i).head<3>() = z.cross(p - M0.translation()) * (rate * kDegToRad);
       Jq.col(i).tail<3>() = z * (rate * kDegToRad);
     } else {
+      double map_slope = 0;  // mm per mm
+      jointMapValue(dev.joint_map[static_cast<size_t>(i)], q[i], &map_slope);
+      rate += map_slope;
       Jq.col(i).head<3>() = z * rate;
       Jq.col(i).tail<3>().setZero();
     }
