@@ -219,26 +219,78 @@ struct Stations {
   }
 };
 
+// How the Jacobian over the layout is computed: parameterJacobian on the layout without the
+// joint maps' coefficients plus one unit column (a unit dtheta, or dd) per mapped joint; a
+// coefficient's column is that unit column times its basis function at q (joint_map.h), and only
+// 4 per mapped joint are non-zero: this keeps the cost independent of the maps' resolution.
+struct JacobianPlan {
+  std::vector<ParamInfo> columns;
+  std::vector<int> x_of;               // x index of each column; -1: the unit column of a mapped joint
+  std::vector<int> unit_joint;         // joint of each column (unit columns), else -1
+  std::vector<std::vector<int>> map_x;  // per joint: x index of each map coefficient (empty: not mapped)
+  size_t P = 0;                        // layout size
+};
+
+JacobianPlan makePlan(const RobotModel& model, const std::vector<ParamInfo>& layout) {
+  JacobianPlan plan;
+  plan.P = layout.size();
+  plan.map_x.resize(static_cast<size_t>(model.dof()));
+  for (size_t k = 0; k < layout.size(); ++k) {
+    const ParamInfo& p = layout[k];
+    if (p.kind == ParamKind::kJointMap) {
+      std::vector<int>& mx = plan.map_x[static_cast<size_t>(p.joint)];
+      const size_t K = model.deviations.joint_map[static_cast<size_t>(p.joint)].coef.size();
+      if (mx.empty()) {
+        mx.assign(K, -1);
+        const bool revolute = model.nominal.joints[static_cast<size_t>(p.joint)].type == JointType::kRevolute;
+        // the joint's own motion per unit dtheta (revolute) or dd (prismatic; the thermal length
+        // scale of the dd column is 1 + O(1e-4): only the Jacobian, not the residual, sees it)
+        plan.columns.push_back({revolute ? ParamKind::kOffset : ParamKind::kD, p.joint, "map_unit", "joint_map", "", 1.0});
+        plan.x_of.push_back(-1);
+        plan.unit_joint.push_back(p.joint);
+      }
+      mx[static_cast<size_t>(p.index)] = static_cast<int>(k);
+      continue;
+    }
+    plan.columns.push_back(p);
+    plan.x_of.push_back(static_cast<int>(k));
+    plan.unit_joint.push_back(-1);
+  }
+  return plan;
+}
+
 // Pose of row i with its station applied and, with J, its Jacobian over x (6 x x.size()):
 // the model's columns rotated into the station's world, then the station's 6 columns.
-Eigen::Isometry3d rowPose(const RobotModel& model, const std::vector<ParamInfo>& layout, const Stations& st,
+Eigen::Isometry3d rowPose(const RobotModel& model, const JacobianPlan& plan, const Stations& st,
                           const std::vector<double>& x, const Measurement& row, size_t i, KinematicWorkspace& ws,
                           Eigen::MatrixXd* Jtmp, Eigen::MatrixXd* J) {
   const int s = st.of_row[i];
-  const Eigen::Index P = static_cast<Eigen::Index>(layout.size());
-  Eigen::Isometry3d T = J ? parameterJacobian(model, layout, row.q, row.context, ws, *Jtmp)
+  const Eigen::Index P = static_cast<Eigen::Index>(plan.P);
+  Eigen::Isometry3d T = J ? parameterJacobian(model, plan.columns, row.q, row.context, ws, *Jtmp)
                           : forwardKinematics(model, row.q, row.context, ws);
   if (J) {
     J->setZero(6, static_cast<Eigen::Index>(x.size()));
-    J->leftCols(P) = *Jtmp;
+    for (size_t c = 0; c < plan.columns.size(); ++c) {
+      if (plan.x_of[c] >= 0) {
+        J->col(plan.x_of[c]) = Jtmp->col(static_cast<Eigen::Index>(c));
+        continue;
+      }
+      const int j = plan.unit_joint[c];
+      double w[4];
+      const int first = jointMapBasis(model.deviations.joint_map[static_cast<size_t>(j)], row.q[j], w);
+      for (int k = 0; k < 4; ++k) {
+        const int xi = plan.map_x[static_cast<size_t>(j)][static_cast<size_t>(first + k)];
+        if (xi >= 0) J->col(xi) = Jtmp->col(static_cast<Eigen::Index>(c)) * w[k];
+      }
+    }
   }
   if (s == 0) return T;
   const Eigen::Isometry3d Ts = st.transform(x, s);
   T = Ts * T;
   if (J) {
     const Eigen::Matrix3d R = Ts.linear();
-    J->topLeftCorner(3, P) = R * Jtmp->topRows(3);
-    J->block(3, 0, 3, P) = R * Jtmp->bottomRows(3);
+    J->topLeftCorner(3, P) = (R * J->topLeftCorner(3, P)).eval();
+    J->block(3, 0, 3, P) = (R * J->block(3, 0, 3, P)).eval();
     const Eigen::Index c = static_cast<Eigen::Index>(st.offset) + 6 * (s - 1);
     J->block<3, 3>(0, c).setIdentity();
     const size_t o = st.offset + 6 * static_cast<size_t>(s - 1);
@@ -264,9 +316,9 @@ Vector6d rowError(const Eigen::Isometry3d& T, const Measurement& row, int dim) {
 // row's residual and Jacobian to its RowCost.
 class Evaluator : public ceres::EvaluationCallback {
  public:
-  Evaluator(RobotModel model, const std::vector<ParamInfo>& layout, const Stations& stations,
+  Evaluator(RobotModel model, const std::vector<ParamInfo>& layout, const JacobianPlan& plan, const Stations& stations,
             const MeasurementSet& data, const std::vector<RowWeights>& weights, std::vector<double>* x)
-      : model_(std::move(model)), layout_(layout), stations_(stations), data_(data), weights_(weights), x_(x) {
+      : model_(std::move(model)), layout_(layout), plan_(plan), stations_(stations), data_(data), weights_(weights), x_(x) {
     const size_t m = data.rows.size();
     residuals_.resize(m);
     jacobians_.resize(m);
@@ -278,7 +330,7 @@ class Evaluator : public ceres::EvaluationCallback {
     for (size_t i = 0; i < data_.rows.size(); ++i) {
       const Measurement& row = data_.rows[i];
       const int dim = weights_[i].dim;
-      const Eigen::Isometry3d T = rowPose(model_, layout_, stations_, *x_, row, i, ws_, &Jtmp_,
+      const Eigen::Isometry3d T = rowPose(model_, plan_, stations_, *x_, row, i, ws_, &Jtmp_,
                                           evaluate_jacobians ? &J_ : nullptr);
       if (evaluate_jacobians) jacobians_[i] = weights_[i].w.head(dim).asDiagonal() * J_.topRows(dim);
       residuals_[i] = weights_[i].w.cwiseProduct(rowError(T, row, dim));
@@ -296,6 +348,7 @@ class Evaluator : public ceres::EvaluationCallback {
  private:
   RobotModel model_;
   const std::vector<ParamInfo>& layout_;
+  const JacobianPlan& plan_;
   const Stations& stations_;
   const MeasurementSet& data_;
   const std::vector<RowWeights>& weights_;
@@ -341,25 +394,28 @@ class RowCost : public ceres::CostFunction {
   std::vector<Block> blocks_;
 };
 
-// A penalty row: sum_k a_k x_k over size-1 parameter blocks (joint-map regularisation).
+// A penalty row: sum over its blocks b and their entries c of a[b][c] x_b[c] (joint-map
+// regularisation).
 class LinearCost : public ceres::CostFunction {
  public:
-  explicit LinearCost(std::vector<double> a) : a_(std::move(a)) {
+  explicit LinearCost(std::vector<std::vector<double>> a) : a_(std::move(a)) {
     set_num_residuals(1);
-    for (size_t k = 0; k < a_.size(); ++k) mutable_parameter_block_sizes()->push_back(1);
+    for (const auto& b : a_) mutable_parameter_block_sizes()->push_back(static_cast<int>(b.size()));
   }
   bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override {
     double r = 0;
-    for (size_t k = 0; k < a_.size(); ++k) r += a_[k] * parameters[k][0];
+    for (size_t b = 0; b < a_.size(); ++b)
+      for (size_t c = 0; c < a_[b].size(); ++c) r += a_[b][c] * parameters[b][c];
     residuals[0] = r;
     if (jacobians)
-      for (size_t k = 0; k < a_.size(); ++k)
-        if (jacobians[k]) jacobians[k][0] = a_[k];
+      for (size_t b = 0; b < a_.size(); ++b)
+        if (jacobians[b])
+          for (size_t c = 0; c < a_[b].size(); ++c) jacobians[b][c] = a_[b][c];
     return true;
   }
 
  private:
-  std::vector<double> a_;
+  std::vector<std::vector<double>> a_;
 };
 
 // A weighted penalty row over x: coefficients by x index.
@@ -368,7 +424,7 @@ struct PenaltyRow {
 };
 
 // Weighted, stacked Jacobian over x and the weighted residual at `model`.
-void stackedJacobian(const RobotModel& model, const std::vector<ParamInfo>& layout, const Stations& st,
+void stackedJacobian(const RobotModel& model, const JacobianPlan& plan, const Stations& st,
                      const std::vector<double>& x, const MeasurementSet& data,
                      const std::vector<RowWeights>& weights, Eigen::MatrixXd* J, Eigen::VectorXd* r) {
   int m = 0;
@@ -380,7 +436,7 @@ void stackedJacobian(const RobotModel& model, const std::vector<ParamInfo>& layo
   int row = 0;
   for (size_t i = 0; i < data.rows.size(); ++i) {
     const Measurement& meas = data.rows[i];
-    const Eigen::Isometry3d T = rowPose(model, layout, st, x, meas, i, ws, &Jtmp, &Ji);
+    const Eigen::Isometry3d T = rowPose(model, plan, st, x, meas, i, ws, &Jtmp, &Ji);
     const int dim = weights[i].dim;
     J->middleRows(row, dim) = weights[i].w.head(dim).asDiagonal() * Ji.topRows(dim);
     if (r) r->segment(row, dim) = weights[i].w.cwiseProduct(rowError(T, meas, dim)).head(dim);
@@ -618,6 +674,7 @@ RobotModel identify(const RobotModel& start, const std::vector<MeasurementSet>& 
     layout.push_back(p);
   }
   const size_t P = layout.size();
+  const JacobianPlan plan = makePlan(model, layout);
   st.offset = P;
   const size_t X = P + 6 * static_cast<size_t>(st.extra);
   auto isMap = [&](size_t k) { return k < P && layout[k].kind == ParamKind::kJointMap; };
@@ -701,7 +758,7 @@ RobotModel identify(const RobotModel& start, const std::vector<MeasurementSet>& 
   for (size_t k = 0; k < P; ++k)
     if (!isMap(k)) cand_idx.push_back(static_cast<int>(k));
   Eigen::MatrixXd Jfull;
-  stackedJacobian(model, layout, st, x, data, weights, &Jfull, nullptr);
+  stackedJacobian(model, plan, st, x, data, weights, &Jfull, nullptr);
   const Eigen::Index m = Jfull.rows();
   Eigen::MatrixXd Js(m, static_cast<Eigen::Index>(cand_idx.size()));
   for (size_t c = 0; c < cand_idx.size(); ++c) Js.col(c) = Jfull.col(cand_idx[c]);
@@ -794,7 +851,8 @@ RobotModel identify(const RobotModel& start, const std::vector<MeasurementSet>& 
       for (const auto& a : jointMapSmoothnessRows(jm)) add(a, std::sqrt(smoothing) * scale);
     std::vector<double> qj;
     for (const Measurement& r : data.rows) qj.push_back(r.q[j]);
-    for (const auto& a : jointMapCentringRows(jm, qj)) {
+    const bool revolute = model.nominal.joints[static_cast<size_t>(j)].type == JointType::kRevolute;
+    for (const auto& a : jointMapCentringRows(jm, qj, revolute ? kJointMapCentredHarmonics : 0)) {
       double nrm = 0;
       for (double v : a) nrm += v * v;
       if (nrm > 0) add(a, kJointMapCentringWeight * scale / std::sqrt(nrm));
@@ -808,7 +866,8 @@ RobotModel identify(const RobotModel& start, const std::vector<MeasurementSet>& 
   std::vector<int> block_of(X, -1);
   auto blockKey = [&](size_t k) -> std::string {
     const ParamInfo& p = layout[k];
-    if (p.kind == ParamKind::kJointMap) return "map" + std::to_string(k);
+    // joint-map coefficients in blocks of 4 (a row touches 4 consecutive ones: at most 2 blocks)
+    if (p.kind == ParamKind::kJointMap) return "map" + std::to_string(p.joint) + "_" + std::to_string(p.index / 4);
     if (p.group == "base" || p.group == "tool" || p.group == "joint_compliance") return p.group;
     return "j" + std::to_string(p.joint);
   };
@@ -843,13 +902,14 @@ RobotModel identify(const RobotModel& start, const std::vector<MeasurementSet>& 
       double w[4];
       const int first = jointMapBasis(jm, data.rows[i].q[j], w);
       for (size_t k = 0; k < P; ++k)
-        if (isMap(k) && layout[k].joint == j && layout[k].index >= first && layout[k].index < first + 4)
+        if (isMap(k) && layout[k].joint == j && layout[k].index >= first && layout[k].index < first + 4 &&
+            std::find(rb.begin(), rb.end(), block_of[k]) == rb.end())
           rb.push_back(block_of[k]);
     }
   }
 
   auto solve = [&](bool robust, ceres::Solver::Summary* ceres_summary) {
-    Evaluator evaluator(model, layout, st, data, weights, &x);
+    Evaluator evaluator(model, layout, plan, st, data, weights, &x);
     ceres::Problem::Options popts;
     popts.cost_function_ownership = ceres::TAKE_OWNERSHIP;
     popts.loss_function_ownership = ceres::TAKE_OWNERSHIP;
@@ -872,11 +932,20 @@ RobotModel identify(const RobotModel& start, const std::vector<MeasurementSet>& 
       problem.AddResidualBlock(new RowCost(&evaluator, i, dim, bl), loss, ptrs);
     }
     for (const PenaltyRow& pr : penalties) {
-      std::vector<double> a;
+      // the blocks the row touches, and its coefficients laid out block by block
+      std::vector<int> bl;
+      for (const auto& t : pr.terms)
+        if (std::find(bl.begin(), bl.end(), block_of[static_cast<size_t>(t.first)]) == bl.end())
+          bl.push_back(block_of[static_cast<size_t>(t.first)]);
+      std::vector<std::vector<double>> a;
       std::vector<double*> ptrs;
-      for (const auto& t : pr.terms) {
-        a.push_back(t.second);
-        ptrs.push_back(&x[static_cast<size_t>(t.first)]);
+      for (int b : bl) {
+        const Block& B = blocks[static_cast<size_t>(b)];
+        std::vector<double> coef(static_cast<size_t>(B.size), 0.0);
+        for (const auto& t : pr.terms)
+          if (t.first >= B.start && t.first < B.start + B.size) coef[static_cast<size_t>(t.first - B.start)] = t.second;
+        a.push_back(coef);
+        ptrs.push_back(&x[static_cast<size_t>(B.start)]);
       }
       problem.AddResidualBlock(new LinearCost(a), nullptr, ptrs);
     }
@@ -898,10 +967,16 @@ RobotModel identify(const RobotModel& start, const std::vector<MeasurementSet>& 
     so.max_num_iterations = options.max_iterations;
     so.function_tolerance = options.function_tolerance;
     so.parameter_tolerance = options.parameter_tolerance;
+    if (sparse) {
+      // hundreds of smoothed map coefficients: stop when the cost changes by less than 1e-9
+      // relative (the maps' values then move by far less than their uncertainty)
+      so.function_tolerance = std::max(so.function_tolerance, 1e-9);
+      so.parameter_tolerance = std::max(so.parameter_tolerance, 1e-8);
+    }
+    if (getenv("ACCURA_DEBUG_ITER")) so.minimizer_progress_to_stdout = true;
     so.gradient_tolerance = 1e-16;
     so.num_threads = 1;
     so.logging_type = ceres::SILENT;
-    so.minimizer_progress_to_stdout = false;
     ceres::Solve(so, &problem, ceres_summary);
     for (size_t k = 0; k < P; ++k) setParameter(model.deviations, layout[k], x[k]);
     data0 = inStationZero(data, st, x);
@@ -936,7 +1011,7 @@ RobotModel identify(const RobotModel& start, const std::vector<MeasurementSet>& 
   {
     Eigen::MatrixXd J0;
     Eigen::VectorXd r0;
-    stackedJacobian(model, layout, st, x, data, weights, &J0, &r0);
+    stackedJacobian(model, plan, st, x, data, weights, &J0, &r0);
     summary.initial_cost = 0.5 * r0.squaredNorm();
   }
   const bool robust = options.loss != "none";
@@ -1042,7 +1117,7 @@ RobotModel identify(const RobotModel& start, const std::vector<MeasurementSet>& 
   // joint maps' penalty rows included: they make the maps' coefficients determined).
   Eigen::MatrixXd J;
   Eigen::VectorXd r;
-  stackedJacobian(model, layout, st, x, data, weights, &J, &r);
+  stackedJacobian(model, plan, st, x, data, weights, &J, &r);
   summary.final_cost = 0.5 * r.squaredNorm();
   std::vector<int> free_idx;
   for (size_t k = 0; k < X; ++k)
@@ -1174,6 +1249,7 @@ RobotModel identifyWithMapCv(const RobotModel& start, const std::vector<Measurem
     std::vector<size_t> set_size(sets.size(), 0), seen(sets.size(), 0);
     for (int s : set_of_row) ++set_size[static_cast<size_t>(s)];
     const int folds = 5;
+    const JacobianPlan plan = makePlan(m0, L);
     std::vector<JointMapCvRow> rows(data.rows.size());
     KinematicWorkspace ws;
     Eigen::MatrixXd Jtmp, Jrow;
@@ -1187,7 +1263,7 @@ RobotModel identifyWithMapCv(const RobotModel& start, const std::vector<Measurem
         const double tau = k < 3 ? tau_p : tau_r;
         w[k] = std::sqrt(m.weight) / std::sqrt(std::max(sd * sd + tau * tau, 1e-300));
       }
-      const Eigen::Isometry3d T = rowPose(m0, L, st, x, m, i, ws, &Jtmp, &Jrow);
+      const Eigen::Isometry3d T = rowPose(m0, plan, st, x, m, i, ws, &Jtmp, &Jrow);
       JointMapCvRow& row = rows[i];
       const auto W = w.head(dim).asDiagonal();
       row.G.resize(dim, nG);
@@ -1201,11 +1277,14 @@ RobotModel identifyWithMapCv(const RobotModel& start, const std::vector<Measurem
       const size_t s = static_cast<size_t>(set_of_row[i]);
       row.fold = static_cast<int>(folds * seen[s]++ / set_size[s]);
     }
-    cv = crossValidateJointMap(rows, ranges, knots, smoothings, folds);
+    std::vector<int> harmonics;
+    for (int j : cv_joints)
+      harmonics.push_back(m0.nominal.joints[static_cast<size_t>(j)].type == JointType::kRevolute ? kJointMapCentredHarmonics : 0);
+    cv = crossValidateJointMap(rows, ranges, harmonics, knots, smoothings, folds);
   }
   o1.joint_map_knot = cv.knot;
   o1.joint_map_smoothing = cv.smoothing;
-  const RobotModel m1 = identify(m0, sets, o1, summary_out);
+  const RobotModel m1 = identify(start, sets, o1, summary_out);
   if (summary_out) {
     summary_out->joint_map_cv = cv.table;
     summary_out->joint_map_cv_baseline_mm = cv.baseline_rms_mm;

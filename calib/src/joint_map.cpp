@@ -126,25 +126,34 @@ std::vector<std::vector<double>> jointMapSmoothnessRows(const JointMap& map) {
   return rows;
 }
 
-std::vector<std::vector<double>> jointMapCentringRows(const JointMap& map, const std::vector<double>& q_fit) {
+std::vector<std::vector<double>> jointMapCentringRows(const JointMap& map, const std::vector<double>& q_fit,
+                                                      int harmonics) {
   const size_t K = map.coef.size();
-  std::vector<double> mean(K, 0.0), trend(K, 0.0);
-  if (q_fit.empty() || K == 0) return {mean, trend};
+  const size_t G = 2 + 2 * static_cast<size_t>(std::max(harmonics, 0));
+  std::vector<std::vector<double>> rows(G, std::vector<double>(K, 0.0));
+  if (q_fit.empty() || K == 0) return rows;
   double qm = 0;
   for (double q : q_fit) qm += q;
   qm /= double(q_fit.size());
   double var = 0;
   for (double q : q_fit) var += (q - qm) * (q - qm);
   const double sd = std::sqrt(var / double(q_fit.size()));
+  const double n = double(q_fit.size());
   double w[4];
+  std::vector<double> g(G);
   for (double q : q_fit) {
-    const int f = jointMapBasis(map, q, w);
-    for (int k = 0; k < 4; ++k) {
-      mean[static_cast<size_t>(f + k)] += w[k] / double(q_fit.size());
-      if (sd > 0) trend[static_cast<size_t>(f + k)] += w[k] * (q - qm) / sd / double(q_fit.size());
+    // the functions the map must not contain: 1, the trend, sin/cos(h q) (q in rad)
+    g[0] = 1;
+    g[1] = sd > 0 ? (q - qm) / sd : 0.0;
+    for (int h = 1; h <= harmonics; ++h) {
+      g[2 * static_cast<size_t>(h)] = std::sin(h * q * kDegToRad);
+      g[2 * static_cast<size_t>(h) + 1] = std::cos(h * q * kDegToRad);
     }
+    const int f = jointMapBasis(map, q, w);
+    for (size_t r = 0; r < G; ++r)
+      for (int k = 0; k < 4; ++k) rows[r][static_cast<size_t>(f + k)] += w[k] * g[r] / n;
   }
-  return {mean, trend};
+  return rows;
 }
 
 bool parseJointMapKnot(const std::string& text, double* knot, std::string* unit, std::string* error) {
@@ -174,8 +183,10 @@ bool parseJointMapKnot(const std::string& text, double* knot, std::string* unit,
 namespace accura {
 
 JointMapCvResult crossValidateJointMap(const std::vector<JointMapCvRow>& rows, const std::vector<JointRange>& ranges,
-                                       const std::vector<double>& knots, const std::vector<double>& smoothings,
-                                       int folds) {
+                                       const std::vector<int>& centred_harmonics, const std::vector<double>& knots,
+                                       const std::vector<double>& smoothings, int folds) {
+  if (centred_harmonics.size() != ranges.size())
+    throw ArgumentError("joint map cross-validation: expected one harmonics count per mapped joint");
   if (rows.empty() || knots.empty() || smoothings.empty() || folds < 2)
     throw ArgumentError("joint map cross-validation: expected rows, candidates and >= 2 folds");
   const Eigen::Index p = rows[0].G.cols();
@@ -281,6 +292,8 @@ JointMapCvResult crossValidateJointMap(const std::vector<JointMapCvRow>& rows, c
       for (Eigen::Index k = 0; k + 2 < K; ++k) D.row(k).segment(k, 3) << 1, -2, 1;
       DtD[static_cast<size_t>(j)] = D.transpose() * D;
     }
+    const size_t first_entry = result.table.size();
+    for (double sm : smoothings) result.table.push_back({knot, sm, 0.0});
     for (int f = 0; f < folds; ++f) {
       Eigen::MatrixXd Ntrain = Nt - Nf[static_cast<size_t>(f)];
       const Eigen::VectorXd btrain = bt - bf[static_cast<size_t>(f)];
@@ -290,7 +303,7 @@ JointMapCvResult crossValidateJointMap(const std::vector<JointMapCvRow>& rows, c
         for (const auto& row : rows)
           if (row.fold != f) qt.push_back(row.q[j]);
         const Eigen::Index K = static_cast<Eigen::Index>(maps[static_cast<size_t>(j)].coef.size());
-        for (const auto& a : jointMapCentringRows(maps[static_cast<size_t>(j)], qt)) {
+        for (const auto& a : jointMapCentringRows(maps[static_cast<size_t>(j)], qt, centred_harmonics[static_cast<size_t>(j)])) {
           const Eigen::VectorXd av = Eigen::Map<const Eigen::VectorXd>(a.data(), K);
           if (av.norm() == 0) continue;
           const double W = kJointMapCentringWeight * kJointMapCentringWeight * scale2[static_cast<size_t>(j)];
@@ -304,9 +317,7 @@ JointMapCvResult crossValidateJointMap(const std::vector<JointMapCvRow>& rows, c
           N.block(col0[static_cast<size_t>(j)], col0[static_cast<size_t>(j)], K, K) +=
               smoothings[si] * scale2[static_cast<size_t>(j)] * DtD[static_cast<size_t>(j)];
         }
-        const double ss = heldOut(maps, col0, f, solve(N, btrain));
-        if (f == 0) result.table.push_back({knot, smoothings[si], 0.0});
-        result.table[result.table.size() - smoothings.size() + si].cv_rms_mm += ss;
+        result.table[first_entry + si].cv_rms_mm += heldOut(maps, col0, f, solve(N, btrain));
       }
     }
   }

@@ -84,11 +84,11 @@ struct ParameterEstimate {
 
 /// Candidates of the joint_map cross-validation: knot spacing (deg or mm) and smoothness.
 inline const std::vector<double>& jointMapKnotCandidates() {
-  static const std::vector<double> v = {2.0, 3.0, 4.5};
+  static const std::vector<double> v = {1.5, 2.0, 3.0};
   return v;
 }
 inline const std::vector<double>& jointMapSmoothingCandidates() {
-  static const std::vector<double> v = {0.01, 0.1, 1.0};
+  static const std::vector<double> v = {0.001, 0.003, 0.01, 0.03};
   return v;
 }
 

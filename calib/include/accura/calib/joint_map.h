@@ -41,12 +41,18 @@ double jointMapAmplitude(const JointMap& map);
 
 /// The rows of the map's regularisation on the coefficients, for identification:
 ///   smoothness: the second differences coef[k-1] - 2 coef[k] + coef[k+1], k = 1..K-2;
-///   centring: the mean of m(q) and the mean of m(q) (q - q_mean) / q_sd over `q_fit` (the fit
-///   data's values of this joint), which the constraint drives to zero so that the map carries
-///   neither a constant (a joint offset) nor a linear trend (a joint scale).
+///   centring: the means over `q_fit` (the fit data's values of this joint) of m(q) times 1,
+///   (q - q_mean) / q_sd and, for h = 1..harmonics, sin(h q) and cos(h q) (q in rad), which the
+///   constraint drives to zero: the map carries no constant (a joint offset), no linear trend (a
+///   joint scale) and no low harmonics (what geometry, gravity compliance and gear_periodic
+///   describe, and what extrapolates beyond the covered range). Only the fine structure is left.
 /// Each row is a coefficient vector (size K); the caller weights them.
 std::vector<std::vector<double>> jointMapSmoothnessRows(const JointMap& map);
-std::vector<std::vector<double>> jointMapCentringRows(const JointMap& map, const std::vector<double>& q_fit);
+std::vector<std::vector<double>> jointMapCentringRows(const JointMap& map, const std::vector<double>& q_fit,
+                                                      int harmonics);
+
+/// Low harmonics kept out of a revolute joint's map (see jointMapCentringRows); prismatic: 0.
+constexpr int kJointMapCentredHarmonics = 1;
 
 /// Parses a knot spacing as given on the command line: "3deg", "3" (deg for revolute joints) or
 /// "5mm" (prismatic). Returns false with *error on anything else (not a positive finite number,
@@ -87,10 +93,10 @@ constexpr double kJointMapCentringWeight = 1e3;
 
 /// Refits the linearised problem for every (knot, smoothing) candidate on all folds but one and
 /// predicts the held-out fold (maps on `ranges`, one per mapped joint, the centring taken on
-/// the training rows). Cost per knot: one pass over the rows; per candidate and fold one dense
+/// the training rows, with centred_harmonics[j] low harmonics kept out). Cost per knot: one pass over the rows; per candidate and fold one dense
 /// Cholesky factorisation. Throws ArgumentError on inconsistent sizes or empty candidates.
 JointMapCvResult crossValidateJointMap(const std::vector<JointMapCvRow>& rows, const std::vector<JointRange>& ranges,
-                                       const std::vector<double>& knots, const std::vector<double>& smoothings,
-                                       int folds);
+                                       const std::vector<int>& centred_harmonics, const std::vector<double>& knots,
+                                       const std::vector<double>& smoothings, int folds);
 
 }  // namespace accura
