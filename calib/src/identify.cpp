@@ -593,6 +593,17 @@ void finishSummary(const RobotModel& model, const std::vector<MeasurementSet>& s
     }
 }
 
+// One station per data set (station 0: the model's own), or one for all when `same`.
+Stations stationsFor(const std::vector<int>& set_of_row, size_t sets, bool same) {
+  Stations st;
+  st.of_row.assign(set_of_row.size(), 0);
+  if (!same) {
+    st.of_row = set_of_row;
+    st.extra = static_cast<int>(sets) - 1;
+  }
+  return st;
+}
+
 }  // namespace
 
 RobotModel identify(const RobotModel& start, const MeasurementSet& data,
@@ -624,12 +635,7 @@ RobotModel identify(const RobotModel& start, const std::vector<MeasurementSet>& 
   RobotModel model = start;
   std::vector<int> set_of_row;
   const MeasurementSet data = combine(sets, &set_of_row);
-  Stations st;
-  st.of_row.resize(data.rows.size(), 0);
-  if (!options.same_station) {
-    st.of_row = set_of_row;
-    st.extra = static_cast<int>(sets.size()) - 1;
-  }
+  Stations st = stationsFor(set_of_row, sets.size(), options.same_station);
   const bool orientation = allOrientation(data);
   const int n = model.dof();
 
@@ -1224,12 +1230,7 @@ RobotModel identifyWithMapCv(const RobotModel& start, const std::vector<Measurem
     }
     std::vector<int> set_of_row;
     const MeasurementSet data = combine(sets, &set_of_row);
-    Stations st;
-    st.of_row.assign(data.rows.size(), 0);
-    if (!options.same_station) {
-      st.of_row = set_of_row;
-      st.extra = static_cast<int>(sets.size()) - 1;
-    }
+    Stations st = stationsFor(set_of_row, sets.size(), options.same_station);
     st.offset = L.size();
     std::vector<double> x(L.size() + 6 * static_cast<size_t>(st.extra), 0.0);
     for (size_t k = 0; k < L.size(); ++k) x[k] = getParameter(m0.deviations, L[k]);
