@@ -366,8 +366,32 @@ void BM_RegisterFrame(benchmark::State& state) {
   state.counters["reg_rms_mm"] = rms;
 }
 
+// Identification with joint maps (issue 11): the geometric KR 16 campaign of 1500 poses with
+// joint_map on j1..j3 at 3 deg knots, smoothness given (no cross-validation), against the same
+// identification without maps measured in this run (BM_Identify_Geometric/1500).
+void BM_Identify_GeometricJointMap(benchmark::State& state) {
+  const IdentifyCase& c = identifyCase(static_cast<int>(state.range(0)), false);
+  accura::IdentifyOptions o = c.options;
+  o.groups = {"geometric", "joint_map:j1+j2+j3@3deg"};
+  o.joint_map_smoothing = 0.01;
+  accura::IdentifySummary s;
+  RobotModel cal;
+  for (auto _ : state) {
+    cal = accura::identify(c.start, c.data, o, &s);
+    benchmark::DoNotOptimize(cal.deviations.base_mm.data());
+    benchmark::ClobberMemory();
+  }
+  size_t coefficients = 0;
+  for (const auto& m : cal.deviations.joint_map) coefficients += m.coef.size();
+  state.counters["poses"] = static_cast<double>(state.range(0));
+  state.counters["map_coefficients"] = static_cast<double>(coefficients);
+  state.counters["val_rms_mm"] = accura::evaluate(cal, c.validation).rms_mm;
+}
+
 }  // namespace
 
+BENCHMARK(BM_Identify_GeometricJointMap)->Arg(1500)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_Identify_Geometric)->Arg(1500)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_FK_Accura)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_FK_Accura_Compliance)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_FK_NaiveDH4x4_Peer)->Unit(benchmark::kMicrosecond);

@@ -38,7 +38,11 @@ int runIdentify(const IdentifyArgs& a) {
     throw InputError("--validate-station: expected 'same' or 'new', found '" + a.validate_station + "'");
   if (a.validate_station == "new" && a.validate.empty())
     throw InputError("--validate-station new: expected a --validate file measured from another station");
-  MeasurementSet data = readMeasurements(a.data, a.map, start.nominal);
+  if (a.data.empty()) throw InputError("--data: expected at least one measurement file");
+  std::vector<MeasurementSet> sets;
+  for (const std::string& f : a.data) sets.push_back(readMeasurements(f, a.map, start.nominal));
+  std::string data_names;
+  for (const std::string& f : a.data) data_names += (data_names.empty() ? "" : ", ") + f;
   MeasurementSet validation;
   std::string validation_source;
   if (!a.validate.empty()) {
@@ -48,6 +52,9 @@ int runIdentify(const IdentifyArgs& a) {
     if (!(a.holdout >= 0 && a.holdout < 0.9))
       throw InputError("--holdout: expected a fraction in [0, 0.9), found " + fmt("%g", a.holdout));
     if (a.holdout > 0) {
+      if (sets.size() > 1)
+        throw InputError("--holdout: with several --data files give --validate (a held-out file) instead");
+      MeasurementSet& data = sets[0];
       const int every = std::max(2, static_cast<int>(std::lround(1.0 / a.holdout)));
       MeasurementSet fit = data;
       fit.rows.clear();
@@ -56,7 +63,7 @@ int runIdentify(const IdentifyArgs& a) {
       for (size_t i = 0; i < data.rows.size(); ++i)
         (i % every == static_cast<size_t>(every - 1) ? validation : fit).rows.push_back(data.rows[i]);
       data = fit;
-      validation_source = "every " + std::to_string(every) + "th pose of " + a.data + " (held out)";
+      validation_source = "every " + std::to_string(every) + "th pose of " + data_names + " (held out)";
     }
   }
 
@@ -66,18 +73,22 @@ int runIdentify(const IdentifyArgs& a) {
   opt.loss_scale = a.loss_scale;
   if (a.std_mm > 0) opt.position_std_mm = a.std_mm;
   if (a.std_deg > 0) opt.orientation_std_deg = a.std_deg;
+  if (a.map_smoothing >= 0) opt.joint_map_smoothing = a.map_smoothing;
+  opt.same_station = a.same_station;
   std::string why;
   if (!opt.IsValid(&why)) throw InputError("--params/--loss: " + why);
 
   IdentifySummary s;
-  const RobotModel calibrated = identify(start, data, opt, &s);
+  const RobotModel calibrated = identify(start, sets, opt, &s);
+  size_t n_rows = 0;
+  for (const auto& d : sets) n_rows += d.rows.size();
 
   // Nominal model with only the measurement frame and the tool registered, for comparison.
   IdentifyOptions nominal_opt = opt;
   nominal_opt.groups = {"base", "tool"};
   nominal_opt.loss = "none";
   IdentifySummary ns;
-  const RobotModel nominal_registered = identify(start, data, nominal_opt, &ns);
+  const RobotModel nominal_registered = identify(start, sets, nominal_opt, &ns);
 
   const bool has_val = !validation.rows.empty();
   ErrorStats val, nom_val;
@@ -98,10 +109,50 @@ int runIdentify(const IdentifyArgs& a) {
     nom_val = evaluate(nominal_registered, validation);
   }
 
+  // Validation poses outside the joint ranges of the fit: per joint, how many and how far.
+  struct Outside {
+    int count = 0;
+    double max = 0;
+    std::vector<int> lines;
+  };
+  std::vector<Outside> outside(static_cast<size_t>(start.dof()));
+  int outside_rows = 0;
+  for (const Measurement& m : validation.rows) {
+    bool any = false;
+    for (int j = 0; j < start.dof(); ++j) {
+      const JointRange& c = s.coverage[static_cast<size_t>(j)];
+      const double d = m.q[j] < c.lower ? c.lower - m.q[j] : (m.q[j] > c.upper ? m.q[j] - c.upper : 0.0);
+      if (d <= 0) continue;
+      Outside& o = outside[static_cast<size_t>(j)];
+      ++o.count;
+      o.max = std::max(o.max, d);
+      if (o.lines.size() < 20) o.lines.push_back(m.line);
+      any = true;
+    }
+    outside_rows += any ? 1 : 0;
+  }
+  auto unitOf = [&](int j) { return start.nominal.joints[static_cast<size_t>(j)].type == JointType::kRevolute ? "deg" : "mm"; };
+
   // Report
-  const bool orient = data.has_orientation;
-  std::printf("accura identify: %s, %zu poses from %s (%s)\n", start.nominal.name.c_str(), data.rows.size(),
-              a.data.c_str(), orient ? "position and orientation" : "position only");
+  bool orient = true;
+  for (const auto& d : sets) orient = orient && d.has_orientation;
+  std::printf("accura identify: %s, %zu poses from %s (%s)\n", start.nominal.name.c_str(), n_rows,
+              data_names.c_str(), orient ? "position and orientation" : "position only");
+  if (sets.size() > 1) {
+    std::printf("data sets: %zu, %s\n", sets.size(),
+                opt.same_station ? "one tracker station shared (--same-station)"
+                                 : "each from its own tracker station (6 station parameters per set beyond the first)");
+    for (size_t k = 0; k < sets.size(); ++k) {
+      const XyzAbc b = toXyzAbc(s.T_world_base_per_set[k]);
+      std::printf("  %s: %zu poses, T_world_base %.3f, %.3f, %.3f mm, %.4f, %.4f, %.4f deg\n", sets[k].file.c_str(),
+                  sets[k].rows.size(), b.x_mm, b.y_mm, b.z_mm, b.a_deg, b.b_deg, b.c_deg);
+    }
+  }
+  std::printf("joint ranges of the fit data (the model is fitted there; joint-dependent effects are not "
+              "extrapolated beyond):");
+  for (int j = 0; j < start.dof(); ++j)
+    std::printf(" j%d %.1f..%.1f %s%s", j + 1, s.coverage[static_cast<size_t>(j)].lower,
+                s.coverage[static_cast<size_t>(j)].upper, unitOf(j), j + 1 < start.dof() ? ";" : "\n");
   std::printf("link forms:");
   for (int i = 0; i < start.dof(); ++i) std::printf(" j%d=%s", i + 1, start.forms[i] == LinkForm::kHayati ? "Hayati" : "DH");
   std::printf("\n");
@@ -118,6 +169,25 @@ int runIdentify(const IdentifyArgs& a) {
   if (std::isfinite(s.orientation_std_deg)) std::printf(" [orientation std %.4g deg]", s.orientation_std_deg);
   std::printf("; variance factor %.3f\n", s.variance_factor);
   std::printf("solver: %s\n", s.BriefReport().c_str());
+  if (!s.joint_map_cv.empty()) {
+    std::printf("joint_map: knot spacing and smoothness by blocked cross-validation (5 contiguous blocks of each "
+                "data set), held-out position RMS (mm); without maps %.4f:\n", s.joint_map_cv_baseline_mm);
+    for (const auto& c : s.joint_map_cv)
+      std::printf("  knot %-5g smoothing %-6g %.4f\n", c.knot, c.smoothing, c.cv_rms_mm);
+  }
+  for (const auto& mrep : s.joint_maps)
+    std::printf("joint_map j%d: %.1f..%.1f %s, knot %.3g %s, %d coefficients, smoothing %g; amplitude %.4g %s, "
+                "RMS over the fit data %.4g %s; zero outside the interval (taper of one knot)\n",
+                mrep.joint, mrep.lower, mrep.upper, mrep.unit.c_str(), mrep.knot, mrep.unit.c_str(), mrep.coefficients,
+                mrep.smoothing, mrep.amplitude, mrep.unit.c_str(), mrep.rms, mrep.unit.c_str());
+  for (const auto& w : s.warnings) std::printf("WARNING: %s\n", w.c_str());
+  if (!s.suspicious.empty()) {
+    std::printf("suspicious rows (normalised residual above the chi quantile 0.9999; check them for glitches):\n");
+    for (size_t k = 0; k < s.suspicious.size() && k < 20; ++k)
+      std::printf("  %s:%d  normalised %.1f, position error %.3f mm\n", s.suspicious[k].file.c_str(),
+                  s.suspicious[k].line, s.suspicious[k].normalised, s.suspicious[k].error_mm);
+    if (s.suspicious.size() > 20) std::printf("  ... and %zu more (see --json)\n", s.suspicious.size() - 20);
+  }
   if (!s.downweighted_lines.empty()) {
     std::printf("robust loss down-weighted %zu rows, lines:", s.downweighted_lines.size());
     for (int l : s.downweighted_lines) std::printf(" %d", l);
@@ -133,6 +203,17 @@ int runIdentify(const IdentifyArgs& a) {
   if (has_val) {
     std::printf("validation on %s, %d poses:\n", validation_source.c_str(), val.n);
     if (!station_note.empty()) std::printf("  %s\n", station_note.c_str());
+    if (outside_rows > 0) {
+      std::printf("  %d of %d validation poses lie outside the joint ranges of the fit data (joint-dependent effects "
+                  "are not extrapolated there):", outside_rows, val.n);
+      for (int j = 0; j < start.dof(); ++j) {
+        const Outside& o = outside[static_cast<size_t>(j)];
+        if (o.count > 0) std::printf(" j%d %d poses, up to %.1f %s;", j + 1, o.count, o.max, unitOf(j));
+      }
+      std::printf("\n");
+    } else {
+      std::printf("  every validation pose lies within the joint ranges of the fit data\n");
+    }
     printStatsRow("nominal", nom_val);
     printStatsRow("calibrated", val);
     if (val.rms_mm > 0)
@@ -146,7 +227,7 @@ int runIdentify(const IdentifyArgs& a) {
   for (const auto& p : s.parameters) records.push_back({p.name, p.value, p.sigma, p.unit});
   std::ostringstream comment;
   const XyzAbc b = toXyzAbc(calibrated.T_world_base()), t = toXyzAbc(calibrated.T_flange_tcp());
-  comment << "accura identify: " << calibrated.nominal.name << " from " << a.data << " (" << data.rows.size()
+  comment << "accura identify: " << calibrated.nominal.name << " from " << data_names << " (" << n_rows
           << " poses), groups " << a.params << "\n"
           << "calibrated T_world_base: " << fmt("%.4f", b.x_mm) << ", " << fmt("%.4f", b.y_mm) << ", "
           << fmt("%.4f", b.z_mm) << " mm, " << fmt("%.5f", b.a_deg) << ", " << fmt("%.5f", b.b_deg) << ", "
@@ -156,13 +237,14 @@ int runIdentify(const IdentifyArgs& a) {
           << fmt("%.5f", t.c_deg) << " deg\n"
           << "fit RMS " << fmt("%.4f", s.fit.rms_mm) << " mm"
           << (has_val ? ", validation RMS " + fmt("%.4f", val.rms_mm) + " mm (nominal " + fmt("%.4f", nom_val.rms_mm) + " mm)" : "");
+  for (const auto& w : s.warnings) comment << "\nWARNING: " << w;
   writeRobotFile(a.out, calibrated, records, comment.str());
   std::printf("wrote calibrated model %s\n", a.out.c_str());
 
   if (!a.json.empty()) {
     ordered_json j;
     j["robot"] = calibrated.nominal.name;
-    j["data"] = a.data;
+    j["data"] = a.data.size() == 1 ? ordered_json(a.data[0]) : ordered_json(a.data);
     j["validation_source"] = has_val ? ordered_json(validation_source) : ordered_json(nullptr);
     j["validation_station"] = has_val ? ordered_json(station_note.empty() ? "same as the fit" : station_note)
                                       : ordered_json(nullptr);
@@ -195,7 +277,45 @@ int runIdentify(const IdentifyArgs& a) {
                    {"model_error_mm", num(s.model_error_mm)},
                    {"model_error_deg", num(s.model_error_deg)}};
     j["downweighted_lines"] = s.downweighted_lines;
-    j["unused_columns"] = data.unknown_columns;
+    ordered_json cov = ordered_json::array();
+    for (int jn = 0; jn < start.dof(); ++jn)
+      cov.push_back({{"joint", jn + 1}, {"lower", num(s.coverage[static_cast<size_t>(jn)].lower)},
+                     {"upper", num(s.coverage[static_cast<size_t>(jn)].upper)}, {"unit", unitOf(jn)}});
+    j["fit_joint_ranges"] = cov;
+    ordered_json stations = ordered_json::array();
+    for (size_t k = 0; k < sets.size(); ++k) {
+      const XyzAbc b = toXyzAbc(s.T_world_base_per_set[k]);
+      stations.push_back({{"file", sets[k].file}, {"poses", sets[k].rows.size()},
+                          {"T_world_base", {num(b.x_mm), num(b.y_mm), num(b.z_mm), num(b.a_deg), num(b.b_deg), num(b.c_deg)}}});
+    }
+    j["data_sets"] = stations;
+    j["same_station"] = opt.same_station;
+    ordered_json maps = ordered_json::array();
+    for (const auto& mrep : s.joint_maps)
+      maps.push_back({{"joint", mrep.joint}, {"lower", num(mrep.lower)}, {"upper", num(mrep.upper)},
+                      {"knot", num(mrep.knot)}, {"coefficients", mrep.coefficients}, {"smoothing", num(mrep.smoothing)},
+                      {"amplitude", num(mrep.amplitude)}, {"rms", num(mrep.rms)}, {"unit", mrep.unit}});
+    j["joint_maps"] = maps;
+    ordered_json cvj = ordered_json::array();
+    for (const auto& c : s.joint_map_cv)
+      cvj.push_back({{"knot", num(c.knot)}, {"smoothing", num(c.smoothing)}, {"cv_rms_mm", num(c.cv_rms_mm)}});
+    j["joint_map_cv"] = {{"baseline_rms_mm", num(s.joint_map_cv_baseline_mm)}, {"candidates", cvj}};
+    ordered_json sus = ordered_json::array();
+    for (const auto& r : s.suspicious)
+      sus.push_back({{"file", r.file}, {"line", r.line}, {"normalised", num(r.normalised)}, {"error_mm", num(r.error_mm)}});
+    j["suspicious_rows"] = sus;
+    j["warnings"] = s.warnings;
+    if (has_val) {
+      ordered_json out = ordered_json::array();
+      for (int jn = 0; jn < start.dof(); ++jn) {
+        const Outside& o = outside[static_cast<size_t>(jn)];
+        if (o.count > 0)
+          out.push_back({{"joint", jn + 1}, {"poses", o.count}, {"max_beyond", num(o.max)}, {"unit", unitOf(jn)},
+                         {"first_lines", o.lines}});
+      }
+      j["validation_outside_fit_ranges"] = {{"poses", outside_rows}, {"joints", out}};
+    }
+    j["unused_columns"] = sets[0].unknown_columns;
     writeTextAtomically(a.json, j.dump(2) + "\n");
   }
   return 0;
@@ -207,7 +327,14 @@ void addIdentifyCommand(CLI::App& app) {
   auto id = std::make_shared<IdentifyArgs>();
   auto* cid = app.add_subcommand("identify", "identify the robot's parameters from measurements");
   cid->add_option("--robot", id->robot, "nominal or calibrated robot (file or bundled name)")->required();
-  cid->add_option("--data", id->data, "measurement CSV to fit")->required();
+  cid->add_option("--data", id->data,
+                  "measurement CSV to fit; give it more than once for several data sets, each from its own tracker "
+                  "station (6 parameters each) unless --same-station")
+      ->required();
+  cid->add_flag("--same-station", id->same_station, "the --data files were measured from one tracker station");
+  cid->add_option("--map-smoothing", id->map_smoothing,
+                  "joint_map smoothness (relative weight of the second differences; default: chosen by blocked "
+                  "cross-validation on the fit data)");
   cid->add_option("--validate", id->validate, "held-out measurement CSV (same station)");
   cid->add_option("--map", id->map, "mapping file: how to read --data (and --validate) as exported by the instrument");
   cid->add_option("--validate-map", id->validate_map, "mapping file for --validate when it differs from --map");
@@ -222,7 +349,9 @@ void addIdentifyCommand(CLI::App& app) {
   cid->add_option("--tool", id->tool, "nominal T_flange_tcp x,y,z[,A,B,C] (mm, deg)");
   cid->add_option("--params", id->params,
                   "parameter groups: geometric (default) = base,tool,offsets,lengths,angles; and the effect catalogue: "
-                  "joint_compliance, gear_periodic, joint_scale, backlash, thermal")
+                  "joint_compliance, gear_periodic, joint_scale, backlash, thermal, joint_map. Restrict to joints with "
+                  ":j1+j2; joint_map takes a knot spacing with @, e.g. joint_map:j1+j2+j3@3deg (default: chosen by "
+                  "blocked cross-validation)")
       ->capture_default_str();
   cid->add_option("--form", id->form, "auto (Hayati for parallel axes) or dh (force classic DH)")
       ->capture_default_str();

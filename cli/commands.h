@@ -35,7 +35,9 @@ struct SimulateArgs {
 
 struct IdentifyArgs {
   std::string robot;
-  std::string data;
+  std::vector<std::string> data;  // one or more files (each its own station unless same_station)
+  bool same_station = false;
+  double map_smoothing = -1;      // <0: joint_map smoothness chosen by cross-validation
   std::string validate;
   std::string map;             // mapping file for --data (and --validate) exports
   std::string validate_map;    // mapping file for --validate when it differs

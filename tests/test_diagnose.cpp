@@ -312,7 +312,7 @@ TEST(Diagnose, CommandWritesJsonWithTheNamedKeysAndAReport) {
   ASSERT_TRUE(j["baseline"].contains("validation_rms_mm"));
   ASSERT_TRUE(j["baseline"].contains("validation_max_mm"));
   ASSERT_TRUE(j["ranking"].is_array());
-  ASSERT_EQ(j["ranking"].size(), 5u);
+  ASSERT_EQ(j["ranking"].size(), 6u);  // the catalogue, joint_map included
   std::set<std::string> effects;
   for (const auto& e : j["ranking"]) {
     effects.insert(e["effect"].get<std::string>());
@@ -320,7 +320,7 @@ TEST(Diagnose, CommandWritesJsonWithTheNamedKeysAndAReport) {
     EXPECT_TRUE(e.contains("validation_rms_before_mm"));
     EXPECT_TRUE(e.contains("validation_rms_after_mm"));
   }
-  EXPECT_EQ(effects, (std::set<std::string>{"joint_compliance", "gear_periodic", "joint_scale", "backlash", "thermal"}));
+  EXPECT_EQ(effects, (std::set<std::string>{"joint_compliance", "gear_periodic", "joint_scale", "backlash", "thermal", "joint_map"}));
   ASSERT_TRUE(j["selected"].is_array());
   EXPECT_EQ(j["verdict"]["effect"], "thermal");
   EXPECT_TRUE(j["verdict"]["joints"].is_array());

@@ -6,6 +6,7 @@
 #include <string>
 
 #include "accura/calib/errors.h"
+#include "accura/calib/joint_map.h"
 #include "accura/calib/geometry.h"
 #include "accura/calib/kinematics.h"
 
@@ -45,11 +46,13 @@ inline void cosSinFrom(double theta, double theta0, double c0, double s0, double
 }
 
 /// The joint-space effects of the catalogue (docs/diagnosis.md) on link L at joint value
-/// `qi` (rad for a revolute joint, mm for a prismatic one) with approach direction `dir`
+/// `qi` (rad for a revolute joint, mm for a prismatic one; `q` the same value as the
+/// controller reads it: deg or mm) with approach direction `dir`
 /// (+1 / -1; 0 when unknown): returns the term added to theta_i (rad) or d_i (mm), and adds
 /// its derivative with respect to qi to `rate`. Every joint-space effect is written here
 /// once (its table in KinematicModel::Link; its parameter columns in parameterJacobian).
-inline double jointEffects(const KinematicModel::Link& L, int harmonics, double qi, double dir, double& rate) {
+inline double jointEffects(const KinematicModel::Link& L, int harmonics, double qi, double q, double dir,
+                           double& rate) {
   double t = 0;
   // joint_scale: k_i q_i
   if (L.joint_scale != 0.0) {
@@ -66,6 +69,12 @@ inline double jointEffects(const KinematicModel::Link& L, int harmonics, double 
       t += gs * sh + gc * ch;
       rate += h * (gs * ch - gc * sh);
     }
+  }
+  // joint_map: m_i(q) over the covered range (joint_map.h); its slope is per deg (revolute)
+  if (!L.map.empty()) {
+    double slope = 0;
+    t += jointMapValue(L.map, q, &slope);
+    rate += L.revolute ? slope * kRadToDeg : slope;
   }
   return t;
 }
@@ -116,9 +125,10 @@ KinematicModel::KinematicModel(const RobotModel& model) {
         if (L.gs[static_cast<size_t>(h)] != 0.0 || L.gc[static_cast<size_t>(h)] != 0.0) L.gear = true;
       }
     }
-    L.any_effect = L.joint_scale != 0.0 || L.half_backlash != 0.0 || L.gear;
+    if (!dev.joint_map.empty()) L.map = dev.joint_map[static_cast<size_t>(i)];
+    L.any_effect = L.joint_scale != 0.0 || L.half_backlash != 0.0 || L.gear || !L.map.empty();
     if (L.compliance != 0.0) compliant_ = true;
-    if (L.joint_scale != 0.0 || L.gear) any_joint_effect_ = true;
+    if (L.joint_scale != 0.0 || L.gear || !L.map.empty()) any_joint_effect_ = true;
     L.nom_theta0 = j.theta0_deg * kDegToRad;
     L.nom_d = j.d_mm;
     L.nom_a = j.a_mm;
@@ -247,7 +257,7 @@ void KinematicModel::evaluate(const double* q, const PoseContext& context, Kinem
     if (effects && L.any_effect) {
       const double qi = L.revolute ? q[i] * kDegToRad : q[i];
       const double dir = context.dir.empty() ? 0.0 : (context.dir[k] >= 0 ? 1.0 : -1.0);
-      extra = jointEffects(L, harmonics_, qi, dir, rate);
+      extra = jointEffects(L, harmonics_, qi, q[i], dir, rate);
     }
     f.rate[k] = rate;
     double theta = L.theta_c, d = L.d_c * scale;
@@ -456,6 +466,9 @@ Eigen::Isometry3d KinematicModel::parameterJacobian(const std::vector<ParamInfo>
         break;
       case ParamKind::kJointScale:
         jointMotion(q_joint);
+        break;
+      case ParamKind::kJointMap:
+        jointMotion(jointMapBasisValue(L.map, q[i], P.index));
         break;
       case ParamKind::kBacklash: {
         if (!context.dir.empty() && static_cast<int>(context.dir.size()) <= i)

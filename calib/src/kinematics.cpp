@@ -33,7 +33,7 @@ bool sameIsometry(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
 // Every value the kinematic core reads. A new field of the model must be compared here and
 // prepared in KinematicModel; the size checks below fail to compile until it is (x86-64).
 #if defined(__x86_64__) && defined(__GLIBCXX__)
-static_assert(sizeof(Deviations) == 256, "Deviations changed: compare the new field in sameKinematics()");
+static_assert(sizeof(Deviations) == 304, "Deviations changed: compare the new field in sameKinematics()");
 static_assert(sizeof(JointSpec) == 128, "JointSpec changed: compare the new field in sameKinematics()");
 static_assert(sizeof(LinkDeviation) == 40, "LinkDeviation changed: compare the new field in sameKinematics()");
 #endif
@@ -55,8 +55,15 @@ bool sameKinematics(const RobotModel& a, const RobotModel& b) {
       !sameVector(p.tool_mm, r.tool_mm) || !sameVector(p.tool_rot_rad, r.tool_rot_rad) ||
       p.gear_harmonics != r.gear_harmonics || p.thermal_alpha_per_k != r.thermal_alpha_per_k ||
       p.compliance != r.compliance || p.gear_sin != r.gear_sin || p.gear_cos != r.gear_cos ||
-      p.joint_scale != r.joint_scale || p.backlash != r.backlash || p.links.size() != r.links.size())
+      p.joint_scale != r.joint_scale || p.backlash != r.backlash || p.links.size() != r.links.size() ||
+      p.joint_map.size() != r.joint_map.size())
     return false;
+  for (size_t i = 0; i < p.joint_map.size(); ++i) {
+    const JointMap &x = p.joint_map[i], &y = r.joint_map[i];
+    if (x.lower != y.lower || x.upper != y.upper || x.intervals != y.intervals || x.taper != y.taper ||
+        x.coef != y.coef)
+      return false;
+  }
   for (size_t i = 0; i < p.links.size(); ++i) {
     const LinkDeviation &x = p.links[i], &y = r.links[i];
     if (x.dtheta_rad != y.dtheta_rad || x.dd_mm != y.dd_mm || x.da_mm != y.da_mm || x.dalpha_rad != y.dalpha_rad ||
@@ -164,12 +171,13 @@ std::vector<std::pair<std::string, std::string>> parameterGroups() {
       {"joint_scale", "dtheta_i = k_i q_i, gear ratio or encoder scale error (ppm)"},
       {"backlash", "dtheta_i = (b_i / 2) dir_i, from the dirN columns (deg; mm for prismatic joints)"},
       {"thermal", "a_i, d_i scale by 1 + alpha (temp_c - 20 C), one alpha per robot (ppm/K)"},
+      {"joint_map", "dtheta_i = m_i(q_i), a smooth map over the joint's own angle where the fit data cover it (deg)"},
   };
 }
 
 const std::vector<std::string>& effectCatalogue() {
   static const std::vector<std::string> names = {"joint_compliance", "gear_periodic", "joint_scale", "backlash",
-                                                 "thermal"};
+                                                 "thermal", "joint_map"};
   return names;
 }
 
@@ -224,6 +232,13 @@ std::vector<ParamInfo> parameterLayout(const RobotModel& model) {
                  revolute ? "deg" : "mm", revolute ? deg : 1.0});
   }
   L.push_back({ParamKind::kThermal, -1, "thermal_alpha", "thermal", "ppm/K", 1e6});
+  for (int i = 0; i < model.dof() && !model.deviations.joint_map.empty(); ++i) {
+    const JointMap& jm = model.deviations.joint_map[static_cast<size_t>(i)];
+    const bool revolute = model.nominal.joints[i].type == JointType::kRevolute;
+    for (int k = 0; k < static_cast<int>(jm.coef.size()); ++k)
+      L.push_back({ParamKind::kJointMap, i, "j" + std::to_string(i + 1) + "_map_" + std::to_string(k), "joint_map",
+                   revolute ? "deg" : "mm", revolute ? deg : 1.0, 0, k});
+  }
   return L;
 }
 
@@ -258,6 +273,15 @@ double* slot(Deviations& dev, const ParamInfo& p) {
     case ParamKind::kCompliance: return &dev.compliance[p.joint];
     case ParamKind::kJointScale: return &dev.joint_scale[p.joint];
     case ParamKind::kBacklash: return &dev.backlash[p.joint];
+    case ParamKind::kJointMap: {
+      if (p.joint < 0 || p.joint >= static_cast<int>(dev.joint_map.size()))
+        throw ArgumentError("parameter " + p.name + ": the model has no joint map on joint " + std::to_string(p.joint + 1));
+      std::vector<double>& c = dev.joint_map[static_cast<size_t>(p.joint)].coef;
+      if (p.index < 0 || p.index >= static_cast<int>(c.size()))
+        throw ArgumentError("parameter " + p.name + ": joint map coefficient " + std::to_string(p.index) +
+                            " out of range 0.." + std::to_string(static_cast<int>(c.size()) - 1));
+      return &c[static_cast<size_t>(p.index)];
+    }
     case ParamKind::kGearSin:
     case ParamKind::kGearCos: {
       const int H = dev.gear_harmonics;

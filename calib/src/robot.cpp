@@ -32,6 +32,7 @@ Deviations Deviations::zero(int dof, int gear_harmonics) {
   d.gear_cos.assign(static_cast<size_t>(dof * gear_harmonics), 0.0);
   d.joint_scale.assign(dof, 0.0);
   d.backlash.assign(dof, 0.0);
+  d.joint_map.assign(dof, JointMap{});
   return d;
 }
 
@@ -83,6 +84,26 @@ void RobotModel::validate() const {
   check(deviations.gear_cos, n * static_cast<size_t>(H), "gear_periodic cosine");
   check(deviations.joint_scale, n, "joint_scale");
   check(deviations.backlash, n, "backlash");
+  if (deviations.joint_map.size() != n)
+    throw ArgumentError("robot model: expected " + std::to_string(n) + " joint maps (empty or not), got " +
+                        std::to_string(deviations.joint_map.size()));
+  for (size_t i = 0; i < n; ++i) {
+    const JointMap& m = deviations.joint_map[i];
+    if (m.empty()) continue;
+    const std::string j = "robot model: joint_map of joint " + std::to_string(i + 1) + ": ";
+    if (!(std::isfinite(m.lower) && std::isfinite(m.upper) && m.lower < m.upper))
+      throw ArgumentError(j + "expected lower < upper, got " + std::to_string(m.lower) + ", " + std::to_string(m.upper));
+    if (m.intervals < 1 || m.coef.size() != static_cast<size_t>(m.intervals) + 3)
+      throw ArgumentError(j + "expected intervals + 3 = " + std::to_string(m.intervals + 3) + " coefficients, got " +
+                          std::to_string(m.coef.size()));
+    if (!(std::isfinite(m.taper) && m.taper > 0))
+      throw ArgumentError(j + "expected a taper width > 0, got " + std::to_string(m.taper));
+    for (double c : m.coef)
+      if (!std::isfinite(c)) throw ArgumentError(j + "non-finite coefficient");
+  }
+  if (!deviations.fit_range.empty() && deviations.fit_range.size() != n)
+    throw ArgumentError("robot model: expected " + std::to_string(n) + " fitted joint ranges or none, got " +
+                        std::to_string(deviations.fit_range.size()));
 }
 
 }  // namespace accura

@@ -15,6 +15,7 @@
 #include "accura/calib/errors.h"
 #include "accura/calib/file_io.h"
 #include "accura/calib/text.h"
+#include "accura/calib/joint_map.h"
 #include "accura/calib/kinematics.h"
 #include "accura/calib/urdf.h"
 
@@ -194,9 +195,59 @@ RobotModel readRobotFile(const std::string& path) {
   if (cal) {
     const std::vector<ParamInfo> layout = parameterLayout(model);
     std::set<std::string> seen;
+    model.deviations.fit_range.clear();
+    std::vector<JointRange> ranges(static_cast<size_t>(model.dof()));
+    std::set<int> range_seen;
     for (const XMLElement* p = cal->FirstChildElement(); p; p = p->NextSiblingElement()) {
-      if (std::string(p->Name()) != "parameter")
-        R.fail(p, "expected <parameter> in <calibration>, found <" + std::string(p->Name()) + ">");
+      const std::string tag = p->Name();
+      if (tag == "joint_map" || tag == "fit_range") {
+        const int dof = model.dof();
+        const double jv = R.number(p, "joint");
+        if (jv != std::floor(jv) || jv < 1 || jv > dof)
+          R.fail(p, "<" + tag + "> attribute 'joint': expected 1.." + std::to_string(dof) + ", found '" +
+                        R.text(p, "joint") + "'");
+        const int j = static_cast<int>(jv) - 1;
+        const bool revolute = model.nominal.joints[static_cast<size_t>(j)].type == JointType::kRevolute;
+        const std::string unit = R.text(p, "unit");
+        if (unit != (revolute ? "deg" : "mm"))
+          R.fail(p, "<" + tag + "> of joint " + std::to_string(j + 1) + ": expected unit '" +
+                        (revolute ? "deg" : "mm") + "', found '" + unit + "'");
+        const double lower = R.number(p, "lower"), upper = R.number(p, "upper");
+        if (!(lower < upper))
+          R.fail(p, "<" + tag + ">: expected lower < upper, found lower " + fmt(lower) + ", upper " + fmt(upper));
+        if (tag == "fit_range") {
+          R.checkAttributes(p, {"joint", "lower", "upper", "unit"});
+          if (!range_seen.insert(j).second) R.fail(p, "<fit_range> of joint " + std::to_string(j + 1) + " given twice");
+          ranges[static_cast<size_t>(j)] = {lower, upper};
+          continue;
+        }
+        R.checkAttributes(p, {"joint", "lower", "upper", "intervals", "taper", "unit"});
+        JointMap& m = model.deviations.joint_map[static_cast<size_t>(j)];
+        if (!m.empty()) R.fail(p, "<joint_map> of joint " + std::to_string(j + 1) + " given twice");
+        const double iv = R.number(p, "intervals");
+        if (iv != std::floor(iv) || iv < 1 || iv > 100000)
+          R.fail(p, "<joint_map> attribute 'intervals': expected an integer >= 1, found '" + R.text(p, "intervals") + "'");
+        m.lower = lower;
+        m.upper = upper;
+        m.intervals = static_cast<int>(iv);
+        m.taper = R.number(p, "taper");
+        if (!(m.taper > 0)) R.fail(p, "<joint_map> attribute 'taper': expected > 0, found " + fmt(m.taper));
+        const double scale = revolute ? kRadToDeg : 1.0;
+        std::istringstream values(p->GetText() ? p->GetText() : "");
+        for (std::string v; values >> v;) {
+          char* end = nullptr;
+          const double x = std::strtod(v.c_str(), &end);
+          if (end == v.c_str() || *end != '\0' || !std::isfinite(x))
+            R.fail(p, "<joint_map> of joint " + std::to_string(j + 1) + ": expected finite numbers, found '" + v + "'");
+          m.coef.push_back(x / scale);
+        }
+        if (m.coef.size() != static_cast<size_t>(m.intervals) + 3)
+          R.fail(p, "<joint_map> of joint " + std::to_string(j + 1) + ": expected intervals + 3 = " +
+                        std::to_string(m.intervals + 3) + " values, found " + std::to_string(m.coef.size()));
+        continue;
+      }
+      if (tag != "parameter")
+        R.fail(p, "expected <parameter>, <joint_map> or <fit_range> in <calibration>, found <" + tag + ">");
       R.checkAttributes(p, {"name", "value", "sigma", "unit"});
       const std::string name = R.text(p, "name");
       auto it = std::find_if(layout.begin(), layout.end(),
@@ -213,6 +264,12 @@ RobotModel readRobotFile(const std::string& path) {
         const std::string s = R.text(p, "sigma");
         if (s != "nan") R.number(p, "sigma");  // validated, informative only
       }
+    }
+    if (!range_seen.empty()) {
+      if (static_cast<int>(range_seen.size()) != model.dof())
+        R.fail(cal, "<calibration>: expected a <fit_range> for every joint or none, found " +
+                        std::to_string(range_seen.size()) + " of " + std::to_string(model.dof()));
+      model.deviations.fit_range = ranges;
     }
   }
   return model;
@@ -257,6 +314,7 @@ void writeRobotFile(const std::string& path, const RobotModel& model,
   std::ostringstream params;
   for (const ParamInfo& p : layout) {
     const double v = getParameter(model.deviations, p) * p.display_scale;
+    if (p.kind == ParamKind::kJointMap) continue;  // written as <joint_map> below
     auto it = by_name.find(p.name);
     if (v == 0.0 && it == by_name.end()) continue;
     params << "    <parameter name=\"" << p.name << "\" value=\"" << fmt(v) << "\"";
@@ -264,6 +322,23 @@ void writeRobotFile(const std::string& path, const RobotModel& model,
       params << " sigma=\"" << (std::isfinite(it->second->sigma) ? fmt(it->second->sigma) : "nan") << "\"";
     }
     params << " unit=\"" << p.unit << "\"/>\n";
+  }
+  // joint maps (values in deg or mm, one per coefficient) and the fitted joint ranges
+  for (int i = 0; i < model.dof(); ++i) {
+    const JointMap& m = model.deviations.joint_map[static_cast<size_t>(i)];
+    if (m.empty()) continue;
+    const bool revolute = d.joints[static_cast<size_t>(i)].type == JointType::kRevolute;
+    params << "    <joint_map joint=\"" << i + 1 << "\" lower=\"" << fmt(m.lower) << "\" upper=\"" << fmt(m.upper)
+           << "\" intervals=\"" << m.intervals << "\" taper=\"" << fmt(m.taper) << "\" unit=\""
+           << (revolute ? "deg" : "mm") << "\">";
+    for (size_t k = 0; k < m.coef.size(); ++k)
+      params << (k % 8 == 0 ? "\n      " : " ") << fmt(m.coef[k] * (revolute ? kRadToDeg : 1.0));
+    params << "\n    </joint_map>\n";
+  }
+  for (size_t i = 0; i < model.deviations.fit_range.size(); ++i) {
+    const JointRange& r = model.deviations.fit_range[i];
+    params << "    <fit_range joint=\"" << i + 1 << "\" lower=\"" << fmt(r.lower) << "\" upper=\"" << fmt(r.upper)
+           << "\" unit=\"" << (d.joints[i].type == JointType::kRevolute ? "deg" : "mm") << "\"/>\n";
   }
   if (!params.str().empty() || dh) {
     out << "  <calibration form=\"" << (dh ? "dh" : "auto") << "\">\n" << params.str()

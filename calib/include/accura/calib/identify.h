@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "accura/calib/joint_map.h"
 #include "accura/calib/measurements.h"
 #include "accura/calib/robot.h"
 
@@ -15,8 +16,22 @@ namespace accura {
 struct IdentifyOptions {
   /// Parameter groups to identify (see parameterGroups()): "geometric" (= base, tool,
   /// offsets, lengths, angles) and/or single groups and the effects ("joint_compliance", ...).
-  /// A group may be restricted to some joints: "gear_periodic:j1+j2".
+  /// A group may be restricted to some joints: "gear_periodic:j1+j2". joint_map may also state
+  /// its knot spacing: "joint_map@3deg", "joint_map:j1+j2+j3@3deg" (deg for revolute joints,
+  /// the same number in mm for prismatic ones); this overrides joint_map_knot.
   std::vector<std::string> groups = {"geometric"};
+  /// joint_map: knot spacing (deg for revolute joints, mm for prismatic ones) and relative
+  /// smoothness weight (the second differences of the coefficients weighted sqrt(smoothing)
+  /// times the RMS norm of the map's weighted Jacobian columns). NaN (the default): chosen by
+  /// blocked cross-validation on the fit data (kJointMapKnotCandidates x
+  /// kJointMapSmoothingCandidates; contiguous blocks of each data set's rows as folds, which
+  /// keeps repeated configurations together and holds out regions of the slowly varying joints).
+  double joint_map_knot = std::numeric_limits<double>::quiet_NaN();
+  double joint_map_smoothing = std::numeric_limits<double>::quiet_NaN();
+  /// Several data sets (identify's vector overload): false (the default) = each set was measured
+  /// from its own tracker station (6 station parameters per set beyond the first); true = they
+  /// share one station.
+  bool same_station = false;
   /// Closed-form registration of T_world_base (and the tool point) before the iterations:
   /// the measurement frame may be anywhere. Only when "base" is identified.
   bool register_frame = true;
@@ -67,6 +82,36 @@ struct ParameterEstimate {
   double sigma = 0;  ///< one standard deviation, display units
 };
 
+/// Candidates of the joint_map cross-validation: knot spacing (deg or mm) and smoothness.
+inline const std::vector<double>& jointMapKnotCandidates() {
+  static const std::vector<double> v = {1.5, 2.0, 3.0};
+  return v;
+}
+inline const std::vector<double>& jointMapSmoothingCandidates() {
+  static const std::vector<double> v = {0.001, 0.003, 0.01, 0.03};
+  return v;
+}
+
+/// A fitted joint map, for reports.
+struct JointMapReport {
+  int joint = 0;                   ///< 1-based
+  std::string unit;                ///< deg or mm
+  double lower = 0, upper = 0;     ///< covered interval (unit)
+  double knot = 0;                 ///< knot spacing (unit)
+  int coefficients = 0;
+  double smoothing = 0;
+  double amplitude = 0;            ///< largest |m(q)| on the interval (unit)
+  double rms = 0;                  ///< RMS of m(q) over the fit data (unit)
+};
+
+/// A row whose normalised residual is far beyond what the others show.
+struct SuspiciousRow {
+  std::string file;
+  int line = 0;
+  double normalised = 0;  ///< |weighted residual| / its robust scale (chi with dim dof)
+  double error_mm = 0;    ///< position error of the fitted model (mm)
+};
+
 struct IdentifySummary {
   std::string termination;     ///< Ceres' termination reason and message
   int iterations = 0;
@@ -87,6 +132,20 @@ struct IdentifySummary {
   std::vector<ParameterEstimate> parameters;
   std::vector<int> downweighted_lines;  ///< source lines the robust loss down-weighted
   ErrorStats fit;
+  /// Range of each joint's values in the fit data (deg or mm; all data sets together).
+  std::vector<JointRange> coverage;
+  /// T_world_base as seen from each data set's station (one per data set; all equal to the
+  /// model's T_world_base when they share one station).
+  std::vector<Eigen::Isometry3d> T_world_base_per_set;
+  std::vector<JointMapReport> joint_maps;
+  /// The joint_map cross-validation (empty when knot and smoothing were given).
+  std::vector<JointMapCvCandidate> joint_map_cv;
+  double joint_map_cv_baseline_mm = 0;  ///< held-out RMS of the same folds without maps
+  /// Rows with a normalised residual above the chi quantile 0.9999 (file:line).
+  std::vector<SuspiciousRow> suspicious;
+  /// Physically implausible estimates and other warnings (negative compliance, thermal
+  /// coefficient of the wrong sign or size, gear or map amplitude above a degree, maps left out).
+  std::vector<std::string> warnings;
 
   /// One line: termination, iterations, cost before/after, fit RMS, condition number.
   std::string BriefReport() const;
@@ -98,6 +157,11 @@ struct IdentifySummary {
 /// parameters asked for, ArgumentError on invalid options, NumericalError when the
 /// registration is degenerate (collinear points) or the solver fails.
 RobotModel identify(const RobotModel& start, const MeasurementSet& data,
+                    const IdentifyOptions& options, IdentifySummary* summary);
+/// The same on several data sets at once: each from its own tracker station (6 parameters per
+/// set beyond the first; the returned model's T_world_base is the first set's station) unless
+/// options.same_station. Throws ArgumentError when `data` is empty.
+RobotModel identify(const RobotModel& start, const std::vector<MeasurementSet>& data,
                     const IdentifyOptions& options, IdentifySummary* summary);
 
 /// Re-registers the measurement station: T_world_base alone (6 parameters: closed-form

@@ -138,6 +138,7 @@ class KinematicModel {
     double half_backlash = 0;
     bool gear = false;
     std::array<double, kMaxGearHarmonics> gs{}, gc{};
+    JointMap map;  ///< joint_map (empty: none)
     // nominal geometry for the gravity loads
     double nom_theta0 = 0, nom_d = 0, nom_a = 0, nom_ca = 1, nom_sa = 0;
     double mass = 0;
@@ -156,7 +157,7 @@ class KinematicModel {
   double thermal_alpha_ = 0;
   bool compliant_ = false;
   bool backlash_ = false;
-  bool any_joint_effect_ = false;  ///< an effect that depends on q (joint_scale, gear_periodic)
+  bool any_joint_effect_ = false;  ///< an effect that depends on q (joint_scale, gear_periodic, joint_map)
   Eigen::Vector3d gravity_ = Eigen::Vector3d::Zero();
   Eigen::Vector3d payload_com_ = Eigen::Vector3d::Zero();
   double length_scale_mm_ = 1;

@@ -94,6 +94,7 @@ enum class ParamKind {
   kJointScale,  ///< joint_scale k_i
   kBacklash,    ///< backlash b_i (full width)
   kThermal,     ///< thermal expansion coefficient alpha (one per robot, joint = -1)
+  kJointMap,    ///< joint_map: B-spline coefficient ParamInfo::index of joint's map (joint_map.h)
 };
 
 /// One scalar parameter. Internal units: mm, rad, rad/(N*m) or mm/N.
@@ -106,6 +107,7 @@ struct ParamInfo {
   std::string unit;        ///< display unit: mm, deg, urad/Nm, um/N, ppm, ppm/K
   double display_scale;    ///< display value = internal value * display_scale
   int harmonic = 0;        ///< 1..H for kGearSin / kGearCos, else 0
+  int index = 0;           ///< coefficient index for kJointMap, else 0
 };
 
 /// Every parameter the model can carry, in a fixed order: base (6), tool (6), per joint
@@ -113,7 +115,8 @@ struct ParamInfo {
 /// a, alpha, beta; prismatic: theta, a, alpha [, beta]), then compliance per joint, then the
 /// effect catalogue: gear_periodic per revolute joint (jN_gear_s1, jN_gear_c1, ... up to
 /// harmonic H; deg), joint_scale per joint (jN_scale; ppm), backlash per joint
-/// (jN_backlash; deg or mm), thermal (thermal_alpha; ppm/K).
+/// (jN_backlash; deg or mm), thermal (thermal_alpha; ppm/K), then joint_map for each joint
+/// whose map is not empty (jN_map_K, K = 0..intervals+2; deg or mm).
 /// The order is also the priority used when dependent parameters are fixed.
 std::vector<ParamInfo> parameterLayout(const RobotModel& model);
 

@@ -75,6 +75,28 @@ constexpr int kMaxGearHarmonics = 4;
 /// (and their identified deviations) are the lengths at this temperature.
 constexpr double kThermalReferenceC = 20.0;
 
+/// joint_map: a per-joint 1-D error map over the joint's own value q (calib/joint_map.h).
+/// A uniform cubic B-spline on the covered interval [lower, upper] (the range of q the fit
+/// data cover; deg for a revolute joint, mm for a prismatic one) with `intervals` knot
+/// intervals of width knot = (upper - lower) / intervals and intervals + 3 coefficients.
+/// Outside the interval the map goes to zero: its value at the nearer end times a cosine taper
+/// that falls from 1 to 0 over `taper` (same unit as q), zero beyond: continuous in q.
+/// Empty (no coefficients) = no map on this joint.
+struct JointMap {
+  double lower = 0;          ///< start of the covered interval (deg or mm)
+  double upper = 0;          ///< end of the covered interval (deg or mm)
+  int intervals = 0;         ///< number of knot intervals (>= 1 when coef is not empty)
+  double taper = 0;          ///< width of the taper to zero outside [lower, upper] (> 0)
+  std::vector<double> coef;  ///< B-spline coefficients: rad (revolute) or mm (prismatic)
+  bool empty() const { return coef.empty(); }
+  double knot() const { return intervals > 0 ? (upper - lower) / intervals : 0.0; }
+};
+
+/// Range of a joint's values covered by the data a model was fitted on (deg or mm).
+struct JointRange {
+  double lower = 0, upper = 0;
+};
+
 /// Deviations of one link from nominal (internal units: mm, rad).
 struct LinkDeviation {
   double dtheta_rad = 0;  ///< joint zero offset (revolute) / rotation about z (prismatic)
@@ -116,6 +138,13 @@ struct Deviations {
   /// constant part of d_i) scale by (1 + thermal_alpha * (temp_c - kThermalReferenceC)),
   /// 1/K; one coefficient for the whole arm. Base and tool are not scaled.
   double thermal_alpha_per_k = 0;
+  /// joint_map: dtheta_i = m_i(q_i) (rad; prismatic: dd_i = m_i(q_i), mm), one JointMap per
+  /// joint (empty when the joint has none). See JointMap and calib/joint_map.h.
+  std::vector<JointMap> joint_map;
+  /// The joint ranges of the data the model was fitted on (one per joint; empty when not
+  /// known, e.g. a nominal robot). Informative: written in the model file so that users of the
+  /// model can tell when a pose lies outside what the fit saw.
+  std::vector<JointRange> fit_range;
 
   /// Zero deviations sized for `dof` joints and `gear_harmonics` harmonics (1..4).
   static Deviations zero(int dof, int gear_harmonics = kDefaultGearHarmonics);

@@ -1,0 +1,102 @@
+// accura: the joint_map effect (docs/diagnosis.md, docs/method.md): per joint a smooth 1-D
+// error map over the joint's own value, dtheta_i = m_i(q_i) (rad; prismatic joints dd_i in mm).
+//
+// The map is a uniform cubic B-spline on the interval [lower, upper] of q that the fit data
+// cover (see JointMap in robot.h). Outside that interval it is not extrapolated: its value at
+// the nearer end is multiplied by a cosine taper 0.5 (1 + cos(pi s / taper)), s the distance
+// beyond the end (0 <= s <= taper), and is zero beyond: continuous in q, zero where the fit
+// had no data. Everything here is linear in the coefficients.
+//
+// q is the controller's joint value: deg (revolute) or mm (prismatic), as everywhere in the
+// kinematics.
+#pragma once
+
+#include <Eigen/Core>
+#include <string>
+#include <vector>
+
+#include "accura/calib/robot.h"
+
+namespace accura {
+
+/// The map's value at q (rad or mm). Zero for an empty map. With `slope`, also dm/dq (rad per
+/// deg, or mm per mm).
+double jointMapValue(const JointMap& map, double q, double* slope = nullptr);
+
+/// The basis of the map at q: m(q) = sum_{k=0..3} w[k] coef[first + k]. Returns `first`
+/// (0 .. intervals-1); the weights include the taper outside the interval (all zero beyond it).
+/// Returns -1 for an empty map.
+int jointMapBasis(const JointMap& map, double q, double w[4]);
+
+/// d m(q) / d coef[k] (dimensionless): the k-th basis function at q, taper included.
+double jointMapBasisValue(const JointMap& map, double q, int k);
+
+/// A zero map on [lower, upper] (deg or mm) with knot spacing close to `knot` (the interval is
+/// divided into ceil((upper - lower) / knot) equal intervals, at least 1) and a taper width of
+/// one knot spacing. Throws ArgumentError when lower >= upper or knot <= 0 (or non-finite).
+JointMap makeJointMap(double lower, double upper, double knot);
+
+/// The largest |m(q)| over the covered interval (rad or mm), sampled at 8 points per interval.
+double jointMapAmplitude(const JointMap& map);
+
+/// The rows of the map's regularisation on the coefficients, for identification:
+///   smoothness: the second differences coef[k-1] - 2 coef[k] + coef[k+1], k = 1..K-2;
+///   centring: the means over `q_fit` (the fit data's values of this joint) of m(q) times 1,
+///   (q - q_mean) / q_sd and, for h = 1..harmonics, sin(h q) and cos(h q) (q in rad), which the
+///   constraint drives to zero: the map carries no constant (a joint offset), no linear trend (a
+///   joint scale) and no low harmonics (what geometry, gravity compliance and gear_periodic
+///   describe, and what extrapolates beyond the covered range). Only the fine structure is left.
+/// Each row is a coefficient vector (size K); the caller weights them.
+std::vector<std::vector<double>> jointMapSmoothnessRows(const JointMap& map);
+std::vector<std::vector<double>> jointMapCentringRows(const JointMap& map, const std::vector<double>& q_fit,
+                                                      int harmonics);
+
+/// Low harmonics kept out of a revolute joint's map (see jointMapCentringRows); prismatic: 0.
+constexpr int kJointMapCentredHarmonics = 1;
+
+/// Parses a knot spacing as given on the command line: "3deg", "3" (deg for revolute joints) or
+/// "5mm" (prismatic). Returns false with *error on anything else (not a positive finite number,
+/// unknown unit).
+bool parseJointMapKnot(const std::string& text, double* knot, std::string* unit, std::string* error);
+
+// ---------------------------------------------------------------------------------------
+// Choosing the resolution and the smoothness by blocked cross-validation (linearised)
+
+/// One measured pose of the linearised problem at a fit without maps.
+struct JointMapCvRow {
+  Eigen::MatrixXd G;      ///< dim x p: weighted Jacobian of the other free parameters
+  Eigen::VectorXd r;      ///< dim: weighted residual (model - measured) at the linearisation
+  Eigen::MatrixXd U;      ///< dim x J: weighted Jacobian of a unit dtheta (dd) of each mapped joint
+  Eigen::VectorXd q;      ///< J: the mapped joints' values (deg or mm)
+  Eigen::Vector3d w_pos;  ///< position weights (1/mm): held-out errors are reported in mm
+  int fold = 0;           ///< 0..folds-1
+};
+
+struct JointMapCvCandidate {
+  double knot = 0;        ///< knot spacing (deg or mm)
+  double smoothing = 0;   ///< relative smoothness weight (see IdentifyOptions)
+  double cv_rms_mm = 0;   ///< held-out position RMS over all folds
+};
+
+struct JointMapCvResult {
+  double knot = 0, smoothing = 0;  ///< the candidate with the smallest held-out RMS
+  double baseline_rms_mm = 0;      ///< held-out position RMS without maps (same folds)
+  double best_rms_mm = 0;
+  std::vector<JointMapCvCandidate> table;
+};
+
+/// The smoothness and centring penalties of identification, in one place: the weight of the
+/// second-difference rows is sqrt(smoothing) * scale, the centring rows (normalised to unit
+/// norm) are weighted kCentringWeight * scale; `scale` is the RMS norm of the map's weighted
+/// Jacobian columns, so `smoothing` is relative to the data's own weight.
+constexpr double kJointMapCentringWeight = 1e3;
+
+/// Refits the linearised problem for every (knot, smoothing) candidate on all folds but one and
+/// predicts the held-out fold (maps on `ranges`, one per mapped joint, the centring taken on
+/// the training rows, with centred_harmonics[j] low harmonics kept out). Cost per knot: one pass over the rows; per candidate and fold one dense
+/// Cholesky factorisation. Throws ArgumentError on inconsistent sizes or empty candidates.
+JointMapCvResult crossValidateJointMap(const std::vector<JointMapCvRow>& rows, const std::vector<JointRange>& ranges,
+                                       const std::vector<int>& centred_harmonics, const std::vector<double>& knots,
+                                       const std::vector<double>& smoothings, int folds);
+
+}  // namespace accura

@@ -1,0 +1,335 @@
+#include "accura/calib/joint_map.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <limits>
+#include <Eigen/Cholesky>
+
+#include "accura/calib/errors.h"
+#include "accura/calib/geometry.h"
+
+namespace accura {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+// Uniform cubic B-spline weights at t in [0, 1] of the interval, and their derivatives d/dt.
+void splineWeights(double t, double w[4], double dw[4]) {
+  const double u = 1 - t, t2 = t * t, t3 = t2 * t;
+  w[0] = u * u * u / 6;
+  w[1] = (3 * t3 - 6 * t2 + 4) / 6;
+  w[2] = (-3 * t3 + 3 * t2 + 3 * t + 1) / 6;
+  w[3] = t3 / 6;
+  if (dw) {
+    dw[0] = -u * u / 2;
+    dw[1] = (3 * t2 - 4 * t) / 2;
+    dw[2] = (-3 * t2 + 2 * t + 1) / 2;
+    dw[3] = t2 / 2;
+  }
+}
+
+// Basis weights at q and their derivatives d/dq; returns the first coefficient index.
+int basis(const JointMap& m, double q, double w[4], double dw[4]) {
+  const int N = m.intervals;
+  const double h = (m.upper - m.lower) / N;
+  double taper = 1, dtaper = 0, qe = q;
+  if (q < m.lower || q > m.upper) {
+    const double s = q < m.lower ? m.lower - q : q - m.upper;  // distance beyond the end
+    qe = q < m.lower ? m.lower : m.upper;
+    if (s >= m.taper) {
+      taper = 0;
+    } else {
+      taper = 0.5 * (1 + std::cos(kPi * s / m.taper));
+      const double dtaper_ds = -0.5 * kPi / m.taper * std::sin(kPi * s / m.taper);
+      dtaper = q < m.lower ? -dtaper_ds : dtaper_ds;  // ds/dq = -1 below, +1 above
+    }
+  }
+  const double x = (qe - m.lower) / h;
+  const int first = std::clamp(static_cast<int>(std::floor(x)), 0, N - 1);
+  const double t = x - first;
+  double sw[4], sdw[4];
+  splineWeights(t, sw, sdw);
+  const bool inside = qe == q;
+  for (int k = 0; k < 4; ++k) {
+    w[k] = taper * sw[k];
+    // inside: d/dq of the spline; outside: the edge value is constant, the taper varies
+    if (dw) dw[k] = inside ? sdw[k] / h : dtaper * sw[k];
+  }
+  return first;
+}
+
+}  // namespace
+
+double jointMapValue(const JointMap& map, double q, double* slope) {
+  if (map.empty()) {
+    if (slope) *slope = 0;
+    return 0;
+  }
+  double w[4], dw[4];
+  const int f = basis(map, q, w, dw);
+  double v = 0, d = 0;
+  for (int k = 0; k < 4; ++k) {
+    v += w[k] * map.coef[static_cast<size_t>(f + k)];
+    d += dw[k] * map.coef[static_cast<size_t>(f + k)];
+  }
+  if (slope) *slope = d;
+  return v;
+}
+
+int jointMapBasis(const JointMap& map, double q, double w[4]) {
+  if (map.empty()) return -1;
+  return basis(map, q, w, nullptr);
+}
+
+double jointMapBasisValue(const JointMap& map, double q, int k) {
+  double w[4];
+  const int f = jointMapBasis(map, q, w);
+  if (f < 0 || k < f || k > f + 3) return 0;
+  return w[k - f];
+}
+
+JointMap makeJointMap(double lower, double upper, double knot) {
+  if (!(std::isfinite(lower) && std::isfinite(upper) && lower < upper))
+    throw ArgumentError("joint map: expected a covered interval lower < upper, got " + std::to_string(lower) + ", " +
+                        std::to_string(upper));
+  if (!(std::isfinite(knot) && knot > 0))
+    throw ArgumentError("joint map: expected a knot spacing > 0, got " + std::to_string(knot));
+  JointMap m;
+  m.lower = lower;
+  m.upper = upper;
+  m.intervals = std::max(1, static_cast<int>(std::ceil((upper - lower) / knot - 1e-9)));
+  m.taper = m.knot();
+  m.coef.assign(static_cast<size_t>(m.intervals) + 3, 0.0);
+  return m;
+}
+
+double jointMapAmplitude(const JointMap& map) {
+  if (map.empty()) return 0;
+  double a = 0;
+  const int samples = 8 * map.intervals;
+  for (int s = 0; s <= samples; ++s)
+    a = std::max(a, std::abs(jointMapValue(map, map.lower + (map.upper - map.lower) * s / samples)));
+  return a;
+}
+
+std::vector<std::vector<double>> jointMapSmoothnessRows(const JointMap& map) {
+  std::vector<std::vector<double>> rows;
+  const size_t K = map.coef.size();
+  for (size_t k = 1; k + 1 < K; ++k) {
+    std::vector<double> r(K, 0.0);
+    r[k - 1] = 1;
+    r[k] = -2;
+    r[k + 1] = 1;
+    rows.push_back(r);
+  }
+  return rows;
+}
+
+std::vector<std::vector<double>> jointMapCentringRows(const JointMap& map, const std::vector<double>& q_fit,
+                                                      int harmonics) {
+  const size_t K = map.coef.size();
+  const size_t G = 2 + 2 * static_cast<size_t>(std::max(harmonics, 0));
+  std::vector<std::vector<double>> rows(G, std::vector<double>(K, 0.0));
+  if (q_fit.empty() || K == 0) return rows;
+  double qm = 0;
+  for (double q : q_fit) qm += q;
+  qm /= double(q_fit.size());
+  double var = 0;
+  for (double q : q_fit) var += (q - qm) * (q - qm);
+  const double sd = std::sqrt(var / double(q_fit.size()));
+  const double n = double(q_fit.size());
+  double w[4];
+  std::vector<double> g(G);
+  for (double q : q_fit) {
+    // the functions the map must not contain: 1, the trend, sin/cos(h q) (q in rad)
+    g[0] = 1;
+    g[1] = sd > 0 ? (q - qm) / sd : 0.0;
+    for (int h = 1; h <= harmonics; ++h) {
+      g[2 * static_cast<size_t>(h)] = std::sin(h * q * kDegToRad);
+      g[2 * static_cast<size_t>(h) + 1] = std::cos(h * q * kDegToRad);
+    }
+    const int f = jointMapBasis(map, q, w);
+    for (size_t r = 0; r < G; ++r)
+      for (int k = 0; k < 4; ++k) rows[r][static_cast<size_t>(f + k)] += w[k] * g[r] / n;
+  }
+  return rows;
+}
+
+bool parseJointMapKnot(const std::string& text, double* knot, std::string* unit, std::string* error) {
+  std::string num = text, u;
+  for (const char* suffix : {"deg", "mm"}) {
+    const std::string s(suffix);
+    if (text.size() > s.size() && text.compare(text.size() - s.size(), s.size(), s) == 0) {
+      num = text.substr(0, text.size() - s.size());
+      u = s;
+      break;
+    }
+  }
+  char* end = nullptr;
+  const double v = std::strtod(num.c_str(), &end);
+  if (num.empty() || end == num.c_str() || *end != '\0' || !std::isfinite(v) || !(v > 0)) {
+    *error = "joint map knot spacing: expected a positive number with an optional unit deg or mm (e.g. 3deg), found '" +
+             text + "'";
+    return false;
+  }
+  *knot = v;
+  *unit = u;
+  return true;
+}
+
+}  // namespace accura
+
+namespace accura {
+
+JointMapCvResult crossValidateJointMap(const std::vector<JointMapCvRow>& rows, const std::vector<JointRange>& ranges,
+                                       const std::vector<int>& centred_harmonics, const std::vector<double>& knots,
+                                       const std::vector<double>& smoothings, int folds) {
+  if (centred_harmonics.size() != ranges.size())
+    throw ArgumentError("joint map cross-validation: expected one harmonics count per mapped joint");
+  if (rows.empty() || knots.empty() || smoothings.empty() || folds < 2)
+    throw ArgumentError("joint map cross-validation: expected rows, candidates and >= 2 folds");
+  const Eigen::Index p = rows[0].G.cols();
+  const int J = static_cast<int>(ranges.size());
+  for (const auto& r : rows)
+    if (r.G.cols() != p || r.U.cols() != J || r.q.size() != J || r.G.rows() != r.r.size() ||
+        r.U.rows() != r.r.size() || r.fold < 0 || r.fold >= folds)
+      throw ArgumentError("joint map cross-validation: inconsistent row sizes");
+  JointMapCvResult result;
+
+  // Held-out position sum of squares (mm^2) of the solution delta of (N, b) on fold f.
+  auto heldOut = [&](const std::vector<JointMap>& maps, const std::vector<Eigen::Index>& col0, int f,
+                     const Eigen::VectorXd& delta) {
+    double ss = 0;
+    double w[4];
+    for (const auto& row : rows) {
+      if (row.fold != f) continue;
+      Eigen::VectorXd e = row.r + row.G * delta.head(p);
+      for (int j = 0; j < J && !maps.empty(); ++j) {
+        const int first = jointMapBasis(maps[static_cast<size_t>(j)], row.q[j], w);
+        for (int k = 0; k < 4; ++k) e += row.U.col(j) * (w[k] * delta[col0[static_cast<size_t>(j)] + first + k]);
+      }
+      ss += e.head<3>().cwiseQuotient(row.w_pos).squaredNorm();
+    }
+    return ss;
+  };
+  auto solve = [](Eigen::MatrixXd N, const Eigen::VectorXd& b) {
+    // a tiny ridge: parameters the data leave undetermined stay at the linearisation point
+    const double ridge = 1e-10 * std::max(N.diagonal().maxCoeff(), 1e-300);
+    N.diagonal().array() += ridge;
+    Eigen::LDLT<Eigen::MatrixXd> ldlt(N);
+    return Eigen::VectorXd(-ldlt.solve(b));
+  };
+
+  // baseline: no maps
+  {
+    std::vector<Eigen::MatrixXd> Nf(static_cast<size_t>(folds), Eigen::MatrixXd::Zero(p, p));
+    std::vector<Eigen::VectorXd> bf(static_cast<size_t>(folds), Eigen::VectorXd::Zero(p));
+    for (const auto& row : rows) {
+      Nf[static_cast<size_t>(row.fold)] += row.G.transpose() * row.G;
+      bf[static_cast<size_t>(row.fold)] += row.G.transpose() * row.r;
+    }
+    Eigen::MatrixXd Nt = Eigen::MatrixXd::Zero(p, p);
+    Eigen::VectorXd bt = Eigen::VectorXd::Zero(p);
+    for (int f = 0; f < folds; ++f) {
+      Nt += Nf[static_cast<size_t>(f)];
+      bt += bf[static_cast<size_t>(f)];
+    }
+    double ss = 0;
+    for (int f = 0; f < folds; ++f)
+      ss += heldOut({}, {}, f, solve(Nt - Nf[static_cast<size_t>(f)], bt - bf[static_cast<size_t>(f)]));
+    result.baseline_rms_mm = std::sqrt(ss / double(rows.size()));
+  }
+
+  result.best_rms_mm = std::numeric_limits<double>::infinity();
+  for (double knot : knots) {
+    std::vector<JointMap> maps;
+    std::vector<Eigen::Index> col0;
+    Eigen::Index n = p;
+    for (const JointRange& r : ranges) {
+      maps.push_back(makeJointMap(r.lower, r.upper, knot));
+      col0.push_back(n);
+      n += static_cast<Eigen::Index>(maps.back().coef.size());
+    }
+    std::vector<Eigen::MatrixXd> Nf(static_cast<size_t>(folds), Eigen::MatrixXd::Zero(n, n));
+    std::vector<Eigen::VectorXd> bf(static_cast<size_t>(folds), Eigen::VectorXd::Zero(n));
+    std::vector<Eigen::Index> idx(static_cast<size_t>(p + 4 * J));
+    for (Eigen::Index c = 0; c < p; ++c) idx[static_cast<size_t>(c)] = c;
+    Eigen::MatrixXd C(rows[0].r.size(), p + 4 * J);
+    double w[4];
+    for (const auto& row : rows) {
+      if (C.rows() != row.r.size()) C.resize(row.r.size(), p + 4 * J);
+      C.leftCols(p) = row.G;
+      for (int j = 0; j < J; ++j) {
+        const int first = jointMapBasis(maps[static_cast<size_t>(j)], row.q[j], w);
+        for (int k = 0; k < 4; ++k) {
+          C.col(p + 4 * j + k) = row.U.col(j) * w[k];
+          idx[static_cast<size_t>(p + 4 * j + k)] = col0[static_cast<size_t>(j)] + first + k;
+        }
+      }
+      const Eigen::MatrixXd CtC = C.transpose() * C;
+      const Eigen::VectorXd Ctr = C.transpose() * row.r;
+      Eigen::MatrixXd& N = Nf[static_cast<size_t>(row.fold)];
+      Eigen::VectorXd& b = bf[static_cast<size_t>(row.fold)];
+      for (size_t a = 0; a < idx.size(); ++a) {
+        b[idx[a]] += Ctr[static_cast<Eigen::Index>(a)];
+        for (size_t c = 0; c < idx.size(); ++c) N(idx[a], idx[c]) += CtC(static_cast<Eigen::Index>(a), static_cast<Eigen::Index>(c));
+      }
+    }
+    Eigen::MatrixXd Nt = Eigen::MatrixXd::Zero(n, n);
+    Eigen::VectorXd bt = Eigen::VectorXd::Zero(n);
+    for (int f = 0; f < folds; ++f) {
+      Nt += Nf[static_cast<size_t>(f)];
+      bt += bf[static_cast<size_t>(f)];
+    }
+    // per joint: the scale of its columns, its smoothness penalty D^T D
+    std::vector<double> scale2(static_cast<size_t>(J));
+    std::vector<Eigen::MatrixXd> DtD(static_cast<size_t>(J));
+    for (int j = 0; j < J; ++j) {
+      const Eigen::Index K = static_cast<Eigen::Index>(maps[static_cast<size_t>(j)].coef.size());
+      scale2[static_cast<size_t>(j)] = std::max(Nt.diagonal().segment(col0[static_cast<size_t>(j)], K).mean(), 1e-300);
+      Eigen::MatrixXd D = Eigen::MatrixXd::Zero(std::max<Eigen::Index>(K - 2, 0), K);
+      for (Eigen::Index k = 0; k + 2 < K; ++k) D.row(k).segment(k, 3) << 1, -2, 1;
+      DtD[static_cast<size_t>(j)] = D.transpose() * D;
+    }
+    const size_t first_entry = result.table.size();
+    for (double sm : smoothings) result.table.push_back({knot, sm, 0.0});
+    for (int f = 0; f < folds; ++f) {
+      Eigen::MatrixXd Ntrain = Nt - Nf[static_cast<size_t>(f)];
+      const Eigen::VectorXd btrain = bt - bf[static_cast<size_t>(f)];
+      // centring on the training rows
+      for (int j = 0; j < J; ++j) {
+        std::vector<double> qt;
+        for (const auto& row : rows)
+          if (row.fold != f) qt.push_back(row.q[j]);
+        const Eigen::Index K = static_cast<Eigen::Index>(maps[static_cast<size_t>(j)].coef.size());
+        for (const auto& a : jointMapCentringRows(maps[static_cast<size_t>(j)], qt, centred_harmonics[static_cast<size_t>(j)])) {
+          const Eigen::VectorXd av = Eigen::Map<const Eigen::VectorXd>(a.data(), K);
+          if (av.norm() == 0) continue;
+          const double W = kJointMapCentringWeight * kJointMapCentringWeight * scale2[static_cast<size_t>(j)];
+          Ntrain.block(col0[static_cast<size_t>(j)], col0[static_cast<size_t>(j)], K, K) += W * (av * av.transpose()) / av.squaredNorm();
+        }
+      }
+      for (size_t si = 0; si < smoothings.size(); ++si) {
+        Eigen::MatrixXd N = Ntrain;
+        for (int j = 0; j < J; ++j) {
+          const Eigen::Index K = static_cast<Eigen::Index>(maps[static_cast<size_t>(j)].coef.size());
+          N.block(col0[static_cast<size_t>(j)], col0[static_cast<size_t>(j)], K, K) +=
+              smoothings[si] * scale2[static_cast<size_t>(j)] * DtD[static_cast<size_t>(j)];
+        }
+        result.table[first_entry + si].cv_rms_mm += heldOut(maps, col0, f, solve(N, btrain));
+      }
+    }
+  }
+  for (auto& c : result.table) {
+    c.cv_rms_mm = std::sqrt(c.cv_rms_mm / double(rows.size()));
+    if (c.cv_rms_mm < result.best_rms_mm) {
+      result.best_rms_mm = c.cv_rms_mm;
+      result.knot = c.knot;
+      result.smoothing = c.smoothing;
+    }
+  }
+  return result;
+}
+
+}  // namespace accura

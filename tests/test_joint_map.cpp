@@ -1,0 +1,304 @@
+// The joint_map effect (calib/joint_map.h): the spline and its taper against independent
+// expectations, the analytic Jacobian columns against central finite differences, the robot
+// file round trip, identification of a per-joint cyclic error on a simulated robot, and
+// several data sets each from its own station.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+
+#include "accura/calib/errors.h"
+#include "accura/calib/identify.h"
+#include "accura/calib/joint_map.h"
+#include "accura/calib/kinematics.h"
+#include "accura/calib/robot_io.h"
+#include "accura/calib/simulate.h"
+#include "test_util.h"
+
+namespace accura {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+// A map on [lower, upper] whose coefficients sample amp * sin(cycles * q + phase) at the
+// coefficients' Greville points (q in deg; cycles per revolution).
+JointMap cyclicMap(double lower, double upper, double knot, double amp_rad, double cycles, double phase) {
+  JointMap m = makeJointMap(lower, upper, knot);
+  for (size_t k = 0; k < m.coef.size(); ++k) {
+    const double q = m.lower + (static_cast<double>(k) - 1.0) * m.knot();
+    m.coef[k] = amp_rad * std::sin(cycles * q * kDegToRad + phase);
+  }
+  return m;
+}
+
+TEST(JointMap, ReproducesLinearFunctionsAndIsZeroBeyondTheTaper) {
+  // cubic B-splines reproduce a linear function from its values at the Greville points
+  JointMap m = makeJointMap(-50, 70, 4);
+  EXPECT_EQ(m.intervals, 30);
+  EXPECT_DOUBLE_EQ(m.knot(), 4.0);
+  for (size_t k = 0; k < m.coef.size(); ++k) m.coef[k] = 1e-3 * (2.0 + 0.01 * (m.lower + (k - 1.0) * m.knot()));
+  for (double q : {-50.0, -13.3, 0.0, 42.7, 70.0}) {
+    double slope = 0;
+    EXPECT_NEAR(jointMapValue(m, q, &slope), 1e-3 * (2.0 + 0.01 * q), 1e-15) << q;
+    EXPECT_NEAR(slope, 1e-5, 1e-15) << q;
+  }
+  // continuous at the ends, tapered to zero over one knot, zero beyond
+  const double edge = jointMapValue(m, 70.0);
+  EXPECT_NEAR(jointMapValue(m, 70.0 + 1e-9), edge, 1e-12);
+  EXPECT_NEAR(jointMapValue(m, 72.0), 0.5 * edge, 1e-15);  // half way: cosine taper 0.5
+  EXPECT_EQ(jointMapValue(m, 74.0), 0.0);
+  EXPECT_EQ(jointMapValue(m, 200.0), 0.0);
+  EXPECT_EQ(jointMapValue(m, -54.0), 0.0);
+  EXPECT_EQ(jointMapValue(JointMap{}, 3.0), 0.0);
+}
+
+TEST(JointMap, SlopeMatchesFiniteDifferences) {
+  const JointMap m = cyclicMap(-100, 80, 2.5, 5e-4, 17, 0.3);
+  const double h = 1e-6;  // deg
+  for (double q : {-103.1, -100.0 - 0.4, -99.9, -37.21, 0.0, 12.5, 79.3, 81.7}) {
+    double slope = 0;
+    jointMapValue(m, q, &slope);
+    const double fd = (jointMapValue(m, q + h) - jointMapValue(m, q - h)) / (2 * h);
+    EXPECT_NEAR(slope, fd, 1e-9) << q;  // rad per deg
+  }
+}
+
+TEST(JointMap, CentringRowsMeasureMeanAndTrend) {
+  JointMap m = cyclicMap(0, 90, 3, 1e-3, 17, 0.0);
+  std::vector<double> q;
+  for (int i = 0; i <= 900; ++i) q.push_back(0.1 * i);
+  const auto rows = jointMapCentringRows(m, q, 2);
+  ASSERT_EQ(rows.size(), 6u);
+  // the row applied to the coefficients equals the mean of the map over q (independent sum)
+  double mean = 0, dot = 0;
+  for (double v : q) mean += jointMapValue(m, v) / double(q.size());
+  for (size_t k = 0; k < m.coef.size(); ++k) dot += rows[0][k] * m.coef[k];
+  EXPECT_NEAR(dot, mean, 1e-15);
+  // the sin(q) row equals the mean of m(q) sin(q) (q in rad)
+  double ms = 0, dots = 0;
+  for (double v : q) ms += jointMapValue(m, v) * std::sin(v * kDegToRad) / double(q.size());
+  for (size_t k = 0; k < m.coef.size(); ++k) dots += rows[2][k] * m.coef[k];
+  EXPECT_NEAR(dots, ms, 1e-15);
+  // a constant map has no trend
+  for (double& c : m.coef) c = 1.0;
+  double trend = 0;
+  for (size_t k = 0; k < m.coef.size(); ++k) trend += rows[1][k] * m.coef[k];
+  EXPECT_NEAR(trend, 0.0, 1e-12);
+}
+
+TEST(JointMap, KnotSpacingIsParsedWithItsUnit) {
+  double k = 0;
+  std::string unit, error;
+  EXPECT_TRUE(parseJointMapKnot("3deg", &k, &unit, &error));
+  EXPECT_EQ(k, 3.0);
+  EXPECT_EQ(unit, "deg");
+  EXPECT_TRUE(parseJointMapKnot("2.5", &k, &unit, &error));
+  EXPECT_EQ(k, 2.5);
+  for (const char* bad : {"", "deg", "-1deg", "0", "3 deg", "3rad", "nan"})
+    EXPECT_FALSE(parseJointMapKnot(bad, &k, &unit, &error)) << bad;
+  IdentifyOptions o;
+  o.groups = {"geometric", "joint_map:j2+j3@3deg"};
+  EXPECT_TRUE(o.IsValid(&error)) << error;
+  o.groups = {"gear_periodic@3deg"};
+  EXPECT_FALSE(o.IsValid(&error));
+  o.groups = {"joint_map@x"};
+  EXPECT_FALSE(o.IsValid(&error));
+}
+
+RobotModel ur10WithMaps() {
+  RobotModel m = test::loadBundled("ur10");
+  m.deviations.joint_map[1] = cyclicMap(-150, 20, 3, 6e-4, 17, 0.2);
+  m.deviations.joint_map[2] = cyclicMap(-120, 130, 2, 4e-4, 17, 1.1);
+  m.deviations.links[2].da_mm = 0.3;
+  m.deviations.compliance[1] = 2e-6;
+  return m;
+}
+
+TEST(JointMap, JacobianColumnsMatchCentralFiniteDifferences) {
+  const RobotModel model = ur10WithMaps();
+  std::vector<ParamInfo> layout;
+  for (const ParamInfo& p : parameterLayout(model))
+    if (p.kind == ParamKind::kJointMap) layout.push_back(p);
+  ASSERT_EQ(layout.size(), model.deviations.joint_map[1].coef.size() + model.deviations.joint_map[2].coef.size());
+  PoseContext ctx;
+  KinematicWorkspace ws;
+  Eigen::MatrixXd J;
+  // inside both maps, in j2's lower taper, beyond j2's taper
+  for (const Eigen::VectorXd& q : {(Eigen::VectorXd(6) << 10, -47.3, 33.1, -80, 95, 12).finished(),
+                                   (Eigen::VectorXd(6) << -30, -151.2, -119.9, 40, -60, 0).finished(),
+                                   (Eigen::VectorXd(6) << 70, 30, 100, 0, 45, -90).finished()}) {
+    const Eigen::Isometry3d T = parameterJacobian(model, layout, q, ctx, ws, J);
+    double max_abs = 0;
+    for (size_t k = 0; k < layout.size(); ++k) {
+      const double h = 1e-6;  // rad
+      RobotModel plus = model, minus = model;
+      setParameter(plus.deviations, layout[k], getParameter(model.deviations, layout[k]) + h);
+      setParameter(minus.deviations, layout[k], getParameter(model.deviations, layout[k]) - h);
+      const Eigen::Isometry3d Tp = forwardKinematics(plus, q, ctx, ws), Tm = forwardKinematics(minus, q, ctx, ws);
+      Vector6d fd;
+      fd.head<3>() = (Tp.translation() - Tm.translation()) / (2 * h);
+      fd.tail<3>() = logSO3(Tp.linear() * Tm.linear().transpose()) / (2 * h);
+      EXPECT_LT((J.col(static_cast<Eigen::Index>(k)) - fd).norm(), 1e-5 * std::max(1.0, fd.norm()))
+          << layout[k].name << " at q1 " << q[0];  // mm/rad and rad/rad
+      max_abs = std::max(max_abs, fd.norm());
+      (void)T;
+    }
+    EXPECT_GT(max_abs, 100.0);  // some coefficient moves the tool (mm per rad) at each pose
+  }
+}
+
+TEST(JointMap, JointJacobianIncludesTheMapSlope) {
+  const RobotModel model = ur10WithMaps();
+  const Eigen::VectorXd q = (Eigen::VectorXd(6) << 10, -47.3, 33.1, -80, 95, 12).finished();
+  KinematicWorkspace ws;
+  PoseContext ctx;
+  const auto Jq = jointJacobian(model, q, ctx, ws);
+  // compliance is neglected by jointJacobian: compare on the model without it
+  RobotModel nc = model;
+  nc.deviations.compliance.assign(6, 0.0);
+  const auto Jn = jointJacobian(nc, q, ctx, ws);
+  for (int i = 1; i <= 2; ++i) {
+    const double h = 1e-5;  // deg
+    Eigen::VectorXd qp = q, qm = q;
+    qp[i] += h;
+    qm[i] -= h;
+    const Eigen::Isometry3d Tp = forwardKinematics(nc, qp, ctx, ws), Tm = forwardKinematics(nc, qm, ctx, ws);
+    const Eigen::Vector3d fd = (Tp.translation() - Tm.translation()) / (2 * h);
+    EXPECT_LT((Jn.col(i).head<3>() - fd).norm(), 1e-6) << "joint " << i + 1;  // mm per deg
+    // the map's slope is part of it: without the map the column differs by more than that
+    RobotModel nm = nc;
+    nm.deviations.joint_map[static_cast<size_t>(i)] = JointMap{};
+    EXPECT_GT((jointJacobian(nm, q, ctx, ws).col(i).head<3>() - fd).norm(), 1e-4) << "joint " << i + 1;
+  }
+  (void)Jq;
+}
+
+TEST(JointMap, RobotFileKeepsMapsAndFittedRanges) {
+  RobotModel m = ur10WithMaps();
+  m.deviations.fit_range.assign(6, JointRange{-10, 10});
+  m.deviations.fit_range[1] = {-150, 20};
+  const std::string dir = test::tempDir("joint_map_io");
+  writeRobotFile(dir + "/m.xml", m);
+  const RobotModel r = readRobotFile(dir + "/m.xml");
+  ASSERT_EQ(r.deviations.joint_map[2].coef.size(), m.deviations.joint_map[2].coef.size());
+  EXPECT_EQ(r.deviations.fit_range[1].lower, -150);
+  EXPECT_EQ(r.deviations.fit_range[1].upper, 20);
+  EXPECT_TRUE(r.deviations.joint_map[0].empty());
+  for (const Eigen::VectorXd& q : {(Eigen::VectorXd(6) << 10, -47.3, 33.1, -80, 95, 12).finished(),
+                                   (Eigen::VectorXd(6) << -30, -151.2, -119.9, 40, -60, 0).finished()})
+    EXPECT_LT((forwardKinematics(r, q).translation() - forwardKinematics(m, q).translation()).norm(), 1e-9);  // mm
+  // a map with a wrong number of values is an error with the file's line
+  std::string text = test::readText(dir + "/m.xml");
+  const size_t pos = text.find("intervals=\"");
+  text.replace(pos, 11, "intervals=\"1");  // e.g. 56 -> 156 intervals: too few values
+  test::writeText(dir + "/bad.xml", text);
+  try {
+    readRobotFile(dir + "/bad.xml");
+    FAIL() << "expected an InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("values, found"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("bad.xml:"), std::string::npos) << e.what();
+  }
+  std::filesystem::remove_all(dir);
+}
+
+// A KR 16 whose joints 2 and 3 carry a cyclic error of 17 cycles per revolution (0.5 mrad):
+// the geometric model cannot follow it; joint_map recovers it to the noise floor.
+TEST(JointMap, IdentifyRecoversACyclicJointErrorToTheNoiseFloor) {
+  const RobotModel nominal = test::loadBundled("kuka_kr16");
+  SimulateOptions sim;
+  sim.seed = 11;
+  sim.noise_mm = 0.02;
+  RobotModel truth = perturbModel(nominal, sim);
+  for (int j : {1, 2}) {
+    const JointSpec& js = nominal.nominal.joints[static_cast<size_t>(j)];
+    truth.deviations.joint_map[static_cast<size_t>(j)] = cyclicMap(js.lower - 5, js.upper + 5, 1.0, 5e-4, 17, 0.7 * j);
+  }
+  sim.poses = 1500;
+  const MeasurementSet fit = simulateMeasurements(truth, sim);
+  sim.seed = 12;
+  sim.poses = 400;
+  const MeasurementSet val = simulateMeasurements(truth, sim);
+  const double floor_mm = 0.02 * std::sqrt(3.0);  // RMS of the 3-D noise
+
+  IdentifyOptions geo;
+  geo.groups = {"geometric"};
+  IdentifySummary sg;
+  const RobotModel g = identify(nominal, fit, geo, &sg);
+  const double rms_geo = evaluate(g, val).rms_mm;
+  EXPECT_GT(rms_geo, 5 * floor_mm);
+
+  IdentifyOptions mo;
+  mo.groups = {"geometric", "joint_map:j2+j3@3deg"};
+  mo.joint_map_smoothing = 0.01;
+  IdentifySummary sm;
+  const RobotModel mm = identify(nominal, fit, mo, &sm);
+  const double rms_map = evaluate(mm, val).rms_mm;
+  EXPECT_LT(rms_map, 1.5 * floor_mm) << "geometric alone " << rms_geo;
+  ASSERT_EQ(sm.joint_maps.size(), 2u);
+  // the map lives on the fit data's range of the joint, nowhere else
+  EXPECT_EQ(sm.joint_maps[0].joint, 2);
+  EXPECT_DOUBLE_EQ(sm.joint_maps[0].lower, sm.coverage[1].lower);
+  EXPECT_DOUBLE_EQ(sm.joint_maps[0].upper, sm.coverage[1].upper);
+  EXPECT_TRUE(mm.deviations.joint_map[0].empty());
+  // the recovered map follows the truth up to a constant and a linear trend (which geometry takes)
+  const JointMap& got = mm.deviations.joint_map[1];
+  const JointMap& want = truth.deviations.joint_map[1];
+  std::vector<double> qs, d;
+  for (double q = got.lower; q <= got.upper; q += 0.5) {
+    qs.push_back(q);
+    d.push_back(jointMapValue(got, q) - jointMapValue(want, q));
+  }
+  // remove the best line from the difference, then compare with the amplitude 5e-4 rad
+  double sq = 0, sd = 0, sqq = 0, sqd = 0;
+  for (size_t i = 0; i < qs.size(); ++i) {
+    sq += qs[i];
+    sd += d[i];
+    sqq += qs[i] * qs[i];
+    sqd += qs[i] * d[i];
+  }
+  const double nq = double(qs.size()), b = (nq * sqd - sq * sd) / (nq * sqq - sq * sq), a = (sd - b * sq) / nq;
+  double rr = 0;
+  for (size_t i = 0; i < qs.size(); ++i) rr += std::pow(d[i] - a - b * qs[i], 2);
+  EXPECT_LT(std::sqrt(rr / nq), 0.15 * 5e-4 / std::sqrt(2.0));  // rad: within 15% of the sine's RMS
+  // outside the fitted range of j2 the model has no map
+  Eigen::VectorXd q = Eigen::VectorXd::Zero(6);
+  q[1] = got.upper + 2 * got.taper;
+  EXPECT_EQ(jointMapValue(got, q[1]), 0.0);
+}
+
+TEST(JointMap, SeveralDataSetsEachFromItsOwnStation) {
+  const RobotModel nominal = test::loadBundled("kuka_kr16");
+  SimulateOptions sim;
+  sim.seed = 21;
+  sim.poses = 250;
+  const RobotModel truth = perturbModel(nominal, sim);
+  const MeasurementSet a = simulateMeasurements(truth, sim);
+  // the same robot seen from a second station: 1.5 m aside, turned 20 deg
+  RobotModel truth2 = truth;
+  truth2.nominal.T_world_base = toIsometry(XyzAbc{-900.0, 2600.0, -400.0, -70.0, -0.2, 0.5});
+  sim.seed = 22;
+  const MeasurementSet b = simulateMeasurements(truth2, sim);
+  IdentifyOptions o;
+  o.groups = {"geometric"};
+  IdentifySummary s;
+  const RobotModel m = identify(nominal, std::vector<MeasurementSet>{a, b}, o, &s);
+  ASSERT_EQ(s.T_world_base_per_set.size(), 2u);
+  // T_world_base itself shares structurally dependent parts with j1_d / j1_offset (the truth's
+  // are absorbed there); the station of B relative to A is free of them
+  const Eigen::Isometry3d rel = s.T_world_base_per_set[1] * s.T_world_base_per_set[0].inverse();
+  const Eigen::Isometry3d rel_true = truth2.T_world_base() * truth.T_world_base().inverse();
+  EXPECT_LT((rel.translation() - rel_true.translation()).norm(), 0.1);  // mm
+  EXPECT_LT(Eigen::AngleAxisd(rel.linear() * rel_true.linear().transpose()).angle() * kRadToDeg, 0.001);  // deg
+  EXPECT_LT(s.fit.rms_mm, 0.05);  // noise 0.02 mm per axis
+  EXPECT_EQ(s.fit.n, 500);
+  // told (wrongly) that they share a station, the fit cannot explain the data
+  o.same_station = true;
+  IdentifySummary s1;
+  identify(nominal, std::vector<MeasurementSet>{a, b}, o, &s1);
+  EXPECT_GT(s1.fit.rms_mm, 10 * s.fit.rms_mm);
+  (void)m;
+}
+
+}  // namespace
+}  // namespace accura
