@@ -18,6 +18,9 @@ packages=(
   nlohmann-json3-dev  # JSON reports
   chromium            # tests: renders the diagnosis report headless and checks the screenshot
   libpng-dev          # tests: decodes that screenshot
+  clang               # scripts/sanitize.sh (CI): the AddressSanitizer + UBSan build and the
+                      # libFuzzer targets of fuzz/ (Debian 12: clang 14)
+  libclang-rt-14-dev  # their runtimes (ASan, UBSan, libFuzzer) for clang 14
   freecad-python3     # plugin/freecad: FreeCAD's Robot workbench, run headless (freecadcmd) by the
                       # plug-in's FreeCAD test (151 packages, ~250 MB download, ~1.5 min to install)
 )

@@ -116,12 +116,13 @@ struct PublicUrdf {
 };
 
 // Public industrial arm descriptions (tests/data/urdf/README.md): fixed joints, rpy offsets,
-// axes along -z, y, -x; default chains.
+// axes along -z, y, -x, links declared after their joints; default chains.
 TEST(Urdf, PublicDescriptionsMatchTheirOwnFK) {
   for (const PublicUrdf& u : {PublicUrdf{"kr16_2.urdf", "base_link", "tool0", 6},
                               PublicUrdf{"irb2400.urdf", "base_link", "tool0", 6},
                               PublicUrdf{"panda_arm.urdf", "panda_link0", "panda_link8", 7},
-                              PublicUrdf{"ur10.urdf", "world", "tool0", 6}}) {
+                              PublicUrdf{"ur10.urdf", "world", "tool0", 6},
+                              PublicUrdf{"ur5_robot.urdf", "base_link", "ee_link", 6}}) {
     SCOPED_TRACE(u.file);
     const std::string path = sourcePath(std::string("tests/data/urdf/") + u.file);
     const RobotModel m = readRobotFile(path);  // the .urdf dispatch, default chain
@@ -281,8 +282,9 @@ TEST(Urdf, ExportListsWhatUrdfCannotHold) {
   const UrdfText u = modelToUrdf(m);
   std::string all;
   for (const auto& s : u.not_represented) all += s + "\n";
+  // (the perturbed base is turned by up to 0.05 deg: gravity is no longer along -z of 'world')
   for (const char* group : {"joint_compliance", "gear_periodic", "joint_scale", "backlash", "thermal", "payload centre of mass",
-                            "inertia tensors", "effort and velocity"}) {
+                            "inertia tensors", "effort and velocity", "gravity"}) {
     EXPECT_NE(all.find(group), std::string::npos) << group << " missing in:\n" << all;
     EXPECT_NE(u.text.find(group), std::string::npos) << group << " missing in the XML comment";
   }
@@ -294,6 +296,9 @@ TEST(Urdf, ExportListsWhatUrdfCannotHold) {
   const SerialChain chain = parseUrdfChain(u.text, "mem.urdf", "world:tool0");
   const ChainComparison c = compareModelWithChain(geometric, chain, 100);
   EXPECT_LT(c.max_position_mm, 1e-9);
+  // the nominal robot's gravity is along -z of world: nothing to say about it
+  for (const auto& line : modelToUrdf(test::loadBundled("kuka_kr16")).not_represented)
+    EXPECT_EQ(line.find("gravity"), std::string::npos) << line;
   // ... and differs from the full model (the effects are real and were left out, not ignored)
   EXPECT_GT(compareModelWithChain(m, chain, 100).max_position_mm, 1e-3);
 }
@@ -365,6 +370,10 @@ TEST(Urdf, MalformedFilesGiveFileAndLine) {
     const std::string e = errorOf(c.text);
     EXPECT_EQ(e.rfind(c.expected + ":", 0), 0u) << "expected " << c.expected << ", got: " << e;
   }
+  // What only urdfdom checks (here a <dynamics> value) is mapped to the line of the joint its
+  // message names.
+  const std::string e = errorOf(replaced(kTwoJoint, "<axis xyz=\"0 1 0\"/>", "<axis xyz=\"0 1 0\"/><dynamics damping=\"x\"/>"));
+  EXPECT_EQ(e.rfind("bad.urdf:11: urdfdom rejected the file: damping value (x) is not a valid float", 0), 0u) << e;
   // missing file
   EXPECT_THROW(readUrdfRobot("/nonexistent/robot.urdf"), InputError);
 }

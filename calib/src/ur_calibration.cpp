@@ -11,20 +11,12 @@
 
 #include "accura/calib/errors.h"
 #include "accura/calib/kinematics.h"
+#include "urdf_common.h"
 
 namespace accura {
 namespace {
 
-// Shortest decimal text that reads back to the same double.
-std::string num17(double v) {
-  if (v == 0.0) return "0";
-  char buf[40];
-  for (int prec = 15; prec <= 17; ++prec) {
-    std::snprintf(buf, sizeof buf, "%.*g", prec, v);
-    if (std::strtod(buf, nullptr) == v) break;
-  }
-  return buf;
-}
+constexpr auto num17 = urdf_detail::shortestNumber;
 
 std::string trim(const std::string& s) {
   const size_t a = s.find_first_not_of(" \t\r");
@@ -51,18 +43,7 @@ std::vector<std::string> readLines(const std::string& path, const char* what) {
 
 // Rz(theta) Tz(d) Tx(a) Rx(alpha) in mm from rad / m.
 Eigen::Isometry3d dh(double theta, double d_m, double a_m, double alpha) {
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.rotate(Eigen::AngleAxisd(theta, Eigen::Vector3d::UnitZ()));
-  T.translate(Eigen::Vector3d(1000.0 * a_m, 0, 1000.0 * d_m));
-  T.rotate(Eigen::AngleAxisd(alpha, Eigen::Vector3d::UnitX()));
-  return T;
-}
-
-// URDF rpy (Rz(yaw) Ry(pitch) Rx(roll)) of a rotation; yaw first so that pitch +-90 deg stays exact.
-Eigen::Vector3d rpyOf(const Eigen::Matrix3d& R) {
-  const double yaw = std::atan2(R(1, 0), R(0, 0));
-  const Eigen::Matrix3d Rp = Eigen::AngleAxisd(-yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix() * R;
-  return Eigen::Vector3d(std::atan2(-Rp(1, 2), Rp(1, 1)), std::atan2(-Rp(2, 0), Rp(0, 0)), yaw);
+  return urdf_detail::linkFrame(theta, 1000.0 * d_m, 1000.0 * a_m, alpha, 0.0);
 }
 
 Eigen::Matrix3d rpyMatrix(double r, double p, double y) {
@@ -86,16 +67,7 @@ std::vector<std::string> notInUrTable(const RobotModel& model) {
   if (d.tool_mm.norm() > 0 || d.tool_rot_rad.norm() > 0)
     out.push_back("tool deviation " + vec(d.tool_mm, 1) + " mm, rotation vector " + vec(d.tool_rot_rad, kRadToDeg) +
                   " deg: not in UR's table (it ends at the flange); set it in the TCP");
-  std::map<std::string, std::string> by_group;
-  for (const ParamInfo& p : parameterLayout(model)) {
-    if (p.group == "base" || p.group == "tool" || p.group == "offsets" || p.group == "lengths" || p.group == "angles")
-      continue;
-    const double v = getParameter(d, p);
-    if (v == 0.0) continue;
-    std::string& line = by_group[p.group];
-    line += (line.empty() ? "" : ", ") + p.name + " = " + num17(v * p.display_scale) + " " + p.unit;
-  }
-  for (const auto& [group, values] : by_group) out.push_back(group + " (left out; UR's table has no such effect): " + values);
+  for (const std::string& e : urdf_detail::effectsLeftOut(model, "UR's table")) out.push_back(e);
   return out;
 }
 
@@ -110,7 +82,6 @@ SerialChain flangeChain(const RobotModel& model) {
   Eigen::Isometry3d prev = Eigen::Isometry3d::Identity();
   for (int i = 0; i < model.dof(); ++i) {
     const JointSpec& j = model.nominal.joints[static_cast<size_t>(i)];
-    const LinkDeviation& d = model.deviations.links[static_cast<size_t>(i)];
     ChainJoint cj;
     cj.name = j.name;
     cj.type = j.type;
@@ -119,11 +90,7 @@ SerialChain flangeChain(const RobotModel& model) {
     cj.lower = j.lower;
     cj.upper = j.upper;
     c.joints.push_back(cj);
-    prev = Eigen::Isometry3d::Identity();
-    prev.rotate(Eigen::AngleAxisd(j.theta0_deg * kDegToRad + d.dtheta_rad, Eigen::Vector3d::UnitZ()));
-    prev.translate(Eigen::Vector3d(j.a_mm + d.da_mm, 0, j.d_mm + d.dd_mm));
-    prev.rotate(Eigen::AngleAxisd(j.alpha_deg * kDegToRad + d.dalpha_rad, Eigen::Vector3d::UnitX()));
-    prev.rotate(Eigen::AngleAxisd(d.dbeta_rad, Eigen::Vector3d::UnitY()));
+    prev = urdf_detail::calibratedLinkAtZero(model, i);
   }
   c.T_last_tip = prev;
   return c;
@@ -294,11 +261,13 @@ UrDeltasFromModel urDeltasFromModel(const RobotModel& model) {
   // Base and tool of the DH rewrite: the chain starts at DH frame 0 and its last frame is a
   // DH frame, so both are identity to round-off (the check below proves it).
   // Check: the model's flange chain against UR's formula (as a chain) with these deltas.
-  RobotModel geometric = model;
+  RobotModel geometric = urdf_detail::geometricPart(model);  // and without base and tool:
   geometric.nominal.T_world_base.setIdentity();
   geometric.nominal.T_flange_tcp.setIdentity();
-  for (const ParamInfo& p : parameterLayout(model))
-    if (!(p.group == "offsets" || p.group == "lengths" || p.group == "angles")) setParameter(geometric.deviations, p, 0.0);
+  geometric.deviations.base_mm.setZero();
+  geometric.deviations.base_rot_rad.setZero();
+  geometric.deviations.tool_mm.setZero();
+  geometric.deviations.tool_rot_rad.setZero();
   out.max_difference_mm = compareModelWithChain(geometric, urDeltaChain(ur, d)).max_position_mm;
   return out;
 }
@@ -395,7 +364,7 @@ std::string formatUrCalibrationYaml(const RobotModel& model, std::vector<std::st
     Eigen::Isometry3d O = pending;
     O.rotate(Eigen::AngleAxisd(j.theta0_deg * kDegToRad + d.dtheta_rad, Eigen::Vector3d::UnitZ()));
     O.translate(Eigen::Vector3d(0, 0, j.d_mm + d.dd_mm));
-    const Eigen::Vector3d p = O.translation() / 1000.0, rpy = rpyOf(O.linear());
+    const Eigen::Vector3d p = O.translation() / 1000.0, rpy = urdf_detail::urdfRpy(O.linear());
     out << "  " << kYamlLinks[i] << ":\n    x: " << num17(p.x()) << "\n    y: " << num17(p.y()) << "\n    z: " << num17(p.z())
         << "\n    roll: " << num17(rpy.x()) << "\n    pitch: " << num17(rpy.y()) << "\n    yaw: " << num17(rpy.z()) << "\n";
     pending.setIdentity();

@@ -7,21 +7,12 @@
 #include "accura/calib/errors.h"
 #include "accura/calib/kinematics.h"
 #include "accura/calib/urdf.h"
+#include "urdf_common.h"
 
 namespace accura {
 namespace {
 
-// Rz(theta) Tz(d) Tx(a) Rx(alpha) Ry(beta), composed from elementary transforms (the
-// kinematics module writes the same product out by hand; this one only places frames).
-Eigen::Isometry3d linkFrame(double theta, double d, double a, double alpha, double beta) {
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.rotate(Eigen::AngleAxisd(theta, Eigen::Vector3d::UnitZ()));
-  T.translate(Eigen::Vector3d(0, 0, d));
-  T.translate(Eigen::Vector3d(a, 0, 0));
-  T.rotate(Eigen::AngleAxisd(alpha, Eigen::Vector3d::UnitX()));
-  T.rotate(Eigen::AngleAxisd(beta, Eigen::Vector3d::UnitY()));
-  return T;
-}
+using urdf_detail::linkFrame;
 
 // Angle (rad) of the rotation about unit `z` taking `from` to `to` (both perpendicular to z).
 double angleAbout(const Eigen::Vector3d& z, const Eigen::Vector3d& from, const Eigen::Vector3d& to) {
@@ -310,6 +301,9 @@ RobotModel modelFromChain(const SerialChain& chain, const RobotDefinition* refer
     def.source = chain.source + " (serial chain " + chain.root_link + ":" + chain.tip_link + ")";
     def.T_world_base = tidyPose(F0);
     def.T_flange_tcp = tidyPose(frames[n].inverse() * G_tip);
+    // ROS convention (REP-103): the root's z points up; gravity in the base (DH frame 0).
+    def.gravity_base = def.T_world_base.linear().transpose() * Eigen::Vector3d(0, 0, -9.80665);
+    for (int r = 0; r < 3; ++r) def.gravity_base[r] = tidy(def.gravity_base[r], 1.0);
     for (int i = 0; i < n; ++i) {
       const ChainJoint& cj = chain.joints[static_cast<size_t>(i)];
       const LinkParams& L = links[i];

@@ -10,54 +10,22 @@
 #include "accura/calib/kinematics.h"
 #include "accura/calib/text.h"
 #include "accura/calib/urdf.h"
+#include "urdf_common.h"
 
 namespace accura {
 namespace {
 
-// Shortest decimal text that reads back to the same double (URDF numbers).
-std::string num(double v) {
-  if (v == 0.0) return "0";
-  char buf[40];
-  for (int prec = 15; prec <= 17; ++prec) {
-    std::snprintf(buf, sizeof buf, "%.*g", prec, v);
-    if (std::strtod(buf, nullptr) == v) break;
-  }
-  return buf;
-}
-
-// URDF rpy of a rotation: R = Rz(yaw) Ry(pitch) Rx(roll). Yaw first, then pitch and roll from
-// Rz(-yaw) R, which stays accurate near pitch = +-90 deg.
-Eigen::Vector3d rpyOf(const Eigen::Matrix3d& R) {
-  const double yaw = std::atan2(R(1, 0), R(0, 0));
-  const Eigen::Matrix3d Rp = Eigen::AngleAxisd(-yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix() * R;
-  const double pitch = std::atan2(-Rp(2, 0), Rp(0, 0));
-  const double roll = std::atan2(-Rp(1, 2), Rp(1, 1));
-  return Eigen::Vector3d(roll, pitch, yaw);
-}
+using urdf_detail::shortestNumber;
+constexpr auto num = shortestNumber;
 
 std::string origin(const Eigen::Isometry3d& T_mm) {
   const Eigen::Vector3d p = T_mm.translation() / 1000.0;
-  const Eigen::Vector3d rpy = rpyOf(T_mm.linear());
+  const Eigen::Vector3d rpy = urdf_detail::urdfRpy(T_mm.linear());
   return "<origin xyz=\"" + num(p.x()) + " " + num(p.y()) + " " + num(p.z()) + "\" rpy=\"" + num(rpy.x()) + " " +
          num(rpy.y()) + " " + num(rpy.z()) + "\"/>";
 }
 
-// Rz(theta) Tz(d) Tx(a) Rx(alpha) Ry(beta) at q = 0 with the calibrated values (mm, rad).
-Eigen::Isometry3d constantPart(const RobotModel& m, int i) {
-  const JointSpec& j = m.nominal.joints[static_cast<size_t>(i)];
-  const LinkDeviation& d = m.deviations.links[static_cast<size_t>(i)];
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.rotate(Eigen::AngleAxisd(j.theta0_deg * kDegToRad + d.dtheta_rad, Eigen::Vector3d::UnitZ()));
-  T.translate(Eigen::Vector3d(0, 0, j.d_mm + d.dd_mm));
-  T.translate(Eigen::Vector3d(j.a_mm + d.da_mm, 0, 0));
-  T.rotate(Eigen::AngleAxisd(j.alpha_deg * kDegToRad + d.dalpha_rad, Eigen::Vector3d::UnitX()));
-  T.rotate(Eigen::AngleAxisd(d.dbeta_rad, Eigen::Vector3d::UnitY()));
-  return T;
-}
-
-bool isGeometric(const std::string& group) {
-  return group == "base" || group == "tool" || group == "offsets" || group == "lengths" || group == "angles";
-}
+constexpr auto constantPart = urdf_detail::calibratedLinkAtZero;
 
 }  // namespace
 
@@ -68,20 +36,14 @@ UrdfText modelToUrdf(const RobotModel& model) {
 
   // What URDF cannot hold.
   {
-    std::map<std::string, std::string> by_group;
-    for (const ParamInfo& p : parameterLayout(model)) {
-      if (isGeometric(p.group)) continue;
-      const double v = getParameter(model.deviations, p);
-      if (v == 0.0) continue;
-      std::string& line = by_group[p.group];
-      line += (line.empty() ? "" : ", ") + p.name + " = " + num(v * p.display_scale) + " " + p.unit;
-    }
-    for (const auto& [group, values] : by_group)
-      out.not_represented.push_back(group + " (left out; URDF has no such effect): " + values);
+    out.not_represented = urdf_detail::effectsLeftOut(model, "URDF");
+    // A URDF has no gravity: its root's z is up (REP-103). Say so when the model's is not.
     const Eigen::Vector3d g = model.nominal.gravity_base;
-    if ((g - Eigen::Vector3d(0, 0, -9.80665)).norm() > 0)
-      out.not_represented.push_back("gravity in the base frame (" + num(g.x()) + ", " + num(g.y()) + ", " + num(g.z()) +
-                                    ") m/s^2 (a URDF has no gravity; the mounting is the simulator's world)");
+    const Eigen::Vector3d g_world = model.T_world_base().linear() * g;
+    if ((g_world - Eigen::Vector3d(0, 0, -9.80665)).norm() > 1e-9)
+      out.not_represented.push_back("gravity (" + num(g.x()) + ", " + num(g.y()) + ", " + num(g.z()) +
+                                    ") m/s^2 in the base frame, not along -z of the URDF's root 'world' "
+                                    "(a URDF has no gravity; ROS takes the root's z as up)");
     const Eigen::Vector3d c = model.nominal.payload_com_mm;
     if (c.norm() > 0)
       out.not_represented.push_back("payload centre of mass (" + num(c.x()) + ", " + num(c.y()) + ", " + num(c.z()) +
@@ -139,9 +101,7 @@ UrdfText modelToUrdf(const RobotModel& model) {
 
   // Check: the text's own chain against the model's geometry (the effects URDF cannot hold
   // set to zero).
-  RobotModel geometric = model;
-  for (const ParamInfo& p : parameterLayout(model))
-    if (!isGeometric(p.group)) setParameter(geometric.deviations, p, 0.0);
+  const RobotModel geometric = urdf_detail::geometricPart(model);
   const SerialChain chain = parseUrdfChain(out.text, "<URDF written for '" + model.nominal.name + "'>", "world:tool0");
   const ChainComparison c = compareModelWithChain(geometric, chain);
   if (!(c.max_position_mm <= kChainCheckTolMm) || !(c.max_rotation_rad <= kChainCheckTolRad)) {
