@@ -6,6 +6,7 @@
 
 #include "accura/calib/errors.h"
 #include "accura/calib/geometry.h"
+#include "accura/calib/text.h"
 #include "accura/postproc/compensate.h"
 #include "path_geometry.h"
 
@@ -29,47 +30,10 @@ bool DensifyOptions::IsValid(std::string* error) const {
   return ik.IsValid(error);
 }
 
-Eigen::Isometry3d interpolate(const PathSegment& segment, double s) { return PathGeometry(segment).pose(s); }
-double pathLength(const PathSegment& segment) { return PathGeometry(segment).length_mm; }
-double pathRotation(const PathSegment& segment) { return PathGeometry(segment).rotation_rad; }
-double distanceToPath(const Eigen::Vector3d& p, const PathSegment& segment) {
-  return PathGeometry(segment).distance(p);
-}
-
-double maxPathDeviation(const std::vector<Eigen::Isometry3d>& samples, const std::vector<PathSegment>& intended) {
-  if (intended.empty()) throw ArgumentError("maxPathDeviation: no intended segment");
-  std::vector<PathGeometry> g;
-  g.reserve(intended.size());
-  for (const PathSegment& s : intended) g.emplace_back(s);
-  double worst = 0;
-  for (const Eigen::Isometry3d& T : samples) {
-    double best = std::numeric_limits<double>::infinity();
-    for (const PathGeometry& p : g) best = std::min(best, p.distance(T.translation()));
-    worst = std::max(worst, best);
-  }
-  return worst;
-}
-
 namespace {
 
 double rotationAngleDeg(const Eigen::Matrix3d& A, const Eigen::Matrix3d& B) {
   return logSO3(A * B.transpose()).norm() * kRadToDeg;
-}
-
-std::string formatMm(double v) {
-  std::ostringstream s;
-  s.setf(std::ios::fixed);
-  s.precision(4);
-  s << v;
-  return s.str();
-}
-
-/// Samples of one commanded sub-segment: at least 16 and at most `step_mm` / `step_deg`
-/// apart.
-int sampleCount(const PathGeometry& g, double step_mm, double step_deg) {
-  const double by_length = std::ceil(g.length_mm / step_mm);
-  const double by_rotation = std::ceil(g.rotation_rad * kRadToDeg / step_deg);
-  return static_cast<int>(std::clamp(std::max({16.0, by_length, by_rotation}), 16.0, 1e6));
 }
 
 }  // namespace
@@ -105,36 +69,6 @@ PoseCompensation Compensator::pose(const Eigen::Isometry3d& T_desired, const Con
   return out;
 }
 
-std::vector<Eigen::Isometry3d> Compensator::execute(const std::vector<PathSegment>& commanded,
-                                                    const Eigen::VectorXd& q_controller_start, double step_mm,
-                                                    const PoseContext& context) const {
-  if (!(step_mm > 0)) throw ArgumentError("simulated execution: the step must be positive, got " + std::to_string(step_mm));
-  std::vector<Eigen::Isometry3d> out;
-  if (commanded.empty()) return out;
-  IkOptions o;
-  o.singular_threshold = 0;  // the controller follows through near-singular poses
-  o.tol_mm = 1e-5;
-  o.tol_rad = 1e-8;
-  Eigen::VectorXd q = q_controller_start;
-  IkWorkspace ws;  // each solve continues from the previous solution
-  for (size_t k = 0; k < commanded.size(); ++k) {
-    const PathGeometry g(commanded[k]);
-    const int m = sampleCount(g, step_mm, 0.5);
-    for (int i = (k == 0 ? 0 : 1); i <= m; ++i) {
-      const Eigen::Isometry3d C = g.pose(static_cast<double>(i) / m);
-      const IkResult r = controller_.inverse(C, Configuration{}, q, o, PoseContext{}, ws);
-      if (r.status != IkStatus::kOk) {
-        std::ostringstream s;
-        s << "simulated execution: the controller cannot follow segment " << k + 1 << " at "
-          << formatMm(g.length_mm * i / m) << " mm: " << r.message;
-        throw NumericalError(s.str());
-      }
-      q = r.q;
-      out.push_back(real_.forward(q, context));
-    }
-  }
-  return out;
-}
 
 // ---------------------------------------------------------------------------------------
 // Auxiliary points
@@ -183,7 +117,7 @@ struct SegmentWork {
         if (r.status != IkStatus::kOk) {
           p.status = r.status;
           std::ostringstream msg;
-          msg << "the controller's IK fails " << formatMm(cmd.length_mm * s) << " mm along the commanded path: "
+          msg << "the controller's IK fails " << formatFixed(cmd.length_mm * s, 4) << " mm along the commanded path: "
               << r.message;
           p.message = msg.str();
           return p;
@@ -223,7 +157,7 @@ struct SegmentWork {
       if (r.status != IkStatus::kOk || r.configuration_changed) {
         pc.status = r.status == IkStatus::kOk ? IkStatus::kNoConfiguration : r.status;
         std::ostringstream m;
-        m << "the intended path at " << formatMm(intended.length_mm * s) << " mm: " << r.message;
+        m << "the intended path at " << formatFixed(intended.length_mm * s, 4) << " mm: " << r.message;
         pc.message = m.str();
         return false;
       }
@@ -317,7 +251,7 @@ SegmentCompensation Compensator::segment(const PathSegment& intended_segment, co
     }
     if (!have) {
       std::ostringstream m;
-      m << "the tolerance " << tol << " mm cannot be met near " << formatMm(intended.length_mm * sa)
+      m << "the tolerance " << tol << " mm cannot be met near " << formatFixed(intended.length_mm * sa, 4)
         << " mm along the segment (the error does not shrink with shorter pieces: a singularity?)";
       return failed(IkStatus::kNotConverged, m.str());
     }
@@ -378,22 +312,5 @@ PoseCompensation compensatePose(const RobotModel& controller, const RobotModel& 
   return Compensator(controller, real).pose(T_desired, config, seed, options, ctx);
 }
 
-std::vector<Eigen::Isometry3d> simulateExecution(const RobotModel& controller, const RobotModel& real,
-                                                 const std::vector<PathSegment>& commanded,
-                                                 const Eigen::VectorXd& q_start, double step_mm, double payload_kg) {
-  PoseContext ctx;
-  ctx.payload_kg = payload_kg;
-  const Compensator c(controller, real);
-  Eigen::VectorXd q = q_start;
-  if (q.size() == 0 && !commanded.empty()) {
-    IkOptions o;
-    o.singular_threshold = 0;
-    const IkResult r = c.controller().inverse(commanded.front().T_world_start, Configuration{}, Eigen::VectorXd(), o);
-    if (r.status != IkStatus::kOk)
-      throw NumericalError("simulated execution: the controller cannot reach the start: " + r.message);
-    q = r.q;
-  }
-  return c.execute(commanded, q, step_mm, ctx);
-}
 
 }  // namespace accura::postproc

@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
+#include <vector>
 
 #include "accura/calib/errors.h"
 #include "accura/calib/geometry.h"
@@ -85,4 +87,39 @@ double PathGeometry::distance(const Eigen::Vector3d& p) const {
   return std::min((p - p0).norm(), (p - p1).norm());
 }
 
+/// Samples of one commanded sub-segment: at least 16 and at most `step_mm` / `step_deg`
+/// apart.
+int sampleCount(const PathGeometry& g, double step_mm, double step_deg) {
+  const double by_length = std::ceil(g.length_mm / step_mm);
+  const double by_rotation = std::ceil(g.rotation_rad * kRadToDeg / step_deg);
+  return static_cast<int>(std::clamp(std::max({16.0, by_length, by_rotation}), 16.0, 1e6));
+}
+
 }  // namespace accura::postproc::detail
+
+namespace accura::postproc {
+
+using detail::PathGeometry;
+
+Eigen::Isometry3d interpolate(const PathSegment& segment, double s) { return PathGeometry(segment).pose(s); }
+double pathLength(const PathSegment& segment) { return PathGeometry(segment).length_mm; }
+double pathRotation(const PathSegment& segment) { return PathGeometry(segment).rotation_rad; }
+double distanceToPath(const Eigen::Vector3d& p, const PathSegment& segment) {
+  return PathGeometry(segment).distance(p);
+}
+
+double maxPathDeviation(const std::vector<Eigen::Isometry3d>& samples, const std::vector<PathSegment>& intended) {
+  if (intended.empty()) throw ArgumentError("maxPathDeviation: no intended segment");
+  std::vector<PathGeometry> g;
+  g.reserve(intended.size());
+  for (const PathSegment& s : intended) g.emplace_back(s);
+  double worst = 0;
+  for (const Eigen::Isometry3d& T : samples) {
+    double best = std::numeric_limits<double>::infinity();
+    for (const PathGeometry& p : g) best = std::min(best, p.distance(T.translation()));
+    worst = std::max(worst, best);
+  }
+  return worst;
+}
+
+}  // namespace accura::postproc

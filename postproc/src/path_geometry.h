@@ -4,7 +4,7 @@
 
 #include <Eigen/Geometry>
 
-#include "accura/postproc/compensate.h"
+#include "accura/postproc/path.h"
 
 namespace accura::postproc::detail {
 
@@ -31,5 +31,9 @@ struct PathGeometry {
   /// Distance to the curve piece itself (segment / arc, ends included).
   double distance(const Eigen::Vector3d& p) const;
 };
+
+/// Samples of one commanded sub-segment: at least 16 and at most `step_mm` / `step_deg`
+/// apart.
+int sampleCount(const PathGeometry& g, double step_mm, double step_deg);
 
 }  // namespace accura::postproc::detail

@@ -1,5 +1,7 @@
-// accura post-processor: discrete compensation of
-// targets (method.md section 4) and auxiliary points on continuous paths. The method, the
+// accura post-processor: discrete compensation of targets (method.md section 4) and auxiliary
+// points on continuous paths. The paths themselves (LIN / CIRC segments, interpolation,
+// deviation) are in path.h, the simulated execution in execution.h (both included here); the
+// IK and the S/T configuration are calib's (accura/calib/ik.h). The method, the
 // tolerances and why the path sampling is fine enough: docs/compensation.md.
 //
 // Frames: every pose here is T_world_tcp in the world (cell) frame. The caller converts
@@ -24,6 +26,8 @@
 #include "accura/calib/ik.h"
 #include "accura/calib/kinematics.h"
 #include "accura/calib/robot.h"
+#include "accura/postproc/execution.h"
+#include "accura/postproc/path.h"
 
 namespace accura::postproc {
 
@@ -66,26 +70,6 @@ PoseCompensation compensatePose(const RobotModel& controller, const RobotModel& 
                                 const Eigen::Isometry3d& T_world_tcp_desired,
                                 const Configuration& config, const Eigen::VectorXd& seed,
                                 const IkOptions& options, double payload_kg = 0);
-
-enum class PathType { kLin, kCirc };
-
-/// A LIN or CIRC segment between two poses (world). For CIRC, `T_world_aux` is the auxiliary
-/// point: the controller moves on the circle through start, aux and end (the aux point's
-/// orientation is not used). Orientation: slerp from start to end over the path parameter
-/// (LIN: fraction of the length; CIRC: fraction of the arc angle).
-struct PathSegment {
-  PathType type = PathType::kLin;
-  Eigen::Isometry3d T_world_start = Eigen::Isometry3d::Identity();
-  Eigen::Isometry3d T_world_aux = Eigen::Isometry3d::Identity();
-  Eigen::Isometry3d T_world_end = Eigen::Isometry3d::Identity();
-};
-
-/// The pose at path parameter s in [0, 1] (LIN / CIRC interpolation as the controller does
-/// it). Throws NumericalError for a CIRC whose three points are (nearly) collinear.
-Eigen::Isometry3d interpolate(const PathSegment& segment, double s);
-/// Length of the segment's position path (mm) and its orientation change (rad).
-double pathLength(const PathSegment& segment);
-double pathRotation(const PathSegment& segment);
 
 struct DensifyOptions {
   double tol_mm = 0.05;          ///< max predicted deviation of the real path (position)
@@ -155,27 +139,5 @@ class Compensator {
   KinematicSolver controller_;
   KinematicSolver real_;
 };
-
-/// Simulated execution: the controller interpolates `commanded` (LIN: straight line and
-/// slerp; CIRC: circle through start/aux/end, orientation interpolated), solves its own
-/// (nominal) IK at every sample, keeping the configuration (nearest solution to the previous
-/// sample, starting from q_start; empty q_start: the controller's solution nearest to the
-/// middle of the joint ranges), and the real robot goes there. Returns the real tool poses
-/// at both ends of every segment and at most `step_mm` (and 0.5 deg of orientation) apart.
-/// Throws NumericalError when the controller cannot follow the path.
-std::vector<Eigen::Isometry3d> simulateExecution(const RobotModel& controller,
-                                                 const RobotModel& real,
-                                                 const std::vector<PathSegment>& commanded,
-                                                 const Eigen::VectorXd& q_start, double step_mm,
-                                                 double payload_kg = 0);
-
-/// Largest distance (mm) from the sampled poses' positions to the intended path (the union
-/// of the intended segments' curves: line segments and circular arcs). Throws ArgumentError
-/// when `intended` is empty.
-double maxPathDeviation(const std::vector<Eigen::Isometry3d>& samples,
-                        const std::vector<PathSegment>& intended);
-
-/// Distance (mm) from a point to one segment's curve.
-double distanceToPath(const Eigen::Vector3d& p_world, const PathSegment& segment);
 
 }  // namespace accura::postproc
