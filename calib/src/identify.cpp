@@ -13,6 +13,7 @@
 #include <sstream>
 
 #include "accura/calib/errors.h"
+#include "accura/calib/kinematic_core.h"
 #include "accura/calib/kinematics.h"
 
 namespace accura {
@@ -190,15 +191,21 @@ class Evaluator : public ceres::EvaluationCallback {
   void PrepareForEvaluation(bool evaluate_jacobians, bool new_evaluation_point) override {
     if (!new_evaluation_point && (have_jacobians_ || !evaluate_jacobians)) return;
     update();
+    // the model prepared once per evaluation point (kinematic_core.h), then every row
+    const KinematicModel core(model_);
     for (size_t i = 0; i < data_.rows.size(); ++i) {
       const Measurement& row = data_.rows[i];
+      if (row.q.size() != core.dof())
+        throw ArgumentError("expected " + std::to_string(core.dof()) + " joint values, got " +
+                            std::to_string(row.q.size()));
       Eigen::Isometry3d T;
       if (evaluate_jacobians) {
-        T = parameterJacobian(model_, layout_, row.q, row.context, ws_, J_);
+        T = core.parameterJacobian(layout_, row.q.data(), row.context, frames_, links_, J_);
         const int dim = weights_[i].dim;
         jacobians_[i] = weights_[i].w.head(dim).asDiagonal() * J_.topRows(dim);
       } else {
-        T = forwardKinematics(model_, row.q, row.context, ws_);
+        core.evaluate(row.q.data(), row.context, frames_);
+        T = frames_.T_world_tcp;
       }
       residuals_[i] = rowResidual(i, T);
     }
@@ -228,7 +235,8 @@ class Evaluator : public ceres::EvaluationCallback {
   const MeasurementSet& data_;
   const std::vector<RowWeights>& weights_;
   std::vector<double>* x_;
-  KinematicWorkspace ws_;
+  KinematicFrames frames_;
+  LinkFrames links_;
   Eigen::MatrixXd J_;
   std::vector<Vector6d> residuals_;
   std::vector<Eigen::MatrixXd> jacobians_;
