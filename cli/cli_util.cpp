@@ -4,8 +4,10 @@
 #include <cstdio>
 #include <iostream>
 
+#include "accura/calib/errors.h"
 #include "accura/calib/import.h"
 #include "accura/calib/robot_io.h"
+#include "accura/calib/urdf.h"
 
 namespace accura::cli {
 std::string fmt(const char* f, double v) {
@@ -32,7 +34,19 @@ nlohmann::ordered_json statsJson(const ErrorStats& s) {
   return j;
 }
 
-RobotModel loadRobot(const std::string& name) { return readRobotFile(resolveRobotPath(name)); }
+std::string& robotChainOption() {
+  static std::string chain;
+  return chain;
+}
+
+RobotModel loadRobot(const std::string& name) {
+  const std::string path = resolveRobotPath(name);
+  const std::string& chain = robotChainOption();
+  if (chain.empty()) return readRobotFile(path);  // a .urdf with its default chain
+  if (path.size() < 5 || path.compare(path.size() - 5, 5, ".urdf") != 0)
+    throw InputError("--chain " + chain + ": expected a URDF robot (.urdf) with --robot, found '" + name + "'");
+  return readUrdfRobot(path, chain);
+}
 
 void warnUnknownColumns(const MeasurementSet& set) {
   if (set.unknown_columns.empty()) return;

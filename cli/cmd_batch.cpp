@@ -13,6 +13,7 @@
 #include "accura/calib/errors.h"
 #include "accura/postproc/batch.h"
 #include "accura/postproc/job.h"
+#include "accura/postproc/report.h"
 #include "cli_util.h"
 #include "cmd_check.h"
 #include "commands.h"
@@ -20,10 +21,6 @@
 namespace fs = std::filesystem;
 
 namespace accura::cli {
-
-// Defined in cmd_compensate.cpp.
-std::function<postproc::JobSettings()> addJobOptions(CLI::App* c);
-nlohmann::ordered_json jobReportJson(const postproc::JobReport& r, const std::string& relative_to);
 
 namespace {
 

@@ -6,7 +6,6 @@
 #include <functional>
 #include <iostream>
 #include <memory>
-#include <nlohmann/json.hpp>
 #include <optional>
 
 #include "accura/calib/errors.h"
@@ -15,6 +14,7 @@
 #include "accura/postproc/check.h"
 #include "accura/postproc/job.h"
 #include "accura/postproc/program_io.h"
+#include "accura/postproc/report.h"
 #include "cli_util.h"
 #include "cmd_check.h"
 #include "commands.h"
@@ -22,9 +22,6 @@
 namespace fs = std::filesystem;
 
 namespace accura::cli {
-
-// Defined in cmd_compensate.cpp.
-std::function<postproc::JobSettings()> addJobOptions(CLI::App* c);
 
 namespace {
 
@@ -36,12 +33,6 @@ struct CellArgs {
   CLI::Option* o_singular = nullptr;
   CLI::Option* o_clearance = nullptr;
 };
-
-nlohmann::ordered_json rounded(double v) {
-  if (!std::isfinite(v)) return nullptr;
-  const double r = std::round(v * 1e6) / 1e6;
-  return r == 0 ? 0.0 : r;
-}
 
 std::optional<CellCheck> cellCheck(const CellArgs& a) {
   if (a.cell.empty()) return std::nullopt;
@@ -117,77 +108,6 @@ std::function<std::optional<CellCheck>()> addCellOptions(CLI::App* c, bool requi
     c->add_flag("--as-written", a.as_written,
               "the program runs as written (already compensated): joints from the controller's nominal IK; default: its targets are where the tool must go (IK of the calibrated model)");
   return [args]() { return cellCheck(*args); };
-}
-
-nlohmann::ordered_json checkReportJson(const postproc::CheckReport& r, const std::string& relative_to) {
-  using nlohmann::ordered_json;
-  const auto file = [&](const std::string& f) {
-    if (relative_to.empty() || f.empty()) return f;
-    std::error_code ec;
-    const fs::path rel = fs::relative(f, relative_to, ec);
-    return ec || rel.empty() ? f : rel.generic_string();
-  };
-  ordered_json j;
-  j["passed"] = r.passed();
-  j["mode"] = postproc::toString(r.mode);
-  j["thresholds"] = {{"joint_margin_deg", rounded(r.thresholds.joint_margin_deg)},
-                     {"singular_threshold", rounded(r.thresholds.singular_threshold)},
-                     {"min_clearance_mm", rounded(r.thresholds.min_clearance_mm)}};
-  ordered_json v = ordered_json::array();
-  for (const auto& x : r.violations) {
-    ordered_json e;
-    e["check"] = postproc::toString(x.kind);
-    e["motion_index"] = x.motion_index;
-    e["file"] = file(x.where.file);
-    e["line"] = x.where.line;
-    e["motion"] = x.motion_type;
-    e["on_path"] = x.on_path;
-    e["s"] = rounded(x.s);
-    e["arc_mm"] = rounded(x.arc_mm);
-    e["tcp_world_mm"] = {rounded(x.p_world_tcp_mm.x()), rounded(x.p_world_tcp_mm.y()), rounded(x.p_world_tcp_mm.z())};
-    ordered_json q = ordered_json::array();
-    for (int i = 0; i < x.q.size(); ++i) q.push_back(rounded(x.q[i]));
-    e["joints"] = q;
-    e["value"] = rounded(x.value);
-    e["limit"] = rounded(x.limit);
-    e["excess"] = rounded(x.excess);
-    e["unit"] = x.unit;
-    if (x.joint >= 0) e["joint"] = x.joint + 1;
-    if (!x.robot_part.empty()) e["robot_part"] = x.robot_part;
-    if (!x.obstacle.empty()) e["obstacle"] = x.obstacle;
-    e["message"] = x.message;
-    v.push_back(e);
-  }
-  j["violations"] = v;
-  ordered_json m = ordered_json::array();
-  for (const auto& x : r.motions) {
-    ordered_json e;
-    e["motion_index"] = x.motion_index;
-    e["line"] = x.where.line;
-    e["motion"] = x.motion_type;
-    e["checked"] = x.checked;
-    if (!x.note.empty()) e["note"] = x.note;
-    e["samples"] = x.samples;
-    e["length_mm"] = rounded(x.length_mm);
-    e["min_clearance_mm"] = rounded(x.min_clearance_mm);
-    e["min_sigma"] = rounded(x.min_sigma);
-    e["min_joint_margin"] = rounded(x.min_joint_margin);
-    m.push_back(e);
-  }
-  j["motions"] = m;
-  auto issues = [&](const std::vector<postproc::ProgramIssue>& list) {
-    ordered_json a = ordered_json::array();
-    for (const auto& w : list) a.push_back({{"file", file(w.where.file)}, {"line", w.where.line}, {"message", w.message}});
-    return a;
-  };
-  j["unchecked"] = issues(r.unchecked);
-  j["warnings"] = issues(r.warnings);
-  j["totals"] = {{"samples", r.samples},
-                 {"distance_queries", r.distance_queries},
-                 {"min_clearance_mm", rounded(r.min_clearance_mm)},
-                 {"min_sigma", rounded(r.min_sigma)},
-                 {"min_joint_margin", rounded(r.min_joint_margin)}};
-  return j;
 }
 
 void printCheckReport(const postproc::CheckReport& r, const std::string& program) {

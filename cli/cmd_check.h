@@ -1,10 +1,9 @@
-// The --cell options and the check report of accura check, shared with accura compensate
+// The --cell options and the printed check report of accura check, shared with accura compensate
 // (defined in cmd_check.cpp).
 #pragma once
 
 #include <CLI/CLI.hpp>
 #include <functional>
-#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 
@@ -27,9 +26,6 @@ constexpr int kCheckFailed = 2;
 /// --min-clearance-mm and, with `as_written_flag`, --as-written; the function reads the cell
 /// (empty without --cell).
 std::function<std::optional<CellCheck>()> addCellOptions(CLI::App* c, bool required, bool as_written_flag);
-/// The JSON of a check report (docs/checks.md, "Report"); file names relative to
-/// `relative_to` when it is not empty (accura batch: the input tree).
-nlohmann::ordered_json checkReportJson(const postproc::CheckReport& r, const std::string& relative_to = "");
 /// Prints the report (violations on stdout, warnings on stderr).
 void printCheckReport(const postproc::CheckReport& r, const std::string& program);
 

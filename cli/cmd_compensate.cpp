@@ -5,13 +5,13 @@
 #include <functional>
 #include <iostream>
 #include <memory>
-#include <nlohmann/json.hpp>
 
 #include "accura/calib/errors.h"
 #include "accura/calib/robot_io.h"
 #include "accura/postproc/batch.h"
 #include "accura/postproc/job.h"
 #include "accura/postproc/program_io.h"
+#include "accura/postproc/report.h"
 #include "accura/postproc/check.h"
 #include "cli_util.h"
 #include "cmd_check.h"
@@ -20,11 +20,6 @@
 namespace fs = std::filesystem;
 
 namespace accura::cli {
-
-// Shared with cmd_batch.cpp (declared there): the options that make a JobSettings, and the
-// JSON of a JobReport (file names relative to `relative_to` when not empty).
-std::function<postproc::JobSettings()> addJobOptions(CLI::App* c);
-nlohmann::ordered_json jobReportJson(const postproc::JobReport& r, const std::string& relative_to);
 
 namespace {
 
@@ -50,37 +45,6 @@ struct CompensateArgs {
   bool warn_only = false;
 };
 
-// Rounded to 1e-6 (nm, udeg): the report is the same on every machine.
-nlohmann::ordered_json rounded(double v) {
-  if (!std::isfinite(v)) return nullptr;
-  const double r = std::round(v * 1e6) / 1e6;
-  return r == 0 ? 0.0 : r;
-}
-
-std::string fileFor(const std::string& file, const std::string& relative_to) {
-  if (relative_to.empty() || file.empty()) return file;
-  std::error_code ec;
-  const fs::path rel = fs::relative(file, relative_to, ec);
-  return ec || rel.empty() ? file : rel.generic_string();
-}
-
-void where(nlohmann::ordered_json& j, const postproc::SourceLocation& w, const std::string& relative_to) {
-  j["file"] = fileFor(w.file, relative_to);
-  j["line"] = w.line;
-  j["column"] = w.column;
-}
-
-nlohmann::ordered_json pose(const XyzAbc& p) {
-  return {{"x_mm", rounded(p.x_mm)}, {"y_mm", rounded(p.y_mm)}, {"z_mm", rounded(p.z_mm)},
-          {"a_deg", rounded(p.a_deg)}, {"b_deg", rounded(p.b_deg)}, {"c_deg", rounded(p.c_deg)}};
-}
-
-bool sameFile(const std::string& a, const std::string& b) {
-  std::error_code ec;
-  if (fs::exists(a, ec) && fs::exists(b, ec)) return fs::equivalent(a, b, ec);
-  return fs::weakly_canonical(fs::absolute(a), ec) == fs::weakly_canonical(fs::absolute(b), ec);
-}
-
 int runCompensate(const CompensateArgs& a) {
   using namespace postproc;
   const JobSettings settings = a.settings();
@@ -91,39 +55,21 @@ int runCompensate(const CompensateArgs& a) {
   if (a.warn_only && !cell) throw InputError("--warn-only: expected together with --cell, found it without");
   std::optional<CellCheckSettings> cell_settings;
   if (cell) cell_settings = CellCheckSettings{cell->cell, cell->options, a.warn_only, nullptr};
-  ProgramReadOptions read;
-  read.dat_path = a.dat;
-  read.config_path = a.config;
-  programFormat(a.in);  // a clear error for another extension before anything else
-  std::error_code ec;
-  if (fs::exists(a.out, ec) && !fs::is_directory(a.out, ec))
-    throw InputError("--out: expected a directory, found the file " + a.out);
-  const std::string out_path = (fs::path(a.out) / fs::path(a.in).filename()).string();
-  JobReport report;
-  CheckedProgram checked = compensateAndCheckFile(a.in, out_path, read, settings, cell_settings ? &*cell_settings : nullptr, &report);
-  const std::vector<OutputFile>& files = checked.files;
-  std::vector<std::string> inputs = {a.in};
-  if (!a.dat.empty()) inputs.push_back(a.dat);
-  if (!a.config.empty()) inputs.push_back(a.config);
-  for (const auto& f : files) {
-    const std::string dat_guess = fs::path(a.in).replace_extension(".dat").string();
-    for (const auto& in : inputs)
-      if (sameFile(f.path, in)) throw InputError(f.path + ": the output would overwrite the input " + in + ": choose another --out");
-    if (fs::exists(dat_guess, ec) && sameFile(f.path, dat_guess))
-      throw InputError(f.path + ": the output would overwrite the input " + dat_guess + ": choose another --out");
-  }
-  if (!a.json.empty())
-    for (const auto& in : inputs)
-      if (sameFile(a.json, in)) throw InputError("--json: " + a.json + " would overwrite the input " + in);
+  ProgramFileRequest request;
+  request.in_path = a.in;
+  request.read.dat_path = a.dat;
+  request.read.config_path = a.config;
+  request.out_dir = a.out;
+  request.json_path = a.json;
+  request.cell = cell_settings ? &*cell_settings : nullptr;
+  installInterruptCleanup();
+  const ProgramFileResult result = compensateProgramFile(request, settings);
+  const JobReport& report = result.report;
+  const std::vector<OutputFile>& files = result.checked.files;
   // a violation keeps the program off the disk (exit kCheckFailed, report printed and in
   // --json) unless --warn-only.
-  const std::optional<postproc::CheckReport>& check = checked.check;
-  const bool blocked = !checked.write;
-  installInterruptCleanup();
-  if (!blocked) {
-    fs::create_directories(a.out);
-    writeFilesAtomically(files);
-  }
+  const std::optional<postproc::CheckReport>& check = result.checked.check;
+  const bool blocked = !result.written;
   for (const auto& w : report.warnings) std::cerr << "accura: warning: " << w.where.str() << ": " << w.message << "\n";
   std::printf("accura compensate: %s, tol %.4f mm\n", a.in.c_str(), settings.tol_mm);
   for (const auto& s : report.segments) {
@@ -137,28 +83,14 @@ int runCompensate(const CompensateArgs& a) {
     std::printf("largest path error: %.4f mm as programmed -> %.4f mm endpoints compensated -> %.4f mm written\n",
                 report.max_error_uncompensated_mm, report.max_error_before_mm, report.max_error_after_mm);
   if (check) printCheckReport(*check, a.in);
-  if (!checked.compensation_error.empty())
+  if (!result.checked.compensation_error.empty())
     std::printf("not written: the program failed the checks of %s and cannot be compensated (so not even with --warn-only): %s\n",
-                cell->cell_path.c_str(), checked.compensation_error.c_str());
+                cell->cell_path.c_str(), result.checked.compensation_error.c_str());
   else if (blocked) std::printf("not written: the program failed the checks of %s (--warn-only writes it anyway)\n", cell->cell_path.c_str());
   else if (check && !check->passed()) std::fprintf(stderr, "accura: warning: the program failed the checks of %s; written because of --warn-only\n", cell->cell_path.c_str());
   if (!blocked)
     for (const auto& f : files) std::printf("wrote %s\n", f.path.c_str());
-  if (!a.json.empty()) {
-    nlohmann::ordered_json j;
-    j["program"] = a.in;
-    nlohmann::ordered_json outs = nlohmann::ordered_json::array();
-    if (!blocked)
-      for (const auto& f : files) outs.push_back(f.path);
-    j["outputs"] = outs;
-    j["robot"] = settings.calibrated.nominal.name;
-    j["tol_mm"] = rounded(settings.tol_mm);
-    j.update(jobReportJson(report, ""));
-    if (!checked.compensation_error.empty()) j["compensation_error"] = checked.compensation_error;
-    if (check) j["check"] = checkReportJson(*check);
-    writeFilesAtomically({{a.json, j.dump(2) + "\n"}});
-    std::printf("wrote %s\n", a.json.c_str());
-  }
+  if (!a.json.empty()) std::printf("wrote %s\n", a.json.c_str());
   return blocked ? kCheckFailed : 0;
 }
 
@@ -192,61 +124,6 @@ std::function<postproc::JobSettings()> addJobOptions(CLI::App* c) {
   c->add_option("--program-tool", a.program_tool, "$TOOL x,y,z,A,B,C for motions before the program sets one (the controller's active tool)");
   c->add_option("--program-base", a.program_base, "$BASE x,y,z,A,B,C for motions before the program sets one (the controller's active base)");
   return [args]() { return jobSettings(*args); };
-}
-
-nlohmann::ordered_json jobReportJson(const postproc::JobReport& r, const std::string& relative_to) {
-  using nlohmann::ordered_json;
-  ordered_json j;
-  j["frames"] = {{"nominal_base_in_world", pose(r.robroot_in_world)}, {"calibrated_base_in_world", pose(r.calibrated_base_in_world)}};
-  ordered_json targets = ordered_json::array();
-  for (const auto& t : r.targets) {
-    ordered_json x;
-    where(x, t.where, relative_to);
-    x["motion_line"] = t.motion.line;
-    x["motion"] = t.motion_type;
-    x["name"] = t.name;
-    x["role"] = t.role;
-    x["correction_mm"] = rounded(t.correction_mm);
-    x["correction_deg"] = rounded(t.correction_deg);
-    x["dx_mm"] = rounded(t.dx_mm);
-    x["dy_mm"] = rounded(t.dy_mm);
-    x["dz_mm"] = rounded(t.dz_mm);
-    x["tool"] = t.calibrated_tool ? "calibrated" : "program";
-    targets.push_back(x);
-  }
-  j["targets"] = targets;
-  ordered_json segments = ordered_json::array();
-  for (const auto& s : r.segments) {
-    ordered_json x;
-    where(x, s.motion, relative_to);
-    x["motion"] = s.motion_type;
-    x["length_mm"] = rounded(s.length_mm);
-    x["max_error_uncompensated_mm"] = rounded(s.max_error_uncompensated_mm);
-    x["max_error_before_mm"] = rounded(s.max_error_before_mm);
-    x["max_error_after_mm"] = rounded(s.max_error_after_mm);
-    x["points_added"] = s.points_added;
-    if (!s.note.empty()) x["note"] = s.note;
-    segments.push_back(x);
-  }
-  j["segments"] = segments;
-  ordered_json warnings = ordered_json::array();
-  for (const auto& w : r.warnings) {
-    ordered_json x;
-    where(x, w.where, relative_to);
-    x["message"] = w.message;
-    warnings.push_back(x);
-  }
-  j["warnings"] = warnings;
-  j["totals"] = {{"targets_corrected", r.targets_corrected},
-                 {"max_correction_mm", rounded(r.max_correction_mm)},
-                 {"rms_correction_mm", rounded(r.rms_correction_mm)},
-                 {"max_correction_deg", rounded(r.max_correction_deg)},
-                 {"segments", r.segments.size()},
-                 {"points_added", r.points_added},
-                 {"max_error_uncompensated_mm", rounded(r.max_error_uncompensated_mm)},
-                 {"max_error_before_mm", rounded(r.max_error_before_mm)},
-                 {"max_error_after_mm", rounded(r.max_error_after_mm)}};
-  return j;
 }
 
 void addCompensateCommand(CLI::App& app) {

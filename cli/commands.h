@@ -66,6 +66,7 @@ void addBatchCommand(CLI::App& app);
 void addDiagnoseCommand(CLI::App& app);
 void addSelfcheckCommand(CLI::App& app);
 void addCheckCommand(CLI::App& app);
+void addExportCommand(CLI::App& app);  // cmd_export.cpp
 
 /// Writes text through a temporary file renamed into place (InputError on failure).
 void writeTextAtomically(const std::string& path, const std::string& text);

@@ -5,6 +5,7 @@
 #include <string>
 
 #include "accura/calib/errors.h"
+#include "cli_util.h"
 #include "commands.h"
 
 int main(int argc, char** argv) {
@@ -23,6 +24,13 @@ int main(int argc, char** argv) {
   addDiagnoseCommand(app);
   addSelfcheckCommand(app);
   addCheckCommand(app);
+  addExportCommand(app);
+  // --chain for URDF robots, wherever a robot is accepted (cli_util.h: loadRobot)
+  for (CLI::App* sub : app.get_subcommands({}))
+    if (sub->get_option_no_throw("--robot"))
+      sub->add_option("--chain", robotChainOption(),
+                      "URDF robots: the serial chain ROOT_LINK:TIP_LINK (default: root link to tool0, "
+                      "else to the end of the only moving branch)");
 
   // an unknown command is named as such (CLI11 would only say that a subcommand is required)
   if (argc > 1 && argv[1][0] != '-') {

@@ -14,6 +14,10 @@ if(Python3_Interpreter_FOUND)
   add_test(NAME plugin_python
     COMMAND ${Python3_EXECUTABLE} ${_plugin_dir}/python/example.py
             --lib $<TARGET_FILE:accura_plugin> --model ${_model})
-  set_tests_properties(plugin_python PROPERTIES TIMEOUT 120 ENVIRONMENT PYTHONDONTWRITEBYTECODE=1)
+  set(_python_env PYTHONDONTWRITEBYTECODE=1)
+  if(ACCURA_HOST_ENV)  # the sanitizer build: python3 preloads the sanitizer runtime (tests/CMakeLists.txt)
+    list(APPEND _python_env ${ACCURA_HOST_ENV})
+  endif()
+  set_tests_properties(plugin_python PROPERTIES TIMEOUT 120 ENVIRONMENT "${_python_env}")
 endif()
 set_tests_properties(plugin_exports plugin_c_host PROPERTIES TIMEOUT 120)

@@ -13,9 +13,14 @@ packages=(
   libbenchmark-dev    # bench/
   liborocos-kdl-dev   # bench/: the IK peer (KDL ChainIkSolverPos_NR_JL)
   libcli11-dev        # command-line parsing
+  liburdfdom-dev      # URDF import / export (urdfdom, the ROS parser; pulls console-bridge)
+  liburdfdom-tools    # tests: check_urdf loads every exported URDF
   nlohmann-json3-dev  # JSON reports
   chromium            # tests: renders the diagnosis report headless and checks the screenshot
   libpng-dev          # tests: decodes that screenshot
+  clang               # scripts/sanitize.sh (CI): the AddressSanitizer + UBSan build and the
+                      # libFuzzer targets of fuzz/ (Debian 12: clang 14)
+  libclang-rt-14-dev  # their runtimes (ASan, UBSan, libFuzzer) for clang 14
   freecad-python3     # plugin/freecad: FreeCAD's Robot workbench, run headless (freecadcmd) by the
                       # plug-in's FreeCAD test (151 packages, ~250 MB download, ~1.5 min to install)
 )

@@ -14,6 +14,7 @@
 #include "accura/calib/robot_io.h"
 #include "accura/postproc/compensate.h"
 #include "accura/postproc/job.h"
+#include "accura/postproc/program_io.h"
 #include "accura_plugin.h"
 #include "test_util.h"
 
@@ -240,9 +241,9 @@ TEST(Plugin, ProgramEqualsTheCommandLine) {
   EXPECT_EQ(test::readText(dir + "/plugin/seam.dat"), test::readText(dir + "/cli/seam.dat"));
   EXPECT_EQ(std::string(s.output_path), dir + "/plugin/seam.src");
   const nlohmann::json report = nlohmann::json::parse(test::readText(json));
-  EXPECT_EQ(report["targets_corrected"].get<int>(), s.targets_corrected);
-  EXPECT_EQ(report["points_added"].get<int>(), s.points_added);
-  EXPECT_DOUBLE_EQ(report["max_error_after_mm"].get<double>(), s.max_error_after_mm);
+  EXPECT_EQ(report["totals"]["targets_corrected"].get<int>(), s.targets_corrected);
+  EXPECT_EQ(report["totals"]["points_added"].get<int>(), s.points_added);
+  EXPECT_NEAR(report["totals"]["max_error_after_mm"].get<double>(), s.max_error_after_mm, 0.5e-6);  // the report rounds to 1e-6 mm
   EXPECT_EQ(report["outputs"][0].get<std::string>(), dir + "/plugin/seam.src");
   EXPECT_EQ(test::readText(dir + "/seam.src"), src);  // the input is never modified
   EXPECT_GE(s.points_added, 2);
@@ -275,6 +276,139 @@ TEST(Plugin, ProgramEqualsTheCommandLine) {
   EXPECT_EQ(accura_compensate_program(h.m, (dir + "/bad.src").c_str(), (dir + "/plugin").c_str(), &o, &s), ACCURA_ERROR_INPUT);
   EXPECT_NE(lastError(h.m).find("bad.src:2"), std::string::npos) << lastError(h.m);
   EXPECT_FALSE(std::filesystem::exists(dir + "/plugin/bad.src"));
+}
+
+// The plug-in's report (json_report_path) is the report of `accura compensate --json`, byte
+// for byte, on the test programs: the golden seam with its $config.dat, the seam above and its
+// XML form (the same paths given to both, so that every file name in the reports agrees).
+TEST(Plugin, ReportEqualsTheCommandsByteForByte) {
+  const std::string dir = test::tempDir("plugin_report");
+  const std::string golden = test::sourcePath("tests/golden/compensate/");
+  for (const char* f : {"seam.src", "seam.dat", "$config.dat"}) test::writeText(dir + "/" + f, test::readText(golden + f));
+  test::writeText(dir + "/arc.src",
+                  "DEF arc( )\n$BASE = {X 0, Y 0, Z 0, A 0, B 0, C 0}\n$TOOL = {X 20, Y 0, Z 250, A 0, B -30, C 0}\n"
+                  "PTP {X 1100, Y -250, Z 500, A 0, B 180, C 0}\nLIN {X 1100, Y -50, Z 500, A 0, B 180, C 0} C_DIS\n"
+                  "CIRC {X 1180, Y 30, Z 500, A 0, B 180, C 0}, {X 1260, Y -50, Z 500, A 0, B 180, C 0}\nEND\n");
+  test::writeText(dir + "/arc.dat", "DEFDAT arc\nENDDAT\n");
+  ASSERT_EQ(test::runAccuraIn(dir, "convert --in arc.src --out arc.xml").code, 0);
+  struct Case {
+    std::string model, program, config;
+    double tol_mm;
+  };
+  const std::vector<Case> cases = {{golden + "kr16_real.xml", "seam.src", "$config.dat", 0.02},
+                                   {test::sourcePath(kModel), "arc.src", "", 0.05},
+                                   {test::sourcePath(kModel), "arc.xml", "", 0.05}};
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.program);
+    Handle h(c.model);
+    accura_program_options o;
+    ASSERT_EQ(accura_program_options_init(&o, sizeof(o)), ACCURA_OK);
+    o.tol_mm = c.tol_mm;
+    const std::string config = dir + "/" + c.config, plugin_json = dir + "/plugin.json", cli_json = dir + "/cli.json";
+    if (!c.config.empty()) o.config_path = config.c_str();
+    o.json_report_path = plugin_json.c_str();
+    const std::string in = dir + "/" + c.program, out = dir + "/out";
+    accura_program_summary s;
+    ASSERT_EQ(accura_compensate_program(h.m, in.c_str(), out.c_str(), &o, &s), ACCURA_OK) << lastError(h.m);
+    const test::CliRun cli = test::runAccuraIn(dir, "compensate --robot '" + c.model + "' --in '" + in + "' --out '" + out + "' --tol " +
+                                                        std::to_string(c.tol_mm) + (c.config.empty() ? "" : " --config '" + config + "'") +
+                                                        " --json '" + cli_json + "'");
+    ASSERT_EQ(cli.code, 0) << cli.err;
+    const std::string ours = test::readText(plugin_json), theirs = test::readText(cli_json);
+    EXPECT_EQ(ours, theirs);
+    // and it is the report the command documents: segments a list of objects, totals
+    const nlohmann::json j = nlohmann::json::parse(ours);
+    ASSERT_TRUE(j["segments"].is_array());
+    EXPECT_EQ(j["segments"].size(), j["totals"]["segments"].get<size_t>());
+    EXPECT_EQ(j["totals"]["targets_corrected"].get<int>(), s.targets_corrected);
+    EXPECT_EQ(j["totals"]["points_added"].get<int>(), s.points_added);
+    EXPECT_GE(j["segments"].size(), 1u);
+  }
+  std::filesystem::remove_all(dir);
+}
+
+// accura_model_get_joints gives the robot file's joints (read independently here).
+TEST(Plugin, JointsAreTheRobotFiles) {
+  Handle h(test::sourcePath(kModel));
+  const RobotModel robot = readRobotFile(test::sourcePath(kModel));
+  accura_joint j[ACCURA_MAX_JOINTS];
+  size_t n = 0;
+  ASSERT_EQ(accura_model_get_joints(h.m, j, ACCURA_MAX_JOINTS, &n), ACCURA_OK) << lastError(h.m);
+  ASSERT_EQ(n, 6u);
+  for (size_t i = 0; i < n; ++i) {
+    const JointSpec& e = robot.nominal.joints[i];
+    EXPECT_EQ(j[i].prismatic, 0);
+    EXPECT_EQ(j[i].a_mm, e.a_mm);
+    EXPECT_EQ(j[i].alpha_deg, e.alpha_deg);
+    EXPECT_EQ(j[i].d_mm, e.d_mm);
+    EXPECT_EQ(j[i].theta0_deg, e.theta0_deg);
+    EXPECT_EQ(j[i].direction, e.direction);
+    EXPECT_EQ(j[i].lower, e.lower);
+    EXPECT_EQ(j[i].upper, e.upper);
+  }
+  EXPECT_EQ(accura_model_get_joints(h.m, j, 5, &n), ACCURA_ERROR_BUFFER_TOO_SMALL);
+  EXPECT_EQ(n, 6u);
+}
+
+// accura_write_program writes a new program with accura's writer: read back by accura's
+// readers, every value at the writer's resolution (1e-4 mm, 1e-5 deg), in KRL and XML.
+TEST(Plugin, WrittenProgramReadsBack) {
+  const std::string dir = test::tempDir("plugin_write");
+  Handle h;  // no model needed
+  const accura_pose p1 = cpose(1100, -250, 500, 0, 180, 0), p2 = cpose(1100, -50, 500.123456, 0.1234567, 179.5, 0);
+  const accura_pose aux = cpose(1180, 30, 500, 0, 180, 0), end = cpose(1260, -50, 500, 0, 180, 0);
+  const accura_program_motion motions[3] = {
+      {ACCURA_PTP, {}, p1, 1, 0.0}, {ACCURA_LIN, {}, p2, 0, 0.2}, {ACCURA_CIRC, aux, end, 1, 0.1}};
+  accura_write_options o;
+  ASSERT_EQ(accura_write_options_init(&o, sizeof(o)), ACCURA_OK);
+  o.tool = cpose(20, 0, 250, 0, -30, 0);
+  o.base = cpose(10, 20, 30, 0, 0, 90);
+  for (const std::string name : {"/sub/seam.src", "/seam.xml"}) {
+    SCOPED_TRACE(name);
+    ASSERT_EQ(accura_write_program(h.m, (dir + name).c_str(), motions, 3, &o), ACCURA_OK) << lastError(h.m);
+    const Program p = readProgram(dir + name);
+    ASSERT_EQ(p.motions.size(), 3u);
+    EXPECT_EQ(p.name, "seam");
+    const MotionType types[3] = {MotionType::kPtp, MotionType::kLin, MotionType::kCirc};
+    const accura_pose ends[3] = {p1, p2, end};
+    for (int k = 0; k < 3; ++k) {
+      const Motion& m = p.motions[k];
+      EXPECT_EQ(m.type, types[k]);
+      const XyzAbc e = m.target.xyzAbc();
+      EXPECT_NEAR(e.x_mm, ends[k].x_mm, 0.5e-4);
+      EXPECT_NEAR(e.z_mm, ends[k].z_mm, 0.5e-4);
+      EXPECT_NEAR(e.a_deg, ends[k].a_deg, 0.5e-5);
+      EXPECT_NEAR(e.b_deg, ends[k].b_deg, 0.5e-5);
+      ASSERT_TRUE(m.tool.known());
+      EXPECT_EQ(m.tool.value->z_mm, 250);
+      EXPECT_EQ(m.tool.value->b_deg, -30);
+      ASSERT_TRUE(m.base.known());
+      EXPECT_EQ(m.base.value->c_deg, 90);
+    }
+    EXPECT_EQ(p.motions[0].approximation, std::vector<Approximation>{Approximation::kCPtp});
+    EXPECT_TRUE(p.motions[1].approximation.empty());
+    EXPECT_EQ(p.motions[2].approximation, std::vector<Approximation>{Approximation::kCDis});
+    ASSERT_TRUE(p.motions[1].vel_m_s && p.motions[2].vel_m_s);
+    EXPECT_DOUBLE_EQ(*p.motions[1].vel_m_s, 0.2);
+    EXPECT_DOUBLE_EQ(*p.motions[2].vel_m_s, 0.1);
+    ASSERT_TRUE(p.motions[2].aux.has_value());
+    EXPECT_NEAR(p.motions[2].aux->xyzAbc().y_mm, 30, 0.5e-4);
+  }
+  EXPECT_TRUE(std::filesystem::exists(dir + "/sub/seam.dat"));
+  // bad input: a motion type, a pose, an extension
+  accura_program_motion bad[1] = {{7, {}, p1, 0, 0.0}};
+  EXPECT_EQ(accura_write_program(h.m, (dir + "/bad.src").c_str(), bad, 1, &o), ACCURA_ERROR_INVALID_ARGUMENT);
+  EXPECT_NE(lastError(h.m).find("motions[0].type"), std::string::npos) << lastError(h.m);
+  bad[0] = {ACCURA_LIN, {}, cpose(NAN, 0, 0, 0, 0, 0), 0, 0.0};
+  EXPECT_EQ(accura_write_program(h.m, (dir + "/bad.src").c_str(), bad, 1, &o), ACCURA_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(accura_write_program(h.m, (dir + "/bad.txt").c_str(), motions, 3, &o), ACCURA_ERROR_INPUT);
+  EXPECT_FALSE(std::filesystem::exists(dir + "/bad.src"));
+  // accura_write_file: the bytes given, no temporary file left
+  const std::string text = std::string("a,b\n") + '\0' + "c\n";
+  ASSERT_EQ(accura_write_file(h.m, (dir + "/t/table.csv").c_str(), text.data(), text.size()), ACCURA_OK) << lastError(h.m);
+  EXPECT_EQ(test::readText(dir + "/t/table.csv"), text);
+  for (const auto& e : std::filesystem::directory_iterator(dir + "/t")) EXPECT_EQ(e.path().filename().string(), "table.csv");
+  std::filesystem::remove_all(dir);
 }
 
 TEST(Plugin, BadInputGivesStatusesAndMessages) {

@@ -62,6 +62,12 @@ std::vector<PathSegment> segmentsOf(const Program& p, Eigen::Isometry3d* T_world
   return segs;
 }
 
+// The sanitizer build (tests/CMakeLists.txt): the environment freecadcmd needs to load the
+// sanitized plug-in; empty otherwise.
+#ifndef ACCURA_HOST_ENV
+#define ACCURA_HOST_ENV ""
+#endif
+
 TEST(PluginFreecad, CompensatedSeamExportedFromFreecadFollowsThePath) {
   const std::string freecadcmd = findFreecadcmd();
   if (freecadcmd.empty()) {
@@ -71,7 +77,7 @@ TEST(PluginFreecad, CompensatedSeamExportedFromFreecadFollowsThePath) {
   const double tol_mm = 0.05;
   const std::string dir = test::tempDir("plugin_freecad");
   const std::string model_path = test::sourcePath("tests/data/plugin/kr16_calibrated.xml");
-  const std::string cmd = "cd '" + dir + "' && HOME='" + dir + "' PYTHONDONTWRITEBYTECODE=1 ACCURA_SOURCE_DIR='" + std::string(ACCURA_SOURCE_DIR) +
+  const std::string cmd = "cd '" + dir + "' && " + std::string(ACCURA_HOST_ENV) + " HOME='" + dir + "' PYTHONDONTWRITEBYTECODE=1 ACCURA_SOURCE_DIR='" + std::string(ACCURA_SOURCE_DIR) +
                           "' ACCURA_PLUGIN_LIB='" + std::string(ACCURA_PLUGIN_LIB) + "' ACCURA_MODEL='" + model_path +
                           "' ACCURA_OUT='" + dir + "' ACCURA_TOL_MM=0.05 '" + freecadcmd + "' '" +
                           test::sourcePath("tests/data/plugin/freecad_seam.py") + "' > freecad.log 2>&1";

@@ -15,6 +15,12 @@ using nlohmann::ordered_json;
 
 ordered_json num(double v) { return std::isfinite(v) ? ordered_json(v) : ordered_json(nullptr); }
 
+ordered_json arrayOf(const std::vector<double>& v) {
+  ordered_json a = ordered_json::array();
+  for (double x : v) a.push_back(num(x));
+  return a;
+}
+
 std::string f(const char* format, double v) {
   if (!std::isfinite(v)) return "-";
   char buf[64];
@@ -67,7 +73,62 @@ ordered_json evidenceJson(const Diagnosis& d, const EffectEvidence& e) {
                   {"p_value", num(je.p_value)}});
   j["per_joint"] = pj;
   j["note"] = e.note;
+  j["implausible"] = e.implausible;
+  j["blocked_gain_percent"] = num(100 * e.blocked_gain);
+  j["blocked_scheme"] = e.blocked_scheme;
+  ordered_json cov = ordered_json::array();
+  for (const Coverage& c : e.coverage)
+    cov.push_back({{"variable", c.variable}, {"unit", c.unit}, {"min", num(c.lo)}, {"max", num(c.hi)}});
+  j["coverage"] = cov;
+  j["params"] = e.params;
   return j;
+}
+
+std::string rowRef(const std::string& file, int line, int index) {
+  return file + ":" + (line > 0 ? std::to_string(line) : "row " + std::to_string(index + 1));
+}
+
+ordered_json floorsJson(const Diagnosis& d) {
+  const Floors& fl = d.floors;
+  ordered_json j;
+  j["instrument_rms_3d_mm"] = num(fl.instrument_known ? fl.instrument_rms_mm : NAN);
+  j["repeatability"] = {{"tolerance", num(fl.repeat_tol)},
+                        {"tolerance_unit", "deg (mm for prismatic joints), every joint"},
+                        {"configurations", fl.repeat_groups},
+                        {"pairs", fl.repeat_pairs},
+                        {"rows_apart_min", fl.repeat_min_gap},
+                        {"rows_apart_max", fl.repeat_max_gap},
+                        {"median_pair_distance_mm", num(fl.median_pair_mm)},
+                        {"std_per_axis_mm", num(fl.repeat_std_axis_mm)},
+                        {"rms_3d_mm", num(fl.repeat_rms_mm)},
+                        {"degrees_of_freedom", num(fl.repeat_dof)}};
+  j["judged_against"] = d.noise_floor_source;
+  j["glitch_threshold_mm"] = num(fl.glitch_threshold_mm);
+  ordered_json g = ordered_json::array();
+  for (const RepeatPair& p : fl.glitches)
+    g.push_back({{"rows", {rowRef(d.data_file, p.line_a, p.index_a), rowRef(d.data_file, p.line_b, p.index_b)}},
+                 {"distance_mm", num(p.distance_mm)},
+                 {"orientation_jump_deg", num(p.rotation_deg)}});
+  j["glitches"] = g;
+  return j;
+}
+
+ordered_json spectraJson(const Diagnosis& d) {
+  ordered_json a = ordered_json::array();
+  for (const JointSpectrum& sp : d.spectra)
+    a.push_back({{"joint", sp.joint},
+                 {"range_deg", num(sp.range_deg)},
+                 {"cycles_per_rev", sp.cycles},
+                 {"amplitude_urad_before", arrayOf(sp.amplitude_urad_before)},
+                 {"amplitude_urad_after", arrayOf(sp.amplitude_urad_after)},
+                 {"peak_before", {{"cycles_per_rev", sp.peak_cycles_before},
+                                  {"amplitude_urad", num(sp.peak_amplitude_urad_before)},
+                                  {"p_value", num(sp.peak_p_before)}}},
+                 {"peak_after", {{"cycles_per_rev", sp.peak_cycles},
+                                 {"amplitude_urad", num(sp.peak_amplitude_urad)},
+                                 {"share", num(sp.peak_share)},
+                                 {"p_value", num(sp.peak_p)}}}});
+  return a;
 }
 
 ordered_json statsJson(const HeldOutStats& s, double floor_mm) {
@@ -84,11 +145,6 @@ ordered_json statsJson(const HeldOutStats& s, double floor_mm) {
   return j;
 }
 
-ordered_json arrayOf(const std::vector<double>& v) {
-  ordered_json a = ordered_json::array();
-  for (double x : v) a.push_back(num(x));
-  return a;
-}
 
 // ---------------------------------------------------------------------------------------
 // HTML helpers
@@ -251,6 +307,11 @@ std::string diagnosisJson(const Diagnosis& d) {
                       {"source", d.noise_floor_source},
                       {"known", d.noise_floor_known},
                       {"degrees_of_freedom", num(d.noise_floor_dof)}};
+  j["floors"] = floorsJson(d);
+  ordered_json dw = ordered_json::array();
+  for (const DownWeighted& w : d.downweighted)
+    dw.push_back({{"row", rowRef(w.file, w.line, w.index)}, {"residual_mm", num(w.residual_mm)}, {"weight", num(w.weight)}});
+  j["downweighted"] = dw;
   j["tests"] = d.tests;
   j["baseline"] = statsJson(d.baseline, d.noise_floor_mm);
   ordered_json ranking = ordered_json::array();
@@ -259,6 +320,10 @@ std::string diagnosisJson(const Diagnosis& d) {
   ordered_json selected = ordered_json::array();
   for (const auto& e : d.selected) selected.push_back(evidenceJson(d, e));
   j["selected"] = selected;
+  j["identify_params"] = d.identify_params;
+  ordered_json rej = ordered_json::array();
+  for (const Rejected& r : d.rejected) rej.push_back({{"effect", r.effect}, {"joints", r.joints}, {"reason", r.reason}});
+  j["rejected"] = rej;
   ordered_json conf = ordered_json::array();
   for (const Confounding& c : d.confounded)
     conf.push_back({{"effect_a", c.effect_a},
@@ -288,7 +353,12 @@ std::string diagnosisJson(const Diagnosis& d) {
                   {"validation_rms_after_mm", num(d.verdict.validation_rms_after_mm)},
                   {"explanation", d.verdict.explanation},
                   {"correlates", d.verdict.correlates},
-                  {"confounded_with", d.verdict.confounded_with}};
+                  {"confounded_with", d.verdict.confounded_with},
+                  {"effects", d.verdict.effects},
+                  {"explained_share", num(d.verdict.explained_share)}};
+  j["spectra"] = spectraJson(d);
+  j["orientation_residual_deg"] = {{"rms_before", num(d.orientation_rms_before_deg)},
+                                   {"rms_after", num(d.orientation_rms_after_deg)}};
   ordered_json where;
   ordered_json fields = ordered_json::array();
   for (const FieldMap& fm : d.fields)
@@ -347,6 +417,29 @@ std::string diagnosisText(const Diagnosis& d) {
   if (d.orientation_ignored) s << "orientation columns are not used by the diagnosis (position only)\n";
   s << "noise floor: " << f("%.4f", d.noise_floor_mm) << " mm (3D RMS; " << f("%.4f", d.noise_std_axis_mm)
     << " mm per axis); source: " << d.noise_floor_source << "\n";
+  {
+    const Floors& fl = d.floors;
+    s << "floors: instrument (std columns) " << (fl.instrument_known ? f("%.4f", fl.instrument_rms_mm) + " mm" : std::string("unknown"))
+      << "; repeatability " << (fl.repeat_dof > 0 ? f("%.4f", fl.repeat_rms_mm) + " mm 3D RMS" : std::string("unknown")) << " from "
+      << fl.repeat_groups << " configurations measured again (" << fl.repeat_pairs << " pairs, " << fl.repeat_min_gap << "-"
+      << fl.repeat_max_gap << " rows apart, joints within " << f("%g", fl.repeat_tol) << " deg), median pair distance "
+      << f("%.4f", fl.median_pair_mm) << " mm\n";
+    if (!fl.glitches.empty()) {
+      s << "glitches (repeat pairs further apart than " << f("%.3f", fl.glitch_threshold_mm) << " mm):";
+      for (const RepeatPair& p : fl.glitches)
+        s << "\n  " << rowRef(d.data_file, p.line_a, p.index_a) << " / " << rowRef(d.data_file, p.line_b, p.index_b) << "  "
+          << f("%.3f", p.distance_mm) << " mm" << (std::isfinite(p.rotation_deg) ? ", orientation jump " + f("%.3f", p.rotation_deg) + " deg" : "");
+      s << "\n";
+    }
+    if (!d.downweighted.empty()) {
+      s << "robust estimation down-weighted " << d.downweighted.size() << " row(s):";
+      for (size_t k = 0; k < d.downweighted.size() && k < 12; ++k)
+        s << " " << rowRef(d.downweighted[k].file, d.downweighted[k].line, d.downweighted[k].index) << " ("
+          << f("%.2f", d.downweighted[k].residual_mm) << " mm, w " << f("%.2f", d.downweighted[k].weight) << ")";
+      if (d.downweighted.size() > 12) s << " ... (all in the JSON)";
+      s << "\n";
+    }
+  }
   s << "baseline (complete geometric model): held-out RMS " << f("%.4f", d.baseline.rms_mm) << " mm, max "
     << f("%.4f", d.baseline.max_mm) << " mm\n";
   s << "ranking (each effect alone on the baseline; held-out RMS before -> after, gain, p):\n";
@@ -369,7 +462,28 @@ std::string diagnosisText(const Diagnosis& d) {
                   st.heldout.rms_mm, st.heldout.max_mm, f("%.4f", st.heldout.expected_rms_mm).c_str());
     s << buf;
   }
+  for (const EffectEvidence& e : d.selected) {
+    s << "selected: " << e.params << "  blocked cross-validation gain " << f("%.1f", 100 * e.blocked_gain) << "% (worst: "
+      << e.blocked_scheme << "); fitted on";
+    for (const Coverage& c : e.coverage) s << " " << c.variable << " " << f("%.1f", c.lo) << ".." << f("%.1f", c.hi) << " " << c.unit;
+    s << "\n";
+  }
+  for (const Rejected& r : d.rejected) s << "not selected: " << r.effect << " " << jointsText(r.joints) << ": " << r.reason << "\n";
+  s << "identify --params " << d.identify_params << "\n";
   for (const Confounding& c : d.confounded) s << confoundingText(c) << "\n";
+  if (!d.spectra.empty()) {
+    s << "per-joint spectrum of the residual (largest peak, before -> after; p Bonferroni over every joint and k):\n";
+    for (const JointSpectrum& sp : d.spectra) {
+      char buf[256];
+      std::snprintf(buf, sizeof buf, "  j%d (range %.0f deg): %2d cycles/rev %6.0f urad p %.2g -> %2d cycles/rev %6.0f urad p %.2g\n",
+                    sp.joint, sp.range_deg, sp.peak_cycles_before, sp.peak_amplitude_urad_before, sp.peak_p_before,
+                    sp.peak_cycles, sp.peak_amplitude_urad, sp.peak_p);
+      s << buf;
+    }
+  }
+  if (std::isfinite(d.orientation_rms_before_deg))
+    s << "orientation residual (constant tool rotation removed): " << f("%.4f", d.orientation_rms_before_deg) << " -> "
+      << f("%.4f", d.orientation_rms_after_deg) << " deg RMS\n";
   s << "verdict: " << d.verdict.effect;
   if (!d.verdict.joints.empty()) s << " (" << jointsText(d.verdict.joints) << ")";
   s << ", held-out RMS after " << f("%.4f", d.verdict.validation_rms_after_mm) << " mm\n  " << d.verdict.explanation << "\n";

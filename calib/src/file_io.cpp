@@ -5,6 +5,7 @@
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 
 #include "accura/calib/errors.h"
@@ -28,6 +29,14 @@ void writeFileAtomically(const std::string& path, const std::string& content) {
     std::remove(tmp.c_str());
     throw InputError(path, 0, 0, "cannot rename the temporary file into place: " + why);
   }
+}
+
+bool sameFile(const std::string& a, const std::string& b) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (fs::exists(a, ec) && fs::exists(b, ec)) return fs::equivalent(a, b, ec);
+  const fs::path pa = fs::weakly_canonical(fs::absolute(a, ec), ec), pb = fs::weakly_canonical(fs::absolute(b, ec), ec);
+  return !ec && pa == pb;
 }
 
 }  // namespace accura

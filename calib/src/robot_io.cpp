@@ -16,6 +16,7 @@
 #include "accura/calib/file_io.h"
 #include "accura/calib/text.h"
 #include "accura/calib/kinematics.h"
+#include "accura/calib/urdf.h"
 
 namespace fs = std::filesystem;
 
@@ -114,6 +115,7 @@ std::string robotsDir() {
 }  // namespace
 
 RobotModel readRobotFile(const std::string& path) {
+  if (fs::path(path).extension() == ".urdf") return readUrdfRobot(path);  // urdf.h, default chain
   std::ifstream probe(path);
   if (!probe) throw InputError(path, 0, 0, "cannot open robot file");
   tinyxml2::XMLDocument doc;

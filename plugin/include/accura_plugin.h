@@ -165,6 +165,19 @@ typedef struct accura_model_info {
 } accura_model_info;
 ACCURA_API accura_status accura_model_get_info(accura_model* model, accura_model_info* info);
 
+/* One joint of the nominal robot (the robot file's DH form: link i = Rz(direction * q +
+ * theta0) Tz(d) Tx(a) Rx(alpha); docs/robot-format.md). */
+typedef struct accura_joint {
+  int prismatic;               /* 0: revolute (q in deg), 1: prismatic (q in mm) */
+  double a_mm, alpha_deg, d_mm, theta0_deg;
+  int direction;               /* +1 or -1 */
+  double lower, upper;         /* limits (deg / mm) */
+} accura_joint;
+/* The nominal robot's joints: writes min(dof, capacity) of them; `n_joints` (may be NULL)
+ * gets the dof. ACCURA_ERROR_BUFFER_TOO_SMALL when capacity < dof. */
+ACCURA_API accura_status accura_model_get_joints(accura_model* model, accura_joint* joints, size_t capacity,
+                                                 size_t* n_joints);
+
 typedef enum accura_which_model {
   ACCURA_CONTROLLER = 0, /* the nominal model at the placement, with the program tool */
   ACCURA_REAL = 1        /* the calibrated model (payload and temperature of the options) */
@@ -211,7 +224,8 @@ ACCURA_API accura_status accura_compensate_poses(accura_model* model, const accu
 /* ---------------------------------------------------------------------------------------- */
 /* Continuous paths: compensation and auxiliary points */
 
-typedef enum accura_motion_type { ACCURA_LIN = 0, ACCURA_CIRC = 1 } accura_motion_type;
+/* ACCURA_PTP only in programs written by accura_write_program (a path is LIN and CIRC). */
+typedef enum accura_motion_type { ACCURA_LIN = 0, ACCURA_CIRC = 1, ACCURA_PTP = 2 } accura_motion_type;
 
 /* One motion of a path; it starts where the previous one ends (the first at the path's
  * start). `aux` is the CIRC auxiliary point (its orientation is not used); ignored for LIN. */
@@ -274,7 +288,8 @@ typedef struct accura_program_options {
   const char* dat_path;    /* KRL: the .dat (NULL: next to the .src) */
   const char* config_path; /* $config.dat: TOOL_DATA / BASE_DATA (NULL: none) */
   double tol_mm;           /* path tolerance (mm, > 0; default 0.05) */
-  const char* json_report_path; /* NULL: none; else the report of `accura compensate --json` */
+  const char* json_report_path; /* NULL: none; else the report of `accura compensate --json`,
+                                   the same bytes for the same program and settings */
 } accura_program_options;
 ACCURA_API accura_status accura_program_options_init(accura_program_options* options, size_t struct_size);
 
@@ -356,6 +371,41 @@ ACCURA_API accura_status accura_check_program(accura_model* model, const char* c
                                               const accura_check_options* options,
                                               accura_check_summary* summary,
                                               accura_check_violation* violations, size_t capacity);
+
+/* ---------------------------------------------------------------------------------------- */
+/* Writing programs */
+
+/* One motion of a program to write (program base frame, T_base_tcp). */
+typedef struct accura_program_motion {
+  int type;          /* accura_motion_type: ACCURA_PTP, ACCURA_LIN or ACCURA_CIRC */
+  accura_pose aux;   /* CIRC: the auxiliary point; ignored otherwise */
+  accura_pose end;
+  int approximate;   /* 1: approximated (KRL C_PTP for PTP, C_DIS for LIN / CIRC) */
+  double vel_m_s;    /* LIN / CIRC path speed (m/s; <= 0: not set) */
+} accura_program_motion;
+
+typedef struct accura_write_options {
+  size_t struct_size;        /* sizeof(accura_write_options), set by accura_write_options_init */
+  const char* program_name;  /* NULL: the file name without its extension */
+  accura_pose tool;          /* $TOOL (T_flange_tcp) of every motion */
+  accura_pose base;          /* $BASE of every motion (relative to $WORLD; default identity) */
+} accura_write_options;
+ACCURA_API accura_status accura_write_options_init(accura_write_options* options, size_t struct_size);
+
+/* Writes a new program in the controller language of the path's extension (.src: KUKA KRL,
+ * with the .dat next to it; .xml: accura's XML program) with the writer of `accura
+ * compensate` (values at 1e-4 mm and 1e-5 deg), every file through a temporary file renamed
+ * into place. ACCURA_ERROR_INVALID_ARGUMENT for a motion type or pose that is not valid,
+ * ACCURA_ERROR_INPUT for another extension or a file that cannot be written. `model` holds
+ * the error message (no model need be loaded; a loaded model names the robot of an XML
+ * program). */
+ACCURA_API accura_status accura_write_program(accura_model* model, const char* path, const accura_program_motion* motions,
+                                              size_t n_motions, const accura_write_options* options);
+
+/* Writes `size` bytes to `path` (its directory created) through a temporary file renamed
+ * into place: the one writer of accura's outputs, for a host's own files (e.g. a kinematic
+ * table). ACCURA_ERROR_INPUT when the file cannot be written. */
+ACCURA_API accura_status accura_write_file(accura_model* model, const char* path, const char* data, size_t size);
 
 #ifdef __cplusplus
 }

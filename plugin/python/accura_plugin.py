@@ -33,6 +33,7 @@ ERROR_INTERNAL = 12
 
 LIN = 0
 CIRC = 1
+PTP = 2
 CONTROLLER = 0
 REAL = 1
 
@@ -166,6 +167,21 @@ class CheckSummary(ctypes.Structure):
                 ("min_joint_margin", ctypes.c_double)]
 
 
+class Joint(ctypes.Structure):
+    _fields_ = [("prismatic", ctypes.c_int), ("a_mm", ctypes.c_double), ("alpha_deg", ctypes.c_double),
+                ("d_mm", ctypes.c_double), ("theta0_deg", ctypes.c_double), ("direction", ctypes.c_int),
+                ("lower", ctypes.c_double), ("upper", ctypes.c_double)]
+
+
+class ProgramMotion(ctypes.Structure):
+    _fields_ = [("type", ctypes.c_int), ("aux", Pose), ("end", Pose), ("approximate", ctypes.c_int),
+                ("vel_m_s", ctypes.c_double)]
+
+
+class WriteOptions(ctypes.Structure):
+    _fields_ = [("struct_size", ctypes.c_size_t), ("program_name", ctypes.c_char_p), ("tool", Pose), ("base", Pose)]
+
+
 def _bytes(s):
     return None if s is None else os.fsencode(s)
 
@@ -198,6 +214,10 @@ class Plugin:
                                        P(PathPoint), ctypes.c_size_t, P(PathResult), P(MotionReport)],
             "accura_program_options_init": [P(ProgramOptions), ctypes.c_size_t],
             "accura_compensate_program": [vp, ctypes.c_char_p, ctypes.c_char_p, P(ProgramOptions), P(ProgramSummary)],
+            "accura_model_get_joints": [vp, P(Joint), ctypes.c_size_t, P(ctypes.c_size_t)],
+            "accura_write_options_init": [P(WriteOptions), ctypes.c_size_t],
+            "accura_write_program": [vp, ctypes.c_char_p, P(ProgramMotion), ctypes.c_size_t, P(WriteOptions)],
+            "accura_write_file": [vp, ctypes.c_char_p, ctypes.c_char_p, ctypes.c_size_t],
             "accura_check_options_init": [P(CheckOptions), ctypes.c_size_t],
             "accura_check_program": [vp, ctypes.c_char_p, ctypes.c_char_p, P(CheckOptions), P(CheckSummary),
                                      P(CheckViolation), ctypes.c_size_t],
@@ -225,9 +245,14 @@ class Plugin:
         return Model(self, calibrated_model, controller_model, robroot_in_world, robroot_in_kukaworld, program_base,
                      program_tool, payload_kg, temp_c)
 
+    def handle(self):
+        """A Model without a loaded model: for write_program and write_file (close() or `with` frees it)."""
+        return Model(self, None, None, None, None, None, None, 0.0, 20.0)
+
 
 class Model:
-    """A loaded model (an accura_model handle). Usable from several threads; close() or `with` frees it."""
+    """A loaded model (an accura_model handle; calibrated_model None: none loaded). Usable from several threads;
+    close() or `with` frees it."""
 
     def __init__(self, plugin, calibrated_model, controller_model, robroot_in_world, robroot_in_kukaworld,
                  program_base, program_tool, payload_kg, temp_c):
@@ -235,6 +260,8 @@ class Model:
         self.lib = plugin.lib
         self.handle = ctypes.c_void_p()
         self._check(self.lib.accura_model_create(ctypes.byref(self.handle)), no_handle=True)
+        if calibrated_model is None:
+            return
         try:
             o = LoadOptions()
             self._check(self.lib.accura_load_options_init(ctypes.byref(o), ctypes.sizeof(o)), no_handle=True)
@@ -279,6 +306,43 @@ class Model:
         i = ModelInfo()
         self._check(self.lib.accura_model_get_info(self.handle, ctypes.byref(i)))
         return i
+
+    def joints(self):
+        """The nominal robot's joints (Joint: prismatic, a_mm, alpha_deg, d_mm, theta0_deg, direction, lower, upper)."""
+        arr = (Joint * MAX_JOINTS)()
+        n = ctypes.c_size_t()
+        self._check(self.lib.accura_model_get_joints(self.handle, arr, MAX_JOINTS, ctypes.byref(n)))
+        return list(arr[:n.value])
+
+    def write_program(self, path, motions, tool, base=(0, 0, 0, 0, 0, 0), program_name=None):
+        """Writes a new program (.src: KRL with its .dat; .xml: accura's XML) with accura's writer, each file through
+        a temporary file renamed into place. motions: ("PTP", end, approximate), ("LIN", end, approximate, vel_m_s)
+        or ("CIRC", aux, end, approximate, vel_m_s) tuples; tool, base: $TOOL and $BASE (x, y, z, A, B, C)."""
+        arr = (ProgramMotion * max(len(motions), 1))()
+        for i, m in enumerate(motions):
+            kind = m[0].upper()
+            if kind == "PTP" and len(m) == 3:
+                arr[i] = ProgramMotion(PTP, Pose(), Pose.of(m[1]), 1 if m[2] else 0, 0.0)
+            elif kind == "LIN" and len(m) == 4:
+                arr[i] = ProgramMotion(LIN, Pose(), Pose.of(m[1]), 1 if m[2] else 0, m[3])
+            elif kind == "CIRC" and len(m) == 5:
+                arr[i] = ProgramMotion(CIRC, Pose.of(m[1]), Pose.of(m[2]), 1 if m[3] else 0, m[4])
+            else:
+                raise ValueError("motion %d: expected ('PTP', end, approx), ('LIN', end, approx, vel_m_s) or "
+                                 "('CIRC', aux, end, approx, vel_m_s), found %r" % (i, m))
+        o = WriteOptions()
+        self._check(self.lib.accura_write_options_init(ctypes.byref(o), ctypes.sizeof(o)))
+        o.program_name = _bytes(program_name)
+        o.tool = Pose.of(tool)
+        o.base = Pose.of(base)
+        self._check(self.lib.accura_write_program(self.handle, _bytes(path), arr, len(motions), ctypes.byref(o)))
+        return path
+
+    def write_file(self, path, text):
+        """Writes text (str, UTF-8) to path through a temporary file renamed into place (accura's one writer)."""
+        data = text.encode()
+        self._check(self.lib.accura_write_file(self.handle, _bytes(path), data, len(data)))
+        return path
 
     def forward_kinematics(self, q, which=CONTROLLER):
         """T_base_tcp (x, y, z, A, B, C) of the controller (nominal) or the REAL model at joints q (deg)."""

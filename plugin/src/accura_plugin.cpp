@@ -11,7 +11,6 @@
 #include <filesystem>
 #include <memory>
 #include <mutex>
-#include <nlohmann/json.hpp>
 #include <new>
 #include <optional>
 #include <sstream>
@@ -30,6 +29,8 @@
 #include "accura/postproc/check.h"
 #include "accura/postproc/compensate.h"
 #include "accura/postproc/job.h"
+#include "accura/postproc/path_job.h"
+#include "accura/postproc/placement.h"
 #include "accura/postproc/program_io.h"
 
 #ifndef ACCURA_VERSION_MAJOR
@@ -56,10 +57,10 @@ struct PluginError {
 struct State {
   JobSettings job;                       ///< the settings of accura compensate
   Eigen::Isometry3d T_world_progbase;    ///< $BASE of the poses and paths in the world
-  Eigen::Isometry3d T_flange_tcp;        ///< $TOOL of the poses and paths
-  std::unique_ptr<Compensator> comp;     ///< controller and real model with that tool
-  bool calibrated_tool = false;
-  Eigen::Isometry3d T_world_robroot;
+  std::unique_ptr<ModelFactory> models;  ///< the placement and the models (placement.h)
+  /// The models of the $TOOL of the poses and paths, with their Compensator (built at load:
+  /// nothing in State changes afterwards, so that threads share it).
+  const ToolModels* tool = nullptr;
 };
 
 }  // namespace
@@ -126,12 +127,15 @@ std::shared_ptr<const State> stateOf(accura_model* m) {
 XyzAbc toXyz(const accura_pose& p) { return {p.x_mm, p.y_mm, p.z_mm, p.a_deg, p.b_deg, p.c_deg}; }
 accura_pose toC(const XyzAbc& p) { return {p.x_mm, p.y_mm, p.z_mm, p.a_deg, p.b_deg, p.c_deg}; }
 
-Eigen::Isometry3d checkedPose(const accura_pose& p, const std::string& what) {
+/// The pose as given (finite, else ACCURA_ERROR_INVALID_ARGUMENT naming `what`).
+XyzAbc checkedXyz(const accura_pose& p, const std::string& what) {
   const double v[6] = {p.x_mm, p.y_mm, p.z_mm, p.a_deg, p.b_deg, p.c_deg};
   for (double x : v)
     if (!std::isfinite(x)) fail(ACCURA_ERROR_INVALID_ARGUMENT, what + ": expected finite x, y, z (mm), A, B, C (deg), found a NaN or infinity");
-  return toIsometry(toXyz(p));
+  return toXyz(p);
 }
+
+Eigen::Isometry3d checkedPose(const accura_pose& p, const std::string& what) { return toIsometry(checkedXyz(p, what)); }
 
 /// S in 0..7 (three bits) or -1 (any), T in 0..2^dof - 1 (a bit per joint) or -1.
 Configuration configOf(const accura_configuration* c, int dof) {
@@ -142,18 +146,6 @@ Configuration configOf(const accura_configuration* c, int dof) {
                                             " (a bit per joint), or -1 (any), found S " + std::to_string(c->status) + ", T " +
                                             std::to_string(c->turn));
   return {c->status, c->turn};
-}
-
-/// The configuration rule of accura compensate (job.cpp): a compensation that lands on another
-/// S/T than asked is an error, except Turn bits of joints within kTurnBandDeg of 0 (the same arm
-/// posture; the result's configuration carries the new bits and configuration_changed is 1).
-void enforceConfiguration(const Configuration& asked, PoseCompensation& pc) {
-  if (pc.status != IkStatus::kOk || !pc.configuration_changed) return;
-  if (onlyTurnBitsNearZeroDiffer(asked, pc.configuration, pc.q_real)) return;
-  pc.status = IkStatus::kNoConfiguration;
-  pc.message = "reachable only with S " + std::to_string(pc.configuration.status) + ", T " +
-               std::to_string(pc.configuration.turn) + ", not with the configuration asked for (S " +
-               std::to_string(asked.status) + ", T " + std::to_string(asked.turn) + ")";
 }
 
 accura_configuration toC(const Configuration& c) { return {c.status, c.turn}; }
@@ -230,31 +222,11 @@ std::shared_ptr<State> buildState(const std::string& calibrated_path, const accu
   job.context.payload_kg = o.payload_kg;
   job.context.temp_c = o.temp_c;
 
-  // Frames as compensateProgram takes them (job.h): T_world_tcp = T_world_robroot *
-  // inverse($ROBROOT) * $BASE * target.
-  s->T_world_robroot = job.robroot_in_world ? toIsometry(*job.robroot_in_world) : job.calibrated.nominal.T_world_base;
-  const Eigen::Isometry3d T_kworld_robroot =
-      job.robroot_in_kukaworld ? toIsometry(*job.robroot_in_kukaworld) : Eigen::Isometry3d::Identity();
+  // Frames and models as compensateProgram takes them (placement.h)
+  s->models = std::make_unique<ModelFactory>(job, placeRobot(job, "robroot_in_world (accura_load_options)"));
   const Eigen::Isometry3d T_kworld_progbase = job.initial_base ? toIsometry(*job.initial_base) : Eigen::Isometry3d::Identity();
-  s->T_world_progbase = s->T_world_robroot * T_kworld_robroot.inverse() * T_kworld_progbase;
-  const Eigen::Isometry3d d = s->T_world_robroot.inverse() * job.calibrated.T_world_base();
-  const double off_mm = d.translation().norm(), off_deg = rotationAngleDeg(d.linear());
-  if (off_mm > job.max_base_offset_mm || off_deg > job.max_base_offset_deg) {
-    std::ostringstream m;
-    m << calibrated_path << ": the calibrated base is " << off_mm << " mm and " << off_deg
-      << " deg from where the robot is placed: expected at most " << job.max_base_offset_mm << " mm and " << job.max_base_offset_deg
-      << " deg. The model was measured in another frame (a tracker's): set robroot_in_world to where the robot stands in that "
-         "frame according to the cell layout";
-    fail(ACCURA_ERROR_INPUT, m.str());
-  }
-  s->T_flange_tcp = job.initial_tool ? toIsometry(*job.initial_tool) : job.calibrated.nominal.T_flange_tcp;
-
-  RobotModel controller = RobotModel::fromDefinition(job.calibrated.nominal);
-  controller.nominal.T_world_base = s->T_world_robroot;
-  controller.nominal.T_flange_tcp = s->T_flange_tcp;
-  const RobotModel real =
-      realModelForTool(job.calibrated, s->T_flange_tcp, job.tool_match_mm, job.tool_match_deg, &s->calibrated_tool);
-  s->comp = std::make_unique<Compensator>(controller, real);
+  s->T_world_progbase = s->models->placement().T_world_kworld * T_kworld_progbase;
+  s->tool = &s->models->compensator(job.initial_tool ? toIsometry(*job.initial_tool) : job.calibrated.nominal.T_flange_tcp);
   return s;
 }
 
@@ -290,10 +262,11 @@ const char* statusNameOf(accura_status s) {
   return nullptr;
 }
 
-bool sameFile(const std::string& a, const std::string& b) {
+void makeParentDir(const std::string& path) {
   std::error_code ec;
-  if (fs::exists(a, ec) && fs::exists(b, ec)) return fs::equivalent(a, b, ec);
-  return fs::weakly_canonical(fs::absolute(a), ec) == fs::weakly_canonical(fs::absolute(b), ec);
+  const fs::path dir = fs::path(path).parent_path();
+  if (!dir.empty()) fs::create_directories(dir, ec);
+  if (ec) fail(ACCURA_ERROR_INPUT, dir.string() + ": cannot create the directory: " + ec.message());
 }
 
 void checkStructSize(size_t given, size_t expected, const char* what) {
@@ -383,12 +356,28 @@ ACCURA_API accura_status accura_model_get_info(accura_model* model, accura_model
     const RobotModel& m = s->job.calibrated;
     info->dof = m.dof();
     copyString(info->robot_name, sizeof(info->robot_name), m.nominal.name);
-    info->robroot_in_world = toC(toXyzAbc(s->T_world_robroot));
+    info->robroot_in_world = toC(toXyzAbc(s->models->placement().T_world_robroot));
     info->calibrated_base_in_world = toC(toXyzAbc(m.T_world_base()));
     for (int i = 0; i < m.dof(); ++i) {
       info->lower[i] = m.nominal.joints[i].lower;
       info->upper[i] = m.nominal.joints[i].upper;
     }
+    return ACCURA_OK;
+  });
+}
+
+ACCURA_API accura_status accura_model_get_joints(accura_model* model, accura_joint* joints, size_t capacity, size_t* n_joints) {
+  if (!model) return ACCURA_ERROR_NULL_ARGUMENT;
+  return guarded(model, "accura_model_get_joints", [&]() {
+    if (capacity > 0) need(joints, "joints");
+    const auto s = stateOf(model);
+    const std::vector<JointSpec>& js = s->job.calibrated.nominal.joints;
+    if (n_joints) *n_joints = js.size();
+    for (size_t i = 0; i < js.size() && i < capacity; ++i)
+      joints[i] = {js[i].type == JointType::kPrismatic ? 1 : 0, js[i].a_mm, js[i].alpha_deg, js[i].d_mm, js[i].theta0_deg,
+                   js[i].direction, js[i].lower, js[i].upper};
+    if (capacity < js.size())
+      fail(ACCURA_ERROR_BUFFER_TOO_SMALL, "the robot has " + std::to_string(js.size()) + " joints, the buffer holds " + std::to_string(capacity));
     return ACCURA_OK;
   });
 }
@@ -410,7 +399,7 @@ ACCURA_API accura_status accura_forward_kinematics(accura_model* model, accura_w
       if (!std::isfinite(q[i])) fail(ACCURA_ERROR_INVALID_ARGUMENT, "q[" + std::to_string(i) + "] is not finite");
       qv[i] = q[i];
     }
-    const Eigen::Isometry3d T = which == ACCURA_REAL ? s->comp->real().forward(qv, s->job.context) : s->comp->controller().forward(qv);
+    const Eigen::Isometry3d T = which == ACCURA_REAL ? s->tool->compensator->real().forward(qv, s->job.context) : s->tool->compensator->controller().forward(qv);
     *pose_out = toC(toXyzAbc(s->T_world_progbase.inverse() * T));
     return ACCURA_OK;
   });
@@ -425,7 +414,7 @@ ACCURA_API accura_status accura_compensate_pose(accura_model* model, const accur
     const auto s = stateOf(model);
     const Eigen::Isometry3d T_world = s->T_world_progbase * checkedPose(*target, "target");
     const Configuration asked = configOf(configuration, s->job.calibrated.dof());
-    PoseCompensation pc = s->comp->pose(T_world, asked, Eigen::VectorXd(), s->job.ik, s->job.context);
+    PoseCompensation pc = s->tool->compensator->pose(T_world, asked, Eigen::VectorXd(), s->job.ik, s->job.context);
     enforceConfiguration(asked, pc);
     fillPoseResult(*s, T_world, pc, result);
     if (pc.status != IkStatus::kOk) fail(result->status, pc.message.empty() ? std::string(toString(pc.status)) : pc.message);
@@ -455,7 +444,7 @@ ACCURA_API accura_status accura_compensate_poses(accura_model* model, const accu
     size_t ok = 0;
     Eigen::VectorXd seed;
     for (size_t i = 0; i < n; ++i) {
-      PoseCompensation pc = s->comp->pose(T_world[i], configs[i], continuous ? seed : Eigen::VectorXd(), s->job.ik, s->job.context);
+      PoseCompensation pc = s->tool->compensator->pose(T_world[i], configs[i], continuous ? seed : Eigen::VectorXd(), s->job.ik, s->job.context);
       enforceConfiguration(configs[i], pc);
       fillPoseResult(*s, T_world[i], pc, &results[i]);
       if (pc.status == IkStatus::kOk) {
@@ -499,54 +488,43 @@ ACCURA_API accura_status accura_compensate_path(accura_model* model, const accur
     }
     if (reports)
       for (size_t i = 0; i < n_motions; ++i) reports[i] = accura_motion_report{};
-    const Compensator& comp = *s->comp;
-    const JobSettings& job = s->job;
+    JobSettings job = s->job;
+    job.tol_mm = tol_mm;
     const Configuration asked_start = configOf(start_configuration, job.calibrated.dof());
-    PoseCompensation p0 = comp.pose(T_world_start, asked_start, Eigen::VectorXd(), job.ik, job.context);
-    enforceConfiguration(asked_start, p0);
-    if (p0.status != IkStatus::kOk)
-      fail(statusOf(p0.status), std::string("the start cannot be compensated: ") + toString(p0.status) + (p0.message.empty() ? "" : ": " + p0.message));
-    result->start_command = toC(toXyzAbc(s->T_world_progbase.inverse() * p0.T_world_tcp_command));
-    result->start_configuration = toC(p0.configuration);
-    DensifyOptions dens = job.densify;
-    dens.tol_mm = tol_mm;
-    dens.ik = job.ik;
-    Eigen::VectorXd q = p0.q_real;
+    const PathCompensation pc = compensatePath(*s->tool->compensator, T_world_start, asked_start, intended, job);
+    if (pc.start.status != IkStatus::kOk)
+      fail(statusOf(pc.start.status), std::string("the start cannot be compensated: ") + toString(pc.start.status) +
+                                          (pc.start.message.empty() ? "" : ": " + pc.start.message));
+    if (pc.failed_motion >= 0) {
+      const SegmentCompensation& sc = pc.segments.back();
+      result->failed_motion = pc.failed_motion;
+      fail(sc.status == IkStatus::kOk ? ACCURA_ERROR_INTERNAL : statusOf(sc.status), "motion " + std::to_string(pc.failed_motion) +
+           " cannot be compensated: " + toString(sc.status) + (sc.message.empty() ? "" : ": " + sc.message));
+    }
+    const auto inBase = [&](const Eigen::Isometry3d& T_world) { return toC(toXyzAbc(s->T_world_progbase.inverse() * T_world)); };
+    result->start_command = inBase(pc.start.T_world_tcp_command);
+    result->start_configuration = toC(pc.start.configuration);
     std::vector<accura_path_point> out;
     for (size_t i = 0; i < n_motions; ++i) {
-      PathSegment seg = intended[i];
-      seg.T_world_start = comp.real().forward(q, job.context);  // where the real robot is (as compensateProgram)
-      const SegmentCompensation sc = comp.segment(seg, Configuration{}, q, dens, job.context);
-      if (sc.status != IkStatus::kOk || sc.commanded.empty() || sc.q_real_end.size() != sc.commanded.size()) {
-        result->failed_motion = static_cast<int>(i);
-        fail(sc.status == IkStatus::kOk ? ACCURA_ERROR_INTERNAL : statusOf(sc.status),
-             "motion " + std::to_string(i) + " cannot be compensated: " + toString(sc.status) + (sc.message.empty() ? "" : ": " + sc.message));
-      }
+      const SegmentCompensation& sc = pc.segments[i];
       for (size_t k = 0; k < sc.commanded.size(); ++k) {
         accura_path_point p{};
         p.type = motions[i].type;
-        p.end = toC(toXyzAbc(s->T_world_progbase.inverse() * sc.commanded[k].T_world_end));
-        if (seg.type == PathType::kCirc) p.aux = toC(toXyzAbc(s->T_world_progbase.inverse() * sc.commanded[k].T_world_aux));
-        p.configuration = toC(kukaConfiguration(comp.controller().model(), sc.q_real_end[k]));
+        p.end = inBase(sc.commanded[k].T_world_end);
+        if (intended[i].type == PathType::kCirc) p.aux = inBase(sc.commanded[k].T_world_aux);
+        p.configuration = toC(kukaConfiguration(s->tool->compensator->controller().model(), sc.q_real_end[k]));
         p.motion = static_cast<int>(i);
         p.inserted = k + 1 < sc.commanded.size() ? 1 : 0;
         out.push_back(p);
       }
-      if (reports) {
-        accura_motion_report& r = reports[i];
-        r.length_mm = pathLength(seg);
-        r.max_error_uncompensated_mm = sc.max_error_uncompensated_mm;
-        r.max_error_before_mm = sc.max_error_before_mm;
-        r.max_error_after_mm = sc.max_error_after_mm;
-        r.max_error_bound_mm = sc.max_error_bound_mm;
-        r.points_added = sc.points_added;
-      }
+      if (reports)
+        reports[i] = {pathLength(pc.intended[i]), sc.max_error_uncompensated_mm, sc.max_error_before_mm, sc.max_error_after_mm,
+                      sc.max_error_bound_mm, sc.points_added};
       result->max_error_uncompensated_mm = std::max(result->max_error_uncompensated_mm, sc.max_error_uncompensated_mm);
       result->max_error_before_mm = std::max(result->max_error_before_mm, sc.max_error_before_mm);
       result->max_error_after_mm = std::max(result->max_error_after_mm, sc.max_error_after_mm);
       result->max_error_bound_mm = std::max(result->max_error_bound_mm, sc.max_error_bound_mm);
       result->points_added += sc.points_added;
-      q = sc.q_real_end.back();
     }
     result->n_points = out.size();
     if (out.size() > capacity)
@@ -582,55 +560,19 @@ ACCURA_API accura_status accura_compensate_program(accura_model* model, const ch
     const auto s = stateOf(model);
     JobSettings job = s->job;
     job.tol_mm = o.tol_mm;
-    const std::string in = program_path, dir = out_dir;
-    programFormat(in);  // a clear error for another extension first
     std::error_code ec;
-    if (!fs::exists(in, ec)) fail(ACCURA_ERROR_INPUT, in + ": the program file does not exist");
-    if (fs::exists(dir, ec) && !fs::is_directory(dir, ec)) fail(ACCURA_ERROR_INPUT, "out_dir: expected a directory, found the file " + dir);
-    ProgramReadOptions read;
-    if (o.dat_path) read.dat_path = o.dat_path;
-    if (o.config_path) read.config_path = o.config_path;
-    const std::string out_path = (fs::path(dir) / fs::path(in).filename()).string();
-    JobReport report;
-    const std::vector<OutputFile> files = compensateFile(in, out_path, read, job, &report);
-    if (!report.errors.empty()) {  // compensateFile throws on errors; kept as a safety net
-      std::string m;
-      for (const auto& e : report.errors) m += (m.empty() ? "" : "; ") + e.where.str() + ": " + e.message;
-      fail(ACCURA_ERROR_INPUT, m);
-    }
-    std::vector<std::string> inputs = {in, fs::path(in).replace_extension(".dat").string()};
-    if (!read.dat_path.empty()) inputs.push_back(read.dat_path);
-    if (!read.config_path.empty()) inputs.push_back(read.config_path);
-    const std::string json = o.json_report_path ? o.json_report_path : "";
-    for (const auto& f : files)
-      for (const auto& i : inputs)
-        if (fs::exists(i, ec) && sameFile(f.path, i)) fail(ACCURA_ERROR_INPUT, f.path + ": the output would overwrite the input " + i + ": choose another out_dir");
-    for (const auto& i : inputs)
-      if (!json.empty() && fs::exists(i, ec) && sameFile(json, i)) fail(ACCURA_ERROR_INPUT, json + ": the report would overwrite the input " + i);
-    fs::create_directories(dir);
-    writeFilesAtomically(files);
-    if (!json.empty()) {
-      nlohmann::ordered_json j;
-      j["program"] = in;
-      nlohmann::ordered_json outs = nlohmann::ordered_json::array();
-      for (const auto& f : files) outs.push_back(f.path);
-      j["outputs"] = outs;
-      j["robot"] = job.calibrated.nominal.name;
-      j["tol_mm"] = job.tol_mm;
-      j["targets_corrected"] = report.targets_corrected;
-      j["points_added"] = report.points_added;
-      j["segments"] = report.segments.size();
-      j["max_correction_mm"] = report.max_correction_mm;
-      j["rms_correction_mm"] = report.rms_correction_mm;
-      j["max_correction_deg"] = report.max_correction_deg;
-      j["max_error_uncompensated_mm"] = report.max_error_uncompensated_mm;
-      j["max_error_before_mm"] = report.max_error_before_mm;
-      j["max_error_after_mm"] = report.max_error_after_mm;
-      nlohmann::ordered_json warnings = nlohmann::ordered_json::array();
-      for (const auto& w : report.warnings) warnings.push_back(w.where.str() + ": " + w.message);
-      j["warnings"] = warnings;
-      writeFilesAtomically({{json, j.dump(2) + "\n"}});
-    }
+    if (!fs::exists(program_path, ec)) fail(ACCURA_ERROR_INPUT, std::string(program_path) + ": the program file does not exist");
+    ProgramFileRequest request;
+    request.in_path = program_path;
+    request.out_dir = out_dir;
+    if (o.dat_path) request.read.dat_path = o.dat_path;
+    if (o.config_path) request.read.config_path = o.config_path;
+    if (o.json_report_path) request.json_path = o.json_report_path;
+    request.out_name = "out_dir";
+    request.json_name = "json_report_path";
+    const ProgramFileResult result = compensateProgramFile(request, job);
+    const JobReport& report = result.report;
+    const std::vector<OutputFile>& files = result.checked.files;
     if (summary) {
       *summary = accura_program_summary{};
       summary->targets_corrected = report.targets_corrected;
@@ -728,6 +670,71 @@ ACCURA_API accura_status accura_check_program(accura_model* model, const char* c
     if (r.violations.size() > capacity)
       fail(ACCURA_ERROR_BUFFER_TOO_SMALL,
            std::to_string(r.violations.size()) + " violations, the buffer holds " + std::to_string(capacity) + " (summary->n_violations)");
+    return ACCURA_OK;
+  });
+}
+
+ACCURA_API accura_status accura_write_options_init(accura_write_options* o, size_t struct_size) {
+  if (!o) return ACCURA_ERROR_NULL_ARGUMENT;
+  if (struct_size != sizeof(accura_write_options)) return ACCURA_ERROR_INVALID_ARGUMENT;
+  std::memset(o, 0, sizeof(*o));
+  o->struct_size = sizeof(*o);
+  return ACCURA_OK;
+}
+
+ACCURA_API accura_status accura_write_program(accura_model* model, const char* path, const accura_program_motion* motions,
+                                              size_t n_motions, const accura_write_options* options) {
+  if (!model) return ACCURA_ERROR_NULL_ARGUMENT;
+  return guarded(model, "accura_write_program", [&]() {
+    need(path, "path");
+    need(options, "options");
+    if (n_motions > 0) need(motions, "motions");
+    checkStructSize(options->struct_size, sizeof(accura_write_options), "accura_write_options");
+    const ProgramFormat format = programFormat(path);
+    Program p;
+    p.name = options->program_name ? options->program_name : fs::path(path).stem().string();
+    std::shared_ptr<const State> s;
+    {
+      std::lock_guard<std::mutex> lock(model->mutex);
+      s = model->state;
+    }
+    if (s) p.robot = s->job.calibrated.nominal.name;
+    FrameSetting tool, base;
+    tool.source = base.source = FrameSetting::Source::kInline;
+    tool.value = checkedXyz(options->tool, "options.tool");
+    base.value = checkedXyz(options->base, "options.base");
+    for (size_t i = 0; i < n_motions; ++i) {
+      const accura_program_motion& c = motions[i];
+      const std::string w = "motions[" + std::to_string(i) + "]";
+      Motion m;
+      if (c.type != ACCURA_PTP && c.type != ACCURA_LIN && c.type != ACCURA_CIRC)
+        fail(ACCURA_ERROR_INVALID_ARGUMENT, w + ".type: expected ACCURA_LIN, ACCURA_CIRC or ACCURA_PTP, found " + std::to_string(c.type));
+      m.type = c.type == ACCURA_PTP ? MotionType::kPtp : c.type == ACCURA_CIRC ? MotionType::kCirc : MotionType::kLin;
+      m.target.setPose(checkedXyz(c.end, w + ".end"));
+      if (m.type == MotionType::kCirc) {
+        m.aux = Target{};
+        m.aux->setPose(checkedXyz(c.aux, w + ".aux"));
+      }
+      if (c.approximate) m.approximation = {m.type == MotionType::kPtp ? Approximation::kCPtp : Approximation::kCDis};
+      if (!std::isfinite(c.vel_m_s)) fail(ACCURA_ERROR_INVALID_ARGUMENT, w + ".vel_m_s: expected a finite speed (m/s)");
+      if (m.type != MotionType::kPtp && c.vel_m_s > 0) m.vel_m_s = c.vel_m_s;
+      m.tool = tool;
+      m.base = base;
+      p.motions.push_back(m);
+    }
+    makeParentDir(path);
+    writeFilesAtomically(renderProgram(p, format, path));
+    return ACCURA_OK;
+  });
+}
+
+ACCURA_API accura_status accura_write_file(accura_model* model, const char* path, const char* data, size_t size) {
+  if (!model) return ACCURA_ERROR_NULL_ARGUMENT;
+  return guarded(model, "accura_write_file", [&]() {
+    need(path, "path");
+    if (size > 0) need(data, "data");
+    makeParentDir(path);
+    writeFilesAtomically({{path, std::string(data ? data : "", size)}});
     return ACCURA_OK;
   });
 }

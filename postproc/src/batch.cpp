@@ -10,7 +10,9 @@
 #include <thread>
 
 #include "accura/calib/errors.h"
+#include "accura/calib/file_io.h"
 #include "accura/calib/geometry.h"
+#include "accura/postproc/report.h"
 
 namespace fs = std::filesystem;
 
@@ -91,12 +93,6 @@ std::vector<OutputFile> compensateFile(const std::string& in_path, const std::st
   return compensateAndRender(readProgram(in_path, read), format, out_path, job, report);
 }
 
-JobSettings placedInCell(const JobSettings& job, const Cell& cell) {
-  JobSettings placed = job;
-  if (cell.T_world_base && !placed.robroot_in_world) placed.robroot_in_world = toXyzAbc(*cell.T_world_base);
-  return placed;
-}
-
 CheckedProgram compensateAndCheckFile(const std::string& in_path, const std::string& out_path, const ProgramReadOptions& read,
                                       const JobSettings& job, const CellCheckSettings* cell, JobReport* report) {
   const ProgramFormat format = programFormat(in_path);
@@ -125,6 +121,43 @@ CheckedProgram compensateAndCheckFile(const std::string& in_path, const std::str
   }
   out.write = out.check->passed() || cell->warn_only;
   return out;
+}
+
+ProgramFileResult compensateProgramFile(const ProgramFileRequest& q, const JobSettings& job) {
+  programFormat(q.in_path);  // a clear error for another extension before anything else
+  std::error_code ec;
+  if (fs::exists(q.out_dir, ec) && !fs::is_directory(q.out_dir, ec))
+    throw InputError(q.out_name + ": expected a directory, found the file " + q.out_dir);
+  const std::string out_path = (fs::path(q.out_dir) / fs::path(q.in_path).filename()).string();
+  ProgramFileResult r;
+  r.checked = compensateAndCheckFile(q.in_path, out_path, q.read, job, q.cell, &r.report);
+  std::vector<std::string> inputs = {q.in_path, fs::path(q.in_path).replace_extension(".dat").string()};
+  if (!q.read.dat_path.empty()) inputs.push_back(q.read.dat_path);
+  if (!q.read.config_path.empty()) inputs.push_back(q.read.config_path);
+  for (const auto& in : inputs) {
+    for (const auto& f : r.checked.files)
+      if (sameFile(f.path, in)) throw InputError(f.path + ": the output would overwrite the input " + in + ": choose another " + q.out_name);
+    if (!q.json_path.empty() && sameFile(q.json_path, in))
+      throw InputError(q.json_name + ": " + q.json_path + " would overwrite the input " + in);
+  }
+  if (r.checked.write) {
+    fs::create_directories(q.out_dir);
+    writeFilesAtomically(r.checked.files);
+    r.written = true;
+  }
+  if (!q.json_path.empty()) {
+    CompensationReport rep;
+    rep.program = q.in_path;
+    if (r.written)
+      for (const auto& f : r.checked.files) rep.outputs.push_back(f.path);
+    rep.robot = job.calibrated.nominal.name;
+    rep.tol_mm = job.tol_mm;
+    rep.job = r.report;
+    rep.compensation_error = r.checked.compensation_error;
+    rep.check = r.checked.check;
+    writeFilesAtomically({{q.json_path, compensationReportText(rep)}});
+  }
+  return r;
 }
 
 bool compensationFailureExplained(const CheckReport& check, const JobReport& report) {

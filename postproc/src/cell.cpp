@@ -15,10 +15,12 @@
 #include <map>
 #include <set>
 #include <sstream>
+#include <string_view>
 #include <tuple>
 
 #include "accura/calib/errors.h"
 #include "accura/calib/geometry.h"
+#include "decimal.h"
 
 namespace accura::postproc {
 namespace {
@@ -163,12 +165,26 @@ class CellReader {
       fail(e, std::string("<") + e->Name() + ">: expected the attribute " + name + ", found none");
     }
     const char* text = a->Value();
-    char* end = nullptr;
-    errno = 0;
-    const double v = std::strtod(text, &end);
-    while (end && *end == ' ') ++end;
-    if (end == text || (end && *end != '\0') || errno == ERANGE || !std::isfinite(v))
-      failAttribute(e, name, std::string("<") + e->Name() + "> " + name + ": expected a number, found '" + text + "'");
+    // a decimal number, blanks around it allowed (not a blank value, hex, inf, nan, 1e309)
+    std::string_view s(text);
+    while (!s.empty() && std::isspace(static_cast<unsigned char>(s.front()))) s.remove_prefix(1);
+    while (!s.empty() && std::isspace(static_cast<unsigned char>(s.back()))) s.remove_suffix(1);
+    double v = 0;
+    if (!detail::parseDecimal(s, &v))
+      failAttribute(e, name, std::string("<") + e->Name() + "> " + name + ": expected a number, found '" + text + "' (a finite decimal number: not blank, hex, inf, nan or beyond 1e308)");
+    return v;
+  }
+
+  /// A number within +-bound (a coordinate in mm, an angle in deg): larger ones are a unit
+  /// mistake or garbage (see kMaxCellExtent_mm).
+  double bounded(const XMLElement* e, const char* name, const double* fallback, double bound, const char* unit) const {
+    const double v = number(e, name, fallback);
+    if (!(std::abs(v) <= bound)) {
+      std::ostringstream m;
+      m << "<" << e->Name() << "> " << name << ": expected a value within +-" << bound << " " << unit
+        << (std::string(unit) == "mm" ? " (100 m: no robot cell is larger)" : "") << ", found " << attr(e, name)->Value();
+      failAttribute(e, name, m.str());
+    }
     return v;
   }
 
@@ -186,12 +202,12 @@ class CellReader {
   Eigen::Isometry3d placement(const XMLElement* e) const {
     const double zero = 0;
     XyzAbc p;
-    p.x_mm = number(e, "x_mm", &zero);
-    p.y_mm = number(e, "y_mm", &zero);
-    p.z_mm = number(e, "z_mm", &zero);
-    p.a_deg = number(e, "a_deg", &zero);
-    p.b_deg = number(e, "b_deg", &zero);
-    p.c_deg = number(e, "c_deg", &zero);
+    p.x_mm = bounded(e, "x_mm", &zero, kMaxCellExtent_mm, "mm");
+    p.y_mm = bounded(e, "y_mm", &zero, kMaxCellExtent_mm, "mm");
+    p.z_mm = bounded(e, "z_mm", &zero, kMaxCellExtent_mm, "mm");
+    p.a_deg = bounded(e, "a_deg", &zero, kMaxCellAngle_deg, "deg");
+    p.b_deg = bounded(e, "b_deg", &zero, kMaxCellAngle_deg, "deg");
+    p.c_deg = bounded(e, "c_deg", &zero, kMaxCellAngle_deg, "deg");
     return toIsometry(p);
   }
 
@@ -235,9 +251,10 @@ class CellReader {
         fail(c, std::string("<") + e->Name() + ">: expected <capsule> children only, found <" + c->Name() + ">");
       checkAttributes(c, {"x0_mm", "y0_mm", "z0_mm", "x1_mm", "y1_mm", "z1_mm", "radius_mm"});
       Capsule cap;
-      cap.p0_mm = {number(c, "x0_mm", nullptr), number(c, "y0_mm", nullptr), number(c, "z0_mm", nullptr)};
-      cap.p1_mm = {number(c, "x1_mm", nullptr), number(c, "y1_mm", nullptr), number(c, "z1_mm", nullptr)};
-      cap.radius_mm = number(c, "radius_mm", nullptr);
+      const double B = kMaxCellExtent_mm;
+      cap.p0_mm = {bounded(c, "x0_mm", nullptr, B, "mm"), bounded(c, "y0_mm", nullptr, B, "mm"), bounded(c, "z0_mm", nullptr, B, "mm")};
+      cap.p1_mm = {bounded(c, "x1_mm", nullptr, B, "mm"), bounded(c, "y1_mm", nullptr, B, "mm"), bounded(c, "z1_mm", nullptr, B, "mm")};
+      cap.radius_mm = bounded(c, "radius_mm", nullptr, B, "mm");
       if (!(cap.radius_mm > 0)) failAttribute(c, "radius_mm", "<capsule> radius_mm: expected a positive radius (mm), found " + std::to_string(cap.radius_mm));
       CellShape s;
       s.capsule = cap;
@@ -294,7 +311,7 @@ Cell readCellFile(const std::string& path) {
       CheckThresholds& t = cell.thresholds;
       t.joint_margin_deg = R.number(e, "joint_margin_deg", &t.joint_margin_deg);
       t.singular_threshold = R.number(e, "singular_threshold", &t.singular_threshold);
-      t.min_clearance_mm = R.number(e, "min_clearance_mm", &t.min_clearance_mm);
+      t.min_clearance_mm = R.bounded(e, "min_clearance_mm", &t.min_clearance_mm, kMaxCellExtent_mm, "mm");
       if (t.joint_margin_deg < 0) R.failAttribute(e, "joint_margin_deg", "<thresholds> joint_margin_deg: expected a margin >= 0, found " + std::to_string(t.joint_margin_deg));
       if (t.singular_threshold < 0) R.failAttribute(e, "singular_threshold", "<thresholds> singular_threshold: expected a value >= 0, found " + std::to_string(t.singular_threshold));
       if (t.min_clearance_mm < 0) R.failAttribute(e, "min_clearance_mm", "<thresholds> min_clearance_mm: expected a distance >= 0, found " + std::to_string(t.min_clearance_mm));

@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "accura/calib/errors.h"
+#include "accura/postproc/placement.h"
 
 namespace accura::postproc {
 namespace {
@@ -25,30 +26,26 @@ constexpr double kRefineMarginMm = 1.0;
 
 std::string num(double v, int decimals) { return formatFixed(v, decimals); }
 
-/// x,y,z,A,B,C (mm, deg), as --base takes it.
-std::string poseText(const XyzAbc& p) {
-  return num(p.x_mm, 3) + "," + num(p.y_mm, 3) + "," + num(p.z_mm, 3) + "," + num(p.a_deg, 3) + "," + num(p.b_deg, 3) + "," + num(p.c_deg, 3);
-}
-
 std::string jointsText(const Eigen::VectorXd& q) {
   std::string s;
   for (int i = 0; i < q.size(); ++i) s += (i ? ", " : "") + num(q[i], 3);
   return "{" + s + "}";
 }
 
-/// Models for one tool.
-struct ToolModels {
-  RobotModel mode_model;           // whose IK and FK define the path (real or controller)
-  std::unique_ptr<KinematicSolver> ik;  // mode_model with widened limits
+/// Whose IK and FK define the path for one tool (the real model or the controller's) and
+/// its IK with widened limits (ToolModels::check_ik).
+struct ModeModels {
+  const RobotModel& mode_model;
+  const KinematicSolver& ik;
 };
 
 class Checker {
  public:
   /// `shared`: the geometry prepared for this cell and robot (copied: a copy shares the BVHs);
   /// null: built here.
-  Checker(const RobotModel& real, const RobotModel& controller, const Cell& cell, const CheckOptions& o,
+  Checker(const RobotModel& real, ModelFactory& models, const Cell& cell, const CheckOptions& o,
           const PoseContext& context, CheckReport& r, const CellGeometry* shared)
-      : real_(real), controller_(controller), opt_(o), t_(o.thresholds), context_(context), r_(r),
+      : real_(real), models_(models), opt_(o), t_(o.thresholds), context_(context), r_(r),
         geometry_(shared ? CellGeometry(*shared) : CellGeometry(cell, real)) {
     // scale of the singularity measure (docs/compensation.md, docs/checks.md)
     L_mm_ = real.nominal.T_flange_tcp.translation().norm();
@@ -56,27 +53,19 @@ class Checker {
     L_mm_ = std::max(L_mm_, 1.0);
   }
 
-  const ToolModels& models(const Eigen::Isometry3d& tool) {
-    std::ostringstream key;
-    key.precision(17);
-    key << tool.matrix();
-    auto it = cache_.find(key.str());
-    if (it != cache_.end()) return it->second;
-    ToolModels m;
-    if (opt_.mode == CheckMode::kIntended) {
-      // the tool rule of compensateProgram, at JobSettings' default match tolerances
-      m.mode_model = realModelForTool(real_, tool, JobSettings{}.tool_match_mm, JobSettings{}.tool_match_deg);
-    } else {
-      m.mode_model = controller_;
-      m.mode_model.nominal.T_flange_tcp = tool;
+  ModeModels models(const Eigen::Isometry3d& tool) {
+    ToolModels& m = models_.forTool(tool);
+    // intended: the tool rule of compensateProgram; as written: the controller's model
+    const RobotModel& mode = opt_.mode == CheckMode::kIntended ? m.real : m.controller;
+    if (!m.check_ik) {
+      RobotModel wide = mode;
+      for (auto& j : wide.nominal.joints) {
+        j.lower -= kWidenDeg;
+        j.upper += kWidenDeg;
+      }
+      m.check_ik = std::make_unique<KinematicSolver>(wide);
     }
-    RobotModel wide = m.mode_model;
-    for (auto& j : wide.nominal.joints) {
-      j.lower -= kWidenDeg;
-      j.upper += kWidenDeg;
-    }
-    m.ik = std::make_unique<KinematicSolver>(wide);
-    return cache_.emplace(key.str(), std::move(m)).first->second;
+    return {mode, *m.check_ik};
   }
 
   /// sigma_min of the scaled joint Jacobian of the real model at q; `dominant`: the joints
@@ -125,7 +114,7 @@ class Checker {
     mutable std::vector<CellGeometry::Distance> d;
   };
 
-  Sample makeSample(double s, const Eigen::VectorXd& q, const ToolModels& tm) {
+  Sample makeSample(double s, const Eigen::VectorXd& q, const ModeModels& tm) {
     Sample x;
     x.s = s;
     x.q = q;
@@ -298,7 +287,7 @@ class Checker {
 
   void run(const std::vector<WorldMotion>& motions, const std::vector<int>& indices, const std::vector<bool>& start_unknown) {
     std::optional<Sample> prev;
-    const ToolModels* prev_models = nullptr;
+    const RobotModel* prev_models = nullptr;  // the mode model of the previous motion (cached: its address names it)
     for (size_t mi = 0; mi < motions.size(); ++mi) {
       const WorldMotion& m = motions[mi];
       motion_index_ = indices[mi];
@@ -312,10 +301,10 @@ class Checker {
       mc.min_joint_margin = kInf;
       cur_ = &mc;
       if (start_unknown[mi]) prev.reset();
-      const ToolModels& tm = models(m.T_flange_tcp);
+      const ModeModels tm = models(m.T_flange_tcp);
       First f;
       try {
-        if (prev && prev_models != &tm) {
+        if (prev && prev_models != &tm.mode_model) {
           // the tool changed: the start is the same joint values with the new tool
           prev = makeSample(0, prev->q, tm);
         }
@@ -338,19 +327,19 @@ class Checker {
         r_.unchecked.push_back({m.where, mc.note});
         prev.reset();
       }
-      prev_models = &tm;
+      prev_models = &tm.mode_model;
       emit(f);
       r_.motions.push_back(mc);
     }
   }
 
   /// IK of a Cartesian end point (reach, configuration); nullopt after a reach violation.
-  std::optional<Eigen::VectorXd> solveEnd(First& f, const WorldMotion& m, const ToolModels& tm, const std::optional<Sample>& prev) {
+  std::optional<Eigen::VectorXd> solveEnd(First& f, const WorldMotion& m, const ModeModels& tm, const std::optional<Sample>& prev) {
     IkOptions o;
     o.joint_margin = 0;
     o.singular_threshold = 0;
     const Eigen::VectorXd seed = prev ? prev->q : Eigen::VectorXd();
-    const IkResult ik = tm.ik->inverse(m.T_world_tcp_end, m.configuration, seed, o, context_);
+    const IkResult ik = tm.ik.inverse(m.T_world_tcp_end, m.configuration, seed, o, context_);
     if (ik.status == IkStatus::kOk) return ik.q;
     std::string why = std::string(toString(ik.status)) + (ik.message.empty() ? "" : " (" + ik.message + ")");
     if (ik.status == IkStatus::kJointLimits) why = "reachable only more than " + num(kWidenDeg, 0) + " deg/mm beyond the joint limits";
@@ -363,7 +352,7 @@ class Checker {
     return std::nullopt;
   }
 
-  void ptpTo(First& f, const WorldMotion& m, const ToolModels& tm, std::optional<Sample>& prev, const std::optional<Eigen::VectorXd>& q_end) {
+  void ptpTo(First& f, const WorldMotion& m, const ModeModels& tm, std::optional<Sample>& prev, const std::optional<Eigen::VectorXd>& q_end) {
     if (!q_end) {
       prev.reset();
       return;
@@ -383,7 +372,7 @@ class Checker {
     prev = end;
   }
 
-  void path(First& f, const WorldMotion& m, const ToolModels& tm, std::optional<Sample>& prev) {
+  void path(First& f, const WorldMotion& m, const ModeModels& tm, std::optional<Sample>& prev) {
     PathSegment seg;
     seg.type = m.type == MotionType::kCirc ? PathType::kCirc : PathType::kLin;
     seg.T_world_start = forwardKinematics(tm.mode_model, prev->q, context_, ws_);
@@ -400,7 +389,7 @@ class Checker {
     // IK at s continuing from `left` (the configuration of the start, as the controller does)
     auto solve = [&](double s, const Sample& left) -> std::optional<Sample> {
       const Eigen::Isometry3d T = interpolate(seg, s);
-      const IkResult ik = tm.ik->inverse(T, Configuration{}, left.q, o, context_);
+      const IkResult ik = tm.ik.inverse(T, Configuration{}, left.q, o, context_);
       if (ik.status != IkStatus::kOk) {
         std::string why = std::string(toString(ik.status)) + (ik.message.empty() ? "" : " (" + ik.message + ")");
         if (ik.status == IkStatus::kJointLimits) why = "reachable only more than " + num(kWidenDeg, 0) + " deg/mm beyond the joint limits";
@@ -474,7 +463,7 @@ class Checker {
 
  private:
   const RobotModel& real_;
-  const RobotModel& controller_;
+  ModelFactory& models_;
   const CheckOptions& opt_;
   const CheckThresholds& t_;
   PoseContext context_;
@@ -482,7 +471,6 @@ class Checker {
   CellGeometry geometry_;
   double L_mm_ = 1;
   KinematicWorkspace ws_;
-  std::map<std::string, ToolModels> cache_;
   MotionCheck* cur_ = nullptr;
   int motion_index_ = 0;
 };
@@ -498,7 +486,7 @@ void finish(CheckReport& r) {
   }
 }
 
-CheckReport checkWorld(const RobotModel& real, const RobotModel& controller, const Cell& cell, const std::vector<WorldMotion>& motions,
+CheckReport checkWorld(const RobotModel& real, const RobotModel& controller, ModelFactory& models, const Cell& cell, const std::vector<WorldMotion>& motions,
                        const std::vector<int>& indices, const std::vector<bool>& start_unknown, const CheckOptions& options,
                        const PoseContext& context, CheckReport r, const CellGeometry* geometry) {
   std::string why;
@@ -517,7 +505,7 @@ CheckReport checkWorld(const RobotModel& real, const RobotModel& controller, con
                           "clearance not checked: the cell has " + std::to_string(cell.objects.size()) +
                               " object(s) but no robot geometry (no <tool>, no <link>), so no distance was measured; add the tool "
                               "and link geometry to the cell file to check the clearance"});
-  Checker c(real, controller, cell, options, context, r, geometry);
+  Checker c(real, models, cell, options, context, r, geometry);
   c.run(motions, indices, start_unknown);
   finish(r);
   return r;
@@ -561,7 +549,8 @@ CheckReport checkMotions(const RobotModel& real, const RobotModel& controller, c
   for (const auto& m : motions)
     if (m.q_end.size() && m.q_end.size() != real.dof())
       throw ArgumentError("checkMotions: an axis target has " + std::to_string(m.q_end.size()) + " values, the robot " + std::to_string(real.dof()) + " joints");
-  return checkWorld(real, controller, cell, motions, idx, std::vector<bool>(motions.size(), false), options, context, CheckReport{}, nullptr);
+  ModelFactory models(real, controller);
+  return checkWorld(real, controller, models, cell, motions, idx, std::vector<bool>(motions.size(), false), options, context, CheckReport{}, nullptr);
 }
 
 namespace {
@@ -569,31 +558,12 @@ namespace {
 CheckReport checkProgramWith(const Program& program, const JobSettings& job, const Cell& cell, const CheckOptions& options,
                              const CellGeometry* geometry) {
   CheckReport r;
-  // frames, as compensateProgram (job.h)
-  Eigen::Isometry3d T_world_robroot = job.calibrated.nominal.T_world_base;
-  if (job.robroot_in_world) {
-    T_world_robroot = toIsometry(*job.robroot_in_world);
-    if (cell.T_world_base) {
-      const Eigen::Isometry3d d = cell.T_world_base->inverse() * T_world_robroot;
-      if (d.translation().norm() > 1e-3 || rotationAngleDeg(d.linear()) > 1e-3)
-        throw InputError(cell.file, cell.robot_line, cell.robot_column,
-                         "<robot>: the robot placement of the cell file differs from --base (" + poseText(toXyzAbc(*cell.T_world_base)) +
-                             " here, " + poseText(*job.robroot_in_world) + " given): expected the same placement, found two (give one of them)");
-    }
-  } else if (cell.T_world_base) {
-    T_world_robroot = *cell.T_world_base;
-  }
-  {
-    const Eigen::Isometry3d d = T_world_robroot.inverse() * job.calibrated.T_world_base();
-    if (d.translation().norm() > job.max_base_offset_mm || rotationAngleDeg(d.linear()) > job.max_base_offset_deg)
-      throw InputError("the calibrated base is " + formatMm(d.translation().norm()) + " mm and " + formatDeg(rotationAngleDeg(d.linear())) +
-                       " deg from the robot placement in the cell: expected at most " + formatMm(job.max_base_offset_mm) + " mm and " +
-                       formatDeg(job.max_base_offset_deg) + " deg (the model was measured in another frame: give --base, or the cell's <robot>)");
-  }
-  const Eigen::Isometry3d T_kworld_robroot = job.robroot_in_kukaworld ? toIsometry(*job.robroot_in_kukaworld) : Eigen::Isometry3d::Identity();
-  const Eigen::Isometry3d T_world_kworld = T_world_robroot * T_kworld_robroot.inverse();
-  RobotModel controller = RobotModel::fromDefinition(job.calibrated.nominal);
-  controller.nominal.T_world_base = T_world_robroot;
+  // frames and models, as compensateProgram (placement.h); the cell's <robot> is the placement
+  // unless --base gives it
+  const JobSettings placed = placedInCell(job, cell);
+  ModelFactory models(placed, placeRobot(placed, "--base x,y,z,A,B,C or the cell's <robot>"));
+  const Eigen::Isometry3d T_world_kworld = models.placement().T_world_kworld;
+  const RobotModel controller = models.forTool(job.calibrated.nominal.T_flange_tcp).controller;
 
   std::vector<WorldMotion> wm;
   std::vector<int> idx;
@@ -648,9 +618,7 @@ CheckReport checkProgramWith(const Program& program, const JobSettings& job, con
       w.q_end = q;
       q_known = q;
       KinematicWorkspace ws;
-      RobotModel flange = controller;
-      flange.nominal.T_flange_tcp = Eigen::Isometry3d::Identity();
-      T_world_flange = forwardKinematics(flange, q, PoseContext{}, ws);
+      T_world_flange = forwardKinematics(models.controllerFlange(), q, PoseContext{}, ws);
     } else {
       if (!tool) { skip("the tool ($TOOL) of this motion is not known (--program-tool or --config)"); continue; }
       if (!base) { skip("the base ($BASE) of this motion is not known (--program-base or --config)"); continue; }
@@ -683,7 +651,7 @@ CheckReport checkProgramWith(const Program& program, const JobSettings& job, con
     start_unknown.push_back(unknown);
     unknown = false;
   }
-  CheckReport out = checkWorld(job.calibrated, controller, cell, wm, idx, start_unknown, options, job.context, r, geometry);
+  CheckReport out = checkWorld(job.calibrated, controller, models, cell, wm, idx, start_unknown, options, job.context, r, geometry);
   // motions in program order, the skipped ones included
   std::vector<MotionCheck> all;
   size_t k = 0;

@@ -9,6 +9,8 @@
 #include "accura/calib/errors.h"
 #include "accura/calib/kinematics.h"
 #include "accura/postproc/krl.h"
+#include "accura/postproc/path_job.h"
+#include "accura/postproc/placement.h"
 
 namespace accura::postproc {
 namespace {
@@ -31,50 +33,9 @@ std::string frameHint(const FrameSetting& f, const char* var) {
 
 class Job {
  public:
-  Job(const JobSettings& s, JobReport* r) : s_(s), r_(*r) {
-    T_world_robroot_ = s.robroot_in_world ? toIsometry(*s.robroot_in_world) : s.calibrated.nominal.T_world_base;
-    Eigen::Isometry3d T_kworld_robroot = s.robroot_in_kukaworld ? toIsometry(*s.robroot_in_kukaworld) : Eigen::Isometry3d::Identity();
-    T_world_kworld_ = T_world_robroot_ * T_kworld_robroot.inverse();
-    r_.robroot_in_world = toXyzAbc(T_world_robroot_);
-    r_.calibrated_base_in_world = toXyzAbc(s.calibrated.T_world_base());
-    const Eigen::Isometry3d d = T_world_robroot_.inverse() * s.calibrated.T_world_base();
-    const double off_mm = d.translation().norm(), off_deg = rotationAngleDeg(d.linear());
-    if (off_mm > s.max_base_offset_mm || off_deg > s.max_base_offset_deg) {
-      std::ostringstream m;
-      const XyzAbc b = r_.robroot_in_world, c = r_.calibrated_base_in_world;
-      m << "the calibrated base (" << formatMm(c.x_mm) << ", " << formatMm(c.y_mm) << ", " << formatMm(c.z_mm) << " mm, "
-        << formatDeg(c.a_deg) << ", " << formatDeg(c.b_deg) << ", " << formatDeg(c.c_deg) << " deg) is " << formatMm(off_mm)
-        << " mm and " << formatDeg(off_deg) << " deg from the nominal base (" << formatMm(b.x_mm) << ", " << formatMm(b.y_mm)
-        << ", " << formatMm(b.z_mm) << " mm, " << formatDeg(b.a_deg) << ", " << formatDeg(b.b_deg) << ", " << formatDeg(b.c_deg)
-        << " deg): expected at most " << s.max_base_offset_mm << " mm and " << s.max_base_offset_deg
-        << " deg. The model was measured in another frame (a tracker's): give --base x,y,z,A,B,C, where the robot "
-           "stands in that frame according to the cell layout";
-      throw InputError(m.str());
-    }
-    RobotModel flange = RobotModel::fromDefinition(s.calibrated.nominal);
-    flange.nominal.T_world_base = T_world_robroot_;
-    flange.nominal.T_flange_tcp = Eigen::Isometry3d::Identity();
-    controller_flange_ = flange;
-  }
-
-  struct Models {
-    std::unique_ptr<Compensator> comp;
-    bool calibrated_tool = false;
-  };
-
-  const Models& models(const Eigen::Isometry3d& tool) {
-    std::ostringstream key;
-    key.precision(17);
-    key << tool.matrix();
-    auto it = cache_.find(key.str());
-    if (it != cache_.end()) return it->second;
-    RobotModel controller = RobotModel::fromDefinition(s_.calibrated.nominal);
-    controller.nominal.T_world_base = T_world_robroot_;
-    controller.nominal.T_flange_tcp = tool;
-    Models m;
-    const RobotModel real = realModelForTool(s_.calibrated, tool, s_.tool_match_mm, s_.tool_match_deg, &m.calibrated_tool);
-    m.comp = std::make_unique<Compensator>(controller, real);
-    return cache_.emplace(key.str(), std::move(m)).first->second;
+  Job(const JobSettings& s, JobReport* r) : s_(s), r_(*r), models_(s, placeRobot(s)) {
+    r_.robroot_in_world = toXyzAbc(models_.placement().T_world_robroot);
+    r_.calibrated_base_in_world = toXyzAbc(models_.placement().T_world_calbase);
   }
 
   void error(const SourceLocation& w, const std::string& msg) { r_.errors.push_back({w, msg}); }
@@ -191,7 +152,7 @@ class Job {
           if (known) {
             q_real = q;
             KinematicWorkspace ws;
-            T_world_flange_intended = forwardKinematics(controller_flange_, q, PoseContext{}, ws);
+            T_world_flange_intended = forwardKinematics(models_.controllerFlange(), q, PoseContext{}, ws);
           } else {
             warning(m.where, "a partial axis target after an unknown position: the position after it is not known");
             unknownAfter();
@@ -226,9 +187,9 @@ class Job {
           continue;
         }
         const Eigen::Isometry3d tool = toIsometry(*mf.tool.value);
-        const Eigen::Isometry3d T_world_progbase = T_world_kworld_ * toIsometry(*mf.base.value);
-        const Models& mods = models(tool);
-        const Compensator& comp = *mods.comp;
+        const Eigen::Isometry3d T_world_progbase = models_.placement().T_world_kworld * toIsometry(*mf.base.value);
+        const ToolModels& mods = models_.compensator(tool);
+        const Compensator& comp = *mods.compensator;
 
         // partial targets: the missing components from where the program meant the robot to be
         auto complete = [&](Target& t, const char* what) -> bool {
@@ -306,13 +267,9 @@ class Job {
         // LIN / CIRC with a known start: compensate the segment
         PathSegment intended;
         intended.type = m.type == MotionType::kCirc ? PathType::kCirc : PathType::kLin;
-        intended.T_world_start = comp.real().forward(*q_real, s_.context);
         intended.T_world_end = T_world_end;
         if (aux) intended.T_world_aux = T_world_progbase * toIsometry(aux->xyzAbc());
-        DensifyOptions dens = s_.densify;
-        dens.tol_mm = s_.tol_mm;
-        dens.ik = s_.ik;
-        const SegmentCompensation sc = comp.segment(intended, config, *q_real, dens, s_.context);
+        const SegmentCompensation sc = compensateSegmentFrom(comp, intended, config, *q_real, s_);
         if (sc.status != IkStatus::kOk || sc.commanded.empty() || sc.q_real_end.size() != sc.commanded.size()) {
           error(m.where, "the " + motionKeyword(m) + " to " + targetLabel(end) + " cannot be compensated: " + toString(sc.status) +
                              (sc.message.empty() ? "" : " (" + sc.message + ")"));
@@ -423,9 +380,7 @@ class Job {
  private:
   const JobSettings& s_;
   JobReport& r_;
-  Eigen::Isometry3d T_world_robroot_, T_world_kworld_;
-  RobotModel controller_flange_;
-  std::map<std::string, Models> cache_;
+  ModelFactory models_;
   std::map<int, std::pair<std::string, SourceLocation>> claimed_;
 };
 

@@ -53,8 +53,86 @@ struct DiagnoseOptions {
   /// Cells per axis of the residual maps over the workspace, and bins per joint range.
   int grid_cells = 8;
   int joint_bins = 10;
+  /// Two rows are one joint configuration measured again when every joint agrees within this
+  /// tolerance (deg for revolute, mm for prismatic joints) and payload and dirN are equal.
+  double repeat_tol = 0.01;
+  /// A repeat pair whose positions disagree by more than this many times the median pair
+  /// distance is a glitch (excluded from the repeatability, listed).
+  double glitch_factor = 10.0;
+  /// Robust estimation: a pose whose baseline residual exceeds robust_k robust standard
+  /// deviations (3D, chi with 3 degrees of freedom: 4.03 is its 99.9% quantile) is down-weighted
+  /// by Huber's rule (weight k s / |r|); 0 turns it off.
+  double robust_k = 4.03;
+  /// Blocked cross-validation (the check that mimics new data): contiguous blocks of each
+  /// joint's angle and of the pose order.
+  int blocked_folds = 5;
+  /// Highest number of cycles per revolution of the per-joint spectrum of the residual.
+  int spectrum_max_cycles = 90;
 
   bool IsValid(std::string* error) const;
+};
+
+/// Two measurements of one joint configuration (within DiagnoseOptions::repeat_tol).
+struct RepeatPair {
+  int line_a = 0, line_b = 0;    ///< source lines (0 when simulated)
+  int index_a = 0, index_b = 0;  ///< 0-based rows of the data
+  double distance_mm = 0;        ///< |p_a - p_b|
+  double rotation_deg = std::numeric_limits<double>::quiet_NaN();  ///< orientation jump (6D data)
+};
+
+/// The floors of a data set: what the instrument states (std columns) and what the robot and
+/// instrument repeat (repeated configurations). The model can at best reach the repeatability.
+struct Floors {
+  bool instrument_known = false;
+  double instrument_rms_mm = std::numeric_limits<double>::quiet_NaN();  ///< 3D RMS of the std columns
+  double repeat_tol = 0.01;       ///< joint tolerance of a repeat (deg / mm)
+  int repeat_groups = 0;          ///< configurations measured more than once
+  int repeat_pairs = 0;           ///< pairs among them
+  int repeat_min_gap = 0, repeat_max_gap = 0;  ///< rows between the two measurements of a pair
+  double median_pair_mm = std::numeric_limits<double>::quiet_NaN();  ///< median |p_a - p_b|, glitches excluded
+  double repeat_std_axis_mm = std::numeric_limits<double>::quiet_NaN();  ///< pooled, per axis
+  double repeat_rms_mm = std::numeric_limits<double>::quiet_NaN();       ///< 3D RMS (sqrt(3) per-axis)
+  double repeat_dof = 0;
+  double glitch_threshold_mm = std::numeric_limits<double>::quiet_NaN();
+  std::vector<RepeatPair> glitches;  ///< pairs disagreeing grossly (measurement glitches)
+};
+
+/// A pose the robust estimation down-weighted.
+struct DownWeighted {
+  std::string file;
+  int line = 0, index = 0;
+  double residual_mm = 0;  ///< baseline fit residual
+  double weight = 1;       ///< robust weight (0..1)
+};
+
+/// The per-joint spectrum of a residual: the residual projected onto one joint's angle (the
+/// joint motion that best explains each pose's residual, weighted by how well the pose shows
+/// it) regressed on cos/sin(k q) for k = 1..K cycles per revolution, one k at a time.
+struct JointSpectrum {
+  int joint = 0;  ///< 1-based, revolute joints only
+  double range_deg = 0;              ///< range of the joint in the data
+  std::vector<int> cycles;           ///< k (cycles per revolution)
+  std::vector<double> amplitude_urad_before, amplitude_urad_after;  ///< of the baseline / final residual
+  int peak_cycles = 0;               ///< k of the largest amplitude (final residual)
+  double peak_amplitude_urad = 0;
+  double peak_share = 0;             ///< share of the joint-projected residual variance at the peak
+  double peak_p = 1;                 ///< Bonferroni over every joint and k (p x tests, capped at 1)
+  int peak_cycles_before = 0;        ///< the same for the baseline residual
+  double peak_amplitude_urad_before = 0, peak_p_before = 1;
+};
+
+/// Where an effect's fit data lie: the range of every joint (and temperature) it depends on.
+struct Coverage {
+  std::string variable;  ///< q1..qN, temp_c
+  std::string unit;
+  double lo = 0, hi = 0;
+};
+
+/// An effect block that passed the ordinary test but was not selected, and why.
+struct Rejected {
+  std::string effect;
+  std::vector<int> joints;
+  std::string reason;
 };
 
 /// Error of a model on held-out poses (position, mm), and how it compares with the noise.
@@ -95,6 +173,15 @@ struct EffectEvidence {
   double delta_bic = 0;  ///< BIC(with) - BIC(without) on the fit data; < 0 favours it
   std::vector<EffectParameter> parameters;  ///< fitted on all fit data, 1 sigma
   std::vector<JointEvidence> per_joint;     ///< each joint's block alone on the baseline
+  /// Blocked cross-validation: the smallest gain over the schemes (contiguous blocks of each
+  /// joint's angle and of the pose order) and the scheme that gives it.
+  double blocked_gain = std::numeric_limits<double>::quiet_NaN();
+  std::string blocked_scheme;
+  /// Physically implausible parameters (negative compliance, thermal coefficient of the wrong
+  /// sign or size, amplitudes above a degree): never offered as a cause.
+  std::vector<std::string> implausible;
+  std::vector<Coverage> coverage;  ///< ranges of the fit data (selected effects)
+  std::string params;              ///< as identify --params accepts it, e.g. "gear_periodic:j1+j2"
 };
 
 /// Two effects that explain the same residual: b's gain on the baseline drops below half once
@@ -165,6 +252,11 @@ struct WorstPose {
 struct Verdict {
   std::string effect;  ///< a catalogue name, "none" or "unexplained"
   std::vector<int> joints;
+  /// Every effect the verdict names as a cause (several when several explain a share of the
+  /// gap); for `unexplained`, the effects that explain part of it.
+  std::vector<std::string> effects;
+  /// Share of the gap (baseline MSE minus the floor's) the selected effects explain (0..1).
+  double explained_share = 0;
   double validation_rms_after_mm = 0;
   std::string explanation;
   std::vector<std::string> correlates;       ///< for unexplained: what the residual follows
@@ -196,6 +288,16 @@ struct Diagnosis {
   std::vector<Correlation> correlations;
   std::vector<Region> worst_regions;
   std::vector<WorstPose> worst_poses;
+  std::vector<JointSpectrum> spectra;
+  /// Orientation residual of 6D data (deg, RMS over the fit data, constant tool rotation
+  /// removed) for the baseline and final models; NaN for position-only data.
+  double orientation_rms_before_deg = std::numeric_limits<double>::quiet_NaN();
+  double orientation_rms_after_deg = std::numeric_limits<double>::quiet_NaN();
+  Floors floors;
+  std::vector<DownWeighted> downweighted;
+  std::vector<Rejected> rejected;
+  /// What to give `identify --params`: "geometric" plus every selected effect with its joints.
+  std::string identify_params = "geometric";
   Verdict verdict;
   std::vector<std::string> notes;  ///< parameters left out and why
   double seconds = 0;  ///< wall time of the diagnosis
@@ -228,8 +330,19 @@ struct SelfcheckOptions {
   std::vector<double> noise_mm = {0.01, 0.03};  ///< per-axis noise levels
   /// What is injected (besides the geometric errors): "none", catalogue names,
   /// "unmodelled_coupling" (outside the catalogue).
-  std::vector<std::string> injected = {"none",     "joint_compliance", "gear_periodic", "joint_scale",
-                                       "backlash", "thermal",          "unmodelled_coupling"};
+  /// The real-data cases (realDataCases()): "cyclic_fine" (joints 2 and 3 err by 0.3-0.7 mrad
+  /// at 11-23 cycles per revolution: `unexplained`, and the spectrum finds a joint and its
+  /// cycles), "outliers" (joint compliance plus 2% gross outliers of 0.5-3 mm: the verdict
+  /// and 80% of the outliers down-weighted), "two_effects" (joint compliance and backlash: both
+  /// named), "partial_cyclic" (joint 2 errs at 2 and 17 cycles per revolution: gear_periodic
+  /// explains part, `unexplained` with the partial explanation), "partial_range" (gear_periodic
+  /// with fit data over the middle third of joint 1's range: the verdict, or `none`, and the
+  /// selected model no worse than the geometric one on fresh poses over the whole range; gear_periodic
+  /// may then be named as a partial explanation, its part on joint 1 unexplained).
+  std::vector<std::string> injected = {"none",        "joint_compliance", "gear_periodic", "joint_scale",
+                                       "backlash",    "thermal",          "unmodelled_coupling",
+                                       "cyclic_fine", "outliers",         "two_effects",
+                                       "partial_cyclic", "partial_range"};
   int poses = 300;             ///< fit poses per case
   int validation_poses = 200;  ///< for the cases diagnosed with a validation set
   int truth_poses = 500;       ///< fresh poses measuring the true shrink
@@ -237,6 +350,9 @@ struct SelfcheckOptions {
 
   bool IsValid(std::string* error) const;
 };
+
+/// The selfcheck's cases of the kinds real data bring (see SelfcheckOptions::injected).
+const std::vector<std::string>& realDataCases();
 
 struct SelfcheckCase {
   std::string robot, injected, verdict, expected;

@@ -11,4 +11,8 @@ namespace accura {
 /// written or renamed; the temporary file is removed then.
 void writeFileAtomically(const std::string& path, const std::string& content);
 
+/// True when `a` and `b` name the same file: the same inode when both exist, else the same
+/// normalised absolute path (a file about to be written onto an input). Never throws.
+bool sameFile(const std::string& a, const std::string& b);
+
 }  // namespace accura

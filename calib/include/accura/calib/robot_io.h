@@ -17,7 +17,8 @@ struct ParameterRecord {
 };
 
 /// Reads a robot file: a nominal robot, or a calibrated model (a robot file with a
-/// <calibration> element). Throws InputError (file:line) on malformed XML, missing or
+/// <calibration> element); a path ending in .urdf is read by readUrdfRobot (urdf.h) with its
+/// default chain. Throws InputError (file:line) on malformed XML, missing or
 /// unknown elements/attributes, non-numeric values, inconsistent limits, bad direction,
 /// unknown parameter names or units in <calibration>.
 RobotModel readRobotFile(const std::string& path);

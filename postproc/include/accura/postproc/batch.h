@@ -17,6 +17,7 @@
 #include "accura/postproc/cell.h"
 #include "accura/postproc/check.h"
 #include "accura/postproc/job.h"
+#include "accura/postproc/placement.h"
 #include "accura/postproc/program_io.h"
 
 namespace accura::postproc {
@@ -64,10 +65,6 @@ struct CheckedProgram {
 /// (an unreachable target is a reach violation, a joint beyond its limit a joint_limit one).
 bool compensationFailureExplained(const CheckReport& check, const JobReport& report);
 
-/// The job for a program checked in `cell`: the cell's robot placement (<robot>) becomes
-/// job.robroot_in_world when that is not set (it is where the OLP placed the robot).
-JobSettings placedInCell(const JobSettings& job, const Cell& cell);
-
 /// Compensates one program file as compensateFile does and, with `cell` (may be null), checks
 /// the program read from the file in the cell (checkProgram, CheckMode of cell->options, with
 /// cell->geometry when set) with the job placed in the cell (placedInCell) — what accura
@@ -79,6 +76,33 @@ JobSettings placedInCell(const JobSettings& job, const Cell& cell);
 /// (InputError when the cell's placement and job.robroot_in_world disagree).
 CheckedProgram compensateAndCheckFile(const std::string& in_path, const std::string& out_path, const ProgramReadOptions& read,
                                       const JobSettings& job, const CellCheckSettings* cell, JobReport* report);
+
+/// One program file compensated into a directory: what accura compensate and the plug-in's
+/// accura_compensate_program both do.
+struct ProgramFileRequest {
+  std::string in_path;          ///< the program (.src with its .dat, or .xml)
+  ProgramReadOptions read;      ///< --dat, --config
+  std::string out_dir;          ///< the output directory (created); the program keeps its file name
+  std::string json_path;        ///< the report (report.h, compensationReportText); empty: none
+  const CellCheckSettings* cell = nullptr;  ///< checks before writing (compensateAndCheckFile)
+  /// How the caller names the output directory and the report in messages ("--out" /
+  /// "out_dir", "--json" / "json_report_path").
+  std::string out_name = "--out", json_name = "--json";
+};
+
+struct ProgramFileResult {
+  CheckedProgram checked;  ///< the rendered files, the check
+  JobReport report;        ///< the compensation's report
+  bool written = false;    ///< the files were written (false: a check failed, see checked.write)
+};
+
+/// Compensates (and with request.cell checks) the program as compensateAndCheckFile does and
+/// writes its files into request.out_dir through writeFilesAtomically, unless the check says
+/// not to; then the report to request.json_path (when set; its outputs empty when nothing was
+/// written). Never modifies an input: throws InputError when out_dir is a file, or when an
+/// output or the report would overwrite the program, its .dat (given or next to it) or the
+/// $config.dat; otherwise throws like compensateAndCheckFile.
+ProgramFileResult compensateProgramFile(const ProgramFileRequest& request, const JobSettings& job);
 
 /// One line for people: the first violation of a failed check ("file:line:column: check:
 /// ... (short by ...)"; for a clearance, the smallest clearance at the samples of that motion

@@ -19,6 +19,15 @@
 
 namespace accura::postproc {
 
+/// The largest coordinate, distance or size the cell accepts (mm): 100 m, beyond any robot
+/// cell. Larger values are unit mistakes or garbage, and they break the distance queries
+/// (FCL's GJK asserts on a capsule at 1e300 mm; a 2,000 km tool capsule makes the clearance
+/// subdivision run for minutes). Applies to mesh vertices (once scaled to mm), placements
+/// (x_mm, y_mm, z_mm), capsule end points and radii, and min_clearance_mm.
+inline constexpr double kMaxCellExtent_mm = 1e5;
+/// The largest placement angle (a_deg, b_deg, c_deg) the cell accepts, in magnitude (deg).
+inline constexpr double kMaxCellAngle_deg = 360;
+
 /// A triangle mesh (mm) in its own frame.
 struct Mesh {
   std::vector<Eigen::Vector3d> vertices_mm;
@@ -29,8 +38,15 @@ struct Mesh {
 /// Reads every triangle of every mesh of a file assimp can read (STL, OBJ, PLY, 3MF, glTF,
 /// COLLADA, ...; the scene's node transforms are applied) and multiplies the coordinates by
 /// `scale_to_mm` (1 for mm, 1000 for m, 25.4 for inch). Polygons are triangulated; points and
-/// lines are ignored. Throws InputError naming the file when assimp cannot read it, when it
-/// holds no triangle, or when a coordinate is not finite; ArgumentError when scale_to_mm is
+/// lines are ignored. PLY (ASCII and binary), STL (ASCII and binary) and OBJ files are checked
+/// completely before assimp reads them: a truncated or half-read file (a missing declared
+/// element, an ASCII STL without endfacet/endsolid, an OBJ whose last line is cut), a face
+/// index beyond the vertices, a number that is not a finite decimal are errors with the
+/// file's line and column (binary files: the byte offset), not a smaller mesh. Every format's
+/// scene is checked (face indices, node mesh indices, finite transforms) before assimp's
+/// post-processing runs on it. Throws InputError naming the file when the file is malformed,
+/// when assimp cannot read it, when it holds no triangle, or when a coordinate is not finite
+/// or lies beyond kMaxCellExtent_mm (in mm, after scaling); ArgumentError when scale_to_mm is
 /// not a positive finite number.
 Mesh loadMesh(const std::string& path, double scale_to_mm);
 
@@ -84,7 +100,9 @@ struct Cell {
 
 /// Reads a cell file (docs/cell-format.md). Mesh paths are relative to the cell file's
 /// directory. Throws InputError with file:line:column and what was expected and found for a
-/// malformed file (tinyxml2 gives its line only: column 0), an unknown element or attribute, a missing one, a bad number or unit, and
+/// malformed file (tinyxml2 gives its line only: column 0), an unknown element or attribute, a missing one, a bad number
+/// (anything but a finite decimal, e.g. blank, hex, 1e309) or unit, a coordinate, capsule radius
+/// or min_clearance_mm beyond kMaxCellExtent_mm, an angle beyond kMaxCellAngle_deg, and
 /// for a mesh file assimp cannot read or without triangles (naming that file). Link indices
 /// are checked against the robot by the checks (check.h), not here. The column (1-based, in
 /// bytes) is that of the attribute's name for an error in an attribute, of the element's '<'

@@ -1,0 +1,87 @@
+// accura: Universal Robots' per-arm factory calibration, in and out.
+//
+// The controller keeps DH deltas per joint (calibration.conf, section [mounting]: delta_theta,
+// delta_a, delta_d, delta_alpha; also sent with the nominal DH by the KinematicsInfo message).
+// UR's formula, in the controller's Base frame (= DH frame 0; ROS 'base', i.e. 'base_link'
+// turned 180 deg about z) to the tool flange:
+//   T_base_flange(q) = prod_i Rz(q_i + dtheta_i) Tz(d_i + dd_i) Tx(a_i + da_i) Rx(alpha_i + dalpha_i)
+// with the nominal a_i, d_i, alpha_i of the model and nominal theta_i = 0. DH cannot describe
+// nearly parallel axes, so for joints 2-4 the deltas hold lengths of metres (tens of metres are
+// common) that cancel. UR's ROS driver (ur_calibration) turns them into per-joint origins
+// (x y z roll pitch yaw, metres and radians) that ur_description uses as URDF joint origins:
+// the "kinematics" YAML.
+//
+// accura reads both into a calibrated model: the bundled nominal UR robot (direction +1,
+// theta0 0) plus small deviations in its Hayati form, and writes the deltas back.
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <string>
+#include <vector>
+
+#include "accura/calib/robot.h"
+#include "accura/calib/urdf.h"
+
+namespace accura {
+
+/// Tolerance of the UR conversions' check (mm): the deltas' lengths of tens of metres cancel,
+/// and their own rounding reaches 1e-8 mm.
+constexpr double kUrCheckTolMm = 1e-6;
+
+/// DH deltas per joint, as in calibration.conf: rad and metres.
+struct UrDeltas {
+  std::vector<double> theta_rad, a_m, d_m, alpha_rad;  ///< one per joint each
+};
+
+/// Reads the [mounting] section of a UR calibration.conf. Throws InputError (file:line) on a
+/// missing key, a list without exactly `dof` finite numbers, a key given twice.
+UrDeltas readUrCalibrationConf(const std::string& path, int dof = 6);
+
+/// The calibration.conf text ([mounting] with the four delta lists, 17 significant digits).
+std::string formatUrCalibrationConf(const UrDeltas& deltas);
+
+/// Throws ArgumentError unless `nominal` is a UR-style DH robot: revolute joints, direction
+/// +1, theta0 0, identity base and tool, and as many joints as the deltas hold.
+void checkUrNominal(const RobotDefinition& nominal, const UrDeltas* deltas = nullptr);
+
+/// UR's formula above at q (deg): T_base_flange in mm.
+Eigen::Isometry3d urFlangePose(const RobotDefinition& nominal, const UrDeltas& deltas, const Eigen::VectorXd& q_deg);
+
+/// The serial chain of UR's formula (root = Base, tip = flange; mm).
+SerialChain urDeltaChain(const RobotDefinition& nominal, const UrDeltas& deltas);
+
+/// The calibrated accura model of a UR arm: `nominal` (the bundled robot, e.g. ur10.xml) with
+/// the deltas as deviations in its Hayati form (the lengths stay the arm's real lengths),
+/// checked: FK equals UR's formula to kUrCheckTolMm (modelFromChain). Throws ArgumentError
+/// (checkUrNominal), NumericalError when the check fails.
+RobotModel modelFromUrDeltas(const RobotDefinition& nominal, const UrDeltas& deltas);
+
+/// accura model -> UR deltas for the same nominal: the model's calibrated chain from DH frame 0
+/// to the flange rewritten in pure DH. `not_represented` lists what the deltas cannot hold
+/// (the base and tool deviations: set them as the installation's mounting and TCP; the
+/// effects beyond geometry; a near-parallel pair of axes, where DH needs a length above 1 m).
+/// `max_difference_mm`: largest flange position difference between UR's formula with the
+/// deltas and the model's flange chain over 64 random joint vectors.
+struct UrDeltasFromModel {
+  UrDeltas deltas;
+  std::vector<std::string> not_represented;
+  double max_difference_mm = 0;
+};
+UrDeltasFromModel urDeltasFromModel(const RobotModel& model);
+
+/// ur_calibration's YAML ("kinematics:" then shoulder, upper_arm, forearm, wrist_1, wrist_2,
+/// wrist_3, each with x y z roll pitch yaw, metres / radians; roll pitch yaw read as URDF rpy,
+/// the way ur_description applies them). Reads the chain from Base to the flange. Throws
+/// InputError (file:line) on a missing or non-numeric entry.
+SerialChain readUrCalibrationYaml(const std::string& path);
+
+/// The same chain as a calibrated model of `nominal` (as modelFromUrDeltas).
+RobotModel modelFromUrCalibrationYaml(const RobotDefinition& nominal, const std::string& path);
+
+/// The YAML of a model's flange chain (DH frame 0 to the flange), `not_represented` as in
+/// urDeltasFromModel (plus a non-zero a or alpha of the last link, which the six entries cannot
+/// hold). Throws ArgumentError for a model without 6 revolute joints.
+std::string formatUrCalibrationYaml(const RobotModel& model, std::vector<std::string>* not_represented);
+
+}  // namespace accura

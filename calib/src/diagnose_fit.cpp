@@ -1,0 +1,455 @@
+// accura: the fits of the diagnosis: noise floor, baseline, candidate columns, linearised and exact held-out errors (diagnose.h, docs/diagnosis.md).
+#include "diagnose_internal.h"
+
+#include <Eigen/Cholesky>
+#include <Eigen/QR>
+#include <Eigen/SVD>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <numeric>
+#include <set>
+
+#include "accura/calib/errors.h"
+#include "accura/calib/identify.h"
+#include "accura/calib/kinematics.h"
+
+namespace accura {
+namespace diagnose_detail {
+
+IdentifyOptions Diagnoser::baselineOptions() const {
+  IdentifyOptions io;
+  io.groups = {"geometric"};
+  // weights: the std columns, else the noise floor when known, else identify's variance components
+  if (!fit_.has_std_position && out_.noise_floor_known) io.position_std_mm = out_.noise_std_axis_mm;
+  return io;
+}
+
+void Diagnoser::baseline() {
+  IdentifySummary s;
+  M0_ = identify(start_, fit_, baselineOptions(), &s);
+  robust_w_.assign(static_cast<size_t>(m_), 1.0);
+  layout_ = parameterLayout(M0_);
+  std::set<std::string> free;
+  for (const ParameterEstimate& p : s.parameters) free.insert(p.name);
+  for (size_t k = 0; k < layout_.size(); ++k)
+    if (free.count(layout_[k].name)) {
+      G_.push_back(static_cast<int>(cols_.size()));
+      cols_.push_back(static_cast<int>(k));
+    }
+  if (!fit_.has_std_position && !out_.noise_floor_known) {
+    // weights from the baseline's variance-component estimate (uniform: only their ratio matters)
+    for (auto& w : w_fit_) w = Eigen::Vector3d::Constant(1.0 / s.position_std_mm);
+    for (size_t i = 0; i < w_fit_.size(); ++i) w_fit_[i] *= std::sqrt(fit_.rows[i].weight);
+    if (has_val_)
+      for (size_t i = 0; i < w_val_.size(); ++i) w_val_[i] = Eigen::Vector3d::Constant(std::sqrt(val_.rows[i].weight) / s.position_std_mm);
+  }
+}
+
+// Robust estimation (IRLS, two passes): Huber weights from the residual of the richest model
+// (the geometric baseline plus every testable effect, linearised), so that a catalogued effect
+// does not hide a gross outlier; the baseline is refitted with them and the linearisation
+// rebuilt at it.
+void Diagnoser::robust() {
+  if (!(o_.robust_k > 0) || blocks_.empty()) return;
+  std::vector<double> w0;
+  for (const Measurement& r : fit_.rows) w0.push_back(r.weight);
+  const std::vector<Eigen::Vector3d> wf0 = w_fit_;
+  std::vector<int> all(blocks_.size());
+  std::iota(all.begin(), all.end(), 0);
+  for (int pass = 0; pass < 2; ++pass) {
+    const std::vector<int> S = withBlocks(all);
+    Eigen::LLT<Eigen::MatrixXd> llt;
+    Eigen::VectorXd x;
+    if (!solveSpd(A_(S, S), b_(S), &llt, &x)) return;
+    const Eigen::VectorXd e = rF_ - JF_(Eigen::all, S) * x;
+    std::vector<double> mag(static_cast<size_t>(m_));
+    for (int i = 0; i < m_; ++i) mag[static_cast<size_t>(i)] = e.segment(3 * i, 3).norm();
+    robustWeights(mag);
+    bool changed = false;
+    for (int i = 0; i < m_; ++i) {
+      const double w = w0[static_cast<size_t>(i)] * robust_w_[static_cast<size_t>(i)];
+      changed = changed || w != fit_.rows[static_cast<size_t>(i)].weight;
+      fit_.rows[static_cast<size_t>(i)].weight = w;
+      w_fit_[static_cast<size_t>(i)] = wf0[static_cast<size_t>(i)] * std::sqrt(robust_w_[static_cast<size_t>(i)]);
+    }
+    if (!changed) break;
+    M0_ = identify(M0_, fit_, baselineOptions(), nullptr);
+    linearise();
+  }
+}
+
+// Candidate columns of the effects: testable ones, per (effect, joint) block.
+void Diagnoser::columns() {
+  auto both = [&](auto pred) { return pred(fit_) && (!has_val_ || pred(val_)); };
+  auto range = [&](const MeasurementSet& set, auto value) {
+    double lo = 1e300, hi = -1e300;
+    for (const Measurement& r : set.rows) {
+      lo = std::min(lo, value(r));
+      hi = std::max(hi, value(r));
+    }
+    return hi - lo;
+  };
+  for (const std::string& e : o_.effects) {
+    std::string why;
+    if (e == "thermal") {
+      if (!both([](const MeasurementSet& s) { return s.has_temperature; })) why = "the data has no temp_c column";
+      else if (range(fit_, [](const Measurement& r) { return r.context.temp_c; }) < 0.5)
+        why = "the temperature varies by less than 0.5 K over the fit data";
+    }
+    if (e == "backlash" && !both([](const MeasurementSet& s) { return s.has_direction; }))
+      why = "the data has no dir1..dirN columns";
+    if (!why.empty()) {
+      effect_note_[e] = "not testable: " + why;
+      continue;
+    }
+    out_.effects_tested.push_back(e);
+    std::map<int, Block> by_joint;
+    for (size_t k = 0; k < layout_.size(); ++k) {
+      const ParamInfo& p = layout_[k];
+      if (p.group != e) continue;
+      if (e == "backlash") {
+        // both directions must occur for the joint
+        bool plus = false, minus = false;
+        for (const Measurement& r : fit_.rows) (r.context.dir[static_cast<size_t>(p.joint)] > 0 ? plus : minus) = true;
+        if (!(plus && minus)) continue;
+      }
+      Block& b = by_joint[p.joint];
+      b.effect = e;
+      b.joint = p.joint;
+      b.cols.push_back(static_cast<int>(cols_.size()));
+      cols_.push_back(static_cast<int>(k));
+    }
+    for (auto& kv : by_joint) blocks_.push_back(kv.second);
+  }
+}
+
+void Diagnoser::linearise() {
+  const int C = static_cast<int>(cols_.size());
+  std::vector<ParamInfo> sub;
+  for (int c : cols_) sub.push_back(layout_[c]);
+  auto build = [&](const MeasurementSet& set, Eigen::MatrixXd* J, Eigen::VectorXd* r) {
+    const Eigen::Index m = static_cast<Eigen::Index>(set.rows.size());
+    J->resize(3 * m, C);
+    r->resize(3 * m);
+    KinematicWorkspace ws;
+    Eigen::MatrixXd J6;
+    for (Eigen::Index i = 0; i < m; ++i) {
+      const Measurement& row = set.rows[static_cast<size_t>(i)];
+      const Eigen::Isometry3d T = parameterJacobian(M0_, sub, row.q, row.context, ws, J6);
+      J->middleRows(3 * i, 3) = J6.topRows(3);
+      r->segment(3 * i, 3) = row.p_world_mm - T.translation();
+    }
+  };
+  Eigen::MatrixXd JF;
+  build(fit_, &JF, &rF_);
+  wF_.resize(3 * m_);
+  for (int i = 0; i < m_; ++i) wF_.segment(3 * i, 3) = w_fit_[i];
+  // weighted column norms: scale, and screen zero / dependent columns
+  Eigen::MatrixXd Jw = wF_.asDiagonal() * JF;
+  Eigen::VectorXd norms = Jw.colwise().norm();
+  double gmax = 0;
+  for (int c : G_) gmax = std::max(gmax, norms[c]);
+  // orthonormal basis of the geometric columns
+  Eigen::MatrixXd Gs(3 * m_, static_cast<Eigen::Index>(G_.size()));
+  for (size_t k = 0; k < G_.size(); ++k) Gs.col(static_cast<Eigen::Index>(k)) = Jw.col(G_[k]) / norms[G_[k]];
+  Eigen::HouseholderQR<Eigen::MatrixXd> qr(Gs);
+  Eigen::MatrixXd Q = qr.householderQ() * Eigen::MatrixXd::Identity(3 * m_, Gs.cols());
+  std::vector<bool> keep(static_cast<size_t>(C), true);
+  for (Block& b : blocks_) {
+    Eigen::MatrixXd Qb = Q;
+    std::vector<int> kept;
+    for (int c : b.cols) {
+      const std::string& name = layout_[cols_[c]].name;
+      if (!(norms[c] > 1e-12 * std::max(gmax, 1e-300))) {
+        keep[static_cast<size_t>(c)] = false;
+        effect_note_[b.effect + ":" + name] = name + " has no effect on these measurements";
+        continue;
+      }
+      Eigen::VectorXd v = Jw.col(c) / norms[c];
+      for (int pass = 0; pass < 2; ++pass) v -= Qb * (Qb.transpose() * v);
+      const double rho = v.norm();
+      if (rho < 1e-3) {
+        keep[static_cast<size_t>(c)] = false;
+        effect_note_[b.effect + ":" + name] =
+            name + " cannot be told from the geometric parameters (relative residual " + fmtg("%.2g", rho) + ")";
+        continue;
+      }
+      Qb.conservativeResize(Eigen::NoChange, Qb.cols() + 1);
+      Qb.col(Qb.cols() - 1) = v / rho;
+      kept.push_back(c);
+    }
+    b.cols = kept;
+  }
+  blocks_.erase(std::remove_if(blocks_.begin(), blocks_.end(), [](const Block& b) { return b.cols.empty(); }),
+                blocks_.end());
+  colscale_ = norms.cwiseMax(1e-300);
+  JF_ = JF * colscale_.cwiseInverse().asDiagonal();
+  Jw = wF_.asDiagonal() * JF_;
+  const Eigen::VectorXd rw = wF_.cwiseProduct(rF_);
+  A_ = Jw.transpose() * Jw;
+  b_ = Jw.transpose() * rw;
+  rr_ = rw.squaredNorm();
+  if (has_val_) {
+    build(val_, &JV_, &rV_);
+    JV_ = JV_ * colscale_.cwiseInverse().asDiagonal();
+  } else {
+    buildScheme(&interleaved_);
+  }
+  blockedSchemes();
+}
+
+// Per-fold normal equations of a scheme: the sums over each fold's rows, so that a fold's
+// training system is the whole system minus its own part.
+void Diagnoser::buildScheme(Scheme* sc) const {
+  const Eigen::Index C = JF_.cols();
+  sc->Af.assign(sc->poses.size(), Eigen::MatrixXd::Zero(C, C));
+  sc->bf.assign(sc->poses.size(), Eigen::VectorXd::Zero(C));
+  for (size_t f = 0; f < sc->poses.size(); ++f) {
+    for (int i : sc->poses[f]) {
+      const Eigen::MatrixXd Ji = wF_.segment(3 * i, 3).asDiagonal() * JF_.middleRows(3 * i, 3);
+      sc->Af[f].noalias() += Ji.transpose() * Ji;
+      sc->bf[f].noalias() += Ji.transpose() * wF_.segment(3 * i, 3).cwiseProduct(rF_.segment(3 * i, 3));
+    }
+  }
+}
+
+// The schemes that mimic new data: contiguous blocks of each joint's angle (the poses sorted by
+// q_j, cut into blocked_folds equal parts: each fold extrapolates to a joint range the training
+// did not see) and of the pose order (drift, a later session).
+void Diagnoser::blockedSchemes() {
+  blocked_.clear();
+  const int K = o_.blocked_folds;
+  if (K < 2 || m_ < 2 * K) return;
+  auto cut = [&](const std::vector<int>& order, const std::string& name) {
+    Scheme sc;
+    sc.name = name;
+    sc.poses.assign(static_cast<size_t>(K), {});
+    for (int k = 0; k < m_; ++k) sc.poses[static_cast<size_t>(static_cast<long>(k) * K / m_)].push_back(order[static_cast<size_t>(k)]);
+    buildScheme(&sc);
+    blocked_.push_back(std::move(sc));
+  };
+  std::vector<int> order(static_cast<size_t>(m_));
+  std::iota(order.begin(), order.end(), 0);
+  cut(order, "pose order");
+  for (int j = 0; j < M0_.dof(); ++j) {
+    std::vector<int> by = order;
+    std::stable_sort(by.begin(), by.end(), [&](int a, int b) { return fit_.rows[a].q[j] < fit_.rows[b].q[j]; });
+    if (!(fit_.rows[by.back()].q[j] - fit_.rows[by.front()].q[j] > 1e-6)) continue;
+    cut(by, "q" + std::to_string(j + 1) + " blocks");
+  }
+}
+
+bool solveSpd(const Eigen::MatrixXd& M, const Eigen::VectorXd& v, Eigen::LLT<Eigen::MatrixXd>* llt,
+              Eigen::VectorXd* x) {
+  llt->compute(M);
+  if (llt->info() != Eigen::Success) return false;
+  const Eigen::VectorXd diag = llt->matrixLLT().diagonal();
+  // columns are scaled to unit norm: a pivot below 1e-7 means a condition number above 1e14
+  if (!(diag.minCoeff() > 1e-7 * diag.maxCoeff())) return false;
+  *x = llt->solve(v);
+  return x->allFinite();
+}
+
+Diagnoser::Eval Diagnoser::evaluate(const std::vector<int>& S, bool leverage) const {
+  Eval ev;
+  const Eigen::Index s = static_cast<Eigen::Index>(S.size());
+  const Eigen::MatrixXd AS = A_(S, S);  // the normal equations of the blocks in S
+  const Eigen::VectorXd bS = b_(S);
+  Eigen::LLT<Eigen::MatrixXd> llt;
+  Eigen::VectorXd x;
+  if (has_val_) {
+    if (!solveSpd(AS, bS, &llt, &x)) return ev;
+    const Eigen::MatrixXd JS = JV_(Eigen::all, S);
+    const Eigen::VectorXd e = rV_ - JS * x;
+    ev.d.resize(nv_);
+    for (int i = 0; i < nv_; ++i) ev.d[i] = e.segment(3 * i, 3).squaredNorm();
+    if (leverage) {
+      ev.lev.resize(nv_);
+      for (int i = 0; i < nv_; ++i)
+        ev.lev[i] = llt.matrixL().solve(Eigen::MatrixXd(JS.middleRows(3 * i, 3).transpose())).squaredNorm();
+    }
+  } else {
+    return cvEval(S, interleaved_, leverage);
+  }
+  ev.ok = true;
+  return ev;
+}
+
+// Held-out squared errors by cross-validation over the scheme's folds (linearised at M0).
+Diagnoser::Eval Diagnoser::cvEval(const std::vector<int>& S, const Scheme& scheme, bool leverage) const {
+  Eval ev;
+  const Eigen::Index s = static_cast<Eigen::Index>(S.size());
+  const Eigen::MatrixXd AS = A_(S, S);
+  const Eigen::VectorXd bS = b_(S);
+  Eigen::LLT<Eigen::MatrixXd> llt;
+  Eigen::VectorXd x;
+  const Eigen::MatrixXd JS = JF_(Eigen::all, S);
+  ev.d.resize(m_);
+  if (leverage) ev.lev.resize(m_);
+  for (size_t f = 0; f < scheme.poses.size(); ++f) {
+    Eigen::MatrixXd M = AS;
+    Eigen::VectorXd v = bS;
+    for (Eigen::Index a = 0; a < s; ++a) {
+      v[a] -= scheme.bf[f][S[a]];
+      for (Eigen::Index c = 0; c < s; ++c) M(a, c) -= scheme.Af[f](S[a], S[c]);
+    }
+    if (!solveSpd(M, v, &llt, &x)) return ev;
+    for (int i : scheme.poses[f]) {
+      const Eigen::MatrixXd Ji = JS.middleRows(3 * i, 3);
+      // robust held-out loss: a down-weighted row counts with its weight squared (about the
+      // squared cut-off for a gross outlier)
+      ev.d[i] = (rF_.segment(3 * i, 3) - Ji * x).squaredNorm() * robust_w_[static_cast<size_t>(i)] * robust_w_[static_cast<size_t>(i)];
+      if (leverage) ev.lev[i] = llt.matrixL().solve(Eigen::MatrixXd(Ji.transpose())).squaredNorm();
+    }
+  }
+  ev.ok = true;
+  return ev;
+}
+
+// Linear fit on all fit data: parameter update (scaled) and weighted chi^2; sigma (scaled,
+// times the variance factor) when asked.
+Eigen::VectorXd Diagnoser::fitAll(const std::vector<int>& S, double* chi2, Eigen::VectorXd* sigma) const {
+  const Eigen::Index s = static_cast<Eigen::Index>(S.size());
+  const Eigen::MatrixXd AS = A_(S, S);  // the normal equations of the blocks in S
+  const Eigen::VectorXd bS = b_(S);
+  Eigen::LLT<Eigen::MatrixXd> llt;
+  Eigen::VectorXd x;
+  if (!solveSpd(AS, bS, &llt, &x)) throw NumericalError("diagnose: the normal matrix of the fit is singular");
+  const double c2 = std::max(0.0, rr_ - bS.dot(x));
+  if (chi2) *chi2 = c2;
+  if (sigma) {
+    const double dof = std::max(1.0, 3.0 * m_ - double(s));
+    const double s0 = c2 / dof;
+    const Eigen::MatrixXd inv = llt.solve(Eigen::MatrixXd::Identity(s, s));
+    *sigma = (s0 * inv.diagonal()).cwiseMax(0).cwiseSqrt();
+  }
+  return x;
+}
+
+std::vector<int> Diagnoser::withBlocks(const std::vector<int>& blocks) const {
+  std::vector<int> S = G_;
+  for (int b : blocks) S.insert(S.end(), blocks_[b].cols.begin(), blocks_[b].cols.end());
+  return S;
+}
+
+std::vector<EffectParameter> Diagnoser::parametersOf(const std::vector<int>& S, const std::string& effect) const {
+  Eigen::VectorXd sigma;
+  const Eigen::VectorXd x = fitAll(S, nullptr, &sigma);
+  std::vector<EffectParameter> out;
+  for (size_t k = 0; k < S.size(); ++k) {
+    const ParamInfo& p = layout_[cols_[S[k]]];
+    if (p.group != effect) continue;
+    const double internal = getParameter(M0_.deviations, p) + x[static_cast<Eigen::Index>(k)] / colscale_[S[k]];
+    out.push_back({p.name, p.unit, internal * p.display_scale, sigma[static_cast<Eigen::Index>(k)] / colscale_[S[k]] * p.display_scale});
+  }
+  return out;
+}
+
+// Gauss-Newton from M0 over the parameters S on the given fit rows.
+RobotModel Diagnoser::gnFit(const std::vector<int>& S, const std::vector<int>& rows) const {
+  RobotModel model = M0_;
+  std::vector<ParamInfo> sub;
+  Eigen::VectorXd scale(static_cast<Eigen::Index>(S.size()));
+  for (size_t k = 0; k < S.size(); ++k) {
+    sub.push_back(layout_[cols_[S[k]]]);
+    scale[static_cast<Eigen::Index>(k)] = colscale_[S[k]];
+  }
+  const Eigen::Index s = static_cast<Eigen::Index>(S.size());
+  KinematicWorkspace ws;
+  Eigen::MatrixXd J6;
+  Eigen::MatrixXd Jp(3, s);
+  for (int it = 0; it < 10; ++it) {
+    Eigen::MatrixXd A = Eigen::MatrixXd::Zero(s, s);
+    Eigen::VectorXd b = Eigen::VectorXd::Zero(s);
+    for (int i : rows) {
+      const Measurement& row = fit_.rows[static_cast<size_t>(i)];
+      const Eigen::Isometry3d T = parameterJacobian(model, sub, row.q, row.context, ws, J6);
+      Jp = w_fit_[i].asDiagonal() * J6.topRows(3) * scale.cwiseInverse().asDiagonal();
+      A.noalias() += Jp.transpose() * Jp;
+      b.noalias() += Jp.transpose() * w_fit_[i].cwiseProduct(row.p_world_mm - T.translation());
+    }
+    Eigen::LLT<Eigen::MatrixXd> llt;
+    Eigen::VectorXd dx;
+    if (!solveSpd(A, b, &llt, &dx)) throw NumericalError("diagnose: the refit's normal matrix is singular");
+    for (Eigen::Index k = 0; k < s; ++k)
+      setParameter(model.deviations, sub[static_cast<size_t>(k)],
+                   getParameter(model.deviations, sub[static_cast<size_t>(k)]) + dx[k] / scale[k]);
+    // scaled columns have unit weighted norm over all fit data: a step of 1e-9 is far below
+    // one standard deviation of any parameter
+    if (dx.cwiseAbs().maxCoeff() < 1e-9) break;
+  }
+  return model;
+}
+
+void Diagnoser::floorTest(const Eval& lin, const std::vector<Eigen::Vector3d>& e, const std::vector<bool>& keep,
+                          HeldOutStats* s) const {
+  if (!out_.noise_floor_known || !lin.ok || lin.lev.size() == 0) return;
+  const Eigen::VectorXd& var = has_val_ ? var_val_ : var_fit_;
+  double expected = 0, var_sum = 0, noise = 0, obs = 0;
+  int n = 0;
+  for (size_t i = 0; i < keep.size(); ++i) {
+    if (!keep[i]) continue;
+    const double E = var[static_cast<Eigen::Index>(i)] + lin.lev[static_cast<Eigen::Index>(i)];
+    expected += E;
+    var_sum += 2.0 / 3.0 * E * E;  // |e|^2 = (E/3) chi^2_3
+    noise += var[static_cast<Eigen::Index>(i)];
+    obs += e[i].squaredNorm();
+    ++n;
+  }
+  if (n == 0) return;
+  if (std::isfinite(out_.noise_floor_dof)) var_sum += 2.0 / out_.noise_floor_dof * noise * noise;
+  s->expected_rms_mm = std::sqrt(expected / double(n));
+  s->floor_z = var_sum > 0 ? (obs - expected) / std::sqrt(var_sum) : 0.0;
+  s->floor_p = upperTail(s->floor_z);
+}
+
+Diagnoser::Exact Diagnoser::exact(const std::vector<int>& S) {
+  Exact ex;
+  std::vector<int> all(static_cast<size_t>(m_));
+  std::iota(all.begin(), all.end(), 0);
+  ex.model_all = gnFit(S, all);
+  KinematicWorkspace ws;
+  if (has_val_) {
+    ex.e.resize(static_cast<size_t>(nv_));
+    for (int i = 0; i < nv_; ++i) {
+      const Measurement& r = val_.rows[static_cast<size_t>(i)];
+      ex.e[i] = r.p_world_mm - forwardKinematics(ex.model_all, r.q, r.context, ws).translation();
+    }
+  } else {
+    ex.e.resize(static_cast<size_t>(m_));
+    for (int f = 0; f < folds_; ++f) {
+      std::vector<int> train;
+      for (int i = 0; i < m_; ++i)
+        if (fold_[i] != f) train.push_back(i);
+      const RobotModel mf = gnFit(S, train);
+      for (int i : fold_poses_[f]) {
+        const Measurement& r = fit_.rows[static_cast<size_t>(i)];
+        ex.e[i] = r.p_world_mm - forwardKinematics(mf, r.q, r.context, ws).translation();
+      }
+    }
+  }
+  // Under cross-validation the held-out rows are the fit rows: those the robust estimation
+  // down-weighted (gross outliers, glitches) are left out of the statistics and the floor test,
+  // and enter the scans with their residual scaled by their weight.
+  std::vector<double> mag, d;
+  std::vector<bool> keep(ex.e.size(), true);
+  for (size_t i = 0; i < ex.e.size(); ++i) {
+    if (!has_val_ && robust_w_[i] < 1.0) {
+      keep[i] = false;
+      continue;
+    }
+    mag.push_back(ex.e[i].norm());
+    d.push_back(ex.e[i].squaredNorm());
+  }
+  statsOf(mag, &ex.stats);
+  floorTest(evaluate(S, true), ex.e, keep, &ex.stats);
+  if (!has_val_)
+    for (size_t i = 0; i < ex.e.size(); ++i) ex.e[i] *= robust_w_[i];
+  return ex;
+}
+
+}  // namespace diagnose_detail
+}  // namespace accura

@@ -1,0 +1,188 @@
+// accura: the floors of the diagnosis (diagnose.h, docs/diagnosis.md): the instrument's stated
+// uncertainty, the repeatability from repeated joint configurations, measurement glitches
+// (repeat pairs that disagree grossly), the noise floor the verdict is judged against, and the
+// robust weights of the fit rows.
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+
+#include "accura/calib/geometry.h"
+#include "diagnose_internal.h"
+
+namespace accura {
+namespace diagnose_detail {
+
+namespace {
+
+double median(std::vector<double> v) {
+  if (v.empty()) return kNaN;
+  const size_t h = v.size() / 2;
+  std::nth_element(v.begin(), v.begin() + static_cast<long>(h), v.end());
+  const double hi = v[h];
+  if (v.size() % 2) return hi;
+  return 0.5 * (hi + *std::max_element(v.begin(), v.begin() + static_cast<long>(h)));
+}
+
+// Median of the chi distribution with 3 degrees of freedom: |n| of a 3D standard normal vector.
+constexpr double kChi3Median = 1.5382;
+
+}  // namespace
+
+// Repeated configurations of the fit data (and the validation data for the pooled scatter):
+// pairs, their distances, glitches, and the pooled within-configuration scatter without them.
+void Diagnoser::repeats() {
+  Floors& fl = out_.floors;
+  fl.repeat_tol = o_.repeat_tol;
+  if (fit_.has_std_position && (!has_val_ || val_.has_std_position)) {
+    double s2 = 0;
+    int n = 0;
+    for (const MeasurementSet* set : {&fit_, has_val_ ? &val_ : nullptr}) {
+      if (!set) continue;
+      for (const Measurement& r : set->rows) {
+        s2 += r.std_mm.squaredNorm();
+        ++n;
+      }
+    }
+    fl.instrument_known = n > 0;
+    fl.instrument_rms_mm = n > 0 ? std::sqrt(s2 / n) : kNaN;
+  }
+  std::vector<std::pair<int, int>> pairs;
+  groups_ = repeatGroups(fit_, o_.repeat_tol, &pairs);
+  std::vector<double> dist;
+  fl.repeat_min_gap = pairs.empty() ? 0 : 1 << 30;
+  for (const auto& pr : pairs) {
+    dist.push_back((fit_.rows[pr.first].p_world_mm - fit_.rows[pr.second].p_world_mm).norm());
+    fl.repeat_min_gap = std::min(fl.repeat_min_gap, pr.second - pr.first);
+    fl.repeat_max_gap = std::max(fl.repeat_max_gap, pr.second - pr.first);
+  }
+  fl.repeat_pairs = static_cast<int>(pairs.size());
+  const double med_all = median(dist);
+  fl.glitch_threshold_mm = o_.glitch_factor * med_all;
+  std::vector<bool> glitch_row(static_cast<size_t>(m_), false);
+  std::vector<double> clean;
+  for (size_t k = 0; k < pairs.size(); ++k) {
+    if (!(dist[k] > fl.glitch_threshold_mm)) {
+      clean.push_back(dist[k]);
+      continue;
+    }
+    RepeatPair g;
+    g.index_a = pairs[k].first;
+    g.index_b = pairs[k].second;
+    g.line_a = fit_.rows[g.index_a].line;
+    g.line_b = fit_.rows[g.index_b].line;
+    g.distance_mm = dist[k];
+    if (rot_ok_[g.index_a] && rot_ok_[g.index_b])
+      g.rotation_deg = R_fit_[g.index_a].angularDistance(R_fit_[g.index_b]) * kRadToDeg;
+    fl.glitches.push_back(g);
+    glitch_row[g.index_a] = glitch_row[g.index_b] = true;
+  }
+  std::sort(fl.glitches.begin(), fl.glitches.end(),
+            [](const RepeatPair& a, const RepeatPair& b) { return a.distance_mm > b.distance_mm; });
+  fl.median_pair_mm = median(clean);
+  // pooled within-configuration scatter, groups touched by a glitch left out
+  double ss = 0, dof = 0;
+  int n_groups = 0;
+  auto pool = [&](const MeasurementSet& set, const std::vector<std::vector<int>>& groups, const std::vector<bool>* skip) {
+    for (const auto& g : groups) {
+      if (g.size() < 2) continue;
+      if (skip && std::any_of(g.begin(), g.end(), [&](int i) { return (*skip)[static_cast<size_t>(i)]; })) continue;
+      Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+      for (int i : g) mean += set.rows[static_cast<size_t>(i)].p_world_mm;
+      mean /= double(g.size());
+      for (int i : g) ss += (set.rows[static_cast<size_t>(i)].p_world_mm - mean).squaredNorm();
+      dof += 3.0 * double(g.size() - 1);
+      ++n_groups;
+    }
+  };
+  pool(fit_, groups_, &glitch_row);
+  if (has_val_) pool(val_, repeatGroups(val_, o_.repeat_tol), nullptr);
+  fl.repeat_groups = n_groups;
+  fl.repeat_dof = dof;
+  if (dof > 0) {
+    fl.repeat_std_axis_mm = std::sqrt(ss / dof);
+    fl.repeat_rms_mm = std::sqrt(3.0) * fl.repeat_std_axis_mm;
+  }
+}
+
+void Diagnoser::noiseFloor() {
+  repeats();
+  const Floors& fl = out_.floors;
+  // Folds: repeated configurations stay together.
+  folds_ = o_.folds;
+  fold_.assign(m_, 0);
+  for (size_t g = 0; g < groups_.size(); ++g)
+    for (int i : groups_[g]) fold_[i] = static_cast<int>(g % static_cast<size_t>(folds_));
+  fold_poses_.assign(folds_, {});
+  for (int i = 0; i < m_; ++i) fold_poses_[fold_[i]].push_back(i);
+  interleaved_.name = "interleaved";
+  interleaved_.poses = fold_poses_;
+  if (!has_val_) out_.validation_method = std::to_string(folds_) + "-fold cross-validation over the poses of " + fit_.file;
+  else out_.validation_method = "validation set " + val_.file;
+
+  double sigma = kNaN;  // per axis
+  bool per_row = false;
+  if (!std::isnan(o_.noise_std_mm)) {
+    sigma = o_.noise_std_mm;
+    out_.noise_floor_source = "given: " + fmtg("%.4g", sigma) + " mm per axis";
+  } else if (fl.repeat_dof >= 30) {
+    sigma = fl.repeat_std_axis_mm;
+    out_.noise_floor_dof = fl.repeat_dof;
+    out_.noise_floor_source =
+        "repeatability: " + std::to_string(fl.repeat_groups) + " joint configurations measured more than once (every joint within " +
+        fmtg("%g", fl.repeat_tol) + " deg or mm), pooled scatter " + fmtg("%.4g", sigma) + " mm per axis (" +
+        fmtg("%.0f", fl.repeat_dof) + " degrees of freedom), median pair distance " + fmtg("%.4f", fl.median_pair_mm) + " mm, " +
+        std::to_string(fl.glitches.size()) + " glitch pair(s) left out";
+    if (fl.instrument_known)
+      out_.noise_floor_source += "; the instrument states " + fmtg("%.4f", fl.instrument_rms_mm) + " mm (std columns)";
+  } else if (fit_.has_std_position && (!has_val_ || val_.has_std_position)) {
+    per_row = true;
+    out_.noise_floor_source = "std columns of the data (the instrument's stated uncertainty)";
+  } else {
+    out_.noise_floor_known = false;
+    out_.noise_floor_source =
+        "unknown: no repeated configurations (" + std::to_string(fl.repeat_groups) +
+        " found, at least 10 needed), no std columns and no "
+        "--noise-mm; estimated from the fit residual of the geometric model plus every testable effect, an upper "
+        "bound when an effect outside the catalogue is present; `unexplained` is then judged by the structure scan";
+  }
+  auto fill = [&](const MeasurementSet& set, std::vector<Eigen::Vector3d>* w, Eigen::VectorXd* var) {
+    w->assign(set.rows.size(), Eigen::Vector3d::Ones());
+    var->setZero(static_cast<Eigen::Index>(set.rows.size()));
+    for (size_t i = 0; i < set.rows.size(); ++i) {
+      const Measurement& r = set.rows[i];
+      Eigen::Vector3d s = Eigen::Vector3d::Constant(std::isnan(sigma) ? 1.0 : sigma);
+      if (set.has_std_position) s = r.std_mm;  // relative weights from the instrument
+      (*w)[i] = std::sqrt(r.weight) * s.cwiseInverse();
+      const Eigen::Vector3d sf = per_row ? r.std_mm : Eigen::Vector3d::Constant(std::isnan(sigma) ? 0.0 : sigma);
+      (*var)[static_cast<Eigen::Index>(i)] = sf.squaredNorm();
+    }
+  };
+  fill(fit_, &w_fit_, &var_fit_);
+  if (has_val_) fill(val_, &w_val_, &var_val_);
+  if (out_.noise_floor_known) {
+    const Eigen::VectorXd& v = has_val_ ? var_val_ : var_fit_;
+    out_.noise_floor_mm = std::sqrt(v.mean());
+    out_.noise_std_axis_mm = out_.noise_floor_mm / std::sqrt(3.0);
+  }
+}
+
+// Robust weights from the per-pose residual magnitudes (mm) of the fit rows: Huber's rule with a
+// robust scale (median |r| / median of chi_3).
+void Diagnoser::robustWeights(const std::vector<double>& e) {
+  robust_w_.assign(static_cast<size_t>(m_), 1.0);
+  out_.downweighted.clear();
+  const double s = median(e) / kChi3Median;
+  if (!(s > 0)) return;
+  const double cut = o_.robust_k * s;
+  for (int i = 0; i < m_; ++i) {
+    if (!(e[static_cast<size_t>(i)] > cut)) continue;
+    robust_w_[static_cast<size_t>(i)] = cut / e[static_cast<size_t>(i)];
+    out_.downweighted.push_back({fit_.file, fit_.rows[static_cast<size_t>(i)].line, i, e[static_cast<size_t>(i)],
+                                 robust_w_[static_cast<size_t>(i)]});
+  }
+  std::sort(out_.downweighted.begin(), out_.downweighted.end(),
+            [](const DownWeighted& a, const DownWeighted& b) { return a.weight < b.weight; });
+}
+
+}  // namespace diagnose_detail
+}  // namespace accura

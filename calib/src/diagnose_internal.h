@@ -1,0 +1,184 @@
+// accura: internals of the diagnosis (diagnose.h), shared by its files:
+//   diagnose.cpp            options, data preparation, the run, the entry point
+//   diagnose_fit.cpp        noise floor, baseline, candidate columns, linearised and exact fits
+//   diagnose_selection.cpp  forward selection, ranking, confounding, shrink table
+//   diagnose_verdict.cpp    the verdict
+//   diagnose_maps.cpp       where: maps over the workspace and the joints, the structure scan
+// Not a public header.
+#pragma once
+
+#include <Eigen/Cholesky>
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <limits>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "accura/calib/diagnose.h"
+#include "accura/calib/identify.h"
+#include "accura/calib/kinematics.h"
+
+namespace accura::diagnose_detail {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+/// One-sided upper tail of the standard normal distribution.
+double upperTail(double z);
+
+/// Paired comparison of per-pose squared errors: old minus new.
+struct Gain {
+  double gain = 0;  ///< mean(old - new) / mean(old)
+  double z = 0, p = 1;
+};
+Gain pairedGain(const Eigen::VectorXd& d_old, const Eigen::VectorXd& d_new);
+
+std::string jointList(const std::vector<int>& joints);
+std::string fmtg(const char* f, double v);
+void statsOf(const std::vector<double>& e, HeldOutStats* s);
+/// What each effect needs to be told apart from the others.
+std::string separator(const std::string& effect, const std::vector<int>& joints);
+/// Repeated joint configurations: every joint within `tol` (deg or mm), the same payload and
+/// directions; groups of rows (ascending, groups by first row), and every pair (i < k) when asked.
+std::vector<std::vector<int>> repeatGroups(const MeasurementSet& set, double tol,
+                                           std::vector<std::pair<int, int>>* pairs = nullptr);
+/// Cholesky solve of a normal system with unit-scaled columns; false when it is singular
+/// (a pivot ratio below 1e-7, a condition number above 1e14).
+bool solveSpd(const Eigen::MatrixXd& M, const Eigen::VectorXd& v, Eigen::LLT<Eigen::MatrixXd>* llt,
+              Eigen::VectorXd* x);
+/// Canonical correlation of two blocks' weighted columns with the geometry projected out.
+double canonicalCorrelation(const Eigen::MatrixXd& Jw, const std::vector<int>& G, const std::vector<int>& a,
+                            const std::vector<int>& b);
+
+class Diagnoser {
+ public:
+  Diagnoser(const RobotModel& start, const MeasurementSet& data, const MeasurementSet* validation,
+            const DiagnoseOptions& options);
+  Diagnosis run();
+
+ private:
+  struct Block {
+    std::string effect;
+    int joint = -1;         // 0-based; -1 for thermal
+    std::vector<int> cols;  // compact column indices
+  };
+  struct Eval {
+    bool ok = false;
+    Eigen::VectorXd d;          // held-out squared error per pose (mm^2)
+    Eigen::VectorXd lev;        // prediction variance per held-out pose (mm^2), when asked
+  };
+  /// Cross-validation folds with their per-fold normal equations (weighted, scaled columns).
+  struct Scheme {
+    std::string name;                       // "interleaved", "pose order", "q3 blocks"
+    std::vector<std::vector<int>> poses;    // fit rows held out in each fold
+    std::vector<Eigen::MatrixXd> Af;
+    std::vector<Eigen::VectorXd> bf;
+  };
+  struct Exact {
+    std::vector<Eigen::Vector3d> e;  // held-out residual per pose (measured - model)
+    HeldOutStats stats;
+    RobotModel model_all;            // fitted on all fit data
+  };
+
+  void prepareData(const MeasurementSet& data, const MeasurementSet* validation);
+  void noiseFloor();
+  void repeats();
+  IdentifyOptions baselineOptions() const;
+  void baseline();
+  void robust();
+  void robustWeights(const std::vector<double>& residual_mm);
+  void columns();
+  void linearise();
+  Eval evaluate(const std::vector<int>& S, bool leverage = false) const;
+  Eval cvEval(const std::vector<int>& S, const Scheme& scheme, bool leverage) const;
+  void buildScheme(Scheme* s) const;
+  void blockedSchemes();
+  /// The checks an addition to the model must pass besides the held-out test: physically
+  /// plausible parameters and a gain that survives blocked cross-validation. Fills *why when not.
+  bool admissible(const std::vector<int>& cur, const std::vector<int>& add, std::string* why, double* blocked_gain,
+                  std::string* scheme) const;
+  std::vector<std::string> implausible(const std::vector<EffectParameter>& ps) const;
+  std::vector<Coverage> coverageOf(const std::string& effect, const std::vector<int>& joints) const;
+  Eigen::VectorXd fitAll(const std::vector<int>& S, double* chi2, Eigen::VectorXd* sigma) const;
+  RobotModel gnFit(const std::vector<int>& S, const std::vector<int>& rows) const;
+  Exact exact(const std::vector<int>& S);
+  void floorTest(const Eval& lin, const std::vector<Eigen::Vector3d>& e, const std::vector<bool>& keep,
+                 HeldOutStats* s) const;
+  std::vector<int> withBlocks(const std::vector<int>& blocks) const;
+  std::vector<EffectParameter> parametersOf(const std::vector<int>& S, const std::string& effect) const;
+  struct Forward {
+    std::vector<int> blocks;        // selected, in order
+    std::vector<double> drops;      // held-out MSE drop credited to each (mm^2)
+    Eval cur;                       // held-out errors of the final selection
+    std::vector<Gain> last_round;   // per block: gain on the final selection
+    bool has_best_single = false;   // the best block of the first round, passing or not
+    int best_single = -1;
+    Eval best_single_eval;
+    std::vector<Rejected> rejected;  // passed the held-out test, failed admissible()
+    std::vector<double> blocked_gain;  // per selected block (NaN when not checked)
+    std::vector<std::string> blocked_scheme;
+  };
+  Forward forward(const std::vector<int>& candidates) const;
+  void selection();
+  void ranking();
+  void confounding();
+  void shrink();
+  void verdict();
+  void where();
+  std::vector<Correlation> scan(const std::vector<Eigen::Vector3d>& E) const;
+  void spectra();
+  void orientation();
+
+  // inputs
+  DiagnoseOptions o_;
+  RobotModel start_;
+  MeasurementSet fit_, val_;
+  bool has_val_ = false;
+  int m_ = 0, nv_ = 0;  // fit / validation poses
+  int folds_ = 5;
+  std::vector<int> fold_;                  // per fit pose
+  std::vector<std::vector<int>> fold_poses_;
+  // noise
+  std::vector<Eigen::Vector3d> w_fit_, w_val_;  // per-axis weights sqrt(weight)/sigma
+  Eigen::VectorXd var_fit_, var_val_;          // per pose: sum of the three noise variances (mm^2)
+  // model and columns
+  RobotModel M0_;
+  std::vector<ParamInfo> layout_;
+  std::vector<int> cols_;       // layout index of each compact column
+  std::vector<int> G_;          // compact indices of the geometric parameters
+  std::vector<Block> blocks_;
+  std::map<std::string, std::string> effect_note_;
+  Eigen::VectorXd colscale_;
+  // linearisation at M0 (scaled columns)
+  Eigen::MatrixXd JF_, JV_;
+  Eigen::VectorXd rF_, rV_, wF_;
+  Eigen::MatrixXd A_;
+  Eigen::VectorXd b_;
+  double rr_ = 0;
+  Scheme interleaved_;              // the ordinary cross-validation (fold_poses_)
+  std::vector<Scheme> blocked_;     // contiguous blocks of each joint's angle and of the pose order
+  // repeats, robust weights, orientation
+  std::vector<std::vector<int>> groups_;   // repeated configurations of the fit data
+  std::vector<double> robust_w_;           // per fit row (1: not down-weighted)
+  std::vector<Eigen::Quaterniond> R_fit_;  // measured orientation of the fit rows (6D data)
+  std::vector<bool> rot_ok_;               // row has a measured orientation
+  bool fit_has_rot_ = false;
+  // results
+  Diagnosis out_;
+  Eval base_eval_;
+  std::vector<int> sel_blocks_;             // in selection order
+  std::vector<double> sel_drop_;            // held-out MSE drop of each (mm^2)
+  std::vector<Gain> round1_;                // per block, on the baseline
+  std::vector<Eval> round1_eval_;
+  std::vector<Gain> last_round_;            // per block, on the final selection (NaN gain if selected)
+  std::vector<Eigen::Vector3d> E0_, E1_;    // exact held-out residuals, baseline and final
+  HeldOutStats final_stats_;
+  bool above_floor_ = false;
+  std::vector<std::string> order_;  // selected effects, in order of first selection
+  std::map<std::string, std::vector<int>> blocks_of_;
+  std::map<std::string, double> drop_of_;
+  std::vector<double> sel_blocked_gain_;
+  std::vector<std::string> sel_blocked_scheme_;
+};
+
+}  // namespace accura::diagnose_detail

@@ -1,0 +1,264 @@
+// accura: where the error of the diagnosis lies: maps over the workspace and the joints, the structure scan (diagnose.h, docs/diagnosis.md).
+#include "diagnose_internal.h"
+
+#include <Eigen/Cholesky>
+#include <Eigen/QR>
+#include <Eigen/SVD>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <numeric>
+#include <set>
+
+#include "accura/calib/errors.h"
+#include "accura/calib/identify.h"
+#include "accura/calib/kinematics.h"
+
+namespace accura {
+namespace diagnose_detail {
+
+// Where: maps, joint profiles, correlations
+
+std::vector<Correlation> Diagnoser::scan(const std::vector<Eigen::Vector3d>& E) const {
+  const MeasurementSet& set = has_val_ ? val_ : fit_;
+  const int n = M0_.dof();
+  const int N = static_cast<int>(E.size());
+  // joint Jacobian (position rows, per rad or mm) of each held-out pose at M0
+  std::vector<Eigen::Matrix<double, 3, Eigen::Dynamic>> Jq(static_cast<size_t>(N));
+  std::vector<Eigen::VectorXd> tau(static_cast<size_t>(N));
+  KinematicWorkspace ws;
+  for (int i = 0; i < N; ++i) {
+    const Measurement& r = set.rows[static_cast<size_t>(i)];
+    Jq[i] = jointJacobian(M0_, r.q, r.context, ws).topRows(3);
+    tau[i] = gravityLoads(M0_, r.q, r.context);
+  }
+  struct Variable {
+    std::string name;
+    std::vector<Eigen::VectorXd> f;  // feature functions, each N values
+    Eigen::VectorXd raw;
+  };
+  std::vector<Variable> vars;
+  auto centred = [](Eigen::VectorXd v) {
+    v.array() -= v.mean();
+    return v;
+  };
+  auto varies = [](const Eigen::VectorXd& v) { return v.size() > 1 && (v.maxCoeff() - v.minCoeff()) > 1e-9; };
+  for (int j = 0; j < n; ++j) {
+    const bool revolute = M0_.nominal.joints[j].type == JointType::kRevolute;
+    Eigen::VectorXd q(N), s(N), c(N);
+    for (int i = 0; i < N; ++i) {
+      const double v = set.rows[static_cast<size_t>(i)].q[j] * (revolute ? kDegToRad : 1.0);
+      q[i] = v;
+      s[i] = std::sin(v);
+      c[i] = std::cos(v);
+    }
+    if (!varies(q)) continue;
+    Variable var{"q" + std::to_string(j + 1), {centred(q)}, q};
+    if (revolute) {
+      var.f.push_back(s);
+      var.f.push_back(c);
+    }
+    vars.push_back(var);
+  }
+  for (int j = 0; j < n; ++j) {
+    Eigen::VectorXd t(N);
+    for (int i = 0; i < N; ++i) t[i] = tau[i][j];
+    if (varies(t)) vars.push_back({"tau" + std::to_string(j + 1), {centred(t)}, t});
+  }
+  auto scalar = [&](const std::string& name, bool has, auto get) {
+    if (!has) return;
+    Eigen::VectorXd v(N);
+    for (int i = 0; i < N; ++i) v[i] = get(set.rows[static_cast<size_t>(i)]);
+    if (varies(v)) vars.push_back({name, {centred(v)}, v});
+  };
+  scalar("payload_kg", set.has_payload, [](const Measurement& r) { return r.context.payload_kg; });
+  scalar("temp_c", set.has_temperature, [](const Measurement& r) { return r.context.temp_c; });
+  scalar("time_s", set.has_time, [](const Measurement& r) { return r.time_s; });
+  if (set.has_direction) {
+    for (int j = 0; j < n; ++j)
+      scalar("dir" + std::to_string(j + 1), true, [j](const Measurement& r) { return double(r.dir[static_cast<size_t>(j)]); });
+  } else {
+    // the approach direction from the pose sequence: sign of q_j(i) - q_j(i-1)
+    for (int j = 0; j < n; ++j) {
+      Eigen::VectorXd v(N);
+      for (int i = 0; i < N; ++i)
+        v[i] = i == 0 ? 1.0 : (set.rows[static_cast<size_t>(i)].q[j] >= set.rows[static_cast<size_t>(i - 1)].q[j] ? 1.0 : -1.0);
+      if (varies(v)) vars.push_back({"approach" + std::to_string(j + 1), {centred(v)}, v});
+    }
+  }
+  {
+    // the order of measurement (drift): linear and quadratic in the row index
+    Eigen::VectorXd v(N);
+    for (int i = 0; i < N; ++i) v[i] = N > 1 ? double(i) / double(N - 1) : 0.0;
+    const Eigen::VectorXd c = centred(v);
+    if (varies(v)) vars.push_back({"order", {c, centred(c.array().square().matrix())}, v});
+  }
+
+  // folds for the regression
+  std::vector<int> fold(static_cast<size_t>(N));
+  for (int i = 0; i < N; ++i) fold[i] = has_val_ ? i % folds_ : fold_[i];
+  Eigen::VectorXd y(3 * N), d0(N);
+  for (int i = 0; i < N; ++i) {
+    y.segment(3 * i, 3) = E[i];
+    d0[i] = E[i].squaredNorm();
+  }
+  const double sst = d0.sum();
+  std::vector<Correlation> out;
+  for (const Variable& var : vars) {
+    const int per = n + 3;
+    const int p = per * static_cast<int>(var.f.size());
+    Eigen::MatrixXd X(3 * N, p);
+    for (int i = 0; i < N; ++i) {
+      for (size_t k = 0; k < var.f.size(); ++k) {
+        const double fv = var.f[k][i];
+        X.block(3 * i, static_cast<Eigen::Index>(k) * per, 3, n) = fv * Jq[i];
+        X.block(3 * i, static_cast<Eigen::Index>(k) * per + n, 3, 3) = fv * Eigen::Matrix3d::Identity();
+      }
+    }
+    Eigen::VectorXd sc = X.colwise().norm();
+    for (Eigen::Index c = 0; c < p; ++c) sc[c] = sc[c] > 1e-12 ? sc[c] : 1.0;
+    X = X * sc.cwiseInverse().asDiagonal();
+    const Eigen::MatrixXd XtX = X.transpose() * X;
+    const Eigen::VectorXd Xty = X.transpose() * y;
+    const double ridge = 1e-8;  // relative to unit-norm columns: keeps dependent columns solvable
+    Eigen::VectorXd d1(N);
+    for (int f = 0; f < folds_; ++f) {
+      Eigen::MatrixXd M = XtX;
+      Eigen::VectorXd v = Xty;
+      for (int i = 0; i < N; ++i) {
+        if (fold[i] != f) continue;
+        M.noalias() -= X.middleRows(3 * i, 3).transpose() * X.middleRows(3 * i, 3);
+        v.noalias() -= X.middleRows(3 * i, 3).transpose() * y.segment(3 * i, 3);
+      }
+      M.diagonal().array() += ridge;
+      const Eigen::VectorXd c = M.ldlt().solve(v);
+      for (int i = 0; i < N; ++i)
+        if (fold[i] == f) d1[i] = (y.segment(3 * i, 3) - X.middleRows(3 * i, 3) * c).squaredNorm();
+    }
+    Correlation co;
+    co.variable = var.name;
+    co.r2_after = sst > 0 ? 1.0 - d1.sum() / sst : 0.0;
+    co.p_after = pairedGain(d0, d1).p;
+    // via: which joint's columns carry the fit on all poses
+    Eigen::MatrixXd M = XtX;
+    M.diagonal().array() += ridge;
+    const Eigen::VectorXd c = M.ldlt().solve(Xty);
+    double best = -1;
+    for (int j = 0; j <= n; ++j) {
+      Eigen::VectorXd part = Eigen::VectorXd::Zero(3 * N);
+      for (size_t k = 0; k < var.f.size(); ++k) {
+        const Eigen::Index off = static_cast<Eigen::Index>(k) * per;
+        if (j < n) part += X.col(off + j) * c[off + j];
+        else part += X.middleCols(off + n, 3) * c.segment(off + n, 3);
+      }
+      if (part.squaredNorm() > best) {
+        best = part.squaredNorm();
+        co.via_joint_after = j < n ? j + 1 : 0;
+      }
+    }
+    // Pearson correlation of |e| with the raw variable
+    Eigen::VectorXd mag(N);
+    for (int i = 0; i < N; ++i) mag[i] = E[i].norm();
+    const Eigen::VectorXd a = mag.array() - mag.mean(), b = var.raw.array() - var.raw.mean();
+    const double den = a.norm() * b.norm();
+    co.pearson_before = den > 0 ? a.dot(b) / den : 0.0;
+    out.push_back(co);
+  }
+  return out;
+}
+
+void Diagnoser::where() {
+  const MeasurementSet& set = has_val_ ? val_ : fit_;
+  const int N = static_cast<int>(set.rows.size());
+  const Eigen::Isometry3d T_base_world = M0_.T_world_base().inverse();
+  std::vector<Eigen::Vector3d> pb(static_cast<size_t>(N));
+  for (int i = 0; i < N; ++i) pb[i] = T_base_world * set.rows[static_cast<size_t>(i)].p_world_mm;
+  auto rmsCells = [&](const std::vector<int>& cell, int cells, const std::vector<Eigen::Vector3d>& E, std::vector<double>* rms,
+                      std::vector<int>* count) {
+    std::vector<double> ss(static_cast<size_t>(cells), 0.0);
+    count->assign(static_cast<size_t>(cells), 0);
+    for (int i = 0; i < N; ++i) {
+      if (cell[i] < 0) continue;
+      ss[cell[i]] += E[i].squaredNorm();
+      (*count)[cell[i]]++;
+    }
+    rms->assign(static_cast<size_t>(cells), kNaN);
+    for (int c = 0; c < cells; ++c)
+      if ((*count)[c] > 0) (*rms)[c] = std::sqrt(ss[c] / (*count)[c]);
+  };
+  auto edges = [](double lo, double hi, int k) {
+    std::vector<double> e(static_cast<size_t>(k + 1));
+    if (!(hi > lo)) hi = lo + 1;
+    for (int i = 0; i <= k; ++i) e[i] = lo + (hi - lo) * i / k;
+    return e;
+  };
+  auto bin = [](const std::vector<double>& e, double v) {
+    const int k = static_cast<int>(e.size()) - 1;
+    int b = static_cast<int>(std::floor((v - e[0]) / (e[k] - e[0]) * k));
+    return std::clamp(b, 0, k - 1);
+  };
+  const int g = o_.grid_cells;
+  for (int plane = 0; plane < 2; ++plane) {
+    FieldMap fm;
+    fm.plane = plane == 0 ? "base_xy" : "base_rz";
+    fm.x_label = plane == 0 ? "x (mm, robot base)" : "radius from axis 1, r (mm)";
+    fm.y_label = plane == 0 ? "y (mm, robot base)" : "height z (mm, robot base)";
+    std::vector<double> xs(static_cast<size_t>(N)), ys(static_cast<size_t>(N));
+    for (int i = 0; i < N; ++i) {
+      xs[i] = plane == 0 ? pb[i].x() : std::hypot(pb[i].x(), pb[i].y());
+      ys[i] = plane == 0 ? pb[i].y() : pb[i].z();
+    }
+    fm.x_edges_mm = edges(*std::min_element(xs.begin(), xs.end()), *std::max_element(xs.begin(), xs.end()), g);
+    fm.y_edges_mm = edges(*std::min_element(ys.begin(), ys.end()), *std::max_element(ys.begin(), ys.end()), g);
+    std::vector<int> cell(static_cast<size_t>(N));
+    for (int i = 0; i < N; ++i) cell[i] = bin(fm.y_edges_mm, ys[i]) * g + bin(fm.x_edges_mm, xs[i]);
+    rmsCells(cell, g * g, E0_, &fm.rms_before_mm, &fm.count);
+    rmsCells(cell, g * g, E1_, &fm.rms_after_mm, &fm.count);
+    for (int c = 0; c < g * g; ++c) {
+      if (fm.count[c] < 3) continue;
+      Region r;
+      r.plane = fm.plane;
+      r.x0_mm = fm.x_edges_mm[c % g];
+      r.x1_mm = fm.x_edges_mm[c % g + 1];
+      r.y0_mm = fm.y_edges_mm[c / g];
+      r.y1_mm = fm.y_edges_mm[c / g + 1];
+      r.count = fm.count[c];
+      r.rms_before_mm = fm.rms_before_mm[c];
+      r.rms_after_mm = fm.rms_after_mm[c];
+      out_.worst_regions.push_back(r);
+    }
+    out_.fields.push_back(fm);
+  }
+  std::sort(out_.worst_regions.begin(), out_.worst_regions.end(),
+            [](const Region& a, const Region& b) { return a.rms_before_mm > b.rms_before_mm; });
+  if (out_.worst_regions.size() > 5) out_.worst_regions.resize(5);
+  for (int j = 0; j < M0_.dof(); ++j) {
+    JointProfile jp;
+    jp.joint = j + 1;
+    jp.name = M0_.nominal.joints[j].name;
+    jp.unit = M0_.nominal.joints[j].type == JointType::kRevolute ? "deg" : "mm";
+    double lo = 1e300, hi = -1e300;
+    for (const Measurement& r : set.rows) {
+      lo = std::min(lo, r.q[j]);
+      hi = std::max(hi, r.q[j]);
+    }
+    jp.edges = edges(lo, hi, o_.joint_bins);
+    std::vector<int> cell(static_cast<size_t>(N));
+    for (int i = 0; i < N; ++i) cell[i] = bin(jp.edges, set.rows[static_cast<size_t>(i)].q[j]);
+    rmsCells(cell, o_.joint_bins, E0_, &jp.rms_before_mm, &jp.count);
+    rmsCells(cell, o_.joint_bins, E1_, &jp.rms_after_mm, &jp.count);
+    out_.joints.push_back(jp);
+  }
+  std::vector<int> idx(static_cast<size_t>(N));
+  std::iota(idx.begin(), idx.end(), 0);
+  std::sort(idx.begin(), idx.end(), [&](int a, int b) { return E0_[a].squaredNorm() > E0_[b].squaredNorm(); });
+  for (int k = 0; k < std::min(5, N); ++k) {
+    const int i = idx[k];
+    out_.worst_poses.push_back({set.rows[static_cast<size_t>(i)].line, i, E0_[i].norm(), E1_[i].norm()});
+  }
+}
+
+}  // namespace diagnose_detail
+}  // namespace accura

@@ -1,0 +1,507 @@
+// accura: selection of the diagnosis: forward selection, ranking, confounding, shrink table (diagnose.h, docs/diagnosis.md).
+#include "diagnose_internal.h"
+
+#include <Eigen/Cholesky>
+#include <Eigen/QR>
+#include <Eigen/SVD>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <numeric>
+#include <set>
+
+#include "accura/calib/errors.h"
+#include "accura/calib/identify.h"
+#include "accura/calib/kinematics.h"
+
+namespace accura {
+namespace diagnose_detail {
+
+
+// Physically implausible values of an effect's parameters (display units): a negative or absurd
+// joint compliance, a thermal coefficient of the wrong sign or above 50 ppm/K (steel 11-13,
+// aluminium 23), a gear or backlash amplitude above a degree, a scale error above 1%.
+std::vector<std::string> Diagnoser::implausible(const std::vector<EffectParameter>& ps) const {
+  std::vector<std::string> out;
+  std::map<std::string, double> gear_amp2;  // per joint and harmonic: s^2 + c^2 (deg^2)
+  for (const EffectParameter& p : ps) {
+    const std::string v = p.name + " = " + fmtg("%.4g", p.value) + " " + p.unit;
+    if (p.unit == "urad/Nm" || p.unit == "um/N") {
+      if (p.value < 0) out.push_back(v + ": a joint compliance cannot be negative");
+      else if (p.value > 500) out.push_back(v + ": above 500 " + p.unit + ", not a joint's stiffness");
+    } else if (p.unit == "ppm/K") {
+      if (p.value < 0) out.push_back(v + ": a thermal expansion coefficient of the wrong sign");
+      else if (p.value > 50) out.push_back(v + ": above 50 ppm/K, no arm material expands so much");
+    } else if (p.unit == "ppm") {
+      if (std::abs(p.value) > 1e4) out.push_back(v + ": a scale error above 1%");
+    } else if (p.name.find("backlash") != std::string::npos) {
+      if (p.value < 0) out.push_back(v + ": a backlash cannot be negative");
+      else if (p.value > 1) out.push_back(v + ": a backlash above a degree");
+    } else if (p.unit == "deg") {
+      // gear harmonics jN_sH / jN_cH: the amplitude of each harmonic
+      const size_t u = p.name.rfind('_');
+      if (u != std::string::npos && u + 2 <= p.name.size()) {
+        const std::string key = p.name.substr(0, u) + "_h" + p.name.substr(u + 2);
+        gear_amp2[key] += p.value * p.value;
+      }
+      if (std::abs(p.value) > 1) out.push_back(v + ": an amplitude above a degree");
+    }
+  }
+  for (const auto& kv : gear_amp2)
+    if (std::sqrt(kv.second) > 1 && out.empty())
+      out.push_back(kv.first + " amplitude " + fmtg("%.3g", std::sqrt(kv.second)) + " deg: above a degree");
+  return out;
+}
+
+// The ranges of the fit data an effect on these joints depends on.
+std::vector<Coverage> Diagnoser::coverageOf(const std::string& effect, const std::vector<int>& joints) const {
+  std::vector<Coverage> out;
+  auto range = [&](const std::string& name, const std::string& unit, auto get) {
+    Coverage c{name, unit, 1e300, -1e300};
+    for (const Measurement& r : fit_.rows) {
+      c.lo = std::min(c.lo, get(r));
+      c.hi = std::max(c.hi, get(r));
+    }
+    out.push_back(c);
+  };
+  if (effect == "thermal") {
+    range("temp_c", "C", [](const Measurement& r) { return r.context.temp_c; });
+    return out;
+  }
+  std::vector<int> js = joints;  // 1-based
+  if (effect == "joint_compliance") {
+    // the gravity torque on a joint depends on it and the joints after it
+    std::set<int> all;
+    for (int j : joints)
+      for (int k = j; k <= M0_.dof(); ++k) all.insert(k);
+    js.assign(all.begin(), all.end());
+  }
+  for (int j : js) {
+    const bool rev = M0_.nominal.joints[static_cast<size_t>(j - 1)].type == JointType::kRevolute;
+    range("q" + std::to_string(j), rev ? "deg" : "mm", [j](const Measurement& r) { return r.q[j - 1]; });
+  }
+  return out;
+}
+
+// Besides the held-out test, an addition must have physically plausible parameters and keep
+// its gain under blocked cross-validation (every scheme: contiguous blocks of each joint's
+// angle and of the pose order); a gain that vanishes or turns into a loss when a joint range
+// is held out would make new data worse.
+bool Diagnoser::admissible(const std::vector<int>& cur, const std::vector<int>& add, std::string* why,
+                           double* blocked_gain, std::string* scheme) const {
+  // Periodic terms of one revolute joint's angle fitted on less than about half a turn (0.45
+  // turn, 162 deg) are an extrapolation wherever the data did not go: inside the range the
+  // geometric parameters compensate them, outside they do not. (A scale error is linear in q:
+  // its extrapolation is the model itself; blocked cross-validation checks it.)
+  for (int b : add) {
+    const Block& B = blocks_[static_cast<size_t>(b)];
+    if (B.effect != "gear_periodic" || B.joint < 0 ||
+        M0_.nominal.joints[static_cast<size_t>(B.joint)].type != JointType::kRevolute)
+      continue;
+    double lo = 1e300, hi = -1e300;
+    for (const Measurement& r : fit_.rows) {
+      lo = std::min(lo, r.q[B.joint]);
+      hi = std::max(hi, r.q[B.joint]);
+    }
+    if (hi - lo < 162.0) {
+      *why = "the fit data cover " + fmtg("%.0f", hi - lo) + " deg of joint " + std::to_string(B.joint + 1) +
+             " (" + fmtg("%.1f", lo) + ".." + fmtg("%.1f", hi) +
+             "): " + B.effect + " fitted on less than about half a turn does not carry over to the rest of the range";
+      return false;
+    }
+  }
+  std::vector<int> with = cur;
+  with.insert(with.end(), add.begin(), add.end());
+  const std::vector<int> S = withBlocks(with);
+  std::set<std::string> effects;
+  for (int b : add) effects.insert(blocks_[static_cast<size_t>(b)].effect);
+  for (const std::string& e : effects) {
+    std::vector<EffectParameter> ps;
+    for (const EffectParameter& p : parametersOf(S, e)) {
+      // only the parameters of the blocks being added
+      for (int b : add) {
+        const Block& B = blocks_[static_cast<size_t>(b)];
+        for (int c : B.cols)
+          if (layout_[cols_[c]].name == p.name) ps.push_back(p);
+      }
+    }
+    const std::vector<std::string> bad = implausible(ps);
+    if (!bad.empty()) {
+      *why = "physically implausible: " + bad[0];
+      for (size_t k = 1; k < bad.size(); ++k) *why += "; " + bad[k];
+      return false;
+    }
+  }
+  *blocked_gain = kNaN;
+  const std::vector<int> S0 = withBlocks(cur);
+  for (const Scheme& sc : blocked_) {
+    const Eval e0 = cvEval(S0, sc, false), e1 = cvEval(S, sc, false);
+    if (!e0.ok || !e1.ok) continue;
+    const double g = pairedGain(e0.d, e1.d).gain;
+    if (std::isnan(*blocked_gain) || g < *blocked_gain) {
+      *blocked_gain = g;
+      *scheme = sc.name;
+    }
+  }
+  if (*blocked_gain <= 0) {
+    *why = "does not carry over to new joint ranges: blocked cross-validation (" + *scheme + ") gives a gain of " +
+           fmtg("%.1f", 100 * *blocked_gain) + "% (held-out error " + (*blocked_gain < 0 ? "worse" : "not better") + ")";
+    return false;
+  }
+  return true;
+}
+
+// Forward selection over the candidate blocks, starting from the baseline: each round adds
+// the block with the largest held-out gain if it passes the test; when no single block
+// passes, the remaining blocks of each effect are tried together (one candidate per effect),
+// so that an effect spread thinly over several joints is not missed.
+Diagnoser::Forward Diagnoser::forward(const std::vector<int>& candidates) const {
+  Forward fw;
+  const size_t B = blocks_.size();
+  fw.cur = base_eval_;
+  fw.last_round.assign(B, Gain{});
+  std::vector<bool> used(B, false);
+  auto evalWith = [&](const std::vector<int>& add) {
+    if (fw.blocks.empty() && add.size() == 1) return round1_eval_[static_cast<size_t>(add[0])];
+    std::vector<int> blocks = fw.blocks;
+    blocks.insert(blocks.end(), add.begin(), add.end());
+    return evaluate(withBlocks(blocks));
+  };
+  auto accept = [&](const std::vector<int>& add, const Eval& e, double blocked_gain, const std::string& scheme) {
+    for (size_t k = 0; k < add.size(); ++k) {
+      used[static_cast<size_t>(add[k])] = true;
+      fw.blocks.push_back(add[k]);
+      fw.drops.push_back(k == 0 ? fw.cur.d.mean() - e.d.mean() : 0.0);
+      fw.blocked_gain.push_back(blocked_gain);
+      fw.blocked_scheme.push_back(scheme);
+    }
+    fw.cur = e;
+  };
+  auto reject = [&](const std::vector<int>& add, const std::string& why) {
+    Rejected r;
+    r.effect = blocks_[static_cast<size_t>(add[0])].effect;
+    for (int b : add) {
+      used[static_cast<size_t>(b)] = true;
+      if (blocks_[static_cast<size_t>(b)].joint >= 0) r.joints.push_back(blocks_[static_cast<size_t>(b)].joint + 1);
+    }
+    std::sort(r.joints.begin(), r.joints.end());
+    r.reason = why;
+    fw.rejected.push_back(r);
+  };
+  std::set<std::string> selected_effects;
+  // rejected candidates do not count as steps
+  for (int step = 0; static_cast<int>(fw.blocks.size()) < o_.max_steps && step < o_.max_steps + static_cast<int>(B); ++step) {
+    // two families, each with its own Bonferroni correction: blocks of effects already in
+    // the model (is the effect on more joints?) and blocks of new effects
+    int best[2] = {-1, -1}, tried[2] = {0, 0};
+    Gain best_gain[2];
+    Eval best_eval[2];
+    std::vector<Gain> round(B, Gain{});
+    for (int b : candidates) {
+      if (used[static_cast<size_t>(b)]) continue;
+      const Eval e = evalWith({b});
+      if (!e.ok) continue;
+      const int fam = selected_effects.count(blocks_[static_cast<size_t>(b)].effect) ? 0 : 1;
+      ++tried[fam];
+      round[static_cast<size_t>(b)] = pairedGain(fw.cur.d, e.d);
+      if (best[fam] < 0 || round[static_cast<size_t>(b)].gain > best_gain[fam].gain) {
+        best[fam] = b;
+        best_gain[fam] = round[static_cast<size_t>(b)];
+        best_eval[fam] = e;
+      }
+    }
+    fw.last_round = round;
+    if (best[0] < 0 && best[1] < 0) break;
+    if (fw.blocks.empty() && !fw.has_best_single && best[1] >= 0) {
+      fw.has_best_single = true;
+      fw.best_single = best[1];
+      fw.best_single_eval = best_eval[1];
+    }
+    int pick = -1;
+    for (int fam = 0; fam < 2; ++fam) {
+      if (best[fam] < 0) continue;
+      const bool passes = best_gain[fam].p < o_.alpha / double(tried[fam]) && best_gain[fam].gain >= o_.min_gain;
+      if (passes && (pick < 0 || best_gain[fam].gain > best_gain[pick].gain)) pick = fam;
+    }
+    if (pick >= 0) {
+      std::string why, scheme;
+      double bg = kNaN;
+      if (!admissible(fw.blocks, {best[pick]}, &why, &bg, &scheme)) {
+        reject({best[pick]}, why);
+        continue;
+      }
+      selected_effects.insert(blocks_[static_cast<size_t>(best[pick])].effect);
+      accept({best[pick]}, best_eval[pick], bg, scheme);
+      continue;
+    }
+    // no single block passes: the remaining blocks of each effect together
+    std::map<std::string, std::vector<int>> groups;
+    for (int b : candidates)
+      if (!used[static_cast<size_t>(b)]) groups[blocks_[static_cast<size_t>(b)].effect].push_back(b);
+    std::vector<int> best_group;
+    Gain group_gain;
+    Eval group_eval;
+    int groups_tried = 0;
+    for (const auto& kv : groups) {
+      if (kv.second.size() < 2) continue;  // a single block was tried above
+      const Eval e = evalWith(kv.second);
+      if (!e.ok) continue;
+      ++groups_tried;
+      const Gain g = pairedGain(fw.cur.d, e.d);
+      if (best_group.empty() || g.gain > group_gain.gain) {
+        best_group = kv.second;
+        group_gain = g;
+        group_eval = e;
+      }
+    }
+    if (!best_group.empty() && group_gain.p < o_.alpha / double(groups_tried) && group_gain.gain >= o_.min_gain) {
+      std::string why, scheme;
+      double bg = kNaN;
+      if (!admissible(fw.blocks, best_group, &why, &bg, &scheme)) {
+        reject(best_group, why);
+        continue;
+      }
+      selected_effects.insert(blocks_[static_cast<size_t>(best_group[0])].effect);
+      accept(best_group, group_eval, bg, scheme);
+      continue;
+    }
+    break;
+  }
+  return fw;
+}
+
+void Diagnoser::selection() {
+  base_eval_ = evaluate(G_);
+  if (!base_eval_.ok) throw NumericalError("diagnose: the baseline's normal matrix is singular on a fold");
+  const size_t B = blocks_.size();
+  round1_.assign(B, Gain{});
+  round1_eval_.assign(B, Eval{});
+  for (size_t b = 0; b < B; ++b) {
+    round1_eval_[b] = evaluate(withBlocks({static_cast<int>(b)}));
+    if (round1_eval_[b].ok) round1_[b] = pairedGain(base_eval_.d, round1_eval_[b].d);
+  }
+  std::vector<int> all(B);
+  std::iota(all.begin(), all.end(), 0);
+  const Forward fw = forward(all);
+  sel_blocks_ = fw.blocks;
+  sel_drop_ = fw.drops;
+  last_round_ = fw.last_round;
+  sel_blocked_gain_ = fw.blocked_gain;
+  sel_blocked_scheme_ = fw.blocked_scheme;
+  out_.rejected = fw.rejected;
+}
+
+void Diagnoser::ranking() {
+  const double base_rms = std::sqrt(base_eval_.d.mean());
+  for (const std::string& e : o_.effects) {
+    EffectEvidence ev;
+    ev.effect = e;
+    ev.rms_before_mm = base_rms;
+    std::vector<int> mine;
+    for (size_t b = 0; b < blocks_.size(); ++b)
+      if (blocks_[b].effect == e) mine.push_back(static_cast<int>(b));
+    if (mine.empty()) {
+      ev.testable = false;
+      auto it = effect_note_.find(e);
+      ev.note = it != effect_note_.end() ? it->second : "not testable: no parameter of it can be determined from these measurements";
+      ev.rms_after_mm = base_rms;
+      out_.ranking.push_back(ev);
+      continue;
+    }
+    for (int b : mine) {
+      JointEvidence je;
+      je.joint = blocks_[b].joint + 1;
+      je.rms_after_mm = round1_eval_[b].ok ? std::sqrt(round1_eval_[b].d.mean()) : kNaN;
+      je.gain = round1_[b].gain;
+      je.z = round1_[b].z;
+      je.p_value = round1_[b].p;
+      if (blocks_[b].joint >= 0) ev.per_joint.push_back(je);
+    }
+    // forward selection within the effect
+    const Forward fw = forward(mine);
+    std::vector<int> chosen = fw.blocks;
+    Eval cur = fw.cur;
+    ev.significant = !chosen.empty();
+    if (chosen.empty() && fw.has_best_single) {
+      chosen = {fw.best_single};  // the best single block, reported as not significant
+      cur = fw.best_single_eval;
+    }
+    for (int b : chosen)
+      if (blocks_[b].joint >= 0) ev.joints.push_back(blocks_[b].joint + 1);
+    std::sort(ev.joints.begin(), ev.joints.end());
+    ev.rms_after_mm = std::sqrt(cur.d.mean());
+    ev.max_after_mm = std::sqrt(cur.d.maxCoeff());
+    const Gain g = pairedGain(base_eval_.d, cur.d);
+    ev.gain = g.gain;
+    ev.z = g.z;
+    ev.p_value = g.p;
+    const std::vector<int> S = withBlocks(chosen);
+    double chi_with = 0, chi_without = 0;
+    fitAll(S, &chi_with, nullptr);
+    fitAll(G_, &chi_without, nullptr);
+    ev.delta_bic = chi_with - chi_without + double(S.size() - G_.size()) * std::log(3.0 * m_);
+    ev.parameters = parametersOf(S, e);
+    ev.implausible = implausible(ev.parameters);
+    if (!ev.significant) {
+      ev.note = "not significant: the best joint alone does not pass the test";
+      for (const Rejected& r : fw.rejected)
+        if (r.effect == e) {
+          ev.note = "not selected: " + jointList(r.joints) + (r.joints.empty() ? "" : " ") + r.reason;
+          break;
+        }
+    }
+    out_.ranking.push_back(ev);
+  }
+  std::stable_sort(out_.ranking.begin(), out_.ranking.end(), [](const EffectEvidence& a, const EffectEvidence& b) {
+    if (a.testable != b.testable) return a.testable;
+    if (a.significant != b.significant) return a.significant;
+    return a.rms_after_mm < b.rms_after_mm;
+  });
+}
+
+// Canonical correlation of two blocks' weighted columns with the geometry projected out.
+double canonicalCorrelation(const Eigen::MatrixXd& Jw, const std::vector<int>& G, const std::vector<int>& a,
+                            const std::vector<int>& b) {
+  Eigen::MatrixXd Gm = Jw(Eigen::all, G);
+  Eigen::HouseholderQR<Eigen::MatrixXd> qr(Gm);
+  const Eigen::MatrixXd Q = qr.householderQ() * Eigen::MatrixXd::Identity(Gm.rows(), Gm.cols());
+  auto basis = [&](const std::vector<int>& cols) {
+    Eigen::MatrixXd X = Jw(Eigen::all, cols);
+    X -= Q * (Q.transpose() * X);
+    Eigen::HouseholderQR<Eigen::MatrixXd> q2(X);
+    return Eigen::MatrixXd(q2.householderQ() * Eigen::MatrixXd::Identity(X.rows(), X.cols()));
+  };
+  const Eigen::MatrixXd Qa = basis(a), Qb = basis(b);
+  Eigen::JacobiSVD<Eigen::MatrixXd> svd(Qa.transpose() * Qb);
+  return std::min(1.0, svd.singularValues().size() ? svd.singularValues()[0] : 0.0);
+}
+
+void Diagnoser::confounding() {
+  const size_t B = blocks_.size();
+  const double thr1 = o_.alpha / double(std::max<size_t>(1, B));
+  const Eigen::MatrixXd Jw = wF_.asDiagonal() * JF_;
+  std::map<std::pair<std::string, std::string>, Confounding> pairs;
+  for (size_t d = 0; d < B; ++d) {
+    if (std::find(sel_blocks_.begin(), sel_blocks_.end(), static_cast<int>(d)) != sel_blocks_.end()) continue;
+    if (!(round1_[d].p < thr1 && round1_[d].gain >= o_.min_gain)) continue;  // D alone did not matter
+    const Gain& given = last_round_[d];
+    if (given.p < thr1 && given.gain >= o_.min_gain) continue;  // still helps: not explained away
+    // which selected block explains it away?
+    int best_c = -1;
+    double best_ratio = 1e300, best_given = 0;
+    for (int c : sel_blocks_) {
+      if (blocks_[c].effect == blocks_[d].effect) continue;
+      const Eval ec = evaluate(withBlocks({c}));
+      const Eval ecd = evaluate(withBlocks({c, static_cast<int>(d)}));
+      if (!ec.ok || !ecd.ok) continue;
+      const double g = pairedGain(ec.d, ecd.d).gain;
+      const double ratio = g / std::max(round1_[d].gain, 1e-300);
+      if (ratio < best_ratio) {
+        best_ratio = ratio;
+        best_c = c;
+        best_given = g;
+      }
+    }
+    if (best_c < 0 || best_ratio > 0.5) continue;
+    const Block& C = blocks_[best_c];
+    const Block& D = blocks_[d];
+    Confounding& cf = pairs[{C.effect, D.effect}];
+    cf.effect_a = C.effect;
+    cf.effect_b = D.effect;
+    if (C.joint >= 0 && std::find(cf.joints_a.begin(), cf.joints_a.end(), C.joint + 1) == cf.joints_a.end())
+      cf.joints_a.push_back(C.joint + 1);
+    if (D.joint >= 0 && std::find(cf.joints_b.begin(), cf.joints_b.end(), D.joint + 1) == cf.joints_b.end())
+      cf.joints_b.push_back(D.joint + 1);
+    cf.gain_b_alone = std::max(cf.gain_b_alone, round1_[d].gain);
+    cf.gain_b_given_a = std::max(cf.gain_b_given_a, best_given);
+    cf.canonical_correlation = std::max(cf.canonical_correlation, canonicalCorrelation(Jw, G_, C.cols, D.cols));
+    // could the data tell them apart? C alone against D alone on the baseline
+    const Gain cd = pairedGain(round1_eval_[d].d, round1_eval_[best_c].d);
+    if (cd.p > 0.05) cf.indistinguishable = true;
+    cf.rms_a_alone_mm = std::sqrt(round1_eval_[best_c].d.mean());
+    cf.rms_b_alone_mm = std::sqrt(round1_eval_[d].d.mean());
+    cf.p_a_better = std::min(cf.p_a_better, cd.p);
+  }
+  for (auto& kv : pairs) {
+    Confounding& cf = kv.second;
+    std::sort(cf.joints_a.begin(), cf.joints_a.end());
+    std::sort(cf.joints_b.begin(), cf.joints_b.end());
+    const std::string sa = separator(cf.effect_a, cf.joints_a), sb = separator(cf.effect_b, cf.joints_b);
+    cf.separate_by = sa == sb ? sa : sa + "; " + sb;
+    out_.confounded.push_back(cf);
+  }
+}
+
+void Diagnoser::shrink() {
+  // cumulative steps by effect, in the order of their first selection
+  std::vector<std::string> order;
+  std::map<std::string, std::vector<int>> blocks_of;
+  std::map<std::string, double> drop_of;
+  for (size_t k = 0; k < sel_blocks_.size(); ++k) {
+    const Block& b = blocks_[sel_blocks_[k]];
+    if (!blocks_of.count(b.effect)) order.push_back(b.effect);
+    blocks_of[b.effect].push_back(sel_blocks_[k]);
+    drop_of[b.effect] += sel_drop_[k];
+  }
+  Exact base = exact(G_);
+  E0_ = base.e;
+  out_.baseline = base.stats;
+  out_.baseline_model = base.model_all;
+  out_.shrink.push_back({"baseline", {}, base.stats});
+  std::vector<int> cumulative;
+  Eval prev = base_eval_;
+  Exact last = base;
+  for (const std::string& e : order) {
+    cumulative.insert(cumulative.end(), blocks_of[e].begin(), blocks_of[e].end());
+    const std::vector<int> S = withBlocks(cumulative);
+    Exact ex = exact(S);
+    const Eval lin = evaluate(S);
+    EffectEvidence ev;
+    ev.effect = e;
+    for (int b : blocks_of[e])
+      if (blocks_[b].joint >= 0) ev.joints.push_back(blocks_[b].joint + 1);
+    std::sort(ev.joints.begin(), ev.joints.end());
+    ev.rms_before_mm = last.stats.rms_mm;
+    ev.rms_after_mm = ex.stats.rms_mm;
+    ev.max_after_mm = ex.stats.max_mm;
+    ev.significant = true;
+    if (lin.ok) {
+      const Gain g = pairedGain(prev.d, lin.d);
+      ev.gain = g.gain;
+      ev.z = g.z;
+      ev.p_value = g.p;
+      prev = lin;
+    }
+    double chi_with = 0, chi_without = 0;
+    fitAll(S, &chi_with, nullptr);
+    std::vector<int> before(cumulative.begin(), cumulative.end() - static_cast<long>(blocks_of[e].size()));
+    fitAll(withBlocks(before), &chi_without, nullptr);
+    ev.delta_bic = chi_with - chi_without + double(S.size() - withBlocks(before).size()) * std::log(3.0 * m_);
+    ev.parameters = parametersOf(S, e);
+    ev.implausible = implausible(ev.parameters);
+    ev.coverage = coverageOf(e, ev.joints);
+    ev.params = e;
+    for (size_t k = 0; k < ev.joints.size(); ++k) ev.params += (k ? "+j" : ":j") + std::to_string(ev.joints[k]);
+    for (size_t k = 0; k < sel_blocks_.size(); ++k)
+      if (blocks_[sel_blocks_[k]].effect == e &&
+          (std::isnan(ev.blocked_gain) || sel_blocked_gain_[k] < ev.blocked_gain)) {
+        ev.blocked_gain = sel_blocked_gain_[k];
+        ev.blocked_scheme = sel_blocked_scheme_[k];
+      }
+    out_.identify_params += "," + ev.params;
+    out_.selected.push_back(ev);
+    out_.shrink.push_back({e, ev.joints, ex.stats});
+    last = std::move(ex);
+  }
+  E1_ = last.e;
+  final_stats_ = last.stats;
+  out_.final_model = last.model_all;
+  order_ = order;
+  blocks_of_ = blocks_of;
+  drop_of_ = drop_of;
+}
+
+}  // namespace diagnose_detail
+}  // namespace accura

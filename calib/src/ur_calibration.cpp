@@ -1,0 +1,382 @@
+// accura: Universal Robots' factory calibration (calibration.conf DH deltas, ur_calibration's
+// YAML) <-> calibrated accura models. See ur_calibration.h.
+#include "accura/calib/ur_calibration.h"
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <map>
+#include <sstream>
+
+#include "accura/calib/errors.h"
+#include "accura/calib/kinematics.h"
+#include "urdf_common.h"
+
+namespace accura {
+namespace {
+
+constexpr auto num17 = urdf_detail::shortestNumber;
+
+std::string trim(const std::string& s) {
+  const size_t a = s.find_first_not_of(" \t\r");
+  if (a == std::string::npos) return "";
+  return s.substr(a, s.find_last_not_of(" \t\r") - a + 1);
+}
+
+double parseNumber(const std::string& file, int line, const std::string& text, const std::string& what) {
+  const std::string t = trim(text);
+  char* end = nullptr;
+  const double v = std::strtod(t.c_str(), &end);
+  if (t.empty() || *end != '\0' || !std::isfinite(v))
+    throw InputError(file, line, 0, what + ": expected a finite number, found '" + t + "'");
+  return v;
+}
+
+std::vector<std::string> readLines(const std::string& path, const char* what) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(path, 0, 0, std::string("cannot open ") + what);
+  std::vector<std::string> lines;
+  for (std::string l; std::getline(in, l);) lines.push_back(l);
+  return lines;
+}
+
+// Rz(theta) Tz(d) Tx(a) Rx(alpha) in mm from rad / m.
+Eigen::Isometry3d dh(double theta, double d_m, double a_m, double alpha) {
+  return urdf_detail::linkFrame(theta, 1000.0 * d_m, 1000.0 * a_m, alpha, 0.0);
+}
+
+Eigen::Matrix3d rpyMatrix(double r, double p, double y) {
+  return (Eigen::AngleAxisd(y, Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(p, Eigen::Vector3d::UnitY()) *
+          Eigen::AngleAxisd(r, Eigen::Vector3d::UnitX()))
+      .toRotationMatrix();
+}
+
+const char* const kYamlLinks[6] = {"shoulder", "upper_arm", "forearm", "wrist_1", "wrist_2", "wrist_3"};
+
+// What a UR table cannot hold of a model: base / tool deviations and the effects.
+std::vector<std::string> notInUrTable(const RobotModel& model) {
+  std::vector<std::string> out;
+  const Deviations& d = model.deviations;
+  auto vec = [](const Eigen::Vector3d& v, double s) {
+    return "(" + num17(v.x() * s) + ", " + num17(v.y() * s) + ", " + num17(v.z() * s) + ")";
+  };
+  if (d.base_mm.norm() > 0 || d.base_rot_rad.norm() > 0)
+    out.push_back("base deviation " + vec(d.base_mm, 1) + " mm, rotation vector " + vec(d.base_rot_rad, kRadToDeg) +
+                  " deg: not in UR's table (it starts at the Base frame); set it as the installation's mounting / a feature");
+  if (d.tool_mm.norm() > 0 || d.tool_rot_rad.norm() > 0)
+    out.push_back("tool deviation " + vec(d.tool_mm, 1) + " mm, rotation vector " + vec(d.tool_rot_rad, kRadToDeg) +
+                  " deg: not in UR's table (it ends at the flange); set it in the TCP");
+  for (const std::string& e : urdf_detail::effectsLeftOut(model, "UR's table")) out.push_back(e);
+  return out;
+}
+
+// The model's calibrated chain from DH frame 0 to the flange (base and tool excluded, the
+// effects beyond geometry left out), as a serial chain about z axes.
+SerialChain flangeChain(const RobotModel& model) {
+  SerialChain c;
+  c.name = model.nominal.name;
+  c.source = "model '" + model.nominal.name + "'";
+  c.root_link = "base";
+  c.tip_link = "flange";
+  Eigen::Isometry3d prev = Eigen::Isometry3d::Identity();
+  for (int i = 0; i < model.dof(); ++i) {
+    const JointSpec& j = model.nominal.joints[static_cast<size_t>(i)];
+    ChainJoint cj;
+    cj.name = j.name;
+    cj.type = j.type;
+    cj.T_prev_joint = prev;
+    cj.axis = Eigen::Vector3d(0, 0, j.direction);
+    cj.lower = j.lower;
+    cj.upper = j.upper;
+    c.joints.push_back(cj);
+    prev = urdf_detail::calibratedLinkAtZero(model, i);
+  }
+  c.T_last_tip = prev;
+  return c;
+}
+
+RobotDefinition urNominalOf(const RobotModel& model) {
+  RobotDefinition ur = model.nominal;
+  ur.T_world_base.setIdentity();
+  ur.T_flange_tcp.setIdentity();
+  return ur;
+}
+
+}  // namespace
+
+UrDeltas readUrCalibrationConf(const std::string& path, int dof) {
+  const std::vector<std::string> lines = readLines(path, "UR calibration file");
+  std::map<std::string, std::vector<double>*> wanted;
+  UrDeltas d;
+  wanted["delta_theta"] = &d.theta_rad;
+  wanted["delta_a"] = &d.a_m;
+  wanted["delta_d"] = &d.d_m;
+  wanted["delta_alpha"] = &d.alpha_rad;
+  std::map<std::string, int> seen;
+  std::string section;
+  bool any_section = false;
+  for (size_t k = 0; k < lines.size(); ++k) {
+    const int line = static_cast<int>(k + 1);
+    std::string l = lines[k];
+    if (const size_t hash = l.find('#'); hash != std::string::npos) l = l.substr(0, hash);
+    l = trim(l);
+    if (l.empty()) continue;
+    if (l.front() == '[') {
+      if (l.back() != ']') throw InputError(path, line, 0, "expected a section header like [mounting], found '" + l + "'");
+      section = l.substr(1, l.size() - 2);
+      any_section = true;
+      continue;
+    }
+    if (any_section && section != "mounting") continue;
+    const size_t eq = l.find('=');
+    if (eq == std::string::npos) throw InputError(path, line, 0, "expected 'key = value', found '" + l + "'");
+    const std::string key = trim(l.substr(0, eq));
+    auto it = wanted.find(key);
+    if (it == wanted.end()) continue;  // joint_checksum, calibration_status, ...: not kinematics
+    if (seen.count(key))
+      throw InputError(path, line, 0, key + " given twice (first at line " + std::to_string(seen[key]) + ")");
+    seen[key] = line;
+    std::string v = trim(l.substr(eq + 1));
+    if (v.size() < 2 || v.front() != '[' || v.back() != ']')
+      throw InputError(path, line, 0, key + ": expected a list [v1, ..., v" + std::to_string(dof) + "], found '" + v + "'");
+    v = v.substr(1, v.size() - 2);
+    std::istringstream items(v);
+    for (std::string item; std::getline(items, item, ',');) it->second->push_back(parseNumber(path, line, item, key));
+    if (static_cast<int>(it->second->size()) != dof)
+      throw InputError(path, line, 0, key + ": expected " + std::to_string(dof) + " values, found " +
+                                          std::to_string(it->second->size()));
+    for (size_t i = 0; i < it->second->size(); ++i) {
+      const double x = (*it->second)[i];
+      const bool angle = key == "delta_theta" || key == "delta_alpha";
+      if (angle ? std::abs(x) > 2 * kPi : std::abs(x) > 1000.0)
+        throw InputError(path, line, 0, key + " value " + std::to_string(i + 1) + ": " + num17(x) +
+                                            (angle ? " rad is more than a turn" : " m is not a plausible DH delta"));
+    }
+  }
+  for (const auto& [key, vec] : wanted)
+    if (!seen.count(key)) throw InputError(path, static_cast<int>(lines.size()), 0, "missing '" + key + " = [...]' in [mounting]");
+  return d;
+}
+
+std::string formatUrCalibrationConf(const UrDeltas& d) {
+  std::ostringstream out;
+  auto list = [&](const char* key, const std::vector<double>& v) {
+    out << key << " = [";
+    for (size_t i = 0; i < v.size(); ++i) out << (i ? ", " : " ") << num17(v[i]);
+    out << "]\n";
+  };
+  out << "[mounting]\n";
+  list("delta_theta", d.theta_rad);
+  list("delta_a", d.a_m);
+  list("delta_d", d.d_m);
+  list("delta_alpha", d.alpha_rad);
+  return out.str();
+}
+
+void checkUrNominal(const RobotDefinition& nominal, const UrDeltas* deltas) {
+  for (const JointSpec& j : nominal.joints)
+    if (j.type != JointType::kRevolute || j.direction != 1 || j.theta0_deg != 0.0)
+      throw ArgumentError("robot '" + nominal.name + "' joint '" + j.name +
+                          "': a UR table needs revolute joints with direction 1 and theta0 0");
+  if (!nominal.T_world_base.isApprox(Eigen::Isometry3d::Identity(), 0) ||
+      !nominal.T_flange_tcp.isApprox(Eigen::Isometry3d::Identity(), 0))
+    throw ArgumentError("robot '" + nominal.name + "': a UR table needs identity base and tool (world = Base = DH frame 0)");
+  if (deltas) {
+    const size_t n = nominal.joints.size();
+    if (deltas->theta_rad.size() != n || deltas->a_m.size() != n || deltas->d_m.size() != n || deltas->alpha_rad.size() != n)
+      throw ArgumentError("UR deltas: expected " + std::to_string(n) + " values per list for robot '" + nominal.name + "'");
+  }
+}
+
+Eigen::Isometry3d urFlangePose(const RobotDefinition& nominal, const UrDeltas& d, const Eigen::VectorXd& q) {
+  checkUrNominal(nominal, &d);
+  if (q.size() != nominal.dof()) throw ArgumentError("expected " + std::to_string(nominal.dof()) + " joint values");
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  for (int i = 0; i < nominal.dof(); ++i) {
+    const JointSpec& j = nominal.joints[static_cast<size_t>(i)];
+    const size_t k = static_cast<size_t>(i);
+    T = T * dh(q[i] * kDegToRad + d.theta_rad[k], j.d_mm / 1000.0 + d.d_m[k], j.a_mm / 1000.0 + d.a_m[k],
+               j.alpha_deg * kDegToRad + d.alpha_rad[k]);
+  }
+  return T;
+}
+
+SerialChain urDeltaChain(const RobotDefinition& nominal, const UrDeltas& d) {
+  checkUrNominal(nominal, &d);
+  SerialChain c;
+  c.name = nominal.name;
+  c.source = "UR DH deltas";
+  c.root_link = "base";
+  c.tip_link = "flange";
+  Eigen::Isometry3d prev = Eigen::Isometry3d::Identity();
+  for (int i = 0; i < nominal.dof(); ++i) {
+    const JointSpec& j = nominal.joints[static_cast<size_t>(i)];
+    const size_t k = static_cast<size_t>(i);
+    ChainJoint cj;
+    cj.name = j.name;
+    cj.T_prev_joint = prev;
+    cj.lower = j.lower;
+    cj.upper = j.upper;
+    c.joints.push_back(cj);
+    prev = dh(d.theta_rad[k], j.d_mm / 1000.0 + d.d_m[k], j.a_mm / 1000.0 + d.a_m[k], j.alpha_deg * kDegToRad + d.alpha_rad[k]);
+  }
+  c.T_last_tip = prev;
+  return c;
+}
+
+RobotModel modelFromUrDeltas(const RobotDefinition& nominal, const UrDeltas& deltas) {
+  const SerialChain chain = urDeltaChain(nominal, deltas);
+  RobotModel m = modelFromChain(chain, &nominal, FormPolicy::kAuto, kUrCheckTolMm);
+  m.nominal.source = nominal.source + "; calibrated with UR's factory DH deltas";
+  return m;
+}
+
+UrDeltasFromModel urDeltasFromModel(const RobotModel& model) {
+  model.validate();
+  const RobotDefinition ur = urNominalOf(model);
+  checkUrNominal(ur);
+  UrDeltasFromModel out;
+  out.not_represented = notInUrTable(model);
+  const SerialChain chain = flangeChain(model);
+  RobotModel dh_model;
+  try {
+    dh_model = modelFromChain(chain, &ur, FormPolicy::kDHOnly, kUrCheckTolMm);
+  } catch (const ArgumentError& e) {
+    throw ArgumentError(std::string("UR deltas of '") + model.nominal.name + "': " + e.what());
+  }
+  UrDeltas& d = out.deltas;
+  for (int i = 0; i < model.dof(); ++i) {
+    const LinkDeviation& l = dh_model.deviations.links[static_cast<size_t>(i)];
+    d.theta_rad.push_back(l.dtheta_rad);
+    d.a_m.push_back(l.da_mm / 1000.0);
+    d.d_m.push_back(l.dd_mm / 1000.0);
+    d.alpha_rad.push_back(l.dalpha_rad);
+    if (std::abs(l.dd_mm) > 1000.0)
+      out.not_represented.push_back("joint '" + model.nominal.joints[static_cast<size_t>(i)].name + "': delta_d = " +
+                                    num17(l.dd_mm / 1000.0) +
+                                    " m: its axis is nearly parallel to the previous one and DH needs a huge length "
+                                    "(exact, but ill-conditioned: the Hayati form holds it with a small beta)");
+  }
+  // Base and tool of the DH rewrite: the chain starts at DH frame 0 and its last frame is a
+  // DH frame, so both are identity to round-off (the check below proves it).
+  // Check: the model's flange chain against UR's formula (as a chain) with these deltas.
+  RobotModel geometric = urdf_detail::geometricPart(model);  // and without base and tool:
+  geometric.nominal.T_world_base.setIdentity();
+  geometric.nominal.T_flange_tcp.setIdentity();
+  geometric.deviations.base_mm.setZero();
+  geometric.deviations.base_rot_rad.setZero();
+  geometric.deviations.tool_mm.setZero();
+  geometric.deviations.tool_rot_rad.setZero();
+  out.max_difference_mm = compareModelWithChain(geometric, urDeltaChain(ur, d)).max_position_mm;
+  return out;
+}
+
+SerialChain readUrCalibrationYaml(const std::string& path) {
+  const std::vector<std::string> lines = readLines(path, "UR calibration YAML");
+  // The subset ur_calibration writes: "kinematics:", link names indented once, "key: value"
+  // indented twice (and "hash: ..." once).
+  std::map<std::string, std::map<std::string, double>> values;
+  std::map<std::string, int> link_line;
+  std::string link;
+  int kin_line = 0;
+  for (size_t k = 0; k < lines.size(); ++k) {
+    const int line = static_cast<int>(k + 1);
+    std::string raw = lines[k];
+    if (const size_t hash = raw.find('#'); hash != std::string::npos) raw = raw.substr(0, hash);
+    if (trim(raw).empty()) continue;
+    const size_t indent = raw.find_first_not_of(' ');
+    const std::string l = trim(raw);
+    const size_t colon = l.find(':');
+    if (colon == std::string::npos) throw InputError(path, line, 0, "expected 'key: value', found '" + l + "'");
+    const std::string key = trim(l.substr(0, colon)), value = trim(l.substr(colon + 1));
+    if (indent == 0) {
+      if (key != "kinematics") throw InputError(path, line, 0, "expected 'kinematics:', found '" + l + "'");
+      kin_line = line;
+      link.clear();
+    } else if (kin_line == 0) {
+      throw InputError(path, line, 0, "expected 'kinematics:' before '" + l + "'");
+    } else if (value.empty()) {
+      link = key;
+      if (link_line.count(link)) throw InputError(path, line, 0, "'" + link + "' given twice");
+      link_line[link] = line;
+    } else if (key == "hash" && indent < 4) {
+      continue;
+    } else {
+      if (link.empty()) throw InputError(path, line, 0, "'" + key + "' outside a link entry");
+      if (!(key == "x" || key == "y" || key == "z" || key == "roll" || key == "pitch" || key == "yaw"))
+        throw InputError(path, line, 0, "'" + link + "': unknown key '" + key + "' (expected x, y, z, roll, pitch, yaw)");
+      values[link][key] = parseNumber(path, line, value, link + "." + key);
+    }
+  }
+  SerialChain c;
+  c.name = "UR (ur_calibration YAML)";
+  c.source = path;
+  c.root_link = "base";
+  c.tip_link = "flange";
+  for (const char* name : kYamlLinks) {
+    auto it = values.find(name);
+    if (it == values.end()) throw InputError(path, kin_line, 0, std::string("kinematics: missing '") + name + "'");
+    for (const char* key : {"x", "y", "z", "roll", "pitch", "yaw"})
+      if (!it->second.count(key))
+        throw InputError(path, link_line[name], 0, std::string("'") + name + "': missing '" + key + "'");
+    const auto& v = it->second;
+    if (std::abs(v.at("x")) > 1000 || std::abs(v.at("y")) > 1000 || std::abs(v.at("z")) > 1000)
+      throw InputError(path, link_line[name], 0, std::string("'") + name + "': an offset above 1000 m is not plausible");
+    ChainJoint j;
+    j.name = std::string(name) + "_joint";
+    j.T_prev_joint.linear() = rpyMatrix(v.at("roll"), v.at("pitch"), v.at("yaw"));
+    j.T_prev_joint.translation() = 1000.0 * Eigen::Vector3d(v.at("x"), v.at("y"), v.at("z"));
+    j.line = link_line[name];
+    c.joints.push_back(j);
+  }
+  return c;
+}
+
+RobotModel modelFromUrCalibrationYaml(const RobotDefinition& nominal, const std::string& path) {
+  checkUrNominal(nominal);
+  SerialChain chain = readUrCalibrationYaml(path);
+  if (nominal.dof() != static_cast<int>(chain.joints.size()))
+    throw ArgumentError("robot '" + nominal.name + "' has " + std::to_string(nominal.dof()) + " joints, the YAML 6");
+  for (size_t i = 0; i < chain.joints.size(); ++i) {
+    chain.joints[i].name = nominal.joints[i].name;
+    chain.joints[i].lower = nominal.joints[i].lower;
+    chain.joints[i].upper = nominal.joints[i].upper;
+  }
+  RobotModel m = modelFromChain(chain, &nominal, FormPolicy::kAuto, kUrCheckTolMm);
+  m.nominal.source = nominal.source + "; calibrated with the ur_calibration YAML " + path;
+  return m;
+}
+
+std::string formatUrCalibrationYaml(const RobotModel& model, std::vector<std::string>* not_represented) {
+  model.validate();
+  if (model.dof() != 6) throw ArgumentError("UR calibration YAML: expected a 6-axis robot, '" + model.nominal.name + "' has " +
+                                            std::to_string(model.dof()) + " joints");
+  checkUrNominal(urNominalOf(model));
+  std::vector<std::string> notes = notInUrTable(model);
+  // Joint k's origin = [Tx(a) Rx(alpha) Ry(beta)] of link k-1 * [Rz(theta) Tz(d)] of link k.
+  std::ostringstream out;
+  out << "kinematics:\n";
+  Eigen::Isometry3d pending = Eigen::Isometry3d::Identity();
+  for (int i = 0; i < 6; ++i) {
+    const JointSpec& j = model.nominal.joints[static_cast<size_t>(i)];
+    const LinkDeviation& d = model.deviations.links[static_cast<size_t>(i)];
+    Eigen::Isometry3d O = pending;
+    O.rotate(Eigen::AngleAxisd(j.theta0_deg * kDegToRad + d.dtheta_rad, Eigen::Vector3d::UnitZ()));
+    O.translate(Eigen::Vector3d(0, 0, j.d_mm + d.dd_mm));
+    const Eigen::Vector3d p = O.translation() / 1000.0, rpy = urdf_detail::urdfRpy(O.linear());
+    out << "  " << kYamlLinks[i] << ":\n    x: " << num17(p.x()) << "\n    y: " << num17(p.y()) << "\n    z: " << num17(p.z())
+        << "\n    roll: " << num17(rpy.x()) << "\n    pitch: " << num17(rpy.y()) << "\n    yaw: " << num17(rpy.z()) << "\n";
+    pending.setIdentity();
+    pending.translate(Eigen::Vector3d(j.a_mm + d.da_mm, 0, 0));
+    pending.rotate(Eigen::AngleAxisd(j.alpha_deg * kDegToRad + d.dalpha_rad, Eigen::Vector3d::UnitX()));
+    pending.rotate(Eigen::AngleAxisd(d.dbeta_rad, Eigen::Vector3d::UnitY()));
+  }
+  if (pending.translation().norm() > 0 || !pending.linear().isIdentity(0))
+    notes.push_back("last link: a = " + num17(pending.translation().x()) +
+                    " mm / alpha, beta not zero: the YAML's six entries end at the wrist_3 joint; move it into the TCP");
+  if (not_represented) *not_represented = notes;
+  return out.str();
+}
+
+}  // namespace accura

@@ -1,0 +1,455 @@
+// accura: URDF -> serial chain. tinyxml2 checks the file and gives file:line for every error
+// it can find; urdfdom (the ROS parser, packaged by Debian) then parses it and its model gives
+// the data. Where urdfdom still rejects the file, its message is mapped to the element it names.
+#include <console_bridge/console.h>
+#include <tinyxml2.h>
+#include <urdf_parser/urdf_parser.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <fstream>
+#include <functional>
+#include <map>
+#include <mutex>
+#include <set>
+#include <sstream>
+
+#include "accura/calib/errors.h"
+#include "accura/calib/urdf.h"
+
+namespace accura {
+namespace {
+
+using tinyxml2::XMLElement;
+
+constexpr double kMaxUrdfLengthM = 100.0;  // a joint origin further than this is absurd for an arm
+constexpr double kMaxUrdfMassKg = 1e5;
+
+struct UrdfJointInfo {
+  int line = 0;
+  int limit_line = 0;
+  std::string type, parent, child;
+  bool mimic = false;
+};
+
+// What the tinyxml2 pass knows: lines of links and joints, and the tree.
+struct UrdfIndex {
+  std::string file;
+  int robot_line = 0;
+  std::map<std::string, int> link_line;
+  std::map<std::string, UrdfJointInfo> joints;
+  std::map<std::string, std::string> parent_joint;                // child link -> joint
+  std::map<std::string, std::vector<std::string>> child_joints;   // link -> joints, file order
+
+  [[noreturn]] void fail(int line, const std::string& msg) const { throw InputError(file, line, 0, msg); }
+};
+
+bool isMoving(const std::string& type) {
+  return type == "revolute" || type == "continuous" || type == "prismatic";
+}
+
+// "a b c": three finite numbers, else InputError at the element's line.
+Eigen::Vector3d triple(const UrdfIndex& ix, const XMLElement* e, const char* attr, const Eigen::Vector3d& dflt) {
+  const char* v = e->Attribute(attr);
+  if (!v) return dflt;
+  std::istringstream in(v);
+  Eigen::Vector3d r;
+  std::string tok;
+  int k = 0;
+  while (in >> tok) {
+    char* end = nullptr;
+    const double x = std::strtod(tok.c_str(), &end);
+    if (k >= 3 || end == tok.c_str() || *end != '\0' || !std::isfinite(x))
+      ix.fail(e->GetLineNum(), "<" + std::string(e->Name()) + "> attribute '" + attr +
+                                   "': expected three finite numbers, found '" + v + "'");
+    r[k++] = x;
+  }
+  if (k != 3)
+    ix.fail(e->GetLineNum(), "<" + std::string(e->Name()) + "> attribute '" + attr +
+                                 "': expected three finite numbers, found '" + v + "'");
+  return r;
+}
+
+double scalar(const UrdfIndex& ix, const XMLElement* e, const char* attr, bool required, double dflt = 0) {
+  const char* v = e->Attribute(attr);
+  if (!v) {
+    if (required) ix.fail(e->GetLineNum(), "<" + std::string(e->Name()) + ">: missing attribute '" + attr + "'");
+    return dflt;
+  }
+  char* end = nullptr;
+  const double x = std::strtod(v, &end);
+  while (end && (*end == ' ' || *end == '\t')) ++end;
+  if (end == v || *end != '\0' || !std::isfinite(x))
+    ix.fail(e->GetLineNum(), "<" + std::string(e->Name()) + "> attribute '" + attr +
+                                 "': expected a finite number, found '" + v + "'");
+  return x;
+}
+
+std::string nameAttr(const UrdfIndex& ix, const XMLElement* e, const char* attr = "name") {
+  const char* v = e->Attribute(attr);
+  if (!v || !*v) ix.fail(e->GetLineNum(), "<" + std::string(e->Name()) + ">: missing attribute '" + attr + "'");
+  return v;
+}
+
+const XMLElement* onlyChild(const UrdfIndex& ix, const XMLElement* parent, const char* name, bool required) {
+  const XMLElement* c = parent->FirstChildElement(name);
+  if (!c && required)
+    ix.fail(parent->GetLineNum(), "<" + std::string(parent->Name()) + " name=\"" +
+                                      (parent->Attribute("name") ? parent->Attribute("name") : "") +
+                                      "\">: missing <" + name + "> element");
+  if (c && c->NextSiblingElement(name))
+    ix.fail(c->NextSiblingElement(name)->GetLineNum(), "<" + std::string(name) + "> given twice in <" +
+                                                           parent->Name() + ">");
+  return c;
+}
+
+void checkOrigin(const UrdfIndex& ix, const XMLElement* origin) {
+  if (!origin) return;
+  const Eigen::Vector3d xyz = triple(ix, origin, "xyz", Eigen::Vector3d::Zero());
+  triple(ix, origin, "rpy", Eigen::Vector3d::Zero());
+  if (xyz.cwiseAbs().maxCoeff() > kMaxUrdfLengthM) {
+    std::ostringstream s;
+    s << "<origin> attribute 'xyz': " << xyz.cwiseAbs().maxCoeff() << " m is not a plausible offset of a robot arm "
+      << "(expected at most " << kMaxUrdfLengthM << " m; URDF lengths are in metres)";
+    ix.fail(origin->GetLineNum(), s.str());
+  }
+}
+
+// The tinyxml2 pass: every check with a line number.
+UrdfIndex indexUrdf(const tinyxml2::XMLDocument& doc, const std::string& file) {
+  UrdfIndex ix;
+  ix.file = file;
+  const XMLElement* robot = doc.RootElement();
+  if (!robot || std::string(robot->Name()) != "robot")
+    ix.fail(robot ? robot->GetLineNum() : 1, std::string("expected root element <robot>, found <") +
+                                                 (robot ? robot->Name() : "nothing") + ">");
+  ix.robot_line = robot->GetLineNum();
+  nameAttr(ix, robot);
+  for (const XMLElement* l = robot->FirstChildElement("link"); l; l = l->NextSiblingElement("link")) {
+    const std::string name = nameAttr(ix, l);
+    if (!ix.link_line.emplace(name, l->GetLineNum()).second)
+      ix.fail(l->GetLineNum(), "link '" + name + "' declared twice (first at line " +
+                                   std::to_string(ix.link_line[name]) + ")");
+    if (const XMLElement* in = onlyChild(ix, l, "inertial", false)) {
+      checkOrigin(ix, onlyChild(ix, in, "origin", false));
+      const XMLElement* mass = onlyChild(ix, in, "mass", true);
+      const double m = scalar(ix, mass, "value", true);
+      if (m < 0 || m > kMaxUrdfMassKg)
+        ix.fail(mass->GetLineNum(), "<mass> of link '" + name + "': expected 0 to 1e5 kg, found " +
+                                        std::string(mass->Attribute("value")));
+      if (const XMLElement* inertia = onlyChild(ix, in, "inertia", true))
+        for (const char* a : {"ixx", "ixy", "ixz", "iyy", "iyz", "izz"}) scalar(ix, inertia, a, true);
+    }
+  }
+  if (ix.link_line.empty()) ix.fail(ix.robot_line, "<robot>: expected at least one <link>, found none");
+  for (const XMLElement* j = robot->FirstChildElement("joint"); j; j = j->NextSiblingElement("joint")) {
+    const std::string name = nameAttr(ix, j);
+    UrdfJointInfo info;
+    info.line = j->GetLineNum();
+    info.type = nameAttr(ix, j, "type");
+    static const std::set<std::string> types = {"revolute", "continuous", "prismatic", "fixed", "floating", "planar"};
+    if (!types.count(info.type))
+      ix.fail(info.line, "joint '" + name + "': unknown type '" + info.type +
+                             "' (expected revolute, continuous, prismatic, fixed, floating or planar)");
+    info.parent = nameAttr(ix, onlyChild(ix, j, "parent", true), "link");
+    info.child = nameAttr(ix, onlyChild(ix, j, "child", true), "link");
+    for (const std::string* l : {&info.parent, &info.child})
+      if (!ix.link_line.count(*l))
+        ix.fail(info.line, "joint '" + name + "': link '" + *l + "' is not declared (no <link name=\"" + *l + "\">)");
+    if (info.parent == info.child) ix.fail(info.line, "joint '" + name + "': parent and child are the same link '" + info.parent + "'");
+    checkOrigin(ix, onlyChild(ix, j, "origin", false));
+    if (const XMLElement* axis = onlyChild(ix, j, "axis", false)) {
+      const Eigen::Vector3d a = triple(ix, axis, "xyz", Eigen::Vector3d::UnitX());
+      if (isMoving(info.type) && a.norm() < 1e-9)
+        ix.fail(axis->GetLineNum(), "joint '" + name + "': <axis xyz> must not be zero");
+    }
+    const XMLElement* limit = onlyChild(ix, j, "limit", info.type == "revolute" || info.type == "prismatic");
+    if (limit) {
+      info.limit_line = limit->GetLineNum();
+      scalar(ix, limit, "lower", false);
+      scalar(ix, limit, "upper", false);
+      scalar(ix, limit, "effort", true);
+      scalar(ix, limit, "velocity", true);
+    }
+    if (const XMLElement* mimic = onlyChild(ix, j, "mimic", false)) {
+      nameAttr(ix, mimic, "joint");
+      scalar(ix, mimic, "multiplier", false, 1);
+      scalar(ix, mimic, "offset", false, 0);
+      info.mimic = true;
+    }
+    if (ix.joints.count(name))
+      ix.fail(info.line, "joint '" + name + "' declared twice (first at line " + std::to_string(ix.joints[name].line) + ")");
+    auto prev = ix.parent_joint.find(info.child);
+    if (prev != ix.parent_joint.end())
+      ix.fail(info.line, "joint '" + name + "' closes a loop: link '" + info.child + "' is already the child of joint '" +
+                             prev->second + "' (line " + std::to_string(ix.joints[prev->second].line) +
+                             "); a URDF describes a tree and accura needs a serial chain");
+    ix.parent_joint[info.child] = name;
+    ix.child_joints[info.parent].push_back(name);
+    ix.joints[name] = info;
+  }
+  for (const auto& [name, info] : ix.joints) {
+    if (!info.mimic) continue;
+    const XMLElement* j = robot->FirstChildElement("joint");
+    while (j && name != j->Attribute("name")) j = j->NextSiblingElement("joint");
+    const std::string target = j->FirstChildElement("mimic")->Attribute("joint");
+    if (!ix.joints.count(target))
+      ix.fail(info.line, "joint '" + name + "': <mimic joint=\"" + target + "\"> names no joint of this URDF");
+  }
+  // One root; no cycle (a cycle of links without a root is caught here too).
+  std::vector<std::string> roots;
+  for (const auto& [name, line] : ix.link_line)
+    if (!ix.parent_joint.count(name)) roots.push_back(name);
+  if (roots.size() != 1) {
+    std::string list;
+    for (const auto& r : roots) list += (list.empty() ? "" : ", ") + r + " (line " + std::to_string(ix.link_line[r]) + ")";
+    ix.fail(ix.robot_line, roots.empty() ? "the joints form a closed loop: no link is the root of the tree"
+                                         : "expected one root link (a link that is no joint's child), found " +
+                                               std::to_string(roots.size()) + ": " + list);
+  }
+  return ix;
+}
+
+// Collects urdfdom's console_bridge messages while it parses.
+class Capture : public console_bridge::OutputHandler {
+ public:
+  void log(const std::string& text, console_bridge::LogLevel level, const char*, int) override {
+    if (level >= console_bridge::CONSOLE_BRIDGE_LOG_ERROR) errors += (errors.empty() ? "" : "; ") + text;
+  }
+  std::string errors;
+};
+
+urdf::ModelInterfaceSharedPtr parseWithUrdfdom(const std::string& text, const UrdfIndex& ix) {
+  static std::mutex mutex;  // console_bridge's handler is process-wide
+  std::lock_guard<std::mutex> lock(mutex);
+  Capture capture;
+  console_bridge::useOutputHandler(&capture);
+  urdf::ModelInterfaceSharedPtr model;
+  try {
+    model = urdf::parseURDF(text);
+  } catch (const std::exception& e) {
+    capture.errors += std::string(capture.errors.empty() ? "" : "; ") + e.what();
+  }
+  console_bridge::restorePreviousOutputHandler();
+  if (!model) {
+    // Point at the first joint or link the message names.
+    int line = ix.robot_line;
+    for (const auto& [name, info] : ix.joints)
+      if (capture.errors.find("[" + name + "]") != std::string::npos || capture.errors.find("'" + name + "'") != std::string::npos) {
+        line = info.line;
+        break;
+      }
+    if (line == ix.robot_line)
+      for (const auto& [name, l] : ix.link_line)
+        if (capture.errors.find("[" + name + "]") != std::string::npos || capture.errors.find("'" + name + "'") != std::string::npos) {
+          line = l;
+          break;
+        }
+    ix.fail(line, "urdfdom rejected the file: " + (capture.errors.empty() ? std::string("no reason given") : capture.errors));
+  }
+  return model;
+}
+
+Eigen::Isometry3d poseMm(const urdf::Pose& p) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = Eigen::Quaterniond(p.rotation.w, p.rotation.x, p.rotation.y, p.rotation.z).normalized().toRotationMatrix();
+  T.translation() = 1000.0 * Eigen::Vector3d(p.position.x, p.position.y, p.position.z);
+  return T;
+}
+
+// Whether the subtree below `link` holds a moving joint.
+bool hasMovingBelow(const UrdfIndex& ix, const std::string& link) {
+  auto it = ix.child_joints.find(link);
+  if (it == ix.child_joints.end()) return false;
+  for (const auto& jn : it->second) {
+    const UrdfJointInfo& j = ix.joints.at(jn);
+    if (isMoving(j.type) || hasMovingBelow(ix, j.child)) return true;
+  }
+  return false;
+}
+
+std::string defaultTip(const UrdfIndex& ix, const std::string& root) {
+  if (ix.link_line.count("tool0")) return "tool0";
+  std::string link = root;
+  for (;;) {
+    auto it = ix.child_joints.find(link);
+    if (it == ix.child_joints.end()) return link;
+    std::vector<std::string> moving;
+    for (const auto& jn : it->second) {
+      const UrdfJointInfo& j = ix.joints.at(jn);
+      if (isMoving(j.type) || hasMovingBelow(ix, j.child)) moving.push_back(jn);
+    }
+    if (moving.size() == 1) {
+      link = ix.joints.at(moving[0]).child;
+    } else if (moving.empty() && it->second.size() == 1) {
+      link = ix.joints.at(it->second[0]).child;  // a fixed frame after the last joint (flange)
+    } else if (moving.empty()) {
+      return link;
+    } else {
+      std::string list;
+      for (const auto& jn : moving) list += (list.empty() ? "" : ", ") + ix.joints.at(jn).child;
+      ix.fail(ix.link_line.at(link), "no default chain: the tree branches at link '" + link + "' into " + list +
+                                         "; choose one with --chain ROOT:TIP (e.g. --chain " + root + ":" +
+                                         ix.joints.at(moving[0]).child + ")");
+    }
+  }
+}
+
+}  // namespace
+
+SerialChain parseUrdfChain(const std::string& text, const std::string& file, const std::string& chain_spec) {
+  tinyxml2::XMLDocument doc;
+  if (doc.Parse(text.c_str(), text.size()) != tinyxml2::XML_SUCCESS)
+    throw InputError(file, doc.ErrorLineNum(), 0, std::string("malformed XML: ") + (doc.ErrorStr() ? doc.ErrorStr() : ""));
+  const UrdfIndex ix = indexUrdf(doc, file);
+  const urdf::ModelInterfaceSharedPtr model = parseWithUrdfdom(text, ix);
+
+  std::string root, tip;
+  if (chain_spec.empty()) {
+    root = model->getRoot()->name;
+    tip = defaultTip(ix, root);
+  } else {
+    const size_t colon = chain_spec.find(':');
+    if (colon == std::string::npos || chain_spec.find(':', colon + 1) != std::string::npos)
+      throw InputError("--chain: expected ROOT_LINK:TIP_LINK, found '" + chain_spec + "'");
+    root = chain_spec.substr(0, colon);
+    tip = chain_spec.substr(colon + 1);
+    for (const std::string* l : {&root, &tip})
+      if (!ix.link_line.count(*l)) {
+        std::string list;
+        for (const auto& [name, line] : ix.link_line) list += (list.empty() ? "" : ", ") + name;
+        throw InputError(file, 0, 0, "--chain " + chain_spec + ": no link '" + *l + "' in this URDF (links: " + list + ")");
+      }
+  }
+  // Path root -> tip: up from the root over fixed joints to the lowest link above both (for a
+  // root like UR's 'base', a sibling frame of the chain's links), then down to the tip.
+  std::vector<std::string> above_root = {root};
+  for (std::string l = root; ix.parent_joint.count(l);) above_root.push_back(l = ix.joints.at(ix.parent_joint.at(l)).parent);
+  std::vector<std::string> path;
+  std::string meet;
+  for (std::string l = tip;;) {
+    if (std::find(above_root.begin(), above_root.end(), l) != above_root.end()) {
+      meet = l;
+      break;
+    }
+    auto it = ix.parent_joint.find(l);
+    if (it == ix.parent_joint.end())
+      throw InputError(file, ix.link_line.at(tip), 0, "chain " + root + ":" + tip + ": link '" + tip +
+                                                          "' is not connected to link '" + root + "'");
+    path.insert(path.begin(), it->second);
+    l = ix.joints.at(it->second).parent;
+  }
+  Eigen::Isometry3d T_meet_root = Eigen::Isometry3d::Identity();  // over fixed joints only
+  for (std::string l = root; l != meet;) {
+    const std::string& jn = ix.parent_joint.at(l);
+    const UrdfJointInfo& info = ix.joints.at(jn);
+    if (info.type != "fixed")
+      throw InputError(file, info.line, 0, "chain " + root + ":" + tip + ": link '" + tip + "' is not below link '" +
+                                               root + "', and the way up from '" + root + "' passes the moving joint '" +
+                                               jn + "'");
+    T_meet_root = poseMm(model->getJoint(jn)->parent_to_joint_origin_transform) * T_meet_root;
+    l = info.parent;
+  }
+
+  SerialChain chain;
+  chain.name = model->getName();
+  chain.source = file;
+  chain.root_link = root;
+  chain.tip_link = tip;
+  const std::set<std::string> on_path(path.begin(), path.end());
+
+  // Mass and first moment of the links rigidly attached to `link` (fixed joints, downwards),
+  // in the frame `T_frame_link` maps from; moving joints met on the way are branches unless they
+  // are the chain's next joint or (`last`) beyond the chain's end.
+  std::function<void(const std::string&, const Eigen::Isometry3d&, bool, const std::string&, double&, Eigen::Vector3d&)> body;
+  body = [&](const std::string& link, const Eigen::Isometry3d& T, bool last, const std::string& mover, double& mass,
+             Eigen::Vector3d& moment) {
+    const urdf::LinkConstSharedPtr l = model->getLink(link);
+    if (l && l->inertial && l->inertial->mass > 0) {
+      mass += l->inertial->mass;
+      moment += l->inertial->mass * (T * (1000.0 * Eigen::Vector3d(l->inertial->origin.position.x,
+                                                                    l->inertial->origin.position.y,
+                                                                    l->inertial->origin.position.z)));
+    }
+    auto it = ix.child_joints.find(link);
+    if (it == ix.child_joints.end()) return;
+    for (const auto& jn : it->second) {
+      const UrdfJointInfo& info = ix.joints.at(jn);
+      if (info.type == "fixed") {
+        const urdf::JointConstSharedPtr j = model->getJoint(jn);
+        body(info.child, T * poseMm(j->parent_to_joint_origin_transform), last, mover, mass, moment);
+      } else if (!on_path.count(jn) && !last) {
+        ix.fail(info.line, "joint '" + jn + "' (" + info.type + ") branches off the chain " + root + ":" + tip +
+                               " at link '" + link + "', which joint '" + mover +
+                               "' moves: accura models serial chains (choose another --chain, or remove the branch)");
+      }
+    }
+  };
+
+  Eigen::Isometry3d T_acc = T_meet_root.inverse();
+  for (size_t k = 0; k < path.size(); ++k) {
+    const std::string& jn = path[k];
+    const UrdfJointInfo& info = ix.joints.at(jn);
+    const urdf::JointConstSharedPtr j = model->getJoint(jn);
+    const Eigen::Isometry3d origin = poseMm(j->parent_to_joint_origin_transform);
+    if (info.type == "fixed") {
+      T_acc = T_acc * origin;
+      continue;
+    }
+    if (info.type == "floating" || info.type == "planar")
+      ix.fail(info.line, "joint '" + jn + "' on the chain " + root + ":" + tip + " is " + info.type +
+                             ": accura models revolute, continuous, prismatic and fixed joints");
+    if (j->mimic)
+      ix.fail(info.line, "joint '" + jn + "' on the chain " + root + ":" + tip + " mimics joint '" + j->mimic->joint_name +
+                             "': accura models independent joints (a mimic joint couples two)");
+    ChainJoint cj;
+    cj.name = jn;
+    cj.line = info.line;
+    cj.type = info.type == "prismatic" ? JointType::kPrismatic : JointType::kRevolute;
+    cj.T_prev_joint = T_acc * origin;
+    cj.axis = Eigen::Vector3d(j->axis.x, j->axis.y, j->axis.z).normalized();
+    if (info.type == "continuous") {
+      cj.lower = -360;
+      cj.upper = 360;
+    } else {
+      const double scale = info.type == "prismatic" ? 1000.0 : kRadToDeg;
+      cj.lower = j->limits->lower * scale;
+      cj.upper = j->limits->upper * scale;
+      if (!(cj.lower < cj.upper)) {
+        std::ostringstream s;
+        s << "joint '" << jn << "': <limit> expected lower < upper, found lower " << j->limits->lower << ", upper "
+          << j->limits->upper;
+        ix.fail(info.limit_line ? info.limit_line : info.line, s.str());
+      }
+    }
+    // The body this joint moves: from its child link up to the next moving joint.
+    const bool last = std::none_of(path.begin() + static_cast<std::ptrdiff_t>(k) + 1, path.end(),
+                                   [&](const std::string& n) { return isMoving(ix.joints.at(n).type); });
+    double mass = 0;
+    Eigen::Vector3d moment = Eigen::Vector3d::Zero();
+    body(info.child, Eigen::Isometry3d::Identity(), last, jn, mass, moment);
+    cj.mass_kg = mass;
+    cj.com_mm = mass > 0 ? Eigen::Vector3d(moment / mass) : Eigen::Vector3d::Zero();
+    chain.joints.push_back(cj);
+    T_acc.setIdentity();
+  }
+  chain.T_last_tip = T_acc;
+  if (chain.joints.empty())
+    throw InputError(file, ix.link_line.at(tip), 0, "chain " + root + ":" + tip + " has no moving joint");
+  return chain;
+}
+
+SerialChain readUrdfChain(const std::string& path, const std::string& chain_spec) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(path, 0, 0, "cannot open URDF file");
+  std::ostringstream s;
+  s << in.rdbuf();
+  return parseUrdfChain(s.str(), path, chain_spec);
+}
+
+RobotModel readUrdfRobot(const std::string& path, const std::string& chain_spec) {
+  return modelFromChain(readUrdfChain(path, chain_spec));
+}
+
+}  // namespace accura

@@ -1,0 +1,88 @@
+// accura export: a robot model (accura robot file, URDF, optionally with UR's factory
+// calibration applied) written as URDF, accura robot file, UR DH deltas or ur_calibration YAML.
+#include <iostream>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "accura/calib/errors.h"
+#include "accura/calib/file_io.h"
+#include "accura/calib/robot_io.h"
+#include "accura/calib/ur_calibration.h"
+#include "accura/calib/urdf.h"
+#include "cli_util.h"
+#include "commands.h"
+
+namespace accura::cli {
+namespace {
+
+struct ExportArgs {
+  std::string robot;
+  std::string format;
+  std::string out;
+  std::string ur_deltas;  // UR calibration.conf applied to --robot (a nominal UR)
+  std::string ur_yaml;    // ur_calibration YAML applied to --robot
+};
+
+int runExport(const ExportArgs& a) {
+  RobotModel model = loadRobot(a.robot);
+  if (!a.ur_deltas.empty() && !a.ur_yaml.empty())
+    throw InputError("--ur-deltas and --ur-yaml: expected one of them, found both");
+  if (!a.ur_deltas.empty() || !a.ur_yaml.empty()) {
+    for (const ParamInfo& p : parameterLayout(model))
+      if (getParameter(model.deviations, p) != 0.0)
+        throw InputError("--robot " + a.robot + ": UR's factory calibration applies to a nominal UR robot, found a "
+                         "calibrated model (parameter " + p.name + " is not zero)");
+    model = !a.ur_deltas.empty() ? modelFromUrDeltas(model.nominal, readUrCalibrationConf(a.ur_deltas, model.dof()))
+                                 : modelFromUrCalibrationYaml(model.nominal, a.ur_yaml);
+  }
+  std::string text;
+  std::vector<std::string> lost;
+  if (a.format == "urdf") {
+    UrdfText u = modelToUrdf(model);
+    text = u.text;
+    lost = u.not_represented;
+  } else if (a.format == "ur-deltas") {
+    const UrDeltasFromModel d = urDeltasFromModel(model);
+    text = formatUrCalibrationConf(d.deltas);
+    lost = d.not_represented;
+    std::cerr << "accura export: UR's formula with these deltas reproduces the model's flange chain to "
+              << fmt("%.2g", d.max_difference_mm) << " mm\n";
+  } else if (a.format == "ur-yaml") {
+    text = formatUrCalibrationYaml(model, &lost);
+  } else if (a.format == "robot") {
+    if (a.out.empty()) throw InputError("--format robot: expected --out FILE.xml");
+    writeRobotFile(a.out, model, {}, "Written by accura export from " + a.robot +
+                                         (a.ur_deltas.empty() ? "" : " with UR deltas " + a.ur_deltas) +
+                                         (a.ur_yaml.empty() ? "" : " with the UR YAML " + a.ur_yaml));
+    return 0;
+  } else {
+    throw InputError("--format: expected urdf, robot, ur-deltas or ur-yaml, found '" + a.format + "'");
+  }
+  for (const std::string& s : lost) std::cerr << "accura export: not represented: " << s << "\n";
+  if (a.out.empty()) {
+    std::cout << text;
+  } else {
+    writeFileAtomically(a.out, text);
+  }
+  return 0;
+}
+
+}  // namespace
+
+void addExportCommand(CLI::App& app) {
+  auto args = std::make_shared<ExportArgs>();
+  auto* c = app.add_subcommand("export", "write a robot model as URDF, accura robot file, UR DH deltas or UR YAML");
+  c->add_option("--robot", args->robot, "robot file (.xml, .urdf) or bundled robot name")->required();
+  c->add_option("--format", args->format, "urdf | robot | ur-deltas (calibration.conf) | ur-yaml (ur_calibration)")
+      ->required();
+  c->add_option("--out", args->out, "output file (default: standard output; required for --format robot)");
+  c->add_option("--ur-deltas", args->ur_deltas,
+                "apply a UR controller's calibration.conf ([mounting] delta_theta, delta_a, delta_d, delta_alpha) to "
+                "the nominal UR --robot first");
+  c->add_option("--ur-yaml", args->ur_yaml,
+                "apply a ur_calibration YAML (kinematics: shoulder ... wrist_3) to the nominal UR --robot first");
+  c->callback([=]() { exitCode() = runExport(*args); });
+}
+
+}  // namespace accura::cli

@@ -1,0 +1,33 @@
+#!/usr/bin/env bash
+# Runs every fuzz target for SECONDS seconds on its corpus (fuzz/README.md).
+#   bash fuzz/run.sh BUILD_FUZZ_DIR [SECONDS] [TARGET...]
+# The committed corpus fuzz/corpus/T is read only: new inputs go to a temporary directory that
+# is removed afterwards (a long local session keeps them: see fuzz/README.md). A finding (crash,
+# leak, timeout, contract violation) is saved as fuzz/findings/T-<kind>-<hash> and fails the run.
+set -euo pipefail
+here="$(cd "$(dirname "$0")" && pwd)"
+bin="${1:?usage: fuzz/run.sh BUILD_FUZZ_DIR [SECONDS] [TARGET...]}"
+seconds="${2:-20}"
+shift 2 || shift $#
+targets=("$@")
+if [ ${#targets[@]} -eq 0 ]; then targets=(krl krl_config xml_program robot measurements mapping cell mesh); fi
+export ASAN_OPTIONS="${ASAN_OPTIONS:-detect_leaks=1}"
+export UBSAN_OPTIONS="${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}"
+status=0
+for t in "${targets[@]}"; do
+  work="$(mktemp -d)"
+  mkdir -p "$here/findings"
+  dict=()
+  [ -f "$here/dict/$t.dict" ] && dict=(-dict="$here/dict/$t.dict")
+  start=$(date +%s)
+  if "$bin/fuzz_$t" "$work" "$here/corpus/$t" "${dict[@]}" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 \
+       -max_len=65536 -print_final_stats=1 -artifact_prefix="$here/findings/$t-" >"$work.log" 2>&1; then
+    echo "fuzz_$t: ok, $(grep -o 'stat::number_of_executed_units: *[0-9]*' "$work.log" | grep -o '[0-9]*$') runs in $(( $(date +%s) - start )) s, $(grep -o 'cov: [0-9]*' "$work.log" | tail -1)"
+  else
+    echo "fuzz_$t: FINDING (saved under fuzz/findings/); the end of its log:"
+    tail -40 "$work.log"
+    status=1
+  fi
+  rm -rf "$work" "$work.log"
+done
+exit $status

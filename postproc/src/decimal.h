@@ -1,0 +1,61 @@
+// accura post-processor (internal): the strict decimal numbers of the cell file and the mesh
+// readers. strtod alone also takes hex ("0x1p3"), "inf", "nan", leading blanks and nothing at
+// all (" " reads as 0 when only the end pointer is checked after skipping blanks).
+#pragma once
+
+#include <cctype>
+#include <cerrno>
+#include <cmath>
+#include <cstdlib>
+#include <string>
+#include <string_view>
+
+namespace accura::postproc::detail {
+
+/// A decimal number [+-]digits[.digits][(e|E)[+-]digits] (digits on at least one side of the
+/// point), nothing before or after it. False for anything else, and for a value that
+/// overflows to infinity or underflows (ERANGE: denormals are not a coordinate).
+inline bool parseDecimal(std::string_view s, double* v) {
+  size_t i = 0;
+  const auto digits = [&]() {
+    size_t n = 0;
+    while (i < s.size() && std::isdigit(static_cast<unsigned char>(s[i]))) ++i, ++n;
+    return n;
+  };
+  if (i < s.size() && (s[i] == '+' || s[i] == '-')) ++i;
+  size_t mantissa = digits();
+  if (i < s.size() && s[i] == '.') {
+    ++i;
+    mantissa += digits();
+  }
+  if (mantissa == 0) return false;
+  if (i < s.size() && (s[i] == 'e' || s[i] == 'E')) {
+    ++i;
+    if (i < s.size() && (s[i] == '+' || s[i] == '-')) ++i;
+    if (digits() == 0) return false;
+  }
+  if (i != s.size()) return false;
+  const std::string text(s);
+  errno = 0;
+  const double x = std::strtod(text.c_str(), nullptr);
+  if (errno == ERANGE || !std::isfinite(x)) return false;
+  *v = x;
+  return true;
+}
+
+/// A decimal integer [+-]digits of at most 18 digits (no overflow), nothing before or after.
+inline bool parseDecimalInteger(std::string_view s, long long* v) {
+  size_t i = 0;
+  bool negative = false;
+  if (i < s.size() && (s[i] == '+' || s[i] == '-')) negative = s[i++] == '-';
+  if (i == s.size() || s.size() - i > 18) return false;
+  long long x = 0;
+  for (; i < s.size(); ++i) {
+    if (!std::isdigit(static_cast<unsigned char>(s[i]))) return false;
+    x = x * 10 + (s[i] - '0');
+  }
+  *v = negative ? -x : x;
+  return true;
+}
+
+}  // namespace accura::postproc::detail

@@ -1,0 +1,43 @@
+// A run of LIN / CIRC motions compensated from a start pose (see path_job.h).
+#include "accura/postproc/path_job.h"
+
+namespace accura::postproc {
+
+void enforceConfiguration(const Configuration& asked, PoseCompensation& pc) {
+  if (pc.status != IkStatus::kOk || !pc.configuration_changed) return;
+  if (onlyTurnBitsNearZeroDiffer(asked, pc.configuration, pc.q_real)) return;
+  pc.status = IkStatus::kNoConfiguration;
+  pc.message = "reachable only with S " + std::to_string(pc.configuration.status) + ", T " + std::to_string(pc.configuration.turn) +
+               ", not with the configuration asked for (S " + std::to_string(asked.status) + ", T " + std::to_string(asked.turn) + ")";
+}
+
+SegmentCompensation compensateSegmentFrom(const Compensator& comp, PathSegment& intended, const Configuration& config,
+                                          const Eigen::VectorXd& q_real, const JobSettings& settings) {
+  intended.T_world_start = comp.real().forward(q_real, settings.context);
+  DensifyOptions dens = settings.densify;
+  dens.tol_mm = settings.tol_mm;
+  dens.ik = settings.ik;
+  return comp.segment(intended, config, q_real, dens, settings.context);
+}
+
+PathCompensation compensatePath(const Compensator& comp, const Eigen::Isometry3d& T_world_start, const Configuration& start_config,
+                                const std::vector<PathSegment>& motions, const JobSettings& settings) {
+  PathCompensation r;
+  r.start = comp.pose(T_world_start, start_config, Eigen::VectorXd(), settings.ik, settings.context);
+  enforceConfiguration(start_config, r.start);
+  if (r.start.status != IkStatus::kOk) return r;
+  Eigen::VectorXd q = r.start.q_real;
+  for (size_t i = 0; i < motions.size(); ++i) {
+    r.intended.push_back(motions[i]);
+    r.segments.push_back(compensateSegmentFrom(comp, r.intended.back(), Configuration{}, q, settings));
+    const SegmentCompensation& sc = r.segments.back();
+    if (sc.status != IkStatus::kOk || sc.commanded.empty() || sc.q_real_end.size() != sc.commanded.size()) {
+      r.failed_motion = static_cast<int>(i);
+      return r;
+    }
+    q = sc.q_real_end.back();
+  }
+  return r;
+}
+
+}  // namespace accura::postproc

@@ -1,0 +1,96 @@
+// The robot's placement and the models of a job (see placement.h).
+#include "accura/postproc/placement.h"
+
+#include <sstream>
+
+#include "accura/calib/errors.h"
+#include "accura/calib/geometry.h"
+
+namespace accura::postproc {
+namespace {
+
+std::string poseText(const XyzAbc& p, const char* sep) {
+  return formatMm(p.x_mm) + sep + formatMm(p.y_mm) + sep + formatMm(p.z_mm);
+}
+
+std::string anglesText(const XyzAbc& p) { return formatDeg(p.a_deg) + ", " + formatDeg(p.b_deg) + ", " + formatDeg(p.c_deg); }
+
+std::string placementText(const XyzAbc& p) {
+  return formatFixed(p.x_mm, 3) + "," + formatFixed(p.y_mm, 3) + "," + formatFixed(p.z_mm, 3) + "," + formatFixed(p.a_deg, 3) + "," +
+         formatFixed(p.b_deg, 3) + "," + formatFixed(p.c_deg, 3);
+}
+
+}  // namespace
+
+Placement placeRobot(const JobSettings& job, const std::string& placement_setting) {
+  Placement p;
+  p.T_world_robroot = job.robroot_in_world ? toIsometry(*job.robroot_in_world) : job.calibrated.nominal.T_world_base;
+  const Eigen::Isometry3d T_kworld_robroot = job.robroot_in_kukaworld ? toIsometry(*job.robroot_in_kukaworld) : Eigen::Isometry3d::Identity();
+  p.T_world_kworld = p.T_world_robroot * T_kworld_robroot.inverse();
+  p.T_world_calbase = job.calibrated.T_world_base();
+  const Eigen::Isometry3d d = p.T_world_robroot.inverse() * p.T_world_calbase;
+  const double off_mm = d.translation().norm(), off_deg = rotationAngleDeg(d.linear());
+  if (off_mm > job.max_base_offset_mm || off_deg > job.max_base_offset_deg) {
+    const XyzAbc b = toXyzAbc(p.T_world_robroot), c = toXyzAbc(p.T_world_calbase);
+    std::ostringstream m;
+    m << "the calibrated base (" << poseText(c, ", ") << " mm, " << anglesText(c) << " deg) is " << formatMm(off_mm) << " mm and "
+      << formatDeg(off_deg) << " deg from the nominal base (" << poseText(b, ", ") << " mm, " << anglesText(b)
+      << " deg): expected at most " << job.max_base_offset_mm << " mm and " << job.max_base_offset_deg
+      << " deg. The model was measured in another frame (a tracker's): give " << placement_setting
+      << ", where the robot stands in that frame according to the cell layout";
+    throw InputError(m.str());
+  }
+  return p;
+}
+
+JobSettings placedInCell(const JobSettings& job, const Cell& cell) {
+  JobSettings placed = job;
+  if (!cell.T_world_base) return placed;
+  if (!job.robroot_in_world) {
+    placed.robroot_in_world = toXyzAbc(*cell.T_world_base);
+    return placed;
+  }
+  const Eigen::Isometry3d d = cell.T_world_base->inverse() * toIsometry(*job.robroot_in_world);
+  if (d.translation().norm() > 1e-3 || rotationAngleDeg(d.linear()) > 1e-3)
+    throw InputError(cell.file, cell.robot_line, cell.robot_column,
+                     "<robot>: the robot placement of the cell file differs from --base (" + placementText(toXyzAbc(*cell.T_world_base)) +
+                         " here, " + placementText(*job.robroot_in_world) + " given): expected the same placement, found two (give one of them)");
+  return placed;
+}
+
+ModelFactory::ModelFactory(const JobSettings& job, const Placement& placement)
+    : calibrated_(job.calibrated), tool_match_mm_(job.tool_match_mm), tool_match_deg_(job.tool_match_deg), placement_(placement) {
+  controller_flange_ = RobotModel::fromDefinition(job.calibrated.nominal);
+  controller_flange_.nominal.T_world_base = placement.T_world_robroot;
+  controller_flange_.nominal.T_flange_tcp = Eigen::Isometry3d::Identity();
+}
+
+ModelFactory::ModelFactory(const RobotModel& real, const RobotModel& controller)
+    : calibrated_(real), tool_match_mm_(JobSettings{}.tool_match_mm), tool_match_deg_(JobSettings{}.tool_match_deg),
+      controller_flange_(controller) {
+  placement_.T_world_robroot = placement_.T_world_kworld = controller.nominal.T_world_base;
+  placement_.T_world_calbase = real.T_world_base();
+  controller_flange_.nominal.T_flange_tcp = Eigen::Isometry3d::Identity();
+}
+
+ToolModels& ModelFactory::forTool(const Eigen::Isometry3d& T_flange_tcp) {
+  std::ostringstream key;
+  key.precision(17);
+  key << T_flange_tcp.matrix();
+  auto it = cache_.find(key.str());
+  if (it != cache_.end()) return it->second;
+  ToolModels m;
+  m.T_flange_tcp = T_flange_tcp;
+  m.controller = controller_flange_;
+  m.controller.nominal.T_flange_tcp = T_flange_tcp;
+  m.real = realModelForTool(calibrated_, T_flange_tcp, tool_match_mm_, tool_match_deg_, &m.calibrated_tool);
+  return cache_.emplace(key.str(), std::move(m)).first->second;
+}
+
+ToolModels& ModelFactory::compensator(const Eigen::Isometry3d& T_flange_tcp) {
+  ToolModels& m = forTool(T_flange_tcp);
+  if (!m.compensator) m.compensator = std::make_unique<Compensator>(m.controller, m.real);
+  return m;
+}
+
+}  // namespace accura::postproc

@@ -1,0 +1,274 @@
+// Universal Robots' factory calibration (ur_calibration.h): DH deltas and ur_calibration's
+// YAML into calibrated accura models and back, against UR's own formula and the flange
+// positions UR's ur_calibration test pins for a UR10.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "accura/calib/errors.h"
+#include "accura/calib/file_io.h"
+#include "accura/calib/kinematics.h"
+#include "accura/calib/robot_io.h"
+#include "accura/calib/ur_calibration.h"
+#include "test_util.h"
+
+namespace accura {
+namespace {
+
+// UR's formula written out independently: prod Rz(q + dtheta) Tz(d) Tx(a) Rx(alpha), metres.
+Eigen::Matrix4d urFormula(const double d[6], const double a[6], const double theta[6], const double alpha[6],
+                          const Eigen::VectorXd& q_rad) {
+  Eigen::Matrix4d T = Eigen::Matrix4d::Identity();
+  for (int i = 0; i < 6; ++i) {
+    const double ct = std::cos(q_rad[i] + theta[i]), st = std::sin(q_rad[i] + theta[i]);
+    const double ca = std::cos(alpha[i]), sa = std::sin(alpha[i]);
+    Eigen::Matrix4d A;
+    A << ct, -st * ca, st * sa, a[i] * ct,
+         st, ct * ca, -ct * sa, a[i] * st,
+         0, sa, ca, d[i],
+         0, 0, 0, 1;
+    T = T * A;
+  }
+  return T;
+}
+
+// The UR10 of ur_calibration/test/calibration_test.cpp (UniversalRobots/Universal_Robots_ROS_Driver):
+// ideal DH (d, a, alpha) and a real-looking set of calibration deltas (d, a, theta, alpha).
+const double kD[6] = {0.1273, 0, 0, 0.163941, 0.1157, 0.0922};
+const double kA[6] = {0, -0.612, -0.5723, 0, 0, 0};
+const double kAlpha[6] = {M_PI / 2, 0, 0, M_PI / 2, -M_PI / 2, 0};
+const double kDeltaD[6] = {0.00065609212979853, 1.4442162376284788, 0.854147723854608,
+                           -2.2989425877563705, -1.573498686836816e-05, 1.9072435590711256e-05};
+const double kDeltaA[6] = {4.6311376834935676e-05, -0.00012568315331862312, 0.00186216581161458,
+                           9.918593870679266e-05, 4.215462720453189e-06, 0};
+const double kDeltaTheta[6] = {-7.290070070824746e-05, -0.01713897289704999, -0.03707159413492756,
+                               0.054279462160583214, 1.488984257025741e-07, 1.551499479707493e-05};
+const double kDeltaAlpha[6] = {0.000211987863869334, -0.0072553625957652995, -0.013483226769541364,
+                               0.0013495820227329425, -0.001263136163679901, 0};
+
+UrDeltas testDeltas() {
+  UrDeltas d;
+  d.theta_rad.assign(kDeltaTheta, kDeltaTheta + 6);
+  d.a_m.assign(kDeltaA, kDeltaA + 6);
+  d.d_m.assign(kDeltaD, kDeltaD + 6);
+  d.alpha_rad.assign(kDeltaAlpha, kDeltaAlpha + 6);
+  return d;
+}
+
+UrDeltas zeroDeltas() {
+  UrDeltas d;
+  d.theta_rad.assign(6, 0);
+  d.a_m.assign(6, 0);
+  d.d_m.assign(6, 0);
+  d.alpha_rad.assign(6, 0);
+  return d;
+}
+
+Eigen::VectorXd deg(const Eigen::VectorXd& rad) { return rad * (180.0 / M_PI); }
+
+TEST(UrCalibration, FlangePositionsPinnedByUrsTest) {
+  const RobotDefinition ur10 = test::loadBundled("ur10").nominal;
+  const RobotModel m = modelFromUrDeltas(ur10, zeroDeltas());
+  struct Pin {
+    Eigen::VectorXd q;
+    Eigen::Vector3d p_m;
+  };
+  Eigen::VectorXd q1(6), q2(6), q3(6), q4(6);
+  q1 << 0, 0, 0, 0, 0, 0;
+  q2 << M_PI_2, -M_PI_4, M_PI_2, -M_PI_4, 0, 0;
+  q3 << -1.6007002035724084976209269370884, -1.7271001974688928726209269370884, -2.2029998938189905288709269370884,
+      -0.80799991289247685699592693708837, 1.59510004520416259765625, -0.03099996248354131012092693708837;
+  q4 << 1.32645022869110107421875, 2.426007747650146484375, 5.951572895050048828125, 1.27409040927886962890625,
+      -0.54105216661562138824592693708837, 0.122173048555850982666015625;
+  const double s2 = std::sqrt(2.0);
+  const std::vector<Pin> pins = {
+      {q1, Eigen::Vector3d(kA[1] + kA[2], -(kD[3] + kD[5]), kD[0] - kD[4])},
+      {q2, Eigen::Vector3d(kD[3] + kD[5], kA[1] / s2 + kA[2] / s2, kD[0] - kA[1] / s2 + kA[2] / s2 - kD[4])},
+      {q3, Eigen::Vector3d(-0.179925914147547, -0.606869755162764, 0.230789102067257)},
+      {q4, Eigen::Vector3d(0.39922988003280424074148413637886, 0.59688365069340565405298093537567,
+                           -0.6677819040276375961440180617501)},
+  };
+  for (const Pin& pin : pins) {
+    const Eigen::Vector3d p = forwardKinematics(m, deg(pin.q)).translation();
+    EXPECT_LT((p - 1000.0 * pin.p_m).norm(), 1e-6) << p.transpose();  // mm; UR's test pins 1e-10 m
+  }
+  // The controller's view at zero: (-1184.3, -256.141, 11.6) mm in Base = DH frame 0.
+  EXPECT_NEAR(forwardKinematics(m, deg(q1)).translation().x(), -1184.3, 1e-9);
+}
+
+TEST(UrCalibration, DeltasImportEqualsUrsFormulaWithoutHugeLengths) {
+  const RobotDefinition ur10 = test::loadBundled("ur10").nominal;
+  const UrDeltas deltas = testDeltas();
+  const RobotModel m = modelFromUrDeltas(ur10, deltas);
+  double d_tot[6], a_tot[6], al_tot[6];
+  for (int i = 0; i < 6; ++i) {
+    d_tot[i] = kD[i] + kDeltaD[i];
+    a_tot[i] = kA[i] + kDeltaA[i];
+    al_tot[i] = kAlpha[i] + kDeltaAlpha[i];
+  }
+  std::mt19937_64 rng(9);
+  std::uniform_real_distribution<double> u(-2 * M_PI, 2 * M_PI);
+  double worst_mm = 0, worst_rot = 0;
+  for (int s = 0; s < 1000; ++s) {
+    Eigen::VectorXd q(6);
+    for (int i = 0; i < 6; ++i) q[i] = u(rng);
+    const Eigen::Matrix4d U = urFormula(d_tot, a_tot, kDeltaTheta, al_tot, q);
+    const Eigen::Isometry3d A = forwardKinematics(m, deg(q));
+    worst_mm = std::max(worst_mm, (A.translation() - 1000.0 * U.topRightCorner<3, 1>()).norm());
+    worst_rot = std::max(worst_rot, (A.linear() - U.topLeftCorner<3, 3>()).cwiseAbs().maxCoeff());
+  }
+  EXPECT_LT(worst_mm, 1e-6);
+  EXPECT_LT(worst_rot, 1e-12);
+  // The deltas' d of joints 2-4 are metres (1.44, 0.85, -2.30 m); the model's deviations are
+  // at most 1.02 mm and 0.77 deg: Hayati links keep d, the parallel-axis lengths stay the arm's lengths.
+  EXPECT_EQ(m.forms[1], LinkForm::kHayati);
+  EXPECT_EQ(m.forms[2], LinkForm::kHayati);
+  for (int i = 0; i < 6; ++i) {
+    const LinkDeviation& d = m.deviations.links[i];
+    EXPECT_LT(std::abs(d.dd_mm), 1.1) << i;   // largest: j3_a 1.02 mm
+    EXPECT_LT(std::abs(d.da_mm), 1.1) << i;
+    EXPECT_LT(std::abs(d.dtheta_rad), 0.8 * M_PI / 180) << i;  // largest: j3_alpha 0.77 deg
+    EXPECT_LT(std::abs(d.dalpha_rad), 0.8 * M_PI / 180) << i;
+    EXPECT_LT(std::abs(d.dbeta_rad), 0.8 * M_PI / 180) << i;
+  }
+  EXPECT_LT(m.deviations.base_mm.norm() + m.deviations.tool_mm.norm(), 1e-9);
+  // ... and it is a calibrated robot file identify can start from: write, read, same FK
+  const std::string dir = test::tempDir("ur_deltas");
+  writeRobotFile(dir + "/ur10_cal.xml", m);
+  const RobotModel back = readRobotFile(dir + "/ur10_cal.xml");
+  Eigen::VectorXd q(6);
+  q << 10, -70, 80, -30, 45, 120;
+  EXPECT_LT((forwardKinematics(back, q).translation() - forwardKinematics(m, q).translation()).norm(), 1e-6);
+  std::filesystem::remove_all(dir);
+}
+
+TEST(UrCalibration, ControllerFileWithTensOfMetres) {
+  // A real calibration.conf (tests/data/urdf/ur_forum_calibration.conf): delta_d up to 92.5 m.
+  const UrDeltas d = readUrCalibrationConf(test::sourcePath("tests/data/urdf/ur_forum_calibration.conf"));
+  EXPECT_DOUBLE_EQ(d.d_m[2], -92.5270326908668181);
+  EXPECT_DOUBLE_EQ(d.theta_rad[3], -0.57016974724960845);
+  // The robot type is not stated: take the UR10 nominal; the FK check is the same for any.
+  const RobotDefinition ur10 = test::loadBundled("ur10").nominal;
+  const RobotModel m = modelFromUrDeltas(ur10, d);
+  double dd[6], aa[6], al[6];
+  for (int i = 0; i < 6; ++i) {
+    dd[i] = kD[i] + d.d_m[i];
+    aa[i] = kA[i] + d.a_m[i];
+    al[i] = kAlpha[i] + d.alpha_rad[i];
+  }
+  std::mt19937_64 rng(2);
+  std::uniform_real_distribution<double> u(-M_PI, M_PI);
+  double worst = 0;
+  for (int s = 0; s < 500; ++s) {
+    Eigen::VectorXd q(6);
+    for (int i = 0; i < 6; ++i) q[i] = u(rng);
+    const Eigen::Matrix4d U = urFormula(dd, aa, d.theta_rad.data(), al, q);
+    worst = std::max(worst, (forwardKinematics(m, deg(q)).translation() - 1000.0 * U.topRightCorner<3, 1>()).norm());
+  }
+  EXPECT_LT(worst, 1e-6);
+  for (int i = 0; i < 6; ++i) {  // no length in the model is a DH artefact
+    EXPECT_LT(std::abs(m.nominal.joints[i].d_mm + m.deviations.links[i].dd_mm), 200.0) << i;
+    EXPECT_LT(std::abs(m.nominal.joints[i].a_mm + m.deviations.links[i].da_mm), 700.0) << i;
+  }
+}
+
+TEST(UrCalibration, DeltasRoundTrip) {
+  const RobotDefinition ur10 = test::loadBundled("ur10").nominal;
+  const UrDeltas deltas = testDeltas();
+  const RobotModel m = modelFromUrDeltas(ur10, deltas);
+  const UrDeltasFromModel back = urDeltasFromModel(m);
+  EXPECT_LT(back.max_difference_mm, 1e-6);
+  for (int i = 0; i < 6; ++i) {
+    EXPECT_NEAR(back.deltas.d_m[i], kDeltaD[i], 1e-9) << i;  // m
+    EXPECT_NEAR(back.deltas.a_m[i], kDeltaA[i], 1e-12) << i;
+    EXPECT_NEAR(back.deltas.theta_rad[i], kDeltaTheta[i], 1e-11) << i;
+    EXPECT_NEAR(back.deltas.alpha_rad[i], kDeltaAlpha[i], 1e-12) << i;
+  }
+  // the huge DH lengths are flagged
+  std::string all;
+  for (const auto& s : back.not_represented) all += s + "\n";
+  EXPECT_NE(all.find("'shoulder_lift': delta_d"), std::string::npos) << all;
+  // a model with a base deviation and compliance: both flagged, the flange chain still exact
+  RobotModel c = m;
+  c.deviations.base_mm = Eigen::Vector3d(1, 2, 3);
+  c.deviations.compliance[1] = 1e-5;
+  const UrDeltasFromModel cb = urDeltasFromModel(c);
+  all.clear();
+  for (const auto& s : cb.not_represented) all += s + "\n";
+  EXPECT_NE(all.find("base deviation"), std::string::npos) << all;
+  EXPECT_NE(all.find("joint_compliance"), std::string::npos) << all;
+  EXPECT_LT(cb.max_difference_mm, 1e-6);
+  // calibration.conf text reads back bit for bit
+  const std::string dir = test::tempDir("ur_conf");
+  writeFileAtomically(dir + "/calibration.conf", formatUrCalibrationConf(back.deltas));
+  const UrDeltas again = readUrCalibrationConf(dir + "/calibration.conf");
+  for (int i = 0; i < 6; ++i) EXPECT_EQ(again.d_m[i], back.deltas.d_m[i]);
+  std::filesystem::remove_all(dir);
+}
+
+TEST(UrCalibration, YamlRoundTripEqualsUrsFormula) {
+  const RobotDefinition ur10 = test::loadBundled("ur10").nominal;
+  const RobotModel m = modelFromUrDeltas(ur10, testDeltas());
+  std::vector<std::string> notes;
+  const std::string yaml = formatUrCalibrationYaml(m, &notes);
+  const std::string dir = test::tempDir("ur_yaml");
+  writeFileAtomically(dir + "/cal.yaml", yaml);
+  const RobotModel y = modelFromUrCalibrationYaml(ur10, dir + "/cal.yaml");
+  double d_tot[6], a_tot[6], al_tot[6];
+  for (int i = 0; i < 6; ++i) {
+    d_tot[i] = kD[i] + kDeltaD[i];
+    a_tot[i] = kA[i] + kDeltaA[i];
+    al_tot[i] = kAlpha[i] + kDeltaAlpha[i];
+  }
+  std::mt19937_64 rng(4);
+  std::uniform_real_distribution<double> u(-M_PI, M_PI);
+  double worst = 0;
+  for (int s = 0; s < 300; ++s) {
+    Eigen::VectorXd q(6);
+    for (int i = 0; i < 6; ++i) q[i] = u(rng);
+    const Eigen::Matrix4d U = urFormula(d_tot, a_tot, kDeltaTheta, al_tot, q);
+    worst = std::max(worst, (forwardKinematics(y, deg(q)).translation() - 1000.0 * U.topRightCorner<3, 1>()).norm());
+  }
+  EXPECT_LT(worst, 1e-6);
+  // the nominal UR10's YAML: shoulder z = d1 in metres (ur_description's default 0.1273)
+  const std::string nominal_yaml = formatUrCalibrationYaml(RobotModel::fromDefinition(ur10), nullptr);
+  EXPECT_NE(nominal_yaml.find("  shoulder:\n    x: 0\n    y: 0\n    z: 0.1273\n"), std::string::npos) << nominal_yaml;
+  std::filesystem::remove_all(dir);
+}
+
+TEST(UrCalibration, MalformedFilesGiveFileAndLine) {
+  const std::string dir = test::tempDir("ur_bad");
+  const std::string good = "[mounting]\ndelta_theta = [0, 0, 0, 0, 0, 0]\ndelta_a = [0, 0, 0, 0, 0, 0]\n"
+                           "delta_d = [0, 0, 0, 0, 0, 0]\ndelta_alpha = [0, 0, 0, 0, 0, 0]\n";
+  struct Case {
+    std::string text, expected;
+  };
+  const std::vector<Case> cases = {
+      {"[mounting]\ndelta_theta = [0, 0, 0, 0, 0]\n", ":2:"},                             // 5 values
+      {"[mounting]\ndelta_theta = [0, 0, x, 0, 0, 0]\n", ":2:"},                          // not a number
+      {good + "delta_a = [0, 0, 0, 0, 0, 0]\n", ":6:"},                                    // twice
+      {"[mounting]\ndelta_theta = [0, 0, 0, 0, 0, 0]\ndelta_a = [0, 0, 0, 0, 0, 0]\n", "missing 'delta_alpha"},
+      {"[mounting]\ndelta_d = [0, 0, 5000, 0, 0, 0]\n", ":2:"},                           // absurd
+  };
+  for (const Case& c : cases) {
+    test::writeText(dir + "/c.conf", c.text);
+    try {
+      readUrCalibrationConf(dir + "/c.conf");
+      ADD_FAILURE() << "no error for " << c.text;
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find(c.expected), std::string::npos) << e.what();
+    }
+  }
+  test::writeText(dir + "/k.yaml", "kinematics:\n  shoulder:\n    x: 0\n    y: zero\n");
+  try {
+    readUrCalibrationYaml(dir + "/k.yaml");
+    ADD_FAILURE() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("k.yaml:4:"), std::string::npos) << e.what();
+  }
+  std::filesystem::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace accura
