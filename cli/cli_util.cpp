@@ -7,14 +7,11 @@
 #include "accura/calib/errors.h"
 #include "accura/calib/import.h"
 #include "accura/calib/robot_io.h"
+#include "accura/calib/text.h"
 #include "accura/calib/urdf.h"
 
 namespace accura::cli {
-std::string fmt(const char* f, double v) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, f, v);
-  return buf;
-}
+std::string fmt(const char* f, double v) { return formatNumber(f, v); }
 
 nlohmann::ordered_json num(double v) { return std::isfinite(v) ? nlohmann::ordered_json(v) : nlohmann::ordered_json(nullptr); }
 

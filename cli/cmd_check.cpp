@@ -73,12 +73,7 @@ int runCheck(const CheckArgs& a) {
   read.dat_path = a.dat;
   read.config_path = a.config;
   const Program program = readProgram(a.in, read);
-  if (!a.json.empty()) {
-    std::error_code ec;
-    for (const std::string& in : {a.in, a.dat, a.config, cc->cell_path})
-      if (!in.empty() && fs::exists(a.json, ec) && fs::equivalent(a.json, in, ec))
-        throw InputError("--json: " + a.json + " would overwrite the input " + in);
-  }
+  if (!a.json.empty()) refuseToOverwrite({{a.json, ""}}, {a.in, a.dat, a.config, cc->cell_path}, "--json");
   const CheckReport r = checkProgram(program, settings, cc->cell, cc->options);
   printCheckReport(r, a.in);
   if (!a.json.empty()) {

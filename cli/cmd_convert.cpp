@@ -20,12 +20,6 @@ struct ConvertArgs {
   std::string out;
 };
 
-bool sameFile(const std::string& a, const std::string& b) {
-  std::error_code ec;
-  if (fs::exists(a, ec) && fs::exists(b, ec)) return fs::equivalent(a, b, ec);
-  return fs::weakly_canonical(fs::absolute(a), ec) == fs::weakly_canonical(fs::absolute(b), ec);
-}
-
 int runConvert(const ConvertArgs& a) {
   using namespace postproc;
   const ProgramFormat out_format = programFormat(a.out);
@@ -38,9 +32,7 @@ int runConvert(const ConvertArgs& a) {
   std::vector<std::string> inputs = {a.in};
   if (program.krl && !program.krl->dat_path.empty()) inputs.push_back(program.krl->dat_path);
   if (!a.config.empty()) inputs.push_back(a.config);
-  for (const auto& f : files)
-    for (const auto& in : inputs)
-      if (sameFile(f.path, in)) throw InputError(f.path + ": the output would overwrite the input " + in + ": choose another --out");
+  refuseToOverwrite(files, inputs, "--out");
   installInterruptCleanup();
   writeFilesAtomically(files);
   for (const auto& f : files) std::cout << "wrote " << f.path << "\n";

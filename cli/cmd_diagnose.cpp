@@ -29,6 +29,8 @@ struct DiagnoseArgs {
   int folds = 5;
   double noise_mm = -1;  // <0: from repeated poses or std columns
   double alpha = 0.01;
+  double repeat_tol = 0.01;
+  double robust_k = 4.03;
   std::string json;
   std::string report;
 };
@@ -45,6 +47,8 @@ int runDiagnose(const DiagnoseArgs& a) {
     throw InputError("--noise-mm: expected a standard deviation > 0 mm, found " + fmt("%g", a.noise_mm));
   if (a.noise_mm > 0) o.noise_std_mm = a.noise_mm;
   o.alpha = a.alpha;
+  o.repeat_tol = a.repeat_tol;
+  o.robust_k = a.robust_k;
   std::string why;
   if (!o.IsValid(&why)) throw InputError("diagnose: " + why);
 
@@ -86,6 +90,14 @@ void addDiagnoseCommand(CLI::App& app) {
   c->add_option("--noise-mm", a->noise_mm,
                 "measurement noise, 1 sigma per axis (mm) (default: from repeated poses, else from the std columns)");
   c->add_option("--alpha", a->alpha, "significance level of one selection round (Bonferroni over its blocks)")
+      ->capture_default_str();
+  c->add_option("--repeat-tol", a->repeat_tol,
+                "two rows measure one joint configuration again when every joint agrees within this (deg; mm for "
+                "prismatic joints): the repeatability floor")
+      ->capture_default_str();
+  c->add_option("--robust-k", a->robust_k,
+                "robust estimation: rows whose residual exceeds k robust standard deviations are down-weighted "
+                "(Huber); 0 turns it off")
       ->capture_default_str();
   c->add_option("--json", a->json, "write the diagnosis as JSON")->required();
   c->add_option("--report", a->report, "write the diagnosis as a self-contained HTML page");

@@ -241,6 +241,26 @@ TEST(Diagnose, SelfcheckRealDataCases) {
   }
 }
 
+// A physically impossible effect is never offered as a cause: joint 2 "yields" against gravity
+// (a negative compliance: the arm rises under load). The fit finds it, the check rejects it.
+TEST(Diagnose, NegativeComplianceIsRejectedAsImplausible) {
+  const RobotModel nominal = nominalWithTarget("kuka_kr16");
+  SimulateOptions o = campaign(61, {"geometric"}, 300);
+  RobotModel truth = perturbModel(nominal, o);
+  truth.deviations.compliance[1] = -2e-6;  // rad/Nm: about -0.3 mm at 16 kg on the KR 16's arm
+  const MeasurementSet fit = simulateMeasurements(truth, o);
+  const Diagnosis d = diagnose(nominal, fit, nullptr, DiagnoseOptions{});
+  EXPECT_NE(d.verdict.effect, "joint_compliance") << diagnosisText(d);
+  for (const EffectEvidence& e : d.selected) EXPECT_NE(e.effect, "joint_compliance");
+  bool rejected = false;
+  for (const Rejected& r : d.rejected)
+    if (r.effect == "joint_compliance" && r.reason.find("cannot be negative") != std::string::npos) rejected = true;
+  EXPECT_TRUE(rejected) << diagnosisText(d);
+  // the ranking reports the negative value it found, flagged
+  for (const EffectEvidence& e : d.ranking)
+    if (e.effect == "joint_compliance") EXPECT_FALSE(e.implausible.empty()) << diagnosisText(d);
+}
+
 // identify --params accepts the catalogue names: backlash fitted on backlash data.
 TEST(Diagnose, IdentifyFitsCatalogueGroups) {
   const RobotModel nominal = nominalWithTarget("kuka_kr16");

@@ -44,6 +44,14 @@ bool DiagnoseOptions::IsValid(std::string* error) const {
   if (max_steps < 0 || max_steps > 100) return fail("max_steps must be 0..100");
   if (grid_cells < 2 || grid_cells > 50) return fail("grid_cells must be 2..50");
   if (joint_bins < 2 || joint_bins > 50) return fail("joint_bins must be 2..50");
+  if (!(repeat_tol > 0 && repeat_tol <= 1)) return fail("repeat tolerance must be in (0, 1] deg (or mm), got " + std::to_string(repeat_tol));
+  if (!(glitch_factor > 1 && std::isfinite(glitch_factor))) return fail("glitch_factor must be a number > 1");
+  if (!(robust_k == 0 || (robust_k >= 1 && std::isfinite(robust_k))))
+    return fail("robust_k must be 0 (off) or a number >= 1 (robust standard deviations), got " + std::to_string(robust_k));
+  if (blocked_folds != 0 && (blocked_folds < 2 || blocked_folds > 20))
+    return fail("blocked_folds must be 0 (off) or 2..20, got " + std::to_string(blocked_folds));
+  if (spectrum_max_cycles < 0 || spectrum_max_cycles > 360)
+    return fail("spectrum_max_cycles must be 0..360, got " + std::to_string(spectrum_max_cycles));
   return true;
 }
 

@@ -1,42 +1,195 @@
+// accura: the one writer of output files (see file_io.h): temporary files renamed into place,
+// the interrupt clean-up, sameFile.
 #include "accura/calib/file_io.h"
 
+#include <fcntl.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <cerrno>
-#include <cstdio>
+#include <chrono>
+#include <csignal>
 #include <cstring>
+#include <ctime>
 #include <filesystem>
-#include <fstream>
+#include <mutex>
+#include <thread>
 
 #include "accura/calib/errors.h"
 
-namespace accura {
+namespace fs = std::filesystem;
 
-void writeFileAtomically(const std::string& path, const std::string& content) {
-  const std::string tmp = path + ".tmp." + std::to_string(::getpid());
-  {
-    std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
-    if (!f) throw InputError(path, 0, 0, std::string("cannot write file: ") + std::strerror(errno));
-    f.write(content.data(), static_cast<std::streamsize>(content.size()));
-    f.flush();
-    if (!f) {
-      std::remove(tmp.c_str());
-      throw InputError(path, 0, 0, "write failed (disk full?)");
-    }
+namespace accura {
+namespace {
+
+// ---------------------------------------------------------------------------------------------
+// Temporary files in flight, visible to the signal handler.
+
+constexpr int kSlots = 256;
+constexpr size_t kPathMax = 4096;
+enum SlotState : int { kFree = 0, kWriting = 1, kCommitting = 2, kReserved = 3 };
+
+struct Slot {
+  std::atomic<int> state{kFree};
+  char path[kPathMax];
+};
+
+Slot g_slots[kSlots];
+std::atomic<int> g_interrupted{0};
+std::once_flag g_install_once;
+
+void writeStderr(const char* msg) {
+  const size_t n = std::strlen(msg);
+  ssize_t r = ::write(2, msg, n);
+  (void)r;
+}
+
+// Removes every temporary file that is being written (not those being renamed into place).
+// A slot stays kReserved from its reservation until its file is open; once g_interrupted is
+// set no new slot is handed out (acquireSlot), so waiting (bounded: the handler may run on
+// the very thread that holds the slot) for the kReserved ones lets their files be unlinked too.
+void unlinkWriting() {
+  for (int spin = 0; spin < 2000; ++spin) {  // at most ~200 ms
+    bool reserved = false;
+    for (Slot& s : g_slots) reserved = reserved || s.state.load() == kReserved;
+    if (!reserved) break;
+    struct timespec ts{0, 100000};  // 0.1 ms; nanosleep is async-signal-safe
+    ::nanosleep(&ts, nullptr);
   }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-    const std::string why = std::strerror(errno);
-    std::remove(tmp.c_str());
-    throw InputError(path, 0, 0, "cannot rename the temporary file into place: " + why);
+  for (Slot& s : g_slots)
+    if (s.state.load() == kWriting) ::unlink(s.path);
+}
+
+[[noreturn]] void exitInterrupted() {
+  unlinkWriting();
+  writeStderr("\naccura: interrupted: no file was left half-written\n");
+  ::_exit(130);
+}
+
+extern "C" void onInterrupt(int) {
+  g_interrupted.store(1);
+  bool committing = false;
+  for (Slot& s : g_slots) {
+    const int st = s.state.load();
+    if (st == kWriting || st == kReserved) ::unlink(s.path);
+    if (st == kCommitting) committing = true;
+  }
+  // A program's files being renamed into place: that thread finishes and exits.
+  if (!committing) exitInterrupted();
+}
+
+int acquireSlot(const std::string& path) {
+  if (path.size() + 1 > kPathMax) throw InputError(path, 0, 0, "path too long for a temporary file");
+  for (;;) {
+    for (int i = 0; i < kSlots; ++i) {
+      int expected = kFree;
+      if (g_slots[i].state.compare_exchange_strong(expected, kReserved)) {
+        std::memcpy(g_slots[i].path, path.c_str(), path.size() + 1);
+        if (g_interrupted.load()) {  // interrupted: no new temporary file; the handler exits
+          g_slots[i].state.store(kFree);
+          for (;;) std::this_thread::sleep_for(std::chrono::seconds(1));
+        }
+        return i;  // stays kReserved until its file is open (writeFilesAtomically)
+      }
+    }
+    std::this_thread::yield();  // more files in flight than slots: wait for one
   }
 }
 
+void releaseSlot(int i) { g_slots[i].state.store(kFree); }
+
+void writeAll(int fd, const std::string& text, const std::string& path) {
+  size_t done = 0;
+  while (done < text.size()) {
+    const ssize_t w = ::write(fd, text.data() + done, text.size() - done);
+    if (w < 0) {
+      if (errno == EINTR) continue;
+      throw InputError(path, 0, 0, std::string("cannot write: ") + std::strerror(errno));
+    }
+    done += static_cast<size_t>(w);
+  }
+}
+
+}  // namespace
+
+void installInterruptCleanup() {
+  std::call_once(g_install_once, [] {
+    struct sigaction sa;
+    std::memset(&sa, 0, sizeof sa);
+    sa.sa_handler = onInterrupt;
+    sigemptyset(&sa.sa_mask);
+    sigaction(SIGINT, &sa, nullptr);
+    sigaction(SIGTERM, &sa, nullptr);
+  });
+}
+
+bool interruptRequested() { return g_interrupted.load() != 0; }
+
+void writeFilesAtomically(const std::vector<OutputFile>& files) {
+  std::vector<int> slots;
+  std::vector<std::string> temps;
+  auto cleanup = [&]() {
+    for (size_t i = 0; i < slots.size(); ++i) {
+      ::unlink(temps[i].c_str());
+      releaseSlot(slots[i]);
+    }
+  };
+  try {
+    for (const OutputFile& f : files) {
+      const fs::path target(f.path);
+      const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
+      const std::string tmp = (dir / ("." + target.filename().string() + "." + std::to_string(::getpid()) + ".accura-tmp")).string();
+      const int slot = acquireSlot(tmp);
+      slots.push_back(slot);
+      temps.push_back(tmp);
+      const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+      g_slots[slot].state.store(kWriting);
+      if (fd < 0) throw InputError(f.path, 0, 0, std::string("cannot write file: ") + std::strerror(errno));
+      try {
+        writeAll(fd, f.text, f.path);
+      } catch (...) {
+        ::close(fd);
+        throw;
+      }
+      if (::fsync(fd) != 0 || ::close(fd) != 0)
+        throw InputError(f.path, 0, 0, std::string("cannot write file: ") + std::strerror(errno));
+    }
+  } catch (...) {
+    cleanup();
+    throw;
+  }
+  // commit: all written; rename them together
+  for (int s : slots) g_slots[s].state.store(kCommitting);
+  if (interruptRequested()) {
+    cleanup();
+    exitInterrupted();
+  }
+  for (size_t i = 0; i < files.size(); ++i) {
+    if (::rename(temps[i].c_str(), files[i].path.c_str()) != 0) {
+      const std::string why = std::strerror(errno);
+      for (size_t j = i; j < files.size(); ++j) ::unlink(temps[j].c_str());
+      for (int s : slots) releaseSlot(s);
+      throw InputError(files[i].path, 0, 0, "cannot write file: cannot rename the temporary file into place: " + why);
+    }
+  }
+  for (int s : slots) releaseSlot(s);
+  if (interruptRequested()) exitInterrupted();
+}
+
+void writeFileAtomically(const std::string& path, const std::string& content) { writeFilesAtomically({{path, content}}); }
+
 bool sameFile(const std::string& a, const std::string& b) {
-  namespace fs = std::filesystem;
   std::error_code ec;
   if (fs::exists(a, ec) && fs::exists(b, ec)) return fs::equivalent(a, b, ec);
   const fs::path pa = fs::weakly_canonical(fs::absolute(a, ec), ec), pb = fs::weakly_canonical(fs::absolute(b, ec), ec);
   return !ec && pa == pb;
+}
+
+void refuseToOverwrite(const std::vector<OutputFile>& outputs, const std::vector<std::string>& inputs, const std::string& out_name) {
+  for (const auto& in : inputs)
+    for (const auto& f : outputs)
+      if (!in.empty() && sameFile(f.path, in))
+        throw InputError(f.path + ": the output would overwrite the input " + in + ": choose another " + out_name);
 }
 
 }  // namespace accura

@@ -12,6 +12,8 @@
 #include <system_error>
 
 #include "accura/calib/errors.h"
+#include "accura/calib/file_io.h"
+#include "accura/calib/text.h"
 
 namespace accura {
 namespace {
@@ -513,14 +515,7 @@ MeasurementSet Reader::read() {
 // ---------------------------------------------------------------------------------------
 // Writing
 
-void appendFixed(std::string& out, double v, int decimals) {
-  char buf[512];  // "%.9f" of the largest double is about 320 characters
-  std::snprintf(buf, sizeof(buf), "%.*f", decimals, v);
-  const char* text = buf;
-  // Print -0.000000 as 0.000000 so that output does not depend on the sign of a tiny value.
-  if (buf[0] == '-' && std::strspn(buf + 1, "0.") == std::strlen(buf + 1)) text = buf + 1;
-  out += text;
-}
+void appendFixed(std::string& out, double v, int decimals) { out += formatFixed(v, decimals); }
 
 void requireFinite(double v, std::size_t row, const char* what) {
   if (!std::isfinite(v)) {
@@ -535,31 +530,6 @@ void requirePositive(double v, std::size_t row, const char* what) {
   if (!(v >= 0.5e-6)) {
     throw ArgumentError("writeMeasurementsCsv: row " + std::to_string(row + 1) + ": " + what +
                         " must be at least 0.000001 to be written, got " + std::to_string(v));
-  }
-}
-
-void writeFileAtomically(const std::string& path, const std::string& content) {
-  const std::string tmp = path + ".tmp";
-  errno = 0;
-  std::FILE* f = std::fopen(tmp.c_str(), "wb");
-  if (f == nullptr) {
-    throw InputError(path, 0, 0,
-                     "cannot write file: " + tmp + ": " + std::strerror(errno ? errno : EIO));
-  }
-  bool ok = std::fwrite(content.data(), 1, content.size(), f) == content.size();
-  ok = std::fflush(f) == 0 && ok;
-  int err = errno;
-  ok = std::fclose(f) == 0 && ok;
-  if (!ok) {
-    if (err == 0) err = errno ? errno : EIO;
-    std::remove(tmp.c_str());
-    throw InputError(path, 0, 0, "cannot write file: " + tmp + ": " + std::strerror(err));
-  }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-    err = errno ? errno : EIO;
-    std::remove(tmp.c_str());
-    throw InputError(path, 0, 0,
-                     "cannot write file: renaming " + tmp + ": " + std::strerror(err));
   }
 }
 

@@ -169,26 +169,6 @@ void copyString(char* dst, size_t cap, const std::string& s) {
   dst[n] = '\0';
 }
 
-/// The controller model file given with the options must be the calibrated model's robot.
-void checkSameRobot(const RobotDefinition& calibrated, const RobotDefinition& controller, const std::string& path) {
-  auto differ = [&](const std::string& what) {
-    fail(ACCURA_ERROR_INPUT, path + ": expected the nominal robot of the calibrated model ('" + calibrated.name + "'), found '" +
-                                 controller.name + "' with another " + what);
-  };
-  if (calibrated.dof() != controller.dof()) differ("joint count (" + std::to_string(controller.dof()) + ")");
-  constexpr double kTol = 1e-9;  // mm and deg: the same numbers
-  for (int i = 0; i < calibrated.dof(); ++i) {
-    const JointSpec &a = calibrated.joints[i], &b = controller.joints[i];
-    const std::string j = "joint " + std::to_string(i + 1) + " ";
-    if (a.type != b.type) differ(j + "type");
-    if (std::fabs(a.a_mm - b.a_mm) > kTol || std::fabs(a.d_mm - b.d_mm) > kTol || std::fabs(a.alpha_deg - b.alpha_deg) > kTol ||
-        std::fabs(a.theta0_deg - b.theta0_deg) > kTol)
-      differ(j + "DH geometry");
-    if (a.direction != b.direction) differ(j + "direction");
-    if (std::fabs(a.lower - b.lower) > kTol || std::fabs(a.upper - b.upper) > kTol) differ(j + "limits");
-  }
-}
-
 /// A robot file path or a bundled robot name; a path that does not exist is named as such.
 std::string resolveModel(const std::string& name_or_path, const char* what) {
   std::error_code ec;
@@ -209,7 +189,7 @@ std::shared_ptr<State> buildState(const std::string& calibrated_path, const accu
   if (o.controller_model) {
     const std::string p = o.controller_model;
     const RobotModel controller = readRobotFile(resolveModel(p, "controller_model"));
-    checkSameRobot(job.calibrated.nominal, controller.nominal, p);
+    checkControllerRobot(job.calibrated.nominal, controller.nominal, p);
   }
   if (o.has_robroot_in_world) job.robroot_in_world = toXyz(o.robroot_in_world);
   if (o.has_robroot_in_kukaworld) job.robroot_in_kukaworld = toXyz(o.robroot_in_kukaworld);

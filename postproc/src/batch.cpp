@@ -76,9 +76,7 @@ std::vector<std::string> findPrograms(const std::string& in_dir) {
 
 namespace {
 
-std::vector<OutputFile> compensateAndRender(const Program& program, ProgramFormat format, const std::string& out_path,
-                                            const JobSettings& job, JobReport* report) {
-  const Program compensated = compensateProgram(program, job, report);
+std::vector<OutputFile> render(const Program& compensated, ProgramFormat format, const std::string& out_path) {
   std::string dat_out;
   if (compensated.krl && !compensated.krl->dat_path.empty())
     dat_out = (fs::path(out_path).parent_path() / fs::path(compensated.krl->dat_path).filename()).string();
@@ -90,7 +88,7 @@ std::vector<OutputFile> compensateAndRender(const Program& program, ProgramForma
 std::vector<OutputFile> compensateFile(const std::string& in_path, const std::string& out_path,
                                        const ProgramReadOptions& read, const JobSettings& job, JobReport* report) {
   const ProgramFormat format = programFormat(in_path);
-  return compensateAndRender(readProgram(in_path, read), format, out_path, job, report);
+  return render(compensateProgram(readProgram(in_path, read), job, report), format, out_path);
 }
 
 CheckedProgram compensateAndCheckFile(const std::string& in_path, const std::string& out_path, const ProgramReadOptions& read,
@@ -98,27 +96,23 @@ CheckedProgram compensateAndCheckFile(const std::string& in_path, const std::str
   const ProgramFormat format = programFormat(in_path);
   const Program program = readProgram(in_path, read);
   CheckedProgram out;
-  if (!cell) {
-    out.files = compensateAndRender(program, format, out_path, job, report);
-    return out;
-  }
-  const JobSettings placed = placedInCell(job, cell->cell);
-  // the check first, on the program as read (its targets are where the tool must go:
-  // docs/checks.md, "intended"): it does not need the compensation, and it explains why a
+  const JobSettings placed = cell ? placedInCell(job, cell->cell) : job;
+  // with a cell, the check first, on the program as read (its targets are where the tool must
+  // go: docs/checks.md, "intended"): it does not need the compensation, and it explains why a
   // compensation fails (an unreachable target, a joint beyond its limit)
-  out.check = cell->geometry ? checkProgram(program, placed, cell->cell, cell->options, *cell->geometry)
-                             : checkProgram(program, placed, cell->cell, cell->options);
-  JobReport local;
-  JobReport* rep = report ? report : &local;
-  try {
-    out.files = compensateAndRender(program, format, out_path, placed, rep);
-  } catch (const InputError& e) {
-    if (!compensationFailureExplained(*out.check, *rep)) throw;
-    out.compensation_error = e.what();
-    out.files.clear();
+  if (cell)
+    out.check = cell->geometry ? checkProgram(program, placed, cell->cell, cell->options, *cell->geometry)
+                               : checkProgram(program, placed, cell->cell, cell->options);
+  ProgramCompensation pc = compensateProgramReport(program, placed);
+  if (report) *report = pc.report;  // complete, its errors included (errors.h, "The rule")
+  if (!pc.ok()) {
+    if (!out.check || !compensationFailureExplained(*out.check, pc.report)) throw compensationError(pc.report);
+    out.compensation_error = compensationError(pc.report).what();
     out.write = false;
     return out;
   }
+  out.files = render(pc.program, format, out_path);
+  if (!cell) return out;
   out.write = out.check->passed() || cell->warn_only;
   return out;
 }
@@ -134,12 +128,8 @@ ProgramFileResult compensateProgramFile(const ProgramFileRequest& q, const JobSe
   std::vector<std::string> inputs = {q.in_path, fs::path(q.in_path).replace_extension(".dat").string()};
   if (!q.read.dat_path.empty()) inputs.push_back(q.read.dat_path);
   if (!q.read.config_path.empty()) inputs.push_back(q.read.config_path);
-  for (const auto& in : inputs) {
-    for (const auto& f : r.checked.files)
-      if (sameFile(f.path, in)) throw InputError(f.path + ": the output would overwrite the input " + in + ": choose another " + q.out_name);
-    if (!q.json_path.empty() && sameFile(q.json_path, in))
-      throw InputError(q.json_name + ": " + q.json_path + " would overwrite the input " + in);
-  }
+  refuseToOverwrite(r.checked.files, inputs, q.out_name);
+  if (!q.json_path.empty()) refuseToOverwrite({{q.json_path, ""}}, inputs, q.json_name);
   if (r.checked.write) {
     fs::create_directories(q.out_dir);
     writeFilesAtomically(r.checked.files);

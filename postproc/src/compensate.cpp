@@ -378,14 +378,6 @@ PoseCompensation compensatePose(const RobotModel& controller, const RobotModel& 
   return Compensator(controller, real).pose(T_desired, config, seed, options, ctx);
 }
 
-SegmentCompensation compensateSegment(const RobotModel& controller, const RobotModel& real, const PathSegment& intended,
-                                      const Configuration& config, const Eigen::VectorXd& seed,
-                                      const DensifyOptions& options, double payload_kg) {
-  PoseContext ctx;
-  ctx.payload_kg = payload_kg;
-  return Compensator(controller, real).segment(intended, config, seed, options, ctx);
-}
-
 std::vector<Eigen::Isometry3d> simulateExecution(const RobotModel& controller, const RobotModel& real,
                                                  const std::vector<PathSegment>& commanded,
                                                  const Eigen::VectorXd& q_start, double step_mm, double payload_kg) {

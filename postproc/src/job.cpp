@@ -51,20 +51,19 @@ class Job {
     t.modified = true;
   }
 
-  // Records a corrected named value; false (and an error) when the same declaration needs two
-  // different values.
-  bool claimValue(const Target& t, const SourceLocation& motion) {
-    if (t.value_id < 0) return true;
+  // Records a corrected named value; an error when the same declaration needs two different
+  // values.
+  void claimValue(const Target& t, const SourceLocation& motion) {
+    if (t.value_id < 0) return;
     const std::string text = krlAggregate(t);
     auto it = claimed_.find(t.value_id);
     if (it == claimed_.end()) {
       claimed_[t.value_id] = {text, motion};
-      return true;
+      return;
     }
-    if (it->second.first == text) return true;
-    error(motion, targetLabel(t) + " needs a different correction here than at " + it->second.second.str() +
-                      " (the same point with another tool, base or path): give the motions their own points");
-    return false;
+    if (it->second.first != text)
+      error(motion, targetLabel(t) + " needs a different correction here than at " + it->second.second.str() +
+                        " (the same point with another tool, base or path): give the motions their own points");
   }
 
   void reportTarget(const Motion& m, const Target& t, const char* role, const Eigen::Isometry3d& T_world_progbase,
@@ -114,10 +113,6 @@ class Job {
       w.file = in.source_file;
       warning(w, "the program was made for the robot '" + in.robot + "', the model is a '" + s_.calibrated.nominal.name + "'");
     }
-    std::optional<Eigen::VectorXd> q_real;                  // real joints after the last motion
-    std::optional<Eigen::Isometry3d> T_world_flange_intended;  // where the program meant the flange to be
-    std::array<std::optional<double>, 6> ext_prev{};
-    bool warned_ext = false;
     for (const Motion& m : in.motions) {
       if (m.inserted) {  // already compensated once: keep as it is
         out.motions.push_back(m);
@@ -125,262 +120,271 @@ class Job {
       }
       const size_t mark = out.motions.size();
       try {
-        Motion mo = m;
-        auto unknownAfter = [&]() {
-          q_real.reset();
-          T_world_flange_intended.reset();
-        };
-        if (!m.target_problem.empty()) {
-          if (m.type == MotionType::kPtp) {
-            warning(m.where, motionKeyword(m) + " left unchanged: " + m.target_problem + "; the position after it is not known");
-          } else {
-            error(m.where, "expected a target accura can correct for " + motionKeyword(m) + ", found: " + m.target_problem);
-          }
-          unknownAfter();
-          out.motions.push_back(mo);
-          continue;
-        }
-        const int dof = s_.calibrated.dof();
-        if (m.target.kind == Target::Kind::kAxis) {
-          Eigen::VectorXd q(dof);
-          bool known = true;
-          for (int k = 0; k < dof; ++k) {
-            if (k < 6 && m.target.axes[k]) q[k] = *m.target.axes[k];
-            else if (q_real) q[k] = (*q_real)[k];
-            else known = false;
-          }
-          if (known) {
-            q_real = q;
-            KinematicWorkspace ws;
-            T_world_flange_intended = forwardKinematics(models_.controllerFlange(), q, PoseContext{}, ws);
-          } else {
-            warning(m.where, "a partial axis target after an unknown position: the position after it is not known");
-            unknownAfter();
-          }
-          out.motions.push_back(mo);
-          continue;
-        }
-        // Cartesian; frames the program has not set yet come from the settings
-        Motion mf = m;
-        if (m.tool.source == FrameSetting::Source::kUnset && s_.initial_tool) mf.tool.value = s_.initial_tool;
-        if (m.base.source == FrameSetting::Source::kUnset && s_.initial_base) mf.base.value = s_.initial_base;
-        bool ok = true;
-        if (m.external_tcp) {
-          error(m.where, "expected a robot-guided tool, found IPO_FRAME #TCP (external TCP): not supported");
-          ok = false;
-        }
-        if (m.circ_angle_deg) {
-          error(m.where, "expected a CIRC without CA (circular angle), found CA " + formatDeg(*m.circ_angle_deg) + ": not supported");
-          ok = false;
-        }
-        if (!mf.tool.value) {
-          error(m.where, "the tool of this motion is not known: " + frameHint(m.tool, "$TOOL"));
-          ok = false;
-        }
-        if (!mf.base.value) {
-          error(m.where, "the base of this motion is not known: " + frameHint(m.base, "$BASE"));
-          ok = false;
-        }
-        if (!ok) {
-          unknownAfter();
-          out.motions.push_back(mo);
-          continue;
-        }
-        const Eigen::Isometry3d tool = toIsometry(*mf.tool.value);
-        const Eigen::Isometry3d T_world_progbase = models_.placement().T_world_kworld * toIsometry(*mf.base.value);
-        const ToolModels& mods = models_.compensator(tool);
-        const Compensator& comp = *mods.compensator;
-
-        // partial targets: the missing components from where the program meant the robot to be
-        auto complete = [&](Target& t, const char* what) -> bool {
-          if (t.completePose()) return true;
-          if (!T_world_flange_intended) {
-            error(m.where, std::string("the ") + what + " " + targetLabel(t) + " is partial and the position before it is not known");
-            return false;
-          }
-          const XyzAbc prev = toProgram(T_world_progbase, *T_world_flange_intended * tool);
-          const double p[6] = {prev.x_mm, prev.y_mm, prev.z_mm, prev.a_deg, prev.b_deg, prev.c_deg};
-          for (int k = 0; k < 6; ++k)
-            if (!t.pose[k]) t.pose[k] = p[k];
-          return true;
-        };
-        Target end = m.target;
-        std::optional<Target> aux = m.aux;
-        if (!complete(end, "target") || (aux && !complete(*aux, "auxiliary point"))) {
-          unknownAfter();
-          out.motions.push_back(mo);
-          continue;
-        }
-        bool ext_nonzero = false;
-        for (const auto& e : end.ext) ext_nonzero = ext_nonzero || (e && *e != 0);
-        if (ext_nonzero && !warned_ext) {
-          warning(m.where, "external axis values (E1..E6) are not part of the calibrated model: the targets are compensated as if the external axes did not move the robot or the part");
-          warned_ext = true;
-        }
-        const Eigen::Isometry3d T_world_end = T_world_progbase * toIsometry(end.xyzAbc());
-        const Configuration config{end.status.value_or(-1), end.turn.value_or(-1)};
-        const Eigen::VectorXd seed = q_real ? *q_real : Eigen::VectorXd();
-        const bool path = m.type == MotionType::kLin || m.type == MotionType::kCirc;
-
-        if (!path || !q_real) {
-          if (path)
-            warning(m.where, motionKeyword(m) + " after a position that is not known: its points are compensated, its path is not checked");
-          Eigen::Isometry3d T_cmd_aux = Eigen::Isometry3d::Identity();
-          if (aux) {
-            const Eigen::Isometry3d T_world_aux = T_world_progbase * toIsometry(aux->xyzAbc());
-            const PoseCompensation pa = comp.pose(T_world_aux, Configuration{}, seed, s_.ik, s_.context);
-            if (pa.status != IkStatus::kOk) {
-              error(m.where, "the auxiliary point " + targetLabel(*aux) + " cannot be compensated: " + toString(pa.status) +
-                                 (pa.message.empty() ? "" : " (" + pa.message + ")"));
-              unknownAfter();
-              out.motions.push_back(mo);
-              continue;
-            }
-            T_cmd_aux = pa.T_world_tcp_command;
-            setPose(*mo.aux, toProgram(T_world_progbase, T_cmd_aux));
-            if (!claimValue(*mo.aux, m.where)) ok = false;
-            reportTarget(m, *m.aux, "aux", T_world_progbase, T_world_aux, T_cmd_aux, mods.calibrated_tool);
-          }
-          const PoseCompensation pc = comp.pose(T_world_end, config, seed, s_.ik, s_.context);
-          if (pc.status != IkStatus::kOk) {
-            error(m.where, targetLabel(end) + " cannot be compensated: " + toString(pc.status) + (pc.message.empty() ? "" : " (" + pc.message + ")"));
-            unknownAfter();
-            out.motions.push_back(mo);
-            continue;
-          }
-          if (!checkConfig(m, end, comp, pc.q_real)) {
-            unknownAfter();
-            out.motions.push_back(mo);
-            continue;
-          }
-          setPose(mo.target, toProgram(T_world_progbase, pc.T_world_tcp_command));
-          mo.target.turn = end.turn;
-          if (!claimValue(mo.target, m.where)) ok = false;
-          reportTarget(m, m.target, "end", T_world_progbase, T_world_end, pc.T_world_tcp_command, mods.calibrated_tool);
-          q_real = pc.q_real;
-          T_world_flange_intended = T_world_end * tool.inverse();
-          ext_prev = end.ext;
-          out.motions.push_back(mo);
-          continue;
-        }
-
-        // LIN / CIRC with a known start: compensate the segment
-        PathSegment intended;
-        intended.type = m.type == MotionType::kCirc ? PathType::kCirc : PathType::kLin;
-        intended.T_world_end = T_world_end;
-        if (aux) intended.T_world_aux = T_world_progbase * toIsometry(aux->xyzAbc());
-        const SegmentCompensation sc = compensateSegmentFrom(comp, intended, config, *q_real, s_);
-        if (sc.status != IkStatus::kOk || sc.commanded.empty() || sc.q_real_end.size() != sc.commanded.size()) {
-          error(m.where, "the " + motionKeyword(m) + " to " + targetLabel(end) + " cannot be compensated: " + toString(sc.status) +
-                             (sc.message.empty() ? "" : " (" + sc.message + ")"));
-          unknownAfter();
-          out.motions.push_back(mo);
-          continue;
-        }
-        if (!checkConfig(m, end, comp, sc.q_real_end.back())) {
-          unknownAfter();
-          out.motions.push_back(mo);
-          continue;
-        }
-        SegmentReport sr;
-        sr.motion = m.where;
-        sr.motion_type = motionKeyword(m);
-        sr.length_mm = pathLength(intended);
-        sr.max_error_uncompensated_mm = sc.max_error_uncompensated_mm;
-        sr.max_error_before_mm = sc.max_error_before_mm;
-        sr.max_error_after_mm = sc.max_error_after_mm;
-        sr.points_added = sc.points_added;
-        std::vector<PathSegment> commanded = sc.commanded;
-        if (sc.points_added > 0 && m.trigger_count > 0) {
-          // TRIGGER statements refer to the next motion: points inserted before this motion
-          // would move them. Keep the single motion (endpoints compensated).
-          PathSegment one = commanded.back();
-          one.T_world_start = commanded.front().T_world_start;
-          if (aux) {
-            const PoseCompensation pa = comp.pose(intended.T_world_aux, Configuration{}, *q_real, s_.ik, s_.context);
-            if (pa.status != IkStatus::kOk) {
-              error(m.where, "the auxiliary point " + targetLabel(*aux) + " cannot be compensated: " + toString(pa.status));
-              unknownAfter();
-              out.motions.push_back(mo);
-              continue;
-            }
-            one.T_world_aux = pa.T_world_tcp_command;
-          }
-          commanded = {one};
-          sr.points_added = 0;
-          sr.max_error_after_mm = sc.max_error_before_mm;
-          sr.note = std::to_string(m.trigger_count) + " TRIGGER statement(s) bound to this motion: no auxiliary points inserted";
-          if (sc.max_error_before_mm > s_.tol_mm)
-            warning(m.where, "the predicted path error " + formatMm(sc.max_error_before_mm) + " mm exceeds --tol " + formatMm(s_.tol_mm) +
-                                 " mm, but TRIGGER statements are bound to this motion: no auxiliary points inserted");
-        }
-        // inserted motions (all sub-segments but the last)
-        const double total = std::max(1e-9, sr.length_mm);
-        double run_mm = 0;
-        for (size_t k = 0; k + 1 < commanded.size(); ++k) {
-          run_mm += pathLength(commanded[k]);
-          Motion ins = m;
-          ins.inserted = true;
-          ins.trigger_count = 0;
-          ins.target_problem.clear();
-          Target t;
-          t.kind = Target::Kind::kCartesian;
-          t.where = m.where;
-          t.setPose(toProgram(T_world_progbase, commanded[k].T_world_end));
-          t.status = end.status;
-          t.turn = end.turn;
-          const double frac = std::min(1.0, run_mm / total);
-          for (int e = 0; e < 6; ++e) {
-            if (!end.ext[e]) continue;
-            const double a = ext_prev[e].value_or(*end.ext[e]);
-            t.ext[e] = a + frac * (*end.ext[e] - a);
-          }
-          t.modified = true;
-          ins.target = t;
-          if (aux) {
-            Target ta = t;
-            ta.setPose(toProgram(T_world_progbase, commanded[k].T_world_aux));
-            ins.aux = ta;
-          }
-          out.motions.push_back(ins);
-        }
-        const Eigen::Isometry3d T_cmd_end = commanded.back().T_world_end;
-        setPose(mo.target, toProgram(T_world_progbase, T_cmd_end));
-        mo.target.turn = end.turn;
-        if (!claimValue(mo.target, m.where)) ok = false;
-        reportTarget(m, m.target, "end", T_world_progbase, T_world_end, T_cmd_end, mods.calibrated_tool);
-        if (aux) {
-          setPose(*mo.aux, toProgram(T_world_progbase, commanded.back().T_world_aux));
-          if (!claimValue(*mo.aux, m.where)) ok = false;
-          if (commanded.size() == 1)
-            reportTarget(m, *m.aux, "aux", T_world_progbase, intended.T_world_aux, commanded.back().T_world_aux, mods.calibrated_tool);
-        }
-        r_.segments.push_back(sr);
-        q_real = sc.q_real_end.back();
-        T_world_flange_intended = T_world_end * tool.inverse();
-        ext_prev = end.ext;
-        out.motions.push_back(mo);
-        (void)ok;
+        motion(m, out);
       } catch (const NumericalError& e) {  // e.g. a CIRC whose three points are collinear
-        out.motions.resize(mark);
-        out.motions.push_back(m);
-        error(m.where, std::string("this motion cannot be compensated: ") + e.what());
-        q_real.reset();
-        T_world_flange_intended.reset();
+        cannotCompensate(m, mark, out, e.what());
       } catch (const ArgumentError& e) {
-        out.motions.resize(mark);
-        out.motions.push_back(m);
-        error(m.where, std::string("this motion cannot be compensated: ") + e.what());
-        q_real.reset();
-        T_world_flange_intended.reset();
+        cannotCompensate(m, mark, out, e.what());
       }
     }
   }
 
  private:
+  /// A Cartesian motion ready to compensate: its frames, models and complete targets (world).
+  struct Cartesian {
+    Eigen::Isometry3d tool, T_world_progbase, T_world_end;
+    const ToolModels* models = nullptr;
+    Target end;
+    std::optional<Target> aux;
+    Configuration config;
+  };
+
+  void forget() {
+    q_real_.reset();
+    T_world_flange_intended_.reset();
+  }
+
+  /// `mo` (the motion, as far as it was changed) kept in the output; the position after it
+  /// is not known. The caller recorded why (an error or a warning).
+  void keep(Program& out, const Motion& mo) {
+    forget();
+    out.motions.push_back(mo);
+  }
+
+  void cannotCompensate(const Motion& m, size_t mark, Program& out, const char* why) {
+    out.motions.resize(mark);
+    error(m.where, std::string("this motion cannot be compensated: ") + why);
+    keep(out, m);
+  }
+
+  /// One motion of the program into `out` (with the points inserted before it).
+  void motion(const Motion& m, Program& out) {
+    if (!m.target_problem.empty()) {
+      if (m.type == MotionType::kPtp)
+        warning(m.where, motionKeyword(m) + " left unchanged: " + m.target_problem + "; the position after it is not known");
+      else
+        error(m.where, "expected a target accura can correct for " + motionKeyword(m) + ", found: " + m.target_problem);
+      return keep(out, m);
+    }
+    if (m.target.kind == Target::Kind::kAxis) return axisMotion(m, out);
+    const std::optional<Cartesian> c = cartesian(m);
+    if (!c) return keep(out, m);
+    const bool path = m.type == MotionType::kLin || m.type == MotionType::kCirc;
+    if (path && q_real_) return pathMotion(m, *c, out);
+    if (path)
+      warning(m.where, motionKeyword(m) + " after a position that is not known: its points are compensated, its path is not checked");
+    pointMotion(m, *c, out);
+  }
+
+  /// An axis target: nothing to compensate; the position after it is known when every joint is.
+  void axisMotion(const Motion& m, Program& out) {
+    const int dof = s_.calibrated.dof();
+    Eigen::VectorXd q(dof);
+    for (int k = 0; k < dof; ++k) {
+      if (k < 6 && m.target.axes[k]) {
+        q[k] = *m.target.axes[k];
+      } else if (q_real_) {
+        q[k] = (*q_real_)[k];
+      } else {
+        warning(m.where, "a partial axis target after an unknown position: the position after it is not known");
+        return keep(out, m);
+      }
+    }
+    q_real_ = q;
+    KinematicWorkspace ws;
+    T_world_flange_intended_ = forwardKinematics(models_.controllerFlange(), q, PoseContext{}, ws);
+    out.motions.push_back(m);
+  }
+
+  /// The frames (frames the program has not set yet come from the settings), the models and
+  /// the complete targets of a Cartesian motion; nullopt (with the errors recorded) when the
+  /// motion cannot be compensated.
+  std::optional<Cartesian> cartesian(const Motion& m) {
+    std::optional<XyzAbc> tool = m.tool.value, base = m.base.value;
+    if (m.tool.source == FrameSetting::Source::kUnset && s_.initial_tool) tool = s_.initial_tool;
+    if (m.base.source == FrameSetting::Source::kUnset && s_.initial_base) base = s_.initial_base;
+    const size_t errors = r_.errors.size();
+    if (m.external_tcp) error(m.where, "expected a robot-guided tool, found IPO_FRAME #TCP (external TCP): not supported");
+    if (m.circ_angle_deg)
+      error(m.where, "expected a CIRC without CA (circular angle), found CA " + formatDeg(*m.circ_angle_deg) + ": not supported");
+    if (!tool) error(m.where, "the tool of this motion is not known: " + frameHint(m.tool, "$TOOL"));
+    if (!base) error(m.where, "the base of this motion is not known: " + frameHint(m.base, "$BASE"));
+    if (r_.errors.size() != errors) return std::nullopt;
+    Cartesian c;
+    c.tool = toIsometry(*tool);
+    c.T_world_progbase = models_.placement().T_world_kworld * toIsometry(*base);
+    c.models = &models_.compensator(c.tool);
+    // partial targets: the missing components from where the program meant the robot to be
+    auto complete = [&](Target& t, const char* what) -> bool {
+      if (t.completePose()) return true;
+      if (!T_world_flange_intended_) {
+        error(m.where, std::string("the ") + what + " " + targetLabel(t) + " is partial and the position before it is not known");
+        return false;
+      }
+      const XyzAbc prev = toProgram(c.T_world_progbase, *T_world_flange_intended_ * c.tool);
+      const double p[6] = {prev.x_mm, prev.y_mm, prev.z_mm, prev.a_deg, prev.b_deg, prev.c_deg};
+      for (int k = 0; k < 6; ++k)
+        if (!t.pose[k]) t.pose[k] = p[k];
+      return true;
+    };
+    c.end = m.target;
+    c.aux = m.aux;
+    if (!complete(c.end, "target") || (c.aux && !complete(*c.aux, "auxiliary point"))) return std::nullopt;
+    bool ext_nonzero = false;
+    for (const auto& e : c.end.ext) ext_nonzero = ext_nonzero || (e && *e != 0);
+    if (ext_nonzero && !warned_ext_) {
+      warning(m.where, "external axis values (E1..E6) are not part of the calibrated model: the targets are compensated as if the external axes did not move the robot or the part");
+      warned_ext_ = true;
+    }
+    c.T_world_end = c.T_world_progbase * toIsometry(c.end.xyzAbc());
+    c.config = Configuration{c.end.status.value_or(-1), c.end.turn.value_or(-1)};
+    return c;
+  }
+
+  /// PTP, or LIN / CIRC after an unknown position: each point compensated on its own.
+  void pointMotion(const Motion& m, const Cartesian& c, Program& out) {
+    const Compensator& comp = *c.models->compensator;
+    const Eigen::VectorXd seed = q_real_ ? *q_real_ : Eigen::VectorXd();
+    Motion mo = m;
+    Target end = c.end;
+    if (c.aux) {
+      const Eigen::Isometry3d T_world_aux = c.T_world_progbase * toIsometry(c.aux->xyzAbc());
+      const PoseCompensation pa = comp.pose(T_world_aux, Configuration{}, seed, s_.ik, s_.context);
+      if (pa.status != IkStatus::kOk) {
+        error(m.where, "the auxiliary point " + targetLabel(*c.aux) + " cannot be compensated: " + toString(pa.status) +
+                           (pa.message.empty() ? "" : " (" + pa.message + ")"));
+        return keep(out, mo);
+      }
+      setPose(*mo.aux, toProgram(c.T_world_progbase, pa.T_world_tcp_command));
+      claimValue(*mo.aux, m.where);
+      reportTarget(m, *m.aux, "aux", c.T_world_progbase, T_world_aux, pa.T_world_tcp_command, c.models->calibrated_tool);
+    }
+    const PoseCompensation pc = comp.pose(c.T_world_end, c.config, seed, s_.ik, s_.context);
+    if (pc.status != IkStatus::kOk) {
+      error(m.where, targetLabel(end) + " cannot be compensated: " + toString(pc.status) + (pc.message.empty() ? "" : " (" + pc.message + ")"));
+      return keep(out, mo);
+    }
+    if (!checkConfig(m, end, comp, pc.q_real)) return keep(out, mo);
+    setPose(mo.target, toProgram(c.T_world_progbase, pc.T_world_tcp_command));
+    mo.target.turn = end.turn;
+    claimValue(mo.target, m.where);
+    reportTarget(m, m.target, "end", c.T_world_progbase, c.T_world_end, pc.T_world_tcp_command, c.models->calibrated_tool);
+    arrived(c, pc.q_real, end);
+    out.motions.push_back(mo);
+  }
+
+  /// LIN / CIRC from a known position: the segment compensated, auxiliary points inserted.
+  void pathMotion(const Motion& m, const Cartesian& c, Program& out) {
+    const Compensator& comp = *c.models->compensator;
+    Motion mo = m;
+    Target end = c.end;
+    PathSegment intended;
+    intended.type = m.type == MotionType::kCirc ? PathType::kCirc : PathType::kLin;
+    intended.T_world_end = c.T_world_end;
+    if (c.aux) intended.T_world_aux = c.T_world_progbase * toIsometry(c.aux->xyzAbc());
+    const SegmentCompensation sc = compensateSegmentFrom(comp, intended, c.config, *q_real_, s_);
+    if (sc.status != IkStatus::kOk || sc.commanded.empty() || sc.q_real_end.size() != sc.commanded.size()) {
+      error(m.where, "the " + motionKeyword(m) + " to " + targetLabel(end) + " cannot be compensated: " + toString(sc.status) +
+                         (sc.message.empty() ? "" : " (" + sc.message + ")"));
+      return keep(out, mo);
+    }
+    if (!checkConfig(m, end, comp, sc.q_real_end.back())) return keep(out, mo);
+    SegmentReport sr;
+    sr.motion = m.where;
+    sr.motion_type = motionKeyword(m);
+    sr.length_mm = pathLength(intended);
+    sr.max_error_uncompensated_mm = sc.max_error_uncompensated_mm;
+    sr.max_error_before_mm = sc.max_error_before_mm;
+    sr.max_error_after_mm = sc.max_error_after_mm;
+    sr.points_added = sc.points_added;
+    std::vector<PathSegment> commanded = sc.commanded;
+    if (sc.points_added > 0 && m.trigger_count > 0) {
+      // TRIGGER statements refer to the next motion: points inserted before this motion
+      // would move them. Keep the single motion (endpoints compensated).
+      PathSegment one = commanded.back();
+      one.T_world_start = commanded.front().T_world_start;
+      if (c.aux) {
+        const PoseCompensation pa = comp.pose(intended.T_world_aux, Configuration{}, *q_real_, s_.ik, s_.context);
+        if (pa.status != IkStatus::kOk) {
+          error(m.where, "the auxiliary point " + targetLabel(*c.aux) + " cannot be compensated: " + toString(pa.status));
+          return keep(out, mo);
+        }
+        one.T_world_aux = pa.T_world_tcp_command;
+      }
+      commanded = {one};
+      sr.points_added = 0;
+      sr.max_error_after_mm = sc.max_error_before_mm;
+      sr.note = std::to_string(m.trigger_count) + " TRIGGER statement(s) bound to this motion: no auxiliary points inserted";
+      if (sc.max_error_before_mm > s_.tol_mm)
+        warning(m.where, "the predicted path error " + formatMm(sc.max_error_before_mm) + " mm exceeds --tol " + formatMm(s_.tol_mm) +
+                             " mm, but TRIGGER statements are bound to this motion: no auxiliary points inserted");
+    }
+    insertPoints(m, c, end, commanded, sr.length_mm, out);
+    const Eigen::Isometry3d T_cmd_end = commanded.back().T_world_end;
+    setPose(mo.target, toProgram(c.T_world_progbase, T_cmd_end));
+    mo.target.turn = end.turn;
+    claimValue(mo.target, m.where);
+    reportTarget(m, m.target, "end", c.T_world_progbase, c.T_world_end, T_cmd_end, c.models->calibrated_tool);
+    if (c.aux) {
+      setPose(*mo.aux, toProgram(c.T_world_progbase, commanded.back().T_world_aux));
+      claimValue(*mo.aux, m.where);
+      if (commanded.size() == 1)
+        reportTarget(m, *m.aux, "aux", c.T_world_progbase, intended.T_world_aux, commanded.back().T_world_aux, c.models->calibrated_tool);
+    }
+    r_.segments.push_back(sr);
+    arrived(c, sc.q_real_end.back(), end);
+    out.motions.push_back(mo);
+  }
+
+  /// The inserted motions (all sub-segments of `commanded` but the last), before `m`; external
+  /// axes interpolated by the length run along the path (of `length_mm`).
+  void insertPoints(const Motion& m, const Cartesian& c, const Target& end, const std::vector<PathSegment>& commanded, double length_mm,
+                    Program& out) const {
+    const double total = std::max(1e-9, length_mm);
+    double run_mm = 0;
+    for (size_t k = 0; k + 1 < commanded.size(); ++k) {
+      run_mm += pathLength(commanded[k]);
+      Motion ins = m;
+      ins.inserted = true;
+      ins.trigger_count = 0;
+      ins.target_problem.clear();
+      Target t;
+      t.kind = Target::Kind::kCartesian;
+      t.where = m.where;
+      t.setPose(toProgram(c.T_world_progbase, commanded[k].T_world_end));
+      t.status = end.status;
+      t.turn = end.turn;
+      const double frac = std::min(1.0, run_mm / total);
+      for (int e = 0; e < 6; ++e) {
+        if (!end.ext[e]) continue;
+        const double a = ext_prev_[e].value_or(*end.ext[e]);
+        t.ext[e] = a + frac * (*end.ext[e] - a);
+      }
+      t.modified = true;
+      ins.target = t;
+      if (c.aux) {
+        Target ta = t;
+        ta.setPose(toProgram(c.T_world_progbase, commanded[k].T_world_aux));
+        ins.aux = ta;
+      }
+      out.motions.push_back(ins);
+    }
+  }
+
+  /// The real robot reached `end` with joints q_real.
+  void arrived(const Cartesian& c, const Eigen::VectorXd& q_real, const Target& end) {
+    q_real_ = q_real;
+    T_world_flange_intended_ = c.T_world_end * c.tool.inverse();
+    ext_prev_ = end.ext;
+  }
+
   const JobSettings& s_;
   JobReport& r_;
   ModelFactory models_;
+  std::optional<Eigen::VectorXd> q_real_;                    ///< real joints after the last motion
+  std::optional<Eigen::Isometry3d> T_world_flange_intended_;  ///< where the program meant the flange to be
+  std::array<std::optional<double>, 6> ext_prev_{};
+  bool warned_ext_ = false;
   std::map<int, std::pair<std::string, SourceLocation>> claimed_;
 };
 
@@ -406,19 +410,18 @@ RobotModel realModelForTool(const RobotModel& calibrated, const Eigen::Isometry3
   return real;
 }
 
-Program compensateProgram(const Program& program, const JobSettings& settings, JobReport* report) {
+ProgramCompensation compensateProgramReport(const Program& program, const JobSettings& settings) {
   if (!(settings.tol_mm > 0) || !std::isfinite(settings.tol_mm))
     throw ArgumentError("compensateProgram: tol_mm must be > 0 (mm)");
   std::string why;
   if (!settings.ik.IsValid(&why)) throw ArgumentError("compensateProgram: IK options: " + why);
   settings.calibrated.validate();
-  JobReport local;
-  JobReport& r = report ? *report : local;
-  r = JobReport{};
-  Program out = program;
-  out.motions.clear();
+  ProgramCompensation pc;
+  JobReport& r = pc.report;
+  pc.program = program;
+  pc.program.motions.clear();
   Job job(settings, &r);
-  job.run(program, out);
+  job.run(program, pc.program);
 
   double sum2 = 0;
   for (const auto& t : r.targets) {
@@ -434,17 +437,26 @@ Program compensateProgram(const Program& program, const JobSettings& settings, J
     r.max_error_before_mm = std::max(r.max_error_before_mm, s.max_error_before_mm);
     r.max_error_after_mm = std::max(r.max_error_after_mm, s.max_error_after_mm);
   }
-  if (!r.errors.empty()) {
-    std::string msg = r.errors.front().message;
-    if (r.errors.size() > 1) {
-      msg += " (and " + std::to_string(r.errors.size() - 1) + " more problem(s):";
-      for (size_t i = 1; i < r.errors.size(); ++i) msg += "\n  " + r.errors[i].where.str() + ": " + r.errors[i].message;
-      msg += ")";
-    }
-    const SourceLocation& w = r.errors.front().where;
-    throw InputError(w.file, w.line, w.column, msg);
+  return pc;
+}
+
+InputError compensationError(const JobReport& r) {
+  if (r.errors.empty()) throw ArgumentError("compensationError: the report has no error");
+  std::string msg = r.errors.front().message;
+  if (r.errors.size() > 1) {
+    msg += " (and " + std::to_string(r.errors.size() - 1) + " more problem(s):";
+    for (size_t i = 1; i < r.errors.size(); ++i) msg += "\n  " + r.errors[i].where.str() + ": " + r.errors[i].message;
+    msg += ")";
   }
-  return out;
+  const SourceLocation& w = r.errors.front().where;
+  return InputError(w.file, w.line, w.column, msg);
+}
+
+Program compensateProgram(const Program& program, const JobSettings& settings, JobReport* report) {
+  ProgramCompensation pc = compensateProgramReport(program, settings);
+  if (report) *report = pc.report;
+  if (!pc.ok()) throw compensationError(pc.report);
+  return std::move(pc.program);
 }
 
 }  // namespace accura::postproc

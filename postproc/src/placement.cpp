@@ -1,6 +1,7 @@
 // The robot's placement and the models of a job (see placement.h).
 #include "accura/postproc/placement.h"
 
+#include <cmath>
 #include <sstream>
 
 #include "accura/calib/errors.h"
@@ -91,6 +92,25 @@ ToolModels& ModelFactory::compensator(const Eigen::Isometry3d& T_flange_tcp) {
   ToolModels& m = forTool(T_flange_tcp);
   if (!m.compensator) m.compensator = std::make_unique<Compensator>(m.controller, m.real);
   return m;
+}
+
+void checkControllerRobot(const RobotDefinition& calibrated, const RobotDefinition& controller, const std::string& path) {
+  auto differ = [&](const std::string& what) {
+    throw InputError(path + ": expected the nominal robot of the calibrated model ('" + calibrated.name + "'), found '" +
+                                 controller.name + "' with another " + what);
+  };
+  if (calibrated.dof() != controller.dof()) differ("joint count (" + std::to_string(controller.dof()) + ")");
+  constexpr double kTol = 1e-9;  // mm and deg: the same numbers
+  for (int i = 0; i < calibrated.dof(); ++i) {
+    const JointSpec &a = calibrated.joints[i], &b = controller.joints[i];
+    const std::string j = "joint " + std::to_string(i + 1) + " ";
+    if (a.type != b.type) differ(j + "type");
+    if (std::fabs(a.a_mm - b.a_mm) > kTol || std::fabs(a.d_mm - b.d_mm) > kTol || std::fabs(a.alpha_deg - b.alpha_deg) > kTol ||
+        std::fabs(a.theta0_deg - b.theta0_deg) > kTol)
+      differ(j + "DH geometry");
+    if (a.direction != b.direction) differ(j + "direction");
+    if (std::fabs(a.lower - b.lower) > kTol || std::fabs(a.upper - b.upper) > kTol) differ(j + "limits");
+  }
 }
 
 }  // namespace accura::postproc

@@ -55,21 +55,6 @@ void Target::setPose(const XyzAbc& p) {
   pose = {p.x_mm, p.y_mm, p.z_mm, p.a_deg, p.b_deg, p.c_deg};
 }
 
-std::string formatFixed(double v, int decimals) {
-  if (!std::isfinite(v)) throw ArgumentError("formatFixed: not a finite number");
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.*f", decimals, v);
-  std::string s = buf;
-  // Never "-0.0000": a value that rounds to zero is written without a sign.
-  if (s[0] == '-') {
-    bool zero = true;
-    for (size_t i = 1; i < s.size(); ++i)
-      if (s[i] != '0' && s[i] != '.') zero = false;
-    if (zero) s.erase(0, 1);
-  }
-  return s;
-}
-
 std::string motionKeyword(const Motion& m) {
   std::string k;
   switch (m.type) {

@@ -2,6 +2,21 @@
 //
 // accura never aborts on bad input or misuse: it throws one of the exceptions below, and
 // the command-line tool and the C ABI turn them into a message and a non-zero status.
+//
+// The rule: exceptions vs. returned errors.
+// - Throw (InputError, ArgumentError, NumericalError) when the call cannot give what it
+//   promises: a file that cannot be read or written, a malformed or impossible input, an
+//   argument of the wrong size or meaning, a numerical procedure without a trustworthy answer.
+//   The caller gets no partial result.
+// - Return the outcome as data when a finding about the input is the answer itself, and the
+//   caller decides what it means: an IK status (IkStatus: unreachable, joint limits, ...), the
+//   violations of a check (CheckReport), the problems of a program's compensation
+//   (JobReport::errors of compensateProgramReport), a file of a batch that failed
+//   (BatchFileResult). Such results are complete (every total computed), never half-filled.
+// - The boundaries translate, and only they: main() prints an exception and sets the exit
+//   status, the C ABI turns it into an accura_status and a message (plugin/src), and a
+//   function that throws for its callers' convenience (compensateProgram) is a thin wrapper of
+//   the one that returns (compensateProgramReport).
 #pragma once
 
 #include <stdexcept>

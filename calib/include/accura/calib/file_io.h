@@ -1,18 +1,45 @@
-// accura: writing output files without ever leaving a half-written one.
+// accura: the one writer of output files, used by every layer (calib's model and measurement
+// files, postproc's programs and reports, the command line, the plug-in). An output is never
+// half-written: each file is written to a temporary file in its target directory
+// (".NAME.PID.accura-tmp") and renamed into place; the files of one call (a program's .src and
+// .dat) are renamed together once all are written. With installInterruptCleanup() (the command
+// line; a library host owns its signals), SIGINT / SIGTERM remove the temporary files in flight
+// and end the process with status 130.
 #pragma once
 
 #include <string>
+#include <vector>
 
 namespace accura {
 
-/// Writes `content` to `path` through a temporary file in the same directory
-/// ("PATH.tmp.<pid>") that is renamed into place once complete, so readers see either the old
-/// file or the whole new one. Throws InputError (naming the file) when the file cannot be
-/// written or renamed; the temporary file is removed then.
+/// One output file: where it goes and its bytes.
+struct OutputFile {
+  std::string path;
+  std::string text;
+};
+
+/// Writes the files through temporary files renamed into place (see the file comment). Throws
+/// InputError ("PATH: cannot write file: ...") when a file cannot be written or renamed; the
+/// temporary files are removed then. The directories must exist.
+void writeFilesAtomically(const std::vector<OutputFile>& files);
+
+/// writeFilesAtomically of one file.
 void writeFileAtomically(const std::string& path, const std::string& content);
+
+/// Installs the SIGINT / SIGTERM handler that removes in-flight temporary files and exits with
+/// status 130. Idempotent.
+void installInterruptCleanup();
+
+/// True once SIGINT / SIGTERM arrived (workers stop taking new files).
+bool interruptRequested();
 
 /// True when `a` and `b` name the same file: the same inode when both exist, else the same
 /// normalised absolute path (a file about to be written onto an input). Never throws.
 bool sameFile(const std::string& a, const std::string& b);
+
+/// The overwrite guard of every command that writes: throws InputError ("OUT: the output would
+/// overwrite the input IN: choose another <out_name>") when an output is one of `inputs`
+/// (sameFile); inputs that are empty strings are skipped.
+void refuseToOverwrite(const std::vector<OutputFile>& outputs, const std::vector<std::string>& inputs, const std::string& out_name);
 
 }  // namespace accura

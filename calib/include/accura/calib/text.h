@@ -1,4 +1,5 @@
-// accura: small text helpers shared by the writers.
+// accura: small text helpers shared by the writers of every layer, and the one number
+// formatter (calib, postproc, the command line and the plug-in format numbers here).
 #pragma once
 
 #include <string>
@@ -8,5 +9,14 @@ namespace accura {
 /// `s` with & < > " replaced by their entities: safe in XML and HTML text and in
 /// double-quoted attribute values.
 std::string xmlEscape(const std::string& s);
+
+/// A number with a fixed count of decimals ("%.*f"), never "-0.000" (a value that rounds to
+/// zero is written without a sign): the same text on every machine. Throws ArgumentError for a
+/// NaN or infinity (the writers must not write one) and for decimals outside 0..17.
+std::string formatFixed(double v, int decimals);
+
+/// One number formatted printf-style: `format` holds exactly one conversion of a double (e.g.
+/// "%.4f", "%g", "%8.3f mm"). For messages and tables; NaN and infinity as printf writes them.
+std::string formatNumber(const char* format, double v);
 
 }  // namespace accura

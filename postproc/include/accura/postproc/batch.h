@@ -1,11 +1,7 @@
-// accura post-processor: batch compensation of a tree of programs, and the atomic file writing
-// every post-processor command uses.
-//
-// Files are written to a temporary file in the target directory (".NAME.PID.accura-tmp") and
-// renamed into place; the files of one program (.src and .dat) are renamed together once all
-// are written. With installInterruptCleanup(), SIGINT / SIGTERM remove the temporary files in
-// flight and end the process with status 130: an interrupted run leaves every output either
-// complete or absent, never half-written.
+// accura post-processor: one program file compensated (and checked) into a directory, and batch
+// compensation of a tree of programs. Every output goes through calib's one writer
+// (accura/calib/file_io.h): an interrupted run leaves every output either complete or absent,
+// never half-written.
 #pragma once
 
 #include <functional>
@@ -14,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "accura/calib/file_io.h"
 #include "accura/postproc/cell.h"
 #include "accura/postproc/check.h"
 #include "accura/postproc/job.h"
@@ -22,16 +19,10 @@
 
 namespace accura::postproc {
 
-/// Writes the files through temporary files renamed into place (see the file comment).
-/// Throws InputError when a file cannot be written (the temporaries are removed).
-void writeFilesAtomically(const std::vector<OutputFile>& files);
-
-/// Installs the SIGINT / SIGTERM handler that removes in-flight temporary files and exits with
-/// status 130. Idempotent.
-void installInterruptCleanup();
-
-/// True once SIGINT / SIGTERM arrived (workers stop taking new files).
-bool interruptRequested();
+// The atomic writing every post-processor command uses is calib's one writer (file_io.h).
+using accura::installInterruptCleanup;
+using accura::interruptRequested;
+using accura::writeFilesAtomically;
 
 /// The checks of a program in its cell before it is written (accura compensate --cell and
 /// accura batch --cell; docs/checks.md).

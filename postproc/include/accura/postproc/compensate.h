@@ -115,14 +115,6 @@ struct SegmentCompensation {
   double max_error_bound_mm = 0;
   int points_added = 0;            ///< commanded.size() - 1: new targets inserted
 };
-/// Greedy: each piece as long as the tolerance allows (docs/compensation.md). Failures
-/// (unreachable, singular, tolerance not met within max_points_per_segment) come back in
-/// `status` / `message` with `commanded` empty. Throws ArgumentError for invalid options and
-/// NumericalError for a CIRC without a circle (collinear points).
-SegmentCompensation compensateSegment(const RobotModel& controller, const RobotModel& real,
-                                      const PathSegment& intended, const Configuration& config,
-                                      const Eigen::VectorXd& seed, const DensifyOptions& options,
-                                      double payload_kg = 0);
 
 /// The controller and the real robot, prepared once for many targets and segments (the
 /// free functions above build one per call). Thread-safe const methods.
@@ -138,7 +130,12 @@ class Compensator {
   PoseCompensation pose(const Eigen::Isometry3d& T_world_tcp_desired, const Configuration& config,
                         const Eigen::VectorXd& seed, const IkOptions& options,
                         const PoseContext& context = {}) const;
-  /// compensateSegment. `seed`: the real joint values at the segment's start (the previous
+  /// Compensates a LIN / CIRC segment with auxiliary points (SegmentCompensation). Greedy:
+  /// each piece as long as the tolerance allows (docs/compensation.md). Failures
+  /// (unreachable, singular, tolerance not met within max_points_per_segment) come back in
+  /// `status` / `message` with `commanded` empty. Throws ArgumentError for invalid options
+  /// and NumericalError for a CIRC without a circle (collinear points).
+  /// `seed`: the real joint values at the segment's start (the previous
   /// point's q_real; the start continues from them); empty: the start is solved with
   /// `config`. `config` is the S/T the program gives the segment's end target: like the
   /// controller on LIN / CIRC, every point along the segment keeps the configuration of the

@@ -21,6 +21,7 @@
 #include <string>
 #include <vector>
 
+#include "accura/calib/errors.h"
 #include "accura/calib/kinematics.h"
 #include "accura/calib/robot.h"
 #include "accura/postproc/compensate.h"
@@ -103,13 +104,30 @@ struct JobReport {
   XyzAbc calibrated_base_in_world;  ///< the calibrated model's base
 };
 
-/// Compensates every target of `program` (see the file comment): returns the program with
-/// the corrected targets marked `modified` and the auxiliary points inserted (marked
-/// `inserted`, before their motion). Fills `report` (may be null). Throws InputError listing
-/// every problem with its location (file:line:column) when a target cannot be compensated
-/// (unreachable, singular, joint limits, its S/T configuration would change, an unknown tool
-/// or base, a malformed or run-time target on a LIN/CIRC), ArgumentError on invalid settings.
+/// A program compensated, and its complete report (every total computed, its errors listed).
+struct ProgramCompensation {
+  Program program;   ///< meaningful only when ok()
+  JobReport report;
+  bool ok() const { return report.errors.empty(); }
+};
+
+/// Compensates every target of `program` (see the file comment): the program with the
+/// corrected targets marked `modified` and the auxiliary points inserted (marked `inserted`,
+/// before their motion). The targets that cannot be compensated (unreachable, singular, joint
+/// limits, its S/T configuration would change, an unknown tool or base, a malformed or
+/// run-time target on a LIN/CIRC) are returned in report.errors with their location, not
+/// thrown (errors.h, "The rule"). Throws ArgumentError on invalid settings and InputError
+/// when the calibrated base is far from the placement (placement.h, placeRobot).
 /// Deterministic: the same inputs give the same output on every run and thread.
+ProgramCompensation compensateProgramReport(const Program& program, const JobSettings& settings);
+
+/// The InputError that lists every error of `report` (the first with its file:line:column).
+/// Requires !report.errors.empty().
+InputError compensationError(const JobReport& report);
+
+/// compensateProgramReport for callers that want an exception: fills `report` (may be null)
+/// with the complete report, then throws compensationError(report) when a target cannot be
+/// compensated.
 Program compensateProgram(const Program& program, const JobSettings& settings, JobReport* report);
 
 /// Rotation angle of R (deg, in [0, 180]).

@@ -40,6 +40,11 @@ Placement placeRobot(const JobSettings& job, const std::string& placement_settin
 /// 1e-3 deg.
 JobSettings placedInCell(const JobSettings& job, const Cell& cell);
 
+/// The robot a controller runs (a robot file read from `path`) must be the calibrated model's
+/// nominal robot: the same joint count, types, DH geometry, directions and limits (within
+/// 1e-9 mm / deg). Throws InputError (naming `path` and what differs) otherwise.
+void checkControllerRobot(const RobotDefinition& calibrated, const RobotDefinition& controller, const std::string& path);
+
 /// The models of one program tool: the controller (nominal kinematics at the placement with
 /// the tool) and the real robot (realModelForTool).
 struct ToolModels {

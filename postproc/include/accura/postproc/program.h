@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "accura/calib/geometry.h"
+#include "accura/calib/text.h"
 
 namespace accura::postproc {
 
@@ -159,9 +160,10 @@ std::string motionKeyword(const Motion& m);
 
 /// Number formats for values the post-processor writes (fixed decimals, never "-0"):
 /// lengths %.4f (mm, 0.1 um), angles %.5f (deg, ~0.2 urad), speeds and other values %.4f.
+/// (formatFixed is calib's one number formatter, accura/calib/text.h.)
 std::string formatMm(double v);
 std::string formatDeg(double v);
-std::string formatFixed(double v, int decimals);
+using accura::formatFixed;
 
 /// A TOOL_DATA / BASE_DATA table (index -> frame), e.g. from $config.dat.
 struct FrameTables {

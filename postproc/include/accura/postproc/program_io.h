@@ -5,6 +5,7 @@
 #include <string>
 #include <vector>
 
+#include "accura/calib/file_io.h"
 #include "accura/postproc/program.h"
 
 namespace accura::postproc {
@@ -23,11 +24,8 @@ struct ProgramReadOptions {
 /// Reads a program in the format of its extension. Throws InputError (file:line:column).
 Program readProgram(const std::string& path, const ProgramReadOptions& options = {});
 
-/// One output file: where it goes and its bytes.
-struct OutputFile {
-  std::string path;
-  std::string text;
-};
+/// One output file (file_io.h, the one writer).
+using accura::OutputFile;
 
 /// The files of `program` written as `format`: XML -> `path`; KRL -> `path` (the .src) and
 /// `dat_path` (empty: `path` with the extension .dat) when the program has a .dat (a program

@@ -1,0 +1,625 @@
+// KRL reader: the .src (motions, frames, speeds) on top of the data part (see krl.h).
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <set>
+#include <sstream>
+
+#include "accura/calib/errors.h"
+#include "krl_internal.h"
+
+namespace fs = std::filesystem;
+
+namespace accura::postproc {
+namespace {
+
+using namespace krl_detail;
+
+// ---------------------------------------------------------------------------------------------
+// The .src
+
+bool isMotionKeyword(const std::string& up) {
+  static const std::set<std::string> k = {"PTP", "LIN", "CIRC", "SPTP", "SLIN", "SCIRC", "SPL",
+                                          "PTP_REL", "LIN_REL", "CIRC_REL", "SPTP_REL", "SLIN_REL", "SCIRC_REL", "SPL_REL"};
+  return k.count(up) > 0;
+}
+
+bool isApproxTok(const Tok& t) {
+  Approximation a;
+  return t.kind == Tok::kIdent && parseApproximation(t.text, &a);
+}
+
+struct Reader {
+  Declarations decl;
+  KrlSource* src = nullptr;
+  Program* program = nullptr;
+  const KrlFile* f = nullptr;
+
+  FrameSetting tool, base;
+  bool external_tcp = false;
+  std::string fdat_name;  // as assigned to FDAT_ACT (upper case), "" none or an aggregate
+  std::optional<Fdat> fdat;
+  std::string fdat_problem;
+  std::optional<MoveData> ldat, pdat;
+  std::optional<double> vel_cp, vel_ptp, apo_cdis, apo_cptp, apo_cvel, apo_cori;
+  bool in_spline = false;
+  int triggers = 0;
+
+  FrameSetting dataFrame(bool is_tool, int n, size_t at) const {
+    FrameSetting s;
+    s.where = f->loc(at);
+    if (n == 0) {
+      s.source = FrameSetting::Source::kNull;
+      s.value = XyzAbc{};
+      s.text = is_tool ? "TOOL_DATA[0] ($NULLFRAME)" : "BASE_DATA[0] ($NULLFRAME)";
+      return s;
+    }
+    s.source = FrameSetting::Source::kData;
+    s.index = n;
+    s.text = std::string(is_tool ? "TOOL_DATA[" : "BASE_DATA[") + std::to_string(n) + "]";
+    s.value = tableValue(is_tool ? decl.tables.tool : decl.tables.base, n);
+    return s;
+  }
+
+  FrameSetting unknownFrame(const std::string& text, size_t at, const std::string& note = "") const {
+    FrameSetting s;
+    s.source = FrameSetting::Source::kUnknown;
+    s.text = text;
+    s.note = note;
+    s.where = f->loc(at);
+    return s;
+  }
+
+  // Evaluates the right-hand side of $TOOL = ... / $BASE = ... (tokens [b, e)).
+  FrameSetting evalFrame(const std::vector<Tok>& toks, size_t b, size_t e, bool is_tool, const FrameSetting& current) const {
+    const std::string text = f->text().substr(toks[b].begin, toks[e - 1].end - toks[b].begin);
+    if (toks[b].text == "{") {
+      Cursor c(*f, toks, toks[e - 1].end);
+      c.seek(b);
+      const Agg a = parseAggregate(c);
+      if (c.pos() != e) return unknownFrame(text, toks[b].begin);
+      bool partial = false;
+      const auto v = toFrame(a, *f, current.value, &partial);
+      FrameSetting s;
+      s.where = f->loc(toks[b].begin);
+      if (!v) {
+        s.source = FrameSetting::Source::kUnknown;
+        s.text = text;
+        s.note = "a partial frame while the previous one is not known";
+        return s;
+      }
+      s.source = FrameSetting::Source::kInline;
+      s.value = v;
+      s.text = text;
+      return s;
+    }
+    if (e - b == 1 && toks[b].up == "$NULLFRAME") {
+      FrameSetting s;
+      s.source = FrameSetting::Source::kNull;
+      s.value = XyzAbc{};
+      s.text = "$NULLFRAME";
+      s.where = f->loc(toks[b].begin);
+      return s;
+    }
+    if (e - b == 4 && (toks[b].up == "TOOL_DATA" || toks[b].up == "BASE_DATA" || toks[b].up == "$TOOL_DATA" ||
+                       toks[b].up == "$BASE_DATA") &&
+        toks[b + 1].text == "[" && toks[b + 2].kind == Tok::kNumber && toks[b + 3].text == "]") {
+      const bool tool_table = toks[b].up.find("TOOL") != std::string::npos;
+      if (tool_table == is_tool) return dataFrame(is_tool, std::atoi(toks[b + 2].text.c_str()), toks[b].begin);
+    }
+    return unknownFrame(text, toks[b].begin);
+  }
+
+  void applyFdatFrames(size_t at) {
+    if (!fdat) {
+      const std::string name = fdat_name.empty() ? "FDAT_ACT" : fdat_name;
+      const std::string why = fdat_problem.empty() ? "no FDAT_ACT before BAS" : fdat_problem;
+      tool = unknownFrame("TOOL_DATA[" + name + ".TOOL_NO]", at, why);
+      base = unknownFrame("BASE_DATA[" + name + ".BASE_NO]", at, why);
+      return;
+    }
+    if (fdat->tool_no) tool = dataFrame(true, *fdat->tool_no, at);
+    if (fdat->base_no) base = dataFrame(false, *fdat->base_no, at);
+    external_tcp = fdat->external_tcp;
+  }
+
+  // Finds the end of an expression starting at b: a depth-0 ',' or approximation flag or WITH.
+  // Two operands side by side at depth 0 (no operator between them) end the expression too.
+  static size_t exprEnd(const std::vector<Tok>& t, size_t b, bool stop_at_comma = true) {
+    int depth = 0;
+    size_t i = b;
+    bool after_operand = false;  // the previous depth-0 token ended an operand
+    for (; i < t.size(); ++i) {
+      const Tok& k = t[i];
+      const bool opens = k.kind == Tok::kPunct && (k.text == "(" || k.text == "[" || k.text == "{");
+      const bool starts_operand = k.kind == Tok::kIdent || k.kind == Tok::kNumber || k.kind == Tok::kString ||
+                                  k.kind == Tok::kChar || k.kind == Tok::kEnum || (k.kind == Tok::kPunct && k.text == "{");
+      if (depth == 0 && after_operand && starts_operand) break;
+      if (opens) {
+        ++depth;
+      } else if (k.kind == Tok::kPunct && (k.text == ")" || k.text == "]" || k.text == "}")) {
+        --depth;
+      } else if (depth == 0 && ((stop_at_comma && k.kind == Tok::kPunct && k.text == ",") || isApproxTok(k) ||
+                                (k.kind == Tok::kIdent && k.up == "WITH"))) {
+        break;
+      }
+      if (depth == 0) {
+        after_operand = k.kind == Tok::kIdent || k.kind == Tok::kNumber || k.kind == Tok::kString || k.kind == Tok::kChar ||
+                        k.kind == Tok::kEnum || (k.kind == Tok::kPunct && (k.text == ")" || k.text == "]" || k.text == "}"));
+      }
+    }
+    return i;
+  }
+
+  // Resolves a target expression [b, e) into `out`; returns the problem ("" when usable).
+  std::string resolveTarget(const std::vector<Tok>& t, size_t b, size_t e, Target* out) {
+    const std::string text = f->text().substr(t[b].begin, t[e - 1].end - t[b].begin);
+    if (t[b].text == "{") {
+      Cursor c(*f, t, t[e - 1].end);
+      c.seek(b);
+      const Agg a = parseAggregate(c);
+      if (c.pos() != e) c.fail("expected the end of the target after the aggregate, found " + describe(c.peek()));
+      *out = toTarget(a, "", *f, src);
+      return "";
+    }
+    if (e - b == 1 && t[b].kind == Tok::kIdent) {
+      const std::string& up = t[b].up;
+      out->name = t[b].text;
+      if (!up.empty() && up[0] == '$') return "the target is the system variable " + t[b].text;
+      auto it = decl.points.find(up);
+      if (it == decl.points.end()) {
+        if (decl.arrays.count(up)) return t[b].text + " is an array";
+        return t[b].text + " is not declared in " + src->src_path + (src->dat_path.empty() ? "" : " or " + src->dat_path) +
+               " (a global point: give --config $config.dat)";
+      }
+      const PointEntry& p = it->second;
+      if (!p.problem.empty()) return p.problem;
+      *out = *p.value;
+      out->name = t[b].text;
+      return "";
+    }
+    return "the target '" + text + "' is computed at run time";
+  }
+
+  void handleAssignment(const std::vector<Tok>& t, size_t eq) {
+    // lhs = t[0, eq), rhs = t[eq+1, end)
+    const size_t b = eq + 1, e = t.size();
+    if (b >= e) return;
+    const std::string lhs0 = t[0].up;
+    const bool simple = eq == 1;
+    const bool field = eq == 3 && t[1].text == ".";
+    const std::string fieldname = field ? t[2].up : "";
+    if (simple && (lhs0 == "$TOOL" || lhs0 == "$BASE")) {
+      const bool is_tool = lhs0 == "$TOOL";
+      FrameSetting& s = is_tool ? tool : base;
+      s = evalFrame(t, b, e, is_tool, s);
+      return;
+    }
+    if ((lhs0 == "$TOOL" || lhs0 == "$BASE") && field) {
+      FrameSetting& s = lhs0 == "$TOOL" ? tool : base;
+      s = unknownFrame(f->text().substr(t[0].begin, t[e - 1].end - t[0].begin), t[0].begin);
+      return;
+    }
+    if (lhs0 == "$VEL" && field && fieldname == "CP") { vel_cp = numberValue(t, b, e); return; }
+    if (lhs0 == "$VEL_AXIS" && !simple) { vel_ptp = numberValue(t, b, e); return; }
+    if (lhs0 == "$APO" && field) {
+      const auto v = numberValue(t, b, e);
+      if (fieldname == "CDIS") apo_cdis = v;
+      if (fieldname == "CPTP") apo_cptp = v;
+      if (fieldname == "CVEL") apo_cvel = v;
+      if (fieldname == "CORI") apo_cori = v;
+      return;
+    }
+    if (simple && (lhs0 == "FDAT_ACT" || lhs0 == "LDAT_ACT" || lhs0 == "PDAT_ACT")) {
+      const bool name = e - b == 1 && t[b].kind == Tok::kIdent;
+      const std::string key = name ? t[b].up : "";
+      if (lhs0 == "FDAT_ACT") {
+        fdat.reset();
+        fdat_problem.clear();
+        fdat_name = key;
+        if (t[b].text == "{") {  // FDAT_ACT = {TOOL_NO 1,BASE_NO 0,IPO_FRAME #BASE}
+          Cursor c(*f, t, t[e - 1].end);
+          c.seek(b);
+          fdat = toFdat(parseAggregate(c), *f);
+          return;
+        }
+        auto it = decl.fdats.find(key);
+        if (it != decl.fdats.end()) fdat = it->second;
+        else fdat_problem = f->text().substr(t[b].begin, t[e - 1].end - t[b].begin) + " is not declared (a global FDAT: give --config $config.dat)";
+      } else {
+        auto& table = lhs0 == "LDAT_ACT" ? decl.ldats : decl.pdats;
+        auto it = table.find(key);
+        (lhs0 == "LDAT_ACT" ? ldat : pdat) = it != table.end() ? std::optional<MoveData>(it->second) : std::nullopt;
+      }
+      return;
+    }
+    // a point changed by the program
+    auto it = decl.points.find(lhs0);
+    if (it != decl.points.end()) {
+      PointEntry& p = it->second;
+      if (simple && t[b].text == "{" ) {
+        Cursor c(*f, t, t[e - 1].end);
+        c.seek(b);
+        const Agg a = parseAggregate(c);
+        if (c.pos() == e) {
+          Target v = toTarget(a, p.type, *f, src);
+          const bool complete = v.kind == Target::Kind::kCartesian ? v.completePose() : [&] {
+            for (int k = 0; k < 6; ++k)
+              if (!v.axes[k]) return false;
+            return true;
+          }();
+          if (complete) {
+            v.name = p.name;
+            p.value = v;
+            p.problem.clear();
+            p.global = false;
+            return;
+          }
+        }
+      }
+      p.problem = p.name + " is changed at run time (" + f->loc(t[0].begin).str() + ")";
+    }
+  }
+
+  void handleBas(const std::vector<Tok>& t) {
+    // BAS ( #CMD [, value] )
+    if (t.size() < 4 || t[1].text != "(" || t[2].kind != Tok::kEnum) return;
+    const std::string cmd = t[2].up;
+    std::optional<double> value;
+    if (t.size() >= 6 && t[3].text == ",") value = numberValue(t, 4, t.size() - 1);
+    const size_t at = t[0].begin;
+    if (cmd == "#TOOL" || cmd == "#BASE") {
+      const auto n = t.size() >= 6 && t[3].text == "," ? integerValue(t, 4, t.size() - 1) : std::nullopt;
+      FrameSetting& s = cmd == "#TOOL" ? tool : base;
+      if (n) s = dataFrame(cmd == "#TOOL", *n, at);
+      else s = unknownFrame(f->text().substr(t[0].begin, t.back().end - t[0].begin), at);
+    } else if (cmd == "#PTP_PARAMS") {
+      applyFdatFrames(at);
+      vel_ptp = value;
+      if (pdat && pdat->apo_dist) apo_cptp = pdat->apo_dist;
+    } else if (cmd == "#CP_PARAMS") {
+      applyFdatFrames(at);
+      vel_cp = value;
+      if (ldat && ldat->apo_dist) apo_cdis = ldat->apo_dist;
+    } else if (cmd == "#FRAMES") {
+      applyFdatFrames(at);
+    } else if (cmd == "#PTP_DAT") {  // KRC2 inline forms: PDAT_ACT, then BAS(#PTP_DAT)
+      if (pdat && pdat->apo_dist) apo_cptp = pdat->apo_dist;
+    } else if (cmd == "#CP_DAT") {
+      if (ldat && ldat->apo_dist) apo_cdis = ldat->apo_dist;
+    } else if (cmd == "#VEL_PTP") {
+      vel_ptp = value;
+    } else if (cmd == "#VEL_CP") {
+      vel_cp = value;
+    }
+  }
+
+  // WITH assignments of a spline motion (valid for this motion only).
+  void applyWith(const std::vector<Tok>& t, size_t b, size_t e, Motion& m) {
+    size_t i = b;
+    while (i < e) {
+      size_t j = exprEnd(t, i);
+      if (j > e) j = e;
+      // one assignment [i, j)
+      size_t eq = i;
+      while (eq < j && !(t[eq].kind == Tok::kPunct && t[eq].text == "=")) ++eq;
+      if (eq < j && eq > i && eq + 1 < j) {
+        const std::string lhs = t[i].up;
+        const size_t rb = eq + 1, re = j;
+        const bool call = re - rb >= 3 && t[rb].kind == Tok::kIdent && t[rb + 1].text == "(";
+        const std::string fn = call ? t[rb].up : "";
+        auto arg = [&](size_t k) -> std::pair<size_t, size_t> {  // k-th argument of the call
+          size_t s = rb + 2, n = 0;
+          int depth = 0;
+          for (size_t x = rb + 2; x < re; ++x) {
+            const std::string& tx = t[x].text;
+            if (tx == "(" || tx == "[" || tx == "{") ++depth;
+            if ((tx == ")" && depth == 0) || (tx == "," && depth == 0)) {
+              if (n == k) return {s, x};
+              ++n;
+              s = x + 1;
+              if (tx == ")") break;
+              continue;
+            }
+            if (tx == ")" || tx == "]" || tx == "}") --depth;
+          }
+          return {0, 0};
+        };
+        if (lhs == "$TOOL" || lhs == "$BASE") {
+          const bool is_tool = lhs == "$TOOL";
+          FrameSetting& s = is_tool ? m.tool : m.base;
+          if (fn == "STOOL2" || fn == "SBASE") {
+            const auto a = arg(0);
+            // STOOL2(FP1) / SBASE(FP1.BASE_NO)
+            std::string name = a.second > a.first ? t[a.first].up : "";
+            auto it = decl.fdats.find(name);
+            if (it != decl.fdats.end() && ((is_tool && it->second.tool_no) || (!is_tool && it->second.base_no))) {
+              s = dataFrame(is_tool, is_tool ? *it->second.tool_no : *it->second.base_no, t[rb].begin);
+              if (is_tool) m.external_tcp = it->second.external_tcp;
+            } else {
+              s = unknownFrame(f->text().substr(t[rb].begin, t[re - 1].end - t[rb].begin), t[rb].begin,
+                               name.empty() ? "" : name + " is not declared (a global FDAT: give --config $config.dat)");
+            }
+          } else {
+            s = evalFrame(t, rb, re, is_tool, s);
+          }
+        } else if (lhs == "$VEL" && (fn == "SVEL_CP")) {
+          const auto a = arg(0);
+          m.vel_m_s = numberValue(t, a.first, a.second);
+        } else if (lhs == "$VEL_AXIS" && fn == "SVEL_JOINT") {
+          const auto a = arg(0);
+          m.vel_percent = numberValue(t, a.first, a.second);
+        } else if (lhs == "$APO" && (fn == "SAPO" || fn == "SAPO_PTP")) {
+          const auto a = arg(0);
+          if (a.second == a.first + 1) {
+            const auto& table = fn == "SAPO" ? decl.ldats : decl.pdats;
+            auto it = table.find(t[a.first].up);
+            if (it != table.end() && it->second.apo_dist && !m.approximation.empty()) m.approximation_value = it->second.apo_dist;
+          }
+        } else if (lhs == "$IPO_MODE" && fn == "SIPO_MODE") {
+          const auto a = arg(0);
+          if (a.second > a.first) {
+            auto it = decl.fdats.find(t[a.first].up);
+            if (it != decl.fdats.end()) m.external_tcp = it->second.external_tcp;
+          }
+        }
+      }
+      i = j;
+      if (i < e && t[i].text == ",") ++i;
+      else break;
+    }
+  }
+
+  void handleMotion(const Line& l, const std::vector<Tok>& t) {
+    Motion m;
+    std::string kw = t[0].up;
+    m.where = f->loc(t[0].begin);
+    m.statement = f->text().substr(t[0].begin, l.code_end - t[0].begin);
+    if (kw.size() > 4 && kw.compare(kw.size() - 4, 4, "_REL") == 0) {
+      m.relative = true;
+      kw = kw.substr(0, kw.size() - 4);
+    }
+    if (kw == "SPTP" || kw == "SLIN" || kw == "SCIRC" || kw == "SPL") {
+      m.spline = true;
+      kw = kw == "SPL" ? "SPL" : kw.substr(1);
+    }
+    if (kw == "PTP") m.type = MotionType::kPtp;
+    else if (kw == "LIN") m.type = MotionType::kLin;
+    else if (kw == "CIRC") m.type = MotionType::kCirc;
+    else m.type = MotionType::kSpl;
+    if (m.type == MotionType::kSpl && !in_spline)
+      f->fail(t[0].begin, "expected SPL inside a SPLINE ... ENDSPLINE block, found it outside");
+
+    KrlSource::Statement st;
+    st.file = f->index();
+    st.line_begin = l.begin;
+    st.code_begin = t[0].begin;
+    st.code_end = l.code_end;
+    st.eol = l.eol;
+
+    Cursor c(*f, t, l.code_end);
+    c.seek(1);
+    auto takeTarget = [&](const char* what) -> std::pair<size_t, size_t> {
+      const size_t b = c.pos();
+      const size_t e = exprEnd(t, b);
+      if (e == b) c.fail(std::string("expected ") + what + " after " + t[0].text + ", found " + describe(c.peek()));
+      c.seek(e);
+      return {b, e};
+    };
+    const auto first = takeTarget(m.type == MotionType::kCirc ? "the auxiliary point" : "a target");
+    std::pair<size_t, size_t> end_range = first;
+    if (m.type == MotionType::kCirc) {
+      c.expectPunct(",", "between the auxiliary point and the end point of " + t[0].text);
+      end_range = takeTarget("the end point");
+      if (c.isPunct(",") && c.isIdent("CA", 1)) {
+        c.next();
+        c.next();
+        const size_t b = c.pos();
+        const size_t e = exprEnd(t, b);
+        const auto v = numberValue(t, b, e);
+        if (!v) c.fail("expected a number (deg) after CA, found " + describe(c.peek()));
+        m.circ_angle_deg = *v;
+        c.seek(e);
+      }
+    }
+    // approximation flags, WITH, coordinate system of relative motions
+    size_t with_b = 0, with_e = 0;
+    while (!c.atEnd()) {
+      const Tok& k = *c.peek();
+      Approximation a;
+      if (k.kind == Tok::kIdent && parseApproximation(k.text, &a)) {
+        m.approximation.push_back(a);
+        c.next();
+      } else if (k.kind == Tok::kIdent && k.up == "WITH") {
+        c.next();
+        with_b = c.pos();
+        size_t i = with_b;
+        // the WITH list runs until a depth-0 approximation flag or the end
+        while (i < t.size()) {
+          const size_t j = exprEnd(t, i);
+          i = j;
+          if (i < t.size() && t[i].text == ",") {
+            ++i;
+            continue;
+          }
+          break;
+        }
+        with_e = i;
+        c.seek(i);
+      } else if (k.kind == Tok::kEnum && m.relative && (k.up == "#BASE" || k.up == "#TOOL")) {
+        c.next();
+      } else {
+        c.fail("expected an approximation flag (C_PTP, C_DIS, C_VEL, C_ORI, C_SPL) or WITH after the target, found " + describe(&k));
+      }
+    }
+
+    // state at this motion
+    m.tool = tool;
+    m.base = base;
+    m.external_tcp = external_tcp;
+    if (m.type == MotionType::kPtp) m.vel_percent = vel_ptp;
+    else m.vel_m_s = vel_cp;
+    if (!m.approximation.empty()) {
+      switch (m.approximation.front()) {
+        case Approximation::kCDis: m.approximation_value = apo_cdis; break;
+        case Approximation::kCPtp: m.approximation_value = apo_cptp; break;
+        case Approximation::kCVel: m.approximation_value = apo_cvel; break;
+        case Approximation::kCOri: m.approximation_value = apo_cori; break;
+        case Approximation::kCSpl: m.approximation_value = apo_cdis; break;
+      }
+    }
+    if (with_e > with_b) applyWith(t, with_b, with_e, m);
+
+    // targets
+    std::string problem;
+    if (m.type == MotionType::kCirc) {
+      Target aux;
+      problem = resolveTarget(t, first.first, first.second, &aux);
+      m.aux = aux;
+      st.targets.push_back({t[first.first].begin, t[first.second - 1].end});
+    }
+    {
+      const std::string p2 = resolveTarget(t, end_range.first, end_range.second, &m.target);
+      if (problem.empty()) problem = p2;
+      st.targets.push_back({t[end_range.first].begin, t[end_range.second - 1].end});
+    }
+    if (m.relative && problem.empty()) problem = "a relative motion (" + t[0].text + ")";
+    m.target_problem = problem;
+    if (problem.empty() && m.type != MotionType::kPtp) {
+      const auto check = [&](const Target& x, const char* what) {
+        if (x.kind == Target::Kind::kAxis)
+          f->fail(x.value_id >= 0 ? src->values[static_cast<size_t>(x.value_id)].begin : t[0].begin,
+                  std::string("expected a Cartesian ") + what + " for " + t[0].text + " (E6POS, POS, FRAME), found an axis target" +
+                      (x.name.empty() ? "" : " (" + x.name + ")"));
+      };
+      check(m.target, "target");
+      if (m.aux) check(*m.aux, "auxiliary point");
+    }
+    m.trigger_count = triggers;
+    triggers = 0;
+    m.statement_id = static_cast<int>(src->statements.size());
+    src->statements.push_back(std::move(st));
+    program->motions.push_back(std::move(m));
+  }
+
+  void handleLine(const Line& l) {
+    const std::vector<Tok> t = lex(*f, l.begin, l.code_end);
+    if (t.empty() || t[0].text == "&") return;
+    const std::string& k = t[0].up;
+    if (k == "DEF" || (k == "GLOBAL" && t.size() > 1 && t[1].up == "DEF")) {
+      if (program->name.empty()) {
+        const size_t i = k == "DEF" ? 1 : 2;
+        if (i < t.size() && t[i].kind == Tok::kIdent) program->name = t[i].text;
+      }
+      return;
+    }
+    if (k == "SPLINE" || k == "PTP_SPLINE") { in_spline = true; return; }
+    if (k == "ENDSPLINE") { in_spline = false; return; }
+    if (k == "TRIGGER") { ++triggers; return; }
+    if (k == "DECL" || ((isPointType(k) || k == "FDAT" || k == "LDAT" || k == "PDAT") && t.size() > 1 && t[1].kind == Tok::kIdent)) {
+      Cursor c(*f, t, l.code_end);
+      parseDeclaration(c, decl, src, false);
+      return;
+    }
+    if (isMotionKeyword(k) && t[0].kind == Tok::kIdent) {
+      // "LIN = 3" would be an assignment to a variable named like a keyword: not KRL
+      handleMotion(l, t);
+      return;
+    }
+    if (k == "BAS" && t.size() > 1 && t[1].text == "(") {
+      handleBas(t);
+      return;
+    }
+    {
+      Cursor c(*f, t, l.code_end);
+      if (parseTableAssignment(c, decl)) return;
+    }
+    // assignment: find a depth-0 '=' (not '==')
+    if (t[0].kind == Tok::kIdent) {
+      int depth = 0;
+      for (size_t i = 1; i < t.size(); ++i) {
+        const std::string& x = t[i].text;
+        if (x == "[" || x == "(") ++depth;
+        else if (x == "]" || x == ")") --depth;
+        else if (depth == 0 && x == "=" && t[i].kind == Tok::kPunct) {
+          handleAssignment(t, i);
+          return;
+        }
+        else if (depth == 0 && x != "." && t[i].kind == Tok::kPunct) break;
+      }
+    }
+  }
+};
+
+std::string findDat(const std::string& src_path) {
+  const fs::path p(src_path);
+  const fs::path dir = p.has_parent_path() ? p.parent_path() : fs::path(".");
+  const std::string stem = upper(p.stem().string());
+  std::error_code ec;
+  std::vector<std::string> found;
+  for (const auto& e : fs::directory_iterator(dir, ec)) {
+    if (!e.is_regular_file(ec)) continue;
+    const fs::path q = e.path();
+    if (upper(q.stem().string()) == stem && upper(q.extension().string()) == ".DAT")
+      found.push_back(p.has_parent_path() ? (dir / q.filename()).string() : q.filename().string());
+  }
+  if (found.empty()) return "";
+  std::sort(found.begin(), found.end());
+  // prefer the exact-case sibling
+  for (const auto& s : found)
+    if (fs::path(s).stem() == p.stem()) return s;
+  return found.front();
+}
+
+
+}  // namespace
+
+FrameTables readKrlFrameTables(const std::string& config_path) {
+  const KrlFile f(config_path, readFileBytes(config_path, "the $config.dat"), 2);
+  Declarations d;
+  parseDataFile(f, d, nullptr, true);
+  d.tables.file = config_path;
+  return d.tables;
+}
+
+Program readKrl(const std::string& src_path, const KrlReadOptions& options) {
+  auto source = std::make_shared<KrlSource>();
+  source->src_path = src_path;
+  source->src_text = readFileBytes(src_path, "the KRL program");
+  source->dat_path = options.dat_path.empty() ? findDat(src_path) : options.dat_path;
+  if (!source->dat_path.empty()) source->dat_text = readFileBytes(source->dat_path, "the KRL data file");
+
+  Program program;
+  program.source_file = src_path;
+  Reader r;
+  r.src = source.get();
+  r.program = &program;
+
+  if (!options.config_path.empty()) {
+    const KrlFile cfg(options.config_path, readFileBytes(options.config_path, "the $config.dat"), 2);
+    parseDataFile(cfg, r.decl, nullptr, true);
+    r.decl.tables.file = options.config_path;
+  }
+  if (!source->dat_path.empty()) {
+    const KrlFile dat(source->dat_path, source->dat_text, 1);
+    parseDataFile(dat, r.decl, source.get(), false);
+  }
+  const KrlFile src(src_path, source->src_text, 0);
+  r.f = &src;
+  for (const Line& l : src.lines()) r.handleLine(l);
+  if (program.name.empty()) {
+    bool any = false;
+    for (const Line& l : src.lines())
+      if (l.code_end > l.begin) any = true;
+    if (any || src.lines().empty()) throw InputError(src_path, 0, 0, "expected a KRL program (DEF name( ) ... END), found no DEF line");
+  }
+  program.krl = source;
+  return program;
+}
+
+
+}  // namespace accura::postproc

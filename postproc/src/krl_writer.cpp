@@ -1,0 +1,299 @@
+// KRL writer: a program read from KRL patched in place, or a new program (see krl.h).
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <set>
+#include <sstream>
+
+#include "accura/calib/errors.h"
+#include "krl_internal.h"
+
+namespace fs = std::filesystem;
+
+namespace accura::postproc {
+namespace {
+
+using namespace krl_detail;
+
+// ---------------------------------------------------------------------------------------------
+// Writing
+
+std::string formatAxis(double v) { return formatFixed(v, 4); }
+
+std::string componentText(const Target& t, const std::string& name) {
+  int k;
+  if ((k = indexOf(kCartNames, name)) >= 0 && t.kind == Target::Kind::kCartesian && t.pose[k])
+    return k < 3 ? formatMm(*t.pose[k]) : formatDeg(*t.pose[k]);
+  if ((k = indexOf(kAxisNames, name)) >= 0 && t.axes[k]) return formatAxis(*t.axes[k]);
+  if ((k = indexOf(kExtNames, name)) >= 0 && t.ext[k]) return formatAxis(*t.ext[k]);
+  if (name == "S" && t.status) return std::to_string(*t.status);
+  if (name == "T" && t.turn) return std::to_string(*t.turn);
+  return "";
+}
+
+// The new text of a target's aggregate: the numbers of the pose (or axes) replaced in place when
+// the aggregate has them all, else the whole aggregate rebuilt.
+std::string rewriteValue(const KrlSource::Value& v, const std::string& text, const Target& t) {
+  const bool cart = t.kind == Target::Kind::kCartesian;
+  const char* const* names = cart ? kCartNames : kAxisNames;
+  std::set<std::string> have;
+  for (const auto& c : v.components) have.insert(c.name);
+  bool all = true;
+  for (int k = 0; k < 6; ++k)
+    if (!have.count(names[k])) all = false;
+  if (!all) {
+    std::string agg = krlAggregate(t);
+    const std::string orig = text.substr(v.begin, v.end - v.begin);
+    const size_t colon = orig.find(':');
+    if (!t.type.empty() && colon != std::string::npos) agg = orig.substr(0, colon + 1) + " " + agg.substr(1);
+    return agg;
+  }
+  std::string out;
+  size_t pos = v.begin;
+  for (const auto& c : v.components) {
+    out += text.substr(pos, c.begin - pos);
+    // the pose, and S / T when the compensation changed them
+    const bool st_changed = cart && ((c.name == "S" && t.status && *t.status != c.value) ||
+                                     (c.name == "T" && t.turn && *t.turn != c.value));
+    const bool ours = indexOf(names, c.name) >= 0 || st_changed;
+    out += ours ? componentText(t, c.name) : text.substr(c.begin, c.end - c.begin);
+    pos = c.end;
+  }
+  out += text.substr(pos, v.end - pos);
+  return out;
+}
+
+struct Edit {
+  int file;
+  size_t begin, end;
+  std::string text;
+  int order;  // stable tie-break
+};
+
+std::string applyEdits(const std::string& text, std::vector<Edit> edits, int file) {
+  std::vector<Edit> mine;
+  for (auto& e : edits)
+    if (e.file == file) mine.push_back(e);
+  std::stable_sort(mine.begin(), mine.end(), [](const Edit& a, const Edit& b) {
+    if (a.begin != b.begin) return a.begin < b.begin;
+    return a.order < b.order;
+  });
+  std::string out;
+  size_t pos = 0;
+  for (const auto& e : mine) {
+    if (e.begin < pos) throw ArgumentError("writeKrl: overlapping edits");
+    out += text.substr(pos, e.begin - pos);
+    out += e.text;
+    pos = e.end;
+  }
+  out += text.substr(pos);
+  return out;
+}
+
+std::string dominantEol(const std::string& text) {
+  return text.find("\r\n") != std::string::npos ? "\r\n" : "\n";
+}
+
+KrlText patchKrl(const Program& p) {
+  const KrlSource& s = *p.krl;
+  std::vector<Edit> edits;
+  std::map<int, std::pair<std::string, std::string>> value_text;  // value id -> (text, who)
+  int order = 0;
+  auto textOf = [&](int file) -> const std::string& { return file == 0 ? s.src_text : s.dat_text; };
+  auto modify = [&](const Target& t, const Motion& m) {
+    if (!t.modified) return;
+    if (t.value_id < 0)
+      throw ArgumentError(m.where.str() + ": cannot write the corrected value of " + (t.name.empty() ? "this target" : t.name) +
+                          ": it is declared outside the program (e.g. in $config.dat)");
+    const KrlSource::Value& v = s.values.at(static_cast<size_t>(t.value_id));
+    const std::string text = rewriteValue(v, textOf(v.file), t);
+    auto it = value_text.find(t.value_id);
+    if (it != value_text.end()) {
+      if (it->second.first != text)
+        throw ArgumentError(m.where.str() + ": " + (t.name.empty() ? "this target" : t.name) +
+                            " needs a different correction here than at " + it->second.second +
+                            " (same point, different tool, base or motion): give the motions their own points");
+      return;
+    }
+    value_text[t.value_id] = {text, m.where.str()};
+    edits.push_back({v.file, v.begin, v.end, text, order++});
+  };
+  for (const Motion& m : p.motions) {
+    if (m.inserted) {
+      if (m.statement_id < 0 || m.statement_id >= static_cast<int>(s.statements.size()))
+        throw ArgumentError("writeKrl: an inserted motion has no anchor statement");
+      const KrlSource::Statement& st = s.statements[static_cast<size_t>(m.statement_id)];
+      const std::string& text = textOf(st.file);
+      std::vector<std::string> repl;
+      if (m.aux) repl.push_back(krlAggregate(*m.aux));
+      repl.push_back(krlAggregate(m.target));
+      if (repl.size() != st.targets.size())
+        throw ArgumentError("writeKrl: an inserted motion does not match its anchor statement's targets");
+      std::string line = text.substr(st.line_begin, st.code_begin - st.line_begin);
+      size_t pos = st.code_begin;
+      for (size_t k = 0; k < st.targets.size(); ++k) {
+        line += text.substr(pos, st.targets[k].first - pos);
+        line += repl[k];
+        pos = st.targets[k].second;
+      }
+      line += text.substr(pos, st.code_end - pos);
+      line += st.eol.empty() ? dominantEol(text) : st.eol;
+      edits.push_back({st.file, st.line_begin, st.line_begin, line, order++});
+      continue;
+    }
+    if (m.aux) modify(*m.aux, m);
+    modify(m.target, m);
+  }
+  KrlText out;
+  out.src = applyEdits(s.src_text, edits, 0);
+  out.dat = s.dat_path.empty() ? "" : applyEdits(s.dat_text, edits, 1);
+  return out;
+}
+
+// --- a new program (from XML)
+
+std::string frameAggregate(const XyzAbc& v) {
+  return "{X " + formatMm(v.x_mm) + ",Y " + formatMm(v.y_mm) + ",Z " + formatMm(v.z_mm) + ",A " + formatDeg(v.a_deg) +
+         ",B " + formatDeg(v.b_deg) + ",C " + formatDeg(v.c_deg) + "}";
+}
+
+std::string frameStatement(const char* var, const FrameSetting& s, bool is_tool) {
+  switch (s.source) {
+    case FrameSetting::Source::kUnset: return "";
+    case FrameSetting::Source::kNull: return std::string(var) + "=$NULLFRAME";
+    case FrameSetting::Source::kData:
+      return std::string(var) + "=" + (is_tool ? "TOOL_DATA[" : "BASE_DATA[") + std::to_string(s.index) + "]";
+    case FrameSetting::Source::kInline:
+      if (s.value) return std::string(var) + "=" + frameAggregate(*s.value);
+      return "";
+    case FrameSetting::Source::kUnknown: return std::string(var) + "=" + s.text;
+  }
+  return "";
+}
+
+bool sameFrame(const FrameSetting& a, const FrameSetting& b) {
+  if (a.source != b.source || a.index != b.index || a.value.has_value() != b.value.has_value()) return false;
+  if (a.source == FrameSetting::Source::kUnknown && a.text != b.text) return false;
+  if (a.value) {
+    const XyzAbc& x = *a.value;
+    const XyzAbc& y = *b.value;
+    return formatMm(x.x_mm) == formatMm(y.x_mm) && formatMm(x.y_mm) == formatMm(y.y_mm) && formatMm(x.z_mm) == formatMm(y.z_mm) &&
+           formatDeg(x.a_deg) == formatDeg(y.a_deg) && formatDeg(x.b_deg) == formatDeg(y.b_deg) && formatDeg(x.c_deg) == formatDeg(y.c_deg);
+  }
+  return true;
+}
+
+std::string declType(const Target& t) {
+  if (!t.type.empty()) return t.type;
+  return t.kind == Target::Kind::kAxis ? "E6AXIS" : "E6POS";
+}
+
+KrlText generateKrl(const Program& p) {
+  const std::string name = p.name.empty() ? "program" : p.name;
+  std::ostringstream src, dat;
+  src << "&ACCESS RVP\n&REL 1\nDEF " << name << "( )\n";
+  src << ";FOLD INI\n  BAS (#INITMOV,0 )\n;ENDFOLD (INI)\n";
+  dat << "&ACCESS RVP\n&REL 1\nDEFDAT " << name << " PUBLIC\n";
+  std::map<std::string, std::string> declared;  // upper name -> aggregate text
+  FrameSetting tool, base;
+  std::optional<double> vel_cp, vel_ptp;
+  std::map<Approximation, std::optional<double>> apo;
+  bool in_spline = false;
+  auto targetText = [&](const Target& t, const Motion& m) -> std::string {
+    if (t.name.empty()) return krlAggregate(t);
+    const std::string up = upper(t.name);
+    bool any = false;
+    for (const auto& c : t.pose) any = any || c.has_value();
+    for (const auto& c : t.axes) any = any || c.has_value();
+    if (!any) return t.name;  // no value: declared outside the program (a global point)
+    const std::string agg = krlAggregate(t);
+    auto it = declared.find(up);
+    if (it == declared.end()) {
+      declared[up] = agg;
+      dat << "DECL " << declType(t) << " " << t.name << "=" << agg << "\n";
+    } else if (it->second != agg) {
+      throw ArgumentError(m.where.str() + ": the point " + t.name + " has two different values in this program");
+    }
+    return t.name;
+  };
+  for (const Motion& m : p.motions) {
+    if (m.spline && m.type == MotionType::kSpl && !in_spline) {
+      src << "SPLINE\n";
+      in_spline = true;
+    } else if (in_spline && m.type != MotionType::kSpl) {
+      src << "ENDSPLINE\n";
+      in_spline = false;
+    }
+    if (!sameFrame(m.tool, tool)) {
+      const std::string s = frameStatement("$TOOL", m.tool, true);
+      if (!s.empty()) src << s << "\n";
+      tool = m.tool;
+    }
+    if (!sameFrame(m.base, base)) {
+      const std::string s = frameStatement("$BASE", m.base, false);
+      if (!s.empty()) src << s << "\n";
+      base = m.base;
+    }
+    if (m.type == MotionType::kPtp && m.vel_percent && m.vel_percent != vel_ptp) {
+      for (int k = 1; k <= 6; ++k) src << "$VEL_AXIS[" << k << "]=" << formatFixed(*m.vel_percent, 4) << "\n";
+      vel_ptp = m.vel_percent;
+    }
+    if (m.type != MotionType::kPtp && m.vel_m_s && m.vel_m_s != vel_cp) {
+      src << "$VEL.CP=" << formatFixed(*m.vel_m_s, 4) << "\n";
+      vel_cp = m.vel_m_s;
+    }
+    if (!m.approximation.empty() && m.approximation_value && apo[m.approximation.front()] != m.approximation_value) {
+      const char* var = "CDIS";
+      switch (m.approximation.front()) {
+        case Approximation::kCPtp: var = "CPTP"; break;
+        case Approximation::kCVel: var = "CVEL"; break;
+        case Approximation::kCOri: var = "CORI"; break;
+        default: break;
+      }
+      src << "$APO." << var << "=" << formatFixed(*m.approximation_value, 4) << "\n";
+      apo[m.approximation.front()] = m.approximation_value;
+    }
+    std::string line = motionKeyword(m) + " ";
+    if (m.aux) line += targetText(*m.aux, m) + ", ";
+    line += targetText(m.target, m);
+    if (m.circ_angle_deg) line += ", CA " + formatDeg(*m.circ_angle_deg);
+    for (Approximation a : m.approximation) line += std::string(" ") + toString(a);
+    src << line << "\n";
+  }
+  if (in_spline) src << "ENDSPLINE\n";
+  src << "END\n";
+  dat << "ENDDAT\n";
+  return {src.str(), dat.str()};
+}
+
+
+}  // namespace
+
+std::string krlAggregate(const Target& t) {
+  std::string out = "{";
+  auto add = [&](const std::string& name, const std::string& value) {
+    if (value.empty()) return;
+    if (out.size() > 1) out += ",";
+    out += name + " " + value;
+  };
+  if (t.kind == Target::Kind::kCartesian) {
+    for (int k = 0; k < 6; ++k) add(kCartNames[k], componentText(t, kCartNames[k]));
+    add("S", componentText(t, "S"));
+    add("T", componentText(t, "T"));
+  } else {
+    for (int k = 0; k < 6; ++k) add(kAxisNames[k], componentText(t, kAxisNames[k]));
+  }
+  for (int k = 0; k < 6; ++k) add(kExtNames[k], componentText(t, kExtNames[k]));
+  return out + "}";
+}
+
+KrlText writeKrl(const Program& program) {
+  if (program.krl) return patchKrl(program);
+  return generateKrl(program);
+}
+
+}  // namespace accura::postproc
