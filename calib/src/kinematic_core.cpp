@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+
 #include <string>
 
 #include "accura/calib/errors.h"
@@ -12,6 +13,48 @@
 
 namespace accura {
 namespace {
+
+/// sin and cos of x (rad) together, inline: the reduction by pi/2 in three parts (Cody-Waite,
+/// exact for |x| < 2^19 rad) and fdlibm's minimax polynomials on [-pi/4, pi/4] (error below
+/// 1e-16 absolute; compared with the library in tests/test_effects.cpp); beyond 1e5 rad the
+/// library. About a third of the library's sincos on the FK's six angles.
+inline void fastSinCos(double x, double& s, double& c) {
+  if (!(std::abs(x) < 1e5)) {
+    s = std::sin(x);
+    c = std::cos(x);
+    return;
+  }
+  constexpr double kInvPio2 = 6.36619772367581382433e-01;
+  constexpr double kPio2_1 = 1.57079632673412561417e+00;   // first 33 bits of pi/2
+  constexpr double kPio2_2 = 6.07710050630396597660e-11;   // next 33 bits
+  constexpr double kPio2_2t = 2.02226624879595063154e-21;  // pi/2 - kPio2_1 - kPio2_2
+  // the nearest integer (1.5 * 2^52: the addition rounds away the fraction; no libm call)
+  constexpr double kRound = 6755399441055744.0;
+  const double n = (x * kInvPio2 + kRound) - kRound;
+  const double r = ((x - n * kPio2_1) - n * kPio2_2) - n * kPio2_2t;
+  const double z = r * r;
+  // fdlibm __kernel_sin / __kernel_cos
+  constexpr double S1 = -1.66666666666666324348e-01, S2 = 8.33333333332248946124e-03,
+                   S3 = -1.98412698298579493134e-04, S4 = 2.75573137070700676789e-06,
+                   S5 = -2.50507602534068634195e-08, S6 = 1.58969099521155010221e-10;
+  constexpr double C1 = 4.16666666666666019037e-02, C2 = -1.38888888888741095749e-03,
+                   C3 = 2.48015872894767294178e-05, C4 = -2.75573143513906633035e-07,
+                   C5 = 2.08757232129817482790e-09, C6 = -1.13596475577881948265e-11;
+  // Estrin's scheme (shorter dependency chains than Horner's; the same polynomials)
+  const double z2 = z * z, z4 = z2 * z2;
+  const double ps = (S1 + z * S2) + z2 * (S3 + z * S4) + z4 * (S5 + z * S6);
+  const double pc = (C1 + z * C2) + z2 * (C3 + z * C4) + z4 * (C5 + z * C6);
+  const double sr = r + r * z * ps;
+  const double cz = z * pc;
+  const double cr = 1.0 - (0.5 * z - z * cz);
+  // quadrant q = n mod 4 without branches (the angles are random: a branch mispredicts):
+  // (s, c) = (sr, cr), (cr, -sr), (-sr, -cr), (-cr, sr)
+  const long long quadrant = static_cast<long long>(n) & 3;
+  const double v[2] = {sr, cr};
+  const int swap = static_cast<int>(quadrant & 1);
+  s = v[swap] * (1.0 - static_cast<double>(quadrant & 2));
+  c = v[swap ^ 1] * (1.0 - static_cast<double>((quadrant + 1) & 2));
+}
 
 /// cos and sin of theta from (c0, s0) = cos and sin of theta0 when |theta - theta0| < 0.1
 /// rad: the series of cos and sin of the difference up to the 10th power (next term below
@@ -41,8 +84,7 @@ inline void cosSinFrom(double theta, double theta0, double c0, double s0, double
     s = s0 * cd + c0 * sd;
     return;
   }
-  c = std::cos(theta);
-  s = std::sin(theta);
+  fastSinCos(theta, s, c);
 }
 
 /// The joint-space effects of the catalogue (docs/diagnosis.md) on link L at joint value
@@ -65,7 +107,8 @@ inline double jointEffects(const KinematicModel::Link& L, int harmonics, double 
   if (L.gear) {
     for (int h = 1; h <= harmonics; ++h) {
       const double gs = L.gs[static_cast<size_t>(h - 1)], gc = L.gc[static_cast<size_t>(h - 1)];
-      const double sh = std::sin(h * qi), ch = std::cos(h * qi);
+      double sh, ch;
+      fastSinCos(h * qi, sh, ch);
       t += gs * sh + gc * ch;
       rate += h * (gs * ch - gc * sh);
     }
@@ -225,8 +268,7 @@ void KinematicModel::evaluate(const double* q, const PoseContext& context, Kinem
         cosSinFrom(th, near->theta_nominal[k], near->cos_nominal[k], near->sin_nominal[k], f.cos_nominal[k],
                    f.sin_nominal[k]);
       } else {
-        f.cos_nominal[k] = std::cos(th);
-        f.sin_nominal[k] = std::sin(th);
+        fastSinCos(th, f.sin_nominal[k], f.cos_nominal[k]);
       }
     }
     f.nominal_valid = true;
@@ -237,22 +279,13 @@ void KinematicModel::evaluate(const double* q, const PoseContext& context, Kinem
   const double scale = thermal_alpha_ == 0.0 ? 1.0 : 1.0 + thermal_alpha_ * (context.temp_c - kThermalReferenceC);
   // the frame as plain numbers: columns x, y, z and origin o (scalar code: measurably faster
   // than 3-vector expressions here)
-  double x0 = R_world_base_(0, 0), x1 = R_world_base_(1, 0), x2 = R_world_base_(2, 0);
-  double y0 = R_world_base_(0, 1), y1 = R_world_base_(1, 1), y2 = R_world_base_(2, 1);
-  double z0 = R_world_base_(0, 2), z1 = R_world_base_(1, 2), z2 = R_world_base_(2, 2);
-  double o0 = t_world_base_.x(), o1 = t_world_base_.y(), o2 = t_world_base_.z();
   const bool effects = any_joint_effect_ || (backlash_ && !context.dir.empty());
+  // 1. the link angles and lengths with their cosines and sines (independent of each other:
+  //    the processor overlaps them), 2. the frames along the chain
+  std::array<double, kMaxDof> d_link;
   for (int i = 0; i < n_; ++i) {
     const Link& L = links_[static_cast<size_t>(i)];
     const size_t k = static_cast<size_t>(i);
-    f.o[k] = Eigen::Vector3d(o0, o1, o2);
-    f.z[k] = Eigen::Vector3d(z0, z1, z2);
-    if (links) {
-      Eigen::Isometry3d& T = links->T_world_frame[k];
-      T.linear() << x0, y0, z0, x1, y1, z1, x2, y2, z2;
-      T.translation() = Eigen::Vector3d(o0, o1, o2);
-      T.makeAffine();
-    }
     double extra = 0, rate = L.dir;
     if (effects && L.any_effect) {
       const double qi = L.revolute ? q[i] * kDegToRad : q[i];
@@ -266,6 +299,7 @@ void KinematicModel::evaluate(const double* q, const PoseContext& context, Kinem
     } else {
       d += L.dir * q[i] + L.compliance * load[k] + extra;
     }
+    d_link[k] = d;
     double ct, st;
     if (loads) {
       // the link's angle is its nominal one plus small deviations
@@ -273,12 +307,44 @@ void KinematicModel::evaluate(const double* q, const PoseContext& context, Kinem
     } else if (near) {
       cosSinFrom(theta, near->theta[k], near->cos_theta[k], near->sin_theta[k], ct, st);
     } else {
-      ct = std::cos(theta);
-      st = std::sin(theta);
+      fastSinCos(theta, st, ct);
     }
     f.theta[k] = theta;
     f.cos_theta[k] = ct;
     f.sin_theta[k] = st;
+  }
+  if (links) {
+    chain<true>(f, d_link.data(), scale, links);
+  } else {
+    chain<false>(f, d_link.data(), scale, nullptr);
+  }
+}
+
+template <bool kLinks>
+void KinematicModel::chain(KinematicFrames& f, const double* d_link, double scale, LinkFrames* links) const {
+  // the frame as plain numbers: columns x, y, z and origin o (scalar code: measurably faster
+  // than 3-vector expressions here). With links, the chain runs in the base frame (the frames
+  // LinkFrames keeps) and is carried to the world at the end; else in the world from the start.
+  double x0 = 1, x1 = 0, x2 = 0, y0 = 0, y1 = 1, y2 = 0, z0 = 0, z1 = 0, z2 = 1, o0 = 0, o1 = 0, o2 = 0;
+  if constexpr (!kLinks) {
+    x0 = R_world_base_(0, 0), x1 = R_world_base_(1, 0), x2 = R_world_base_(2, 0);
+    y0 = R_world_base_(0, 1), y1 = R_world_base_(1, 1), y2 = R_world_base_(2, 1);
+    z0 = R_world_base_(0, 2), z1 = R_world_base_(1, 2), z2 = R_world_base_(2, 2);
+    o0 = t_world_base_.x(), o1 = t_world_base_.y(), o2 = t_world_base_.z();
+  }
+  for (int i = 0; i < n_; ++i) {
+    const Link& L = links_[static_cast<size_t>(i)];
+    const size_t k = static_cast<size_t>(i);
+    f.o[k] = Eigen::Vector3d(o0, o1, o2);
+    f.z[k] = Eigen::Vector3d(z0, z1, z2);
+    if constexpr (kLinks) {
+      Eigen::Isometry3d& T = links->T_base_frame[k];
+      T.linear() << x0, y0, z0, x1, y1, z1, x2, y2, z2;
+      T.translation() = Eigen::Vector3d(o0, o1, o2);
+      T.makeAffine();
+    }
+    const double ct = f.cos_theta[k], st = f.sin_theta[k], d = d_link[k];
+    [[maybe_unused]] const double theta = f.theta[k];
     // R Rz(theta): x' = c x + s y, y' = -s x + c y
     const double xa = ct * x0 + st * y0, xb = ct * x1 + st * y1, xc = ct * x2 + st * y2;
     const double ya = ct * y0 - st * x0, yb = ct * y1 - st * x1, yc = ct * y2 - st * x2;
@@ -286,7 +352,7 @@ void KinematicModel::evaluate(const double* q, const PoseContext& context, Kinem
     o0 += a * xa + d * z0;
     o1 += a * xb + d * z1;
     o2 += a * xc + d * z2;
-    if (links) {
+    if constexpr (kLinks) {
       links->x_after_theta[k] = Eigen::Vector3d(xa, xb, xc);
       links->y_after_alpha[k] =
           Eigen::Vector3d(L.ca * ya + L.sa * z0, L.ca * yb + L.sa * z1, L.ca * yc + L.sa * z2);
@@ -318,11 +384,19 @@ void KinematicModel::evaluate(const double* q, const PoseContext& context, Kinem
   }
   Eigen::Matrix3d R;
   R << x0, y0, z0, x1, y1, z1, x2, y2, z2;
-  if (links) {
-    Eigen::Isometry3d& T = links->T_world_frame[static_cast<size_t>(n_)];
+  if constexpr (kLinks) {
+    Eigen::Isometry3d& T = links->T_base_frame[static_cast<size_t>(n_)];
     T.linear() = R;
     T.translation() = Eigen::Vector3d(o0, o1, o2);
     T.makeAffine();
+    // to the world: T_world_tcp = T_world_base T_base_flange T_flange_tcp, the axes too
+    f.T_world_tcp = (T_world_base_ * T) * T_flange_tcp_;
+    for (int i = 0; i < n_; ++i) {
+      const size_t k = static_cast<size_t>(i);
+      f.o[k] = R_world_base_ * f.o[k] + t_world_base_;
+      f.z[k] = R_world_base_ * f.z[k];
+    }
+    return;
   }
   f.T_world_tcp.linear().noalias() = R * T_flange_tcp_.linear();
   f.T_world_tcp.translation() = Eigen::Vector3d(o0, o1, o2) + R * T_flange_tcp_.translation();
@@ -397,8 +471,9 @@ Eigen::Isometry3d KinematicModel::parameterJacobian(const std::vector<ParamInfo>
       case ParamKind::kToolX:
       case ParamKind::kToolY:
       case ParamKind::kToolZ:
-        translation(col, lf.T_world_frame[static_cast<size_t>(n_)].linear() *
-                             R_flange_toolnom_.col(static_cast<int>(P.kind) - static_cast<int>(ParamKind::kToolX)));
+        translation(col, R_world_base_ * (lf.T_base_frame[static_cast<size_t>(n_)].linear() *
+                                          R_flange_toolnom_.col(static_cast<int>(P.kind) -
+                                                                static_cast<int>(ParamKind::kToolX))));
         continue;
       case ParamKind::kToolRx:
       case ParamKind::kToolRy:
@@ -414,9 +489,9 @@ Eigen::Isometry3d KinematicModel::parameterJacobian(const std::vector<ParamInfo>
         for (int i = 0; i < n_; ++i) {
           const Link& L = links_[static_cast<size_t>(i)];
           u += L.a * lf.x_after_theta[static_cast<size_t>(i)];
-          u += L.d_c * f.z[static_cast<size_t>(i)];
+          u += L.d_c * lf.T_base_frame[static_cast<size_t>(i)].linear().col(2);
         }
-        translation(col, dT * u);
+        translation(col, dT * (R_world_base_ * u));
         continue;
       }
       default:
@@ -429,9 +504,9 @@ Eigen::Isometry3d KinematicModel::parameterJacobian(const std::vector<ParamInfo>
     const Link& L = links_[ki];
     const Eigen::Vector3d& z0 = f.z[ki];
     const Eigen::Vector3d& o0 = f.o[ki];
-    const Eigen::Vector3d& x1 = lf.x_after_theta[ki];
+    const Eigen::Vector3d x1 = R_world_base_ * lf.x_after_theta[ki];
     // origin after Rz(theta) Tz(d) Tx(a): the origin of frame i+1
-    const Eigen::Vector3d o2 = lf.T_world_frame[ki + 1].translation();
+    const Eigen::Vector3d o2 = T_world_base_ * lf.T_base_frame[ki + 1].translation();
     // the joint's own motion: rotation about z0 through o0, or translation along z0
     auto jointMotion = [&](double factor) {
       if (L.revolute) rotation(col, z0, o0); else translation(col, z0);
@@ -453,7 +528,7 @@ Eigen::Isometry3d KinematicModel::parameterJacobian(const std::vector<ParamInfo>
         rotation(col, x1, o2);
         break;
       case ParamKind::kBeta:
-        rotation(col, lf.y_after_alpha[ki], o2);
+        rotation(col, R_world_base_ * lf.y_after_alpha[ki], o2);
         break;
       case ParamKind::kCompliance:
         jointMotion(lf.load[ki]);

@@ -113,13 +113,12 @@ KinematicWorkspace::Prepared& evaluateFrames(const RobotModel& model, const Eige
   KinematicWorkspace::Prepared& P = ws.prepare(model);
   P.model->evaluate(q.data(), context, P.frames, nullptr, &P.links);
   const int n = model.dof();
-  const Eigen::Isometry3d T_base_world = P.model->T_world_base().inverse();
   ws.T_base_frame.resize(static_cast<size_t>(n + 1));
   ws.theta_rad.resize(n);
   ws.d_mm.resize(n);
   ws.load.resize(n);
   for (int i = 0; i <= n; ++i)
-    ws.T_base_frame[static_cast<size_t>(i)] = T_base_world * P.links.T_world_frame[static_cast<size_t>(i)];
+    ws.T_base_frame[static_cast<size_t>(i)] = P.links.T_base_frame[static_cast<size_t>(i)];
   for (int i = 0; i < n; ++i) {
     ws.theta_rad[i] = P.links.theta_rad[static_cast<size_t>(i)];
     ws.d_mm[i] = P.links.d_mm[static_cast<size_t>(i)];

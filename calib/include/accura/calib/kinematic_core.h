@@ -54,13 +54,12 @@ struct KinematicFrames {
 };
 
 /// The intermediate frames of one evaluation (what the parameter Jacobian and the cell
-/// checks need besides KinematicFrames), all in the world frame.
+/// checks need besides KinematicFrames), in the BASE frame.
 struct LinkFrames {
-  /// Frames 0..n: T_world_frame[i] = T_world_base A_1 ... A_i (frame 0 the base, n the
-  /// flange).
-  std::array<Eigen::Isometry3d, kMaxDof + 1> T_world_frame;
-  /// Per link i: the x axis after Rz(theta_i) (the axis of a_i and alpha_i) and the y axis
-  /// after Rx(alpha_i) (the axis of beta_i).
+  /// Frames 0..n: T_base_frame[i] = A_1 ... A_i (frame 0 the base, n the flange).
+  std::array<Eigen::Isometry3d, kMaxDof + 1> T_base_frame;
+  /// Per link i, in the base frame: the x axis after Rz(theta_i) (the axis of a_i and
+  /// alpha_i) and the y axis after Rx(alpha_i) (the axis of beta_i).
   std::array<Eigen::Vector3d, kMaxDof> x_after_theta, y_after_alpha;
   /// The DH angle (rad) and d (mm) actually used, thermal scale and every effect included.
   std::array<double, kMaxDof> theta_rad, d_mm;
@@ -82,7 +81,8 @@ class KinematicModel {
   /// value there come from the angle-addition formulas (series of the difference, 1e-18
   /// relative) instead of calls to sin / cos; for a compliant model the link angles come that
   /// way from the nominal ones (which the gravity loads need). With `links`, the
-  /// intermediate frames too; `need_loads` computes the gravity loads into links->load even
+  /// intermediate frames too (the chain is then evaluated in the base frame and carried to the
+  /// world at the end, as T_world_base * T_base_flange * T_flange_tcp); `need_loads` computes the gravity loads into links->load even
   /// when the model is not compliant. Throws ArgumentError when context.dir is non-empty and
   /// shorter than dof while the model has backlash.
   void evaluate(const double* q, const PoseContext& context, KinematicFrames& f,
@@ -146,6 +146,11 @@ class KinematicModel {
   };
 
  private:
+  /// The frames along the chain from the link values evaluate() computed (f.cos_theta /
+  /// f.sin_theta, d_link): in the world, or with kLinks in the base frame into `links`.
+  template <bool kLinks>
+  void chain(KinematicFrames& f, const double* d_link, double scale, LinkFrames* links) const;
+
   int n_ = 0;
   int harmonics_ = 0;
   std::vector<Link> links_;
