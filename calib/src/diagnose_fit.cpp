@@ -255,7 +255,6 @@ bool solveSpd(const Eigen::MatrixXd& M, const Eigen::VectorXd& v, Eigen::LLT<Eig
 
 Diagnoser::Eval Diagnoser::evaluate(const std::vector<int>& S, bool leverage) const {
   Eval ev;
-  const Eigen::Index s = static_cast<Eigen::Index>(S.size());
   const Eigen::MatrixXd AS = A_(S, S);  // the normal equations of the blocks in S
   const Eigen::VectorXd bS = b_(S);
   Eigen::LLT<Eigen::MatrixXd> llt;

@@ -203,8 +203,8 @@ bool hasDeviationsBeyondBaseTool(const RobotModel& m) {
   for (const std::vector<double>* v : {&d.compliance, &d.gear_sin, &d.gear_cos, &d.joint_scale, &d.backlash})
     for (double x : *v)
       if (x != 0) return true;
-  for (const JointMap& m : d.joint_map)
-    for (double x : m.coef)
+  for (const JointMap& map : d.joint_map)
+    for (double x : map.coef)
       if (x != 0) return true;
   return d.thermal_alpha_per_k != 0;
 }
