@@ -9,6 +9,8 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <system_error>
+#include <vector>
 #include <unistd.h>
 
 #include "accura/calib/robot_io.h"
@@ -28,12 +30,34 @@ inline RobotModel loadBundled(const std::string& name, FormPolicy policy = FormP
 }
 
 /// A fresh temporary directory for one test.
+// Removes every directory tempDir made when the test process ends (normally or by a failed
+// ASSERT, which only returns from the test), so that a test run leaves nothing in the
+// system's temp folder, whichever tests forget their own remove_all.
+class TempDirRegistry {
+ public:
+  static TempDirRegistry& instance() {
+    static TempDirRegistry registry;
+    return registry;
+  }
+  void add(const std::filesystem::path& p) { dirs_.push_back(p); }
+  ~TempDirRegistry() {
+    for (const auto& p : dirs_) {
+      std::error_code ec;
+      std::filesystem::remove_all(p, ec);
+    }
+  }
+
+ private:
+  std::vector<std::filesystem::path> dirs_;
+};
+
 inline std::string tempDir(const std::string& name) {
   // one directory per process: ctest runs tests in parallel processes
   const auto p = std::filesystem::temp_directory_path() /
                  ("accura_test_" + std::to_string(::getpid()) + "_" + name);
   std::filesystem::remove_all(p);
   std::filesystem::create_directories(p);
+  TempDirRegistry::instance().add(p);
   return p.string();
 }
 
