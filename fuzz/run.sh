@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Runs every fuzz target for SECONDS seconds on its corpus (fuzz/README.md).
+# Runs every fuzz target for SECONDS seconds on its corpus (fuzz/README.md); SECONDS 0 replays the
+# committed corpus once without mutation (deterministic: what CI runs).
 #   bash fuzz/run.sh BUILD_FUZZ_DIR [SECONDS] [TARGET...]
 # The committed corpus fuzz/corpus/T is read only: new inputs go to a temporary directory that
 # is removed afterwards (a long local session keeps them: see fuzz/README.md). A finding (crash,
@@ -22,6 +23,18 @@ for t in "${targets[@]}"; do
   dict=()
   [ -f "$here/dict/$t.dict" ] && dict=(-dict="$here/dict/$t.dict")
   start=$(date +%s)
+  if [ "$seconds" -eq 0 ]; then
+    # replay: every committed corpus input once, no mutation (deterministic; what CI runs)
+    if "$bin/fuzz_$t" -runs=0 -timeout=10 -rss_limit_mb=2048 "$here/corpus/$t" >"$work.log" 2>&1; then
+      echo "fuzz_$t: replayed $(ls "$here/corpus/$t" | wc -l) corpus inputs, ok"
+    else
+      echo "fuzz_$t: FINDING while replaying the corpus; the end of its log:"
+      tail -40 "$work.log"
+      status=1
+    fi
+    rm -rf "$work" "$work.log"
+    continue
+  fi
   if "$bin/fuzz_$t" "$work" "$here/corpus/$t" "${dict[@]}" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 \
        -max_len=65536 -print_final_stats=1 -artifact_prefix="$here/findings/$t-" >"$work.log" 2>&1; then
     echo "fuzz_$t: ok, $(grep -o 'stat::number_of_executed_units: *[0-9]*' "$work.log" | grep -o '[0-9]*$') runs in $(( $(date +%s) - start )) s, $(grep -o 'cov: [0-9]*' "$work.log" | tail -1)"

@@ -5,7 +5,7 @@
 # seconds (default 20) on its corpus. Any sanitizer report, test failure or fuzz finding fails
 # the run. Used by .ci/run after scripts/test.sh.
 #
-#   FUZZ_SECONDS=0 bash scripts/sanitize.sh     # tests only
+#   FUZZ_SECONDS=0 bash scripts/sanitize.sh     # tests, then each corpus replayed once (CI)
 #   JOBS=1 bash scripts/sanitize.sh             # build and test with one core
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
@@ -28,6 +28,4 @@ export ASAN_OPTIONS="${ASAN_OPTIONS:-detect_leaks=1}"
 export UBSAN_OPTIONS="${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}"
 (cd "$build" && ctest --output-on-failure -j"$jobs")
 
-if [ "$fuzz_seconds" -gt 0 ]; then
-  bash "$root/fuzz/run.sh" "$build/fuzz" "$fuzz_seconds"
-fi
+bash "$root/fuzz/run.sh" "$build/fuzz" "$fuzz_seconds"

@@ -179,8 +179,10 @@ Fdat toFdat(const Agg& a, const KrlFile& f) {
   d.where = f.loc(a.begin);
   for (const auto& it : a.items) {
     if (it.name == "TOOL_NO" || it.name == "BASE_NO") {
-      if (it.vk != AggItem::kNum || !it.is_integer_literal || it.num < 0)
-        f.fail(it.vbegin, "expected a non-negative integer for " + it.name_tok.text + ", found '" + it.text + "'");
+      // KUKA's tool and base tables have at most 32 entries; anything above 999 cannot be an
+      // index (and would not fit an int)
+      if (it.vk != AggItem::kNum || !it.is_integer_literal || !(it.num >= 0 && it.num <= 999))
+        f.fail(it.vbegin, "expected an integer 0..999 for " + it.name_tok.text + ", found '" + it.text + "'");
       (it.name == "TOOL_NO" ? d.tool_no : d.base_no) = static_cast<int>(it.num);
     } else if (it.name == "IPO_FRAME") {
       d.external_tcp = upper(it.text) == "#TCP";
