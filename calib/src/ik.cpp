@@ -826,22 +826,20 @@ struct KinematicSolver::Impl {
       if (singular) {
         // with a Status asked for, another start may find a regular solution on it: keep
         // this one and go on; with any Status the nearest solution decides: report it
-        if (!warm && config.status < 0) {
-          out = r;
-          out.status = IkStatus::kSingular;
+        const auto asSingular = [&](IkResult solution) {
+          solution.status = IkStatus::kSingular;
           std::ostringstream m;
           m << "singular: the smallest scaled singular value of the Jacobian is " << r.min_singular_value
             << ", below " << o.singular_threshold;
-          out.message = m.str();
+          solution.message = m.str();
+          return solution;
+        };
+        if (!warm && config.status < 0) {
+          out = asSingular(r);
           return true;
         }
         if (!warm && !have_singular) {
-          singular_solution = r;
-          singular_solution.status = IkStatus::kSingular;
-          std::ostringstream m;
-          m << "singular: the smallest scaled singular value of the Jacobian is " << r.min_singular_value
-            << ", below " << o.singular_threshold;
-          singular_solution.message = m.str();
+          singular_solution = asSingular(r);
           have_singular = true;
         }
         return false;
