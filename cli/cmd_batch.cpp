@@ -10,6 +10,7 @@
 #include <memory>
 #include <nlohmann/json.hpp>
 
+#include "accura/calib/json_text.h"
 #include "accura/calib/errors.h"
 #include "accura/postproc/batch.h"
 #include "accura/postproc/job.h"
@@ -116,7 +117,7 @@ int runBatch(const BatchArgs& a) {
       files.push_back(f);
     }
     j["files"] = files;
-    calib::writeFilesAtomically({{a.json, j.dump(2) + "\n"}});
+    calib::writeFilesAtomically({{a.json, calib::jsonText(j)}});
     std::printf("wrote %s\n", a.json.c_str());
   }
   return res.failed == 0 ? 0 : kSomeFailed;

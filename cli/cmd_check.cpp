@@ -8,6 +8,7 @@
 #include <memory>
 #include <optional>
 
+#include "accura/calib/json_text.h"
 #include "accura/calib/errors.h"
 #include "accura/postproc/batch.h"
 #include "accura/postproc/cell.h"
@@ -82,7 +83,7 @@ int runCheck(const CheckArgs& a) {
     j["cell"] = cc->cell_path;
     j["robot"] = settings.calibrated.nominal.name;
     j.update(checkReportJson(r));
-    calib::writeFilesAtomically({{a.json, j.dump(2) + "\n"}});
+    calib::writeFilesAtomically({{a.json, calib::jsonText(j)}});
     std::printf("wrote %s\n", a.json.c_str());
   }
   return r.passed() ? 0 : kCheckFailed;

@@ -8,6 +8,7 @@
 
 #include "accura/calib/diagnose.h"
 #include "accura/calib/errors.h"
+#include "accura/calib/file_io.h"
 #include "accura/calib/kinematics.h"
 #include "accura/calib/measurements.h"
 #include "cli_util.h"
@@ -58,14 +59,13 @@ int runDiagnose(const DiagnoseArgs& a) {
     validation = readMeasurements(a.validate, a.validate_map.empty() ? a.map : a.validate_map, start.nominal);
   const calib::Diagnosis d = calib::diagnose(start, data, a.validate.empty() ? nullptr : &validation, o);
   std::printf("%s", calib::diagnosisText(d).c_str());
-  if (!a.json.empty()) {
-    writeTextAtomically(a.json, calib::diagnosisJson(d));
-    std::printf("wrote %s\n", a.json.c_str());
-  }
-  if (!a.report.empty()) {
-    writeTextAtomically(a.report, calib::diagnosisHtml(d));
-    std::printf("wrote %s\n", a.report.c_str());
-  }
+  // The JSON and the HTML report are one output set (all or nothing), never onto an input.
+  std::vector<calib::OutputFile> outputs;
+  if (!a.json.empty()) outputs.push_back({a.json, calib::diagnosisJson(d)});
+  if (!a.report.empty()) outputs.push_back({a.report, calib::diagnosisHtml(d)});
+  calib::refuseToOverwrite(outputs, {a.robot, a.data, a.validate, a.map, a.validate_map}, "--json / --report");
+  calib::writeFilesAtomically(outputs);
+  for (const calib::OutputFile& f : outputs) std::printf("wrote %s\n", f.path.c_str());
   return 0;
 }
 

@@ -5,7 +5,9 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "accura/calib/json_text.h"
 #include "accura/calib/errors.h"
+#include "accura/calib/file_io.h"
 #include "accura/calib/identify.h"
 #include "accura/calib/import.h"
 #include "accura/calib/kinematics.h"
@@ -238,8 +240,9 @@ int runIdentify(const IdentifyArgs& a) {
           << "fit RMS " << fmt("%.4f", s.fit.rms_mm) << " mm"
           << (has_val ? ", validation RMS " + fmt("%.4f", val.rms_mm) + " mm (nominal " + fmt("%.4f", nom_val.rms_mm) + " mm)" : "");
   for (const auto& w : s.warnings) comment << "\nWARNING: " << w;
-  calib::writeRobotFile(a.out, calibrated, records, comment.str());
-  std::printf("wrote calibrated model %s\n", a.out.c_str());
+  // The model and the summary are one output set, written together or not at all; neither may
+  // land on an input.
+  std::vector<calib::OutputFile> outputs = {{a.out, calib::robotFileText(calibrated, records, comment.str())}};
 
   if (!a.json.empty()) {
     ordered_json j;
@@ -316,8 +319,16 @@ int runIdentify(const IdentifyArgs& a) {
       j["validation_outside_fit_ranges"] = {{"poses", outside_rows}, {"joints", out}};
     }
     j["unused_columns"] = sets[0].unknown_columns;
-    writeTextAtomically(a.json, j.dump(2) + "\n");
+    outputs.push_back({a.json, calib::jsonText(j)});
   }
+  std::vector<std::string> inputs = a.data;
+  inputs.push_back(a.robot);
+  inputs.push_back(a.validate);
+  inputs.push_back(a.map);
+  inputs.push_back(a.validate_map);
+  calib::refuseToOverwrite(outputs, inputs, "--out / --json");
+  calib::writeFilesAtomically(outputs);
+  std::printf("wrote calibrated model %s\n", a.out.c_str());
   return 0;
 }
 

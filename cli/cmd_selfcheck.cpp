@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
+#include "accura/calib/json_text.h"
 #include "accura/calib/diagnose.h"
 #include "accura/calib/errors.h"
 #include "cli_util.h"
@@ -83,7 +84,7 @@ int runSelfcheck(const SelfcheckArgs& a) {
                        {"systematic_rms_mm", num(c.systematic_mm)},
                        {"seconds", num(c.seconds)}});
     j["cases"] = cases;
-    writeTextAtomically(a.json, j.dump(2) + "\n");
+    writeTextAtomically(a.json, calib::jsonText(j));
     std::printf("wrote %s\n", a.json.c_str());
   }
   return pass ? 0 : 2;

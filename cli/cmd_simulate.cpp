@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "accura/calib/errors.h"
+#include "accura/calib/file_io.h"
 #include "accura/calib/identify.h"
 #include "accura/calib/kinematics.h"
 #include "accura/calib/measurements.h"
@@ -49,10 +50,13 @@ int runSimulate(const SimulateArgs& a) {
           std::to_string(o.seed) + ", effects " + a.effects,
       "noise " + fmt("%g", o.noise_mm) + " mm" + (o.orientation ? ", " + fmt("%g", o.noise_deg) + " deg" : std::string()) +
           " (1 sigma per axis); payloads " + a.payloads + " kg"};
-  calib::writeMeasurementsCsv(a.out, set, truth.dof(), comments);
-  if (!a.truth.empty()) {
-    calib::writeRobotFile(a.truth, truth, {}, "accura simulate: the real robot behind " + a.out + " (seed " + std::to_string(o.seed) + ")");
-  }
+  // The measurements and the real robot are one output set (all or nothing), never onto the input.
+  std::vector<calib::OutputFile> outputs = {{a.out, calib::measurementsCsvText(set, truth.dof(), comments)}};
+  if (!a.truth.empty())
+    outputs.push_back({a.truth, calib::robotFileText(truth, {}, "accura simulate: the real robot behind " + a.out +
+                                                                     " (seed " + std::to_string(o.seed) + ")")});
+  calib::refuseToOverwrite(outputs, {a.robot}, "--out / --truth");
+  calib::writeFilesAtomically(outputs);
   std::printf("wrote %d simulated poses of %s to %s%s\n", o.poses, nominal.nominal.name.c_str(), a.out.c_str(),
               a.truth.empty() ? "" : (" and the real robot to " + a.truth).c_str());
   return 0;

@@ -5,6 +5,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "accura/calib/json_text.h"
 #include "accura/calib/diagnose.h"
 #include "accura/calib/text.h"
 
@@ -407,7 +408,7 @@ std::string diagnosisJson(const Diagnosis& d) {
   j["where"] = where;
   j["notes"] = d.notes;
   j["seconds"] = num(d.seconds);
-  return j.dump(2) + "\n";
+  return calib::jsonText(j);
 }
 
 std::string diagnosisText(const Diagnosis& d) {

@@ -1,4 +1,5 @@
 #include "accura/calib/identify.h"
+#include "accura/calib/kinematic_core.h"
 
 #include <ceres/ceres.h>
 
@@ -52,8 +53,10 @@ bool parseGroupSpec(const std::string& full_spec, std::string* name, std::set<in
     const size_t plus = rest.find('+', pos);
     const std::string item = rest.substr(pos, plus == std::string::npos ? std::string::npos : plus - pos);
     int j = 0;
-    if (item.size() < 2 || item[0] != 'j' || item.find_first_not_of("0123456789", 1) != std::string::npos ||
-        (j = std::atoi(item.c_str() + 1)) < 1) {
+    // At most two digits: no robot has more than kMaxDof joints, and a longer number must not wrap.
+    if (item.size() < 2 || item.size() > 3 || item[0] != 'j' ||
+        item.find_first_not_of("0123456789", 1) != std::string::npos || (j = std::atoi(item.c_str() + 1)) < 1 ||
+        j > kMaxDof) {
       *error = "parameter group '" + spec + "': expected joints as j1+j2+..., found '" + item + "'";
       return false;
     }
@@ -626,6 +629,11 @@ RobotModel identify(const RobotModel& start, const std::vector<MeasurementSet>& 
   start.validate();
   double stated_knot = 0;
   std::map<std::string, std::set<int>> groups = parseGroups(options, &stated_knot);
+  for (const auto& g : groups)
+    for (int j : g.second)
+      if (j > start.dof())
+        throw ArgumentError("identify: parameter group '" + g.first + "': expected joints j1..j" +
+                            std::to_string(start.dof()) + " of " + start.nominal.name + ", found j" + std::to_string(j));
   if (std::isnan(stated_knot)) stated_knot = options.joint_map_knot;  // '@' overrides the option
   const bool want_map = groups.count("joint_map") > 0;
   if (want_map && (std::isnan(stated_knot) || std::isnan(options.joint_map_smoothing)))

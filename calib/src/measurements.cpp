@@ -541,6 +541,10 @@ MeasurementSet readMeasurementsCsv(const std::string& path, const RobotDefinitio
 
 void writeMeasurementsCsv(const std::string& path, const MeasurementSet& set, int dof,
                           const std::vector<std::string>& comments) {
+  writeFileAtomically(path, measurementsCsvText(set, dof, comments));
+}
+
+std::string measurementsCsvText(const MeasurementSet& set, int dof, const std::vector<std::string>& comments) {
   if (dof < 1) throw ArgumentError("writeMeasurementsCsv: expected dof >= 1, got " +
                                    std::to_string(dof));
   if (set.rows.empty()) {
@@ -660,8 +664,7 @@ void writeMeasurementsCsv(const std::string& path, const MeasurementSet& set, in
     if (set.has_time) field(m.time_s, 6);
     out += '\n';
   }
-
-  writeFileAtomically(path, out);
+  return out;
 }
 
 }  // namespace accura::calib

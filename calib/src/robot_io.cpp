@@ -59,8 +59,9 @@ class Reader {
     const std::string s = text(e, name);
     char* end = nullptr;
     const double v = std::strtod(s.c_str(), &end);
+    const bool converted = end != s.c_str();  // " " converts nothing: not a zero
     while (end && (*end == ' ' || *end == '\t')) ++end;
-    if (s.empty() || end == s.c_str() || *end != '\0' || !std::isfinite(v)) {
+    if (s.empty() || !converted || *end != '\0' || !std::isfinite(v)) {
       fail(e, "<" + std::string(e->Name()) + "> attribute '" + name +
                   "': expected a finite number, found '" + s + "'");
     }
@@ -277,6 +278,11 @@ RobotModel readRobotFile(const std::string& path) {
 
 void writeRobotFile(const std::string& path, const RobotModel& model,
                     const std::vector<ParameterRecord>& records, const std::string& comment) {
+  writeFileAtomically(path, robotFileText(model, records, comment));
+}
+
+std::string robotFileText(const RobotModel& model, const std::vector<ParameterRecord>& records,
+                          const std::string& comment) {
   model.validate();
   std::ostringstream out;
   out << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n";
@@ -345,8 +351,7 @@ void writeRobotFile(const std::string& path, const RobotModel& model,
         << "  </calibration>\n";
   }
   out << "</robot>\n";
-
-  writeFileAtomically(path, out.str());
+  return out.str();
 }
 
 std::vector<std::string> bundledRobotNames() {

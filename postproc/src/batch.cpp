@@ -130,23 +130,31 @@ ProgramFileResult compensateProgramFile(const ProgramFileRequest& q, const JobSe
   if (!q.read.config_path.empty()) inputs.push_back(q.read.config_path);
   calib::refuseToOverwrite(r.checked.files, inputs, q.out_name);
   if (!q.json_path.empty()) calib::refuseToOverwrite({{q.json_path, ""}}, inputs, q.json_name);
-  if (r.checked.write) {
-    fs::create_directories(q.out_dir);
-    calib::writeFilesAtomically(r.checked.files);
-    r.written = true;
-  }
+  // The program's files and the report are one output set: written together or not at all (a
+  // report that cannot be written leaves no program behind, and the reverse).
+  std::vector<calib::OutputFile> outputs;
+  if (r.checked.write) outputs = r.checked.files;
   if (!q.json_path.empty()) {
     CompensationReport rep;
     rep.program = q.in_path;
-    if (r.written)
-      for (const auto& f : r.checked.files) rep.outputs.push_back(f.path);
+    for (const auto& f : outputs) rep.outputs.push_back(f.path);
     rep.robot = job.calibrated.nominal.name;
     rep.tol_mm = job.tol_mm;
     rep.job = r.report;
     rep.compensation_error = r.checked.compensation_error;
     rep.check = r.checked.check;
-    calib::writeFilesAtomically({{q.json_path, compensationReportText(rep)}});
+    outputs.push_back({q.json_path, compensationReportText(rep)});
   }
+  if (outputs.empty()) return r;
+  bool created_out_dir = false;
+  if (r.checked.write) created_out_dir = fs::create_directories(q.out_dir);
+  try {
+    calib::writeFilesAtomically(outputs);
+  } catch (...) {
+    if (created_out_dir) fs::remove(q.out_dir, ec);  // only the empty directory this call made
+    throw;
+  }
+  r.written = r.checked.write;
   return r;
 }
 

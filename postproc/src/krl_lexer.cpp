@@ -93,6 +93,9 @@ std::vector<Tok> lex(const KrlFile& f, size_t begin, size_t end) {
       }
       t.kind = Tok::kNumber;
       t.text = s.substr(i, j - i);
+      // A literal beyond a double (1e309) is no number a controller holds: never infinity.
+      if (!std::isfinite(std::strtod(t.text.c_str(), nullptr)))
+        f.fail(i, "expected a number within +-1.7e308, found '" + t.text + "'");
       i = j;
     } else if (c == '"') {
       const size_t close = s.find('"', i + 1);

@@ -1,4 +1,5 @@
 // The JSON reports (see report.h).
+#include "accura/calib/json_text.h"
 #include "accura/postproc/report.h"
 
 #include <cmath>
@@ -164,7 +165,7 @@ std::string compensationReportText(const CompensationReport& r) {
   j.update(jobReportJson(r.job, ""));
   if (!r.compensation_error.empty()) j["compensation_error"] = r.compensation_error;
   if (r.check) j["check"] = checkReportJson(*r.check);
-  return j.dump(2) + "\n";
+  return calib::jsonText(j);
 }
 
 }  // namespace accura::postproc

@@ -4,6 +4,7 @@
 #include <tinyxml2.h>
 #include "accura/calib/text.h"
 
+#include <cctype>
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
@@ -71,6 +72,27 @@ class Reader {
     throw calib::InputError(s.file, s.line, s.column, msg);
   }
 
+  /// A point's name: an identifier every controller language can declare (a letter, '_' or '$',
+  /// then letters, digits, '_' or '$'; at most 64 characters). Anything else would be copied into
+  /// a program as text: a newline in a name becomes a statement of its own.
+  std::string pointName(const XMLElement* e, const std::string& name) const {
+    bool ok = !name.empty() && name.size() <= 64 && !std::isdigit(static_cast<unsigned char>(name[0]));
+    for (char c : name) ok = ok && (std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '$');
+    if (!ok) {
+      std::string shown;
+      for (char c : name) {
+        if (c == '\n') shown += "\\n";
+        else if (c == '\r') shown += "\\r";
+        else if (c == '\t') shown += "\\t";
+        else if (static_cast<unsigned char>(c) < 0x20) shown += "\\x" + std::string(1, "0123456789abcdef"[(c >> 4) & 15]) + "0123456789abcdef"[c & 15];
+        else shown += c;
+      }
+      fail(e, "<" + std::string(e->Name()) + "> attribute 'name': expected a point name (a letter, '_' or '$', then "
+              "letters, digits, '_' or '$'; at most 64 characters), found '" + shown + "'");
+    }
+    return name;
+  }
+
   void checkAttributes(const XMLElement* e, const std::set<std::string>& allowed) const {
     for (const tinyxml2::XMLAttribute* a = e->FirstAttribute(); a; a = a->Next()) {
       if (!allowed.count(a->Name())) {
@@ -134,7 +156,7 @@ Target readTarget(const Reader& R, const XMLElement* e, bool cartesian) {
   Target t;
   t.kind = cartesian ? Target::Kind::kCartesian : Target::Kind::kAxis;
   t.where = R.loc(e);
-  if (const auto n = R.text(e, "name")) t.name = *n;
+  if (const auto n = R.text(e, "name")) t.name = R.pointName(e, *n);
   if (const auto ty = R.text(e, "type")) {
     std::string u;
     for (char c : *ty) u += static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
@@ -251,7 +273,7 @@ Motion readMotion(const Reader& R, const XMLElement* e) {
       R.checkAttributes(c, {"name"});
       if (!c->Attribute("name")) R.fail(c, "<aux>: expected a name or the pose attributes");
       Target t;
-      t.name = c->Attribute("name");
+      t.name = R.pointName(c, c->Attribute("name"));
       t.where = R.loc(c);
       m.aux = t;
       m.target_problem = t.name + " is declared outside the program";
@@ -270,7 +292,7 @@ Motion readMotion(const Reader& R, const XMLElement* e) {
     R.checkAttributes(c, {"name"});
     const auto name = R.text(c, "name");
     if (!name || name->empty()) R.fail(c, "<ref>: expected attribute 'name'");
-    m.target.name = *name;
+    m.target.name = R.pointName(c, *name);
     m.target.where = R.loc(c);
     if (m.target_problem.empty()) m.target_problem = *name + " is declared outside the program";
   } else {

@@ -58,4 +58,8 @@ MeasurementSet readMeasurementsCsv(const std::string& path, const RobotDefinitio
 void writeMeasurementsCsv(const std::string& path, const MeasurementSet& set, int dof,
                           const std::vector<std::string>& comments = {});
 
+/// The text writeMeasurementsCsv writes (for a command that writes it together with other
+/// outputs, all or nothing). Throws ArgumentError when dof < 1 or the set is empty.
+std::string measurementsCsvText(const MeasurementSet& set, int dof, const std::vector<std::string>& comments = {});
+
 }  // namespace accura::calib

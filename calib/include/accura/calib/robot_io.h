@@ -30,6 +30,11 @@ void writeRobotFile(const std::string& path, const RobotModel& model,
                     const std::vector<ParameterRecord>& records = {},
                     const std::string& comment = "");
 
+/// The text writeRobotFile writes (for a command that writes it together with other outputs:
+/// writeFilesAtomically, all or nothing). Throws ArgumentError when the model is invalid.
+std::string robotFileText(const RobotModel& model, const std::vector<ParameterRecord>& records = {},
+                          const std::string& comment = "");
+
 /// Resolves --robot: an existing file path, or a name found in the robots directory
 /// (ACCURA_ROBOTS_DIR environment variable, else the source tree's robots/), with or
 /// without ".xml". Throws InputError listing the names available when nothing matches.
