@@ -192,9 +192,12 @@ void Diagnoser::linearise() {
   if (has_val_) {
     build(val_, &JV_, &rV_);
     JV_ = JV_ * colscale_.cwiseInverse().asDiagonal();
-  } else {
-    buildScheme(&interleaved_);
   }
+}
+
+// The held-out schemes of the final linearisation (after robust(), which relinearises).
+void Diagnoser::schemes() {
+  if (!has_val_) buildScheme(&interleaved_);
   blockedSchemes();
 }
 
@@ -291,6 +294,8 @@ Diagnoser::Eval Diagnoser::cvEval(const std::vector<int>& S, const Scheme& schem
   Eigen::LLT<Eigen::MatrixXd> llt;
   Eigen::VectorXd x;
   const Eigen::MatrixXd JS = JF_(Eigen::all, S);
+  Eigen::MatrixXd Jh, Z;
+  Eigen::VectorXd rh;
   ev.d.resize(m_);
   if (leverage) ev.lev.resize(m_);
   for (size_t f = 0; f < scheme.poses.size(); ++f) {
@@ -301,12 +306,26 @@ Diagnoser::Eval Diagnoser::cvEval(const std::vector<int>& S, const Scheme& schem
       for (Eigen::Index c = 0; c < s; ++c) M(a, c) -= scheme.Af[f](S[a], S[c]);
     }
     if (!solveSpd(M, v, &llt, &x)) return ev;
-    for (int i : scheme.poses[f]) {
-      const Eigen::MatrixXd Ji = JS.middleRows(3 * i, 3);
+    // the fold's rows gathered: residuals by one product, leverages by one triangular solve
+    const std::vector<int>& held = scheme.poses[f];
+    const Eigen::Index k = static_cast<Eigen::Index>(held.size());
+    Jh.resize(3 * k, s);
+    rh.resize(3 * k);
+    for (Eigen::Index a = 0; a < k; ++a) {
+      Jh.middleRows(3 * a, 3) = JS.middleRows(3 * held[static_cast<size_t>(a)], 3);
+      rh.segment(3 * a, 3) = rF_.segment(3 * held[static_cast<size_t>(a)], 3);
+    }
+    rh.noalias() -= Jh * x;
+    if (leverage) {
+      Z = Jh.transpose();
+      llt.matrixL().solveInPlace(Z);
+    }
+    for (Eigen::Index a = 0; a < k; ++a) {
+      const int i = held[static_cast<size_t>(a)];
       // robust held-out loss: a down-weighted row counts with its weight squared (about the
       // squared cut-off for a gross outlier)
-      ev.d[i] = (rF_.segment(3 * i, 3) - Ji * x).squaredNorm() * robust_w_[static_cast<size_t>(i)] * robust_w_[static_cast<size_t>(i)];
-      if (leverage) ev.lev[i] = llt.matrixL().solve(Eigen::MatrixXd(Ji.transpose())).squaredNorm();
+      ev.d[i] = rh.segment(3 * a, 3).squaredNorm() * robust_w_[static_cast<size_t>(i)] * robust_w_[static_cast<size_t>(i)];
+      if (leverage) ev.lev[i] = Z.middleCols(3 * a, 3).squaredNorm();
     }
   }
   ev.ok = true;

@@ -89,6 +89,7 @@ class Diagnoser {
   void robustWeights(const std::vector<double>& residual_mm);
   void columns();
   void linearise();
+  void schemes();
   Eval evaluate(const std::vector<int>& S, bool leverage = false) const;
   Eval cvEval(const std::vector<int>& S, const Scheme& scheme, bool leverage) const;
   void buildScheme(Scheme* s) const;
