@@ -209,15 +209,23 @@ void Diagnoser::buildScheme(Scheme* sc) const {
   sc->bf.assign(sc->poses.size(), Eigen::VectorXd::Zero(C));
   Eigen::MatrixXd Jf;  // the fold's weighted rows, gathered: one symmetric rank update per fold
   Eigen::VectorXd rf;
+  sc->J.resize(JF_.rows(), C);
+  sc->r.resize(rF_.size());
+  sc->first.clear();
+  Eigen::Index next = 0;
   for (size_t f = 0; f < sc->poses.size(); ++f) {
     const Eigen::Index k = static_cast<Eigen::Index>(sc->poses[f].size());
+    sc->first.push_back(next);
     Jf.resize(3 * k, C);
     rf.resize(3 * k);
     for (Eigen::Index a = 0; a < k; ++a) {
       const int i = sc->poses[f][static_cast<size_t>(a)];
+      sc->J.middleRows(3 * (next + a), 3) = JF_.middleRows(3 * i, 3);
+      sc->r.segment(3 * (next + a), 3) = rF_.segment(3 * i, 3);
       Jf.middleRows(3 * a, 3) = wF_.segment(3 * i, 3).asDiagonal() * JF_.middleRows(3 * i, 3);
       rf.segment(3 * a, 3) = wF_.segment(3 * i, 3).cwiseProduct(rF_.segment(3 * i, 3));
     }
+    next += k;
     sc->Af[f].selfadjointView<Eigen::Lower>().rankUpdate(Jf.transpose());
     sc->Af[f].triangularView<Eigen::StrictlyUpper>() = sc->Af[f].transpose();
     sc->bf[f].noalias() = Jf.transpose() * rf;
@@ -293,9 +301,8 @@ Diagnoser::Eval Diagnoser::cvEval(const std::vector<int>& S, const Scheme& schem
   const Eigen::VectorXd bS = b_(S);
   Eigen::LLT<Eigen::MatrixXd> llt;
   Eigen::VectorXd x;
-  const Eigen::MatrixXd JS = JF_(Eigen::all, S);
-  Eigen::MatrixXd Jh, Z;
-  Eigen::VectorXd rh;
+  Eigen::MatrixXd Z;
+  Eigen::VectorXd rh, xc;
   ev.d.resize(m_);
   if (leverage) ev.lev.resize(m_);
   for (size_t f = 0; f < scheme.poses.size(); ++f) {
@@ -306,18 +313,16 @@ Diagnoser::Eval Diagnoser::cvEval(const std::vector<int>& S, const Scheme& schem
       for (Eigen::Index c = 0; c < s; ++c) M(a, c) -= scheme.Af[f](S[a], S[c]);
     }
     if (!solveSpd(M, v, &llt, &x)) return ev;
-    // the fold's rows gathered: residuals by one product, leverages by one triangular solve
+    // the fold's rows (contiguous in the scheme): residuals by one product with the update
+    // spread over all columns, leverages by one triangular solve
     const std::vector<int>& held = scheme.poses[f];
-    const Eigen::Index k = static_cast<Eigen::Index>(held.size());
-    Jh.resize(3 * k, s);
-    rh.resize(3 * k);
-    for (Eigen::Index a = 0; a < k; ++a) {
-      Jh.middleRows(3 * a, 3) = JS.middleRows(3 * held[static_cast<size_t>(a)], 3);
-      rh.segment(3 * a, 3) = rF_.segment(3 * held[static_cast<size_t>(a)], 3);
-    }
-    rh.noalias() -= Jh * x;
+    const Eigen::Index k = static_cast<Eigen::Index>(held.size()), o = 3 * scheme.first[f];
+    xc.setZero(scheme.J.cols());
+    for (Eigen::Index a = 0; a < s; ++a) xc[S[static_cast<size_t>(a)]] = x[a];
+    rh = scheme.r.segment(o, 3 * k);
+    rh.noalias() -= scheme.J.middleRows(o, 3 * k) * xc;
     if (leverage) {
-      Z = Jh.transpose();
+      Z = scheme.J.middleRows(o, 3 * k)(Eigen::all, S).transpose();
       llt.matrixL().solveInPlace(Z);
     }
     for (Eigen::Index a = 0; a < k; ++a) {

@@ -73,6 +73,9 @@ class Diagnoser {
     std::vector<std::vector<int>> poses;    // fit rows held out in each fold
     std::vector<Eigen::MatrixXd> Af;
     std::vector<Eigen::VectorXd> bf;
+    Eigen::MatrixXd J;           // the rows of JF_ fold by fold (unweighted, scaled columns)
+    Eigen::VectorXd r;           // the same rows of rF_
+    std::vector<Eigen::Index> first;  // first pose (in J's order) of each fold
   };
   struct Exact {
     std::vector<Eigen::Vector3d> e;  // held-out residual per pose (measured - model)
