@@ -133,6 +133,21 @@ struct Problem {
   bool isMap(size_t k) const { return k < P && layout[k].kind == ParamKind::kJointMap; }
   /// Weighted stacked Jacobian over x (J may be null) and weighted residual at the model.
   void stack(Eigen::MatrixXd* J, Eigen::VectorXd* r) const;
+
+  /// The last stacked Jacobian and residual with the point and weights they were computed at:
+  /// a pass at the same point with the same weights takes them (the identifiability pass and
+  /// the first solve start at the same x; the covariance pass is at the last solve's point).
+  struct Stacked {
+    std::vector<double> x;
+    std::vector<RowWeights> weights;
+    Eigen::MatrixXd J;
+    Eigen::VectorXd r;
+    bool valid = false;
+  };
+  mutable Stacked last;
+  /// last holds the stacking at xs with the current weights.
+  bool lastAt(const std::vector<double>& xs) const;
+  void keep(const std::vector<double>& xs, const Eigen::MatrixXd& J, const Eigen::VectorXd& r) const;
 };
 
 /// The weights of the rows: the std columns of the data, or given stds, or stds estimated

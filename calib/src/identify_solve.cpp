@@ -28,10 +28,16 @@ class Evaluator : public ceres::EvaluationCallback {
 
   void PrepareForEvaluation(bool evaluate_jacobians, bool new_evaluation_point) override {
     if (!new_evaluation_point && (have_jacobians_ || !evaluate_jacobians)) return;
+    have_jacobians_ = evaluate_jacobians;
+    if (evaluate_jacobians && pb_.lastAt(*x_)) {
+      J_ = pb_.last.J;
+      r_ = pb_.last.r;
+      return;
+    }
     for (size_t k = 0; k < pb_.layout.size(); ++k) setParameter(model_.deviations, pb_.layout[k], (*x_)[k]);
     rows_.prepare(model_);
     rows_.stack(*x_, pb_.data, pb_.weights, evaluate_jacobians ? &J_ : nullptr, &r_);
-    have_jacobians_ = evaluate_jacobians;
+    if (evaluate_jacobians) pb_.keep(*x_, J_, r_);
   }
 
   /// Weighted residual and Jacobian (over x) of all rows; row i starts at offset(i).
