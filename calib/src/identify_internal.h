@@ -83,6 +83,7 @@ class RowStack {
   KinematicFrames f_;
   LinkFrames links_;
   Eigen::MatrixXd Jcols_, J_;
+  bool direct_ = false;  // the plan's columns are x's first P entries in order (no joint maps)
 };
 
 /// Row error (model minus measurement): position (mm), with dim 6 also the rotation (rad).

@@ -46,7 +46,10 @@ JacobianPlan makePlan(const RobotModel& model, const std::vector<ParamInfo>& lay
 }
 
 RowStack::RowStack(const RobotModel& model, const JacobianPlan& plan, const Stations& stations)
-    : model_(&model), km_(model), plan_(plan), st_(stations) {}
+    : model_(&model), km_(model), plan_(plan), st_(stations) {
+  direct_ = plan.columns.size() == plan.P;
+  for (size_t c = 0; c < plan.x_of.size() && direct_; ++c) direct_ = plan.x_of[c] == static_cast<int>(c);
+}
 
 void RowStack::prepare(const RobotModel& model) {
   model_ = &model;
@@ -63,6 +66,11 @@ Eigen::Isometry3d RowStack::pose(const std::vector<double>& x, const Measurement
     // compare costs at the rounding level)
     km_.evaluate(row.q.data(), row.context, f_, nullptr, &links_);
   } else {
+    if (direct_ && s == 0 && x.size() == plan_.P) {
+      // the columns are x's own: the core writes J directly
+      km_.parameterJacobian(plan_.columns, row.q.data(), row.context, f_, links_, J_);
+      return f_.T_world_tcp;
+    }
     km_.parameterJacobian(plan_.columns, row.q.data(), row.context, f_, links_, Jcols_);
     J_.setZero(6, static_cast<Eigen::Index>(x.size()));
     for (size_t c = 0; c < plan_.columns.size(); ++c) {
