@@ -15,7 +15,7 @@
 #include "accura/calib/simulate.h"
 #include "test_util.h"
 
-namespace accura {
+namespace accura::calib {
 namespace {
 
 struct Campaign {
@@ -341,4 +341,4 @@ TEST(Identify, AGroupCanBeRestrictedToSomeJoints) {
 }
 
 }  // namespace
-}  // namespace accura
+}  // namespace accura::calib

@@ -17,7 +17,7 @@
 #include "accura/calib/kinematics.h"
 #include "identify_internal.h"
 
-namespace accura {
+namespace accura::calib {
 namespace diagnose_detail {
 
 IdentifyOptions Diagnoser::baselineOptions() const {
@@ -490,4 +490,4 @@ Diagnoser::Exact Diagnoser::exact(const std::vector<int>& S) {
 }
 
 }  // namespace diagnose_detail
-}  // namespace accura
+}  // namespace accura::calib

@@ -18,7 +18,7 @@
 #include "accura/calib/kinematics.h"
 #include "identify_internal.h"
 
-namespace accura {
+namespace accura::calib {
 
 using namespace identify_detail;
 
@@ -451,4 +451,4 @@ RobotModel registerStation(const RobotModel& model, const MeasurementSet& data,
   return identify(model, data, o, summary);
 }
 
-}  // namespace accura
+}  // namespace accura::calib

@@ -15,7 +15,7 @@
 #include "accura/calib/kinematic_core.h"
 #include "ik_internal.h"
 
-namespace accura {
+namespace accura::calib {
 
 using detail::ClosedForm;
 using detail::ClosedFormKind;
@@ -215,4 +215,4 @@ IkResult inverseKinematics(const RobotModel& model, const Eigen::Isometry3d& T_w
   return KinematicSolver(model).inverse(T_world_tcp, config, seed, options, context);
 }
 
-}  // namespace accura
+}  // namespace accura::calib
