@@ -14,7 +14,7 @@
 #include "accura/calib/joint_map.h"
 #include "identify_internal.h"
 
-namespace accura::identify_detail {
+namespace accura::calib::identify_detail {
 namespace {
 
 // Condition number of a matrix J from its Gram matrix N = J^T J (and its singular values).
@@ -485,4 +485,4 @@ void finishSummary(const Problem& pb, const std::vector<MeasurementSet>& sets, c
     }
 }
 
-}  // namespace accura::identify_detail
+}  // namespace accura::calib::identify_detail

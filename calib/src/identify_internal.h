@@ -22,7 +22,7 @@
 #include "accura/calib/kinematic_core.h"
 #include "accura/calib/kinematics.h"
 
-namespace accura::identify_detail {
+namespace accura::calib::identify_detail {
 
 /// Residual weights of one row: sqrt(weight) / sigma per component (position mm, rotation rad).
 struct RowWeights {
@@ -198,4 +198,4 @@ void finishSummary(const Problem& pb, const std::vector<MeasurementSet>& sets, c
 RobotModel identifyWithMapCv(const RobotModel& start, const std::vector<MeasurementSet>& sets,
                              const IdentifyOptions& options, double stated_knot, IdentifySummary* summary_out);
 
-}  // namespace accura::identify_detail
+}  // namespace accura::calib::identify_detail

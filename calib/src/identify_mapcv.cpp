@@ -9,7 +9,7 @@
 #include "accura/calib/joint_map.h"
 #include "identify_internal.h"
 
-namespace accura::identify_detail {
+namespace accura::calib::identify_detail {
 
 RobotModel identifyWithMapCv(const RobotModel& start, const std::vector<MeasurementSet>& sets,
                              const IdentifyOptions& options, double stated_knot, IdentifySummary* summary_out) {
@@ -125,4 +125,4 @@ RobotModel identifyWithMapCv(const RobotModel& start, const std::vector<Measurem
   return m1;
 }
 
-}  // namespace accura::identify_detail
+}  // namespace accura::calib::identify_detail

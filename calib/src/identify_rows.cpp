@@ -6,7 +6,7 @@
 #include "accura/calib/geometry.h"
 #include "accura/calib/joint_map.h"
 
-namespace accura::identify_detail {
+namespace accura::calib::identify_detail {
 
 Eigen::Isometry3d Stations::transform(const std::vector<double>& x, int s) const {
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
@@ -145,4 +145,4 @@ MeasurementSet inStationZero(const MeasurementSet& data, const Stations& st, con
   return out;
 }
 
-}  // namespace accura::identify_detail
+}  // namespace accura::calib::identify_detail

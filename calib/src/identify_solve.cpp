@@ -10,7 +10,7 @@
 #include "accura/calib/joint_map.h"
 #include "identify_internal.h"
 
-namespace accura::identify_detail {
+namespace accura::calib::identify_detail {
 namespace {
 
 // Evaluates all rows once per evaluation point (Ceres' EvaluationCallback) into one stacked,
@@ -269,4 +269,4 @@ SolveResult solve(Problem& pb, const IdentifyOptions& options, bool robust) {
   return res;
 }
 
-}  // namespace accura::identify_detail
+}  // namespace accura::calib::identify_detail

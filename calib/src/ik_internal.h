@@ -21,7 +21,7 @@
 #include "closed_form.h"
 #include "small_linalg.h"
 
-namespace accura {
+namespace accura::calib {
 namespace ik_detail {
 
 inline double wrap180(double deg) {
@@ -326,4 +326,4 @@ struct KinematicSolver::Impl {
                    IkWorkspace::Data* ws = nullptr) const;
 };
 
-}  // namespace accura
+}  // namespace accura::calib

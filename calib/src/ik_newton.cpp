@@ -11,7 +11,7 @@
 #include "accura/calib/errors.h"
 #include "ik_internal.h"
 
-namespace accura {
+namespace accura::calib {
 
 using detail::ClosedForm;
 using detail::ClosedFormKind;
@@ -307,4 +307,4 @@ KinematicSolver::Impl::Newton KinematicSolver::Impl::newton(VecN& q, const Eigen
   return r;
 }
 
-}  // namespace accura
+}  // namespace accura::calib

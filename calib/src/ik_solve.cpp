@@ -11,7 +11,7 @@
 #include "accura/calib/errors.h"
 #include "ik_internal.h"
 
-namespace accura {
+namespace accura::calib {
 
 using detail::ClosedForm;
 using detail::ClosedFormKind;
@@ -356,4 +356,4 @@ IkResult KinematicSolver::Impl::inverse(const Eigen::Isometry3d& T_target, const
   return fail;
 }
 
-}  // namespace accura
+}  // namespace accura::calib
