@@ -6,10 +6,12 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
+#include <algorithm>
 #include <cmath>
 #include <random>
 
 #include "accura/calib/errors.h"
+#include "accura/calib/joint_map.h"
 #include "accura/calib/kinematic_core.h"
 #include "accura/calib/kinematics.h"
 #include "accura/calib/measurements.h"
@@ -347,9 +349,16 @@ TEST(KinematicCore, DerivativesOfEveryEffectOnEveryRobotInBothForms) {
   for (const char* name : {"kuka_kr16", "ur10", "scara", "abb_irb120"}) {
     for (FormPolicy policy : {FormPolicy::kAuto, FormPolicy::kDHOnly}) {
       RobotModel m = test::loadBundled(name, policy);
+      // a joint map on every joint (6 intervals over its range): its coefficients join the layout
+      m.deviations.joint_map.resize(static_cast<size_t>(m.dof()));
+      for (int j = 0; j < m.dof(); ++j) {
+        const JointSpec& js = m.nominal.joints[static_cast<size_t>(j)];
+        m.deviations.joint_map[static_cast<size_t>(j)] = makeJointMap(js.lower, js.upper, (js.upper - js.lower) / 6);
+      }
       randomDeviations(m, rng);
       const KinematicModel core(m);
       const std::vector<ParamInfo> layout = parameterLayout(m);
+      ASSERT_TRUE(std::any_of(layout.begin(), layout.end(), [](const ParamInfo& p) { return p.kind == ParamKind::kJointMap; }));
       KinematicFrames f, fp, fm;
       LinkFrames links;
       for (int trial = 0; trial < 2; ++trial) {

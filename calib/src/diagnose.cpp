@@ -224,6 +224,7 @@ Diagnosis Diagnoser::run() {
   columns();
   linearise();
   robust();
+  schemes();
   selection();
   ranking();
   confounding();

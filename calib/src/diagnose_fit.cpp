@@ -15,6 +15,7 @@
 #include "accura/calib/errors.h"
 #include "accura/calib/identify.h"
 #include "accura/calib/kinematics.h"
+#include "identify_internal.h"
 
 namespace accura::calib {
 namespace diagnose_detail {
@@ -130,18 +131,14 @@ void Diagnoser::linearise() {
   const int C = static_cast<int>(cols_.size());
   std::vector<ParamInfo> sub;
   for (int c : cols_) sub.push_back(layout_[c]);
+  // identify's residual stacking (unit weights: position rows only), measured minus model
+  const identify_detail::JacobianPlan plan = identify_detail::makePlan(M0_, sub);
   auto build = [&](const MeasurementSet& set, Eigen::MatrixXd* J, Eigen::VectorXd* r) {
-    const Eigen::Index m = static_cast<Eigen::Index>(set.rows.size());
-    J->resize(3 * m, C);
-    r->resize(3 * m);
-    KinematicWorkspace ws;
-    Eigen::MatrixXd J6;
-    for (Eigen::Index i = 0; i < m; ++i) {
-      const Measurement& row = set.rows[static_cast<size_t>(i)];
-      const Eigen::Isometry3d T = parameterJacobian(M0_, sub, row.q, row.context, ws, J6);
-      J->middleRows(3 * i, 3) = J6.topRows(3);
-      r->segment(3 * i, 3) = row.p_world_mm - T.translation();
-    }
+    identify_detail::Stations st;
+    st.of_row.assign(set.rows.size(), 0);
+    identify_detail::RowStack stack(M0_, plan, st);
+    stack.stack(std::vector<double>(sub.size(), 0.0), set, std::vector<identify_detail::RowWeights>(set.rows.size()), J, r);
+    *r = -*r;
   };
   Eigen::MatrixXd JF;
   build(fit_, &JF, &rF_);
@@ -195,9 +192,12 @@ void Diagnoser::linearise() {
   if (has_val_) {
     build(val_, &JV_, &rV_);
     JV_ = JV_ * colscale_.cwiseInverse().asDiagonal();
-  } else {
-    buildScheme(&interleaved_);
   }
+}
+
+// The held-out schemes of the final linearisation (after robust(), which relinearises).
+void Diagnoser::schemes() {
+  if (!has_val_) buildScheme(&interleaved_);
   blockedSchemes();
 }
 
@@ -207,12 +207,28 @@ void Diagnoser::buildScheme(Scheme* sc) const {
   const Eigen::Index C = JF_.cols();
   sc->Af.assign(sc->poses.size(), Eigen::MatrixXd::Zero(C, C));
   sc->bf.assign(sc->poses.size(), Eigen::VectorXd::Zero(C));
+  Eigen::MatrixXd Jf;  // the fold's weighted rows, gathered: one symmetric rank update per fold
+  Eigen::VectorXd rf;
+  sc->J.resize(JF_.rows(), C);
+  sc->r.resize(rF_.size());
+  sc->first.clear();
+  Eigen::Index next = 0;
   for (size_t f = 0; f < sc->poses.size(); ++f) {
-    for (int i : sc->poses[f]) {
-      const Eigen::MatrixXd Ji = wF_.segment(3 * i, 3).asDiagonal() * JF_.middleRows(3 * i, 3);
-      sc->Af[f].noalias() += Ji.transpose() * Ji;
-      sc->bf[f].noalias() += Ji.transpose() * wF_.segment(3 * i, 3).cwiseProduct(rF_.segment(3 * i, 3));
+    const Eigen::Index k = static_cast<Eigen::Index>(sc->poses[f].size());
+    sc->first.push_back(next);
+    Jf.resize(3 * k, C);
+    rf.resize(3 * k);
+    for (Eigen::Index a = 0; a < k; ++a) {
+      const int i = sc->poses[f][static_cast<size_t>(a)];
+      sc->J.middleRows(3 * (next + a), 3) = JF_.middleRows(3 * i, 3);
+      sc->r.segment(3 * (next + a), 3) = rF_.segment(3 * i, 3);
+      Jf.middleRows(3 * a, 3) = wF_.segment(3 * i, 3).asDiagonal() * JF_.middleRows(3 * i, 3);
+      rf.segment(3 * a, 3) = wF_.segment(3 * i, 3).cwiseProduct(rF_.segment(3 * i, 3));
     }
+    next += k;
+    sc->Af[f].selfadjointView<Eigen::Lower>().rankUpdate(Jf.transpose());
+    sc->Af[f].triangularView<Eigen::StrictlyUpper>() = sc->Af[f].transpose();
+    sc->bf[f].noalias() = Jf.transpose() * rf;
   }
 }
 
@@ -285,7 +301,8 @@ Diagnoser::Eval Diagnoser::cvEval(const std::vector<int>& S, const Scheme& schem
   const Eigen::VectorXd bS = b_(S);
   Eigen::LLT<Eigen::MatrixXd> llt;
   Eigen::VectorXd x;
-  const Eigen::MatrixXd JS = JF_(Eigen::all, S);
+  Eigen::MatrixXd Z;
+  Eigen::VectorXd rh, xc;
   ev.d.resize(m_);
   if (leverage) ev.lev.resize(m_);
   for (size_t f = 0; f < scheme.poses.size(); ++f) {
@@ -296,12 +313,24 @@ Diagnoser::Eval Diagnoser::cvEval(const std::vector<int>& S, const Scheme& schem
       for (Eigen::Index c = 0; c < s; ++c) M(a, c) -= scheme.Af[f](S[a], S[c]);
     }
     if (!solveSpd(M, v, &llt, &x)) return ev;
-    for (int i : scheme.poses[f]) {
-      const Eigen::MatrixXd Ji = JS.middleRows(3 * i, 3);
+    // the fold's rows (contiguous in the scheme): residuals by one product with the update
+    // spread over all columns, leverages by one triangular solve
+    const std::vector<int>& held = scheme.poses[f];
+    const Eigen::Index k = static_cast<Eigen::Index>(held.size()), o = 3 * scheme.first[f];
+    xc.setZero(scheme.J.cols());
+    for (Eigen::Index a = 0; a < s; ++a) xc[S[static_cast<size_t>(a)]] = x[a];
+    rh = scheme.r.segment(o, 3 * k);
+    rh.noalias() -= scheme.J.middleRows(o, 3 * k) * xc;
+    if (leverage) {
+      Z = scheme.J.middleRows(o, 3 * k)(Eigen::all, S).transpose();
+      llt.matrixL().solveInPlace(Z);
+    }
+    for (Eigen::Index a = 0; a < k; ++a) {
+      const int i = held[static_cast<size_t>(a)];
       // robust held-out loss: a down-weighted row counts with its weight squared (about the
       // squared cut-off for a gross outlier)
-      ev.d[i] = (rF_.segment(3 * i, 3) - Ji * x).squaredNorm() * robust_w_[static_cast<size_t>(i)] * robust_w_[static_cast<size_t>(i)];
-      if (leverage) ev.lev[i] = llt.matrixL().solve(Eigen::MatrixXd(Ji.transpose())).squaredNorm();
+      ev.d[i] = rh.segment(3 * a, 3).squaredNorm() * robust_w_[static_cast<size_t>(i)] * robust_w_[static_cast<size_t>(i)];
+      if (leverage) ev.lev[i] = Z.middleCols(3 * a, 3).squaredNorm();
     }
   }
   ev.ok = true;
@@ -357,19 +386,29 @@ RobotModel Diagnoser::gnFit(const std::vector<int>& S, const std::vector<int>& r
     scale[static_cast<Eigen::Index>(k)] = colscale_[S[k]];
   }
   const Eigen::Index s = static_cast<Eigen::Index>(S.size());
-  KinematicWorkspace ws;
-  Eigen::MatrixXd J6;
-  Eigen::MatrixXd Jp(3, s);
+  // identify's residual stacking over the rows, weighted; the normal equations by one
+  // symmetric rank update per iteration
+  MeasurementSet data;
+  std::vector<identify_detail::RowWeights> weights(rows.size());
+  for (size_t k = 0; k < rows.size(); ++k) {
+    data.rows.push_back(fit_.rows[static_cast<size_t>(rows[k])]);
+    weights[k].w.head<3>() = w_fit_[rows[k]];
+  }
+  identify_detail::Stations st;
+  st.of_row.assign(rows.size(), 0);
+  const identify_detail::JacobianPlan plan = identify_detail::makePlan(model, sub);
+  identify_detail::RowStack stack(model, plan, st);
+  const std::vector<double> x0(sub.size(), 0.0);
+  Eigen::MatrixXd Jp;
+  Eigen::VectorXd rp;
   for (int it = 0; it < 10; ++it) {
+    if (it > 0) stack.prepare(model);
+    stack.stack(x0, data, weights, &Jp, &rp);
+    Jp = Jp * scale.cwiseInverse().asDiagonal();
     Eigen::MatrixXd A = Eigen::MatrixXd::Zero(s, s);
-    Eigen::VectorXd b = Eigen::VectorXd::Zero(s);
-    for (int i : rows) {
-      const Measurement& row = fit_.rows[static_cast<size_t>(i)];
-      const Eigen::Isometry3d T = parameterJacobian(model, sub, row.q, row.context, ws, J6);
-      Jp = w_fit_[i].asDiagonal() * J6.topRows(3) * scale.cwiseInverse().asDiagonal();
-      A.noalias() += Jp.transpose() * Jp;
-      b.noalias() += Jp.transpose() * w_fit_[i].cwiseProduct(row.p_world_mm - T.translation());
-    }
+    A.selfadjointView<Eigen::Lower>().rankUpdate(Jp.transpose());
+    A.triangularView<Eigen::StrictlyUpper>() = A.transpose();
+    const Eigen::VectorXd b = -(Jp.transpose() * rp);
     Eigen::LLT<Eigen::MatrixXd> llt;
     Eigen::VectorXd dx;
     if (!solveSpd(A, b, &llt, &dx)) throw NumericalError("diagnose: the refit's normal matrix is singular");

@@ -73,6 +73,9 @@ class Diagnoser {
     std::vector<std::vector<int>> poses;    // fit rows held out in each fold
     std::vector<Eigen::MatrixXd> Af;
     std::vector<Eigen::VectorXd> bf;
+    Eigen::MatrixXd J;           // the rows of JF_ fold by fold (unweighted, scaled columns)
+    Eigen::VectorXd r;           // the same rows of rF_
+    std::vector<Eigen::Index> first;  // first pose (in J's order) of each fold
   };
   struct Exact {
     std::vector<Eigen::Vector3d> e;  // held-out residual per pose (measured - model)
@@ -89,6 +92,7 @@ class Diagnoser {
   void robustWeights(const std::vector<double>& residual_mm);
   void columns();
   void linearise();
+  void schemes();
   Eval evaluate(const std::vector<int>& S, bool leverage = false) const;
   Eval cvEval(const std::vector<int>& S, const Scheme& scheme, bool leverage) const;
   void buildScheme(Scheme* s) const;

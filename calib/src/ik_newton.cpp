@@ -1,0 +1,310 @@
+// accura: the IK's numerics on the complete model (ik_internal.h): joint limits, singularity
+// tests and certificates, Newton's method with Levenberg-Marquardt as the fallback.
+#include <Eigen/Cholesky>
+#include <Eigen/LU>
+#include <Eigen/SVD>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <sstream>
+
+#include "accura/calib/errors.h"
+#include "ik_internal.h"
+
+namespace accura::calib {
+
+using detail::ClosedForm;
+using detail::ClosedFormKind;
+using namespace ik_detail;
+
+RobotModel KinematicSolver::Impl::nominalLinks(const RobotModel& m) {
+  RobotModel r = m;
+  const Deviations d = m.deviations;
+  r.deviations = Deviations::zero(m.dof(), d.gear_harmonics);
+  r.deviations.base_mm = d.base_mm;
+  r.deviations.base_rot_rad = d.base_rot_rad;
+  r.deviations.tool_mm = d.tool_mm;
+  r.deviations.tool_rot_rad = d.tool_rot_rad;
+  return r;
+}
+
+KinematicSolver::Impl::Impl(const RobotModel& m) : model(m), chain(m), nominal_chain(nominalLinks(m)),
+    closed_form(m.nominal), status_geometry(m.nominal) {
+  n = m.dof();
+  for (int i = 0; i < n; ++i) {
+    const JointSpec& j = m.nominal.joints[static_cast<size_t>(i)];
+    revolute[i] = j.type == JointType::kRevolute;
+    lower[i] = j.lower;
+    upper[i] = j.upper;
+    theta0[i] = j.theta0_deg * kDegToRad;
+    dir[i] = j.direction;
+  }
+  T_base_world = m.T_world_base().inverse();
+  T_tcp_flange = m.T_flange_tcp().inverse();
+  L = chain.length_scale_mm();
+  exact_closed_form = closed_form.kind() != ClosedFormKind::kNone && !hasDeviationsBeyondBaseTool(m);
+}
+
+Configuration KinematicSolver::Impl::configurationOf(const double* q) const {
+  Configuration c;
+  c.status = status_geometry.status(q);
+  c.turn = turnBits(q, n);
+  return c;
+}
+
+bool KinematicSolver::Impl::fitLimits(VecN& q, int turn, const VecN& ref, const IkOptions& o, bool strict,
+    double slack) const {
+  for (int i = 0; i < n; ++i) {
+    const double m = margin(i, o);
+    const double lo = lower[i] + m - slack, hi = upper[i] - m + slack;
+    const bool check_sign = turn >= 0;
+    const bool want_negative = check_sign && ((turn >> i) & 1);
+    if (!revolute[i]) {
+      if (q[i] < lo || q[i] > hi) return false;
+      if (strict && check_sign && (q[i] < 0) != want_negative) return false;
+      continue;
+    }
+    // q itself: within the limits, the sign asked for, and no other value nearer to ref
+    if (q[i] >= lo && q[i] <= hi && (!check_sign || (q[i] < 0) == want_negative) && std::abs(q[i] - ref[i]) <= 180.0)
+      continue;
+    double best = 0, best_any = 0;
+    bool found = false, found_any = false;
+    const double base = q[i] - 360.0 * std::round(q[i] / 360.0);
+    for (int k = -3; k <= 3; ++k) {
+      const double v = base + 360.0 * k;
+      if (v < lo || v > hi) continue;
+      if (!found_any || std::abs(v - ref[i]) < std::abs(best_any - ref[i])) best_any = v;
+      found_any = true;
+      if (check_sign && (v < 0) != want_negative) continue;
+      if (!found || std::abs(v - ref[i]) < std::abs(best - ref[i])) best = v;
+      found = true;
+    }
+    if (found) {
+      q[i] = best;
+    } else if (found_any && !strict) {
+      q[i] = best_any;
+    } else {
+      return false;
+    }
+  }
+  return true;
+}
+
+VecN KinematicSolver::Impl::midRange() const {
+  VecN q(n);
+  for (int i = 0; i < n; ++i) q[i] = 0.5 * (lower[i] + upper[i]);
+  return q;
+}
+
+void KinematicSolver::Impl::scaled(const Jac6N& J, Jac6N& Js) const {
+  Js = J;
+  Js.topRows<3>() /= L;
+  for (int i = 0; i < n; ++i) Js.col(i) *= revolute[i] ? kRadToDeg : L;
+}
+
+bool KinematicSolver::Impl::singularBelow(const Jac6N& J, double t) const {
+  if (n == 6) {
+    // A^T A (same singular values as A A^T for a square A), A the scaled Jacobian as a
+    // fixed-size matrix (vectorised product)
+    Eigen::Matrix<double, 6, 6> A = J.leftCols<6>();
+    A.topRows<3>() *= 1.0 / L;
+    for (int c = 0; c < 6; ++c) A.col(c) *= revolute[c] ? kRadToDeg : L;
+    Eigen::Matrix<double, 6, 6> G;
+    G.noalias() = A.transpose() * A;
+    G.diagonal().array() -= t * t;
+    return !detail::positiveDefinite6(G);
+  }
+  Jac6N Js;
+  scaled(J, Js);
+  if (n > 6) {
+    Eigen::Matrix<double, 6, 6> G;
+    G.triangularView<Eigen::Lower>() = Js * Js.transpose();
+    G.diagonal().array() -= t * t;
+    return !detail::positiveDefinite6(G);
+  }
+  Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxDof, kMaxDof> G = Js.transpose() * Js;
+  G.diagonal().array() -= t * t;
+  Eigen::LLT<decltype(G)> llt(G);
+  return llt.info() != Eigen::Success;
+}
+
+bool KinematicSolver::Impl::singularAt(const Jac6N& J, const VecN& q, double t, IkWorkspace::Data* ws,
+    double last_step_change) const {
+  const std::vector<double>& B = chain.scaledJacobianLipschitz();
+  if (!ws || B.empty()) return singularBelow(J, t);
+  if (ws->cert_solver_id == id) {
+    double change = 0;  // bound of ||Js(q) - Js(cert_q)||_2
+    for (int i = 0; i < n; ++i) change += B[static_cast<size_t>(i)] * std::abs(q[i] - ws->cert_q[i]) * kDegToRad;
+    if (ws->cert_level - change > t) return false;
+  }
+  if (!(last_step_change >= 0)) last_step_change = 0;
+  // the level: raised slowly while it holds, halved where it does not; not tried when the
+  // region it would certify could not reach as far as the last step went (long steps)
+  const double level = std::max(ws->next_level, 2 * t);
+  if (level < 1 && level - t > 1.5 * last_step_change && !singularBelow(J, level)) {
+    ws->cert_solver_id = id;
+    ws->cert_q = q;
+    ws->cert_level = level;
+    ws->next_level = std::min(0.5, 1.25 * level);
+    return false;
+  }
+  ws->next_level = std::max(0.5 * level, 2 * t);
+  return singularBelow(J, t);
+}
+
+double KinematicSolver::Impl::minSingularValue(const Jac6N& J) const {
+  Jac6N Js;
+  scaled(J, Js);
+  const Eigen::MatrixXd A = Js;
+  Eigen::JacobiSVD<Eigen::MatrixXd> svd(A);
+  const auto& s = svd.singularValues();
+  return s[s.size() - 1];
+}
+
+void KinematicSolver::Impl::poseErr(const Eigen::Isometry3d& T_target, const Eigen::Isometry3d& T, Vector6d& e) {
+  e.head<3>() = T_target.translation() - T.translation();
+  const Eigen::Matrix3d dR = T_target.linear() * T.linear().transpose();
+  // rotation vector of dR: half the skew part is sin(angle) times the axis; below 0.1
+  // (5.7 deg) scale it by angle / sin(angle) = asin(s) / s from its series (next term
+  // 35 s^8 / 1152 < 4e-10 relative); logSO3 otherwise
+  const Eigen::Vector3d half(0.5 * (dR(2, 1) - dR(1, 2)), 0.5 * (dR(0, 2) - dR(2, 0)), 0.5 * (dR(1, 0) - dR(0, 1)));
+  const double s2 = half.squaredNorm();
+  if (s2 < 0.01 && dR.trace() > 0) {
+    e.tail<3>() = half * (1 + s2 * (1.0 / 6 + s2 * (3.0 / 40 + s2 * (5.0 / 112))));
+  } else {
+    e.tail<3>() = logSO3(dR);
+  }
+}
+
+double KinematicSolver::Impl::meritScaled(const Vector6d& e) const {
+  return std::sqrt(e.head<3>().squaredNorm() / (L * L) + e.tail<3>().squaredNorm());
+}
+
+KinematicSolver::Impl::Newton KinematicSolver::Impl::newton(VecN& q, const Eigen::Isometry3d& T_target,
+    const PoseContext& ctx, const IkOptions& o, int max_iterations, KinematicFrames& f, bool f_valid,
+    double polish_mm, double polish_rad, const Jac6N* J0) const {
+  using MatN = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxDof, kMaxDof>;
+  Newton r;
+  if (!f_valid) chain.evaluate(q.data(), ctx, f);
+  // frames at q (cur) and of the trial (tmp); swapped on acceptance, copied back at the end
+  KinematicFrames ft;
+  KinematicFrames* cur = &f;
+  KinematicFrames* tmp = &ft;
+  struct CopyBack {
+    KinematicFrames*& cur;
+    KinematicFrames& f;
+    ~CopyBack() {
+      if (cur != &f) f = *cur;
+    }
+  } copy_back{cur, f};
+  Vector6d e;
+  poseErr(T_target, f.T_world_tcp, e);
+  double merit = meritScaled(e);
+  // converged at the tolerance; then, when polishing, up to kPolishSteps more while they
+  // gain (a step that does not reduce the error ends it, converged)
+  int polish_left = kPolishSteps;
+  auto done = [&]() {
+    r.ep = e.head<3>().norm();
+    r.er = e.tail<3>().norm();
+    r.converged = r.ep <= o.tol_mm && r.er <= o.tol_rad;
+    if (r.converged) {
+      const bool polished = polish_mm <= 0 || (r.ep <= polish_mm && r.er <= polish_rad);
+      return polished || polish_left-- <= 0;
+    }
+    return r.iterations >= max_iterations;
+  };
+  VecN qt(n), dq(n);
+  Vector6d et;
+  Jac6N J, Js;
+  auto trial = [&](const VecN& step) {
+    qt = q + step;
+    chain.evaluate(qt.data(), ctx, *tmp, cur);
+    poseErr(T_target, tmp->T_world_tcp, et);
+    ++r.iterations;
+    const double mt = meritScaled(et);
+    if (!(mt < merit)) return false;
+    q = qt;
+    std::swap(cur, tmp);
+    e = et;
+    merit = mt;
+    return true;
+  };
+  auto limitStep = [&](VecN& step) {
+    double s = 1;
+    for (int i = 0; i < n; ++i) {
+      const double lim = revolute[i] ? 20.0 : 0.1 * L;  // deg / mm
+      if (std::abs(step[i]) * s > lim) s = lim / std::abs(step[i]);
+    }
+    step *= s;
+  };
+
+  if (n == 6) {
+    // Newton with a square Jacobian
+    const double tol_merit = std::sqrt(o.tol_mm * o.tol_mm / (L * L) + o.tol_rad * o.tol_rad);
+    detail::Lu6 lu;
+    bool fresh = false, have = false;
+    while (!done()) {
+      if (!have) {
+        if (J0 && f_valid && cur == &f) {
+          J = *J0;
+        } else {
+          chain.jacobian(*cur, J);
+        }
+        J0 = nullptr;
+        if (!lu.factor(Eigen::Matrix<double, 6, 6>(J))) break;
+        have = fresh = true;
+      }
+      dq = lu.solve(e);
+      if (!dq.allFinite()) break;
+      limitStep(dq);
+      const double before = merit;
+      if (trial(dq)) {
+        fresh = false;
+        // slow, or still far from the tolerance (chord steps gain a fixed factor, a fresh
+        // Newton step squares the error): refresh the Jacobian
+        if (merit > 0.2 * before || merit > kRefreshAboveTol * tol_merit) have = false;
+      } else if (r.converged) {
+        return r;  // polishing reached the rounding level
+      } else if (!fresh) {
+        have = false;  // retry with the Jacobian at q
+      } else {
+        break;  // no descent along a fresh Newton step: Levenberg-Marquardt
+      }
+    }
+    if (done()) return r;
+  }
+
+  // Levenberg-Marquardt in scaled variables: (Js^T Js + lambda I) dx = Js^T es
+  double lambda = -1;
+  while (!done()) {
+    chain.jacobian(*cur, J);
+    scaled(J, Js);
+    const MatN A = Js.transpose() * Js;
+    Vector6d es = e;
+    es.head<3>() /= L;
+    const VecN g = Js.transpose() * es;
+    const double scale = std::max(1e-12, A.diagonal().maxCoeff());
+    if (lambda < 0) lambda = 1e-6 * scale;
+    bool accepted = false;
+    while (!accepted && !done()) {
+      MatN M = A;
+      M.diagonal().array() += lambda;
+      const VecN dx = M.ldlt().solve(g);
+      for (int i = 0; i < n; ++i) dq[i] = dx[i] * (revolute[i] ? kRadToDeg : L);
+      if (!dq.allFinite()) return r;
+      limitStep(dq);
+      if (trial(dq)) {
+        accepted = true;
+        lambda = std::max(lambda / 5, 1e-15 * scale);
+      } else if (r.converged) {
+        return r;  // polishing reached the rounding level
+      } else {
+        lambda *= 4;
+        if (lambda > 1e6 * scale) return r;  // a local minimum of the error: stop
+      }
+    }
+  }
+  return r;
+}
+
+}  // namespace accura::calib

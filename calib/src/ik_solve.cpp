@@ -1,0 +1,359 @@
+// accura: the IK solver (ik_internal.h): closed-form seeds of the nominal geometry (all
+// branches) corrected for the model's deviations, warm starts, the answer and its status.
+#include <Eigen/Cholesky>
+#include <Eigen/LU>
+#include <Eigen/SVD>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <sstream>
+
+#include "accura/calib/errors.h"
+#include "ik_internal.h"
+
+namespace accura::calib {
+
+using detail::ClosedForm;
+using detail::ClosedFormKind;
+using namespace ik_detail;
+
+std::array<double, 6> KinematicSolver::Impl::thetaOf(const VecN& q) const {
+  std::array<double, 6> t{};
+  for (int i = 0; i < 6; ++i) t[i] = theta0[i] + dir[i] * q[i] * kDegToRad;
+  return t;
+}
+
+VecN KinematicSolver::Impl::qOf(const detail::ThetaSolution& s) const {
+  VecN q(n);
+  for (int i = 0; i < 6; ++i) q[i] = (s.theta[i] - theta0[i]) * kRadToDeg / dir[i];
+  return q;
+}
+
+void KinematicSolver::Impl::correctSeed(VecN& q, int branch, const Eigen::Isometry3d& T_target,
+    const PoseContext& ctx) const {
+  KinematicFrames fr, fn;
+  double last_step = std::numeric_limits<double>::infinity();
+  for (int pass = 0; pass < 8; ++pass) {
+    chain.evaluate(q.data(), ctx, fr);
+    nominal_chain.evaluate(q.data(), ctx, fn);
+    const Eigen::Isometry3d T_moved = fn.T_world_tcp * fr.T_world_tcp.inverse() * T_target;
+    detail::ThetaSolution s;
+    if (!closed_form.solveBranch(T_base_world * T_moved * T_tcp_flange, thetaOf(q), branch, s)) return;
+    VecN qn = qOf(s);
+    // keep the representation (multiple of 360 deg) of q
+    for (int i = 0; i < 6; ++i) qn[i] += 360.0 * std::round((q[i] - qn[i]) / 360.0);
+    const double step = (qn - q).cwiseAbs().maxCoeff();
+    if (!(step < last_step)) return;  // not contracting (next to a singularity): keep q
+    q = qn;
+    last_step = step;
+    if (step < 1e-4) return;  // deg: Newton takes it from here
+  }
+}
+
+void KinematicSolver::Impl::closedFormStarts(const Eigen::Isometry3d& T_world_tcp, const Configuration& config,
+    const VecN& ref, const IkOptions& o, bool correct_all, const PoseContext& ctx, std::vector<Start>& starts,
+    int& outside_limits, int& branches) const {
+  std::array<detail::ThetaSolution, 8> sols;
+  const Eigen::Isometry3d T06 = T_base_world * T_world_tcp * T_tcp_flange;
+  branches = closed_form.solve(T06, thetaOf(ref), sols);
+  outside_limits = 0;
+  for (int k = 0; k < branches; ++k) {
+    Start st;
+    st.q = qOf(sols[k]);
+    st.branch = sols[k].branch;
+    if (!fitLimits(st.q, config.turn, ref, o, false, kSeedSlackDeg)) {
+      ++outside_limits;
+      continue;
+    }
+    bool duplicate = false;
+    for (const Start& s : starts) duplicate = duplicate || (s.q - st.q).cwiseAbs().maxCoeff() < 1e-9;
+    if (duplicate) continue;
+    st.status_mismatch = config.status >= 0 && configurationOf(st.q.data()).status != config.status;
+    if (correct_all) {
+      // "nearest to the seed" is decided on the corrected seeds: next to a singularity the
+      // nominal seeds may be degrees from the real solutions
+      correctSeed(st.q, st.branch, T_world_tcp, ctx);
+      st.corrected = true;
+    }
+    st.distance = (st.q - ref).squaredNorm();
+    starts.push_back(st);
+  }
+  std::stable_sort(starts.begin(), starts.end(), [](const Start& x, const Start& y) {
+    if (x.status_mismatch != y.status_mismatch) return !x.status_mismatch;
+    return x.distance < y.distance;
+  });
+}
+
+std::vector<KinematicSolver::Impl::Start> KinematicSolver::Impl::multiStarts(const VecN& ref) const {
+  std::vector<Start> s(1);
+  s[0].q = ref;
+  static const int primes[kMaxDof] = {2, 3, 5, 7, 11, 13, 17, 19, 23, 29, 31, 37};
+  for (int k = 1; k <= 48; ++k) {
+    Start st;
+    st.q.resize(n);
+    for (int i = 0; i < n; ++i) {
+      double f = 1, r = 0;
+      for (int x = k; x > 0; x /= primes[i]) {
+        f /= primes[i];
+        r += f * (x % primes[i]);
+      }
+      st.q[i] = lower[i] + r * (upper[i] - lower[i]);
+    }
+    s.push_back(st);
+  }
+  return s;
+}
+
+// inverse() is about 245 lines on purpose: one decision sequence (the warm start, the
+// closed-form seeds, the mirrored configurations, the fallback starts, the failure's message)
+// over the per-call state its lambdas finish() and attempt() update; cut into functions, that
+// state would travel through eight parameters.
+IkResult KinematicSolver::Impl::inverse(const Eigen::Isometry3d& T_target, const Configuration& config,
+    const Eigen::VectorXd& seed, const IkOptions& o, const PoseContext& ctx, double polish_mm,
+    double polish_rad, IkWorkspace::Data* ws) const {
+  std::string why;
+  if (!o.IsValid(&why)) throw ArgumentError(why);
+  if (seed.size() != 0 && seed.size() != n)
+    throw ArgumentError("IK seed: expected " + std::to_string(n) + " joint values, got " + std::to_string(seed.size()));
+  if (seed.size() != 0 && !seed.allFinite()) throw ArgumentError("IK seed: not finite");
+  if (!T_target.matrix().allFinite()) throw ArgumentError("IK target: not finite");
+  // with a workspace: its frames and Jacobian are those of the seed when it holds the seed;
+  // it holds the answer only when the answer is kOk (stored in finish)
+  const bool reuse = ws && ws->holds(id, seed, ctx);
+  if (ws) ws->solver_id = 0;
+  KinematicFrames f_local;
+  KinematicFrames& f = ws ? ws->f : f_local;
+  Jac6N J_local;
+  Jac6N& J = ws ? ws->J : J_local;
+  const VecN ref = seed.size() ? VecN(seed) : midRange();
+  int iterations = 0;
+
+  std::vector<IkResult> other_configuration;  // converged solutions on other configurations
+  IkResult singular_solution;                 // the first singular one on the configuration
+  bool have_singular = false;
+  int limit_failures = 0;
+  // A converged q (frames in f): limits, singularity, configuration. Returns true when
+  // `out` is the answer.
+  auto finish = [&](VecN q, Newton nt, bool warm, IkResult& out) -> bool {
+    const VecN q_converged = q;
+    if (!fitLimits(q, config.turn, ref, o, false)) {
+      if (!warm) ++limit_failures;
+      return false;
+    }
+    const double moved_deg = warm ? (q - ref).cwiseAbs().maxCoeff() : 0.0;
+    if (warm && moved_deg > kWarmMaxDeg) return false;
+    IkResult r;
+    // Status bit 0 is the sign of x_a1, the wrist point's x in the A1 frame (mm), which moves
+    // by at most L per rad of joint motion: with the seed's |x_a1| (at least x_a1_abs_lo)
+    // from the workspace and a move too small to reach 0, the bit is the seed's and no
+    // kinematics is needed; the workspace then keeps the smaller bound
+    double moved_rad = 0;
+    if (warm)
+      for (int i = 0; i < std::min(n, 5); ++i) moved_rad += std::abs(q[i] - ref[i]) * kDegToRad;
+    double x_a1 = 0, x_a1_abs_lo = 0;
+    const bool bit0_known = warm && reuse && status_geometry.defined && ws->x_a1_abs_lo > L * moved_rad;
+    if (bit0_known) {
+      r.configuration.status = (ws->x_a1_negative ? 1 : 0) | status_geometry.elbowWristBits(q.data());
+      x_a1_abs_lo = ws->x_a1_abs_lo - L * moved_rad;
+    } else {
+      chain.fillNominal(q.data(), f, status_geometry.last + 1);
+      r.configuration.status = status_geometry.status(q.data(), &x_a1, f.cos_nominal.data(), f.sin_nominal.data());
+      x_a1_abs_lo = std::abs(x_a1);
+    }
+    r.configuration.turn = turnBits(q.data(), n);
+    // warm: accepted only next to the seed and on its Status (else another solution may be
+    // nearer: next to a singularity two branches come close; the closed form decides)
+    if (warm && status_geometry.defined) {
+      if ((r.configuration.status & 6) != status_geometry.elbowWristBits(ref.data())) return false;
+      // bit 0: recomputed for the seed only when the move could have crossed 0
+      if (!bit0_known && std::abs(x_a1) <= L * moved_rad &&
+          (status_geometry.status(ref.data()) & 1) != (r.configuration.status & 1))
+        return false;
+    }
+    if (q != q_converged) {
+      // moved by 360 deg: the same pose unless an effect depends on q itself (joint_scale)
+      nt = newton(q, T_target, ctx, o, 5, f, false, polish_mm, polish_rad);
+      iterations += nt.iterations;
+      if (!nt.converged) return false;
+    }
+    r.q = q;
+    r.position_error_mm = nt.ep;
+    r.rotation_error_rad = nt.er;
+    chain.jacobian(f, J);
+    // warm and more than kWarmAcceptDeg from the seed: taken only where the Jacobian is
+    // regular enough that no other solution can be nearer (another solution of the same pose
+    // is about sigma_min rad away or more; docs/compensation.md)
+    if (warm && moved_deg > kWarmAcceptDeg && singularBelow(J, std::max(o.singular_threshold, moved_deg * kDegToRad)))
+      return false;
+    double step_change = 0;  // bound of the scaled Jacobian's change since the seed
+    if (warm && ws && !chain.scaledJacobianLipschitz().empty())
+      for (int i = 0; i < n; ++i)
+        step_change += chain.scaledJacobianLipschitz()[static_cast<size_t>(i)] * std::abs(q[i] - ref[i]) * kDegToRad;
+    const bool singular = o.singular_threshold > 0 && singularAt(J, q, o.singular_threshold, ws, step_change);
+    if (singular || o.compute_singular_value) r.min_singular_value = minSingularValue(J);
+    if (!configurationMatches(config, r.configuration)) {
+      if (warm) return false;
+      r.status = IkStatus::kNoConfiguration;
+      r.message = "reached with S " + std::to_string(r.configuration.status) + " T " +
+                  std::to_string(r.configuration.turn) + ", not with the configuration asked for (S " +
+                  std::to_string(config.status) + " T " + std::to_string(config.turn) + ")";
+      other_configuration.push_back(r);
+      return false;
+    }
+    if (singular) {
+      // with a Status asked for, another start may find a regular solution on it: keep
+      // this one and go on; with any Status the nearest solution decides: report it
+      const auto asSingular = [&](IkResult solution) {
+        solution.status = IkStatus::kSingular;
+        std::ostringstream m;
+        m << "singular: the smallest scaled singular value of the Jacobian is " << r.min_singular_value
+          << ", below " << o.singular_threshold;
+        solution.message = m.str();
+        return solution;
+      };
+      if (!warm && config.status < 0) {
+        out = asSingular(r);
+        return true;
+      }
+      if (!warm && !have_singular) {
+        singular_solution = asSingular(r);
+        have_singular = true;
+      }
+      return false;
+    }
+    r.status = IkStatus::kOk;
+    if (ws) {
+      // f and J are at q: keep them for a solve seeded with this solution
+      ws->solver_id = id;
+      ws->q = q;
+      ws->payload_kg = ctx.payload_kg;
+      ws->temp_c = ctx.temp_c;
+      ws->dir = ctx.dir;
+      ws->x_a1_abs_lo = status_geometry.defined ? x_a1_abs_lo : 0.0;
+      ws->x_a1_negative = (r.configuration.status & 1) != 0;
+    }
+    out = std::move(r);
+    return true;
+  };
+
+  IkResult res;
+  // 1. warm start: Newton from the seed, accepted when it stays near the seed
+  if (seed.size()) {
+    VecN q = ref;
+    // (the Jacobian is copied in: finish() overwrites J)
+    const Newton nt =
+        newton(q, T_target, ctx, o, std::min(o.max_iterations, 12), f, reuse, polish_mm, polish_rad, reuse ? &J : nullptr);
+    iterations += nt.iterations;
+    if (nt.converged && finish(q, nt, true, res)) {
+      res.iterations = iterations;
+      return res;
+    }
+  }
+
+  // 2. closed-form seeds (or a fixed set of starts): those with the Status asked for
+  //    first, each group nearest to the reference first
+  std::vector<Start> starts;
+  int outside_limits = 0, branches = 0;
+  const bool closed = closed_form.kind() != ClosedFormKind::kNone;
+  if (closed) {
+    const bool correct_all = !exact_closed_form && seed.size() && config.status < 0;
+    closedFormStarts(T_target, config, ref, o, correct_all, ctx, starts, outside_limits, branches);
+  } else {
+    starts = multiStarts(ref);
+    branches = static_cast<int>(starts.size());
+  }
+  bool any_converged = false;
+  double best_ep = std::numeric_limits<double>::infinity(), best_er = best_ep;
+  auto attempt = [&](VecN q, int branch, bool corrected, int max_iterations) -> bool {
+    if (closed && !exact_closed_form && branch >= 0 && !corrected) correctSeed(q, branch, T_target, ctx);
+    const Newton nt = newton(q, T_target, ctx, o, max_iterations, f, false, polish_mm, polish_rad);
+    iterations += nt.iterations;
+    if (!nt.converged) {
+      if (nt.ep / o.tol_mm + nt.er / o.tol_rad < best_ep / o.tol_mm + best_er / o.tol_rad) {
+        best_ep = nt.ep;
+        best_er = nt.er;
+      }
+      return false;
+    }
+    any_converged = true;
+    return finish(q, nt, false, res);
+  };
+  for (const Start& st : starts) {
+    if (attempt(st.q, st.branch, st.corrected, o.max_iterations)) {
+      res.iterations = iterations;
+      return res;
+    }
+  }
+  if (have_singular) {
+    singular_solution.iterations = iterations;
+    return singular_solution;
+  }
+  // 3. Status asked for but only found on other configurations: next to a boundary (the
+  //    arm stretched, A5 ~ 0) the nominal seeds of both sides may lead to the same side.
+  //    Mirror the converged solutions across the boundary and try again.
+  if (config.status >= 0 && status_geometry.defined) {
+    const std::vector<IkResult> found = other_configuration;
+    for (const IkResult& r : found) {
+      const int differ = r.configuration.status ^ config.status;
+      if (differ == 0) continue;
+      VecN q = r.q;
+      if (differ & 1) status_geometry.mirrorShoulder(q.data());
+      if (differ & 2) status_geometry.mirrorElbow(q.data());
+      if (differ & 4) {
+        const double side = (config.status & 4) ? -1.0 : 1.0;
+        q[4] = side * std::max(std::abs(wrap180(q[4])), 1.0);
+      }
+      if (attempt(q, -1, false, o.max_iterations)) {
+        res.iterations = iterations;
+        return res;
+      }
+    }
+  }
+  // 4. next to a singularity of the nominal links (the wrist point near the first axis, a
+  //    branch the nominal robot cannot reach) the closed-form seeds can miss a solution the
+  //    real robot has: Newton / Levenberg-Marquardt from a fixed set of starts, the seed
+  //    (or the middle of the ranges) first. Only reached when everything above failed.
+  if (closed) {
+    const bool none = branches == 0;  // far outside the workspace: a short search
+    const std::vector<Start> more = multiStarts(ref);
+    const size_t count = none ? 8 : more.size();
+    for (size_t k = 0; k < count && k < more.size(); ++k) {
+      if (attempt(more[k].q, -1, true, none ? std::min(o.max_iterations, 30) : o.max_iterations)) {
+        res.iterations = iterations;
+        return res;
+      }
+    }
+  }
+  if (!other_configuration.empty()) {
+    IkResult r = other_configuration.front();
+    r.iterations = iterations;
+    return r;
+  }
+  IkResult fail;
+  fail.iterations = iterations;
+  std::ostringstream m;
+  const std::string margin_note =
+      o.joint_margin > 0 ? " (margin " + std::to_string(o.joint_margin) + ")" : std::string();
+  if (closed && branches == 0) {
+    fail.status = IkStatus::kUnreachable;
+    m << "unreachable: " << formatPose(T_target) << " is outside the workspace";
+  } else if (any_converged && limit_failures > 0) {
+    fail.status = IkStatus::kJointLimits;
+    m << "reachable only outside the joint limits" << margin_note;
+  } else if (starts.empty()) {
+    fail.status = IkStatus::kJointLimits;
+    m << "reachable only outside the joint limits" << margin_note << " (" << outside_limits << " of "
+      << branches << " branches)";
+  } else {
+    // every start ended in a local minimum of the error or ran out of iterations
+    fail.status = best_ep > 10 * o.tol_mm || best_er > 10 * o.tol_rad ? IkStatus::kUnreachable
+                                                                     : IkStatus::kNotConverged;
+    m << (fail.status == IkStatus::kUnreachable ? "unreachable: " : "not converged: ") << formatPose(T_target)
+      << ", smallest error " << best_ep << " mm, " << best_er << " rad after Newton from " << starts.size()
+      << " start(s)";
+  }
+  fail.message = m.str();
+  return fail;
+}
+
+}  // namespace accura::calib
