@@ -327,6 +327,45 @@ TEST(KrlRules, ASplitCircGetsANewAuxiliaryPointTheDeclaredOneKeepsItsValue) {
   EXPECT_GT(d.norm(), 10.0);  // mm: another point of the arc, which the declared point could not hold
 }
 
+// A point that is a CIRC's auxiliary point and another motion's target: the split CIRC gets a
+// new point, the declared one holds the other motion's correction (its report's dx, dy, dz).
+TEST(KrlRules, ADeclaredPointUsedByAnotherMotionIsNeverRepurposed) {
+  const StCell cell;
+  const Eigen::VectorXd q1 = joints({-10, -70, 100, 10, 40, 20}), q2 = joints({15, -60, 90, 15, 45, 25}),
+                        q3 = joints({35, -75, 105, 20, 50, 30});
+  const Configuration c1 = kukaConfiguration(cell.controller, q1);
+  const std::string dir = test::tempDir("krl_shared");
+  test::writeText(dir + "/p.src",
+                  "DEF p( )\n$TOOL={X 20,Y 0,Z 250,A 0,B -30,C 0}\n$BASE=$NULLFRAME\nPTP XP1\nCIRC XP2, XP3\nLIN XP2\nEND\n");
+  test::writeText(dir + "/p.dat", "DEFDAT p\nDECL E6POS XP1=" + aggregate(cell.target(q1), c1.status, c1.turn) +
+                                      "\nDECL E6POS XP2=" + aggregate(cell.target(q2), 2, 0) +
+                                      "\nDECL E6POS XP3=" + aggregate(cell.target(q3), 2, 0) + "\nENDDAT\n");
+  const Program in = readKrl(dir + "/p.src");
+  JobSettings s;
+  s.calibrated = cell.real;
+  s.tol_mm = 0.01;
+  const ProgramCompensation pc = compensateProgramReport(in, s);
+  ASSERT_TRUE(pc.ok()) << pc.report.errors.front().message;
+  ASSERT_GT(pc.report.points_added, 0);  // the arc was split
+  const KrlText out = writeKrl(pc.program);
+  EXPECT_NE(out.src.find("\nCIRC XP2_1, XP3\n"), std::string::npos) << out.src;
+  EXPECT_NE(out.src.find("\nLIN XP2\n"), std::string::npos) << out.src;
+  // XP2 = its written value + the LIN's correction
+  const TargetReport* lin = nullptr;
+  for (const TargetReport& t : pc.report.targets)
+    if (t.name == "XP2" && t.motion_type == "LIN") lin = &t;
+  ASSERT_NE(lin, nullptr);
+  test::writeText(dir + "/o.src", out.src);
+  test::writeText(dir + "/o.dat", out.dat);
+  const Program back = readKrl(dir + "/o.src");
+  const Target& xp2 = back.motions.back().target;
+  ASSERT_EQ(xp2.name, "XP2");
+  EXPECT_NEAR(*xp2.pose[0] - *in.motions[2].target.pose[0], lin->dx_mm, 1e-4);  // mm: the written precision
+  EXPECT_NEAR(*xp2.pose[1] - *in.motions[2].target.pose[1], lin->dy_mm, 1e-4);
+  EXPECT_NEAR(*xp2.pose[2] - *in.motions[2].target.pose[2], lin->dz_mm, 1e-4);
+  EXPECT_GT(std::hypot(lin->dx_mm, lin->dy_mm, lin->dz_mm), 0.1);  // mm: a real correction
+}
+
 TEST(KrlRules, NewPointNamesAreFreeInTheProgram) {
   const std::string dir = test::tempDir("krl_names");
   test::writeText(dir + "/p.src", "DEF p( )\nLIN XP4\nINT XP4_1\nEND\n");

@@ -281,7 +281,7 @@ PassThrough readPassThrough(const Reader& R, const XMLElement* e, size_t before_
   } else {
     R.fail(e, "<passthrough> attribute 'encoding': expected text or hex, found '" + encoding + "'");
   }
-  if (p.text.find_first_of("\r\n") != std::string::npos) R.fail(e, "<passthrough>: expected one line, found a line break");
+  if (p.text.find('\n') != std::string::npos) R.fail(e, "<passthrough>: expected one line, found a line break");
   return p;
 }
 
