@@ -11,6 +11,7 @@
 #include "accura/postproc/krl.h"
 #include "accura/postproc/path_job.h"
 #include "accura/postproc/placement.h"
+#include "path_geometry.h"
 
 namespace accura::postproc {
 namespace {
@@ -355,7 +356,10 @@ class Job {
       PathSegment one = commanded.back();
       one.T_world_start = commanded.front().T_world_start;
       if (c.aux) {
-        const PoseCompensation pa = comp.pose(intended.T_world_aux, Configuration{}, *q_real_, s_.ik, s_.context);
+        // the auxiliary point where the robot passes it (the path's orientation there), as the
+        // prediction of the endpoints-only error (max_error_before_mm) took it
+        const detail::PathGeometry arc(intended);
+        const PoseCompensation pa = comp.pose(arc.pose(arc.s_aux), Configuration{}, *q_real_, s_.ik, s_.context);
         if (pa.status != IkStatus::kOk) {
           error(m.where, "the auxiliary point " + targetLabel(*c.aux) + " cannot be compensated: " + toString(pa.status));
           return keep(out, mo);
