@@ -366,6 +366,34 @@ TEST(KrlRules, ADeclaredPointUsedByAnotherMotionIsNeverRepurposed) {
   EXPECT_GT(std::hypot(lin->dx_mm, lin->dy_mm, lin->dz_mm), 0.1);  // mm: a real correction
 }
 
+// The same with the points declared in the .src: the last sub-arc's auxiliary point becomes an
+// inline aggregate (a DECL cannot follow statements), the declaration stays as it was.
+TEST(KrlRules, ASplitCircWhosePointIsDeclaredInTheSrcGetsAnInlineAuxiliaryPoint) {
+  const StCell cell;
+  const Eigen::VectorXd q1 = joints({-10, -70, 100, 10, 40, 20}), q2 = joints({15, -60, 90, 15, 45, 25}),
+                        q3 = joints({35, -75, 105, 20, 50, 30});
+  const Configuration c1 = kukaConfiguration(cell.controller, q1);
+  const std::string decl2 = "DECL E6POS XP2=" + aggregate(cell.target(q2), 2, 0);
+  const std::string dir = test::tempDir("krl_src_decl");
+  test::writeText(dir + "/p.src", "DEF p( )\n" + decl2 + "\nDECL E6POS XP3=" + aggregate(cell.target(q3), 2, 0) +
+                                      "\n$TOOL={X 20,Y 0,Z 250,A 0,B -30,C 0}\n$BASE=$NULLFRAME\nPTP " +
+                                      aggregate(cell.target(q1), c1.status, c1.turn) + "\nCIRC XP2, XP3\nEND\n");
+  JobSettings s;
+  s.calibrated = cell.real;
+  s.tol_mm = 0.01;
+  const ProgramCompensation pc = compensateProgramReport(readKrl(dir + "/p.src"), s);
+  ASSERT_TRUE(pc.ok()) << pc.report.errors.front().message;
+  ASSERT_GT(pc.report.points_added, 0);
+  const std::string src = writeKrl(pc.program).src;
+  EXPECT_NE(src.find("\n" + decl2 + "\n"), std::string::npos) << src;
+  EXPECT_EQ(src.find("CIRC XP2,"), std::string::npos) << src;
+  EXPECT_NE(src.find("\nCIRC {X "), std::string::npos) << src;
+  EXPECT_NE(src.find("}, XP3\n"), std::string::npos) << src;
+  int replaced = 0;
+  for (const TargetReport& t : pc.report.targets) replaced += t.new_point_replaces == "XP2" && t.name.empty();
+  EXPECT_EQ(replaced, 1);
+}
+
 TEST(KrlRules, NewPointNamesAreFreeInTheProgram) {
   const std::string dir = test::tempDir("krl_names");
   test::writeText(dir + "/p.src", "DEF p( )\nLIN XP4\nINT XP4_1\nEND\n");

@@ -386,9 +386,13 @@ class Job {
         // one keeps its meaning (another motion may use it)
         Target& a = *mo.aux;
         a.replaces = a.name;
-        a.name = newPointName(*in_, a.name, new_names_);
         a.new_declaration = true;
-        new_names_.push_back(a.name);
+        // KRL: declared next to the point it replaces in the .dat; a point declared elsewhere
+        // (the .src, $config.dat) is replaced by an inline aggregate (no name)
+        const bool in_dat = !in_->krl || (a.value_id >= 0 && static_cast<size_t>(a.value_id) < in_->krl->values.size() &&
+                                          in_->krl->values[static_cast<size_t>(a.value_id)].file == 1);
+        a.name = in_dat ? newPointName(*in_, a.name, new_names_) : std::string();
+        if (in_dat) new_names_.push_back(a.name);
       }
       Eigen::Isometry3d T_cmd_aux = commanded.back().T_world_aux;
       // the controller ignores the orientation of an auxiliary point: the program's stays

@@ -134,7 +134,7 @@ KrlText patchKrl(const Program& p) {
     if (m.statement_id < 0 || m.statement_id >= static_cast<int>(s.statements.size()))
       throw ArgumentError("writeKrl: a motion with a new point has no statement");
     const KrlSource::Statement& st = s.statements[static_cast<size_t>(m.statement_id)];
-    const bool in_dat = t.value_id >= 0 && s.values.at(static_cast<size_t>(t.value_id)).file == 1;
+    const bool in_dat = !t.name.empty() && t.value_id >= 0 && s.values.at(static_cast<size_t>(t.value_id)).file == 1;
     edits.push_back({st.file, st.targets.front().first, st.targets.front().second, in_dat ? t.name : krlAggregate(t), order++});
     if (!in_dat) return;
     const KrlSource::Value& v = s.values.at(static_cast<size_t>(t.value_id));

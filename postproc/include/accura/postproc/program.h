@@ -61,8 +61,9 @@ struct Target {
   bool modified = false;  ///< changed by the compensator (the writers rewrite its value)
   /// A new point made by the compensator where the old name must keep its meaning (the
   /// auxiliary point of the last sub-arc of a split CIRC): `name` is new and must be declared
-  /// (KRL: a DECL after the declaration of value_id, which stays untouched) and the motion
-  /// refers to it instead of the point it replaces (`replaces`).
+  /// (KRL: a DECL after the declaration of value_id in the .dat, which stays untouched) and the
+  /// motion refers to it instead of the point it replaces (`replaces`); `name` empty: an inline
+  /// aggregate in the statement instead (the replaced point is not declared in the .dat).
   bool new_declaration = false;
   std::string replaces;  ///< for new_declaration: the name the motion used before
 
