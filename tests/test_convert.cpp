@@ -119,7 +119,7 @@ TEST(Convert, WhatCannotBeCarriedIsRefusedNamingTheLine) {
   try {
     writeXmlProgram(p);
     ADD_FAILURE() << "expected a refusal";
-  } catch (const ArgumentError& e) {
+  } catch (const calib::ArgumentError& e) {
     EXPECT_NE(std::string(e.what()).find(dir + "/p.src:8:1"), std::string::npos) << e.what();
     EXPECT_NE(std::string(e.what()).find("local subroutine"), std::string::npos) << e.what();
   }
@@ -134,7 +134,7 @@ TEST(Convert, WhatCannotBeCarriedIsRefusedNamingTheLine) {
   try {
     writeKrl(x);
     ADD_FAILURE() << "expected a refusal";
-  } catch (const ArgumentError& e) {
+  } catch (const calib::ArgumentError& e) {
     EXPECT_NE(std::string(e.what()).find("p.xml:4:5"), std::string::npos) << e.what();
     EXPECT_NE(std::string(e.what()).find("RAPID"), std::string::npos) << e.what();
   }
@@ -150,7 +150,7 @@ TEST(Convert, MalformedPassThroughIsAnErrorWithItsPlace) {
     const std::string xml = "<?xml version=\"1.0\"?>\n<program version=\"1\">\n  <motions>\n    " + element + "\n  </motions>\n</program>\n";
     try {
       parseXmlProgram(xml, "p.xml");
-    } catch (const InputError& e) {
+    } catch (const calib::InputError& e) {
       return e.what();
     }
     return "no error";

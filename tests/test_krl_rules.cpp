@@ -28,7 +28,7 @@ namespace accura::postproc {
 namespace {
 
 std::string aggregate(const Eigen::Isometry3d& T, int s, int t) {
-  const XyzAbc p = toXyzAbc(T);
+  const calib::XyzAbc p = calib::toXyzAbc(T);
   return "{X " + formatMm(p.x_mm) + ",Y " + formatMm(p.y_mm) + ",Z " + formatMm(p.z_mm) + ",A " + formatDeg(p.a_deg) +
          ",B " + formatDeg(p.b_deg) + ",C " + formatDeg(p.c_deg) + ",S " + std::to_string(s) + ",T " + std::to_string(t) +
          ",E1 0.0,E2 0.0,E3 0.0,E4 0.0,E5 0.0,E6 0.0}";
@@ -50,15 +50,15 @@ double distanceToSegment(const Eigen::Vector3d& p, const Eigen::Vector3d& a, con
 /// A KUKA controller (nominal model) driving the real robot through a program of PTP and LIN
 /// motions to Cartesian targets (world poses with the written S/T).
 struct SimulatedKuka {
-  KinematicSolver controller, real;
+  calib::KinematicSolver controller, real;
   Eigen::VectorXd q;  ///< the controller's joints
   int status_changes_on_cp = 0;
-  SimulatedKuka(const RobotModel& c, const RobotModel& r) : controller(c), real(r) {}
+  SimulatedKuka(const calib::RobotModel& c, const calib::RobotModel& r) : controller(c), real(r) {}
 
   /// PTP: the programmed S/T choose the solution.
   bool ptp(const Eigen::Isometry3d& T, int s, int t) {
-    const IkResult r = controller.inverse(T, Configuration{s, t}, Eigen::VectorXd(), IkOptions{});
-    if (r.status != IkStatus::kOk) return false;
+    const calib::IkResult r = controller.inverse(T, calib::Configuration{s, t}, Eigen::VectorXd(), calib::IkOptions{});
+    if (r.status != calib::IkStatus::kOk) return false;
     q = r.q;
     return true;
   }
@@ -67,7 +67,7 @@ struct SimulatedKuka {
   /// from the previous joints (the programmed S/T play no part). Returns the real TCP positions.
   std::vector<Eigen::Vector3d> lin(const Eigen::Isometry3d& T_end) {
     const Eigen::Isometry3d T0 = controller.forward(q);
-    const int s0 = kukaConfiguration(controller.model(), q).status;
+    const int s0 = calib::kukaConfiguration(controller.model(), q).status;
     const Eigen::Quaterniond r0(T0.linear()), r1(T_end.linear());
     const int n = std::max(2, static_cast<int>(std::ceil((T_end.translation() - T0.translation()).norm() / 0.5)));
     std::vector<Eigen::Vector3d> out;
@@ -76,11 +76,11 @@ struct SimulatedKuka {
       Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
       T.translation() = (1 - u) * T0.translation() + u * T_end.translation();
       T.linear() = r0.slerp(u, r1).toRotationMatrix();
-      const IkResult r = controller.inverse(T, Configuration{}, q, IkOptions{});
-      EXPECT_EQ(r.status, IkStatus::kOk) << r.message;
-      if (r.status != IkStatus::kOk) return out;
+      const calib::IkResult r = controller.inverse(T, calib::Configuration{}, q, calib::IkOptions{});
+      EXPECT_EQ(r.status, calib::IkStatus::kOk) << r.message;
+      if (r.status != calib::IkStatus::kOk) return out;
       q = r.q;
-      if (kukaConfiguration(controller.model(), q).status != s0) ++status_changes_on_cp;
+      if (calib::kukaConfiguration(controller.model(), q).status != s0) ++status_changes_on_cp;
       out.push_back(real.forward(q).translation());
     }
     return out;
@@ -88,31 +88,31 @@ struct SimulatedKuka {
 };
 
 struct StCell {
-  RobotModel controller, real;
+  calib::RobotModel controller, real;
   StCell() {
     controller = test::loadBundled("kuka_kr16");
-    controller.nominal.T_flange_tcp = toIsometry({20, 0, 250, 0, -30, 0});
-    SimulateOptions o;
+    controller.nominal.T_flange_tcp = calib::toIsometry({20, 0, 250, 0, -30, 0});
+    calib::SimulateOptions o;
     o.effects = {"geometric", "joint_compliance"};
     o.set_station = false;
     o.seed = 5;
-    real = perturbModel(controller, o);
+    real = calib::perturbModel(controller, o);
   }
   /// The target (in $BASE = $NULLFRAME = the robot base) of the nominal TCP at q.
   Eigen::Isometry3d target(const Eigen::VectorXd& q) const {
-    return controller.nominal.T_world_base.inverse() * KinematicSolver(controller).forward(q);
+    return controller.nominal.T_world_base.inverse() * calib::KinematicSolver(controller).forward(q);
   }
 };
 
 TEST(KrlRules, CpTargetsWithStaleStatusAndTurnFollowThePathPtpKeepsItsBranch) {
   const StCell cell;
-  const KinematicSolver nominal(cell.controller);
+  const calib::KinematicSolver nominal(cell.controller);
   const Eigen::VectorXd q1 = joints({10, -80, 100, 20, 40, 30});
   const Eigen::VectorXd q2 = joints({25, -70, 95, 25, 45, 35});
   const Eigen::VectorXd q3 = joints({35, -75, 105, 15, 50, 20});
   const Eigen::VectorXd q4 = joints({30, -70, 100, 20, 45, -160});  // A6 < 0: its T bit chooses the branch
-  const Configuration c1 = kukaConfiguration(cell.controller, q1), c2 = kukaConfiguration(cell.controller, q2),
-                      c3 = kukaConfiguration(cell.controller, q3), c4 = kukaConfiguration(cell.controller, q4);
+  const calib::Configuration c1 = calib::kukaConfiguration(cell.controller, q1), c2 = calib::kukaConfiguration(cell.controller, q2),
+                      c3 = calib::kukaConfiguration(cell.controller, q3), c4 = calib::kukaConfiguration(cell.controller, q4);
   // the OLP wrote stale S/T into the LIN targets: another elbow bit, the A1 and A6 T bits flipped
   const int s2 = c2.status ^ 2, t2 = c2.turn ^ 1, s3 = c3.status, t3 = c3.turn ^ 32;
   ASSERT_NE(s2, c2.status);
@@ -158,13 +158,13 @@ TEST(KrlRules, CpTargetsWithStaleStatusAndTurnFollowThePathPtpKeepsItsBranch) {
     size_t input = 0;  // the input motion this one belongs to
     for (size_t k = 0; k < p.motions.size(); ++k) {
       const Motion& m = p.motions[k];
-      const Eigen::Isometry3d T = cell.controller.nominal.T_world_base * toIsometry(m.target.xyzAbc());
-      const Eigen::Isometry3d intended = cell.controller.nominal.T_world_base * toIsometry(in.motions[input].target.xyzAbc());
+      const Eigen::Isometry3d T = cell.controller.nominal.T_world_base * calib::toIsometry(m.target.xyzAbc());
+      const Eigen::Isometry3d intended = cell.controller.nominal.T_world_base * calib::toIsometry(in.motions[input].target.xyzAbc());
       if (m.type == MotionType::kPtp) {
         EXPECT_TRUE(kuka.ptp(T, *m.target.status, *m.target.turn)) << "motion " << k;
         ptp_mm = std::max(ptp_mm, (kuka.real.forward(kuka.q).translation() - intended.translation()).norm());
       } else {
-        const Eigen::Vector3d a = cell.controller.nominal.T_world_base * toIsometry(in.motions[input - 1].target.xyzAbc()).translation();
+        const Eigen::Vector3d a = cell.controller.nominal.T_world_base * calib::toIsometry(in.motions[input - 1].target.xyzAbc()).translation();
         for (const Eigen::Vector3d& x : kuka.lin(T)) path_mm = std::max(path_mm, distanceToSegment(x, a, intended.translation()));
       }
       if (!inserted[k]) ++input;
@@ -182,7 +182,7 @@ TEST(KrlRules, CpTargetsWithStaleStatusAndTurnFollowThePathPtpKeepsItsBranch) {
   EXPECT_GT(original.second, 0.2);
   // PTP XP4: the corrected target is on the written branch (A6 < 0), not the nearest one
   SimulatedKuka check(cell.controller, cell.real);
-  ASSERT_TRUE(check.ptp(cell.controller.nominal.T_world_base * toIsometry(written.motions.back().target.xyzAbc()), c4.status, c4.turn));
+  ASSERT_TRUE(check.ptp(cell.controller.nominal.T_world_base * calib::toIsometry(written.motions.back().target.xyzAbc()), c4.status, c4.turn));
   EXPECT_LT(check.q[5], 0);
 }
 
@@ -207,7 +207,7 @@ TEST(KrlRules, TheNominalRobotReturnsEveryProgramByteForByte) {
     if (!c.config.empty()) o.config_path = test::sourcePath(c.config);
     const Program in = readProgram(test::sourcePath(c.src), o);
     JobSettings s;
-    s.calibrated = RobotModel::fromDefinition(readRobotFile(test::sourcePath(c.robot)).nominal);
+    s.calibrated = calib::RobotModel::fromDefinition(calib::readRobotFile(test::sourcePath(c.robot)).nominal);
     const ProgramCompensation pc = compensateProgramReport(in, s);
     ASSERT_TRUE(pc.ok()) << c.src << ": " << pc.report.errors.front().where.str() << ": " << pc.report.errors.front().message;
     ASSERT_GT(pc.report.targets.size(), 2u) << c.src;
@@ -215,7 +215,7 @@ TEST(KrlRules, TheNominalRobotReturnsEveryProgramByteForByte) {
     // the calibrated one, 0.5e-4 mm away): below what is written
     EXPECT_LT(pc.report.max_correction_mm, 5e-5) << c.src;
     EXPECT_EQ(pc.report.points_added, 0) << c.src;
-    const std::vector<OutputFile> files = renderProgram(pc.program, programFormat(c.src), "out" + c.src.substr(c.src.rfind('.')));
+    const std::vector<calib::OutputFile> files = renderProgram(pc.program, programFormat(c.src), "out" + c.src.substr(c.src.rfind('.')));
     EXPECT_EQ(files.front().text, test::readText(test::sourcePath(c.src))) << c.src;
     if (files.size() > 1) {
       EXPECT_EQ(files[1].text, test::readText(in.krl->dat_path)) << c.src;
@@ -225,11 +225,11 @@ TEST(KrlRules, TheNominalRobotReturnsEveryProgramByteForByte) {
 
 TEST(KrlRules, AComponentUnchangedAtThePrecisionWrittenKeepsItsText) {
   Target t;
-  t.setPose(XyzAbc{100.0, 0.0, 20.0, 160.0, 10.0, 170.0});
+  t.setPose(calib::XyzAbc{100.0, 0.0, 20.0, 160.0, 10.0, 170.0});
   // 0.03 um and 4e-6 deg: below 1e-4 mm / 1e-5 deg
-  EXPECT_FALSE(t.setPoseIfChanged(XyzAbc{100.00003, 0.0, 20.0, 160.000004, 10.0, 170.0}));
+  EXPECT_FALSE(t.setPoseIfChanged(calib::XyzAbc{100.00003, 0.0, 20.0, 160.000004, 10.0, 170.0}));
   EXPECT_EQ(*t.pose[0], 100.0);
-  EXPECT_TRUE(t.setPoseIfChanged(XyzAbc{100.00003, 0.2, 20.0, 160.0, 10.0, 170.0}));
+  EXPECT_TRUE(t.setPoseIfChanged(calib::XyzAbc{100.00003, 0.2, 20.0, 160.0, 10.0, 170.0}));
   EXPECT_EQ(*t.pose[0], 100.0);  // kept: its text is written back as it was
   EXPECT_EQ(*t.pose[1], 0.2);
   // in the file: only Y's text changes
@@ -237,7 +237,7 @@ TEST(KrlRules, AComponentUnchangedAtThePrecisionWrittenKeepsItsText) {
   test::writeText(dir + "/p.src", "DEF p( )\nLIN XP1\nEND\n");
   test::writeText(dir + "/p.dat", "DEFDAT p\nDECL E6POS XP1={X 100.0,Y 0.0,Z 20.0,A 160.0,B 10.0,C 170.0,S 2,T 10}\nENDDAT\n");
   Program p = readKrl(dir + "/p.src");
-  p.motions[0].target.modified = p.motions[0].target.setPoseIfChanged(XyzAbc{100.00003, 0.2, 20.0, 160.0, 10.0, 170.0});
+  p.motions[0].target.modified = p.motions[0].target.setPoseIfChanged(calib::XyzAbc{100.00003, 0.2, 20.0, 160.0, 10.0, 170.0});
   EXPECT_EQ(writeKrl(p).dat, "DEFDAT p\nDECL E6POS XP1={X 100.0,Y 0.2000,Z 20.0,A 160.0,B 10.0,C 170.0,S 2,T 10}\nENDDAT\n");
 }
 
@@ -278,7 +278,7 @@ TEST(KrlRules, ASplitCircGetsANewAuxiliaryPointTheDeclaredOneKeepsItsValue) {
   o.config_path = g + "$config.dat";
   const Program in = readKrl(g + "seam.src", o);
   JobSettings s;
-  s.calibrated = readRobotFile(g + "kr16_real.xml");
+  s.calibrated = calib::readRobotFile(g + "kr16_real.xml");
   s.tol_mm = 0.02;
   const ProgramCompensation pc = compensateProgramReport(in, s);
   ASSERT_TRUE(pc.ok()) << pc.report.errors.front().message;
@@ -323,7 +323,7 @@ TEST(KrlRules, ASplitCircGetsANewAuxiliaryPointTheDeclaredOneKeepsItsValue) {
     if (m.type == MotionType::kCirc && m.aux && !m.aux->name.empty()) circ = &m;
   ASSERT_NE(circ, nullptr);
   EXPECT_EQ(circ->aux->name, aux + "_1");
-  const Eigen::Vector3d d = toIsometry(circ->aux->xyzAbc()).translation() - toIsometry(circ_in->aux->xyzAbc()).translation();
+  const Eigen::Vector3d d = calib::toIsometry(circ->aux->xyzAbc()).translation() - calib::toIsometry(circ_in->aux->xyzAbc()).translation();
   EXPECT_GT(d.norm(), 10.0);  // mm: another point of the arc, which the declared point could not hold
 }
 
@@ -333,7 +333,7 @@ TEST(KrlRules, ADeclaredPointUsedByAnotherMotionIsNeverRepurposed) {
   const StCell cell;
   const Eigen::VectorXd q1 = joints({-10, -70, 100, 10, 40, 20}), q2 = joints({15, -60, 90, 15, 45, 25}),
                         q3 = joints({35, -75, 105, 20, 50, 30});
-  const Configuration c1 = kukaConfiguration(cell.controller, q1);
+  const calib::Configuration c1 = calib::kukaConfiguration(cell.controller, q1);
   const std::string dir = test::tempDir("krl_shared");
   test::writeText(dir + "/p.src",
                   "DEF p( )\n$TOOL={X 20,Y 0,Z 250,A 0,B -30,C 0}\n$BASE=$NULLFRAME\nPTP XP1\nCIRC XP2, XP3\nLIN XP2\nEND\n");
@@ -372,7 +372,7 @@ TEST(KrlRules, ASplitCircWhosePointIsDeclaredInTheSrcGetsAnInlineAuxiliaryPoint)
   const StCell cell;
   const Eigen::VectorXd q1 = joints({-10, -70, 100, 10, 40, 20}), q2 = joints({15, -60, 90, 15, 45, 25}),
                         q3 = joints({35, -75, 105, 20, 50, 30});
-  const Configuration c1 = kukaConfiguration(cell.controller, q1);
+  const calib::Configuration c1 = calib::kukaConfiguration(cell.controller, q1);
   const std::string decl2 = "DECL E6POS XP2=" + aggregate(cell.target(q2), 2, 0);
   const std::string dir = test::tempDir("krl_src_decl");
   test::writeText(dir + "/p.src", "DEF p( )\n" + decl2 + "\nDECL E6POS XP3=" + aggregate(cell.target(q3), 2, 0) +

@@ -10,7 +10,7 @@
 namespace accura::postproc {
 
 std::string SourceLocation::str() const {
-  std::string s = formatLocation(file, line, column);
+  std::string s = calib::formatLocation(file, line, column);
   // formatLocation ends with ": "; a location on its own has no separator.
   if (s.size() >= 2) s.resize(s.size() - 2);
   return s;
@@ -47,16 +47,16 @@ bool Target::completePose() const {
   return true;
 }
 
-XyzAbc Target::xyzAbc() const {
-  if (!completePose()) throw ArgumentError("Target::xyzAbc: the pose of " + (name.empty() ? std::string("an inline target") : name) + " is partial");
-  return XyzAbc{*pose[0], *pose[1], *pose[2], *pose[3], *pose[4], *pose[5]};
+calib::XyzAbc Target::xyzAbc() const {
+  if (!completePose()) throw calib::ArgumentError("Target::xyzAbc: the pose of " + (name.empty() ? std::string("an inline target") : name) + " is partial");
+  return calib::XyzAbc{*pose[0], *pose[1], *pose[2], *pose[3], *pose[4], *pose[5]};
 }
 
-void Target::setPose(const XyzAbc& p) {
+void Target::setPose(const calib::XyzAbc& p) {
   pose = {p.x_mm, p.y_mm, p.z_mm, p.a_deg, p.b_deg, p.c_deg};
 }
 
-bool Target::setPoseIfChanged(const XyzAbc& p) {
+bool Target::setPoseIfChanged(const calib::XyzAbc& p) {
   const double v[6] = {p.x_mm, p.y_mm, p.z_mm, p.a_deg, p.b_deg, p.c_deg};
   auto text = [](int k, double x) { return k < 3 ? formatMm(x) : formatDeg(x); };
   bool changed = false;
@@ -111,15 +111,15 @@ std::string newPointName(const Program& program, const std::string& base, const 
     for (const PassThrough& s : program.passthrough) used = used || containsIdentifier(s.text, up);
     if (!used) return name;
   }
-  throw ArgumentError("newPointName: no free name for " + base);
+  throw calib::ArgumentError("newPointName: no free name for " + base);
 }
 
 void checkPassThrough(const Program& program, const std::string& language) {
   for (const PassThrough& s : program.passthrough) {
     if (!s.refuse.empty())
-      throw ArgumentError(s.where.str() + ": cannot convert '" + s.text + "': " + s.refuse);
+      throw calib::ArgumentError(s.where.str() + ": cannot convert '" + s.text + "': " + s.refuse);
     if (!language.empty() && s.language != language)
-      throw ArgumentError(s.where.str() + ": cannot convert the " + s.language + " statement '" + s.text + "' to " + language +
+      throw calib::ArgumentError(s.where.str() + ": cannot convert the " + s.language + " statement '" + s.text + "' to " + language +
                           ": it is outside the motion model and only " + s.language + " can carry it");
   }
 }
@@ -137,7 +137,7 @@ std::string motionKeyword(const Motion& m) {
   return k;
 }
 
-std::string formatMm(double v) { return formatFixed(v, 4); }
-std::string formatDeg(double v) { return formatFixed(v, 5); }
+std::string formatMm(double v) { return calib::formatFixed(v, 4); }
+std::string formatDeg(double v) { return calib::formatFixed(v, 5); }
 
 }  // namespace accura::postproc
