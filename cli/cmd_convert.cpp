@@ -36,7 +36,10 @@ int runConvert(const ConvertArgs& a) {
   calib::installInterruptCleanup();
   calib::writeFilesAtomically(files);
   for (const auto& f : files) std::cout << "wrote " << f.path << "\n";
-  std::cout << "accura convert: " << program.motions.size() << " motions from " << a.in << "\n";
+  std::cout << "accura convert: " << program.motions.size() << " motions";
+  if (out_format != ProgramFormat::kKrl || !program.krl)
+    std::cout << ", " << program.passthrough.size() << " other statements carried verbatim";
+  std::cout << " from " << a.in << "\n";
   return 0;
 }
 

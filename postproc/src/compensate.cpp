@@ -167,8 +167,11 @@ struct SegmentWork {
     };
     if (!compensate(sb, pc.commanded.T_world_end, pc.q_end)) return pc;
     if (intended.type == PathType::kCirc) {
+      // the whole arc keeps the program's auxiliary point (its place on the arc), a piece
+      // gets the middle of its arc
+      const double s_aux = sa == 0 && sb == 1 ? intended.s_aux : 0.5 * (sa + sb);
       Eigen::VectorXd q_aux;
-      if (!compensate(0.5 * (sa + sb), pc.commanded.T_world_aux, q_aux)) return pc;
+      if (!compensate(s_aux, pc.commanded.T_world_aux, q_aux)) return pc;
     }
     return pc;
   }

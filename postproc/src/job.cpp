@@ -11,6 +11,7 @@
 #include "accura/postproc/krl.h"
 #include "accura/postproc/path_job.h"
 #include "accura/postproc/placement.h"
+#include "path_geometry.h"
 
 namespace accura::postproc {
 namespace {
@@ -46,9 +47,35 @@ class Job {
     return calib::toXyzAbc(T_world_progbase.inverse() * T_world_tcp);
   }
 
+  /// The corrected pose into `t`; a correction that rounds to zero at the written precision
+  /// leaves `t` as it was (not modified: its text is written back unchanged).
   void setPose(Target& t, const calib::XyzAbc& p) {
-    t.setPose(p);
-    t.modified = true;
+    if (t.setPoseIfChanged(p) || t.new_declaration) t.modified = true;
+  }
+
+  /// CP motions (LIN, CIRC, their spline and relative forms, SPL): the controller keeps the
+  /// Status of the start and lets Turn follow the path; the programmed S/T are not used
+  /// (docs/program-formats.md, "Status and Turn"). The target was compensated on the
+  /// configuration the robot has along the path; S/T are kept as written, a disagreement is
+  /// collected for the one warning of the program (flushCpConfigurations).
+  void noteCpConfiguration(const Motion& m, const Target& t, const Compensator& comp, const Eigen::VectorXd& q) {
+    if (!t.status && !t.turn) return;
+    const calib::Configuration asked{t.status.value_or(-1), t.turn.value_or(-1)};
+    const calib::Configuration got = calib::kukaConfiguration(comp.controller().model(), q);
+    if (calib::configurationMatches(asked, got)) return;
+    if (cp_disagree_.empty())
+      cp_first_ = targetLabel(t) + " (" + m.where.str() + "): written S " + std::to_string(asked.status) + ", T " +
+                  std::to_string(asked.turn) + ", along the path S " + std::to_string(got.status) + ", T " + std::to_string(got.turn);
+    cp_disagree_.push_back(targetLabel(t));
+    if (!cp_where_.line) cp_where_ = m.where;
+  }
+
+  void flushCpConfigurations() {
+    if (cp_disagree_.empty()) return;
+    warning(cp_where_, std::to_string(cp_disagree_.size()) + " target(s) of CP motions (LIN, CIRC, SLIN, SCIRC, SPL) carry S/T that " +
+                           "the path does not have; the controller ignores them on CP motions (Status is kept from the start, " +
+                           "Turn follows the path), so they were compensated on the path's configuration and their S/T are " +
+                           "kept as written. First: " + cp_first_);
   }
 
   // Records a corrected named value; an error when the same declaration needs two different
@@ -108,12 +135,16 @@ class Job {
   }
 
   void run(const Program& in, Program& out) {
+    in_ = &in;
     if (!in.robot.empty() && in.robot != s_.calibrated.nominal.name) {
       SourceLocation w;
       w.file = in.source_file;
       warning(w, "the program was made for the robot '" + in.robot + "', the model is a '" + s_.calibrated.nominal.name + "'");
     }
+    std::vector<size_t> first_out;  // the first output motion of each input motion
+    first_out.reserve(in.motions.size());
     for (const Motion& m : in.motions) {
+      first_out.push_back(out.motions.size());
       if (m.inserted) {  // already compensated once: keep as it is
         out.motions.push_back(m);
         continue;
@@ -127,6 +158,11 @@ class Job {
         cannotCompensate(m, mark, out, e.what());
       }
     }
+    flushCpConfigurations();
+    // the pass-through statements stay before their motion, ahead of the points inserted
+    out.passthrough = in.passthrough;
+    for (PassThrough& s : out.passthrough)
+      s.before_motion = s.before_motion < first_out.size() ? first_out[s.before_motion] : out.motions.size();
   }
 
  private:
@@ -230,15 +266,25 @@ class Job {
     c.end = m.target;
     c.aux = m.aux;
     if (!complete(c.end, "target") || (c.aux && !complete(*c.aux, "auxiliary point"))) return std::nullopt;
-    bool ext_nonzero = false;
-    for (const auto& e : c.end.ext) ext_nonzero = ext_nonzero || (e && *e != 0);
-    if (ext_nonzero && !warned_ext_) {
-      warning(m.where, "external axis values (E1..E6) are not part of the calibrated model: the targets are compensated as if the external axes did not move the robot or the part");
-      warned_ext_ = true;
-    }
+    if (!externalAxesZero(m, c.end) || (c.aux && !externalAxesZero(m, *c.aux))) return std::nullopt;
     c.T_world_end = c.T_world_progbase * calib::toIsometry(c.end.xyzAbc());
     c.config = calib::Configuration{c.end.status.value_or(-1), c.end.turn.value_or(-1)};
     return c;
+  }
+
+  /// False (with the error recorded, at the target's value) when `t` moves an external axis:
+  /// the robot files model none, so compensating it as if the axes did not move the robot or
+  /// the part would be wrong without a word.
+  bool externalAxesZero(const Motion& m, const Target& t) {
+    std::string moved;
+    for (int k = 0; k < 6; ++k)
+      if (t.ext[k] && *t.ext[k] != 0) moved += (moved.empty() ? "" : ", ") + std::string("E") + std::to_string(k + 1) + " " + calib::formatFixed(*t.ext[k], 4);
+    if (moved.empty()) return true;
+    error(t.where.file.empty() ? m.where : t.where,
+          "expected external axes E1..E6 at 0 in " + targetLabel(t) + ", found " + moved +
+              " (a track or a positioner): the robot file '" + s_.calibrated.nominal.name +
+              "' models no external axes, so the correction would ignore them; refused");
+    return false;
   }
 
   /// PTP, or LIN / CIRC after an unknown position: each point compensated on its own.
@@ -259,13 +305,19 @@ class Job {
       claimValue(*mo.aux, m.where);
       reportTarget(m, *m.aux, "aux", c.T_world_progbase, T_world_aux, pa.T_world_tcp_command, c.models->calibrated_tool);
     }
-    const PoseCompensation pc = comp.pose(c.T_world_end, c.config, seed, s_.ik, s_.context);
+    // a CP motion from a known position continues on the robot's configuration (nearest
+    // solution); from an unknown one the written S/T are the best guess of where it stands
+    const bool cp = m.type != MotionType::kPtp;
+    const calib::Configuration config = cp && q_real_ ? calib::Configuration{} : c.config;
+    const PoseCompensation pc = comp.pose(c.T_world_end, config, seed, s_.ik, s_.context);
     if (pc.status != calib::IkStatus::kOk) {
       error(m.where, targetLabel(end) + " cannot be compensated: " + toString(pc.status) + (pc.message.empty() ? "" : " (" + pc.message + ")"));
       return keep(out, mo);
     }
-    if (!checkConfig(m, end, comp, pc.q_real)) return keep(out, mo);
+    if (cp) noteCpConfiguration(m, end, comp, pc.q_real);
+    else if (!checkConfig(m, end, comp, pc.q_real)) return keep(out, mo);
     setPose(mo.target, toProgram(c.T_world_progbase, pc.T_world_tcp_command));
+    if (mo.target.turn != end.turn) mo.target.modified = true;
     mo.target.turn = end.turn;
     claimValue(mo.target, m.where);
     reportTarget(m, m.target, "end", c.T_world_progbase, c.T_world_end, pc.T_world_tcp_command, c.models->calibrated_tool);
@@ -288,7 +340,7 @@ class Job {
                          (sc.message.empty() ? "" : " (" + sc.message + ")"));
       return keep(out, mo);
     }
-    if (!checkConfig(m, end, comp, sc.q_real_end.back())) return keep(out, mo);
+    noteCpConfiguration(m, end, comp, sc.q_real_end.back());
     SegmentReport sr;
     sr.motion = m.where;
     sr.motion_type = motionKeyword(m);
@@ -304,7 +356,10 @@ class Job {
       PathSegment one = commanded.back();
       one.T_world_start = commanded.front().T_world_start;
       if (c.aux) {
-        const PoseCompensation pa = comp.pose(intended.T_world_aux, calib::Configuration{}, *q_real_, s_.ik, s_.context);
+        // the auxiliary point where the robot passes it (the path's orientation there), as the
+        // prediction of the endpoints-only error (max_error_before_mm) took it
+        const detail::PathGeometry arc(intended);
+        const PoseCompensation pa = comp.pose(arc.pose(arc.s_aux), calib::Configuration{}, *q_real_, s_.ik, s_.context);
         if (pa.status != calib::IkStatus::kOk) {
           error(m.where, "the auxiliary point " + targetLabel(*c.aux) + " cannot be compensated: " + toString(pa.status));
           return keep(out, mo);
@@ -326,14 +381,45 @@ class Job {
     claimValue(mo.target, m.where);
     reportTarget(m, m.target, "end", c.T_world_progbase, c.T_world_end, T_cmd_end, c.models->calibrated_tool);
     if (c.aux) {
-      setPose(*mo.aux, toProgram(c.T_world_progbase, commanded.back().T_world_aux));
-      claimValue(*mo.aux, m.where);
-      if (commanded.size() == 1)
-        reportTarget(m, *m.aux, "aux", c.T_world_progbase, intended.T_world_aux, commanded.back().T_world_aux, c.models->calibrated_tool);
+      if (commanded.size() > 1 && !mo.aux->name.empty()) {
+        // the last sub-arc needs its own auxiliary point: a new declaration, the declared
+        // one keeps its meaning (another motion may use it)
+        Target& a = *mo.aux;
+        a.replaces = a.name;
+        a.new_declaration = true;
+        // KRL: declared next to the point it replaces in the .dat; a point declared elsewhere
+        // (the .src, $config.dat) is replaced by an inline aggregate (no name)
+        const bool in_dat = !in_->krl || (a.value_id >= 0 && static_cast<size_t>(a.value_id) < in_->krl->values.size() &&
+                                          in_->krl->values[static_cast<size_t>(a.value_id)].file == 1);
+        a.name = in_dat ? newPointName(*in_, a.name, new_names_) : std::string();
+        if (in_dat) new_names_.push_back(a.name);
+      }
+      Eigen::Isometry3d T_cmd_aux = commanded.back().T_world_aux;
+      // the controller ignores the orientation of an auxiliary point: the program's stays
+      if (!mo.aux->new_declaration) T_cmd_aux.linear() = intended.T_world_aux.linear();
+      setPose(*mo.aux, toProgram(c.T_world_progbase, T_cmd_aux));
+      if (!mo.aux->new_declaration) claimValue(*mo.aux, m.where);
+      if (commanded.size() == 1) {
+        reportTarget(m, *m.aux, "aux", c.T_world_progbase, intended.T_world_aux, T_cmd_aux, c.models->calibrated_tool);
+      } else if (mo.aux->new_declaration) {
+        reportNewPoint(m, *mo.aux, c, comp, commanded.back().T_world_aux, sc.q_real_end.back());
+      }
     }
     r_.segments.push_back(sr);
     arrived(c, sc.q_real_end.back(), end);
     out.motions.push_back(mo);
+  }
+
+  /// The report of a new declared point (the auxiliary point of the last sub-arc of a split
+  /// CIRC): its command against the point of the intended path the real robot reaches there.
+  void reportNewPoint(const Motion& m, const Target& t, const Cartesian& c, const Compensator& comp, const Eigen::Isometry3d& T_cmd,
+                      const Eigen::VectorXd& seed) {
+    const calib::IkResult r = comp.controller().inverse(T_cmd, calib::Configuration{}, seed, s_.ik);
+    const Eigen::Isometry3d desired = r.status == calib::IkStatus::kOk ? comp.real().forward(r.q, s_.context) : T_cmd;
+    reportTarget(m, t, "aux", c.T_world_progbase, desired, T_cmd, c.models->calibrated_tool);
+    TargetReport& tr = r_.targets.back();
+    tr.where = m.where;
+    tr.new_point_replaces = t.replaces;
   }
 
   /// The inserted motions (all sub-segments of `commanded` but the last), before `m`; external
@@ -384,7 +470,11 @@ class Job {
   std::optional<Eigen::VectorXd> q_real_;                    ///< real joints after the last motion
   std::optional<Eigen::Isometry3d> T_world_flange_intended_;  ///< where the program meant the flange to be
   std::array<std::optional<double>, 6> ext_prev_{};
-  bool warned_ext_ = false;
+  const Program* in_ = nullptr;         ///< the program (names for new points)
+  std::vector<std::string> new_names_;  ///< new points named so far
+  std::vector<std::string> cp_disagree_;  ///< CP targets whose S/T differ from the path's
+  std::string cp_first_;
+  SourceLocation cp_where_;
   std::map<int, std::pair<std::string, SourceLocation>> claimed_;
 };
 

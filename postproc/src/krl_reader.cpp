@@ -33,6 +33,25 @@ bool isApproxTok(const Tok& t) {
   return t.kind == Tok::kIdent && parseApproximation(t.text, &a);
 }
 
+// ;FOLD / ;ENDFOLD: the editor's structure, not a statement (an inline form's fold holds the
+// motion the model writes anew).
+bool isFoldMarker(const std::string& line) {
+  const size_t b = line.find_first_not_of(" \t");
+  if (b == std::string::npos || line[b] != ';') return false;
+  const std::string u = upper(line.substr(b + 1, 7));
+  return u.compare(0, 4, "FOLD") == 0 || u.compare(0, 7, "ENDFOLD") == 0;
+}
+
+// DECL [GLOBAL] [CONST] TYPE ...: true for the types of the motion model (points, FDAT, LDAT,
+// PDAT), whose values the model holds.
+bool declaresModelType(const std::vector<Tok>& t) {
+  for (const Tok& x : t) {
+    if (x.kind != Tok::kIdent || x.up == "DECL" || x.up == "GLOBAL" || x.up == "CONST") continue;
+    return isPointType(x.up) || x.up == "FDAT" || x.up == "LDAT" || x.up == "PDAT";
+  }
+  return false;
+}
+
 struct Reader {
   Declarations decl;
   KrlSource* src = nullptr;
@@ -48,6 +67,8 @@ struct Reader {
   std::optional<double> vel_cp, vel_ptp, apo_cdis, apo_cptp, apo_cvel, apo_cori;
   bool in_spline = false;
   int triggers = 0;
+  bool main_started = false, main_ended = false;  // the main program's DEF / END seen
+  std::string refuse;  // why the line just read cannot be converted ("" when it can)
 
   FrameSetting dataFrame(bool is_tool, int n, size_t at) const {
     FrameSetting s;
@@ -185,7 +206,15 @@ struct Reader {
     return "the target '" + text + "' is computed at run time";
   }
 
-  void handleAssignment(const std::vector<Tok>& t, size_t eq) {
+  // True when the assignment is part of the motion model ($TOOL, $BASE, speeds, approximation,
+  // the inline forms' data sets); a point changed by the program is a statement of its own.
+  bool handleAssignment(const std::vector<Tok>& t, size_t eq) {
+    assignModel(t, eq);
+    static const std::set<std::string> model = {"$TOOL", "$BASE", "$VEL", "$VEL_AXIS", "$APO", "FDAT_ACT", "LDAT_ACT", "PDAT_ACT"};
+    return model.count(t[0].up) > 0;
+  }
+
+  void assignModel(const std::vector<Tok>& t, size_t eq) {
     // lhs = t[0, eq), rhs = t[eq+1, end)
     const size_t b = eq + 1, e = t.size();
     if (b >= e) return;
@@ -265,9 +294,10 @@ struct Reader {
     }
   }
 
-  void handleBas(const std::vector<Tok>& t) {
+  // True when the BAS call is part of the motion model (frames, speeds, approximation).
+  bool handleBas(const std::vector<Tok>& t) {
     // BAS ( #CMD [, value] )
-    if (t.size() < 4 || t[1].text != "(" || t[2].kind != Tok::kEnum) return;
+    if (t.size() < 4 || t[1].text != "(" || t[2].kind != Tok::kEnum) return false;
     const std::string cmd = t[2].up;
     std::optional<double> value;
     if (t.size() >= 6 && t[3].text == ",") value = numberValue(t, 4, t.size() - 1);
@@ -295,7 +325,10 @@ struct Reader {
       vel_ptp = value;
     } else if (cmd == "#VEL_CP") {
       vel_cp = value;
+    } else {
+      return false;
     }
+    return true;
   }
 
   // WITH assignments of a spline motion (valid for this motion only).
@@ -506,37 +539,66 @@ struct Reader {
     program->motions.push_back(std::move(m));
   }
 
+  // A line of the .src: the motion model takes what it understands; every other statement
+  // (and comment) is kept as a pass-through statement for `convert`.
   void handleLine(const Line& l) {
+    const bool before_main_end = !main_ended;
+    refuse.clear();
+    const bool model = interpretLine(l);
+    if (model) return;
+    const std::string text = f->text().substr(l.begin, l.content_end - l.begin);
+    if (isFoldMarker(text)) return;
+    PassThrough p;
+    p.language = "KRL";
+    p.text = text;
+    p.section = before_main_end ? PassThrough::Section::kBody : PassThrough::Section::kTrailer;
+    p.before_motion = program->motions.size();
+    p.where = f->loc(l.begin);
+    p.refuse = refuse;
+    program->passthrough.push_back(std::move(p));
+  }
+
+  // True when the line is part of the motion model or carries nothing (blank, attribute
+  // lines, the main program's DEF and END).
+  bool interpretLine(const Line& l) {
     const std::vector<Tok> t = lex(*f, l.begin, l.code_end);
-    if (t.empty() || t[0].text == "&") return;
+    if (t.empty()) {  // a comment line is a statement of its own; blank lines are not
+      return f->text().find_first_not_of(" \t\r", l.begin) >= l.content_end;
+    }
+    if (t[0].text == "&") return true;
     const std::string& k = t[0].up;
     if (k == "DEF" || (k == "GLOBAL" && t.size() > 1 && t[1].up == "DEF")) {
       if (program->name.empty()) {
         const size_t i = k == "DEF" ? 1 : 2;
         if (i < t.size() && t[i].kind == Tok::kIdent) program->name = t[i].text;
       }
-      return;
+      if (main_started) return false;  // a local subroutine
+      main_started = true;
+      return true;
     }
-    if (k == "SPLINE" || k == "PTP_SPLINE") { in_spline = true; return; }
-    if (k == "ENDSPLINE") { in_spline = false; return; }
-    if (k == "TRIGGER") { ++triggers; return; }
+    if (k == "END" && t.size() == 1 && main_started && !main_ended) {
+      main_ended = true;
+      return true;
+    }
+    if (k == "SPLINE" || k == "PTP_SPLINE") { in_spline = true; return true; }
+    if (k == "ENDSPLINE") { in_spline = false; return true; }
+    if (k == "TRIGGER") { ++triggers; return false; }
     if (k == "DECL" || ((isPointType(k) || k == "FDAT" || k == "LDAT" || k == "PDAT") && t.size() > 1 && t[1].kind == Tok::kIdent)) {
       Cursor c(*f, t, l.code_end);
       parseDeclaration(c, decl, src, false);
-      return;
+      return declaresModelType(t);
     }
     if (isMotionKeyword(k) && t[0].kind == Tok::kIdent) {
       // "LIN = 3" would be an assignment to a variable named like a keyword: not KRL
       handleMotion(l, t);
-      return;
+      if (main_ended)
+        refuse = "a motion in a local subroutine (after the main program's END): the motion model holds the main program's motions only";
+      return !main_ended;
     }
-    if (k == "BAS" && t.size() > 1 && t[1].text == "(") {
-      handleBas(t);
-      return;
-    }
+    if (k == "BAS" && t.size() > 1 && t[1].text == "(") return handleBas(t);
     {
       Cursor c(*f, t, l.code_end);
-      if (parseTableAssignment(c, decl)) return;
+      if (parseTableAssignment(c, decl)) return false;
     }
     // assignment: find a depth-0 '=' (not '==')
     if (t[0].kind == Tok::kIdent) {
@@ -545,15 +607,35 @@ struct Reader {
         const std::string& x = t[i].text;
         if (x == "[" || x == "(") ++depth;
         else if (x == "]" || x == ")") --depth;
-        else if (depth == 0 && x == "=" && t[i].kind == Tok::kPunct) {
-          handleAssignment(t, i);
-          return;
-        }
+        else if (depth == 0 && x == "=" && t[i].kind == Tok::kPunct) return handleAssignment(t, i);
         else if (depth == 0 && x != "." && t[i].kind == Tok::kPunct) break;
       }
     }
+    return false;
   }
 };
+
+// The .dat's statements outside the motion model (declarations of other types, EXT, comments)
+// as pass-through statements of the data part.
+void datPassThrough(const KrlFile& f, Program& program) {
+  for (const Line& l : f.lines()) {
+    const std::string text = f.text().substr(l.begin, l.content_end - l.begin);
+    const std::vector<Tok> t = lex(f, l.begin, l.code_end);
+    if (t.empty()) {
+      if (text.find_first_not_of(" \t\r") == std::string::npos || isFoldMarker(text)) continue;
+    } else {
+      const std::string& k = t[0].up;
+      if (t[0].text == "&" || k == "DEFDAT" || k == "ENDDAT" || (k == "PUBLIC" && t.size() > 1 && t[1].up == "DEFDAT")) continue;
+      if ((k == "DECL" || isPointType(k) || k == "FDAT" || k == "LDAT" || k == "PDAT") && declaresModelType(t)) continue;
+    }
+    PassThrough p;
+    p.language = "KRL";
+    p.text = text;
+    p.section = PassThrough::Section::kData;
+    p.where = f.loc(l.begin);
+    program.passthrough.push_back(std::move(p));
+  }
+}
 
 std::string findDat(const std::string& src_path) {
   const fs::path p(src_path);
@@ -611,6 +693,7 @@ Program readKrl(const std::string& src_path, const KrlReadOptions& options) {
   const KrlFile src(src_path, source->src_text, 0);
   r.f = &src;
   for (const Line& l : src.lines()) r.handleLine(l);
+  if (!source->dat_path.empty()) datPassThrough(KrlFile(source->dat_path, source->dat_text, 1), program);
   if (program.name.empty()) {
     bool any = false;
     for (const Line& l : src.lines())

@@ -59,8 +59,13 @@ std::string rewriteValue(const KrlSource::Value& v, const std::string& text, con
     // the pose, and S / T when the compensation changed them
     const bool st_changed = cart && ((c.name == "S" && t.status && *t.status != c.value) ||
                                      (c.name == "T" && t.turn && *t.turn != c.value));
-    const bool ours = indexOf(names, c.name) >= 0 || st_changed;
-    out += ours ? componentText(t, c.name) : text.substr(c.begin, c.end - c.begin);
+    // a component whose value is the same at the precision written keeps its text (X 100.0
+    // stays X 100.0, not X 100.0000)
+    const int k = indexOf(names, c.name);
+    const std::string now = componentText(t, c.name);
+    const bool same = k >= 0 && !now.empty() && now == (cart ? (k < 3 ? formatMm(c.value) : formatDeg(c.value)) : formatAxis(c.value));
+    const bool ours = (k >= 0 && !same) || st_changed;
+    out += ours ? now : text.substr(c.begin, c.end - c.begin);
     pos = c.end;
   }
   out += text.substr(pos, v.end - pos);
@@ -122,6 +127,26 @@ KrlText patchKrl(const Program& p) {
     value_text[t.value_id] = {text, m.where.str()};
     edits.push_back({v.file, v.begin, v.end, text, order++});
   };
+  // a new point (Target::new_declaration) for the auxiliary point of a motion: the statement
+  // names it, its DECL follows the declaration of the point it replaces in the .dat (which
+  // keeps its text); a point declared elsewhere is replaced by an inline aggregate
+  auto declareNew = [&](const Target& t, const Motion& m) {
+    if (m.statement_id < 0 || m.statement_id >= static_cast<int>(s.statements.size()))
+      throw calib::ArgumentError("writeKrl: a motion with a new point has no statement");
+    const KrlSource::Statement& st = s.statements[static_cast<size_t>(m.statement_id)];
+    const bool in_dat = !t.name.empty() && t.value_id >= 0 && s.values.at(static_cast<size_t>(t.value_id)).file == 1;
+    edits.push_back({st.file, st.targets.front().first, st.targets.front().second, in_dat ? t.name : krlAggregate(t), order++});
+    if (!in_dat) return;
+    const KrlSource::Value& v = s.values.at(static_cast<size_t>(t.value_id));
+    const std::string& text = textOf(v.file);
+    const size_t nl = text.find('\n', v.end);
+    const size_t at = nl == std::string::npos ? text.size() : nl + 1;
+    const std::string eol = dominantEol(text);
+    // the aggregate written like the one it replaces (its S, T, E1..E6 texts)
+    std::string decl = "DECL " + (t.type.empty() ? std::string("E6POS") : t.type) + " " + t.name + "=" + rewriteValue(v, text, t);
+    decl = nl == std::string::npos ? eol + decl : decl + eol;
+    edits.push_back({v.file, at, at, decl, order++});
+  };
   for (const Motion& m : p.motions) {
     if (m.inserted) {
       if (m.statement_id < 0 || m.statement_id >= static_cast<int>(s.statements.size()))
@@ -145,7 +170,8 @@ KrlText patchKrl(const Program& p) {
       edits.push_back({st.file, st.line_begin, st.line_begin, line, order++});
       continue;
     }
-    if (m.aux) modify(*m.aux, m);
+    if (m.aux && m.aux->new_declaration) declareNew(*m.aux, m);
+    else if (m.aux) modify(*m.aux, m);
     modify(m.target, m);
   }
   KrlText out;
@@ -193,11 +219,27 @@ std::string declType(const Target& t) {
 }
 
 KrlText generateKrl(const Program& p) {
+  checkPassThrough(p, "KRL");
   const std::string name = p.name.empty() ? "program" : p.name;
   std::ostringstream src, dat;
+  // the pass-through statements of a section, in order; for the body those before motion `k`
+  size_t next_body = 0;
+  auto carry = [&](std::ostream& out, PassThrough::Section section, size_t before) {
+    for (const PassThrough& s : p.passthrough)
+      if (s.section == section && section != PassThrough::Section::kBody) out << s.text << "\n";
+    while (section == PassThrough::Section::kBody && next_body < p.passthrough.size()) {
+      const PassThrough& s = p.passthrough[next_body];
+      if (s.section == PassThrough::Section::kBody && s.before_motion > before) break;
+      if (s.section == PassThrough::Section::kBody) out << s.text << "\n";
+      ++next_body;
+    }
+  };
+  bool initmov = false;  // the program initialises itself (its own INI fold was carried)
+  for (const PassThrough& s : p.passthrough) initmov = initmov || (s.section == PassThrough::Section::kBody && upper(s.text).find("#INITMOV") != std::string::npos);
   src << "&ACCESS RVP\n&REL 1\nDEF " << name << "( )\n";
-  src << ";FOLD INI\n  BAS (#INITMOV,0 )\n;ENDFOLD (INI)\n";
+  if (!initmov) src << ";FOLD INI\n  BAS (#INITMOV,0 )\n;ENDFOLD (INI)\n";
   dat << "&ACCESS RVP\n&REL 1\nDEFDAT " << name << " PUBLIC\n";
+  carry(dat, PassThrough::Section::kData, 0);
   std::map<std::string, std::string> declared;  // upper name -> aggregate text
   FrameSetting tool, base;
   std::optional<double> vel_cp, vel_ptp;
@@ -220,7 +262,9 @@ KrlText generateKrl(const Program& p) {
     }
     return t.name;
   };
-  for (const Motion& m : p.motions) {
+  for (size_t k = 0; k < p.motions.size(); ++k) {
+    const Motion& m = p.motions[k];
+    carry(src, PassThrough::Section::kBody, k);
     if (m.spline && m.type == MotionType::kSpl && !in_spline) {
       src << "SPLINE\n";
       in_spline = true;
@@ -265,7 +309,9 @@ KrlText generateKrl(const Program& p) {
     src << line << "\n";
   }
   if (in_spline) src << "ENDSPLINE\n";
+  carry(src, PassThrough::Section::kBody, p.motions.size());
   src << "END\n";
+  carry(src, PassThrough::Section::kTrailer, 0);
   dat << "ENDDAT\n";
   return {src.str(), dat.str()};
 }

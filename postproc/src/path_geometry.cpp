@@ -43,6 +43,7 @@ PathGeometry::PathGeometry(const PathSegment& s) : type(s.type) {
   arc = angleOf(p1);
   if (arc <= 0) arc = 2 * calib::kPi;
   length_mm = r * arc;
+  s_aux = angleOf(pa) / arc;
 }
 
 Eigen::Vector3d PathGeometry::position(double s) const {

@@ -16,6 +16,7 @@ struct PathGeometry {
   Eigen::Vector3d p0, p1;
   Eigen::Vector3d c, n, e1, e2;
   double r = 0, arc = 0;  ///< radius (mm), arc angle (rad, in (0, 2 pi))
+  double s_aux = 0.5;     ///< CIRC: the path parameter of the auxiliary point, in (0, 1)
   Eigen::Quaterniond q0, q1;
   double length_mm = 0, rotation_rad = 0;
 

@@ -2,6 +2,7 @@
 
 #include <cctype>
 #include <cmath>
+#include <algorithm>
 #include <cstdio>
 
 #include "accura/calib/errors.h"
@@ -53,6 +54,74 @@ calib::XyzAbc Target::xyzAbc() const {
 
 void Target::setPose(const calib::XyzAbc& p) {
   pose = {p.x_mm, p.y_mm, p.z_mm, p.a_deg, p.b_deg, p.c_deg};
+}
+
+bool Target::setPoseIfChanged(const calib::XyzAbc& p) {
+  const double v[6] = {p.x_mm, p.y_mm, p.z_mm, p.a_deg, p.b_deg, p.c_deg};
+  auto text = [](int k, double x) { return k < 3 ? formatMm(x) : formatDeg(x); };
+  bool changed = false;
+  for (int k = 0; k < 6; ++k) {
+    if (pose[k] && text(k, *pose[k]) == text(k, v[k])) continue;
+    pose[k] = v[k];
+    changed = true;
+  }
+  return changed;
+}
+
+bool programChanged(const Program& program) {
+  for (const Motion& m : program.motions) {
+    if (m.inserted || m.target.modified || (m.aux && m.aux->modified)) return true;
+  }
+  return false;
+}
+
+namespace {
+
+std::string upperAscii(std::string s) {
+  for (char& c : s) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+  return s;
+}
+
+bool isIdentChar(char c) { return std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '$'; }
+
+// `up` as an identifier (upper case) in `text`.
+bool containsIdentifier(const std::string& text, const std::string& up) {
+  const std::string u = upperAscii(text);
+  for (size_t p = u.find(up); p != std::string::npos; p = u.find(up, p + 1)) {
+    const bool left = p == 0 || !isIdentChar(u[p - 1]);
+    const bool right = p + up.size() >= u.size() || !isIdentChar(u[p + up.size()]);
+    if (left && right) return true;
+  }
+  return false;
+}
+
+}  // namespace
+
+std::string newPointName(const Program& program, const std::string& base, const std::vector<std::string>& taken) {
+  for (int n = 1; n < 100000; ++n) {
+    const std::string suffix = "_" + std::to_string(n);
+    const std::string name = base.substr(0, std::min(base.size(), static_cast<size_t>(24) - suffix.size())) + suffix;
+    const std::string up = upperAscii(name);
+    bool used = false;
+    for (const std::string& t : taken) used = used || upperAscii(t) == up;
+    for (const Motion& m : program.motions) {
+      used = used || upperAscii(m.target.name) == up || (m.aux && upperAscii(m.aux->name) == up);
+    }
+    if (program.krl) used = used || containsIdentifier(program.krl->src_text, up) || containsIdentifier(program.krl->dat_text, up);
+    for (const PassThrough& s : program.passthrough) used = used || containsIdentifier(s.text, up);
+    if (!used) return name;
+  }
+  throw calib::ArgumentError("newPointName: no free name for " + base);
+}
+
+void checkPassThrough(const Program& program, const std::string& language) {
+  for (const PassThrough& s : program.passthrough) {
+    if (!s.refuse.empty())
+      throw calib::ArgumentError(s.where.str() + ": cannot convert '" + s.text + "': " + s.refuse);
+    if (!language.empty() && s.language != language)
+      throw calib::ArgumentError(s.where.str() + ": cannot convert the " + s.language + " statement '" + s.text + "' to " + language +
+                          ": it is outside the motion model and only " + s.language + " can carry it");
+  }
 }
 
 std::string motionKeyword(const Motion& m) {

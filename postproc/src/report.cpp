@@ -55,6 +55,7 @@ ordered_json jobReportJson(const JobReport& r, const std::string& relative_to) {
     x["dy_mm"] = reportNumber(t.dy_mm);
     x["dz_mm"] = reportNumber(t.dz_mm);
     x["tool"] = t.calibrated_tool ? "calibrated" : "program";
+    if (!t.new_point_replaces.empty()) x["new_point_replaces"] = t.new_point_replaces;
     targets.push_back(x);
   }
   j["targets"] = targets;

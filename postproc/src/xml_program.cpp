@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
+#include <memory>
 #include <sstream>
 
 #include "accura/calib/errors.h"
@@ -229,6 +230,83 @@ FrameSetting readFrame(const Reader& R, const XMLElement* e, bool is_tool, const
   return s;
 }
 
+// Pass-through text: as XML text when it is UTF-8 without control characters, else its bytes
+// in hexadecimal (encoding="hex": a KRL comment in Windows-1252 round-trips byte for byte).
+bool plainText(const std::string& s) {
+  size_t i = 0;
+  while (i < s.size()) {
+    const unsigned char c = static_cast<unsigned char>(s[i]);
+    if (c < 0x20 && c != '\t') return false;
+    if (c == 0x7F) return false;
+    size_t n = 0;  // continuation bytes
+    if (c < 0x80) n = 0;
+    else if ((c >> 5) == 0x6) n = 1;
+    else if ((c >> 4) == 0xE) n = 2;
+    else if ((c >> 3) == 0x1E) n = 3;
+    else return false;
+    for (size_t k = 1; k <= n; ++k)
+      if (i + k >= s.size() || (static_cast<unsigned char>(s[i + k]) >> 6) != 0x2) return false;
+    i += n + 1;
+  }
+  return true;
+}
+
+const char* sectionName(PassThrough::Section s) {
+  switch (s) {
+    case PassThrough::Section::kBody: return "body";
+    case PassThrough::Section::kTrailer: return "trailer";
+    case PassThrough::Section::kData: return "data";
+  }
+  return "body";
+}
+
+void writePassThrough(std::ostream& out, const PassThrough& s) {
+  out << "    <passthrough language=\"" << calib::xmlEscape(s.language) << "\"";
+  if (s.section != PassThrough::Section::kBody) out << " section=\"" << sectionName(s.section) << "\"";
+  if (plainText(s.text)) {
+    out << ">" << calib::xmlEscape(s.text) << "</passthrough>\n";
+    return;
+  }
+  static const char* const hex = "0123456789abcdef";
+  out << " encoding=\"hex\">";
+  for (char c : s.text) out << hex[(static_cast<unsigned char>(c) >> 4) & 0xF] << hex[static_cast<unsigned char>(c) & 0xF];
+  out << "</passthrough>\n";
+}
+
+PassThrough readPassThrough(const Reader& R, const XMLElement* e, size_t before_motion) {
+  R.checkAttributes(e, {"language", "section", "encoding"});
+  PassThrough p;
+  p.where = R.loc(e);
+  p.before_motion = before_motion;
+  const auto language = R.text(e, "language");
+  if (!language || language->empty()) R.fail(e, "<passthrough>: expected attribute 'language' (KRL, ...)");
+  p.language = *language;
+  const std::string section = R.text(e, "section").value_or("body");
+  if (section == "body") p.section = PassThrough::Section::kBody;
+  else if (section == "trailer") p.section = PassThrough::Section::kTrailer;
+  else if (section == "data") p.section = PassThrough::Section::kData;
+  else R.fail(e, "<passthrough> attribute 'section': expected body, trailer or data, found '" + section + "'");
+  if (e->FirstChildElement()) R.fail(e->FirstChildElement(), "<passthrough>: expected text only, found an element");
+  const std::string text = e->GetText() ? e->GetText() : "";
+  const std::string encoding = R.text(e, "encoding").value_or("text");
+  if (encoding == "text") {
+    p.text = text;
+  } else if (encoding == "hex") {
+    auto nibble = [&](char c) -> int {
+      if (c >= '0' && c <= '9') return c - '0';
+      if (c >= 'a' && c <= 'f') return c - 'a' + 10;
+      if (c >= 'A' && c <= 'F') return c - 'A' + 10;
+      R.fail(e, std::string("<passthrough encoding=\"hex\">: expected hexadecimal digits, found '") + c + "'");
+    };
+    if (text.size() % 2) R.fail(e, "<passthrough encoding=\"hex\">: expected an even number of hexadecimal digits");
+    for (size_t i = 0; i < text.size(); i += 2) p.text += static_cast<char>(nibble(text[i]) * 16 + nibble(text[i + 1]));
+  } else {
+    R.fail(e, "<passthrough> attribute 'encoding': expected text or hex, found '" + encoding + "'");
+  }
+  if (p.text.find('\n') != std::string::npos) R.fail(e, "<passthrough>: expected one line, found a line break");
+  return p;
+}
+
 std::string describe(const XMLElement* e) { return e ? "<" + std::string(e->Name()) + ">" : "nothing"; }
 
 Motion readMotion(const Reader& R, const XMLElement* e) {
@@ -368,6 +446,7 @@ const std::map<std::string, std::set<std::string>>& xmlProgramVocabulary() {
     m["aux"] = targetAttrs(true);
     m["axes"] = targetAttrs(false);
     m["ref"] = {"name"};
+    m["passthrough"] = {"language", "section", "encoding"};
     return m;
   }();
   return v;
@@ -406,22 +485,39 @@ Program parseXmlProgram(const std::string& text, const std::string& file, const 
   }
   if (!motions) R.fail(root, "<program>: missing <motions> element");
   FrameSetting tool, base;
+  int triggers = 0;
   for (const XMLElement* c = motions->FirstChildElement(); c; c = c->NextSiblingElement()) {
     const std::string n = c->Name();
     if (n == "tool") {
       tool = readFrame(R, c, true, tables);
     } else if (n == "base") {
       base = readFrame(R, c, false, tables);
+    } else if (n == "passthrough") {
+      p.passthrough.push_back(readPassThrough(R, c, p.motions.size()));
+      // a KRL TRIGGER binds to the next motion (as the KRL reader counts it)
+      const std::string& t = p.passthrough.back().text;
+      const size_t b = t.find_first_not_of(" \t");
+      std::string word = b == std::string::npos ? "" : t.substr(b, 8);
+      for (char& ch : word) ch = static_cast<char>(std::toupper(static_cast<unsigned char>(ch)));
+      if (p.passthrough.back().language == "KRL" && p.passthrough.back().section == PassThrough::Section::kBody &&
+          (word == "TRIGGER" || word == "TRIGGER " || word == "TRIGGER\t"))
+        ++triggers;
     } else {
       bool motion = false;
       for (const char* k : kMotionElements) motion = motion || n == k;
-      if (!motion) R.fail(c, "unknown element <" + n + "> in <motions> (expected tool, base, ptp, lin, circ, sptp, slin, scirc, spl)");
+      if (!motion) R.fail(c, "unknown element <" + n + "> in <motions> (expected tool, base, ptp, lin, circ, sptp, slin, scirc, spl, passthrough)");
       Motion m = readMotion(R, c);
       m.tool = tool;
       m.base = base;
+      m.trigger_count = triggers;
+      triggers = 0;
       p.motions.push_back(std::move(m));
     }
   }
+  auto source = std::make_shared<XmlSource>();
+  source->text = text;
+  source->motions = p.motions.size();
+  p.xml = source;
   return p;
 }
 
@@ -433,6 +529,9 @@ Program readXmlProgram(const std::string& path, const FrameTables* tables) {
 }
 
 std::string writeXmlProgram(const Program& p) {
+  // read from XML and unchanged (nothing corrected, nothing inserted): the bytes as read
+  if (p.xml && p.motions.size() == p.xml->motions && !programChanged(p)) return p.xml->text;
+  checkPassThrough(p, "");
   std::ostringstream out;
   out << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n";
   out << "<program";
@@ -441,7 +540,25 @@ std::string writeXmlProgram(const Program& p) {
   if (!p.robot.empty()) out << "  <robot name=\"" << calib::xmlEscape(p.robot) << "\"/>\n";
   out << "  <motions>\n";
   FrameSetting tool, base;
-  for (const Motion& m : p.motions) {
+  size_t next = 0;  // the next pass-through statement
+  auto carry = [&](bool body, size_t before) {
+    if (!body) {  // after the last motion: the rest of the body, then the other sections
+      for (; next < p.passthrough.size(); ++next)
+        if (p.passthrough[next].section == PassThrough::Section::kBody) writePassThrough(out, p.passthrough[next]);
+      for (const PassThrough& s : p.passthrough)
+        if (s.section != PassThrough::Section::kBody) writePassThrough(out, s);
+      return;
+    }
+    for (; next < p.passthrough.size(); ++next) {
+      const PassThrough& s = p.passthrough[next];
+      if (s.section != PassThrough::Section::kBody) continue;
+      if (s.before_motion > before) break;
+      writePassThrough(out, s);
+    }
+  };
+  for (size_t k = 0; k < p.motions.size(); ++k) {
+    const Motion& m = p.motions[k];
+    carry(true, k);
     if (m.tool.source != FrameSetting::Source::kUnset && !sameFrame(m.tool, tool)) writeFrame(out, "tool", m.tool);
     tool = m.tool;
     if (m.base.source != FrameSetting::Source::kUnset && !sameFrame(m.base, base)) writeFrame(out, "base", m.base);
@@ -481,6 +598,7 @@ std::string writeXmlProgram(const Program& p) {
     refOrValue(m.target.kind == Target::Kind::kAxis ? "axes" : "pose", m.target, false);
     out << "    </" << tag << ">\n";
   }
+  carry(false, p.motions.size());
   out << "  </motions>\n</program>\n";
   return out.str();
 }

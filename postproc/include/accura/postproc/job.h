@@ -72,6 +72,9 @@ struct TargetReport {
   double correction_deg = 0;  ///< rotation angle between command and desired
   double dx_mm = 0, dy_mm = 0, dz_mm = 0;  ///< command - desired, in the program's base frame
   bool calibrated_tool = false;            ///< the real model used the calibrated tool
+  /// A new declared point (name) that replaces this one in the motion (the auxiliary point
+  /// of the last sub-arc of a split CIRC: the declared one keeps its value); empty otherwise.
+  std::string new_point_replaces;
 };
 
 /// One LIN / CIRC segment.

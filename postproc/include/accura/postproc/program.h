@@ -59,6 +59,13 @@ struct Target {
   SourceLocation where;                       ///< where the value is written
   int value_id = -1;  ///< KRL: index of the aggregate's text in KrlSource::values (-1: none)
   bool modified = false;  ///< changed by the compensator (the writers rewrite its value)
+  /// A new point made by the compensator where the old name must keep its meaning (the
+  /// auxiliary point of the last sub-arc of a split CIRC): `name` is new and must be declared
+  /// (KRL: a DECL after the declaration of value_id in the .dat, which stays untouched) and the
+  /// motion refers to it instead of the point it replaces (`replaces`); `name` empty: an inline
+  /// aggregate in the statement instead (the replaced point is not declared in the .dat).
+  bool new_declaration = false;
+  std::string replaces;  ///< for new_declaration: the name the motion used before
 
   /// True when X, Y, Z, A, B and C are all given.
   bool completePose() const;
@@ -66,6 +73,11 @@ struct Target {
   calib::XyzAbc xyzAbc() const;
   /// Sets X..C (keeps S, T, external axes).
   void setPose(const calib::XyzAbc& p);
+  /// Sets X..C where they change at the precision the writers use (formatMm: 1e-4 mm,
+  /// formatDeg: 1e-5 deg); a component that does not change keeps its value, so that its text
+  /// is written back as it was. Returns false (and changes nothing) when no component changes:
+  /// a correction that rounds to zero leaves the target as written.
+  bool setPoseIfChanged(const calib::XyzAbc& p);
 };
 
 /// The tool ($TOOL) or base ($BASE) frame active at a motion, and where it came from.
@@ -145,14 +157,57 @@ struct KrlSource {
   std::vector<Statement> statements;
 };
 
+/// A statement the motion model does not express (I/O, logic, waits, comments, declarations of
+/// other types), carried verbatim so that `convert` loses nothing (docs/program-formats.md,
+/// "Pass-through statements"). Written back only into the language it was written in; a
+/// writer for another language refuses it, naming `where`.
+struct PassThrough {
+  enum class Section {
+    kBody,     ///< in the program body, before motion `before_motion`
+    kTrailer,  ///< after the end of the main program (KRL: local subroutines after END)
+    kData,     ///< in the data part (KRL: the .dat, before ENDDAT)
+  };
+  std::string language;      ///< "KRL", ...
+  std::string text;          ///< one line as written, without its line end
+  Section section = Section::kBody;
+  size_t before_motion = 0;  ///< kBody: index in Program::motions (motions.size(): after the last)
+  SourceLocation where;      ///< where it was read
+  /// Why no other program can carry it (a motion of a KRL local subroutine, which the
+  /// motion model does not hold): writers other than the in-place KRL one refuse it.
+  std::string refuse;
+};
+
+
+/// The bytes of a program read from an XML file, for writing it back unchanged.
+struct XmlSource {
+  std::string text;
+  size_t motions = 0;  ///< the motion count read
+};
+
 /// A program: the motion model, plus the KRL text when read from KRL.
 struct Program {
   std::string name;    ///< program name (KRL DEF name, XML name attribute)
   std::string robot;   ///< robot name (XML; empty when not given)
   std::vector<Motion> motions;
+  /// Statements outside the motion model, in order (see PassThrough).
+  std::vector<PassThrough> passthrough;
   std::shared_ptr<const KrlSource> krl;  ///< set by the KRL reader
+  std::shared_ptr<const XmlSource> xml;  ///< set by the XML reader
   std::string source_file;               ///< the file the program was read from
 };
+
+/// True when a writer must produce new text: a target is modified, a motion inserted.
+bool programChanged(const Program& program);
+
+/// ArgumentError naming the first pass-through statement of `program` that a writer for
+/// `language` cannot carry (another language, or PassThrough::refuse); nothing when all can.
+/// `language` empty: a writer that carries every language (XML).
+void checkPassThrough(const Program& program, const std::string& language);
+
+/// A point name that `program` does not use yet (no target of it, no identifier of its KRL
+/// text, case-insensitive) and `taken` does not hold: `base` followed by "_1", "_2", ...,
+/// shortened to KRL's 24 characters.
+std::string newPointName(const Program& program, const std::string& base, const std::vector<std::string>& taken);
 
 /// The KRL keyword of a motion: PTP, LIN, CIRC, SPL, SPTP, SLIN, SCIRC; _REL appended for a
 /// relative motion (LIN_REL, SPTP_REL).

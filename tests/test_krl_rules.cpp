@@ -1,0 +1,408 @@
+// KRL semantics of the compensation (issue 12): S and T as the controller uses them (CP motions
+// ignore the programmed S/T, PTP uses them), corrections that round to zero keep the text
+// (the nominal robot returns every program byte for byte), named points keep their meaning
+// (a split CIRC gets a new auxiliary point), external axes are refused.
+//
+// The simulated controller here implements the KUKA rules on its own (KUKA System Software 8,
+// "Status and Turn": the programmed S/T are taken into account for PTP only; on CP motions
+// Status is kept from the start and Turn follows the path): PTP solves the nominal IK on the
+// programmed S/T, LIN steps along the commanded line with the nominal IK continued from the
+// previous step. It does not call accura's compensation to choose a configuration.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "accura/calib/errors.h"
+#include "accura/calib/geometry.h"
+#include "accura/calib/ik.h"
+#include "accura/calib/robot_io.h"
+#include "accura/calib/simulate.h"
+#include "accura/postproc/job.h"
+#include "accura/postproc/krl.h"
+#include "accura/postproc/program_io.h"
+#include "accura/postproc/xml_program.h"
+#include "test_util.h"
+
+namespace accura::postproc {
+namespace {
+
+std::string aggregate(const Eigen::Isometry3d& T, int s, int t) {
+  const calib::XyzAbc p = calib::toXyzAbc(T);
+  return "{X " + formatMm(p.x_mm) + ",Y " + formatMm(p.y_mm) + ",Z " + formatMm(p.z_mm) + ",A " + formatDeg(p.a_deg) +
+         ",B " + formatDeg(p.b_deg) + ",C " + formatDeg(p.c_deg) + ",S " + std::to_string(s) + ",T " + std::to_string(t) +
+         ",E1 0.0,E2 0.0,E3 0.0,E4 0.0,E5 0.0,E6 0.0}";
+}
+
+Eigen::VectorXd joints(std::initializer_list<double> v) {
+  Eigen::VectorXd q(static_cast<Eigen::Index>(v.size()));
+  Eigen::Index i = 0;
+  for (double x : v) q[i++] = x;
+  return q;
+}
+
+double distanceToSegment(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  const Eigen::Vector3d d = b - a;
+  const double s = std::clamp(d.squaredNorm() > 0 ? (p - a).dot(d) / d.squaredNorm() : 0.0, 0.0, 1.0);
+  return (p - (a + s * d)).norm();
+}
+
+/// A KUKA controller (nominal model) driving the real robot through a program of PTP and LIN
+/// motions to Cartesian targets (world poses with the written S/T).
+struct SimulatedKuka {
+  calib::KinematicSolver controller, real;
+  Eigen::VectorXd q;  ///< the controller's joints
+  int status_changes_on_cp = 0;
+  SimulatedKuka(const calib::RobotModel& c, const calib::RobotModel& r) : controller(c), real(r) {}
+
+  /// PTP: the programmed S/T choose the solution.
+  bool ptp(const Eigen::Isometry3d& T, int s, int t) {
+    const calib::IkResult r = controller.inverse(T, calib::Configuration{s, t}, Eigen::VectorXd(), calib::IkOptions{});
+    if (r.status != calib::IkStatus::kOk) return false;
+    q = r.q;
+    return true;
+  }
+
+  /// LIN: position linear, orientation by the shortest rotation, 0.5 mm steps, each solved
+  /// from the previous joints (the programmed S/T play no part). Returns the real TCP positions.
+  std::vector<Eigen::Vector3d> lin(const Eigen::Isometry3d& T_end) {
+    const Eigen::Isometry3d T0 = controller.forward(q);
+    const int s0 = calib::kukaConfiguration(controller.model(), q).status;
+    const Eigen::Quaterniond r0(T0.linear()), r1(T_end.linear());
+    const int n = std::max(2, static_cast<int>(std::ceil((T_end.translation() - T0.translation()).norm() / 0.5)));
+    std::vector<Eigen::Vector3d> out;
+    for (int i = 1; i <= n; ++i) {
+      const double u = static_cast<double>(i) / n;
+      Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+      T.translation() = (1 - u) * T0.translation() + u * T_end.translation();
+      T.linear() = r0.slerp(u, r1).toRotationMatrix();
+      const calib::IkResult r = controller.inverse(T, calib::Configuration{}, q, calib::IkOptions{});
+      EXPECT_EQ(r.status, calib::IkStatus::kOk) << r.message;
+      if (r.status != calib::IkStatus::kOk) return out;
+      q = r.q;
+      if (calib::kukaConfiguration(controller.model(), q).status != s0) ++status_changes_on_cp;
+      out.push_back(real.forward(q).translation());
+    }
+    return out;
+  }
+};
+
+struct StCell {
+  calib::RobotModel controller, real;
+  StCell() {
+    controller = test::loadBundled("kuka_kr16");
+    controller.nominal.T_flange_tcp = calib::toIsometry({20, 0, 250, 0, -30, 0});
+    calib::SimulateOptions o;
+    o.effects = {"geometric", "joint_compliance"};
+    o.set_station = false;
+    o.seed = 5;
+    real = calib::perturbModel(controller, o);
+  }
+  /// The target (in $BASE = $NULLFRAME = the robot base) of the nominal TCP at q.
+  Eigen::Isometry3d target(const Eigen::VectorXd& q) const {
+    return controller.nominal.T_world_base.inverse() * calib::KinematicSolver(controller).forward(q);
+  }
+};
+
+TEST(KrlRules, CpTargetsWithStaleStatusAndTurnFollowThePathPtpKeepsItsBranch) {
+  const StCell cell;
+  const calib::KinematicSolver nominal(cell.controller);
+  const Eigen::VectorXd q1 = joints({10, -80, 100, 20, 40, 30});
+  const Eigen::VectorXd q2 = joints({25, -70, 95, 25, 45, 35});
+  const Eigen::VectorXd q3 = joints({35, -75, 105, 15, 50, 20});
+  const Eigen::VectorXd q4 = joints({30, -70, 100, 20, 45, -160});  // A6 < 0: its T bit chooses the branch
+  const calib::Configuration c1 = calib::kukaConfiguration(cell.controller, q1), c2 = calib::kukaConfiguration(cell.controller, q2),
+                      c3 = calib::kukaConfiguration(cell.controller, q3), c4 = calib::kukaConfiguration(cell.controller, q4);
+  // the OLP wrote stale S/T into the LIN targets: another elbow bit, the A1 and A6 T bits flipped
+  const int s2 = c2.status ^ 2, t2 = c2.turn ^ 1, s3 = c3.status, t3 = c3.turn ^ 32;
+  ASSERT_NE(s2, c2.status);
+  ASSERT_NE(t3, c3.turn);
+  const std::string dir = test::tempDir("krl_st");
+  test::writeText(dir + "/st.src",
+                  "DEF st( )\n$TOOL={X 20,Y 0,Z 250,A 0,B -30,C 0}\n$BASE=$NULLFRAME\nPTP XP1\nLIN XP2\nLIN XP3\nPTP XP4\nEND\n");
+  test::writeText(dir + "/st.dat", "DEFDAT st\nDECL E6POS XP1=" + aggregate(cell.target(q1), c1.status, c1.turn) +
+                                       "\nDECL E6POS XP2=" + aggregate(cell.target(q2), s2, t2) +
+                                       "\nDECL E6POS XP3=" + aggregate(cell.target(q3), s3, t3) +
+                                       "\nDECL E6POS XP4=" + aggregate(cell.target(q4), c4.status, c4.turn) + "\nENDDAT\n");
+  const Program in = readKrl(dir + "/st.src");
+  JobSettings s;
+  s.calibrated = cell.real;
+  s.tol_mm = 0.05;
+  const ProgramCompensation pc = compensateProgramReport(in, s);
+  ASSERT_TRUE(pc.ok()) << pc.report.errors.front().message;
+  // one warning for the program, naming the count and the first target
+  int st_warnings = 0;
+  for (const auto& w : pc.report.warnings)
+    if (w.message.find("CP motions") != std::string::npos) {
+      ++st_warnings;
+      EXPECT_NE(w.message.find("2 target(s)"), std::string::npos) << w.message;
+      EXPECT_NE(w.message.find("First: XP2"), std::string::npos) << w.message;
+    }
+  EXPECT_EQ(st_warnings, 1);
+  // the written S/T of the CP targets are kept as written
+  const KrlText text = writeKrl(pc.program);
+  const std::string st2 = ",S " + std::to_string(s2) + ",T " + std::to_string(t2) + ",";
+  const std::string st3 = ",S " + std::to_string(s3) + ",T " + std::to_string(t3) + ",";
+  EXPECT_NE(text.dat.find(st2), std::string::npos) << text.dat;
+  EXPECT_NE(text.dat.find(st3), std::string::npos) << text.dat;
+
+  // run the written program: read back, executed by the simulated controller on the real robot
+  const std::string out_dir = test::tempDir("krl_st_out");
+  test::writeText(out_dir + "/st.src", text.src);
+  test::writeText(out_dir + "/st.dat", text.dat);
+  const Program written = readKrl(out_dir + "/st.src");
+  ASSERT_EQ(written.motions.size(), pc.program.motions.size());
+  auto run = [&](const Program& p, const std::vector<bool>& inserted) {
+    SimulatedKuka kuka(cell.controller, cell.real);
+    double path_mm = 0, ptp_mm = 0;
+    size_t input = 0;  // the input motion this one belongs to
+    for (size_t k = 0; k < p.motions.size(); ++k) {
+      const Motion& m = p.motions[k];
+      const Eigen::Isometry3d T = cell.controller.nominal.T_world_base * calib::toIsometry(m.target.xyzAbc());
+      const Eigen::Isometry3d intended = cell.controller.nominal.T_world_base * calib::toIsometry(in.motions[input].target.xyzAbc());
+      if (m.type == MotionType::kPtp) {
+        EXPECT_TRUE(kuka.ptp(T, *m.target.status, *m.target.turn)) << "motion " << k;
+        ptp_mm = std::max(ptp_mm, (kuka.real.forward(kuka.q).translation() - intended.translation()).norm());
+      } else {
+        const Eigen::Vector3d a = cell.controller.nominal.T_world_base * calib::toIsometry(in.motions[input - 1].target.xyzAbc()).translation();
+        for (const Eigen::Vector3d& x : kuka.lin(T)) path_mm = std::max(path_mm, distanceToSegment(x, a, intended.translation()));
+      }
+      if (!inserted[k]) ++input;
+    }
+    EXPECT_EQ(kuka.status_changes_on_cp, 0);
+    return std::make_pair(path_mm, ptp_mm);
+  };
+  std::vector<bool> inserted;
+  for (const Motion& m : pc.program.motions) inserted.push_back(m.inserted);
+  const auto compensated = run(written, inserted);
+  EXPECT_LE(compensated.first, s.tol_mm + 0.005);  // mm: the tolerance plus the sampling margin
+  EXPECT_LE(compensated.second, 1e-3);            // mm: the PTP targets land on their branch
+  const auto original = run(in, std::vector<bool>(in.motions.size(), false));
+  EXPECT_GT(original.first, 0.2);  // mm: the program as written misses the path
+  EXPECT_GT(original.second, 0.2);
+  // PTP XP4: the corrected target is on the written branch (A6 < 0), not the nearest one
+  SimulatedKuka check(cell.controller, cell.real);
+  ASSERT_TRUE(check.ptp(cell.controller.nominal.T_world_base * calib::toIsometry(written.motions.back().target.xyzAbc()), c4.status, c4.turn));
+  EXPECT_LT(check.q[5], 0);
+}
+
+// ---------------------------------------------------------------------------------------------
+// The nominal robot changes nothing
+
+struct Case {
+  std::string src;     ///< relative to the source tree
+  std::string config;  ///< $config.dat, "" none
+  std::string robot;   ///< robot file whose nominal model is used
+};
+
+TEST(KrlRules, TheNominalRobotReturnsEveryProgramByteForByte) {
+  const std::vector<Case> cases = {
+      {"tests/golden/compensate/seam.src", "tests/golden/compensate/$config.dat", "tests/golden/compensate/kr16_real.xml"},
+      {"tests/golden/compensate/expected/seam.src", "tests/golden/compensate/$config.dat", "tests/golden/compensate/kr16_real.xml"},
+      {"tests/golden/krl/kss8_inline/weld_seam.src", "tests/golden/krl/config/$config.dat", "tests/golden/compensate/kr16_real.xml"},
+      {"tests/golden/xml/weld_seam.xml", "tests/golden/krl/config/$config.dat", "tests/golden/compensate/kr16_real.xml"},
+  };
+  for (const Case& c : cases) {
+    ProgramReadOptions o;
+    if (!c.config.empty()) o.config_path = test::sourcePath(c.config);
+    const Program in = readProgram(test::sourcePath(c.src), o);
+    JobSettings s;
+    s.calibrated = calib::RobotModel::fromDefinition(calib::readRobotFile(test::sourcePath(c.robot)).nominal);
+    const ProgramCompensation pc = compensateProgramReport(in, s);
+    ASSERT_TRUE(pc.ok()) << c.src << ": " << pc.report.errors.front().where.str() << ": " << pc.report.errors.front().message;
+    ASSERT_GT(pc.report.targets.size(), 2u) << c.src;
+    // mm: nothing to correct but the tool the XML writes with 4 decimals (the model's tool is
+    // the calibrated one, 0.5e-4 mm away): below what is written
+    EXPECT_LT(pc.report.max_correction_mm, 5e-5) << c.src;
+    EXPECT_EQ(pc.report.points_added, 0) << c.src;
+    const std::vector<calib::OutputFile> files = renderProgram(pc.program, programFormat(c.src), "out" + c.src.substr(c.src.rfind('.')));
+    EXPECT_EQ(files.front().text, test::readText(test::sourcePath(c.src))) << c.src;
+    if (files.size() > 1) {
+      EXPECT_EQ(files[1].text, test::readText(in.krl->dat_path)) << c.src;
+    }
+  }
+}
+
+TEST(KrlRules, AComponentUnchangedAtThePrecisionWrittenKeepsItsText) {
+  Target t;
+  t.setPose(calib::XyzAbc{100.0, 0.0, 20.0, 160.0, 10.0, 170.0});
+  // 0.03 um and 4e-6 deg: below 1e-4 mm / 1e-5 deg
+  EXPECT_FALSE(t.setPoseIfChanged(calib::XyzAbc{100.00003, 0.0, 20.0, 160.000004, 10.0, 170.0}));
+  EXPECT_EQ(*t.pose[0], 100.0);
+  EXPECT_TRUE(t.setPoseIfChanged(calib::XyzAbc{100.00003, 0.2, 20.0, 160.0, 10.0, 170.0}));
+  EXPECT_EQ(*t.pose[0], 100.0);  // kept: its text is written back as it was
+  EXPECT_EQ(*t.pose[1], 0.2);
+  // in the file: only Y's text changes
+  const std::string dir = test::tempDir("krl_round");
+  test::writeText(dir + "/p.src", "DEF p( )\nLIN XP1\nEND\n");
+  test::writeText(dir + "/p.dat", "DEFDAT p\nDECL E6POS XP1={X 100.0,Y 0.0,Z 20.0,A 160.0,B 10.0,C 170.0,S 2,T 10}\nENDDAT\n");
+  Program p = readKrl(dir + "/p.src");
+  p.motions[0].target.modified = p.motions[0].target.setPoseIfChanged(calib::XyzAbc{100.00003, 0.2, 20.0, 160.0, 10.0, 170.0});
+  EXPECT_EQ(writeKrl(p).dat, "DEFDAT p\nDECL E6POS XP1={X 100.0,Y 0.2000,Z 20.0,A 160.0,B 10.0,C 170.0,S 2,T 10}\nENDDAT\n");
+}
+
+// ---------------------------------------------------------------------------------------------
+// External axes
+
+TEST(KrlRules, ATargetThatMovesAnExternalAxisIsRefusedNamingIt) {
+  const std::string dir = test::tempDir("krl_ext");
+  test::writeText(dir + "/p.src", "DEF p( )\n$TOOL={X 0,Y 0,Z 100,A 0,B 0,C 0}\n$BASE=$NULLFRAME\nPTP XP1\nLIN XP2\nEND\n");
+  test::writeText(dir + "/p.dat",
+                  "DEFDAT p\nDECL E6POS XP1={X 1000,Y 0,Z 800,A 0,B 90,C 0,E1 0.0}\n"
+                  "DECL E6POS XP2={X 1000,Y 100,Z 800,A 0,B 90,C 0,E1 0.0,E2 250.5}\nENDDAT\n");
+  const Program in = readKrl(dir + "/p.src");
+  JobSettings s;
+  s.calibrated = test::loadBundled("kuka_kr16");
+  const ProgramCompensation pc = compensateProgramReport(in, s);
+  ASSERT_EQ(pc.report.errors.size(), 1u);
+  const ProgramIssue& e = pc.report.errors.front();
+  EXPECT_EQ(e.where.file, dir + "/p.dat");
+  EXPECT_EQ(e.where.line, 3);
+  EXPECT_EQ(e.where.column, 16);  // the aggregate of XP2
+  EXPECT_NE(e.message.find("XP2"), std::string::npos) << e.message;
+  EXPECT_NE(e.message.find("E2 250.5000"), std::string::npos) << e.message;
+  EXPECT_NE(e.message.find("models no external axes"), std::string::npos) << e.message;
+  // the command line: exit 1, file:line:column
+  test::writeText(dir + "/kr16.xml", test::readText(test::sourcePath("tests/golden/compensate/kr16_real.xml")));
+  const test::CliRun r = test::runAccuraIn(dir, "compensate --robot kr16.xml --in p.src --out out");
+  EXPECT_EQ(r.code, 1) << r.err;
+  EXPECT_NE(r.err.find("p.dat:3:16"), std::string::npos) << r.err;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Named points keep their meaning
+
+TEST(KrlRules, ASplitCircGetsANewAuxiliaryPointTheDeclaredOneKeepsItsValue) {
+  const std::string g = test::sourcePath("tests/golden/compensate/");
+  KrlReadOptions o;
+  o.config_path = g + "$config.dat";
+  const Program in = readKrl(g + "seam.src", o);
+  JobSettings s;
+  s.calibrated = calib::readRobotFile(g + "kr16_real.xml");
+  s.tol_mm = 0.02;
+  const ProgramCompensation pc = compensateProgramReport(in, s);
+  ASSERT_TRUE(pc.ok()) << pc.report.errors.front().message;
+  const Motion* circ_in = nullptr;
+  for (const Motion& m : in.motions)
+    if (m.type == MotionType::kCirc) circ_in = &m;
+  ASSERT_NE(circ_in, nullptr);
+  const std::string aux = circ_in->aux->name, end = circ_in->target.name;  // XP5, XP6
+  ASSERT_FALSE(aux.empty());
+  const KrlText out = writeKrl(pc.program);
+  const std::string dat = test::readText(g + "seam.dat");
+  // the auxiliary point's declaration is untouched; the new point follows it; the CIRC names it
+  const size_t decl = dat.find("DECL E6POS " + aux + "=");
+  ASSERT_NE(decl, std::string::npos);
+  const std::string aux_line = dat.substr(decl, dat.find('\n', decl) + 1 - decl);
+  const size_t at = out.dat.find(aux_line);
+  ASSERT_NE(at, std::string::npos) << aux << " changed:\n" << out.dat;
+  const std::string new_decl = "DECL E6POS " + aux + "_1={";
+  EXPECT_EQ(out.dat.compare(at + aux_line.size(), new_decl.size(), new_decl), 0) << out.dat.substr(at, 400);
+  EXPECT_NE(out.src.find("CIRC " + aux + "_1, " + end), std::string::npos);
+  EXPECT_EQ(out.src.find("CIRC " + aux + ", " + end), std::string::npos);
+  // only the new line differs in the .dat besides corrected values: one line more
+  EXPECT_EQ(std::count(out.dat.begin(), out.dat.end(), '\n'), std::count(dat.begin(), dat.end(), '\n') + 1);
+  // the report lists the new declaration
+  int new_points = 0;
+  for (const TargetReport& t : pc.report.targets)
+    if (!t.new_point_replaces.empty()) {
+      ++new_points;
+      EXPECT_EQ(t.name, aux + "_1");
+      EXPECT_EQ(t.new_point_replaces, aux);
+      EXPECT_EQ(t.role, "aux");
+      EXPECT_LT(t.correction_mm, 5.0);  // mm: a compensated point of the arc
+    }
+  EXPECT_EQ(new_points, 1);
+  // read back: the new point is the last sub-arc's auxiliary point, the old one as it was
+  const std::string dir = test::tempDir("krl_split");
+  test::writeText(dir + "/seam.src", out.src);
+  test::writeText(dir + "/seam.dat", out.dat);
+  const Program back = readKrl(dir + "/seam.src", o);
+  const Motion* circ = nullptr;
+  for (const Motion& m : back.motions)
+    if (m.type == MotionType::kCirc && m.aux && !m.aux->name.empty()) circ = &m;
+  ASSERT_NE(circ, nullptr);
+  EXPECT_EQ(circ->aux->name, aux + "_1");
+  const Eigen::Vector3d d = calib::toIsometry(circ->aux->xyzAbc()).translation() - calib::toIsometry(circ_in->aux->xyzAbc()).translation();
+  EXPECT_GT(d.norm(), 10.0);  // mm: another point of the arc, which the declared point could not hold
+}
+
+// A point that is a CIRC's auxiliary point and another motion's target: the split CIRC gets a
+// new point, the declared one holds the other motion's correction (its report's dx, dy, dz).
+TEST(KrlRules, ADeclaredPointUsedByAnotherMotionIsNeverRepurposed) {
+  const StCell cell;
+  const Eigen::VectorXd q1 = joints({-10, -70, 100, 10, 40, 20}), q2 = joints({15, -60, 90, 15, 45, 25}),
+                        q3 = joints({35, -75, 105, 20, 50, 30});
+  const calib::Configuration c1 = calib::kukaConfiguration(cell.controller, q1);
+  const std::string dir = test::tempDir("krl_shared");
+  test::writeText(dir + "/p.src",
+                  "DEF p( )\n$TOOL={X 20,Y 0,Z 250,A 0,B -30,C 0}\n$BASE=$NULLFRAME\nPTP XP1\nCIRC XP2, XP3\nLIN XP2\nEND\n");
+  test::writeText(dir + "/p.dat", "DEFDAT p\nDECL E6POS XP1=" + aggregate(cell.target(q1), c1.status, c1.turn) +
+                                      "\nDECL E6POS XP2=" + aggregate(cell.target(q2), 2, 0) +
+                                      "\nDECL E6POS XP3=" + aggregate(cell.target(q3), 2, 0) + "\nENDDAT\n");
+  const Program in = readKrl(dir + "/p.src");
+  JobSettings s;
+  s.calibrated = cell.real;
+  s.tol_mm = 0.01;
+  const ProgramCompensation pc = compensateProgramReport(in, s);
+  ASSERT_TRUE(pc.ok()) << pc.report.errors.front().message;
+  ASSERT_GT(pc.report.points_added, 0);  // the arc was split
+  const KrlText out = writeKrl(pc.program);
+  EXPECT_NE(out.src.find("\nCIRC XP2_1, XP3\n"), std::string::npos) << out.src;
+  EXPECT_NE(out.src.find("\nLIN XP2\n"), std::string::npos) << out.src;
+  // XP2 = its written value + the LIN's correction
+  const TargetReport* lin = nullptr;
+  for (const TargetReport& t : pc.report.targets)
+    if (t.name == "XP2" && t.motion_type == "LIN") lin = &t;
+  ASSERT_NE(lin, nullptr);
+  test::writeText(dir + "/o.src", out.src);
+  test::writeText(dir + "/o.dat", out.dat);
+  const Program back = readKrl(dir + "/o.src");
+  const Target& xp2 = back.motions.back().target;
+  ASSERT_EQ(xp2.name, "XP2");
+  EXPECT_NEAR(*xp2.pose[0] - *in.motions[2].target.pose[0], lin->dx_mm, 1e-4);  // mm: the written precision
+  EXPECT_NEAR(*xp2.pose[1] - *in.motions[2].target.pose[1], lin->dy_mm, 1e-4);
+  EXPECT_NEAR(*xp2.pose[2] - *in.motions[2].target.pose[2], lin->dz_mm, 1e-4);
+  EXPECT_GT(std::hypot(lin->dx_mm, lin->dy_mm, lin->dz_mm), 0.1);  // mm: a real correction
+}
+
+// The same with the points declared in the .src: the last sub-arc's auxiliary point becomes an
+// inline aggregate (a DECL cannot follow statements), the declaration stays as it was.
+TEST(KrlRules, ASplitCircWhosePointIsDeclaredInTheSrcGetsAnInlineAuxiliaryPoint) {
+  const StCell cell;
+  const Eigen::VectorXd q1 = joints({-10, -70, 100, 10, 40, 20}), q2 = joints({15, -60, 90, 15, 45, 25}),
+                        q3 = joints({35, -75, 105, 20, 50, 30});
+  const calib::Configuration c1 = calib::kukaConfiguration(cell.controller, q1);
+  const std::string decl2 = "DECL E6POS XP2=" + aggregate(cell.target(q2), 2, 0);
+  const std::string dir = test::tempDir("krl_src_decl");
+  test::writeText(dir + "/p.src", "DEF p( )\n" + decl2 + "\nDECL E6POS XP3=" + aggregate(cell.target(q3), 2, 0) +
+                                      "\n$TOOL={X 20,Y 0,Z 250,A 0,B -30,C 0}\n$BASE=$NULLFRAME\nPTP " +
+                                      aggregate(cell.target(q1), c1.status, c1.turn) + "\nCIRC XP2, XP3\nEND\n");
+  JobSettings s;
+  s.calibrated = cell.real;
+  s.tol_mm = 0.01;
+  const ProgramCompensation pc = compensateProgramReport(readKrl(dir + "/p.src"), s);
+  ASSERT_TRUE(pc.ok()) << pc.report.errors.front().message;
+  ASSERT_GT(pc.report.points_added, 0);
+  const std::string src = writeKrl(pc.program).src;
+  EXPECT_NE(src.find("\n" + decl2 + "\n"), std::string::npos) << src;
+  EXPECT_EQ(src.find("CIRC XP2,"), std::string::npos) << src;
+  EXPECT_NE(src.find("\nCIRC {X "), std::string::npos) << src;
+  EXPECT_NE(src.find("}, XP3\n"), std::string::npos) << src;
+  int replaced = 0;
+  for (const TargetReport& t : pc.report.targets) replaced += t.new_point_replaces == "XP2" && t.name.empty();
+  EXPECT_EQ(replaced, 1);
+}
+
+TEST(KrlRules, NewPointNamesAreFreeInTheProgram) {
+  const std::string dir = test::tempDir("krl_names");
+  test::writeText(dir + "/p.src", "DEF p( )\nLIN XP4\nINT XP4_1\nEND\n");
+  test::writeText(dir + "/p.dat", "DEFDAT p\nDECL E6POS XP4={X 1,Y 2,Z 3,A 0,B 0,C 0}\nDECL INT xp4_2\nENDDAT\n");
+  const Program p = readKrl(dir + "/p.src");
+  EXPECT_EQ(newPointName(p, "XP4", {}), "XP4_3");
+  EXPECT_EQ(newPointName(p, "XP4", {"XP4_3"}), "XP4_4");
+  EXPECT_EQ(newPointName(p, "ABCDEFGHIJKLMNOPQRSTUVWXYZ", {}), "ABCDEFGHIJKLMNOPQRSTUV_1");  // 24 characters
+}
+
+}  // namespace
+}  // namespace accura::postproc
