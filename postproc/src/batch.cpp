@@ -131,7 +131,7 @@ ProgramFileResult compensateProgramFile(const ProgramFileRequest& q, const JobSe
   refuseToOverwrite(r.checked.files, inputs, q.out_name);
   if (!q.json_path.empty()) refuseToOverwrite({{q.json_path, ""}}, inputs, q.json_name);
   if (r.checked.write) {
-    fs::create_directories(q.out_dir);
+    createDirectories(q.out_dir);
     writeFilesAtomically(r.checked.files);
     r.written = true;
   }
@@ -228,7 +228,7 @@ BatchResult runBatch(const std::string& in_dir, const std::string& out_dir, cons
           if (r.check && !r.check->passed()) r.message = "failed the checks of " + cell->cell.file + ": " + firstCheckProblem(*r.check);
           if (!out.compensation_error.empty()) r.message += "; it cannot be compensated either: " + out.compensation_error;
           if (out.write) {
-            fs::create_directories(out_path.parent_path());
+            createDirectories(out_path.parent_path().string());
             writeFilesAtomically(out.files);
             for (const auto& f : out.files) r.outputs.push_back(relativeSlash(fs::relative(f.path, out_dir)));
             r.status = BatchFileResult::Status::kConverted;

@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "accura/calib/errors.h"
+#include "accura/calib/geometry.h"
 #include "accura/calib/kinematics.h"
 #include "accura/postproc/krl.h"
 #include "accura/postproc/path_job.h"
@@ -389,11 +390,6 @@ class Job {
 };
 
 }  // namespace
-
-double rotationAngleDeg(const Eigen::Matrix3d& R) {
-  const double c = std::max(-1.0, std::min(1.0, (R.trace() - 1.0) / 2.0));
-  return std::acos(c) * kRadToDeg;
-}
 
 RobotModel realModelForTool(const RobotModel& calibrated, const Eigen::Isometry3d& T_flange_tcp, double match_mm,
                             double match_deg, bool* calibrated_tool) {
