@@ -10,6 +10,7 @@
 #include <atomic>
 #include <cstdint>
 #include <cstring>
+#include <memory>
 #include <set>
 #include <string>
 #include <thread>
@@ -39,6 +40,25 @@ accura_model* loaded() {
   return m;
 }
 
+/// Valid arguments for every entry point (the misuse is in the one argument a test changes).
+struct Args {
+  const accura_pose p = {1100, -250, 500, 0, 180, 0};
+  accura_pose_result r{};
+  accura_pose out{};
+  const double q[6] = {0, -90, 90, 0, 0, 0};
+  accura_path_result pr{};
+  accura_path_motion lin = {ACCURA_LIN, {}, {1100, -50, 500, 0, 180, 0}};
+  accura_check_summary cs{};
+  accura_model_info info{};
+  accura_write_options wo = [] {
+    accura_write_options o;
+    EXPECT_EQ(accura_write_options_init(&o, sizeof(o)), ACCURA_OK);
+    return o;
+  }();
+  const accura_program_motion pm = {ACCURA_PTP, {}, p, 0, 0};
+  size_t n = 0;
+};
+
 /// Expects `status` from a call on `m` and a message of the calling thread holding `what`.
 #define EXPECT_MISUSE(m, call, status, what)                                             \
   do {                                                                                   \
@@ -50,18 +70,7 @@ accura_model* loaded() {
 // naming the parameter; nothing is written through the other pointers.
 TEST(PluginMisuse, NullPointersOnEveryEntryPoint) {
   accura_model* m = loaded();
-  const accura_pose p = {1100, -250, 500, 0, 180, 0};
-  accura_pose_result r;
-  accura_pose out;
-  const double q[6] = {0, -90, 90, 0, 0, 0};
-  accura_path_result pr;
-  accura_path_motion lin = {ACCURA_LIN, {}, {1100, -50, 500, 0, 180, 0}};
-  accura_check_summary cs;
-  accura_model_info info;
-  accura_write_options wo;
-  ASSERT_EQ(accura_write_options_init(&wo, sizeof(wo)), ACCURA_OK);
-  const accura_program_motion pm = {ACCURA_PTP, {}, p, 0, 0};
-  size_t n = 0;
+  Args a;
 
   // without a handle: the message of the calling thread through accura_last_error(NULL)
   EXPECT_MISUSE(nullptr, accura_model_create(nullptr), ACCURA_ERROR_NULL_ARGUMENT, "model_out is NULL");
@@ -80,53 +89,53 @@ TEST(PluginMisuse, NullPointersOnEveryEntryPoint) {
 
   // the handle NULL, on every call that takes one
   EXPECT_MISUSE(nullptr, accura_model_load(nullptr, "kuka_kr16", nullptr), ACCURA_ERROR_NULL_ARGUMENT, "accura_model_load: model is NULL");
-  EXPECT_MISUSE(nullptr, accura_model_get_info(nullptr, &info), ACCURA_ERROR_NULL_ARGUMENT, "accura_model_get_info: model is NULL");
-  EXPECT_MISUSE(nullptr, accura_model_get_joints(nullptr, nullptr, 0, &n), ACCURA_ERROR_NULL_ARGUMENT, "model is NULL");
-  EXPECT_MISUSE(nullptr, accura_forward_kinematics(nullptr, ACCURA_REAL, q, 6, &out), ACCURA_ERROR_NULL_ARGUMENT, "model is NULL");
-  EXPECT_MISUSE(nullptr, accura_compensate_pose(nullptr, &p, nullptr, &r), ACCURA_ERROR_NULL_ARGUMENT, "model is NULL");
-  EXPECT_MISUSE(nullptr, accura_compensate_poses(nullptr, &p, nullptr, 1, 0, &r, &n), ACCURA_ERROR_NULL_ARGUMENT, "model is NULL");
-  EXPECT_MISUSE(nullptr, accura_compensate_path(nullptr, &p, nullptr, &lin, 1, 0.05, nullptr, 0, &pr, nullptr),
+  EXPECT_MISUSE(nullptr, accura_model_get_info(nullptr, &a.info), ACCURA_ERROR_NULL_ARGUMENT, "accura_model_get_info: model is NULL");
+  EXPECT_MISUSE(nullptr, accura_model_get_joints(nullptr, nullptr, 0, &a.n), ACCURA_ERROR_NULL_ARGUMENT, "model is NULL");
+  EXPECT_MISUSE(nullptr, accura_forward_kinematics(nullptr, ACCURA_REAL, a.q, 6, &a.out), ACCURA_ERROR_NULL_ARGUMENT, "model is NULL");
+  EXPECT_MISUSE(nullptr, accura_compensate_pose(nullptr, &a.p, nullptr, &a.r), ACCURA_ERROR_NULL_ARGUMENT, "model is NULL");
+  EXPECT_MISUSE(nullptr, accura_compensate_poses(nullptr, &a.p, nullptr, 1, 0, &a.r, &a.n), ACCURA_ERROR_NULL_ARGUMENT, "model is NULL");
+  EXPECT_MISUSE(nullptr, accura_compensate_path(nullptr, &a.p, nullptr, &a.lin, 1, 0.05, nullptr, 0, &a.pr, nullptr),
                 ACCURA_ERROR_NULL_ARGUMENT, "accura_compensate_path: model is NULL");
   EXPECT_MISUSE(nullptr, accura_compensate_program(nullptr, "a.src", "out", nullptr, nullptr), ACCURA_ERROR_NULL_ARGUMENT, "model is NULL");
-  EXPECT_MISUSE(nullptr, accura_check_program(nullptr, "c.xml", "a.src", nullptr, &cs, nullptr, 0), ACCURA_ERROR_NULL_ARGUMENT,
+  EXPECT_MISUSE(nullptr, accura_check_program(nullptr, "c.xml", "a.src", nullptr, &a.cs, nullptr, 0), ACCURA_ERROR_NULL_ARGUMENT,
                 "model is NULL");
-  EXPECT_MISUSE(nullptr, accura_write_program(nullptr, "a.src", &pm, 1, &wo), ACCURA_ERROR_NULL_ARGUMENT, "model is NULL");
+  EXPECT_MISUSE(nullptr, accura_write_program(nullptr, "a.src", &a.pm, 1, &a.wo), ACCURA_ERROR_NULL_ARGUMENT, "model is NULL");
   EXPECT_MISUSE(nullptr, accura_write_file(nullptr, "a.txt", "x", 1), ACCURA_ERROR_NULL_ARGUMENT, "accura_write_file: model is NULL");
 
   // each other required pointer NULL: the message in the handle names it
   EXPECT_MISUSE(m, accura_model_load(m, nullptr, nullptr), ACCURA_ERROR_NULL_ARGUMENT, "calibrated_model is NULL");
   EXPECT_MISUSE(m, accura_model_get_info(m, nullptr), ACCURA_ERROR_NULL_ARGUMENT, "info is NULL");
-  EXPECT_MISUSE(m, accura_model_get_joints(m, nullptr, 6, &n), ACCURA_ERROR_NULL_ARGUMENT, "joints is NULL");
-  EXPECT_MISUSE(m, accura_forward_kinematics(m, ACCURA_REAL, nullptr, 6, &out), ACCURA_ERROR_NULL_ARGUMENT, "q is NULL");
-  EXPECT_MISUSE(m, accura_forward_kinematics(m, ACCURA_REAL, q, 6, nullptr), ACCURA_ERROR_NULL_ARGUMENT, "pose_out is NULL");
-  EXPECT_MISUSE(m, accura_compensate_pose(m, nullptr, nullptr, &r), ACCURA_ERROR_NULL_ARGUMENT, "target is NULL");
-  EXPECT_MISUSE(m, accura_compensate_pose(m, &p, nullptr, nullptr), ACCURA_ERROR_NULL_ARGUMENT, "result is NULL");
-  EXPECT_MISUSE(m, accura_compensate_poses(m, nullptr, nullptr, 1, 0, &r, &n), ACCURA_ERROR_NULL_ARGUMENT, "targets is NULL");
-  EXPECT_MISUSE(m, accura_compensate_poses(m, &p, nullptr, 1, 0, nullptr, &n), ACCURA_ERROR_NULL_ARGUMENT, "results is NULL");
-  EXPECT_MISUSE(m, accura_compensate_path(m, nullptr, nullptr, &lin, 1, 0.05, nullptr, 0, &pr, nullptr), ACCURA_ERROR_NULL_ARGUMENT,
+  EXPECT_MISUSE(m, accura_model_get_joints(m, nullptr, 6, &a.n), ACCURA_ERROR_NULL_ARGUMENT, "joints is NULL");
+  EXPECT_MISUSE(m, accura_forward_kinematics(m, ACCURA_REAL, nullptr, 6, &a.out), ACCURA_ERROR_NULL_ARGUMENT, "q is NULL");
+  EXPECT_MISUSE(m, accura_forward_kinematics(m, ACCURA_REAL, a.q, 6, nullptr), ACCURA_ERROR_NULL_ARGUMENT, "pose_out is NULL");
+  EXPECT_MISUSE(m, accura_compensate_pose(m, nullptr, nullptr, &a.r), ACCURA_ERROR_NULL_ARGUMENT, "target is NULL");
+  EXPECT_MISUSE(m, accura_compensate_pose(m, &a.p, nullptr, nullptr), ACCURA_ERROR_NULL_ARGUMENT, "result is NULL");
+  EXPECT_MISUSE(m, accura_compensate_poses(m, nullptr, nullptr, 1, 0, &a.r, &a.n), ACCURA_ERROR_NULL_ARGUMENT, "targets is NULL");
+  EXPECT_MISUSE(m, accura_compensate_poses(m, &a.p, nullptr, 1, 0, nullptr, &a.n), ACCURA_ERROR_NULL_ARGUMENT, "results is NULL");
+  EXPECT_MISUSE(m, accura_compensate_path(m, nullptr, nullptr, &a.lin, 1, 0.05, nullptr, 0, &a.pr, nullptr), ACCURA_ERROR_NULL_ARGUMENT,
                 "start is NULL");
-  EXPECT_MISUSE(m, accura_compensate_path(m, &p, nullptr, &lin, 1, 0.05, nullptr, 0, nullptr, nullptr), ACCURA_ERROR_NULL_ARGUMENT,
+  EXPECT_MISUSE(m, accura_compensate_path(m, &a.p, nullptr, &a.lin, 1, 0.05, nullptr, 0, nullptr, nullptr), ACCURA_ERROR_NULL_ARGUMENT,
                 "result is NULL");
-  EXPECT_MISUSE(m, accura_compensate_path(m, &p, nullptr, nullptr, 1, 0.05, nullptr, 0, &pr, nullptr), ACCURA_ERROR_NULL_ARGUMENT,
+  EXPECT_MISUSE(m, accura_compensate_path(m, &a.p, nullptr, nullptr, 1, 0.05, nullptr, 0, &a.pr, nullptr), ACCURA_ERROR_NULL_ARGUMENT,
                 "motions is NULL");
-  EXPECT_MISUSE(m, accura_compensate_path(m, &p, nullptr, &lin, 1, 0.05, nullptr, 4, &pr, nullptr), ACCURA_ERROR_NULL_ARGUMENT,
+  EXPECT_MISUSE(m, accura_compensate_path(m, &a.p, nullptr, &a.lin, 1, 0.05, nullptr, 4, &a.pr, nullptr), ACCURA_ERROR_NULL_ARGUMENT,
                 "points is NULL");
   EXPECT_MISUSE(m, accura_compensate_program(m, nullptr, "out", nullptr, nullptr), ACCURA_ERROR_NULL_ARGUMENT, "program_path is NULL");
   EXPECT_MISUSE(m, accura_compensate_program(m, "a.src", nullptr, nullptr, nullptr), ACCURA_ERROR_NULL_ARGUMENT, "out_dir is NULL");
-  EXPECT_MISUSE(m, accura_check_program(m, nullptr, "a.src", nullptr, &cs, nullptr, 0), ACCURA_ERROR_NULL_ARGUMENT, "cell_path is NULL");
-  EXPECT_MISUSE(m, accura_check_program(m, "c.xml", nullptr, nullptr, &cs, nullptr, 0), ACCURA_ERROR_NULL_ARGUMENT,
+  EXPECT_MISUSE(m, accura_check_program(m, nullptr, "a.src", nullptr, &a.cs, nullptr, 0), ACCURA_ERROR_NULL_ARGUMENT, "cell_path is NULL");
+  EXPECT_MISUSE(m, accura_check_program(m, "c.xml", nullptr, nullptr, &a.cs, nullptr, 0), ACCURA_ERROR_NULL_ARGUMENT,
                 "program_path is NULL");
   EXPECT_MISUSE(m, accura_check_program(m, "c.xml", "a.src", nullptr, nullptr, nullptr, 0), ACCURA_ERROR_NULL_ARGUMENT,
                 "summary is NULL");
-  EXPECT_MISUSE(m, accura_check_program(m, "c.xml", "a.src", nullptr, &cs, nullptr, 3), ACCURA_ERROR_NULL_ARGUMENT, "violations is NULL");
-  EXPECT_MISUSE(m, accura_write_program(m, nullptr, &pm, 1, &wo), ACCURA_ERROR_NULL_ARGUMENT, "path is NULL");
-  EXPECT_MISUSE(m, accura_write_program(m, "a.src", nullptr, 1, &wo), ACCURA_ERROR_NULL_ARGUMENT, "motions is NULL");
-  EXPECT_MISUSE(m, accura_write_program(m, "a.src", &pm, 1, nullptr), ACCURA_ERROR_NULL_ARGUMENT, "options is NULL");
+  EXPECT_MISUSE(m, accura_check_program(m, "c.xml", "a.src", nullptr, &a.cs, nullptr, 3), ACCURA_ERROR_NULL_ARGUMENT, "violations is NULL");
+  EXPECT_MISUSE(m, accura_write_program(m, nullptr, &a.pm, 1, &a.wo), ACCURA_ERROR_NULL_ARGUMENT, "path is NULL");
+  EXPECT_MISUSE(m, accura_write_program(m, "a.src", nullptr, 1, &a.wo), ACCURA_ERROR_NULL_ARGUMENT, "motions is NULL");
+  EXPECT_MISUSE(m, accura_write_program(m, "a.src", &a.pm, 1, nullptr), ACCURA_ERROR_NULL_ARGUMENT, "options is NULL");
   EXPECT_MISUSE(m, accura_write_file(m, nullptr, "x", 1), ACCURA_ERROR_NULL_ARGUMENT, "path is NULL");
   EXPECT_MISUSE(m, accura_write_file(m, "a.txt", nullptr, 1), ACCURA_ERROR_NULL_ARGUMENT, "data is NULL");
   // NULL with a count of 0 is no misuse: nothing to read (a pose list of none, an empty path)
-  EXPECT_EQ(accura_compensate_poses(m, nullptr, nullptr, 0, 0, nullptr, &n), ACCURA_OK);
-  EXPECT_EQ(n, 0u);
+  EXPECT_EQ(accura_compensate_poses(m, nullptr, nullptr, 0, 0, nullptr, &a.n), ACCURA_OK);
+  EXPECT_EQ(a.n, 0u);
   EXPECT_EQ(accura_model_free(m), ACCURA_OK);
 }
 
@@ -186,38 +195,29 @@ TEST(PluginMisuse, WrongSizes) {
 }
 
 // A handle used after accura_model_free, freed twice, or never made: ACCURA_ERROR_INVALID_ARGUMENT
-// with a message, on every entry point, and no read of the freed memory (AddressSanitizer would
-// report one: the pointers below are freed heap blocks).
+// with a message, on every entry point, and no read through the pointer (AddressSanitizer would
+// report one).
 TEST(PluginMisuse, HandlesUsedAfterFreeAreDetected) {
   accura_model* m = loaded();
   ASSERT_EQ(accura_model_free(m), ACCURA_OK);
-  int* freed_block = new int(7);
-  delete freed_block;
-  accura_model* never_made = reinterpret_cast<accura_model*>(freed_block);
+  // a pointer the library never made: a 4-byte heap block (reading a handle there would be a
+  // heap-buffer-overflow under AddressSanitizer)
+  const auto block = std::make_unique<int>(7);
+  accura_model* never_made = reinterpret_cast<accura_model*>(block.get());
   for (accura_model* bad : {m, never_made}) {
-    const accura_pose p = {1100, -250, 500, 0, 180, 0};
-    accura_pose_result r;
-    accura_pose out;
-    const double q[6] = {0, -90, 90, 0, 0, 0};
-    accura_path_result pr;
-    accura_model_info info;
-    accura_check_summary cs;
-    accura_write_options wo;
-    ASSERT_EQ(accura_write_options_init(&wo, sizeof(wo)), ACCURA_OK);
-    const accura_program_motion pm = {ACCURA_PTP, {}, p, 0, 0};
-    size_t n = 0;
+    Args a;
     const std::string live = "not a live handle";
     EXPECT_MISUSE(nullptr, accura_model_load(bad, "kuka_kr16", nullptr), ACCURA_ERROR_INVALID_ARGUMENT, "accura_model_load: " + live);
-    EXPECT_MISUSE(nullptr, accura_model_get_info(bad, &info), ACCURA_ERROR_INVALID_ARGUMENT, live);
-    EXPECT_MISUSE(nullptr, accura_model_get_joints(bad, nullptr, 0, &n), ACCURA_ERROR_INVALID_ARGUMENT, live);
-    EXPECT_MISUSE(nullptr, accura_forward_kinematics(bad, ACCURA_REAL, q, 6, &out), ACCURA_ERROR_INVALID_ARGUMENT, live);
-    EXPECT_MISUSE(nullptr, accura_compensate_pose(bad, &p, nullptr, &r), ACCURA_ERROR_INVALID_ARGUMENT, "accura_compensate_pose: " + live);
-    EXPECT_MISUSE(nullptr, accura_compensate_poses(bad, &p, nullptr, 1, 0, &r, &n), ACCURA_ERROR_INVALID_ARGUMENT, live);
-    EXPECT_MISUSE(nullptr, accura_compensate_path(bad, &p, nullptr, nullptr, 0, 0.05, nullptr, 0, &pr, nullptr),
+    EXPECT_MISUSE(nullptr, accura_model_get_info(bad, &a.info), ACCURA_ERROR_INVALID_ARGUMENT, live);
+    EXPECT_MISUSE(nullptr, accura_model_get_joints(bad, nullptr, 0, &a.n), ACCURA_ERROR_INVALID_ARGUMENT, live);
+    EXPECT_MISUSE(nullptr, accura_forward_kinematics(bad, ACCURA_REAL, a.q, 6, &a.out), ACCURA_ERROR_INVALID_ARGUMENT, live);
+    EXPECT_MISUSE(nullptr, accura_compensate_pose(bad, &a.p, nullptr, &a.r), ACCURA_ERROR_INVALID_ARGUMENT, "accura_compensate_pose: " + live);
+    EXPECT_MISUSE(nullptr, accura_compensate_poses(bad, &a.p, nullptr, 1, 0, &a.r, &a.n), ACCURA_ERROR_INVALID_ARGUMENT, live);
+    EXPECT_MISUSE(nullptr, accura_compensate_path(bad, &a.p, nullptr, nullptr, 0, 0.05, nullptr, 0, &a.pr, nullptr),
                   ACCURA_ERROR_INVALID_ARGUMENT, live);
     EXPECT_MISUSE(nullptr, accura_compensate_program(bad, "a.src", "out", nullptr, nullptr), ACCURA_ERROR_INVALID_ARGUMENT, live);
-    EXPECT_MISUSE(nullptr, accura_check_program(bad, "c.xml", "a.src", nullptr, &cs, nullptr, 0), ACCURA_ERROR_INVALID_ARGUMENT, live);
-    EXPECT_MISUSE(nullptr, accura_write_program(bad, "a.src", &pm, 1, &wo), ACCURA_ERROR_INVALID_ARGUMENT, live);
+    EXPECT_MISUSE(nullptr, accura_check_program(bad, "c.xml", "a.src", nullptr, &a.cs, nullptr, 0), ACCURA_ERROR_INVALID_ARGUMENT, live);
+    EXPECT_MISUSE(nullptr, accura_write_program(bad, "a.src", &a.pm, 1, &a.wo), ACCURA_ERROR_INVALID_ARGUMENT, live);
     EXPECT_MISUSE(nullptr, accura_write_file(bad, "a.txt", "x", 1), ACCURA_ERROR_INVALID_ARGUMENT, "accura_write_file: " + live);
     // the handle's own last error: the same message, and the status says the handle is not live
     accura_status s = ACCURA_OK;
