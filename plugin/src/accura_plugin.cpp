@@ -23,6 +23,7 @@
 #include <optional>
 #include <string>
 #include <thread>
+#include <type_traits>
 #include <unordered_map>
 #include <utility>
 #include <vector>
@@ -83,10 +84,15 @@ thread_local std::string t_unbound_error;
 
 const char* const kNotLive = "not a live handle (freed by accura_model_free, or not made by accura_model_create)";
 
-/// Stores "fn: message" for the calling thread in `h` (null: t_unbound_error); returns s.
-accura_status stored(Handle* h, const char* fn, accura_status s, const std::string& message) noexcept {
+/// Stores "fn: prefix message" for the calling thread in `h` (null: t_unbound_error) and
+/// returns s. `message`: a string, or a callable that makes it (built here, inside the try:
+/// running out of memory while building a message must not escape a noexcept function).
+template <class M>
+accura_status stored(Handle* h, const char* fn, accura_status s, M&& message, const char* prefix = "") noexcept {
   try {
-    std::string text = std::string(fn) + ": " + message;
+    std::string text = std::string(fn) + ": " + prefix;
+    if constexpr (std::is_invocable_v<M>) text += message();
+    else text += message;
     if (!h) {
       t_unbound_error = std::move(text);
       return s;
@@ -116,9 +122,9 @@ accura_status guarded(const accura_model* model, const char* fn, F&& body) noexc
   } catch (const std::bad_alloc&) {
     return stored(h.get(), fn, ACCURA_ERROR_OUT_OF_MEMORY, "out of memory");
   } catch (const std::exception& e) {
-    return stored(h.get(), fn, ACCURA_ERROR_INTERNAL, std::string("internal error: ") + e.what());
+    return stored(h.get(), fn, ACCURA_ERROR_INTERNAL, e.what(), "internal error: ");
   } catch (...) {
-    return stored(h.get(), fn, ACCURA_ERROR_INTERNAL, "internal error: unknown exception");
+    return stored(h.get(), fn, ACCURA_ERROR_INTERNAL, "unknown exception", "internal error: ");
   }
 }
 
@@ -171,7 +177,7 @@ template <class O, class F>
 accura_status initOptions(O* o, size_t struct_size, const char* fn, F&& defaults) noexcept {
   if (!o) return stored(nullptr, fn, ACCURA_ERROR_NULL_ARGUMENT, "options is NULL");
   if (struct_size != sizeof(O))
-    return stored(nullptr, fn, ACCURA_ERROR_INVALID_ARGUMENT, "struct_size " + std::to_string(struct_size) + ", expected " + std::to_string(sizeof(O)));
+    return stored(nullptr, fn, ACCURA_ERROR_INVALID_ARGUMENT, [&] { return "struct_size " + std::to_string(struct_size) + ", expected " + std::to_string(sizeof(O)); });
   std::memset(o, 0, sizeof(O));
   o->struct_size = sizeof(O);
   defaults(*o);
@@ -231,7 +237,7 @@ ACCURA_API accura_status accura_status_name(accura_status status, const char** n
   const int s = cEnum(status);
   const bool known = s >= 0 && s < static_cast<int>(sizeof(kNames) / sizeof(kNames[0]));
   *name_out = known ? kNames[s] : "ACCURA_STATUS_UNKNOWN";
-  return known ? ACCURA_OK : stored(nullptr, "accura_status_name", ACCURA_ERROR_INVALID_ARGUMENT, "unknown status " + std::to_string(s));
+  return known ? ACCURA_OK : stored(nullptr, "accura_status_name", ACCURA_ERROR_INVALID_ARGUMENT, [&] { return "unknown status " + std::to_string(s); });
 }
 
 ACCURA_API accura_status accura_last_error(const accura_model* model, const char** message_out) {
@@ -271,14 +277,18 @@ ACCURA_API accura_status accura_model_create(accura_model** model_out) {
 
 ACCURA_API accura_status accura_model_free(accura_model* model) {
   if (!model) return ACCURA_OK;
-  std::shared_ptr<Handle> h;  // destroyed after the lock is released, once no call holds it
-  Registry& r = registry();
-  std::lock_guard<std::mutex> lock(r.mutex);
-  const auto it = r.live.find(keyOf(model));
-  if (it == r.live.end()) return stored(nullptr, "accura_model_free", ACCURA_ERROR_INVALID_ARGUMENT, kNotLive);
-  h = std::move(it->second);
-  r.live.erase(it);
-  return ACCURA_OK;
+  try {
+    std::shared_ptr<Handle> h;  // destroyed after the lock is released, once no call holds it
+    Registry& r = registry();
+    std::lock_guard<std::mutex> lock(r.mutex);
+    const auto it = r.live.find(keyOf(model));
+    if (it == r.live.end()) return stored(nullptr, "accura_model_free", ACCURA_ERROR_INVALID_ARGUMENT, kNotLive);
+    h = std::move(it->second);
+    r.live.erase(it);
+    return ACCURA_OK;
+  } catch (...) {  // std::system_error of a mutex: never seen, but no exception crosses the ABI
+    return stored(nullptr, "accura_model_free", ACCURA_ERROR_INTERNAL, "internal error: the handle registry's lock failed");
+  }
 }
 
 ACCURA_API accura_status accura_load_options_init(accura_load_options* o, size_t struct_size) {
