@@ -197,12 +197,18 @@ O optionsOr(const O* given, accura_status (*init)(O*, size_t), const char* what)
   return *given;
 }
 
+/// The result with its padding zeroed: hosts may compare results byte for byte.
 void fillPoseResult(const SessionPose& p, int dof, accura_pose_result* r) {
-  const bool ok = p.status == IkStatus::kOk;
-  *r = ok ? accura_pose_result{ACCURA_OK, cpose(p.command), cconfig(p.configuration), p.configuration_changed ? 1 : 0,
-                               p.correction_mm, p.correction_deg, dof, {}}
-          : accura_pose_result{statusOf(p.status), {}, {}, 0, 0, 0, dof, {}};
-  for (int i = 0; ok && i < p.q_real.size() && i < ACCURA_MAX_JOINTS; ++i) r->q_real[i] = p.q_real[i];
+  std::memset(r, 0, sizeof *r);
+  r->status = statusOf(p.status);
+  r->dof = dof;
+  if (p.status != IkStatus::kOk) return;
+  r->command = cpose(p.command);
+  r->configuration = cconfig(p.configuration);
+  r->configuration_changed = p.configuration_changed ? 1 : 0;
+  r->correction_mm = p.correction_mm;
+  r->correction_deg = p.correction_deg;
+  for (int i = 0; i < p.q_real.size() && i < ACCURA_MAX_JOINTS; ++i) r->q_real[i] = p.q_real[i];
 }
 
 void copyViolation(const CheckViolation& v, accura_check_violation* c) {
@@ -435,8 +441,14 @@ ACCURA_API accura_status accura_compensate_path(accura_model* model, const accur
       fail(ACCURA_ERROR_BUFFER_TOO_SMALL, "the path has " + std::to_string(p.points.size()) + " points, the buffer holds " + std::to_string(capacity));
     for (size_t i = 0; i < p.points.size(); ++i) {
       const SessionPathPoint& q = p.points[i];
-      points[i] = {q.type == PathType::kCirc ? ACCURA_CIRC : ACCURA_LIN, cpose(q.aux), cpose(q.end), cconfig(q.configuration), q.motion,
-                   q.inserted ? 1 : 0};
+      accura_path_point& c = points[i];
+      std::memset(&c, 0, sizeof c);  // padding too (as fillPoseResult)
+      c.type = q.type == PathType::kCirc ? ACCURA_CIRC : ACCURA_LIN;
+      c.aux = cpose(q.aux);
+      c.end = cpose(q.end);
+      c.configuration = cconfig(q.configuration);
+      c.motion = q.motion;
+      c.inserted = q.inserted ? 1 : 0;
     }
     return ACCURA_OK;
   });
