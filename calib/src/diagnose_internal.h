@@ -20,7 +20,7 @@
 #include "accura/calib/kinematics.h"
 #include "accura/calib/text.h"  // formatNumber: the one number formatter
 
-namespace accura::diagnose_detail {
+namespace accura::calib::diagnose_detail {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
@@ -183,4 +183,4 @@ class Diagnoser {
   std::vector<std::string> sel_blocked_scheme_;
 };
 
-}  // namespace accura::diagnose_detail
+}  // namespace accura::calib::diagnose_detail

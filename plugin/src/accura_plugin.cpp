@@ -113,11 +113,11 @@ accura_status guarded(const accura_model* model, const char* fn, F&& body) noexc
     return body(*h);
   } catch (const PluginError& e) {
     return stored(h.get(), fn, e.status, e.message);
-  } catch (const InputError& e) {
+  } catch (const calib::InputError& e) {
     return stored(h.get(), fn, ACCURA_ERROR_INPUT, e.what());
-  } catch (const ArgumentError& e) {
+  } catch (const calib::ArgumentError& e) {
     return stored(h.get(), fn, ACCURA_ERROR_INVALID_ARGUMENT, e.what());
-  } catch (const NumericalError& e) {
+  } catch (const calib::NumericalError& e) {
     return stored(h.get(), fn, ACCURA_ERROR_NUMERICAL, e.what());
   } catch (const std::bad_alloc&) {
     return stored(h.get(), fn, ACCURA_ERROR_OUT_OF_MEMORY, "out of memory");
@@ -138,19 +138,19 @@ std::shared_ptr<const Session> sessionOf(Handle& h) {
   return h.session;
 }
 
-XyzAbc xyz(const accura_pose& p) { return {p.x_mm, p.y_mm, p.z_mm, p.a_deg, p.b_deg, p.c_deg}; }
-accura_pose cpose(const XyzAbc& p) { return {p.x_mm, p.y_mm, p.z_mm, p.a_deg, p.b_deg, p.c_deg}; }
-accura_configuration cconfig(const Configuration& c) { return {c.status, c.turn}; }
-Configuration configOf(const accura_configuration* c, int dof) { return c ? checkedConfiguration(c->status, c->turn, dof) : Configuration{}; }
+calib::XyzAbc xyz(const accura_pose& p) { return {p.x_mm, p.y_mm, p.z_mm, p.a_deg, p.b_deg, p.c_deg}; }
+accura_pose cpose(const calib::XyzAbc& p) { return {p.x_mm, p.y_mm, p.z_mm, p.a_deg, p.b_deg, p.c_deg}; }
+accura_configuration cconfig(const calib::Configuration& c) { return {c.status, c.turn}; }
+calib::Configuration configOf(const accura_configuration* c, int dof) { return c ? checkedConfiguration(c->status, c->turn, dof) : calib::Configuration{}; }
 
-accura_status statusOf(IkStatus s) {
+accura_status statusOf(calib::IkStatus s) {
   switch (s) {
-    case IkStatus::kOk: return ACCURA_OK;
-    case IkStatus::kUnreachable: return ACCURA_ERROR_UNREACHABLE;
-    case IkStatus::kJointLimits: return ACCURA_ERROR_JOINT_LIMITS;
-    case IkStatus::kSingular: return ACCURA_ERROR_SINGULAR;
-    case IkStatus::kNoConfiguration: return ACCURA_ERROR_NO_CONFIGURATION;
-    case IkStatus::kNotConverged: return ACCURA_ERROR_NOT_CONVERGED;
+    case calib::IkStatus::kOk: return ACCURA_OK;
+    case calib::IkStatus::kUnreachable: return ACCURA_ERROR_UNREACHABLE;
+    case calib::IkStatus::kJointLimits: return ACCURA_ERROR_JOINT_LIMITS;
+    case calib::IkStatus::kSingular: return ACCURA_ERROR_SINGULAR;
+    case calib::IkStatus::kNoConfiguration: return ACCURA_ERROR_NO_CONFIGURATION;
+    case calib::IkStatus::kNotConverged: return ACCURA_ERROR_NOT_CONVERGED;
   }
   return ACCURA_ERROR_INTERNAL;
 }
@@ -202,7 +202,7 @@ void fillPoseResult(const SessionPose& p, int dof, accura_pose_result* r) {
   std::memset(r, 0, sizeof *r);
   r->status = statusOf(p.status);
   r->dof = dof;
-  if (p.status != IkStatus::kOk) return;
+  if (p.status != calib::IkStatus::kOk) return;
   r->command = cpose(p.command);
   r->configuration = cconfig(p.configuration);
   r->configuration_changed = p.configuration_changed ? 1 : 0;
@@ -298,7 +298,7 @@ ACCURA_API accura_status accura_model_free(accura_model* model) {
 }
 
 ACCURA_API accura_status accura_load_options_init(accura_load_options* o, size_t struct_size) {
-  return initOptions(o, struct_size, "accura_load_options_init", [](accura_load_options& x) { x.temp_c = kThermalReferenceC; });
+  return initOptions(o, struct_size, "accura_load_options_init", [](accura_load_options& x) { x.temp_c = calib::kThermalReferenceC; });
 }
 
 ACCURA_API accura_status accura_model_load(accura_model* model, const char* calibrated_model, const accura_load_options* options) {
@@ -327,12 +327,12 @@ ACCURA_API accura_status accura_model_get_info(accura_model* model, accura_model
   return guarded(model, "accura_model_get_info", [&](Handle& h) {
     need(info, "info");
     const auto s = sessionOf(h);
-    const RobotModel& m = s->job().calibrated;
+    const calib::RobotModel& m = s->job().calibrated;
     *info = accura_model_info{};
     info->dof = m.dof();
     copyString(info->robot_name, sizeof(info->robot_name), m.nominal.name);
-    info->robroot_in_world = cpose(toXyzAbc(s->placement().T_world_robroot));
-    info->calibrated_base_in_world = cpose(toXyzAbc(m.T_world_base()));
+    info->robroot_in_world = cpose(calib::toXyzAbc(s->placement().T_world_robroot));
+    info->calibrated_base_in_world = cpose(calib::toXyzAbc(m.T_world_base()));
     for (int i = 0; i < m.dof(); ++i) {
       info->lower[i] = m.nominal.joints[i].lower;
       info->upper[i] = m.nominal.joints[i].upper;
@@ -344,10 +344,10 @@ ACCURA_API accura_status accura_model_get_info(accura_model* model, accura_model
 ACCURA_API accura_status accura_model_get_joints(accura_model* model, accura_joint* joints, size_t capacity, size_t* n_joints) {
   return guarded(model, "accura_model_get_joints", [&](Handle& h) {
     if (capacity > 0) need(joints, "joints");
-    const std::vector<JointSpec>& js = sessionOf(h)->job().calibrated.nominal.joints;
+    const std::vector<calib::JointSpec>& js = sessionOf(h)->job().calibrated.nominal.joints;
     if (n_joints) *n_joints = js.size();
     for (size_t i = 0; i < js.size() && i < capacity; ++i)
-      joints[i] = {js[i].type == JointType::kPrismatic ? 1 : 0, js[i].a_mm, js[i].alpha_deg, js[i].d_mm, js[i].theta0_deg,
+      joints[i] = {js[i].type == calib::JointType::kPrismatic ? 1 : 0, js[i].a_mm, js[i].alpha_deg, js[i].d_mm, js[i].theta0_deg,
                    js[i].direction, js[i].lower, js[i].upper};
     if (capacity < js.size())
       fail(ACCURA_ERROR_BUFFER_TOO_SMALL, "the robot has " + std::to_string(js.size()) + " joints, the buffer holds " + std::to_string(capacity));
@@ -379,7 +379,7 @@ ACCURA_API accura_status accura_compensate_pose(accura_model* model, const accur
     const auto s = sessionOf(h);
     const SessionPose p = s->pose(xyz(*target), configOf(configuration, s->dof()));
     fillPoseResult(p, s->dof(), result);
-    if (p.status != IkStatus::kOk) fail(result->status, p.message);
+    if (p.status != calib::IkStatus::kOk) fail(result->status, p.message);
     return ACCURA_OK;
   });
 }
@@ -393,8 +393,8 @@ ACCURA_API accura_status accura_compensate_poses(accura_model* model, const accu
     need(targets, "targets");
     need(results, "results");
     const auto s = sessionOf(h);
-    std::vector<XyzAbc> t(n);
-    std::vector<Configuration> c(configurations ? n : 0);
+    std::vector<calib::XyzAbc> t(n);
+    std::vector<calib::Configuration> c(configurations ? n : 0);
     for (size_t i = 0; i < n; ++i) t[i] = xyz(targets[i]);
     for (size_t i = 0; i < c.size(); ++i) c[i] = configOf(&configurations[i], s->dof());
     const SessionPoses r = s->poses(t, c, continuous != 0);
@@ -429,7 +429,7 @@ ACCURA_API accura_status accura_compensate_path(accura_model* model, const accur
       for (size_t i = 0; i < n_motions; ++i) reports[i] = accura_motion_report{};
     const SessionPath p = s->path(xyz(*start), configOf(start_configuration, s->dof()), m, tol_mm);
     result->failed_motion = p.failed_motion;
-    if (!p.ok()) fail(p.status == IkStatus::kOk ? ACCURA_ERROR_INTERNAL : statusOf(p.status), p.message);
+    if (!p.ok()) fail(p.status == calib::IkStatus::kOk ? ACCURA_ERROR_INTERNAL : statusOf(p.status), p.message);
     const SessionMotionNumbers& t = p.total;
     *result = {cpose(p.start.command), cconfig(p.start.configuration), p.points.size(), t.max_error_uncompensated_mm,
                t.max_error_before_mm,  t.max_error_after_mm,            t.max_error_bound_mm, t.points_added, -1};
@@ -557,8 +557,8 @@ ACCURA_API accura_status accura_write_file(accura_model* model, const char* path
   return guarded(model, "accura_write_file", [&](Handle&) {
     need(path, "path");
     if (size > 0) need(data, "data");
-    createDirectories(std::filesystem::path(path).parent_path().string());
-    writeFilesAtomically({{path, std::string(data ? data : "", size)}});
+    calib::createDirectories(std::filesystem::path(path).parent_path().string());
+    calib::writeFilesAtomically({{path, std::string(data ? data : "", size)}});
     return ACCURA_OK;
   });
 }

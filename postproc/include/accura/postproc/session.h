@@ -10,8 +10,8 @@
 // one; job.h, "real"). Joint values: deg (mm for prismatic joints).
 //
 // Errors (errors.h, "The rule"): a value that is not finite or out of range throws
-// ArgumentError naming it; a missing or malformed file, or a placement too far from the
-// calibrated base, throws InputError. A pose the robot cannot reach is a result (IkStatus).
+// calib::ArgumentError naming it; a missing or malformed file, or a placement too far from the
+// calibrated base, throws calib::InputError. A pose the robot cannot reach is a result (calib::IkStatus).
 //
 // Threads: a Session is immutable after construction; every const method may run on several
 // threads at once (each call uses its own workspace).
@@ -39,22 +39,22 @@ struct SessionSettings {
   /// data of the calibrated model. When given it must be that nominal robot
   /// (checkControllerRobot): a check that the host loaded the model of the right robot.
   std::string controller_model;
-  std::optional<XyzAbc> robroot_in_world;      ///< JobSettings::robroot_in_world
-  std::optional<XyzAbc> robroot_in_kukaworld;  ///< $ROBROOT; empty: identity
-  std::optional<XyzAbc> program_base;          ///< $BASE of the poses; empty: identity
-  std::optional<XyzAbc> program_tool;          ///< $TOOL of the poses; empty: nominal tool
+  std::optional<calib::XyzAbc> robroot_in_world;      ///< JobSettings::robroot_in_world
+  std::optional<calib::XyzAbc> robroot_in_kukaworld;  ///< $ROBROOT; empty: identity
+  std::optional<calib::XyzAbc> program_base;          ///< $BASE of the poses; empty: identity
+  std::optional<calib::XyzAbc> program_tool;          ///< $TOOL of the poses; empty: nominal tool
   double payload_kg = 0;                       ///< >= 0, finite
-  double temp_c = kThermalReferenceC;          ///< finite
-  int max_joints = 12;                         ///< more joints: InputError (fixed arrays)
+  double temp_c = calib::kThermalReferenceC;          ///< finite
+  int max_joints = 12;                         ///< more joints: calib::InputError (fixed arrays)
   std::string placement_setting = "robroot_in_world";  ///< names the placement in messages
 };
 
 /// One pose compensated (compensate.h's PoseCompensation in the program's base frame).
 struct SessionPose {
-  IkStatus status = IkStatus::kNotConverged;
+  calib::IkStatus status = calib::IkStatus::kNotConverged;
   std::string message;  ///< why status is not kOk (always set then)
-  XyzAbc command;       ///< the pose to send the controller
-  Configuration configuration;  ///< S/T of q_real
+  calib::XyzAbc command;       ///< the pose to send the controller
+  calib::Configuration configuration;  ///< S/T of q_real
   bool configuration_changed = false;
   double correction_mm = 0;   ///< |command - target| (position)
   double correction_deg = 0;  ///< rotation angle between command and target
@@ -72,14 +72,14 @@ struct SessionPoses {
 /// One motion of a path: LIN or CIRC (aux: the auxiliary point; its orientation not used).
 struct SessionMotion {
   PathType type = PathType::kLin;
-  XyzAbc aux, end;
+  calib::XyzAbc aux, end;
 };
 
 /// One motion to send, in order: the compensated, densified path.
 struct SessionPathPoint {
   PathType type = PathType::kLin;
-  XyzAbc aux, end;              ///< compensated (aux: CIRC only)
-  Configuration configuration;  ///< S/T of the real joints at `end`
+  calib::XyzAbc aux, end;              ///< compensated (aux: CIRC only)
+  calib::Configuration configuration;  ///< S/T of the real joints at `end`
   int motion = 0;               ///< the intended motion it belongs to
   bool inserted = false;        ///< an auxiliary point inside the motion (else its end point)
 };
@@ -94,29 +94,29 @@ struct SessionMotionNumbers {
 struct SessionPath {
   /// kOk, or why the start (failed_motion -1) or motion failed_motion cannot be compensated;
   /// message says which. On a failure the other fields are those up to it.
-  IkStatus status = IkStatus::kOk;
+  calib::IkStatus status = calib::IkStatus::kOk;
   std::string message;
   int failed_motion = -1;
   SessionPose start;                          ///< the compensated start: send it first
   std::vector<SessionPathPoint> points;       ///< every motion's points, in order
   std::vector<SessionMotionNumbers> motions;  ///< one per intended motion
   SessionMotionNumbers total;                 ///< maxima of the errors, sums of length and points
-  bool ok() const { return status == IkStatus::kOk && failed_motion < 0; }
+  bool ok() const { return status == calib::IkStatus::kOk && failed_motion < 0; }
 };
 
 /// The S/T configuration a host asked for: S in 0..7 (three bits) or -1 (any), T in
-/// 0..2^dof - 1 (a bit per joint) or -1. Throws ArgumentError otherwise.
-Configuration checkedConfiguration(int status, int turn, int dof);
+/// 0..2^dof - 1 (a bit per joint) or -1. Throws calib::ArgumentError otherwise.
+calib::Configuration checkedConfiguration(int status, int turn, int dof);
 
-/// `pose` when its six values are finite; else throws ArgumentError naming `what`.
-const XyzAbc& checkedPose(const XyzAbc& pose, const std::string& what);
+/// `pose` when its six values are finite; else throws calib::ArgumentError naming `what`.
+const calib::XyzAbc& checkedPose(const calib::XyzAbc& pose, const std::string& what);
 
 class Session {
  public:
-  /// Reads and places the models (see SessionSettings). Throws InputError for a missing or
+  /// Reads and places the models (see SessionSettings). Throws calib::InputError for a missing or
   /// malformed robot file (a path that does not exist is named as such), a controller model
   /// that is not the calibrated model's robot, more than max_joints joints, a calibrated base
-  /// far from the placement (placeRobot); ArgumentError for a pose, payload or temperature
+  /// far from the placement (placeRobot); calib::ArgumentError for a pose, payload or temperature
   /// that is not finite or out of range.
   explicit Session(const SessionSettings& settings);
 
@@ -126,30 +126,30 @@ class Session {
 
   /// T_base_tcp of the controller model (`real` false: nominal at the placement with the
   /// program tool) or of the real (calibrated) model at joints q (dof values, finite; else
-  /// ArgumentError).
-  XyzAbc forward(bool real, const std::vector<double>& q) const;
+  /// calib::ArgumentError).
+  calib::XyzAbc forward(bool real, const std::vector<double>& q) const;
 
   /// Compensates one pose (Compensator::pose with the configuration rule of accura
   /// compensate, enforceConfiguration); `seed`: real joints to continue from (empty: none).
-  SessionPose pose(const XyzAbc& target, const Configuration& asked, const Eigen::VectorXd& seed = Eigen::VectorXd()) const;
+  SessionPose pose(const calib::XyzAbc& target, const calib::Configuration& asked, const Eigen::VectorXd& seed = Eigen::VectorXd()) const;
   /// Compensates every target (asked: empty or one per target; every value validated before
   /// any work). `continuous`: each pose continues from the real joints of the previous
   /// successful one; every pose is computed, failed or not.
-  SessionPoses poses(const std::vector<XyzAbc>& targets, const std::vector<Configuration>& asked,
+  SessionPoses poses(const std::vector<calib::XyzAbc>& targets, const std::vector<calib::Configuration>& asked,
                                  bool continuous) const;
   /// Compensates a path from `start` through LIN / CIRC motions with auxiliary points until the
-  /// predicted deviation is below tol_mm (> 0, finite; else ArgumentError): compensatePath
+  /// predicted deviation is below tol_mm (> 0, finite; else calib::ArgumentError): compensatePath
   /// (path_job.h), the loop of accura compensate.
-  SessionPath path(const XyzAbc& start, const Configuration& start_config, const std::vector<SessionMotion>& motions,
+  SessionPath path(const calib::XyzAbc& start, const calib::Configuration& start_config, const std::vector<SessionMotion>& motions,
                    double tol_mm) const;
 
   /// compensateProgramFile (batch.h) with this model's settings and tol_mm (> 0, finite).
-  /// Throws InputError for a program file that does not exist, else as compensateProgramFile.
+  /// Throws calib::InputError for a program file that does not exist, else as compensateProgramFile.
   ProgramFileResult compensateProgramFile(const ProgramFileRequest& request, double tol_mm) const;
 
   /// checkProgram (check.h) of the program file in the cell file with this model's settings:
-  /// the cell's thresholds, or `thresholds` when given. Throws InputError for a file that does
-  /// not exist or is malformed, ArgumentError for thresholds that are not valid.
+  /// the cell's thresholds, or `thresholds` when given. Throws calib::InputError for a file that does
+  /// not exist or is malformed, calib::ArgumentError for thresholds that are not valid.
   CheckReport checkProgramFile(const std::string& cell_path, const std::string& program_path, const ProgramReadOptions& read,
                                CheckMode mode, const std::optional<CheckThresholds>& thresholds) const;
 
@@ -159,14 +159,14 @@ class Session {
   Eigen::Isometry3d T_world_progbase_ = Eigen::Isometry3d::Identity();
   const Compensator* comp_ = nullptr;  ///< the models of the program tool (built here)
 
-  Eigen::Isometry3d toWorld(const XyzAbc& T_base_tcp, const std::string& what) const;
-  XyzAbc toBase(const Eigen::Isometry3d& T_world_tcp) const;
+  Eigen::Isometry3d toWorld(const calib::XyzAbc& T_base_tcp, const std::string& what) const;
+  calib::XyzAbc toBase(const Eigen::Isometry3d& T_world_tcp) const;
 };
 
 /// One motion of a program written from poses (program base frame, T_base_tcp).
 struct PoseProgramMotion {
   MotionType type = MotionType::kLin;  ///< kPtp, kLin or kCirc
-  XyzAbc aux, end;                     ///< aux: kCirc only
+  calib::XyzAbc aux, end;                     ///< aux: kCirc only
   bool approximate = false;            ///< KRL C_PTP for PTP, C_DIS for LIN / CIRC
   double vel_m_s = 0;                  ///< LIN / CIRC path speed (m/s; <= 0: not set; finite)
 };
@@ -175,14 +175,14 @@ struct PoseProgramMotion {
 struct PoseProgram {
   std::string name;   ///< empty: the file name without its extension
   std::string robot;  ///< the robot named in an XML program (may be empty)
-  XyzAbc tool, base;  ///< $TOOL (T_flange_tcp), $BASE (relative to $WORLD)
+  calib::XyzAbc tool, base;  ///< $TOOL (T_flange_tcp), $BASE (relative to $WORLD)
   std::vector<PoseProgramMotion> motions;
 };
 
 /// Writes `program` in the controller language of path's extension (renderProgram: .src KRL
-/// with its .dat, .xml accura's XML) through writeFilesAtomically, the directory created.
-/// Throws ArgumentError for a pose or speed that is not finite (naming "motions[I].end", ...),
-/// InputError for another extension or a file that cannot be written.
+/// with its .dat, .xml accura's XML) through calib::writeFilesAtomically, the directory created.
+/// Throws calib::ArgumentError for a pose or speed that is not finite (naming "motions[I].end", ...),
+/// calib::InputError for another extension or a file that cannot be written.
 void writePoseProgram(const std::string& path, const PoseProgram& program);
 
 }  // namespace accura::postproc
