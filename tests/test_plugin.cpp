@@ -472,7 +472,9 @@ TEST(Plugin, BadInputGivesStatusesAndMessages) {
   EXPECT_EQ(accura_compensate_program(h.m, nullptr, "/tmp", nullptr, nullptr), ACCURA_ERROR_NULL_ARGUMENT);
   EXPECT_EQ(accura_model_get_info(h.m, nullptr), ACCURA_ERROR_NULL_ARGUMENT);
   const char* msg = nullptr;
-  EXPECT_EQ(accura_last_error(nullptr, &msg), ACCURA_ERROR_NULL_ARGUMENT);
+  EXPECT_EQ(accura_last_error(h.m, nullptr), ACCURA_ERROR_NULL_ARGUMENT);
+  EXPECT_EQ(accura_last_error(nullptr, &msg), ACCURA_OK);  // this thread's calls without a handle
+  EXPECT_STREQ(msg, "accura_compensate_pose: model is NULL");
   EXPECT_EQ(accura_model_free(nullptr), ACCURA_OK);
   // out of memory: 2^40 poses need 128 TB of workspace (std::bad_alloc inside). Not under
   // AddressSanitizer, whose operator new reports and dies where the real one throws.

@@ -85,12 +85,6 @@ std::string jointList(const std::vector<int>& joints) {
   return s;
 }
 
-std::string fmtg(const char* f, double v) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, f, v);
-  return buf;
-}
-
 void statsOf(const std::vector<double>& e, HeldOutStats* s) {
   s->n = static_cast<int>(e.size());
   summarize(e, &s->rms_mm, &s->mean_mm, &s->max_mm, &s->p95_mm);

@@ -18,6 +18,7 @@
 #include "accura/calib/diagnose.h"
 #include "accura/calib/identify.h"
 #include "accura/calib/kinematics.h"
+#include "accura/calib/text.h"  // formatNumber: the one number formatter
 
 namespace accura::calib::diagnose_detail {
 
@@ -34,7 +35,8 @@ struct Gain {
 Gain pairedGain(const Eigen::VectorXd& d_old, const Eigen::VectorXd& d_new);
 
 std::string jointList(const std::vector<int>& joints);
-std::string fmtg(const char* f, double v);
+/// The one number formatter (text.h) under the name the diagnosis code uses.
+inline std::string fmtg(const char* f, double v) { return formatNumber(f, v); }
 void statsOf(const std::vector<double>& e, HeldOutStats* s);
 /// What each effect needs to be told apart from the others.
 std::string separator(const std::string& effect, const std::vector<int>& joints);

@@ -176,6 +176,13 @@ void writeFilesAtomically(const std::vector<OutputFile>& files) {
   if (interruptRequested()) exitInterrupted();
 }
 
+void createDirectories(const std::string& dir) {
+  if (dir.empty()) return;
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) throw InputError(dir + ": cannot create the directory: " + ec.message());
+}
+
 void writeFileAtomically(const std::string& path, const std::string& content) { writeFilesAtomically({{path, content}}); }
 
 bool sameFile(const std::string& a, const std::string& b) {

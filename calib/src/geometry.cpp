@@ -69,6 +69,8 @@ Eigen::Vector3d logSO3(const Eigen::Matrix3d& R) {
   return axis * angle;
 }
 
+double rotationAngleDeg(const Eigen::Matrix3d& R) { return logSO3(R).norm() * kRadToDeg; }
+
 Eigen::Matrix3d rightJacobianSO3(const Eigen::Vector3d& r) {
   const double t = r.norm();
   const Eigen::Matrix3d K = skew(r);

@@ -95,10 +95,7 @@ class Reader {
 };
 
 std::string fmt(double v) {
-  if (v == 0.0) return "0";  // also folds -0
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.12g", v);
-  return buf;
+  return v == 0.0 ? "0" : formatNumber("%.12g", v);  // "0" also folds -0
 }
 
 void writePose(std::ostream& out, const char* tag, const Eigen::Isometry3d& T,

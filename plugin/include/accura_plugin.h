@@ -15,16 +15,23 @@
  * the call's outputs are unspecified unless said otherwise, and accura_last_error() gives a
  * message (file:line:column for bad files, the path for a missing one).
  *
- * Threads: a handle may be used from several threads at once. The loaded model is immutable
- * (accura_model_load replaces it atomically; calls already running finish with the model
- * they started with); every call uses its own workspace. The last error is kept per handle
- * and per thread: accura_last_error(h) returns the message of the last failed call that the
- * calling thread made on h. accura_model_free must not run concurrently with another call on
- * the same handle.
+ * Threads: every call may run at the same time as any other, on one handle or on several.
+ * The loaded model is immutable (accura_model_load replaces it atomically; calls already
+ * running finish with the model they started with); every call uses its own workspace. The
+ * last error is kept per handle and per thread: accura_last_error(h) returns the message of
+ * the last failed call that the calling thread made on h. accura_model_free while another
+ * thread's call on the same handle runs lets that call finish; calls that start later get
+ * ACCURA_ERROR_INVALID_ARGUMENT.
+ *
+ * Handles: an accura_model* is a key, not an address; keys are never reused. A handle used
+ * after accura_model_free (or a pointer that accura_model_create did not return) is detected:
+ * ACCURA_ERROR_INVALID_ARGUMENT, never a read of freed memory.
  *
  * No C++ exception crosses this interface: every failure, out of memory included, becomes a
  * status. NULL pointers and wrong sizes give ACCURA_ERROR_NULL_ARGUMENT or
- * ACCURA_ERROR_INVALID_ARGUMENT.
+ * ACCURA_ERROR_INVALID_ARGUMENT, with a message: in the handle, or, for a call without a live
+ * handle (a NULL or freed handle, the *_options_init calls, accura_status_name), for the
+ * calling thread through accura_last_error(NULL, &message).
  */
 #ifndef ACCURA_PLUGIN_H
 #define ACCURA_PLUGIN_H
@@ -101,7 +108,9 @@ ACCURA_API accura_status accura_status_name(accura_status status, const char** n
 
 /* The message of the last failed call the calling thread made on `model` ("" when none):
  * valid until the calling thread's next call on `model` or accura_model_free. Calls that
- * succeed do not clear it. */
+ * succeed do not clear it. `model` NULL: ACCURA_OK and the message of the calling thread's
+ * last failed call without a live handle (valid until its next such call); a handle that is
+ * not live: that message too, and ACCURA_ERROR_INVALID_ARGUMENT. */
 ACCURA_API accura_status accura_last_error(const accura_model* model, const char** message_out);
 
 /* ---------------------------------------------------------------------------------------- */
@@ -110,7 +119,7 @@ ACCURA_API accura_status accura_last_error(const accura_model* model, const char
 /* A new handle without a model (every compensation call on it gives
  * ACCURA_ERROR_INVALID_ARGUMENT until accura_model_load succeeds). Free with accura_model_free. */
 ACCURA_API accura_status accura_model_create(accura_model** model_out);
-/* Frees the handle (NULL: nothing to do). */
+/* Frees the handle (NULL: nothing to do; a handle already freed: ACCURA_ERROR_INVALID_ARGUMENT). */
 ACCURA_API accura_status accura_model_free(accura_model* model);
 
 /* How the model is placed and used. Initialise with accura_load_options_init. */

@@ -251,8 +251,8 @@ class Plugin:
 
 
 class Model:
-    """A loaded model (an accura_model handle; calibrated_model None: none loaded). Usable from several threads;
-    close() or `with` frees it."""
+    """A loaded model (an accura_model handle; calibrated_model None: none loaded). Usable from several threads
+    (close() too: calls running on other threads finish, later ones raise); close() or `with` frees it."""
 
     def __init__(self, plugin, calibrated_model, controller_model, robroot_in_world, robroot_in_kukaworld,
                  program_base, program_tool, payload_kg, temp_c):
@@ -292,15 +292,16 @@ class Model:
     def __del__(self):
         self.close()
 
-    def last_error(self):
+    def last_error(self, no_handle=False):
+        """The message of this thread's last failed call on the handle (no_handle, or no handle: of its last
+        failed call without a live handle, e.g. an *_options_init)."""
         msg = ctypes.c_char_p()
-        self.lib.accura_last_error(self.handle, ctypes.byref(msg))
+        self.lib.accura_last_error(None if no_handle or not self.handle else self.handle, ctypes.byref(msg))
         return (msg.value or b"").decode(errors="replace")
 
     def _check(self, status, no_handle=False):
         if status != OK:
-            message = "" if no_handle or not self.handle else self.last_error()
-            raise AccuraError(status, self.plugin.status_name(status), message)
+            raise AccuraError(status, self.plugin.status_name(status), self.last_error(no_handle))
 
     def info(self):
         i = ModelInfo()

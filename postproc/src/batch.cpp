@@ -147,7 +147,10 @@ ProgramFileResult compensateProgramFile(const ProgramFileRequest& q, const JobSe
   }
   if (outputs.empty()) return r;
   bool created_out_dir = false;
-  if (r.checked.write) created_out_dir = fs::create_directories(q.out_dir);
+  if (r.checked.write && !fs::exists(q.out_dir, ec)) {
+    calib::createDirectories(q.out_dir);
+    created_out_dir = true;
+  }
   try {
     calib::writeFilesAtomically(outputs);
   } catch (...) {
@@ -236,7 +239,7 @@ BatchResult runBatch(const std::string& in_dir, const std::string& out_dir, cons
           if (r.check && !r.check->passed()) r.message = "failed the checks of " + cell->cell.file + ": " + firstCheckProblem(*r.check);
           if (!out.compensation_error.empty()) r.message += "; it cannot be compensated either: " + out.compensation_error;
           if (out.write) {
-            fs::create_directories(out_path.parent_path());
+            calib::createDirectories(out_path.parent_path().string());
             calib::writeFilesAtomically(out.files);
             for (const auto& f : out.files) r.outputs.push_back(relativeSlash(fs::relative(f.path, out_dir)));
             r.status = BatchFileResult::Status::kConverted;

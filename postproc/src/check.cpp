@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "accura/calib/errors.h"
+#include "accura/calib/text.h"
 #include "accura/postproc/placement.h"
 
 namespace accura::postproc {
@@ -24,11 +25,9 @@ constexpr double kWidenDeg = 30.0;
 /// rounding.
 constexpr double kRefineMarginMm = 1.0;
 
-std::string num(double v, int decimals) { return calib::formatFixed(v, decimals); }
-
 std::string jointsText(const Eigen::VectorXd& q) {
   std::string s;
-  for (int i = 0; i < q.size(); ++i) s += (i ? ", " : "") + num(q[i], 3);
+  for (int i = 0; i < q.size(); ++i) s += (i ? ", " : "") + calib::formatFixed(q[i], 3);
   return "{" + s + "}";
 }
 
@@ -153,8 +152,8 @@ class Checker {
   }
 
   std::string at(const CheckViolation& v) const {
-    std::string w = v.on_path ? "on the path at s " + num(v.s, 4) + " (" + num(v.arc_mm, 2) + " mm from its start)" : "at the end point";
-    return w + ", TCP (" + num(v.p_world_tcp_mm.x(), 2) + ", " + num(v.p_world_tcp_mm.y(), 2) + ", " + num(v.p_world_tcp_mm.z(), 2) +
+    std::string w = v.on_path ? "on the path at s " + calib::formatFixed(v.s, 4) + " (" + calib::formatFixed(v.arc_mm, 2) + " mm from its start)" : "at the end point";
+    return w + ", TCP (" + calib::formatFixed(v.p_world_tcp_mm.x(), 2) + ", " + calib::formatFixed(v.p_world_tcp_mm.y(), 2) + ", " + calib::formatFixed(v.p_world_tcp_mm.z(), 2) +
            ") mm";
   }
 
@@ -177,9 +176,9 @@ class Checker {
       const calib::JointSpec& js = real_.nominal.joints[static_cast<size_t>(joint)];
       v.unit = js.type == calib::JointType::kRevolute ? "deg" : "mm";
       v.joint = joint;
-      v.message = "joint limit: " + js.name + " = " + num(q[joint], 3) + " " + v.unit + " is " + num(margin, 3) + " " + v.unit +
-                  (margin < 0 ? " outside" : " inside") + " its limits [" + num(js.lower, 1) + ", " + num(js.upper, 1) + "]; required " +
-                  num(t_.joint_margin_deg, 3) + " " + v.unit + " inside (short by " + num(v.excess, 3) + " " + v.unit + ") " + at(v) +
+      v.message = "joint limit: " + js.name + " = " + calib::formatFixed(q[joint], 3) + " " + v.unit + " is " + calib::formatFixed(margin, 3) + " " + v.unit +
+                  (margin < 0 ? " outside" : " inside") + " its limits [" + calib::formatFixed(js.lower, 1) + ", " + calib::formatFixed(js.upper, 1) + "]; required " +
+                  calib::formatFixed(t_.joint_margin_deg, 3) + " " + v.unit + " inside (short by " + calib::formatFixed(v.excess, 3) + " " + v.unit + ") " + at(v) +
                   ", joints " + jointsText(q);
       record(f, std::move(v));
     }
@@ -224,8 +223,8 @@ class Checker {
     v.unit = "mm";
     v.robot_part = geometry_.robotShapeName(d.robot_shape);
     v.obstacle = d.object >= 0 ? geometry_.objectName(d.object) : "";
-    v.message = "clearance: " + v.robot_part + " is " + num(d.mm, 3) + " mm from " + v.obstacle + (d.mm <= 0 ? " (in contact)" : "") +
-                ", required " + num(t_.min_clearance_mm, 3) + " mm (short by " + num(v.excess, 3) + " mm) " + at(v) + ", joints " +
+    v.message = "clearance: " + v.robot_part + " is " + calib::formatFixed(d.mm, 3) + " mm from " + v.obstacle + (d.mm <= 0 ? " (in contact)" : "") +
+                ", required " + calib::formatFixed(t_.min_clearance_mm, 3) + " mm (short by " + calib::formatFixed(v.excess, 3) + " mm) " + at(v) + ", joints " +
                 jointsText(x.q);
     record(f, std::move(v));
   }
@@ -265,7 +264,7 @@ class Checker {
     bool small = false;
     if (proven(a, b, factor, &small) || small) return std::nullopt;
     if (depth > 60) {
-      r_.warnings.push_back({cur_->where, "clearance subdivision stopped at depth 60 near s " + num(a.s, 9)});
+      r_.warnings.push_back({cur_->where, "clearance subdivision stopped at depth 60 near s " + calib::formatFixed(a.s, 9)});
       return std::nullopt;
     }
     const std::optional<Sample> m = mid(0.5 * (a.s + b.s), a);
@@ -342,7 +341,7 @@ class Checker {
     const calib::IkResult ik = tm.ik.inverse(m.T_world_tcp_end, m.configuration, seed, o, context_);
     if (ik.status == calib::IkStatus::kOk) return ik.q;
     std::string why = std::string(toString(ik.status)) + (ik.message.empty() ? "" : " (" + ik.message + ")");
-    if (ik.status == calib::IkStatus::kJointLimits) why = "reachable only more than " + num(kWidenDeg, 0) + " deg/mm beyond the joint limits";
+    if (ik.status == calib::IkStatus::kJointLimits) why = "reachable only more than " + calib::formatFixed(kWidenDeg, 0) + " deg/mm beyond the joint limits";
     if (ik.status == calib::IkStatus::kNoConfiguration && ik.q.size()) {
       const calib::Configuration c = ik.configuration;
       why = "reachable only on configuration S " + std::to_string(c.status) + " T " + std::to_string(c.turn) + ", not on S " +
@@ -392,7 +391,7 @@ class Checker {
       const calib::IkResult ik = tm.ik.inverse(T, calib::Configuration{}, left.q, o, context_);
       if (ik.status != calib::IkStatus::kOk) {
         std::string why = std::string(toString(ik.status)) + (ik.message.empty() ? "" : " (" + ik.message + ")");
-        if (ik.status == calib::IkStatus::kJointLimits) why = "reachable only more than " + num(kWidenDeg, 0) + " deg/mm beyond the joint limits";
+        if (ik.status == calib::IkStatus::kJointLimits) why = "reachable only more than " + calib::formatFixed(kWidenDeg, 0) + " deg/mm beyond the joint limits";
         reach(f, m, s, s * length, T.translation(), why);
         failed = true;
         return std::nullopt;
@@ -417,7 +416,7 @@ class Checker {
         v.value = sigma;
         v.limit = t_.singular_threshold;
         v.excess = std::max(0.0, t_.singular_threshold - sigma);
-        v.message = "singularity: the joint values jump by " + num((b.q - a.q).cwiseAbs().maxCoeff(), 3) +
+        v.message = "singularity: the joint values jump by " + calib::formatFixed((b.q - a.q).cwiseAbs().maxCoeff(), 3) +
                     " deg within s " + calib::formatFixed(b.s - a.s, 9) + " (the path passes through a singularity; sigma_min " +
                     calib::formatFixed(sigma, 6) + ", direction " + dominant + ") " + at(v);
         record(f, std::move(v));

@@ -30,14 +30,6 @@ bool DensifyOptions::IsValid(std::string* error) const {
   return ik.IsValid(error);
 }
 
-namespace {
-
-double rotationAngleDeg(const Eigen::Matrix3d& A, const Eigen::Matrix3d& B) {
-  return calib::logSO3(A * B.transpose()).norm() * calib::kRadToDeg;
-}
-
-}  // namespace
-
 // ---------------------------------------------------------------------------------------
 
 Compensator::Compensator(const calib::RobotModel& controller, const calib::RobotModel& real) : controller_(controller), real_(real) {
@@ -65,7 +57,7 @@ PoseCompensation Compensator::pose(const Eigen::Isometry3d& T_desired, const cal
     out.message = "the compensation changes the configuration: " + r.message;
   out.T_world_tcp_command = controller_.forward(r.q);
   out.correction_mm = (out.T_world_tcp_command.translation() - T_desired.translation()).norm();
-  out.correction_deg = rotationAngleDeg(out.T_world_tcp_command.linear(), T_desired.linear());
+  out.correction_deg = calib::rotationAngleDeg(out.T_world_tcp_command.linear() * T_desired.linear().transpose());
   return out;
 }
 

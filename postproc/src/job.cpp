@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "accura/calib/errors.h"
+#include "accura/calib/geometry.h"
 #include "accura/calib/kinematics.h"
 #include "accura/postproc/krl.h"
 #include "accura/postproc/path_job.h"
@@ -103,7 +104,7 @@ class Job {
     tr.motion_type = motionKeyword(m);
     const Eigen::Vector3d d_world = command.translation() - desired.translation();
     tr.correction_mm = d_world.norm();
-    tr.correction_deg = rotationAngleDeg(command.linear() * desired.linear().transpose());
+    tr.correction_deg = calib::rotationAngleDeg(command.linear() * desired.linear().transpose());
     const Eigen::Vector3d d_base = T_world_progbase.linear().transpose() * d_world;
     tr.dx_mm = d_base.x();
     tr.dy_mm = d_base.y();
@@ -480,16 +481,11 @@ class Job {
 
 }  // namespace
 
-double rotationAngleDeg(const Eigen::Matrix3d& R) {
-  const double c = std::max(-1.0, std::min(1.0, (R.trace() - 1.0) / 2.0));
-  return std::acos(c) * calib::kRadToDeg;
-}
-
 calib::RobotModel realModelForTool(const calib::RobotModel& calibrated, const Eigen::Isometry3d& T_flange_tcp, double match_mm,
                             double match_deg, bool* calibrated_tool) {
   const Eigen::Isometry3d& nominal_tool = calibrated.nominal.T_flange_tcp;
   const bool same = (T_flange_tcp.translation() - nominal_tool.translation()).norm() <= match_mm &&
-                    rotationAngleDeg(T_flange_tcp.linear().transpose() * nominal_tool.linear()) <= match_deg;
+                    calib::rotationAngleDeg(T_flange_tcp.linear().transpose() * nominal_tool.linear()) <= match_deg;
   if (calibrated_tool) *calibrated_tool = same;
   calib::RobotModel real = calibrated;
   if (!same) {

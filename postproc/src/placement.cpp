@@ -30,7 +30,7 @@ Placement placeRobot(const JobSettings& job, const std::string& placement_settin
   p.T_world_kworld = p.T_world_robroot * T_kworld_robroot.inverse();
   p.T_world_calbase = job.calibrated.T_world_base();
   const Eigen::Isometry3d d = p.T_world_robroot.inverse() * p.T_world_calbase;
-  const double off_mm = d.translation().norm(), off_deg = rotationAngleDeg(d.linear());
+  const double off_mm = d.translation().norm(), off_deg = calib::rotationAngleDeg(d.linear());
   if (off_mm > job.max_base_offset_mm || off_deg > job.max_base_offset_deg) {
     const calib::XyzAbc b = calib::toXyzAbc(p.T_world_robroot), c = calib::toXyzAbc(p.T_world_calbase);
     std::ostringstream m;
@@ -52,7 +52,7 @@ JobSettings placedInCell(const JobSettings& job, const Cell& cell) {
     return placed;
   }
   const Eigen::Isometry3d d = cell.T_world_base->inverse() * calib::toIsometry(*job.robroot_in_world);
-  if (d.translation().norm() > 1e-3 || rotationAngleDeg(d.linear()) > 1e-3)
+  if (d.translation().norm() > 1e-3 || calib::rotationAngleDeg(d.linear()) > 1e-3)
     throw calib::InputError(cell.file, cell.robot_line, cell.robot_column,
                      "<robot>: the robot placement of the cell file differs from --base (" + placementText(calib::toXyzAbc(*cell.T_world_base)) +
                          " here, " + placementText(*job.robroot_in_world) + " given): expected the same placement, found two (give one of them)");

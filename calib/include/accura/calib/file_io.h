@@ -23,6 +23,10 @@ struct OutputFile {
 /// temporary files are removed then. The directories must exist.
 void writeFilesAtomically(const std::vector<OutputFile>& files);
 
+/// Creates the directory `dir` and its parents where missing (nothing for ""): for the outputs
+/// of writeFilesAtomically. Throws InputError ("DIR: cannot create the directory: ...").
+void createDirectories(const std::string& dir);
+
 /// writeFilesAtomically of one file.
 void writeFileAtomically(const std::string& path, const std::string& content);
 

@@ -42,6 +42,10 @@ Eigen::Matrix3d skew(const Eigen::Vector3d& v);
 Eigen::Matrix3d expSO3(const Eigen::Vector3d& rotation_vector_rad);
 Eigen::Vector3d logSO3(const Eigen::Matrix3d& R);
 
+/// Rotation angle of R (deg, in [0, 180]): |logSO3(R)|, accurate near 0 (unlike the acos of
+/// the trace). The angle between two orientations A and B: rotationAngleDeg(A * B^T).
+double rotationAngleDeg(const Eigen::Matrix3d& R);
+
 /// Right Jacobian of SO(3): expSO3(r + dr) = expSO3(r) * expSO3(Jr(r) dr) to first order.
 Eigen::Matrix3d rightJacobianSO3(const Eigen::Vector3d& r);
 

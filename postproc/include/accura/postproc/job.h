@@ -133,9 +133,6 @@ calib::InputError compensationError(const JobReport& report);
 /// compensated.
 Program compensateProgram(const Program& program, const JobSettings& settings, JobReport* report);
 
-/// Rotation angle of R (deg, in [0, 180]).
-double rotationAngleDeg(const Eigen::Matrix3d& R);
-
 /// The real robot for a program tool (see "real" above): `calibrated` with its identified tool
 /// when T_flange_tcp is its nominal tool within match_mm (mm) and match_deg (deg), else
 /// `calibrated` with T_flange_tcp taken as exact (no tool deviations). `calibrated_tool`

@@ -1,0 +1,188 @@
+// accura post-processor: a calibrated model loaded once and placed with the frames of its
+// poses, for hosts that compensate poses, paths and programs one call at a time. The plug-in
+// (plugin/src/accura_plugin.cpp) is a C shell over this file: its handle holds a Session.
+//
+// Frames: every pose given to and returned by a Session is T_base_tcp, the program's $TOOL in
+// its $BASE (x, y, z mm; A, B, C deg), as a KRL or XML program holds it. The Session takes it
+// to the world of job.h (T_world_tcp = T_world_robroot * inverse($ROBROOT) * $BASE * pose)
+// with SessionSettings::program_base and back; the program tool is SessionSettings::
+// program_tool (default: the model's nominal tool, whose real counterpart is the calibrated
+// one; job.h, "real"). Joint values: deg (mm for prismatic joints).
+//
+// Errors (errors.h, "The rule"): a value that is not finite or out of range throws
+// calib::ArgumentError naming it; a missing or malformed file, or a placement too far from the
+// calibrated base, throws calib::InputError. A pose the robot cannot reach is a result (calib::IkStatus).
+//
+// Threads: a Session is immutable after construction; every const method may run on several
+// threads at once (each call uses its own workspace).
+#pragma once
+
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "accura/calib/robot.h"
+#include "accura/postproc/batch.h"
+#include "accura/postproc/check.h"
+#include "accura/postproc/job.h"
+#include "accura/postproc/placement.h"
+#include "accura/postproc/program_io.h"
+
+namespace accura::postproc {
+
+/// What a host gives when it loads a model (the plug-in's accura_load_options).
+struct SessionSettings {
+  /// A robot file written by accura identify, or a bundled robot name (nominal = real).
+  std::string calibrated_model;
+  /// The robot the controller believes in (robot file or bundled name); empty: the nominal
+  /// data of the calibrated model. When given it must be that nominal robot
+  /// (checkControllerRobot): a check that the host loaded the model of the right robot.
+  std::string controller_model;
+  std::optional<calib::XyzAbc> robroot_in_world;      ///< JobSettings::robroot_in_world
+  std::optional<calib::XyzAbc> robroot_in_kukaworld;  ///< $ROBROOT; empty: identity
+  std::optional<calib::XyzAbc> program_base;          ///< $BASE of the poses; empty: identity
+  std::optional<calib::XyzAbc> program_tool;          ///< $TOOL of the poses; empty: nominal tool
+  double payload_kg = 0;                       ///< >= 0, finite
+  double temp_c = calib::kThermalReferenceC;          ///< finite
+  int max_joints = 12;                         ///< more joints: calib::InputError (fixed arrays)
+  std::string placement_setting = "robroot_in_world";  ///< names the placement in messages
+};
+
+/// One pose compensated (compensate.h's PoseCompensation in the program's base frame).
+struct SessionPose {
+  calib::IkStatus status = calib::IkStatus::kNotConverged;
+  std::string message;  ///< why status is not kOk (always set then)
+  calib::XyzAbc command;       ///< the pose to send the controller
+  calib::Configuration configuration;  ///< S/T of q_real
+  bool configuration_changed = false;
+  double correction_mm = 0;   ///< |command - target| (position)
+  double correction_deg = 0;  ///< rotation angle between command and target
+  Eigen::VectorXd q_real;     ///< joints that put the real tool on the target
+};
+
+/// Several poses compensated.
+struct SessionPoses {
+  std::vector<SessionPose> results;  ///< one per target
+  size_t n_ok = 0;                   ///< the successes
+  int first_failed = -1;             ///< the first pose that failed, -1 when none
+  std::string message;               ///< "pose I: WHY (K of N poses failed)" of that one
+};
+
+/// One motion of a path: LIN or CIRC (aux: the auxiliary point; its orientation not used).
+struct SessionMotion {
+  PathType type = PathType::kLin;
+  calib::XyzAbc aux, end;
+};
+
+/// One motion to send, in order: the compensated, densified path.
+struct SessionPathPoint {
+  PathType type = PathType::kLin;
+  calib::XyzAbc aux, end;              ///< compensated (aux: CIRC only)
+  calib::Configuration configuration;  ///< S/T of the real joints at `end`
+  int motion = 0;               ///< the intended motion it belongs to
+  bool inserted = false;        ///< an auxiliary point inside the motion (else its end point)
+};
+
+/// The numbers of one intended motion (SegmentCompensation), or their maxima and sums.
+struct SessionMotionNumbers {
+  double length_mm = 0;
+  double max_error_uncompensated_mm = 0, max_error_before_mm = 0, max_error_after_mm = 0, max_error_bound_mm = 0;
+  int points_added = 0;
+};
+
+struct SessionPath {
+  /// kOk, or why the start (failed_motion -1) or motion failed_motion cannot be compensated;
+  /// message says which. On a failure the other fields are those up to it.
+  calib::IkStatus status = calib::IkStatus::kOk;
+  std::string message;
+  int failed_motion = -1;
+  SessionPose start;                          ///< the compensated start: send it first
+  std::vector<SessionPathPoint> points;       ///< every motion's points, in order
+  std::vector<SessionMotionNumbers> motions;  ///< one per intended motion
+  SessionMotionNumbers total;                 ///< maxima of the errors, sums of length and points
+  bool ok() const { return status == calib::IkStatus::kOk && failed_motion < 0; }
+};
+
+/// The S/T configuration a host asked for: S in 0..7 (three bits) or -1 (any), T in
+/// 0..2^dof - 1 (a bit per joint) or -1. Throws calib::ArgumentError otherwise.
+calib::Configuration checkedConfiguration(int status, int turn, int dof);
+
+/// `pose` when its six values are finite; else throws calib::ArgumentError naming `what`.
+const calib::XyzAbc& checkedPose(const calib::XyzAbc& pose, const std::string& what);
+
+class Session {
+ public:
+  /// Reads and places the models (see SessionSettings). Throws calib::InputError for a missing or
+  /// malformed robot file (a path that does not exist is named as such), a controller model
+  /// that is not the calibrated model's robot, more than max_joints joints, a calibrated base
+  /// far from the placement (placeRobot); calib::ArgumentError for a pose, payload or temperature
+  /// that is not finite or out of range.
+  explicit Session(const SessionSettings& settings);
+
+  const JobSettings& job() const { return job_; }
+  const Placement& placement() const { return models_->placement(); }
+  int dof() const { return job_.calibrated.dof(); }
+
+  /// T_base_tcp of the controller model (`real` false: nominal at the placement with the
+  /// program tool) or of the real (calibrated) model at joints q (dof values, finite; else
+  /// calib::ArgumentError).
+  calib::XyzAbc forward(bool real, const std::vector<double>& q) const;
+
+  /// Compensates one pose (Compensator::pose with the configuration rule of accura
+  /// compensate, enforceConfiguration); `seed`: real joints to continue from (empty: none).
+  SessionPose pose(const calib::XyzAbc& target, const calib::Configuration& asked, const Eigen::VectorXd& seed = Eigen::VectorXd()) const;
+  /// Compensates every target (asked: empty or one per target; every value validated before
+  /// any work). `continuous`: each pose continues from the real joints of the previous
+  /// successful one; every pose is computed, failed or not.
+  SessionPoses poses(const std::vector<calib::XyzAbc>& targets, const std::vector<calib::Configuration>& asked,
+                                 bool continuous) const;
+  /// Compensates a path from `start` through LIN / CIRC motions with auxiliary points until the
+  /// predicted deviation is below tol_mm (> 0, finite; else calib::ArgumentError): compensatePath
+  /// (path_job.h), the loop of accura compensate.
+  SessionPath path(const calib::XyzAbc& start, const calib::Configuration& start_config, const std::vector<SessionMotion>& motions,
+                   double tol_mm) const;
+
+  /// compensateProgramFile (batch.h) with this model's settings and tol_mm (> 0, finite).
+  /// Throws calib::InputError for a program file that does not exist, else as compensateProgramFile.
+  ProgramFileResult compensateProgramFile(const ProgramFileRequest& request, double tol_mm) const;
+
+  /// checkProgram (check.h) of the program file in the cell file with this model's settings:
+  /// the cell's thresholds, or `thresholds` when given. Throws calib::InputError for a file that does
+  /// not exist or is malformed, calib::ArgumentError for thresholds that are not valid.
+  CheckReport checkProgramFile(const std::string& cell_path, const std::string& program_path, const ProgramReadOptions& read,
+                               CheckMode mode, const std::optional<CheckThresholds>& thresholds) const;
+
+ private:
+  JobSettings job_;
+  std::unique_ptr<ModelFactory> models_;
+  Eigen::Isometry3d T_world_progbase_ = Eigen::Isometry3d::Identity();
+  const Compensator* comp_ = nullptr;  ///< the models of the program tool (built here)
+
+  Eigen::Isometry3d toWorld(const calib::XyzAbc& T_base_tcp, const std::string& what) const;
+  calib::XyzAbc toBase(const Eigen::Isometry3d& T_world_tcp) const;
+};
+
+/// One motion of a program written from poses (program base frame, T_base_tcp).
+struct PoseProgramMotion {
+  MotionType type = MotionType::kLin;  ///< kPtp, kLin or kCirc
+  calib::XyzAbc aux, end;                     ///< aux: kCirc only
+  bool approximate = false;            ///< KRL C_PTP for PTP, C_DIS for LIN / CIRC
+  double vel_m_s = 0;                  ///< LIN / CIRC path speed (m/s; <= 0: not set; finite)
+};
+
+/// A program to write from poses: every motion with the same $TOOL and $BASE.
+struct PoseProgram {
+  std::string name;   ///< empty: the file name without its extension
+  std::string robot;  ///< the robot named in an XML program (may be empty)
+  calib::XyzAbc tool, base;  ///< $TOOL (T_flange_tcp), $BASE (relative to $WORLD)
+  std::vector<PoseProgramMotion> motions;
+};
+
+/// Writes `program` in the controller language of path's extension (renderProgram: .src KRL
+/// with its .dat, .xml accura's XML) through calib::writeFilesAtomically, the directory created.
+/// Throws calib::ArgumentError for a pose or speed that is not finite (naming "motions[I].end", ...),
+/// calib::InputError for another extension or a file that cannot be written.
+void writePoseProgram(const std::string& path, const PoseProgram& program);
+
+}  // namespace accura::postproc

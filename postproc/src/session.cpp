@@ -1,0 +1,255 @@
+// A calibrated model loaded once for a host's calls (see session.h).
+#include "accura/postproc/session.h"
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+
+#include "accura/calib/errors.h"
+#include "accura/calib/file_io.h"
+#include "accura/calib/geometry.h"
+#include "accura/calib/robot_io.h"
+#include "accura/postproc/cell.h"
+#include "accura/postproc/path_job.h"
+
+namespace fs = std::filesystem;
+
+namespace accura::postproc {
+namespace {
+
+/// A robot file path or a bundled robot name; a path that does not exist is named as such.
+calib::RobotModel readModel(const std::string& name_or_path, const char* what) {
+  std::error_code ec;
+  const bool looks_like_path = name_or_path.find('/') != std::string::npos || fs::path(name_or_path).extension() == ".xml";
+  if (looks_like_path && !fs::exists(name_or_path, ec))
+    throw calib::InputError(name_or_path + ": the " + what + " file does not exist (expected a robot file, e.g. a calibrated model " +
+                     "written by accura identify, or a bundled robot name)");
+  return calib::readRobotFile(calib::resolveRobotPath(name_or_path));
+}
+
+void requireFile(const std::string& path, const char* what) {
+  std::error_code ec;
+  if (!fs::exists(path, ec)) throw calib::InputError(path + ": the " + what + " file does not exist");
+}
+
+void checkTolerance(double tol_mm) {
+  if (!(tol_mm > 0) || !std::isfinite(tol_mm))
+    throw calib::ArgumentError("tol_mm: expected a positive distance (mm), found " + std::to_string(tol_mm));
+}
+
+std::string failureText(calib::IkStatus status, const std::string& message) {
+  return message.empty() ? std::string(calib::toString(status)) : message;
+}
+
+}  // namespace
+
+calib::Configuration checkedConfiguration(int status, int turn, int dof) {
+  const long long max_turn = (1LL << std::min(dof, 30)) - 1;
+  if (status < -1 || status > 7 || turn < -1 || turn > max_turn)
+    throw calib::ArgumentError("configuration: expected S in 0..7 and T in 0.." + std::to_string(max_turn) + " (a bit per joint), or -1 (any), found S " +
+                        std::to_string(status) + ", T " + std::to_string(turn));
+  return {status, turn};
+}
+
+const calib::XyzAbc& checkedPose(const calib::XyzAbc& p, const std::string& what) {
+  for (double x : {p.x_mm, p.y_mm, p.z_mm, p.a_deg, p.b_deg, p.c_deg})
+    if (!std::isfinite(x)) throw calib::ArgumentError(what + ": expected finite x, y, z (mm), A, B, C (deg), found a NaN or infinity");
+  return p;
+}
+
+Session::Session(const SessionSettings& s) {
+  job_.calibrated = readModel(s.calibrated_model, "calibrated_model");
+  if (job_.calibrated.dof() > s.max_joints)
+    throw calib::InputError(s.calibrated_model + ": expected at most " + std::to_string(s.max_joints) + " joints, found " +
+                     std::to_string(job_.calibrated.dof()));
+  if (!s.controller_model.empty())
+    checkControllerRobot(job_.calibrated.nominal, readModel(s.controller_model, "controller_model").nominal, s.controller_model);
+  for (const auto* p : {&s.robroot_in_world, &s.robroot_in_kukaworld, &s.program_base, &s.program_tool})
+    if (*p) checkedPose(**p, "load options");
+  if (!(s.payload_kg >= 0) || !std::isfinite(s.payload_kg))
+    throw calib::ArgumentError("payload_kg: expected a finite mass >= 0 (kg), found " + std::to_string(s.payload_kg));
+  if (!std::isfinite(s.temp_c)) throw calib::ArgumentError("temp_c: expected a finite temperature (deg C)");
+  job_.robroot_in_world = s.robroot_in_world;
+  job_.robroot_in_kukaworld = s.robroot_in_kukaworld;
+  job_.initial_base = s.program_base;
+  job_.initial_tool = s.program_tool;
+  job_.context.payload_kg = s.payload_kg;
+  job_.context.temp_c = s.temp_c;
+  // frames and models as compensateProgram takes them (placement.h)
+  models_ = std::make_unique<ModelFactory>(job_, placeRobot(job_, s.placement_setting));
+  const Eigen::Isometry3d T_kworld_progbase = s.program_base ? calib::toIsometry(*s.program_base) : Eigen::Isometry3d::Identity();
+  T_world_progbase_ = models_->placement().T_world_kworld * T_kworld_progbase;
+  comp_ = models_->compensator(s.program_tool ? calib::toIsometry(*s.program_tool) : job_.calibrated.nominal.T_flange_tcp).compensator.get();
+}
+
+Eigen::Isometry3d Session::toWorld(const calib::XyzAbc& T_base_tcp, const std::string& what) const {
+  return T_world_progbase_ * calib::toIsometry(checkedPose(T_base_tcp, what));
+}
+
+calib::XyzAbc Session::toBase(const Eigen::Isometry3d& T_world_tcp) const { return calib::toXyzAbc(T_world_progbase_.inverse() * T_world_tcp); }
+
+calib::XyzAbc Session::forward(bool real, const std::vector<double>& q) const {
+  if (q.size() != static_cast<size_t>(dof()))
+    throw calib::ArgumentError("expected " + std::to_string(dof()) + " joint values, got " + std::to_string(q.size()));
+  Eigen::VectorXd qv(dof());
+  for (int i = 0; i < dof(); ++i) {
+    if (!std::isfinite(q[i])) throw calib::ArgumentError("q[" + std::to_string(i) + "] is not finite");
+    qv[i] = q[i];
+  }
+  return toBase(real ? comp_->real().forward(qv, job_.context) : comp_->controller().forward(qv));
+}
+
+SessionPose Session::pose(const calib::XyzAbc& target, const calib::Configuration& asked, const Eigen::VectorXd& seed) const {
+  PoseCompensation pc = comp_->pose(toWorld(target, "target"), asked, seed, job_.ik, job_.context);
+  enforceConfiguration(asked, pc);
+  SessionPose r;
+  r.status = pc.status;
+  if (pc.status != calib::IkStatus::kOk) {
+    r.message = failureText(pc.status, pc.message);
+    return r;
+  }
+  r.command = toBase(pc.T_world_tcp_command);
+  r.configuration = pc.configuration;
+  r.configuration_changed = pc.configuration_changed;
+  r.correction_mm = pc.correction_mm;
+  r.correction_deg = pc.correction_deg;
+  r.q_real = pc.q_real;
+  return r;
+}
+
+SessionPoses Session::poses(const std::vector<calib::XyzAbc>& targets, const std::vector<calib::Configuration>& asked, bool continuous) const {
+  if (!asked.empty() && asked.size() != targets.size())
+    throw calib::ArgumentError("expected " + std::to_string(targets.size()) + " configurations, got " + std::to_string(asked.size()));
+  // validate everything first: a bad argument fails the call before any work
+  for (size_t i = 0; i < targets.size(); ++i) checkedPose(targets[i], "targets[" + std::to_string(i) + "]");
+  SessionPoses r;
+  r.results.reserve(targets.size());
+  Eigen::VectorXd seed;
+  for (size_t i = 0; i < targets.size(); ++i) {
+    r.results.push_back(pose(targets[i], asked.empty() ? calib::Configuration{} : asked[i], continuous ? seed : Eigen::VectorXd()));
+    const SessionPose& p = r.results.back();
+    if (p.status == calib::IkStatus::kOk) {
+      ++r.n_ok;
+      seed = p.q_real;
+    } else if (r.first_failed < 0) {
+      r.first_failed = static_cast<int>(i);
+      r.message = "pose " + std::to_string(i) + ": " + p.message;
+    }
+  }
+  if (r.first_failed >= 0)
+    r.message += " (" + std::to_string(targets.size() - r.n_ok) + " of " + std::to_string(targets.size()) + " poses failed)";
+  return r;
+}
+
+SessionPath Session::path(const calib::XyzAbc& start, const calib::Configuration& start_config, const std::vector<SessionMotion>& motions,
+                          double tol_mm) const {
+  checkTolerance(tol_mm);
+  const Eigen::Isometry3d T_world_start = toWorld(start, "start");
+  std::vector<PathSegment> intended(motions.size());
+  for (size_t i = 0; i < motions.size(); ++i) {
+    const std::string w = "motions[" + std::to_string(i) + "]";
+    intended[i].type = motions[i].type;
+    intended[i].T_world_end = toWorld(motions[i].end, w + ".end");
+    if (motions[i].type == PathType::kCirc) intended[i].T_world_aux = toWorld(motions[i].aux, w + ".aux");
+  }
+  JobSettings job = job_;
+  job.tol_mm = tol_mm;
+  const PathCompensation pc = compensatePath(*comp_, T_world_start, start_config, intended, job);
+  SessionPath r;
+  if (pc.start.status != calib::IkStatus::kOk) {
+    r.status = pc.start.status;
+    r.message = std::string("the start cannot be compensated: ") + calib::toString(pc.start.status) +
+                (pc.start.message.empty() ? "" : ": " + pc.start.message);
+    return r;
+  }
+  if (pc.failed_motion >= 0) {
+    const SegmentCompensation& sc = pc.segments.back();
+    r.status = sc.status;
+    r.failed_motion = pc.failed_motion;
+    r.message = "motion " + std::to_string(pc.failed_motion) + " cannot be compensated: " + calib::toString(sc.status) +
+                (sc.message.empty() ? "" : ": " + sc.message);
+    return r;
+  }
+  r.start.status = calib::IkStatus::kOk;
+  r.start.command = toBase(pc.start.T_world_tcp_command);
+  r.start.configuration = pc.start.configuration;
+  r.start.q_real = pc.start.q_real;
+  for (size_t i = 0; i < motions.size(); ++i) {
+    const SegmentCompensation& sc = pc.segments[i];
+    for (size_t k = 0; k < sc.commanded.size(); ++k) {
+      SessionPathPoint p;
+      p.type = motions[i].type;
+      p.end = toBase(sc.commanded[k].T_world_end);
+      if (p.type == PathType::kCirc) p.aux = toBase(sc.commanded[k].T_world_aux);
+      p.configuration = calib::kukaConfiguration(comp_->controller().model(), sc.q_real_end[k]);
+      p.motion = static_cast<int>(i);
+      p.inserted = k + 1 < sc.commanded.size();
+      r.points.push_back(p);
+    }
+    const SessionMotionNumbers n = {pathLength(pc.intended[i]), sc.max_error_uncompensated_mm, sc.max_error_before_mm,
+                                    sc.max_error_after_mm,      sc.max_error_bound_mm,          sc.points_added};
+    r.motions.push_back(n);
+    SessionMotionNumbers& t = r.total;
+    t.length_mm += n.length_mm;
+    t.max_error_uncompensated_mm = std::max(t.max_error_uncompensated_mm, n.max_error_uncompensated_mm);
+    t.max_error_before_mm = std::max(t.max_error_before_mm, n.max_error_before_mm);
+    t.max_error_after_mm = std::max(t.max_error_after_mm, n.max_error_after_mm);
+    t.max_error_bound_mm = std::max(t.max_error_bound_mm, n.max_error_bound_mm);
+    t.points_added += n.points_added;
+  }
+  return r;
+}
+
+ProgramFileResult Session::compensateProgramFile(const ProgramFileRequest& request, double tol_mm) const {
+  checkTolerance(tol_mm);
+  requireFile(request.in_path, "program");
+  JobSettings job = job_;
+  job.tol_mm = tol_mm;
+  return postproc::compensateProgramFile(request, job);
+}
+
+CheckReport Session::checkProgramFile(const std::string& cell_path, const std::string& program_path, const ProgramReadOptions& read,
+                                      CheckMode mode, const std::optional<CheckThresholds>& thresholds) const {
+  requireFile(cell_path, "cell");
+  requireFile(program_path, "program");
+  const Cell cell = readCellFile(cell_path);
+  const Program program = readProgram(program_path, read);
+  CheckOptions options;
+  options.mode = mode;
+  options.thresholds = thresholds ? *thresholds : cell.thresholds;
+  std::string why;
+  if (!options.IsValid(&why)) throw calib::ArgumentError(why);
+  return checkProgram(program, job_, cell, options);
+}
+
+void writePoseProgram(const std::string& path, const PoseProgram& spec) {
+  const ProgramFormat format = programFormat(path);
+  Program p;
+  p.name = spec.name.empty() ? fs::path(path).stem().string() : spec.name;
+  p.robot = spec.robot;
+  FrameSetting tool, base;
+  tool.source = base.source = FrameSetting::Source::kInline;
+  tool.value = checkedPose(spec.tool, "tool");
+  base.value = checkedPose(spec.base, "base");
+  for (size_t i = 0; i < spec.motions.size(); ++i) {
+    const PoseProgramMotion& c = spec.motions[i];
+    const std::string w = "motions[" + std::to_string(i) + "]";
+    Motion m;
+    m.type = c.type;
+    m.target.setPose(checkedPose(c.end, w + ".end"));
+    if (m.type == MotionType::kCirc) {
+      m.aux = Target{};
+      m.aux->setPose(checkedPose(c.aux, w + ".aux"));
+    }
+    if (c.approximate) m.approximation = {m.type == MotionType::kPtp ? Approximation::kCPtp : Approximation::kCDis};
+    if (!std::isfinite(c.vel_m_s)) throw calib::ArgumentError(w + ".vel_m_s: expected a finite speed (m/s)");
+    if (m.type != MotionType::kPtp && c.vel_m_s > 0) m.vel_m_s = c.vel_m_s;
+    m.tool = tool;
+    m.base = base;
+    p.motions.push_back(m);
+  }
+  calib::createDirectories(fs::path(path).parent_path().string());
+  calib::writeFilesAtomically(renderProgram(p, format, path));
+}
+
+}  // namespace accura::postproc
