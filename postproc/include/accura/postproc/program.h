@@ -145,12 +145,16 @@ struct KrlSource {
   std::vector<Statement> statements;
 };
 
-/// A program: the motion model, plus the KRL text when read from KRL.
+struct UrScriptSource;  // urscript.h
+
+/// A program: the motion model, plus the KRL text when read from KRL (the URScript text when
+/// read from URScript).
 struct Program {
   std::string name;    ///< program name (KRL DEF name, XML name attribute)
   std::string robot;   ///< robot name (XML; empty when not given)
   std::vector<Motion> motions;
   std::shared_ptr<const KrlSource> krl;  ///< set by the KRL reader
+  std::shared_ptr<const UrScriptSource> urscript;  ///< set by the URScript reader (urscript.h)
   std::string source_file;               ///< the file the program was read from
 };
 
