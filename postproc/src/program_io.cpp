@@ -18,7 +18,7 @@ ProgramFormat programFormat(const std::string& path) {
   if (ext == ".src") return ProgramFormat::kKrl;
   if (ext == ".xml") return ProgramFormat::kXml;
   if (ext == ".script") return ProgramFormat::kUrScript;
-  throw InputError(path + ": expected a program file ending in .src (KUKA KRL), .script (URScript) or .xml (accura XML program), found '" +
+  throw InputError(path + ": expected a program file ending in .src (KUKA KRL) or .xml (accura XML program) or .script (URScript), found '" +
                    fs::path(path).extension().string() + "'");
 }
 
