@@ -399,6 +399,40 @@ TEST(UrScript, ConvertCarriesTheMotionModelOrRefusesNamingTheLine) {
       << k.err;
 }
 
+// The golden files (tests/golden/urscript/README.md): the example compensated with the real
+// UR10's calibrated model, and the XML weld seam converted to URScript, byte for byte; the
+// converted poses are the XML targets moved into the Base frame ($BASE * target, computed here).
+TEST(UrScript, GoldenFiles) {
+  const std::string g = test::sourcePath("tests/golden/urscript/");
+  const std::string dir = test::tempDir("ur_golden");
+  for (const char* f : {"ur10_calibrated.xml", "ur10_seam.script"}) test::writeText(dir + "/" + f, test::readText(g + f));
+  test::writeText(dir + "/weld_seam.xml", test::readText(test::sourcePath("tests/golden/xml/weld_seam.xml")));
+  const test::CliRun c = test::runAccuraIn(dir, "compensate --robot ur10_calibrated.xml --in ur10_seam.script --out expected "
+                                                "--base 507.9274,-3567.8484,-1224.8883,20.00939,-0.16910,0.00450 --json expected/report.json");
+  ASSERT_EQ(c.code, 0) << c.err;
+  EXPECT_EQ(test::readText(dir + "/expected/ur10_seam.script"), test::readText(g + "expected/ur10_seam.script"));
+  EXPECT_EQ(test::readText(dir + "/expected/report.json"), test::readText(g + "expected/report.json"));
+  EXPECT_EQ(test::readText(dir + "/ur10_seam.script"), example());  // the input untouched
+  const test::CliRun v = test::runAccuraIn(dir, "convert --in weld_seam.xml --out weld_seam.script");
+  ASSERT_EQ(v.code, 0) << v.err;
+  EXPECT_EQ(test::readText(dir + "/weld_seam.script"), test::readText(g + "weld_seam.script"));
+  const Program xml = readProgram(dir + "/weld_seam.xml");
+  const Program ur = readUrScript(dir + "/weld_seam.script");
+  ASSERT_EQ(ur.motions.size(), xml.motions.size());
+  for (size_t k = 0; k < xml.motions.size(); ++k) {
+    const Motion& a = xml.motions[k];
+    const Motion& b = ur.motions[k];
+    EXPECT_EQ(b.target.name, a.target.name) << k;
+    if (a.target.kind == Target::Kind::kAxis) {
+      for (int j = 0; j < 6; ++j) EXPECT_NEAR(*b.target.axes[j], *a.target.axes[j], 1e-5) << k;
+      continue;
+    }
+    const Eigen::Isometry3d want = toIsometry(*a.base.value) * poseOf(a.target);
+    EXPECT_LT((poseOf(b.target).translation() - want.translation()).norm(), 1e-4) << k;  // 0.1 um written
+    EXPECT_LT((poseOf(b.target).linear() - want.linear()).norm(), 1e-6) << k;
+  }
+}
+
 // batch picks up .script files; check runs the script in its cell: the smallest clearance
 // against its analytic value (tests/data/urscript/ur10_table_cell.xml: sqrt(30^2 + 100^2) - 10).
 TEST(UrScript, BatchAndCheckInTheCell) {

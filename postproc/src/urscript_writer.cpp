@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <filesystem>
 #include <map>
 #include <sstream>
 
@@ -271,13 +272,21 @@ void refuseKrlLogic(const KrlSource& k) {
   }
 }
 
+bool isIdentifier(const std::string& s) {
+  if (s.empty() || !(std::isalpha(static_cast<unsigned char>(s[0])) || s[0] == '_')) return false;
+  for (char c : s)
+    if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '_')) return false;
+  return true;
+}
+
 std::string generate(const Program& p) {
   if (p.krl) refuseKrlLogic(*p.krl);
   std::ostringstream out;
   out << "def " << identifier(p.name.empty() ? "program" : p.name) << "():\n";
-  out << "  # written by accura convert" << (p.source_file.empty() ? "" : " from " + p.source_file)
+  out << "  # written by accura convert" << (p.source_file.empty() ? "" : " from " + std::filesystem::path(p.source_file).filename().string())
       << ": poses in the Base frame (m, rotation vector in rad), KUKA S/T and PTP speeds are not carried (the controller takes the joint solution nearest the current joints)\n";
   std::string tool;  // the set_tcp written last
+  std::map<std::string, std::string> variables;  // pose variable -> its p[...]
   for (const Motion& m : p.motions) {
     if (m.relative) refuse(m, "URScript has no relative motion");
     if (m.type == MotionType::kSpl) refuse(m, "URScript has no spline motion");
@@ -299,9 +308,16 @@ std::string generate(const Program& p) {
       if (!m.base.value) refuse(m, "its base (" + m.base.text + ") is not known (give the $config.dat with --config)");
       base = toIsometry(*m.base.value);
     }
+    // a named point becomes a pose variable (assigned before the motion that uses it first, and
+    // again where the program gives it another value)
     auto pose = [&](const Target& t) {
       if (!t.completePose()) refuse(m, "the target " + label(t) + " is partial (URScript poses are complete)");
-      return urPoseText(toXyzAbc(base * toIsometry(t.xyzAbc())));
+      const std::string text = urPoseText(toXyzAbc(base * toIsometry(t.xyzAbc())));
+      if (!isIdentifier(t.name)) return text;
+      auto& known = variables[t.name];
+      if (known != text) out << "  " << t.name << " = " << text << "\n";
+      known = text;
+      return t.name;
     };
     std::string args;
     if (m.target.kind == Target::Kind::kAxis) {
@@ -312,6 +328,12 @@ std::string generate(const Program& p) {
         args += (k ? ", " : "") + formatFixed(*m.target.axes[static_cast<size_t>(k)] * kDegToRad, kDecimals);
       }
       args += "]";
+      if (isIdentifier(m.target.name)) {  // a named axis point: a joint-list variable
+        auto& known = variables[m.target.name];
+        if (known != args) out << "  " << m.target.name << " = " << args << "\n";
+        known = args;
+        args = m.target.name;
+      }
     } else {
       if (m.aux) args = pose(*m.aux) + ", ";
       args += pose(m.target);
@@ -323,13 +345,6 @@ std::string generate(const Program& p) {
   }
   out << "end\n";
   return out.str();
-}
-
-bool isIdentifier(const std::string& s) {
-  if (s.empty() || !(std::isalpha(static_cast<unsigned char>(s[0])) || s[0] == '_')) return false;
-  for (char c : s)
-    if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '_')) return false;
-  return true;
 }
 
 }  // namespace
