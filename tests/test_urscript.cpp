@@ -357,6 +357,19 @@ TEST(UrScript, ExpressionsAreCorrectedInTheirOffsetAndRunTimePosesAreNamed) {
             "pose_trans and pose_add)");
 }
 
+TEST(UrScript, AVariableAssignedAgainInTheLoopOfItsMotionIsNamed) {
+  const Program p = parseUrScript(
+      "set_tcp(p[0, 0, 0.15, 0, 0, 0])\nmovej([0, -1.5707963, 1.5707963, -1.5707963, -1.5707963, 0])\n"
+      "p1 = p[-0.7, -0.2, 0.3, 2.2214415, 2.2214415, 0]\n"
+      "while True:\n  movel(p1)\n  p1 = p[-0.7, -0.1, 0.3, 2.2214415, 2.2214415, 0]\nend\nmovel(p1)\n",
+      "loop.script");
+  ASSERT_EQ(p.motions.size(), 3u);
+  EXPECT_EQ(p.motions[1].target_problem,
+            "'p1' is assigned again at loop.script:6:3 in the loop that runs this motion: its value on the next pass is not the one it has here");
+  EXPECT_EQ(p.motions[2].target_problem, "");  // after the loop: the last value, known
+  EXPECT_NEAR(p.motions[2].target.xyzAbc().y_mm, -100, 1e-9);
+}
+
 TEST(UrScript, ConvertCarriesTheMotionModelOrRefusesNamingTheLine) {
   const std::string dir = test::tempDir("ur_convert");
   test::writeText(dir + "/seam.script", example());

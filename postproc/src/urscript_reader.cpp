@@ -327,6 +327,7 @@ class Reader {
         v.problem = "'" + t[i].s + "' is not assigned a pose before this line";
         return v;
       }
+      refs_.push_back(t[i].s);
       if (it->second.kind == Var::Kind::kPose) return it->second.pose;
       v.problem = it->second.problem.empty() ? "'" + t[i].s + "' is not a pose" : it->second.problem;
       return v;
@@ -379,6 +380,7 @@ class Reader {
     }
     if (j == i + 1 && t[i].kind == Tok::Kind::kIdent) {
       const auto it = vars_.find(t[i].s);
+      refs_.push_back(t[i].s);
       if (it != vars_.end() && it->second.kind == Var::Kind::kJoints) return it->second.q;
     }
     *problem = "'" + textOf(t, i, j) + "' is not a joint list accura can evaluate";
@@ -411,10 +413,12 @@ class Reader {
         other(t);
       }
       ++block_depth_;
+      blocks_.push_back(isIdent(t, 0, "while") ? ++loops_ : 0);
       return;
     }
     if (isIdent(t, 0, "end") && t.size() == 1) {
       if (block_depth_ > 0) --block_depth_;
+      if (!blocks_.empty()) blocks_.pop_back();
       if (block_depth_ == 0 && main_open_) {
         main_open_ = false;
         return;
@@ -443,8 +447,28 @@ class Reader {
     return false;
   }
 
-  void assignment(const std::vector<Tok>& t, size_t s, Program&) {
+  /// The loops (while) open at this statement.
+  std::vector<int> openLoops() const {
+    std::vector<int> out;
+    for (int b : blocks_)
+      if (b > 0) out.push_back(b);
+    return out;
+  }
+
+  void assignment(const std::vector<Tok>& t, size_t s, Program& p) {
     const std::string name = t[s].s;
+    // a motion earlier in an enclosing loop that uses the variable sees this value on the next
+    // pass, not the one it was read with
+    const std::vector<int> loops = openLoops();
+    for (const Use& u : uses_) {
+      if (u.var != name) continue;
+      bool same_loop = false;
+      for (int l : u.loops) same_loop = same_loop || std::find(loops.begin(), loops.end(), l) != loops.end();
+      Motion& m = p.motions[u.motion];
+      if (same_loop && m.target_problem.empty())
+        m.target_problem = "'" + name + "' is assigned again at " + loc(t[s].b).str() +
+                           " in the loop that runs this motion: its value on the next pass is not the one it has here";
+    }
     const size_t i = s + 2, j = t.size();
     Var v;
     const auto prev = vars_.find(name);
@@ -514,6 +538,7 @@ class Reader {
         {"movej", {"q", "a", "v", "t", "r"}},
         {"movec", {"pose_via", "pose_to", "a", "v", "r", "mode"}}};
     const std::vector<std::string>& names = params.at(f);
+    refs_.clear();
     std::map<std::string, std::pair<size_t, size_t>> arg;
     const auto list = items(t, 2, t.size() - 1);
     size_t positional = 0;
@@ -627,6 +652,7 @@ class Reader {
         m.target = cartesian(r);
       }
     }
+    for (const std::string& v : refs_) uses_.push_back({p.motions.size(), v, openLoops()});
     m.statement_id = static_cast<int>(src_->statements.size());
     src_->statements.push_back(st);
     p.motions.push_back(m);
@@ -640,6 +666,15 @@ class Reader {
   std::string main_name_;
   bool main_open_ = false;
   int block_depth_ = 0;
+  std::vector<int> blocks_;  ///< open blocks: a loop id (while) or 0
+  int loops_ = 0;
+  struct Use {
+    size_t motion;
+    std::string var;
+    std::vector<int> loops;
+  };
+  std::vector<Use> uses_;          ///< variables the motions' targets read
+  std::vector<std::string> refs_;  ///< variables read by the motion being parsed
 };
 
 }  // namespace
