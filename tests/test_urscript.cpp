@@ -142,6 +142,20 @@ TEST(UrScript, UntouchedProgramsAreWrittenBackByteForByte) {
     const Program p = parseUrScript(text, "x.script");
     EXPECT_EQ(writeUrScript(p), text);
   }
+  // a program as PolyScope exports it (threads, $ markers, global waypoints, get_inverse_kin
+  // with qnear): two motions, the rest kept as text; the nominal robot changes nothing
+  const std::string ps = test::readText(test::sourcePath("tests/data/urscript/polyscope_export.script"));
+  const Program p = parseUrScript(ps, "polyscope_export.script");
+  ASSERT_EQ(p.motions.size(), 2u);
+  EXPECT_EQ(p.motions[0].target.name, "Waypoint_1_p");
+  EXPECT_EQ(p.motions[1].target.name, "Waypoint_2_p");
+  EXPECT_NEAR(p.motions[1].target.xyzAbc().x_mm, -716.509730192, 1e-9);
+  RobotModel ur10 = test::loadBundled("ur10");
+  JobSettings s;
+  s.calibrated = ur10;
+  const ProgramCompensation c = compensateProgramReport(p, s);
+  ASSERT_TRUE(c.ok()) << c.report.errors.front().message;
+  EXPECT_EQ(writeUrScript(c.program), ps);
   // and through the command line: convert a .script into a .script
   const std::string dir = test::tempDir("ur_roundtrip");
   test::writeText(dir + "/in.script", crlf);

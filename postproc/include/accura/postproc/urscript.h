@@ -21,13 +21,16 @@
 //             (m/s) -> the path speed.
 //   the rest  comments (#), def/end, logic, I/O, threads: kept as text, passed through.
 // A target the reader cannot evaluate (a pose computed at run time, a variable that the
-// program changes from its own value, a call accura does not know) is kept with
+// program changes from its own value or assigns again inside the while loop that runs the
+// motion, a call accura does not know) is kept with
 // Motion::target_problem naming it: compensate reports it as an error on movel/movep/movec and
 // leaves a movej unchanged with a warning.
 // Errors (accura::InputError, file:line:column, what was expected and what was found): an
 // unbalanced bracket, an unterminated string, a malformed p[...] (not six numbers, a non-finite
-// or absurd value), an unknown or repeated argument of a move, a negative blend radius, a
-// mode other than 0 or 1, a move without its target. (movec with mode 1 reads, and is
+// or absurd value: a position beyond 100 m, a rotation or joint value beyond 100 rad), an
+// unknown or repeated argument of a move, a positional argument after a named one, a blend
+// radius outside [0, 10] m, a speed <= 0, a mode other than 0 or 1, a move without its
+// target, a NUL byte. (movec with mode 1 reads, and is
 // reported by compensate as a motion accura does not model.)
 //
 // UR configuration (shoulder/elbow/wrist branch): URScript targets carry none; the controller
