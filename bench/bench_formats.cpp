@@ -22,6 +22,7 @@ namespace {
 
 using namespace accura;
 using namespace accura::postproc;
+using namespace accura::calib;
 
 constexpr int kTargets = 240;
 

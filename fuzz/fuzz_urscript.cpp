@@ -32,7 +32,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   std::string rewritten;
   try {
     rewritten = postproc::writeUrScript(program);
-  } catch (const ArgumentError&) {
+  } catch (const calib::ArgumentError&) {
     return 0;  // documented: a literal used by two targets that need different values
   } catch (const std::exception& e) {
     fuzz::violation(std::string("writeUrScript of a corrected program threw: ") + e.what());

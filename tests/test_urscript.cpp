@@ -24,6 +24,8 @@
 namespace accura::postproc {
 namespace {
 
+using namespace accura::calib;
+
 std::string example() { return test::readText(test::sourcePath("examples/ur10_seam.script")); }
 
 // The TCP pose T_base_tcp a p[...] means (metres, rotation vector), computed here on its own

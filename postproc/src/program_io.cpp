@@ -18,16 +18,16 @@ ProgramFormat programFormat(const std::string& path) {
   if (ext == ".src") return ProgramFormat::kKrl;
   if (ext == ".xml") return ProgramFormat::kXml;
   if (ext == ".script") return ProgramFormat::kUrScript;
-  throw InputError(path + ": expected a program file ending in .src (KUKA KRL) or .xml (accura XML program) or .script (URScript), found '" +
+  throw calib::InputError(path + ": expected a program file ending in .src (KUKA KRL) or .xml (accura XML program) or .script (URScript), found '" +
                    fs::path(path).extension().string() + "'");
 }
 
 Program readProgram(const std::string& path, const ProgramReadOptions& options) {
   const ProgramFormat format = programFormat(path);
   if (format == ProgramFormat::kUrScript) {
-    if (!options.dat_path.empty()) throw InputError("--dat: only for KRL programs (.src), found the URScript program " + path);
+    if (!options.dat_path.empty()) throw calib::InputError("--dat: only for KRL programs (.src), found the URScript program " + path);
     if (!options.config_path.empty())
-      throw InputError("--config: only for KRL and XML programs ($config.dat frames), found the URScript program " + path +
+      throw calib::InputError("--config: only for KRL and XML programs ($config.dat frames), found the URScript program " + path +
                        " (its TCP comes from set_tcp or --program-tool)");
     return readUrScript(path);
   }
@@ -37,7 +37,7 @@ Program readProgram(const std::string& path, const ProgramReadOptions& options) 
     o.config_path = options.config_path;
     return readKrl(path, o);
   }
-  if (!options.dat_path.empty()) throw InputError("--dat: only for KRL programs (.src), found the XML program " + path);
+  if (!options.dat_path.empty()) throw calib::InputError("--dat: only for KRL programs (.src), found the XML program " + path);
   if (!options.config_path.empty()) {
     const FrameTables tables = readKrlFrameTables(options.config_path);
     return readXmlProgram(path, &tables);
@@ -45,7 +45,7 @@ Program readProgram(const std::string& path, const ProgramReadOptions& options) 
   return readXmlProgram(path);
 }
 
-std::vector<OutputFile> renderProgram(const Program& program, ProgramFormat format, const std::string& path,
+std::vector<calib::OutputFile> renderProgram(const Program& program, ProgramFormat format, const std::string& path,
                                       const std::string& dat_path) {
   if (format == ProgramFormat::kUrScript) return {{path, writeUrScript(program)}};
   if (program.urscript) return renderProgram(urScriptForConversion(program, format == ProgramFormat::kXml ? "XML" : "KRL"), format, path, dat_path);
@@ -54,7 +54,7 @@ std::vector<OutputFile> renderProgram(const Program& program, ProgramFormat form
     return {{path, writeXmlProgram(p)}};
   }
   const KrlText t = writeKrl(program);
-  std::vector<OutputFile> out = {{path, t.src}};
+  std::vector<calib::OutputFile> out = {{path, t.src}};
   const bool has_dat = program.krl ? !program.krl->dat_path.empty() : true;
   if (has_dat) out.push_back({dat_path.empty() ? fs::path(path).replace_extension(".dat").string() : dat_path, t.dat});
   return out;

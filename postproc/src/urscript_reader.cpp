@@ -104,7 +104,7 @@ class Reader {
     tool_.source = FrameSetting::Source::kUnset;
     tool_.note = "the TCP is not set before this motion (call set_tcp(p[...]) first, or give the TCP active on the controller with --program-tool x,y,z,A,B,C)";
     base_.source = FrameSetting::Source::kNull;
-    base_.value = XyzAbc{};
+    base_.value = calib::XyzAbc{};
     base_.text = "Base";
     size_t i = 0;
     while (i < toks_.size()) {
@@ -156,7 +156,7 @@ class Reader {
 
   [[noreturn]] void fail(size_t off, const std::string& msg) const {
     const SourceLocation l = loc(off);
-    throw InputError(l.file, l.line, l.column, msg);
+    throw calib::InputError(l.file, l.line, l.column, msg);
   }
 
   std::string textOf(size_t b, size_t e) const { return src_->text.substr(b, e - b); }
@@ -310,7 +310,7 @@ class Reader {
         const double lim = k < 3 ? kMaxPositionM : kMaxRotationRad;
         if (std::abs(*n) > lim)
           fail(t[a].b, std::string("expected ") + (k < 3 ? "a position in metres" : "a rotation vector component in radians") +
-                           " within +-" + formatFixed(lim, 0) + ", found " + textOf(t, a, b));
+                           " within +-" + calib::formatFixed(lim, 0) + ", found " + textOf(t, a, b));
         lit.number[k] = {t[a].b, t[b - 1].e};
         lit.value[k] = *n;
       }
@@ -510,7 +510,7 @@ class Reader {
     f.text = textOf(t, args[0].first, args[0].second);
     if (v.problem.empty()) {
       f.source = FrameSetting::Source::kInline;
-      f.value = toXyzAbc(evaluate(*src_, v.expr));
+      f.value = calib::toXyzAbc(evaluate(*src_, v.expr));
     } else {
       f.source = FrameSetting::Source::kUnknown;
       f.note = v.problem;
@@ -524,7 +524,7 @@ class Reader {
     tg.where = loc(t[i].b);
     if (!(isIdent(t, i, "p") && isOp(t, i + 1, "["))) tg.name = textOf(t, i, j);
     if (v.problem.empty()) {
-      tg.setPose(toXyzAbc(evaluate(*src_, v.expr)));
+      tg.setPose(calib::toXyzAbc(evaluate(*src_, v.expr)));
       tg.value_id = v.literal;
     }
     return tg;
@@ -598,7 +598,7 @@ class Reader {
       }
     }
     const std::optional<double> mode = number_arg("mode", 0, 1, "mode 0 or 1");
-    if (mode && *mode != 0 && *mode != 1) fail(t[arg.at("mode").first].b, "expected mode 0 or 1, found " + formatFixed(*mode, 4));
+    if (mode && *mode != 0 && *mode != 1) fail(t[arg.at("mode").first].b, "expected mode 0 or 1, found " + calib::formatFixed(*mode, 4));
     auto need = [&](const std::string& n) -> std::pair<size_t, size_t> {
       const auto it = arg.find(n);
       if (it == arg.end()) fail(t[0].b, "expected the argument '" + n + "' of " + f + ", found none");
@@ -630,7 +630,7 @@ class Reader {
         m.target.where = loc(t[a].b);
         if (!isOp(t, a, "[")) m.target.name = textOf(t, a, b);
         if (q) {
-          for (int k = 0; k < 6; ++k) m.target.axes[static_cast<size_t>(k)] = (*q)[static_cast<size_t>(k)] * kRadToDeg;
+          for (int k = 0; k < 6; ++k) m.target.axes[static_cast<size_t>(k)] = (*q)[static_cast<size_t>(k)] * calib::kRadToDeg;
         } else {
           m.target_problem = problem;
         }
@@ -683,11 +683,11 @@ Program parseUrScript(const std::string& text, const std::string& path) { return
 
 Program readUrScript(const std::string& path) {
   std::error_code ec;
-  if (!fs::is_regular_file(path, ec)) throw InputError(path, 0, 0, "cannot read the URScript program: no such file");
+  if (!fs::is_regular_file(path, ec)) throw calib::InputError(path, 0, 0, "cannot read the URScript program: no such file");
   std::ifstream f(path, std::ios::binary);
-  if (!f) throw InputError(path, 0, 0, "cannot read the URScript program");
+  if (!f) throw calib::InputError(path, 0, 0, "cannot read the URScript program");
   std::string text((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
-  if (f.bad()) throw InputError(path, 0, 0, "cannot read the URScript program");
+  if (f.bad()) throw calib::InputError(path, 0, 0, "cannot read the URScript program");
   return parseUrScript(text, path);
 }
 

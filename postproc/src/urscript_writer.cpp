@@ -26,7 +26,7 @@ Eigen::Vector3d rotationVectorNear(const Eigen::Matrix3d& R, const Eigen::Vector
   const Eigen::Vector3d r = aa.axis() * aa.angle();
   const double angle = r.norm();
   if (angle < 1e-300) return Eigen::Vector3d::Zero();
-  const Eigen::Vector3d alt = r * (1.0 - 2.0 * kPi / angle);
+  const Eigen::Vector3d alt = r * (1.0 - 2.0 * calib::kPi / angle);
   return (alt - near).norm() < (r - near).norm() ? alt : r;
 }
 
@@ -39,7 +39,7 @@ std::array<double, 6> urValues(const Eigen::Isometry3d& T, const Eigen::Vector3d
 
 std::string poseText(const std::array<double, 6>& v) {
   std::string s = "p[";
-  for (int k = 0; k < 6; ++k) s += (k ? ", " : "") + formatFixed(v[static_cast<size_t>(k)], kDecimals);
+  for (int k = 0; k < 6; ++k) s += (k ? ", " : "") + calib::formatFixed(v[static_cast<size_t>(k)], kDecimals);
   return s + "]";
 }
 
@@ -62,7 +62,7 @@ Eigen::Isometry3d solveLiteral(const UrScriptSource& s, int id, int literal, con
   const UrScriptSource::Expr& e = s.exprs.at(static_cast<size_t>(id));
   if (e.kind == UrScriptSource::Expr::Kind::kLiteral) return want;
   const bool in_a = contains(s, e.a, literal), in_b = contains(s, e.b, literal);
-  if (in_a && in_b) throw ArgumentError("the corrected literal appears on both sides of a pose_trans/pose_add");
+  if (in_a && in_b) throw calib::ArgumentError("the corrected literal appears on both sides of a pose_trans/pose_add");
   const Eigen::Isometry3d A = evaluate(s, e.a, &done), B = evaluate(s, e.b, &done);
   Eigen::Isometry3d x = Eigen::Isometry3d::Identity();
   if (e.kind == UrScriptSource::Expr::Kind::kTrans) {
@@ -92,7 +92,7 @@ std::string literalText(const UrScriptSource& s, const UrScriptSource::Literal& 
     text += s.text.substr(pos, lit.number[k].first - pos);
     const bool same = std::abs(v[static_cast<size_t>(k)] - lit.value[k]) < kHalfUnit;
     text += same ? s.text.substr(lit.number[k].first, lit.number[k].second - lit.number[k].first)
-                 : formatFixed(v[static_cast<size_t>(k)], kDecimals);
+                 : calib::formatFixed(v[static_cast<size_t>(k)], kDecimals);
     pos = lit.number[k].second;
   }
   return text + s.text.substr(pos, lit.end - pos);
@@ -119,7 +119,7 @@ std::vector<Edit> correctedLiterals(const Program& p, int* order) {
   }
   for (const Pending& q : pending)
     if (q.expr < 0 || q.t->value_id < 0)
-      throw ArgumentError(q.m->where.str() + ": cannot write the corrected value of " + label(*q.t) + ": its pose is not a literal p[...]");
+      throw calib::ArgumentError(q.m->where.str() + ": cannot write the corrected value of " + label(*q.t) + ": its pose is not a literal p[...]");
   std::map<int, Eigen::Isometry3d> done;
   std::map<int, std::pair<std::string, std::string>> text;  // literal -> (text, where)
   while (!pending.empty()) {
@@ -137,11 +137,11 @@ std::vector<Edit> correctedLiterals(const Program& p, int* order) {
         continue;
       }
       const UrScriptSource::Literal& lit = s.literals.at(static_cast<size_t>(q.t->value_id));
-      const Eigen::Isometry3d x = solveLiteral(s, q.expr, q.t->value_id, toIsometry(q.t->xyzAbc()), done);
+      const Eigen::Isometry3d x = solveLiteral(s, q.expr, q.t->value_id, calib::toIsometry(q.t->xyzAbc()), done);
       const std::string t = literalText(s, lit, x);
       const auto it = text.find(q.t->value_id);
       if (it != text.end() && it->second.first != t)
-        throw ArgumentError(q.m->where.str() + ": " + label(*q.t) + " needs a different correction here than at " + it->second.second +
+        throw calib::ArgumentError(q.m->where.str() + ": " + label(*q.t) + " needs a different correction here than at " + it->second.second +
                             " (the same p[...] with another tool or path): give the motions their own poses");
       if (it == text.end()) {
         text[q.t->value_id] = {t, q.m->where.str()};
@@ -151,7 +151,7 @@ std::vector<Edit> correctedLiterals(const Program& p, int* order) {
       progress = true;
     }
     if (!progress)
-      throw ArgumentError(pending.front().m->where.str() + ": cannot write the corrected value of " + label(*pending.front().t) +
+      throw calib::ArgumentError(pending.front().m->where.str() + ": cannot write the corrected value of " + label(*pending.front().t) +
                           ": its pose expression and another corrected target's depend on each other's literals");
   }
   std::vector<Edit> edits;
@@ -168,13 +168,13 @@ std::string patch(const Program& p) {
   std::vector<Edit> edits = correctedLiterals(p, &order);
   for (const Motion& m : p.motions) {
     if (m.statement_id < 0 || m.statement_id >= static_cast<int>(s.statements.size()))
-      throw ArgumentError("writeUrScript: a motion has no statement in the script");
+      throw calib::ArgumentError("writeUrScript: a motion has no statement in the script");
     const UrScriptSource::Statement& st = s.statements[static_cast<size_t>(m.statement_id)];
     if (m.inserted) {
       std::vector<const Target*> targets;
       if (m.aux) targets.push_back(&*m.aux);
       targets.push_back(&m.target);
-      if (targets.size() != st.targets.size()) throw ArgumentError("writeUrScript: an inserted motion does not match its statement");
+      if (targets.size() != st.targets.size()) throw calib::ArgumentError("writeUrScript: an inserted motion does not match its statement");
       std::string line = s.text.substr(st.line_begin, st.code_begin - st.line_begin);
       size_t pos = st.code_begin;
       for (size_t k = 0; k < st.targets.size(); ++k) {
@@ -187,7 +187,7 @@ std::string patch(const Program& p) {
           near = Eigen::Vector3d(first.value[3], first.value[4], first.value[5]);
         }
         line += s.text.substr(pos, st.targets[k].first - pos);
-        line += poseText(urValues(toIsometry(targets[k]->xyzAbc()), near));
+        line += poseText(urValues(calib::toIsometry(targets[k]->xyzAbc()), near));
         pos = st.targets[k].second;
       }
       line += s.text.substr(pos, st.code_end - pos);
@@ -201,7 +201,7 @@ std::string patch(const Program& p) {
   std::string out;
   size_t pos = 0;
   for (const Edit& e : edits) {
-    if (e.begin < pos) throw ArgumentError("writeUrScript: overlapping edits");
+    if (e.begin < pos) throw calib::ArgumentError("writeUrScript: overlapping edits");
     out += s.text.substr(pos, e.begin - pos) + e.text;
     pos = e.end;
   }
@@ -211,7 +211,7 @@ std::string patch(const Program& p) {
 // --- a new script from the motion model (XML, KRL)
 
 [[noreturn]] void refuse(const Motion& m, const std::string& why) {
-  throw ArgumentError(m.where.str() + ": cannot convert '" + m.statement + "' to URScript: " + why);
+  throw calib::ArgumentError(m.where.str() + ": cannot convert '" + m.statement + "' to URScript: " + why);
 }
 
 std::string identifier(const std::string& name) {
@@ -264,7 +264,7 @@ void refuseKrlLogic(const KrlSource& k) {
     for (const auto& [b, e] : motion_lines) in_motion = in_motion || (pos >= b && pos <= e);
     const std::string u = upperTrim(k.src_text.substr(pos, nl - pos));
     if (!in_motion && !motionModelLine(u))
-      throw ArgumentError(k.src_path + ":" + std::to_string(line) + ": cannot convert to URScript: the KRL statement '" +
+      throw calib::ArgumentError(k.src_path + ":" + std::to_string(line) + ": cannot convert to URScript: the KRL statement '" +
                           trimmedCode(k.src_text.substr(pos, nl - pos)) +
                           "' is not a motion, frame or speed, and URScript output carries the motion model only");
     pos = nl + 1;
@@ -306,13 +306,13 @@ std::string generate(const Program& p) {
     Eigen::Isometry3d base = Eigen::Isometry3d::Identity();
     if (m.base.source != FrameSetting::Source::kUnset) {
       if (!m.base.value) refuse(m, "its base (" + m.base.text + ") is not known (give the $config.dat with --config)");
-      base = toIsometry(*m.base.value);
+      base = calib::toIsometry(*m.base.value);
     }
     // a named point becomes a pose variable (assigned before the motion that uses it first, and
     // again where the program gives it another value)
     auto pose = [&](const Target& t) {
       if (!t.completePose()) refuse(m, "the target " + label(t) + " is partial (URScript poses are complete)");
-      const std::string text = urPoseText(toXyzAbc(base * toIsometry(t.xyzAbc())));
+      const std::string text = urPoseText(calib::toXyzAbc(base * calib::toIsometry(t.xyzAbc())));
       if (!isIdentifier(t.name)) return text;
       auto& known = variables[t.name];
       if (known != text) out << "  " << t.name << " = " << text << "\n";
@@ -325,7 +325,7 @@ std::string generate(const Program& p) {
       args = "[";
       for (int k = 0; k < 6; ++k) {
         if (!m.target.axes[static_cast<size_t>(k)]) refuse(m, "the axis target is partial");
-        args += (k ? ", " : "") + formatFixed(*m.target.axes[static_cast<size_t>(k)] * kDegToRad, kDecimals);
+        args += (k ? ", " : "") + calib::formatFixed(*m.target.axes[static_cast<size_t>(k)] * calib::kDegToRad, kDecimals);
       }
       args += "]";
       if (isIdentifier(m.target.name)) {  // a named axis point: a joint-list variable
@@ -339,8 +339,8 @@ std::string generate(const Program& p) {
       args += pose(m.target);
     }
     const char* f = m.type == MotionType::kPtp ? "movej" : m.type == MotionType::kCirc ? "movec" : "movel";
-    if (m.type != MotionType::kPtp && m.vel_m_s) args += ", v=" + formatFixed(*m.vel_m_s, 4);
-    if (m.approximation_value && !m.approximation.empty()) args += ", r=" + formatFixed(*m.approximation_value / 1000.0, kDecimals);
+    if (m.type != MotionType::kPtp && m.vel_m_s) args += ", v=" + calib::formatFixed(*m.vel_m_s, 4);
+    if (m.approximation_value && !m.approximation.empty()) args += ", r=" + calib::formatFixed(*m.approximation_value / 1000.0, kDecimals);
     out << "  " << f << "(" << args << ")\n";
   }
   out << "end\n";
@@ -349,9 +349,9 @@ std::string generate(const Program& p) {
 
 }  // namespace
 
-std::string urPoseText(const XyzAbc& pose, const double near_rotvec[3]) {
+std::string urPoseText(const calib::XyzAbc& pose, const double near_rotvec[3]) {
   const Eigen::Vector3d near = near_rotvec ? Eigen::Vector3d(near_rotvec[0], near_rotvec[1], near_rotvec[2]) : Eigen::Vector3d::Zero();
-  return poseText(urValues(toIsometry(pose), near));
+  return poseText(urValues(calib::toIsometry(pose), near));
 }
 
 std::string writeUrScript(const Program& program) {
@@ -364,7 +364,7 @@ Program urScriptForConversion(const Program& program, const char* format_name) {
   if (!program.urscript) return out;
   if (!program.urscript->others.empty()) {
     const UrScriptSource::Other& o = program.urscript->others.front();
-    throw ArgumentError(o.where.str() + ": cannot convert to " + format_name + ": the URScript statement '" + o.text +
+    throw calib::ArgumentError(o.where.str() + ": cannot convert to " + format_name + ": the URScript statement '" + o.text +
                         "' is not a motion, set_tcp or pose assignment, and the conversion carries the motion model only" +
                         (program.urscript->others.size() > 1
                              ? " (" + std::to_string(program.urscript->others.size() - 1) + " more such statement(s))"

@@ -26,7 +26,6 @@ struct ProgramReadOptions {
 Program readProgram(const std::string& path, const ProgramReadOptions& options = {});
 
 /// One output file (file_io.h, the one writer).
-using accura::OutputFile;
 
 /// The files of `program` written as `format`: XML -> `path`; KRL -> `path` (the .src) and
 /// `dat_path` (empty: `path` with the extension .dat) when the program has a .dat (a program
@@ -34,7 +33,7 @@ using accura::OutputFile;
 /// `path` (urscript.h, writeUrScript; a program read from URScript goes into another format
 /// only when it holds nothing but motions, set_tcp and pose assignments). Throws
 /// ArgumentError when the program cannot be written in that format.
-std::vector<OutputFile> renderProgram(const Program& program, ProgramFormat format, const std::string& path,
+std::vector<calib::OutputFile> renderProgram(const Program& program, ProgramFormat format, const std::string& path,
                                       const std::string& dat_path = "");
 
 }  // namespace accura::postproc

@@ -85,7 +85,7 @@ struct UrScriptSource {
   std::vector<Other> others;
 };
 
-/// Reads a URScript program. Throws InputError (file:line:column) on malformed input and on
+/// Reads a URScript program. Throws calib::InputError (file:line:column) on malformed input and on
 /// an unreadable or binary file.
 Program readUrScript(const std::string& path);
 /// The same from text (`path` names it in messages).
@@ -97,20 +97,20 @@ Program parseUrScript(const std::string& text, const std::string& path);
 /// than half of that keeps its text) and the motions marked `inserted` (a copy of their
 /// anchor statement with inline p[...] targets, on the line before it). Any other program is
 /// written as a new script (def NAME(): ... end) with its targets converted into the Base
-/// frame. Throws ArgumentError naming the motion when the program cannot be written: one
+/// frame. Throws calib::ArgumentError naming the motion when the program cannot be written: one
 /// literal needing two different corrections, a frame or target that is not known, a motion
 /// URScript has no form for (SPL, relative motions, CIRC with CA, external axes, an
 /// approximation other than C_DIS with its distance), a KRL statement that is not a motion.
 std::string writeUrScript(const Program& program);
 
 /// A program read from URScript made ready for another format (`format_name`: "KRL", "XML"):
-/// target names that are expressions (pose_trans(..)) cleared. Throws ArgumentError naming the
+/// target names that are expressions (pose_trans(..)) cleared. Throws calib::ArgumentError naming the
 /// first statement the other formats cannot carry (logic, I/O, calls, threads).
 Program urScriptForConversion(const Program& program, const char* format_name);
 
 /// p[x, y, z, rx, ry, rz] (metres, rotation vector in radians) of a pose (mm, deg), 7
 /// decimals; the rotation vector is the one of the two equivalent forms (angle in [0, pi] or
 /// its complement about the opposite axis) nearest to `near` (rad; zero: the short one).
-std::string urPoseText(const XyzAbc& pose, const double near_rotvec[3] = nullptr);
+std::string urPoseText(const calib::XyzAbc& pose, const double near_rotvec[3] = nullptr);
 
 }  // namespace accura::postproc
