@@ -471,9 +471,8 @@ TEST(UrScript, BatchAndCheckInTheCell) {
   const test::CliRun b = test::runAccuraIn(dir, "batch --robot ur10 --in in --out out --jobs 1");
   ASSERT_EQ(b.code, 0) << b.err;
   EXPECT_EQ(test::readText(dir + "/out/cell2/seam.script"), example());  // the nominal robot: nothing to correct
-  const test::CliRun c = test::runAccuraIn(test::sourcePath("examples"), "check --robot ur10 --cell " +
-                                                                             test::sourcePath("tests/data/urscript/ur10_table_cell.xml") +
-                                                                             " --in ur10_seam.script --json " + dir + "/check.json");
+  const test::CliRun c = test::runAccuraIn(dir, "check --robot ur10 --cell " + test::sourcePath("tests/data/urscript/ur10_table_cell.xml") +
+                                                    " --in " + test::sourcePath("examples/ur10_seam.script") + " --json check.json");
   ASSERT_EQ(c.code, 0) << c.err;
   EXPECT_NE(c.out.find("smallest clearance 94.403 mm"), std::string::npos) << c.out;
   EXPECT_NEAR(std::sqrt(30.0 * 30.0 + 100.0 * 100.0) - 10, 94.403, 5e-4);
