@@ -23,6 +23,7 @@ std::string frameHint(const FrameSetting& f, const char* var) {
   std::string s = std::string(var) + " ";
   switch (f.source) {
     case FrameSetting::Source::kUnset:
+      if (!f.note.empty()) return f.note;  // the reader's own hint (URScript: set_tcp)
       return s + "is not set before this motion (assign " + var + " or use BAS(#" + (std::string(var) == "$TOOL" ? "TOOL" : "BASE") +
              ",n) in the program, or give the frame active on the controller with " +
              (std::string(var) == "$TOOL" ? "--program-tool" : "--program-base") + " x,y,z,A,B,C)";

@@ -5,6 +5,7 @@
 
 #include "accura/calib/errors.h"
 #include "accura/postproc/krl.h"
+#include "accura/postproc/urscript.h"
 #include "accura/postproc/xml_program.h"
 
 namespace fs = std::filesystem;
@@ -16,12 +17,21 @@ ProgramFormat programFormat(const std::string& path) {
   for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
   if (ext == ".src") return ProgramFormat::kKrl;
   if (ext == ".xml") return ProgramFormat::kXml;
-  throw calib::InputError(path + ": expected a program file ending in .src (KUKA KRL) or .xml (accura XML program), found '" +
+  if (ext == ".script") return ProgramFormat::kUrScript;
+  throw calib::InputError(path + ": expected a program file ending in .src (KUKA KRL) or .xml (accura XML program) or .script (URScript), found '" +
                    fs::path(path).extension().string() + "'");
 }
 
 Program readProgram(const std::string& path, const ProgramReadOptions& options) {
-  if (programFormat(path) == ProgramFormat::kKrl) {
+  const ProgramFormat format = programFormat(path);
+  if (format == ProgramFormat::kUrScript) {
+    if (!options.dat_path.empty()) throw calib::InputError("--dat: only for KRL programs (.src), found the URScript program " + path);
+    if (!options.config_path.empty())
+      throw calib::InputError("--config: only for KRL and XML programs ($config.dat frames), found the URScript program " + path +
+                       " (its TCP comes from set_tcp or --program-tool)");
+    return readUrScript(path);
+  }
+  if (format == ProgramFormat::kKrl) {
     KrlReadOptions o;
     o.dat_path = options.dat_path;
     o.config_path = options.config_path;
@@ -37,6 +47,8 @@ Program readProgram(const std::string& path, const ProgramReadOptions& options) 
 
 std::vector<calib::OutputFile> renderProgram(const Program& program, ProgramFormat format, const std::string& path,
                                       const std::string& dat_path) {
+  if (format == ProgramFormat::kUrScript) return {{path, writeUrScript(program)}};
+  if (program.urscript) return renderProgram(urScriptForConversion(program, format == ProgramFormat::kXml ? "XML" : "KRL"), format, path, dat_path);
   if (format == ProgramFormat::kXml) {
     Program p = program;
     return {{path, writeXmlProgram(p)}};

@@ -184,7 +184,10 @@ struct XmlSource {
   size_t motions = 0;  ///< the motion count read
 };
 
-/// A program: the motion model, plus the KRL text when read from KRL.
+struct UrScriptSource;  // urscript.h
+
+/// A program: the motion model, plus the source text it was read from (KRL, XML or URScript),
+/// for writing it back with only the corrected numbers and inserted points changed.
 struct Program {
   std::string name;    ///< program name (KRL DEF name, XML name attribute)
   std::string robot;   ///< robot name (XML; empty when not given)
@@ -193,6 +196,7 @@ struct Program {
   std::vector<PassThrough> passthrough;
   std::shared_ptr<const KrlSource> krl;  ///< set by the KRL reader
   std::shared_ptr<const XmlSource> xml;  ///< set by the XML reader
+  std::shared_ptr<const UrScriptSource> urscript;  ///< set by the URScript reader (urscript.h)
   std::string source_file;               ///< the file the program was read from
 };
 

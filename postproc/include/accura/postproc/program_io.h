@@ -1,5 +1,5 @@
 // accura post-processor: reading and writing programs in either format, chosen by the file
-// extension (.src: KUKA KRL with its .dat; .xml: the XML program format).
+// extension (.src: KUKA KRL with its .dat; .xml: the XML program format; .script: URScript).
 #pragma once
 
 #include <string>
@@ -10,9 +10,10 @@
 
 namespace accura::postproc {
 
-enum class ProgramFormat { kKrl, kXml };
+enum class ProgramFormat { kKrl, kXml, kUrScript };
 
-/// The format of a program file by its extension (case-insensitive): .src -> KRL, .xml -> XML.
+/// The format of a program file by its extension (case-insensitive): .src -> KRL, .xml -> XML,
+/// .script -> URScript (urscript.h).
 /// Throws InputError for any other extension.
 ProgramFormat programFormat(const std::string& path);
 
@@ -28,7 +29,9 @@ Program readProgram(const std::string& path, const ProgramReadOptions& options =
 
 /// The files of `program` written as `format`: XML -> `path`; KRL -> `path` (the .src) and
 /// `dat_path` (empty: `path` with the extension .dat) when the program has a .dat (a program
-/// read from KRL without .dat gets none; a new KRL program always gets one). Throws
+/// read from KRL without .dat gets none; a new KRL program always gets one); URScript ->
+/// `path` (urscript.h, writeUrScript; a program read from URScript goes into another format
+/// only when it holds nothing but motions, set_tcp and pose assignments). Throws
 /// ArgumentError when the program cannot be written in that format.
 std::vector<calib::OutputFile> renderProgram(const Program& program, ProgramFormat format, const std::string& path,
                                       const std::string& dat_path = "");

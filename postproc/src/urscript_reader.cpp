@@ -1,0 +1,694 @@
+// URScript reader (see urscript.h): tokens, statements, the motion model.
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <optional>
+
+#include "accura/calib/errors.h"
+#include "urscript_internal.h"
+
+namespace fs = std::filesystem;
+
+namespace accura::postproc {
+
+namespace ur_detail {
+
+Eigen::Isometry3d poseOf(const double v[6]) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.translation() = Eigen::Vector3d(v[0], v[1], v[2]) * 1000.0;
+  const Eigen::Vector3d r(v[3], v[4], v[5]);
+  const double angle = r.norm();
+  if (angle > 0) T.linear() = Eigen::AngleAxisd(angle, r / angle).toRotationMatrix();
+  return T;
+}
+
+Eigen::Isometry3d poseAdd(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.translation() = a.translation() + b.translation();
+  T.linear() = a.linear() * b.linear();
+  return T;
+}
+
+Eigen::Isometry3d evaluate(const UrScriptSource& src, int id, const std::map<int, Eigen::Isometry3d>* override) {
+  const UrScriptSource::Expr& e = src.exprs.at(static_cast<size_t>(id));
+  switch (e.kind) {
+    case UrScriptSource::Expr::Kind::kLiteral: {
+      if (override) {
+        const auto it = override->find(e.literal);
+        if (it != override->end()) return it->second;
+      }
+      return poseOf(src.literals.at(static_cast<size_t>(e.literal)).value);
+    }
+    case UrScriptSource::Expr::Kind::kTrans: return evaluate(src, e.a, override) * evaluate(src, e.b, override);
+    case UrScriptSource::Expr::Kind::kAdd: return poseAdd(evaluate(src, e.a, override), evaluate(src, e.b, override));
+  }
+  return Eigen::Isometry3d::Identity();
+}
+
+}  // namespace ur_detail
+
+namespace {
+
+using namespace ur_detail;
+
+struct Tok {
+  enum class Kind { kIdent, kNumber, kString, kOp, kNewline };
+  Kind kind = Kind::kOp;
+  size_t b = 0, e = 0;
+  std::string s;
+  double num = 0;
+};
+
+bool isIdentStart(char c) { return std::isalpha(static_cast<unsigned char>(c)) || c == '_'; }
+bool isIdentChar(char c) { return std::isalnum(static_cast<unsigned char>(c)) || c == '_'; }
+bool isDigit(char c) { return std::isdigit(static_cast<unsigned char>(c)) != 0; }
+
+/// A pose expression evaluated: its expression index (or why it cannot be evaluated).
+struct PoseVal {
+  int expr = -1;
+  int literal = -1;      ///< the literal a correction is written into (the right-most one)
+  std::string problem;   ///< non-empty: not evaluable
+};
+
+struct Var {
+  enum class Kind { kPose, kJoints, kOther };
+  Kind kind = Kind::kOther;
+  PoseVal pose;
+  std::array<double, 6> q{};
+  std::string problem;
+};
+
+constexpr double kMaxPositionM = 100;   // beyond any robot: a typo (mm written as m)
+constexpr double kMaxRotationRad = 100;
+constexpr double kMaxJointRad = 100;
+
+class Reader {
+ public:
+  Reader(const std::string& text, const std::string& path) : src_(std::make_shared<UrScriptSource>()) {
+    src_->path = path;
+    src_->text = text;
+    line_starts_.push_back(0);
+    for (size_t i = 0; i < text.size(); ++i)
+      if (text[i] == '\n') line_starts_.push_back(i + 1);
+  }
+
+  Program run() {
+    lex();
+    Program p;
+    p.source_file = src_->path;
+    p.name = fs::path(src_->path).stem().string();
+    tool_.source = FrameSetting::Source::kUnset;
+    tool_.note = "the TCP is not set before this motion (call set_tcp(p[...]) first, or give the TCP active on the controller with --program-tool x,y,z,A,B,C)";
+    base_.source = FrameSetting::Source::kNull;
+    base_.value = calib::XyzAbc{};
+    base_.text = "Base";
+    size_t i = 0;
+    while (i < toks_.size()) {
+      if (toks_[i].kind == Tok::Kind::kNewline) {
+        ++i;
+        continue;
+      }
+      size_t j = i;
+      std::vector<size_t> open;
+      while (j < toks_.size() && !(toks_[j].kind == Tok::Kind::kNewline && open.empty())) {
+        const Tok& t = toks_[j];
+        if (t.kind == Tok::Kind::kOp && (t.s == "(" || t.s == "[" || t.s == "{")) open.push_back(j);
+        if (t.kind == Tok::Kind::kOp && (t.s == ")" || t.s == "]" || t.s == "}")) {
+          if (open.empty()) fail(t.b, "expected a statement, found an unmatched '" + t.s + "'");
+          const std::string& o = toks_[open.back()].s;
+          const std::string want = o == "(" ? ")" : o == "[" ? "]" : "}";
+          if (t.s != want)
+            fail(t.b, "expected '" + want + "' to close the '" + o + "' at " + loc(toks_[open.back()].b).str() + ", found '" + t.s + "'");
+          open.pop_back();
+        }
+        ++j;
+      }
+      if (!open.empty()) {
+        const Tok& o = toks_[open.back()];
+        fail(o.b, "expected '" + std::string(o.s == "(" ? ")" : o.s == "[" ? "]" : "}") + "' to close this '" + o.s +
+                      "', found the end of the file");
+      }
+      std::vector<Tok> st;
+      for (size_t k = i; k < j; ++k)
+        if (toks_[k].kind != Tok::Kind::kNewline) st.push_back(toks_[k]);
+      statement(st, p);
+      i = j;
+    }
+    if (!main_name_.empty()) p.name = main_name_;
+    p.urscript = src_;
+    return p;
+  }
+
+ private:
+  SourceLocation loc(size_t off) const {
+    const auto it = std::upper_bound(line_starts_.begin(), line_starts_.end(), off);
+    const size_t line = static_cast<size_t>(it - line_starts_.begin());
+    SourceLocation l;
+    l.file = src_->path;
+    l.line = static_cast<int>(line);
+    l.column = static_cast<int>(off - line_starts_[line - 1]) + 1;
+    return l;
+  }
+
+  [[noreturn]] void fail(size_t off, const std::string& msg) const {
+    const SourceLocation l = loc(off);
+    throw calib::InputError(l.file, l.line, l.column, msg);
+  }
+
+  std::string textOf(size_t b, size_t e) const { return src_->text.substr(b, e - b); }
+  std::string textOf(const std::vector<Tok>& t, size_t i, size_t j) const {
+    return i < j ? textOf(t[i].b, t[j - 1].e) : std::string();
+  }
+
+  void lex() {
+    const std::string& s = src_->text;
+    size_t i = 0;
+    while (i < s.size()) {
+      const char c = s[i];
+      if (c == '\0') fail(i, "expected a URScript text file, found a NUL byte (binary file?)");
+      if (c == '#') {
+        while (i < s.size() && s[i] != '\n') ++i;
+        continue;
+      }
+      if (c == '\n') {
+        toks_.push_back({Tok::Kind::kNewline, i, i + 1, "\n", 0});
+        ++i;
+        continue;
+      }
+      if (c == ' ' || c == '\t' || c == '\r' || c == '\f' || c == '\v') {
+        ++i;
+        continue;
+      }
+      Tok t;
+      t.b = i;
+      if (isDigit(c) || (c == '.' && i + 1 < s.size() && isDigit(s[i + 1]))) {
+        size_t j = i;
+        while (j < s.size() && isDigit(s[j])) ++j;
+        if (j < s.size() && s[j] == '.') ++j;
+        while (j < s.size() && isDigit(s[j])) ++j;
+        if (j < s.size() && (s[j] == 'e' || s[j] == 'E')) {
+          size_t k = j + 1;
+          if (k < s.size() && (s[k] == '+' || s[k] == '-')) ++k;
+          if (k < s.size() && isDigit(s[k])) {
+            while (k < s.size() && isDigit(s[k])) ++k;
+            j = k;
+          } else {
+            fail(j, "expected the digits of an exponent, found '" + s.substr(j, std::min<size_t>(k + 1, s.size()) - j) + "'");
+          }
+        }
+        t.kind = Tok::Kind::kNumber;
+        t.e = j;
+        t.s = s.substr(i, j - i);
+        t.num = std::strtod(t.s.c_str(), nullptr);
+        if (!std::isfinite(t.num)) fail(i, "expected a finite number, found '" + t.s + "'");
+      } else if (isIdentStart(c)) {
+        size_t j = i;
+        while (j < s.size() && isIdentChar(s[j])) ++j;
+        t.kind = Tok::Kind::kIdent;
+        t.e = j;
+        t.s = s.substr(i, j - i);
+      } else if (c == '"') {
+        size_t j = i + 1;
+        while (j < s.size() && s[j] != '"' && s[j] != '\n') j += s[j] == '\\' && j + 1 < s.size() && s[j + 1] != '\n' ? 2 : 1;
+        if (j >= s.size() || s[j] != '"') fail(i, "expected the closing '\"' of this string on its line, found the end of the line");
+        t.kind = Tok::Kind::kString;
+        t.e = j + 1;
+        t.s = s.substr(i, t.e - i);
+      } else {
+        size_t n = 1;
+        if (i + 1 < s.size() && s[i + 1] == '=' && (c == '=' || c == '!' || c == '<' || c == '>')) n = 2;
+        t.kind = Tok::Kind::kOp;
+        t.e = i + n;
+        t.s = s.substr(i, n);
+      }
+      i = t.e;
+      toks_.push_back(t);
+    }
+  }
+
+  static bool isOp(const std::vector<Tok>& t, size_t i, const char* s) {
+    return i < t.size() && t[i].kind == Tok::Kind::kOp && t[i].s == s;
+  }
+  static bool isIdent(const std::vector<Tok>& t, size_t i, const char* s = nullptr) {
+    return i < t.size() && t[i].kind == Tok::Kind::kIdent && (!s || t[i].s == s);
+  }
+
+  /// The index one past the bracket that closes the one at `i` (the statement is balanced).
+  static size_t closing(const std::vector<Tok>& t, size_t i) {
+    int depth = 0;
+    for (size_t k = i; k < t.size(); ++k) {
+      if (t[k].kind != Tok::Kind::kOp) continue;
+      if (t[k].s == "(" || t[k].s == "[" || t[k].s == "{") ++depth;
+      if (t[k].s == ")" || t[k].s == "]" || t[k].s == "}") {
+        if (--depth == 0) return k + 1;
+      }
+    }
+    return t.size();
+  }
+
+  /// The comma-separated items of [i, j) at depth 0, as index ranges.
+  static std::vector<std::pair<size_t, size_t>> items(const std::vector<Tok>& t, size_t i, size_t j) {
+    std::vector<std::pair<size_t, size_t>> out;
+    if (i >= j) return out;
+    size_t start = i;
+    int depth = 0;
+    for (size_t k = i; k < j; ++k) {
+      if (t[k].kind == Tok::Kind::kOp) {
+        if (t[k].s == "(" || t[k].s == "[" || t[k].s == "{") ++depth;
+        if (t[k].s == ")" || t[k].s == "]" || t[k].s == "}") --depth;
+        if (depth == 0 && t[k].s == ",") {
+          out.push_back({start, k});
+          start = k + 1;
+        }
+      }
+    }
+    out.push_back({start, j});
+    return out;
+  }
+
+  /// A signed number written as one item ([+|-] number), else nullopt.
+  static std::optional<double> number(const std::vector<Tok>& t, size_t i, size_t j) {
+    if (j == i + 1 && t[i].kind == Tok::Kind::kNumber) return t[i].num;
+    if (j == i + 2 && t[i + 1].kind == Tok::Kind::kNumber && (isOp(t, i, "-") || isOp(t, i, "+")))
+      return t[i].s == "-" ? -t[i + 1].num : t[i + 1].num;
+    return std::nullopt;
+  }
+
+  int addExpr(UrScriptSource::Expr e) {
+    src_->exprs.push_back(e);
+    return static_cast<int>(src_->exprs.size()) - 1;
+  }
+
+  /// The pose expression [i, j) of statement t.
+  PoseVal pose(const std::vector<Tok>& t, size_t i, size_t j) {
+    PoseVal v;
+    const std::string text = textOf(t, i, j);
+    if (i >= j) {
+      v.problem = "an empty pose";
+      return v;
+    }
+    if (isIdent(t, i, "p") && isOp(t, i + 1, "[") && closing(t, i + 1) == j) {
+      const auto parts = items(t, i + 2, j - 1);
+      if (parts.size() != 6 || (parts.size() == 1 && parts[0].first == parts[0].second))
+        fail(t[i].b, "expected p[x, y, z, rx, ry, rz] with 6 numbers, found " + std::to_string(i + 2 == j - 1 ? 0 : parts.size()) +
+                         " in '" + text + "'");
+      UrScriptSource::Literal lit;
+      lit.begin = t[i].b;
+      lit.end = t[j - 1].e;
+      for (int k = 0; k < 6; ++k) {
+        const auto [a, b] = parts[static_cast<size_t>(k)];
+        if (a == b) fail(a < j ? t[a].b : t[j - 1].b, "expected a number in p[...], found '" + (a < j ? t[a].s : std::string("]")) + "'");
+        const std::optional<double> n = number(t, a, b);
+        if (!n) {
+          v.problem = "p[...] at " + loc(t[i].b).str() + " has a component that is not a number ('" + textOf(t, a, b) + "')";
+          return v;
+        }
+        const double lim = k < 3 ? kMaxPositionM : kMaxRotationRad;
+        if (std::abs(*n) > lim)
+          fail(t[a].b, std::string("expected ") + (k < 3 ? "a position in metres" : "a rotation vector component in radians") +
+                           " within +-" + calib::formatFixed(lim, 0) + ", found " + textOf(t, a, b));
+        lit.number[k] = {t[a].b, t[b - 1].e};
+        lit.value[k] = *n;
+      }
+      src_->literals.push_back(lit);
+      v.literal = static_cast<int>(src_->literals.size()) - 1;
+      UrScriptSource::Expr e;
+      e.literal = v.literal;
+      v.expr = addExpr(e);
+      return v;
+    }
+    if (j == i + 1 && t[i].kind == Tok::Kind::kIdent) {
+      const auto it = vars_.find(t[i].s);
+      if (it == vars_.end()) {
+        v.problem = "'" + t[i].s + "' is not assigned a pose before this line";
+        return v;
+      }
+      refs_.push_back(t[i].s);
+      if (it->second.kind == Var::Kind::kPose) return it->second.pose;
+      v.problem = it->second.problem.empty() ? "'" + t[i].s + "' is not a pose" : it->second.problem;
+      return v;
+    }
+    if (t[i].kind == Tok::Kind::kIdent && isOp(t, i + 1, "(") && closing(t, i + 1) == j) {
+      const std::string& f = t[i].s;
+      if (f == "pose_trans" || f == "pose_add") {
+        const auto args = items(t, i + 2, j - 1);
+        if (args.size() != 2) fail(t[i].b, "expected " + f + "(pose, pose) with 2 arguments, found " + std::to_string(args.size()));
+        const PoseVal a = pose(t, args[0].first, args[0].second);
+        const PoseVal b = pose(t, args[1].first, args[1].second);
+        if (!a.problem.empty() || !b.problem.empty()) {
+          v.problem = f + "(...) at " + loc(t[i].b).str() + " cannot be evaluated: " + (a.problem.empty() ? b.problem : a.problem);
+          return v;
+        }
+        UrScriptSource::Expr e;
+        e.kind = f == "pose_trans" ? UrScriptSource::Expr::Kind::kTrans : UrScriptSource::Expr::Kind::kAdd;
+        e.a = a.expr;
+        e.b = b.expr;
+        v.expr = addExpr(e);
+        v.literal = b.literal >= 0 ? b.literal : a.literal;
+        return v;
+      }
+      v.problem = f + "(...) is computed by the controller at run time (accura evaluates p[...], pose variables, pose_trans and pose_add)";
+      return v;
+    }
+    v.problem = "'" + text + "' is not a pose accura can evaluate (p[...], a pose variable, pose_trans, pose_add)";
+    return v;
+  }
+
+  /// Joint positions [q1..q6] (rad) written as a list or a variable holding one.
+  std::optional<std::array<double, 6>> joints(const std::vector<Tok>& t, size_t i, size_t j, std::string* problem) {
+    if (isOp(t, i, "[") && closing(t, i) == j) {
+      const auto parts = items(t, i + 1, j - 1);
+      if (parts.size() != 6) fail(t[i].b, "expected 6 joint positions [q1, .., q6] (rad), found " + std::to_string(parts.size()));
+      std::array<double, 6> q{};
+      for (int k = 0; k < 6; ++k) {
+        if (parts[k].first == parts[k].second) fail(t[parts[k].first].b, "expected a joint position, found '" + t[parts[k].first].s + "'");
+        const std::optional<double> n = number(t, parts[k].first, parts[k].second);
+        if (!n) {
+          *problem = "the joint list at " + loc(t[i].b).str() + " has a value that is not a number ('" +
+                     textOf(t, parts[k].first, parts[k].second) + "')";
+          return std::nullopt;
+        }
+        if (std::abs(*n) > kMaxJointRad)
+          fail(t[parts[k].first].b, "expected a joint position in radians within +-100, found " + textOf(t, parts[k].first, parts[k].second));
+        q[static_cast<size_t>(k)] = *n;
+      }
+      return q;
+    }
+    if (j == i + 1 && t[i].kind == Tok::Kind::kIdent) {
+      const auto it = vars_.find(t[i].s);
+      refs_.push_back(t[i].s);
+      if (it != vars_.end() && it->second.kind == Var::Kind::kJoints) return it->second.q;
+    }
+    *problem = "'" + textOf(t, i, j) + "' is not a joint list accura can evaluate";
+    return std::nullopt;
+  }
+
+  bool looksLikeJoints(const std::vector<Tok>& t, size_t i, size_t j) const {
+    if (isOp(t, i, "[") && closing(t, i) == j) return true;
+    if (j == i + 1 && t[i].kind == Tok::Kind::kIdent) {
+      const auto it = vars_.find(t[i].s);
+      return it != vars_.end() && it->second.kind == Var::Kind::kJoints;
+    }
+    return false;
+  }
+
+  void other(const std::vector<Tok>& t) {
+    UrScriptSource::Other o;
+    o.where = loc(t.front().b);
+    o.text = textOf(t, 0, t.size());
+    src_->others.push_back(o);
+  }
+
+  void statement(const std::vector<Tok>& t, Program& p) {
+    // blocks: the first def at depth 0 is the program; its def and end are part of the model
+    if (isIdent(t, 0, "def") || isIdent(t, 0, "thread") || isIdent(t, 0, "if") || isIdent(t, 0, "while")) {
+      if (isIdent(t, 0, "def") && block_depth_ == 0 && main_name_.empty() && isIdent(t, 1)) {
+        main_name_ = t[1].s;
+        main_open_ = true;
+      } else {
+        other(t);
+      }
+      ++block_depth_;
+      blocks_.push_back(isIdent(t, 0, "while") ? ++loops_ : 0);
+      return;
+    }
+    if (isIdent(t, 0, "end") && t.size() == 1) {
+      if (block_depth_ > 0) --block_depth_;
+      if (!blocks_.empty()) blocks_.pop_back();
+      if (block_depth_ == 0 && main_open_) {
+        main_open_ = false;
+        return;
+      }
+      other(t);
+      return;
+    }
+    size_t s = 0;
+    if (isIdent(t, 0, "global") || isIdent(t, 0, "local")) s = 1;
+    if (isIdent(t, s) && isOp(t, s + 1, "=")) return assignment(t, s, p);
+    if (isIdent(t, 0) && isOp(t, 1, "(")) {
+      const std::string& f = t[0].s;
+      if (f == "movel" || f == "movej" || f == "movep" || f == "movec" || f == "set_tcp") {
+        const size_t close = closing(t, 1);
+        if (close != t.size()) fail(t[close].b, "expected the end of the statement after " + f + "(...), found '" + t[close].s + "'");
+        if (f == "set_tcp") return setTcp(t);
+        return motion(t, p);
+      }
+    }
+    other(t);
+  }
+
+  bool mentions(const std::vector<Tok>& t, size_t i, size_t j, const std::string& name) const {
+    for (size_t k = i; k < j; ++k)
+      if (t[k].kind == Tok::Kind::kIdent && t[k].s == name) return true;
+    return false;
+  }
+
+  /// The loops (while) open at this statement.
+  std::vector<int> openLoops() const {
+    std::vector<int> out;
+    for (int b : blocks_)
+      if (b > 0) out.push_back(b);
+    return out;
+  }
+
+  void assignment(const std::vector<Tok>& t, size_t s, Program& p) {
+    const std::string name = t[s].s;
+    // a motion earlier in an enclosing loop that uses the variable sees this value on the next
+    // pass, not the one it was read with
+    const std::vector<int> loops = openLoops();
+    for (const Use& u : uses_) {
+      if (u.var != name) continue;
+      bool same_loop = false;
+      for (int l : u.loops) same_loop = same_loop || std::find(loops.begin(), loops.end(), l) != loops.end();
+      Motion& m = p.motions[u.motion];
+      if (same_loop && m.target_problem.empty())
+        m.target_problem = "'" + name + "' is assigned again at " + loc(t[s].b).str() +
+                           " in the loop that runs this motion: its value on the next pass is not the one it has here";
+    }
+    const size_t i = s + 2, j = t.size();
+    Var v;
+    const auto prev = vars_.find(name);
+    const bool was_model = prev != vars_.end() && prev->second.kind != Var::Kind::kOther;
+    const bool pose_like = (isIdent(t, i, "p") && isOp(t, i + 1, "[")) || isIdent(t, i, "pose_trans") || isIdent(t, i, "pose_add") ||
+                           (j == i + 1 && t[i].kind == Tok::Kind::kIdent && vars_.count(t[i].s) && vars_.at(t[i].s).kind == Var::Kind::kPose);
+    if (i >= j) fail(t[s + 1].b, "expected a value after '=', found the end of the statement");
+    if (mentions(t, i, j, name) && (pose_like || was_model)) {
+      v.problem = "'" + name + "' is changed at run time at " + loc(t[s].b).str() + " (" + textOf(t, s, j) + ")";
+      other(t);
+    } else if (pose_like) {
+      v.kind = Var::Kind::kPose;
+      v.pose = pose(t, i, j);
+      if (!v.pose.problem.empty()) other(t);
+    } else if (isOp(t, i, "[") && closing(t, i) == j && items(t, i + 1, j - 1).size() == 6) {
+      std::string problem;
+      const auto q = joints(t, i, j, &problem);
+      if (q) {
+        v.kind = Var::Kind::kJoints;
+        v.q = *q;
+      } else {
+        v.problem = problem;
+        other(t);
+      }
+    } else {
+      v.problem = "'" + name + "' is assigned '" + textOf(t, i, j) + "' at " + loc(t[s].b).str() + ", which accura cannot evaluate";
+      other(t);
+    }
+    vars_[name] = v;
+  }
+
+  void setTcp(const std::vector<Tok>& t) {
+    const auto args = items(t, 2, t.size() - 1);
+    if (args.size() != 1 || args[0].first == args[0].second)
+      fail(t[0].b, "expected set_tcp(pose) with 1 argument, found " + std::to_string(args[0].first == args[0].second ? 0 : args.size()));
+    const PoseVal v = pose(t, args[0].first, args[0].second);
+    FrameSetting f;
+    f.where = loc(t[0].b);
+    f.text = textOf(t, args[0].first, args[0].second);
+    if (v.problem.empty()) {
+      f.source = FrameSetting::Source::kInline;
+      f.value = calib::toXyzAbc(evaluate(*src_, v.expr));
+    } else {
+      f.source = FrameSetting::Source::kUnknown;
+      f.note = v.problem;
+    }
+    tool_ = f;
+  }
+
+  Target target(const std::vector<Tok>& t, size_t i, size_t j, const PoseVal& v) {
+    Target tg;
+    tg.kind = Target::Kind::kCartesian;
+    tg.where = loc(t[i].b);
+    if (!(isIdent(t, i, "p") && isOp(t, i + 1, "["))) tg.name = textOf(t, i, j);
+    if (v.problem.empty()) {
+      tg.setPose(calib::toXyzAbc(evaluate(*src_, v.expr)));
+      tg.value_id = v.literal;
+    }
+    return tg;
+  }
+
+  void motion(const std::vector<Tok>& t, Program& p) {
+    const std::string f = t[0].s;
+    static const std::map<std::string, std::vector<std::string>> params = {
+        {"movel", {"pose", "a", "v", "t", "r"}},
+        {"movep", {"pose", "a", "v", "r"}},
+        {"movej", {"q", "a", "v", "t", "r"}},
+        {"movec", {"pose_via", "pose_to", "a", "v", "r", "mode"}}};
+    const std::vector<std::string>& names = params.at(f);
+    refs_.clear();
+    std::map<std::string, std::pair<size_t, size_t>> arg;
+    const auto list = items(t, 2, t.size() - 1);
+    size_t positional = 0;
+    bool named_seen = false;
+    for (const auto& [a, b] : list) {
+      if (a == b) fail(a < t.size() ? t[a].b : t.back().b, "expected an argument of " + f + ", found an empty one");
+      if (isIdent(t, a) && isOp(t, a + 1, "=")) {
+        const std::string& n = t[a].s;
+        if (std::find(names.begin(), names.end(), n) == names.end()) {
+          std::string all;
+          for (const auto& x : names) all += (all.empty() ? "" : ", ") + x;
+          fail(t[a].b, "expected an argument of " + f + " (" + all + "), found '" + n + "'");
+        }
+        if (arg.count(n)) fail(t[a].b, "expected each argument of " + f + " once, found '" + n + "' given twice");
+        if (a + 2 >= b) fail(t[a + 1].b, "expected a value after '" + n + "=', found none");
+        arg[n] = {a + 2, b};
+        named_seen = true;
+      } else {
+        if (named_seen) fail(t[a].b, "expected a named argument (name=value) after a named one, found '" + textOf(t, a, b) + "'");
+        if (positional >= names.size())
+          fail(t[a].b, "expected at most " + std::to_string(names.size()) + " arguments of " + f + ", found '" + textOf(t, a, b) + "'");
+        arg[names[positional++]] = {a, b};
+      }
+    }
+    Motion m;
+    m.where = loc(t[0].b);
+    m.statement = textOf(t, 0, t.size());
+    m.tool = tool_;
+    m.base = base_;
+    m.type = f == "movej" ? MotionType::kPtp : f == "movec" ? MotionType::kCirc : MotionType::kLin;
+    UrScriptSource::Statement st;
+    st.code_begin = t.front().b;
+    st.code_end = t.back().e;
+    st.line_begin = line_starts_[static_cast<size_t>(m.where.line - 1)];
+    const size_t nl = src_->text.find('\n', st.code_end);
+    st.eol = nl == std::string::npos ? "" : (nl > 0 && src_->text[nl - 1] == '\r' ? "\r\n" : "\n");
+    auto number_arg = [&](const std::string& n, double lo, double hi, const char* what) -> std::optional<double> {
+      const auto it = arg.find(n);
+      if (it == arg.end()) return std::nullopt;
+      const std::optional<double> x = number(t, it->second.first, it->second.second);
+      if (x && !(*x >= lo && *x <= hi))
+        fail(t[it->second.first].b, "expected " + std::string(what) + ", found " + textOf(t, it->second.first, it->second.second));
+      return x;
+    };
+    number_arg("a", 0, 1e3, "an acceleration in [0, 1000]");
+    number_arg("t", 0, 1e6, "a time in [0, 1e6] s");
+    if (f == "movej") {
+      number_arg("v", 0, 1e3, "a joint speed in [0, 1000] rad/s");
+    } else {
+      m.vel_m_s = number_arg("v", 1e-9, 100, "a tool speed > 0 and <= 100 m/s");
+    }
+    if (arg.count("r")) {
+      const std::optional<double> r = number_arg("r", 0, 10, "a blend radius in [0, 10] m");
+      if (!r || *r > 0) {
+        m.approximation = {Approximation::kCDis};
+        if (r) m.approximation_value = *r * 1000.0;
+      }
+    }
+    const std::optional<double> mode = number_arg("mode", 0, 1, "mode 0 or 1");
+    if (mode && *mode != 0 && *mode != 1) fail(t[arg.at("mode").first].b, "expected mode 0 or 1, found " + calib::formatFixed(*mode, 4));
+    auto need = [&](const std::string& n) -> std::pair<size_t, size_t> {
+      const auto it = arg.find(n);
+      if (it == arg.end()) fail(t[0].b, "expected the argument '" + n + "' of " + f + ", found none");
+      return it->second;
+    };
+    auto cartesian = [&](std::pair<size_t, size_t> r) -> Target {
+      const PoseVal v = pose(t, r.first, r.second);
+      if (!v.problem.empty() && m.target_problem.empty()) m.target_problem = v.problem;
+      st.targets.push_back({t[r.first].b, t[r.second - 1].e});
+      st.target_expr.push_back(v.problem.empty() ? v.expr : -1);
+      return target(t, r.first, r.second, v);
+    };
+    if (f == "movec") {
+      m.aux = cartesian(need("pose_via"));
+      m.target = cartesian(need("pose_to"));
+      if (mode && *mode == 1 && m.target_problem.empty())
+        m.target_problem = "movec with mode=1 (orientation fixed to the arc's tangent), which accura does not model";
+    } else if (f == "movej") {
+      const auto r = need("q");
+      const size_t a = r.first, b = r.second;
+      if (isIdent(t, a, "get_inverse_kin") && isOp(t, a + 1, "(") && closing(t, a + 1) == b) {
+        const auto gi = items(t, a + 2, b - 1);
+        if (gi.empty() || gi[0].first == gi[0].second) fail(t[a].b, "expected get_inverse_kin(pose, ...), found no pose");
+        m.target = cartesian(gi[0]);
+      } else if (looksLikeJoints(t, a, b)) {
+        std::string problem;
+        const auto q = joints(t, a, b, &problem);
+        m.target.kind = Target::Kind::kAxis;
+        m.target.where = loc(t[a].b);
+        if (!isOp(t, a, "[")) m.target.name = textOf(t, a, b);
+        if (q) {
+          for (int k = 0; k < 6; ++k) m.target.axes[static_cast<size_t>(k)] = (*q)[static_cast<size_t>(k)] * calib::kRadToDeg;
+        } else {
+          m.target_problem = problem;
+        }
+        st.targets.push_back({t[a].b, t[b - 1].e});
+        st.target_expr.push_back(-1);
+      } else {
+        m.target = cartesian(r);
+      }
+    } else {
+      const auto r = need("pose");
+      if (looksLikeJoints(t, r.first, r.second)) {
+        m.target.where = loc(t[r.first].b);
+        m.target.name = textOf(t, r.first, r.second);
+        m.target_problem = "joint positions given to " + f +
+                           " (the controller moves to their forward kinematics): write the target as a pose p[...] to compensate it";
+        st.targets.push_back({t[r.first].b, t[r.second - 1].e});
+        st.target_expr.push_back(-1);
+      } else {
+        m.target = cartesian(r);
+      }
+    }
+    for (const std::string& v : refs_) uses_.push_back({p.motions.size(), v, openLoops()});
+    m.statement_id = static_cast<int>(src_->statements.size());
+    src_->statements.push_back(st);
+    p.motions.push_back(m);
+  }
+
+  std::shared_ptr<UrScriptSource> src_;
+  std::vector<size_t> line_starts_;
+  std::vector<Tok> toks_;
+  std::map<std::string, Var> vars_;
+  FrameSetting tool_, base_;
+  std::string main_name_;
+  bool main_open_ = false;
+  int block_depth_ = 0;
+  std::vector<int> blocks_;  ///< open blocks: a loop id (while) or 0
+  int loops_ = 0;
+  struct Use {
+    size_t motion;
+    std::string var;
+    std::vector<int> loops;
+  };
+  std::vector<Use> uses_;          ///< variables the motions' targets read
+  std::vector<std::string> refs_;  ///< variables read by the motion being parsed
+};
+
+}  // namespace
+
+Program parseUrScript(const std::string& text, const std::string& path) { return Reader(text, path).run(); }
+
+Program readUrScript(const std::string& path) {
+  std::error_code ec;
+  if (!fs::is_regular_file(path, ec)) throw calib::InputError(path, 0, 0, "cannot read the URScript program: no such file");
+  std::ifstream f(path, std::ios::binary);
+  if (!f) throw calib::InputError(path, 0, 0, "cannot read the URScript program");
+  std::string text((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  if (f.bad()) throw calib::InputError(path, 0, 0, "cannot read the URScript program");
+  return parseUrScript(text, path);
+}
+
+}  // namespace accura::postproc
