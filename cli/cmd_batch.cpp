@@ -133,7 +133,7 @@ void addBatchCommand(CLI::App& app) {
   c->add_option("--in", args->in, "directory of programs (read only)")->required();
   c->add_option("--out", args->out, "output directory (the same relative paths); not inside --in")->required();
   c->add_option("--config", args->config, "$config.dat for every program: TOOL_DATA, BASE_DATA, global points");
-  c->add_option("--jobs", args->jobs, "programs compensated in parallel (default: the number of cores)")->capture_default_str();
+  addIntegerOption(c, "--jobs", args->jobs, "programs compensated in parallel (default: the number of cores)", 1, 1024)->capture_default_str();
   c->add_option("--json", args->json, "report of every program (with --cell: its check)");
   args->cell = addCellOptions(c, false, false);
   c->add_flag("--warn-only", args->warn_only, "with --cell: write the programs that fail a check anyway (their report says so)");

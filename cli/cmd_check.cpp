@@ -95,10 +95,13 @@ std::function<std::optional<CellCheck>()> addCellOptions(CLI::App* c, bool requi
   CellArgs& a = *args;
   auto* o = c->add_option("--cell", a.cell, "cell file (docs/cell-format.md): meshes, robot placement, link and tool geometry, thresholds");
   if (required) o->required();
-  a.o_margin = c->add_option("--joint-margin-deg", a.joint_margin_deg, "required distance of every joint from its limits (deg; mm for prismatic); default: the cell file's, else 1");
-  a.o_singular = c->add_option("--singular-threshold", a.singular_threshold,
-                               "smallest allowed sigma_min of the scaled joint Jacobian (dimensionless, docs/checks.md); default: the cell file's, else 0.005");
-  a.o_clearance = c->add_option("--min-clearance-mm", a.min_clearance_mm, "required distance robot <-> cell meshes (mm); default: the cell file's, else 5");
+  a.o_margin = addNumberOption(c, "--joint-margin-deg", a.joint_margin_deg, "required distance of every joint from its limits (deg; mm for prismatic); default: the cell file's, else 1",
+                               NumberRange{0, 180, false, "deg"});
+  a.o_singular = addNumberOption(c, "--singular-threshold", a.singular_threshold,
+                               "smallest allowed sigma_min of the scaled joint Jacobian (dimensionless, docs/checks.md); default: the cell file's, else 0.005",
+                                 NumberRange{0, 1, false, ""});
+  a.o_clearance = addNumberOption(c, "--min-clearance-mm", a.min_clearance_mm, "required distance robot <-> cell meshes (mm); default: the cell file's, else 5",
+                                  NumberRange{0, 10000, false, "mm"});
   if (as_written_flag)
     c->add_flag("--as-written", a.as_written,
               "the program runs as written (already compensated): joints from the controller's nominal IK; default: its targets are where the tool must go (IK of the calibrated model)");

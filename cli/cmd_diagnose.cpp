@@ -37,8 +37,8 @@ struct DiagnoseArgs {
 
 int runDiagnose(const DiagnoseArgs& a) {
   RobotModel start = loadRobot(a.robot);
-  if (!a.base.empty()) start.nominal.T_world_base = toIsometry(parseXyzAbc(a.base, "--base"));
-  if (!a.tool.empty()) start.nominal.T_flange_tcp = toIsometry(parseXyzAbc(a.tool, "--tool"));
+  if (!a.base.empty()) start.nominal.T_world_base = toIsometry(parsePose6(a.base, "--base"));
+  if (!a.tool.empty()) start.nominal.T_flange_tcp = toIsometry(parseTool(a.tool, "--tool"));
   DiagnoseOptions o;
   if (!a.effects.empty()) o.effects = splitList(a.effects, "--effects");
   o.gear_harmonics = a.harmonics;
@@ -85,19 +85,22 @@ void addDiagnoseCommand(CLI::App& app) {
   c->add_option("--tool", a->tool, "nominal T_flange_tcp x,y,z[,A,B,C] (mm, deg), as for identify");
   c->add_option("--effects", a->effects,
                 "effects to test (default: the catalogue: joint_compliance, gear_periodic, joint_scale, backlash, thermal)");
-  c->add_option("--harmonics", a->harmonics, "harmonics 1..H of gear_periodic")->capture_default_str();
-  c->add_option("--folds", a->folds, "folds of the cross-validation without --validate")->capture_default_str();
-  c->add_option("--noise-mm", a->noise_mm,
-                "measurement noise, 1 sigma per axis (mm) (default: from repeated poses, else from the std columns)");
-  c->add_option("--alpha", a->alpha, "significance level of one selection round (Bonferroni over its blocks)")
+  addIntegerOption(c, "--harmonics", a->harmonics, "harmonics 1..H of gear_periodic", 1, kMaxGearHarmonics)->capture_default_str();
+  addIntegerOption(c, "--folds", a->folds, "folds of the cross-validation without --validate", 2, 20)->capture_default_str();
+  addNumberOption(c, "--noise-mm", a->noise_mm,
+                "measurement noise, 1 sigma per axis (mm) (default: from repeated poses, else from the std columns)",
+                NumberRange{0, 100, true, "mm"});
+  addNumberOption(c, "--alpha", a->alpha, "significance level of one selection round (Bonferroni over its blocks)", NumberRange{0, 0.5, true, ""})
       ->capture_default_str();
-  c->add_option("--repeat-tol", a->repeat_tol,
+  addNumberOption(c, "--repeat-tol", a->repeat_tol,
                 "two rows measure one joint configuration again when every joint agrees within this (deg; mm for "
-                "prismatic joints): the repeatability floor")
+                "prismatic joints): the repeatability floor",
+                  NumberRange{0, 1, true, "deg; mm for prismatic joints"})
       ->capture_default_str();
-  c->add_option("--robust-k", a->robust_k,
+  addNumberOption(c, "--robust-k", a->robust_k,
                 "robust estimation: rows whose residual exceeds k robust standard deviations are down-weighted "
-                "(Huber); 0 turns it off")
+                "(Huber); 0 turns it off",
+                  NumberRange{0, 1000, false, "robust standard deviations"})
       ->capture_default_str();
   c->add_option("--json", a->json, "write the diagnosis as JSON")->required();
   c->add_option("--report", a->report, "write the diagnosis as a self-contained HTML page");

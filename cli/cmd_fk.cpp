@@ -20,7 +20,7 @@ using nlohmann::ordered_json;
 
 int runFk(const FkArgs& a) {
   const RobotModel model = loadRobot(a.robot);
-  const std::vector<double> q = parseNumbers(a.q, "--q");
+  const std::vector<double> q = parseNumbers(a.q, "--q", NumberRange{-1e5, 1e5, false, "deg; mm for prismatic joints"});
   if (static_cast<int>(q.size()) != model.dof())
     throw InputError("--q: expected " + std::to_string(model.dof()) + " joint values for " +
                      model.nominal.name + ", found " + std::to_string(q.size()));
@@ -47,7 +47,7 @@ void addFkCommand(CLI::App& app) {
   auto* cfk = app.add_subcommand("fk", "print the tool pose at joint values (x,y,z mm; A,B,C deg)");
   cfk->add_option("--robot", fk->robot, "robot file or bundled robot name")->required();
   cfk->add_option("--q", fk->q, "joint values v1,...,vN (deg; mm for prismatic joints)")->required();
-  cfk->add_option("--payload-kg", fk->payload_kg, "payload mass (kg), for compliance models");
+  addNumberOption(cfk, "--payload-kg", fk->payload_kg, "payload mass (kg), for compliance models", kPayloadRange);
   cfk->callback([=]() { exitCode() = runFk(*fk); });
 }
 

@@ -31,8 +31,8 @@ int runIdentify(const IdentifyArgs& a) {
   } else if (a.form != "auto") {
     throw InputError("--form: expected 'auto' or 'dh', found '" + a.form + "'");
   }
-  if (!a.base.empty()) start.nominal.T_world_base = toIsometry(parseXyzAbc(a.base, "--base"));
-  if (!a.tool.empty()) start.nominal.T_flange_tcp = toIsometry(parseXyzAbc(a.tool, "--tool"));
+  if (!a.base.empty()) start.nominal.T_world_base = toIsometry(parsePose6(a.base, "--base"));
+  if (!a.tool.empty()) start.nominal.T_flange_tcp = toIsometry(parseTool(a.tool, "--tool"));
 
   if (a.validate_station != "same" && a.validate_station != "new")
     throw InputError("--validate-station: expected 'same' or 'new', found '" + a.validate_station + "'");
@@ -332,9 +332,10 @@ void addIdentifyCommand(CLI::App& app) {
                   "station (6 parameters each) unless --same-station")
       ->required();
   cid->add_flag("--same-station", id->same_station, "the --data files were measured from one tracker station");
-  cid->add_option("--map-smoothing", id->map_smoothing,
+  addNumberOption(cid, "--map-smoothing", id->map_smoothing,
                   "joint_map smoothness (relative weight of the second differences; default: chosen by blocked "
-                  "cross-validation on the fit data)");
+                  "cross-validation on the fit data)",
+                  NumberRange{0, 1e12, false, ""});
   cid->add_option("--validate", id->validate, "held-out measurement CSV (same station)");
   cid->add_option("--map", id->map, "mapping file: how to read --data (and --validate) as exported by the instrument");
   cid->add_option("--validate-map", id->validate_map, "mapping file for --validate when it differs from --map");
@@ -342,8 +343,9 @@ void addIdentifyCommand(CLI::App& app) {
                   "same: --validate was measured from the fit's station; new: re-register the station (6 "
                   "parameters) on it with the robot's parameters held fixed")
       ->capture_default_str();
-  cid->add_option("--holdout", id->holdout,
-                  "without --validate: fraction of the poses held out for validation (every k-th)")
+  addNumberOption(cid, "--holdout", id->holdout,
+                  "without --validate: fraction of the poses held out for validation (every k-th)",
+                  NumberRange{0, 0.5, false, ""})
       ->capture_default_str();
   cid->add_option("--base", id->base, "nominal T_world_base x,y,z,A,B,C (mm, deg)");
   cid->add_option("--tool", id->tool, "nominal T_flange_tcp x,y,z[,A,B,C] (mm, deg)");
@@ -356,9 +358,9 @@ void addIdentifyCommand(CLI::App& app) {
   cid->add_option("--form", id->form, "auto (Hayati for parallel axes) or dh (force classic DH)")
       ->capture_default_str();
   cid->add_option("--loss", id->loss, "robust loss: none, huber, cauchy")->capture_default_str();
-  cid->add_option("--loss-scale", id->loss_scale, "robust loss scale (residual sigmas)")->capture_default_str();
-  cid->add_option("--std-mm", id->std_mm, "position std (mm) when the data has no std columns");
-  cid->add_option("--std-deg", id->std_deg, "orientation std (deg) when the data has no std columns");
+  addNumberOption(cid, "--loss-scale", id->loss_scale, "robust loss scale (residual sigmas)", NumberRange{0, 1000, true, "sigmas"})->capture_default_str();
+  addNumberOption(cid, "--std-mm", id->std_mm, "position std (mm) when the data has no std columns", NumberRange{0, 1000, true, "mm"});
+  addNumberOption(cid, "--std-deg", id->std_deg, "orientation std (deg) when the data has no std columns", NumberRange{0, 180, true, "deg"});
   cid->add_option("--out", id->out, "calibrated model file to write")->required();
   cid->add_option("--json", id->json, "summary JSON to write");
   cid->add_flag("--quiet", id->quiet, "print only the summary line and the validation");

@@ -75,7 +75,9 @@ void writeTextAtomically(const std::string& path, const std::string& text);
 
 /// Splits "a,b,c" into trimmed items (empty items are an InputError naming `what`).
 std::vector<std::string> splitList(const std::string& text, const std::string& what);
-/// Parses a comma-separated list of numbers (InputError naming `what` on a bad item).
-std::vector<double> parseNumbers(const std::string& text, const std::string& what);
+/// Parses a comma-separated list of numbers, each within `r` (InputError naming `what` and
+/// what was expected on a bad item: cli_util.h parseNumber).
+struct NumberRange;
+std::vector<double> parseNumbers(const std::string& text, const std::string& what, const NumberRange& r);
 
 }  // namespace accura::cli
