@@ -2,6 +2,7 @@
 #include <filesystem>
 #include <iostream>
 #include <memory>
+#include <nlohmann/json.hpp>
 
 #include "accura/calib/errors.h"
 #include "accura/postproc/batch.h"
@@ -18,6 +19,7 @@ struct ConvertArgs {
   std::string dat;
   std::string config;
   std::string out;
+  std::string json;
 };
 
 int runConvert(const ConvertArgs& a) {
@@ -33,9 +35,26 @@ int runConvert(const ConvertArgs& a) {
   if (program.krl && !program.krl->dat_path.empty()) inputs.push_back(program.krl->dat_path);
   if (!a.config.empty()) inputs.push_back(a.config);
   refuseToOverwrite(files, inputs, "--out");
+  std::string json_text;
+  if (!a.json.empty()) {
+    refuseToOverwrite({{a.json, ""}}, inputs, "--json");
+    nlohmann::ordered_json j;
+    j["in"] = a.in;
+    j["inputs"] = inputs;
+    j["motions"] = program.motions.size();
+    nlohmann::ordered_json outputs = nlohmann::ordered_json::array();
+    for (const auto& f : files) outputs.push_back(f.path);
+    j["outputs"] = outputs;
+    json_text = j.dump(2) + "\n";
+  }
   installInterruptCleanup();
-  writeFilesAtomically(files);
-  for (const auto& f : files) std::cout << "wrote " << f.path << "\n";
+  // like compensate: the output's directory is created
+  const fs::path dir = fs::path(a.out).parent_path();
+  if (!dir.empty()) fs::create_directories(dir);
+  std::vector<OutputFile> all = files;
+  if (!a.json.empty()) all.push_back({a.json, json_text});
+  writeFilesAtomically(all);
+  for (const auto& f : all) std::cout << "wrote " << f.path << "\n";
   std::cout << "accura convert: " << program.motions.size() << " motions from " << a.in << "\n";
   return 0;
 }
@@ -48,7 +67,8 @@ void addConvertCommand(CLI::App& app) {
   c->add_option("--in", args->in, "program to read: PROG.src (KRL, with PROG.dat next to it) or PROG.xml")->required();
   c->add_option("--dat", args->dat, "the KRL .dat (default: the .src's name with .dat)");
   c->add_option("--config", args->config, "$config.dat: TOOL_DATA, BASE_DATA and global points such as XHOME");
-  c->add_option("--out", args->out, "program to write: OUT.xml, or OUT.src (with OUT.dat)")->required();
+  c->add_option("--out", args->out, "program to write: OUT.xml, or OUT.src (with OUT.dat); its directory is created")->required();
+  c->add_option("--json", args->json, "report: the inputs read, the motions, the files written");
   c->callback([=]() { exitCode() = runConvert(*args); });
 }
 

@@ -36,6 +36,8 @@ struct DiagnoseArgs {
 };
 
 int runDiagnose(const DiagnoseArgs& a) {
+  if (a.json.empty() && a.report.empty())
+    throw InputError("diagnose: expected an output, --json diag.json and/or --report diag.html, found neither");
   RobotModel start = loadRobot(a.robot);
   if (!a.base.empty()) start.nominal.T_world_base = toIsometry(parsePose6(a.base, "--base"));
   if (!a.tool.empty()) start.nominal.T_flange_tcp = toIsometry(parseTool(a.tool, "--tool"));
@@ -102,7 +104,7 @@ void addDiagnoseCommand(CLI::App& app) {
                 "(Huber); 0 turns it off",
                   NumberRange{0, 1000, false, "robust standard deviations"})
       ->capture_default_str();
-  c->add_option("--json", a->json, "write the diagnosis as JSON")->required();
+  c->add_option("--json", a->json, "write the diagnosis as JSON (--json, --report or both)");
   c->add_option("--report", a->report, "write the diagnosis as a self-contained HTML page");
   c->callback([=]() { exitCode() = runDiagnose(*a); });
 }

@@ -37,6 +37,15 @@ int runFk(const FkArgs& a) {
   ctx.payload_kg = a.payload_kg;
   const XyzAbc p = toXyzAbc(forwardKinematics(model, qv, ctx, ws));
   std::printf("x=%.4f y=%.4f z=%.4f A=%.5f B=%.5f C=%.5f\n", p.x_mm, p.y_mm, p.z_mm, p.a_deg, p.b_deg, p.c_deg);
+  if (!a.json.empty()) {
+    ordered_json j;
+    j["robot"] = model.nominal.name;
+    j["q"] = q;
+    j["payload_kg"] = a.payload_kg;
+    j["T_world_tcp"] = {{"x_mm", num(p.x_mm)}, {"y_mm", num(p.y_mm)}, {"z_mm", num(p.z_mm)},
+                        {"a_deg", num(p.a_deg)}, {"b_deg", num(p.b_deg)}, {"c_deg", num(p.c_deg)}};
+    writeTextAtomically(a.json, j.dump(2) + "\n");
+  }
   return 0;
 }
 
@@ -48,6 +57,7 @@ void addFkCommand(CLI::App& app) {
   cfk->add_option("--robot", fk->robot, "robot file or bundled robot name")->required();
   cfk->add_option("--q", fk->q, "joint values v1,...,vN (deg; mm for prismatic joints)")->required();
   addNumberOption(cfk, "--payload-kg", fk->payload_kg, "payload mass (kg), for compliance models", kPayloadRange);
+  cfk->add_option("--json", fk->json, "also write the pose as JSON (T_world_tcp: x_mm ... c_deg)");
   cfk->callback([=]() { exitCode() = runFk(*fk); });
 }
 

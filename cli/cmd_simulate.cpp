@@ -53,6 +53,21 @@ int runSimulate(const SimulateArgs& a) {
   if (!a.truth.empty()) {
     writeRobotFile(a.truth, truth, {}, "accura simulate: the real robot behind " + a.out + " (seed " + std::to_string(o.seed) + ")");
   }
+  if (!a.json.empty()) {
+    ordered_json j;
+    j["robot"] = nominal.nominal.name;
+    j["poses"] = o.poses;
+    j["seed"] = o.seed;
+    j["effects"] = o.effects;
+    j["noise_mm"] = o.noise_mm;
+    j["noise_deg"] = o.orientation ? num(o.noise_deg) : ordered_json(nullptr);
+    j["payloads_kg"] = o.payloads_kg;
+    const XyzAbc st = toXyzAbc(truth.T_world_base());
+    j["T_world_base"] = {num(st.x_mm), num(st.y_mm), num(st.z_mm), num(st.a_deg), num(st.b_deg), num(st.c_deg)};
+    j["out"] = a.out;
+    j["truth"] = a.truth.empty() ? ordered_json(nullptr) : ordered_json(a.truth);
+    writeTextAtomically(a.json, j.dump(2) + "\n");
+  }
   std::printf("wrote %d simulated poses of %s to %s%s\n", o.poses, nominal.nominal.name.c_str(), a.out.c_str(),
               a.truth.empty() ? "" : (" and the real robot to " + a.truth).c_str());
   return 0;
@@ -81,6 +96,7 @@ void addSimulateCommand(CLI::App& app) {
   addNumberOption(csim, "--error-scale", sim->error_scale, "scale of the random geometric errors", NumberRange{0, 1000, false, ""})->capture_default_str();
   csim->add_option("--out", sim->out, "measurement CSV to write")->required();
   csim->add_option("--truth", sim->truth, "write the real robot as a calibrated model file");
+  csim->add_option("--json", sim->json, "also write what was simulated as JSON (robot, poses, seed, effects, station)");
   csim->callback([=]() { exitCode() = runSimulate(*sim); });
 }
 

@@ -14,6 +14,7 @@ struct FkArgs {
   std::string robot;
   std::string q;
   double payload_kg = 0;
+  std::string json;
 };
 
 struct SimulateArgs {
@@ -31,6 +32,7 @@ struct SimulateArgs {
   double error_scale = 1.0;
   std::string out;
   std::string truth;
+  std::string json;
 };
 
 struct IdentifyArgs {
@@ -54,6 +56,7 @@ struct IdentifyArgs {
   std::string out;
   std::string json;
   bool quiet = false;
+  bool verbose = false;
 };
 
 /// The exit code a subcommand's callback leaves for main (0 unless set).
