@@ -139,8 +139,9 @@ std::string checkInteger(const std::string& text, Int lo, Int hi) {
 template <class Int>
 CLI::Option* addInteger(CLI::App* c, const std::string& name, Int& value, const std::string& help, Int lo, Int hi) {
   auto* o = c->add_option(name, value, help);
+  o->type_name("INTEGER");
   o->check(CLI::Validator([lo, hi](std::string& text) { return checkInteger<Int>(text, lo, hi); },
-                          "INT in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]"));
+                          "in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]"));
   return o;
 }
 
@@ -170,7 +171,9 @@ double parseNumber(const std::string& text, const std::string& what, const Numbe
 CLI::Option* addNumberOption(CLI::App* c, const std::string& name, double& value, const std::string& help,
                              const NumberRange& r) {
   auto* o = c->add_option(name, value, help);
-  o->check(CLI::Validator([r](std::string& text) { return checkNumber(text, r, nullptr); }, "NUMBER"));
+  std::string range = expectedNumber(r).substr(std::string("a number ").size());
+  o->type_name("NUMBER");
+  o->check(CLI::Validator([r](std::string& text) { return checkNumber(text, r, nullptr); }, range));
   return o;
 }
 

@@ -1,6 +1,7 @@
 // accura diagnose: where the remaining error lies, which effect of the catalogue causes it and
 // how far it shrinks once that effect is modelled (docs/diagnosis.md).
 #include <cmath>
+#include <ctime>
 #include <cstdio>
 #include <limits>
 #include <memory>
@@ -8,6 +9,7 @@
 
 #include "accura/calib/diagnose.h"
 #include "accura/calib/errors.h"
+#include "accura/calib/identify.h"
 #include "accura/calib/kinematics.h"
 #include "accura/calib/measurements.h"
 #include "cli_util.h"
@@ -34,6 +36,35 @@ struct DiagnoseArgs {
   std::string json;
   std::string report;
 };
+
+// The report's header and model section (diagnose.h DiagnosisReportContext): when, which
+// accura, which instrument and files, and the complete geometric model identified on the fit
+// data with its sigmas and per-pose errors.
+DiagnosisReportContext reportContext(const DiagnoseArgs& a, const RobotModel& start, const MeasurementSet& data,
+                                     const Diagnosis& d) {
+  DiagnosisReportContext c;
+  const std::time_t now = std::time(nullptr);
+  std::tm utc{};
+  gmtime_r(&now, &utc);
+  char date[32];
+  std::strftime(date, sizeof date, "%Y-%m-%d %H:%M UTC", &utc);
+  c.date_utc = date;
+  c.version = std::string("accura ") + ACCURA_VERSION_STRING;
+  c.instrument = "noise floor " + fmt("%.4f", d.noise_floor_mm) + " mm (3D RMS), from " + d.noise_floor_source;
+  c.data_files.push_back("fit: " + a.data);
+  if (!a.validate.empty()) c.data_files.push_back("validation: " + a.validate);
+  if (!a.map.empty()) c.data_files.push_back("mapping: " + a.map);
+  if (!a.validate_map.empty()) c.data_files.push_back("validation mapping: " + a.validate_map);
+  IdentifyOptions o;
+  o.groups = {"geometric"};
+  IdentifySummary s;
+  const RobotModel model = identify(start, data, o, &s);
+  for (const auto& p : s.parameters) c.parameters.push_back({p.name, p.value, p.sigma, p.unit, p.group == "base"});
+  KinematicWorkspace ws;
+  for (const Measurement& m : data.rows)
+    c.residuals_mm.push_back(m.p_world_mm - forwardKinematics(model, m.q, m.context, ws).translation());
+  return c;
+}
 
 int runDiagnose(const DiagnoseArgs& a) {
   if (a.json.empty() && a.report.empty())
@@ -65,7 +96,7 @@ int runDiagnose(const DiagnoseArgs& a) {
     std::printf("wrote %s\n", a.json.c_str());
   }
   if (!a.report.empty()) {
-    writeTextAtomically(a.report, diagnosisHtml(d));
+    writeTextAtomically(a.report, diagnosisHtml(d, reportContext(a, start, data, d)));
     std::printf("wrote %s\n", a.report.c_str());
   }
   return 0;

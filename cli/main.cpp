@@ -13,7 +13,7 @@ int main(int argc, char** argv) {
   CLI::App app{"accura: identify a robot's real kinematics and make off-line programs land "
                "where the CAD model says"};
   app.require_subcommand(1);
-  app.set_version_flag("--version", "accura 0.1.0");
+  app.set_version_flag("--version", "accura " ACCURA_VERSION_STRING);
 
   addFkCommand(app);
   addSimulateCommand(app);
