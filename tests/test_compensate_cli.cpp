@@ -183,8 +183,9 @@ TEST(CompensateCli, ConvertKrlToXmlAndBack) {
   CliRun r = accura(dir, "convert --in seam.src --config '$config.dat' --out seam.xml");
   ASSERT_EQ(r.code, 0) << r.err;
   r = accura(dir, "convert --in seam.xml --out back/seam.src");
-  EXPECT_EQ(r.code, 1);  // the directory back/ does not exist: nothing written
-  EXPECT_FALSE(std::ifstream(dir + "/back/seam.src").good());
+  EXPECT_EQ(r.code, 0) << r.err;  // the directory back/ is created, as compensate creates --out (issue 17)
+  EXPECT_TRUE(std::ifstream(dir + "/back/seam.src").good());
+  EXPECT_TRUE(std::ifstream(dir + "/back/seam.dat").good());
   r = accura(dir, "convert --in seam.xml --out seam_back.src");
   ASSERT_EQ(r.code, 0) << r.err;
   r = accura(dir, "convert --in seam_back.src --config '$config.dat' --out seam_back.xml");

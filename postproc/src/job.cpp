@@ -89,7 +89,7 @@ class Job {
   // of a joint within kTurnBandDeg of 0 that the correction flips is updated in `t` (with a
   // warning): the same arm posture, and the controller needs the new sign to find q. Any
   // other change is an error.
-  bool checkConfig(const Motion& m, Target& t, const Compensator& comp, const Eigen::VectorXd& q) {
+  bool checkConfig(const Motion& m, Target& t, const Compensator& comp, const Eigen::VectorXd& q, const Eigen::Isometry3d& T_world_target) {
     const Configuration asked{t.status.value_or(-1), t.turn.value_or(-1)};
     if (asked.status < 0 && asked.turn < 0) return true;
     const Configuration got = kukaConfiguration(comp.controller().model(), q);
@@ -100,6 +100,15 @@ class Job {
                            ": the correction moves a joint that is within " + formatFixed(kTurnBandDeg, 1) + " deg of 0 across 0");
       t.turn = got.turn;
       return true;
+    }
+    // a target the controller cannot reach in its programmed S/T at all is said to be that,
+    // not a boundary case of the compensation (issue 17)
+    const IkResult nominal = comp.controller().inverse(T_world_target, asked, q, s_.ik, s_.context);
+    if (nominal.status != IkStatus::kOk) {
+      error(m.where, targetLabel(t) + " is not reachable in its programmed configuration S " + std::to_string(asked.status) + ", T " +
+                         std::to_string(asked.turn) + " (the robot reaches it with S " + std::to_string(got.status) + ", T " +
+                         std::to_string(got.turn) + "; program that configuration)");
+      return false;
     }
     error(m.where, "the compensation of " + targetLabel(t) + " would change its configuration from S " + std::to_string(asked.status) +
                        ", T " + std::to_string(asked.turn) + " to S " + std::to_string(got.status) + ", T " + std::to_string(got.turn) +
@@ -264,7 +273,7 @@ class Job {
       error(m.where, targetLabel(end) + " cannot be compensated: " + toString(pc.status) + (pc.message.empty() ? "" : " (" + pc.message + ")"));
       return keep(out, mo);
     }
-    if (!checkConfig(m, end, comp, pc.q_real)) return keep(out, mo);
+    if (!checkConfig(m, end, comp, pc.q_real, c.T_world_end)) return keep(out, mo);
     setPose(mo.target, toProgram(c.T_world_progbase, pc.T_world_tcp_command));
     mo.target.turn = end.turn;
     claimValue(mo.target, m.where);
@@ -288,7 +297,7 @@ class Job {
                          (sc.message.empty() ? "" : " (" + sc.message + ")"));
       return keep(out, mo);
     }
-    if (!checkConfig(m, end, comp, sc.q_real_end.back())) return keep(out, mo);
+    if (!checkConfig(m, end, comp, sc.q_real_end.back(), c.T_world_end)) return keep(out, mo);
     SegmentReport sr;
     sr.motion = m.where;
     sr.motion_type = motionKeyword(m);
