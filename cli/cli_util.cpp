@@ -16,11 +16,11 @@
 #include "accura/calib/urdf.h"
 
 namespace accura::cli {
-std::string fmt(const char* f, double v) { return formatNumber(f, v); }
+std::string fmt(const char* f, double v) { return calib::formatNumber(f, v); }
 
 nlohmann::ordered_json num(double v) { return std::isfinite(v) ? nlohmann::ordered_json(v) : nlohmann::ordered_json(nullptr); }
 
-nlohmann::ordered_json statsJson(const ErrorStats& s) {
+nlohmann::ordered_json statsJson(const calib::ErrorStats& s) {
   nlohmann::ordered_json j;
   j["n"] = s.n;
   j["rms_mm"] = num(s.rms_mm);
@@ -41,33 +41,33 @@ std::string& robotChainOption() {
   return chain;
 }
 
-RobotModel loadRobot(const std::string& name) {
-  const std::string path = resolveRobotPath(name);
+calib::RobotModel loadRobot(const std::string& name) {
+  const std::string path = calib::resolveRobotPath(name);
   const std::string& chain = robotChainOption();
-  if (chain.empty()) return readRobotFile(path);  // a .urdf with its default chain
+  if (chain.empty()) return calib::readRobotFile(path);  // a .urdf with its default chain
   if (path.size() < 5 || path.compare(path.size() - 5, 5, ".urdf") != 0)
-    throw InputError("--chain " + chain + ": expected a URDF robot (.urdf) with --robot, found '" + name + "'");
-  return readUrdfRobot(path, chain);
+    throw calib::InputError("--chain " + chain + ": expected a URDF robot (.urdf) with --robot, found '" + name + "'");
+  return calib::readUrdfRobot(path, chain);
 }
 
-void warnUnknownColumns(const MeasurementSet& set) {
+void warnUnknownColumns(const calib::MeasurementSet& set) {
   if (set.unknown_columns.empty()) return;
   std::string list;
   for (const auto& c : set.unknown_columns) list += (list.empty() ? "" : ", ") + c;
   std::cerr << "accura: warning: " << set.file << ": columns not used by accura: " << list << "\n";
 }
 
-void printStatsRow(const std::string& label, const ErrorStats& s) {
+void printStatsRow(const std::string& label, const calib::ErrorStats& s) {
   std::printf("  %-12s %9.4f %9.4f %9.4f %9.4f", label.c_str(), s.rms_mm, s.mean_mm, s.p95_mm, s.max_mm);
   if (s.has_orientation)
     std::printf("   %8.5f %8.5f %8.5f %8.5f", s.rot_rms_deg, s.rot_mean_deg, s.rot_p95_deg, s.rot_max_deg);
   std::printf("\n");
 }
 
-MeasurementSet readMeasurements(const std::string& path, const std::string& map_path, const RobotDefinition& robot) {
-  MeasurementSet set = map_path.empty()
-                           ? readMeasurementsCsv(path, robot)
-                           : readMappedMeasurements(path, readMeasurementMapping(map_path, robot), robot);
+calib::MeasurementSet readMeasurements(const std::string& path, const std::string& map_path, const calib::RobotDefinition& robot) {
+  calib::MeasurementSet set = map_path.empty()
+                           ? calib::readMeasurementsCsv(path, robot)
+                           : calib::readMappedMeasurements(path, calib::readMeasurementMapping(map_path, robot), robot);
   warnUnknownColumns(set);
   return set;
 }
@@ -76,7 +76,7 @@ MeasurementSet readMeasurements(const std::string& path, const std::string& map_
 
 namespace accura::cli {
 namespace {
-std::string numberText(double v) { return formatNumber("%g", v); }
+std::string numberText(double v) { return calib::formatNumber("%g", v); }
 
 std::string expectedNumber(const NumberRange& r) {
   std::string s = "a number ";
@@ -148,23 +148,23 @@ CLI::Option* addInteger(CLI::App* c, const std::string& name, Int& value, const 
 const NumberRange kPositionRange{-1e5, 1e5, false, "mm"};  // 100 m: no robot cell is larger
 const NumberRange kAngleRange{-360, 360, false, "deg"};
 
-XyzAbc parsePose(const std::string& text, const std::string& what, bool three_allowed) {
+calib::XyzAbc parsePose(const std::string& text, const std::string& what, bool three_allowed) {
   const std::vector<std::string> items = splitList(text, what);
   if (items.size() != 6 && !(three_allowed && items.size() == 3))
-    throw InputError(what + ": expected " + (three_allowed ? "x,y,z or x,y,z,A,B,C" : "six values x,y,z,A,B,C") +
+    throw calib::InputError(what + ": expected " + (three_allowed ? "x,y,z or x,y,z,A,B,C" : "six values x,y,z,A,B,C") +
                      " (mm, deg), found " + std::to_string(items.size()) + " value" + (items.size() == 1 ? "" : "s") +
                      " in '" + text + "'");
   double v[6] = {0, 0, 0, 0, 0, 0};
   for (size_t i = 0; i < items.size(); ++i)
     v[i] = parseNumber(items[i], what + " (" + "xyzABC"[i] + ")", i < 3 ? kPositionRange : kAngleRange);
-  return XyzAbc{v[0], v[1], v[2], v[3], v[4], v[5]};
+  return calib::XyzAbc{v[0], v[1], v[2], v[3], v[4], v[5]};
 }
 }  // namespace
 
 double parseNumber(const std::string& text, const std::string& what, const NumberRange& r) {
   double x = 0;
   const std::string why = checkNumber(text, r, &x);
-  if (!why.empty()) throw InputError(what + ": " + why);
+  if (!why.empty()) throw calib::InputError(what + ": " + why);
   return x;
 }
 
@@ -187,7 +187,7 @@ CLI::Option* addIntegerOption(CLI::App* c, const std::string& name, unsigned lon
   return addInteger<unsigned long long>(c, name, value, help, lo, hi);
 }
 
-XyzAbc parsePose6(const std::string& text, const std::string& what) { return parsePose(text, what, false); }
-XyzAbc parseTool(const std::string& text, const std::string& what) { return parsePose(text, what, true); }
+calib::XyzAbc parsePose6(const std::string& text, const std::string& what) { return parsePose(text, what, false); }
+calib::XyzAbc parseTool(const std::string& text, const std::string& what) { return parsePose(text, what, true); }
 
 }  // namespace accura::cli

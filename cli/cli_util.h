@@ -18,20 +18,20 @@ std::string fmt(const char* format, double v);
 /// JSON number, or null for NaN / inf (JSON has neither).
 nlohmann::ordered_json num(double v);
 /// {n, rms_mm, mean_mm, max_mm, p95_mm[, rot_*_deg]}
-nlohmann::ordered_json statsJson(const ErrorStats& s);
+nlohmann::ordered_json statsJson(const calib::ErrorStats& s);
 /// Reads --robot (a path or a bundled robot name; a .urdf through urdf.h, with --chain).
-RobotModel loadRobot(const std::string& name_or_path);
+calib::RobotModel loadRobot(const std::string& name_or_path);
 /// The --chain ROOT:TIP option of every command with --robot (main.cpp adds it): which
 /// serial chain of a URDF robot to use; empty: the default chain.
 std::string& robotChainOption();
 /// Reads a measurement file: accura's CSV format, or an instrument export through the mapping
 /// file `map_path` when it is not empty (docs/measurement-mapping.md). Warns about unused columns.
-MeasurementSet readMeasurements(const std::string& path, const std::string& map_path, const RobotDefinition& robot);
+calib::MeasurementSet readMeasurements(const std::string& path, const std::string& map_path, const calib::RobotDefinition& robot);
 /// Prints a warning listing the columns of a measurement file accura does not use.
-void warnUnknownColumns(const MeasurementSet& set);
+void warnUnknownColumns(const calib::MeasurementSet& set);
 /// Adds the options that make a JobSettings (--robot, --tol, --base, --robroot, --payload-kg,
 /// --temp-c, --program-tool, --program-base) to a command (accura compensate, batch, check);
-/// the function returned reads them (InputError on a bad value). Defined in cmd_compensate.cpp.
+/// the function returned reads them (calib::InputError on a bad value). Defined in cmd_compensate.cpp.
 std::function<postproc::JobSettings()> addJobOptions(CLI::App* c);
 /// A numeric option's accepted values: a finite number within [lo, hi] (lo itself excluded
 /// when lo_open), in `unit` (empty: dimensionless). Issue 14: NaN, infinities, 1e308,
@@ -57,15 +57,15 @@ CLI::Option* addIntegerOption(CLI::App* c, const std::string& name, int& value, 
 CLI::Option* addIntegerOption(CLI::App* c, const std::string& name, unsigned long long& value, const std::string& help,
                               unsigned long long lo, unsigned long long hi);
 /// The text check behind addNumberOption, for numbers inside list options ("--payloads"):
-/// the parsed value, or InputError "<what>: expected a number in [lo, hi] (unit), found '<text>'".
+/// the parsed value, or calib::InputError "<what>: expected a number in [lo, hi] (unit), found '<text>'".
 double parseNumber(const std::string& text, const std::string& what, const NumberRange& r);
 /// A pose option that must have six values x,y,z,A,B,C (mm, deg): --base, --robroot, --station,
 /// --program-tool, --program-base. Three values are an error, not zero angles (issue 17).
-XyzAbc parsePose6(const std::string& text, const std::string& what);
+calib::XyzAbc parsePose6(const std::string& text, const std::string& what);
 /// A tool option x,y,z or x,y,z,A,B,C (mm, deg): a measured point on the flange has no orientation.
-XyzAbc parseTool(const std::string& text, const std::string& what);
+calib::XyzAbc parseTool(const std::string& text, const std::string& what);
 
 /// One row of an accuracy table: RMS mean p95 max (mm[, deg]).
-void printStatsRow(const std::string& label, const ErrorStats& s);
+void printStatsRow(const std::string& label, const calib::ErrorStats& s);
 
 }  // namespace accura::cli

@@ -30,14 +30,14 @@ int runConvert(const ConvertArgs& a) {
   read.config_path = a.config;
   const Program program = readProgram(a.in, read);
   // a KRL output: the .dat next to the .src, named like it
-  const std::vector<OutputFile> files = renderProgram(program, out_format, a.out);
+  const std::vector<calib::OutputFile> files = renderProgram(program, out_format, a.out);
   std::vector<std::string> inputs = {a.in};
   if (program.krl && !program.krl->dat_path.empty()) inputs.push_back(program.krl->dat_path);
   if (!a.config.empty()) inputs.push_back(a.config);
-  refuseToOverwrite(files, inputs, "--out");
+  calib::refuseToOverwrite(files, inputs, "--out");
   std::string json_text;
   if (!a.json.empty()) {
-    refuseToOverwrite({{a.json, ""}}, inputs, "--json");
+    calib::refuseToOverwrite({{a.json, ""}}, inputs, "--json");
     nlohmann::ordered_json j;
     j["in"] = a.in;
     j["inputs"] = inputs;
@@ -47,13 +47,13 @@ int runConvert(const ConvertArgs& a) {
     j["outputs"] = outputs;
     json_text = j.dump(2) + "\n";
   }
-  installInterruptCleanup();
+  calib::installInterruptCleanup();
   // like compensate: the output's directory is created
   const fs::path dir = fs::path(a.out).parent_path();
   if (!dir.empty()) fs::create_directories(dir);
-  std::vector<OutputFile> all = files;
+  std::vector<calib::OutputFile> all = files;
   if (!a.json.empty()) all.push_back({a.json, json_text});
-  writeFilesAtomically(all);
+  calib::writeFilesAtomically(all);
   for (const auto& f : all) std::cout << "wrote " << f.path << "\n";
   std::cout << "accura convert: " << program.motions.size() << " motions from " << a.in << "\n";
   return 0;

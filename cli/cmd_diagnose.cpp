@@ -27,7 +27,7 @@ struct DiagnoseArgs {
   std::string base;
   std::string tool;
   std::string effects;  // empty: the whole catalogue
-  int harmonics = kDefaultGearHarmonics;
+  int harmonics = calib::kDefaultGearHarmonics;
   int folds = 5;
   double noise_mm = -1;  // <0: from repeated poses or std columns
   double alpha = 0.01;
@@ -37,12 +37,12 @@ struct DiagnoseArgs {
   std::string report;
 };
 
-// The report's header and model section (diagnose.h DiagnosisReportContext): when, which
+// The report's header and model section (diagnose.h calib::DiagnosisReportContext): when, which
 // accura, which instrument and files, and the complete geometric model identified on the fit
 // data with its sigmas and per-pose errors.
-DiagnosisReportContext reportContext(const DiagnoseArgs& a, const RobotModel& start, const MeasurementSet& data,
-                                     const Diagnosis& d) {
-  DiagnosisReportContext c;
+calib::DiagnosisReportContext reportContext(const DiagnoseArgs& a, const calib::RobotModel& start, const calib::MeasurementSet& data,
+                                     const calib::Diagnosis& d) {
+  calib::DiagnosisReportContext c;
   const std::time_t now = std::time(nullptr);
   std::tm utc{};
   gmtime_r(&now, &utc);
@@ -55,48 +55,48 @@ DiagnosisReportContext reportContext(const DiagnoseArgs& a, const RobotModel& st
   if (!a.validate.empty()) c.data_files.push_back("validation: " + a.validate);
   if (!a.map.empty()) c.data_files.push_back("mapping: " + a.map);
   if (!a.validate_map.empty()) c.data_files.push_back("validation mapping: " + a.validate_map);
-  IdentifyOptions o;
+  calib::IdentifyOptions o;
   o.groups = {"geometric"};
-  IdentifySummary s;
-  const RobotModel model = identify(start, data, o, &s);
+  calib::IdentifySummary s;
+  const calib::RobotModel model = calib::identify(start, data, o, &s);
   for (const auto& p : s.parameters) c.parameters.push_back({p.name, p.value, p.sigma, p.unit, p.group == "base"});
-  KinematicWorkspace ws;
-  for (const Measurement& m : data.rows)
-    c.residuals_mm.push_back(m.p_world_mm - forwardKinematics(model, m.q, m.context, ws).translation());
+  calib::KinematicWorkspace ws;
+  for (const calib::Measurement& m : data.rows)
+    c.residuals_mm.push_back(m.p_world_mm - calib::forwardKinematics(model, m.q, m.context, ws).translation());
   return c;
 }
 
 int runDiagnose(const DiagnoseArgs& a) {
   if (a.json.empty() && a.report.empty())
-    throw InputError("diagnose: expected an output, --json diag.json and/or --report diag.html, found neither");
-  RobotModel start = loadRobot(a.robot);
-  if (!a.base.empty()) start.nominal.T_world_base = toIsometry(parsePose6(a.base, "--base"));
-  if (!a.tool.empty()) start.nominal.T_flange_tcp = toIsometry(parseTool(a.tool, "--tool"));
-  DiagnoseOptions o;
+    throw calib::InputError("diagnose: expected an output, --json diag.json and/or --report diag.html, found neither");
+  calib::RobotModel start = loadRobot(a.robot);
+  if (!a.base.empty()) start.nominal.T_world_base = calib::toIsometry(parsePose6(a.base, "--base"));
+  if (!a.tool.empty()) start.nominal.T_flange_tcp = calib::toIsometry(parseTool(a.tool, "--tool"));
+  calib::DiagnoseOptions o;
   if (!a.effects.empty()) o.effects = splitList(a.effects, "--effects");
   o.gear_harmonics = a.harmonics;
   o.folds = a.folds;
   if (a.noise_mm == 0 || (a.noise_mm < 0 && a.noise_mm != -1))
-    throw InputError("--noise-mm: expected a standard deviation > 0 mm, found " + fmt("%g", a.noise_mm));
+    throw calib::InputError("--noise-mm: expected a standard deviation > 0 mm, found " + fmt("%g", a.noise_mm));
   if (a.noise_mm > 0) o.noise_std_mm = a.noise_mm;
   o.alpha = a.alpha;
   o.repeat_tol = a.repeat_tol;
   o.robust_k = a.robust_k;
   std::string why;
-  if (!o.IsValid(&why)) throw InputError("diagnose: " + why);
+  if (!o.IsValid(&why)) throw calib::InputError("diagnose: " + why);
 
-  const MeasurementSet data = readMeasurements(a.data, a.map, start.nominal);
-  MeasurementSet validation;
+  const calib::MeasurementSet data = readMeasurements(a.data, a.map, start.nominal);
+  calib::MeasurementSet validation;
   if (!a.validate.empty())
     validation = readMeasurements(a.validate, a.validate_map.empty() ? a.map : a.validate_map, start.nominal);
-  const Diagnosis d = diagnose(start, data, a.validate.empty() ? nullptr : &validation, o);
-  std::printf("%s", diagnosisText(d).c_str());
+  const calib::Diagnosis d = calib::diagnose(start, data, a.validate.empty() ? nullptr : &validation, o);
+  std::printf("%s", calib::diagnosisText(d).c_str());
   if (!a.json.empty()) {
-    writeTextAtomically(a.json, diagnosisJson(d));
+    writeTextAtomically(a.json, calib::diagnosisJson(d));
     std::printf("wrote %s\n", a.json.c_str());
   }
   if (!a.report.empty()) {
-    writeTextAtomically(a.report, diagnosisHtml(d, reportContext(a, start, data, d)));
+    writeTextAtomically(a.report, calib::diagnosisHtml(d, reportContext(a, start, data, d)));
     std::printf("wrote %s\n", a.report.c_str());
   }
   return 0;
@@ -118,7 +118,7 @@ void addDiagnoseCommand(CLI::App& app) {
   c->add_option("--tool", a->tool, "nominal T_flange_tcp x,y,z[,A,B,C] (mm, deg), as for identify");
   c->add_option("--effects", a->effects,
                 "effects to test (default: the catalogue: joint_compliance, gear_periodic, joint_scale, backlash, thermal)");
-  addIntegerOption(c, "--harmonics", a->harmonics, "harmonics 1..H of gear_periodic", 1, kMaxGearHarmonics)->capture_default_str();
+  addIntegerOption(c, "--harmonics", a->harmonics, "harmonics 1..H of gear_periodic", 1, calib::kMaxGearHarmonics)->capture_default_str();
   addIntegerOption(c, "--folds", a->folds, "folds of the cross-validation without --validate", 2, 20)->capture_default_str();
   addNumberOption(c, "--noise-mm", a->noise_mm,
                 "measurement noise, 1 sigma per axis (mm) (default: from repeated poses, else from the std columns)",

@@ -19,8 +19,8 @@ namespace {
 using nlohmann::ordered_json;
 
 int runSimulate(const SimulateArgs& a) {
-  const RobotModel nominal = loadRobot(a.robot);
-  SimulateOptions o;
+  const calib::RobotModel nominal = loadRobot(a.robot);
+  calib::SimulateOptions o;
   o.poses = a.poses;
   o.seed = a.seed;
   o.effects = splitList(a.effects, "--effects");
@@ -41,17 +41,17 @@ int runSimulate(const SimulateArgs& a) {
     o.set_tool = true;
   }
   std::string why;
-  if (!o.IsValid(&why)) throw InputError("simulate: " + why);
-  const RobotModel truth = perturbModel(nominal, o);
-  const MeasurementSet set = simulateMeasurements(truth, o);
+  if (!o.IsValid(&why)) throw calib::InputError("simulate: " + why);
+  const calib::RobotModel truth = calib::perturbModel(nominal, o);
+  const calib::MeasurementSet set = calib::simulateMeasurements(truth, o);
   std::vector<std::string> comments = {
       "accura simulate: " + nominal.nominal.name + ", " + std::to_string(o.poses) + " poses, seed " +
           std::to_string(o.seed) + ", effects " + a.effects,
       "noise " + fmt("%g", o.noise_mm) + " mm" + (o.orientation ? ", " + fmt("%g", o.noise_deg) + " deg" : std::string()) +
           " (1 sigma per axis); payloads " + a.payloads + " kg"};
-  writeMeasurementsCsv(a.out, set, truth.dof(), comments);
+  calib::writeMeasurementsCsv(a.out, set, truth.dof(), comments);
   if (!a.truth.empty()) {
-    writeRobotFile(a.truth, truth, {}, "accura simulate: the real robot behind " + a.out + " (seed " + std::to_string(o.seed) + ")");
+    calib::writeRobotFile(a.truth, truth, {}, "accura simulate: the real robot behind " + a.out + " (seed " + std::to_string(o.seed) + ")");
   }
   if (!a.json.empty()) {
     ordered_json j;
@@ -62,7 +62,7 @@ int runSimulate(const SimulateArgs& a) {
     j["noise_mm"] = o.noise_mm;
     j["noise_deg"] = o.orientation ? num(o.noise_deg) : ordered_json(nullptr);
     j["payloads_kg"] = o.payloads_kg;
-    const XyzAbc st = toXyzAbc(truth.T_world_base());
+    const calib::XyzAbc st = calib::toXyzAbc(truth.T_world_base());
     j["T_world_base"] = {num(st.x_mm), num(st.y_mm), num(st.z_mm), num(st.a_deg), num(st.b_deg), num(st.c_deg)};
     j["out"] = a.out;
     j["truth"] = a.truth.empty() ? ordered_json(nullptr) : ordered_json(a.truth);

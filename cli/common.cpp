@@ -24,7 +24,7 @@ int& exitCode() {
 }
 
 void writeTextAtomically(const std::string& path, const std::string& text) {
-  writeFileAtomically(path, text);
+  calib::writeFileAtomically(path, text);
 }
 
 std::vector<std::string> splitList(const std::string& text, const std::string& what) {
@@ -33,10 +33,10 @@ std::vector<std::string> splitList(const std::string& text, const std::string& w
   std::string item;
   while (std::getline(ss, item, ',')) {
     item = trim(item);
-    if (item.empty()) throw InputError(what + ": expected a comma-separated list, found an empty item in '" + text + "'");
+    if (item.empty()) throw calib::InputError(what + ": expected a comma-separated list, found an empty item in '" + text + "'");
     out.push_back(item);
   }
-  if (out.empty()) throw InputError(what + ": expected a comma-separated list, found nothing");
+  if (out.empty()) throw calib::InputError(what + ": expected a comma-separated list, found nothing");
   return out;
 }
 

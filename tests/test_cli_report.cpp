@@ -14,7 +14,7 @@
 
 #include "test_util.h"
 
-namespace accura {
+namespace accura::calib {
 namespace {
 
 std::string between(const std::string& s, const std::string& a, const std::string& b) {
@@ -89,4 +89,4 @@ TEST(CliReport, ChromiumRendersTheDeliverableElements) {
 }
 
 }  // namespace
-}  // namespace accura
+}  // namespace accura::calib

@@ -12,7 +12,7 @@
 
 #include "test_util.h"
 
-namespace accura {
+namespace accura::calib {
 namespace {
 
 const std::vector<std::string> kCommands = {"fk",       "simulate", "identify", "export",   "compensate",
@@ -129,4 +129,4 @@ TEST(ReadmeSynopsis, OneCompleteSynopsisPerCommandAndEveryUsedOptionExists) {
 }
 
 }  // namespace
-}  // namespace accura
+}  // namespace accura::calib

@@ -14,7 +14,7 @@
 #include "accura/calib/kinematics.h"
 #include "test_util.h"
 
-namespace accura {
+namespace accura::calib {
 namespace {
 
 struct CliRun {
@@ -248,4 +248,4 @@ TEST(CliMessages, CheckGivesUnitsAndTheFrameOfItsCoordinates) {
 }
 
 }  // namespace
-}  // namespace accura
+}  // namespace accura::calib

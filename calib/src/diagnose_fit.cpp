@@ -16,7 +16,7 @@
 #include "accura/calib/identify.h"
 #include "accura/calib/kinematics.h"
 
-namespace accura {
+namespace accura::calib {
 namespace diagnose_detail {
 
 IdentifyOptions Diagnoser::baselineOptions() const {
@@ -451,4 +451,4 @@ Diagnoser::Exact Diagnoser::exact(const std::vector<int>& S) {
 }
 
 }  // namespace diagnose_detail
-}  // namespace accura
+}  // namespace accura::calib

@@ -8,7 +8,7 @@
 #include "accura/calib/diagnose.h"
 #include "accura/calib/text.h"
 
-namespace accura {
+namespace accura::calib {
 namespace {
 
 using nlohmann::ordered_json;
@@ -709,4 +709,4 @@ std::string diagnosisHtml(const Diagnosis& d, const DiagnosisReportContext& ctx)
   return h.str();
 }
 
-}  // namespace accura
+}  // namespace accura::calib

@@ -18,10 +18,10 @@ int main() {
       std::fprintf(stderr, "consumer: plug-in ABI %d, expected %d\n", abi, ACCURA_PLUGIN_ABI_VERSION);
       return 1;
     }
-    const auto model = accura::readRobotFile(std::string(ROBOTS_DIR) + "/kuka_kr16.xml");
+    const auto model = accura::calib::readRobotFile(std::string(ROBOTS_DIR) + "/kuka_kr16.xml");
     Eigen::VectorXd q(6);
     q << 10, -80, 70, 20, 30, 40;
-    const auto p = accura::toXyzAbc(accura::forwardKinematics(model, q));
+    const auto p = accura::calib::toXyzAbc(accura::calib::forwardKinematics(model, q));
     std::printf("x=%.4f y=%.4f z=%.4f A=%.5f B=%.5f C=%.5f\n", p.x_mm, p.y_mm, p.z_mm, p.a_deg, p.b_deg, p.c_deg);
     (void)accura::postproc::programFormat("p.xml");
     return 0;
