@@ -1,8 +1,13 @@
 #include "cli_util.h"
 
+#include "commands.h"
+
+#include <cctype>
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <iostream>
+#include <type_traits>
 
 #include "accura/calib/errors.h"
 #include "accura/calib/import.h"
@@ -66,5 +71,123 @@ calib::MeasurementSet readMeasurements(const std::string& path, const std::strin
   warnUnknownColumns(set);
   return set;
 }
+
+}  // namespace accura::cli
+
+namespace accura::cli {
+namespace {
+std::string numberText(double v) { return calib::formatNumber("%g", v); }
+
+std::string expectedNumber(const NumberRange& r) {
+  std::string s = "a number ";
+  if (std::isinf(r.hi))
+    s += (r.lo_open ? "> " : ">= ") + numberText(r.lo);
+  else
+    s += std::string("in ") + (r.lo_open ? "(" : "[") + numberText(r.lo) + ", " + numberText(r.hi) + "]";
+  if (!r.unit.empty()) s += " (" + r.unit + ")";
+  return s;
+}
+
+// A plain decimal number: digits, one point, an exponent; no hex, no inf/nan, no spaces.
+bool plainDecimal(const std::string& t) {
+  if (t.empty()) return false;
+  for (char ch : t)
+    if (!(std::isdigit(static_cast<unsigned char>(ch)) || ch == '.' || ch == '-' || ch == '+' || ch == 'e' || ch == 'E'))
+      return false;
+  return true;
+}
+
+// empty: accepted; else the reason (without the option's name, CLI11 puts it in front)
+std::string checkNumber(const std::string& text, const NumberRange& r, double* out) {
+  const std::string found = ", found '" + text + "'";
+  char* end = nullptr;
+  errno = 0;
+  const double x = plainDecimal(text) ? std::strtod(text.c_str(), &end) : 0.0;
+  if (!plainDecimal(text) || end == text.c_str() || *end != '\0' || !std::isfinite(x) || errno == ERANGE)
+    return "expected " + expectedNumber(r) + found;
+  const bool inside = (r.lo_open ? x > r.lo : x >= r.lo) && x <= r.hi;
+  if (!inside) return "expected " + expectedNumber(r) + found;
+  if (out) *out = x;
+  return "";
+}
+
+template <class Int>
+std::string checkInteger(const std::string& text, Int lo, Int hi) {
+  const std::string expected =
+      "expected an integer in [" + std::to_string(lo) + ", " + std::to_string(hi) + "], found '" + text + "'";
+  if (text.empty() || text.size() > 20) return expected;
+  for (size_t i = 0; i < text.size(); ++i)
+    if (!std::isdigit(static_cast<unsigned char>(text[i])) && !(i == 0 && text[i] == '-' && text.size() > 1))
+      return expected;
+  errno = 0;
+  if (text[0] == '-') {
+    if constexpr (std::is_signed<Int>::value) {
+      const long long v = std::strtoll(text.c_str(), nullptr, 10);
+      if (errno == ERANGE || v < static_cast<long long>(lo) || v > static_cast<long long>(hi)) return expected;
+      return "";
+    } else {
+      return expected;
+    }
+  }
+  const unsigned long long v = std::strtoull(text.c_str(), nullptr, 10);
+  if (errno == ERANGE || v > static_cast<unsigned long long>(hi) ||
+      (lo > 0 && v < static_cast<unsigned long long>(lo)))
+    return expected;
+  return "";
+}
+
+template <class Int>
+CLI::Option* addInteger(CLI::App* c, const std::string& name, Int& value, const std::string& help, Int lo, Int hi) {
+  auto* o = c->add_option(name, value, help);
+  o->type_name("INTEGER");
+  o->check(CLI::Validator([lo, hi](std::string& text) { return checkInteger<Int>(text, lo, hi); },
+                          "in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]"));
+  return o;
+}
+
+const NumberRange kPositionRange{-1e5, 1e5, false, "mm"};  // 100 m: no robot cell is larger
+const NumberRange kAngleRange{-360, 360, false, "deg"};
+
+calib::XyzAbc parsePose(const std::string& text, const std::string& what, bool three_allowed) {
+  const std::vector<std::string> items = splitList(text, what);
+  if (items.size() != 6 && !(three_allowed && items.size() == 3))
+    throw calib::InputError(what + ": expected " + (three_allowed ? "x,y,z or x,y,z,A,B,C" : "six values x,y,z,A,B,C") +
+                     " (mm, deg), found " + std::to_string(items.size()) + " value" + (items.size() == 1 ? "" : "s") +
+                     " in '" + text + "'");
+  double v[6] = {0, 0, 0, 0, 0, 0};
+  for (size_t i = 0; i < items.size(); ++i)
+    v[i] = parseNumber(items[i], what + " (" + "xyzABC"[i] + ")", i < 3 ? kPositionRange : kAngleRange);
+  return calib::XyzAbc{v[0], v[1], v[2], v[3], v[4], v[5]};
+}
+}  // namespace
+
+double parseNumber(const std::string& text, const std::string& what, const NumberRange& r) {
+  double x = 0;
+  const std::string why = checkNumber(text, r, &x);
+  if (!why.empty()) throw calib::InputError(what + ": " + why);
+  return x;
+}
+
+CLI::Option* addNumberOption(CLI::App* c, const std::string& name, double& value, const std::string& help,
+                             const NumberRange& r) {
+  auto* o = c->add_option(name, value, help);
+  std::string range = expectedNumber(r).substr(std::string("a number ").size());
+  o->type_name("NUMBER");
+  o->check(CLI::Validator([r](std::string& text) { return checkNumber(text, r, nullptr); }, range));
+  return o;
+}
+
+CLI::Option* addIntegerOption(CLI::App* c, const std::string& name, int& value, const std::string& help, long long lo,
+                              long long hi) {
+  return addInteger<int>(c, name, value, help, static_cast<int>(lo), static_cast<int>(hi));
+}
+
+CLI::Option* addIntegerOption(CLI::App* c, const std::string& name, unsigned long long& value, const std::string& help,
+                              unsigned long long lo, unsigned long long hi) {
+  return addInteger<unsigned long long>(c, name, value, help, lo, hi);
+}
+
+calib::XyzAbc parsePose6(const std::string& text, const std::string& what) { return parsePose(text, what, false); }
+calib::XyzAbc parseTool(const std::string& text, const std::string& what) { return parsePose(text, what, true); }
 
 }  // namespace accura::cli

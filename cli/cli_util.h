@@ -31,8 +31,40 @@ calib::MeasurementSet readMeasurements(const std::string& path, const std::strin
 void warnUnknownColumns(const calib::MeasurementSet& set);
 /// Adds the options that make a JobSettings (--robot, --tol, --base, --robroot, --payload-kg,
 /// --temp-c, --program-tool, --program-base) to a command (accura compensate, batch, check);
-/// the function returned reads them (InputError on a bad value). Defined in cmd_compensate.cpp.
+/// the function returned reads them (calib::InputError on a bad value). Defined in cmd_compensate.cpp.
 std::function<postproc::JobSettings()> addJobOptions(CLI::App* c);
+/// A numeric option's accepted values: a finite number within [lo, hi] (lo itself excluded
+/// when lo_open), in `unit` (empty: dimensionless). Issue 14: NaN, infinities, 1e308,
+/// denormals and absurd values are bad input, never a silent default.
+struct NumberRange {
+  double lo;
+  double hi;
+  bool lo_open;
+  std::string unit;
+};
+/// A payload: 0 to 10 t (kg).
+inline const NumberRange kPayloadRange{0, 10000, false, "kg"};
+/// The one validated numeric-option parser of every command: adds `name` to `c`, storing in
+/// `value`; a value that is not a plain finite number within `r` is a usage error (exit 1)
+/// naming the option and what was expected: "--std-mm: expected a number in (0, 1000] (mm),
+/// found 'nan'". The default of `value` is kept when the option is not given.
+CLI::Option* addNumberOption(CLI::App* c, const std::string& name, double& value, const std::string& help,
+                             const NumberRange& r);
+/// The same for counts and seeds: a plain decimal integer within [lo, hi] ("1e3", "0x10",
+/// "2.5" and values beyond hi are rejected with the option named).
+CLI::Option* addIntegerOption(CLI::App* c, const std::string& name, int& value, const std::string& help, long long lo,
+                              long long hi);
+CLI::Option* addIntegerOption(CLI::App* c, const std::string& name, unsigned long long& value, const std::string& help,
+                              unsigned long long lo, unsigned long long hi);
+/// The text check behind addNumberOption, for numbers inside list options ("--payloads"):
+/// the parsed value, or calib::InputError "<what>: expected a number in [lo, hi] (unit), found '<text>'".
+double parseNumber(const std::string& text, const std::string& what, const NumberRange& r);
+/// A pose option that must have six values x,y,z,A,B,C (mm, deg): --base, --robroot, --station,
+/// --program-tool, --program-base. Three values are an error, not zero angles (issue 17).
+calib::XyzAbc parsePose6(const std::string& text, const std::string& what);
+/// A tool option x,y,z or x,y,z,A,B,C (mm, deg): a measured point on the flange has no orientation.
+calib::XyzAbc parseTool(const std::string& text, const std::string& what);
+
 /// One row of an accuracy table: RMS mean p95 max (mm[, deg]).
 void printStatsRow(const std::string& label, const calib::ErrorStats& s);
 

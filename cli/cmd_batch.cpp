@@ -25,7 +25,7 @@ namespace accura::cli {
 
 namespace {
 
-/// Exit status of a batch in which some programs were not converted.
+/// Exit status of a batch in which some programs were not compensated.
 constexpr int kSomeFailed = 2;
 
 struct BatchArgs {
@@ -41,7 +41,7 @@ struct BatchArgs {
 
 std::string statusWord(const postproc::BatchFileResult& r) {
   switch (r.status) {
-    case postproc::BatchFileResult::Status::kConverted: return "converted";
+    case postproc::BatchFileResult::Status::kConverted: return "compensated";
     case postproc::BatchFileResult::Status::kSkipped: return "skipped";
     case postproc::BatchFileResult::Status::kFailed: return "FAILED";
   }
@@ -83,7 +83,7 @@ int runBatch(const BatchArgs& a) {
   const BatchResult res = postproc::runBatch(a.in, a.out, o, progress);
   for (const auto& r : res.files) {
     if (r.status == BatchFileResult::Status::kConverted) {
-      std::printf("converted %s: %d targets corrected (max %.4f mm), %d point(s) added, path error %.4f -> %.4f mm%s\n", r.input.c_str(),
+      std::printf("compensated %s: %d targets corrected (max %.4f mm), %d point(s) added, path error %.4f -> %.4f mm%s\n", r.input.c_str(),
                   r.report.targets_corrected, r.report.max_correction_mm, r.report.points_added, r.report.max_error_uncompensated_mm,
                   r.report.max_error_after_mm, r.check ? (r.check->passed() ? "; checks passed" : "; checks FAILED, written because of --warn-only") : "");
       if (!r.message.empty()) std::fprintf(stderr, "accura: warning: %s: %s\n", r.input.c_str(), r.message.c_str());
@@ -91,7 +91,7 @@ int runBatch(const BatchArgs& a) {
       std::printf("%s %s: %s\n", statusWord(r).c_str(), r.input.c_str(), r.message.c_str());
     }
   }
-  std::printf("accura batch: %d converted, %d failed, %d skipped, %zu programs in %s\n", res.converted, res.failed, res.skipped,
+  std::printf("accura batch: %d compensated, %d failed, %d skipped, %zu programs in %s\n", res.converted, res.failed, res.skipped,
               res.files.size(), a.in.c_str());
   if (!a.json.empty()) {
     nlohmann::ordered_json j;
@@ -102,7 +102,7 @@ int runBatch(const BatchArgs& a) {
       j["cell"] = cell->cell_path;
       j["warn_only"] = a.warn_only;
     }
-    j["converted"] = res.converted;
+    j["compensated"] = res.converted;
     j["failed"] = res.failed;
     j["skipped"] = res.skipped;
     nlohmann::ordered_json files = nlohmann::ordered_json::array();
@@ -134,7 +134,7 @@ void addBatchCommand(CLI::App& app) {
   c->add_option("--in", args->in, "directory of programs (read only)")->required();
   c->add_option("--out", args->out, "output directory (the same relative paths); not inside --in")->required();
   c->add_option("--config", args->config, "$config.dat for every program: TOOL_DATA, BASE_DATA, global points");
-  c->add_option("--jobs", args->jobs, "programs compensated in parallel (default: the number of cores)")->capture_default_str();
+  addIntegerOption(c, "--jobs", args->jobs, "programs compensated in parallel (default: the number of cores)", 1, 1024)->capture_default_str();
   c->add_option("--json", args->json, "report of every program (with --cell: its check)");
   args->cell = addCellOptions(c, false, false);
   c->add_flag("--warn-only", args->warn_only, "with --cell: write the programs that fail a check anyway (their report says so)");

@@ -96,10 +96,13 @@ std::function<std::optional<CellCheck>()> addCellOptions(CLI::App* c, bool requi
   CellArgs& a = *args;
   auto* o = c->add_option("--cell", a.cell, "cell file (docs/cell-format.md): meshes, robot placement, link and tool geometry, thresholds");
   if (required) o->required();
-  a.o_margin = c->add_option("--joint-margin-deg", a.joint_margin_deg, "required distance of every joint from its limits (deg; mm for prismatic); default: the cell file's, else 1");
-  a.o_singular = c->add_option("--singular-threshold", a.singular_threshold,
-                               "smallest allowed sigma_min of the scaled joint Jacobian (dimensionless, docs/checks.md); default: the cell file's, else 0.005");
-  a.o_clearance = c->add_option("--min-clearance-mm", a.min_clearance_mm, "required distance robot <-> cell meshes (mm); default: the cell file's, else 5");
+  a.o_margin = addNumberOption(c, "--joint-margin-deg", a.joint_margin_deg, "required distance of every joint from its limits (deg; mm for prismatic); default: the cell file's, else 1",
+                               NumberRange{0, 180, false, "deg"});
+  a.o_singular = addNumberOption(c, "--singular-threshold", a.singular_threshold,
+                               "smallest allowed sigma_min of the scaled joint Jacobian (dimensionless, docs/checks.md); default: the cell file's, else 0.005",
+                                 NumberRange{0, 1, false, ""});
+  a.o_clearance = addNumberOption(c, "--min-clearance-mm", a.min_clearance_mm, "required distance robot <-> cell meshes (mm); default: the cell file's, else 5",
+                                  NumberRange{0, 10000, false, "mm"});
   if (as_written_flag)
     c->add_flag("--as-written", a.as_written,
               "the program runs as written (already compensated): joints from the controller's nominal IK; default: its targets are where the tool must go (IK of the calibrated model)");
@@ -108,8 +111,8 @@ std::function<std::optional<CellCheck>()> addCellOptions(CLI::App* c, bool requi
 
 void printCheckReport(const postproc::CheckReport& r, const std::string& program) {
   for (const auto& w : r.warnings) std::cerr << "accura: warning: " << w.where.str() << ": " << w.message << "\n";
-  std::printf("accura check: %s (%s; joint margin %.3f, sigma_min >= %.6f, clearance >= %.3f mm)\n", program.c_str(),
-              postproc::toString(r.mode), r.thresholds.joint_margin_deg, r.thresholds.singular_threshold, r.thresholds.min_clearance_mm);
+  std::printf("accura check: %s (%s; joint margin >= %.3f deg, sigma_min >= %.6f, clearance >= %.3f mm; TCP positions "
+              "in the model's world frame)\n", program.c_str(), postproc::toString(r.mode), r.thresholds.joint_margin_deg, r.thresholds.singular_threshold, r.thresholds.min_clearance_mm);
   for (const auto& v : r.violations) {
     // the first violation is where the clearance gets short: how short it gets on the motion
     std::string deepest;
@@ -122,7 +125,7 @@ void printCheckReport(const postproc::CheckReport& r, const std::string& program
   }
   for (const auto& u : r.unchecked) std::printf("  NOT CHECKED %s: %s\n", u.where.str().c_str(), u.message.c_str());
   auto val = [](double v) { return std::isfinite(v) ? fmt("%.3f", v) : std::string("-"); };
-  std::printf("%zu motion(s), %d configuration(s) evaluated, %lld distance queries; smallest clearance %s mm, sigma_min %s, joint margin %s\n",
+  std::printf("%zu motion(s), %d configuration(s) evaluated, %lld distance queries; smallest clearance %s mm, sigma_min %s, joint margin %s deg\n",
               r.motions.size(), r.samples, r.distance_queries, val(r.min_clearance_mm).c_str(),
               std::isfinite(r.min_sigma) ? fmt("%.6f", r.min_sigma).c_str() : "-", val(r.min_joint_margin).c_str());
   std::printf("%s: %zu violation(s), %zu motion(s) not checked\n", r.passed() ? "PASSED" : "FAILED", r.violations.size(), r.unchecked.size());

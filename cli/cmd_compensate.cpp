@@ -99,14 +99,14 @@ postproc::JobSettings jobSettings(const JobArgs& a) {
   s.calibrated = loadRobot(a.robot);
   if (!(a.tol_mm > 0) || !std::isfinite(a.tol_mm)) throw calib::InputError("--tol: expected a positive distance (mm), found " + fmt("%g", a.tol_mm));
   s.tol_mm = a.tol_mm;
-  if (!a.base.empty()) s.robroot_in_world = calib::parseXyzAbc(a.base, "--base");
-  if (!a.robroot.empty()) s.robroot_in_kukaworld = calib::parseXyzAbc(a.robroot, "--robroot");
+  if (!a.base.empty()) s.robroot_in_world = parsePose6(a.base, "--base");
+  if (!a.robroot.empty()) s.robroot_in_kukaworld = parsePose6(a.robroot, "--robroot");
   if (!(a.payload_kg >= 0) || !std::isfinite(a.payload_kg)) throw calib::InputError("--payload-kg: expected a mass >= 0, found " + fmt("%g", a.payload_kg));
   if (!std::isfinite(a.temp_c)) throw calib::InputError("--temp-c: expected a temperature (deg C)");
   s.context.payload_kg = a.payload_kg;
   s.context.temp_c = a.temp_c;
-  if (!a.program_tool.empty()) s.initial_tool = calib::parseXyzAbc(a.program_tool, "--program-tool");
-  if (!a.program_base.empty()) s.initial_base = calib::parseXyzAbc(a.program_base, "--program-base");
+  if (!a.program_tool.empty()) s.initial_tool = parsePose6(a.program_tool, "--program-tool");
+  if (!a.program_base.empty()) s.initial_base = parsePose6(a.program_base, "--program-base");
   return s;
 }
 
@@ -116,11 +116,11 @@ std::function<postproc::JobSettings()> addJobOptions(CLI::App* c) {
   auto args = std::make_shared<JobArgs>();
   JobArgs& a = *args;
   c->add_option("--robot", a.robot, "calibrated model (written by accura identify), file or bundled name")->required();
-  c->add_option("--tol", a.tol_mm, "bound on the predicted path error of LIN/CIRC motions (mm)")->capture_default_str();
+  addNumberOption(c, "--tol", a.tol_mm, "bound on the predicted path error of LIN/CIRC motions (mm)", NumberRange{0.0001, 100, false, "mm"})->capture_default_str();
   c->add_option("--base", a.base, "where the OLP placed the robot in the model's world: x,y,z,A,B,C (mm, deg); default: the robot file's <base>");
   c->add_option("--robroot", a.robroot, "the controller's $ROBROOT (robot base in its $WORLD) x,y,z,A,B,C; default: identity");
-  c->add_option("--payload-kg", a.payload_kg, "payload while the program runs (kg), for compliance models")->capture_default_str();
-  c->add_option("--temp-c", a.temp_c, "arm temperature while the program runs (deg C), for thermal models")->capture_default_str();
+  addNumberOption(c, "--payload-kg", a.payload_kg, "payload while the program runs (kg), for compliance models", kPayloadRange)->capture_default_str();
+  addNumberOption(c, "--temp-c", a.temp_c, "arm temperature while the program runs (deg C), for thermal models", NumberRange{-50, 150, false, "deg C"})->capture_default_str();
   c->add_option("--program-tool", a.program_tool, "$TOOL x,y,z,A,B,C for motions before the program sets one (the controller's active tool)");
   c->add_option("--program-base", a.program_base, "$BASE x,y,z,A,B,C for motions before the program sets one (the controller's active base)");
   return [args]() { return jobSettings(*args); };

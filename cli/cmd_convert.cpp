@@ -2,8 +2,10 @@
 #include <filesystem>
 #include <iostream>
 #include <memory>
+#include <nlohmann/json.hpp>
 
 #include "accura/calib/errors.h"
+#include "accura/calib/json_text.h"
 #include "accura/postproc/batch.h"
 #include "accura/postproc/program_io.h"
 #include "commands.h"
@@ -18,6 +20,7 @@ struct ConvertArgs {
   std::string dat;
   std::string config;
   std::string out;
+  std::string json;
 };
 
 int runConvert(const ConvertArgs& a) {
@@ -33,9 +36,26 @@ int runConvert(const ConvertArgs& a) {
   if (program.krl && !program.krl->dat_path.empty()) inputs.push_back(program.krl->dat_path);
   if (!a.config.empty()) inputs.push_back(a.config);
   calib::refuseToOverwrite(files, inputs, "--out");
+  std::string json_text;
+  if (!a.json.empty()) {
+    calib::refuseToOverwrite({{a.json, ""}}, inputs, "--json");
+    nlohmann::ordered_json j;
+    j["in"] = a.in;
+    j["inputs"] = inputs;
+    j["motions"] = program.motions.size();
+    nlohmann::ordered_json outputs = nlohmann::ordered_json::array();
+    for (const auto& f : files) outputs.push_back(f.path);
+    j["outputs"] = outputs;
+    json_text = calib::jsonText(j);
+  }
   calib::installInterruptCleanup();
-  calib::writeFilesAtomically(files);
-  for (const auto& f : files) std::cout << "wrote " << f.path << "\n";
+  // like compensate: the output's directory is created
+  const fs::path dir = fs::path(a.out).parent_path();
+  if (!dir.empty()) fs::create_directories(dir);
+  std::vector<calib::OutputFile> all = files;
+  if (!a.json.empty()) all.push_back({a.json, json_text});
+  calib::writeFilesAtomically(all);
+  for (const auto& f : all) std::cout << "wrote " << f.path << "\n";
   std::cout << "accura convert: " << program.motions.size() << " motions";
   if (out_format != ProgramFormat::kKrl || !program.krl)
     std::cout << ", " << program.passthrough.size() << " other statements carried verbatim";
@@ -51,7 +71,8 @@ void addConvertCommand(CLI::App& app) {
   c->add_option("--in", args->in, "program to read: PROG.src (KRL, with PROG.dat next to it), PROG.xml or PROG.script")->required();
   c->add_option("--dat", args->dat, "the KRL .dat (default: the .src's name with .dat)");
   c->add_option("--config", args->config, "$config.dat: TOOL_DATA, BASE_DATA and global points such as XHOME");
-  c->add_option("--out", args->out, "program to write: OUT.xml, OUT.src (with OUT.dat) or OUT.script")->required();
+  c->add_option("--out", args->out, "program to write: OUT.xml, OUT.src (with OUT.dat) or OUT.script; its directory is created")->required();
+  c->add_option("--json", args->json, "report: the inputs read, the motions, the files written");
   c->callback([=]() { exitCode() = runConvert(*args); });
 }
 

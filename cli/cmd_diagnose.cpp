@@ -1,6 +1,7 @@
 // accura diagnose: where the remaining error lies, which effect of the catalogue causes it and
 // how far it shrinks once that effect is modelled (docs/diagnosis.md).
 #include <cmath>
+#include <ctime>
 #include <cstdio>
 #include <limits>
 #include <memory>
@@ -9,6 +10,7 @@
 #include "accura/calib/diagnose.h"
 #include "accura/calib/errors.h"
 #include "accura/calib/file_io.h"
+#include "accura/calib/identify.h"
 #include "accura/calib/kinematics.h"
 #include "accura/calib/measurements.h"
 #include "cli_util.h"
@@ -36,10 +38,41 @@ struct DiagnoseArgs {
   std::string report;
 };
 
+// The report's header and model section (diagnose.h calib::DiagnosisReportContext): when, which
+// accura, which instrument and files, and the complete geometric model identified on the fit
+// data with its sigmas and per-pose errors.
+calib::DiagnosisReportContext reportContext(const DiagnoseArgs& a, const calib::RobotModel& start, const calib::MeasurementSet& data,
+                                     const calib::Diagnosis& d) {
+  calib::DiagnosisReportContext c;
+  const std::time_t now = std::time(nullptr);
+  std::tm utc{};
+  gmtime_r(&now, &utc);
+  char date[32];
+  std::strftime(date, sizeof date, "%Y-%m-%d %H:%M UTC", &utc);
+  c.date_utc = date;
+  c.version = std::string("accura ") + ACCURA_VERSION_STRING;
+  c.instrument = "noise floor " + fmt("%.4f", d.noise_floor_mm) + " mm (3D RMS), from " + d.noise_floor_source;
+  c.data_files.push_back("fit: " + a.data);
+  if (!a.validate.empty()) c.data_files.push_back("validation: " + a.validate);
+  if (!a.map.empty()) c.data_files.push_back("mapping: " + a.map);
+  if (!a.validate_map.empty()) c.data_files.push_back("validation mapping: " + a.validate_map);
+  calib::IdentifyOptions o;
+  o.groups = {"geometric"};
+  calib::IdentifySummary s;
+  const calib::RobotModel model = calib::identify(start, data, o, &s);
+  for (const auto& p : s.parameters) c.parameters.push_back({p.name, p.value, p.sigma, p.unit, p.group == "base"});
+  calib::KinematicWorkspace ws;
+  for (const calib::Measurement& m : data.rows)
+    c.residuals_mm.push_back(m.p_world_mm - calib::forwardKinematics(model, m.q, m.context, ws).translation());
+  return c;
+}
+
 int runDiagnose(const DiagnoseArgs& a) {
+  if (a.json.empty() && a.report.empty())
+    throw calib::InputError("diagnose: expected an output, --json diag.json and/or --report diag.html, found neither");
   calib::RobotModel start = loadRobot(a.robot);
-  if (!a.base.empty()) start.nominal.T_world_base = calib::toIsometry(calib::parseXyzAbc(a.base, "--base"));
-  if (!a.tool.empty()) start.nominal.T_flange_tcp = calib::toIsometry(calib::parseXyzAbc(a.tool, "--tool"));
+  if (!a.base.empty()) start.nominal.T_world_base = calib::toIsometry(parsePose6(a.base, "--base"));
+  if (!a.tool.empty()) start.nominal.T_flange_tcp = calib::toIsometry(parseTool(a.tool, "--tool"));
   calib::DiagnoseOptions o;
   if (!a.effects.empty()) o.effects = splitList(a.effects, "--effects");
   o.gear_harmonics = a.harmonics;
@@ -62,7 +95,7 @@ int runDiagnose(const DiagnoseArgs& a) {
   // The JSON and the HTML report are one output set (all or nothing), never onto an input.
   std::vector<calib::OutputFile> outputs;
   if (!a.json.empty()) outputs.push_back({a.json, calib::diagnosisJson(d)});
-  if (!a.report.empty()) outputs.push_back({a.report, calib::diagnosisHtml(d)});
+  if (!a.report.empty()) outputs.push_back({a.report, calib::diagnosisHtml(d, reportContext(a, start, data, d))});
   calib::refuseToOverwrite(outputs, {a.robot, a.data, a.validate, a.map, a.validate_map}, "--json / --report");
   calib::writeFilesAtomically(outputs);
   for (const calib::OutputFile& f : outputs) std::printf("wrote %s\n", f.path.c_str());
@@ -85,21 +118,24 @@ void addDiagnoseCommand(CLI::App& app) {
   c->add_option("--tool", a->tool, "nominal T_flange_tcp x,y,z[,A,B,C] (mm, deg), as for identify");
   c->add_option("--effects", a->effects,
                 "effects to test (default: the catalogue: joint_compliance, gear_periodic, joint_scale, backlash, thermal)");
-  c->add_option("--harmonics", a->harmonics, "harmonics 1..H of gear_periodic")->capture_default_str();
-  c->add_option("--folds", a->folds, "folds of the cross-validation without --validate")->capture_default_str();
-  c->add_option("--noise-mm", a->noise_mm,
-                "measurement noise, 1 sigma per axis (mm) (default: from repeated poses, else from the std columns)");
-  c->add_option("--alpha", a->alpha, "significance level of one selection round (Bonferroni over its blocks)")
+  addIntegerOption(c, "--harmonics", a->harmonics, "harmonics 1..H of gear_periodic", 1, calib::kMaxGearHarmonics)->capture_default_str();
+  addIntegerOption(c, "--folds", a->folds, "folds of the cross-validation without --validate", 2, 20)->capture_default_str();
+  addNumberOption(c, "--noise-mm", a->noise_mm,
+                "measurement noise, 1 sigma per axis (mm) (default: from repeated poses, else from the std columns)",
+                NumberRange{0, 100, true, "mm"});
+  addNumberOption(c, "--alpha", a->alpha, "significance level of one selection round (Bonferroni over its blocks)", NumberRange{0, 0.5, true, ""})
       ->capture_default_str();
-  c->add_option("--repeat-tol", a->repeat_tol,
+  addNumberOption(c, "--repeat-tol", a->repeat_tol,
                 "two rows measure one joint configuration again when every joint agrees within this (deg; mm for "
-                "prismatic joints): the repeatability floor")
+                "prismatic joints): the repeatability floor",
+                  NumberRange{0, 1, true, "deg; mm for prismatic joints"})
       ->capture_default_str();
-  c->add_option("--robust-k", a->robust_k,
+  addNumberOption(c, "--robust-k", a->robust_k,
                 "robust estimation: rows whose residual exceeds k robust standard deviations are down-weighted "
-                "(Huber); 0 turns it off")
+                "(Huber); 0 turns it off",
+                  NumberRange{0, 1000, false, "robust standard deviations"})
       ->capture_default_str();
-  c->add_option("--json", a->json, "write the diagnosis as JSON")->required();
+  c->add_option("--json", a->json, "write the diagnosis as JSON (--json, --report or both)");
   c->add_option("--report", a->report, "write the diagnosis as a self-contained HTML page");
   c->callback([=]() { exitCode() = runDiagnose(*a); });
 }

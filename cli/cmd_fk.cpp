@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "accura/calib/errors.h"
+#include "accura/calib/json_text.h"
 #include "accura/calib/identify.h"
 #include "accura/calib/kinematics.h"
 #include "accura/calib/measurements.h"
@@ -20,7 +21,7 @@ using nlohmann::ordered_json;
 
 int runFk(const FkArgs& a) {
   const calib::RobotModel model = loadRobot(a.robot);
-  const std::vector<double> q = parseNumbers(a.q, "--q");
+  const std::vector<double> q = parseNumbers(a.q, "--q", NumberRange{-1e5, 1e5, false, "deg; mm for prismatic joints"});
   if (static_cast<int>(q.size()) != model.dof())
     throw calib::InputError("--q: expected " + std::to_string(model.dof()) + " joint values for " +
                      model.nominal.name + ", found " + std::to_string(q.size()));
@@ -37,6 +38,15 @@ int runFk(const FkArgs& a) {
   ctx.payload_kg = a.payload_kg;
   const calib::XyzAbc p = calib::toXyzAbc(calib::forwardKinematics(model, qv, ctx, ws));
   std::printf("x=%.4f y=%.4f z=%.4f A=%.5f B=%.5f C=%.5f\n", p.x_mm, p.y_mm, p.z_mm, p.a_deg, p.b_deg, p.c_deg);
+  if (!a.json.empty()) {
+    ordered_json j;
+    j["robot"] = model.nominal.name;
+    j["q"] = q;
+    j["payload_kg"] = a.payload_kg;
+    j["T_world_tcp"] = {{"x_mm", num(p.x_mm)}, {"y_mm", num(p.y_mm)}, {"z_mm", num(p.z_mm)},
+                        {"a_deg", num(p.a_deg)}, {"b_deg", num(p.b_deg)}, {"c_deg", num(p.c_deg)}};
+    writeTextAtomically(a.json, calib::jsonText(j));
+  }
   return 0;
 }
 
@@ -47,7 +57,8 @@ void addFkCommand(CLI::App& app) {
   auto* cfk = app.add_subcommand("fk", "print the tool pose at joint values (x,y,z mm; A,B,C deg)");
   cfk->add_option("--robot", fk->robot, "robot file or bundled robot name")->required();
   cfk->add_option("--q", fk->q, "joint values v1,...,vN (deg; mm for prismatic joints)")->required();
-  cfk->add_option("--payload-kg", fk->payload_kg, "payload mass (kg), for compliance models");
+  addNumberOption(cfk, "--payload-kg", fk->payload_kg, "payload mass (kg), for compliance models", kPayloadRange);
+  cfk->add_option("--json", fk->json, "also write the pose as JSON (T_world_tcp: x_mm ... c_deg)");
   cfk->callback([=]() { exitCode() = runFk(*fk); });
 }
 

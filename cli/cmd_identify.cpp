@@ -33,8 +33,8 @@ int runIdentify(const IdentifyArgs& a) {
   } else if (a.form != "auto") {
     throw calib::InputError("--form: expected 'auto' or 'dh', found '" + a.form + "'");
   }
-  if (!a.base.empty()) start.nominal.T_world_base = calib::toIsometry(calib::parseXyzAbc(a.base, "--base"));
-  if (!a.tool.empty()) start.nominal.T_flange_tcp = calib::toIsometry(calib::parseXyzAbc(a.tool, "--tool"));
+  if (!a.base.empty()) start.nominal.T_world_base = calib::toIsometry(parsePose6(a.base, "--base"));
+  if (!a.tool.empty()) start.nominal.T_flange_tcp = calib::toIsometry(parseTool(a.tool, "--tool"));
 
   if (a.validate_station != "same" && a.validate_station != "new")
     throw calib::InputError("--validate-station: expected 'same' or 'new', found '" + a.validate_station + "'");
@@ -140,7 +140,8 @@ int runIdentify(const IdentifyArgs& a) {
   for (const auto& d : sets) orient = orient && d.has_orientation;
   std::printf("accura identify: %s, %zu poses from %s (%s)\n", start.nominal.name.c_str(), n_rows,
               data_names.c_str(), orient ? "position and orientation" : "position only");
-  if (sets.size() > 1) {
+  // --quiet: the summary line, warnings, the validation and the file written (see --help)
+  if (!a.quiet && sets.size() > 1) {
     std::printf("data sets: %zu, %s\n", sets.size(),
                 opt.same_station ? "one tracker station shared (--same-station)"
                                  : "each from its own tracker station (6 station parameters per set beyond the first)");
@@ -150,6 +151,7 @@ int runIdentify(const IdentifyArgs& a) {
                   sets[k].rows.size(), b.x_mm, b.y_mm, b.z_mm, b.a_deg, b.b_deg, b.c_deg);
     }
   }
+  if (!a.quiet) {
   std::printf("joint ranges of the fit data (the model is fitted there; joint-dependent effects are not "
               "extrapolated beyond):");
   for (int j = 0; j < start.dof(); ++j)
@@ -170,7 +172,12 @@ int runIdentify(const IdentifyArgs& a) {
   if (std::isfinite(s.position_std_mm)) std::printf(" [position std %.4g mm]", s.position_std_mm);
   if (std::isfinite(s.orientation_std_deg)) std::printf(" [orientation std %.4g deg]", s.orientation_std_deg);
   std::printf("; variance factor %.3f\n", s.variance_factor);
-  std::printf("solver: %s\n", s.BriefReport().c_str());
+  // the user's language first, the solver's on request (--verbose)
+  const bool converged = s.termination.rfind("CONVERGENCE", 0) == 0 || s.termination.rfind("USER_SUCCESS", 0) == 0;
+  std::printf("solver: %s after %d iterations; fit RMS %.4f mm over %d poses, %d parameters\n",
+              converged ? "converged" : "stopped before converging (the iteration limit; --verbose says why)",
+              s.iterations, s.fit.rms_mm, s.fit.n, s.parameters_free);
+  if (a.verbose) std::printf("solver details (Ceres): %s\n", s.BriefReport().c_str());
   if (!s.joint_map_cv.empty()) {
     std::printf("joint_map: knot spacing and smoothness by blocked cross-validation (5 contiguous blocks of each "
                 "data set), held-out position RMS (mm); without maps %.4f:\n", s.joint_map_cv_baseline_mm);
@@ -182,30 +189,44 @@ int runIdentify(const IdentifyArgs& a) {
                 "RMS over the fit data %.4g %s; zero outside the interval (taper of one knot)\n",
                 mrep.joint, mrep.lower, mrep.upper, mrep.unit.c_str(), mrep.knot, mrep.unit.c_str(), mrep.coefficients,
                 mrep.smoothing, mrep.amplitude, mrep.unit.c_str(), mrep.rms, mrep.unit.c_str());
+  }  // !a.quiet
   for (const auto& w : s.warnings) std::printf("WARNING: %s\n", w.c_str());
-  if (!s.suspicious.empty()) {
+  if (!a.quiet && !s.suspicious.empty()) {
     std::printf("suspicious rows (normalised residual above the chi quantile 0.9999; check them for glitches):\n");
     for (size_t k = 0; k < s.suspicious.size() && k < 20; ++k)
       std::printf("  %s:%d  normalised %.1f, position error %.3f mm\n", s.suspicious[k].file.c_str(),
                   s.suspicious[k].line, s.suspicious[k].normalised, s.suspicious[k].error_mm);
     if (s.suspicious.size() > 20) std::printf("  ... and %zu more (see --json)\n", s.suspicious.size() - 20);
   }
-  if (!s.downweighted_lines.empty()) {
+  if (!a.quiet && !s.downweighted_lines.empty()) {
     std::printf("robust loss down-weighted %zu rows, lines:", s.downweighted_lines.size());
     for (int l : s.downweighted_lines) std::printf(" %d", l);
     std::printf("\n");
   }
   if (!a.quiet) {
-    std::printf("parameters (deviation from nominal, 1 sigma):\n");
+    // the station (group base) is where the robot stands in the tracker's frame: a pose, not a
+    // deviation of the robot from its nominal model
+    bool station = false;
+    for (const auto& p : s.parameters) station = station || p.group == "base";
+    if (station) {
+      std::printf("tracker station (T_world_base: the robot base in the measurement frame, 1 sigma):\n");
+      for (const auto& p : s.parameters)
+        if (p.group == "base")
+          std::printf("  %-16s %14.6f +- %-12.6f %s\n", p.name.c_str(), p.value, p.sigma, p.unit.c_str());
+    }
+    std::printf("robot parameters (deviation from the nominal model, 1 sigma):\n");
     for (const auto& p : s.parameters)
-      std::printf("  %-16s %14.6f +- %-12.6f %s\n", p.name.c_str(), p.value, p.sigma, p.unit.c_str());
+      if (p.group != "base")
+        std::printf("  %-16s %14.6f +- %-12.6f %s\n", p.name.c_str(), p.value, p.sigma, p.unit.c_str());
+    std::printf("accuracy (position mm: RMS mean p95 max%s):\n", orient ? "; orientation deg: RMS mean p95 max" : "");
+    printStatsRow("fit", s.fit);
   }
-  std::printf("accuracy (position mm: RMS mean p95 max%s):\n", orient ? "; orientation deg: RMS mean p95 max" : "");
-  printStatsRow("fit", s.fit);
   if (has_val) {
-    std::printf("validation on %s, %d poses:\n", validation_source.c_str(), val.n);
-    if (!station_note.empty()) std::printf("  %s\n", station_note.c_str());
-    if (outside_rows > 0) {
+    std::printf("validation on %s, %d poses (position mm: RMS mean p95 max%s):\n", validation_source.c_str(), val.n,
+                orient ? "; orientation deg: RMS mean p95 max" : "");
+    if (!a.quiet && !station_note.empty()) std::printf("  %s\n", station_note.c_str());
+    if (a.quiet) {
+    } else if (outside_rows > 0) {
       std::printf("  %d of %d validation poses lie outside the joint ranges of the fit data (joint-dependent effects "
                   "are not extrapolated there):", outside_rows, val.n);
       for (int j = 0; j < start.dof(); ++j) {
@@ -343,9 +364,10 @@ void addIdentifyCommand(CLI::App& app) {
                   "station (6 parameters each) unless --same-station")
       ->required();
   cid->add_flag("--same-station", id->same_station, "the --data files were measured from one tracker station");
-  cid->add_option("--map-smoothing", id->map_smoothing,
+  addNumberOption(cid, "--map-smoothing", id->map_smoothing,
                   "joint_map smoothness (relative weight of the second differences; default: chosen by blocked "
-                  "cross-validation on the fit data)");
+                  "cross-validation on the fit data)",
+                  NumberRange{0, 1e12, false, ""});
   cid->add_option("--validate", id->validate, "held-out measurement CSV (same station)");
   cid->add_option("--map", id->map, "mapping file: how to read --data (and --validate) as exported by the instrument");
   cid->add_option("--validate-map", id->validate_map, "mapping file for --validate when it differs from --map");
@@ -353,8 +375,9 @@ void addIdentifyCommand(CLI::App& app) {
                   "same: --validate was measured from the fit's station; new: re-register the station (6 "
                   "parameters) on it with the robot's parameters held fixed")
       ->capture_default_str();
-  cid->add_option("--holdout", id->holdout,
-                  "without --validate: fraction of the poses held out for validation (every k-th)")
+  addNumberOption(cid, "--holdout", id->holdout,
+                  "without --validate: fraction of the poses held out for validation (every k-th)",
+                  NumberRange{0, 0.5, false, ""})
       ->capture_default_str();
   cid->add_option("--base", id->base, "nominal T_world_base x,y,z,A,B,C (mm, deg)");
   cid->add_option("--tool", id->tool, "nominal T_flange_tcp x,y,z[,A,B,C] (mm, deg)");
@@ -367,12 +390,15 @@ void addIdentifyCommand(CLI::App& app) {
   cid->add_option("--form", id->form, "auto (Hayati for parallel axes) or dh (force classic DH)")
       ->capture_default_str();
   cid->add_option("--loss", id->loss, "robust loss: none, huber, cauchy")->capture_default_str();
-  cid->add_option("--loss-scale", id->loss_scale, "robust loss scale (residual sigmas)")->capture_default_str();
-  cid->add_option("--std-mm", id->std_mm, "position std (mm) when the data has no std columns");
-  cid->add_option("--std-deg", id->std_deg, "orientation std (deg) when the data has no std columns");
+  addNumberOption(cid, "--loss-scale", id->loss_scale, "robust loss scale (residual sigmas)", NumberRange{0, 1000, true, "sigmas"})->capture_default_str();
+  addNumberOption(cid, "--std-mm", id->std_mm, "position std (mm) when the data has no std columns", NumberRange{0, 1000, true, "mm"});
+  addNumberOption(cid, "--std-deg", id->std_deg, "orientation std (deg) when the data has no std columns", NumberRange{0, 180, true, "deg"});
   cid->add_option("--out", id->out, "calibrated model file to write")->required();
   cid->add_option("--json", id->json, "summary JSON to write");
-  cid->add_flag("--quiet", id->quiet, "print only the summary line and the validation");
+  cid->add_flag("--quiet", id->quiet,
+                "print only what matters: the summary line, warnings, the validation (nominal and calibrated) and "
+                "the file written");
+  cid->add_flag("--verbose", id->verbose, "also print the solver's own report (Ceres: termination, cost)");
   cid->callback([=]() { exitCode() = runIdentify(*id); });
 }
 

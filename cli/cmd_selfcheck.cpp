@@ -31,11 +31,11 @@ int runSelfcheck(const SelfcheckArgs& a) {
   calib::SelfcheckOptions o;
   o.robots = splitList(a.robots, "--robots");
   o.seeds.clear();
-  for (double s : parseNumbers(a.seeds, "--seeds")) {
+  for (double s : parseNumbers(a.seeds, "--seeds", NumberRange{0, 1e15, false, ""})) {
     if (!(s >= 0 && s == std::floor(s) && s < 1e12)) throw calib::InputError("--seeds: expected whole numbers >= 0, found " + fmt("%g", s));
     o.seeds.push_back(static_cast<std::uint64_t>(s));
   }
-  o.noise_mm = parseNumbers(a.noise, "--noise-mm");
+  o.noise_mm = parseNumbers(a.noise, "--noise-mm", NumberRange{0, 100, true, "mm"});
   if (!a.injected.empty()) o.injected = splitList(a.injected, "--inject");
   o.poses = a.poses;
   if (!(a.target > 0 && a.target <= 1)) throw calib::InputError("--target: expected a fraction in (0, 1], found " + fmt("%g", a.target));
@@ -101,8 +101,8 @@ void addSelfcheckCommand(CLI::App& app) {
   c->add_option("--inject", a->injected,
                 "effects to inject and withhold (default: none, the catalogue, and unmodelled_coupling, an effect "
                 "outside the catalogue)");
-  c->add_option("--poses", a->poses, "measured poses per case")->capture_default_str();
-  c->add_option("--target", a->target, "fraction of right verdicts needed for exit code 0")->capture_default_str();
+  addIntegerOption(c, "--poses", a->poses, "measured poses per case", 1, 1000000)->capture_default_str();
+  addNumberOption(c, "--target", a->target, "fraction of right verdicts needed for exit code 0", NumberRange{0, 1, false, ""})->capture_default_str();
   c->add_option("--json", a->json, "write every case as JSON");
   c->callback([=]() { exitCode() = runSelfcheck(*a); });
 }

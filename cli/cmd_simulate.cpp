@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "accura/calib/errors.h"
+#include "accura/calib/json_text.h"
 #include "accura/calib/file_io.h"
 #include "accura/calib/identify.h"
 #include "accura/calib/kinematics.h"
@@ -29,16 +30,16 @@ int runSimulate(const SimulateArgs& a) {
   o.noise_deg = a.noise_deg;
   o.orientation = a.orientation;
   o.write_std = a.write_std;
-  o.payloads_kg = parseNumbers(a.payloads, "--payloads");
+  o.payloads_kg = parseNumbers(a.payloads, "--payloads", kPayloadRange);
   o.error_scale = a.error_scale;
   const bool none = o.effects.size() == 1 && o.effects[0] == "none";
   if (!a.station.empty()) {
-    o.station = calib::parseXyzAbc(a.station, "--station");
+    o.station = parsePose6(a.station, "--station");
   } else {
     o.set_station = !none;
   }
   if (!a.tool.empty()) {
-    o.tool = calib::parseXyzAbc(a.tool, "--tool");
+    o.tool = parseTool(a.tool, "--tool");
     o.set_tool = true;
   }
   std::string why;
@@ -55,7 +56,22 @@ int runSimulate(const SimulateArgs& a) {
   if (!a.truth.empty())
     outputs.push_back({a.truth, calib::robotFileText(truth, {}, "accura simulate: the real robot behind " + a.out +
                                                                      " (seed " + std::to_string(o.seed) + ")")});
-  calib::refuseToOverwrite(outputs, {a.robot}, "--out / --truth");
+  if (!a.json.empty()) {
+    ordered_json j;
+    j["robot"] = nominal.nominal.name;
+    j["poses"] = o.poses;
+    j["seed"] = o.seed;
+    j["effects"] = o.effects;
+    j["noise_mm"] = o.noise_mm;
+    j["noise_deg"] = o.orientation ? num(o.noise_deg) : ordered_json(nullptr);
+    j["payloads_kg"] = o.payloads_kg;
+    const calib::XyzAbc st = calib::toXyzAbc(truth.T_world_base());
+    j["T_world_base"] = {num(st.x_mm), num(st.y_mm), num(st.z_mm), num(st.a_deg), num(st.b_deg), num(st.c_deg)};
+    j["out"] = a.out;
+    j["truth"] = a.truth.empty() ? ordered_json(nullptr) : ordered_json(a.truth);
+    outputs.push_back({a.json, calib::jsonText(j)});
+  }
+  calib::refuseToOverwrite(outputs, {a.robot}, "--out / --truth / --json");
   calib::writeFilesAtomically(outputs);
   std::printf("wrote %d simulated poses of %s to %s%s\n", o.poses, nominal.nominal.name.c_str(), a.out.c_str(),
               a.truth.empty() ? "" : (" and the real robot to " + a.truth).c_str());
@@ -68,23 +84,24 @@ void addSimulateCommand(CLI::App& app) {
   auto sim = std::make_shared<SimulateArgs>();
   auto* csim = app.add_subcommand("simulate", "measurements of a perturbed robot, as a tracker sees it");
   csim->add_option("--robot", sim->robot, "nominal robot (file or bundled name)")->required();
-  csim->add_option("--poses", sim->poses, "number of measured poses")->capture_default_str();
-  csim->add_option("--seed", sim->seed, "random seed (errors and poses)")->capture_default_str();
+  addIntegerOption(csim, "--poses", sim->poses, "number of measured poses", 1, 1000000)->capture_default_str();
+  addIntegerOption(csim, "--seed", sim->seed, "random seed (errors and poses)", 0ULL, ~0ULL)->capture_default_str();
   csim->add_option("--effects", sim->effects,
                    "errors of the real robot: geometric and effects of the catalogue (joint_compliance, gear_periodic, "
                    "joint_scale, backlash, thermal), or none (the robot as given)")
       ->capture_default_str();
-  csim->add_option("--noise-mm", sim->noise_mm, "position noise, 1 sigma per axis (mm)")->capture_default_str();
-  csim->add_option("--noise-deg", sim->noise_deg, "orientation noise, 1 sigma per axis (deg)")->capture_default_str();
+  addNumberOption(csim, "--noise-mm", sim->noise_mm, "position noise, 1 sigma per axis (mm)", NumberRange{0, 100, false, "mm"})->capture_default_str();
+  addNumberOption(csim, "--noise-deg", sim->noise_deg, "orientation noise, 1 sigma per axis (deg)", NumberRange{0, 10, false, "deg"})->capture_default_str();
   csim->add_flag("--orientation", sim->orientation, "also measure the orientation (6D tracker)");
   csim->add_flag("--std", sim->write_std, "write std columns (the noise levels)");
   csim->add_option("--payloads", sim->payloads, "payload masses cycled over the poses (kg)")->capture_default_str();
   csim->add_option("--station", sim->station,
                    "T_world_base of the real robot, x,y,z,A,B,C (default: 3 m away, turned 30 deg)");
   csim->add_option("--tool", sim->tool, "the measured target on the flange, T_flange_tcp x,y,z[,A,B,C] (mm, deg)");
-  csim->add_option("--error-scale", sim->error_scale, "scale of the random geometric errors")->capture_default_str();
+  addNumberOption(csim, "--error-scale", sim->error_scale, "scale of the random geometric errors", NumberRange{0, 1000, false, ""})->capture_default_str();
   csim->add_option("--out", sim->out, "measurement CSV to write")->required();
   csim->add_option("--truth", sim->truth, "write the real robot as a calibrated model file");
+  csim->add_option("--json", sim->json, "also write what was simulated as JSON (robot, poses, seed, effects, station)");
   csim->callback([=]() { exitCode() = runSimulate(*sim); });
 }
 

@@ -14,6 +14,7 @@ struct FkArgs {
   std::string robot;
   std::string q;
   double payload_kg = 0;
+  std::string json;
 };
 
 struct SimulateArgs {
@@ -31,6 +32,7 @@ struct SimulateArgs {
   double error_scale = 1.0;
   std::string out;
   std::string truth;
+  std::string json;
 };
 
 struct IdentifyArgs {
@@ -54,6 +56,7 @@ struct IdentifyArgs {
   std::string out;
   std::string json;
   bool quiet = false;
+  bool verbose = false;
 };
 
 /// The exit code a subcommand's callback leaves for main (0 unless set).
@@ -75,7 +78,9 @@ void writeTextAtomically(const std::string& path, const std::string& text);
 
 /// Splits "a,b,c" into trimmed items (empty items are an InputError naming `what`).
 std::vector<std::string> splitList(const std::string& text, const std::string& what);
-/// Parses a comma-separated list of numbers (InputError naming `what` on a bad item).
-std::vector<double> parseNumbers(const std::string& text, const std::string& what);
+/// Parses a comma-separated list of numbers, each within `r` (InputError naming `what` and
+/// what was expected on a bad item: cli_util.h parseNumber).
+struct NumberRange;
+std::vector<double> parseNumbers(const std::string& text, const std::string& what, const NumberRange& r);
 
 }  // namespace accura::cli

@@ -6,6 +6,7 @@
 
 #include "accura/calib/errors.h"
 #include "accura/calib/file_io.h"
+#include "cli_util.h"
 #include "commands.h"
 
 namespace accura::cli {
@@ -39,15 +40,9 @@ std::vector<std::string> splitList(const std::string& text, const std::string& w
   return out;
 }
 
-std::vector<double> parseNumbers(const std::string& text, const std::string& what) {
+std::vector<double> parseNumbers(const std::string& text, const std::string& what, const NumberRange& r) {
   std::vector<double> v;
-  for (const auto& item : splitList(text, what)) {
-    char* end = nullptr;
-    const double x = std::strtod(item.c_str(), &end);
-    if (end == item.c_str() || *end != '\0' || !std::isfinite(x))
-      throw calib::InputError(what + ": expected a number, found '" + item + "'");
-    v.push_back(x);
-  }
+  for (const auto& item : splitList(text, what)) v.push_back(parseNumber(item, what, r));
   return v;
 }
 

@@ -13,7 +13,7 @@ int main(int argc, char** argv) {
   CLI::App app{"accura: identify a robot's real kinematics and make off-line programs land "
                "where the CAD model says"};
   app.require_subcommand(1);
-  app.set_version_flag("--version", "accura 0.1.0");
+  app.set_version_flag("--version", "accura " ACCURA_VERSION_STRING);
 
   addFkCommand(app);
   addSimulateCommand(app);
@@ -56,7 +56,10 @@ int main(int argc, char** argv) {
       return app.exit(e);
     } catch (const CLI::ParseError& e) {
       // bad usage: exit status 1 like any other bad input, with a pointer to the help
-      std::cerr << "accura: error: " << e.what() << " (see accura --help, accura <command> --help)\n";
+      // the help to see is the command's (argv[1] is a known command here), else accura's
+      const std::string help = argc > 1 && argv[1][0] != '-' ? std::string("accura ") + argv[1] + " --help"
+                                                             : std::string("accura --help");
+      std::cerr << "accura: error: " << e.what() << " (see " << help << ")\n";
       return 1;
     }
     return exitCode();

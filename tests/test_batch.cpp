@@ -113,16 +113,16 @@ TEST(Batch, ABadFileIsReportedTheRestConvertedInputUnchanged) {
       << r1.out;
   EXPECT_NE(r1.out.find("FAILED far.src: in/far.src:4:1: "), std::string::npos) << r1.out;
   EXPECT_NE(r1.out.find("skipped robot_model.xml: not an XML program"), std::string::npos) << r1.out;
-  EXPECT_NE(r1.out.find("accura batch: 4 converted, 2 failed, 1 skipped, 7 programs in in"), std::string::npos) << r1.out;
+  EXPECT_NE(r1.out.find("accura batch: 4 compensated, 2 failed, 1 skipped, 7 programs in in"), std::string::npos) << r1.out;
   EXPECT_LT(r1.out.find("cell2/Seam_B.SRC"), r1.out.find("cell2/broken.src"));
   EXPECT_LT(r1.out.find("cell2/broken.src"), r1.out.find("far.src"));
   const nlohmann::json report = nlohmann::json::parse(j1);
-  EXPECT_EQ(report["converted"], 4);
+  EXPECT_EQ(report["compensated"], 4);
   EXPECT_EQ(report["failed"], 2);
   ASSERT_EQ(report["files"].size(), 7u);
   EXPECT_EQ(report["files"][1]["input"], "cell2/broken.src");
   EXPECT_EQ(report["files"][1]["status"], "failed");
-  EXPECT_EQ(report["files"][0]["status"], "converted");
+  EXPECT_EQ(report["files"][0]["status"], "compensated");
   EXPECT_EQ(report["files"][0]["outputs"], nlohmann::json({"cell2/Seam_B.SRC", "cell2/Seam_B.dat"}));
   EXPECT_EQ(report["files"][0]["segments"].size(), 5u);
   EXPECT_EQ(report["files"][0]["segments"][0]["file"], "cell2/Seam_B.SRC");
@@ -148,7 +148,7 @@ TEST(Batch, AllConvertedExitsZeroAndTheOutputMayNotBeInsideTheInput) {
   EXPECT_EQ(snapshot(root + "/in"), before);
   r = accura(root, "batch --robot model.xml --in in --out out --jobs 0");
   EXPECT_EQ(r.code, 1);
-  EXPECT_NE(r.err.find("--jobs: expected at least 1, found 0"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("--jobs: expected an integer in [1, 1024], found '0' (see accura batch --help)"), std::string::npos) << r.err;
 }
 
 // SIGINT in the middle of a run: exit 130 (or 0 when it finished first); no temporary file;
@@ -267,12 +267,12 @@ TEST(Batch, CellCheckFailsTheProgramWhosePathTouchesAFixture) {
   char excess[64];
   std::snprintf(excess, sizeof excess, "(short by %.3f mm)", first["excess"].get<double>());
   EXPECT_NE(line.find(excess), std::string::npos) << line << " / " << excess;
-  EXPECT_NE(r1.out.find("accura batch: 2 converted, 1 failed, 0 skipped, 3 programs in in"), std::string::npos) << r1.out;
+  EXPECT_NE(r1.out.find("accura batch: 2 compensated, 1 failed, 0 skipped, 3 programs in in"), std::string::npos) << r1.out;
   const nlohmann::json report = nlohmann::json::parse(j1);
   EXPECT_EQ(report["cell"], "cell/seam_cell.xml");
   ASSERT_EQ(report["files"].size(), 3u);
   for (int k : {0, 1}) {
-    EXPECT_EQ(report["files"][k]["status"], "converted");
+    EXPECT_EQ(report["files"][k]["status"], "compensated");
     EXPECT_TRUE(report["files"][k]["check"]["passed"].get<bool>());
     EXPECT_TRUE(report["files"][k]["check"]["violations"].empty());
   }
@@ -294,8 +294,8 @@ TEST(Batch, CellCheckFailsTheProgramWhosePathTouchesAFixture) {
   EXPECT_EQ(test::readText(root + "/outw/touch.src"), test::readText(root + "/single_w/touch.src"));
   EXPECT_EQ(test::readText(root + "/outw/seam.src"), out1.at("seam.src"));
   const nlohmann::json rw = nlohmann::json::parse(test::readText(root + "/reportw.json"));
-  EXPECT_EQ(rw["converted"], 3);
-  EXPECT_EQ(rw["files"][2]["status"], "converted");
+  EXPECT_EQ(rw["compensated"], 3);
+  EXPECT_EQ(rw["files"][2]["status"], "compensated");
   EXPECT_FALSE(rw["files"][2]["check"]["passed"].get<bool>());
   EXPECT_NE(w.err.find("touch.src: failed the checks"), std::string::npos) << w.err;
 }

@@ -97,7 +97,7 @@ TEST(BatchTerminal, ProgressBarRedrawsOneLinePerProgram) {
   // the last redraw ends its line, and the summary follows on its own line
   const size_t last = text.find("4/4 c/seam.src");
   EXPECT_EQ(text.substr(last + 14, 2), "\r\n");
-  EXPECT_NE(text.find("accura batch: 3 converted, 1 failed, 0 skipped, 4 programs in in"), std::string::npos) << text;
+  EXPECT_NE(text.find("accura batch: 3 compensated, 1 failed, 0 skipped, 4 programs in in"), std::string::npos) << text;
   // the plain-log form (one "accura batch: [k/n]" line per program) is not used on a terminal
   EXPECT_EQ(text.find("accura batch: [1/4]"), std::string::npos);
 }

@@ -129,9 +129,9 @@ TEST(Cli, BadOptionsAreReported) {
   r = run("identify --robot kuka_kr16 --data " + dir + "/d.csv --params geometric,gravity_magic --out " + dir + "/x.xml");
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.err.find("unknown parameter group 'gravity_magic'"), std::string::npos) << r.err;
-  r = run("identify --robot kuka_kr16 --data " + dir + "/d.csv --base 1,2,x --out " + dir + "/x.xml");
+  r = run("identify --robot kuka_kr16 --data " + dir + "/d.csv --base x,2,3,0,0,0 --out " + dir + "/x.xml");
   EXPECT_EQ(r.code, 1);
-  EXPECT_NE(r.err.find("--base: expected a number, found 'x'"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("--base (x): expected a number in [-100000, 100000] (mm), found 'x'"), std::string::npos) << r.err;
   r = run("simulate --robot kuka_kr16 --effects geometric,warp --out " + dir + "/e.csv");
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.err.find("unknown effect 'warp'"), std::string::npos) << r.err;

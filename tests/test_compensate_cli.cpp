@@ -195,8 +195,9 @@ TEST(CompensateCli, ConvertKrlToXmlAndBack) {
   CliRun r = accura(dir, "convert --in seam.src --config '$config.dat' --out seam.xml");
   ASSERT_EQ(r.code, 0) << r.err;
   r = accura(dir, "convert --in seam.xml --out back/seam.src");
-  EXPECT_EQ(r.code, 1);  // the directory back/ does not exist: nothing written
-  EXPECT_FALSE(std::ifstream(dir + "/back/seam.src").good());
+  EXPECT_EQ(r.code, 0) << r.err;  // the directory back/ is created, as compensate creates --out (issue 17)
+  EXPECT_TRUE(std::ifstream(dir + "/back/seam.src").good());
+  EXPECT_TRUE(std::ifstream(dir + "/back/seam.dat").good());
   r = accura(dir, "convert --in seam.xml --out seam_back.src");
   ASSERT_EQ(r.code, 0) << r.err;
   r = accura(dir, "convert --in seam_back.src --config '$config.dat' --out seam_back.xml");
@@ -394,7 +395,7 @@ TEST(CompensateCli, ErrorsNameThePlaceAndWriteNothing) {
   // bad options
   r = accura(dir, "compensate --robot kr16_real.xml --in seam.src --config '$config.dat' --out o5 --tol -1");
   EXPECT_EQ(r.code, 1);
-  EXPECT_NE(r.err.find("--tol: expected a positive distance (mm), found -1"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("--tol: expected a number in [0.0001, 100] (mm), found '-1' (see accura compensate --help)"), std::string::npos) << r.err;
   r = accura(dir, "compensate --robot kr16_real.xml --in seam.txt --out o5");
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.err.find("expected a program file ending in .src (KUKA KRL) or .xml"), std::string::npos) << r.err;

@@ -270,8 +270,93 @@ std::string jointChart(const JointProfile& jp, double vmax) {
     << "</text>";
   s << "<text x=\"" << L + W / 2 << "\" y=\"" << T + H + 26 << "\" font-size=\"10\" text-anchor=\"middle\">q" << jp.joint << " ("
     << jp.unit << ")</text>";
+  s << "<text class=\"y-label\" transform=\"translate(10," << T + H / 2 << ") rotate(-90)\" font-size=\"9\" "
+       "text-anchor=\"middle\">held-out RMS (mm)</text>";
   s << "</svg>";
   return s.str();
+}
+
+// Where the diagnosis comes from: date, version, instrument, files.
+std::string reportHeader(const DiagnosisReportContext& c) {
+  if (c.date_utc.empty() && c.version.empty() && c.instrument.empty() && c.data_files.empty()) return "";
+  std::ostringstream s;
+  s << "<table id=\"report-meta\"><tr><th class=\"l\">date</th><td class=\"l\">" << esc(c.date_utc) << "</td></tr>"
+    << "<tr><th class=\"l\">accura</th><td class=\"l\">" << esc(c.version) << "</td></tr>"
+    << "<tr><th class=\"l\">instrument</th><td class=\"l\">" << esc(c.instrument) << "</td></tr>"
+    << "<tr><th class=\"l\">data files</th><td class=\"l\">";
+  for (size_t k = 0; k < c.data_files.size(); ++k) s << (k ? "<br>" : "") << esc(c.data_files[k]);
+  s << "</td></tr></table>\n";
+  return s.str();
+}
+
+// The identified parameters with sigmas, an error histogram and the per-axis split.
+std::string modelSection(const DiagnosisReportContext& c) {
+  std::ostringstream s;
+  if (!c.parameters.empty()) {
+    s << "<h2>The identified complete geometric model</h2>\n<table id=\"parameters\"><tr><th class=\"l\">parameter</th>"
+         "<th>value</th><th>1 sigma</th><th class=\"l\">unit</th><th class=\"l\">meaning</th></tr>";
+    for (const auto& p : c.parameters)
+      s << "<tr><td class=\"l\">" << esc(p.name) << "</td><td>" << f("%.6f", p.value) << "</td><td>" << f("%.6f", p.sigma)
+        << "</td><td class=\"l\">" << esc(p.unit) << "</td><td class=\"l\">"
+        << (p.station ? "tracker station (absolute)" : "deviation from the nominal model") << "</td></tr>";
+    s << "</table>\n";
+  }
+  if (c.residuals_mm.empty()) return s.str();
+  std::vector<double> e;
+  Eigen::Vector3d sq = Eigen::Vector3d::Zero(), mean = Eigen::Vector3d::Zero();
+  for (const auto& r : c.residuals_mm) {
+    e.push_back(r.norm());
+    sq += r.cwiseAbs2();
+    mean += r;
+  }
+  const double n = static_cast<double>(e.size());
+  const double emax = *std::max_element(e.begin(), e.end());
+  const int bins = 20;
+  const double width = emax > 0 ? emax / bins : 1.0;
+  std::vector<int> count(bins, 0);
+  for (double x : e) ++count[static_cast<size_t>(std::min(bins - 1, static_cast<int>(x / width)))];
+  const int cmax = *std::max_element(count.begin(), count.end());
+  const int W = 400, H = 150, L = 50, T = 10, B = 36;
+  s << "<h2>Error of that model on the fit data</h2>\n<svg id=\"histogram\" xmlns=\"http://www.w3.org/2000/svg\" width=\""
+    << W + L + 10 << "\" height=\"" << H + T + B << "\"><rect x=\"" << L << "\" y=\"" << T << "\" width=\"" << W
+    << "\" height=\"" << H << "\" fill=\"#fafafa\" stroke=\"#999\"/>";
+  for (int k = 0; k < bins; ++k) {
+    const double bh = cmax > 0 ? H * count[static_cast<size_t>(k)] / static_cast<double>(cmax) : 0;
+    s << "<rect x=\"" << f("%.1f", L + W * k / static_cast<double>(bins) + 1) << "\" y=\"" << f("%.1f", T + H - bh)
+      << "\" width=\"" << f("%.1f", W / static_cast<double>(bins) - 2) << "\" height=\"" << f("%.1f", bh)
+      << "\" fill=\"#2e86c1\"><title>" << f("%.4f", k * width) << " .. " << f("%.4f", (k + 1) * width) << " mm: "
+      << count[static_cast<size_t>(k)] << " poses</title></rect>";
+  }
+  s << "<text x=\"" << L << "\" y=\"" << T + H + 14 << "\" font-size=\"9\">0</text><text x=\"" << L + W << "\" y=\""
+    << T + H + 14 << "\" font-size=\"9\" text-anchor=\"end\">" << f("%.4f", emax) << "</text>"
+    << "<text x=\"" << L + W / 2 << "\" y=\"" << T + H + 30 << "\" font-size=\"10\" text-anchor=\"middle\">"
+       "position error (mm)</text>"
+    << "<text x=\"" << L - 6 << "\" y=\"" << T + 8 << "\" font-size=\"9\" text-anchor=\"end\">" << cmax << "</text>"
+    << "<text transform=\"translate(12," << T + H / 2 << ") rotate(-90)\" font-size=\"10\" text-anchor=\"middle\">"
+       "poses</text></svg>\n";
+  s << "<table id=\"per-axis\"><tr><th class=\"l\">axis (measurement frame)</th><th>RMS (mm)</th><th>mean (mm)</th></tr>";
+  const char* axis[3] = {"x", "y", "z"};
+  for (int a = 0; a < 3; ++a)
+    s << "<tr><td class=\"l\">" << axis[a] << "</td><td>" << f("%.4f", std::sqrt(sq[a] / n)) << "</td><td>"
+      << f("%.4f", mean[a] / n) << "</td></tr>";
+  s << "<tr><td class=\"l\">3D</td><td>" << f("%.4f", std::sqrt(sq.sum() / n)) << "</td><td></td></tr></table>\n";
+  return s.str();
+}
+
+// Plain-language notes for the report's technical terms.
+std::string glossary() {
+  return "<h2>Terms used in this report</h2>\n<dl id=\"glossary\">"
+         "<dt>tau2 (tau1 .. tau6)</dt><dd>the gravity torque on joint 2 (N&middot;m) from the link masses and the payload "
+         "in that pose: an error that follows it is joint compliance (the joint gives under load).</dd>"
+         "<dt>dir4 (dir1 .. dir6)</dt><dd>the direction in which joint 4 last moved before the pose was measured (+1 or "
+         "-1): an error that follows it is backlash (play in the gear).</dd>"
+         "<dt>base_xy, base_rz</dt><dd>maps of the error over the workspace in the robot base frame: seen from above (x, "
+         "y), and as radius from the first axis against height (r, z).</dd>"
+         "<dt>negative R&sup2;</dt><dd>R&sup2; is the share of the residual a variable explains on poses it was not "
+         "fitted to; below 0 it predicts them worse than a constant: the variable explains nothing.</dd>"
+         "<dt>floor z</dt><dd>how far the held-out RMS lies above what the noise floor and the parameter uncertainty "
+         "alone would give, in standard errors: about 0 means the model is down to the noise; above 2, error is "
+         "left.</dd></dl>\n";
 }
 
 std::string confoundingText(const Confounding& c) {
@@ -491,9 +576,11 @@ std::string diagnosisText(const Diagnosis& d) {
   return s.str();
 }
 
-std::string diagnosisHtml(const Diagnosis& d) {
+std::string diagnosisHtml(const Diagnosis& d) { return diagnosisHtml(d, DiagnosisReportContext{}); }
+
+std::string diagnosisHtml(const Diagnosis& d, const DiagnosisReportContext& ctx) {
   std::ostringstream h;
-  h << "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>accura diagnosis: " << esc(d.robot)
+  h << "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>Remaining error of " << esc(d.robot)
     << "</title>\n<style>body{font-family:sans-serif;margin:24px;color:#222;max-width:1200px}"
        "h1{font-size:22px}h2{font-size:17px;margin-top:28px;border-bottom:1px solid #ccc}"
        "table{border-collapse:collapse;font-size:13px}td,th{border:1px solid #ccc;padding:3px 8px;text-align:right}"
@@ -501,7 +588,8 @@ std::string diagnosisHtml(const Diagnosis& d) {
        "background:#eaf2f8;border:2px solid #2e86c1}.verdict.unexplained{background:#fdedec;border-color:#c0392b}"
        ".verdict.none{background:#eafaf1;border-color:#27ae60}.small{font-size:12px;color:#555}"
        ".maps{display:flex;flex-wrap:wrap;gap:10px}</style></head><body>\n";
-  h << "<h1>Sim-to-real gap: " << esc(d.robot) << "</h1>\n";
+  h << "<h1>Remaining error of " << esc(d.robot) << "</h1>\n";
+  h << reportHeader(ctx);
   h << "<p class=\"small\">" << d.fit_poses << " poses from " << esc(d.data_file) << "; held-out error by "
     << esc(d.validation_method) << "; noise floor " << f("%.4f", d.noise_floor_mm) << " mm (3D RMS); source: "
     << esc(d.noise_floor_source) << "</p>\n";
@@ -610,6 +698,8 @@ std::string diagnosisHtml(const Diagnosis& d) {
       << "</td><td>" << f("%.3f", c.r2_after) << "</td><td>" << f("%.2g", c.p_after) << "</td><td>"
       << (c.via_joint_after > 0 ? "j" + std::to_string(c.via_joint_after) : std::string("translation")) << "</td></tr>";
   h << "</table>\n";
+  h << modelSection(ctx);
+  h << glossary();
   h << "<h2>Method</h2><p class=\"small\">" << esc(d.tests) << "</p>\n";
   if (!d.notes.empty()) {
     h << "<p class=\"small\">Left out: ";

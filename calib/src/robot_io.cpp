@@ -1,5 +1,7 @@
 #include "accura/calib/robot_io.h"
 
+#include <dlfcn.h>
+
 #include <tinyxml2.h>
 
 #include <algorithm>
@@ -106,9 +108,22 @@ void writePose(std::ostream& out, const char* tag, const Eigen::Isometry3d& T,
       << fmt(p.b_deg) << "\" c_deg=\"" << fmt(p.c_deg) << "\"/>\n";
 }
 
+// An installed accura (cmake --install) finds its robots next to the binary that contains
+// this code (bin/accura or lib/libaccura_plugin.so): <prefix>/share/accura/robots.
+std::string installedRobotsDir() {
+  Dl_info info;
+  if (dladdr(reinterpret_cast<void*>(&installedRobotsDir), &info) == 0 || !info.dli_fname) return "";
+  std::error_code ec;
+  const fs::path module = fs::canonical(info.dli_fname, ec);
+  if (ec) return "";
+  const fs::path dir = module.parent_path().parent_path() / "share" / "accura" / "robots";
+  return fs::is_directory(dir, ec) ? dir.string() : "";
+}
+
 std::string robotsDir() {
   if (const char* env = std::getenv("ACCURA_ROBOTS_DIR")) return env;
-  return ACCURA_ROBOTS_DIR;
+  const std::string installed = installedRobotsDir();
+  return installed.empty() ? ACCURA_ROBOTS_DIR : installed;
 }
 
 }  // namespace

@@ -153,8 +153,9 @@ class Checker {
 
   std::string at(const CheckViolation& v) const {
     std::string w = v.on_path ? "on the path at s " + calib::formatFixed(v.s, 4) + " (" + calib::formatFixed(v.arc_mm, 2) + " mm from its start)" : "at the end point";
+    // the frame named: the model's world (where its base was measured, e.g. the tracker's frame)
     return w + ", TCP (" + calib::formatFixed(v.p_world_tcp_mm.x(), 2) + ", " + calib::formatFixed(v.p_world_tcp_mm.y(), 2) + ", " + calib::formatFixed(v.p_world_tcp_mm.z(), 2) +
-           ") mm";
+           ") mm in the model's world frame";
   }
 
   void record(First& f, CheckViolation v) {

@@ -118,7 +118,7 @@ class Job {
   // of a joint within kTurnBandDeg of 0 that the correction flips is updated in `t` (with a
   // warning): the same arm posture, and the controller needs the new sign to find q. Any
   // other change is an error.
-  bool checkConfig(const Motion& m, Target& t, const Compensator& comp, const Eigen::VectorXd& q) {
+  bool checkConfig(const Motion& m, Target& t, const Compensator& comp, const Eigen::VectorXd& q, const Eigen::Isometry3d& T_world_target) {
     const calib::Configuration asked{t.status.value_or(-1), t.turn.value_or(-1)};
     if (asked.status < 0 && asked.turn < 0) return true;
     const calib::Configuration got = calib::kukaConfiguration(comp.controller().model(), q);
@@ -129,6 +129,15 @@ class Job {
                            ": the correction moves a joint that is within " + calib::formatFixed(calib::kTurnBandDeg, 1) + " deg of 0 across 0");
       t.turn = got.turn;
       return true;
+    }
+    // a target the controller cannot reach in its programmed S/T at all is said to be that,
+    // not a boundary case of the compensation (issue 17)
+    const calib::IkResult nominal = comp.controller().inverse(T_world_target, asked, q, s_.ik, s_.context);
+    if (nominal.status != calib::IkStatus::kOk) {
+      error(m.where, targetLabel(t) + " is not reachable in its programmed configuration S " + std::to_string(asked.status) + ", T " +
+                         std::to_string(asked.turn) + " (the robot reaches it with S " + std::to_string(got.status) + ", T " +
+                         std::to_string(got.turn) + "; program that configuration)");
+      return false;
     }
     error(m.where, "the compensation of " + targetLabel(t) + " would change its configuration from S " + std::to_string(asked.status) +
                        ", T " + std::to_string(asked.turn) + " to S " + std::to_string(got.status) + ", T " + std::to_string(got.turn) +
@@ -317,7 +326,7 @@ class Job {
       return keep(out, mo);
     }
     if (cp) noteCpConfiguration(m, end, comp, pc.q_real);
-    else if (!checkConfig(m, end, comp, pc.q_real)) return keep(out, mo);
+    else if (!checkConfig(m, end, comp, pc.q_real, c.T_world_end)) return keep(out, mo);
     setPose(mo.target, toProgram(c.T_world_progbase, pc.T_world_tcp_command));
     if (mo.target.turn != end.turn) mo.target.modified = true;
     mo.target.turn = end.turn;

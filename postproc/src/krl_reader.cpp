@@ -194,7 +194,11 @@ struct Reader {
       auto it = decl.points.find(up);
       if (it == decl.points.end()) {
         if (decl.arrays.count(up)) return t[b].text + " is an array";
-        return t[b].text + " is not declared in " + src->src_path + (src->dat_path.empty() ? "" : " or " + src->dat_path) +
+        if (src->dat_path.empty())  // the missing .dat named, not only the undeclared point (issue 17)
+          return t[b].text + " is not declared in " + src->src_path + ", and its data file " +
+                 fs::path(src->src_path).replace_extension(".dat").string() +
+                 " does not exist (give --dat; a global point: give --config $config.dat)";
+        return t[b].text + " is not declared in " + src->src_path + " or " + src->dat_path +
                " (a global point: give --config $config.dat)";
       }
       const PointEntry& p = it->second;

@@ -325,6 +325,29 @@ Diagnosis diagnose(const RobotModel& start, const MeasurementSet& data, const Me
 std::string diagnosisJson(const Diagnosis& d);
 /// The diagnosis as one self-contained HTML page (inline SVG and CSS, no script, no network).
 std::string diagnosisHtml(const Diagnosis& d);
+
+/// What makes the HTML report a metrology deliverable, filled by its caller (accura diagnose):
+/// where the diagnosis comes from and the identified model's numbers. Empty parts are left out.
+struct DiagnosisReportContext {
+  std::string date_utc;                  ///< when the report was made, e.g. "2026-11-23 14:30 UTC"
+  std::string version;                   ///< accura's version
+  std::string instrument;                ///< what measured the data, its stated noise
+  std::vector<std::string> data_files;   ///< fit data, validation data, mapping files
+  struct Parameter {
+    std::string name;
+    double value = 0, sigma = 0;         ///< the identified value and one standard deviation
+    std::string unit;
+    bool station = false;                ///< the tracker station (absolute), not a deviation
+  };
+  std::vector<Parameter> parameters;     ///< the complete geometric model identified on the fit data
+  /// Measured minus predicted tool point per fit pose (world = measurement frame, mm), of
+  /// that model: the error histogram and the per-axis split.
+  std::vector<Eigen::Vector3d> residuals_mm;
+};
+/// The page of diagnosisHtml(d), titled "Remaining error of <robot>", with the context's
+/// header (date, version, instrument, files), parameters with sigmas, an error histogram and
+/// the per-axis split.
+std::string diagnosisHtml(const Diagnosis& d, const DiagnosisReportContext& context);
 /// A console summary (a few dozen lines).
 std::string diagnosisText(const Diagnosis& d);
 

@@ -36,7 +36,8 @@ std::string robotFileText(const RobotModel& model, const std::vector<ParameterRe
                           const std::string& comment = "");
 
 /// Resolves --robot: an existing file path, or a name found in the robots directory
-/// (ACCURA_ROBOTS_DIR environment variable, else the source tree's robots/), with or
+/// (ACCURA_ROBOTS_DIR environment variable, else <prefix>/share/accura/robots of an installed
+/// accura (cmake --install), else the source tree's robots/), with or
 /// without ".xml". Throws InputError listing the names available when nothing matches.
 std::string resolveRobotPath(const std::string& name_or_path);
 

@@ -1,0 +1,251 @@
+// The accura command as a new user meets it (issue 17) and its numeric options (issue 14):
+// every bad number rejected with the option named and what was expected, usage errors that
+// point at the command's own help, --quiet / --verbose, --json on fk, simulate and convert,
+// messages with units and frames. Messages are asserted to the letter.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "accura/calib/geometry.h"
+#include "accura/calib/kinematics.h"
+#include "test_util.h"
+
+namespace accura::calib {
+namespace {
+
+struct CliRun {
+  int code;
+  std::string out, err;
+};
+
+CliRun run(const std::string& args, const std::string& cwd = "") {
+  const std::string dir = test::tempDir("cli_ux_run");
+  const std::string cmd = (cwd.empty() ? "" : "cd '" + cwd + "' && ") + std::string(ACCURA_CLI) + " " + args + " >" +
+                          dir + "/out 2>" + dir + "/err";
+  const int status = std::system(cmd.c_str());
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, test::readText(dir + "/out"), test::readText(dir + "/err")};
+}
+
+std::vector<std::string> lines(const std::string& text) {
+  std::vector<std::string> v;
+  std::istringstream in(text);
+  for (std::string l; std::getline(in, l);) v.push_back(l);
+  return v;
+}
+
+// Every numeric option of every command: NaN, infinities, hex, out-of-range values and huge
+// counts are a usage error (exit 1, nothing written) naming the option and what it expects.
+TEST(CliNumbers, EveryNumericOptionRejectsBadValuesNamingTheOption) {
+  const std::string dir = test::tempDir("cli_numbers");
+  const std::string id = "identify --robot kuka_kr16 --data d.csv --out " + dir + "/o.xml ";
+  const std::string sim = "simulate --robot kuka_kr16 --out " + dir + "/s.csv ";
+  const std::string comp = "compensate --robot kuka_kr16 --in p.src --out " + dir + "/o ";
+  const std::string chk = "check --robot kuka_kr16 --cell c.xml --in p.src ";
+  const std::string diag = "diagnose --robot kuka_kr16 --data d.csv --json " + dir + "/d.json ";
+  const struct {
+    std::string args, message;
+  } cases[] = {
+      {id + "--std-mm -1", "--std-mm: expected a number in (0, 1000] (mm), found '-1' (see accura identify --help)"},
+      {id + "--std-mm 0", "--std-mm: expected a number in (0, 1000] (mm), found '0' (see accura identify --help)"},
+      {id + "--std-mm nan", "--std-mm: expected a number in (0, 1000] (mm), found 'nan' (see accura identify --help)"},
+      {id + "--std-deg inf", "--std-deg: expected a number in (0, 180] (deg), found 'inf' (see accura identify --help)"},
+      {id + "--loss-scale 0x10", "--loss-scale: expected a number in (0, 1000] (sigmas), found '0x10' (see accura identify --help)"},
+      {id + "--holdout 1e-320", "--holdout: expected a number in [0, 0.5], found '1e-320' (see accura identify --help)"},
+      {id + "--map-smoothing -0.5", "--map-smoothing: expected a number in [0, 1e+12], found '-0.5' (see accura identify --help)"},
+      {sim + "--noise-mm nan", "--noise-mm: expected a number in [0, 100] (mm), found 'nan' (see accura simulate --help)"},
+      {sim + "--noise-deg 1e308", "--noise-deg: expected a number in [0, 10] (deg), found '1e308' (see accura simulate --help)"},
+      {sim + "--error-scale -1", "--error-scale: expected a number in [0, 1000], found '-1' (see accura simulate --help)"},
+      {sim + "--poses 99999999999", "--poses: expected an integer in [1, 1000000], found '99999999999' (see accura simulate --help)"},
+      {sim + "--poses 1e3", "--poses: expected an integer in [1, 1000000], found '1e3' (see accura simulate --help)"},
+      {sim + "--seed -1", "--seed: expected an integer in [0, 18446744073709551615], found '-1' (see accura simulate --help)"},
+      {sim + "--payloads 0,inf", "--payloads: expected a number in [0, 10000] (kg), found 'inf'"},
+      {"fk --robot kuka_kr16 --q 0,0,0,0,0,0 --payload-kg inf",
+       "--payload-kg: expected a number in [0, 10000] (kg), found 'inf' (see accura fk --help)"},
+      {"fk --robot kuka_kr16 --q 0x1,0,0,0,0,0", "--q: expected a number in [-100000, 100000] (deg; mm for prismatic joints), found '0x1'"},
+      {comp + "--tol 1e-300", "--tol: expected a number in [0.0001, 100] (mm), found '1e-300' (see accura compensate --help)"},
+      {comp + "--payload-kg inf", "--payload-kg: expected a number in [0, 10000] (kg), found 'inf' (see accura compensate --help)"},
+      {comp + "--temp-c nan", "--temp-c: expected a number in [-50, 150] (deg C), found 'nan' (see accura compensate --help)"},
+      {"batch --robot kuka_kr16 --in i --out " + dir + "/b --jobs 100000",
+       "--jobs: expected an integer in [1, 1024], found '100000' (see accura batch --help)"},
+      {chk + "--joint-margin-deg nan", "--joint-margin-deg: expected a number in [0, 180] (deg), found 'nan' (see accura check --help)"},
+      {chk + "--singular-threshold 2", "--singular-threshold: expected a number in [0, 1], found '2' (see accura check --help)"},
+      {chk + "--min-clearance-mm -5", "--min-clearance-mm: expected a number in [0, 10000] (mm), found '-5' (see accura check --help)"},
+      {diag + "--noise-mm nan", "--noise-mm: expected a number in (0, 100] (mm), found 'nan' (see accura diagnose --help)"},
+      {diag + "--folds 1000000000000", "--folds: expected an integer in [2, 20], found '1000000000000' (see accura diagnose --help)"},
+      {diag + "--alpha 0.7", "--alpha: expected a number in (0, 0.5], found '0.7' (see accura diagnose --help)"},
+      {"selfcheck --poses 0", "--poses: expected an integer in [1, 1000000], found '0' (see accura selfcheck --help)"},
+      {"selfcheck --noise-mm 0.01,nan", "--noise-mm: expected a number in (0, 100] (mm), found 'nan'"},
+  };
+  for (const auto& c : cases) {
+    const CliRun r = run(c.args);
+    EXPECT_EQ(r.code, 1) << c.args;
+    EXPECT_EQ(r.err, "accura: error: " + c.message + "\n") << c.args;
+  }
+  EXPECT_TRUE(std::filesystem::is_empty(dir)) << "a rejected run wrote something";
+}
+
+TEST(CliNumbers, PosesNeedSixValuesAndAToolThreeOrSix) {
+  const std::string dir = test::tempDir("cli_pose6");
+  CliRun r = run("identify --robot kuka_kr16 --data d.csv --out " + dir + "/o.xml --base 2400,-1700,-600");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_EQ(r.err, "accura: error: --base: expected six values x,y,z,A,B,C (mm, deg), found 3 values in '2400,-1700,-600'\n");
+  r = run("compensate --robot kuka_kr16 --in p.src --out " + dir + "/o --robroot 1,2,3,4");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_EQ(r.err, "accura: error: --robroot: expected six values x,y,z,A,B,C (mm, deg), found 4 values in '1,2,3,4'\n");
+  r = run("simulate --robot kuka_kr16 --out " + dir + "/s.csv --tool 80,40");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_EQ(r.err, "accura: error: --tool: expected x,y,z or x,y,z,A,B,C (mm, deg), found 2 values in '80,40'\n");
+  r = run("simulate --robot kuka_kr16 --out " + dir + "/s.csv --station 1,2,3,4,5,1e300");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_EQ(r.err, "accura: error: --station (C): expected a number in [-360, 360] (deg), found '1e300'\n");
+  EXPECT_TRUE(std::filesystem::is_empty(dir));
+}
+
+TEST(CliUsage, MissingOptionPointsAtTheCommandsHelp) {
+  CliRun r = run("identify --robot kuka_kr16");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_EQ(r.err, "accura: error: --data is required (see accura identify --help)\n");
+  r = run("compensate --robot kuka_kr16 --in p.src");
+  EXPECT_EQ(r.err, "accura: error: --out is required (see accura compensate --help)\n");
+  r = run("--nosuchoption");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("(see accura --help)"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("<command>"), std::string::npos) << r.err;
+}
+
+// identify: the user's language first (--verbose adds the solver's report), the station apart
+// from the robot's deviations, --quiet exactly the summary line, the validation and the file.
+TEST(CliIdentify, QuietVerboseAndTheStationApartFromTheDeviations) {
+  const std::string dir = test::tempDir("cli_ux_identify");
+  ASSERT_EQ(run("simulate --robot kuka_kr16 --tool 80,40,150 --poses 120 --seed 5 --out fit.csv --truth truth.xml --json sim.json", dir).code, 0);
+  ASSERT_EQ(run("simulate --robot truth.xml --effects none --poses 60 --seed 6 --out val.csv", dir).code, 0);
+  const std::string args = "identify --robot kuka_kr16 --tool 80,40,150 --data fit.csv --validate val.csv --out cal.xml";
+  const CliRun quiet = run(args + " --quiet", dir);
+  ASSERT_EQ(quiet.code, 0) << quiet.err;
+  const auto q = lines(quiet.out);
+  ASSERT_EQ(q.size(), 6u) << quiet.out;
+  EXPECT_EQ(q[0], "accura identify: KUKA KR 16, 120 poses from fit.csv (position only)");
+  EXPECT_EQ(q[1], "validation on val.csv, 60 poses (position mm: RMS mean p95 max):");
+  EXPECT_EQ(q[2].rfind("  nominal ", 0), 0u) << q[2];
+  EXPECT_EQ(q[3].rfind("  calibrated ", 0), 0u) << q[3];
+  EXPECT_EQ(q[4].rfind("  position RMS improved ", 0), 0u) << q[4];
+  EXPECT_EQ(q[5], "wrote calibrated model cal.xml");
+
+  const CliRun normal = run(args, dir);
+  ASSERT_EQ(normal.code, 0) << normal.err;
+  EXPECT_EQ(normal.out.find("Ceres"), std::string::npos);
+  EXPECT_EQ(normal.out.find("step_norm"), std::string::npos);
+  EXPECT_EQ(normal.out.find("deviation from nominal"), std::string::npos);
+  // the station is listed under its own heading, the deviations under theirs, in that order
+  const size_t station = normal.out.find("tracker station (T_world_base: the robot base in the measurement frame, 1 sigma):\n  base_x ");
+  const size_t robot = normal.out.find("robot parameters (deviation from the nominal model, 1 sigma):\n");
+  ASSERT_NE(station, std::string::npos) << normal.out;
+  ASSERT_NE(robot, std::string::npos) << normal.out;
+  EXPECT_LT(station, robot);
+  EXPECT_EQ(normal.out.find("base_", robot), std::string::npos) << "a station parameter among the robot's deviations";
+  // base_x is the simulated station, 2400 mm (simulate's default: 3 m away, turned 30 deg)
+  const auto sim = nlohmann::json::parse(test::readText(dir + "/sim.json"));
+  double base_x = 0;
+  ASSERT_EQ(std::sscanf(normal.out.c_str() + station + normal.out.substr(station).find("base_x"), "base_x %lf", &base_x), 1);
+  EXPECT_NEAR(base_x, sim["T_world_base"][0].get<double>(), 0.05);
+  EXPECT_NEAR(sim["T_world_base"][0].get<double>(), 2400, 1e-9);
+  EXPECT_NE(normal.out.find("solver: converged after "), std::string::npos) << normal.out;
+
+  const CliRun verbose = run(args + " --verbose", dir);
+  ASSERT_EQ(verbose.code, 0) << verbose.err;
+  EXPECT_NE(verbose.out.find("solver details (Ceres): CONVERGENCE: "), std::string::npos) << verbose.out;
+}
+
+TEST(CliJson, FkSimulateAndConvertWriteJson) {
+  const std::string dir = test::tempDir("cli_ux_json");
+  CliRun r = run("fk --robot kuka_kr16 --q 10,-80,70,20,30,40 --json fk.json", dir);
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto fk = nlohmann::json::parse(test::readText(dir + "/fk.json"));
+  const RobotModel m = test::loadBundled("kuka_kr16");
+  Eigen::VectorXd qv(6);
+  qv << 10, -80, 70, 20, 30, 40;
+  const XyzAbc p = toXyzAbc(forwardKinematics(m, qv));
+  EXPECT_NEAR(fk["T_world_tcp"]["x_mm"].get<double>(), p.x_mm, 1e-9);
+  EXPECT_NEAR(fk["T_world_tcp"]["z_mm"].get<double>(), p.z_mm, 1e-9);
+  EXPECT_NEAR(fk["T_world_tcp"]["c_deg"].get<double>(), p.c_deg, 1e-9);
+  EXPECT_EQ(fk["robot"], "KUKA KR 16");
+
+  r = run("simulate --robot kuka_kr16 --poses 7 --seed 3 --out s.csv --json s.json", dir);
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto sim = nlohmann::json::parse(test::readText(dir + "/s.json"));
+  EXPECT_EQ(sim["poses"], 7);
+  EXPECT_EQ(sim["seed"], 3);
+  // simulate's default station: 3 m away, turned 30 deg (2400, -1700, -600, 30, 0.4, -0.3)
+  EXPECT_NEAR(sim["T_world_base"][3].get<double>(), 30, 1e-9);
+
+  // convert: --json, and the output directory created as compensate does
+  const std::string src = test::sourcePath("examples/seam.src"), config = test::sourcePath("examples/$config.dat");
+  r = run("convert --in '" + src + "' --config '" + config + "' --out new/dir/seam.xml --json new/c.json", dir);
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(std::filesystem::exists(dir + "/new/dir/seam.xml"));
+  const auto cj = nlohmann::json::parse(test::readText(dir + "/new/c.json"));
+  EXPECT_EQ(cj["motions"], 7);
+  EXPECT_EQ(cj["outputs"][0], "new/dir/seam.xml");
+}
+
+TEST(CliMessages, SrcWithoutItsDatNamesTheMissingFile) {
+  const std::string dir = test::tempDir("cli_ux_nodat");
+  std::filesystem::copy_file(test::sourcePath("examples/seam.src"), dir + "/seam.src");
+  const CliRun r = run("compensate --robot kuka_kr16 --in seam.src --out o", dir);
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("seam.src:42:1: expected a target accura can correct for LIN, found: XP2 is not declared in seam.src, and "
+                       "its data file seam.dat does not exist (give --dat; a global point: give --config $config.dat)"),
+            std::string::npos)
+      << r.err;
+  EXPECT_FALSE(std::filesystem::exists(dir + "/o"));
+}
+
+// A LIN target programmed with S 3 (the base "overhead" bit set) in front of the KR 16: no
+// joint values in the limits put the tool there with S 3, T 10; the message says so and names
+// the configuration that reaches it, not "next to a configuration boundary".
+TEST(CliMessages, TargetUnreachableInItsProgrammedConfigurationSaysSo) {
+  const std::string dir = test::tempDir("cli_ux_st");
+  test::writeText(dir + "/st.src",
+                  "DEF st( )\n$TOOL={X 0,Y 0,Z 200,A 0,B 0,C 0}\n$BASE={X 900,Y -350,Z 250,A 0,B 0,C 0}\n"
+                  "PTP {X 100,Y 0,Z 150,A 160,B 10,C 170,S 2,T 10}\nLIN {X 150,Y 0,Z 150,A 160,B 10,C 170,S 3,T 10}\nEND\n");
+  const CliRun r = run("compensate --robot kuka_kr16 --in st.src --out o", dir);
+  EXPECT_EQ(r.code, 1);
+  EXPECT_EQ(r.err, "accura: error: st.src:5:1: the inline target is not reachable in its programmed configuration S 3, T 10 "
+                   "(the robot reaches it with S 2, T 10; program that configuration)\n");
+  EXPECT_EQ(r.err.find("configuration boundary"), std::string::npos);
+  EXPECT_FALSE(std::filesystem::exists(dir + "/o"));
+}
+
+TEST(CliMessages, DiagnoseWritesOnlyTheReportWhenOnlyTheReportIsAsked) {
+  const std::string dir = test::tempDir("cli_ux_diag");
+  ASSERT_EQ(run("simulate --robot kuka_kr16 --tool 80,40,150 --poses 60 --seed 1 --out d.csv", dir).code, 0);
+  const std::string args = "diagnose --robot kuka_kr16 --tool 80,40,150 --data d.csv --effects joint_compliance --noise-mm 0.02";
+  CliRun r = run(args, dir);
+  EXPECT_EQ(r.code, 1);
+  EXPECT_EQ(r.err, "accura: error: diagnose: expected an output, --json diag.json and/or --report diag.html, found neither\n");
+  r = run(args + " --report d.html", dir);
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(std::filesystem::exists(dir + "/d.html"));
+  EXPECT_NE(r.out.find("wrote d.html\n"), std::string::npos) << r.out;
+}
+
+TEST(CliMessages, CheckGivesUnitsAndTheFrameOfItsCoordinates) {
+  const CliRun r = run("check --robot kuka_kr16 --cell '" + test::sourcePath("examples/cell/seam_cell.xml") + "' --in '" +
+                       test::sourcePath("examples/seam.src") + "' --config '" + test::sourcePath("examples/$config.dat") + "'");
+  ASSERT_EQ(r.code, 0) << r.err << r.out;
+  const auto l = lines(r.out);
+  ASSERT_GE(l.size(), 3u);
+  EXPECT_NE(l[0].find("(intended; joint margin >= 1.000 deg, sigma_min >= 0.005000, clearance >= 5.000 mm; TCP positions in "
+                      "the model's world frame)"),
+            std::string::npos)
+      << l[0];
+  EXPECT_NE(l[l.size() - 2].find(" joint margin "), std::string::npos);
+  EXPECT_EQ(l[l.size() - 2].substr(l[l.size() - 2].size() - 4), " deg") << l[l.size() - 2];
+}
+
+}  // namespace
+}  // namespace accura::calib
