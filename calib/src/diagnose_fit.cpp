@@ -14,6 +14,7 @@
 
 #include "accura/calib/errors.h"
 #include "accura/calib/identify.h"
+#include "accura/calib/joint_map.h"
 #include "accura/calib/kinematics.h"
 
 namespace accura {
@@ -31,6 +32,7 @@ void Diagnoser::baseline() {
   IdentifySummary s;
   M0_ = identify(start_, fit_, baselineOptions(), &s);
   robust_w_.assign(static_cast<size_t>(m_), 1.0);
+  addJointMaps();
   layout_ = parameterLayout(M0_);
   std::set<std::string> free;
   for (const ParameterEstimate& p : s.parameters) free.insert(p.name);
@@ -45,6 +47,91 @@ void Diagnoser::baseline() {
     for (size_t i = 0; i < w_fit_.size(); ++i) w_fit_[i] *= std::sqrt(fit_.rows[i].weight);
     if (has_val_)
       for (size_t i = 0; i < w_val_.size(); ++i) w_val_[i] = Eigen::Vector3d::Constant(std::sqrt(val_.rows[i].weight) / s.position_std_mm);
+  }
+}
+
+void Diagnoser::addJointMaps() {
+  map_knot_ = 0;
+  if (std::find(o_.effects.begin(), o_.effects.end(), "joint_map") == o_.effects.end()) return;
+  const int n = M0_.dof();
+  std::vector<JointRange> range(static_cast<size_t>(n));
+  double widest = 0;
+  for (int j = 0; j < n; ++j) {
+    double lo = 1e300, hi = -1e300;
+    for (const Measurement& r : fit_.rows) {
+      lo = std::min(lo, r.q[j]);
+      hi = std::max(hi, r.q[j]);
+    }
+    range[static_cast<size_t>(j)] = {lo, hi};
+    widest = std::max(widest, hi - lo);
+  }
+  // at least about 10 fit poses per coefficient of the widest joint's map
+  double knot = o_.joint_map_knot;
+  const double max_intervals = std::max(4.0, double(m_) / 10.0 - 3.0);
+  if (widest / knot > max_intervals) knot = std::ceil(2.0 * widest / max_intervals) / 2.0;
+  if (M0_.deviations.joint_map.size() != static_cast<size_t>(n)) M0_.deviations.joint_map.assign(static_cast<size_t>(n), JointMap{});
+  bool any = false;
+  for (int j = 0; j < n; ++j) {
+    const JointRange& c = range[static_cast<size_t>(j)];
+    const bool rev = M0_.nominal.joints[static_cast<size_t>(j)].type == JointType::kRevolute;
+    const std::string jn = "j" + std::to_string(j + 1);
+    if (!M0_.deviations.joint_map[static_cast<size_t>(j)].empty()) {
+      effect_note_["joint_map:" + jn] = "joint_map " + jn + ": the starting model already has a map of this joint (kept as it is)";
+      continue;
+    }
+    if (c.upper - c.lower < 4 * knot) {
+      effect_note_["joint_map:" + jn] = "joint_map " + jn + ": the fit data cover " + fmtg("%.3g", c.upper - c.lower) +
+                                        (rev ? " deg" : " mm") + ", less than 4 knot spacings of " + fmtg("%.3g", knot) +
+                                        ": no map";
+      continue;
+    }
+    M0_.deviations.joint_map[static_cast<size_t>(j)] = makeJointMap(c.lower, c.upper, knot);
+    any = true;
+  }
+  if (any) map_knot_ = knot;
+  else effect_note_["joint_map"] = "not testable: no joint is covered over 4 knot spacings by the fit data";
+}
+
+// The joint maps' regularisation, as identify has it (joint_map.h): second differences weighted
+// sqrt(smoothing) * scale, centring rows (no constant, trend or first harmonic over the fit
+// data) weighted kJointMapCentringWeight * scale, scale the RMS weighted norm of the map's
+// columns; expressed in the scaled columns.
+void Diagnoser::mapPenalty() {
+  const Eigen::Index C = static_cast<Eigen::Index>(cols_.size());
+  penalty_ = Eigen::MatrixXd::Zero(C, C);
+  is_map_.assign(static_cast<size_t>(C), false);
+  for (const Block& b : blocks_) {
+    if (b.effect != "joint_map" || b.cols.empty()) continue;
+    const JointMap& jm = M0_.deviations.joint_map[static_cast<size_t>(b.joint)];
+    const int K = static_cast<int>(jm.coef.size());
+    std::vector<int> col(static_cast<size_t>(K), -1);
+    double s2 = 0;
+    for (int c : b.cols) {
+      col[static_cast<size_t>(layout_[cols_[c]].index)] = c;
+      s2 += colscale_[c] * colscale_[c];
+      is_map_[static_cast<size_t>(c)] = true;
+    }
+    const double scale = std::sqrt(s2 / double(b.cols.size()));
+    Eigen::MatrixXd Pk = Eigen::MatrixXd::Zero(K, K);
+    auto add = [&](const std::vector<double>& a, double weight) {
+      const Eigen::VectorXd v = weight * Eigen::Map<const Eigen::VectorXd>(a.data(), K);
+      Pk.noalias() += v * v.transpose();
+    };
+    if (o_.joint_map_smoothing > 0)
+      for (const auto& a : jointMapSmoothnessRows(jm)) add(a, std::sqrt(o_.joint_map_smoothing) * scale);
+    std::vector<double> qj;
+    for (const Measurement& r : fit_.rows) qj.push_back(r.q[b.joint]);
+    const bool rev = M0_.nominal.joints[static_cast<size_t>(b.joint)].type == JointType::kRevolute;
+    for (const auto& a : jointMapCentringRows(jm, qj, rev ? kJointMapCentredHarmonics : 0)) {
+      double nrm = 0;
+      for (double v : a) nrm += v * v;
+      if (nrm > 0) add(a, kJointMapCentringWeight * scale / std::sqrt(nrm));
+    }
+    for (int k = 0; k < K; ++k)
+      for (int l = 0; l < K; ++l)
+        if (col[static_cast<size_t>(k)] >= 0 && col[static_cast<size_t>(l)] >= 0)
+          penalty_(col[static_cast<size_t>(k)], col[static_cast<size_t>(l)]) =
+              Pk(k, l) / (colscale_[col[static_cast<size_t>(k)]] * colscale_[col[static_cast<size_t>(l)]]);
   }
 }
 
@@ -161,6 +248,27 @@ void Diagnoser::linearise() {
   for (Block& b : blocks_) {
     Eigen::MatrixXd Qb = Q;
     std::vector<int> kept;
+    if (b.effect == "joint_map") {
+      // a map moves the measured point by its joint's lever arm: none worth a map within 10 mm of
+      // the axis (the same rule as the spectrum); its dependence on the geometric parameters (the
+      // constant, trend and first harmonic) is removed by the centring penalty, not by screening
+      // the basis functions sum to 1 and their squares to 1/4..1 at every q: the columns' summed
+      // squares over the poses are the squared lever arms within that factor
+      double lever2 = 0;
+      for (int c : b.cols) lever2 += JF.col(c).squaredNorm() / double(m_);
+      const bool rev = M0_.nominal.joints[static_cast<size_t>(b.joint)].type == JointType::kRevolute;
+      if (rev && lever2 < 25.0) {
+        effect_note_[b.effect + ":j" + std::to_string(b.joint + 1)] =
+            "joint_map j" + std::to_string(b.joint + 1) + ": the measured point lies within about 10 mm of the axis (about " +
+            fmtg("%.3g", std::sqrt(lever2)) + " mm): a map of it has no effect on these measurements";
+        b.cols.clear();
+        continue;
+      }
+      for (int c : b.cols)
+        if (norms[c] > 1e-12 * std::max(gmax, 1e-300)) kept.push_back(c);
+      b.cols = kept;
+      continue;
+    }
     for (int c : b.cols) {
       const std::string& name = layout_[cols_[c]].name;
       if (!(norms[c] > 1e-12 * std::max(gmax, 1e-300))) {
@@ -189,7 +297,9 @@ void Diagnoser::linearise() {
   JF_ = JF * colscale_.cwiseInverse().asDiagonal();
   Jw = wF_.asDiagonal() * JF_;
   const Eigen::VectorXd rw = wF_.cwiseProduct(rF_);
-  A_ = Jw.transpose() * Jw;
+  A_.noalias() = Jw.transpose() * Jw;
+  mapPenalty();
+  A_ += penalty_;
   b_ = Jw.transpose() * rw;
   rr_ = rw.squaredNorm();
   if (has_val_) {
@@ -208,11 +318,16 @@ void Diagnoser::buildScheme(Scheme* sc) const {
   sc->Af.assign(sc->poses.size(), Eigen::MatrixXd::Zero(C, C));
   sc->bf.assign(sc->poses.size(), Eigen::VectorXd::Zero(C));
   for (size_t f = 0; f < sc->poses.size(); ++f) {
-    for (int i : sc->poses[f]) {
-      const Eigen::MatrixXd Ji = wF_.segment(3 * i, 3).asDiagonal() * JF_.middleRows(3 * i, 3);
-      sc->Af[f].noalias() += Ji.transpose() * Ji;
-      sc->bf[f].noalias() += Ji.transpose() * wF_.segment(3 * i, 3).cwiseProduct(rF_.segment(3 * i, 3));
+    const std::vector<int>& rows = sc->poses[f];
+    Eigen::MatrixXd Jf(3 * static_cast<Eigen::Index>(rows.size()), C);
+    Eigen::VectorXd rf(3 * static_cast<Eigen::Index>(rows.size()));
+    for (size_t k = 0; k < rows.size(); ++k) {
+      const int i = rows[k];
+      Jf.middleRows(3 * static_cast<Eigen::Index>(k), 3) = wF_.segment(3 * i, 3).asDiagonal() * JF_.middleRows(3 * i, 3);
+      rf.segment(3 * static_cast<Eigen::Index>(k), 3) = wF_.segment(3 * i, 3).cwiseProduct(rF_.segment(3 * i, 3));
     }
+    sc->Af[f].noalias() = Jf.transpose() * Jf;
+    sc->bf[f].noalias() = Jf.transpose() * rf;
   }
 }
 
@@ -223,22 +338,25 @@ void Diagnoser::blockedSchemes() {
   blocked_.clear();
   const int K = o_.blocked_folds;
   if (K < 2 || m_ < 2 * K) return;
-  auto cut = [&](const std::vector<int>& order, const std::string& name) {
+  auto cut = [&](const std::vector<int>& order, const std::string& name, int folds) {
     Scheme sc;
     sc.name = name;
-    sc.poses.assign(static_cast<size_t>(K), {});
-    for (int k = 0; k < m_; ++k) sc.poses[static_cast<size_t>(static_cast<long>(k) * K / m_)].push_back(order[static_cast<size_t>(k)]);
+    sc.poses.assign(static_cast<size_t>(folds), {});
+    for (int k = 0; k < m_; ++k)
+      sc.poses[static_cast<size_t>(static_cast<long>(k) * folds / m_)].push_back(order[static_cast<size_t>(k)]);
+    if (name != "pose order" && folds > 2) sc.end_folds = {0, folds - 1};
     buildScheme(&sc);
     blocked_.push_back(std::move(sc));
   };
   std::vector<int> order(static_cast<size_t>(m_));
   std::iota(order.begin(), order.end(), 0);
-  cut(order, "pose order");
+  cut(order, "pose order", K);
   for (int j = 0; j < M0_.dof(); ++j) {
     std::vector<int> by = order;
     std::stable_sort(by.begin(), by.end(), [&](int a, int b) { return fit_.rows[a].q[j] < fit_.rows[b].q[j]; });
     if (!(fit_.rows[by.back()].q[j] - fit_.rows[by.front()].q[j] > 1e-6)) continue;
-    cut(by, "q" + std::to_string(j + 1) + " blocks");
+    cut(by, "q" + std::to_string(j + 1) + " blocks", K);
+    cut(by, "q" + std::to_string(j + 1) + " halves", 2);  // train on one half, predict the other
   }
 }
 
@@ -295,13 +413,33 @@ Diagnoser::Eval Diagnoser::cvEval(const std::vector<int>& S, const Scheme& schem
       v[a] -= scheme.bf[f][S[a]];
       for (Eigen::Index c = 0; c < s; ++c) M(a, c) -= scheme.Af[f](S[a], S[c]);
     }
-    if (!solveSpd(M, v, &llt, &x)) return ev;
+    // blocked schemes (not the interleaved folds): a map coefficient the training rows do not fully reach (less
+    // than 90% of its weight in the fit data) is zero, as a fitted map is outside the range its
+    // data cover, not the smoothness penalty's extrapolation of a few rows at the edge
+    std::vector<Eigen::Index> act;
+    for (Eigen::Index a = 0; a < s; ++a) {
+      const double data = A_(S[a], S[a]) - penalty_(S[a], S[a]);
+      if (!(&scheme != &interleaved_ && is_map_[static_cast<size_t>(S[a])] && data - scheme.Af[f](S[a], S[a]) < 0.9 * data))
+        act.push_back(a);
+    }
+    if (static_cast<Eigen::Index>(act.size()) == s) {
+      if (!solveSpd(M, v, &llt, &x)) return ev;
+    } else {
+      Eigen::VectorXd xa;
+      if (!solveSpd(M(act, act), v(act), &llt, &xa)) return ev;
+      x = Eigen::VectorXd::Zero(s);
+      x(act) = xa;
+    }
     for (int i : scheme.poses[f]) {
       const Eigen::MatrixXd Ji = JS.middleRows(3 * i, 3);
       // robust held-out loss: a down-weighted row counts with its weight squared (about the
       // squared cut-off for a gross outlier)
       ev.d[i] = (rF_.segment(3 * i, 3) - Ji * x).squaredNorm() * robust_w_[static_cast<size_t>(i)] * robust_w_[static_cast<size_t>(i)];
-      if (leverage) ev.lev[i] = llt.matrixL().solve(Eigen::MatrixXd(Ji.transpose())).squaredNorm();
+      if (leverage)
+        ev.lev[i] = llt.matrixL()
+                        .solve(static_cast<Eigen::Index>(act.size()) == s ? Eigen::MatrixXd(Ji.transpose())
+                                                                           : Eigen::MatrixXd(Ji(Eigen::all, act).transpose()))
+                        .squaredNorm();
     }
   }
   ev.ok = true;
@@ -360,9 +498,13 @@ RobotModel Diagnoser::gnFit(const std::vector<int>& S, const std::vector<int>& r
   KinematicWorkspace ws;
   Eigen::MatrixXd J6;
   Eigen::MatrixXd Jp(3, s);
+  const Eigen::MatrixXd P = penalty_(S, S);
   for (int it = 0; it < 10; ++it) {
-    Eigen::MatrixXd A = Eigen::MatrixXd::Zero(s, s);
-    Eigen::VectorXd b = Eigen::VectorXd::Zero(s);
+    // the maps' penalty on their current (scaled) coefficients; zero for every other parameter
+    Eigen::VectorXd xs(s);
+    for (Eigen::Index k = 0; k < s; ++k) xs[k] = getParameter(model.deviations, sub[static_cast<size_t>(k)]) * scale[k];
+    Eigen::MatrixXd A = P;
+    Eigen::VectorXd b = -(P * xs);
     for (int i : rows) {
       const Measurement& row = fit_.rows[static_cast<size_t>(i)];
       const Eigen::Isometry3d T = parameterJacobian(model, sub, row.q, row.context, ws, J6);
@@ -410,6 +552,8 @@ Diagnoser::Exact Diagnoser::exact(const std::vector<int>& S) {
   std::vector<int> all(static_cast<size_t>(m_));
   std::iota(all.begin(), all.end(), 0);
   ex.model_all = gnFit(S, all);
+  for (JointMap& jm : ex.model_all.deviations.joint_map)  // the maps not in S stay zero: none
+    if (!jm.empty() && std::all_of(jm.coef.begin(), jm.coef.end(), [](double c) { return c == 0.0; })) jm = JointMap{};
   KinematicWorkspace ws;
   if (has_val_) {
     ex.e.resize(static_cast<size_t>(nv_));
