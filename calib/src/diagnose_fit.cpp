@@ -300,6 +300,11 @@ void Diagnoser::linearise() {
   A_.noalias() = Jw.transpose() * Jw;
   mapPenalty();
   A_ += penalty_;
+  row_nz_.assign(static_cast<size_t>(m_), {});
+  for (int i = 0; i < m_; ++i)
+    for (Eigen::Index c = 0; c < JF_.cols(); ++c)
+      if (!is_map_[static_cast<size_t>(c)] || JF_.middleRows(3 * i, 3).col(c).squaredNorm() > 0)
+        row_nz_[static_cast<size_t>(i)].push_back(static_cast<int>(c));
   b_ = Jw.transpose() * rw;
   rr_ = rw.squaredNorm();
   if (has_val_) {
@@ -317,17 +322,20 @@ void Diagnoser::buildScheme(Scheme* sc) const {
   const Eigen::Index C = JF_.cols();
   sc->Af.assign(sc->poses.size(), Eigen::MatrixXd::Zero(C, C));
   sc->bf.assign(sc->poses.size(), Eigen::VectorXd::Zero(C));
+  // per row only its non-zero columns (a map coefficient touches the rows near its knot)
+  Eigen::MatrixXd Ji;
   for (size_t f = 0; f < sc->poses.size(); ++f) {
-    const std::vector<int>& rows = sc->poses[f];
-    Eigen::MatrixXd Jf(3 * static_cast<Eigen::Index>(rows.size()), C);
-    Eigen::VectorXd rf(3 * static_cast<Eigen::Index>(rows.size()));
-    for (size_t k = 0; k < rows.size(); ++k) {
-      const int i = rows[k];
-      Jf.middleRows(3 * static_cast<Eigen::Index>(k), 3) = wF_.segment(3 * i, 3).asDiagonal() * JF_.middleRows(3 * i, 3);
-      rf.segment(3 * static_cast<Eigen::Index>(k), 3) = wF_.segment(3 * i, 3).cwiseProduct(rF_.segment(3 * i, 3));
+    for (int i : sc->poses[f]) {
+      const std::vector<int>& nz = row_nz_[static_cast<size_t>(i)];
+      Ji = wF_.segment(3 * i, 3).asDiagonal() * JF_(Eigen::seqN(3 * i, 3), nz);
+      const Eigen::Vector3d ri = wF_.segment(3 * i, 3).cwiseProduct(rF_.segment(3 * i, 3));
+      const Eigen::MatrixXd JtJ = Ji.transpose() * Ji;
+      const Eigen::VectorXd Jtr = Ji.transpose() * ri;
+      for (size_t a = 0; a < nz.size(); ++a) {
+        sc->bf[f][nz[a]] += Jtr[static_cast<Eigen::Index>(a)];
+        for (size_t c = 0; c < nz.size(); ++c) sc->Af[f](nz[c], nz[a]) += JtJ(static_cast<Eigen::Index>(c), static_cast<Eigen::Index>(a));
+      }
     }
-    sc->Af[f].noalias() = Jf.transpose() * Jf;
-    sc->bf[f].noalias() = Jf.transpose() * rf;
   }
 }
 

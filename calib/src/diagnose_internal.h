@@ -164,6 +164,7 @@ class Diagnoser {
   Eigen::VectorXd b_;
   Eigen::MatrixXd penalty_;           // the maps' penalty (scaled columns; zero elsewhere)
   std::vector<bool> is_map_;          // per compact column
+  std::vector<std::vector<int>> row_nz_;  // per fit row: its columns that are not zero (maps are sparse)
   double map_knot_ = 0;               // knot spacing of the diagnosis' maps (deg or mm; 0: none)
   double rr_ = 0;
   Scheme interleaved_;              // the ordinary cross-validation (fold_poses_)

@@ -142,13 +142,19 @@ bool Diagnoser::admissible(const std::vector<int>& cur, const std::vector<int>& 
   // scale, harmonics, thermal) must keep a gain in every scheme: it extrapolates, so it must help
   // where the training rows did not go. A joint map is zero outside the range its data cover: it
   // cannot help there and must do no harm (no scheme significantly worse, one-sided p 0.01).
-  bool local = true;
-  for (int b : add) local = local && blocks_[static_cast<size_t>(b)].effect == "joint_map";
+  bool local = true, periodic = false;
+  for (int b : add) {
+    local = local && blocks_[static_cast<size_t>(b)].effect == "joint_map";
+    periodic = periodic || blocks_[static_cast<size_t>(b)].effect == "gear_periodic";
+  }
   *blocked_gain = kNaN;
   double harm_z = 0;
   std::string harm_scheme;
   const std::vector<int> S0 = withBlocks(cur);
   for (const Scheme& sc : blocked_) {
+    // half a joint's range is less than the half turn a periodic term needs (the coverage rule
+    // above): the halves and the end blocks alone do not test it
+    if (periodic && sc.end_folds.empty() && sc.poses.size() == 2) continue;
     const Eval e0 = cvEval(S0, sc, false), e1 = cvEval(S, sc, false);
     if (!e0.ok || !e1.ok) continue;
     auto worst = [&](const Gain& g, const std::string& name) {
@@ -162,7 +168,7 @@ bool Diagnoser::admissible(const std::vector<int>& cur, const std::vector<int>& 
       }
     };
     worst(pairedGain(e0.d, e1.d), sc.name);
-    if (sc.end_folds.empty()) continue;
+    if (sc.end_folds.empty() || periodic) continue;  // periodic terms: the coverage rule above
     // the end blocks alone: new data beyond the range the training rows cover
     std::vector<double> d0, d1;
     for (int f : sc.end_folds)
@@ -254,6 +260,7 @@ Diagnoser::Forward Diagnoser::forward(const std::vector<int>& candidates) const 
       else units.push_back({b});
     if (!maps.empty()) units.push_back(maps);
   }
+  auto isMapUnit = [&](const std::vector<int>& u) { return blocks_[static_cast<size_t>(u[0])].effect == "joint_map"; };
   auto unused = [&](const std::vector<int>& u) {
     for (int b : u)
       if (used[static_cast<size_t>(b)]) return false;
@@ -268,7 +275,7 @@ Diagnoser::Forward Diagnoser::forward(const std::vector<int>& candidates) const 
     Eval best_eval[2];
     std::vector<Gain> round(B, Gain{});
     for (size_t u = 0; u < units.size(); ++u) {
-      if (!unused(units[u])) continue;
+      if (!unused(units[u]) || isMapUnit(units[u])) continue;
       const Eval e = evalWith(units[u]);
       if (!e.ok) continue;
       const int b = units[u][0];
@@ -283,7 +290,6 @@ Diagnoser::Forward Diagnoser::forward(const std::vector<int>& candidates) const 
       }
     }
     fw.last_round = round;
-    if (best[0] < 0 && best[1] < 0) break;
     if (fw.blocks.empty() && !fw.has_best_single && best[1] >= 0) {
       fw.has_best_single = true;
       fw.best_single = units[static_cast<size_t>(best[1])];
@@ -310,7 +316,8 @@ Diagnoser::Forward Diagnoser::forward(const std::vector<int>& candidates) const 
     // no single block passes: the remaining blocks of each effect together
     std::map<std::string, std::vector<int>> groups;
     for (int b : candidates)
-      if (!used[static_cast<size_t>(b)]) groups[blocks_[static_cast<size_t>(b)].effect].push_back(b);
+      if (!used[static_cast<size_t>(b)] && blocks_[static_cast<size_t>(b)].effect != "joint_map")
+        groups[blocks_[static_cast<size_t>(b)].effect].push_back(b);
     std::vector<int> best_group;
     Gain group_gain;
     Eval group_eval;
@@ -338,6 +345,33 @@ Diagnoser::Forward Diagnoser::forward(const std::vector<int>& candidates) const 
       accept(best_group, group_eval, bg, scheme);
       continue;
     }
+    // The joint maps last: a map of every joint can follow what a parametric effect describes (a
+    // gear harmonic, a compliance); it is tried only when none of them passes any more.
+    bool map_added = false;
+    for (const std::vector<int>& u : units) {
+      if (!isMapUnit(u) || !unused(u)) continue;
+      const Eval e = evalWith(u);
+      if (!e.ok) break;
+      const Gain g = pairedGain(fw.cur.d, e.d);
+      for (int x : u) fw.last_round[static_cast<size_t>(x)] = g;
+      if (fw.blocks.empty() && !fw.has_best_single) {
+        fw.has_best_single = true;
+        fw.best_single = u;
+        fw.best_single_eval = e;
+      }
+      if (!(g.p < o_.alpha && g.gain >= o_.min_gain)) break;
+      std::string why, scheme;
+      double bg = kNaN;
+      if (!admissible(fw.blocks, u, &why, &bg, &scheme)) {
+        reject(u, why);
+        break;
+      }
+      selected_effects.insert("joint_map");
+      accept(u, e, bg, scheme);
+      map_added = true;
+      break;
+    }
+    if (map_added) continue;
     break;
   }
   // a candidate rejected once and selected later is not reported as rejected

@@ -72,6 +72,7 @@ struct TargetReport {
   double correction_deg = 0;  ///< rotation angle between command and desired
   double dx_mm = 0, dy_mm = 0, dz_mm = 0;  ///< command - desired, in the program's base frame
   bool calibrated_tool = false;            ///< the real model used the calibrated tool
+  Eigen::VectorXd q_real;  ///< joint values the real robot takes at the target (deg / mm); empty: not known
 };
 
 /// One LIN / CIRC segment.
