@@ -28,13 +28,13 @@
 
 namespace {
 
-using accura::RobotModel;
+using accura::calib::RobotModel;
 
 constexpr int kPoses = 1000;
-const accura::XyzAbc kTool = {80, 40, 150, 0, 0, 0};  // tracker target on the flange (mm)
+const accura::calib::XyzAbc kTool = {80, 40, 150, 0, 0, 0};  // tracker target on the flange (mm)
 
-accura::SimulateOptions campaignOptions(int poses) {
-  accura::SimulateOptions o;
+accura::calib::SimulateOptions campaignOptions(int poses) {
+  accura::calib::SimulateOptions o;
   o.poses = poses;
   o.seed = 21;
   o.noise_mm = 0.02;
@@ -45,8 +45,8 @@ accura::SimulateOptions campaignOptions(int poses) {
 
 /// The nominal KR 16 with the nominal target offset on the flange.
 RobotModel nominalKr16() {
-  RobotModel m = accura::readRobotFile(accura::resolveRobotPath("kuka_kr16"));
-  m.nominal.T_flange_tcp = accura::toIsometry(kTool);
+  RobotModel m = accura::calib::readRobotFile(accura::calib::resolveRobotPath("kuka_kr16"));
+  m.nominal.T_flange_tcp = accura::calib::toIsometry(kTool);
   return m;
 }
 
@@ -92,7 +92,7 @@ Eigen::Matrix4d naiveForwardKinematics(const NaiveRobot& robot, const Eigen::Vec
   Eigen::Matrix4d T = robot.T_world_base;
   for (size_t i = 0; i < robot.links.size(); ++i) {
     const NaiveLink& L = robot.links[i];
-    const double theta = L.theta0_rad + L.direction * q_deg[static_cast<Eigen::Index>(i)] * accura::kDegToRad;
+    const double theta = L.theta0_rad + L.direction * q_deg[static_cast<Eigen::Index>(i)] * accura::calib::kDegToRad;
     T = T * rotZ(theta) * transZ(L.d_mm) * transX(L.a_mm) * rotX(L.alpha_rad);
   }
   return T * robot.T_flange_tcp;
@@ -100,8 +100,8 @@ Eigen::Matrix4d naiveForwardKinematics(const NaiveRobot& robot, const Eigen::Vec
 
 NaiveRobot naiveFrom(const RobotModel& model) {
   NaiveRobot r;
-  for (const accura::JointSpec& j : model.nominal.joints)
-    r.links.push_back({j.theta0_deg * accura::kDegToRad, j.d_mm, j.a_mm, j.alpha_deg * accura::kDegToRad,
+  for (const accura::calib::JointSpec& j : model.nominal.joints)
+    r.links.push_back({j.theta0_deg * accura::calib::kDegToRad, j.d_mm, j.a_mm, j.alpha_deg * accura::calib::kDegToRad,
                        j.direction});
   r.T_world_base = model.nominal.T_world_base.matrix();
   r.T_flange_tcp = model.nominal.T_flange_tcp.matrix();
@@ -117,9 +117,9 @@ struct KinematicsData {
   RobotModel truth;            // the same with non-zero geometric deviations (perturbModel)
   RobotModel truth_compliant;  // geometric deviations and joint compliance
   NaiveRobot naive;            // the nominal DH chain for the hand-written FK
-  std::vector<accura::ParamInfo> layout;  // the full parameter layout
+  std::vector<accura::calib::ParamInfo> layout;  // the full parameter layout
   std::vector<Eigen::VectorXd> q;
-  std::vector<accura::PoseContext> context;
+  std::vector<accura::calib::PoseContext> context;
   double naive_max_diff_mm = 0;  // hand-written FK vs accura's FK at nominal
 };
 
@@ -127,23 +127,23 @@ const KinematicsData& kinematicsData() {
   static const std::unique_ptr<KinematicsData> data = [] {
     auto d = std::make_unique<KinematicsData>();
     d->nominal = nominalKr16();
-    accura::SimulateOptions o = campaignOptions(kPoses);
-    d->truth = accura::perturbModel(d->nominal, o);
-    accura::SimulateOptions oc = o;
+    accura::calib::SimulateOptions o = campaignOptions(kPoses);
+    d->truth = accura::calib::perturbModel(d->nominal, o);
+    accura::calib::SimulateOptions oc = o;
     oc.effects = {"geometric", "joint_compliance"};
     oc.payloads_kg = {0, 8, 16};
-    d->truth_compliant = accura::perturbModel(d->nominal, oc);
+    d->truth_compliant = accura::calib::perturbModel(d->nominal, oc);
     d->naive = naiveFrom(d->nominal);
-    d->layout = accura::parameterLayout(d->truth);
-    const accura::MeasurementSet set = accura::simulateMeasurements(d->truth_compliant, oc);
-    for (const accura::Measurement& m : set.rows) {
+    d->layout = accura::calib::parameterLayout(d->truth);
+    const accura::calib::MeasurementSet set = accura::calib::simulateMeasurements(d->truth_compliant, oc);
+    for (const accura::calib::Measurement& m : set.rows) {
       d->q.push_back(m.q);
       d->context.push_back(m.context);  // payloads 0, 8, 16 kg cycled
     }
     // the peer must compute the same thing: compare at nominal
-    accura::KinematicWorkspace ws;
+    accura::calib::KinematicWorkspace ws;
     for (size_t i = 0; i < d->q.size(); ++i) {
-      const Eigen::Isometry3d T = accura::forwardKinematics(d->nominal, d->q[i], {}, ws);
+      const Eigen::Isometry3d T = accura::calib::forwardKinematics(d->nominal, d->q[i], {}, ws);
       const Eigen::Matrix4d N = naiveForwardKinematics(d->naive, d->q[i]);
       d->naive_max_diff_mm = std::max(d->naive_max_diff_mm, (T.matrix() - N).cwiseAbs().maxCoeff());
     }
@@ -167,9 +167,9 @@ void fkCounters(benchmark::State& state, size_t poses) {
 /// (KinematicModel, outside the loop, like the peer's link table), one KinematicFrames.
 void fkAccura(benchmark::State& state, const RobotModel& model, bool with_payload) {
   const KinematicsData& d = kinematicsData();
-  const accura::KinematicModel core(model);
-  accura::KinematicFrames f;
-  const accura::PoseContext no_payload;
+  const accura::calib::KinematicModel core(model);
+  accura::calib::KinematicFrames f;
+  const accura::calib::PoseContext no_payload;
   double sum = 0;
   for (auto _ : state) {
     for (size_t i = 0; i < d.q.size(); ++i) {
@@ -187,13 +187,13 @@ void fkAccura(benchmark::State& state, const RobotModel& model, bool with_payloa
 /// intermediate frames in the base frame.
 void fkAccuraWorkspace(benchmark::State& state, const RobotModel& model, bool with_payload) {
   const KinematicsData& d = kinematicsData();
-  accura::KinematicWorkspace ws;
-  const accura::PoseContext no_payload;
+  accura::calib::KinematicWorkspace ws;
+  const accura::calib::PoseContext no_payload;
   double sum = 0;
   for (auto _ : state) {
     for (size_t i = 0; i < d.q.size(); ++i) {
       const Eigen::Isometry3d T =
-          accura::forwardKinematics(model, d.q[i], with_payload ? d.context[i] : no_payload, ws);
+          accura::calib::forwardKinematics(model, d.q[i], with_payload ? d.context[i] : no_payload, ws);
       benchmark::DoNotOptimize(T);
       sum += T.translation().x();
     }
@@ -229,29 +229,29 @@ void BM_FK_NaiveDH4x4_Peer(benchmark::State& state) {
 
 /// Central finite differences of forwardKinematics, two FK calls per column. Same layout,
 /// units and row convention as parameterJacobian: [dp_world (mm); dphi_world (rad)].
-double fdStep(const accura::ParamInfo& p) {
+double fdStep(const accura::calib::ParamInfo& p) {
   if (p.unit == "mm") return 1e-4;      // mm
   if (p.unit == "deg") return 1e-6;     // rad internally
   if (p.unit == "urad/Nm") return 1e-7; // rad/(N*m): 0.1 urad/Nm, loads up to ~1e3 N*m
   return 1e-5;                          // mm/N (prismatic joints)
 }
 
-void finiteDifferenceJacobian(RobotModel& model, const std::vector<accura::ParamInfo>& layout,
-                              const Eigen::VectorXd& q, const accura::PoseContext& context,
-                              accura::KinematicWorkspace& ws, Eigen::MatrixXd& J) {
+void finiteDifferenceJacobian(RobotModel& model, const std::vector<accura::calib::ParamInfo>& layout,
+                              const Eigen::VectorXd& q, const accura::calib::PoseContext& context,
+                              accura::calib::KinematicWorkspace& ws, Eigen::MatrixXd& J) {
   J.resize(6, static_cast<Eigen::Index>(layout.size()));
   for (size_t k = 0; k < layout.size(); ++k) {
-    const accura::ParamInfo& p = layout[k];
-    const double v0 = accura::getParameter(model.deviations, p);
+    const accura::calib::ParamInfo& p = layout[k];
+    const double v0 = accura::calib::getParameter(model.deviations, p);
     const double h = fdStep(p);
-    accura::setParameter(model.deviations, p, v0 + h);
-    const Eigen::Isometry3d Tp = accura::forwardKinematics(model, q, context, ws);
-    accura::setParameter(model.deviations, p, v0 - h);
-    const Eigen::Isometry3d Tm = accura::forwardKinematics(model, q, context, ws);
-    accura::setParameter(model.deviations, p, v0);
+    accura::calib::setParameter(model.deviations, p, v0 + h);
+    const Eigen::Isometry3d Tp = accura::calib::forwardKinematics(model, q, context, ws);
+    accura::calib::setParameter(model.deviations, p, v0 - h);
+    const Eigen::Isometry3d Tm = accura::calib::forwardKinematics(model, q, context, ws);
+    accura::calib::setParameter(model.deviations, p, v0);
     const Eigen::Index c = static_cast<Eigen::Index>(k);
     J.col(c).head<3>() = (Tp.translation() - Tm.translation()) / (2 * h);
-    J.col(c).tail<3>() = accura::logSO3(Tp.linear() * Tm.linear().transpose()) / (2 * h);
+    J.col(c).tail<3>() = accura::calib::logSO3(Tp.linear() * Tm.linear().transpose()) / (2 * h);
   }
 }
 
@@ -261,11 +261,11 @@ void finiteDifferenceJacobian(RobotModel& model, const std::vector<accura::Param
 /// pure rounding noise.
 double jacobianAgreement(const KinematicsData& d, const RobotModel& start, int poses) {
   RobotModel model = start;
-  accura::KinematicWorkspace ws;
+  accura::calib::KinematicWorkspace ws;
   Eigen::MatrixXd Ja, Jf;
   double worst = 0;
   for (int i = 0; i < poses; ++i) {
-    accura::parameterJacobian(model, d.layout, d.q[i], d.context[i], ws, Ja);
+    accura::calib::parameterJacobian(model, d.layout, d.q[i], d.context[i], ws, Ja);
     finiteDifferenceJacobian(model, d.layout, d.q[i], d.context[i], ws, Jf);
     for (Eigen::Index c = 0; c < Ja.cols(); ++c) {
       const double scale = Ja.col(c).norm();
@@ -286,11 +286,11 @@ const RobotModel& jacobianModel(const benchmark::State& state) {
 void BM_Jacobian_Accura(benchmark::State& state) {
   const KinematicsData& d = kinematicsData();
   const RobotModel& model = jacobianModel(state);
-  accura::KinematicWorkspace ws;
+  accura::calib::KinematicWorkspace ws;
   Eigen::MatrixXd J;
   for (auto _ : state) {
     for (size_t i = 0; i < d.q.size(); ++i) {
-      const Eigen::Isometry3d T = accura::parameterJacobian(model, d.layout, d.q[i], d.context[i], ws, J);
+      const Eigen::Isometry3d T = accura::calib::parameterJacobian(model, d.layout, d.q[i], d.context[i], ws, J);
       benchmark::DoNotOptimize(T);
       benchmark::DoNotOptimize(J.data());
       benchmark::ClobberMemory();
@@ -304,7 +304,7 @@ void BM_Jacobian_Accura(benchmark::State& state) {
 void BM_Jacobian_CentralFD_Peer(benchmark::State& state) {
   const KinematicsData& d = kinematicsData();
   RobotModel model = jacobianModel(state);  // a mutable copy: the FD perturbs its deviations
-  accura::KinematicWorkspace ws;
+  accura::calib::KinematicWorkspace ws;
   Eigen::MatrixXd J;
   for (auto _ : state) {
     for (size_t i = 0; i < d.q.size(); ++i) {
@@ -326,8 +326,8 @@ void BM_Jacobian_CentralFD_Peer(benchmark::State& state) {
 struct IdentifyCase {
   RobotModel start;  // nominal + nominal target offset; the tracker frame is unknown
   RobotModel truth;
-  accura::MeasurementSet data, validation;
-  accura::IdentifyOptions options;
+  accura::calib::MeasurementSet data, validation;
+  accura::calib::IdentifyOptions options;
 };
 
 const IdentifyCase& identifyCase(int poses, bool compliance) {
@@ -335,18 +335,18 @@ const IdentifyCase& identifyCase(int poses, bool compliance) {
   auto& slot = cache[{poses, compliance}];
   if (!slot) {
     auto c = std::make_unique<IdentifyCase>();
-    accura::SimulateOptions o = campaignOptions(poses);
+    accura::calib::SimulateOptions o = campaignOptions(poses);
     if (compliance) {
       o.effects = {"geometric", "joint_compliance"};
       o.payloads_kg = {0, 8, 16};
       c->options.groups = {"geometric", "joint_compliance"};
     }
     c->start = nominalKr16();
-    c->truth = accura::perturbModel(c->start, o);
-    c->data = accura::simulateMeasurements(c->truth, o);
+    c->truth = accura::calib::perturbModel(c->start, o);
+    c->data = accura::calib::simulateMeasurements(c->truth, o);
     o.seed += 1000;
     o.poses = 300;
-    c->validation = accura::simulateMeasurements(c->truth, o);
+    c->validation = accura::calib::simulateMeasurements(c->truth, o);
     slot = std::move(c);
   }
   return *slot;
@@ -355,15 +355,15 @@ const IdentifyCase& identifyCase(int poses, bool compliance) {
 void identifyBench(benchmark::State& state, bool compliance) {
   const int poses = static_cast<int>(state.range(0));
   const IdentifyCase& c = identifyCase(poses, compliance);
-  accura::IdentifySummary s;
+  accura::calib::IdentifySummary s;
   RobotModel cal;
   for (auto _ : state) {
-    cal = accura::identify(c.start, c.data, c.options, &s);
+    cal = accura::calib::identify(c.start, c.data, c.options, &s);
     benchmark::DoNotOptimize(cal.deviations.base_mm.data());
     benchmark::ClobberMemory();
   }
-  const accura::ErrorStats floor = accura::evaluate(c.truth, c.validation);
-  const accura::ErrorStats val = accura::evaluate(cal, c.validation);
+  const accura::calib::ErrorStats floor = accura::calib::evaluate(c.truth, c.validation);
+  const accura::calib::ErrorStats val = accura::calib::evaluate(cal, c.validation);
   state.counters["poses"] = poses;
   state.counters["params"] = s.parameters_free;
   state.counters["iters_last_solve"] = s.iterations;  // the final Ceres solve only
@@ -386,7 +386,7 @@ void BM_RegisterFrame(benchmark::State& state) {
   double rms = 0;
   for (auto _ : state) {
     RobotModel m = c.start;
-    rms = accura::registerFrame(m, c.data, /*estimate_tool=*/true);
+    rms = accura::calib::registerFrame(m, c.data, /*estimate_tool=*/true);
     benchmark::DoNotOptimize(m.deviations.base_mm.data());
     benchmark::DoNotOptimize(rms);
   }
@@ -399,13 +399,13 @@ void BM_RegisterFrame(benchmark::State& state) {
 // identification without maps measured in this run (BM_Identify_Geometric/1500).
 void BM_Identify_GeometricJointMap(benchmark::State& state) {
   const IdentifyCase& c = identifyCase(static_cast<int>(state.range(0)), false);
-  accura::IdentifyOptions o = c.options;
+  accura::calib::IdentifyOptions o = c.options;
   o.groups = {"geometric", "joint_map:j1+j2+j3@3deg"};
   o.joint_map_smoothing = 0.01;
-  accura::IdentifySummary s;
+  accura::calib::IdentifySummary s;
   RobotModel cal;
   for (auto _ : state) {
-    cal = accura::identify(c.start, c.data, o, &s);
+    cal = accura::calib::identify(c.start, c.data, o, &s);
     benchmark::DoNotOptimize(cal.deviations.base_mm.data());
     benchmark::ClobberMemory();
   }
@@ -413,7 +413,7 @@ void BM_Identify_GeometricJointMap(benchmark::State& state) {
   for (const auto& m : cal.deviations.joint_map) coefficients += m.coef.size();
   state.counters["poses"] = static_cast<double>(state.range(0));
   state.counters["map_coefficients"] = static_cast<double>(coefficients);
-  state.counters["val_rms_mm"] = accura::evaluate(cal, c.validation).rms_mm;
+  state.counters["val_rms_mm"] = accura::calib::evaluate(cal, c.validation).rms_mm;
 }
 
 }  // namespace

@@ -110,14 +110,14 @@ struct Band {
 };
 
 struct Setup {
-  accura::RobotModel robot, flange;
+  accura::calib::RobotModel robot, flange;
   Mesh mesh;
   std::unique_ptr<CellGeometry> geometry, geometry_capsule;
   Cell cell;
   QuerySet mixed, mixed_capsule;
   std::vector<Band> bands;
   Setup() {
-    robot = accura::readRobotFile(accura::resolveRobotPath("kuka_kr16"));
+    robot = accura::calib::readRobotFile(accura::calib::resolveRobotPath("kuka_kr16"));
     flange = robot;
     flange.nominal.T_flange_tcp = Eigen::Isometry3d::Identity();
     mesh = terrain();
@@ -142,10 +142,10 @@ struct Setup {
       }
       return x;
     };
-    auto exact = [&](const CellGeometry& g, const Eigen::VectorXd& x) { return g.distances(x, accura::PoseContext{}, kInfMm)[0].mm; };
+    auto exact = [&](const CellGeometry& g, const Eigen::VectorXd& x) { return g.distances(x, accura::calib::PoseContext{}, kInfMm)[0].mm; };
     while (mixed.q.size() < 1000) {
       const Eigen::VectorXd x = random_q();
-      const Eigen::Vector3d c = accura::forwardKinematics(flange, x).translation();
+      const Eigen::Vector3d c = accura::calib::forwardKinematics(flange, x).translation();
       if (c.x() < -500 || c.x() > 2500 || std::fabs(c.y()) > 1500 || c.z() > 610) continue;
       mixed.q.push_back(x);
       mixed.exact_mm.push_back(exact(*geometry, x));
@@ -161,7 +161,7 @@ struct Setup {
       for (const auto& b : bands) full = full && b.set.q.size() >= per_band;
       if (full) break;
       const Eigen::VectorXd x = random_q();
-      const Eigen::Vector3d c = accura::forwardKinematics(flange, x).translation();
+      const Eigen::Vector3d c = accura::calib::forwardKinematics(flange, x).translation();
       if (c.x() < -600 || c.x() > 2600 || std::fabs(c.y()) > 1600) continue;
       const double h = 250 + 60 * std::sin(std::clamp(c.x(), -200.0, 2200.0) / 90) * std::cos(std::clamp(c.y(), -1200.0, 1200.0) / 130);
       const double gap = std::fabs(c.z() - h) - kRadius;
@@ -194,7 +194,7 @@ void query(benchmark::State& state, const CellGeometry& g, const QuerySet& set, 
   size_t k = 0;
   long mismatch = 0, below = 0, n = 0;
   for (auto _ : state) {
-    const auto d = g.distances(set.q[k], accura::PoseContext{}, bound);
+    const auto d = g.distances(set.q[k], accura::calib::PoseContext{}, bound);
     const double e = set.exact_mm[k];
     if (e < bound) {
       ++below;
@@ -221,7 +221,7 @@ void bruteForce(benchmark::State& state, const QuerySet& set) {
   size_t k = 0;
   double max_diff = 0;
   for (auto _ : state) {
-    const Eigen::Vector3d p = accura::forwardKinematics(s.flange, set.q[k]).translation();
+    const Eigen::Vector3d p = accura::calib::forwardKinematics(s.flange, set.q[k]).translation();
     double best = 1e300;
     for (const auto& t : s.mesh.triangles)
       best = std::min(best, (closestOnTriangle(p, s.mesh.vertices_mm[static_cast<size_t>(t[0])], s.mesh.vertices_mm[static_cast<size_t>(t[1])],
@@ -260,10 +260,10 @@ void check(benchmark::State& state, double band_mm) {
   const double z = static_cast<double>(state.range(0));
   std::vector<accura::postproc::WorldMotion> motions(2);
   motions[0].type = accura::postproc::MotionType::kPtp;
-  motions[0].T_world_tcp_end = accura::toIsometry(accura::XyzAbc{700, -300, z, 0, 180, 0});
+  motions[0].T_world_tcp_end = accura::calib::toIsometry(accura::calib::XyzAbc{700, -300, z, 0, 180, 0});
   motions[0].label = "PTP";
   motions[1].type = accura::postproc::MotionType::kLin;
-  motions[1].T_world_tcp_end = accura::toIsometry(accura::XyzAbc{1900, -300, z, 0, 180, 0});
+  motions[1].T_world_tcp_end = accura::calib::toIsometry(accura::calib::XyzAbc{1900, -300, z, 0, 180, 0});
   motions[1].label = "LIN";
   accura::postproc::CheckOptions o;
   o.exact_band_mm = band_mm;

@@ -20,10 +20,10 @@
 
 namespace {
 
-using accura::MeasurementSet;
-using accura::RobotModel;
+using accura::calib::MeasurementSet;
+using accura::calib::RobotModel;
 
-const accura::XyzAbc kTarget = {80, 40, 150, 0, 0, 0};  // tracker reflector on the flange (mm)
+const accura::calib::XyzAbc kTarget = {80, 40, 150, 0, 0, 0};  // tracker reflector on the flange (mm)
 
 struct Campaign {
   RobotModel nominal;
@@ -35,9 +35,9 @@ struct Campaign {
 const Campaign& campaign() {
   static const std::unique_ptr<Campaign> c = [] {
     auto out = std::make_unique<Campaign>();
-    out->nominal = accura::readRobotFile(accura::resolveRobotPath("kuka_kr16"));
-    out->nominal.nominal.T_flange_tcp = accura::toIsometry(kTarget);
-    accura::SimulateOptions o;
+    out->nominal = accura::calib::readRobotFile(accura::calib::resolveRobotPath("kuka_kr16"));
+    out->nominal.nominal.T_flange_tcp = accura::calib::toIsometry(kTarget);
+    accura::calib::SimulateOptions o;
     o.poses = 500;
     o.seed = 7;
     o.noise_mm = 0.02;
@@ -46,11 +46,11 @@ const Campaign& campaign() {
     o.tool = kTarget;
     o.set_tool = true;
     o.write_std = true;
-    const RobotModel truth = accura::perturbModel(out->nominal, o);
-    out->fit = accura::simulateMeasurements(truth, o);
+    const RobotModel truth = accura::calib::perturbModel(out->nominal, o);
+    out->fit = accura::calib::simulateMeasurements(truth, o);
     o.poses = 200;
     o.seed = 8;
-    out->validation = accura::simulateMeasurements(truth, o);
+    out->validation = accura::calib::simulateMeasurements(truth, o);
     return out;
   }();
   return *c;
@@ -60,7 +60,7 @@ void BM_Diagnose500PosesWholeCatalogueCrossValidated(benchmark::State& state) {
   const Campaign& c = campaign();
   std::string verdict;
   for (auto _ : state) {
-    const accura::Diagnosis d = accura::diagnose(c.nominal, c.fit, nullptr, accura::DiagnoseOptions{});
+    const accura::calib::Diagnosis d = accura::calib::diagnose(c.nominal, c.fit, nullptr, accura::calib::DiagnoseOptions{});
     verdict = d.verdict.effect;
     benchmark::DoNotOptimize(d.verdict.validation_rms_after_mm);
   }
@@ -71,7 +71,7 @@ BENCHMARK(BM_Diagnose500PosesWholeCatalogueCrossValidated)->Unit(benchmark::kMil
 void BM_Diagnose500PosesWholeCatalogueValidationSet(benchmark::State& state) {
   const Campaign& c = campaign();
   for (auto _ : state) {
-    const accura::Diagnosis d = accura::diagnose(c.nominal, c.fit, &c.validation, accura::DiagnoseOptions{});
+    const accura::calib::Diagnosis d = accura::calib::diagnose(c.nominal, c.fit, &c.validation, accura::calib::DiagnoseOptions{});
     benchmark::DoNotOptimize(d.verdict.validation_rms_after_mm);
   }
 }
@@ -80,10 +80,10 @@ BENCHMARK(BM_Diagnose500PosesWholeCatalogueValidationSet)->Unit(benchmark::kMill
 // Peer: one identification of the complete geometric model on the same 500 poses.
 void BM_IdentifyGeometric500Poses(benchmark::State& state) {
   const Campaign& c = campaign();
-  accura::IdentifyOptions o;
+  accura::calib::IdentifyOptions o;
   o.groups = {"geometric"};
   for (auto _ : state) {
-    const RobotModel m = accura::identify(c.nominal, c.fit, o, nullptr);
+    const RobotModel m = accura::calib::identify(c.nominal, c.fit, o, nullptr);
     benchmark::DoNotOptimize(m.deviations.base_mm);
   }
 }

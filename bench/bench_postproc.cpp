@@ -47,30 +47,30 @@
 
 namespace {
 
-using accura::RobotModel;
+using accura::calib::RobotModel;
 using accura::postproc::Compensator;
-using accura::postproc::Configuration;
-using accura::postproc::IkOptions;
-using accura::postproc::IkResult;
-using accura::postproc::IkStatus;
-using accura::postproc::KinematicSolver;
+using accura::calib::Configuration;
+using accura::calib::IkOptions;
+using accura::calib::IkResult;
+using accura::calib::IkStatus;
+using accura::calib::KinematicSolver;
 
-constexpr double kDeg = accura::kDegToRad;
+constexpr double kDeg = accura::calib::kDegToRad;
 
 RobotModel controllerModel() {
-  RobotModel m = accura::readRobotFile(accura::resolveRobotPath("kuka_kr16"));
-  m.nominal.T_flange_tcp = accura::toIsometry({20, 0, 250, 0, -30, 0});
+  RobotModel m = accura::calib::readRobotFile(accura::calib::resolveRobotPath("kuka_kr16"));
+  m.nominal.T_flange_tcp = accura::calib::toIsometry({20, 0, 250, 0, -30, 0});
   return m;
 }
 
 /// The real robot: every geometric error; `compliance` adds joint compliance.
 RobotModel realModel(bool compliance) {
-  accura::SimulateOptions o;
+  accura::calib::SimulateOptions o;
   o.effects = compliance ? std::vector<std::string>{"geometric", "joint_compliance"}
                          : std::vector<std::string>{"geometric"};
   o.seed = 3;
   o.set_station = false;  // the cell frame: the robot registered in it to 0.5 mm
-  RobotModel m = accura::perturbModel(controllerModel(), o);
+  RobotModel m = accura::calib::perturbModel(controllerModel(), o);
   m.deviations.base_mm = Eigen::Vector3d(0.4, -0.3, 0.2);
   m.deviations.base_rot_rad = Eigen::Vector3d(1e-4, -5e-5, 2e-4);
   return m;
@@ -87,8 +87,8 @@ KDL::Chain kdlChain(const RobotModel& m) {
   KDL::Chain chain;
   chain.addSegment(KDL::Segment(KDL::Joint(KDL::Joint::None), toKdl(m.T_world_base())));
   for (int i = 0; i < m.dof(); ++i) {
-    const accura::JointSpec& j = m.nominal.joints[static_cast<size_t>(i)];
-    const accura::LinkDeviation& d = m.deviations.links[static_cast<size_t>(i)];
+    const accura::calib::JointSpec& j = m.nominal.joints[static_cast<size_t>(i)];
+    const accura::calib::LinkDeviation& d = m.deviations.links[static_cast<size_t>(i)];
     // KDL's joint offset does not enter Joint::pose in this version: theta0 goes into the tip
     const KDL::Frame tip = KDL::Frame(KDL::Rotation::RotZ(j.theta0_deg * kDeg + d.dtheta_rad)) *
                            KDL::Frame(KDL::Vector(0, 0, (j.d_mm + d.dd_mm) * 1e-3)) *
@@ -102,7 +102,7 @@ KDL::Chain kdlChain(const RobotModel& m) {
 }
 
 Eigen::Isometry3d pose(double x, double y, double z, double a, double b, double c) {
-  return accura::toIsometry({x, y, z, a, b, c});
+  return accura::calib::toIsometry({x, y, z, a, b, c});
 }
 
 /// Everything built once: models, solvers, targets.
@@ -135,7 +135,7 @@ struct Setup {
     q_mid.resize(n);
     q_mid_deg.resize(n);
     for (int i = 0; i < n; ++i) {
-      const accura::JointSpec& j = real.nominal.joints[static_cast<size_t>(i)];
+      const accura::calib::JointSpec& j = real.nominal.joints[static_cast<size_t>(i)];
       q_min(i) = j.lower * kDeg;
       q_max(i) = j.upper * kDeg;
       q_mid(i) = 0.5 * (j.lower + j.upper) * kDeg;
@@ -190,7 +190,7 @@ struct Setup {
       targets.push_back(T);
       truth.push_back(q);
       nearby.push_back(s);
-      configs.push_back(accura::postproc::kukaConfiguration(real, q));
+      configs.push_back(accura::calib::kukaConfiguration(real, q));
     }
   }
 
@@ -206,7 +206,7 @@ struct Setup {
       if (q_deg[i] * kDeg < q_min(i) - 1e-12 || q_deg[i] * kDeg > q_max(i) + 1e-12) return false;
     const Eigen::Isometry3d F = solver.forward(q_deg);
     return (F.translation() - T.translation()).norm() <= 1.8e-3 &&  // KDL: 1 um per component
-           accura::logSO3(F.linear() * T.linear().transpose()).norm() <= 1.8e-6;
+           accura::calib::logSO3(F.linear() * T.linear().transpose()).norm() <= 1.8e-6;
   }
 
   /// KDL's solve alone (the timed part): true when KDL reports success.
@@ -270,7 +270,7 @@ void pathWarmAccura(benchmark::State& state, const std::vector<Eigen::Isometry3d
   const Setup& s = setup();
   if (!s.error.empty()) return state.SkipWithError(s.error.c_str());
   const IkOptions o = ikOptions(check);
-  accura::postproc::IkWorkspace ws;
+  accura::calib::IkWorkspace ws;
   auto solve = [&](const Eigen::Isometry3d& T, const Eigen::VectorXd& seed) {
     return workspace ? s.solver.inverse(T, Configuration{}, seed, o, {}, ws) : s.solver.inverse(T, Configuration{}, seed, o);
   };

@@ -54,15 +54,15 @@ int runBatch(const BatchArgs& a) {
   o.config_path = a.config;
   o.jobs = a.jobs;
   const std::optional<CellCheck> cell = a.cell();
-  if (a.warn_only && !cell) throw InputError("--warn-only: expected together with --cell, found it without");
+  if (a.warn_only && !cell) throw calib::InputError("--warn-only: expected together with --cell, found it without");
   if (cell) o.cell = CellCheckSettings{cell->cell, cell->options, a.warn_only, nullptr};
-  if (a.jobs < 1) throw InputError("--jobs: expected at least 1, found " + std::to_string(a.jobs));
+  if (a.jobs < 1) throw calib::InputError("--jobs: expected at least 1, found " + std::to_string(a.jobs));
   if (!a.json.empty()) {
     const fs::path j = fs::weakly_canonical(fs::absolute(a.json));
     const fs::path in = fs::weakly_canonical(fs::absolute(a.in));
-    if (j.string().rfind(in.string() + "/", 0) == 0) throw InputError("--json: " + a.json + " is inside the input tree, which is never modified");
+    if (j.string().rfind(in.string() + "/", 0) == 0) throw calib::InputError("--json: " + a.json + " is inside the input tree, which is never modified");
   }
-  installInterruptCleanup();
+  calib::installInterruptCleanup();
   const bool tty = ::isatty(2) != 0;
   const auto progress = [&](const BatchFileResult& r, int done, int total) {
     if (tty) {
@@ -116,7 +116,7 @@ int runBatch(const BatchArgs& a) {
       files.push_back(f);
     }
     j["files"] = files;
-    writeFilesAtomically({{a.json, j.dump(2) + "\n"}});
+    calib::writeFilesAtomically({{a.json, j.dump(2) + "\n"}});
     std::printf("wrote %s\n", a.json.c_str());
   }
   return res.failed == 0 ? 0 : kSomeFailed;

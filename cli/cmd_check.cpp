@@ -42,17 +42,17 @@ std::optional<CellCheck> cellCheck(const CellArgs& a) {
   c.options.thresholds = c.cell.thresholds;
   if (a.o_margin->count()) {
     if (!(a.joint_margin_deg >= 0) || !std::isfinite(a.joint_margin_deg))
-      throw InputError("--joint-margin-deg: expected a margin >= 0 (deg), found " + fmt("%g", a.joint_margin_deg));
+      throw calib::InputError("--joint-margin-deg: expected a margin >= 0 (deg), found " + fmt("%g", a.joint_margin_deg));
     c.options.thresholds.joint_margin_deg = a.joint_margin_deg;
   }
   if (a.o_singular->count()) {
     if (!(a.singular_threshold >= 0) || !std::isfinite(a.singular_threshold))
-      throw InputError("--singular-threshold: expected a value >= 0, found " + fmt("%g", a.singular_threshold));
+      throw calib::InputError("--singular-threshold: expected a value >= 0, found " + fmt("%g", a.singular_threshold));
     c.options.thresholds.singular_threshold = a.singular_threshold;
   }
   if (a.o_clearance->count()) {
     if (!(a.min_clearance_mm >= 0) || !std::isfinite(a.min_clearance_mm))
-      throw InputError("--min-clearance-mm: expected a distance >= 0 (mm), found " + fmt("%g", a.min_clearance_mm));
+      throw calib::InputError("--min-clearance-mm: expected a distance >= 0 (mm), found " + fmt("%g", a.min_clearance_mm));
     c.options.thresholds.min_clearance_mm = a.min_clearance_mm;
   }
   c.options.mode = a.as_written ? postproc::CheckMode::kAsWritten : postproc::CheckMode::kIntended;
@@ -73,7 +73,7 @@ int runCheck(const CheckArgs& a) {
   read.dat_path = a.dat;
   read.config_path = a.config;
   const Program program = readProgram(a.in, read);
-  if (!a.json.empty()) refuseToOverwrite({{a.json, ""}}, {a.in, a.dat, a.config, cc->cell_path}, "--json");
+  if (!a.json.empty()) calib::refuseToOverwrite({{a.json, ""}}, {a.in, a.dat, a.config, cc->cell_path}, "--json");
   const CheckReport r = checkProgram(program, settings, cc->cell, cc->options);
   printCheckReport(r, a.in);
   if (!a.json.empty()) {
@@ -82,7 +82,7 @@ int runCheck(const CheckArgs& a) {
     j["cell"] = cc->cell_path;
     j["robot"] = settings.calibrated.nominal.name;
     j.update(checkReportJson(r));
-    writeFilesAtomically({{a.json, j.dump(2) + "\n"}});
+    calib::writeFilesAtomically({{a.json, j.dump(2) + "\n"}});
     std::printf("wrote %s\n", a.json.c_str());
   }
   return r.passed() ? 0 : kCheckFailed;

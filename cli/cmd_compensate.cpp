@@ -30,7 +30,7 @@ struct JobArgs {
   std::string base;
   std::string robroot;
   double payload_kg = 0;
-  double temp_c = kThermalReferenceC;
+  double temp_c = calib::kThermalReferenceC;
   std::string program_tool;
   std::string program_base;
 };
@@ -53,7 +53,7 @@ int runCompensate(const CompensateArgs& a) {
   // of compensate --cell and batch --cell: compensateAndCheckFile); its robot placement is
   // where the OLP placed the robot (unless --base says it)
   const std::optional<CellCheck> cell = a.cell();
-  if (a.warn_only && !cell) throw InputError("--warn-only: expected together with --cell, found it without");
+  if (a.warn_only && !cell) throw calib::InputError("--warn-only: expected together with --cell, found it without");
   std::optional<CellCheckSettings> cell_settings;
   if (cell) cell_settings = CellCheckSettings{cell->cell, cell->options, a.warn_only, nullptr};
   ProgramFileRequest request;
@@ -63,10 +63,10 @@ int runCompensate(const CompensateArgs& a) {
   request.out_dir = a.out;
   request.json_path = a.json;
   request.cell = cell_settings ? &*cell_settings : nullptr;
-  installInterruptCleanup();
+  calib::installInterruptCleanup();
   const ProgramFileResult result = compensateProgramFile(request, settings);
   const JobReport& report = result.report;
-  const std::vector<OutputFile>& files = result.checked.files;
+  const std::vector<calib::OutputFile>& files = result.checked.files;
   // a violation keeps the program off the disk (exit kCheckFailed, report printed and in
   // --json) unless --warn-only.
   const std::optional<postproc::CheckReport>& check = result.checked.check;
@@ -116,16 +116,16 @@ int runCompensate(const CompensateArgs& a) {
 postproc::JobSettings jobSettings(const JobArgs& a) {
   postproc::JobSettings s;
   s.calibrated = loadRobot(a.robot);
-  if (!(a.tol_mm > 0) || !std::isfinite(a.tol_mm)) throw InputError("--tol: expected a positive distance (mm), found " + fmt("%g", a.tol_mm));
+  if (!(a.tol_mm > 0) || !std::isfinite(a.tol_mm)) throw calib::InputError("--tol: expected a positive distance (mm), found " + fmt("%g", a.tol_mm));
   s.tol_mm = a.tol_mm;
-  if (!a.base.empty()) s.robroot_in_world = parseXyzAbc(a.base, "--base");
-  if (!a.robroot.empty()) s.robroot_in_kukaworld = parseXyzAbc(a.robroot, "--robroot");
-  if (!(a.payload_kg >= 0) || !std::isfinite(a.payload_kg)) throw InputError("--payload-kg: expected a mass >= 0, found " + fmt("%g", a.payload_kg));
-  if (!std::isfinite(a.temp_c)) throw InputError("--temp-c: expected a temperature (deg C)");
+  if (!a.base.empty()) s.robroot_in_world = calib::parseXyzAbc(a.base, "--base");
+  if (!a.robroot.empty()) s.robroot_in_kukaworld = calib::parseXyzAbc(a.robroot, "--robroot");
+  if (!(a.payload_kg >= 0) || !std::isfinite(a.payload_kg)) throw calib::InputError("--payload-kg: expected a mass >= 0, found " + fmt("%g", a.payload_kg));
+  if (!std::isfinite(a.temp_c)) throw calib::InputError("--temp-c: expected a temperature (deg C)");
   s.context.payload_kg = a.payload_kg;
   s.context.temp_c = a.temp_c;
-  if (!a.program_tool.empty()) s.initial_tool = parseXyzAbc(a.program_tool, "--program-tool");
-  if (!a.program_base.empty()) s.initial_base = parseXyzAbc(a.program_base, "--program-base");
+  if (!a.program_tool.empty()) s.initial_tool = calib::parseXyzAbc(a.program_tool, "--program-tool");
+  if (!a.program_base.empty()) s.initial_base = calib::parseXyzAbc(a.program_base, "--program-base");
   return s;
 }
 

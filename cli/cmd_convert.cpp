@@ -28,13 +28,13 @@ int runConvert(const ConvertArgs& a) {
   read.config_path = a.config;
   const Program program = readProgram(a.in, read);
   // a KRL output: the .dat next to the .src, named like it
-  const std::vector<OutputFile> files = renderProgram(program, out_format, a.out);
+  const std::vector<calib::OutputFile> files = renderProgram(program, out_format, a.out);
   std::vector<std::string> inputs = {a.in};
   if (program.krl && !program.krl->dat_path.empty()) inputs.push_back(program.krl->dat_path);
   if (!a.config.empty()) inputs.push_back(a.config);
-  refuseToOverwrite(files, inputs, "--out");
-  installInterruptCleanup();
-  writeFilesAtomically(files);
+  calib::refuseToOverwrite(files, inputs, "--out");
+  calib::installInterruptCleanup();
+  calib::writeFilesAtomically(files);
   for (const auto& f : files) std::cout << "wrote " << f.path << "\n";
   std::cout << "accura convert: " << program.motions.size() << " motions from " << a.in << "\n";
   return 0;

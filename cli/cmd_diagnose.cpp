@@ -25,7 +25,7 @@ struct DiagnoseArgs {
   std::string base;
   std::string tool;
   std::string effects;  // empty: the whole catalogue
-  int harmonics = kDefaultGearHarmonics;
+  int harmonics = calib::kDefaultGearHarmonics;
   int folds = 5;
   double noise_mm = -1;  // <0: from repeated poses or std columns
   double alpha = 0.01;
@@ -36,34 +36,34 @@ struct DiagnoseArgs {
 };
 
 int runDiagnose(const DiagnoseArgs& a) {
-  RobotModel start = loadRobot(a.robot);
-  if (!a.base.empty()) start.nominal.T_world_base = toIsometry(parseXyzAbc(a.base, "--base"));
-  if (!a.tool.empty()) start.nominal.T_flange_tcp = toIsometry(parseXyzAbc(a.tool, "--tool"));
-  DiagnoseOptions o;
+  calib::RobotModel start = loadRobot(a.robot);
+  if (!a.base.empty()) start.nominal.T_world_base = calib::toIsometry(calib::parseXyzAbc(a.base, "--base"));
+  if (!a.tool.empty()) start.nominal.T_flange_tcp = calib::toIsometry(calib::parseXyzAbc(a.tool, "--tool"));
+  calib::DiagnoseOptions o;
   if (!a.effects.empty()) o.effects = splitList(a.effects, "--effects");
   o.gear_harmonics = a.harmonics;
   o.folds = a.folds;
   if (a.noise_mm == 0 || (a.noise_mm < 0 && a.noise_mm != -1))
-    throw InputError("--noise-mm: expected a standard deviation > 0 mm, found " + fmt("%g", a.noise_mm));
+    throw calib::InputError("--noise-mm: expected a standard deviation > 0 mm, found " + fmt("%g", a.noise_mm));
   if (a.noise_mm > 0) o.noise_std_mm = a.noise_mm;
   o.alpha = a.alpha;
   o.repeat_tol = a.repeat_tol;
   o.robust_k = a.robust_k;
   std::string why;
-  if (!o.IsValid(&why)) throw InputError("diagnose: " + why);
+  if (!o.IsValid(&why)) throw calib::InputError("diagnose: " + why);
 
-  const MeasurementSet data = readMeasurements(a.data, a.map, start.nominal);
-  MeasurementSet validation;
+  const calib::MeasurementSet data = readMeasurements(a.data, a.map, start.nominal);
+  calib::MeasurementSet validation;
   if (!a.validate.empty())
     validation = readMeasurements(a.validate, a.validate_map.empty() ? a.map : a.validate_map, start.nominal);
-  const Diagnosis d = diagnose(start, data, a.validate.empty() ? nullptr : &validation, o);
-  std::printf("%s", diagnosisText(d).c_str());
+  const calib::Diagnosis d = calib::diagnose(start, data, a.validate.empty() ? nullptr : &validation, o);
+  std::printf("%s", calib::diagnosisText(d).c_str());
   if (!a.json.empty()) {
-    writeTextAtomically(a.json, diagnosisJson(d));
+    writeTextAtomically(a.json, calib::diagnosisJson(d));
     std::printf("wrote %s\n", a.json.c_str());
   }
   if (!a.report.empty()) {
-    writeTextAtomically(a.report, diagnosisHtml(d));
+    writeTextAtomically(a.report, calib::diagnosisHtml(d));
     std::printf("wrote %s\n", a.report.c_str());
   }
   return 0;

@@ -25,45 +25,45 @@ struct ExportArgs {
 };
 
 int runExport(const ExportArgs& a) {
-  RobotModel model = loadRobot(a.robot);
+  calib::RobotModel model = loadRobot(a.robot);
   if (!a.ur_deltas.empty() && !a.ur_yaml.empty())
-    throw InputError("--ur-deltas and --ur-yaml: expected one of them, found both");
+    throw calib::InputError("--ur-deltas and --ur-yaml: expected one of them, found both");
   if (!a.ur_deltas.empty() || !a.ur_yaml.empty()) {
-    for (const ParamInfo& p : parameterLayout(model))
-      if (getParameter(model.deviations, p) != 0.0)
-        throw InputError("--robot " + a.robot + ": UR's factory calibration applies to a nominal UR robot, found a "
+    for (const calib::ParamInfo& p : calib::parameterLayout(model))
+      if (calib::getParameter(model.deviations, p) != 0.0)
+        throw calib::InputError("--robot " + a.robot + ": UR's factory calibration applies to a nominal UR robot, found a "
                          "calibrated model (parameter " + p.name + " is not zero)");
-    model = !a.ur_deltas.empty() ? modelFromUrDeltas(model.nominal, readUrCalibrationConf(a.ur_deltas, model.dof()))
-                                 : modelFromUrCalibrationYaml(model.nominal, a.ur_yaml);
+    model = !a.ur_deltas.empty() ? calib::modelFromUrDeltas(model.nominal, calib::readUrCalibrationConf(a.ur_deltas, model.dof()))
+                                 : calib::modelFromUrCalibrationYaml(model.nominal, a.ur_yaml);
   }
   std::string text;
   std::vector<std::string> lost;
   if (a.format == "urdf") {
-    UrdfText u = modelToUrdf(model);
+    calib::UrdfText u = calib::modelToUrdf(model);
     text = u.text;
     lost = u.not_represented;
   } else if (a.format == "ur-deltas") {
-    const UrDeltasFromModel d = urDeltasFromModel(model);
-    text = formatUrCalibrationConf(d.deltas);
+    const calib::UrDeltasFromModel d = calib::urDeltasFromModel(model);
+    text = calib::formatUrCalibrationConf(d.deltas);
     lost = d.not_represented;
     std::cerr << "accura export: UR's formula with these deltas reproduces the model's flange chain to "
               << fmt("%.2g", d.max_difference_mm) << " mm\n";
   } else if (a.format == "ur-yaml") {
-    text = formatUrCalibrationYaml(model, &lost);
+    text = calib::formatUrCalibrationYaml(model, &lost);
   } else if (a.format == "robot") {
-    if (a.out.empty()) throw InputError("--format robot: expected --out FILE.xml");
-    writeRobotFile(a.out, model, {}, "Written by accura export from " + a.robot +
+    if (a.out.empty()) throw calib::InputError("--format robot: expected --out FILE.xml");
+    calib::writeRobotFile(a.out, model, {}, "Written by accura export from " + a.robot +
                                          (a.ur_deltas.empty() ? "" : " with UR deltas " + a.ur_deltas) +
                                          (a.ur_yaml.empty() ? "" : " with the UR YAML " + a.ur_yaml));
     return 0;
   } else {
-    throw InputError("--format: expected urdf, robot, ur-deltas or ur-yaml, found '" + a.format + "'");
+    throw calib::InputError("--format: expected urdf, robot, ur-deltas or ur-yaml, found '" + a.format + "'");
   }
   for (const std::string& s : lost) std::cerr << "accura export: not represented: " << s << "\n";
   if (a.out.empty()) {
     std::cout << text;
   } else {
-    writeFileAtomically(a.out, text);
+    calib::writeFileAtomically(a.out, text);
   }
   return 0;
 }

@@ -19,23 +19,23 @@ namespace {
 using nlohmann::ordered_json;
 
 int runFk(const FkArgs& a) {
-  const RobotModel model = loadRobot(a.robot);
+  const calib::RobotModel model = loadRobot(a.robot);
   const std::vector<double> q = parseNumbers(a.q, "--q");
   if (static_cast<int>(q.size()) != model.dof())
-    throw InputError("--q: expected " + std::to_string(model.dof()) + " joint values for " +
+    throw calib::InputError("--q: expected " + std::to_string(model.dof()) + " joint values for " +
                      model.nominal.name + ", found " + std::to_string(q.size()));
   Eigen::VectorXd qv = Eigen::Map<const Eigen::VectorXd>(q.data(), static_cast<Eigen::Index>(q.size()));
   for (int i = 0; i < model.dof(); ++i) {
-    const JointSpec& j = model.nominal.joints[i];
+    const calib::JointSpec& j = model.nominal.joints[i];
     if (qv[i] < j.lower || qv[i] > j.upper)
-      throw InputError("--q: joint " + std::to_string(i + 1) + " (" + j.name + "): expected a value within [" +
+      throw calib::InputError("--q: joint " + std::to_string(i + 1) + " (" + j.name + "): expected a value within [" +
                        fmt("%g", j.lower) + ", " + fmt("%g", j.upper) + "], found " + fmt("%g", qv[i]));
   }
-  if (!(a.payload_kg >= 0)) throw InputError("--payload-kg: expected a mass >= 0");
-  KinematicWorkspace ws;
-  PoseContext ctx;
+  if (!(a.payload_kg >= 0)) throw calib::InputError("--payload-kg: expected a mass >= 0");
+  calib::KinematicWorkspace ws;
+  calib::PoseContext ctx;
   ctx.payload_kg = a.payload_kg;
-  const XyzAbc p = toXyzAbc(forwardKinematics(model, qv, ctx, ws));
+  const calib::XyzAbc p = calib::toXyzAbc(calib::forwardKinematics(model, qv, ctx, ws));
   std::printf("x=%.4f y=%.4f z=%.4f A=%.5f B=%.5f C=%.5f\n", p.x_mm, p.y_mm, p.z_mm, p.a_deg, p.b_deg, p.c_deg);
   return 0;
 }

@@ -20,43 +20,43 @@ namespace {
 using nlohmann::ordered_json;
 
 int runIdentify(const IdentifyArgs& a) {
-  RobotModel start = loadRobot(a.robot);
+  calib::RobotModel start = loadRobot(a.robot);
   if (a.form == "dh") {
-    if (start.forms != chooseLinkForms(start.nominal, FormPolicy::kDHOnly)) {
-      const Deviations dev = start.deviations;
-      start = RobotModel::fromDefinition(start.nominal, FormPolicy::kDHOnly);
+    if (start.forms != calib::chooseLinkForms(start.nominal, calib::FormPolicy::kDHOnly)) {
+      const calib::Deviations dev = start.deviations;
+      start = calib::RobotModel::fromDefinition(start.nominal, calib::FormPolicy::kDHOnly);
       start.deviations = dev;
       for (auto& l : start.deviations.links) l.dbeta_rad = 0;  // no beta in DH
     }
   } else if (a.form != "auto") {
-    throw InputError("--form: expected 'auto' or 'dh', found '" + a.form + "'");
+    throw calib::InputError("--form: expected 'auto' or 'dh', found '" + a.form + "'");
   }
-  if (!a.base.empty()) start.nominal.T_world_base = toIsometry(parseXyzAbc(a.base, "--base"));
-  if (!a.tool.empty()) start.nominal.T_flange_tcp = toIsometry(parseXyzAbc(a.tool, "--tool"));
+  if (!a.base.empty()) start.nominal.T_world_base = calib::toIsometry(calib::parseXyzAbc(a.base, "--base"));
+  if (!a.tool.empty()) start.nominal.T_flange_tcp = calib::toIsometry(calib::parseXyzAbc(a.tool, "--tool"));
 
   if (a.validate_station != "same" && a.validate_station != "new")
-    throw InputError("--validate-station: expected 'same' or 'new', found '" + a.validate_station + "'");
+    throw calib::InputError("--validate-station: expected 'same' or 'new', found '" + a.validate_station + "'");
   if (a.validate_station == "new" && a.validate.empty())
-    throw InputError("--validate-station new: expected a --validate file measured from another station");
-  if (a.data.empty()) throw InputError("--data: expected at least one measurement file");
-  std::vector<MeasurementSet> sets;
+    throw calib::InputError("--validate-station new: expected a --validate file measured from another station");
+  if (a.data.empty()) throw calib::InputError("--data: expected at least one measurement file");
+  std::vector<calib::MeasurementSet> sets;
   for (const std::string& f : a.data) sets.push_back(readMeasurements(f, a.map, start.nominal));
   std::string data_names;
   for (const std::string& f : a.data) data_names += (data_names.empty() ? "" : ", ") + f;
-  MeasurementSet validation;
+  calib::MeasurementSet validation;
   std::string validation_source;
   if (!a.validate.empty()) {
     validation = readMeasurements(a.validate, a.validate_map.empty() ? a.map : a.validate_map, start.nominal);
     validation_source = a.validate;
   } else {
     if (!(a.holdout >= 0 && a.holdout < 0.9))
-      throw InputError("--holdout: expected a fraction in [0, 0.9), found " + fmt("%g", a.holdout));
+      throw calib::InputError("--holdout: expected a fraction in [0, 0.9), found " + fmt("%g", a.holdout));
     if (a.holdout > 0) {
       if (sets.size() > 1)
-        throw InputError("--holdout: with several --data files give --validate (a held-out file) instead");
-      MeasurementSet& data = sets[0];
+        throw calib::InputError("--holdout: with several --data files give --validate (a held-out file) instead");
+      calib::MeasurementSet& data = sets[0];
       const int every = std::max(2, static_cast<int>(std::lround(1.0 / a.holdout)));
-      MeasurementSet fit = data;
+      calib::MeasurementSet fit = data;
       fit.rows.clear();
       validation = data;
       validation.rows.clear();
@@ -67,7 +67,7 @@ int runIdentify(const IdentifyArgs& a) {
     }
   }
 
-  IdentifyOptions opt;
+  calib::IdentifyOptions opt;
   opt.groups = splitList(a.params, "--params");
   opt.loss = a.loss;
   opt.loss_scale = a.loss_scale;
@@ -76,37 +76,37 @@ int runIdentify(const IdentifyArgs& a) {
   if (a.map_smoothing >= 0) opt.joint_map_smoothing = a.map_smoothing;
   opt.same_station = a.same_station;
   std::string why;
-  if (!opt.IsValid(&why)) throw InputError("--params/--loss: " + why);
+  if (!opt.IsValid(&why)) throw calib::InputError("--params/--loss: " + why);
 
-  IdentifySummary s;
-  const RobotModel calibrated = identify(start, sets, opt, &s);
+  calib::IdentifySummary s;
+  const calib::RobotModel calibrated = calib::identify(start, sets, opt, &s);
   size_t n_rows = 0;
   for (const auto& d : sets) n_rows += d.rows.size();
 
   // Nominal model with only the measurement frame and the tool registered, for comparison.
-  IdentifyOptions nominal_opt = opt;
+  calib::IdentifyOptions nominal_opt = opt;
   nominal_opt.groups = {"base", "tool"};
   nominal_opt.loss = "none";
-  IdentifySummary ns;
-  const RobotModel nominal_registered = identify(start, sets, nominal_opt, &ns);
+  calib::IdentifySummary ns;
+  const calib::RobotModel nominal_registered = calib::identify(start, sets, nominal_opt, &ns);
 
   const bool has_val = !validation.rows.empty();
-  ErrorStats val, nom_val;
+  calib::ErrorStats val, nom_val;
   std::string station_note;
   if (has_val && a.validate_station == "new") {
     // another station: re-register it (6 parameters), robot parameters held fixed
-    IdentifySummary st, nst;
-    const RobotModel cal_st = registerStation(calibrated, validation, &st);
-    const RobotModel nom_st = registerStation(nominal_registered, validation, &nst);
+    calib::IdentifySummary st, nst;
+    const calib::RobotModel cal_st = calib::registerStation(calibrated, validation, &st);
+    const calib::RobotModel nom_st = calib::registerStation(nominal_registered, validation, &nst);
     const Eigen::Isometry3d moved = calibrated.T_world_base().inverse() * cal_st.T_world_base();
     station_note = "validation station re-registered on " + a.validate + " (6 parameters, robot held fixed): base moved " +
                    fmt("%.3f", moved.translation().norm()) + " mm, " +
-                   fmt("%.4f", Eigen::AngleAxisd(moved.linear()).angle() * kRadToDeg) + " deg";
-    val = evaluate(cal_st, validation);
-    nom_val = evaluate(nom_st, validation);
+                   fmt("%.4f", Eigen::AngleAxisd(moved.linear()).angle() * calib::kRadToDeg) + " deg";
+    val = calib::evaluate(cal_st, validation);
+    nom_val = calib::evaluate(nom_st, validation);
   } else if (has_val) {
-    val = evaluate(calibrated, validation);
-    nom_val = evaluate(nominal_registered, validation);
+    val = calib::evaluate(calibrated, validation);
+    nom_val = calib::evaluate(nominal_registered, validation);
   }
 
   // Validation poses outside the joint ranges of the fit: per joint, how many and how far.
@@ -117,10 +117,10 @@ int runIdentify(const IdentifyArgs& a) {
   };
   std::vector<Outside> outside(static_cast<size_t>(start.dof()));
   int outside_rows = 0;
-  for (const Measurement& m : validation.rows) {
+  for (const calib::Measurement& m : validation.rows) {
     bool any = false;
     for (int j = 0; j < start.dof(); ++j) {
-      const JointRange& c = s.coverage[static_cast<size_t>(j)];
+      const calib::JointRange& c = s.coverage[static_cast<size_t>(j)];
       const double d = m.q[j] < c.lower ? c.lower - m.q[j] : (m.q[j] > c.upper ? m.q[j] - c.upper : 0.0);
       if (d <= 0) continue;
       Outside& o = outside[static_cast<size_t>(j)];
@@ -131,7 +131,7 @@ int runIdentify(const IdentifyArgs& a) {
     }
     outside_rows += any ? 1 : 0;
   }
-  auto unitOf = [&](int j) { return start.nominal.joints[static_cast<size_t>(j)].type == JointType::kRevolute ? "deg" : "mm"; };
+  auto unitOf = [&](int j) { return start.nominal.joints[static_cast<size_t>(j)].type == calib::JointType::kRevolute ? "deg" : "mm"; };
 
   // Report
   bool orient = true;
@@ -143,7 +143,7 @@ int runIdentify(const IdentifyArgs& a) {
                 opt.same_station ? "one tracker station shared (--same-station)"
                                  : "each from its own tracker station (6 station parameters per set beyond the first)");
     for (size_t k = 0; k < sets.size(); ++k) {
-      const XyzAbc b = toXyzAbc(s.T_world_base_per_set[k]);
+      const calib::XyzAbc b = calib::toXyzAbc(s.T_world_base_per_set[k]);
       std::printf("  %s: %zu poses, T_world_base %.3f, %.3f, %.3f mm, %.4f, %.4f, %.4f deg\n", sets[k].file.c_str(),
                   sets[k].rows.size(), b.x_mm, b.y_mm, b.z_mm, b.a_deg, b.b_deg, b.c_deg);
     }
@@ -154,7 +154,7 @@ int runIdentify(const IdentifyArgs& a) {
     std::printf(" j%d %.1f..%.1f %s%s", j + 1, s.coverage[static_cast<size_t>(j)].lower,
                 s.coverage[static_cast<size_t>(j)].upper, unitOf(j), j + 1 < start.dof() ? ";" : "\n");
   std::printf("link forms:");
-  for (int i = 0; i < start.dof(); ++i) std::printf(" j%d=%s", i + 1, start.forms[i] == LinkForm::kHayati ? "Hayati" : "DH");
+  for (int i = 0; i < start.dof(); ++i) std::printf(" j%d=%s", i + 1, start.forms[i] == calib::LinkForm::kHayati ? "Hayati" : "DH");
   std::printf("\n");
   std::printf("registration: measurement frame in closed form, position RMS %.3f mm after registration\n",
               s.registration_rms_mm);
@@ -223,10 +223,10 @@ int runIdentify(const IdentifyArgs& a) {
     std::printf("no validation data (--validate or --holdout): accuracy on held-out poses not known\n");
   }
 
-  std::vector<ParameterRecord> records;
+  std::vector<calib::ParameterRecord> records;
   for (const auto& p : s.parameters) records.push_back({p.name, p.value, p.sigma, p.unit});
   std::ostringstream comment;
-  const XyzAbc b = toXyzAbc(calibrated.T_world_base()), t = toXyzAbc(calibrated.T_flange_tcp());
+  const calib::XyzAbc b = calib::toXyzAbc(calibrated.T_world_base()), t = calib::toXyzAbc(calibrated.T_flange_tcp());
   comment << "accura identify: " << calibrated.nominal.name << " from " << data_names << " (" << n_rows
           << " poses), groups " << a.params << "\n"
           << "calibrated T_world_base: " << fmt("%.4f", b.x_mm) << ", " << fmt("%.4f", b.y_mm) << ", "
@@ -238,7 +238,7 @@ int runIdentify(const IdentifyArgs& a) {
           << "fit RMS " << fmt("%.4f", s.fit.rms_mm) << " mm"
           << (has_val ? ", validation RMS " + fmt("%.4f", val.rms_mm) + " mm (nominal " + fmt("%.4f", nom_val.rms_mm) + " mm)" : "");
   for (const auto& w : s.warnings) comment << "\nWARNING: " << w;
-  writeRobotFile(a.out, calibrated, records, comment.str());
+  calib::writeRobotFile(a.out, calibrated, records, comment.str());
   std::printf("wrote calibrated model %s\n", a.out.c_str());
 
   if (!a.json.empty()) {
@@ -284,7 +284,7 @@ int runIdentify(const IdentifyArgs& a) {
     j["fit_joint_ranges"] = cov;
     ordered_json stations = ordered_json::array();
     for (size_t k = 0; k < sets.size(); ++k) {
-      const XyzAbc b = toXyzAbc(s.T_world_base_per_set[k]);
+      const calib::XyzAbc b = calib::toXyzAbc(s.T_world_base_per_set[k]);
       stations.push_back({{"file", sets[k].file}, {"poses", sets[k].rows.size()},
                           {"T_world_base", {num(b.x_mm), num(b.y_mm), num(b.z_mm), num(b.a_deg), num(b.b_deg), num(b.c_deg)}}});
     }

@@ -27,23 +27,23 @@ struct SelfcheckArgs {
 };
 
 int runSelfcheck(const SelfcheckArgs& a) {
-  SelfcheckOptions o;
+  calib::SelfcheckOptions o;
   o.robots = splitList(a.robots, "--robots");
   o.seeds.clear();
   for (double s : parseNumbers(a.seeds, "--seeds")) {
-    if (!(s >= 0 && s == std::floor(s) && s < 1e12)) throw InputError("--seeds: expected whole numbers >= 0, found " + fmt("%g", s));
+    if (!(s >= 0 && s == std::floor(s) && s < 1e12)) throw calib::InputError("--seeds: expected whole numbers >= 0, found " + fmt("%g", s));
     o.seeds.push_back(static_cast<std::uint64_t>(s));
   }
   o.noise_mm = parseNumbers(a.noise, "--noise-mm");
   if (!a.injected.empty()) o.injected = splitList(a.injected, "--inject");
   o.poses = a.poses;
-  if (!(a.target > 0 && a.target <= 1)) throw InputError("--target: expected a fraction in (0, 1], found " + fmt("%g", a.target));
+  if (!(a.target > 0 && a.target <= 1)) throw calib::InputError("--target: expected a fraction in (0, 1], found " + fmt("%g", a.target));
   std::string why;
-  if (!o.IsValid(&why)) throw InputError("selfcheck: " + why);
+  if (!o.IsValid(&why)) throw calib::InputError("selfcheck: " + why);
   const size_t total = o.robots.size() * o.injected.size() * o.noise_mm.size() * o.seeds.size();
   std::printf("accura selfcheck: %zu cases (robots x injected effects x noise levels x seeds), each diagnosed blind\n", total);
   size_t done = 0;
-  const SelfcheckResult r = accura::runSelfcheck(o, [&](const SelfcheckCase& c) {
+  const calib::SelfcheckResult r = accura::calib::runSelfcheck(o, [&](const calib::SelfcheckCase& c) {
     ++done;
     std::printf("  [%3zu/%zu] %-10s %-20s noise %.3f mm (%s, %s): verdict %-17s %s (%.2f s)\n", done, total, c.robot.c_str(),
                 c.injected.c_str(), c.noise_mm, c.noise_source.c_str(), c.validation.c_str(), c.verdict.c_str(),
@@ -65,7 +65,7 @@ int runSelfcheck(const SelfcheckArgs& a) {
     j["fraction_right"] = fraction;
     j["target"] = a.target;
     ordered_json cases = ordered_json::array();
-    for (const SelfcheckCase& c : r.cases)
+    for (const calib::SelfcheckCase& c : r.cases)
       cases.push_back({{"robot", c.robot},
                        {"injected", c.injected},
                        {"expected", c.expected},

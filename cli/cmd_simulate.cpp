@@ -19,8 +19,8 @@ namespace {
 using nlohmann::ordered_json;
 
 int runSimulate(const SimulateArgs& a) {
-  const RobotModel nominal = loadRobot(a.robot);
-  SimulateOptions o;
+  const calib::RobotModel nominal = loadRobot(a.robot);
+  calib::SimulateOptions o;
   o.poses = a.poses;
   o.seed = a.seed;
   o.effects = splitList(a.effects, "--effects");
@@ -32,26 +32,26 @@ int runSimulate(const SimulateArgs& a) {
   o.error_scale = a.error_scale;
   const bool none = o.effects.size() == 1 && o.effects[0] == "none";
   if (!a.station.empty()) {
-    o.station = parseXyzAbc(a.station, "--station");
+    o.station = calib::parseXyzAbc(a.station, "--station");
   } else {
     o.set_station = !none;
   }
   if (!a.tool.empty()) {
-    o.tool = parseXyzAbc(a.tool, "--tool");
+    o.tool = calib::parseXyzAbc(a.tool, "--tool");
     o.set_tool = true;
   }
   std::string why;
-  if (!o.IsValid(&why)) throw InputError("simulate: " + why);
-  const RobotModel truth = perturbModel(nominal, o);
-  const MeasurementSet set = simulateMeasurements(truth, o);
+  if (!o.IsValid(&why)) throw calib::InputError("simulate: " + why);
+  const calib::RobotModel truth = calib::perturbModel(nominal, o);
+  const calib::MeasurementSet set = calib::simulateMeasurements(truth, o);
   std::vector<std::string> comments = {
       "accura simulate: " + nominal.nominal.name + ", " + std::to_string(o.poses) + " poses, seed " +
           std::to_string(o.seed) + ", effects " + a.effects,
       "noise " + fmt("%g", o.noise_mm) + " mm" + (o.orientation ? ", " + fmt("%g", o.noise_deg) + " deg" : std::string()) +
           " (1 sigma per axis); payloads " + a.payloads + " kg"};
-  writeMeasurementsCsv(a.out, set, truth.dof(), comments);
+  calib::writeMeasurementsCsv(a.out, set, truth.dof(), comments);
   if (!a.truth.empty()) {
-    writeRobotFile(a.truth, truth, {}, "accura simulate: the real robot behind " + a.out + " (seed " + std::to_string(o.seed) + ")");
+    calib::writeRobotFile(a.truth, truth, {}, "accura simulate: the real robot behind " + a.out + " (seed " + std::to_string(o.seed) + ")");
   }
   std::printf("wrote %d simulated poses of %s to %s%s\n", o.poses, nominal.nominal.name.c_str(), a.out.c_str(),
               a.truth.empty() ? "" : (" and the real robot to " + a.truth).c_str());

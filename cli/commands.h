@@ -1,6 +1,6 @@
 // accura command line. Each subcommand lives in its own file and is added to the app by an
 // add...Command(app) function (listed in main.cpp). Its callback stores the process exit code
-// in exitCode() and throws accura::InputError / ArgumentError / NumericalError on bad input
+// in exitCode() and throws accura::calib::InputError / ArgumentError / NumericalError on bad input
 // (main prints them and sets the exit code).
 #pragma once
 

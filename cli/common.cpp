@@ -23,7 +23,7 @@ int& exitCode() {
 }
 
 void writeTextAtomically(const std::string& path, const std::string& text) {
-  writeFileAtomically(path, text);
+  calib::writeFileAtomically(path, text);
 }
 
 std::vector<std::string> splitList(const std::string& text, const std::string& what) {
@@ -32,10 +32,10 @@ std::vector<std::string> splitList(const std::string& text, const std::string& w
   std::string item;
   while (std::getline(ss, item, ',')) {
     item = trim(item);
-    if (item.empty()) throw InputError(what + ": expected a comma-separated list, found an empty item in '" + text + "'");
+    if (item.empty()) throw calib::InputError(what + ": expected a comma-separated list, found an empty item in '" + text + "'");
     out.push_back(item);
   }
-  if (out.empty()) throw InputError(what + ": expected a comma-separated list, found nothing");
+  if (out.empty()) throw calib::InputError(what + ": expected a comma-separated list, found nothing");
   return out;
 }
 
@@ -45,7 +45,7 @@ std::vector<double> parseNumbers(const std::string& text, const std::string& wha
     char* end = nullptr;
     const double x = std::strtod(item.c_str(), &end);
     if (end == item.c_str() || *end != '\0' || !std::isfinite(x))
-      throw InputError(what + ": expected a number, found '" + item + "'");
+      throw calib::InputError(what + ": expected a number, found '" + item + "'");
     v.push_back(x);
   }
   return v;

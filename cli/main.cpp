@@ -60,13 +60,13 @@ int main(int argc, char** argv) {
       return 1;
     }
     return exitCode();
-  } catch (const accura::InputError& e) {
+  } catch (const accura::calib::InputError& e) {
     std::cerr << "accura: error: " << e.what() << "\n";
     return 1;
-  } catch (const accura::ArgumentError& e) {
+  } catch (const accura::calib::ArgumentError& e) {
     std::cerr << "accura: error: " << e.what() << "\n";
     return 1;
-  } catch (const accura::NumericalError& e) {
+  } catch (const accura::calib::NumericalError& e) {
     std::cerr << "accura: numerical error: " << e.what() << "\n";
     return 3;
   } catch (const std::exception& e) {

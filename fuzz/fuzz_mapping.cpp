@@ -21,14 +21,14 @@ constexpr std::string_view kExport =
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   using namespace accura;
-  static const RobotModel robot = readRobotFile(resolveRobotPath("ur10"));
+  static const calib::RobotModel robot = calib::readRobotFile(calib::resolveRobotPath("ur10"));
   auto& scratch = fuzz::Scratch::get();
   const auto [map, csv] = fuzz::splitPair(std::string_view(reinterpret_cast<const char*>(data), size), kExport);
   const std::string map_path = scratch.write("e.map", map);
   const std::string csv_path = scratch.write("e.csv", csv);
   fuzz::expectParsedOrInputError([&] {
-    const MeasurementMapping mapping = readMeasurementMapping(map_path, robot.nominal);
-    (void)readMappedMeasurements(csv_path, mapping, robot.nominal);
+    const calib::MeasurementMapping mapping = calib::readMeasurementMapping(map_path, robot.nominal);
+    (void)calib::readMappedMeasurements(csv_path, mapping, robot.nominal);
   });
   return 0;
 }

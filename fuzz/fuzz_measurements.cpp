@@ -8,8 +8,8 @@
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   using namespace accura;
-  static const RobotModel robot = readRobotFile(resolveRobotPath("kuka_kr16"));
+  static const calib::RobotModel robot = calib::readRobotFile(calib::resolveRobotPath("kuka_kr16"));
   const std::string path = fuzz::Scratch::get().write("m.csv", std::string_view(reinterpret_cast<const char*>(data), size));
-  fuzz::expectParsedOrInputError([&] { (void)readMeasurementsCsv(path, robot.nominal); });
+  fuzz::expectParsedOrInputError([&] { (void)calib::readMeasurementsCsv(path, robot.nominal); });
   return 0;
 }

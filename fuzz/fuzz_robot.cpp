@@ -9,16 +9,16 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   using namespace accura;
   auto& scratch = fuzz::Scratch::get();
   const std::string path = scratch.write("robot.xml", std::string_view(reinterpret_cast<const char*>(data), size));
-  RobotModel model;
+  calib::RobotModel model;
   bool parsed = false;
   fuzz::expectParsedOrInputError([&] {
-    model = readRobotFile(path);
+    model = calib::readRobotFile(path);
     parsed = true;
   });
   if (!parsed) return 0;
   try {
-    writeRobotFile(scratch.path("written.xml"), model);
-    (void)readRobotFile(scratch.path("written.xml"));
+    calib::writeRobotFile(scratch.path("written.xml"), model);
+    (void)calib::readRobotFile(scratch.path("written.xml"));
   } catch (const std::exception& e) {
     fuzz::violation(std::string("a model read from a robot file does not write and read back: ") + e.what());
   }

@@ -1,7 +1,7 @@
 // accura fuzz targets (fuzz/README.md): what every target shares.
 //
 // The contract each target asserts for every input: the reader returns a result, or throws
-// accura::InputError naming the file; never another exception, a crash, a hang (libFuzzer
+// accura::calib::InputError naming the file; never another exception, a crash, a hang (libFuzzer
 // -timeout) or a leak (LeakSanitizer). FUZZ_STRICT=1 also requires every error to say what
 // was expected and to carry a line and a column (issue 14: about 30% of rejections lack
 // "expected", robot-file errors the column; fuzz/findings/README.md).
@@ -66,7 +66,7 @@ class Scratch {
 
 /// The contract for an InputError: it names a file (FUZZ_STRICT=1: and says what was
 /// expected, at a line and column).
-inline void checkInputError(const InputError& e) {
+inline void checkInputError(const calib::InputError& e) {
   if (e.file().empty()) violation(std::string("InputError without a file: ") + e.what());
   static const bool strict = [] {
     const char* s = std::getenv("FUZZ_STRICT");
@@ -82,10 +82,10 @@ template <class F>
 void expectParsedOrInputError(F&& parse) {
   try {
     parse();
-  } catch (const InputError& e) {
+  } catch (const calib::InputError& e) {
     checkInputError(e);
   } catch (const std::exception& e) {
-    violation(std::string("unexpected exception (not accura::InputError): ") + e.what());
+    violation(std::string("unexpected exception (not accura::calib::InputError): ") + e.what());
   } catch (...) {
     violation("unexpected non-standard exception");
   }

@@ -19,7 +19,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   std::string once;
   try {
     once = postproc::writeXmlProgram(program);
-  } catch (const ArgumentError&) {
+  } catch (const calib::ArgumentError&) {
     return 0;  // documented: a target that cannot be represented
   } catch (const std::exception& e) {
     fuzz::violation(std::string("writeXmlProgram threw: ") + e.what());

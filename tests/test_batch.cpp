@@ -303,11 +303,11 @@ TEST(Batch, CellCheckFailsTheProgramWhosePathTouchesAFixture) {
 TEST(Batch, AtomicWriterWritesAllOrNothing) {
   const std::string dir = test::tempDir("batch_atomic");
   test::writeText(dir + "/a.txt", "old");
-  writeFilesAtomically({{dir + "/a.txt", "new a"}, {dir + "/b.txt", "new b"}});
+  calib::writeFilesAtomically({{dir + "/a.txt", "new a"}, {dir + "/b.txt", "new b"}});
   EXPECT_EQ(test::readText(dir + "/a.txt"), "new a");
   EXPECT_EQ(test::readText(dir + "/b.txt"), "new b");
   // the second file cannot be written: the first stays as it was, no temporary file is left
-  EXPECT_THROW(writeFilesAtomically({{dir + "/a.txt", "newer"}, {dir + "/missing/c.txt", "c"}}), InputError);
+  EXPECT_THROW(calib::writeFilesAtomically({{dir + "/a.txt", "newer"}, {dir + "/missing/c.txt", "c"}}), calib::InputError);
   EXPECT_EQ(test::readText(dir + "/a.txt"), "new a");
   std::vector<std::string> names;
   for (const auto& e : fs::directory_iterator(dir)) names.push_back(e.path().filename().string());

@@ -16,7 +16,7 @@
 
 namespace fs = std::filesystem;
 
-namespace accura {
+namespace accura::calib {
 namespace {
 
 /// Runs accura with `args` in `dir` with stdout and stderr on a new pseudo-terminal; returns
@@ -103,4 +103,4 @@ TEST(BatchTerminal, ProgressBarRedrawsOneLinePerProgram) {
 }
 
 }  // namespace
-}  // namespace accura
+}  // namespace accura::calib

@@ -107,12 +107,12 @@ TEST(CellMesh, ErrorsNameTheFile) {
     try {
       loadMesh(fixture(name), 1.0);
       ADD_FAILURE() << name << " was read";
-    } catch (const InputError& e) {
+    } catch (const calib::InputError& e) {
       EXPECT_NE(std::string(e.what()).find(name), std::string::npos) << e.what();
       EXPECT_NE(std::string(e.what()).find("expected"), std::string::npos) << e.what();
     }
   }
-  EXPECT_THROW(loadMesh(fixture("box_100mm.stl"), 0.0), ArgumentError);
+  EXPECT_THROW(loadMesh(fixture("box_100mm.stl"), 0.0), calib::ArgumentError);
 }
 
 std::string writeCell(const std::string& dir, const std::string& body) {
@@ -135,11 +135,11 @@ TEST(CellFile, ReadsObjectsRobotToolLinksAndThresholds) {
   ASSERT_EQ(c.objects.size(), 2u);
   EXPECT_EQ(c.objects[0].name, "box");
   EXPECT_NEAR((c.objects[0].T_parent_shape.translation() - Eigen::Vector3d(1000, 0, 300)).norm(), 0, 1e-12);
-  EXPECT_NEAR((c.objects[0].T_parent_shape.linear() - rotationZYX(0, 0, 30 * kDegToRad)).norm(), 0, 1e-12);
+  EXPECT_NEAR((c.objects[0].T_parent_shape.linear() - calib::rotationZYX(0, 0, 30 * calib::kDegToRad)).norm(), 0, 1e-12);
   EXPECT_EQ(c.objects[0].line, 5);
   ASSERT_TRUE(c.T_world_base.has_value());
   EXPECT_NEAR((c.T_world_base->translation() - Eigen::Vector3d(100, -50, 0)).norm(), 0, 1e-12);
-  EXPECT_NEAR((c.T_world_base->linear() - rotationZYX(kPi / 2, 0, 0)).norm(), 0, 1e-12);
+  EXPECT_NEAR((c.T_world_base->linear() - calib::rotationZYX(calib::kPi / 2, 0, 0)).norm(), 0, 1e-12);
   ASSERT_EQ(c.link_shapes.size(), 1u);
   EXPECT_EQ(c.link_shapes[0].first, 3);
   ASSERT_TRUE(c.link_shapes[0].second.capsule.has_value());
@@ -196,7 +196,7 @@ TEST(CellFile, ErrorsGiveFileLineColumnExpectedFound) {
     try {
       readCellFile(path);
       ADD_FAILURE() << "accepted: " << c.body;
-    } catch (const InputError& e) {
+    } catch (const calib::InputError& e) {
       EXPECT_NE(std::string(e.what()).find(c.says), std::string::npos) << e.what();
       EXPECT_EQ(e.file(), path);
       if (c.line == 0) {
@@ -222,20 +222,20 @@ TEST(CellFile, ErrorsGiveFileLineColumnExpectedFound) {
   try {
     readCellFile(writeCell(dir, "  <object name=\"a\" units=\"mm\"/>\n"));
     ADD_FAILURE();
-  } catch (const InputError& e) {
+  } catch (const calib::InputError& e) {
     EXPECT_EQ(std::string(e.what()).rfind(dir + "/cell.xml:3:20: <object>: expected units only with a file attribute", 0), 0u) << e.what();
   }
   try {
     readCellFile(writeCell(dir, "  <object name=\"\"/>\n"));
     ADD_FAILURE();
-  } catch (const InputError& e) {
+  } catch (const calib::InputError& e) {
     EXPECT_EQ(std::string(e.what()).rfind(dir + "/cell.xml:3:11: <object>: expected a non-empty attribute name, found an empty one", 0), 0u)
         << e.what();
   }
   try {
     readCellFile(writeCell(dir, "  <object/>\n"));
     ADD_FAILURE();
-  } catch (const InputError& e) {
+  } catch (const calib::InputError& e) {
     EXPECT_EQ(std::string(e.what()).rfind(dir + "/cell.xml:3:3: <object>: expected a non-empty attribute name, found none", 0), 0u) << e.what();
   }
 }
@@ -250,14 +250,14 @@ TEST(CellFile, RobotElementPosition) {
   EXPECT_NEAR(c.T_world_base->translation().z(), 10, 1e-12);
 }
 
-RobotModel kr16() { return test::loadBundled("kuka_kr16"); }
+calib::RobotModel kr16() { return test::loadBundled("kuka_kr16"); }
 
 TEST(CellDistance, FclSphereToBoxEqualsAnalyticAndBruteForce) {
   Cell cell;
   CellShape box;
   box.mesh = loadMesh(fixture("box_100mm.stl"), 1.0);
   box.name = "box";
-  box.T_parent_shape = toIsometry(XyzAbc{800, -200, 400, 30, -20, 10});
+  box.T_parent_shape = calib::toIsometry(calib::XyzAbc{800, -200, 400, 30, -20, 10});
   cell.objects.push_back(box);
   const CellGeometry g(cell, kr16());
   std::mt19937_64 rng(5);
@@ -280,12 +280,12 @@ TEST(CellDistance, FclSphereToBoxEqualsAnalyticAndBruteForce) {
 // A sphere on the flange against the box: CellGeometry::distances places the tool with the
 // robot's forward kinematics.
 TEST(CellDistance, ToolSphereOnTheRobot) {
-  const RobotModel robot = kr16();
+  const calib::RobotModel robot = kr16();
   Cell cell;
   CellShape box;
   box.mesh = loadMesh(fixture("box_100mm.stl"), 1.0);
   box.name = "box";
-  box.T_parent_shape = toIsometry(XyzAbc{1100, 0, 900, 0, 0, 0});
+  box.T_parent_shape = calib::toIsometry(calib::XyzAbc{1100, 0, 900, 0, 0, 0});
   cell.objects.push_back(box);
   CellShape tool;
   tool.capsule = Capsule{Eigen::Vector3d(0, 0, 120), Eigen::Vector3d(0, 0, 120), 20};
@@ -295,18 +295,18 @@ TEST(CellDistance, ToolSphereOnTheRobot) {
   std::mt19937_64 rng(7);
   for (int k = 0; k < 50; ++k) {
     Eigen::VectorXd q = test::randomQ(robot, rng);
-    RobotModel flange = robot;
+    calib::RobotModel flange = robot;
     flange.nominal.T_flange_tcp = Eigen::Isometry3d::Identity();
-    const Eigen::Vector3d c_world = forwardKinematics(flange, q) * Eigen::Vector3d(0, 0, 120);
+    const Eigen::Vector3d c_world = calib::forwardKinematics(flange, q) * Eigen::Vector3d(0, 0, 120);
     const Eigen::Vector3d p_box = c_world - Eigen::Vector3d(1100, 0, 900);
     const Eigen::Vector3d excess = (p_box.cwiseAbs() - Eigen::Vector3d::Constant(50)).cwiseMax(0.0);
     if (excess.norm() == 0) continue;
     const double expected = std::max(0.0, excess.norm() - 20);
-    const auto d = g.distances(q, PoseContext{}, 1e9);
+    const auto d = g.distances(q, calib::PoseContext{}, 1e9);
     ASSERT_EQ(d.size(), 1u);
     EXPECT_NEAR(d[0].mm, expected, 1e-6);
     // beyond exact_below_mm a lower bound may come back, never more than the distance
-    const auto lb = g.distances(q, PoseContext{}, 0.0);
+    const auto lb = g.distances(q, calib::PoseContext{}, 0.0);
     EXPECT_LE(lb[0].mm, expected + 1e-9);
   }
 }
@@ -318,12 +318,12 @@ TEST(CellDistance, ToolSphereOnTheRobot) {
 // that the cull by bounding boxes, the bound carried from one object to the next, shape/mesh
 // and mesh/mesh queries are all exercised; distance() of one shape equals distances().
 TEST(CellDistance, BoundedQueryIsExactBelowTheBoundAndALowerBoundAbove) {
-  const RobotModel robot = kr16();
+  const calib::RobotModel robot = kr16();
   Cell cell;
-  auto object = [&](const std::string& file, double scale, const XyzAbc& at, const std::string& name) {
+  auto object = [&](const std::string& file, double scale, const calib::XyzAbc& at, const std::string& name) {
     CellShape o;
     o.mesh = loadMesh(fixture(file), scale);
-    o.T_parent_shape = toIsometry(at);
+    o.T_parent_shape = calib::toIsometry(at);
     o.name = name;
     cell.objects.push_back(o);
   };
@@ -340,7 +340,7 @@ TEST(CellDistance, BoundedQueryIsExactBelowTheBoundAndALowerBoundAbove) {
   cell.tool_shapes.push_back(sphere);
   CellShape tool_mesh;
   tool_mesh.mesh = loadMesh(fixture("box_100mm.stl"), 0.5);
-  tool_mesh.T_parent_shape = toIsometry(XyzAbc{0, 0, 40, 0, 0, 0});
+  tool_mesh.T_parent_shape = calib::toIsometry(calib::XyzAbc{0, 0, 40, 0, 0, 0});
   tool_mesh.name = "tool body";
   cell.tool_shapes.push_back(tool_mesh);
   CellShape arm;
@@ -353,9 +353,9 @@ TEST(CellDistance, BoundedQueryIsExactBelowTheBoundAndALowerBoundAbove) {
   int below = 0, above = 0, second_object = 0;
   for (int k = 0; k < 300; ++k) {
     const Eigen::VectorXd q = test::randomQ(robot, rng);
-    const auto exact = g.distances(q, PoseContext{}, std::numeric_limits<double>::infinity());
+    const auto exact = g.distances(q, calib::PoseContext{}, std::numeric_limits<double>::infinity());
     for (double bound : {20.0, 105.0, 400.0}) {
-      const auto d = g.distances(q, PoseContext{}, bound);
+      const auto d = g.distances(q, calib::PoseContext{}, bound);
       ASSERT_EQ(d.size(), 3u);
       for (int s = 0; s < 3; ++s) {
         const auto& e = exact[static_cast<size_t>(s)];
@@ -374,7 +374,7 @@ TEST(CellDistance, BoundedQueryIsExactBelowTheBoundAndALowerBoundAbove) {
           EXPECT_GE(b.mm, bound);
           EXPECT_LE(b.mm, e.mm);
         }
-        const auto one = g.distance(s, q, PoseContext{}, bound);
+        const auto one = g.distance(s, q, calib::PoseContext{}, bound);
         EXPECT_EQ(one.mm, b.mm);
         EXPECT_EQ(one.object, b.object);
         EXPECT_EQ(one.lower_bound, b.lower_bound);
@@ -385,13 +385,13 @@ TEST(CellDistance, BoundedQueryIsExactBelowTheBoundAndALowerBoundAbove) {
   EXPECT_GT(below, 150);
   EXPECT_GT(above, 150);
   EXPECT_GT(second_object, 20);
-  EXPECT_THROW(g.distance(3, Eigen::VectorXd::Zero(6), PoseContext{}, 1.0), ArgumentError);
+  EXPECT_THROW(g.distance(3, Eigen::VectorXd::Zero(6), calib::PoseContext{}, 1.0), calib::ArgumentError);
 }
 
 // The motion bound of the subdivision: no point of a shape moves further than
 // sum_i |dtheta_i| leverArm(shape, i) when the joints move linearly from q_a to q_b.
 TEST(CellDistance, MotionBoundHoldsOnRandomMoves) {
-  const RobotModel robot = kr16();
+  const calib::RobotModel robot = kr16();
   Cell cell;
   for (int j = 1; j <= 6; ++j) {
     CellShape s;
@@ -412,7 +412,7 @@ TEST(CellDistance, MotionBoundHoldsOnRandomMoves) {
   EXPECT_EQ(g.leverArm(0, 1), 0.0);  // joint 2 does not move link 1
   std::mt19937_64 rng(3);
   std::uniform_real_distribution<double> step(-8, 8);
-  KinematicWorkspace ws;
+  calib::KinematicWorkspace ws;
   double tightest = 0;
   for (int k = 0; k < 200; ++k) {
     const Eigen::VectorXd qa = test::randomQ(robot, rng);
@@ -422,7 +422,7 @@ TEST(CellDistance, MotionBoundHoldsOnRandomMoves) {
       const int frame = s < 6 ? s + 1 : 6;
       const Capsule& cap = s < 6 ? cell.link_shapes[static_cast<size_t>(s)].second.capsule.value() : tool.capsule.value();
       double bound = 0;
-      for (int i = 0; i < 6; ++i) bound += std::fabs(qb[i] - qa[i]) * kDegToRad * g.leverArm(s, i);
+      for (int i = 0; i < 6; ++i) bound += std::fabs(qb[i] - qa[i]) * calib::kDegToRad * g.leverArm(s, i);
       // the path length of surface points of the capsule (end caps, farthest from the axes)
       double moved = 0;
       for (const Eigen::Vector3d& c : std::vector<Eigen::Vector3d>{cap.p0_mm, cap.p1_mm})
@@ -432,7 +432,7 @@ TEST(CellDistance, MotionBoundHoldsOnRandomMoves) {
           double len = 0;
           Eigen::Vector3d last;
           for (int t = 0; t <= 50; ++t) {
-            forwardKinematics(robot, qa + (qb - qa) * (t / 50.0), PoseContext{}, ws);
+            calib::forwardKinematics(robot, qa + (qb - qa) * (t / 50.0), calib::PoseContext{}, ws);
             const Eigen::Vector3d w = ws.T_base_frame[static_cast<size_t>(frame)] * p;
             if (t > 0) len += (w - last).norm();
             last = w;
@@ -451,7 +451,7 @@ TEST(CellDistance, LinkOutsideTheRobotIsAnError) {
   CellShape s;
   s.capsule = Capsule{Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitZ(), 1};
   cell.link_shapes.emplace_back(7, s);
-  EXPECT_THROW(CellGeometry(cell, kr16()), ArgumentError);
+  EXPECT_THROW(CellGeometry(cell, kr16()), calib::ArgumentError);
 }
 
 }  // namespace

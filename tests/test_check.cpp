@@ -27,20 +27,20 @@ namespace accura::postproc {
 namespace {
 
 std::string fixture(const std::string& name) { return test::sourcePath("tests/data/cell/" + name); }
-RobotModel kr16() { return test::loadBundled("kuka_kr16"); }
+calib::RobotModel kr16() { return test::loadBundled("kuka_kr16"); }
 
 // Independent of the post-processor's IK: Newton's method on calib's forward kinematics with a
 // central-difference Jacobian (joints in deg; orientation error weighted 1000 mm/rad).
 // Returns the joint values that put the TCP at T (the residual is asserted by the callers).
-Eigen::VectorXd newtonIk(const RobotModel& robot, const Eigen::Isometry3d& T, Eigen::VectorXd q) {
+Eigen::VectorXd newtonIk(const calib::RobotModel& robot, const Eigen::Isometry3d& T, Eigen::VectorXd q) {
   const auto error = [&](const Eigen::Isometry3d& F, const Eigen::Isometry3d& G) {
     Eigen::Matrix<double, 6, 1> e;
     e.head<3>() = G.translation() - F.translation();
-    e.tail<3>() = 1000.0 * logSO3(G.linear() * F.linear().transpose());
+    e.tail<3>() = 1000.0 * calib::logSO3(G.linear() * F.linear().transpose());
     return e;
   };
   for (int it = 0; it < 100; ++it) {
-    const Eigen::Matrix<double, 6, 1> e = error(forwardKinematics(robot, q), T);
+    const Eigen::Matrix<double, 6, 1> e = error(calib::forwardKinematics(robot, q), T);
     if (e.norm() < 1e-10) break;
     Eigen::MatrixXd J(6, q.size());
     const double h_deg = 1e-4;
@@ -48,21 +48,21 @@ Eigen::VectorXd newtonIk(const RobotModel& robot, const Eigen::Isometry3d& T, Ei
       Eigen::VectorXd qp = q, qm = q;
       qp[i] += h_deg;
       qm[i] -= h_deg;
-      J.col(i) = error(forwardKinematics(robot, qm), forwardKinematics(robot, qp)) / (2 * h_deg);
+      J.col(i) = error(calib::forwardKinematics(robot, qm), calib::forwardKinematics(robot, qp)) / (2 * h_deg);
     }
     q += J.colPivHouseholderQr().solve(e);
   }
   return q;
 }
 
-double poseResidual(const RobotModel& robot, const Eigen::VectorXd& q, const Eigen::Isometry3d& T) {
-  const Eigen::Isometry3d F = forwardKinematics(robot, q);
-  return (F.translation() - T.translation()).norm() + 1000.0 * logSO3(T.linear() * F.linear().transpose()).norm();
+double poseResidual(const calib::RobotModel& robot, const Eigen::VectorXd& q, const Eigen::Isometry3d& T) {
+  const Eigen::Isometry3d F = calib::forwardKinematics(robot, q);
+  return (F.translation() - T.translation()).norm() + 1000.0 * calib::logSO3(T.linear() * F.linear().transpose()).norm();
 }
 
 // sigma_min of docs/checks.md from a central-difference Jacobian of the forward kinematics:
 // position rows / L (L = sum |a_i| + |d_i| + |tool offset|), columns per rad.
-double fdSigma(const RobotModel& robot, const Eigen::VectorXd& q) {
+double fdSigma(const calib::RobotModel& robot, const Eigen::VectorXd& q) {
   double L = robot.nominal.T_flange_tcp.translation().norm();
   for (const auto& j : robot.nominal.joints) L += std::fabs(j.a_mm) + std::fabs(j.d_mm);
   Eigen::Matrix<double, 6, 6> J;
@@ -71,10 +71,10 @@ double fdSigma(const RobotModel& robot, const Eigen::VectorXd& q) {
     Eigen::VectorXd qp = q, qm = q;
     qp[i] += h_deg;
     qm[i] -= h_deg;
-    const Eigen::Isometry3d Tp = forwardKinematics(robot, qp), Tm = forwardKinematics(robot, qm);
-    const double h_rad = 2 * h_deg * kDegToRad;
+    const Eigen::Isometry3d Tp = calib::forwardKinematics(robot, qp), Tm = calib::forwardKinematics(robot, qm);
+    const double h_rad = 2 * h_deg * calib::kDegToRad;
     J.block<3, 1>(0, i) = (Tp.translation() - Tm.translation()) / h_rad / L;
-    J.block<3, 1>(3, i) = logSO3(Tp.linear() * Tm.linear().transpose()) / h_rad;
+    J.block<3, 1>(3, i) = calib::logSO3(Tp.linear() * Tm.linear().transpose()) / h_rad;
   }
   return Eigen::JacobiSVD<Eigen::Matrix<double, 6, 6>>(J).singularValues()[5];
 }
@@ -91,7 +91,7 @@ Cell postCell(double y_post, double tool_radius_mm) {
   CellShape post;
   post.mesh = loadMesh(fixture("post_binary.stl"), 1.0);
   post.name = "post";
-  post.T_parent_shape = toIsometry(XyzAbc{1200, y_post, 500, 0, 0, 0});
+  post.T_parent_shape = calib::toIsometry(calib::XyzAbc{1200, y_post, 500, 0, 0, 0});
   cell.objects.push_back(post);
   CellShape tool;
   tool.capsule = Capsule{Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero(), tool_radius_mm};
@@ -100,10 +100,10 @@ Cell postCell(double y_post, double tool_radius_mm) {
   return cell;
 }
 
-WorldMotion cartesian(MotionType type, const XyzAbc& p, int line) {
+WorldMotion cartesian(MotionType type, const calib::XyzAbc& p, int line) {
   WorldMotion m;
   m.type = type;
-  m.T_world_tcp_end = toIsometry(p);
+  m.T_world_tcp_end = calib::toIsometry(p);
   m.where.line = line;
   m.label = type == MotionType::kLin ? "LIN" : "PTP";
   return m;
@@ -114,7 +114,7 @@ WorldMotion cartesian(MotionType type, const XyzAbc& p, int line) {
 // end of the 600 mm path (both about 300 mm clear) sampling alone misses it; the subdivision
 // finds it.
 TEST(CheckClearance, SubdivisionFindsWhatTheSamplesMiss) {
-  const RobotModel robot = kr16();
+  const calib::RobotModel robot = kr16();
   const double y_post = 18, radius = 10;
   const Cell cell = postCell(y_post, radius);
   CheckOptions o;
@@ -160,13 +160,13 @@ TEST(CheckClearance, SubdivisionFindsWhatTheSamplesMiss) {
 // passes the post 3 mm too close at its auxiliary point: the violation is on the circle, at the
 // analytic distance, and the part of the arc before it is clear.
 TEST(CheckClearance, CircPassesThePost) {
-  const RobotModel robot = kr16();
+  const calib::RobotModel robot = kr16();
   const double y_post = 218, radius = 10;
   const Cell cell = postCell(y_post, radius);
   CheckOptions o;
   o.thresholds.min_clearance_mm = 5;
   WorldMotion circ = cartesian(MotionType::kCirc, {1400, 0, 800, 0, 90, 0}, 2);
-  circ.T_world_tcp_aux = toIsometry(XyzAbc{1200, 200, 800, 0, 90, 0});
+  circ.T_world_tcp_aux = calib::toIsometry(calib::XyzAbc{1200, 200, 800, 0, 90, 0});
   circ.label = "CIRC";
   const CheckReport r = checkMotions(robot, robot, cell, {cartesian(MotionType::kPtp, {1000, 0, 800, 0, 90, 0}, 1), circ}, o);
   ASSERT_EQ(r.violations.size(), 1u);
@@ -178,7 +178,7 @@ TEST(CheckClearance, CircPassesThePost) {
   // arc length from the start = 200 mm * the angle swept from (1000, 0)
   const double angle = std::atan2(v.p_world_tcp_mm.y(), 1200 - v.p_world_tcp_mm.x());
   EXPECT_NEAR(v.arc_mm, 200 * angle, 1e-2);
-  EXPECT_NEAR(v.s, angle / kPi, 1e-5);
+  EXPECT_NEAR(v.s, angle / calib::kPi, 1e-5);
   // before it the arc is clear: the analytic clearance at every 0.1 mm of arc before it
   for (double a = 0; a < angle - 1e-4; a += 0.1 / 200) {
     const Eigen::Vector3d p(1200 - 200 * std::cos(a), 200 * std::sin(a), 800);
@@ -191,14 +191,14 @@ TEST(CheckClearance, CircPassesThePost) {
 // path. The reported distance is the analytic sphere/cube distance at the reported joints, and
 // the joint path before it is clear.
 TEST(CheckClearance, PtpSweepsALinkPastACube) {
-  const RobotModel robot = kr16();
+  const calib::RobotModel robot = kr16();
   Eigen::VectorXd qa(6), qb(6);
   qa << -40, -90, 90, 0, 45, 0;
   qb = qa;
   qb[0] = 40;
-  KinematicWorkspace ws;
+  calib::KinematicWorkspace ws;
   auto center = [&](const Eigen::VectorXd& q) {
-    forwardKinematics(robot, q, PoseContext{}, ws);
+    calib::forwardKinematics(robot, q, calib::PoseContext{}, ws);
     return Eigen::Vector3d(ws.T_base_frame[3].translation());
   };
   Eigen::VectorXd q0 = qa;
@@ -252,21 +252,21 @@ TEST(CheckClearance, PtpSweepsALinkPastACube) {
 // sphere and a link-3 sphere; the motions: a LIN past the post, a CIRC around it and a PTP sweeping A1, with the
 // default pre-sampling and with none (the subdivision alone).
 TEST(CheckClearance, BoundedQueriesGiveTheViolationsOfExactOnes) {
-  const RobotModel robot = kr16();
+  const calib::RobotModel robot = kr16();
   Cell cell = postCell(18, 10);
   // tilted: the bounding boxes are loose, so near the objects the bounds are far from exact
-  cell.objects[0].T_parent_shape = toIsometry(XyzAbc{1200, 18, 500, 0, 20, 0});
+  cell.objects[0].T_parent_shape = calib::toIsometry(calib::XyzAbc{1200, 18, 500, 0, 20, 0});
   CellShape box;
   box.mesh = loadMesh(fixture("box_100mm.stl"), 1.0);
   box.name = "cube";
-  box.T_parent_shape = toIsometry(XyzAbc{700, 700, 1200, 20, 45, 30});
+  box.T_parent_shape = calib::toIsometry(calib::XyzAbc{700, 700, 1200, 20, 45, 30});
   cell.objects.push_back(box);
   CellShape link;
   link.capsule = Capsule{Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero(), 50};
   link.name = "link 3";
   cell.link_shapes.emplace_back(3, link);
   WorldMotion circ = cartesian(MotionType::kCirc, {900, 0, 800, 0, 90, 0}, 4);
-  circ.T_world_tcp_aux = toIsometry(XyzAbc{1200, 300, 800, 0, 90, 0});
+  circ.T_world_tcp_aux = calib::toIsometry(calib::XyzAbc{1200, 300, 800, 0, 90, 0});
   circ.label = "CIRC";
   WorldMotion sweep;
   sweep.q_end = (Eigen::VectorXd(6) << 60, -90, 90, 0, 45, 0).finished();
@@ -385,17 +385,17 @@ TEST(CheckClearance, PathTouchingAFixtureOnTheCommandLine) {
 // (1.5 deg inside the 185 deg limit) needs A1 = 184.5 deg on the real one (theta1 = -q1 + 1 deg),
 // 0.5 deg inside: short of the 1 deg margin by 0.5 deg.
 struct ReachCase {
-  RobotModel nominal = kr16();
-  RobotModel real;
+  calib::RobotModel nominal = kr16();
+  calib::RobotModel real;
   Eigen::VectorXd q_nominal;
   std::string program;
   ReachCase() {
     real = nominal;
-    real.deviations.links[0].dtheta_rad = 1.0 * kDegToRad;
+    real.deviations.links[0].dtheta_rad = 1.0 * calib::kDegToRad;
     q_nominal.resize(6);
     q_nominal << 183.5, -80, 100, 20, 40, 30;
-    const XyzAbc p = toXyzAbc(forwardKinematics(nominal, q_nominal));
-    const Configuration c = kukaConfiguration(nominal, q_nominal);
+    const calib::XyzAbc p = calib::toXyzAbc(calib::forwardKinematics(nominal, q_nominal));
+    const calib::Configuration c = calib::kukaConfiguration(nominal, q_nominal);
     char buf[512];
     std::snprintf(buf, sizeof buf,
                   "DEF reach( )\n$TOOL = {X 0, Y 0, Z 0, A 0, B 0, C 0}\n$BASE = {X 0, Y 0, Z 0, A 0, B 0, C 0}\n"
@@ -439,7 +439,7 @@ TEST(CheckReach, CompensateWithCellKeepsAFailingProgramOffTheDisk) {
   const ReachCase rc;
   const std::string dir = test::tempDir("check_reach_cli");
   test::writeText(dir + "/reach.src", rc.program);
-  writeRobotFile(dir + "/real.xml", rc.real);
+  calib::writeRobotFile(dir + "/real.xml", rc.real);
   test::writeText(dir + "/cell.xml", "<?xml version=\"1.0\"?>\n<cell name=\"empty\">\n  <thresholds joint_margin_deg=\"1\"/>\n</cell>\n");
   // the compensation alone succeeds (184.5 deg is within the limits)
   const test::CliRun plain = test::runAccuraIn(dir, "compensate --robot real.xml --in reach.src --out plain");
@@ -495,8 +495,8 @@ TEST(CheckClearance, CompensateTheGoldenSeamInItsCell) {
   // the torch capsule is in the flange frame (nominal tool); the calibrated tool puts the real
   // TCP on XP3, so the capsule's end is where the nominal TCP point lands then: at XP3 (world
   // T_world_base1 * XP3) the flange is T_world_tcp * inverse(calibrated T_flange_tcp)
-  const RobotModel real = readRobotFile(dir + "/kr16_real.xml");
-  const Eigen::Isometry3d T_world_xp3 = toIsometry(XyzAbc{950, -400, 300, 90, 0, 0}) * toIsometry(XyzAbc{400, -250, 420, 150, 29.8999996, -179.300003});
+  const calib::RobotModel real = calib::readRobotFile(dir + "/kr16_real.xml");
+  const Eigen::Isometry3d T_world_xp3 = calib::toIsometry(calib::XyzAbc{950, -400, 300, 90, 0, 0}) * calib::toIsometry(calib::XyzAbc{400, -250, 420, 150, 29.8999996, -179.300003});
   const Eigen::Vector3d tip = T_world_xp3 * real.T_flange_tcp().inverse() * Eigen::Vector3d(107.147003, 0, 313.237);
   ASSERT_NEAR(tip.z(), 720, 2.0);  // about 30 mm over the plate's top (z 690)
   EXPECT_NEAR(j["check"]["totals"]["min_clearance_mm"].get<double>(), tip.z() - 15 - 690, 2e-3);
@@ -516,7 +516,7 @@ TEST(CheckClearance, CompensateTheGoldenSeamInItsCell) {
 // sigma_min of the scaled joint Jacobian at A5 = 0.5 deg, against the singular values of a
 // central-difference Jacobian of the forward kinematics.
 TEST(CheckSingularity, SigmaMinMatchesFiniteDifferences) {
-  const RobotModel robot = kr16();
+  const calib::RobotModel robot = kr16();
   Eigen::VectorXd q(6);
   q << 10, -80, 100, 30, 0.5, 20;
   WorldMotion m;
@@ -537,15 +537,15 @@ TEST(CheckSingularity, SigmaMinMatchesFiniteDifferences) {
     Eigen::VectorXd qp = q, qm = q;
     qp[i] += h_deg;
     qm[i] -= h_deg;
-    const Eigen::Isometry3d Tp = forwardKinematics(robot, qp), Tm = forwardKinematics(robot, qm);
-    const double h_rad = 2 * h_deg * kDegToRad;
+    const Eigen::Isometry3d Tp = calib::forwardKinematics(robot, qp), Tm = calib::forwardKinematics(robot, qm);
+    const double h_rad = 2 * h_deg * calib::kDegToRad;
     J.block<3, 1>(0, i) = (Tp.translation() - Tm.translation()) / h_rad / L;
-    J.block<3, 1>(3, i) = logSO3(Tp.linear() * Tm.linear().transpose()) / h_rad;
+    J.block<3, 1>(3, i) = calib::logSO3(Tp.linear() * Tm.linear().transpose()) / h_rad;
   }
   const double sigma_fd = Eigen::JacobiSVD<Eigen::Matrix<double, 6, 6>>(J).singularValues()[5];
   EXPECT_NEAR(r.violations[0].value, sigma_fd, 1e-8);
   EXPECT_LT(sigma_fd, 0.005);
-  EXPECT_NEAR(sigma_fd, 0.25 * 0.5 * kDegToRad, 0.5e-3);  // docs/compensation.md: about 0.25 |A5|
+  EXPECT_NEAR(sigma_fd, 0.25 * 0.5 * calib::kDegToRad, 0.5e-3);  // docs/compensation.md: about 0.25 |A5|
   // away from it: no violation
   m.q_end[4] = 30;
   EXPECT_TRUE(checkMotions(robot, robot, Cell{}, {m}, o).passed());
@@ -574,13 +574,13 @@ TEST(CheckProgram, PreparedGeometryGivesTheSameReport) {
   EXPECT_EQ(shared.samples, built.samples);
   EXPECT_EQ(shared.distance_queries, built.distance_queries);
   EXPECT_EQ(shared.min_clearance_mm, built.min_clearance_mm);
-  RobotModel other = job.calibrated;
+  calib::RobotModel other = job.calibrated;
   other.deviations.links[1].da_mm = 0.5;
   EXPECT_TRUE(prepared.madeFor(cell, job.calibrated));
   EXPECT_FALSE(prepared.madeFor(cell, other));
   EXPECT_FALSE(prepared.madeFor(Cell{}, job.calibrated));
   job.calibrated = other;
-  EXPECT_THROW(checkProgram(prog, job, cell, o, prepared), ArgumentError);
+  EXPECT_THROW(checkProgram(prog, job, cell, o, prepared), calib::ArgumentError);
 }
 
 TEST(CheckProgram, CellPlacementAgainstBaseOption) {
@@ -590,15 +590,15 @@ TEST(CheckProgram, CellPlacementAgainstBaseOption) {
   const Program prog = readProgram(dir + "/reach.src");
   Cell cell;
   cell.file = "cell.xml";
-  cell.T_world_base = toIsometry(XyzAbc{0, 0, 10, 0, 0, 0});
+  cell.T_world_base = calib::toIsometry(calib::XyzAbc{0, 0, 10, 0, 0, 0});
   JobSettings job;
   job.calibrated = rc.nominal;
-  job.robroot_in_world = XyzAbc{0, 0, 0, 0, 0, 0};
-  EXPECT_THROW(checkProgram(prog, job, cell, CheckOptions{}), InputError);
+  job.robroot_in_world = calib::XyzAbc{0, 0, 0, 0, 0, 0};
+  EXPECT_THROW(checkProgram(prog, job, cell, CheckOptions{}), calib::InputError);
   // a placement 60 mm from the calibrated base: the model was measured elsewhere
   job.robroot_in_world.reset();
-  cell.T_world_base = toIsometry(XyzAbc{0, 0, 60, 0, 0, 0});
-  EXPECT_THROW(checkProgram(prog, job, cell, CheckOptions{}), InputError);
+  cell.T_world_base = calib::toIsometry(calib::XyzAbc{0, 0, 60, 0, 0, 0});
+  EXPECT_THROW(checkProgram(prog, job, cell, CheckOptions{}), calib::InputError);
 }
 
 
@@ -612,11 +612,11 @@ struct Stretch {
   Eigen::Vector3d w_flange;
   double r_max = 0;
 };
-Stretch kr16Stretch(const RobotModel& robot) {
-  KinematicWorkspace ws;
+Stretch kr16Stretch(const calib::RobotModel& robot) {
+  calib::KinematicWorkspace ws;
   Eigen::VectorXd q(6);
   q << 0, -60, 60, 20, 30, 40;  // A1 = 0: the shoulder in the x-z plane
-  const Eigen::Isometry3d F = forwardKinematics(robot, q, PoseContext{}, ws);
+  const Eigen::Isometry3d F = calib::forwardKinematics(robot, q, calib::PoseContext{}, ws);
   Stretch st;
   st.shoulder = ws.T_base_frame[1].translation();
   st.w_flange = F.inverse() * ws.T_base_frame[5].translation();
@@ -630,9 +630,9 @@ Stretch kr16Stretch(const RobotModel& robot) {
 // |W - S| = r rather than the maximum where x_at(r) says (a quadratic).
 struct StretchLine {
   Stretch st;
-  static XyzAbc pose(double x) { return XyzAbc{x, 0, 800, 0, 0, 180}; }
+  static calib::XyzAbc pose(double x) { return calib::XyzAbc{x, 0, 800, 0, 0, 180}; }
   double x_at(double r) const {
-    const Eigen::Vector3d e = toIsometry(pose(0)) * st.w_flange - st.shoulder;  // W(x) = W(0) + x (1, 0, 0)
+    const Eigen::Vector3d e = calib::toIsometry(pose(0)) * st.w_flange - st.shoulder;  // W(x) = W(0) + x (1, 0, 0)
     return -e.x() + std::sqrt(r * r - e.y() * e.y() - e.z() * e.z());
   }
 };
@@ -643,7 +643,7 @@ struct StretchLine {
 // of the stretch only there: the last reachable sample is at sigma_min about 0.008, above the
 // threshold; the elbow singularity itself is the next test.)
 TEST(CheckReach, LinLeavesTheWorkspace) {
-  const RobotModel robot = kr16();
+  const calib::RobotModel robot = kr16();
   const StretchLine line{kr16Stretch(robot)};
   EXPECT_NEAR(line.st.r_max, 680 + std::hypot(35.0, 670.0), 1e-9);
   EXPECT_NEAR(line.st.shoulder.x(), 260, 1e-9);
@@ -676,7 +676,7 @@ TEST(CheckReach, LinLeavesTheWorkspace) {
 // - r) r / (a2 l3)) and sigma_min ~ delta (a2 l3 / r) / L: the threshold is crossed within about
 // 0.3 mm of the stretch.
 TEST(CheckSingularity, LinStretchesTheArm) {
-  const RobotModel robot = kr16();
+  const calib::RobotModel robot = kr16();
   const StretchLine line{kr16Stretch(robot)};
   const double x_end = line.x_at(line.st.r_max - 0.05);
   CheckOptions o;
@@ -691,16 +691,16 @@ TEST(CheckSingularity, LinStretchesTheArm) {
   ASSERT_EQ(v.q.size(), 6);
   const double x_v = 1300 + v.s * length;
   EXPECT_NEAR(v.p_world_tcp_mm.x(), x_v, 1e-3);  // FK of the IK's joints: within its 1 um
-  EXPECT_LT(poseResidual(robot, v.q, toIsometry(line.pose(x_v))), 1e-3);  // the IK's tolerance: 1 um, 1 urad
+  EXPECT_LT(poseResidual(robot, v.q, calib::toIsometry(line.pose(x_v))), 1e-3);  // the IK's tolerance: 1 um, 1 urad
   EXPECT_NEAR(v.value, fdSigma(robot, v.q), 1e-6);
   EXPECT_LT(v.value, 0.005);
   EXPECT_NEAR(v.excess, 0.005 - v.value, 1e-12);
-  const Eigen::Isometry3d T_before = toIsometry(line.pose(x_v - o.sample_step_mm));
+  const Eigen::Isometry3d T_before = calib::toIsometry(line.pose(x_v - o.sample_step_mm));
   const Eigen::VectorXd q_before = newtonIk(robot, T_before, v.q);
   ASSERT_LT(poseResidual(robot, q_before, T_before), 1e-6);
   EXPECT_GE(fdSigma(robot, q_before), 0.005);
   EXPECT_NE(v.message.find("A2, A3"), std::string::npos) << v.message;
-  const double short_mm = line.st.r_max - (toIsometry(line.pose(x_v)) * line.st.w_flange - line.st.shoulder).norm();
+  const double short_mm = line.st.r_max - (calib::toIsometry(line.pose(x_v)) * line.st.w_flange - line.st.shoulder).norm();
   EXPECT_GT(short_mm, 0.05);
   EXPECT_LT(short_mm, 0.5);
   EXPECT_LT(r.min_sigma, v.value);  // and lower still at the end
@@ -708,10 +708,10 @@ TEST(CheckSingularity, LinStretchesTheArm) {
 
 // A PTP to a Cartesian target outside the workspace: `reach` at the end point.
 TEST(CheckReach, PtpToATargetOutsideTheWorkspace) {
-  const RobotModel robot = kr16();
+  const calib::RobotModel robot = kr16();
   const Stretch st = kr16Stretch(robot);
-  const XyzAbc far{2000, 0, 800, 0, 90, 0};
-  EXPECT_GT((toIsometry(far) * st.w_flange - st.shoulder).norm(), st.r_max + 200);
+  const calib::XyzAbc far{2000, 0, 800, 0, 90, 0};
+  EXPECT_GT((calib::toIsometry(far) * st.w_flange - st.shoulder).norm(), st.r_max + 200);
   const CheckReport r =
       checkMotions(robot, robot, Cell{}, {cartesian(MotionType::kPtp, {1300, 0, 800, 0, 90, 0}, 1), cartesian(MotionType::kPtp, far, 2)}, CheckOptions{});
   ASSERT_EQ(r.violations.size(), 1u);
@@ -731,11 +731,11 @@ TEST(CheckReach, PtpToATargetOutsideTheWorkspace) {
 // 19.8 deg turn is sampled every 0.5 deg: 40 samples, s = k/40. sigma_min ~ 0.25 |A5| (rad) is
 // below 0.005 first at the first k with fdSigma(q(k/40)) < 0.005: k = 18, A5 = 0.99 deg.
 TEST(CheckSingularity, LinThroughTheWristSingularity) {
-  const RobotModel robot = kr16();
+  const calib::RobotModel robot = kr16();
   const Stretch st = kr16Stretch(robot);
   Eigen::Isometry3d T_flange_tcp = Eigen::Isometry3d::Identity();
   T_flange_tcp.translation() = st.w_flange;
-  RobotModel with_tool = robot;
+  calib::RobotModel with_tool = robot;
   with_tool.nominal.T_flange_tcp = T_flange_tcp;
   const auto q_at = [](double s) { return (Eigen::VectorXd(6) << 0, -90, 90, 0, 9.9 - 19.8 * s, 0).finished(); };
   WorldMotion start;
@@ -747,7 +747,7 @@ TEST(CheckSingularity, LinThroughTheWristSingularity) {
   lin.type = MotionType::kLin;
   lin.label = "LIN";
   lin.T_flange_tcp = T_flange_tcp;
-  lin.T_world_tcp_end = forwardKinematics(with_tool, q_at(1));
+  lin.T_world_tcp_end = calib::forwardKinematics(with_tool, q_at(1));
   lin.where.line = 2;
   // independent expectation: the first sample below the threshold
   int k_first = -1;
@@ -765,7 +765,7 @@ TEST(CheckSingularity, LinThroughTheWristSingularity) {
   ASSERT_EQ(v.q.size(), 6);
   for (int i = 0; i < 6; ++i) EXPECT_NEAR(v.q[i], q_at(v.s)[i], 1e-6) << i;
   EXPECT_NEAR(v.value, fdSigma(robot, q_at(v.s)), 1e-6);
-  EXPECT_NEAR(v.value, 0.25 * 0.99 * kDegToRad, 0.5e-3);
+  EXPECT_NEAR(v.value, 0.25 * 0.99 * calib::kDegToRad, 0.5e-3);
   EXPECT_NEAR(v.excess, 0.005 - v.value, 1e-12);
   EXPECT_NE(v.message.find("A4, A6"), std::string::npos) << v.message;
   EXPECT_EQ(r.motions[1].samples, 40);
@@ -781,17 +781,17 @@ TEST(CheckSingularity, LinThroughTheWristSingularity) {
   // tolerance (1 urad) they are determined only to tol / |A5|, and the joint values of the
   // samples jump: the joint-jump detection (bisection to 2^-30 of a sample interval) reports
   // `singularity` on the path where the wrist is within 0.01 deg of straight.
-  KinematicWorkspace ws;
-  const Eigen::Isometry3d Ta = forwardKinematics(with_tool, q_at(0), PoseContext{}, ws);
+  calib::KinematicWorkspace ws;
+  const Eigen::Isometry3d Ta = calib::forwardKinematics(with_tool, q_at(0), calib::PoseContext{}, ws);
   const Eigen::Vector3d z4 = ws.T_base_frame[4].linear().col(2), z3 = ws.T_base_frame[3].linear().col(2);  // axes 5 and 4
   const double eta = 1e-3;
   WorldMotion miss = lin;
   miss.T_world_tcp_end = Ta;
   miss.T_world_tcp_end.linear() =
-      Eigen::AngleAxisd(-19.8 * kDegToRad, std::cos(eta) * z4 + std::sin(eta) * z3).toRotationMatrix() * Ta.linear();
+      Eigen::AngleAxisd(-19.8 * calib::kDegToRad, std::cos(eta) * z4 + std::sin(eta) * z3).toRotationMatrix() * Ta.linear();
   {
     Eigen::Isometry3d exact = Ta;  // with eta = 0 this is the LIN above
-    exact.linear() = Eigen::AngleAxisd(-19.8 * kDegToRad, z4).toRotationMatrix() * Ta.linear();
+    exact.linear() = Eigen::AngleAxisd(-19.8 * calib::kDegToRad, z4).toRotationMatrix() * Ta.linear();
     ASSERT_LT(poseResidual(with_tool, q_at(1), exact), 1e-9);
   }
   const CheckReport j = checkMotions(robot, robot, Cell{}, {start, miss}, o);
@@ -804,7 +804,7 @@ TEST(CheckSingularity, LinThroughTheWristSingularity) {
   EXPECT_LT(std::fabs(jv.q[4]), 0.01);                  // A5 (deg): the wrist nearly straight
   EXPECT_LT(std::fabs(jv.s - 0.5) * 19.8, 0.01);        // the turn (deg) from where it is straightest
   EXPECT_NEAR(jv.value, fdSigma(robot, jv.q), 1e-6);    // sigma_min there
-  EXPECT_LT(jv.value, 0.25 * 0.01 * kDegToRad * 1.1);   // ~ 0.25 |A5|
+  EXPECT_LT(jv.value, 0.25 * 0.01 * calib::kDegToRad * 1.1);   // ~ 0.25 |A5|
   EXPECT_EQ(jv.excess, 0.0);                            // the threshold is 0
 }
 
@@ -906,20 +906,20 @@ TEST(CheckReach, CompensationFailureExplainedByTheCheck) {
 // the TCP there. The excess is asserted against the calibrated model's own IK (Newton on calib's
 // forward kinematics).
 struct BeyondCase {
-  RobotModel nominal = kr16();
-  RobotModel real;
+  calib::RobotModel nominal = kr16();
+  calib::RobotModel real;
   Eigen::VectorXd q_nominal, q_real;
   std::string program;
   BeyondCase() {
     real = nominal;
-    real.deviations.links[0].dtheta_rad = 1.0 * kDegToRad;
+    real.deviations.links[0].dtheta_rad = 1.0 * calib::kDegToRad;
     real.deviations.links[1].da_mm = 0.5;
     q_nominal.resize(6);
     q_nominal << 184.5, -80, 100, 20, 40, 30;
-    const Eigen::Isometry3d T = forwardKinematics(nominal, q_nominal);
+    const Eigen::Isometry3d T = calib::forwardKinematics(nominal, q_nominal);
     q_real = newtonIk(real, T, q_nominal);
-    const XyzAbc p = toXyzAbc(T);
-    const Configuration c = kukaConfiguration(nominal, q_nominal);
+    const calib::XyzAbc p = calib::toXyzAbc(T);
+    const calib::Configuration c = calib::kukaConfiguration(nominal, q_nominal);
     char buf[256];
     std::snprintf(buf, sizeof buf, "PTP {X %.6f, Y %.6f, Z %.6f, A %.6f, B %.6f, C %.6f, S %d, T %d}", p.x_mm, p.y_mm, p.z_mm, p.a_deg,
                   p.b_deg, p.c_deg, c.status, c.turn);
@@ -929,7 +929,7 @@ struct BeyondCase {
 
 TEST(CheckReach, CompensationPushesAPointBeyondAJointLimit) {
   const BeyondCase bc;
-  ASSERT_LT(poseResidual(bc.real, bc.q_real, forwardKinematics(bc.nominal, bc.q_nominal)), 1e-6);
+  ASSERT_LT(poseResidual(bc.real, bc.q_real, calib::forwardKinematics(bc.nominal, bc.q_nominal)), 1e-6);
   ASSERT_GT(bc.q_real[0], 185.0);  // beyond the limit on the real robot
   const double excess_limit = bc.q_real[0] - 185.0;
   const std::string dir = test::tempDir("check_beyond");
@@ -957,7 +957,7 @@ TEST(CheckReach, CompensationPushesAPointBeyondAJointLimit) {
 
   // on the command line: accura compensate alone fails (exit 1), with --cell it is the check's
   // joint_limit violation (exit 2) with the same numbers
-  writeRobotFile(dir + "/real.xml", bc.real);
+  calib::writeRobotFile(dir + "/real.xml", bc.real);
   test::writeText(dir + "/cell.xml", "<?xml version=\"1.0\"?>\n<cell name=\"empty\">\n  <thresholds joint_margin_deg=\"0.25\"/>\n</cell>\n");
   const test::CliRun plain = test::runAccuraIn(dir, "compensate --robot real.xml --in beyond.src --out plain");
   EXPECT_EQ(plain.code, 1) << plain.out << plain.err;

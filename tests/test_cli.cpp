@@ -9,7 +9,7 @@
 #include "accura/calib/kinematics.h"
 #include "test_util.h"
 
-namespace accura {
+namespace accura::calib {
 namespace {
 
 struct CliRun {
@@ -138,4 +138,4 @@ TEST(Cli, BadOptionsAreReported) {
 }
 
 }  // namespace
-}  // namespace accura
+}  // namespace accura::calib

@@ -19,35 +19,35 @@ namespace {
 using namespace postproc;
 
 Eigen::Isometry3d pose(double x, double y, double z, double a, double b, double c) {
-  return toIsometry({x, y, z, a, b, c});
+  return calib::toIsometry({x, y, z, a, b, c});
 }
 
 /// The controller: the nominal KR 16 with the program's tool. The real robot: every
 /// geometric error, joint compliance (simulate.h, error scale 1) and a base registered to
 /// 0.5 mm.
 struct Cell {
-  RobotModel controller, real;
+  calib::RobotModel controller, real;
   explicit Cell(std::uint64_t seed = 1) {
     controller = test::loadBundled("kuka_kr16");
-    controller.nominal.T_flange_tcp = toIsometry({20, 0, 250, 0, -30, 0});
-    SimulateOptions o;
+    controller.nominal.T_flange_tcp = calib::toIsometry({20, 0, 250, 0, -30, 0});
+    calib::SimulateOptions o;
     o.effects = {"geometric", "joint_compliance"};
     o.set_station = false;
     o.seed = seed;
-    real = perturbModel(controller, o);
+    real = calib::perturbModel(controller, o);
     real.deviations.base_mm = Eigen::Vector3d(0.4, -0.3, 0.2);
     real.deviations.base_rot_rad = Eigen::Vector3d(1e-4, -5e-5, 2e-4);
   }
 };
 
-double positionError(const RobotModel& m, const Eigen::VectorXd& q, const Eigen::Isometry3d& T) {
-  KinematicWorkspace ws;
-  return (forwardKinematics(m, q, PoseContext{}, ws).translation() - T.translation()).norm();
+double positionError(const calib::RobotModel& m, const Eigen::VectorXd& q, const Eigen::Isometry3d& T) {
+  calib::KinematicWorkspace ws;
+  return (calib::forwardKinematics(m, q, calib::PoseContext{}, ws).translation() - T.translation()).norm();
 }
 
-double rotationError(const RobotModel& m, const Eigen::VectorXd& q, const Eigen::Isometry3d& T) {
-  KinematicWorkspace ws;
-  return logSO3(forwardKinematics(m, q, PoseContext{}, ws).linear() * T.linear().transpose()).norm();
+double rotationError(const calib::RobotModel& m, const Eigen::VectorXd& q, const Eigen::Isometry3d& T) {
+  calib::KinematicWorkspace ws;
+  return calib::logSO3(calib::forwardKinematics(m, q, calib::PoseContext{}, ws).linear() * T.linear().transpose()).norm();
 }
 
 // ---------------------------------------------------------------------------------------
@@ -56,7 +56,7 @@ double rotationError(const RobotModel& m, const Eigen::VectorXd& q, const Eigen:
 TEST(CompensatePose, RealRobotLandsOnTheTargetAndTheControllerReturnsQ) {
   const Cell cell;
   const Compensator comp(cell.controller, cell.real);
-  const KinematicSolver controller(cell.controller);
+  const calib::KinematicSolver controller(cell.controller);
   std::mt19937 rng(17);
   std::uniform_real_distribution<double> u(0.1, 0.9);
   int checked = 0;
@@ -64,15 +64,15 @@ TEST(CompensatePose, RealRobotLandsOnTheTargetAndTheControllerReturnsQ) {
   for (int k = 0; k < 200; ++k) {
     Eigen::VectorXd q(6);
     for (int i = 0; i < 6; ++i) {
-      const JointSpec& j = cell.controller.nominal.joints[static_cast<size_t>(i)];
+      const calib::JointSpec& j = cell.controller.nominal.joints[static_cast<size_t>(i)];
       q[i] = j.lower + u(rng) * (j.upper - j.lower);
     }
     // a target the OLP computed with the nominal model, with its S and T
     const Eigen::Isometry3d desired = controller.forward(q);
-    const Configuration config = kukaConfiguration(cell.controller, q);
-    const PoseCompensation r = comp.pose(desired, config, Eigen::VectorXd(), IkOptions{});
-    if (r.status == IkStatus::kSingular) continue;  // (a near-singular target)
-    ASSERT_EQ(r.status, IkStatus::kOk) << r.message;
+    const calib::Configuration config = calib::kukaConfiguration(cell.controller, q);
+    const PoseCompensation r = comp.pose(desired, config, Eigen::VectorXd(), calib::IkOptions{});
+    if (r.status == calib::IkStatus::kSingular) continue;  // (a near-singular target)
+    ASSERT_EQ(r.status, calib::IkStatus::kOk) << r.message;
     ++checked;
     // the real robot at q' is on the desired pose (calib's FK, not the solver's)
     EXPECT_LE(positionError(cell.real, r.q_real, desired), 1e-3);
@@ -82,11 +82,11 @@ TEST(CompensatePose, RealRobotLandsOnTheTargetAndTheControllerReturnsQ) {
     EXPECT_LE(rotationError(cell.controller, r.q_real, r.T_world_tcp_command), 1e-12);
     // and the controller's own IK of the command, on the configuration written with it,
     // returns q' (cold: the controller knows nothing else)
-    const IkResult back = controller.inverse(r.T_world_tcp_command, r.configuration, Eigen::VectorXd(), IkOptions{});
-    ASSERT_EQ(back.status, IkStatus::kOk) << back.message;
+    const calib::IkResult back = controller.inverse(r.T_world_tcp_command, r.configuration, Eigen::VectorXd(), calib::IkOptions{});
+    ASSERT_EQ(back.status, calib::IkStatus::kOk) << back.message;
     for (int i = 0; i < 6; ++i) EXPECT_NEAR(back.q[i], r.q_real[i], 1e-4);
     if (!r.configuration_changed) {
-      EXPECT_TRUE(configurationMatches(config, r.configuration));
+      EXPECT_TRUE(calib::configurationMatches(config, r.configuration));
     }
     // about a millimetre of correction, the size of the model's error
     EXPECT_GT(r.correction_mm, 0.05);
@@ -95,8 +95,8 @@ TEST(CompensatePose, RealRobotLandsOnTheTargetAndTheControllerReturnsQ) {
     sum_correction += r.correction_mm;
     // without compensation the real robot misses: the controller's joints for the desired
     // pose put the real tool elsewhere by about the correction
-    const IkResult plain = controller.inverse(desired, config, Eigen::VectorXd(), IkOptions{});
-    ASSERT_EQ(plain.status, IkStatus::kOk);
+    const calib::IkResult plain = controller.inverse(desired, config, Eigen::VectorXd(), calib::IkOptions{});
+    ASSERT_EQ(plain.status, calib::IkStatus::kOk);
     EXPECT_NEAR(positionError(cell.real, plain.q, desired), r.correction_mm, 0.5 * r.correction_mm + 0.05);
   }
   EXPECT_GT(checked, 190);
@@ -107,11 +107,11 @@ TEST(CompensatePose, FreeFunctionEqualsCompensator) {
   const Cell cell;
   Eigen::VectorXd q(6);
   q << 10, -70, 80, 20, 50, 30;
-  const Eigen::Isometry3d desired = KinematicSolver(cell.controller).forward(q);
-  const Configuration c = kukaConfiguration(cell.controller, q);
-  const PoseCompensation a = compensatePose(cell.controller, cell.real, desired, c, Eigen::VectorXd(), IkOptions{});
-  const PoseCompensation b = Compensator(cell.controller, cell.real).pose(desired, c, Eigen::VectorXd(), IkOptions{});
-  ASSERT_EQ(a.status, IkStatus::kOk);
+  const Eigen::Isometry3d desired = calib::KinematicSolver(cell.controller).forward(q);
+  const calib::Configuration c = calib::kukaConfiguration(cell.controller, q);
+  const PoseCompensation a = compensatePose(cell.controller, cell.real, desired, c, Eigen::VectorXd(), calib::IkOptions{});
+  const PoseCompensation b = Compensator(cell.controller, cell.real).pose(desired, c, Eigen::VectorXd(), calib::IkOptions{});
+  ASSERT_EQ(a.status, calib::IkStatus::kOk);
   EXPECT_EQ((a.q_real - b.q_real).norm(), 0.0);
   EXPECT_TRUE(a.T_world_tcp_command.isApprox(b.T_world_tcp_command, 0));
 }
@@ -126,11 +126,11 @@ TEST(CompensatePose, ConfigurationChangeIsReported) {
     Eigen::VectorXd q(6);
     q << a1, -70, 80, 20, 50, 30;
     const Eigen::Isometry3d desired = comp.controller().forward(q);
-    const Configuration c = kukaConfiguration(cell.controller, q);
-    const PoseCompensation r = comp.pose(desired, c, Eigen::VectorXd(), IkOptions{});
-    ASSERT_EQ(r.status, IkStatus::kOk) << r.message;
+    const calib::Configuration c = calib::kukaConfiguration(cell.controller, q);
+    const PoseCompensation r = comp.pose(desired, c, Eigen::VectorXd(), calib::IkOptions{});
+    ASSERT_EQ(r.status, calib::IkStatus::kOk) << r.message;
     EXPECT_LE(positionError(cell.real, r.q_real, desired), 1e-3);
-    EXPECT_EQ(r.configuration, kukaConfiguration(cell.real, r.q_real));
+    EXPECT_EQ(r.configuration, calib::kukaConfiguration(cell.real, r.q_real));
     if (r.configuration_changed) {
       ++changed;
       EXPECT_NE(r.configuration.turn & 1, c.turn & 1);
@@ -146,12 +146,12 @@ TEST(CompensatePose, ConfigurationChangeIsReported) {
 
 TEST(CompensatePose, UnreachableIsReportedWithoutACommand) {
   const Cell cell;
-  const PoseCompensation r = compensatePose(cell.controller, cell.real, pose(4000, 0, 500, 0, 90, 0), Configuration{},
-                                            Eigen::VectorXd(), IkOptions{});
-  EXPECT_EQ(r.status, IkStatus::kUnreachable);
+  const PoseCompensation r = compensatePose(cell.controller, cell.real, pose(4000, 0, 500, 0, 90, 0), calib::Configuration{},
+                                            Eigen::VectorXd(), calib::IkOptions{});
+  EXPECT_EQ(r.status, calib::IkStatus::kUnreachable);
   EXPECT_EQ(r.q_real.size(), 0);
   EXPECT_FALSE(r.message.empty());
-  EXPECT_THROW(Compensator(cell.controller, test::loadBundled("scara")), ArgumentError);
+  EXPECT_THROW(Compensator(cell.controller, test::loadBundled("scara")), calib::ArgumentError);
 }
 
 // ---------------------------------------------------------------------------------------
@@ -161,7 +161,7 @@ TEST(PathGeometry, CircThroughThreePoints) {
   // a circle of radius 100 about (1000, 0, 500) in a tilted plane
   const Eigen::Vector3d c(1000, 0, 500);
   const Eigen::Vector3d e1 = Eigen::Vector3d(1, 0, 1).normalized(), e2(0, 1, 0);
-  auto at = [&](double deg) { return Eigen::Vector3d(c + 100 * (std::cos(deg * kDegToRad) * e1 + std::sin(deg * kDegToRad) * e2)); };
+  auto at = [&](double deg) { return Eigen::Vector3d(c + 100 * (std::cos(deg * calib::kDegToRad) * e1 + std::sin(deg * calib::kDegToRad) * e2)); };
   PathSegment s;
   s.type = PathType::kCirc;
   s.T_world_start = pose(0, 0, 0, 0, 90, 0);
@@ -169,8 +169,8 @@ TEST(PathGeometry, CircThroughThreePoints) {
   s.T_world_aux.translation() = at(100);
   s.T_world_end = pose(0, 0, 0, 40, 90, 0);
   s.T_world_end.translation() = at(200);
-  EXPECT_NEAR(pathLength(s), 100 * 200 * kDegToRad, 1e-9);
-  EXPECT_NEAR(pathRotation(s), 40 * kDegToRad, 1e-12);
+  EXPECT_NEAR(pathLength(s), 100 * 200 * calib::kDegToRad, 1e-9);
+  EXPECT_NEAR(pathRotation(s), 40 * calib::kDegToRad, 1e-12);
   for (int k = 0; k <= 10; ++k) {
     const Eigen::Isometry3d T = interpolate(s, k / 10.0);
     EXPECT_LT((T.translation() - at(20.0 * k)).norm(), 1e-9);
@@ -178,7 +178,7 @@ TEST(PathGeometry, CircThroughThreePoints) {
   }
   EXPECT_TRUE(interpolate(s, 1).isApprox(s.T_world_end, 1e-12));
   // orientation: slerp, half way = A rotated by 20 deg
-  EXPECT_LT(logSO3(interpolate(s, 0.5).linear() * pose(0, 0, 0, 20, 90, 0).linear().transpose()).norm(), 1e-12);
+  EXPECT_LT(calib::logSO3(interpolate(s, 0.5).linear() * pose(0, 0, 0, 20, 90, 0).linear().transpose()).norm(), 1e-12);
   // distance: a point 3 above the plane and 4 outside the circle is 5 away; beyond the
   // ends of the arc the nearest point is an end (300 deg: the start, 60 deg away)
   const Eigen::Vector3d n = e1.cross(e2);
@@ -187,7 +187,7 @@ TEST(PathGeometry, CircThroughThreePoints) {
   EXPECT_NEAR(distanceToPath(at(240), s), (at(240) - at(200)).norm(), 1e-9);
   // collinear points: no circle
   s.T_world_aux.translation() = 0.5 * (at(0) + at(200));
-  EXPECT_THROW(interpolate(s, 0.5), NumericalError);
+  EXPECT_THROW(interpolate(s, 0.5), calib::NumericalError);
 }
 
 TEST(PathGeometry, LinDistance) {
@@ -226,8 +226,8 @@ struct Densified {
 
 Densified densify(const Compensator& comp, const PathSegment& s, const DensifyOptions& o, double step_mm) {
   Densified d;
-  d.result = comp.segment(s, Configuration{}, Eigen::VectorXd(), o);
-  if (d.result.status == IkStatus::kOk) d.executed = comp.execute(d.result.commanded, d.result.q_real_start, step_mm);
+  d.result = comp.segment(s, calib::Configuration{}, Eigen::VectorXd(), o);
+  if (d.result.status == calib::IkStatus::kOk) d.executed = comp.execute(d.result.commanded, d.result.q_real_start, step_mm);
   return d;
 }
 
@@ -238,7 +238,7 @@ TEST(Densify, ShortSegmentWithinToleranceGetsNoPoint) {
   s.T_world_start = pose(1100, -250, 500, 0, 180, 0);
   s.T_world_end = pose(1100, -50, 500, 0, 180, 0);
   const Densified d = densify(comp, s, DensifyOptions{}, 0.2);
-  ASSERT_EQ(d.result.status, IkStatus::kOk) << d.result.message;
+  ASSERT_EQ(d.result.status, calib::IkStatus::kOk) << d.result.message;
   EXPECT_LT(d.result.max_error_before_mm, 0.05);
   EXPECT_EQ(d.result.points_added, 0);
   EXPECT_EQ(d.result.max_error_after_mm, d.result.max_error_before_mm);
@@ -255,7 +255,7 @@ TEST(Densify, LongMoveMeetsTheToleranceWithFewPoints) {
   DensifyOptions o;
   const Densified d = densify(comp, s, o, 0.1);
   const SegmentCompensation& r = d.result;
-  ASSERT_EQ(r.status, IkStatus::kOk) << r.message;
+  ASSERT_EQ(r.status, calib::IkStatus::kOk) << r.message;
   EXPECT_GT(r.max_error_before_mm, o.tol_mm);
   EXPECT_GT(r.points_added, 0);
   EXPECT_LE(r.max_error_after_mm, o.tol_mm);
@@ -285,8 +285,8 @@ TEST(Densify, LongMoveMeetsTheToleranceWithFewPoints) {
   // length, so halving the tolerance needs about sqrt(2) times the pieces
   DensifyOptions tight = o;
   tight.tol_mm = 0.025;
-  const SegmentCompensation rt = comp.segment(s, Configuration{}, Eigen::VectorXd(), tight);
-  ASSERT_EQ(rt.status, IkStatus::kOk);
+  const SegmentCompensation rt = comp.segment(s, calib::Configuration{}, Eigen::VectorXd(), tight);
+  ASSERT_EQ(rt.status, calib::IkStatus::kOk);
   EXPECT_LE(rt.max_error_after_mm, 0.025);
   EXPECT_GT(rt.commanded.size(), r.commanded.size());
   EXPECT_LE(rt.commanded.size(), 2 * r.commanded.size() + 1);
@@ -304,7 +304,7 @@ TEST(Densify, CircBecomesShorterCircs) {
   o.tol_mm = 0.02;
   const Densified d = densify(comp, s, o, 0.1);
   const SegmentCompensation& r = d.result;
-  ASSERT_EQ(r.status, IkStatus::kOk) << r.message;
+  ASSERT_EQ(r.status, calib::IkStatus::kOk) << r.message;
   EXPECT_GT(r.points_added, 0);
   EXPECT_GT(r.max_error_before_mm, o.tol_mm);
   for (const PathSegment& p : r.commanded) EXPECT_EQ(p.type, PathType::kCirc);
@@ -314,8 +314,8 @@ TEST(Densify, CircBecomesShorterCircs) {
   // each commanded aux point is the compensated middle of its piece: the real robot at the
   // controller's joints for it is on the intended circle
   for (const PathSegment& p : r.commanded) {
-    const IkResult q = comp.controller().inverse(p.T_world_aux, Configuration{}, r.q_real_start, IkOptions{});
-    ASSERT_EQ(q.status, IkStatus::kOk);
+    const calib::IkResult q = comp.controller().inverse(p.T_world_aux, calib::Configuration{}, r.q_real_start, calib::IkOptions{});
+    ASSERT_EQ(q.status, calib::IkStatus::kOk);
     EXPECT_LT(distanceToPath(comp.real().forward(q.q).translation(), s), 1e-3);
   }
 }
@@ -328,13 +328,13 @@ TEST(Densify, BadOptionsAndDegenerateCircThrow) {
   s.T_world_end = pose(1100, -50, 500, 0, 180, 0);
   DensifyOptions o;
   o.tol_mm = 0;
-  EXPECT_THROW(comp.segment(s, Configuration{}, Eigen::VectorXd(), o), ArgumentError);
+  EXPECT_THROW(comp.segment(s, calib::Configuration{}, Eigen::VectorXd(), o), calib::ArgumentError);
   std::string why;
   EXPECT_FALSE(o.IsValid(&why));
   EXPECT_NE(why.find("tolerance"), std::string::npos);
   s.type = PathType::kCirc;
   s.T_world_aux = pose(1100, -150, 500, 0, 180, 0);  // on the line
-  EXPECT_THROW(comp.segment(s, Configuration{}, Eigen::VectorXd(), DensifyOptions{}), NumericalError);
+  EXPECT_THROW(comp.segment(s, calib::Configuration{}, Eigen::VectorXd(), DensifyOptions{}), calib::NumericalError);
 }
 
 TEST(Densify, UnreachablePathIsReported) {
@@ -343,8 +343,8 @@ TEST(Densify, UnreachablePathIsReported) {
   PathSegment s;
   s.T_world_start = pose(1100, -250, 500, 0, 180, 0);
   s.T_world_end = pose(3500, -50, 500, 0, 180, 0);
-  const SegmentCompensation r = comp.segment(s, Configuration{}, Eigen::VectorXd(), DensifyOptions{});
-  EXPECT_NE(r.status, IkStatus::kOk);
+  const SegmentCompensation r = comp.segment(s, calib::Configuration{}, Eigen::VectorXd(), DensifyOptions{});
+  EXPECT_NE(r.status, calib::IkStatus::kOk);
   EXPECT_TRUE(r.commanded.empty());
   EXPECT_FALSE(r.message.empty());
 }

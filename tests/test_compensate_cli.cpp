@@ -118,13 +118,13 @@ TEST(CompensateCli, TheGoldenProgramFollowsTheIntendedPathInSimulation) {
   const Program in = readKrl(golden("seam.src"), o);
   const Program out = readKrl(golden("expected/seam.src"), o);
   const nlohmann::json report = nlohmann::json::parse(test::readText(golden("expected/report.json")));
-  const RobotModel real = readRobotFile(golden("kr16_real.xml"));
-  RobotModel controller = RobotModel::fromDefinition(real.nominal);
-  const Eigen::Isometry3d T_world_base1 = toIsometry(*in.motions[1].base.value);
-  controller.nominal.T_flange_tcp = toIsometry(*in.motions[1].tool.value);
+  const calib::RobotModel real = calib::readRobotFile(golden("kr16_real.xml"));
+  calib::RobotModel controller = calib::RobotModel::fromDefinition(real.nominal);
+  const Eigen::Isometry3d T_world_base1 = calib::toIsometry(*in.motions[1].base.value);
+  controller.nominal.T_flange_tcp = calib::toIsometry(*in.motions[1].tool.value);
   ASSERT_LT((controller.nominal.T_flange_tcp.translation() - real.nominal.T_flange_tcp.translation()).norm(), 1e-6);
 
-  auto world = [&](const Target& t) { return T_world_base1 * toIsometry(t.xyzAbc()); };
+  auto world = [&](const Target& t) { return T_world_base1 * calib::toIsometry(t.xyzAbc()); };
   auto segment = [&](const Motion& m, const Eigen::Isometry3d& start) {
     PathSegment s;
     s.type = m.type == MotionType::kCirc ? PathType::kCirc : PathType::kLin;
@@ -159,17 +159,17 @@ TEST(CompensateCli, TheGoldenProgramFollowsTheIntendedPathInSimulation) {
     o_index += static_cast<size_t>(added) + 1;
     // the controller starts on the configuration of the previous target
     const Target& prev = in.motions[k - 1].target;
-    const Configuration config{prev.status.value_or(-1), prev.turn.value_or(-1)};
-    const IkResult q0 = inverseKinematics(controller, commanded.front().T_world_start, config, Eigen::VectorXd(), IkOptions{});
-    ASSERT_EQ(q0.status, IkStatus::kOk) << q0.message;
+    const calib::Configuration config{prev.status.value_or(-1), prev.turn.value_or(-1)};
+    const calib::IkResult q0 = calib::inverseKinematics(controller, commanded.front().T_world_start, config, Eigen::VectorXd(), calib::IkOptions{});
+    ASSERT_EQ(q0.status, calib::IkStatus::kOk) << q0.message;
     const double error = maxPathDeviation(simulateExecution(controller, real, commanded, q0.q, 1.0), {intended});
     EXPECT_LE(error, after + 0.002) << "segment " << seg;  // as predicted in the report
     if (mi.trigger_count == 0) {
       EXPECT_LE(error, tol + 0.002) << "segment " << seg;
     }
     // the program as it was
-    const IkResult qu = inverseKinematics(controller, intended.T_world_start, config, Eigen::VectorXd(), IkOptions{});
-    ASSERT_EQ(qu.status, IkStatus::kOk);
+    const calib::IkResult qu = calib::inverseKinematics(controller, intended.T_world_start, config, Eigen::VectorXd(), calib::IkOptions{});
+    ASSERT_EQ(qu.status, calib::IkStatus::kOk);
     const double uncompensated = maxPathDeviation(simulateExecution(controller, real, {intended}, qu.q, 1.0), {intended});
     EXPECT_GT(uncompensated, 1.0) << "segment " << seg;
     EXPECT_NEAR(uncompensated, report["segments"][seg - 1]["max_error_uncompensated_mm"].get<double>(), 0.01);
@@ -268,27 +268,27 @@ TEST(CompensateCli, PartialTargetsAreCompletedFromTheIntendedPosition) {
 // pose), changed only for such joints and with a warning per target.
 TEST(CompensateCli, TurnBitOfAJointNextToZeroIsRewrittenWithAWarning) {
   const std::string dir = inputs("comp_tbit");
-  const RobotModel real = readRobotFile(golden("kr16_real.xml"));
-  RobotModel controller = RobotModel::fromDefinition(real.nominal);
-  const XyzAbc tool = toXyzAbc(real.nominal.T_flange_tcp);
-  XyzAbc base;
+  const calib::RobotModel real = calib::readRobotFile(golden("kr16_real.xml"));
+  calib::RobotModel controller = calib::RobotModel::fromDefinition(real.nominal);
+  const calib::XyzAbc tool = calib::toXyzAbc(real.nominal.T_flange_tcp);
+  calib::XyzAbc base;
   base.x_mm = 950;
   base.y_mm = -400;
   base.z_mm = 300;
   base.a_deg = 90;
-  const Eigen::Isometry3d T_world_base1 = toIsometry(base);
+  const Eigen::Isometry3d T_world_base1 = calib::toIsometry(base);
   std::ostringstream src;
   src.setf(std::ios::fixed);
   src.precision(6);
   src << "DEF tbit( )\n$TOOL={X " << tool.x_mm << ",Y " << tool.y_mm << ",Z " << tool.z_mm << ",A " << tool.a_deg << ",B " << tool.b_deg
       << ",C " << tool.c_deg << "}\n$BASE={X 950,Y -400,Z 300,A 90,B 0,C 0}\n";
-  std::vector<Configuration> asked;
+  std::vector<calib::Configuration> asked;
   for (int k = -15; k <= 15; ++k) {
     Eigen::VectorXd q(6);
     q << 10, -80, 95, 30, 45, 0.02 * k + 0.001;  // deg, never exactly 0
-    const Configuration c = kukaConfiguration(controller, q);
+    const calib::Configuration c = calib::kukaConfiguration(controller, q);
     asked.push_back(c);
-    const XyzAbc t = toXyzAbc(T_world_base1.inverse() * KinematicSolver(controller).forward(q));
+    const calib::XyzAbc t = calib::toXyzAbc(T_world_base1.inverse() * calib::KinematicSolver(controller).forward(q));
     src << "PTP {X " << t.x_mm << ",Y " << t.y_mm << ",Z " << t.z_mm << ",A " << t.a_deg << ",B " << t.b_deg << ",C " << t.c_deg << ",S " << c.status
         << ",T " << c.turn << "}\n";
   }
@@ -299,7 +299,7 @@ TEST(CompensateCli, TurnBitOfAJointNextToZeroIsRewrittenWithAWarning) {
   const Program in = readKrl(dir + "/tbit.src");
   const Program out = readKrl(dir + "/out/tbit.src");
   ASSERT_EQ(out.motions.size(), asked.size());
-  const KinematicSolver ctl(controller), rl(real);
+  const calib::KinematicSolver ctl(controller), rl(real);
   int flipped = 0;
   for (size_t k = 0; k < out.motions.size(); ++k) {
     const Target& t = out.motions[k].target;
@@ -307,11 +307,11 @@ TEST(CompensateCli, TurnBitOfAJointNextToZeroIsRewrittenWithAWarning) {
     EXPECT_EQ(*t.status, asked[k].status) << k;
     // the controller on the written S/T reaches the written pose with joints whose T is the
     // written one, and the real robot there is on the intended pose
-    const IkResult qc = ctl.inverse(T_world_base1 * toIsometry(t.xyzAbc()), Configuration{*t.status, *t.turn},
-                                    Eigen::VectorXd(), IkOptions{});
-    ASSERT_EQ(qc.status, IkStatus::kOk) << k << " " << qc.message;
-    EXPECT_EQ(kukaConfiguration(controller, qc.q).turn, *t.turn) << k;
-    const Eigen::Isometry3d intended = T_world_base1 * toIsometry(in.motions[k].target.xyzAbc());
+    const calib::IkResult qc = ctl.inverse(T_world_base1 * calib::toIsometry(t.xyzAbc()), calib::Configuration{*t.status, *t.turn},
+                                    Eigen::VectorXd(), calib::IkOptions{});
+    ASSERT_EQ(qc.status, calib::IkStatus::kOk) << k << " " << qc.message;
+    EXPECT_EQ(calib::kukaConfiguration(controller, qc.q).turn, *t.turn) << k;
+    const Eigen::Isometry3d intended = T_world_base1 * calib::toIsometry(in.motions[k].target.xyzAbc());
     EXPECT_LT((rl.forward(qc.q).translation() - intended.translation()).norm(), 1e-3) << k;
     if (*t.turn != asked[k].turn) {
       ++flipped;

@@ -17,7 +17,7 @@
 #include "accura/calib/simulate.h"
 #include "test_util.h"
 
-namespace accura {
+namespace accura::calib {
 namespace {
 
 const XyzAbc kTarget = {80, 40, 150, 0, 0, 0};  // tracker reflector on the flange (mm)
@@ -355,4 +355,4 @@ TEST(Diagnose, CommandRejectsBadOptionsWithExitCode1) {
 }
 
 }  // namespace
-}  // namespace accura
+}  // namespace accura::calib

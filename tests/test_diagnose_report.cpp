@@ -15,7 +15,7 @@
 #include "accura/calib/simulate.h"
 #include "test_util.h"
 
-namespace accura {
+namespace accura::calib {
 namespace {
 
 std::string findChromium() {
@@ -108,4 +108,4 @@ TEST(DiagnoseReport, RendersInHeadlessChromiumAndIsNotBlank) {
 }
 
 }  // namespace
-}  // namespace accura
+}  // namespace accura::calib

@@ -17,7 +17,7 @@
 #include "accura/calib/simulate.h"
 #include "test_util.h"
 
-namespace accura {
+namespace accura::calib {
 namespace {
 
 PoseContext randomContext(int dof, std::mt19937_64& rng) {
@@ -333,9 +333,9 @@ TEST(Effects, SimulatedEffectsMatchTheModelAndCarryEveryContextColumn) {
 }
 
 }  // namespace
-}  // namespace accura
+}  // namespace accura::calib
 
-namespace accura {
+namespace accura::calib {
 namespace {
 
 // Central differences of the kinematic core itself (kinematic_core.h): every column of the
@@ -456,9 +456,9 @@ TEST(KinematicCore, WorkspaceNoticesEveryChangeOfTheModel) {
 }
 
 }  // namespace
-}  // namespace accura
+}  // namespace accura::calib
 
-namespace accura {
+namespace accura::calib {
 namespace {
 
 // The core computes its sines and cosines itself: a forward kinematics with angles all over
@@ -496,4 +496,4 @@ TEST(KinematicCore, ForwardKinematicsEqualsALibraryDhProductOverSeveralTurns) {
 }
 
 }  // namespace
-}  // namespace accura
+}  // namespace accura::calib

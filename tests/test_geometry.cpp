@@ -5,7 +5,7 @@
 #include "accura/calib/errors.h"
 #include "accura/calib/geometry.h"
 
-namespace accura {
+namespace accura::calib {
 namespace {
 
 TEST(Geometry, AbcIsRzRyRx) {
@@ -63,4 +63,4 @@ TEST(Geometry, ParseXyzAbcRejectsBadLists) {
 }
 
 }  // namespace
-}  // namespace accura
+}  // namespace accura::calib

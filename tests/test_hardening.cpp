@@ -117,7 +117,7 @@ TEST(Hardening, ObjCutInsideItsLastFace) {
   try {
     loadMesh(s.path("t.obj"), 1.0);
     ADD_FAILURE() << "the cut OBJ was read";
-  } catch (const InputError& e) {
+  } catch (const calib::InputError& e) {
     EXPECT_EQ(e.line(), 6);
     EXPECT_EQ(e.column(), 6);
     EXPECT_EQ(e.message(), "'f': expected 3 or more vertex references, found 2 (a truncated line?)");
@@ -130,15 +130,15 @@ TEST(Hardening, ObjCutInsideItsLastFace) {
 }
 
 /// The InputError loadMesh throws for a file of this text (fails the test when it reads).
-InputError meshError(const Scratch& s, const std::string& name, const std::string& text, double scale = 1.0) {
+calib::InputError meshError(const Scratch& s, const std::string& name, const std::string& text, double scale = 1.0) {
   test::writeText(s.path(name), text);
   try {
     loadMesh(s.path(name), scale);
-  } catch (const InputError& e) {
+  } catch (const calib::InputError& e) {
     return e;
   }
   ADD_FAILURE() << name << " was read: " << text.substr(0, 200);
-  return InputError("");
+  return calib::InputError("");
 }
 
 const char* kPlyHeader =
@@ -174,26 +174,26 @@ TEST(Hardening, PlyBodiesAreCheckedLineByLine) {
   };
   for (const Case& c : cases) {
     SCOPED_TRACE(c.body);
-    const InputError e = meshError(s, "m.ply", kPlyHeader + c.body);
+    const calib::InputError e = meshError(s, "m.ply", kPlyHeader + c.body);
     EXPECT_EQ(e.line(), c.line);
     EXPECT_EQ(e.column(), c.column);
     EXPECT_EQ(e.message(), c.message);
   }
   // a coordinate within 100 m in metres is beyond it in mm once scaled (scale 1000: 0.2 m is fine, 101 m is not)
-  const InputError far = meshError(s, "m.ply", kPlyHeader + std::string("0 0 0\n101 0 0\n0 0.2 0\n3 0 1 2\n"), 1000.0);
+  const calib::InputError far = meshError(s, "m.ply", kPlyHeader + std::string("0 0 0\n101 0 0\n0 0.2 0\n3 0 1 2\n"), 1000.0);
   EXPECT_EQ(far.line(), 11);
   EXPECT_NE(far.message().find("found 101.000000 (101.000000 m)"), std::string::npos) << far.what();
   // header errors
-  const InputError type = meshError(s, "m.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty flaot x\n");
+  const calib::InputError type = meshError(s, "m.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty flaot x\n");
   EXPECT_EQ(type.line(), 4);
   EXPECT_EQ(type.column(), 10);
   EXPECT_EQ(type.message(), "expected a PLY type (char, uchar, short, ushort, int, uint, float, double, int8 .. float64), found 'flaot'");
-  const InputError scalar = meshError(s, "m.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+  const calib::InputError scalar = meshError(s, "m.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
                                                   "element face 1\nproperty int vertex_indices\nend_header\n");
   EXPECT_EQ(scalar.line(), 8);
   EXPECT_EQ(scalar.column(), 10);
   EXPECT_EQ(scalar.message(), "expected the vertex indices of a face as a list of an integer type (property list uchar int vertex_indices), found 'int'");
-  const InputError no_end = meshError(s, "m.ply", "ply\nformat ascii 1.0\nelement vertex 0\n");
+  const calib::InputError no_end = meshError(s, "m.ply", "ply\nformat ascii 1.0\nelement vertex 0\n");
   EXPECT_EQ(no_end.line(), 4);
   EXPECT_EQ(no_end.message(), "expected the PLY header to end with 'end_header', found the end of the file");
 }
@@ -220,10 +220,10 @@ TEST(Hardening, BinaryPlyAndStlSizesAreChecked) {
   const std::string face = std::string(1, '\3') + le32(0) + le32(1) + le32(2);
   test::writeText(s.path("ok.ply"), header + body + face);
   EXPECT_EQ(loadMesh(s.path("ok.ply"), 1.0).triangles.size(), 1u);
-  const InputError short_face = meshError(s, "m.ply", header + body + face.substr(0, face.size() - 1));
+  const calib::InputError short_face = meshError(s, "m.ply", header + body + face.substr(0, face.size() - 1));
   EXPECT_EQ(short_face.message(),
             "at byte " + std::to_string(header.size() + 36 + 9) + ": expected vertex_indices of 'face' 1 of 1 (4 bytes), found the end of the file (a truncated file?)");
-  const InputError index = meshError(s, "m.ply", header + body + std::string(1, '\3') + le32(0) + le32(1) + le32(3));
+  const calib::InputError index = meshError(s, "m.ply", header + body + std::string(1, '\3') + le32(0) + le32(1) + le32(3));
   EXPECT_EQ(index.message(), "at byte " + std::to_string(header.size() + 36 + 9) + ": expected a vertex index 0..2 in 'face' 1 of 1, found 3");
 
   // binary STL: 80-byte header, count, 50 bytes a triangle
@@ -233,14 +233,14 @@ TEST(Hardening, BinaryPlyAndStlSizesAreChecked) {
   const std::string head(80, 'b');
   test::writeText(s.path("ok.stl"), head + le32(1) + tri);
   EXPECT_EQ(loadMesh(s.path("ok.stl"), 1.0).triangles.size(), 1u);
-  const InputError cut = meshError(s, "m.stl", head + le32(2) + tri);
+  const calib::InputError cut = meshError(s, "m.stl", head + le32(2) + tri);
   EXPECT_EQ(cut.message(), "at byte 80: expected a binary STL of 84 + 50 x N bytes (N = 2 triangles at byte 80: 184 bytes), found 134 bytes (a truncated file?)");
   // 84 + 50 x 2147483649 = 107374182534 = 25 x 2^32 + 134: 134 in assimp's 32-bit arithmetic
-  const InputError wrap = meshError(s, "m.stl", head + le32(2147483649u) + tri);
+  const calib::InputError wrap = meshError(s, "m.stl", head + le32(2147483649u) + tri);
   EXPECT_EQ(wrap.message(), "at byte 80: expected a binary STL of 84 + 50 x 2147483649 = 107374182534 bytes, found 134 bytes");
   std::string inf_tri = tri;
   inf_tri.replace(12 + 4, 4, f32(std::numeric_limits<float>::infinity()));
-  const InputError inf = meshError(s, "m.stl", head + le32(1) + inf_tri);
+  const calib::InputError inf = meshError(s, "m.stl", head + le32(1) + inf_tri);
   EXPECT_EQ(inf.message(), "at byte 100: triangle 1 of 1: expected a finite coordinate, found inf");
 }
 
@@ -249,14 +249,14 @@ TEST(Hardening, AsciiStlEndsWithEndsolid) {
   const std::string facet = "facet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 100 0 0\nvertex 0 100 0\nendloop\nendfacet\n";
   test::writeText(s.path("ok.stl"), "solid t\n" + facet + "endsolid t\n");
   EXPECT_EQ(loadMesh(s.path("ok.stl"), 1.0).triangles.size(), 1u);
-  const InputError no_end = meshError(s, "m.stl", "solid t\n" + facet);
+  const calib::InputError no_end = meshError(s, "m.stl", "solid t\n" + facet);
   EXPECT_EQ(no_end.line(), 9);
   EXPECT_EQ(no_end.column(), 1);
   EXPECT_EQ(no_end.message(), "expected 'facet' or 'endsolid', found the end of the file (a truncated file?)");
-  const InputError two = meshError(s, "m.stl", "solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nendloop\n");
+  const calib::InputError two = meshError(s, "m.stl", "solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nendloop\n");
   EXPECT_EQ(two.line(), 6);
   EXPECT_EQ(two.message(), "expected 'vertex' (a facet has 3 vertices), found 'endloop'");
-  const InputError junk = meshError(s, "m.stl", "solid t\n" + facet + "endsolid t\ngarbage\n");
+  const calib::InputError junk = meshError(s, "m.stl", "solid t\n" + facet + "endsolid t\ngarbage\n");
   EXPECT_EQ(junk.line(), 10);
   EXPECT_EQ(junk.message(), "expected 'solid' or the end of the file, found 'garbage'");
 }
@@ -285,7 +285,7 @@ TEST(Hardening, CellNumbersAreDecimalAndWithinTheCell) {
     try {
       readCellFile(s.path("cell.xml"));
       ADD_FAILURE() << "read";
-    } catch (const InputError& e) {
+    } catch (const calib::InputError& e) {
       EXPECT_EQ(e.file(), s.path("cell.xml"));
       EXPECT_EQ(e.line(), 2);
       // the column of the attribute's name on line 2 ("  " + element), 1-based

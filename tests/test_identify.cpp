@@ -11,7 +11,7 @@
 #include "accura/calib/simulate.h"
 #include "test_util.h"
 
-namespace accura {
+namespace accura::calib {
 namespace {
 
 struct Campaign {
@@ -269,4 +269,4 @@ TEST(Identify, AGroupCanBeRestrictedToSomeJoints) {
 }
 
 }  // namespace
-}  // namespace accura
+}  // namespace accura::calib

@@ -24,56 +24,56 @@ namespace {
 
 /// A "real" robot: every geometric error, joint compliance, the base 3 m away (tracker
 /// station) and a tool.
-RobotModel realModel(const std::string& name, std::uint64_t seed = 7) {
-  RobotModel m = test::loadBundled(name);
-  SimulateOptions o;
+calib::RobotModel realModel(const std::string& name, std::uint64_t seed = 7) {
+  calib::RobotModel m = test::loadBundled(name);
+  calib::SimulateOptions o;
   o.effects = {"geometric", "joint_compliance"};
   o.seed = seed;
   o.tool = {60, -20, 180, 0, 0, 0};
   o.set_tool = true;
-  return perturbModel(m, o);
+  return calib::perturbModel(m, o);
 }
 
 /// The nominal robot with a base and a tool that are not the identity.
-RobotModel nominalModel(const std::string& name) {
-  RobotModel m = test::loadBundled(name);
-  m.nominal.T_world_base = toIsometry({500, -300, 100, 20, 0.5, -0.3});
-  m.nominal.T_flange_tcp = toIsometry({60, -20, 180, 10, -5, 0});
+calib::RobotModel nominalModel(const std::string& name) {
+  calib::RobotModel m = test::loadBundled(name);
+  m.nominal.T_world_base = calib::toIsometry({500, -300, 100, 20, 0.5, -0.3});
+  m.nominal.T_flange_tcp = calib::toIsometry({60, -20, 180, 10, -5, 0});
   return m;
 }
 
-Eigen::VectorXd randomJoints(const RobotModel& m, std::mt19937& rng, double margin = 0.02) {
+Eigen::VectorXd randomJoints(const calib::RobotModel& m, std::mt19937& rng, double margin = 0.02) {
   std::uniform_real_distribution<double> u(0, 1);
   Eigen::VectorXd q(m.dof());
   for (int i = 0; i < m.dof(); ++i) {
-    const JointSpec& j = m.nominal.joints[static_cast<size_t>(i)];
+    const calib::JointSpec& j = m.nominal.joints[static_cast<size_t>(i)];
     q[i] = j.lower + (margin + (1 - 2 * margin) * u(rng)) * (j.upper - j.lower);
   }
   return q;
 }
 
-double positionError(const RobotModel& m, const Eigen::VectorXd& q, const Eigen::Isometry3d& T, double payload = 0) {
-  KinematicWorkspace ws;
-  PoseContext c;
+double positionError(const calib::RobotModel& m, const Eigen::VectorXd& q, const Eigen::Isometry3d& T, double payload = 0) {
+  calib::KinematicWorkspace ws;
+  calib::PoseContext c;
   c.payload_kg = payload;
-  return (forwardKinematics(m, q, c, ws).translation() - T.translation()).norm();
+  return (calib::forwardKinematics(m, q, c, ws).translation() - T.translation()).norm();
 }
 
-double rotationError(const RobotModel& m, const Eigen::VectorXd& q, const Eigen::Isometry3d& T) {
-  KinematicWorkspace ws;
-  return logSO3(forwardKinematics(m, q, PoseContext{}, ws).linear() * T.linear().transpose()).norm();
+double rotationError(const calib::RobotModel& m, const Eigen::VectorXd& q, const Eigen::Isometry3d& T) {
+  calib::KinematicWorkspace ws;
+  return calib::logSO3(calib::forwardKinematics(m, q, calib::PoseContext{}, ws).linear() * T.linear().transpose()).norm();
 }
 
 /// Smallest singular value of the scaled Jacobian (independent of the solver: calib's
 /// jointJacobian, Eigen's SVD). Same scaling as IkOptions::singular_threshold.
-double scaledSigmaMin(const RobotModel& m, const Eigen::VectorXd& q) {
-  KinematicWorkspace ws;
-  Eigen::MatrixXd J = jointJacobian(m, q, PoseContext{}, ws);
+double scaledSigmaMin(const calib::RobotModel& m, const Eigen::VectorXd& q) {
+  calib::KinematicWorkspace ws;
+  Eigen::MatrixXd J = calib::jointJacobian(m, q, calib::PoseContext{}, ws);
   double L = 0;
-  for (const JointSpec& j : m.nominal.joints) L += std::abs(j.a_mm) + std::abs(j.d_mm);
+  for (const calib::JointSpec& j : m.nominal.joints) L += std::abs(j.a_mm) + std::abs(j.d_mm);
   L += m.T_flange_tcp().translation().norm();
   J.topRows(3) /= L;
-  J *= kRadToDeg;
+  J *= calib::kRadToDeg;
   Eigen::JacobiSVD<Eigen::MatrixXd> svd(J);
   return svd.singularValues().minCoeff();
 }
@@ -83,9 +83,9 @@ double scaledSigmaMin(const RobotModel& m, const Eigen::VectorXd& q) {
 TEST(IkChain, ForwardAndJacobianEqualCalibWithEveryEffect) {
   std::mt19937 rng(11);
   for (const std::string name : {"kuka_kr16", "ur10", "scara", "abb_irb120"}) {
-    RobotModel m = realModel(name);
+    calib::RobotModel m = realModel(name);
     // every effect of the catalogue, non-zero
-    Deviations& d = m.deviations;
+    calib::Deviations& d = m.deviations;
     for (int i = 0; i < m.dof(); ++i) {
       d.joint_scale[static_cast<size_t>(i)] = 2e-4 * (i + 1);
       d.backlash[static_cast<size_t>(i)] = 1e-4 * (i + 1);
@@ -94,25 +94,25 @@ TEST(IkChain, ForwardAndJacobianEqualCalibWithEveryEffect) {
         d.gear_cos[static_cast<size_t>(i * d.gear_harmonics + h)] = -2e-5 * (i + 1);
       }
     }
-    if (m.nominal.joints[2].type == JointType::kPrismatic) {
+    if (m.nominal.joints[2].type == calib::JointType::kPrismatic) {
       d.gear_sin[static_cast<size_t>(2 * d.gear_harmonics)] = 0;  // revolute joints only
     }
     d.thermal_alpha_per_k = 11e-6;
-    const KinematicSolver solver(m);
+    const calib::KinematicSolver solver(m);
     for (int k = 0; k < 20; ++k) {
       const Eigen::VectorXd q = randomJoints(m, rng);
-      PoseContext c;
+      calib::PoseContext c;
       c.payload_kg = 5.0 * (k % 3);
       c.temp_c = 15.0 + k;
       if (k % 2) c.dir.assign(static_cast<size_t>(m.dof()), k % 4 == 1 ? 1 : -1);
-      KinematicWorkspace ws;
-      const Eigen::Isometry3d T_calib = forwardKinematics(m, q, c, ws);
+      calib::KinematicWorkspace ws;
+      const Eigen::Isometry3d T_calib = calib::forwardKinematics(m, q, c, ws);
       const Eigen::Isometry3d T = solver.forward(q, c);
       EXPECT_LT((T.translation() - T_calib.translation()).norm(), 1e-9) << name;
       EXPECT_LT((T.linear() - T_calib.linear()).norm(), 1e-12) << name;
       Eigen::Matrix<double, 6, Eigen::Dynamic> J;
       solver.jacobian(q, c, J);
-      const Eigen::MatrixXd J_calib = jointJacobian(m, q, c, ws);
+      const Eigen::MatrixXd J_calib = calib::jointJacobian(m, q, c, ws);
       EXPECT_LT((J - J_calib).norm(), 1e-9 * J_calib.norm()) << name;
     }
   }
@@ -120,16 +120,16 @@ TEST(IkChain, ForwardAndJacobianEqualCalibWithEveryEffect) {
 
 TEST(IkChain, JacobianMatchesFiniteDifferences) {
   // without compliance the joint Jacobian is the exact derivative of the pose
-  RobotModel m = realModel("kuka_kr16");
+  calib::RobotModel m = realModel("kuka_kr16");
   std::fill(m.deviations.compliance.begin(), m.deviations.compliance.end(), 0.0);
   m.deviations.joint_scale[1] = 3e-4;
   m.deviations.gear_sin[4] = 2e-4;
-  const KinematicSolver solver(m);
+  const calib::KinematicSolver solver(m);
   std::mt19937 rng(5);
   for (int k = 0; k < 10; ++k) {
     const Eigen::VectorXd q = randomJoints(m, rng);
     Eigen::Matrix<double, 6, Eigen::Dynamic> J;
-    const Eigen::Isometry3d T = solver.jacobian(q, PoseContext{}, J);
+    const Eigen::Isometry3d T = solver.jacobian(q, calib::PoseContext{}, J);
     const double h = 1e-5;  // deg
     for (int i = 0; i < m.dof(); ++i) {
       Eigen::VectorXd qp = q, qm = q;
@@ -137,7 +137,7 @@ TEST(IkChain, JacobianMatchesFiniteDifferences) {
       qm[i] -= h;
       const Eigen::Isometry3d Tp = solver.forward(qp), Tm = solver.forward(qm);
       const Eigen::Vector3d dp = (Tp.translation() - Tm.translation()) / (2 * h);
-      const Eigen::Vector3d dr = logSO3(Tp.linear() * Tm.linear().transpose()) / (2 * h);
+      const Eigen::Vector3d dr = calib::logSO3(Tp.linear() * Tm.linear().transpose()) / (2 * h);
       EXPECT_LT((dp - J.col(i).head<3>()).norm(), 1e-6 * (1 + dp.norm())) << "joint " << i;
       EXPECT_LT((dr - J.col(i).tail<3>()).norm(), 1e-9) << "joint " << i;
     }
@@ -153,7 +153,7 @@ TEST(IkChain, SmallLinearAlgebraEqualsEigen) {
     for (int i = 0; i < 36; ++i) A.data()[i] = g(rng);
     Eigen::Matrix<double, 6, 1> b;
     for (int i = 0; i < 6; ++i) b[i] = g(rng);
-    detail::Lu6 lu;
+    calib::detail::Lu6 lu;
     ASSERT_TRUE(lu.factor(A));
     const Eigen::Matrix<double, 6, 1> x = lu.solve(b);
     const Eigen::Matrix<double, 6, 1> x_eigen = A.fullPivLu().solve(b);
@@ -164,12 +164,12 @@ TEST(IkChain, SmallLinearAlgebraEqualsEigen) {
     Eigen::Matrix<double, 6, 6> below = G, above = G;
     below.diagonal().array() -= 0.9 * smin * 0.9 * smin;
     above.diagonal().array() -= 1.1 * smin * 1.1 * smin;
-    EXPECT_TRUE(detail::positiveDefinite6(below));
-    EXPECT_FALSE(detail::positiveDefinite6(above));
+    EXPECT_TRUE(calib::detail::positiveDefinite6(below));
+    EXPECT_FALSE(calib::detail::positiveDefinite6(above));
   }
   Eigen::Matrix<double, 6, 6> S = Eigen::Matrix<double, 6, 6>::Identity();
   S.row(3) = S.row(2);
-  detail::Lu6 lu;
+  calib::detail::Lu6 lu;
   EXPECT_FALSE(lu.factor(S));
 }
 
@@ -178,8 +178,8 @@ TEST(IkChain, SmallLinearAlgebraEqualsEigen) {
 TEST(IkClosedForm, ExactForNominalRobots) {
   std::mt19937 rng(21);
   for (const std::string name : {"kuka_kr16", "abb_irb120", "ur10"}) {
-    const RobotModel m = nominalModel(name);
-    const KinematicSolver solver(m);
+    const calib::RobotModel m = nominalModel(name);
+    const calib::KinematicSolver solver(m);
     EXPECT_STREQ(solver.closedForm(), name == "ur10" ? "three_parallel" : "spherical_wrist");
     int poses = 0;
     for (int k = 0; k < 100; ++k) {
@@ -194,7 +194,7 @@ TEST(IkClosedForm, ExactForNominalRobots) {
         EXPECT_LT(positionError(m, s, T), 1e-8) << name;
         EXPECT_LT(rotationError(m, s, T), 1e-11) << name;
         found = found || (s - q).cwiseAbs().maxCoeff() < 1e-7;
-        statuses.insert(kukaConfiguration(m, s).status);
+        statuses.insert(calib::kukaConfiguration(m, s).status);
       }
       EXPECT_TRUE(found) << name << " q = " << q.transpose();
     }
@@ -203,28 +203,28 @@ TEST(IkClosedForm, ExactForNominalRobots) {
 }
 
 TEST(IkClosedForm, NoneForAScara) {
-  const KinematicSolver solver(test::loadBundled("scara"));
+  const calib::KinematicSolver solver(test::loadBundled("scara"));
   EXPECT_STREQ(solver.closedForm(), "none");
 }
 
 // ---------------------------------------------------------------------------------------
 
 TEST(KukaConfiguration, HomeAndBitsByDefinition) {
-  const RobotModel m = test::loadBundled("kuka_kr16");
+  const calib::RobotModel m = test::loadBundled("kuka_kr16");
   Eigen::VectorXd home(6);
   home << 0, -90, 90, 0, 0, 0;
   // KUKA's usual home: basic area, A3 above the stretched angle, A5 = 0 (not negative);
   // Turn: only A2 negative. Programs carry S 'B010' T 'B000010' there.
-  const Configuration c = kukaConfiguration(m, home);
+  const calib::Configuration c = calib::kukaConfiguration(m, home);
   EXPECT_EQ(c.status, 2);
   EXPECT_EQ(c.turn, 2);
   Eigen::VectorXd q = home;
   q[4] = -30;  // A5 negative: bit 2, and Turn bit 4
-  EXPECT_EQ(kukaConfiguration(m, q).status, 6);
-  EXPECT_EQ(kukaConfiguration(m, q).turn, 2 | 16);
+  EXPECT_EQ(calib::kukaConfiguration(m, q).status, 6);
+  EXPECT_EQ(calib::kukaConfiguration(m, q).turn, 2 | 16);
   q[4] = 200;  // A5 = 200 = -160 in [-180, 180): negative
-  EXPECT_EQ(kukaConfiguration(m, q).status & 4, 4);
-  EXPECT_EQ(kukaConfiguration(m, q).turn & 16, 0);
+  EXPECT_EQ(calib::kukaConfiguration(m, q).status & 4, 4);
+  EXPECT_EQ(calib::kukaConfiguration(m, q).turn & 16, 0);
 }
 
 TEST(KukaConfiguration, MatchesAGeometricComputation) {
@@ -233,14 +233,14 @@ TEST(KukaConfiguration, MatchesAGeometricComputation) {
   // spherical wrist) is farthest from the A2 axis (a search over A3); bit 2: the sign of A5.
   std::mt19937 rng(8);
   for (const std::string name : {"kuka_kr16", "abb_irb120", "ur10"}) {
-    const RobotModel m = test::loadBundled(name);
-    const JointSpec& j1 = m.nominal.joints[0];
-    KinematicWorkspace ws;
+    const calib::RobotModel m = test::loadBundled(name);
+    const calib::JointSpec& j1 = m.nominal.joints[0];
+    calib::KinematicWorkspace ws;
     // the stretched A3: maximise |o5 - o1| over q3 (golden section on the nominal FK)
     auto reach = [&](double q3) {
       Eigen::VectorXd q = Eigen::VectorXd::Zero(6);
       q[2] = q3;
-      forwardKinematics(m, q, PoseContext{}, ws);
+      calib::forwardKinematics(m, q, calib::PoseContext{}, ws);
       return (ws.T_base_frame[4].translation() - ws.T_base_frame[1].translation()).norm();
     };
     double a = -180, b = 180;
@@ -256,13 +256,13 @@ TEST(KukaConfiguration, MatchesAGeometricComputation) {
     }
     const double phi = 0.5 * (a + b);
     if (name == "kuka_kr16") {
-      EXPECT_NEAR(phi, -std::atan2(35, 670) * kRadToDeg, 1e-4);
+      EXPECT_NEAR(phi, -std::atan2(35, 670) * calib::kRadToDeg, 1e-4);
     }
     for (int k = 0; k < 200; ++k) {
       const Eigen::VectorXd q = randomJoints(m, rng);
-      forwardKinematics(m, q, PoseContext{}, ws);
+      calib::forwardKinematics(m, q, calib::PoseContext{}, ws);
       const Eigen::Vector3d w = ws.T_base_frame[5].translation();
-      const double a1 = j1.direction * q[0] * kDegToRad;  // the base turned with A1
+      const double a1 = j1.direction * q[0] * calib::kDegToRad;  // the base turned with A1
       const double x_a1 = std::cos(a1) * w.x() + std::sin(a1) * w.y();
       if (std::abs(x_a1) < 1e-6 || std::abs(q[2] - phi) < 1e-3) continue;
       int s = 0;
@@ -273,7 +273,7 @@ TEST(KukaConfiguration, MatchesAGeometricComputation) {
       int t = 0;
       for (int i = 0; i < 6; ++i)
         if (q[i] < 0) t |= 1 << i;
-      const Configuration c = kukaConfiguration(m, q);
+      const calib::Configuration c = calib::kukaConfiguration(m, q);
       EXPECT_EQ(c.status, s) << name << " q " << q.transpose();
       EXPECT_EQ(c.turn, t) << name;
     }
@@ -281,13 +281,13 @@ TEST(KukaConfiguration, MatchesAGeometricComputation) {
 }
 
 TEST(KukaConfiguration, UndefinedStatusWithoutSixRevoluteJoints) {
-  const RobotModel m = test::loadBundled("scara");
+  const calib::RobotModel m = test::loadBundled("scara");
   Eigen::VectorXd q(4);
   q << -10, 20, 50, -30;
-  const Configuration c = kukaConfiguration(m, q);
+  const calib::Configuration c = calib::kukaConfiguration(m, q);
   EXPECT_EQ(c.status, -1);
   EXPECT_EQ(c.turn, 1 | 8);
-  EXPECT_THROW(kukaConfiguration(m, Eigen::VectorXd(3)), ArgumentError);
+  EXPECT_THROW(calib::kukaConfiguration(m, Eigen::VectorXd(3)), calib::ArgumentError);
 }
 
 // ---------------------------------------------------------------------------------------
@@ -301,32 +301,32 @@ struct RoundTripStats {
 /// few degrees away, any configuration). Well-conditioned targets (scaled sigma_min >= 1e-3)
 /// must all be solved, to 1 um and 1 urad, on the configuration asked for and on the joints
 /// they came from; near-singular ones must never give a wrong point.
-RoundTripStats roundTrip(const RobotModel& m, int count, std::uint64_t seed, bool warm) {
-  const KinematicSolver solver(m);
+RoundTripStats roundTrip(const calib::RobotModel& m, int count, std::uint64_t seed, bool warm) {
+  const calib::KinematicSolver solver(m);
   std::mt19937 rng(static_cast<unsigned>(seed));
   std::uniform_real_distribution<double> u(-1, 1);
-  const IkOptions o;
+  const calib::IkOptions o;
   RoundTripStats st;
   for (int k = 0; k < count; ++k) {
     const Eigen::VectorXd q = randomJoints(m, rng);
     const Eigen::Isometry3d T = solver.forward(q);
-    const Configuration c = kukaConfiguration(m, q);
+    const calib::Configuration c = calib::kukaConfiguration(m, q);
     Eigen::VectorXd s;
     if (warm) {
       s = q;
       for (int i = 0; i < m.dof(); ++i) s[i] += 3.0 * u(rng);
     }
-    const IkResult r = solver.inverse(T, warm ? Configuration{} : c, s, o);
+    const calib::IkResult r = solver.inverse(T, warm ? calib::Configuration{} : c, s, o);
     const bool well = scaledSigmaMin(m, q) >= 1e-3;
-    if (r.status == IkStatus::kOk) {
+    if (r.status == calib::IkStatus::kOk) {
       // never a wrong point: checked with calib's FK, not the solver's
       EXPECT_LE(positionError(m, r.q, T), o.tol_mm);
       EXPECT_LE(rotationError(m, r.q, T), o.tol_rad * 1.0001);
-      EXPECT_TRUE(configurationMatches(warm ? Configuration{} : c, r.configuration));
+      EXPECT_TRUE(calib::configurationMatches(warm ? calib::Configuration{} : c, r.configuration));
     }
     if (well) {
       ++st.well_conditioned;
-      if (r.status == IkStatus::kOk) {
+      if (r.status == calib::IkStatus::kOk) {
         ++st.ok;
         if (warm) {
           // the solution nearest to the seed: at least as near as the joints the pose came
@@ -344,7 +344,7 @@ RoundTripStats roundTrip(const RobotModel& m, int count, std::uint64_t seed, boo
       }
     } else {
       ++st.near_singular;
-      if (r.status == IkStatus::kOk) ++st.near_singular_ok;
+      if (r.status == calib::IkStatus::kOk) ++st.near_singular_ok;
       if (r.q.size()) {
         EXPECT_LE(positionError(m, r.q, T), o.tol_mm);
       }
@@ -357,7 +357,7 @@ class IkRoundTrip : public ::testing::TestWithParam<std::string> {};
 
 TEST_P(IkRoundTrip, ColdOnNominalAndRealModels) {
   for (const bool real : {false, true}) {
-    const RobotModel m = real ? realModel(GetParam()) : nominalModel(GetParam());
+    const calib::RobotModel m = real ? realModel(GetParam()) : nominalModel(GetParam());
     const RoundTripStats st = roundTrip(m, 300, 100 + real, false);
     EXPECT_EQ(st.ok, st.well_conditioned) << GetParam() << (real ? " real" : " nominal");
     EXPECT_GT(st.well_conditioned, 250);
@@ -366,7 +366,7 @@ TEST_P(IkRoundTrip, ColdOnNominalAndRealModels) {
 
 TEST_P(IkRoundTrip, WarmOnNominalAndRealModels) {
   for (const bool real : {false, true}) {
-    const RobotModel m = real ? realModel(GetParam()) : nominalModel(GetParam());
+    const calib::RobotModel m = real ? realModel(GetParam()) : nominalModel(GetParam());
     const RoundTripStats st = roundTrip(m, 300, 200 + real, true);
     EXPECT_EQ(st.ok, st.well_conditioned) << GetParam() << (real ? " real" : " nominal");
   }
@@ -375,35 +375,35 @@ TEST_P(IkRoundTrip, WarmOnNominalAndRealModels) {
 INSTANTIATE_TEST_SUITE_P(Robots, IkRoundTrip, ::testing::Values("kuka_kr16", "abb_irb120", "ur10"));
 
 TEST(Ik, WithPayloadTheCompliantModelIsSolved) {
-  const RobotModel m = realModel("kuka_kr16");
-  const KinematicSolver solver(m);
+  const calib::RobotModel m = realModel("kuka_kr16");
+  const calib::KinematicSolver solver(m);
   std::mt19937 rng(9);
-  PoseContext c;
+  calib::PoseContext c;
   c.payload_kg = 16;
   for (int k = 0; k < 30; ++k) {
     const Eigen::VectorXd q = randomJoints(m, rng, 0.1);
     if (scaledSigmaMin(m, q) < 1e-3) continue;
     const Eigen::Isometry3d T = solver.forward(q, c);
-    const IkResult r = solver.inverse(T, kukaConfiguration(m, q), Eigen::VectorXd(), IkOptions{}, c);
-    ASSERT_EQ(r.status, IkStatus::kOk) << r.message;
+    const calib::IkResult r = solver.inverse(T, calib::kukaConfiguration(m, q), Eigen::VectorXd(), calib::IkOptions{}, c);
+    ASSERT_EQ(r.status, calib::IkStatus::kOk) << r.message;
     EXPECT_LE(positionError(m, r.q, T, 16), 1e-3);
     // the same pose without the payload needs other joints (the arm sags less)
-    const IkResult r0 = solver.inverse(T, kukaConfiguration(m, q), Eigen::VectorXd(), IkOptions{});
-    ASSERT_EQ(r0.status, IkStatus::kOk);
+    const calib::IkResult r0 = solver.inverse(T, calib::kukaConfiguration(m, q), Eigen::VectorXd(), calib::IkOptions{});
+    ASSERT_EQ(r0.status, calib::IkStatus::kOk);
     EXPECT_GT((r0.q - r.q).norm(), 1e-3);
   }
 }
 
 TEST(Ik, ScaraWithoutClosedFormByMultiStart) {
-  const RobotModel m = realModel("scara");
-  const KinematicSolver solver(m);
+  const calib::RobotModel m = realModel("scara");
+  const calib::KinematicSolver solver(m);
   std::mt19937 rng(4);
   int ok = 0;
   for (int k = 0; k < 40; ++k) {
     const Eigen::VectorXd q = randomJoints(m, rng, 0.05);
     const Eigen::Isometry3d T = solver.forward(q);
-    const IkResult r = solver.inverse(T, Configuration{}, Eigen::VectorXd(), IkOptions{});
-    if (r.status == IkStatus::kOk) {
+    const calib::IkResult r = solver.inverse(T, calib::Configuration{}, Eigen::VectorXd(), calib::IkOptions{});
+    if (r.status == calib::IkStatus::kOk) {
       ++ok;
       EXPECT_LE(positionError(m, r.q, T), 1e-3);
       EXPECT_LE(rotationError(m, r.q, T), 1e-6);
@@ -413,12 +413,12 @@ TEST(Ik, ScaraWithoutClosedFormByMultiStart) {
 }
 
 TEST(Ik, WarmStartFromTheSolutionTakesNoIteration) {
-  const RobotModel m = realModel("kuka_kr16");
-  const KinematicSolver solver(m);
+  const calib::RobotModel m = realModel("kuka_kr16");
+  const calib::KinematicSolver solver(m);
   Eigen::VectorXd q(6);
   q << 20, -80, 100, 30, 45, -60;
-  const IkResult r = solver.inverse(solver.forward(q), Configuration{}, q, IkOptions{});
-  ASSERT_EQ(r.status, IkStatus::kOk);
+  const calib::IkResult r = solver.inverse(solver.forward(q), calib::Configuration{}, q, calib::IkOptions{});
+  ASSERT_EQ(r.status, calib::IkStatus::kOk);
   EXPECT_EQ(r.iterations, 0);
   EXPECT_EQ((r.q - q).norm(), 0.0);
 }
@@ -429,9 +429,9 @@ TEST(Ik, WarmStartFromTheSolutionTakesNoIteration) {
 TEST(Ik, EveryStatusBranchIsReproducedOnTheRealRobot) {
   // poses where all eight Status values exist within the limits: each asked for with its
   // Turn gives the real robot's solution on that branch, distinct from the others
-  const RobotModel real = realModel("kuka_kr16");
-  const RobotModel nominal = test::loadBundled("kuka_kr16");
-  const KinematicSolver solver(real);
+  const calib::RobotModel real = realModel("kuka_kr16");
+  const calib::RobotModel nominal = test::loadBundled("kuka_kr16");
+  const calib::KinematicSolver solver(real);
   std::mt19937 rng(12);
   int poses = 0;
   for (int k = 0; k < 4000 && poses < 3; ++k) {
@@ -441,7 +441,7 @@ TEST(Ik, EveryStatusBranchIsReproducedOnTheRealRobot) {
     std::map<int, int> turn_of_status;
     bool well = true;
     for (const Eigen::VectorXd& s : solver.closedFormSolutions(T)) {
-      const Configuration c = kukaConfiguration(nominal, s);
+      const calib::Configuration c = calib::kukaConfiguration(nominal, s);
       if (!turn_of_status.count(c.status)) turn_of_status[c.status] = c.turn;
       well = well && scaledSigmaMin(real, s) > 1e-2;
     }
@@ -449,8 +449,8 @@ TEST(Ik, EveryStatusBranchIsReproducedOnTheRealRobot) {
     ++poses;
     std::vector<Eigen::VectorXd> solutions;
     for (const auto& [status, turn] : turn_of_status) {
-      const IkResult r = solver.inverse(T, Configuration{status, turn}, Eigen::VectorXd(), IkOptions{});
-      ASSERT_EQ(r.status, IkStatus::kOk) << "S " << status << " T " << turn << ": " << r.message;
+      const calib::IkResult r = solver.inverse(T, calib::Configuration{status, turn}, Eigen::VectorXd(), calib::IkOptions{});
+      ASSERT_EQ(r.status, calib::IkStatus::kOk) << "S " << status << " T " << turn << ": " << r.message;
       EXPECT_EQ(r.configuration.status, status);
       EXPECT_EQ(r.configuration.turn, turn);
       EXPECT_LE(positionError(real, r.q, T), 1e-3);
@@ -468,19 +468,19 @@ TEST(Ik, EveryStatusBranchIsReproducedOnTheRealRobot) {
 
 TEST(Ik, UnreachableTargetIsReported) {
   for (const std::string name : {"kuka_kr16", "ur10", "abb_irb120"}) {
-    const RobotModel m = realModel(name);
-    const KinematicSolver solver(m);
-    Eigen::Isometry3d T = m.T_world_base() * toIsometry({5000, 0, 500, 0, 90, 0});
+    const calib::RobotModel m = realModel(name);
+    const calib::KinematicSolver solver(m);
+    Eigen::Isometry3d T = m.T_world_base() * calib::toIsometry({5000, 0, 500, 0, 90, 0});
     for (const Eigen::VectorXd& seed : std::vector<Eigen::VectorXd>{Eigen::VectorXd(), Eigen::VectorXd::Zero(6)}) {
-      const IkResult r = solver.inverse(T, Configuration{}, seed, IkOptions{});
-      EXPECT_EQ(r.status, IkStatus::kUnreachable) << name << ": " << r.message;
+      const calib::IkResult r = solver.inverse(T, calib::Configuration{}, seed, calib::IkOptions{});
+      EXPECT_EQ(r.status, calib::IkStatus::kUnreachable) << name << ": " << r.message;
       EXPECT_EQ(r.q.size(), 0);
       EXPECT_FALSE(r.message.empty());
     }
   }
   // just beyond the stretched arm: 5 mm further than the real robot reaches
-  const RobotModel m = realModel("kuka_kr16");
-  const KinematicSolver solver(m);
+  const calib::RobotModel m = realModel("kuka_kr16");
+  const calib::KinematicSolver solver(m);
   Eigen::VectorXd q(6);
   q << 0, -30, -2.99, 0, 60, 0;
   // stretch: search A3 for the farthest flange, then push the target outwards
@@ -497,111 +497,111 @@ TEST(Ik, UnreachableTargetIsReported) {
   Eigen::Isometry3d T = solver.forward(q);
   const Eigen::Vector3d out = (T.translation() - m.T_world_base().translation()).normalized();
   T.translation() += 5 * out;
-  const IkResult r = solver.inverse(T, Configuration{}, Eigen::VectorXd(), IkOptions{});
-  EXPECT_EQ(r.status, IkStatus::kUnreachable) << toString(r.status) << ": " << r.message;
+  const calib::IkResult r = solver.inverse(T, calib::Configuration{}, Eigen::VectorXd(), calib::IkOptions{});
+  EXPECT_EQ(r.status, calib::IkStatus::kUnreachable) << toString(r.status) << ": " << r.message;
 }
 
 TEST(Ik, TargetBeyondTheJointLimitsIsReported) {
-  RobotModel m = nominalModel("kuka_kr16");
+  calib::RobotModel m = nominalModel("kuka_kr16");
   Eigen::VectorXd q(6);
   q << 30, -70, 80, 20, 40, 10;
-  const Eigen::Isometry3d T = KinematicSolver(m).forward(q);
+  const Eigen::Isometry3d T = calib::KinematicSolver(m).forward(q);
   // A1 limited to +-10 deg: both A1 solutions (30 and 30 + 180 - ...) are outside
   m.nominal.joints[0].lower = -10;
   m.nominal.joints[0].upper = 10;
-  const KinematicSolver solver(m);
+  const calib::KinematicSolver solver(m);
   for (const Eigen::VectorXd& seed : std::vector<Eigen::VectorXd>{Eigen::VectorXd(), q}) {
-    const IkResult r = solver.inverse(T, Configuration{}, seed, IkOptions{});
-    EXPECT_EQ(r.status, IkStatus::kJointLimits) << toString(r.status) << ": " << r.message;
+    const calib::IkResult r = solver.inverse(T, calib::Configuration{}, seed, calib::IkOptions{});
+    EXPECT_EQ(r.status, calib::IkStatus::kJointLimits) << toString(r.status) << ": " << r.message;
     EXPECT_EQ(r.q.size(), 0);
   }
   // a joint margin: A5 = 115 is within -130..130, not with 20 deg of margin: on the
   // configuration asked for there is no solution (another configuration may have one)
-  const RobotModel full = nominalModel("kuka_kr16");
+  const calib::RobotModel full = nominalModel("kuka_kr16");
   Eigen::VectorXd q5 = q;
   q5[4] = 115;
-  const KinematicSolver full_solver(full);
+  const calib::KinematicSolver full_solver(full);
   const Eigen::Isometry3d T5 = full_solver.forward(q5);
-  IkOptions o;
+  calib::IkOptions o;
   o.joint_margin = 20;
-  const IkResult r = full_solver.inverse(T5, kukaConfiguration(full, q5), Eigen::VectorXd(), o);
-  EXPECT_TRUE(r.status == IkStatus::kJointLimits || r.status == IkStatus::kNoConfiguration) << toString(r.status);
+  const calib::IkResult r = full_solver.inverse(T5, calib::kukaConfiguration(full, q5), Eigen::VectorXd(), o);
+  EXPECT_TRUE(r.status == calib::IkStatus::kJointLimits || r.status == calib::IkStatus::kNoConfiguration) << toString(r.status);
   if (r.q.size()) {
-    EXPECT_NE(r.configuration, kukaConfiguration(full, q5));
+    EXPECT_NE(r.configuration, calib::kukaConfiguration(full, q5));
     for (int i = 0; i < 6; ++i) {
       EXPECT_GE(r.q[i], full.nominal.joints[i].lower + 20);
       EXPECT_LE(r.q[i], full.nominal.joints[i].upper - 20);
     }
   }
   // without the margin it is solved
-  const IkResult r0 = full_solver.inverse(T5, kukaConfiguration(full, q5), Eigen::VectorXd(), IkOptions{});
-  EXPECT_EQ(r0.status, IkStatus::kOk);
+  const calib::IkResult r0 = full_solver.inverse(T5, calib::kukaConfiguration(full, q5), Eigen::VectorXd(), calib::IkOptions{});
+  EXPECT_EQ(r0.status, calib::IkStatus::kOk);
 }
 
 TEST(Ik, ConfigurationThatDoesNotExistIsReported) {
-  const RobotModel m = realModel("kuka_kr16");
-  const KinematicSolver solver(m);
+  const calib::RobotModel m = realModel("kuka_kr16");
+  const calib::KinematicSolver solver(m);
   Eigen::VectorXd q(6);
   q << 100, -80, 90, 20, 40, 10;
   const Eigen::Isometry3d T = solver.forward(q);
-  Configuration c = kukaConfiguration(m, q);
+  calib::Configuration c = calib::kukaConfiguration(m, q);
   // A1 = 100 cannot be negative within -185..185 (-260 is outside): Turn bit 0 set is
   // impossible on this branch
   c.turn |= 1;
-  const IkResult r = solver.inverse(T, c, Eigen::VectorXd(), IkOptions{});
-  EXPECT_NE(r.status, IkStatus::kOk);
+  const calib::IkResult r = solver.inverse(T, c, Eigen::VectorXd(), calib::IkOptions{});
+  EXPECT_NE(r.status, calib::IkStatus::kOk);
   if (r.q.size()) {
-    EXPECT_EQ(r.status, IkStatus::kNoConfiguration);
-    EXPECT_FALSE(configurationMatches(c, r.configuration));
+    EXPECT_EQ(r.status, calib::IkStatus::kNoConfiguration);
+    EXPECT_FALSE(calib::configurationMatches(c, r.configuration));
     EXPECT_LE(positionError(m, r.q, T), 1e-3);  // a valid solution, on another configuration
   }
 }
 
 TEST(Ik, SingularPosesAreReportedWithACorrectSolution) {
   for (const bool real : {false, true}) {
-    const RobotModel m = real ? realModel("kuka_kr16") : nominalModel("kuka_kr16");
-    const KinematicSolver solver(m);
+    const calib::RobotModel m = real ? realModel("kuka_kr16") : nominalModel("kuka_kr16");
+    const calib::KinematicSolver solver(m);
     // wrist: A5 = 0 (A4 and A6 aligned); elbow: A3 at the stretched angle
     Eigen::VectorXd wrist(6), elbow(6);
     wrist << 20, -70, 80, 30, 0, 40;
-    elbow << 20, -40, -std::atan2(35, 670) * kRadToDeg, 30, 50, 40;
+    elbow << 20, -40, -std::atan2(35, 670) * calib::kRadToDeg, 30, 50, 40;
     for (const Eigen::VectorXd& q : std::vector<Eigen::VectorXd>{wrist, elbow}) {
       const Eigen::Isometry3d T = solver.forward(q);
-      const IkResult r = solver.inverse(T, Configuration{}, Eigen::VectorXd(), IkOptions{});
+      const calib::IkResult r = solver.inverse(T, calib::Configuration{}, Eigen::VectorXd(), calib::IkOptions{});
       if (!real) {
-        EXPECT_EQ(r.status, IkStatus::kSingular) << toString(r.status) << " " << r.message;
+        EXPECT_EQ(r.status, calib::IkStatus::kSingular) << toString(r.status) << " " << r.message;
       }
-      if (r.status == IkStatus::kSingular) {
-        EXPECT_LT(r.min_singular_value, IkOptions{}.singular_threshold);
+      if (r.status == calib::IkStatus::kSingular) {
+        EXPECT_LT(r.min_singular_value, calib::IkOptions{}.singular_threshold);
         ASSERT_EQ(r.q.size(), 6);
         EXPECT_LE(positionError(m, r.q, T), 1e-3);
       } else {
         // the real robot's singularity is elsewhere: then the point must be right
-        ASSERT_EQ(r.status, IkStatus::kOk) << r.message;
+        ASSERT_EQ(r.status, calib::IkStatus::kOk) << r.message;
         EXPECT_LE(positionError(m, r.q, T), 1e-3);
       }
     }
     // next to the wrist singularity but above the threshold: solved
     Eigen::VectorXd q = wrist;
     q[4] = 3;
-    const IkResult r = solver.inverse(solver.forward(q), kukaConfiguration(m, q), Eigen::VectorXd(), IkOptions{});
-    EXPECT_EQ(r.status, IkStatus::kOk) << r.message;
+    const calib::IkResult r = solver.inverse(solver.forward(q), calib::kukaConfiguration(m, q), Eigen::VectorXd(), calib::IkOptions{});
+    EXPECT_EQ(r.status, calib::IkStatus::kOk) << r.message;
   }
 }
 
 TEST(Ik, SingularValueGrowsWithA5) {
   // the scale the threshold refers to: sigma_min against A5 near the wrist singularity
-  const RobotModel m = test::loadBundled("kuka_kr16");
-  IkOptions o;
+  const calib::RobotModel m = test::loadBundled("kuka_kr16");
+  calib::IkOptions o;
   o.compute_singular_value = true;
   o.singular_threshold = 0;
-  const KinematicSolver solver(m);
+  const calib::KinematicSolver solver(m);
   double prev = 0;
   for (const double a5 : {0.05, 0.2, 1.0, 5.0}) {
     Eigen::VectorXd q(6);
     q << 20, -70, 80, 30, a5, 40;
-    const IkResult r = solver.inverse(solver.forward(q), kukaConfiguration(m, q), q, o);
-    ASSERT_EQ(r.status, IkStatus::kOk);
+    const calib::IkResult r = solver.inverse(solver.forward(q), calib::kukaConfiguration(m, q), q, o);
+    ASSERT_EQ(r.status, calib::IkStatus::kOk);
     EXPECT_NEAR(r.min_singular_value, scaledSigmaMin(m, r.q), 1e-9);
     EXPECT_GT(r.min_singular_value, prev);
     prev = r.min_singular_value;
@@ -609,33 +609,33 @@ TEST(Ik, SingularValueGrowsWithA5) {
 }
 
 TEST(Ik, BadArgumentsThrow) {
-  const KinematicSolver solver(test::loadBundled("kuka_kr16"));
+  const calib::KinematicSolver solver(test::loadBundled("kuka_kr16"));
   const Eigen::Isometry3d T = solver.forward(Eigen::VectorXd::Zero(6));
-  EXPECT_THROW(solver.inverse(T, Configuration{}, Eigen::VectorXd::Zero(5), IkOptions{}), ArgumentError);
-  IkOptions o;
+  EXPECT_THROW(solver.inverse(T, calib::Configuration{}, Eigen::VectorXd::Zero(5), calib::IkOptions{}), calib::ArgumentError);
+  calib::IkOptions o;
   o.tol_mm = 0;
-  EXPECT_THROW(solver.inverse(T, Configuration{}, Eigen::VectorXd(), o), ArgumentError);
+  EXPECT_THROW(solver.inverse(T, calib::Configuration{}, Eigen::VectorXd(), o), calib::ArgumentError);
   std::string why;
   EXPECT_FALSE(o.IsValid(&why));
   EXPECT_NE(why.find("tolerance"), std::string::npos);
-  o = IkOptions{};
+  o = calib::IkOptions{};
   o.max_iterations = 0;
   EXPECT_FALSE(o.IsValid(&why));
-  EXPECT_THROW(solver.forward(Eigen::VectorXd::Zero(4)), ArgumentError);
+  EXPECT_THROW(solver.forward(Eigen::VectorXd::Zero(4)), calib::ArgumentError);
   Eigen::Isometry3d bad = T;
   bad.translation().x() = std::nan("");
-  EXPECT_THROW(solver.inverse(bad, Configuration{}, Eigen::VectorXd(), IkOptions{}), ArgumentError);
+  EXPECT_THROW(solver.inverse(bad, calib::Configuration{}, Eigen::VectorXd(), calib::IkOptions{}), calib::ArgumentError);
 }
 
 TEST(Ik, FreeFunctionEqualsSolver) {
-  const RobotModel m = realModel("abb_irb120");
+  const calib::RobotModel m = realModel("abb_irb120");
   Eigen::VectorXd q(6);
   q << 10, 20, -30, 40, 50, 60;
-  const Eigen::Isometry3d T = KinematicSolver(m).forward(q);
-  const Configuration c = kukaConfiguration(m, q);
-  const IkResult a = inverseKinematics(m, T, c, Eigen::VectorXd(), IkOptions{});
-  const IkResult b = KinematicSolver(m).inverse(T, c, Eigen::VectorXd(), IkOptions{});
-  ASSERT_EQ(a.status, IkStatus::kOk);
+  const Eigen::Isometry3d T = calib::KinematicSolver(m).forward(q);
+  const calib::Configuration c = calib::kukaConfiguration(m, q);
+  const calib::IkResult a = calib::inverseKinematics(m, T, c, Eigen::VectorXd(), calib::IkOptions{});
+  const calib::IkResult b = calib::KinematicSolver(m).inverse(T, c, Eigen::VectorXd(), calib::IkOptions{});
+  ASSERT_EQ(a.status, calib::IkStatus::kOk);
   EXPECT_EQ((a.q - b.q).norm(), 0.0);
   EXPECT_LT((a.q - q).cwiseAbs().maxCoeff(), 1e-3);
 }
@@ -645,7 +645,7 @@ TEST(Ik, FreeFunctionEqualsSolver) {
 // the singularity certificate it carries along (KinematicModel::scaledJacobianLipschitz)
 
 /// Joint-space path from qa to qb in `steps` steps, as Cartesian targets of model m.
-std::vector<Eigen::Isometry3d> jointLineTargets(const KinematicSolver& s, const Eigen::VectorXd& qa,
+std::vector<Eigen::Isometry3d> jointLineTargets(const calib::KinematicSolver& s, const Eigen::VectorXd& qa,
                                                 const Eigen::VectorXd& qb, int steps) {
   std::vector<Eigen::Isometry3d> out;
   for (int i = 0; i <= steps; ++i) out.push_back(s.forward(qa + (qb - qa) * (double(i) / steps)));
@@ -654,15 +654,15 @@ std::vector<Eigen::Isometry3d> jointLineTargets(const KinematicSolver& s, const 
 
 /// Follows `targets` from q0, each solve seeded with the last kOk solution, with or without a
 /// workspace.
-std::vector<IkResult> follow(const KinematicSolver& s, const std::vector<Eigen::Isometry3d>& targets,
-                             const Eigen::VectorXd& q0, const IkOptions& o, bool workspace,
-                             const PoseContext& ctx = {}) {
-  IkWorkspace ws;
-  std::vector<IkResult> out;
+std::vector<calib::IkResult> follow(const calib::KinematicSolver& s, const std::vector<Eigen::Isometry3d>& targets,
+                             const Eigen::VectorXd& q0, const calib::IkOptions& o, bool workspace,
+                             const calib::PoseContext& ctx = {}) {
+  calib::IkWorkspace ws;
+  std::vector<calib::IkResult> out;
   Eigen::VectorXd q = q0;
   for (const Eigen::Isometry3d& T : targets) {
-    out.push_back(workspace ? s.inverse(T, Configuration{}, q, o, ctx, ws) : s.inverse(T, Configuration{}, q, o, ctx));
-    if (out.back().status == IkStatus::kOk) q = out.back().q;
+    out.push_back(workspace ? s.inverse(T, calib::Configuration{}, q, o, ctx, ws) : s.inverse(T, calib::Configuration{}, q, o, ctx));
+    if (out.back().status == calib::IkStatus::kOk) q = out.back().q;
   }
   return out;
 }
@@ -672,28 +672,28 @@ TEST(IkWorkspace, PathFollowingEqualsTheStatelessSolveThroughAWristSingularity) 
   // high enough that a band of points is singular: the certificate carried in the workspace
   // must never hide one. Geometric model (the certificate's shortcut applies) and the
   // compliant one (only the frames are reused).
-  RobotModel geometric = test::loadBundled("kuka_kr16");
+  calib::RobotModel geometric = test::loadBundled("kuka_kr16");
   {
-    SimulateOptions so;
+    calib::SimulateOptions so;
     so.effects = {"geometric"};
     so.seed = 11;
-    geometric = perturbModel(geometric, so);
+    geometric = calib::perturbModel(geometric, so);
   }
-  for (const RobotModel& m : {geometric, realModel("kuka_kr16", 5)}) {
-    const KinematicSolver s(m);
+  for (const calib::RobotModel& m : {geometric, realModel("kuka_kr16", 5)}) {
+    const calib::KinematicSolver s(m);
     Eigen::VectorXd qa(6), qb(6);
     qa << 20, -70, 80, 30, 25, 40;
     qb << 35, -60, 70, 45, -25, 60;
     const std::vector<Eigen::Isometry3d> targets = jointLineTargets(s, qa, qb, 500);
-    IkOptions o;
+    calib::IkOptions o;
     o.singular_threshold = 0.03;
-    const std::vector<IkResult> with = follow(s, targets, qa, o, true);
-    const std::vector<IkResult> without = follow(s, targets, qa, o, false);
+    const std::vector<calib::IkResult> with = follow(s, targets, qa, o, true);
+    const std::vector<calib::IkResult> without = follow(s, targets, qa, o, false);
     int singular = 0, ok = 0;
     for (size_t k = 0; k < targets.size(); ++k) {
       ASSERT_EQ(with[k].status, without[k].status) << k;
-      if (with[k].status == IkStatus::kSingular) ++singular;
-      if (with[k].status != IkStatus::kOk) continue;
+      if (with[k].status == calib::IkStatus::kSingular) ++singular;
+      if (with[k].status != calib::IkStatus::kOk) continue;
       ++ok;
       EXPECT_LT((with[k].q - without[k].q).cwiseAbs().maxCoeff(), 1e-9) << k;
       EXPECT_EQ(with[k].configuration.status, without[k].configuration.status) << k;
@@ -710,33 +710,33 @@ TEST(IkWorkspace, PathFollowingEqualsTheStatelessSolveThroughAWristSingularity) 
 }
 
 TEST(IkWorkspace, NotUsedForAnotherSolverOrContext) {
-  const RobotModel a = realModel("kuka_kr16", 3), b = realModel("kuka_kr16", 4);
-  const KinematicSolver sa(a), sb(b);
+  const calib::RobotModel a = realModel("kuka_kr16", 3), b = realModel("kuka_kr16", 4);
+  const calib::KinematicSolver sa(a), sb(b);
   Eigen::VectorXd q(6);
   q << 10, -80, 95, 20, 40, -30;
-  IkWorkspace ws;
-  const IkResult ra = sa.inverse(sa.forward(q), Configuration{}, q, IkOptions{}, PoseContext{}, ws);
-  ASSERT_EQ(ra.status, IkStatus::kOk);
+  calib::IkWorkspace ws;
+  const calib::IkResult ra = sa.inverse(sa.forward(q), calib::Configuration{}, q, calib::IkOptions{}, calib::PoseContext{}, ws);
+  ASSERT_EQ(ra.status, calib::IkStatus::kOk);
   EXPECT_TRUE(ws.holdsSolution());
   // b's target from a's solution as the seed: the stored frames are a's, not b's
   Eigen::VectorXd q2 = q;
   q2[0] += 1;
   const Eigen::Isometry3d Tb = sb.forward(q2);
-  const IkResult rb = sb.inverse(Tb, Configuration{}, ra.q, IkOptions{}, PoseContext{}, ws);
-  ASSERT_EQ(rb.status, IkStatus::kOk);
+  const calib::IkResult rb = sb.inverse(Tb, calib::Configuration{}, ra.q, calib::IkOptions{}, calib::PoseContext{}, ws);
+  ASSERT_EQ(rb.status, calib::IkStatus::kOk);
   EXPECT_LE(positionError(b, rb.q, Tb), 1e-3);
   EXPECT_LT((rb.q - q2).cwiseAbs().maxCoeff(), 1e-4);  // deg (1 um at ~1 m: 6e-5 deg)
   // the same solver with another payload (the compliant model bends differently)
-  PoseContext heavy;
+  calib::PoseContext heavy;
   heavy.payload_kg = 16;
-  const IkResult rh = sb.inverse(Tb, Configuration{}, rb.q, IkOptions{}, heavy, ws);
-  ASSERT_EQ(rh.status, IkStatus::kOk);
+  const calib::IkResult rh = sb.inverse(Tb, calib::Configuration{}, rb.q, calib::IkOptions{}, heavy, ws);
+  ASSERT_EQ(rh.status, calib::IkStatus::kOk);
   EXPECT_LE(positionError(b, rh.q, Tb, 16), 1e-3);
   EXPECT_GT((rh.q - rb.q).cwiseAbs().maxCoeff(), 1e-4);  // the payload moved the solution
   // a failed solve clears it
   Eigen::Isometry3d far = Tb;
   far.translation() *= 10;
-  EXPECT_NE(sb.inverse(far, Configuration{}, rh.q, IkOptions{}, heavy, ws).status, IkStatus::kOk);
+  EXPECT_NE(sb.inverse(far, calib::Configuration{}, rh.q, calib::IkOptions{}, heavy, ws).status, calib::IkStatus::kOk);
   EXPECT_FALSE(ws.holdsSolution());
 }
 
@@ -744,20 +744,20 @@ TEST(IkChain, ScaledJacobianLipschitzBoundHolds) {
   // ||Js(q1) - Js(q0)||_2 <= sum_k B_k |dq_k| (rad), with Js from calib's jointJacobian; the
   // bound is what lets a path skip the singularity test, so it must hold everywhere.
   for (const char* name : {"kuka_kr16", "ur10", "abb_irb120"}) {
-    RobotModel m = nominalModel(name);
-    SimulateOptions so;
+    calib::RobotModel m = nominalModel(name);
+    calib::SimulateOptions so;
     so.effects = {"geometric"};
     so.seed = 2;
-    m = perturbModel(m, so);
-    const KinematicModel chain(m);
+    m = calib::perturbModel(m, so);
+    const calib::KinematicModel chain(m);
     const std::vector<double>& B = chain.scaledJacobianLipschitz();
     ASSERT_EQ(static_cast<int>(B.size()), m.dof()) << name;
     const double L = chain.length_scale_mm();
     auto scaledJ = [&](const Eigen::VectorXd& q) {
-      KinematicWorkspace ws;
-      Eigen::MatrixXd J = jointJacobian(m, q, PoseContext{}, ws);
+      calib::KinematicWorkspace ws;
+      Eigen::MatrixXd J = calib::jointJacobian(m, q, calib::PoseContext{}, ws);
       J.topRows(3) /= L;
-      return Eigen::MatrixXd(J * kRadToDeg);
+      return Eigen::MatrixXd(J * calib::kRadToDeg);
     };
     std::mt19937 rng(5);
     std::normal_distribution<double> step(0, 3);  // deg
@@ -768,7 +768,7 @@ TEST(IkChain, ScaledJacobianLipschitzBoundHolds) {
       double bound = 0;
       for (int i = 0; i < m.dof(); ++i) {
         q1[i] += step(rng);
-        bound += B[static_cast<size_t>(i)] * std::abs(q1[i] - q0[i]) * kDegToRad;
+        bound += B[static_cast<size_t>(i)] * std::abs(q1[i] - q0[i]) * calib::kDegToRad;
       }
       const double change = (scaledJ(q1) - scaledJ(q0)).jacobiSvd().singularValues()[0];
       EXPECT_LE(change, bound) << name << " sample " << k;
@@ -777,7 +777,7 @@ TEST(IkChain, ScaledJacobianLipschitzBoundHolds) {
     EXPECT_GT(tightest, 0.1) << name;  // a bound, not a wild overestimate
   }
   // a compliant model has no such bound (its angles depend on the gravity load)
-  EXPECT_TRUE(KinematicModel(realModel("kuka_kr16")).scaledJacobianLipschitz().empty());
+  EXPECT_TRUE(calib::KinematicModel(realModel("kuka_kr16")).scaledJacobianLipschitz().empty());
 }
 
 }  // namespace

@@ -5,7 +5,7 @@
 #include "accura/calib/import.h"
 #include "test_util.h"
 
-namespace accura {
+namespace accura::calib {
 namespace {
 
 Eigen::Matrix3d R(char axis, double deg) {
@@ -112,4 +112,4 @@ TEST(Import, BadMappingsAndRowsSayWhereAndWhat) {
 }
 
 }  // namespace
-}  // namespace accura
+}  // namespace accura::calib

@@ -15,7 +15,7 @@
 #include "accura/calib/simulate.h"
 #include "test_util.h"
 
-namespace accura {
+namespace accura::calib {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
@@ -331,4 +331,4 @@ TEST(JointMap, SeveralDataSetsEachFromItsOwnStation) {
 }
 
 }  // namespace
-}  // namespace accura
+}  // namespace accura::calib

@@ -10,7 +10,7 @@
 #include "accura/calib/kinematics.h"
 #include "test_util.h"
 
-namespace accura {
+namespace accura::calib {
 namespace {
 
 // Independent, hand-written classic DH product for the KUKA KR 16 (FreeCAD kr_16.csv).
@@ -218,4 +218,4 @@ TEST(Kinematics, GravityLoadsAreMinusTheGradientOfPotentialEnergy) {
 }
 
 }  // namespace
-}  // namespace accura
+}  // namespace accura::calib

@@ -22,17 +22,17 @@ Program read(const std::string& rel, bool with_config = false) {
 }
 
 // The error of reading `src` (and `dat`) from a temporary directory.
-InputError readError(const std::string& src, const std::string& dat = "") {
+calib::InputError readError(const std::string& src, const std::string& dat = "") {
   const std::string dir = test::tempDir("krl_err");
   test::writeText(dir + "/p.src", src);
   if (!dat.empty()) test::writeText(dir + "/p.dat", dat);
   try {
     readKrl(dir + "/p.src");
-  } catch (const InputError& e) {
+  } catch (const calib::InputError& e) {
     return e;
   }
   ADD_FAILURE() << "expected an InputError for:\n" << src;
-  return InputError("none");
+  return calib::InputError("none");
 }
 
 TEST(Krl, NumberFormatsAreFixedAndNeverNegativeZero) {
@@ -42,7 +42,7 @@ TEST(Krl, NumberFormatsAreFixedAndNeverNegativeZero) {
   EXPECT_EQ(formatMm(-0.0), "0.0000");
   EXPECT_EQ(formatDeg(-1e-7), "0.00000");
   EXPECT_EQ(formatDeg(-179.999996), "-180.00000");
-  EXPECT_EQ(formatFixed(0.02, 4), "0.0200");
+  EXPECT_EQ(calib::formatFixed(0.02, 4), "0.0200");
 }
 
 TEST(Krl, RealisticProgramsAreWrittenBackByteForByte) {
@@ -174,7 +174,7 @@ TEST(Krl, OlderInlineFormsWithBinaryStatusAndTurn) {
   EXPECT_EQ(p.motions[3].tool.source, FrameSetting::Source::kNull);  // FHOME: TOOL_NO 0
   // a corrected value keeps the literal style of S and T
   Program q = p;
-  q.motions[2].target.setPose(XyzAbc{512.6, 210, 120, 12.5, 5, 172});
+  q.motions[2].target.setPose(calib::XyzAbc{512.6, 210, 120, 12.5, 5, 172});
   q.motions[2].target.modified = true;
   const KrlText t = writeKrl(q);
   EXPECT_NE(t.dat.find("DECL E6POS XP2={X 512.6000,Y 210.0000,Z 120.0000,A 12.50000,B 5.00000,C 172.00000,S 'B010',T 'B1010',E1 0.0"),
@@ -212,7 +212,7 @@ TEST(Krl, OnlyCorrectedValuesChange) {
   Program p = read("kss8_inline/weld_seam.src", true);
   const std::string dat = test::readText(golden("kss8_inline/weld_seam.dat"));
   Target& t = p.motions[2].target;  // XP2
-  t.setPose(XyzAbc{1211.0, -180.12344, 612.75, 178.2, 29.9, -179.30001});
+  t.setPose(calib::XyzAbc{1211.0, -180.12344, 612.75, 178.2, 29.9, -179.30001});
   t.modified = true;
   const KrlText out = writeKrl(p);
   EXPECT_EQ(out.src, p.krl->src_text);
@@ -243,7 +243,7 @@ TEST(Krl, InsertedPointsCopyTheirMotionStatement) {
   Motion ins = p.motions[2];
   ins.inserted = true;
   Target t;
-  t.setPose(XyzAbc{412.5, -388.25, 90.0, -12.5, 2.5, 177.75});
+  t.setPose(calib::XyzAbc{412.5, -388.25, 90.0, -12.5, 2.5, 177.75});
   t.status = 2;
   t.turn = 2;
   ins.target = t;
@@ -278,7 +278,7 @@ TEST(Krl, InsertedPointsCopyTheirMotionStatement) {
 TEST(Krl, APartialAggregateIsCompletedWhenCorrected) {
   Program p = read("robodk/Pick_Place.src");
   Target& t = p.motions[6].target;  // LIN {Z 650.000}
-  t.setPose(XyzAbc{1100.01, 300.02, 650.03, -150.0, 8.0, 172.0});
+  t.setPose(calib::XyzAbc{1100.01, 300.02, 650.03, -150.0, 8.0, 172.0});
   t.modified = true;
   const KrlText out = writeKrl(p);
   std::string expected = p.krl->src_text;
@@ -294,18 +294,18 @@ TEST(Krl, OnePointWithTwoDifferentCorrectionsIsAnError) {
   Program p = readKrl(dir + "/p.src");
   ASSERT_EQ(p.motions.size(), 3u);
   EXPECT_EQ(p.motions[0].target.value_id, p.motions[2].target.value_id);
-  p.motions[0].target.setPose(XyzAbc{1000.1, 0, 800, 0, 90, 0});
+  p.motions[0].target.setPose(calib::XyzAbc{1000.1, 0, 800, 0, 90, 0});
   p.motions[0].target.modified = true;
-  p.motions[2].target.setPose(XyzAbc{1000.2, 0, 800, 0, 90, 0});
+  p.motions[2].target.setPose(calib::XyzAbc{1000.2, 0, 800, 0, 90, 0});
   p.motions[2].target.modified = true;
   try {
     writeKrl(p);
     FAIL() << "expected an ArgumentError";
-  } catch (const ArgumentError& e) {
+  } catch (const calib::ArgumentError& e) {
     EXPECT_NE(std::string(e.what()).find("XP1 needs a different correction here than at " + dir + "/p.src:4:1"), std::string::npos) << e.what();
   }
   // the same correction twice is fine
-  p.motions[2].target.setPose(XyzAbc{1000.1, 0, 800, 0, 90, 0});
+  p.motions[2].target.setPose(calib::XyzAbc{1000.1, 0, 800, 0, 90, 0});
   const KrlText out = writeKrl(p);
   EXPECT_NE(out.dat.find("DECL E6POS XP1={X 1000.1000,Y 0.0000,Z 800.0000,A 0.00000,B 90.00000,C 0.00000}"), std::string::npos) << out.dat;
 }
@@ -380,7 +380,7 @@ TEST(Krl, MalformedTargetsAreErrorsWithTheirPlace) {
       {"DEF p( )\nSPL {X 1,Y 2,Z 3}\nEND\n", "", 2, 1, "expected SPL inside a SPLINE ... ENDSPLINE block, found it outside"},
   };
   for (const Case& c : cases) {
-    const InputError e = readError(c.src, c.dat);
+    const calib::InputError e = readError(c.src, c.dat);
     EXPECT_EQ(e.line(), c.line) << e.what();
     EXPECT_EQ(e.column(), c.column) << e.what();
     EXPECT_EQ(e.message(), c.message) << e.what();
@@ -395,7 +395,7 @@ TEST(Krl, MalformedTargetsAreErrorsWithTheirPlace) {
   try {
     readKrl(dir + "/b.src");
     FAIL();
-  } catch (const InputError& e) {
+  } catch (const calib::InputError& e) {
     EXPECT_EQ(e.line(), 3);
     EXPECT_NE(e.message().find("NUL byte"), std::string::npos);
   }

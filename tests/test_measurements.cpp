@@ -15,11 +15,11 @@
 #include "accura/calib/measurements.h"
 
 namespace fs = std::filesystem;
-using accura::ArgumentError;
-using accura::InputError;
-using accura::Measurement;
-using accura::MeasurementSet;
-using accura::RobotDefinition;
+using accura::calib::ArgumentError;
+using accura::calib::InputError;
+using accura::calib::Measurement;
+using accura::calib::MeasurementSet;
+using accura::calib::RobotDefinition;
 
 namespace {
 
@@ -32,9 +32,9 @@ RobotDefinition sixAxisRobot() {
   const double limits[6][2] = {{-185, 185}, {-155, 35}, {-130, 154},
                                {-350, 350}, {-130, 130}, {-350, 350}};
   for (int i = 0; i < 6; ++i) {
-    accura::JointSpec j;
+    accura::calib::JointSpec j;
     j.name = "A" + std::to_string(i + 1);
-    j.type = accura::JointType::kRevolute;
+    j.type = accura::calib::JointType::kRevolute;
     j.lower = limits[i][0];
     j.upper = limits[i][1];
     robot.joints.push_back(j);
@@ -45,12 +45,12 @@ RobotDefinition sixAxisRobot() {
 /// A revolute joint and a prismatic joint (mm).
 RobotDefinition revolutePrismaticRobot() {
   RobotDefinition robot;
-  accura::JointSpec j1;
-  j1.type = accura::JointType::kRevolute;
+  accura::calib::JointSpec j1;
+  j1.type = accura::calib::JointType::kRevolute;
   j1.lower = -90;
   j1.upper = 90;
-  accura::JointSpec j2;
-  j2.type = accura::JointType::kPrismatic;
+  accura::calib::JointSpec j2;
+  j2.type = accura::calib::JointType::kPrismatic;
   j2.lower = 0;
   j2.upper = 500;
   robot.joints = {j1, j2};
@@ -106,7 +106,7 @@ class MeasurementsTest : public ::testing::Test {
   }
 
   MeasurementSet read(const std::string& text) const {
-    return accura::readMeasurementsCsv(fixture(text), robot_);
+    return accura::calib::readMeasurementsCsv(fixture(text), robot_);
   }
 
   /// The InputError reading `text` throws (a failure is recorded when it throws none).
@@ -115,7 +115,7 @@ class MeasurementsTest : public ::testing::Test {
   }
   InputError readErrorOf(const std::string& path) const {
     try {
-      accura::readMeasurementsCsv(path, robot_);
+      accura::calib::readMeasurementsCsv(path, robot_);
     } catch (const InputError& e) {
       return e;
     }
@@ -387,7 +387,7 @@ TEST_F(MeasurementsTest, ErrorJointOutsideLimits) {
 TEST_F(MeasurementsTest, ErrorPrismaticJointLimitInMm) {
   const std::string path = fixture("q1,q2,x,y,z\n0,250,1,2,3\n10,500.25,1,2,3\n");
   try {
-    accura::readMeasurementsCsv(path, revolutePrismaticRobot());
+    accura::calib::readMeasurementsCsv(path, revolutePrismaticRobot());
     FAIL() << "expected an InputError";
   } catch (const InputError& e) {
     EXPECT_EQ(std::string(e.what()),
@@ -635,7 +635,7 @@ MeasurementSet fullSet() {
 
 TEST_F(MeasurementsTest, WritesExactText) {
   const std::string path = (dir_ / "out.csv").string();
-  accura::writeMeasurementsCsv(path, fullSet(), 6, {"accura test", "two\nlines", ""});
+  accura::calib::writeMeasurementsCsv(path, fullSet(), 6, {"accura test", "two\nlines", ""});
   const std::string expected =
       "# accura test\n"
       "# two\n"
@@ -659,7 +659,7 @@ TEST_F(MeasurementsTest, WritesOnlyTheColumnsTheSetHas) {
   set.has_payload = set.has_direction = false;
   set.rows.resize(1);
   const std::string path = (dir_ / "out.csv").string();
-  accura::writeMeasurementsCsv(path, set, 6);
+  accura::calib::writeMeasurementsCsv(path, set, 6);
   EXPECT_EQ(slurp(path),
             "q1,q2,q3,q4,q5,q6,x,y,z,weight,temp_c,time_s\n"
             "1.250000,-90.000000,90.000000,0.000000,0.000000,180.000000,1000.123456,-2.500000,"
@@ -676,13 +676,13 @@ TEST_F(MeasurementsTest, RoundTripKeepsValuesAndIsDeterministic) {
       "-0.0000001,34.9999999,153,-1,2,3,1e3,2.5e-7,-1,-170,-60,175,0.05,0.01,0.01,0.01,"
       "0.75,0,19,-1,-1,-1,1,1,1,1234.567891,second\n",
       "source.csv");
-  const MeasurementSet in = accura::readMeasurementsCsv(src, robot_);
+  const MeasurementSet in = accura::calib::readMeasurementsCsv(src, robot_);
   EXPECT_EQ(in.unknown_columns, std::vector<std::string>{"comment"});
 
   const std::string out1 = (dir_ / "out1.csv").string();
   const std::string out2 = (dir_ / "out2.csv").string();
-  accura::writeMeasurementsCsv(out1, in, 6, {"round trip"});
-  const MeasurementSet back = accura::readMeasurementsCsv(out1, robot_);
+  accura::calib::writeMeasurementsCsv(out1, in, 6, {"round trip"});
+  const MeasurementSet back = accura::calib::readMeasurementsCsv(out1, robot_);
 
   EXPECT_EQ(back.has_orientation, in.has_orientation);
   EXPECT_EQ(back.has_std_position, in.has_std_position);
@@ -715,9 +715,9 @@ TEST_F(MeasurementsTest, RoundTripKeepsValuesAndIsDeterministic) {
   EXPECT_EQ(in.rows[0].std_mm, Eigen::Vector3d::Constant(0.02));
 
   // Writing what was read back gives the same bytes; so does writing again.
-  accura::writeMeasurementsCsv(out2, back, 6, {"round trip"});
+  accura::calib::writeMeasurementsCsv(out2, back, 6, {"round trip"});
   EXPECT_EQ(slurp(out2), slurp(out1));
-  accura::writeMeasurementsCsv(out2, in, 6, {"round trip"});  // overwrites
+  accura::calib::writeMeasurementsCsv(out2, in, 6, {"round trip"});  // overwrites
   EXPECT_EQ(slurp(out2), slurp(out1));
   EXPECT_FALSE(fs::exists(out2 + ".tmp"));
 }
@@ -725,7 +725,7 @@ TEST_F(MeasurementsTest, RoundTripKeepsValuesAndIsDeterministic) {
 TEST_F(MeasurementsTest, WriteFailureThrowsAndLeavesNoTemporaryFile) {
   const std::string no_dir = (dir_ / "missing" / "out.csv").string();
   try {
-    accura::writeMeasurementsCsv(no_dir, fullSet(), 6);
+    accura::calib::writeMeasurementsCsv(no_dir, fullSet(), 6);
     FAIL() << "expected an InputError";
   } catch (const InputError& e) {
     EXPECT_EQ(std::string(e.what()).rfind(no_dir + ": cannot write file: ", 0), 0u) << e.what();
@@ -735,7 +735,7 @@ TEST_F(MeasurementsTest, WriteFailureThrowsAndLeavesNoTemporaryFile) {
   const fs::path target = dir_ / "a_directory";
   fs::create_directories(target / "child");
   try {
-    accura::writeMeasurementsCsv(target.string(), fullSet(), 6);
+    accura::calib::writeMeasurementsCsv(target.string(), fullSet(), 6);
     FAIL() << "expected an InputError";
   } catch (const InputError& e) {
     EXPECT_EQ(std::string(e.what()).rfind(target.string() + ": cannot write file: ", 0), 0u)
@@ -749,23 +749,23 @@ TEST_F(MeasurementsTest, WriteRejectsInconsistentSets) {
   const std::string path = (dir_ / "out.csv").string();
   MeasurementSet wrong_q = fullSet();
   wrong_q.rows[1].q = Eigen::VectorXd::Zero(5);
-  EXPECT_THROW(accura::writeMeasurementsCsv(path, wrong_q, 6), ArgumentError);
+  EXPECT_THROW(accura::calib::writeMeasurementsCsv(path, wrong_q, 6), ArgumentError);
 
   MeasurementSet nan_std = fullSet();
   nan_std.rows[0].std_mm[2] = std::numeric_limits<double>::quiet_NaN();
-  EXPECT_THROW(accura::writeMeasurementsCsv(path, nan_std, 6), ArgumentError);
+  EXPECT_THROW(accura::calib::writeMeasurementsCsv(path, nan_std, 6), ArgumentError);
 
   MeasurementSet zero_weight = fullSet();
   zero_weight.rows[0].weight = 1e-9;  // would print as 0.000000 and not read back
-  EXPECT_THROW(accura::writeMeasurementsCsv(path, zero_weight, 6), ArgumentError);
+  EXPECT_THROW(accura::calib::writeMeasurementsCsv(path, zero_weight, 6), ArgumentError);
 
   MeasurementSet short_dir = fullSet();
   short_dir.rows[0].dir.pop_back();
-  EXPECT_THROW(accura::writeMeasurementsCsv(path, short_dir, 6), ArgumentError);
+  EXPECT_THROW(accura::calib::writeMeasurementsCsv(path, short_dir, 6), ArgumentError);
 
   MeasurementSet empty = fullSet();
   empty.rows.clear();
-  EXPECT_THROW(accura::writeMeasurementsCsv(path, empty, 6), ArgumentError);
+  EXPECT_THROW(accura::calib::writeMeasurementsCsv(path, empty, 6), ArgumentError);
 
   EXPECT_FALSE(fs::exists(path));  // nothing written
   EXPECT_FALSE(fs::exists(path + ".tmp"));

@@ -20,7 +20,7 @@ namespace {
 using namespace postproc;
 
 Eigen::Isometry3d pose(double x, double y, double z, double a, double b, double c) {
-  return toIsometry({x, y, z, a, b, c});
+  return calib::toIsometry({x, y, z, a, b, c});
 }
 
 /// A 200 mm LIN, a half circle of radius 80 mm (CIRC), a 200 mm LIN back: 650 mm of seam.
@@ -47,14 +47,14 @@ struct Execution {
 /// Compensates `program` segment by segment (each continuing from the real joints where the
 /// previous one ended) and executes the result and the original program.
 Execution execute(const std::vector<PathSegment>& program, std::uint64_t seed, double tol_mm) {
-  RobotModel controller = test::loadBundled("kuka_kr16");
-  controller.nominal.T_flange_tcp = toIsometry({20, 0, 250, 0, -30, 0});  // a welding torch
-  SimulateOptions so;
+  calib::RobotModel controller = test::loadBundled("kuka_kr16");
+  controller.nominal.T_flange_tcp = calib::toIsometry({20, 0, 250, 0, -30, 0});  // a welding torch
+  calib::SimulateOptions so;
   so.effects = {"geometric", "joint_compliance"};
   so.error_scale = 1;
   so.set_station = false;
   so.seed = seed;
-  RobotModel real = perturbModel(controller, so);
+  calib::RobotModel real = calib::perturbModel(controller, so);
   real.deviations.base_mm = Eigen::Vector3d(0.4, -0.3, 0.2);  // the cell registered to 0.5 mm
   real.deviations.base_rot_rad = Eigen::Vector3d(1e-4, -5e-5, 2e-4);
   const Compensator comp(controller, real);
@@ -64,9 +64,9 @@ Execution execute(const std::vector<PathSegment>& program, std::uint64_t seed, d
   std::vector<PathSegment> commanded;
   Eigen::VectorXd q, q_start;
   for (const PathSegment& s : program) {
-    const SegmentCompensation r = comp.segment(s, Configuration{}, q, o);
-    EXPECT_EQ(r.status, IkStatus::kOk) << r.message;
-    if (r.status != IkStatus::kOk) return run;
+    const SegmentCompensation r = comp.segment(s, calib::Configuration{}, q, o);
+    EXPECT_EQ(r.status, calib::IkStatus::kOk) << r.message;
+    if (r.status != calib::IkStatus::kOk) return run;
     if (q_start.size() == 0) q_start = r.q_real_start;
     commanded.insert(commanded.end(), r.commanded.begin(), r.commanded.end());
     q = r.q_real_end.back();
@@ -75,8 +75,8 @@ Execution execute(const std::vector<PathSegment>& program, std::uint64_t seed, d
   }
   run.compensated_mm = maxPathDeviation(comp.execute(commanded, q_start, 0.1), program);
   // the program as it is: the controller starts from its own solution for the first point
-  const IkResult c0 = comp.controller().inverse(program.front().T_world_start, Configuration{}, q_start, IkOptions{});
-  EXPECT_EQ(c0.status, IkStatus::kOk);
+  const calib::IkResult c0 = comp.controller().inverse(program.front().T_world_start, calib::Configuration{}, q_start, calib::IkOptions{});
+  EXPECT_EQ(c0.status, calib::IkStatus::kOk);
   run.uncompensated_mm = maxPathDeviation(comp.execute(program, c0.q, 0.5), program);
   return run;
 }
@@ -119,20 +119,20 @@ TEST(PathExecution, LongLinMovesAcrossTheWorkspace) {
 // true and the identified tool at the joints the controller takes), and that model error is
 // small; the uncompensated program is off by about a millimetre on the same robot.
 TEST(PathExecution, IdentifiedModelOnTheTrueRobotWithinTolPlusTheModelError) {
-  RobotModel controller = test::loadBundled("kuka_kr16");
-  controller.nominal.T_flange_tcp = toIsometry({20, 0, 250, 0, -30, 0});  // the torch, measured at its TCP
-  SimulateOptions so;
+  calib::RobotModel controller = test::loadBundled("kuka_kr16");
+  controller.nominal.T_flange_tcp = calib::toIsometry({20, 0, 250, 0, -30, 0});  // the torch, measured at its TCP
+  calib::SimulateOptions so;
   so.effects = {"geometric", "joint_compliance"};
   so.set_station = false;  // measured in the cell frame
   so.seed = 8;
   so.poses = 300;
   so.noise_mm = 0.02;
-  const RobotModel truth = perturbModel(controller, so);
-  const MeasurementSet data = simulateMeasurements(truth, so);
-  IdentifyOptions io;
+  const calib::RobotModel truth = calib::perturbModel(controller, so);
+  const calib::MeasurementSet data = calib::simulateMeasurements(truth, so);
+  calib::IdentifyOptions io;
   io.groups = {"geometric", "joint_compliance"};
-  IdentifySummary summary;
-  const RobotModel identified = identify(controller, data, io, &summary);
+  calib::IdentifySummary summary;
+  const calib::RobotModel identified = calib::identify(controller, data, io, &summary);
 
   const std::vector<PathSegment> seam = shortSeam();
   const double tol = 0.05;
@@ -142,8 +142,8 @@ TEST(PathExecution, IdentifiedModelOnTheTrueRobotWithinTolPlusTheModelError) {
   std::vector<PathSegment> commanded;
   Eigen::VectorXd q, q_start;
   for (const PathSegment& s : seam) {
-    const SegmentCompensation r = with_identified.segment(s, Configuration{}, q, o);
-    ASSERT_EQ(r.status, IkStatus::kOk) << r.message;
+    const SegmentCompensation r = with_identified.segment(s, calib::Configuration{}, q, o);
+    ASSERT_EQ(r.status, calib::IkStatus::kOk) << r.message;
     if (q_start.size() == 0) q_start = r.q_real_start;
     commanded.insert(commanded.end(), r.commanded.begin(), r.commanded.end());
     q = r.q_real_end.back();
@@ -162,8 +162,8 @@ TEST(PathExecution, IdentifiedModelOnTheTrueRobotWithinTolPlusTheModelError) {
   // below the robot's own error, and so is the path error on the true robot
   EXPECT_LT(model_error, 0.1);
   EXPECT_LT(deviation, 0.15);
-  const IkResult c0 = with_truth.controller().inverse(seam.front().T_world_start, Configuration{}, q_start, IkOptions{});
-  ASSERT_EQ(c0.status, IkStatus::kOk);
+  const calib::IkResult c0 = with_truth.controller().inverse(seam.front().T_world_start, calib::Configuration{}, q_start, calib::IkOptions{});
+  ASSERT_EQ(c0.status, calib::IkStatus::kOk);
   const double uncompensated = maxPathDeviation(with_truth.execute(seam, c0.q, 0.5), seam);
   EXPECT_GT(uncompensated, 0.5);
   EXPECT_GT(uncompensated, 8 * deviation);

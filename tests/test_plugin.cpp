@@ -31,11 +31,11 @@ namespace {
 using namespace postproc;
 
 const std::string kModel = "tests/data/plugin/kr16_calibrated.xml";
-const XyzAbc kTorch = {20, 0, 250, 0, -30, 0};  // the model's (calibrated) tool
+const calib::XyzAbc kTorch = {20, 0, 250, 0, -30, 0};  // the model's (calibrated) tool
 
 accura_pose cpose(double x, double y, double z, double a, double b, double c) { return {x, y, z, a, b, c}; }
-accura_pose cpose(const XyzAbc& p) { return {p.x_mm, p.y_mm, p.z_mm, p.a_deg, p.b_deg, p.c_deg}; }
-XyzAbc xyz(const accura_pose& p) { return {p.x_mm, p.y_mm, p.z_mm, p.a_deg, p.b_deg, p.c_deg}; }
+accura_pose cpose(const calib::XyzAbc& p) { return {p.x_mm, p.y_mm, p.z_mm, p.a_deg, p.b_deg, p.c_deg}; }
+calib::XyzAbc xyz(const accura_pose& p) { return {p.x_mm, p.y_mm, p.z_mm, p.a_deg, p.b_deg, p.c_deg}; }
 
 double positionDiff(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) { return (a.translation() - b.translation()).norm(); }
 double angleDiffRad(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
@@ -91,9 +91,9 @@ TEST(Plugin, VersionAndStatusNames) {
 // command for the same input: a program base frame off the robot base and, once, a tool that
 // is not the calibrated one.
 TEST(Plugin, PosesEqualTheCppApi) {
-  const RobotModel calibrated = readRobotFile(test::sourcePath(kModel));
-  const XyzAbc base = {150, -80, 30, 12, 0, 0};  // $BASE relative to $WORLD (= robot base)
-  const XyzAbc other_tool = {0, 0, 180, 0, 0, 0};
+  const calib::RobotModel calibrated = calib::readRobotFile(test::sourcePath(kModel));
+  const calib::XyzAbc base = {150, -80, 30, 12, 0, 0};  // $BASE relative to $WORLD (= robot base)
+  const calib::XyzAbc other_tool = {0, 0, 180, 0, 0, 0};
   for (const bool calibrated_tool : {true, false}) {
     accura_load_options o;
     ASSERT_EQ(accura_load_options_init(&o, sizeof(o)), ACCURA_OK);
@@ -104,19 +104,19 @@ TEST(Plugin, PosesEqualTheCppApi) {
     o.payload_kg = 8;
     Handle h(test::sourcePath(kModel), &o);
 
-    RobotModel controller = RobotModel::fromDefinition(calibrated.nominal);
-    controller.nominal.T_flange_tcp = toIsometry(calibrated_tool ? kTorch : other_tool);
-    RobotModel real = calibrated;
+    calib::RobotModel controller = calib::RobotModel::fromDefinition(calibrated.nominal);
+    controller.nominal.T_flange_tcp = calib::toIsometry(calibrated_tool ? kTorch : other_tool);
+    calib::RobotModel real = calibrated;
     if (!calibrated_tool) {
-      real.nominal.T_flange_tcp = toIsometry(other_tool);
+      real.nominal.T_flange_tcp = calib::toIsometry(other_tool);
       real.deviations.tool_mm.setZero();
       real.deviations.tool_rot_rad.setZero();
     }
     const Compensator comp(controller, real);
-    PoseContext context;
+    calib::PoseContext context;
     context.payload_kg = 8;
     const JobSettings defaults;
-    const Eigen::Isometry3d T_world_base = toIsometry(base);
+    const Eigen::Isometry3d T_world_base = calib::toIsometry(base);
 
     const std::vector<accura_pose> t = targets();
     std::vector<accura_pose_result> r(t.size());
@@ -125,10 +125,10 @@ TEST(Plugin, PosesEqualTheCppApi) {
     EXPECT_EQ(n_ok, t.size());
     double max_correction = 0;
     for (size_t i = 0; i < t.size(); ++i) {
-      const Eigen::Isometry3d T_world = T_world_base * toIsometry(xyz(t[i]));
-      const PoseCompensation pc = comp.pose(T_world, Configuration{}, Eigen::VectorXd(), defaults.ik, context);
-      ASSERT_EQ(pc.status, IkStatus::kOk) << i;
-      const Eigen::Isometry3d cmd = T_world_base * toIsometry(xyz(r[i].command));
+      const Eigen::Isometry3d T_world = T_world_base * calib::toIsometry(xyz(t[i]));
+      const PoseCompensation pc = comp.pose(T_world, calib::Configuration{}, Eigen::VectorXd(), defaults.ik, context);
+      ASSERT_EQ(pc.status, calib::IkStatus::kOk) << i;
+      const Eigen::Isometry3d cmd = T_world_base * calib::toIsometry(xyz(r[i].command));
       EXPECT_LT(positionDiff(cmd, pc.T_world_tcp_command), 1e-9) << i;
       EXPECT_LT(angleDiffRad(cmd, pc.T_world_tcp_command), 1e-11) << i;
       EXPECT_NEAR(r[i].correction_mm, pc.correction_mm, 1e-9);
@@ -144,8 +144,8 @@ TEST(Plugin, PosesEqualTheCppApi) {
       accura_pose fr, fc;
       ASSERT_EQ(accura_forward_kinematics(h.m, ACCURA_REAL, r[i].q_real, 6, &fr), ACCURA_OK);
       ASSERT_EQ(accura_forward_kinematics(h.m, ACCURA_CONTROLLER, r[i].q_real, 6, &fc), ACCURA_OK);
-      EXPECT_LT(positionDiff(toIsometry(xyz(fr)), toIsometry(xyz(t[i]))), 1e-6);
-      EXPECT_LT(positionDiff(toIsometry(xyz(fc)), toIsometry(xyz(r[i].command))), 1e-9);
+      EXPECT_LT(positionDiff(calib::toIsometry(xyz(fr)), calib::toIsometry(xyz(t[i]))), 1e-6);
+      EXPECT_LT(positionDiff(calib::toIsometry(xyz(fc)), calib::toIsometry(xyz(r[i].command))), 1e-9);
     }
     // the KR 16's simulated errors move points by millimetres
     EXPECT_GT(max_correction, 0.5);
@@ -156,7 +156,7 @@ TEST(Plugin, PosesEqualTheCppApi) {
 // A path through the C interface equals the C++ segment chain (each segment from the real
 // joints where the previous one ended).
 TEST(Plugin, PathEqualsTheCppApi) {
-  const RobotModel calibrated = readRobotFile(test::sourcePath(kModel));
+  const calib::RobotModel calibrated = calib::readRobotFile(test::sourcePath(kModel));
   Handle h(test::sourcePath(kModel));
   const accura_pose start = cpose(1100, -250, 500, 0, 180, 0);
   std::vector<accura_path_motion> motions(4);
@@ -175,14 +175,14 @@ TEST(Plugin, PathEqualsTheCppApi) {
             ACCURA_OK)
       << lastError(h.m);
 
-  const Compensator comp(RobotModel::fromDefinition(calibrated.nominal), calibrated);
+  const Compensator comp(calib::RobotModel::fromDefinition(calibrated.nominal), calibrated);
   const JobSettings job;
   DensifyOptions dens;
   dens.tol_mm = tol_mm;
   dens.ik = job.ik;
-  const PoseCompensation p0 = comp.pose(toIsometry(xyz(start)), Configuration{}, Eigen::VectorXd(), job.ik);
-  ASSERT_EQ(p0.status, IkStatus::kOk);
-  EXPECT_LT(positionDiff(toIsometry(xyz(res.start_command)), p0.T_world_tcp_command), 1e-9);
+  const PoseCompensation p0 = comp.pose(calib::toIsometry(xyz(start)), calib::Configuration{}, Eigen::VectorXd(), job.ik);
+  ASSERT_EQ(p0.status, calib::IkStatus::kOk);
+  EXPECT_LT(positionDiff(calib::toIsometry(xyz(res.start_command)), p0.T_world_tcp_command), 1e-9);
   Eigen::VectorXd q = p0.q_real;
   size_t k = 0;
   int added = 0;
@@ -190,10 +190,10 @@ TEST(Plugin, PathEqualsTheCppApi) {
     PathSegment s;
     s.type = motions[i].type == ACCURA_CIRC ? PathType::kCirc : PathType::kLin;
     s.T_world_start = comp.real().forward(q);
-    s.T_world_aux = toIsometry(xyz(motions[i].aux));
-    s.T_world_end = toIsometry(xyz(motions[i].end));
-    const SegmentCompensation sc = comp.segment(s, Configuration{}, q, dens);
-    ASSERT_EQ(sc.status, IkStatus::kOk) << sc.message;
+    s.T_world_aux = calib::toIsometry(xyz(motions[i].aux));
+    s.T_world_end = calib::toIsometry(xyz(motions[i].end));
+    const SegmentCompensation sc = comp.segment(s, calib::Configuration{}, q, dens);
+    ASSERT_EQ(sc.status, calib::IkStatus::kOk) << sc.message;
     EXPECT_DOUBLE_EQ(reports[i].max_error_after_mm, sc.max_error_after_mm);
     EXPECT_DOUBLE_EQ(reports[i].max_error_uncompensated_mm, sc.max_error_uncompensated_mm);
     EXPECT_EQ(reports[i].points_added, sc.points_added);
@@ -202,10 +202,10 @@ TEST(Plugin, PathEqualsTheCppApi) {
       ASSERT_LT(k, points.size());
       EXPECT_EQ(points[k].motion, static_cast<int>(i));
       EXPECT_EQ(points[k].inserted, j + 1 < sc.commanded.size() ? 1 : 0);
-      EXPECT_LT(positionDiff(toIsometry(xyz(points[k].end)), sc.commanded[j].T_world_end), 1e-9);
-      EXPECT_LT(angleDiffRad(toIsometry(xyz(points[k].end)), sc.commanded[j].T_world_end), 1e-11);
+      EXPECT_LT(positionDiff(calib::toIsometry(xyz(points[k].end)), sc.commanded[j].T_world_end), 1e-9);
+      EXPECT_LT(angleDiffRad(calib::toIsometry(xyz(points[k].end)), sc.commanded[j].T_world_end), 1e-11);
       if (s.type == PathType::kCirc) {
-        EXPECT_LT(positionDiff(toIsometry(xyz(points[k].aux)), sc.commanded[j].T_world_aux), 1e-9);
+        EXPECT_LT(positionDiff(calib::toIsometry(xyz(points[k].aux)), sc.commanded[j].T_world_aux), 1e-9);
       }
     }
     added += sc.points_added;
@@ -337,13 +337,13 @@ TEST(Plugin, ReportEqualsTheCommandsByteForByte) {
 // accura_model_get_joints gives the robot file's joints (read independently here).
 TEST(Plugin, JointsAreTheRobotFiles) {
   Handle h(test::sourcePath(kModel));
-  const RobotModel robot = readRobotFile(test::sourcePath(kModel));
+  const calib::RobotModel robot = calib::readRobotFile(test::sourcePath(kModel));
   accura_joint j[ACCURA_MAX_JOINTS];
   size_t n = 0;
   ASSERT_EQ(accura_model_get_joints(h.m, j, ACCURA_MAX_JOINTS, &n), ACCURA_OK) << lastError(h.m);
   ASSERT_EQ(n, 6u);
   for (size_t i = 0; i < n; ++i) {
-    const JointSpec& e = robot.nominal.joints[i];
+    const calib::JointSpec& e = robot.nominal.joints[i];
     EXPECT_EQ(j[i].prismatic, 0);
     EXPECT_EQ(j[i].a_mm, e.a_mm);
     EXPECT_EQ(j[i].alpha_deg, e.alpha_deg);
@@ -381,7 +381,7 @@ TEST(Plugin, WrittenProgramReadsBack) {
     for (int k = 0; k < 3; ++k) {
       const Motion& m = p.motions[k];
       EXPECT_EQ(m.type, types[k]);
-      const XyzAbc e = m.target.xyzAbc();
+      const calib::XyzAbc e = m.target.xyzAbc();
       EXPECT_NEAR(e.x_mm, ends[k].x_mm, 0.5e-4);
       EXPECT_NEAR(e.z_mm, ends[k].z_mm, 0.5e-4);
       EXPECT_NEAR(e.a_deg, ends[k].a_deg, 0.5e-5);

@@ -46,7 +46,7 @@ std::vector<PathSegment> segmentsOf(const Program& p, Eigen::Isometry3d* T_world
   EXPECT_FALSE(p.motions.empty());
   if (p.motions.empty()) return segs;
   EXPECT_EQ(p.motions.front().type, MotionType::kPtp);
-  Eigen::Isometry3d prev = toIsometry(p.motions.front().target.xyzAbc());
+  Eigen::Isometry3d prev = calib::toIsometry(p.motions.front().target.xyzAbc());
   *T_world_start = prev;
   for (size_t i = 1; i < p.motions.size(); ++i) {
     const Motion& m = p.motions[i];
@@ -54,8 +54,8 @@ std::vector<PathSegment> segmentsOf(const Program& p, Eigen::Isometry3d* T_world
     PathSegment s;
     s.type = m.type == MotionType::kCirc ? PathType::kCirc : PathType::kLin;
     s.T_world_start = prev;
-    s.T_world_end = toIsometry(m.target.xyzAbc());
-    if (m.aux) s.T_world_aux = toIsometry(m.aux->xyzAbc());
+    s.T_world_end = calib::toIsometry(m.target.xyzAbc());
+    if (m.aux) s.T_world_aux = calib::toIsometry(m.aux->xyzAbc());
     segs.push_back(s);
     prev = s.T_world_end;
   }
@@ -111,7 +111,7 @@ TEST(PluginFreecad, CompensatedSeamExportedFromFreecadFollowsThePath) {
   ASSERT_EQ(compensated.motions.size(), 5u + points_added);
   for (const Program* p : {&original, &compensated}) {
     ASSERT_TRUE(p->motions.back().tool.known());
-    const XyzAbc tool = *p->motions.back().tool.value;
+    const calib::XyzAbc tool = *p->motions.back().tool.value;
     EXPECT_NEAR(tool.z_mm, 250, 1e-9);
     EXPECT_NEAR(tool.b_deg, -30, 1e-9);
   }
@@ -121,23 +121,23 @@ TEST(PluginFreecad, CompensatedSeamExportedFromFreecadFollowsThePath) {
   ASSERT_EQ(fc.motions.size(), 4u);  // P1, P2, P5, P6 as LIN
   const int same[4] = {0, 1, 3, 4};
   for (int k = 0; k < 4; ++k) {
-    const Eigen::Isometry3d a = toIsometry(fc.motions[k].target.xyzAbc());
-    const Eigen::Isometry3d b = toIsometry(original.motions[same[k]].target.xyzAbc());
+    const Eigen::Isometry3d a = calib::toIsometry(fc.motions[k].target.xyzAbc());
+    const Eigen::Isometry3d b = calib::toIsometry(original.motions[same[k]].target.xyzAbc());
     EXPECT_LT((a.translation() - b.translation()).norm(), 1e-3) << k;
     EXPECT_LT(Eigen::AngleAxisd(a.linear() * b.linear().transpose()).angle(), 1e-4) << k;
   }
 
   // execution on the real robot (the calibrated model) through the nominal controller
-  const RobotModel real = readRobotFile(model_path);
-  const RobotModel controller = RobotModel::fromDefinition(real.nominal);
+  const calib::RobotModel real = calib::readRobotFile(model_path);
+  const calib::RobotModel controller = calib::RobotModel::fromDefinition(real.nominal);
   Eigen::Isometry3d T_start, T_cmd_start;
   const std::vector<PathSegment> intended = segmentsOf(original, &T_start);
   const std::vector<PathSegment> commanded = segmentsOf(compensated, &T_cmd_start);
-  const KinematicSolver ctrl(controller), realk(real);
-  const IkResult c_cmd = ctrl.inverse(T_cmd_start, Configuration{}, Eigen::VectorXd(), IkOptions{});
-  const IkResult c_orig = ctrl.inverse(T_start, Configuration{}, Eigen::VectorXd(), IkOptions{});
-  ASSERT_EQ(c_cmd.status, IkStatus::kOk);
-  ASSERT_EQ(c_orig.status, IkStatus::kOk);
+  const calib::KinematicSolver ctrl(controller), realk(real);
+  const calib::IkResult c_cmd = ctrl.inverse(T_cmd_start, calib::Configuration{}, Eigen::VectorXd(), calib::IkOptions{});
+  const calib::IkResult c_orig = ctrl.inverse(T_start, calib::Configuration{}, Eigen::VectorXd(), calib::IkOptions{});
+  ASSERT_EQ(c_cmd.status, calib::IkStatus::kOk);
+  ASSERT_EQ(c_orig.status, calib::IkStatus::kOk);
   // the compensated PTP puts the real tool on the intended start
   EXPECT_LT((realk.forward(c_cmd.q).translation() - T_start.translation()).norm(), 1e-3);
 

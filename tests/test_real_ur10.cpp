@@ -18,7 +18,7 @@
 
 #include "test_util.h"
 
-namespace accura {
+namespace accura::calib {
 namespace {
 
 nlohmann::json identifyUr10(const std::string& name, const std::string& map, const std::string& extra) {
@@ -219,4 +219,4 @@ TEST(RealUr10, DiagnosisFindsTheResidualUnexplained) {
 }
 
 }  // namespace
-}  // namespace accura
+}  // namespace accura::calib

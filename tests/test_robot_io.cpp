@@ -7,7 +7,7 @@
 #include "accura/calib/robot_io.h"
 #include "test_util.h"
 
-namespace accura {
+namespace accura::calib {
 namespace {
 
 TEST(RobotIo, BundledRobotsLoad) {
@@ -123,4 +123,4 @@ TEST(RobotIo, ResolveByNameOrPath) {
 }
 
 }  // namespace
-}  // namespace accura
+}  // namespace accura::calib

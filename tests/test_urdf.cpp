@@ -17,7 +17,7 @@
 #include "accura/calib/urdf.h"
 #include "test_util.h"
 
-namespace accura {
+namespace accura::calib {
 namespace {
 
 using test::sourcePath;
@@ -479,4 +479,4 @@ TEST(Urdf, CommandLine) {
 }
 
 }  // namespace
-}  // namespace accura
+}  // namespace accura::calib

@@ -13,7 +13,7 @@
 #include "accura/calib/ur_calibration.h"
 #include "test_util.h"
 
-namespace accura {
+namespace accura::calib {
 namespace {
 
 // UR's formula written out independently: prod Rz(q + dtheta) Tz(d) Tx(a) Rx(alpha), metres.
@@ -271,4 +271,4 @@ TEST(UrCalibration, MalformedFilesGiveFileAndLine) {
 }
 
 }  // namespace
-}  // namespace accura
+}  // namespace accura::calib

@@ -19,11 +19,11 @@ namespace accura::test {
 
 inline std::string sourcePath(const std::string& rel) { return std::string(ACCURA_SOURCE_DIR) + "/" + rel; }
 
-inline RobotModel loadBundled(const std::string& name, FormPolicy policy = FormPolicy::kAuto) {
-  RobotModel m = readRobotFile(sourcePath("robots/" + name + ".xml"));
-  if (policy != FormPolicy::kAuto) {
-    const Deviations d = m.deviations;
-    m = RobotModel::fromDefinition(m.nominal, policy);
+inline calib::RobotModel loadBundled(const std::string& name, calib::FormPolicy policy = calib::FormPolicy::kAuto) {
+  calib::RobotModel m = calib::readRobotFile(sourcePath("robots/" + name + ".xml"));
+  if (policy != calib::FormPolicy::kAuto) {
+    const calib::Deviations d = m.deviations;
+    m = calib::RobotModel::fromDefinition(m.nominal, policy);
     m.deviations = d;
   }
   return m;
@@ -72,7 +72,7 @@ inline std::string readText(const std::string& path) {
 }
 
 /// Random joint values uniformly within the joint limits.
-inline Eigen::VectorXd randomQ(const RobotModel& m, std::mt19937_64& rng) {
+inline Eigen::VectorXd randomQ(const calib::RobotModel& m, std::mt19937_64& rng) {
   Eigen::VectorXd q(m.dof());
   for (int i = 0; i < m.dof(); ++i) {
     std::uniform_real_distribution<double> u(m.nominal.joints[i].lower, m.nominal.joints[i].upper);

@@ -19,7 +19,7 @@ std::string golden(const std::string& rel) { return test::sourcePath("tests/gold
 TEST(XmlProgram, ReadsEveryElementOfTheFormat) {
   FrameTables tables;
   tables.base.resize(4);
-  tables.base[3] = XyzAbc{1020.25, -35.5, 410, -90, 0, 0};
+  tables.base[3] = calib::XyzAbc{1020.25, -35.5, 410, -90, 0, 0};
   const Program p = readXmlProgram(golden("xml/cell_program.xml"), &tables);
   EXPECT_EQ(p.name, "cell_program");
   EXPECT_EQ(p.robot, "KUKA KR 16");
@@ -197,7 +197,7 @@ TEST(XmlProgram, ErrorsNameFileLineAndColumn) {
     try {
       parseXmlProgram(text, "bad.xml");
       ADD_FAILURE() << "expected an InputError for " << c.body;
-    } catch (const InputError& e) {
+    } catch (const calib::InputError& e) {
       EXPECT_EQ(e.file(), "bad.xml");
       EXPECT_EQ(e.line(), c.line) << e.what();
       EXPECT_EQ(e.column(), c.column) << e.what();
@@ -207,14 +207,14 @@ TEST(XmlProgram, ErrorsNameFileLineAndColumn) {
   try {
     parseXmlProgram("<?xml version=\"1.0\"?>\n<program version=\"2\"><motions/></program>\n", "v.xml");
     ADD_FAILURE();
-  } catch (const InputError& e) {
+  } catch (const calib::InputError& e) {
     EXPECT_EQ(e.message(), "<program> attribute 'version': expected 1, found '2'");
     EXPECT_EQ(e.line(), 2);
   }
   try {
     parseXmlProgram("<?xml version=\"1.0\"?>\n<program version=\"1\">\n<motions>\n</program>\n", "m.xml");
     ADD_FAILURE();
-  } catch (const InputError& e) {
+  } catch (const calib::InputError& e) {
     EXPECT_NE(e.message().find("malformed XML"), std::string::npos);
     EXPECT_EQ(e.line(), 3);  // tinyxml2 names the element left open
   }

@@ -5,7 +5,7 @@
 
 #include "accura/calib/geometry.h"
 
-namespace accura::detail {
+namespace accura::calib::detail {
 namespace {
 
 constexpr double kEps = 1e-9;
@@ -233,4 +233,4 @@ int ClosedForm::solveThreeParallel(const Eigen::Isometry3d& T, const std::array<
   return count;
 }
 
-}  // namespace accura::detail
+}  // namespace accura::calib::detail

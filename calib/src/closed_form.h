@@ -11,7 +11,7 @@
 
 #include "accura/calib/robot.h"
 
-namespace accura::detail {
+namespace accura::calib::detail {
 
 enum class ClosedFormKind { kNone, kSphericalWrist, kThreeParallel };
 
@@ -56,4 +56,4 @@ class ClosedForm {
   std::array<Eigen::Matrix3d, 6> Rx_;  ///< Rx(alpha_i)
 };
 
-}  // namespace accura::detail
+}  // namespace accura::calib::detail

@@ -17,7 +17,7 @@
 #include "accura/calib/identify.h"
 #include "accura/calib/kinematics.h"
 
-namespace accura {
+namespace accura::calib {
 
 bool DiagnoseOptions::IsValid(std::string* error) const {
   auto fail = [&](const std::string& m) {
@@ -273,4 +273,4 @@ Diagnosis diagnose(const RobotModel& start, const MeasurementSet& data, const Me
   return d.run();
 }
 
-}  // namespace accura
+}  // namespace accura::calib

@@ -17,7 +17,7 @@
 #include "accura/calib/joint_map.h"
 #include "accura/calib/kinematics.h"
 
-namespace accura {
+namespace accura::calib {
 namespace diagnose_detail {
 
 IdentifyOptions Diagnoser::baselineOptions() const {
@@ -603,4 +603,4 @@ Diagnoser::Exact Diagnoser::exact(const std::vector<int>& S) {
 }
 
 }  // namespace diagnose_detail
-}  // namespace accura
+}  // namespace accura::calib

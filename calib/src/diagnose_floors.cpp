@@ -9,7 +9,7 @@
 #include "accura/calib/geometry.h"
 #include "diagnose_internal.h"
 
-namespace accura {
+namespace accura::calib {
 namespace diagnose_detail {
 
 namespace {
@@ -185,4 +185,4 @@ void Diagnoser::robustWeights(const std::vector<double>& e) {
 }
 
 }  // namespace diagnose_detail
-}  // namespace accura
+}  // namespace accura::calib

@@ -19,7 +19,7 @@
 #include "accura/calib/identify.h"
 #include "accura/calib/kinematics.h"
 
-namespace accura::diagnose_detail {
+namespace accura::calib::diagnose_detail {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
@@ -193,4 +193,4 @@ class Diagnoser {
   std::vector<std::string> sel_blocked_scheme_;
 };
 
-}  // namespace accura::diagnose_detail
+}  // namespace accura::calib::diagnose_detail

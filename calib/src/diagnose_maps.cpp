@@ -16,7 +16,7 @@
 #include "accura/calib/identify.h"
 #include "accura/calib/kinematics.h"
 
-namespace accura {
+namespace accura::calib {
 namespace diagnose_detail {
 
 // Where: maps, joint profiles, correlations
@@ -261,4 +261,4 @@ void Diagnoser::where() {
 }
 
 }  // namespace diagnose_detail
-}  // namespace accura
+}  // namespace accura::calib

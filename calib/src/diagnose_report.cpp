@@ -8,7 +8,7 @@
 #include "accura/calib/diagnose.h"
 #include "accura/calib/text.h"
 
-namespace accura {
+namespace accura::calib {
 namespace {
 
 using nlohmann::ordered_json;
@@ -619,4 +619,4 @@ std::string diagnosisHtml(const Diagnosis& d) {
   return h.str();
 }
 
-}  // namespace accura
+}  // namespace accura::calib

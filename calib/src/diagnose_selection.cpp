@@ -16,7 +16,7 @@
 #include "accura/calib/identify.h"
 #include "accura/calib/kinematics.h"
 
-namespace accura {
+namespace accura::calib {
 namespace diagnose_detail {
 
 // A blocked scheme whose held-out error is worse with the addition at this z (one-sided p 0.01)
@@ -622,4 +622,4 @@ void Diagnoser::shrink() {
 }
 
 }  // namespace diagnose_detail
-}  // namespace accura
+}  // namespace accura::calib

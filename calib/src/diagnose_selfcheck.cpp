@@ -15,7 +15,7 @@
 #include "accura/calib/robot_io.h"
 #include "accura/calib/simulate.h"
 
-namespace accura {
+namespace accura::calib {
 
 const std::vector<std::string>& realDataCases() {
   static const std::vector<std::string> cases = {"cyclic_fine", "outliers", "two_effects", "partial_cyclic", "partial_range"};
@@ -317,4 +317,4 @@ std::string SelfcheckResult::shrinkTable() const {
   return s.str();
 }
 
-}  // namespace accura
+}  // namespace accura::calib

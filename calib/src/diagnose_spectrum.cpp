@@ -8,7 +8,7 @@
 #include "accura/calib/geometry.h"
 #include "diagnose_internal.h"
 
-namespace accura {
+namespace accura::calib {
 namespace diagnose_detail {
 
 namespace {
@@ -141,4 +141,4 @@ void Diagnoser::orientation() {
 }
 
 }  // namespace diagnose_detail
-}  // namespace accura
+}  // namespace accura::calib

@@ -16,7 +16,7 @@
 #include "accura/calib/identify.h"
 #include "accura/calib/kinematics.h"
 
-namespace accura {
+namespace accura::calib {
 namespace diagnose_detail {
 
 void Diagnoser::verdict() {
@@ -162,4 +162,4 @@ void Diagnoser::verdict() {
 }
 
 }  // namespace diagnose_detail
-}  // namespace accura
+}  // namespace accura::calib

@@ -1,6 +1,6 @@
 #include "accura/calib/errors.h"
 
-namespace accura {
+namespace accura::calib {
 
 std::string formatLocation(const std::string& file, int line, int column) {
   std::string out;
@@ -21,4 +21,4 @@ InputError::InputError(std::string file, int line, int column, const std::string
 InputError::InputError(const std::string& message)
     : std::runtime_error(message), message_(message) {}
 
-}  // namespace accura
+}  // namespace accura::calib

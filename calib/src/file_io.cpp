@@ -19,7 +19,7 @@
 
 namespace fs = std::filesystem;
 
-namespace accura {
+namespace accura::calib {
 namespace {
 
 // ---------------------------------------------------------------------------------------------
@@ -192,4 +192,4 @@ void refuseToOverwrite(const std::vector<OutputFile>& outputs, const std::vector
         throw InputError(f.path + ": the output would overwrite the input " + in + ": choose another " + out_name);
 }
 
-}  // namespace accura
+}  // namespace accura::calib

@@ -6,7 +6,7 @@
 
 #include "accura/calib/errors.h"
 
-namespace accura {
+namespace accura::calib {
 
 Eigen::Matrix3d rotationZYX(double a_rad, double b_rad, double c_rad) {
   return (Eigen::AngleAxisd(a_rad, Eigen::Vector3d::UnitZ()) *
@@ -115,4 +115,4 @@ XyzAbc parseXyzAbc(const std::string& text, const std::string& what) {
   return p;
 }
 
-}  // namespace accura
+}  // namespace accura::calib

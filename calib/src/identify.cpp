@@ -17,7 +17,7 @@
 #include "accura/calib/joint_map.h"
 #include "accura/calib/kinematics.h"
 
-namespace accura {
+namespace accura::calib {
 
 namespace {
 // A --params item: a group name, optionally restricted to some joints: "gear_periodic:j1+j2".
@@ -1302,4 +1302,4 @@ RobotModel registerStation(const RobotModel& model, const MeasurementSet& data,
   return identify(model, data, o, summary);
 }
 
-}  // namespace accura
+}  // namespace accura::calib

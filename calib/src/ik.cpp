@@ -18,7 +18,7 @@
 #include "closed_form.h"
 #include "small_linalg.h"
 
-namespace accura {
+namespace accura::calib {
 
 using detail::ClosedForm;
 using detail::ClosedFormKind;
@@ -1093,4 +1093,4 @@ IkResult inverseKinematics(const RobotModel& model, const Eigen::Isometry3d& T_w
   return KinematicSolver(model).inverse(T_world_tcp, config, seed, options, context);
 }
 
-}  // namespace accura
+}  // namespace accura::calib

@@ -12,7 +12,7 @@
 #include "accura/calib/errors.h"
 #include "accura/calib/geometry.h"
 
-namespace accura {
+namespace accura::calib {
 namespace {
 
 std::string trim(const std::string& s) {
@@ -417,4 +417,4 @@ MeasurementSet readMappedMeasurements(const std::string& path, const Measurement
   return set;
 }
 
-}  // namespace accura
+}  // namespace accura::calib

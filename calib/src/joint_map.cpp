@@ -9,7 +9,7 @@
 #include "accura/calib/errors.h"
 #include "accura/calib/geometry.h"
 
-namespace accura {
+namespace accura::calib {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
@@ -212,9 +212,9 @@ bool parseJointMapKnot(const std::string& text, double* knot, std::string* unit,
   return true;
 }
 
-}  // namespace accura
+}  // namespace accura::calib
 
-namespace accura {
+namespace accura::calib {
 
 JointMapCvResult crossValidateJointMap(const std::vector<JointMapCvRow>& rows, const std::vector<JointRange>& ranges,
                                        const std::vector<int>& centred_harmonics, const std::vector<double>& knots,
@@ -366,4 +366,4 @@ JointMapCvResult crossValidateJointMap(const std::vector<JointMapCvRow>& rows, c
   return result;
 }
 
-}  // namespace accura
+}  // namespace accura::calib

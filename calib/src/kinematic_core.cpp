@@ -11,7 +11,7 @@
 #include "accura/calib/geometry.h"
 #include "accura/calib/kinematics.h"
 
-namespace accura {
+namespace accura::calib {
 namespace {
 
 /// sin and cos of x (rad) together, inline: the reduction by pi/2 in three parts (Cody-Waite,
@@ -560,4 +560,4 @@ Eigen::Isometry3d KinematicModel::parameterJacobian(const std::vector<ParamInfo>
   return T_w_tcp;
 }
 
-}  // namespace accura
+}  // namespace accura::calib

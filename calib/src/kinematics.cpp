@@ -8,7 +8,7 @@
 #include "accura/calib/errors.h"
 #include "accura/calib/kinematic_core.h"
 
-namespace accura {
+namespace accura::calib {
 namespace {
 
 void checkJointCount(const RobotModel& model, const Eigen::VectorXd& q) {
@@ -323,4 +323,4 @@ Eigen::Matrix<double, 6, Eigen::Dynamic> jointJacobian(const RobotModel& model,
   return J;
 }
 
-}  // namespace accura
+}  // namespace accura::calib

@@ -15,7 +15,7 @@
 #include "accura/calib/file_io.h"
 #include "accura/calib/text.h"
 
-namespace accura {
+namespace accura::calib {
 namespace {
 
 // ---------------------------------------------------------------------------------------
@@ -664,4 +664,4 @@ void writeMeasurementsCsv(const std::string& path, const MeasurementSet& set, in
   writeFileAtomically(path, out);
 }
 
-}  // namespace accura
+}  // namespace accura::calib

@@ -4,7 +4,7 @@
 
 #include "accura/calib/errors.h"
 
-namespace accura {
+namespace accura::calib {
 
 std::vector<LinkForm> chooseLinkForms(const RobotDefinition& robot, FormPolicy policy) {
   const int n = robot.dof();
@@ -106,4 +106,4 @@ void RobotModel::validate() const {
                         std::to_string(deviations.fit_range.size()));
 }
 
-}  // namespace accura
+}  // namespace accura::calib

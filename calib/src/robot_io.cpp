@@ -21,7 +21,7 @@
 
 namespace fs = std::filesystem;
 
-namespace accura {
+namespace accura::calib {
 namespace {
 
 using tinyxml2::XMLElement;
@@ -373,4 +373,4 @@ std::string resolveRobotPath(const std::string& name_or_path) {
                    "), found '" + name_or_path + "'");
 }
 
-}  // namespace accura
+}  // namespace accura::calib

@@ -8,7 +8,7 @@
 #include "accura/calib/errors.h"
 #include "accura/calib/kinematics.h"
 
-namespace accura {
+namespace accura::calib {
 namespace {
 
 // Portable random numbers: mt19937_64 is specified bit for bit by the standard; the
@@ -210,4 +210,4 @@ MeasurementSet simulateMeasurements(const RobotModel& truth, const SimulateOptio
   return set;
 }
 
-}  // namespace accura
+}  // namespace accura::calib

@@ -7,7 +7,7 @@
 #include <cmath>
 #include <utility>
 
-namespace accura::detail {
+namespace accura::calib::detail {
 
 /// A = P^T L U of a 6x6 matrix (Doolittle, partial pivoting).
 class Lu6 {
@@ -95,4 +95,4 @@ inline bool positiveDefinite6(const Eigen::Matrix<double, 6, 6>& G) {
   return true;
 }
 
-}  // namespace accura::detail
+}  // namespace accura::calib::detail

@@ -4,7 +4,7 @@
 #include "accura/calib/identify.h"
 #include "accura/calib/kinematics.h"
 
-namespace accura {
+namespace accura::calib {
 
 void summarize(const std::vector<double>& e, double* rms, double* mean, double* max, double* p95) {
   *rms = *mean = *max = *p95 = 0;
@@ -55,4 +55,4 @@ ErrorStats evaluate(const RobotModel& model, const MeasurementSet& data) {
   return s;
 }
 
-}  // namespace accura
+}  // namespace accura::calib

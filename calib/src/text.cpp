@@ -6,7 +6,7 @@
 
 #include "accura/calib/errors.h"
 
-namespace accura {
+namespace accura::calib {
 
 std::string xmlEscape(const std::string& s) {
   std::string o;
@@ -44,4 +44,4 @@ std::string formatFixed(double v, int decimals) {
   return s;
 }
 
-}  // namespace accura
+}  // namespace accura::calib

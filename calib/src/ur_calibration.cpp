@@ -13,7 +13,7 @@
 #include "accura/calib/kinematics.h"
 #include "urdf_common.h"
 
-namespace accura {
+namespace accura::calib {
 namespace {
 
 constexpr auto num17 = urdf_detail::shortestNumber;
@@ -379,4 +379,4 @@ std::string formatUrCalibrationYaml(const RobotModel& model, std::vector<std::st
   return out.str();
 }
 
-}  // namespace accura
+}  // namespace accura::calib

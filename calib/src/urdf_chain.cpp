@@ -9,7 +9,7 @@
 #include "accura/calib/urdf.h"
 #include "urdf_common.h"
 
-namespace accura {
+namespace accura::calib {
 namespace {
 
 using urdf_detail::linkFrame;
@@ -349,4 +349,4 @@ RobotModel modelFromChain(const SerialChain& chain, const RobotDefinition* refer
   return model;
 }
 
-}  // namespace accura
+}  // namespace accura::calib

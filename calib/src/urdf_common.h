@@ -11,7 +11,7 @@
 
 #include "accura/calib/kinematics.h"
 
-namespace accura::urdf_detail {
+namespace accura::calib::urdf_detail {
 
 /// Shortest decimal text that reads back to the same double ("0" for +-0).
 inline std::string shortestNumber(double v) {
@@ -82,4 +82,4 @@ inline RobotModel geometricPart(const RobotModel& model) {
   return g;
 }
 
-}  // namespace accura::urdf_detail
+}  // namespace accura::calib::urdf_detail

@@ -18,7 +18,7 @@
 #include "accura/calib/errors.h"
 #include "accura/calib/urdf.h"
 
-namespace accura {
+namespace accura::calib {
 namespace {
 
 using tinyxml2::XMLElement;
@@ -452,4 +452,4 @@ RobotModel readUrdfRobot(const std::string& path, const std::string& chain_spec)
   return modelFromChain(readUrdfChain(path, chain_spec));
 }
 
-}  // namespace accura
+}  // namespace accura::calib

@@ -12,7 +12,7 @@
 #include "accura/calib/urdf.h"
 #include "urdf_common.h"
 
-namespace accura {
+namespace accura::calib {
 namespace {
 
 using urdf_detail::shortestNumber;
@@ -113,4 +113,4 @@ UrdfText modelToUrdf(const RobotModel& model) {
   return out;
 }
 
-}  // namespace accura
+}  // namespace accura::calib

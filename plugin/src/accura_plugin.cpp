@@ -89,13 +89,13 @@ accura_status guarded(accura_model* m, const char* fn, F&& body) noexcept {
   } catch (const PluginError& e) {
     setError(m, std::string(fn) + ": " + e.message);
     return e.status;
-  } catch (const InputError& e) {
+  } catch (const calib::InputError& e) {
     setError(m, std::string(fn) + ": " + e.what());
     return ACCURA_ERROR_INPUT;
-  } catch (const ArgumentError& e) {
+  } catch (const calib::ArgumentError& e) {
     setError(m, std::string(fn) + ": " + e.what());
     return ACCURA_ERROR_INVALID_ARGUMENT;
-  } catch (const NumericalError& e) {
+  } catch (const calib::NumericalError& e) {
     setError(m, std::string(fn) + ": " + e.what());
     return ACCURA_ERROR_NUMERICAL;
   } catch (const std::bad_alloc&) {
@@ -124,21 +124,21 @@ std::shared_ptr<const State> stateOf(accura_model* m) {
   return s;
 }
 
-XyzAbc toXyz(const accura_pose& p) { return {p.x_mm, p.y_mm, p.z_mm, p.a_deg, p.b_deg, p.c_deg}; }
-accura_pose toC(const XyzAbc& p) { return {p.x_mm, p.y_mm, p.z_mm, p.a_deg, p.b_deg, p.c_deg}; }
+calib::XyzAbc toXyz(const accura_pose& p) { return {p.x_mm, p.y_mm, p.z_mm, p.a_deg, p.b_deg, p.c_deg}; }
+accura_pose toC(const calib::XyzAbc& p) { return {p.x_mm, p.y_mm, p.z_mm, p.a_deg, p.b_deg, p.c_deg}; }
 
 /// The pose as given (finite, else ACCURA_ERROR_INVALID_ARGUMENT naming `what`).
-XyzAbc checkedXyz(const accura_pose& p, const std::string& what) {
+calib::XyzAbc checkedXyz(const accura_pose& p, const std::string& what) {
   const double v[6] = {p.x_mm, p.y_mm, p.z_mm, p.a_deg, p.b_deg, p.c_deg};
   for (double x : v)
     if (!std::isfinite(x)) fail(ACCURA_ERROR_INVALID_ARGUMENT, what + ": expected finite x, y, z (mm), A, B, C (deg), found a NaN or infinity");
   return toXyz(p);
 }
 
-Eigen::Isometry3d checkedPose(const accura_pose& p, const std::string& what) { return toIsometry(checkedXyz(p, what)); }
+Eigen::Isometry3d checkedPose(const accura_pose& p, const std::string& what) { return calib::toIsometry(checkedXyz(p, what)); }
 
 /// S in 0..7 (three bits) or -1 (any), T in 0..2^dof - 1 (a bit per joint) or -1.
-Configuration configOf(const accura_configuration* c, int dof) {
+calib::Configuration configOf(const accura_configuration* c, int dof) {
   if (!c) return {};
   const long long max_turn = (1LL << std::min(dof, 30)) - 1;
   if (c->status < -1 || c->status > 7 || c->turn < -1 || c->turn > max_turn)
@@ -148,16 +148,16 @@ Configuration configOf(const accura_configuration* c, int dof) {
   return {c->status, c->turn};
 }
 
-accura_configuration toC(const Configuration& c) { return {c.status, c.turn}; }
+accura_configuration toC(const calib::Configuration& c) { return {c.status, c.turn}; }
 
-accura_status statusOf(IkStatus s) {
+accura_status statusOf(calib::IkStatus s) {
   switch (s) {
-    case IkStatus::kOk: return ACCURA_OK;
-    case IkStatus::kUnreachable: return ACCURA_ERROR_UNREACHABLE;
-    case IkStatus::kJointLimits: return ACCURA_ERROR_JOINT_LIMITS;
-    case IkStatus::kSingular: return ACCURA_ERROR_SINGULAR;
-    case IkStatus::kNoConfiguration: return ACCURA_ERROR_NO_CONFIGURATION;
-    case IkStatus::kNotConverged: return ACCURA_ERROR_NOT_CONVERGED;
+    case calib::IkStatus::kOk: return ACCURA_OK;
+    case calib::IkStatus::kUnreachable: return ACCURA_ERROR_UNREACHABLE;
+    case calib::IkStatus::kJointLimits: return ACCURA_ERROR_JOINT_LIMITS;
+    case calib::IkStatus::kSingular: return ACCURA_ERROR_SINGULAR;
+    case calib::IkStatus::kNoConfiguration: return ACCURA_ERROR_NO_CONFIGURATION;
+    case calib::IkStatus::kNotConverged: return ACCURA_ERROR_NOT_CONVERGED;
   }
   return ACCURA_ERROR_INTERNAL;
 }
@@ -176,19 +176,19 @@ std::string resolveModel(const std::string& name_or_path, const char* what) {
   if (looks_like_path && !fs::exists(name_or_path, ec))
     fail(ACCURA_ERROR_INPUT, name_or_path + ": the " + what + " file does not exist (expected a robot file, e.g. a calibrated model " +
                                  "written by accura identify, or a bundled robot name)");
-  return resolveRobotPath(name_or_path);
+  return calib::resolveRobotPath(name_or_path);
 }
 
 std::shared_ptr<State> buildState(const std::string& calibrated_path, const accura_load_options& o) {
   auto s = std::make_shared<State>();
   JobSettings& job = s->job;
-  job.calibrated = readRobotFile(resolveModel(calibrated_path, "calibrated_model"));
+  job.calibrated = calib::readRobotFile(resolveModel(calibrated_path, "calibrated_model"));
   if (job.calibrated.dof() > ACCURA_MAX_JOINTS)
     fail(ACCURA_ERROR_INPUT, calibrated_path + ": expected at most " + std::to_string(ACCURA_MAX_JOINTS) + " joints, found " +
                                  std::to_string(job.calibrated.dof()));
   if (o.controller_model) {
     const std::string p = o.controller_model;
-    const RobotModel controller = readRobotFile(resolveModel(p, "controller_model"));
+    const calib::RobotModel controller = calib::readRobotFile(resolveModel(p, "controller_model"));
     checkControllerRobot(job.calibrated.nominal, controller.nominal, p);
   }
   if (o.has_robroot_in_world) job.robroot_in_world = toXyz(o.robroot_in_world);
@@ -204,9 +204,9 @@ std::shared_ptr<State> buildState(const std::string& calibrated_path, const accu
 
   // Frames and models as compensateProgram takes them (placement.h)
   s->models = std::make_unique<ModelFactory>(job, placeRobot(job, "robroot_in_world (accura_load_options)"));
-  const Eigen::Isometry3d T_kworld_progbase = job.initial_base ? toIsometry(*job.initial_base) : Eigen::Isometry3d::Identity();
+  const Eigen::Isometry3d T_kworld_progbase = job.initial_base ? calib::toIsometry(*job.initial_base) : Eigen::Isometry3d::Identity();
   s->T_world_progbase = s->models->placement().T_world_kworld * T_kworld_progbase;
-  s->tool = &s->models->compensator(job.initial_tool ? toIsometry(*job.initial_tool) : job.calibrated.nominal.T_flange_tcp);
+  s->tool = &s->models->compensator(job.initial_tool ? calib::toIsometry(*job.initial_tool) : job.calibrated.nominal.T_flange_tcp);
   return s;
 }
 
@@ -214,8 +214,8 @@ void fillPoseResult(const State& s, const Eigen::Isometry3d& T_world_target, con
   *r = accura_pose_result{};
   r->status = statusOf(pc.status);
   r->dof = s.job.calibrated.dof();
-  if (pc.status != IkStatus::kOk) return;
-  r->command = toC(toXyzAbc(s.T_world_progbase.inverse() * pc.T_world_tcp_command));
+  if (pc.status != calib::IkStatus::kOk) return;
+  r->command = toC(calib::toXyzAbc(s.T_world_progbase.inverse() * pc.T_world_tcp_command));
   r->configuration = toC(pc.configuration);
   r->configuration_changed = pc.configuration_changed ? 1 : 0;
   r->correction_mm = (pc.T_world_tcp_command.translation() - T_world_target.translation()).norm();
@@ -317,7 +317,7 @@ ACCURA_API accura_status accura_load_options_init(accura_load_options* o, size_t
   if (struct_size != sizeof(accura_load_options)) return ACCURA_ERROR_INVALID_ARGUMENT;
   std::memset(o, 0, sizeof(*o));
   o->struct_size = sizeof(*o);
-  o->temp_c = kThermalReferenceC;
+  o->temp_c = calib::kThermalReferenceC;
   return ACCURA_OK;
 }
 
@@ -344,11 +344,11 @@ ACCURA_API accura_status accura_model_get_info(accura_model* model, accura_model
     need(info, "info");
     const auto s = stateOf(model);
     *info = accura_model_info{};
-    const RobotModel& m = s->job.calibrated;
+    const calib::RobotModel& m = s->job.calibrated;
     info->dof = m.dof();
     copyString(info->robot_name, sizeof(info->robot_name), m.nominal.name);
-    info->robroot_in_world = toC(toXyzAbc(s->models->placement().T_world_robroot));
-    info->calibrated_base_in_world = toC(toXyzAbc(m.T_world_base()));
+    info->robroot_in_world = toC(calib::toXyzAbc(s->models->placement().T_world_robroot));
+    info->calibrated_base_in_world = toC(calib::toXyzAbc(m.T_world_base()));
     for (int i = 0; i < m.dof(); ++i) {
       info->lower[i] = m.nominal.joints[i].lower;
       info->upper[i] = m.nominal.joints[i].upper;
@@ -362,10 +362,10 @@ ACCURA_API accura_status accura_model_get_joints(accura_model* model, accura_joi
   return guarded(model, "accura_model_get_joints", [&]() {
     if (capacity > 0) need(joints, "joints");
     const auto s = stateOf(model);
-    const std::vector<JointSpec>& js = s->job.calibrated.nominal.joints;
+    const std::vector<calib::JointSpec>& js = s->job.calibrated.nominal.joints;
     if (n_joints) *n_joints = js.size();
     for (size_t i = 0; i < js.size() && i < capacity; ++i)
-      joints[i] = {js[i].type == JointType::kPrismatic ? 1 : 0, js[i].a_mm, js[i].alpha_deg, js[i].d_mm, js[i].theta0_deg,
+      joints[i] = {js[i].type == calib::JointType::kPrismatic ? 1 : 0, js[i].a_mm, js[i].alpha_deg, js[i].d_mm, js[i].theta0_deg,
                    js[i].direction, js[i].lower, js[i].upper};
     if (capacity < js.size())
       fail(ACCURA_ERROR_BUFFER_TOO_SMALL, "the robot has " + std::to_string(js.size()) + " joints, the buffer holds " + std::to_string(capacity));
@@ -392,7 +392,7 @@ ACCURA_API accura_status accura_forward_kinematics(accura_model* model, accura_w
       qv[i] = q[i];
     }
     const Eigen::Isometry3d T = which == ACCURA_REAL ? s->tool->compensator->real().forward(qv, s->job.context) : s->tool->compensator->controller().forward(qv);
-    *pose_out = toC(toXyzAbc(s->T_world_progbase.inverse() * T));
+    *pose_out = toC(calib::toXyzAbc(s->T_world_progbase.inverse() * T));
     return ACCURA_OK;
   });
 }
@@ -405,11 +405,11 @@ ACCURA_API accura_status accura_compensate_pose(accura_model* model, const accur
     need(result, "result");
     const auto s = stateOf(model);
     const Eigen::Isometry3d T_world = s->T_world_progbase * checkedPose(*target, "target");
-    const Configuration asked = configOf(configuration, s->job.calibrated.dof());
+    const calib::Configuration asked = configOf(configuration, s->job.calibrated.dof());
     PoseCompensation pc = s->tool->compensator->pose(T_world, asked, Eigen::VectorXd(), s->job.ik, s->job.context);
     enforceConfiguration(asked, pc);
     fillPoseResult(*s, T_world, pc, result);
-    if (pc.status != IkStatus::kOk) fail(result->status, pc.message.empty() ? std::string(toString(pc.status)) : pc.message);
+    if (pc.status != calib::IkStatus::kOk) fail(result->status, pc.message.empty() ? std::string(toString(pc.status)) : pc.message);
     return ACCURA_OK;
   });
 }
@@ -426,7 +426,7 @@ ACCURA_API accura_status accura_compensate_poses(accura_model* model, const accu
     const auto s = stateOf(model);
     // validate everything first: a bad argument fails the call before any work
     std::vector<Eigen::Isometry3d> T_world(n);
-    std::vector<Configuration> configs(n);
+    std::vector<calib::Configuration> configs(n);
     for (size_t i = 0; i < n; ++i) {
       T_world[i] = s->T_world_progbase * checkedPose(targets[i], "targets[" + std::to_string(i) + "]");
       configs[i] = configOf(configurations ? &configurations[i] : nullptr, s->job.calibrated.dof());
@@ -439,7 +439,7 @@ ACCURA_API accura_status accura_compensate_poses(accura_model* model, const accu
       PoseCompensation pc = s->tool->compensator->pose(T_world[i], configs[i], continuous ? seed : Eigen::VectorXd(), s->job.ik, s->job.context);
       enforceConfiguration(configs[i], pc);
       fillPoseResult(*s, T_world[i], pc, &results[i]);
-      if (pc.status == IkStatus::kOk) {
+      if (pc.status == calib::IkStatus::kOk) {
         ++ok;
         seed = pc.q_real;
       } else if (first == ACCURA_OK) {
@@ -483,18 +483,18 @@ ACCURA_API accura_status accura_compensate_path(accura_model* model, const accur
       for (size_t i = 0; i < n_motions; ++i) reports[i] = accura_motion_report{};
     JobSettings job = s->job;
     job.tol_mm = tol_mm;
-    const Configuration asked_start = configOf(start_configuration, job.calibrated.dof());
+    const calib::Configuration asked_start = configOf(start_configuration, job.calibrated.dof());
     const PathCompensation pc = compensatePath(*s->tool->compensator, T_world_start, asked_start, intended, job);
-    if (pc.start.status != IkStatus::kOk)
+    if (pc.start.status != calib::IkStatus::kOk)
       fail(statusOf(pc.start.status), std::string("the start cannot be compensated: ") + toString(pc.start.status) +
                                           (pc.start.message.empty() ? "" : ": " + pc.start.message));
     if (pc.failed_motion >= 0) {
       const SegmentCompensation& sc = pc.segments.back();
       result->failed_motion = pc.failed_motion;
-      fail(sc.status == IkStatus::kOk ? ACCURA_ERROR_INTERNAL : statusOf(sc.status), "motion " + std::to_string(pc.failed_motion) +
+      fail(sc.status == calib::IkStatus::kOk ? ACCURA_ERROR_INTERNAL : statusOf(sc.status), "motion " + std::to_string(pc.failed_motion) +
            " cannot be compensated: " + toString(sc.status) + (sc.message.empty() ? "" : ": " + sc.message));
     }
-    const auto inBase = [&](const Eigen::Isometry3d& T_world) { return toC(toXyzAbc(s->T_world_progbase.inverse() * T_world)); };
+    const auto inBase = [&](const Eigen::Isometry3d& T_world) { return toC(calib::toXyzAbc(s->T_world_progbase.inverse() * T_world)); };
     result->start_command = inBase(pc.start.T_world_tcp_command);
     result->start_configuration = toC(pc.start.configuration);
     std::vector<accura_path_point> out;
@@ -505,7 +505,7 @@ ACCURA_API accura_status accura_compensate_path(accura_model* model, const accur
         p.type = motions[i].type;
         p.end = inBase(sc.commanded[k].T_world_end);
         if (intended[i].type == PathType::kCirc) p.aux = inBase(sc.commanded[k].T_world_aux);
-        p.configuration = toC(kukaConfiguration(s->tool->compensator->controller().model(), sc.q_real_end[k]));
+        p.configuration = toC(calib::kukaConfiguration(s->tool->compensator->controller().model(), sc.q_real_end[k]));
         p.motion = static_cast<int>(i);
         p.inserted = k + 1 < sc.commanded.size() ? 1 : 0;
         out.push_back(p);
@@ -565,7 +565,7 @@ ACCURA_API accura_status accura_compensate_program(accura_model* model, const ch
     request.json_name = "json_report_path";
     const ProgramFileResult result = compensateProgramFile(request, job);
     const JobReport& report = result.report;
-    const std::vector<OutputFile>& files = result.checked.files;
+    const std::vector<calib::OutputFile>& files = result.checked.files;
     if (summary) {
       *summary = accura_program_summary{};
       summary->targets_corrected = report.targets_corrected;
@@ -717,7 +717,7 @@ ACCURA_API accura_status accura_write_program(accura_model* model, const char* p
       p.motions.push_back(m);
     }
     makeParentDir(path);
-    writeFilesAtomically(renderProgram(p, format, path));
+    calib::writeFilesAtomically(renderProgram(p, format, path));
     return ACCURA_OK;
   });
 }
@@ -728,7 +728,7 @@ ACCURA_API accura_status accura_write_file(accura_model* model, const char* path
     need(path, "path");
     if (size > 0) need(data, "data");
     makeParentDir(path);
-    writeFilesAtomically({{path, std::string(data ? data : "", size)}});
+    calib::writeFilesAtomically({{path, std::string(data ? data : "", size)}});
     return ACCURA_OK;
   });
 }

@@ -57,9 +57,9 @@ std::vector<std::string> findPrograms(const std::string& in_dir) {
   std::vector<std::string> out;
   std::error_code ec;
   fs::recursive_directory_iterator it(in_dir, fs::directory_options::none, ec), end;
-  if (ec) throw InputError(in_dir, 0, 0, "cannot list the directory: " + ec.message());
+  if (ec) throw calib::InputError(in_dir, 0, 0, "cannot list the directory: " + ec.message());
   for (; it != end; it.increment(ec)) {
-    if (ec) throw InputError(in_dir, 0, 0, "cannot list the directory: " + ec.message());
+    if (ec) throw calib::InputError(in_dir, 0, 0, "cannot list the directory: " + ec.message());
     const fs::path p = it->path();
     if (isHidden(p)) {
       if (it->is_directory(ec)) it.disable_recursion_pending();
@@ -76,7 +76,7 @@ std::vector<std::string> findPrograms(const std::string& in_dir) {
 
 namespace {
 
-std::vector<OutputFile> render(const Program& compensated, ProgramFormat format, const std::string& out_path) {
+std::vector<calib::OutputFile> render(const Program& compensated, ProgramFormat format, const std::string& out_path) {
   std::string dat_out;
   if (compensated.krl && !compensated.krl->dat_path.empty())
     dat_out = (fs::path(out_path).parent_path() / fs::path(compensated.krl->dat_path).filename()).string();
@@ -85,7 +85,7 @@ std::vector<OutputFile> render(const Program& compensated, ProgramFormat format,
 
 }  // namespace
 
-std::vector<OutputFile> compensateFile(const std::string& in_path, const std::string& out_path,
+std::vector<calib::OutputFile> compensateFile(const std::string& in_path, const std::string& out_path,
                                        const ProgramReadOptions& read, const JobSettings& job, JobReport* report) {
   const ProgramFormat format = programFormat(in_path);
   return render(compensateProgram(readProgram(in_path, read), job, report), format, out_path);
@@ -121,18 +121,18 @@ ProgramFileResult compensateProgramFile(const ProgramFileRequest& q, const JobSe
   programFormat(q.in_path);  // a clear error for another extension before anything else
   std::error_code ec;
   if (fs::exists(q.out_dir, ec) && !fs::is_directory(q.out_dir, ec))
-    throw InputError(q.out_name + ": expected a directory, found the file " + q.out_dir);
+    throw calib::InputError(q.out_name + ": expected a directory, found the file " + q.out_dir);
   const std::string out_path = (fs::path(q.out_dir) / fs::path(q.in_path).filename()).string();
   ProgramFileResult r;
   r.checked = compensateAndCheckFile(q.in_path, out_path, q.read, job, q.cell, &r.report);
   std::vector<std::string> inputs = {q.in_path, fs::path(q.in_path).replace_extension(".dat").string()};
   if (!q.read.dat_path.empty()) inputs.push_back(q.read.dat_path);
   if (!q.read.config_path.empty()) inputs.push_back(q.read.config_path);
-  refuseToOverwrite(r.checked.files, inputs, q.out_name);
-  if (!q.json_path.empty()) refuseToOverwrite({{q.json_path, ""}}, inputs, q.json_name);
+  calib::refuseToOverwrite(r.checked.files, inputs, q.out_name);
+  if (!q.json_path.empty()) calib::refuseToOverwrite({{q.json_path, ""}}, inputs, q.json_name);
   if (r.checked.write) {
     fs::create_directories(q.out_dir);
-    writeFilesAtomically(r.checked.files);
+    calib::writeFilesAtomically(r.checked.files);
     r.written = true;
   }
   if (!q.json_path.empty()) {
@@ -145,7 +145,7 @@ ProgramFileResult compensateProgramFile(const ProgramFileRequest& q, const JobSe
     rep.job = r.report;
     rep.compensation_error = r.checked.compensation_error;
     rep.check = r.checked.check;
-    writeFilesAtomically({{q.json_path, compensationReportText(rep)}});
+    calib::writeFilesAtomically({{q.json_path, compensationReportText(rep)}});
   }
   return r;
 }
@@ -172,7 +172,7 @@ std::string firstCheckProblem(const CheckReport& check) {
     if (v.kind == CheckKind::kClearance)
       for (const MotionCheck& m : check.motions)
         if (m.motion_index == v.motion_index && m.min_clearance_mm < v.value)
-          deepest = "; smallest clearance on this motion " + formatFixed(m.min_clearance_mm, 3) + " mm";
+          deepest = "; smallest clearance on this motion " + calib::formatFixed(m.min_clearance_mm, 3) + " mm";
     return v.where.str() + ": " + v.message + " [" + v.motion_type + deepest + "; " + counts + "]";
   }
   const ProgramIssue& w = check.unchecked.front();
@@ -182,14 +182,14 @@ std::string firstCheckProblem(const CheckReport& check) {
 BatchResult runBatch(const std::string& in_dir, const std::string& out_dir, const BatchOptions& options,
                      const std::function<void(const BatchFileResult&, int, int)>& progress) {
   std::error_code ec;
-  if (!fs::is_directory(in_dir, ec)) throw InputError(in_dir + ": expected a directory of programs (--in), found none");
-  if (options.jobs < 1) throw InputError("--jobs: expected at least 1, found " + std::to_string(options.jobs));
+  if (!fs::is_directory(in_dir, ec)) throw calib::InputError(in_dir + ": expected a directory of programs (--in), found none");
+  if (options.jobs < 1) throw calib::InputError("--jobs: expected at least 1, found " + std::to_string(options.jobs));
   const fs::path in_abs = fs::weakly_canonical(fs::absolute(in_dir));
   const fs::path out_abs = fs::weakly_canonical(fs::absolute(out_dir));
   if (inside(out_abs, in_abs))
-    throw InputError(out_dir + ": the output directory is inside the input tree " + in_dir + ", which is never modified: choose another --out");
+    throw calib::InputError(out_dir + ": the output directory is inside the input tree " + in_dir + ", which is never modified: choose another --out");
   if (inside(in_abs, out_abs))
-    throw InputError(out_dir + ": the output directory contains the input tree " + in_dir + ": choose another --out");
+    throw calib::InputError(out_dir + ": the output directory contains the input tree " + in_dir + ": choose another --out");
   const std::vector<std::string> files = findPrograms(in_dir);
   BatchResult result;
   result.files.resize(files.size());
@@ -203,14 +203,14 @@ BatchResult runBatch(const std::string& in_dir, const std::string& out_dir, cons
   if (cell && !cell->geometry) {
     try {
       cell->geometry = std::make_shared<const CellGeometry>(cell->cell, options.job.calibrated);
-    } catch (const ArgumentError& e) {
-      throw InputError(e.what());
+    } catch (const calib::ArgumentError& e) {
+      throw calib::InputError(e.what());
     }
   }
 
   auto work = [&]() {
     for (;;) {
-      if (interruptRequested()) return;
+      if (calib::interruptRequested()) return;
       const size_t i = next.fetch_add(1);
       if (i >= files.size()) return;
       BatchFileResult& r = result.files[i];
@@ -229,7 +229,7 @@ BatchResult runBatch(const std::string& in_dir, const std::string& out_dir, cons
           if (!out.compensation_error.empty()) r.message += "; it cannot be compensated either: " + out.compensation_error;
           if (out.write) {
             fs::create_directories(out_path.parent_path());
-            writeFilesAtomically(out.files);
+            calib::writeFilesAtomically(out.files);
             for (const auto& f : out.files) r.outputs.push_back(relativeSlash(fs::relative(f.path, out_dir)));
             r.status = BatchFileResult::Status::kConverted;
           } else {

@@ -133,12 +133,12 @@ class CellReader {
   /// An error in the element (at its '<').
   [[noreturn]] void fail(const XMLElement* e, const std::string& msg) const {
     const auto [line, column] = e ? pos_.element(e) : std::pair<int, int>{0, 0};
-    throw InputError(file_, line, column, msg);
+    throw calib::InputError(file_, line, column, msg);
   }
   /// An error in one of its attributes (at the attribute's name).
   [[noreturn]] void failAttribute(const XMLElement* e, const std::string& name, const std::string& msg) const {
     const auto [line, column] = pos_.attribute(e, name);
-    throw InputError(file_, line, column, msg);
+    throw calib::InputError(file_, line, column, msg);
   }
   std::pair<int, int> where(const XMLElement* e) const { return pos_.element(e); }
 
@@ -201,14 +201,14 @@ class CellReader {
   /// x_mm .. c_deg (each optional, 0 when absent).
   Eigen::Isometry3d placement(const XMLElement* e) const {
     const double zero = 0;
-    XyzAbc p;
+    calib::XyzAbc p;
     p.x_mm = bounded(e, "x_mm", &zero, kMaxCellExtent_mm, "mm");
     p.y_mm = bounded(e, "y_mm", &zero, kMaxCellExtent_mm, "mm");
     p.z_mm = bounded(e, "z_mm", &zero, kMaxCellExtent_mm, "mm");
     p.a_deg = bounded(e, "a_deg", &zero, kMaxCellAngle_deg, "deg");
     p.b_deg = bounded(e, "b_deg", &zero, kMaxCellAngle_deg, "deg");
     p.c_deg = bounded(e, "c_deg", &zero, kMaxCellAngle_deg, "deg");
-    return toIsometry(p);
+    return calib::toIsometry(p);
   }
 
   double unitScale(const XMLElement* e) const {
@@ -234,7 +234,7 @@ class CellReader {
       CellShape s;
       try {
         s.mesh = loadMesh(path, scale);
-      } catch (const InputError& err) {
+      } catch (const calib::InputError& err) {
         failAttribute(e, "file", std::string("<") + e->Name() + "> file '" + rel + "': " + err.what());
       }
       s.T_parent_shape = T;
@@ -281,16 +281,16 @@ Cell readCellFile(const std::string& path) {
   std::string text;
   {
     std::ifstream in(path, std::ios::binary);
-    if (!in) throw InputError(path, 0, 0, "expected a cell file, cannot open it");
+    if (!in) throw calib::InputError(path, 0, 0, "expected a cell file, cannot open it");
     std::ostringstream s;
     s << in.rdbuf();
-    if (in.bad()) throw InputError(path, 0, 0, "expected a cell file, cannot read it");
+    if (in.bad()) throw calib::InputError(path, 0, 0, "expected a cell file, cannot read it");
     text = s.str();
   }
   tinyxml2::XMLDocument doc;
   // the text read above (not the file again): the positions below are positions in it
   if (doc.Parse(text.data(), text.size()) != tinyxml2::XML_SUCCESS)
-    throw InputError(path, doc.ErrorLineNum(), 0, std::string("expected well-formed XML, found: ") + doc.ErrorStr());
+    throw calib::InputError(path, doc.ErrorLineNum(), 0, std::string("expected well-formed XML, found: ") + doc.ErrorStr());
   const TextPositions positions(text, doc);
   CellReader R(path, positions);
   const XMLElement* root = doc.RootElement();

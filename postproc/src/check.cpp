@@ -24,7 +24,7 @@ constexpr double kWidenDeg = 30.0;
 /// rounding.
 constexpr double kRefineMarginMm = 1.0;
 
-std::string num(double v, int decimals) { return formatFixed(v, decimals); }
+std::string num(double v, int decimals) { return calib::formatFixed(v, decimals); }
 
 std::string jointsText(const Eigen::VectorXd& q) {
   std::string s;
@@ -35,16 +35,16 @@ std::string jointsText(const Eigen::VectorXd& q) {
 /// Whose IK and FK define the path for one tool (the real model or the controller's) and
 /// its IK with widened limits (ToolModels::check_ik).
 struct ModeModels {
-  const RobotModel& mode_model;
-  const KinematicSolver& ik;
+  const calib::RobotModel& mode_model;
+  const calib::KinematicSolver& ik;
 };
 
 class Checker {
  public:
   /// `shared`: the geometry prepared for this cell and robot (copied: a copy shares the BVHs);
   /// null: built here.
-  Checker(const RobotModel& real, ModelFactory& models, const Cell& cell, const CheckOptions& o,
-          const PoseContext& context, CheckReport& r, const CellGeometry* shared)
+  Checker(const calib::RobotModel& real, ModelFactory& models, const Cell& cell, const CheckOptions& o,
+          const calib::PoseContext& context, CheckReport& r, const CellGeometry* shared)
       : real_(real), models_(models), opt_(o), t_(o.thresholds), context_(context), r_(r),
         geometry_(shared ? CellGeometry(*shared) : CellGeometry(cell, real)) {
     // scale of the singularity measure (docs/compensation.md, docs/checks.md)
@@ -56,14 +56,14 @@ class Checker {
   ModeModels models(const Eigen::Isometry3d& tool) {
     ToolModels& m = models_.forTool(tool);
     // intended: the tool rule of compensateProgram; as written: the controller's model
-    const RobotModel& mode = opt_.mode == CheckMode::kIntended ? m.real : m.controller;
+    const calib::RobotModel& mode = opt_.mode == CheckMode::kIntended ? m.real : m.controller;
     if (!m.check_ik) {
-      RobotModel wide = mode;
+      calib::RobotModel wide = mode;
       for (auto& j : wide.nominal.joints) {
         j.lower -= kWidenDeg;
         j.upper += kWidenDeg;
       }
-      m.check_ik = std::make_unique<KinematicSolver>(wide);
+      m.check_ik = std::make_unique<calib::KinematicSolver>(wide);
     }
     return {mode, *m.check_ik};
   }
@@ -71,10 +71,10 @@ class Checker {
   /// sigma_min of the scaled joint Jacobian of the real model at q; `dominant`: the joints
   /// with the largest share in the singular direction.
   double sigmaMin(const Eigen::VectorXd& q, std::string* dominant) {
-    const Eigen::Matrix<double, 6, Eigen::Dynamic> J = jointJacobian(real_, q, context_, ws_);
+    const Eigen::Matrix<double, 6, Eigen::Dynamic> J = calib::jointJacobian(real_, q, context_, ws_);
     Eigen::MatrixXd S = J;
     for (int i = 0; i < S.cols(); ++i) {
-      if (real_.nominal.joints[static_cast<size_t>(i)].type == JointType::kRevolute) S.col(i) *= kRadToDeg;
+      if (real_.nominal.joints[static_cast<size_t>(i)].type == calib::JointType::kRevolute) S.col(i) *= calib::kRadToDeg;
       else S.col(i) *= L_mm_;
     }
     S.topRows(3) /= L_mm_;
@@ -94,7 +94,7 @@ class Checker {
     double best = kInf;
     int which = -1;
     for (int i = 0; i < q.size(); ++i) {
-      const JointSpec& j = real_.nominal.joints[static_cast<size_t>(i)];
+      const calib::JointSpec& j = real_.nominal.joints[static_cast<size_t>(i)];
       const double m = std::min(q[i] - j.lower, j.upper - q[i]);
       if (m < best) {
         best = m;
@@ -118,12 +118,12 @@ class Checker {
     Sample x;
     x.s = s;
     x.q = q;
-    x.p_tcp = forwardKinematics(tm.mode_model, q, context_, ws_).translation();
+    x.p_tcp = calib::forwardKinematics(tm.mode_model, q, context_, ws_).translation();
     // the real model's joint angles (rad) and d (mm) as used: what moves the geometry
-    forwardKinematics(real_, q, context_, ws_);
+    calib::forwardKinematics(real_, q, context_, ws_);
     x.theta.resize(q.size());
     for (int i = 0; i < q.size(); ++i)
-      x.theta[i] = real_.nominal.joints[static_cast<size_t>(i)].type == JointType::kRevolute ? ws_.theta_rad[i] : ws_.d_mm[i];
+      x.theta[i] = real_.nominal.joints[static_cast<size_t>(i)].type == calib::JointType::kRevolute ? ws_.theta_rad[i] : ws_.d_mm[i];
     if (geometry_.robotShapes() > 0 && geometry_.objects() > 0)
       x.d = geometry_.distances(q, context_, t_.min_clearance_mm + opt_.exact_band_mm, &r_.distance_queries);
     ++r_.samples;
@@ -174,8 +174,8 @@ class Checker {
       v.value = margin;
       v.limit = t_.joint_margin_deg;
       v.excess = t_.joint_margin_deg - margin;
-      const JointSpec& js = real_.nominal.joints[static_cast<size_t>(joint)];
-      v.unit = js.type == JointType::kRevolute ? "deg" : "mm";
+      const calib::JointSpec& js = real_.nominal.joints[static_cast<size_t>(joint)];
+      v.unit = js.type == calib::JointType::kRevolute ? "deg" : "mm";
       v.joint = joint;
       v.message = "joint limit: " + js.name + " = " + num(q[joint], 3) + " " + v.unit + " is " + num(margin, 3) + " " + v.unit +
                   (margin < 0 ? " outside" : " inside") + " its limits [" + num(js.lower, 1) + ", " + num(js.upper, 1) + "]; required " +
@@ -192,7 +192,7 @@ class Checker {
         v.value = sigma;
         v.limit = t_.singular_threshold;
         v.excess = t_.singular_threshold - sigma;
-        v.message = "singularity: sigma_min " + formatFixed(sigma, 6) + " below " + formatFixed(t_.singular_threshold, 6) +
+        v.message = "singularity: sigma_min " + calib::formatFixed(sigma, 6) + " below " + calib::formatFixed(t_.singular_threshold, 6) +
                     " (scaled joint Jacobian; the singular direction moves mostly " + dominant + ") " + at(v) + ", joints " + jointsText(q);
         record(f, std::move(v));
       }
@@ -287,7 +287,7 @@ class Checker {
 
   void run(const std::vector<WorldMotion>& motions, const std::vector<int>& indices, const std::vector<bool>& start_unknown) {
     std::optional<Sample> prev;
-    const RobotModel* prev_models = nullptr;  // the mode model of the previous motion (cached: its address names it)
+    const calib::RobotModel* prev_models = nullptr;  // the mode model of the previous motion (cached: its address names it)
     for (size_t mi = 0; mi < motions.size(); ++mi) {
       const WorldMotion& m = motions[mi];
       motion_index_ = indices[mi];
@@ -321,7 +321,7 @@ class Checker {
         } else {
           path(f, m, tm, prev);
         }
-      } catch (const NumericalError& e) {
+      } catch (const calib::NumericalError& e) {
         mc.checked = false;
         mc.note = std::string("cannot be checked: ") + e.what();
         r_.unchecked.push_back({m.where, mc.note});
@@ -335,16 +335,16 @@ class Checker {
 
   /// IK of a Cartesian end point (reach, configuration); nullopt after a reach violation.
   std::optional<Eigen::VectorXd> solveEnd(First& f, const WorldMotion& m, const ModeModels& tm, const std::optional<Sample>& prev) {
-    IkOptions o;
+    calib::IkOptions o;
     o.joint_margin = 0;
     o.singular_threshold = 0;
     const Eigen::VectorXd seed = prev ? prev->q : Eigen::VectorXd();
-    const IkResult ik = tm.ik.inverse(m.T_world_tcp_end, m.configuration, seed, o, context_);
-    if (ik.status == IkStatus::kOk) return ik.q;
+    const calib::IkResult ik = tm.ik.inverse(m.T_world_tcp_end, m.configuration, seed, o, context_);
+    if (ik.status == calib::IkStatus::kOk) return ik.q;
     std::string why = std::string(toString(ik.status)) + (ik.message.empty() ? "" : " (" + ik.message + ")");
-    if (ik.status == IkStatus::kJointLimits) why = "reachable only more than " + num(kWidenDeg, 0) + " deg/mm beyond the joint limits";
-    if (ik.status == IkStatus::kNoConfiguration && ik.q.size()) {
-      const Configuration c = ik.configuration;
+    if (ik.status == calib::IkStatus::kJointLimits) why = "reachable only more than " + num(kWidenDeg, 0) + " deg/mm beyond the joint limits";
+    if (ik.status == calib::IkStatus::kNoConfiguration && ik.q.size()) {
+      const calib::Configuration c = ik.configuration;
       why = "reachable only on configuration S " + std::to_string(c.status) + " T " + std::to_string(c.turn) + ", not on S " +
             std::to_string(m.configuration.status) + " T " + std::to_string(m.configuration.turn) + " the target names";
     }
@@ -375,24 +375,24 @@ class Checker {
   void path(First& f, const WorldMotion& m, const ModeModels& tm, std::optional<Sample>& prev) {
     PathSegment seg;
     seg.type = m.type == MotionType::kCirc ? PathType::kCirc : PathType::kLin;
-    seg.T_world_start = forwardKinematics(tm.mode_model, prev->q, context_, ws_);
+    seg.T_world_start = calib::forwardKinematics(tm.mode_model, prev->q, context_, ws_);
     seg.T_world_aux = m.T_world_tcp_aux;
-    seg.T_world_end = m.q_end.size() ? forwardKinematics(tm.mode_model, m.q_end, context_, ws_) : m.T_world_tcp_end;
+    seg.T_world_end = m.q_end.size() ? calib::forwardKinematics(tm.mode_model, m.q_end, context_, ws_) : m.T_world_tcp_end;
     const double length = pathLength(seg);
-    const double rot_deg = pathRotation(seg) * kRadToDeg;
+    const double rot_deg = pathRotation(seg) * calib::kRadToDeg;
     cur_->length_mm = length;
     const int n0 = std::max(1, static_cast<int>(std::ceil(std::max(length / opt_.sample_step_mm, rot_deg / opt_.sample_step_deg))));
-    IkOptions o;
+    calib::IkOptions o;
     o.joint_margin = 0;
     o.singular_threshold = 0;
     bool failed = false;
     // IK at s continuing from `left` (the configuration of the start, as the controller does)
     auto solve = [&](double s, const Sample& left) -> std::optional<Sample> {
       const Eigen::Isometry3d T = interpolate(seg, s);
-      const IkResult ik = tm.ik.inverse(T, Configuration{}, left.q, o, context_);
-      if (ik.status != IkStatus::kOk) {
+      const calib::IkResult ik = tm.ik.inverse(T, calib::Configuration{}, left.q, o, context_);
+      if (ik.status != calib::IkStatus::kOk) {
         std::string why = std::string(toString(ik.status)) + (ik.message.empty() ? "" : " (" + ik.message + ")");
-        if (ik.status == IkStatus::kJointLimits) why = "reachable only more than " + num(kWidenDeg, 0) + " deg/mm beyond the joint limits";
+        if (ik.status == calib::IkStatus::kJointLimits) why = "reachable only more than " + num(kWidenDeg, 0) + " deg/mm beyond the joint limits";
         reach(f, m, s, s * length, T.translation(), why);
         failed = true;
         return std::nullopt;
@@ -418,8 +418,8 @@ class Checker {
         v.limit = t_.singular_threshold;
         v.excess = std::max(0.0, t_.singular_threshold - sigma);
         v.message = "singularity: the joint values jump by " + num((b.q - a.q).cwiseAbs().maxCoeff(), 3) +
-                    " deg within s " + formatFixed(b.s - a.s, 9) + " (the path passes through a singularity; sigma_min " +
-                    formatFixed(sigma, 6) + ", direction " + dominant + ") " + at(v);
+                    " deg within s " + calib::formatFixed(b.s - a.s, 9) + " (the path passes through a singularity; sigma_min " +
+                    calib::formatFixed(sigma, 6) + ", direction " + dominant + ") " + at(v);
         record(f, std::move(v));
         failed = true;
         return false;
@@ -453,7 +453,7 @@ class Checker {
     }
     const Sample& end = xs.back();
     if (m.configuration.status >= 0 && !m.q_end.size()) {
-      const Configuration got = kukaConfiguration(tm.mode_model, end.q);
+      const calib::Configuration got = calib::kukaConfiguration(tm.mode_model, end.q);
       if (got.status >= 0 && got.status != m.configuration.status)
         reach(f, m, 1.0, length, end.p_tcp,
               "the path arrives on S " + std::to_string(got.status) + ", the target names S " + std::to_string(m.configuration.status));
@@ -462,15 +462,15 @@ class Checker {
   }
 
  private:
-  const RobotModel& real_;
+  const calib::RobotModel& real_;
   ModelFactory& models_;
   const CheckOptions& opt_;
   const CheckThresholds& t_;
-  PoseContext context_;
+  calib::PoseContext context_;
   CheckReport& r_;
   CellGeometry geometry_;
   double L_mm_ = 1;
-  KinematicWorkspace ws_;
+  calib::KinematicWorkspace ws_;
   MotionCheck* cur_ = nullptr;
   int motion_index_ = 0;
 };
@@ -486,19 +486,19 @@ void finish(CheckReport& r) {
   }
 }
 
-CheckReport checkWorld(const RobotModel& real, const RobotModel& controller, ModelFactory& models, const Cell& cell, const std::vector<WorldMotion>& motions,
+CheckReport checkWorld(const calib::RobotModel& real, const calib::RobotModel& controller, ModelFactory& models, const Cell& cell, const std::vector<WorldMotion>& motions,
                        const std::vector<int>& indices, const std::vector<bool>& start_unknown, const CheckOptions& options,
-                       const PoseContext& context, CheckReport r, const CellGeometry* geometry) {
+                       const calib::PoseContext& context, CheckReport r, const CellGeometry* geometry) {
   std::string why;
-  if (!options.IsValid(&why)) throw ArgumentError("check options: " + why);
+  if (!options.IsValid(&why)) throw calib::ArgumentError("check options: " + why);
   if (real.dof() != controller.dof())
-    throw ArgumentError("check: the real model has " + std::to_string(real.dof()) + " joints, the controller " + std::to_string(controller.dof()));
+    throw calib::ArgumentError("check: the real model has " + std::to_string(real.dof()) + " joints, the controller " + std::to_string(controller.dof()));
   real.validate();
   controller.validate();
   r.mode = options.mode;
   r.thresholds = options.thresholds;
   if (geometry && !geometry->madeFor(cell, real))
-    throw ArgumentError("check: the prepared cell geometry was made for another cell or robot than the one checked");
+    throw calib::ArgumentError("check: the prepared cell geometry was made for another cell or robot than the one checked");
   // objects but nothing of the robot to measure them against: say so, never a silent pass
   if (!cell.objects.empty() && cell.link_shapes.empty() && cell.tool_shapes.empty())
     r.warnings.push_back({SourceLocation{cell.file, 0, 0},
@@ -542,13 +542,13 @@ bool CheckOptions::IsValid(std::string* error) const {
   return true;
 }
 
-CheckReport checkMotions(const RobotModel& real, const RobotModel& controller, const Cell& cell, const std::vector<WorldMotion>& motions,
-                         const CheckOptions& options, const PoseContext& context) {
+CheckReport checkMotions(const calib::RobotModel& real, const calib::RobotModel& controller, const Cell& cell, const std::vector<WorldMotion>& motions,
+                         const CheckOptions& options, const calib::PoseContext& context) {
   std::vector<int> idx(motions.size());
   for (size_t i = 0; i < motions.size(); ++i) idx[i] = static_cast<int>(i);
   for (const auto& m : motions)
     if (m.q_end.size() && m.q_end.size() != real.dof())
-      throw ArgumentError("checkMotions: an axis target has " + std::to_string(m.q_end.size()) + " values, the robot " + std::to_string(real.dof()) + " joints");
+      throw calib::ArgumentError("checkMotions: an axis target has " + std::to_string(m.q_end.size()) + " values, the robot " + std::to_string(real.dof()) + " joints");
   ModelFactory models(real, controller);
   return checkWorld(real, controller, models, cell, motions, idx, std::vector<bool>(motions.size(), false), options, context, CheckReport{}, nullptr);
 }
@@ -563,7 +563,7 @@ CheckReport checkProgramWith(const Program& program, const JobSettings& job, con
   const JobSettings placed = placedInCell(job, cell);
   ModelFactory models(placed, placeRobot(placed, "--base x,y,z,A,B,C or the cell's <robot>"));
   const Eigen::Isometry3d T_world_kworld = models.placement().T_world_kworld;
-  const RobotModel controller = models.forTool(job.calibrated.nominal.T_flange_tcp).controller;
+  const calib::RobotModel controller = models.forTool(job.calibrated.nominal.T_flange_tcp).controller;
 
   std::vector<WorldMotion> wm;
   std::vector<int> idx;
@@ -596,14 +596,14 @@ CheckReport checkProgramWith(const Program& program, const JobSettings& job, con
     if (m.external_tcp) { skip("external TCP (IPO_FRAME #TCP) is not supported"); continue; }
     if (m.circ_angle_deg) { skip("CIRC with CA (circular angle) is not supported"); continue; }
     if (m.type == MotionType::kSpl) { skip("spline segments (SPL) are not checked"); continue; }
-    std::optional<XyzAbc> tool = m.tool.value, base = m.base.value;
+    std::optional<calib::XyzAbc> tool = m.tool.value, base = m.base.value;
     if (m.tool.source == FrameSetting::Source::kUnset && job.initial_tool) tool = job.initial_tool;
     if (m.base.source == FrameSetting::Source::kUnset && job.initial_base) base = job.initial_base;
     WorldMotion w;
     w.type = m.type;
     w.where = m.where;
     w.label = motionKeyword(m);
-    const Eigen::Isometry3d T_flange_tcp = tool ? toIsometry(*tool) : job.calibrated.nominal.T_flange_tcp;
+    const Eigen::Isometry3d T_flange_tcp = tool ? calib::toIsometry(*tool) : job.calibrated.nominal.T_flange_tcp;
     w.T_flange_tcp = T_flange_tcp;
     if (m.target.kind == Target::Kind::kAxis) {
       Eigen::VectorXd q(dof);
@@ -617,26 +617,26 @@ CheckReport checkProgramWith(const Program& program, const JobSettings& job, con
       if (m.type == MotionType::kCirc) { skip("CIRC to an axis target"); continue; }
       w.q_end = q;
       q_known = q;
-      KinematicWorkspace ws;
-      T_world_flange = forwardKinematics(models.controllerFlange(), q, PoseContext{}, ws);
+      calib::KinematicWorkspace ws;
+      T_world_flange = calib::forwardKinematics(models.controllerFlange(), q, calib::PoseContext{}, ws);
     } else {
       if (!tool) { skip("the tool ($TOOL) of this motion is not known (--program-tool or --config)"); continue; }
       if (!base) { skip("the base ($BASE) of this motion is not known (--program-base or --config)"); continue; }
-      const Eigen::Isometry3d T_world_progbase = T_world_kworld * toIsometry(*base);
+      const Eigen::Isometry3d T_world_progbase = T_world_kworld * calib::toIsometry(*base);
       auto complete = [&](Target t) -> std::optional<Eigen::Isometry3d> {
         if (!t.completePose()) {
           if (!T_world_flange) return std::nullopt;
-          const XyzAbc prevp = toXyzAbc(T_world_progbase.inverse() * *T_world_flange * T_flange_tcp);
+          const calib::XyzAbc prevp = calib::toXyzAbc(T_world_progbase.inverse() * *T_world_flange * T_flange_tcp);
           const double p[6] = {prevp.x_mm, prevp.y_mm, prevp.z_mm, prevp.a_deg, prevp.b_deg, prevp.c_deg};
           for (size_t k = 0; k < 6; ++k)
             if (!t.pose[k]) t.pose[k] = p[k];
         }
-        return T_world_progbase * toIsometry(t.xyzAbc());
+        return T_world_progbase * calib::toIsometry(t.xyzAbc());
       };
       const auto end = complete(m.target);
       if (!end) { skip("a partial target after an unknown position"); continue; }
       w.T_world_tcp_end = *end;
-      w.configuration = Configuration{m.target.status.value_or(-1), m.target.turn.value_or(-1)};
+      w.configuration = calib::Configuration{m.target.status.value_or(-1), m.target.turn.value_or(-1)};
       if (m.type == MotionType::kCirc) {
         if (!m.aux) { skip("CIRC without an auxiliary point"); continue; }
         const auto aux = complete(*m.aux);

@@ -24,10 +24,10 @@ struct CellGeometry::Impl {
     int frame = 0;  // robot shapes: DH frame (1..n)
     std::string name;
   };
-  RobotModel robot;
+  calib::RobotModel robot;
   std::vector<Shape> robot_shapes, objects;
   Eigen::MatrixXd lever;  // [shape, joint]
-  mutable KinematicWorkspace ws;
+  mutable calib::KinematicWorkspace ws;
 
   static Shape make(const CellShape& s) {
     Shape out;
@@ -70,20 +70,20 @@ struct CellGeometry::Impl {
       out.center_parent = 0.5 * (a + b);
       out.radius_mm = 0.5 * len + cap.radius_mm;
     } else {
-      throw ArgumentError("CellGeometry: the shape '" + s.name + "' has neither a mesh nor a capsule");
+      throw calib::ArgumentError("CellGeometry: the shape '" + s.name + "' has neither a mesh nor a capsule");
     }
     return out;
   }
 };
 
-CellGeometry::CellGeometry(const Cell& cell, const RobotModel& robot) : impl_(std::make_unique<Impl>()) {
+CellGeometry::CellGeometry(const Cell& cell, const calib::RobotModel& robot) : impl_(std::make_unique<Impl>()) {
   robot.validate();
   Impl& I = *impl_;
   I.robot = robot;
   const int n = robot.dof();
   for (const auto& ls : cell.link_shapes) {
     if (ls.first < 1 || ls.first > n)
-      throw ArgumentError(formatLocation(ls.second.file, ls.second.line, ls.second.column) + "<link> joint: expected 1.." + std::to_string(n) +
+      throw calib::ArgumentError(calib::formatLocation(ls.second.file, ls.second.line, ls.second.column) + "<link> joint: expected 1.." + std::to_string(n) +
                           " (the robot has " + std::to_string(n) + " joints), found " + std::to_string(ls.first));
     Impl::Shape s = Impl::make(ls.second);
     s.frame = ls.first;
@@ -120,12 +120,12 @@ CellGeometry::CellGeometry(const Cell& cell, const RobotModel& robot) : impl_(st
   // (thermal expansion, compliance) that change lengths slightly.
   Eigen::VectorXd q_mid(n);
   for (int i = 0; i < n; ++i) q_mid[i] = 0.5 * (robot.nominal.joints[i].lower + robot.nominal.joints[i].upper);
-  forwardKinematics(robot, q_mid, PoseContext{}, I.ws);
+  calib::forwardKinematics(robot, q_mid, calib::PoseContext{}, I.ws);
   std::vector<double> t_len(n + 1, 0.0);
   for (int k = 1; k <= n; ++k) {
     t_len[k] = (I.ws.T_base_frame[k].translation() - I.ws.T_base_frame[k - 1].translation()).norm();
-    const JointSpec& j = robot.nominal.joints[k - 1];
-    if (j.type == JointType::kPrismatic) t_len[k] += 0.5 * (j.upper - j.lower);
+    const calib::JointSpec& j = robot.nominal.joints[k - 1];
+    if (j.type == calib::JointType::kPrismatic) t_len[k] += 0.5 * (j.upper - j.lower);
     t_len[k] = t_len[k] * 1.01 + 1.0;
   }
   I.lever = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(I.robot_shapes.size()), n);
@@ -133,7 +133,7 @@ CellGeometry::CellGeometry(const Cell& cell, const RobotModel& robot) : impl_(st
     const Impl::Shape& sh = I.robot_shapes[s];
     const double far = sh.center_parent.norm() + sh.radius_mm;
     for (int i = 1; i <= sh.frame; ++i) {
-      if (robot.nominal.joints[i - 1].type == JointType::kPrismatic) {
+      if (robot.nominal.joints[i - 1].type == calib::JointType::kPrismatic) {
         I.lever(static_cast<Eigen::Index>(s), i - 1) = 1.0;
         continue;
       }
@@ -147,7 +147,7 @@ CellGeometry::CellGeometry(const Cell& cell, const RobotModel& robot) : impl_(st
 CellGeometry::~CellGeometry() = default;
 CellGeometry::CellGeometry(const CellGeometry& other) : impl_(std::make_unique<Impl>(*other.impl_)) {}
 
-bool CellGeometry::madeFor(const Cell& cell, const RobotModel& robot) const {
+bool CellGeometry::madeFor(const Cell& cell, const calib::RobotModel& robot) const {
   const Impl& I = *impl_;
   if (robot.dof() != I.robot.dof()) return false;
   if (robotShapes() != static_cast<int>(cell.link_shapes.size() + cell.tool_shapes.size()) || objects() != static_cast<int>(cell.objects.size()))
@@ -155,9 +155,9 @@ bool CellGeometry::madeFor(const Cell& cell, const RobotModel& robot) const {
   const int n = robot.dof();
   Eigen::VectorXd q_mid(n);
   for (int i = 0; i < n; ++i) q_mid[i] = 0.5 * (robot.nominal.joints[i].lower + robot.nominal.joints[i].upper);
-  KinematicWorkspace a, b;
-  forwardKinematics(robot, q_mid, PoseContext{}, a);
-  forwardKinematics(I.robot, q_mid, PoseContext{}, b);
+  calib::KinematicWorkspace a, b;
+  calib::forwardKinematics(robot, q_mid, calib::PoseContext{}, a);
+  calib::forwardKinematics(I.robot, q_mid, calib::PoseContext{}, b);
   if (!robot.T_world_base().isApprox(I.robot.T_world_base(), 1e-12) ||
       (robot.T_world_base().translation() - I.robot.T_world_base().translation()).norm() > 1e-9)
     return false;
@@ -178,7 +178,7 @@ const std::string& CellGeometry::objectName(int k) const { return impl_->objects
 
 double CellGeometry::leverArm(int robot_shape, int joint) const {
   if (robot_shape < 0 || robot_shape >= robotShapes() || joint < 0 || joint >= impl_->robot.dof())
-    throw ArgumentError("CellGeometry::leverArm: index out of range");
+    throw calib::ArgumentError("CellGeometry::leverArm: index out of range");
   return impl_->lever(robot_shape, joint);
 }
 
@@ -243,10 +243,10 @@ CellGeometry::Distance nearestObject(const CellGeometry::Impl& I, size_t s, cons
 
 }  // namespace
 
-std::vector<CellGeometry::Distance> CellGeometry::distances(const Eigen::VectorXd& q, const PoseContext& context, double exact_below_mm,
+std::vector<CellGeometry::Distance> CellGeometry::distances(const Eigen::VectorXd& q, const calib::PoseContext& context, double exact_below_mm,
                                                             long long* queries) const {
   const Impl& I = *impl_;
-  forwardKinematics(I.robot, q, context, I.ws);
+  calib::forwardKinematics(I.robot, q, context, I.ws);
   const Eigen::Isometry3d T_world_base = I.robot.T_world_base();
   std::vector<Distance> out(I.robot_shapes.size());
   for (size_t s = 0; s < I.robot_shapes.size(); ++s)
@@ -254,11 +254,11 @@ std::vector<CellGeometry::Distance> CellGeometry::distances(const Eigen::VectorX
   return out;
 }
 
-CellGeometry::Distance CellGeometry::distance(int robot_shape, const Eigen::VectorXd& q, const PoseContext& context, double exact_below_mm,
+CellGeometry::Distance CellGeometry::distance(int robot_shape, const Eigen::VectorXd& q, const calib::PoseContext& context, double exact_below_mm,
                                               long long* queries) const {
-  if (robot_shape < 0 || robot_shape >= robotShapes()) throw ArgumentError("CellGeometry::distance: robot shape index out of range");
+  if (robot_shape < 0 || robot_shape >= robotShapes()) throw calib::ArgumentError("CellGeometry::distance: robot shape index out of range");
   const Impl& I = *impl_;
-  forwardKinematics(I.robot, q, context, I.ws);
+  calib::forwardKinematics(I.robot, q, context, I.ws);
   const size_t s = static_cast<size_t>(robot_shape);
   return nearestObject(I, s, I.robot.T_world_base() * I.ws.T_base_frame[static_cast<size_t>(I.robot_shapes[s].frame)], exact_below_mm, queries);
 }

@@ -33,34 +33,34 @@ bool DensifyOptions::IsValid(std::string* error) const {
 namespace {
 
 double rotationAngleDeg(const Eigen::Matrix3d& A, const Eigen::Matrix3d& B) {
-  return logSO3(A * B.transpose()).norm() * kRadToDeg;
+  return calib::logSO3(A * B.transpose()).norm() * calib::kRadToDeg;
 }
 
 }  // namespace
 
 // ---------------------------------------------------------------------------------------
 
-Compensator::Compensator(const RobotModel& controller, const RobotModel& real) : controller_(controller), real_(real) {
+Compensator::Compensator(const calib::RobotModel& controller, const calib::RobotModel& real) : controller_(controller), real_(real) {
   if (controller.dof() != real.dof())
-    throw ArgumentError("compensation: the controller model has " + std::to_string(controller.dof()) +
+    throw calib::ArgumentError("compensation: the controller model has " + std::to_string(controller.dof()) +
                         " joints, the real model " + std::to_string(real.dof()));
 }
 
-PoseCompensation Compensator::pose(const Eigen::Isometry3d& T_desired, const Configuration& config,
-                                   const Eigen::VectorXd& seed, const IkOptions& options,
-                                   const PoseContext& context) const {
+PoseCompensation Compensator::pose(const Eigen::Isometry3d& T_desired, const calib::Configuration& config,
+                                   const Eigen::VectorXd& seed, const calib::IkOptions& options,
+                                   const calib::PoseContext& context) const {
   PoseCompensation out;
-  const IkResult r = real_.inversePolished(T_desired, config, seed, options, context, 1e-9, 1e-12);
-  const bool have_q = r.status == IkStatus::kOk || (r.status == IkStatus::kNoConfiguration && r.q.size() > 0);
+  const calib::IkResult r = real_.inversePolished(T_desired, config, seed, options, context, 1e-9, 1e-12);
+  const bool have_q = r.status == calib::IkStatus::kOk || (r.status == calib::IkStatus::kNoConfiguration && r.q.size() > 0);
   if (!have_q) {
     out.status = r.status;
     out.message = r.message;
     return out;
   }
-  out.status = IkStatus::kOk;
+  out.status = calib::IkStatus::kOk;
   out.q_real = r.q;
   out.configuration = r.configuration;
-  out.configuration_changed = r.status == IkStatus::kNoConfiguration;
+  out.configuration_changed = r.status == calib::IkStatus::kNoConfiguration;
   if (out.configuration_changed)
     out.message = "the compensation changes the configuration: " + r.message;
   out.T_world_tcp_command = controller_.forward(r.q);
@@ -77,7 +77,7 @@ namespace {
 
 /// The error of one commanded sub-segment against the intended path.
 struct Prediction {
-  IkStatus status = IkStatus::kOk;
+  calib::IkStatus status = calib::IkStatus::kOk;
   std::string message;
   double max_mm = 0;    ///< largest sampled distance to the intended curve
   double bound_mm = 0;  ///< max_mm plus the interpolation bound (docs/compensation.md)
@@ -90,10 +90,10 @@ struct SegmentWork {
   const Compensator& comp;
   const PathGeometry& intended;
   const DensifyOptions& opt;
-  const PoseContext& ctx;
-  IkOptions controller_ik;
+  const calib::PoseContext& ctx;
+  calib::IkOptions controller_ik;
 
-  SegmentWork(const Compensator& c, const PathGeometry& i, const DensifyOptions& o, const PoseContext& x)
+  SegmentWork(const Compensator& c, const PathGeometry& i, const DensifyOptions& o, const calib::PoseContext& x)
       : comp(c), intended(i), opt(o), ctx(x) {
     // the controller's IK along the path: converged far below the tolerance, so that the
     // second differences of the error see the path, not the solver (1e-5 mm, 1e-8 rad)
@@ -107,17 +107,17 @@ struct SegmentWork {
   Prediction predict(const PathGeometry& cmd, const Eigen::VectorXd& q_start, int m) const {
     Prediction p;
     Eigen::VectorXd q = q_start;
-    IkWorkspace ws;  // each solve continues from the previous solution
+    calib::IkWorkspace ws;  // each solve continues from the previous solution
     Eigen::Vector3d D_prev2 = Eigen::Vector3d::Zero(), D_prev = Eigen::Vector3d::Zero();
     double max_second = 0;
     for (int i = 0; i <= m; ++i) {
       const double s = static_cast<double>(i) / m;
       if (i > 0) {
-        const IkResult r = comp.controller().inverse(cmd.pose(s), Configuration{}, q, controller_ik, PoseContext{}, ws);
-        if (r.status != IkStatus::kOk) {
+        const calib::IkResult r = comp.controller().inverse(cmd.pose(s), calib::Configuration{}, q, controller_ik, calib::PoseContext{}, ws);
+        if (r.status != calib::IkStatus::kOk) {
           p.status = r.status;
           std::ostringstream msg;
-          msg << "the controller's IK fails " << formatFixed(cmd.length_mm * s, 4) << " mm along the commanded path: "
+          msg << "the controller's IK fails " << calib::formatFixed(cmd.length_mm * s, 4) << " mm along the commanded path: "
               << r.message;
           p.message = msg.str();
           return p;
@@ -141,7 +141,7 @@ struct SegmentWork {
   /// The commanded sub-segment from (command, real joints) at sa to the intended pose at
   /// sb: the end (and for CIRC the middle as auxiliary point) compensated.
   struct Piece {
-    IkStatus status = IkStatus::kOk;
+    calib::IkStatus status = calib::IkStatus::kOk;
     std::string message;
     PathSegment commanded;
     Eigen::VectorXd q_end;
@@ -150,14 +150,14 @@ struct SegmentWork {
     Piece pc;
     pc.commanded.type = intended.type;
     pc.commanded.T_world_start = C_start;
-    Configuration keep;
-    keep.status = kukaConfiguration(comp.real().model(), q_start).status;
+    calib::Configuration keep;
+    keep.status = calib::kukaConfiguration(comp.real().model(), q_start).status;
     auto compensate = [&](double s, Eigen::Isometry3d& C, Eigen::VectorXd& q) -> bool {
       const PoseCompensation r = comp.pose(intended.pose(s), keep, q_start, opt.ik, ctx);
-      if (r.status != IkStatus::kOk || r.configuration_changed) {
-        pc.status = r.status == IkStatus::kOk ? IkStatus::kNoConfiguration : r.status;
+      if (r.status != calib::IkStatus::kOk || r.configuration_changed) {
+        pc.status = r.status == calib::IkStatus::kOk ? calib::IkStatus::kNoConfiguration : r.status;
         std::ostringstream m;
-        m << "the intended path at " << formatFixed(intended.length_mm * s, 4) << " mm: " << r.message;
+        m << "the intended path at " << calib::formatFixed(intended.length_mm * s, 4) << " mm: " << r.message;
         pc.message = m.str();
         return false;
       }
@@ -174,15 +174,15 @@ struct SegmentWork {
   }
 };
 
-SegmentCompensation Compensator::segment(const PathSegment& intended_segment, const Configuration& config,
+SegmentCompensation Compensator::segment(const PathSegment& intended_segment, const calib::Configuration& config,
                                          const Eigen::VectorXd& seed, const DensifyOptions& options,
-                                         const PoseContext& context) const {
+                                         const calib::PoseContext& context) const {
   std::string why;
-  if (!options.IsValid(&why)) throw ArgumentError(why);
+  if (!options.IsValid(&why)) throw calib::ArgumentError(why);
   SegmentCompensation out;
   const PathGeometry intended(intended_segment);  // throws for a degenerate CIRC
   const SegmentWork w(*this, intended, options, context);
-  auto failed = [&](IkStatus s, const std::string& m) {
+  auto failed = [&](calib::IkStatus s, const std::string& m) {
     out.status = s;
     out.message = m;
     out.commanded.clear();
@@ -193,21 +193,21 @@ SegmentCompensation Compensator::segment(const PathSegment& intended_segment, co
   // the start: continuing from the seed (the real joints of the previous point), or without
   // a seed on the configuration asked for
   const PoseCompensation start =
-      pose(intended_segment.T_world_start, seed.size() ? Configuration{} : config, seed, options.ik, context);
-  if (start.status != IkStatus::kOk) return failed(start.status, "the start of the segment: " + start.message);
+      pose(intended_segment.T_world_start, seed.size() ? calib::Configuration{} : config, seed, options.ik, context);
+  if (start.status != calib::IkStatus::kOk) return failed(start.status, "the start of the segment: " + start.message);
   out.q_real_start = start.q_real;
   const Eigen::Isometry3d C0 = start.T_world_tcp_command;
 
   // uncompensated: the controller runs the intended segment from its own solution
   {
-    IkOptions o = options.ik;
+    calib::IkOptions o = options.ik;
     // the controller continues from the joints the robot stands on: the solution nearest to
     // them, whatever its S/T (a joint at exactly 0 deg flips a T bit on a hair's difference)
-    const IkResult r0 = controller_.inverse(intended_segment.T_world_start, Configuration{}, start.q_real, o);
-    if (r0.status != IkStatus::kOk)
+    const calib::IkResult r0 = controller_.inverse(intended_segment.T_world_start, calib::Configuration{}, start.q_real, o);
+    if (r0.status != calib::IkStatus::kOk)
       return failed(r0.status, "the controller cannot reach the start of the segment: " + r0.message);
     const Prediction p = w.predict(intended, r0.q, sampleCount(intended, options.sample_step_mm, options.sample_step_deg));
-    if (p.status != IkStatus::kOk) return failed(p.status, "uncompensated: " + p.message);
+    if (p.status != calib::IkStatus::kOk) return failed(p.status, "uncompensated: " + p.message);
     out.max_error_uncompensated_mm = p.max_mm;
   }
 
@@ -226,9 +226,9 @@ SegmentCompensation Compensator::segment(const PathSegment& intended_segment, co
     double best_sb = sa;
     for (int attempt = 0; attempt < 12; ++attempt) {
       const SegmentWork::Piece pc = w.piece(sa, sb, Ca, qa);
-      if (pc.status != IkStatus::kOk) return failed(pc.status, pc.message);
+      if (pc.status != calib::IkStatus::kOk) return failed(pc.status, pc.message);
       const Prediction coarse = w.predict(PathGeometry(pc.commanded), qa, 16);
-      if (coarse.status != IkStatus::kOk) return failed(coarse.status, coarse.message);
+      if (coarse.status != calib::IkStatus::kOk) return failed(coarse.status, coarse.message);
       const bool feasible = coarse.bound_mm <= tol;
       if (feasible) {
         if (sb > best_sb) {
@@ -251,27 +251,27 @@ SegmentCompensation Compensator::segment(const PathSegment& intended_segment, co
     }
     if (!have) {
       std::ostringstream m;
-      m << "the tolerance " << tol << " mm cannot be met near " << formatFixed(intended.length_mm * sa, 4)
+      m << "the tolerance " << tol << " mm cannot be met near " << calib::formatFixed(intended.length_mm * sa, 4)
         << " mm along the segment (the error does not shrink with shorter pieces: a singularity?)";
-      return failed(IkStatus::kNotConverged, m.str());
+      return failed(calib::IkStatus::kNotConverged, m.str());
     }
     // fine check of the accepted piece; shrink while it fails
     for (int shrink = 0;; ++shrink) {
       const PathGeometry cmd(best.commanded);
       const Prediction fine = w.predict(cmd, qa, sampleCount(cmd, options.sample_step_mm, options.sample_step_deg));
-      if (fine.status != IkStatus::kOk) return failed(fine.status, fine.message);
+      if (fine.status != calib::IkStatus::kOk) return failed(fine.status, fine.message);
       if (fine.bound_mm <= tol) {
         best_pred = fine;
         break;
       }
-      if (shrink >= 20) return failed(IkStatus::kNotConverged, "the tolerance cannot be met (fine check)");
+      if (shrink >= 20) return failed(calib::IkStatus::kNotConverged, "the tolerance cannot be met (fine check)");
       best_sb = sa + 0.85 * (best_sb - sa);
       best = w.piece(sa, best_sb, Ca, qa);
-      if (best.status != IkStatus::kOk) return failed(best.status, best.message);
+      if (best.status != calib::IkStatus::kOk) return failed(best.status, best.message);
     }
     // the controller, run over the piece, must end on the real joints of its end
     if ((best_pred.q_end - best.q_end).cwiseAbs().maxCoeff() > 1e-3)
-      return failed(IkStatus::kNoConfiguration,
+      return failed(calib::IkStatus::kNoConfiguration,
                     "the controller reaches the end of a piece on another configuration (a singularity on the path?)");
     out.commanded.push_back(best.commanded);
     out.q_real_end.push_back(best.q_end);
@@ -280,7 +280,7 @@ SegmentCompensation Compensator::segment(const PathSegment& intended_segment, co
     if (static_cast<int>(out.commanded.size()) > options.max_points_per_segment + 1) {
       std::ostringstream m;
       m << "more than " << options.max_points_per_segment << " auxiliary points needed for " << tol << " mm";
-      return failed(IkStatus::kNotConverged, m.str());
+      return failed(calib::IkStatus::kNotConverged, m.str());
     }
     sa = best_sb;
     Ca = best.commanded.T_world_end;
@@ -290,24 +290,24 @@ SegmentCompensation Compensator::segment(const PathSegment& intended_segment, co
   // before: the endpoints (and the CIRC auxiliary point) compensated, nothing inserted
   {
     const SegmentWork::Piece whole = w.piece(0, 1, C0, start.q_real);
-    if (whole.status != IkStatus::kOk) return failed(whole.status, whole.message);
+    if (whole.status != calib::IkStatus::kOk) return failed(whole.status, whole.message);
     const PathGeometry cmd(whole.commanded);
     const Prediction p = w.predict(cmd, start.q_real, sampleCount(cmd, options.sample_step_mm, options.sample_step_deg));
-    if (p.status != IkStatus::kOk) return failed(p.status, "endpoints compensated: " + p.message);
+    if (p.status != calib::IkStatus::kOk) return failed(p.status, "endpoints compensated: " + p.message);
     out.max_error_before_mm = p.max_mm;
   }
   out.points_added = static_cast<int>(out.commanded.size()) - 1;
-  out.status = IkStatus::kOk;
+  out.status = calib::IkStatus::kOk;
   return out;
 }
 
 // ---------------------------------------------------------------------------------------
 // Free functions: one Compensator per call
 
-PoseCompensation compensatePose(const RobotModel& controller, const RobotModel& real, const Eigen::Isometry3d& T_desired,
-                                const Configuration& config, const Eigen::VectorXd& seed, const IkOptions& options,
+PoseCompensation compensatePose(const calib::RobotModel& controller, const calib::RobotModel& real, const Eigen::Isometry3d& T_desired,
+                                const calib::Configuration& config, const Eigen::VectorXd& seed, const calib::IkOptions& options,
                                 double payload_kg) {
-  PoseContext ctx;
+  calib::PoseContext ctx;
   ctx.payload_kg = payload_kg;
   return Compensator(controller, real).pose(T_desired, config, seed, options, ctx);
 }

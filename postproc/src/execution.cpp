@@ -15,27 +15,27 @@ using detail::sampleCount;
 
 std::vector<Eigen::Isometry3d> Compensator::execute(const std::vector<PathSegment>& commanded,
                                                     const Eigen::VectorXd& q_controller_start, double step_mm,
-                                                    const PoseContext& context) const {
-  if (!(step_mm > 0)) throw ArgumentError("simulated execution: the step must be positive, got " + std::to_string(step_mm));
+                                                    const calib::PoseContext& context) const {
+  if (!(step_mm > 0)) throw calib::ArgumentError("simulated execution: the step must be positive, got " + std::to_string(step_mm));
   std::vector<Eigen::Isometry3d> out;
   if (commanded.empty()) return out;
-  IkOptions o;
+  calib::IkOptions o;
   o.singular_threshold = 0;  // the controller follows through near-singular poses
   o.tol_mm = 1e-5;
   o.tol_rad = 1e-8;
   Eigen::VectorXd q = q_controller_start;
-  IkWorkspace ws;  // each solve continues from the previous solution
+  calib::IkWorkspace ws;  // each solve continues from the previous solution
   for (size_t k = 0; k < commanded.size(); ++k) {
     const PathGeometry g(commanded[k]);
     const int m = sampleCount(g, step_mm, 0.5);
     for (int i = (k == 0 ? 0 : 1); i <= m; ++i) {
       const Eigen::Isometry3d C = g.pose(static_cast<double>(i) / m);
-      const IkResult r = controller_.inverse(C, Configuration{}, q, o, PoseContext{}, ws);
-      if (r.status != IkStatus::kOk) {
+      const calib::IkResult r = controller_.inverse(C, calib::Configuration{}, q, o, calib::PoseContext{}, ws);
+      if (r.status != calib::IkStatus::kOk) {
         std::ostringstream s;
         s << "simulated execution: the controller cannot follow segment " << k + 1 << " at "
-          << formatFixed(g.length_mm * i / m, 4) << " mm: " << r.message;
-        throw NumericalError(s.str());
+          << calib::formatFixed(g.length_mm * i / m, 4) << " mm: " << r.message;
+        throw calib::NumericalError(s.str());
       }
       q = r.q;
       out.push_back(real_.forward(q, context));
@@ -44,19 +44,19 @@ std::vector<Eigen::Isometry3d> Compensator::execute(const std::vector<PathSegmen
   return out;
 }
 
-std::vector<Eigen::Isometry3d> simulateExecution(const RobotModel& controller, const RobotModel& real,
+std::vector<Eigen::Isometry3d> simulateExecution(const calib::RobotModel& controller, const calib::RobotModel& real,
                                                  const std::vector<PathSegment>& commanded,
                                                  const Eigen::VectorXd& q_start, double step_mm, double payload_kg) {
-  PoseContext ctx;
+  calib::PoseContext ctx;
   ctx.payload_kg = payload_kg;
   const Compensator c(controller, real);
   Eigen::VectorXd q = q_start;
   if (q.size() == 0 && !commanded.empty()) {
-    IkOptions o;
+    calib::IkOptions o;
     o.singular_threshold = 0;
-    const IkResult r = c.controller().inverse(commanded.front().T_world_start, Configuration{}, Eigen::VectorXd(), o);
-    if (r.status != IkStatus::kOk)
-      throw NumericalError("simulated execution: the controller cannot reach the start: " + r.message);
+    const calib::IkResult r = c.controller().inverse(commanded.front().T_world_start, calib::Configuration{}, Eigen::VectorXd(), o);
+    if (r.status != calib::IkStatus::kOk)
+      throw calib::NumericalError("simulated execution: the controller cannot reach the start: " + r.message);
     q = r.q;
   }
   return c.execute(commanded, q, step_mm, ctx);

@@ -34,19 +34,19 @@ std::string frameHint(const FrameSetting& f, const char* var) {
 class Job {
  public:
   Job(const JobSettings& s, JobReport* r) : s_(s), r_(*r), models_(s, placeRobot(s)) {
-    r_.robroot_in_world = toXyzAbc(models_.placement().T_world_robroot);
-    r_.calibrated_base_in_world = toXyzAbc(models_.placement().T_world_calbase);
+    r_.robroot_in_world = calib::toXyzAbc(models_.placement().T_world_robroot);
+    r_.calibrated_base_in_world = calib::toXyzAbc(models_.placement().T_world_calbase);
   }
 
   void error(const SourceLocation& w, const std::string& msg) { r_.errors.push_back({w, msg}); }
   void warning(const SourceLocation& w, const std::string& msg) { r_.warnings.push_back({w, msg}); }
 
   // The pose (program base frame) of a world pose.
-  XyzAbc toProgram(const Eigen::Isometry3d& T_world_progbase, const Eigen::Isometry3d& T_world_tcp) const {
-    return toXyzAbc(T_world_progbase.inverse() * T_world_tcp);
+  calib::XyzAbc toProgram(const Eigen::Isometry3d& T_world_progbase, const Eigen::Isometry3d& T_world_tcp) const {
+    return calib::toXyzAbc(T_world_progbase.inverse() * T_world_tcp);
   }
 
-  void setPose(Target& t, const XyzAbc& p) {
+  void setPose(Target& t, const calib::XyzAbc& p) {
     t.setPose(p);
     t.modified = true;
   }
@@ -92,14 +92,14 @@ class Job {
   // warning): the same arm posture, and the controller needs the new sign to find q. Any
   // other change is an error.
   bool checkConfig(const Motion& m, Target& t, const Compensator& comp, const Eigen::VectorXd& q) {
-    const Configuration asked{t.status.value_or(-1), t.turn.value_or(-1)};
+    const calib::Configuration asked{t.status.value_or(-1), t.turn.value_or(-1)};
     if (asked.status < 0 && asked.turn < 0) return true;
-    const Configuration got = kukaConfiguration(comp.controller().model(), q);
-    if (configurationMatches(asked, got)) return true;
-    const bool only_near_zero = onlyTurnBitsNearZeroDiffer(asked, got, q);
+    const calib::Configuration got = calib::kukaConfiguration(comp.controller().model(), q);
+    if (calib::configurationMatches(asked, got)) return true;
+    const bool only_near_zero = calib::onlyTurnBitsNearZeroDiffer(asked, got, q);
     if (only_near_zero) {
       warning(m.where, "T of " + targetLabel(t) + " changed from " + std::to_string(asked.turn) + " to " + std::to_string(got.turn) +
-                           ": the correction moves a joint that is within " + formatFixed(kTurnBandDeg, 1) + " deg of 0 across 0");
+                           ": the correction moves a joint that is within " + calib::formatFixed(calib::kTurnBandDeg, 1) + " deg of 0 across 0");
       t.turn = got.turn;
       return true;
     }
@@ -123,9 +123,9 @@ class Job {
       const size_t mark = out.motions.size();
       try {
         motion(m, out);
-      } catch (const NumericalError& e) {  // e.g. a CIRC whose three points are collinear
+      } catch (const calib::NumericalError& e) {  // e.g. a CIRC whose three points are collinear
         cannotCompensate(m, mark, out, e.what());
-      } catch (const ArgumentError& e) {
+      } catch (const calib::ArgumentError& e) {
         cannotCompensate(m, mark, out, e.what());
       }
     }
@@ -138,7 +138,7 @@ class Job {
     const ToolModels* models = nullptr;
     Target end;
     std::optional<Target> aux;
-    Configuration config;
+    calib::Configuration config;
   };
 
   void forget() {
@@ -193,8 +193,8 @@ class Job {
       }
     }
     q_real_ = q;
-    KinematicWorkspace ws;
-    T_world_flange_intended_ = forwardKinematics(models_.controllerFlange(), q, PoseContext{}, ws);
+    calib::KinematicWorkspace ws;
+    T_world_flange_intended_ = calib::forwardKinematics(models_.controllerFlange(), q, calib::PoseContext{}, ws);
     out.motions.push_back(m);
   }
 
@@ -202,7 +202,7 @@ class Job {
   /// the complete targets of a Cartesian motion; nullopt (with the errors recorded) when the
   /// motion cannot be compensated.
   std::optional<Cartesian> cartesian(const Motion& m) {
-    std::optional<XyzAbc> tool = m.tool.value, base = m.base.value;
+    std::optional<calib::XyzAbc> tool = m.tool.value, base = m.base.value;
     if (m.tool.source == FrameSetting::Source::kUnset && s_.initial_tool) tool = s_.initial_tool;
     if (m.base.source == FrameSetting::Source::kUnset && s_.initial_base) base = s_.initial_base;
     const size_t errors = r_.errors.size();
@@ -213,8 +213,8 @@ class Job {
     if (!base) error(m.where, "the base of this motion is not known: " + frameHint(m.base, "$BASE"));
     if (r_.errors.size() != errors) return std::nullopt;
     Cartesian c;
-    c.tool = toIsometry(*tool);
-    c.T_world_progbase = models_.placement().T_world_kworld * toIsometry(*base);
+    c.tool = calib::toIsometry(*tool);
+    c.T_world_progbase = models_.placement().T_world_kworld * calib::toIsometry(*base);
     c.models = &models_.compensator(c.tool);
     // partial targets: the missing components from where the program meant the robot to be
     auto complete = [&](Target& t, const char* what) -> bool {
@@ -223,7 +223,7 @@ class Job {
         error(m.where, std::string("the ") + what + " " + targetLabel(t) + " is partial and the position before it is not known");
         return false;
       }
-      const XyzAbc prev = toProgram(c.T_world_progbase, *T_world_flange_intended_ * c.tool);
+      const calib::XyzAbc prev = toProgram(c.T_world_progbase, *T_world_flange_intended_ * c.tool);
       const double p[6] = {prev.x_mm, prev.y_mm, prev.z_mm, prev.a_deg, prev.b_deg, prev.c_deg};
       for (int k = 0; k < 6; ++k)
         if (!t.pose[k]) t.pose[k] = p[k];
@@ -238,8 +238,8 @@ class Job {
       warning(m.where, "external axis values (E1..E6) are not part of the calibrated model: the targets are compensated as if the external axes did not move the robot or the part");
       warned_ext_ = true;
     }
-    c.T_world_end = c.T_world_progbase * toIsometry(c.end.xyzAbc());
-    c.config = Configuration{c.end.status.value_or(-1), c.end.turn.value_or(-1)};
+    c.T_world_end = c.T_world_progbase * calib::toIsometry(c.end.xyzAbc());
+    c.config = calib::Configuration{c.end.status.value_or(-1), c.end.turn.value_or(-1)};
     return c;
   }
 
@@ -250,9 +250,9 @@ class Job {
     Motion mo = m;
     Target end = c.end;
     if (c.aux) {
-      const Eigen::Isometry3d T_world_aux = c.T_world_progbase * toIsometry(c.aux->xyzAbc());
-      const PoseCompensation pa = comp.pose(T_world_aux, Configuration{}, seed, s_.ik, s_.context);
-      if (pa.status != IkStatus::kOk) {
+      const Eigen::Isometry3d T_world_aux = c.T_world_progbase * calib::toIsometry(c.aux->xyzAbc());
+      const PoseCompensation pa = comp.pose(T_world_aux, calib::Configuration{}, seed, s_.ik, s_.context);
+      if (pa.status != calib::IkStatus::kOk) {
         error(m.where, "the auxiliary point " + targetLabel(*c.aux) + " cannot be compensated: " + toString(pa.status) +
                            (pa.message.empty() ? "" : " (" + pa.message + ")"));
         return keep(out, mo);
@@ -262,7 +262,7 @@ class Job {
       reportTarget(m, *m.aux, "aux", c.T_world_progbase, T_world_aux, pa.T_world_tcp_command, c.models->calibrated_tool);
     }
     const PoseCompensation pc = comp.pose(c.T_world_end, c.config, seed, s_.ik, s_.context);
-    if (pc.status != IkStatus::kOk) {
+    if (pc.status != calib::IkStatus::kOk) {
       error(m.where, targetLabel(end) + " cannot be compensated: " + toString(pc.status) + (pc.message.empty() ? "" : " (" + pc.message + ")"));
       return keep(out, mo);
     }
@@ -284,9 +284,9 @@ class Job {
     PathSegment intended;
     intended.type = m.type == MotionType::kCirc ? PathType::kCirc : PathType::kLin;
     intended.T_world_end = c.T_world_end;
-    if (c.aux) intended.T_world_aux = c.T_world_progbase * toIsometry(c.aux->xyzAbc());
+    if (c.aux) intended.T_world_aux = c.T_world_progbase * calib::toIsometry(c.aux->xyzAbc());
     const SegmentCompensation sc = compensateSegmentFrom(comp, intended, c.config, *q_real_, s_);
-    if (sc.status != IkStatus::kOk || sc.commanded.empty() || sc.q_real_end.size() != sc.commanded.size()) {
+    if (sc.status != calib::IkStatus::kOk || sc.commanded.empty() || sc.q_real_end.size() != sc.commanded.size()) {
       error(m.where, "the " + motionKeyword(m) + " to " + targetLabel(end) + " cannot be compensated: " + toString(sc.status) +
                          (sc.message.empty() ? "" : " (" + sc.message + ")"));
       return keep(out, mo);
@@ -307,8 +307,8 @@ class Job {
       PathSegment one = commanded.back();
       one.T_world_start = commanded.front().T_world_start;
       if (c.aux) {
-        const PoseCompensation pa = comp.pose(intended.T_world_aux, Configuration{}, *q_real_, s_.ik, s_.context);
-        if (pa.status != IkStatus::kOk) {
+        const PoseCompensation pa = comp.pose(intended.T_world_aux, calib::Configuration{}, *q_real_, s_.ik, s_.context);
+        if (pa.status != calib::IkStatus::kOk) {
           error(m.where, "the auxiliary point " + targetLabel(*c.aux) + " cannot be compensated: " + toString(pa.status));
           return keep(out, mo);
         }
@@ -396,16 +396,16 @@ class Job {
 
 double rotationAngleDeg(const Eigen::Matrix3d& R) {
   const double c = std::max(-1.0, std::min(1.0, (R.trace() - 1.0) / 2.0));
-  return std::acos(c) * kRadToDeg;
+  return std::acos(c) * calib::kRadToDeg;
 }
 
-RobotModel realModelForTool(const RobotModel& calibrated, const Eigen::Isometry3d& T_flange_tcp, double match_mm,
+calib::RobotModel realModelForTool(const calib::RobotModel& calibrated, const Eigen::Isometry3d& T_flange_tcp, double match_mm,
                             double match_deg, bool* calibrated_tool) {
   const Eigen::Isometry3d& nominal_tool = calibrated.nominal.T_flange_tcp;
   const bool same = (T_flange_tcp.translation() - nominal_tool.translation()).norm() <= match_mm &&
                     rotationAngleDeg(T_flange_tcp.linear().transpose() * nominal_tool.linear()) <= match_deg;
   if (calibrated_tool) *calibrated_tool = same;
-  RobotModel real = calibrated;
+  calib::RobotModel real = calibrated;
   if (!same) {
     real.nominal.T_flange_tcp = T_flange_tcp;
     real.deviations.tool_mm.setZero();
@@ -416,9 +416,9 @@ RobotModel realModelForTool(const RobotModel& calibrated, const Eigen::Isometry3
 
 ProgramCompensation compensateProgramReport(const Program& program, const JobSettings& settings) {
   if (!(settings.tol_mm > 0) || !std::isfinite(settings.tol_mm))
-    throw ArgumentError("compensateProgram: tol_mm must be > 0 (mm)");
+    throw calib::ArgumentError("compensateProgram: tol_mm must be > 0 (mm)");
   std::string why;
-  if (!settings.ik.IsValid(&why)) throw ArgumentError("compensateProgram: IK options: " + why);
+  if (!settings.ik.IsValid(&why)) throw calib::ArgumentError("compensateProgram: IK options: " + why);
   settings.calibrated.validate();
   ProgramCompensation pc;
   JobReport& r = pc.report;
@@ -444,8 +444,8 @@ ProgramCompensation compensateProgramReport(const Program& program, const JobSet
   return pc;
 }
 
-InputError compensationError(const JobReport& r) {
-  if (r.errors.empty()) throw ArgumentError("compensationError: the report has no error");
+calib::InputError compensationError(const JobReport& r) {
+  if (r.errors.empty()) throw calib::ArgumentError("compensationError: the report has no error");
   std::string msg = r.errors.front().message;
   if (r.errors.size() > 1) {
     msg += " (and " + std::to_string(r.errors.size() - 1) + " more problem(s):";
@@ -453,7 +453,7 @@ InputError compensationError(const JobReport& r) {
     msg += ")";
   }
   const SourceLocation& w = r.errors.front().where;
-  return InputError(w.file, w.line, w.column, msg);
+  return calib::InputError(w.file, w.line, w.column, msg);
 }
 
 Program compensateProgram(const Program& program, const JobSettings& settings, JobReport* report) {

@@ -111,7 +111,7 @@ Target toTarget(const Agg& a, const std::string& declared, const KrlFile& f, Krl
 
 // A frame ($TOOL, $BASE, TOOL_DATA[n]) aggregate: X..C, missing components from `previous`
 // (KRL: an aggregate assignment changes only the components it lists).
-std::optional<XyzAbc> toFrame(const Agg& a, const KrlFile& f, const std::optional<XyzAbc>& previous, bool* partial) {
+std::optional<calib::XyzAbc> toFrame(const Agg& a, const KrlFile& f, const std::optional<calib::XyzAbc>& previous, bool* partial) {
   if (!a.type.empty() && a.type != "FRAME" && a.type != "POS" && a.type != "E6POS")
     f.fail(a.begin, "expected a FRAME aggregate, found type " + a.type);
   std::array<std::optional<double>, 6> v;
@@ -137,7 +137,7 @@ std::optional<XyzAbc> toFrame(const Agg& a, const KrlFile& f, const std::optiona
       return std::nullopt;
     }
   }
-  return XyzAbc{out[0], out[1], out[2], out[3], out[4], out[5]};
+  return calib::XyzAbc{out[0], out[1], out[2], out[3], out[4], out[5]};
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -162,14 +162,14 @@ std::optional<int> integerValue(const std::vector<Tok>& toks, size_t b, size_t e
   return static_cast<int>(*v);
 }
 
-void setTable(std::vector<std::optional<XyzAbc>>& table, int n, const XyzAbc& v) {
+void setTable(std::vector<std::optional<calib::XyzAbc>>& table, int n, const calib::XyzAbc& v) {
   if (n < 0 || n > 10000) return;
   if (static_cast<int>(table.size()) <= n) table.resize(static_cast<size_t>(n) + 1);
   table[static_cast<size_t>(n)] = v;
 }
 
-std::optional<XyzAbc> tableValue(const std::vector<std::optional<XyzAbc>>& table, int n) {
-  if (n == 0) return XyzAbc{};
+std::optional<calib::XyzAbc> tableValue(const std::vector<std::optional<calib::XyzAbc>>& table, int n) {
+  if (n == 0) return calib::XyzAbc{};
   if (n < 0 || n >= static_cast<int>(table.size())) return std::nullopt;
   return table[static_cast<size_t>(n)];
 }

@@ -78,7 +78,7 @@ class KrlFile {
 
   [[noreturn]] void fail(size_t offset, const std::string& msg) const {
     const SourceLocation s = loc(offset);
-    throw InputError(s.file, s.line, s.column, msg);
+    throw calib::InputError(s.file, s.line, s.column, msg);
   }
 
  private:
@@ -207,7 +207,7 @@ int indexOf(const char* const names[], const std::string& n);
 /// The target of an aggregate declared as `declared` (its text spans recorded in src).
 Target toTarget(const Agg& a, const std::string& declared, const KrlFile& f, KrlSource* src);
 /// The frame of an aggregate; components it leaves out from `previous` (*partial set).
-std::optional<XyzAbc> toFrame(const Agg& a, const KrlFile& f, const std::optional<XyzAbc>& previous, bool* partial);
+std::optional<calib::XyzAbc> toFrame(const Agg& a, const KrlFile& f, const std::optional<calib::XyzAbc>& previous, bool* partial);
 
 struct PointEntry {
   std::string name;  // as declared
@@ -240,7 +240,7 @@ struct Declarations {
 /// A literal number (with an optional sign) in toks[b, e), else nullopt.
 std::optional<double> numberValue(const std::vector<Tok>& toks, size_t b, size_t e);
 std::optional<int> integerValue(const std::vector<Tok>& toks, size_t b, size_t e);
-std::optional<XyzAbc> tableValue(const std::vector<std::optional<XyzAbc>>& table, int n);
+std::optional<calib::XyzAbc> tableValue(const std::vector<std::optional<calib::XyzAbc>>& table, int n);
 Fdat toFdat(const Agg& a, const KrlFile& f);
 /// DECL ... at the cursor.
 void parseDeclaration(Cursor& c, Declarations& d, KrlSource* src, bool global);

@@ -44,15 +44,15 @@ std::string upper(std::string s) {
 
 std::string readFileBytes(const std::string& path, const std::string& what) {
   std::error_code ec;
-  if (!fs::is_regular_file(path, ec)) throw InputError(path, 0, 0, "cannot read " + what + ": no such file");
+  if (!fs::is_regular_file(path, ec)) throw calib::InputError(path, 0, 0, "cannot read " + what + ": no such file");
   std::ifstream f(path, std::ios::binary);
-  if (!f) throw InputError(path, 0, 0, "cannot read " + what);
+  if (!f) throw calib::InputError(path, 0, 0, "cannot read " + what);
   std::string text((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
-  if (f.bad()) throw InputError(path, 0, 0, "cannot read " + what);
+  if (f.bad()) throw calib::InputError(path, 0, 0, "cannot read " + what);
   const size_t nul = text.find('\0');
   if (nul != std::string::npos) {
     int line = 1 + static_cast<int>(std::count(text.begin(), text.begin() + static_cast<long>(nul), '\n'));
-    throw InputError(path, line, 0, "expected a KRL text file, found a NUL byte (binary file?)");
+    throw calib::InputError(path, line, 0, "expected a KRL text file, found a NUL byte (binary file?)");
   }
   return text;
 }

@@ -54,7 +54,7 @@ struct Reader {
     s.where = f->loc(at);
     if (n == 0) {
       s.source = FrameSetting::Source::kNull;
-      s.value = XyzAbc{};
+      s.value = calib::XyzAbc{};
       s.text = is_tool ? "TOOL_DATA[0] ($NULLFRAME)" : "BASE_DATA[0] ($NULLFRAME)";
       return s;
     }
@@ -100,7 +100,7 @@ struct Reader {
     if (e - b == 1 && toks[b].up == "$NULLFRAME") {
       FrameSetting s;
       s.source = FrameSetting::Source::kNull;
-      s.value = XyzAbc{};
+      s.value = calib::XyzAbc{};
       s.text = "$NULLFRAME";
       s.where = f->loc(toks[b].begin);
       return s;
@@ -615,7 +615,7 @@ Program readKrl(const std::string& src_path, const KrlReadOptions& options) {
     bool any = false;
     for (const Line& l : src.lines())
       if (l.code_end > l.begin) any = true;
-    if (any || src.lines().empty()) throw InputError(src_path, 0, 0, "expected a KRL program (DEF name( ) ... END), found no DEF line");
+    if (any || src.lines().empty()) throw calib::InputError(src_path, 0, 0, "expected a KRL program (DEF name( ) ... END), found no DEF line");
   }
   program.krl = source;
   return program;

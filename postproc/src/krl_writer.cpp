@@ -22,7 +22,7 @@ using namespace krl_detail;
 // ---------------------------------------------------------------------------------------------
 // Writing
 
-std::string formatAxis(double v) { return formatFixed(v, 4); }
+std::string formatAxis(double v) { return calib::formatFixed(v, 4); }
 
 std::string componentText(const Target& t, const std::string& name) {
   int k;
@@ -85,7 +85,7 @@ std::string applyEdits(const std::string& text, std::vector<Edit> edits, int fil
   std::string out;
   size_t pos = 0;
   for (const auto& e : mine) {
-    if (e.begin < pos) throw ArgumentError("writeKrl: overlapping edits");
+    if (e.begin < pos) throw calib::ArgumentError("writeKrl: overlapping edits");
     out += text.substr(pos, e.begin - pos);
     out += e.text;
     pos = e.end;
@@ -107,14 +107,14 @@ KrlText patchKrl(const Program& p) {
   auto modify = [&](const Target& t, const Motion& m) {
     if (!t.modified) return;
     if (t.value_id < 0)
-      throw ArgumentError(m.where.str() + ": cannot write the corrected value of " + (t.name.empty() ? "this target" : t.name) +
+      throw calib::ArgumentError(m.where.str() + ": cannot write the corrected value of " + (t.name.empty() ? "this target" : t.name) +
                           ": it is declared outside the program (e.g. in $config.dat)");
     const KrlSource::Value& v = s.values.at(static_cast<size_t>(t.value_id));
     const std::string text = rewriteValue(v, textOf(v.file), t);
     auto it = value_text.find(t.value_id);
     if (it != value_text.end()) {
       if (it->second.first != text)
-        throw ArgumentError(m.where.str() + ": " + (t.name.empty() ? "this target" : t.name) +
+        throw calib::ArgumentError(m.where.str() + ": " + (t.name.empty() ? "this target" : t.name) +
                             " needs a different correction here than at " + it->second.second +
                             " (same point, different tool, base or motion): give the motions their own points");
       return;
@@ -125,14 +125,14 @@ KrlText patchKrl(const Program& p) {
   for (const Motion& m : p.motions) {
     if (m.inserted) {
       if (m.statement_id < 0 || m.statement_id >= static_cast<int>(s.statements.size()))
-        throw ArgumentError("writeKrl: an inserted motion has no anchor statement");
+        throw calib::ArgumentError("writeKrl: an inserted motion has no anchor statement");
       const KrlSource::Statement& st = s.statements[static_cast<size_t>(m.statement_id)];
       const std::string& text = textOf(st.file);
       std::vector<std::string> repl;
       if (m.aux) repl.push_back(krlAggregate(*m.aux));
       repl.push_back(krlAggregate(m.target));
       if (repl.size() != st.targets.size())
-        throw ArgumentError("writeKrl: an inserted motion does not match its anchor statement's targets");
+        throw calib::ArgumentError("writeKrl: an inserted motion does not match its anchor statement's targets");
       std::string line = text.substr(st.line_begin, st.code_begin - st.line_begin);
       size_t pos = st.code_begin;
       for (size_t k = 0; k < st.targets.size(); ++k) {
@@ -156,7 +156,7 @@ KrlText patchKrl(const Program& p) {
 
 // --- a new program (from XML)
 
-std::string frameAggregate(const XyzAbc& v) {
+std::string frameAggregate(const calib::XyzAbc& v) {
   return "{X " + formatMm(v.x_mm) + ",Y " + formatMm(v.y_mm) + ",Z " + formatMm(v.z_mm) + ",A " + formatDeg(v.a_deg) +
          ",B " + formatDeg(v.b_deg) + ",C " + formatDeg(v.c_deg) + "}";
 }
@@ -179,8 +179,8 @@ bool sameFrame(const FrameSetting& a, const FrameSetting& b) {
   if (a.source != b.source || a.index != b.index || a.value.has_value() != b.value.has_value()) return false;
   if (a.source == FrameSetting::Source::kUnknown && a.text != b.text) return false;
   if (a.value) {
-    const XyzAbc& x = *a.value;
-    const XyzAbc& y = *b.value;
+    const calib::XyzAbc& x = *a.value;
+    const calib::XyzAbc& y = *b.value;
     return formatMm(x.x_mm) == formatMm(y.x_mm) && formatMm(x.y_mm) == formatMm(y.y_mm) && formatMm(x.z_mm) == formatMm(y.z_mm) &&
            formatDeg(x.a_deg) == formatDeg(y.a_deg) && formatDeg(x.b_deg) == formatDeg(y.b_deg) && formatDeg(x.c_deg) == formatDeg(y.c_deg);
   }
@@ -216,7 +216,7 @@ KrlText generateKrl(const Program& p) {
       declared[up] = agg;
       dat << "DECL " << declType(t) << " " << t.name << "=" << agg << "\n";
     } else if (it->second != agg) {
-      throw ArgumentError(m.where.str() + ": the point " + t.name + " has two different values in this program");
+      throw calib::ArgumentError(m.where.str() + ": the point " + t.name + " has two different values in this program");
     }
     return t.name;
   };
@@ -239,11 +239,11 @@ KrlText generateKrl(const Program& p) {
       base = m.base;
     }
     if (m.type == MotionType::kPtp && m.vel_percent && m.vel_percent != vel_ptp) {
-      for (int k = 1; k <= 6; ++k) src << "$VEL_AXIS[" << k << "]=" << formatFixed(*m.vel_percent, 4) << "\n";
+      for (int k = 1; k <= 6; ++k) src << "$VEL_AXIS[" << k << "]=" << calib::formatFixed(*m.vel_percent, 4) << "\n";
       vel_ptp = m.vel_percent;
     }
     if (m.type != MotionType::kPtp && m.vel_m_s && m.vel_m_s != vel_cp) {
-      src << "$VEL.CP=" << formatFixed(*m.vel_m_s, 4) << "\n";
+      src << "$VEL.CP=" << calib::formatFixed(*m.vel_m_s, 4) << "\n";
       vel_cp = m.vel_m_s;
     }
     if (!m.approximation.empty() && m.approximation_value && apo[m.approximation.front()] != m.approximation_value) {
@@ -254,7 +254,7 @@ KrlText generateKrl(const Program& p) {
         case Approximation::kCOri: var = "CORI"; break;
         default: break;
       }
-      src << "$APO." << var << "=" << formatFixed(*m.approximation_value, 4) << "\n";
+      src << "$APO." << var << "=" << calib::formatFixed(*m.approximation_value, 4) << "\n";
       apo[m.approximation.front()] = m.approximation_value;
     }
     std::string line = motionKeyword(m) + " ";

@@ -121,11 +121,11 @@ class Checker {
  public:
   Checker(const std::string& path, std::string_view data, double scale_to_mm) : path_(path), d_(data), scale_(scale_to_mm) {}
 
-  [[noreturn]] void fail(int line, int column, const std::string& msg) const { throw InputError(path_, line, column, msg); }
-  [[noreturn]] void fail(const Word& w, const std::string& msg) const { throw InputError(path_, w.line, w.column, msg); }
+  [[noreturn]] void fail(int line, int column, const std::string& msg) const { throw calib::InputError(path_, line, column, msg); }
+  [[noreturn]] void fail(const Word& w, const std::string& msg) const { throw calib::InputError(path_, w.line, w.column, msg); }
   /// Binary files: the place is a byte offset (there are no lines).
   [[noreturn]] void failAt(size_t offset, const std::string& msg) const {
-    throw InputError(path_, 0, 0, "at byte " + std::to_string(offset) + ": " + msg);
+    throw calib::InputError(path_, 0, 0, "at byte " + std::to_string(offset) + ": " + msg);
   }
 
   /// A vertex coordinate (in the file's unit): finite and within the cell bound once in mm.
@@ -572,7 +572,7 @@ std::string lowerExtension(const std::string& path) {
 /// What assimp gave before its post-processing: every face index within its mesh, every
 /// coordinate finite and within the cell bound, every node's mesh index within the scene.
 void checkScene(const std::string& path, const aiScene& scene, double scale_to_mm) {
-  const auto fail = [&](const std::string& msg) { throw InputError(path, 0, 0, msg); };
+  const auto fail = [&](const std::string& msg) { throw calib::InputError(path, 0, 0, msg); };
   if (scene.mNumMeshes > 0 && !scene.mMeshes) fail("expected the meshes assimp read, found none");
   for (unsigned m = 0; m < scene.mNumMeshes; ++m) {
     const aiMesh* am = scene.mMeshes[m];
@@ -632,10 +632,10 @@ void checkMeshBytes(const std::string& path, std::string& bytes, double scale_to
 
 Mesh loadMesh(const std::string& path, double scale_to_mm) {
   if (!(scale_to_mm > 0) || !std::isfinite(scale_to_mm))
-    throw ArgumentError("loadMesh: scale_to_mm must be a positive number, got " + std::to_string(scale_to_mm));
+    throw calib::ArgumentError("loadMesh: scale_to_mm must be a positive number, got " + std::to_string(scale_to_mm));
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec))
-    throw InputError(path, 0, 0, "expected a mesh file, found no such file");
+    throw calib::InputError(path, 0, 0, "expected a mesh file, found no such file");
   const std::string ext = lowerExtension(path);
   const bool checked_format = ext == ".ply" || ext == ".stl" || ext == ".obj";
   std::string bytes;
@@ -643,7 +643,7 @@ Mesh loadMesh(const std::string& path, double scale_to_mm) {
     std::ifstream in(path, std::ios::binary);
     std::ostringstream s;
     s << in.rdbuf();
-    if (!in || in.bad()) throw InputError(path, 0, 0, "expected a mesh file, cannot read it");
+    if (!in || in.bad()) throw calib::InputError(path, 0, 0, "expected a mesh file, cannot read it");
     bytes = s.str();
     checkMeshBytes(path, bytes, scale_to_mm);
   }
@@ -656,7 +656,7 @@ Mesh loadMesh(const std::string& path, double scale_to_mm) {
   const aiScene* scene = checked_format ? importer.ReadFileFromMemory(bytes.data(), bytes.size(), 0, ext.c_str() + 1) : importer.ReadFile(path, 0);
   const auto unreadable = [&]() {
     const std::string why = importer.GetErrorString();
-    throw InputError(path, 0, 0, "expected a mesh file assimp can read (STL, OBJ, PLY, 3MF, glTF, COLLADA, ...), found: " +
+    throw calib::InputError(path, 0, 0, "expected a mesh file assimp can read (STL, OBJ, PLY, 3MF, glTF, COLLADA, ...), found: " +
                                      (why.empty() ? std::string("an unreadable file") : why));
   };
   if (!scene || (scene->mFlags & AI_SCENE_FLAGS_INCOMPLETE) || !scene->mRootNode) unreadable();
@@ -675,7 +675,7 @@ Mesh loadMesh(const std::string& path, double scale_to_mm) {
       const Eigen::Vector3d x = Eigen::Vector3d(p.x, p.y, p.z) * scale_to_mm;
       // node transforms can move a vertex checked above
       if (!x.allFinite() || !(x.cwiseAbs().maxCoeff() <= kMaxCellExtent_mm))
-        throw InputError(path, 0, 0, "expected vertex coordinates within " + std::to_string(static_cast<long>(kMaxCellExtent_mm / 1000)) +
+        throw calib::InputError(path, 0, 0, "expected vertex coordinates within " + std::to_string(static_cast<long>(kMaxCellExtent_mm / 1000)) +
                                          " m of the origin once the scene's transforms are applied, found vertex " + std::to_string(v + 1) + " at " +
                                          std::to_string(x.cwiseAbs().maxCoeff() / 1000) + " m");
       mesh.vertices_mm.push_back(x);
@@ -689,12 +689,12 @@ Mesh loadMesh(const std::string& path, double scale_to_mm) {
         if (face.mIndices[k] >= am->mNumVertices) ok = false;
         else t[k] = base + static_cast<int>(face.mIndices[k]);
       }
-      if (!ok) throw InputError(path, 0, 0, "expected vertex indices below " + std::to_string(am->mNumVertices) + ", found a larger one (face " + std::to_string(f) + ")");
+      if (!ok) throw calib::InputError(path, 0, 0, "expected vertex indices below " + std::to_string(am->mNumVertices) + ", found a larger one (face " + std::to_string(f) + ")");
       mesh.triangles.push_back(t);
     }
   }
   if (mesh.triangles.empty())
-    throw InputError(path, 0, 0, "expected a mesh with triangles, found none (" + std::to_string(scene->mNumMeshes) + " mesh(es), no faces)");
+    throw calib::InputError(path, 0, 0, "expected a mesh with triangles, found none (" + std::to_string(scene->mNumMeshes) + " mesh(es), no faces)");
   return mesh;
 }
 

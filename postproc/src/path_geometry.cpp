@@ -28,7 +28,7 @@ PathGeometry::PathGeometry(const PathSegment& s) : type(s.type) {
   // |a x b| = 2 * triangle area; relative to the longest side squared it is the sine of an
   // angle of the triangle: below 1e-6 the circle is not defined to better than a metre
   if (!(scale > 1e-9) || !(axb.norm() > 1e-6 * scale * scale))
-    throw NumericalError("CIRC: start, auxiliary and end point are collinear or coincide (no circle through them)");
+    throw calib::NumericalError("CIRC: start, auxiliary and end point are collinear or coincide (no circle through them)");
   c = p0 + (a.squaredNorm() * b.cross(axb) + b.squaredNorm() * axb.cross(a)) / (2 * axb.squaredNorm());
   n = axb.normalized();  // start -> aux -> end turns positively about n
   r = (p0 - c).norm();
@@ -37,11 +37,11 @@ PathGeometry::PathGeometry(const PathSegment& s) : type(s.type) {
   auto angleOf = [&](const Eigen::Vector3d& p) {
     const Eigen::Vector3d v = p - c;
     double t = std::atan2(v.dot(e2), v.dot(e1));
-    if (t < 0) t += 2 * kPi;
+    if (t < 0) t += 2 * calib::kPi;
     return t;
   };
   arc = angleOf(p1);
-  if (arc <= 0) arc = 2 * kPi;
+  if (arc <= 0) arc = 2 * calib::kPi;
   length_mm = r * arc;
 }
 
@@ -82,7 +82,7 @@ double PathGeometry::distance(const Eigen::Vector3d& p) const {
   const double h = v.dot(n);
   const Eigen::Vector3d w = v - h * n;
   double t = std::atan2(w.dot(e2), w.dot(e1));
-  if (t < 0) t += 2 * kPi;
+  if (t < 0) t += 2 * calib::kPi;
   if (t <= arc && w.norm() > 0) return std::hypot(h, w.norm() - r);
   return std::min((p - p0).norm(), (p - p1).norm());
 }
@@ -91,7 +91,7 @@ double PathGeometry::distance(const Eigen::Vector3d& p) const {
 /// apart.
 int sampleCount(const PathGeometry& g, double step_mm, double step_deg) {
   const double by_length = std::ceil(g.length_mm / step_mm);
-  const double by_rotation = std::ceil(g.rotation_rad * kRadToDeg / step_deg);
+  const double by_rotation = std::ceil(g.rotation_rad * calib::kRadToDeg / step_deg);
   return static_cast<int>(std::clamp(std::max({16.0, by_length, by_rotation}), 16.0, 1e6));
 }
 
@@ -109,7 +109,7 @@ double distanceToPath(const Eigen::Vector3d& p, const PathSegment& segment) {
 }
 
 double maxPathDeviation(const std::vector<Eigen::Isometry3d>& samples, const std::vector<PathSegment>& intended) {
-  if (intended.empty()) throw ArgumentError("maxPathDeviation: no intended segment");
+  if (intended.empty()) throw calib::ArgumentError("maxPathDeviation: no intended segment");
   std::vector<PathGeometry> g;
   g.reserve(intended.size());
   for (const PathSegment& s : intended) g.emplace_back(s);

@@ -3,15 +3,15 @@
 
 namespace accura::postproc {
 
-void enforceConfiguration(const Configuration& asked, PoseCompensation& pc) {
-  if (pc.status != IkStatus::kOk || !pc.configuration_changed) return;
-  if (onlyTurnBitsNearZeroDiffer(asked, pc.configuration, pc.q_real)) return;
-  pc.status = IkStatus::kNoConfiguration;
+void enforceConfiguration(const calib::Configuration& asked, PoseCompensation& pc) {
+  if (pc.status != calib::IkStatus::kOk || !pc.configuration_changed) return;
+  if (calib::onlyTurnBitsNearZeroDiffer(asked, pc.configuration, pc.q_real)) return;
+  pc.status = calib::IkStatus::kNoConfiguration;
   pc.message = "reachable only with S " + std::to_string(pc.configuration.status) + ", T " + std::to_string(pc.configuration.turn) +
                ", not with the configuration asked for (S " + std::to_string(asked.status) + ", T " + std::to_string(asked.turn) + ")";
 }
 
-SegmentCompensation compensateSegmentFrom(const Compensator& comp, PathSegment& intended, const Configuration& config,
+SegmentCompensation compensateSegmentFrom(const Compensator& comp, PathSegment& intended, const calib::Configuration& config,
                                           const Eigen::VectorXd& q_real, const JobSettings& settings) {
   intended.T_world_start = comp.real().forward(q_real, settings.context);
   DensifyOptions dens = settings.densify;
@@ -20,18 +20,18 @@ SegmentCompensation compensateSegmentFrom(const Compensator& comp, PathSegment& 
   return comp.segment(intended, config, q_real, dens, settings.context);
 }
 
-PathCompensation compensatePath(const Compensator& comp, const Eigen::Isometry3d& T_world_start, const Configuration& start_config,
+PathCompensation compensatePath(const Compensator& comp, const Eigen::Isometry3d& T_world_start, const calib::Configuration& start_config,
                                 const std::vector<PathSegment>& motions, const JobSettings& settings) {
   PathCompensation r;
   r.start = comp.pose(T_world_start, start_config, Eigen::VectorXd(), settings.ik, settings.context);
   enforceConfiguration(start_config, r.start);
-  if (r.start.status != IkStatus::kOk) return r;
+  if (r.start.status != calib::IkStatus::kOk) return r;
   Eigen::VectorXd q = r.start.q_real;
   for (size_t i = 0; i < motions.size(); ++i) {
     r.intended.push_back(motions[i]);
-    r.segments.push_back(compensateSegmentFrom(comp, r.intended.back(), Configuration{}, q, settings));
+    r.segments.push_back(compensateSegmentFrom(comp, r.intended.back(), calib::Configuration{}, q, settings));
     const SegmentCompensation& sc = r.segments.back();
-    if (sc.status != IkStatus::kOk || sc.commanded.empty() || sc.q_real_end.size() != sc.commanded.size()) {
+    if (sc.status != calib::IkStatus::kOk || sc.commanded.empty() || sc.q_real_end.size() != sc.commanded.size()) {
       r.failed_motion = static_cast<int>(i);
       return r;
     }

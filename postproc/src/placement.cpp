@@ -10,36 +10,36 @@
 namespace accura::postproc {
 namespace {
 
-std::string poseText(const XyzAbc& p, const char* sep) {
+std::string poseText(const calib::XyzAbc& p, const char* sep) {
   return formatMm(p.x_mm) + sep + formatMm(p.y_mm) + sep + formatMm(p.z_mm);
 }
 
-std::string anglesText(const XyzAbc& p) { return formatDeg(p.a_deg) + ", " + formatDeg(p.b_deg) + ", " + formatDeg(p.c_deg); }
+std::string anglesText(const calib::XyzAbc& p) { return formatDeg(p.a_deg) + ", " + formatDeg(p.b_deg) + ", " + formatDeg(p.c_deg); }
 
-std::string placementText(const XyzAbc& p) {
-  return formatFixed(p.x_mm, 3) + "," + formatFixed(p.y_mm, 3) + "," + formatFixed(p.z_mm, 3) + "," + formatFixed(p.a_deg, 3) + "," +
-         formatFixed(p.b_deg, 3) + "," + formatFixed(p.c_deg, 3);
+std::string placementText(const calib::XyzAbc& p) {
+  return calib::formatFixed(p.x_mm, 3) + "," + calib::formatFixed(p.y_mm, 3) + "," + calib::formatFixed(p.z_mm, 3) + "," + calib::formatFixed(p.a_deg, 3) + "," +
+         calib::formatFixed(p.b_deg, 3) + "," + calib::formatFixed(p.c_deg, 3);
 }
 
 }  // namespace
 
 Placement placeRobot(const JobSettings& job, const std::string& placement_setting) {
   Placement p;
-  p.T_world_robroot = job.robroot_in_world ? toIsometry(*job.robroot_in_world) : job.calibrated.nominal.T_world_base;
-  const Eigen::Isometry3d T_kworld_robroot = job.robroot_in_kukaworld ? toIsometry(*job.robroot_in_kukaworld) : Eigen::Isometry3d::Identity();
+  p.T_world_robroot = job.robroot_in_world ? calib::toIsometry(*job.robroot_in_world) : job.calibrated.nominal.T_world_base;
+  const Eigen::Isometry3d T_kworld_robroot = job.robroot_in_kukaworld ? calib::toIsometry(*job.robroot_in_kukaworld) : Eigen::Isometry3d::Identity();
   p.T_world_kworld = p.T_world_robroot * T_kworld_robroot.inverse();
   p.T_world_calbase = job.calibrated.T_world_base();
   const Eigen::Isometry3d d = p.T_world_robroot.inverse() * p.T_world_calbase;
   const double off_mm = d.translation().norm(), off_deg = rotationAngleDeg(d.linear());
   if (off_mm > job.max_base_offset_mm || off_deg > job.max_base_offset_deg) {
-    const XyzAbc b = toXyzAbc(p.T_world_robroot), c = toXyzAbc(p.T_world_calbase);
+    const calib::XyzAbc b = calib::toXyzAbc(p.T_world_robroot), c = calib::toXyzAbc(p.T_world_calbase);
     std::ostringstream m;
     m << "the calibrated base (" << poseText(c, ", ") << " mm, " << anglesText(c) << " deg) is " << formatMm(off_mm) << " mm and "
       << formatDeg(off_deg) << " deg from the nominal base (" << poseText(b, ", ") << " mm, " << anglesText(b)
       << " deg): expected at most " << job.max_base_offset_mm << " mm and " << job.max_base_offset_deg
       << " deg. The model was measured in another frame (a tracker's): give " << placement_setting
       << ", where the robot stands in that frame according to the cell layout";
-    throw InputError(m.str());
+    throw calib::InputError(m.str());
   }
   return p;
 }
@@ -48,25 +48,25 @@ JobSettings placedInCell(const JobSettings& job, const Cell& cell) {
   JobSettings placed = job;
   if (!cell.T_world_base) return placed;
   if (!job.robroot_in_world) {
-    placed.robroot_in_world = toXyzAbc(*cell.T_world_base);
+    placed.robroot_in_world = calib::toXyzAbc(*cell.T_world_base);
     return placed;
   }
-  const Eigen::Isometry3d d = cell.T_world_base->inverse() * toIsometry(*job.robroot_in_world);
+  const Eigen::Isometry3d d = cell.T_world_base->inverse() * calib::toIsometry(*job.robroot_in_world);
   if (d.translation().norm() > 1e-3 || rotationAngleDeg(d.linear()) > 1e-3)
-    throw InputError(cell.file, cell.robot_line, cell.robot_column,
-                     "<robot>: the robot placement of the cell file differs from --base (" + placementText(toXyzAbc(*cell.T_world_base)) +
+    throw calib::InputError(cell.file, cell.robot_line, cell.robot_column,
+                     "<robot>: the robot placement of the cell file differs from --base (" + placementText(calib::toXyzAbc(*cell.T_world_base)) +
                          " here, " + placementText(*job.robroot_in_world) + " given): expected the same placement, found two (give one of them)");
   return placed;
 }
 
 ModelFactory::ModelFactory(const JobSettings& job, const Placement& placement)
     : calibrated_(job.calibrated), tool_match_mm_(job.tool_match_mm), tool_match_deg_(job.tool_match_deg), placement_(placement) {
-  controller_flange_ = RobotModel::fromDefinition(job.calibrated.nominal);
+  controller_flange_ = calib::RobotModel::fromDefinition(job.calibrated.nominal);
   controller_flange_.nominal.T_world_base = placement.T_world_robroot;
   controller_flange_.nominal.T_flange_tcp = Eigen::Isometry3d::Identity();
 }
 
-ModelFactory::ModelFactory(const RobotModel& real, const RobotModel& controller)
+ModelFactory::ModelFactory(const calib::RobotModel& real, const calib::RobotModel& controller)
     : calibrated_(real), tool_match_mm_(JobSettings{}.tool_match_mm), tool_match_deg_(JobSettings{}.tool_match_deg),
       controller_flange_(controller) {
   placement_.T_world_robroot = placement_.T_world_kworld = controller.nominal.T_world_base;
@@ -94,15 +94,15 @@ ToolModels& ModelFactory::compensator(const Eigen::Isometry3d& T_flange_tcp) {
   return m;
 }
 
-void checkControllerRobot(const RobotDefinition& calibrated, const RobotDefinition& controller, const std::string& path) {
+void checkControllerRobot(const calib::RobotDefinition& calibrated, const calib::RobotDefinition& controller, const std::string& path) {
   auto differ = [&](const std::string& what) {
-    throw InputError(path + ": expected the nominal robot of the calibrated model ('" + calibrated.name + "'), found '" +
+    throw calib::InputError(path + ": expected the nominal robot of the calibrated model ('" + calibrated.name + "'), found '" +
                                  controller.name + "' with another " + what);
   };
   if (calibrated.dof() != controller.dof()) differ("joint count (" + std::to_string(controller.dof()) + ")");
   constexpr double kTol = 1e-9;  // mm and deg: the same numbers
   for (int i = 0; i < calibrated.dof(); ++i) {
-    const JointSpec &a = calibrated.joints[i], &b = controller.joints[i];
+    const calib::JointSpec &a = calibrated.joints[i], &b = controller.joints[i];
     const std::string j = "joint " + std::to_string(i + 1) + " ";
     if (a.type != b.type) differ(j + "type");
     if (std::fabs(a.a_mm - b.a_mm) > kTol || std::fabs(a.d_mm - b.d_mm) > kTol || std::fabs(a.alpha_deg - b.alpha_deg) > kTol ||

@@ -9,7 +9,7 @@
 namespace accura::postproc {
 
 std::string SourceLocation::str() const {
-  std::string s = formatLocation(file, line, column);
+  std::string s = calib::formatLocation(file, line, column);
   // formatLocation ends with ": "; a location on its own has no separator.
   if (s.size() >= 2) s.resize(s.size() - 2);
   return s;
@@ -46,12 +46,12 @@ bool Target::completePose() const {
   return true;
 }
 
-XyzAbc Target::xyzAbc() const {
-  if (!completePose()) throw ArgumentError("Target::xyzAbc: the pose of " + (name.empty() ? std::string("an inline target") : name) + " is partial");
-  return XyzAbc{*pose[0], *pose[1], *pose[2], *pose[3], *pose[4], *pose[5]};
+calib::XyzAbc Target::xyzAbc() const {
+  if (!completePose()) throw calib::ArgumentError("Target::xyzAbc: the pose of " + (name.empty() ? std::string("an inline target") : name) + " is partial");
+  return calib::XyzAbc{*pose[0], *pose[1], *pose[2], *pose[3], *pose[4], *pose[5]};
 }
 
-void Target::setPose(const XyzAbc& p) {
+void Target::setPose(const calib::XyzAbc& p) {
   pose = {p.x_mm, p.y_mm, p.z_mm, p.a_deg, p.b_deg, p.c_deg};
 }
 
@@ -68,7 +68,7 @@ std::string motionKeyword(const Motion& m) {
   return k;
 }
 
-std::string formatMm(double v) { return formatFixed(v, 4); }
-std::string formatDeg(double v) { return formatFixed(v, 5); }
+std::string formatMm(double v) { return calib::formatFixed(v, 4); }
+std::string formatDeg(double v) { return calib::formatFixed(v, 5); }
 
 }  // namespace accura::postproc

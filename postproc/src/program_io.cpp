@@ -16,7 +16,7 @@ ProgramFormat programFormat(const std::string& path) {
   for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
   if (ext == ".src") return ProgramFormat::kKrl;
   if (ext == ".xml") return ProgramFormat::kXml;
-  throw InputError(path + ": expected a program file ending in .src (KUKA KRL) or .xml (accura XML program), found '" +
+  throw calib::InputError(path + ": expected a program file ending in .src (KUKA KRL) or .xml (accura XML program), found '" +
                    fs::path(path).extension().string() + "'");
 }
 
@@ -27,7 +27,7 @@ Program readProgram(const std::string& path, const ProgramReadOptions& options) 
     o.config_path = options.config_path;
     return readKrl(path, o);
   }
-  if (!options.dat_path.empty()) throw InputError("--dat: only for KRL programs (.src), found the XML program " + path);
+  if (!options.dat_path.empty()) throw calib::InputError("--dat: only for KRL programs (.src), found the XML program " + path);
   if (!options.config_path.empty()) {
     const FrameTables tables = readKrlFrameTables(options.config_path);
     return readXmlProgram(path, &tables);
@@ -35,14 +35,14 @@ Program readProgram(const std::string& path, const ProgramReadOptions& options) 
   return readXmlProgram(path);
 }
 
-std::vector<OutputFile> renderProgram(const Program& program, ProgramFormat format, const std::string& path,
+std::vector<calib::OutputFile> renderProgram(const Program& program, ProgramFormat format, const std::string& path,
                                       const std::string& dat_path) {
   if (format == ProgramFormat::kXml) {
     Program p = program;
     return {{path, writeXmlProgram(p)}};
   }
   const KrlText t = writeKrl(program);
-  std::vector<OutputFile> out = {{path, t.src}};
+  std::vector<calib::OutputFile> out = {{path, t.src}};
   const bool has_dat = program.krl ? !program.krl->dat_path.empty() : true;
   if (has_dat) out.push_back({dat_path.empty() ? fs::path(path).replace_extension(".dat").string() : dat_path, t.dat});
   return out;

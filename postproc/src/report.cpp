@@ -24,7 +24,7 @@ void where(ordered_json& j, const SourceLocation& w, const std::string& relative
   j["column"] = w.column;
 }
 
-ordered_json pose(const XyzAbc& p) {
+ordered_json pose(const calib::XyzAbc& p) {
   return {{"x_mm", reportNumber(p.x_mm)},   {"y_mm", reportNumber(p.y_mm)},   {"z_mm", reportNumber(p.z_mm)},
           {"a_deg", reportNumber(p.a_deg)}, {"b_deg", reportNumber(p.b_deg)}, {"c_deg", reportNumber(p.c_deg)}};
 }

@@ -68,7 +68,7 @@ class Reader {
 
   [[noreturn]] void fail(const XMLElement* e, const std::string& msg) const {
     const SourceLocation s = loc(e);
-    throw InputError(s.file, s.line, s.column, msg);
+    throw calib::InputError(s.file, s.line, s.column, msg);
   }
 
   void checkAttributes(const XMLElement* e, const std::set<std::string>& allowed) const {
@@ -188,7 +188,7 @@ FrameSetting readFrame(const Reader& R, const XMLElement* e, bool is_tool, const
   } else if (*source == "null") {
     if (given) R.fail(e, "<" + std::string(e->Name()) + " source=\"null\">: expected no pose attributes");
     s.source = FrameSetting::Source::kNull;
-    s.value = XyzAbc{};
+    s.value = calib::XyzAbc{};
     s.text = "$NULLFRAME";
   } else if (*source == "unknown") {
     const auto t = R.text(e, "text");
@@ -202,7 +202,7 @@ FrameSetting readFrame(const Reader& R, const XMLElement* e, bool is_tool, const
     R.fail(e, "<" + std::string(e->Name()) + ">: attribute 'index' is only for source=\"data\"");
   if (s.source != FrameSetting::Source::kUnknown && e->Attribute("text"))
     R.fail(e, "<" + std::string(e->Name()) + ">: attribute 'text' is only for source=\"unknown\"");
-  if (given == 6) s.value = XyzAbc{*v[0], *v[1], *v[2], *v[3], *v[4], *v[5]};
+  if (given == 6) s.value = calib::XyzAbc{*v[0], *v[1], *v[2], *v[3], *v[4], *v[5]};
   if (s.source == FrameSetting::Source::kInline) s.text = "inline frame";
   return s;
 }
@@ -289,11 +289,11 @@ void writeFrame(std::ostream& out, const char* tag, const FrameSetting& s) {
     case FrameSetting::Source::kInline: out << "inline\""; break;
     case FrameSetting::Source::kData: out << "data\" index=\"" << s.index << "\""; break;
     case FrameSetting::Source::kNull: out << "null\""; break;
-    case FrameSetting::Source::kUnknown: out << "unknown\" text=\"" << xmlEscape(s.text) << "\""; break;
+    case FrameSetting::Source::kUnknown: out << "unknown\" text=\"" << calib::xmlEscape(s.text) << "\""; break;
     case FrameSetting::Source::kUnset: return;
   }
   if (s.value && s.source != FrameSetting::Source::kNull) {
-    const XyzAbc& v = *s.value;
+    const calib::XyzAbc& v = *s.value;
     out << " x_mm=\"" << formatMm(v.x_mm) << "\" y_mm=\"" << formatMm(v.y_mm) << "\" z_mm=\"" << formatMm(v.z_mm)
         << "\" a_deg=\"" << formatDeg(v.a_deg) << "\" b_deg=\"" << formatDeg(v.b_deg) << "\" c_deg=\"" << formatDeg(v.c_deg) << "\"";
   }
@@ -309,7 +309,7 @@ bool sameFrame(const FrameSetting& a, const FrameSetting& b) {
 
 void writeTarget(std::ostream& out, const char* tag, const Target& t) {
   out << "      <" << tag;
-  if (!t.name.empty()) out << " name=\"" << xmlEscape(t.name) << "\"";
+  if (!t.name.empty()) out << " name=\"" << calib::xmlEscape(t.name) << "\"";
   if (!t.type.empty()) out << " type=\"" << t.type << "\"";
   if (t.kind == Target::Kind::kCartesian) {
     for (int k = 0; k < 6; ++k)
@@ -318,10 +318,10 @@ void writeTarget(std::ostream& out, const char* tag, const Target& t) {
     if (t.turn) out << " t=\"" << *t.turn << "\"";
   } else {
     for (int k = 0; k < 6; ++k)
-      if (t.axes[k]) out << " " << kAxisAttrs[k] << "=\"" << formatFixed(*t.axes[k], 4) << "\"";
+      if (t.axes[k]) out << " " << kAxisAttrs[k] << "=\"" << calib::formatFixed(*t.axes[k], 4) << "\"";
   }
   for (int k = 0; k < 6; ++k)
-    if (t.ext[k]) out << " " << kExtAttrs[k] << "=\"" << formatFixed(*t.ext[k], 4) << "\"";
+    if (t.ext[k]) out << " " << kExtAttrs[k] << "=\"" << calib::formatFixed(*t.ext[k], 4) << "\"";
   out << "/>\n";
 }
 
@@ -355,7 +355,7 @@ Program parseXmlProgram(const std::string& text, const std::string& file, const 
   tinyxml2::XMLDocument doc;
   Reader R(file, text);
   if (doc.Parse(text.c_str(), text.size()) != tinyxml2::XML_SUCCESS)
-    throw InputError(file, doc.ErrorLineNum(), 0, std::string("malformed XML: ") + (doc.ErrorStr() ? doc.ErrorStr() : ""));
+    throw calib::InputError(file, doc.ErrorLineNum(), 0, std::string("malformed XML: ") + (doc.ErrorStr() ? doc.ErrorStr() : ""));
   const XMLElement* root = doc.RootElement();
   if (!root || std::string(root->Name()) != "program")
     R.fail(root, "expected root element <program>, found " + describe(root));
@@ -405,7 +405,7 @@ Program parseXmlProgram(const std::string& text, const std::string& file, const 
 
 Program readXmlProgram(const std::string& path, const FrameTables* tables) {
   std::ifstream f(path, std::ios::binary);
-  if (!f) throw InputError(path, 0, 0, "cannot read the XML program");
+  if (!f) throw calib::InputError(path, 0, 0, "cannot read the XML program");
   const std::string text((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
   return parseXmlProgram(text, path, tables);
 }
@@ -414,9 +414,9 @@ std::string writeXmlProgram(const Program& p) {
   std::ostringstream out;
   out << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n";
   out << "<program";
-  if (!p.name.empty()) out << " name=\"" << xmlEscape(p.name) << "\"";
+  if (!p.name.empty()) out << " name=\"" << calib::xmlEscape(p.name) << "\"";
   out << " version=\"1\">\n";
-  if (!p.robot.empty()) out << "  <robot name=\"" << xmlEscape(p.robot) << "\"/>\n";
+  if (!p.robot.empty()) out << "  <robot name=\"" << calib::xmlEscape(p.robot) << "\"/>\n";
   out << "  <motions>\n";
   FrameSetting tool, base;
   for (const Motion& m : p.motions) {
@@ -433,13 +433,13 @@ std::string writeXmlProgram(const Program& p) {
     }
     if (m.spline && m.type != MotionType::kSpl) tag = "s" + tag;
     out << "    <" << tag;
-    if (m.vel_percent) out << " vel_percent=\"" << formatFixed(*m.vel_percent, 4) << "\"";
-    if (m.vel_m_s) out << " vel_m_s=\"" << formatFixed(*m.vel_m_s, 4) << "\"";
+    if (m.vel_percent) out << " vel_percent=\"" << calib::formatFixed(*m.vel_percent, 4) << "\"";
+    if (m.vel_m_s) out << " vel_m_s=\"" << calib::formatFixed(*m.vel_m_s, 4) << "\"";
     if (!m.approximation.empty()) {
       out << " approx=\"";
       for (size_t k = 0; k < m.approximation.size(); ++k) out << (k ? " " : "") << toString(m.approximation[k]);
       out << "\"";
-      if (m.approximation_value) out << " approx_value=\"" << formatFixed(*m.approximation_value, 4) << "\"";
+      if (m.approximation_value) out << " approx_value=\"" << calib::formatFixed(*m.approximation_value, 4) << "\"";
     }
     if (m.circ_angle_deg) out << " ca_deg=\"" << formatDeg(*m.circ_angle_deg) << "\"";
     if (m.relative) out << " relative=\"true\"";
@@ -451,9 +451,9 @@ std::string writeXmlProgram(const Program& p) {
         return;
       }
       if (t.name.empty())
-        throw ArgumentError(m.where.str() + ": cannot write this motion's target as XML: " +
+        throw calib::ArgumentError(m.where.str() + ": cannot write this motion's target as XML: " +
                             (m.target_problem.empty() ? std::string("it has no value") : m.target_problem));
-      out << "      <" << (aux ? "aux" : "ref") << " name=\"" << xmlEscape(t.name) << "\"/>\n";
+      out << "      <" << (aux ? "aux" : "ref") << " name=\"" << calib::xmlEscape(t.name) << "\"/>\n";
     };
     if (m.aux) refOrValue("aux", *m.aux, true);
     refOrValue(m.target.kind == Target::Kind::kAxis ? "axes" : "pose", m.target, false);

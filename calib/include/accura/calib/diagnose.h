@@ -37,7 +37,7 @@
 #include "accura/calib/measurements.h"
 #include "accura/calib/robot.h"
 
-namespace accura {
+namespace accura::calib {
 
 struct DiagnoseOptions {
   /// Effects to test (names of effectCatalogue()); empty: the whole catalogue.
@@ -399,4 +399,4 @@ struct SelfcheckResult {
 SelfcheckResult runSelfcheck(const SelfcheckOptions& options,
                              const std::function<void(const SelfcheckCase&)>& progress = {});
 
-}  // namespace accura
+}  // namespace accura::calib

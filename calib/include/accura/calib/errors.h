@@ -22,7 +22,7 @@
 #include <stdexcept>
 #include <string>
 
-namespace accura {
+namespace accura::calib {
 
 /// Bad input read from a file or given on the command line.
 ///
@@ -62,4 +62,4 @@ class NumericalError : public std::runtime_error {
 /// Formats "FILE:LINE:COLUMN: " as used by InputError (parts that are unknown are left out).
 std::string formatLocation(const std::string& file, int line, int column);
 
-}  // namespace accura
+}  // namespace accura::calib

@@ -10,7 +10,7 @@
 #include <string>
 #include <vector>
 
-namespace accura {
+namespace accura::calib {
 
 /// One output file: where it goes and its bytes.
 struct OutputFile {
@@ -42,4 +42,4 @@ bool sameFile(const std::string& a, const std::string& b);
 /// (sameFile); inputs that are empty strings are skipped.
 void refuseToOverwrite(const std::vector<OutputFile>& outputs, const std::vector<std::string>& inputs, const std::string& out_name);
 
-}  // namespace accura
+}  // namespace accura::calib

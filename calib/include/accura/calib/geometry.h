@@ -9,7 +9,7 @@
 #include <Eigen/Geometry>
 #include <string>
 
-namespace accura {
+namespace accura::calib {
 
 using Vector6d = Eigen::Matrix<double, 6, 1>;
 using Matrix6d = Eigen::Matrix<double, 6, 6>;
@@ -54,4 +54,4 @@ Vector6d poseError(const Eigen::Isometry3d& T_world_measured,
 /// Parses "x,y,z,A,B,C" (mm, deg). Throws InputError naming `what` on a malformed list.
 XyzAbc parseXyzAbc(const std::string& text, const std::string& what);
 
-}  // namespace accura
+}  // namespace accura::calib

@@ -11,7 +11,7 @@
 #include "accura/calib/measurements.h"
 #include "accura/calib/robot.h"
 
-namespace accura {
+namespace accura::calib {
 
 struct IdentifyOptions {
   /// Parameter groups to identify (see parameterGroups()): "geometric" (= base, tool,
@@ -187,4 +187,4 @@ double registerFrame(RobotModel& model, const MeasurementSet& data, bool estimat
 void summarize(const std::vector<double>& errors, double* rms, double* mean, double* max,
                double* p95);
 
-}  // namespace accura
+}  // namespace accura::calib

@@ -18,7 +18,7 @@
 #include "accura/calib/kinematics.h"
 #include "accura/calib/robot.h"
 
-namespace accura {
+namespace accura::calib {
 
 /// KUKA configuration: Status and Turn bits; -1 when not specified.
 ///   Turn:   bit i (i = 0..dof-1) set when joint i+1 is negative (q_i < 0).
@@ -207,4 +207,4 @@ IkResult inverseKinematics(const RobotModel& model, const Eigen::Isometry3d& T_w
                            const Configuration& config, const Eigen::VectorXd& seed,
                            const IkOptions& options, const PoseContext& context);
 
-}  // namespace accura
+}  // namespace accura::calib

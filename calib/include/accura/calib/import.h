@@ -9,7 +9,7 @@
 #include "accura/calib/measurements.h"
 #include "accura/calib/robot.h"
 
-namespace accura {
+namespace accura::calib {
 
 /// How the columns of an export map onto a measurement (parsed mapping file).
 struct MeasurementMapping {
@@ -51,4 +51,4 @@ MeasurementSet readMappedMeasurements(const std::string& path, const Measurement
 /// Throws ArgumentError on an unknown convention.
 Eigen::Matrix3d rotationFromAngles(const std::string& convention, const Eigen::Vector3d& angles_rad);
 
-}  // namespace accura
+}  // namespace accura::calib

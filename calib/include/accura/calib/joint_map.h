@@ -17,7 +17,7 @@
 
 #include "accura/calib/robot.h"
 
-namespace accura {
+namespace accura::calib {
 
 /// The map's value at q (rad or mm). Zero for an empty map. With `slope`, also dm/dq (rad per
 /// deg, or mm per mm).
@@ -115,4 +115,4 @@ JointMapCvResult crossValidateJointMap(const std::vector<JointMapCvRow>& rows, c
                                        const std::vector<int>& centred_harmonics, const std::vector<double>& knots,
                                        const std::vector<double>& smoothings, int folds);
 
-}  // namespace accura
+}  // namespace accura::calib

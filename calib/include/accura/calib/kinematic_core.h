@@ -24,7 +24,7 @@
 
 #include "accura/calib/robot.h"
 
-namespace accura {
+namespace accura::calib {
 
 struct PoseContext;
 struct ParamInfo;
@@ -169,4 +169,4 @@ class KinematicModel {
   std::vector<double> jacobian_lipschitz_;
 };
 
-}  // namespace accura
+}  // namespace accura::calib

@@ -13,7 +13,7 @@
 
 #include "accura/calib/robot.h"
 
-namespace accura {
+namespace accura::calib {
 
 /// What the model needs to know about a measured pose besides q.
 /// A default PoseContext is the reference state: no payload, the thermal reference
@@ -149,4 +149,4 @@ Eigen::Matrix<double, 6, Eigen::Dynamic> jointJacobian(const RobotModel& model,
                                                        const PoseContext& context,
                                                        KinematicWorkspace& ws);
 
-}  // namespace accura
+}  // namespace accura::calib

@@ -10,7 +10,7 @@
 #include "accura/calib/kinematics.h"
 #include "accura/calib/robot.h"
 
-namespace accura {
+namespace accura::calib {
 
 /// One measured pose.
 struct Measurement {
@@ -58,4 +58,4 @@ MeasurementSet readMeasurementsCsv(const std::string& path, const RobotDefinitio
 void writeMeasurementsCsv(const std::string& path, const MeasurementSet& set, int dof,
                           const std::vector<std::string>& comments = {});
 
-}  // namespace accura
+}  // namespace accura::calib

@@ -17,7 +17,7 @@
 
 #include "accura/calib/geometry.h"
 
-namespace accura {
+namespace accura::calib {
 
 enum class JointType { kRevolute, kPrismatic };
 enum class LinkForm { kDH, kHayati };
@@ -169,4 +169,4 @@ struct RobotModel {
   void validate() const;
 };
 
-}  // namespace accura
+}  // namespace accura::calib

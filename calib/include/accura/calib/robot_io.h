@@ -6,7 +6,7 @@
 
 #include "accura/calib/robot.h"
 
-namespace accura {
+namespace accura::calib {
 
 /// Extra information written with a calibrated model (one per identified parameter).
 struct ParameterRecord {
@@ -38,4 +38,4 @@ std::string resolveRobotPath(const std::string& name_or_path);
 /// Names of the robots in the robots directory (file names without .xml), sorted.
 std::vector<std::string> bundledRobotNames();
 
-}  // namespace accura
+}  // namespace accura::calib

@@ -9,7 +9,7 @@
 #include "accura/calib/measurements.h"
 #include "accura/calib/robot.h"
 
-namespace accura {
+namespace accura::calib {
 
 /// An effect outside the effect catalogue, for `accura selfcheck` only: joint `to` turns
 /// (moves, if prismatic) by `ratio` times the value of joint `from` (q_from in rad, or mm),
@@ -79,4 +79,4 @@ RobotModel perturbModel(const RobotModel& nominal, const SimulateOptions& option
 /// 30 s per row; each joint's approach direction is random. Deterministic for a given seed.
 MeasurementSet simulateMeasurements(const RobotModel& truth, const SimulateOptions& options);
 
-}  // namespace accura
+}  // namespace accura::calib

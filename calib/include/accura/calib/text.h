@@ -4,7 +4,7 @@
 
 #include <string>
 
-namespace accura {
+namespace accura::calib {
 
 /// `s` with & < > " replaced by their entities: safe in XML and HTML text and in
 /// double-quoted attribute values.
@@ -19,4 +19,4 @@ std::string formatFixed(double v, int decimals);
 /// "%.4f", "%g", "%8.3f mm"). For messages and tables; NaN and infinity as printf writes them.
 std::string formatNumber(const char* format, double v);
 
-}  // namespace accura
+}  // namespace accura::calib

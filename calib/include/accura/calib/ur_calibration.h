@@ -23,7 +23,7 @@
 #include "accura/calib/robot.h"
 #include "accura/calib/urdf.h"
 
-namespace accura {
+namespace accura::calib {
 
 /// Tolerance of the UR conversions' check (mm): the deltas' lengths of tens of metres cancel,
 /// and their own rounding reaches 1e-8 mm.
@@ -84,4 +84,4 @@ RobotModel modelFromUrCalibrationYaml(const RobotDefinition& nominal, const std:
 /// hold). Throws ArgumentError for a model without 6 revolute joints.
 std::string formatUrCalibrationYaml(const RobotModel& model, std::vector<std::string>* not_represented);
 
-}  // namespace accura
+}  // namespace accura::calib

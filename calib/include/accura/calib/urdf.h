@@ -13,7 +13,7 @@
 
 #include "accura/calib/robot.h"
 
-namespace accura {
+namespace accura::calib {
 
 /// One moving joint of a serial chain, the way a URDF (or UR's calibration) describes it:
 /// a constant transform to the joint frame, then a motion along / about a unit axis given in
@@ -124,4 +124,4 @@ struct UrdfText {
 /// kChainCheckTolMm, else NumericalError. Throws ArgumentError on an invalid model.
 UrdfText modelToUrdf(const RobotModel& model);
 
-}  // namespace accura
+}  // namespace accura::calib

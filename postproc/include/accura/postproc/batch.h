@@ -20,9 +20,6 @@
 namespace accura::postproc {
 
 // The atomic writing every post-processor command uses is calib's one writer (file_io.h).
-using accura::installInterruptCleanup;
-using accura::interruptRequested;
-using accura::writeFilesAtomically;
 
 /// The checks of a program in its cell before it is written (accura compensate --cell and
 /// accura batch --cell; docs/checks.md).
@@ -39,7 +36,7 @@ struct CellCheckSettings {
 
 /// A compensated program, rendered but not written, and its check.
 struct CheckedProgram {
-  std::vector<OutputFile> files;     ///< the rendered output (.src and .dat, or .xml)
+  std::vector<calib::OutputFile> files;     ///< the rendered output (.src and .dat, or .xml)
   std::optional<CheckReport> check;  ///< with a cell: the check of the program
   /// False when the program failed its check (a violation or a motion that could not be
   /// checked) and warn_only is not set, or when it could not be compensated: it must not be
@@ -145,7 +142,7 @@ BatchResult runBatch(const std::string& in_dir, const std::string& out_dir, cons
 /// Compensates one program file: reads it, compensates it, renders it at `out_path` (and the
 /// .dat next to it, named like the input's .dat) without writing. Throws like readProgram and
 /// compensateProgram.
-std::vector<OutputFile> compensateFile(const std::string& in_path, const std::string& out_path,
+std::vector<calib::OutputFile> compensateFile(const std::string& in_path, const std::string& out_path,
                                        const ProgramReadOptions& read, const JobSettings& job, JobReport* report);
 
 }  // namespace accura::postproc

@@ -139,7 +139,7 @@ struct CheckReport {
 class CellGeometry {
  public:
   /// Throws ArgumentError when a link shape names a frame outside 1..robot.dof().
-  CellGeometry(const Cell& cell, const RobotModel& robot);
+  CellGeometry(const Cell& cell, const calib::RobotModel& robot);
   ~CellGeometry();
   CellGeometry(const CellGeometry&);
   CellGeometry(CellGeometry&&) noexcept;
@@ -148,7 +148,7 @@ class CellGeometry {
   /// True when this geometry was made for `robot` (the same joint count and the same frames
   /// to 1e-9 mm and 1e-9 rad at the middle of the joint ranges) and for a cell with these
   /// numbers of robot shapes and objects.
-  bool madeFor(const Cell& cell, const RobotModel& robot) const;
+  bool madeFor(const Cell& cell, const calib::RobotModel& robot) const;
 
   /// Number of robot shapes (links and tool) and of cell objects.
   int robotShapes() const;
@@ -172,10 +172,10 @@ class CellGeometry {
   /// bounded query: it prunes every bounding volume at least that far). Infinity: every
   /// distance exact. Returns per robot shape. `queries` (may be null) is increased by the
   /// number of FCL distance calls.
-  std::vector<Distance> distances(const Eigen::VectorXd& q, const PoseContext& context, double exact_below_mm,
+  std::vector<Distance> distances(const Eigen::VectorXd& q, const calib::PoseContext& context, double exact_below_mm,
                                   long long* queries = nullptr) const;
   /// The same for one robot shape (0 <= robot_shape < robotShapes(); ArgumentError otherwise).
-  Distance distance(int robot_shape, const Eigen::VectorXd& q, const PoseContext& context, double exact_below_mm,
+  Distance distance(int robot_shape, const Eigen::VectorXd& q, const calib::PoseContext& context, double exact_below_mm,
                     long long* queries = nullptr) const;
 
   /// The bound used by the subdivision (docs/checks.md): for each robot shape, the largest
@@ -202,7 +202,7 @@ struct WorldMotion {
   Eigen::Isometry3d T_world_tcp_end = Eigen::Isometry3d::Identity();
   Eigen::Isometry3d T_world_tcp_aux = Eigen::Isometry3d::Identity();  ///< CIRC
   Eigen::VectorXd q_end;               ///< axis target (deg / mm); empty for a Cartesian one
-  Configuration configuration;         ///< S/T of a Cartesian end point (-1: any)
+  calib::Configuration configuration;         ///< S/T of a Cartesian end point (-1: any)
   Eigen::Isometry3d T_flange_tcp = Eigen::Isometry3d::Identity();  ///< tool of the motion
   SourceLocation where;
   std::string label;                   ///< motion type for reports (LIN, SLIN, ...)
@@ -214,9 +214,9 @@ struct WorldMotion {
 /// at the nominal base (used in CheckMode::kAsWritten; its tool is replaced likewise). The
 /// first motion starts at its end point (no path before it). Throws ArgumentError for invalid
 /// options or models of different joint counts, or a link shape outside 1..dof.
-CheckReport checkMotions(const RobotModel& real, const RobotModel& controller, const Cell& cell,
+CheckReport checkMotions(const calib::RobotModel& real, const calib::RobotModel& controller, const Cell& cell,
                          const std::vector<WorldMotion>& motions, const CheckOptions& options,
-                         const PoseContext& context = {});
+                         const calib::PoseContext& context = {});
 
 /// Checks a program (KRL or XML, program.h) in its cell: its targets are taken to the world
 /// with the frames of `job` exactly as compensateProgram does (robot placement: the cell's

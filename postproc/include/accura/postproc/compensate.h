@@ -32,18 +32,6 @@
 namespace accura::postproc {
 
 // The inverse kinematics lives in calib (accura/calib/ik.h); its names are also visible here.
-using accura::Configuration;
-using accura::configurationMatches;
-using accura::IkOptions;
-using accura::IkResult;
-using accura::IkStatus;
-using accura::IkWorkspace;
-using accura::inverseKinematics;
-using accura::KinematicSolver;
-using accura::kTurnBandDeg;
-using accura::kukaConfiguration;
-using accura::onlyTurnBitsNearZeroDiffer;
-using accura::toString;
 
 /// Discrete compensation of one pose: q' = IK_real(desired), command = FK_controller(q').
 /// The controller's own IK, asked for `command` with `configuration`, returns q', so the
@@ -51,12 +39,12 @@ using accura::toString;
 /// more Newton steps while they gain) to about 1e-9 mm and 1e-12 rad, so that the command is
 /// the exact solution far below any printed resolution: the same output on every machine.
 struct PoseCompensation {
-  IkStatus status = IkStatus::kNotConverged;
+  calib::IkStatus status = calib::IkStatus::kNotConverged;
   std::string message;
   Eigen::Isometry3d T_world_tcp_command = Eigen::Isometry3d::Identity();
   Eigen::VectorXd q_real;            ///< joints that put the real tool on the desired pose
   /// S/T of q_real: what the program must carry with the command.
-  Configuration configuration;
+  calib::Configuration configuration;
   /// The program asked for a configuration (`config`, where not -1) that q_real does not
   /// have: the compensation moves the target across a configuration boundary (next to a
   /// singularity). status is still kOk and the result valid with `configuration`; report it.
@@ -66,17 +54,17 @@ struct PoseCompensation {
 };
 /// Throws ArgumentError for invalid options, a seed of the wrong size or models of different
 /// joint counts.
-PoseCompensation compensatePose(const RobotModel& controller, const RobotModel& real,
+PoseCompensation compensatePose(const calib::RobotModel& controller, const calib::RobotModel& real,
                                 const Eigen::Isometry3d& T_world_tcp_desired,
-                                const Configuration& config, const Eigen::VectorXd& seed,
-                                const IkOptions& options, double payload_kg = 0);
+                                const calib::Configuration& config, const Eigen::VectorXd& seed,
+                                const calib::IkOptions& options, double payload_kg = 0);
 
 struct DensifyOptions {
   double tol_mm = 0.05;          ///< max predicted deviation of the real path (position)
   double sample_step_mm = 1.0;   ///< path sampling for the error prediction (see docs)
   double sample_step_deg = 0.5;  ///< the same for the orientation (pure reorientations)
   int max_points_per_segment = 500;
-  IkOptions ik;
+  calib::IkOptions ik;
   bool IsValid(std::string* error) const;
 };
 
@@ -84,7 +72,7 @@ struct DensifyOptions {
 /// (commanded.front().T_world_start is the compensated start, each T_world_end the
 /// compensated end or auxiliary point; for CIRC each sub-segment has its own aux).
 struct SegmentCompensation {
-  IkStatus status = IkStatus::kNotConverged;
+  calib::IkStatus status = calib::IkStatus::kNotConverged;
   std::string message;
   std::vector<PathSegment> commanded;
   /// Real joint values at each commanded[i].T_world_end (its configuration: take
@@ -105,15 +93,15 @@ struct SegmentCompensation {
 class Compensator {
  public:
   /// Throws ArgumentError when the two models have different joint counts or are invalid.
-  Compensator(const RobotModel& controller, const RobotModel& real);
-  const KinematicSolver& controller() const { return controller_; }
-  const KinematicSolver& real() const { return real_; }
+  Compensator(const calib::RobotModel& controller, const calib::RobotModel& real);
+  const calib::KinematicSolver& controller() const { return controller_; }
+  const calib::KinematicSolver& real() const { return real_; }
 
   /// compensatePose. `seed`: the real joint values of the previous point (empty: none); the
   /// real model is evaluated in `context`, the controller in a default context.
-  PoseCompensation pose(const Eigen::Isometry3d& T_world_tcp_desired, const Configuration& config,
-                        const Eigen::VectorXd& seed, const IkOptions& options,
-                        const PoseContext& context = {}) const;
+  PoseCompensation pose(const Eigen::Isometry3d& T_world_tcp_desired, const calib::Configuration& config,
+                        const Eigen::VectorXd& seed, const calib::IkOptions& options,
+                        const calib::PoseContext& context = {}) const;
   /// Compensates a LIN / CIRC segment with auxiliary points (SegmentCompensation). Greedy:
   /// each piece as long as the tolerance allows (docs/compensation.md). Failures
   /// (unreachable, singular, tolerance not met within max_points_per_segment) come back in
@@ -125,19 +113,19 @@ class Compensator {
   /// controller on LIN / CIRC, every point along the segment keeps the configuration of the
   /// start (nearest solution), so the end may differ from `config`: compare
   /// kukaConfiguration(q_real_end.back()) with it.
-  SegmentCompensation segment(const PathSegment& intended, const Configuration& config,
+  SegmentCompensation segment(const PathSegment& intended, const calib::Configuration& config,
                               const Eigen::VectorXd& seed, const DensifyOptions& options,
-                              const PoseContext& context = {}) const;
+                              const calib::PoseContext& context = {}) const;
   /// The real tool poses when the controller executes `commanded` from joint values
   /// `q_controller_start` (see simulateExecution). Throws NumericalError when the controller
   /// cannot follow the path (unreachable, joint limits, singular).
   std::vector<Eigen::Isometry3d> execute(const std::vector<PathSegment>& commanded,
                                          const Eigen::VectorXd& q_controller_start, double step_mm,
-                                         const PoseContext& context = {}) const;
+                                         const calib::PoseContext& context = {}) const;
 
  private:
-  KinematicSolver controller_;
-  KinematicSolver real_;
+  calib::KinematicSolver controller_;
+  calib::KinematicSolver real_;
 };
 
 }  // namespace accura::postproc

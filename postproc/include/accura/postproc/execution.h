@@ -19,8 +19,8 @@ namespace accura::postproc {
 /// middle of the joint ranges), and the real robot goes there. Returns the real tool poses
 /// at both ends of every segment and at most `step_mm` (and 0.5 deg of orientation) apart.
 /// Throws NumericalError when the controller cannot follow the path.
-std::vector<Eigen::Isometry3d> simulateExecution(const RobotModel& controller,
-                                                 const RobotModel& real,
+std::vector<Eigen::Isometry3d> simulateExecution(const calib::RobotModel& controller,
+                                                 const calib::RobotModel& real,
                                                  const std::vector<PathSegment>& commanded,
                                                  const Eigen::VectorXd& q_start, double step_mm,
                                                  double payload_kg = 0);

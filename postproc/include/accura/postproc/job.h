@@ -30,14 +30,14 @@
 namespace accura::postproc {
 
 struct JobSettings {
-  RobotModel calibrated;  ///< the real robot (a calibrated model written by accura identify)
+  calib::RobotModel calibrated;  ///< the real robot (a calibrated model written by accura identify)
   /// Where the OLP placed the robot in the model's world (mm, deg); empty: the robot file's
   /// <base> (calibrated.nominal.T_world_base).
-  std::optional<XyzAbc> robroot_in_world;
+  std::optional<calib::XyzAbc> robroot_in_world;
   /// The controller's $ROBROOT (robot base in the controller's $WORLD); empty: identity.
-  std::optional<XyzAbc> robroot_in_kukaworld;
+  std::optional<calib::XyzAbc> robroot_in_kukaworld;
   double tol_mm = 0.05;  ///< bound on the predicted path error of LIN/CIRC segments
-  PoseContext context;   ///< payload, temperature of the real robot while it runs the program
+  calib::PoseContext context;   ///< payload, temperature of the real robot while it runs the program
   /// The program's tool is the calibrated one when it equals the model's nominal tool within
   /// these (mm, deg).
   double tool_match_mm = 1e-3;
@@ -48,12 +48,12 @@ struct JobSettings {
   double max_base_offset_deg = 5;
   /// $TOOL / $BASE (T_flange_tcp; $BASE relative to $WORLD; mm, deg) for the motions before
   /// the program sets them (programs that rely on the frames active on the controller).
-  std::optional<XyzAbc> initial_tool, initial_base;
+  std::optional<calib::XyzAbc> initial_tool, initial_base;
   /// IK convergence for the written values: far below their last digit (1e-4 mm, 1e-5 deg),
   /// so that the digits written do not depend on the iterations that led there (the same
   /// bytes on every machine). Newton converges quadratically: about one more iteration.
-  IkOptions ik = [] {
-    IkOptions o;
+  calib::IkOptions ik = [] {
+    calib::IkOptions o;
     o.tol_mm = 1e-7;
     o.tol_rad = 1e-10;
     return o;
@@ -101,8 +101,8 @@ struct JobReport {
   int points_added = 0;
   double max_correction_mm = 0, rms_correction_mm = 0, max_correction_deg = 0;
   double max_error_uncompensated_mm = 0, max_error_before_mm = 0, max_error_after_mm = 0;
-  XyzAbc robroot_in_world;          ///< the nominal base used
-  XyzAbc calibrated_base_in_world;  ///< the calibrated model's base
+  calib::XyzAbc robroot_in_world;          ///< the nominal base used
+  calib::XyzAbc calibrated_base_in_world;  ///< the calibrated model's base
 };
 
 /// A program compensated, and its complete report (every total computed, its errors listed).
@@ -124,7 +124,7 @@ ProgramCompensation compensateProgramReport(const Program& program, const JobSet
 
 /// The InputError that lists every error of `report` (the first with its file:line:column).
 /// Requires !report.errors.empty().
-InputError compensationError(const JobReport& report);
+calib::InputError compensationError(const JobReport& report);
 
 /// compensateProgramReport for callers that want an exception: fills `report` (may be null)
 /// with the complete report, then throws compensationError(report) when a target cannot be
@@ -138,7 +138,7 @@ double rotationAngleDeg(const Eigen::Matrix3d& R);
 /// when T_flange_tcp is its nominal tool within match_mm (mm) and match_deg (deg), else
 /// `calibrated` with T_flange_tcp taken as exact (no tool deviations). `calibrated_tool`
 /// (optional) says which of the two.
-RobotModel realModelForTool(const RobotModel& calibrated, const Eigen::Isometry3d& T_flange_tcp, double match_mm,
+calib::RobotModel realModelForTool(const calib::RobotModel& calibrated, const Eigen::Isometry3d& T_flange_tcp, double match_mm,
                             double match_deg, bool* calibrated_tool = nullptr);
 
 }  // namespace accura::postproc

@@ -17,7 +17,7 @@
 //             LDAT / PDAT of the inline forms; $APO.CDIS / CPTP / CVEL / CORI, APO_DIST.
 //   the rest  comments, FOLDs (;FOLD .. ;ENDFOLD, inline forms with ;%{PE}), logic, I/O,
 //             declarations of other types: kept as text, passed through.
-// Errors (accura::InputError, file:line:column, what was expected and what was found): a
+// Errors (accura::calib::InputError, file:line:column, what was expected and what was found): a
 // malformed aggregate of a target or frame, an unknown component, a component given twice, a
 // motion statement without a target, an unterminated string.
 #pragma once

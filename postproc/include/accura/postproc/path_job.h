@@ -14,12 +14,12 @@ namespace accura::postproc {
 /// S/T than `asked` becomes kNoConfiguration (with a message), except Turn bits of joints
 /// within kTurnBandDeg of 0 (the same arm posture: pc keeps the new bits and
 /// configuration_changed).
-void enforceConfiguration(const Configuration& asked, PoseCompensation& pc);
+void enforceConfiguration(const calib::Configuration& asked, PoseCompensation& pc);
 
 /// One LIN / CIRC segment compensated from where the real robot is: sets
 /// intended.T_world_start to the real model's tool pose at `q_real` (in settings.context),
 /// then Compensator::segment with settings.densify, settings.tol_mm and settings.ik.
-SegmentCompensation compensateSegmentFrom(const Compensator& comp, PathSegment& intended, const Configuration& config,
+SegmentCompensation compensateSegmentFrom(const Compensator& comp, PathSegment& intended, const calib::Configuration& config,
                                           const Eigen::VectorXd& q_real, const JobSettings& settings);
 
 /// A path compensated: its start, then each motion from where the real robot ends the one
@@ -30,13 +30,13 @@ struct PathCompensation {
   std::vector<SegmentCompensation> segments;  ///< one per motion, up to the first that failed
   /// -1, or the motion that failed (segments.back() says why); start.status != kOk: the start.
   int failed_motion = -1;
-  bool ok() const { return start.status == IkStatus::kOk && failed_motion < 0; }
+  bool ok() const { return start.status == calib::IkStatus::kOk && failed_motion < 0; }
 };
 
 /// Compensates the start T_world_start (configuration `start_config`, enforceConfiguration),
 /// then every motion of `motions` (their T_world_start is ignored) with
 /// compensateSegmentFrom, stopping at the first failure. Throws like Compensator::segment.
-PathCompensation compensatePath(const Compensator& comp, const Eigen::Isometry3d& T_world_start, const Configuration& start_config,
+PathCompensation compensatePath(const Compensator& comp, const Eigen::Isometry3d& T_world_start, const calib::Configuration& start_config,
                                 const std::vector<PathSegment>& motions, const JobSettings& settings);
 
 }  // namespace accura::postproc

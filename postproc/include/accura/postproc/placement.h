@@ -43,20 +43,20 @@ JobSettings placedInCell(const JobSettings& job, const Cell& cell);
 /// The robot a controller runs (a robot file read from `path`) must be the calibrated model's
 /// nominal robot: the same joint count, types, DH geometry, directions and limits (within
 /// 1e-9 mm / deg). Throws InputError (naming `path` and what differs) otherwise.
-void checkControllerRobot(const RobotDefinition& calibrated, const RobotDefinition& controller, const std::string& path);
+void checkControllerRobot(const calib::RobotDefinition& calibrated, const calib::RobotDefinition& controller, const std::string& path);
 
 /// The models of one program tool: the controller (nominal kinematics at the placement with
 /// the tool) and the real robot (realModelForTool).
 struct ToolModels {
   Eigen::Isometry3d T_flange_tcp = Eigen::Isometry3d::Identity();
-  RobotModel controller;
-  RobotModel real;
+  calib::RobotModel controller;
+  calib::RobotModel real;
   bool calibrated_tool = false;  ///< real uses the calibrated tool (job.h, "real")
   /// The compensation with these two models (built on first use by ModelFactory::compensator).
   std::unique_ptr<Compensator> compensator;
   /// For the checks (check.cpp): the IK of the model that defines the path, with widened
   /// joint limits (built on first use there).
-  std::unique_ptr<KinematicSolver> check_ik;
+  std::unique_ptr<calib::KinematicSolver> check_ik;
 };
 
 /// The one controller-model factory with its tool-keyed cache: the job, the checks, batch (per
@@ -68,21 +68,21 @@ class ModelFactory {
   ModelFactory(const JobSettings& job, const Placement& placement);
   /// Given models: `real` (its tool rule as realModelForTool with the match tolerances of
   /// JobSettings) and `controller` (its base is the placement; its tool is replaced).
-  ModelFactory(const RobotModel& real, const RobotModel& controller);
+  ModelFactory(const calib::RobotModel& real, const calib::RobotModel& controller);
 
   const Placement& placement() const { return placement_; }
   /// The controller's nominal model at the placement with the flange as TCP (axis targets).
-  const RobotModel& controllerFlange() const { return controller_flange_; }
+  const calib::RobotModel& controllerFlange() const { return controller_flange_; }
   /// The models for the tool T_flange_tcp (cached by its exact value).
   ToolModels& forTool(const Eigen::Isometry3d& T_flange_tcp);
   /// forTool(T_flange_tcp) with its Compensator.
   ToolModels& compensator(const Eigen::Isometry3d& T_flange_tcp);
 
  private:
-  RobotModel calibrated_;
+  calib::RobotModel calibrated_;
   double tool_match_mm_ = 0, tool_match_deg_ = 0;
   Placement placement_;
-  RobotModel controller_flange_;
+  calib::RobotModel controller_flange_;
   std::map<std::string, ToolModels> cache_;
 };
 

@@ -63,9 +63,9 @@ struct Target {
   /// True when X, Y, Z, A, B and C are all given.
   bool completePose() const;
   /// The pose (all six components must be given; ArgumentError otherwise).
-  XyzAbc xyzAbc() const;
+  calib::XyzAbc xyzAbc() const;
   /// Sets X..C (keeps S, T, external axes).
-  void setPose(const XyzAbc& p);
+  void setPose(const calib::XyzAbc& p);
 };
 
 /// The tool ($TOOL) or base ($BASE) frame active at a motion, and where it came from.
@@ -79,7 +79,7 @@ struct FrameSetting {
   };
   Source source = Source::kUnset;
   int index = 0;                ///< for kData: n of TOOL_DATA[n] / BASE_DATA[n]
-  std::optional<XyzAbc> value;  ///< the frame when known (mm, deg)
+  std::optional<calib::XyzAbc> value;  ///< the frame when known (mm, deg)
   std::string text;             ///< how the program said it (KRL expression: "TOOL_DATA[1]")
   std::string note;             ///< for kUnknown: why accura cannot evaluate it
   SourceLocation where;         ///< where it was set
@@ -163,12 +163,11 @@ std::string motionKeyword(const Motion& m);
 /// (formatFixed is calib's one number formatter, accura/calib/text.h.)
 std::string formatMm(double v);
 std::string formatDeg(double v);
-using accura::formatFixed;
 
 /// A TOOL_DATA / BASE_DATA table (index -> frame), e.g. from $config.dat.
 struct FrameTables {
-  std::vector<std::optional<XyzAbc>> tool;  ///< [n] = TOOL_DATA[n]
-  std::vector<std::optional<XyzAbc>> base;  ///< [n] = BASE_DATA[n]
+  std::vector<std::optional<calib::XyzAbc>> tool;  ///< [n] = TOOL_DATA[n]
+  std::vector<std::optional<calib::XyzAbc>> base;  ///< [n] = BASE_DATA[n]
   std::string file;                          ///< where they were read from
 };
 

@@ -25,13 +25,12 @@ struct ProgramReadOptions {
 Program readProgram(const std::string& path, const ProgramReadOptions& options = {});
 
 /// One output file (file_io.h, the one writer).
-using accura::OutputFile;
 
 /// The files of `program` written as `format`: XML -> `path`; KRL -> `path` (the .src) and
 /// `dat_path` (empty: `path` with the extension .dat) when the program has a .dat (a program
 /// read from KRL without .dat gets none; a new KRL program always gets one). Throws
 /// ArgumentError when the program cannot be written in that format.
-std::vector<OutputFile> renderProgram(const Program& program, ProgramFormat format, const std::string& path,
+std::vector<calib::OutputFile> renderProgram(const Program& program, ProgramFormat format, const std::string& path,
                                       const std::string& dat_path = "");
 
 }  // namespace accura::postproc
