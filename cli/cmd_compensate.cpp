@@ -76,7 +76,7 @@ int runCompensate(const CompensateArgs& a) {
   int outside = 0;
   for (const auto& t : report.targets) {
     if (t.q_real.size() != settings.calibrated.dof()) continue;
-    const std::vector<OutsideFitRange> o = outsideFitRanges(settings.calibrated, t.q_real);
+    const std::vector<calib::OutsideFitRange> o = calib::outsideFitRanges(settings.calibrated, t.q_real);
     if (o.empty()) continue;
     ++outside;
     std::string what;
