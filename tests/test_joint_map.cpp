@@ -202,6 +202,36 @@ TEST(JointMap, RobotFileKeepsMapsAndFittedRanges) {
   std::filesystem::remove_all(dir);
 }
 
+// Which joints of a pose lie outside the fitted ranges, and by how much (compensate's warning).
+TEST(JointMap, OutsideFitRangesNamesTheJointsOfFittedEffects) {
+  RobotModel m = ur10WithMaps();  // maps on some joints
+  Eigen::VectorXd q(6);
+  q << 10, -47.3, 33.1, -80, 95, 12;
+  // no fitted ranges: the maps' intervals (joint 2 -150..20, joint 3 -120..130) are the ranges;
+  // the other joints have none to compare with
+  m.deviations.fit_range.clear();
+  std::vector<OutsideFitRange> o = outsideFitRanges(m, q);
+  EXPECT_TRUE(o.empty());
+  q[1] = 27.5;
+  o = outsideFitRanges(m, q);
+  ASSERT_EQ(o.size(), 1u);
+  EXPECT_EQ(o[0].joint, 2);
+  EXPECT_NEAR(o[0].beyond, 7.5, 1e-12);  // deg
+  // with fitted ranges and a compliance every joint depends on: joint 2 at -47.3 lies 12.7 deg
+  // above -150..-60, joint 5 at 95 lies 5 deg above 0..90, the others inside
+  q[1] = -47.3;
+  m.deviations.fit_range.assign(6, JointRange{-180, 180});
+  m.deviations.fit_range[1] = {-150, -60};
+  m.deviations.fit_range[4] = {0, 90};
+  o = outsideFitRanges(m, q);
+  ASSERT_EQ(o.size(), 2u);
+  EXPECT_EQ(o[0].joint, 2);
+  EXPECT_NEAR(o[0].beyond, 12.7, 1e-9);
+  EXPECT_EQ(o[1].joint, 5);
+  EXPECT_NEAR(o[1].beyond, 5.0, 1e-9);
+  EXPECT_THROW(outsideFitRanges(m, Eigen::VectorXd::Zero(5)), ArgumentError);
+}
+
 // A KR 16 whose joints 2 and 3 carry a cyclic error of 17 cycles per revolution (0.5 mrad):
 // the geometric model cannot follow it; joint_map recovers it to the noise floor.
 TEST(JointMap, IdentifyRecoversACyclicJointErrorToTheNoiseFloor) {

@@ -178,6 +178,23 @@ TEST(RealUr10, DiagnosisFindsTheResidualUnexplained) {
   // user's path (identify Series_B with them, validate on Series_C from its own station) must
   // not make Series_C worse than nominal, and stays at the geometric + compliance level
   ASSERT_FALSE(j["selected"].empty());
+  // What extrapolates badly is rejected on Series_B's own evidence (blocked cross-validation:
+  // train on one half of a joint's range, predict the other): joint_scale on joint 1 (C lies
+  // beyond B's joint-1 range, where the scale made C 0.515 mm instead of 0.505), and the joint maps,
+  // which hold the fine structure inside B's ranges but shift the geometry they share (the
+  // held-out half of joint 3 gets worse with them).
+  bool map_tested = false, scale_rejected = false;
+  for (const auto& r : j["rejected"]) {
+    if (r["effect"] == "joint_scale" && r["reason"].get<std::string>().find("halves") != std::string::npos)
+      scale_rejected = true;
+    if (r["effect"] == "joint_map") map_tested = r["reason"].get<std::string>().find("does harm") != std::string::npos;
+  }
+  for (const auto& e : j["selected"]) {
+    EXPECT_NE(e["effect"], "joint_scale") << e.dump();
+    map_tested = map_tested || e["effect"] == "joint_map";
+  }
+  EXPECT_TRUE(map_tested);
+  EXPECT_TRUE(scale_rejected);
   for (const auto& e : j["selected"]) {
     EXPECT_TRUE(e["implausible"].empty()) << e.dump();
     EXPECT_FALSE(e["coverage"].empty());
@@ -194,7 +211,11 @@ TEST(RealUr10, DiagnosisFindsTheResidualUnexplained) {
   const auto s = nlohmann::json::parse(test::readText(dir + "/s.json"));
   const double c_rms = s["validation"]["rms_mm"].get<double>();
   EXPECT_LT(c_rms, s["nominal_validation"]["rms_mm"].get<double>());
-  EXPECT_LT(c_rms, 0.52) << params;
+  // the geometric model with joint 2's compliance, fitted on B with orientation: 0.5054 mm on C
+  // (nominal 1.0; the geometric position-only reference 0.6); the bound is 0.50
+  EXPECT_LT(c_rms, 0.51) << params;
+  EXPECT_GT(s["validation_outside_fit_ranges"]["poses"].get<int>(), 2700);  // C lies outside B's ranges
+  EXPECT_NE(test::readText(dir + "/id.txt").find("outside"), std::string::npos);
 }
 
 }  // namespace

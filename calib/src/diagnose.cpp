@@ -50,6 +50,10 @@ bool DiagnoseOptions::IsValid(std::string* error) const {
     return fail("robust_k must be 0 (off) or a number >= 1 (robust standard deviations), got " + std::to_string(robust_k));
   if (blocked_folds != 0 && (blocked_folds < 2 || blocked_folds > 20))
     return fail("blocked_folds must be 0 (off) or 2..20, got " + std::to_string(blocked_folds));
+  if (!(joint_map_knot > 0 && std::isfinite(joint_map_knot)))
+    return fail("joint_map_knot must be a number > 0 (deg or mm), got " + std::to_string(joint_map_knot));
+  if (!(joint_map_smoothing >= 0 && std::isfinite(joint_map_smoothing)))
+    return fail("joint_map_smoothing must be a number >= 0, got " + std::to_string(joint_map_smoothing));
   if (spectrum_max_cycles < 0 || spectrum_max_cycles > 360)
     return fail("spectrum_max_cycles must be 0..360, got " + std::to_string(spectrum_max_cycles));
   return true;

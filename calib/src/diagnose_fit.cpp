@@ -14,6 +14,7 @@
 
 #include "accura/calib/errors.h"
 #include "accura/calib/identify.h"
+#include "accura/calib/joint_map.h"
 #include "accura/calib/kinematics.h"
 #include "identify_internal.h"
 
@@ -32,6 +33,7 @@ void Diagnoser::baseline() {
   IdentifySummary s;
   M0_ = identify(start_, fit_, baselineOptions(), &s);
   robust_w_.assign(static_cast<size_t>(m_), 1.0);
+  addJointMaps();
   layout_ = parameterLayout(M0_);
   std::set<std::string> free;
   for (const ParameterEstimate& p : s.parameters) free.insert(p.name);
@@ -46,6 +48,91 @@ void Diagnoser::baseline() {
     for (size_t i = 0; i < w_fit_.size(); ++i) w_fit_[i] *= std::sqrt(fit_.rows[i].weight);
     if (has_val_)
       for (size_t i = 0; i < w_val_.size(); ++i) w_val_[i] = Eigen::Vector3d::Constant(std::sqrt(val_.rows[i].weight) / s.position_std_mm);
+  }
+}
+
+void Diagnoser::addJointMaps() {
+  map_knot_ = 0;
+  if (std::find(o_.effects.begin(), o_.effects.end(), "joint_map") == o_.effects.end()) return;
+  const int n = M0_.dof();
+  std::vector<JointRange> range(static_cast<size_t>(n));
+  double widest = 0;
+  for (int j = 0; j < n; ++j) {
+    double lo = 1e300, hi = -1e300;
+    for (const Measurement& r : fit_.rows) {
+      lo = std::min(lo, r.q[j]);
+      hi = std::max(hi, r.q[j]);
+    }
+    range[static_cast<size_t>(j)] = {lo, hi};
+    widest = std::max(widest, hi - lo);
+  }
+  // at least about 10 fit poses per coefficient of the widest joint's map
+  double knot = o_.joint_map_knot;
+  const double max_intervals = std::max(4.0, double(m_) / 10.0 - 3.0);
+  if (widest / knot > max_intervals) knot = std::ceil(2.0 * widest / max_intervals) / 2.0;
+  if (M0_.deviations.joint_map.size() != static_cast<size_t>(n)) M0_.deviations.joint_map.assign(static_cast<size_t>(n), JointMap{});
+  bool any = false;
+  for (int j = 0; j < n; ++j) {
+    const JointRange& c = range[static_cast<size_t>(j)];
+    const bool rev = M0_.nominal.joints[static_cast<size_t>(j)].type == JointType::kRevolute;
+    const std::string jn = "j" + std::to_string(j + 1);
+    if (!M0_.deviations.joint_map[static_cast<size_t>(j)].empty()) {
+      effect_note_["joint_map:" + jn] = "joint_map " + jn + ": the starting model already has a map of this joint (kept as it is)";
+      continue;
+    }
+    if (c.upper - c.lower < 4 * knot) {
+      effect_note_["joint_map:" + jn] = "joint_map " + jn + ": the fit data cover " + fmtg("%.3g", c.upper - c.lower) +
+                                        (rev ? " deg" : " mm") + ", less than 4 knot spacings of " + fmtg("%.3g", knot) +
+                                        ": no map";
+      continue;
+    }
+    M0_.deviations.joint_map[static_cast<size_t>(j)] = makeJointMap(c.lower, c.upper, knot);
+    any = true;
+  }
+  if (any) map_knot_ = knot;
+  else effect_note_["joint_map"] = "not testable: no joint is covered over 4 knot spacings by the fit data";
+}
+
+// The joint maps' regularisation, as identify has it (joint_map.h): second differences weighted
+// sqrt(smoothing) * scale, centring rows (no constant, trend or first harmonic over the fit
+// data) weighted kJointMapCentringWeight * scale, scale the RMS weighted norm of the map's
+// columns; expressed in the scaled columns.
+void Diagnoser::mapPenalty() {
+  const Eigen::Index C = static_cast<Eigen::Index>(cols_.size());
+  penalty_ = Eigen::MatrixXd::Zero(C, C);
+  is_map_.assign(static_cast<size_t>(C), false);
+  for (const Block& b : blocks_) {
+    if (b.effect != "joint_map" || b.cols.empty()) continue;
+    const JointMap& jm = M0_.deviations.joint_map[static_cast<size_t>(b.joint)];
+    const int K = static_cast<int>(jm.coef.size());
+    std::vector<int> col(static_cast<size_t>(K), -1);
+    double s2 = 0;
+    for (int c : b.cols) {
+      col[static_cast<size_t>(layout_[cols_[c]].index)] = c;
+      s2 += colscale_[c] * colscale_[c];
+      is_map_[static_cast<size_t>(c)] = true;
+    }
+    const double scale = std::sqrt(s2 / double(b.cols.size()));
+    Eigen::MatrixXd Pk = Eigen::MatrixXd::Zero(K, K);
+    auto add = [&](const std::vector<double>& a, double weight) {
+      const Eigen::VectorXd v = weight * Eigen::Map<const Eigen::VectorXd>(a.data(), K);
+      Pk.noalias() += v * v.transpose();
+    };
+    if (o_.joint_map_smoothing > 0)
+      for (const auto& a : jointMapSmoothnessRows(jm)) add(a, std::sqrt(o_.joint_map_smoothing) * scale);
+    std::vector<double> qj;
+    for (const Measurement& r : fit_.rows) qj.push_back(r.q[b.joint]);
+    const bool rev = M0_.nominal.joints[static_cast<size_t>(b.joint)].type == JointType::kRevolute;
+    for (const auto& a : jointMapCentringRows(jm, qj, rev ? kJointMapCentredHarmonics : 0)) {
+      double nrm = 0;
+      for (double v : a) nrm += v * v;
+      if (nrm > 0) add(a, kJointMapCentringWeight * scale / std::sqrt(nrm));
+    }
+    for (int k = 0; k < K; ++k)
+      for (int l = 0; l < K; ++l)
+        if (col[static_cast<size_t>(k)] >= 0 && col[static_cast<size_t>(l)] >= 0)
+          penalty_(col[static_cast<size_t>(k)], col[static_cast<size_t>(l)]) =
+              Pk(k, l) / (colscale_[col[static_cast<size_t>(k)]] * colscale_[col[static_cast<size_t>(l)]]);
   }
 }
 
@@ -158,6 +245,27 @@ void Diagnoser::linearise() {
   for (Block& b : blocks_) {
     Eigen::MatrixXd Qb = Q;
     std::vector<int> kept;
+    if (b.effect == "joint_map") {
+      // a map moves the measured point by its joint's lever arm: none worth a map within 10 mm of
+      // the axis (the same rule as the spectrum); its dependence on the geometric parameters (the
+      // constant, trend and first harmonic) is removed by the centring penalty, not by screening
+      // the basis functions sum to 1 and their squares to 1/4..1 at every q: the columns' summed
+      // squares over the poses are the squared lever arms within that factor
+      double lever2 = 0;
+      for (int c : b.cols) lever2 += JF.col(c).squaredNorm() / double(m_);
+      const bool rev = M0_.nominal.joints[static_cast<size_t>(b.joint)].type == JointType::kRevolute;
+      if (rev && lever2 < 25.0) {
+        effect_note_[b.effect + ":j" + std::to_string(b.joint + 1)] =
+            "joint_map j" + std::to_string(b.joint + 1) + ": the measured point lies within about 10 mm of the axis (about " +
+            fmtg("%.3g", std::sqrt(lever2)) + " mm): a map of it has no effect on these measurements";
+        b.cols.clear();
+        continue;
+      }
+      for (int c : b.cols)
+        if (norms[c] > 1e-12 * std::max(gmax, 1e-300)) kept.push_back(c);
+      b.cols = kept;
+      continue;
+    }
     for (int c : b.cols) {
       const std::string& name = layout_[cols_[c]].name;
       if (!(norms[c] > 1e-12 * std::max(gmax, 1e-300))) {
@@ -186,7 +294,14 @@ void Diagnoser::linearise() {
   JF_ = JF * colscale_.cwiseInverse().asDiagonal();
   Jw = wF_.asDiagonal() * JF_;
   const Eigen::VectorXd rw = wF_.cwiseProduct(rF_);
-  A_ = Jw.transpose() * Jw;
+  A_.noalias() = Jw.transpose() * Jw;
+  mapPenalty();
+  A_ += penalty_;
+  row_nz_.assign(static_cast<size_t>(m_), {});
+  for (int i = 0; i < m_; ++i)
+    for (Eigen::Index c = 0; c < JF_.cols(); ++c)
+      if (!is_map_[static_cast<size_t>(c)] || JF_.middleRows(3 * i, 3).col(c).squaredNorm() > 0)
+        row_nz_[static_cast<size_t>(i)].push_back(static_cast<int>(c));
   b_ = Jw.transpose() * rw;
   rr_ = rw.squaredNorm();
   if (has_val_) {
@@ -207,28 +322,20 @@ void Diagnoser::buildScheme(Scheme* sc) const {
   const Eigen::Index C = JF_.cols();
   sc->Af.assign(sc->poses.size(), Eigen::MatrixXd::Zero(C, C));
   sc->bf.assign(sc->poses.size(), Eigen::VectorXd::Zero(C));
-  Eigen::MatrixXd Jf;  // the fold's weighted rows, gathered: one symmetric rank update per fold
-  Eigen::VectorXd rf;
-  sc->J.resize(JF_.rows(), C);
-  sc->r.resize(rF_.size());
-  sc->first.clear();
-  Eigen::Index next = 0;
+  // per row only its non-zero columns (a map coefficient touches the rows near its knot)
+  Eigen::MatrixXd Ji;
   for (size_t f = 0; f < sc->poses.size(); ++f) {
-    const Eigen::Index k = static_cast<Eigen::Index>(sc->poses[f].size());
-    sc->first.push_back(next);
-    Jf.resize(3 * k, C);
-    rf.resize(3 * k);
-    for (Eigen::Index a = 0; a < k; ++a) {
-      const int i = sc->poses[f][static_cast<size_t>(a)];
-      sc->J.middleRows(3 * (next + a), 3) = JF_.middleRows(3 * i, 3);
-      sc->r.segment(3 * (next + a), 3) = rF_.segment(3 * i, 3);
-      Jf.middleRows(3 * a, 3) = wF_.segment(3 * i, 3).asDiagonal() * JF_.middleRows(3 * i, 3);
-      rf.segment(3 * a, 3) = wF_.segment(3 * i, 3).cwiseProduct(rF_.segment(3 * i, 3));
+    for (int i : sc->poses[f]) {
+      const std::vector<int>& nz = row_nz_[static_cast<size_t>(i)];
+      Ji = wF_.segment(3 * i, 3).asDiagonal() * JF_(Eigen::seqN(3 * i, 3), nz);
+      const Eigen::Vector3d ri = wF_.segment(3 * i, 3).cwiseProduct(rF_.segment(3 * i, 3));
+      const Eigen::MatrixXd JtJ = Ji.transpose() * Ji;
+      const Eigen::VectorXd Jtr = Ji.transpose() * ri;
+      for (size_t a = 0; a < nz.size(); ++a) {
+        sc->bf[f][nz[a]] += Jtr[static_cast<Eigen::Index>(a)];
+        for (size_t c = 0; c < nz.size(); ++c) sc->Af[f](nz[c], nz[a]) += JtJ(static_cast<Eigen::Index>(c), static_cast<Eigen::Index>(a));
+      }
     }
-    next += k;
-    sc->Af[f].selfadjointView<Eigen::Lower>().rankUpdate(Jf.transpose());
-    sc->Af[f].triangularView<Eigen::StrictlyUpper>() = sc->Af[f].transpose();
-    sc->bf[f].noalias() = Jf.transpose() * rf;
   }
 }
 
@@ -239,22 +346,25 @@ void Diagnoser::blockedSchemes() {
   blocked_.clear();
   const int K = o_.blocked_folds;
   if (K < 2 || m_ < 2 * K) return;
-  auto cut = [&](const std::vector<int>& order, const std::string& name) {
+  auto cut = [&](const std::vector<int>& order, const std::string& name, int folds) {
     Scheme sc;
     sc.name = name;
-    sc.poses.assign(static_cast<size_t>(K), {});
-    for (int k = 0; k < m_; ++k) sc.poses[static_cast<size_t>(static_cast<long>(k) * K / m_)].push_back(order[static_cast<size_t>(k)]);
+    sc.poses.assign(static_cast<size_t>(folds), {});
+    for (int k = 0; k < m_; ++k)
+      sc.poses[static_cast<size_t>(static_cast<long>(k) * folds / m_)].push_back(order[static_cast<size_t>(k)]);
+    if (name != "pose order" && folds > 2) sc.end_folds = {0, folds - 1};
     buildScheme(&sc);
     blocked_.push_back(std::move(sc));
   };
   std::vector<int> order(static_cast<size_t>(m_));
   std::iota(order.begin(), order.end(), 0);
-  cut(order, "pose order");
+  cut(order, "pose order", K);
   for (int j = 0; j < M0_.dof(); ++j) {
     std::vector<int> by = order;
     std::stable_sort(by.begin(), by.end(), [&](int a, int b) { return fit_.rows[a].q[j] < fit_.rows[b].q[j]; });
     if (!(fit_.rows[by.back()].q[j] - fit_.rows[by.front()].q[j] > 1e-6)) continue;
-    cut(by, "q" + std::to_string(j + 1) + " blocks");
+    cut(by, "q" + std::to_string(j + 1) + " blocks", K);
+    cut(by, "q" + std::to_string(j + 1) + " halves", 2);  // train on one half, predict the other
   }
 }
 
@@ -301,8 +411,7 @@ Diagnoser::Eval Diagnoser::cvEval(const std::vector<int>& S, const Scheme& schem
   const Eigen::VectorXd bS = b_(S);
   Eigen::LLT<Eigen::MatrixXd> llt;
   Eigen::VectorXd x;
-  Eigen::MatrixXd Z;
-  Eigen::VectorXd rh, xc;
+  const Eigen::MatrixXd JS = JF_(Eigen::all, S);
   ev.d.resize(m_);
   if (leverage) ev.lev.resize(m_);
   for (size_t f = 0; f < scheme.poses.size(); ++f) {
@@ -312,25 +421,33 @@ Diagnoser::Eval Diagnoser::cvEval(const std::vector<int>& S, const Scheme& schem
       v[a] -= scheme.bf[f][S[a]];
       for (Eigen::Index c = 0; c < s; ++c) M(a, c) -= scheme.Af[f](S[a], S[c]);
     }
-    if (!solveSpd(M, v, &llt, &x)) return ev;
-    // the fold's rows (contiguous in the scheme): residuals by one product with the update
-    // spread over all columns, leverages by one triangular solve
-    const std::vector<int>& held = scheme.poses[f];
-    const Eigen::Index k = static_cast<Eigen::Index>(held.size()), o = 3 * scheme.first[f];
-    xc.setZero(scheme.J.cols());
-    for (Eigen::Index a = 0; a < s; ++a) xc[S[static_cast<size_t>(a)]] = x[a];
-    rh = scheme.r.segment(o, 3 * k);
-    rh.noalias() -= scheme.J.middleRows(o, 3 * k) * xc;
-    if (leverage) {
-      Z = scheme.J.middleRows(o, 3 * k)(Eigen::all, S).transpose();
-      llt.matrixL().solveInPlace(Z);
+    // blocked schemes (not the interleaved folds): a map coefficient the training rows do not fully reach (less
+    // than 90% of its weight in the fit data) is zero, as a fitted map is outside the range its
+    // data cover, not the smoothness penalty's extrapolation of a few rows at the edge
+    std::vector<Eigen::Index> act;
+    for (Eigen::Index a = 0; a < s; ++a) {
+      const double data = A_(S[a], S[a]) - penalty_(S[a], S[a]);
+      if (!(&scheme != &interleaved_ && is_map_[static_cast<size_t>(S[a])] && data - scheme.Af[f](S[a], S[a]) < 0.9 * data))
+        act.push_back(a);
     }
-    for (Eigen::Index a = 0; a < k; ++a) {
-      const int i = held[static_cast<size_t>(a)];
+    if (static_cast<Eigen::Index>(act.size()) == s) {
+      if (!solveSpd(M, v, &llt, &x)) return ev;
+    } else {
+      Eigen::VectorXd xa;
+      if (!solveSpd(M(act, act), v(act), &llt, &xa)) return ev;
+      x = Eigen::VectorXd::Zero(s);
+      x(act) = xa;
+    }
+    for (int i : scheme.poses[f]) {
+      const Eigen::MatrixXd Ji = JS.middleRows(3 * i, 3);
       // robust held-out loss: a down-weighted row counts with its weight squared (about the
       // squared cut-off for a gross outlier)
-      ev.d[i] = rh.segment(3 * a, 3).squaredNorm() * robust_w_[static_cast<size_t>(i)] * robust_w_[static_cast<size_t>(i)];
-      if (leverage) ev.lev[i] = Z.middleCols(3 * a, 3).squaredNorm();
+      ev.d[i] = (rF_.segment(3 * i, 3) - Ji * x).squaredNorm() * robust_w_[static_cast<size_t>(i)] * robust_w_[static_cast<size_t>(i)];
+      if (leverage)
+        ev.lev[i] = llt.matrixL()
+                        .solve(static_cast<Eigen::Index>(act.size()) == s ? Eigen::MatrixXd(Ji.transpose())
+                                                                           : Eigen::MatrixXd(Ji(Eigen::all, act).transpose()))
+                        .squaredNorm();
     }
   }
   ev.ok = true;
@@ -386,29 +503,23 @@ RobotModel Diagnoser::gnFit(const std::vector<int>& S, const std::vector<int>& r
     scale[static_cast<Eigen::Index>(k)] = colscale_[S[k]];
   }
   const Eigen::Index s = static_cast<Eigen::Index>(S.size());
-  // identify's residual stacking over the rows, weighted; the normal equations by one
-  // symmetric rank update per iteration
-  MeasurementSet data;
-  std::vector<identify_detail::RowWeights> weights(rows.size());
-  for (size_t k = 0; k < rows.size(); ++k) {
-    data.rows.push_back(fit_.rows[static_cast<size_t>(rows[k])]);
-    weights[k].w.head<3>() = w_fit_[rows[k]];
-  }
-  identify_detail::Stations st;
-  st.of_row.assign(rows.size(), 0);
-  const identify_detail::JacobianPlan plan = identify_detail::makePlan(model, sub);
-  identify_detail::RowStack stack(model, plan, st);
-  const std::vector<double> x0(sub.size(), 0.0);
-  Eigen::MatrixXd Jp;
-  Eigen::VectorXd rp;
+  KinematicWorkspace ws;
+  Eigen::MatrixXd J6;
+  Eigen::MatrixXd Jp(3, s);
+  const Eigen::MatrixXd P = penalty_(S, S);
   for (int it = 0; it < 10; ++it) {
-    if (it > 0) stack.prepare(model);
-    stack.stack(x0, data, weights, &Jp, &rp);
-    Jp = Jp * scale.cwiseInverse().asDiagonal();
-    Eigen::MatrixXd A = Eigen::MatrixXd::Zero(s, s);
-    A.selfadjointView<Eigen::Lower>().rankUpdate(Jp.transpose());
-    A.triangularView<Eigen::StrictlyUpper>() = A.transpose();
-    const Eigen::VectorXd b = -(Jp.transpose() * rp);
+    // the maps' penalty on their current (scaled) coefficients; zero for every other parameter
+    Eigen::VectorXd xs(s);
+    for (Eigen::Index k = 0; k < s; ++k) xs[k] = getParameter(model.deviations, sub[static_cast<size_t>(k)]) * scale[k];
+    Eigen::MatrixXd A = P;
+    Eigen::VectorXd b = -(P * xs);
+    for (int i : rows) {
+      const Measurement& row = fit_.rows[static_cast<size_t>(i)];
+      const Eigen::Isometry3d T = parameterJacobian(model, sub, row.q, row.context, ws, J6);
+      Jp = w_fit_[i].asDiagonal() * J6.topRows(3) * scale.cwiseInverse().asDiagonal();
+      A.noalias() += Jp.transpose() * Jp;
+      b.noalias() += Jp.transpose() * w_fit_[i].cwiseProduct(row.p_world_mm - T.translation());
+    }
     Eigen::LLT<Eigen::MatrixXd> llt;
     Eigen::VectorXd dx;
     if (!solveSpd(A, b, &llt, &dx)) throw NumericalError("diagnose: the refit's normal matrix is singular");
@@ -449,6 +560,8 @@ Diagnoser::Exact Diagnoser::exact(const std::vector<int>& S) {
   std::vector<int> all(static_cast<size_t>(m_));
   std::iota(all.begin(), all.end(), 0);
   ex.model_all = gnFit(S, all);
+  for (JointMap& jm : ex.model_all.deviations.joint_map)  // the maps not in S stay zero: none
+    if (!jm.empty() && std::all_of(jm.coef.begin(), jm.coef.end(), [](double c) { return c == 0.0; })) jm = JointMap{};
   KinematicWorkspace ws;
   if (has_val_) {
     ex.e.resize(static_cast<size_t>(nv_));

@@ -75,9 +75,9 @@ class Diagnoser {
     std::vector<std::vector<int>> poses;    // fit rows held out in each fold
     std::vector<Eigen::MatrixXd> Af;
     std::vector<Eigen::VectorXd> bf;
-    Eigen::MatrixXd J;           // the rows of JF_ fold by fold (unweighted, scaled columns)
-    Eigen::VectorXd r;           // the same rows of rF_
-    std::vector<Eigen::Index> first;  // first pose (in J's order) of each fold
+    /// Schemes over a joint's angle: the folds at either end of the range (held out, the
+    /// training data do not reach them: what new data outside the covered range see).
+    std::vector<int> end_folds;
   };
   struct Exact {
     std::vector<Eigen::Vector3d> e;  // held-out residual per pose (measured - model)
@@ -90,6 +90,11 @@ class Diagnoser {
   void repeats();
   IdentifyOptions baselineOptions() const;
   void baseline();
+  /// joint_map candidates: a zero map on the covered interval of every joint that the fit data
+  /// cover over at least 4 knot spacings (M0_'s deviations; their columns become blocks).
+  void addJointMaps();
+  /// The joint maps' smoothness and centring penalties in the scaled columns (penalty_).
+  void mapPenalty();
   void robust();
   void robustWeights(const std::vector<double>& residual_mm);
   void columns();
@@ -118,7 +123,7 @@ class Diagnoser {
     Eval cur;                       // held-out errors of the final selection
     std::vector<Gain> last_round;   // per block: gain on the final selection
     bool has_best_single = false;   // the best block of the first round, passing or not
-    int best_single = -1;
+    std::vector<int> best_single;   // its blocks (a unit: all joint_map blocks together)
     Eval best_single_eval;
     std::vector<Rejected> rejected;  // passed the held-out test, failed admissible()
     std::vector<double> blocked_gain;  // per selected block (NaN when not checked)
@@ -158,8 +163,12 @@ class Diagnoser {
   // linearisation at M0 (scaled columns)
   Eigen::MatrixXd JF_, JV_;
   Eigen::VectorXd rF_, rV_, wF_;
-  Eigen::MatrixXd A_;
+  Eigen::MatrixXd A_;                 // data normal matrix plus the maps' penalty
   Eigen::VectorXd b_;
+  Eigen::MatrixXd penalty_;           // the maps' penalty (scaled columns; zero elsewhere)
+  std::vector<bool> is_map_;          // per compact column
+  std::vector<std::vector<int>> row_nz_;  // per fit row: its columns that are not zero (maps are sparse)
+  double map_knot_ = 0;               // knot spacing of the diagnosis' maps (deg or mm; 0: none)
   double rr_ = 0;
   Scheme interleaved_;              // the ordinary cross-validation (fold_poses_)
   std::vector<Scheme> blocked_;     // contiguous blocks of each joint's angle and of the pose order

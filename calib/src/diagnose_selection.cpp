@@ -19,6 +19,10 @@
 namespace accura::calib {
 namespace diagnose_detail {
 
+// A blocked scheme whose held-out error is worse with the addition at this z (one-sided p 0.01)
+// shows harm beyond chance.
+constexpr double kHarmZ = 2.326;
+
 
 // Physically implausible values of an effect's parameters (display units): a negative or absurd
 // joint compliance, a thermal coefficient of the wrong sign or above 50 ppm/K (steel 11-13,
@@ -134,18 +138,54 @@ bool Diagnoser::admissible(const std::vector<int>& cur, const std::vector<int>& 
       return false;
     }
   }
+  // Blocked cross-validation. An effect given by a formula over the whole range (compliance, a
+  // scale, harmonics, thermal) must keep a gain in every scheme: it extrapolates, so it must help
+  // where the training rows did not go. A joint map is zero outside the range its data cover: it
+  // cannot help there and must do no harm (no scheme significantly worse, one-sided p 0.01).
+  bool local = true, periodic = false;
+  for (int b : add) {
+    local = local && blocks_[static_cast<size_t>(b)].effect == "joint_map";
+    periodic = periodic || blocks_[static_cast<size_t>(b)].effect == "gear_periodic";
+  }
   *blocked_gain = kNaN;
+  double harm_z = 0;
+  std::string harm_scheme;
   const std::vector<int> S0 = withBlocks(cur);
   for (const Scheme& sc : blocked_) {
+    // half a joint's range is less than the half turn a periodic term needs (the coverage rule
+    // above): the halves and the end blocks alone do not test it
+    if (periodic && sc.end_folds.empty() && sc.poses.size() == 2) continue;
     const Eval e0 = cvEval(S0, sc, false), e1 = cvEval(S, sc, false);
     if (!e0.ok || !e1.ok) continue;
-    const double g = pairedGain(e0.d, e1.d).gain;
-    if (std::isnan(*blocked_gain) || g < *blocked_gain) {
-      *blocked_gain = g;
-      *scheme = sc.name;
-    }
+    auto worst = [&](const Gain& g, const std::string& name) {
+      if (g.z < harm_z) {
+        harm_z = g.z;
+        harm_scheme = name;
+      }
+      if (std::isnan(*blocked_gain) || g.gain < *blocked_gain) {
+        *blocked_gain = g.gain;
+        *scheme = name;
+      }
+    };
+    worst(pairedGain(e0.d, e1.d), sc.name);
+    if (sc.end_folds.empty() || periodic) continue;  // periodic terms: the coverage rule above
+    // the end blocks alone: new data beyond the range the training rows cover
+    std::vector<double> d0, d1;
+    for (int f : sc.end_folds)
+      for (int i : sc.poses[static_cast<size_t>(f)]) {
+        d0.push_back(e0.d[i]);
+        d1.push_back(e1.d[i]);
+      }
+    worst(pairedGain(Eigen::Map<Eigen::VectorXd>(d0.data(), static_cast<Eigen::Index>(d0.size())),
+                     Eigen::Map<Eigen::VectorXd>(d1.data(), static_cast<Eigen::Index>(d1.size()))),
+          sc.name.substr(0, sc.name.find(' ')) + " end blocks");
   }
-  if (*blocked_gain <= 0) {
+  if (local && harm_z < -kHarmZ) {
+    *why = "does harm outside the joint ranges it was fitted on: blocked cross-validation (" + harm_scheme +
+           ") makes the held-out error worse (z = " + fmtg("%.1f", harm_z) + ")";
+    return false;
+  }
+  if (!local && *blocked_gain <= 0) {
     *why = "does not carry over to new joint ranges: blocked cross-validation (" + *scheme + ") gives a gain of " +
            fmtg("%.1f", 100 * *blocked_gain) + "% (held-out error " + (*blocked_gain < 0 ? "worse" : "not better") + ")";
     return false;
@@ -169,6 +209,7 @@ Diagnoser::Forward Diagnoser::forward(const std::vector<int>& candidates) const 
     blocks.insert(blocks.end(), add.begin(), add.end());
     return evaluate(withBlocks(blocks));
   };
+  std::vector<bool> rejected_block(B, false);
   auto accept = [&](const std::vector<int>& add, const Eval& e, double blocked_gain, const std::string& scheme) {
     for (size_t k = 0; k < add.size(); ++k) {
       used[static_cast<size_t>(add[k])] = true;
@@ -178,8 +219,25 @@ Diagnoser::Forward Diagnoser::forward(const std::vector<int>& candidates) const 
       fw.blocked_scheme.push_back(scheme);
     }
     fw.cur = e;
+    // what was rejected is tried again on the new model (a map may carry over once the compliance
+    // it would otherwise absorb is in the model)
+    for (size_t b = 0; b < B; ++b)
+      if (rejected_block[b]) {
+        rejected_block[b] = false;
+        used[b] = false;
+      }
   };
   auto reject = [&](const std::vector<int>& add, const std::string& why) {
+    for (int b : add) rejected_block[static_cast<size_t>(b)] = true;
+    // the latest reason of each candidate
+    fw.rejected.erase(std::remove_if(fw.rejected.begin(), fw.rejected.end(),
+                                     [&](const Rejected& x) {
+                                       return x.effect == blocks_[static_cast<size_t>(add[0])].effect &&
+                                              (x.joints.empty() || blocks_[static_cast<size_t>(add[0])].joint < 0 ||
+                                               std::find(x.joints.begin(), x.joints.end(),
+                                                         blocks_[static_cast<size_t>(add[0])].joint + 1) != x.joints.end());
+                                     }),
+                      fw.rejected.end());
     Rejected r;
     r.effect = blocks_[static_cast<size_t>(add[0])].effect;
     for (int b : add) {
@@ -191,6 +249,23 @@ Diagnoser::Forward Diagnoser::forward(const std::vector<int>& candidates) const 
     fw.rejected.push_back(r);
   };
   std::set<std::string> selected_effects;
+  // The candidate units: one block each, except joint_map, whose blocks are one unit: a map of one
+  // joint alone moves the geometric parameters that the maps of the others hold (on this UR10, a
+  // map of joint 2 alone makes the end blocks of joint 4 worse; all maps together do not).
+  std::vector<std::vector<int>> units;
+  {
+    std::vector<int> maps;
+    for (int b : candidates)
+      if (blocks_[static_cast<size_t>(b)].effect == "joint_map") maps.push_back(b);
+      else units.push_back({b});
+    if (!maps.empty()) units.push_back(maps);
+  }
+  auto isMapUnit = [&](const std::vector<int>& u) { return blocks_[static_cast<size_t>(u[0])].effect == "joint_map"; };
+  auto unused = [&](const std::vector<int>& u) {
+    for (int b : u)
+      if (used[static_cast<size_t>(b)]) return false;
+    return true;
+  };
   // rejected candidates do not count as steps
   for (int step = 0; static_cast<int>(fw.blocks.size()) < o_.max_steps && step < o_.max_steps + static_cast<int>(B); ++step) {
     // two families, each with its own Bonferroni correction: blocks of effects already in
@@ -199,24 +274,25 @@ Diagnoser::Forward Diagnoser::forward(const std::vector<int>& candidates) const 
     Gain best_gain[2];
     Eval best_eval[2];
     std::vector<Gain> round(B, Gain{});
-    for (int b : candidates) {
-      if (used[static_cast<size_t>(b)]) continue;
-      const Eval e = evalWith({b});
+    for (size_t u = 0; u < units.size(); ++u) {
+      if (!unused(units[u]) || isMapUnit(units[u])) continue;
+      const Eval e = evalWith(units[u]);
       if (!e.ok) continue;
+      const int b = units[u][0];
       const int fam = selected_effects.count(blocks_[static_cast<size_t>(b)].effect) ? 0 : 1;
       ++tried[fam];
-      round[static_cast<size_t>(b)] = pairedGain(fw.cur.d, e.d);
-      if (best[fam] < 0 || round[static_cast<size_t>(b)].gain > best_gain[fam].gain) {
-        best[fam] = b;
-        best_gain[fam] = round[static_cast<size_t>(b)];
+      const Gain g = pairedGain(fw.cur.d, e.d);
+      for (int x : units[u]) round[static_cast<size_t>(x)] = g;
+      if (best[fam] < 0 || g.gain > best_gain[fam].gain) {
+        best[fam] = static_cast<int>(u);
+        best_gain[fam] = g;
         best_eval[fam] = e;
       }
     }
     fw.last_round = round;
-    if (best[0] < 0 && best[1] < 0) break;
     if (fw.blocks.empty() && !fw.has_best_single && best[1] >= 0) {
       fw.has_best_single = true;
-      fw.best_single = best[1];
+      fw.best_single = units[static_cast<size_t>(best[1])];
       fw.best_single_eval = best_eval[1];
     }
     int pick = -1;
@@ -226,20 +302,22 @@ Diagnoser::Forward Diagnoser::forward(const std::vector<int>& candidates) const 
       if (passes && (pick < 0 || best_gain[fam].gain > best_gain[pick].gain)) pick = fam;
     }
     if (pick >= 0) {
+      const std::vector<int>& add = units[static_cast<size_t>(best[pick])];
       std::string why, scheme;
       double bg = kNaN;
-      if (!admissible(fw.blocks, {best[pick]}, &why, &bg, &scheme)) {
-        reject({best[pick]}, why);
+      if (!admissible(fw.blocks, add, &why, &bg, &scheme)) {
+        reject(add, why);
         continue;
       }
-      selected_effects.insert(blocks_[static_cast<size_t>(best[pick])].effect);
-      accept({best[pick]}, best_eval[pick], bg, scheme);
+      selected_effects.insert(blocks_[static_cast<size_t>(add[0])].effect);
+      accept(add, best_eval[pick], bg, scheme);
       continue;
     }
     // no single block passes: the remaining blocks of each effect together
     std::map<std::string, std::vector<int>> groups;
     for (int b : candidates)
-      if (!used[static_cast<size_t>(b)]) groups[blocks_[static_cast<size_t>(b)].effect].push_back(b);
+      if (!used[static_cast<size_t>(b)] && blocks_[static_cast<size_t>(b)].effect != "joint_map")
+        groups[blocks_[static_cast<size_t>(b)].effect].push_back(b);
     std::vector<int> best_group;
     Gain group_gain;
     Eval group_eval;
@@ -267,8 +345,47 @@ Diagnoser::Forward Diagnoser::forward(const std::vector<int>& candidates) const 
       accept(best_group, group_eval, bg, scheme);
       continue;
     }
+    // The joint maps last: a map of every joint can follow what a parametric effect describes (a
+    // gear harmonic, a compliance); it is tried only when none of them passes any more.
+    bool map_added = false;
+    for (const std::vector<int>& u : units) {
+      if (!isMapUnit(u) || !unused(u)) continue;
+      const Eval e = evalWith(u);
+      if (!e.ok) break;
+      const Gain g = pairedGain(fw.cur.d, e.d);
+      for (int x : u) fw.last_round[static_cast<size_t>(x)] = g;
+      if (fw.blocks.empty() && !fw.has_best_single) {
+        fw.has_best_single = true;
+        fw.best_single = u;
+        fw.best_single_eval = e;
+      }
+      if (!(g.p < o_.alpha && g.gain >= o_.min_gain)) break;
+      std::string why, scheme;
+      double bg = kNaN;
+      if (!admissible(fw.blocks, u, &why, &bg, &scheme)) {
+        reject(u, why);
+        break;
+      }
+      selected_effects.insert("joint_map");
+      accept(u, e, bg, scheme);
+      map_added = true;
+      break;
+    }
+    if (map_added) continue;
     break;
   }
+  // a candidate rejected once and selected later is not reported as rejected
+  fw.rejected.erase(std::remove_if(fw.rejected.begin(), fw.rejected.end(),
+                                   [&](const Rejected& x) {
+                                     for (int b : fw.blocks)
+                                       if (blocks_[static_cast<size_t>(b)].effect == x.effect &&
+                                           (x.joints.empty() ||
+                                            std::find(x.joints.begin(), x.joints.end(), blocks_[static_cast<size_t>(b)].joint + 1) !=
+                                                x.joints.end()))
+                                         return true;
+                                     return false;
+                                   }),
+                    fw.rejected.end());
   return fw;
 }
 
@@ -325,7 +442,7 @@ void Diagnoser::ranking() {
     Eval cur = fw.cur;
     ev.significant = !chosen.empty();
     if (chosen.empty() && fw.has_best_single) {
-      chosen = {fw.best_single};  // the best single block, reported as not significant
+      chosen = fw.best_single;  // the best single unit, reported as not significant
       cur = fw.best_single_eval;
     }
     for (int b : chosen)
@@ -484,6 +601,7 @@ void Diagnoser::shrink() {
     ev.coverage = coverageOf(e, ev.joints);
     ev.params = e;
     for (size_t k = 0; k < ev.joints.size(); ++k) ev.params += (k ? "+j" : ":j") + std::to_string(ev.joints[k]);
+    if (e == "joint_map") ev.params += "@" + fmtg("%.4g", map_knot_) + (M0_.nominal.joints[0].type == JointType::kRevolute ? "deg" : "mm");
     for (size_t k = 0; k < sel_blocks_.size(); ++k)
       if (blocks_[sel_blocks_[k]].effect == e &&
           (std::isnan(ev.blocked_gain) || sel_blocked_gain_[k] < ev.blocked_gain)) {

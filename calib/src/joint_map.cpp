@@ -156,6 +156,40 @@ std::vector<std::vector<double>> jointMapCentringRows(const JointMap& map, const
   return rows;
 }
 
+std::vector<OutsideFitRange> outsideFitRanges(const RobotModel& model, const Eigen::VectorXd& q) {
+  const int n = model.dof();
+  if (q.size() != n)
+    throw ArgumentError("outsideFitRanges: expected " + std::to_string(n) + " joint values, got " + std::to_string(q.size()));
+  const Deviations& d = model.deviations;
+  auto nonzero = [](const std::vector<double>& v, size_t from, size_t count) {
+    for (size_t k = from; k < from + count && k < v.size(); ++k)
+      if (v[k] != 0) return true;
+    return false;
+  };
+  bool compliance = false;
+  for (double c : d.compliance) compliance = compliance || c != 0;
+  std::vector<OutsideFitRange> out;
+  for (int j = 0; j < n; ++j) {
+    const size_t J = static_cast<size_t>(j), H = static_cast<size_t>(d.gear_harmonics);
+    const bool map = J < d.joint_map.size() && !d.joint_map[J].empty();
+    const bool depends = compliance || map || nonzero(d.gear_sin, J * H, H) || nonzero(d.gear_cos, J * H, H) ||
+                         nonzero(d.joint_scale, J, 1);
+    if (!depends) continue;
+    double lo = 0, hi = 0;
+    if (J < d.fit_range.size() && d.fit_range[J].upper > d.fit_range[J].lower) {
+      lo = d.fit_range[J].lower;
+      hi = d.fit_range[J].upper;
+    } else if (map) {
+      lo = d.joint_map[J].lower;
+      hi = d.joint_map[J].upper;
+    } else {
+      continue;
+    }
+    if (q[j] < lo || q[j] > hi) out.push_back({j + 1, q[j], lo, hi, q[j] < lo ? lo - q[j] : q[j] - hi});
+  }
+  return out;
+}
+
 bool parseJointMapKnot(const std::string& text, double* knot, std::string* unit, std::string* error) {
   std::string num = text, u;
   for (const char* suffix : {"deg", "mm"}) {

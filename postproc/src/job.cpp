@@ -96,7 +96,8 @@ class Job {
   }
 
   void reportTarget(const Motion& m, const Target& t, const char* role, const Eigen::Isometry3d& T_world_progbase,
-                    const Eigen::Isometry3d& desired, const Eigen::Isometry3d& command, bool calibrated_tool) {
+                    const Eigen::Isometry3d& desired, const Eigen::Isometry3d& command, bool calibrated_tool,
+                    const Eigen::VectorXd& q_real = Eigen::VectorXd()) {
     TargetReport tr;
     tr.where = t.where.file.empty() ? m.where : t.where;
     tr.motion = m.where;
@@ -111,6 +112,7 @@ class Job {
     tr.dy_mm = d_base.y();
     tr.dz_mm = d_base.z();
     tr.calibrated_tool = calibrated_tool;
+    tr.q_real = q_real;
     r_.targets.push_back(tr);
   }
 
@@ -331,7 +333,8 @@ class Job {
     if (mo.target.turn != end.turn) mo.target.modified = true;
     mo.target.turn = end.turn;
     claimValue(mo.target, m.where);
-    reportTarget(m, m.target, "end", c.T_world_progbase, c.T_world_end, pc.T_world_tcp_command, c.models->calibrated_tool);
+    reportTarget(m, m.target, "end", c.T_world_progbase, c.T_world_end, pc.T_world_tcp_command, c.models->calibrated_tool,
+                 pc.q_real);
     arrived(c, pc.q_real, end);
     out.motions.push_back(mo);
   }
@@ -390,7 +393,8 @@ class Job {
     setPose(mo.target, toProgram(c.T_world_progbase, T_cmd_end));
     mo.target.turn = end.turn;
     claimValue(mo.target, m.where);
-    reportTarget(m, m.target, "end", c.T_world_progbase, c.T_world_end, T_cmd_end, c.models->calibrated_tool);
+    reportTarget(m, m.target, "end", c.T_world_progbase, c.T_world_end, T_cmd_end, c.models->calibrated_tool,
+                 sc.q_real_end.back());
     if (c.aux) {
       if (commanded.size() > 1 && !mo.aux->name.empty()) {
         // the last sub-arc needs its own auxiliary point: a new declaration, the declared

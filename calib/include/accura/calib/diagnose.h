@@ -75,6 +75,12 @@ struct DiagnoseOptions {
   int blocked_folds = 5;
   /// Highest number of cycles per revolution of the per-joint spectrum of the residual.
   int spectrum_max_cycles = 90;
+  /// joint_map candidates: knot spacing (deg for revolute joints, mm for prismatic ones; made
+  /// coarser when the fit data have fewer than 10 poses per coefficient of the widest joint) and
+  /// relative smoothness weight (as IdentifyOptions::joint_map_smoothing). A joint gets a map
+  /// when the fit data cover at least 4 knot spacings of it.
+  double joint_map_knot = 3.0;
+  double joint_map_smoothing = 0.003;
 
   bool IsValid(std::string* error) const;
 };

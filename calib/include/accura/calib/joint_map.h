@@ -59,6 +59,22 @@ constexpr int kJointMapCentredHarmonics = 1;
 /// unknown unit).
 bool parseJointMapKnot(const std::string& text, double* knot, std::string* unit, std::string* error);
 
+/// A joint value outside the range the model's joint-dependent effects were fitted on.
+struct OutsideFitRange {
+  int joint = 0;            ///< 1-based
+  double q = 0;             ///< the joint value (deg or mm)
+  double lower = 0, upper = 0;  ///< the fitted range (deg or mm)
+  double beyond = 0;        ///< distance beyond the nearer end (deg or mm), > 0
+};
+
+/// The joints of `q` (deg / mm) that lie outside the fitted range (Deviations::fit_range, else
+/// the joint map's interval) of a joint whose effects depend on its value: a joint map, gear
+/// harmonics or a scale error of that joint; joint compliance depends on every joint's value
+/// (the gravity torques). Empty when the model has no fitted range or no such effect; there the
+/// effects are extrapolated (maps are zero), not fitted. Throws ArgumentError when q does not
+/// have one value per joint.
+std::vector<OutsideFitRange> outsideFitRanges(const RobotModel& model, const Eigen::VectorXd& q);
+
 // ---------------------------------------------------------------------------------------
 // Choosing the resolution and the smoothness by blocked cross-validation (linearised)
 

@@ -75,6 +75,7 @@ struct TargetReport {
   /// A new declared point (name) that replaces this one in the motion (the auxiliary point
   /// of the last sub-arc of a split CIRC: the declared one keeps its value); empty otherwise.
   std::string new_point_replaces;
+  Eigen::VectorXd q_real;  ///< joint values the real robot takes at the target (deg / mm); empty: not known
 };
 
 /// One LIN / CIRC segment.
