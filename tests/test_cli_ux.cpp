@@ -204,14 +204,15 @@ TEST(CliMessages, SrcWithoutItsDatNamesTheMissingFile) {
   EXPECT_FALSE(std::filesystem::exists(dir + "/o"));
 }
 
-// A LIN target programmed with S 3 (the base "overhead" bit set) in front of the KR 16: no
-// joint values in the limits put the tool there with S 3, T 10; the message says so and names
-// the configuration that reaches it, not "next to a configuration boundary".
+// A PTP to a Cartesian target programmed with S 3 (the base "overhead" bit set) in front of the
+// KR 16: no joint values in the limits put the tool there with S 3, T 10; the message says so and
+// names the configuration that reaches it, not "next to a configuration boundary". (Only PTP uses
+// the programmed S/T: on a LIN the controller ignores them, see test_krl_rules.cpp.)
 TEST(CliMessages, TargetUnreachableInItsProgrammedConfigurationSaysSo) {
   const std::string dir = test::tempDir("cli_ux_st");
   test::writeText(dir + "/st.src",
                   "DEF st( )\n$TOOL={X 0,Y 0,Z 200,A 0,B 0,C 0}\n$BASE={X 900,Y -350,Z 250,A 0,B 0,C 0}\n"
-                  "PTP {X 100,Y 0,Z 150,A 160,B 10,C 170,S 2,T 10}\nLIN {X 150,Y 0,Z 150,A 160,B 10,C 170,S 3,T 10}\nEND\n");
+                  "PTP {X 100,Y 0,Z 150,A 160,B 10,C 170,S 2,T 10}\nPTP {X 150,Y 0,Z 150,A 160,B 10,C 170,S 3,T 10}\nEND\n");
   const CliRun r = run("compensate --robot kuka_kr16 --in st.src --out o", dir);
   EXPECT_EQ(r.code, 1);
   EXPECT_EQ(r.err, "accura: error: st.src:5:1: the inline target is not reachable in its programmed configuration S 3, T 10 "
