@@ -308,9 +308,9 @@ int runIdentify(const IdentifyArgs& a) {
     j["fit_joint_ranges"] = cov;
     ordered_json stations = ordered_json::array();
     for (size_t k = 0; k < sets.size(); ++k) {
-      const calib::XyzAbc b = calib::toXyzAbc(s.T_world_base_per_set[k]);
+      const calib::XyzAbc station = calib::toXyzAbc(s.T_world_base_per_set[k]);
       stations.push_back({{"file", sets[k].file}, {"poses", sets[k].rows.size()},
-                          {"T_world_base", {num(b.x_mm), num(b.y_mm), num(b.z_mm), num(b.a_deg), num(b.b_deg), num(b.c_deg)}}});
+                          {"T_world_base", {num(station.x_mm), num(station.y_mm), num(station.z_mm), num(station.a_deg), num(station.b_deg), num(station.c_deg)}}});
     }
     j["data_sets"] = stations;
     j["same_station"] = opt.same_station;

@@ -283,7 +283,7 @@ KrlText generateKrl(const Program& p) {
       base = m.base;
     }
     if (m.type == MotionType::kPtp && m.vel_percent && m.vel_percent != vel_ptp) {
-      for (int k = 1; k <= 6; ++k) src << "$VEL_AXIS[" << k << "]=" << calib::formatFixed(*m.vel_percent, 4) << "\n";
+      for (int axis = 1; axis <= 6; ++axis) src << "$VEL_AXIS[" << axis << "]=" << calib::formatFixed(*m.vel_percent, 4) << "\n";
       vel_ptp = m.vel_percent;
     }
     if (m.type != MotionType::kPtp && m.vel_m_s && m.vel_m_s != vel_cp) {

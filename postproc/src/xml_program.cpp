@@ -576,7 +576,7 @@ std::string writeXmlProgram(const Program& p) {
     if (m.vel_m_s) out << " vel_m_s=\"" << calib::formatFixed(*m.vel_m_s, 4) << "\"";
     if (!m.approximation.empty()) {
       out << " approx=\"";
-      for (size_t k = 0; k < m.approximation.size(); ++k) out << (k ? " " : "") << toString(m.approximation[k]);
+      for (size_t ai = 0; ai < m.approximation.size(); ++ai) out << (ai ? " " : "") << toString(m.approximation[ai]);
       out << "\"";
       if (m.approximation_value) out << " approx_value=\"" << calib::formatFixed(*m.approximation_value, 4) << "\"";
     }
