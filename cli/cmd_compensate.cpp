@@ -72,24 +72,6 @@ int runCompensate(const CompensateArgs& a) {
   const std::optional<postproc::CheckReport>& check = result.checked.check;
   const bool blocked = !result.written;
   for (const auto& w : report.warnings) std::cerr << "accura: warning: " << w.where.str() << ": " << w.message << "\n";
-  // targets outside the joint ranges the model's joint-dependent effects were fitted on
-  int outside = 0;
-  for (const auto& t : report.targets) {
-    if (t.q_real.size() != settings.calibrated.dof()) continue;
-    const std::vector<calib::OutsideFitRange> o = calib::outsideFitRanges(settings.calibrated, t.q_real);
-    if (o.empty()) continue;
-    ++outside;
-    std::string what;
-    for (const auto& x : o)
-      what += " A" + std::to_string(x.joint) + fmt(" %.2f", x.q) + fmt(" (fitted %.2f..", x.lower) + fmt("%.2f,", x.upper) +
-              fmt(" %.2f beyond)", x.beyond);
-    std::cerr << "accura: warning: " << t.where.str() << ": " << (t.name.empty() ? std::string("target") : t.name)
-              << " lies outside the joint ranges the model was fitted on:" << what
-              << " (its joint-dependent effects are not fitted there)\n";
-  }
-  if (outside > 0)
-    std::cerr << "accura: warning: " << outside << " of " << report.targets.size()
-              << " target(s) outside the fitted joint ranges; the correction there is an extrapolation\n";
   std::printf("accura compensate: %s, tol %.4f mm\n", a.in.c_str(), settings.tol_mm);
   for (const auto& s : report.segments) {
     std::printf("  %-28s %-5s %9.1f mm  path error %.4f mm as programmed, %.4f mm endpoints compensated, %.4f mm written (%d point(s) added)%s\n",

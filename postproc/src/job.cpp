@@ -8,6 +8,7 @@
 
 #include "accura/calib/errors.h"
 #include "accura/calib/geometry.h"
+#include "accura/calib/joint_map.h"
 #include "accura/calib/kinematics.h"
 #include "accura/postproc/krl.h"
 #include "accura/postproc/path_job.h"
@@ -510,6 +511,35 @@ calib::RobotModel realModelForTool(const calib::RobotModel& calibrated, const Ei
   return real;
 }
 
+namespace {
+// Issue 11: each target whose real joint values lie outside the ranges the model's
+// joint-dependent effects were fitted on (compliance, gear, scale, joint maps: fit_range in the
+// model file), with how far, then how many: the correction there is an extrapolation.
+void warnOutsideFitRanges(const calib::RobotModel& calibrated, JobReport* r) {
+  int outside = 0;
+  const ProgramIssue* first = nullptr;
+  std::vector<ProgramIssue> found;
+  for (const TargetReport& t : r->targets) {
+    if (t.q_real.size() != calibrated.dof()) continue;
+    const std::vector<calib::OutsideFitRange> o = calib::outsideFitRanges(calibrated, t.q_real);
+    if (o.empty()) continue;
+    ++outside;
+    std::string what;
+    for (const calib::OutsideFitRange& x : o)
+      what += " A" + std::to_string(x.joint) + " " + calib::formatFixed(x.q, 2) + " (fitted " + calib::formatFixed(x.lower, 2) +
+              ".." + calib::formatFixed(x.upper, 2) + ", " + calib::formatFixed(x.beyond, 2) + " beyond)";
+    found.push_back({t.where, (t.name.empty() ? std::string("target") : t.name) +
+                                  " lies outside the joint ranges the model was fitted on:" + what +
+                                  " (its joint-dependent effects are not fitted there)"});
+  }
+  for (const ProgramIssue& i : found) r->warnings.push_back(i);
+  if (!found.empty()) first = &found.front();
+  if (outside > 0)
+    r->warnings.push_back({first->where, std::to_string(outside) + " of " + std::to_string(r->targets.size()) +
+                                             " target(s) outside the fitted joint ranges; the correction there is an extrapolation"});
+}
+}  // namespace
+
 ProgramCompensation compensateProgramReport(const Program& program, const JobSettings& settings) {
   if (!(settings.tol_mm > 0) || !std::isfinite(settings.tol_mm))
     throw calib::ArgumentError("compensateProgram: tol_mm must be > 0 (mm)");
@@ -522,6 +552,7 @@ ProgramCompensation compensateProgramReport(const Program& program, const JobSet
   pc.program.motions.clear();
   Job job(settings, &r);
   job.run(program, pc.program);
+  warnOutsideFitRanges(settings.calibrated, &r);
 
   double sum2 = 0;
   for (const auto& t : r.targets) {
