@@ -516,14 +516,11 @@ namespace {
 // joint-dependent effects were fitted on (compliance, gear, scale, joint maps: fit_range in the
 // model file), with how far, then how many: the correction there is an extrapolation.
 void warnOutsideFitRanges(const calib::RobotModel& calibrated, JobReport* r) {
-  int outside = 0;
-  const ProgramIssue* first = nullptr;
   std::vector<ProgramIssue> found;
   for (const TargetReport& t : r->targets) {
     if (t.q_real.size() != calibrated.dof()) continue;
     const std::vector<calib::OutsideFitRange> o = calib::outsideFitRanges(calibrated, t.q_real);
     if (o.empty()) continue;
-    ++outside;
     std::string what;
     for (const calib::OutsideFitRange& x : o)
       what += " A" + std::to_string(x.joint) + " " + calib::formatFixed(x.q, 2) + " (fitted " + calib::formatFixed(x.lower, 2) +
@@ -532,11 +529,11 @@ void warnOutsideFitRanges(const calib::RobotModel& calibrated, JobReport* r) {
                                   " lies outside the joint ranges the model was fitted on:" + what +
                                   " (its joint-dependent effects are not fitted there)"});
   }
-  for (const ProgramIssue& i : found) r->warnings.push_back(i);
-  if (!found.empty()) first = &found.front();
-  if (outside > 0)
-    r->warnings.push_back({first->where, std::to_string(outside) + " of " + std::to_string(r->targets.size()) +
-                                             " target(s) outside the fitted joint ranges; the correction there is an extrapolation"});
+  if (found.empty()) return;
+  const SourceLocation first = found.front().where;
+  r->warnings.insert(r->warnings.end(), found.begin(), found.end());
+  r->warnings.push_back({first, std::to_string(found.size()) + " of " + std::to_string(r->targets.size()) +
+                                    " target(s) outside the fitted joint ranges; the correction there is an extrapolation"});
 }
 }  // namespace
 
