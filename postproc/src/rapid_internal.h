@@ -1,0 +1,47 @@
+// RAPID reader and writer internals (rapid.h): tokens, pose conversions, the predefined data.
+#pragma once
+
+#include <Eigen/Geometry>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "accura/postproc/rapid.h"
+
+namespace accura::postproc::rapid_detail {
+
+struct Tok {
+  enum class Kind { kIdent, kNumber, kString, kOp };
+  Kind kind = Kind::kOp;
+  size_t b = 0, e = 0;
+  std::string s;   ///< as written
+  std::string u;   ///< upper case (identifiers: RAPID is case-insensitive)
+  double num = 0;
+};
+
+/// Tokens of `text` (comments '!' and %%% headers skipped). Throws calib::InputError
+/// (`path`:line:column) on a NUL byte, an unterminated string or a malformed number.
+std::vector<Tok> lexRapid(const std::string& text, const std::string& path);
+
+/// The largest position component accepted (mm): beyond any robot cell, a typo.
+constexpr double kMaxPositionMm = 1e5;
+/// A quaternion whose norm is off 1 by more than this is an error; within it, normalised.
+constexpr double kQuaternionNormTol = 1e-3;
+/// An external axis value at or beyond this is ABB's "not used" (9E9).
+constexpr double kUnusedAxis = 8.99e9;
+
+/// T (mm) of a position (mm) and a unit quaternion (w, x, y, z).
+Eigen::Isometry3d poseOf(const double xyz[3], const double wxyz[4]);
+/// The quaternion (w, x, y, z) of R with the sign of `near` (w, x, y, z; the one nearer).
+std::array<double, 4> quaternionNear(const Eigen::Matrix3d& R, const double near[4]);
+
+/// The TCP zone radius (mm) of a predefined zonedata (z0 -> 0.3, z1, z5, ..., z200);
+/// nullopt when `upper` is not one.
+std::optional<double> predefinedZoneMm(const std::string& upper);
+/// The TCP speed (mm/s) of a predefined speeddata (v5 .. v7000); nullopt when not one.
+std::optional<double> predefinedSpeedMmS(const std::string& upper);
+
+/// Line-number helper: the location of byte `off`.
+SourceLocation locate(const std::vector<size_t>& line_starts, const std::string& path, size_t off);
+
+}  // namespace accura::postproc::rapid_detail
