@@ -517,7 +517,9 @@ TEST(Rapid, ConvertCarriesTheStatementsOrRefusesNamingTheLine) {
   ASSERT_EQ(test::runAccuraIn(dir, "convert --in lines.mod --out lines.src").code, 0);
 }
 
-TEST(Rapid, BatchPicksUpModules) {
+// batch picks up .mod and .prg files; check runs the module in its cell: the smallest clearance
+// against its analytic value (tests/data/rapid/irb120_table_cell.xml: sqrt(10^2 + 100^2) - 10).
+TEST(Rapid, BatchAndCheckInTheCell) {
   const std::string dir = test::tempDir("rapid_batch");
   std::filesystem::create_directories(dir + "/in/cell2");
   test::writeText(dir + "/in/cell2/seam.mod", example());
@@ -527,6 +529,11 @@ TEST(Rapid, BatchPicksUpModules) {
   // the nominal robot with the module's own torch: nothing to correct
   EXPECT_EQ(test::readText(dir + "/out/cell2/seam.mod"), example());
   EXPECT_EQ(test::readText(dir + "/out/cell2/old.prg"), example());
+  const test::CliRun c = test::runAccuraIn(dir, "check --robot abb_irb120 --cell " + test::sourcePath("tests/data/rapid/irb120_table_cell.xml") +
+                                                    " --in " + test::sourcePath("examples/irb120_seam.mod"));
+  ASSERT_EQ(c.code, 0) << c.err;
+  EXPECT_NE(c.out.find("smallest clearance 90.499 mm"), std::string::npos) << c.out;
+  EXPECT_NEAR(std::sqrt(10.0 * 10.0 + 100.0 * 100.0) - 10, 90.499, 5e-4);
 }
 
 }  // namespace
