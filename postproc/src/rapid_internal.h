@@ -41,6 +41,29 @@ std::optional<double> predefinedZoneMm(const std::string& upper);
 /// The TCP speed (mm/s) of a predefined speeddata (v5 .. v7000); nullopt when not one.
 std::optional<double> predefinedSpeedMmS(const std::string& upper);
 
+using Range = std::pair<size_t, size_t>;  ///< token indices [first, second)
+
+bool isOp(const std::vector<Tok>& t, size_t i, const char* s);
+/// Identifier `u` (upper case) at i.
+bool isKw(const std::vector<Tok>& t, size_t i, const char* u);
+bool opens(const Tok& t);
+bool closes(const Tok& t);
+/// Index one past the bracket closing the one at i (end when none).
+size_t closing(const std::vector<Tok>& t, size_t i, size_t end);
+/// Comma-separated items of [i, j) at bracket depth 0.
+std::vector<Range> items(const std::vector<Tok>& t, size_t i, size_t j);
+/// A signed number written as [+|-] number, else nullopt.
+std::optional<double> number(const std::vector<Tok>& t, Range r);
+
+/// Every code line of `src` outside the motion model (`model_line`, by line number) as a
+/// PassThrough of language RAPID (comment-only and blank lines are not statements): module
+/// level -> kData, the routine `main_routine` -> kBody (before the motions that follow it,
+/// `motion_lines`), other routines -> kTrailer (refused by other formats when
+/// `other_routine_motion`: their motions are not the main routine's).
+void rapidPassThrough(const RapidSource& src, const std::vector<Tok>& tokens, const std::vector<Range>& statements,
+                      const std::vector<size_t>& line_starts, const std::vector<bool>& model_line, const std::vector<int>& motion_lines,
+                      const std::string& main_routine, bool other_routine_motion, Program& p);
+
 /// Line-number helper: the location of byte `off`.
 SourceLocation locate(const std::vector<size_t>& line_starts, const std::string& path, size_t off);
 

@@ -1,4 +1,5 @@
-// RAPID tokens, pose conversions, predefined data and ABB confdata (rapid.h, rapid_internal.h).
+// RAPID tokens and token-range helpers, pose conversions, predefined data, the pass-through
+// lines of a module, and ABB confdata (rapid.h, rapid_internal.h).
 #include <algorithm>
 #include <cctype>
 #include <cmath>
@@ -143,6 +144,103 @@ std::optional<double> predefinedSpeedMmS(const std::string& u) {
     if (u == "V" + std::to_string(v)) return static_cast<double>(v);
   return std::nullopt;
 }
+
+bool isOp(const std::vector<Tok>& t, size_t i, const char* s) { return i < t.size() && t[i].kind == Tok::Kind::kOp && t[i].s == s; }
+bool isKw(const std::vector<Tok>& t, size_t i, const char* u) { return i < t.size() && t[i].kind == Tok::Kind::kIdent && t[i].u == u; }
+
+bool opens(const Tok& t) { return t.kind == Tok::Kind::kOp && (t.s == "(" || t.s == "[" || t.s == "{"); }
+bool closes(const Tok& t) { return t.kind == Tok::Kind::kOp && (t.s == ")" || t.s == "]" || t.s == "}"); }
+
+/// Index one past the bracket closing the one at i.
+size_t closing(const std::vector<Tok>& t, size_t i, size_t end) {
+  int depth = 0;
+  for (size_t k = i; k < end; ++k) {
+    if (opens(t[k])) ++depth;
+    if (closes(t[k]) && --depth == 0) return k + 1;
+  }
+  return end;
+}
+
+/// Comma-separated items of [i, j) at depth 0.
+std::vector<Range> items(const std::vector<Tok>& t, size_t i, size_t j) {
+  std::vector<Range> out;
+  if (i >= j) return out;
+  size_t start = i;
+  int depth = 0;
+  for (size_t k = i; k < j; ++k) {
+    if (opens(t[k])) ++depth;
+    if (closes(t[k])) --depth;
+    if (depth == 0 && isOp(t, k, ",")) {
+      out.push_back({start, k});
+      start = k + 1;
+    }
+  }
+  out.push_back({start, j});
+  return out;
+}
+
+/// A signed number written as [+|-] number, else nullopt.
+std::optional<double> number(const std::vector<Tok>& t, Range r) {
+  if (r.second == r.first + 1 && t[r.first].kind == Tok::Kind::kNumber) return t[r.first].num;
+  if (r.second == r.first + 2 && t[r.first + 1].kind == Tok::Kind::kNumber && (isOp(t, r.first, "-") || isOp(t, r.first, "+")))
+    return t[r.first].s == "-" ? -t[r.first + 1].num : t[r.first + 1].num;
+  return std::nullopt;
+}
+
+
+/// Every code line outside the motion model as a PassThrough (comment-only and blank lines
+/// are not statements): module level -> kData, the routine holding the motions -> kBody,
+/// other routines -> kTrailer.
+void rapidPassThrough(const RapidSource& src, const std::vector<Tok>& t_, const std::vector<Range>& stmts_,
+                    const std::vector<size_t>& starts_, const std::vector<bool>& model_line_, const std::vector<int>& motion_lines_,
+                    const std::string& main_routine_, bool other_routine_motion_, Program& p) {
+auto loc = [&](size_t off) { return locate(starts_, src.path, off); };
+  size_t next_motion = 0;
+  int main_begin = 0, main_end = 0;  // lines of the main routine
+  bool in_main = false;
+  std::vector<int> routine_of(starts_.size() + 1, 0);  // 0: module level, 1: main routine, 2: other
+  int state = 0;
+  for (const Range& r : stmts_) {
+    const std::string& u = t_[r.first].u;
+    const int a = loc(t_[r.first].b).line, b = loc(t_[r.second - 1].b).line;
+    if (u == "PROC" || u == "FUNC" || u == "TRAP") {
+      size_t k = r.first + 1 + (u == "FUNC" ? 1 : 0);
+      in_main = k < r.second && t_[k].s == main_routine_ && u == "PROC";
+      state = in_main ? 1 : 2;
+      if (in_main) main_begin = a;
+    }
+    for (int l = a; l <= b; ++l) routine_of[static_cast<size_t>(l)] = state;
+    if (u == "ENDPROC" || u == "ENDFUNC" || u == "ENDTRAP") {
+      if (in_main) main_end = b;
+      state = 0;
+      in_main = false;
+    }
+  }
+  (void)main_begin;
+  (void)main_end;
+  std::vector<bool> code(starts_.size() + 1, false);
+  for (const Tok& t : t_) code[static_cast<size_t>(loc(t.b).line)] = true;
+  for (size_t l = 1; l <= starts_.size(); ++l) {
+    while (next_motion < motion_lines_.size() && motion_lines_[next_motion] <= static_cast<int>(l)) ++next_motion;
+    if (!code[l] || model_line_[l]) continue;
+    PassThrough s;
+    s.language = "RAPID";
+    const size_t b = starts_[l - 1];
+    size_t e = l < starts_.size() ? starts_[l] - 1 : src.text.size();
+    if (e > b && src.text[e - 1] == '\r') --e;
+    s.text = src.text.substr(b, e - b);
+    s.where.file = src.path;
+    s.where.line = static_cast<int>(l);
+    s.where.column = 1;
+    s.section = routine_of[l] == 0 ? PassThrough::Section::kData : routine_of[l] == 1 ? PassThrough::Section::kBody : PassThrough::Section::kTrailer;
+    s.before_motion = next_motion;
+    if (other_routine_motion_ && routine_of[l] == 2)
+      s.refuse = "the motions of the routine on this line are outside the program's main routine " + main_routine_ +
+                 ", which the other formats cannot hold";
+    p.passthrough.push_back(std::move(s));
+  }
+}
+
 
 }  // namespace rapid_detail
 

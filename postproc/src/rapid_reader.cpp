@@ -15,7 +15,6 @@ namespace accura::postproc {
 namespace {
 
 using namespace rapid_detail;
-using Range = std::pair<size_t, size_t>;  // token indices [first, second)
 
 /// A target expression evaluated (wobj frame, mm) or why it cannot be.
 struct TargetVal {
@@ -40,48 +39,6 @@ struct Scope {
   std::map<std::string, std::optional<double>> zones;   ///< zone radius (nullopt: fine)
   std::map<std::string, double> speeds;                 ///< v_tcp (mm/s)
 };
-
-bool isOp(const std::vector<Tok>& t, size_t i, const char* s) { return i < t.size() && t[i].kind == Tok::Kind::kOp && t[i].s == s; }
-bool isKw(const std::vector<Tok>& t, size_t i, const char* u) { return i < t.size() && t[i].kind == Tok::Kind::kIdent && t[i].u == u; }
-
-bool opens(const Tok& t) { return t.kind == Tok::Kind::kOp && (t.s == "(" || t.s == "[" || t.s == "{"); }
-bool closes(const Tok& t) { return t.kind == Tok::Kind::kOp && (t.s == ")" || t.s == "]" || t.s == "}"); }
-
-/// Index one past the bracket closing the one at i.
-size_t closing(const std::vector<Tok>& t, size_t i, size_t end) {
-  int depth = 0;
-  for (size_t k = i; k < end; ++k) {
-    if (opens(t[k])) ++depth;
-    if (closes(t[k]) && --depth == 0) return k + 1;
-  }
-  return end;
-}
-
-/// Comma-separated items of [i, j) at depth 0.
-std::vector<Range> items(const std::vector<Tok>& t, size_t i, size_t j) {
-  std::vector<Range> out;
-  if (i >= j) return out;
-  size_t start = i;
-  int depth = 0;
-  for (size_t k = i; k < j; ++k) {
-    if (opens(t[k])) ++depth;
-    if (closes(t[k])) --depth;
-    if (depth == 0 && isOp(t, k, ",")) {
-      out.push_back({start, k});
-      start = k + 1;
-    }
-  }
-  out.push_back({start, j});
-  return out;
-}
-
-/// A signed number written as [+|-] number, else nullopt.
-std::optional<double> number(const std::vector<Tok>& t, Range r) {
-  if (r.second == r.first + 1 && t[r.first].kind == Tok::Kind::kNumber) return t[r.first].num;
-  if (r.second == r.first + 2 && t[r.first + 1].kind == Tok::Kind::kNumber && (isOp(t, r.first, "-") || isOp(t, r.first, "+")))
-    return t[r.first].s == "-" ? -t[r.first + 1].num : t[r.first + 1].num;
-  return std::nullopt;
-}
 
 const std::set<std::string> kBlockHeads = {"MODULE", "ENDMODULE", "PROC", "ENDPROC", "FUNC", "ENDFUNC", "TRAP", "ENDTRAP",
                                            "RECORD", "ENDRECORD", "IF", "ELSEIF", "ELSE", "ENDIF", "WHILE", "ENDWHILE", "FOR",
@@ -707,50 +664,46 @@ class Reader {
     if (known && radius) m.approximation_value = *radius;
   }
 
-  void tool(Range a, Motion& m) {
+  /// The frame named at `a` (tooldata or wobjdata): `builtin` (tool0 / wobj0) is the
+  /// identity, a declaration its value (or why it cannot be modelled), anything else unset
+  /// with the option that supplies it.
+  FrameSetting frameArg(Range a, const std::map<std::string, FrameVal> Scope::*table, const char* builtin, const std::string& type,
+                        const std::string& option) {
     FrameSetting f;
     f.where = loc(t_[a.first].b);
     f.text = text(a);
-    if (a.second == a.first + 1 && t_[a.first].u == "TOOL0") {
+    const bool single = a.second == a.first + 1;
+    if (single && t_[a.first].u == builtin) {
       f.source = FrameSetting::Source::kNull;
       f.value = calib::XyzAbc{};
-    } else if (const FrameVal* v = a.second == a.first + 1 ? lookup(&Scope::tools, t_[a.first].u) : nullptr) {
+    } else if (const FrameVal* v = single ? lookup(table, t_[a.first].u) : nullptr) {
       f.where = v->where;
       f.source = v->T ? FrameSetting::Source::kInline : FrameSetting::Source::kUnknown;
       if (v->T) f.value = calib::toXyzAbc(*v->T);
       f.note = v->note;
     } else {
       f.source = FrameSetting::Source::kUnset;
-      f.note = "the tooldata '" + f.text + "' is not declared with a value in this module (give its TCP with --program-tool x,y,z,A,B,C)";
+      f.note = "the " + type + " '" + f.text + "' is not declared with a value in this module (" + option + ")";
     }
-    m.tool = f;
+    return f;
+  }
+
+  void tool(Range a, Motion& m) {
+    m.tool = frameArg(a, &Scope::tools, "TOOL0", "tooldata", "give its TCP with --program-tool x,y,z,A,B,C");
   }
 
   void wobj(const std::map<std::string, Range>& opt, Motion& m) {
-    FrameSetting f;
     const auto it = opt.find("WOBJ");
-    if (it == opt.end() || (it->second.second == it->second.first + 1 && t_[it->second.first].u == "WOBJ0")) {
-      f.source = FrameSetting::Source::kNull;
-      f.value = calib::XyzAbc{};
-      f.text = "wobj0";
-      f.where = m.where;
-      m.base = f;
+    if (it == opt.end()) {
+      m.base.source = FrameSetting::Source::kNull;
+      m.base.value = calib::XyzAbc{};
+      m.base.text = "wobj0";
+      m.base.where = m.where;
       return;
     }
     const Range a = it->second;
     if (a.first >= a.second) fail(t_[a.first - 1].e, "expected a wobjdata after \\WObj:=, found nothing");
-    f.where = loc(t_[a.first].b);
-    f.text = text(a);
-    if (const FrameVal* v = a.second == a.first + 1 ? lookup(&Scope::wobjs, t_[a.first].u) : nullptr) {
-      f.where = v->where;
-      f.source = v->T ? FrameSetting::Source::kInline : FrameSetting::Source::kUnknown;
-      if (v->T) f.value = calib::toXyzAbc(*v->T);
-      f.note = v->note;
-    } else {
-      f.source = FrameSetting::Source::kUnset;
-      f.note = "the wobjdata '" + f.text + "' is not declared with a value in this module (give its frame with --program-base x,y,z,A,B,C)";
-    }
-    m.base = f;
+    m.base = frameArg(a, &Scope::wobjs, "WOBJ0", "wobjdata", "give its frame with --program-base x,y,z,A,B,C");
   }
 
   /// A motion instruction accura does not model: kept, and reported by compensate.
@@ -766,54 +719,8 @@ class Reader {
     addMotion(r, m, st, p);
   }
 
-  /// Every code line outside the motion model as a PassThrough (comment-only and blank lines
-  /// are not statements): module level -> kData, the routine holding the motions -> kBody,
-  /// other routines -> kTrailer.
-  void passThrough(Program& p) {
-    size_t next_motion = 0;
-    int main_begin = 0, main_end = 0;  // lines of the main routine
-    bool in_main = false;
-    std::vector<int> routine_of(starts_.size() + 1, 0);  // 0: module level, 1: main routine, 2: other
-    int state = 0;
-    for (const Range& r : stmts_) {
-      const std::string& u = t_[r.first].u;
-      const int a = loc(t_[r.first].b).line, b = loc(t_[r.second - 1].b).line;
-      if (u == "PROC" || u == "FUNC" || u == "TRAP") {
-        size_t k = r.first + 1 + (u == "FUNC" ? 1 : 0);
-        in_main = k < r.second && t_[k].s == main_routine_ && u == "PROC";
-        state = in_main ? 1 : 2;
-        if (in_main) main_begin = a;
-      }
-      for (int l = a; l <= b; ++l) routine_of[static_cast<size_t>(l)] = state;
-      if (u == "ENDPROC" || u == "ENDFUNC" || u == "ENDTRAP") {
-        if (in_main) main_end = b;
-        state = 0;
-        in_main = false;
-      }
-    }
-    (void)main_begin;
-    (void)main_end;
-    std::vector<bool> code(starts_.size() + 1, false);
-    for (const Tok& t : t_) code[static_cast<size_t>(loc(t.b).line)] = true;
-    for (size_t l = 1; l <= starts_.size(); ++l) {
-      while (next_motion < motion_lines_.size() && motion_lines_[next_motion] <= static_cast<int>(l)) ++next_motion;
-      if (!code[l] || model_line_[l]) continue;
-      PassThrough s;
-      s.language = "RAPID";
-      const size_t b = starts_[l - 1];
-      size_t e = l < starts_.size() ? starts_[l] - 1 : src_->text.size();
-      if (e > b && src_->text[e - 1] == '\r') --e;
-      s.text = src_->text.substr(b, e - b);
-      s.where.file = src_->path;
-      s.where.line = static_cast<int>(l);
-      s.where.column = 1;
-      s.section = routine_of[l] == 0 ? PassThrough::Section::kData : routine_of[l] == 1 ? PassThrough::Section::kBody : PassThrough::Section::kTrailer;
-      s.before_motion = next_motion;
-      if (other_routine_motion_ && routine_of[l] == 2)
-        s.refuse = "the motions of the routine on this line are outside the program's main routine " + main_routine_ +
-                   ", which the other formats cannot hold";
-      p.passthrough.push_back(std::move(s));
-    }
+  void passThrough(Program& p) const {
+    rapidPassThrough(*src_, t_, stmts_, starts_, model_line_, motion_lines_, main_routine_, other_routine_motion_, p);
   }
 
   std::shared_ptr<RapidSource> src_;
