@@ -66,28 +66,39 @@ struct Setup {
     rapid_path = dir + "/irb.mod";
     RobotModel controller = readRobotFile(std::string(ACCURA_SOURCE_DIR) + "/robots/abb_irb120.xml");
     controller.nominal.T_flange_tcp = toIsometry({0, 0, 150, 0, 0, 0});
-    std::string krl = "DEF irb( )\n$TOOL={X 0.0,Y 0.0,Z 150.0,A 0.0,B 0.0,C 0.0}\n$BASE=$NULLFRAME\nPTP {A1 0.0,A2 0.0,A3 0.0,A4 0.0,A5 30.0,A6 0.0}\n";
-    std::string decl, body;
-    const KinematicSolver nominal(controller);
-    Eigen::VectorXd q(6);
-    q << 0, 0, 0, 0, 30, 0;
+    std::string krl = "DEF irb( )\n$TOOL={X 0.0,Y 0.0,Z 150.0,A 0.0,B 0.0,C 0.0}\n$BASE=$NULLFRAME\nPTP {A1 -23.0,A2 17.0,A3 10.0,A4 0.0,A5 63.0,A6 157.0}\n";  // near the first target: the first LIN turns little
+    // the confdata: where the nominal controller's path puts each target (a first pass with
+    // ConfL\Off, which checks nothing), so that the ConfL\On module is the controller's own
+    auto module = [&](const std::vector<std::array<int, 4>>& conf, const char* confl) {
+      std::string decl, body;
+      for (int k = 0; k < kTargets; ++k) {
+        const XyzAbc p{350.0 + 20.0 * (k % 2), -150.0 + 1.25 * k, 250.0 + 0.1 * k, 0, 0, 180};  // tool z down
+        const Eigen::Quaterniond r(toIsometry(p).linear());
+        const std::array<int, 4>& c = conf[static_cast<size_t>(k)];
+        decl += "  CONST robtarget p" + std::to_string(k) + " := [[" + formatMm(p.x_mm) + "," + formatMm(p.y_mm) + "," + formatMm(p.z_mm) +
+                "],[" + formatFixed(r.w(), 9) + "," + formatFixed(r.x(), 9) + "," + formatFixed(r.y(), 9) + "," + formatFixed(r.z(), 9) +
+                "],[" + std::to_string(c[0]) + "," + std::to_string(c[1]) + "," + std::to_string(c[2]) + "," + std::to_string(c[3]) +
+                "],[9E9,9E9,9E9,9E9,9E9,9E9]];\n";
+        body += "    MoveL p" + std::to_string(k) + ", v10, fine, torch;\n";
+      }
+      return "MODULE irb\n  PERS tooldata torch := [TRUE,[[0,0,150],[1,0,0,0]],[1,[0,0,1],[1,0,0,0],0,0,0]];\n" + decl +
+             "  PROC main()\n    " + confl + "\n    MoveAbsJ [[-23,17,10,0,63,157],[9E9,9E9,9E9,9E9,9E9,9E9]], v1000, fine, torch;\n" + body +
+             "  ENDPROC\nENDMODULE\n";
+    };
     for (int k = 0; k < kTargets; ++k) {
-      const XyzAbc p{350.0 + 20.0 * (k % 2), -150.0 + 1.25 * k, 250.0 + 0.1 * k, 0, 0, 180};  // tool z down
+      const XyzAbc p{350.0 + 20.0 * (k % 2), -150.0 + 1.25 * k, 250.0 + 0.1 * k, 0, 0, 180};
       krl += "LIN {X " + formatMm(p.x_mm) + ",Y " + formatMm(p.y_mm) + ",Z " + formatMm(p.z_mm) + ",A " + formatDeg(p.a_deg) +
              ",B " + formatDeg(p.b_deg) + ",C " + formatDeg(p.c_deg) + "}\n";
-      q = nominal.inverse(toIsometry(p), Configuration{}, q, IkOptions{}).q;
-      const std::array<int, 4> c = abbConfdata(controller, q);
-      const Eigen::Quaterniond r(toIsometry(p).linear());
-      decl += "  CONST robtarget p" + std::to_string(k) + " := [[" + formatMm(p.x_mm) + "," + formatMm(p.y_mm) + "," + formatMm(p.z_mm) + "],[" +
-              formatFixed(r.w(), 9) + "," + formatFixed(r.x(), 9) + "," + formatFixed(r.y(), 9) + "," + formatFixed(r.z(), 9) + "],[" +
-              std::to_string(c[0]) + "," + std::to_string(c[1]) + "," + std::to_string(c[2]) + "," + std::to_string(c[3]) +
-              "],[9E9,9E9,9E9,9E9,9E9,9E9]];\n";
-      body += "    MoveL p" + std::to_string(k) + ", v10, fine, torch;\n";
     }
     krl += "END\n";
-    const std::string rapid = "MODULE irb\n  PERS tooldata torch := [TRUE,[[0,0,150],[1,0,0,0]],[1,[0,0,1],[1,0,0,0],0,0,0]];\n" + decl +
-                              "  PROC main()\n    MoveAbsJ [[0,0,0,0,30,0],[9E9,9E9,9E9,9E9,9E9,9E9]], v1000, fine, torch;\n" + body +
-                              "  ENDPROC\nENDMODULE\n";
+    JobSettings nominal;
+    nominal.calibrated = controller;
+    const ProgramCompensation first =
+        compensateProgramReport(parseRapid(module(std::vector<std::array<int, 4>>(kTargets, {0, 0, 0, 0}), "ConfL\\Off;"), "irb.mod"), nominal);
+    std::vector<std::array<int, 4>> conf;
+    for (const TargetReport& t : first.report.targets) conf.push_back(abbConfdata(controller, t.q_real));
+    conf.resize(kTargets);
+    const std::string rapid = module(conf, "ConfL\\On;");
     std::ofstream(irb_krl_path, std::ios::binary) << krl;
     std::ofstream(rapid_path, std::ios::binary) << rapid;
     SimulateOptions so;
