@@ -191,6 +191,12 @@ TEST(Rapid, MalformedModulesAreErrorsWithFileLineAndColumn) {
             "bad.mod:2:22: expected a tooldata [robhold, [[x,y,z],[q1,q2,q3,q4]], loaddata] with 3 items, found 2 in '[TRUE,[[0,0,1],[1,0,0,0]]]'");
   EXPECT_EQ(errorOf("MODULE m\n  PERS wobjdata w := [1,TRUE,\"\",[[0,0,0],[1,0,0,0]],[[0,0,0],[1,0,0,0]]];\nENDMODULE\n"),
             "bad.mod:2:23: expected TRUE or FALSE for robhold of wobjdata w, found '1'");
+  // found by fuzz_rapid: an offset that puts the point 9e9 mm away is an error, not a target
+  EXPECT_EQ(errorOf(inProc("    MoveL Offs([[1,2,3],[1,0,0,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]],09E+09,0,100), v100, fine, tool0;\n")),
+            "bad.mod:3:72: expected an offset in mm within +-100000 in Offs, found '09E+09'");
+  EXPECT_EQ(errorOf(inProc("    MoveL Offs(Offs([[90000,2,3],[1,0,0,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]],9000,0,0),9000,0,0), v100, fine, tool0;\n")),
+            "bad.mod:3:11: expected Offs(...) to give a position within +-100000 mm, found 108000.0000 in "
+            "'Offs(Offs([[90000,2,3],[1,0,0,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]],9000,0,0),9000,0,0)'");
   EXPECT_EQ(errorOf("  PROC main()\n  ENDPROC\n"), "bad.mod:1:3: expected MODULE before the first statement, found 'PROC'");
   EXPECT_EQ(errorOf("MODULE m\n  PROC main()\n  ENDPROC\n"), "bad.mod:4:1: expected ENDMODULE, found the end of the file");
   EXPECT_EQ(errorOf("MODULE m\n  PROC main()\nENDMODULE\n"), "bad.mod:3:1: expected ENDPROC of the routine main, found ENDMODULE");
@@ -317,7 +323,7 @@ TEST(Rapid, WhatAccuraCannotModelIsRefusedNamingIt) {
   const std::string t = "[[380,40,350],[0,0,1,0],[0,0,-1,0],[9E9,9E9,9E9,9E9,9E9,9E9]]";
   // an external axis in use (a track): refused unless the robot file models it
   EXPECT_EQ(firstError(inProc("    MoveJ [[380,40,350],[0,0,1,0],[0,0,-1,0],[250,9E9,9E9,9E9,9E9,9E9]], v100, fine, tool0;\n")),
-            "r.mod:3:11: expected external axes E1..E6 at 0 in the inline target, found E1 250.0000 (a track or a positioner): the robot file "
+            "r.mod:3:11: expected external axes eax_a..eax_f at 0 or 9E9 in the inline target, found eax_a 250.0000 (a track or a positioner): the robot file "
             "'ABB IRB 120-3/0.58' models no external axes, so the correction would ignore them; refused");
   // a stationary tool, a robot-held or coordinated work object
   EXPECT_NE(firstError("MODULE m\n  PERS tooldata st := [FALSE,[[0,0,100],[1,0,0,0]],[1,[0,0,1],[1,0,0,0],0,0,0]];\n  PROC main()\n    MoveJ " + t +
@@ -515,6 +521,15 @@ TEST(Rapid, ConvertCarriesTheStatementsOrRefusesNamingTheLine) {
   ASSERT_EQ(u.code, 0) << u.err;
   EXPECT_NE(test::readText(dir + "/lines.script").find("movel(p[0.3800000, 0.0900000, 0.3500000,"), std::string::npos);
   ASSERT_EQ(test::runAccuraIn(dir, "convert --in lines.mod --out lines.src").code, 0);
+  // motions in a second routine: the other formats hold one main program; refused naming it
+  test::writeText(dir + "/two.mod", "MODULE two\n  PROC main()\n    MoveJ [[380,40,350],[0,0,1,0],[0,0,-1,0],[9E9,9E9,9E9,9E9,9E9,9E9]], v100, z10, tool0;\n"
+                                    "  ENDPROC\n  PROC side()\n    MoveJ [[380,40,300],[0,0,1,0],[0,0,-1,0],[9E9,9E9,9E9,9E9,9E9,9E9]], v100, z10, tool0;\n"
+                                    "  ENDPROC\nENDMODULE\n");
+  const test::CliRun two = test::runAccuraIn(dir, "convert --in two.mod --out two.xml");
+  EXPECT_EQ(two.code, 1);
+  EXPECT_NE(two.err.find("two.mod:5:1: cannot convert '  PROC side()': the motions of the routine on this line are outside the program's main routine main"),
+            std::string::npos)
+      << two.err;
 }
 
 // batch picks up .mod and .prg files; check runs the module in its cell: the smallest clearance

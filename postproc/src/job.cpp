@@ -357,12 +357,15 @@ class Job {
   /// the robot files model none, so compensating it as if the axes did not move the robot or
   /// the part would be wrong without a word.
   bool externalAxesZero(const Motion& m, const Target& t) {
+    const bool abb = t.abb_conf.has_value();  // RAPID: eax_a..eax_f, 9E9 (not used) read as none
     std::string moved;
     for (int k = 0; k < 6; ++k)
-      if (t.ext[k] && *t.ext[k] != 0) moved += (moved.empty() ? "" : ", ") + std::string("E") + std::to_string(k + 1) + " " + calib::formatFixed(*t.ext[k], 4);
+      if (t.ext[k] && *t.ext[k] != 0)
+        moved += (moved.empty() ? "" : ", ") + (abb ? std::string("eax_") + static_cast<char>('a' + k) : "E" + std::to_string(k + 1)) + " " +
+                 calib::formatFixed(*t.ext[k], 4);
     if (moved.empty()) return true;
     error(t.where.file.empty() ? m.where : t.where,
-          "expected external axes E1..E6 at 0 in " + targetLabel(t) + ", found " + moved +
+          std::string("expected external axes ") + (abb ? "eax_a..eax_f at 0 or 9E9" : "E1..E6 at 0") + " in " + targetLabel(t) + ", found " + moved +
               " (a track or a positioner): the robot file '" + s_.calibrated.nominal.name +
               "' models no external axes, so the correction would ignore them; refused");
     return false;

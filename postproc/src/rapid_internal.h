@@ -25,6 +25,8 @@ std::vector<Tok> lexRapid(const std::string& text, const std::string& path);
 
 /// The largest position component accepted (mm): beyond any robot cell, a typo.
 constexpr double kMaxPositionMm = 1e5;
+/// The largest RelTool rotation accepted (deg).
+constexpr double kMaxAngleDeg = 1e4;
 /// A quaternion whose norm is off 1 by more than this is an error; within it, normalised.
 constexpr double kQuaternionNormTol = 1e-3;
 /// An external axis value at or beyond this is ABB's "not used" (9E9).

@@ -436,6 +436,7 @@ class Reader {
           tv.problem = "RelTool(...) at " + loc(t_[r.first].b).str() + " has a rotation that is not a number ('" + text({o + 3, e}) + "')";
           return tv;
         }
+        if (std::abs(*x) > kMaxAngleDeg) shape(o + 3, "a rotation in deg within +-" + calib::formatFixed(kMaxAngleDeg, 0) + " in RelTool", text({o + 3, e}));
         rot[t_[o + 1].u] = *x;
         o = e;
       }
@@ -454,6 +455,9 @@ class Reader {
         tv.problem = f + "(...) at " + loc(t_[r.first].b).str() + " has an offset that is not a number ('" + text(args[static_cast<size_t>(k + 1)]) + "')";
         return tv;
       }
+      if (std::abs(*x) > kMaxPositionMm)
+        shape(args[static_cast<size_t>(k + 1)].first, "an offset in mm within +-" + calib::formatFixed(kMaxPositionMm, 0) + " in " + f,
+              text(args[static_cast<size_t>(k + 1)]));
       d[k] = *x;
     }
     tv = base;
@@ -468,6 +472,10 @@ class Reader {
     } else {
       tv.T.translation() += Eigen::Vector3d(d[0], d[1], d[2]);
     }
+    for (int k = 0; k < 3; ++k)
+      if (std::abs(tv.T.translation()[k]) > kMaxPositionMm)
+        fail(t_[r.first].b, "expected " + f + "(...) to give a position within +-" + calib::formatFixed(kMaxPositionMm, 0) + " mm, found " +
+                                calib::formatFixed(tv.T.translation()[k], 4) + " in '" + text(r) + "'");
     return tv;
   }
 
