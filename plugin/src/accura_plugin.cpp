@@ -371,6 +371,19 @@ ACCURA_API accura_status accura_forward_kinematics(accura_model* model, accura_w
   });
 }
 
+ACCURA_API accura_status accura_joint_configuration(accura_model* model, const double* q, size_t n_joints,
+                                                    accura_configuration* configuration_out) {
+  return guarded(model, "accura_joint_configuration", [&](Handle& h) {
+    need(q, "q");
+    need(configuration_out, "configuration_out");
+    const auto s = sessionOf(h);
+    if (n_joints != static_cast<size_t>(s->dof()))  // before reading q: n_joints may be its size
+      fail(ACCURA_ERROR_INVALID_ARGUMENT, "expected " + std::to_string(s->dof()) + " joint values, got " + std::to_string(n_joints));
+    *configuration_out = cconfig(s->configuration(std::vector<double>(q, q + n_joints)));
+    return ACCURA_OK;
+  });
+}
+
 ACCURA_API accura_status accura_compensate_pose(accura_model* model, const accura_pose* target, const accura_configuration* configuration,
                                                 accura_pose_result* result) {
   return guarded(model, "accura_compensate_pose", [&](Handle& h) {
@@ -533,10 +546,12 @@ ACCURA_API accura_status accura_write_program(accura_model* model, const char* p
     const accura_write_options o = optionsOr(options, accura_write_options_init, "accura_write_options");
     PoseProgram p;
     if (o.program_name) p.name = o.program_name;
+    std::shared_ptr<const Session> session;
     {
       std::lock_guard<std::mutex> lock(h.mutex);  // a loaded model names the robot (optional)
-      if (h.session) p.robot = h.session->job().calibrated.nominal.name;
+      session = h.session;
     }
+    if (session) p.robot = session->job().calibrated.nominal.name;
     p.tool = xyz(o.tool);
     p.base = xyz(o.base);
     for (size_t i = 0; i < n_motions; ++i) {
@@ -546,9 +561,12 @@ ACCURA_API accura_status accura_write_program(accura_model* model, const char* p
         fail(ACCURA_ERROR_INVALID_ARGUMENT, "motions[" + std::to_string(i) + "].type: expected ACCURA_LIN, ACCURA_CIRC or ACCURA_PTP, found " +
                                                 std::to_string(type));
       const MotionType t = type == ACCURA_PTP ? MotionType::kPtp : type == ACCURA_CIRC ? MotionType::kCirc : MotionType::kLin;
-      p.motions.push_back({t, xyz(c.aux), xyz(c.end), c.approximate != 0, c.vel_m_s});
+      if (c.n_joints < 0 || c.n_joints > ACCURA_MAX_JOINTS)
+        fail(ACCURA_ERROR_INVALID_ARGUMENT, "motions[" + std::to_string(i) + "].n_joints: expected 0.." + std::to_string(ACCURA_MAX_JOINTS) +
+                                                ", found " + std::to_string(c.n_joints));
+      p.motions.push_back({t, xyz(c.aux), xyz(c.end), c.approximate != 0, c.vel_m_s, std::vector<double>(c.joints, c.joints + c.n_joints)});
     }
-    writePoseProgram(path, p);
+    writePoseProgram(path, p, session.get());
     return ACCURA_OK;
   });
 }

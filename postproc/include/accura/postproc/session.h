@@ -129,6 +129,18 @@ class Session {
   /// calib::ArgumentError).
   calib::XyzAbc forward(bool real, const std::vector<double>& q) const;
 
+  /// S/T of joints q (dof finite values, deg / mm; else calib::ArgumentError) by KUKA's rule
+  /// (calib::kukaConfiguration on the nominal geometry, what the controller computes).
+  calib::Configuration configuration(const std::vector<double>& q) const;
+  /// configuration(q) of the arm's joints at a program target T_base_tcp written with $TOOL
+  /// `tool` and $BASE `base` (relative to $WORLD; the placement's $ROBROOT applies). Throws
+  /// calib::ArgumentError naming `what` when q is not valid or does not put the tool on the
+  /// target within kJointsOnTargetMm / kJointsOnTargetDeg (joints of another target).
+  calib::Configuration configurationAt(const std::vector<double>& q, const calib::XyzAbc& T_base_tcp, const calib::XyzAbc& tool,
+                                       const calib::XyzAbc& base, const std::string& what) const;
+  static constexpr double kJointsOnTargetMm = 0.01;
+  static constexpr double kJointsOnTargetDeg = 0.01;
+
   /// Compensates one pose (Compensator::pose with the configuration rule of accura
   /// compensate, enforceConfiguration); `seed`: real joints to continue from (empty: none).
   SessionPose pose(const calib::XyzAbc& target, const calib::Configuration& asked, const Eigen::VectorXd& seed = Eigen::VectorXd()) const;
@@ -161,6 +173,9 @@ class Session {
 
   Eigen::Isometry3d toWorld(const calib::XyzAbc& T_base_tcp, const std::string& what) const;
   calib::XyzAbc toBase(const Eigen::Isometry3d& T_world_tcp) const;
+  /// q as a vector: dof finite values, else calib::ArgumentError ("WHAT: expected N joint
+  /// values, got M", "WHAT[i] is not finite"; `what` empty: no prefix, q[i]).
+  Eigen::VectorXd jointVector(const std::vector<double>& q, const std::string& what) const;
 };
 
 /// One motion of a program written from poses (program base frame, T_base_tcp).
@@ -169,6 +184,8 @@ struct PoseProgramMotion {
   calib::XyzAbc aux, end;                     ///< aux: kCirc only
   bool approximate = false;            ///< KRL C_PTP for PTP, C_DIS for LIN / CIRC
   double vel_m_s = 0;                  ///< LIN / CIRC path speed (m/s; <= 0: not set; finite)
+  /// The arm's joints at `end` (deg / mm; empty: none): a PTP's S/T (Session::configurationAt).
+  std::vector<double> joints;
 };
 
 /// A program to write from poses: every motion with the same $TOOL and $BASE.
@@ -181,8 +198,10 @@ struct PoseProgram {
 
 /// Writes `program` in the controller language of path's extension (renderProgram: .src KRL
 /// with its .dat, .xml accura's XML) through calib::writeFilesAtomically, the directory created.
-/// Throws calib::ArgumentError for a pose or speed that is not finite (naming "motions[I].end", ...),
-/// calib::InputError for another extension or a file that cannot be written.
-void writePoseProgram(const std::string& path, const PoseProgram& program);
+/// A PTP with joints gets their S/T (session->configurationAt; LIN / CIRC keep the
+/// configuration they start in: no S/T). Throws calib::ArgumentError for a pose or speed that
+/// is not finite (naming "motions[I].end", ...), joints without a session or not at their
+/// target; calib::InputError for another extension or a file that cannot be written.
+void writePoseProgram(const std::string& path, const PoseProgram& program, const Session* session = nullptr);
 
 }  // namespace accura::postproc
