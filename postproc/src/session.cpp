@@ -249,6 +249,55 @@ CheckReport Session::checkProgramFile(const std::string& cell_path, const std::s
   return checkProgram(program, job_, cell, options);
 }
 
+std::shared_ptr<const Session> SessionRegistry::Slot::session() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return session_;
+}
+
+void SessionRegistry::Slot::load(std::shared_ptr<const Session> session) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  session_ = std::move(session);
+}
+
+const std::string& SessionRegistry::Slot::error() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return errors_[std::this_thread::get_id()];  // the node (and its string) stays until erased
+}
+
+void SessionRegistry::Slot::setError(std::string text) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  errors_[std::this_thread::get_id()] = std::move(text);
+}
+
+SessionRegistry& SessionRegistry::instance() {
+  static SessionRegistry* r = new SessionRegistry();
+  return *r;
+}
+
+std::uintptr_t SessionRegistry::create() {
+  auto slot = std::make_shared<Slot>();
+  std::lock_guard<std::mutex> lock(mutex_);
+  const std::uintptr_t key = ++last_id_ << 4;  // never 0, never reused (2^60 keys)
+  live_.emplace(key, std::move(slot));
+  return key;
+}
+
+bool SessionRegistry::release(std::uintptr_t key) {
+  std::shared_ptr<Slot> slot;  // destroyed after the lock is released, once no call holds it
+  std::lock_guard<std::mutex> lock(mutex_);
+  const auto it = live_.find(key);
+  if (it == live_.end()) return false;
+  slot = std::move(it->second);
+  live_.erase(it);
+  return true;
+}
+
+std::shared_ptr<SessionRegistry::Slot> SessionRegistry::find(std::uintptr_t key) const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  const auto it = live_.find(key);
+  return it == live_.end() ? nullptr : it->second;
+}
+
 void writePoseProgram(const std::string& path, const PoseProgram& spec, const Session* session) {
   const ProgramFormat format = programFormat(path);
   Program p;

@@ -17,9 +17,13 @@
 // threads at once (each call uses its own workspace).
 #pragma once
 
+#include <cstdint>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
+#include <thread>
+#include <unordered_map>
 #include <vector>
 
 #include "accura/calib/robot.h"
@@ -176,6 +180,44 @@ class Session {
   /// q as a vector: dof finite values, else calib::ArgumentError ("WHAT: expected N joint
   /// values, got M", "WHAT[i] is not finite"; `what` empty: no prefix, q[i]).
   Eigen::VectorXd jointVector(const std::vector<double>& q, const std::string& what) const;
+};
+
+/// The sessions of a host's handles (the plug-in's accura_model*): keys, not addresses, never 0
+/// and never reused, so that a key used after release() (or never made) is found to be dead
+/// instead of reading freed memory. Each key's Slot holds its session (none until loaded) and
+/// the last error of each thread. Every method may run on several threads at once.
+class SessionRegistry {
+ public:
+  class Slot {
+   public:
+    /// The loaded session, null when none: the caller keeps it alive while it uses it (a
+    /// later load() or release() lets the call finish with it).
+    std::shared_ptr<const Session> session() const;
+    void load(std::shared_ptr<const Session> session);
+    /// The calling thread's last error on this slot ("" when none); the string stays valid
+    /// until this thread's next setError() on the slot or the slot's end.
+    const std::string& error();
+    void setError(std::string text);
+
+   private:
+    mutable std::mutex mutex_;
+    std::shared_ptr<const Session> session_;
+    std::unordered_map<std::thread::id, std::string> errors_;
+  };
+
+  /// The registry of the process: never destroyed (a host may call while its statics go).
+  static SessionRegistry& instance();
+  /// A new live key with an empty slot (a multiple of 16, so never 0 nor a small integer).
+  std::uintptr_t create();
+  /// Forgets `key`; false when it is not live. Calls that hold its slot finish with it.
+  bool release(std::uintptr_t key);
+  /// The slot of a live key; null when `key` is not live.
+  std::shared_ptr<Slot> find(std::uintptr_t key) const;
+
+ private:
+  mutable std::mutex mutex_;
+  std::unordered_map<std::uintptr_t, std::shared_ptr<Slot>> live_;
+  std::uintptr_t last_id_ = 0;
 };
 
 /// One motion of a program written from poses (program base frame, T_base_tcp).
