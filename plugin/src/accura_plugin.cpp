@@ -49,38 +49,36 @@ const char* const kNotLive = "not a live handle (freed by accura_model_free, or 
 /// The status of the exception being handled; its message into *text (the status is set
 /// first: running out of memory while copying the message keeps it).
 void translate(accura_status* s, std::string* text) {
+  auto set = [&](accura_status status, const char* prefix, const char* what) {
+    *s = status;
+    *text = std::string(prefix) + what;
+  };
   try {
     throw;
   } catch (const PluginError& e) {
-    *s = e.status;
-    *text = e.message;
+    set(e.status, "", e.message.c_str());
   } catch (const calib::InputError& e) {
-    *s = ACCURA_ERROR_INPUT;
-    *text = e.what();
+    set(ACCURA_ERROR_INPUT, "", e.what());
   } catch (const calib::ArgumentError& e) {
-    *s = ACCURA_ERROR_INVALID_ARGUMENT;
-    *text = e.what();
+    set(ACCURA_ERROR_INVALID_ARGUMENT, "", e.what());
   } catch (const calib::NumericalError& e) {
-    *s = ACCURA_ERROR_NUMERICAL;
-    *text = e.what();
+    set(ACCURA_ERROR_NUMERICAL, "", e.what());
   } catch (const std::bad_alloc&) {
-    *s = ACCURA_ERROR_OUT_OF_MEMORY;
-    *text = "out of memory";
+    set(ACCURA_ERROR_OUT_OF_MEMORY, "", "out of memory");
   } catch (const std::exception& e) {
-    *s = ACCURA_ERROR_INTERNAL;
-    *text = std::string("internal error: ") + e.what();
+    set(ACCURA_ERROR_INTERNAL, "internal error: ", e.what());
   } catch (...) {
-    *s = ACCURA_ERROR_INTERNAL;
-    *text = "internal error: unknown exception";
+    set(ACCURA_ERROR_INTERNAL, "internal error: ", "unknown exception");
   }
 }
 
-/// Runs body(); an exception becomes its status, and "fn: message" the calling thread's error
-/// in `slot` (null: t_unbound_error). `slot` may be set by the body (a reference).
+/// Runs body(): ACCURA_OK, or the status of its exception with "fn: message" the calling
+/// thread's error in `slot` (null: t_unbound_error; the body may set `slot`, a reference).
 template <class F>
 accura_status run(const char* fn, const std::shared_ptr<Slot>& slot, F&& body) noexcept {
   try {
-    return body();
+    body();
+    return ACCURA_OK;
   } catch (...) {
     accura_status s = ACCURA_ERROR_INTERNAL;
     try {
@@ -104,18 +102,34 @@ accura_status guarded(const accura_model* model, const char* fn, F&& body) noexc
   return run(fn, slot, [&] {
     if (!model) fail(ACCURA_ERROR_NULL_ARGUMENT, "model is NULL");
     if (!(slot = SessionRegistry::instance().find(keyOf(model)))) fail(ACCURA_ERROR_INVALID_ARGUMENT, kNotLive);
-    return body(*slot);
+    body(*slot);
   });
 }
 
-void need(const void* p, const char* what) {
-  if (!p) fail(ACCURA_ERROR_NULL_ARGUMENT, std::string(what) + " is NULL");
+/// NULL_ARGUMENT "NAME is NULL" for the first required pointer that is NULL.
+void need(std::initializer_list<std::pair<const void*, const char*>> pointers) {
+  for (const auto& p : pointers)
+    if (!p.first) fail(ACCURA_ERROR_NULL_ARGUMENT, std::string(p.second) + " is NULL");
 }
 
 std::shared_ptr<const Session> sessionOf(const Slot& slot) {
   std::shared_ptr<const Session> s = slot.session();
   if (!s) fail(ACCURA_ERROR_INVALID_ARGUMENT, "no model loaded on this handle (call accura_model_load first)");
   return s;
+}
+
+/// `p`, or a stand-in that is not NULL when `n` is 0 (nothing is read through it).
+const void* ifAny(size_t n, const void* p) { return n > 0 ? p : ""; }
+
+using Pointers = std::initializer_list<std::pair<const void*, const char*>>;
+
+/// guarded(): the required pointers checked (need), then body(the handle's loaded session).
+template <class F>
+accura_status withSession(const accura_model* model, const char* fn, Pointers pointers, F&& body) noexcept {
+  return guarded(model, fn, [&](Slot& slot) {
+    need(pointers);
+    body(*sessionOf(slot));
+  });
 }
 
 /// Joint values q[0..n) of the session's robot (the count checked before q is read).
@@ -172,13 +186,12 @@ int motionType(int type, size_t i, bool ptp) {
 template <class O, class F>
 accura_status initOptions(O* o, size_t struct_size, const char* fn, F&& defaults) noexcept {
   return run(fn, nullptr, [&] {
-    need(o, "options");
+    need({{o, "options"}});
     if (struct_size != sizeof(O))
       fail(ACCURA_ERROR_INVALID_ARGUMENT, "struct_size " + std::to_string(struct_size) + ", expected " + std::to_string(sizeof(O)));
     std::memset(o, 0, sizeof(O));
     o->struct_size = sizeof(O);
     defaults(*o);
-    return ACCURA_OK;
   });
 }
 
@@ -244,12 +257,11 @@ ACCURA_API accura_status accura_status_name(accura_status status, const char** n
                                        "ACCURA_ERROR_NOT_CONVERGED", "ACCURA_ERROR_NUMERICAL", "ACCURA_ERROR_OUT_OF_MEMORY",
                                        "ACCURA_ERROR_INTERNAL"};
   return run("accura_status_name", nullptr, [&] {
-    need(name_out, "name_out");
+    need({{name_out, "name_out"}});
     const int s = cEnum(status);
     const bool known = s >= 0 && s < static_cast<int>(sizeof(kNames) / sizeof(kNames[0]));
     *name_out = known ? kNames[s] : "ACCURA_STATUS_UNKNOWN";
     if (!known) fail(ACCURA_ERROR_INVALID_ARGUMENT, "unknown status " + std::to_string(s));
-    return ACCURA_OK;
   });
 }
 
@@ -267,17 +279,15 @@ ACCURA_API accura_status accura_last_error(const accura_model* model, const char
 
 ACCURA_API accura_status accura_model_create(accura_model** model_out) {
   return run("accura_model_create", nullptr, [&] {
-    need(model_out, "model_out");
+    need({{model_out, "model_out"}});
     *model_out = nullptr;
     *model_out = reinterpret_cast<accura_model*>(SessionRegistry::instance().create());
-    return ACCURA_OK;
   });
 }
 
 ACCURA_API accura_status accura_model_free(accura_model* model) {
   return run("accura_model_free", nullptr, [&] {
     if (model && !SessionRegistry::instance().release(keyOf(model))) fail(ACCURA_ERROR_INVALID_ARGUMENT, kNotLive);
-    return ACCURA_OK;
   });
 }
 
@@ -287,7 +297,7 @@ ACCURA_API accura_status accura_load_options_init(accura_load_options* o, size_t
 
 ACCURA_API accura_status accura_model_load(accura_model* model, const char* calibrated_model, const accura_load_options* options) {
   return guarded(model, "accura_model_load", [&](Slot& slot) {
-    need(calibrated_model, "calibrated_model");
+    need({{calibrated_model, "calibrated_model"}});
     const accura_load_options o = optionsOr(options, accura_load_options_init, "accura_load_options");
     SessionSettings s;
     s.calibrated_model = calibrated_model;
@@ -301,77 +311,59 @@ ACCURA_API accura_status accura_model_load(accura_model* model, const char* cali
     s.max_joints = ACCURA_MAX_JOINTS;
     s.placement_setting = "robroot_in_world (accura_load_options)";
     slot.load(std::make_shared<const Session>(s));
-    return ACCURA_OK;
   });
 }
 
 ACCURA_API accura_status accura_model_get_info(accura_model* model, accura_model_info* info) {
-  return guarded(model, "accura_model_get_info", [&](Slot& slot) {
-    need(info, "info");
-    const auto s = sessionOf(slot);
-    const calib::RobotModel& m = s->job().calibrated;
+  return withSession(model, "accura_model_get_info", {{info, "info"}}, [&](const Session& s) {
+    const calib::RobotModel& m = s.job().calibrated;
     *info = accura_model_info{};
     info->dof = m.dof();
     copyString(info->robot_name, sizeof(info->robot_name), m.nominal.name);
-    info->robroot_in_world = cpose(calib::toXyzAbc(s->placement().T_world_robroot));
+    info->robroot_in_world = cpose(calib::toXyzAbc(s.placement().T_world_robroot));
     info->calibrated_base_in_world = cpose(calib::toXyzAbc(m.T_world_base()));
     for (int i = 0; i < m.dof(); ++i) {
       info->lower[i] = m.nominal.joints[i].lower;
       info->upper[i] = m.nominal.joints[i].upper;
     }
-    return ACCURA_OK;
   });
 }
 
 ACCURA_API accura_status accura_model_get_joints(accura_model* model, accura_joint* joints, size_t capacity, size_t* n_joints) {
-  return guarded(model, "accura_model_get_joints", [&](Slot& slot) {
-    if (capacity > 0) need(joints, "joints");
-    const std::vector<calib::JointSpec>& js = sessionOf(slot)->job().calibrated.nominal.joints;
+  return withSession(model, "accura_model_get_joints", {{ifAny(capacity, joints), "joints"}}, [&](const Session& s) {
+    const std::vector<calib::JointSpec>& js = s.job().calibrated.nominal.joints;
     if (n_joints) *n_joints = js.size();
     for (size_t i = 0; i < js.size() && i < capacity; ++i)
       joints[i] = {js[i].type == calib::JointType::kPrismatic ? 1 : 0, js[i].a_mm, js[i].alpha_deg, js[i].d_mm, js[i].theta0_deg,
                    js[i].direction, js[i].lower, js[i].upper};
     fits(js.size(), capacity, "the robot has " + std::to_string(js.size()) + " joints");
-    return ACCURA_OK;
   });
 }
 
 ACCURA_API accura_status accura_forward_kinematics(accura_model* model, accura_which_model which, const double* q, size_t n_joints,
                                                    accura_pose* pose_out) {
-  return guarded(model, "accura_forward_kinematics", [&](Slot& slot) {
-    need(q, "q");
-    need(pose_out, "pose_out");
-    const auto s = sessionOf(slot);
-    const std::vector<double> qv = jointsOf(*s, q, n_joints);
+  return withSession(model, "accura_forward_kinematics", {{q, "q"}, {pose_out, "pose_out"}}, [&](const Session& s) {
+    const std::vector<double> qv = jointsOf(s, q, n_joints);
     const int w = cEnum(which);
     if (w != ACCURA_CONTROLLER && w != ACCURA_REAL)
       fail(ACCURA_ERROR_INVALID_ARGUMENT, "which: expected ACCURA_CONTROLLER (0) or ACCURA_REAL (1), found " + std::to_string(w));
-    *pose_out = cpose(s->forward(w == ACCURA_REAL, qv));
-    return ACCURA_OK;
+    *pose_out = cpose(s.forward(w == ACCURA_REAL, qv));
   });
 }
 
 ACCURA_API accura_status accura_joint_configuration(accura_model* model, const double* q, size_t n_joints,
                                                     accura_configuration* configuration_out) {
-  return guarded(model, "accura_joint_configuration", [&](Slot& slot) {
-    need(q, "q");
-    need(configuration_out, "configuration_out");
-    const auto s = sessionOf(slot);
-    *configuration_out = cconfig(s->configuration(jointsOf(*s, q, n_joints)));
-    return ACCURA_OK;
+  return withSession(model, "accura_joint_configuration", {{q, "q"}, {configuration_out, "configuration_out"}}, [&](const Session& s) {
+    *configuration_out = cconfig(s.configuration(jointsOf(s, q, n_joints)));
   });
 }
 
 ACCURA_API accura_status accura_compensate_pose(accura_model* model, const accura_pose* target, const accura_configuration* configuration,
                                                 accura_pose_result* result) {
-  return guarded(model, "accura_compensate_pose", [&](Slot& slot) {
-    need(target, "target");
-    need(result, "result");
-    const auto s = sessionOf(slot);
-    const SessionPose p = s->pose(xyz(*target), configOf(configuration, s->dof()));
-    fillPoseResult(p, s->dof(), result);
+  return withSession(model, "accura_compensate_pose", {{target, "target"}, {result, "result"}}, [&](const Session& s) {
+    const SessionPose p = s.pose(xyz(*target), configOf(configuration, s.dof()));
+    fillPoseResult(p, s.dof(), result);
     if (p.status != calib::IkStatus::kOk) fail(result->status, p.message);
-    return ACCURA_OK;
   });
 }
 
@@ -380,9 +372,8 @@ ACCURA_API accura_status accura_compensate_poses(accura_model* model, const accu
                                                  accura_pose_result* results, size_t* n_ok) {
   return guarded(model, "accura_compensate_poses", [&](Slot& slot) {
     if (n_ok) *n_ok = 0;
-    if (n == 0) return ACCURA_OK;
-    need(targets, "targets");
-    need(results, "results");
+    if (n == 0) return;
+    need({{targets, "targets"}, {results, "results"}});
     const auto s = sessionOf(slot);
     std::vector<calib::XyzAbc> t(n);
     std::vector<calib::Configuration> c(configurations ? n : 0);
@@ -392,7 +383,6 @@ ACCURA_API accura_status accura_compensate_poses(accura_model* model, const accu
     for (size_t i = 0; i < n; ++i) fillPoseResult(r.results[i], s->dof(), &results[i]);
     if (n_ok) *n_ok = r.n_ok;
     if (r.first_failed >= 0) fail(results[r.first_failed].status, r.message);
-    return ACCURA_OK;
   });
 }
 
@@ -401,10 +391,7 @@ ACCURA_API accura_status accura_compensate_path(accura_model* model, const accur
                                                 size_t n_motions, double tol_mm, accura_path_point* points, size_t capacity,
                                                 accura_path_result* result, accura_motion_report* reports) {
   return guarded(model, "accura_compensate_path", [&](Slot& slot) {
-    need(start, "start");
-    need(result, "result");
-    if (n_motions > 0) need(motions, "motions");
-    if (capacity > 0) need(points, "points");
+    need({{start, "start"}, {result, "result"}, {ifAny(n_motions, motions), "motions"}, {ifAny(capacity, points), "points"}});
     *result = accura_path_result{};
     result->failed_motion = -1;
     const auto s = sessionOf(slot);
@@ -435,7 +422,6 @@ ACCURA_API accura_status accura_compensate_path(accura_model* model, const accur
       c.motion = q.motion;
       c.inserted = q.inserted ? 1 : 0;
     }
-    return ACCURA_OK;
   });
 }
 
@@ -446,8 +432,7 @@ ACCURA_API accura_status accura_program_options_init(accura_program_options* o, 
 ACCURA_API accura_status accura_compensate_program(accura_model* model, const char* program_path, const char* out_dir,
                                                    const accura_program_options* options, accura_program_summary* summary) {
   return guarded(model, "accura_compensate_program", [&](Slot& slot) {
-    need(program_path, "program_path");
-    need(out_dir, "out_dir");
+    need({{program_path, "program_path"}, {out_dir, "out_dir"}});
     const accura_program_options o = optionsOr(options, accura_program_options_init, "accura_program_options");
     ProgramFileRequest q;
     q.in_path = program_path;
@@ -458,13 +443,12 @@ ACCURA_API accura_status accura_compensate_program(accura_model* model, const ch
     q.json_name = "json_report_path";
     const ProgramFileResult result = sessionOf(slot)->compensateProgramFile(q, o.tol_mm);
     const JobReport& r = result.report;
-    if (!summary) return ACCURA_OK;
+    if (!summary) return;
     *summary = {r.targets_corrected,  r.points_added,           static_cast<int>(r.segments.size()), static_cast<int>(r.warnings.size()),
                 r.max_correction_mm, r.rms_correction_mm,      r.max_correction_deg,                r.max_error_uncompensated_mm,
                 r.max_error_before_mm, r.max_error_after_mm, {}};
     copyString(summary->output_path, sizeof(summary->output_path),
                result.checked.files.empty() ? std::string() : result.checked.files.front().path);
-    return ACCURA_OK;
   });
 }
 
@@ -482,10 +466,7 @@ ACCURA_API accura_status accura_check_program(accura_model* model, const char* c
                                               const accura_check_options* options, accura_check_summary* summary,
                                               accura_check_violation* violations, size_t capacity) {
   return guarded(model, "accura_check_program", [&](Slot& slot) {
-    need(cell_path, "cell_path");
-    need(program_path, "program_path");
-    need(summary, "summary");
-    if (capacity > 0) need(violations, "violations");
+    need({{cell_path, "cell_path"}, {program_path, "program_path"}, {summary, "summary"}, {ifAny(capacity, violations), "violations"}});
     const accura_check_options o = optionsOr(options, accura_check_options_init, "accura_check_options");
     std::optional<CheckThresholds> thresholds;
     if (!o.use_cell_thresholds) thresholds = CheckThresholds{o.joint_margin_deg, o.singular_threshold, o.min_clearance_mm};
@@ -495,7 +476,6 @@ ACCURA_API accura_status accura_check_program(accura_model* model, const char* c
                 std::isfinite(r.min_clearance_mm) ? r.min_clearance_mm : 1e300, r.min_sigma, r.min_joint_margin};
     for (size_t i = 0; i < r.violations.size() && i < capacity; ++i) copyViolation(r.violations[i], &violations[i]);
     fits(r.violations.size(), capacity, std::to_string(r.violations.size()) + " violations", " (summary->n_violations)");
-    return ACCURA_OK;
   });
 }
 
@@ -506,9 +486,7 @@ ACCURA_API accura_status accura_write_options_init(accura_write_options* o, size
 ACCURA_API accura_status accura_write_program(accura_model* model, const char* path, const accura_program_motion* motions,
                                               size_t n_motions, const accura_write_options* options) {
   return guarded(model, "accura_write_program", [&](Slot& slot) {
-    need(path, "path");
-    need(options, "options");
-    if (n_motions > 0) need(motions, "motions");
+    need({{path, "path"}, {options, "options"}, {ifAny(n_motions, motions), "motions"}});
     const accura_write_options o = optionsOr(options, accura_write_options_init, "accura_write_options");
     const std::shared_ptr<const Session> session = slot.session();  // optional: names the robot, gives S/T
     PoseProgram p;
@@ -526,17 +504,14 @@ ACCURA_API accura_status accura_write_program(accura_model* model, const char* p
       p.motions.push_back({t, xyz(c.aux), xyz(c.end), c.approximate != 0, c.vel_m_s, std::vector<double>(c.joints, c.joints + c.n_joints)});
     }
     writePoseProgram(path, p, session.get());
-    return ACCURA_OK;
   });
 }
 
 ACCURA_API accura_status accura_write_file(accura_model* model, const char* path, const char* data, size_t size) {
   return guarded(model, "accura_write_file", [&](Slot&) {
-    need(path, "path");
-    if (size > 0) need(data, "data");
+    need({{path, "path"}, {ifAny(size, data), "data"}});
     calib::createDirectories(std::filesystem::path(path).parent_path().string());
     calib::writeFilesAtomically({{path, std::string(data ? data : "", size)}});
-    return ACCURA_OK;
   });
 }
 
