@@ -106,8 +106,11 @@ accura_status guarded(const accura_model* model, const char* fn, F&& body) noexc
   });
 }
 
+/// Required pointers with their parameter names.
+using Pointers = std::initializer_list<std::pair<const void*, const char*>>;
+
 /// NULL_ARGUMENT "NAME is NULL" for the first required pointer that is NULL.
-void need(std::initializer_list<std::pair<const void*, const char*>> pointers) {
+void need(Pointers pointers) {
   for (const auto& p : pointers)
     if (!p.first) fail(ACCURA_ERROR_NULL_ARGUMENT, std::string(p.second) + " is NULL");
 }
@@ -120,8 +123,6 @@ std::shared_ptr<const Session> sessionOf(const Slot& slot) {
 
 /// `p`, or a stand-in that is not NULL when `n` is 0 (nothing is read through it).
 const void* ifAny(size_t n, const void* p) { return n > 0 ? p : ""; }
-
-using Pointers = std::initializer_list<std::pair<const void*, const char*>>;
 
 /// guarded(): the required pointers checked (need), then body(the handle's loaded session).
 template <class F>
