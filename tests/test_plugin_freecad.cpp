@@ -219,6 +219,10 @@ TEST(PluginFreecad, CompensatedSeamExportedFromFreecadFollowsThePath) {
   for (size_t k = 0; k < 3; ++k)
     for (size_t i = 0; i < 6; ++i)
       EXPECT_NEAR(summary["arm_joints"]["flip"][k][i].get<double>(), summary["flip_joints"][k][i].get<double>(), 1e-3) << k << " " << i;
+  // a PTP the arm cannot reach is refused, nothing written, no probe robot left in the document
+  EXPECT_EQ(summary["far"].get<std::string>(), "waypoint 0 (FAR): FreeCAD's robot 'KR16' finds no joint values that put its tool there");
+  EXPECT_FALSE(std::filesystem::exists(dir + "/far.src"));
+  for (const std::string& o : objects) EXPECT_EQ(o.rfind("AccuraKinematicProbe", 0), std::string::npos) << o;
   // without the robot the PTPs carry no S/T (as before)
   const Program no_st = readProgram(dir + "/seam_no_st.src");
   EXPECT_FALSE(no_st.motions.front().target.status.has_value() || no_st.motions.front().target.turn.has_value());

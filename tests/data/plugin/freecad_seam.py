@@ -66,6 +66,16 @@ with af.load_model(robot, os.environ["ACCURA_MODEL"], plugin_lib=os.environ["ACC
     flip_new, _ = af.compensate_trajectory(doc, robot, flip, os.environ["ACCURA_MODEL"], tol_mm=tol_mm, model=model)
     af.export_krl(flip, os.path.join(out, "flip.src"), tool=TORCH, robot=robot, model=model)
     af.export_krl(flip_new, os.path.join(out, "flip_accura.src"), tool=TORCH, robot=robot, model=model)
+    # a PTP the arm cannot reach: no joints, so no S/T: the export refuses it and writes nothing
+    far = doc.addObject("Robot::TrajectoryObject", "Far")
+    far.Trajectory = Robot.Trajectory([Robot.Waypoint(af.xyzabc_to_placement((5000, 0, 500, 0, 180, 0)), name="FAR",
+                                                      type="PTP", vel=100.0, cont=False, tool=1, base=0)])
+    try:
+        af.export_krl(far, os.path.join(out, "far.src"), tool=TORCH, robot=robot, model=model)
+        summary["far"] = ""
+    except af.AccuraFreeCADError as e:
+        summary["far"] = str(e)
+    doc.removeObject(far.Name)
 summary["flip_joints"] = FLIP
 summary["arm_joints"]["flip"] = af.arm_joints(robot, flip.Trajectory.Waypoints)
 summary["arm_joints"]["flip_accura"] = af.arm_joints(robot, flip_new.Trajectory.Waypoints)
