@@ -253,11 +253,14 @@ void printValidation(const IdentifyArgs& a, const IdentifyRun& r) {
   if (!a.quiet && !r.station_note.empty()) std::printf("  %s\n", r.station_note.c_str());
   if (a.quiet) {
   } else if (r.outside_rows > 0) {
-    std::printf("  %d of %d validation poses lie outside the joint ranges of the fit data (joint-dependent effects "
-                "are not extrapolated there):", r.outside_rows, r.val.n);
+    std::printf("  %d of %d validation poses %s outside the joint ranges of the fit data (joint-dependent effects "
+                "are not extrapolated there):", r.outside_rows, r.val.n, r.outside_rows == 1 ? "lies" : "lie");
+    const char* separator = " ";
     for (int j = 0; j < r.start.dof(); ++j) {
       const Outside& o = r.outside[static_cast<size_t>(j)];
-      if (o.count > 0) std::printf(" j%d %d poses, up to %.1f %s;", j + 1, o.count, o.max, r.unitOf(j));
+      if (o.count == 0) continue;
+      std::printf("%sj%d %d pose%s, up to %.3g %s", separator, j + 1, o.count, o.count == 1 ? "" : "s", o.max, r.unitOf(j));
+      separator = "; ";
     }
     std::printf("\n");
   } else {
@@ -417,7 +420,7 @@ void addIdentifyCommand(CLI::App& app) {
                   "joint_map smoothness (relative weight of the second differences; default: chosen by blocked "
                   "cross-validation on the fit data)",
                   NumberRange{0, 1e12, false, ""});
-  cid->add_option("--validate", id->validate, "held-out measurement CSV (same station)");
+  cid->add_option("--validate", id->validate, "held-out measurement CSV (from the fit's station; another: --validate-station new)");
   cid->add_option("--map", id->map, "mapping file: how to read --data (and --validate) as exported by the instrument");
   cid->add_option("--validate-map", id->validate_map, "mapping file for --validate when it differs from --map");
   cid->add_option("--validate-station", id->validate_station,

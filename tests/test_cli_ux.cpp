@@ -160,6 +160,39 @@ TEST(CliIdentify, QuietVerboseAndTheStationApartFromTheDeviations) {
   EXPECT_NE(verbose.out.find("solver details (Ceres): CONVERGENCE: "), std::string::npos) << verbose.out;
 }
 
+// identify: the validation poses outside the fit's joint ranges in plain words (one pose, two
+// poses; numbers to three digits, no trailing separator), built here from the --json report's
+// numbers; --validate's help names the station rule of --validate-station.
+TEST(CliIdentify, ValidationOutsideTheFitRangesReadsAsASentence) {
+  const std::string dir = test::tempDir("cli_ux_outside");
+  ASSERT_EQ(run("simulate --robot kuka_kr16 --tool 80,40,150 --poses 60 --seed 5 --out fit.csv --truth truth.xml", dir).code, 0);
+  ASSERT_EQ(run("simulate --robot truth.xml --effects none --poses 200 --seed 6 --out val.csv", dir).code, 0);
+  const CliRun r = run("identify --robot kuka_kr16 --tool 80,40,150 --data fit.csv --validate val.csv --out cal.xml --json cal.json", dir);
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto j = nlohmann::json::parse(test::readText(dir + "/cal.json"))["validation_outside_fit_ranges"];
+  const int n = j["poses"].get<int>();
+  ASSERT_GT(n, 0) << "60 fit poses leave some of 200 validation poses outside their ranges";
+  std::string expected = "  " + std::to_string(n) + " of 200 validation poses " + (n == 1 ? "lies" : "lie") +
+                         " outside the joint ranges of the fit data (joint-dependent effects are not extrapolated there):";
+  const char* separator = " ";
+  for (const auto& o : j["joints"]) {
+    const int k = o["poses"].get<int>();
+    char max[32];
+    std::snprintf(max, sizeof max, "%.3g", o["max_beyond"].get<double>());
+    expected += separator + ("j" + std::to_string(o["joint"].get<int>())) + " " + std::to_string(k) + (k == 1 ? " pose" : " poses") +
+                ", up to " + max + " " + o["unit"].get<std::string>();
+    separator = "; ";
+  }
+  EXPECT_NE(r.out.find(expected + "\n"), std::string::npos) << expected << "\n" << r.out;
+  EXPECT_EQ(r.out.find(" 1 poses"), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find(";\n"), std::string::npos) << r.out;
+  const CliRun help = run("identify --help", dir);
+  EXPECT_NE(help.out.find("held-out measurement CSV (from the fit's station; another: --validate-station new)"), std::string::npos)
+      << help.out;
+  EXPECT_EQ(help.out.find("(same station)"), std::string::npos) << help.out;
+  std::filesystem::remove_all(dir);
+}
+
 TEST(CliJson, FkSimulateAndConvertWriteJson) {
   const std::string dir = test::tempDir("cli_ux_json");
   CliRun r = run("fk --robot kuka_kr16 --q 10,-80,70,20,30,40 --json fk.json", dir);
