@@ -1,6 +1,7 @@
 // accura post-processor: a calibrated model loaded once and placed with the frames of its
 // poses, for hosts that compensate poses, paths and programs one call at a time. The plug-in
-// (plugin/src/accura_plugin.cpp) is a C shell over this file: its handle holds a Session.
+// (plugin/src/accura_plugin.cpp) is a C shell over this file: its handle is a SessionRegistry
+// key whose slot holds a Session.
 //
 // Frames: every pose given to and returned by a Session is T_base_tcp, the program's $TOOL in
 // its $BASE (x, y, z mm; A, B, C deg), as a KRL or XML program holds it. The Session takes it
