@@ -210,8 +210,8 @@ void printSetup(const IdentifyArgs& a, const IdentifyRun& r) {
                 mrep.smoothing, mrep.amplitude, mrep.unit.c_str(), mrep.rms, mrep.unit.c_str());
 }
 
-/// Suspicious and down-weighted rows, the station, the parameters and the fit's accuracy (not
-/// with --quiet).
+/// Suspicious and down-weighted rows, the station (also as --base takes it), the parameters and
+/// the fit's accuracy (not with --quiet).
 void printFit(const IdentifyRun& r) {
   const calib::IdentifySummary& s = r.s;
   if (!s.suspicious.empty()) {
@@ -234,6 +234,9 @@ void printFit(const IdentifyRun& r) {
     std::printf("tracker station (T_world_base: the robot base in the measurement frame, 1 sigma):\n");
     for (const auto& p : s.parameters)
       if (p.group == "base") std::printf("  %-16s %14.6f +- %-12.6f %s\n", p.name.c_str(), p.value, p.sigma, p.unit.c_str());
+    const calib::XyzAbc b = calib::toXyzAbc(r.calibrated.T_world_base());
+    std::printf("  as --base x,y,z,A,B,C (mm, deg; what compensate --base takes): %.4f,%.4f,%.4f,%.5f,%.5f,%.5f\n", b.x_mm, b.y_mm,
+                b.z_mm, b.a_deg, b.b_deg, b.c_deg);
   }
   std::printf("robot parameters (deviation from the nominal model, 1 sigma):\n");
   for (const auto& p : s.parameters)
@@ -242,7 +245,8 @@ void printFit(const IdentifyRun& r) {
   printStatsRow("fit", s.fit);
 }
 
-/// The validation's accuracy, nominal against calibrated (--quiet: without the notes).
+/// The validation's accuracy, nominal against calibrated, and whether it is an extrapolation
+/// (poses outside the fit's joint ranges; --quiet: without the other notes).
 void printValidation(const IdentifyArgs& a, const IdentifyRun& r) {
   if (!r.hasValidation()) {
     std::printf("no validation data (--validate or --holdout): accuracy on held-out poses not known\n");
@@ -251,8 +255,7 @@ void printValidation(const IdentifyArgs& a, const IdentifyRun& r) {
   std::printf("validation on %s, %d poses (position mm: RMS mean p95 max%s):\n", r.validation_source.c_str(), r.val.n,
               r.orient ? "; orientation deg: RMS mean p95 max" : "");
   if (!a.quiet && !r.station_note.empty()) std::printf("  %s\n", r.station_note.c_str());
-  if (a.quiet) {
-  } else if (r.outside_rows > 0) {
+  if (r.outside_rows > 0) {
     std::printf("  %d of %d validation poses %s outside the joint ranges of the fit data (joint-dependent effects "
                 "are not extrapolated there):", r.outside_rows, r.val.n, r.outside_rows == 1 ? "lies" : "lie");
     const char* separator = " ";
@@ -263,7 +266,7 @@ void printValidation(const IdentifyArgs& a, const IdentifyRun& r) {
       separator = "; ";
     }
     std::printf("\n");
-  } else {
+  } else if (!a.quiet) {
     std::printf("  every validation pose lies within the joint ranges of the fit data\n");
   }
   printStatsRow("nominal", r.nom_val);
@@ -447,10 +450,10 @@ void addIdentifyCommand(CLI::App& app) {
   addNumberOption(cid, "--std-deg", id->std_deg, "orientation std (deg) when the data has no std columns", NumberRange{0, 180, true, "deg"});
   cid->add_option("--out", id->out, "calibrated model file to write")->required();
   cid->add_option("--json", id->json, "summary JSON to write");
-  cid->add_flag("--quiet", id->quiet,
-                "print only what matters: the summary line, warnings, the validation (nominal and calibrated) and "
-                "the file written");
-  cid->add_flag("--verbose", id->verbose, "also print the solver's own report (Ceres: termination, cost)");
+  auto* quiet = cid->add_flag("--quiet", id->quiet,
+                               "print only what matters: the summary line, warnings, the validation (nominal and calibrated, "
+                               "and the poses outside the fit's joint ranges) and the file written");
+  cid->add_flag("--verbose", id->verbose, "also print the solver's own report (Ceres: termination, cost)")->excludes(quiet);
   cid->callback([=]() { exitCode() = runIdentify(*id); });
 }
 
