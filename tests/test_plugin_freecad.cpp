@@ -219,6 +219,16 @@ TEST(PluginFreecad, CompensatedSeamExportedFromFreecadFollowsThePath) {
   for (size_t k = 0; k < 3; ++k)
     for (size_t i = 0; i < 6; ++i)
       EXPECT_NEAR(summary["arm_joints"]["flip"][k][i].get<double>(), summary["flip_joints"][k][i].get<double>(), 1e-3) << k << " " << i;
+  // compensate_trajectory(payload_kg=8) equals the trajectory of a model loaded with 8 kg, and
+  // differs from 0 kg (the model has joint compliance: more than 1 um on the first waypoint)
+  const auto heavy = summary["payload_8kg"].get<std::vector<std::vector<double>>>();
+  const auto heavy_ref = summary["payload_8kg_ref"].get<std::vector<std::vector<double>>>();
+  const auto light = summary["payload_0kg"].get<std::vector<std::vector<double>>>();
+  ASSERT_EQ(heavy.size(), heavy_ref.size());
+  ASSERT_FALSE(heavy.empty());
+  for (size_t k = 0; k < heavy.size(); ++k)
+    for (int i = 0; i < 6; ++i) EXPECT_NEAR(heavy[k][i], heavy_ref[k][i], 1e-9) << k << " " << i;
+  EXPECT_GT(std::hypot(heavy[0][0] - light[0][0], heavy[0][1] - light[0][1], heavy[0][2] - light[0][2]), 1e-3);  // mm
   // a PTP the arm cannot reach is refused, nothing written, no probe robot left in the document
   EXPECT_EQ(summary["far"].get<std::string>(), "waypoint 0 (FAR): FreeCAD's robot 'KR16' finds no joint values that put its tool there");
   EXPECT_FALSE(std::filesystem::exists(dir + "/far.src"));

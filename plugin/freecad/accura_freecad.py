@@ -199,13 +199,14 @@ def _waypoint(pose, like, name, type_=None):
 
 
 def compensate_trajectory(doc, robot, trajectory, model_path, tol_mm=0.05, plugin_lib=None, name=None, model=None,
-                          check=True, robroot_in_world=None):
+                          check=True, robroot_in_world=None, payload_kg=0.0):
     """Adds to `doc` a new Robot::TrajectoryObject (`name`, default trajectory.Name + "_accura")
     holding the trajectory compensated with the calibrated model and densified so that the
-    real robot's predicted path error is below tol_mm (mm). Returns (object, summary dict)."""
+    real robot's predicted path error is below tol_mm (mm). Returns (object, summary dict).
+    robroot_in_world and payload_kg as load_model (used when `model`, a loaded model, is None)."""
     own = model is None
     if own:
-        model = load_model(robot, model_path, plugin_lib, robroot_in_world=robroot_in_world)
+        model = load_model(robot, model_path, plugin_lib, payload_kg=payload_kg, robroot_in_world=robroot_in_world)
     try:
         summary = {"tol_mm": tol_mm, "max_error_uncompensated_mm": 0.0, "max_error_before_mm": 0.0,
                    "max_error_after_mm": 0.0, "points_added": 0}

@@ -182,17 +182,34 @@ class WriteOptions(ctypes.Structure):
     _fields_ = [("struct_size", ctypes.c_size_t), ("program_name", ctypes.c_char_p), ("tool", Pose), ("base", Pose)]
 
 
+def _installed_library():
+    """PREFIX/lib/libaccura_plugin.so when this wrapper is installed as PREFIX/share/accura/python/ (cmake --install);
+    None otherwise."""
+    here = os.path.dirname(os.path.abspath(__file__))
+    for lib in ("lib", "lib64"):
+        p = os.path.join(here, os.pardir, os.pardir, os.pardir, lib, "libaccura_plugin.so")
+        if os.path.exists(p):
+            return os.path.normpath(p)
+    return None
+
+
 def _bytes(s):
     return None if s is None else os.fsencode(s)
 
 
 class Plugin:
-    """The loaded library. `path`: the .so (default: $ACCURA_PLUGIN_LIB, else libaccura_plugin.so on the
-    loader's path). Raises AccuraError when its ABI is not this wrapper's."""
+    """The loaded library. `path`: the .so (default: $ACCURA_PLUGIN_LIB, else the installed PREFIX/lib next to this
+    wrapper's PREFIX/share/accura/python, else libaccura_plugin.so on the loader's path). Raises AccuraError when it
+    cannot be loaded (naming ACCURA_PLUGIN_LIB) or its ABI is not this wrapper's."""
 
     def __init__(self, path=None):
-        path = path or os.environ.get("ACCURA_PLUGIN_LIB") or "libaccura_plugin.so"
-        self.lib = ctypes.CDLL(path)
+        path = path or os.environ.get("ACCURA_PLUGIN_LIB") or _installed_library() or "libaccura_plugin.so"
+        try:
+            self.lib = ctypes.CDLL(path)
+        except OSError as e:
+            raise AccuraError(ERROR_INPUT, "ACCURA_ERROR_INPUT",
+                              "cannot load the accura plug-in library '%s' (%s): give its path (Plugin(path), or "
+                              "ACCURA_PLUGIN_LIB=/path/to/libaccura_plugin.so)" % (path, e)) from None
         self.path = path
         L = self.lib
         P = ctypes.POINTER

@@ -56,13 +56,22 @@ END
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__)
-    ap.add_argument("--lib", help="libaccura_plugin.so (default: $ACCURA_PLUGIN_LIB)")
+    ap.add_argument("--lib", help="libaccura_plugin.so (default: $ACCURA_PLUGIN_LIB, else the installed PREFIX/lib one)")
     ap.add_argument("--model", required=True, help="a calibrated model (tests/data/plugin/kr16_calibrated.xml)")
     a = ap.parse_args()
 
     plugin = accura_plugin.Plugin(a.lib)
     print("accura plug-in %d.%d.%d, ABI %d" % (plugin.version + (plugin.abi_version,)))
     check(plugin.abi_version == accura_plugin.ABI_VERSION, "ABI")
+
+    # a library that cannot be loaded: ERROR_INPUT, and the message says how to name it (eyes F11)
+    try:
+        accura_plugin.Plugin("/nonexistent/libaccura_plugin.so")
+        check(False, "loading a missing library must fail")
+    except accura_plugin.AccuraError as e:
+        check(e.status == accura_plugin.ERROR_INPUT and e.message.startswith(
+            "cannot load the accura plug-in library '/nonexistent/libaccura_plugin.so' (") and e.message.endswith(
+            "): give its path (Plugin(path), or ACCURA_PLUGIN_LIB=/path/to/libaccura_plugin.so)"), "library message: %s" % e)
 
     # a missing file: ERROR_INPUT, and the message names the path
     missing = "/nonexistent/kr16_calibrated.xml"

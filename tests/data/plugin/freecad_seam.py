@@ -54,6 +54,17 @@ summary["arm_joints"] = {"seam": af.arm_joints(robot, traj.Trajectory.Waypoints)
                          "seam_accura": af.arm_joints(robot, new.Trajectory.Waypoints)}
 af.export_krl(traj, os.path.join(out, "seam_no_st.src"), tool=TORCH)  # without the robot: PTPs without S/T
 
+# a payload given to compensate_trajectory is the loaded model's (joint compliance): 8 kg both ways
+heavy, _ = af.compensate_trajectory(doc, robot, traj, os.environ["ACCURA_MODEL"], tol_mm=tol_mm, check=False, name="Seam_8kg",
+                                    plugin_lib=os.environ["ACCURA_PLUGIN_LIB"], payload_kg=8.0)
+with af.load_model(robot, os.environ["ACCURA_MODEL"], plugin_lib=os.environ["ACCURA_PLUGIN_LIB"], payload_kg=8.0) as m8:
+    heavy_ref, _ = af.compensate_trajectory(doc, robot, traj, None, tol_mm=tol_mm, check=False, name="Seam_8kg_ref", model=m8)
+summary["payload_8kg"] = [list(af.placement_to_xyzabc(w.Pos)) for w in heavy.Trajectory.Waypoints]
+summary["payload_8kg_ref"] = [list(af.placement_to_xyzabc(w.Pos)) for w in heavy_ref.Trajectory.Waypoints]
+summary["payload_0kg"] = [list(af.placement_to_xyzabc(w.Pos)) for w in new.Trajectory.Waypoints]
+doc.removeObject(heavy.Name)
+doc.removeObject(heavy_ref.Name)
+
 # PTPs in another configuration (A1, A2, A4 and A5 negative: S 6, T 27 by KUKA's rule): the arm
 # set up there, targets made from joint values on that branch; compensated and exported
 FLIP = [(-30, -80, 100, -40, -60, 50), (-20, -70, 90, -50, -45, 60), (-40, -85, 110, -30, -70, 40)]
