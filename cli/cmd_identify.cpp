@@ -109,7 +109,8 @@ calib::IdentifyOptions identifyOptions(const IdentifyArgs& a) {
   if (a.map_smoothing >= 0) opt.joint_map_smoothing = a.map_smoothing;
   opt.same_station = a.same_station;
   std::string why;
-  if (!opt.IsValid(&why)) throw calib::InputError("--params/--loss: " + why);
+  // the numbers are range-checked by their options; what IsValid finds is --loss's or --params'
+  if (!opt.IsValid(&why)) throw calib::InputError((why.rfind("loss", 0) == 0 ? "--loss: " : "--params: ") + why);
   return opt;
 }
 

@@ -141,6 +141,12 @@ TEST(CliIdentify, QuietVerboseAndTheStationApartFromTheDeviations) {
   EXPECT_EQ(q[3].rfind("  calibrated ", 0), 0u) << q[3];
   EXPECT_EQ(q[4].rfind("  position RMS improved ", 0), 0u) << q[4];
   EXPECT_EQ(q[5], "wrote calibrated model cal.xml");
+  // a bad --params or --loss names that option alone (eyes F20)
+  const CliRun bad_group = run(args + " --params geometric,bogus", dir);
+  EXPECT_EQ(bad_group.code, 1);
+  EXPECT_EQ(bad_group.err.rfind("accura: error: --params: unknown parameter group 'bogus' (expected one of: ", 0), 0u) << bad_group.err;
+  const CliRun bad_loss = run(args + " --loss bogus", dir);
+  EXPECT_EQ(bad_loss.err, "accura: error: --loss: loss must be none, huber or cauchy, got 'bogus'\n");
   const CliRun both = run(args + " --quiet --verbose", dir);
   EXPECT_EQ(both.code, 1);
   EXPECT_EQ(both.err, "accura: error: --quiet excludes --verbose (see accura identify --help)\n");
