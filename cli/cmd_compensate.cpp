@@ -129,7 +129,7 @@ std::function<postproc::JobSettings()> addJobOptions(CLI::App* c) {
 
 void addCompensateCommand(CLI::App& app) {
   auto args = std::make_shared<CompensateArgs>();
-  auto* c = app.add_subcommand("compensate", "compensate a robot program (KRL .src/.dat or XML) with a calibrated model");
+  auto* c = app.add_subcommand("compensate", "compensate a robot program (KRL .src/.dat, XML or URScript .script) with a calibrated model");
   args->settings = addJobOptions(c);
   c->add_option("--in", args->in, "program: PROG.src (KRL, with PROG.dat next to it), PROG.xml or PROG.script (URScript)")->required();
   c->add_option("--dat", args->dat, "the KRL .dat (default: the .src's name with .dat)");
