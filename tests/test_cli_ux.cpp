@@ -281,6 +281,19 @@ TEST(CliMessages, SrcWithoutItsDatNamesTheMissingFile) {
             std::string::npos)
       << r.err;
   EXPECT_FALSE(std::filesystem::exists(dir + "/o"));
+  // a program of PTPs only (the seam's first 40 lines): the missing .dat is an error there too,
+  // not a warning and a program written uncompensated with exit 0
+  const std::string text = test::readText(test::sourcePath("examples/seam.src"));
+  size_t cut = 0;
+  for (int line = 0; line < 40; ++line) cut = text.find('\n', cut) + 1;
+  test::writeText(dir + "/ptp.src", text.substr(0, cut) + "END\n");
+  const CliRun p = run("compensate --robot kuka_kr16 --in ptp.src --out o", dir);
+  EXPECT_EQ(p.code, 1) << p.err;
+  EXPECT_NE(p.err.find("ptp.src:35:1: expected a target accura can correct for PTP, found: XP1 is not declared in ptp.src, and "
+                       "its data file ptp.dat does not exist (give --dat; a global point: give --config $config.dat)"),
+            std::string::npos)
+      << p.err;
+  EXPECT_FALSE(std::filesystem::exists(dir + "/o"));
 }
 
 // A PTP to a Cartesian target programmed with S 3 (the base "overhead" bit set) in front of the

@@ -277,7 +277,7 @@ class Job {
   void motion(const Motion& m, Program& out) {
     if (m.start_unknown) forget();
     if (!m.target_problem.empty()) {
-      if (m.type == MotionType::kPtp)
+      if (m.type == MotionType::kPtp && !m.target_file_missing)
         warning(m.where, motionKeyword(m) + " left unchanged: " + m.target_problem + "; the position after it is not known");
       else
         error(m.where, "expected a target accura can correct for " + motionKeyword(m) + ", found: " + m.target_problem);
