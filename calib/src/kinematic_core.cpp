@@ -253,6 +253,38 @@ void KinematicModel::evaluate(const double* q, const PoseContext& context, Kinem
   if (backlash_ && !context.dir.empty() && static_cast<int>(context.dir.size()) < n_)
     throw ArgumentError("pose context: expected " + std::to_string(n_) + " approach directions, got " +
                         std::to_string(context.dir.size()));
+  // The plain chain (no compliance, joint-space effect, backlash or thermal scale, every
+  // joint revolute: the geometric model the IK, the controller and most identifications use)
+  // is the one whose Jacobian bound the constructor computed: the same computation as below
+  // without its tests per link.
+  const bool plain = !jacobian_lipschitz_.empty();
+  if (plain && !(links && need_loads)) {
+    f.nominal_valid = false;
+    std::array<double, kMaxDof> d_link;
+    for (int i = 0; i < n_; ++i) {
+      const Link& L = links_[static_cast<size_t>(i)];
+      const size_t k = static_cast<size_t>(i);
+      f.rate[k] = L.dir;
+      const double theta = L.theta_c + L.dir * q[i] * kDegToRad;
+      d_link[k] = L.d_c;
+      double ct, st;
+      if (near) {
+        cosSinFrom(theta, near->theta[k], near->cos_theta[k], near->sin_theta[k], ct, st);
+      } else {
+        fastSinCos(theta, st, ct);
+      }
+      f.theta[k] = theta;
+      f.cos_theta[k] = ct;
+      f.sin_theta[k] = st;
+    }
+    if (links) {
+      std::fill(links->load.begin(), links->load.begin() + n_, 0.0);
+      chain<true>(f, d_link.data(), 1.0, links);
+    } else {
+      chain<false>(f, d_link.data(), 1.0, nullptr);
+    }
+    return;
+  }
   std::array<double, kMaxDof> load_local{};
   double* load = links ? links->load.data() : load_local.data();
   f.nominal_valid = compliant_;
