@@ -340,6 +340,16 @@ TEST(Effects, SimulatedEffectsMatchTheModelAndCarryEveryContextColumn) {
 namespace accura::calib {
 namespace {
 
+/// Removes every deviation but the geometric ones (links, base, tool): a plain chain, which
+/// the core evaluates on its short path when every joint is revolute.
+void keepGeometricDeviationsOnly(RobotModel& m) {
+  Deviations& d = m.deviations;
+  for (std::vector<double>* v : {&d.compliance, &d.gear_sin, &d.gear_cos, &d.joint_scale, &d.backlash})
+    std::fill(v->begin(), v->end(), 0.0);
+  for (JointMap& map : d.joint_map) map = JointMap{};
+  d.thermal_alpha_per_k = 0;
+}
+
 // Central differences of the kinematic core itself (kinematic_core.h): every column of the
 // parameter Jacobian (geometry, compliance and every effect of the catalogue) and the joint
 // Jacobian, on every bundled robot in both forms (Hayati where axes are parallel, and DH
@@ -361,13 +371,7 @@ TEST(KinematicCore, DerivativesOfEveryEffectOnEveryRobotInBothForms) {
       randomDeviations(m, rng);
       bool all_revolute = true;
       for (const JointSpec& js : m.nominal.joints) all_revolute = all_revolute && js.type == JointType::kRevolute;
-      if (geometric) {
-        Deviations& d = m.deviations;
-        for (std::vector<double>* v : {&d.compliance, &d.gear_sin, &d.gear_cos, &d.joint_scale, &d.backlash})
-          std::fill(v->begin(), v->end(), 0.0);
-        for (JointMap& map : d.joint_map) map = JointMap{};
-        d.thermal_alpha_per_k = 0;
-      }
+      if (geometric) keepGeometricDeviationsOnly(m);
       const KinematicModel core(m);
       // the short path is taken exactly for the plain chains (its Jacobian bound is known)
       EXPECT_EQ(!core.scaledJacobianLipschitz().empty(), geometric && all_revolute) << name;
@@ -434,14 +438,7 @@ TEST(KinematicCore, EvaluationFromANearbyOneEqualsAFreshOne) {
     const bool geometric = robot.find(" geometric") != std::string::npos;
     RobotModel m = test::loadBundled(robot.substr(0, robot.find(' ')));
     randomDeviations(m, rng);
-    if (geometric) {
-      // the geometric deviations alone: the core's short path for a plain chain
-      Deviations& d = m.deviations;
-      for (std::vector<double>* v : {&d.compliance, &d.gear_sin, &d.gear_cos, &d.joint_scale, &d.backlash})
-        std::fill(v->begin(), v->end(), 0.0);
-      for (JointMap& map : d.joint_map) map = JointMap{};
-      d.thermal_alpha_per_k = 0;
-    }
+    if (geometric) keepGeometricDeviationsOnly(m);  // the core's short path for a plain chain
     const KinematicModel core(m);
     EXPECT_EQ(!core.scaledJacobianLipschitz().empty(), geometric) << name;
     std::normal_distribution<double> step(0, 2);  // deg: inside and beyond the 0.1 rad series

@@ -87,6 +87,20 @@ inline void cosSinFrom(double theta, double theta0, double c0, double s0, double
   fastSinCos(theta, s, c);
 }
 
+/// Link k's angle theta with its cosine and sine into f: from the nearby evaluation `near`
+/// (the angle-addition series) when there is one, else computed.
+inline void setLinkAngle(KinematicFrames& f, size_t k, double theta, const KinematicFrames* near) {
+  double ct, st;
+  if (near) {
+    cosSinFrom(theta, near->theta[k], near->cos_theta[k], near->sin_theta[k], ct, st);
+  } else {
+    fastSinCos(theta, st, ct);
+  }
+  f.theta[k] = theta;
+  f.cos_theta[k] = ct;
+  f.sin_theta[k] = st;
+}
+
 /// The joint-space effects of the catalogue (docs/diagnosis.md) on link L at joint value
 /// `qi` (rad for a revolute joint, mm for a prismatic one; `q` the same value as the
 /// controller reads it: deg or mm) with approach direction `dir`
@@ -265,17 +279,8 @@ void KinematicModel::evaluate(const double* q, const PoseContext& context, Kinem
       const Link& L = links_[static_cast<size_t>(i)];
       const size_t k = static_cast<size_t>(i);
       f.rate[k] = L.dir;
-      const double theta = L.theta_c + L.dir * q[i] * kDegToRad;
       d_link[k] = L.d_c;
-      double ct, st;
-      if (near) {
-        cosSinFrom(theta, near->theta[k], near->cos_theta[k], near->sin_theta[k], ct, st);
-      } else {
-        fastSinCos(theta, st, ct);
-      }
-      f.theta[k] = theta;
-      f.cos_theta[k] = ct;
-      f.sin_theta[k] = st;
+      setLinkAngle(f, k, L.theta_c + L.dir * q[i] * kDegToRad, near);
     }
     if (links) {
       std::fill(links->load.begin(), links->load.begin() + n_, 0.0);
@@ -332,18 +337,16 @@ void KinematicModel::evaluate(const double* q, const PoseContext& context, Kinem
       d += L.dir * q[i] + L.compliance * load[k] + extra;
     }
     d_link[k] = d;
-    double ct, st;
     if (loads) {
       // the link's angle is its nominal one plus small deviations
+      double ct, st;
       cosSinFrom(theta, f.theta_nominal[k], f.cos_nominal[k], f.sin_nominal[k], ct, st);
-    } else if (near) {
-      cosSinFrom(theta, near->theta[k], near->cos_theta[k], near->sin_theta[k], ct, st);
+      f.theta[k] = theta;
+      f.cos_theta[k] = ct;
+      f.sin_theta[k] = st;
     } else {
-      fastSinCos(theta, st, ct);
+      setLinkAngle(f, k, theta, near);
     }
-    f.theta[k] = theta;
-    f.cos_theta[k] = ct;
-    f.sin_theta[k] = st;
   }
   if (links) {
     chain<true>(f, d_link.data(), scale, links);
