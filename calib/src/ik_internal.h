@@ -183,7 +183,10 @@ struct IkWorkspace::Data {
   VecN q;
   double payload_kg = 0, temp_c = 0;
   std::vector<int> dir;
-  KinematicFrames f;
+  /// Two frame buffers: Newton evaluates its trial point into the other one and swaps the
+  /// roles on acceptance (no copy); `cur` is the one at q.
+  std::array<KinematicFrames, 2> frames;
+  int cur = 0;
   Jac6N J;
   /// Singularity certificate (KinematicSolver::Impl::singularAt): at cert_q the scaled
   /// Jacobian's smallest singular value was shown to exceed cert_level (solver cert_solver_id;
@@ -202,6 +205,13 @@ struct IkWorkspace::Data {
       if (seed[i] != q[i]) return false;
     return ctx.payload_kg == payload_kg && ctx.temp_c == temp_c && ctx.dir == dir;
   }
+};
+
+/// The frames at Newton's current point (`cur`) and a buffer for its trial point (`tmp`):
+/// swapped on acceptance, so the frames are never copied.
+struct FramePair {
+  KinematicFrames* cur;
+  KinematicFrames* tmp;
 };
 
 struct KinematicSolver::Impl {
@@ -270,10 +280,10 @@ struct KinematicSolver::Impl {
   /// Newton's method, then Levenberg-Marquardt when a Newton step does not reduce the error.
   /// Newton reuses its Jacobian while each step gains at least a factor 5 (near the solution
   /// an iteration costs one FK). Every evaluation after the first counts as an iteration.
-  /// `f` holds the frames at q on entry when `f_valid`, and on return.
-  /// `J0` (optional, with `f_valid`): the joint Jacobian at q.
+  /// `*fp.cur` holds the frames at q on entry when `f_valid`, and on return (the pair's roles
+  /// may be swapped). `J0` (optional, with `f_valid`): the joint Jacobian at q.
   Newton newton(VecN& q, const Eigen::Isometry3d& T_target, const PoseContext& ctx, const IkOptions& o,
-                int max_iterations, KinematicFrames& f, bool f_valid = false, double polish_mm = 0,
+                int max_iterations, FramePair& fp, bool f_valid = false, double polish_mm = 0,
                 double polish_rad = 0, const Jac6N* J0 = nullptr) const;
 
   // --- closed-form seeds ------------------------------------------------------------------
