@@ -18,6 +18,7 @@
 #include "accura/calib/geometry.h"
 #include "accura/calib/ik.h"
 #include "accura/calib/kinematic_core.h"
+#include "accura/calib/text.h"
 #include "closed_form.h"
 #include "small_linalg.h"
 
@@ -163,12 +164,8 @@ inline bool hasDeviationsBeyondBaseTool(const RobotModel& m) {
 
 inline std::string formatPose(const Eigen::Isometry3d& T) {
   const XyzAbc p = toXyzAbc(T);
-  std::ostringstream s;
-  s.setf(std::ios::fixed);
-  s.precision(3);
-  s << "{X " << p.x_mm << ", Y " << p.y_mm << ", Z " << p.z_mm << ", A " << p.a_deg << ", B " << p.b_deg
-    << ", C " << p.c_deg << "}";
-  return s.str();
+  return "{X " + formatFixed(p.x_mm, 3) + ", Y " + formatFixed(p.y_mm, 3) + ", Z " + formatFixed(p.z_mm, 3) + ", A " +
+         formatFixed(p.a_deg, 3) + ", B " + formatFixed(p.b_deg, 3) + ", C " + formatFixed(p.c_deg, 3) + "}";
 }
 
 /// Identifies each prepared solver in IkWorkspace (unique in the process).

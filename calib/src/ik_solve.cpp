@@ -338,7 +338,7 @@ IkResult KinematicSolver::Impl::inverse(const Eigen::Isometry3d& T_target, const
       o.joint_margin > 0 ? " (margin " + std::to_string(o.joint_margin) + ")" : std::string();
   if (closed && branches == 0) {
     fail.status = IkStatus::kUnreachable;
-    m << "unreachable: " << formatPose(T_target) << " is outside the workspace";
+    m << "the TCP pose " << formatPose(T_target) << " (mm, deg; the model's world frame) is outside the workspace";
   } else if (any_converged && limit_failures > 0) {
     fail.status = IkStatus::kJointLimits;
     m << "reachable only outside the joint limits" << margin_note;
@@ -350,8 +350,7 @@ IkResult KinematicSolver::Impl::inverse(const Eigen::Isometry3d& T_target, const
     // every start ended in a local minimum of the error or ran out of iterations
     fail.status = best_ep > 10 * o.tol_mm || best_er > 10 * o.tol_rad ? IkStatus::kUnreachable
                                                                      : IkStatus::kNotConverged;
-    m << (fail.status == IkStatus::kUnreachable ? "unreachable: " : "not converged: ") << formatPose(T_target)
-      << ", smallest error " << best_ep << " mm, " << best_er << " rad after Newton from " << starts.size()
+    m << "the TCP pose " << formatPose(T_target) << " (mm, deg; the model's world frame): smallest error " << best_ep << " mm, " << best_er << " rad after Newton from " << starts.size()
       << " start(s)";
   }
   fail.message = m.str();

@@ -382,7 +382,7 @@ class Job {
       const PoseCompensation pa = comp.pose(T_world_aux, calib::Configuration{}, seed, s_.ik, s_.context);
       if (pa.status != calib::IkStatus::kOk) {
         error(m.where, "the auxiliary point " + targetLabel(*c.aux) + " cannot be compensated: " + toString(pa.status) +
-                           (pa.message.empty() ? "" : " (" + pa.message + ")"));
+                           (pa.message.empty() ? "" : ": " + pa.message));
         return keep(out, mo);
       }
       setPose(*mo.aux, toProgram(c.T_world_progbase, pa.T_world_tcp_command));
@@ -400,7 +400,7 @@ class Job {
     }
     const PoseCompensation pc = comp.pose(c.T_world_end, config, start, s_.ik, s_.context);
     if (pc.status != calib::IkStatus::kOk) {
-      error(m.where, targetLabel(end) + " cannot be compensated: " + toString(pc.status) + (pc.message.empty() ? "" : " (" + pc.message + ")"));
+      error(m.where, targetLabel(end) + " cannot be compensated: " + toString(pc.status) + (pc.message.empty() ? "" : ": " + pc.message));
       return keep(out, mo);
     }
     if (cp) noteCpConfiguration(m, end, comp, pc.q_real);
@@ -428,7 +428,7 @@ class Job {
     const SegmentCompensation sc = compensateSegmentFrom(comp, intended, c.config, *q_real_, s_);
     if (sc.status != calib::IkStatus::kOk || sc.commanded.empty() || sc.q_real_end.size() != sc.commanded.size()) {
       error(m.where, "the " + motionKeyword(m) + " to " + targetLabel(end) + " cannot be compensated: " + toString(sc.status) +
-                         (sc.message.empty() ? "" : " (" + sc.message + ")"));
+                         (sc.message.empty() ? "" : ": " + sc.message));
       return keep(out, mo);
     }
     noteCpConfiguration(m, end, comp, sc.q_real_end.back());
