@@ -1,4 +1,5 @@
 #include "accura/calib/joint_map.h"
+#include "accura/calib/text.h"
 
 #include <algorithm>
 #include <cmath>
@@ -188,6 +189,15 @@ std::vector<OutsideFitRange> outsideFitRanges(const RobotModel& model, const Eig
     if (q[j] < lo || q[j] > hi) out.push_back({j + 1, q[j], lo, hi, q[j] < lo ? lo - q[j] : q[j] - hi});
   }
   return out;
+}
+
+std::string outsideFitRangeMessage(const std::string& what, const std::vector<OutsideFitRange>& outside) {
+  if (outside.empty()) return {};
+  std::string m = what + " lies outside the joint ranges the model was fitted on:";
+  for (const OutsideFitRange& x : outside)
+    m += " A" + std::to_string(x.joint) + " " + formatFixed(x.q, 2) + " (fitted " + formatFixed(x.lower, 2) + ".." +
+         formatFixed(x.upper, 2) + ", " + formatFixed(x.beyond, 2) + " beyond)";
+  return m + " (its joint-dependent effects are not fitted there)";
 }
 
 bool parseJointMapKnot(const std::string& text, double* knot, std::string* unit, std::string* error) {

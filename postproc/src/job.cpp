@@ -521,13 +521,7 @@ void warnOutsideFitRanges(const calib::RobotModel& calibrated, JobReport* r) {
     if (t.q_real.size() != calibrated.dof()) continue;
     const std::vector<calib::OutsideFitRange> o = calib::outsideFitRanges(calibrated, t.q_real);
     if (o.empty()) continue;
-    std::string what;
-    for (const calib::OutsideFitRange& x : o)
-      what += " A" + std::to_string(x.joint) + " " + calib::formatFixed(x.q, 2) + " (fitted " + calib::formatFixed(x.lower, 2) +
-              ".." + calib::formatFixed(x.upper, 2) + ", " + calib::formatFixed(x.beyond, 2) + " beyond)";
-    found.push_back({t.where, (t.name.empty() ? std::string("target") : t.name) +
-                                  " lies outside the joint ranges the model was fitted on:" + what +
-                                  " (its joint-dependent effects are not fitted there)"});
+    found.push_back({t.where, calib::outsideFitRangeMessage(t.name.empty() ? std::string("target") : t.name, o)});
   }
   if (found.empty()) return;
   const SourceLocation first = found.front().where;

@@ -75,6 +75,12 @@ struct OutsideFitRange {
 /// have one value per joint.
 std::vector<OutsideFitRange> outsideFitRanges(const RobotModel& model, const Eigen::VectorXd& q);
 
+/// The message of a target (or pose) outside the fitted ranges, one place for every command:
+/// "<what> lies outside the joint ranges the model was fitted on: A1 12.00 (fitted
+/// 20.00..90.00, 8.00 beyond) ... (its joint-dependent effects are not fitted there)"; values
+/// in deg (mm for prismatic joints) with 2 decimals. Empty for an empty list.
+std::string outsideFitRangeMessage(const std::string& what, const std::vector<OutsideFitRange>& outside);
+
 // ---------------------------------------------------------------------------------------
 // Choosing the resolution and the smoothness by blocked cross-validation (linearised)
 
