@@ -151,6 +151,23 @@ TEST(Batch, AllConvertedExitsZeroAndTheOutputMayNotBeInsideTheInput) {
   EXPECT_NE(r.err.find("--jobs: expected an integer in [1, 1024], found '0' (see accura batch --help)"), std::string::npos) << r.err;
 }
 
+// A tree with a $config.dat for its KRL/XML programs may hold URScript programs too: the
+// $config.dat frames are KUKA's, so batch gives them to the KRL and XML programs only (before,
+// every .script failed with "--config: only for KRL and XML programs"). With the nominal UR10
+// there is nothing to correct: the script comes back byte for byte.
+TEST(Batch, ConfigServesTheKrlProgramsOfAMixedTreeNotTheUrScriptOnes) {
+  const std::string root = test::tempDir("batch_mixed");
+  copy(golden("urscript/ur10_seam.script"), root + "/in/ur/seam.script");
+  copy(golden("compensate/$config.dat"), root + "/$config.dat");
+  const CliRun r = accura(root, "batch --robot ur10 --config '$config.dat' --in in --out out --jobs 1");
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(test::readText(root + "/out/ur/seam.script"), test::readText(golden("urscript/ur10_seam.script")));
+  // a single URScript program given --config is still told that it has no use for it
+  const CliRun c = accura(root, "compensate --robot ur10 --config '$config.dat' --in in/ur/seam.script --out single");
+  EXPECT_EQ(c.code, 1);
+  EXPECT_NE(c.err.find("--config: only for KRL and XML programs ($config.dat frames), found the URScript program"), std::string::npos) << c.err;
+}
+
 // SIGINT in the middle of a run: exit 130 (or 0 when it finished first); no temporary file;
 // every output file there is complete (equal to the uninterrupted run's).
 TEST(Batch, AnInterruptedRunLeavesNoHalfWrittenFile) {

@@ -117,6 +117,21 @@ TEST(CliUsage, MissingOptionPointsAtTheCommandsHelp) {
   EXPECT_EQ(r.err.find("<command>"), std::string::npos) << r.err;
 }
 
+// An unknown option is named, with the nearest known one when it is close (CLI11's own text put
+// the value first: "The following arguments were not expected: 5 --payload").
+TEST(CliUsage, AnUnknownOptionIsNamedWithTheNearestKnownOne) {
+  CliRun r = run("fk --robot kuka_kr16 --q 0,0,0,0,0,0 --payload 5");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_EQ(r.err, "accura: error: expected an option of accura fk, found '--payload' (did you mean --payload-kg?) (see accura fk --help)\n");
+  r = run("fk --robot kuka_kr16 --q=-1,0,0,0,0,0 --jsn a.json");
+  EXPECT_EQ(r.err, "accura: error: expected an option of accura fk, found '--jsn' (did you mean --json?) (see accura fk --help)\n");
+  r = run("fk --robot kuka_kr16 --q -1,0,0,0,0,0 --zzz");
+  EXPECT_EQ(r.err, "accura: error: expected an option of accura fk, found '--zzz' (see accura fk --help)\n");
+  r = run("fk --robot kuka_kr16 --q 0,0,0,0,0,0 extra");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_EQ(r.err, "accura: error: expected options of accura fk and their values, found the stray argument(s) extra (see accura fk --help)\n");
+}
+
 // identify: the user's language first (--verbose adds the solver's report), the station apart
 // from the robot's deviations, --quiet exactly the summary line, the validation and the file.
 TEST(CliIdentify, QuietVerboseAndTheStationApartFromTheDeviations) {

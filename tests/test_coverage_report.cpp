@@ -28,7 +28,7 @@ TEST(CoverageReport, TargetsOutsideTheFittedRangesAreWarningsOfTheReport) {
   const double lower = model.deviations.fit_range[0].lower, upper = model.deviations.fit_range[0].upper;
 
   const nlohmann::json report = nlohmann::json::parse(test::readText(dir + "/r.json"));
-  const std::regex per_target(R"(lies outside the joint ranges the model was fitted on: A1 (-?[0-9.]+) \(fitted (-?[0-9.]+)\.\.(-?[0-9.]+), ([0-9.]+) beyond\))");
+  const std::regex per_target(R"(lies outside the joint ranges the model was fitted on: joint 1 \(shoulder_pan\) at (-?[0-9.]+) deg \(fitted (-?[0-9.]+)\.\.(-?[0-9.]+) deg, ([0-9.]+) deg beyond\))");
   int targets_outside = 0;
   std::string summary;
   for (const auto& w : report.at("warnings")) {
@@ -73,7 +73,7 @@ TEST(CoverageReport, CheckNamesTheEndPointsOutsideTheFittedRanges) {
   const calib::RobotModel model = calib::readRobotFile(dir + "/ur10_calibrated.xml");
   ASSERT_GE(model.deviations.fit_range.size(), 1u);
   const double upper = model.deviations.fit_range[0].upper;
-  const std::regex a1(R"(A1 (-?[0-9.]+) \(fitted (-?[0-9.]+)\.\.(-?[0-9.]+), ([0-9.]+) beyond\))");
+  const std::regex a1(R"(joint 1 \(shoulder_pan\) at (-?[0-9.]+) deg \(fitted (-?[0-9.]+)\.\.(-?[0-9.]+) deg, ([0-9.]+) deg beyond\))");
   std::map<int, double> comp_q;  // line -> A1 of compensate's warning
   const nlohmann::json comp_report = nlohmann::json::parse(test::readText(dir + "/r.json"));
   for (const auto& w : comp_report.at("warnings")) {

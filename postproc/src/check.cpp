@@ -176,7 +176,7 @@ class Checker {
       if (!o.empty()) {
         if (outside_fit_ == 0) first_outside_ = m.where;
         ++outside_fit_;
-        r_.warnings.push_back({m.where, calib::outsideFitRangeMessage("motion " + std::to_string(motion_index_ + 1) + " (" + m.label + ") end point", o)});
+        r_.warnings.push_back({m.where, calib::outsideFitRangeMessage(real_, "motion " + std::to_string(motion_index_ + 1) + " (" + m.label + ") end point", o)});
       }
     }
     const auto [margin, joint] = jointMargin(q);

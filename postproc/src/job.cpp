@@ -521,7 +521,7 @@ void warnOutsideFitRanges(const calib::RobotModel& calibrated, JobReport* r) {
     if (t.q_real.size() != calibrated.dof()) continue;
     const std::vector<calib::OutsideFitRange> o = calib::outsideFitRanges(calibrated, t.q_real);
     if (o.empty()) continue;
-    found.push_back({t.where, calib::outsideFitRangeMessage(t.name.empty() ? std::string("target") : t.name, o)});
+    found.push_back({t.where, calib::outsideFitRangeMessage(calibrated, t.name.empty() ? std::string("target") : t.name, o)});
   }
   if (found.empty()) return;
   const SourceLocation first = found.front().where;
