@@ -12,6 +12,7 @@
 #include <cmath>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "accura/calib/diagnose.h"
 #include "accura/calib/geometry.h"
@@ -34,20 +35,27 @@ struct Campaign {
 
 // KR 16 with geometric errors and joint compliance under 0, 8 and 16 kg; 500 poses with std
 // columns (0.02 mm), and 200 held-out poses of the same robot.
+// The KR 16 with the reflector on its flange, and a simulated campaign of it (std columns, 0.02 mm).
+std::unique_ptr<Campaign> kr16(accura::calib::SimulateOptions* o, int poses, std::uint64_t seed,
+                               const std::vector<std::string>& effects) {
+  auto out = std::make_unique<Campaign>();
+  out->nominal = accura::calib::readRobotFile(accura::calib::resolveRobotPath("kuka_kr16"));
+  out->nominal.nominal.T_flange_tcp = accura::calib::toIsometry(kTarget);
+  o->poses = poses;
+  o->seed = seed;
+  o->noise_mm = 0.02;
+  o->effects = effects;
+  o->tool = kTarget;
+  o->set_tool = true;
+  o->write_std = true;
+  return out;
+}
+
 const Campaign& campaign() {
   static const std::unique_ptr<Campaign> c = [] {
-    auto out = std::make_unique<Campaign>();
-    out->nominal = accura::calib::readRobotFile(accura::calib::resolveRobotPath("kuka_kr16"));
-    out->nominal.nominal.T_flange_tcp = accura::calib::toIsometry(kTarget);
     accura::calib::SimulateOptions o;
-    o.poses = 500;
-    o.seed = 7;
-    o.noise_mm = 0.02;
-    o.effects = {"geometric", "joint_compliance"};
     o.payloads_kg = {0, 8, 16};
-    o.tool = kTarget;
-    o.set_tool = true;
-    o.write_std = true;
+    auto out = kr16(&o, 500, 7, {"geometric", "joint_compliance"});
     const RobotModel truth = accura::calib::perturbModel(out->nominal, o);
     out->fit = accura::calib::simulateMeasurements(truth, o);
     o.poses = 200;
@@ -98,17 +106,8 @@ BENCHMARK(BM_IdentifyGeometric500Poses)->Unit(benchmark::kMillisecond)->MinTime(
 // the same poses.
 const Campaign& campaign1500() {
   static const std::unique_ptr<Campaign> c = [] {
-    auto out = std::make_unique<Campaign>();
-    out->nominal = accura::calib::readRobotFile(accura::calib::resolveRobotPath("kuka_kr16"));
-    out->nominal.nominal.T_flange_tcp = accura::calib::toIsometry(kTarget);
     accura::calib::SimulateOptions o;
-    o.poses = 1500;
-    o.seed = 9;
-    o.noise_mm = 0.02;
-    o.effects = {"geometric"};
-    o.tool = kTarget;
-    o.set_tool = true;
-    o.write_std = true;
+    auto out = kr16(&o, 1500, 9, {"geometric"});
     const RobotModel truth = accura::calib::perturbModel(out->nominal, o);
     out->fit = accura::calib::simulateMeasurements(truth, o);
     accura::calib::KinematicWorkspace ws;
