@@ -67,7 +67,7 @@ std::vector<std::string> findPrograms(const std::string& in_dir) {
     }
     if (!it->is_regular_file(ec)) continue;
     const std::string ext = lower(p.extension().string());
-    if (ext != ".src" && ext != ".xml" && ext != ".script") continue;
+    if (ext != ".src" && ext != ".xml" && ext != ".script" && ext != ".mod" && ext != ".prg") continue;
     out.push_back(relativeSlash(fs::relative(p, in_dir)));
   }
   std::sort(out.begin(), out.end());
