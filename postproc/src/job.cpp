@@ -608,18 +608,7 @@ void warnOutsideFitRanges(const calib::RobotModel& calibrated, JobReport* r) {
     if (t.q_real.size() != calibrated.dof()) continue;
     const std::vector<calib::OutsideFitRange> o = calib::outsideFitRanges(calibrated, t.q_real);
     if (o.empty()) continue;
-    std::string what;
-    for (const calib::OutsideFitRange& x : o) {
-      const calib::JointSpec& joint = calibrated.nominal.joints[static_cast<size_t>(x.joint - 1)];
-      const std::string unit = joint.type == calib::JointType::kPrismatic ? " mm" : " deg";
-      what += std::string(what.empty() ? " " : "; ") + "joint " + std::to_string(x.joint) +
-              (joint.name.empty() ? std::string() : " (" + joint.name + ")") + " at " + calib::formatFixed(x.q, 2) + unit +
-              " (fitted " + calib::formatFixed(x.lower, 2) + ".." + calib::formatFixed(x.upper, 2) + unit + ", " +
-              calib::formatFixed(x.beyond, 2) + unit + " beyond)";
-    }
-    found.push_back({t.where, (t.name.empty() ? std::string("target") : t.name) +
-                                  " lies outside the joint ranges the model was fitted on:" + what +
-                                  " (its joint-dependent effects are not fitted there)"});
+    found.push_back({t.where, calib::outsideFitRangeMessage(calibrated, t.name.empty() ? std::string("target") : t.name, o)});
   }
   if (found.empty()) return;
   const SourceLocation first = found.front().where;
