@@ -543,7 +543,7 @@ std::string diagnosisText(const Diagnosis& d) {
     } else {
       std::snprintf(buf, sizeof buf, "  %-17s %-14s %.4f -> %.4f mm  gain %5.1f%%  p %.2g  dBIC %.1f%s\n", e.effect.c_str(),
                     jointsText(e.joints).c_str(), e.rms_before_mm, e.rms_after_mm, 100 * e.gain, e.p_value, e.delta_bic,
-                    e.significant ? "" : "  (not significant)");
+                    e.significant ? "" : "  (fails the selection tests)");
     }
     s << buf;
   }
@@ -660,7 +660,7 @@ std::string diagnosisHtml(const Diagnosis& d, const DiagnosisReportContext& ctx)
       h << esc(e.parameters[k].name) << " " << f("%.4g", e.parameters[k].value) << " &plusmn; " << f("%.2g", e.parameters[k].sigma)
         << " " << esc(e.parameters[k].unit) << "<br>";
     if (e.parameters.size() > 8) h << "&hellip;";
-    h << (e.significant ? "" : "<i>not significant</i>") << "</td></tr>\n";
+    h << (e.significant ? "" : "<i>fails the selection tests</i>") << "</td></tr>\n";
   }
   h << "</table>\n";
   if (!d.confounded.empty()) {
