@@ -23,7 +23,8 @@ foreach(f bin/accura lib/libaccura_plugin.so lib/libaccura_calib.a lib/libaccura
           share/accura/robots/kuka_kr16.xml share/accura/schema/accura-program.xsd
           share/accura/mappings/ipa_robot_accuracy.map share/accura/python/accura_plugin.py
           share/accura/freecad/accura_freecad.py share/accura/freecad/AccuraCompensate.FCMacro
-          share/accura/README.md lib/cmake/accura/accuraConfig.cmake)
+          share/accura/README.md share/accura/plugin/README.md share/accura/docs/plugin.md
+          share/accura/examples/seam.src share/accura/examples/kr16_calibrated.xml lib/cmake/accura/accuraConfig.cmake)
   if(NOT EXISTS ${prefix}/${f})
     file(REMOVE_RECURSE ${WORK_DIR})
     message(FATAL_ERROR "not installed: ${prefix}/${f}")
@@ -63,7 +64,7 @@ endif()
 # the wrapper finds the installed library without --lib or ACCURA_PLUGIN_LIB)
 if(PYTHON)
   run(${CMAKE_COMMAND} -E env --unset=ACCURA_PLUGIN_LIB PYTHONDONTWRITEBYTECODE=1 ${PYTHON} ${prefix}/share/accura/python/example.py
-      --model ${SOURCE_DIR}/tests/data/plugin/kr16_calibrated.xml)
+      --model ${prefix}/share/accura/examples/kr16_calibrated.xml)
 endif()
 file(REMOVE_RECURSE ${WORK_DIR})
 message(STATUS "install, find_package(accura), installed command and Python example: passed")
