@@ -10,7 +10,8 @@ with a timeout, in a private directory with its own TMPDIR. Every run is checked
   crash      killed by a signal, or a sanitizer report (AddressSanitizer, UBSan, LeakSanitizer)
   hang       still running after --timeout seconds
   bad-exit   an exit status other than 0 (or the command's other success codes) and 1
-  unlocated  exit 1 without a FILE:LINE:COLUMN: message naming one of the inputs
+  unlocated  exit 1 without a FILE:LINE:COLUMN: message naming one of the inputs (a binary
+             mesh: FILE: at byte N:)
   residue    exit 1 and an output written, or a temporary file left (in the run directory or TMPDIR)
   modified   an input file changed
 
@@ -214,7 +215,8 @@ def run_one(accura, case, index, seed, timeout, keep):
             elif rc not in case.ok and rc != 1:
                 findings.append("bad-exit")
         if rc == 1 and "crash" not in findings:
-            located = any(re.search(re.escape(p) + r":\d+:\d+: ", err) for p in paths.values())
+            # FILE:LINE:COLUMN, or in a binary mesh FILE: at byte N (fuzz/README.md)
+            located = any(re.search(re.escape(p) + r"(:\d+:\d+: |: at byte \d+: )", err) for p in paths.values())
             if not located:
                 findings.append("unlocated")
             left = [os.path.join(r, f) for r, _, fs in os.walk(outdir) for f in fs] + os.listdir(tmp)

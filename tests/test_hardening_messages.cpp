@@ -206,6 +206,22 @@ TEST(HardeningMessages, UrdfErrorsCarryLineColumnExpectedFound) {
       {urdf("<parent link=\"base\"/>", "<parent link=\"l1\"/>"), 7, "link=", "joint 'j1': expected a child link other than the parent, found 'l1' for both", 1},
   };
   expectErrors("r.urdf", cases, [](const std::string& p) { calib::readUrdfChain(p); });
+  // fuzz_urdf found a hang: two links in a closed loop of joints beside the tree (each has a
+  // parent, so the root count is 1, and the walks below the root never ended)
+  const std::string loop = urdf("</robot>", "  <link name=\"l2\"/> <link name=\"l3\"/>\n"
+                                           "  <joint name=\"j2\" type=\"fixed\"><parent link=\"l2\"/><child link=\"l3\"/></joint>\n"
+                                           "  <joint name=\"j3\" type=\"fixed\"><parent link=\"l3\"/><child link=\"l2\"/></joint>\n</robot>");
+  expectErrors("loop.urdf", {{loop, 13, "<joint",
+                              "joint 'j3' closes a loop: expected every link below the root link 'base', found link 'l2' in a closed loop of joints"}},
+               [](const std::string& p) { calib::readUrdfChain(p); });
+  const std::string finding = test::readText(test::sourcePath("fuzz/corpus/urdf/finding_loop_beside_tree"));
+  ASSERT_FALSE(finding.empty());
+  try {
+    calib::parseUrdfChain(finding, "f.urdf");
+    ADD_FAILURE() << "read";
+  } catch (const calib::InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("closes a loop: expected every link below the root link 'base_link'"), std::string::npos) << e.what();
+  }
 }
 
 /// The strict-contract findings of fuzz/findings/ (now in the corpus): each is an error with
@@ -224,6 +240,14 @@ TEST(HardeningMessages, FuzzFindingsGiveLocatedExpectedFound) {
     ADD_FAILURE() << "an empty XML program read";
   } catch (const calib::InputError& e) {
     expectStrict(e, "empty.xml:1:1: expected an XML program with root element <program>, found an empty file");
+  }
+  // fuzz_xml_program: white space after '<' (tinyxml2 reads "< to" as the element <to>) is at
+  // the '<', not at column 0
+  try {
+    postproc::parseXmlProgram("<program version=\"1\">\n  <motions>\n    < to/>\n  </motions>\n</program>\n", "p.xml");
+    ADD_FAILURE() << "read";
+  } catch (const calib::InputError& e) {
+    expectStrict(e, "p.xml:3:5: unknown element <to> in <motions> (expected tool, base, ptp, lin, circ, sptp, slin, scirc, spl, passthrough)");
   }
   const std::string dir = test::tempDir("messages_findings");
   test::writeText(dir + "/empty.xml", "");
@@ -249,6 +273,20 @@ TEST(HardeningMessages, FuzzFindingsGiveLocatedExpectedFound) {
     const int column = static_cast<int>(config.find("E4 0.0,E4", line6) + 7 - line6) + 1;  // the second E4
     expectStrict(e, "$config.dat:6:" + std::to_string(column) +
                         ": expected each component once in this aggregate, found E4 a second time");
+  }
+}
+
+/// Found by the mutation campaign (fuzz/mutate.py): a NUL byte inside a KRL line is reported at
+/// its line and column.
+TEST(HardeningMessages, KrlNulByteAtItsColumn) {
+  const std::string dir = test::tempDir("messages_krl_nul");
+  test::writeText(dir + "/p.src", std::string("DEF p( )\nLIN {X\0 1}\nEND\n", 24));
+  test::writeText(dir + "/p.dat", "DEFDAT p\nENDDAT\n");
+  try {
+    postproc::readKrl(dir + "/p.src");
+    ADD_FAILURE() << "read";
+  } catch (const calib::InputError& e) {
+    EXPECT_EQ(std::string(e.what()), dir + "/p.src:2:7: expected a KRL text file, found a NUL byte (binary file?)");
   }
 }
 

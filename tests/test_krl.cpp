@@ -399,6 +399,7 @@ TEST(Krl, MalformedTargetsAreErrorsWithTheirPlace) {
     FAIL();
   } catch (const calib::InputError& e) {
     EXPECT_EQ(e.line(), 3);
+    EXPECT_EQ(e.column(), 1);  // the first NUL
     EXPECT_NE(e.message().find("NUL byte"), std::string::npos);
   }
 }

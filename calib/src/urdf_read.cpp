@@ -243,6 +243,24 @@ UrdfIndex indexUrdf(const tinyxml2::XMLDocument& doc, const std::string& file, c
                                  : "expected one root link (a link that is no joint's child), found " +
                                        std::to_string(roots.size()) + ": " + list);
   }
+  // Every link below the root: links in a closed loop of joints beside the tree have parents
+  // but are not reachable (the walks over the tree below would never end).
+  std::set<std::string> reached = {roots[0]};
+  for (std::vector<std::string> todo = {roots[0]}; !todo.empty();) {
+    const std::string link = todo.back();
+    todo.pop_back();
+    const auto it = ix.child_joints.find(link);
+    if (it == ix.child_joints.end()) continue;
+    for (const auto& jn : it->second)
+      if (reached.insert(ix.joints.at(jn).child).second) todo.push_back(ix.joints.at(jn).child);
+  }
+  for (const XMLElement* l = robot->FirstChildElement("link"); l; l = l->NextSiblingElement("link")) {
+    const std::string name = l->Attribute("name");
+    if (reached.count(name)) continue;
+    const UrdfJointInfo& j = ix.joints.at(ix.parent_joint.at(name));  // not the root: it has a parent
+    ix.fail(j.element, "joint '" + ix.parent_joint.at(name) + "' closes a loop: expected every link below the root link '" +
+                           roots[0] + "', found link '" + name + "' in a closed loop of joints");
+  }
   return ix;
 }
 

@@ -10,6 +10,7 @@
 #include <fstream>
 #include <memory>
 #include <sstream>
+#include <tuple>
 
 #include "accura/calib/errors.h"
 #include "accura/calib/xml_text.h"
@@ -47,25 +48,13 @@ std::set<std::string> motionAttrs() {
 
 class Reader {
  public:
-  Reader(std::string file, const std::string& text) : file_(std::move(file)) {
-    std::string line;
-    std::istringstream in(text);
-    while (std::getline(in, line)) lines_.push_back(line);
-  }
+  Reader(std::string file, const calib::XmlPositions& pos) : file_(std::move(file)), pos_(pos) {}
 
-  int column(const XMLElement* e) const {
-    if (!e) return 0;
-    const int l = e->GetLineNum();
-    if (l <= 0 || l > static_cast<int>(lines_.size())) return 0;
-    const size_t p = lines_[static_cast<size_t>(l - 1)].find(std::string("<") + e->Name());
-    return p == std::string::npos ? 0 : static_cast<int>(p) + 1;
-  }
-
+  /// Where the element is: its '<' (xml_text.h).
   SourceLocation loc(const XMLElement* e) const {
     SourceLocation s;
     s.file = file_;
-    s.line = e ? e->GetLineNum() : 0;
-    s.column = column(e);
+    std::tie(s.line, s.column) = pos_.element(e);
     return s;
   }
 
@@ -141,7 +130,7 @@ class Reader {
 
  private:
   std::string file_;
-  std::vector<std::string> lines_;
+  const calib::XmlPositions& pos_;
 };
 
 bool hasAnyValue(const XMLElement* e) {
@@ -455,8 +444,9 @@ const std::map<std::string, std::set<std::string>>& xmlProgramVocabulary() {
 
 Program parseXmlProgram(const std::string& text, const std::string& file, const FrameTables* tables) {
   tinyxml2::XMLDocument doc;
-  Reader R(file, text);
   calib::parseXml(doc, text, file, "an XML program with root element <program>");
+  const calib::XmlPositions positions(text, doc);
+  const Reader R(file, positions);
   const XMLElement* root = doc.RootElement();
   if (!root || std::string(root->Name()) != "program")
     R.fail(root, "expected root element <program>, found " + describe(root));
