@@ -199,7 +199,11 @@ TEST(HardeningMessages, UrdfErrorsCarryLineColumnExpectedFound) {
        "<origin> attribute 'xyz': expected an offset of at most 100 m (URDF lengths are in metres), found 1e+308 m"},
       {urdf("rpy=\"0 0 0\"", "rpy=\"0 1e300 0\""), 8, "rpy=", "<origin> attribute 'rpy': expected angles of at most 1000 rad, found 1e+300 rad"},
       {urdf("xyz=\"0 0 0.5\"", "xyz=\"0 0\""), 8, "xyz=", "<origin> attribute 'xyz': expected three finite numbers, found '0 0'"},
-      {urdf("<axis xyz=\"0 0 1\"/>", "<axis xyz=\"0 0 0\"/>"), 8, "xyz=", "joint 'j1' <axis> attribute 'xyz': expected a non-zero axis, found '0 0 0'", 1},
+      {urdf("<axis xyz=\"0 0 1\"/>", "<axis xyz=\"0 0 0\"/>"), 8, "xyz=", "joint 'j1' <axis> attribute 'xyz': expected a non-zero axis with components of at most 1e6, found '0 0 0'", 1},
+      // the mutation campaign: urdfdom turned both into a joint without a direction (exit 3)
+      {urdf("<axis xyz=\"0 0 1\"/>", "<axis xyz=\"0 1e308 1\"/>"), 8, "xyz=",
+       "joint 'j1' <axis> attribute 'xyz': expected a non-zero axis with components of at most 1e6, found '0 1e308 1'", 1},
+      {urdf("<axis xyz=\"0 0 1\"/>", "<axis xyzz=\"0 0 1\"/>"), 8, "<axis", "<axis>: expected an attribute 'xyz', found none"},
       {urdf("upper=\"1\"", "upper=\"1e308\""), 9, "upper=", "joint 'j1' <limit> attribute 'upper': expected at most 1000 rad in magnitude, found '1e308'"},
       {urdf("lower=\"-1\"", "lower=\"2\""), 9, "lower=", "joint 'j1': <limit> expected lower < upper, found lower 2, upper 1"},
       {urdf(" effort=\"1\"", ""), 9, "<limit", "<limit>: expected an attribute 'effort', found none"},

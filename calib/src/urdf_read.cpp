@@ -188,9 +188,12 @@ UrdfIndex indexUrdf(const tinyxml2::XMLDocument& doc, const std::string& file, c
       ix.failAttribute(child, "link", "joint '" + name + "': expected a child link other than the parent, found '" + info.parent + "' for both");
     checkOrigin(ix, onlyChild(ix, j, "origin", false));
     if (const XMLElement* axis = onlyChild(ix, j, "axis", false)) {
+      // urdfdom leaves an <axis> without xyz at (0, 0, 0), and normalises one of infinite
+      // length (1e308 components) to zero: both would be a joint without a direction
+      if (!axis->Attribute("xyz")) ix.fail(axis, "<axis>: expected an attribute 'xyz', found none");
       const Eigen::Vector3d a = triple(ix, axis, "xyz", Eigen::Vector3d::UnitX());
-      if (isMoving(info.type) && a.norm() < 1e-9)
-        ix.failAttribute(axis, "xyz", "joint '" + name + "' <axis> attribute 'xyz': expected a non-zero axis, found '" +
+      if (isMoving(info.type) && !(a.norm() >= 1e-9 && a.cwiseAbs().maxCoeff() <= 1e6))
+        ix.failAttribute(axis, "xyz", "joint '" + name + "' <axis> attribute 'xyz': expected a non-zero axis with components of at most 1e6, found '" +
                                           axis->Attribute("xyz") + "'");
     }
     const XMLElement* limit = onlyChild(ix, j, "limit", info.type == "revolute" || info.type == "prismatic");
