@@ -128,7 +128,7 @@ int runBatch(const BatchArgs& a) {
 void addBatchCommand(CLI::App& app) {
   auto args = std::make_shared<BatchArgs>();
   auto* c = app.add_subcommand("batch",
-                               "compensate every program (*.src, *.xml, *.script) of a directory tree into a mirrored tree (with --cell: each checked "
+                               "compensate every program (*.src, *.xml, *.script, *.mod, *.prg) of a directory tree into a mirrored tree (with --cell: each checked "
                                "in the cell before it is written)");
   args->settings = addJobOptions(c);
   c->add_option("--in", args->in, "directory of programs (read only)")->required();

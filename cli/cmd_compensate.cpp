@@ -1,4 +1,4 @@
-// accura compensate: one program (KRL .src/.dat or XML) compensated with a calibrated model.
+// accura compensate: one program (KRL .src/.dat, XML, URScript or ABB RAPID) compensated with a calibrated model.
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -129,9 +129,9 @@ std::function<postproc::JobSettings()> addJobOptions(CLI::App* c) {
 
 void addCompensateCommand(CLI::App& app) {
   auto args = std::make_shared<CompensateArgs>();
-  auto* c = app.add_subcommand("compensate", "compensate a robot program (KRL .src/.dat or XML) with a calibrated model");
+  auto* c = app.add_subcommand("compensate", "compensate a robot program (KRL .src/.dat, XML, URScript or ABB RAPID) with a calibrated model");
   args->settings = addJobOptions(c);
-  c->add_option("--in", args->in, "program: PROG.src (KRL, with PROG.dat next to it), PROG.xml or PROG.script (URScript)")->required();
+  c->add_option("--in", args->in, "program: PROG.src (KRL, with PROG.dat next to it), PROG.xml, PROG.script (URScript) or PROG.mod/.prg (ABB RAPID)")->required();
   c->add_option("--dat", args->dat, "the KRL .dat (default: the .src's name with .dat)");
   c->add_option("--config", args->config, "$config.dat: TOOL_DATA, BASE_DATA and global points such as XHOME");
   c->add_option("--out", args->out, "output directory (the program keeps its file names)")->required();

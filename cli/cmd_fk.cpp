@@ -37,7 +37,10 @@ int runFk(const FkArgs& a) {
   calib::PoseContext ctx;
   ctx.payload_kg = a.payload_kg;
   const calib::XyzAbc p = calib::toXyzAbc(calib::forwardKinematics(model, qv, ctx, ws));
-  std::printf("x=%.4f y=%.4f z=%.4f A=%.5f B=%.5f C=%.5f\n", p.x_mm, p.y_mm, p.z_mm, p.a_deg, p.b_deg, p.c_deg);
+  // T_world_tcp in the robot file's world frame: mm and deg (KUKA's A, B, C: Z-Y'-X'')
+  std::printf("x=%s y=%s z=%s mm  A=%s B=%s C=%s deg\n", calib::formatFixed(p.x_mm, 4).c_str(), calib::formatFixed(p.y_mm, 4).c_str(),
+              calib::formatFixed(p.z_mm, 4).c_str(), calib::formatFixed(p.a_deg, 5).c_str(), calib::formatFixed(p.b_deg, 5).c_str(),
+              calib::formatFixed(p.c_deg, 5).c_str());
   if (!a.json.empty()) {
     ordered_json j;
     j["robot"] = model.nominal.name;

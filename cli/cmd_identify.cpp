@@ -21,7 +21,8 @@ namespace accura::cli {
 namespace {
 using nlohmann::ordered_json;
 
-int runIdentify(const IdentifyArgs& a) {
+/// The start model of --robot in the link forms of --form, with --base and --tool.
+calib::RobotModel startModel(const IdentifyArgs& a) {
   calib::RobotModel start = loadRobot(a.robot);
   if (a.form == "dh") {
     if (start.forms != calib::chooseLinkForms(start.nominal, calib::FormPolicy::kDHOnly)) {
@@ -35,40 +36,70 @@ int runIdentify(const IdentifyArgs& a) {
   }
   if (!a.base.empty()) start.nominal.T_world_base = calib::toIsometry(parsePose6(a.base, "--base"));
   if (!a.tool.empty()) start.nominal.T_flange_tcp = calib::toIsometry(parseTool(a.tool, "--tool"));
+  return start;
+}
 
+/// Validation poses outside the joint ranges of the fit, per joint: how many and how far.
+struct Outside {
+  int count = 0;
+  double max = 0;
+  std::vector<int> lines;
+};
+
+/// Everything one identify run has found, for the report, the model file's comment and --json.
+struct IdentifyRun {
+  calib::RobotModel start;
+  std::vector<calib::MeasurementSet> sets;  ///< the fit data, one set per --data
+  std::string data_names;                   ///< "a.csv, b.csv"
+  size_t n_rows = 0;
+  bool orient = true;                       ///< every set has orientations
+  calib::MeasurementSet validation;         ///< --validate or the --holdout poses (may be empty)
+  std::string validation_source;
+  calib::IdentifyOptions opt;
+  calib::IdentifySummary s;
+  calib::RobotModel calibrated;
+  calib::ErrorStats val, nom_val;           ///< on the validation data: calibrated, nominal registered
+  std::string station_note;                 ///< --validate-station new: how far the station moved
+  std::vector<Outside> outside;             ///< per joint
+  int outside_rows = 0;
+
+  bool hasValidation() const { return !validation.rows.empty(); }
+  const char* unitOf(int j) const {
+    return start.nominal.joints[static_cast<size_t>(j)].type == calib::JointType::kRevolute ? "deg" : "mm";
+  }
+};
+
+/// Reads --data and the validation data (--validate, else every n-th pose of --holdout).
+void readData(const IdentifyArgs& a, IdentifyRun& r) {
   if (a.validate_station != "same" && a.validate_station != "new")
     throw calib::InputError("--validate-station: expected 'same' or 'new', found '" + a.validate_station + "'");
   if (a.validate_station == "new" && a.validate.empty())
     throw calib::InputError("--validate-station new: expected a --validate file measured from another station");
   if (a.data.empty()) throw calib::InputError("--data: expected at least one measurement file");
-  std::vector<calib::MeasurementSet> sets;
-  for (const std::string& f : a.data) sets.push_back(readMeasurements(f, a.map, start.nominal));
-  std::string data_names;
-  for (const std::string& f : a.data) data_names += (data_names.empty() ? "" : ", ") + f;
-  calib::MeasurementSet validation;
-  std::string validation_source;
+  for (const std::string& f : a.data) r.sets.push_back(readMeasurements(f, a.map, r.start.nominal));
+  for (const std::string& f : a.data) r.data_names += (r.data_names.empty() ? "" : ", ") + f;
   if (!a.validate.empty()) {
-    validation = readMeasurements(a.validate, a.validate_map.empty() ? a.map : a.validate_map, start.nominal);
-    validation_source = a.validate;
-  } else {
-    if (!(a.holdout >= 0 && a.holdout < 0.9))
-      throw calib::InputError("--holdout: expected a fraction in [0, 0.9), found " + fmt("%g", a.holdout));
-    if (a.holdout > 0) {
-      if (sets.size() > 1)
-        throw calib::InputError("--holdout: with several --data files give --validate (a held-out file) instead");
-      calib::MeasurementSet& data = sets[0];
-      const int every = std::max(2, static_cast<int>(std::lround(1.0 / a.holdout)));
-      calib::MeasurementSet fit = data;
-      fit.rows.clear();
-      validation = data;
-      validation.rows.clear();
-      for (size_t i = 0; i < data.rows.size(); ++i)
-        (i % every == static_cast<size_t>(every - 1) ? validation : fit).rows.push_back(data.rows[i]);
-      data = fit;
-      validation_source = "every " + std::to_string(every) + "th pose of " + data_names + " (held out)";
-    }
+    r.validation = readMeasurements(a.validate, a.validate_map.empty() ? a.map : a.validate_map, r.start.nominal);
+    r.validation_source = a.validate;
+    return;
   }
+  if (!(a.holdout >= 0 && a.holdout < 0.9))
+    throw calib::InputError("--holdout: expected a fraction in [0, 0.9), found " + fmt("%g", a.holdout));
+  if (a.holdout <= 0) return;
+  if (r.sets.size() > 1) throw calib::InputError("--holdout: with several --data files give --validate (a held-out file) instead");
+  calib::MeasurementSet& data = r.sets[0];
+  const int every = std::max(2, static_cast<int>(std::lround(1.0 / a.holdout)));
+  calib::MeasurementSet fit = data;
+  fit.rows.clear();
+  r.validation = data;
+  r.validation.rows.clear();
+  for (size_t i = 0; i < data.rows.size(); ++i)
+    (i % every == static_cast<size_t>(every - 1) ? r.validation : fit).rows.push_back(data.rows[i]);
+  data = fit;
+  r.validation_source = "every " + std::to_string(every) + "th pose of " + r.data_names + " (held out)";
+}
 
+calib::IdentifyOptions identifyOptions(const IdentifyArgs& a) {
   calib::IdentifyOptions opt;
   opt.groups = splitList(a.params, "--params");
   opt.loss = a.loss;
@@ -78,87 +109,76 @@ int runIdentify(const IdentifyArgs& a) {
   if (a.map_smoothing >= 0) opt.joint_map_smoothing = a.map_smoothing;
   opt.same_station = a.same_station;
   std::string why;
-  if (!opt.IsValid(&why)) throw calib::InputError("--params/--loss: " + why);
+  // the numbers are range-checked by their options; what IsValid finds is --loss's or --params'
+  if (!opt.IsValid(&why)) throw calib::InputError((why.rfind("loss", 0) == 0 ? "--loss: " : "--params: ") + why);
+  return opt;
+}
 
-  calib::IdentifySummary s;
-  const calib::RobotModel calibrated = calib::identify(start, sets, opt, &s);
-  size_t n_rows = 0;
-  for (const auto& d : sets) n_rows += d.rows.size();
-
-  // Nominal model with only the measurement frame and the tool registered, for comparison.
-  calib::IdentifyOptions nominal_opt = opt;
+/// The errors on the validation data of the calibrated model and of the nominal model with only
+/// the measurement frame and the tool registered (--validate-station new: the station
+/// re-registered for both, robot parameters held fixed).
+void validate(const IdentifyArgs& a, IdentifyRun& r) {
+  calib::IdentifyOptions nominal_opt = r.opt;
   nominal_opt.groups = {"base", "tool"};
   nominal_opt.loss = "none";
   calib::IdentifySummary ns;
-  const calib::RobotModel nominal_registered = calib::identify(start, sets, nominal_opt, &ns);
-
-  const bool has_val = !validation.rows.empty();
-  calib::ErrorStats val, nom_val;
-  std::string station_note;
-  if (has_val && a.validate_station == "new") {
+  const calib::RobotModel nominal_registered = calib::identify(r.start, r.sets, nominal_opt, &ns);
+  r.outside.assign(static_cast<size_t>(r.start.dof()), Outside{});
+  if (!r.hasValidation()) return;
+  if (a.validate_station == "new") {
     // another station: re-register it (6 parameters), robot parameters held fixed
     calib::IdentifySummary st, nst;
-    const calib::RobotModel cal_st = calib::registerStation(calibrated, validation, &st);
-    const calib::RobotModel nom_st = calib::registerStation(nominal_registered, validation, &nst);
-    const Eigen::Isometry3d moved = calibrated.T_world_base().inverse() * cal_st.T_world_base();
-    station_note = "validation station re-registered on " + a.validate + " (6 parameters, robot held fixed): base moved " +
-                   fmt("%.3f", moved.translation().norm()) + " mm, " +
-                   fmt("%.4f", Eigen::AngleAxisd(moved.linear()).angle() * calib::kRadToDeg) + " deg";
-    val = calib::evaluate(cal_st, validation);
-    nom_val = calib::evaluate(nom_st, validation);
-  } else if (has_val) {
-    val = calib::evaluate(calibrated, validation);
-    nom_val = calib::evaluate(nominal_registered, validation);
+    const calib::RobotModel cal_st = calib::registerStation(r.calibrated, r.validation, &st);
+    const calib::RobotModel nom_st = calib::registerStation(nominal_registered, r.validation, &nst);
+    const Eigen::Isometry3d moved = r.calibrated.T_world_base().inverse() * cal_st.T_world_base();
+    r.station_note = "validation station re-registered on " + a.validate + " (6 parameters, robot held fixed): base moved " +
+                     fmt("%.3f", moved.translation().norm()) + " mm, " +
+                     fmt("%.4f", Eigen::AngleAxisd(moved.linear()).angle() * calib::kRadToDeg) + " deg";
+    r.val = calib::evaluate(cal_st, r.validation);
+    r.nom_val = calib::evaluate(nom_st, r.validation);
+  } else {
+    r.val = calib::evaluate(r.calibrated, r.validation);
+    r.nom_val = calib::evaluate(nominal_registered, r.validation);
   }
-
-  // Validation poses outside the joint ranges of the fit: per joint, how many and how far.
-  struct Outside {
-    int count = 0;
-    double max = 0;
-    std::vector<int> lines;
-  };
-  std::vector<Outside> outside(static_cast<size_t>(start.dof()));
-  int outside_rows = 0;
-  for (const calib::Measurement& m : validation.rows) {
+  // validation poses outside the joint ranges of the fit: per joint, how many and how far
+  for (const calib::Measurement& m : r.validation.rows) {
     bool any = false;
-    for (int j = 0; j < start.dof(); ++j) {
-      const calib::JointRange& c = s.coverage[static_cast<size_t>(j)];
+    for (int j = 0; j < r.start.dof(); ++j) {
+      const calib::JointRange& c = r.s.coverage[static_cast<size_t>(j)];
       const double d = m.q[j] < c.lower ? c.lower - m.q[j] : (m.q[j] > c.upper ? m.q[j] - c.upper : 0.0);
       if (d <= 0) continue;
-      Outside& o = outside[static_cast<size_t>(j)];
+      Outside& o = r.outside[static_cast<size_t>(j)];
       ++o.count;
       o.max = std::max(o.max, d);
       if (o.lines.size() < 20) o.lines.push_back(m.line);
       any = true;
     }
-    outside_rows += any ? 1 : 0;
+    r.outside_rows += any ? 1 : 0;
   }
-  auto unitOf = [&](int j) { return start.nominal.joints[static_cast<size_t>(j)].type == calib::JointType::kRevolute ? "deg" : "mm"; };
+}
 
-  // Report
-  bool orient = true;
-  for (const auto& d : sets) orient = orient && d.has_orientation;
-  std::printf("accura identify: %s, %zu poses from %s (%s)\n", start.nominal.name.c_str(), n_rows,
-              data_names.c_str(), orient ? "position and orientation" : "position only");
-  // --quiet: the summary line, warnings, the validation and the file written (see --help)
-  if (!a.quiet && sets.size() > 1) {
-    std::printf("data sets: %zu, %s\n", sets.size(),
-                opt.same_station ? "one tracker station shared (--same-station)"
-                                 : "each from its own tracker station (6 station parameters per set beyond the first)");
-    for (size_t k = 0; k < sets.size(); ++k) {
+/// The data sets, the fit's joint ranges and link forms, identifiability, weighting, solver
+/// and joint maps (not with --quiet).
+void printSetup(const IdentifyArgs& a, const IdentifyRun& r) {
+  const calib::IdentifySummary& s = r.s;
+  if (r.sets.size() > 1) {
+    std::printf("data sets: %zu, %s\n", r.sets.size(),
+                r.opt.same_station ? "one tracker station shared (--same-station)"
+                                   : "each from its own tracker station (6 station parameters per set beyond the first)");
+    for (size_t k = 0; k < r.sets.size(); ++k) {
       const calib::XyzAbc b = calib::toXyzAbc(s.T_world_base_per_set[k]);
-      std::printf("  %s: %zu poses, T_world_base %.3f, %.3f, %.3f mm, %.4f, %.4f, %.4f deg\n", sets[k].file.c_str(),
-                  sets[k].rows.size(), b.x_mm, b.y_mm, b.z_mm, b.a_deg, b.b_deg, b.c_deg);
+      std::printf("  %s: %zu poses, T_world_base %.3f, %.3f, %.3f mm, %.4f, %.4f, %.4f deg\n", r.sets[k].file.c_str(),
+                  r.sets[k].rows.size(), b.x_mm, b.y_mm, b.z_mm, b.a_deg, b.b_deg, b.c_deg);
     }
   }
-  if (!a.quiet) {
+  const int dof = r.start.dof();
   std::printf("joint ranges of the fit data (the model is fitted there; joint-dependent effects are not "
               "extrapolated beyond):");
-  for (int j = 0; j < start.dof(); ++j)
-    std::printf(" j%d %.1f..%.1f %s%s", j + 1, s.coverage[static_cast<size_t>(j)].lower,
-                s.coverage[static_cast<size_t>(j)].upper, unitOf(j), j + 1 < start.dof() ? ";" : "\n");
+  for (int j = 0; j < dof; ++j)
+    std::printf(" j%d %.1f..%.1f %s%s", j + 1, s.coverage[static_cast<size_t>(j)].lower, s.coverage[static_cast<size_t>(j)].upper,
+                r.unitOf(j), j + 1 < dof ? ";" : "\n");
   std::printf("link forms:");
-  for (int i = 0; i < start.dof(); ++i) std::printf(" j%d=%s", i + 1, start.forms[i] == calib::LinkForm::kHayati ? "Hayati" : "DH");
+  for (int i = 0; i < dof; ++i) std::printf(" j%d=%s", i + 1, r.start.forms[i] == calib::LinkForm::kHayati ? "Hayati" : "DH");
   std::printf("\n");
   std::printf("registration: measurement frame in closed form, position RMS %.3f mm after registration\n",
               s.registration_rms_mm);
@@ -189,68 +209,79 @@ int runIdentify(const IdentifyArgs& a) {
                 "RMS over the fit data %.4g %s; zero outside the interval (taper of one knot)\n",
                 mrep.joint, mrep.lower, mrep.upper, mrep.unit.c_str(), mrep.knot, mrep.unit.c_str(), mrep.coefficients,
                 mrep.smoothing, mrep.amplitude, mrep.unit.c_str(), mrep.rms, mrep.unit.c_str());
-  }  // !a.quiet
-  for (const auto& w : s.warnings) std::printf("WARNING: %s\n", w.c_str());
-  if (!a.quiet && !s.suspicious.empty()) {
+}
+
+/// Suspicious and down-weighted rows, the station (also as --base takes it), the parameters and
+/// the fit's accuracy (not with --quiet).
+void printFit(const IdentifyRun& r) {
+  const calib::IdentifySummary& s = r.s;
+  if (!s.suspicious.empty()) {
     std::printf("suspicious rows (normalised residual above the chi quantile 0.9999; check them for glitches):\n");
     for (size_t k = 0; k < s.suspicious.size() && k < 20; ++k)
       std::printf("  %s:%d  normalised %.1f, position error %.3f mm\n", s.suspicious[k].file.c_str(),
                   s.suspicious[k].line, s.suspicious[k].normalised, s.suspicious[k].error_mm);
     if (s.suspicious.size() > 20) std::printf("  ... and %zu more (see --json)\n", s.suspicious.size() - 20);
   }
-  if (!a.quiet && !s.downweighted_lines.empty()) {
+  if (!s.downweighted_lines.empty()) {
     std::printf("robust loss down-weighted %zu rows, lines:", s.downweighted_lines.size());
     for (int l : s.downweighted_lines) std::printf(" %d", l);
     std::printf("\n");
   }
-  if (!a.quiet) {
-    // the station (group base) is where the robot stands in the tracker's frame: a pose, not a
-    // deviation of the robot from its nominal model
-    bool station = false;
-    for (const auto& p : s.parameters) station = station || p.group == "base";
-    if (station) {
-      std::printf("tracker station (T_world_base: the robot base in the measurement frame, 1 sigma):\n");
-      for (const auto& p : s.parameters)
-        if (p.group == "base")
-          std::printf("  %-16s %14.6f +- %-12.6f %s\n", p.name.c_str(), p.value, p.sigma, p.unit.c_str());
-    }
-    std::printf("robot parameters (deviation from the nominal model, 1 sigma):\n");
+  // the station (group base) is where the robot stands in the tracker's frame: a pose, not a
+  // deviation of the robot from its nominal model
+  bool station = false;
+  for (const auto& p : s.parameters) station = station || p.group == "base";
+  if (station) {
+    std::printf("tracker station (T_world_base: the robot base in the measurement frame, 1 sigma):\n");
     for (const auto& p : s.parameters)
-      if (p.group != "base")
-        std::printf("  %-16s %14.6f +- %-12.6f %s\n", p.name.c_str(), p.value, p.sigma, p.unit.c_str());
-    std::printf("accuracy (position mm: RMS mean p95 max%s):\n", orient ? "; orientation deg: RMS mean p95 max" : "");
-    printStatsRow("fit", s.fit);
+      if (p.group == "base") std::printf("  %-16s %14.6f +- %-12.6f %s\n", p.name.c_str(), p.value, p.sigma, p.unit.c_str());
+    const calib::XyzAbc b = calib::toXyzAbc(r.calibrated.T_world_base());
+    std::printf("  as --base x,y,z,A,B,C (mm, deg; what compensate --base takes): %.4f,%.4f,%.4f,%.5f,%.5f,%.5f\n", b.x_mm, b.y_mm,
+                b.z_mm, b.a_deg, b.b_deg, b.c_deg);
   }
-  if (has_val) {
-    std::printf("validation on %s, %d poses (position mm: RMS mean p95 max%s):\n", validation_source.c_str(), val.n,
-                orient ? "; orientation deg: RMS mean p95 max" : "");
-    if (!a.quiet && !station_note.empty()) std::printf("  %s\n", station_note.c_str());
-    if (a.quiet) {
-    } else if (outside_rows > 0) {
-      std::printf("  %d of %d validation poses lie outside the joint ranges of the fit data (joint-dependent effects "
-                  "are not extrapolated there):", outside_rows, val.n);
-      for (int j = 0; j < start.dof(); ++j) {
-        const Outside& o = outside[static_cast<size_t>(j)];
-        if (o.count > 0) std::printf(" j%d %d poses, up to %.1f %s;", j + 1, o.count, o.max, unitOf(j));
-      }
-      std::printf("\n");
-    } else {
-      std::printf("  every validation pose lies within the joint ranges of the fit data\n");
-    }
-    printStatsRow("nominal", nom_val);
-    printStatsRow("calibrated", val);
-    if (val.rms_mm > 0)
-      std::printf("  position RMS improved %.1f-fold (%.4f -> %.4f mm)\n", nom_val.rms_mm / val.rms_mm,
-                  nom_val.rms_mm, val.rms_mm);
-  } else {
-    std::printf("no validation data (--validate or --holdout): accuracy on held-out poses not known\n");
-  }
+  std::printf("robot parameters (deviation from the nominal model, 1 sigma):\n");
+  for (const auto& p : s.parameters)
+    if (p.group != "base") std::printf("  %-16s %14.6f +- %-12.6f %s\n", p.name.c_str(), p.value, p.sigma, p.unit.c_str());
+  std::printf("accuracy (position mm: RMS mean p95 max%s):\n", r.orient ? "; orientation deg: RMS mean p95 max" : "");
+  printStatsRow("fit", s.fit);
+}
 
-  std::vector<calib::ParameterRecord> records;
-  for (const auto& p : s.parameters) records.push_back({p.name, p.value, p.sigma, p.unit});
+/// The validation's accuracy, nominal against calibrated, and whether it is an extrapolation
+/// (poses outside the fit's joint ranges; --quiet: without the other notes).
+void printValidation(const IdentifyArgs& a, const IdentifyRun& r) {
+  if (!r.hasValidation()) {
+    std::printf("no validation data (--validate or --holdout): accuracy on held-out poses not known\n");
+    return;
+  }
+  std::printf("validation on %s, %d poses (position mm: RMS mean p95 max%s):\n", r.validation_source.c_str(), r.val.n,
+              r.orient ? "; orientation deg: RMS mean p95 max" : "");
+  if (!a.quiet && !r.station_note.empty()) std::printf("  %s\n", r.station_note.c_str());
+  if (r.outside_rows > 0) {
+    std::printf("  %d of %d validation poses %s outside the joint ranges of the fit data (joint-dependent effects "
+                "are not extrapolated there):", r.outside_rows, r.val.n, r.outside_rows == 1 ? "lies" : "lie");
+    const char* separator = " ";
+    for (int j = 0; j < r.start.dof(); ++j) {
+      const Outside& o = r.outside[static_cast<size_t>(j)];
+      if (o.count == 0) continue;
+      std::printf("%sj%d %d pose%s, up to %.3g %s", separator, j + 1, o.count, o.count == 1 ? "" : "s", o.max, r.unitOf(j));
+      separator = "; ";
+    }
+    std::printf("\n");
+  } else if (!a.quiet) {
+    std::printf("  every validation pose lies within the joint ranges of the fit data\n");
+  }
+  printStatsRow("nominal", r.nom_val);
+  printStatsRow("calibrated", r.val);
+  if (r.val.rms_mm > 0)
+    std::printf("  position RMS improved %.1f-fold (%.4f -> %.4f mm)\n", r.nom_val.rms_mm / r.val.rms_mm, r.nom_val.rms_mm,
+                r.val.rms_mm);
+}
+
+/// The comment at the top of the calibrated model file.
+std::string modelComment(const IdentifyArgs& a, const IdentifyRun& r) {
   std::ostringstream comment;
-  const calib::XyzAbc b = calib::toXyzAbc(calibrated.T_world_base()), t = calib::toXyzAbc(calibrated.T_flange_tcp());
-  comment << "accura identify: " << calibrated.nominal.name << " from " << data_names << " (" << n_rows
+  const calib::XyzAbc b = calib::toXyzAbc(r.calibrated.T_world_base()), t = calib::toXyzAbc(r.calibrated.T_flange_tcp());
+  comment << "accura identify: " << r.calibrated.nominal.name << " from " << r.data_names << " (" << r.n_rows
           << " poses), groups " << a.params << "\n"
           << "calibrated T_world_base: " << fmt("%.4f", b.x_mm) << ", " << fmt("%.4f", b.y_mm) << ", "
           << fmt("%.4f", b.z_mm) << " mm, " << fmt("%.5f", b.a_deg) << ", " << fmt("%.5f", b.b_deg) << ", "
@@ -258,95 +289,120 @@ int runIdentify(const IdentifyArgs& a) {
           << "calibrated T_flange_tcp: " << fmt("%.4f", t.x_mm) << ", " << fmt("%.4f", t.y_mm) << ", "
           << fmt("%.4f", t.z_mm) << " mm, " << fmt("%.5f", t.a_deg) << ", " << fmt("%.5f", t.b_deg) << ", "
           << fmt("%.5f", t.c_deg) << " deg\n"
-          << "fit RMS " << fmt("%.4f", s.fit.rms_mm) << " mm"
-          << (has_val ? ", validation RMS " + fmt("%.4f", val.rms_mm) + " mm (nominal " + fmt("%.4f", nom_val.rms_mm) + " mm)" : "");
-  for (const auto& w : s.warnings) comment << "\nWARNING: " << w;
+          << "fit RMS " << fmt("%.4f", r.s.fit.rms_mm) << " mm"
+          << (r.hasValidation() ? ", validation RMS " + fmt("%.4f", r.val.rms_mm) + " mm (nominal " + fmt("%.4f", r.nom_val.rms_mm) + " mm)" : "");
+  for (const auto& w : r.s.warnings) comment << "\nWARNING: " << w;
+  return comment.str();
+}
+
+/// The --json report.
+ordered_json identifyJson(const IdentifyArgs& a, const IdentifyRun& r) {
+  const calib::IdentifySummary& s = r.s;
+  const bool has_val = r.hasValidation();
+  ordered_json j;
+  j["robot"] = r.calibrated.nominal.name;
+  j["data"] = a.data.size() == 1 ? ordered_json(a.data[0]) : ordered_json(a.data);
+  j["validation_source"] = has_val ? ordered_json(r.validation_source) : ordered_json(nullptr);
+  j["validation_station"] = has_val ? ordered_json(r.station_note.empty() ? "same as the fit" : r.station_note)
+                                    : ordered_json(nullptr);
+  j["orientation"] = r.orient;
+  j["groups"] = r.opt.groups;
+  j["fit"] = statsJson(s.fit);
+  j["validation"] = has_val ? statsJson(r.val) : ordered_json(nullptr);
+  j["nominal_validation"] = has_val ? statsJson(r.nom_val) : ordered_json(nullptr);
+  ordered_json params = ordered_json::array();
+  for (const auto& p : s.parameters)
+    params.push_back({{"name", p.name}, {"group", p.group}, {"value", num(p.value)}, {"sigma", num(p.sigma)}, {"unit", p.unit}});
+  j["parameters"] = params;
+  ordered_json fixed = ordered_json::array();
+  for (const auto& f : s.fixed) fixed.push_back({{"name", f.name}, {"reason", f.reason}});
+  j["identifiability"] = {{"condition_number", num(s.condition_number)},
+                          {"condition_number_all_candidates", num(s.condition_number_all)},
+                          {"observability_index", num(s.observability_index)},
+                          {"parameters_free", s.parameters_free},
+                          {"equations", s.equations},
+                          {"fixed", fixed}};
+  j["solver"] = {{"termination", s.termination},
+                 {"iterations", s.iterations},
+                 {"initial_cost", num(s.initial_cost)},
+                 {"final_cost", num(s.final_cost)},
+                 {"registration_rms_mm", num(s.registration_rms_mm)},
+                 {"variance_factor", num(s.variance_factor)},
+                 {"weighting", s.weighting},
+                 {"position_std_mm", num(s.position_std_mm)},
+                 {"orientation_std_deg", num(s.orientation_std_deg)},
+                 {"model_error_mm", num(s.model_error_mm)},
+                 {"model_error_deg", num(s.model_error_deg)}};
+  j["downweighted_lines"] = s.downweighted_lines;
+  ordered_json cov = ordered_json::array();
+  for (int jn = 0; jn < r.start.dof(); ++jn)
+    cov.push_back({{"joint", jn + 1}, {"lower", num(s.coverage[static_cast<size_t>(jn)].lower)},
+                   {"upper", num(s.coverage[static_cast<size_t>(jn)].upper)}, {"unit", r.unitOf(jn)}});
+  j["fit_joint_ranges"] = cov;
+  ordered_json stations = ordered_json::array();
+  for (size_t k = 0; k < r.sets.size(); ++k) {
+    const calib::XyzAbc station = calib::toXyzAbc(s.T_world_base_per_set[k]);
+    stations.push_back({{"file", r.sets[k].file}, {"poses", r.sets[k].rows.size()},
+                        {"T_world_base", {num(station.x_mm), num(station.y_mm), num(station.z_mm), num(station.a_deg), num(station.b_deg), num(station.c_deg)}}});
+  }
+  j["data_sets"] = stations;
+  j["same_station"] = r.opt.same_station;
+  ordered_json maps = ordered_json::array();
+  for (const auto& mrep : s.joint_maps)
+    maps.push_back({{"joint", mrep.joint}, {"lower", num(mrep.lower)}, {"upper", num(mrep.upper)},
+                    {"knot", num(mrep.knot)}, {"coefficients", mrep.coefficients}, {"smoothing", num(mrep.smoothing)},
+                    {"amplitude", num(mrep.amplitude)}, {"rms", num(mrep.rms)}, {"unit", mrep.unit}});
+  j["joint_maps"] = maps;
+  ordered_json cvj = ordered_json::array();
+  for (const auto& c : s.joint_map_cv)
+    cvj.push_back({{"knot", num(c.knot)}, {"smoothing", num(c.smoothing)}, {"cv_rms_mm", num(c.cv_rms_mm)}});
+  j["joint_map_cv"] = {{"baseline_rms_mm", num(s.joint_map_cv_baseline_mm)}, {"candidates", cvj}};
+  ordered_json sus = ordered_json::array();
+  for (const auto& row : s.suspicious)
+    sus.push_back({{"file", row.file}, {"line", row.line}, {"normalised", num(row.normalised)}, {"error_mm", num(row.error_mm)}});
+  j["suspicious_rows"] = sus;
+  j["warnings"] = s.warnings;
+  if (has_val) {
+    ordered_json out = ordered_json::array();
+    for (int jn = 0; jn < r.start.dof(); ++jn) {
+      const Outside& o = r.outside[static_cast<size_t>(jn)];
+      if (o.count > 0)
+        out.push_back({{"joint", jn + 1}, {"poses", o.count}, {"max_beyond", num(o.max)}, {"unit", r.unitOf(jn)},
+                       {"first_lines", o.lines}});
+    }
+    j["validation_outside_fit_ranges"] = {{"poses", r.outside_rows}, {"joints", out}};
+  }
+  j["unused_columns"] = r.sets[0].unknown_columns;
+  return j;
+}
+
+/// The steps: the start model, the data, the fit, the validation, the report, the files.
+int runIdentify(const IdentifyArgs& a) {
+  IdentifyRun r;
+  r.start = startModel(a);
+  readData(a, r);
+  r.opt = identifyOptions(a);
+  r.calibrated = calib::identify(r.start, r.sets, r.opt, &r.s);
+  for (const auto& d : r.sets) r.n_rows += d.rows.size();
+  validate(a, r);
+  for (const auto& d : r.sets) r.orient = r.orient && d.has_orientation;
+
+  std::printf("accura identify: %s, %zu poses from %s (%s)\n", r.start.nominal.name.c_str(), r.n_rows, r.data_names.c_str(),
+              r.orient ? "position and orientation" : "position only");
+  // --quiet: the summary line, warnings, the validation and the file written (see --help)
+  if (!a.quiet) printSetup(a, r);
+  for (const auto& w : r.s.warnings) std::printf("WARNING: %s\n", w.c_str());
+  if (!a.quiet) printFit(r);
+  printValidation(a, r);
+
+  std::vector<calib::ParameterRecord> records;
+  for (const auto& p : r.s.parameters) records.push_back({p.name, p.value, p.sigma, p.unit});
   // The model and the summary are one output set, written together or not at all; neither may
   // land on an input.
-  std::vector<calib::OutputFile> outputs = {{a.out, calib::robotFileText(calibrated, records, comment.str())}};
-
-  if (!a.json.empty()) {
-    ordered_json j;
-    j["robot"] = calibrated.nominal.name;
-    j["data"] = a.data.size() == 1 ? ordered_json(a.data[0]) : ordered_json(a.data);
-    j["validation_source"] = has_val ? ordered_json(validation_source) : ordered_json(nullptr);
-    j["validation_station"] = has_val ? ordered_json(station_note.empty() ? "same as the fit" : station_note)
-                                      : ordered_json(nullptr);
-    j["orientation"] = orient;
-    j["groups"] = opt.groups;
-    j["fit"] = statsJson(s.fit);
-    j["validation"] = has_val ? statsJson(val) : ordered_json(nullptr);
-    j["nominal_validation"] = has_val ? statsJson(nom_val) : ordered_json(nullptr);
-    ordered_json params = ordered_json::array();
-    for (const auto& p : s.parameters)
-      params.push_back({{"name", p.name}, {"group", p.group}, {"value", num(p.value)}, {"sigma", num(p.sigma)}, {"unit", p.unit}});
-    j["parameters"] = params;
-    ordered_json fixed = ordered_json::array();
-    for (const auto& f : s.fixed) fixed.push_back({{"name", f.name}, {"reason", f.reason}});
-    j["identifiability"] = {{"condition_number", num(s.condition_number)},
-                            {"condition_number_all_candidates", num(s.condition_number_all)},
-                            {"observability_index", num(s.observability_index)},
-                            {"parameters_free", s.parameters_free},
-                            {"equations", s.equations},
-                            {"fixed", fixed}};
-    j["solver"] = {{"termination", s.termination},
-                   {"iterations", s.iterations},
-                   {"initial_cost", num(s.initial_cost)},
-                   {"final_cost", num(s.final_cost)},
-                   {"registration_rms_mm", num(s.registration_rms_mm)},
-                   {"variance_factor", num(s.variance_factor)},
-                   {"weighting", s.weighting},
-                   {"position_std_mm", num(s.position_std_mm)},
-                   {"orientation_std_deg", num(s.orientation_std_deg)},
-                   {"model_error_mm", num(s.model_error_mm)},
-                   {"model_error_deg", num(s.model_error_deg)}};
-    j["downweighted_lines"] = s.downweighted_lines;
-    ordered_json cov = ordered_json::array();
-    for (int jn = 0; jn < start.dof(); ++jn)
-      cov.push_back({{"joint", jn + 1}, {"lower", num(s.coverage[static_cast<size_t>(jn)].lower)},
-                     {"upper", num(s.coverage[static_cast<size_t>(jn)].upper)}, {"unit", unitOf(jn)}});
-    j["fit_joint_ranges"] = cov;
-    ordered_json stations = ordered_json::array();
-    for (size_t k = 0; k < sets.size(); ++k) {
-      const calib::XyzAbc station = calib::toXyzAbc(s.T_world_base_per_set[k]);
-      stations.push_back({{"file", sets[k].file}, {"poses", sets[k].rows.size()},
-                          {"T_world_base", {num(station.x_mm), num(station.y_mm), num(station.z_mm), num(station.a_deg), num(station.b_deg), num(station.c_deg)}}});
-    }
-    j["data_sets"] = stations;
-    j["same_station"] = opt.same_station;
-    ordered_json maps = ordered_json::array();
-    for (const auto& mrep : s.joint_maps)
-      maps.push_back({{"joint", mrep.joint}, {"lower", num(mrep.lower)}, {"upper", num(mrep.upper)},
-                      {"knot", num(mrep.knot)}, {"coefficients", mrep.coefficients}, {"smoothing", num(mrep.smoothing)},
-                      {"amplitude", num(mrep.amplitude)}, {"rms", num(mrep.rms)}, {"unit", mrep.unit}});
-    j["joint_maps"] = maps;
-    ordered_json cvj = ordered_json::array();
-    for (const auto& c : s.joint_map_cv)
-      cvj.push_back({{"knot", num(c.knot)}, {"smoothing", num(c.smoothing)}, {"cv_rms_mm", num(c.cv_rms_mm)}});
-    j["joint_map_cv"] = {{"baseline_rms_mm", num(s.joint_map_cv_baseline_mm)}, {"candidates", cvj}};
-    ordered_json sus = ordered_json::array();
-    for (const auto& r : s.suspicious)
-      sus.push_back({{"file", r.file}, {"line", r.line}, {"normalised", num(r.normalised)}, {"error_mm", num(r.error_mm)}});
-    j["suspicious_rows"] = sus;
-    j["warnings"] = s.warnings;
-    if (has_val) {
-      ordered_json out = ordered_json::array();
-      for (int jn = 0; jn < start.dof(); ++jn) {
-        const Outside& o = outside[static_cast<size_t>(jn)];
-        if (o.count > 0)
-          out.push_back({{"joint", jn + 1}, {"poses", o.count}, {"max_beyond", num(o.max)}, {"unit", unitOf(jn)},
-                         {"first_lines", o.lines}});
-      }
-      j["validation_outside_fit_ranges"] = {{"poses", outside_rows}, {"joints", out}};
-    }
-    j["unused_columns"] = sets[0].unknown_columns;
-    outputs.push_back({a.json, calib::jsonText(j)});
-  }
+  std::vector<calib::OutputFile> outputs = {{a.out, calib::robotFileText(r.calibrated, records, modelComment(a, r))}};
+  if (!a.json.empty()) outputs.push_back({a.json, calib::jsonText(identifyJson(a, r))});
   std::vector<std::string> inputs = a.data;
-  inputs.push_back(a.robot);
-  inputs.push_back(a.validate);
-  inputs.push_back(a.map);
-  inputs.push_back(a.validate_map);
+  for (const std::string* f : {&a.robot, &a.validate, &a.map, &a.validate_map}) inputs.push_back(*f);
   calib::refuseToOverwrite(outputs, inputs, "--out / --json");
   calib::writeFilesAtomically(outputs);
   std::printf("wrote calibrated model %s\n", a.out.c_str());
@@ -368,7 +424,7 @@ void addIdentifyCommand(CLI::App& app) {
                   "joint_map smoothness (relative weight of the second differences; default: chosen by blocked "
                   "cross-validation on the fit data)",
                   NumberRange{0, 1e12, false, ""});
-  cid->add_option("--validate", id->validate, "held-out measurement CSV (same station)");
+  cid->add_option("--validate", id->validate, "held-out measurement CSV (from the fit's station; another: --validate-station new)");
   cid->add_option("--map", id->map, "mapping file: how to read --data (and --validate) as exported by the instrument");
   cid->add_option("--validate-map", id->validate_map, "mapping file for --validate when it differs from --map");
   cid->add_option("--validate-station", id->validate_station,
@@ -395,10 +451,10 @@ void addIdentifyCommand(CLI::App& app) {
   addNumberOption(cid, "--std-deg", id->std_deg, "orientation std (deg) when the data has no std columns", NumberRange{0, 180, true, "deg"});
   cid->add_option("--out", id->out, "calibrated model file to write")->required();
   cid->add_option("--json", id->json, "summary JSON to write");
-  cid->add_flag("--quiet", id->quiet,
-                "print only what matters: the summary line, warnings, the validation (nominal and calibrated) and "
-                "the file written");
-  cid->add_flag("--verbose", id->verbose, "also print the solver's own report (Ceres: termination, cost)");
+  auto* quiet = cid->add_flag("--quiet", id->quiet,
+                               "print only what matters: the summary line, warnings, the validation (nominal and calibrated, "
+                               "and the poses outside the fit's joint ranges) and the file written");
+  cid->add_flag("--verbose", id->verbose, "also print the solver's own report (Ceres: termination, cost)")->excludes(quiet);
   cid->callback([=]() { exitCode() = runIdentify(*id); });
 }
 

@@ -1,5 +1,8 @@
 // accura: command-line entry point. Subcommands are in commands.cpp.
 #include <CLI/CLI.hpp>
+#include <algorithm>
+#include <cctype>
+#include <vector>
 #include <exception>
 #include <iostream>
 #include <string>
@@ -7,6 +10,51 @@
 #include "accura/calib/errors.h"
 #include "cli_util.h"
 #include "commands.h"
+
+namespace {
+
+// Edit distance of two option names (short: a few dozen characters), for "did you mean".
+size_t editDistance(const std::string& a, const std::string& b) {
+  std::vector<size_t> row(b.size() + 1);
+  for (size_t j = 0; j <= b.size(); ++j) row[j] = j;
+  for (size_t i = 1; i <= a.size(); ++i) {
+    size_t diag = row[0];
+    row[0] = i;
+    for (size_t j = 1; j <= b.size(); ++j) {
+      const size_t up = row[j];
+      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diag + (a[i - 1] == b[j - 1] ? 0 : 1)});
+      diag = up;
+    }
+  }
+  return row[b.size()];
+}
+
+// CLI11 says "The following arguments were not expected: 5 --payload" for an unknown option:
+// name the first unknown option of the command instead, with the nearest known one.
+std::string unknownOptionMessage(const CLI::App& command, int argc, char** argv) {
+  for (int k = 2; k < argc; ++k) {
+    std::string arg = argv[k];
+    if (arg.size() < 2 || arg[0] != '-' || arg == "--") continue;
+    if (arg[1] != '-' && std::isdigit(static_cast<unsigned char>(arg[1]))) continue;  // a negative number
+    arg = arg.substr(0, arg.find('='));
+    if (command.get_option_no_throw(arg) != nullptr) continue;
+    std::string best;
+    size_t best_d = 3;  // suggest only what is close: 2 edits at most, or a prefix either way
+    for (const CLI::Option* o : command.get_options()) {
+      for (const std::string& n : o->get_lnames()) {
+        const std::string known = "--" + n;
+        size_t d = editDistance(arg, known);
+        if (known.rfind(arg, 0) == 0 || arg.rfind(known, 0) == 0) d = std::min<size_t>(d, 1);
+        if (d < best_d) best_d = d, best = known;
+      }
+    }
+    return "expected an option of accura " + command.get_name() + ", found '" + arg + "'" +
+           (best.empty() ? std::string() : " (did you mean " + best + "?)");
+  }
+  return "";
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
   using namespace accura::cli;
@@ -54,6 +102,21 @@ int main(int argc, char** argv) {
       return app.exit(e);
     } catch (const CLI::CallForVersion& e) {
       return app.exit(e);
+    } catch (const CLI::ExtrasError& e) {
+      const CLI::App* command = nullptr;
+      for (const CLI::App* sub : app.get_subcommands({}))
+        if (argc > 1 && sub->get_name() == argv[1]) command = sub;
+      const std::string what = command ? unknownOptionMessage(*command, argc, argv) : std::string();
+      // no unknown option: a stray value (CLI11 lists it after the colon)
+      std::string stray = e.what();
+      stray = stray.substr(stray.find(':') == std::string::npos ? 0 : stray.find(':') + 2);
+      std::cerr << "accura: error: "
+                << (what.empty() ? "expected options of accura" + (command ? " " + command->get_name() : std::string()) +
+                                       " and their values, found the stray argument(s) " + stray
+                                 : what)
+                << " (see accura "
+                << (command ? command->get_name() + " " : std::string()) << "--help)\n";
+      return 1;
     } catch (const CLI::ParseError& e) {
       // bad usage: exit status 1 like any other bad input, with a pointer to the help
       // the help to see is the command's (argv[1] is a known command here), else accura's

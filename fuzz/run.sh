@@ -11,7 +11,7 @@ bin="${1:?usage: fuzz/run.sh BUILD_FUZZ_DIR [SECONDS] [TARGET...]}"
 seconds="${2:-20}"
 shift 2 || shift $#
 targets=("$@")
-if [ ${#targets[@]} -eq 0 ]; then targets=(krl krl_config xml_program urscript robot measurements mapping cell mesh urdf); fi
+if [ ${#targets[@]} -eq 0 ]; then targets=(krl krl_config xml_program urscript rapid robot measurements mapping cell mesh urdf); fi
 export ASAN_OPTIONS="${ASAN_OPTIONS:-detect_leaks=1}"
 # leaks inside assimp itself (not accura's; findings/README.md) are suppressed
 export LSAN_OPTIONS="${LSAN_OPTIONS:-suppressions=$here/lsan.supp:print_suppressions=0}"

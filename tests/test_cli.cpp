@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 
 #include "accura/calib/kinematics.h"
+#include "accura/calib/text.h"
 #include "test_util.h"
 
 namespace accura::calib {
@@ -32,13 +33,22 @@ TEST(Cli, FkPrintsThePoseOfTheLibrary) {
   q << 10, -80, 70, 20, 30, 40;
   const XyzAbc p = toXyzAbc(forwardKinematics(m, q));
   double x, y, z, a, b, c;
-  ASSERT_EQ(std::sscanf(r.out.c_str(), "x=%lf y=%lf z=%lf A=%lf B=%lf C=%lf", &x, &y, &z, &a, &b, &c), 6) << r.out;
+  ASSERT_EQ(std::sscanf(r.out.c_str(), "x=%lf y=%lf z=%lf mm  A=%lf B=%lf C=%lf deg", &x, &y, &z, &a, &b, &c), 6) << r.out;
   EXPECT_NEAR(x, p.x_mm, 1e-4);
   EXPECT_NEAR(y, p.y_mm, 1e-4);
   EXPECT_NEAR(z, p.z_mm, 1e-4);
   EXPECT_NEAR(a, p.a_deg, 1e-5);
   EXPECT_NEAR(b, p.b_deg, 1e-5);
   EXPECT_NEAR(c, p.c_deg, 1e-5);
+  // units on the line, and no "-0.0000" for a coordinate that is zero (KR 16 at A2 -90, A3 90:
+  // the arm stretched forward in the x-z plane: y = 0)
+  const CliRun zero = run("fk --robot kuka_kr16 --q 0,-90,90,0,0,0");
+  ASSERT_EQ(zero.code, 0) << zero.err;
+  Eigen::VectorXd q0(6);
+  q0 << 0, -90, 90, 0, 0, 0;
+  const XyzAbc p0 = toXyzAbc(forwardKinematics(m, q0));
+  EXPECT_NEAR(p0.y_mm, 0.0, 1e-9);
+  EXPECT_EQ(zero.out, "x=" + formatFixed(p0.x_mm, 4) + " y=0.0000 z=" + formatFixed(p0.z_mm, 4) + " mm  A=0.00000 B=90.00000 C=0.00000 deg\n");
 }
 
 TEST(Cli, FkRejectsWrongJointCountAndLimits) {

@@ -117,6 +117,21 @@ TEST(CliUsage, MissingOptionPointsAtTheCommandsHelp) {
   EXPECT_EQ(r.err.find("<command>"), std::string::npos) << r.err;
 }
 
+// An unknown option is named, with the nearest known one when it is close (CLI11's own text put
+// the value first: "The following arguments were not expected: 5 --payload").
+TEST(CliUsage, AnUnknownOptionIsNamedWithTheNearestKnownOne) {
+  CliRun r = run("fk --robot kuka_kr16 --q 0,0,0,0,0,0 --payload 5");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_EQ(r.err, "accura: error: expected an option of accura fk, found '--payload' (did you mean --payload-kg?) (see accura fk --help)\n");
+  r = run("fk --robot kuka_kr16 --q=-1,0,0,0,0,0 --jsn a.json");
+  EXPECT_EQ(r.err, "accura: error: expected an option of accura fk, found '--jsn' (did you mean --json?) (see accura fk --help)\n");
+  r = run("fk --robot kuka_kr16 --q -1,0,0,0,0,0 --zzz");
+  EXPECT_EQ(r.err, "accura: error: expected an option of accura fk, found '--zzz' (see accura fk --help)\n");
+  r = run("fk --robot kuka_kr16 --q 0,0,0,0,0,0 extra");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_EQ(r.err, "accura: error: expected options of accura fk and their values, found the stray argument(s) extra (see accura fk --help)\n");
+}
+
 // identify: the user's language first (--verbose adds the solver's report), the station apart
 // from the robot's deviations, --quiet exactly the summary line, the validation and the file.
 TEST(CliIdentify, QuietVerboseAndTheStationApartFromTheDeviations) {
@@ -124,16 +139,32 @@ TEST(CliIdentify, QuietVerboseAndTheStationApartFromTheDeviations) {
   ASSERT_EQ(run("simulate --robot kuka_kr16 --tool 80,40,150 --poses 120 --seed 5 --out fit.csv --truth truth.xml --json sim.json", dir).code, 0);
   ASSERT_EQ(run("simulate --robot truth.xml --effects none --poses 60 --seed 6 --out val.csv", dir).code, 0);
   const std::string args = "identify --robot kuka_kr16 --tool 80,40,150 --data fit.csv --validate val.csv --out cal.xml";
-  const CliRun quiet = run(args + " --quiet", dir);
+  const CliRun quiet = run(args + " --quiet --json quiet.json", dir);
   ASSERT_EQ(quiet.code, 0) << quiet.err;
-  const auto q = lines(quiet.out);
-  ASSERT_EQ(q.size(), 6u) << quiet.out;
+  auto q = lines(quiet.out);
+  // the validation poses outside the fit's joint ranges are said with --quiet too (eyes F5): the
+  // validation is then an extrapolation
+  const int outside = nlohmann::json::parse(test::readText(dir + "/quiet.json"))["validation_outside_fit_ranges"]["poses"].get<int>();
+  ASSERT_EQ(q.size(), outside > 0 ? 7u : 6u) << quiet.out;
+  if (outside > 0) {
+    EXPECT_EQ(q[2].rfind("  " + std::to_string(outside) + " of 60 validation poses ", 0), 0u) << q[2];
+    q.erase(q.begin() + 2);
+  }
   EXPECT_EQ(q[0], "accura identify: KUKA KR 16, 120 poses from fit.csv (position only)");
   EXPECT_EQ(q[1], "validation on val.csv, 60 poses (position mm: RMS mean p95 max):");
   EXPECT_EQ(q[2].rfind("  nominal ", 0), 0u) << q[2];
   EXPECT_EQ(q[3].rfind("  calibrated ", 0), 0u) << q[3];
   EXPECT_EQ(q[4].rfind("  position RMS improved ", 0), 0u) << q[4];
   EXPECT_EQ(q[5], "wrote calibrated model cal.xml");
+  // a bad --params or --loss names that option alone (eyes F20)
+  const CliRun bad_group = run(args + " --params geometric,bogus", dir);
+  EXPECT_EQ(bad_group.code, 1);
+  EXPECT_EQ(bad_group.err.rfind("accura: error: --params: unknown parameter group 'bogus' (expected one of: ", 0), 0u) << bad_group.err;
+  const CliRun bad_loss = run(args + " --loss bogus", dir);
+  EXPECT_EQ(bad_loss.err, "accura: error: --loss: loss must be none, huber or cauchy, got 'bogus'\n");
+  const CliRun both = run(args + " --quiet --verbose", dir);
+  EXPECT_EQ(both.code, 1);
+  EXPECT_EQ(both.err, "accura: error: --quiet excludes --verbose (see accura identify --help)\n");
 
   const CliRun normal = run(args, dir);
   ASSERT_EQ(normal.code, 0) << normal.err;
@@ -154,10 +185,58 @@ TEST(CliIdentify, QuietVerboseAndTheStationApartFromTheDeviations) {
   EXPECT_NEAR(base_x, sim["T_world_base"][0].get<double>(), 0.05);
   EXPECT_NEAR(sim["T_world_base"][0].get<double>(), 2400, 1e-9);
   EXPECT_NE(normal.out.find("solver: converged after "), std::string::npos) << normal.out;
+  // the station also as --base takes it (eyes F17): the model file's base, x,y,z,A,B,C
+  const std::string as_base = "  as --base x,y,z,A,B,C (mm, deg; what compensate --base takes): ";
+  const size_t at = normal.out.find(as_base, station);
+  ASSERT_LT(at, robot) << normal.out;
+  double v[6];
+  ASSERT_EQ(std::sscanf(normal.out.c_str() + at + as_base.size(), "%lf,%lf,%lf,%lf,%lf,%lf", v, v + 1, v + 2, v + 3, v + 4, v + 5), 6);
+  const XyzAbc cal = toXyzAbc(readRobotFile(dir + "/cal.xml").T_world_base());
+  EXPECT_NEAR(v[0], cal.x_mm, 0.5e-4);
+  EXPECT_NEAR(v[1], cal.y_mm, 0.5e-4);
+  EXPECT_NEAR(v[2], cal.z_mm, 0.5e-4);
+  EXPECT_NEAR(v[3], cal.a_deg, 0.5e-5);
+  EXPECT_NEAR(v[4], cal.b_deg, 0.5e-5);
+  EXPECT_NEAR(v[5], cal.c_deg, 0.5e-5);
 
   const CliRun verbose = run(args + " --verbose", dir);
   ASSERT_EQ(verbose.code, 0) << verbose.err;
   EXPECT_NE(verbose.out.find("solver details (Ceres): CONVERGENCE: "), std::string::npos) << verbose.out;
+}
+
+// identify: the validation poses outside the fit's joint ranges in plain words (one pose, two
+// poses; numbers to three digits, no trailing separator), built here from the --json report's
+// numbers; --validate's help names the station rule of --validate-station.
+TEST(CliIdentify, ValidationOutsideTheFitRangesReadsAsASentence) {
+  const std::string dir = test::tempDir("cli_ux_outside");
+  ASSERT_EQ(run("simulate --robot kuka_kr16 --tool 80,40,150 --poses 60 --seed 5 --out fit.csv --truth truth.xml", dir).code, 0);
+  ASSERT_EQ(run("simulate --robot truth.xml --effects none --poses 200 --seed 6 --out val.csv", dir).code, 0);
+  const CliRun r = run("identify --robot kuka_kr16 --tool 80,40,150 --data fit.csv --validate val.csv --out cal.xml --json cal.json", dir);
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto j = nlohmann::json::parse(test::readText(dir + "/cal.json"))["validation_outside_fit_ranges"];
+  const int n = j["poses"].get<int>();
+  ASSERT_GT(n, 0) << "60 fit poses leave some of 200 validation poses outside their ranges";
+  std::string expected = "  " + std::to_string(n) + " of 200 validation poses " + (n == 1 ? "lies" : "lie") +
+                         " outside the joint ranges of the fit data (joint-dependent effects are not extrapolated there):";
+  const char* separator = " ";
+  for (const auto& o : j["joints"]) {
+    const int k = o["poses"].get<int>();
+    char max[32];
+    std::snprintf(max, sizeof max, "%.3g", o["max_beyond"].get<double>());
+    expected += separator + ("j" + std::to_string(o["joint"].get<int>())) + " " + std::to_string(k) + (k == 1 ? " pose" : " poses") +
+                ", up to " + max + " " + o["unit"].get<std::string>();
+    separator = "; ";
+  }
+  EXPECT_NE(r.out.find(expected + "\n"), std::string::npos) << expected << "\n" << r.out;
+  EXPECT_EQ(r.out.find(" 1 poses"), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find(";\n"), std::string::npos) << r.out;
+  const CliRun quiet = run("identify --robot kuka_kr16 --tool 80,40,150 --data fit.csv --validate val.csv --out cal.xml --quiet", dir);
+  EXPECT_NE(quiet.out.find(expected + "\n"), std::string::npos) << "--quiet says it too (eyes F5)\n" << quiet.out;
+  const CliRun help = run("identify --help", dir);
+  EXPECT_NE(help.out.find("held-out measurement CSV (from the fit's station; another: --validate-station new)"), std::string::npos)
+      << help.out;
+  EXPECT_EQ(help.out.find("(same station)"), std::string::npos) << help.out;
+  std::filesystem::remove_all(dir);
 }
 
 TEST(CliJson, FkSimulateAndConvertWriteJson) {

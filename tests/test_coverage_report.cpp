@@ -27,7 +27,7 @@ TEST(CoverageReport, TargetsOutsideTheFittedRangesAreWarningsOfTheReport) {
   const double lower = model.deviations.fit_range[0].lower, upper = model.deviations.fit_range[0].upper;
 
   const nlohmann::json report = nlohmann::json::parse(test::readText(dir + "/r.json"));
-  const std::regex per_target(R"(lies outside the joint ranges the model was fitted on: A1 (-?[0-9.]+) \(fitted (-?[0-9.]+)\.\.(-?[0-9.]+), ([0-9.]+) beyond\))");
+  const std::regex per_target(R"(lies outside the joint ranges the model was fitted on: joint 1 \(shoulder_pan\) at (-?[0-9.]+) deg \(fitted (-?[0-9.]+)\.\.(-?[0-9.]+) deg, ([0-9.]+) deg beyond\))");
   int targets_outside = 0;
   std::string summary;
   for (const auto& w : report.at("warnings")) {

@@ -10,8 +10,10 @@
 #endif
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <nlohmann/json.hpp>
 #include <thread>
@@ -415,6 +417,78 @@ TEST(Plugin, WrittenProgramReadsBack) {
   ASSERT_EQ(accura_write_file(h.m, (dir + "/t/table.csv").c_str(), text.data(), text.size()), ACCURA_OK) << lastError(h.m);
   EXPECT_EQ(test::readText(dir + "/t/table.csv"), text);
   for (const auto& e : std::filesystem::directory_iterator(dir + "/t")) EXPECT_EQ(e.path().filename().string(), "table.csv");
+  std::filesystem::remove_all(dir);
+}
+
+// Issue 17: a PTP written with the arm's joint values carries their configuration (KRL and
+// XML: S and T). The expected values are KUKA's: HOME {0, -90, 90, 0, 0, 0} is S 2 (B010), T 2
+// (A2 < 0); {10, -60, 80, 20, -45, 30} adds A5 < 0 (S bit 2, T bit 4): S 6, T 18.
+TEST(Plugin, PtpCarriesTheConfigurationOfTheArmsJoints) {
+  const std::string dir = test::tempDir("plugin_ptp_st");
+  accura_load_options lo;
+  ASSERT_EQ(accura_load_options_init(&lo, sizeof(lo)), ACCURA_OK);
+  lo.has_program_tool = 1;
+  lo.program_tool = cpose(kTorch);
+  Handle h(test::sourcePath(kModel), &lo);
+  const double home[6] = {0, -90, 90, 0, 0, 0}, flip[6] = {10, -60, 80, 20, -45, 30};
+  accura_configuration c;
+  ASSERT_EQ(accura_joint_configuration(h.m, home, 6, &c), ACCURA_OK) << lastError(h.m);
+  EXPECT_EQ(c.status, 2);
+  EXPECT_EQ(c.turn, 2);
+  ASSERT_EQ(accura_joint_configuration(h.m, flip, 6, &c), ACCURA_OK) << lastError(h.m);
+  EXPECT_EQ(c.status, 6);
+  EXPECT_EQ(c.turn, 18);
+  EXPECT_EQ(accura_joint_configuration(h.m, flip, 5, &c), ACCURA_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(lastError(h.m), "accura_joint_configuration: expected 6 joint values, got 5");
+
+  accura_pose p_home, p_flip;
+  ASSERT_EQ(accura_forward_kinematics(h.m, ACCURA_CONTROLLER, home, 6, &p_home), ACCURA_OK);
+  ASSERT_EQ(accura_forward_kinematics(h.m, ACCURA_CONTROLLER, flip, 6, &p_flip), ACCURA_OK);
+  accura_program_motion m[3] = {{ACCURA_PTP, {}, p_home, 0, 0.0, 6, {}}, {ACCURA_PTP, {}, p_flip, 0, 0.0, 6, {}},
+                                {ACCURA_LIN, {}, p_home, 0, 0.1, 6, {}}};
+  std::copy(home, home + 6, m[0].joints);
+  std::copy(flip, flip + 6, m[1].joints);
+  std::copy(flip, flip + 6, m[2].joints);  // a LIN keeps the configuration it starts in: not used
+  accura_write_options o;
+  ASSERT_EQ(accura_write_options_init(&o, sizeof(o)), ACCURA_OK);
+  o.tool = cpose(kTorch);
+  for (const std::string name : {"/ptp.src", "/ptp.xml"}) {
+    SCOPED_TRACE(name);
+    ASSERT_EQ(accura_write_program(h.m, (dir + name).c_str(), m, 3, &o), ACCURA_OK) << lastError(h.m);
+    const Program p = readProgram(dir + name);
+    ASSERT_EQ(p.motions.size(), 3u);
+    ASSERT_TRUE(p.motions[0].target.status && p.motions[0].target.turn);
+    EXPECT_EQ(*p.motions[0].target.status, 2);
+    EXPECT_EQ(*p.motions[0].target.turn, 2);
+    ASSERT_TRUE(p.motions[1].target.status && p.motions[1].target.turn);
+    EXPECT_EQ(*p.motions[1].target.status, 6);
+    EXPECT_EQ(*p.motions[1].target.turn, 18);
+    EXPECT_FALSE(p.motions[2].target.status || p.motions[2].target.turn);
+  }
+  // bad input, messages to the letter: joints of another target, a wrong count, not finite, too
+  // many, no model on the handle
+  m[1].end = p_home;
+  const Eigen::Isometry3d a = calib::toIsometry(xyz(p_home)), b = calib::toIsometry(xyz(p_flip));
+  char numbers[64];
+  std::snprintf(numbers, sizeof numbers, "%.4f mm and %.4f deg", positionDiff(a, b), angleDiffRad(a, b) * 180 / M_PI);
+  EXPECT_EQ(accura_write_program(h.m, (dir + "/bad.src").c_str(), m, 3, &o), ACCURA_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(lastError(h.m), "accura_write_program: motions[1].joints: the joint values put the tool " + std::string(numbers) +
+                                " from the target (expected the arm's joints at it, within 0.01 mm and 0.01 deg)");
+  m[1].end = p_flip;
+  m[1].n_joints = 5;
+  EXPECT_EQ(accura_write_program(h.m, (dir + "/bad.src").c_str(), m, 3, &o), ACCURA_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(lastError(h.m), "accura_write_program: motions[1].joints: expected 6 joint values, got 5");
+  m[1].n_joints = 6;
+  m[1].joints[2] = NAN;
+  EXPECT_EQ(accura_write_program(h.m, (dir + "/bad.src").c_str(), m, 3, &o), ACCURA_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(lastError(h.m), "accura_write_program: motions[1].joints[2] is not finite");
+  m[1].n_joints = ACCURA_MAX_JOINTS + 1;
+  EXPECT_EQ(accura_write_program(h.m, (dir + "/bad.src").c_str(), m, 3, &o), ACCURA_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(lastError(h.m), "accura_write_program: motions[1].n_joints: expected 0..12, found 13");
+  Handle none;
+  EXPECT_EQ(accura_write_program(none.m, (dir + "/bad.src").c_str(), m, 1, &o), ACCURA_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(lastError(none.m), "accura_write_program: motions[0].joints: the configuration needs the robot's geometry: load a model first");
+  EXPECT_FALSE(std::filesystem::exists(dir + "/bad.src"));
   std::filesystem::remove_all(dir);
 }
 

@@ -11,6 +11,8 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdlib>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -60,6 +62,50 @@ std::vector<PathSegment> segmentsOf(const Program& p, Eigen::Isometry3d* T_world
     prev = s.T_world_end;
   }
   return segs;
+}
+
+/// DH link of the robot file (robot.h): Rz(direction * q + theta0) Tz(d) Tx(a) Rx(alpha).
+Eigen::Isometry3d dhLink(const calib::JointSpec& j, double q_deg) {
+  const double r = M_PI / 180;
+  return Eigen::Isometry3d(Eigen::AngleAxisd((j.direction * q_deg + j.theta0_deg) * r, Eigen::Vector3d::UnitZ())) *
+         Eigen::Translation3d(0, 0, j.d_mm) * Eigen::Translation3d(j.a_mm, 0, 0) *
+         Eigen::AngleAxisd(j.alpha_deg * r, Eigen::Vector3d::UnitX());
+}
+
+/// The product of the first n DH links at q (robot base to DH frame n; n = 6: the flange).
+Eigen::Isometry3d dhChain(const calib::RobotDefinition& robot, const std::vector<double>& q, int n) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  for (int i = 0; i < n; ++i) T = T * dhLink(robot.joints[i], q[i]);
+  return T;
+}
+
+/// KUKA's Status and Turn of a 6-axis arm with a spherical wrist, written here from KUKA's
+/// definition with the DH chain above (independent of calib::kukaConfiguration): T bit i when
+/// A(i+1) < 0; S bit 0 when the wrist point (origin of DH frame 4) has a negative x in the A1
+/// frame (the base frame turned with A1: overhead), bit 1 when A3 >= the A3 angle of the
+/// stretched arm (wrist point farthest from the A2 axis), bit 2 when A5 in [-180, 180) < 0.
+calib::Configuration kukaRule(const calib::RobotDefinition& robot, const std::vector<double>& q) {
+  calib::Configuration c{0, 0};
+  for (int i = 0; i < 6; ++i)
+    if (q[i] < 0) c.turn |= 1 << i;
+  const Eigen::Vector3d wrist = dhChain(robot, q, 4).translation();
+  const double a1 = (robot.joints[0].direction * q[0] + robot.joints[0].theta0_deg) * M_PI / 180;
+  if (std::cos(a1) * wrist.x() + std::sin(a1) * wrist.y() < 0) c.status |= 1;
+  // the stretched A3 angle: golden-section search of the A2-axis-to-wrist distance (unimodal)
+  auto reach = [&](double q3) {
+    std::vector<double> qq = {0, 0, q3, 0, 0, 0};
+    return (dhChain(robot, qq, 4).translation() - dhChain(robot, qq, 1).translation()).norm();
+  };
+  double lo = -90, hi = 90;
+  const double g = (std::sqrt(5.0) - 1) / 2;
+  while (hi - lo > 1e-9) {
+    const double m1 = hi - g * (hi - lo), m2 = lo + g * (hi - lo);
+    (reach(m1) < reach(m2) ? lo : hi) = reach(m1) < reach(m2) ? m1 : m2;
+  }
+  if (q[2] >= (lo + hi) / 2) c.status |= 2;
+  const double a5 = std::fmod(std::fmod(q[4] + 180, 360) + 360, 360) - 180;
+  if (a5 < 0) c.status |= 4;
+  return c;
 }
 
 // The sanitizer build (tests/CMakeLists.txt): the environment freecadcmd needs to load the
@@ -126,6 +172,70 @@ TEST(PluginFreecad, CompensatedSeamExportedFromFreecadFollowsThePath) {
     EXPECT_LT((a.translation() - b.translation()).norm(), 1e-3) << k;
     EXPECT_LT(Eigen::AngleAxisd(a.linear() * b.linear().transpose()).angle(), 1e-4) << k;
   }
+
+  // Issue 17: every exported PTP carries the S/T of the arm's joint values there (FreeCAD's IK
+  // from the robot's axes, in summary.json), by KUKA's rule computed here; the joints put the
+  // program's tool on the PTP's target (they are the arm's joints there). "flip": PTPs on another
+  // branch, made from the joint values flip_joints, must carry S 6, T 27 (A1, A2, A4, A5 < 0).
+  const calib::RobotModel kr16_model = calib::readRobotFile(model_path);
+  const calib::RobotDefinition& kr16 = kr16_model.nominal;
+  {
+    const std::vector<double> stretched = {0, 0, -2.9906, 0, 0, 0}, bent = {0, 0, -2.9896, 0, 0, 0};
+    EXPECT_EQ(kukaRule(kr16, stretched).status & 2, 0);  // KR 16: phi = -atan(35 / 670) = -2.9904 deg
+    EXPECT_EQ(kukaRule(kr16, bent).status & 2, 2);
+  }
+  int ptps = 0;
+  for (const char* name : {"seam", "seam_accura", "flip", "flip_accura"}) {
+    const Program p = readProgram(dir + "/" + name + ".src");
+    const nlohmann::json& joints = summary["arm_joints"][name];
+    ASSERT_EQ(joints.size(), p.motions.size() + std::count_if(p.motions.begin(), p.motions.end(), [](const Motion& m) { return m.aux.has_value(); }))
+        << name;  // one per waypoint (a CIRC is two)
+    size_t w = 0;
+    for (const Motion& m : p.motions) {
+      if (m.aux) ++w;
+      const nlohmann::json& q = joints[w++];
+      if (m.type != MotionType::kPtp) {
+        EXPECT_TRUE(q.is_null()) << name;
+        EXPECT_FALSE(m.target.status.has_value() || m.target.turn.has_value()) << name << ": " << m.statement;
+        continue;
+      }
+      ++ptps;
+      const std::vector<double> qv = q.get<std::vector<double>>();
+      const Eigen::Isometry3d T_tcp = dhChain(kr16, qv, 6) * calib::toIsometry(*m.tool.value);
+      const Eigen::Isometry3d T_target = calib::toIsometry(m.target.xyzAbc());
+      EXPECT_LT((T_tcp.translation() - T_target.translation()).norm(), 1e-3) << name << ": " << m.statement;  // mm
+      const calib::Configuration expected = kukaRule(kr16, qv);
+      ASSERT_TRUE(m.target.status && m.target.turn) << name << ": " << m.statement;
+      EXPECT_EQ(*m.target.status, expected.status) << name << ": " << m.statement;
+      EXPECT_EQ(*m.target.turn, expected.turn) << name << ": " << m.statement;
+      if (std::string(name).rfind("flip", 0) == 0) {
+        EXPECT_EQ(*m.target.status, 6) << m.statement;
+        EXPECT_EQ(*m.target.turn, 27) << m.statement;
+      }
+    }
+  }
+  EXPECT_EQ(ptps, 8);  // seam 1 + 1, flip 3 + 3
+  // the arm's joints at the flip targets are those they were made from (the same branch)
+  for (size_t k = 0; k < 3; ++k)
+    for (size_t i = 0; i < 6; ++i)
+      EXPECT_NEAR(summary["arm_joints"]["flip"][k][i].get<double>(), summary["flip_joints"][k][i].get<double>(), 1e-3) << k << " " << i;
+  // compensate_trajectory(payload_kg=8) equals the trajectory of a model loaded with 8 kg, and
+  // differs from 0 kg (the model has joint compliance: more than 1 um on the first waypoint)
+  const auto heavy = summary["payload_8kg"].get<std::vector<std::vector<double>>>();
+  const auto heavy_ref = summary["payload_8kg_ref"].get<std::vector<std::vector<double>>>();
+  const auto light = summary["payload_0kg"].get<std::vector<std::vector<double>>>();
+  ASSERT_EQ(heavy.size(), heavy_ref.size());
+  ASSERT_FALSE(heavy.empty());
+  for (size_t k = 0; k < heavy.size(); ++k)
+    for (int i = 0; i < 6; ++i) EXPECT_NEAR(heavy[k][i], heavy_ref[k][i], 1e-9) << k << " " << i;
+  EXPECT_GT(std::hypot(heavy[0][0] - light[0][0], heavy[0][1] - light[0][1], heavy[0][2] - light[0][2]), 1e-3);  // mm
+  // a PTP the arm cannot reach is refused, nothing written, no probe robot left in the document
+  EXPECT_EQ(summary["far"].get<std::string>(), "waypoint 0 (FAR): FreeCAD's robot 'KR16' finds no joint values that put its tool there");
+  EXPECT_FALSE(std::filesystem::exists(dir + "/far.src"));
+  for (const std::string& o : objects) EXPECT_EQ(o.rfind("AccuraKinematicProbe", 0), std::string::npos) << o;
+  // without the robot the PTPs carry no S/T (as before)
+  const Program no_st = readProgram(dir + "/seam_no_st.src");
+  EXPECT_FALSE(no_st.motions.front().target.status.has_value() || no_st.motions.front().target.turn.has_value());
 
   // execution on the real robot (the calibrated model) through the nominal controller
   const calib::RobotModel real = calib::readRobotFile(model_path);

@@ -26,7 +26,10 @@ namespace {
 
 using namespace accura::calib;
 
-std::string example() { return test::readText(test::sourcePath("examples/ur10_seam.script")); }
+// The seam of the first example (joint 1 near 0 deg; tests/golden/urscript/README.md): the numbers
+// below are its. The bundled example (README) is the same seam turned to where Series_B measured.
+std::string example() { return test::readText(test::sourcePath("tests/golden/urscript/ur10_seam.script")); }
+std::string bundledExample() { return test::readText(test::sourcePath("examples/ur10_seam.script")); }
 
 // The TCP pose T_base_tcp a p[...] means (metres, rotation vector), computed here on its own
 // from the axis-angle formula (Rodrigues), not with the reader's code.
@@ -472,7 +475,7 @@ TEST(UrScript, BatchAndCheckInTheCell) {
   ASSERT_EQ(b.code, 0) << b.err;
   EXPECT_EQ(test::readText(dir + "/out/cell2/seam.script"), example());  // the nominal robot: nothing to correct
   const test::CliRun c = test::runAccuraIn(dir, "check --robot ur10 --cell " + test::sourcePath("tests/data/urscript/ur10_table_cell.xml") +
-                                                    " --in " + test::sourcePath("examples/ur10_seam.script") + " --json check.json");
+                                                    " --in " + test::sourcePath("tests/golden/urscript/ur10_seam.script") + " --json check.json");
   ASSERT_EQ(c.code, 0) << c.err;
   EXPECT_NE(c.out.find("smallest clearance 94.403 mm"), std::string::npos) << c.out;
   EXPECT_NEAR(std::sqrt(30.0 * 30.0 + 100.0 * 100.0) - 10, 94.403, 5e-4);
@@ -493,18 +496,22 @@ TEST(UrScript, RealUr10CalibratedThenTheExampleCompensated) {
   const XyzAbc b = toXyzAbc(readRobotFile(dir + "/ur10_calibrated.xml").T_world_base());
   const std::string base = formatMm(b.x_mm) + "," + formatMm(b.y_mm) + "," + formatMm(b.z_mm) + "," + formatDeg(b.a_deg) + "," +
                            formatDeg(b.b_deg) + "," + formatDeg(b.c_deg);
-  test::writeText(dir + "/ur10_seam.script", example());
+  test::writeText(dir + "/ur10_seam.script", bundledExample());
   const test::CliRun c = test::runAccuraIn(dir, "compensate --robot ur10_calibrated.xml --in ur10_seam.script --out out --base " + base +
                                                     " --json out/report.json");
   ASSERT_EQ(c.code, 0) << c.err;
-  const nlohmann::json t = nlohmann::json::parse(test::readText(dir + "/out/report.json"))["totals"];
+  const nlohmann::json report = nlohmann::json::parse(test::readText(dir + "/out/report.json"));
+  const nlohmann::json t = report["totals"];
   EXPECT_EQ(t["targets_corrected"], 7);
+  // the bundled seam lies inside the joint ranges Series_B covers: no extrapolation warning
+  for (const auto& w : report["warnings"]) EXPECT_EQ(w["message"].get<std::string>().find("outside the joint ranges"), std::string::npos) << w;
+  EXPECT_EQ(c.err.find("outside the fitted joint ranges"), std::string::npos) << c.err;
   EXPECT_GT(t["max_correction_mm"].get<double>(), 0.3);
   EXPECT_LT(t["max_correction_mm"].get<double>(), 1.5);
   EXPECT_GT(t["max_error_uncompensated_mm"].get<double>(), 0.3);
   EXPECT_LE(t["max_error_after_mm"].get<double>(), 0.05);
   // only the p[...] numbers and the inserted lines differ
-  const Program in = parseUrScript(example(), "in");
+  const Program in = parseUrScript(bundledExample(), "in");
   const Program out = readUrScript(dir + "/out/ur10_seam.script");
   EXPECT_EQ(out.motions.size(), in.motions.size() + t["points_added"].get<size_t>());
   EXPECT_EQ(out.urscript->others.size(), in.urscript->others.size());

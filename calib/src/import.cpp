@@ -247,37 +247,55 @@ MeasurementMapping readMeasurementMapping(const std::string& path, const RobotDe
   return m;
 }
 
-MeasurementSet readMappedMeasurements(const std::string& path, const MeasurementMapping& m,
-                                      const RobotDefinition& robot) {
-  const std::vector<std::string> lines = readLines(path);
-  size_t hi = 0;
-  while (hi < lines.size() && (trim(lines[hi]).empty() || trim(lines[hi])[0] == '#')) ++hi;
-  if (hi == lines.size()) throw InputError(path, 0, 0, "expected a header row, found an empty file");
-  const int header_line = static_cast<int>(hi) + 1;
-  std::vector<std::string> header = splitOn(lines[hi], m.delimiter);
-  std::map<std::string, int> index;  // lower-cased name -> field index
-  for (size_t c = 0; c < header.size(); ++c) {
-    header[c] = trim(header[c]);
-    const std::string key = lower(header[c]);
-    if (index.count(key))
-      throw InputError(path, header_line, static_cast<int>(c) + 1,
-                       "column '" + header[c] + "' appears twice (first as column " +
-                           std::to_string(index[key] + 1) + ")");
-    index[key] = static_cast<int>(c);
+namespace {
+
+/// The header row of a mapped file: its line (1-based), its names (trimmed) and their indices
+/// by lower-cased name; rows start after it.
+struct MappedHeader {
+  size_t row = 0;  ///< index of the header in the file's lines
+  int line = 0;
+  std::vector<std::string> names;
+  std::map<std::string, int> index;
+};
+
+MappedHeader readHeader(const std::string& path, const std::vector<std::string>& lines, char delimiter) {
+  MappedHeader h;
+  while (h.row < lines.size() && (trim(lines[h.row]).empty() || trim(lines[h.row])[0] == '#')) ++h.row;
+  if (h.row == lines.size()) throw InputError(path, 0, 0, "expected a header row, found an empty file");
+  h.line = static_cast<int>(h.row) + 1;
+  h.names = splitOn(lines[h.row], delimiter);
+  for (size_t c = 0; c < h.names.size(); ++c) {
+    h.names[c] = trim(h.names[c]);
+    const std::string key = lower(h.names[c]);
+    if (h.index.count(key))
+      throw InputError(path, h.line, static_cast<int>(c) + 1,
+                       "column '" + h.names[c] + "' appears twice (first as column " + std::to_string(h.index[key] + 1) + ")");
+    h.index[key] = static_cast<int>(c);
   }
+  return h;
+}
+
+/// The field index of every mapped column (-1 / empty: not mapped) and the columns used.
+struct MappedColumns {
+  std::vector<int> joints, position, orientation, position_std, orientation_std, directions;
+  int weight = -1, payload = -1, temperature = -1, time = -1;
   std::set<int> used;
+};
+
+MappedColumns mapColumns(const std::string& path, const MappedHeader& h, const MeasurementMapping& m) {
+  MappedColumns c;
   auto col = [&](const std::string& name, const std::string& role) {
-    auto it = index.find(lower(name));
-    if (it == index.end()) {
+    auto it = h.index.find(lower(name));
+    if (it == h.index.end()) {
       int ml = 0;
       for (const auto& kl : m.key_lines)
         if (kl.first == role) ml = kl.second;
-      throw InputError(path, header_line, 0,
+      throw InputError(path, h.line, 0,
                        "missing column '" + name + "' (mapped as " + role + " in " + m.file +
                            (ml ? ":" + std::to_string(ml) : std::string()) + "; the delimiter is '" +
                            (m.delimiter == '\t' ? std::string("tab") : std::string(1, m.delimiter)) + "')");
     }
-    used.insert(it->second);
+    c.used.insert(it->second);
     return it->second;
   };
   auto cols = [&](const std::vector<std::string>& names, const std::string& role) {
@@ -285,133 +303,174 @@ MeasurementSet readMappedMeasurements(const std::string& path, const Measurement
     for (const auto& n : names) out.push_back(col(n, role));
     return out;
   };
-  const std::vector<int> jc = cols(m.joints, "joints");
-  const std::vector<int> pc = cols(m.position, "position");
-  const std::vector<int> oc = cols(m.orientation, "orientation");
-  const std::vector<int> psc = cols(m.position_std, "position_std");
-  const std::vector<int> osc = cols(m.orientation_std, "orientation_std");
-  const std::vector<int> dc = cols(m.directions, "directions");
-  const int wc = m.weight.empty() ? -1 : col(m.weight, "weight");
-  const int plc = m.payload_kg.empty() ? -1 : col(m.payload_kg, "payload_kg");
-  const int tc = m.temperature_c.empty() ? -1 : col(m.temperature_c, "temperature_c");
-  const int timec = m.time_s.empty() ? -1 : col(m.time_s, "time_s");
+  c.joints = cols(m.joints, "joints");
+  c.position = cols(m.position, "position");
+  c.orientation = cols(m.orientation, "orientation");
+  c.position_std = cols(m.position_std, "position_std");
+  c.orientation_std = cols(m.orientation_std, "orientation_std");
+  c.directions = cols(m.directions, "directions");
+  c.weight = m.weight.empty() ? -1 : col(m.weight, "weight");
+  c.payload = m.payload_kg.empty() ? -1 : col(m.payload_kg, "payload_kg");
+  c.temperature = m.temperature_c.empty() ? -1 : col(m.temperature_c, "temperature_c");
+  c.time = m.time_s.empty() ? -1 : col(m.time_s, "time_s");
   for (const auto& n : m.ignore) {
-    auto it = index.find(lower(n));
-    if (it == index.end())
-      throw InputError(path, header_line, 0, "missing column '" + n + "' (listed under 'ignore' in " + m.file + ")");
-    used.insert(it->second);
+    auto it = h.index.find(lower(n));
+    if (it == h.index.end())
+      throw InputError(path, h.line, 0, "missing column '" + n + "' (listed under 'ignore' in " + m.file + ")");
+    c.used.insert(it->second);
   }
+  return c;
+}
 
+/// One data row's fields, read as numbers with the file, line and column of a bad one.
+struct MappedRow {
+  const std::string& path;
+  const std::vector<std::string>& header;
+  const MeasurementMapping& m;
+  int ln;
+  std::vector<std::string> f;
+
+  double num(int c) const {
+    double v;
+    if (!parseNumber(f[c], m.decimal, &v)) {
+      const std::string shown = trim(f[c]).empty() ? "an empty field" : "'" + trim(f[c]) + "'";
+      throw InputError(path, ln, c + 1, "column '" + header[c] + "': expected a number with '" + std::string(1, m.decimal) +
+                                            "' as decimal mark, found " + shown);
+    }
+    return v;
+  }
+  double positive(int c, double scale) const {
+    const double v = num(c) * scale;
+    if (!(v > 0)) throw InputError(path, ln, c + 1, "column '" + header[c] + "': expected a standard deviation > 0, found " + trim(f[c]));
+    return v;
+  }
+};
+
+/// The row's joint values (deg / mm), within the robot's joint limits.
+void readJoints(const MappedRow& row, const std::vector<int>& jc, const RobotDefinition& robot, Measurement& r) {
+  const int n = robot.dof();
+  r.q.resize(n);
+  for (int j = 0; j < n; ++j) {
+    const JointSpec& js = robot.joints[j];
+    const double v = row.num(jc[j]) * (js.type == JointType::kRevolute ? row.m.joint_scale : row.m.prismatic_scale);
+    if (v < js.lower || v > js.upper) {
+      const char* unit = js.type == JointType::kRevolute ? "deg" : "mm";
+      char buf[160];
+      std::snprintf(buf, sizeof buf, "joint value %.6g %s is outside the joint limits [%g, %g] %s", v, unit, js.lower, js.upper,
+                    unit);
+      throw InputError(row.path, row.ln, jc[j] + 1, "column '" + row.header[jc[j]] + "': " + buf);
+    }
+    r.q[j] = v;
+  }
+}
+
+/// The row's orientation (a unit quaternion or three angles); returns the angles (rad; zero for
+/// a quaternion).
+Eigen::Vector3d readOrientation(const MappedRow& row, const MappedColumns& c, Measurement& r) {
+  const MeasurementMapping& m = row.m;
+  const std::vector<int>& oc = c.orientation;
+  Eigen::Vector3d angles_rad = Eigen::Vector3d::Zero();
+  r.has_orientation = true;
+  if (oc.size() == 4) {
+    double w, x, y, z;
+    if (m.orientation_convention == "quaternion_wxyz") {
+      w = row.num(oc[0]); x = row.num(oc[1]); y = row.num(oc[2]); z = row.num(oc[3]);
+    } else {
+      x = row.num(oc[0]); y = row.num(oc[1]); z = row.num(oc[2]); w = row.num(oc[3]);
+    }
+    const double norm = std::sqrt(w * w + x * x + y * y + z * z);
+    if (std::abs(norm - 1.0) > 1e-3)
+      throw InputError(row.path, row.ln, oc[0] + 1, "expected a unit quaternion (norm 1 within 1e-3), found norm " + std::to_string(norm));
+    r.R_world_tcp = Eigen::Quaterniond(w / norm, x / norm, y / norm, z / norm);
+  } else {
+    for (int k = 0; k < 3; ++k) angles_rad[k] = row.num(oc[k]) * m.angle_scale * kDegToRad;
+    r.R_world_tcp = Eigen::Quaterniond(rotationFromAngles(m.orientation_convention, angles_rad));
+  }
+  return angles_rad;
+}
+
+/// The row's orientation stds (of the angles `angles_rad`) about the world axes.
+void readOrientationStds(const MappedRow& row, const std::vector<int>& osc, const Eigen::Vector3d& angles_rad, Measurement& r) {
+  const MeasurementMapping& m = row.m;
+  Eigen::Vector3d s_angle;
+  for (int k = 0; k < 3; ++k) s_angle[k] = row.positive(osc[osc.size() == 1 ? 0 : k], m.angle_scale) * kDegToRad;
+  // Euler-angle stds -> stds of the rotation about the world axes: Sigma_w = J S J^T with
+  // J the derivative of the world rotation vector with respect to the angles (central
+  // differences, step 1e-6 rad; the angles' own stds are ~1e-5 rad, linearisation exact enough).
+  Eigen::Matrix3d J;
+  for (int k = 0; k < 3; ++k) {
+    const double h = 1e-6;
+    Eigen::Vector3d ap = angles_rad, am = angles_rad;
+    ap[k] += h;
+    am[k] -= h;
+    J.col(k) = logSO3(rotationFromAngles(m.orientation_convention, ap) * rotationFromAngles(m.orientation_convention, am).transpose()) /
+               (2 * h);
+  }
+  const Eigen::Matrix3d S = J * s_angle.cwiseAbs2().asDiagonal() * J.transpose();
+  for (int k = 0; k < 3; ++k) r.std_rot_deg[k] = std::sqrt(S(k, k)) * kRadToDeg;
+}
+
+/// One measurement of a data row.
+Measurement readRow(const MappedRow& row, const MappedColumns& c, const RobotDefinition& robot) {
+  Measurement r;
+  r.line = row.ln;
+  readJoints(row, c.joints, robot, r);
+  for (int k = 0; k < 3; ++k) r.p_world_mm[k] = row.num(c.position[k]) * row.m.position_scale;
+  const Eigen::Vector3d angles_rad = c.orientation.empty() ? Eigen::Vector3d::Zero() : readOrientation(row, c, r);
+  const std::vector<int>& psc = c.position_std;
+  if (!psc.empty()) {
+    for (int k = 0; k < 3; ++k) r.std_mm[k] = row.positive(psc[psc.size() == 1 ? 0 : k], row.m.position_scale);
+  }
+  if (!c.orientation_std.empty()) readOrientationStds(row, c.orientation_std, angles_rad, r);
+  if (c.weight >= 0) r.weight = row.positive(c.weight, 1.0);
+  if (c.payload >= 0) {
+    r.context.payload_kg = row.num(c.payload);
+    if (r.context.payload_kg < 0)
+      throw InputError(row.path, row.ln, c.payload + 1,
+                       "column '" + row.header[c.payload] + "': expected a mass >= 0 kg, found " + trim(row.f[c.payload]));
+  }
+  if (c.temperature >= 0) r.temp_c = row.num(c.temperature);
+  if (c.time >= 0) r.time_s = row.num(c.time);
+  for (int col : c.directions) {
+    const double d = row.num(col);
+    if (d != 1.0 && d != -1.0)
+      throw InputError(row.path, row.ln, col + 1, "column '" + row.header[col] + "': expected +1 or -1, found " + trim(row.f[col]));
+    r.dir.push_back(static_cast<int>(d));
+  }
+  // the model's context (kinematics.h): temperature and approach directions, when given
+  if (c.temperature >= 0) r.context.temp_c = r.temp_c;
+  r.context.dir = r.dir;
+  return r;
+}
+
+}  // namespace
+
+/// The steps: the header, the mapped columns, then every data row.
+MeasurementSet readMappedMeasurements(const std::string& path, const MeasurementMapping& m,
+                                      const RobotDefinition& robot) {
+  const std::vector<std::string> lines = readLines(path);
+  const MappedHeader h = readHeader(path, lines, m.delimiter);
+  const MappedColumns c = mapColumns(path, h, m);
   MeasurementSet set;
   set.file = path;
-  set.has_orientation = !oc.empty();
-  set.has_std_position = !psc.empty();
-  set.has_std_orientation = !osc.empty();
-  set.has_weight = wc >= 0;
-  set.has_payload = plc >= 0;
-  set.has_temperature = tc >= 0;
-  set.has_time = timec >= 0;
-  set.has_direction = !dc.empty();
-  for (size_t c = 0; c < header.size(); ++c)
-    if (!used.count(static_cast<int>(c))) set.unknown_columns.push_back(header[c]);
-
-  const int n = robot.dof();
-  for (size_t li = hi + 1; li < lines.size(); ++li) {
-    const int ln = static_cast<int>(li) + 1;
+  set.has_orientation = !c.orientation.empty();
+  set.has_std_position = !c.position_std.empty();
+  set.has_std_orientation = !c.orientation_std.empty();
+  set.has_weight = c.weight >= 0;
+  set.has_payload = c.payload >= 0;
+  set.has_temperature = c.temperature >= 0;
+  set.has_time = c.time >= 0;
+  set.has_direction = !c.directions.empty();
+  for (size_t k = 0; k < h.names.size(); ++k)
+    if (!c.used.count(static_cast<int>(k))) set.unknown_columns.push_back(h.names[k]);
+  for (size_t li = h.row + 1; li < lines.size(); ++li) {
     const std::string t = trim(lines[li]);
     if (t.empty() || t[0] == '#') continue;
-    const std::vector<std::string> f = splitOn(lines[li], m.delimiter);
-    if (f.size() != header.size())
-      throw InputError(path, ln, 0, "expected " + std::to_string(header.size()) + " fields as in the header, found " +
-                                        std::to_string(f.size()));
-    auto num = [&](int c) {
-      double v;
-      if (!parseNumber(f[c], m.decimal, &v)) {
-        const std::string shown = trim(f[c]).empty() ? "an empty field" : "'" + trim(f[c]) + "'";
-        throw InputError(path, ln, c + 1, "column '" + header[c] + "': expected a number with '" +
-                                              std::string(1, m.decimal) + "' as decimal mark, found " + shown);
-      }
-      return v;
-    };
-    Measurement r;
-    r.line = ln;
-    r.q.resize(n);
-    for (int j = 0; j < n; ++j) {
-      const JointSpec& js = robot.joints[j];
-      const double v = num(jc[j]) * (js.type == JointType::kRevolute ? m.joint_scale : m.prismatic_scale);
-      if (v < js.lower || v > js.upper) {
-        const char* unit = js.type == JointType::kRevolute ? "deg" : "mm";
-        char buf[160];
-        std::snprintf(buf, sizeof buf, "joint value %.6g %s is outside the joint limits [%g, %g] %s", v, unit, js.lower,
-                      js.upper, unit);
-        throw InputError(path, ln, jc[j] + 1, "column '" + header[jc[j]] + "': " + buf);
-      }
-      r.q[j] = v;
-    }
-    for (int k = 0; k < 3; ++k) r.p_world_mm[k] = num(pc[k]) * m.position_scale;
-    Eigen::Vector3d angles_rad = Eigen::Vector3d::Zero();
-    if (set.has_orientation) {
-      r.has_orientation = true;
-      if (oc.size() == 4) {
-        double w, x, y, z;
-        if (m.orientation_convention == "quaternion_wxyz") {
-          w = num(oc[0]); x = num(oc[1]); y = num(oc[2]); z = num(oc[3]);
-        } else {
-          x = num(oc[0]); y = num(oc[1]); z = num(oc[2]); w = num(oc[3]);
-        }
-        const double norm = std::sqrt(w * w + x * x + y * y + z * z);
-        if (std::abs(norm - 1.0) > 1e-3)
-          throw InputError(path, ln, oc[0] + 1, "expected a unit quaternion (norm 1 within 1e-3), found norm " + std::to_string(norm));
-        r.R_world_tcp = Eigen::Quaterniond(w / norm, x / norm, y / norm, z / norm);
-      } else {
-        for (int k = 0; k < 3; ++k) angles_rad[k] = num(oc[k]) * m.angle_scale * kDegToRad;
-        r.R_world_tcp = Eigen::Quaterniond(rotationFromAngles(m.orientation_convention, angles_rad));
-      }
-    }
-    auto positive = [&](int c, double scale) {
-      const double v = num(c) * scale;
-      if (!(v > 0)) throw InputError(path, ln, c + 1, "column '" + header[c] + "': expected a standard deviation > 0, found " + trim(f[c]));
-      return v;
-    };
-    if (!psc.empty()) {
-      for (int k = 0; k < 3; ++k) r.std_mm[k] = positive(psc[psc.size() == 1 ? 0 : k], m.position_scale);
-    }
-    if (!osc.empty()) {
-      Eigen::Vector3d s_angle;
-      for (int k = 0; k < 3; ++k) s_angle[k] = positive(osc[osc.size() == 1 ? 0 : k], m.angle_scale) * kDegToRad;
-      // Euler-angle stds -> stds of the rotation about the world axes: Sigma_w = J S J^T with
-      // J the derivative of the world rotation vector with respect to the angles (central
-      // differences, step 1e-6 rad; the angles' own stds are ~1e-5 rad, linearisation exact enough).
-      Eigen::Matrix3d J;
-      for (int k = 0; k < 3; ++k) {
-        const double h = 1e-6;
-        Eigen::Vector3d ap = angles_rad, am = angles_rad;
-        ap[k] += h;
-        am[k] -= h;
-        J.col(k) = logSO3(rotationFromAngles(m.orientation_convention, ap) *
-                          rotationFromAngles(m.orientation_convention, am).transpose()) / (2 * h);
-      }
-      const Eigen::Matrix3d S = J * s_angle.cwiseAbs2().asDiagonal() * J.transpose();
-      for (int k = 0; k < 3; ++k) r.std_rot_deg[k] = std::sqrt(S(k, k)) * kRadToDeg;
-    }
-    if (wc >= 0) r.weight = positive(wc, 1.0);
-    if (plc >= 0) {
-      r.context.payload_kg = num(plc);
-      if (r.context.payload_kg < 0)
-        throw InputError(path, ln, plc + 1, "column '" + header[plc] + "': expected a mass >= 0 kg, found " + trim(f[plc]));
-    }
-    if (tc >= 0) r.temp_c = num(tc);
-    if (timec >= 0) r.time_s = num(timec);
-    for (int c : dc) {
-      const double d = num(c);
-      if (d != 1.0 && d != -1.0)
-        throw InputError(path, ln, c + 1, "column '" + header[c] + "': expected +1 or -1, found " + trim(f[c]));
-      r.dir.push_back(static_cast<int>(d));
-    }
-    // the model's context (kinematics.h): temperature and approach directions, when given
-    if (tc >= 0) r.context.temp_c = r.temp_c;
-    r.context.dir = r.dir;
-    set.rows.push_back(r);
+    const MappedRow row{path, h.names, m, static_cast<int>(li) + 1, splitOn(lines[li], m.delimiter)};
+    if (row.f.size() != h.names.size())
+      throw InputError(path, row.ln, 0, "expected " + std::to_string(h.names.size()) + " fields as in the header, found " +
+                                            std::to_string(row.f.size()));
+    set.rows.push_back(readRow(row, c, robot));
   }
   if (set.rows.empty()) throw InputError(path, 0, 0, "expected at least one data row, found none");
   return set;

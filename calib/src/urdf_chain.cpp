@@ -116,6 +116,229 @@ ChainComparison compareModelWithChain(const RobotModel& model, const SerialChain
   return c;
 }
 
+namespace {
+
+/// The chain's joint axes at q = 0 in the root frame and what the DH frames are fitted to.
+struct ChainAxes {
+  std::vector<Eigen::Vector3d> P, U;  ///< a point of joint k's axis and its direction (positive q)
+  std::vector<Eigen::Vector3d> Z;     ///< DH z axis of frame k-1 (along joint k)
+  std::vector<int> direction;         ///< the sign between q and theta / d
+  Eigen::Isometry3d G_tip = Eigen::Isometry3d::Identity();
+  std::vector<Eigen::Isometry3d> G_joint;  ///< child frames of the joints at q = 0 (for the COM)
+  std::vector<Eigen::Isometry3d> R_frame;  ///< with a reference: its frames 0..n in the world at q = 0
+  std::vector<LinkForm> ref_forms;         ///< with a reference: its link forms
+};
+
+ChainAxes chainAxes(const SerialChain& chain, const RobotDefinition* reference, FormPolicy policy) {
+  const int n = static_cast<int>(chain.joints.size());
+  ChainAxes c;
+  c.P.resize(n);
+  c.U.resize(n);
+  c.G_joint.resize(n);
+  Eigen::Isometry3d G = Eigen::Isometry3d::Identity();
+  for (int k = 0; k < n; ++k) {
+    const ChainJoint& j = chain.joints[static_cast<size_t>(k)];
+    G = G * j.T_prev_joint;
+    c.G_joint[k] = G;
+    c.P[k] = G.translation();
+    c.U[k] = (G.linear() * j.axis).normalized();
+  }
+  c.G_tip = G * chain.T_last_tip;
+  if (reference) {
+    RobotModel ref = RobotModel::fromDefinition(*reference, policy);
+    KinematicWorkspace ws;
+    flangePose(ref, Eigen::VectorXd::Zero(n), PoseContext{}, ws);
+    for (const auto& F : ws.T_base_frame) c.R_frame.push_back(reference->T_world_base * F);
+    c.ref_forms = ref.forms;
+  }
+  c.Z.resize(n);
+  c.direction.assign(n, 1);
+  for (int k = 0; k < n; ++k) {
+    const Eigen::Vector3d hint = reference ? Eigen::Vector3d(c.R_frame[k].linear().col(2))
+                                           : (k == 0 ? Eigen::Vector3d::UnitZ() : c.U[k]);
+    c.direction[k] = c.U[k].dot(hint) >= 0 ? 1 : -1;
+    c.Z[k] = c.direction[k] * c.U[k];
+    if (reference && c.direction[k] != reference->joints[static_cast<size_t>(k)].direction)
+      throw ArgumentError("joint '" + chain.joints[static_cast<size_t>(k)].name + "' turns the other way than joint '" +
+                          reference->joints[static_cast<size_t>(k)].name + "' of the reference robot '" +
+                          reference->name + "' (direction " + std::to_string(c.direction[k]) + ", reference " +
+                          std::to_string(reference->joints[static_cast<size_t>(k)].direction) + ")");
+  }
+  return c;
+}
+
+/// Frame 0: on axis 1, origin the foot of the perpendicular from the root's (or the reference
+/// base's) origin, x from the root's (reference base's) x.
+Eigen::Isometry3d baseFrame(const ChainAxes& c, bool reference) {
+  const Eigen::Isometry3d base_hint = reference ? c.R_frame[0] : Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d F = Eigen::Isometry3d::Identity();
+  const Eigen::Vector3d o = c.P[0] + (base_hint.translation() - c.P[0]).dot(c.Z[0]) * c.Z[0];
+  const Eigen::Vector3d x = perpendicular(base_hint.linear().col(0), c.Z[0], base_hint.linear().col(1));
+  F.linear().col(0) = x;
+  F.linear().col(1) = c.Z[0].cross(x);
+  F.linear().col(2) = c.Z[0];
+  F.translation() = o;
+  return F;
+}
+
+/// Link i (< n - 1) from frame F to axis i+1: Hayati (frame i's origin where axis i+1 crosses
+/// the plane normal to z at height d) or DH (the common normal of the two axes).
+LinkParams innerLink(const SerialChain& chain, const RobotDefinition* reference, FormPolicy policy, const ChainAxes& c, int i,
+                     const Eigen::Isometry3d& F) {
+  const Eigen::Vector3d z = F.linear().col(2), x_prev = F.linear().col(0), o = F.translation();
+  const Eigen::Vector3d& Zn = c.Z[i + 1];
+  const Eigen::Vector3d& Pn = c.P[i + 1];
+  const double s = z.cross(Zn).norm();
+  const bool hayati = reference ? c.ref_forms[i] == LinkForm::kHayati
+                                : policy == FormPolicy::kAuto && s < std::sin(kHayatiThresholdDeg * kDegToRad);
+  const Eigen::Vector3d x_hint = reference ? Eigen::Vector3d(c.R_frame[i + 1].linear().col(0)) : x_prev;
+  LinkParams L;
+  Eigen::Vector3d x;
+  if (hayati) {
+    L.form = LinkForm::kHayati;
+    L.d = reference ? reference->joints[static_cast<size_t>(i)].d_mm : 0.0;
+    const Eigen::Vector3d o2 = o + L.d * z;
+    const double cz = Zn.dot(z);
+    const Eigen::Vector3d B = Pn + ((o2 - Pn).dot(z) / cz) * Zn;
+    Eigen::Vector3d v = B - o2;
+    v -= v.dot(z) * z;
+    if (v.norm() > 1e-9) {
+      x = v.normalized();
+      if (x.dot(x_hint) < 0) x = -x;
+    } else {
+      x = perpendicular(x_hint, z, x_prev);
+    }
+    L.a = v.dot(x);
+    L.theta = angleAbout(z, x_prev, x);
+    const Eigen::Vector3d y = z.cross(x);
+    L.beta = std::asin(std::max(-1.0, std::min(1.0, Zn.dot(x))));
+    L.alpha = std::atan2(-Zn.dot(y), Zn.dot(z));
+    return L;
+  }
+  if (s < 1e-9)
+    throw ArgumentError("joints '" + chain.joints[static_cast<size_t>(i)].name + "' and '" +
+                        chain.joints[static_cast<size_t>(i + 1)].name +
+                        "' have parallel axes, which DH cannot describe (the reference robot uses DH for link " +
+                        std::to_string(i + 1) + ")");
+  L.form = LinkForm::kDH;
+  x = z.cross(Zn).normalized();
+  if (x.dot(x_hint) < 0 || (std::abs(x.dot(x_hint)) < 1e-9 && x.dot(z.cross(x_hint)) < 0)) x = -x;
+  // Closest points of the two axes: o + t z and Pn + u Zn.
+  const Eigen::Vector3d w0 = o - Pn;
+  const double b = z.dot(Zn), dd = z.dot(w0), e = Zn.dot(w0), den = 1 - b * b;
+  const double t = (b * e - dd) / den, u = (e - b * dd) / den;
+  L.d = t;
+  L.a = ((Pn + u * Zn) - (o + t * z)).dot(x);
+  L.theta = angleAbout(z, x_prev, x);
+  L.alpha = std::atan2(Zn.dot(x.cross(z)), Zn.dot(z));
+  return L;
+}
+
+/// The last link (DH) from frame F: as close to the target frame as four parameters get.
+LinkParams lastLink(const Eigen::Isometry3d& last_target, const Eigen::Isometry3d& F) {
+  const Eigen::Vector3d z = F.linear().col(2), x_prev = F.linear().col(0), o = F.translation();
+  LinkParams L;
+  L.form = LinkForm::kDH;
+  const Eigen::Vector3d pt = last_target.translation();
+  const Eigen::Vector3d x = perpendicular(last_target.linear().col(0), z, last_target.linear().col(1));
+  const Eigen::Vector3d Zt = last_target.linear().col(2);
+  L.d = (pt - o).dot(z);
+  L.a = (pt - o).dot(x);
+  L.theta = angleAbout(z, x_prev, x);
+  L.alpha = std::atan2(Zt.dot(x.cross(z)), Zt.dot(z));
+  return L;
+}
+
+/// The reference robot with the chain as its deviations (base, links, tool); round-off of
+/// transforms that are exact (1e-12 mm, 1e-15 rad) set to zero.
+RobotModel referenceWithDeviations(const RobotDefinition& reference, FormPolicy policy, const Eigen::Isometry3d& F0,
+                                   const std::vector<LinkParams>& links, const Eigen::Isometry3d& T_tool) {
+  RobotModel model = RobotModel::fromDefinition(reference, policy);
+  Deviations& dev = model.deviations;
+  const Eigen::Isometry3d& Tb = reference.T_world_base;
+  dev.base_mm = Tb.linear().transpose() * (F0.translation() - Tb.translation());
+  dev.base_rot_rad = logSO3(Tb.linear().transpose() * F0.linear());
+  for (size_t i = 0; i < links.size(); ++i) {
+    const JointSpec& j = reference.joints[i];
+    const LinkParams& L = links[i];
+    LinkDeviation& d = dev.links[i];
+    d.dtheta_rad = wrapPi(L.theta - j.theta0_deg * kDegToRad);
+    d.dd_mm = L.d - j.d_mm;
+    if (L.form == LinkForm::kHayati && j.type == JointType::kRevolute) d.dd_mm = 0;  // d kept
+    d.da_mm = L.a - j.a_mm;
+    d.dalpha_rad = wrapPi(L.alpha - j.alpha_deg * kDegToRad);
+    d.dbeta_rad = L.beta;
+  }
+  const Eigen::Isometry3d& Tt = reference.T_flange_tcp;
+  dev.tool_mm = Tt.linear().transpose() * (T_tool.translation() - Tt.translation());
+  dev.tool_rot_rad = logSO3(Tt.linear().transpose() * T_tool.linear());
+  const auto zap = [](double& v, double tiny) { if (std::abs(v) < tiny) v = 0; };
+  for (int r = 0; r < 3; ++r) {
+    zap(dev.base_mm[r], 1e-12);
+    zap(dev.tool_mm[r], 1e-12);
+    zap(dev.base_rot_rad[r], 1e-15);
+    zap(dev.tool_rot_rad[r], 1e-15);
+  }
+  for (LinkDeviation& d : dev.links) {
+    zap(d.dd_mm, 1e-12);
+    zap(d.da_mm, 1e-12);
+    zap(d.dtheta_rad, 1e-15);
+    zap(d.dalpha_rad, 1e-15);
+    zap(d.dbeta_rad, 1e-15);
+  }
+  return model;
+}
+
+/// A new robot definition of the chain's links (values tidied), its model in `policy`'s forms.
+RobotModel newRobot(const SerialChain& chain, FormPolicy policy, const ChainAxes& c, const Eigen::Isometry3d& F0,
+                    const std::vector<LinkParams>& links, const std::vector<Eigen::Isometry3d>& frames) {
+  const int n = static_cast<int>(links.size());
+  RobotDefinition def;
+  def.name = chain.name;
+  def.source = chain.source + " (serial chain " + chain.root_link + ":" + chain.tip_link + ")";
+  def.T_world_base = tidyPose(F0);
+  def.T_flange_tcp = tidyPose(frames[n].inverse() * c.G_tip);
+  // ROS convention (REP-103): the root's z points up; gravity in the base (DH frame 0).
+  def.gravity_base = def.T_world_base.linear().transpose() * Eigen::Vector3d(0, 0, -9.80665);
+  for (int r = 0; r < 3; ++r) def.gravity_base[r] = tidy(def.gravity_base[r], 1.0);
+  for (int i = 0; i < n; ++i) {
+    const ChainJoint& cj = chain.joints[static_cast<size_t>(i)];
+    const LinkParams& L = links[i];
+    JointSpec s;
+    s.name = cj.name;
+    s.type = cj.type;
+    s.a_mm = L.a;
+    s.alpha_deg = L.alpha * kRadToDeg;
+    s.d_mm = L.d;
+    s.theta0_deg = L.theta * kRadToDeg;
+    s.direction = c.direction[i];
+    s.lower = cj.lower;
+    s.upper = cj.upper;
+    s.mass_kg = cj.mass_kg;
+    // The joint's child frame and DH frame i+1 are fixed to the same body.
+    const Eigen::Vector3d com = frames[i + 1].inverse() * (c.G_joint[i] * cj.com_mm);
+    s.com_mm = cj.mass_kg > 0 ? com : Eigen::Vector3d::Zero();
+    for (int r = 0; r < 3; ++r) s.com_mm[r] = tidy(s.com_mm[r], 1.0);
+    def.joints.push_back(s);
+  }
+  RobotModel model = RobotModel::fromDefinition(def, policy);
+  for (int i = 0; i < n; ++i) {
+    if (model.forms[static_cast<size_t>(i)] != links[i].form) {
+      // The form follows from alpha (robot.h); a link right at the threshold may flip. The
+      // transform is the same at beta = 0, so only a non-zero beta is a problem.
+      if (links[i].beta != 0.0)
+        throw NumericalError("joint '" + def.joints[static_cast<size_t>(i)].name +
+                             "': axes at the Hayati threshold angle, the form is ambiguous");
+    }
+    model.deviations.links[static_cast<size_t>(i)].dbeta_rad = links[i].beta;
+  }
+  return model;
+}
+
+}  // namespace
+
+/// The steps: the chain's axes, frame 0, the links one by one (each frame from the previous),
+/// the model (the reference's deviations, or a new robot), the check against the chain's FK.
 RobotModel modelFromChain(const SerialChain& chain, const RobotDefinition* reference, FormPolicy policy,
                           double tol_mm) {
   const int n = static_cast<int>(chain.joints.size());
@@ -124,129 +347,17 @@ RobotModel modelFromChain(const SerialChain& chain, const RobotDefinition* refer
   if (reference && reference->dof() != n)
     throw ArgumentError("serial chain '" + chain.name + "': " + std::to_string(n) + " joints, the reference robot '" +
                         reference->name + "' has " + std::to_string(reference->dof()));
-
-  // Joint axes at q = 0 in the root frame: point P[k] and direction U[k] (positive q).
-  std::vector<Eigen::Vector3d> P(n), U(n);
-  Eigen::Isometry3d G = Eigen::Isometry3d::Identity();
-  for (int k = 0; k < n; ++k) {
-    const ChainJoint& j = chain.joints[static_cast<size_t>(k)];
-    G = G * j.T_prev_joint;
-    P[k] = G.translation();
-    U[k] = (G.linear() * j.axis).normalized();
-  }
-  const Eigen::Isometry3d G_tip = G * chain.T_last_tip;
-  std::vector<Eigen::Isometry3d> G_joint(n);  // child frames of the joints at q = 0 (for the COM)
-  {
-    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-    for (int k = 0; k < n; ++k) G_joint[k] = (T = T * chain.joints[static_cast<size_t>(k)].T_prev_joint);
-  }
-
-  // The reference's frames 0..n in the world at q = 0 and its forms.
-  std::vector<Eigen::Isometry3d> R_frame;
-  std::vector<LinkForm> ref_forms;
-  if (reference) {
-    RobotModel ref = RobotModel::fromDefinition(*reference, policy);
-    KinematicWorkspace ws;
-    flangePose(ref, Eigen::VectorXd::Zero(n), PoseContext{}, ws);
-    for (const auto& F : ws.T_base_frame) R_frame.push_back(reference->T_world_base * F);
-    ref_forms = ref.forms;
-  }
-
-  // DH z axis of frame k-1 (along joint k) and the direction sign between q and theta / d.
-  std::vector<Eigen::Vector3d> Z(n);
-  std::vector<int> direction(n, 1);
-  for (int k = 0; k < n; ++k) {
-    const Eigen::Vector3d hint = reference ? Eigen::Vector3d(R_frame[k].linear().col(2))
-                                           : (k == 0 ? Eigen::Vector3d::UnitZ() : U[k]);
-    direction[k] = U[k].dot(hint) >= 0 ? 1 : -1;
-    Z[k] = direction[k] * U[k];
-    if (reference && direction[k] != reference->joints[static_cast<size_t>(k)].direction)
-      throw ArgumentError("joint '" + chain.joints[static_cast<size_t>(k)].name + "' turns the other way than joint '" +
-                          reference->joints[static_cast<size_t>(k)].name + "' of the reference robot '" +
-                          reference->name + "' (direction " + std::to_string(direction[k]) + ", reference " +
-                          std::to_string(reference->joints[static_cast<size_t>(k)].direction) + ")");
-  }
-
-  // Frame 0: on axis 1, origin the foot of the perpendicular from the root's (or the
-  // reference base's) origin, x from the root's (reference base's) x.
-  const Eigen::Isometry3d base_hint = reference ? R_frame[0] : Eigen::Isometry3d::Identity();
-  Eigen::Isometry3d F = Eigen::Isometry3d::Identity();
-  {
-    const Eigen::Vector3d o = P[0] + (base_hint.translation() - P[0]).dot(Z[0]) * Z[0];
-    const Eigen::Vector3d x = perpendicular(base_hint.linear().col(0), Z[0], base_hint.linear().col(1));
-    F.linear().col(0) = x;
-    F.linear().col(1) = Z[0].cross(x);
-    F.linear().col(2) = Z[0];
-    F.translation() = o;
-  }
-  const Eigen::Isometry3d F0 = F;
-
+  const ChainAxes c = chainAxes(chain, reference, policy);
+  const Eigen::Isometry3d F0 = baseFrame(c, reference != nullptr);
+  Eigen::Isometry3d F = F0;
   std::vector<LinkParams> links(n);
   std::vector<Eigen::Isometry3d> frames(n + 1);
   frames[0] = F0;
   // The target of the last link: the tip (or, with a reference, the flange its tool implies).
-  const Eigen::Isometry3d last_target = reference ? G_tip * reference->T_flange_tcp.inverse() : G_tip;
+  const Eigen::Isometry3d last_target = reference ? c.G_tip * reference->T_flange_tcp.inverse() : c.G_tip;
   for (int i = 0; i < n; ++i) {
-    const Eigen::Vector3d z = F.linear().col(2), x_prev = F.linear().col(0), o = F.translation();
-    const JointSpec* ref_joint = reference ? &reference->joints[static_cast<size_t>(i)] : nullptr;
     LinkParams& L = links[i];
-    Eigen::Vector3d x;
-    if (i + 1 < n) {
-      const Eigen::Vector3d& Zn = Z[i + 1];
-      const Eigen::Vector3d& Pn = P[i + 1];
-      const double s = z.cross(Zn).norm();
-      const bool hayati = reference ? ref_forms[i] == LinkForm::kHayati
-                                    : policy == FormPolicy::kAuto && s < std::sin(kHayatiThresholdDeg * kDegToRad);
-      const Eigen::Vector3d x_hint = reference ? Eigen::Vector3d(R_frame[i + 1].linear().col(0)) : x_prev;
-      if (hayati) {
-        // Frame i's origin: where axis i+1 crosses the plane normal to z at height d.
-        L.form = LinkForm::kHayati;
-        L.d = ref_joint ? ref_joint->d_mm : 0.0;
-        const Eigen::Vector3d o2 = o + L.d * z;
-        const double cz = Zn.dot(z);
-        const Eigen::Vector3d B = Pn + ((o2 - Pn).dot(z) / cz) * Zn;
-        Eigen::Vector3d v = B - o2;
-        v -= v.dot(z) * z;
-        if (v.norm() > 1e-9) {
-          x = v.normalized();
-          if (x.dot(x_hint) < 0) x = -x;
-        } else {
-          x = perpendicular(x_hint, z, x_prev);
-        }
-        L.a = v.dot(x);
-        L.theta = angleAbout(z, x_prev, x);
-        const Eigen::Vector3d y = z.cross(x);
-        L.beta = std::asin(std::max(-1.0, std::min(1.0, Zn.dot(x))));
-        L.alpha = std::atan2(-Zn.dot(y), Zn.dot(z));
-      } else {
-        if (s < 1e-9)
-          throw ArgumentError("joints '" + chain.joints[static_cast<size_t>(i)].name + "' and '" +
-                              chain.joints[static_cast<size_t>(i + 1)].name +
-                              "' have parallel axes, which DH cannot describe (the reference robot uses DH for link " +
-                              std::to_string(i + 1) + ")");
-        L.form = LinkForm::kDH;
-        x = z.cross(Zn).normalized();
-        if (x.dot(x_hint) < 0 || (std::abs(x.dot(x_hint)) < 1e-9 && x.dot(z.cross(x_hint)) < 0)) x = -x;
-        // Closest points of the two axes: o + t z and Pn + u Zn.
-        const Eigen::Vector3d w0 = o - Pn;
-        const double b = z.dot(Zn), dd = z.dot(w0), e = Zn.dot(w0), den = 1 - b * b;
-        const double t = (b * e - dd) / den, u = (e - b * dd) / den;
-        L.d = t;
-        L.a = ((Pn + u * Zn) - (o + t * z)).dot(x);
-        L.theta = angleAbout(z, x_prev, x);
-        L.alpha = std::atan2(Zn.dot(x.cross(z)), Zn.dot(z));
-      }
-    } else {
-      // Last link (DH): as close to the target frame as four parameters get.
-      L.form = LinkForm::kDH;
-      const Eigen::Vector3d pt = last_target.translation();
-      x = perpendicular(last_target.linear().col(0), z, last_target.linear().col(1));
-      const Eigen::Vector3d Zt = last_target.linear().col(2);
-      L.d = (pt - o).dot(z);
-      L.a = (pt - o).dot(x);
-      L.theta = angleAbout(z, x_prev, x);
-      L.alpha = std::atan2(Zt.dot(x.cross(z)), Zt.dot(z));
-    }
+    L = i + 1 < n ? innerLink(chain, reference, policy, c, i, F) : lastLink(last_target, F);
     if (!reference) {
       L.d = tidy(L.d, 1.0);
       L.a = tidy(L.a, 1.0);
@@ -257,93 +368,16 @@ RobotModel modelFromChain(const SerialChain& chain, const RobotDefinition* refer
     F = F * linkFrame(L.theta, L.d, L.a, L.alpha, L.beta);
     frames[i + 1] = F;
   }
-
-  RobotModel model;
-  if (reference) {
-    model = RobotModel::fromDefinition(*reference, policy);
-    Deviations& dev = model.deviations;
-    const Eigen::Isometry3d& Tb = reference->T_world_base;
-    dev.base_mm = Tb.linear().transpose() * (F0.translation() - Tb.translation());
-    dev.base_rot_rad = logSO3(Tb.linear().transpose() * F0.linear());
-    for (int i = 0; i < n; ++i) {
-      const JointSpec& j = reference->joints[static_cast<size_t>(i)];
-      const LinkParams& L = links[i];
-      LinkDeviation& d = dev.links[static_cast<size_t>(i)];
-      d.dtheta_rad = wrapPi(L.theta - j.theta0_deg * kDegToRad);
-      d.dd_mm = L.d - j.d_mm;
-      if (L.form == LinkForm::kHayati && j.type == JointType::kRevolute) d.dd_mm = 0;  // d kept
-      d.da_mm = L.a - j.a_mm;
-      d.dalpha_rad = wrapPi(L.alpha - j.alpha_deg * kDegToRad);
-      d.dbeta_rad = L.beta;
-    }
-    const Eigen::Isometry3d tool = frames[n].inverse() * G_tip;
-    const Eigen::Isometry3d& Tt = reference->T_flange_tcp;
-    dev.tool_mm = Tt.linear().transpose() * (tool.translation() - Tt.translation());
-    dev.tool_rot_rad = logSO3(Tt.linear().transpose() * tool.linear());
-    // Round-off to zero (1e-12 mm, 1e-15 rad): a deviation of a transform that is exact.
-    const auto zap = [](double& v, double tiny) { if (std::abs(v) < tiny) v = 0; };
-    for (int r = 0; r < 3; ++r) {
-      zap(dev.base_mm[r], 1e-12);
-      zap(dev.tool_mm[r], 1e-12);
-      zap(dev.base_rot_rad[r], 1e-15);
-      zap(dev.tool_rot_rad[r], 1e-15);
-    }
-    for (LinkDeviation& d : dev.links) {
-      zap(d.dd_mm, 1e-12);
-      zap(d.da_mm, 1e-12);
-      zap(d.dtheta_rad, 1e-15);
-      zap(d.dalpha_rad, 1e-15);
-      zap(d.dbeta_rad, 1e-15);
-    }
-  } else {
-    RobotDefinition def;
-    def.name = chain.name;
-    def.source = chain.source + " (serial chain " + chain.root_link + ":" + chain.tip_link + ")";
-    def.T_world_base = tidyPose(F0);
-    def.T_flange_tcp = tidyPose(frames[n].inverse() * G_tip);
-    // ROS convention (REP-103): the root's z points up; gravity in the base (DH frame 0).
-    def.gravity_base = def.T_world_base.linear().transpose() * Eigen::Vector3d(0, 0, -9.80665);
-    for (int r = 0; r < 3; ++r) def.gravity_base[r] = tidy(def.gravity_base[r], 1.0);
-    for (int i = 0; i < n; ++i) {
-      const ChainJoint& cj = chain.joints[static_cast<size_t>(i)];
-      const LinkParams& L = links[i];
-      JointSpec s;
-      s.name = cj.name;
-      s.type = cj.type;
-      s.a_mm = L.a;
-      s.alpha_deg = L.alpha * kRadToDeg;
-      s.d_mm = L.d;
-      s.theta0_deg = L.theta * kRadToDeg;
-      s.direction = direction[i];
-      s.lower = cj.lower;
-      s.upper = cj.upper;
-      s.mass_kg = cj.mass_kg;
-      // The joint's child frame and DH frame i+1 are fixed to the same body.
-      const Eigen::Vector3d com = frames[i + 1].inverse() * (G_joint[i] * cj.com_mm);
-      s.com_mm = cj.mass_kg > 0 ? com : Eigen::Vector3d::Zero();
-      for (int r = 0; r < 3; ++r) s.com_mm[r] = tidy(s.com_mm[r], 1.0);
-      def.joints.push_back(s);
-    }
-    model = RobotModel::fromDefinition(def, policy);
-    for (int i = 0; i < n; ++i) {
-      if (model.forms[static_cast<size_t>(i)] != links[i].form) {
-        // The form follows from alpha (robot.h); a link right at the threshold may flip. The
-        // transform is the same at beta = 0, so only a non-zero beta is a problem.
-        if (links[i].beta != 0.0)
-          throw NumericalError("joint '" + def.joints[static_cast<size_t>(i)].name +
-                               "': axes at the Hayati threshold angle, the form is ambiguous");
-      }
-      model.deviations.links[static_cast<size_t>(i)].dbeta_rad = links[i].beta;
-    }
-  }
+  RobotModel model = reference ? referenceWithDeviations(*reference, policy, F0, links, frames[n].inverse() * c.G_tip)
+                               : newRobot(chain, policy, c, F0, links, frames);
   model.validate();
 
-  const ChainComparison c = compareModelWithChain(model, chain);
+  const ChainComparison cmp = compareModelWithChain(model, chain);
   const double tol_rad = tol_mm * (kChainCheckTolRad / kChainCheckTolMm);
-  if (!(c.max_position_mm <= tol_mm) || !(c.max_rotation_rad <= tol_rad)) {
+  if (!(cmp.max_position_mm <= tol_mm) || !(cmp.max_rotation_rad <= tol_rad)) {
     throw NumericalError("converting the serial chain " + chain.root_link + ":" + chain.tip_link + " of '" +
                          chain.source + "' into accura's model: the model's FK differs from the chain's by " +
-                         fmtNum(c.max_position_mm) + " mm / " + fmtNum(c.max_rotation_rad) +
+                         fmtNum(cmp.max_position_mm) + " mm / " + fmtNum(cmp.max_rotation_rad) +
                          " rad (allowed " + fmtNum(tol_mm) + " mm / " + fmtNum(tol_rad) + " rad)");
   }
   return model;

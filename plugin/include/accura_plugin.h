@@ -52,8 +52,9 @@ extern "C" {
 
 /* The ABI version of this header: a host compares it with accura_version()'s abi_version and
  * refuses a library with another one. Raised on every incompatible change of a declaration
- * or struct below. */
-#define ACCURA_PLUGIN_ABI_VERSION 1
+ * or struct below. 2: accura_program_motion carries the arm's joint values (n_joints,
+ * joints), accura_joint_configuration. */
+#define ACCURA_PLUGIN_ABI_VERSION 2
 
 /* Largest joint count the fixed-size arrays below hold. */
 #define ACCURA_MAX_JOINTS 12
@@ -197,6 +198,12 @@ typedef enum accura_which_model {
 ACCURA_API accura_status accura_forward_kinematics(accura_model* model, accura_which_model which,
                                                    const double* q, size_t n_joints,
                                                    accura_pose* pose_out);
+
+/* The configuration of joint values q (n_joints = dof, deg / mm) by KUKA's rule (see
+ * accura_configuration; the nominal geometry, what the controller computes): what a PTP to a
+ * Cartesian target must carry for the arm to take these joints. */
+ACCURA_API accura_status accura_joint_configuration(accura_model* model, const double* q, size_t n_joints,
+                                                    accura_configuration* configuration_out);
 
 /* ---------------------------------------------------------------------------------------- */
 /* Discrete compensation (method.md section 4): q' = IK_real(target), command = FK_nominal(q') */
@@ -391,6 +398,14 @@ typedef struct accura_program_motion {
   accura_pose end;
   int approximate;   /* 1: approximated (KRL C_PTP for PTP, C_DIS for LIN / CIRC) */
   double vel_m_s;    /* LIN / CIRC path speed (m/s; <= 0: not set) */
+  /* The arm's joint values at `end` (deg / mm; n_joints 0: none, else the dof of the model
+   * loaded on the handle): the configuration the arm takes there. A PTP carries it in the
+   * controller's terms (KRL: S and T of its target, accura_joint_configuration); LIN and CIRC
+   * keep the configuration they start in and do not use it. The joints must put the tool
+   * (accura_write_options, with the placement's $ROBROOT) on `end` within 0.01 mm and
+   * 0.01 deg: ACCURA_ERROR_INVALID_ARGUMENT otherwise, and without a loaded model. */
+  int n_joints;
+  double joints[ACCURA_MAX_JOINTS];
 } accura_program_motion;
 
 typedef struct accura_write_options {
@@ -406,8 +421,8 @@ ACCURA_API accura_status accura_write_options_init(accura_write_options* options
  * compensate` (values at 1e-4 mm and 1e-5 deg), every file through a temporary file renamed
  * into place. ACCURA_ERROR_INVALID_ARGUMENT for a motion type or pose that is not valid,
  * ACCURA_ERROR_INPUT for another extension or a file that cannot be written. `model` holds
- * the error message (no model need be loaded; a loaded model names the robot of an XML
- * program). */
+ * the error message (no model need be loaded, except for motions with joint values; a loaded
+ * model names the robot of an XML program). */
 ACCURA_API accura_status accura_write_program(accura_model* model, const char* path, const accura_program_motion* motions,
                                               size_t n_motions, const accura_write_options* options);
 

@@ -14,7 +14,7 @@ Every failing call raises AccuraError (its .status, .name and the library's mess
 import ctypes
 import os
 
-ABI_VERSION = 1
+ABI_VERSION = 2
 MAX_JOINTS = 12
 
 OK = 0
@@ -175,11 +175,22 @@ class Joint(ctypes.Structure):
 
 class ProgramMotion(ctypes.Structure):
     _fields_ = [("type", ctypes.c_int), ("aux", Pose), ("end", Pose), ("approximate", ctypes.c_int),
-                ("vel_m_s", ctypes.c_double)]
+                ("vel_m_s", ctypes.c_double), ("n_joints", ctypes.c_int), ("joints", ctypes.c_double * MAX_JOINTS)]
 
 
 class WriteOptions(ctypes.Structure):
     _fields_ = [("struct_size", ctypes.c_size_t), ("program_name", ctypes.c_char_p), ("tool", Pose), ("base", Pose)]
+
+
+def _installed_library():
+    """PREFIX/lib/libaccura_plugin.so when this wrapper is installed as PREFIX/share/accura/python/ (cmake --install);
+    None otherwise."""
+    here = os.path.dirname(os.path.abspath(__file__))
+    for lib in ("lib", "lib64"):
+        p = os.path.join(here, os.pardir, os.pardir, os.pardir, lib, "libaccura_plugin.so")
+        if os.path.exists(p):
+            return os.path.normpath(p)
+    return None
 
 
 def _bytes(s):
@@ -187,12 +198,18 @@ def _bytes(s):
 
 
 class Plugin:
-    """The loaded library. `path`: the .so (default: $ACCURA_PLUGIN_LIB, else libaccura_plugin.so on the
-    loader's path). Raises AccuraError when its ABI is not this wrapper's."""
+    """The loaded library. `path`: the .so (default: $ACCURA_PLUGIN_LIB, else the installed PREFIX/lib next to this
+    wrapper's PREFIX/share/accura/python, else libaccura_plugin.so on the loader's path). Raises AccuraError when it
+    cannot be loaded (naming ACCURA_PLUGIN_LIB) or its ABI is not this wrapper's."""
 
     def __init__(self, path=None):
-        path = path or os.environ.get("ACCURA_PLUGIN_LIB") or "libaccura_plugin.so"
-        self.lib = ctypes.CDLL(path)
+        path = path or os.environ.get("ACCURA_PLUGIN_LIB") or _installed_library() or "libaccura_plugin.so"
+        try:
+            self.lib = ctypes.CDLL(path)
+        except OSError as e:
+            raise AccuraError(ERROR_INPUT, "ACCURA_ERROR_INPUT",
+                              "cannot load the accura plug-in library '%s' (%s): give its path (Plugin(path), or "
+                              "ACCURA_PLUGIN_LIB=/path/to/libaccura_plugin.so)" % (path, e)) from None
         self.path = path
         L = self.lib
         P = ctypes.POINTER
@@ -207,6 +224,7 @@ class Plugin:
             "accura_model_load": [vp, ctypes.c_char_p, P(LoadOptions)],
             "accura_model_get_info": [vp, P(ModelInfo)],
             "accura_forward_kinematics": [vp, ctypes.c_int, P(ctypes.c_double), ctypes.c_size_t, P(Pose)],
+            "accura_joint_configuration": [vp, P(ctypes.c_double), ctypes.c_size_t, P(Configuration)],
             "accura_compensate_pose": [vp, P(Pose), P(Configuration), P(PoseResult)],
             "accura_compensate_poses": [vp, P(Pose), P(Configuration), ctypes.c_size_t, ctypes.c_int, P(PoseResult),
                                         P(ctypes.c_size_t)],
@@ -317,19 +335,24 @@ class Model:
 
     def write_program(self, path, motions, tool, base=(0, 0, 0, 0, 0, 0), program_name=None):
         """Writes a new program (.src: KRL with its .dat; .xml: accura's XML) with accura's writer, each file through
-        a temporary file renamed into place. motions: ("PTP", end, approximate), ("LIN", end, approximate, vel_m_s)
-        or ("CIRC", aux, end, approximate, vel_m_s) tuples; tool, base: $TOOL and $BASE (x, y, z, A, B, C)."""
+        a temporary file renamed into place. motions: ("PTP", end, approximate[, joints]), ("LIN", end, approximate,
+        vel_m_s) or ("CIRC", aux, end, approximate, vel_m_s) tuples; a PTP's joints (the arm's joint values at end, deg;
+        None: none) give its S/T (needs a loaded model); tool, base: $TOOL and $BASE (x, y, z, A, B, C)."""
         arr = (ProgramMotion * max(len(motions), 1))()
         for i, m in enumerate(motions):
             kind = m[0].upper()
-            if kind == "PTP" and len(m) == 3:
-                arr[i] = ProgramMotion(PTP, Pose(), Pose.of(m[1]), 1 if m[2] else 0, 0.0)
+            if kind == "PTP" and len(m) in (3, 4):
+                q = list(m[3]) if len(m) == 4 and m[3] is not None else []
+                if len(q) > MAX_JOINTS:
+                    raise ValueError("motion %d: at most %d joint values, found %d" % (i, MAX_JOINTS, len(q)))
+                arr[i] = ProgramMotion(PTP, Pose(), Pose.of(m[1]), 1 if m[2] else 0, 0.0, len(q),
+                                       (ctypes.c_double * MAX_JOINTS)(*[float(v) for v in q]))
             elif kind == "LIN" and len(m) == 4:
                 arr[i] = ProgramMotion(LIN, Pose(), Pose.of(m[1]), 1 if m[2] else 0, m[3])
             elif kind == "CIRC" and len(m) == 5:
                 arr[i] = ProgramMotion(CIRC, Pose.of(m[1]), Pose.of(m[2]), 1 if m[3] else 0, m[4])
             else:
-                raise ValueError("motion %d: expected ('PTP', end, approx), ('LIN', end, approx, vel_m_s) or "
+                raise ValueError("motion %d: expected ('PTP', end, approx[, joints]), ('LIN', end, approx, vel_m_s) or "
                                  "('CIRC', aux, end, approx, vel_m_s), found %r" % (i, m))
         o = WriteOptions()
         self._check(self.lib.accura_write_options_init(ctypes.byref(o), ctypes.sizeof(o)))
@@ -351,6 +374,13 @@ class Model:
         p = Pose()
         self._check(self.lib.accura_forward_kinematics(self.handle, which, arr, len(q), ctypes.byref(p)))
         return p.tuple()
+
+    def joint_configuration(self, q):
+        """(S, T) of joint values q (deg) by KUKA's rule: what a PTP must carry for the arm to take them."""
+        arr = (ctypes.c_double * len(q))(*q)
+        c = Configuration()
+        self._check(self.lib.accura_joint_configuration(self.handle, arr, len(q), ctypes.byref(c)))
+        return c.status, c.turn
 
     @staticmethod
     def _config(status, turn):

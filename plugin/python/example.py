@@ -56,13 +56,22 @@ END
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__)
-    ap.add_argument("--lib", help="libaccura_plugin.so (default: $ACCURA_PLUGIN_LIB)")
+    ap.add_argument("--lib", help="libaccura_plugin.so (default: $ACCURA_PLUGIN_LIB, else the installed PREFIX/lib one)")
     ap.add_argument("--model", required=True, help="a calibrated model (tests/data/plugin/kr16_calibrated.xml)")
     a = ap.parse_args()
 
     plugin = accura_plugin.Plugin(a.lib)
     print("accura plug-in %d.%d.%d, ABI %d" % (plugin.version + (plugin.abi_version,)))
     check(plugin.abi_version == accura_plugin.ABI_VERSION, "ABI")
+
+    # a library that cannot be loaded: ERROR_INPUT, and the message says how to name it (eyes F11)
+    try:
+        accura_plugin.Plugin("/nonexistent/libaccura_plugin.so")
+        check(False, "loading a missing library must fail")
+    except accura_plugin.AccuraError as e:
+        check(e.status == accura_plugin.ERROR_INPUT and e.message.startswith(
+            "cannot load the accura plug-in library '/nonexistent/libaccura_plugin.so' (") and e.message.endswith(
+            "): give its path (Plugin(path), or ACCURA_PLUGIN_LIB=/path/to/libaccura_plugin.so)"), "library message: %s" % e)
 
     # a missing file: ERROR_INPUT, and the message names the path
     missing = "/nonexistent/kr16_calibrated.xml"
@@ -133,6 +142,16 @@ def main():
             text = open(s.output_path.decode()).read()
             motions = [ln for ln in text.splitlines() if ln.split(" ")[0] in ("PTP", "LIN", "CIRC")]
             check(len(motions) == 4 + s.points_added, "inserted motions written: %d lines" % len(motions))
+            # a PTP written with the arm's joints carries their S/T (KUKA's HOME {0, -90, 90, 0, 0, 0}: S 2, T 2;
+            # A5 < 0 adds S bit 2 and T bit 4)
+            home, flip = (0, -90, 90, 0, 0, 0), (10, -60, 80, 20, -45, 30)
+            check(model.joint_configuration(home) == (2, 2), "S/T of HOME: %r" % (model.joint_configuration(home),))
+            check(model.joint_configuration(flip) == (6, 18), "S/T with A5 < 0: %r" % (model.joint_configuration(flip),))
+            ptp = os.path.join(d, "ptp.src")
+            torch = (20, 0, 250, 0, -30, 0)  # the model's tool: the program tool of its poses
+            model.write_program(ptp, [("PTP", model.forward_kinematics(q), False, q) for q in (home, flip)], tool=torch)
+            ptps = [ln for ln in open(ptp).read().splitlines() if ln.startswith("PTP")]
+            check(len(ptps) == 2 and ptps[0].endswith(",S 2,T 2}") and ptps[1].endswith(",S 6,T 18}"), "PTP S/T: %r" % ptps)
             try:
                 model.compensate_program(src, d)  # would overwrite the input
                 check(False, "overwriting the input must fail")

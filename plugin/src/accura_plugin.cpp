@@ -1,31 +1,22 @@
 // accura plug-in: the C interface (plugin/include/accura_plugin.h), a shell over postproc's
-// Session (accura/postproc/session.h), where the frames, the models, the path loop and the
-// validation of values live. Here: NULL and size checks, C structs <-> C++ values, exceptions
-// -> statuses and messages, and the handles.
+// Session (accura/postproc/session.h), where the frames, the models, the path loop, the
+// validation of values and the registry of live handles (SessionRegistry) live. Here: NULL and
+// size checks, C structs <-> C++ values, exceptions -> statuses and messages.
 //
-// Every exported function runs its body inside guarded(): C++ exceptions (std::bad_alloc
-// included) become a status and a message stored for the calling thread in the handle.
-// Handles: an accura_model* is a key of the registry of live handles, not an address: it is
-// never dereferenced and never reused, so that a handle used after accura_model_free (or one
-// never made by accura_model_create) gives ACCURA_ERROR_INVALID_ARGUMENT instead of reading
-// freed memory. A call holds its handle (shared_ptr) while it runs: accura_model_free from
-// another thread lets it finish.
+// Every exported function runs its body inside run(): C++ exceptions (std::bad_alloc
+// included) become a status and a message "function: what" stored for the calling thread in
+// the handle's slot, or, for a call without a live handle, in t_unbound_error. An
+// accura_model* is a SessionRegistry key, never dereferenced; a call holds its slot
+// (shared_ptr) while it runs, so accura_model_free from another thread lets it finish.
 #include "accura_plugin.h"
 
 #include <algorithm>
 #include <cmath>
-#include <cstdint>
 #include <cstring>
 #include <filesystem>
-#include <memory>
-#include <mutex>
 #include <new>
 #include <optional>
 #include <string>
-#include <thread>
-#include <type_traits>
-#include <unordered_map>
-#include <utility>
 #include <vector>
 
 #include "accura/calib/errors.h"
@@ -40,102 +31,118 @@
 
 using namespace accura;
 using namespace accura::postproc;
+using Slot = SessionRegistry::Slot;
 
 namespace {
 
-/// A failure with its status (thrown inside the guarded bodies).
+/// A failure with its status (thrown inside the bodies).
 struct PluginError {
   accura_status status;
   std::string message;
 };
-
 [[noreturn]] void fail(accura_status s, const std::string& message) { throw PluginError{s, message}; }
 
-/// What an accura_model key stands for.
-struct Handle {
-  std::mutex mutex;  ///< guards session (the pointer) and errors
-  std::shared_ptr<const Session> session;
-  std::unordered_map<std::thread::id, std::string> errors;  ///< the last error per thread
-};
+/// The calling thread's last error of a call without a live handle (NULL, freed, *_init).
+thread_local std::string t_unbound_error;
+const char* const kNotLive = "not a live handle (freed by accura_model_free, or not made by accura_model_create)";
 
-struct Registry {
-  std::mutex mutex;
-  std::unordered_map<std::uintptr_t, std::shared_ptr<Handle>> live;
-  std::uintptr_t last_id = 0;
-};
+/// The status of the exception being handled; its message into *text (the status is set
+/// first: running out of memory while copying the message keeps it).
+void translate(accura_status* s, std::string* text) {
+  auto set = [&](accura_status status, const char* prefix, const char* what) {
+    *s = status;
+    *text = std::string(prefix) + what;
+  };
+  try {
+    throw;
+  } catch (const PluginError& e) {
+    set(e.status, "", e.message.c_str());
+  } catch (const calib::InputError& e) {
+    set(ACCURA_ERROR_INPUT, "", e.what());
+  } catch (const calib::ArgumentError& e) {
+    set(ACCURA_ERROR_INVALID_ARGUMENT, "", e.what());
+  } catch (const calib::NumericalError& e) {
+    set(ACCURA_ERROR_NUMERICAL, "", e.what());
+  } catch (const std::bad_alloc&) {
+    set(ACCURA_ERROR_OUT_OF_MEMORY, "", "out of memory");
+  } catch (const std::exception& e) {
+    set(ACCURA_ERROR_INTERNAL, "internal error: ", e.what());
+  } catch (...) {
+    set(ACCURA_ERROR_INTERNAL, "internal error: ", "unknown exception");
+  }
+}
 
-/// Never destroyed: a host may call while its static objects are torn down.
-Registry& registry() {
-  static Registry* r = new Registry();
-  return *r;
+/// Runs body(): ACCURA_OK, or the status of its exception with "fn: message" the calling
+/// thread's error in `slot` (null: t_unbound_error; the body may set `slot`, a reference).
+template <class F>
+accura_status run(const char* fn, const std::shared_ptr<Slot>& slot, F&& body) noexcept {
+  try {
+    body();
+    return ACCURA_OK;
+  } catch (...) {
+    accura_status s = ACCURA_ERROR_INTERNAL;
+    try {
+      std::string text;
+      translate(&s, &text);
+      text = std::string(fn) + ": " + text;
+      if (slot) slot->setError(std::move(text));
+      else t_unbound_error = std::move(text);
+    } catch (...) {  // out of memory while storing the message: the status still says it
+    }
+    return s;
+  }
 }
 
 std::uintptr_t keyOf(const accura_model* m) { return reinterpret_cast<std::uintptr_t>(m); }
 
-std::shared_ptr<Handle> lookup(const accura_model* m) {
-  Registry& r = registry();
-  std::lock_guard<std::mutex> lock(r.mutex);
-  const auto it = r.live.find(keyOf(m));
-  return it == r.live.end() ? nullptr : it->second;
+/// run() on the live handle `model`: body(slot).
+template <class F>
+accura_status guarded(const accura_model* model, const char* fn, F&& body) noexcept {
+  std::shared_ptr<Slot> slot;
+  return run(fn, slot, [&] {
+    if (!model) fail(ACCURA_ERROR_NULL_ARGUMENT, "model is NULL");
+    if (!(slot = SessionRegistry::instance().find(keyOf(model)))) fail(ACCURA_ERROR_INVALID_ARGUMENT, kNotLive);
+    body(*slot);
+  });
 }
 
-/// The calling thread's last error of a call without a live handle (NULL, freed, *_init).
-thread_local std::string t_unbound_error;
+/// Required pointers with their parameter names.
+using Pointers = std::initializer_list<std::pair<const void*, const char*>>;
 
-const char* const kNotLive = "not a live handle (freed by accura_model_free, or not made by accura_model_create)";
+/// NULL_ARGUMENT "NAME is NULL" for the first required pointer that is NULL.
+void need(Pointers pointers) {
+  for (const auto& p : pointers)
+    if (!p.first) fail(ACCURA_ERROR_NULL_ARGUMENT, std::string(p.second) + " is NULL");
+}
 
-/// Stores "fn: prefix message" for the calling thread in `h` (null: t_unbound_error) and
-/// returns s. `message`: a string, or a callable that makes it (built here, inside the try:
-/// running out of memory while building a message must not escape a noexcept function).
-template <class M>
-accura_status stored(Handle* h, const char* fn, accura_status s, M&& message, const char* prefix = "") noexcept {
-  try {
-    std::string text = std::string(fn) + ": " + prefix;
-    if constexpr (std::is_invocable_v<M>) text += message();
-    else text += message;
-    if (!h) {
-      t_unbound_error = std::move(text);
-      return s;
-    }
-    std::lock_guard<std::mutex> lock(h->mutex);
-    h->errors[std::this_thread::get_id()] = std::move(text);
-  } catch (...) {  // out of memory while storing the message: the status still says it
-  }
+std::shared_ptr<const Session> sessionOf(const Slot& slot) {
+  std::shared_ptr<const Session> s = slot.session();
+  if (!s) fail(ACCURA_ERROR_INVALID_ARGUMENT, "no model loaded on this handle (call accura_model_load first)");
   return s;
 }
 
+/// `p`, or a stand-in that is not NULL when `n` is 0 (nothing is read through it).
+const void* ifAny(size_t n, const void* p) { return n > 0 ? p : ""; }
+
+/// guarded(): the required pointers checked (need), then body(the handle's loaded session).
 template <class F>
-accura_status guarded(const accura_model* model, const char* fn, F&& body) noexcept {
-  std::shared_ptr<Handle> h;
-  try {
-    if (!model) return stored(nullptr, fn, ACCURA_ERROR_NULL_ARGUMENT, "model is NULL");
-    if (!(h = lookup(model))) return stored(nullptr, fn, ACCURA_ERROR_INVALID_ARGUMENT, kNotLive);
-    return body(*h);
-  } catch (const PluginError& e) {
-    return stored(h.get(), fn, e.status, e.message);
-  } catch (const calib::InputError& e) {
-    return stored(h.get(), fn, ACCURA_ERROR_INPUT, e.what());
-  } catch (const calib::ArgumentError& e) {
-    return stored(h.get(), fn, ACCURA_ERROR_INVALID_ARGUMENT, e.what());
-  } catch (const calib::NumericalError& e) {
-    return stored(h.get(), fn, ACCURA_ERROR_NUMERICAL, e.what());
-  } catch (const std::bad_alloc&) {
-    return stored(h.get(), fn, ACCURA_ERROR_OUT_OF_MEMORY, "out of memory");
-  } catch (const std::exception& e) {
-    return stored(h.get(), fn, ACCURA_ERROR_INTERNAL, e.what(), "internal error: ");
-  } catch (...) {
-    return stored(h.get(), fn, ACCURA_ERROR_INTERNAL, "unknown exception", "internal error: ");
-  }
+accura_status withSession(const accura_model* model, const char* fn, Pointers pointers, F&& body) noexcept {
+  return guarded(model, fn, [&](Slot& slot) {
+    need(pointers);
+    body(*sessionOf(slot));
+  });
 }
 
-void need(const void* p, const char* what) {
-  if (!p) fail(ACCURA_ERROR_NULL_ARGUMENT, std::string(what) + " is NULL");
+/// Joint values q[0..n) of the session's robot (the count checked before q is read).
+std::vector<double> jointsOf(const Session& s, const double* q, size_t n) {
+  if (n != static_cast<size_t>(s.dof()))
+    fail(ACCURA_ERROR_INVALID_ARGUMENT, "expected " + std::to_string(s.dof()) + " joint values, got " + std::to_string(n));
+  return std::vector<double>(q, q + n);
 }
 
-std::shared_ptr<const Session> sessionOf(Handle& h) {
-  std::lock_guard<std::mutex> lock(h.mutex);
-  if (!h.session) fail(ACCURA_ERROR_INVALID_ARGUMENT, "no model loaded on this handle (call accura_model_load first)");
-  return h.session;
+/// BUFFER_TOO_SMALL ("WHAT, the buffer holds C AFTER") when `needed` elements do not fit.
+void fits(size_t needed, size_t capacity, const std::string& what, const char* after = "") {
+  if (needed > capacity) fail(ACCURA_ERROR_BUFFER_TOO_SMALL, what + ", the buffer holds " + std::to_string(capacity) + after);
 }
 
 calib::XyzAbc xyz(const accura_pose& p) { return {p.x_mm, p.y_mm, p.z_mm, p.a_deg, p.b_deg, p.c_deg}; }
@@ -143,16 +150,11 @@ accura_pose cpose(const calib::XyzAbc& p) { return {p.x_mm, p.y_mm, p.z_mm, p.a_
 accura_configuration cconfig(const calib::Configuration& c) { return {c.status, c.turn}; }
 calib::Configuration configOf(const accura_configuration* c, int dof) { return c ? checkedConfiguration(c->status, c->turn, dof) : calib::Configuration{}; }
 
+/// calib::IkStatus in its order (kOk, kUnreachable, ..., kNotConverged) -> ACCURA_OK, then
+/// ACCURA_ERROR_UNREACHABLE .. ACCURA_ERROR_NOT_CONVERGED (the header's order).
 accura_status statusOf(calib::IkStatus s) {
-  switch (s) {
-    case calib::IkStatus::kOk: return ACCURA_OK;
-    case calib::IkStatus::kUnreachable: return ACCURA_ERROR_UNREACHABLE;
-    case calib::IkStatus::kJointLimits: return ACCURA_ERROR_JOINT_LIMITS;
-    case calib::IkStatus::kSingular: return ACCURA_ERROR_SINGULAR;
-    case calib::IkStatus::kNoConfiguration: return ACCURA_ERROR_NO_CONFIGURATION;
-    case calib::IkStatus::kNotConverged: return ACCURA_ERROR_NOT_CONVERGED;
-  }
-  return ACCURA_ERROR_INTERNAL;
+  const int k = static_cast<int>(s);
+  return k == 0 ? ACCURA_OK : k <= 5 ? static_cast<accura_status>(ACCURA_ERROR_UNREACHABLE + k - 1) : ACCURA_ERROR_INTERNAL;
 }
 
 void copyString(char* dst, size_t cap, const std::string& s) {
@@ -172,16 +174,26 @@ int cEnum(const E& e) {
   return v;
 }
 
+/// The motion type of motions[i] (LIN, CIRC and, when `ptp`, PTP), else INVALID_ARGUMENT.
+int motionType(int type, size_t i, bool ptp) {
+  if (type != ACCURA_LIN && type != ACCURA_CIRC && !(ptp && type == ACCURA_PTP))
+    fail(ACCURA_ERROR_INVALID_ARGUMENT, "motions[" + std::to_string(i) + "].type: expected " +
+                                            (ptp ? "ACCURA_LIN, ACCURA_CIRC or ACCURA_PTP" : "ACCURA_LIN (0) or ACCURA_CIRC (1)") +
+                                            ", found " + std::to_string(type));
+  return type;
+}
+
 /// The *_options_init functions: zeros, struct_size, then the defaults.
 template <class O, class F>
 accura_status initOptions(O* o, size_t struct_size, const char* fn, F&& defaults) noexcept {
-  if (!o) return stored(nullptr, fn, ACCURA_ERROR_NULL_ARGUMENT, "options is NULL");
-  if (struct_size != sizeof(O))
-    return stored(nullptr, fn, ACCURA_ERROR_INVALID_ARGUMENT, [&] { return "struct_size " + std::to_string(struct_size) + ", expected " + std::to_string(sizeof(O)); });
-  std::memset(o, 0, sizeof(O));
-  o->struct_size = sizeof(O);
-  defaults(*o);
-  return ACCURA_OK;
+  return run(fn, nullptr, [&] {
+    need({{o, "options"}});
+    if (struct_size != sizeof(O))
+      fail(ACCURA_ERROR_INVALID_ARGUMENT, "struct_size " + std::to_string(struct_size) + ", expected " + std::to_string(sizeof(O)));
+    std::memset(o, 0, sizeof(O));
+    o->struct_size = sizeof(O);
+    defaults(*o);
+  });
 }
 
 /// The caller's options (NULL: the defaults of `init`), their struct_size checked.
@@ -189,12 +201,11 @@ template <class O>
 O optionsOr(const O* given, accura_status (*init)(O*, size_t), const char* what) {
   O o;
   init(&o, sizeof(O));
-  if (!given) return o;
-  if (given->struct_size != sizeof(O))
+  if (given && given->struct_size != sizeof(O))
     fail(ACCURA_ERROR_INVALID_ARGUMENT, std::string(what) + ": struct_size " + std::to_string(given->struct_size) +
                                             " does not match this library's " + std::to_string(sizeof(O)) +
                                             " (header and library of different versions?)");
-  return *given;
+  return given ? *given : o;
 }
 
 /// The result with its padding zeroed: hosts may compare results byte for byte.
@@ -221,6 +232,13 @@ void copyViolation(const CheckViolation& v, accura_check_violation* c) {
   copyString(c->message, sizeof(c->message), v.message);
 }
 
+ProgramReadOptions readOptions(const char* dat_path, const char* config_path) {
+  ProgramReadOptions read;
+  if (dat_path) read.dat_path = dat_path;
+  if (config_path) read.config_path = config_path;
+  return read;
+}
+
 }  // namespace
 
 extern "C" {
@@ -239,62 +257,39 @@ ACCURA_API accura_status accura_status_name(accura_status status, const char** n
                                        "ACCURA_ERROR_JOINT_LIMITS", "ACCURA_ERROR_SINGULAR", "ACCURA_ERROR_NO_CONFIGURATION",
                                        "ACCURA_ERROR_NOT_CONVERGED", "ACCURA_ERROR_NUMERICAL", "ACCURA_ERROR_OUT_OF_MEMORY",
                                        "ACCURA_ERROR_INTERNAL"};
-  if (!name_out) return stored(nullptr, "accura_status_name", ACCURA_ERROR_NULL_ARGUMENT, "name_out is NULL");
-  const int s = cEnum(status);
-  const bool known = s >= 0 && s < static_cast<int>(sizeof(kNames) / sizeof(kNames[0]));
-  *name_out = known ? kNames[s] : "ACCURA_STATUS_UNKNOWN";
-  return known ? ACCURA_OK : stored(nullptr, "accura_status_name", ACCURA_ERROR_INVALID_ARGUMENT, [&] { return "unknown status " + std::to_string(s); });
+  return run("accura_status_name", nullptr, [&] {
+    need({{name_out, "name_out"}});
+    const int s = cEnum(status);
+    const bool known = s >= 0 && s < static_cast<int>(sizeof(kNames) / sizeof(kNames[0]));
+    *name_out = known ? kNames[s] : "ACCURA_STATUS_UNKNOWN";
+    if (!known) fail(ACCURA_ERROR_INVALID_ARGUMENT, "unknown status " + std::to_string(s));
+  });
 }
 
 ACCURA_API accura_status accura_last_error(const accura_model* model, const char** message_out) {
   if (!message_out) return ACCURA_ERROR_NULL_ARGUMENT;
   *message_out = "";
   try {
-    const std::shared_ptr<Handle> h = model ? lookup(model) : nullptr;
-    if (!h) {  // the thread's last error without a live handle
-      *message_out = t_unbound_error.c_str();
-      return model ? ACCURA_ERROR_INVALID_ARGUMENT : ACCURA_OK;
-    }
-    std::lock_guard<std::mutex> lock(h->mutex);
-    // the string stays in the map (its buffer unchanged) until this thread's next failing call
-    // on the handle, which is later than the documented lifetime
-    *message_out = h->errors[std::this_thread::get_id()].c_str();
-    return ACCURA_OK;
+    const std::shared_ptr<Slot> slot = model ? SessionRegistry::instance().find(keyOf(model)) : nullptr;
+    *message_out = slot ? slot->error().c_str() : t_unbound_error.c_str();  // without a live handle: the thread's
+    return slot || !model ? ACCURA_OK : ACCURA_ERROR_INVALID_ARGUMENT;
   } catch (...) {
     return ACCURA_ERROR_OUT_OF_MEMORY;
   }
 }
 
 ACCURA_API accura_status accura_model_create(accura_model** model_out) {
-  if (!model_out) return stored(nullptr, "accura_model_create", ACCURA_ERROR_NULL_ARGUMENT, "model_out is NULL");
-  *model_out = nullptr;
-  try {
-    auto h = std::make_shared<Handle>();
-    Registry& r = registry();
-    std::lock_guard<std::mutex> lock(r.mutex);
-    const std::uintptr_t key = ++r.last_id << 4;  // never 0, never reused (2^60 handles)
-    r.live.emplace(key, std::move(h));
-    *model_out = reinterpret_cast<accura_model*>(key);
-    return ACCURA_OK;
-  } catch (...) {
-    return stored(nullptr, "accura_model_create", ACCURA_ERROR_OUT_OF_MEMORY, "out of memory");
-  }
+  return run("accura_model_create", nullptr, [&] {
+    need({{model_out, "model_out"}});
+    *model_out = nullptr;
+    *model_out = reinterpret_cast<accura_model*>(SessionRegistry::instance().create());
+  });
 }
 
 ACCURA_API accura_status accura_model_free(accura_model* model) {
-  if (!model) return ACCURA_OK;
-  try {
-    std::shared_ptr<Handle> h;  // destroyed after the lock is released, once no call holds it
-    Registry& r = registry();
-    std::lock_guard<std::mutex> lock(r.mutex);
-    const auto it = r.live.find(keyOf(model));
-    if (it == r.live.end()) return stored(nullptr, "accura_model_free", ACCURA_ERROR_INVALID_ARGUMENT, kNotLive);
-    h = std::move(it->second);
-    r.live.erase(it);
-    return ACCURA_OK;
-  } catch (...) {  // std::system_error of a mutex: never seen, but no exception crosses the ABI
-    return stored(nullptr, "accura_model_free", ACCURA_ERROR_INTERNAL, "internal error: the handle registry's lock failed");
-  }
+  return run("accura_model_free", nullptr, [&] {
+    if (model && !SessionRegistry::instance().release(keyOf(model))) fail(ACCURA_ERROR_INVALID_ARGUMENT, kNotLive);
+  });
 }
 
 ACCURA_API accura_status accura_load_options_init(accura_load_options* o, size_t struct_size) {
@@ -302,8 +297,8 @@ ACCURA_API accura_status accura_load_options_init(accura_load_options* o, size_t
 }
 
 ACCURA_API accura_status accura_model_load(accura_model* model, const char* calibrated_model, const accura_load_options* options) {
-  return guarded(model, "accura_model_load", [&](Handle& h) {
-    need(calibrated_model, "calibrated_model");
+  return guarded(model, "accura_model_load", [&](Slot& slot) {
+    need({{calibrated_model, "calibrated_model"}});
     const accura_load_options o = optionsOr(options, accura_load_options_init, "accura_load_options");
     SessionSettings s;
     s.calibrated_model = calibrated_model;
@@ -316,83 +311,71 @@ ACCURA_API accura_status accura_model_load(accura_model* model, const char* cali
     s.temp_c = o.temp_c;
     s.max_joints = ACCURA_MAX_JOINTS;
     s.placement_setting = "robroot_in_world (accura_load_options)";
-    auto session = std::make_shared<const Session>(s);
-    std::lock_guard<std::mutex> lock(h.mutex);
-    h.session = std::move(session);
-    return ACCURA_OK;
+    slot.load(std::make_shared<const Session>(s));
   });
 }
 
 ACCURA_API accura_status accura_model_get_info(accura_model* model, accura_model_info* info) {
-  return guarded(model, "accura_model_get_info", [&](Handle& h) {
-    need(info, "info");
-    const auto s = sessionOf(h);
-    const calib::RobotModel& m = s->job().calibrated;
+  return withSession(model, "accura_model_get_info", {{info, "info"}}, [&](const Session& s) {
+    const calib::RobotModel& m = s.job().calibrated;
     *info = accura_model_info{};
     info->dof = m.dof();
     copyString(info->robot_name, sizeof(info->robot_name), m.nominal.name);
-    info->robroot_in_world = cpose(calib::toXyzAbc(s->placement().T_world_robroot));
+    info->robroot_in_world = cpose(calib::toXyzAbc(s.placement().T_world_robroot));
     info->calibrated_base_in_world = cpose(calib::toXyzAbc(m.T_world_base()));
     for (int i = 0; i < m.dof(); ++i) {
       info->lower[i] = m.nominal.joints[i].lower;
       info->upper[i] = m.nominal.joints[i].upper;
     }
-    return ACCURA_OK;
   });
 }
 
 ACCURA_API accura_status accura_model_get_joints(accura_model* model, accura_joint* joints, size_t capacity, size_t* n_joints) {
-  return guarded(model, "accura_model_get_joints", [&](Handle& h) {
-    if (capacity > 0) need(joints, "joints");
-    const std::vector<calib::JointSpec>& js = sessionOf(h)->job().calibrated.nominal.joints;
+  return withSession(model, "accura_model_get_joints", {{ifAny(capacity, joints), "joints"}}, [&](const Session& s) {
+    const std::vector<calib::JointSpec>& js = s.job().calibrated.nominal.joints;
     if (n_joints) *n_joints = js.size();
     for (size_t i = 0; i < js.size() && i < capacity; ++i)
       joints[i] = {js[i].type == calib::JointType::kPrismatic ? 1 : 0, js[i].a_mm, js[i].alpha_deg, js[i].d_mm, js[i].theta0_deg,
                    js[i].direction, js[i].lower, js[i].upper};
-    if (capacity < js.size())
-      fail(ACCURA_ERROR_BUFFER_TOO_SMALL, "the robot has " + std::to_string(js.size()) + " joints, the buffer holds " + std::to_string(capacity));
-    return ACCURA_OK;
+    fits(js.size(), capacity, "the robot has " + std::to_string(js.size()) + " joints");
   });
 }
 
 ACCURA_API accura_status accura_forward_kinematics(accura_model* model, accura_which_model which, const double* q, size_t n_joints,
                                                    accura_pose* pose_out) {
-  return guarded(model, "accura_forward_kinematics", [&](Handle& h) {
-    need(q, "q");
-    need(pose_out, "pose_out");
-    const auto s = sessionOf(h);
-    if (n_joints != static_cast<size_t>(s->dof()))  // before reading q: n_joints may be its size
-      fail(ACCURA_ERROR_INVALID_ARGUMENT, "expected " + std::to_string(s->dof()) + " joint values, got " + std::to_string(n_joints));
+  return withSession(model, "accura_forward_kinematics", {{q, "q"}, {pose_out, "pose_out"}}, [&](const Session& s) {
+    const std::vector<double> qv = jointsOf(s, q, n_joints);
     const int w = cEnum(which);
     if (w != ACCURA_CONTROLLER && w != ACCURA_REAL)
       fail(ACCURA_ERROR_INVALID_ARGUMENT, "which: expected ACCURA_CONTROLLER (0) or ACCURA_REAL (1), found " + std::to_string(w));
-    *pose_out = cpose(s->forward(w == ACCURA_REAL, std::vector<double>(q, q + n_joints)));
-    return ACCURA_OK;
+    *pose_out = cpose(s.forward(w == ACCURA_REAL, qv));
+  });
+}
+
+ACCURA_API accura_status accura_joint_configuration(accura_model* model, const double* q, size_t n_joints,
+                                                    accura_configuration* configuration_out) {
+  return withSession(model, "accura_joint_configuration", {{q, "q"}, {configuration_out, "configuration_out"}}, [&](const Session& s) {
+    *configuration_out = cconfig(s.configuration(jointsOf(s, q, n_joints)));
   });
 }
 
 ACCURA_API accura_status accura_compensate_pose(accura_model* model, const accura_pose* target, const accura_configuration* configuration,
                                                 accura_pose_result* result) {
-  return guarded(model, "accura_compensate_pose", [&](Handle& h) {
-    need(target, "target");
-    need(result, "result");
-    const auto s = sessionOf(h);
-    const SessionPose p = s->pose(xyz(*target), configOf(configuration, s->dof()));
-    fillPoseResult(p, s->dof(), result);
+  return withSession(model, "accura_compensate_pose", {{target, "target"}, {result, "result"}}, [&](const Session& s) {
+    const SessionPose p = s.pose(xyz(*target), configOf(configuration, s.dof()));
+    fillPoseResult(p, s.dof(), result);
     if (p.status != calib::IkStatus::kOk) fail(result->status, p.message);
-    return ACCURA_OK;
   });
 }
 
 ACCURA_API accura_status accura_compensate_poses(accura_model* model, const accura_pose* targets,
                                                  const accura_configuration* configurations, size_t n, int continuous,
                                                  accura_pose_result* results, size_t* n_ok) {
-  return guarded(model, "accura_compensate_poses", [&](Handle& h) {
+  return guarded(model, "accura_compensate_poses", [&](Slot& slot) {
     if (n_ok) *n_ok = 0;
-    if (n == 0) return ACCURA_OK;
-    need(targets, "targets");
-    need(results, "results");
-    const auto s = sessionOf(h);
+    if (n == 0) return;
+    need({{targets, "targets"}, {results, "results"}});
+    const auto s = sessionOf(slot);
     std::vector<calib::XyzAbc> t(n);
     std::vector<calib::Configuration> c(configurations ? n : 0);
     for (size_t i = 0; i < n; ++i) t[i] = xyz(targets[i]);
@@ -401,7 +384,6 @@ ACCURA_API accura_status accura_compensate_poses(accura_model* model, const accu
     for (size_t i = 0; i < n; ++i) fillPoseResult(r.results[i], s->dof(), &results[i]);
     if (n_ok) *n_ok = r.n_ok;
     if (r.first_failed >= 0) fail(results[r.first_failed].status, r.message);
-    return ACCURA_OK;
   });
 }
 
@@ -409,24 +391,16 @@ ACCURA_API accura_status accura_compensate_path(accura_model* model, const accur
                                                 const accura_configuration* start_configuration, const accura_path_motion* motions,
                                                 size_t n_motions, double tol_mm, accura_path_point* points, size_t capacity,
                                                 accura_path_result* result, accura_motion_report* reports) {
-  return guarded(model, "accura_compensate_path", [&](Handle& h) {
-    need(start, "start");
-    need(result, "result");
-    if (n_motions > 0) need(motions, "motions");
-    if (capacity > 0) need(points, "points");
+  return guarded(model, "accura_compensate_path", [&](Slot& slot) {
+    need({{start, "start"}, {result, "result"}, {ifAny(n_motions, motions), "motions"}, {ifAny(capacity, points), "points"}});
     *result = accura_path_result{};
     result->failed_motion = -1;
-    const auto s = sessionOf(h);
+    const auto s = sessionOf(slot);
     std::vector<SessionMotion> m(n_motions);
-    for (size_t i = 0; i < n_motions; ++i) {
-      const int type = cEnum(motions[i].type);
-      if (type != ACCURA_LIN && type != ACCURA_CIRC)
-        fail(ACCURA_ERROR_INVALID_ARGUMENT, "motions[" + std::to_string(i) + "].type: expected ACCURA_LIN (0) or ACCURA_CIRC (1), found " +
-                                                std::to_string(type));
-      m[i] = {type == ACCURA_CIRC ? PathType::kCirc : PathType::kLin, xyz(motions[i].aux), xyz(motions[i].end)};
-    }
-    if (reports)
-      for (size_t i = 0; i < n_motions; ++i) reports[i] = accura_motion_report{};
+    for (size_t i = 0; i < n_motions; ++i)
+      m[i] = {motionType(cEnum(motions[i].type), i, false) == ACCURA_CIRC ? PathType::kCirc : PathType::kLin, xyz(motions[i].aux),
+              xyz(motions[i].end)};
+    for (size_t i = 0; reports && i < n_motions; ++i) reports[i] = accura_motion_report{};
     const SessionPath p = s->path(xyz(*start), configOf(start_configuration, s->dof()), m, tol_mm);
     result->failed_motion = p.failed_motion;
     if (!p.ok()) fail(p.status == calib::IkStatus::kOk ? ACCURA_ERROR_INTERNAL : statusOf(p.status), p.message);
@@ -437,8 +411,7 @@ ACCURA_API accura_status accura_compensate_path(accura_model* model, const accur
       const SessionMotionNumbers& n = p.motions[i];
       reports[i] = {n.length_mm, n.max_error_uncompensated_mm, n.max_error_before_mm, n.max_error_after_mm, n.max_error_bound_mm, n.points_added};
     }
-    if (p.points.size() > capacity)
-      fail(ACCURA_ERROR_BUFFER_TOO_SMALL, "the path has " + std::to_string(p.points.size()) + " points, the buffer holds " + std::to_string(capacity));
+    fits(p.points.size(), capacity, "the path has " + std::to_string(p.points.size()) + " points");
     for (size_t i = 0; i < p.points.size(); ++i) {
       const SessionPathPoint& q = p.points[i];
       accura_path_point& c = points[i];
@@ -450,7 +423,6 @@ ACCURA_API accura_status accura_compensate_path(accura_model* model, const accur
       c.motion = q.motion;
       c.inserted = q.inserted ? 1 : 0;
     }
-    return ACCURA_OK;
   });
 }
 
@@ -460,27 +432,24 @@ ACCURA_API accura_status accura_program_options_init(accura_program_options* o, 
 
 ACCURA_API accura_status accura_compensate_program(accura_model* model, const char* program_path, const char* out_dir,
                                                    const accura_program_options* options, accura_program_summary* summary) {
-  return guarded(model, "accura_compensate_program", [&](Handle& h) {
-    need(program_path, "program_path");
-    need(out_dir, "out_dir");
+  return guarded(model, "accura_compensate_program", [&](Slot& slot) {
+    need({{program_path, "program_path"}, {out_dir, "out_dir"}});
     const accura_program_options o = optionsOr(options, accura_program_options_init, "accura_program_options");
     ProgramFileRequest q;
     q.in_path = program_path;
     q.out_dir = out_dir;
-    if (o.dat_path) q.read.dat_path = o.dat_path;
-    if (o.config_path) q.read.config_path = o.config_path;
+    q.read = readOptions(o.dat_path, o.config_path);
     if (o.json_report_path) q.json_path = o.json_report_path;
     q.out_name = "out_dir";
     q.json_name = "json_report_path";
-    const ProgramFileResult result = sessionOf(h)->compensateProgramFile(q, o.tol_mm);
+    const ProgramFileResult result = sessionOf(slot)->compensateProgramFile(q, o.tol_mm);
     const JobReport& r = result.report;
-    if (!summary) return ACCURA_OK;
+    if (!summary) return;
     *summary = {r.targets_corrected,  r.points_added,           static_cast<int>(r.segments.size()), static_cast<int>(r.warnings.size()),
                 r.max_correction_mm, r.rms_correction_mm,      r.max_correction_deg,                r.max_error_uncompensated_mm,
                 r.max_error_before_mm, r.max_error_after_mm, {}};
     copyString(summary->output_path, sizeof(summary->output_path),
                result.checked.files.empty() ? std::string() : result.checked.files.front().path);
-    return ACCURA_OK;
   });
 }
 
@@ -497,26 +466,17 @@ ACCURA_API accura_status accura_check_options_init(accura_check_options* o, size
 ACCURA_API accura_status accura_check_program(accura_model* model, const char* cell_path, const char* program_path,
                                               const accura_check_options* options, accura_check_summary* summary,
                                               accura_check_violation* violations, size_t capacity) {
-  return guarded(model, "accura_check_program", [&](Handle& h) {
-    need(cell_path, "cell_path");
-    need(program_path, "program_path");
-    need(summary, "summary");
-    if (capacity > 0) need(violations, "violations");
+  return guarded(model, "accura_check_program", [&](Slot& slot) {
+    need({{cell_path, "cell_path"}, {program_path, "program_path"}, {summary, "summary"}, {ifAny(capacity, violations), "violations"}});
     const accura_check_options o = optionsOr(options, accura_check_options_init, "accura_check_options");
-    ProgramReadOptions read;
-    if (o.dat_path) read.dat_path = o.dat_path;
-    if (o.config_path) read.config_path = o.config_path;
     std::optional<CheckThresholds> thresholds;
     if (!o.use_cell_thresholds) thresholds = CheckThresholds{o.joint_margin_deg, o.singular_threshold, o.min_clearance_mm};
-    const CheckReport r = sessionOf(h)->checkProgramFile(cell_path, program_path, read,
-                                                         o.as_written ? CheckMode::kAsWritten : CheckMode::kIntended, thresholds);
+    const CheckReport r = sessionOf(slot)->checkProgramFile(cell_path, program_path, readOptions(o.dat_path, o.config_path),
+                                                            o.as_written ? CheckMode::kAsWritten : CheckMode::kIntended, thresholds);
     *summary = {r.passed() ? 1 : 0, r.violations.size(), static_cast<int>(r.unchecked.size()), r.samples,
                 std::isfinite(r.min_clearance_mm) ? r.min_clearance_mm : 1e300, r.min_sigma, r.min_joint_margin};
     for (size_t i = 0; i < r.violations.size() && i < capacity; ++i) copyViolation(r.violations[i], &violations[i]);
-    if (r.violations.size() > capacity)
-      fail(ACCURA_ERROR_BUFFER_TOO_SMALL,
-           std::to_string(r.violations.size()) + " violations, the buffer holds " + std::to_string(capacity) + " (summary->n_violations)");
-    return ACCURA_OK;
+    fits(r.violations.size(), capacity, std::to_string(r.violations.size()) + " violations", " (summary->n_violations)");
   });
 }
 
@@ -526,40 +486,33 @@ ACCURA_API accura_status accura_write_options_init(accura_write_options* o, size
 
 ACCURA_API accura_status accura_write_program(accura_model* model, const char* path, const accura_program_motion* motions,
                                               size_t n_motions, const accura_write_options* options) {
-  return guarded(model, "accura_write_program", [&](Handle& h) {
-    need(path, "path");
-    need(options, "options");
-    if (n_motions > 0) need(motions, "motions");
+  return guarded(model, "accura_write_program", [&](Slot& slot) {
+    need({{path, "path"}, {options, "options"}, {ifAny(n_motions, motions), "motions"}});
     const accura_write_options o = optionsOr(options, accura_write_options_init, "accura_write_options");
+    const std::shared_ptr<const Session> session = slot.session();  // optional: names the robot, gives S/T
     PoseProgram p;
     if (o.program_name) p.name = o.program_name;
-    {
-      std::lock_guard<std::mutex> lock(h.mutex);  // a loaded model names the robot (optional)
-      if (h.session) p.robot = h.session->job().calibrated.nominal.name;
-    }
+    if (session) p.robot = session->job().calibrated.nominal.name;
     p.tool = xyz(o.tool);
     p.base = xyz(o.base);
     for (size_t i = 0; i < n_motions; ++i) {
       const accura_program_motion& c = motions[i];
-      const int type = cEnum(c.type);
-      if (type != ACCURA_PTP && type != ACCURA_LIN && type != ACCURA_CIRC)
-        fail(ACCURA_ERROR_INVALID_ARGUMENT, "motions[" + std::to_string(i) + "].type: expected ACCURA_LIN, ACCURA_CIRC or ACCURA_PTP, found " +
-                                                std::to_string(type));
+      const int type = motionType(cEnum(c.type), i, true);
+      if (c.n_joints < 0 || c.n_joints > ACCURA_MAX_JOINTS)
+        fail(ACCURA_ERROR_INVALID_ARGUMENT, "motions[" + std::to_string(i) + "].n_joints: expected 0.." + std::to_string(ACCURA_MAX_JOINTS) +
+                                                ", found " + std::to_string(c.n_joints));
       const MotionType t = type == ACCURA_PTP ? MotionType::kPtp : type == ACCURA_CIRC ? MotionType::kCirc : MotionType::kLin;
-      p.motions.push_back({t, xyz(c.aux), xyz(c.end), c.approximate != 0, c.vel_m_s});
+      p.motions.push_back({t, xyz(c.aux), xyz(c.end), c.approximate != 0, c.vel_m_s, std::vector<double>(c.joints, c.joints + c.n_joints)});
     }
-    writePoseProgram(path, p);
-    return ACCURA_OK;
+    writePoseProgram(path, p, session.get());
   });
 }
 
 ACCURA_API accura_status accura_write_file(accura_model* model, const char* path, const char* data, size_t size) {
-  return guarded(model, "accura_write_file", [&](Handle&) {
-    need(path, "path");
-    if (size > 0) need(data, "data");
+  return guarded(model, "accura_write_file", [&](Slot&) {
+    need({{path, "path"}, {ifAny(size, data), "data"}});
     calib::createDirectories(std::filesystem::path(path).parent_path().string());
     calib::writeFilesAtomically({{path, std::string(data ? data : "", size)}});
-    return ACCURA_OK;
   });
 }
 

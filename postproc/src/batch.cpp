@@ -67,7 +67,7 @@ std::vector<std::string> findPrograms(const std::string& in_dir) {
     }
     if (!it->is_regular_file(ec)) continue;
     const std::string ext = lower(p.extension().string());
-    if (ext != ".src" && ext != ".xml" && ext != ".script") continue;
+    if (ext != ".src" && ext != ".xml" && ext != ".script" && ext != ".mod" && ext != ".prg") continue;
     out.push_back(relativeSlash(fs::relative(p, in_dir)));
   }
   std::sort(out.begin(), out.end());
@@ -233,7 +233,12 @@ BatchResult runBatch(const std::string& in_dir, const std::string& out_dir, cons
           r.status = BatchFileResult::Status::kSkipped;
           r.message = "not an XML program (its root element is not <program>)";
         } else {
-          CheckedProgram out = compensateAndCheckFile(in_path.string(), out_path.string(), read, options.job,
+          // $config.dat holds KUKA's frames: it serves the KRL and XML programs of a mixed tree; a
+          // URScript program in the same tree carries its own TCP (set_tcp) and base
+          ProgramReadOptions file_read = read;
+          const ProgramFormat format = programFormat(in_path.string());
+          if (format != ProgramFormat::kKrl && format != ProgramFormat::kXml) file_read.config_path.clear();
+          CheckedProgram out = compensateAndCheckFile(in_path.string(), out_path.string(), file_read, options.job,
                                                       cell ? &*cell : nullptr, &r.report);
           r.check = std::move(out.check);
           if (r.check && !r.check->passed()) r.message = "failed the checks of " + cell->cell.file + ": " + firstCheckProblem(*r.check);

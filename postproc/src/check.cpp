@@ -224,9 +224,16 @@ class Checker {
     v.unit = "mm";
     v.robot_part = geometry_.robotShapeName(d.robot_shape);
     v.obstacle = d.object >= 0 ? geometry_.objectName(d.object) : "";
-    v.message = "clearance: " + v.robot_part + " is " + calib::formatFixed(d.mm, 3) + " mm from " + v.obstacle + (d.mm <= 0 ? " (in contact)" : "") +
-                ", required " + calib::formatFixed(t_.min_clearance_mm, 3) + " mm (short by " + calib::formatFixed(v.excess, 3) + " mm) " + at(v) + ", joints " +
-                jointsText(x.q);
+    // the first violation of a motion is where the clearance first drops below the minimum:
+    // found by bisection, it is often the crossing itself ("5.000 mm, short by 0.000 mm" reads
+    // as no violation), so that case says so; the smallest clearance of the motion is its own field
+    if (calib::formatFixed(v.excess, 3) == "0.000")
+      v.message = "clearance: " + v.robot_part + " comes closer to " + v.obstacle + " than the required " + calib::formatFixed(t_.min_clearance_mm, 3) +
+                  " mm from here on, " + at(v) + ", joints " + jointsText(x.q);
+    else
+      v.message = "clearance: " + v.robot_part + " is " + calib::formatFixed(d.mm, 3) + " mm from " + v.obstacle + (d.mm <= 0 ? " (in contact)" : "") +
+                  ", required " + calib::formatFixed(t_.min_clearance_mm, 3) + " mm (short by " + calib::formatFixed(v.excess, 3) + " mm) " + at(v) + ", joints " +
+                  jointsText(x.q);
     record(f, std::move(v));
   }
 

@@ -13,6 +13,7 @@
 #include "accura/postproc/krl.h"
 #include "accura/postproc/path_job.h"
 #include "accura/postproc/placement.h"
+#include "accura/postproc/rapid.h"
 #include "path_geometry.h"
 
 namespace accura::postproc {
@@ -73,7 +74,72 @@ class Job {
     if (!cp_where_.line) cp_where_ = m.where;
   }
 
+  /// RAPID confdata as the ABB controller treats it (docs/rapid.md, "Configuration"):
+  /// MoveJ with ConfJ\On goes to the programmed configuration (the compensation solves on its
+  /// branch; a correction that moves axis 1, 4 or 6 across a quadrant boundary within
+  /// kTurnBandDeg updates cf1/cf4/cf6 with a warning, any other mismatch is an error);
+  /// MoveL/MoveC with ConfL\On follow the path and the controller stops when axis 1, 4 or 6
+  /// ends more than one quadrant from the programmed one or cfx differs (an error), a
+  /// one-quadrant difference is accepted (kept as written, one warning per program);
+  /// ConfJ\Off / ConfL\Off: the configuration nearest the current one, confdata kept.
+  bool abbConfiguration(const Motion& m, Target& t, const Compensator& comp, const Eigen::VectorXd& q, bool cp) {
+    if (!t.abb_conf || !m.conf_monitored || q.size() < 6) return true;
+    const std::array<int, 4> asked = *t.abb_conf;
+    const std::array<int, 4> got = abbConfdata(comp.controller().model(), q);
+    if (asked == got) return true;
+    const int axis[3] = {0, 3, 5};
+    int worst = 0;
+    bool near_boundary = true;
+    for (int k = 0; k < 3; ++k) {
+      const int d = std::abs(asked[static_cast<size_t>(k)] - got[static_cast<size_t>(k)]);
+      worst = std::max(worst, d);
+      const double to_boundary = std::abs(q[axis[k]] - 90.0 * std::round(q[axis[k]] / 90.0));
+      if (d && to_boundary > calib::kTurnBandDeg) near_boundary = false;
+    }
+    auto text = [](const std::array<int, 4>& c) {
+      return "[" + std::to_string(c[0]) + "," + std::to_string(c[1]) + "," + std::to_string(c[2]) + "," + std::to_string(c[3]) + "]";
+    };
+    const bool cfx_same = asked[3] == got[3];
+    if (cp && cfx_same && worst <= 1) {
+      if (abb_disagree_.empty())
+        abb_first_ = targetLabel(t) + " (" + m.where.str() + "): written " + text(asked) + ", along the path " + text(got);
+      abb_disagree_.push_back(targetLabel(t));
+      if (!abb_where_.line) abb_where_ = m.where;
+      return true;
+    }
+    if (!cp && cfx_same && worst <= 1 && near_boundary) {
+      warning(m.where, "confdata of " + targetLabel(t) + " changed from " + text(asked) + " to " + text(got) + ": the correction moves axis 1, 4 or 6 within " +
+                           calib::formatFixed(calib::kTurnBandDeg, 1) + " deg of a quadrant boundary across it (ConfJ\\On goes to the programmed quadrant)");
+      t.abb_conf = got;
+      t.modified = true;
+      return true;
+    }
+    if (cp)
+      error(m.where, "ConfL\\On: the path reaches " + targetLabel(t) + " with confdata " + text(got) + ", programmed " + text(asked) +
+                         " (axis 1, 4 or 6 more than one quadrant away, or another cfx): the controller stops here; program the confdata the path has, or ConfL\\Off");
+    else
+      error(m.where, targetLabel(t) + " is not reachable in its programmed confdata " + text(asked) + " (ConfJ\\On; the compensated point has " + text(got) +
+                         "; program that configuration, or ConfJ\\Off)");
+    return false;
+  }
+
+  /// The IK branch (KUKA Status) and a seed in the programmed quadrants of a RAPID target.
+  calib::Configuration abbBranch(const Target& t) const { return {kukaStatusOfCfx((*t.abb_conf)[3]), -1}; }
+  Eigen::VectorXd abbSeed(const Target& t) const {
+    Eigen::VectorXd q = q_real_ ? *q_real_ : Eigen::VectorXd::Zero(s_.calibrated.dof());
+    const std::array<int, 4>& c = *t.abb_conf;
+    q[0] = (c[0] + 0.5) * 90.0;
+    q[3] = (c[1] + 0.5) * 90.0;
+    q[4] = (c[3] & 1) ? -45.0 : 45.0;
+    q[5] = (c[2] + 0.5) * 90.0;
+    return q;
+  }
+
   void flushCpConfigurations() {
+    if (!abb_disagree_.empty())
+      warning(abb_where_, std::to_string(abb_disagree_.size()) + " target(s) of MoveL/MoveC carry confdata that the path does not have; with ConfL\\On " +
+                              "the controller accepts axis 1, 4 and 6 within one quadrant of the programmed one, so they were compensated on " +
+                              "the path's configuration and their confdata are kept as written. First: " + abb_first_);
     if (cp_disagree_.empty()) return;
     warning(cp_where_, std::to_string(cp_disagree_.size()) + " target(s) of CP motions (LIN, CIRC, SLIN, SCIRC, SPL) carry S/T that " +
                            "the path does not have; the controller ignores them on CP motions (Status is kept from the start, " +
@@ -209,6 +275,7 @@ class Job {
 
   /// One motion of the program into `out` (with the points inserted before it).
   void motion(const Motion& m, Program& out) {
+    if (m.start_unknown) forget();
     if (!m.target_problem.empty()) {
       if (m.type == MotionType::kPtp)
         warning(m.where, motionKeyword(m) + " left unchanged: " + m.target_problem + "; the position after it is not known");
@@ -290,12 +357,15 @@ class Job {
   /// the robot files model none, so compensating it as if the axes did not move the robot or
   /// the part would be wrong without a word.
   bool externalAxesZero(const Motion& m, const Target& t) {
+    const bool abb = t.abb_conf.has_value();  // RAPID: eax_a..eax_f, 9E9 (not used) read as none
     std::string moved;
     for (int k = 0; k < 6; ++k)
-      if (t.ext[k] && *t.ext[k] != 0) moved += (moved.empty() ? "" : ", ") + std::string("E") + std::to_string(k + 1) + " " + calib::formatFixed(*t.ext[k], 4);
+      if (t.ext[k] && *t.ext[k] != 0)
+        moved += (moved.empty() ? "" : ", ") + (abb ? std::string("eax_") + static_cast<char>('a' + k) : "E" + std::to_string(k + 1)) + " " +
+                 calib::formatFixed(*t.ext[k], 4);
     if (moved.empty()) return true;
     error(t.where.file.empty() ? m.where : t.where,
-          "expected external axes E1..E6 at 0 in " + targetLabel(t) + ", found " + moved +
+          std::string("expected external axes ") + (abb ? "eax_a..eax_f at 0 or 9E9" : "E1..E6 at 0") + " in " + targetLabel(t) + ", found " + moved +
               " (a track or a positioner): the robot file '" + s_.calibrated.nominal.name +
               "' models no external axes, so the correction would ignore them; refused");
     return false;
@@ -322,14 +392,20 @@ class Job {
     // a CP motion from a known position continues on the robot's configuration (nearest
     // solution); from an unknown one the written S/T are the best guess of where it stands
     const bool cp = m.type != MotionType::kPtp;
-    const calib::Configuration config = cp && q_real_ ? calib::Configuration{} : c.config;
-    const PoseCompensation pc = comp.pose(c.T_world_end, config, seed, s_.ik, s_.context);
+    calib::Configuration config = cp && q_real_ ? calib::Configuration{} : c.config;
+    Eigen::VectorXd start = seed;
+    if (c.end.abb_conf && ((!cp && m.conf_monitored) || (cp && !q_real_))) {  // RAPID: the programmed branch
+      config = abbBranch(c.end);
+      start = abbSeed(c.end);
+    }
+    const PoseCompensation pc = comp.pose(c.T_world_end, config, start, s_.ik, s_.context);
     if (pc.status != calib::IkStatus::kOk) {
       error(m.where, targetLabel(end) + " cannot be compensated: " + toString(pc.status) + (pc.message.empty() ? "" : " (" + pc.message + ")"));
       return keep(out, mo);
     }
     if (cp) noteCpConfiguration(m, end, comp, pc.q_real);
     else if (!checkConfig(m, end, comp, pc.q_real, c.T_world_end)) return keep(out, mo);
+    if (!abbConfiguration(m, mo.target, comp, pc.q_real, cp)) return keep(out, mo);
     setPose(mo.target, toProgram(c.T_world_progbase, pc.T_world_tcp_command));
     if (mo.target.turn != end.turn) mo.target.modified = true;
     mo.target.turn = end.turn;
@@ -356,6 +432,7 @@ class Job {
       return keep(out, mo);
     }
     noteCpConfiguration(m, end, comp, sc.q_real_end.back());
+    if (!abbConfiguration(m, mo.target, comp, sc.q_real_end.back(), true)) return keep(out, mo);
     SegmentReport sr;
     sr.motion = m.where;
     sr.motion_type = motionKeyword(m);
@@ -390,6 +467,13 @@ class Job {
                              " mm, but TRIGGER statements are bound to this motion: no auxiliary points inserted");
     }
     insertPoints(m, c, end, commanded, sr.length_mm, out);
+    if (end.abb_conf && commanded.size() == sc.q_real_end.size())  // RAPID: the confdata the path has at each inserted point
+      for (size_t k = 0; k + 1 < commanded.size(); ++k)
+      {
+        Motion& ins = out.motions[out.motions.size() - commanded.size() + 1 + k];
+        ins.target.abb_conf = abbConfdata(comp.controller().model(), sc.q_real_end[k]);
+        if (ins.aux) ins.aux->abb_conf = ins.target.abb_conf;  // the circle point's confdata is not used
+      }
     const Eigen::Isometry3d T_cmd_end = commanded.back().T_world_end;
     setPose(mo.target, toProgram(c.T_world_progbase, T_cmd_end));
     mo.target.turn = end.turn;
@@ -488,6 +572,9 @@ class Job {
   std::array<std::optional<double>, 6> ext_prev_{};
   const Program* in_ = nullptr;         ///< the program (names for new points)
   std::vector<std::string> new_names_;  ///< new points named so far
+  std::vector<std::string> abb_disagree_;  ///< RAPID CP targets whose confdata differ from the path's (accepted)
+  std::string abb_first_;
+  SourceLocation abb_where_;
   std::vector<std::string> cp_disagree_;  ///< CP targets whose S/T differ from the path's
   std::string cp_first_;
   SourceLocation cp_where_;
@@ -522,9 +609,14 @@ void warnOutsideFitRanges(const calib::RobotModel& calibrated, JobReport* r) {
     const std::vector<calib::OutsideFitRange> o = calib::outsideFitRanges(calibrated, t.q_real);
     if (o.empty()) continue;
     std::string what;
-    for (const calib::OutsideFitRange& x : o)
-      what += " A" + std::to_string(x.joint) + " " + calib::formatFixed(x.q, 2) + " (fitted " + calib::formatFixed(x.lower, 2) +
-              ".." + calib::formatFixed(x.upper, 2) + ", " + calib::formatFixed(x.beyond, 2) + " beyond)";
+    for (const calib::OutsideFitRange& x : o) {
+      const calib::JointSpec& joint = calibrated.nominal.joints[static_cast<size_t>(x.joint - 1)];
+      const std::string unit = joint.type == calib::JointType::kPrismatic ? " mm" : " deg";
+      what += std::string(what.empty() ? " " : "; ") + "joint " + std::to_string(x.joint) +
+              (joint.name.empty() ? std::string() : " (" + joint.name + ")") + " at " + calib::formatFixed(x.q, 2) + unit +
+              " (fitted " + calib::formatFixed(x.lower, 2) + ".." + calib::formatFixed(x.upper, 2) + unit + ", " +
+              calib::formatFixed(x.beyond, 2) + unit + " beyond)";
+    }
     found.push_back({t.where, (t.name.empty() ? std::string("target") : t.name) +
                                   " lies outside the joint ranges the model was fitted on:" + what +
                                   " (its joint-dependent effects are not fitted there)"});

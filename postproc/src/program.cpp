@@ -6,6 +6,7 @@
 #include <cstdio>
 
 #include "accura/calib/errors.h"
+#include "accura/postproc/rapid.h"
 
 namespace accura::postproc {
 
@@ -108,6 +109,7 @@ std::string newPointName(const Program& program, const std::string& base, const 
       used = used || upperAscii(m.target.name) == up || (m.aux && upperAscii(m.aux->name) == up);
     }
     if (program.krl) used = used || containsIdentifier(program.krl->src_text, up) || containsIdentifier(program.krl->dat_text, up);
+    if (program.rapid) used = used || containsIdentifier(program.rapid->text, up);
     for (const PassThrough& s : program.passthrough) used = used || containsIdentifier(s.text, up);
     if (!used) return name;
   }

@@ -5,6 +5,7 @@
 
 #include "accura/calib/errors.h"
 #include "accura/postproc/krl.h"
+#include "accura/postproc/rapid.h"
 #include "accura/postproc/urscript.h"
 #include "accura/postproc/xml_program.h"
 
@@ -18,7 +19,8 @@ ProgramFormat programFormat(const std::string& path) {
   if (ext == ".src") return ProgramFormat::kKrl;
   if (ext == ".xml") return ProgramFormat::kXml;
   if (ext == ".script") return ProgramFormat::kUrScript;
-  throw calib::InputError(path + ": expected a program file ending in .src (KUKA KRL) or .xml (accura XML program) or .script (URScript), found '" +
+  if (ext == ".mod" || ext == ".prg") return ProgramFormat::kRapid;
+  throw calib::InputError(path + ": expected a program file ending in .src (KUKA KRL) or .xml (accura XML program) or .script (URScript) or .mod/.prg (ABB RAPID), found '" +
                    fs::path(path).extension().string() + "'");
 }
 
@@ -30,6 +32,13 @@ Program readProgram(const std::string& path, const ProgramReadOptions& options) 
       throw calib::InputError("--config: only for KRL and XML programs ($config.dat frames), found the URScript program " + path +
                        " (its TCP comes from set_tcp or --program-tool)");
     return readUrScript(path);
+  }
+  if (format == ProgramFormat::kRapid) {
+    if (!options.dat_path.empty()) throw calib::InputError("--dat: only for KRL programs (.src), found the RAPID module " + path);
+    if (!options.config_path.empty())
+      throw calib::InputError("--config: only for KRL and XML programs ($config.dat frames), found the RAPID module " + path +
+                              " (its tooldata and wobjdata are read from the module, or give --program-tool / --program-base)");
+    return readRapid(path);
   }
   if (format == ProgramFormat::kKrl) {
     KrlReadOptions o;
@@ -47,6 +56,9 @@ Program readProgram(const std::string& path, const ProgramReadOptions& options) 
 
 std::vector<calib::OutputFile> renderProgram(const Program& program, ProgramFormat format, const std::string& path,
                                       const std::string& dat_path) {
+  if (format == ProgramFormat::kRapid) return {{path, writeRapid(program.rapid || !program.urscript ? program
+                                                                                    : urScriptForConversion(program, "RAPID"))}};
+  if (program.rapid) return renderProgram(rapidForConversion(program), format, path, dat_path);
   if (format == ProgramFormat::kUrScript) return {{path, writeUrScript(program)}};
   if (program.urscript) return renderProgram(urScriptForConversion(program, format == ProgramFormat::kXml ? "XML" : "KRL"), format, path, dat_path);
   if (format == ProgramFormat::kXml) {

@@ -9,6 +9,7 @@
 #include "accura/calib/file_io.h"
 #include "accura/calib/geometry.h"
 #include "accura/calib/robot_io.h"
+#include "accura/calib/text.h"
 #include "accura/postproc/cell.h"
 #include "accura/postproc/path_job.h"
 
@@ -88,15 +89,41 @@ Eigen::Isometry3d Session::toWorld(const calib::XyzAbc& T_base_tcp, const std::s
 
 calib::XyzAbc Session::toBase(const Eigen::Isometry3d& T_world_tcp) const { return calib::toXyzAbc(T_world_progbase_.inverse() * T_world_tcp); }
 
-calib::XyzAbc Session::forward(bool real, const std::vector<double>& q) const {
+Eigen::VectorXd Session::jointVector(const std::vector<double>& q, const std::string& what) const {
   if (q.size() != static_cast<size_t>(dof()))
-    throw calib::ArgumentError("expected " + std::to_string(dof()) + " joint values, got " + std::to_string(q.size()));
+    throw calib::ArgumentError((what.empty() ? "" : what + ": ") + "expected " + std::to_string(dof()) + " joint values, got " +
+                               std::to_string(q.size()));
   Eigen::VectorXd qv(dof());
   for (int i = 0; i < dof(); ++i) {
-    if (!std::isfinite(q[i])) throw calib::ArgumentError("q[" + std::to_string(i) + "] is not finite");
+    if (!std::isfinite(q[i])) throw calib::ArgumentError((what.empty() ? "q" : what) + "[" + std::to_string(i) + "] is not finite");
     qv[i] = q[i];
   }
+  return qv;
+}
+
+calib::XyzAbc Session::forward(bool real, const std::vector<double>& q) const {
+  const Eigen::VectorXd qv = jointVector(q, "");
   return toBase(real ? comp_->real().forward(qv, job_.context) : comp_->controller().forward(qv));
+}
+
+calib::Configuration Session::configuration(const std::vector<double>& q) const {
+  return calib::kukaConfiguration(models_->controllerFlange(), jointVector(q, ""));
+}
+
+calib::Configuration Session::configurationAt(const std::vector<double>& q, const calib::XyzAbc& T_base_tcp, const calib::XyzAbc& tool,
+                                              const calib::XyzAbc& base, const std::string& what) const {
+  const Eigen::VectorXd qv = jointVector(q, what);
+  const Eigen::Isometry3d T_world_flange = calib::forwardKinematics(models_->controllerFlange(), qv);
+  const Eigen::Isometry3d T_base_tcp_q =
+      (placement().T_world_kworld * calib::toIsometry(base)).inverse() * T_world_flange * calib::toIsometry(tool);
+  const Eigen::Isometry3d T_target = calib::toIsometry(T_base_tcp);
+  const double mm = (T_base_tcp_q.translation() - T_target.translation()).norm();
+  const double deg = calib::rotationAngleDeg(T_base_tcp_q.linear() * T_target.linear().transpose());
+  if (!(mm <= kJointsOnTargetMm && deg <= kJointsOnTargetDeg))
+    throw calib::ArgumentError(what + ": the joint values put the tool " + calib::formatFixed(mm, 4) + " mm and " + calib::formatFixed(deg, 4) +
+                               " deg from the target (expected the arm's joints at it, within " + calib::formatFixed(kJointsOnTargetMm, 2) +
+                               " mm and " + calib::formatFixed(kJointsOnTargetDeg, 2) + " deg)");
+  return calib::kukaConfiguration(models_->controllerFlange(), qv);
 }
 
 SessionPose Session::pose(const calib::XyzAbc& target, const calib::Configuration& asked, const Eigen::VectorXd& seed) const {
@@ -222,7 +249,56 @@ CheckReport Session::checkProgramFile(const std::string& cell_path, const std::s
   return checkProgram(program, job_, cell, options);
 }
 
-void writePoseProgram(const std::string& path, const PoseProgram& spec) {
+std::shared_ptr<const Session> SessionRegistry::Slot::session() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return session_;
+}
+
+void SessionRegistry::Slot::load(std::shared_ptr<const Session> session) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  session_ = std::move(session);
+}
+
+const std::string& SessionRegistry::Slot::error() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return errors_[std::this_thread::get_id()];  // the node (and its string) stays until erased
+}
+
+void SessionRegistry::Slot::setError(std::string text) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  errors_[std::this_thread::get_id()] = std::move(text);
+}
+
+SessionRegistry& SessionRegistry::instance() {
+  static SessionRegistry* r = new SessionRegistry();
+  return *r;
+}
+
+std::uintptr_t SessionRegistry::create() {
+  auto slot = std::make_shared<Slot>();
+  std::lock_guard<std::mutex> lock(mutex_);
+  const std::uintptr_t key = ++last_id_ << 4;  // never 0, never reused (2^60 keys)
+  live_.emplace(key, std::move(slot));
+  return key;
+}
+
+bool SessionRegistry::release(std::uintptr_t key) {
+  std::shared_ptr<Slot> slot;  // destroyed after the lock is released, once no call holds it
+  std::lock_guard<std::mutex> lock(mutex_);
+  const auto it = live_.find(key);
+  if (it == live_.end()) return false;
+  slot = std::move(it->second);
+  live_.erase(it);
+  return true;
+}
+
+std::shared_ptr<SessionRegistry::Slot> SessionRegistry::find(std::uintptr_t key) const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  const auto it = live_.find(key);
+  return it == live_.end() ? nullptr : it->second;
+}
+
+void writePoseProgram(const std::string& path, const PoseProgram& spec, const Session* session) {
   const ProgramFormat format = programFormat(path);
   Program p;
   p.name = spec.name.empty() ? fs::path(path).stem().string() : spec.name;
@@ -244,6 +320,13 @@ void writePoseProgram(const std::string& path, const PoseProgram& spec) {
     if (c.approximate) m.approximation = {m.type == MotionType::kPtp ? Approximation::kCPtp : Approximation::kCDis};
     if (!std::isfinite(c.vel_m_s)) throw calib::ArgumentError(w + ".vel_m_s: expected a finite speed (m/s)");
     if (m.type != MotionType::kPtp && c.vel_m_s > 0) m.vel_m_s = c.vel_m_s;
+    if (!c.joints.empty() && !session)
+      throw calib::ArgumentError(w + ".joints: the configuration needs the robot's geometry: load a model first");
+    if (!c.joints.empty() && m.type == MotionType::kPtp) {
+      const calib::Configuration st = session->configurationAt(c.joints, c.end, spec.tool, spec.base, w + ".joints");
+      m.target.status = st.status;
+      m.target.turn = st.turn;
+    }
     m.tool = tool;
     m.base = base;
     p.motions.push_back(m);

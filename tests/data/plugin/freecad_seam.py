@@ -46,8 +46,50 @@ traj.Trajectory = Robot.Trajectory(
 
 new, summary = af.compensate_trajectory(doc, robot, traj, os.environ["ACCURA_MODEL"], tol_mm=tol_mm,
                                         plugin_lib=os.environ["ACCURA_PLUGIN_LIB"])
-af.export_krl(traj, os.path.join(out, "seam.src"), tool=TORCH)
-af.export_krl(new, os.path.join(out, "seam_accura.src"), tool=TORCH)
+with af.load_model(robot, os.environ["ACCURA_MODEL"], plugin_lib=os.environ["ACCURA_PLUGIN_LIB"]) as model:
+    # every PTP with the S/T of the arm's joints there (the test checks them against these joints)
+    af.export_krl(traj, os.path.join(out, "seam.src"), tool=TORCH, robot=robot, model=model)
+    af.export_krl(new, os.path.join(out, "seam_accura.src"), tool=TORCH, robot=robot, model=model)
+summary["arm_joints"] = {"seam": af.arm_joints(robot, traj.Trajectory.Waypoints),
+                         "seam_accura": af.arm_joints(robot, new.Trajectory.Waypoints)}
+af.export_krl(traj, os.path.join(out, "seam_no_st.src"), tool=TORCH)  # without the robot: PTPs without S/T
+
+# a payload given to compensate_trajectory is the loaded model's (joint compliance): 8 kg both ways
+heavy, _ = af.compensate_trajectory(doc, robot, traj, os.environ["ACCURA_MODEL"], tol_mm=tol_mm, check=False, name="Seam_8kg",
+                                    plugin_lib=os.environ["ACCURA_PLUGIN_LIB"], payload_kg=8.0)
+with af.load_model(robot, os.environ["ACCURA_MODEL"], plugin_lib=os.environ["ACCURA_PLUGIN_LIB"], payload_kg=8.0) as m8:
+    heavy_ref, _ = af.compensate_trajectory(doc, robot, traj, None, tol_mm=tol_mm, check=False, name="Seam_8kg_ref", model=m8)
+summary["payload_8kg"] = [list(af.placement_to_xyzabc(w.Pos)) for w in heavy.Trajectory.Waypoints]
+summary["payload_8kg_ref"] = [list(af.placement_to_xyzabc(w.Pos)) for w in heavy_ref.Trajectory.Waypoints]
+summary["payload_0kg"] = [list(af.placement_to_xyzabc(w.Pos)) for w in new.Trajectory.Waypoints]
+doc.removeObject(heavy.Name)
+doc.removeObject(heavy_ref.Name)
+
+# PTPs in another configuration (A1, A2, A4 and A5 negative: S 6, T 27 by KUKA's rule): the arm
+# set up there, targets made from joint values on that branch; compensated and exported
+FLIP = [(-30, -80, 100, -40, -60, 50), (-20, -70, 90, -50, -45, 60), (-40, -85, 110, -30, -70, 40)]
+robot.Axis1, robot.Axis2, robot.Axis3, robot.Axis4, robot.Axis5, robot.Axis6 = (-25, -75, 95, -45, -50, 55)
+with af.load_model(robot, os.environ["ACCURA_MODEL"], plugin_lib=os.environ["ACCURA_PLUGIN_LIB"]) as model:
+    flip = doc.addObject("Robot::TrajectoryObject", "Flip")
+    flip.Trajectory = Robot.Trajectory([Robot.Waypoint(af.xyzabc_to_placement(model.forward_kinematics(q)), name="F%d" % (k + 1),
+                                                       type="PTP", vel=100.0, cont=False, tool=1, base=0)
+                                        for k, q in enumerate(FLIP)])
+    flip_new, _ = af.compensate_trajectory(doc, robot, flip, os.environ["ACCURA_MODEL"], tol_mm=tol_mm, model=model)
+    af.export_krl(flip, os.path.join(out, "flip.src"), tool=TORCH, robot=robot, model=model)
+    af.export_krl(flip_new, os.path.join(out, "flip_accura.src"), tool=TORCH, robot=robot, model=model)
+    # a PTP the arm cannot reach: no joints, so no S/T: the export refuses it and writes nothing
+    far = doc.addObject("Robot::TrajectoryObject", "Far")
+    far.Trajectory = Robot.Trajectory([Robot.Waypoint(af.xyzabc_to_placement((5000, 0, 500, 0, 180, 0)), name="FAR",
+                                                      type="PTP", vel=100.0, cont=False, tool=1, base=0)])
+    try:
+        af.export_krl(far, os.path.join(out, "far.src"), tool=TORCH, robot=robot, model=model)
+        summary["far"] = ""
+    except af.AccuraFreeCADError as e:
+        summary["far"] = str(e)
+    doc.removeObject(far.Name)
+summary["flip_joints"] = FLIP
+summary["arm_joints"]["flip"] = af.arm_joints(robot, flip.Trajectory.Waypoints)
+summary["arm_joints"]["flip_accura"] = af.arm_joints(robot, flip_new.Trajectory.Waypoints)
 
 from KukaExporter import ExportCompactSub  # noqa: E402  FreeCAD's own exporter (LIN only, 3 decimals)
 lin_only = doc.addObject("Robot::TrajectoryObject", "SeamLin")

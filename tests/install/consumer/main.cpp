@@ -22,7 +22,7 @@ int main() {
     Eigen::VectorXd q(6);
     q << 10, -80, 70, 20, 30, 40;
     const auto p = accura::calib::toXyzAbc(accura::calib::forwardKinematics(model, q));
-    std::printf("x=%.4f y=%.4f z=%.4f A=%.5f B=%.5f C=%.5f\n", p.x_mm, p.y_mm, p.z_mm, p.a_deg, p.b_deg, p.c_deg);
+    std::printf("x=%.4f y=%.4f z=%.4f mm  A=%.5f B=%.5f C=%.5f deg\n", p.x_mm, p.y_mm, p.z_mm, p.a_deg, p.b_deg, p.c_deg);  // as accura fk
     (void)accura::postproc::programFormat("p.xml");
     return 0;
   } catch (const std::exception& e) {

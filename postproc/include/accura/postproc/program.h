@@ -66,6 +66,11 @@ struct Target {
   /// aggregate in the statement instead (the replaced point is not declared in the .dat).
   bool new_declaration = false;
   std::string replaces;  ///< for new_declaration: the name the motion used before
+  /// ABB confdata [cf1, cf4, cf6, cfx] of a RAPID robtarget (rapid.h); empty for other
+  /// languages. The compensation treats it as the controller does (ConfJ / ConfL, see
+  /// Motion::conf_monitored) and writes back the quadrants the compensated point has where
+  /// a correction moves a monitored axis across a quadrant boundary.
+  std::optional<std::array<int, 4>> abb_conf;
 
   /// True when X, Y, Z, A, B and C are all given.
   bool completePose() const;
@@ -124,6 +129,12 @@ struct Motion {
   int statement_id = -1;  ///< KRL: index in KrlSource::statements
   bool inserted = false;  ///< an auxiliary point added by the compensator (before statement_id)
   int trigger_count = 0;  ///< KRL: TRIGGER statements bound to this motion (since the last one)
+  /// RAPID: configuration monitoring active at this motion (ConfJ\On for MoveJ, ConfL\On
+  /// for MoveL/MoveC; the controller's default). Used only when the target has abb_conf.
+  bool conf_monitored = true;
+  /// The position before this motion is not known (RAPID: the first motion of a routine,
+  /// which may be called from anywhere): the compensation starts afresh here.
+  bool start_unknown = false;
 };
 
 /// Text spans of a KRL program, for writing it back byte for byte with only the corrected
@@ -185,6 +196,7 @@ struct XmlSource {
 };
 
 struct UrScriptSource;  // urscript.h
+struct RapidSource;     // rapid.h
 
 /// A program: the motion model, plus the source text it was read from (KRL, XML or URScript),
 /// for writing it back with only the corrected numbers and inserted points changed.
@@ -197,6 +209,7 @@ struct Program {
   std::shared_ptr<const KrlSource> krl;  ///< set by the KRL reader
   std::shared_ptr<const XmlSource> xml;  ///< set by the XML reader
   std::shared_ptr<const UrScriptSource> urscript;  ///< set by the URScript reader (urscript.h)
+  std::shared_ptr<const RapidSource> rapid;        ///< set by the RAPID reader (rapid.h)
   std::string source_file;               ///< the file the program was read from
 };
 

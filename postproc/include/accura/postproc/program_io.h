@@ -1,5 +1,6 @@
 // accura post-processor: reading and writing programs in either format, chosen by the file
-// extension (.src: KUKA KRL with its .dat; .xml: the XML program format; .script: URScript).
+// extension (.src: KUKA KRL with its .dat; .xml: the XML program format; .script: URScript;
+// .mod, .prg: ABB RAPID).
 #pragma once
 
 #include <string>
@@ -10,10 +11,10 @@
 
 namespace accura::postproc {
 
-enum class ProgramFormat { kKrl, kXml, kUrScript };
+enum class ProgramFormat { kKrl, kXml, kUrScript, kRapid };
 
 /// The format of a program file by its extension (case-insensitive): .src -> KRL, .xml -> XML,
-/// .script -> URScript (urscript.h).
+/// .script -> URScript (urscript.h), .mod / .prg -> ABB RAPID (rapid.h).
 /// Throws InputError for any other extension.
 ProgramFormat programFormat(const std::string& path);
 
@@ -31,7 +32,9 @@ Program readProgram(const std::string& path, const ProgramReadOptions& options =
 /// `dat_path` (empty: `path` with the extension .dat) when the program has a .dat (a program
 /// read from KRL without .dat gets none; a new KRL program always gets one); URScript ->
 /// `path` (urscript.h, writeUrScript; a program read from URScript goes into another format
-/// only when it holds nothing but motions, set_tcp and pose assignments). Throws
+/// only when it holds nothing but motions, set_tcp and pose assignments); RAPID -> `path`
+/// (rapid.h, writeRapid; a program read from RAPID goes into another format with its other
+/// statements as pass-through, which only XML carries). Throws
 /// ArgumentError when the program cannot be written in that format.
 std::vector<calib::OutputFile> renderProgram(const Program& program, ProgramFormat format, const std::string& path,
                                       const std::string& dat_path = "");

@@ -1,6 +1,7 @@
 // accura post-processor: a calibrated model loaded once and placed with the frames of its
 // poses, for hosts that compensate poses, paths and programs one call at a time. The plug-in
-// (plugin/src/accura_plugin.cpp) is a C shell over this file: its handle holds a Session.
+// (plugin/src/accura_plugin.cpp) is a C shell over this file: its handle is a SessionRegistry
+// key whose slot holds a Session.
 //
 // Frames: every pose given to and returned by a Session is T_base_tcp, the program's $TOOL in
 // its $BASE (x, y, z mm; A, B, C deg), as a KRL or XML program holds it. The Session takes it
@@ -17,9 +18,13 @@
 // threads at once (each call uses its own workspace).
 #pragma once
 
+#include <cstdint>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
+#include <thread>
+#include <unordered_map>
 #include <vector>
 
 #include "accura/calib/robot.h"
@@ -129,6 +134,18 @@ class Session {
   /// calib::ArgumentError).
   calib::XyzAbc forward(bool real, const std::vector<double>& q) const;
 
+  /// S/T of joints q (dof finite values, deg / mm; else calib::ArgumentError) by KUKA's rule
+  /// (calib::kukaConfiguration on the nominal geometry, what the controller computes).
+  calib::Configuration configuration(const std::vector<double>& q) const;
+  /// configuration(q) of the arm's joints at a program target T_base_tcp written with $TOOL
+  /// `tool` and $BASE `base` (relative to $WORLD; the placement's $ROBROOT applies). Throws
+  /// calib::ArgumentError naming `what` when q is not valid or does not put the tool on the
+  /// target within kJointsOnTargetMm / kJointsOnTargetDeg (joints of another target).
+  calib::Configuration configurationAt(const std::vector<double>& q, const calib::XyzAbc& T_base_tcp, const calib::XyzAbc& tool,
+                                       const calib::XyzAbc& base, const std::string& what) const;
+  static constexpr double kJointsOnTargetMm = 0.01;
+  static constexpr double kJointsOnTargetDeg = 0.01;
+
   /// Compensates one pose (Compensator::pose with the configuration rule of accura
   /// compensate, enforceConfiguration); `seed`: real joints to continue from (empty: none).
   SessionPose pose(const calib::XyzAbc& target, const calib::Configuration& asked, const Eigen::VectorXd& seed = Eigen::VectorXd()) const;
@@ -161,6 +178,47 @@ class Session {
 
   Eigen::Isometry3d toWorld(const calib::XyzAbc& T_base_tcp, const std::string& what) const;
   calib::XyzAbc toBase(const Eigen::Isometry3d& T_world_tcp) const;
+  /// q as a vector: dof finite values, else calib::ArgumentError ("WHAT: expected N joint
+  /// values, got M", "WHAT[i] is not finite"; `what` empty: no prefix, q[i]).
+  Eigen::VectorXd jointVector(const std::vector<double>& q, const std::string& what) const;
+};
+
+/// The sessions of a host's handles (the plug-in's accura_model*): keys, not addresses, never 0
+/// and never reused, so that a key used after release() (or never made) is found to be dead
+/// instead of reading freed memory. Each key's Slot holds its session (none until loaded) and
+/// the last error of each thread. Every method may run on several threads at once.
+class SessionRegistry {
+ public:
+  class Slot {
+   public:
+    /// The loaded session, null when none: the caller keeps it alive while it uses it (a
+    /// later load() or release() lets the call finish with it).
+    std::shared_ptr<const Session> session() const;
+    void load(std::shared_ptr<const Session> session);
+    /// The calling thread's last error on this slot ("" when none); the string stays valid
+    /// until this thread's next setError() on the slot or the slot's end.
+    const std::string& error();
+    void setError(std::string text);
+
+   private:
+    mutable std::mutex mutex_;
+    std::shared_ptr<const Session> session_;
+    std::unordered_map<std::thread::id, std::string> errors_;
+  };
+
+  /// The registry of the process: never destroyed (a host may call while its statics go).
+  static SessionRegistry& instance();
+  /// A new live key with an empty slot (a multiple of 16, so never 0 nor a small integer).
+  std::uintptr_t create();
+  /// Forgets `key`; false when it is not live. Calls that hold its slot finish with it.
+  bool release(std::uintptr_t key);
+  /// The slot of a live key; null when `key` is not live.
+  std::shared_ptr<Slot> find(std::uintptr_t key) const;
+
+ private:
+  mutable std::mutex mutex_;
+  std::unordered_map<std::uintptr_t, std::shared_ptr<Slot>> live_;
+  std::uintptr_t last_id_ = 0;
 };
 
 /// One motion of a program written from poses (program base frame, T_base_tcp).
@@ -169,6 +227,8 @@ struct PoseProgramMotion {
   calib::XyzAbc aux, end;                     ///< aux: kCirc only
   bool approximate = false;            ///< KRL C_PTP for PTP, C_DIS for LIN / CIRC
   double vel_m_s = 0;                  ///< LIN / CIRC path speed (m/s; <= 0: not set; finite)
+  /// The arm's joints at `end` (deg / mm; empty: none): a PTP's S/T (Session::configurationAt).
+  std::vector<double> joints;
 };
 
 /// A program to write from poses: every motion with the same $TOOL and $BASE.
@@ -181,8 +241,10 @@ struct PoseProgram {
 
 /// Writes `program` in the controller language of path's extension (renderProgram: .src KRL
 /// with its .dat, .xml accura's XML) through calib::writeFilesAtomically, the directory created.
-/// Throws calib::ArgumentError for a pose or speed that is not finite (naming "motions[I].end", ...),
-/// calib::InputError for another extension or a file that cannot be written.
-void writePoseProgram(const std::string& path, const PoseProgram& program);
+/// A PTP with joints gets their S/T (session->configurationAt; LIN / CIRC keep the
+/// configuration they start in: no S/T). Throws calib::ArgumentError for a pose or speed that
+/// is not finite (naming "motions[I].end", ...), joints without a session or not at their
+/// target; calib::InputError for another extension or a file that cannot be written.
+void writePoseProgram(const std::string& path, const PoseProgram& program, const Session* session = nullptr);
 
 }  // namespace accura::postproc

@@ -1,0 +1,763 @@
+// RAPID reader (see rapid.h): statements, declarations, the motion model, pass-through lines.
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <set>
+
+#include "accura/calib/errors.h"
+#include "rapid_internal.h"
+
+namespace fs = std::filesystem;
+
+namespace accura::postproc {
+namespace {
+
+using namespace rapid_detail;
+
+/// A target expression evaluated (wobj frame, mm) or why it cannot be.
+struct TargetVal {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  std::array<int, 4> conf{};
+  std::array<std::optional<double>, 6> ext;
+  int value = -1;        ///< the robtarget value it is (-1: an expression)
+  std::string problem;
+};
+
+/// A frame declaration (tooldata / wobjdata) evaluated.
+struct FrameVal {
+  std::optional<Eigen::Isometry3d> T;
+  std::string note;  ///< why it cannot be modelled
+  SourceLocation where;
+};
+
+struct Scope {
+  std::map<std::string, int> robtargets;  ///< upper-case name -> value
+  std::map<std::string, FrameVal> tools, wobjs;
+  std::map<std::string, std::array<double, 6>> joints;
+  std::map<std::string, std::optional<double>> zones;   ///< zone radius (nullopt: fine)
+  std::map<std::string, double> speeds;                 ///< v_tcp (mm/s)
+};
+
+const std::set<std::string> kBlockHeads = {"MODULE", "ENDMODULE", "PROC", "ENDPROC", "FUNC", "ENDFUNC", "TRAP", "ENDTRAP",
+                                           "RECORD", "ENDRECORD", "IF", "ELSEIF", "ELSE", "ENDIF", "WHILE", "ENDWHILE", "FOR",
+                                           "ENDFOR", "TEST", "CASE", "DEFAULT", "ENDTEST", "ERROR", "BACKWARD", "UNDO"};
+/// Motion instructions accura does not model: their targets would be missed without a word.
+const std::set<std::string> kOtherMoves = {"MOVELDO", "MOVEJDO", "MOVECDO", "MOVELSYNC", "MOVEJSYNC", "MOVECSYNC", "MOVELAO",
+                                           "MOVEJAO", "MOVECAO", "MOVELGO", "MOVEJGO", "MOVECGO", "TRIGGL", "TRIGGJ", "TRIGGC",
+                                           "TRIGGLIOS", "TRIGGJIOS", "ARCL", "ARCC", "ARCLSTART", "ARCLEND", "ARCCSTART", "ARCCEND",
+                                           "SEARCHL", "SEARCHC", "SEARCHEXTJ", "MOVEEXTJ", "SPOTL", "SPOTJ", "MOVEABSJDO"};
+
+class Reader {
+ public:
+  Reader(const std::string& text, const std::string& path) : src_(std::make_shared<RapidSource>()) {
+    src_->path = path;
+    src_->text = text;
+    starts_.push_back(0);
+    for (size_t i = 0; i < text.size(); ++i)
+      if (text[i] == '\n') starts_.push_back(i + 1);
+    model_line_.assign(starts_.size() + 1, false);
+  }
+
+  Program run() {
+    t_ = lexRapid(src_->text, src_->path);
+    split();
+    scanAssignments();
+    Program p;
+    p.source_file = src_->path;
+    p.name = fs::path(src_->path).stem().string();
+    for (const Range& st : stmts_) statement(st, p);
+    if (!module_seen_) fail(t_.empty() ? 0 : t_.front().b, "expected a RAPID module (MODULE name ... ENDMODULE), found " +
+                                                               (t_.empty() ? std::string("an empty file") : "'" + t_.front().s + "'"));
+    if (module_open_) fail(src_->text.size(), "expected ENDMODULE, found the end of the file");
+    if (!module_name_.empty()) p.name = module_name_;
+    passThrough(p);
+    p.rapid = src_;
+    return p;
+  }
+
+ private:
+  SourceLocation loc(size_t off) const { return locate(starts_, src_->path, off); }
+  [[noreturn]] void fail(size_t off, const std::string& msg) const {
+    const SourceLocation l = loc(off);
+    throw calib::InputError(l.file, l.line, l.column, msg);
+  }
+  std::string text(Range r) const { return r.first < r.second ? src_->text.substr(t_[r.first].b, t_[r.second - 1].e - t_[r.first].b) : ""; }
+  std::string found(size_t i, size_t end) const { return i < end ? "'" + t_[i].s + "'" : "the end of the statement"; }
+
+  /// Statements: a block header runs to the end of its line (and its brackets); any other
+  /// statement to its ';'.
+  void split() {
+    size_t i = 0;
+    while (i < t_.size()) {
+      const bool head = t_[i].kind == Tok::Kind::kIdent && kBlockHeads.count(t_[i].u);
+      const int line = loc(t_[i].b).line;
+      std::vector<size_t> open;
+      size_t j = i;
+      for (; j < t_.size(); ++j) {
+        const Tok& t = t_[j];
+        if (head && open.empty() && j > i && loc(t.b).line != line) break;
+        if (!head && open.empty() && j > i && t.kind == Tok::Kind::kIdent && kBlockHeads.count(t.u) && loc(t.b).line != loc(t_[j - 1].b).line)
+          fail(t_[j - 1].e, "expected ';' at the end of the statement '" + text({i, j}) + "', found " + t.s);
+        if (opens(t)) open.push_back(j);
+        if (closes(t)) {
+          if (open.empty()) fail(t.b, "expected a statement, found an unmatched '" + t.s + "'");
+          const std::string& o = t_[open.back()].s;
+          const std::string want = o == "(" ? ")" : o == "[" ? "]" : "}";
+          if (t.s != want) fail(t.b, "expected '" + want + "' to close the '" + o + "' at " + loc(t_[open.back()].b).str() + ", found '" + t.s + "'");
+          open.pop_back();
+        }
+        if (open.empty() && isOp(t_, j, ";")) {
+          ++j;
+          break;
+        }
+      }
+      if (!open.empty()) {
+        const Tok& o = t_[open.back()];
+        fail(o.b, "expected '" + std::string(o.s == "(" ? ")" : o.s == "[" ? "]" : "}") + "' to close this '" + o.s + "', found the end of the file");
+      }
+      if (!head && (j > t_.size() || !isOp(t_, j - 1, ";")))
+        fail(t_[j - 1].e, "expected ';' at the end of the statement '" + text({i, j}) + "', found the end of the file");
+      stmts_.push_back({i, j});
+      i = j;
+    }
+  }
+
+  /// Names assigned anywhere (name := ..., name.field := ...): their values change at run time.
+  void scanAssignments() {
+    for (const Range& r : stmts_) {
+      size_t k = r.first;
+      if (k >= r.second || t_[k].kind != Tok::Kind::kIdent) continue;
+      size_t j = k + 1;
+      while (j + 1 < r.second && isOp(t_, j, ".") && t_[j + 1].kind == Tok::Kind::kIdent) j += 2;
+      if (isOp(t_, j, ":=") && !assigned_.count(t_[k].u)) assigned_[t_[k].u] = loc(t_[k].b);
+    }
+  }
+
+  void markModel(Range r) {
+    const int a = loc(t_[r.first].b).line, b = loc(t_[r.second - 1].b).line;
+    for (int l = a; l <= b; ++l) model_line_[static_cast<size_t>(l)] = true;
+  }
+
+  void statement(Range r, Program& p) {
+    const std::vector<Tok>& t = t_;
+    const size_t i = r.first;
+    const std::string& u = t[i].u;
+    if (t[i].kind == Tok::Kind::kIdent && kBlockHeads.count(u)) return block(r, p);
+    if (!module_open_) fail(t[i].b, "expected MODULE before the first statement, found '" + t[i].s + "'");
+    size_t k = i;
+    if (isKw(t, k, "LOCAL") || isKw(t, k, "TASK")) ++k;
+    if (isKw(t, k, "CONST") || isKw(t, k, "PERS") || isKw(t, k, "VAR")) return declaration(r, k, p);
+    if ((u == "CONFL" || u == "CONFJ") && r.second - i == 4 && isOp(t, i + 1, "\\") && (isKw(t, i + 2, "ON") || isKw(t, i + 2, "OFF"))) {
+      (u == "CONFL" ? confl_ : confj_) = t[i + 2].u == "ON";
+      return markModel(r);
+    }
+    if (u == "MOVEL" || u == "MOVEJ" || u == "MOVEC" || u == "MOVEABSJ") return move(r, p);
+    if (t[i].kind == Tok::Kind::kIdent && kOtherMoves.count(u)) return otherMove(r, p);
+  }
+
+  void block(Range r, Program& p) {
+    const std::string& u = t_[r.first].u;
+    if (u == "MODULE") {
+      if (module_seen_) fail(t_[r.first].b, "expected one MODULE per file, found a second one");
+      if (r.second - r.first < 2 || t_[r.first + 1].kind != Tok::Kind::kIdent) fail(t_[r.first].e, "expected the module name after MODULE, found " + found(r.first + 1, r.second));
+      module_seen_ = module_open_ = true;
+      module_name_ = t_[r.first + 1].s;
+      return markModel(r);
+    }
+    if (u == "ENDMODULE") {
+      if (!module_open_) fail(t_[r.first].b, "expected MODULE before ENDMODULE, found ENDMODULE");
+      if (!routine_.empty()) fail(t_[r.first].b, "expected END" + routine_kind_ + " of the routine " + routine_ + ", found ENDMODULE");
+      module_open_ = false;
+      return markModel(r);
+    }
+    if (!module_open_) fail(t_[r.first].b, "expected MODULE before the first statement, found '" + t_[r.first].s + "'");
+    if (u == "PROC" || u == "FUNC" || u == "TRAP") {
+      if (!routine_.empty()) fail(t_[r.first].b, "expected END" + routine_kind_ + " of the routine " + routine_ + ", found " + u);
+      size_t k = r.first + 1;
+      if (u == "FUNC" && k < r.second) ++k;  // the return type
+      if (k >= r.second || t_[k].kind != Tok::Kind::kIdent) fail(t_[r.first].e, "expected the routine name after " + u + ", found " + found(k, r.second));
+      routine_ = t_[k].s;
+      routine_kind_ = u;
+      routine_line_ = r;
+      local_ = Scope{};
+      first_motion_in_routine_ = true;
+      return;
+    }
+    if (u == "ENDPROC" || u == "ENDFUNC" || u == "ENDTRAP") {
+      if (routine_.empty() || "END" + routine_kind_ != u)
+        fail(t_[r.first].b, "expected " + (routine_.empty() ? std::string("a routine before it") : "END" + routine_kind_ + " of " + routine_) + ", found " + u);
+      if (main_routine_ == routine_) {
+        markModel(routine_line_);
+        markModel(r);
+      }
+      routine_.clear();
+      return;
+    }
+    (void)p;
+  }
+
+  // --- data
+
+  [[noreturn]] void shape(size_t at, const std::string& what, const std::string& got) const {
+    fail(t_[at].b, "expected " + what + ", found '" + got + "'");
+  }
+
+  /// [[x,y,z],[q1,q2,q3,q4]] (pose) at r: the spans and values of its 7 numbers.
+  void poseParts(Range r, const std::string& what, std::pair<size_t, size_t>* spans, double* v) {
+    const auto parts = bracketItems(r, 2, what + " [[x,y,z],[q1,q2,q3,q4]]");
+    numbers(parts[0], 3, "a position [x,y,z] (mm)", spans, v);
+    numbers(parts[1], 4, "a quaternion [q1,q2,q3,q4]", spans + 3, v + 3);
+    checkPose(spans, v);
+  }
+
+  /// A position within kMaxPositionMm and a quaternion of norm 1 within kQuaternionNormTol.
+  void checkPose(const std::pair<size_t, size_t>* spans, const double* v) const {
+    for (int k = 0; k < 3; ++k)
+      if (std::abs(v[k]) > kMaxPositionMm)
+        fail(spans[k].first, "expected a position in mm within +-" + calib::formatFixed(kMaxPositionMm, 0) + ", found " +
+                                 src_->text.substr(spans[k].first, spans[k].second - spans[k].first));
+    const double n = std::sqrt(v[3] * v[3] + v[4] * v[4] + v[5] * v[5] + v[6] * v[6]);
+    if (!(std::abs(n - 1.0) <= kQuaternionNormTol))
+      fail(spans[3].first, "expected a unit quaternion (norm 1 within " + calib::formatFixed(kQuaternionNormTol, 3) + "), found norm " +
+                               calib::formatFixed(n, 6));
+  }
+
+  /// The items of the bracket [..] at r, which must have n of them.
+  std::vector<Range> bracketItems(Range r, size_t n, const std::string& what) {
+    if (!(isOp(t_, r.first, "[") && closing(t_, r.first, r.second) == r.second)) shape(r.first < r.second ? r.first : r.first - 1, what, text(r));
+    auto parts = items(t_, r.first + 1, r.second - 1);
+    if (parts.size() != n || parts.front().first == parts.front().second)
+      fail(t_[r.first].b, "expected " + what + " with " + std::to_string(n) + " items, found " + std::to_string(r.first + 2 == r.second ? 0 : parts.size()) + " in '" + text(r) + "'");
+    return parts;
+  }
+
+  void numbers(Range r, size_t n, const std::string& what, std::pair<size_t, size_t>* spans, double* v) {
+    const auto parts = bracketItems(r, n, what);
+    for (size_t k = 0; k < n; ++k) {
+      const std::optional<double> x = number(t_, parts[k]);
+      if (!x) shape(parts[k].first < parts[k].second ? parts[k].first : r.first, "a number in " + what, text(parts[k]));
+      v[k] = *x;
+      spans[k] = {t_[parts[k].first].b, t_[parts[k].second - 1].e};
+    }
+  }
+
+  /// A robtarget value [[x,y,z],[q1..q4],[cf1,cf4,cf6,cfx],[eax_a..eax_f]] at r.
+  int robtargetValue(Range r, int decl) {
+    const auto parts = bracketItems(r, 4, "a robtarget [[x,y,z],[q1,q2,q3,q4],[cf1,cf4,cf6,cfx],[eax_a,..,eax_f]]");
+    RapidSource::Value v;
+    v.begin = t_[r.first].b;
+    v.end = t_[r.second - 1].e;
+    v.decl = decl;
+    numbers(parts[0], 3, "a position [x,y,z] (mm)", v.num, v.v);
+    numbers(parts[1], 4, "a quaternion [q1,q2,q3,q4]", v.num + 3, v.v + 3);
+    checkPose(v.num, v.v);
+    numbers(parts[2], 4, "confdata [cf1,cf4,cf6,cfx]", v.num + 7, v.v + 7);
+    for (int k = 7; k < 11; ++k)
+      if (v.v[k] != std::floor(v.v[k]) || std::abs(v.v[k]) > 1000)
+        fail(v.num[k].first, "expected an integer in confdata, found " + src_->text.substr(v.num[k].first, v.num[k].second - v.num[k].first));
+    std::pair<size_t, size_t> es[6];
+    double ev[6];
+    numbers(parts[3], 6, "external axes [eax_a,..,eax_f]", es, ev);
+    src_->values.push_back(v);
+    ext_.push_back({});
+    for (int k = 0; k < 6; ++k)
+      if (std::abs(ev[k]) < kUnusedAxis) ext_.back()[static_cast<size_t>(k)] = ev[k];
+    return static_cast<int>(src_->values.size()) - 1;
+  }
+
+  TargetVal valueTarget(int id) const {
+    const RapidSource::Value& v = src_->values[static_cast<size_t>(id)];
+    TargetVal tv;
+    tv.T = poseOf(v.v, v.v + 3);
+    for (int k = 0; k < 4; ++k) tv.conf[static_cast<size_t>(k)] = static_cast<int>(v.v[7 + k]);
+    tv.ext = ext_[static_cast<size_t>(id)];
+    tv.value = id;
+    return tv;
+  }
+
+  bool boolean(Range r, const std::string& what) const {
+    if (r.second == r.first + 1 && (isKw(t_, r.first, "TRUE") || isKw(t_, r.first, "FALSE"))) return t_[r.first].u == "TRUE";
+    shape(r.first, "TRUE or FALSE for " + what, text(r));
+  }
+
+  Eigen::Isometry3d framePose(Range r, const std::string& what) {
+    std::pair<size_t, size_t> s[7];
+    double v[7];
+    poseParts(r, what, s, v);
+    return poseOf(v, v + 3);
+  }
+
+  FrameVal toolValue(Range r, const std::string& name) {
+    const auto parts = bracketItems(r, 3, "a tooldata [robhold, [[x,y,z],[q1,q2,q3,q4]], loaddata]");
+    FrameVal f;
+    f.where = loc(t_[r.first].b);
+    const bool robhold = boolean(parts[0], "robhold of tooldata " + name);
+    const Eigen::Isometry3d T = framePose(parts[1], "the tframe of tooldata " + name);
+    if (robhold) f.T = T;
+    else f.note = "tooldata " + name + " has robhold FALSE (a stationary tool with a robot-held work object), which accura does not model";
+    return f;
+  }
+
+  FrameVal wobjValue(Range r, const std::string& name) {
+    const auto parts = bracketItems(r, 5, "a wobjdata [robhold, ufprog, ufmec, uframe, oframe]");
+    FrameVal f;
+    f.where = loc(t_[r.first].b);
+    const bool robhold = boolean(parts[0], "robhold of wobjdata " + name);
+    const bool ufprog = boolean(parts[1], "ufprog of wobjdata " + name);
+    const Eigen::Isometry3d uf = framePose(parts[3], "the uframe of wobjdata " + name);
+    const Eigen::Isometry3d of = framePose(parts[4], "the oframe of wobjdata " + name);
+    if (robhold) f.note = "wobjdata " + name + " has robhold TRUE (the robot holds the work object: a stationary tool), which accura does not model";
+    else if (!ufprog) f.note = "wobjdata " + name + " has ufprog FALSE (a user frame moved by the mechanical unit " + text(parts[2]) + "), which accura does not model";
+    else f.T = uf * of;
+    return f;
+  }
+
+  Scope& scope() { return routine_.empty() ? module_ : local_; }
+
+  void declaration(Range r, size_t k, Program& p) {
+    (void)p;
+    const std::vector<Tok>& t = t_;
+    const size_t type = k + 1, name = k + 2;
+    if (name >= r.second || t[type].kind != Tok::Kind::kIdent || t[name].kind != Tok::Kind::kIdent) return;  // arrays etc.: pass-through
+    const std::string& ty = t[type].u;
+    const std::string& nm = t[name].s;
+    if (!isOp(t, name + 1, ":=")) return;  // no initial value (VAR robtarget p;): an unknown value
+    const Range val{name + 2, r.second - 1};
+    if (val.first >= val.second) fail(t[name + 1].e, "expected a value after ':=', found ';'");
+    if (ty == "ROBTARGET") {
+      if (!isOp(t, val.first, "[")) return;
+      RapidSource::Decl d;
+      d.name = nm;
+      d.line_begin = starts_[static_cast<size_t>(loc(t[r.first].b).line - 1)];
+      const size_t nl = src_->text.find('\n', t[r.second - 1].e);
+      d.line_end = nl == std::string::npos ? src_->text.size() : nl + 1;
+      d.indent = src_->text.substr(d.line_begin, t[r.first].b - d.line_begin);
+      d.head = src_->text.substr(t[r.first].b, t[name].b - t[r.first].b);
+      src_->decls.push_back(d);
+      const int id = robtargetValue(val, static_cast<int>(src_->decls.size()) - 1);
+      src_->decls.back().value = id;
+      scope().robtargets[t[name].u] = id;
+      return markModel(r);
+    }
+    if (ty == "TOOLDATA" && isOp(t, val.first, "[")) {
+      scope().tools[t[name].u] = toolValue(val, nm);
+      return markModel(r);
+    }
+    if (ty == "WOBJDATA" && isOp(t, val.first, "[")) {
+      scope().wobjs[t[name].u] = wobjValue(val, nm);
+      return markModel(r);
+    }
+    if (ty == "JOINTTARGET" && isOp(t, val.first, "[")) {
+      const auto parts = bracketItems(val, 2, "a jointtarget [[rax_1,..,rax_6],[eax_a,..,eax_f]]");
+      std::pair<size_t, size_t> s[6];
+      double v[6], e[6];
+      numbers(parts[0], 6, "robot axes [rax_1,..,rax_6] (deg)", s, v);
+      numbers(parts[1], 6, "external axes [eax_a,..,eax_f]", s, e);
+      scope().joints[t[name].u] = {v[0], v[1], v[2], v[3], v[4], v[5]};
+      return;  // a MoveAbsJ target: pass-through data (never changed)
+    }
+    if (ty == "ZONEDATA" && isOp(t, val.first, "[")) {
+      const auto parts = bracketItems(val, 7, "a zonedata [finep, pzone_tcp, pzone_ori, pzone_eax, zone_ori, zone_leax, zone_reax]");
+      const std::optional<double> z = number(t, parts[1]);
+      if (!z || *z < 0) shape(parts[1].first, "pzone_tcp >= 0 (mm) in zonedata " + nm, text(parts[1]));
+      scope().zones[t[name].u] = boolean(parts[0], "finep of zonedata " + nm) ? std::nullopt : std::optional<double>(*z);
+      return;
+    }
+    if (ty == "SPEEDDATA" && isOp(t, val.first, "[")) {
+      const auto parts = bracketItems(val, 4, "a speeddata [v_tcp, v_ori, v_leax, v_reax]");
+      const std::optional<double> v = number(t, parts[0]);
+      if (!v || *v <= 0) shape(parts[0].first, "v_tcp > 0 (mm/s) in speeddata " + nm, text(parts[0]));
+      scope().speeds[t[name].u] = *v;
+    }
+  }
+
+  template <class T>
+  const T* lookup(const std::map<std::string, T> Scope::*m, const std::string& u) const {
+    if (!routine_.empty()) {
+      const auto it = (local_.*m).find(u);
+      if (it != (local_.*m).end()) return &it->second;
+    }
+    const auto it = (module_.*m).find(u);
+    return it == (module_.*m).end() ? nullptr : &it->second;
+  }
+
+  // --- target expressions
+
+  TargetVal target(Range r) {
+    TargetVal tv;
+    if (r.first >= r.second) {
+      tv.problem = "an empty target";
+      return tv;
+    }
+    if (isOp(t_, r.first, "[")) return valueTarget(robtargetValue(r, -1));
+    if (r.second == r.first + 1 && t_[r.first].kind == Tok::Kind::kIdent) {
+      const std::string& u = t_[r.first].u;
+      const int* id = lookup(&Scope::robtargets, u);
+      if (!id) {
+        tv.problem = "'" + t_[r.first].s + "' is not a robtarget declared with a value in this module";
+        return tv;
+      }
+      const auto a = assigned_.find(u);
+      if (a != assigned_.end()) {
+        tv.problem = "'" + t_[r.first].s + "' is assigned at " + a->second.str() + ": its value at run time is not the declared one";
+        return tv;
+      }
+      return valueTarget(*id);
+    }
+    const bool offs = isKw(t_, r.first, "OFFS"), reltool = isKw(t_, r.first, "RELTOOL");
+    if ((offs || reltool) && isOp(t_, r.first + 1, "(") && closing(t_, r.first + 1, r.second) == r.second) return offset(r, reltool);
+    tv.problem = "'" + text(r) + "' is not a target accura can evaluate (a robtarget, a declared robtarget, Offs or RelTool of one)";
+    return tv;
+  }
+
+  /// Offs(p, dx, dy, dz) (wobj axes) or RelTool(p, dx, dy, dz [\Rx:=a] [\Ry:=b] [\Rz:=c])
+  /// (tool axes; rotations about x, then y, then z of the tool, deg).
+  TargetVal offset(Range r, bool reltool) {
+    const std::string f = reltool ? "RelTool" : "Offs";
+    auto args = items(t_, r.first + 2, r.second - 1);
+    std::map<std::string, double> rot;
+    if (reltool && args.size() >= 4) {  // the optional \Rx:=.. follow dz without a comma
+      Range& last = args.back();
+      size_t k = last.first;
+      while (k < last.second && !isOp(t_, k, "\\")) ++k;
+      size_t o = k;
+      last.second = k;
+      while (o < r.second - 1) {
+        if (!(isOp(t_, o, "\\") && o + 2 < r.second && t_[o + 1].kind == Tok::Kind::kIdent && isOp(t_, o + 2, ":=")) ||
+            !(t_[o + 1].u == "RX" || t_[o + 1].u == "RY" || t_[o + 1].u == "RZ"))
+          fail(t_[o].b, "expected \\Rx:=, \\Ry:= or \\Rz:= in RelTool, found '" + t_[o].s + (o + 1 < r.second ? t_[o + 1].s : "") + "'");
+        size_t e = o + 3;
+        while (e < r.second - 1 && !isOp(t_, e, "\\")) ++e;
+        const std::optional<double> x = number(t_, {o + 3, e});
+        if (!x) {
+          TargetVal tv;
+          tv.problem = "RelTool(...) at " + loc(t_[r.first].b).str() + " has a rotation that is not a number ('" + text({o + 3, e}) + "')";
+          return tv;
+        }
+        if (std::abs(*x) > kMaxAngleDeg) shape(o + 3, "a rotation in deg within +-" + calib::formatFixed(kMaxAngleDeg, 0) + " in RelTool", text({o + 3, e}));
+        rot[t_[o + 1].u] = *x;
+        o = e;
+      }
+    }
+    if (args.size() != 4) fail(t_[r.first].b, "expected " + f + "(point, dx, dy, dz) with 4 arguments, found " + std::to_string(args.size()));
+    TargetVal base = target(args[0]);
+    TargetVal tv;
+    if (!base.problem.empty()) {
+      tv.problem = f + "(...) at " + loc(t_[r.first].b).str() + " cannot be evaluated: " + base.problem;
+      return tv;
+    }
+    double d[3];
+    for (int k = 0; k < 3; ++k) {
+      const std::optional<double> x = number(t_, args[static_cast<size_t>(k + 1)]);
+      if (!x) {
+        tv.problem = f + "(...) at " + loc(t_[r.first].b).str() + " has an offset that is not a number ('" + text(args[static_cast<size_t>(k + 1)]) + "')";
+        return tv;
+      }
+      if (std::abs(*x) > kMaxPositionMm)
+        shape(args[static_cast<size_t>(k + 1)].first, "an offset in mm within +-" + calib::formatFixed(kMaxPositionMm, 0) + " in " + f,
+              text(args[static_cast<size_t>(k + 1)]));
+      d[k] = *x;
+    }
+    tv = base;
+    tv.value = -1;
+    if (reltool) {
+      Eigen::Isometry3d D = Eigen::Isometry3d::Identity();
+      D.translation() = Eigen::Vector3d(d[0], d[1], d[2]);
+      D.linear() = (Eigen::AngleAxisd(rot["RX"] * calib::kDegToRad, Eigen::Vector3d::UnitX()) *
+                    Eigen::AngleAxisd(rot["RY"] * calib::kDegToRad, Eigen::Vector3d::UnitY()) *
+                    Eigen::AngleAxisd(rot["RZ"] * calib::kDegToRad, Eigen::Vector3d::UnitZ())).toRotationMatrix();
+      tv.T = base.T * D;
+    } else {
+      tv.T.translation() += Eigen::Vector3d(d[0], d[1], d[2]);
+    }
+    for (int k = 0; k < 3; ++k)
+      if (std::abs(tv.T.translation()[k]) > kMaxPositionMm)
+        fail(t_[r.first].b, "expected " + f + "(...) to give a position within +-" + calib::formatFixed(kMaxPositionMm, 0) + " mm, found " +
+                                calib::formatFixed(tv.T.translation()[k], 4) + " in '" + text(r) + "'");
+    return tv;
+  }
+
+  // --- motions
+
+  struct Arg {
+    Range main;
+    std::vector<std::pair<std::string, Range>> opts;  ///< \Name[:=value] (upper-case name)
+  };
+
+  std::vector<Arg> arguments(Range r) {
+    std::vector<Arg> out;
+    for (const Range& it : items(t_, r.first + 1, r.second - 1)) {
+      Arg a;
+      size_t k = it.first;
+      int depth = 0;
+      while (k < it.second && !(depth == 0 && isOp(t_, k, "\\"))) {
+        if (opens(t_[k])) ++depth;
+        if (closes(t_[k])) --depth;
+        ++k;
+      }
+      a.main = {it.first, k};
+      while (k < it.second) {
+        if (k + 1 >= it.second || t_[k + 1].kind != Tok::Kind::kIdent) fail(t_[k].b, "expected an optional argument name after '\\', found " + found(k + 1, it.second));
+        const std::string n = t_[k + 1].u;
+        size_t e = k + 2, v = e;
+        if (isOp(t_, e, ":=")) v = ++e;
+        depth = 0;
+        while (e < it.second && !(depth == 0 && isOp(t_, e, "\\"))) {
+          if (opens(t_[e])) ++depth;
+          if (closes(t_[e])) --depth;
+          ++e;
+        }
+        a.opts.push_back({n, {v, e}});
+        k = e;
+      }
+      if (a.main.first == a.main.second && a.opts.empty()) fail(t_[it.first < r.second ? it.first : r.first].b, "expected an argument, found an empty one");
+      out.push_back(a);
+    }
+    return out;
+  }
+
+  void move(Range r, Program& p) {
+    const std::string& f = t_[r.first].s;
+    const std::string u = t_[r.first].u;
+    std::vector<Arg> all = arguments({r.first, r.second});
+    std::vector<Arg> pos;
+    std::map<std::string, Range> opt;
+    for (const Arg& a : all) {
+      if (a.main.first != a.main.second) pos.push_back(a);
+      for (const auto& o : a.opts) opt[o.first] = o.second;
+    }
+    const size_t want = u == "MOVEC" ? 5 : 4;
+    if (pos.size() != want) {
+      static const char* sig[] = {"ToPoint, Speed, Zone, Tool", "CirPoint, ToPoint, Speed, Zone, Tool", "ToJointPos, Speed, Zone, Tool"};
+      fail(t_[r.first].b, "expected " + f + " " + sig[u == "MOVEC" ? 1 : u == "MOVEABSJ" ? 2 : 0] + " (" + std::to_string(want) +
+                              " arguments), found " + std::to_string(pos.size()) + " in '" + text(r) + "'");
+    }
+    Motion m;
+    m.where = loc(t_[r.first].b);
+    m.statement = text(r);
+    m.type = u == "MOVEL" ? MotionType::kLin : u == "MOVEC" ? MotionType::kCirc : MotionType::kPtp;
+    m.conf_monitored = m.type == MotionType::kPtp ? confj_ : confl_;
+    m.start_unknown = first_motion_in_routine_;
+    RapidSource::Statement st = statementSpan(r, m.where);
+    const size_t n = pos.size();
+    speed(pos[n - 3].main, opt, m);
+    zone(pos[n - 2].main, opt, m);
+    tool(pos[n - 1].main, m);
+    wobj(opt, m);
+    if (u == "MOVEABSJ") {
+      jointTarget(pos[0].main, m);
+      st.targets.push_back({t_[pos[0].main.first].b, t_[pos[0].main.second - 1].e});
+      st.target_value.push_back(-1);
+    } else {
+      auto cart = [&](Range a) {
+        const TargetVal v = target(a);
+        Target tg;
+        tg.kind = Target::Kind::kCartesian;
+        tg.where = loc(t_[a.first].b);
+        if (!isOp(t_, a.first, "[")) tg.name = text(a);
+        if (v.problem.empty()) {
+          tg.setPose(calib::toXyzAbc(v.T));
+          tg.abb_conf = v.conf;
+          tg.ext = v.ext;
+          tg.value_id = v.value;
+          if (v.value >= 0 && src_->values[static_cast<size_t>(v.value)].decl >= 0) tg.where = loc(src_->values[static_cast<size_t>(v.value)].begin);
+        } else if (m.target_problem.empty()) {
+          m.target_problem = v.problem;
+        }
+        st.targets.push_back({t_[a.first].b, t_[a.second - 1].e});
+        st.target_value.push_back(v.problem.empty() ? v.value : -1);
+        return tg;
+      };
+      if (u == "MOVEC") m.aux = cart(pos[0].main);
+      m.target = cart(pos[u == "MOVEC" ? 1 : 0].main);
+    }
+    addMotion(r, m, st, p);
+  }
+
+  RapidSource::Statement statementSpan(Range r, const SourceLocation& where) const {
+    RapidSource::Statement st;
+    st.code_begin = t_[r.first].b;
+    st.code_end = t_[r.second - 1].e;
+    st.line_begin = starts_[static_cast<size_t>(where.line - 1)];
+    const size_t nl = src_->text.find('\n', st.code_end);
+    st.eol = nl == std::string::npos ? "" : (nl > 0 && src_->text[nl - 1] == '\r' ? "\r\n" : "\n");
+    return st;
+  }
+
+  void addMotion(Range r, Motion& m, RapidSource::Statement& st, Program& p) {
+    if (routine_.empty()) fail(t_[r.first].b, "expected " + t_[r.first].s + " inside a routine (PROC), found it at module level");
+    if (main_routine_.empty()) main_routine_ = routine_;
+    if (routine_ != main_routine_) other_routine_motion_ = true;
+    first_motion_in_routine_ = false;
+    m.statement_id = static_cast<int>(src_->statements.size());
+    src_->statements.push_back(st);
+    p.motions.push_back(m);
+    motion_lines_.push_back(loc(t_[r.first].b).line);
+    markModel(r);
+  }
+
+  void jointTarget(Range a, Motion& m) {
+    m.target.kind = Target::Kind::kAxis;
+    m.target.where = loc(t_[a.first].b);
+    if (isOp(t_, a.first, "[")) {
+      const auto parts = bracketItems(a, 2, "a jointtarget [[rax_1,..,rax_6],[eax_a,..,eax_f]]");
+      std::pair<size_t, size_t> s[6];
+      double v[6], e[6];
+      numbers(parts[0], 6, "robot axes [rax_1,..,rax_6] (deg)", s, v);
+      numbers(parts[1], 6, "external axes [eax_a,..,eax_f]", s, e);
+      for (int k = 0; k < 6; ++k) m.target.axes[static_cast<size_t>(k)] = v[k];
+      return;
+    }
+    m.target.name = text(a);
+    const auto* q = a.second == a.first + 1 ? lookup(&Scope::joints, t_[a.first].u) : nullptr;
+    if (q && !assigned_.count(t_[a.first].u)) {
+      for (int k = 0; k < 6; ++k) m.target.axes[static_cast<size_t>(k)] = (*q)[static_cast<size_t>(k)];
+    } else {
+      m.target_problem = "'" + text(a) + "' is not a jointtarget declared with a constant value in this module";
+    }
+  }
+
+  void speed(Range a, const std::map<std::string, Range>& opt, Motion& m) {
+    std::optional<double> v;
+    if (a.second == a.first + 1 && t_[a.first].kind == Tok::Kind::kIdent) {
+      v = predefinedSpeedMmS(t_[a.first].u);
+      if (!v) {
+        const double* d = lookup(&Scope::speeds, t_[a.first].u);
+        if (d) v = *d;
+      }
+    } else if (isOp(t_, a.first, "[")) {
+      const auto parts = bracketItems(a, 4, "a speeddata [v_tcp, v_ori, v_leax, v_reax]");
+      v = number(t_, parts[0]);
+      if (!v || *v <= 0) shape(parts[0].first, "v_tcp > 0 (mm/s)", text(parts[0]));
+    }
+    const auto it = opt.find("V");
+    if (it != opt.end()) {
+      const std::optional<double> x = number(t_, it->second);
+      if (x && !(*x > 0 && *x <= 1e5)) shape(it->second.first, "\\V:= a TCP speed in (0, 100000] mm/s", text(it->second));
+      v = x;
+    }
+    if (v && m.type != MotionType::kPtp) m.vel_m_s = *v / 1000.0;
+  }
+
+  void zone(Range a, const std::map<std::string, Range>& opt, Motion& m) {
+    std::optional<double> radius;
+    bool known = true, fine = false;
+    if (a.second == a.first + 1 && t_[a.first].kind == Tok::Kind::kIdent) {
+      const std::string& u = t_[a.first].u;
+      if (u == "FINE") fine = true;
+      else if ((radius = predefinedZoneMm(u))) {
+      } else if (const auto* z = lookup(&Scope::zones, u)) {
+        fine = !z->has_value();
+        radius = *z;
+      } else {
+        known = false;
+      }
+    } else if (isOp(t_, a.first, "[")) {
+      const auto parts = bracketItems(a, 7, "a zonedata [finep, pzone_tcp, pzone_ori, pzone_eax, zone_ori, zone_leax, zone_reax]");
+      radius = number(t_, parts[1]);
+      if (!radius || *radius < 0) shape(parts[1].first, "pzone_tcp >= 0 (mm)", text(parts[1]));
+      fine = boolean(parts[0], "finep");
+    } else {
+      known = false;
+    }
+    const auto it = opt.find("Z");
+    if (it != opt.end() && !fine) {
+      radius = number(t_, it->second);
+      if (radius && !(*radius >= 0 && *radius <= 1e4)) shape(it->second.first, "\\Z:= a zone radius in [0, 10000] mm", text(it->second));
+    }
+    if (fine) return;
+    m.approximation = {Approximation::kCDis};
+    if (known && radius) m.approximation_value = *radius;
+  }
+
+  /// The frame named at `a` (tooldata or wobjdata): `builtin` (tool0 / wobj0) is the
+  /// identity, a declaration its value (or why it cannot be modelled), anything else unset
+  /// with the option that supplies it.
+  FrameSetting frameArg(Range a, const std::map<std::string, FrameVal> Scope::*table, const char* builtin, const std::string& type,
+                        const std::string& option) {
+    FrameSetting f;
+    f.where = loc(t_[a.first].b);
+    f.text = text(a);
+    const bool single = a.second == a.first + 1;
+    if (single && t_[a.first].u == builtin) {
+      f.source = FrameSetting::Source::kNull;
+      f.value = calib::XyzAbc{};
+    } else if (const FrameVal* v = single ? lookup(table, t_[a.first].u) : nullptr) {
+      f.where = v->where;
+      f.source = v->T ? FrameSetting::Source::kInline : FrameSetting::Source::kUnknown;
+      if (v->T) f.value = calib::toXyzAbc(*v->T);
+      f.note = v->note;
+    } else {
+      f.source = FrameSetting::Source::kUnset;
+      f.note = "the " + type + " '" + f.text + "' is not declared with a value in this module (" + option + ")";
+    }
+    return f;
+  }
+
+  void tool(Range a, Motion& m) {
+    m.tool = frameArg(a, &Scope::tools, "TOOL0", "tooldata", "give its TCP with --program-tool x,y,z,A,B,C");
+  }
+
+  void wobj(const std::map<std::string, Range>& opt, Motion& m) {
+    const auto it = opt.find("WOBJ");
+    if (it == opt.end()) {
+      m.base.source = FrameSetting::Source::kNull;
+      m.base.value = calib::XyzAbc{};
+      m.base.text = "wobj0";
+      m.base.where = m.where;
+      return;
+    }
+    const Range a = it->second;
+    if (a.first >= a.second) fail(t_[a.first - 1].e, "expected a wobjdata after \\WObj:=, found nothing");
+    m.base = frameArg(a, &Scope::wobjs, "WOBJ0", "wobjdata", "give its frame with --program-base x,y,z,A,B,C");
+  }
+
+  /// A motion instruction accura does not model: kept, and reported by compensate.
+  void otherMove(Range r, Program& p) {
+    Motion m;
+    m.where = loc(t_[r.first].b);
+    m.statement = text(r);
+    const std::string& u = t_[r.first].u;
+    m.type = u.find('J') != std::string::npos && u.find("MOVEJ") == 0 ? MotionType::kPtp : MotionType::kLin;
+    m.start_unknown = first_motion_in_routine_;
+    m.target_problem = t_[r.first].s + " is a motion instruction accura does not model (MoveL, MoveJ, MoveC, MoveAbsJ)";
+    RapidSource::Statement st = statementSpan(r, m.where);
+    addMotion(r, m, st, p);
+  }
+
+  void passThrough(Program& p) const {
+    rapidPassThrough(*src_, t_, stmts_, starts_, model_line_, motion_lines_, main_routine_, other_routine_motion_, p);
+  }
+
+  std::shared_ptr<RapidSource> src_;
+  std::vector<size_t> starts_;
+  std::vector<Tok> t_;
+  std::vector<Range> stmts_;
+  std::map<std::string, SourceLocation> assigned_;
+  std::vector<std::array<std::optional<double>, 6>> ext_;  ///< external axes of each value (9E9: none)
+  std::vector<bool> model_line_;
+  std::vector<int> motion_lines_;
+  Scope module_, local_;
+  std::string module_name_, routine_, routine_kind_, main_routine_;
+  Range routine_line_{0, 0};
+  bool module_seen_ = false, module_open_ = false, first_motion_in_routine_ = false, other_routine_motion_ = false;
+  bool confl_ = true, confj_ = true;
+};
+
+}  // namespace
+
+Program parseRapid(const std::string& text, const std::string& path) { return Reader(text, path).run(); }
+
+Program readRapid(const std::string& path) {
+  std::error_code ec;
+  if (!fs::is_regular_file(path, ec)) throw calib::InputError(path, 0, 0, "cannot read the RAPID module: no such file");
+  std::ifstream f(path, std::ios::binary);
+  if (!f) throw calib::InputError(path, 0, 0, "cannot read the RAPID module");
+  std::string text((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  if (f.bad()) throw calib::InputError(path, 0, 0, "cannot read the RAPID module");
+  return parseRapid(text, path);
+}
+
+}  // namespace accura::postproc

@@ -1,0 +1,555 @@
+// ABB RAPID (rapid.h): the motion model read from a module (units, frames, quaternions,
+// Offs/RelTool, confdata), untouched modules written back byte for byte, malformed modules
+// reported as file:line:column with expected/found, ConfJ/ConfL as the controller treats
+// them, and the acceptance test of issue 12: the compensated module, executed by a simulated
+// nominal ABB controller on a perturbed IRB 120, follows the intended path within the
+// tolerance.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <nlohmann/json.hpp>
+
+#include "accura/calib/errors.h"
+#include "accura/calib/ik.h"
+#include "accura/calib/kinematics.h"
+#include "accura/calib/simulate.h"
+#include "accura/postproc/execution.h"
+#include "accura/postproc/job.h"
+#include "accura/postproc/path.h"
+#include "accura/postproc/program_io.h"
+#include "accura/postproc/rapid.h"
+#include "test_util.h"
+
+namespace accura::postproc {
+namespace {
+
+using namespace accura::calib;
+
+std::string example() { return test::readText(test::sourcePath("examples/irb120_seam.mod")); }
+
+// R of a unit quaternion (w, x, y, z), written out from its definition (not Eigen's).
+Eigen::Matrix3d quatMatrix(double w, double x, double y, double z) {
+  Eigen::Matrix3d R;
+  R << 1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),  //
+      2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),   //
+      2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y);
+  return R;
+}
+
+Eigen::Isometry3d poseOf(const Target& t) { return toIsometry(t.xyzAbc()); }
+
+// The IRB 120 with the example's torch (tooldata torch: 150 mm along z).
+RobotModel irb120WithTorch() {
+  RobotModel m = test::loadBundled("abb_irb120");
+  m.nominal.T_flange_tcp = toIsometry({0, 0, 150, 0, 0, 0});
+  return m;
+}
+
+JobSettings settingsFor(const RobotModel& real) {
+  JobSettings s;
+  s.calibrated = real;
+  s.tol_mm = 0.05;
+  return s;
+}
+
+TEST(Rapid, ReadsTheMotionModelInTheWorkObject) {
+  const Program p = parseRapid(example(), "irb120_seam.mod");
+  EXPECT_EQ(p.name, "irb120_seam");
+  ASSERT_EQ(p.motions.size(), 8u);
+  const Motion& home = p.motions[0];
+  EXPECT_EQ(home.type, MotionType::kPtp);
+  EXPECT_EQ(home.target.kind, Target::Kind::kAxis);
+  EXPECT_EQ(*home.target.axes[4], 30.0);
+  EXPECT_TRUE(home.start_unknown);
+  // MoveJ p10: the pose in the work object "table", the torch, confdata
+  const Motion& j = p.motions[1];
+  EXPECT_EQ(j.type, MotionType::kPtp);
+  EXPECT_EQ(j.target.name, "p10");
+  EXPECT_LT((poseOf(j.target).translation() - Eigen::Vector3d(40, 60, 120)).norm(), 1e-12);
+  EXPECT_LT((poseOf(j.target).linear() - quatMatrix(0, 0, 1, 0)).norm(), 1e-12);
+  ASSERT_TRUE(j.target.abb_conf.has_value());
+  EXPECT_EQ(*j.target.abb_conf, (std::array<int, 4>{-1, 0, -1, 0}));
+  ASSERT_TRUE(j.tool.value && j.base.value);
+  EXPECT_LT((toIsometry(*j.tool.value).translation() - Eigen::Vector3d(0, 0, 150)).norm(), 1e-12);
+  EXPECT_LT((toIsometry(*j.base.value).translation() - Eigen::Vector3d(300, -150, 100)).norm(), 1e-12);
+  EXPECT_EQ(home.base.source, FrameSetting::Source::kNull);  // no \WObj: wobj0 (world)
+  EXPECT_TRUE(j.approximation.size() == 1 && *j.approximation_value == 20);  // z20
+  // speeds (mm/s -> m/s) and zones
+  EXPECT_DOUBLE_EQ(*p.motions[2].vel_m_s, 0.2);
+  EXPECT_TRUE(p.motions[2].approximation.empty());  // fine
+  EXPECT_DOUBLE_EQ(*p.motions[3].approximation_value, 1.0);  // z1
+  // MoveC p40, p50: circle point first
+  EXPECT_EQ(p.motions[4].type, MotionType::kCirc);
+  EXPECT_EQ(p.motions[4].aux->name, "p40");
+  EXPECT_EQ(p.motions[4].target.name, "p50");
+  // Offs(p60,0,0,100): p60 moved 100 mm along the work object's z
+  EXPECT_LT((poseOf(p.motions[6].target).translation() - Eigen::Vector3d(40, 180, 120)).norm(), 1e-12);
+  EXPECT_EQ(p.motions[6].target.value_id, -1);
+  EXPECT_TRUE(p.motions[2].conf_monitored);
+  // everything else is carried as RAPID text, in place
+  std::vector<std::string> texts;
+  for (const PassThrough& s : p.passthrough) texts.push_back(s.text);
+  ASSERT_EQ(p.passthrough.size(), 6u);
+  EXPECT_EQ(p.passthrough[0].text, "  CONST jointtarget home := [[0,0,0,0,30,0],[9E9,9E9,9E9,9E9,9E9,9E9]];");
+  EXPECT_EQ(p.passthrough[0].section, PassThrough::Section::kData);
+  EXPECT_EQ(p.passthrough[2].text, "    SetDO do_torch, 1;  ! arc on");
+  EXPECT_EQ(p.passthrough[2].section, PassThrough::Section::kBody);
+  EXPECT_EQ(p.passthrough[2].before_motion, 3u);
+  EXPECT_EQ(p.passthrough[5].text, "    seams := seams + 1;");
+  EXPECT_EQ(p.passthrough[5].before_motion, 7u);
+}
+
+TEST(Rapid, QuaternionsOffsAndRelToolAgainstTheirDefinitions) {
+  // a quaternion written with 4 digits (norm 0.99998: normalised), RelTool about the tool's
+  // axes, x then y then z, and a routine-scope declaration hiding the module's
+  const std::string text =
+      "MODULE m\n"
+      "  CONST robtarget a := [[300,0,400],[0.7071,0,0.7071,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
+      "  PROC main()\n"
+      "    CONST robtarget a := [[350,10,400],[0.5,0.5,0.5,0.5],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
+      "    MoveL RelTool(a, 10, 20, 30 \\Rx:=90 \\Rz:=-90), v100, fine, tool0;\n"
+      "    MoveL Offs(RelTool(a,0,0,5),1,2,3), v100, fine, tool0;\n"
+      "  ENDPROC\n"
+      "  PROC other()\n"
+      "    MoveJ a, v100, fine, tool0;\n"
+      "  ENDPROC\n"
+      "ENDMODULE\n";
+  const Program p = parseRapid(text, "q.mod");
+  ASSERT_EQ(p.motions.size(), 3u);
+  Eigen::Isometry3d A = Eigen::Isometry3d::Identity();
+  A.translation() = Eigen::Vector3d(350, 10, 400);
+  A.linear() = quatMatrix(0.5, 0.5, 0.5, 0.5);
+  Eigen::Matrix3d Rx, Rz;
+  Rx << 1, 0, 0, 0, 0, -1, 0, 1, 0;  // +90 deg about x
+  Rz << 0, 1, 0, -1, 0, 0, 0, 0, 1;  // -90 deg about z
+  const Eigen::Vector3d p1 = A * Eigen::Vector3d(10, 20, 30);
+  EXPECT_LT((poseOf(p.motions[0].target).translation() - p1).norm(), 1e-9);
+  EXPECT_LT((poseOf(p.motions[0].target).linear() - A.linear() * Rx * Rz).norm(), 1e-9);
+  const Eigen::Vector3d p2 = A * Eigen::Vector3d(0, 0, 5) + Eigen::Vector3d(1, 2, 3);
+  EXPECT_LT((poseOf(p.motions[1].target).translation() - p2).norm(), 1e-9);
+  // the other routine sees the module's a: normalised 0.7071 -> 1/sqrt(2)
+  const double n = std::sqrt(2 * 0.7071 * 0.7071);
+  EXPECT_LT((poseOf(p.motions[2].target).linear() - quatMatrix(0.7071 / n, 0, 0.7071 / n, 0)).norm(), 1e-12);
+  EXPECT_TRUE(p.motions[2].start_unknown);  // the first motion of a routine: called from anywhere
+  EXPECT_FALSE(p.motions[1].start_unknown);
+}
+
+TEST(Rapid, UntouchedModulesAreWrittenBackByteForByte) {
+  std::string crlf;
+  for (char c : example()) {
+    if (c == '\n') crlf += '\r';
+    crlf += c;
+  }
+  std::string no_final_newline = example();
+  no_final_newline.pop_back();
+  const std::string prg = "%%%\n  VERSION:1\n  LANGUAGE:ENGLISH\n%%%\n\nmodule M\n  proc Main()\n    movel [[1,2,3],[1,0,0,0],[0,0,0,1],[9e9,9e9,9e9,9e9,9e9,9e9]],v10,z0,tool0;\n  endproc\nendmodule";
+  for (const std::string& text : {example(), crlf, no_final_newline, prg}) {
+    const Program p = parseRapid(text, "x.mod");
+    EXPECT_EQ(writeRapid(p), text);
+  }
+  EXPECT_EQ(parseRapid(prg, "x.prg").motions.size(), 1u);  // keywords are case-insensitive
+  const std::string dir = test::tempDir("rapid_roundtrip");
+  test::writeText(dir + "/in.prg", crlf);
+  const test::CliRun r = test::runAccuraIn(dir, "convert --in in.prg --out out.mod");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(test::readText(dir + "/out.mod"), crlf);
+}
+
+std::string errorOf(const std::string& text) {
+  try {
+    parseRapid(text, "bad.mod");
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "no error";
+}
+
+std::string inProc(const std::string& body) { return "MODULE m\n  PROC main()\n" + body + "  ENDPROC\nENDMODULE\n"; }
+
+TEST(Rapid, MalformedModulesAreErrorsWithFileLineAndColumn) {
+  EXPECT_EQ(errorOf(inProc("    MoveL [[1,2,3],[1,0,0,0],[0,0,0,0]], v100, fine, tool0;\n")),
+            "bad.mod:3:11: expected a robtarget [[x,y,z],[q1,q2,q3,q4],[cf1,cf4,cf6,cfx],[eax_a,..,eax_f]] with 4 items, found 3 in "
+            "'[[1,2,3],[1,0,0,0],[0,0,0,0]]'");
+  EXPECT_EQ(errorOf(inProc("    MoveL [[1,2,3],[1,0,0,0.5],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]], v100, fine, tool0;\n")),
+            "bad.mod:3:21: expected a unit quaternion (norm 1 within 0.001), found norm 1.118034");
+  EXPECT_EQ(errorOf(inProc("    MoveL p10, v100, fine;\n")),
+            "bad.mod:3:5: expected MoveL ToPoint, Speed, Zone, Tool (4 arguments), found 3 in 'MoveL p10, v100, fine;'");
+  EXPECT_EQ(errorOf(inProc("    MoveL p10, v100, fine, tool0\n")), "bad.mod:3:33: expected ';' at the end of the statement 'MoveL p10, v100, fine, tool0', found ENDPROC");
+  EXPECT_EQ(errorOf(inProc("    MoveC p1, p2, v100, z10, tool0;\n    x := (1];\n")),
+            "bad.mod:4:12: expected ')' to close the '(' at bad.mod:4:10, found ']'");
+  EXPECT_EQ(errorOf(inProc("    TPWrite \"arc on;\n")), "bad.mod:3:13: expected the closing '\"' of this string on its line, found the end of the line");
+  EXPECT_EQ(errorOf(inProc("    MoveL [[1e999,2,3],[1,0,0,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]], v100, fine, tool0;\n")),
+            "bad.mod:3:13: expected a finite number, found '1e999'");
+  EXPECT_EQ(errorOf(inProc("    MoveL [[1,2,300000],[1,0,0,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]], v100, fine, tool0;\n")),
+            "bad.mod:3:17: expected a position in mm within +-100000, found 300000");
+  EXPECT_EQ(errorOf(inProc("    MoveL [[1,2,3],[1,0,0,0],[0,0.5,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]], v100, fine, tool0;\n")),
+            "bad.mod:3:33: expected an integer in confdata, found 0.5");
+  EXPECT_EQ(errorOf(inProc("    MoveL [[1,2,3],[1,0,0,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]], v100, [TRUE,1,2], tool0;\n")),
+            "bad.mod:3:74: expected a zonedata [finep, pzone_tcp, pzone_ori, pzone_eax, zone_ori, zone_leax, zone_reax] with 7 items, found 3 in '[TRUE,1,2]'");
+  EXPECT_EQ(errorOf("MODULE m\n  PERS tooldata t := [TRUE,[[0,0,1],[1,0,0,0]]];\nENDMODULE\n"),
+            "bad.mod:2:22: expected a tooldata [robhold, [[x,y,z],[q1,q2,q3,q4]], loaddata] with 3 items, found 2 in '[TRUE,[[0,0,1],[1,0,0,0]]]'");
+  EXPECT_EQ(errorOf("MODULE m\n  PERS wobjdata w := [1,TRUE,\"\",[[0,0,0],[1,0,0,0]],[[0,0,0],[1,0,0,0]]];\nENDMODULE\n"),
+            "bad.mod:2:23: expected TRUE or FALSE for robhold of wobjdata w, found '1'");
+  // found by fuzz_rapid: an offset that puts the point 9e9 mm away is an error, not a target
+  EXPECT_EQ(errorOf(inProc("    MoveL Offs([[1,2,3],[1,0,0,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]],09E+09,0,100), v100, fine, tool0;\n")),
+            "bad.mod:3:72: expected an offset in mm within +-100000 in Offs, found '09E+09'");
+  EXPECT_EQ(errorOf(inProc("    MoveL Offs(Offs([[90000,2,3],[1,0,0,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]],9000,0,0),9000,0,0), v100, fine, tool0;\n")),
+            "bad.mod:3:11: expected Offs(...) to give a position within +-100000 mm, found 108000.0000 in "
+            "'Offs(Offs([[90000,2,3],[1,0,0,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]],9000,0,0),9000,0,0)'");
+  EXPECT_EQ(errorOf("  PROC main()\n  ENDPROC\n"), "bad.mod:1:3: expected MODULE before the first statement, found 'PROC'");
+  EXPECT_EQ(errorOf("MODULE m\n  PROC main()\n  ENDPROC\n"), "bad.mod:4:1: expected ENDMODULE, found the end of the file");
+  EXPECT_EQ(errorOf("MODULE m\n  PROC main()\nENDMODULE\n"), "bad.mod:3:1: expected ENDPROC of the routine main, found ENDMODULE");
+  EXPECT_EQ(errorOf("MODULE m\n  MoveJ p, v10, z10, tool0;\nENDMODULE\n"), "bad.mod:2:3: expected MoveJ inside a routine (PROC), found it at module level");
+  EXPECT_EQ(errorOf(""), "bad.mod:1:1: expected a RAPID module (MODULE name ... ENDMODULE), found an empty file");
+  EXPECT_EQ(errorOf(std::string("MODULE m\n\0x", 11)), "bad.mod:2:1: expected a RAPID text file, found a NUL byte (binary file?)");
+}
+
+TEST(Rapid, CompensatingWithTheNominalRobotReturnsTheModuleByteForByte) {
+  const Program p = parseRapid(example(), "irb120_seam.mod");
+  const ProgramCompensation c = compensateProgramReport(p, settingsFor(irb120WithTorch()));
+  ASSERT_TRUE(c.ok()) << c.report.errors.front().where.str() << ": " << c.report.errors.front().message;
+  EXPECT_EQ(c.report.points_added, 0);
+  EXPECT_LT(c.report.max_correction_mm, 1e-6);
+  EXPECT_TRUE(c.report.warnings.empty());
+  EXPECT_EQ(writeRapid(c.program), example());
+}
+
+// confdata of joint values, against the geometry worked out by hand for the IRB 120: at
+// q = 0 the wrist centre is 302 mm in front of axis 1 and the upper arm points forward, so
+// the wrist centre is in front of the lower arm (cfx 0); axis 5 negative adds 1; the upper
+// arm raised past the stretched position (q3 < -90 + atan(70/302) = -76.95 deg) puts the wrist
+// behind the lower arm (+2); the lower arm tilted back by 100 deg puts the wrist centre behind
+// axis 1 (+4).
+TEST(Rapid, ConfdataOfJointValuesAgainstTheGeometry) {
+  const RobotModel m = test::loadBundled("abb_irb120");
+  auto conf = [&](double q1, double q2, double q3, double q4, double q5, double q6) {
+    Eigen::VectorXd q(6);
+    q << q1, q2, q3, q4, q5, q6;
+    return abbConfdata(m, q);
+  };
+  EXPECT_EQ(conf(0, 0, 0, 0, 30, 0), (std::array<int, 4>{0, 0, 0, 0}));
+  EXPECT_EQ(conf(-10, 0, 0, 100, -30, -200), (std::array<int, 4>{-1, 1, -3, 1}));
+  EXPECT_EQ(conf(95, 30, -80, 0, 30, 0), (std::array<int, 4>{1, 0, 0, 2}));
+  EXPECT_EQ(conf(0, 0, -80, 0, 30, 0), (std::array<int, 4>{0, 0, 0, 6}));  // upright lower arm: the wrist also behind axis 1
+  EXPECT_EQ(conf(0, 0, -74, 0, 30, 0), (std::array<int, 4>{0, 0, 0, 0}));
+  EXPECT_EQ(conf(0, -100, 0, 0, 30, 0), (std::array<int, 4>{0, 0, 0, 4}));
+  for (int cfx = 0; cfx < 8; ++cfx) {  // the branch round trip through the KUKA Status
+    const int s = kukaStatusOfCfx(cfx);
+    const int back = ((s & 1) ? 4 : 0) + ((s & 2) ? 0 : 2) + ((s & 4) ? 1 : 0);
+    EXPECT_EQ(back, cfx);
+  }
+  EXPECT_EQ(kukaStatusOfCfx(8), -1);
+}
+
+std::string moduleWith(const std::string& conf_statement, const std::string& move, const std::string& conf) {
+  return "MODULE c\n  PROC main()\n    MoveAbsJ [[10,10,10,10,30,10],[9E9,9E9,9E9,9E9,9E9,9E9]], v100, fine, tool0;\n    " + conf_statement +
+         "\n    " + move + " [[380,40,350],[0,0,1,0]," + conf + ",[9E9,9E9,9E9,9E9,9E9,9E9]], v100, fine, tool0;\n  ENDPROC\nENDMODULE\n";
+}
+
+std::string confText(int cf1, int cf4, int cf6, int cfx) {
+  return "[" + std::to_string(cf1) + "," + std::to_string(cf4) + "," + std::to_string(cf6) + "," + std::to_string(cfx) + "]";
+}
+
+RobotModel shiftedIrb120() {
+  RobotModel real = test::loadBundled("abb_irb120");
+  real.deviations.base_mm = Eigen::Vector3d(0.2, -0.1, 0.3);
+  return real;
+}
+
+// The joints the compensation of `move` to the test pose ends at, with monitoring off (the
+// controller's nearest configuration).
+Eigen::VectorXd jointsOff(const std::string& move) {
+  const Program p = parseRapid(moduleWith(move == "MoveJ" ? "ConfJ\\Off;" : "ConfL\\Off;", move, "[0,0,0,0]"), "c.mod");
+  const ProgramCompensation c = compensateProgramReport(p, settingsFor(shiftedIrb120()));
+  EXPECT_TRUE(c.ok());
+  return c.report.targets.back().q_real;
+}
+
+int quadrantOf(double q) { return static_cast<int>(std::floor(q / 90)); }
+
+TEST(Rapid, ConfJOnGoesToTheProgrammedQuadrantsConfJOffToTheNearest) {
+  const Eigen::VectorXd q = jointsOff("MoveJ");
+  const std::array<int, 4> c = abbConfdata(test::loadBundled("abb_irb120"), q);
+  // the same pose with axis 6 one turn away (within its +-400 deg): ConfJ\On goes there
+  const double q6_other = q[5] > 0 ? q[5] - 360 : q[5] + 360;
+  const std::string other = confText(c[0], c[1], quadrantOf(q6_other), c[3]);
+  for (const bool on : {true, false}) {
+    const Program p = parseRapid(moduleWith(on ? "ConfJ\\On;" : "ConfJ\\Off;", "MoveJ", other), "c.mod");
+    const ProgramCompensation r = compensateProgramReport(p, settingsFor(shiftedIrb120()));
+    ASSERT_TRUE(r.ok()) << r.report.errors.front().message;
+    EXPECT_NEAR(r.report.targets.back().q_real[5], on ? q6_other : q[5], 1e-6);  // programmed turn / nearest
+    EXPECT_NE(writeRapid(r.program).find(other), std::string::npos);            // confdata kept as written
+  }
+  // a quadrant of axis 1 the pose does not have: an error naming the target
+  const std::string bad = confText(c[0] + 2, c[1], c[2], c[3]);
+  const ProgramCompensation cb = compensateProgramReport(parseRapid(moduleWith("ConfJ\\On;", "MoveJ", bad), "c.mod"), settingsFor(shiftedIrb120()));
+  ASSERT_FALSE(cb.ok());
+  EXPECT_EQ(cb.report.errors.front().message, "the inline target is not reachable in its programmed confdata " + bad + " (ConfJ\\On; the compensated point has " +
+                                                  confText(c[0], c[1], c[2], c[3]) + "; program that configuration, or ConfJ\\Off)");
+}
+
+TEST(Rapid, ConfLOnStopsBeyondOneQuadrantConfLOffFollowsThePath) {
+  const Eigen::VectorXd q = jointsOff("MoveL");
+  const std::array<int, 4> c = abbConfdata(test::loadBundled("abb_irb120"), q);
+  const std::string path = confText(c[0], c[1], c[2], c[3]);
+  // cf6 two quadrants off: the controller stops (ConfL\On); ConfL\Off follows the path
+  const std::string two = confText(c[0], c[1], c[2] + 2, c[3]);
+  const ProgramCompensation c_on = compensateProgramReport(parseRapid(moduleWith("ConfL\\On;", "MoveL", two), "c.mod"), settingsFor(shiftedIrb120()));
+  ASSERT_FALSE(c_on.ok());
+  EXPECT_EQ(c_on.report.errors.front().message,
+            "ConfL\\On: the path reaches the inline target with confdata " + path + ", programmed " + two +
+                " (axis 1, 4 or 6 more than one quadrant away, or another cfx): the controller stops here; program the confdata the path has, or ConfL\\Off");
+  const ProgramCompensation c_off = compensateProgramReport(parseRapid(moduleWith("ConfL\\Off;", "MoveL", two), "c.mod"), settingsFor(shiftedIrb120()));
+  ASSERT_TRUE(c_off.ok()) << c_off.report.errors.front().message;
+  EXPECT_NEAR(c_off.report.targets.back().q_real[5], q[5], 1e-9);
+  EXPECT_TRUE(c_off.report.warnings.empty());
+  // one quadrant off: accepted by the controller, one warning for the program, kept as written
+  const std::string one = confText(c[0], c[1], c[2] + 1, c[3]);
+  const ProgramCompensation c_near = compensateProgramReport(parseRapid(moduleWith("ConfL\\On;", "MoveL", one), "c.mod"), settingsFor(shiftedIrb120()));
+  ASSERT_TRUE(c_near.ok()) << c_near.report.errors.front().message;
+  ASSERT_EQ(c_near.report.warnings.size(), 1u);
+  EXPECT_NE(c_near.report.warnings[0].message.find("1 target(s) of MoveL/MoveC carry confdata that the path does not have"), std::string::npos);
+  EXPECT_NE(writeRapid(c_near.program).find(one), std::string::npos);
+}
+
+TEST(Rapid, WhatAccuraCannotModelIsRefusedNamingIt) {
+  RobotModel real = test::loadBundled("abb_irb120");
+  real.deviations.base_mm = Eigen::Vector3d(0.2, -0.1, 0.3);
+  auto firstError = [&](const std::string& text) {
+    const ProgramCompensation c = compensateProgramReport(parseRapid(text, "r.mod"), settingsFor(real));
+    return c.report.errors.empty() ? std::string("no error") : c.report.errors.front().where.str() + ": " + c.report.errors.front().message;
+  };
+  const std::string t = "[[380,40,350],[0,0,1,0],[0,0,-1,0],[9E9,9E9,9E9,9E9,9E9,9E9]]";
+  // an external axis in use (a track): refused unless the robot file models it
+  EXPECT_EQ(firstError(inProc("    MoveJ [[380,40,350],[0,0,1,0],[0,0,-1,0],[250,9E9,9E9,9E9,9E9,9E9]], v100, fine, tool0;\n")),
+            "r.mod:3:11: expected external axes eax_a..eax_f at 0 or 9E9 in the inline target, found eax_a 250.0000 (a track or a positioner): the robot file "
+            "'ABB IRB 120-3/0.58' models no external axes, so the correction would ignore them; refused");
+  // a stationary tool, a robot-held or coordinated work object
+  EXPECT_NE(firstError("MODULE m\n  PERS tooldata st := [FALSE,[[0,0,100],[1,0,0,0]],[1,[0,0,1],[1,0,0,0],0,0,0]];\n  PROC main()\n    MoveJ " + t +
+                       ", v100, fine, st;\n  ENDPROC\nENDMODULE\n")
+                .find("tooldata st has robhold FALSE (a stationary tool with a robot-held work object), which accura does not model"),
+            std::string::npos);
+  EXPECT_NE(firstError("MODULE m\n  PERS wobjdata w := [FALSE,FALSE,\"STN1\",[[0,0,0],[1,0,0,0]],[[0,0,0],[1,0,0,0]]];\n  PROC main()\n    MoveJ " + t +
+                       ", v100, fine, tool0\\WObj:=w;\n  ENDPROC\nENDMODULE\n")
+                .find("wobjdata w has ufprog FALSE (a user frame moved by the mechanical unit \"STN1\"), which accura does not model"),
+            std::string::npos);
+  // Offs of a point computed at run time, a robtarget assigned in the program
+  EXPECT_EQ(firstError(inProc("    MoveL Offs(CRobT(),0,0,10), v100, fine, tool0;\n")),
+            "r.mod:3:5: expected a target accura can correct for LIN, found: Offs(...) at r.mod:3:11 cannot be evaluated: 'CRobT()' is not a "
+            "target accura can evaluate (a robtarget, a declared robtarget, Offs or RelTool of one)");
+  EXPECT_EQ(firstError("MODULE m\n  VAR robtarget p := " + t + ";\n  PROC main()\n    p := CRobT();\n    MoveL p, v100, fine, tool0;\n  ENDPROC\nENDMODULE\n"),
+            "r.mod:5:5: expected a target accura can correct for LIN, found: 'p' is assigned at r.mod:4:5: its value at run time is not the declared one");
+  // an undeclared tooldata: named, with the option that supplies it
+  EXPECT_EQ(firstError(inProc("    MoveJ " + t + ", v100, fine, gun;\n")),
+            "r.mod:3:5: the tool of this motion is not known: the tooldata 'gun' is not declared with a value in this module (give its TCP with "
+            "--program-tool x,y,z,A,B,C)");
+}
+
+// The simulated ABB controller, written here on its own: MoveAbsJ to its joints; MoveJ with
+// ConfJ\On to the closed-form solution in the programmed quadrants of axes 1, 4, 6 with the
+// programmed sign of axis 5, the nearest to the current joints; MoveL/MoveC interpolated with
+// the nominal IK continuing from the current joints, and at the end of each the ConfL\On check
+// (axes 1, 4, 6 within one quadrant of the programmed one). The real robot goes where those
+// joints put it.
+struct Execution {
+  double path_mm = 0;   ///< largest distance of the real TCP from the intended path (MoveL/MoveC)
+  double point_mm = 0;  ///< largest distance of the real TCP from an intended MoveJ pose
+  bool stopped = false; ///< the ConfL/ConfJ check would stop the program
+};
+
+int quadrant(double q) { return static_cast<int>(std::floor(q / 90)); }
+
+Execution execute(const Program& commanded, const std::vector<bool>& inserted, const Program& intended, const RobotModel& controller,
+                  const RobotModel& real) {
+  Execution run;
+  KinematicSolver nominal(controller), truth(real);
+  Eigen::VectorXd q(6);
+  Eigen::Isometry3d at_cmd = Eigen::Isometry3d::Identity(), at_intended = at_cmd;
+  size_t i = 0;
+  std::vector<PathSegment> cmd_run, intended_run;
+  Eigen::VectorXd q_run;
+  auto world = [](const Motion& m, const Target& t) { return toIsometry(*m.base.value) * poseOf(t); };
+  auto flush = [&] {
+    if (cmd_run.empty()) return;
+    const std::vector<Eigen::Isometry3d> samples = simulateExecution(controller, real, cmd_run, q_run, 0.2);
+    run.path_mm = std::max(run.path_mm, maxPathDeviation(samples, intended_run));
+    cmd_run.clear();
+    intended_run.clear();
+  };
+  for (size_t n = 0; n < commanded.motions.size(); ++n) {
+    const Motion& m = commanded.motions[n];
+    if (m.type == MotionType::kPtp) {
+      flush();
+      if (m.target.kind == Target::Kind::kAxis) {
+        for (int k = 0; k < 6; ++k) q[k] = *m.target.axes[k];
+      } else {
+        const std::array<int, 4> c = *m.target.abb_conf;
+        double best = 1e300;
+        for (const Eigen::VectorXd& s : nominal.closedFormSolutions(world(m, m.target))) {
+          if (quadrant(s[0]) != c[0] || quadrant(s[3]) != c[1] || quadrant(s[5]) != c[2] || (s[4] < 0) != ((c[3] & 1) != 0)) continue;
+          if ((s - q).norm() < best) best = (s - q).norm(), q = s;
+        }
+        run.stopped = run.stopped || best == 1e300;
+        const Motion& im = intended.motions[i];
+        run.point_mm = std::max(run.point_mm, (truth.forward(q).translation() - world(im, im.target).translation()).norm());
+      }
+      at_cmd = nominal.forward(q);
+      const Motion& im = intended.motions[i];
+      at_intended = im.target.kind == Target::Kind::kAxis ? truth.forward(q) : world(im, im.target);
+      ++i;
+      continue;
+    }
+    if (cmd_run.empty()) q_run = q;
+    PathSegment s;
+    s.type = m.type == MotionType::kCirc ? PathType::kCirc : PathType::kLin;
+    s.T_world_start = at_cmd;
+    s.T_world_end = world(m, m.target);
+    if (m.aux) s.T_world_aux = world(m, *m.aux);
+    cmd_run.push_back(s);
+    at_cmd = s.T_world_end;
+    const IkResult r = nominal.inverse(s.T_world_end, Configuration{}, q, IkOptions{});
+    EXPECT_EQ(r.status, IkStatus::kOk);
+    q = r.q;
+    const std::array<int, 4> c = *m.target.abb_conf;
+    if (m.conf_monitored)
+      run.stopped = run.stopped || std::abs(quadrant(q[0]) - c[0]) > 1 || std::abs(quadrant(q[3]) - c[1]) > 1 || std::abs(quadrant(q[5]) - c[2]) > 1;
+    if (!inserted[n]) {
+      const Motion& im = intended.motions[i++];
+      PathSegment is;
+      is.type = s.type;
+      is.T_world_start = at_intended;
+      is.T_world_end = world(im, im.target);
+      if (im.aux) is.T_world_aux = world(im, *im.aux);
+      intended_run.push_back(is);
+      at_intended = is.T_world_end;
+    }
+  }
+  flush();
+  return run;
+}
+
+TEST(Rapid, CompensatedModuleFollowsTheIntendedPathOnAPerturbedIrb120) {
+  const RobotModel controller = irb120WithTorch();
+  const Program intended = parseRapid(example(), "irb120_seam.mod");
+  for (const std::uint64_t seed : {1, 2, 3}) {
+    SimulateOptions so;
+    so.effects = {"geometric", "joint_compliance"};
+    so.error_scale = 1;
+    so.set_station = false;
+    so.seed = seed;
+    const RobotModel real = perturbModel(controller, so);
+    const ProgramCompensation c = compensateProgramReport(intended, settingsFor(real));
+    ASSERT_TRUE(c.ok()) << c.report.errors.front().where.str() << ": " << c.report.errors.front().message;
+    const std::string written = writeRapid(c.program);
+    const Program commanded = parseRapid(written, "compensated.mod");  // what the controller runs
+    ASSERT_EQ(commanded.motions.size(), intended.motions.size() + static_cast<size_t>(c.report.points_added));
+    std::vector<bool> inserted;
+    for (const Motion& m : c.program.motions) inserted.push_back(m.inserted);
+    const Execution comp = execute(commanded, inserted, intended, controller, real);
+    const Execution as_is = execute(intended, std::vector<bool>(intended.motions.size(), false), intended, controller, real);
+    std::printf("seed %d: path %.4f mm compensated (predicted %.4f), %.4f mm as programmed; MoveJ poses %.5f / %.4f mm; %d points added\n",
+                static_cast<int>(seed), comp.path_mm, c.report.max_error_after_mm, as_is.path_mm, comp.point_mm, as_is.point_mm,
+                c.report.points_added);
+    EXPECT_FALSE(comp.stopped) << "seed " << seed;
+    EXPECT_LE(comp.path_mm, 0.05 + 2e-3) << "seed " << seed;  // tol + the 4-decimal writing and sampling
+    EXPECT_LE(comp.point_mm, 1e-3) << "seed " << seed;
+    EXPECT_GT(as_is.path_mm, 0.3) << "seed " << seed;
+    // only corrected numbers and inserted lines differ; logic and comments are where they were
+    EXPECT_NE(written.find("    SetDO do_torch, 1;  ! arc on\n    MoveL p30, v20, z1, torch\\WObj:=table;\n"), std::string::npos);
+    EXPECT_NE(written.find("    seams := seams + 1;\n"), std::string::npos);
+    // a split MoveC: a new declared circle point, p40 keeps its value (another motion may use it)
+    if (c.report.points_added > 0) {
+      EXPECT_NE(written.find("  CONST robtarget p40 := [[220,120,20],[0,0,1,0],[-1,0,-1,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"), std::string::npos);
+      EXPECT_NE(written.find("CONST robtarget p40_1 := [["), std::string::npos);
+      EXPECT_NE(written.find("MoveC p40_1, p50,"), std::string::npos);
+    }
+  }
+}
+
+// The golden files (tests/golden/rapid/README.md), byte for byte.
+TEST(Rapid, GoldenFiles) {
+  const std::string g = test::sourcePath("tests/golden/rapid/");
+  const std::string dir = test::tempDir("rapid_golden");
+  for (const char* f : {"irb120_real.xml", "irb120_seam.mod"}) test::writeText(dir + "/" + f, test::readText(g + f));
+  const test::CliRun c = test::runAccuraIn(dir, "compensate --robot irb120_real.xml --in irb120_seam.mod --out expected --json expected/report.json");
+  ASSERT_EQ(c.code, 0) << c.err;
+  EXPECT_EQ(test::readText(dir + "/expected/irb120_seam.mod"), test::readText(g + "expected/irb120_seam.mod"));
+  EXPECT_EQ(test::readText(dir + "/expected/report.json"), test::readText(g + "expected/report.json"));
+  EXPECT_EQ(test::readText(dir + "/irb120_seam.mod"), example());  // the input untouched
+  test::writeText(dir + "/line_arc.xml", test::readText(test::sourcePath("tests/data/rapid/line_arc.xml")));
+  const test::CliRun v = test::runAccuraIn(dir, "convert --in line_arc.xml --out line_arc.mod");
+  ASSERT_EQ(v.code, 0) << v.err;
+  EXPECT_EQ(test::readText(dir + "/line_arc.mod"), test::readText(g + "line_arc.mod"));
+  // the converted targets are the XML's, in the same work object
+  const Program xml = readProgram(dir + "/line_arc.xml");
+  const Program rapid = readProgram(dir + "/line_arc.mod");
+  ASSERT_EQ(rapid.motions.size(), xml.motions.size());
+  for (size_t k = 0; k < xml.motions.size(); ++k) {
+    const Motion& a = xml.motions[k];
+    const Motion& b = rapid.motions[k];
+    if (a.target.kind == Target::Kind::kAxis) continue;
+    const Eigen::Isometry3d want = toIsometry(*a.base.value) * poseOf(a.target);
+    const Eigen::Isometry3d got = toIsometry(*b.base.value) * poseOf(b.target);
+    EXPECT_LT((got.translation() - want.translation()).norm(), 1e-4) << k;
+    EXPECT_LT((got.linear() - want.linear()).norm(), 1e-8) << k;
+  }
+}
+
+TEST(Rapid, ConvertCarriesTheStatementsOrRefusesNamingTheLine) {
+  const std::string dir = test::tempDir("rapid_convert");
+  test::writeText(dir + "/seam.mod", example());
+  // RAPID -> XML -> RAPID: the logic rides along as pass-through
+  ASSERT_EQ(test::runAccuraIn(dir, "convert --in seam.mod --out seam.xml").code, 0);
+  const test::CliRun back = test::runAccuraIn(dir, "convert --in seam.xml --out back.mod");
+  ASSERT_EQ(back.code, 0) << back.err;
+  const std::string b = test::readText(dir + "/back.mod");
+  EXPECT_NE(b.find("    SetDO do_torch, 1;  ! arc on\n"), std::string::npos);
+  EXPECT_NE(b.find("  VAR num seams := 0;\n"), std::string::npos);
+  const Program p = readProgram(dir + "/back.mod");
+  EXPECT_EQ(p.motions.size(), 8u);
+  // RAPID -> KRL: the first statement KRL cannot carry, named
+  const test::CliRun k = test::runAccuraIn(dir, "convert --in seam.mod --out seam.src");
+  EXPECT_EQ(k.code, 1);
+  EXPECT_NE(k.err.find("seam.mod:6:1: cannot convert the RAPID statement '  CONST jointtarget home := [[0,0,0,0,30,0],[9E9,9E9,9E9,9E9,9E9,9E9]];' to KRL"),
+            std::string::npos)
+      << k.err;
+  // a motion-only module converts to KRL and URScript
+  test::writeText(dir + "/lines.mod", inProc("    MoveJ [[380,40,350],[0,0,1,0],[0,0,-1,0],[9E9,9E9,9E9,9E9,9E9,9E9]], v100, z10, tool0;\n"
+                                             "    MoveL Offs([[380,40,350],[0,0,1,0],[0,0,-1,0],[9E9,9E9,9E9,9E9,9E9,9E9]],0,50,0), v100, z10, tool0;\n"));
+  const test::CliRun u = test::runAccuraIn(dir, "convert --in lines.mod --out lines.script");
+  ASSERT_EQ(u.code, 0) << u.err;
+  EXPECT_NE(test::readText(dir + "/lines.script").find("movel(p[0.3800000, 0.0900000, 0.3500000,"), std::string::npos);
+  ASSERT_EQ(test::runAccuraIn(dir, "convert --in lines.mod --out lines.src").code, 0);
+  // motions in a second routine: the other formats hold one main program; refused naming it
+  test::writeText(dir + "/two.mod", "MODULE two\n  PROC main()\n    MoveJ [[380,40,350],[0,0,1,0],[0,0,-1,0],[9E9,9E9,9E9,9E9,9E9,9E9]], v100, z10, tool0;\n"
+                                    "  ENDPROC\n  PROC side()\n    MoveJ [[380,40,300],[0,0,1,0],[0,0,-1,0],[9E9,9E9,9E9,9E9,9E9,9E9]], v100, z10, tool0;\n"
+                                    "  ENDPROC\nENDMODULE\n");
+  const test::CliRun two = test::runAccuraIn(dir, "convert --in two.mod --out two.xml");
+  EXPECT_EQ(two.code, 1);
+  EXPECT_NE(two.err.find("two.mod:5:1: cannot convert '  PROC side()': the motions of the routine on this line are outside the program's main routine main"),
+            std::string::npos)
+      << two.err;
+}
+
+// batch picks up .mod and .prg files; check runs the module in its cell: the smallest clearance
+// against its analytic value (tests/data/rapid/irb120_table_cell.xml: sqrt(10^2 + 100^2) - 10).
+TEST(Rapid, BatchAndCheckInTheCell) {
+  const std::string dir = test::tempDir("rapid_batch");
+  std::filesystem::create_directories(dir + "/in/cell2");
+  test::writeText(dir + "/in/cell2/seam.mod", example());
+  test::writeText(dir + "/in/cell2/old.prg", example());
+  const test::CliRun b = test::runAccuraIn(dir, "batch --robot abb_irb120 --in in --out out --jobs 1");
+  ASSERT_EQ(b.code, 0) << b.err;
+  // the nominal robot with the module's own torch: nothing to correct
+  EXPECT_EQ(test::readText(dir + "/out/cell2/seam.mod"), example());
+  EXPECT_EQ(test::readText(dir + "/out/cell2/old.prg"), example());
+  const test::CliRun c = test::runAccuraIn(dir, "check --robot abb_irb120 --cell " + test::sourcePath("tests/data/rapid/irb120_table_cell.xml") +
+                                                    " --in " + test::sourcePath("examples/irb120_seam.mod"));
+  ASSERT_EQ(c.code, 0) << c.err;
+  EXPECT_NE(c.out.find("smallest clearance 90.499 mm"), std::string::npos) << c.out;
+  EXPECT_NEAR(std::sqrt(10.0 * 10.0 + 100.0 * 100.0) - 10, 90.499, 5e-4);
+}
+
+}  // namespace
+}  // namespace accura::postproc
