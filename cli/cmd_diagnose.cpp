@@ -21,7 +21,8 @@ namespace {
 
 struct DiagnoseArgs {
   std::string robot;
-  std::string data;
+  std::vector<std::string> data;  // one or more data sets, each its own station unless same_station
+  bool same_station = false;
   std::string validate;
   std::string map;           // mapping file for instrument exports
   std::string validate_map;  // mapping file for --validate when it differs
@@ -52,7 +53,7 @@ calib::DiagnosisReportContext reportContext(const DiagnoseArgs& a, const calib::
   c.date_utc = date;
   c.version = std::string("accura ") + ACCURA_VERSION_STRING;
   c.instrument = "noise floor " + fmt("%.4f", d.noise_floor_mm) + " mm (3D RMS), from " + d.noise_floor_source;
-  c.data_files.push_back("fit: " + a.data);
+  for (const std::string& f : a.data) c.data_files.push_back("fit: " + f);
   if (!a.validate.empty()) c.data_files.push_back("validation: " + a.validate);
   if (!a.map.empty()) c.data_files.push_back("mapping: " + a.map);
   if (!a.validate_map.empty()) c.data_files.push_back("validation mapping: " + a.validate_map);
@@ -86,17 +87,30 @@ int runDiagnose(const DiagnoseArgs& a) {
   std::string why;
   if (!o.IsValid(&why)) throw calib::InputError("diagnose: " + why);
 
-  const calib::MeasurementSet data = readMeasurements(a.data, a.map, start.nominal);
+  std::vector<calib::MeasurementSet> sets;
+  for (const std::string& f : a.data) sets.push_back(readMeasurements(f, a.map, start.nominal));
   calib::MeasurementSet validation;
   if (!a.validate.empty())
     validation = readMeasurements(a.validate, a.validate_map.empty() ? a.map : a.validate_map, start.nominal);
-  const calib::Diagnosis d = calib::diagnose(start, data, a.validate.empty() ? nullptr : &validation, o);
+  calib::StationSets stations;
+  const calib::Diagnosis d = calib::diagnose(start, sets, a.same_station, a.validate.empty() ? nullptr : &validation, o, &stations);
+  const calib::MeasurementSet& data = stations.combined;
+  if (sets.size() > 1) {
+    std::printf("%zu data sets%s:\n", sets.size(), a.same_station ? ", one station" : ", each from its own station (registered by the geometric identification on all of them, then held)");
+    for (size_t k = 0; k < sets.size(); ++k) {
+      const Eigen::Isometry3d& T = stations.T_first_station[k];
+      std::printf("  %s: %zu poses; station %zu, %.3f mm and %.4f deg from the first\n", sets[k].file.c_str(), sets[k].rows.size(), k + 1,
+                  T.translation().norm(), Eigen::AngleAxisd(T.linear()).angle() * calib::kRadToDeg);
+    }
+  }
   std::printf("%s", calib::diagnosisText(d).c_str());
   // The JSON and the HTML report are one output set (all or nothing), never onto an input.
   std::vector<calib::OutputFile> outputs;
   if (!a.json.empty()) outputs.push_back({a.json, calib::diagnosisJson(d)});
   if (!a.report.empty()) outputs.push_back({a.report, calib::diagnosisHtml(d, reportContext(a, start, data, d))});
-  calib::refuseToOverwrite(outputs, {a.robot, a.data, a.validate, a.map, a.validate_map}, "--json / --report");
+  std::vector<std::string> inputs = {a.robot, a.validate, a.map, a.validate_map};
+  inputs.insert(inputs.end(), a.data.begin(), a.data.end());
+  calib::refuseToOverwrite(outputs, inputs, "--json / --report");
   calib::writeFilesAtomically(outputs);
   for (const calib::OutputFile& f : outputs) std::printf("wrote %s\n", f.path.c_str());
   return 0;
@@ -109,7 +123,11 @@ void addDiagnoseCommand(CLI::App& app) {
   auto* c = app.add_subcommand("diagnose",
                                "where the remaining error lies, which unmodelled effect causes it, how far it shrinks");
   c->add_option("--robot", a->robot, "robot (file or bundled name; a calibrated model is a starting point)")->required();
-  c->add_option("--data", a->data, "measurement CSV")->required();
+  c->add_option("--data", a->data,
+                "measurement CSV; give it more than once for several data sets, each from its own tracker station (6 parameters each) "
+                "unless --same-station")
+      ->required();
+  c->add_flag("--same-station", a->same_station, "the --data files were measured from one tracker station");
   c->add_option("--validate", a->validate, "held-out measurement CSV of the same robot and station "
                                            "(default: k-fold cross-validation over --data)");
   c->add_option("--map", a->map, "mapping file: how to read --data (and --validate) as exported by the instrument");

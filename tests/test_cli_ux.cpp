@@ -5,9 +5,11 @@
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <nlohmann/json.hpp>
+#include <regex>
 #include <sstream>
 
 #include "accura/calib/geometry.h"
@@ -281,6 +283,47 @@ TEST(CliMessages, SrcWithoutItsDatNamesTheMissingFile) {
             std::string::npos)
       << r.err;
   EXPECT_FALSE(std::filesystem::exists(dir + "/o"));
+  // a program of PTPs only (the seam's first 40 lines): the missing .dat is an error there too,
+  // not a warning and a program written uncompensated with exit 0
+  const std::string text = test::readText(test::sourcePath("examples/seam.src"));
+  size_t cut = 0;
+  for (int line = 0; line < 40; ++line) cut = text.find('\n', cut) + 1;
+  test::writeText(dir + "/ptp.src", text.substr(0, cut) + "END\n");
+  const CliRun p = run("compensate --robot kuka_kr16 --in ptp.src --out o", dir);
+  EXPECT_EQ(p.code, 1) << p.err;
+  EXPECT_NE(p.err.find("ptp.src:35:1: expected a target accura can correct for PTP, found: XP1 is not declared in ptp.src, and "
+                       "its data file ptp.dat does not exist (give --dat; a global point: give --config $config.dat)"),
+            std::string::npos)
+      << p.err;
+  EXPECT_FALSE(std::filesystem::exists(dir + "/o"));
+}
+
+// A target outside the workspace: the pose and its frame said once ("unreachable (unreachable:
+// {..}" before); a LIN that crosses a configuration boundary: where on the path, the joints the
+// controller has there and those the target needs (before: "(a singularity on the path?)").
+TEST(CliMessages, UnreachableAndConfigurationChangeSayWhereAndInWhichFrame) {
+  const std::string dir = test::tempDir("cli_ux_unreach");
+  test::writeText(dir + "/p.src", "DEF p()\nPTP {A1 0,A2 -90,A3 90,A4 0,A5 45,A6 0}\nPTP {X 5000,Y 0,Z 900,A 0,B 90,C 0,S 2,T 2}\nEND\n");
+  const std::string frames = " --out o --program-tool 0,0,0,0,0,0 --program-base 0,0,0,0,0,0";
+  CliRun r = run("compensate --robot kuka_kr16 --in p.src" + frames, dir);
+  EXPECT_EQ(r.code, 1);
+  EXPECT_EQ(r.err, "accura: error: p.src:3:1: the inline target cannot be compensated: unreachable: the TCP pose {X 5000.000, Y 0.000, "
+                   "Z 900.000, A 0.000, B 90.000, C 0.000} (mm, deg; the model's world frame) is outside the workspace\n");
+  test::writeText(dir + "/r.src", "DEF r()\nPTP {A1 0,A2 -90,A3 90,A4 0,A5 45,A6 0}\nLIN {X 1000,Y 0,Z 900,A 0,B 90,C 0}\nEND\n");
+  r = run("compensate --robot kuka_kr16 --in r.src" + frames, dir);
+  EXPECT_EQ(r.code, 1);
+  const std::string head = "accura: error: r.src:3:1: the LIN to the inline target cannot be compensated: not reachable on the configuration asked for: at ";
+  EXPECT_EQ(r.err.compare(0, head.size(), head), 0) << r.err;
+  const std::regex where(R"(at ([0-9.]+) mm of the ([0-9.]+) mm path the controller, following the line from the configuration it started in, has the joints \{[-0-9., ]+\} where the target needs \{[-0-9., ]+\} \(deg, mm for a prismatic joint; joint ([1-6]) differs by ([0-9.]+)\): the line crosses a configuration boundary)");
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(r.err, m, where)) << r.err;
+  EXPECT_LE(std::stod(m[1]), std::stod(m[2]) + 1e-9);
+  // the LIN is the straight line from the first PTP's TCP to (1000, 0, 900): its length, independently
+  Eigen::VectorXd q(6);
+  q << 0, -90, 90, 0, 45, 0;
+  const calib::XyzAbc start = calib::toXyzAbc(calib::forwardKinematics(test::loadBundled("kuka_kr16"), q));
+  EXPECT_NEAR(std::stod(m[2]), std::hypot(start.x_mm - 1000, start.y_mm, start.z_mm - 900), 0.06);
+  EXPECT_GT(std::stod(m[4]), 1.0);  // a flip, not a rounding
 }
 
 // A PTP to a Cartesian target programmed with S 3 (the base "overhead" bit set) in front of the

@@ -178,6 +178,56 @@ TEST(Diagnose, EffectsWithoutTheirContextColumnAreNotTestable) {
   EXPECT_TRUE(thermal_seen);
 }
 
+// Several data sets, each from its own station: the second set is the same robot measured from a
+// station moved by a known transform. combineStations must find that transform (the registration by
+// the geometric identification on both sets) and the diagnosis of the two must match that of the
+// same poses measured from one station; treated as one station they do not fit at all.
+TEST(Diagnose, SeveralDataSetsEachFromItsOwnStation) {
+  const RobotModel nominal = nominalWithTarget("kuka_kr16");
+  SimulateOptions o = campaign(81, {"geometric", "joint_compliance"});
+  const RobotModel truth = perturbModel(nominal, o);
+  MeasurementSet a = simulateMeasurements(truth, o);
+  SimulateOptions ob = o;
+  ob.seed = 82;
+  const MeasurementSet b_here = simulateMeasurements(truth, ob);
+  a.file = "a.csv";
+  MeasurementSet b = b_here;
+  b.file = "b.csv";
+  // station 2 = station 1 moved: p_2 = T_2_1 p_1
+  Eigen::Isometry3d T_2_1 = Eigen::Isometry3d::Identity();
+  T_2_1.linear() = (Eigen::AngleAxisd(8 * kDegToRad, Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(1 * kDegToRad, Eigen::Vector3d::UnitX()))
+                       .toRotationMatrix();
+  T_2_1.translation() = Eigen::Vector3d(400, -250, 30);
+  for (Measurement& r : b.rows) {
+    r.p_world_mm = T_2_1 * r.p_world_mm;
+    r.R_world_tcp = Eigen::Quaterniond(T_2_1.linear() * r.R_world_tcp.toRotationMatrix());
+  }
+  StationSets st;
+  const Diagnosis two = diagnose(nominal, {a, b}, false, nullptr, DiagnoseOptions{}, &st);
+  ASSERT_EQ(st.T_first_station.size(), 2u);
+  const Eigen::Isometry3d D = st.T_first_station[1] * T_2_1;  // identity when found
+  EXPECT_LT(D.translation().norm(), 0.02);                      // mm (noise 0.02 mm per axis, 250 poses)
+  EXPECT_LT(Eigen::AngleAxisd(D.linear()).angle() * kRadToDeg, 1e-3);  // deg
+  ASSERT_EQ(st.combined.rows.size(), a.rows.size() + b.rows.size());
+  for (size_t i = 0; i < b.rows.size(); i += 50)  // back where they were measured from station 1
+    EXPECT_LT((st.combined.rows[a.rows.size() + i].p_world_mm - b_here.rows[i].p_world_mm).norm(), 0.02);
+
+  ASSERT_EQ(two.row_files.size(), st.combined.rows.size());
+  EXPECT_EQ(two.row_files.front(), "a.csv");
+  EXPECT_EQ(two.row_files.back(), "b.csv");
+  for (const DownWeighted& w : two.downweighted) EXPECT_EQ(w.file, two.row_files[static_cast<size_t>(w.index)]);
+  EXPECT_EQ(two.verdict.effect, "joint_compliance") << diagnosisText(two);
+  EXPECT_NE(two.identify_params, "geometric");  // the stations of the second pass: with the compliance
+  MeasurementSet b1 = b_here;
+  b1.file = "b.csv";
+  const Diagnosis same = diagnose(nominal, {a, b1}, true, nullptr, DiagnoseOptions{});
+  EXPECT_NEAR(two.baseline.rms_mm, same.baseline.rms_mm, 0.02 * same.baseline.rms_mm);
+  EXPECT_NEAR(two.verdict.validation_rms_after_mm, same.verdict.validation_rms_after_mm, 0.02 * same.verdict.validation_rms_after_mm);
+  // the moved station taken for the first one: the geometric model cannot fit both
+  const StationSets wrong = combineStations(nominal, {a, b}, true);
+  EXPECT_GT(evaluate(identify(nominal, wrong.combined, IdentifyOptions{}, nullptr), wrong.combined).rms_mm, 10.0);
+}
+
 TEST(Diagnose, BadInputIsAClearError) {
   const RobotModel nominal = nominalWithTarget("kuka_kr16");
   SimulateOptions o = campaign(71, {"geometric"}, 20);

@@ -340,6 +340,16 @@ TEST(Effects, SimulatedEffectsMatchTheModelAndCarryEveryContextColumn) {
 namespace accura::calib {
 namespace {
 
+/// Removes every deviation but the geometric ones (links, base, tool): a plain chain, which
+/// the core evaluates on its short path when every joint is revolute.
+void keepGeometricDeviationsOnly(RobotModel& m) {
+  Deviations& d = m.deviations;
+  for (std::vector<double>* v : {&d.compliance, &d.gear_sin, &d.gear_cos, &d.joint_scale, &d.backlash})
+    std::fill(v->begin(), v->end(), 0.0);
+  for (JointMap& map : d.joint_map) map = JointMap{};
+  d.thermal_alpha_per_k = 0;
+}
+
 // Central differences of the kinematic core itself (kinematic_core.h): every column of the
 // parameter Jacobian (geometry, compliance and every effect of the catalogue) and the joint
 // Jacobian, on every bundled robot in both forms (Hayati where axes are parallel, and DH
@@ -347,7 +357,10 @@ namespace {
 TEST(KinematicCore, DerivativesOfEveryEffectOnEveryRobotInBothForms) {
   std::mt19937_64 rng(31);
   for (const char* name : {"kuka_kr16", "ur10", "scara", "abb_irb120"}) {
-    for (FormPolicy policy : {FormPolicy::kAuto, FormPolicy::kDHOnly}) {
+    for (FormPolicy policy : {FormPolicy::kAuto, FormPolicy::kDHOnly})
+    // geometric: the geometric deviations alone (the core's short path for a plain chain of
+    // revolute joints, kinematic_core.cpp), else every effect of the catalogue
+    for (bool geometric : {false, true}) {
       RobotModel m = test::loadBundled(name, policy);
       // a joint map on every joint (6 intervals over its range): its coefficients join the layout
       m.deviations.joint_map.resize(static_cast<size_t>(m.dof()));
@@ -356,9 +369,15 @@ TEST(KinematicCore, DerivativesOfEveryEffectOnEveryRobotInBothForms) {
         m.deviations.joint_map[static_cast<size_t>(j)] = makeJointMap(js.lower, js.upper, (js.upper - js.lower) / 6);
       }
       randomDeviations(m, rng);
+      bool all_revolute = true;
+      for (const JointSpec& js : m.nominal.joints) all_revolute = all_revolute && js.type == JointType::kRevolute;
+      if (geometric) keepGeometricDeviationsOnly(m);
       const KinematicModel core(m);
+      // the short path is taken exactly for the plain chains (its Jacobian bound is known)
+      EXPECT_EQ(!core.scaledJacobianLipschitz().empty(), geometric && all_revolute) << name;
       const std::vector<ParamInfo> layout = parameterLayout(m);
-      ASSERT_TRUE(std::any_of(layout.begin(), layout.end(), [](const ParamInfo& p) { return p.kind == ParamKind::kJointMap; }));
+      ASSERT_EQ(std::any_of(layout.begin(), layout.end(), [](const ParamInfo& p) { return p.kind == ParamKind::kJointMap; }),
+                !geometric);
       KinematicFrames f, fp, fm;
       LinkFrames links;
       for (int trial = 0; trial < 2; ++trial) {
@@ -414,10 +433,14 @@ TEST(KinematicCore, DerivativesOfEveryEffectOnEveryRobotInBothForms) {
 // An evaluation started from a nearby one (the angle-addition series) equals a fresh one.
 TEST(KinematicCore, EvaluationFromANearbyOneEqualsAFreshOne) {
   std::mt19937_64 rng(32);
-  for (const char* name : {"kuka_kr16", "scara"}) {
-    RobotModel m = test::loadBundled(name);
+  for (const char* name : {"kuka_kr16", "scara", "kuka_kr16 geometric"}) {
+    const std::string robot(name);
+    const bool geometric = robot.find(" geometric") != std::string::npos;
+    RobotModel m = test::loadBundled(robot.substr(0, robot.find(' ')));
     randomDeviations(m, rng);
+    if (geometric) keepGeometricDeviationsOnly(m);  // the core's short path for a plain chain
     const KinematicModel core(m);
+    EXPECT_EQ(!core.scaledJacobianLipschitz().empty(), geometric) << name;
     std::normal_distribution<double> step(0, 2);  // deg: inside and beyond the 0.1 rad series
     for (int trial = 0; trial < 20; ++trial) {
       const Eigen::VectorXd q0 = test::randomQ(m, rng);

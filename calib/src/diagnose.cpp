@@ -1,6 +1,7 @@
 // accura: diagnosis of the sim-to-real gap (diagnose.h, docs/diagnosis.md): options, data
 // preparation, the run and the entry point. The steps live in diagnose_{fit,selection,verdict,maps}.cpp.
 #include "diagnose_internal.h"
+#include "identify_internal.h"
 
 #include <Eigen/Cholesky>
 #include <Eigen/QR>
@@ -180,7 +181,8 @@ void Diagnoser::prepareData(const MeasurementSet& data, const MeasurementSet* va
 
 // Repeated joint configurations: every joint within `tol` (deg or mm, the file's units),
 // the same payload and directions. Sweep over the rows sorted by q1, union-find over the pairs.
-std::vector<std::vector<int>> repeatGroups(const MeasurementSet& set, double tol, std::vector<std::pair<int, int>>* pairs) {
+std::vector<std::vector<int>> repeatGroups(const MeasurementSet& set, double tol, std::vector<std::pair<int, int>>* pairs,
+                                           const std::vector<int>* set_of_row) {
   const int m = static_cast<int>(set.rows.size());
   std::vector<int> order(static_cast<size_t>(m));
   std::iota(order.begin(), order.end(), 0);
@@ -198,7 +200,8 @@ std::vector<std::vector<int>> repeatGroups(const MeasurementSet& set, double tol
     for (int b = a + 1; b < m; ++b) {
       const Measurement& B = set.rows[order[b]];
       if (B.q[0] - A.q[0] > tol) break;
-      bool same = std::abs(A.context.payload_kg - B.context.payload_kg) <= 1e-9 && A.dir == B.dir;
+      bool same = std::abs(A.context.payload_kg - B.context.payload_kg) <= 1e-9 && A.dir == B.dir &&
+                  (!set_of_row || (*set_of_row)[static_cast<size_t>(order[a])] == (*set_of_row)[static_cast<size_t>(order[b])]);
       for (Eigen::Index k = 1; same && k < A.q.size(); ++k) same = std::abs(A.q[k] - B.q[k]) <= tol;
       if (!same) continue;
       const int i = std::min(order[a], order[b]), k = std::max(order[a], order[b]);
@@ -260,7 +263,88 @@ Diagnosis Diagnoser::run() {
 }
 
 
+void Diagnoser::setRowSets(const std::vector<int>& set_of_row, const std::vector<std::string>& files) {
+  if (static_cast<int>(set_of_row.size()) != m_) throw ArgumentError("diagnose: expected a data set per fit row");
+  set_of_row_ = set_of_row;
+  out_.row_files.clear();
+  for (int s : set_of_row) {
+    if (s < 0 || static_cast<size_t>(s) >= files.size()) throw ArgumentError("diagnose: a row's data set has no file");
+    out_.row_files.push_back(files[static_cast<size_t>(s)]);
+  }
+}
+
 }  // namespace diagnose_detail
+
+StationSets combineStations(const RobotModel& start, const std::vector<MeasurementSet>& sets, bool same_station,
+                            const std::vector<std::string>& groups) {
+  if (sets.empty()) throw ArgumentError("combineStations: no data set given");
+  StationSets out;
+  for (const MeasurementSet& s : sets) {
+    if (s.rows.empty()) throw InputError(s.file, 0, 0, "expected measured rows, found none");
+    out.files.push_back(s.file);
+  }
+  out.T_first_station.assign(sets.size(), Eigen::Isometry3d::Identity());
+  std::vector<MeasurementSet> moved = sets;
+  if (sets.size() > 1 && !same_station) {
+    IdentifyOptions io;
+    io.groups = groups;
+    IdentifySummary s;
+    identify(start, sets, io, &s);
+    if (s.T_world_base_per_set.size() != sets.size())
+      throw NumericalError("combineStations: the identification returned no station per data set");
+    for (size_t k = 1; k < sets.size(); ++k) {
+      // a point measured from station k: p_k = T_k_base p_base, so p_1 = T_1_base T_k_base^-1 p_k
+      const Eigen::Isometry3d T = s.T_world_base_per_set[0] * s.T_world_base_per_set[k].inverse();
+      out.T_first_station[k] = T;
+      for (Measurement& r : moved[k].rows) {
+        r.p_world_mm = T * r.p_world_mm;
+        if (r.has_orientation) r.R_world_tcp = Eigen::Quaterniond(T.linear() * r.R_world_tcp.toRotationMatrix());
+      }
+    }
+  }
+  out.combined = identify_detail::combine(moved, &out.set_of_row);
+  if (sets.size() > 1) {
+    // a context column counts only when every set has it (a row without it has no value)
+    for (const MeasurementSet& s : sets) {
+      out.combined.has_payload = out.combined.has_payload && s.has_payload;
+      out.combined.has_temperature = out.combined.has_temperature && s.has_temperature;
+      out.combined.has_direction = out.combined.has_direction && s.has_direction;
+      out.combined.has_time = out.combined.has_time && s.has_time;
+    }
+    out.combined.file = sets[0].file;
+    for (size_t k = 1; k < sets.size(); ++k) out.combined.file += " + " + sets[k].file;
+  }
+  return out;
+}
+
+Diagnosis diagnose(const RobotModel& start, const std::vector<MeasurementSet>& sets, bool same_station,
+                   const MeasurementSet* validation, const DiagnoseOptions& options, StationSets* stations) {
+  auto pass = [&](const StationSets& data) {
+    diagnose_detail::Diagnoser d(start, data.combined, validation, options);
+    if (data.files.size() > 1) d.setRowSets(data.set_of_row, data.files);
+    return d.run();
+  };
+  StationSets st = combineStations(start, sets, same_station);
+  Diagnosis d = pass(st);
+  if (sets.size() > 1 && !same_station && d.identify_params != "geometric") {
+    std::vector<std::string> groups;
+    std::string g;
+    for (char c : d.identify_params + ",") {
+      if (c != ',') {
+        g += c;
+      } else if (!g.empty()) {
+        groups.push_back(g);
+        g.clear();
+      }
+    }
+    st = combineStations(start, sets, same_station, groups);
+    d = pass(st);
+    d.notes.push_back("stations registered by the geometric model plus " + d.identify_params.substr(std::string("geometric").size() + 1) +
+                      " (what a first pass with the geometric model alone selected), then diagnosed again");
+  }
+  if (stations) *stations = std::move(st);
+  return d;
+}
 
 Diagnosis diagnose(const RobotModel& start, const MeasurementSet& data, const MeasurementSet* validation,
                    const DiagnoseOptions& options) {

@@ -47,7 +47,7 @@ void Diagnoser::repeats() {
     fl.instrument_rms_mm = n > 0 ? std::sqrt(s2 / n) : kNaN;
   }
   std::vector<std::pair<int, int>> pairs;
-  groups_ = repeatGroups(fit_, o_.repeat_tol, &pairs);
+  groups_ = repeatGroups(fit_, o_.repeat_tol, &pairs, set_of_row_.empty() ? nullptr : &set_of_row_);
   std::vector<double> dist;
   fl.repeat_min_gap = pairs.empty() ? 0 : 1 << 30;
   for (const auto& pr : pairs) {
@@ -177,7 +177,7 @@ void Diagnoser::robustWeights(const std::vector<double>& e) {
   for (int i = 0; i < m_; ++i) {
     if (!(e[static_cast<size_t>(i)] > cut)) continue;
     robust_w_[static_cast<size_t>(i)] = cut / e[static_cast<size_t>(i)];
-    out_.downweighted.push_back({fit_.file, fit_.rows[static_cast<size_t>(i)].line, i, e[static_cast<size_t>(i)],
+    out_.downweighted.push_back({out_.row_files.empty() ? fit_.file : out_.row_files[static_cast<size_t>(i)], fit_.rows[static_cast<size_t>(i)].line, i, e[static_cast<size_t>(i)],
                                  robust_w_[static_cast<size_t>(i)]});
   }
   std::sort(out_.downweighted.begin(), out_.downweighted.end(),

@@ -42,8 +42,10 @@ void statsOf(const std::vector<double>& e, HeldOutStats* s);
 std::string separator(const std::string& effect, const std::vector<int>& joints);
 /// Repeated joint configurations: every joint within `tol` (deg or mm), the same payload and
 /// directions; groups of rows (ascending, groups by first row), and every pair (i < k) when asked.
+/// With `set_of_row`, only rows of the same data set are repeats.
 std::vector<std::vector<int>> repeatGroups(const MeasurementSet& set, double tol,
-                                           std::vector<std::pair<int, int>>* pairs = nullptr);
+                                           std::vector<std::pair<int, int>>* pairs = nullptr,
+                                           const std::vector<int>* set_of_row = nullptr);
 /// Cholesky solve of a normal system with unit-scaled columns; false when it is singular
 /// (a pivot ratio below 1e-7, a condition number above 1e14).
 bool solveSpd(const Eigen::MatrixXd& M, const Eigen::VectorXd& v, Eigen::LLT<Eigen::MatrixXd>* llt,
@@ -57,6 +59,8 @@ class Diagnoser {
   Diagnoser(const RobotModel& start, const MeasurementSet& data, const MeasurementSet* validation,
             const DiagnoseOptions& options);
   Diagnosis run();
+  /// Several data sets: the data set of each fit row and the files (before run()).
+  void setRowSets(const std::vector<int>& set_of_row, const std::vector<std::string>& files);
 
  private:
   struct Block {
@@ -147,6 +151,7 @@ class Diagnoser {
   bool has_val_ = false;
   int m_ = 0, nv_ = 0;  // fit / validation poses
   int folds_ = 5;
+  std::vector<int> set_of_row_;            // per fit pose: its data set (empty: one)
   std::vector<int> fold_;                  // per fit pose
   std::vector<std::vector<int>> fold_poses_;
   // noise

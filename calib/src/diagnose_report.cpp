@@ -89,6 +89,13 @@ std::string rowRef(const std::string& file, int line, int index) {
   return file + ":" + (line > 0 ? std::to_string(line) : "row " + std::to_string(index + 1));
 }
 
+// A fit row of the diagnosis by its own file (several data sets) or the data file.
+std::string rowRef(const Diagnosis& d, int line, int index) {
+  const std::string& file =
+      index >= 0 && static_cast<size_t>(index) < d.row_files.size() ? d.row_files[static_cast<size_t>(index)] : d.data_file;
+  return rowRef(file, line, index);
+}
+
 ordered_json floorsJson(const Diagnosis& d) {
   const Floors& fl = d.floors;
   ordered_json j;
@@ -107,7 +114,7 @@ ordered_json floorsJson(const Diagnosis& d) {
   j["glitch_threshold_mm"] = num(fl.glitch_threshold_mm);
   ordered_json g = ordered_json::array();
   for (const RepeatPair& p : fl.glitches)
-    g.push_back({{"rows", {rowRef(d.data_file, p.line_a, p.index_a), rowRef(d.data_file, p.line_b, p.index_b)}},
+    g.push_back({{"rows", {rowRef(d, p.line_a, p.index_a), rowRef(d, p.line_b, p.index_b)}},
                  {"distance_mm", num(p.distance_mm)},
                  {"orientation_jump_deg", num(p.rotation_deg)}});
   j["glitches"] = g;
@@ -513,7 +520,7 @@ std::string diagnosisText(const Diagnosis& d) {
     if (!fl.glitches.empty()) {
       s << "glitches (repeat pairs further apart than " << f("%.3f", fl.glitch_threshold_mm) << " mm):";
       for (const RepeatPair& p : fl.glitches)
-        s << "\n  " << rowRef(d.data_file, p.line_a, p.index_a) << " / " << rowRef(d.data_file, p.line_b, p.index_b) << "  "
+        s << "\n  " << rowRef(d, p.line_a, p.index_a) << " / " << rowRef(d, p.line_b, p.index_b) << "  "
           << f("%.3f", p.distance_mm) << " mm" << (std::isfinite(p.rotation_deg) ? ", orientation jump " + f("%.3f", p.rotation_deg) + " deg" : "");
       s << "\n";
     }
@@ -608,8 +615,8 @@ std::string diagnosisHtml(const Diagnosis& d, const DiagnosisReportContext& ctx)
     if (!fl.glitches.empty()) {
       h << "<table><tr><th class=\"l\">glitch pair</th><th>distance (mm)</th><th>orientation jump (deg)</th></tr>\n";
       for (const RepeatPair& p : fl.glitches)
-        h << "<tr><td class=\"l\">" << esc(rowRef(d.data_file, p.line_a, p.index_a)) << " / "
-          << esc(rowRef(d.data_file, p.line_b, p.index_b)) << "</td><td>" << f("%.3f", p.distance_mm) << "</td><td>"
+        h << "<tr><td class=\"l\">" << esc(rowRef(d, p.line_a, p.index_a)) << " / "
+          << esc(rowRef(d, p.line_b, p.index_b)) << "</td><td>" << f("%.3f", p.distance_mm) << "</td><td>"
           << f("%.3f", p.rotation_deg) << "</td></tr>\n";
       h << "</table>\n";
     }

@@ -146,6 +146,11 @@ struct Problem {
     bool valid = false;
   };
   mutable Stacked last;
+  /// The stacked Jacobian and residual of the solves' evaluations (identify_solve.cpp): one
+  /// buffer for every solve of this problem (3000 x 27 doubles are 648 kB: allocated afresh
+  /// per solve, their pages are faulted in again each time).
+  mutable Eigen::MatrixXd solve_J;
+  mutable Eigen::VectorXd solve_r;
   /// last holds the stacking at xs with the current weights.
   bool lastAt(const std::vector<double>& xs) const;
   void keep(const std::vector<double>& xs, const Eigen::MatrixXd& J, const Eigen::VectorXd& r) const;

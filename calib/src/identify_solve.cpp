@@ -18,7 +18,7 @@ namespace {
 class Evaluator : public ceres::EvaluationCallback {
  public:
   Evaluator(const Problem& pb, std::vector<double>* x)
-      : pb_(pb), model_(pb.model), x_(x), rows_(model_, pb.plan, pb.st) {
+      : pb_(pb), model_(pb.model), x_(x), rows_(model_, pb.plan, pb.st), J_(pb.solve_J), r_(pb.solve_r) {
     int m = 0;
     for (const RowWeights& w : pb.weights) {
       offset_.push_back(m);
@@ -51,8 +51,8 @@ class Evaluator : public ceres::EvaluationCallback {
   std::vector<double>* x_;
   RowStack rows_;
   std::vector<int> offset_;
-  Eigen::MatrixXd J_;
-  Eigen::VectorXd r_;
+  Eigen::MatrixXd& J_;  ///< pb.solve_J (one buffer for all solves)
+  Eigen::VectorXd& r_;
   bool have_jacobians_ = false;
 };
 

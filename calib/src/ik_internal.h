@@ -18,6 +18,7 @@
 #include "accura/calib/geometry.h"
 #include "accura/calib/ik.h"
 #include "accura/calib/kinematic_core.h"
+#include "accura/calib/text.h"
 #include "closed_form.h"
 #include "small_linalg.h"
 
@@ -163,12 +164,8 @@ inline bool hasDeviationsBeyondBaseTool(const RobotModel& m) {
 
 inline std::string formatPose(const Eigen::Isometry3d& T) {
   const XyzAbc p = toXyzAbc(T);
-  std::ostringstream s;
-  s.setf(std::ios::fixed);
-  s.precision(3);
-  s << "{X " << p.x_mm << ", Y " << p.y_mm << ", Z " << p.z_mm << ", A " << p.a_deg << ", B " << p.b_deg
-    << ", C " << p.c_deg << "}";
-  return s.str();
+  return "{X " + formatFixed(p.x_mm, 3) + ", Y " + formatFixed(p.y_mm, 3) + ", Z " + formatFixed(p.z_mm, 3) + ", A " +
+         formatFixed(p.a_deg, 3) + ", B " + formatFixed(p.b_deg, 3) + ", C " + formatFixed(p.c_deg, 3) + "}";
 }
 
 /// Identifies each prepared solver in IkWorkspace (unique in the process).
@@ -183,7 +180,10 @@ struct IkWorkspace::Data {
   VecN q;
   double payload_kg = 0, temp_c = 0;
   std::vector<int> dir;
-  KinematicFrames f;
+  /// Two frame buffers: Newton evaluates its trial point into the other one and swaps the
+  /// roles on acceptance (no copy); `cur` is the one at q.
+  std::array<KinematicFrames, 2> frames;
+  int cur = 0;
   Jac6N J;
   /// Singularity certificate (KinematicSolver::Impl::singularAt): at cert_q the scaled
   /// Jacobian's smallest singular value was shown to exceed cert_level (solver cert_solver_id;
@@ -202,6 +202,13 @@ struct IkWorkspace::Data {
       if (seed[i] != q[i]) return false;
     return ctx.payload_kg == payload_kg && ctx.temp_c == temp_c && ctx.dir == dir;
   }
+};
+
+/// The frames at Newton's current point (`cur`) and a buffer for its trial point (`tmp`):
+/// swapped on acceptance, so the frames are never copied.
+struct FramePair {
+  KinematicFrames* cur;
+  KinematicFrames* tmp;
 };
 
 struct KinematicSolver::Impl {
@@ -270,10 +277,10 @@ struct KinematicSolver::Impl {
   /// Newton's method, then Levenberg-Marquardt when a Newton step does not reduce the error.
   /// Newton reuses its Jacobian while each step gains at least a factor 5 (near the solution
   /// an iteration costs one FK). Every evaluation after the first counts as an iteration.
-  /// `f` holds the frames at q on entry when `f_valid`, and on return.
-  /// `J0` (optional, with `f_valid`): the joint Jacobian at q.
+  /// `*fp.cur` holds the frames at q on entry when `f_valid`, and on return (the pair's roles
+  /// may be swapped). `J0` (optional, with `f_valid`): the joint Jacobian at q.
   Newton newton(VecN& q, const Eigen::Isometry3d& T_target, const PoseContext& ctx, const IkOptions& o,
-                int max_iterations, KinematicFrames& f, bool f_valid = false, double polish_mm = 0,
+                int max_iterations, FramePair& fp, bool f_valid = false, double polish_mm = 0,
                 double polish_rad = 0, const Jac6N* J0 = nullptr) const;
 
   // --- closed-form seeds ------------------------------------------------------------------

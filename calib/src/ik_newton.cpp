@@ -181,24 +181,16 @@ double KinematicSolver::Impl::meritScaled(const Vector6d& e) const {
 }
 
 KinematicSolver::Impl::Newton KinematicSolver::Impl::newton(VecN& q, const Eigen::Isometry3d& T_target,
-    const PoseContext& ctx, const IkOptions& o, int max_iterations, KinematicFrames& f, bool f_valid,
+    const PoseContext& ctx, const IkOptions& o, int max_iterations, FramePair& fp, bool f_valid,
     double polish_mm, double polish_rad, const Jac6N* J0) const {
   using MatN = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxDof, kMaxDof>;
   Newton r;
-  if (!f_valid) chain.evaluate(q.data(), ctx, f);
-  // frames at q (cur) and of the trial (tmp); swapped on acceptance, copied back at the end
-  KinematicFrames ft;
-  KinematicFrames* cur = &f;
-  KinematicFrames* tmp = &ft;
-  struct CopyBack {
-    KinematicFrames*& cur;
-    KinematicFrames& f;
-    ~CopyBack() {
-      if (cur != &f) f = *cur;
-    }
-  } copy_back{cur, f};
+  if (!f_valid) chain.evaluate(q.data(), ctx, *fp.cur);
+  // the frames at q are *fp.cur; a trial is evaluated into *fp.tmp and the two swap roles
+  // when it is accepted
+  const KinematicFrames* const start = fp.cur;
   Vector6d e;
-  poseErr(T_target, f.T_world_tcp, e);
+  poseErr(T_target, fp.cur->T_world_tcp, e);
   double merit = meritScaled(e);
   // converged at the tolerance; then, when polishing, up to kPolishSteps more while they
   // gain (a step that does not reduce the error ends it, converged)
@@ -218,13 +210,13 @@ KinematicSolver::Impl::Newton KinematicSolver::Impl::newton(VecN& q, const Eigen
   Jac6N J, Js;
   auto trial = [&](const VecN& step) {
     qt = q + step;
-    chain.evaluate(qt.data(), ctx, *tmp, cur);
-    poseErr(T_target, tmp->T_world_tcp, et);
+    chain.evaluate(qt.data(), ctx, *fp.tmp, fp.cur);
+    poseErr(T_target, fp.tmp->T_world_tcp, et);
     ++r.iterations;
     const double mt = meritScaled(et);
     if (!(mt < merit)) return false;
     q = qt;
-    std::swap(cur, tmp);
+    std::swap(fp.cur, fp.tmp);
     e = et;
     merit = mt;
     return true;
@@ -245,13 +237,13 @@ KinematicSolver::Impl::Newton KinematicSolver::Impl::newton(VecN& q, const Eigen
     bool fresh = false, have = false;
     while (!done()) {
       if (!have) {
-        if (J0 && f_valid && cur == &f) {
-          J = *J0;
-        } else {
-          chain.jacobian(*cur, J);
+        const Jac6N* Jq = J0 && f_valid && fp.cur == start ? J0 : nullptr;
+        if (!Jq) {
+          chain.jacobian(*fp.cur, J);
+          Jq = &J;
         }
         J0 = nullptr;
-        if (!lu.factor(Eigen::Matrix<double, 6, 6>(J))) break;
+        if (!lu.factor(Jq->data())) break;
         have = fresh = true;
       }
       dq = lu.solve(e);
@@ -277,7 +269,7 @@ KinematicSolver::Impl::Newton KinematicSolver::Impl::newton(VecN& q, const Eigen
   // Levenberg-Marquardt in scaled variables: (Js^T Js + lambda I) dx = Js^T es
   double lambda = -1;
   while (!done()) {
-    chain.jacobian(*cur, J);
+    chain.jacobian(*fp.cur, J);
     scaled(J, Js);
     const MatN A = Js.transpose() * Js;
     Vector6d es = e;

@@ -121,8 +121,9 @@ IkResult KinematicSolver::Impl::inverse(const Eigen::Isometry3d& T_target, const
   // it holds the answer only when the answer is kOk (stored in finish)
   const bool reuse = ws && ws->holds(id, seed, ctx);
   if (ws) ws->solver_id = 0;
-  KinematicFrames f_local;
-  KinematicFrames& f = ws ? ws->f : f_local;
+  std::array<KinematicFrames, 2> f_local;
+  FramePair fp = ws ? FramePair{&ws->frames[static_cast<size_t>(ws->cur)], &ws->frames[static_cast<size_t>(1 - ws->cur)]}
+                    : FramePair{&f_local[0], &f_local[1]};
   Jac6N J_local;
   Jac6N& J = ws ? ws->J : J_local;
   const VecN ref = seed.size() ? VecN(seed) : midRange();
@@ -132,7 +133,7 @@ IkResult KinematicSolver::Impl::inverse(const Eigen::Isometry3d& T_target, const
   IkResult singular_solution;                 // the first singular one on the configuration
   bool have_singular = false;
   int limit_failures = 0;
-  // A converged q (frames in f): limits, singularity, configuration. Returns true when
+  // A converged q (frames in *fp.cur): limits, singularity, configuration. Returns true when
   // `out` is the answer.
   auto finish = [&](VecN q, Newton nt, bool warm, IkResult& out) -> bool {
     const VecN q_converged = q;
@@ -156,8 +157,8 @@ IkResult KinematicSolver::Impl::inverse(const Eigen::Isometry3d& T_target, const
       r.configuration.status = (ws->x_a1_negative ? 1 : 0) | status_geometry.elbowWristBits(q.data());
       x_a1_abs_lo = ws->x_a1_abs_lo - L * moved_rad;
     } else {
-      chain.fillNominal(q.data(), f, status_geometry.last + 1);
-      r.configuration.status = status_geometry.status(q.data(), &x_a1, f.cos_nominal.data(), f.sin_nominal.data());
+      chain.fillNominal(q.data(), *fp.cur, status_geometry.last + 1);
+      r.configuration.status = status_geometry.status(q.data(), &x_a1, fp.cur->cos_nominal.data(), fp.cur->sin_nominal.data());
       x_a1_abs_lo = std::abs(x_a1);
     }
     r.configuration.turn = turnBits(q.data(), n);
@@ -172,14 +173,14 @@ IkResult KinematicSolver::Impl::inverse(const Eigen::Isometry3d& T_target, const
     }
     if (q != q_converged) {
       // moved by 360 deg: the same pose unless an effect depends on q itself (joint_scale)
-      nt = newton(q, T_target, ctx, o, 5, f, false, polish_mm, polish_rad);
+      nt = newton(q, T_target, ctx, o, 5, fp, false, polish_mm, polish_rad);
       iterations += nt.iterations;
       if (!nt.converged) return false;
     }
     r.q = q;
     r.position_error_mm = nt.ep;
     r.rotation_error_rad = nt.er;
-    chain.jacobian(f, J);
+    chain.jacobian(*fp.cur, J);
     // warm and more than kWarmAcceptDeg from the seed: taken only where the Jacobian is
     // regular enough that no other solution can be nearer (another solution of the same pose
     // is about sigma_min rad away or more; docs/compensation.md)
@@ -225,6 +226,7 @@ IkResult KinematicSolver::Impl::inverse(const Eigen::Isometry3d& T_target, const
     if (ws) {
       // f and J are at q: keep them for a solve seeded with this solution
       ws->solver_id = id;
+      ws->cur = fp.cur == &ws->frames[0] ? 0 : 1;
       ws->q = q;
       ws->payload_kg = ctx.payload_kg;
       ws->temp_c = ctx.temp_c;
@@ -242,7 +244,7 @@ IkResult KinematicSolver::Impl::inverse(const Eigen::Isometry3d& T_target, const
     VecN q = ref;
     // (the Jacobian is copied in: finish() overwrites J)
     const Newton nt =
-        newton(q, T_target, ctx, o, std::min(o.max_iterations, 12), f, reuse, polish_mm, polish_rad, reuse ? &J : nullptr);
+        newton(q, T_target, ctx, o, std::min(o.max_iterations, 12), fp, reuse, polish_mm, polish_rad, reuse ? &J : nullptr);
     iterations += nt.iterations;
     if (nt.converged && finish(q, nt, true, res)) {
       res.iterations = iterations;
@@ -266,7 +268,7 @@ IkResult KinematicSolver::Impl::inverse(const Eigen::Isometry3d& T_target, const
   double best_ep = std::numeric_limits<double>::infinity(), best_er = best_ep;
   auto attempt = [&](VecN q, int branch, bool corrected, int max_iterations) -> bool {
     if (closed && !exact_closed_form && branch >= 0 && !corrected) correctSeed(q, branch, T_target, ctx);
-    const Newton nt = newton(q, T_target, ctx, o, max_iterations, f, false, polish_mm, polish_rad);
+    const Newton nt = newton(q, T_target, ctx, o, max_iterations, fp, false, polish_mm, polish_rad);
     iterations += nt.iterations;
     if (!nt.converged) {
       if (nt.ep / o.tol_mm + nt.er / o.tol_rad < best_ep / o.tol_mm + best_er / o.tol_rad) {
@@ -336,7 +338,7 @@ IkResult KinematicSolver::Impl::inverse(const Eigen::Isometry3d& T_target, const
       o.joint_margin > 0 ? " (margin " + std::to_string(o.joint_margin) + ")" : std::string();
   if (closed && branches == 0) {
     fail.status = IkStatus::kUnreachable;
-    m << "unreachable: " << formatPose(T_target) << " is outside the workspace";
+    m << "the TCP pose " << formatPose(T_target) << " (mm, deg; the model's world frame) is outside the workspace";
   } else if (any_converged && limit_failures > 0) {
     fail.status = IkStatus::kJointLimits;
     m << "reachable only outside the joint limits" << margin_note;
@@ -348,8 +350,7 @@ IkResult KinematicSolver::Impl::inverse(const Eigen::Isometry3d& T_target, const
     // every start ended in a local minimum of the error or ran out of iterations
     fail.status = best_ep > 10 * o.tol_mm || best_er > 10 * o.tol_rad ? IkStatus::kUnreachable
                                                                      : IkStatus::kNotConverged;
-    m << (fail.status == IkStatus::kUnreachable ? "unreachable: " : "not converged: ") << formatPose(T_target)
-      << ", smallest error " << best_ep << " mm, " << best_er << " rad after Newton from " << starts.size()
+    m << "the TCP pose " << formatPose(T_target) << " (mm, deg; the model's world frame): smallest error " << best_ep << " mm, " << best_er << " rad after Newton from " << starts.size()
       << " start(s)";
   }
   fail.message = m.str();

@@ -1,4 +1,5 @@
 #include "accura/calib/joint_map.h"
+#include "accura/calib/text.h"
 
 #include <algorithm>
 #include <cmath>
@@ -188,6 +189,22 @@ std::vector<OutsideFitRange> outsideFitRanges(const RobotModel& model, const Eig
     if (q[j] < lo || q[j] > hi) out.push_back({j + 1, q[j], lo, hi, q[j] < lo ? lo - q[j] : q[j] - hi});
   }
   return out;
+}
+
+std::string outsideFitRangeMessage(const RobotModel& model, const std::string& what,
+                                   const std::vector<OutsideFitRange>& outside) {
+  if (outside.empty()) return {};
+  std::string list;
+  for (const OutsideFitRange& x : outside) {
+    const bool known = x.joint >= 1 && x.joint <= model.dof();
+    const JointSpec* joint = known ? &model.nominal.joints[static_cast<size_t>(x.joint - 1)] : nullptr;
+    const std::string unit = joint && joint->type == JointType::kPrismatic ? " mm" : " deg";
+    list += std::string(list.empty() ? " " : "; ") + "joint " + std::to_string(x.joint) +
+            (joint && !joint->name.empty() ? " (" + joint->name + ")" : std::string()) + " at " + formatFixed(x.q, 2) + unit +
+            " (fitted " + formatFixed(x.lower, 2) + ".." + formatFixed(x.upper, 2) + unit + ", " + formatFixed(x.beyond, 2) + unit +
+            " beyond)";
+  }
+  return what + " lies outside the joint ranges the model was fitted on:" + list + " (its joint-dependent effects are not fitted there)";
 }
 
 bool parseJointMapKnot(const std::string& text, double* knot, std::string* unit, std::string* error) {

@@ -87,6 +87,20 @@ inline void cosSinFrom(double theta, double theta0, double c0, double s0, double
   fastSinCos(theta, s, c);
 }
 
+/// Link k's angle theta with its cosine and sine into f: from the nearby evaluation `near`
+/// (the angle-addition series) when there is one, else computed.
+inline void setLinkAngle(KinematicFrames& f, size_t k, double theta, const KinematicFrames* near) {
+  double ct, st;
+  if (near) {
+    cosSinFrom(theta, near->theta[k], near->cos_theta[k], near->sin_theta[k], ct, st);
+  } else {
+    fastSinCos(theta, st, ct);
+  }
+  f.theta[k] = theta;
+  f.cos_theta[k] = ct;
+  f.sin_theta[k] = st;
+}
+
 /// The joint-space effects of the catalogue (docs/diagnosis.md) on link L at joint value
 /// `qi` (rad for a revolute joint, mm for a prismatic one; `q` the same value as the
 /// controller reads it: deg or mm) with approach direction `dir`
@@ -253,6 +267,29 @@ void KinematicModel::evaluate(const double* q, const PoseContext& context, Kinem
   if (backlash_ && !context.dir.empty() && static_cast<int>(context.dir.size()) < n_)
     throw ArgumentError("pose context: expected " + std::to_string(n_) + " approach directions, got " +
                         std::to_string(context.dir.size()));
+  // The plain chain (no compliance, joint-space effect, backlash or thermal scale, every
+  // joint revolute: the geometric model the IK, the controller and most identifications use)
+  // is the one whose Jacobian bound the constructor computed: the same computation as below
+  // without its tests per link.
+  const bool plain = !jacobian_lipschitz_.empty();
+  if (plain && !(links && need_loads)) {
+    f.nominal_valid = false;
+    std::array<double, kMaxDof> d_link;
+    for (int i = 0; i < n_; ++i) {
+      const Link& L = links_[static_cast<size_t>(i)];
+      const size_t k = static_cast<size_t>(i);
+      f.rate[k] = L.dir;
+      d_link[k] = L.d_c;
+      setLinkAngle(f, k, L.theta_c + L.dir * q[i] * kDegToRad, near);
+    }
+    if (links) {
+      std::fill(links->load.begin(), links->load.begin() + n_, 0.0);
+      chain<true>(f, d_link.data(), 1.0, links);
+    } else {
+      chain<false>(f, d_link.data(), 1.0, nullptr);
+    }
+    return;
+  }
   std::array<double, kMaxDof> load_local{};
   double* load = links ? links->load.data() : load_local.data();
   f.nominal_valid = compliant_;
@@ -300,18 +337,16 @@ void KinematicModel::evaluate(const double* q, const PoseContext& context, Kinem
       d += L.dir * q[i] + L.compliance * load[k] + extra;
     }
     d_link[k] = d;
-    double ct, st;
     if (loads) {
       // the link's angle is its nominal one plus small deviations
+      double ct, st;
       cosSinFrom(theta, f.theta_nominal[k], f.cos_nominal[k], f.sin_nominal[k], ct, st);
-    } else if (near) {
-      cosSinFrom(theta, near->theta[k], near->cos_theta[k], near->sin_theta[k], ct, st);
+      f.theta[k] = theta;
+      f.cos_theta[k] = ct;
+      f.sin_theta[k] = st;
     } else {
-      fastSinCos(theta, st, ct);
+      setLinkAngle(f, k, theta, near);
     }
-    f.theta[k] = theta;
-    f.cos_theta[k] = ct;
-    f.sin_theta[k] = st;
   }
   if (links) {
     chain<true>(f, d_link.data(), scale, links);

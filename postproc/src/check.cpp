@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "accura/calib/errors.h"
+#include "accura/calib/joint_map.h"
 #include "accura/calib/text.h"
 #include "accura/postproc/placement.h"
 
@@ -167,6 +168,17 @@ class Checker {
   /// Joint limits and singularity at one configuration.
   void pointChecks(First& f, const WorldMotion& m, double s, double arc_mm, const Eigen::Vector3d& p, const Eigen::VectorXd& q,
                    bool singularity) {
+    if (s >= 1.0 && fit_motion_ != motion_index_) {
+      // issue 11: an end point outside the joint ranges the model's joint-dependent effects were
+      // fitted on (the model's fit_range), as compensate reports its targets
+      fit_motion_ = motion_index_;
+      const std::vector<calib::OutsideFitRange> o = calib::outsideFitRanges(real_, q);
+      if (!o.empty()) {
+        if (outside_fit_ == 0) first_outside_ = m.where;
+        ++outside_fit_;
+        r_.warnings.push_back({m.where, calib::outsideFitRangeMessage(real_, "motion " + std::to_string(motion_index_ + 1) + " (" + m.label + ") end point", o)});
+      }
+    }
     const auto [margin, joint] = jointMargin(q);
     cur_->min_joint_margin = std::min(cur_->min_joint_margin, margin);
     if (margin < t_.joint_margin_deg) {
@@ -338,6 +350,9 @@ class Checker {
       emit(f);
       r_.motions.push_back(mc);
     }
+    if (outside_fit_ > 0)
+      r_.warnings.push_back({first_outside_, std::to_string(outside_fit_) + " of " + std::to_string(motions.size()) +
+                                                 " end point(s) outside the fitted joint ranges; the model's correction there is an extrapolation"});
   }
 
   /// IK of a Cartesian end point (reach, configuration); nullopt after a reach violation.
@@ -475,6 +490,9 @@ class Checker {
   calib::KinematicWorkspace ws_;
   MotionCheck* cur_ = nullptr;
   int motion_index_ = 0;
+  int fit_motion_ = -1;     // the motion whose end point was compared with the fitted ranges
+  int outside_fit_ = 0;     // end points outside them
+  SourceLocation first_outside_;
 };
 
 void finish(CheckReport& r) {

@@ -277,7 +277,7 @@ class Job {
   void motion(const Motion& m, Program& out) {
     if (m.start_unknown) forget();
     if (!m.target_problem.empty()) {
-      if (m.type == MotionType::kPtp)
+      if (m.type == MotionType::kPtp && !m.target_file_missing)
         warning(m.where, motionKeyword(m) + " left unchanged: " + m.target_problem + "; the position after it is not known");
       else
         error(m.where, "expected a target accura can correct for " + motionKeyword(m) + ", found: " + m.target_problem);
@@ -382,7 +382,7 @@ class Job {
       const PoseCompensation pa = comp.pose(T_world_aux, calib::Configuration{}, seed, s_.ik, s_.context);
       if (pa.status != calib::IkStatus::kOk) {
         error(m.where, "the auxiliary point " + targetLabel(*c.aux) + " cannot be compensated: " + toString(pa.status) +
-                           (pa.message.empty() ? "" : " (" + pa.message + ")"));
+                           (pa.message.empty() ? "" : ": " + pa.message));
         return keep(out, mo);
       }
       setPose(*mo.aux, toProgram(c.T_world_progbase, pa.T_world_tcp_command));
@@ -400,7 +400,7 @@ class Job {
     }
     const PoseCompensation pc = comp.pose(c.T_world_end, config, start, s_.ik, s_.context);
     if (pc.status != calib::IkStatus::kOk) {
-      error(m.where, targetLabel(end) + " cannot be compensated: " + toString(pc.status) + (pc.message.empty() ? "" : " (" + pc.message + ")"));
+      error(m.where, targetLabel(end) + " cannot be compensated: " + toString(pc.status) + (pc.message.empty() ? "" : ": " + pc.message));
       return keep(out, mo);
     }
     if (cp) noteCpConfiguration(m, end, comp, pc.q_real);
@@ -428,7 +428,7 @@ class Job {
     const SegmentCompensation sc = compensateSegmentFrom(comp, intended, c.config, *q_real_, s_);
     if (sc.status != calib::IkStatus::kOk || sc.commanded.empty() || sc.q_real_end.size() != sc.commanded.size()) {
       error(m.where, "the " + motionKeyword(m) + " to " + targetLabel(end) + " cannot be compensated: " + toString(sc.status) +
-                         (sc.message.empty() ? "" : " (" + sc.message + ")"));
+                         (sc.message.empty() ? "" : ": " + sc.message));
       return keep(out, mo);
     }
     noteCpConfiguration(m, end, comp, sc.q_real_end.back());
@@ -608,18 +608,7 @@ void warnOutsideFitRanges(const calib::RobotModel& calibrated, JobReport* r) {
     if (t.q_real.size() != calibrated.dof()) continue;
     const std::vector<calib::OutsideFitRange> o = calib::outsideFitRanges(calibrated, t.q_real);
     if (o.empty()) continue;
-    std::string what;
-    for (const calib::OutsideFitRange& x : o) {
-      const calib::JointSpec& joint = calibrated.nominal.joints[static_cast<size_t>(x.joint - 1)];
-      const std::string unit = joint.type == calib::JointType::kPrismatic ? " mm" : " deg";
-      what += std::string(what.empty() ? " " : "; ") + "joint " + std::to_string(x.joint) +
-              (joint.name.empty() ? std::string() : " (" + joint.name + ")") + " at " + calib::formatFixed(x.q, 2) + unit +
-              " (fitted " + calib::formatFixed(x.lower, 2) + ".." + calib::formatFixed(x.upper, 2) + unit + ", " +
-              calib::formatFixed(x.beyond, 2) + unit + " beyond)";
-    }
-    found.push_back({t.where, (t.name.empty() ? std::string("target") : t.name) +
-                                  " lies outside the joint ranges the model was fitted on:" + what +
-                                  " (its joint-dependent effects are not fitted there)"});
+    found.push_back({t.where, calib::outsideFitRangeMessage(calibrated, t.name.empty() ? std::string("target") : t.name, o)});
   }
   if (found.empty()) return;
   const SourceLocation first = found.front().where;

@@ -67,6 +67,7 @@ struct Reader {
   std::optional<double> vel_cp, vel_ptp, apo_cdis, apo_cptp, apo_cvel, apo_cori;
   bool in_spline = false;
   int triggers = 0;
+  bool missing_dat_ = false;  // resolveTarget met a named point and no .dat (Motion::target_file_missing)
   bool main_started = false, main_ended = false;  // the main program's DEF / END seen
   std::string refuse;  // why the line just read cannot be converted ("" when it can)
 
@@ -194,10 +195,12 @@ struct Reader {
       auto it = decl.points.find(up);
       if (it == decl.points.end()) {
         if (decl.arrays.count(up)) return t[b].text + " is an array";
-        if (src->dat_path.empty())  // the missing .dat named, not only the undeclared point (issue 17)
+        if (src->dat_path.empty()) {  // the missing .dat named, not only the undeclared point (issue 17)
+          missing_dat_ = true;
           return t[b].text + " is not declared in " + src->src_path + ", and its data file " +
                  fs::path(src->src_path).replace_extension(".dat").string() +
                  " does not exist (give --dat; a global point: give --config $config.dat)";
+        }
         return t[b].text + " is not declared in " + src->src_path + " or " + src->dat_path +
                " (a global point: give --config $config.dat)";
       }
@@ -513,6 +516,7 @@ struct Reader {
 
     // targets
     std::string problem;
+    missing_dat_ = false;
     if (m.type == MotionType::kCirc) {
       Target aux;
       problem = resolveTarget(t, first.first, first.second, &aux);
@@ -526,6 +530,7 @@ struct Reader {
     }
     if (m.relative && problem.empty()) problem = "a relative motion (" + t[0].text + ")";
     m.target_problem = problem;
+    m.target_file_missing = missing_dat_ && !problem.empty();
     if (problem.empty() && m.type != MotionType::kPtp) {
       const auto check = [&](const Target& x, const char* what) {
         if (x.kind == Target::Kind::kAxis)

@@ -280,6 +280,9 @@ struct Diagnosis {
   std::string robot;
   std::vector<std::string> joint_names;
   std::string data_file, validation_method;  ///< "validation set FILE" or "5-fold cross-validation"
+  /// Several data sets (diagnose on StationSets): the file of each fit row (rows are named
+  /// file:line with it); empty for one data set.
+  std::vector<std::string> row_files;
   int fit_poses = 0, validation_poses = 0;
   bool orientation_ignored = false;
   std::vector<std::string> effects_tested;
@@ -326,6 +329,39 @@ struct Diagnosis {
 /// needs, ArgumentError on invalid options, NumericalError when the fit fails.
 Diagnosis diagnose(const RobotModel& start, const MeasurementSet& data, const MeasurementSet* validation,
                    const DiagnoseOptions& options);
+
+/// Several data sets of one robot, each measured from its own tracker station unless
+/// `same_station`, expressed in the frame of the first set's station.
+struct StationSets {
+  MeasurementSet combined;            ///< every row, measured points and orientations in station 1's frame
+  std::vector<int> set_of_row;        ///< 0-based data set of each combined row
+  std::vector<std::string> files;     ///< per data set
+  /// T_station1_stationK per data set (identity for the first, and for all when same_station):
+  /// the registration of each station by the complete geometric identification on all sets.
+  std::vector<Eigen::Isometry3d> T_first_station;
+};
+
+/// Combines data sets for one diagnosis. Unless same_station, the complete geometric model is
+/// identified on all sets at once with 6 station parameters per set beyond the first
+/// (identify() on several sets), and every later set's measured poses are mapped into the first
+/// station's frame with the stations found; the diagnosis then holds the stations fixed (they
+/// are determined by hundreds of poses each: their uncertainty is far below the model's).
+/// Throws ArgumentError on an empty list, InputError when a set has no rows or the sets differ
+/// in what they hold (std columns, context columns), and what identify() throws.
+/// `groups`: the parameter groups of that identification (identify's --params, e.g.
+/// {"geometric", "joint_compliance:j2"}).
+StationSets combineStations(const RobotModel& start, const std::vector<MeasurementSet>& sets, bool same_station,
+                            const std::vector<std::string>& groups = {"geometric"});
+
+/// The diagnosis of several data sets: as diagnose() on their combination (combineStations),
+/// each row named by its own file (Diagnosis::row_files), repeated configurations only within
+/// one data set (a configuration measured from two stations also differs by the stations'
+/// registration). Unless same_station, in two passes: the stations registered by the geometric
+/// model, then, when the diagnosis selects effects, registered again by the geometric model plus
+/// those effects (an effect the registration does not model would bend the stations) and
+/// diagnosed again. *stations (optional) receives the combination of the final pass.
+Diagnosis diagnose(const RobotModel& start, const std::vector<MeasurementSet>& sets, bool same_station,
+                   const MeasurementSet* validation, const DiagnoseOptions& options, StationSets* stations = nullptr);
 
 /// The diagnosis as JSON (docs/diagnosis.md lists every key).
 std::string diagnosisJson(const Diagnosis& d);

@@ -75,6 +75,14 @@ struct OutsideFitRange {
 /// have one value per joint.
 std::vector<OutsideFitRange> outsideFitRanges(const RobotModel& model, const Eigen::VectorXd& q);
 
+/// The message of a target (or pose) outside the fitted ranges, one place for every command:
+/// "<what> lies outside the joint ranges the model was fitted on: joint 1 (shoulder_pan) at
+/// 14.48 deg (fitted -180.00..-44.89 deg, 59.37 deg beyond); ... (its joint-dependent effects
+/// are not fitted there)"; deg (mm for prismatic joints), 2 decimals, joint names from `model`.
+/// Empty for an empty list.
+std::string outsideFitRangeMessage(const RobotModel& model, const std::string& what,
+                                   const std::vector<OutsideFitRange>& outside);
+
 // ---------------------------------------------------------------------------------------
 // Choosing the resolution and the smoothness by blocked cross-validation (linearised)
 

@@ -124,6 +124,9 @@ struct Motion {
   /// Why the target cannot be evaluated (an undeclared name, an expression computed at run
   /// time, a point changed at run time); empty when it can.
   std::string target_problem;
+  /// The problem is a data file that does not exist (KRL: a named point and no .dat next to the
+  /// .src): the program is incomplete, an error for every motion type, PTP included.
+  bool target_file_missing = false;
   std::string statement;  ///< the statement as written (for messages)
   SourceLocation where;   ///< of the statement
   int statement_id = -1;  ///< KRL: index in KrlSource::statements
