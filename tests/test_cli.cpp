@@ -110,10 +110,10 @@ TEST(Cli, BadMeasurementFilesGiveLocationAndNonZeroExit) {
   const std::string head = "q1,q2,q3,q4,q5,q6,x,y,z\n";
   const BadCase cases[] = {
       {"non_number", "q1,q2,q3,q4,q5,q6,x,y,z\n0,0,abc,0,0,0,1,2,3\n", "non_number.csv:2:3: column 'q3': expected a number, found 'abc'"},
-      {"missing_column", "q1,q2,q3,q5,q6,x,y,z\n0,0,0,0,0,1,2,3\n", "missing_column.csv:1: missing column 'q4'"},
+      {"missing_column", "q1,q2,q3,q5,q6,x,y,z\n0,0,0,0,0,1,2,3\n", "missing_column.csv:1:1: missing column 'q4'"},
       {"nan", "q1,q2,q3,q4,q5,q6,x,y,z\n0,0,0,0,0,0,1,nan,3\n", "nan.csv:2:8: column 'y': expected a finite number, found 'nan'"},
-      {"limits", "q1,q2,q3,q4,q5,q6,x,y,z\n0,40,0,0,0,0,1,2,3\n", "limits.csv:2:2: column 'q2': joint value 40 deg is outside the joint limits [-155, 35] deg"},
-      {"fields", "q1,q2,q3,q4,q5,q6,x,y,z\n0,0,0,0,0,0,1,2\n", "fields.csv:2: expected 9 fields as in the header, found 8"},
+      {"limits", "q1,q2,q3,q4,q5,q6,x,y,z\n0,40,0,0,0,0,1,2,3\n", "limits.csv:2:2: column 'q2': expected a joint value within the joint limits [-155, 35] deg, found 40 deg"},
+      {"fields", "q1,q2,q3,q4,q5,q6,x,y,z\n0,0,0,0,0,0,1,2\n", "fields.csv:2:9: expected 9 fields as in the header, found 8"},
   };
   for (const BadCase& c : cases) {
     const std::string path = dir + "/" + c.name + ".csv";

@@ -98,17 +98,20 @@ TEST(Import, BadMappingsAndRowsSayWhereAndWhat) {
               "key 'joints': expected 6 column names, found 5");
   expectError(std::string(m).replace(m.find("euler_intrinsic_xyz"), 19, "euler_sideways_xyz"), header + row, "e.map",
               8, 15, "expected a convention");
-  expectError(m, "Stamp;J1;J2;J3;J4;J5;J6;Pos X;Pos Y;RX;RY;RZ;SX;SY;SZ;SR;T\n" + row, "e.csv", 1, 0,
-              "missing column 'Pos Z' (mapped as position in");
+  expectError(m, "Stamp;J1;J2;J3;J4;J5;J6;Pos X;Pos Y;RX;RY;RZ;SX;SY;SZ;SR;T\n" + row, "e.csv", 1, 1,
+              "expected a column 'Pos Z' in the header, found none (mapped as position in");
   expectError(m, header + "1;0;-1;1;0;0.3;0;1;0;1;0;0;0;0,1;0,1;0,1;0,1;20\n", "e.csv", 2, 6,
               "column 'J5': expected a number with ',' as decimal mark, found '0.3'");
-  expectError(m, header + "1;0;-1;1;0;0,3;0;1;0;1;0;0;0;0,1;0,1;0,1;0,1\n", "e.csv", 2, 0,
+  expectError(m, header + "1;0;-1;1;0;0,3;0;1;0;1;0;0;0;0,1;0,1;0,1;0,1\n", "e.csv", 2, 18,
               "expected 18 fields as in the header, found 17");
   expectError(m, header + "1;0;1;1;0;0,3;0;1;0;1;0;0;0;0,1;0,1;0,1;0,1;20\n", "e.csv", 2, 3,
-              "column 'J2': joint value 57.2958 deg is outside the joint limits [-155, 35] deg");
+              "column 'J2': expected a joint value within the joint limits [-155, 35] deg, found 57.2958 deg");
   expectError(m, header + "1;0;-1;1;0;0,3;0;1;0;1;0;0;0;0;0,1;0,1;0,1;20\n", "e.csv", 2, 14,
               "expected a standard deviation > 0");
-  expectError(m, header, "e.csv", 0, 0, "expected at least one data row");
+  expectError(m, header, "e.csv", 1, 1, "expected at least one data row after the header");
+  // whole-file errors at 1:1 (fuzz_mapping, the mutation campaign): a mapping without a key, an empty export
+  expectError("", header + row, "e.map", 1, 1, "expected a key 'delimiter', found none");
+  expectError(m, "", "e.csv", 1, 1, "expected a header row, found an empty file");
 }
 
 }  // namespace

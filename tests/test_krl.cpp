@@ -365,7 +365,7 @@ TEST(Krl, MalformedTargetsAreErrorsWithTheirPlace) {
   };
   const std::vector<Case> cases = {
       {"DEF p( )\nLIN {X 10, Q 5}\nEND\n", "", 2, 12, "expected a component of a Cartesian target (X, Y, Z, A, B, C, S, T, E1..E6), found 'Q'"},
-      {"DEF p( )\n  lin {X 10,Y 2,x 3}\nEND\n", "", 2, 17, "component x given twice in this aggregate"},
+      {"DEF p( )\n  lin {X 10,Y 2,x 3}\nEND\n", "", 2, 17, "expected each component once in this aggregate, found x a second time"},
       {"DEF p( )\nLIN {X abc}\nEND\n", "", 2, 8, "expected a number for X, found 'abc'"},
       {"DEF p( )\nLIN {X 1,Y 2\nEND\n", "", 2, 13, "expected ',' or '}' after the value of Y, found the end of the statement"},
       {"DEF p( )\nLIN\nEND\n", "", 2, 4, "expected a target after LIN, found the end of the statement"},
@@ -378,7 +378,7 @@ TEST(Krl, MalformedTargetsAreErrorsWithTheirPlace) {
       {"DEF p( )\nEND\n", "DEFDAT p\nDECL FRAME F1={X 1,S 2}\nENDDAT\n", 2, 20, "expected a component of FRAME (X, Y, Z, A, B, C), found 'S'"},
       {"DEF p( )\n$OUT[1]=TRUE\nMSG=\"open\nEND\n", "", 3, 5, "expected a closing '\"' for this string, found the end of the line"},
       {"DEF p( )\nPTP XP1 C_PTP XYZ\nEND\n", "", 2, 15, "expected an approximation flag (C_PTP, C_DIS, C_VEL, C_ORI, C_SPL) or WITH after the target, found 'XYZ'"},
-      {"; no program here\n$OUT[1]=TRUE\n", "", 0, 0, "expected a KRL program (DEF name( ) ... END), found no DEF line"},
+      {"; no program here\n$OUT[1]=TRUE\n", "", 1, 1, "expected a KRL program (DEF name( ) ... END), found no DEF line"},
       {"DEF p( )\nSPL {X 1,Y 2,Z 3}\nEND\n", "", 2, 1, "expected SPL inside a SPLINE ... ENDSPLINE block, found it outside"},
   };
   for (const Case& c : cases) {
@@ -399,6 +399,7 @@ TEST(Krl, MalformedTargetsAreErrorsWithTheirPlace) {
     FAIL();
   } catch (const calib::InputError& e) {
     EXPECT_EQ(e.line(), 3);
+    EXPECT_EQ(e.column(), 1);  // the first NUL
     EXPECT_NE(e.message().find("NUL byte"), std::string::npos);
   }
 }

@@ -350,8 +350,8 @@ TEST_F(MeasurementsTest, ErrorMalformedNumbers) {
 
 TEST_F(MeasurementsTest, ErrorDecimalCommaChangesFieldCount) {
   const InputError e = readError(std::string(kHeader) + "0,0,0,0,0,0,1,5,2,5,3\n");
-  EXPECT_EQ(std::string(e.what()), dataPath() + ":2: expected 9 fields as in the header, found 11");
-  EXPECT_EQ(e.column(), 0);
+  EXPECT_EQ(std::string(e.what()), dataPath() + ":2:10: expected 9 fields as in the header, found 11");
+  EXPECT_EQ(e.column(), 10);  // the first field beyond the header's
 }
 
 TEST_F(MeasurementsTest, ErrorWrongFieldCount) {
@@ -360,13 +360,13 @@ TEST_F(MeasurementsTest, ErrorWrongFieldCount) {
   for (int i = 0; i < 5; ++i) text += "0,0,0,0,0,0,1,2,3,a,b,c\n";      // lines 4..8
   text += "0,0,0,0,0,0,1,2,3,a,b\n";                                     // line 9
   const InputError e = readError(text);
-  EXPECT_EQ(std::string(e.what()), dataPath() + ":9: expected 12 fields as in the header, found 11");
+  EXPECT_EQ(std::string(e.what()), dataPath() + ":9:12: expected 12 fields as in the header, found 11");
   EXPECT_EQ(e.line(), 9);
-  EXPECT_EQ(e.column(), 0);
+  EXPECT_EQ(e.column(), 12);  // where the missing 12th field would start
 
   const InputError more = readError(std::string(kHeader) + "0,0,0,0,0,0,1,2,3,\n");
   EXPECT_EQ(std::string(more.what()),
-            dataPath() + ":2: expected 9 fields as in the header, found 10");
+            dataPath() + ":2:10: expected 9 fields as in the header, found 10");
 }
 
 TEST_F(MeasurementsTest, ErrorJointOutsideLimits) {
@@ -376,12 +376,12 @@ TEST_F(MeasurementsTest, ErrorJointOutsideLimits) {
   const InputError e = readError(text);
   EXPECT_EQ(std::string(e.what()),
             dataPath() +
-                ":20:2: column 'q2': joint value 40 deg is outside the joint limits [-155, 35] deg");
+                ":20:2: column 'q2': expected a joint value within the joint limits [-155, 35] deg, found 40 deg");
 
   const InputError low = readError(std::string(kHeader) + "-185.5,0,0,0,0,0,0,0,0\n");
   EXPECT_EQ(std::string(low.what()),
             dataPath() +
-                ":2:1: column 'q1': joint value -185.5 deg is outside the joint limits [-185, 185] deg");
+                ":2:1: column 'q1': expected a joint value within the joint limits [-185, 185] deg, found -185.5 deg");
 }
 
 TEST_F(MeasurementsTest, ErrorPrismaticJointLimitInMm) {
@@ -391,29 +391,29 @@ TEST_F(MeasurementsTest, ErrorPrismaticJointLimitInMm) {
     FAIL() << "expected an InputError";
   } catch (const InputError& e) {
     EXPECT_EQ(std::string(e.what()),
-              path + ":3:2: column 'q2': joint value 500.25 mm is outside the joint limits [0, 500] mm");
+              path + ":3:2: column 'q2': expected a joint value within the joint limits [0, 500] mm, found 500.25 mm");
   }
 }
 
 TEST_F(MeasurementsTest, ErrorMissingColumns) {
   const InputError e = readError("q1,q2,q3,q5,q6,x,y,z\n0,0,0,0,0,1,2,3\n");
-  EXPECT_EQ(std::string(e.what()), dataPath() + ":1: missing column 'q4' (expected q1..q6, x, y, z)");
+  EXPECT_EQ(std::string(e.what()), dataPath() + ":1:1: missing column 'q4' (expected q1..q6, x, y, z)");
   EXPECT_EQ(e.line(), 1);
-  EXPECT_EQ(e.column(), 0);
+  EXPECT_EQ(e.column(), 1);  // the header
 
   const InputError two = readError("# header on line 2\nq1,q2,q3,q4,q5,q6,x,y\n");
   EXPECT_EQ(std::string(two.what()),
-            dataPath() + ":2: missing column 'z' (expected q1..q6, x, y, z)");
+            dataPath() + ":2:1: missing column 'z' (expected q1..q6, x, y, z)");
 
   const InputError many = readError("q2,q3,q4,q5,q6,y\n");
   EXPECT_EQ(std::string(many.what()),
-            dataPath() + ":1: missing columns 'q1', 'x', 'z' (expected q1..q6, x, y, z)");
+            dataPath() + ":1:1: missing columns 'q1', 'x', 'z' (expected q1..q6, x, y, z)");
 }
 
 TEST_F(MeasurementsTest, ErrorSemicolonDelimiterGetsAHint) {
   const InputError e = readError("q1;q2;q3;q4;q5;q6;x;y;z\n0;0;0;0;0;0;1;2;3\n");
   const std::string what = e.what();
-  EXPECT_EQ(what.rfind(dataPath() + ":1: missing columns 'q1', 'q2'", 0), 0u) << what;
+  EXPECT_EQ(what.rfind(dataPath() + ":1:1: missing columns 'q1', 'q2'", 0), 0u) << what;
   EXPECT_NE(what.find("the delimiter is ','"), std::string::npos) << what;
 }
 
@@ -453,18 +453,18 @@ TEST_F(MeasurementsTest, ErrorJointColumnBeyondRobot) {
 
 TEST_F(MeasurementsTest, ErrorNoDataRow) {
   const InputError e = readError("# only a header\nq1,q2,q3,q4,q5,q6,x,y,z\n\n# and comments\n");
-  EXPECT_EQ(std::string(e.what()), dataPath() + ": expected at least one data row, found none");
-  EXPECT_EQ(e.line(), 0);
+  EXPECT_EQ(std::string(e.what()), dataPath() + ":2:1: expected at least one data row after the header, found none");
+  EXPECT_EQ(e.line(), 2);  // the header's
 }
 
 TEST_F(MeasurementsTest, ErrorNoHeader) {
   const InputError empty = readError("");
   EXPECT_EQ(std::string(empty.what()),
-            dataPath() + ": expected a header row (q1..q6, x, y, z), found an empty file");
+            dataPath() + ":1:1: expected a header row (q1..q6, x, y, z), found an empty file");
   const InputError comments = readError("# nothing\n\n   \n# here\n");
   EXPECT_EQ(std::string(comments.what()),
             dataPath() +
-                ": expected a header row (q1..q6, x, y, z), found only comments and blank lines");
+                ":1:1: expected a header row (q1..q6, x, y, z), found only comments and blank lines");
 }
 
 TEST_F(MeasurementsTest, ErrorUnreadableFile) {
@@ -482,16 +482,16 @@ TEST_F(MeasurementsTest, ErrorUnreadableFile) {
 TEST_F(MeasurementsTest, ErrorOrientationGroups) {
   const InputError both = readError("q1,q2,q3,q4,q5,q6,x,y,z,qw,qx,qy,qz,a,b,c\n");
   EXPECT_EQ(std::string(both.what()),
-            dataPath() + ":1: expected orientation as either qw, qx, qy, qz or a, b, c, found both");
+            dataPath() + ":1:14: expected orientation as either qw, qx, qy, qz or a, b, c, found both");
 
   const InputError quat = readError("q1,q2,q3,q4,q5,q6,x,y,z,qw,qx,qy\n");
   EXPECT_EQ(std::string(quat.what()),
-            dataPath() + ":1: incomplete orientation columns: expected qw, qx, qy, qz together, "
+            dataPath() + ":1:10: incomplete orientation columns: expected qw, qx, qy, qz together, "
                          "found qw, qx, qy (missing 'qz')");
 
   const InputError abc = readError("q1,q2,q3,q4,q5,q6,x,y,z,A,C\n");
   EXPECT_EQ(std::string(abc.what()),
-            dataPath() + ":1: incomplete orientation columns: expected a, b, c together, found "
+            dataPath() + ":1:10: incomplete orientation columns: expected a, b, c together, found "
                          "a, c (missing 'b')");
 }
 
@@ -517,12 +517,12 @@ TEST_F(MeasurementsTest, ErrorQuaternionNotUnit) {
 TEST_F(MeasurementsTest, ErrorStdDevGroups) {
   const InputError part = readError("q1,q2,q3,q4,q5,q6,x,y,z,std_x,std_z\n");
   EXPECT_EQ(std::string(part.what()),
-            dataPath() + ":1: incomplete position standard deviation columns: expected std_x, "
+            dataPath() + ":1:10: incomplete position standard deviation columns: expected std_x, "
                          "std_y, std_z together, found std_x, std_z (missing 'std_y')");
 
   const InputError both = readError("q1,q2,q3,q4,q5,q6,x,y,z,std_x,std_y,std_z,std_mm\n");
   EXPECT_EQ(std::string(both.what()),
-            dataPath() + ":1: expected position standard deviations as either std_x, std_y, "
+            dataPath() + ":1:13: expected position standard deviations as either std_x, std_y, "
                          "std_z or std_mm, found both");
 
   const InputError rot_both =
@@ -584,7 +584,7 @@ TEST_F(MeasurementsTest, ErrorDirections) {
 
   const InputError part = readError("q1,q2,q3,q4,q5,q6,x,y,z,dir1,dir2\n");
   EXPECT_EQ(std::string(part.what()),
-            dataPath() + ":1: incomplete direction columns: expected dir1..dir6 together, found "
+            dataPath() + ":1:10: incomplete direction columns: expected dir1..dir6 together, found "
                          "dir1, dir2 (missing 'dir3', 'dir4', 'dir5', 'dir6')");
 }
 
@@ -593,7 +593,7 @@ TEST_F(MeasurementsTest, ErrorReportsFirstBadRowOnly) {
   const InputError e = readError(std::string(kHeader) + kRow + "\n# gap\n" +
                                  "0,0,0,0,0,0,1,2\n" + "0,0,0,0,0,0,1,2,x\n");
   EXPECT_EQ(e.line(), 5);
-  EXPECT_EQ(std::string(e.what()), dataPath() + ":5: expected 9 fields as in the header, found 8");
+  EXPECT_EQ(std::string(e.what()), dataPath() + ":5:9: expected 9 fields as in the header, found 8");
 }
 
 // ---------------------------------------------------------------------------------------

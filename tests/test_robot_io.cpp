@@ -97,9 +97,9 @@ TEST(RobotIo, BadFilesGiveFileLineAndWhat) {
                        "    <joint name=\"j\" type=\"revolute\" a_mm=\"1\" alpha_deg=\"90\" theta0_deg=\"0\" direction=\"1\" "
                        "lower=\"-10\" upper=\"10\" mass_kg=\"1\" com_x_mm=\"0\" com_y_mm=\"0\" com_z_mm=\"0\"/>\n"
                        "  </joints>\n</robot>\n",
-                   6, "missing attribute 'd_mm'");
+                   6, "expected an attribute 'd_mm', found none");
   expectRobotError("malformed", std::string(kHead) + good_joint + "    <joint name=\"k\" a_mm=1/>\n  </joints>\n</robot>\n", 7,
-                   "malformed XML");
+                   "expected well-formed XML");
   expectRobotError("unknown_param", std::string(kHead) + good_joint +
                        "  </joints>\n  <calibration form=\"auto\">\n    <parameter name=\"j9_a\" value=\"1\" unit=\"mm\"/>\n"
                        "  </calibration>\n</robot>\n",

@@ -351,14 +351,14 @@ TEST(Urdf, MalformedFilesGiveFileAndLine) {
       {replaced(kTwoJoint, "xyz=\"0.3 0 0\"", "xyz=\"0.3 nan 0\""), "bad.urdf:13"},                 // non-finite
       {replaced(kTwoJoint, "xyz=\"0.3 0 0\"", "xyz=\"300 0 0\""), "bad.urdf:13"},                   // absurd
       {replaced(kTwoJoint, "<axis xyz=\"0 1 0\"/>", "<axis xyz=\"0 0 0\"/>"), "bad.urdf:14"},       // zero axis
-      {replaced(kTwoJoint, "<child link=\"c\"/>", "<child link=\"x\"/>"), "bad.urdf:11"},           // unknown link
+      {replaced(kTwoJoint, "<child link=\"c\"/>", "<child link=\"x\"/>"), "bad.urdf:12"},           // unknown link (at link=)
       {replaced(kTwoJoint, "lower=\"-1\" upper=\"1\" effort=\"1\" velocity=\"1\"/>\n  </joint>\n</robot>",
                 "lower=\"1\" upper=\"-1\" effort=\"1\" velocity=\"1\"/>\n  </joint>\n</robot>"),
        "bad.urdf:15"},                                                                                 // lower >= upper
       {replaced(kTwoJoint, "type=\"revolute\">\n    <parent link=\"b\"/>", "type=\"hinge\">\n    <parent link=\"b\"/>"),
        "bad.urdf:11"},                                                                                 // type
       {replaced(kTwoJoint, "<parent link=\"b\"/><child link=\"c\"/>", "<parent link=\"b\"/><child link=\"b\"/>"),
-       "bad.urdf:11"},                                                                                 // self loop
+       "bad.urdf:12"},                                                                                 // self loop (at link=)
       {replaced(kTwoJoint, "<link name=\"c\"/>", "<link name=\"c\"><inertial><mass value=\"-2\"/>"
                                                  "<inertia ixx=\"0\" ixy=\"0\" ixz=\"0\" iyy=\"0\" iyz=\"0\" izz=\"0\"/>"
                                                  "</inertial></link>"),
@@ -373,7 +373,7 @@ TEST(Urdf, MalformedFilesGiveFileAndLine) {
   // What only urdfdom checks (here a <dynamics> value) is mapped to the line of the joint its
   // message names.
   const std::string e = errorOf(replaced(kTwoJoint, "<axis xyz=\"0 1 0\"/>", "<axis xyz=\"0 1 0\"/><dynamics damping=\"x\"/>"));
-  EXPECT_EQ(e.rfind("bad.urdf:11: urdfdom rejected the file: damping value (x) is not a valid float", 0), 0u) << e;
+  EXPECT_EQ(e.rfind("bad.urdf:11:3: expected a URDF urdfdom accepts, found one it rejects: damping value (x) is not a valid float", 0), 0u) << e;
   // missing file
   EXPECT_THROW(readUrdfRobot("/nonexistent/robot.urdf"), InputError);
 }
@@ -385,13 +385,13 @@ TEST(Urdf, LoopsMimicBranchesAndChainsAreNamed) {
   </joint>
 </robot>)");
   std::string e = errorOf(loop);
-  EXPECT_NE(e.find("bad.urdf:17"), std::string::npos) << e;
+  EXPECT_NE(e.find("bad.urdf:18:"), std::string::npos) << e;  // its <child link="c">
   EXPECT_NE(e.find("'j3' closes a loop"), std::string::npos) << e;
 
   // mimic joint on the chain
   const std::string mimic = replaced(kTwoJoint, "<axis xyz=\"0 1 0\"/>", "<axis xyz=\"0 1 0\"/><mimic joint=\"j1\"/>");
   e = errorOf(mimic);
-  EXPECT_NE(e.find("bad.urdf:11"), std::string::npos) << e;
+  EXPECT_NE(e.find("bad.urdf:14:"), std::string::npos) << e;  // the <mimic> element
   EXPECT_NE(e.find("'j2'"), std::string::npos) << e;
   EXPECT_NE(e.find("mimics joint 'j1'"), std::string::npos) << e;
 

@@ -222,7 +222,7 @@ TEST(XmlProgram, ErrorsNameFileLineAndColumn) {
     parseXmlProgram("<?xml version=\"1.0\"?>\n<program version=\"1\">\n<motions>\n</program>\n", "m.xml");
     ADD_FAILURE();
   } catch (const calib::InputError& e) {
-    EXPECT_NE(e.message().find("malformed XML"), std::string::npos);
+    EXPECT_NE(e.message().find("expected well-formed XML"), std::string::npos);
     EXPECT_EQ(e.line(), 3);  // tinyxml2 names the element left open
   }
 }

@@ -136,12 +136,12 @@ MeasurementMapping readMeasurementMapping(const std::string& path, const RobotDe
   }
   auto fail = [&](const std::string& key, const std::string& msg) -> InputError {
     auto it = kv.find(key);
-    if (it == kv.end()) return InputError(path, 0, 0, msg);
+    if (it == kv.end()) return InputError(path, 1, 1, msg);  // the file as a whole
     return InputError(path, it->second.second, value_col[key], msg);
   };
   auto require = [&](const std::string& key) -> std::string {
     auto it = kv.find(key);
-    if (it == kv.end()) throw InputError(path, 0, 0, "missing key '" + key + "'");
+    if (it == kv.end()) throw InputError(path, 1, 1, "expected a key '" + key + "', found none");
     return it->second.first;
   };
   auto optional = [&](const std::string& key) -> std::string {
@@ -261,7 +261,7 @@ struct MappedHeader {
 MappedHeader readHeader(const std::string& path, const std::vector<std::string>& lines, char delimiter) {
   MappedHeader h;
   while (h.row < lines.size() && (trim(lines[h.row]).empty() || trim(lines[h.row])[0] == '#')) ++h.row;
-  if (h.row == lines.size()) throw InputError(path, 0, 0, "expected a header row, found an empty file");
+  if (h.row == lines.size()) throw InputError(path, 1, 1, "expected a header row, found an empty file");
   h.line = static_cast<int>(h.row) + 1;
   h.names = splitOn(lines[h.row], delimiter);
   for (size_t c = 0; c < h.names.size(); ++c) {
@@ -290,8 +290,8 @@ MappedColumns mapColumns(const std::string& path, const MappedHeader& h, const M
       int ml = 0;
       for (const auto& kl : m.key_lines)
         if (kl.first == role) ml = kl.second;
-      throw InputError(path, h.line, 0,
-                       "missing column '" + name + "' (mapped as " + role + " in " + m.file +
+      throw InputError(path, h.line, 1,
+                       "expected a column '" + name + "' in the header, found none (mapped as " + role + " in " + m.file +
                            (ml ? ":" + std::to_string(ml) : std::string()) + "; the delimiter is '" +
                            (m.delimiter == '\t' ? std::string("tab") : std::string(1, m.delimiter)) + "')");
     }
@@ -316,7 +316,7 @@ MappedColumns mapColumns(const std::string& path, const MappedHeader& h, const M
   for (const auto& n : m.ignore) {
     auto it = h.index.find(lower(n));
     if (it == h.index.end())
-      throw InputError(path, h.line, 0, "missing column '" + n + "' (listed under 'ignore' in " + m.file + ")");
+      throw InputError(path, h.line, 1, "expected a column '" + n + "' in the header, found none (listed under 'ignore' in " + m.file + ")");
     c.used.insert(it->second);
   }
   return c;
@@ -356,8 +356,8 @@ void readJoints(const MappedRow& row, const std::vector<int>& jc, const RobotDef
     if (v < js.lower || v > js.upper) {
       const char* unit = js.type == JointType::kRevolute ? "deg" : "mm";
       char buf[160];
-      std::snprintf(buf, sizeof buf, "joint value %.6g %s is outside the joint limits [%g, %g] %s", v, unit, js.lower, js.upper,
-                    unit);
+      std::snprintf(buf, sizeof buf, "expected a joint value within the joint limits [%g, %g] %s, found %.6g %s", js.lower,
+                    js.upper, unit, v, unit);
       throw InputError(row.path, row.ln, jc[j] + 1, "column '" + row.header[jc[j]] + "': " + buf);
     }
     r.q[j] = v;
@@ -468,11 +468,12 @@ MeasurementSet readMappedMeasurements(const std::string& path, const Measurement
     if (t.empty() || t[0] == '#') continue;
     const MappedRow row{path, h.names, m, static_cast<int>(li) + 1, splitOn(lines[li], m.delimiter)};
     if (row.f.size() != h.names.size())
-      throw InputError(path, row.ln, 0, "expected " + std::to_string(h.names.size()) + " fields as in the header, found " +
+      throw InputError(path, row.ln, static_cast<int>(std::min(row.f.size(), h.names.size())) + 1,
+                       "expected " + std::to_string(h.names.size()) + " fields as in the header, found " +
                                             std::to_string(row.f.size()));
     set.rows.push_back(readRow(row, c, robot));
   }
-  if (set.rows.empty()) throw InputError(path, 0, 0, "expected at least one data row, found none");
+  if (set.rows.empty()) throw InputError(path, h.line, 1, "expected at least one data row after the header, found none");
   return set;
 }
 

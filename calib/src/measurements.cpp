@@ -195,7 +195,16 @@ class Reader {
   const std::string& path_;
   const RobotDefinition& robot_;
   const int dof_;
+  /// 1-based field number of the first of `roles` the header has (1 when none).
+  int firstColumn(const std::vector<Role>& roles) const {
+    int first = -1;
+    for (Role r : roles)
+      if (layout_.has(r) && (first < 0 || layout_.at(r) < first)) first = layout_.at(r);
+    return first + 1 > 0 ? first + 1 : 1;
+  }
+
   Layout layout_{};
+  int header_line_ = 0;
   MeasurementSet set_;
 };
 
@@ -275,7 +284,7 @@ void Reader::requireGroup(int line, const std::string& what, const std::vector<R
     (layout_.has(roles[i]) ? found : missing).push_back(names[i]);
   }
   if (!found.empty() && !missing.empty()) {
-    fail(line, 0,
+    fail(line, firstColumn(roles),
          "incomplete " + what + " columns: expected " + joinNames(names, false) +
              " together, found " + joinNames(found, false) + " (missing " +
              joinNames(missing, true) + ")");
@@ -300,7 +309,7 @@ void Reader::checkGroups(int line) const {
         L.columns[0].name.find_first_of(";\t") != std::string::npos) {
       msg += "; the delimiter is ',', found a header with ';' or tabs";
     }
-    fail(line, 0, msg);
+    fail(line, 1, msg);
   }
 
   // Orientation: qw,qx,qy,qz or a,b,c.
@@ -308,7 +317,8 @@ void Reader::checkGroups(int line) const {
                         L.has(Role::kQz);
   const bool any_abc = L.has(Role::kA) || L.has(Role::kB) || L.has(Role::kC);
   if (any_quat && any_abc) {
-    fail(line, 0, "expected orientation as either qw, qx, qy, qz or a, b, c, found both");
+    fail(line, firstColumn({Role::kA, Role::kB, Role::kC}),
+         "expected orientation as either qw, qx, qy, qz or a, b, c, found both");
   }
   requireGroup(line, "orientation", {Role::kQw, Role::kQx, Role::kQy, Role::kQz},
                {"qw", "qx", "qy", "qz"});
@@ -317,7 +327,7 @@ void Reader::checkGroups(int line) const {
   // Standard deviations.
   const bool any_std_xyz = L.has(Role::kStdX) || L.has(Role::kStdY) || L.has(Role::kStdZ);
   if (any_std_xyz && L.has(Role::kStdMm)) {
-    fail(line, 0,
+    fail(line, firstColumn({Role::kStdMm}),
          "expected position standard deviations as either std_x, std_y, std_z or std_mm, "
          "found both");
   }
@@ -325,7 +335,7 @@ void Reader::checkGroups(int line) const {
                {"std_x", "std_y", "std_z"});
   const bool any_std_r = L.has(Role::kStdRx) || L.has(Role::kStdRy) || L.has(Role::kStdRz);
   if (any_std_r && L.has(Role::kStdDeg)) {
-    fail(line, 0,
+    fail(line, firstColumn({Role::kStdDeg}),
          "expected orientation standard deviations as either std_rx, std_ry, std_rz or "
          "std_deg, found both");
   }
@@ -350,18 +360,26 @@ void Reader::checkGroups(int line) const {
     (L.dir_col[static_cast<std::size_t>(i)] >= 0 ? dir_found : dir_missing).push_back(name);
   }
   if (!dir_found.empty() && !dir_missing.empty()) {
-    fail(line, 0,
+    int first = static_cast<int>(L.columns.size());
+    for (int c : L.dir_col)
+      if (c >= 0) first = std::min(first, c);
+    fail(line, first + 1,
          "incomplete direction columns: expected " + rangeName("dir", dof_) +
              " together, found " + joinNames(dir_found, false) + " (missing " +
              joinNames(dir_missing, true) + ")");
   }
 }
 
+// Plausible ranges of a row's values (beyond them: a corrupted file, not a measurement).
+constexpr double kMinStd = 1e-6;  // mm or deg
+constexpr double kMaxStd = 1e6;   // mm or deg
+
 Measurement Reader::parseRow(std::string_view text, int line) const {
   const Layout& L = layout_;
   const std::vector<std::string_view> fields = splitFields(text);
   if (fields.size() != L.columns.size()) {
-    fail(line, 0,
+    // at the first field beyond the header's, or where the first missing one would start
+    fail(line, static_cast<int>(std::min(fields.size(), L.columns.size())) + 1,
          "expected " + std::to_string(L.columns.size()) + " fields as in the header, found " +
              std::to_string(fields.size()));
   }
@@ -387,8 +405,8 @@ Measurement Reader::parseRow(std::string_view text, int line) const {
         if (v < joint.lower || v > joint.upper) {
           const char* unit = joint.type == JointType::kRevolute ? " deg" : " mm";
           fail(line, column,
-               where + "joint value " + shortest(v) + unit + " is outside the joint limits [" +
-                   shortest(joint.lower) + ", " + shortest(joint.upper) + "]" + unit);
+               where + "expected a joint value within the joint limits [" + shortest(joint.lower) + ", " +
+                   shortest(joint.upper) + "]" + unit + ", found " + shortest(v) + unit);
         }
         m.q[c.joint] = v;
         break;
@@ -405,15 +423,36 @@ Measurement Reader::parseRow(std::string_view text, int line) const {
           fail(line, column, where + "expected a standard deviation > 0, found " +
                                  shown(fields[i]));
         }
+        // the weights are 1/std^2: a denormal std would make them infinite
+        if (v < kMinStd || v > kMaxStd)
+          fail(line, column, where + "expected a standard deviation from 1e-06 to 1e+06, found " + shown(fields[i]));
         break;
       case Role::kWeight:
         if (!(v > 0)) fail(line, column, where + "expected a weight > 0, found " + shown(fields[i]));
+        if (v < 1e-12 || v > 1e12)
+          fail(line, column, where + "expected a weight from 1e-12 to 1e+12, found " + shown(fields[i]));
         break;
       case Role::kPayload:
         if (!(v >= 0)) {
           fail(line, column, where + "expected a payload mass >= 0 kg, found " +
                                  shown(fields[i]));
         }
+        if (v > 1e5) fail(line, column, where + "expected a payload mass of at most 1e+05 kg, found " + shown(fields[i]));
+        break;
+      case Role::kX: case Role::kY: case Role::kZ:
+        if (std::abs(v) > 1e7)
+          fail(line, column, where + "expected a position within +-1e+07 mm, found " + shown(fields[i]));
+        break;
+      case Role::kA: case Role::kB: case Role::kC:
+        if (std::abs(v) > 1e4)
+          fail(line, column, where + "expected an angle within +-1e+04 deg, found " + shown(fields[i]));
+        break;
+      case Role::kTemp:
+        if (v < -273.15 || v > 1e4)
+          fail(line, column, where + "expected a temperature from -273.15 to 1e+04 deg C, found " + shown(fields[i]));
+        break;
+      case Role::kTime:
+        if (std::abs(v) > 1e12) fail(line, column, where + "expected a time within +-1e+12 s, found " + shown(fields[i]));
         break;
       default:
         break;
@@ -490,6 +529,7 @@ MeasurementSet Reader::read() {
     if (!have_header) {
       parseHeader(text, line);
       have_header = true;
+      header_line_ = line;
       set_.has_orientation = layout_.has(Role::kQw) || layout_.has(Role::kA);
       set_.has_std_position = layout_.has(Role::kStdX) || layout_.has(Role::kStdMm);
       set_.has_std_orientation = layout_.has(Role::kStdRx) || layout_.has(Role::kStdDeg);
@@ -504,11 +544,11 @@ MeasurementSet Reader::read() {
   }
 
   if (!have_header) {
-    fail(0, 0,
+    fail(1, 1,
          "expected a header row (" + rangeName("q", dof_) + ", x, y, z), found " +
              (saw_anything ? "only comments and blank lines" : "an empty file"));
   }
-  if (set_.rows.empty()) fail(0, 0, "expected at least one data row, found none");
+  if (set_.rows.empty()) fail(header_line_, 1, "expected at least one data row after the header, found none");
   return std::move(set_);
 }
 

@@ -20,6 +20,7 @@
 #include "accura/calib/joint_map.h"
 #include "accura/calib/kinematics.h"
 #include "accura/calib/urdf.h"
+#include "accura/calib/xml_text.h"
 
 namespace fs = std::filesystem;
 
@@ -28,12 +29,26 @@ namespace {
 
 using tinyxml2::XMLElement;
 
+/// The robot file's reader: every error at file:line:column (xml_text.h), saying what was
+/// expected and what was found.
 class Reader {
  public:
-  explicit Reader(std::string file) : file_(std::move(file)) {}
+  Reader(std::string file, const XmlPositions& pos) : file_(std::move(file)), pos_(pos) {}
 
+  /// An error in the element (at its '<').
   [[noreturn]] void fail(const XMLElement* e, const std::string& msg) const {
-    throw InputError(file_, e ? e->GetLineNum() : 0, 0, msg);
+    const auto [line, column] = pos_.element(e);
+    throw InputError(file_, line, column, msg);
+  }
+  /// An error in one of its attributes (at the attribute's name).
+  [[noreturn]] void failAttribute(const XMLElement* e, const std::string& name, const std::string& msg) const {
+    const auto [line, column] = pos_.attribute(e, name);
+    throw InputError(file_, line, column, msg);
+  }
+  /// An error in its text content (at the first occurrence of `token` after the start tag).
+  [[noreturn]] void failContent(const XMLElement* e, const std::string& token, const std::string& msg) const {
+    const auto [line, column] = pos_.content(e, token);
+    throw InputError(file_, line, column, msg);
   }
 
   // Checks that `e` has only the attributes in `allowed`.
@@ -42,8 +57,9 @@ class Reader {
       if (!allowed.count(a->Name())) {
         std::string list;
         for (const auto& s : allowed) list += (list.empty() ? "" : ", ") + s;
-        fail(e, "<" + std::string(e->Name()) + ">: unknown attribute '" + a->Name() +
-                    "' (expected one of: " + list + ")");
+        failAttribute(e, a->Name(), "<" + std::string(e->Name()) + ">: expected " +
+                                        (list.empty() ? "no attributes" : "one of the attributes " + list) +
+                                        ", found unknown attribute '" + a->Name() + "'");
       }
     }
   }
@@ -51,12 +67,14 @@ class Reader {
   std::string text(const XMLElement* e, const char* name, bool required = true) const {
     const char* v = e->Attribute(name);
     if (!v) {
-      if (required) fail(e, "<" + std::string(e->Name()) + ">: missing attribute '" + name + "'");
+      if (required) fail(e, "<" + std::string(e->Name()) + ">: expected an attribute '" + name + "', found none");
       return {};
     }
     return v;
   }
 
+  /// A number attribute: finite, and at most 1e6 in magnitude (1 km, a million degrees: no
+  /// robot file value comes near; beyond is a corrupted file, not a robot).
   double number(const XMLElement* e, const char* name) const {
     const std::string s = text(e, name);
     char* end = nullptr;
@@ -64,9 +82,12 @@ class Reader {
     const bool converted = end != s.c_str();  // " " converts nothing: not a zero
     while (end && (*end == ' ' || *end == '\t')) ++end;
     if (s.empty() || !converted || *end != '\0' || !std::isfinite(v)) {
-      fail(e, "<" + std::string(e->Name()) + "> attribute '" + name +
-                  "': expected a finite number, found '" + s + "'");
+      failAttribute(e, name, "<" + std::string(e->Name()) + "> attribute '" + name +
+                                 "': expected a finite number, found '" + s + "'");
     }
+    if (std::abs(v) > kMaxMagnitude)
+      failAttribute(e, name, "<" + std::string(e->Name()) + "> attribute '" + name +
+                                 "': expected a magnitude of at most 1e6, found '" + s + "'");
     return v;
   }
 
@@ -84,16 +105,21 @@ class Reader {
 
   const XMLElement* child(const XMLElement* parent, const char* name, bool required) const {
     const XMLElement* c = parent->FirstChildElement(name);
-    if (!c && required) fail(parent, "<" + std::string(parent->Name()) + ">: missing <" + name + "> element");
+    if (!c && required)
+      fail(parent, "<" + std::string(parent->Name()) + ">: expected a <" + name + "> element, found none");
     if (c && c->NextSiblingElement(name))
-      fail(c->NextSiblingElement(name), "<" + std::string(name) + "> given twice");
+      fail(c->NextSiblingElement(name), "<" + std::string(parent->Name()) + ">: expected one <" + name +
+                                            "> element, found a second one");
     return c;
   }
 
   const std::string& file() const { return file_; }
 
+  static constexpr double kMaxMagnitude = 1e6;
+
  private:
   std::string file_;
+  const XmlPositions& pos_;
 };
 
 std::string fmt(double v) {
@@ -128,28 +154,47 @@ std::string robotsDir() {
 
 }  // namespace
 
-RobotModel readRobotFile(const std::string& path) {
-  if (fs::path(path).extension() == ".urdf") return readUrdfRobot(path);  // urdf.h, default chain
-  std::ifstream probe(path);
-  if (!probe) throw InputError(path, 0, 0, "cannot open robot file");
-  tinyxml2::XMLDocument doc;
-  const tinyxml2::XMLError err = doc.LoadFile(path.c_str());
-  Reader R(path);
-  if (err != tinyxml2::XML_SUCCESS) {
-    throw InputError(path, doc.ErrorLineNum(), 0,
-                     std::string("malformed XML: ") + (doc.ErrorStr() ? doc.ErrorStr() : ""));
-  }
-  const XMLElement* root = doc.RootElement();
-  if (!root || std::string(root->Name()) != "robot")
-    R.fail(root, "expected root element <robot>, found <" +
-                     std::string(root ? root->Name() : "nothing") + ">");
+namespace {
+
+JointSpec readJoint(const Reader& R, const XMLElement* j) {
+  if (std::string(j->Name()) != "joint")
+    R.fail(j, "<joints>: expected <joint>, found <" + std::string(j->Name()) + ">");
+  R.checkAttributes(j, {"name", "type", "a_mm", "alpha_deg", "d_mm", "theta0_deg", "direction",
+                        "lower", "upper", "mass_kg", "com_x_mm", "com_y_mm", "com_z_mm"});
+  JointSpec s;
+  s.name = R.text(j, "name");
+  const std::string type = R.text(j, "type");
+  if (type == "revolute") s.type = JointType::kRevolute;
+  else if (type == "prismatic") s.type = JointType::kPrismatic;
+  else R.failAttribute(j, "type", "<joint> attribute 'type': expected 'revolute' or 'prismatic', found '" + type + "'");
+  s.a_mm = R.number(j, "a_mm");
+  s.alpha_deg = R.number(j, "alpha_deg");
+  s.d_mm = R.number(j, "d_mm");
+  s.theta0_deg = R.number(j, "theta0_deg");
+  const double dir = R.number(j, "direction");
+  if (dir != 1.0 && dir != -1.0)
+    R.failAttribute(j, "direction", "<joint> attribute 'direction': expected 1 or -1, found '" + R.text(j, "direction") + "'");
+  s.direction = static_cast<int>(dir);
+  s.lower = R.number(j, "lower");
+  s.upper = R.number(j, "upper");
+  if (!(s.lower < s.upper))
+    R.failAttribute(j, "lower", "<joint> '" + s.name + "': expected lower < upper, found lower " + fmt(s.lower) +
+                                    ", upper " + fmt(s.upper));
+  s.mass_kg = R.number(j, "mass_kg");
+  if (s.mass_kg < 0) R.failAttribute(j, "mass_kg", "<joint> attribute 'mass_kg': expected >= 0, found " + fmt(s.mass_kg));
+  s.com_mm = Eigen::Vector3d(R.number(j, "com_x_mm"), R.number(j, "com_y_mm"), R.number(j, "com_z_mm"));
+  return s;
+}
+
+/// The nominal robot: <robot>'s attributes, base, tool, payload, gravity and joints.
+RobotDefinition readDefinition(const Reader& R, const XMLElement* root) {
   R.checkAttributes(root, {"name", "source"});
   for (const XMLElement* c = root->FirstChildElement(); c; c = c->NextSiblingElement()) {
     static const std::set<std::string> known = {"base", "tool", "payload", "gravity", "joints",
                                                 "calibration"};
     if (!known.count(c->Name()))
-      R.fail(c, "unknown element <" + std::string(c->Name()) +
-                    "> in <robot> (expected base, tool, payload, gravity, joints, calibration)");
+      R.fail(c, "<robot>: expected one of the elements base, tool, payload, gravity, joints, calibration, found <" +
+                    std::string(c->Name()) + ">");
   }
   RobotDefinition def;
   def.name = R.text(root, "name");
@@ -165,126 +210,139 @@ RobotModel readRobotFile(const std::string& path) {
     def.gravity_base = Eigen::Vector3d(R.number(g, "x"), R.number(g, "y"), R.number(g, "z"));
   }
   const XMLElement* joints = R.child(root, "joints", true);
-  for (const XMLElement* j = joints->FirstChildElement(); j; j = j->NextSiblingElement()) {
-    if (std::string(j->Name()) != "joint")
-      R.fail(j, "expected <joint> in <joints>, found <" + std::string(j->Name()) + ">");
-    R.checkAttributes(j, {"name", "type", "a_mm", "alpha_deg", "d_mm", "theta0_deg", "direction",
-                          "lower", "upper", "mass_kg", "com_x_mm", "com_y_mm", "com_z_mm"});
-    JointSpec s;
-    s.name = R.text(j, "name");
-    const std::string type = R.text(j, "type");
-    if (type == "revolute") s.type = JointType::kRevolute;
-    else if (type == "prismatic") s.type = JointType::kPrismatic;
-    else R.fail(j, "<joint> attribute 'type': expected 'revolute' or 'prismatic', found '" + type + "'");
-    s.a_mm = R.number(j, "a_mm");
-    s.alpha_deg = R.number(j, "alpha_deg");
-    s.d_mm = R.number(j, "d_mm");
-    s.theta0_deg = R.number(j, "theta0_deg");
-    const double dir = R.number(j, "direction");
-    if (dir != 1.0 && dir != -1.0)
-      R.fail(j, "<joint> attribute 'direction': expected 1 or -1, found '" + R.text(j, "direction") + "'");
-    s.direction = static_cast<int>(dir);
-    s.lower = R.number(j, "lower");
-    s.upper = R.number(j, "upper");
-    if (!(s.lower < s.upper))
-      R.fail(j, "<joint> '" + s.name + "': expected lower < upper, found lower " + fmt(s.lower) +
-                    ", upper " + fmt(s.upper));
-    s.mass_kg = R.number(j, "mass_kg");
-    if (s.mass_kg < 0) R.fail(j, "<joint> attribute 'mass_kg': expected >= 0, found " + fmt(s.mass_kg));
-    s.com_mm = Eigen::Vector3d(R.number(j, "com_x_mm"), R.number(j, "com_y_mm"), R.number(j, "com_z_mm"));
-    def.joints.push_back(s);
-  }
+  R.checkAttributes(joints, {});
+  for (const XMLElement* j = joints->FirstChildElement(); j; j = j->NextSiblingElement()) def.joints.push_back(readJoint(R, j));
   if (def.joints.empty()) R.fail(joints, "<joints>: expected at least one <joint>, found none");
+  return def;
+}
 
+/// A <joint_map> or <fit_range> of <calibration>: the joint's index (0-based), its limits
+/// checked. The map itself goes into the model; a range into `ranges`.
+void readJointCurve(const Reader& R, const XMLElement* p, RobotModel& model, std::vector<JointRange>& ranges,
+                    std::set<int>& range_seen) {
+  const std::string tag = p->Name();
+  const int dof = model.dof();
+  R.checkAttributes(p, tag == "fit_range" ? std::set<std::string>{"joint", "lower", "upper", "unit"}
+                                          : std::set<std::string>{"joint", "lower", "upper", "intervals", "taper", "unit"});
+  const double jv = R.number(p, "joint");
+  if (jv != std::floor(jv) || jv < 1 || jv > dof)
+    R.failAttribute(p, "joint", "<" + tag + "> attribute 'joint': expected 1.." + std::to_string(dof) + ", found '" +
+                                    R.text(p, "joint") + "'");
+  const int j = static_cast<int>(jv) - 1;
+  const bool revolute = model.nominal.joints[static_cast<size_t>(j)].type == JointType::kRevolute;
+  const std::string unit = R.text(p, "unit");
+  if (unit != (revolute ? "deg" : "mm"))
+    R.failAttribute(p, "unit", "<" + tag + "> of joint " + std::to_string(j + 1) + ": expected unit '" +
+                                   (revolute ? "deg" : "mm") + "', found '" + unit + "'");
+  const double lower = R.number(p, "lower"), upper = R.number(p, "upper");
+  if (!(lower < upper))
+    R.failAttribute(p, "lower", "<" + tag + ">: expected lower < upper, found lower " + fmt(lower) + ", upper " + fmt(upper));
+  if (tag == "fit_range") {
+    if (!range_seen.insert(j).second)
+      R.fail(p, "<calibration>: expected one <fit_range> per joint, found a second one for joint " + std::to_string(j + 1));
+    ranges[static_cast<size_t>(j)] = {lower, upper};
+    return;
+  }
+  JointMap& m = model.deviations.joint_map[static_cast<size_t>(j)];
+  if (!m.empty())
+    R.fail(p, "<calibration>: expected one <joint_map> per joint, found a second one for joint " + std::to_string(j + 1));
+  const double iv = R.number(p, "intervals");
+  if (iv != std::floor(iv) || iv < 1 || iv > 100000)
+    R.failAttribute(p, "intervals", "<joint_map> attribute 'intervals': expected an integer from 1 to 100000, found '" +
+                                        R.text(p, "intervals") + "'");
+  m.lower = lower;
+  m.upper = upper;
+  m.intervals = static_cast<int>(iv);
+  m.taper = R.number(p, "taper");
+  if (!(m.taper > 0)) R.failAttribute(p, "taper", "<joint_map> attribute 'taper': expected > 0, found " + fmt(m.taper));
+  const double scale = revolute ? kRadToDeg : 1.0;
+  std::istringstream values(p->GetText() ? p->GetText() : "");
+  for (std::string v; values >> v;) {
+    char* end = nullptr;
+    const double x = std::strtod(v.c_str(), &end);
+    if (end == v.c_str() || *end != '\0' || !std::isfinite(x) || std::abs(x) > Reader::kMaxMagnitude)
+      R.failContent(p, v, "<joint_map> of joint " + std::to_string(j + 1) +
+                              ": expected finite numbers of magnitude at most 1e6, found '" + v + "'");
+    m.coef.push_back(x / scale);
+  }
+  if (m.coef.size() != static_cast<size_t>(m.intervals) + 3)
+    R.fail(p, "<joint_map> of joint " + std::to_string(j + 1) + ": expected intervals + 3 = " +
+                  std::to_string(m.intervals + 3) + " values, found " + std::to_string(m.coef.size()));
+}
+
+/// <calibration>'s parameters, joint maps and fitted ranges into the model's deviations.
+void readCalibration(const Reader& R, const XMLElement* cal, FormPolicy policy, RobotModel& model) {
+  const std::vector<ParamInfo> layout = parameterLayout(model);
+  std::set<std::string> seen;
+  model.deviations.fit_range.clear();
+  std::vector<JointRange> ranges(static_cast<size_t>(model.dof()));
+  std::set<int> range_seen;
+  for (const XMLElement* p = cal->FirstChildElement(); p; p = p->NextSiblingElement()) {
+    const std::string tag = p->Name();
+    if (tag == "joint_map" || tag == "fit_range") {
+      readJointCurve(R, p, model, ranges, range_seen);
+      continue;
+    }
+    if (tag != "parameter")
+      R.fail(p, "<calibration>: expected <parameter>, <joint_map> or <fit_range>, found <" + tag + ">");
+    R.checkAttributes(p, {"name", "value", "sigma", "unit"});
+    const std::string name = R.text(p, "name");
+    auto it = std::find_if(layout.begin(), layout.end(),
+                           [&](const ParamInfo& info) { return info.name == name; });
+    if (it == layout.end())
+      R.failAttribute(p, "name", "<parameter> attribute 'name': expected a parameter of this robot and form '" +
+                                     std::string(policy == FormPolicy::kDHOnly ? "dh" : "auto") + "', found unknown parameter name '" +
+                                     name + "'");
+    if (!seen.insert(name).second)
+      R.failAttribute(p, "name", "<calibration>: expected each parameter once, found '" + name + "' given twice");
+    const std::string unit = R.text(p, "unit");
+    if (unit != it->unit)
+      R.failAttribute(p, "unit", "<parameter> '" + name + "': expected unit '" + it->unit + "', found '" + unit + "'");
+    setParameter(model.deviations, *it, R.number(p, "value") / it->display_scale);
+    if (p->Attribute("sigma")) {
+      const std::string s = R.text(p, "sigma");
+      if (s != "nan") R.number(p, "sigma");  // validated, informative only
+    }
+  }
+  if (!range_seen.empty()) {
+    if (static_cast<int>(range_seen.size()) != model.dof())
+      R.fail(cal, "<calibration>: expected a <fit_range> for every joint or none, found " +
+                      std::to_string(range_seen.size()) + " of " + std::to_string(model.dof()));
+    model.deviations.fit_range = ranges;
+  }
+}
+
+}  // namespace
+
+RobotModel readRobotFile(const std::string& path) {
+  if (fs::path(path).extension() == ".urdf") return readUrdfRobot(path);  // urdf.h, default chain
+  std::string text;
+  {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw InputError(path, 0, 0, "expected a robot file, cannot open it");
+    std::ostringstream s;
+    s << in.rdbuf();
+    if (in.bad()) throw InputError(path, 0, 0, "expected a robot file, cannot read it");
+    text = s.str();
+  }
+  tinyxml2::XMLDocument doc;
+  parseXml(doc, text, path, "a robot file with root element <robot>");
+  const XmlPositions positions(text, doc);
+  const Reader R(path, positions);
+  const XMLElement* root = doc.RootElement();
+  if (!root || std::string(root->Name()) != "robot")
+    R.fail(root, "expected root element <robot>, found <" + std::string(root ? root->Name() : "nothing") + ">");
+  const RobotDefinition def = readDefinition(R, root);
   FormPolicy policy = FormPolicy::kAuto;
   const XMLElement* cal = R.child(root, "calibration", false);
   if (cal) {
     R.checkAttributes(cal, {"form", "data"});
     const std::string form = R.text(cal, "form");
     if (form == "dh") policy = FormPolicy::kDHOnly;
-    else if (form != "auto") R.fail(cal, "<calibration> attribute 'form': expected 'auto' or 'dh', found '" + form + "'");
+    else if (form != "auto") R.failAttribute(cal, "form", "<calibration> attribute 'form': expected 'auto' or 'dh', found '" + form + "'");
   }
   RobotModel model = RobotModel::fromDefinition(def, policy);
-  if (cal) {
-    const std::vector<ParamInfo> layout = parameterLayout(model);
-    std::set<std::string> seen;
-    model.deviations.fit_range.clear();
-    std::vector<JointRange> ranges(static_cast<size_t>(model.dof()));
-    std::set<int> range_seen;
-    for (const XMLElement* p = cal->FirstChildElement(); p; p = p->NextSiblingElement()) {
-      const std::string tag = p->Name();
-      if (tag == "joint_map" || tag == "fit_range") {
-        const int dof = model.dof();
-        const double jv = R.number(p, "joint");
-        if (jv != std::floor(jv) || jv < 1 || jv > dof)
-          R.fail(p, "<" + tag + "> attribute 'joint': expected 1.." + std::to_string(dof) + ", found '" +
-                        R.text(p, "joint") + "'");
-        const int j = static_cast<int>(jv) - 1;
-        const bool revolute = model.nominal.joints[static_cast<size_t>(j)].type == JointType::kRevolute;
-        const std::string unit = R.text(p, "unit");
-        if (unit != (revolute ? "deg" : "mm"))
-          R.fail(p, "<" + tag + "> of joint " + std::to_string(j + 1) + ": expected unit '" +
-                        (revolute ? "deg" : "mm") + "', found '" + unit + "'");
-        const double lower = R.number(p, "lower"), upper = R.number(p, "upper");
-        if (!(lower < upper))
-          R.fail(p, "<" + tag + ">: expected lower < upper, found lower " + fmt(lower) + ", upper " + fmt(upper));
-        if (tag == "fit_range") {
-          R.checkAttributes(p, {"joint", "lower", "upper", "unit"});
-          if (!range_seen.insert(j).second) R.fail(p, "<fit_range> of joint " + std::to_string(j + 1) + " given twice");
-          ranges[static_cast<size_t>(j)] = {lower, upper};
-          continue;
-        }
-        R.checkAttributes(p, {"joint", "lower", "upper", "intervals", "taper", "unit"});
-        JointMap& m = model.deviations.joint_map[static_cast<size_t>(j)];
-        if (!m.empty()) R.fail(p, "<joint_map> of joint " + std::to_string(j + 1) + " given twice");
-        const double iv = R.number(p, "intervals");
-        if (iv != std::floor(iv) || iv < 1 || iv > 100000)
-          R.fail(p, "<joint_map> attribute 'intervals': expected an integer >= 1, found '" + R.text(p, "intervals") + "'");
-        m.lower = lower;
-        m.upper = upper;
-        m.intervals = static_cast<int>(iv);
-        m.taper = R.number(p, "taper");
-        if (!(m.taper > 0)) R.fail(p, "<joint_map> attribute 'taper': expected > 0, found " + fmt(m.taper));
-        const double scale = revolute ? kRadToDeg : 1.0;
-        std::istringstream values(p->GetText() ? p->GetText() : "");
-        for (std::string v; values >> v;) {
-          char* end = nullptr;
-          const double x = std::strtod(v.c_str(), &end);
-          if (end == v.c_str() || *end != '\0' || !std::isfinite(x))
-            R.fail(p, "<joint_map> of joint " + std::to_string(j + 1) + ": expected finite numbers, found '" + v + "'");
-          m.coef.push_back(x / scale);
-        }
-        if (m.coef.size() != static_cast<size_t>(m.intervals) + 3)
-          R.fail(p, "<joint_map> of joint " + std::to_string(j + 1) + ": expected intervals + 3 = " +
-                        std::to_string(m.intervals + 3) + " values, found " + std::to_string(m.coef.size()));
-        continue;
-      }
-      if (tag != "parameter")
-        R.fail(p, "expected <parameter>, <joint_map> or <fit_range> in <calibration>, found <" + tag + ">");
-      R.checkAttributes(p, {"name", "value", "sigma", "unit"});
-      const std::string name = R.text(p, "name");
-      auto it = std::find_if(layout.begin(), layout.end(),
-                             [&](const ParamInfo& info) { return info.name == name; });
-      if (it == layout.end())
-        R.fail(p, "<parameter>: unknown parameter name '" + name + "' for this robot and form '" +
-                      (policy == FormPolicy::kDHOnly ? "dh" : "auto") + "'");
-      if (!seen.insert(name).second) R.fail(p, "<parameter> '" + name + "' given twice");
-      const std::string unit = R.text(p, "unit");
-      if (unit != it->unit)
-        R.fail(p, "<parameter> '" + name + "': expected unit '" + it->unit + "', found '" + unit + "'");
-      setParameter(model.deviations, *it, R.number(p, "value") / it->display_scale);
-      if (p->Attribute("sigma")) {
-        const std::string s = R.text(p, "sigma");
-        if (s != "nan") R.number(p, "sigma");  // validated, informative only
-      }
-    }
-    if (!range_seen.empty()) {
-      if (static_cast<int>(range_seen.size()) != model.dof())
-        R.fail(cal, "<calibration>: expected a <fit_range> for every joint or none, found " +
-                        std::to_string(range_seen.size()) + " of " + std::to_string(model.dof()));
-      model.deviations.fit_range = ranges;
-    }
-  }
+  if (cal) readCalibration(R, cal, policy, model);
   return model;
 }
 

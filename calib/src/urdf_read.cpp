@@ -17,6 +17,7 @@
 
 #include "accura/calib/errors.h"
 #include "accura/calib/urdf.h"
+#include "accura/calib/xml_text.h"
 
 namespace accura::calib {
 namespace {
@@ -25,10 +26,13 @@ using tinyxml2::XMLElement;
 
 constexpr double kMaxUrdfLengthM = 100.0;  // a joint origin further than this is absurd for an arm
 constexpr double kMaxUrdfMassKg = 1e5;
+constexpr double kMaxUrdfAngleRad = 1000.0;  // an rpy or a revolute limit beyond this is absurd
+constexpr double kMaxUrdfLimitM = 100.0;     // a prismatic limit beyond this is absurd
 
 struct UrdfJointInfo {
   int line = 0;
-  int limit_line = 0;
+  const XMLElement* element = nullptr;
+  const XMLElement* limit = nullptr;
   std::string type, parent, child;
   bool mimic = false;
 };
@@ -38,11 +42,23 @@ struct UrdfIndex {
   std::string file;
   int robot_line = 0;
   std::map<std::string, int> link_line;
+  std::map<std::string, const XMLElement*> link_element;
+  const XMLElement* robot = nullptr;
+  const XmlPositions* pos = nullptr;
   std::map<std::string, UrdfJointInfo> joints;
   std::map<std::string, std::string> parent_joint;                // child link -> joint
   std::map<std::string, std::vector<std::string>> child_joints;   // link -> joints, file order
 
-  [[noreturn]] void fail(int line, const std::string& msg) const { throw InputError(file, line, 0, msg); }
+  /// An error in the element (at its '<').
+  [[noreturn]] void fail(const XMLElement* e, const std::string& msg) const {
+    const auto [line, column] = pos->element(e);
+    throw InputError(file, line, column, msg);
+  }
+  /// An error in one of its attributes (at the attribute's name).
+  [[noreturn]] void failAttribute(const XMLElement* e, const std::string& attr, const std::string& msg) const {
+    const auto [line, column] = pos->attribute(e, attr);
+    throw InputError(file, line, column, msg);
+  }
 };
 
 bool isMoving(const std::string& type) {
@@ -61,114 +77,134 @@ Eigen::Vector3d triple(const UrdfIndex& ix, const XMLElement* e, const char* att
     char* end = nullptr;
     const double x = std::strtod(tok.c_str(), &end);
     if (k >= 3 || end == tok.c_str() || *end != '\0' || !std::isfinite(x))
-      ix.fail(e->GetLineNum(), "<" + std::string(e->Name()) + "> attribute '" + attr +
-                                   "': expected three finite numbers, found '" + v + "'");
+      ix.failAttribute(e, attr, "<" + std::string(e->Name()) + "> attribute '" + attr +
+                                    "': expected three finite numbers, found '" + v + "'");
     r[k++] = x;
   }
   if (k != 3)
-    ix.fail(e->GetLineNum(), "<" + std::string(e->Name()) + "> attribute '" + attr +
-                                 "': expected three finite numbers, found '" + v + "'");
+    ix.failAttribute(e, attr, "<" + std::string(e->Name()) + "> attribute '" + attr +
+                                  "': expected three finite numbers, found '" + v + "'");
   return r;
 }
 
 double scalar(const UrdfIndex& ix, const XMLElement* e, const char* attr, bool required, double dflt = 0) {
   const char* v = e->Attribute(attr);
   if (!v) {
-    if (required) ix.fail(e->GetLineNum(), "<" + std::string(e->Name()) + ">: missing attribute '" + attr + "'");
+    if (required) ix.fail(e, "<" + std::string(e->Name()) + ">: expected an attribute '" + attr + "', found none");
     return dflt;
   }
   char* end = nullptr;
   const double x = std::strtod(v, &end);
   while (end && (*end == ' ' || *end == '\t')) ++end;
   if (end == v || *end != '\0' || !std::isfinite(x))
-    ix.fail(e->GetLineNum(), "<" + std::string(e->Name()) + "> attribute '" + attr +
-                                 "': expected a finite number, found '" + v + "'");
+    ix.failAttribute(e, attr, "<" + std::string(e->Name()) + "> attribute '" + attr +
+                                  "': expected a finite number, found '" + v + "'");
   return x;
 }
 
 std::string nameAttr(const UrdfIndex& ix, const XMLElement* e, const char* attr = "name") {
   const char* v = e->Attribute(attr);
-  if (!v || !*v) ix.fail(e->GetLineNum(), "<" + std::string(e->Name()) + ">: missing attribute '" + attr + "'");
+  if (!v) ix.fail(e, "<" + std::string(e->Name()) + ">: expected an attribute '" + attr + "', found none");
+  if (!*v) ix.failAttribute(e, attr, "<" + std::string(e->Name()) + "> attribute '" + attr + "': expected a name, found an empty one");
   return v;
 }
 
 const XMLElement* onlyChild(const UrdfIndex& ix, const XMLElement* parent, const char* name, bool required) {
   const XMLElement* c = parent->FirstChildElement(name);
   if (!c && required)
-    ix.fail(parent->GetLineNum(), "<" + std::string(parent->Name()) + " name=\"" +
-                                      (parent->Attribute("name") ? parent->Attribute("name") : "") +
-                                      "\">: missing <" + name + "> element");
+    ix.fail(parent, "<" + std::string(parent->Name()) + " name=\"" + (parent->Attribute("name") ? parent->Attribute("name") : "") +
+                        "\">: expected a <" + name + "> element, found none");
   if (c && c->NextSiblingElement(name))
-    ix.fail(c->NextSiblingElement(name)->GetLineNum(), "<" + std::string(name) + "> given twice in <" +
-                                                           parent->Name() + ">");
+    ix.fail(c->NextSiblingElement(name), "<" + std::string(parent->Name()) + ">: expected one <" + name +
+                                             "> element, found a second one");
   return c;
 }
 
 void checkOrigin(const UrdfIndex& ix, const XMLElement* origin) {
   if (!origin) return;
   const Eigen::Vector3d xyz = triple(ix, origin, "xyz", Eigen::Vector3d::Zero());
-  triple(ix, origin, "rpy", Eigen::Vector3d::Zero());
+  const Eigen::Vector3d rpy = triple(ix, origin, "rpy", Eigen::Vector3d::Zero());
   if (xyz.cwiseAbs().maxCoeff() > kMaxUrdfLengthM) {
     std::ostringstream s;
-    s << "<origin> attribute 'xyz': " << xyz.cwiseAbs().maxCoeff() << " m is not a plausible offset of a robot arm "
-      << "(expected at most " << kMaxUrdfLengthM << " m; URDF lengths are in metres)";
-    ix.fail(origin->GetLineNum(), s.str());
+    s << "<origin> attribute 'xyz': expected an offset of at most " << kMaxUrdfLengthM
+      << " m (URDF lengths are in metres), found " << xyz.cwiseAbs().maxCoeff() << " m";
+    ix.failAttribute(origin, "xyz", s.str());
+  }
+  if (rpy.cwiseAbs().maxCoeff() > kMaxUrdfAngleRad) {
+    std::ostringstream s;
+    s << "<origin> attribute 'rpy': expected angles of at most " << kMaxUrdfAngleRad << " rad, found "
+      << rpy.cwiseAbs().maxCoeff() << " rad";
+    ix.failAttribute(origin, "rpy", s.str());
   }
 }
 
 // The tinyxml2 pass: every check with a line number.
-UrdfIndex indexUrdf(const tinyxml2::XMLDocument& doc, const std::string& file) {
+UrdfIndex indexUrdf(const tinyxml2::XMLDocument& doc, const std::string& file, const XmlPositions& pos) {
   UrdfIndex ix;
   ix.file = file;
+  ix.pos = &pos;
   const XMLElement* robot = doc.RootElement();
   if (!robot || std::string(robot->Name()) != "robot")
-    ix.fail(robot ? robot->GetLineNum() : 1, std::string("expected root element <robot>, found <") +
-                                                 (robot ? robot->Name() : "nothing") + ">");
+    ix.fail(robot, std::string("expected root element <robot>, found <") + (robot ? robot->Name() : "nothing") + ">");
   ix.robot_line = robot->GetLineNum();
+  ix.robot = robot;
   nameAttr(ix, robot);
   for (const XMLElement* l = robot->FirstChildElement("link"); l; l = l->NextSiblingElement("link")) {
     const std::string name = nameAttr(ix, l);
     if (!ix.link_line.emplace(name, l->GetLineNum()).second)
-      ix.fail(l->GetLineNum(), "link '" + name + "' declared twice (first at line " +
-                                   std::to_string(ix.link_line[name]) + ")");
+      ix.failAttribute(l, "name", "<link>: expected each link name once, found '" + name + "' a second time (first at line " +
+                                      std::to_string(ix.link_line[name]) + ")");
+    ix.link_element[name] = l;
     if (const XMLElement* in = onlyChild(ix, l, "inertial", false)) {
       checkOrigin(ix, onlyChild(ix, in, "origin", false));
       const XMLElement* mass = onlyChild(ix, in, "mass", true);
       const double m = scalar(ix, mass, "value", true);
       if (m < 0 || m > kMaxUrdfMassKg)
-        ix.fail(mass->GetLineNum(), "<mass> of link '" + name + "': expected 0 to 1e5 kg, found " +
-                                        std::string(mass->Attribute("value")));
+        ix.failAttribute(mass, "value", "<mass> of link '" + name + "': expected 0 to 1e5 kg, found " +
+                                            std::string(mass->Attribute("value")));
       if (const XMLElement* inertia = onlyChild(ix, in, "inertia", true))
         for (const char* a : {"ixx", "ixy", "ixz", "iyy", "iyz", "izz"}) scalar(ix, inertia, a, true);
     }
   }
-  if (ix.link_line.empty()) ix.fail(ix.robot_line, "<robot>: expected at least one <link>, found none");
+  if (ix.link_line.empty()) ix.fail(robot, "<robot>: expected at least one <link>, found none");
   for (const XMLElement* j = robot->FirstChildElement("joint"); j; j = j->NextSiblingElement("joint")) {
     const std::string name = nameAttr(ix, j);
     UrdfJointInfo info;
     info.line = j->GetLineNum();
+    info.element = j;
     info.type = nameAttr(ix, j, "type");
     static const std::set<std::string> types = {"revolute", "continuous", "prismatic", "fixed", "floating", "planar"};
     if (!types.count(info.type))
-      ix.fail(info.line, "joint '" + name + "': unknown type '" + info.type +
-                             "' (expected revolute, continuous, prismatic, fixed, floating or planar)");
-    info.parent = nameAttr(ix, onlyChild(ix, j, "parent", true), "link");
-    info.child = nameAttr(ix, onlyChild(ix, j, "child", true), "link");
-    for (const std::string* l : {&info.parent, &info.child})
+      ix.failAttribute(j, "type", "joint '" + name + "' attribute 'type': expected revolute, continuous, prismatic, fixed, "
+                                  "floating or planar, found '" + info.type + "'");
+    const XMLElement* parent = onlyChild(ix, j, "parent", true);
+    const XMLElement* child = onlyChild(ix, j, "child", true);
+    info.parent = nameAttr(ix, parent, "link");
+    info.child = nameAttr(ix, child, "link");
+    for (const auto& [l, e] : {std::pair{&info.parent, parent}, std::pair{&info.child, child}})
       if (!ix.link_line.count(*l))
-        ix.fail(info.line, "joint '" + name + "': link '" + *l + "' is not declared (no <link name=\"" + *l + "\">)");
-    if (info.parent == info.child) ix.fail(info.line, "joint '" + name + "': parent and child are the same link '" + info.parent + "'");
+        ix.failAttribute(e, "link", "joint '" + name + "': expected a declared link, found '" + *l + "' (no <link name=\"" + *l + "\">)");
+    if (info.parent == info.child)
+      ix.failAttribute(child, "link", "joint '" + name + "': expected a child link other than the parent, found '" + info.parent + "' for both");
     checkOrigin(ix, onlyChild(ix, j, "origin", false));
     if (const XMLElement* axis = onlyChild(ix, j, "axis", false)) {
+      // urdfdom leaves an <axis> without xyz at (0, 0, 0), and normalises one of infinite
+      // length (1e308 components) to zero: both would be a joint without a direction
+      if (!axis->Attribute("xyz")) ix.fail(axis, "<axis>: expected an attribute 'xyz', found none");
       const Eigen::Vector3d a = triple(ix, axis, "xyz", Eigen::Vector3d::UnitX());
-      if (isMoving(info.type) && a.norm() < 1e-9)
-        ix.fail(axis->GetLineNum(), "joint '" + name + "': <axis xyz> must not be zero");
+      if (isMoving(info.type) && !(a.norm() >= 1e-9 && a.cwiseAbs().maxCoeff() <= 1e6))
+        ix.failAttribute(axis, "xyz", "joint '" + name + "' <axis> attribute 'xyz': expected a non-zero axis with components of at most 1e6, found '" +
+                                          axis->Attribute("xyz") + "'");
     }
     const XMLElement* limit = onlyChild(ix, j, "limit", info.type == "revolute" || info.type == "prismatic");
     if (limit) {
-      info.limit_line = limit->GetLineNum();
-      scalar(ix, limit, "lower", false);
-      scalar(ix, limit, "upper", false);
+      info.limit = limit;
+      const double bound = info.type == "prismatic" ? kMaxUrdfLimitM : kMaxUrdfAngleRad;
+      for (const char* a : {"lower", "upper"})
+        if (std::abs(scalar(ix, limit, a, false)) > bound)
+          ix.failAttribute(limit, a, "joint '" + name + "' <limit> attribute '" + a + "': expected at most " +
+                                         (info.type == "prismatic" ? "100 m" : "1000 rad") + " in magnitude, found '" +
+                                         limit->Attribute(a) + "'");
       scalar(ix, limit, "effort", true);
       scalar(ix, limit, "velocity", true);
     }
@@ -179,23 +215,25 @@ UrdfIndex indexUrdf(const tinyxml2::XMLDocument& doc, const std::string& file) {
       info.mimic = true;
     }
     if (ix.joints.count(name))
-      ix.fail(info.line, "joint '" + name + "' declared twice (first at line " + std::to_string(ix.joints[name].line) + ")");
+      ix.failAttribute(j, "name", "<joint>: expected each joint name once, found '" + name + "' a second time (first at line " +
+                                      std::to_string(ix.joints[name].line) + ")");
     auto prev = ix.parent_joint.find(info.child);
     if (prev != ix.parent_joint.end())
-      ix.fail(info.line, "joint '" + name + "' closes a loop: link '" + info.child + "' is already the child of joint '" +
-                             prev->second + "' (line " + std::to_string(ix.joints[prev->second].line) +
-                             "); a URDF describes a tree and accura needs a serial chain");
+      ix.failAttribute(child, "link", "joint '" + name + "' closes a loop: expected link '" + info.child + "' to be the child of one joint, found it "
+                                      "already the child of joint '" + prev->second + "' (line " +
+                                      std::to_string(ix.joints[prev->second].line) +
+                                      "); a URDF describes a tree and accura needs a serial chain");
     ix.parent_joint[info.child] = name;
     ix.child_joints[info.parent].push_back(name);
     ix.joints[name] = info;
   }
   for (const auto& [name, info] : ix.joints) {
     if (!info.mimic) continue;
-    const XMLElement* j = robot->FirstChildElement("joint");
-    while (j && name != j->Attribute("name")) j = j->NextSiblingElement("joint");
-    const std::string target = j->FirstChildElement("mimic")->Attribute("joint");
+    const XMLElement* mimic = info.element->FirstChildElement("mimic");
+    const std::string target = mimic->Attribute("joint");
     if (!ix.joints.count(target))
-      ix.fail(info.line, "joint '" + name + "': <mimic joint=\"" + target + "\"> names no joint of this URDF");
+      ix.failAttribute(mimic, "joint", "joint '" + name + "' <mimic> attribute 'joint': expected a joint of this URDF, found '" +
+                                           target + "'");
   }
   // One root; no cycle (a cycle of links without a root is caught here too).
   std::vector<std::string> roots;
@@ -204,9 +242,27 @@ UrdfIndex indexUrdf(const tinyxml2::XMLDocument& doc, const std::string& file) {
   if (roots.size() != 1) {
     std::string list;
     for (const auto& r : roots) list += (list.empty() ? "" : ", ") + r + " (line " + std::to_string(ix.link_line[r]) + ")";
-    ix.fail(ix.robot_line, roots.empty() ? "the joints form a closed loop: no link is the root of the tree"
-                                         : "expected one root link (a link that is no joint's child), found " +
-                                               std::to_string(roots.size()) + ": " + list);
+    ix.fail(robot, roots.empty() ? "expected one root link (a link that is no joint's child), found none: the joints form a closed loop"
+                                 : "expected one root link (a link that is no joint's child), found " +
+                                       std::to_string(roots.size()) + ": " + list);
+  }
+  // Every link below the root: links in a closed loop of joints beside the tree have parents
+  // but are not reachable (the walks over the tree below would never end).
+  std::set<std::string> reached = {roots[0]};
+  for (std::vector<std::string> todo = {roots[0]}; !todo.empty();) {
+    const std::string link = todo.back();
+    todo.pop_back();
+    const auto it = ix.child_joints.find(link);
+    if (it == ix.child_joints.end()) continue;
+    for (const auto& jn : it->second)
+      if (reached.insert(ix.joints.at(jn).child).second) todo.push_back(ix.joints.at(jn).child);
+  }
+  for (const XMLElement* l = robot->FirstChildElement("link"); l; l = l->NextSiblingElement("link")) {
+    const std::string name = l->Attribute("name");
+    if (reached.count(name)) continue;
+    const UrdfJointInfo& j = ix.joints.at(ix.parent_joint.at(name));  // not the root: it has a parent
+    ix.fail(j.element, "joint '" + ix.parent_joint.at(name) + "' closes a loop: expected every link below the root link '" +
+                           roots[0] + "', found link '" + name + "' in a closed loop of joints");
   }
   return ix;
 }
@@ -234,19 +290,20 @@ urdf::ModelInterfaceSharedPtr parseWithUrdfdom(const std::string& text, const Ur
   console_bridge::restorePreviousOutputHandler();
   if (!model) {
     // Point at the first joint or link the message names.
-    int line = ix.robot_line;
+    const XMLElement* at = ix.robot;
     for (const auto& [name, info] : ix.joints)
       if (capture.errors.find("[" + name + "]") != std::string::npos || capture.errors.find("'" + name + "'") != std::string::npos) {
-        line = info.line;
+        at = info.element;
         break;
       }
-    if (line == ix.robot_line)
-      for (const auto& [name, l] : ix.link_line)
+    if (at == ix.robot)
+      for (const auto& [name, l] : ix.link_element)
         if (capture.errors.find("[" + name + "]") != std::string::npos || capture.errors.find("'" + name + "'") != std::string::npos) {
-          line = l;
+          at = l;
           break;
         }
-    ix.fail(line, "urdfdom rejected the file: " + (capture.errors.empty() ? std::string("no reason given") : capture.errors));
+    ix.fail(at, "expected a URDF urdfdom accepts, found one it rejects: " +
+                    (capture.errors.empty() ? std::string("no reason given") : capture.errors));
   }
   return model;
 }
@@ -289,9 +346,9 @@ std::string defaultTip(const UrdfIndex& ix, const std::string& root) {
     } else {
       std::string list;
       for (const auto& jn : moving) list += (list.empty() ? "" : ", ") + ix.joints.at(jn).child;
-      ix.fail(ix.link_line.at(link), "no default chain: the tree branches at link '" + link + "' into " + list +
-                                         "; choose one with --chain ROOT:TIP (e.g. --chain " + root + ":" +
-                                         ix.joints.at(moving[0]).child + ")");
+      ix.fail(ix.link_element.at(link), "expected one default chain, found the tree branching at link '" + link + "' into " + list +
+                                            "; choose one with --chain ROOT:TIP (e.g. --chain " + root + ":" +
+                                            ix.joints.at(moving[0]).child + ")");
     }
   }
 }
@@ -300,9 +357,9 @@ std::string defaultTip(const UrdfIndex& ix, const std::string& root) {
 
 SerialChain parseUrdfChain(const std::string& text, const std::string& file, const std::string& chain_spec) {
   tinyxml2::XMLDocument doc;
-  if (doc.Parse(text.c_str(), text.size()) != tinyxml2::XML_SUCCESS)
-    throw InputError(file, doc.ErrorLineNum(), 0, std::string("malformed XML: ") + (doc.ErrorStr() ? doc.ErrorStr() : ""));
-  const UrdfIndex ix = indexUrdf(doc, file);
+  parseXml(doc, text, file, "a URDF with root element <robot>");
+  const XmlPositions positions(text, doc);
+  const UrdfIndex ix = indexUrdf(doc, file, positions);
   const urdf::ModelInterfaceSharedPtr model = parseWithUrdfdom(text, ix);
 
   std::string root, tip;
@@ -319,7 +376,7 @@ SerialChain parseUrdfChain(const std::string& text, const std::string& file, con
       if (!ix.link_line.count(*l)) {
         std::string list;
         for (const auto& [name, line] : ix.link_line) list += (list.empty() ? "" : ", ") + name;
-        throw InputError(file, 0, 0, "--chain " + chain_spec + ": no link '" + *l + "' in this URDF (links: " + list + ")");
+        throw InputError("--chain " + chain_spec + ": expected a link of " + file + " (" + list + "), found no link '" + *l + "'");
       }
   }
   // Path root -> tip: up from the root over fixed joints to the lowest link above both (for a
@@ -335,8 +392,8 @@ SerialChain parseUrdfChain(const std::string& text, const std::string& file, con
     }
     auto it = ix.parent_joint.find(l);
     if (it == ix.parent_joint.end())
-      throw InputError(file, ix.link_line.at(tip), 0, "chain " + root + ":" + tip + ": link '" + tip +
-                                                          "' is not connected to link '" + root + "'");
+      ix.fail(ix.link_element.at(tip), "chain " + root + ":" + tip + ": expected link '" + tip + "' connected to link '" + root +
+                                           "', found it in another tree");
     path.insert(path.begin(), it->second);
     l = ix.joints.at(it->second).parent;
   }
@@ -345,9 +402,8 @@ SerialChain parseUrdfChain(const std::string& text, const std::string& file, con
     const std::string& jn = ix.parent_joint.at(l);
     const UrdfJointInfo& info = ix.joints.at(jn);
     if (info.type != "fixed")
-      throw InputError(file, info.line, 0, "chain " + root + ":" + tip + ": link '" + tip + "' is not below link '" +
-                                               root + "', and the way up from '" + root + "' passes the moving joint '" +
-                                               jn + "'");
+      ix.fail(info.element, "chain " + root + ":" + tip + ": expected link '" + tip + "' below link '" + root +
+                                "' or fixed joints up from it, found the moving joint '" + jn + "' on the way up");
     T_meet_root = poseMm(model->getJoint(jn)->parent_to_joint_origin_transform) * T_meet_root;
     l = info.parent;
   }
@@ -380,9 +436,9 @@ SerialChain parseUrdfChain(const std::string& text, const std::string& file, con
         const urdf::JointConstSharedPtr j = model->getJoint(jn);
         body(info.child, T * poseMm(j->parent_to_joint_origin_transform), last, mover, mass, moment);
       } else if (!on_path.count(jn) && !last) {
-        ix.fail(info.line, "joint '" + jn + "' (" + info.type + ") branches off the chain " + root + ":" + tip +
-                               " at link '" + link + "', which joint '" + mover +
-                               "' moves: accura models serial chains (choose another --chain, or remove the branch)");
+        ix.fail(info.element, "expected a serial chain, found joint '" + jn + "' (" + info.type + "), which branches off the chain " +
+                                  root + ":" + tip + " at link '" + link + "', which joint '" + mover +
+                                  "' moves (choose another --chain, or remove the branch)");
       }
     }
   };
@@ -398,11 +454,12 @@ SerialChain parseUrdfChain(const std::string& text, const std::string& file, con
       continue;
     }
     if (info.type == "floating" || info.type == "planar")
-      ix.fail(info.line, "joint '" + jn + "' on the chain " + root + ":" + tip + " is " + info.type +
-                             ": accura models revolute, continuous, prismatic and fixed joints");
+      ix.failAttribute(info.element, "type", "joint '" + jn + "' on the chain " + root + ":" + tip +
+                                                 ": expected revolute, continuous, prismatic or fixed, found " + info.type);
     if (j->mimic)
-      ix.fail(info.line, "joint '" + jn + "' on the chain " + root + ":" + tip + " mimics joint '" + j->mimic->joint_name +
-                             "': accura models independent joints (a mimic joint couples two)");
+      ix.fail(info.element->FirstChildElement("mimic"), "joint '" + jn + "' on the chain " + root + ":" + tip +
+                                                            ": expected an independent joint, found one that mimics joint '" +
+                                                            j->mimic->joint_name + "' (a mimic joint couples two)");
     ChainJoint cj;
     cj.name = jn;
     cj.line = info.line;
@@ -420,7 +477,8 @@ SerialChain parseUrdfChain(const std::string& text, const std::string& file, con
         std::ostringstream s;
         s << "joint '" << jn << "': <limit> expected lower < upper, found lower " << j->limits->lower << ", upper "
           << j->limits->upper;
-        ix.fail(info.limit_line ? info.limit_line : info.line, s.str());
+        if (info.limit) ix.failAttribute(info.limit, "lower", s.str());
+        ix.fail(info.element, s.str());
       }
     }
     // The body this joint moves: from its child link up to the next moving joint.
@@ -436,13 +494,13 @@ SerialChain parseUrdfChain(const std::string& text, const std::string& file, con
   }
   chain.T_last_tip = T_acc;
   if (chain.joints.empty())
-    throw InputError(file, ix.link_line.at(tip), 0, "chain " + root + ":" + tip + " has no moving joint");
+    ix.fail(ix.link_element.at(tip), "chain " + root + ":" + tip + ": expected at least one moving joint, found none");
   return chain;
 }
 
 SerialChain readUrdfChain(const std::string& path, const std::string& chain_spec) {
   std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(path, 0, 0, "cannot open URDF file");
+  if (!in) throw InputError(path, 0, 0, "expected a URDF file, cannot open it");
   std::ostringstream s;
   s << in.rdbuf();
   return parseUrdfChain(s.str(), path, chain_spec);

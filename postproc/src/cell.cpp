@@ -20,6 +20,7 @@
 
 #include "accura/calib/errors.h"
 #include "accura/calib/geometry.h"
+#include "accura/calib/xml_text.h"
 #include "decimal.h"
 
 namespace accura::postproc {
@@ -27,108 +28,9 @@ namespace {
 
 using tinyxml2::XMLElement;
 
-/// Where elements and attributes are in the file's text: tinyxml2 gives lines only, the
-/// project's errors give file:line:column (1-based, in bytes).
-class TextPositions {
- public:
-  TextPositions() = default;
-  TextPositions(std::string text, const tinyxml2::XMLDocument& doc) : text_(std::move(text)) {
-    line_start_.push_back(0);
-    for (size_t i = 0; i < text_.size(); ++i)
-      if (text_[i] == '\n') line_start_.push_back(i + 1);
-    // every element in document order: its '<tag' is the first one (outside comments, CDATA,
-    // declarations) at or after the previous element's and on or after its own line
-    size_t cursor = 0;
-    std::function<void(const XMLElement*)> visit = [&](const XMLElement* e) {
-      for (; e; e = e->NextSiblingElement()) {
-        const int line = e->GetLineNum();
-        size_t from = cursor;
-        if (line >= 1 && static_cast<size_t>(line) <= line_start_.size()) from = std::max(from, line_start_[static_cast<size_t>(line - 1)]);
-        const size_t at = findTag(e->Name(), from);
-        if (at != std::string::npos) {
-          element_[e] = at;
-          cursor = at + 1;
-        }
-        visit(e->FirstChildElement());
-      }
-    };
-    visit(doc.FirstChildElement());
-  }
-
-  /// 1-based line and column of the element's '<' ({line from tinyxml2, 0} when not found).
-  std::pair<int, int> element(const XMLElement* e) const {
-    const auto it = element_.find(e);
-    if (it == element_.end()) return {e ? e->GetLineNum() : 0, 0};
-    return lineColumn(it->second);
-  }
-
-  /// 1-based line and column of the attribute's name in the element's start tag (the
-  /// element's when it has no such attribute).
-  std::pair<int, int> attribute(const XMLElement* e, const std::string& name) const {
-    const auto it = element_.find(e);
-    if (it == element_.end()) {
-      for (const tinyxml2::XMLAttribute* a = e->FirstAttribute(); a; a = a->Next())
-        if (name == a->Name()) return {a->GetLineNum(), 0};
-      return element(e);
-    }
-    // the start tag: '<' name, then (whitespace name whitespace? '=' whitespace? quoted)* until '>' or '/>'
-    size_t p = it->second + 1 + std::strlen(e->Name());
-    const auto space = [&](size_t i) { return i < text_.size() && std::isspace(static_cast<unsigned char>(text_[i])); };
-    for (;;) {
-      while (space(p)) ++p;
-      if (p >= text_.size() || text_[p] == '>' || text_[p] == '/') break;
-      const size_t start = p;
-      while (p < text_.size() && !space(p) && text_[p] != '=' && text_[p] != '>' && text_[p] != '/') ++p;
-      if (text_.compare(start, p - start, name) == 0 && p - start == name.size()) return lineColumn(start);
-      while (space(p)) ++p;
-      if (p >= text_.size() || text_[p] != '=') break;
-      ++p;
-      while (space(p)) ++p;
-      if (p >= text_.size() || (text_[p] != '"' && text_[p] != '\'')) break;
-      const size_t close = text_.find(text_[p], p + 1);
-      if (close == std::string::npos) break;
-      p = close + 1;
-    }
-    return element(e);
-  }
-
- private:
-  std::pair<int, int> lineColumn(size_t offset) const {
-    const auto it = std::upper_bound(line_start_.begin(), line_start_.end(), offset);
-    const size_t line = static_cast<size_t>(it - line_start_.begin());  // >= 1: line_start_[0] = 0
-    return {static_cast<int>(line), static_cast<int>(offset - line_start_[line - 1]) + 1};
-  }
-
-  /// The offset of the next "<name" followed by whitespace, '/' or '>' at or after `from`,
-  /// skipping comments, CDATA sections, declarations and processing instructions.
-  size_t findTag(const std::string& name, size_t from) const {
-    size_t p = from;
-    for (;;) {
-      p = text_.find('<', p);
-      if (p == std::string::npos) return p;
-      const auto skipTo = [&](const char* open, const char* close) {
-        if (text_.compare(p, std::strlen(open), open) != 0) return false;
-        const size_t end = text_.find(close, p + std::strlen(open));
-        p = end == std::string::npos ? text_.size() : end + std::strlen(close);
-        return true;
-      };
-      if (skipTo("<!--", "-->") || skipTo("<![CDATA[", "]]>") || skipTo("<?", "?>") || skipTo("<!", ">")) continue;
-      const size_t after = p + 1 + name.size();
-      if (text_.compare(p + 1, name.size(), name) == 0 &&
-          (after >= text_.size() || std::isspace(static_cast<unsigned char>(text_[after])) || text_[after] == '/' || text_[after] == '>'))
-        return p;
-      ++p;
-    }
-  }
-
-  std::string text_;
-  std::vector<size_t> line_start_;
-  std::map<const XMLElement*, size_t> element_;
-};
-
 class CellReader {
  public:
-  CellReader(std::string file, const TextPositions& pos) : file_(std::move(file)), pos_(pos) {}
+  CellReader(std::string file, const calib::XmlPositions& pos) : file_(std::move(file)), pos_(pos) {}
 
   /// An error in the element (at its '<').
   [[noreturn]] void fail(const XMLElement* e, const std::string& msg) const {
@@ -272,7 +174,7 @@ class CellReader {
 
  private:
   std::string file_;
-  const TextPositions& pos_;
+  const calib::XmlPositions& pos_;
 };
 
 }  // namespace
@@ -289,9 +191,8 @@ Cell readCellFile(const std::string& path) {
   }
   tinyxml2::XMLDocument doc;
   // the text read above (not the file again): the positions below are positions in it
-  if (doc.Parse(text.data(), text.size()) != tinyxml2::XML_SUCCESS)
-    throw calib::InputError(path, doc.ErrorLineNum(), 0, std::string("expected well-formed XML, found: ") + doc.ErrorStr());
-  const TextPositions positions(text, doc);
+  calib::parseXml(doc, text, path, "a cell file with root element <cell>");
+  const calib::XmlPositions positions(text, doc);
   CellReader R(path, positions);
   const XMLElement* root = doc.RootElement();
   if (!root || std::string(root->Name()) != "cell")

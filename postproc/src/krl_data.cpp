@@ -67,7 +67,7 @@ Target toTarget(const Agg& a, const std::string& declared, const KrlFile& f, Krl
   std::set<std::string> seen;
   for (const auto& it : a.items) {
     if (!seen.insert(it.name).second)
-      f.fail(it.name_tok.begin, "component " + it.name_tok.text + " given twice in this aggregate");
+      f.fail(it.name_tok.begin, "expected each component once in this aggregate, found " + it.name_tok.text + " a second time");
     int k;
     bool ok = false;
     if (axis) {
@@ -117,7 +117,8 @@ std::optional<calib::XyzAbc> toFrame(const Agg& a, const KrlFile& f, const std::
   std::array<std::optional<double>, 6> v;
   std::set<std::string> seen;
   for (const auto& it : a.items) {
-    if (!seen.insert(it.name).second) f.fail(it.name_tok.begin, "component " + it.name_tok.text + " given twice in this aggregate");
+    if (!seen.insert(it.name).second)
+      f.fail(it.name_tok.begin, "expected each component once in this aggregate, found " + it.name_tok.text + " a second time");
     const int k = indexOf(kCartNames, it.name);
     if (k < 0) f.fail(it.name_tok.begin, "expected a component of FRAME (X, Y, Z, A, B, C), found '" + it.name_tok.text + "'");
     if (it.vk != AggItem::kNum || !std::isfinite(it.num))

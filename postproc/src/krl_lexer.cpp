@@ -51,8 +51,9 @@ std::string readFileBytes(const std::string& path, const std::string& what) {
   if (f.bad()) throw calib::InputError(path, 0, 0, "cannot read " + what);
   const size_t nul = text.find('\0');
   if (nul != std::string::npos) {
-    int line = 1 + static_cast<int>(std::count(text.begin(), text.begin() + static_cast<long>(nul), '\n'));
-    throw calib::InputError(path, line, 0, "expected a KRL text file, found a NUL byte (binary file?)");
+    const int line = 1 + static_cast<int>(std::count(text.begin(), text.begin() + static_cast<long>(nul), '\n'));
+    const size_t line_start = nul == 0 ? 0 : text.rfind('\n', nul - 1) + 1;  // npos + 1 == 0: the first line
+    throw calib::InputError(path, line, static_cast<int>(nul - line_start) + 1, "expected a KRL text file, found a NUL byte (binary file?)");
   }
   return text;
 }

@@ -707,7 +707,7 @@ Program readKrl(const std::string& src_path, const KrlReadOptions& options) {
     bool any = false;
     for (const Line& l : src.lines())
       if (l.code_end > l.begin) any = true;
-    if (any || src.lines().empty()) throw calib::InputError(src_path, 0, 0, "expected a KRL program (DEF name( ) ... END), found no DEF line");
+    if (any || src.lines().empty()) throw calib::InputError(src_path, 1, 1, "expected a KRL program (DEF name( ) ... END), found no DEF line");
   }
   program.krl = source;
   return program;

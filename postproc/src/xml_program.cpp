@@ -10,8 +10,10 @@
 #include <fstream>
 #include <memory>
 #include <sstream>
+#include <tuple>
 
 #include "accura/calib/errors.h"
+#include "accura/calib/xml_text.h"
 
 namespace accura::postproc {
 namespace {
@@ -46,25 +48,13 @@ std::set<std::string> motionAttrs() {
 
 class Reader {
  public:
-  Reader(std::string file, const std::string& text) : file_(std::move(file)) {
-    std::string line;
-    std::istringstream in(text);
-    while (std::getline(in, line)) lines_.push_back(line);
-  }
+  Reader(std::string file, const calib::XmlPositions& pos) : file_(std::move(file)), pos_(pos) {}
 
-  int column(const XMLElement* e) const {
-    if (!e) return 0;
-    const int l = e->GetLineNum();
-    if (l <= 0 || l > static_cast<int>(lines_.size())) return 0;
-    const size_t p = lines_[static_cast<size_t>(l - 1)].find(std::string("<") + e->Name());
-    return p == std::string::npos ? 0 : static_cast<int>(p) + 1;
-  }
-
+  /// Where the element is: its '<' (xml_text.h).
   SourceLocation loc(const XMLElement* e) const {
     SourceLocation s;
     s.file = file_;
-    s.line = e ? e->GetLineNum() : 0;
-    s.column = column(e);
+    std::tie(s.line, s.column) = pos_.element(e);
     return s;
   }
 
@@ -140,7 +130,7 @@ class Reader {
 
  private:
   std::string file_;
-  std::vector<std::string> lines_;
+  const calib::XmlPositions& pos_;
 };
 
 bool hasAnyValue(const XMLElement* e) {
@@ -184,7 +174,7 @@ FrameSetting readFrame(const Reader& R, const XMLElement* e, bool is_tool, const
   FrameSetting s;
   s.where = R.loc(e);
   const auto source = R.text(e, "source");
-  if (!source) R.fail(e, "<" + std::string(e->Name()) + ">: missing attribute 'source' (inline, data, null or unknown)");
+  if (!source) R.fail(e, "<" + std::string(e->Name()) + ">: expected an attribute 'source' (inline, data, null or unknown), found none");
   std::array<std::optional<double>, 6> v;
   int given = 0;
   for (int k = 0; k < 6; ++k) {
@@ -215,7 +205,7 @@ FrameSetting readFrame(const Reader& R, const XMLElement* e, bool is_tool, const
     s.text = "$NULLFRAME";
   } else if (*source == "unknown") {
     const auto t = R.text(e, "text");
-    if (!t) R.fail(e, "<" + std::string(e->Name()) + " source=\"unknown\">: expected attribute 'text'");
+    if (!t) R.fail(e, "<" + std::string(e->Name()) + " source=\"unknown\">: expected an attribute 'text', found none");
     s.source = FrameSetting::Source::kUnknown;
     s.text = *t;
   } else {
@@ -224,7 +214,7 @@ FrameSetting readFrame(const Reader& R, const XMLElement* e, bool is_tool, const
   if (s.source != FrameSetting::Source::kData && e->Attribute("index"))
     R.fail(e, "<" + std::string(e->Name()) + ">: attribute 'index' is only for source=\"data\"");
   if (s.source != FrameSetting::Source::kUnknown && e->Attribute("text"))
-    R.fail(e, "<" + std::string(e->Name()) + ">: attribute 'text' is only for source=\"unknown\"");
+    R.fail(e, "<" + std::string(e->Name()) + ">: expected the attribute 'text' only with source=\"unknown\", found it with source=\"" + *source + "\"");
   if (given == 6) s.value = calib::XyzAbc{*v[0], *v[1], *v[2], *v[3], *v[4], *v[5]};
   if (s.source == FrameSetting::Source::kInline) s.text = "inline frame";
   return s;
@@ -454,15 +444,15 @@ const std::map<std::string, std::set<std::string>>& xmlProgramVocabulary() {
 
 Program parseXmlProgram(const std::string& text, const std::string& file, const FrameTables* tables) {
   tinyxml2::XMLDocument doc;
-  Reader R(file, text);
-  if (doc.Parse(text.c_str(), text.size()) != tinyxml2::XML_SUCCESS)
-    throw calib::InputError(file, doc.ErrorLineNum(), 0, std::string("malformed XML: ") + (doc.ErrorStr() ? doc.ErrorStr() : ""));
+  calib::parseXml(doc, text, file, "an XML program with root element <program>");
+  const calib::XmlPositions positions(text, doc);
+  const Reader R(file, positions);
   const XMLElement* root = doc.RootElement();
   if (!root || std::string(root->Name()) != "program")
     R.fail(root, "expected root element <program>, found " + describe(root));
   R.checkAttributes(root, {"name", "version"});
   const auto version = R.text(root, "version");
-  if (!version) R.fail(root, "<program>: missing attribute 'version' (1)");
+  if (!version) R.fail(root, "<program>: expected an attribute 'version' (1), found none");
   if (*version != "1") R.fail(root, "<program> attribute 'version': expected 1, found '" + *version + "'");
   Program p;
   p.source_file = file;
@@ -472,18 +462,18 @@ Program parseXmlProgram(const std::string& text, const std::string& file, const 
     const std::string n = c->Name();
     if (n == "robot") {
       R.checkAttributes(c, {"name"});
-      if (!c->Attribute("name")) R.fail(c, "<robot>: missing attribute 'name'");
-      if (!p.robot.empty()) R.fail(c, "<robot> given twice");
+      if (!c->Attribute("name")) R.fail(c, "<robot>: expected an attribute 'name', found none");
+      if (!p.robot.empty()) R.fail(c, "<program>: expected one <robot> element, found a second one");
       p.robot = c->Attribute("name");
     } else if (n == "motions") {
-      if (motions) R.fail(c, "<motions> given twice");
+      if (motions) R.fail(c, "<program>: expected one <motions> element, found a second one");
       R.checkAttributes(c, {});
       motions = c;
     } else {
       R.fail(c, "unknown element <" + n + "> in <program> (expected robot, motions)");
     }
   }
-  if (!motions) R.fail(root, "<program>: missing <motions> element");
+  if (!motions) R.fail(root, "<program>: expected a <motions> element, found none");
   FrameSetting tool, base;
   int triggers = 0;
   for (const XMLElement* c = motions->FirstChildElement(); c; c = c->NextSiblingElement()) {

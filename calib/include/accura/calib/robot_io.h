@@ -18,9 +18,10 @@ struct ParameterRecord {
 
 /// Reads a robot file: a nominal robot, or a calibrated model (a robot file with a
 /// <calibration> element); a path ending in .urdf is read by readUrdfRobot (urdf.h) with its
-/// default chain. Throws InputError (file:line) on malformed XML, missing or
-/// unknown elements/attributes, non-numeric values, inconsistent limits, bad direction,
-/// unknown parameter names or units in <calibration>.
+/// default chain. Throws InputError "file:line:column: expected ..., found ..." (the column of
+/// the offending attribute, element or value) on malformed XML, missing or unknown
+/// elements/attributes, non-numeric or non-finite values, numbers beyond 1e6 in magnitude,
+/// inconsistent limits, bad direction, unknown parameter names or units in <calibration>.
 RobotModel readRobotFile(const std::string& path);
 
 /// Writes the model (nominal data plus, when any deviation is non-zero or `records` is not
