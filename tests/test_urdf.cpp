@@ -133,6 +133,27 @@ TEST(Urdf, PublicDescriptionsMatchTheirOwnFK) {
   }
 }
 
+// A URDF saved under another name (robot_description.xml, as ROS dumps it) is read as the URDF it
+// is, not rejected as a robot file with an unknown <link>: the same model as from the .urdf.
+TEST(Urdf, AUrdfNamedXmlIsReadAsUrdf) {
+  const std::string dir = test::tempDir("urdf_as_xml");
+  const std::string urdf = test::sourcePath("tests/data/urdf/ur10.urdf");
+  writeFileAtomically(dir + "/robot_description.xml", test::readText(urdf));
+  const RobotModel a = readRobotFile(urdf), b = readRobotFile(dir + "/robot_description.xml");
+  ASSERT_EQ(b.dof(), 6);
+  Eigen::VectorXd q(6);
+  q << 10, -70, 80, -20, 30, 40;
+  EXPECT_LT((forwardKinematics(a, q).matrix() - forwardKinematics(b, q).matrix()).cwiseAbs().maxCoeff(), 1e-12);
+  // a robot file that is neither: still the robot file's message
+  writeFileAtomically(dir + "/bad.xml", "<robot name=\"r\">\n  <joint/>\n</robot>\n");
+  try {
+    readRobotFile(dir + "/bad.xml");
+    FAIL() << "accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("bad.xml:2:"), std::string::npos) << e.what();
+  }
+}
+
 TEST(Urdf, KukaKr16ConvertsToTheKnownDH) {
   // The KR 16's DH table (robots/README.md): a = 260, 680, -35 / 35, 0, 0, 0; d1 = 675,
   // d4 = +-670, d6 = +-158; A1 turns about -z: direction -1 with z0 up.

@@ -332,6 +332,8 @@ RobotModel readRobotFile(const std::string& path) {
   const XMLElement* root = doc.RootElement();
   if (!root || std::string(root->Name()) != "robot")
     R.fail(root, "expected root element <robot>, found <" + std::string(root ? root->Name() : "nothing") + ">");
+  // a URDF under another name (robot_description.xml): its <robot> holds <link>s and no <joints>
+  if (root->FirstChildElement("link") && !root->FirstChildElement("joints")) return readUrdfRobot(path);
   const RobotDefinition def = readDefinition(R, root);
   FormPolicy policy = FormPolicy::kAuto;
   const XMLElement* cal = R.child(root, "calibration", false);

@@ -17,8 +17,8 @@ struct ParameterRecord {
 };
 
 /// Reads a robot file: a nominal robot, or a calibrated model (a robot file with a
-/// <calibration> element); a path ending in .urdf is read by readUrdfRobot (urdf.h) with its
-/// default chain. Throws InputError "file:line:column: expected ..., found ..." (the column of
+/// <calibration> element); a path ending in .urdf, or a file whose <robot> holds <link>s and no
+/// <joints> (a URDF under another name), is read by readUrdfRobot (urdf.h) with its default chain. Throws InputError "file:line:column: expected ..., found ..." (the column of
 /// the offending attribute, element or value) on malformed XML, missing or unknown
 /// elements/attributes, non-numeric or non-finite values, numbers beyond 1e6 in magnitude,
 /// inconsistent limits, bad direction, unknown parameter names or units in <calibration>.
