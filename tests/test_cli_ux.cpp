@@ -326,6 +326,30 @@ TEST(CliMessages, UnreachableAndConfigurationChangeSayWhereAndInWhichFrame) {
   EXPECT_GT(std::stod(m[4]), 1.0);  // a flip, not a rounding
 }
 
+// A compliance the data does not determine (the IRB 120's wrist, no payload: almost no torque on
+// joint 6) is flagged as implausible, and a value beyond what a robot file holds (1e6) is not
+// written: before, identify wrote a model that every other command then refused to read.
+TEST(CliIdentify, AnUndeterminedComplianceIsFlaggedAndNoUnreadableModelIsWritten) {
+  const std::string dir = test::tempDir("cli_ux_undetermined");
+  ASSERT_EQ(run("simulate --robot abb_irb120 --poses 200 --seed 3 --out irb.csv", dir).code, 0);
+  const CliRun r = run("identify --robot abb_irb120 --data irb.csv --params geometric,joint_compliance --out irb_cal.xml --quiet", dir);
+  EXPECT_EQ(r.code, 3) << r.err;
+  const std::regex warned(R"(WARNING: j6_compliance = ([0-9.e+]+) \+- [0-9.e+]+ urad/Nm: a joint compliance above 10000 urad/Nm)");
+  std::smatch m;
+  const std::string both = r.out + r.err;
+  ASSERT_TRUE(std::regex_search(both, m, warned)) << both;
+  EXPECT_GT(std::stod(m[1]), 1e6);
+  EXPECT_NE(r.err.find("j6_compliance = "), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("beyond what a robot file holds (magnitude at most 1e6): the data does not determine it, and the model is not written"),
+            std::string::npos)
+      << r.err;
+  EXPECT_FALSE(std::filesystem::exists(dir + "/irb_cal.xml"));
+  // without the wrist compliances the same data gives a model every command reads
+  const CliRun ok = run("identify --robot abb_irb120 --data irb.csv --params geometric,joint_compliance:j1+j2+j3 --out irb_cal.xml --quiet", dir);
+  EXPECT_EQ(ok.code, 0) << ok.err;
+  EXPECT_EQ(run("fk --robot irb_cal.xml --q 0,0,0,0,30,0", dir).code, 0);
+}
+
 // A PTP to a Cartesian target programmed with S 3 (the base "overhead" bit set) in front of the
 // KR 16: no joint values in the limits put the tool there with S 3, T 10; the message says so and
 // names the configuration that reaches it, not "next to a configuration boundary". (Only PTP uses

@@ -470,6 +470,9 @@ void finishSummary(const Problem& pb, const std::vector<MeasurementSet>& sets, c
     if (p.group == "joint_compliance" && p.value < 0 && p.value < -2 * p.sigma)
       s->warnings.push_back(v + ": a negative joint compliance is physically impossible (the joint would deflect "
                                 "against its load): it absorbs an unmodelled error");
+    if (p.group == "joint_compliance" && std::abs(p.value) > 1e4)
+      s->warnings.push_back(v + ": a joint compliance above 10000 urad/Nm (0.6 deg under 1 Nm) is physically implausible: "
+                                "the data does not determine it (too little torque on this joint: poses with payloads)");
     if (p.group == "thermal" && ((p.value < 0 && p.value < -2 * p.sigma) || p.value > 50))
       s->warnings.push_back(v + ": a thermal expansion coefficient outside 0..50 ppm/K (steel 11.5, aluminium 23) "
                                 "is physically implausible");

@@ -395,6 +395,14 @@ std::string robotFileText(const RobotModel& model, const std::vector<ParameterRe
     if (p.kind == ParamKind::kJointMap) continue;  // written as <joint_map> below
     auto it = by_name.find(p.name);
     if (v == 0.0 && it == by_name.end()) continue;
+    // the reader takes magnitudes up to 1e6 (Reader::kMaxMagnitude): a file it would refuse is
+    // not written; such a value is a parameter the data did not determine
+    const double sigma = it != by_name.end() ? it->second->sigma : 0.0;
+    if (std::abs(v) > Reader::kMaxMagnitude || (std::isfinite(sigma) && std::abs(sigma) > Reader::kMaxMagnitude))
+      throw NumericalError(p.name + " = " + fmt(v) + (it != by_name.end() ? " +- " + fmt(sigma) : std::string()) + " " + p.unit +
+                           ": beyond what a robot file holds (magnitude at most 1e6): the data does not determine it, and the "
+                           "model is not written; leave it out of --params (e.g. joint_compliance:j1+j2+j3), or measure what "
+                           "determines it (for a compliance: poses with payloads)");
     params << "    <parameter name=\"" << p.name << "\" value=\"" << fmt(v) << "\"";
     if (it != by_name.end()) {
       params << " sigma=\"" << (std::isfinite(it->second->sigma) ? fmt(it->second->sigma) : "nan") << "\"";
