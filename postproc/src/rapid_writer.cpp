@@ -261,7 +261,10 @@ class Generator {
     if (it != known.end()) return it->second;
     const std::string name = std::string(tool ? "accura_tool" : "accura_wobj") + std::to_string(known.size() + 1);
     known[v] = name;
-    if (tool) data_ << "  PERS tooldata " << name << " := [TRUE," << v << ",[1,[0,0,1],[1,0,0,0],0,0,0]];\n";
+    if (tool)  // the source format has no load data: a placeholder, said so where the controller's user sees it
+      data_ << "  ! " << name << ": the load (1 kg at [0,0,1] mm) is a placeholder, not the tool's: set its mass and centre of "
+                                  "gravity (LoadIdentify) before running\n"
+            << "  PERS tooldata " << name << " := [TRUE," << v << ",[1,[0,0,1],[1,0,0,0],0,0,0]];\n";
     else data_ << "  PERS wobjdata " << name << " := [FALSE,TRUE,\"\"," << v << ",[[0,0,0],[1,0,0,0]]];\n";
     return name;
   }

@@ -1,5 +1,6 @@
 MODULE line_arc
   ! written by accura convert from line_arc.xml: targets in the work object (mm, quaternion w,x,y,z); confdata the source does not give is 0 and configuration monitoring is off (ConfJ\Off, ConfL\Off: the controller takes the configuration nearest the current one)
+  ! accura_tool1: the load (1 kg at [0,0,1] mm) is a placeholder, not the tool's: set its mass and centre of gravity (LoadIdentify) before running
   PERS tooldata accura_tool1 := [TRUE,[[0.0000,0.0000,150.0000],[1.000000000,0.000000000,0.000000000,0.000000000]],[1,[0,0,1],[1,0,0,0],0,0,0]];
   PERS wobjdata accura_wobj1 := [FALSE,TRUE,"",[[300.0000,-150.0000,100.0000],[0.707106781,0.000000000,0.000000000,0.707106781]],[[0,0,0],[1,0,0,0]]];
   CONST robtarget P1 := [[40.0000,-60.0000,120.0000],[0.000000000,1.000000000,0.000000000,0.000000000],[0,0,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
