@@ -99,8 +99,9 @@ void addSelfcheckCommand(CLI::App& app) {
   c->add_option("--seeds", a->seeds, "random seeds")->capture_default_str();
   c->add_option("--noise-mm", a->noise, "noise levels, 1 sigma per axis (mm)")->capture_default_str();
   c->add_option("--inject", a->injected,
-                "effects to inject and withhold (default: none, the catalogue, and unmodelled_coupling, an effect "
-                "outside the catalogue)");
+                "effects to inject and withhold (default: none, the catalogue (joint_compliance, gear_periodic, "
+                "joint_scale, backlash, thermal), unmodelled_coupling (outside the catalogue), and the cases real data "
+                "bring: cyclic_fine, outliers, two_effects, partial_cyclic, partial_range)");
   addIntegerOption(c, "--poses", a->poses, "measured poses per case", 1, 1000000)->capture_default_str();
   addNumberOption(c, "--target", a->target, "fraction of right verdicts needed for exit code 0", NumberRange{0, 1, false, ""})->capture_default_str();
   c->add_option("--json", a->json, "write every case as JSON");

@@ -12,6 +12,7 @@
 #include <regex>
 #include <sstream>
 
+#include "accura/calib/diagnose.h"
 #include "accura/calib/geometry.h"
 #include "accura/calib/kinematics.h"
 #include "test_util.h"
@@ -348,6 +349,13 @@ TEST(CliIdentify, AnUndeterminedComplianceIsFlaggedAndNoUnreadableModelIsWritten
   const CliRun ok = run("identify --robot abb_irb120 --data irb.csv --params geometric,joint_compliance:j1+j2+j3 --out irb_cal.xml --quiet", dir);
   EXPECT_EQ(ok.code, 0) << ok.err;
   EXPECT_EQ(run("fk --robot irb_cal.xml --q 0,0,0,0,30,0", dir).code, 0);
+}
+
+// selfcheck --help names every case it runs by default (the library's default list).
+TEST(CliUsage, SelfcheckHelpListsEveryDefaultCase) {
+  const CliRun r = run("selfcheck --help");
+  EXPECT_EQ(r.code, 0);
+  for (const std::string& name : calib::SelfcheckOptions{}.injected) EXPECT_NE(r.out.find(name), std::string::npos) << name << "\n" << r.out;
 }
 
 // A PTP to a Cartesian target programmed with S 3 (the base "overhead" bit set) in front of the
