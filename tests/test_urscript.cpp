@@ -465,6 +465,23 @@ TEST(UrScript, GoldenFiles) {
   }
 }
 
+// A URScript program needs the model of a UR arm: with a KUKA model it is refused (before, it was
+// "compensated" on the KR 16's geometry without a word); the UR10 and a UR5 URDF are UR arms.
+TEST(UrScript, AModelThatIsNoUniversalRobotsArmIsRefused) {
+  const std::string dir = test::tempDir("ur_not_ur");
+  test::writeText(dir + "/seam.script", example());
+  const test::CliRun k = test::runAccuraIn(dir, "compensate --robot kuka_kr16 --in seam.script --out out");
+  EXPECT_EQ(k.code, 1);
+  EXPECT_NE(k.err.find("seam.script: expected a Universal Robots arm for a URScript program (joints 2, 3 and 4 parallel, no "
+                       "spherical wrist: the controller's shoulder/elbow/wrist branches are that geometry's), found 'KUKA KR 16'"),
+            std::string::npos)
+      << k.err;
+  EXPECT_FALSE(std::filesystem::exists(dir + "/out/seam.script"));
+  EXPECT_EQ(test::runAccuraIn(dir, "compensate --robot abb_irb120 --in seam.script --out out").code, 1);
+  const test::CliRun u = test::runAccuraIn(dir, "compensate --robot ur10 --in seam.script --out out");
+  EXPECT_EQ(u.code, 0) << u.err;
+}
+
 // batch picks up .script files; check runs the script in its cell: the smallest clearance
 // against its analytic value (tests/data/urscript/ur10_table_cell.xml: sqrt(30^2 + 100^2) - 10).
 TEST(UrScript, BatchAndCheckInTheCell) {

@@ -618,12 +618,36 @@ void warnOutsideFitRanges(const calib::RobotModel& calibrated, JobReport* r) {
 }
 }  // namespace
 
+namespace {
+// A URScript program runs on a Universal Robots controller, whose arm has joints 2, 3 and 4
+// parallel and no spherical wrist (alpha 90, 0, 0, 90, -90, 0 up to sign; a4 = a5 = a6 = 0): its
+// shoulder/elbow/wrist branches (docs/urscript.md) are those of that geometry. Another arm
+// (a KUKA or ABB model given by mistake) would be compensated into nonsense without a word.
+bool universalRobotsArm(const calib::RobotDefinition& d) {
+  if (d.dof() != 6) return false;
+  const double alpha[6] = {90, 0, 0, 90, 90, 0};
+  for (int i = 0; i < 6; ++i) {
+    const calib::JointSpec& j = d.joints[static_cast<size_t>(i)];
+    if (j.type != calib::JointType::kRevolute) return false;
+    const double a = std::fmod(std::fabs(j.alpha_deg), 180.0);
+    if (std::min(std::fabs(a - alpha[i]), 180.0 - std::fabs(a - alpha[i])) > 1.0) return false;
+    if (i >= 3 && std::fabs(j.a_mm) > 1.0) return false;
+  }
+  return true;
+}
+}  // namespace
+
 ProgramCompensation compensateProgramReport(const Program& program, const JobSettings& settings) {
   if (!(settings.tol_mm > 0) || !std::isfinite(settings.tol_mm))
     throw calib::ArgumentError("compensateProgram: tol_mm must be > 0 (mm)");
   std::string why;
   if (!settings.ik.IsValid(&why)) throw calib::ArgumentError("compensateProgram: IK options: " + why);
   settings.calibrated.validate();
+  if (program.urscript && !universalRobotsArm(settings.calibrated.nominal))
+    throw calib::InputError((program.source_file.empty() ? program.name : program.source_file) +
+                            ": expected a Universal Robots arm for a URScript program (joints 2, 3 and 4 parallel, no "
+                            "spherical wrist: the controller's shoulder/elbow/wrist branches are that geometry's), found '" +
+                            settings.calibrated.nominal.name + "': give the model of the UR that runs the program");
   ProgramCompensation pc;
   JobReport& r = pc.report;
   pc.program = program;
