@@ -181,6 +181,8 @@ TEST(Rapid, MalformedModulesAreErrorsWithFileLineAndColumn) {
   EXPECT_EQ(errorOf(inProc("    TPWrite \"arc on;\n")), "bad.mod:3:13: expected the closing '\"' of this string on its line, found the end of the line");
   EXPECT_EQ(errorOf(inProc("    MoveL [[1e999,2,3],[1,0,0,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]], v100, fine, tool0;\n")),
             "bad.mod:3:13: expected a finite number, found '1e999'");
+  EXPECT_EQ(errorOf(inProc("    MoveL [[1,2,3E],[1,0,0,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]], v100, fine, tool0;\n")),
+            "bad.mod:3:18: expected the digits of an exponent, found 'E]'");
   EXPECT_EQ(errorOf(inProc("    MoveL [[1,2,300000],[1,0,0,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]], v100, fine, tool0;\n")),
             "bad.mod:3:17: expected a position in mm within +-100000, found 300000");
   EXPECT_EQ(errorOf(inProc("    MoveL [[1,2,3],[1,0,0,0],[0,0.5,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]], v100, fine, tool0;\n")),

@@ -191,6 +191,8 @@ TEST(UrScript, MalformedProgramsAreErrorsWithFileLineAndColumn) {
             "bad.script:2:36: expected a blend radius in [0, 10] m, found -0.01");
   EXPECT_EQ(errorOf("popup(\"arc on)\n"), "bad.script:1:7: expected the closing '\"' of this string on its line, found the end of the line");
   EXPECT_EQ(errorOf("movej(p[1e999, 0, 0, 0, 0, 0])\n"), "bad.script:1:9: expected a finite number, found '1e999'");
+  EXPECT_EQ(errorOf("def p():\n  movel(p[0.1, 0.2, 1e+, 0, 3.1416, 0], a=1.2, v=0.25)\nend\n"),
+            "bad.script:2:22: expected the digits of an exponent, found 'e+,'");
   EXPECT_EQ(errorOf("movej(p[650, 0, 0, 0, 0, 0])\n"), "bad.script:1:9: expected a position in metres within +-100, found 650");
   EXPECT_EQ(errorOf("movec(p[0.1, 0.2, 0.3, 0, 0, 0])\n"), "bad.script:1:1: expected the argument 'pose_to' of movec, found none");
   EXPECT_EQ(errorOf("if x:\n  y = (1]\nend\n"), "bad.script:2:9: expected ')' to close the '(' at bad.script:2:7, found ']'");

@@ -43,6 +43,30 @@ inline bool parseDecimal(std::string_view s, double* v) {
   return true;
 }
 
+/// The end of the decimal number token that starts at s[i] (a digit, or '.' before a digit):
+/// digits[.digits][(e|E)[+-]digits], for the program lexers (URScript, RAPID). An 'e' without
+/// exponent digits sets *bad_exponent to the index of the 'e' and returns the index where the
+/// digits were expected; otherwise *bad_exponent is npos.
+inline size_t scanDecimal(std::string_view s, size_t i, size_t* bad_exponent) {
+  const auto digit = [&](size_t k) { return k < s.size() && std::isdigit(static_cast<unsigned char>(s[k])); };
+  *bad_exponent = std::string_view::npos;
+  size_t j = i;
+  while (digit(j)) ++j;
+  if (j < s.size() && s[j] == '.') ++j;
+  while (digit(j)) ++j;
+  if (j < s.size() && (s[j] == 'e' || s[j] == 'E')) {
+    size_t k = j + 1;
+    if (k < s.size() && (s[k] == '+' || s[k] == '-')) ++k;
+    if (!digit(k)) {
+      *bad_exponent = j;
+      return k;
+    }
+    while (digit(k)) ++k;
+    j = k;
+  }
+  return j;
+}
+
 /// A decimal integer [+-]digits of at most 18 digits (no overflow), nothing before or after.
 inline bool parseDecimalInteger(std::string_view s, long long* v) {
   size_t i = 0;

@@ -7,6 +7,7 @@
 
 #include "accura/calib/errors.h"
 #include "accura/calib/ik.h"
+#include "decimal.h"
 #include "rapid_internal.h"
 
 namespace accura::postproc {
@@ -67,18 +68,10 @@ std::vector<Tok> lexRapid(const std::string& s, const std::string& path) {
     Tok t;
     t.b = i;
     if (isDigit(c) || (c == '.' && i + 1 < s.size() && isDigit(s[i + 1]))) {
-      size_t j = i;
-      while (j < s.size() && isDigit(s[j])) ++j;
-      if (j < s.size() && s[j] == '.') ++j;
-      while (j < s.size() && isDigit(s[j])) ++j;
-      if (j < s.size() && (s[j] == 'e' || s[j] == 'E')) {
-        size_t k = j + 1;
-        if (k < s.size() && (s[k] == '+' || s[k] == '-')) ++k;
-        if (k >= s.size() || !isDigit(s[k]))
-          fail(j, "expected the digits of an exponent, found '" + s.substr(j, std::min<size_t>(k + 1, s.size()) - j) + "'");
-        while (k < s.size() && isDigit(s[k])) ++k;
-        j = k;
-      }
+      size_t e = 0;
+      const size_t j = detail::scanDecimal(s, i, &e);
+      if (e != std::string_view::npos)
+        fail(e, "expected the digits of an exponent, found '" + s.substr(e, std::min<size_t>(j + 1, s.size()) - e) + "'");
       if (j < s.size() && isIdentStart(s[j])) fail(j, "expected an operator or a separator after the number " + s.substr(i, j - i) + ", found '" + s[j] + "'");
       t.kind = Tok::Kind::kNumber;
       t.e = j;

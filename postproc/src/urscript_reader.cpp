@@ -9,6 +9,7 @@
 #include <optional>
 
 #include "accura/calib/errors.h"
+#include "decimal.h"
 #include "urscript_internal.h"
 
 namespace fs = std::filesystem;
@@ -186,20 +187,10 @@ class Reader {
       Tok t;
       t.b = i;
       if (isDigit(c) || (c == '.' && i + 1 < s.size() && isDigit(s[i + 1]))) {
-        size_t j = i;
-        while (j < s.size() && isDigit(s[j])) ++j;
-        if (j < s.size() && s[j] == '.') ++j;
-        while (j < s.size() && isDigit(s[j])) ++j;
-        if (j < s.size() && (s[j] == 'e' || s[j] == 'E')) {
-          size_t k = j + 1;
-          if (k < s.size() && (s[k] == '+' || s[k] == '-')) ++k;
-          if (k < s.size() && isDigit(s[k])) {
-            while (k < s.size() && isDigit(s[k])) ++k;
-            j = k;
-          } else {
-            fail(j, "expected the digits of an exponent, found '" + s.substr(j, std::min<size_t>(k + 1, s.size()) - j) + "'");
-          }
-        }
+        size_t e = 0;
+        const size_t j = detail::scanDecimal(s, i, &e);
+        if (e != std::string_view::npos)
+          fail(e, "expected the digits of an exponent, found '" + s.substr(e, std::min<size_t>(j + 1, s.size()) - e) + "'");
         t.kind = Tok::Kind::kNumber;
         t.e = j;
         t.s = s.substr(i, j - i);
