@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "accura/calib/errors.h"
+#include "accura/calib/import.h"
 #include "accura/calib/measurements.h"
 #include "accura/calib/robot_io.h"
 #include "accura/calib/urdf.h"
@@ -277,6 +278,67 @@ TEST(HardeningMessages, FuzzFindingsGiveLocatedExpectedFound) {
     const int column = static_cast<int>(config.find("E4 0.0,E4", line6) + 7 - line6) + 1;  // the second E4
     expectStrict(e, "$config.dat:6:" + std::to_string(column) +
                         ": expected each component once in this aggregate, found E4 a second time");
+  }
+}
+
+/// The two findings fuzz/run.sh used to tolerate (FUZZ_LENIENT): a mesh without faces, which
+/// assimp rejected as a whole file ("Mesh contains no faces", no line), and a mapped export whose
+/// header names a column twice (no "expected"). Each is now located by accura's own checks.
+TEST(HardeningMessages, MeshesWithoutFacesAndRepeatedColumnNamesAreLocated) {
+  const std::string dir = test::tempDir("messages_faces");
+  struct Case {
+    const char* name;
+    std::string bytes;
+    const char* what_ends;
+  };
+  const std::string ply_head = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n";
+  std::string stl_binary(84, '\0');  // header and a triangle count of 0
+  const std::vector<Case> cases = {
+      // the finding: the face's index list is not named vertex_indices, so assimp reads no face
+      {"noindices.ply", ply_head + "element face 1\nproperty list uchar int vert_x_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n",
+       "noindices.ply:7:1: element 'face': expected a property list of vertex indices (property list uchar int vertex_indices), found none"},
+      {"noface.ply", ply_head + "end_header\n0 0 0\n1 0 0\n0 1 0\n",
+       "noface.ply:1:1: expected an element 'face' in the PLY header (a mesh of faces), found none"},
+      {"zero.ply", ply_head + "element face 0\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n",
+       "zero.ply:7:1: element 'face': expected at least one face, found 0"},
+      {"empty.stl", "solid s\nendsolid s\n", "empty.stl:2:1: expected at least one 'facet', found 'endsolid' with none before it"},
+      // found by fuzz_mesh: a NUL in a comment made assimp's OBJ parser misread the faces after it
+      {"nul.obj", std::string("# plate \x07\0\0 x\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", 46), "nul.obj:1:9: expected text, found the control byte 0x07"},
+      // found by fuzz_mesh: w = 0 in "v x y z w" (assimp divides by it and rejects the whole file)
+      {"w0.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0 0\nf 1 2 3\n", "w0.obj:3:9: expected a non-zero homogeneous w (the vertex is x/w, y/w, z/w), found '0'"},
+      {"points.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\np 1 2 3\n",
+       "points.obj:5:1: expected at least one face ('f' with 3 or more vertex references), found none before the end of the file"},
+  };
+  for (const auto& c : cases) {
+    test::writeText(dir + "/" + c.name, c.bytes);
+    try {
+      (void)postproc::loadMesh(dir + "/" + c.name, 1.0);
+      ADD_FAILURE() << c.name << " read";
+    } catch (const calib::InputError& e) {
+      const std::string what = e.what();
+      ASSERT_GE(what.size(), std::string(c.what_ends).size()) << what;
+      EXPECT_EQ(what.substr(what.size() - std::string(c.what_ends).size()), c.what_ends);
+    }
+  }
+  test::writeText(dir + "/binary.stl", stl_binary);
+  try {
+    (void)postproc::loadMesh(dir + "/binary.stl", 1.0);
+    ADD_FAILURE() << "an STL of no triangles read";
+  } catch (const calib::InputError& e) {
+    EXPECT_EQ(e.message(), "at byte 80: expected at least one triangle, found a count of 0");
+  }
+  // a mapped export naming a column twice: at the second one (field 3 of the header line)
+  const calib::RobotModel robot = calib::readRobotFile(calib::resolveRobotPath("ur10"));
+  test::writeText(dir + "/e.map", "delimiter = ;\ndecimal = .\njoints = a, b, c, d, e, f\njoint_unit = deg\nposition = x, y, z\nposition_unit = mm\n");
+  test::writeText(dir + "/e.csv", "a;b;A;c;d;e;f;x;y;z\n");
+  try {
+    const calib::MeasurementMapping mapping = calib::readMeasurementMapping(dir + "/e.map", robot.nominal);
+    (void)calib::readMappedMeasurements(dir + "/e.csv", mapping, robot.nominal);
+    ADD_FAILURE() << "a header naming a column twice read";
+  } catch (const calib::InputError& e) {
+    EXPECT_EQ(e.line(), 1);
+    EXPECT_EQ(e.column(), 3);
+    EXPECT_EQ(e.message(), "expected each column name once in the header, found 'A' a second time (first as column 1)");
   }
 }
 

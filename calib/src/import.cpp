@@ -127,7 +127,7 @@ MeasurementMapping readMeasurementMapping(const std::string& path, const RobotDe
       throw InputError(path, ln, col, "unknown key '" + key + "' (expected one of: " + list + ")");
     }
     if (kv.count(key))
-      throw InputError(path, ln, col, "key '" + key + "' given twice (first on line " +
+      throw InputError(path, ln, col, "expected each key once, found '" + key + "' a second time (first on line " +
                                           std::to_string(kv[key].second) + ")");
     kv[key] = {value, ln};
     const size_t vstart = lines[i].find_first_not_of(" \t", eq + 1);
@@ -177,7 +177,7 @@ MeasurementMapping readMeasurementMapping(const std::string& path, const RobotDe
   else if (dec == ",") m.decimal = ',';
   else throw fail("decimal", "key 'decimal': expected '.' or ',', found '" + dec + "'");
   if (m.delimiter == m.decimal)
-    throw fail("decimal", "key 'decimal': the decimal mark cannot be the delimiter");
+    throw fail("decimal", "key 'decimal': expected a decimal mark other than the delimiter, found '" + dec + "' for both");
 
   m.joints = columns("joints", require("joints"));
   expectCount("joints", m.joints, {static_cast<size_t>(robot.dof())});
@@ -226,7 +226,7 @@ MeasurementMapping readMeasurementMapping(const std::string& path, const RobotDe
     }
   } else if (kv.count("orientation_unit") || kv.count("orientation_std")) {
     throw fail(kv.count("orientation_std") ? "orientation_std" : "orientation_unit",
-               "orientation units or stds given, but no 'orientation' key");
+               "expected an 'orientation' key before orientation units or stds, found none");
   }
   m.position_std = columns("position_std", optional("position_std"));
   if (!m.position_std.empty()) expectCount("position_std", m.position_std, {1, 3});
@@ -234,8 +234,8 @@ MeasurementMapping readMeasurementMapping(const std::string& path, const RobotDe
   if (!m.orientation_std.empty()) {
     expectCount("orientation_std", m.orientation_std, {1, 3});
     if (m.orientation.size() == 4)
-      throw fail("orientation_std", "key 'orientation_std': stds of quaternion components are not supported; "
-                                    "give the orientation as angles or leave the stds out");
+      throw fail("orientation_std", "key 'orientation_std': expected no stds with a quaternion orientation (stds of quaternion "
+                                    "components are not supported: give the orientation as angles or leave the stds out), found some");
   }
   m.weight = optional("weight");
   m.payload_kg = optional("payload_kg");
@@ -269,7 +269,8 @@ MappedHeader readHeader(const std::string& path, const std::vector<std::string>&
     const std::string key = lower(h.names[c]);
     if (h.index.count(key))
       throw InputError(path, h.line, static_cast<int>(c) + 1,
-                       "column '" + h.names[c] + "' appears twice (first as column " + std::to_string(h.index[key] + 1) + ")");
+                       "expected each column name once in the header, found '" + h.names[c] + "' a second time (first as column " +
+                           std::to_string(h.index[key] + 1) + ")");
     h.index[key] = static_cast<int>(c);
   }
   return h;

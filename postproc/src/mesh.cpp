@@ -15,6 +15,7 @@
 #include <cerrno>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
@@ -195,6 +196,26 @@ class Checker {
   }
   static bool isVertexIndices(const PlyProperty& p) { return p.name == "vertex_indices" || p.name == "vertex_index"; }
 
+  /// A text format's bytes before `end` hold no control byte but white space: assimp's parsers
+  /// stop at a NUL and misread what follows ("Invalid face index", no line).
+  void textOnly(size_t end) const {
+    int line = 1, column = 1;
+    for (size_t i = 0; i < end && i < d_.size(); ++i) {
+      const auto c = static_cast<unsigned char>(d_[i]);
+      if (c == '\n') {
+        ++line;
+        column = 1;
+        continue;
+      }
+      if (c < 0x20 && c != '\t' && c != '\r' && c != '\f' && c != '\v') {
+        char hex[8];
+        std::snprintf(hex, sizeof hex, "0x%02X", c);
+        fail(line, column, std::string("expected text, found the control byte ") + hex);
+      }
+      ++column;
+    }
+  }
+
   void ply() {
     Scanner s(d_, 0, 1);
     Word w;
@@ -286,7 +307,14 @@ class Checker {
           fail(e.where, std::string("element 'vertex': expected a property ") + axis + " (a number), found " + (it == e.properties.end() ? "none" : "a list"));
       }
     }
+    textOnly(format == Format::kAscii ? d_.size() : s.offset());
     if (vertices < 0) fail(1, 1, "expected an element 'vertex' in the PLY header, found none");
+    // a collision body needs faces (assimp would reject the file as a whole, without a line)
+    const auto face = std::find_if(elements.begin(), elements.end(), [](const PlyElement& e) { return e.name == "face"; });
+    if (face == elements.end()) fail(1, 1, "expected an element 'face' in the PLY header (a mesh of faces), found none");
+    if (std::none_of(face->properties.begin(), face->properties.end(), [&](const PlyProperty& p) { return isVertexIndexList(*face, p); }))
+      fail(face->where, "element 'face': expected a property list of vertex indices (property list uchar int vertex_indices), found none");
+    if (face->count == 0) fail(face->where, "element 'face': expected at least one face, found 0");
     if (format == Format::kAscii) plyAscii(s, elements, vertices);
     else plyBinary(s.offset(), elements, vertices, format == Format::kBig);
   }
@@ -420,6 +448,7 @@ class Checker {
   }
 
   void stlBinary(uint32_t n) {
+    if (n == 0) failAt(80, "expected at least one triangle, found a count of 0");
     for (uint64_t t = 0; t < n; ++t) {
       for (int k = 0; k < 9; ++k) {
         const size_t at = static_cast<size_t>(84 + 50 * t + 12 + 4 * static_cast<uint64_t>(k));
@@ -441,6 +470,8 @@ class Checker {
       if (w.text != keyword) fail(w, std::string("expected '") + keyword + "'" + after + ", found " + quoted(w.text));
     };
     int solids = 0;
+    long long facets = 0;
+    Word last_end;
     while (s.word(&w)) {
       if (w.text != "solid") fail(w, std::string("expected ") + (solids ? "'solid' or the end of the file" : "'solid'") + ", found " + quoted(w.text));
       ++solids;
@@ -448,6 +479,7 @@ class Checker {
       for (;;) {
         if (!s.word(&w)) fail(s.here(), "expected 'facet' or 'endsolid', found the end of the file (a truncated file?)");
         if (w.text == "endsolid") {
+          last_end = w;
           s.restOfLine();
           break;
         }
@@ -468,17 +500,21 @@ class Checker {
         }
         expect("endloop", " (a facet has 3 vertices)");
         expect("endfacet", "");
+        ++facets;
       }
     }
     if (solids == 0) fail(s.here(), "expected 'solid', found an empty file");
+    if (facets == 0) fail(last_end, "expected at least one 'facet', found 'endsolid' with none before it");
   }
 
   // ---- OBJ (vertices and polygonal faces; see http://paulbourke.net/dataformats/obj/) ----
   void obj() {
+    textOnly(d_.size());
     Scanner s(d_, 0, 1);
     long long v = 0, vt = 0, vn = 0;
     Word w;
     bool any = false;
+    long long faces = 0;
     while (!s.atEnd()) {
       if (!s.wordOnLine(&w) || w.text[0] == '#') {
         s.restOfLine();
@@ -495,9 +531,16 @@ class Checker {
           fail(args.size() < lo ? s.here() : args[hi < args.size() ? hi : 3],
                "'" + std::string(k) + "': expected " + (k == "v" ? "3 coordinates (x y z, optionally w, or r g b)" : k == "vn" ? "3 numbers" : "1 to 3 numbers") +
                    ", found " + std::to_string(args.size()) + (args.size() < lo ? " (a truncated line?)" : ""));
+        double x[3] = {0, 0, 0};
         for (size_t i = 0; i < args.size(); ++i) {
-          if (k == "v" && i < 3) coordinate(args[i], "a vertex coordinate");
+          if (k == "v" && i < 3) x[i] = coordinate(args[i], "a vertex coordinate");
           else number(args[i], "a number");
+        }
+        if (k == "v" && args.size() == 4) {
+          // x y z w: assimp reads the vertex (x/w, y/w, z/w)
+          const double wh = number(args[3], "the homogeneous w");
+          if (wh == 0) fail(args[3], "expected a non-zero homogeneous w (the vertex is x/w, y/w, z/w), found " + quoted(args[3].text));
+          for (const double c : x) coordinate(c / wh, [&](const std::string& m) { fail(args[3], "the vertex x/w, y/w, z/w: " + m); });
         }
         if (k == "v") ++v;
         else if (k == "vt") ++vt;
@@ -512,6 +555,7 @@ class Checker {
         }
         if (n < least)
           fail(s.here(), "'" + std::string(k) + "': expected " + std::to_string(least) + " or more vertex references, found " + std::to_string(n) + " (a truncated line?)");
+        if (k == "f") ++faces;
         s.endLine(&w);
       } else if (k == "o" || k == "g" || k == "s" || k == "usemtl" || k == "mtllib") {
         // materials are of no use here, and assimp would open whatever file mtllib names
@@ -526,6 +570,7 @@ class Checker {
       const Word end = s.here();
       fail(end, "expected the last line to end with a line end, found the end of the file (a truncated file?)");
     }
+    if (faces == 0) fail(s.here(), "expected at least one face ('f' with 3 or more vertex references), found none before the end of the file");
   }
 
   /// One corner of a face, line or point: v, v/vt, v//vn or v/vt/vn (1-based; negative counts
