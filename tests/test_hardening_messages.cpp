@@ -306,6 +306,9 @@ TEST(HardeningMessages, MeshesWithoutFacesAndRepeatedColumnNamesAreLocated) {
       {"nul.obj", std::string("# plate \x07\0\0 x\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", 46), "nul.obj:1:9: expected text, found the control byte 0x07"},
       // found by fuzz_mesh: w = 0 in "v x y z w" (assimp divides by it and rejects the whole file)
       {"w0.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0 0\nf 1 2 3\n", "w0.obj:3:9: expected a non-zero homogeneous w (the vertex is x/w, y/w, z/w), found '0'"},
+      // found by fuzz_mesh: a carriage return alone ends a line for assimp, so the faces after it were misread
+      {"cr.ply", ply_head + "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 \r0 0\n0 1 0\n3 0 1 2\n",
+       "cr.ply:11:3: expected a line feed after the carriage return (CRLF line ends), found a carriage return alone"},
       {"points.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\np 1 2 3\n",
        "points.obj:5:1: expected at least one face ('f' with 3 or more vertex references), found none before the end of the file"},
   };

@@ -207,6 +207,9 @@ class Checker {
         column = 1;
         continue;
       }
+      // a carriage return ends a line for assimp but not for the line counting here: only as CRLF
+      if (c == '\r' && (i + 1 >= d_.size() || d_[i + 1] != '\n'))
+        fail(line, column, "expected a line feed after the carriage return (CRLF line ends), found a carriage return alone");
       if (c < 0x20 && c != '\t' && c != '\r' && c != '\f' && c != '\v') {
         char hex[8];
         std::snprintf(hex, sizeof hex, "0x%02X", c);
