@@ -13,6 +13,7 @@
 // Errors (errors.h, "The rule"): a value that is not finite or out of range throws
 // calib::ArgumentError naming it; a missing or malformed file, or a placement too far from the
 // calibrated base, throws calib::InputError. A pose the robot cannot reach is a result (calib::IkStatus).
+// A host's calls turn both into a CallStatus and a message (Host calls, below).
 //
 // Threads: a Session is immutable after construction; every const method may run on several
 // threads at once (each call uses its own workspace).
