@@ -8,6 +8,8 @@ A function is a brace block whose opening follows a parameter list ')' (optional
 noexcept, override, a trailing return type or a constructor's initialiser list) at namespace or
 class level; lambdas and control blocks inside a function count towards it. Strings, character
 literals and comments are skipped. A heuristic, not a parser: it reads the text as written.
+A long function whose comment directly above its signature gives the reason (says "on
+purpose" or "reason") is still listed, marked "reason given": the others are what to cut.
 Exit status 0 always; the report is the output.
 """
 import argparse
@@ -63,7 +65,7 @@ SCOPE = re.compile(r"\b(namespace|class|struct|union|enum)\b[^;{}()]*$")
 
 
 def functions(text):
-    """(name, first line, last line) of every function body in `text`."""
+    """(name, first line, last line, signature line) of every function body in `text`."""
     s = strip(text)
     stack = []  # per open brace: 'scope', 'function' or 'block'
     found = []
@@ -84,18 +86,28 @@ def functions(text):
             stack.append((kind, i))
             if kind == "function":
                 m = re.search(r"([~\w:]+)\s*\([^;{}]*$", before, re.S)
-                start[i] = (m.group(1) if m else "?", s.count("\n", 0, i) + 1)
+                sig = s.count("\n", 0, last + m.start(1)) + 1 if m else s.count("\n", 0, i) + 1
+                start[i] = (m.group(1) if m else "?", s.count("\n", 0, i) + 1, sig)
             last = i + 1
         elif c == "}":
             if stack:
                 kind, at = stack.pop()
                 if kind == "function":
-                    name, line = start[at]
-                    found.append((name, line, s.count("\n", 0, i) + 1))
+                    name, line, sig = start[at]
+                    found.append((name, line, s.count("\n", 0, i) + 1, sig))
             last = i + 1
         elif c == ";":
             last = i + 1
     return found
+
+
+def reason_above(lines, sig):
+    """True when the // comment lines directly above line `sig` (1-based) give a reason."""
+    k, block = sig - 2, []
+    while k >= 0 and lines[k].strip().startswith("//"):
+        block.append(lines[k])
+        k -= 1
+    return re.search(r"on purpose|reason", " ".join(block), re.I) is not None
 
 
 def main():
@@ -116,9 +128,11 @@ def main():
         n = text.count("\n")
         if n > a.file_lines:
             print("%s: file of %d lines (limit %d)" % (f, n, a.file_lines))
-        for name, first, last in functions(text):
+        lines = text.split("\n")
+        for name, first, last, sig in functions(text):
             if last - first + 1 > a.function_lines:
-                print("%s:%d: %s: %d lines (limit %d)" % (f, first, name, last - first + 1, a.function_lines))
+                print("%s:%d: %s: %d lines (limit %d)%s" % (f, first, name, last - first + 1, a.function_lines,
+                                                          "; reason given" if reason_above(lines, sig) else ""))
     return 0
 
 

@@ -1,161 +1,51 @@
 // accura plug-in: the C interface (plugin/include/accura_plugin.h), a shell over postproc's
 // Session (accura/postproc/session.h), where the frames, the models, the path loop, the
-// validation of values and the registry of live handles (SessionRegistry) live. Here: NULL and
-// size checks, C structs <-> C++ values, exceptions -> statuses and messages.
-//
-// Every exported function runs its body inside run(): C++ exceptions (std::bad_alloc
-// included) become a status and a message "function: what" stored for the calling thread in
-// the handle's slot, or, for a call without a live handle, in t_unbound_error. An
-// accura_model* is a SessionRegistry key, never dereferenced; a call holds its slot
-// (shared_ptr) while it runs, so accura_model_free from another thread lets it finish.
+// validation of values, the registry of live handles and what every call does around its work
+// (SessionRegistry::run / runOn / withSession: handle lookup, exceptions -> status and the
+// calling thread's last error) live. Here: C structs <-> C++ values, the C-only checks.
+// An accura_model* is a SessionRegistry key, never dereferenced.
 #include "accura_plugin.h"
 
 #include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
-#include <new>
 #include <optional>
 #include <string>
 #include <vector>
 
-#include "accura/calib/errors.h"
 #include "accura/calib/file_io.h"
 #include "accura/postproc/session.h"
-
-#ifndef ACCURA_VERSION_MAJOR
-#define ACCURA_VERSION_MAJOR 0
-#define ACCURA_VERSION_MINOR 0
-#define ACCURA_VERSION_PATCH 0
-#endif
 
 using namespace accura;
 using namespace accura::postproc;
 using Slot = SessionRegistry::Slot;
 
+static_assert(static_cast<int>(CallStatus::kInternal) == ACCURA_ERROR_INTERNAL && static_cast<int>(CallStatus::kInput) == ACCURA_ERROR_INPUT &&
+                  static_cast<int>(CallStatus::kNotConverged) == ACCURA_ERROR_NOT_CONVERGED,
+              "CallStatus is accura_status, value for value");
+static_assert(static_cast<int>(CheckKind::kClearance) == ACCURA_CHECK_CLEARANCE, "CheckKind is accura_check_kind, value for value");
+
 namespace {
 
-/// A failure with its status (thrown inside the bodies).
-struct PluginError {
-  accura_status status;
-  std::string message;
-};
-[[noreturn]] void fail(accura_status s, const std::string& message) { throw PluginError{s, message}; }
-
-/// The calling thread's last error of a call without a live handle (NULL, freed, *_init).
-thread_local std::string t_unbound_error;
-const char* const kNotLive = "not a live handle (freed by accura_model_free, or not made by accura_model_create)";
-
-/// The status of the exception being handled; its message into *text (the status is set
-/// first: running out of memory while copying the message keeps it).
-void translate(accura_status* s, std::string* text) {
-  auto set = [&](accura_status status, const char* prefix, const char* what) {
-    *s = status;
-    *text = std::string(prefix) + what;
-  };
-  try {
-    throw;
-  } catch (const PluginError& e) {
-    set(e.status, "", e.message.c_str());
-  } catch (const calib::InputError& e) {
-    set(ACCURA_ERROR_INPUT, "", e.what());
-  } catch (const calib::ArgumentError& e) {
-    set(ACCURA_ERROR_INVALID_ARGUMENT, "", e.what());
-  } catch (const calib::NumericalError& e) {
-    set(ACCURA_ERROR_NUMERICAL, "", e.what());
-  } catch (const std::bad_alloc&) {
-    set(ACCURA_ERROR_OUT_OF_MEMORY, "", "out of memory");
-  } catch (const std::exception& e) {
-    set(ACCURA_ERROR_INTERNAL, "internal error: ", e.what());
-  } catch (...) {
-    set(ACCURA_ERROR_INTERNAL, "internal error: ", "unknown exception");
-  }
-}
-
-/// Runs body(): ACCURA_OK, or the status of its exception with "fn: message" the calling
-/// thread's error in `slot` (null: t_unbound_error; the body may set `slot`, a reference).
-template <class F>
-accura_status run(const char* fn, const std::shared_ptr<Slot>& slot, F&& body) noexcept {
-  try {
-    body();
-    return ACCURA_OK;
-  } catch (...) {
-    accura_status s = ACCURA_ERROR_INTERNAL;
-    try {
-      std::string text;
-      translate(&s, &text);
-      text = std::string(fn) + ": " + text;
-      if (slot) slot->setError(std::move(text));
-      else t_unbound_error = std::move(text);
-    } catch (...) {  // out of memory while storing the message: the status still says it
-    }
-    return s;
-  }
-}
-
+SessionRegistry& registry() { return SessionRegistry::instance(); }
 std::uintptr_t keyOf(const accura_model* m) { return reinterpret_cast<std::uintptr_t>(m); }
+accura_status cstatus(CallStatus s) { return static_cast<accura_status>(s); }
 
-/// run() on the live handle `model`: body(slot).
+/// SessionRegistry::run(), runOn() and withSession() with the C status.
 template <class F>
-accura_status guarded(const accura_model* model, const char* fn, F&& body) noexcept {
-  std::shared_ptr<Slot> slot;
-  return run(fn, slot, [&] {
-    if (!model) fail(ACCURA_ERROR_NULL_ARGUMENT, "model is NULL");
-    if (!(slot = SessionRegistry::instance().find(keyOf(model)))) fail(ACCURA_ERROR_INVALID_ARGUMENT, kNotLive);
-    body(*slot);
-  });
-}
-
-/// Required pointers with their parameter names.
-using Pointers = std::initializer_list<std::pair<const void*, const char*>>;
-
-/// NULL_ARGUMENT "NAME is NULL" for the first required pointer that is NULL.
-void need(Pointers pointers) {
-  for (const auto& p : pointers)
-    if (!p.first) fail(ACCURA_ERROR_NULL_ARGUMENT, std::string(p.second) + " is NULL");
-}
-
-std::shared_ptr<const Session> sessionOf(const Slot& slot) {
-  std::shared_ptr<const Session> s = slot.session();
-  if (!s) fail(ACCURA_ERROR_INVALID_ARGUMENT, "no model loaded on this handle (call accura_model_load first)");
-  return s;
-}
-
-/// `p`, or a stand-in that is not NULL when `n` is 0 (nothing is read through it).
-const void* ifAny(size_t n, const void* p) { return n > 0 ? p : ""; }
-
-/// guarded(): the required pointers checked (need), then body(the handle's loaded session).
+accura_status run(const char* fn, F&& body) noexcept { return cstatus(SessionRegistry::run(fn, body)); }
 template <class F>
-accura_status withSession(const accura_model* model, const char* fn, Pointers pointers, F&& body) noexcept {
-  return guarded(model, fn, [&](Slot& slot) {
-    need(pointers);
-    body(*sessionOf(slot));
-  });
-}
-
-/// Joint values q[0..n) of the session's robot (the count checked before q is read).
-std::vector<double> jointsOf(const Session& s, const double* q, size_t n) {
-  if (n != static_cast<size_t>(s.dof()))
-    fail(ACCURA_ERROR_INVALID_ARGUMENT, "expected " + std::to_string(s.dof()) + " joint values, got " + std::to_string(n));
-  return std::vector<double>(q, q + n);
-}
-
-/// BUFFER_TOO_SMALL ("WHAT, the buffer holds C AFTER") when `needed` elements do not fit.
-void fits(size_t needed, size_t capacity, const std::string& what, const char* after = "") {
-  if (needed > capacity) fail(ACCURA_ERROR_BUFFER_TOO_SMALL, what + ", the buffer holds " + std::to_string(capacity) + after);
+accura_status guarded(const accura_model* model, const char* fn, F&& body) noexcept { return cstatus(registry().runOn(keyOf(model), fn, body)); }
+template <class F>
+accura_status withSession(const accura_model* model, const char* fn, CallPointers pointers, F&& body) noexcept {
+  return cstatus(registry().withSession(keyOf(model), fn, pointers, body));
 }
 
 calib::XyzAbc xyz(const accura_pose& p) { return {p.x_mm, p.y_mm, p.z_mm, p.a_deg, p.b_deg, p.c_deg}; }
 accura_pose cpose(const calib::XyzAbc& p) { return {p.x_mm, p.y_mm, p.z_mm, p.a_deg, p.b_deg, p.c_deg}; }
 accura_configuration cconfig(const calib::Configuration& c) { return {c.status, c.turn}; }
 calib::Configuration configOf(const accura_configuration* c, int dof) { return c ? checkedConfiguration(c->status, c->turn, dof) : calib::Configuration{}; }
-
-/// calib::IkStatus in its order (kOk, kUnreachable, ..., kNotConverged) -> ACCURA_OK, then
-/// ACCURA_ERROR_UNREACHABLE .. ACCURA_ERROR_NOT_CONVERGED (the header's order).
-accura_status statusOf(calib::IkStatus s) {
-  const int k = static_cast<int>(s);
-  return k == 0 ? ACCURA_OK : k <= 5 ? static_cast<accura_status>(ACCURA_ERROR_UNREACHABLE + k - 1) : ACCURA_ERROR_INTERNAL;
-}
 
 void copyString(char* dst, size_t cap, const std::string& s) {
   const size_t n = std::min(cap - 1, s.size());
@@ -174,22 +64,19 @@ int cEnum(const E& e) {
   return v;
 }
 
-/// The motion type of motions[i] (LIN, CIRC and, when `ptp`, PTP), else INVALID_ARGUMENT.
+/// The motion type of motions[i] (LIN, CIRC and, when `ptp`, PTP).
 int motionType(int type, size_t i, bool ptp) {
-  if (type != ACCURA_LIN && type != ACCURA_CIRC && !(ptp && type == ACCURA_PTP))
-    fail(ACCURA_ERROR_INVALID_ARGUMENT, "motions[" + std::to_string(i) + "].type: expected " +
-                                            (ptp ? "ACCURA_LIN, ACCURA_CIRC or ACCURA_PTP" : "ACCURA_LIN (0) or ACCURA_CIRC (1)") +
-                                            ", found " + std::to_string(type));
-  return type;
+  return checkedInt(type, type == ACCURA_LIN || type == ACCURA_CIRC || (ptp && type == ACCURA_PTP), "motions[" + std::to_string(i) + "].type",
+                    ptp ? "ACCURA_LIN, ACCURA_CIRC or ACCURA_PTP" : "ACCURA_LIN (0) or ACCURA_CIRC (1)");
 }
 
 /// The *_options_init functions: zeros, struct_size, then the defaults.
 template <class O, class F>
 accura_status initOptions(O* o, size_t struct_size, const char* fn, F&& defaults) noexcept {
-  return run(fn, nullptr, [&] {
-    need({{o, "options"}});
+  return run(fn, [&] {
+    requirePointers({{o, "options"}});
     if (struct_size != sizeof(O))
-      fail(ACCURA_ERROR_INVALID_ARGUMENT, "struct_size " + std::to_string(struct_size) + ", expected " + std::to_string(sizeof(O)));
+      throw calib::ArgumentError("struct_size " + std::to_string(struct_size) + ", expected " + std::to_string(sizeof(O)));
     std::memset(o, 0, sizeof(O));
     o->struct_size = sizeof(O);
     defaults(*o);
@@ -202,16 +89,15 @@ O optionsOr(const O* given, accura_status (*init)(O*, size_t), const char* what)
   O o;
   init(&o, sizeof(O));
   if (given && given->struct_size != sizeof(O))
-    fail(ACCURA_ERROR_INVALID_ARGUMENT, std::string(what) + ": struct_size " + std::to_string(given->struct_size) +
-                                            " does not match this library's " + std::to_string(sizeof(O)) +
-                                            " (header and library of different versions?)");
+    throw calib::ArgumentError(std::string(what) + ": struct_size " + std::to_string(given->struct_size) + " does not match this library's " +
+                               std::to_string(sizeof(O)) + " (header and library of different versions?)");
   return given ? *given : o;
 }
 
 /// The result with its padding zeroed: hosts may compare results byte for byte.
 void fillPoseResult(const SessionPose& p, int dof, accura_pose_result* r) {
   std::memset(r, 0, sizeof *r);
-  r->status = statusOf(p.status);
+  r->status = cstatus(callStatus(p.status));
   r->dof = dof;
   if (p.status != calib::IkStatus::kOk) return;
   r->command = cpose(p.command);
@@ -222,22 +108,7 @@ void fillPoseResult(const SessionPose& p, int dof, accura_pose_result* r) {
   for (int i = 0; i < p.q_real.size() && i < ACCURA_MAX_JOINTS; ++i) r->q_real[i] = p.q_real[i];
 }
 
-void copyViolation(const CheckViolation& v, accura_check_violation* c) {
-  const int kind = v.kind == CheckKind::kReach        ? ACCURA_CHECK_REACH
-                   : v.kind == CheckKind::kJointLimit  ? ACCURA_CHECK_JOINT_LIMIT
-                   : v.kind == CheckKind::kSingularity ? ACCURA_CHECK_SINGULARITY
-                                                       : ACCURA_CHECK_CLEARANCE;
-  *c = {kind,    v.motion_index, v.where.line, v.where.column, v.on_path ? 1 : 0, v.s, {v.p_world_tcp_mm[0], v.p_world_tcp_mm[1], v.p_world_tcp_mm[2]},
-        v.value, v.limit,        v.joint,      {}};
-  copyString(c->message, sizeof(c->message), v.message);
-}
-
-ProgramReadOptions readOptions(const char* dat_path, const char* config_path) {
-  ProgramReadOptions read;
-  if (dat_path) read.dat_path = dat_path;
-  if (config_path) read.config_path = config_path;
-  return read;
-}
+ProgramReadOptions readOptions(const char* dat_path, const char* config_path) { return {dat_path ? dat_path : "", config_path ? config_path : ""}; }
 
 }  // namespace
 
@@ -257,39 +128,29 @@ ACCURA_API accura_status accura_status_name(accura_status status, const char** n
                                        "ACCURA_ERROR_JOINT_LIMITS", "ACCURA_ERROR_SINGULAR", "ACCURA_ERROR_NO_CONFIGURATION",
                                        "ACCURA_ERROR_NOT_CONVERGED", "ACCURA_ERROR_NUMERICAL", "ACCURA_ERROR_OUT_OF_MEMORY",
                                        "ACCURA_ERROR_INTERNAL"};
-  return run("accura_status_name", nullptr, [&] {
-    need({{name_out, "name_out"}});
+  return run("accura_status_name", [&] {
+    requirePointers({{name_out, "name_out"}});
     const int s = cEnum(status);
     const bool known = s >= 0 && s < static_cast<int>(sizeof(kNames) / sizeof(kNames[0]));
     *name_out = known ? kNames[s] : "ACCURA_STATUS_UNKNOWN";
-    if (!known) fail(ACCURA_ERROR_INVALID_ARGUMENT, "unknown status " + std::to_string(s));
+    if (!known) throw calib::ArgumentError("unknown status " + std::to_string(s));
   });
 }
 
 ACCURA_API accura_status accura_last_error(const accura_model* model, const char** message_out) {
-  if (!message_out) return ACCURA_ERROR_NULL_ARGUMENT;
-  *message_out = "";
-  try {
-    const std::shared_ptr<Slot> slot = model ? SessionRegistry::instance().find(keyOf(model)) : nullptr;
-    *message_out = slot ? slot->error().c_str() : t_unbound_error.c_str();  // without a live handle: the thread's
-    return slot || !model ? ACCURA_OK : ACCURA_ERROR_INVALID_ARGUMENT;
-  } catch (...) {
-    return ACCURA_ERROR_OUT_OF_MEMORY;
-  }
+  return message_out ? cstatus(registry().lastError(keyOf(model), message_out)) : ACCURA_ERROR_NULL_ARGUMENT;
 }
 
 ACCURA_API accura_status accura_model_create(accura_model** model_out) {
-  return run("accura_model_create", nullptr, [&] {
-    need({{model_out, "model_out"}});
+  return run("accura_model_create", [&] {
+    requirePointers({{model_out, "model_out"}});
     *model_out = nullptr;
-    *model_out = reinterpret_cast<accura_model*>(SessionRegistry::instance().create());
+    *model_out = reinterpret_cast<accura_model*>(registry().create());
   });
 }
 
 ACCURA_API accura_status accura_model_free(accura_model* model) {
-  return run("accura_model_free", nullptr, [&] {
-    if (model && !SessionRegistry::instance().release(keyOf(model))) fail(ACCURA_ERROR_INVALID_ARGUMENT, kNotLive);
-  });
+  return run("accura_model_free", [&] { registry().release(keyOf(model)); });
 }
 
 ACCURA_API accura_status accura_load_options_init(accura_load_options* o, size_t struct_size) {
@@ -298,7 +159,7 @@ ACCURA_API accura_status accura_load_options_init(accura_load_options* o, size_t
 
 ACCURA_API accura_status accura_model_load(accura_model* model, const char* calibrated_model, const accura_load_options* options) {
   return guarded(model, "accura_model_load", [&](Slot& slot) {
-    need({{calibrated_model, "calibrated_model"}});
+    requirePointers({{calibrated_model, "calibrated_model"}});
     const accura_load_options o = optionsOr(options, accura_load_options_init, "accura_load_options");
     SessionSettings s;
     s.calibrated_model = calibrated_model;
@@ -337,17 +198,16 @@ ACCURA_API accura_status accura_model_get_joints(accura_model* model, accura_joi
     for (size_t i = 0; i < js.size() && i < capacity; ++i)
       joints[i] = {js[i].type == calib::JointType::kPrismatic ? 1 : 0, js[i].a_mm, js[i].alpha_deg, js[i].d_mm, js[i].theta0_deg,
                    js[i].direction, js[i].lower, js[i].upper};
-    fits(js.size(), capacity, "the robot has " + std::to_string(js.size()) + " joints");
+    requireCapacity(js.size(), capacity, "the robot has " + std::to_string(js.size()) + " joints");
   });
 }
 
 ACCURA_API accura_status accura_forward_kinematics(accura_model* model, accura_which_model which, const double* q, size_t n_joints,
                                                    accura_pose* pose_out) {
   return withSession(model, "accura_forward_kinematics", {{q, "q"}, {pose_out, "pose_out"}}, [&](const Session& s) {
-    const std::vector<double> qv = jointsOf(s, q, n_joints);
+    const std::vector<double> qv = s.joints(q, n_joints);
     const int w = cEnum(which);
-    if (w != ACCURA_CONTROLLER && w != ACCURA_REAL)
-      fail(ACCURA_ERROR_INVALID_ARGUMENT, "which: expected ACCURA_CONTROLLER (0) or ACCURA_REAL (1), found " + std::to_string(w));
+    checkedInt(w, w == ACCURA_CONTROLLER || w == ACCURA_REAL, "which", "ACCURA_CONTROLLER (0) or ACCURA_REAL (1)");
     *pose_out = cpose(s.forward(w == ACCURA_REAL, qv));
   });
 }
@@ -355,7 +215,7 @@ ACCURA_API accura_status accura_forward_kinematics(accura_model* model, accura_w
 ACCURA_API accura_status accura_joint_configuration(accura_model* model, const double* q, size_t n_joints,
                                                     accura_configuration* configuration_out) {
   return withSession(model, "accura_joint_configuration", {{q, "q"}, {configuration_out, "configuration_out"}}, [&](const Session& s) {
-    *configuration_out = cconfig(s.configuration(jointsOf(s, q, n_joints)));
+    *configuration_out = cconfig(s.configuration(s.joints(q, n_joints)));
   });
 }
 
@@ -364,7 +224,7 @@ ACCURA_API accura_status accura_compensate_pose(accura_model* model, const accur
   return withSession(model, "accura_compensate_pose", {{target, "target"}, {result, "result"}}, [&](const Session& s) {
     const SessionPose p = s.pose(xyz(*target), configOf(configuration, s.dof()));
     fillPoseResult(p, s.dof(), result);
-    if (p.status != calib::IkStatus::kOk) fail(result->status, p.message);
+    if (p.status != calib::IkStatus::kOk) throw CallError(callStatus(p.status), p.message);
   });
 }
 
@@ -374,8 +234,8 @@ ACCURA_API accura_status accura_compensate_poses(accura_model* model, const accu
   return guarded(model, "accura_compensate_poses", [&](Slot& slot) {
     if (n_ok) *n_ok = 0;
     if (n == 0) return;
-    need({{targets, "targets"}, {results, "results"}});
-    const auto s = sessionOf(slot);
+    requirePointers({{targets, "targets"}, {results, "results"}});
+    const auto s = slot.loaded();
     std::vector<calib::XyzAbc> t(n);
     std::vector<calib::Configuration> c(configurations ? n : 0);
     for (size_t i = 0; i < n; ++i) t[i] = xyz(targets[i]);
@@ -383,7 +243,7 @@ ACCURA_API accura_status accura_compensate_poses(accura_model* model, const accu
     const SessionPoses r = s->poses(t, c, continuous != 0);
     for (size_t i = 0; i < n; ++i) fillPoseResult(r.results[i], s->dof(), &results[i]);
     if (n_ok) *n_ok = r.n_ok;
-    if (r.first_failed >= 0) fail(results[r.first_failed].status, r.message);
+    if (r.first_failed >= 0) throw CallError(callStatus(r.results[r.first_failed].status), r.message);
   });
 }
 
@@ -392,10 +252,10 @@ ACCURA_API accura_status accura_compensate_path(accura_model* model, const accur
                                                 size_t n_motions, double tol_mm, accura_path_point* points, size_t capacity,
                                                 accura_path_result* result, accura_motion_report* reports) {
   return guarded(model, "accura_compensate_path", [&](Slot& slot) {
-    need({{start, "start"}, {result, "result"}, {ifAny(n_motions, motions), "motions"}, {ifAny(capacity, points), "points"}});
+    requirePointers({{start, "start"}, {result, "result"}, {ifAny(n_motions, motions), "motions"}, {ifAny(capacity, points), "points"}});
     *result = accura_path_result{};
     result->failed_motion = -1;
-    const auto s = sessionOf(slot);
+    const auto s = slot.loaded();
     std::vector<SessionMotion> m(n_motions);
     for (size_t i = 0; i < n_motions; ++i)
       m[i] = {motionType(cEnum(motions[i].type), i, false) == ACCURA_CIRC ? PathType::kCirc : PathType::kLin, xyz(motions[i].aux),
@@ -403,7 +263,7 @@ ACCURA_API accura_status accura_compensate_path(accura_model* model, const accur
     for (size_t i = 0; reports && i < n_motions; ++i) reports[i] = accura_motion_report{};
     const SessionPath p = s->path(xyz(*start), configOf(start_configuration, s->dof()), m, tol_mm);
     result->failed_motion = p.failed_motion;
-    if (!p.ok()) fail(p.status == calib::IkStatus::kOk ? ACCURA_ERROR_INTERNAL : statusOf(p.status), p.message);
+    if (!p.ok()) throw CallError(p.status == calib::IkStatus::kOk ? CallStatus::kInternal : callStatus(p.status), p.message);
     const SessionMotionNumbers& t = p.total;
     *result = {cpose(p.start.command), cconfig(p.start.configuration), p.points.size(), t.max_error_uncompensated_mm,
                t.max_error_before_mm,  t.max_error_after_mm,            t.max_error_bound_mm, t.points_added, -1};
@@ -411,7 +271,7 @@ ACCURA_API accura_status accura_compensate_path(accura_model* model, const accur
       const SessionMotionNumbers& n = p.motions[i];
       reports[i] = {n.length_mm, n.max_error_uncompensated_mm, n.max_error_before_mm, n.max_error_after_mm, n.max_error_bound_mm, n.points_added};
     }
-    fits(p.points.size(), capacity, "the path has " + std::to_string(p.points.size()) + " points");
+    requireCapacity(p.points.size(), capacity, "the path has " + std::to_string(p.points.size()) + " points");
     for (size_t i = 0; i < p.points.size(); ++i) {
       const SessionPathPoint& q = p.points[i];
       accura_path_point& c = points[i];
@@ -433,7 +293,7 @@ ACCURA_API accura_status accura_program_options_init(accura_program_options* o, 
 ACCURA_API accura_status accura_compensate_program(accura_model* model, const char* program_path, const char* out_dir,
                                                    const accura_program_options* options, accura_program_summary* summary) {
   return guarded(model, "accura_compensate_program", [&](Slot& slot) {
-    need({{program_path, "program_path"}, {out_dir, "out_dir"}});
+    requirePointers({{program_path, "program_path"}, {out_dir, "out_dir"}});
     const accura_program_options o = optionsOr(options, accura_program_options_init, "accura_program_options");
     ProgramFileRequest q;
     q.in_path = program_path;
@@ -442,7 +302,7 @@ ACCURA_API accura_status accura_compensate_program(accura_model* model, const ch
     if (o.json_report_path) q.json_path = o.json_report_path;
     q.out_name = "out_dir";
     q.json_name = "json_report_path";
-    const ProgramFileResult result = sessionOf(slot)->compensateProgramFile(q, o.tol_mm);
+    const ProgramFileResult result = slot.loaded()->compensateProgramFile(q, o.tol_mm);
     const JobReport& r = result.report;
     if (!summary) return;
     *summary = {r.targets_corrected,  r.points_added,           static_cast<int>(r.segments.size()), static_cast<int>(r.warnings.size()),
@@ -467,16 +327,22 @@ ACCURA_API accura_status accura_check_program(accura_model* model, const char* c
                                               const accura_check_options* options, accura_check_summary* summary,
                                               accura_check_violation* violations, size_t capacity) {
   return guarded(model, "accura_check_program", [&](Slot& slot) {
-    need({{cell_path, "cell_path"}, {program_path, "program_path"}, {summary, "summary"}, {ifAny(capacity, violations), "violations"}});
+    requirePointers({{cell_path, "cell_path"}, {program_path, "program_path"}, {summary, "summary"}, {ifAny(capacity, violations), "violations"}});
     const accura_check_options o = optionsOr(options, accura_check_options_init, "accura_check_options");
     std::optional<CheckThresholds> thresholds;
     if (!o.use_cell_thresholds) thresholds = CheckThresholds{o.joint_margin_deg, o.singular_threshold, o.min_clearance_mm};
-    const CheckReport r = sessionOf(slot)->checkProgramFile(cell_path, program_path, readOptions(o.dat_path, o.config_path),
-                                                            o.as_written ? CheckMode::kAsWritten : CheckMode::kIntended, thresholds);
+    const CheckReport r = slot.loaded()->checkProgramFile(cell_path, program_path, readOptions(o.dat_path, o.config_path),
+                                                          o.as_written ? CheckMode::kAsWritten : CheckMode::kIntended, thresholds);
     *summary = {r.passed() ? 1 : 0, r.violations.size(), static_cast<int>(r.unchecked.size()), r.samples,
                 std::isfinite(r.min_clearance_mm) ? r.min_clearance_mm : 1e300, r.min_sigma, r.min_joint_margin};
-    for (size_t i = 0; i < r.violations.size() && i < capacity; ++i) copyViolation(r.violations[i], &violations[i]);
-    fits(r.violations.size(), capacity, std::to_string(r.violations.size()) + " violations", " (summary->n_violations)");
+    for (size_t i = 0; i < r.violations.size() && i < capacity; ++i) {
+      const CheckViolation& v = r.violations[i];
+      const Eigen::Vector3d& p = v.p_world_tcp_mm;
+      violations[i] = {static_cast<int>(v.kind), v.motion_index, v.where.line, v.where.column, v.on_path ? 1 : 0, v.s, {p[0], p[1], p[2]},
+                       v.value, v.limit, v.joint, {}};
+      copyString(violations[i].message, sizeof(violations[i].message), v.message);
+    }
+    requireCapacity(r.violations.size(), capacity, std::to_string(r.violations.size()) + " violations", " (summary->n_violations)");
   });
 }
 
@@ -487,30 +353,27 @@ ACCURA_API accura_status accura_write_options_init(accura_write_options* o, size
 ACCURA_API accura_status accura_write_program(accura_model* model, const char* path, const accura_program_motion* motions,
                                               size_t n_motions, const accura_write_options* options) {
   return guarded(model, "accura_write_program", [&](Slot& slot) {
-    need({{path, "path"}, {options, "options"}, {ifAny(n_motions, motions), "motions"}});
+    requirePointers({{path, "path"}, {options, "options"}, {ifAny(n_motions, motions), "motions"}});
     const accura_write_options o = optionsOr(options, accura_write_options_init, "accura_write_options");
-    const std::shared_ptr<const Session> session = slot.session();  // optional: names the robot, gives S/T
     PoseProgram p;
     if (o.program_name) p.name = o.program_name;
-    if (session) p.robot = session->job().calibrated.nominal.name;
     p.tool = xyz(o.tool);
     p.base = xyz(o.base);
     for (size_t i = 0; i < n_motions; ++i) {
       const accura_program_motion& c = motions[i];
       const int type = motionType(cEnum(c.type), i, true);
-      if (c.n_joints < 0 || c.n_joints > ACCURA_MAX_JOINTS)
-        fail(ACCURA_ERROR_INVALID_ARGUMENT, "motions[" + std::to_string(i) + "].n_joints: expected 0.." + std::to_string(ACCURA_MAX_JOINTS) +
-                                                ", found " + std::to_string(c.n_joints));
+      checkedInt(c.n_joints, c.n_joints >= 0 && c.n_joints <= ACCURA_MAX_JOINTS, "motions[" + std::to_string(i) + "].n_joints",
+                 "0.." + std::to_string(ACCURA_MAX_JOINTS));
       const MotionType t = type == ACCURA_PTP ? MotionType::kPtp : type == ACCURA_CIRC ? MotionType::kCirc : MotionType::kLin;
       p.motions.push_back({t, xyz(c.aux), xyz(c.end), c.approximate != 0, c.vel_m_s, std::vector<double>(c.joints, c.joints + c.n_joints)});
     }
-    writePoseProgram(path, p, session.get());
+    writePoseProgram(path, p, slot.session().get());  // a session is optional: it names the robot, gives S/T
   });
 }
 
 ACCURA_API accura_status accura_write_file(accura_model* model, const char* path, const char* data, size_t size) {
   return guarded(model, "accura_write_file", [&](Slot&) {
-    need({{path, "path"}, {ifAny(size, data), "data"}});
+    requirePointers({{path, "path"}, {ifAny(size, data), "data"}});
     calib::createDirectories(std::filesystem::path(path).parent_path().string());
     calib::writeFilesAtomically({{path, std::string(data ? data : "", size)}});
   });

@@ -26,12 +26,6 @@ constexpr double kWidenDeg = 30.0;
 /// rounding.
 constexpr double kRefineMarginMm = 1.0;
 
-std::string jointsText(const Eigen::VectorXd& q) {
-  std::string s;
-  for (int i = 0; i < q.size(); ++i) s += (i ? ", " : "") + calib::formatFixed(q[i], 3);
-  return "{" + s + "}";
-}
-
 /// Whose IK and FK define the path for one tool (the real model or the controller's) and
 /// its IK with widened limits (ToolModels::check_ik).
 struct ModeModels {
@@ -192,7 +186,7 @@ class Checker {
       v.message = "joint limit: " + js.name + " = " + calib::formatFixed(q[joint], 3) + " " + v.unit + " is " + calib::formatFixed(margin, 3) + " " + v.unit +
                   (margin < 0 ? " outside" : " inside") + " its limits [" + calib::formatFixed(js.lower, 1) + ", " + calib::formatFixed(js.upper, 1) + "]; required " +
                   calib::formatFixed(t_.joint_margin_deg, 3) + " " + v.unit + " inside (short by " + calib::formatFixed(v.excess, 3) + " " + v.unit + ") " + at(v) +
-                  ", joints " + jointsText(q);
+                  ", joints " + calib::formatList(q, 3);
       record(f, std::move(v));
     }
     if (singularity && t_.singular_threshold > 0) {
@@ -205,7 +199,7 @@ class Checker {
         v.limit = t_.singular_threshold;
         v.excess = t_.singular_threshold - sigma;
         v.message = "singularity: sigma_min " + calib::formatFixed(sigma, 6) + " below " + calib::formatFixed(t_.singular_threshold, 6) +
-                    " (scaled joint Jacobian; the singular direction moves mostly " + dominant + ") " + at(v) + ", joints " + jointsText(q);
+                    " (scaled joint Jacobian; the singular direction moves mostly " + dominant + ") " + at(v) + ", joints " + calib::formatList(q, 3);
         record(f, std::move(v));
       }
     }
@@ -241,11 +235,11 @@ class Checker {
     // as no violation), so that case says so; the smallest clearance of the motion is its own field
     if (calib::formatFixed(v.excess, 3) == "0.000")
       v.message = "clearance: " + v.robot_part + " comes closer to " + v.obstacle + " than the required " + calib::formatFixed(t_.min_clearance_mm, 3) +
-                  " mm from here on, " + at(v) + ", joints " + jointsText(x.q);
+                  " mm from here on, " + at(v) + ", joints " + calib::formatList(x.q, 3);
     else
       v.message = "clearance: " + v.robot_part + " is " + calib::formatFixed(d.mm, 3) + " mm from " + v.obstacle + (d.mm <= 0 ? " (in contact)" : "") +
                   ", required " + calib::formatFixed(t_.min_clearance_mm, 3) + " mm (short by " + calib::formatFixed(v.excess, 3) + " mm) " + at(v) + ", joints " +
-                  jointsText(x.q);
+                  calib::formatList(x.q, 3);
     record(f, std::move(v));
   }
 

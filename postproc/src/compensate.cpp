@@ -268,15 +268,10 @@ SegmentCompensation Compensator::segment(const PathSegment& intended_segment, co
     if ((best_pred.q_end - best.q_end).cwiseAbs().maxCoeff() > 1e-3) {
       Eigen::Index worst = 0;
       const double differs = (best_pred.q_end - best.q_end).cwiseAbs().maxCoeff(&worst);
-      const auto joints = [](const Eigen::VectorXd& q) {
-        std::string t;
-        for (Eigen::Index i = 0; i < q.size(); ++i) t += (i ? ", " : "") + calib::formatFixed(q[i], 2);
-        return "{" + t + "}";
-      };
       return failed(calib::IkStatus::kNoConfiguration,
                     "at " + calib::formatFixed(intended.length_mm * best_sb, 1) + " mm of the " + calib::formatFixed(intended.length_mm, 1) +
                         " mm path the controller, following the line from the configuration it started in, has the joints " +
-                        joints(best_pred.q_end) + " where the target needs " + joints(best.q_end) + " (deg, mm for a prismatic joint; joint " +
+                        calib::formatList(best_pred.q_end, 2) + " where the target needs " + calib::formatList(best.q_end, 2) + " (deg, mm for a prismatic joint; joint " +
                         std::to_string(worst + 1) + " differs by " + calib::formatFixed(differs, 2) + "): the line crosses a configuration boundary (a wrist or elbow flip, or a singularity); split the motion "
                         "or program it as a PTP");
     }

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <new>
 
 #include "accura/calib/errors.h"
 #include "accura/calib/file_io.h"
@@ -37,6 +38,10 @@ void checkTolerance(double tol_mm) {
   if (!(tol_mm > 0) || !std::isfinite(tol_mm))
     throw calib::ArgumentError("tol_mm: expected a positive distance (mm), found " + std::to_string(tol_mm));
 }
+
+/// The calling thread's last error of a call without a live handle (SessionRegistry::run).
+thread_local std::string t_unbound_error;
+const char* const kNotLive = "not a live handle (freed by accura_model_free, or not made by accura_model_create)";
 
 std::string failureText(calib::IkStatus status, const std::string& message) {
   return message.empty() ? std::string(calib::toString(status)) : message;
@@ -99,6 +104,12 @@ Eigen::VectorXd Session::jointVector(const std::vector<double>& q, const std::st
     qv[i] = q[i];
   }
   return qv;
+}
+
+std::vector<double> Session::joints(const double* q, size_t n) const {
+  if (n != static_cast<size_t>(dof()))
+    throw calib::ArgumentError("expected " + std::to_string(dof()) + " joint values, got " + std::to_string(n));
+  return std::vector<double>(q, q + n);
 }
 
 calib::XyzAbc Session::forward(bool real, const std::vector<double>& q) const {
@@ -249,9 +260,44 @@ CheckReport Session::checkProgramFile(const std::string& cell_path, const std::s
   return checkProgram(program, job_, cell, options);
 }
 
+CallStatus callStatus(calib::IkStatus status) {
+  switch (status) {
+    case calib::IkStatus::kOk: return CallStatus::kOk;
+    case calib::IkStatus::kUnreachable: return CallStatus::kUnreachable;
+    case calib::IkStatus::kJointLimits: return CallStatus::kJointLimits;
+    case calib::IkStatus::kSingular: return CallStatus::kSingular;
+    case calib::IkStatus::kNoConfiguration: return CallStatus::kNoConfiguration;
+    case calib::IkStatus::kNotConverged: return CallStatus::kNotConverged;
+  }
+  return CallStatus::kInternal;
+}
+
+void requirePointers(CallPointers pointers) {
+  for (const auto& p : pointers)
+    if (!p.first) throw CallError(CallStatus::kNullArgument, std::string(p.second) + " is NULL");
+}
+
+const void* ifAny(size_t n, const void* p) { return n > 0 ? p : ""; }
+
+void requireCapacity(size_t needed, size_t capacity, const std::string& what, const char* after) {
+  if (needed > capacity)
+    throw CallError(CallStatus::kBufferTooSmall, what + ", the buffer holds " + std::to_string(capacity) + after);
+}
+
+int checkedInt(int value, bool allowed, const std::string& what, const std::string& expected) {
+  if (!allowed) throw calib::ArgumentError(what + ": expected " + expected + ", found " + std::to_string(value));
+  return value;
+}
+
 std::shared_ptr<const Session> SessionRegistry::Slot::session() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return session_;
+}
+
+std::shared_ptr<const Session> SessionRegistry::Slot::loaded() const {
+  std::shared_ptr<const Session> s = session();
+  if (!s) throw CallError(CallStatus::kInvalidArgument, "no model loaded on this handle (call accura_model_load first)");
+  return s;
 }
 
 void SessionRegistry::Slot::load(std::shared_ptr<const Session> session) {
@@ -282,14 +328,14 @@ std::uintptr_t SessionRegistry::create() {
   return key;
 }
 
-bool SessionRegistry::release(std::uintptr_t key) {
+void SessionRegistry::release(std::uintptr_t key) {
+  if (key == 0) return;
   std::shared_ptr<Slot> slot;  // destroyed after the lock is released, once no call holds it
   std::lock_guard<std::mutex> lock(mutex_);
   const auto it = live_.find(key);
-  if (it == live_.end()) return false;
+  if (it == live_.end()) throw CallError(CallStatus::kInvalidArgument, kNotLive);
   slot = std::move(it->second);
   live_.erase(it);
-  return true;
 }
 
 std::shared_ptr<SessionRegistry::Slot> SessionRegistry::find(std::uintptr_t key) const {
@@ -298,11 +344,61 @@ std::shared_ptr<SessionRegistry::Slot> SessionRegistry::find(std::uintptr_t key)
   return it == live_.end() ? nullptr : it->second;
 }
 
+std::shared_ptr<SessionRegistry::Slot> SessionRegistry::live(std::uintptr_t key) const {
+  if (key == 0) throw CallError(CallStatus::kNullArgument, "model is NULL");
+  std::shared_ptr<Slot> slot = find(key);
+  if (!slot) throw CallError(CallStatus::kInvalidArgument, kNotLive);
+  return slot;
+}
+
+CallStatus SessionRegistry::lastError(std::uintptr_t key, const char** message) const noexcept {
+  *message = "";
+  try {
+    const std::shared_ptr<Slot> slot = key ? find(key) : nullptr;
+    *message = slot ? slot->error().c_str() : t_unbound_error.c_str();  // the slot outlives `slot` (held by live_)
+    return slot || key == 0 ? CallStatus::kOk : CallStatus::kInvalidArgument;
+  } catch (...) {
+    return CallStatus::kOutOfMemory;
+  }
+}
+
+CallStatus SessionRegistry::failed(const char* fn, Slot* slot) noexcept {
+  CallStatus status = CallStatus::kInternal;
+  try {
+    std::string text;
+    const auto set = [&](CallStatus s, const char* prefix, const char* what) {
+      status = s;  // first: running out of memory while copying the message keeps the status
+      text = std::string(fn) + ": " + prefix + what;
+    };
+    try {
+      throw;
+    } catch (const CallError& e) {
+      set(e.status, "", e.what());
+    } catch (const calib::InputError& e) {
+      set(CallStatus::kInput, "", e.what());
+    } catch (const calib::ArgumentError& e) {
+      set(CallStatus::kInvalidArgument, "", e.what());
+    } catch (const calib::NumericalError& e) {
+      set(CallStatus::kNumerical, "", e.what());
+    } catch (const std::bad_alloc&) {
+      set(CallStatus::kOutOfMemory, "", "out of memory");
+    } catch (const std::exception& e) {
+      set(CallStatus::kInternal, "internal error: ", e.what());
+    } catch (...) {
+      set(CallStatus::kInternal, "internal error: ", "unknown exception");
+    }
+    if (slot) slot->setError(std::move(text));
+    else t_unbound_error = std::move(text);
+  } catch (...) {  // out of memory while keeping the message: the status still says it
+  }
+  return status;
+}
+
 void writePoseProgram(const std::string& path, const PoseProgram& spec, const Session* session) {
   const ProgramFormat format = programFormat(path);
   Program p;
   p.name = spec.name.empty() ? fs::path(path).stem().string() : spec.name;
-  p.robot = spec.robot;
+  p.robot = spec.robot.empty() && session ? session->job().calibrated.nominal.name : spec.robot;
   FrameSetting tool, base;
   tool.source = base.source = FrameSetting::Source::kInline;
   tool.value = checkedPose(spec.tool, "tool");

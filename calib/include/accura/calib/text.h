@@ -15,6 +15,16 @@ std::string xmlEscape(const std::string& s);
 /// NaN or infinity (the writers must not write one) and for decimals outside 0..17.
 std::string formatFixed(double v, int decimals);
 
+/// "{v0, v1, ...}": every value formatFixed(v, decimals), ", " between them (joint values in
+/// messages). `values`: anything with size() and operator[] (std::vector<double>,
+/// Eigen::VectorXd). Throws as formatFixed.
+template <class Values>
+std::string formatList(const Values& values, int decimals) {
+  std::string s = "{";
+  for (decltype(values.size()) i = 0; i < values.size(); ++i) s += (i ? ", " : "") + formatFixed(values[i], decimals);
+  return s + "}";
+}
+
 /// One number formatted printf-style: `format` holds exactly one conversion of a double (e.g.
 /// "%.4f", "%g", "%8.3f mm"). For messages and tables; NaN and infinity as printf writes them.
 std::string formatNumber(const char* format, double v);

@@ -13,18 +13,22 @@
 // Errors (errors.h, "The rule"): a value that is not finite or out of range throws
 // calib::ArgumentError naming it; a missing or malformed file, or a placement too far from the
 // calibrated base, throws calib::InputError. A pose the robot cannot reach is a result (calib::IkStatus).
+// A host's calls turn both into a CallStatus and a message (Host calls, below).
 //
 // Threads: a Session is immutable after construction; every const method may run on several
 // threads at once (each call uses its own workspace).
 #pragma once
 
 #include <cstdint>
+#include <initializer_list>
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <stdexcept>
 #include <string>
 #include <thread>
 #include <unordered_map>
+#include <utility>
 #include <vector>
 
 #include "accura/calib/robot.h"
@@ -129,6 +133,10 @@ class Session {
   const Placement& placement() const { return models_->placement(); }
   int dof() const { return job_.calibrated.dof(); }
 
+  /// q[0..n) as joint values of this robot: throws calib::ArgumentError "expected DOF joint
+  /// values, got N" when n is not dof() (checked before q is read; q may be null when n is 0).
+  std::vector<double> joints(const double* q, size_t n) const;
+
   /// T_base_tcp of the controller model (`real` false: nominal at the placement with the
   /// program tool) or of the real (calibrated) model at joints q (dof values, finite; else
   /// calib::ArgumentError).
@@ -183,6 +191,51 @@ class Session {
   Eigen::VectorXd jointVector(const std::vector<double>& q, const std::string& what) const;
 };
 
+// ---------------------------------------------------------------------------------------------
+// Host calls: what every entry point of a host interface does around its work (each of the
+// plug-in's C functions is one SessionRegistry::run, runOn or withSession).
+
+/// How a host call ended: the plug-in's accura_status, the same values in the same order.
+enum class CallStatus {
+  kOk,
+  kNullArgument,     ///< a required pointer was null (requirePointers)
+  kInvalidArgument,  ///< calib::ArgumentError, a handle not live or without a model
+  kBufferTooSmall,   ///< requireCapacity
+  kInput,            ///< calib::InputError
+  kUnreachable,      ///< kUnreachable .. kNotConverged: calib::IkStatus's failures, its order
+  kJointLimits,
+  kSingular,
+  kNoConfiguration,
+  kNotConverged,
+  kNumerical,    ///< calib::NumericalError
+  kOutOfMemory,  ///< std::bad_alloc
+  kInternal,     ///< any other exception: a bug
+};
+
+/// kOk for IkStatus::kOk, else the failure of the same name.
+CallStatus callStatus(calib::IkStatus status);
+
+/// A failure of a host call with its status, thrown by the call's own checks (other
+/// exceptions get their status from their type: SessionRegistry::run).
+struct CallError : std::runtime_error {
+  CallError(CallStatus s, const std::string& message) : std::runtime_error(message), status(s) {}
+  CallStatus status;
+};
+
+/// The required pointers of a call with their parameter names.
+using CallPointers = std::initializer_list<std::pair<const void*, const char*>>;
+/// Throws CallError kNullArgument "NAME is NULL" for the first required pointer that is null.
+void requirePointers(CallPointers pointers);
+/// `p`, or a stand-in that is not null when `n` is 0 (nothing is read through it): for an array
+/// that may be null when it is empty.
+const void* ifAny(size_t n, const void* p);
+/// Throws CallError kBufferTooSmall "WHAT, the buffer holds CAPACITY AFTER" when `needed`
+/// elements do not fit in `capacity`.
+void requireCapacity(size_t needed, size_t capacity, const std::string& what, const char* after = "");
+/// `value` when `allowed`, else throws calib::ArgumentError "WHAT: expected EXPECTED, found
+/// VALUE": an enum or a count that a host passes as an int.
+int checkedInt(int value, bool allowed, const std::string& what, const std::string& expected);
+
 /// The sessions of a host's handles (the plug-in's accura_model*): keys, not addresses, never 0
 /// and never reused, so that a key used after release() (or never made) is found to be dead
 /// instead of reading freed memory. Each key's Slot holds its session (none until loaded) and
@@ -194,6 +247,8 @@ class SessionRegistry {
     /// The loaded session, null when none: the caller keeps it alive while it uses it (a
     /// later load() or release() lets the call finish with it).
     std::shared_ptr<const Session> session() const;
+    /// session(), or CallError kInvalidArgument when no model is loaded.
+    std::shared_ptr<const Session> loaded() const;
     void load(std::shared_ptr<const Session> session);
     /// The calling thread's last error on this slot ("" when none); the string stays valid
     /// until this thread's next setError() on the slot or the slot's end.
@@ -210,15 +265,68 @@ class SessionRegistry {
   static SessionRegistry& instance();
   /// A new live key with an empty slot (a multiple of 16, so never 0 nor a small integer).
   std::uintptr_t create();
-  /// Forgets `key`; false when it is not live. Calls that hold its slot finish with it.
-  bool release(std::uintptr_t key);
+  /// Forgets `key` (0: nothing); throws CallError kInvalidArgument when it is not live. Calls
+  /// that hold its slot finish with it.
+  void release(std::uintptr_t key);
   /// The slot of a live key; null when `key` is not live.
   std::shared_ptr<Slot> find(std::uintptr_t key) const;
+  /// The slot of a live key; throws CallError kNullArgument "model is NULL" for 0,
+  /// kInvalidArgument "not a live handle ..." for a key that is not live.
+  std::shared_ptr<Slot> live(std::uintptr_t key) const;
+
+  /// Runs body() for the call `fn` made without a handle: kOk, or the status of its exception
+  /// (CallError: its own; calib::InputError kInput, calib::ArgumentError kInvalidArgument,
+  /// calib::NumericalError kNumerical, std::bad_alloc kOutOfMemory "out of memory", any other
+  /// kInternal "internal error: WHAT") with the message "FN: WHAT" kept as the calling
+  /// thread's last error without a handle (lastError(0)). Never throws: running out of memory
+  /// while keeping the message keeps the status.
+  template <class F>
+  static CallStatus run(const char* fn, F&& body) noexcept {
+    try {
+      body();
+      return CallStatus::kOk;
+    } catch (...) {
+      return failed(fn, nullptr);
+    }
+  }
+  /// run() of body(slot) on the slot of `key` (live()): the slot is held while the body runs
+  /// (a release() from another thread lets it finish) and the body's failure is kept there
+  /// for the calling thread; a key that is not live fails as live() says, its message kept as
+  /// for run().
+  template <class F>
+  CallStatus runOn(std::uintptr_t key, const char* fn, F&& body) noexcept {
+    std::shared_ptr<Slot> slot;
+    try {
+      slot = live(key);
+      body(*slot);
+      return CallStatus::kOk;
+    } catch (...) {
+      return failed(fn, slot.get());
+    }
+  }
+  /// runOn(): the required pointers checked (requirePointers), then body(the slot's loaded
+  /// session; none: kInvalidArgument).
+  template <class F>
+  CallStatus withSession(std::uintptr_t key, const char* fn, CallPointers pointers, F&& body) noexcept {
+    return runOn(key, fn, [&](Slot& slot) {
+      requirePointers(pointers);
+      body(*slot.loaded());
+    });
+  }
+  /// *message: the calling thread's last error on the live `key` ("" when none; valid until its
+  /// next failing call on the key or the key's release); kOk. For key 0 its last error without
+  /// a handle (run(); valid until its next such failure), kOk; for a key that is not live that
+  /// message too, and kInvalidArgument. Out of memory: "" and kOutOfMemory. Never throws.
+  CallStatus lastError(std::uintptr_t key, const char** message) const noexcept;
 
  private:
   mutable std::mutex mutex_;
   std::unordered_map<std::uintptr_t, std::shared_ptr<Slot>> live_;
   std::uintptr_t last_id_ = 0;
+
+  /// The status of the exception being handled, its message "FN: WHAT" kept in `slot` for the
+  /// calling thread (null: as its last error without a handle).
+  static CallStatus failed(const char* fn, Slot* slot) noexcept;
 };
 
 /// One motion of a program written from poses (program base frame, T_base_tcp).
@@ -234,7 +342,7 @@ struct PoseProgramMotion {
 /// A program to write from poses: every motion with the same $TOOL and $BASE.
 struct PoseProgram {
   std::string name;   ///< empty: the file name without its extension
-  std::string robot;  ///< the robot named in an XML program (may be empty)
+  std::string robot;  ///< the robot named in an XML program (empty: the session's, if any)
   calib::XyzAbc tool, base;  ///< $TOOL (T_flange_tcp), $BASE (relative to $WORLD)
   std::vector<PoseProgramMotion> motions;
 };
