@@ -311,6 +311,76 @@ TEST(Diagnose, NegativeComplianceIsRejectedAsImplausible) {
     if (e.effect == "joint_compliance") EXPECT_FALSE(e.implausible.empty()) << diagnosisText(d);
 }
 
+// Fit data over the middle third of joint 1's range (|q1| < 60 deg of the KR 16's +-185): on it
+// the first harmonic of a gear error of joint 1 looks like an offset plus a scale, so a scale of
+// joint 1 gains on held-out folds, but extrapolated over the whole range it makes fresh poses
+// worse than the geometric model. The diagnosis must not select a scale or gear term of joint 1
+// (coverage-limited, with the reason), and its model must be no worse on fresh poses over joint
+// 1's whole range than the geometric model identify fits on the same data (both evaluated on
+// poses simulated from the truth).
+TEST(Diagnose, ScaleOrGearOfAPartlyCoveredJointIsNeverSelected) {
+  const RobotModel nominal = nominalWithTarget("kuka_kr16");
+  SimulateOptions o = campaign(71, {"geometric"}, 900);
+  o.noise_mm = 0.01;
+  RobotModel truth = perturbModel(nominal, o);
+  ASSERT_EQ(truth.deviations.gear_sin.size(), static_cast<size_t>(6 * truth.deviations.gear_harmonics));
+  truth.deviations.gear_sin[0] = 0.02 * kDegToRad;  // joint 1, first harmonic: 0.35 mrad
+  truth.deviations.gear_cos[0] = 0.01 * kDegToRad;
+  const MeasurementSet all = simulateMeasurements(truth, o);
+  MeasurementSet fit = all;
+  fit.rows.clear();
+  for (const Measurement& r : all.rows)
+    if (std::abs(r.q[0]) < 60) fit.rows.push_back(r);
+  ASSERT_GT(fit.rows.size(), 250u);
+  SimulateOptions of = o;
+  of.poses = 300;
+  of.seed = 72;
+  const MeasurementSet fresh = simulateMeasurements(truth, of);  // joint 1 over +-166 deg
+
+  const Diagnosis d = diagnose(nominal, fit, nullptr, DiagnoseOptions{});
+  for (const EffectEvidence& e : d.selected)
+    if (e.effect == "joint_scale" || e.effect == "gear_periodic")
+      for (int j : e.joints) EXPECT_NE(j, 1) << diagnosisText(d);
+  bool scale_rejected = false;
+  for (const Rejected& r : d.rejected)
+    if (r.effect == "joint_scale" && r.joints == std::vector<int>{1})
+      scale_rejected = r.reason.find("coverage-limited") != std::string::npos &&
+                       r.reason.find("limits (-185..185)") != std::string::npos;
+  EXPECT_TRUE(scale_rejected) << diagnosisText(d);
+
+  IdentifyOptions io;
+  io.groups = {"geometric"};
+  const double baseline = evaluate(identify(nominal, fit, io, nullptr), fresh).rms_mm;
+  io.groups = {"geometric", "joint_scale:j1"};
+  const double with_scale = evaluate(identify(nominal, fit, io, nullptr), fresh).rms_mm;
+  EXPECT_GT(with_scale, baseline);  // what the rule prevents (0.352 against 0.346 mm)
+  // nothing else to select here: the diagnosis' model is the geometric one (equal up to rounding)
+  EXPECT_LE(evaluate(d.final_model, fresh).rms_mm, baseline * (1 + 1e-9)) << diagnosisText(d);
+}
+
+// A periodic term of a joint a campaign covers over less than a turn (the KR 16's joint 2: 171 of
+// its 190 deg): the end blocks of joint 2's range leave training rows over 137 deg of it, where a
+// harmonic cannot be told from an offset and a scale, so the blocked cross-validation judges it
+// on the folds whose training rows cover at least 162 deg. The selfcheck's partial_cyclic case
+// (a 2-cycle error of joint 2 plus a 17-cycle part no catalogued effect carries): judged on the
+// end blocks too, the gear was rejected and the verdict was `unexplained` without the partial
+// explanation (6 of these 16 cases: seeds 1-8 at 0.01 and 0.03 mm); now the gear is named as the
+// partial explanation and the selected model is better on fresh poses (the selfcheck's truth).
+TEST(Diagnose, GearOfAJointIsJudgedOnFoldsThatCoverHalfATurn) {
+  SelfcheckOptions o;
+  o.robots = {"kuka_kr16"};
+  o.seeds = {1};
+  o.noise_mm = {0.01};
+  o.injected = {"partial_cyclic"};
+  const SelfcheckResult r = runSelfcheck(o);
+  ASSERT_EQ(r.cases.size(), 1u);
+  const SelfcheckCase& c = r.cases[0];
+  EXPECT_EQ(c.validation, "cross-validation");
+  EXPECT_EQ(c.verdict, "unexplained/partial") << r.shrinkTable();
+  EXPECT_TRUE(c.right);
+  EXPECT_LT(c.true_after_mm, 0.8 * c.true_before_mm) << r.shrinkTable();
+}
+
 // identify --params accepts the catalogue names: backlash fitted on backlash data.
 TEST(Diagnose, IdentifyFitsCatalogueGroups) {
   const RobotModel nominal = nominalWithTarget("kuka_kr16");

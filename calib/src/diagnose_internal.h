@@ -13,6 +13,7 @@
 #include <limits>
 #include <map>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "accura/calib/diagnose.h"
@@ -112,6 +113,14 @@ class Diagnoser {
   /// plausible parameters and a gain that survives blocked cross-validation. Fills *why when not.
   bool admissible(const std::vector<int>& cur, const std::vector<int>& add, std::string* why, double* blocked_gain,
                   std::string* scheme) const;
+  /// Whether an effect block given by a formula of its joint's angle (joint_scale, gear_periodic)
+  /// can carry over to the joint's whole range from the range the fit data cover: a periodic term
+  /// needs 162 deg (0.45 turn) of it, and no such term is extrapolated to joint limits that lie
+  /// beyond the covered range by more than half its width. Fills *why when not. Other effects
+  /// always carry over (their blocked cross-validation judges them).
+  bool carriesOver(const Block& B, std::string* why) const;
+  /// The range of joint j (0-based; deg or mm) the training rows of fold f of a scheme cover.
+  std::pair<double, double> trainingRange(const Scheme& sc, size_t f, int j) const;
   std::vector<std::string> implausible(const std::vector<EffectParameter>& ps) const;
   std::vector<Coverage> coverageOf(const std::string& effect, const std::vector<int>& joints) const;
   Eigen::VectorXd fitAll(const std::vector<int>& S, double* chi2, Eigen::VectorXd* sigma) const;
@@ -133,6 +142,7 @@ class Diagnoser {
     std::vector<double> blocked_gain;  // per selected block (NaN when not checked)
     std::vector<std::string> blocked_scheme;
   };
+  struct ForwardRun;  // the state and steps of one forward selection (diagnose_selection.cpp)
   Forward forward(const std::vector<int>& candidates) const;
   void selection();
   void ranking();

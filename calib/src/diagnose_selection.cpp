@@ -22,6 +22,9 @@ namespace diagnose_detail {
 // A blocked scheme whose held-out error is worse with the addition at this z (one-sided p 0.01)
 // shows harm beyond chance.
 constexpr double kHarmZ = 2.326;
+// The share of a turn a periodic term of a joint needs in the fit data to be told apart from the
+// joint's offset and scale (0.45 turn).
+constexpr double kPeriodicCoverageDeg = 162.0;
 
 
 // Physically implausible values of an effect's parameters (display units): a negative or absurd
@@ -89,33 +92,65 @@ std::vector<Coverage> Diagnoser::coverageOf(const std::string& effect, const std
   return out;
 }
 
-// Besides the held-out test, an addition must have physically plausible parameters and keep
-// its gain under blocked cross-validation (every scheme: contiguous blocks of each joint's
-// angle and of the pose order); a gain that vanishes or turns into a loss when a joint range
-// is held out would make new data worse.
+// The range of joint j the training rows of fold f cover (every row not held out in f).
+std::pair<double, double> Diagnoser::trainingRange(const Scheme& sc, size_t f, int j) const {
+  std::vector<bool> held(static_cast<size_t>(m_), false);
+  for (int i : sc.poses[f]) held[static_cast<size_t>(i)] = true;
+  double lo = 1e300, hi = -1e300;
+  for (int i = 0; i < m_; ++i)
+    if (!held[static_cast<size_t>(i)]) {
+      lo = std::min(lo, fit_.rows[static_cast<size_t>(i)].q[j]);
+      hi = std::max(hi, fit_.rows[static_cast<size_t>(i)].q[j]);
+    }
+  return {lo, hi};
+}
+
+// A scale or a gear harmonic is a formula of the joint's angle over its whole range: what the fit
+// data determine on the covered range is extrapolated everywhere else. Periodic terms fitted on
+// less than about half a turn (0.45 turn, 162 deg) are not determined (inside the range the
+// geometric parameters compensate them, outside they do not); and neither term is extrapolated to
+// joint limits further beyond the covered range than half its width (on the KR 16 with joint 1
+// covered over its middle third, a scale of joint 1 fitted there made fresh poses over the whole
+// range worse than the geometric model: 0.317 -> 0.455 mm). A periodic term whose data cover a
+// whole turn is determined everywhere. Blocked cross-validation cannot show this: its training
+// rows always lie inside the covered range.
+bool Diagnoser::carriesOver(const Block& B, std::string* why) const {
+  if ((B.effect != "gear_periodic" && B.effect != "joint_scale") || B.joint < 0) return true;
+  const JointSpec& J = M0_.nominal.joints[static_cast<size_t>(B.joint)];
+  const bool rev = J.type == JointType::kRevolute;
+  const bool periodic = B.effect == "gear_periodic" && rev;
+  double lo = 1e300, hi = -1e300;
+  for (const Measurement& r : fit_.rows) {
+    lo = std::min(lo, r.q[B.joint]);
+    hi = std::max(hi, r.q[B.joint]);
+  }
+  const double width = hi - lo;
+  if (periodic && width >= 360.0) return true;
+  const std::string unit = rev ? " deg" : " mm";
+  const std::string covered = "the fit data cover " + fmtg("%.0f", width) + unit + " of joint " + std::to_string(B.joint + 1) +
+                              " (" + fmtg("%.1f", lo) + ".." + fmtg("%.1f", hi) + ")";
+  if (periodic && width < kPeriodicCoverageDeg) {
+    *why = covered + ": " + B.effect + " fitted on less than about half a turn does not carry over to the rest of the range";
+    return false;
+  }
+  const double beyond = J.upper > J.lower ? std::max(lo - J.lower, J.upper - hi) : 0.0;
+  if (beyond > 0.5 * width) {
+    *why = covered + " and its limits (" + fmtg("%.0f", J.lower) + ".." + fmtg("%.0f", J.upper) + ") lie up to " +
+           fmtg("%.0f", beyond) + unit + " beyond: " + B.effect +
+           " would be extrapolated over more than half the covered width (coverage-limited: measure the joint's whole range)";
+    return false;
+  }
+  return true;
+}
+
+// Besides the held-out test, an addition must carry over to its joints' whole ranges
+// (carriesOver), have physically plausible parameters and keep its gain under blocked
+// cross-validation (every scheme: contiguous blocks of each joint's angle and of the pose order);
+// a gain that vanishes or turns into a loss when a joint range is held out would make new data worse.
 bool Diagnoser::admissible(const std::vector<int>& cur, const std::vector<int>& add, std::string* why,
                            double* blocked_gain, std::string* scheme) const {
-  // Periodic terms of one revolute joint's angle fitted on less than about half a turn (0.45
-  // turn, 162 deg) are an extrapolation wherever the data did not go: inside the range the
-  // geometric parameters compensate them, outside they do not. (A scale error is linear in q:
-  // its extrapolation is the model itself; blocked cross-validation checks it.)
-  for (int b : add) {
-    const Block& B = blocks_[static_cast<size_t>(b)];
-    if (B.effect != "gear_periodic" || B.joint < 0 ||
-        M0_.nominal.joints[static_cast<size_t>(B.joint)].type != JointType::kRevolute)
-      continue;
-    double lo = 1e300, hi = -1e300;
-    for (const Measurement& r : fit_.rows) {
-      lo = std::min(lo, r.q[B.joint]);
-      hi = std::max(hi, r.q[B.joint]);
-    }
-    if (hi - lo < 162.0) {
-      *why = "the fit data cover " + fmtg("%.0f", hi - lo) + " deg of joint " + std::to_string(B.joint + 1) +
-             " (" + fmtg("%.1f", lo) + ".." + fmtg("%.1f", hi) +
-             "): " + B.effect + " fitted on less than about half a turn does not carry over to the rest of the range";
-      return false;
-    }
-  }
+  for (int b : add)
+    if (!carriesOver(blocks_[static_cast<size_t>(b)], why)) return false;
   std::vector<int> with = cur;
   with.insert(with.end(), add.begin(), add.end());
   const std::vector<int> S = withBlocks(with);
@@ -142,43 +177,66 @@ bool Diagnoser::admissible(const std::vector<int>& cur, const std::vector<int>& 
   // scale, harmonics, thermal) must keep a gain in every scheme: it extrapolates, so it must help
   // where the training rows did not go. A joint map is zero outside the range its data cover: it
   // cannot help there and must do no harm (no scheme significantly worse, one-sided p 0.01).
-  bool local = true, periodic = false;
+  bool local = true;
+  std::vector<int> periodic_joints;
   for (int b : add) {
-    local = local && blocks_[static_cast<size_t>(b)].effect == "joint_map";
-    periodic = periodic || blocks_[static_cast<size_t>(b)].effect == "gear_periodic";
+    const Block& B = blocks_[static_cast<size_t>(b)];
+    local = local && B.effect == "joint_map";
+    if (B.effect == "gear_periodic" && B.joint >= 0) periodic_joints.push_back(B.joint);
   }
   *blocked_gain = kNaN;
   double harm_z = 0;
   std::string harm_scheme;
   const std::vector<int> S0 = withBlocks(cur);
+  auto worst = [&](const Gain& g, const std::string& name) {
+    if (g.z < harm_z) {
+      harm_z = g.z;
+      harm_scheme = name;
+    }
+    if (std::isnan(*blocked_gain) || g.gain < *blocked_gain) {
+      *blocked_gain = g.gain;
+      *scheme = name;
+    }
+  };
+  const bool periodic = !periodic_joints.empty();
   for (const Scheme& sc : blocked_) {
-    // half a joint's range is less than the half turn a periodic term needs (the coverage rule
-    // above): the halves and the end blocks alone do not test it
+    // half a joint's range is less than the half turn a periodic term needs, and trained on half
+    // of another joint's range the geometry it is fitted with does not carry over: the halves do
+    // not test it
     if (periodic && sc.end_folds.empty() && sc.poses.size() == 2) continue;
     const Eval e0 = cvEval(S0, sc, false), e1 = cvEval(S, sc, false);
     if (!e0.ok || !e1.ok) continue;
-    auto worst = [&](const Gain& g, const std::string& name) {
-      if (g.z < harm_z) {
-        harm_z = g.z;
-        harm_scheme = name;
+    // The folds the addition is judged on: a periodic term cannot be told from an offset and a
+    // scale of its joint on a fold whose training rows cover less than 162 deg of that joint (the
+    // coverage rule of carriesOver, fold by fold).
+    std::vector<int> judged;
+    for (size_t f = 0; f < sc.poses.size(); ++f) {
+      bool ok = true;
+      for (int j : periodic_joints) {
+        const std::pair<double, double> r = trainingRange(sc, f, j);
+        ok = ok && r.second - r.first >= kPeriodicCoverageDeg;
       }
-      if (std::isnan(*blocked_gain) || g.gain < *blocked_gain) {
-        *blocked_gain = g.gain;
-        *scheme = name;
-      }
+      if (ok) judged.push_back(static_cast<int>(f));
+    }
+    auto gainOn = [&](const std::vector<int>& folds) {
+      std::vector<double> d0, d1;
+      for (int f : folds)
+        for (int i : sc.poses[static_cast<size_t>(f)]) {
+          d0.push_back(e0.d[i]);
+          d1.push_back(e1.d[i]);
+        }
+      return pairedGain(Eigen::Map<Eigen::VectorXd>(d0.data(), static_cast<Eigen::Index>(d0.size())),
+                        Eigen::Map<Eigen::VectorXd>(d1.data(), static_cast<Eigen::Index>(d1.size())));
     };
-    worst(pairedGain(e0.d, e1.d), sc.name);
-    if (sc.end_folds.empty() || periodic) continue;  // periodic terms: the coverage rule above
-    // the end blocks alone: new data beyond the range the training rows cover
-    std::vector<double> d0, d1;
+    if (judged.empty()) continue;
+    worst(gainOn(judged), sc.name);
+    // the end blocks alone: new data beyond the range the training rows cover (periodic terms:
+    // the coverage rule of carriesOver)
+    if (periodic) continue;
+    std::vector<int> ends;
     for (int f : sc.end_folds)
-      for (int i : sc.poses[static_cast<size_t>(f)]) {
-        d0.push_back(e0.d[i]);
-        d1.push_back(e1.d[i]);
-      }
-    worst(pairedGain(Eigen::Map<Eigen::VectorXd>(d0.data(), static_cast<Eigen::Index>(d0.size())),
-                     Eigen::Map<Eigen::VectorXd>(d1.data(), static_cast<Eigen::Index>(d1.size()))),
-          sc.name.substr(0, sc.name.find(' ')) + " end blocks");
+      if (std::find(judged.begin(), judged.end(), f) != judged.end()) ends.push_back(f);
+    if (!ends.empty()) worst(gainOn(ends), sc.name.substr(0, sc.name.find(' ')) + " end blocks");
   }
   if (local && harm_z < -kHarmZ) {
     *why = "does harm outside the joint ranges it was fitted on: blocked cross-validation (" + harm_scheme +
@@ -193,24 +251,45 @@ bool Diagnoser::admissible(const std::vector<int>& cur, const std::vector<int>& 
   return true;
 }
 
-// Forward selection over the candidate blocks, starting from the baseline: each round adds
-// the block with the largest held-out gain if it passes the test; when no single block
-// passes, the remaining blocks of each effect are tried together (one candidate per effect),
-// so that an effect spread thinly over several joints is not missed.
-Diagnoser::Forward Diagnoser::forward(const std::vector<int>& candidates) const {
+// One forward selection: its state and its steps (Diagnoser::forward). The candidate units are
+// one block each, except joint_map, whose blocks are one unit: a map of one joint alone moves the
+// geometric parameters that the maps of the others hold (on the real UR10, a map of joint 2 alone
+// makes the end blocks of joint 4 worse; all maps together do not).
+struct Diagnoser::ForwardRun {
+  const Diagnoser& d;
+  const std::vector<int>& candidates;
   Forward fw;
-  const size_t B = blocks_.size();
-  fw.cur = base_eval_;
-  fw.last_round.assign(B, Gain{});
-  std::vector<bool> used(B, false);
-  auto evalWith = [&](const std::vector<int>& add) {
-    if (fw.blocks.empty() && add.size() == 1) return round1_eval_[static_cast<size_t>(add[0])];
+  std::vector<bool> used, rejected_block;
+  std::set<std::string> selected_effects;
+  std::vector<std::vector<int>> units;
+
+  ForwardRun(const Diagnoser& diagnoser, const std::vector<int>& cands) : d(diagnoser), candidates(cands) {
+    const size_t B = d.blocks_.size();
+    fw.cur = d.base_eval_;
+    fw.last_round.assign(B, Gain{});
+    used.assign(B, false);
+    rejected_block.assign(B, false);
+    std::vector<int> maps;
+    for (int b : candidates)
+      if (block(b).effect == "joint_map") maps.push_back(b);
+      else units.push_back({b});
+    if (!maps.empty()) units.push_back(maps);
+  }
+  const Block& block(int b) const { return d.blocks_[static_cast<size_t>(b)]; }
+  bool isMapUnit(const std::vector<int>& u) const { return block(u[0]).effect == "joint_map"; }
+  bool unused(const std::vector<int>& u) const {
+    for (int b : u)
+      if (used[static_cast<size_t>(b)]) return false;
+    return true;
+  }
+  // held-out errors of the current selection plus `add`
+  Eval evalWith(const std::vector<int>& add) const {
+    if (fw.blocks.empty() && add.size() == 1) return d.round1_eval_[static_cast<size_t>(add[0])];
     std::vector<int> blocks = fw.blocks;
     blocks.insert(blocks.end(), add.begin(), add.end());
-    return evaluate(withBlocks(blocks));
-  };
-  std::vector<bool> rejected_block(B, false);
-  auto accept = [&](const std::vector<int>& add, const Eval& e, double blocked_gain, const std::string& scheme) {
+    return d.evaluate(d.withBlocks(blocks));
+  }
+  void accept(const std::vector<int>& add, const Eval& e, double blocked_gain, const std::string& scheme) {
     for (size_t k = 0; k < add.size(); ++k) {
       used[static_cast<size_t>(add[k])] = true;
       fw.blocks.push_back(add[k]);
@@ -219,67 +298,63 @@ Diagnoser::Forward Diagnoser::forward(const std::vector<int>& candidates) const 
       fw.blocked_scheme.push_back(scheme);
     }
     fw.cur = e;
+    selected_effects.insert(block(add[0]).effect);
     // what was rejected is tried again on the new model (a map may carry over once the compliance
     // it would otherwise absorb is in the model)
-    for (size_t b = 0; b < B; ++b)
+    for (size_t b = 0; b < rejected_block.size(); ++b)
       if (rejected_block[b]) {
         rejected_block[b] = false;
         used[b] = false;
       }
-  };
-  auto reject = [&](const std::vector<int>& add, const std::string& why) {
-    for (int b : add) rejected_block[static_cast<size_t>(b)] = true;
-    // the latest reason of each candidate
+  }
+  // the latest reason of each candidate; a block that does not carry over to its joint's range
+  // stays out (no later addition changes the range the data cover)
+  void reject(const std::vector<int>& add, const std::string& why, bool for_good) {
+    const Block& first = block(add[0]);
     fw.rejected.erase(std::remove_if(fw.rejected.begin(), fw.rejected.end(),
                                      [&](const Rejected& x) {
-                                       return x.effect == blocks_[static_cast<size_t>(add[0])].effect &&
-                                              (x.joints.empty() || blocks_[static_cast<size_t>(add[0])].joint < 0 ||
-                                               std::find(x.joints.begin(), x.joints.end(),
-                                                         blocks_[static_cast<size_t>(add[0])].joint + 1) != x.joints.end());
+                                       return x.effect == first.effect &&
+                                              (x.joints.empty() || first.joint < 0 ||
+                                               std::find(x.joints.begin(), x.joints.end(), first.joint + 1) != x.joints.end());
                                      }),
                       fw.rejected.end());
     Rejected r;
-    r.effect = blocks_[static_cast<size_t>(add[0])].effect;
+    r.effect = first.effect;
     for (int b : add) {
       used[static_cast<size_t>(b)] = true;
-      if (blocks_[static_cast<size_t>(b)].joint >= 0) r.joints.push_back(blocks_[static_cast<size_t>(b)].joint + 1);
+      rejected_block[static_cast<size_t>(b)] = !for_good;
+      if (block(b).joint >= 0) r.joints.push_back(block(b).joint + 1);
     }
     std::sort(r.joints.begin(), r.joints.end());
     r.reason = why;
     fw.rejected.push_back(r);
-  };
-  std::set<std::string> selected_effects;
-  // The candidate units: one block each, except joint_map, whose blocks are one unit: a map of one
-  // joint alone moves the geometric parameters that the maps of the others hold (on this UR10, a
-  // map of joint 2 alone makes the end blocks of joint 4 worse; all maps together do not).
-  std::vector<std::vector<int>> units;
-  {
-    std::vector<int> maps;
-    for (int b : candidates)
-      if (blocks_[static_cast<size_t>(b)].effect == "joint_map") maps.push_back(b);
-      else units.push_back({b});
-    if (!maps.empty()) units.push_back(maps);
   }
-  auto isMapUnit = [&](const std::vector<int>& u) { return blocks_[static_cast<size_t>(u[0])].effect == "joint_map"; };
-  auto unused = [&](const std::vector<int>& u) {
-    for (int b : u)
-      if (used[static_cast<size_t>(b)]) return false;
-    return true;
-  };
-  // rejected candidates do not count as steps
-  for (int step = 0; static_cast<int>(fw.blocks.size()) < o_.max_steps && step < o_.max_steps + static_cast<int>(B); ++step) {
-    // two families, each with its own Bonferroni correction: blocks of effects already in
-    // the model (is the effect on more joints?) and blocks of new effects
+  // Adds `add` when it is admissible, else lists it as rejected.
+  void tryAdd(const std::vector<int>& add, const Eval& e) {
+    std::string why, scheme;
+    double bg = kNaN;
+    if (d.admissible(fw.blocks, add, &why, &bg, &scheme)) {
+      accept(add, e, bg, scheme);
+      return;
+    }
+    bool for_good = false;
+    std::string unused_why;
+    for (int b : add) for_good = for_good || !d.carriesOver(block(b), &unused_why);
+    reject(add, why, for_good);
+  }
+  // One round over the single units (maps aside) in two families, each with its own Bonferroni
+  // correction: blocks of effects already in the model (is the effect on more joints?) and blocks
+  // of new effects. True when the best passing unit was added or rejected.
+  bool singleStep() {
     int best[2] = {-1, -1}, tried[2] = {0, 0};
     Gain best_gain[2];
     Eval best_eval[2];
-    std::vector<Gain> round(B, Gain{});
+    std::vector<Gain> round(d.blocks_.size(), Gain{});
     for (size_t u = 0; u < units.size(); ++u) {
       if (!unused(units[u]) || isMapUnit(units[u])) continue;
       const Eval e = evalWith(units[u]);
       if (!e.ok) continue;
-      const int b = units[u][0];
-      const int fam = selected_effects.count(blocks_[static_cast<size_t>(b)].effect) ? 0 : 1;
+      const int fam = selected_effects.count(block(units[u][0]).effect) ? 0 : 1;
       ++tried[fam];
       const Gain g = pairedGain(fw.cur.d, e.d);
       for (int x : units[u]) round[static_cast<size_t>(x)] = g;
@@ -298,26 +373,19 @@ Diagnoser::Forward Diagnoser::forward(const std::vector<int>& candidates) const 
     int pick = -1;
     for (int fam = 0; fam < 2; ++fam) {
       if (best[fam] < 0) continue;
-      const bool passes = best_gain[fam].p < o_.alpha / double(tried[fam]) && best_gain[fam].gain >= o_.min_gain;
+      const bool passes = best_gain[fam].p < d.o_.alpha / double(tried[fam]) && best_gain[fam].gain >= d.o_.min_gain;
       if (passes && (pick < 0 || best_gain[fam].gain > best_gain[pick].gain)) pick = fam;
     }
-    if (pick >= 0) {
-      const std::vector<int>& add = units[static_cast<size_t>(best[pick])];
-      std::string why, scheme;
-      double bg = kNaN;
-      if (!admissible(fw.blocks, add, &why, &bg, &scheme)) {
-        reject(add, why);
-        continue;
-      }
-      selected_effects.insert(blocks_[static_cast<size_t>(add[0])].effect);
-      accept(add, best_eval[pick], bg, scheme);
-      continue;
-    }
-    // no single block passes: the remaining blocks of each effect together
+    if (pick < 0) return false;
+    tryAdd(units[static_cast<size_t>(best[pick])], best_eval[pick]);
+    return true;
+  }
+  // When no single block passes: the remaining blocks of each effect together (one candidate per
+  // effect), so that an effect spread thinly over several joints is not missed.
+  bool groupStep() {
     std::map<std::string, std::vector<int>> groups;
     for (int b : candidates)
-      if (!used[static_cast<size_t>(b)] && blocks_[static_cast<size_t>(b)].effect != "joint_map")
-        groups[blocks_[static_cast<size_t>(b)].effect].push_back(b);
+      if (!used[static_cast<size_t>(b)] && block(b).effect != "joint_map") groups[block(b).effect].push_back(b);
     std::vector<int> best_group;
     Gain group_gain;
     Eval group_eval;
@@ -334,24 +402,19 @@ Diagnoser::Forward Diagnoser::forward(const std::vector<int>& candidates) const 
         group_eval = e;
       }
     }
-    if (!best_group.empty() && group_gain.p < o_.alpha / double(groups_tried) && group_gain.gain >= o_.min_gain) {
-      std::string why, scheme;
-      double bg = kNaN;
-      if (!admissible(fw.blocks, best_group, &why, &bg, &scheme)) {
-        reject(best_group, why);
-        continue;
-      }
-      selected_effects.insert(blocks_[static_cast<size_t>(best_group[0])].effect);
-      accept(best_group, group_eval, bg, scheme);
-      continue;
-    }
-    // The joint maps last: a map of every joint can follow what a parametric effect describes (a
-    // gear harmonic, a compliance); it is tried only when none of them passes any more.
-    bool map_added = false;
+    if (best_group.empty() || !(group_gain.p < d.o_.alpha / double(groups_tried) && group_gain.gain >= d.o_.min_gain))
+      return false;
+    tryAdd(best_group, group_eval);
+    return true;
+  }
+  // The joint maps last: a map of every joint can follow what a parametric effect describes (a
+  // gear harmonic, a compliance); they are tried only when none of them passes any more. True
+  // when the maps were added.
+  bool mapStep() {
     for (const std::vector<int>& u : units) {
       if (!isMapUnit(u) || !unused(u)) continue;
       const Eval e = evalWith(u);
-      if (!e.ok) break;
+      if (!e.ok) return false;
       const Gain g = pairedGain(fw.cur.d, e.d);
       for (int x : u) fw.last_round[static_cast<size_t>(x)] = g;
       if (fw.blocks.empty() && !fw.has_best_single) {
@@ -359,34 +422,39 @@ Diagnoser::Forward Diagnoser::forward(const std::vector<int>& candidates) const 
         fw.best_single = u;
         fw.best_single_eval = e;
       }
-      if (!(g.p < o_.alpha && g.gain >= o_.min_gain)) break;
-      std::string why, scheme;
-      double bg = kNaN;
-      if (!admissible(fw.blocks, u, &why, &bg, &scheme)) {
-        reject(u, why);
-        break;
-      }
-      selected_effects.insert("joint_map");
-      accept(u, e, bg, scheme);
-      map_added = true;
-      break;
+      if (!(g.p < d.o_.alpha && g.gain >= d.o_.min_gain)) return false;
+      const size_t before = fw.blocks.size();
+      tryAdd(u, e);
+      return fw.blocks.size() > before;
     }
-    if (map_added) continue;
-    break;
+    return false;
   }
   // a candidate rejected once and selected later is not reported as rejected
-  fw.rejected.erase(std::remove_if(fw.rejected.begin(), fw.rejected.end(),
-                                   [&](const Rejected& x) {
-                                     for (int b : fw.blocks)
-                                       if (blocks_[static_cast<size_t>(b)].effect == x.effect &&
-                                           (x.joints.empty() ||
-                                            std::find(x.joints.begin(), x.joints.end(), blocks_[static_cast<size_t>(b)].joint + 1) !=
-                                                x.joints.end()))
-                                         return true;
-                                     return false;
-                                   }),
-                    fw.rejected.end());
-  return fw;
+  void forgetRejectedSelectedLater() {
+    fw.rejected.erase(std::remove_if(fw.rejected.begin(), fw.rejected.end(),
+                                     [&](const Rejected& x) {
+                                       for (int b : fw.blocks)
+                                         if (block(b).effect == x.effect &&
+                                             (x.joints.empty() ||
+                                              std::find(x.joints.begin(), x.joints.end(), block(b).joint + 1) != x.joints.end()))
+                                           return true;
+                                       return false;
+                                     }),
+                      fw.rejected.end());
+  }
+};
+
+// Forward selection over the candidate blocks, starting from the baseline: each round adds
+// the block with the largest held-out gain if it passes the test; when no single block
+// passes, the remaining blocks of each effect are tried together; the joint maps last.
+Diagnoser::Forward Diagnoser::forward(const std::vector<int>& candidates) const {
+  ForwardRun run(*this, candidates);
+  const int B = static_cast<int>(blocks_.size());
+  // rejected candidates do not count as steps
+  for (int step = 0; static_cast<int>(run.fw.blocks.size()) < o_.max_steps && step < o_.max_steps + B; ++step)
+    if (!run.singleStep() && !run.groupStep() && !run.mapStep()) break;
+  run.forgetRejectedSelectedLater();
+  return run.fw;
 }
 
 void Diagnoser::selection() {
