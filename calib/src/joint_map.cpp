@@ -268,6 +268,10 @@ JointMapCvResult crossValidateJointMap(const std::vector<JointMapCvRow>& rows, c
     // a tiny ridge: parameters the data leave undetermined stay at the linearisation point
     const double ridge = 1e-10 * std::max(N.diagonal().maxCoeff(), 1e-300);
     N.diagonal().array() += ridge;
+    // Cholesky (blocked: several times faster than LDLT at the maps' sizes); LDLT when the
+    // rounding leaves the matrix not quite positive definite
+    Eigen::LLT<Eigen::MatrixXd> llt(N);
+    if (llt.info() == Eigen::Success) return Eigen::VectorXd(-llt.solve(b));
     Eigen::LDLT<Eigen::MatrixXd> ldlt(N);
     return Eigen::VectorXd(-ldlt.solve(b));
   };
