@@ -394,8 +394,7 @@ void uncertainties(Problem& pb, const IdentifyOptions& options, bool robust, Ide
     // reported parameter instead of the inverse
     Eigen::MatrixXd N;
     rowNormalEquations(pb, pb.model, pb.x, fc, &N, nullptr, &r);
-    const Eigen::MatrixXd A = penaltyMatrix(pb, fc, pb.x, nullptr);
-    N.noalias() += A.transpose() * A;
+    addPenaltyNormal(pb, fc, nullptr, &N, nullptr);
     summary.final_cost = 0.5 * r.squaredNorm();
     const double dof_res = std::max(1.0, double(r.size()) - double(fc.n));
     summary.variance_factor = r.squaredNorm() / dof_res;

@@ -240,10 +240,12 @@ struct FreeColumns {
 /// residual of the rows. Returns 0.5 |r|^2. The penalty rows are not included.
 double rowNormalEquations(const Problem& pb, const RobotModel& model, const std::vector<double>& x,
                           const FreeColumns& fc, Eigen::MatrixXd* N, Eigen::VectorXd* g, Eigen::VectorXd* r);
-/// The penalty rows as a dense matrix over the free columns (one row per PenaltyRow) and their
-/// values at x (fixed parameters included) into *value (may be null).
-Eigen::MatrixXd penaltyMatrix(const Problem& pb, const FreeColumns& fc, const std::vector<double>& x,
-                              Eigen::VectorXd* value);
+/// The penalty rows' values at x (fixed parameters included), one per PenaltyRow.
+Eigen::VectorXd penaltyValues(const Problem& pb, const std::vector<double>& x);
+/// Adds the penalty rows A (over the free columns) to the normal equations from their terms:
+/// A^T A to *N (may be null), A^T value to *g (may be null; value as penaltyValues()).
+void addPenaltyNormal(const Problem& pb, const FreeColumns& fc, const Eigen::VectorXd* value, Eigen::MatrixXd* N,
+                      Eigen::VectorXd* g);
 /// Levenberg-Marquardt on the normal equations accumulated pose by pose (rowNormalEquations,
 /// the penalty rows added analytically, a dense Cholesky factorisation per step): the problem
 /// with joint maps and no robust loss. Reproduces Ceres' trust-region iteration as solve()

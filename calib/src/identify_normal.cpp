@@ -72,18 +72,28 @@ double rowNormalEquations(const Problem& pb, const RobotModel& model, const std:
   return 0.5 * ss;
 }
 
-Eigen::MatrixXd penaltyMatrix(const Problem& pb, const FreeColumns& fc, const std::vector<double>& x,
-                              Eigen::VectorXd* value) {
-  const Eigen::Index np = static_cast<Eigen::Index>(pb.penalties.size());
-  Eigen::MatrixXd A = Eigen::MatrixXd::Zero(np, fc.n);
-  if (value) value->setZero(np);
-  for (Eigen::Index k = 0; k < np; ++k)
-    for (const auto& t : pb.penalties[static_cast<size_t>(k)].terms) {
-      if (value) (*value)[k] += t.second * x[static_cast<size_t>(t.first)];
-      const int c = fc.col_of[static_cast<size_t>(t.first)];
-      if (c >= 0) A(k, c) += t.second;
+Eigen::VectorXd penaltyValues(const Problem& pb, const std::vector<double>& x) {
+  Eigen::VectorXd v = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(pb.penalties.size()));
+  for (size_t k = 0; k < pb.penalties.size(); ++k)
+    for (const auto& t : pb.penalties[k].terms) v[static_cast<Eigen::Index>(k)] += t.second * x[static_cast<size_t>(t.first)];
+  return v;
+}
+
+void addPenaltyNormal(const Problem& pb, const FreeColumns& fc, const Eigen::VectorXd* value, Eigen::MatrixXd* N,
+                      Eigen::VectorXd* g) {
+  for (size_t k = 0; k < pb.penalties.size(); ++k) {
+    const auto& terms = pb.penalties[k].terms;
+    for (const auto& a : terms) {
+      const int ca = fc.col_of[static_cast<size_t>(a.first)];
+      if (ca < 0) continue;
+      if (g) (*g)[ca] += a.second * (*value)[static_cast<Eigen::Index>(k)];
+      if (!N) continue;
+      for (const auto& b : terms) {
+        const int cb = fc.col_of[static_cast<size_t>(b.first)];
+        if (cb >= 0) (*N)(cb, ca) += a.second * b.second;
+      }
     }
-  return A;
+  }
 }
 
 namespace {
@@ -120,21 +130,19 @@ SolveResult solveNormal(Problem& pb, const IdentifyOptions& options) {
     return std::sqrt(s);
   };
 
-  const Eigen::MatrixXd A = penaltyMatrix(pb, fc, pb.x, nullptr);
+  // the penalty rows are linear: A^T A once (from their few terms: A is sparse)
   Eigen::MatrixXd AtA = Eigen::MatrixXd::Zero(n, n);
-  AtA.selfadjointView<Eigen::Lower>().rankUpdate(A.transpose());
-  AtA.triangularView<Eigen::StrictlyUpper>() = AtA.transpose();
+  addPenaltyNormal(pb, fc, nullptr, &AtA, nullptr);
 
   RobotModel model = pb.model;
   // cost at xs; with N and g also the normal equations (penalty rows included)
   auto evaluate = [&](const std::vector<double>& xs, Eigen::MatrixXd* N, Eigen::VectorXd* g) {
     for (size_t k = 0; k < pb.P; ++k) setParameter(model.deviations, pb.layout[k], xs[k]);
-    Eigen::VectorXd pv;
-    penaltyMatrix(pb, fc, xs, &pv);  // (the values; A is constant)
+    const Eigen::VectorXd pv = penaltyValues(pb, xs);
     const double cost = rowNormalEquations(pb, model, xs, fc, N, g, nullptr) + 0.5 * pv.squaredNorm();
     if (N) {
       *N += AtA;
-      g->noalias() += A.transpose() * pv;
+      addPenaltyNormal(pb, fc, &pv, nullptr, g);
     }
     return cost;
   };
