@@ -5,6 +5,8 @@
 //                          the kinematic core (KinematicModel prepared once per evaluation
 //                          point, one workspace, no allocation per row)
 //   identify_solve.cpp     the Ceres problem on the stacked rows
+//   identify_normal.cpp    joint maps without a robust loss: the normal equations pose by pose
+//                          and a Levenberg-Marquardt on them that follows Ceres' iteration
 //   identify_analysis.cpp  identifiability, weights (variance components), uncertainties and
 //                          the summary's diagnostics
 //   identify_mapcv.cpp     joint maps without a stated knot spacing or smoothness

@@ -1,5 +1,6 @@
 // accura: the identification's Ceres problem (identify_internal.h): Levenberg-Marquardt on the
-// stacked rows of identify_rows.cpp.
+// stacked rows of identify_rows.cpp. Joint maps without a robust loss go to solveNormal
+// (identify_normal.cpp), which follows the same iteration on the normal equations.
 #include <ceres/ceres.h>
 
 #include <algorithm>
