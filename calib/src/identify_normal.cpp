@@ -167,7 +167,6 @@ SolveResult solveNormal(Problem& pb, const IdentifyOptions& options) {
   SolveResult res;
   std::string type = "NO_CONVERGENCE";
   std::vector<double> candidate;
-  Eigen::LLT<Eigen::MatrixXd> llt;
   while (true) {
     // end of an iteration: its checks
     res.iterations = iteration;
@@ -190,7 +189,7 @@ SolveResult solveNormal(Problem& pb, const IdentifyOptions& options) {
     if (!reuse_diagonal) diagonal = Ns.diagonal().cwiseMax(min_diagonal).cwiseMin(max_diagonal);
     M = Ns;
     M.diagonal() += diagonal / radius;
-    llt.compute(M);
+    Eigen::LLT<Eigen::Ref<Eigen::MatrixXd>> llt(M);  // in place: no copy of the matrix
     Eigen::VectorXd step;
     double model_change = 0;
     bool valid = llt.info() == Eigen::Success;
