@@ -104,6 +104,20 @@ std::string format(const char* fmt, double a, double b) {
   return buf;
 }
 
+// Ceres' Levenberg-Marquardt step in the scaled variables: (Ns + diagonal / radius) z = gs,
+// step = -z (M: the workspace, factorised in place), *model_change the decrease the linear
+// model predicts. False: an invalid step (no factorisation, or no predicted decrease).
+bool lmStep(const Eigen::MatrixXd& Ns, const Eigen::VectorXd& gs, const Eigen::VectorXd& diagonal, double radius,
+            Eigen::MatrixXd& M, Eigen::VectorXd* step, double* model_change) {
+  M = Ns;
+  M.diagonal() += diagonal / radius;
+  Eigen::LLT<Eigen::Ref<Eigen::MatrixXd>> llt(M);
+  if (llt.info() != Eigen::Success) return false;
+  *step = -llt.solve(gs);
+  *model_change = -(step->dot(gs) + 0.5 * step->dot(Ns * *step));
+  return step->allFinite() && *model_change > 0;
+}
+
 }  // namespace
 
 SolveResult solveNormal(Problem& pb, const IdentifyOptions& options) {
@@ -185,20 +199,10 @@ SolveResult solveNormal(Problem& pb, const IdentifyOptions& options) {
       break;
     }
     ++iteration;
-    // the step: (Ns + diag(Ns) / radius) z = gs, step = -z
     if (!reuse_diagonal) diagonal = Ns.diagonal().cwiseMax(min_diagonal).cwiseMin(max_diagonal);
-    M = Ns;
-    M.diagonal() += diagonal / radius;
-    Eigen::LLT<Eigen::Ref<Eigen::MatrixXd>> llt(M);  // in place: no copy of the matrix
     Eigen::VectorXd step;
     double model_change = 0;
-    bool valid = llt.info() == Eigen::Success;
-    if (valid) {
-      step = -llt.solve(gs);
-      model_change = -(step.dot(gs) + 0.5 * step.dot(Ns * step));
-      valid = step.allFinite() && model_change > 0;
-    }
-    if (!valid) {
+    if (!lmStep(Ns, gs, diagonal, radius, M, &step, &model_change)) {
       if (++invalid >= max_invalid) {
         type = "FAILURE";
         res.message = "Number of consecutive invalid steps more than Solver::Options::max_num_consecutive_invalid_steps: " +
