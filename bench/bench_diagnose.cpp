@@ -20,6 +20,7 @@
 #include "accura/calib/kinematics.h"
 #include "accura/calib/robot_io.h"
 #include "accura/calib/simulate.h"
+#include "../calib/src/identify_internal.h"  // CeresForJointMaps: the peer solver
 
 namespace {
 
@@ -122,7 +123,7 @@ const Campaign& campaign1500() {
   return *c;
 }
 
-void identify1500(benchmark::State& state, const std::vector<std::string>& groups, double smoothing) {
+void identify1500(benchmark::State& state, const std::vector<std::string>& groups, double smoothing, bool ceres = false) {
   const Campaign& c = campaign1500();
   accura::calib::IdentifyOptions o;
   o.groups = groups;
@@ -130,6 +131,8 @@ void identify1500(benchmark::State& state, const std::vector<std::string>& group
   double rms = 0;
   for (auto _ : state) {
     accura::calib::IdentifySummary s;
+    std::unique_ptr<accura::calib::identify_detail::CeresForJointMaps> peer;
+    if (ceres) peer = std::make_unique<accura::calib::identify_detail::CeresForJointMaps>();
     const RobotModel m = accura::calib::identify(c.nominal, c.fit, o, &s);
     rms = s.fit.rms_mm;
     benchmark::DoNotOptimize(m.deviations.base_mm);
@@ -146,6 +149,19 @@ void BM_IdentifyJointMaps1500PosesStated(benchmark::State& state) {
   identify1500(state, {"geometric", "joint_map@3deg"}, 0.003);
 }
 BENCHMARK(BM_IdentifyJointMaps1500PosesStated)->Unit(benchmark::kMillisecond)->MinTime(2.0);
+
+// Peers of the two above: the same identifications with Ceres' sparse Levenberg-Marquardt on
+// the stacked Jacobian instead of the normal equations accumulated pose by pose
+// (identify_normal.cpp); the cross-validation itself is the same code in both.
+void BM_IdentifyJointMaps1500PosesChosenByCvCeres(benchmark::State& state) {
+  identify1500(state, {"geometric", "joint_map"}, std::nan(""), true);
+}
+BENCHMARK(BM_IdentifyJointMaps1500PosesChosenByCvCeres)->Unit(benchmark::kMillisecond)->MinTime(2.0);
+
+void BM_IdentifyJointMaps1500PosesStatedCeres(benchmark::State& state) {
+  identify1500(state, {"geometric", "joint_map@3deg"}, 0.003, true);
+}
+BENCHMARK(BM_IdentifyJointMaps1500PosesStatedCeres)->Unit(benchmark::kMillisecond)->MinTime(2.0);
 
 void BM_IdentifyGeometric1500Poses(benchmark::State& state) { identify1500(state, {"geometric"}, std::nan("")); }
 BENCHMARK(BM_IdentifyGeometric1500Poses)->Unit(benchmark::kMillisecond)->MinTime(2.0);

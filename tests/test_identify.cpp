@@ -3,6 +3,7 @@
 // registration of a tracker standing anywhere.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <map>
 #include <random>
 
@@ -149,7 +150,71 @@ TEST(Identify, StackedRowJacobianMatchesCentralDifferences) {
           << "\nnumeric  " << fd.transpose();
     }
     EXPECT_LT((T.translation() - stack.pose(x, row, i, false).translation()).norm(), 1e-9);  // mm
+    // the compact form (the normal equations' rows) holds the same columns, and only zeros
+    // elsewhere: so it matches the central differences too
+    const Eigen::Isometry3d Tc = stack.poseCompact(x, row, i);
+    EXPECT_LT((Tc.translation() - T.translation()).norm(), 1e-12);
+    Eigen::MatrixXd Jc = Eigen::MatrixXd::Zero(6, J.cols());
+    for (size_t k = 0; k < stack.idx().size(); ++k) {
+      ASSERT_GE(stack.idx()[k], 0);
+      Jc.col(stack.idx()[k]) += stack.Jc().col(static_cast<Eigen::Index>(k));
+    }
+    const size_t n_map = static_cast<size_t>(std::count_if(layout.begin(), layout.end(), [](const ParamInfo& p) {
+      return p.kind == ParamKind::kJointMap;
+    }));
+    EXPECT_EQ(stack.idx().size(), layout.size() - n_map + 3 * 4 + (st.of_row[i] > 0 ? 6 : 0));
+    EXPECT_LT((Jc - J).norm(), 1e-12 * J.norm());
   }
+}
+
+// The joint maps' own Levenberg-Marquardt (identify_normal.cpp, normal equations pose by pose)
+// against Ceres' on the same problem (a KR 16 with a cyclic error on j2 and j3, maps on both,
+// two stations, the stds estimated: several solves): the same optimum.
+TEST(Identify, JointMapSolverReachesCeresOptimum) {
+  using namespace identify_detail;
+  SimulateOptions sim = kr16Campaign();
+  sim.poses = 240;
+  Campaign c = makeCampaign("kuka_kr16", sim, 240, 10);
+  for (Measurement& r : c.fit.rows)
+    for (int j : {1, 2}) r.q[j] += 0.03 * std::sin(17 * r.q[j] * kDegToRad);  // deg
+  MeasurementSet a = c.fit, b = c.fit;
+  a.rows.resize(140);
+  b.rows.erase(b.rows.begin(), b.rows.begin() + 140);
+  const Eigen::Isometry3d moved = toIsometry({150, -60, 20, 2, -1, 3});  // the second station
+  for (Measurement& r : b.rows) {
+    r.p_world_mm = moved * r.p_world_mm;
+    r.R_world_tcp = Eigen::Quaterniond(moved.linear() * r.R_world_tcp.toRotationMatrix());
+  }
+  IdentifyOptions o;
+  o.groups = {"geometric", "joint_map:j2+j3@8deg"};
+  o.joint_map_smoothing = 0.01;
+  IdentifySummary sn, sc;
+  const RobotModel mn = identify(c.nominal, {a, b}, o, &sn);
+  RobotModel mc;
+  {
+    CeresForJointMaps ceres;
+    mc = identify(c.nominal, {a, b}, o, &sc);
+  }
+  EXPECT_NE(sn.termination.find("CONVERGENCE"), std::string::npos) << sn.termination;
+  EXPECT_NEAR(sn.final_cost, sc.final_cost, 1e-9 * sc.final_cost);
+  EXPECT_NEAR(sn.fit.rms_mm, sc.fit.rms_mm, 1e-9 * sc.fit.rms_mm);
+  ASSERT_EQ(sn.parameters.size(), sc.parameters.size());
+  for (size_t k = 0; k < sn.parameters.size(); ++k) {
+    EXPECT_EQ(sn.parameters[k].name, sc.parameters[k].name);
+    EXPECT_NEAR(sn.parameters[k].value, sc.parameters[k].value, 1e-6 * sc.parameters[k].sigma) << sc.parameters[k].name;
+    EXPECT_NEAR(sn.parameters[k].sigma, sc.parameters[k].sigma, 1e-9 * sc.parameters[k].sigma) << sc.parameters[k].name;
+  }
+  for (int j : {1, 2}) {
+    const JointMap& n = mn.deviations.joint_map[static_cast<size_t>(j)];
+    const JointMap& e = mc.deviations.joint_map[static_cast<size_t>(j)];
+    ASSERT_EQ(n.coef.size(), e.coef.size());
+    double amp = 0;
+    for (double v : e.coef) amp = std::max(amp, std::abs(v));
+    EXPECT_GT(amp, 1e-4);  // rad: the maps took the cyclic error
+    for (size_t k = 0; k < n.coef.size(); ++k) EXPECT_NEAR(n.coef[k], e.coef[k], 1e-6 * amp) << "j" << j + 1 << " " << k;
+  }
+  const Eigen::Isometry3d dn = sn.T_world_base_per_set[1], dc = sc.T_world_base_per_set[1];
+  EXPECT_LT((dn.translation() - dc.translation()).norm(), 1e-7);  // mm
 }
 
 TEST(Identify, Kr16GeometricReachesTheNoiseFloorAndTheTruth) {

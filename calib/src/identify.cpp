@@ -413,10 +413,10 @@ RobotModel identify(const RobotModel& start, const std::vector<MeasurementSet>& 
   weighting.apply(pb);
 
   // 3. Identifiability at the starting point, the joint maps' regularisation rows.
-  Eigen::MatrixXd Jfull;
-  const int kept = identifiability(pb, options, summary, &Jfull);
+  Eigen::VectorXd col_sq;
+  const int kept = identifiability(pb, options, summary, &col_sq);
   const int p_free = kept + static_cast<int>(pb.n_map) + 6 * pb.st.extra;
-  penaltyRows(pb, options.joint_map_smoothing, Jfull);
+  penaltyRows(pb, options.joint_map_smoothing, col_sq);
   {
     Eigen::VectorXd r0;
     pb.stack(nullptr, &r0);

@@ -66,18 +66,44 @@ void Problem::stack(Eigen::MatrixXd* J, Eigen::VectorXd* r) const {
 
 // Identifiability on the scaled weighted Jacobian at the starting point (the joint maps'
 // coefficients are not candidates here: they are regularised, see penaltyRows).
-int identifiability(Problem& pb, const IdentifyOptions& options, IdentifySummary& summary, Eigen::MatrixXd* Jfull_out) {
+int identifiability(Problem& pb, const IdentifyOptions& options, IdentifySummary& summary, Eigen::VectorXd* col_sq) {
   const size_t P = pb.P;
   const std::vector<ParamInfo>& layout = pb.layout;
   auto isMap = [&](size_t k) { return pb.isMap(k); };
   std::vector<int> cand_idx;
   for (size_t k = 0; k < P; ++k)
     if (!isMap(k)) cand_idx.push_back(static_cast<int>(k));
-  Eigen::MatrixXd& Jfull = *Jfull_out;
-  pb.stack(&Jfull, nullptr);
-  const Eigen::Index m = Jfull.rows();
-  Eigen::MatrixXd Js(m, static_cast<Eigen::Index>(cand_idx.size()));
-  for (size_t c = 0; c < cand_idx.size(); ++c) Js.col(c) = Jfull.col(cand_idx[c]);
+  Eigen::MatrixXd Js;
+  if (!pb.sparse) {
+    Eigen::MatrixXd Jfull;
+    pb.stack(&Jfull, nullptr);  // kept for the solve's first evaluation
+    *col_sq = Jfull.colwise().squaredNorm().transpose();
+    Js.resize(Jfull.rows(), static_cast<Eigen::Index>(cand_idx.size()));
+    for (size_t c = 0; c < cand_idx.size(); ++c) Js.col(c) = Jfull.col(cand_idx[c]);
+  } else {
+    // joint maps: the candidates' columns and the squared column norms from the compact rows
+    // (the stacked Jacobian over hundreds of map coefficients is never formed)
+    std::vector<int> cand_of(pb.X, -1);
+    for (size_t c = 0; c < cand_idx.size(); ++c) cand_of[static_cast<size_t>(cand_idx[c])] = static_cast<int>(c);
+    Js.setZero(pb.m_eq, static_cast<Eigen::Index>(cand_idx.size()));
+    col_sq->setZero(static_cast<Eigen::Index>(pb.X));
+    RowStack rows(pb.model, pb.plan, pb.st);
+    Eigen::Index row = 0;
+    for (size_t i = 0; i < pb.data.rows.size(); ++i) {
+      rows.poseCompact(pb.x, pb.data.rows[i], i);
+      const int dim = pb.weights[i].dim;
+      const Eigen::MatrixXd Jw = pb.weights[i].w.head(dim).asDiagonal() * rows.Jc().topRows(dim);
+      for (size_t k = 0; k < rows.idx().size(); ++k) {
+        const int xi = rows.idx()[k];
+        if (xi < 0) continue;
+        (*col_sq)[xi] += Jw.col(static_cast<Eigen::Index>(k)).squaredNorm();
+        if (cand_of[static_cast<size_t>(xi)] >= 0)
+          Js.block(row, cand_of[static_cast<size_t>(xi)], dim, 1) = Jw.col(static_cast<Eigen::Index>(k));
+      }
+      row += dim;
+    }
+  }
+  const Eigen::Index m = Js.rows();
   Eigen::VectorXd norms = Js.colwise().norm();
   // the columns scaled to unit norm and their Gram matrix (the conditions and the explanation
   // of a dependent parameter are computed from it)
@@ -157,7 +183,7 @@ int identifiability(Problem& pb, const IdentifyOptions& options, IdentifySummary
 // The joint maps' regularisation rows (x indices, weighted): smoothness (second differences,
 // sqrt(smoothing) * scale) and centring (no mean, no linear trend over the fit data;
 // kJointMapCentringWeight * scale), scale = the RMS norm of the map's weighted columns.
-void penaltyRows(Problem& pb, double smoothing, const Eigen::MatrixXd& Jfull) {
+void penaltyRows(Problem& pb, double smoothing, const Eigen::VectorXd& col_sq) {
   const size_t P = pb.P;
   const std::vector<ParamInfo>& layout = pb.layout;
   const RobotModel& model = pb.model;
@@ -170,7 +196,7 @@ void penaltyRows(Problem& pb, double smoothing, const Eigen::MatrixXd& Jfull) {
     if (cols.empty()) continue;
     const JointMap& jm = model.deviations.joint_map[static_cast<size_t>(j)];
     double s2 = 0;
-    for (int c : cols) s2 += Jfull.col(c).squaredNorm();
+    for (int c : cols) s2 += col_sq[c];
     const double scale = std::sqrt(std::max(s2 / double(cols.size()), 1e-300));
     auto add = [&](const std::vector<double>& a, double weight) {
       PenaltyRow row;
@@ -355,39 +381,74 @@ void Weighting::describe(const Problem& pb, IdentifySummary& summary) const {
 void uncertainties(Problem& pb, const IdentifyOptions& options, bool robust, IdentifySummary& summary,
                    Eigen::VectorXd* r_out) {
   const size_t X = pb.X, P = pb.P;
-  const std::vector<bool>& free = pb.free;
   const std::vector<PenaltyRow>& penalties = pb.penalties;
   const std::vector<ParamInfo>& layout = pb.layout;
   const int dim = pb.dim;
-  Eigen::MatrixXd J;
   Eigen::VectorXd& r = *r_out;
-  pb.stack(&J, &r);
-  summary.final_cost = 0.5 * r.squaredNorm();
-  std::vector<int> free_idx;
-  for (size_t k = 0; k < X; ++k)
-    if (free[k]) free_idx.push_back(static_cast<int>(k));
-  std::vector<int> col_of(X, -1);
-  for (size_t c = 0; c < free_idx.size(); ++c) col_of[static_cast<size_t>(free_idx[c])] = static_cast<int>(c);
-  Eigen::MatrixXd Jf = Eigen::MatrixXd::Zero(J.rows() + static_cast<Eigen::Index>(penalties.size()),
-                                             static_cast<Eigen::Index>(free_idx.size()));
-  for (size_t c = 0; c < free_idx.size(); ++c) Jf.col(c).head(J.rows()) = J.col(free_idx[c]);
-  for (size_t k = 0; k < penalties.size(); ++k)
-    for (const auto& t : penalties[k].terms)
-      if (col_of[static_cast<size_t>(t.first)] >= 0)
-        Jf(J.rows() + static_cast<Eigen::Index>(k), col_of[static_cast<size_t>(t.first)]) = t.second;
-  const double dof_res = std::max(1.0, double(J.rows()) - double(free_idx.size()));
-  summary.variance_factor = r.squaredNorm() / dof_res;
-  Eigen::VectorXd sigma = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(free_idx.size()));
-  if (!free_idx.empty()) {
-    const Eigen::VectorXd scale = Jf.colwise().norm().cwiseMax(1e-300);
-    const Eigen::MatrixXd Jn = Jf * scale.cwiseInverse().asDiagonal();
-    const Eigen::MatrixXd N = Jn.transpose() * Jn;
-    Eigen::LDLT<Eigen::MatrixXd> ldlt(N);
-    if (ldlt.info() != Eigen::Success)
-      throw NumericalError("identification: normal matrix is singular at the solution");
-    const Eigen::MatrixXd Ninv = ldlt.solve(Eigen::MatrixXd::Identity(N.rows(), N.cols()));
-    for (Eigen::Index c = 0; c < sigma.size(); ++c)
-      sigma[c] = std::sqrt(std::max(0.0, summary.variance_factor * Ninv(c, c))) / scale[c];
+  const FreeColumns fc(pb);
+  const std::vector<int>& free_idx = fc.x_of;
+  Eigen::VectorXd sigma = Eigen::VectorXd::Zero(fc.n);
+  if (pb.sparse) {
+    // joint maps: from the normal equations accumulated pose by pose, and only the sigmas that
+    // are reported (not the maps' coefficients): a Cholesky factorisation and a solve per
+    // reported parameter instead of the inverse
+    Eigen::MatrixXd N;
+    rowNormalEquations(pb, pb.model, pb.x, fc, &N, nullptr, &r);
+    addPenaltyNormal(pb, fc, nullptr, &N, nullptr);
+    summary.final_cost = 0.5 * r.squaredNorm();
+    const double dof_res = std::max(1.0, double(r.size()) - double(fc.n));
+    summary.variance_factor = r.squaredNorm() / dof_res;
+    std::vector<Eigen::Index> reported;
+    for (Eigen::Index c = 0; c < fc.n; ++c) {
+      const size_t k = static_cast<size_t>(free_idx[static_cast<size_t>(c)]);
+      if (k < P && !pb.isMap(k)) reported.push_back(c);
+    }
+    if (fc.n > 0 && !reported.empty()) {
+      const Eigen::VectorXd scale = N.diagonal().cwiseSqrt().cwiseMax(1e-300);
+      const Eigen::MatrixXd Nn = scale.cwiseInverse().asDiagonal() * N * scale.cwiseInverse().asDiagonal();
+      Eigen::MatrixXd E = Eigen::MatrixXd::Zero(fc.n, static_cast<Eigen::Index>(reported.size()));
+      for (size_t a = 0; a < reported.size(); ++a) E(reported[a], static_cast<Eigen::Index>(a)) = 1;
+      Eigen::MatrixXd Ninv_cols;
+      Eigen::LLT<Eigen::MatrixXd> llt(Nn);
+      if (llt.info() == Eigen::Success) {
+        Ninv_cols = llt.solve(E);
+      } else {  // semi-definite: as the dense path
+        Eigen::LDLT<Eigen::MatrixXd> ldlt(Nn);
+        if (ldlt.info() != Eigen::Success)
+          throw NumericalError("identification: normal matrix is singular at the solution");
+        Ninv_cols = ldlt.solve(E);
+      }
+      for (size_t a = 0; a < reported.size(); ++a) {
+        const Eigen::Index c = reported[a];
+        sigma[c] = std::sqrt(std::max(0.0, summary.variance_factor * Ninv_cols(c, static_cast<Eigen::Index>(a)))) / scale[c];
+      }
+    }
+  } else {
+    Eigen::MatrixXd J;
+    pb.stack(&J, &r);
+    summary.final_cost = 0.5 * r.squaredNorm();
+    std::vector<int> col_of(X, -1);
+    for (size_t c = 0; c < free_idx.size(); ++c) col_of[static_cast<size_t>(free_idx[c])] = static_cast<int>(c);
+    Eigen::MatrixXd Jf = Eigen::MatrixXd::Zero(J.rows() + static_cast<Eigen::Index>(penalties.size()),
+                                               static_cast<Eigen::Index>(free_idx.size()));
+    for (size_t c = 0; c < free_idx.size(); ++c) Jf.col(c).head(J.rows()) = J.col(free_idx[c]);
+    for (size_t k = 0; k < penalties.size(); ++k)
+      for (const auto& t : penalties[k].terms)
+        if (col_of[static_cast<size_t>(t.first)] >= 0)
+          Jf(J.rows() + static_cast<Eigen::Index>(k), col_of[static_cast<size_t>(t.first)]) = t.second;
+    const double dof_res = std::max(1.0, double(J.rows()) - double(free_idx.size()));
+    summary.variance_factor = r.squaredNorm() / dof_res;
+    if (!free_idx.empty()) {
+      const Eigen::VectorXd scale = Jf.colwise().norm().cwiseMax(1e-300);
+      const Eigen::MatrixXd Jn = Jf * scale.cwiseInverse().asDiagonal();
+      const Eigen::MatrixXd N = Jn.transpose() * Jn;
+      Eigen::LDLT<Eigen::MatrixXd> ldlt(N);
+      if (ldlt.info() != Eigen::Success)
+        throw NumericalError("identification: normal matrix is singular at the solution");
+      const Eigen::MatrixXd Ninv = ldlt.solve(Eigen::MatrixXd::Identity(N.rows(), N.cols()));
+      for (Eigen::Index c = 0; c < sigma.size(); ++c)
+        sigma[c] = std::sqrt(std::max(0.0, summary.variance_factor * Ninv(c, c))) / scale[c];
+    }
   }
   for (size_t c = 0; c < free_idx.size(); ++c) {
     const size_t k = static_cast<size_t>(free_idx[c]);

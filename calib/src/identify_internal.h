@@ -5,6 +5,8 @@
 //                          the kinematic core (KinematicModel prepared once per evaluation
 //                          point, one workspace, no allocation per row)
 //   identify_solve.cpp     the Ceres problem on the stacked rows
+//   identify_normal.cpp    joint maps without a robust loss: the normal equations pose by pose
+//                          and a Levenberg-Marquardt on them that follows Ceres' iteration
 //   identify_analysis.cpp  identifiability, weights (variance components), uncertainties and
 //                          the summary's diagnostics
 //   identify_mapcv.cpp     joint maps without a stated knot spacing or smoothness
@@ -69,6 +71,14 @@ class RowStack {
   /// model's columns rotated into the station's world, then the station's 6 columns.
   Eigen::Isometry3d pose(const std::vector<double>& x, const Measurement& row, size_t i, bool jacobian);
   const Eigen::MatrixXd& J() const { return J_; }
+  /// Pose of row i like pose(), with its Jacobian in compact form: only the columns of x that
+  /// can be non-zero for this row (every parameter of the layout but the joint maps', 4
+  /// coefficients per mapped joint, the row's station if not 0) in Jc() (6 x idx().size(), rows
+  /// as in J()), their x indices in idx() (-1: a map coefficient outside the layout). The cost
+  /// does not grow with the maps' resolution.
+  Eigen::Isometry3d poseCompact(const std::vector<double>& x, const Measurement& row, size_t i);
+  const Eigen::MatrixXd& Jc() const { return Jc_; }
+  const std::vector<int>& idx() const { return idx_; }
   /// Weighted stacked Jacobian over x (rows: each row's `dim` components in turn; J may be
   /// null) and weighted residual (model minus measurement) of every row of `data`.
   void stack(const std::vector<double>& x, const MeasurementSet& data, const std::vector<RowWeights>& weights,
@@ -82,7 +92,12 @@ class RowStack {
   const Stations& st_;
   KinematicFrames f_;
   LinkFrames links_;
-  Eigen::MatrixXd Jcols_, J_;
+  // Station s's columns of J (at c) for T = Ts T_model, the model's first model_cols columns
+  // rotated into the station's world.
+  void stationColumns(const std::vector<double>& x, int s, const Eigen::Isometry3d& Ts, const Eigen::Isometry3d& T,
+                      Eigen::MatrixXd& J, Eigen::Index model_cols, Eigen::Index c) const;
+  Eigen::MatrixXd Jcols_, J_, Jc_;
+  std::vector<int> idx_;
   bool direct_ = false;  // the plan's columns are x's first P entries in order (no joint maps)
 };
 
@@ -176,11 +191,13 @@ struct Weighting {
 
 /// Identifiability at the starting point: fixes the candidates (not the joint maps'
 /// coefficients) that have no effect or depend on others (summary.fixed, with the reason),
-/// fills pb.free, the condition numbers and the observability index; Jfull gets the weighted
-/// stacked Jacobian. Returns the number of kept candidates.
-int identifiability(Problem& pb, const IdentifyOptions& options, IdentifySummary& s, Eigen::MatrixXd* Jfull);
-/// The joint maps' regularisation rows (smoothness, centring) into pb.penalties.
-void penaltyRows(Problem& pb, double smoothing, const Eigen::MatrixXd& Jfull);
+/// fills pb.free, the condition numbers and the observability index; col_sq gets the squared
+/// norm of every column of the weighted stacked Jacobian (over x). Returns the number of kept
+/// candidates.
+int identifiability(Problem& pb, const IdentifyOptions& options, IdentifySummary& s, Eigen::VectorXd* col_sq);
+/// The joint maps' regularisation rows (smoothness, centring) into pb.penalties; col_sq as
+/// identifiability() returns it.
+void penaltyRows(Problem& pb, double smoothing, const Eigen::VectorXd& col_sq);
 /// How a solve ended.
 struct SolveResult {
   std::string termination;  ///< Ceres' termination type and message
@@ -188,9 +205,56 @@ struct SolveResult {
   bool failure = false;     ///< Ceres reported FAILURE
   std::string message;
 };
-/// Ceres' Levenberg-Marquardt on the stacked rows from pb.x; applies the solution to
-/// pb.model and refreshes pb.data0.
+/// Levenberg-Marquardt on the stacked rows from pb.x; applies the solution to pb.model and
+/// refreshes pb.data0. Ceres' on the stacked Jacobian, except with joint maps and no robust
+/// loss: then solveNormal.
 SolveResult solve(Problem& pb, const IdentifyOptions& options, bool robust);
+/// While one lives (in this thread) solve() takes Ceres also where it would take solveNormal:
+/// the tests compare the two optima.
+class CeresForJointMaps {
+ public:
+  CeresForJointMaps();
+  ~CeresForJointMaps();
+  CeresForJointMaps(const CeresForJointMaps&) = delete;
+  CeresForJointMaps& operator=(const CeresForJointMaps&) = delete;
+
+ private:
+  bool before_;
+};
+/// A parameter block of x (Ceres' unit of parameters): x indices [start, start + size).
+struct Block {
+  int start, size;
+};
+/// The parameter blocks of x: one per base, tool, joint, compliance, extra station; the joint
+/// maps' coefficients in blocks of 4. Returns the block of each x index.
+std::vector<int> parameterBlocks(const Problem& pb, std::vector<Block>* blocks);
+
+/// The free parameters of a problem as the columns of its normal equations.
+struct FreeColumns {
+  explicit FreeColumns(const Problem& pb);
+  std::vector<int> col_of;  ///< per x index its column, -1: fixed
+  std::vector<int> x_of;    ///< per column its x index
+  Eigen::Index n = 0;
+};
+/// The normal equations of the weighted rows at `model` (the layout's values in x applied) and
+/// x over the free columns, accumulated row by row from the compact Jacobians (RowStack::
+/// poseCompact): N += J_i^T J_i, g += J_i^T r_i. r (may be null) gets the stacked weighted
+/// residual of the rows. Returns 0.5 |r|^2. The penalty rows are not included.
+double rowNormalEquations(const Problem& pb, const RobotModel& model, const std::vector<double>& x,
+                          const FreeColumns& fc, Eigen::MatrixXd* N, Eigen::VectorXd* g, Eigen::VectorXd* r);
+/// The penalty rows' values at x (fixed parameters included), one per PenaltyRow.
+Eigen::VectorXd penaltyValues(const Problem& pb, const std::vector<double>& x);
+/// Adds the penalty rows A (over the free columns) to the normal equations from their terms:
+/// A^T A to *N (may be null), A^T value to *g (may be null; value as penaltyValues()).
+void addPenaltyNormal(const Problem& pb, const FreeColumns& fc, const Eigen::VectorXd* value, Eigen::MatrixXd* N,
+                      Eigen::VectorXd* g);
+/// Levenberg-Marquardt on the normal equations accumulated pose by pose (rowNormalEquations,
+/// the penalty rows added analytically, a dense Cholesky factorisation per step): the problem
+/// with joint maps and no robust loss. Reproduces Ceres' trust-region iteration as solve()
+/// configures it (Jacobi scaling, the LM diagonal, step acceptance and radius updates, the
+/// function / parameter / gradient tolerances, the termination messages), so both end at the
+/// same optimum; the stacked Jacobian is never formed.
+SolveResult solveNormal(Problem& pb, const IdentifyOptions& options);
 /// Covariance of the free parameters at the solution, the estimates with their sigmas, the
 /// final cost, the variance factor and the down-weighted rows.
 void uncertainties(Problem& pb, const IdentifyOptions& options, bool robust, IdentifySummary& s,

@@ -91,21 +91,56 @@ Eigen::Isometry3d RowStack::pose(const std::vector<double>& x, const Measurement
   if (s == 0) return T;
   const Eigen::Isometry3d Ts = st_.transform(x, s);
   T = Ts * T;
-  if (jacobian) {
-    const Eigen::Matrix3d R = Ts.linear();
-    J_.topLeftCorner(3, P) = (R * J_.topLeftCorner(3, P)).eval();
-    J_.block(3, 0, 3, P) = (R * J_.block(3, 0, 3, P)).eval();
-    const Eigen::Index c = static_cast<Eigen::Index>(st_.offset) + 6 * (s - 1);
-    J_.block<3, 3>(0, c).setIdentity();
-    const size_t o = st_.offset + 6 * static_cast<size_t>(s - 1);
-    // expSO3(w + dw) = expSO3(Jl dw) expSO3(w), Jl(w) = Jr(w)^T: a rotation about Jl e_k through t_s
-    const Eigen::Matrix3d Jl = rightJacobianSO3(Eigen::Vector3d(x[o + 3], x[o + 4], x[o + 5])).transpose();
-    for (int k = 0; k < 3; ++k) {
-      const Eigen::Vector3d u = Jl.col(k);
-      J_.block<3, 1>(0, c + 3 + k) = u.cross(T.translation() - Ts.translation());
-      J_.block<3, 1>(3, c + 3 + k) = u;
+  if (jacobian) stationColumns(x, s, Ts, T, J_, P, static_cast<Eigen::Index>(st_.offset) + 6 * (s - 1));
+  return T;
+}
+
+void RowStack::stationColumns(const std::vector<double>& x, int s, const Eigen::Isometry3d& Ts, const Eigen::Isometry3d& T,
+                              Eigen::MatrixXd& J, Eigen::Index model_cols, Eigen::Index c) const {
+  const Eigen::Matrix3d R = Ts.linear();
+  J.topLeftCorner(3, model_cols) = (R * J.topLeftCorner(3, model_cols)).eval();
+  J.block(3, 0, 3, model_cols) = (R * J.block(3, 0, 3, model_cols)).eval();
+  J.block<3, 3>(0, c).setIdentity();
+  const size_t o = st_.offset + 6 * static_cast<size_t>(s - 1);
+  // expSO3(w + dw) = expSO3(Jl dw) expSO3(w), Jl(w) = Jr(w)^T: a rotation about Jl e_k through t_s
+  const Eigen::Matrix3d Jl = rightJacobianSO3(Eigen::Vector3d(x[o + 3], x[o + 4], x[o + 5])).transpose();
+  for (int k = 0; k < 3; ++k) {
+    const Eigen::Vector3d u = Jl.col(k);
+    J.block<3, 1>(0, c + 3 + k) = u.cross(T.translation() - Ts.translation());
+    J.block<3, 1>(3, c + 3 + k) = u;
+  }
+}
+
+Eigen::Isometry3d RowStack::poseCompact(const std::vector<double>& x, const Measurement& row, size_t i) {
+  if (row.q.size() != km_.dof())
+    throw ArgumentError("expected " + std::to_string(km_.dof()) + " joint values, got " + std::to_string(row.q.size()));
+  const int s = st_.of_row[i];
+  km_.parameterJacobian(plan_.columns, row.q.data(), row.context, f_, links_, Jcols_);
+  Eigen::Index n = 0;
+  for (size_t c = 0; c < plan_.columns.size(); ++c) n += plan_.x_of[c] >= 0 ? 1 : 4;
+  Jc_.setZero(6, n + (s > 0 ? 6 : 0));
+  idx_.clear();
+  for (size_t c = 0; c < plan_.columns.size(); ++c) {
+    if (plan_.x_of[c] >= 0) {
+      Jc_.col(static_cast<Eigen::Index>(idx_.size())) = Jcols_.col(static_cast<Eigen::Index>(c));
+      idx_.push_back(plan_.x_of[c]);
+      continue;
+    }
+    const int j = plan_.unit_joint[c];
+    double w[4];
+    const int first = jointMapBasis(model_->deviations.joint_map[static_cast<size_t>(j)], row.q[j], w);
+    for (int k = 0; k < 4; ++k) {
+      // a coefficient outside the layout: a zero column that nothing reads
+      Jc_.col(static_cast<Eigen::Index>(idx_.size())) = Jcols_.col(static_cast<Eigen::Index>(c)) * w[k];
+      idx_.push_back(plan_.map_x[static_cast<size_t>(j)][static_cast<size_t>(first + k)]);
     }
   }
+  Eigen::Isometry3d T = f_.T_world_tcp;
+  if (s == 0) return T;
+  const Eigen::Isometry3d Ts = st_.transform(x, s);
+  T = Ts * T;
+  for (int k = 0; k < 6; ++k) idx_.push_back(static_cast<int>(st_.offset) + 6 * (s - 1) + k);
+  stationColumns(x, s, Ts, T, Jc_, n, n);
   return T;
 }
 

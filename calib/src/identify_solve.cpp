@@ -1,5 +1,6 @@
 // accura: the identification's Ceres problem (identify_internal.h): Levenberg-Marquardt on the
-// stacked rows of identify_rows.cpp.
+// stacked rows of identify_rows.cpp. Joint maps without a robust loss go to solveNormal
+// (identify_normal.cpp), which follows the same iteration on the normal equations.
 #include <ceres/ceres.h>
 
 #include <algorithm>
@@ -56,9 +57,6 @@ class Evaluator : public ceres::EvaluationCallback {
   bool have_jacobians_ = false;
 };
 
-struct Block {
-  int start, size;
-};
 
 // Rows [first, first + count) of the evaluator's stacked residual (one pose, or all poses in
 // one residual block when there is no robust loss and no sparse structure: Ceres' per-block
@@ -127,25 +125,7 @@ struct BlockLayout {
 BlockLayout blockLayout(const Problem& pb) {
   BlockLayout bl;
   const size_t P = pb.P;
-  bl.block_of.assign(pb.X, -1);
-  auto blockKey = [&](size_t k) -> std::string {
-    const ParamInfo& p = pb.layout[k];
-    if (p.kind == ParamKind::kJointMap) return "map" + std::to_string(p.joint) + "_" + std::to_string(p.index / 4);
-    if (p.group == "base" || p.group == "tool" || p.group == "joint_compliance") return p.group;
-    return "j" + std::to_string(p.joint);
-  };
-  for (size_t k = 0; k < P;) {
-    size_t e = k + 1;
-    while (e < P && blockKey(e) == blockKey(k)) ++e;
-    for (size_t c = k; c < e; ++c) bl.block_of[c] = static_cast<int>(bl.blocks.size());
-    bl.blocks.push_back({static_cast<int>(k), static_cast<int>(e - k)});
-    k = e;
-  }
-  for (int s = 1; s <= pb.st.extra; ++s) {
-    const int o = static_cast<int>(P) + 6 * (s - 1);
-    for (int c = 0; c < 6; ++c) bl.block_of[static_cast<size_t>(o + c)] = static_cast<int>(bl.blocks.size());
-    bl.blocks.push_back({o, 6});
-  }
+  bl.block_of = parameterBlocks(pb, &bl.blocks);
   bl.row_blocks.resize(pb.data.rows.size());
   for (size_t i = 0; i < pb.data.rows.size(); ++i) {
     std::vector<int>& rb = bl.row_blocks[i];
@@ -173,9 +153,40 @@ BlockLayout blockLayout(const Problem& pb) {
   return bl;
 }
 
+thread_local bool t_ceres_for_maps = false;
+
 }  // namespace
 
+CeresForJointMaps::CeresForJointMaps() : before_(t_ceres_for_maps) { t_ceres_for_maps = true; }
+CeresForJointMaps::~CeresForJointMaps() { t_ceres_for_maps = before_; }
+
+std::vector<int> parameterBlocks(const Problem& pb, std::vector<Block>* blocks) {
+  const size_t P = pb.P;
+  std::vector<int> block_of(pb.X, -1);
+  blocks->clear();
+  auto blockKey = [&](size_t k) -> std::string {
+    const ParamInfo& p = pb.layout[k];
+    if (p.kind == ParamKind::kJointMap) return "map" + std::to_string(p.joint) + "_" + std::to_string(p.index / 4);
+    if (p.group == "base" || p.group == "tool" || p.group == "joint_compliance") return p.group;
+    return "j" + std::to_string(p.joint);
+  };
+  for (size_t k = 0; k < P;) {
+    size_t e = k + 1;
+    while (e < P && blockKey(e) == blockKey(k)) ++e;
+    for (size_t c = k; c < e; ++c) block_of[c] = static_cast<int>(blocks->size());
+    blocks->push_back({static_cast<int>(k), static_cast<int>(e - k)});
+    k = e;
+  }
+  for (int s = 1; s <= pb.st.extra; ++s) {
+    const int o = static_cast<int>(P) + 6 * (s - 1);
+    for (int c = 0; c < 6; ++c) block_of[static_cast<size_t>(o + c)] = static_cast<int>(blocks->size());
+    blocks->push_back({o, 6});
+  }
+  return block_of;
+}
+
 SolveResult solve(Problem& pb, const IdentifyOptions& options, bool robust) {
+  if (pb.sparse && !robust && !t_ceres_for_maps) return solveNormal(pb, options);
   const BlockLayout L = blockLayout(pb);
   std::vector<double>& x = pb.x;
   Evaluator evaluator(pb, &x);
