@@ -309,6 +309,8 @@ TEST(HardeningMessages, MeshesWithoutFacesAndRepeatedColumnNamesAreLocated) {
       // found by fuzz_mesh: a carriage return alone ends a line for assimp, so the faces after it were misread
       {"cr.ply", ply_head + "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 \r0 0\n0 1 0\n3 0 1 2\n",
        "cr.ply:11:3: expected a line feed after the carriage return (CRLF line ends), found a carriage return alone"},
+      // found by fuzz_mesh: assimp does not count '.2' as a vertex component, and the faces then point past the vertices
+      {"dot.obj", "v 0 0 0\nv .2 0 0\nv 0 1 0\nf 1 2 3\n", "dot.obj:2:3: expected a number starting with a digit or a sign (write '0.5', not '.5'), found '.2'"},
       {"points.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\np 1 2 3\n",
        "points.obj:5:1: expected at least one face ('f' with 3 or more vertex references), found none before the end of the file"},
   };

@@ -536,6 +536,11 @@ class Checker {
                    ", found " + std::to_string(args.size()) + (args.size() < lo ? " (a truncated line?)" : ""));
         double x[3] = {0, 0, 0};
         for (size_t i = 0; i < args.size(); ++i) {
+          // assimp counts a vertex component only when it starts with a digit or a sign ('.5' would
+          // shift the vertex's components and, with them, the face indices)
+          const char c0 = args[i].text[0];
+          if (!(std::isdigit(static_cast<unsigned char>(c0)) || c0 == '-' || c0 == '+'))
+            fail(args[i], "expected a number starting with a digit or a sign (write '0.5', not '.5'), found " + quoted(args[i].text));
           if (k == "v" && i < 3) x[i] = coordinate(args[i], "a vertex coordinate");
           else number(args[i], "a number");
         }
