@@ -149,6 +149,8 @@ class Diagnoser {
   void confounding();
   void shrink();
   void verdict();
+  /// The verdict's closing sentence naming the effects rejected as coverage-limited (carriesOver), or "".
+  std::string coverageLimitedSentence() const;
   void where();
   std::vector<Correlation> scan(const std::vector<Eigen::Vector3d>& E) const;
   void spectra();

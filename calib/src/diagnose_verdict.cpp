@@ -159,6 +159,10 @@ void Diagnoser::verdict() {
       v.explanation += " (see `confounded` for the measurements that would separate them).";
     }
   }
+  v.explanation += coverageLimitedSentence();
+}
+
+std::string Diagnoser::coverageLimitedSentence() const {
   // Coverage-limited: effects that gain on the joint range the fit data cover but would be
   // extrapolated over the rest of it (carriesOver); the reason of each is in `rejected`.
   std::map<std::string, std::set<int>> limited_joints;
@@ -172,10 +176,10 @@ void Diagnoser::verdict() {
   std::string limited;
   for (const auto& kv : limited_joints)
     limited += (limited.empty() ? "" : ", ") + kv.first + " (" + jointList({kv.second.begin(), kv.second.end()}) + ")";
-  if (!limited.empty())
-    v.explanation += " Coverage-limited: " + limited +
-                     " gain on the joint range the fit data cover but are not selected: fitted there, they would be "
-                     "extrapolated over the rest of the joint's range (see `rejected`); measure the joint's whole range.";
+  if (limited.empty()) return "";
+  return " Coverage-limited: " + limited +
+         " gain on the joint range the fit data cover but are not selected: fitted there, they would be "
+         "extrapolated over the rest of the joint's range (see `rejected`); measure the joint's whole range.";
 }
 
 }  // namespace diagnose_detail
