@@ -36,6 +36,13 @@ Program readProgram(const std::string& path, const ProgramReadOptions& options =
 /// (rapid.h, writeRapid; a program read from RAPID goes into another format with its other
 /// statements as pass-through, which only XML carries). Throws
 /// ArgumentError when the program cannot be written in that format.
+/// `program` made ready for `format` with what that format cannot hold left out (convert
+/// --drop-unconvertible): the pass-through statements of another language, and those no other
+/// program can carry (PassThrough::refuse); the motions stay. The statements left out are
+/// appended to `dropped` (where they were read, their text) in the program's order. Nothing is
+/// left out for XML, which carries every statement.
+Program dropUnconvertible(const Program& program, ProgramFormat format, std::vector<PassThrough>* dropped);
+
 std::vector<calib::OutputFile> renderProgram(const Program& program, ProgramFormat format, const std::string& path,
                                       const std::string& dat_path = "");
 
