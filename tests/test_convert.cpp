@@ -167,13 +167,13 @@ TEST(Convert, MalformedPassThroughIsAnErrorWithItsPlace) {
   EXPECT_NE(error("<passthrough language=\"KRL\" encoding=\"hex\">4g</passthrough>").find("expected hexadecimal digits, found 'g'"),
             std::string::npos);
   EXPECT_NE(error("<passthrough language=\"KRL\" colour=\"red\">x</passthrough>").find("unknown attribute 'colour'"), std::string::npos);
-
-  EXPECT_NE(error("<passthrough language=\"RAPID\" role=\"decl\" line=\"3\">x</passthrough>").find("expected motion, model or comment, found 'decl'"),
-            std::string::npos);
-  EXPECT_NE(error("<passthrough language=\"RAPID\" line=\"3\" eol=\"cr\">x</passthrough>").find("expected lf, crlf or none, found 'cr'"),
-            std::string::npos);
-  EXPECT_NE(error("<passthrough language=\"RAPID\" role=\"model\">x</passthrough>").find("'role' and 'eol' need the attribute 'line'"),
-            std::string::npos);
+  // the attributes of carried source lines
+  const std::pair<const char*, const char*> carried[] = {
+      {"role=\"decl\" line=\"3\"", "expected motion, model or comment, found 'decl'"},
+      {"line=\"3\" eol=\"cr\"", "expected lf, crlf or none, found 'cr'"},
+      {"role=\"model\"", "'role' and 'eol' need the attribute 'line'"}};
+  for (const auto& c : carried)
+    EXPECT_NE(error(std::string("<passthrough language=\"RAPID\" ") + c.first + ">x</passthrough>").find(c.second), std::string::npos) << c.first;
 }
 
 // RAPID -> XML -> RAPID and URScript -> XML -> URScript give the source back byte for byte
@@ -227,6 +227,9 @@ TEST(Convert, RapidAndUrScriptThroughXmlComeBackByteForByte) {
     std::string crlf;
     for (char c : text) crlf += c == '\n' ? std::string("\r\n") : std::string(1, c);
     EXPECT_EQ(throughXml(dir, name, crlf, nullptr), crlf) << f.path << " with CRLF";
+    // a line of blanks only and a tab after the first line
+    const std::string blanks = text.substr(0, text.find('\n') + 1) + "   \n\t\n" + text.substr(text.find('\n') + 1);
+    EXPECT_EQ(throughXml(dir, name, blanks, nullptr), blanks) << f.path << " with blank lines";
     const std::string open_end = text.substr(0, text.find_last_not_of('\n') + 1);
     EXPECT_EQ(throughXml(dir, name, open_end, nullptr), open_end) << f.path << " without a final newline";
   }

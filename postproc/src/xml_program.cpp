@@ -274,7 +274,8 @@ void writePassThrough(std::ostream& out, const PassThrough& s) {
     out << " line=\"" << s.line << "\"";
     if (s.eol != "\n") out << " eol=\"" << (s.eol == "\r\n" ? "crlf" : "none") << "\"";
   }
-  if (plainText(s.text)) {
+  // a line of blanks only is hex too: an XML reader drops whitespace-only text
+  if (plainText(s.text) && (s.text.empty() || s.text.find_first_not_of(" \t") != std::string::npos)) {
     out << ">" << calib::xmlEscape(s.text) << "</passthrough>\n";
     return;
   }
