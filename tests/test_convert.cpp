@@ -9,6 +9,8 @@
 #include <sstream>
 
 #include "accura/calib/errors.h"
+#include "accura/calib/geometry.h"
+#include "accura/calib/robot_io.h"
 #include "accura/postproc/job.h"
 #include "accura/postproc/krl.h"
 #include "accura/postproc/program_io.h"
@@ -266,6 +268,42 @@ TEST(Convert, ChangedXmlTargetsGoIntoTheCarriedRapidText) {
   } catch (const calib::ArgumentError& e) {
     EXPECT_NE(std::string(e.what()).find("differs from its carried statement at line 21"), std::string::npos) << e.what();
   }
+}
+
+// Compensated as XML, written back as RAPID: the module the direct compensation writes
+// (tests/golden/rapid/expected), up to the XML's rounding (1e-4 mm, 1e-5 deg): the same lines
+// outside the targets, the same points (the split CIRC's new point p40_1 declared beside p40,
+// which keeps its value), the same inserted motion.
+TEST(Convert, CompensatedThroughXmlGivesTheDirectlyCompensatedModule) {
+  const std::string dir = test::tempDir("convert_compensated_xml");
+  const std::string g = test::sourcePath("tests/golden/rapid/");
+  test::writeText(dir + "/seam.mod", test::readText(g + "irb120_seam.mod"));
+  const Program x = parseXmlProgram(renderProgram(readProgram(dir + "/seam.mod"), ProgramFormat::kXml, dir + "/seam.xml").at(0).text,
+                                    dir + "/seam.xml");
+  JobSettings s;
+  s.calibrated = calib::readRobotFile(g + "irb120_real.xml");
+  s.tol_mm = 0.05;
+  const std::string via_xml = writeRapid(compensateProgram(x, s, nullptr));
+  const std::string direct = test::readText(g + "expected/irb120_seam.mod");
+  const Program a = parseRapid(via_xml, "via_xml.mod"), b = parseRapid(direct, "direct.mod");
+  ASSERT_EQ(a.motions.size(), b.motions.size());
+  for (size_t k = 0; k < a.motions.size(); ++k) {
+    std::vector<std::pair<const Target*, const Target*>> ts = {{&a.motions[k].target, &b.motions[k].target}};
+    if (a.motions[k].aux) ts.emplace_back(&*a.motions[k].aux, &*b.motions[k].aux);
+    for (const auto& t : ts) {
+      EXPECT_EQ(t.first->name, t.second->name) << k;
+      if (t.first->kind != Target::Kind::kCartesian) continue;
+      const Eigen::Isometry3d A = calib::toIsometry(t.first->xyzAbc()), B = calib::toIsometry(t.second->xyzAbc());
+      EXPECT_LT((A.translation() - B.translation()).norm(), 2e-4) << k;
+      EXPECT_LT(calib::rotationAngleDeg(A.linear() * B.linear().transpose()), 1e-4) << k;
+      EXPECT_EQ(t.first->abb_conf, t.second->abb_conf) << k;
+    }
+  }
+  // every line that holds no robtarget value is the same
+  const std::vector<std::string> la = lines(via_xml), lb = lines(direct);
+  ASSERT_EQ(la.size(), lb.size());
+  for (size_t i = 0; i < la.size(); ++i)
+    if (la[i].find("[[") == std::string::npos) EXPECT_EQ(la[i], lb[i]) << i + 1;
 }
 
 // Between vendors the carried lines are refused at the first statement the target cannot hold;

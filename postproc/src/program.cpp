@@ -205,6 +205,14 @@ Program reattachCarried(const Program& program, Program parsed) {
   auto lay = [](Target& into, const Target& from) {
     if (from.kind != Target::Kind::kCartesian || into.kind != Target::Kind::kCartesian || !from.completePose() || !into.completePose()) return;
     bool changed = into.setPoseIfChanged(from.xyzAbc());
+    // a new point in place of a declared one (a split CIRC's auxiliary point): declared anew,
+    // the old one keeps its value
+    if (!from.name.empty() && !into.name.empty() && upperAscii(from.name) != upperAscii(into.name)) {
+      into.new_declaration = true;
+      into.replaces = into.name;
+      into.name = from.name;
+      changed = true;
+    }
     if (from.abb_conf && into.abb_conf != from.abb_conf) {
       into.abb_conf = from.abb_conf;
       changed = true;

@@ -255,7 +255,8 @@ std::optional<std::string> carriedSource(const Program& program, const std::stri
 
 /// `parsed` (the carried source read back) with the motion model of `program` laid on it:
 /// each carried motion (Motion::source_line) takes the targets of the corresponding motion of
-/// `program` (marked modified where they differ at the precision written, abb_conf included),
+/// `program` (marked modified where they differ at the precision written, abb_conf included;
+/// a target named otherwise than its declared point is a new declaration replacing it),
 /// and a motion of `program` that carries no line is inserted before the next carried one
 /// (Motion::inserted). Throws ArgumentError naming the motion when the two disagree (another
 /// count, type, speed or approximation of the motions, an added motion after the last one).
