@@ -346,6 +346,14 @@ TEST(Convert, DropUnconvertibleListsEveryDroppedLine) {
   // the motions are all there
   KrlReadOptions o;
   EXPECT_EQ(readKrl(dir + "/seam.src", o).motions.size(), 8u);
+  // URScript -> KRL: its three statements that are not motions, set_tcp or pose assignments
+  test::writeText(dir + "/ur.script", test::readText(test::sourcePath("examples/ur10_seam.script")));
+  const test::CliRun u = test::runAccuraIn(dir, "convert --in ur.script --out ur.src --drop-unconvertible");
+  ASSERT_EQ(u.code, 0) << u.err;
+  for (const char* d : {"ur.script:6:3: dropped '  set_payload(1.2)'", "ur.script:13:3: dropped '  set_digital_out(0, True)  # arc on'",
+                        "ur.script:17:3: dropped '  set_digital_out(0, False)  # arc off'"})
+    EXPECT_NE(u.err.find(d), std::string::npos) << d << "\n" << u.err;
+  EXPECT_NE(u.out.find("3 dropped"), std::string::npos) << u.out;
 }
 
 }  // namespace

@@ -66,6 +66,9 @@ Program dropUnconvertible(const Program& program, ProgramFormat format, std::vec
     else dropped->push_back(s);
   }
   out.passthrough = std::move(kept);
+  // into another language, the KRL text is not written back: its logic lines were the
+  // pass-through statements just left out
+  if (format != ProgramFormat::kKrl) out.krl.reset();
   return out;
 }
 
