@@ -283,8 +283,12 @@ TEST(Convert, CompensatedThroughXmlGivesTheDirectlyCompensatedModule) {
   JobSettings s;
   s.calibrated = calib::readRobotFile(g + "irb120_real.xml");
   s.tol_mm = 0.05;
-  const std::string via_xml = writeRapid(compensateProgram(x, s, nullptr));
   const std::string direct = test::readText(g + "expected/irb120_seam.mod");
+  // compensated as XML; and compensated as RAPID in memory (its inserted motion has no line of
+  // its own), then through XML
+  const Program compensated = compensateProgram(readProgram(dir + "/seam.mod"), s, nullptr);
+  const std::string in_memory = writeRapid(parseXmlProgram(renderProgram(compensated, ProgramFormat::kXml, dir + "/c.xml").at(0).text, "c.xml"));
+  for (const std::string& via_xml : {writeRapid(compensateProgram(x, s, nullptr)), in_memory}) {
   const Program a = parseRapid(via_xml, "via_xml.mod"), b = parseRapid(direct, "direct.mod");
   ASSERT_EQ(a.motions.size(), b.motions.size());
   for (size_t k = 0; k < a.motions.size(); ++k) {
@@ -304,6 +308,7 @@ TEST(Convert, CompensatedThroughXmlGivesTheDirectlyCompensatedModule) {
   ASSERT_EQ(la.size(), lb.size());
   for (size_t i = 0; i < la.size(); ++i)
     if (la[i].find("[[") == std::string::npos) EXPECT_EQ(la[i], lb[i]) << i + 1;
+  }
 }
 
 // Between vendors the carried lines are refused at the first statement the target cannot hold;

@@ -119,6 +119,7 @@ void carrySourceLines(Program& program, const std::string& text, const std::stri
   std::vector<int> motion_of(static_cast<size_t>(lines) + 2, -1);  // line -> motion holding it
   std::vector<int> first_line(program.motions.size(), 0);
   for (size_t k = 0; k < motion_spans.size() && k < program.motions.size(); ++k) {
+    if (program.motions[k].inserted) continue;  // a point the compensator added: no line of its own
     const int a = lineOf(motion_spans[k].first), b = lineOf(motion_spans[k].second > 0 ? motion_spans[k].second - 1 : 0);
     for (int l = a; l <= b; ++l) {
       if (motion_of[static_cast<size_t>(l)] >= 0 && motion_of[static_cast<size_t>(l)] != static_cast<int>(k))
@@ -128,6 +129,10 @@ void carrySourceLines(Program& program, const std::string& text, const std::stri
     }
     first_line[k] = a;
     program.motions[k].source_line = a;
+  }
+  for (size_t k = program.motions.size(), next = static_cast<size_t>(lines) + 1; k-- > 0;) {  // inserted: as the next one
+    if (program.motions[k].inserted || first_line[k] == 0) first_line[k] = static_cast<int>(next);
+    else next = static_cast<size_t>(first_line[k]);
   }
   std::vector<int> statement_at(static_cast<size_t>(lines) + 2, -1);  // line -> pass-through statement
   for (size_t i = 0; i < program.passthrough.size(); ++i) {
@@ -141,7 +146,7 @@ void carrySourceLines(Program& program, const std::string& text, const std::stri
   std::vector<PassThrough> all;
   size_t next_motion = 0;  // motions starting before the line
   for (int l = 1; l <= lines; ++l) {
-    while (next_motion < program.motions.size() && first_line[next_motion] > 0 && first_line[next_motion] < l) ++next_motion;
+    while (next_motion < program.motions.size() && first_line[next_motion] < l) ++next_motion;
     const size_t b = starts[static_cast<size_t>(l - 1)];
     const size_t e = l < lines ? starts[static_cast<size_t>(l)] : text.size();
     std::string line = text.substr(b, e - b), eol;

@@ -242,7 +242,8 @@ void checkPassThrough(const Program& program, const std::string& language);
 /// a conversion (docs/program-formats.md, "Pass-through statements"): every line gets its
 /// number and line end; the pass-through statements already there keep their role (none);
 /// the lines of motion statements (motion_spans[k]: [first byte, one past the last byte] of
-/// motion k's statement) get the role "motion" and set Motion::source_line; a blank line or a
+/// motion k's statement; an inserted motion has none) get the role "motion" and set
+/// Motion::source_line; a blank line or a
 /// line starting with `comment` gets "comment"; any other line "model". Throws ArgumentError
 /// naming the line when a line holds two motion statements or a motion and another statement.
 void carrySourceLines(Program& program, const std::string& text, const std::string& language, char comment,
