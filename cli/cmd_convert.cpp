@@ -1,4 +1,5 @@
 // accura convert: a program from KRL to the XML program format and back (formats by extension).
+#include <algorithm>
 #include <filesystem>
 #include <iostream>
 #include <memory>
@@ -21,6 +22,7 @@ struct ConvertArgs {
   std::string config;
   std::string out;
   std::string json;
+  bool drop = false;
 };
 
 int runConvert(const ConvertArgs& a) {
@@ -29,7 +31,9 @@ int runConvert(const ConvertArgs& a) {
   ProgramReadOptions read;
   read.dat_path = a.dat;
   read.config_path = a.config;
-  const Program program = readProgram(a.in, read);
+  const Program read_program = readProgram(a.in, read);
+  std::vector<PassThrough> dropped;
+  const Program program = a.drop ? dropUnconvertible(read_program, out_format, &dropped) : read_program;
   // a KRL output: the .dat next to the .src, named like it
   const std::vector<calib::OutputFile> files = renderProgram(program, out_format, a.out);
   std::vector<std::string> inputs = {a.in};
@@ -46,6 +50,11 @@ int runConvert(const ConvertArgs& a) {
     nlohmann::ordered_json outputs = nlohmann::ordered_json::array();
     for (const auto& f : files) outputs.push_back(f.path);
     j["outputs"] = outputs;
+    if (a.drop) {
+      nlohmann::ordered_json d = nlohmann::ordered_json::array();
+      for (const PassThrough& s : dropped) d.push_back({{"file", s.where.file}, {"line", s.where.line}, {"text", s.text}});
+      j["dropped"] = d;
+    }
     json_text = calib::jsonText(j);
   }
   calib::installInterruptCleanup();
@@ -55,10 +64,13 @@ int runConvert(const ConvertArgs& a) {
   std::vector<calib::OutputFile> all = files;
   if (!a.json.empty()) all.push_back({a.json, json_text});
   calib::writeFilesAtomically(all);
+  for (const PassThrough& s : dropped) std::cerr << s.where.str() << ": dropped '" << s.text << "'\n";
   for (const auto& f : all) std::cout << "wrote " << f.path << "\n";
   std::cout << "accura convert: " << program.motions.size() << " motions";
   if (out_format != ProgramFormat::kKrl || !program.krl)
-    std::cout << ", " << program.passthrough.size() << " other statements carried verbatim";
+    std::cout << ", " << std::count_if(program.passthrough.begin(), program.passthrough.end(), [](const PassThrough& s) { return s.role.empty(); })
+              << " other statements carried verbatim";
+  if (a.drop) std::cout << ", " << dropped.size() << " dropped";
   std::cout << " from " << a.in << "\n";
   return 0;
 }
@@ -72,7 +84,10 @@ void addConvertCommand(CLI::App& app) {
   c->add_option("--dat", args->dat, "the KRL .dat (default: the .src's name with .dat)");
   c->add_option("--config", args->config, "$config.dat: TOOL_DATA, BASE_DATA and global points such as XHOME");
   c->add_option("--out", args->out, "program to write: OUT.xml, OUT.src (with OUT.dat), OUT.script or OUT.mod; its directory is created")->required();
-  c->add_option("--json", args->json, "report: the inputs read, the motions, the files written");
+  c->add_option("--json", args->json, "report: the inputs read, the motions, the files written (and the lines dropped)");
+  c->add_flag("--drop-unconvertible", args->drop,
+              "keep the motions only: leave out the statements the output format cannot hold, each listed on stderr "
+              "(file:line: dropped 'text') and in the --json report as \"dropped\"");
   c->callback([=]() { exitCode() = runConvert(*args); });
 }
 

@@ -4,10 +4,17 @@
 // motions; what cannot be carried is refused, naming the line.
 #include <gtest/gtest.h>
 
+#include <fstream>
+#include <nlohmann/json.hpp>
 #include <sstream>
 
 #include "accura/calib/errors.h"
+#include "accura/calib/geometry.h"
+#include "accura/calib/robot_io.h"
+#include "accura/postproc/job.h"
 #include "accura/postproc/krl.h"
+#include "accura/postproc/program_io.h"
+#include "accura/postproc/rapid.h"
 #include "accura/postproc/xml_program.h"
 #include "test_util.h"
 
@@ -162,6 +169,196 @@ TEST(Convert, MalformedPassThroughIsAnErrorWithItsPlace) {
   EXPECT_NE(error("<passthrough language=\"KRL\" encoding=\"hex\">4g</passthrough>").find("expected hexadecimal digits, found 'g'"),
             std::string::npos);
   EXPECT_NE(error("<passthrough language=\"KRL\" colour=\"red\">x</passthrough>").find("unknown attribute 'colour'"), std::string::npos);
+  // the attributes of carried source lines
+  const std::pair<const char*, const char*> carried[] = {
+      {"role=\"decl\" line=\"3\"", "expected motion, model or comment, found 'decl'"},
+      {"line=\"3\" eol=\"cr\"", "expected lf, crlf or none, found 'cr'"},
+      {"role=\"model\"", "'role' and 'eol' need the attribute 'line'"}};
+  for (const auto& c : carried)
+    EXPECT_NE(error(std::string("<passthrough language=\"RAPID\" ") + c.first + ">x</passthrough>").find(c.second), std::string::npos) << c.first;
+}
+
+// RAPID -> XML -> RAPID and URScript -> XML -> URScript give the source back byte for byte
+// (issue 12: comments, tooldata load, confdata, Offs expressions, names, line ends), also
+// after the XML program is compensated with the nominal robot; every bundled example and
+// golden file, and the line-end variants (CRLF, no final newline) of one.
+struct RoundTrip {
+  std::string path;  // the program (its extension gives the format)
+  std::string robot; // bundled robot, nominal ("": not compensated, the targets are out of its reach)
+};
+
+std::string throughXml(const std::string& dir, const std::string& name, const std::string& text, const calib::RobotModel* nominal) {
+  const std::string in = dir + "/" + name;
+  test::writeText(in, text);
+  const Program p = readProgram(in);
+  const std::string xml = dir + "/" + name + ".xml";
+  test::writeText(xml, renderProgram(p, ProgramFormat::kXml, xml).at(0).text);
+  Program x = readProgram(xml);
+  if (nominal) {
+    JobSettings s;
+    s.calibrated = *nominal;
+    s.tol_mm = 0.05;
+    x = compensateProgram(x, s, nullptr);
+  }
+  const std::string out = dir + "/back_" + name;
+  return renderProgram(x, programFormat(in), out).at(0).text;
+}
+
+TEST(Convert, RapidAndUrScriptThroughXmlComeBackByteForByte) {
+  const std::string dir = test::tempDir("convert_round_trip");
+  const RoundTrip files[] = {{"examples/irb120_seam.mod", "abb_irb120"},
+                             {"tests/golden/rapid/irb120_seam.mod", "abb_irb120"},
+                             {"tests/golden/rapid/line_arc.mod", "abb_irb120"},
+                             {"tests/golden/rapid/expected/irb120_seam.mod", "abb_irb120"},
+                             {"examples/ur10_seam.script", "ur10"},
+                             {"tests/golden/urscript/ur10_seam.script", "ur10"},
+                             {"tests/golden/urscript/weld_seam.script", ""},
+                             {"tests/golden/urscript/expected/ur10_seam.script", "ur10"},
+                             {"tests/data/urscript/polyscope_export.script", "ur10"}};
+  int n = 0;
+  for (const RoundTrip& f : files) {
+    const std::string text = test::readText(test::sourcePath(f.path));
+    const std::string ext = f.path.substr(f.path.rfind('.'));
+    const std::string name = "p" + std::to_string(n++) + ext;
+    EXPECT_EQ(throughXml(dir, name, text, nullptr), text) << f.path;
+    if (!f.robot.empty()) {
+      const calib::RobotModel nominal = test::loadBundled(f.robot);
+      EXPECT_EQ(throughXml(dir, name, text, &nominal), text) << f.path << " compensated with the nominal " << f.robot;
+    }
+    // CRLF line ends, and no newline after the last line
+    std::string crlf;
+    for (char c : text) crlf += c == '\n' ? std::string("\r\n") : std::string(1, c);
+    EXPECT_EQ(throughXml(dir, name, crlf, nullptr), crlf) << f.path << " with CRLF";
+    // a line of blanks only and a tab after the first line
+    const std::string blanks = text.substr(0, text.find('\n') + 1) + "   \n\t\n" + text.substr(text.find('\n') + 1);
+    EXPECT_EQ(throughXml(dir, name, blanks, nullptr), blanks) << f.path << " with blank lines";
+    const std::string open_end = text.substr(0, text.find_last_not_of('\n') + 1);
+    EXPECT_EQ(throughXml(dir, name, open_end, nullptr), open_end) << f.path << " without a final newline";
+  }
+  // the XML holds what the motion model cannot: the tooldata's load, confdata, the Offs
+  // expression, a comment, each as its line
+  const std::string x = test::readText(dir + "/p0.mod.xml");
+  for (const char* k : {"role=\"model\" line=\"4\">  PERS tooldata torch := [TRUE,[[0,0,150],[1,0,0,0]],[1.2,[0,0,60],[1,0,0,0],0,0,0]];</passthrough>",
+                        "role=\"comment\" line=\"2\">  ! Weld seam", "abb_conf=\"-1,0,-1,0\"",
+                        "role=\"motion\" line=\"26\">    MoveL Offs(p60,0,0,100), v200, z20, torch\\WObj:=table;</passthrough>",
+                        "line=\"20\">    SetDO do_torch, 1;  ! arc on</passthrough>"})
+    EXPECT_NE(x.find(k), std::string::npos) << k << "\n" << x;
+}
+
+// A target changed in the XML goes back into the carried RAPID text: its declaration's numbers
+// only; a motion that no longer matches its carried statement is refused naming it.
+TEST(Convert, ChangedXmlTargetsGoIntoTheCarriedRapidText) {
+  const std::string dir = test::tempDir("convert_carried_change");
+  const std::string text = test::readText(test::sourcePath("examples/irb120_seam.mod"));
+  test::writeText(dir + "/seam.mod", text);
+  Program x = parseXmlProgram(renderProgram(readProgram(dir + "/seam.mod"), ProgramFormat::kXml, dir + "/seam.xml").at(0).text, "seam.xml");
+  ASSERT_EQ(x.motions.size(), 8u);
+  calib::XyzAbc p30 = x.motions[3].target.xyzAbc();  // MoveL p30
+  p30.x_mm += 0.25;
+  x.motions[3].target.setPose(p30);
+  const std::string back = writeRapid(x);
+  std::string want = text;
+  const std::string old_decl = "CONST robtarget p30 := [[160,60,20]";
+  want.replace(want.find(old_decl), old_decl.size(), "CONST robtarget p30 := [[160.2500,60,20]");
+  EXPECT_EQ(back, want);
+  x.motions[3].type = MotionType::kPtp;
+  try {
+    writeRapid(x);
+    ADD_FAILURE() << "a motion unlike its carried statement was written";
+  } catch (const calib::ArgumentError& e) {
+    EXPECT_NE(std::string(e.what()).find("differs from its carried statement at line 21"), std::string::npos) << e.what();
+  }
+}
+
+// Compensated as XML, written back as RAPID: the module the direct compensation writes
+// (tests/golden/rapid/expected), up to the XML's rounding (1e-4 mm, 1e-5 deg): the same lines
+// outside the targets, the same points (the split CIRC's new point p40_1 declared beside p40,
+// which keeps its value), the same inserted motion.
+TEST(Convert, CompensatedThroughXmlGivesTheDirectlyCompensatedModule) {
+  const std::string dir = test::tempDir("convert_compensated_xml");
+  const std::string g = test::sourcePath("tests/golden/rapid/");
+  test::writeText(dir + "/seam.mod", test::readText(g + "irb120_seam.mod"));
+  const Program x = parseXmlProgram(renderProgram(readProgram(dir + "/seam.mod"), ProgramFormat::kXml, dir + "/seam.xml").at(0).text,
+                                    dir + "/seam.xml");
+  JobSettings s;
+  s.calibrated = calib::readRobotFile(g + "irb120_real.xml");
+  s.tol_mm = 0.05;
+  const std::string direct = test::readText(g + "expected/irb120_seam.mod");
+  // compensated as XML; and compensated as RAPID in memory (its inserted motion has no line of
+  // its own), then through XML
+  const Program compensated = compensateProgram(readProgram(dir + "/seam.mod"), s, nullptr);
+  const std::string in_memory = writeRapid(parseXmlProgram(renderProgram(compensated, ProgramFormat::kXml, dir + "/c.xml").at(0).text, "c.xml"));
+  for (const std::string& via_xml : {writeRapid(compensateProgram(x, s, nullptr)), in_memory}) {
+  const Program a = parseRapid(via_xml, "via_xml.mod"), b = parseRapid(direct, "direct.mod");
+  ASSERT_EQ(a.motions.size(), b.motions.size());
+  for (size_t k = 0; k < a.motions.size(); ++k) {
+    std::vector<std::pair<const Target*, const Target*>> ts = {{&a.motions[k].target, &b.motions[k].target}};
+    if (a.motions[k].aux) ts.emplace_back(&*a.motions[k].aux, &*b.motions[k].aux);
+    for (const auto& t : ts) {
+      EXPECT_EQ(t.first->name, t.second->name) << k;
+      if (t.first->kind != Target::Kind::kCartesian) continue;
+      const Eigen::Isometry3d A = calib::toIsometry(t.first->xyzAbc()), B = calib::toIsometry(t.second->xyzAbc());
+      EXPECT_LT((A.translation() - B.translation()).norm(), 2e-4) << k;
+      EXPECT_LT(calib::rotationAngleDeg(A.linear() * B.linear().transpose()), 1e-4) << k;
+      EXPECT_EQ(t.first->abb_conf, t.second->abb_conf) << k;
+    }
+  }
+  // every line that holds no robtarget value is the same
+  const std::vector<std::string> la = lines(via_xml), lb = lines(direct);
+  ASSERT_EQ(la.size(), lb.size());
+  for (size_t i = 0; i < la.size(); ++i)
+    if (la[i].find("[[") == std::string::npos) EXPECT_EQ(la[i], lb[i]) << i + 1;
+  }
+}
+
+// Between vendors the carried lines are refused at the first statement the target cannot hold;
+// --drop-unconvertible keeps the motions and lists every line it leaves out.
+TEST(Convert, DropUnconvertibleListsEveryDroppedLine) {
+  const std::string dir = test::tempDir("convert_drop");
+  const std::string text = test::readText(test::sourcePath("examples/irb120_seam.mod"));
+  test::writeText(dir + "/seam.mod", text);
+  ASSERT_EQ(test::runAccuraIn(dir, "convert --in seam.mod --out seam.xml").code, 0);
+  const test::CliRun refused = test::runAccuraIn(dir, "convert --in seam.xml --out seam.src");
+  EXPECT_EQ(refused.code, 1);
+  EXPECT_NE(refused.err.find("cannot convert the RAPID statement '  CONST jointtarget home := [[0,0,0,0,30,0],[9E9,9E9,9E9,9E9,9E9,9E9]];' to KRL"),
+            std::string::npos)
+      << refused.err;
+  const test::CliRun r = test::runAccuraIn(dir, "convert --in seam.mod --out seam.src --drop-unconvertible --json drop.json");
+  ASSERT_EQ(r.code, 0) << r.err;
+  // the lines of the module that are statements outside the motion model, independently:
+  // not blank, not a comment, not a move, not a declaration of a robtarget/tooldata/wobjdata,
+  // not the module/routine frame or ConfL
+  std::vector<std::pair<int, std::string>> want;
+  const std::vector<std::string> ls = lines(text);
+  for (size_t i = 0; i < ls.size(); ++i) {
+    const std::string& l = ls[i];
+    const size_t b = l.find_first_not_of(' ');
+    if (b == std::string::npos || l[b] == '!') continue;
+    const std::string w = l.substr(b, l.find_first_of(" ;(", b) - b);
+    if (w == "MODULE" || w == "ENDMODULE" || w == "PROC" || w == "ENDPROC" || w == "ConfL" || w.rfind("Move", 0) == 0) continue;
+    if (l.find(" robtarget ") != std::string::npos || l.find(" tooldata ") != std::string::npos || l.find(" wobjdata ") != std::string::npos)
+      continue;
+    want.emplace_back(static_cast<int>(i + 1), l);
+  }
+  ASSERT_EQ(want.size(), 6u);  // jointtarget, VAR num, SetDO x2, WaitTime, seams := ...
+  const nlohmann::json j = nlohmann::json::parse(test::readText(dir + "/drop.json"));
+  ASSERT_EQ(j["dropped"].size(), want.size()) << j.dump(2);
+  for (size_t k = 0; k < want.size(); ++k) {
+    EXPECT_EQ(j["dropped"][k]["line"].get<int>(), want[k].first);
+    EXPECT_EQ(j["dropped"][k]["text"].get<std::string>(), want[k].second);
+    EXPECT_NE(r.err.find("seam.mod:" + std::to_string(want[k].first) + ":1: dropped '" + want[k].second + "'"), std::string::npos) << r.err;
+  }
+  // the motions are all there
+  KrlReadOptions o;
+  EXPECT_EQ(readKrl(dir + "/seam.src", o).motions.size(), 8u);
+  // URScript -> KRL: its three statements that are not motions, set_tcp or pose assignments
+  test::writeText(dir + "/ur.script", test::readText(test::sourcePath("examples/ur10_seam.script")));
+  const test::CliRun u = test::runAccuraIn(dir, "convert --in ur.script --out ur.src --drop-unconvertible");
+  ASSERT_EQ(u.code, 0) << u.err;
+  for (const char* d : {"ur.script:6:3: dropped '  set_payload(1.2)'", "ur.script:13:3: dropped '  set_digital_out(0, True)  # arc on'",
+                        "ur.script:17:3: dropped '  set_digital_out(0, False)  # arc off'"})
+    EXPECT_NE(u.err.find(d), std::string::npos) << d << "\n" << u.err;
+  EXPECT_NE(u.out.find("3 dropped"), std::string::npos) << u.out;
 }
 
 }  // namespace

@@ -394,10 +394,12 @@ TEST(UrScript, AVariableAssignedAgainInTheLoopOfItsMotionIsNamed) {
 TEST(UrScript, ConvertCarriesTheMotionModelOrRefusesNamingTheLine) {
   const std::string dir = test::tempDir("ur_convert");
   test::writeText(dir + "/seam.script", example());
-  // the example holds logic (set_payload, set_digital_out): refused, naming the first line
-  const test::CliRun r = test::runAccuraIn(dir, "convert --in seam.script --out seam.xml");
+  // the example holds logic (set_payload, set_digital_out): XML carries it (every line, see
+  // test_convert.cpp), KRL cannot: refused, naming the first line
+  ASSERT_EQ(test::runAccuraIn(dir, "convert --in seam.script --out seam.xml").code, 0);
+  const test::CliRun r = test::runAccuraIn(dir, "convert --in seam.script --out seam.src");
   EXPECT_NE(r.code, 0);
-  EXPECT_NE(r.err.find("seam.script:6:3: cannot convert to XML: the URScript statement 'set_payload(1.2)' is not a motion, set_tcp or "
+  EXPECT_NE(r.err.find("seam.script:6:3: cannot convert to KRL: the URScript statement 'set_payload(1.2)' is not a motion, set_tcp or "
                        "pose assignment, and the conversion carries the motion model only (2 more such statement(s))"),
             std::string::npos)
       << r.err;
@@ -482,6 +484,17 @@ TEST(UrScript, AModelThatIsNoUniversalRobotsArmIsRefused) {
   EXPECT_EQ(test::runAccuraIn(dir, "compensate --robot abb_irb120 --in seam.script --out out").code, 1);
   const test::CliRun u = test::runAccuraIn(dir, "compensate --robot ur10 --in seam.script --out out");
   EXPECT_EQ(u.code, 0) << u.err;
+  // check follows the same rule (requireArmForProgram): refused with the KUKA model, in the UR10's cell
+  const std::string cell = test::sourcePath("tests/data/urscript/ur10_table_cell.xml");
+  const test::CliRun c = test::runAccuraIn(dir, "check --robot kuka_kr16 --cell " + cell + " --in seam.script");
+  EXPECT_EQ(c.code, 1);
+  EXPECT_NE(c.err.find("seam.script: expected a Universal Robots arm for a URScript program"), std::string::npos) << c.err;
+  EXPECT_NE(c.err.find("found 'KUKA KR 16'"), std::string::npos) << c.err;
+  // and a program converted from URScript into XML carries its lines: the same rule
+  ASSERT_EQ(test::runAccuraIn(dir, "convert --in seam.script --out seam.xml").code, 0);
+  const test::CliRun x = test::runAccuraIn(dir, "compensate --robot kuka_kr16 --in seam.xml --out out");
+  EXPECT_EQ(x.code, 1);
+  EXPECT_NE(x.err.find("seam.xml: expected a Universal Robots arm for a URScript program"), std::string::npos) << x.err;
 }
 
 // batch picks up .script files; check runs the script in its cell: the smallest clearance

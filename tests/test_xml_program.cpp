@@ -7,6 +7,7 @@
 #include <functional>
 
 #include "accura/calib/errors.h"
+#include "accura/postproc/job.h"
 #include "accura/postproc/krl.h"
 #include "accura/postproc/xml_program.h"
 #include "test_util.h"
@@ -186,7 +187,7 @@ TEST(XmlProgram, ErrorsNameFileLineAndColumn) {
   const std::vector<Case> cases = {
       {"    <lin><pose x_mm=\"1\" y_mm=\"abc\"/></lin>\n", 4, 10, "<pose> attribute 'y_mm': expected a finite number, found 'abc'"},
       {"    <lin speed=\"1\"><pose x_mm=\"1\"/></lin>\n", 4, 5,
-       "<lin>: unknown attribute 'speed' (expected one of: approx, approx_value, ca_deg, external_tcp, relative, vel_m_s, vel_percent)"},
+       "<lin>: unknown attribute 'speed' (expected one of: approx, approx_value, ca_deg, conf_monitored, external_tcp, relative, source_line, vel_m_s, vel_percent)"},
       {"    <move/>\n", 4, 5, "unknown element <move> in <motions> (expected tool, base, ptp, lin, circ, sptp, slin, scirc, spl, passthrough)"},
       {"    <lin/>\n", 4, 5, "<lin>: expected a target (<pose>, <axes> or <ref>), found nothing"},
       {"    <lin><axes a1=\"0\"/></lin>\n", 4, 10, "<lin>: expected a Cartesian target (<pose>), found <axes>"},
@@ -225,6 +226,35 @@ TEST(XmlProgram, ErrorsNameFileLineAndColumn) {
     EXPECT_NE(e.message().find("expected well-formed XML"), std::string::npos);
     EXPECT_EQ(e.line(), 3);  // tinyxml2 names the element left open
   }
+}
+
+// A linear move whose orientation turns by about 180 deg can be interpolated either way round:
+// warned once per motion, naming it and its line, when the turn is within 2 deg of 180 deg
+// (here 179 and 179.5 deg about the world z axis: warned; 170 deg: not).
+TEST(XmlProgram, LinearMoveTurningAboutHalfATurnIsWarned) {
+  auto pose = [](double a) {
+    return "      <pose x_mm=\"1200\" y_mm=\"0\" z_mm=\"800\" a_deg=\"" + std::to_string(a) + "\" b_deg=\"0\" c_deg=\"180\"/>\n";
+  };
+  const std::string xml = "<?xml version=\"1.0\"?>\n<program version=\"1\">\n  <motions>\n"   // lines 1-3
+                          "    <tool source=\"null\"/>\n    <base source=\"null\"/>\n"          // 4-5
+                          "    <ptp>\n" + pose(0) + "    </ptp>\n"                              // 6-8
+                          "    <lin>\n" + pose(179) + "    </lin>\n"                            // 9-11
+                          "    <lin>\n" + pose(9) + "    </lin>\n"                              // 12-14
+                          "    <lin>\n" + pose(-170.5) + "    </lin>\n"                         // 15-17
+                          "  </motions>\n</program>\n";
+  const Program p = parseXmlProgram(xml, "turn.xml");
+  JobSettings s;
+  s.calibrated = test::loadBundled("kuka_kr16");
+  s.tol_mm = 0.05;
+  const ProgramCompensation c = compensateProgramReport(p, s);
+  std::vector<std::pair<int, std::string>> half;
+  for (const ProgramIssue& w : c.report.warnings)
+    if (w.message.find("within 2 deg of 180 deg") != std::string::npos) half.emplace_back(w.where.line, w.message);
+  ASSERT_EQ(half.size(), 2u);
+  EXPECT_EQ(half[0].first, 9);
+  EXPECT_NE(half[0].second.find("lin to the inline target turns the tool's orientation by 179.0 deg"), std::string::npos) << half[0].second;
+  EXPECT_EQ(half[1].first, 15);
+  EXPECT_NE(half[1].second.find("by 179.5 deg"), std::string::npos) << half[1].second;
 }
 
 }  // namespace

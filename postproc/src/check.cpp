@@ -571,6 +571,7 @@ namespace {
 
 CheckReport checkProgramWith(const Program& program, const JobSettings& job, const Cell& cell, const CheckOptions& options,
                              const CellGeometry* geometry) {
+  requireArmForProgram(program, job.calibrated.nominal);
   CheckReport r;
   // frames and models, as compensateProgram (placement.h); the cell's <robot> is the placement
   // unless --base gives it

@@ -171,6 +171,7 @@ class Job {
     tr.name = t.name;
     tr.role = role;
     tr.motion_type = motionKeyword(m);
+    tr.instruction = motionInstruction(m);
     const Eigen::Vector3d d_world = command.translation() - desired.translation();
     tr.correction_mm = d_world.norm();
     tr.correction_deg = calib::rotationAngleDeg(command.linear() * desired.linear().transpose());
@@ -287,10 +288,23 @@ class Job {
     const std::optional<Cartesian> c = cartesian(m);
     if (!c) return keep(out, m);
     const bool path = m.type == MotionType::kLin || m.type == MotionType::kCirc;
+    if (m.type == MotionType::kLin && T_world_flange_intended_) warnHalfTurn(m, *c);
     if (path && q_real_) return pathMotion(m, *c, out);
     if (path)
       warning(m.where, motionKeyword(m) + " after a position that is not known: its points are compensated, its path is not checked");
     pointMotion(m, *c, out);
+  }
+
+  /// A linear move whose orientation turns by about 180 deg: the shortest way round is not
+  /// defined there, and a controller may interpolate it either way (the tool swings through
+  /// opposite sides). Warned once per motion when the turn is within 2 deg of 180 deg.
+  void warnHalfTurn(const Motion& m, const Cartesian& c) {
+    const Eigen::Matrix3d R = T_world_flange_intended_->linear().transpose() * (c.T_world_end * c.tool.inverse()).linear();
+    const double turn = calib::rotationAngleDeg(R);
+    if (std::fabs(turn - 180.0) > 2.0) return;
+    warning(m.where, motionInstruction(m) + " to " + targetLabel(c.end) + " turns the tool's orientation by " + calib::formatFixed(turn, 1) +
+                         " deg, within 2 deg of 180 deg: the controller may turn it either way round; add an intermediate "
+                         "orientation to choose the way");
   }
 
   /// An axis target: nothing to compensate; the position after it is known when every joint is.
@@ -436,6 +450,7 @@ class Job {
     SegmentReport sr;
     sr.motion = m.where;
     sr.motion_type = motionKeyword(m);
+    sr.instruction = motionInstruction(m);
     sr.length_mm = pathLength(intended);
     sr.max_error_uncompensated_mm = sc.max_error_uncompensated_mm;
     sr.max_error_before_mm = sc.max_error_before_mm;
@@ -637,17 +652,23 @@ bool universalRobotsArm(const calib::RobotDefinition& d) {
 }
 }  // namespace
 
+void requireArmForProgram(const Program& program, const calib::RobotDefinition& robot) {
+  bool urscript = program.urscript != nullptr;
+  for (const PassThrough& s : program.passthrough) urscript = urscript || s.language == "URScript";
+  if (urscript && !universalRobotsArm(robot))
+    throw calib::InputError((program.source_file.empty() ? program.name : program.source_file) +
+                            ": expected a Universal Robots arm for a URScript program (joints 2, 3 and 4 parallel, no "
+                            "spherical wrist: the controller's shoulder/elbow/wrist branches are that geometry's), found '" +
+                            robot.name + "': give the model of the UR that runs the program");
+}
+
 ProgramCompensation compensateProgramReport(const Program& program, const JobSettings& settings) {
   if (!(settings.tol_mm > 0) || !std::isfinite(settings.tol_mm))
     throw calib::ArgumentError("compensateProgram: tol_mm must be > 0 (mm)");
   std::string why;
   if (!settings.ik.IsValid(&why)) throw calib::ArgumentError("compensateProgram: IK options: " + why);
   settings.calibrated.validate();
-  if (program.urscript && !universalRobotsArm(settings.calibrated.nominal))
-    throw calib::InputError((program.source_file.empty() ? program.name : program.source_file) +
-                            ": expected a Universal Robots arm for a URScript program (joints 2, 3 and 4 parallel, no "
-                            "spherical wrist: the controller's shoulder/elbow/wrist branches are that geometry's), found '" +
-                            settings.calibrated.nominal.name + "': give the model of the UR that runs the program");
+  requireArmForProgram(program, settings.calibrated.nominal);
   ProgramCompensation pc;
   JobReport& r = pc.report;
   pc.program = program;

@@ -98,6 +98,174 @@ bool containsIdentifier(const std::string& text, const std::string& up) {
 
 }  // namespace
 
+namespace {
+
+bool lineIsComment(const std::string& line, char comment) {
+  const size_t b = line.find_first_not_of(" \t\r");
+  return b == std::string::npos || line[b] == comment;
+}
+
+std::string motionName(const Motion& m) { return m.statement.empty() ? motionKeyword(m) : m.statement; }
+
+}  // namespace
+
+void carrySourceLines(Program& program, const std::string& text, const std::string& language, char comment,
+                      const std::vector<std::pair<size_t, size_t>>& motion_spans) {
+  std::vector<size_t> starts = {0};  // first byte of each line
+  for (size_t i = 0; i < text.size(); ++i)
+    if (text[i] == '\n' && i + 1 < text.size()) starts.push_back(i + 1);
+  auto lineOf = [&](size_t off) { return static_cast<int>(std::upper_bound(starts.begin(), starts.end(), off) - starts.begin()); };
+  const int lines = text.empty() ? 0 : static_cast<int>(starts.size());
+  std::vector<int> motion_of(static_cast<size_t>(lines) + 2, -1);  // line -> motion holding it
+  std::vector<int> first_line(program.motions.size(), 0);
+  for (size_t k = 0; k < motion_spans.size() && k < program.motions.size(); ++k) {
+    if (program.motions[k].inserted) continue;  // a point the compensator added: no line of its own
+    const int a = lineOf(motion_spans[k].first), b = lineOf(motion_spans[k].second > 0 ? motion_spans[k].second - 1 : 0);
+    for (int l = a; l <= b; ++l) {
+      if (motion_of[static_cast<size_t>(l)] >= 0 && motion_of[static_cast<size_t>(l)] != static_cast<int>(k))
+        throw calib::ArgumentError(program.motions[k].where.file + ":" + std::to_string(l) + ": cannot carry this " + language +
+                                   " line through the conversion: it holds two motion statements (write them on lines of their own)");
+      motion_of[static_cast<size_t>(l)] = static_cast<int>(k);
+    }
+    first_line[k] = a;
+    program.motions[k].source_line = a;
+  }
+  for (size_t k = program.motions.size(), next = static_cast<size_t>(lines) + 1; k-- > 0;) {  // inserted: as the next one
+    if (program.motions[k].inserted || first_line[k] == 0) first_line[k] = static_cast<int>(next);
+    else next = static_cast<size_t>(first_line[k]);
+  }
+  std::vector<int> statement_at(static_cast<size_t>(lines) + 2, -1);  // line -> pass-through statement
+  for (size_t i = 0; i < program.passthrough.size(); ++i) {
+    const PassThrough& s = program.passthrough[i];
+    if (s.language != language || s.where.line < 1 || s.where.line > lines) continue;
+    if (motion_of[static_cast<size_t>(s.where.line)] >= 0)
+      throw calib::ArgumentError(s.where.str() + ": cannot carry this " + language +
+                                 " line through the conversion: it holds a motion and another statement (write them on lines of their own)");
+    statement_at[static_cast<size_t>(s.where.line)] = static_cast<int>(i);
+  }
+  std::vector<PassThrough> all;
+  size_t next_motion = 0;  // motions starting before the line
+  for (int l = 1; l <= lines; ++l) {
+    while (next_motion < program.motions.size() && first_line[next_motion] < l) ++next_motion;
+    const size_t b = starts[static_cast<size_t>(l - 1)];
+    const size_t e = l < lines ? starts[static_cast<size_t>(l)] : text.size();
+    std::string line = text.substr(b, e - b), eol;
+    if (!line.empty() && line.back() == '\n') {
+      line.pop_back();
+      eol = "\n";
+      if (!line.empty() && line.back() == '\r') {
+        line.pop_back();
+        eol = "\r\n";
+      }
+    }
+    PassThrough s;
+    if (statement_at[static_cast<size_t>(l)] >= 0) {
+      s = program.passthrough[static_cast<size_t>(statement_at[static_cast<size_t>(l)])];
+    } else {
+      s.language = language;
+      s.where.file = program.source_file;
+      s.where.line = l;
+      s.where.column = 1;
+      s.before_motion = next_motion;
+      s.role = motion_of[static_cast<size_t>(l)] >= 0 ? "motion" : lineIsComment(line, comment) ? "comment" : "model";
+    }
+    s.text = line;
+    s.line = l;
+    s.eol = eol;
+    s.section = PassThrough::Section::kBody;  // in the order of the lines
+    s.before_motion = next_motion;
+    all.push_back(std::move(s));
+  }
+  for (const PassThrough& s : program.passthrough)  // of other languages, or without a line
+    if (s.line == 0 && (s.language != language || s.where.line < 1 || s.where.line > lines)) all.push_back(s);
+  program.passthrough = std::move(all);
+}
+
+std::optional<std::string> carriedSource(const Program& program, const std::string& language) {
+  std::vector<const PassThrough*> lines;
+  for (const PassThrough& s : program.passthrough)
+    if (s.language == language && s.line > 0) lines.push_back(&s);
+  if (lines.empty()) return std::nullopt;
+  std::stable_sort(lines.begin(), lines.end(), [](const PassThrough* a, const PassThrough* b) { return a->line < b->line; });
+  std::string text;
+  for (size_t i = 0; i < lines.size(); ++i) {
+    if (i && lines[i]->line == lines[i - 1]->line)
+      throw calib::ArgumentError(lines[i]->where.str() + ": cannot write the carried " + language + " text: line " +
+                                 std::to_string(lines[i]->line) + " is given twice");
+    text += lines[i]->text + lines[i]->eol;
+  }
+  return text;
+}
+
+Program reattachCarried(const Program& program, Program parsed) {
+  std::vector<const Motion*> carried;
+  for (const Motion& m : program.motions)
+    if (m.source_line > 0 && !m.inserted) carried.push_back(&m);
+  if (carried.size() != parsed.motions.size())
+    throw calib::ArgumentError(program.source_file + ": cannot write the carried source back: it holds " + std::to_string(parsed.motions.size()) +
+                               " motions and the program " + std::to_string(carried.size()) + " that carry a line");
+  auto near = [](const std::optional<double>& a, const std::optional<double>& b) {
+    return a.has_value() == b.has_value() && (!a || std::abs(*a - *b) <= 1e-6 * std::max(1.0, std::abs(*a)));
+  };
+  auto lay = [](Target& into, const Target& from) {
+    if (from.kind != Target::Kind::kCartesian || into.kind != Target::Kind::kCartesian || !from.completePose() || !into.completePose()) return;
+    bool changed = into.setPoseIfChanged(from.xyzAbc());
+    // a new point in place of a declared one (a split CIRC's auxiliary point): declared anew,
+    // the old one keeps its value
+    if (!from.name.empty() && !into.name.empty() && upperAscii(from.name) != upperAscii(into.name)) {
+      into.new_declaration = true;
+      into.replaces = into.name;
+      into.name = from.name;
+      changed = true;
+    }
+    if (from.abb_conf && into.abb_conf != from.abb_conf) {
+      into.abb_conf = from.abb_conf;
+      changed = true;
+    }
+    into.modified = into.modified || changed;
+  };
+  std::vector<Motion> motions;
+  size_t j = 0;
+  std::vector<const Motion*> pending;  // motions without a line, before the next carried one
+  for (const Motion& m : program.motions) {
+    if (m.source_line == 0 || m.inserted) {
+      pending.push_back(&m);
+      continue;
+    }
+    Motion& q = parsed.motions[j++];
+    if (q.type != m.type || q.where.line != m.source_line || !near(q.vel_m_s, m.vel_m_s) || !near(q.approximation_value, m.approximation_value) ||
+        q.approximation != m.approximation)
+      throw calib::ArgumentError(m.where.str() + ": cannot write the carried source back: the motion " + motionName(m) +
+                                 " differs from its carried statement at line " + std::to_string(m.source_line) + " (" + motionName(q) + ")");
+    for (const Motion* a : pending) {
+      Motion ins = q;
+      ins.target = a->target;
+      ins.aux = a->aux;
+      ins.inserted = true;
+      if (ins.aux.has_value() != q.aux.has_value())
+        throw calib::ArgumentError(a->where.str() + ": cannot write the motion " + motionName(*a) + " into the carried source: it has no form like the next motion's");
+      motions.push_back(std::move(ins));
+    }
+    pending.clear();
+    lay(q.target, m.target);
+    if (q.aux && m.aux) lay(*q.aux, *m.aux);
+    motions.push_back(q);
+  }
+  if (!pending.empty())
+    throw calib::ArgumentError(pending.front()->where.str() + ": cannot write the motion " + motionName(*pending.front()) +
+                               " into the carried source: it comes after the last carried motion");
+  parsed.motions = std::move(motions);
+  return parsed;
+}
+
+Program withoutCarriedLines(const Program& program, const std::string& language) {
+  Program out = program;
+  out.passthrough.clear();
+  for (const PassThrough& s : program.passthrough)
+    if (s.role.empty() || s.language == language) out.passthrough.push_back(s);
+  return out;
+}
+
 std::string newPointName(const Program& program, const std::string& base, const std::vector<std::string>& taken) {
   for (int n = 1; n < 100000; ++n) {
     const std::string suffix = "_" + std::to_string(n);
@@ -118,6 +286,7 @@ std::string newPointName(const Program& program, const std::string& base, const 
 
 void checkPassThrough(const Program& program, const std::string& language) {
   for (const PassThrough& s : program.passthrough) {
+    if (!s.role.empty()) continue;  // carried for its own language only (withoutCarriedLines)
     if (!s.refuse.empty())
       throw calib::ArgumentError(s.where.str() + ": cannot convert '" + s.text + "': " + s.refuse);
     if (!language.empty() && s.language != language)
@@ -137,6 +306,15 @@ std::string motionKeyword(const Motion& m) {
   if (m.spline) k = "S" + k;
   if (m.relative) k += "_REL";
   return k;
+}
+
+std::string motionInstruction(const Motion& m) {
+  const std::string& s = m.statement;
+  size_t b = s.find_first_not_of(" \t");
+  if (b != std::string::npos && s[b] == '<') ++b;  // XML: <lin>
+  size_t e = b;
+  while (e < s.size() && (std::isalnum(static_cast<unsigned char>(s[e])) || s[e] == '_')) ++e;
+  return b == std::string::npos || e == b ? motionKeyword(m) : s.substr(b, e - b);
 }
 
 std::string formatMm(double v) { return calib::formatFixed(v, 4); }

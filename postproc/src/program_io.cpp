@@ -54,18 +54,37 @@ Program readProgram(const std::string& path, const ProgramReadOptions& options) 
   return readXmlProgram(path);
 }
 
+Program dropUnconvertible(const Program& program, ProgramFormat format, std::vector<PassThrough>* dropped) {
+  if (format == ProgramFormat::kXml) return program;
+  const char* language = format == ProgramFormat::kKrl ? "KRL" : format == ProgramFormat::kRapid ? "RAPID" : "URScript";
+  Program out = program.rapid && format != ProgramFormat::kRapid         ? rapidForConversion(program)
+                : program.urscript && format != ProgramFormat::kUrScript ? urScriptForConversion(program, "XML")
+                                                                         : program;
+  std::vector<PassThrough> kept;
+  for (const PassThrough& s : out.passthrough) {
+    if (!s.role.empty() || (s.language == language && s.refuse.empty())) kept.push_back(s);
+    else dropped->push_back(s);
+  }
+  out.passthrough = std::move(kept);
+  // into another language, the KRL text is not written back: its logic lines were the
+  // pass-through statements just left out
+  if (format != ProgramFormat::kKrl) out.krl.reset();
+  return out;
+}
+
 std::vector<calib::OutputFile> renderProgram(const Program& program, ProgramFormat format, const std::string& path,
                                       const std::string& dat_path) {
-  if (format == ProgramFormat::kRapid) return {{path, writeRapid(program.rapid || !program.urscript ? program
-                                                                                    : urScriptForConversion(program, "RAPID"))}};
+  if (format == ProgramFormat::kRapid)
+    return {{path, writeRapid(program.rapid || !program.urscript ? withoutCarriedLines(program, "RAPID")
+                                                                 : urScriptForConversion(program, "RAPID"))}};
   if (program.rapid) return renderProgram(rapidForConversion(program), format, path, dat_path);
-  if (format == ProgramFormat::kUrScript) return {{path, writeUrScript(program)}};
+  if (format == ProgramFormat::kUrScript) return {{path, writeUrScript(withoutCarriedLines(program, "URScript"))}};
   if (program.urscript) return renderProgram(urScriptForConversion(program, format == ProgramFormat::kXml ? "XML" : "KRL"), format, path, dat_path);
   if (format == ProgramFormat::kXml) {
     Program p = program;
     return {{path, writeXmlProgram(p)}};
   }
-  const KrlText t = writeKrl(program);
+  const KrlText t = writeKrl(withoutCarriedLines(program, "KRL"));
   std::vector<calib::OutputFile> out = {{path, t.src}};
   const bool has_dat = program.krl ? !program.krl->dat_path.empty() : true;
   if (has_dat) out.push_back({dat_path.empty() ? fs::path(path).replace_extension(".dat").string() : dat_path, t.dat});

@@ -329,12 +329,20 @@ class Generator {
 
 std::string writeRapid(const Program& program) {
   if (program.rapid) return patch(program);
+  // converted from RAPID with its text carried (XML): that text, with the model laid on it
+  if (const auto text = carriedSource(program, "RAPID")) return patch(reattachCarried(program, parseRapid(*text, program.source_file)));
   return Generator(program).run();
 }
 
 Program rapidForConversion(const Program& program) {
   Program out = program;
   if (!program.rapid) return out;
+  std::vector<std::pair<size_t, size_t>> spans;
+  for (const Motion& m : out.motions) {
+    const RapidSource::Statement& st = program.rapid->statements.at(static_cast<size_t>(m.statement_id));
+    spans.emplace_back(st.code_begin, st.code_end);
+  }
+  carrySourceLines(out, program.rapid->text, "RAPID", '!', spans);
   for (Motion& m : out.motions) {
     if (!isIdentifier(m.target.name)) m.target.name.clear();
     if (m.aux && !isIdentifier(m.aux->name)) m.aux->name.clear();

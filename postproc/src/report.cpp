@@ -47,6 +47,7 @@ ordered_json jobReportJson(const JobReport& r, const std::string& relative_to) {
     where(x, t.where, relative_to);
     x["motion_line"] = t.motion.line;
     x["motion"] = t.motion_type;
+    x["instruction"] = t.instruction;
     x["name"] = t.name;
     x["role"] = t.role;
     x["correction_mm"] = reportNumber(t.correction_mm);
@@ -64,6 +65,7 @@ ordered_json jobReportJson(const JobReport& r, const std::string& relative_to) {
     ordered_json x;
     where(x, s.motion, relative_to);
     x["motion"] = s.motion_type;
+    x["instruction"] = s.instruction;
     x["length_mm"] = reportNumber(s.length_mm);
     x["max_error_uncompensated_mm"] = reportNumber(s.max_error_uncompensated_mm);
     x["max_error_before_mm"] = reportNumber(s.max_error_before_mm);

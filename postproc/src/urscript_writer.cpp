@@ -356,13 +356,29 @@ std::string urPoseText(const calib::XyzAbc& pose, const double near_rotvec[3]) {
 
 std::string writeUrScript(const Program& program) {
   if (program.urscript) return patch(program);
+  // converted from URScript with its text carried (XML): that text, with the model laid on it
+  if (const auto text = carriedSource(program, "URScript")) return patch(reattachCarried(program, parseUrScript(*text, program.source_file)));
   return generate(program);
 }
 
 Program urScriptForConversion(const Program& program, const char* format_name) {
   Program out = program;
   if (!program.urscript) return out;
-  if (!program.urscript->others.empty()) {
+  if (std::string(format_name) == "XML") {  // XML carries the whole text (carrySourceLines)
+    for (const UrScriptSource::Other& o : program.urscript->others) {
+      PassThrough s;
+      s.language = "URScript";
+      s.text = o.text;
+      s.where = o.where;
+      out.passthrough.push_back(s);
+    }
+    std::vector<std::pair<size_t, size_t>> spans;
+    for (const Motion& m : out.motions) {
+      const UrScriptSource::Statement& st = program.urscript->statements.at(static_cast<size_t>(m.statement_id));
+      spans.emplace_back(st.code_begin, st.code_end);
+    }
+    carrySourceLines(out, program.urscript->text, "URScript", '#', spans);
+  } else if (!program.urscript->others.empty()) {
     const UrScriptSource::Other& o = program.urscript->others.front();
     throw calib::ArgumentError(o.where.str() + ": cannot convert to " + format_name + ": the URScript statement '" + o.text +
                         "' is not a motion, set_tcp or pose assignment, and the conversion carries the motion model only" +

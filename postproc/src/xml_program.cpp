@@ -32,6 +32,7 @@ std::set<std::string> targetAttrs(bool cartesian) {
   if (cartesian) {
     s.insert("s");
     s.insert("t");
+    s.insert("abb_conf");
   }
   return s;
 }
@@ -43,7 +44,7 @@ std::set<std::string> frameAttrs() {
 }
 
 std::set<std::string> motionAttrs() {
-  return {"vel_percent", "vel_m_s", "approx", "approx_value", "ca_deg", "relative", "external_tcp"};
+  return {"vel_percent", "vel_m_s", "approx", "approx_value", "ca_deg", "relative", "external_tcp", "conf_monitored", "source_line"};
 }
 
 class Reader {
@@ -165,6 +166,21 @@ Target readTarget(const Reader& R, const XMLElement* e, bool cartesian) {
   if (cartesian) {
     t.status = R.integer(e, "s");
     t.turn = R.integer(e, "t");
+    if (const auto c = R.text(e, "abb_conf")) {
+      // cf1,cf4,cf6,cfx: four integers
+      std::array<int, 4> v{};
+      std::istringstream in(*c);
+      bool ok = true;
+      for (int k = 0; k < 4 && ok; ++k) {
+        long x = 0;
+        ok = static_cast<bool>(in >> x) && x >= -1000 && x <= 1000;
+        v[static_cast<size_t>(k)] = static_cast<int>(x);
+        if (ok && k < 3) ok = in.get() == ',';
+      }
+      if (!ok || in.peek() != std::char_traits<char>::eof())
+        R.fail(e, "<" + std::string(e->Name()) + "> attribute 'abb_conf': expected four integers cf1,cf4,cf6,cfx, found '" + *c + "'");
+      t.abb_conf = v;
+    }
   }
   return t;
 }
@@ -253,7 +269,13 @@ const char* sectionName(PassThrough::Section s) {
 void writePassThrough(std::ostream& out, const PassThrough& s) {
   out << "    <passthrough language=\"" << calib::xmlEscape(s.language) << "\"";
   if (s.section != PassThrough::Section::kBody) out << " section=\"" << sectionName(s.section) << "\"";
-  if (plainText(s.text)) {
+  if (!s.role.empty()) out << " role=\"" << calib::xmlEscape(s.role) << "\"";
+  if (s.line > 0) {
+    out << " line=\"" << s.line << "\"";
+    if (s.eol != "\n") out << " eol=\"" << (s.eol == "\r\n" ? "crlf" : "none") << "\"";
+  }
+  // a line of blanks only is hex too: an XML reader drops whitespace-only text
+  if (plainText(s.text) && (s.text.empty() || s.text.find_first_not_of(" \t") != std::string::npos)) {
     out << ">" << calib::xmlEscape(s.text) << "</passthrough>\n";
     return;
   }
@@ -264,7 +286,7 @@ void writePassThrough(std::ostream& out, const PassThrough& s) {
 }
 
 PassThrough readPassThrough(const Reader& R, const XMLElement* e, size_t before_motion) {
-  R.checkAttributes(e, {"language", "section", "encoding"});
+  R.checkAttributes(e, {"language", "section", "encoding", "role", "line", "eol"});
   PassThrough p;
   p.where = R.loc(e);
   p.before_motion = before_motion;
@@ -294,6 +316,20 @@ PassThrough readPassThrough(const Reader& R, const XMLElement* e, size_t before_
     R.fail(e, "<passthrough> attribute 'encoding': expected text or hex, found '" + encoding + "'");
   }
   if (p.text.find('\n') != std::string::npos) R.fail(e, "<passthrough>: expected one line, found a line break");
+  p.role = R.text(e, "role").value_or("");
+  if (!p.role.empty() && p.role != "motion" && p.role != "model" && p.role != "comment")
+    R.fail(e, "<passthrough> attribute 'role': expected motion, model or comment, found '" + p.role + "'");
+  if (const auto l = R.integer(e, "line")) {
+    if (*l < 1) R.fail(e, "<passthrough> attribute 'line': expected a line number >= 1, found '0'");
+    p.line = *l;
+  }
+  const std::string eol = R.text(e, "eol").value_or("lf");
+  if (eol == "lf") p.eol = "\n";
+  else if (eol == "crlf") p.eol = "\r\n";
+  else if (eol == "none") p.eol = "";
+  else R.fail(e, "<passthrough> attribute 'eol': expected lf, crlf or none, found '" + eol + "'");
+  if ((e->Attribute("role") || e->Attribute("eol")) && p.line == 0)
+    R.fail(e, "<passthrough>: attributes 'role' and 'eol' need the attribute 'line'");
   return p;
 }
 
@@ -329,6 +365,8 @@ Motion readMotion(const Reader& R, const XMLElement* e) {
   if (m.circ_angle_deg && m.type != MotionType::kCirc) R.fail(e, "<" + n + ">: attribute 'ca_deg' is only for circ and scirc");
   m.relative = R.flag(e, "relative");
   m.external_tcp = R.flag(e, "external_tcp");
+  if (e->Attribute("conf_monitored")) m.conf_monitored = R.flag(e, "conf_monitored");
+  if (const auto l = R.integer(e, "source_line")) m.source_line = *l;
   if (m.type == MotionType::kSpl && m.relative) R.fail(e, "<spl>: attribute 'relative' is not allowed");
 
   const XMLElement* c = e->FirstChildElement();
@@ -406,6 +444,8 @@ void writeTarget(std::ostream& out, const char* tag, const Target& t) {
       if (t.pose[k]) out << " " << kPoseAttrs[k] << "=\"" << (k < 3 ? formatMm(*t.pose[k]) : formatDeg(*t.pose[k])) << "\"";
     if (t.status) out << " s=\"" << *t.status << "\"";
     if (t.turn) out << " t=\"" << *t.turn << "\"";
+    if (t.abb_conf)
+      out << " abb_conf=\"" << (*t.abb_conf)[0] << "," << (*t.abb_conf)[1] << "," << (*t.abb_conf)[2] << "," << (*t.abb_conf)[3] << "\"";
   } else {
     for (int k = 0; k < 6; ++k)
       if (t.axes[k]) out << " " << kAxisAttrs[k] << "=\"" << calib::formatFixed(*t.axes[k], 4) << "\"";
@@ -436,7 +476,7 @@ const std::map<std::string, std::set<std::string>>& xmlProgramVocabulary() {
     m["aux"] = targetAttrs(true);
     m["axes"] = targetAttrs(false);
     m["ref"] = {"name"};
-    m["passthrough"] = {"language", "section", "encoding"};
+    m["passthrough"] = {"language", "section", "encoding", "role", "line", "eol"};
     return m;
   }();
   return v;
@@ -573,6 +613,8 @@ std::string writeXmlProgram(const Program& p) {
     if (m.circ_angle_deg) out << " ca_deg=\"" << formatDeg(*m.circ_angle_deg) << "\"";
     if (m.relative) out << " relative=\"true\"";
     if (m.external_tcp) out << " external_tcp=\"true\"";
+    if (!m.conf_monitored) out << " conf_monitored=\"false\"";
+    if (m.source_line > 0 && !m.inserted) out << " source_line=\"" << m.source_line << "\"";
     out << ">\n";
     auto refOrValue = [&](const char* tag_name, const Target& t, bool aux) {
       if (hasValues(t)) {

@@ -68,6 +68,7 @@ struct TargetReport {
   std::string name;         ///< point name, empty for an inline target
   std::string role;         ///< "end" or "aux"
   std::string motion_type;  ///< PTP, LIN, CIRC, SPTP, ...
+  std::string instruction;  ///< the motion instruction as written (motionInstruction: MoveL, movej, LIN)
   double correction_mm = 0;   ///< |command - desired|
   double correction_deg = 0;  ///< rotation angle between command and desired
   double dx_mm = 0, dy_mm = 0, dz_mm = 0;  ///< command - desired, in the program's base frame
@@ -82,6 +83,7 @@ struct TargetReport {
 struct SegmentReport {
   SourceLocation motion;
   std::string motion_type;
+  std::string instruction;  ///< as TargetReport::instruction
   double length_mm = 0;
   double max_error_uncompensated_mm = 0;  ///< the program as it was
   double max_error_before_mm = 0;         ///< endpoints compensated, no auxiliary points
@@ -124,6 +126,13 @@ struct ProgramCompensation {
 /// when the calibrated base is far from the placement (placement.h, placeRobot).
 /// Deterministic: the same inputs give the same output on every run and thread.
 ProgramCompensation compensateProgramReport(const Program& program, const JobSettings& settings);
+
+/// The arm a program's controller language needs, refused when `robot` is not one: a URScript
+/// program (read from URScript, or carrying URScript lines after a conversion) runs on a
+/// Universal Robots arm (6 revolute joints, joints 2, 3 and 4 parallel, no spherical wrist:
+/// the controller's shoulder/elbow/wrist branches are that geometry's). Throws InputError
+/// naming the program and the model otherwise. Used by compensate, check and batch.
+void requireArmForProgram(const Program& program, const calib::RobotDefinition& robot);
 
 /// The InputError that lists every error of `report` (the first with its file:line:column).
 /// Requires !report.errors.empty().

@@ -16,6 +16,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "accura/calib/geometry.h"
@@ -132,6 +133,9 @@ struct Motion {
   int statement_id = -1;  ///< KRL: index in KrlSource::statements
   bool inserted = false;  ///< an auxiliary point added by the compensator (before statement_id)
   int trigger_count = 0;  ///< KRL: TRIGGER statements bound to this motion (since the last one)
+  /// Line of the source file (RAPID, URScript) this motion's statement starts on, carried
+  /// through a conversion (carrySourceLines); 0: not carried.
+  int source_line = 0;
   /// RAPID: configuration monitoring active at this motion (ConfJ\On for MoveJ, ConfL\On
   /// for MoveL/MoveC; the controller's default). Used only when the target has abb_conf.
   bool conf_monitored = true;
@@ -189,6 +193,15 @@ struct PassThrough {
   /// Why no other program can carry it (a motion of a KRL local subroutine, which the
   /// motion model does not hold): writers other than the in-place KRL one refuse it.
   std::string refuse;
+  /// What the line is when it is carried only to give the source back byte for byte
+  /// (carrySourceLines): empty: a statement outside the motion model (the other languages'
+  /// writers refuse it); "motion": a line of a motion statement; "model": a line the motion
+  /// model expresses (declarations of targets, tools and work objects, routine and module
+  /// structure, configuration settings); "comment": a comment or blank line. The writers of
+  /// other languages leave the lines with a role out.
+  std::string role;
+  int line = 0;     ///< line in the source file (1-based; 0: not carried with its place)
+  std::string eol;  ///< the line's end as read: "\n", "\r\n" or "" (the file's last line)
 };
 
 
@@ -224,6 +237,36 @@ bool programChanged(const Program& program);
 /// `language` empty: a writer that carries every language (XML).
 void checkPassThrough(const Program& program, const std::string& language);
 
+/// Carries the whole source `text` of a program read from `language` (RAPID, URScript) in
+/// Program::passthrough, so that the writer of that language gives it back byte for byte after
+/// a conversion (docs/program-formats.md, "Pass-through statements"): every line gets its
+/// number and line end; the pass-through statements already there keep their role (none);
+/// the lines of motion statements (motion_spans[k]: [first byte, one past the last byte] of
+/// motion k's statement; an inserted motion has none) get the role "motion" and set
+/// Motion::source_line; a blank line or a
+/// line starting with `comment` gets "comment"; any other line "model". Throws ArgumentError
+/// naming the line when a line holds two motion statements or a motion and another statement.
+void carrySourceLines(Program& program, const std::string& text, const std::string& language, char comment,
+                      const std::vector<std::pair<size_t, size_t>>& motion_spans);
+
+/// The source text carried in `program` for `language` (carrySourceLines; the lines in their
+/// order, each with its line end); nothing when it carries none. Throws ArgumentError naming
+/// the line when a line number is given twice.
+std::optional<std::string> carriedSource(const Program& program, const std::string& language);
+
+/// `parsed` (the carried source read back) with the motion model of `program` laid on it:
+/// each carried motion (Motion::source_line) takes the targets of the corresponding motion of
+/// `program` (marked modified where they differ at the precision written, abb_conf included;
+/// a target named otherwise than its declared point is a new declaration replacing it),
+/// and a motion of `program` that carries no line is inserted before the next carried one
+/// (Motion::inserted). Throws ArgumentError naming the motion when the two disagree (another
+/// count, type, speed or approximation of the motions, an added motion after the last one).
+Program reattachCarried(const Program& program, Program parsed);
+
+/// `program` without the lines carried only for `language`'s byte-for-byte return (a role
+/// set), for a writer of another language.
+Program withoutCarriedLines(const Program& program, const std::string& language);
+
 /// A point name that `program` does not use yet (no target of it, no identifier of its KRL
 /// text, case-insensitive) and `taken` does not hold: `base` followed by "_1", "_2", ...,
 /// shortened to KRL's 24 characters.
@@ -232,6 +275,11 @@ std::string newPointName(const Program& program, const std::string& base, const 
 /// The KRL keyword of a motion: PTP, LIN, CIRC, SPL, SPTP, SLIN, SCIRC; _REL appended for a
 /// relative motion (LIN_REL, SPTP_REL).
 std::string motionKeyword(const Motion& m);
+
+/// The motion instruction as the source language writes it: the first word of
+/// Motion::statement (MoveL, MoveAbsJ, movel, LIN, PTP_REL; for XML the element name: lin);
+/// motionKeyword when the statement is not known.
+std::string motionInstruction(const Motion& m);
 
 /// Number formats for values the post-processor writes (fixed decimals, never "-0"):
 /// lengths %.4f (mm, 0.1 um), angles %.5f (deg, ~0.2 urad), speeds and other values %.4f.

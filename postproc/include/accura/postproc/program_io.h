@@ -31,11 +31,20 @@ Program readProgram(const std::string& path, const ProgramReadOptions& options =
 /// The files of `program` written as `format`: XML -> `path`; KRL -> `path` (the .src) and
 /// `dat_path` (empty: `path` with the extension .dat) when the program has a .dat (a program
 /// read from KRL without .dat gets none; a new KRL program always gets one); URScript ->
-/// `path` (urscript.h, writeUrScript; a program read from URScript goes into another format
-/// only when it holds nothing but motions, set_tcp and pose assignments); RAPID -> `path`
-/// (rapid.h, writeRapid; a program read from RAPID goes into another format with its other
-/// statements as pass-through, which only XML carries). Throws
+/// `path` (urscript.h, writeUrScript; a program read from URScript goes into XML with every
+/// line carried, into KRL and RAPID only when it holds nothing but motions, set_tcp and pose
+/// assignments); RAPID -> `path` (rapid.h, writeRapid; a program read from RAPID goes into
+/// another format with every line carried, its statements outside the motion model as
+/// pass-through, which only XML carries). The lines carried only to give a RAPID or URScript
+/// source back (PassThrough::role) are left out of the other languages. Throws
 /// ArgumentError when the program cannot be written in that format.
+/// `program` made ready for `format` with what that format cannot hold left out (convert
+/// --drop-unconvertible): the pass-through statements of another language, and those no other
+/// program can carry (PassThrough::refuse); the motions stay. The statements left out are
+/// appended to `dropped` (where they were read, their text) in the program's order. Nothing is
+/// left out for XML, which carries every statement.
+Program dropUnconvertible(const Program& program, ProgramFormat format, std::vector<PassThrough>* dropped);
+
 std::vector<calib::OutputFile> renderProgram(const Program& program, ProgramFormat format, const std::string& path,
                                       const std::string& dat_path = "");
 

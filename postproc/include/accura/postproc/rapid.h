@@ -90,16 +90,19 @@ Program parseRapid(const std::string& text, const std::string& path);
 /// corrected targets (an inline robtarget), the new declarations (after the declaration they
 /// replace) and the inserted motions (a copy of their statement with inline robtargets, on
 /// the line before it). Any other program is written as a new module (MODULE NAME, PROC
-/// main()) with tooldata, wobjdata and inline robtargets. Throws calib::ArgumentError naming
+/// main()) with tooldata, wobjdata and inline robtargets, except a program carrying the lines
+/// of a module (rapidForConversion, e.g. through XML): those lines reassembled, read, and
+/// written back as above with the program's targets laid on them (reattachCarried). Throws calib::ArgumentError naming
 /// the motion when the program cannot be written: a declared value needing two corrections, a
 /// frame or target that is not known, a motion RAPID has no form for here (SPL, relative
 /// motions, CIRC with CA), a pass-through statement of another language.
 std::string writeRapid(const Program& program);
 
 /// A program read from RAPID made ready for another format: target names that are
-/// expressions (Offs(..), RelTool(..)) cleared, the RAPID source dropped. What the other
-/// format cannot carry is in Program::passthrough (language "RAPID"): the writers refuse it
-/// naming its line (checkPassThrough), XML carries it.
+/// expressions (Offs(..), RelTool(..)) cleared, the RAPID source dropped and every line of it
+/// carried (carrySourceLines, language "RAPID"). The statements outside the motion model are
+/// pass-through statements without a role: the other languages' writers refuse them naming
+/// their line (checkPassThrough), XML carries them, and writeRapid gives the module back.
 Program rapidForConversion(const Program& program);
 
 /// ABB confdata [cf1, cf4, cf6, cfx] of joints q (deg) of `model` (a 6R arm with a spherical

@@ -97,15 +97,21 @@ Program parseUrScript(const std::string& text, const std::string& path);
 /// than half of that keeps its text) and the motions marked `inserted` (a copy of their
 /// anchor statement with inline p[...] targets, on the line before it). Any other program is
 /// written as a new script (def NAME(): ... end) with its targets converted into the Base
-/// frame. Throws calib::ArgumentError naming the motion when the program cannot be written: one
+/// frame, except a program carrying the lines of a script (urScriptForConversion for XML):
+/// those lines reassembled, read, and written back as above with the program's targets laid on
+/// them (reattachCarried). Throws calib::ArgumentError naming the motion when the program
+/// cannot be written: one
 /// literal needing two different corrections, a frame or target that is not known, a motion
 /// URScript has no form for (SPL, relative motions, CIRC with CA, external axes, an
 /// approximation other than C_DIS with its distance), a KRL statement that is not a motion.
 std::string writeUrScript(const Program& program);
 
-/// A program read from URScript made ready for another format (`format_name`: "KRL", "XML"):
-/// target names that are expressions (pose_trans(..)) cleared. Throws calib::ArgumentError naming the
-/// first statement the other formats cannot carry (logic, I/O, calls, threads).
+/// A program read from URScript made ready for another format (`format_name`: "KRL", "XML",
+/// "RAPID"): target names that are expressions (pose_trans(..)) cleared. For "XML" every line
+/// of the script is carried (carrySourceLines, language "URScript"; the statements outside
+/// the motion model as pass-through statements without a role), so that writeUrScript gives
+/// the script back; for the others, throws calib::ArgumentError naming the first statement
+/// they cannot carry (logic, I/O, calls, threads).
 Program urScriptForConversion(const Program& program, const char* format_name);
 
 /// p[x, y, z, rx, ry, rz] (metres, rotation vector in radians) of a pose (mm, deg), 7
