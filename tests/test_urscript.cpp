@@ -449,8 +449,25 @@ TEST(UrScript, GoldenFiles) {
   EXPECT_EQ(test::readText(dir + "/expected/ur10_seam.script"), test::readText(g + "expected/ur10_seam.script"));
   EXPECT_EQ(test::readText(dir + "/expected/report.json"), test::readText(g + "expected/report.json"));
   EXPECT_EQ(test::readText(dir + "/ur10_seam.script"), example());  // the input untouched
-  const test::CliRun v = test::runAccuraIn(dir, "convert --in weld_seam.xml --out weld_seam.script");
+  // the XML carries the KRL program's logic ($OUT, WAIT, IF) as pass-through: URScript written from
+  // the motion model cannot hold it, so the conversion is refused at the first such statement ...
+  const test::CliRun refused = test::runAccuraIn(dir, "convert --in weld_seam.xml --out weld_seam.script");
+  EXPECT_EQ(refused.code, 1);
+  EXPECT_NE(refused.err.find("weld_seam.xml:26:5: cannot convert to URScript: the KRL statement '$OUT[17]=TRUE' is not a motion"),
+            std::string::npos)
+      << refused.err;
+  EXPECT_FALSE(std::filesystem::exists(dir + "/weld_seam.script"));
+  // ... or, asked to, it keeps the motions and lists every pass-through statement it leaves out
+  const std::string xml_text = test::readText(dir + "/weld_seam.xml");
+  size_t carried = 0;
+  for (size_t at = xml_text.find("<passthrough language=\"KRL\""); at != std::string::npos;
+       at = xml_text.find("<passthrough language=\"KRL\"", at + 1))
+    ++carried;
+  const test::CliRun v = test::runAccuraIn(dir, "convert --in weld_seam.xml --out weld_seam.script --drop-unconvertible");
   ASSERT_EQ(v.code, 0) << v.err;
+  size_t dropped = 0;
+  for (size_t at = v.err.find(": dropped '"); at != std::string::npos; at = v.err.find(": dropped '", at + 1)) ++dropped;
+  EXPECT_EQ(dropped, carried);
   EXPECT_EQ(test::readText(dir + "/weld_seam.script"), test::readText(g + "weld_seam.script"));
   const Program xml = readProgram(dir + "/weld_seam.xml");
   const Program ur = readUrScript(dir + "/weld_seam.script");
