@@ -4,6 +4,8 @@
 // motions; what cannot be carried is refused, naming the line.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -362,4 +364,26 @@ TEST(Convert, DropUnconvertibleListsEveryDroppedLine) {
 }
 
 }  // namespace
+// A statement on the line of a motion (legal RAPID) is not the motion model's: converting the
+// module is refused at that line rather than carrying the SetDO inside the motion's line, where
+// another format would lose it without a word.
+TEST(Convert, AStatementBesideAMotionOnItsLineIsNotLost) {
+  const std::string dir = test::tempDir("convert_same_line");
+  std::string text = test::readText(test::sourcePath("examples/irb120_seam.mod"));
+  const std::string motion = "    MoveL p20, v200, fine, torch\\WObj:=table;";
+  const size_t at = text.find(motion + "\n");
+  ASSERT_NE(at, std::string::npos);
+  text.insert(at + motion.size(), " SetDO do_torch, 1;");
+  const int line = static_cast<int>(std::count(text.begin(), text.begin() + static_cast<long>(at), '\n')) + 1;
+  test::writeText(dir + "/seam.mod", text);
+  for (const char* out : {"seam.src", "seam.xml", "seam.script"}) {
+    const test::CliRun r = test::runAccuraIn(dir, std::string("convert --in seam.mod --out ") + out);
+    EXPECT_EQ(r.code, 1) << out;
+    EXPECT_NE(r.err.find("seam.mod:" + std::to_string(line) + ":1: cannot carry this RAPID line through the conversion: it holds a motion and another statement"),
+              std::string::npos)
+        << r.err;
+    EXPECT_FALSE(std::filesystem::exists(dir + "/" + out)) << out;
+  }
+}
+
 }  // namespace accura::postproc

@@ -136,6 +136,7 @@ class Reader {
   }
 
   void markModel(Range r) {
+    model_statements_.insert(r.first);
     const int a = loc(t_[r.first].b).line, b = loc(t_[r.second - 1].b).line;
     for (int l = a; l <= b; ++l) model_line_[static_cast<size_t>(l)] = true;
   }
@@ -728,7 +729,15 @@ class Reader {
   }
 
   void passThrough(Program& p) const {
-    rapidPassThrough(*src_, t_, stmts_, starts_, model_line_, motion_lines_, main_routine_, other_routine_motion_, p);
+    // a line is the motion model's only when every statement on it is: a motion followed by
+    // SetDO on the same line is carried (and refused or dropped by other formats) as a statement
+    std::vector<bool> model_only = model_line_;
+    for (const Range& r : stmts_) {
+      if (model_statements_.count(r.first)) continue;
+      const int a = loc(t_[r.first].b).line, b = loc(t_[r.second - 1].b).line;
+      for (int l = a; l <= b; ++l) model_only[static_cast<size_t>(l)] = false;
+    }
+    rapidPassThrough(*src_, t_, stmts_, starts_, model_only, motion_lines_, main_routine_, other_routine_motion_, p);
   }
 
   std::shared_ptr<RapidSource> src_;
@@ -738,6 +747,7 @@ class Reader {
   std::map<std::string, SourceLocation> assigned_;
   std::vector<std::array<std::optional<double>, 6>> ext_;  ///< external axes of each value (9E9: none)
   std::vector<bool> model_line_;
+  std::set<size_t> model_statements_;  ///< first token of each statement of the motion model (markModel)
   std::vector<int> motion_lines_;
   Scope module_, local_;
   std::string module_name_, routine_, routine_kind_, main_routine_;
