@@ -311,6 +311,8 @@ TEST(HardeningMessages, MeshesWithoutFacesAndRepeatedColumnNamesAreLocated) {
        "cr.ply:11:3: expected a line feed after the carriage return (CRLF line ends), found a carriage return alone"},
       // found by fuzz_mesh: assimp does not count '.2' as a vertex component, and the faces then point past the vertices
       {"dot.obj", "v 0 0 0\nv .2 0 0\nv 0 1 0\nf 1 2 3\n", "dot.obj:2:3: expected a number starting with a digit or a sign (write '0.5', not '.5'), found '.2'"},
+      // found by fuzz_mesh: assimp does not take a vertical tab for a separator
+      {"vt.obj", "v 0 0 0\nv 1 0 0\nv 0\v1 0\nf 1 2 3\n", "vt.obj:3:4: expected text, found the control byte 0x0B"},
       {"points.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\np 1 2 3\n",
        "points.obj:5:1: expected at least one face ('f' with 3 or more vertex references), found none before the end of the file"},
   };
