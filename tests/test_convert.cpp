@@ -175,7 +175,7 @@ TEST(Convert, MalformedPassThroughIsAnErrorWithItsPlace) {
   const std::pair<const char*, const char*> carried[] = {
       {"role=\"decl\" line=\"3\"", "expected motion, model or comment, found 'decl'"},
       {"line=\"3\" eol=\"cr\"", "expected lf, crlf or none, found 'cr'"},
-      {"role=\"model\"", "'role' and 'eol' need the attribute 'line'"}};
+      {"role=\"model\"", "expected the attribute 'line' with 'role' or 'eol' (a line carried with its place), found none"}};
   for (const auto& c : carried)
     EXPECT_NE(error(std::string("<passthrough language=\"RAPID\" ") + c.first + ">x</passthrough>").find(c.second), std::string::npos) << c.first;
 }

@@ -310,7 +310,7 @@ PassThrough readPassThrough(const Reader& R, const XMLElement* e, size_t before_
       if (c >= 'A' && c <= 'F') return c - 'A' + 10;
       R.fail(e, std::string("<passthrough encoding=\"hex\">: expected hexadecimal digits, found '") + c + "'");
     };
-    if (text.size() % 2) R.fail(e, "<passthrough encoding=\"hex\">: expected an even number of hexadecimal digits");
+    if (text.size() % 2) R.fail(e, "<passthrough encoding=\"hex\">: expected an even number of hexadecimal digits, found " + std::to_string(text.size()));
     for (size_t i = 0; i < text.size(); i += 2) p.text += static_cast<char>(nibble(text[i]) * 16 + nibble(text[i + 1]));
   } else {
     R.fail(e, "<passthrough> attribute 'encoding': expected text or hex, found '" + encoding + "'");
@@ -320,7 +320,7 @@ PassThrough readPassThrough(const Reader& R, const XMLElement* e, size_t before_
   if (!p.role.empty() && p.role != "motion" && p.role != "model" && p.role != "comment")
     R.fail(e, "<passthrough> attribute 'role': expected motion, model or comment, found '" + p.role + "'");
   if (const auto l = R.integer(e, "line")) {
-    if (*l < 1) R.fail(e, "<passthrough> attribute 'line': expected a line number >= 1, found '0'");
+    if (*l < 1) R.fail(e, "<passthrough> attribute 'line': expected a line number >= 1, found '" + std::to_string(*l) + "'");
     p.line = *l;
   }
   const std::string eol = R.text(e, "eol").value_or("lf");
@@ -329,7 +329,7 @@ PassThrough readPassThrough(const Reader& R, const XMLElement* e, size_t before_
   else if (eol == "none") p.eol = "";
   else R.fail(e, "<passthrough> attribute 'eol': expected lf, crlf or none, found '" + eol + "'");
   if ((e->Attribute("role") || e->Attribute("eol")) && p.line == 0)
-    R.fail(e, "<passthrough>: attributes 'role' and 'eol' need the attribute 'line'");
+    R.fail(e, "<passthrough>: expected the attribute 'line' with 'role' or 'eol' (a line carried with its place), found none");
   return p;
 }
 
