@@ -17,6 +17,7 @@
 #include "accura/calib/urdf.h"
 #include "accura/postproc/cell.h"
 #include "accura/postproc/krl.h"
+#include "accura/postproc/urscript.h"
 #include "accura/postproc/xml_program.h"
 #include "test_util.h"
 
@@ -313,6 +314,9 @@ TEST(HardeningMessages, MeshesWithoutFacesAndRepeatedColumnNamesAreLocated) {
       {"dot.obj", "v 0 0 0\nv .2 0 0\nv 0 1 0\nf 1 2 3\n", "dot.obj:2:3: expected a number starting with a digit or a sign (write '0.5', not '.5'), found '.2'"},
       // found by fuzz_mesh: assimp does not take a vertical tab for a separator
       {"vt.obj", "v 0 0 0\nv 1 0 0\nv 0\v1 0\nf 1 2 3\n", "vt.obj:3:4: expected text, found the control byte 0x0B"},
+      // found by fuzz_mesh: assimp reads a vertex's coordinates on its line only
+      {"split.stl", "solid s\nfacet normal 0 0 1\nouter loop\nvertex 0 0\n0\nvertex 1 0 0\nvertex 0 1 0\nendloop\nendfacet\nendsolid s\n",
+       "split.stl:4:11: expected the 3 coordinates of a vertex on its line, found the end of the line"},
       {"points.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\np 1 2 3\n",
        "points.obj:5:1: expected at least one face ('f' with 3 or more vertex references), found none before the end of the file"},
   };
@@ -417,4 +421,27 @@ TEST(HardeningMessages, MeasurementValuesOutsideTheirRangesAreRejectedAtTheField
 }
 
 }  // namespace
+/// Found by strict fuzzing of the readers issue 12 added to: `set_tcp()` without its pose (the
+/// message read past the empty argument list) and an XML motion with `approx_value` alone.
+TEST(HardeningMessages, ProgramFuzzFindingsSayWhatWasExpected) {
+  try {
+    (void)postproc::parseUrScript("def p():\n  set_tcp()\nend\n", "p.script");
+    ADD_FAILURE() << "set_tcp() read";
+  } catch (const calib::InputError& e) {
+    EXPECT_EQ(e.line(), 2);
+    EXPECT_EQ(e.message(), "expected set_tcp(pose) with 1 argument, found 0");
+  }
+  const std::string xml =
+      "<?xml version=\"1.0\"?>\n<program name=\"p\" version=\"1\">\n  <motions>\n"
+      "    <ptp vel_percent=\"10\" approx_value=\"5\">\n"
+      "      <axes a1=\"0\" a2=\"-90\" a3=\"90\" a4=\"0\" a5=\"0\" a6=\"0\"/>\n    </ptp>\n  </motions>\n</program>\n";
+  try {
+    (void)postproc::parseXmlProgram(xml, "p.xml");
+    ADD_FAILURE() << "approx_value without approx read";
+  } catch (const calib::InputError& e) {
+    EXPECT_EQ(e.line(), 4);
+    EXPECT_EQ(e.message(), "<ptp>: expected the attribute 'approx' with 'approx_value', found none");
+  }
+}
+
 }  // namespace accura

@@ -490,7 +490,8 @@ class Checker {
         if (w.text != "facet") fail(w, "expected 'facet' or 'endsolid', found " + quoted(w.text));
         expect("normal", " after 'facet'");
         for (int k = 0; k < 3; ++k) {
-          if (!s.word(&w)) fail(s.here(), "expected the 3 numbers of the facet's normal, found the end of the file (a truncated file?)");
+          // on the keyword's line, as assimp reads them
+          if (!s.wordOnLine(&w)) fail(s.here(), "expected the 3 numbers of the facet's normal on its line, found the end of the line");
           number(w, "a component of the facet's normal");
         }
         expect("outer", "");
@@ -498,7 +499,7 @@ class Checker {
         for (int v = 0; v < 3; ++v) {
           expect("vertex", v == 0 ? "" : " (a facet has 3 vertices)");
           for (int k = 0; k < 3; ++k) {
-            if (!s.word(&w)) fail(s.here(), "expected the 3 coordinates of a vertex, found the end of the file (a truncated file?)");
+            if (!s.wordOnLine(&w)) fail(s.here(), "expected the 3 coordinates of a vertex on its line, found the end of the line");
             coordinate(w, "a vertex coordinate");
           }
         }

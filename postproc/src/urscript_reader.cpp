@@ -493,8 +493,8 @@ class Reader {
 
   void setTcp(const std::vector<Tok>& t) {
     const auto args = items(t, 2, t.size() - 1);
-    if (args.size() != 1 || args[0].first == args[0].second)
-      fail(t[0].b, "expected set_tcp(pose) with 1 argument, found " + std::to_string(args[0].first == args[0].second ? 0 : args.size()));
+    const size_t given = args.empty() || (args.size() == 1 && args[0].first == args[0].second) ? 0 : args.size();
+    if (given != 1) fail(t[0].b, "expected set_tcp(pose) with 1 argument, found " + std::to_string(given));
     const PoseVal v = pose(t, args[0].first, args[0].second);
     FrameSetting f;
     f.where = loc(t[0].b);

@@ -360,7 +360,7 @@ Motion readMotion(const Reader& R, const XMLElement* e) {
   }
   m.approximation_value = R.number(e, "approx_value");
   if (m.approximation_value && m.approximation.empty())
-    R.fail(e, "<" + n + ">: attribute 'approx_value' needs 'approx'");
+    R.fail(e, "<" + n + ">: expected the attribute 'approx' with 'approx_value', found none");
   m.circ_angle_deg = R.number(e, "ca_deg");
   if (m.circ_angle_deg && m.type != MotionType::kCirc) R.fail(e, "<" + n + ">: attribute 'ca_deg' is only for circ and scirc");
   m.relative = R.flag(e, "relative");
