@@ -317,6 +317,8 @@ TEST(HardeningMessages, MeshesWithoutFacesAndRepeatedColumnNamesAreLocated) {
       // found by fuzz_mesh: assimp reads a vertex's coordinates on its line only
       {"split.stl", "solid s\nfacet normal 0 0 1\nouter loop\nvertex 0 0\n0\nvertex 1 0 0\nvertex 0 1 0\nendloop\nendfacet\nendsolid s\n",
        "split.stl:4:11: expected the 3 coordinates of a vertex on its line, found the end of the line"},
+      {"vt.stl", "solid s\nfacet normal 0 0 1\nouter loop\nvertex \v0 0 0\nvertex 1 0 0\nvertex 0 1 0\nendloop\nendfacet\nendsolid s\n",
+       "vt.stl:4:8: expected text, found the control byte 0x0B"},
       {"points.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\np 1 2 3\n",
        "points.obj:5:1: expected at least one face ('f' with 3 or more vertex references), found none before the end of the file"},
   };
