@@ -319,6 +319,9 @@ TEST(HardeningMessages, MeshesWithoutFacesAndRepeatedColumnNamesAreLocated) {
        "split.stl:4:11: expected the 3 coordinates of a vertex on its line, found the end of the line"},
       {"vt.stl", "solid s\nfacet normal 0 0 1\nouter loop\nvertex \v0 0 0\nvertex 1 0 0\nvertex 0 1 0\nendloop\nendfacet\nendsolid s\n",
        "vt.stl:4:8: expected text, found the control byte 0x0B"},
+      // found by fuzz_mesh: assimp skips an indented OBJ line, and the faces then pointed past the vertices
+      {"indent.obj", "v 0 0 0\n v 1 0 0\nv 0 1 0\nf 1 2 3\n",
+       "indent.obj:2:2: expected the statement 'v' at the start of its line (an indented line is skipped by the mesh reader), found it at column 2"},
       {"points.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\np 1 2 3\n",
        "points.obj:5:1: expected at least one face ('f' with 3 or more vertex references), found none before the end of the file"},
   };

@@ -526,6 +526,8 @@ class Checker {
         s.restOfLine();
         continue;
       }
+      // assimp reads a statement only at the start of its line and skips an indented one whole
+      if (w.column != 1) fail(w, "expected the statement " + quoted(w.text) + " at the start of its line (an indented line is skipped by the mesh reader), found it at column " + std::to_string(w.column));
       any = true;
       const Word keyword = w;
       const std::string_view k = w.text;
