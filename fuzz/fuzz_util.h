@@ -39,16 +39,17 @@ class Scratch {
     return p;
   }
   ~Scratch() { cleanup(); }
+  /// Removes the directory (also before an abort, which skips the destructor).
+  void cleanup() {
+    std::error_code ec;
+    if (!dir_.empty()) std::filesystem::remove_all(dir_, ec);
+  }
 
  private:
   Scratch() {
     std::string tmpl = (std::filesystem::temp_directory_path() / "accura_fuzz_XXXXXX").string();
     if (!::mkdtemp(tmpl.data())) die("cannot create a scratch directory");
     dir_ = tmpl;  // removed by the destructor when the process exits normally (libFuzzer ends with exit())
-  }
-  void cleanup() {
-    std::error_code ec;
-    if (!dir_.empty()) std::filesystem::remove_all(dir_, ec);
   }
   [[noreturn]] static void die(const std::string& what) {
     std::fprintf(stderr, "fuzz: %s\n", what.c_str());
@@ -61,6 +62,7 @@ class Scratch {
 [[noreturn]] inline void violation(const std::string& what) {
   std::fprintf(stderr, "\nfuzz contract violation: %s\n", what.c_str());
   std::fflush(stderr);
+  Scratch::get().cleanup();  // libFuzzer keeps the input itself (-artifact_prefix)
   std::abort();
 }
 

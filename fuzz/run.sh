@@ -26,23 +26,25 @@ status=0
 for t in "${targets[@]}"; do
   if [ "$strict" = 1 ] && [[ "$lenient" != *" $t "* ]]; then export FUZZ_STRICT=1; else export FUZZ_STRICT=0; fi
   work="$(mktemp -d)"
+  # the target's scratch files go here: a fuzzer that dies on a finding cannot remove its own
+  scratch="$(mktemp -d)"
   mkdir -p "$here/findings"
   dict=()
   [ -f "$here/dict/$t.dict" ] && dict=(-dict="$here/dict/$t.dict")
   start=$(date +%s)
   if [ "$seconds" -eq 0 ]; then
     # replay: every committed corpus input once, no mutation (deterministic; what CI runs)
-    if "$bin/fuzz_$t" -runs=0 -timeout=10 -rss_limit_mb=2048 "$here/corpus/$t" >"$work.log" 2>&1; then
+    if TMPDIR="$scratch" "$bin/fuzz_$t" -runs=0 -timeout=10 -rss_limit_mb=2048 "$here/corpus/$t" >"$work.log" 2>&1; then
       echo "fuzz_$t: replayed $(ls "$here/corpus/$t" | wc -l) corpus inputs, ok"
     else
       echo "fuzz_$t: FINDING while replaying the corpus; the end of its log:"
       tail -40 "$work.log"
       status=1
     fi
-    rm -rf "$work" "$work.log"
+    rm -rf "$work" "$work.log" "$scratch"
     continue
   fi
-  if "$bin/fuzz_$t" "$work" "$here/corpus/$t" "${dict[@]}" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 \
+  if TMPDIR="$scratch" "$bin/fuzz_$t" "$work" "$here/corpus/$t" "${dict[@]}" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 \
        -max_len=65536 -print_final_stats=1 -artifact_prefix="$here/findings/$t-" >"$work.log" 2>&1; then
     echo "fuzz_$t: ok, $(grep -o 'stat::number_of_executed_units: *[0-9]*' "$work.log" | grep -o '[0-9]*$') runs in $(( $(date +%s) - start )) s, $(grep -o 'cov: [0-9]*' "$work.log" | tail -1)"
   else
@@ -50,6 +52,6 @@ for t in "${targets[@]}"; do
     tail -40 "$work.log"
     status=1
   fi
-  rm -rf "$work" "$work.log"
+  rm -rf "$work" "$work.log" "$scratch"
 done
 exit $status
