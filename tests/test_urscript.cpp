@@ -469,6 +469,23 @@ TEST(UrScript, GoldenFiles) {
   for (size_t at = v.err.find(": dropped '"); at != std::string::npos; at = v.err.find(": dropped '", at + 1)) ++dropped;
   EXPECT_EQ(dropped, carried);
   EXPECT_EQ(test::readText(dir + "/weld_seam.script"), test::readText(g + "weld_seam.script"));
+  // without its logic lines the XML converts as the .src would: the INI housekeeping and the
+  // .dat's declarations (EXT BAS, DECL) are the motion model's, not statements URScript loses
+  const auto logic = [](const std::string& line) {
+    for (const char* l : {"$OUT[", "WAIT SEC", ">IF ", ">ELSE<", ">ENDIF<"})
+      if (line.find(l) != std::string::npos) return true;
+    return false;
+  };
+  std::string motions_only;
+  for (size_t b = 0; b < xml_text.size();) {
+    const size_t e = std::min(xml_text.find('\n', b), xml_text.size());
+    const std::string line = xml_text.substr(b, e - b);
+    if (!logic(line)) motions_only += line + "\n";
+    b = e + 1;
+  }
+  test::writeText(dir + "/motions_only.xml", motions_only);
+  const test::CliRun m = test::runAccuraIn(dir, "convert --in motions_only.xml --out motions_only.script");
+  ASSERT_EQ(m.code, 0) << m.err;
   const Program xml = readProgram(dir + "/weld_seam.xml");
   const Program ur = readUrScript(dir + "/weld_seam.script");
   ASSERT_EQ(ur.motions.size(), xml.motions.size());

@@ -273,13 +273,15 @@ void refuseKrlLogic(const KrlSource& k) {
 }
 
 /// The pass-through statements of a program read from XML (a KRL, RAPID or URScript line
-/// outside the motion model) that URScript written from the motion model would lose: a KRL line
-/// of the motion model's housekeeping (motionModelLine) is left out as in KRL -> URScript, any
-/// other is refused, naming it (convert --drop-unconvertible leaves them out and lists them).
+/// outside the motion model) that URScript written from the motion model would lose, judged by
+/// the rule refuseKrlLogic applies to a .src: a KRL line of the motion model's housekeeping
+/// (motionModelLine) and the .dat's declarations are left out, any other line is refused,
+/// naming it (convert --drop-unconvertible leaves them out and lists them).
 void refuseLogicPassThrough(const Program& p) {
   for (const PassThrough& s : p.passthrough) {
     if (!s.role.empty()) continue;  // carried for its own language only
-    if (s.refuse.empty() && s.language == "KRL" && motionModelLine(upperTrim(s.text))) continue;
+    const bool krl = s.refuse.empty() && s.language == "KRL";
+    if (krl && (s.section == PassThrough::Section::kData || motionModelLine(upperTrim(s.text)))) continue;
     throw calib::ArgumentError(s.where.str() + ": cannot convert to URScript: the " + s.language + " statement '" +
                                trimmedCode(s.text) + "' is not a motion, frame or speed, and URScript output carries the motion model only");
   }
@@ -293,8 +295,8 @@ bool isIdentifier(const std::string& s) {
 }
 
 std::string generate(const Program& p) {
-  if (p.krl) refuseKrlLogic(*p.krl);
-  refuseLogicPassThrough(p);
+  if (p.krl) refuseKrlLogic(*p.krl);  // its pass-through statements are the .src's own lines
+  else refuseLogicPassThrough(p);
   std::ostringstream out;
   out << "def " << identifier(p.name.empty() ? "program" : p.name) << "():\n";
   out << "  # written by accura convert" << (p.source_file.empty() ? "" : " from " + std::filesystem::path(p.source_file).filename().string())
