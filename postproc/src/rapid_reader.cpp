@@ -57,7 +57,6 @@ class Reader {
     starts_.push_back(0);
     for (size_t i = 0; i < text.size(); ++i)
       if (text[i] == '\n') starts_.push_back(i + 1);
-    model_line_.assign(starts_.size() + 1, false);
   }
 
   Program run() {
@@ -135,11 +134,7 @@ class Reader {
     }
   }
 
-  void markModel(Range r) {
-    model_statements_.insert(r.first);
-    const int a = loc(t_[r.first].b).line, b = loc(t_[r.second - 1].b).line;
-    for (int l = a; l <= b; ++l) model_line_[static_cast<size_t>(l)] = true;
-  }
+  void markModel(Range r) { model_[r.first] = r.second; }
 
   void statement(Range r, Program& p) {
     const std::vector<Tok>& t = t_;
@@ -731,12 +726,14 @@ class Reader {
   void passThrough(Program& p) const {
     // a line is the motion model's only when every statement on it is: a motion followed by
     // SetDO on the same line is carried (and refused or dropped by other formats) as a statement
-    std::vector<bool> model_only = model_line_;
-    for (const Range& r : stmts_) {
-      if (model_statements_.count(r.first)) continue;
+    std::vector<bool> model_only(starts_.size() + 1, false);
+    const auto mark = [&](Range r, bool model) {
       const int a = loc(t_[r.first].b).line, b = loc(t_[r.second - 1].b).line;
-      for (int l = a; l <= b; ++l) model_only[static_cast<size_t>(l)] = false;
-    }
+      for (int l = a; l <= b; ++l) model_only[static_cast<size_t>(l)] = model;
+    };
+    for (const auto& r : model_) mark(r, true);
+    for (const Range& r : stmts_)
+      if (!model_.count(r.first)) mark(r, false);
     rapidPassThrough(*src_, t_, stmts_, starts_, model_only, motion_lines_, main_routine_, other_routine_motion_, p);
   }
 
@@ -746,8 +743,7 @@ class Reader {
   std::vector<Range> stmts_;
   std::map<std::string, SourceLocation> assigned_;
   std::vector<std::array<std::optional<double>, 6>> ext_;  ///< external axes of each value (9E9: none)
-  std::vector<bool> model_line_;
-  std::set<size_t> model_statements_;  ///< first token of each statement of the motion model (markModel)
+  std::map<size_t, size_t> model_;  ///< the statements of the motion model (markModel): first token -> end
   std::vector<int> motion_lines_;
   Scope module_, local_;
   std::string module_name_, routine_, routine_kind_, main_routine_;
