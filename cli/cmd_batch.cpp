@@ -86,6 +86,9 @@ int runBatch(const BatchArgs& a) {
       std::printf("compensated %s: %d targets corrected (max %.4f mm), %d point(s) added, path error %.4f -> %.4f mm%s\n", r.input.c_str(),
                   r.report.targets_corrected, r.report.max_correction_mm, r.report.points_added, r.report.max_error_uncompensated_mm,
                   r.report.max_error_after_mm, r.check ? (r.check->passed() ? "; checks passed" : "; checks FAILED, written because of --warn-only") : "");
+      if (r.report.motions_left_unchanged > 0)
+        std::printf("  %s: %d motion(s) left unchanged (targets accura cannot evaluate; see the warnings)\n", r.input.c_str(),
+                    r.report.motions_left_unchanged);
       if (!r.message.empty()) std::fprintf(stderr, "accura: warning: %s: %s\n", r.input.c_str(), r.message.c_str());
     } else {
       std::printf("%s %s: %s\n", statusWord(r).c_str(), r.input.c_str(), r.message.c_str());

@@ -336,12 +336,29 @@ TEST(Rapid, WhatAccuraCannotModelIsRefusedNamingIt) {
                        ", v100, fine, tool0\\WObj:=w;\n  ENDPROC\nENDMODULE\n")
                 .find("wobjdata w has ufprog FALSE (a user frame moved by the mechanical unit \"STN1\"), which accura does not model"),
             std::string::npos);
-  // Offs of a point computed at run time, a robtarget assigned in the program
-  EXPECT_EQ(firstError(inProc("    MoveL Offs(CRobT(),0,0,10), v100, fine, tool0;\n")),
-            "r.mod:3:5: expected a target accura can correct for LIN, found: Offs(...) at r.mod:3:11 cannot be evaluated: 'CRobT()' is not a "
-            "target accura can evaluate (a robtarget, a declared robtarget, Offs or RelTool of one)");
-  EXPECT_EQ(firstError("MODULE m\n  VAR robtarget p := " + t + ";\n  PROC main()\n    p := CRobT();\n    MoveL p, v100, fine, tool0;\n  ENDPROC\nENDMODULE\n"),
-            "r.mod:5:5: expected a target accura can correct for LIN, found: 'p' is assigned at r.mod:4:5: its value at run time is not the declared one");
+  // Offs of a point computed at run time, a robtarget assigned in the program: programs the
+  // controller runs, so not refused: the motion is kept as written and named in a warning
+  auto firstWarning = [&](const std::string& text) {
+    const ProgramCompensation c = compensateProgramReport(parseRapid(text, "r.mod"), settingsFor(real));
+    EXPECT_TRUE(c.report.errors.empty()) << c.report.errors.front().message;
+    return c.report.warnings.empty() ? std::string("no warning") : c.report.warnings.front().where.str() + ": " + c.report.warnings.front().message;
+  };
+  EXPECT_EQ(firstWarning(inProc("    MoveL Offs(CRobT(),0,0,10), v100, fine, tool0;\n")),
+            "r.mod:3:5: MoveL left unchanged (not compensated): Offs(...) at r.mod:3:11 cannot be evaluated: 'CRobT()' is not a "
+            "target accura can evaluate (a robtarget, a declared robtarget, Offs or RelTool of one); the position after it is not known");
+  EXPECT_EQ(firstWarning("MODULE m\n  VAR robtarget p := " + t + ";\n  PROC main()\n    p := CRobT();\n    MoveL p, v100, fine, tool0;\n  ENDPROC\nENDMODULE\n"),
+            "r.mod:5:5: MoveL left unchanged (not compensated): 'p' is assigned at r.mod:4:5: its value at run time is not the declared one; "
+            "the position after it is not known");
+  {
+    // the rest is compensated, the run-time motion keeps its text
+    const std::string tc = "[[380,40,350],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]]";
+    const std::string text = inProc("    MoveJ " + tc + ", v100, fine, tool0;\n    MoveL Offs(CRobT(),0,0,10), v100, fine, tool0;\n");
+    const ProgramCompensation c = compensateProgramReport(parseRapid(text, "r.mod"), settingsFor(real));
+    ASSERT_TRUE(c.ok()) << c.report.errors.front().message;
+    const std::string written = writeRapid(c.program);
+    EXPECT_NE(written.find("\n    MoveL Offs(CRobT(),0,0,10), v100, fine, tool0;\n"), std::string::npos) << written;
+    EXPECT_EQ(written.find("MoveJ " + tc), std::string::npos) << written;  // corrected (base 0.3 mm off)
+  }
   // an undeclared tooldata: named, with the option that supplies it
   EXPECT_EQ(firstError(inProc("    MoveJ " + t + ", v100, fine, gun;\n")),
             "r.mod:3:5: the tool of this motion is not known: the tooldata 'gun' is not declared with a value in this module (give its TCP with "

@@ -278,10 +278,17 @@ class Job {
   void motion(const Motion& m, Program& out) {
     if (m.start_unknown) forget();
     if (!m.target_problem.empty()) {
-      if (m.type == MotionType::kPtp && !m.target_file_missing)
-        warning(m.where, motionKeyword(m) + " left unchanged: " + m.target_problem + "; the position after it is not known");
-      else
+      // A target the program computes at run time (Offs of a counter, CRobT, a variable the
+      // program assigns, an instruction accura does not model) is a program the controller
+      // runs: the motion is kept as written, not compensated, and named. A file that is missing
+      // (the .dat of a named point) is the user's to give: an error.
+      if (!m.target_file_missing) {
+        ++r_.motions_left_unchanged;
+        warning(m.where, motionInstruction(m) + " left unchanged (not compensated): " + m.target_problem +
+                             "; the position after it is not known");
+      } else {
         error(m.where, "expected a target accura can correct for " + motionKeyword(m) + ", found: " + m.target_problem);
+      }
       return keep(out, m);
     }
     if (m.target.kind == Target::Kind::kAxis) return axisMotion(m, out);

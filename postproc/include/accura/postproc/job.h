@@ -103,6 +103,9 @@ struct JobReport {
   std::vector<ProgramIssue> warnings;  ///< left unchanged, path not checked, ...
   std::vector<ProgramIssue> errors;    ///< why the program was not written
   int targets_corrected = 0;
+  /// motions kept as written because their target is computed at run time (each one is in
+  /// `warnings`)
+  int motions_left_unchanged = 0;
   int points_added = 0;
   double max_correction_mm = 0, rms_correction_mm = 0, max_correction_deg = 0;
   double max_error_uncompensated_mm = 0, max_error_before_mm = 0, max_error_after_mm = 0;
