@@ -270,6 +270,40 @@ TEST(KrlRules, ATargetThatMovesAnExternalAxisIsRefusedNamingIt) {
 }
 
 // ---------------------------------------------------------------------------------------------
+// Targets known only at run time
+
+// A LIN_REL in an IF, then a partial LIN (its other components are wherever the robot is), and
+// a point the program changes: the controller runs this program, so it is not refused. Those
+// motions keep their text and are named in warnings; every other target is compensated.
+TEST(KrlRules, MotionsToRunTimeTargetsAreKeptAndNamedTheRestIsCompensated) {
+  const std::string dir = test::tempDir("krl_runtime");
+  test::writeText(dir + "/p.src",
+                  "DEF p( )\n$TOOL={X 0,Y 0,Z 100,A 0,B 0,C 0}\n$BASE=$NULLFRAME\nPTP XP1\nIF $IN[3] THEN\n  LIN_REL {X 1.0} C_DIS\nENDIF\n"
+                  "LIN {Z 900}\nXP3 = XP2\nXP3.X = $POS_ACT.X\nLIN XP3\nLIN XP2\nEND\n");
+  test::writeText(dir + "/p.dat",
+                  "DEFDAT p\nDECL E6POS XP1={X 1000,Y 0,Z 800,A 0,B 90,C 0}\nDECL E6POS XP2={X 1000,Y 100,Z 800,A 0,B 90,C 0}\n"
+                  "DECL E6POS XP3={X 1000,Y 100,Z 800,A 0,B 90,C 0}\nENDDAT\n");
+  const Program in = readKrl(dir + "/p.src");
+  JobSettings s;
+  s.calibrated = test::loadBundled("kuka_kr16");
+  s.calibrated.deviations.base_mm = Eigen::Vector3d(0.2, -0.1, 0.3);
+  const ProgramCompensation pc = compensateProgramReport(in, s);
+  ASSERT_TRUE(pc.ok()) << pc.report.errors.front().where.str() << ": " << pc.report.errors.front().message;
+  EXPECT_EQ(pc.report.motions_left_unchanged, 3);
+  std::vector<std::string> unchanged;
+  for (const ProgramIssue& w : pc.report.warnings)
+    if (w.message.find("left unchanged (not compensated)") != std::string::npos) unchanged.push_back(std::to_string(w.where.line));
+  EXPECT_EQ(unchanged, (std::vector<std::string>{"6", "8", "11"}));
+  // XP1 and XP2 are corrected; the LIN_REL, the partial LIN and XP3 keep their text
+  const KrlText out = writeKrl(pc.program);
+  EXPECT_NE(out.src.find("\n  LIN_REL {X 1.0} C_DIS\n"), std::string::npos) << out.src;
+  EXPECT_NE(out.src.find("\nLIN {Z 900}\n"), std::string::npos) << out.src;
+  EXPECT_NE(out.dat.find("DECL E6POS XP3={X 1000,Y 100,Z 800,A 0,B 90,C 0}"), std::string::npos) << out.dat;
+  EXPECT_EQ(out.dat.find("DECL E6POS XP1={X 1000,Y 0,Z 800,A 0,B 90,C 0}"), std::string::npos) << out.dat;
+  EXPECT_EQ(out.dat.find("DECL E6POS XP2={X 1000,Y 100,Z 800,A 0,B 90,C 0}"), std::string::npos) << out.dat;
+}
+
+// ---------------------------------------------------------------------------------------------
 // Named points keep their meaning
 
 TEST(KrlRules, ASplitCircGetsANewAuxiliaryPointTheDeclaredOneKeepsItsValue) {

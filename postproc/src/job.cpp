@@ -356,7 +356,11 @@ class Job {
     auto complete = [&](Target& t, const char* what) -> bool {
       if (t.completePose()) return true;
       if (!T_world_flange_intended_) {
-        error(m.where, std::string("the ") + what + " " + targetLabel(t) + " is partial and the position before it is not known");
+        // its other components are wherever the robot is at run time: the controller runs it,
+        // accura cannot evaluate it (as a run-time target: kept, named)
+        ++r_.motions_left_unchanged;
+        warning(m.where, motionInstruction(m) + " left unchanged (not compensated): its " + what + " (" + targetLabel(t) +
+                             ") is partial and the position before it is not known; the position after it is not known");
         return false;
       }
       const calib::XyzAbc prev = toProgram(c.T_world_progbase, *T_world_flange_intended_ * c.tool);
