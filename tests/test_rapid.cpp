@@ -448,6 +448,47 @@ Execution execute(const Program& commanded, const std::vector<bool>& inserted, c
   return run;
 }
 
+// A MoveL with a time (\T) split into pieces: each piece gets its share of the time by its
+// length, so the move still takes it (a copied \T would make each piece take all of it).
+TEST(Rapid, ASplitMoveLWithATimeGivesEachPieceItsShare) {
+  std::string text = example();
+  const std::string away = "MoveL Offs(p60,0,0,100), v200, z20, torch\\WObj:=table;";
+  ASSERT_NE(text.find(away), std::string::npos);
+  text.replace(text.find(away), away.size(), "MoveL Offs(p60,0,0,100), v200\\T:=7.5, z20, torch\\WObj:=table;");
+  SimulateOptions so;
+  so.effects = {"geometric", "joint_compliance"};
+  so.set_station = false;
+  so.seed = 2;
+  so.error_scale = 3;
+  JobSettings s = settingsFor(perturbModel(irb120WithTorch(), so));
+  s.tol_mm = 0.005;
+  const ProgramCompensation c = compensateProgramReport(parseRapid(text, "timed.mod"), s);
+  ASSERT_TRUE(c.ok()) << c.report.errors.front().message;
+  const Program back = parseRapid(writeRapid(c.program), "back.mod");
+  std::vector<double> t, len;
+  Eigen::Vector3d at = Eigen::Vector3d::Zero();
+  for (const Motion& m : back.motions) {
+    const double d = back.rapid->statements[static_cast<size_t>(m.statement_id)].duration_s;
+    const Eigen::Vector3d to = m.target.completePose() ? poseOf(m.target).translation() : at;
+    if (d > 0) {
+      t.push_back(d);
+      len.push_back((to - at).norm());
+    }
+    at = to;
+  }
+  ASSERT_GE(t.size(), 2u) << "the timed MoveL was not split at tol 0.005 mm";
+  double sum_t = 0, sum_len = 0;
+  for (size_t i = 0; i < t.size(); ++i) {
+    sum_t += t[i];
+    sum_len += len[i];
+  }
+  EXPECT_NEAR(sum_t, 7.5, 1e-9);
+  for (size_t i = 0; i < t.size(); ++i) EXPECT_NEAR(t[i], 7.5 * len[i] / sum_len, 2e-4) << i;  // 4 decimals written
+  // \T:= that is not a time is a located error
+  EXPECT_THROW(parseRapid(inProc("    MoveL [[380,40,350],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]], v100\\T:=-2, fine, tool0;\n"), "r.mod"),
+               InputError);
+}
+
 TEST(Rapid, CompensatedModuleFollowsTheIntendedPathOnAPerturbedIrb120) {
   const RobotModel controller = irb120WithTorch();
   const Program intended = parseRapid(example(), "irb120_seam.mod");

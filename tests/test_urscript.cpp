@@ -307,6 +307,44 @@ Execution execute(const Program& commanded, const std::vector<bool>& inserted, c
   return run;
 }
 
+// A movel with a time t split into pieces: each piece gets its share of t by its length, so
+// the motion still takes t (a copied t would make each piece take all of it).
+TEST(UrScript, ASplitMovelWithATimeGivesEachPieceItsShare) {
+  const RobotModel controller = ur10WithTorch();
+  SimulateOptions so;
+  so.effects = {"geometric", "joint_compliance"};
+  so.set_station = false;
+  so.seed = 1;
+  const std::string text =
+      "def timed():\n  set_tcp(p[0, 0, 0.15, 0, 0, 0])\n  movej([0, -1.5707963, 1.5707963, -1.5707963, -1.5707963, 0])\n"
+      "  movel(p[-0.7, -0.2, 0.3, 2.2214415, 2.2214415, 0], a=1.2, v=0.25, r=0)\n"
+      "  movel(p[-0.7, 0.4, 0.5, 2.0, 2.4, 0.3], 1.2, 0.25, 6, 0)\nend\n";
+  JobSettings s = settingsFor(perturbModel(controller, so));
+  s.tol_mm = 0.01;
+  const Program in = parseUrScript(text, "timed.script");
+  const ProgramCompensation c = compensateProgramReport(in, s);
+  ASSERT_TRUE(c.ok()) << c.report.errors.front().message;
+  const Program back = parseUrScript(writeUrScript(c.program), "back.script");
+  // the pieces of the timed movel: the motions after the untimed one
+  std::vector<double> t, len;
+  Eigen::Vector3d at = poseOf(back.motions[1].target).translation();
+  for (size_t i = 2; i < back.motions.size(); ++i) {
+    const UrScriptSource::Statement& st = back.urscript->statements[static_cast<size_t>(back.motions[i].statement_id)];
+    t.push_back(st.duration_s);
+    const Eigen::Vector3d to = poseOf(back.motions[i].target).translation();
+    len.push_back((to - at).norm());
+    at = to;
+  }
+  ASSERT_GE(t.size(), 2u) << "the timed movel was not split at tol 0.01 mm";
+  double sum_t = 0, sum_len = 0;
+  for (size_t i = 0; i < t.size(); ++i) {
+    sum_t += t[i];
+    sum_len += len[i];
+  }
+  EXPECT_NEAR(sum_t, 6.0, 1e-9);
+  for (size_t i = 0; i < t.size(); ++i) EXPECT_NEAR(t[i], 6.0 * len[i] / sum_len, 2e-4) << i;  // 4 decimals written
+}
+
 TEST(UrScript, CompensatedScriptFollowsTheIntendedPathOnAPerturbedUr10) {
   const RobotModel controller = ur10WithTorch();
   const Program intended = parseUrScript(example(), "ur10_seam.script");

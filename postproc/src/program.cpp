@@ -5,7 +5,10 @@
 #include <algorithm>
 #include <cstdio>
 
+#include <Eigen/Geometry>
+
 #include "accura/calib/errors.h"
+#include "accura/calib/geometry.h"
 #include "accura/postproc/rapid.h"
 
 namespace accura::postproc {
@@ -315,6 +318,60 @@ std::string motionInstruction(const Motion& m) {
   size_t e = b;
   while (e < s.size() && (std::isalnum(static_cast<unsigned char>(s[e])) || s[e] == '_')) ++e;
   return b == std::string::npos || e == b ? motionKeyword(m) : s.substr(b, e - b);
+}
+
+std::vector<double> durationShares(const Program& program, size_t index) {
+  const std::vector<Motion>& ms = program.motions;
+  if (index >= ms.size()) throw calib::ArgumentError("durationShares: motion " + std::to_string(index) + " of " + std::to_string(ms.size()));
+  size_t first = index;
+  while (first > 0 && ms[first - 1].inserted && ms[first - 1].statement_id == ms[index].statement_id) --first;
+  const size_t k = index - first + 1;
+  if (k == 1) return {1.0};
+  std::vector<double> shares(k, 1.0 / double(k));
+  const Motion* before = first > 0 ? &ms[first - 1] : nullptr;
+  if (!before || ms[index].start_unknown || before->target.kind != Target::Kind::kCartesian || !before->target.completePose())
+    return shares;
+  std::vector<Eigen::Isometry3d> T{calib::toIsometry(before->target.xyzAbc())};
+  for (size_t i = first; i <= index; ++i) {
+    if (ms[i].target.kind != Target::Kind::kCartesian || !ms[i].target.completePose()) return shares;
+    T.push_back(calib::toIsometry(ms[i].target.xyzAbc()));
+  }
+  std::vector<double> len(k), rot(k);
+  double total_len = 0, total_rot = 0;
+  for (size_t i = 0; i < k; ++i) {
+    len[i] = (T[i + 1].translation() - T[i].translation()).norm();
+    rot[i] = Eigen::AngleAxisd(T[i].linear().transpose() * T[i + 1].linear()).angle();
+    total_len += len[i];
+    total_rot += rot[i];
+  }
+  const bool by_length = total_len > 1e-6;  // mm
+  if (!by_length && !(total_rot > 1e-9)) return shares;  // rad
+  for (size_t i = 0; i < k; ++i) shares[i] = by_length ? len[i] / total_len : rot[i] / total_rot;
+  return shares;
+}
+
+std::vector<std::string> pieceDurationTexts(const Program& program, size_t index, double duration_s) {
+  const std::vector<double> shares = durationShares(program, index);
+  if (shares.size() < 2) return {};
+  std::vector<std::string> out;
+  double written = 0;
+  for (size_t i = 0; i + 1 < shares.size(); ++i) {
+    out.push_back(calib::formatFixed(duration_s * shares[i], 4));
+    written += std::stod(out.back());
+  }
+  out.push_back(calib::formatFixed(std::max(duration_s - written, 0.0), 4));
+  return out;
+}
+
+std::pair<size_t, size_t> statementPiece(const Program& program, size_t index) {
+  const std::vector<Motion>& ms = program.motions;
+  size_t last = index;
+  while (last < ms.size() && ms[last].inserted) ++last;
+  if (last >= ms.size() || ms[last].statement_id != ms[index].statement_id)
+    throw calib::ArgumentError("statementPiece: the inserted motion " + std::to_string(index) + " is not followed by its statement's motion");
+  size_t first = last;
+  while (first > 0 && ms[first - 1].inserted && ms[first - 1].statement_id == ms[last].statement_id) --first;
+  return {last, index - first};
 }
 
 std::string formatMm(double v) { return calib::formatFixed(v, 4); }

@@ -539,6 +539,15 @@ class Reader {
     RapidSource::Statement st = statementSpan(r, m.where);
     const size_t n = pos.size();
     speed(pos[n - 3].main, opt, m);
+    if (const auto it = opt.find("T"); it != opt.end()) {
+      // \T:= the motion's duration (s): a motion split by the compensation gets each piece its share
+      const std::optional<double> time_s = number(t_, it->second);
+      if (time_s && !(*time_s > 0 && *time_s <= 1e6)) shape(it->second.first, "\\T:= a time in (0, 1e6] s", text(it->second));
+      if (time_s) {
+        st.duration_text = {t_[it->second.first].b, t_[it->second.second - 1].e};
+        st.duration_s = *time_s;
+      }
+    }
     zone(pos[n - 2].main, opt, m);
     tool(pos[n - 1].main, m);
     wobj(opt, m);

@@ -134,12 +134,21 @@ std::string patch(const Program& p) {
   int order = 0;
   std::vector<Edit> edits;
   std::map<int, std::pair<std::string, std::string>> values;
-  for (const Motion& m : p.motions) {
+  for (size_t i = 0; i < p.motions.size(); ++i) {
+    const Motion& m = p.motions[i];
     if (m.statement_id < 0 || m.statement_id >= static_cast<int>(s.statements.size()))
       throw calib::ArgumentError("writeRapid: a motion has no statement in the module");
     const RapidSource::Statement& st = s.statements[static_cast<size_t>(m.statement_id)];
+    // a move with a time \T split into pieces: each piece its share of the time
+    std::string duration;
+    if (st.duration_text.second > st.duration_text.first) {
+      const std::pair<size_t, size_t> piece = statementPiece(p, i);
+      const std::vector<std::string> d = pieceDurationTexts(p, piece.first, st.duration_s);
+      if (!d.empty()) duration = d.at(piece.second);
+    }
     if (!m.inserted) {
       targetEdits(p, m, values, edits, order);
+      if (!duration.empty()) edits.push_back({st.duration_text.first, st.duration_text.second, duration, order++});
       continue;
     }
     std::vector<const Target*> ts;
@@ -154,6 +163,10 @@ std::string patch(const Program& p) {
       line += s.text.substr(pos, st.targets[k].first - pos);
       line += robtargetText(*ts[k], vid >= 0 ? s.values[static_cast<size_t>(vid)].v + 3 : unit, unusedAxisText(s.text));
       pos = st.targets[k].second;
+    }
+    if (!duration.empty()) {
+      line += s.text.substr(pos, st.duration_text.first - pos) + duration;
+      pos = st.duration_text.second;
     }
     line += s.text.substr(pos, st.code_end - pos) + lineEnd(s, st.eol);
     edits.push_back({st.line_begin, st.line_begin, line, order++});

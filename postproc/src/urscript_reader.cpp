@@ -575,7 +575,11 @@ class Reader {
       return x;
     };
     number_arg("a", 0, 1e3, "an acceleration in [0, 1000]");
-    number_arg("t", 0, 1e6, "a time in [0, 1e6] s");
+    if (const std::optional<double> time_s = number_arg("t", 0, 1e6, "a time in [0, 1e6] s"); time_s && *time_s > 0) {
+      const std::pair<size_t, size_t> r = arg.at("t");
+      st.duration_text = {t[r.first].b, t[r.second - 1].e};
+      st.duration_s = *time_s;
+    }
     if (f == "movej") {
       number_arg("v", 0, 1e3, "a joint speed in [0, 1000] rad/s");
     } else {

@@ -166,10 +166,19 @@ std::string patch(const Program& p) {
   const UrScriptSource& s = *p.urscript;
   int order = 0;
   std::vector<Edit> edits = correctedLiterals(p, &order);
-  for (const Motion& m : p.motions) {
+  for (size_t i = 0; i < p.motions.size(); ++i) {
+    const Motion& m = p.motions[i];
     if (m.statement_id < 0 || m.statement_id >= static_cast<int>(s.statements.size()))
       throw calib::ArgumentError("writeUrScript: a motion has no statement in the script");
     const UrScriptSource::Statement& st = s.statements[static_cast<size_t>(m.statement_id)];
+    // a movel with a time t split into pieces: each piece its share of t
+    std::string duration;
+    if (st.duration_text.second > st.duration_text.first) {
+      const std::pair<size_t, size_t> piece = statementPiece(p, i);
+      const std::vector<std::string> d = pieceDurationTexts(p, piece.first, st.duration_s);
+      if (!d.empty()) duration = d.at(piece.second);
+    }
+    if (!m.inserted && !duration.empty()) edits.push_back({st.duration_text.first, st.duration_text.second, duration, order++});
     if (m.inserted) {
       std::vector<const Target*> targets;
       if (m.aux) targets.push_back(&*m.aux);
@@ -189,6 +198,10 @@ std::string patch(const Program& p) {
         line += s.text.substr(pos, st.targets[k].first - pos);
         line += poseText(urValues(calib::toIsometry(targets[k]->xyzAbc()), near));
         pos = st.targets[k].second;
+      }
+      if (!duration.empty()) {
+        line += s.text.substr(pos, st.duration_text.first - pos) + duration;
+        pos = st.duration_text.second;
       }
       line += s.text.substr(pos, st.code_end - pos);
       line += st.eol.empty() ? (s.text.find("\r\n") != std::string::npos ? "\r\n" : "\n") : st.eol;

@@ -281,6 +281,23 @@ std::string motionKeyword(const Motion& m);
 /// motionKeyword when the statement is not known.
 std::string motionInstruction(const Motion& m);
 
+/// A motion statement whose programmed duration (URScript movel's `t`, RAPID's `\T:=`) the
+/// compensation split into pieces: `index` is the motion of the statement itself (the last
+/// piece), the inserted motions of the same statement come right before it. Returns each
+/// piece's share of the duration, in order (sum 1): proportional to its TCP path length, or to
+/// its rotation when the statement only turns the tool, or equal when the start is unknown.
+/// A single share of 1 when nothing was inserted.
+std::vector<double> durationShares(const Program& program, size_t index);
+
+/// The duration of each piece of the statement of motion `index` (see durationShares) as the
+/// writers put it: seconds with 4 decimals, the last piece taking what the others leave, so
+/// that the pieces add up to `duration_s` as written. Empty when nothing was inserted.
+std::vector<std::string> pieceDurationTexts(const Program& program, size_t index, double duration_s);
+
+/// For motion `index` (inserted or not): the motion of its statement (the last piece, not
+/// inserted) and the piece's position among the statement's pieces.
+std::pair<size_t, size_t> statementPiece(const Program& program, size_t index);
+
 /// Number formats for values the post-processor writes (fixed decimals, never "-0"):
 /// lengths %.4f (mm, 0.1 um), angles %.5f (deg, ~0.2 urad), speeds and other values %.4f.
 /// (formatFixed is calib's one number formatter, accura/calib/text.h.)
