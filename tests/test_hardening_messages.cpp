@@ -210,6 +210,15 @@ TEST(HardeningMessages, UrdfErrorsCarryLineColumnExpectedFound) {
       {urdf("lower=\"-1\"", "lower=\"2\""), 9, "lower=", "joint 'j1': <limit> expected lower < upper, found lower 2, upper 1"},
       {urdf(" effort=\"1\"", ""), 9, "<limit", "<limit>: expected an attribute 'effort', found none"},
       {urdf("<parent link=\"base\"/>", "<parent link=\"l1\"/>"), 7, "link=", "joint 'j1': expected a child link other than the parent, found 'l1' for both", 1},
+      // the hour-long fuzz_urdf run: names urdfdom reads differently from the index (its model
+      // then lacks the joint, and its null joint was dereferenced)
+      {urdf("<joint name=\"j1\"", "<joint name=\"j&#10;1\""), 6, "name=",
+       "<joint> attribute 'name': expected a name of UTF-8 text without control characters, found 'j\\x0A1'"},
+      {urdf("<joint name=\"j1\"", "<joint name=\"j\xFF" "1\""), 6, "name=",
+       "<joint> attribute 'name': expected a name of UTF-8 text without control characters, found 'j\\xFF1'"},
+      {urdf("<joint name=\"j1\"", "<joint name=\"j&1\""), 6, "name=",
+       "joint 'j&1': expected urdfdom (the URDF reader) to find this joint too, found it missing from its model: the two XML readers "
+       "read its name differently (a bare '&' or a character reference in it?); write the name in plain characters"},
   };
   expectErrors("r.urdf", cases, [](const std::string& p) { calib::readUrdfChain(p); });
   // fuzz_urdf found a hang: two links in a closed loop of joints beside the tree (each has a

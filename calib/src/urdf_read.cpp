@@ -16,6 +16,7 @@
 #include <sstream>
 
 #include "accura/calib/errors.h"
+#include "accura/calib/text.h"
 #include "accura/calib/urdf.h"
 #include "accura/calib/xml_text.h"
 
@@ -106,6 +107,10 @@ std::string nameAttr(const UrdfIndex& ix, const XMLElement* e, const char* attr 
   const char* v = e->Attribute(attr);
   if (!v) ix.fail(e, "<" + std::string(e->Name()) + ">: expected an attribute '" + attr + "', found none");
   if (!*v) ix.failAttribute(e, attr, "<" + std::string(e->Name()) + "> attribute '" + attr + "': expected a name, found an empty one");
+  // urdfdom's own reader would not give such a name back as it is (its model would lack it)
+  if (!isPlainText(v))
+    ix.failAttribute(e, attr, "<" + std::string(e->Name()) + "> attribute '" + attr +
+                                  "': expected a name of UTF-8 text without control characters, found '" + printableBytes(v) + "'");
   return v;
 }
 
@@ -397,6 +402,14 @@ SerialChain parseUrdfChain(const std::string& text, const std::string& file, con
     path.insert(path.begin(), it->second);
     l = ix.joints.at(it->second).parent;
   }
+  // urdfdom's joint of a name the index holds: both read the same text, so a joint urdfdom
+  // lacks is a document the two readers read differently (a located error, never a null)
+  auto urdfJoint = [&](const std::string& jn) {
+    const urdf::JointConstSharedPtr j = model->getJoint(jn);
+    if (!j) ix.failAttribute(ix.joints.at(jn).element, "name", "joint '" + printableBytes(jn) + "': expected urdfdom (the URDF reader) to find this joint too, found it missing from its model: the two XML readers "
+                                                                  "read its name differently (a bare '&' or a character reference in it?); write the name in plain characters");
+    return j;
+  };
   Eigen::Isometry3d T_meet_root = Eigen::Isometry3d::Identity();  // over fixed joints only
   for (std::string l = root; l != meet;) {
     const std::string& jn = ix.parent_joint.at(l);
@@ -404,7 +417,7 @@ SerialChain parseUrdfChain(const std::string& text, const std::string& file, con
     if (info.type != "fixed")
       ix.fail(info.element, "chain " + root + ":" + tip + ": expected link '" + tip + "' below link '" + root +
                                 "' or fixed joints up from it, found the moving joint '" + jn + "' on the way up");
-    T_meet_root = poseMm(model->getJoint(jn)->parent_to_joint_origin_transform) * T_meet_root;
+    T_meet_root = poseMm(urdfJoint(jn)->parent_to_joint_origin_transform) * T_meet_root;
     l = info.parent;
   }
 
@@ -433,7 +446,7 @@ SerialChain parseUrdfChain(const std::string& text, const std::string& file, con
     for (const auto& jn : it->second) {
       const UrdfJointInfo& info = ix.joints.at(jn);
       if (info.type == "fixed") {
-        const urdf::JointConstSharedPtr j = model->getJoint(jn);
+        const urdf::JointConstSharedPtr j = urdfJoint(jn);
         body(info.child, T * poseMm(j->parent_to_joint_origin_transform), last, mover, mass, moment);
       } else if (!on_path.count(jn) && !last) {
         ix.fail(info.element, "expected a serial chain, found joint '" + jn + "' (" + info.type + "), which branches off the chain " +
@@ -447,7 +460,7 @@ SerialChain parseUrdfChain(const std::string& text, const std::string& file, con
   for (size_t k = 0; k < path.size(); ++k) {
     const std::string& jn = path[k];
     const UrdfJointInfo& info = ix.joints.at(jn);
-    const urdf::JointConstSharedPtr j = model->getJoint(jn);
+    const urdf::JointConstSharedPtr j = urdfJoint(jn);
     const Eigen::Isometry3d origin = poseMm(j->parent_to_joint_origin_transform);
     if (info.type == "fixed") {
       T_acc = T_acc * origin;

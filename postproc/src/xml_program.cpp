@@ -238,24 +238,7 @@ FrameSetting readFrame(const Reader& R, const XMLElement* e, bool is_tool, const
 
 // Pass-through text: as XML text when it is UTF-8 without control characters, else its bytes
 // in hexadecimal (encoding="hex": a KRL comment in Windows-1252 round-trips byte for byte).
-bool plainText(const std::string& s) {
-  size_t i = 0;
-  while (i < s.size()) {
-    const unsigned char c = static_cast<unsigned char>(s[i]);
-    if (c < 0x20 && c != '\t') return false;
-    if (c == 0x7F) return false;
-    size_t n = 0;  // continuation bytes
-    if (c < 0x80) n = 0;
-    else if ((c >> 5) == 0x6) n = 1;
-    else if ((c >> 4) == 0xE) n = 2;
-    else if ((c >> 3) == 0x1E) n = 3;
-    else return false;
-    for (size_t k = 1; k <= n; ++k)
-      if (i + k >= s.size() || (static_cast<unsigned char>(s[i + k]) >> 6) != 0x2) return false;
-    i += n + 1;
-  }
-  return true;
-}
+bool plainText(const std::string& s) { return calib::isPlainText(s); }
 
 const char* sectionName(PassThrough::Section s) {
   switch (s) {

@@ -10,6 +10,14 @@ namespace accura::calib {
 /// double-quoted attribute values.
 std::string xmlEscape(const std::string& s);
 
+/// True when `s` is valid UTF-8 and holds no control character other than a tab (no NUL, CR,
+/// LF, DEL): text that an XML reader gives back as it is. Never throws.
+bool isPlainText(const std::string& s);
+
+/// `s` for a message: every byte below 0x20, 0x7F and every byte of 0x80 and above as \xNN
+/// (upper-case hex), the rest as it is. Never throws but std::bad_alloc.
+std::string printableBytes(const std::string& s);
+
 /// A number with a fixed count of decimals ("%.*f"), never "-0.000" (a value that rounds to
 /// zero is written without a sign): the same text on every machine. Throws ArgumentError for a
 /// NaN or infinity (the writers must not write one) and for decimals outside 0..17.
