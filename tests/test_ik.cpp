@@ -173,6 +173,47 @@ TEST(IkChain, SmallLinearAlgebraEqualsEigen) {
   EXPECT_FALSE(lu.factor(S));
 }
 
+TEST(IkChain, BlockSolveEqualsEigenAndRefusesIllConditionedBlocks) {
+  std::mt19937 rng(4);
+  std::normal_distribution<double> g(0, 1);
+  int solved = 0;
+  for (int k = 0; k < 200; ++k) {
+    Eigen::Matrix<double, 6, 6> A;
+    for (int i = 0; i < 36; ++i) A.data()[i] = g(rng);
+    Eigen::Matrix<double, 6, 1> b;
+    for (int i = 0; i < 6; ++i) b[i] = g(rng);
+    calib::detail::Block6 block;
+    if (!block.factor(A.data())) continue;
+    ++solved;
+    const Eigen::Matrix<double, 6, 1> x = block.solve(b);
+    const Eigen::Matrix<double, 6, 1> x_eigen = A.fullPivLu().solve(b);
+    EXPECT_LT((x - x_eigen).norm(), 1e-9 * (1 + x_eigen.norm()));
+  }
+  EXPECT_GT(solved, 150);  // random Gaussian blocks are mostly well conditioned
+  // the bottom right block singular (a wrist singularity: two wrist axes parallel), the
+  // whole matrix regular: refused
+  Eigen::Matrix<double, 6, 6> W = Eigen::Matrix<double, 6, 6>::Identity();
+  W(3, 5) = 1;
+  W(5, 5) = 0;
+  W(0, 5) = 1;
+  W(5, 0) = 1;
+  ASSERT_GT(std::abs(W.determinant()), 0.5);
+  calib::detail::Block6 block;
+  EXPECT_FALSE(block.factor(W.data()));
+  // the Schur complement nearly singular (two columns nearly parallel; the whole matrix
+  // regular): refused
+  Eigen::Matrix<double, 6, 6> T = Eigen::Matrix<double, 6, 6>::Identity();
+  T(0, 1) = 1;
+  T(1, 1) = 1e-9;
+  EXPECT_FALSE(block.factor(T.data()));
+  // a short column alone is no ill conditioning (the ratio is per column): accepted, exact
+  T = Eigen::Matrix<double, 6, 6>::Identity();
+  T(2, 2) = 0.5;
+  ASSERT_TRUE(block.factor(T.data()));
+  const Eigen::Matrix<double, 6, 1> one = Eigen::Matrix<double, 6, 1>::Ones();
+  EXPECT_NEAR(block.solve(one)[2], 2.0, 1e-15);
+}
+
 // ---------------------------------------------------------------------------------------
 
 TEST(IkClosedForm, ExactForNominalRobots) {
