@@ -153,6 +153,25 @@ IkResult KinematicSolver::inverse(const Eigen::Isometry3d& T_world_tcp, const Co
   return impl_->inverse(T_world_tcp, config, seed, options, context, 0, 0, workspace.data_.get());
 }
 
+IkStatus KinematicSolver::follow(const Eigen::Isometry3d& T_world_tcp, const Configuration& config, Eigen::VectorXd& q,
+                                 const IkOptions& options, const PoseContext& context, IkWorkspace& workspace,
+                                 IkResult* answer) const {
+  if (!workspace.data_) workspace.data_ = std::make_unique<IkWorkspace::Data>();  // moved from
+  // cold (empty q): the solution needs the room (the only allocation)
+  const bool cold = q.size() == 0;
+  Eigen::VectorXd out;
+  if (cold) out.resize(impl_->n);
+  IkResult r = impl_->inverse(T_world_tcp, config, q, options, context, 0, 0, workspace.data_.get(),
+                              cold ? out.data() : q.data());
+  const IkStatus status = r.status;
+  if (status == IkStatus::kOk) {
+    if (cold) q.swap(out);
+  } else if (answer) {
+    *answer = std::move(r);
+  }
+  return status;
+}
+
 IkResult KinematicSolver::inversePolished(const Eigen::Isometry3d& T_world_tcp, const Configuration& config,
                                           const Eigen::VectorXd& seed, const IkOptions& options,
                                           const PoseContext& context, double polish_mm, double polish_rad,

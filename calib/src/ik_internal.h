@@ -7,11 +7,13 @@
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <array>
 #include <sstream>
 #include <atomic>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <string>
 #include <vector>
 
@@ -152,8 +154,8 @@ inline bool allFinite(const double* v, Eigen::Index count) {
 
 inline int turnBits(const double* q, int n) {
   int t = 0;
-  for (int i = 0; i < n && i < 30; ++i)
-    if (q[i] < 0) t |= 1 << i;
+  const int m = std::min(n, 30);
+  for (int i = 0; i < m; ++i) t |= static_cast<int>(q[i] < 0) << i;  // (no branch per joint)
   return t;
 }
 
@@ -206,8 +208,8 @@ struct IkWorkspace::Data {
 
   bool holds(std::uint64_t id, const Eigen::VectorXd& seed, const PoseContext& ctx) const {
     if (solver_id == 0 || solver_id != id || seed.size() != q.size()) return false;
-    for (Eigen::Index i = 0; i < seed.size(); ++i)
-      if (seed[i] != q[i]) return false;
+    // bit for bit (one comparison of the bytes)
+    if (std::memcmp(seed.data(), q.data(), sizeof(double) * static_cast<size_t>(seed.size())) != 0) return false;
     return ctx.payload_kg == payload_kg && ctx.temp_c == temp_c && ctx.dir == dir;
   }
 };
@@ -350,9 +352,11 @@ struct KinematicSolver::Impl {
 
   // --- the solver -------------------------------------------------------------------------
 
+  /// The solver. `q_out` (optional): on kOk the solution is written there (dof values)
+  /// instead of into IkResult::q, which stays empty (no allocation); it may alias `seed`.
   IkResult inverse(const Eigen::Isometry3d& T_target, const Configuration& config, const Eigen::VectorXd& seed,
                    const IkOptions& o, const PoseContext& ctx, double polish_mm = 0, double polish_rad = 0,
-                   IkWorkspace::Data* ws = nullptr) const;
+                   IkWorkspace::Data* ws = nullptr, double* q_out = nullptr) const;
 };
 
 }  // namespace accura::calib

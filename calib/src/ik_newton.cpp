@@ -56,19 +56,23 @@ Configuration KinematicSolver::Impl::configurationOf(const double* q) const {
 
 bool KinematicSolver::Impl::fitLimits(VecN& q, int turn, const VecN& ref, const IkOptions& o, bool strict,
     double slack, bool* moved) const {
+  const bool check_sign = turn >= 0;
+  const bool margin_zero = o.joint_margin == 0;
   for (int i = 0; i < n; ++i) {
-    const double m = o.joint_margin == 0 ? 0.0 : margin(i, o);
+    const double m = margin_zero ? 0.0 : margin(i, o);
     const double lo = lower[i] + m - slack, hi = upper[i] - m + slack;
-    const bool check_sign = turn >= 0;
     const bool want_negative = check_sign && ((turn >> i) & 1);
+    const double qi = q[i];
+    // the common case first: within the limits, the sign asked for, and (revolute) no other
+    // value nearer to ref
+    if (qi >= lo && qi <= hi && (!check_sign || (qi < 0) == want_negative) &&
+        (!revolute[i] || std::abs(qi - ref[i]) <= 180.0))
+      continue;
     if (!revolute[i]) {
       if (q[i] < lo || q[i] > hi) return false;
       if (strict && check_sign && (q[i] < 0) != want_negative) return false;
       continue;
     }
-    // q itself: within the limits, the sign asked for, and no other value nearer to ref
-    if (q[i] >= lo && q[i] <= hi && (!check_sign || (q[i] < 0) == want_negative) && std::abs(q[i] - ref[i]) <= 180.0)
-      continue;
     double best = 0, best_any = 0;
     bool found = false, found_any = false;
     const double base = q[i] - 360.0 * std::round(q[i] / 360.0);

@@ -110,7 +110,7 @@ std::vector<KinematicSolver::Impl::Start> KinematicSolver::Impl::multiStarts(con
 // state would travel through eight parameters.
 IkResult KinematicSolver::Impl::inverse(const Eigen::Isometry3d& T_target, const Configuration& config,
     const Eigen::VectorXd& seed, const IkOptions& o, const PoseContext& ctx, double polish_mm,
-    double polish_rad, IkWorkspace::Data* ws) const {
+    double polish_rad, IkWorkspace::Data* ws, double* q_out) const {
   if (!o.IsValid(nullptr)) {
     std::string why;
     o.IsValid(&why);
@@ -185,7 +185,6 @@ IkResult KinematicSolver::Impl::inverse(const Eigen::Isometry3d& T_target, const
       iterations += nt.iterations;
       if (!nt.converged) return false;
     }
-    r.q = q;
     r.position_error_mm = nt.ep;
     r.rotation_error_rad = nt.er;
     chain.jacobian(*fp.cur, J);
@@ -198,6 +197,7 @@ IkResult KinematicSolver::Impl::inverse(const Eigen::Isometry3d& T_target, const
     if (singular || o.compute_singular_value) r.min_singular_value = minSingularValue(J);
     if (!configurationMatches(config, r.configuration)) {
       if (warm) return false;
+      r.q = q;
       r.status = IkStatus::kNoConfiguration;
       r.message = "reached with S " + std::to_string(r.configuration.status) + " T " +
                   std::to_string(r.configuration.turn) + ", not with the configuration asked for (S " +
@@ -206,6 +206,7 @@ IkResult KinematicSolver::Impl::inverse(const Eigen::Isometry3d& T_target, const
       return false;
     }
     if (singular) {
+      r.q = q;
       // with a Status asked for, another start may find a regular solution on it: keep
       // this one and go on; with any Status the nearest solution decides: report it
       const auto asSingular = [&](IkResult solution) {
@@ -227,6 +228,13 @@ IkResult KinematicSolver::Impl::inverse(const Eigen::Isometry3d& T_target, const
       return false;
     }
     r.status = IkStatus::kOk;
+    // the solution: into the caller's array (no allocation; `seed` may be that array: it is
+    // not read after this), else into the answer
+    if (q_out) {
+      std::copy(q.data(), q.data() + n, q_out);
+    } else {
+      r.q = q;
+    }
     if (ws) {
       // f and J are at q: keep them for a solve seeded with this solution
       ws->solver_id = id;
