@@ -229,7 +229,7 @@ KinematicSolver::Impl::Newton KinematicSolver::Impl::newton(VecN& q, const Eigen
     ++r.iterations;
     const double mt = meritSquared(et);
     if (!(mt < merit)) return false;
-    q = qt;
+    q += step;  // = qt (the same sum), without a copy
     std::swap(fp.cur, fp.tmp);
     e = et;
     merit = mt;
