@@ -15,6 +15,7 @@
 #include "accura/postproc/compensate.h"
 #include "accura/calib/ik.h"
 #include "accura/calib/kinematic_core.h"
+#include "../calib/src/ik_internal.h"
 #include "../calib/src/small_linalg.h"
 #include "test_util.h"
 
@@ -178,6 +179,26 @@ TEST(IkChain, SmallLinearAlgebraEqualsEigen) {
   calib::detail::Lu6 lu;
   EXPECT_FALSE(lu.factor(S));
   EXPECT_GT(blocks, 30);
+}
+
+TEST(IkChain, PoseErrorEqualsTheLogarithm) {
+  // Newton's error: the translation difference and the rotation vector of R_target R^T, from
+  // the columns and a series below 5.7 deg; independent: calib's logSO3 of the product
+  std::mt19937 rng(6);
+  std::normal_distribution<double> g(0, 1);
+  for (int k = 0; k < 200; ++k) {
+    const double angle = (k % 2 ? 1e-3 : 0.5) * std::abs(g(rng));  // rad: series and logSO3
+    const Eigen::Isometry3d T = calib::toIsometry({g(rng), g(rng), g(rng), 100 * g(rng), 100 * g(rng), 100 * g(rng)});
+    Eigen::Isometry3d Tt = T;
+    Tt.linear() = Eigen::AngleAxisd(angle, Eigen::Vector3d(g(rng), g(rng), g(rng)).normalized()).toRotationMatrix() *
+                  T.linear();
+    Tt.translation() += Eigen::Vector3d(g(rng), g(rng), g(rng));
+    Eigen::Matrix<double, 6, 1> e;
+    calib::KinematicSolver::Impl::poseErr(Tt, T, e);
+    EXPECT_LT((e.head<3>() - (Tt.translation() - T.translation())).norm(), 1e-12);
+    const Eigen::Vector3d w = calib::logSO3(Tt.linear() * T.linear().transpose());
+    EXPECT_LT((e.tail<3>() - w).norm(), 1e-9 * angle + 1e-15) << angle;
+  }
 }
 
 TEST(IkChain, BlockSolveRefusesIllConditionedBlocks) {
