@@ -21,7 +21,10 @@
 //
 // accura runs with its default options, which include the singularity certificate
 // (IkOptions::singular_threshold); the *_AccuraNoSingularCheck variants turn it off to do
-// exactly KDL's job (converge within the limits). The run ends with the ratios of the
+// exactly KDL's job (converge within the limits). Path following uses the path API
+// (KinematicSolver::follow with an IkWorkspace: the seed array becomes the solution, as KDL's
+// CartToJnt fills its output array); *_AccuraResult is the same solve returning an IkResult,
+// *_AccuraStateless the stateless inverse() from the seed alone. The run ends with the ratios of the
 // side-by-side pairs (KDL time / accura time).
 #include <benchmark/benchmark.h>
 
@@ -263,25 +266,35 @@ double verifiedPathPass(const std::vector<Eigen::Isometry3d>& path, const Eigen:
   return path.empty() ? 0 : 100.0 * static_cast<double>(ok) / static_cast<double>(path.size());
 }
 
-/// `workspace`: with an IkWorkspace carried along the path (the frames and Jacobian of the
-/// previous solution are reused); without: the stateless call, seed only.
+/// How accura follows the path: `kFollow` KinematicSolver::follow with an IkWorkspace carried
+/// along (the path API: the seed array becomes the solution, no allocation); `kResult` the
+/// same solve through inverse(..., workspace), which returns an IkResult; `kStateless` the
+/// stateless inverse(), seed only.
+enum class PathApi { kFollow, kResult, kStateless };
+
 void pathWarmAccura(benchmark::State& state, const std::vector<Eigen::Isometry3d>& path, bool check = true,
-                    bool workspace = true) {
+                    PathApi api = PathApi::kFollow) {
   const Setup& s = setup();
   if (!s.error.empty()) return state.SkipWithError(s.error.c_str());
   const IkOptions o = ikOptions(check);
   accura::calib::IkWorkspace ws;
-  auto solve = [&](const Eigen::Isometry3d& T, const Eigen::VectorXd& seed) {
-    return workspace ? s.solver.inverse(T, Configuration{}, seed, o, {}, ws) : s.solver.inverse(T, Configuration{}, seed, o);
+  // one solve from `q` (updated to the solution on success); `evals` FK evaluations (with a
+  // reused workspace, one of them stored), known for the IkResult calls
+  auto solve = [&](const Eigen::Isometry3d& T, Eigen::VectorXd& q, int* evals) {
+    if (api == PathApi::kFollow) return s.solver.follow(T, Configuration{}, q, o, {}, ws) == IkStatus::kOk;
+    const IkResult r = api == PathApi::kResult ? s.solver.inverse(T, Configuration{}, q, o, {}, ws)
+                                               : s.solver.inverse(T, Configuration{}, q, o);
+    if (evals) *evals = 1 + r.iterations;
+    if (r.status != IkStatus::kOk) return false;
+    q = r.q;
+    return true;
   };
   double evals = 0;
   const double verified = verifiedPathPass(
       path, s.path_q0,
       [&](const Eigen::VectorXd& seed, const Eigen::Isometry3d& T, Eigen::VectorXd& out, int& e) {
-        const IkResult r = solve(T, seed);
-        out = r.q;
-        e = 1 + r.iterations;  // FK evaluations (with a reused workspace, one of them stored)
-        return r.status == IkStatus::kOk;
+        out = seed;
+        return solve(T, out, &e);
       },
       &evals);
   ws.clear();
@@ -289,17 +302,16 @@ void pathWarmAccura(benchmark::State& state, const std::vector<Eigen::Isometry3d
   size_t k = 0;
   long total = 0;
   for (auto _ : state) {
-    const IkResult r = solve(path[k], q);
-    benchmark::DoNotOptimize(r.q.data());
+    solve(path[k], q, nullptr);
+    benchmark::DoNotOptimize(q.data());
     ++total;
-    if (r.status == IkStatus::kOk) q = r.q;
     if (++k == path.size()) {
       k = 0;
       q = s.path_q0;
     }
   }
   state.counters["success_%"] = verified;
-  state.counters["fk_evals"] = evals;
+  if (api != PathApi::kFollow) state.counters["fk_evals"] = evals;
   state.SetItemsProcessed(total);
 }
 
@@ -334,7 +346,11 @@ void BM_PathWarm_Accura(benchmark::State& state) { pathWarmAccura(state, setup()
 BENCHMARK(BM_PathWarm_Accura);
 void BM_PathWarm_AccuraNoSingularCheck(benchmark::State& state) { pathWarmAccura(state, setup().path, false); }
 BENCHMARK(BM_PathWarm_AccuraNoSingularCheck);
-void BM_PathWarm_AccuraStateless(benchmark::State& state) { pathWarmAccura(state, setup().path, true, false); }
+void BM_PathWarm_AccuraResult(benchmark::State& state) { pathWarmAccura(state, setup().path, true, PathApi::kResult); }
+BENCHMARK(BM_PathWarm_AccuraResult);
+void BM_PathWarm_AccuraStateless(benchmark::State& state) {
+  pathWarmAccura(state, setup().path, true, PathApi::kStateless);
+}
 BENCHMARK(BM_PathWarm_AccuraStateless);
 void BM_PathWarm_KDL(benchmark::State& state) { pathWarmKdl(state, setup().path); }
 BENCHMARK(BM_PathWarm_KDL);
@@ -342,7 +358,13 @@ void BM_Path20Warm_Accura(benchmark::State& state) { pathWarmAccura(state, setup
 BENCHMARK(BM_Path20Warm_Accura);
 void BM_Path20Warm_AccuraNoSingularCheck(benchmark::State& state) { pathWarmAccura(state, setup().path20, false); }
 BENCHMARK(BM_Path20Warm_AccuraNoSingularCheck);
-void BM_Path20Warm_AccuraStateless(benchmark::State& state) { pathWarmAccura(state, setup().path20, true, false); }
+void BM_Path20Warm_AccuraResult(benchmark::State& state) {
+  pathWarmAccura(state, setup().path20, true, PathApi::kResult);
+}
+BENCHMARK(BM_Path20Warm_AccuraResult);
+void BM_Path20Warm_AccuraStateless(benchmark::State& state) {
+  pathWarmAccura(state, setup().path20, true, PathApi::kStateless);
+}
 BENCHMARK(BM_Path20Warm_AccuraStateless);
 void BM_Path20Warm_KDL(benchmark::State& state) { pathWarmKdl(state, setup().path20); }
 BENCHMARK(BM_Path20Warm_KDL);
@@ -538,7 +560,7 @@ int main(int argc, char** argv) {
   std::printf("\nKDL CPU time / accura CPU time (same chain, same targets, same tolerance):\n");
   for (const char* pair : {"PathWarm", "Path20Warm", "NearbyWarm", "Cold"}) {
     const std::string k = std::string("BM_") + pair + "_KDL";
-    for (const char* variant : {"_Accura", "_AccuraNoSingularCheck", "_AccuraStateless"}) {
+    for (const char* variant : {"_Accura", "_AccuraNoSingularCheck", "_AccuraResult", "_AccuraStateless"}) {
       const std::string a = std::string("BM_") + pair + variant;
       if (reporter.ns.count(a) && reporter.ns.count(k) && reporter.ns[a] > 0)
         std::printf("  %-10s %-22s %6.1f x   (accura %.2f us, KDL %.2f us per solve)\n", pair, variant + 1,

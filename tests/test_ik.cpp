@@ -15,6 +15,7 @@
 #include "accura/postproc/compensate.h"
 #include "accura/calib/ik.h"
 #include "accura/calib/kinematic_core.h"
+#include "../calib/src/ik_internal.h"
 #include "../calib/src/small_linalg.h"
 #include "test_util.h"
 
@@ -148,6 +149,7 @@ TEST(IkChain, JacobianMatchesFiniteDifferences) {
 TEST(IkChain, SmallLinearAlgebraEqualsEigen) {
   std::mt19937 rng(3);
   std::normal_distribution<double> g(0, 1);
+  int blocks = 0;  // solved in 3x3 blocks (random Gaussian blocks are mostly well conditioned)
   for (int k = 0; k < 50; ++k) {
     Eigen::Matrix<double, 6, 6> A;
     for (int i = 0; i < 36; ++i) A.data()[i] = g(rng);
@@ -158,6 +160,11 @@ TEST(IkChain, SmallLinearAlgebraEqualsEigen) {
     const Eigen::Matrix<double, 6, 1> x = lu.solve(b);
     const Eigen::Matrix<double, 6, 1> x_eigen = A.fullPivLu().solve(b);
     EXPECT_LT((x - x_eigen).norm(), 1e-9 * (1 + x_eigen.norm()));
+    calib::detail::Block6 block;
+    if (block.factor(A.data())) {
+      ++blocks;
+      EXPECT_LT((block.solve(b) - x_eigen).norm(), 1e-9 * (1 + x_eigen.norm()));
+    }
     // positive definite: A A^T - t^2 I with t below / above the smallest singular value
     const double smin = Eigen::JacobiSVD<Eigen::MatrixXd>(Eigen::MatrixXd(A)).singularValues().minCoeff();
     Eigen::Matrix<double, 6, 6> G = A * A.transpose();
@@ -171,6 +178,52 @@ TEST(IkChain, SmallLinearAlgebraEqualsEigen) {
   S.row(3) = S.row(2);
   calib::detail::Lu6 lu;
   EXPECT_FALSE(lu.factor(S));
+  EXPECT_GT(blocks, 30);
+}
+
+TEST(IkChain, PoseErrorEqualsTheLogarithm) {
+  // Newton's error: the translation difference and the rotation vector of R_target R^T, from
+  // the columns and a series below 5.7 deg; independent: calib's logSO3 of the product
+  std::mt19937 rng(6);
+  std::normal_distribution<double> g(0, 1);
+  for (int k = 0; k < 200; ++k) {
+    const double angle = (k % 2 ? 1e-3 : 0.5) * std::abs(g(rng));  // rad: series and logSO3
+    const Eigen::Isometry3d T = calib::toIsometry({g(rng), g(rng), g(rng), 100 * g(rng), 100 * g(rng), 100 * g(rng)});
+    Eigen::Isometry3d Tt = T;
+    Tt.linear() = Eigen::AngleAxisd(angle, Eigen::Vector3d(g(rng), g(rng), g(rng)).normalized()).toRotationMatrix() *
+                  T.linear();
+    Tt.translation() += Eigen::Vector3d(g(rng), g(rng), g(rng));
+    Eigen::Matrix<double, 6, 1> e;
+    calib::KinematicSolver::Impl::poseErr(Tt, T, e);
+    EXPECT_LT((e.head<3>() - (Tt.translation() - T.translation())).norm(), 1e-12);
+    const Eigen::Vector3d w = calib::logSO3(Tt.linear() * T.linear().transpose());
+    EXPECT_LT((e.tail<3>() - w).norm(), 1e-9 * angle + 1e-15) << angle;
+  }
+}
+
+TEST(IkChain, BlockSolveRefusesIllConditionedBlocks) {
+  // the bottom right block singular (a wrist singularity: two wrist axes parallel), the
+  // whole matrix regular: refused
+  Eigen::Matrix<double, 6, 6> W = Eigen::Matrix<double, 6, 6>::Identity();
+  W(3, 5) = 1;
+  W(5, 5) = 0;
+  W(0, 5) = 1;
+  W(5, 0) = 1;
+  ASSERT_GT(std::abs(W.determinant()), 0.5);
+  calib::detail::Block6 block;
+  EXPECT_FALSE(block.factor(W.data()));
+  // the Schur complement nearly singular (two columns nearly parallel; the whole matrix
+  // regular): refused
+  Eigen::Matrix<double, 6, 6> T = Eigen::Matrix<double, 6, 6>::Identity();
+  T(0, 1) = 1;
+  T(1, 1) = 1e-9;
+  EXPECT_FALSE(block.factor(T.data()));
+  // a short column alone is no ill conditioning (the ratio is per column): accepted, exact
+  T = Eigen::Matrix<double, 6, 6>::Identity();
+  T(2, 2) = 0.5;
+  ASSERT_TRUE(block.factor(T.data()));
+  const Eigen::Matrix<double, 6, 1> one = Eigen::Matrix<double, 6, 1>::Ones();
+  EXPECT_NEAR(block.solve(one)[2], 2.0, 1e-15);
 }
 
 // ---------------------------------------------------------------------------------------
@@ -652,6 +705,25 @@ std::vector<Eigen::Isometry3d> jointLineTargets(const calib::KinematicSolver& s,
   return out;
 }
 
+/// A joint-space line from qa on which A5 goes from 25 to -25 deg through the wrist
+/// singularity (`steps` + 1 targets), and IK options with a singularity threshold high
+/// enough that a band of points is singular.
+struct WristCrossing {
+  Eigen::VectorXd qa;
+  std::vector<Eigen::Isometry3d> targets;
+  calib::IkOptions o;
+};
+WristCrossing wristCrossing(const calib::KinematicSolver& s, int steps) {
+  WristCrossing w;
+  w.qa.resize(6);
+  Eigen::VectorXd qb(6);
+  w.qa << 20, -70, 80, 30, 25, 40;
+  qb << 35, -60, 70, 45, -25, 60;
+  w.targets = jointLineTargets(s, w.qa, qb, steps);
+  w.o.singular_threshold = 0.03;
+  return w;
+}
+
 /// Follows `targets` from q0, each solve seeded with the last kOk solution, with or without a
 /// workspace.
 std::vector<calib::IkResult> follow(const calib::KinematicSolver& s, const std::vector<Eigen::Isometry3d>& targets,
@@ -681,12 +753,10 @@ TEST(IkWorkspace, PathFollowingEqualsTheStatelessSolveThroughAWristSingularity) 
   }
   for (const calib::RobotModel& m : {geometric, realModel("kuka_kr16", 5)}) {
     const calib::KinematicSolver s(m);
-    Eigen::VectorXd qa(6), qb(6);
-    qa << 20, -70, 80, 30, 25, 40;
-    qb << 35, -60, 70, 45, -25, 60;
-    const std::vector<Eigen::Isometry3d> targets = jointLineTargets(s, qa, qb, 500);
-    calib::IkOptions o;
-    o.singular_threshold = 0.03;
+    const WristCrossing w = wristCrossing(s, 500);
+    const std::vector<Eigen::Isometry3d>& targets = w.targets;
+    const calib::IkOptions& o = w.o;
+    const Eigen::VectorXd& qa = w.qa;
     const std::vector<calib::IkResult> with = follow(s, targets, qa, o, true);
     const std::vector<calib::IkResult> without = follow(s, targets, qa, o, false);
     int singular = 0, ok = 0;
@@ -707,6 +777,49 @@ TEST(IkWorkspace, PathFollowingEqualsTheStatelessSolveThroughAWristSingularity) 
     EXPECT_GT(singular, 5);
     EXPECT_GT(ok, 250);
   }
+}
+
+TEST(IkWorkspace, FollowIsTheWorkspaceSolveWritingIntoTheSeed) {
+  // the same path through the wrist singularity: follow() gives the same statuses and joint
+  // values as inverse(..., workspace) (the same solve, bit for bit); on failure the seed is
+  // left alone and the answer says why
+  const calib::RobotModel m = realModel("kuka_kr16", 5);
+  const calib::KinematicSolver s(m);
+  const WristCrossing w = wristCrossing(s, 200);
+  const std::vector<Eigen::Isometry3d>& targets = w.targets;
+  const calib::IkOptions& o = w.o;
+  const std::vector<calib::IkResult> expected = follow(s, targets, w.qa, o, true);
+  calib::IkWorkspace ws;
+  Eigen::VectorXd q = w.qa;
+  int singular = 0;
+  for (size_t k = 0; k < targets.size(); ++k) {
+    const Eigen::VectorXd before = q;
+    calib::IkResult answer;
+    const calib::IkStatus st = s.follow(targets[k], calib::Configuration{}, q, o, calib::PoseContext{}, ws, &answer);
+    ASSERT_EQ(st, expected[k].status) << k;
+    if (st == calib::IkStatus::kOk) {
+      EXPECT_EQ((q - expected[k].q).cwiseAbs().maxCoeff(), 0.0) << k;
+      EXPECT_LE(positionError(m, q, targets[k]), 1e-3);  // independent: calib's FK
+    } else {
+      ++singular;
+      EXPECT_EQ(st, calib::IkStatus::kSingular) << k;
+      EXPECT_EQ((q - before).cwiseAbs().maxCoeff(), 0.0) << k;
+      EXPECT_EQ(answer.status, st);
+      EXPECT_NE(answer.message.find("singular"), std::string::npos);
+      EXPECT_EQ((answer.q - expected[k].q).cwiseAbs().maxCoeff(), 0.0) << k;
+    }
+  }
+  EXPECT_GT(singular, 2);
+  // cold: an empty q becomes the solution
+  Eigen::VectorXd cold;
+  ASSERT_EQ(s.follow(targets.front(), calib::Configuration{}, cold, calib::IkOptions{}, calib::PoseContext{}, ws),
+            calib::IkStatus::kOk);
+  ASSERT_EQ(cold.size(), 6);
+  EXPECT_LE(positionError(m, cold, targets.front()), 1e-3);
+  // a seed of the wrong size throws, as inverse() does
+  Eigen::VectorXd wrong(5);
+  wrong.setZero();
+  EXPECT_THROW(s.follow(targets.front(), calib::Configuration{}, wrong, o, calib::PoseContext{}, ws), calib::ArgumentError);
 }
 
 TEST(IkWorkspace, NotUsedForAnotherSolverOrContext) {

@@ -153,6 +153,29 @@ IkResult KinematicSolver::inverse(const Eigen::Isometry3d& T_world_tcp, const Co
   return impl_->inverse(T_world_tcp, config, seed, options, context, 0, 0, workspace.data_.get());
 }
 
+IkStatus KinematicSolver::follow(const Eigen::Isometry3d& T_world_tcp, const Configuration& config, Eigen::VectorXd& q,
+                                 const IkOptions& options, const PoseContext& context, IkWorkspace& workspace,
+                                 IkResult* answer) const {
+  if (!workspace.data_) workspace.data_ = std::make_unique<IkWorkspace::Data>();  // moved from
+  IkWorkspace::Data* ws = workspace.data_.get();
+  auto finish = [&](IkResult& r) {
+    if (r.status != IkStatus::kOk && answer) *answer = std::move(r);
+  };
+  if (q.size() == 0) {
+    // cold: the solution needs the room (the only allocation)
+    Eigen::VectorXd out(impl_->n);
+    IkResult r = impl_->inverse(T_world_tcp, config, q, options, context, 0, 0, ws, out.data());
+    const IkStatus status = r.status;
+    if (status == IkStatus::kOk) q.swap(out);
+    finish(r);
+    return status;
+  }
+  IkResult r = impl_->inverse(T_world_tcp, config, q, options, context, 0, 0, ws, q.data());
+  const IkStatus status = r.status;
+  finish(r);
+  return status;
+}
+
 IkResult KinematicSolver::inversePolished(const Eigen::Isometry3d& T_world_tcp, const Configuration& config,
                                           const Eigen::VectorXd& seed, const IkOptions& options,
                                           const PoseContext& context, double polish_mm, double polish_rad,

@@ -7,11 +7,13 @@
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <array>
 #include <sstream>
 #include <atomic>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <string>
 #include <vector>
 
@@ -142,10 +144,18 @@ struct StatusGeometry {
   }
 };
 
+/// True when all `count` values at `v` are finite (x * 0 is 0 for a finite x, NaN for an
+/// infinite or NaN one; one sum, no branch per value).
+inline bool allFinite(const double* v, Eigen::Index count) {
+  double s = 0;
+  for (Eigen::Index i = 0; i < count; ++i) s += v[i] * 0.0;
+  return s == 0;
+}
+
 inline int turnBits(const double* q, int n) {
   int t = 0;
-  for (int i = 0; i < n && i < 30; ++i)
-    if (q[i] < 0) t |= 1 << i;
+  const int m = std::min(n, 30);
+  for (int i = 0; i < m; ++i) t |= static_cast<int>(q[i] < 0) << i;  // (no branch per joint)
   return t;
 }
 
@@ -198,8 +208,8 @@ struct IkWorkspace::Data {
 
   bool holds(std::uint64_t id, const Eigen::VectorXd& seed, const PoseContext& ctx) const {
     if (solver_id == 0 || solver_id != id || seed.size() != q.size()) return false;
-    for (Eigen::Index i = 0; i < seed.size(); ++i)
-      if (seed[i] != q[i]) return false;
+    // bit for bit (one comparison of the bytes)
+    if (std::memcmp(seed.data(), q.data(), sizeof(double) * static_cast<size_t>(seed.size())) != 0) return false;
     return ctx.payload_kg == payload_kg && ctx.temp_c == temp_c && ctx.dir == dir;
   }
 };
@@ -222,8 +232,10 @@ struct KinematicSolver::Impl {
   int n = 0;
   std::array<bool, kMaxDof> revolute{};
   std::array<double, kMaxDof> lower{}, upper{}, theta0{}, dir{};
+  std::array<double, kMaxDof> step_limit{};  ///< longest Newton step per joint: 20 deg, 0.1 L mm
   Eigen::Isometry3d T_base_world, T_tcp_flange;
   double L = 1;  ///< length scale (mm)
+  double inv_L2 = 1;  ///< 1 / L^2 (mm^-2)
   /// Identifies this prepared model in IkWorkspace (unique in the process).
   const std::uint64_t id = ik_detail::next_solver_id.fetch_add(1);
 
@@ -238,8 +250,10 @@ struct KinematicSolver::Impl {
   /// Moves revolute joints by multiples of 360 deg into [lower + margin - slack,
   /// upper - margin + slack]. Per joint: a value with the sign the Turn bits `turn` ask for
   /// (-1: any) when there is one, else when `strict` is false any value; among those the one
-  /// nearest to `ref`. False when a joint has no value.
-  bool fitLimits(VecN& q, int turn, const VecN& ref, const IkOptions& o, bool strict, double slack = 0) const;
+  /// nearest to `ref`. False when a joint has no value. `moved` (optional): set to true when
+  /// a joint was moved.
+  bool fitLimits(VecN& q, int turn, const VecN& ref, const IkOptions& o, bool strict, double slack = 0,
+                 bool* moved = nullptr) const;
 
   VecN midRange() const;
 
@@ -257,8 +271,17 @@ struct KinematicSolver::Impl {
   /// chains where it is known). Otherwise the test runs at a higher level first, so that the
   /// next points along a path are covered: about one full test per degree of joint motion
   /// where sigma_min is large, every point next to a singularity.
-  /// `last_step_change`: the bound of the Jacobian's change from the seed to q.
-  bool singularAt(const Jac6N& J, const VecN& q, double t, IkWorkspace::Data* ws, double last_step_change) const;
+  /// `seed` (optional): where the last step started (the bound of the Jacobian's change from
+  /// there to q decides whether a higher level is worth trying).
+  bool singularAt(const Jac6N& J, const VecN& q, double t, IkWorkspace::Data* ws, const VecN* seed) const;
+
+  /// Bound of ||Js(a) - Js(b)||_2 (scaledJacobianLipschitz, which must not be empty).
+  double jacobianChangeBound(const VecN& a, const VecN& b) const {
+    const std::vector<double>& B = chain.scaledJacobianLipschitz();
+    double change = 0;
+    for (int i = 0; i < n; ++i) change += B[static_cast<size_t>(i)] * std::abs(a[i] - b[i]) * kDegToRad;
+    return change;
+  }
 
   double minSingularValue(const Jac6N& J) const;
 
@@ -272,7 +295,8 @@ struct KinematicSolver::Impl {
 
   static void poseErr(const Eigen::Isometry3d& T_target, const Eigen::Isometry3d& T, Vector6d& e);
 
-  double meritScaled(const Vector6d& e) const;
+  /// Squared scaled error: |dp|^2 / L^2 + |dphi|^2 (dimensionless).
+  double meritSquared(const Vector6d& e) const;
 
   /// Newton's method, then Levenberg-Marquardt when a Newton step does not reduce the error.
   /// Newton reuses its Jacobian while each step gains at least a factor 5 (near the solution
@@ -328,9 +352,11 @@ struct KinematicSolver::Impl {
 
   // --- the solver -------------------------------------------------------------------------
 
+  /// The solver. `q_out` (optional): on kOk the solution is written there (dof values)
+  /// instead of into IkResult::q, which stays empty (no allocation); it may alias `seed`.
   IkResult inverse(const Eigen::Isometry3d& T_target, const Configuration& config, const Eigen::VectorXd& seed,
                    const IkOptions& o, const PoseContext& ctx, double polish_mm = 0, double polish_rad = 0,
-                   IkWorkspace::Data* ws = nullptr) const;
+                   IkWorkspace::Data* ws = nullptr, double* q_out = nullptr) const;
 };
 
 }  // namespace accura::calib

@@ -39,9 +39,11 @@ KinematicSolver::Impl::Impl(const RobotModel& m) : model(m), chain(m), nominal_c
     theta0[i] = j.theta0_deg * kDegToRad;
     dir[i] = j.direction;
   }
+  L = chain.length_scale_mm();
+  for (int i = 0; i < n; ++i) step_limit[i] = revolute[i] ? 20.0 : 0.1 * L;
   T_base_world = m.T_world_base().inverse();
   T_tcp_flange = m.T_flange_tcp().inverse();
-  L = chain.length_scale_mm();
+  inv_L2 = 1.0 / (L * L);
   exact_closed_form = closed_form.kind() != ClosedFormKind::kNone && !hasDeviationsBeyondBaseTool(m);
 }
 
@@ -53,20 +55,24 @@ Configuration KinematicSolver::Impl::configurationOf(const double* q) const {
 }
 
 bool KinematicSolver::Impl::fitLimits(VecN& q, int turn, const VecN& ref, const IkOptions& o, bool strict,
-    double slack) const {
+    double slack, bool* moved) const {
+  const bool check_sign = turn >= 0;
+  const bool margin_zero = o.joint_margin == 0;
   for (int i = 0; i < n; ++i) {
-    const double m = margin(i, o);
+    const double m = margin_zero ? 0.0 : margin(i, o);
     const double lo = lower[i] + m - slack, hi = upper[i] - m + slack;
-    const bool check_sign = turn >= 0;
     const bool want_negative = check_sign && ((turn >> i) & 1);
+    const double qi = q[i];
+    // the common case first: within the limits, the sign asked for, and (revolute) no other
+    // value nearer to ref
+    if (qi >= lo && qi <= hi && (!check_sign || (qi < 0) == want_negative) &&
+        (!revolute[i] || std::abs(qi - ref[i]) <= 180.0))
+      continue;
     if (!revolute[i]) {
       if (q[i] < lo || q[i] > hi) return false;
       if (strict && check_sign && (q[i] < 0) != want_negative) return false;
       continue;
     }
-    // q itself: within the limits, the sign asked for, and no other value nearer to ref
-    if (q[i] >= lo && q[i] <= hi && (!check_sign || (q[i] < 0) == want_negative) && std::abs(q[i] - ref[i]) <= 180.0)
-      continue;
     double best = 0, best_any = 0;
     bool found = false, found_any = false;
     const double base = q[i] - 360.0 * std::round(q[i] / 360.0);
@@ -79,6 +85,7 @@ bool KinematicSolver::Impl::fitLimits(VecN& q, int turn, const VecN& ref, const 
       if (!found || std::abs(v - ref[i]) < std::abs(best - ref[i])) best = v;
       found = true;
     }
+    const double before = q[i];
     if (found) {
       q[i] = best;
     } else if (found_any && !strict) {
@@ -86,6 +93,7 @@ bool KinematicSolver::Impl::fitLimits(VecN& q, int turn, const VecN& ref, const 
     } else {
       return false;
     }
+    if (moved && q[i] != before) *moved = true;
   }
   return true;
 }
@@ -129,14 +137,10 @@ bool KinematicSolver::Impl::singularBelow(const Jac6N& J, double t) const {
 }
 
 bool KinematicSolver::Impl::singularAt(const Jac6N& J, const VecN& q, double t, IkWorkspace::Data* ws,
-    double last_step_change) const {
-  const std::vector<double>& B = chain.scaledJacobianLipschitz();
-  if (!ws || B.empty()) return singularBelow(J, t);
-  if (ws->cert_solver_id == id) {
-    double change = 0;  // bound of ||Js(q) - Js(cert_q)||_2
-    for (int i = 0; i < n; ++i) change += B[static_cast<size_t>(i)] * std::abs(q[i] - ws->cert_q[i]) * kDegToRad;
-    if (ws->cert_level - change > t) return false;
-  }
+    const VecN* seed) const {
+  if (!ws || chain.scaledJacobianLipschitz().empty()) return singularBelow(J, t);
+  if (ws->cert_solver_id == id && ws->cert_level - jacobianChangeBound(q, ws->cert_q) > t) return false;
+  double last_step_change = seed ? jacobianChangeBound(q, *seed) : 0.0;
   if (!(last_step_change >= 0)) last_step_change = 0;
   // the level: raised slowly while it holds, halved where it does not; not tried when the
   // region it would certify could not reach as far as the last step went (long steps)
@@ -163,21 +167,24 @@ double KinematicSolver::Impl::minSingularValue(const Jac6N& J) const {
 
 void KinematicSolver::Impl::poseErr(const Eigen::Isometry3d& T_target, const Eigen::Isometry3d& T, Vector6d& e) {
   e.head<3>() = T_target.translation() - T.translation();
-  const Eigen::Matrix3d dR = T_target.linear() * T.linear().transpose();
-  // rotation vector of dR: half the skew part is sin(angle) times the axis; below 0.1
-  // (5.7 deg) scale it by angle / sin(angle) = asin(s) / s from its series (next term
-  // 35 s^8 / 1152 < 4e-10 relative); logSO3 otherwise
-  const Eigen::Vector3d half(0.5 * (dR(2, 1) - dR(1, 2)), 0.5 * (dR(0, 2) - dR(2, 0)), 0.5 * (dR(1, 0) - dR(0, 1)));
+  // rotation vector of dR = Rt R^T: half the skew part is sin(angle) times the axis; below
+  // 0.1 (5.7 deg) scale it by angle / sin(angle) = asin(s) / s from its series (next term
+  // 35 s^8 / 1152 < 4e-10 relative); logSO3 otherwise. Only the entries the skew part and
+  // the trace need: dR(i, j) = Rt.row(i) . R.row(j)
+  const Eigen::Matrix3d& Rt = T_target.linear();
+  const Eigen::Matrix3d& R = T.linear();
+  const auto dr = [&](int i, int j) { return Rt(i, 0) * R(j, 0) + Rt(i, 1) * R(j, 1) + Rt(i, 2) * R(j, 2); };
+  const Eigen::Vector3d half(0.5 * (dr(2, 1) - dr(1, 2)), 0.5 * (dr(0, 2) - dr(2, 0)), 0.5 * (dr(1, 0) - dr(0, 1)));
   const double s2 = half.squaredNorm();
-  if (s2 < 0.01 && dR.trace() > 0) {
+  if (s2 < 0.01 && dr(0, 0) + dr(1, 1) + dr(2, 2) > 0) {
     e.tail<3>() = half * (1 + s2 * (1.0 / 6 + s2 * (3.0 / 40 + s2 * (5.0 / 112))));
   } else {
-    e.tail<3>() = logSO3(dR);
+    e.tail<3>() = logSO3(Rt * R.transpose());
   }
 }
 
-double KinematicSolver::Impl::meritScaled(const Vector6d& e) const {
-  return std::sqrt(e.head<3>().squaredNorm() / (L * L) + e.tail<3>().squaredNorm());
+double KinematicSolver::Impl::meritSquared(const Vector6d& e) const {
+  return e.head<3>().squaredNorm() * inv_L2 + e.tail<3>().squaredNorm();
 }
 
 KinematicSolver::Impl::Newton KinematicSolver::Impl::newton(VecN& q, const Eigen::Isometry3d& T_target,
@@ -191,19 +198,26 @@ KinematicSolver::Impl::Newton KinematicSolver::Impl::newton(VecN& q, const Eigen
   const KinematicFrames* const start = fp.cur;
   Vector6d e;
   poseErr(T_target, fp.cur->T_world_tcp, e);
-  double merit = meritScaled(e);
+  // the merit and the tests on squared norms (no square root in the loop; r.ep and r.er are
+  // the norms on return)
+  double merit = meritSquared(e);
+  const double tol_mm2 = o.tol_mm * o.tol_mm, tol_rad2 = o.tol_rad * o.tol_rad;
   // converged at the tolerance; then, when polishing, up to kPolishSteps more while they
   // gain (a step that does not reduce the error ends it, converged)
   int polish_left = kPolishSteps;
   auto done = [&]() {
-    r.ep = e.head<3>().norm();
-    r.er = e.tail<3>().norm();
-    r.converged = r.ep <= o.tol_mm && r.er <= o.tol_rad;
+    const double ep2 = e.head<3>().squaredNorm(), er2 = e.tail<3>().squaredNorm();
+    r.converged = ep2 <= tol_mm2 && er2 <= tol_rad2;
     if (r.converged) {
-      const bool polished = polish_mm <= 0 || (r.ep <= polish_mm && r.er <= polish_rad);
+      const bool polished = polish_mm <= 0 || (ep2 <= polish_mm * polish_mm && er2 <= polish_rad * polish_rad);
       return polished || polish_left-- <= 0;
     }
     return r.iterations >= max_iterations;
+  };
+  auto result = [&]() {
+    r.ep = e.head<3>().norm();
+    r.er = e.tail<3>().norm();
+    return r;
   };
   VecN qt(n), dq(n);
   Vector6d et;
@@ -213,9 +227,9 @@ KinematicSolver::Impl::Newton KinematicSolver::Impl::newton(VecN& q, const Eigen
     chain.evaluate(qt.data(), ctx, *fp.tmp, fp.cur);
     poseErr(T_target, fp.tmp->T_world_tcp, et);
     ++r.iterations;
-    const double mt = meritScaled(et);
+    const double mt = meritSquared(et);
     if (!(mt < merit)) return false;
-    q = qt;
+    q += step;  // = qt (the same sum), without a copy
     std::swap(fp.cur, fp.tmp);
     e = et;
     merit = mt;
@@ -223,19 +237,20 @@ KinematicSolver::Impl::Newton KinematicSolver::Impl::newton(VecN& q, const Eigen
   };
   auto limitStep = [&](VecN& step) {
     double s = 1;
-    for (int i = 0; i < n; ++i) {
-      const double lim = revolute[i] ? 20.0 : 0.1 * L;  // deg / mm
-      if (std::abs(step[i]) * s > lim) s = lim / std::abs(step[i]);
-    }
+    for (int i = 0; i < n; ++i)
+      if (std::abs(step[i]) * s > step_limit[i]) s = step_limit[i] / std::abs(step[i]);
     step *= s;
   };
 
   if (n == 6) {
     // Newton with a square Jacobian
-    const double tol_merit = std::sqrt(o.tol_mm * o.tol_mm / (L * L) + o.tol_rad * o.tol_rad);
+    const double tol_merit2 = tol_mm2 * inv_L2 + tol_rad2;
+    constexpr double kRefresh2 = kRefreshAboveTol * kRefreshAboveTol;
+    // the 3x3 block solve where its blocks are well conditioned, else the pivoted LU
+    detail::Block6 block;
     detail::Lu6 lu;
-    bool fresh = false, have = false;
-    while (!done()) {
+    bool fresh = false, have = false, use_block = false, finished = false;
+    while (!(finished = done())) {
       if (!have) {
         const Jac6N* Jq = J0 && f_valid && fp.cur == start ? J0 : nullptr;
         if (!Jq) {
@@ -243,27 +258,28 @@ KinematicSolver::Impl::Newton KinematicSolver::Impl::newton(VecN& q, const Eigen
           Jq = &J;
         }
         J0 = nullptr;
-        if (!lu.factor(Jq->data())) break;
+        use_block = block.factor(Jq->data());
+        if (!use_block && !lu.factor(Jq->data())) break;
         have = fresh = true;
       }
-      dq = lu.solve(e);
-      if (!dq.allFinite()) break;
+      dq = use_block ? block.solve(e) : lu.solve(e);
+      if (!allFinite(dq.data(), n)) break;
       limitStep(dq);
       const double before = merit;
       if (trial(dq)) {
         fresh = false;
         // slow, or still far from the tolerance (chord steps gain a fixed factor, a fresh
         // Newton step squares the error): refresh the Jacobian
-        if (merit > 0.2 * before || merit > kRefreshAboveTol * tol_merit) have = false;
+        if (merit > 0.04 * before || merit > kRefresh2 * tol_merit2) have = false;
       } else if (r.converged) {
-        return r;  // polishing reached the rounding level
+        return result();  // polishing reached the rounding level
       } else if (!fresh) {
         have = false;  // retry with the Jacobian at q
       } else {
         break;  // no descent along a fresh Newton step: Levenberg-Marquardt
       }
     }
-    if (done()) return r;
+    if (finished || done()) return result();  // (done() again only after a break)
   }
 
   // Levenberg-Marquardt in scaled variables: (Js^T Js + lambda I) dx = Js^T es
@@ -283,20 +299,20 @@ KinematicSolver::Impl::Newton KinematicSolver::Impl::newton(VecN& q, const Eigen
       M.diagonal().array() += lambda;
       const VecN dx = M.ldlt().solve(g);
       for (int i = 0; i < n; ++i) dq[i] = dx[i] * (revolute[i] ? kRadToDeg : L);
-      if (!dq.allFinite()) return r;
+      if (!dq.allFinite()) return result();
       limitStep(dq);
       if (trial(dq)) {
         accepted = true;
         lambda = std::max(lambda / 5, 1e-15 * scale);
       } else if (r.converged) {
-        return r;  // polishing reached the rounding level
+        return result();  // polishing reached the rounding level
       } else {
         lambda *= 4;
-        if (lambda > 1e6 * scale) return r;  // a local minimum of the error: stop
+        if (lambda > 1e6 * scale) return result();  // a local minimum of the error: stop
       }
     }
   }
-  return r;
+  return result();
 }
 
 }  // namespace accura::calib

@@ -110,13 +110,16 @@ std::vector<KinematicSolver::Impl::Start> KinematicSolver::Impl::multiStarts(con
 // state would travel through eight parameters.
 IkResult KinematicSolver::Impl::inverse(const Eigen::Isometry3d& T_target, const Configuration& config,
     const Eigen::VectorXd& seed, const IkOptions& o, const PoseContext& ctx, double polish_mm,
-    double polish_rad, IkWorkspace::Data* ws) const {
-  std::string why;
-  if (!o.IsValid(&why)) throw ArgumentError(why);
+    double polish_rad, IkWorkspace::Data* ws, double* q_out) const {
+  if (!o.IsValid(nullptr)) {
+    std::string why;
+    o.IsValid(&why);
+    throw ArgumentError(why);
+  }
   if (seed.size() != 0 && seed.size() != n)
     throw ArgumentError("IK seed: expected " + std::to_string(n) + " joint values, got " + std::to_string(seed.size()));
-  if (seed.size() != 0 && !seed.allFinite()) throw ArgumentError("IK seed: not finite");
-  if (!T_target.matrix().allFinite()) throw ArgumentError("IK target: not finite");
+  if (!allFinite(seed.data(), seed.size())) throw ArgumentError("IK seed: not finite");
+  if (!allFinite(T_target.matrix().data(), 16)) throw ArgumentError("IK target: not finite");
   // with a workspace: its frames and Jacobian are those of the seed when it holds the seed;
   // it holds the answer only when the answer is kOk (stored in finish)
   const bool reuse = ws && ws->holds(id, seed, ctx);
@@ -135,22 +138,27 @@ IkResult KinematicSolver::Impl::inverse(const Eigen::Isometry3d& T_target, const
   int limit_failures = 0;
   // A converged q (frames in *fp.cur): limits, singularity, configuration. Returns true when
   // `out` is the answer.
-  auto finish = [&](VecN q, Newton nt, bool warm, IkResult& out) -> bool {
-    const VecN q_converged = q;
-    if (!fitLimits(q, config.turn, ref, o, false)) {
+  auto finish = [&](VecN& q, Newton nt, bool warm, IkResult& out) -> bool {
+    bool moved_360 = false;
+    if (!fitLimits(q, config.turn, ref, o, false, 0, &moved_360)) {
       if (!warm) ++limit_failures;
       return false;
     }
-    const double moved_deg = warm ? (q - ref).cwiseAbs().maxCoeff() : 0.0;
+    // the largest joint move from the seed (deg / mm), and the sum of the first five (rad)
+    double moved_deg = 0, moved_rad = 0;
+    if (warm) {
+      for (int i = 0; i < n; ++i) {
+        const double d = std::abs(q[i] - ref[i]);
+        moved_deg = std::max(moved_deg, d);
+        if (i < 5) moved_rad += d * kDegToRad;
+      }
+    }
     if (warm && moved_deg > kWarmMaxDeg) return false;
     IkResult r;
     // Status bit 0 is the sign of x_a1, the wrist point's x in the A1 frame (mm), which moves
     // by at most L per rad of joint motion: with the seed's |x_a1| (at least x_a1_abs_lo)
     // from the workspace and a move too small to reach 0, the bit is the seed's and no
     // kinematics is needed; the workspace then keeps the smaller bound
-    double moved_rad = 0;
-    if (warm)
-      for (int i = 0; i < std::min(n, 5); ++i) moved_rad += std::abs(q[i] - ref[i]) * kDegToRad;
     double x_a1 = 0, x_a1_abs_lo = 0;
     const bool bit0_known = warm && reuse && status_geometry.defined && ws->x_a1_abs_lo > L * moved_rad;
     if (bit0_known) {
@@ -171,13 +179,12 @@ IkResult KinematicSolver::Impl::inverse(const Eigen::Isometry3d& T_target, const
           (status_geometry.status(ref.data()) & 1) != (r.configuration.status & 1))
         return false;
     }
-    if (q != q_converged) {
+    if (moved_360) {
       // moved by 360 deg: the same pose unless an effect depends on q itself (joint_scale)
       nt = newton(q, T_target, ctx, o, 5, fp, false, polish_mm, polish_rad);
       iterations += nt.iterations;
       if (!nt.converged) return false;
     }
-    r.q = q;
     r.position_error_mm = nt.ep;
     r.rotation_error_rad = nt.er;
     chain.jacobian(*fp.cur, J);
@@ -186,14 +193,11 @@ IkResult KinematicSolver::Impl::inverse(const Eigen::Isometry3d& T_target, const
     // is about sigma_min rad away or more; docs/compensation.md)
     if (warm && moved_deg > kWarmAcceptDeg && singularBelow(J, std::max(o.singular_threshold, moved_deg * kDegToRad)))
       return false;
-    double step_change = 0;  // bound of the scaled Jacobian's change since the seed
-    if (warm && ws && !chain.scaledJacobianLipschitz().empty())
-      for (int i = 0; i < n; ++i)
-        step_change += chain.scaledJacobianLipschitz()[static_cast<size_t>(i)] * std::abs(q[i] - ref[i]) * kDegToRad;
-    const bool singular = o.singular_threshold > 0 && singularAt(J, q, o.singular_threshold, ws, step_change);
+    const bool singular = o.singular_threshold > 0 && singularAt(J, q, o.singular_threshold, ws, warm ? &ref : nullptr);
     if (singular || o.compute_singular_value) r.min_singular_value = minSingularValue(J);
     if (!configurationMatches(config, r.configuration)) {
       if (warm) return false;
+      r.q = q;
       r.status = IkStatus::kNoConfiguration;
       r.message = "reached with S " + std::to_string(r.configuration.status) + " T " +
                   std::to_string(r.configuration.turn) + ", not with the configuration asked for (S " +
@@ -202,6 +206,7 @@ IkResult KinematicSolver::Impl::inverse(const Eigen::Isometry3d& T_target, const
       return false;
     }
     if (singular) {
+      r.q = q;
       // with a Status asked for, another start may find a regular solution on it: keep
       // this one and go on; with any Status the nearest solution decides: report it
       const auto asSingular = [&](IkResult solution) {
@@ -223,6 +228,13 @@ IkResult KinematicSolver::Impl::inverse(const Eigen::Isometry3d& T_target, const
       return false;
     }
     r.status = IkStatus::kOk;
+    // the solution: into the caller's array (no allocation; `seed` may be that array: it is
+    // not read after this), else into the answer
+    if (q_out) {
+      std::copy(q.data(), q.data() + n, q_out);
+    } else {
+      r.q = q;
+    }
     if (ws) {
       // f and J are at q: keep them for a solve seeded with this solution
       ws->solver_id = id;

@@ -1,6 +1,6 @@
-// Internal: 6x6 LU with partial pivoting and the positive-definiteness test of a symmetric
-// 6x6 matrix, written out for the IK's inner loop (several times fewer instructions than the
-// generic dense decompositions at this size). Checked against Eigen in tests/test_ik.cpp.
+// Internal: 6x6 LU with partial pivoting, a 6x6 solve in 3x3 blocks, and the
+// positive-definiteness test of a symmetric 6x6 matrix, written out for the IK's inner loop
+// (several times fewer instructions than the generic dense decompositions at this size). Checked against Eigen in tests/test_ik.cpp.
 #pragma once
 
 #include <Eigen/Core>
@@ -76,6 +76,88 @@ class Lu6 {
   double m_[6][6];  ///< A's rows in place: L below the diagonal, U on and above (row row_[i])
   double inv_[6];   ///< 1 / U(i, i)
   int row_[6];
+};
+
+/// A x = b for a 6x6 matrix in 3x3 blocks [P Q; R S] without pivoting: with the inverse of S
+/// and of the Schur complement T = P - Q S^-1 R (both by their adjugates),
+///   x1 = T^-1 (b1 - Q S^-1 b2),  x2 = S^-1 (b2 - R x1).
+/// Two divisions and no indexing by pivot rows: about a quarter of Lu6's instructions and a
+/// much shorter chain of dependent operations. For the IK's Jacobian (rows [dp; dphi],
+/// columns per joint) S is the wrist axes' rotation block and T the position block of the
+/// first three joints at the wrist point. factor() refuses (the caller then takes Lu6) unless
+/// both S and T are well conditioned in the sense of Hadamard's ratio
+/// |det M| / (|m_0| |m_1| |m_2|) >= kMinRatio (m_j the columns; 1 for orthogonal columns,
+/// 0 when singular; scale-invariant per column), so the blocks' rounding errors stay within
+/// a few hundred ulps of the pivoted LU's.
+class Block6 {
+ public:
+  static constexpr double kMinRatio = 1e-2;
+
+  /// The 6x6 matrix stored column by column at `a`. False when S or T is ill conditioned
+  /// (Hadamard ratio below kMinRatio) or not finite.
+  bool factor(const double* a) {
+    double P[3][3], Q[3][3], S[3][3];
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) {
+        P[i][j] = a[6 * j + i];
+        Q[i][j] = a[6 * (j + 3) + i];
+        r_[i][j] = a[6 * j + i + 3];
+        S[i][j] = a[6 * (j + 3) + i + 3];
+      }
+    if (!inverse3(S, si_)) return false;
+    // W = Q S^-1, T = P - W R
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) w_[i][j] = Q[i][0] * si_[0][j] + Q[i][1] * si_[1][j] + Q[i][2] * si_[2][j];
+    double T[3][3];
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) T[i][j] = P[i][j] - (w_[i][0] * r_[0][j] + w_[i][1] * r_[1][j] + w_[i][2] * r_[2][j]);
+    return inverse3(T, ti_);
+  }
+
+  /// x = A^-1 b.
+  Eigen::Matrix<double, 6, 1> solve(const Eigen::Matrix<double, 6, 1>& b) const {
+    double c[3], x1[3], d[3];
+    for (int i = 0; i < 3; ++i) c[i] = b[i] - (w_[i][0] * b[3] + w_[i][1] * b[4] + w_[i][2] * b[5]);
+    for (int i = 0; i < 3; ++i) x1[i] = ti_[i][0] * c[0] + ti_[i][1] * c[1] + ti_[i][2] * c[2];
+    for (int i = 0; i < 3; ++i) d[i] = b[i + 3] - (r_[i][0] * x1[0] + r_[i][1] * x1[1] + r_[i][2] * x1[2]);
+    Eigen::Matrix<double, 6, 1> x;
+    for (int i = 0; i < 3; ++i) {
+      x[i] = x1[i];
+      x[i + 3] = si_[i][0] * d[0] + si_[i][1] * d[1] + si_[i][2] * d[2];
+    }
+    return x;
+  }
+
+ private:
+  /// inv = m^-1 by the adjugate; false when Hadamard's ratio is below kMinRatio.
+  static bool inverse3(const double (&m)[3][3], double (&inv)[3][3]) {
+    const double c00 = m[1][1] * m[2][2] - m[1][2] * m[2][1];
+    const double c01 = m[1][2] * m[2][0] - m[1][0] * m[2][2];
+    const double c02 = m[1][0] * m[2][1] - m[1][1] * m[2][0];
+    const double det = m[0][0] * c00 + m[0][1] * c01 + m[0][2] * c02;
+    double n[3];
+    for (int j = 0; j < 3; ++j) n[j] = m[0][j] * m[0][j] + m[1][j] * m[1][j] + m[2][j] * m[2][j];
+    // det^2 >= kMinRatio^2 |m_0|^2 |m_1|^2 |m_2|^2 (false for NaN)
+    if (!(det * det >= kMinRatio * kMinRatio * (n[0] * n[1] * n[2])) || !(std::abs(det) < 1e300) || det == 0)
+      return false;
+    const double id = 1.0 / det;
+    inv[0][0] = c00 * id;
+    inv[1][0] = c01 * id;
+    inv[2][0] = c02 * id;
+    inv[0][1] = (m[0][2] * m[2][1] - m[0][1] * m[2][2]) * id;
+    inv[1][1] = (m[0][0] * m[2][2] - m[0][2] * m[2][0]) * id;
+    inv[2][1] = (m[0][1] * m[2][0] - m[0][0] * m[2][1]) * id;
+    inv[0][2] = (m[0][1] * m[1][2] - m[0][2] * m[1][1]) * id;
+    inv[1][2] = (m[0][2] * m[1][0] - m[0][0] * m[1][2]) * id;
+    inv[2][2] = (m[0][0] * m[1][1] - m[0][1] * m[1][0]) * id;
+    return true;
+  }
+
+  // (not initialised: factor() writes every entry solve() reads)
+  double r_[3][3];   ///< the bottom left block R
+  double si_[3][3];  ///< S^-1
+  double w_[3][3];   ///< Q S^-1
+  double ti_[3][3];  ///< T^-1
 };
 
 /// Is the symmetric 6x6 matrix G positive definite? (L D L^T without square roots: every

@@ -105,16 +105,17 @@ struct SegmentWork {
     for (int i = 0; i <= m; ++i) {
       const double s = static_cast<double>(i) / m;
       if (i > 0) {
-        const calib::IkResult r = comp.controller().inverse(cmd.pose(s), calib::Configuration{}, q, controller_ik, calib::PoseContext{}, ws);
-        if (r.status != calib::IkStatus::kOk) {
-          p.status = r.status;
+        calib::IkResult failure;
+        const calib::IkStatus status =
+            comp.controller().follow(cmd.pose(s), calib::Configuration{}, q, controller_ik, calib::PoseContext{}, ws, &failure);
+        if (status != calib::IkStatus::kOk) {
+          p.status = status;
           std::ostringstream msg;
           msg << "the controller's IK fails " << calib::formatFixed(cmd.length_mm * s, 4) << " mm along the commanded path: "
-              << r.message;
+              << failure.message;
           p.message = msg.str();
           return p;
         }
-        q = r.q;
       }
       const Eigen::Vector3d x = comp.real().forward(q, ctx).translation();
       const Eigen::Vector3d D = intended.deviation(x);

@@ -30,14 +30,13 @@ std::vector<Eigen::Isometry3d> Compensator::execute(const std::vector<PathSegmen
     const int m = sampleCount(g, step_mm, 0.5);
     for (int i = (k == 0 ? 0 : 1); i <= m; ++i) {
       const Eigen::Isometry3d C = g.pose(static_cast<double>(i) / m);
-      const calib::IkResult r = controller_.inverse(C, calib::Configuration{}, q, o, calib::PoseContext{}, ws);
-      if (r.status != calib::IkStatus::kOk) {
+      calib::IkResult failure;
+      if (controller_.follow(C, calib::Configuration{}, q, o, calib::PoseContext{}, ws, &failure) != calib::IkStatus::kOk) {
         std::ostringstream s;
         s << "simulated execution: the controller cannot follow segment " << k + 1 << " at "
-          << calib::formatFixed(g.length_mm * i / m, 4) << " mm: " << r.message;
+          << calib::formatFixed(g.length_mm * i / m, 4) << " mm: " << failure.message;
         throw calib::NumericalError(s.str());
       }
-      q = r.q;
       out.push_back(real_.forward(q, context));
     }
   }

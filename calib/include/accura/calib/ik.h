@@ -163,6 +163,15 @@ class KinematicSolver {
   IkResult inverse(const Eigen::Isometry3d& T_world_tcp, const Configuration& config,
                    const Eigen::VectorXd& seed, const IkOptions& options, const PoseContext& context,
                    IkWorkspace& workspace) const;
+  /// Path following without allocation: the same solve as inverse(T_world_tcp, config, q,
+  /// options, context, workspace), seeded with `q` (dof values; empty: cold). On kOk `q`
+  /// becomes the solution (the workspace holds it, so the next call seeded with it starts
+  /// from its frames); otherwise `q` is left as it was and `*answer`, when given, receives
+  /// the whole answer (status, message, a solution on another configuration, ...). Returns
+  /// the status. Throws as inverse().
+  IkStatus follow(const Eigen::Isometry3d& T_world_tcp, const Configuration& config, Eigen::VectorXd& q,
+                  const IkOptions& options, const PoseContext& context, IkWorkspace& workspace,
+                  IkResult* answer = nullptr) const;
 
   /// Every closed-form solution of the nominal links (with this model's base and tool)
   /// within the joint limits, each joint on every representation within its limits (so a
