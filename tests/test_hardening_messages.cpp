@@ -456,6 +456,21 @@ TEST(HardeningMessages, ProgramFuzzFindingsSayWhatWasExpected) {
     EXPECT_EQ(e.line(), 4);
     EXPECT_EQ(e.message(), "<ptp>: expected the attribute 'approx' with 'approx_value', found none");
   }
+  // the hour-long fuzz_xml_program run: a program name holding a CR (&#13;) was written back raw
+  // and read again as a LF (an XML reader normalises line ends), so the round trip changed it;
+  // bytes that are not UTF-8 alike. Free-text attributes are UTF-8 without control characters.
+  for (const auto& [attr, shown] : {std::pair<std::string, std::string>{"p&#13;q", "p\\x0Dq"}, {"p\xFF" "q", "p\\xFFq"}}) {
+    std::string bad = xml;
+    bad.replace(bad.find("approx_value=\"5\""), 16, "");
+    bad.replace(bad.find("name=\"p\""), 8, "name=\"" + attr + "\"");
+    try {
+      (void)postproc::parseXmlProgram(bad, "p.xml");
+      ADD_FAILURE() << "read: " << attr;
+    } catch (const calib::InputError& e) {
+      EXPECT_EQ(e.line(), 2);
+      EXPECT_EQ(e.message(), "<program> attribute 'name': expected UTF-8 text without control characters, found '" + shown + "'");
+    }
+  }
 }
 
 }  // namespace accura

@@ -101,6 +101,15 @@ class Reader {
     return std::string(v);
   }
 
+  /// A free-text attribute (a program's or robot's name, a frame's text): UTF-8 without control
+  /// characters, which the writer gives back as it was read (an XML reader turns a CR into a LF).
+  std::string plain(const XMLElement* e, const char* name, const std::string& v) const {
+    if (!calib::isPlainText(v))
+      fail(e, "<" + std::string(e->Name()) + "> attribute '" + name + "': expected UTF-8 text without control characters, found '" +
+                  calib::printableBytes(v) + "'");
+    return v;
+  }
+
   std::optional<double> number(const XMLElement* e, const char* name) const {
     const auto s = text(e, name);
     if (!s) return std::nullopt;
@@ -223,7 +232,7 @@ FrameSetting readFrame(const Reader& R, const XMLElement* e, bool is_tool, const
     const auto t = R.text(e, "text");
     if (!t) R.fail(e, "<" + std::string(e->Name()) + " source=\"unknown\">: expected an attribute 'text', found none");
     s.source = FrameSetting::Source::kUnknown;
-    s.text = *t;
+    s.text = R.plain(e, "text", *t);
   } else {
     R.fail(e, "<" + std::string(e->Name()) + "> attribute 'source': expected inline, data, null or unknown, found '" + *source + "'");
   }
@@ -275,7 +284,7 @@ PassThrough readPassThrough(const Reader& R, const XMLElement* e, size_t before_
   p.before_motion = before_motion;
   const auto language = R.text(e, "language");
   if (!language || language->empty()) R.fail(e, "<passthrough>: expected attribute 'language' (KRL, ...)");
-  p.language = *language;
+  p.language = R.plain(e, "language", *language);
   const std::string section = R.text(e, "section").value_or("body");
   if (section == "body") p.section = PassThrough::Section::kBody;
   else if (section == "trailer") p.section = PassThrough::Section::kTrailer;
@@ -479,7 +488,7 @@ Program parseXmlProgram(const std::string& text, const std::string& file, const 
   if (*version != "1") R.fail(root, "<program> attribute 'version': expected 1, found '" + *version + "'");
   Program p;
   p.source_file = file;
-  if (const auto n = R.text(root, "name")) p.name = *n;
+  if (const auto n = R.text(root, "name")) p.name = R.plain(root, "name", *n);
   const XMLElement* motions = nullptr;
   for (const XMLElement* c = root->FirstChildElement(); c; c = c->NextSiblingElement()) {
     const std::string n = c->Name();
@@ -487,7 +496,7 @@ Program parseXmlProgram(const std::string& text, const std::string& file, const 
       R.checkAttributes(c, {"name"});
       if (!c->Attribute("name")) R.fail(c, "<robot>: expected an attribute 'name', found none");
       if (!p.robot.empty()) R.fail(c, "<program>: expected one <robot> element, found a second one");
-      p.robot = c->Attribute("name");
+      p.robot = R.plain(c, "name", c->Attribute("name"));
     } else if (n == "motions") {
       if (motions) R.fail(c, "<program>: expected one <motions> element, found a second one");
       R.checkAttributes(c, {});
