@@ -2,6 +2,8 @@
 // robots, every branch, and the cases that must be reported instead of solved.
 #include <gtest/gtest.h>
 
+#include <limits>
+
 #include <Eigen/Dense>
 #include <cmath>
 #include <random>
@@ -820,6 +822,43 @@ TEST(IkWorkspace, FollowIsTheWorkspaceSolveWritingIntoTheSeed) {
   Eigen::VectorXd wrong(5);
   wrong.setZero();
   EXPECT_THROW(s.follow(targets.front(), calib::Configuration{}, wrong, o, calib::PoseContext{}, ws), calib::ArgumentError);
+}
+
+TEST(IkWorkspace, NonFiniteTargetOrSeedIsRefused) {
+  // each entry of the target (all 16 of the matrix) and of the seed, NaN or infinite: an
+  // ArgumentError from follow() and inverse(), also while the workspace holds a solution (a
+  // seed it holds, bit for bit, is a solution found and not tested again)
+  const calib::RobotModel m = realModel("kuka_kr16", 5);
+  const calib::KinematicSolver s(m);
+  const calib::IkOptions o;
+  const calib::Configuration any;
+  const calib::PoseContext ctx;
+  Eigen::VectorXd q(6);
+  q << 10, -80, 95, 20, 40, -30;
+  const Eigen::Isometry3d T = s.forward(q);
+  calib::IkWorkspace ws;
+  ASSERT_EQ(s.follow(T, any, q, o, ctx, ws), calib::IkStatus::kOk);  // q: the held solution
+  for (const double bad : {std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity(),
+                           -std::numeric_limits<double>::infinity()}) {
+    for (int k = 0; k < 16; ++k) {
+      Eigen::Isometry3d Tb = T;
+      Tb.matrix().data()[k] = bad;
+      Eigen::VectorXd seed = q;
+      EXPECT_THROW(s.follow(Tb, any, seed, o, ctx, ws), calib::ArgumentError) << k;
+      EXPECT_THROW(s.inverse(Tb, any, q, o), calib::ArgumentError) << k;
+    }
+    for (int i = 0; i < 6; ++i) {
+      Eigen::VectorXd seed = q;
+      seed[i] = bad;
+      EXPECT_THROW(s.follow(T, any, seed, o, ctx, ws), calib::ArgumentError) << i;
+      EXPECT_THROW(s.inverse(T, any, seed, o, ctx, ws), calib::ArgumentError) << i;
+    }
+  }
+  // the held solution still seeds the next solve
+  ASSERT_TRUE(ws.holdsSolution());
+  Eigen::VectorXd seed = q;
+  ASSERT_EQ(s.follow(T, any, seed, o, ctx, ws), calib::IkStatus::kOk);
+  EXPECT_LE(positionError(m, seed, T), 1e-3);  // independent: calib's FK
 }
 
 TEST(IkWorkspace, NotUsedForAnotherSolverOrContext) {

@@ -152,6 +152,13 @@ inline bool allFinite(const double* v, Eigen::Index count) {
   return s == 0;
 }
 
+/// The same for N values, N known at compile time: Eigen's unrolled, vectorised sum (two
+/// values per instruction, a tree of additions instead of a chain of N dependent ones).
+template <int N>
+inline bool allFinite(const double* v) {
+  return (Eigen::Map<const Eigen::Array<double, N, 1>>(v) * 0.0).sum() == 0;
+}
+
 inline int turnBits(const double* q, int n) {
   int t = 0;
   const int m = std::min(n, 30);
@@ -233,6 +240,9 @@ struct KinematicSolver::Impl {
   std::array<bool, kMaxDof> revolute{};
   std::array<double, kMaxDof> lower{}, upper{}, theta0{}, dir{};
   std::array<double, kMaxDof> step_limit{};  ///< longest Newton step per joint: 20 deg, 0.1 L mm
+  /// fitLimits leaves a joint where it is when within this of the reference: 180 deg for a
+  /// revolute joint (no other value nearer), infinite for a prismatic one
+  std::array<double, kMaxDof> wrap_band{};
   Eigen::Isometry3d T_base_world, T_tcp_flange;
   double L = 1;  ///< length scale (mm)
   double inv_L2 = 1;  ///< 1 / L^2 (mm^-2)
@@ -296,7 +306,9 @@ struct KinematicSolver::Impl {
   static void poseErr(const Eigen::Isometry3d& T_target, const Eigen::Isometry3d& T, Vector6d& e);
 
   /// Squared scaled error: |dp|^2 / L^2 + |dphi|^2 (dimensionless).
-  double meritSquared(const Vector6d& e) const;
+  double meritSquared(const Vector6d& e) const {
+    return e.head<3>().squaredNorm() * inv_L2 + e.tail<3>().squaredNorm();
+  }
 
   /// Newton's method, then Levenberg-Marquardt when a Newton step does not reduce the error.
   /// Newton reuses its Jacobian while each step gains at least a factor 5 (near the solution

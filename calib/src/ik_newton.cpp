@@ -41,6 +41,7 @@ KinematicSolver::Impl::Impl(const RobotModel& m) : model(m), chain(m), nominal_c
   }
   L = chain.length_scale_mm();
   for (int i = 0; i < n; ++i) step_limit[i] = revolute[i] ? 20.0 : 0.1 * L;
+  for (int i = 0; i < n; ++i) wrap_band[i] = revolute[i] ? 180.0 : std::numeric_limits<double>::infinity();
   T_base_world = m.T_world_base().inverse();
   T_tcp_flange = m.T_flange_tcp().inverse();
   inv_L2 = 1.0 / (L * L);
@@ -58,6 +59,17 @@ bool KinematicSolver::Impl::fitLimits(VecN& q, int turn, const VecN& ref, const 
     double slack, bool* moved) const {
   const bool check_sign = turn >= 0;
   const bool margin_zero = o.joint_margin == 0;
+  if (margin_zero) {
+    // the common case of every joint (below) in one pass without a branch per joint: nothing
+    // to move
+    // (the signs asked for: the Turn bits of q against `turn`, joints 0..n-1; n <= kMaxDof)
+    bool all = !check_sign || ((turnBits(q.data(), n) ^ turn) & ((1 << n) - 1)) == 0;
+    for (int i = 0; i < n; ++i) {
+      const double qi = q[i];
+      all &= (qi >= lower[i] - slack) & (qi <= upper[i] + slack) & (std::abs(qi - ref[i]) <= wrap_band[i]);
+    }
+    if (all) return true;
+  }
   for (int i = 0; i < n; ++i) {
     const double m = margin_zero ? 0.0 : margin(i, o);
     const double lo = lower[i] + m - slack, hi = upper[i] - m + slack;
@@ -183,10 +195,6 @@ void KinematicSolver::Impl::poseErr(const Eigen::Isometry3d& T_target, const Eig
   }
 }
 
-double KinematicSolver::Impl::meritSquared(const Vector6d& e) const {
-  return e.head<3>().squaredNorm() * inv_L2 + e.tail<3>().squaredNorm();
-}
-
 KinematicSolver::Impl::Newton KinematicSolver::Impl::newton(VecN& q, const Eigen::Isometry3d& T_target,
     const PoseContext& ctx, const IkOptions& o, int max_iterations, FramePair& fp, bool f_valid,
     double polish_mm, double polish_rad, const Jac6N* J0) const {
@@ -263,7 +271,7 @@ KinematicSolver::Impl::Newton KinematicSolver::Impl::newton(VecN& q, const Eigen
         have = fresh = true;
       }
       dq = use_block ? block.solve(e) : lu.solve(e);
-      if (!allFinite(dq.data(), n)) break;
+      if (!allFinite<6>(dq.data())) break;
       limitStep(dq);
       const double before = merit;
       if (trial(dq)) {

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <sstream>
 
 #include "accura/calib/errors.h"
@@ -118,11 +119,12 @@ IkResult KinematicSolver::Impl::inverse(const Eigen::Isometry3d& T_target, const
   }
   if (seed.size() != 0 && seed.size() != n)
     throw ArgumentError("IK seed: expected " + std::to_string(n) + " joint values, got " + std::to_string(seed.size()));
-  if (!allFinite(seed.data(), seed.size())) throw ArgumentError("IK seed: not finite");
-  if (!allFinite(T_target.matrix().data(), 16)) throw ArgumentError("IK target: not finite");
+  if (!allFinite<16>(T_target.matrix().data())) throw ArgumentError("IK target: not finite");
   // with a workspace: its frames and Jacobian are those of the seed when it holds the seed;
   // it holds the answer only when the answer is kOk (stored in finish)
   const bool reuse = ws && ws->holds(id, seed, ctx);
+  // (a seed the workspace holds is, bit for bit, a solution found: finite)
+  if (!reuse && !allFinite(seed.data(), seed.size())) throw ArgumentError("IK seed: not finite");
   if (ws) ws->solver_id = 0;
   std::array<KinematicFrames, 2> f_local;
   FramePair fp = ws ? FramePair{&ws->frames[static_cast<size_t>(ws->cur)], &ws->frames[static_cast<size_t>(1 - ws->cur)]}
@@ -133,8 +135,7 @@ IkResult KinematicSolver::Impl::inverse(const Eigen::Isometry3d& T_target, const
   int iterations = 0;
 
   std::vector<IkResult> other_configuration;  // converged solutions on other configurations
-  IkResult singular_solution;                 // the first singular one on the configuration
-  bool have_singular = false;
+  std::optional<IkResult> singular_solution;  // the first singular one on the configuration
   int limit_failures = 0;
   // A converged q (frames in *fp.cur): limits, singularity, configuration. Returns true when
   // `out` is the answer.
@@ -154,7 +155,7 @@ IkResult KinematicSolver::Impl::inverse(const Eigen::Isometry3d& T_target, const
       }
     }
     if (warm && moved_deg > kWarmMaxDeg) return false;
-    IkResult r;
+    Configuration conf;  // (the IkResult is built only where it is the answer)
     // Status bit 0 is the sign of x_a1, the wrist point's x in the A1 frame (mm), which moves
     // by at most L per rad of joint motion: with the seed's |x_a1| (at least x_a1_abs_lo)
     // from the workspace and a move too small to reach 0, the bit is the seed's and no
@@ -162,21 +163,21 @@ IkResult KinematicSolver::Impl::inverse(const Eigen::Isometry3d& T_target, const
     double x_a1 = 0, x_a1_abs_lo = 0;
     const bool bit0_known = warm && reuse && status_geometry.defined && ws->x_a1_abs_lo > L * moved_rad;
     if (bit0_known) {
-      r.configuration.status = (ws->x_a1_negative ? 1 : 0) | status_geometry.elbowWristBits(q.data());
+      conf.status = (ws->x_a1_negative ? 1 : 0) | status_geometry.elbowWristBits(q.data());
       x_a1_abs_lo = ws->x_a1_abs_lo - L * moved_rad;
     } else {
       chain.fillNominal(q.data(), *fp.cur, status_geometry.last + 1);
-      r.configuration.status = status_geometry.status(q.data(), &x_a1, fp.cur->cos_nominal.data(), fp.cur->sin_nominal.data());
+      conf.status = status_geometry.status(q.data(), &x_a1, fp.cur->cos_nominal.data(), fp.cur->sin_nominal.data());
       x_a1_abs_lo = std::abs(x_a1);
     }
-    r.configuration.turn = turnBits(q.data(), n);
+    conf.turn = turnBits(q.data(), n);
     // warm: accepted only next to the seed and on its Status (else another solution may be
     // nearer: next to a singularity two branches come close; the closed form decides)
     if (warm && status_geometry.defined) {
-      if ((r.configuration.status & 6) != status_geometry.elbowWristBits(ref.data())) return false;
+      if ((conf.status & 6) != status_geometry.elbowWristBits(ref.data())) return false;
       // bit 0: recomputed for the seed only when the move could have crossed 0
       if (!bit0_known && std::abs(x_a1) <= L * moved_rad &&
-          (status_geometry.status(ref.data()) & 1) != (r.configuration.status & 1))
+          (status_geometry.status(ref.data()) & 1) != (conf.status & 1))
         return false;
     }
     if (moved_360) {
@@ -185,8 +186,6 @@ IkResult KinematicSolver::Impl::inverse(const Eigen::Isometry3d& T_target, const
       iterations += nt.iterations;
       if (!nt.converged) return false;
     }
-    r.position_error_mm = nt.ep;
-    r.rotation_error_rad = nt.er;
     chain.jacobian(*fp.cur, J);
     // warm and more than kWarmAcceptDeg from the seed: taken only where the Jacobian is
     // regular enough that no other solution can be nearer (another solution of the same pose
@@ -194,46 +193,52 @@ IkResult KinematicSolver::Impl::inverse(const Eigen::Isometry3d& T_target, const
     if (warm && moved_deg > kWarmAcceptDeg && singularBelow(J, std::max(o.singular_threshold, moved_deg * kDegToRad)))
       return false;
     const bool singular = o.singular_threshold > 0 && singularAt(J, q, o.singular_threshold, ws, warm ? &ref : nullptr);
-    if (singular || o.compute_singular_value) r.min_singular_value = minSingularValue(J);
-    if (!configurationMatches(config, r.configuration)) {
+    const double min_singular_value = singular || o.compute_singular_value ? minSingularValue(J) : 0.0;
+    // an answer at q (status, configuration, errors, smallest singular value)
+    const auto answer = [&](IkResult& a, IkStatus status) {
+      a.status = status;
+      a.configuration = conf;
+      a.position_error_mm = nt.ep;
+      a.rotation_error_rad = nt.er;
+      a.min_singular_value = min_singular_value;
+    };
+    if (!configurationMatches(config, conf)) {
       if (warm) return false;
+      IkResult r;
+      answer(r, IkStatus::kNoConfiguration);
       r.q = q;
-      r.status = IkStatus::kNoConfiguration;
-      r.message = "reached with S " + std::to_string(r.configuration.status) + " T " +
-                  std::to_string(r.configuration.turn) + ", not with the configuration asked for (S " +
-                  std::to_string(config.status) + " T " + std::to_string(config.turn) + ")";
-      other_configuration.push_back(r);
+      r.message = "reached with S " + std::to_string(conf.status) + " T " + std::to_string(conf.turn) +
+                  ", not with the configuration asked for (S " + std::to_string(config.status) + " T " +
+                  std::to_string(config.turn) + ")";
+      other_configuration.push_back(std::move(r));
       return false;
     }
     if (singular) {
-      r.q = q;
       // with a Status asked for, another start may find a regular solution on it: keep
       // this one and go on; with any Status the nearest solution decides: report it
-      const auto asSingular = [&](IkResult solution) {
-        solution.status = IkStatus::kSingular;
+      const auto asSingular = [&](IkResult& solution) {
+        answer(solution, IkStatus::kSingular);
+        solution.q = q;
         std::ostringstream m;
-        m << "singular: the smallest scaled singular value of the Jacobian is " << r.min_singular_value
-          << ", below " << o.singular_threshold;
+        m << "singular: the smallest scaled singular value of the Jacobian is " << min_singular_value << ", below "
+          << o.singular_threshold;
         solution.message = m.str();
-        return solution;
       };
       if (!warm && config.status < 0) {
-        out = asSingular(r);
+        asSingular(out);
         return true;
       }
-      if (!warm && !have_singular) {
-        singular_solution = asSingular(r);
-        have_singular = true;
-      }
+      if (!warm && !singular_solution) asSingular(singular_solution.emplace());
       return false;
     }
-    r.status = IkStatus::kOk;
+    // `out` is still a default IkResult here (written only when finish() returns true)
+    answer(out, IkStatus::kOk);
     // the solution: into the caller's array (no allocation; `seed` may be that array: it is
     // not read after this), else into the answer
     if (q_out) {
       std::copy(q.data(), q.data() + n, q_out);
     } else {
-      r.q = q;
+      out.q = q;
     }
     if (ws) {
       // f and J are at q: keep them for a solve seeded with this solution
@@ -244,12 +249,13 @@ IkResult KinematicSolver::Impl::inverse(const Eigen::Isometry3d& T_target, const
       ws->temp_c = ctx.temp_c;
       ws->dir = ctx.dir;
       ws->x_a1_abs_lo = status_geometry.defined ? x_a1_abs_lo : 0.0;
-      ws->x_a1_negative = (r.configuration.status & 1) != 0;
+      ws->x_a1_negative = (conf.status & 1) != 0;
     }
-    out = std::move(r);
     return true;
   };
 
+  // the answer: every return below returns `res` (constructed in the caller's place); it is
+  // written only when finish() returns true, so it is a default IkResult until then
   IkResult res;
   // 1. warm start: Newton from the seed, accepted when it stays near the seed
   if (seed.size()) {
@@ -298,9 +304,10 @@ IkResult KinematicSolver::Impl::inverse(const Eigen::Isometry3d& T_target, const
       return res;
     }
   }
-  if (have_singular) {
-    singular_solution.iterations = iterations;
-    return singular_solution;
+  if (singular_solution) {
+    res = std::move(*singular_solution);
+    res.iterations = iterations;
+    return res;
   }
   // 3. Status asked for but only found on other configurations: next to a boundary (the
   //    arm stretched, A5 ~ 0) the nominal seeds of both sides may lead to the same side.
@@ -339,11 +346,11 @@ IkResult KinematicSolver::Impl::inverse(const Eigen::Isometry3d& T_target, const
     }
   }
   if (!other_configuration.empty()) {
-    IkResult r = other_configuration.front();
-    r.iterations = iterations;
-    return r;
+    res = other_configuration.front();
+    res.iterations = iterations;
+    return res;
   }
-  IkResult fail;
+  IkResult& fail = res;
   fail.iterations = iterations;
   std::ostringstream m;
   const std::string margin_note =
@@ -366,7 +373,7 @@ IkResult KinematicSolver::Impl::inverse(const Eigen::Isometry3d& T_target, const
       << " start(s)";
   }
   fail.message = m.str();
-  return fail;
+  return res;
 }
 
 }  // namespace accura::calib
