@@ -3,6 +3,8 @@
 
 #include <sys/wait.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <random>
@@ -16,6 +18,20 @@
 #include "accura/calib/robot_io.h"
 
 namespace accura::test {
+
+/// Pieces of a split timed motion: their durations `t_s` and TCP path lengths `len_mm`. Returns
+/// the largest |t_i - total * len_i / sum(len)| (s) and sets *sum_s to the sum of the durations.
+inline double durationShareError(const std::vector<double>& t_s, const std::vector<double>& len_mm, double total_s, double* sum_s) {
+  double sum_len = 0;
+  *sum_s = 0;
+  for (size_t i = 0; i < t_s.size(); ++i) {
+    *sum_s += t_s[i];
+    sum_len += len_mm.at(i);
+  }
+  double worst = 0;
+  for (size_t i = 0; i < t_s.size(); ++i) worst = std::max(worst, std::abs(t_s[i] - total_s * len_mm[i] / sum_len));
+  return worst;
+}
 
 inline std::string sourcePath(const std::string& rel) { return std::string(ACCURA_SOURCE_DIR) + "/" + rel; }
 
