@@ -373,6 +373,11 @@ RobotModel modelFromChain(const SerialChain& chain, const RobotDefinition* refer
   model.validate();
 
   const ChainComparison cmp = compareModelWithChain(model, chain);
+  // tol_mm holds for an arm of up to a metre; beyond, rounding grows with the lengths (double
+  // precision is relative), so the tolerance scales with the chain's extent
+  double extent_mm = last_target.translation().norm();
+  for (const Eigen::Isometry3d& f : frames) extent_mm = std::max(extent_mm, f.translation().norm());
+  tol_mm *= std::max(1.0, extent_mm / 1000.0);
   const double tol_rad = tol_mm * (kChainCheckTolRad / kChainCheckTolMm);
   if (!(cmp.max_position_mm <= tol_mm) || !(cmp.max_rotation_rad <= tol_rad)) {
     throw NumericalError("converting the serial chain " + chain.root_link + ":" + chain.tip_link + " of '" +

@@ -237,7 +237,7 @@ FrameSetting readFrame(const Reader& R, const XMLElement* e, bool is_tool, const
     R.fail(e, "<" + std::string(e->Name()) + "> attribute 'source': expected inline, data, null or unknown, found '" + *source + "'");
   }
   if (s.source != FrameSetting::Source::kData && e->Attribute("index"))
-    R.fail(e, "<" + std::string(e->Name()) + ">: attribute 'index' is only for source=\"data\"");
+    R.fail(e, "<" + std::string(e->Name()) + ">: expected the attribute 'index' only with source=\"data\", found it with source=\"" + *source + "\"");
   if (s.source != FrameSetting::Source::kUnknown && e->Attribute("text"))
     R.fail(e, "<" + std::string(e->Name()) + ">: expected the attribute 'text' only with source=\"unknown\", found it with source=\"" + *source + "\"");
   if (given == 6) s.value = calib::XyzAbc{*v[0], *v[1], *v[2], *v[3], *v[4], *v[5]};

@@ -74,7 +74,9 @@ constexpr double kChainCheckTolRad = 1e-12;   ///< orientation of the tip (rad)
 /// reference's, or a non-last link whose reference form is DH but whose axes are parallel.
 /// `policy` kDHOnly forces DH on every link (only to write DH tables such as UR's deltas,
 /// which is ill-conditioned for nearly parallel axes and fails for exactly parallel ones).
-/// `tol_mm`: the position tolerance of the check (the rotation's is tol_mm * 1e-3 rad/mm);
+/// `tol_mm`: the position tolerance of the check for a chain that stays within a metre of its
+/// base frame, scaled by its extent in metres beyond (rounding is relative; the rotation's is
+/// the scaled tol_mm * 1e-3 rad/mm);
 /// looser only for chains whose own numbers are ill-conditioned (UR's DH deltas: lengths of
 /// tens of metres that cancel, 1e-6 mm).
 RobotModel modelFromChain(const SerialChain& chain, const RobotDefinition* reference = nullptr,
