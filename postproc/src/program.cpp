@@ -320,19 +320,35 @@ std::string motionInstruction(const Motion& m) {
   return b == std::string::npos || e == b ? motionKeyword(m) : s.substr(b, e - b);
 }
 
+namespace {
+
+// The motions [first, last] of the statement of motion `index`: the inserted ones, then the
+// statement's own (not inserted).
+std::pair<size_t, size_t> statementPieces(const Program& program, size_t index) {
+  const std::vector<Motion>& ms = program.motions;
+  if (index >= ms.size()) throw calib::ArgumentError("statementPieces: motion " + std::to_string(index) + " of " + std::to_string(ms.size()));
+  size_t last = index;
+  while (last < ms.size() && ms[last].inserted) ++last;
+  if (last >= ms.size() || ms[last].statement_id != ms[index].statement_id)
+    throw calib::ArgumentError("statementPieces: the inserted motion " + std::to_string(index) + " is not followed by its statement's motion");
+  size_t first = last;
+  while (first > 0 && ms[first - 1].inserted && ms[first - 1].statement_id == ms[last].statement_id) --first;
+  return {first, last};
+}
+
+}  // namespace
+
 std::vector<double> durationShares(const Program& program, size_t index) {
   const std::vector<Motion>& ms = program.motions;
-  if (index >= ms.size()) throw calib::ArgumentError("durationShares: motion " + std::to_string(index) + " of " + std::to_string(ms.size()));
-  size_t first = index;
-  while (first > 0 && ms[first - 1].inserted && ms[first - 1].statement_id == ms[index].statement_id) --first;
-  const size_t k = index - first + 1;
+  const auto [first, last] = statementPieces(program, index);
+  const size_t k = last - first + 1;
   if (k == 1) return {1.0};
   std::vector<double> shares(k, 1.0 / double(k));
   const Motion* before = first > 0 ? &ms[first - 1] : nullptr;
-  if (!before || ms[index].start_unknown || before->target.kind != Target::Kind::kCartesian || !before->target.completePose())
+  if (!before || ms[last].start_unknown || before->target.kind != Target::Kind::kCartesian || !before->target.completePose())
     return shares;
   std::vector<Eigen::Isometry3d> T{calib::toIsometry(before->target.xyzAbc())};
-  for (size_t i = first; i <= index; ++i) {
+  for (size_t i = first; i <= last; ++i) {
     if (ms[i].target.kind != Target::Kind::kCartesian || !ms[i].target.completePose()) return shares;
     T.push_back(calib::toIsometry(ms[i].target.xyzAbc()));
   }
@@ -350,28 +366,14 @@ std::vector<double> durationShares(const Program& program, size_t index) {
   return shares;
 }
 
-std::vector<std::string> pieceDurationTexts(const Program& program, size_t index, double duration_s) {
-  const std::vector<double> shares = durationShares(program, index);
-  if (shares.size() < 2) return {};
-  std::vector<std::string> out;
-  double written = 0;
-  for (size_t i = 0; i + 1 < shares.size(); ++i) {
-    out.push_back(calib::formatFixed(duration_s * shares[i], 4));
-    written += std::stod(out.back());
-  }
-  out.push_back(calib::formatFixed(std::max(duration_s - written, 0.0), 4));
-  return out;
-}
-
-std::pair<size_t, size_t> statementPiece(const Program& program, size_t index) {
-  const std::vector<Motion>& ms = program.motions;
-  size_t last = index;
-  while (last < ms.size() && ms[last].inserted) ++last;
-  if (last >= ms.size() || ms[last].statement_id != ms[index].statement_id)
-    throw calib::ArgumentError("statementPiece: the inserted motion " + std::to_string(index) + " is not followed by its statement's motion");
-  size_t first = last;
-  while (first > 0 && ms[first - 1].inserted && ms[first - 1].statement_id == ms[last].statement_id) --first;
-  return {last, index - first};
+std::string pieceDurationText(const Program& program, size_t index, double duration_s) {
+  const auto [first, last] = statementPieces(program, index);
+  if (first == last) return {};
+  const std::vector<double> shares = durationShares(program, last);
+  double written = 0;  // the pieces before this one, as written
+  for (size_t i = 0; i < index - first; ++i) written += std::stod(calib::formatFixed(duration_s * shares[i], 4));
+  if (index < last) return calib::formatFixed(duration_s * shares[index - first], 4);
+  return calib::formatFixed(std::max(duration_s - written, 0.0), 4);
 }
 
 std::string formatMm(double v) { return calib::formatFixed(v, 4); }

@@ -140,12 +140,7 @@ std::string patch(const Program& p) {
       throw calib::ArgumentError("writeRapid: a motion has no statement in the module");
     const RapidSource::Statement& st = s.statements[static_cast<size_t>(m.statement_id)];
     // a move with a time \T split into pieces: each piece its share of the time
-    std::string duration;
-    if (st.duration_text.second > st.duration_text.first) {
-      const std::pair<size_t, size_t> piece = statementPiece(p, i);
-      const std::vector<std::string> d = pieceDurationTexts(p, piece.first, st.duration_s);
-      if (!d.empty()) duration = d.at(piece.second);
-    }
+    const std::string duration = st.duration_text.second > st.duration_text.first ? pieceDurationText(p, i, st.duration_s) : std::string();
     if (!m.inserted) {
       targetEdits(p, m, values, edits, order);
       if (!duration.empty()) edits.push_back({st.duration_text.first, st.duration_text.second, duration, order++});

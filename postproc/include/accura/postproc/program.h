@@ -289,14 +289,12 @@ std::string motionInstruction(const Motion& m);
 /// A single share of 1 when nothing was inserted.
 std::vector<double> durationShares(const Program& program, size_t index);
 
-/// The duration of each piece of the statement of motion `index` (see durationShares) as the
-/// writers put it: seconds with 4 decimals, the last piece taking what the others leave, so
-/// that the pieces add up to `duration_s` as written. Empty when nothing was inserted.
-std::vector<std::string> pieceDurationTexts(const Program& program, size_t index, double duration_s);
-
-/// For motion `index` (inserted or not): the motion of its statement (the last piece, not
-/// inserted) and the piece's position among the statement's pieces.
-std::pair<size_t, size_t> statementPiece(const Program& program, size_t index);
+/// The duration of motion `index`'s piece (inserted or not) of a statement programmed to take
+/// `duration_s` (s), as the writers put it: seconds with 4 decimals, the statement's last piece
+/// taking what the others leave, so that the pieces add up to the time as written. Empty when
+/// the statement was not split. Throws ArgumentError when an inserted motion is not followed by
+/// its statement's motion.
+std::string pieceDurationText(const Program& program, size_t index, double duration_s);
 
 /// Number formats for values the post-processor writes (fixed decimals, never "-0"):
 /// lengths %.4f (mm, 0.1 um), angles %.5f (deg, ~0.2 urad), speeds and other values %.4f.
