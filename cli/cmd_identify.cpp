@@ -86,7 +86,12 @@ void readData(const IdentifyArgs& a, IdentifyRun& r) {
   if (!(a.holdout >= 0 && a.holdout < 0.9))
     throw calib::InputError("--holdout: expected a fraction in [0, 0.9), found " + fmt("%g", a.holdout));
   if (a.holdout <= 0) return;
-  if (r.sets.size() > 1) throw calib::InputError("--holdout: with several --data files give --validate (a held-out file) instead");
+  if (r.sets.size() > 1) {
+    // each set has its own station: a held-out file (--validate) says which station it is from
+    if (a.holdout_given)
+      throw calib::InputError("--holdout: with several --data files give --validate (a held-out file) instead");
+    return;  // (the default holdout is for one --data file)
+  }
   calib::MeasurementSet& data = r.sets[0];
   const int every = std::max(2, static_cast<int>(std::lround(1.0 / a.holdout)));
   calib::MeasurementSet fit = data;
@@ -203,6 +208,15 @@ void printSetup(const IdentifyArgs& a, const IdentifyRun& r) {
                 "data set), held-out position RMS (mm); without maps %.4f:\n", s.joint_map_cv_baseline_mm);
     for (const auto& c : s.joint_map_cv)
       std::printf("  knot %-5g smoothing %-6g %.4f\n", c.knot, c.smoothing, c.cv_rms_mm);
+    if (!s.joint_map_cv_knots_not_tried.empty()) {
+      std::string finer;
+      for (double k : s.joint_map_cv_knots_not_tried) {
+        char b[32];
+        std::snprintf(b, sizeof b, "%s%g", finer.empty() ? "" : ", ", k);
+        finer += b;
+      }
+      std::printf("  knot %s not tried: the finest spacing tried was no better than the one before it\n", finer.c_str());
+    }
   }
   for (const auto& mrep : s.joint_maps)
     std::printf("joint_map j%d: %.1f..%.1f %s, knot %.3g %s, %d coefficients, smoothing %g; amplitude %.4g %s, "
@@ -250,7 +264,8 @@ void printFit(const IdentifyRun& r) {
 /// (poses outside the fit's joint ranges; --quiet: without the other notes).
 void printValidation(const IdentifyArgs& a, const IdentifyRun& r) {
   if (!r.hasValidation()) {
-    std::printf("no validation data (--validate or --holdout): accuracy on held-out poses not known\n");
+    std::printf("no validation data (%s): accuracy on held-out poses not known\n",
+                a.data.size() > 1 ? "--validate; --holdout takes its poses from a single --data file" : "--validate or --holdout");
     return;
   }
   std::printf("validation on %s, %d poses (position mm: RMS mean p95 max%s):\n", r.validation_source.c_str(), r.val.n,
@@ -356,7 +371,10 @@ ordered_json identifyJson(const IdentifyArgs& a, const IdentifyRun& r) {
   ordered_json cvj = ordered_json::array();
   for (const auto& c : s.joint_map_cv)
     cvj.push_back({{"knot", num(c.knot)}, {"smoothing", num(c.smoothing)}, {"cv_rms_mm", num(c.cv_rms_mm)}});
-  j["joint_map_cv"] = {{"baseline_rms_mm", num(s.joint_map_cv_baseline_mm)}, {"candidates", cvj}};
+  ordered_json not_tried = ordered_json::array();
+  for (double k : s.joint_map_cv_knots_not_tried) not_tried.push_back(num(k));
+  j["joint_map_cv"] = {{"baseline_rms_mm", num(s.joint_map_cv_baseline_mm)}, {"candidates", cvj},
+                       {"knots_not_tried", not_tried}};
   ordered_json sus = ordered_json::array();
   for (const auto& row : s.suspicious)
     sus.push_back({{"file", row.file}, {"line", row.line}, {"normalised", num(row.normalised)}, {"error_mm", num(row.error_mm)}});
@@ -455,7 +473,10 @@ void addIdentifyCommand(CLI::App& app) {
                                "print only what matters: the summary line, warnings, the validation (nominal and calibrated, "
                                "and the poses outside the fit's joint ranges) and the file written");
   cid->add_flag("--verbose", id->verbose, "also print the solver's own report (Ceres: termination, cost)")->excludes(quiet);
-  cid->callback([=]() { exitCode() = runIdentify(*id); });
+  cid->callback([=]() {
+    id->holdout_given = cid->count("--holdout") > 0;
+    exitCode() = runIdentify(*id);
+  });
 }
 
 }  // namespace accura::cli

@@ -45,6 +45,7 @@ struct IdentifyArgs {
   std::string validate_map;    // mapping file for --validate when it differs
   std::string validate_station = "same";  // same | new: re-register the station on --validate
   double holdout = 0.2;
+  bool holdout_given = false;  ///< --holdout on the command line (its default applies to one --data file)
   std::string base;
   std::string tool;
   std::string params = "geometric";

@@ -131,6 +131,14 @@ def cases(seed_dir):
         out.append(Case("krl:" + t, krl, t, comp, ["comp", "r.json"]))
     out.append(Case("urscript", {"p.script": os.path.join(ex, "ur10_seam.script")}, "p.script",
                     ["compensate", "--robot", "ur10", "--in", "{p.script}", "--out", "{out}/comp"], ["comp"]))
+    out.append(Case("rapid", {"p.mod": os.path.join(ex, "irb120_seam.mod")}, "p.mod",
+                    ["compensate", "--robot", "abb_irb120", "--in", "{p.mod}", "--out", "{out}/comp"], ["comp"]))
+    out.append(Case("ur_deltas", {"cal": os.path.join(urdf, "ur_forum_calibration.conf")}, "cal",
+                    ["export", "--robot", "ur10", "--ur-deltas", "{cal}", "--format", "robot", "--out", "{out}/model.xml"],
+                    ["model.xml"]))
+    two = ["identify", "--robot", "kuka_kr16", "--data", "{data}", "--data", "{data2}", "--out", "{out}/model.xml", "--quiet"]
+    out.append(Case("measurements:second_station", {"data": os.path.join(seed_dir, "m.csv"), "data2": os.path.join(seed_dir, "m2.csv")},
+                    "data2", two, ["model.xml"]))
     out.append(Case("xml_program", {"p.xml": os.path.join(seed_dir, "seam.xml")}, "p.xml",
                     ["convert", "--in", "{p.xml}", "--out", "{out}/p.src"], ["p.src", "p.dat"]))
     check = ["check", "--robot", "kuka_kr16", "--in", "{seam.src}", "--config", "{config}", "--cell", "{cell.xml}", "--json", "{out}/c.json"]
@@ -152,6 +160,8 @@ def make_seeds(accura, seed_dir):
         subprocess.run([accura, *argv], check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     run("simulate", "--robot", "kuka_kr16", "--poses", "30", "--seed", "3", "--noise-mm", "0.02", "--effects", "geometric",
         "--out", os.path.join(seed_dir, "m.csv"), "--truth", os.path.join(seed_dir, "truth.xml"))
+    run("simulate", "--robot", "kuka_kr16", "--poses", "25", "--seed", "4", "--noise-mm", "0.02", "--effects", "geometric",
+        "--out", os.path.join(seed_dir, "m2.csv"), "--truth", os.path.join(seed_dir, "truth2.xml"))
     run("identify", "--robot", "kuka_kr16", "--data", os.path.join(seed_dir, "m.csv"), "--out", os.path.join(seed_dir, "calibrated.xml"), "--quiet")
     run("convert", "--in", os.path.join(ROOT, "examples", "seam.src"), "--config", os.path.join(ROOT, "examples", "$config.dat"),
         "--out", os.path.join(seed_dir, "seam.xml"))

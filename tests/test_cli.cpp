@@ -4,6 +4,8 @@
 #include <sys/wait.h>
 
 #include <cstdlib>
+#include <filesystem>
+#include <fstream>
 #include <nlohmann/json.hpp>
 
 #include "accura/calib/kinematics.h"
@@ -130,6 +132,44 @@ TEST(Cli, BadMeasurementFilesGiveLocationAndNonZeroExit) {
   const CliRun r = run("identify --robot kuka_kr16 --holdout 0 --data " + dir + "/few.csv --out " + dir + "/x.xml");
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.err.find("few.csv: too few rows for the parameters asked for: 5 rows give 15 equations"), std::string::npos) << r.err;
+}
+
+// Several --data files: the default --holdout (a fraction of one file's poses) does not apply
+// and is no reason to refuse the run (the mutation campaign's two-station case); asked for
+// explicitly it is refused, naming --validate.
+TEST(Cli, SeveralDataFilesRunWithoutTheDefaultHoldout) {
+  const std::string dir = test::tempDir("cli_two_data");
+  ASSERT_EQ(run("simulate --robot kuka_kr16 --poses 60 --seed 5 --noise-mm 0.01 --out " + dir + "/all.csv").code, 0);
+  std::ifstream in(dir + "/all.csv");
+  std::ofstream a(dir + "/a.csv"), b(dir + "/b.csv");
+  std::string line;
+  int row = 0;
+  while (std::getline(in, line)) {
+    if (line.empty() || line[0] == '#') continue;
+    if (row++ == 0) {
+      a << line << "\n";
+      b << line << "\n";
+      continue;
+    }
+    (row % 2 ? a : b) << line << "\n";
+  }
+  a.close();
+  b.close();
+  const std::string two = "identify --robot kuka_kr16 --params base --same-station --data " + dir + "/a.csv --data " + dir +
+                          "/b.csv --out " + dir + "/cal.xml";
+  CliRun r = run(two);
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("fit RMS"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("no validation data (--validate; --holdout takes its poses from a single --data file)"),
+            std::string::npos) << r.out;
+  EXPECT_TRUE(std::filesystem::exists(dir + "/cal.xml"));
+  std::filesystem::remove(dir + "/cal.xml");
+  r = run(two + " --holdout 0.2");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("--holdout: with several --data files give --validate (a held-out file) instead"), std::string::npos)
+      << r.err;
+  EXPECT_FALSE(std::filesystem::exists(dir + "/cal.xml"));
+  std::filesystem::remove_all(dir);
 }
 
 TEST(Cli, BadOptionsAreReported) {

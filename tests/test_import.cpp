@@ -109,6 +109,14 @@ TEST(Import, BadMappingsAndRowsSayWhereAndWhat) {
   expectError(m, header + "1;0;-1;1;0;0,3;0;1;0;1;0;0;0;0;0,1;0,1;0,1;20\n", "e.csv", 2, 14,
               "expected a standard deviation > 0");
   expectError(m, header, "e.csv", 1, 1, "expected at least one data row after the header");
+  // absurd values: the CSV reader's ranges (implausibleMeasuredValue), in accura's units after the
+  // mapping's scale (the mutation campaign: a position of 4294967297 left identify to diverge)
+  expectError(m, header + "1;0;-1;1;0;0,3;0;1;4294967297,5;1;0;0;0;0,1;0,1;0,1;0,1;20\n", "e.csv", 2, 9,
+              "column 'Pos Y': expected a position within +-1e+07 mm, found '4294967297,5'");
+  expectError(m, header + "1;0;-1;1;0;0,3;0;1;0;1;0;0;0;0,1;0,1;0,1;0,1;1e5\n", "e.csv", 2, 18,
+              "column 'T': expected a temperature from -273.15 to 1e+04 deg C, found '1e5'");
+  expectError(m, header + "1;0;-1;1;0;0,3;0;1;0;1;0;0;0;1e-12;0,1;0,1;0,1;20\n", "e.csv", 2, 14,
+              "column 'SX': expected a standard deviation from 1e-06 to 1e+06, found '1e-12' (1e-09 mm)");
   // whole-file errors at 1:1 (fuzz_mapping, the mutation campaign): a mapping without a key, an empty export
   expectError("", header + row, "e.map", 1, 1, "expected a key 'delimiter', found none");
   expectError(m, "", "e.csv", 1, 1, "expected a header row, found an empty file");

@@ -237,7 +237,7 @@ TEST(UrCalibration, YamlRoundTripEqualsUrsFormula) {
   std::filesystem::remove_all(dir);
 }
 
-TEST(UrCalibration, MalformedFilesGiveFileAndLine) {
+TEST(UrCalibration, MalformedFilesGiveFileLineColumnExpectedFound) {
   const std::string dir = test::tempDir("ur_bad");
   const std::string good = "[mounting]\ndelta_theta = [0, 0, 0, 0, 0, 0]\ndelta_a = [0, 0, 0, 0, 0, 0]\n"
                            "delta_d = [0, 0, 0, 0, 0, 0]\ndelta_alpha = [0, 0, 0, 0, 0, 0]\n";
@@ -245,11 +245,15 @@ TEST(UrCalibration, MalformedFilesGiveFileAndLine) {
     std::string text, expected;
   };
   const std::vector<Case> cases = {
-      {"[mounting]\ndelta_theta = [0, 0, 0, 0, 0]\n", ":2:"},                             // 5 values
-      {"[mounting]\ndelta_theta = [0, 0, x, 0, 0, 0]\n", ":2:"},                          // not a number
-      {good + "delta_a = [0, 0, 0, 0, 0, 0]\n", ":6:"},                                    // twice
-      {"[mounting]\ndelta_theta = [0, 0, 0, 0, 0, 0]\ndelta_a = [0, 0, 0, 0, 0, 0]\n", "missing 'delta_alpha"},
-      {"[mounting]\ndelta_d = [0, 0, 5000, 0, 0, 0]\n", ":2:"},                           // absurd
+      {"[mounting]\ndelta_theta = [0, 0, 0, 0, 0]\n", "c.conf:2:15: delta_theta: expected 6 values, found 5"},
+      {"[mounting]\ndelta_theta = [0, 0, x, 0, 0, 0]\n", "c.conf:2:22: delta_theta: expected a finite number, found 'x'"},
+      {good + "delta_a = [0, 0, 0, 0, 0, 0]\n", "c.conf:6:1: delta_a given twice (first at line 3)"},
+      {"[mounting]\ndelta_theta = [0, 0, 0, 0, 0, 0]\ndelta_a = [0, 0, 0, 0, 0, 0]\n",
+       "c.conf:1:1: expected 'delta_alpha = [...]' in [mounting], found none"},
+      {"", "c.conf:1:1: expected 'delta_a = [...]' in [mounting], found none"},
+      {"[mounting]\ndelta_d = [0, 0, 5000, 0, 0, 0]\n", "c.conf:2:18: delta_d value 3: expected a DH delta of at most 1000 m, found 5000 m"},
+      {"[mounting]\n  delta_d = 0\n", "c.conf:2:13: delta_d: expected a list [v1, ..., v6], found '0'"},
+      {"[mounting\n", "c.conf:1:1: expected a section header like [mounting], found '[mounting'"},
   };
   for (const Case& c : cases) {
     test::writeText(dir + "/c.conf", c.text);
@@ -260,12 +264,20 @@ TEST(UrCalibration, MalformedFilesGiveFileAndLine) {
       EXPECT_NE(std::string(e.what()).find(c.expected), std::string::npos) << e.what();
     }
   }
-  test::writeText(dir + "/k.yaml", "kinematics:\n  shoulder:\n    x: 0\n    y: zero\n");
-  try {
-    readUrCalibrationYaml(dir + "/k.yaml");
-    ADD_FAILURE() << "no error";
-  } catch (const InputError& e) {
-    EXPECT_NE(std::string(e.what()).find("k.yaml:4:"), std::string::npos) << e.what();
+  const std::vector<Case> yaml = {
+      {"kinematics:\n  shoulder:\n    x: 0\n    y: zero\n", "k.yaml:4:8: shoulder.y: expected a finite number, found 'zero'"},
+      {"kinematics:\n  shoulder:\n    w: 0\n", "k.yaml:3:5: 'shoulder': expected a key x, y, z, roll, pitch or yaw, found 'w'"},
+      {"kinematics:\n  shoulder:\n    x: 0\n", "k.yaml:2:3: 'shoulder': expected 'y: value', found none"},
+      {"", "k.yaml:1:1: kinematics: expected an entry 'shoulder:', found none"},
+  };
+  for (const Case& c : yaml) {
+    test::writeText(dir + "/k.yaml", c.text);
+    try {
+      readUrCalibrationYaml(dir + "/k.yaml");
+      ADD_FAILURE() << "no error for " << c.text;
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find(c.expected), std::string::npos) << e.what();
+    }
   }
   std::filesystem::remove_all(dir);
 }

@@ -340,9 +340,17 @@ struct MappedRow {
     }
     return v;
   }
-  double positive(int c, double scale) const {
+  /// Column c times `scale` (into accura's unit `unit`), a plausible value of `kind`
+  /// (implausibleMeasuredValue: the CSV reader's ranges).
+  double value(int c, double scale, MeasuredValue kind, const char* unit) const {
     const double v = num(c) * scale;
-    if (!(v > 0)) throw InputError(path, ln, c + 1, "column '" + header[c] + "': expected a standard deviation > 0, found " + trim(f[c]));
+    const std::string expected = implausibleMeasuredValue(kind, v);
+    if (!expected.empty()) {
+      char converted[64] = "";
+      if (scale != 1) std::snprintf(converted, sizeof converted, " (%.6g %s)", v, unit);
+      throw InputError(path, ln, c + 1,
+                       "column '" + header[c] + "': expected " + expected + ", found '" + trim(f[c]) + "'" + converted);
+    }
     return v;
   }
 };
@@ -384,7 +392,7 @@ Eigen::Vector3d readOrientation(const MappedRow& row, const MappedColumns& c, Me
       throw InputError(row.path, row.ln, oc[0] + 1, "expected a unit quaternion (norm 1 within 1e-3), found norm " + std::to_string(norm));
     r.R_world_tcp = Eigen::Quaterniond(w / norm, x / norm, y / norm, z / norm);
   } else {
-    for (int k = 0; k < 3; ++k) angles_rad[k] = row.num(oc[k]) * m.angle_scale * kDegToRad;
+    for (int k = 0; k < 3; ++k) angles_rad[k] = row.value(oc[k], m.angle_scale, MeasuredValue::kAngleDeg, "deg") * kDegToRad;
     r.R_world_tcp = Eigen::Quaterniond(rotationFromAngles(m.orientation_convention, angles_rad));
   }
   return angles_rad;
@@ -394,7 +402,8 @@ Eigen::Vector3d readOrientation(const MappedRow& row, const MappedColumns& c, Me
 void readOrientationStds(const MappedRow& row, const std::vector<int>& osc, const Eigen::Vector3d& angles_rad, Measurement& r) {
   const MeasurementMapping& m = row.m;
   Eigen::Vector3d s_angle;
-  for (int k = 0; k < 3; ++k) s_angle[k] = row.positive(osc[osc.size() == 1 ? 0 : k], m.angle_scale) * kDegToRad;
+  for (int k = 0; k < 3; ++k)
+    s_angle[k] = row.value(osc[osc.size() == 1 ? 0 : k], m.angle_scale, MeasuredValue::kStd, "deg") * kDegToRad;
   // Euler-angle stds -> stds of the rotation about the world axes: Sigma_w = J S J^T with
   // J the derivative of the world rotation vector with respect to the angles (central
   // differences, step 1e-6 rad; the angles' own stds are ~1e-5 rad, linearisation exact enough).
@@ -416,22 +425,19 @@ Measurement readRow(const MappedRow& row, const MappedColumns& c, const RobotDef
   Measurement r;
   r.line = row.ln;
   readJoints(row, c.joints, robot, r);
-  for (int k = 0; k < 3; ++k) r.p_world_mm[k] = row.num(c.position[k]) * row.m.position_scale;
+  for (int k = 0; k < 3; ++k)
+    r.p_world_mm[k] = row.value(c.position[k], row.m.position_scale, MeasuredValue::kPositionMm, "mm");
   const Eigen::Vector3d angles_rad = c.orientation.empty() ? Eigen::Vector3d::Zero() : readOrientation(row, c, r);
   const std::vector<int>& psc = c.position_std;
   if (!psc.empty()) {
-    for (int k = 0; k < 3; ++k) r.std_mm[k] = row.positive(psc[psc.size() == 1 ? 0 : k], row.m.position_scale);
+    for (int k = 0; k < 3; ++k)
+      r.std_mm[k] = row.value(psc[psc.size() == 1 ? 0 : k], row.m.position_scale, MeasuredValue::kStd, "mm");
   }
   if (!c.orientation_std.empty()) readOrientationStds(row, c.orientation_std, angles_rad, r);
-  if (c.weight >= 0) r.weight = row.positive(c.weight, 1.0);
-  if (c.payload >= 0) {
-    r.context.payload_kg = row.num(c.payload);
-    if (r.context.payload_kg < 0)
-      throw InputError(row.path, row.ln, c.payload + 1,
-                       "column '" + row.header[c.payload] + "': expected a mass >= 0 kg, found " + trim(row.f[c.payload]));
-  }
-  if (c.temperature >= 0) r.temp_c = row.num(c.temperature);
-  if (c.time >= 0) r.time_s = row.num(c.time);
+  if (c.weight >= 0) r.weight = row.value(c.weight, 1.0, MeasuredValue::kWeight, "");
+  if (c.payload >= 0) r.context.payload_kg = row.value(c.payload, 1.0, MeasuredValue::kPayloadKg, "kg");
+  if (c.temperature >= 0) r.temp_c = row.value(c.temperature, 1.0, MeasuredValue::kTemperatureC, "deg C");
+  if (c.time >= 0) r.time_s = row.value(c.time, 1.0, MeasuredValue::kTimeS, "s");
   for (int col : c.directions) {
     const double d = row.num(col);
     if (d != 1.0 && d != -1.0)

@@ -370,9 +370,20 @@ void Reader::checkGroups(int line) const {
   }
 }
 
-// Plausible ranges of a row's values (beyond them: a corrupted file, not a measurement).
-constexpr double kMinStd = 1e-6;  // mm or deg
-constexpr double kMaxStd = 1e6;   // mm or deg
+/// The kind of value a column of `role` holds (kQ, kDir and the quaternion: none, never asked).
+MeasuredValue measuredValueOf(Role role) {
+  switch (role) {
+    case Role::kStdX: case Role::kStdY: case Role::kStdZ: case Role::kStdMm:
+    case Role::kStdRx: case Role::kStdRy: case Role::kStdRz: case Role::kStdDeg:
+      return MeasuredValue::kStd;
+    case Role::kWeight: return MeasuredValue::kWeight;
+    case Role::kPayload: return MeasuredValue::kPayloadKg;
+    case Role::kA: case Role::kB: case Role::kC: return MeasuredValue::kAngleDeg;
+    case Role::kTemp: return MeasuredValue::kTemperatureC;
+    case Role::kTime: return MeasuredValue::kTimeS;
+    default: return MeasuredValue::kPositionMm;  // x, y, z (a quaternion's entries are within it)
+  }
+}
 
 Measurement Reader::parseRow(std::string_view text, int line) const {
   const Layout& L = layout_;
@@ -417,45 +428,13 @@ Measurement Reader::parseRow(std::string_view text, int line) const {
         }
         m.dir[static_cast<std::size_t>(c.joint)] = v > 0 ? 1 : -1;
         break;
-      case Role::kStdX: case Role::kStdY: case Role::kStdZ: case Role::kStdMm:
-      case Role::kStdRx: case Role::kStdRy: case Role::kStdRz: case Role::kStdDeg:
-        if (!(v > 0)) {
-          fail(line, column, where + "expected a standard deviation > 0, found " +
-                                 shown(fields[i]));
-        }
-        // the weights are 1/std^2: a denormal std would make them infinite
-        if (v < kMinStd || v > kMaxStd)
-          fail(line, column, where + "expected a standard deviation from 1e-06 to 1e+06, found " + shown(fields[i]));
+      case Role::kQw: case Role::kQx: case Role::kQy: case Role::kQz:
+        break;  // (the quaternion's norm is checked below)
+      default: {
+        const std::string expected = implausibleMeasuredValue(measuredValueOf(c.role), v);
+        if (!expected.empty()) fail(line, column, where + "expected " + expected + ", found " + shown(fields[i]));
         break;
-      case Role::kWeight:
-        if (!(v > 0)) fail(line, column, where + "expected a weight > 0, found " + shown(fields[i]));
-        if (v < 1e-12 || v > 1e12)
-          fail(line, column, where + "expected a weight from 1e-12 to 1e+12, found " + shown(fields[i]));
-        break;
-      case Role::kPayload:
-        if (!(v >= 0)) {
-          fail(line, column, where + "expected a payload mass >= 0 kg, found " +
-                                 shown(fields[i]));
-        }
-        if (v > 1e5) fail(line, column, where + "expected a payload mass of at most 1e+05 kg, found " + shown(fields[i]));
-        break;
-      case Role::kX: case Role::kY: case Role::kZ:
-        if (std::abs(v) > 1e7)
-          fail(line, column, where + "expected a position within +-1e+07 mm, found " + shown(fields[i]));
-        break;
-      case Role::kA: case Role::kB: case Role::kC:
-        if (std::abs(v) > 1e4)
-          fail(line, column, where + "expected an angle within +-1e+04 deg, found " + shown(fields[i]));
-        break;
-      case Role::kTemp:
-        if (v < -273.15 || v > 1e4)
-          fail(line, column, where + "expected a temperature from -273.15 to 1e+04 deg C, found " + shown(fields[i]));
-        break;
-      case Role::kTime:
-        if (std::abs(v) > 1e12) fail(line, column, where + "expected a time within +-1e+12 s, found " + shown(fields[i]));
-        break;
-      default:
-        break;
+      }
     }
     if (c.role != Role::kQ && c.role != Role::kDir) value[static_cast<int>(c.role)] = v;
   }
@@ -574,6 +553,29 @@ void requirePositive(double v, std::size_t row, const char* what) {
 }
 
 }  // namespace
+
+std::string implausibleMeasuredValue(MeasuredValue kind, double v) {
+  switch (kind) {
+    case MeasuredValue::kPositionMm:
+      return std::abs(v) <= 1e7 ? "" : "a position within +-1e+07 mm";
+    case MeasuredValue::kAngleDeg:
+      return std::abs(v) <= 1e4 ? "" : "an angle within +-1e+04 deg";
+    case MeasuredValue::kStd:
+      if (!(v > 0)) return "a standard deviation > 0";
+      return v >= 1e-6 && v <= 1e6 ? "" : "a standard deviation from 1e-06 to 1e+06";
+    case MeasuredValue::kWeight:
+      if (!(v > 0)) return "a weight > 0";
+      return v >= 1e-12 && v <= 1e12 ? "" : "a weight from 1e-12 to 1e+12";
+    case MeasuredValue::kPayloadKg:
+      if (!(v >= 0)) return "a payload mass >= 0 kg";
+      return v <= 1e5 ? "" : "a payload mass of at most 1e+05 kg";
+    case MeasuredValue::kTemperatureC:
+      return v >= -273.15 && v <= 1e4 ? "" : "a temperature from -273.15 to 1e+04 deg C";
+    case MeasuredValue::kTimeS:
+      return std::abs(v) <= 1e12 ? "" : "a time within +-1e+12 s";
+  }
+  return "";
+}
 
 MeasurementSet readMeasurementsCsv(const std::string& path, const RobotDefinition& robot) {
   return Reader(path, robot).read();

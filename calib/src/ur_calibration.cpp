@@ -2,12 +2,14 @@
 // YAML) <-> calibrated accura models. See ur_calibration.h.
 #include "accura/calib/ur_calibration.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
 #include <map>
 #include <sstream>
+#include <utility>
 
 #include "accura/calib/errors.h"
 #include "accura/calib/kinematics.h"
@@ -24,13 +26,26 @@ std::string trim(const std::string& s) {
   return s.substr(a, s.find_last_not_of(" \t\r") - a + 1);
 }
 
-double parseNumber(const std::string& file, int line, const std::string& text, const std::string& what) {
+/// 1-based column of the first character of `raw` from `from` on that is not blank (one past
+/// the end when there is none).
+int columnOfText(const std::string& raw, size_t from = 0) {
+  const size_t a = raw.find_first_not_of(" \t\r", from);
+  return static_cast<int>((a == std::string::npos ? raw.size() : a) + 1);
+}
+
+double parseNumber(const std::string& file, int line, int column, const std::string& text, const std::string& what) {
   const std::string t = trim(text);
   char* end = nullptr;
   const double v = std::strtod(t.c_str(), &end);
   if (t.empty() || *end != '\0' || !std::isfinite(v))
-    throw InputError(file, line, 0, what + ": expected a finite number, found '" + t + "'");
+    throw InputError(file, line, column, what + ": expected a finite number, found '" + t + "'");
   return v;
+}
+
+/// Where a missing entry was expected: at the end of the file (line 1, column 1 when empty).
+std::pair<int, int> endOfFile(const std::vector<std::string>& lines) {
+  if (lines.empty()) return {1, 1};
+  return {static_cast<int>(lines.size()), static_cast<int>(lines.back().size()) + 1};
 }
 
 std::vector<std::string> readLines(const std::string& path, const char* what) {
@@ -116,46 +131,68 @@ UrDeltas readUrCalibrationConf(const std::string& path, int dof) {
   std::map<std::string, int> seen;
   std::string section;
   bool any_section = false;
+  int mounting_line = 0, mounting_column = 0;  // the [mounting] header, when there is one
   for (size_t k = 0; k < lines.size(); ++k) {
     const int line = static_cast<int>(k + 1);
-    std::string l = lines[k];
-    if (const size_t hash = l.find('#'); hash != std::string::npos) l = l.substr(0, hash);
-    l = trim(l);
+    // (the columns are those of the line as written: a comment is cut off at its end)
+    std::string raw = lines[k];
+    if (const size_t hash = raw.find('#'); hash != std::string::npos) raw = raw.substr(0, hash);
+    const std::string l = trim(raw);
     if (l.empty()) continue;
+    const int first = columnOfText(raw);
     if (l.front() == '[') {
-      if (l.back() != ']') throw InputError(path, line, 0, "expected a section header like [mounting], found '" + l + "'");
+      if (l.back() != ']') throw InputError(path, line, first, "expected a section header like [mounting], found '" + l + "'");
       section = l.substr(1, l.size() - 2);
       any_section = true;
+      if (section == "mounting") {
+        mounting_line = line;
+        mounting_column = first;
+      }
       continue;
     }
     if (any_section && section != "mounting") continue;
-    const size_t eq = l.find('=');
-    if (eq == std::string::npos) throw InputError(path, line, 0, "expected 'key = value', found '" + l + "'");
-    const std::string key = trim(l.substr(0, eq));
+    const size_t eq = raw.find('=');
+    if (eq == std::string::npos) throw InputError(path, line, first, "expected 'key = value', found '" + l + "'");
+    const std::string key = trim(raw.substr(0, eq));
     auto it = wanted.find(key);
     if (it == wanted.end()) continue;  // joint_checksum, calibration_status, ...: not kinematics
     if (seen.count(key))
-      throw InputError(path, line, 0, key + " given twice (first at line " + std::to_string(seen[key]) + ")");
+      throw InputError(path, line, first, key + " given twice (first at line " + std::to_string(seen[key]) + ")");
     seen[key] = line;
-    std::string v = trim(l.substr(eq + 1));
+    const int value_column = columnOfText(raw, eq + 1);
+    const std::string v = trim(raw.substr(eq + 1));
     if (v.size() < 2 || v.front() != '[' || v.back() != ']')
-      throw InputError(path, line, 0, key + ": expected a list [v1, ..., v" + std::to_string(dof) + "], found '" + v + "'");
-    v = v.substr(1, v.size() - 2);
-    std::istringstream items(v);
-    for (std::string item; std::getline(items, item, ',');) it->second->push_back(parseNumber(path, line, item, key));
+      throw InputError(path, line, value_column,
+                       key + ": expected a list [v1, ..., v" + std::to_string(dof) + "], found '" + v + "'");
+    // the items between the brackets, each with its column
+    const size_t open = static_cast<size_t>(value_column - 1), close = raw.find_last_of(']');
+    std::vector<int> item_column;
+    for (size_t a = open + 1; a <= close;) {
+      size_t b = raw.find(',', a);
+      if (b == std::string::npos || b > close) b = close;
+      const int c = columnOfText(raw, a);  // (an empty item: where it would start)
+      item_column.push_back(c <= static_cast<int>(b) ? c : static_cast<int>(a) + 1);
+      it->second->push_back(parseNumber(path, line, item_column.back(), raw.substr(a, b - a), key));
+      a = b + 1;
+    }
     if (static_cast<int>(it->second->size()) != dof)
-      throw InputError(path, line, 0, key + ": expected " + std::to_string(dof) + " values, found " +
-                                          std::to_string(it->second->size()));
+      throw InputError(path, line, value_column, key + ": expected " + std::to_string(dof) + " values, found " +
+                                                     std::to_string(it->second->size()));
     for (size_t i = 0; i < it->second->size(); ++i) {
       const double x = (*it->second)[i];
       const bool angle = key == "delta_theta" || key == "delta_alpha";
       if (angle ? std::abs(x) > 2 * kPi : std::abs(x) > 1000.0)
-        throw InputError(path, line, 0, key + " value " + std::to_string(i + 1) + ": " + num17(x) +
-                                            (angle ? " rad is more than a turn" : " m is not a plausible DH delta"));
+        throw InputError(path, line, item_column[i],
+                         key + " value " + std::to_string(i + 1) + ": expected " +
+                             (angle ? "an angle of at most a turn (2 pi rad)" : "a DH delta of at most 1000 m") +
+                             ", found " + num17(x) + (angle ? " rad" : " m"));
     }
   }
-  for (const auto& [key, vec] : wanted)
-    if (!seen.count(key)) throw InputError(path, static_cast<int>(lines.size()), 0, "missing '" + key + " = [...]' in [mounting]");
+  for (const auto& [key, vec] : wanted) {
+    if (seen.count(key)) continue;
+    const auto [line, column] = mounting_line ? std::pair<int, int>{mounting_line, mounting_column} : endOfFile(lines);
+    throw InputError(path, line, column, "expected '" + key + " = [...]' in [mounting], found none");
+  }
   return d;
 }
 
@@ -277,7 +314,7 @@ SerialChain readUrCalibrationYaml(const std::string& path) {
   // The subset ur_calibration writes: "kinematics:", link names indented once, "key: value"
   // indented twice (and "hash: ..." once).
   std::map<std::string, std::map<std::string, double>> values;
-  std::map<std::string, int> link_line;
+  std::map<std::string, int> link_line, link_column;
   std::string link;
   int kin_line = 0;
   for (size_t k = 0; k < lines.size(); ++k) {
@@ -286,27 +323,30 @@ SerialChain readUrCalibrationYaml(const std::string& path) {
     if (const size_t hash = raw.find('#'); hash != std::string::npos) raw = raw.substr(0, hash);
     if (trim(raw).empty()) continue;
     const size_t indent = raw.find_first_not_of(' ');
+    const int first = columnOfText(raw);
     const std::string l = trim(raw);
-    const size_t colon = l.find(':');
-    if (colon == std::string::npos) throw InputError(path, line, 0, "expected 'key: value', found '" + l + "'");
-    const std::string key = trim(l.substr(0, colon)), value = trim(l.substr(colon + 1));
+    const size_t colon = raw.find(':');
+    if (colon == std::string::npos) throw InputError(path, line, first, "expected 'key: value', found '" + l + "'");
+    const std::string key = trim(raw.substr(0, colon)), value = trim(raw.substr(colon + 1));
     if (indent == 0) {
-      if (key != "kinematics") throw InputError(path, line, 0, "expected 'kinematics:', found '" + l + "'");
+      if (key != "kinematics") throw InputError(path, line, first, "expected 'kinematics:', found '" + l + "'");
       kin_line = line;
       link.clear();
     } else if (kin_line == 0) {
-      throw InputError(path, line, 0, "expected 'kinematics:' before '" + l + "'");
+      throw InputError(path, line, first, "expected 'kinematics:' before '" + l + "'");
     } else if (value.empty()) {
       link = key;
-      if (link_line.count(link)) throw InputError(path, line, 0, "'" + link + "' given twice");
+      if (link_line.count(link)) throw InputError(path, line, first, "'" + link + "' given twice");
       link_line[link] = line;
+      link_column[link] = first;
     } else if (key == "hash" && indent < 4) {
       continue;
     } else {
-      if (link.empty()) throw InputError(path, line, 0, "'" + key + "' outside a link entry");
+      if (link.empty()) throw InputError(path, line, first, "'" + key + "' outside a link entry");
       if (!(key == "x" || key == "y" || key == "z" || key == "roll" || key == "pitch" || key == "yaw"))
-        throw InputError(path, line, 0, "'" + link + "': unknown key '" + key + "' (expected x, y, z, roll, pitch, yaw)");
-      values[link][key] = parseNumber(path, line, value, link + "." + key);
+        throw InputError(path, line, first,
+                         "'" + link + "': expected a key x, y, z, roll, pitch or yaw, found '" + key + "'");
+      values[link][key] = parseNumber(path, line, columnOfText(raw, colon + 1), value, link + "." + key);
     }
   }
   SerialChain c;
@@ -316,13 +356,19 @@ SerialChain readUrCalibrationYaml(const std::string& path) {
   c.tip_link = "flange";
   for (const char* name : kYamlLinks) {
     auto it = values.find(name);
-    if (it == values.end()) throw InputError(path, kin_line, 0, std::string("kinematics: missing '") + name + "'");
+    if (it == values.end()) {
+      const auto [line, column] = kin_line ? std::pair<int, int>{kin_line, 1} : endOfFile(lines);
+      throw InputError(path, line, column, std::string("kinematics: expected an entry '") + name + ":', found none");
+    }
     for (const char* key : {"x", "y", "z", "roll", "pitch", "yaw"})
       if (!it->second.count(key))
-        throw InputError(path, link_line[name], 0, std::string("'") + name + "': missing '" + key + "'");
+        throw InputError(path, link_line[name], link_column[name],
+                         std::string("'") + name + "': expected '" + key + ": value', found none");
     const auto& v = it->second;
     if (std::abs(v.at("x")) > 1000 || std::abs(v.at("y")) > 1000 || std::abs(v.at("z")) > 1000)
-      throw InputError(path, link_line[name], 0, std::string("'") + name + "': an offset above 1000 m is not plausible");
+      throw InputError(path, link_line[name], link_column[name],
+                       std::string("'") + name + "': expected offsets x, y, z of at most 1000 m, found " +
+                           num17(std::max({std::abs(v.at("x")), std::abs(v.at("y")), std::abs(v.at("z"))})) + " m");
     ChainJoint j;
     j.name = std::string(name) + "_joint";
     j.T_prev_joint.linear() = rpyMatrix(v.at("roll"), v.at("pitch"), v.at("yaw"));

@@ -44,6 +44,17 @@ struct MeasurementSet {
   std::vector<std::string> unknown_columns;  ///< header names accura does not use, in order
 };
 
+/// The kinds of measured values whose plausible ranges both readers (the CSV, and an
+/// instrument's export read through a mapping file) enforce.
+enum class MeasuredValue { kPositionMm, kAngleDeg, kStd, kWeight, kPayloadKg, kTemperatureC, kTimeS };
+
+/// Empty when `v` is a plausible value of `kind`, else what was expected ("a position within
+/// +-1e+07 mm"): positions within +-1e7 mm, angles within +-1e4 deg, standard deviations
+/// (mm or deg) from 1e-6 to 1e6, weights from 1e-12 to 1e12, payloads from 0 to 1e5 kg,
+/// temperatures from -273.15 to 1e4 deg C, times within +-1e12 s. Beyond them a value is a
+/// corrupted file, not a measurement (a denormal std would make its weight infinite).
+std::string implausibleMeasuredValue(MeasuredValue kind, double v);
+
 /// Reads a measurement CSV for `robot` (its dof and joint limits are checked).
 /// Throws InputError "FILE:LINE:COLUMN: expected ..., found ..." on: unreadable file, missing
 /// or duplicate column, incomplete column group (qw without qx, std_x without std_y, ...),
