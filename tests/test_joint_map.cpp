@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <map>
 #include <filesystem>
 
 #include "accura/calib/errors.h"
@@ -295,6 +296,42 @@ TEST(JointMap, IdentifyRecoversACyclicJointErrorToTheNoiseFloor) {
   Eigen::VectorXd q = Eigen::VectorXd::Zero(6);
   q[1] = got.upper + 2 * got.taper;
   EXPECT_EQ(jointMapValue(got, q[1]), 0.0);
+}
+
+// The cross-validation tries the knot spacings from the widest down and a finer one only while
+// the last one gained: a slow error (3 cycles per revolution, which 3 deg knots already follow)
+// stops the search after 2 deg; a fast one (40 cycles, a 9 deg period that 3 deg knots follow
+// poorly) needs every spacing tried.
+TEST(JointMap, CrossValidationTriesFinerKnotsOnlyWhileTheyGain) {
+  const RobotModel nominal = test::loadBundled("kuka_kr16");
+  for (const double cycles : {3.0, 40.0}) {
+    SimulateOptions sim;
+    sim.seed = 21;
+    sim.noise_mm = 0.02;
+    RobotModel truth = perturbModel(nominal, sim);
+    const JointSpec& js = nominal.nominal.joints[1];
+    truth.deviations.joint_map[1] = cyclicMap(js.lower - 5, js.upper + 5, 0.5, 5e-4, cycles, 0.4);
+    sim.poses = 600;
+    const MeasurementSet fit = simulateMeasurements(truth, sim);
+    IdentifyOptions o;
+    o.groups = {"geometric", "joint_map:j2"};
+    IdentifySummary s;
+    identify(nominal, fit, o, &s);
+    std::map<double, double> best;  // knot -> its best held-out RMS
+    for (const auto& c : s.joint_map_cv)
+      best[c.knot] = best.count(c.knot) ? std::min(best[c.knot], c.cv_rms_mm) : c.cv_rms_mm;
+    SCOPED_TRACE(cycles);
+    ASSERT_TRUE(best.count(3.0) && best.count(2.0));
+    if (cycles == 3.0) {
+      EXPECT_GE(best[2.0], best[3.0]);
+      EXPECT_EQ(s.joint_map_cv_knots_not_tried, std::vector<double>{1.5});
+      EXPECT_EQ(best.count(1.5), 0u);
+    } else {
+      EXPECT_LT(best[2.0], 0.9 * best[3.0]);  // 3 deg knots do not follow a 9 deg period
+      EXPECT_TRUE(s.joint_map_cv_knots_not_tried.empty());
+      EXPECT_EQ(best.count(1.5), 1u);
+    }
+  }
 }
 
 TEST(JointMap, SeveralDataSetsEachFromItsOwnStation) {

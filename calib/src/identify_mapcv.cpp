@@ -121,6 +121,7 @@ RobotModel identifyWithMapCv(const RobotModel& start, const std::vector<Measurem
   if (summary_out) {
     summary_out->joint_map_cv = cv.table;
     summary_out->joint_map_cv_baseline_mm = cv.baseline_rms_mm;
+    summary_out->joint_map_cv_knots_not_tried = cv.knots_not_tried;
   }
   return m1;
 }

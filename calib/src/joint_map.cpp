@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
+#include <functional>
 #include <limits>
 #include <Eigen/Cholesky>
 
@@ -311,7 +312,13 @@ JointMapCvResult crossValidateJointMap(const std::vector<JointMapCvRow>& rows, c
   }
 
   result.best_rms_mm = std::numeric_limits<double>::infinity();
-  for (double knot : knots) {
+  // coarse to fine: the widest spacing first; a finer one only while the last one gained
+  std::vector<double> order = knots;
+  std::sort(order.begin(), order.end(), std::greater<double>());
+  order.erase(std::unique(order.begin(), order.end()), order.end());
+  double wider_best_ss = std::numeric_limits<double>::infinity();
+  for (size_t ki = 0; ki < order.size(); ++ki) {
+    const double knot = order[ki];
     std::vector<JointMap> maps;
     std::vector<Eigen::Index> col0;
     Eigen::Index n = p;
@@ -389,6 +396,14 @@ JointMapCvResult crossValidateJointMap(const std::vector<JointMapCvRow>& rows, c
         result.table[first_entry + si].cv_rms_mm += heldOut(maps, col0, f, solveRidged(N, btrain));
       }
     }
+    // (the table holds sums of squares until the end)
+    double best_ss = std::numeric_limits<double>::infinity();
+    for (size_t e = first_entry; e < result.table.size(); ++e) best_ss = std::min(best_ss, result.table[e].cv_rms_mm);
+    if (!(best_ss < wider_best_ss)) {
+      result.knots_not_tried.assign(order.begin() + static_cast<std::ptrdiff_t>(ki) + 1, order.end());
+      break;
+    }
+    wider_best_ss = best_ss;
   }
   for (auto& c : result.table) {
     c.cv_rms_mm = std::sqrt(c.cv_rms_mm / double(rows.size()));

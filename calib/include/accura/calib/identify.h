@@ -141,6 +141,9 @@ struct IdentifySummary {
   /// The joint_map cross-validation (empty when knot and smoothing were given).
   std::vector<JointMapCvCandidate> joint_map_cv;
   double joint_map_cv_baseline_mm = 0;  ///< held-out RMS of the same folds without maps
+  /// Knot spacings the cross-validation did not try (a wider one was at least as good as the
+  /// next finer one: JointMapCvResult::knots_not_tried).
+  std::vector<double> joint_map_cv_knots_not_tried;
   /// Rows with a normalised residual above the chi quantile 0.9999 (file:line).
   std::vector<SuspiciousRow> suspicious;
   /// Physically implausible estimates and other warnings (negative compliance, thermal

@@ -107,6 +107,9 @@ struct JointMapCvResult {
   double baseline_rms_mm = 0;      ///< held-out position RMS without maps (same folds)
   double best_rms_mm = 0;
   std::vector<JointMapCvCandidate> table;
+  /// Knot spacings not tried: the candidates are tried from the widest down, and a finer one
+  /// only while the last one tried gained on the wider one before it (coarse to fine).
+  std::vector<double> knots_not_tried;
 };
 
 /// The smoothness and centring penalties of identification, in one place: the weight of the
@@ -117,8 +120,12 @@ constexpr double kJointMapCentringWeight = 1e3;
 
 /// Refits the linearised problem for every (knot, smoothing) candidate on all folds but one and
 /// predicts the held-out fold (maps on `ranges`, one per mapped joint, the centring taken on
-/// the training rows, with centred_harmonics[j] low harmonics kept out). Cost per knot: one pass over the rows; per candidate and fold one dense
-/// Cholesky factorisation. Throws ArgumentError on inconsistent sizes or empty candidates.
+/// the training rows, with centred_harmonics[j] low harmonics kept out). The knot spacings are
+/// tried from the widest down; a finer one only while the last one tried has a smaller best
+/// held-out RMS than the wider one before it (the rest are listed in knots_not_tried: the
+/// finest candidates have the largest systems, most of the cost). Cost per knot tried: one
+/// pass over the rows; per candidate and fold one dense Cholesky factorisation. Throws
+/// ArgumentError on inconsistent sizes or empty candidates.
 JointMapCvResult crossValidateJointMap(const std::vector<JointMapCvRow>& rows, const std::vector<JointRange>& ranges,
                                        const std::vector<int>& centred_harmonics, const std::vector<double>& knots,
                                        const std::vector<double>& smoothings, int folds);
