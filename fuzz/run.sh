@@ -1,7 +1,10 @@
 #!/usr/bin/env bash
 # Runs every fuzz target for SECONDS seconds on its corpus (fuzz/README.md); SECONDS 0 replays the
-# committed corpus once without mutation (deterministic: what CI runs).
+# committed corpus once without mutation, then, when FUZZ_RUNS=N is set, mutates it for N more
+# inputs with a fixed seed (deterministic: the same inputs on every run of the same build;
+# what CI runs).
 #   bash fuzz/run.sh BUILD_FUZZ_DIR [SECONDS] [TARGET...]
+#   FUZZ_RUNS=3000 bash fuzz/run.sh BUILD_FUZZ_DIR 0
 # The committed corpus fuzz/corpus/T is read only: new inputs go to a temporary directory that
 # is removed afterwards (a long local session keeps them: see fuzz/README.md). A finding (crash,
 # leak, timeout, contract violation) is saved as fuzz/findings/T-<kind>-<hash> and fails the run.
@@ -34,8 +37,24 @@ for t in "${targets[@]}"; do
   start=$(date +%s)
   if [ "$seconds" -eq 0 ]; then
     # replay: every committed corpus input once, no mutation (deterministic; what CI runs)
+    corpus_size=$(ls "$here/corpus/$t" | wc -l)
     if TMPDIR="$scratch" "$bin/fuzz_$t" -runs=0 -timeout=10 -rss_limit_mb=2048 "$here/corpus/$t" >"$work.log" 2>&1; then
-      echo "fuzz_$t: replayed $(ls "$here/corpus/$t" | wc -l) corpus inputs, ok"
+      echo "fuzz_$t: replayed $corpus_size corpus inputs, ok"
+      runs="${FUZZ_RUNS:-0}"
+      if [ "$runs" -gt 0 ]; then
+        # N mutated inputs beyond the corpus (libFuzzer's -runs counts the corpus too), seed 1;
+        # new inputs go to $work (removed), a finding to fuzz/findings/ as in a timed run
+        mkdir -p "$work"
+        if TMPDIR="$scratch" "$bin/fuzz_$t" "$work" "$here/corpus/$t" "${dict[@]}" -seed=1 -runs=$((corpus_size + runs)) \
+             -timeout=10 -rss_limit_mb=2048 -max_len=65536 -print_final_stats=1 -artifact_prefix="$here/findings/$t-" \
+             >"$work.log" 2>&1; then
+          echo "fuzz_$t: $runs mutated inputs (seed 1) in $(( $(date +%s) - start )) s, ok, $(grep -o 'cov: [0-9]*' "$work.log" | tail -1)"
+        else
+          echo "fuzz_$t: FINDING among the mutated inputs (saved under fuzz/findings/); the end of its log:"
+          tail -40 "$work.log"
+          status=1
+        fi
+      fi
     else
       echo "fuzz_$t: FINDING while replaying the corpus; the end of its log:"
       tail -40 "$work.log"
