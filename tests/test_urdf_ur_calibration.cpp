@@ -255,30 +255,26 @@ TEST(UrCalibration, MalformedFilesGiveFileLineColumnExpectedFound) {
       {"[mounting]\n  delta_d = 0\n", "c.conf:2:13: delta_d: expected a list [v1, ..., v6], found '0'"},
       {"[mounting\n", "c.conf:1:1: expected a section header like [mounting], found '[mounting'"},
   };
-  for (const Case& c : cases) {
-    test::writeText(dir + "/c.conf", c.text);
-    try {
-      readUrCalibrationConf(dir + "/c.conf");
-      ADD_FAILURE() << "no error for " << c.text;
-    } catch (const InputError& e) {
-      EXPECT_NE(std::string(e.what()).find(c.expected), std::string::npos) << e.what();
+  // each case's text written to `path` and read by `read`: an InputError with the expected text
+  const auto expectErrors = [](const std::vector<Case>& all, const std::string& path, const auto& read) {
+    for (const Case& c : all) {
+      test::writeText(path, c.text);
+      try {
+        read(path);
+        ADD_FAILURE() << "no error for " << c.text;
+      } catch (const InputError& e) {
+        EXPECT_NE(std::string(e.what()).find(c.expected), std::string::npos) << e.what();
+      }
     }
-  }
+  };
+  expectErrors(cases, dir + "/c.conf", [](const std::string& p) { readUrCalibrationConf(p); });
   const std::vector<Case> yaml = {
       {"kinematics:\n  shoulder:\n    x: 0\n    y: zero\n", "k.yaml:4:8: shoulder.y: expected a finite number, found 'zero'"},
       {"kinematics:\n  shoulder:\n    w: 0\n", "k.yaml:3:5: 'shoulder': expected a key x, y, z, roll, pitch or yaw, found 'w'"},
       {"kinematics:\n  shoulder:\n    x: 0\n", "k.yaml:2:3: 'shoulder': expected 'y: value', found none"},
       {"", "k.yaml:1:1: kinematics: expected an entry 'shoulder:', found none"},
   };
-  for (const Case& c : yaml) {
-    test::writeText(dir + "/k.yaml", c.text);
-    try {
-      readUrCalibrationYaml(dir + "/k.yaml");
-      ADD_FAILURE() << "no error for " << c.text;
-    } catch (const InputError& e) {
-      EXPECT_NE(std::string(e.what()).find(c.expected), std::string::npos) << e.what();
-    }
-  }
+  expectErrors(yaml, dir + "/k.yaml", [](const std::string& p) { readUrCalibrationYaml(p); });
   std::filesystem::remove_all(dir);
 }
 
