@@ -136,6 +136,9 @@ def cases(seed_dir):
     out.append(Case("ur_deltas", {"cal": os.path.join(urdf, "ur_forum_calibration.conf")}, "cal",
                     ["export", "--robot", "ur10", "--ur-deltas", "{cal}", "--format", "robot", "--out", "{out}/model.xml"],
                     ["model.xml"]))
+    out.append(Case("ur_yaml", {"cal": os.path.join(seed_dir, "ur10_calibration.yaml")}, "cal",
+                    ["export", "--robot", "ur10", "--ur-yaml", "{cal}", "--format", "robot", "--out", "{out}/model.xml"],
+                    ["model.xml"]))
     two = ["identify", "--robot", "kuka_kr16", "--data", "{data}", "--data", "{data2}", "--out", "{out}/model.xml", "--quiet"]
     out.append(Case("measurements:second_station", {"data": os.path.join(seed_dir, "m.csv"), "data2": os.path.join(seed_dir, "m2.csv")},
                     "data2", two, ["model.xml"]))
@@ -163,6 +166,8 @@ def make_seeds(accura, seed_dir):
     run("simulate", "--robot", "kuka_kr16", "--poses", "25", "--seed", "4", "--noise-mm", "0.02", "--effects", "geometric",
         "--out", os.path.join(seed_dir, "m2.csv"), "--truth", os.path.join(seed_dir, "truth2.xml"))
     run("identify", "--robot", "kuka_kr16", "--data", os.path.join(seed_dir, "m.csv"), "--out", os.path.join(seed_dir, "calibrated.xml"), "--quiet")
+    run("export", "--robot", "ur10", "--ur-deltas", os.path.join(ROOT, "tests", "data", "urdf", "ur_forum_calibration.conf"),
+        "--format", "ur-yaml", "--out", os.path.join(seed_dir, "ur10_calibration.yaml"))
     run("convert", "--in", os.path.join(ROOT, "examples", "seam.src"), "--config", os.path.join(ROOT, "examples", "$config.dat"),
         "--out", os.path.join(seed_dir, "seam.xml"))
     with open(os.path.join(ROOT, "tests", "data", "ipa-robot-accuracy", "series_b_joint_configurations.csv"), "rb") as f:

@@ -3,6 +3,8 @@
 // positions UR's ur_calibration test pins for a UR10.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include <cmath>
 #include <random>
 
@@ -273,8 +275,29 @@ TEST(UrCalibration, MalformedFilesGiveFileLineColumnExpectedFound) {
       {"kinematics:\n  shoulder:\n    w: 0\n", "k.yaml:3:5: 'shoulder': expected a key x, y, z, roll, pitch or yaw, found 'w'"},
       {"kinematics:\n  shoulder:\n    x: 0\n", "k.yaml:2:3: 'shoulder': expected 'y: value', found none"},
       {"", "k.yaml:1:1: kinematics: expected an entry 'shoulder:', found none"},
+      {"kinematics:\n  shoulder:\n    yaw: 0x10\n", "k.yaml:3:10: shoulder.yaw: expected an angle of at most a turn (2 pi rad), found 16 rad"},
+      {"kinematics:\n  shoulder:\n    z: 1e23\n", "k.yaml:3:8: shoulder.z: expected an offset of at most 1000 m, found 1e+23 m"},
   };
   expectErrors(yaml, dir + "/k.yaml", [](const std::string& p) { readUrCalibrationYaml(p); });
+  // a YAML that reads but turns a joint against the UR10's (wrist_2's axis flipped by its roll):
+  // at that joint's entry (the fitted chain carries the entry's line and column)
+  const RobotDefinition ur10 = test::loadBundled("ur10").nominal;
+  std::string flipped = formatUrCalibrationYaml(RobotModel::fromDefinition(ur10), nullptr);
+  const size_t wrist_2 = flipped.find("  wrist_2:"), roll = flipped.find("roll: ", wrist_2);
+  ASSERT_NE(roll, std::string::npos);
+  flipped.replace(roll, flipped.find('\n', roll) - roll, "roll: -1.5707963267948966");
+  const int line = 1 + static_cast<int>(std::count(flipped.begin(), flipped.begin() + static_cast<std::ptrdiff_t>(wrist_2), '\n'));
+  test::writeText(dir + "/f.yaml", flipped);
+  try {
+    modelFromUrCalibrationYaml(ur10, dir + "/f.yaml");
+    ADD_FAILURE() << "no error for\n" << flipped;
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("f.yaml:" + std::to_string(line) + ":3: joint '" + ur10.joints[4].name +
+                                         "': expected it to turn the way joint '" + ur10.joints[4].name +
+                                         "' of the reference robot"),
+              std::string::npos)
+        << e.what();
+  }
   std::filesystem::remove_all(dir);
 }
 

@@ -346,7 +346,15 @@ SerialChain readUrCalibrationYaml(const std::string& path) {
       if (!(key == "x" || key == "y" || key == "z" || key == "roll" || key == "pitch" || key == "yaw"))
         throw InputError(path, line, first,
                          "'" + link + "': expected a key x, y, z, roll, pitch or yaw, found '" + key + "'");
-      values[link][key] = parseNumber(path, line, columnOfText(raw, colon + 1), value, link + "." + key);
+      const int value_column = columnOfText(raw, colon + 1);
+      const double v = parseNumber(path, line, value_column, value, link + "." + key);
+      const bool angle = key == "roll" || key == "pitch" || key == "yaw";
+      if (angle ? std::abs(v) > 2 * kPi : std::abs(v) > 1000.0)
+        throw InputError(path, line, value_column,
+                         link + "." + key + ": expected " +
+                             (angle ? "an angle of at most a turn (2 pi rad)" : "an offset of at most 1000 m") +
+                             ", found " + num17(v) + (angle ? " rad" : " m"));
+      values[link][key] = v;
     }
   }
   SerialChain c;
@@ -365,15 +373,12 @@ SerialChain readUrCalibrationYaml(const std::string& path) {
         throw InputError(path, link_line[name], link_column[name],
                          std::string("'") + name + "': expected '" + key + ": value', found none");
     const auto& v = it->second;
-    if (std::abs(v.at("x")) > 1000 || std::abs(v.at("y")) > 1000 || std::abs(v.at("z")) > 1000)
-      throw InputError(path, link_line[name], link_column[name],
-                       std::string("'") + name + "': expected offsets x, y, z of at most 1000 m, found " +
-                           num17(std::max({std::abs(v.at("x")), std::abs(v.at("y")), std::abs(v.at("z"))})) + " m");
     ChainJoint j;
     j.name = std::string(name) + "_joint";
     j.T_prev_joint.linear() = rpyMatrix(v.at("roll"), v.at("pitch"), v.at("yaw"));
     j.T_prev_joint.translation() = 1000.0 * Eigen::Vector3d(v.at("x"), v.at("y"), v.at("z"));
     j.line = link_line[name];
+    j.column = link_column[name];
     c.joints.push_back(j);
   }
   return c;

@@ -1,5 +1,6 @@
 // accura: a serial chain of joint frames -> accura's complete model (DH / Hayati links, base
 // and tool transforms), and the check of the conversion against the chain's own FK.
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <sstream>
@@ -158,11 +159,18 @@ ChainAxes chainAxes(const SerialChain& chain, const RobotDefinition* reference, 
                                            : (k == 0 ? Eigen::Vector3d::UnitZ() : c.U[k]);
     c.direction[k] = c.U[k].dot(hint) >= 0 ? 1 : -1;
     c.Z[k] = c.direction[k] * c.U[k];
-    if (reference && c.direction[k] != reference->joints[static_cast<size_t>(k)].direction)
-      throw ArgumentError("joint '" + chain.joints[static_cast<size_t>(k)].name + "' turns the other way than joint '" +
-                          reference->joints[static_cast<size_t>(k)].name + "' of the reference robot '" +
-                          reference->name + "' (direction " + std::to_string(c.direction[k]) + ", reference " +
-                          std::to_string(reference->joints[static_cast<size_t>(k)].direction) + ")");
+    if (reference && c.direction[k] != reference->joints[static_cast<size_t>(k)].direction) {
+      const ChainJoint& j = chain.joints[static_cast<size_t>(k)];
+      const std::string what = "joint '" + j.name + "': expected it to turn the way joint '" +
+                               reference->joints[static_cast<size_t>(k)].name + "' of the reference robot '" +
+                               reference->name + "' turns (direction " +
+                               std::to_string(reference->joints[static_cast<size_t>(k)].direction) +
+                               "), found it turning the other way (direction " + std::to_string(c.direction[k]) +
+                               ": its axis at q = 0 points against the reference's)";
+      // where the file says so: at the joint's entry in its source
+      if (!chain.source.empty() && j.line > 0) throw InputError(chain.source, j.line, std::max(j.column, 1), what);
+      throw ArgumentError(what);
+    }
   }
   return c;
 }
@@ -215,11 +223,15 @@ LinkParams innerLink(const SerialChain& chain, const RobotDefinition* reference,
     L.alpha = std::atan2(-Zn.dot(y), Zn.dot(z));
     return L;
   }
-  if (s < 1e-9)
-    throw ArgumentError("joints '" + chain.joints[static_cast<size_t>(i)].name + "' and '" +
-                        chain.joints[static_cast<size_t>(i + 1)].name +
-                        "' have parallel axes, which DH cannot describe (the reference robot uses DH for link " +
-                        std::to_string(i + 1) + ")");
+  if (s < 1e-9) {
+    const ChainJoint& j = chain.joints[static_cast<size_t>(i + 1)];
+    const std::string what = "joint '" + j.name + "': expected an axis DH can describe after joint '" +
+                             chain.joints[static_cast<size_t>(i)].name +
+                             "' (the reference robot uses DH for link " + std::to_string(i + 1) +
+                             "), found it parallel to that joint's axis";
+    if (!chain.source.empty() && j.line > 0) throw InputError(chain.source, j.line, std::max(j.column, 1), what);
+    throw ArgumentError(what);
+  }
   L.form = LinkForm::kDH;
   x = z.cross(Zn).normalized();
   if (x.dot(x_hint) < 0 || (std::abs(x.dot(x_hint)) < 1e-9 && x.dot(z.cross(x_hint)) < 0)) x = -x;

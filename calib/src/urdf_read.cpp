@@ -476,6 +476,7 @@ SerialChain parseUrdfChain(const std::string& text, const std::string& file, con
     ChainJoint cj;
     cj.name = jn;
     cj.line = info.line;
+    cj.column = ix.pos->element(info.element).second;
     cj.type = info.type == "prismatic" ? JointType::kPrismatic : JointType::kRevolute;
     cj.T_prev_joint = T_acc * origin;
     cj.axis = Eigen::Vector3d(j->axis.x, j->axis.y, j->axis.z).normalized();

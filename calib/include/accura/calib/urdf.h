@@ -32,7 +32,8 @@ struct ChainJoint {
   /// in this joint's frame after the motion (mm).
   double mass_kg = 0;
   Eigen::Vector3d com_mm = Eigen::Vector3d::Zero();
-  int line = 0;  ///< line of the joint in its source file (0 when unknown), for errors
+  int line = 0;    ///< line of the joint in its source file (0 when unknown), for errors
+  int column = 0;  ///< and its column there (0 when unknown)
 };
 
 /// A serial chain: T_root_tip(q) = T_prev_joint_1 M_1(q_1) T_prev_joint_2 M_2(q_2) ...
