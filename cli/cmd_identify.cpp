@@ -210,11 +210,7 @@ void printSetup(const IdentifyArgs& a, const IdentifyRun& r) {
       std::printf("  knot %-5g smoothing %-6g %.4f\n", c.knot, c.smoothing, c.cv_rms_mm);
     if (!s.joint_map_cv_knots_not_tried.empty()) {
       std::string finer;
-      for (double k : s.joint_map_cv_knots_not_tried) {
-        char b[32];
-        std::snprintf(b, sizeof b, "%s%g", finer.empty() ? "" : ", ", k);
-        finer += b;
-      }
+      for (double k : s.joint_map_cv_knots_not_tried) finer += (finer.empty() ? "" : ", ") + fmt("%g", k);
       std::printf("  knot %s not tried: the finest spacing tried was no better than the one before it\n", finer.c_str());
     }
   }

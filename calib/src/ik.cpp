@@ -157,22 +157,18 @@ IkStatus KinematicSolver::follow(const Eigen::Isometry3d& T_world_tcp, const Con
                                  const IkOptions& options, const PoseContext& context, IkWorkspace& workspace,
                                  IkResult* answer) const {
   if (!workspace.data_) workspace.data_ = std::make_unique<IkWorkspace::Data>();  // moved from
-  IkWorkspace::Data* ws = workspace.data_.get();
-  auto finish = [&](IkResult& r) {
-    if (r.status != IkStatus::kOk && answer) *answer = std::move(r);
-  };
-  if (q.size() == 0) {
-    // cold: the solution needs the room (the only allocation)
-    Eigen::VectorXd out(impl_->n);
-    IkResult r = impl_->inverse(T_world_tcp, config, q, options, context, 0, 0, ws, out.data());
-    const IkStatus status = r.status;
-    if (status == IkStatus::kOk) q.swap(out);
-    finish(r);
-    return status;
-  }
-  IkResult r = impl_->inverse(T_world_tcp, config, q, options, context, 0, 0, ws, q.data());
+  // cold (empty q): the solution needs the room (the only allocation)
+  const bool cold = q.size() == 0;
+  Eigen::VectorXd out;
+  if (cold) out.resize(impl_->n);
+  IkResult r = impl_->inverse(T_world_tcp, config, q, options, context, 0, 0, workspace.data_.get(),
+                              cold ? out.data() : q.data());
   const IkStatus status = r.status;
-  finish(r);
+  if (status == IkStatus::kOk) {
+    if (cold) q.swap(out);
+  } else if (answer) {
+    *answer = std::move(r);
+  }
   return status;
 }
 

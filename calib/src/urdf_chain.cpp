@@ -130,6 +130,13 @@ struct ChainAxes {
   std::vector<LinkForm> ref_forms;         ///< with a reference: its link forms
 };
 
+/// An error about joint `j` of `chain`: located at the joint's entry in its source file when
+/// the chain has one (an InputError), else an ArgumentError.
+[[noreturn]] void failAtJoint(const SerialChain& chain, const ChainJoint& j, const std::string& what) {
+  if (!chain.source.empty() && j.line > 0) throw InputError(chain.source, j.line, std::max(j.column, 1), what);
+  throw ArgumentError(what);
+}
+
 ChainAxes chainAxes(const SerialChain& chain, const RobotDefinition* reference, FormPolicy policy) {
   const int n = static_cast<int>(chain.joints.size());
   ChainAxes c;
@@ -167,9 +174,7 @@ ChainAxes chainAxes(const SerialChain& chain, const RobotDefinition* reference, 
                                std::to_string(reference->joints[static_cast<size_t>(k)].direction) +
                                "), found it turning the other way (direction " + std::to_string(c.direction[k]) +
                                ": its axis at q = 0 points against the reference's)";
-      // where the file says so: at the joint's entry in its source
-      if (!chain.source.empty() && j.line > 0) throw InputError(chain.source, j.line, std::max(j.column, 1), what);
-      throw ArgumentError(what);
+      failAtJoint(chain, j, what);
     }
   }
   return c;
@@ -229,8 +234,7 @@ LinkParams innerLink(const SerialChain& chain, const RobotDefinition* reference,
                              chain.joints[static_cast<size_t>(i)].name +
                              "' (the reference robot uses DH for link " + std::to_string(i + 1) +
                              "), found it parallel to that joint's axis";
-    if (!chain.source.empty() && j.line > 0) throw InputError(chain.source, j.line, std::max(j.column, 1), what);
-    throw ArgumentError(what);
+    failAtJoint(chain, j, what);
   }
   L.form = LinkForm::kDH;
   x = z.cross(Zn).normalized();

@@ -268,6 +268,13 @@ class Job {
     out.motions.push_back(mo);
   }
 
+  /// Motion `m`'s target cannot be evaluated (`why`): the motion is kept as written, counted
+  /// and named in a warning.
+  void leftUnchanged(const Motion& m, const std::string& why) {
+    ++r_.motions_left_unchanged;
+    warning(m.where, motionInstruction(m) + " left unchanged (not compensated): " + why + "; the position after it is not known");
+  }
+
   void cannotCompensate(const Motion& m, size_t mark, Program& out, const char* why) {
     out.motions.resize(mark);
     error(m.where, std::string("this motion cannot be compensated: ") + why);
@@ -283,9 +290,7 @@ class Job {
       // runs: the motion is kept as written, not compensated, and named. A file that is missing
       // (the .dat of a named point) is the user's to give: an error.
       if (!m.target_file_missing) {
-        ++r_.motions_left_unchanged;
-        warning(m.where, motionInstruction(m) + " left unchanged (not compensated): " + m.target_problem +
-                             "; the position after it is not known");
+        leftUnchanged(m, m.target_problem);
       } else {
         error(m.where, "expected a target accura can correct for " + motionKeyword(m) + ", found: " + m.target_problem);
       }
@@ -358,9 +363,8 @@ class Job {
       if (!T_world_flange_intended_) {
         // its other components are wherever the robot is at run time: the controller runs it,
         // accura cannot evaluate it (as a run-time target: kept, named)
-        ++r_.motions_left_unchanged;
-        warning(m.where, motionInstruction(m) + " left unchanged (not compensated): its " + what + " (" + targetLabel(t) +
-                             ") is partial and the position before it is not known; the position after it is not known");
+        leftUnchanged(m, std::string("its ") + what + " (" + targetLabel(t) +
+                             ") is partial and the position before it is not known");
         return false;
       }
       const calib::XyzAbc prev = toProgram(c.T_world_progbase, *T_world_flange_intended_ * c.tool);

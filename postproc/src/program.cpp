@@ -367,6 +367,7 @@ std::vector<double> durationShares(const Program& program, size_t index) {
 }
 
 std::string pieceDurationText(const Program& program, size_t index, double duration_s) {
+  if (!(duration_s > 0)) return {};  // (no time programmed)
   const auto [first, last] = statementPieces(program, index);
   if (first == last) return {};
   const std::vector<double> shares = durationShares(program, last);

@@ -140,7 +140,7 @@ std::string patch(const Program& p) {
       throw calib::ArgumentError("writeRapid: a motion has no statement in the module");
     const RapidSource::Statement& st = s.statements[static_cast<size_t>(m.statement_id)];
     // a move with a time \T split into pieces: each piece its share of the time
-    const std::string duration = st.duration_text.second > st.duration_text.first ? pieceDurationText(p, i, st.duration_s) : std::string();
+    const std::string duration = pieceDurationText(p, i, st.duration_s);
     if (!m.inserted) {
       targetEdits(p, m, values, edits, order);
       if (!duration.empty()) edits.push_back({st.duration_text.first, st.duration_text.second, duration, order++});

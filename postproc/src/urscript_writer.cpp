@@ -172,7 +172,7 @@ std::string patch(const Program& p) {
       throw calib::ArgumentError("writeUrScript: a motion has no statement in the script");
     const UrScriptSource::Statement& st = s.statements[static_cast<size_t>(m.statement_id)];
     // a movel with a time t split into pieces: each piece its share of t
-    const std::string duration = st.duration_text.second > st.duration_text.first ? pieceDurationText(p, i, st.duration_s) : std::string();
+    const std::string duration = pieceDurationText(p, i, st.duration_s);
     if (!m.inserted && !duration.empty()) edits.push_back({st.duration_text.first, st.duration_text.second, duration, order++});
     if (m.inserted) {
       std::vector<const Target*> targets;

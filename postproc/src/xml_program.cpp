@@ -245,10 +245,6 @@ FrameSetting readFrame(const Reader& R, const XMLElement* e, bool is_tool, const
   return s;
 }
 
-// Pass-through text: as XML text when it is UTF-8 without control characters, else its bytes
-// in hexadecimal (encoding="hex": a KRL comment in Windows-1252 round-trips byte for byte).
-bool plainText(const std::string& s) { return calib::isPlainText(s); }
-
 const char* sectionName(PassThrough::Section s) {
   switch (s) {
     case PassThrough::Section::kBody: return "body";
@@ -267,7 +263,9 @@ void writePassThrough(std::ostream& out, const PassThrough& s) {
     if (s.eol != "\n") out << " eol=\"" << (s.eol == "\r\n" ? "crlf" : "none") << "\"";
   }
   // a line of blanks only is hex too: an XML reader drops whitespace-only text
-  if (plainText(s.text) && (s.text.empty() || s.text.find_first_not_of(" \t") != std::string::npos)) {
+  // pass-through text: as XML text when it is UTF-8 without control characters, else its bytes
+  // in hexadecimal (encoding="hex": a KRL comment in Windows-1252 round-trips byte for byte)
+  if (calib::isPlainText(s.text) && (s.text.empty() || s.text.find_first_not_of(" \t") != std::string::npos)) {
     out << ">" << calib::xmlEscape(s.text) << "</passthrough>\n";
     return;
   }

@@ -292,7 +292,7 @@ std::vector<double> durationShares(const Program& program, size_t index);
 /// The duration of motion `index`'s piece (inserted or not) of a statement programmed to take
 /// `duration_s` (s), as the writers put it: seconds with 4 decimals, the statement's last piece
 /// taking what the others leave, so that the pieces add up to the time as written. Empty when
-/// the statement was not split. Throws ArgumentError when an inserted motion is not followed by
+/// the statement was not split or has no time (duration_s <= 0). Throws ArgumentError when an inserted motion is not followed by
 /// its statement's motion.
 std::string pieceDurationText(const Program& program, size_t index, double duration_s);
 

@@ -68,8 +68,8 @@ struct RapidSource {
     std::vector<std::pair<size_t, size_t>> targets;
     /// The robtarget value each target reads (-1: none, e.g. an Offs/RelTool expression).
     std::vector<int> target_value;
-    /// The programmed duration's number [begin, end) in the text (movel's t > 0, MoveL's
-    /// \T:=), {0, 0} when there is none; duration_s its value (s). A motion split by the
+    /// The programmed duration's number [begin, end) in the text (a move's \T:=), {0, 0}
+    /// when there is none; duration_s its value (s). A motion split by the
     /// compensation gets each piece its share (durationShares, program.h).
     std::pair<size_t, size_t> duration_text{0, 0};
     double duration_s = 0;

@@ -70,8 +70,8 @@ struct UrScriptSource {
     /// The target expressions ([begin, end) in the text): the via point first for movec.
     std::vector<std::pair<size_t, size_t>> targets;
     std::vector<int> target_expr;  ///< the pose expression of each target (-1: none)
-    /// The programmed duration's number [begin, end) in the text (movel's t > 0, MoveL's
-    /// \T:=), {0, 0} when there is none; duration_s its value (s). A motion split by the
+    /// The programmed duration's number [begin, end) in the text (movel's t > 0), {0, 0}
+    /// when there is none; duration_s its value (s). A motion split by the
     /// compensation gets each piece its share (durationShares, program.h).
     std::pair<size_t, size_t> duration_text{0, 0};
     double duration_s = 0;
