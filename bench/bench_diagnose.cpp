@@ -79,6 +79,29 @@ void BM_Diagnose500PosesWholeCatalogueCrossValidated(benchmark::State& state) {
 }
 BENCHMARK(BM_Diagnose500PosesWholeCatalogueCrossValidated)->Unit(benchmark::kMillisecond)->MinTime(2.0);
 
+// The same diagnosis doing only the work it did when issue 15 was filed (commit 8b1cf54): the
+// catalogue without joint_map, no robust passes, no blocked cross-validation, no per-joint
+// spectrum. Its peer is that commit's BM_Diagnose500PosesWholeCatalogueCrossValidated, built
+// from a worktree and run alternately with this one (bench/README.md): the same campaign, the
+// same verdict and held-out RMS in the label.
+void BM_Diagnose500PosesIssue15Work(benchmark::State& state) {
+  const Campaign& c = campaign();
+  accura::calib::DiagnoseOptions o;
+  for (const std::string& e : accura::calib::effectCatalogue())
+    if (e != "joint_map") o.effects.push_back(e);
+  o.robust_k = 0;
+  o.blocked_folds = 0;
+  o.spectrum_max_cycles = 0;
+  std::string label;
+  for (auto _ : state) {
+    const accura::calib::Diagnosis d = accura::calib::diagnose(c.nominal, c.fit, nullptr, o);
+    label = "verdict " + d.verdict.effect + " held-out " + std::to_string(d.verdict.validation_rms_after_mm) + " mm";
+    benchmark::DoNotOptimize(d.verdict.validation_rms_after_mm);
+  }
+  state.SetLabel(label);
+}
+BENCHMARK(BM_Diagnose500PosesIssue15Work)->Unit(benchmark::kMillisecond)->MinTime(2.0);
+
 void BM_Diagnose500PosesWholeCatalogueValidationSet(benchmark::State& state) {
   const Campaign& c = campaign();
   for (auto _ : state) {

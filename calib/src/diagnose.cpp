@@ -231,8 +231,9 @@ Diagnosis Diagnoser::run() {
   confounding();
   shrink();  // exact held-out residuals of the baseline and of the final model
   {
-    const std::vector<Correlation> before = scan(E0_);
-    std::vector<Correlation> after = scan(E1_);
+    const std::vector<std::vector<Correlation>> both = scan({&E0_, &E1_});
+    const std::vector<Correlation>& before = both[0];
+    std::vector<Correlation> after = both[1];
     for (size_t k = 0; k < after.size(); ++k) {
       after[k].r2_before = before[k].r2_after;
       after[k].p_before = before[k].p_after;

@@ -214,7 +214,23 @@ void Diagnoser::columns() {
   }
 }
 
+namespace {
+// dst += s0 a + s1 b + s2 c over len entries (the arrays do not overlap: vectorised)
+inline void axpy3(double* __restrict dst, const double* __restrict a, const double* __restrict b,
+                  const double* __restrict c, double s0, double s1, double s2, int len) {
+  for (int t = 0; t < len; ++t) dst[t] += s0 * a[t] + s1 * b[t] + s2 * c[t];
+}
+
+// Copies the strict lower triangle of a square matrix to its upper one.
+void mirrorLower(Eigen::MatrixXd* A) {
+  const Eigen::Index n = A->rows();
+  for (Eigen::Index c = 1; c < n; ++c)
+    for (Eigen::Index r = 0; r < c; ++r) (*A)(r, c) = (*A)(c, r);
+}
+}  // namespace
+
 void Diagnoser::linearise() {
+  eval_cache_.clear();
   const int C = static_cast<int>(cols_.size());
   std::vector<ParamInfo> sub;
   for (int c : cols_) sub.push_back(layout_[c]);
@@ -242,8 +258,12 @@ void Diagnoser::linearise() {
   Eigen::HouseholderQR<Eigen::MatrixXd> qr(Gs);
   Eigen::MatrixXd Q = qr.householderQ() * Eigen::MatrixXd::Identity(3 * m_, Gs.cols());
   std::vector<bool> keep(static_cast<size_t>(C), true);
+  // a block's columns kept so far, orthonormalised against Q and each other
+  size_t widest_block = 0;
+  for (const Block& b : blocks_) widest_block = std::max(widest_block, b.cols.size());
+  Eigen::MatrixXd E(3 * m_, static_cast<Eigen::Index>(widest_block));
   for (Block& b : blocks_) {
-    Eigen::MatrixXd Qb = Q;
+    Eigen::Index ne = 0;
     std::vector<int> kept;
     if (b.effect == "joint_map") {
       // a map moves the measured point by its joint's lever arm: none worth a map within 10 mm of
@@ -274,7 +294,10 @@ void Diagnoser::linearise() {
         continue;
       }
       Eigen::VectorXd v = Jw.col(c) / norms[c];
-      for (int pass = 0; pass < 2; ++pass) v -= Qb * (Qb.transpose() * v);
+      for (int pass = 0; pass < 2; ++pass) {
+        v -= Q * (Q.transpose() * v);
+        if (ne > 0) v -= E.leftCols(ne) * (E.leftCols(ne).transpose() * v);
+      }
       const double rho = v.norm();
       if (rho < 1e-3) {
         keep[static_cast<size_t>(c)] = false;
@@ -282,8 +305,7 @@ void Diagnoser::linearise() {
             name + " cannot be told from the geometric parameters (relative residual " + fmtg("%.2g", rho) + ")";
         continue;
       }
-      Qb.conservativeResize(Eigen::NoChange, Qb.cols() + 1);
-      Qb.col(Qb.cols() - 1) = v / rho;
+      E.col(ne++) = v / rho;
       kept.push_back(c);
     }
     b.cols = kept;
@@ -292,17 +314,20 @@ void Diagnoser::linearise() {
                 blocks_.end());
   colscale_ = norms.cwiseMax(1e-300);
   JF_ = JF * colscale_.cwiseInverse().asDiagonal();
-  Jw = wF_.asDiagonal() * JF_;
   const Eigen::VectorXd rw = wF_.cwiseProduct(rF_);
-  A_.noalias() = Jw.transpose() * Jw;
   mapPenalty();
-  A_ += penalty_;
   row_nz_.assign(static_cast<size_t>(m_), {});
   for (int i = 0; i < m_; ++i)
     for (Eigen::Index c = 0; c < JF_.cols(); ++c)
       if (!is_map_[static_cast<size_t>(c)] || JF_.middleRows(3 * i, 3).col(c).squaredNorm() > 0)
         row_nz_[static_cast<size_t>(i)].push_back(static_cast<int>(c));
-  b_ = Jw.transpose() * rw;
+  A_ = Eigen::MatrixXd::Zero(JF_.cols(), JF_.cols());
+  b_ = Eigen::VectorXd::Zero(JF_.cols());
+  std::vector<int> all(static_cast<size_t>(m_));
+  std::iota(all.begin(), all.end(), 0);
+  addNormal(all, &A_, &b_);
+  mirrorLower(&A_);
+  A_ += penalty_;
   rr_ = rw.squaredNorm();
   if (has_val_) {
     build(val_, &JV_, &rV_);
@@ -312,30 +337,81 @@ void Diagnoser::linearise() {
 
 // The held-out schemes of the final linearisation (after robust(), which relinearises).
 void Diagnoser::schemes() {
+  eval_cache_.clear();
   if (!has_val_) buildScheme(&interleaved_);
   blockedSchemes();
 }
 
-// Per-fold normal equations of a scheme: the sums over each fold's rows, so that a fold's
-// training system is the whole system minus its own part.
+// A row's non-zero columns come in runs of consecutive columns (the parametric ones, and per
+// joint the few map coefficients near its angle): the products are taken run by run, each
+// column of the lower triangle as three contiguous multiply-adds.
+void Diagnoser::addNormal(const std::vector<int>& poses, Eigen::MatrixXd* A, Eigen::VectorXd* b) const {
+  const Eigen::Index C = JF_.cols();
+  if (std::all_of(poses.begin(), poses.end(), [&](int i) { return static_cast<Eigen::Index>(row_nz_[static_cast<size_t>(i)].size()) == C; })) {
+    // every column of every row (no maps): one symmetric rank update of the weighted rows
+    Eigen::MatrixXd Jw(3 * static_cast<Eigen::Index>(poses.size()), C);
+    Eigen::VectorXd rw(Jw.rows());
+    for (size_t k = 0; k < poses.size(); ++k) {
+      const Eigen::Index r = 3 * static_cast<Eigen::Index>(k), i3 = 3 * static_cast<Eigen::Index>(poses[k]);
+      Jw.middleRows(r, 3) = wF_.segment<3>(i3).asDiagonal() * JF_.middleRows(i3, 3);
+      rw.segment<3>(r) = wF_.segment<3>(i3).cwiseProduct(rF_.segment<3>(i3));
+    }
+    A->selfadjointView<Eigen::Lower>().rankUpdate(Jw.transpose());
+    b->noalias() += Jw.transpose() * rw;
+    return;
+  }
+  struct Run {
+    int col, off, len;  // first column, its place in the row's non-zero list, length
+  };
+  std::vector<Run> runs;
+  Eigen::Matrix<double, Eigen::Dynamic, 3> W(C, 3);  // the row's weighted non-zero columns
+  double* const a0 = A->data();
+  const Eigen::Index lda = A->rows();
+  for (int i : poses) {
+    const std::vector<int>& nz = row_nz_[static_cast<size_t>(i)];
+    const int n = static_cast<int>(nz.size());
+    Eigen::Vector3d ri;
+    for (int k = 0; k < 3; ++k) {
+      const double w = wF_[3 * i + k];
+      ri[k] = w * rF_[3 * i + k];
+      for (int a = 0; a < n; ++a) W(a, k) = w * JF_(3 * i + k, nz[static_cast<size_t>(a)]);
+    }
+    runs.clear();
+    for (int a = 0; a < n; ++a) {
+      if (!runs.empty() && nz[static_cast<size_t>(a)] == runs.back().col + runs.back().len) ++runs.back().len;
+      else runs.push_back({nz[static_cast<size_t>(a)], a, 1});
+    }
+    for (int a = 0; a < n; ++a) (*b)[nz[static_cast<size_t>(a)]] += W(a, 0) * ri[0] + W(a, 1) * ri[1] + W(a, 2) * ri[2];
+    const double* w0 = &W(0, 0);
+    const double* w1 = &W(0, 1);
+    const double* w2 = &W(0, 2);
+    for (size_t ra = 0; ra < runs.size(); ++ra)
+      for (int a = 0; a < runs[ra].len; ++a) {
+        const int ia = runs[ra].off + a;
+        const double s0 = w0[ia], s1 = w1[ia], s2 = w2[ia];
+        double* const col = a0 + static_cast<Eigen::Index>(runs[ra].col + a) * lda;
+        for (size_t rb = ra; rb < runs.size(); ++rb) {
+          const int first = rb == ra ? a : 0;  // the lower triangle only
+          const int ib = runs[rb].off + first;
+          double* const dst = col + runs[rb].col + first;
+          const int len = runs[rb].len - first;
+          axpy3(dst, w0 + ib, w1 + ib, w2 + ib, s0, s1, s2, len);
+        }
+      }
+  }
+}
+
+// Per-fold training systems of a scheme: the whole system minus the sums over the fold's rows.
 void Diagnoser::buildScheme(Scheme* sc) const {
   const Eigen::Index C = JF_.cols();
-  sc->Af.assign(sc->poses.size(), Eigen::MatrixXd::Zero(C, C));
-  sc->bf.assign(sc->poses.size(), Eigen::VectorXd::Zero(C));
-  // per row only its non-zero columns (a map coefficient touches the rows near its knot)
-  Eigen::MatrixXd Ji;
+  sc->At.assign(sc->poses.size(), Eigen::MatrixXd::Zero(C, C));
+  sc->bt.assign(sc->poses.size(), Eigen::VectorXd::Zero(C));
   for (size_t f = 0; f < sc->poses.size(); ++f) {
-    for (int i : sc->poses[f]) {
-      const std::vector<int>& nz = row_nz_[static_cast<size_t>(i)];
-      Ji = wF_.segment(3 * i, 3).asDiagonal() * JF_(Eigen::seqN(3 * i, 3), nz);
-      const Eigen::Vector3d ri = wF_.segment(3 * i, 3).cwiseProduct(rF_.segment(3 * i, 3));
-      const Eigen::MatrixXd JtJ = Ji.transpose() * Ji;
-      const Eigen::VectorXd Jtr = Ji.transpose() * ri;
-      for (size_t a = 0; a < nz.size(); ++a) {
-        sc->bf[f][nz[a]] += Jtr[static_cast<Eigen::Index>(a)];
-        for (size_t c = 0; c < nz.size(); ++c) sc->Af[f](nz[c], nz[a]) += JtJ(static_cast<Eigen::Index>(c), static_cast<Eigen::Index>(a));
-      }
-    }
+    Eigen::MatrixXd& At = sc->At[f];
+    addNormal(sc->poses[f], &At, &sc->bt[f]);
+    mirrorLower(&At);
+    At = A_ - At;
+    sc->bt[f] = b_ - sc->bt[f];
   }
 }
 
@@ -380,6 +456,14 @@ bool solveSpd(const Eigen::MatrixXd& M, const Eigen::VectorXd& v, Eigen::LLT<Eig
 }
 
 Diagnoser::Eval Diagnoser::evaluate(const std::vector<int>& S, bool leverage) const {
+  // the selection, ranking, confounding and shrink steps ask for some column sets again
+  const auto key = std::make_pair(S, leverage);
+  const auto hit = eval_cache_.find(key);
+  if (hit != eval_cache_.end()) return hit->second;
+  return eval_cache_[key] = evaluateUncached(S, leverage);
+}
+
+Diagnoser::Eval Diagnoser::evaluateUncached(const std::vector<int>& S, bool leverage) const {
   Eval ev;
   const Eigen::MatrixXd AS = A_(S, S);  // the normal equations of the blocks in S
   const Eigen::VectorXd bS = b_(S);
@@ -407,19 +491,22 @@ Diagnoser::Eval Diagnoser::evaluate(const std::vector<int>& S, bool leverage) co
 Diagnoser::Eval Diagnoser::cvEval(const std::vector<int>& S, const Scheme& scheme, bool leverage) const {
   Eval ev;
   const Eigen::Index s = static_cast<Eigen::Index>(S.size());
-  const Eigen::MatrixXd AS = A_(S, S);
-  const Eigen::VectorXd bS = b_(S);
   Eigen::LLT<Eigen::MatrixXd> llt;
   Eigen::VectorXd x;
-  const Eigen::MatrixXd JS = JF_(Eigen::all, S);
+  const Eigen::MatrixXd JS = leverage ? Eigen::MatrixXd(JF_(Eigen::all, S)) : Eigen::MatrixXd();
+  Eigen::VectorXd x_all = Eigen::VectorXd::Zero(JF_.cols());  // x on every column (0 outside S)
   ev.d.resize(m_);
   if (leverage) ev.lev.resize(m_);
   for (size_t f = 0; f < scheme.poses.size(); ++f) {
-    Eigen::MatrixXd M = AS;
-    Eigen::VectorXd v = bS;
-    for (Eigen::Index a = 0; a < s; ++a) {
-      v[a] -= scheme.bf[f][S[a]];
-      for (Eigen::Index c = 0; c < s; ++c) M(a, c) -= scheme.Af[f](S[a], S[c]);
+    // the fold's training system on the columns S
+    const Eigen::MatrixXd& At = scheme.At[f];
+    Eigen::MatrixXd M(s, s);
+    Eigen::VectorXd v(s);
+    for (Eigen::Index c = 0; c < s; ++c) {
+      const double* src = At.data() + static_cast<Eigen::Index>(S[c]) * At.rows();
+      double* dst = M.data() + c * s;
+      for (Eigen::Index a = 0; a < s; ++a) dst[a] = src[S[a]];
+      v[c] = scheme.bt[f][S[c]];
     }
     // blocked schemes (not the interleaved folds): a map coefficient the training rows do not fully reach (less
     // than 90% of its weight in the fit data) is zero, as a fitted map is outside the range its
@@ -427,7 +514,7 @@ Diagnoser::Eval Diagnoser::cvEval(const std::vector<int>& S, const Scheme& schem
     std::vector<Eigen::Index> act;
     for (Eigen::Index a = 0; a < s; ++a) {
       const double data = A_(S[a], S[a]) - penalty_(S[a], S[a]);
-      if (!(&scheme != &interleaved_ && is_map_[static_cast<size_t>(S[a])] && data - scheme.Af[f](S[a], S[a]) < 0.9 * data))
+      if (!(&scheme != &interleaved_ && is_map_[static_cast<size_t>(S[a])] && At(S[a], S[a]) - penalty_(S[a], S[a]) < 0.9 * data))
         act.push_back(a);
     }
     if (static_cast<Eigen::Index>(act.size()) == s) {
@@ -438,16 +525,26 @@ Diagnoser::Eval Diagnoser::cvEval(const std::vector<int>& S, const Scheme& schem
       x = Eigen::VectorXd::Zero(s);
       x(act) = xa;
     }
+    x_all(S) = x;
     for (int i : scheme.poses[f]) {
-      const Eigen::MatrixXd Ji = JS.middleRows(3 * i, 3);
+      Eigen::Vector3d e = rF_.segment<3>(3 * i);
+      // the row's prediction over S's columns or its non-zero ones, the fewer
+      const std::vector<int>& nz = row_nz_[static_cast<size_t>(i)];
+      if (nz.size() < S.size()) {
+        for (int c : nz) e -= JF_.col(c).segment<3>(3 * i) * x_all[c];
+      } else {
+        for (Eigen::Index a = 0; a < s; ++a) e -= JF_.col(S[a]).segment<3>(3 * i) * x[a];
+      }
       // robust held-out loss: a down-weighted row counts with its weight squared (about the
       // squared cut-off for a gross outlier)
-      ev.d[i] = (rF_.segment(3 * i, 3) - Ji * x).squaredNorm() * robust_w_[static_cast<size_t>(i)] * robust_w_[static_cast<size_t>(i)];
-      if (leverage)
+      ev.d[i] = e.squaredNorm() * robust_w_[static_cast<size_t>(i)] * robust_w_[static_cast<size_t>(i)];
+      if (leverage) {
+        const Eigen::MatrixXd Ji = JS.middleRows(3 * i, 3);
         ev.lev[i] = llt.matrixL()
                         .solve(static_cast<Eigen::Index>(act.size()) == s ? Eigen::MatrixXd(Ji.transpose())
                                                                            : Eigen::MatrixXd(Ji(Eigen::all, act).transpose()))
                         .squaredNorm();
+      }
     }
   }
   ev.ok = true;
@@ -494,41 +591,75 @@ std::vector<EffectParameter> Diagnoser::parametersOf(const std::vector<int>& S, 
 }
 
 // Gauss-Newton from M0 over the parameters S on the given fit rows.
-RobotModel Diagnoser::gnFit(const std::vector<int>& S, const std::vector<int>& rows) const {
+RobotModel Diagnoser::gnFit(const std::vector<int>& S, const std::vector<int>& rows, RowSystem* at_m0) const {
   RobotModel model = M0_;
   std::vector<ParamInfo> sub;
-  Eigen::VectorXd scale(static_cast<Eigen::Index>(S.size()));
+  Eigen::VectorXd inv_scale(static_cast<Eigen::Index>(S.size()));
   for (size_t k = 0; k < S.size(); ++k) {
     sub.push_back(layout_[cols_[S[k]]]);
-    scale[static_cast<Eigen::Index>(k)] = colscale_[S[k]];
+    inv_scale[static_cast<Eigen::Index>(k)] = 1.0 / colscale_[S[k]];
   }
   const Eigen::Index s = static_cast<Eigen::Index>(S.size());
-  KinematicWorkspace ws;
-  Eigen::MatrixXd J6;
-  Eigen::MatrixXd Jp(3, s);
+  // the rows' Jacobians on the kinematic core prepared once per iteration (station 0: the
+  // diagnosis works in one world)
+  const identify_detail::JacobianPlan plan = identify_detail::makePlan(M0_, sub);
+  identify_detail::Stations st;
+  st.of_row.assign(fit_.rows.size(), 0);
+  identify_detail::RowStack stack(model, plan, st);
+  const std::vector<double> x0(sub.size(), 0.0);  // (no station parameters)
+  const Eigen::Index R = 3 * static_cast<Eigen::Index>(rows.size());
+  Eigen::MatrixXd Jw(R, s);  // weighted, scaled
+  Eigen::VectorXd rw(R);
   const Eigen::MatrixXd P = penalty_(S, S);
+  double last_step = 0;
   for (int it = 0; it < 10; ++it) {
+    // at M0 (the first iteration), the rows' system from at_m0 when it holds it
+    const bool cached = it == 0 && at_m0 && at_m0->Jw.rows() == 3 * m_ && at_m0->Jw.cols() == s;
+    if (!cached) stack.prepare(model);
+    for (size_t k = 0; k < rows.size(); ++k) {
+      const int i = rows[k];
+      const Eigen::Index r0 = 3 * static_cast<Eigen::Index>(k);
+      if (cached) {
+        Jw.middleRows(r0, 3) = at_m0->Jw.middleRows(3 * i, 3);
+        rw.segment(r0, 3) = at_m0->rw.segment(3 * i, 3);
+        continue;
+      }
+      const Measurement& row = fit_.rows[static_cast<size_t>(i)];
+      const Eigen::Isometry3d T = stack.pose(x0, row, static_cast<size_t>(i), true);
+      Jw.middleRows(r0, 3).noalias() = w_fit_[i].asDiagonal() * stack.J().topRows(3) * inv_scale.asDiagonal();
+      rw.segment(r0, 3) = w_fit_[i].cwiseProduct(row.p_world_mm - T.translation());
+    }
+    if (it == 0 && at_m0 && !cached && R == 3 * m_) {
+      // every pose: keep the system at M0 for the other fits of S
+      at_m0->Jw.resize(R, s);
+      at_m0->rw.resize(R);
+      for (size_t k = 0; k < rows.size(); ++k) {
+        at_m0->Jw.middleRows(3 * rows[k], 3) = Jw.middleRows(3 * static_cast<Eigen::Index>(k), 3);
+        at_m0->rw.segment(3 * rows[k], 3) = rw.segment(3 * static_cast<Eigen::Index>(k), 3);
+      }
+    }
     // the maps' penalty on their current (scaled) coefficients; zero for every other parameter
     Eigen::VectorXd xs(s);
-    for (Eigen::Index k = 0; k < s; ++k) xs[k] = getParameter(model.deviations, sub[static_cast<size_t>(k)]) * scale[k];
+    for (Eigen::Index k = 0; k < s; ++k) xs[k] = getParameter(model.deviations, sub[static_cast<size_t>(k)]) / inv_scale[k];
     Eigen::MatrixXd A = P;
+    A.selfadjointView<Eigen::Lower>().rankUpdate(Jw.transpose());
+    mirrorLower(&A);
     Eigen::VectorXd b = -(P * xs);
-    for (int i : rows) {
-      const Measurement& row = fit_.rows[static_cast<size_t>(i)];
-      const Eigen::Isometry3d T = parameterJacobian(model, sub, row.q, row.context, ws, J6);
-      Jp = w_fit_[i].asDiagonal() * J6.topRows(3) * scale.cwiseInverse().asDiagonal();
-      A.noalias() += Jp.transpose() * Jp;
-      b.noalias() += Jp.transpose() * w_fit_[i].cwiseProduct(row.p_world_mm - T.translation());
-    }
+    b.noalias() += Jw.transpose() * rw;
     Eigen::LLT<Eigen::MatrixXd> llt;
     Eigen::VectorXd dx;
     if (!solveSpd(A, b, &llt, &dx)) throw NumericalError("diagnose: the refit's normal matrix is singular");
     for (Eigen::Index k = 0; k < s; ++k)
       setParameter(model.deviations, sub[static_cast<size_t>(k)],
-                   getParameter(model.deviations, sub[static_cast<size_t>(k)]) + dx[k] / scale[k]);
-    // scaled columns have unit weighted norm over all fit data: a step of 1e-9 is far below
-    // one standard deviation of any parameter
-    if (dx.cwiseAbs().maxCoeff() < 1e-9) break;
+                   getParameter(model.deviations, sub[static_cast<size_t>(k)]) + dx[k] * inv_scale[k]);
+    // scaled columns have unit weighted norm over all fit data: 1e-8 is far below one standard
+    // deviation of any parameter. Gauss-Newton with residuals converges linearly: with the
+    // ratio rho of this step to the last (below 1/2), the steps still to come sum to about
+    // step rho / (1 - rho) < 2 step rho; done when that (or the step itself) is below 1e-8.
+    const double step = dx.cwiseAbs().maxCoeff();
+    const double rho = it > 0 ? step / last_step : 1.0;
+    if (step < 1e-9 || (rho < 0.5 && 2.0 * step * rho < 1e-8)) break;
+    last_step = step;
   }
   return model;
 }
@@ -559,7 +690,8 @@ Diagnoser::Exact Diagnoser::exact(const std::vector<int>& S) {
   Exact ex;
   std::vector<int> all(static_cast<size_t>(m_));
   std::iota(all.begin(), all.end(), 0);
-  ex.model_all = gnFit(S, all);
+  RowSystem at_m0;  // every row's system at M0 (the first iteration of every fit of S)
+  ex.model_all = gnFit(S, all, &at_m0);
   for (JointMap& jm : ex.model_all.deviations.joint_map)  // the maps not in S stay zero: none
     if (!jm.empty() && std::all_of(jm.coef.begin(), jm.coef.end(), [](double c) { return c == 0.0; })) jm = JointMap{};
   KinematicWorkspace ws;
@@ -575,7 +707,7 @@ Diagnoser::Exact Diagnoser::exact(const std::vector<int>& S) {
       std::vector<int> train;
       for (int i = 0; i < m_; ++i)
         if (fold_[i] != f) train.push_back(i);
-      const RobotModel mf = gnFit(S, train);
+      const RobotModel mf = gnFit(S, train, &at_m0);
       for (int i : fold_poses_[f]) {
         const Measurement& r = fit_.rows[static_cast<size_t>(i)];
         ex.e[i] = r.p_world_mm - forwardKinematics(mf, r.q, r.context, ws).translation();

@@ -78,8 +78,8 @@ class Diagnoser {
   struct Scheme {
     std::string name;                       // "interleaved", "pose order", "q3 blocks"
     std::vector<std::vector<int>> poses;    // fit rows held out in each fold
-    std::vector<Eigen::MatrixXd> Af;
-    std::vector<Eigen::VectorXd> bf;
+    std::vector<Eigen::MatrixXd> At;        // per fold: the normal equations without its rows
+    std::vector<Eigen::VectorXd> bt;
     /// Schemes over a joint's angle: the folds at either end of the range (held out, the
     /// training data do not reach them: what new data outside the covered range see).
     std::vector<int> end_folds;
@@ -105,9 +105,15 @@ class Diagnoser {
   void columns();
   void linearise();
   void schemes();
+  /// Held-out squared errors of the linearised fit with the columns S (cached until the next
+  /// linearisation or set of schemes).
   Eval evaluate(const std::vector<int>& S, bool leverage = false) const;
+  Eval evaluateUncached(const std::vector<int>& S, bool leverage) const;
   Eval cvEval(const std::vector<int>& S, const Scheme& scheme, bool leverage) const;
   void buildScheme(Scheme* s) const;
+  /// Adds the weighted normal equations of the fit poses `poses` (scaled columns, each row over
+  /// its non-zero columns only) to the lower triangle of *A and to *b; mirrorLower() completes A.
+  void addNormal(const std::vector<int>& poses, Eigen::MatrixXd* A, Eigen::VectorXd* b) const;
   void blockedSchemes();
   /// The checks an addition to the model must pass besides the held-out test: physically
   /// plausible parameters and a gain that survives blocked cross-validation. Fills *why when not.
@@ -124,7 +130,15 @@ class Diagnoser {
   std::vector<std::string> implausible(const std::vector<EffectParameter>& ps) const;
   std::vector<Coverage> coverageOf(const std::string& effect, const std::vector<int>& joints) const;
   Eigen::VectorXd fitAll(const std::vector<int>& S, double* chi2, Eigen::VectorXd* sigma) const;
-  RobotModel gnFit(const std::vector<int>& S, const std::vector<int>& rows) const;
+  /// Weighted rows (3 per pose, scaled columns) and weighted residuals of the fit poses.
+  struct RowSystem {
+    Eigen::MatrixXd Jw;
+    Eigen::VectorXd rw;
+  };
+  /// Gauss-Newton refit of the columns S on the fit poses `rows`, from M0. at_m0: the system of
+  /// every pose at M0 for S, used for the first iteration when it holds it, else filled when
+  /// `rows` are all poses in order.
+  RobotModel gnFit(const std::vector<int>& S, const std::vector<int>& rows, RowSystem* at_m0 = nullptr) const;
   Exact exact(const std::vector<int>& S);
   void floorTest(const Eval& lin, const std::vector<Eigen::Vector3d>& e, const std::vector<bool>& keep,
                  HeldOutStats* s) const;
@@ -152,7 +166,9 @@ class Diagnoser {
   /// The verdict's closing sentence naming the effects rejected as coverage-limited (carriesOver), or "".
   std::string coverageLimitedSentence() const;
   void where();
-  std::vector<Correlation> scan(const std::vector<Eigen::Vector3d>& E) const;
+  /// The structure scan of each residual set in Es (one per pose each): per variable, the
+  /// cross-validated regression of the residual on it (the sets share the factorisations).
+  std::vector<std::vector<Correlation>> scan(const std::vector<const std::vector<Eigen::Vector3d>*>& Es) const;
   void spectra();
   void orientation();
 
@@ -187,6 +203,7 @@ class Diagnoser {
   std::vector<std::vector<int>> row_nz_;  // per fit row: its columns that are not zero (maps are sparse)
   double map_knot_ = 0;               // knot spacing of the diagnosis' maps (deg or mm; 0: none)
   double rr_ = 0;
+  mutable std::map<std::pair<std::vector<int>, bool>, Eval> eval_cache_;  // evaluate()'s answers
   Scheme interleaved_;              // the ordinary cross-validation (fold_poses_)
   std::vector<Scheme> blocked_;     // contiguous blocks of each joint's angle and of the pose order
   // repeats, robust weights, orientation

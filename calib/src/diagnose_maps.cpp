@@ -14,6 +14,7 @@
 
 #include "accura/calib/errors.h"
 #include "accura/calib/identify.h"
+#include "accura/calib/kinematic_core.h"
 #include "accura/calib/kinematics.h"
 
 namespace accura::calib {
@@ -21,18 +22,27 @@ namespace diagnose_detail {
 
 // Where: maps, joint profiles, correlations
 
-std::vector<Correlation> Diagnoser::scan(const std::vector<Eigen::Vector3d>& E) const {
+std::vector<std::vector<Correlation>> Diagnoser::scan(const std::vector<const std::vector<Eigen::Vector3d>*>& Es) const {
+  const std::vector<Eigen::Vector3d>& E = *Es.at(0);
   const MeasurementSet& set = has_val_ ? val_ : fit_;
   const int n = M0_.dof();
   const int N = static_cast<int>(E.size());
   // joint Jacobian (position rows, per rad or mm) of each held-out pose at M0
   std::vector<Eigen::Matrix<double, 3, Eigen::Dynamic>> Jq(static_cast<size_t>(N));
   std::vector<Eigen::VectorXd> tau(static_cast<size_t>(N));
-  KinematicWorkspace ws;
+  // (what calib's jointJacobian and gravityLoads compute, on the core prepared once)
+  const KinematicModel km(M0_);
+  KinematicFrames f, fl;
+  LinkFrames links;
+  Jac6N J;
   for (int i = 0; i < N; ++i) {
     const Measurement& r = set.rows[static_cast<size_t>(i)];
-    Jq[i] = jointJacobian(M0_, r.q, r.context, ws).topRows(3);
-    tau[i] = gravityLoads(M0_, r.q, r.context);
+    if (r.q.size() != n) throw ArgumentError("diagnose scan: expected " + std::to_string(n) + " joint values");
+    km.evaluate(r.q.data(), r.context, f);
+    km.jacobian(f, J);
+    Jq[i] = J.topRows(3);
+    km.evaluate(r.q.data(), r.context, fl, nullptr, &links, true);
+    tau[i] = Eigen::Map<const Eigen::VectorXd>(links.load.data(), n);
   }
   struct Variable {
     std::string name;
@@ -97,19 +107,27 @@ std::vector<Correlation> Diagnoser::scan(const std::vector<Eigen::Vector3d>& E) 
   }
 
   // folds for the regression
-  std::vector<int> fold(static_cast<size_t>(N));
-  for (int i = 0; i < N; ++i) fold[i] = has_val_ ? i % folds_ : fold_[i];
-  Eigen::VectorXd y(3 * N), d0(N);
-  for (int i = 0; i < N; ++i) {
-    y.segment(3 * i, 3) = E[i];
-    d0[i] = E[i].squaredNorm();
+  std::vector<std::vector<int>> fold_rows(static_cast<size_t>(folds_));
+  for (int i = 0; i < N; ++i) fold_rows[static_cast<size_t>(has_val_ ? i % folds_ : fold_[i])].push_back(i);
+  // the residual sets as columns of Y (the regressions share their factorisations)
+  const Eigen::Index K = static_cast<Eigen::Index>(Es.size());
+  Eigen::MatrixXd Y(3 * N, K), D0(N, K);
+  for (Eigen::Index k = 0; k < K; ++k) {
+    if (static_cast<int>(Es[static_cast<size_t>(k)]->size()) != N) throw ArgumentError("diagnose scan: expected one residual per pose");
+    for (int i = 0; i < N; ++i) {
+      Y.block<3, 1>(3 * i, k) = (*Es[static_cast<size_t>(k)])[static_cast<size_t>(i)];
+      D0(i, k) = (*Es[static_cast<size_t>(k)])[static_cast<size_t>(i)].squaredNorm();
+    }
   }
-  const double sst = d0.sum();
-  std::vector<Correlation> out;
+  std::vector<std::vector<Correlation>> out(static_cast<size_t>(K));
+  // the regressors of each variable, in one buffer for all (no large allocation per variable)
+  size_t most_f = 0;
+  for (const Variable& var : vars) most_f = std::max(most_f, var.f.size());
+  Eigen::MatrixXd X_all(3 * N, (n + 3) * static_cast<Eigen::Index>(most_f)), Xf, Yf;
   for (const Variable& var : vars) {
     const int per = n + 3;
     const int p = per * static_cast<int>(var.f.size());
-    Eigen::MatrixXd X(3 * N, p);
+    auto X = X_all.leftCols(p);
     for (int i = 0; i < N; ++i) {
       for (size_t k = 0; k < var.f.size(); ++k) {
         const double fv = var.f[k][i];
@@ -120,51 +138,63 @@ std::vector<Correlation> Diagnoser::scan(const std::vector<Eigen::Vector3d>& E) 
     Eigen::VectorXd sc = X.colwise().norm();
     for (Eigen::Index c = 0; c < p; ++c) sc[c] = sc[c] > 1e-12 ? sc[c] : 1.0;
     X = X * sc.cwiseInverse().asDiagonal();
-    const Eigen::MatrixXd XtX = X.transpose() * X;
-    const Eigen::VectorXd Xty = X.transpose() * y;
+    Eigen::MatrixXd XtX = Eigen::MatrixXd::Zero(p, p);
+    XtX.selfadjointView<Eigen::Lower>().rankUpdate(X.transpose());
+    for (Eigen::Index c = 1; c < p; ++c)
+      for (Eigen::Index r = 0; r < c; ++r) XtX(r, c) = XtX(c, r);
+    const Eigen::MatrixXd XtY = X.transpose() * Y;
     const double ridge = 1e-8;  // relative to unit-norm columns: keeps dependent columns solvable
-    Eigen::VectorXd d1(N);
-    for (int f = 0; f < folds_; ++f) {
-      Eigen::MatrixXd M = XtX;
-      Eigen::VectorXd v = Xty;
-      for (int i = 0; i < N; ++i) {
-        if (fold[i] != f) continue;
-        M.noalias() -= X.middleRows(3 * i, 3).transpose() * X.middleRows(3 * i, 3);
-        v.noalias() -= X.middleRows(3 * i, 3).transpose() * y.segment(3 * i, 3);
+    Eigen::MatrixXd D1(N, K);
+    for (const std::vector<int>& rows : fold_rows) {
+      if (rows.empty()) continue;
+      // the training system: all rows minus the fold's
+      Xf.resize(3 * static_cast<Eigen::Index>(rows.size()), p);
+      Yf.resize(3 * static_cast<Eigen::Index>(rows.size()), K);
+      for (size_t r = 0; r < rows.size(); ++r) {
+        Xf.middleRows(3 * static_cast<Eigen::Index>(r), 3) = X.middleRows(3 * rows[r], 3);
+        Yf.middleRows(3 * static_cast<Eigen::Index>(r), 3) = Y.middleRows(3 * rows[r], 3);
       }
+      Eigen::MatrixXd M = XtX;
+      M.selfadjointView<Eigen::Lower>().rankUpdate(Xf.transpose(), -1.0);
       M.diagonal().array() += ridge;
-      const Eigen::VectorXd c = M.ldlt().solve(v);
-      for (int i = 0; i < N; ++i)
-        if (fold[i] == f) d1[i] = (y.segment(3 * i, 3) - X.middleRows(3 * i, 3) * c).squaredNorm();
+      const Eigen::MatrixXd C = M.selfadjointView<Eigen::Lower>().ldlt().solve(XtY - Xf.transpose() * Yf);
+      const Eigen::MatrixXd Ef = Yf - Xf * C;
+      for (size_t r = 0; r < rows.size(); ++r)
+        for (Eigen::Index k = 0; k < K; ++k) D1(rows[r], k) = Ef.block<3, 1>(3 * static_cast<Eigen::Index>(r), k).squaredNorm();
     }
-    Correlation co;
-    co.variable = var.name;
-    co.r2_after = sst > 0 ? 1.0 - d1.sum() / sst : 0.0;
-    co.p_after = pairedGain(d0, d1).p;
     // via: which joint's columns carry the fit on all poses
     Eigen::MatrixXd M = XtX;
     M.diagonal().array() += ridge;
-    const Eigen::VectorXd c = M.ldlt().solve(Xty);
-    double best = -1;
-    for (int j = 0; j <= n; ++j) {
-      Eigen::VectorXd part = Eigen::VectorXd::Zero(3 * N);
-      for (size_t k = 0; k < var.f.size(); ++k) {
-        const Eigen::Index off = static_cast<Eigen::Index>(k) * per;
-        if (j < n) part += X.col(off + j) * c[off + j];
-        else part += X.middleCols(off + n, 3) * c.segment(off + n, 3);
+    const Eigen::MatrixXd Call = M.ldlt().solve(XtY);
+    for (Eigen::Index k = 0; k < K; ++k) {
+      const std::vector<Eigen::Vector3d>& Ek = *Es[static_cast<size_t>(k)];
+      const double sst = D0.col(k).sum();
+      Correlation co;
+      co.variable = var.name;
+      co.r2_after = sst > 0 ? 1.0 - D1.col(k).sum() / sst : 0.0;
+      co.p_after = pairedGain(D0.col(k), D1.col(k)).p;
+      const Eigen::VectorXd c = Call.col(k);
+      double best = -1;
+      for (int j = 0; j <= n; ++j) {
+        Eigen::VectorXd part = Eigen::VectorXd::Zero(3 * N);
+        for (size_t f = 0; f < var.f.size(); ++f) {
+          const Eigen::Index off = static_cast<Eigen::Index>(f) * per;
+          if (j < n) part += X.col(off + j) * c[off + j];
+          else part += X.middleCols(off + n, 3) * c.segment(off + n, 3);
+        }
+        if (part.squaredNorm() > best) {
+          best = part.squaredNorm();
+          co.via_joint_after = j < n ? j + 1 : 0;
+        }
       }
-      if (part.squaredNorm() > best) {
-        best = part.squaredNorm();
-        co.via_joint_after = j < n ? j + 1 : 0;
-      }
+      // Pearson correlation of |e| with the raw variable
+      Eigen::VectorXd mag(N);
+      for (int i = 0; i < N; ++i) mag[i] = Ek[static_cast<size_t>(i)].norm();
+      const Eigen::VectorXd a = mag.array() - mag.mean(), b = var.raw.array() - var.raw.mean();
+      const double den = a.norm() * b.norm();
+      co.pearson_before = den > 0 ? a.dot(b) / den : 0.0;
+      out[static_cast<size_t>(k)].push_back(co);
     }
-    // Pearson correlation of |e| with the raw variable
-    Eigen::VectorXd mag(N);
-    for (int i = 0; i < N; ++i) mag[i] = E[i].norm();
-    const Eigen::VectorXd a = mag.array() - mag.mean(), b = var.raw.array() - var.raw.mean();
-    const double den = a.norm() * b.norm();
-    co.pearson_before = den > 0 ? a.dot(b) / den : 0.0;
-    out.push_back(co);
   }
   return out;
 }
