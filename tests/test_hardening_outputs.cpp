@@ -153,7 +153,7 @@ TEST(HardeningOutputs, APointNameCannotCarryAStatement) {
       test::runAccuraIn(c.dir(), "convert --in cell_program.xml --config '$config.dat' --out out/p.src");
   EXPECT_EQ(r.code, 1) << r.out;
   EXPECT_NE(r.err.find("attribute 'name': expected a point name (a letter, '_' or '$', then letters, digits, '_' or "
-                       "'$'; at most 64 characters), found 'XPARK\\n$OUT[1]=TRUE'"),
+                       "'$'; at most 64 characters), found 'XPARK\\x0A$OUT[1]=TRUE'"),
             std::string::npos)
       << r.err;
   EXPECT_FALSE(c.exists("out/p.src"));

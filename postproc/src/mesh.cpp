@@ -25,6 +25,7 @@
 #include <string_view>
 
 #include "accura/calib/errors.h"
+#include "accura/calib/text.h"
 #include "accura/postproc/cell.h"
 #include "decimal.h"
 
@@ -32,19 +33,7 @@ namespace accura::postproc {
 namespace {
 
 std::string quoted(std::string_view s) {
-  std::string out = "'";
-  for (const char c : s.substr(0, 40)) {
-    const auto u = static_cast<unsigned char>(c);
-    if (u >= 0x20 && u < 0x7f) {
-      out += c;
-    } else {
-      static const char* hex = "0123456789abcdef";
-      out += "\\x";
-      out += hex[u >> 4];
-      out += hex[u & 15];
-    }
-  }
-  return out + (s.size() > 40 ? "...'" : "'");
+  return "'" + calib::printableBytes(std::string(s.substr(0, 40))) + (s.size() > 40 ? "...'" : "'");
 }
 
 /// A whitespace-separated word of a text file and where it starts (1-based line and column).

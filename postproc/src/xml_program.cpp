@@ -70,18 +70,9 @@ class Reader {
   std::string pointName(const XMLElement* e, const std::string& name) const {
     bool ok = !name.empty() && name.size() <= 64 && !std::isdigit(static_cast<unsigned char>(name[0]));
     for (char c : name) ok = ok && (std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '$');
-    if (!ok) {
-      std::string shown;
-      for (char c : name) {
-        if (c == '\n') shown += "\\n";
-        else if (c == '\r') shown += "\\r";
-        else if (c == '\t') shown += "\\t";
-        else if (static_cast<unsigned char>(c) < 0x20) shown += "\\x" + std::string(1, "0123456789abcdef"[(c >> 4) & 15]) + "0123456789abcdef"[c & 15];
-        else shown += c;
-      }
+    if (!ok)
       fail(e, "<" + std::string(e->Name()) + "> attribute 'name': expected a point name (a letter, '_' or '$', then "
-              "letters, digits, '_' or '$'; at most 64 characters), found '" + shown + "'");
-    }
+              "letters, digits, '_' or '$'; at most 64 characters), found '" + calib::printableBytes(name) + "'");
     return name;
   }
 
