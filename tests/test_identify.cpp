@@ -252,6 +252,31 @@ TEST(Identify, Kr16GeometricReachesTheNoiseFloorAndTheTruth) {
   expectWithin3Sigma(s, truthInIdentifiedSet(c.nominal, c.truth, sim, opt, s));
 }
 
+TEST(Identify, MeasurementsInOtherUnitsAreRefusedNotFitted) {
+  // positions in metres or joint angles in radians: the closed-form registration cannot bring
+  // them near the model; identify says so instead of writing a model shrunk a thousandfold
+  const SimulateOptions sim = kr16Campaign();
+  Campaign c = makeCampaign("kuka_kr16", sim, 200, 10);
+  c.nominal.nominal.T_flange_tcp = toIsometry(sim.tool);
+  const IdentifyOptions opt;
+  IdentifySummary good;
+  identify(c.nominal, c.fit, opt, &good);
+  EXPECT_LT(good.registration_rms_mm, 5.0);  // the same data in mm and deg: registered within a few mm
+  auto refused = [&](const MeasurementSet& m) -> std::string {
+    try {
+      identify(c.nominal, m, opt, nullptr);
+    } catch (const InputError& e) {
+      return e.what();
+    }
+    return "";
+  };
+  MeasurementSet metres = c.fit, radians = c.fit;
+  for (Measurement& r : metres.rows) r.p_world_mm *= 1e-3;
+  for (Measurement& r : radians.rows) r.q *= kDegToRad;
+  EXPECT_NE(refused(metres).find("expected measurements of KUKA KR 16 in mm and deg"), std::string::npos) << refused(metres);
+  EXPECT_NE(refused(radians).find("check the units (positions in mm, joint angles in deg)"), std::string::npos) << refused(radians);
+}
+
 TEST(Identify, Kr16WithComplianceAndSeveralPayloads) {
   SimulateOptions sim = kr16Campaign();
   sim.seed = 33;

@@ -289,6 +289,58 @@ TEST(Krl, APartialAggregateIsCompletedWhenCorrected) {
   EXPECT_EQ(out.src, expected);
 }
 
+TEST(Krl, TheStartIsUnknownAfterACallABranchOrALoopAndInASubroutine) {
+  // the position before a motion is the previous motion's target only when nothing between them
+  // can move the robot elsewhere
+  const std::string dir = test::tempDir("krl_flow");
+  test::writeText(dir + "/p.src",
+                  "DEF p( )\nDECL INT I\n$TOOL={X 0,Y 0,Z 100,A 0,B 0,C 0}\n$BASE=$NULLFRAME\n"
+                  "LIN XP1\n"                                          // 0: the program's start
+                  "seam()\nLIN XP2\n"                                 // 1: after a call
+                  "LIN XP1\n"                                          // 2
+                  "IF $IN[1] THEN\n  LIN XP2\nELSE\n  LIN XP1\nENDIF\n"  // 3, 4: the other branch
+                  "LIN XP2\n"                                          // 5: after the branches
+                  "IF $IN[2] THEN\n  $OUT[2]=TRUE\nENDIF\n"
+                  "PULSE($OUT[3],TRUE,0.5)\nLIN XP1\n"                // 6: no motion in the branch, no call
+                  "FOR I=1 TO 3\n  LIN XP2\nENDFOR\n"                // 7: a loop's first motion
+                  "LIN XP1\n"                                          // 8: after the loop
+                  "END\n\nDEF seam( )\nLIN XP2\nEND\n");            // 9: a subroutine's first motion
+  test::writeText(dir + "/p.dat", "DEFDAT p\nDECL E6POS XP1={X 1000,Y 0,Z 800,A 0,B 90,C 0}\nDECL E6POS XP2={X 1000,Y 100,Z 800,A 0,B 90,C 0}\nENDDAT\n");
+  const Program p = readKrl(dir + "/p.src");
+  ASSERT_EQ(p.motions.size(), 10u);
+  const std::vector<bool> expected = {false, true, false, false, true, true, false, true, true, true};
+  for (size_t k = 0; k < expected.size(); ++k) EXPECT_EQ(p.motions[k].start_unknown, expected[k]) << "motion " << k;
+}
+
+TEST(Krl, AFileCutShortIsAnErrorNotAShorterProgram) {
+  const std::string dat = "DEFDAT p\nDECL E6POS XP1={X 1000,Y 0,Z 800,A 0,B 90,C 0}\nENDDAT\n";
+  EXPECT_NE(std::string(readError("DEF p( )\nPTP XP1\nLIN XP1\n", dat).what())
+                .find("expected END closing the DEF at line 1, found the end of the file"),
+            std::string::npos);
+  EXPECT_NE(std::string(readError("DEF p( )\nLIN XP1\nEND\n", "DEFDAT p\nDECL E6POS XP1={X 1000,Y 0,Z 800,A 0,B 90,C 0}\n").what())
+                .find("p.dat:2:"),
+            std::string::npos);
+  EXPECT_NE(std::string(readError("DEF p( )\nLIN XP1\nEND\n", "DEFDAT p\nDECL E6POS XP1={X 1000,Y 0,Z 800,A 0,B 90,C 0}\n").what())
+                .find("expected ENDDAT closing the data list, found the end of the file"),
+            std::string::npos);
+  // an empty data file (written, not missing)
+  const std::string dir = test::tempDir("krl_empty_dat");
+  test::writeText(dir + "/p.src", "DEF p( )\nLIN XP1\nEND\n");
+  test::writeText(dir + "/p.dat", "");
+  try {
+    readKrl(dir + "/p.src");
+    ADD_FAILURE() << "an empty .dat was read";
+  } catch (const calib::InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("p.dat:1:1: expected a data list (DEFDAT name ... ENDDAT), found the end of the file"),
+              std::string::npos)
+        << e.what();
+  }
+  // an absurd value is bad input, as in RAPID and URScript
+  EXPECT_NE(std::string(readError("DEF p( )\nLIN XP1\nEND\n", "DEFDAT p\nDECL E6POS XP1={X 1E30,Y 0,Z 800,A 0,B 90,C 0}\nENDDAT\n").what())
+                .find("expected X within +-100000 (mm or deg), found '1E30'"),
+            std::string::npos);
+}
+
 TEST(Krl, OnePointWithTwoDifferentCorrectionsIsAnError) {
   const std::string dir = test::tempDir("krl_twice");
   test::writeText(dir + "/p.src", "DEF p( )\n$TOOL={X 0,Y 0,Z 100,A 0,B 0,C 0}\n$BASE=$NULLFRAME\nLIN XP1\nLIN XP2\nLIN XP1\nEND\n");

@@ -272,6 +272,31 @@ TEST(KrlRules, ATargetThatMovesAnExternalAxisIsRefusedNamingIt) {
 // ---------------------------------------------------------------------------------------------
 // Targets known only at run time
 
+// A CIRC with CA (circular angle) ends elsewhere than its written target: the controller runs
+// it, so it is kept as written and named, not refused; the motion after it starts afresh.
+TEST(KrlRules, ACircWithACircularAngleIsKeptAndNamed) {
+  const std::string dir = test::tempDir("krl_circ_ca");
+  test::writeText(dir + "/p.src",
+                  "DEF p( )\n$TOOL={X 0,Y 0,Z 100,A 0,B 0,C 0}\n$BASE=$NULLFRAME\nPTP XP1\nCIRC XP2, XP3, CA 90.0\nLIN XP1\nEND\n");
+  test::writeText(dir + "/p.dat",
+                  "DEFDAT p\nDECL E6POS XP1={X 1000,Y 0,Z 800,A 0,B 90,C 0}\nDECL E6POS XP2={X 1050,Y 50,Z 800,A 0,B 90,C 0}\n"
+                  "DECL E6POS XP3={X 1000,Y 100,Z 800,A 0,B 90,C 0}\nENDDAT\n");
+  JobSettings s;
+  s.calibrated = test::loadBundled("kuka_kr16");
+  s.calibrated.deviations.base_mm = Eigen::Vector3d(0.2, -0.1, 0.3);
+  const ProgramCompensation pc = compensateProgramReport(readKrl(dir + "/p.src"), s);
+  ASSERT_TRUE(pc.ok()) << pc.report.errors.front().where.str() << ": " << pc.report.errors.front().message;
+  EXPECT_EQ(pc.report.motions_left_unchanged, 1);
+  bool named = false;
+  for (const ProgramIssue& w : pc.report.warnings)
+    named = named || (w.where.line == 5 && w.message.find("CIRC left unchanged (not compensated): a CIRC with CA 90") != std::string::npos);
+  EXPECT_TRUE(named);
+  const KrlText out = writeKrl(pc.program);
+  EXPECT_NE(out.src.find("\nCIRC XP2, XP3, CA 90.0\n"), std::string::npos) << out.src;
+  EXPECT_NE(out.dat.find("DECL E6POS XP2={X 1050,Y 50,Z 800,A 0,B 90,C 0}"), std::string::npos) << out.dat;
+  EXPECT_EQ(out.dat.find("DECL E6POS XP1={X 1000,Y 0,Z 800,A 0,B 90,C 0}"), std::string::npos) << out.dat;  // corrected
+}
+
 // A LIN_REL in an IF, then a partial LIN (its other components are wherever the robot is), and
 // a point the program changes: the controller runs this program, so it is not refused. Those
 // motions keep their text and are named in warnings; every other target is compensated.

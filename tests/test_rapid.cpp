@@ -135,6 +135,29 @@ TEST(Rapid, QuaternionsOffsAndRelToolAgainstTheirDefinitions) {
   EXPECT_FALSE(p.motions[1].start_unknown);
 }
 
+TEST(Rapid, TheStartIsUnknownAfterACallOrABranchAndInARoutine) {
+  const std::string text =
+      "MODULE m\n"
+      "  CONST robtarget a := [[300,0,400],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
+      "  CONST robtarget b := [[300,100,400],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
+      "  PROC main()\n"
+      "    MoveL a, v100, fine, tool0;\n"                 // 0: a routine's first motion
+      "    Weld;\n    MoveL b, v100, fine, tool0;\n"     // 1: after a call of a routine
+      "    MoveL a, v100, fine, tool0;\n"                 // 2
+      "    IF di1 = 1 THEN\n      MoveL b, v100, fine, tool0;\n    ELSE\n      MoveL a, v100, fine, tool0;\n    ENDIF\n"  // 3, 4
+      "    MoveL b, v100, fine, tool0;\n"                 // 5: after the branches
+      "    WaitTime 1;\n    MoveL a, v100, fine, tool0;\n"  // 6: an instruction that does not move the robot
+      "  ENDPROC\n"
+      "  PROC Weld()\n"
+      "    MoveL b, v100, fine, tool0;\n"                 // 7: a routine's first motion
+      "  ENDPROC\n"
+      "ENDMODULE\n";
+  const Program p = parseRapid(text, "flow.mod");
+  ASSERT_EQ(p.motions.size(), 8u);
+  const std::vector<bool> expected = {true, true, false, false, true, true, false, true};
+  for (size_t k = 0; k < expected.size(); ++k) EXPECT_EQ(p.motions[k].start_unknown, expected[k]) << "motion " << k;
+}
+
 TEST(Rapid, UntouchedModulesAreWrittenBackByteForByte) {
   std::string crlf;
   for (char c : example()) {

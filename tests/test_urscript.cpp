@@ -56,6 +56,32 @@ RobotModel ur10WithTorch() {
   return m;
 }
 
+TEST(UrScript, TheStartIsUnknownAfterACallABranchOrALoopAndInAFunction) {
+  const std::string a = "p[0.5,0.1,0.4,0,3.14,0]", b = "p[0.5,0.2,0.4,0,3.14,0]";
+  const std::string text = "def prog():\n"
+                           "  def dip():\n    movel(" + a + ")\n  end\n"   // 0: a function's first motion
+                           "  movel(" + a + ")\n"                            // 1: after the function's text
+                           "  dip()\n  movel(" + b + ")\n"                 // 2: after a call
+                           "  movel(" + a + ")\n"                            // 3
+                           "  if x:\n    movel(" + b + ")\n  else:\n    movel(" + a + ")\n  end\n"  // 4, 5: the other branch
+                           "  movel(" + b + ")\n"                            // 6: after the branches
+                           "  set_digital_out(1, True)\n  movel(" + a + ")\n"  // 7: a built-in does not move the robot
+                           "  while y:\n    movel(" + b + ")\n  end\n"     // 8: a loop's first motion
+                           "end\n";
+  const Program p = parseUrScript(text, "flow.script");
+  ASSERT_EQ(p.motions.size(), 9u);
+  const std::vector<bool> expected = {true, true, true, false, false, true, true, false, true};
+  for (size_t k = 0; k < expected.size(); ++k) EXPECT_EQ(p.motions[k].start_unknown, expected[k]) << "motion " << k;
+  // a script cut short
+  try {
+    parseUrScript("def prog():\n  movel(" + a + ")\n", "cut.script");
+    ADD_FAILURE() << "a def without end was read";
+  } catch (const calib::InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("expected end closing the block at cut.script:1:1, found the end of the file"), std::string::npos)
+        << e.what();
+  }
+}
+
 TEST(UrScript, ReadsTheMotionModelInMetresAndRotationVectors) {
   const Program p = parseUrScript(example(), "ur10_seam.script");
   EXPECT_EQ(p.name, "ur10_seam");

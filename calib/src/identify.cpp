@@ -17,6 +17,7 @@
 #include "accura/calib/errors.h"
 #include "accura/calib/joint_map.h"
 #include "accura/calib/kinematics.h"
+#include "accura/calib/text.h"
 #include "identify_internal.h"
 
 namespace accura::calib {
@@ -371,9 +372,28 @@ void registration(Problem& pb, const std::vector<MeasurementSet>& sets, const Id
         x[o + 3 + k] = w[k];
       }
     }
+    const MeasurementSet in0 = inStationZero(data, st, x);
     double s2 = 0;
-    for (double e : positionErrors(model, inStationZero(data, st, x))) s2 += e * e;
+    for (double e : positionErrors(model, in0)) s2 += e * e;
     summary.registration_rms_mm = std::sqrt(s2 / double(data.rows.size()));
+    if (options.register_frame && groups.count("base") && sets.size() == 1) {
+      // measurements of another robot, or in other units (positions in metres, joint angles in
+      // radians): no rigid frame brings them within half their own spread of the model's (one
+      // data set: several told to share a station that do not fit one another have their own
+      // test, JointMap.SeveralDataSetsEachFromItsOwnStation)
+      Eigen::Vector3d c = Eigen::Vector3d::Zero();
+      for (const Measurement& r : in0.rows) c += r.p_world_mm;
+      c /= double(in0.rows.size());
+      double spread2 = 0;
+      for (const Measurement& r : in0.rows) spread2 += (r.p_world_mm - c).squaredNorm();
+      const double spread = std::sqrt(spread2 / double(in0.rows.size()));
+      if (summary.registration_rms_mm > 10.0 && summary.registration_rms_mm > 0.5 * spread)
+        throw InputError(sets[0].file, 0, 0,
+                         "expected measurements of " + model.nominal.name + " in mm and deg: after the measurement frame is registered, the " +
+                             "measured positions lie " + formatFixed(summary.registration_rms_mm, 1) + " mm RMS from the model's, more than " +
+                             "half their own spread (" + formatFixed(spread, 1) + " mm RMS about their centre); check the units (positions " +
+                             "in mm, joint angles in deg), the joint order and the robot file");
+    }
   }
 }
 

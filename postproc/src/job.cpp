@@ -297,6 +297,12 @@ class Job {
       return keep(out, m);
     }
     if (m.target.kind == Target::Kind::kAxis) return axisMotion(m, out);
+    if (m.circ_angle_deg) {
+      // the controller runs it (the arc through the written points, turned by the angle): its
+      // end is not the written target, which accura does not model
+      leftUnchanged(m, "a CIRC with CA " + formatDeg(*m.circ_angle_deg) + " (circular angle) ends elsewhere than its written target");
+      return keep(out, m);
+    }
     const std::optional<Cartesian> c = cartesian(m);
     if (!c) return keep(out, m);
     const bool path = m.type == MotionType::kLin || m.type == MotionType::kCirc;
@@ -348,8 +354,6 @@ class Job {
     if (m.base.source == FrameSetting::Source::kUnset && s_.initial_base) base = s_.initial_base;
     const size_t errors = r_.errors.size();
     if (m.external_tcp) error(m.where, "expected a robot-guided tool, found IPO_FRAME #TCP (external TCP): not supported");
-    if (m.circ_angle_deg)
-      error(m.where, "expected a CIRC without CA (circular angle), found CA " + formatDeg(*m.circ_angle_deg) + ": not supported");
     if (!tool) error(m.where, "the tool of this motion is not known: " + frameHint(m.tool, "$TOOL"));
     if (!base) error(m.where, "the base of this motion is not known: " + frameHint(m.base, "$BASE"));
     if (r_.errors.size() != errors) return std::nullopt;

@@ -11,11 +11,17 @@
 #include <sstream>
 
 #include "accura/calib/errors.h"
+#include "accura/calib/text.h"
 #include "krl_internal.h"
 
 namespace fs = std::filesystem;
 
 namespace accura::postproc::krl_detail {
+
+namespace {
+/// Largest position (mm) or angle (deg) of a target component.
+constexpr double kMaxTargetValue = 1e5;
+}  // namespace
 
 bool isPointType(const std::string& up) {
   return up == "E6POS" || up == "POS" || up == "FRAME" || up == "E6AXIS" || up == "AXIS";
@@ -89,6 +95,11 @@ Target toTarget(const Agg& a, const std::string& declared, const KrlFile& f, Krl
     if (!numeric)
       f.fail(it.vbegin, "expected a number for " + it.name_tok.text + ", found '" + it.text + "'");
     if (!std::isfinite(it.num)) f.fail(it.vbegin, "expected a finite number for " + it.name_tok.text + ", found '" + it.text + "'");
+    // a position or an angle beyond 100 m or 100000 deg is no robot's (RAPID's and URScript's
+    // readers have the same bound)
+    if (!st && !(std::fabs(it.num) <= kMaxTargetValue))
+      f.fail(it.vbegin, "expected " + it.name_tok.text + " within +-" + calib::formatFixed(kMaxTargetValue, 0) +
+                            " (mm or deg), found '" + it.text + "'");
     if (st) {
       if (!it.is_integer_literal || it.num < 0 || it.num > 1e6)
         f.fail(it.vbegin, "expected a non-negative integer for " + it.name_tok.text + ", found '" + it.text + "'");
@@ -308,12 +319,24 @@ bool parseTableAssignment(Cursor& c, Declarations& d) {
 }
 
 void parseDataFile(const KrlFile& f, Declarations& d, KrlSource* src, bool global) {
+  // DEFDAT name [PUBLIC] ... ENDDAT: a file cut short (or empty) is an error, not fewer points
+  bool defdat = false, enddat = false;
   for (const Line& l : f.lines()) {
     const std::vector<Tok> toks = lex(f, l.begin, l.code_end);
     if (toks.empty()) continue;
     if (toks[0].text == "&") continue;
     Cursor c(f, toks, l.code_end);
     const std::string& first = toks[0].up;
+    if (enddat) f.fail(toks[0].begin, "expected nothing after ENDDAT, found " + describe(&toks[0]));
+    if (first == "DEFDAT" && !defdat) {
+      defdat = true;
+      continue;
+    }
+    if (!defdat) f.fail(toks[0].begin, "expected the data list to start with DEFDAT name, found " + describe(&toks[0]));
+    if (first == "ENDDAT" && toks.size() == 1) {
+      enddat = true;
+      continue;
+    }
     if (first == "DECL" || ((isPointType(first) || first == "FDAT" || first == "LDAT" || first == "PDAT") &&
                             toks.size() > 1 && toks[1].kind == Tok::kIdent)) {
       parseDeclaration(c, d, src, global);
@@ -321,6 +344,8 @@ void parseDataFile(const KrlFile& f, Declarations& d, KrlSource* src, bool globa
       parseTableAssignment(c, d);
     }
   }
+  if (!defdat) f.fail(f.text().size(), "expected a data list (DEFDAT name ... ENDDAT), found the end of the file");
+  if (!enddat) f.fail(f.text().size(), "expected ENDDAT closing the data list, found the end of the file");
 }
 
 

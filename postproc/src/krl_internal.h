@@ -70,7 +70,11 @@ class KrlFile {
     }
     SourceLocation s;
     s.file = path_;
-    if (lines_.empty()) return s;
+    if (lines_.empty()) {  // an empty file: its start
+      s.line = 1;
+      s.column = 1;
+      return s;
+    }
     s.line = lines_[lo].number;
     s.column = static_cast<int>(offset - lines_[lo].begin) + 1;
     return s;

@@ -69,6 +69,44 @@ struct Reader {
   int triggers = 0;
   bool missing_dat_ = false;  // resolveTarget met a named point and no .dat (Motion::target_file_missing)
   bool main_started = false, main_ended = false;  // the main program's DEF / END seen
+  // The position before the next motion is not the previous motion's target in the text: after
+  // a call (the subroutine may move the robot), at a local subroutine's first motion (called
+  // from anywhere), after a branch or a loop boundary with motions around it (the robot may
+  // arrive from more than one place). Motion::start_unknown.
+  bool next_start_unknown_ = false;
+  bool motion_since_flow_ = false;
+  bool def_open_ = false;  // a DEF (main or local) not closed by its END yet
+  int def_line_ = 0;  // a motion read since the last branch or loop statement
+
+  // A statement that branches or loops (KRL control flow), and what it means for the position
+  // before the next motion.
+  void controlFlow(const std::vector<Tok>& t) {
+    const std::string& k = t[0].up;
+    const bool label = t.size() == 2 && t[0].kind == Tok::kIdent && t[1].text == ":";
+    if (k == "IF" || k == "SWITCH") {
+      motion_since_flow_ = false;  // the first branch starts where the robot is
+    } else if (k == "ELSE" || k == "CASE" || k == "DEFAULT" || k == "ENDIF" || k == "ENDSWITCH" || k == "ENDFOR" ||
+               k == "ENDWHILE" || k == "ENDLOOP" || k == "UNTIL") {
+      // another branch (from before the IF), or after the block (from any branch's end, or
+      // from before it): unknown when the branch just closed moved the robot
+      if (motion_since_flow_) next_start_unknown_ = true;
+      motion_since_flow_ = false;
+    } else if (k == "FOR" || k == "WHILE" || k == "LOOP" || k == "REPEAT" || k == "GOTO" || label) {
+      // a loop's first motion comes from before the loop or from the end of the last pass
+      next_start_unknown_ = true;
+      motion_since_flow_ = false;
+    }
+  }
+
+  // A statement `name(...)`: a call of a subroutine or function that may move the robot (BAS
+  // is handled by itself; these built-ins do not move it).
+  static bool isCall(const std::vector<Tok>& t) {
+    if (t.size() < 3 || t[0].kind != Tok::kIdent || t[1].text != "(" || t.back().text != ")") return false;
+    static const std::set<std::string> kNotMoving = {"IF", "WHILE", "UNTIL", "SWITCH", "CASE", "RETURN", "FOR", "WAIT",
+                                                     "PULSE", "ANOUT", "ANIN", "ON", "INTERRUPT", "TRIGGER", "HALT",
+                                                     "CONTINUE", "BRAKE", "RESUME", "EXIT", "ELSE", "DEFAULT"};
+    return !kNotMoving.count(t[0].up);
+  }
   std::string refuse;  // why the line just read cannot be converted ("" when it can)
 
   FrameSetting dataFrame(bool is_tool, int n, size_t at) const {
@@ -543,6 +581,9 @@ struct Reader {
     }
     m.trigger_count = triggers;
     triggers = 0;
+    m.start_unknown = next_start_unknown_;
+    next_start_unknown_ = false;
+    motion_since_flow_ = true;
     m.statement_id = static_cast<int>(src->statements.size());
     src->statements.push_back(std::move(st));
     program->motions.push_back(std::move(m));
@@ -577,14 +618,22 @@ struct Reader {
     if (t[0].text == "&") return true;
     const std::string& k = t[0].up;
     if (k == "DEF" || (k == "GLOBAL" && t.size() > 1 && t[1].up == "DEF")) {
+      if (def_open_) f->fail(t[0].begin, "expected END closing the DEF at line " + std::to_string(def_line_) + ", found another DEF");
+      def_open_ = true;
+      def_line_ = f->loc(t[0].begin).line;
       if (program->name.empty()) {
         const size_t i = k == "DEF" ? 1 : 2;
         if (i < t.size() && t[i].kind == Tok::kIdent) program->name = t[i].text;
       }
-      if (main_started) return false;  // a local subroutine
+      if (main_started) {  // a local subroutine: called from anywhere
+        next_start_unknown_ = true;
+        motion_since_flow_ = false;
+        return false;
+      }
       main_started = true;
       return true;
     }
+    if (k == "END" && t.size() == 1) def_open_ = false;
     if (k == "END" && t.size() == 1 && main_started && !main_ended) {
       main_ended = true;
       return true;
@@ -605,6 +654,8 @@ struct Reader {
       return !main_ended;
     }
     if (k == "BAS" && t.size() > 1 && t[1].text == "(") return handleBas(t);
+    controlFlow(t);
+    if (isCall(t)) next_start_unknown_ = true;
     {
       Cursor c(*f, t, l.code_end);
       if (parseTableAssignment(c, decl)) return false;
@@ -702,6 +753,8 @@ Program readKrl(const std::string& src_path, const KrlReadOptions& options) {
   const KrlFile src(src_path, source->src_text, 0);
   r.f = &src;
   for (const Line& l : src.lines()) r.handleLine(l);
+  if (r.def_open_)
+    src.fail(src.text().size(), "expected END closing the DEF at line " + std::to_string(r.def_line_) + ", found the end of the file");
   if (!source->dat_path.empty()) datPassThrough(KrlFile(source->dat_path, source->dat_text, 1), program);
   if (program.name.empty()) {
     bool any = false;

@@ -7,6 +7,7 @@
 #include <fstream>
 #include <map>
 #include <optional>
+#include <set>
 
 #include "accura/calib/errors.h"
 #include "decimal.h"
@@ -99,6 +100,9 @@ class Reader {
 
   Program run() {
     lex();
+    // the script's functions (a call may come before the def)
+    for (size_t k = 0; k + 1 < toks_.size(); ++k)
+      if (toks_[k].kind == Tok::Kind::kIdent && toks_[k].s == "def" && toks_[k + 1].kind == Tok::Kind::kIdent) defs_.insert(toks_[k + 1].s);
     Program p;
     p.source_file = src_->path;
     p.name = fs::path(src_->path).stem().string();
@@ -139,6 +143,8 @@ class Reader {
       statement(st, p);
       i = j;
     }
+    if (!block_at_.empty())
+      fail(src_->text.size(), "expected end closing the block at " + loc(block_at_.back()).str() + ", found the end of the file");
     if (!main_name_.empty()) p.name = main_name_;
     p.urscript = src_;
     return p;
@@ -397,17 +403,37 @@ class Reader {
   void statement(const std::vector<Tok>& t, Program& p) {
     // blocks: the first def at depth 0 is the program; its def and end are part of the model
     if (isIdent(t, 0, "def") || isIdent(t, 0, "thread") || isIdent(t, 0, "if") || isIdent(t, 0, "while")) {
+      char kind = 'd';
       if (isIdent(t, 0, "def") && block_depth_ == 0 && main_name_.empty() && isIdent(t, 1)) {
         main_name_ = t[1].s;
         main_open_ = true;
+        kind = 'm';
       } else {
         other(t);
+        if (isIdent(t, 0, "if")) kind = 'i';
+        if (isIdent(t, 0, "while")) kind = 'w';
       }
+      // the position before the next motion: a function's first motion comes from its caller,
+      // a loop's from before the loop or from the end of the last pass; an if's first branch
+      // starts where the robot is
+      if (kind == 'd' || kind == 'w') next_start_unknown_ = true;
+      motion_since_flow_ = false;
       ++block_depth_;
       blocks_.push_back(isIdent(t, 0, "while") ? ++loops_ : 0);
+      block_kinds_.push_back(kind);
+      block_at_.push_back(t[0].b);
       return;
     }
     if (isIdent(t, 0, "end") && t.size() == 1) {
+      const char kind = block_kinds_.empty() ? 'm' : block_kinds_.back();
+      if (!block_kinds_.empty()) {
+        block_kinds_.pop_back();
+        block_at_.pop_back();
+      }
+      // after a function's end the text goes on in its caller's flow; after an if or a loop the
+      // robot comes from any branch's end (or from before the block)
+      if (kind == 'd' || motion_since_flow_) next_start_unknown_ = true;
+      motion_since_flow_ = false;
       if (block_depth_ > 0) --block_depth_;
       if (!blocks_.empty()) blocks_.pop_back();
       if (block_depth_ == 0 && main_open_) {
@@ -417,6 +443,13 @@ class Reader {
       other(t);
       return;
     }
+    if ((isIdent(t, 0, "elif") || isIdent(t, 0, "else")) && !block_kinds_.empty() && block_kinds_.back() == 'i') {
+      // another branch: it starts from before the if, not from the end of the one above
+      if (motion_since_flow_) next_start_unknown_ = true;
+      motion_since_flow_ = false;
+    }
+    // a call of one of the script's functions (which may move the robot)
+    if (isIdent(t, 0) && isOp(t, 1, "(") && defs_.count(t[0].s)) next_start_unknown_ = true;
     size_t s = 0;
     if (isIdent(t, 0, "global") || isIdent(t, 0, "local")) s = 1;
     if (isIdent(t, s) && isOp(t, s + 1, "=")) return assignment(t, s, p);
@@ -648,6 +681,9 @@ class Reader {
       }
     }
     for (const std::string& v : refs_) uses_.push_back({p.motions.size(), v, openLoops()});
+    m.start_unknown = next_start_unknown_;
+    next_start_unknown_ = false;
+    motion_since_flow_ = true;
     m.statement_id = static_cast<int>(src_->statements.size());
     src_->statements.push_back(st);
     p.motions.push_back(m);
@@ -661,6 +697,12 @@ class Reader {
   std::string main_name_;
   bool main_open_ = false;
   int block_depth_ = 0;
+  std::vector<char> block_kinds_;  ///< open blocks: 'm' the program, 'd' a function or thread, 'i' if, 'w' while
+  std::vector<size_t> block_at_;   ///< where each open block starts
+  std::set<std::string> defs_;     ///< the script's functions
+  /// The position before the next motion is not the previous motion's target in the text
+  /// (Motion::start_unknown); a motion read since the last block statement.
+  bool next_start_unknown_ = false, motion_since_flow_ = false;
   std::vector<int> blocks_;  ///< open blocks: a loop id (while) or 0
   int loops_ = 0;
   struct Use {
