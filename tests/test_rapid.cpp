@@ -158,6 +158,36 @@ TEST(Rapid, TheStartIsUnknownAfterACallOrABranchAndInARoutine) {
   for (size_t k = 0; k < expected.size(); ++k) EXPECT_EQ(p.motions[k].start_unknown, expected[k]) << "motion " << k;
 }
 
+TEST(Rapid, ARobtargetSharedByMoveJAndMoveLTakesTheMoveJsConfdata) {
+  // an approach point reused as the retract point: the MoveJ is compensated on its computed
+  // quadrants (ConfJ\On needs them exactly), the MoveL keeps what is written (ConfL\On accepts
+  // one quadrant off): the shared value gets the MoveJ's confdata, not an error
+  const std::string text =
+      "MODULE m\n"
+      "  CONST robtarget p10 := [[400,0,500],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
+      "  CONST robtarget p20 := [[400,0,400],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
+      "  PROC main()\n"
+      "    MoveL p10, v100, fine, tool0;\n"
+      "    MoveJ p20, v100, fine, tool0;\n"
+      "    MoveL p10, v100, fine, tool0;\n"
+      "    MoveJ p10, v100, fine, tool0;\n"
+      "  ENDPROC\n"
+      "ENDMODULE\n";
+  Program p = parseRapid(text, "shared.mod");
+  ASSERT_EQ(p.motions.size(), 4u);
+  for (size_t k : {0u, 2u, 3u}) {
+    Target& t = p.motions[k].target;
+    t.setPose(calib::XyzAbc{400.5, 0, 500, t.xyzAbc().a_deg, t.xyzAbc().b_deg, t.xyzAbc().c_deg});
+    t.modified = true;
+  }
+  p.motions[3].target.abb_conf = std::array<int, 4>{0, -1, 0, 0};  // the MoveJ's quadrant of axis 4
+  const std::string out = writeRapid(p);
+  EXPECT_NE(out.find("CONST robtarget p10 := [[400.5000,0,500],[0,0,1,0],[0,-1,0,0],"), std::string::npos) << out;
+  // two MoveJs that need different confdata are still an error
+  p.motions[0].type = MotionType::kPtp;
+  EXPECT_THROW(writeRapid(p), calib::ArgumentError);
+}
+
 TEST(Rapid, UntouchedModulesAreWrittenBackByteForByte) {
   std::string crlf;
   for (char c : example()) {

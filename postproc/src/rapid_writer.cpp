@@ -84,9 +84,12 @@ std::string lineEnd(const RapidSource& s, const std::string& eol) {
   return eol.empty() ? (s.text.find("\r\n") != std::string::npos ? "\r\n" : "\n") : eol;
 }
 
-/// Edits of one motion's targets (not inserted).
+/// Edits of one motion's targets (not inserted). `movej_conf`: per robtarget value, the confdata
+/// a MoveJ to it was compensated on (ConfJ\On needs it exactly; a MoveL/MoveC keeps what is
+/// written and ConfL\On accepts axes 1, 4, 6 within one quadrant): a value shared by both is
+/// written with the MoveJ's.
 void targetEdits(const Program& p, const Motion& m, std::map<int, std::pair<std::string, std::string>>& values,
-                 std::vector<Edit>& edits, int& order) {
+                 const std::map<int, std::array<int, 4>>& movej_conf, std::vector<Edit>& edits, int& order) {
   const RapidSource& s = *p.rapid;
   const RapidSource::Statement& st = s.statements[static_cast<size_t>(m.statement_id)];
   std::vector<const Target*> ts;
@@ -117,7 +120,10 @@ void targetEdits(const Program& p, const Motion& m, std::map<int, std::pair<std:
       edits.push_back({st.targets[k].first, st.targets[k].second, robtargetText(t, unit, unusedAxisText(s.text)), order++});
       continue;
     }
-    const std::string text = valueText(s, *v, t);
+    Target shared = t;
+    const auto mj = movej_conf.find(vid);
+    if (m.type != MotionType::kPtp && mj != movej_conf.end() && t.abb_conf) shared.abb_conf = mj->second;
+    const std::string text = valueText(s, *v, shared);
     const auto it = values.find(vid);
     if (it != values.end() && it->second.first != text)
       throw calib::ArgumentError(m.where.str() + ": " + label(t) + " needs a different correction here than at " + it->second.second +
@@ -134,6 +140,14 @@ std::string patch(const Program& p) {
   int order = 0;
   std::vector<Edit> edits;
   std::map<int, std::pair<std::string, std::string>> values;
+  std::map<int, std::array<int, 4>> movej_conf;
+  for (const Motion& m : p.motions) {
+    if (m.inserted || m.type != MotionType::kPtp || m.target.kind != Target::Kind::kCartesian || !m.target.modified ||
+        !m.target.abb_conf || m.statement_id < 0 || m.statement_id >= static_cast<int>(s.statements.size()))
+      continue;
+    const RapidSource::Statement& st = s.statements[static_cast<size_t>(m.statement_id)];
+    if (!st.target_value.empty() && st.target_value.back() >= 0) movej_conf.emplace(st.target_value.back(), *m.target.abb_conf);
+  }
   for (size_t i = 0; i < p.motions.size(); ++i) {
     const Motion& m = p.motions[i];
     if (m.statement_id < 0 || m.statement_id >= static_cast<int>(s.statements.size()))
@@ -142,7 +156,7 @@ std::string patch(const Program& p) {
     // a move with a time \T split into pieces: each piece its share of the time
     const std::string duration = pieceDurationText(p, i, st.duration_s);
     if (!m.inserted) {
-      targetEdits(p, m, values, edits, order);
+      targetEdits(p, m, values, movej_conf, edits, order);
       if (!duration.empty()) edits.push_back({st.duration_text.first, st.duration_text.second, duration, order++});
       continue;
     }
