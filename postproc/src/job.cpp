@@ -140,6 +140,11 @@ class Job {
       warning(abb_where_, std::to_string(abb_disagree_.size()) + " target(s) of MoveL/MoveC carry confdata that the path does not have; with ConfL\\On " +
                               "the controller accepts axis 1, 4 and 6 within one quadrant of the programmed one, so they were compensated on " +
                               "the path's configuration and their confdata are kept as written. First: " + abb_first_);
+    if (exact_stop_points_ > 0)
+      warning(exact_stop_where_, std::to_string(exact_stop_points_) + " auxiliary point(s) were added to " + std::to_string(exact_stop_motions_) +
+                                     " motion(s) programmed with an exact stop; each point is an exact stop too, so the robot stops at "
+                                     "each (a weld or a bead may show it). Approximate those motions (KRL C_DIS, a RAPID zone, a "
+                                     "URScript blend radius) to pass the points without stopping. First: this motion");
     if (cp_disagree_.empty()) return;
     warning(cp_where_, std::to_string(cp_disagree_.size()) + " target(s) of CP motions (LIN, CIRC, SLIN, SCIRC, SPL) carry S/T that " +
                            "the path does not have; the controller ignores them on CP motions (Status is kept from the start, " +
@@ -501,6 +506,12 @@ class Job {
                              " mm, but TRIGGER statements are bound to this motion: no auxiliary points inserted");
     }
     insertPoints(m, c, end, commanded, sr.length_mm, out);
+    if (commanded.size() > 1 && m.approximation.empty()) {
+      // the inserted points take the motion's exact stop: the robot stops at each
+      if (exact_stop_points_ == 0) exact_stop_where_ = m.where;
+      exact_stop_points_ += static_cast<int>(commanded.size()) - 1;
+      ++exact_stop_motions_;
+    }
     if (end.abb_conf && commanded.size() == sc.q_real_end.size())  // RAPID: the confdata the path has at each inserted point
       for (size_t k = 0; k + 1 < commanded.size(); ++k)
       {
@@ -612,6 +623,8 @@ class Job {
   std::vector<std::string> cp_disagree_;  ///< CP targets whose S/T differ from the path's
   std::string cp_first_;
   SourceLocation cp_where_;
+  int exact_stop_points_ = 0, exact_stop_motions_ = 0;  ///< auxiliary points inserted before exact stops
+  SourceLocation exact_stop_where_;
   std::map<int, std::pair<std::string, SourceLocation>> claimed_;
 };
 
