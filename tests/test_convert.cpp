@@ -100,6 +100,22 @@ TEST(Convert, TheMotionModelsLinesAreNotCarried) {
   EXPECT_GE(krl.passthrough.size(), 10u);
 }
 
+TEST(Convert, TheDefsParametersAndAPointDeclaredWithoutAValueSurviveTheRoundTrip) {
+  // without them the converted program does not compile: `count` and `lp1` would be undeclared
+  const std::string dir = test::tempDir("convert_params");
+  test::writeText(dir + "/p.src",
+                  "DEF p(count :IN)\n  INT count\n  DECL E6POS lp1\n$TOOL={X 0,Y 0,Z 100,A 0,B 0,C 0}\n$BASE=$NULLFRAME\nLIN XP1\n"
+                  "  lp1 = XP1\n  lp1.Z = lp1.Z + 50\nLIN lp1\nEND\n");
+  test::writeText(dir + "/p.dat", "DEFDAT p\nDECL E6POS XP1={X 1000,Y 0,Z 800,A 0,B 90,C 0}\nENDDAT\n");
+  const Program krl = readKrl(dir + "/p.src");
+  EXPECT_EQ(krl.krl_parameters, "count :IN");
+  const std::string xml = writeXmlProgram(krl);
+  EXPECT_NE(xml.find("<program name=\"p\" krl_parameters=\"count :IN\" version=\"1\">"), std::string::npos) << xml;
+  const KrlText back = writeKrl(parseXmlProgram(xml, "p.xml"));
+  EXPECT_NE(back.src.find("\nDEF p(count :IN)\n  INT count\n  DECL E6POS lp1\n"), std::string::npos) << back.src;
+  EXPECT_EQ(back.dat.find("lp1"), std::string::npos) << back.dat;  // declared once, where the program had it
+}
+
 TEST(Convert, BytesThatAreNotUtf8RoundTripThroughXml) {
   Program p;
   p.name = "p";

@@ -624,6 +624,11 @@ struct Reader {
       if (program->name.empty()) {
         const size_t i = k == "DEF" ? 1 : 2;
         if (i < t.size() && t[i].kind == Tok::kIdent) program->name = t[i].text;
+        // the parameter list as written, between the parentheses
+        if (i + 1 < t.size() && t[i + 1].text == "(" && t.back().text == ")" && t.size() > i + 3) {
+          const std::string params = f->text().substr(t[i + 2].begin, t[t.size() - 2].end - t[i + 2].begin);
+          program->krl_parameters = params;
+        }
       }
       if (main_started) {  // a local subroutine: called from anywhere
         next_start_unknown_ = true;
@@ -644,7 +649,11 @@ struct Reader {
     if (k == "DECL" || ((isPointType(k) || k == "FDAT" || k == "LDAT" || k == "PDAT") && t.size() > 1 && t[1].kind == Tok::kIdent)) {
       Cursor c(*f, t, l.code_end);
       parseDeclaration(c, decl, src, false);
-      return declaresModelType(t);
+      // a point declared without a value (the program assigns it) is not written anew from the
+      // model: it travels as a pass-through statement, so that the program still declares it
+      bool value = false;
+      for (const Tok& x : t) value = value || (x.text == "=" && x.kind == Tok::kPunct);
+      return declaresModelType(t) && value;
     }
     if (isMotionKeyword(k) && t[0].kind == Tok::kIdent) {
       // "LIN = 3" would be an assignment to a variable named like a keyword: not KRL

@@ -236,8 +236,26 @@ KrlText generateKrl(const Program& p) {
   };
   bool initmov = false;  // the program initialises itself (its own INI fold was carried)
   for (const PassThrough& s : p.passthrough) initmov = initmov || (s.section == PassThrough::Section::kBody && upper(s.text).find("#INITMOV") != std::string::npos);
-  src << "&ACCESS RVP\n&REL 1\nDEF " << name << "( )\n";
-  if (!initmov) src << ";FOLD INI\n  BAS (#INITMOV,0 )\n;ENDFOLD (INI)\n";
+  src << "&ACCESS RVP\n&REL 1\nDEF " << name << "(" << (p.krl_parameters.empty() ? " " : p.krl_parameters) << ")\n";
+  if (!initmov) {
+    // a KRL program declares before its first statement: the INI fold after the declarations
+    // carried at its top
+    auto declaration = [](const std::string& text) {
+      std::istringstream in(text);
+      std::string word;
+      in >> word;
+      static const std::set<std::string> kDeclarationWords = {"DECL", "INT", "REAL", "BOOL", "CHAR", "E6POS", "POS", "FRAME", "AXIS",
+                                                              "E6AXIS", "SIGNAL", "STRUC", "ENUM", "GLOBAL", "CONST", "EXT", "EXTFCT", "EXTP"};
+      return kDeclarationWords.count(upper(word)) > 0;
+    };
+    while (next_body < p.passthrough.size()) {
+      const PassThrough& s = p.passthrough[next_body];
+      if (s.section == PassThrough::Section::kBody && (s.before_motion > 0 || !declaration(s.text))) break;
+      if (s.section == PassThrough::Section::kBody) src << s.text << "\n";
+      ++next_body;
+    }
+    src << ";FOLD INI\n  BAS (#INITMOV,0 )\n;ENDFOLD (INI)\n";
+  }
   dat << "&ACCESS RVP\n&REL 1\nDEFDAT " << name << " PUBLIC\n";
   carry(dat, PassThrough::Section::kData, 0);
   std::map<std::string, std::string> declared;  // upper name -> aggregate text

@@ -447,7 +447,7 @@ bool hasValues(const Target& t) {
 const std::map<std::string, std::set<std::string>>& xmlProgramVocabulary() {
   static const std::map<std::string, std::set<std::string>> v = [] {
     std::map<std::string, std::set<std::string>> m;
-    m["program"] = {"name", "version"};
+    m["program"] = {"name", "version", "krl_parameters"};
     m["robot"] = {"name"};
     m["motions"] = {};
     m["tool"] = frameAttrs();
@@ -471,13 +471,14 @@ Program parseXmlProgram(const std::string& text, const std::string& file, const 
   const XMLElement* root = doc.RootElement();
   if (!root || std::string(root->Name()) != "program")
     R.fail(root, "expected root element <program>, found " + describe(root));
-  R.checkAttributes(root, {"name", "version"});
+  R.checkAttributes(root, {"name", "version", "krl_parameters"});
   const auto version = R.text(root, "version");
   if (!version) R.fail(root, "<program>: expected an attribute 'version' (1), found none");
   if (*version != "1") R.fail(root, "<program> attribute 'version': expected 1, found '" + *version + "'");
   Program p;
   p.source_file = file;
   if (const auto n = R.text(root, "name")) p.name = R.plain(root, "name", *n);
+  if (const auto n = R.text(root, "krl_parameters")) p.krl_parameters = R.plain(root, "krl_parameters", *n);
   const XMLElement* motions = nullptr;
   for (const XMLElement* c = root->FirstChildElement(); c; c = c->NextSiblingElement()) {
     const std::string n = c->Name();
@@ -547,6 +548,7 @@ std::string writeXmlProgram(const Program& p) {
   out << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n";
   out << "<program";
   if (!p.name.empty()) out << " name=\"" << calib::xmlEscape(p.name) << "\"";
+  if (!p.krl_parameters.empty()) out << " krl_parameters=\"" << calib::xmlEscape(p.krl_parameters) << "\"";
   out << " version=\"1\">\n";
   if (!p.robot.empty()) out << "  <robot name=\"" << calib::xmlEscape(p.robot) << "\"/>\n";
   out << "  <motions>\n";

@@ -218,6 +218,9 @@ struct RapidSource;     // rapid.h
 /// for writing it back with only the corrected numbers and inserted points changed.
 struct Program {
   std::string name;    ///< program name (KRL DEF name, XML name attribute)
+  /// KRL: the main DEF's parameter list as written ("count :IN"; empty: none), XML attribute
+  /// krl_parameters; written back into a KRL DEF line (the other languages' routines take none).
+  std::string krl_parameters;
   std::string robot;   ///< robot name (XML; empty when not given)
   std::vector<Motion> motions;
   /// Statements outside the motion model, in order (see PassThrough).
