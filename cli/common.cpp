@@ -37,6 +37,8 @@ std::vector<std::string> splitList(const std::string& text, const std::string& w
     out.push_back(item);
   }
   if (out.empty()) throw calib::InputError(what + ": expected a comma-separated list, found nothing");
+  // (getline does not give the empty item after a trailing comma)
+  if (trim(text).back() == ',') throw calib::InputError(what + ": expected a comma-separated list, found an empty item in '" + text + "'");
   return out;
 }
 

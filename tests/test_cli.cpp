@@ -63,6 +63,9 @@ TEST(Cli, FkRejectsWrongJointCountAndLimits) {
   r = run("fk --robot nosuchrobot --q 0");
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.err.find("found 'nosuchrobot'"), std::string::npos) << r.err;
+  r = run("fk --robot kuka_kr16 --q 0,-90,90,0,0,0,");  // a trailing comma is an empty seventh value
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("--q: expected a comma-separated list, found an empty item in '0,-90,90,0,0,0,'"), std::string::npos) << r.err;
 }
 
 TEST(Cli, SimulateIdentifyWritesModelAndSummary) {
