@@ -74,9 +74,9 @@ struct Reader {
   // from anywhere), after a branch or a loop boundary with motions around it (the robot may
   // arrive from more than one place). Motion::start_unknown.
   bool next_start_unknown_ = false;
-  bool motion_since_flow_ = false;
-  bool def_open_ = false;  // a DEF (main or local) not closed by its END yet
-  int def_line_ = 0;  // a motion read since the last branch or loop statement
+  bool motion_since_flow_ = false;  // a motion read since the last branch or loop statement
+  bool def_open_ = false;           // a DEF (main or local) not closed by its END yet
+  int def_line_ = 0;                // the line of that DEF
 
   // A statement that branches or loops (KRL control flow), and what it means for the position
   // before the next motion.
