@@ -32,16 +32,16 @@ std::vector<std::vector<Correlation>> Diagnoser::scan(const std::vector<const st
   std::vector<Eigen::VectorXd> tau(static_cast<size_t>(N));
   // (what calib's jointJacobian and gravityLoads compute, on the core prepared once)
   const KinematicModel km(M0_);
-  KinematicFrames f, fl;
+  KinematicFrames frames, frames_links;
   LinkFrames links;
   Jac6N J;
   for (int i = 0; i < N; ++i) {
     const Measurement& r = set.rows[static_cast<size_t>(i)];
     if (r.q.size() != n) throw ArgumentError("diagnose scan: expected " + std::to_string(n) + " joint values");
-    km.evaluate(r.q.data(), r.context, f);
-    km.jacobian(f, J);
+    km.evaluate(r.q.data(), r.context, frames);
+    km.jacobian(frames, J);
     Jq[i] = J.topRows(3);
-    km.evaluate(r.q.data(), r.context, fl, nullptr, &links, true);
+    km.evaluate(r.q.data(), r.context, frames_links, nullptr, &links, true);
     tau[i] = Eigen::Map<const Eigen::VectorXd>(links.load.data(), n);
   }
   struct Variable {
