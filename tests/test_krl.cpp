@@ -301,7 +301,8 @@ TEST(Krl, TheStartIsUnknownAfterACallABranchOrALoopAndInASubroutine) {
                   "IF $IN[1] THEN\n  LIN XP2\nELSE\n  LIN XP1\nENDIF\n"  // 3, 4: the other branch
                   "LIN XP2\n"                                          // 5: after the branches
                   "IF $IN[2] THEN\n  $OUT[2]=TRUE\nENDIF\n"
-                  "PULSE($OUT[3],TRUE,0.5)\nLIN XP1\n"                // 6: no motion in the branch, no call
+                  "PULSE($OUT[3],TRUE,0.5)\nSET_CD_PARAMS (0)\nLIN XP1\n"  // 6: no motion in the branch; built-ins and
+                                                                        // other modules' functions (inline forms) do not move it
                   "FOR I=1 TO 3\n  LIN XP2\nENDFOR\n"                // 7: a loop's first motion
                   "LIN XP1\n"                                          // 8: after the loop
                   "END\n\nDEF seam( )\nLIN XP2\nEND\n");            // 9: a subroutine's first motion

@@ -98,15 +98,14 @@ struct Reader {
     }
   }
 
-  // A statement `name(...)`: a call of a subroutine or function that may move the robot (BAS
-  // is handled by itself; these built-ins do not move it).
-  static bool isCall(const std::vector<Tok>& t) {
-    if (t.size() < 3 || t[0].kind != Tok::kIdent || t[1].text != "(" || t.back().text != ")") return false;
-    static const std::set<std::string> kNotMoving = {"IF", "WHILE", "UNTIL", "SWITCH", "CASE", "RETURN", "FOR", "WAIT",
-                                                     "PULSE", "ANOUT", "ANIN", "ON", "INTERRUPT", "TRIGGER", "HALT",
-                                                     "CONTINUE", "BRAKE", "RESUME", "EXIT", "ELSE", "DEFAULT"};
-    return !kNotMoving.count(t[0].up);
+  // A statement `name(...)` calling one of this file's subroutines, which may move the robot.
+  // Calls of other modules' functions are taken not to move it: in KUKA programs they are the
+  // technology packages' and the inline forms' (SET_CD_PARAMS, gripper and welding functions);
+  // counting them would take the auxiliary points from every inline-form motion.
+  bool isLocalCall(const std::vector<Tok>& t) const {
+    return t.size() >= 3 && t[0].kind == Tok::kIdent && t[1].text == "(" && t.back().text == ")" && local_defs_.count(t[0].up);
   }
+  std::set<std::string> local_defs_;  // the subroutines this .src defines (upper case)
   std::string refuse;  // why the line just read cannot be converted ("" when it can)
 
   FrameSetting dataFrame(bool is_tool, int n, size_t at) const {
@@ -664,7 +663,7 @@ struct Reader {
     }
     if (k == "BAS" && t.size() > 1 && t[1].text == "(") return handleBas(t);
     controlFlow(t);
-    if (isCall(t)) next_start_unknown_ = true;
+    if (isLocalCall(t)) next_start_unknown_ = true;
     {
       Cursor c(*f, t, l.code_end);
       if (parseTableAssignment(c, decl)) return false;
@@ -761,6 +760,11 @@ Program readKrl(const std::string& src_path, const KrlReadOptions& options) {
   }
   const KrlFile src(src_path, source->src_text, 0);
   r.f = &src;
+  for (const Line& l : src.lines()) {  // the subroutines defined here (a call may come first)
+    const std::vector<Tok> t = lex(src, l.begin, l.code_end);
+    const size_t i = !t.empty() && t[0].up == "GLOBAL" ? 1 : 0;
+    if (t.size() > i + 1 && t[i].up == "DEF" && t[i + 1].kind == Tok::kIdent) r.local_defs_.insert(t[i + 1].up);
+  }
   for (const Line& l : src.lines()) r.handleLine(l);
   if (r.def_open_)
     src.fail(src.text().size(), "expected END closing the DEF at line " + std::to_string(r.def_line_) + ", found the end of the file");
