@@ -116,6 +116,20 @@ TEST(Convert, TheDefsParametersAndAPointDeclaredWithoutAValueSurviveTheRoundTrip
   EXPECT_EQ(back.dat.find("lp1"), std::string::npos) << back.dat;  // declared once, where the program had it
 }
 
+TEST(Convert, AnUnknownStartTravelsThroughXml) {
+  // compensating the XML must not densify the segment after a branch the KRL program has
+  const std::string dir = test::tempDir("convert_start");
+  test::writeText(dir + "/p.src",
+                  "DEF p( )\n$TOOL={X 0,Y 0,Z 100,A 0,B 0,C 0}\n$BASE=$NULLFRAME\nLIN XP1\nIF $IN[1] THEN\n  LIN XP2\nENDIF\nLIN XP1\nEND\n");
+  test::writeText(dir + "/p.dat", "DEFDAT p\nDECL E6POS XP1={X 1000,Y 0,Z 800,A 0,B 90,C 0}\nDECL E6POS XP2={X 1000,Y 100,Z 800,A 0,B 90,C 0}\nENDDAT\n");
+  const std::string xml = writeXmlProgram(readKrl(dir + "/p.src"));
+  const Program back = parseXmlProgram(xml, "p.xml");
+  ASSERT_EQ(back.motions.size(), 3u);
+  EXPECT_FALSE(back.motions[1].start_unknown);
+  EXPECT_TRUE(back.motions[2].start_unknown) << xml;
+  EXPECT_NE(xml.find("start_unknown=\"true\""), std::string::npos) << xml;
+}
+
 TEST(Convert, BytesThatAreNotUtf8RoundTripThroughXml) {
   Program p;
   p.name = "p";

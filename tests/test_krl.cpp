@@ -313,6 +313,25 @@ TEST(Krl, TheStartIsUnknownAfterACallABranchOrALoopAndInASubroutine) {
   for (size_t k = 0; k < expected.size(); ++k) EXPECT_EQ(p.motions[k].start_unknown, expected[k]) << "motion " << k;
 }
 
+TEST(Krl, NestedBlocksPassTheirMotionsOutAndBlocksWithoutMotionsChangeNothing) {
+  const std::string dir = test::tempDir("krl_nested");
+  test::writeText(dir + "/p.src",
+                  "DEF p( )\nDECL INT I\n$TOOL={X 0,Y 0,Z 100,A 0,B 0,C 0}\n$BASE=$NULLFRAME\n"
+                  "LIN XP1\n"                                                      // 0
+                  "IF $IN[1] THEN\n  LIN XP2\n  IF $IN[2] THEN\n    $OUT[1]=TRUE\n  ENDIF\nENDIF\n"  // 1
+                  "LIN XP1\n"                             // 2: the outer branch moved (the nested IF did not)
+                  "FOR I=1 TO 8\n  $OUT[I]=FALSE\nENDFOR\n"
+                  "LIN XP2\n"                             // 3: a loop without motions
+                  "GRIP()\nLIN XP1\n"                    // 4: a subroutine that does not move the robot
+                  "PICK()\nLIN XP2\n"                    // 5: one that moves it through another
+                  "END\n\nDEF GRIP( )\n$OUT[5]=TRUE\nEND\n\nDEF PICK( )\nAPPROACH()\nEND\n\nDEF APPROACH( )\nPTP XP1\nEND\n");  // 6
+  test::writeText(dir + "/p.dat", "DEFDAT p\nDECL E6POS XP1={X 1000,Y 0,Z 800,A 0,B 90,C 0}\nDECL E6POS XP2={X 1000,Y 100,Z 800,A 0,B 90,C 0}\nENDDAT\n");
+  const Program p = readKrl(dir + "/p.src");
+  ASSERT_EQ(p.motions.size(), 7u);
+  const std::vector<bool> expected = {false, false, true, false, false, true, true};
+  for (size_t k = 0; k < expected.size(); ++k) EXPECT_EQ(p.motions[k].start_unknown, expected[k]) << "motion " << k;
+}
+
 TEST(Krl, AFileCutShortIsAnErrorNotAShorterProgram) {
   const std::string dat = "DEFDAT p\nDECL E6POS XP1={X 1000,Y 0,Z 800,A 0,B 90,C 0}\nENDDAT\n";
   EXPECT_NE(std::string(readError("DEF p( )\nPTP XP1\nLIN XP1\n", dat).what())
@@ -336,6 +355,12 @@ TEST(Krl, AFileCutShortIsAnErrorNotAShorterProgram) {
               std::string::npos)
         << e.what();
   }
+  // an editor's byte order mark before DEF / DEFDAT and a DOS end-of-file mark after END / ENDDAT
+  // are not text: read
+  const std::string marks = test::tempDir("krl_marks");
+  test::writeText(marks + "/p.src", "\xEF\xBB\xBF" "DEF p( )\nLIN XP1\nEND\n\x1A");
+  test::writeText(marks + "/p.dat", "\xEF\xBB\xBF" "DEFDAT p\nDECL E6POS XP1={X 1000,Y 0,Z 800,A 0,B 90,C 0}\nENDDAT\n\x1A");
+  EXPECT_EQ(readKrl(marks + "/p.src").motions.size(), 1u);
   // an absurd value is bad input, as in RAPID and URScript
   EXPECT_NE(std::string(readError("DEF p( )\nLIN XP1\nEND\n", "DEFDAT p\nDECL E6POS XP1={X 1E30,Y 0,Z 800,A 0,B 90,C 0}\nENDDAT\n").what())
                 .find("expected X within +-100000 (mm or deg), found '1E30'"),

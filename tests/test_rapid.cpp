@@ -135,11 +135,20 @@ TEST(Rapid, QuaternionsOffsAndRelToolAgainstTheirDefinitions) {
   EXPECT_FALSE(p.motions[1].start_unknown);
 }
 
+// Motion::start_unknown of every motion of a module whose body is `procs` (two robtargets a, b).
+std::vector<bool> startsUnknown(const std::string& procs) {
+  const Program p = parseRapid("MODULE m\n"
+                               "  CONST robtarget a := [[300,0,400],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
+                               "  CONST robtarget b := [[300,100,400],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n" +
+                                   procs + "ENDMODULE\n",
+                               "flow.mod");
+  std::vector<bool> out;
+  for (const Motion& m : p.motions) out.push_back(m.start_unknown);
+  return out;
+}
+
 TEST(Rapid, TheStartIsUnknownAfterACallOrABranchAndInARoutine) {
-  const std::string text =
-      "MODULE m\n"
-      "  CONST robtarget a := [[300,0,400],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
-      "  CONST robtarget b := [[300,100,400],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
+  const std::string procs =
       "  PROC main()\n"
       "    MoveL a, v100, fine, tool0;\n"                 // 0: a routine's first motion
       "    Weld;\n    MoveL b, v100, fine, tool0;\n"     // 1: after a call of a routine
@@ -150,12 +159,24 @@ TEST(Rapid, TheStartIsUnknownAfterACallOrABranchAndInARoutine) {
       "  ENDPROC\n"
       "  PROC Weld()\n"
       "    MoveL b, v100, fine, tool0;\n"                 // 7: a routine's first motion
+      "  ENDPROC\n";
+  EXPECT_EQ(startsUnknown(procs), (std::vector<bool>{true, true, false, false, true, true, false, true}));
+}
+
+TEST(Rapid, RoutinesThatDoNotMoveAndPollingLoopsKeepTheStartKnown) {
+  const std::string procs =
+      "  PROC main()\n"
+      "    MoveL a, v100, fine, tool0;\n"                            // 0: a routine's first motion
+      "    Grip;\n    MoveL b, v100, fine, tool0;\n"                // 1: Grip does not move the robot
+      "    WHILE DInput(di1) = 0 DO\n      WaitTime 0.1;\n    ENDWHILE\n"
+      "    MoveL a, v100, fine, tool0;\n"                            // 2: a polling loop
+      "    IF reg1 = 1 Dip;\n    MoveL b, v100, fine, tool0;\n"     // 3: a compact IF calling a routine that moves
+      "    IF reg1 = 2 THEN\n      MoveL a, v100, fine, tool0;\n      IF reg2 = 1 THEN\n        SetDO do1, 1;\n      ENDIF\n    ENDIF\n"  // 4
+      "    MoveL b, v100, fine, tool0;\n"                            // 5: the outer branch moved
       "  ENDPROC\n"
-      "ENDMODULE\n";
-  const Program p = parseRapid(text, "flow.mod");
-  ASSERT_EQ(p.motions.size(), 8u);
-  const std::vector<bool> expected = {true, true, false, false, true, true, false, true};
-  for (size_t k = 0; k < expected.size(); ++k) EXPECT_EQ(p.motions[k].start_unknown, expected[k]) << "motion " << k;
+      "  PROC Grip()\n    SetDO do1, 1;\n    WaitTime 0.5;\n  ENDPROC\n"
+      "  PROC Dip()\n    MoveL b, v100, fine, tool0;\n  ENDPROC\n";  // 6
+  EXPECT_EQ(startsUnknown(procs), (std::vector<bool>{true, false, false, true, false, true, true}));
 }
 
 TEST(Rapid, ARobtargetSharedByMoveJAndMoveLTakesTheMoveJsConfdata) {

@@ -56,6 +56,24 @@ RobotModel ur10WithTorch() {
   return m;
 }
 
+TEST(UrScript, WaitLoopsAndFunctionsThatDoNotMoveKeepTheStartKnown) {
+  // PolyScope writes a Wait DI as a while loop; a URCap pastes its gripper helpers as defs
+  const std::string a = "p[0.5,0.1,0.4,0,3.14,0]", b = "p[0.5,0.2,0.4,0,3.14,0]";
+  const std::string text = "def prog():\n"
+                           "  def rq_close():\n    set_digital_out(0, True)\n    sleep(0.5)\n  end\n"
+                           "  movel(" + a + ")\n"                                                   // 0: after a function's text
+                           "  while (not(get_standard_digital_in(0) == True)):\n    sync()\n  end\n"
+                           "  movel(" + b + ")\n"                                                   // 1: a loop without motions
+                           "  rq_close()\n  movel(" + a + ")\n"                                    // 2: a helper that does not move
+                           "  if x:\n    movel(" + b + ")\n    if y:\n      sync()\n    end\n  end\n"  // 3
+                           "  movel(" + a + ")\n"                                                   // 4: the outer branch moved
+                           "end\n";
+  const Program p = parseUrScript(text, "wait.script");
+  ASSERT_EQ(p.motions.size(), 5u);
+  const std::vector<bool> expected = {true, false, false, false, true};
+  for (size_t k = 0; k < expected.size(); ++k) EXPECT_EQ(p.motions[k].start_unknown, expected[k]) << "motion " << k;
+}
+
 TEST(UrScript, TheStartIsUnknownAfterACallABranchOrALoopAndInAFunction) {
   const std::string a = "p[0.5,0.1,0.4,0,3.14,0]", b = "p[0.5,0.2,0.4,0,3.14,0]";
   const std::string text = "def prog():\n"

@@ -62,9 +62,12 @@ std::vector<Tok> lex(const KrlFile& f, size_t begin, size_t end) {
   const std::string& s = f.text();
   std::vector<Tok> out;
   size_t i = begin;
+  // a UTF-8 byte order mark at the start of the file (an editor's) and the end-of-file mark
+  // Ctrl-Z (an old DOS editor's) are not text
+  if (i == 0 && s.compare(0, 3, "\xEF\xBB\xBF") == 0) i = std::min<size_t>(3, end);
   while (i < end) {
     const char c = s[i];
-    if (c == ' ' || c == '\t' || c == '\r' || c == '\f' || c == '\v') {
+    if (c == ' ' || c == '\t' || c == '\r' || c == '\f' || c == '\v' || c == '\x1A') {
       ++i;
       continue;
     }

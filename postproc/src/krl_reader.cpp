@@ -11,6 +11,7 @@
 
 #include "accura/calib/errors.h"
 #include "krl_internal.h"
+#include "start_tracker.h"
 
 namespace fs = std::filesystem;
 
@@ -69,43 +70,29 @@ struct Reader {
   int triggers = 0;
   bool missing_dat_ = false;  // resolveTarget met a named point and no .dat (Motion::target_file_missing)
   bool main_started = false, main_ended = false;  // the main program's DEF / END seen
-  // The position before the next motion is not the previous motion's target in the text: after
-  // a call (the subroutine may move the robot), at a local subroutine's first motion (called
-  // from anywhere), after a branch or a loop boundary with motions around it (the robot may
-  // arrive from more than one place). Motion::start_unknown.
-  bool next_start_unknown_ = false;
-  bool motion_since_flow_ = false;  // a motion read since the last branch or loop statement
-  bool def_open_ = false;           // a DEF (main or local) not closed by its END yet
-  int def_line_ = 0;                // the line of that DEF
+  StartTracker flow_;  // where the robot comes from (Motion::start_unknown)
+  bool def_open_ = false;  // a DEF (main or local) not closed by its END yet
+  int def_line_ = 0;       // the line of that DEF
 
-  // A statement that branches or loops (KRL control flow), and what it means for the position
-  // before the next motion.
+  // A statement that branches, loops or jumps (KRL control flow).
   void controlFlow(const std::vector<Tok>& t) {
     const std::string& k = t[0].up;
     const bool label = t.size() == 2 && t[0].kind == Tok::kIdent && t[1].text == ":";
-    if (k == "IF" || k == "SWITCH") {
-      motion_since_flow_ = false;  // the first branch starts where the robot is
-    } else if (k == "ELSE" || k == "CASE" || k == "DEFAULT" || k == "ENDIF" || k == "ENDSWITCH" || k == "ENDFOR" ||
-               k == "ENDWHILE" || k == "ENDLOOP" || k == "UNTIL") {
-      // another branch (from before the IF), or after the block (from any branch's end, or
-      // from before it): unknown when the branch just closed moved the robot
-      if (motion_since_flow_) next_start_unknown_ = true;
-      motion_since_flow_ = false;
-    } else if (k == "FOR" || k == "WHILE" || k == "LOOP" || k == "REPEAT" || k == "GOTO" || label) {
-      // a loop's first motion comes from before the loop or from the end of the last pass
-      next_start_unknown_ = true;
-      motion_since_flow_ = false;
-    }
+    if (k == "IF" || k == "SWITCH") flow_.open(StartTracker::Block::kBranch);
+    else if (k == "ELSE" || k == "CASE" || k == "DEFAULT") flow_.branch();
+    else if (k == "FOR" || k == "WHILE" || k == "LOOP" || k == "REPEAT") flow_.open(StartTracker::Block::kLoop);
+    else if (k == "ENDIF" || k == "ENDSWITCH" || k == "ENDFOR" || k == "ENDWHILE" || k == "ENDLOOP" || k == "UNTIL") flow_.close();
+    else if (k == "GOTO" || label) flow_.unknown();
   }
 
-  // A statement `name(...)` calling one of this file's subroutines, which may move the robot.
+  // A statement `name(...)` calling one of this file's subroutines that move the robot.
   // Calls of other modules' functions are taken not to move it: in KUKA programs they are the
   // technology packages' and the inline forms' (SET_CD_PARAMS, gripper and welding functions);
   // counting them would take the auxiliary points from every inline-form motion.
   bool isLocalCall(const std::vector<Tok>& t) const {
     return t.size() >= 3 && t[0].kind == Tok::kIdent && t[1].text == "(" && t.back().text == ")" && local_defs_.count(t[0].up);
   }
-  std::set<std::string> local_defs_;  // the subroutines this .src defines (upper case)
+  std::set<std::string> local_defs_;  // the subroutines this .src defines that move the robot (upper case)
   std::string refuse;  // why the line just read cannot be converted ("" when it can)
 
   FrameSetting dataFrame(bool is_tool, int n, size_t at) const {
@@ -580,9 +567,7 @@ struct Reader {
     }
     m.trigger_count = triggers;
     triggers = 0;
-    m.start_unknown = next_start_unknown_;
-    next_start_unknown_ = false;
-    motion_since_flow_ = true;
+    m.start_unknown = flow_.motion();
     m.statement_id = static_cast<int>(src->statements.size());
     src->statements.push_back(std::move(st));
     program->motions.push_back(std::move(m));
@@ -630,8 +615,8 @@ struct Reader {
         }
       }
       if (main_started) {  // a local subroutine: called from anywhere
-        next_start_unknown_ = true;
-        motion_since_flow_ = false;
+        flow_ = StartTracker();
+        flow_.unknown();
         return false;
       }
       main_started = true;
@@ -663,7 +648,7 @@ struct Reader {
     }
     if (k == "BAS" && t.size() > 1 && t[1].text == "(") return handleBas(t);
     controlFlow(t);
-    if (isLocalCall(t)) next_start_unknown_ = true;
+    if (isLocalCall(t)) flow_.unknown();
     {
       Cursor c(*f, t, l.code_end);
       if (parseTableAssignment(c, decl)) return false;
@@ -760,10 +745,27 @@ Program readKrl(const std::string& src_path, const KrlReadOptions& options) {
   }
   const KrlFile src(src_path, source->src_text, 0);
   r.f = &src;
-  for (const Line& l : src.lines()) {  // the subroutines defined here (a call may come first)
-    const std::vector<Tok> t = lex(src, l.begin, l.code_end);
-    const size_t i = !t.empty() && t[0].up == "GLOBAL" ? 1 : 0;
-    if (t.size() > i + 1 && t[i].up == "DEF" && t[i + 1].kind == Tok::kIdent) r.local_defs_.insert(t[i + 1].up);
+  {
+    // the subroutines defined here that move the robot, themselves or through the ones they
+    // call (a call may come before the DEF)
+    std::map<std::string, bool> moves;
+    std::map<std::string, std::set<std::string>> calls;
+    std::string cur;
+    std::vector<std::vector<Tok>> lines;
+    for (const Line& l : src.lines()) lines.push_back(lex(src, l.begin, l.code_end));
+    for (const std::vector<Tok>& t : lines) {
+      const size_t i = !t.empty() && t[0].up == "GLOBAL" ? 1 : 0;
+      if (t.size() > i + 1 && t[i].up == "DEF" && t[i + 1].kind == Tok::kIdent) moves[cur = t[i + 1].up] = false;
+    }
+    cur.clear();
+    for (const std::vector<Tok>& t : lines) {
+      if (t.empty()) continue;
+      const size_t i = t[0].up == "GLOBAL" ? 1 : 0;
+      if (t.size() > i + 1 && t[i].up == "DEF" && t[i + 1].kind == Tok::kIdent) cur = t[i + 1].up;
+      else if (isMotionKeyword(t[0].up) && t[0].kind == Tok::kIdent && !cur.empty()) moves[cur] = true;
+      else if (t.size() >= 3 && t[0].kind == Tok::kIdent && t[1].text == "(" && moves.count(t[0].up) && !cur.empty()) calls[cur].insert(t[0].up);
+    }
+    r.local_defs_ = movingRoutines(moves, calls);
   }
   for (const Line& l : src.lines()) r.handleLine(l);
   if (r.def_open_)

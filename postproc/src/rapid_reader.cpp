@@ -8,6 +8,7 @@
 
 #include "accura/calib/errors.h"
 #include "rapid_internal.h"
+#include "start_tracker.h"
 
 namespace fs = std::filesystem;
 
@@ -61,9 +62,7 @@ class Reader {
 
   Program run() {
     t_ = lexRapid(src_->text, src_->path);
-    // the module's routines (a call may come before the routine)
-    for (size_t k = 0; k + 1 < t_.size(); ++k)
-      if (t_[k].kind == Tok::Kind::kIdent && t_[k].u == "PROC" && t_[k + 1].kind == Tok::Kind::kIdent) routines_.insert(t_[k + 1].u);
+    findMovingRoutines();
     split();
     scanAssignments();
     Program p;
@@ -154,11 +153,36 @@ class Reader {
     }
     if (u == "MOVEL" || u == "MOVEJ" || u == "MOVEC" || u == "MOVEABSJ") return move(r, p);
     if (t[i].kind == Tok::Kind::kIdent && kOtherMoves.count(u)) return otherMove(r, p);
-    // a call of one of the module's routines (which may move the robot), a late-bound call
-    // (%"name"%) or GOTO: the next motion's start is not the previous one's target
-    if ((t[i].kind == Tok::Kind::kIdent && (routines_.count(u) || u == "GOTO")) || isOp(t, i, "%")) next_start_unknown_ = true;
-    // a label (name:): reached from a GOTO
-    if (r.second - i == 2 && t[i].kind == Tok::Kind::kIdent && isOp(t, i + 1, ":")) next_start_unknown_ = true;
+    // a call of one of the module's routines that move the robot, a late-bound call
+    // (%"name"%, CallByVar), a jump or a label (reached from a GOTO)
+    if ((t[i].kind == Tok::Kind::kIdent && (routines_.count(u) || u == "GOTO" || u == "CALLBYVAR")) || isOp(t, i, "%") ||
+        (r.second - i == 2 && t[i].kind == Tok::Kind::kIdent && isOp(t, i + 1, ":")))
+      flow_.unknown();
+  }
+
+  /// The module's PROCs that move the robot, themselves or through the ones they call (a call
+  /// may come before the routine): a call of any other does not change where the robot is.
+  void findMovingRoutines() {
+    std::map<std::string, bool> moves;
+    std::map<std::string, std::set<std::string>> calls;
+    for (size_t k = 0; k + 1 < t_.size(); ++k)
+      if (t_[k].kind == Tok::Kind::kIdent && t_[k].u == "PROC" && t_[k + 1].kind == Tok::Kind::kIdent) moves[t_[k + 1].u] = false;
+    std::string cur;
+    for (size_t k = 0; k < t_.size(); ++k) {
+      if (t_[k].kind != Tok::Kind::kIdent) continue;
+      const std::string& u = t_[k].u;
+      if ((u == "PROC" || u == "FUNC" || u == "TRAP") && k + 1 < t_.size()) {
+        cur = u == "PROC" ? t_[k + 1].u : "";
+        ++k;
+      } else if (u == "ENDPROC" || u == "ENDFUNC" || u == "ENDTRAP") {
+        cur.clear();
+      } else if (!cur.empty() && (u == "MOVEL" || u == "MOVEJ" || u == "MOVEC" || u == "MOVEABSJ" || kOtherMoves.count(u))) {
+        moves[cur] = true;
+      } else if (!cur.empty() && moves.count(u)) {
+        calls[cur].insert(u);
+      }
+    }
+    routines_ = movingRoutines(moves, calls);
   }
 
   void block(Range r, Program& p) {
@@ -186,24 +210,26 @@ class Reader {
       routine_kind_ = u;
       routine_line_ = r;
       local_ = Scope{};
-      next_start_unknown_ = true;
+      flow_ = StartTracker();  // a routine's first motion: called from anywhere
+      flow_.unknown();
       return;
     }
-    // branches and loops: the position before the next motion is the previous motion's target
-    // only when no branch or pass in between moved the robot elsewhere
-    if (u == "IF" || u == "TEST") {
-      motion_since_flow_ = false;
+    // branches and loops (a compact IF, without THEN, holds one statement and no block)
+    if (u == "IF") {
+      bool then = false;
+      for (size_t k = r.first; k < r.second; ++k) then = then || (t_[k].kind == Tok::Kind::kIdent && t_[k].u == "THEN");
+      if (then) return flow_.open(StartTracker::Block::kBranch);
+      for (size_t k = r.first; k < r.second; ++k)
+        if (t_[k].kind == Tok::Kind::kIdent && (routines_.count(t_[k].u) || t_[k].u == "GOTO")) flow_.unknown();
       return;
     }
-    if (u == "ELSEIF" || u == "ELSE" || u == "CASE" || u == "DEFAULT" || u == "ENDIF" || u == "ENDTEST" || u == "ENDWHILE" ||
-        u == "ENDFOR") {
-      if (motion_since_flow_) next_start_unknown_ = true;
-      motion_since_flow_ = false;
-      return;
-    }
-    if (u == "WHILE" || u == "FOR") {
-      next_start_unknown_ = true;
-      motion_since_flow_ = false;
+    if (u == "TEST") return flow_.open(StartTracker::Block::kBranch);
+    if (u == "ELSEIF" || u == "ELSE" || u == "CASE" || u == "DEFAULT") return flow_.branch();
+    if (u == "WHILE" || u == "FOR") return flow_.open(StartTracker::Block::kLoop);
+    if (u == "ENDIF" || u == "ENDTEST" || u == "ENDWHILE" || u == "ENDFOR") return flow_.close();
+    if (u == "ERROR" || u == "BACKWARD" || u == "UNDO") {  // a handler: entered from wherever the routine was
+      flow_ = StartTracker();
+      flow_.unknown();
       return;
     }
     if (u == "ENDPROC" || u == "ENDFUNC" || u == "ENDTRAP") {
@@ -560,7 +586,7 @@ class Reader {
     m.statement = text(r);
     m.type = u == "MOVEL" ? MotionType::kLin : u == "MOVEC" ? MotionType::kCirc : MotionType::kPtp;
     m.conf_monitored = m.type == MotionType::kPtp ? confj_ : confl_;
-    m.start_unknown = next_start_unknown_;
+    m.start_unknown = flow_.motion();
     RapidSource::Statement st = statementSpan(r, m.where);
     const size_t n = pos.size();
     speed(pos[n - 3].main, opt, m);
@@ -620,8 +646,6 @@ class Reader {
     if (routine_.empty()) fail(t_[r.first].b, "expected " + t_[r.first].s + " inside a routine (PROC), found it at module level");
     if (main_routine_.empty()) main_routine_ = routine_;
     if (routine_ != main_routine_) other_routine_motion_ = true;
-    next_start_unknown_ = false;
-    motion_since_flow_ = true;
     m.statement_id = static_cast<int>(src_->statements.size());
     src_->statements.push_back(st);
     p.motions.push_back(m);
@@ -752,7 +776,7 @@ class Reader {
     m.statement = text(r);
     const std::string& u = t_[r.first].u;
     m.type = u.find('J') != std::string::npos && u.find("MOVEJ") == 0 ? MotionType::kPtp : MotionType::kLin;
-    m.start_unknown = next_start_unknown_;
+    m.start_unknown = flow_.motion();
     m.target_problem = t_[r.first].s + " is a motion instruction accura does not model (MoveL, MoveJ, MoveC, MoveAbsJ)";
     RapidSource::Statement st = statementSpan(r, m.where);
     addMotion(r, m, st, p);
@@ -784,12 +808,8 @@ class Reader {
   std::string module_name_, routine_, routine_kind_, main_routine_;
   Range routine_line_{0, 0};
   bool module_seen_ = false, module_open_ = false, other_routine_motion_ = false;
-  /// The position before the next motion is not the previous motion's target in the text: a
-  /// routine's first motion (called from anywhere), after a call of a routine, a branch or loop
-  /// boundary with motions around it, a label (Motion::start_unknown).
-  bool next_start_unknown_ = false;
-  bool motion_since_flow_ = false;  ///< a motion read since the last branch or loop statement
-  std::set<std::string> routines_;  ///< the module's PROCs (upper case)
+  StartTracker flow_;               ///< where the robot comes from (Motion::start_unknown)
+  std::set<std::string> routines_;  ///< the module's PROCs that move the robot (upper case)
   bool confl_ = true, confj_ = true;
 };
 

@@ -11,6 +11,7 @@
 
 #include "accura/calib/errors.h"
 #include "decimal.h"
+#include "start_tracker.h"
 #include "urscript_internal.h"
 
 namespace fs = std::filesystem;
@@ -100,9 +101,7 @@ class Reader {
 
   Program run() {
     lex();
-    // the script's functions (a call may come before the def)
-    for (size_t k = 0; k + 1 < toks_.size(); ++k)
-      if (toks_[k].kind == Tok::Kind::kIdent && toks_[k].s == "def" && toks_[k + 1].kind == Tok::Kind::kIdent) defs_.insert(toks_[k + 1].s);
+    movingFunctions();
     Program p;
     p.source_file = src_->path;
     p.name = fs::path(src_->path).stem().string();
@@ -384,6 +383,47 @@ class Reader {
     return std::nullopt;
   }
 
+  /// The script's functions that move the robot, themselves or through the ones they call (a
+  /// call may come before the def): a call of any other (a URCap's gripper helpers) does not
+  /// change where the robot is. A def's body runs to the end matching it (if/while open blocks
+  /// of their own).
+  void movingFunctions() {
+    std::map<std::string, bool> moves;
+    std::map<std::string, std::set<std::string>> calls;
+    for (size_t k = 0; k + 1 < toks_.size(); ++k)
+      if (toks_[k].kind == Tok::Kind::kIdent && toks_[k].s == "def" && toks_[k + 1].kind == Tok::Kind::kIdent) moves[toks_[k + 1].s] = false;
+    std::vector<std::pair<std::string, int>> open;  // enclosing defs and the depth they opened at
+    int depth = 0;
+    bool line_start = true;
+    for (size_t k = 0; k < toks_.size(); ++k) {
+      const Tok& t = toks_[k];
+      if (t.kind == Tok::Kind::kNewline) {
+        line_start = true;
+        continue;
+      }
+      const bool first = line_start;
+      line_start = false;
+      if (t.kind != Tok::Kind::kIdent) continue;
+      if (first && (t.s == "def" || t.s == "thread" || t.s == "if" || t.s == "while")) {
+        ++depth;
+        if (t.s == "def" && k + 1 < toks_.size() && toks_[k + 1].kind == Tok::Kind::kIdent) open.push_back({toks_[k + 1].s, depth});
+        continue;
+      }
+      if (first && t.s == "end" && (k + 1 == toks_.size() || toks_[k + 1].kind == Tok::Kind::kNewline)) {
+        if (!open.empty() && open.back().second == depth) open.pop_back();
+        --depth;
+        continue;
+      }
+      if (open.empty()) continue;
+      const std::string& cur = open.back().first;
+      if (t.s == "movel" || t.s == "movej" || t.s == "movep" || t.s == "movec" || t.s == "servoj" || t.s == "speedl" || t.s == "speedj")
+        moves[cur] = true;
+      else if (moves.count(t.s))
+        calls[cur].insert(t.s);
+    }
+    defs_ = movingRoutines(moves, calls);
+  }
+
   bool looksLikeJoints(const std::vector<Tok>& t, size_t i, size_t j) const {
     if (isOp(t, i, "[") && closing(t, i) == j) return true;
     if (j == i + 1 && t[i].kind == Tok::Kind::kIdent) {
@@ -413,11 +453,7 @@ class Reader {
         if (isIdent(t, 0, "if")) kind = 'i';
         if (isIdent(t, 0, "while")) kind = 'w';
       }
-      // the position before the next motion: a function's first motion comes from its caller,
-      // a loop's from before the loop or from the end of the last pass; an if's first branch
-      // starts where the robot is
-      if (kind == 'd' || kind == 'w') next_start_unknown_ = true;
-      motion_since_flow_ = false;
+      flow_.open(kind == 'i' ? StartTracker::Block::kBranch : kind == 'w' ? StartTracker::Block::kLoop : StartTracker::Block::kRoutine);
       ++block_depth_;
       blocks_.push_back(isIdent(t, 0, "while") ? ++loops_ : 0);
       block_kinds_.push_back(kind);
@@ -430,10 +466,7 @@ class Reader {
         block_kinds_.pop_back();
         block_at_.pop_back();
       }
-      // after a function's end the text goes on in its caller's flow; after an if or a loop the
-      // robot comes from any branch's end (or from before the block)
-      if (kind == 'd' || motion_since_flow_) next_start_unknown_ = true;
-      motion_since_flow_ = false;
+      if (kind != 'm') flow_.close();  // (the program's own end: nothing follows)
       if (block_depth_ > 0) --block_depth_;
       if (!blocks_.empty()) blocks_.pop_back();
       if (block_depth_ == 0 && main_open_) {
@@ -443,13 +476,9 @@ class Reader {
       other(t);
       return;
     }
-    if ((isIdent(t, 0, "elif") || isIdent(t, 0, "else")) && !block_kinds_.empty() && block_kinds_.back() == 'i') {
-      // another branch: it starts from before the if, not from the end of the one above
-      if (motion_since_flow_) next_start_unknown_ = true;
-      motion_since_flow_ = false;
-    }
-    // a call of one of the script's functions (which may move the robot)
-    if (isIdent(t, 0) && isOp(t, 1, "(") && defs_.count(t[0].s)) next_start_unknown_ = true;
+    if ((isIdent(t, 0, "elif") || isIdent(t, 0, "else")) && !block_kinds_.empty() && block_kinds_.back() == 'i') flow_.branch();
+    // a call of one of the script's functions that move the robot
+    if (isIdent(t, 0) && isOp(t, 1, "(") && defs_.count(t[0].s)) flow_.unknown();
     size_t s = 0;
     if (isIdent(t, 0, "global") || isIdent(t, 0, "local")) s = 1;
     if (isIdent(t, s) && isOp(t, s + 1, "=")) return assignment(t, s, p);
@@ -681,9 +710,7 @@ class Reader {
       }
     }
     for (const std::string& v : refs_) uses_.push_back({p.motions.size(), v, openLoops()});
-    m.start_unknown = next_start_unknown_;
-    next_start_unknown_ = false;
-    motion_since_flow_ = true;
+    m.start_unknown = flow_.motion();
     m.statement_id = static_cast<int>(src_->statements.size());
     src_->statements.push_back(st);
     p.motions.push_back(m);
@@ -699,10 +726,8 @@ class Reader {
   int block_depth_ = 0;
   std::vector<char> block_kinds_;  ///< open blocks: 'm' the program, 'd' a function or thread, 'i' if, 'w' while
   std::vector<size_t> block_at_;   ///< where each open block starts
-  std::set<std::string> defs_;     ///< the script's functions
-  /// The position before the next motion is not the previous motion's target in the text
-  /// (Motion::start_unknown); a motion read since the last block statement.
-  bool next_start_unknown_ = false, motion_since_flow_ = false;
+  std::set<std::string> defs_;     ///< the script's functions that move the robot
+  StartTracker flow_;              ///< where the robot comes from (Motion::start_unknown)
   std::vector<int> blocks_;  ///< open blocks: a loop id (while) or 0
   int loops_ = 0;
   struct Use {

@@ -44,7 +44,8 @@ std::set<std::string> frameAttrs() {
 }
 
 std::set<std::string> motionAttrs() {
-  return {"vel_percent", "vel_m_s", "approx", "approx_value", "ca_deg", "relative", "external_tcp", "conf_monitored", "source_line"};
+  return {"vel_percent", "vel_m_s", "approx", "approx_value", "ca_deg", "relative", "external_tcp", "conf_monitored", "source_line",
+          "start_unknown"};
 }
 
 class Reader {
@@ -348,6 +349,7 @@ Motion readMotion(const Reader& R, const XMLElement* e) {
   m.external_tcp = R.flag(e, "external_tcp");
   if (e->Attribute("conf_monitored")) m.conf_monitored = R.flag(e, "conf_monitored");
   if (const auto l = R.integer(e, "source_line")) m.source_line = *l;
+  if (e->Attribute("start_unknown")) m.start_unknown = R.flag(e, "start_unknown");
   if (m.type == MotionType::kSpl && m.relative) R.fail(e, "<spl>: attribute 'relative' is not allowed");
 
   const XMLElement* c = e->FirstChildElement();
@@ -598,6 +600,7 @@ std::string writeXmlProgram(const Program& p) {
     if (m.external_tcp) out << " external_tcp=\"true\"";
     if (!m.conf_monitored) out << " conf_monitored=\"false\"";
     if (m.source_line > 0 && !m.inserted) out << " source_line=\"" << m.source_line << "\"";
+    if (m.start_unknown && !m.inserted) out << " start_unknown=\"true\"";
     out << ">\n";
     auto refOrValue = [&](const char* tag_name, const Target& t, bool aux) {
       if (hasValues(t)) {
