@@ -609,10 +609,8 @@ struct Reader {
         const size_t i = k == "DEF" ? 1 : 2;
         if (i < t.size() && t[i].kind == Tok::kIdent) program->name = t[i].text;
         // the parameter list as written, between the parentheses
-        if (i + 1 < t.size() && t[i + 1].text == "(" && t.back().text == ")" && t.size() > i + 3) {
-          const std::string params = f->text().substr(t[i + 2].begin, t[t.size() - 2].end - t[i + 2].begin);
-          program->krl_parameters = params;
-        }
+        if (i + 1 < t.size() && t[i + 1].text == "(" && t.back().text == ")" && t.size() > i + 3)
+          program->krl_parameters = f->text().substr(t[i + 2].begin, t[t.size() - 2].end - t[i + 2].begin);
       }
       if (main_started) {  // a local subroutine: called from anywhere
         flow_ = StartTracker();
@@ -750,18 +748,18 @@ Program readKrl(const std::string& src_path, const KrlReadOptions& options) {
     // call (a call may come before the DEF)
     std::map<std::string, bool> moves;
     std::map<std::string, std::set<std::string>> calls;
-    std::string cur;
     std::vector<std::vector<Tok>> lines;
     for (const Line& l : src.lines()) lines.push_back(lex(src, l.begin, l.code_end));
-    for (const std::vector<Tok>& t : lines) {
+    auto defName = [](const std::vector<Tok>& t) -> std::string {  // "" unless the line is a DEF
       const size_t i = !t.empty() && t[0].up == "GLOBAL" ? 1 : 0;
-      if (t.size() > i + 1 && t[i].up == "DEF" && t[i + 1].kind == Tok::kIdent) moves[cur = t[i + 1].up] = false;
-    }
-    cur.clear();
+      return t.size() > i + 1 && t[i].up == "DEF" && t[i + 1].kind == Tok::kIdent ? t[i + 1].up : "";
+    };
+    for (const std::vector<Tok>& t : lines)
+      if (const std::string d = defName(t); !d.empty()) moves[d] = false;
+    std::string cur;
     for (const std::vector<Tok>& t : lines) {
       if (t.empty()) continue;
-      const size_t i = t[0].up == "GLOBAL" ? 1 : 0;
-      if (t.size() > i + 1 && t[i].up == "DEF" && t[i + 1].kind == Tok::kIdent) cur = t[i + 1].up;
+      if (const std::string d = defName(t); !d.empty()) cur = d;
       else if (isMotionKeyword(t[0].up) && t[0].kind == Tok::kIdent && !cur.empty()) moves[cur] = true;
       else if (t.size() >= 3 && t[0].kind == Tok::kIdent && t[1].text == "(" && moves.count(t[0].up) && !cur.empty()) calls[cur].insert(t[0].up);
     }

@@ -244,9 +244,9 @@ KrlText generateKrl(const Program& p) {
       std::istringstream in(text);
       std::string word;
       in >> word;
-      static const std::set<std::string> kDeclarationWords = {"DECL", "INT", "REAL", "BOOL", "CHAR", "E6POS", "POS", "FRAME", "AXIS",
-                                                              "E6AXIS", "SIGNAL", "STRUC", "ENUM", "GLOBAL", "CONST", "EXT", "EXTFCT", "EXTP"};
-      return kDeclarationWords.count(upper(word)) > 0;
+      static const std::set<std::string> kDeclarationWords = {"DECL", "INT", "REAL", "BOOL", "CHAR", "SIGNAL", "STRUC",
+                                                              "ENUM", "GLOBAL", "CONST", "EXT", "EXTFCT", "EXTP"};
+      return kDeclarationWords.count(upper(word)) > 0 || isPointType(upper(word));
     };
     while (next_body < p.passthrough.size()) {
       const PassThrough& s = p.passthrough[next_body];

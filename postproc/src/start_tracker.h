@@ -57,7 +57,6 @@ class StartTracker {
     moved_ = true;
     return u;
   }
-  bool anyOpen() const { return !stack_.empty(); }
 
  private:
   struct Frame {

@@ -142,8 +142,8 @@ class Reader {
       statement(st, p);
       i = j;
     }
-    if (!block_at_.empty())
-      fail(src_->text.size(), "expected end closing the block at " + loc(block_at_.back()).str() + ", found the end of the file");
+    if (!blocks_.empty())
+      fail(src_->text.size(), "expected end closing the block at " + loc(blocks_.back().at).str() + ", found the end of the file");
     if (!main_name_.empty()) p.name = main_name_;
     p.urscript = src_;
     return p;
@@ -443,40 +443,35 @@ class Reader {
   void statement(const std::vector<Tok>& t, Program& p) {
     // blocks: the first def at depth 0 is the program; its def and end are part of the model
     if (isIdent(t, 0, "def") || isIdent(t, 0, "thread") || isIdent(t, 0, "if") || isIdent(t, 0, "while")) {
-      char kind = 'd';
-      if (isIdent(t, 0, "def") && block_depth_ == 0 && main_name_.empty() && isIdent(t, 1)) {
+      OpenBlock b;
+      b.at = t[0].b;
+      b.loop = isIdent(t, 0, "while") ? ++loops_ : 0;
+      b.kind = isIdent(t, 0, "if") ? StartTracker::Block::kBranch : b.loop ? StartTracker::Block::kLoop : StartTracker::Block::kRoutine;
+      if (isIdent(t, 0, "def") && blocks_.empty() && main_name_.empty() && isIdent(t, 1)) {
         main_name_ = t[1].s;
         main_open_ = true;
-        kind = 'm';
+        b.program = true;
       } else {
         other(t);
-        if (isIdent(t, 0, "if")) kind = 'i';
-        if (isIdent(t, 0, "while")) kind = 'w';
       }
-      flow_.open(kind == 'i' ? StartTracker::Block::kBranch : kind == 'w' ? StartTracker::Block::kLoop : StartTracker::Block::kRoutine);
-      ++block_depth_;
-      blocks_.push_back(isIdent(t, 0, "while") ? ++loops_ : 0);
-      block_kinds_.push_back(kind);
-      block_at_.push_back(t[0].b);
+      flow_.open(b.kind);
+      blocks_.push_back(b);
       return;
     }
     if (isIdent(t, 0, "end") && t.size() == 1) {
-      const char kind = block_kinds_.empty() ? 'm' : block_kinds_.back();
-      if (!block_kinds_.empty()) {
-        block_kinds_.pop_back();
-        block_at_.pop_back();
+      if (!blocks_.empty()) {
+        if (!blocks_.back().program) flow_.close();  // (the program's own end: nothing follows)
+        blocks_.pop_back();
       }
-      if (kind != 'm') flow_.close();  // (the program's own end: nothing follows)
-      if (block_depth_ > 0) --block_depth_;
-      if (!blocks_.empty()) blocks_.pop_back();
-      if (block_depth_ == 0 && main_open_) {
+      if (blocks_.empty() && main_open_) {
         main_open_ = false;
         return;
       }
       other(t);
       return;
     }
-    if ((isIdent(t, 0, "elif") || isIdent(t, 0, "else")) && !block_kinds_.empty() && block_kinds_.back() == 'i') flow_.branch();
+    if ((isIdent(t, 0, "elif") || isIdent(t, 0, "else")) && !blocks_.empty() && blocks_.back().kind == StartTracker::Block::kBranch)
+      flow_.branch();
     // a call of one of the script's functions that move the robot
     if (isIdent(t, 0) && isOp(t, 1, "(") && defs_.count(t[0].s)) flow_.unknown();
     size_t s = 0;
@@ -503,8 +498,8 @@ class Reader {
   /// The loops (while) open at this statement.
   std::vector<int> openLoops() const {
     std::vector<int> out;
-    for (int b : blocks_)
-      if (b > 0) out.push_back(b);
+    for (const OpenBlock& b : blocks_)
+      if (b.loop > 0) out.push_back(b.loop);
     return out;
   }
 
@@ -723,12 +718,16 @@ class Reader {
   FrameSetting tool_, base_;
   std::string main_name_;
   bool main_open_ = false;
-  int block_depth_ = 0;
-  std::vector<char> block_kinds_;  ///< open blocks: 'm' the program, 'd' a function or thread, 'i' if, 'w' while
-  std::vector<size_t> block_at_;   ///< where each open block starts
-  std::set<std::string> defs_;     ///< the script's functions that move the robot
-  StartTracker flow_;              ///< where the robot comes from (Motion::start_unknown)
-  std::vector<int> blocks_;  ///< open blocks: a loop id (while) or 0
+  std::set<std::string> defs_;  ///< the script's functions that move the robot
+  StartTracker flow_;           ///< where the robot comes from (Motion::start_unknown)
+  /// An open block (def, thread, if, while).
+  struct OpenBlock {
+    StartTracker::Block kind = StartTracker::Block::kRoutine;
+    bool program = false;  ///< the program's own def
+    int loop = 0;          ///< a loop id (while), else 0
+    size_t at = 0;         ///< where it starts
+  };
+  std::vector<OpenBlock> blocks_;
   int loops_ = 0;
   struct Use {
     size_t motion;
