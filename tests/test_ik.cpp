@@ -781,6 +781,35 @@ TEST(IkWorkspace, PathFollowingEqualsTheStatelessSolveThroughAWristSingularity) 
   }
 }
 
+TEST(IkWorkspace, LongStepsThroughAWristSingularityEqualTheStatelessSolve) {
+  // The same crossing in steps of 2.5 to 5 deg of A5: a warm solve that moves a joint more than
+  // 2 deg passes a singularity test at the move (in rad) before it is taken, which answers the
+  // one at the threshold and becomes the workspace's certificate. Statuses and joint values
+  // equal the stateless solve's, and every solution is regular by Eigen's SVD.
+  const calib::RobotModel m = test::loadBundled("kuka_kr16");
+  const calib::KinematicSolver s(m);
+  for (int steps : {10, 14, 20}) {
+    const WristCrossing w = wristCrossing(s, steps);
+    const std::vector<calib::IkResult> with = follow(s, w.targets, w.qa, w.o, true);
+    const std::vector<calib::IkResult> without = follow(s, w.targets, w.qa, w.o, false);
+    int ok = 0, long_steps = 0;
+    for (size_t k = 0; k < w.targets.size(); ++k) {
+      ASSERT_EQ(with[k].status, without[k].status) << steps << " " << k;
+      if (with[k].status != calib::IkStatus::kOk) continue;
+      ++ok;
+      if (k > 0 && with[k - 1].status == calib::IkStatus::kOk &&
+          (with[k].q - with[k - 1].q).cwiseAbs().maxCoeff() > 2.0)
+        ++long_steps;
+      EXPECT_LT((with[k].q - without[k].q).cwiseAbs().maxCoeff(), 1e-9) << steps << " " << k;
+      EXPECT_GT(scaledSigmaMin(m, with[k].q), w.o.singular_threshold * (1 - 1e-9)) << steps << " " << k;
+      EXPECT_LE(positionError(m, with[k].q, w.targets[k]), 1e-3);
+    }
+    // the long warm steps were taken (6, 8 and 13 of them; ok: 8 of 11, 10 of 15, 15 of 21)
+    EXPECT_GE(2 * long_steps, steps) << steps;
+    EXPECT_GE(3 * ok, 2 * steps) << steps;
+  }
+}
+
 TEST(IkWorkspace, FollowIsTheWorkspaceSolveWritingIntoTheSeed) {
   // the same path through the wrist singularity: follow() gives the same statuses and joint
   // values as inverse(..., workspace) (the same solve, bit for bit); on failure the seed is

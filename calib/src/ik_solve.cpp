@@ -190,9 +190,23 @@ IkResult KinematicSolver::Impl::inverse(const Eigen::Isometry3d& T_target, const
     // warm and more than kWarmAcceptDeg from the seed: taken only where the Jacobian is
     // regular enough that no other solution can be nearer (another solution of the same pose
     // is about sigma_min rad away or more; docs/compensation.md)
-    if (warm && moved_deg > kWarmAcceptDeg && singularBelow(J, std::max(o.singular_threshold, moved_deg * kDegToRad)))
-      return false;
-    const bool singular = o.singular_threshold > 0 && singularAt(J, q, o.singular_threshold, ws, warm ? &ref : nullptr);
+    // Passed, this test shows sigma_min above the singularity threshold too: the singularity
+    // test is then answered, and the workspace keeps the proof as its certificate when it
+    // reaches further than the one it holds.
+    bool regular = false;
+    if (warm && moved_deg > kWarmAcceptDeg) {
+      const double t_move = std::max(o.singular_threshold, moved_deg * kDegToRad);
+      if (singularBelow(J, t_move)) return false;
+      regular = true;
+      if (ws && !chain.scaledJacobianLipschitz().empty() &&
+          (ws->cert_solver_id != id || ws->cert_level - jacobianChangeBound(q, ws->cert_q) < t_move)) {
+        ws->cert_solver_id = id;
+        ws->cert_q = q;
+        ws->cert_level = t_move;
+      }
+    }
+    const bool singular =
+        !regular && o.singular_threshold > 0 && singularAt(J, q, o.singular_threshold, ws, warm ? &ref : nullptr);
     const double min_singular_value = singular || o.compute_singular_value ? minSingularValue(J) : 0.0;
     // an answer at q (status, configuration, errors, smallest singular value)
     const auto answer = [&](IkResult& a, IkStatus status) {
