@@ -163,6 +163,48 @@ TEST(Rapid, TheStartIsUnknownAfterACallOrABranchAndInARoutine) {
   EXPECT_EQ(startsUnknown(procs), (std::vector<bool>{true, true, false, false, true, true, false, true}));
 }
 
+TEST(Rapid, MotionsAfterALabelACompactIfOrACaseAreRead) {
+  // The controller runs these motions. The reader used to take the whole line for the label, the
+  // IF or the CASE, and their targets went uncompensated without a word.
+  const std::string procs =
+      "  PROC main()\n"
+      "    MoveL a, v100, fine, tool0;\n"                                   // 0: a routine's first motion
+      "    again: MoveL b, v100, fine, tool0;\n"                            // 1: after a label (a GOTO comes here)
+      "    IF reg1 = 1 MoveL a, v100, fine, tool0;\n"                      // 2: when reg1 = 1, from b
+      "    MoveL b, v100, fine, tool0;\n"                                   // 3: from a or from b
+      "    IF DInput(di1) = 1 AND reg1 > 2 MoveJ a, v100, z10, tool0;\n"   // 4: from b
+      "    MoveL b, v100, fine, tool0;\n"                                   // 5: from a or from b
+      "    TEST reg1\n"
+      "    CASE 1, 2: MoveL a, v100, fine, tool0;\n"                       // 6: from b
+      "    DEFAULT: MoveL b, v100, fine, tool0;\n"                         // 7: another branch
+      "    ENDTEST\n"
+      "    IF reg1 = 3 GOTO again;\n"
+      "    MoveL a, v100, fine, tool0;\n"                                   // 8: after a jump may be taken
+      "  ENDPROC\n";
+  EXPECT_EQ(startsUnknown(procs), (std::vector<bool>{true, true, false, true, false, true, false, true, true}));
+  const std::string text = "MODULE m\n"
+                           "  CONST robtarget a := [[300,0,400],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
+                           "  CONST robtarget b := [[300,100,400],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n" +
+                           procs + "ENDMODULE\n";
+  Program p = parseRapid(text, "flow.mod");
+  ASSERT_EQ(p.motions.size(), 9u);
+  // where each motion is: line, column (after the label, the condition, the CASE's ':')
+  const std::vector<std::pair<int, int>> where = {{5, 5}, {6, 12}, {7, 17}, {8, 5}, {9, 37}, {10, 5}, {12, 16}, {13, 14}, {16, 5}};
+  for (size_t k = 0; k < where.size(); ++k) {
+    EXPECT_EQ(p.motions[k].where.line, where[k].first) << k;
+    EXPECT_EQ(p.motions[k].where.column, where[k].second) << k;
+  }
+  EXPECT_EQ(p.motions[4].type, MotionType::kPtp);
+  EXPECT_EQ(writeRapid(p), text);  // read and written back unchanged
+  // a corrected target is written where the conditional motion's robtarget is declared
+  Target& t = p.motions[2].target;
+  t.setPose(calib::XyzAbc{300.5, 0, 400, t.xyzAbc().a_deg, t.xyzAbc().b_deg, t.xyzAbc().c_deg});
+  t.modified = true;
+  const std::string out = writeRapid(p);
+  EXPECT_NE(out.find("    IF reg1 = 1 MoveL a, v100, fine, tool0;\n"), std::string::npos) << out;
+  EXPECT_NE(out.find("[[300.5000,0,400],"), std::string::npos) << out;
+}
+
 TEST(Rapid, RoutinesThatDoNotMoveAndPollingLoopsKeepTheStartKnown) {
   const std::string procs =
       "  PROC main()\n"

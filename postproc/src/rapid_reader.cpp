@@ -68,7 +68,14 @@ class Reader {
     Program p;
     p.source_file = src_->path;
     p.name = fs::path(src_->path).stem().string();
-    for (const Range& st : stmts_) statement(st, p);
+    for (const Range& st : stmts_) {
+      statement(st, p);
+      // after a motion that runs only when a compact IF's condition holds, the robot is at
+      // its target or where it was before
+      const std::string& u = t_[st.first].u;
+      if (conditional_.count(st.first) && (u == "MOVEL" || u == "MOVEJ" || u == "MOVEC" || u == "MOVEABSJ" || kOtherMoves.count(u)))
+        flow_.unknown();
+    }
     if (!module_seen_) fail(t_.empty() ? 0 : t_.front().b, "expected a RAPID module (MODULE name ... ENDMODULE), found " +
                                                                (t_.empty() ? std::string("an empty file") : "'" + t_.front().s + "'"));
     if (module_open_) fail(src_->text.size(), "expected ENDMODULE, found the end of the file");
@@ -92,6 +99,12 @@ class Reader {
   void split() {
     size_t i = 0;
     while (i < t_.size()) {
+      // a label (name:) is a statement of its own, whatever follows it on its line
+      if (t_[i].kind == Tok::Kind::kIdent && !kBlockHeads.count(t_[i].u) && isOp(t_, i + 1, ":")) {
+        stmts_.push_back({i, i + 2});
+        i += 2;
+        continue;
+      }
       const bool head = t_[i].kind == Tok::Kind::kIdent && kBlockHeads.count(t_[i].u);
       const int line = loc(t_[i].b).line;
       std::vector<size_t> open;
@@ -120,9 +133,42 @@ class Reader {
       }
       if (!head && (j > t_.size() || !isOp(t_, j - 1, ";")))
         fail(t_[j - 1].e, "expected ';' at the end of the statement '" + text({i, j}) + "', found the end of the file");
-      stmts_.push_back({i, j});
-      i = j;
+      // the statement a CASE, a DEFAULT or a compact IF (without THEN) holds on its line is one
+      // of its own (a compact IF's runs only when the condition holds)
+      const size_t inner = head ? innerStatement({i, j}) : j;
+      stmts_.push_back({i, inner});
+      if (inner < j && t_[i].u == "IF") conditional_.insert(inner);
+      i = inner;
     }
+  }
+
+  /// Where the statement held by a CASE / DEFAULT head (after its ':') or by a compact IF
+  /// (after its condition: the first name or '%' that follows a complete operand) begins in r;
+  /// r.second when it holds none.
+  size_t innerStatement(Range r) const {
+    const std::string& u = t_[r.first].u;
+    if (u != "CASE" && u != "DEFAULT" && u != "IF") return r.second;
+    static const std::set<std::string> kOperatorWords = {"AND", "OR", "XOR", "NOT", "DIV", "MOD"};
+    int depth = 0;
+    for (size_t k = r.first + 1; k < r.second; ++k) {
+      const Tok& t = t_[k];
+      if (opens(t)) ++depth;
+      if (closes(t)) --depth;
+      if (depth != 0) continue;
+      if (u != "IF") {
+        if (isOp(t_, k, ":")) return k + 1 < r.second ? k + 1 : r.second;
+        continue;
+      }
+      if (t.kind == Tok::Kind::kIdent && t.u == "THEN") return r.second;
+      const bool starts = (t.kind == Tok::Kind::kIdent && !kOperatorWords.count(t.u)) || isOp(t_, k, "%");
+      const Tok& prev = t_[k - 1];
+      const bool operand_before = k > r.first + 1 &&
+                                  ((prev.kind == Tok::Kind::kIdent && !kOperatorWords.count(prev.u)) ||
+                                   prev.kind == Tok::Kind::kNumber || prev.kind == Tok::Kind::kString ||
+                                   isOp(t_, k - 1, ")") || isOp(t_, k - 1, "]") || isOp(t_, k - 1, "}"));
+      if (starts && operand_before) return k;
+    }
+    return r.second;
   }
 
   /// Names assigned anywhere (name := ..., name.field := ...): their values change at run time.
@@ -800,6 +846,7 @@ class Reader {
   std::vector<size_t> starts_;
   std::vector<Tok> t_;
   std::vector<Range> stmts_;
+  std::set<size_t> conditional_;  ///< first tokens of the statements a compact IF holds
   std::map<std::string, SourceLocation> assigned_;
   std::vector<std::array<std::optional<double>, 6>> ext_;  ///< external axes of each value (9E9: none)
   std::map<size_t, size_t> model_;  ///< the statements of the motion model (markModel): first token -> end
