@@ -313,6 +313,34 @@ TEST(Krl, TheStartIsUnknownAfterACallABranchOrALoopAndInASubroutine) {
   for (size_t k = 0; k < expected.size(); ++k) EXPECT_EQ(p.motions[k].start_unknown, expected[k]) << "motion " << k;
 }
 
+TEST(Krl, AFunctionThatMovesTheRobotIsCalledLikeASubroutine) {
+  // a DEFFCT of the .src that moves the robot, called in an expression: the motion after the
+  // call starts where the function left the robot, and the function's first motion wherever it
+  // is called from; a function that does not move the robot changes nothing
+  const std::string dir = test::tempDir("krl_deffct");
+  test::writeText(dir + "/p.src",
+                  "DEF p( )\nDECL REAL R\n$TOOL={X 0,Y 0,Z 100,A 0,B 0,C 0}\n$BASE=$NULLFRAME\n"
+                  "LIN XP1\n"                                          // 0: the program's start
+                  "R = AWAY(2.0) * 0.5\nLIN XP2\n"                   // 1: after a call of a function that moves
+                  "IF CHECK() > 0 THEN\n  $OUT[1]=TRUE\nENDIF\nLIN XP1\n"  // 2: CHECK does not move the robot
+                  "END\n\nDEFFCT REAL AWAY(F:IN)\nREAL F\nLIN XP2\nRETURN F\nENDFCT\n"  // 3: a function's first motion
+                  "\nGLOBAL DEFFCT INT CHECK( )\nRETURN 1\nENDFCT\n");
+  test::writeText(dir + "/p.dat", "DEFDAT p\nDECL E6POS XP1={X 1000,Y 0,Z 800,A 0,B 90,C 0}\nDECL E6POS XP2={X 1000,Y 100,Z 800,A 0,B 90,C 0}\nENDDAT\n");
+  const Program p = readKrl(dir + "/p.src");
+  ASSERT_EQ(p.motions.size(), 4u);
+  const std::vector<bool> expected = {false, true, false, true};
+  for (size_t k = 0; k < expected.size(); ++k) EXPECT_EQ(p.motions[k].start_unknown, expected[k]) << "motion " << k;
+  // a DEFFCT cut short: the error names ENDFCT and the line of the DEFFCT
+  test::writeText(dir + "/p.src", "DEF p( )\nLIN XP1\nEND\n\nDEFFCT REAL AWAY( )\nLIN XP2\nRETURN 1.0\n");
+  try {
+    readKrl(dir + "/p.src");
+    ADD_FAILURE() << "a DEFFCT without ENDFCT was read";
+  } catch (const calib::InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("expected ENDFCT closing the DEFFCT at line 5, found the end of the file"), std::string::npos)
+        << e.what();
+  }
+}
+
 TEST(Krl, NestedBlocksPassTheirMotionsOutAndBlocksWithoutMotionsChangeNothing) {
   const std::string dir = test::tempDir("krl_nested");
   test::writeText(dir + "/p.src",

@@ -73,6 +73,8 @@ struct Reader {
   StartTracker flow_;  // where the robot comes from (Motion::start_unknown)
   bool def_open_ = false;  // a DEF (main or local) not closed by its END yet
   int def_line_ = 0;       // the line of that DEF
+  bool def_fct_ = false;   // that DEF is a DEFFCT (closed by ENDFCT)
+  std::string openEnd() const { return def_fct_ ? "ENDFCT closing the DEFFCT" : "END closing the DEF"; }
 
   // A statement that branches, loops or jumps (KRL control flow).
   void controlFlow(const std::vector<Tok>& t) {
@@ -90,7 +92,10 @@ struct Reader {
   // technology packages' and the inline forms' (SET_CD_PARAMS, gripper and welding functions);
   // counting them would take the auxiliary points from every inline-form motion.
   bool isLocalCall(const std::vector<Tok>& t) const {
-    return t.size() >= 3 && t[0].kind == Tok::kIdent && t[1].text == "(" && t.back().text == ")" && local_defs_.count(t[0].up);
+    // a subroutine's call is a statement; a function's (DEFFCT) is part of an expression
+    for (size_t i = 0; i + 1 < t.size(); ++i)
+      if (t[i].kind == Tok::kIdent && t[i + 1].text == "(" && local_defs_.count(t[i].up)) return true;
+    return false;
   }
   std::set<std::string> local_defs_;  // the subroutines this .src defines that move the robot (upper case)
   std::string refuse;  // why the line just read cannot be converted ("" when it can)
@@ -601,9 +606,24 @@ struct Reader {
     }
     if (t[0].text == "&") return true;
     const std::string& k = t[0].up;
-    if (k == "DEF" || (k == "GLOBAL" && t.size() > 1 && t[1].up == "DEF")) {
-      if (def_open_) f->fail(t[0].begin, "expected END closing the DEF at line " + std::to_string(def_line_) + ", found another DEF");
+    if (k == "DEFFCT" || (k == "GLOBAL" && t.size() > 1 && t[1].up == "DEFFCT")) {
+      // a function of this file (after the main program's END): called from anywhere
+      if (def_open_) f->fail(t[0].begin, "expected " + openEnd() + " at line " + std::to_string(def_line_) + ", found DEFFCT");
       def_open_ = true;
+      def_fct_ = true;
+      def_line_ = f->loc(t[0].begin).line;
+      flow_ = StartTracker();
+      flow_.unknown();
+      return false;
+    }
+    if (k == "ENDFCT" && t.size() == 1 && def_open_ && def_fct_) {
+      def_open_ = false;
+      return false;
+    }
+    if (k == "DEF" || (k == "GLOBAL" && t.size() > 1 && t[1].up == "DEF")) {
+      if (def_open_) f->fail(t[0].begin, "expected " + openEnd() + " at line " + std::to_string(def_line_) + ", found another DEF");
+      def_open_ = true;
+      def_fct_ = false;
       def_line_ = f->loc(t[0].begin).line;
       if (program->name.empty()) {
         const size_t i = k == "DEF" ? 1 : 2;
@@ -620,7 +640,7 @@ struct Reader {
       main_started = true;
       return true;
     }
-    if (k == "END" && t.size() == 1) def_open_ = false;
+    if (k == "END" && t.size() == 1 && !def_fct_) def_open_ = false;
     if (k == "END" && t.size() == 1 && main_started && !main_ended) {
       main_ended = true;
       return true;
@@ -750,24 +770,32 @@ Program readKrl(const std::string& src_path, const KrlReadOptions& options) {
     std::map<std::string, std::set<std::string>> calls;
     std::vector<std::vector<Tok>> lines;
     for (const Line& l : src.lines()) lines.push_back(lex(src, l.begin, l.code_end));
-    auto defName = [](const std::vector<Tok>& t) -> std::string {  // "" unless the line is a DEF
+    // "" unless the line is a DEF or a DEFFCT (DEFFCT type name(...))
+    auto defName = [](const std::vector<Tok>& t) -> std::string {
       const size_t i = !t.empty() && t[0].up == "GLOBAL" ? 1 : 0;
-      return t.size() > i + 1 && t[i].up == "DEF" && t[i + 1].kind == Tok::kIdent ? t[i + 1].up : "";
+      if (t.size() > i + 1 && t[i].up == "DEF" && t[i + 1].kind == Tok::kIdent) return t[i + 1].up;
+      if (t.size() > i + 2 && t[i].up == "DEFFCT" && t[i + 2].kind == Tok::kIdent) return t[i + 2].up;
+      return "";
     };
     for (const std::vector<Tok>& t : lines)
       if (const std::string d = defName(t); !d.empty()) moves[d] = false;
     std::string cur;
     for (const std::vector<Tok>& t : lines) {
       if (t.empty()) continue;
-      if (const std::string d = defName(t); !d.empty()) cur = d;
-      else if (isMotionKeyword(t[0].up) && t[0].kind == Tok::kIdent && !cur.empty()) moves[cur] = true;
-      else if (t.size() >= 3 && t[0].kind == Tok::kIdent && t[1].text == "(" && moves.count(t[0].up) && !cur.empty()) calls[cur].insert(t[0].up);
+      if (const std::string d = defName(t); !d.empty()) {
+        cur = d;
+        continue;
+      }
+      if (isMotionKeyword(t[0].up) && t[0].kind == Tok::kIdent && !cur.empty()) moves[cur] = true;
+      // calls: a subroutine's as a statement, a function's anywhere in an expression
+      for (size_t i = 0; i + 1 < t.size() && !cur.empty(); ++i)
+        if (t[i].kind == Tok::kIdent && t[i + 1].text == "(" && moves.count(t[i].up)) calls[cur].insert(t[i].up);
     }
     r.local_defs_ = movingRoutines(moves, calls);
   }
   for (const Line& l : src.lines()) r.handleLine(l);
   if (r.def_open_)
-    src.fail(src.text().size(), "expected END closing the DEF at line " + std::to_string(r.def_line_) + ", found the end of the file");
+    src.fail(src.text().size(), "expected " + r.openEnd() + " at line " + std::to_string(r.def_line_) + ", found the end of the file");
   if (!source->dat_path.empty()) datPassThrough(KrlFile(source->dat_path, source->dat_text, 1), program);
   if (program.name.empty()) {
     bool any = false;
