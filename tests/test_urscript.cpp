@@ -100,6 +100,34 @@ TEST(UrScript, TheStartIsUnknownAfterACallABranchOrALoopAndInAFunction) {
   }
 }
 
+TEST(UrScript, ServoAndSpeedCommandsAreNamedAndTheStartAfterThemIsUnknown) {
+  // servoj / servoc / speedj / speedl move the robot in ways accura does not model: the motion
+  // after each starts where it left the robot; servoc's Cartesian target is kept as a motion
+  // whose target cannot be evaluated (left as written, named in a warning). The start is also
+  // unknown after a thread that moves the robot is started, and after force control.
+  const std::string a = "p[0.5,0.1,0.4,0,3.14,0]", b = "p[0.5,0.2,0.4,0,3.14,0]";
+  const std::string text = "def prog():\n"
+                           "  movel(" + a + ")\n"                                                  // 0
+                           "  servoj([0,-1.57,1.57,-1.57,-1.57,0], t=0.5)\n"
+                           "  movel(" + b + ")\n"                                                  // 1
+                           "  servoc(" + a + ", a=1.2, v=0.25, r=0)\n"                              // 2
+                           "  movel(" + b + ")\n"                                                  // 3
+                           "  speedl([0,0,0.1,0,0,0], 0.5, 1.0)\n  stopl(1.0)\n"
+                           "  movel(" + a + ")\n"                                                  // 4
+                           "  thread mover():\n    movel(" + b + ")\n    return False\n  end\n"  // 5: a thread's first motion
+                           "  thrd = run mover()\n  join thrd\n  movel(" + a + ")\n"             // 6
+                           "  force_mode(p[0,0,0,0,0,0], [0,0,1,0,0,0], [0,0,10,0,0,0], 2, [0.1,0.1,0.1,0.1,0.1,0.1])\n"
+                           "  end_force_mode()\n  movel(" + b + ")\n"                            // 7
+                           "end\n";
+  const Program p = parseUrScript(text, "servo.script");
+  ASSERT_EQ(p.motions.size(), 8u);  // movel x7, servoc
+  const std::vector<bool> expected = {true, true, false, true, true, true, true, true};
+  for (size_t k = 0; k < expected.size(); ++k) EXPECT_EQ(p.motions[k].start_unknown, expected[k]) << "motion " << k;
+  EXPECT_NE(p.motions[2].target_problem.find("servoc is a motion accura does not model"), std::string::npos);
+  for (size_t k : {0u, 1u, 3u, 4u, 5u, 6u, 7u}) EXPECT_EQ(p.motions[k].target_problem, "") << k;
+  EXPECT_EQ(writeUrScript(p), text);  // nothing changed: written back byte for byte
+}
+
 TEST(UrScript, ReadsTheMotionModelInMetresAndRotationVectors) {
   const Program p = parseUrScript(example(), "ur10_seam.script");
   EXPECT_EQ(p.name, "ur10_seam");

@@ -89,6 +89,9 @@ constexpr double kMaxPositionM = 100;   // beyond any robot: a typo (mm written 
 constexpr double kMaxRotationRad = 100;
 constexpr double kMaxJointRad = 100;
 
+/// URScript commands that move the robot in ways accura does not model.
+const std::set<std::string> kOtherMotions = {"servoj", "servoc", "speedj", "speedl"};
+
 class Reader {
  public:
   Reader(const std::string& text, const std::string& path) : src_(std::make_shared<UrScriptSource>()) {
@@ -406,7 +409,8 @@ class Reader {
       if (t.kind != Tok::Kind::kIdent) continue;
       if (first && (t.s == "def" || t.s == "thread" || t.s == "if" || t.s == "while")) {
         ++depth;
-        if (t.s == "def" && k + 1 < toks_.size() && toks_[k + 1].kind == Tok::Kind::kIdent) open.push_back({toks_[k + 1].s, depth});
+        if ((t.s == "def" || t.s == "thread") && k + 1 < toks_.size() && toks_[k + 1].kind == Tok::Kind::kIdent)
+          open.push_back({toks_[k + 1].s, depth});
         continue;
       }
       if (first && t.s == "end" && (k + 1 == toks_.size() || toks_[k + 1].kind == Tok::Kind::kNewline)) {
@@ -416,7 +420,7 @@ class Reader {
       }
       if (open.empty()) continue;
       const std::string& cur = open.back().first;
-      if (t.s == "movel" || t.s == "movej" || t.s == "movep" || t.s == "movec" || t.s == "servoj" || t.s == "speedl" || t.s == "speedj")
+      if (t.s == "movel" || t.s == "movej" || t.s == "movep" || t.s == "movec" || kOtherMotions.count(t.s) || t.s == "force_mode")
         moves[cur] = true;
       else if (moves.count(t.s))
         calls[cur].insert(t.s);
@@ -472,8 +476,12 @@ class Reader {
     }
     if ((isIdent(t, 0, "elif") || isIdent(t, 0, "else")) && !blocks_.empty() && blocks_.back().kind == StartTracker::Block::kBranch)
       flow_.branch();
-    // a call of one of the script's functions that move the robot
+    // a call of one of the script's functions that move the robot, a thread of the script that
+    // moves it started (run name()), force control
     if (isIdent(t, 0) && isOp(t, 1, "(") && defs_.count(t[0].s)) flow_.unknown();
+    for (size_t k = 0; k + 1 < t.size(); ++k)
+      if (isIdent(t, k, "run") && isIdent(t, k + 1) && defs_.count(t[k + 1].s)) flow_.unknown();
+    if (isIdent(t, 0, "force_mode") && isOp(t, 1, "(")) flow_.unknown();
     size_t s = 0;
     if (isIdent(t, 0, "global") || isIdent(t, 0, "local")) s = 1;
     if (isIdent(t, s) && isOp(t, s + 1, "=")) return assignment(t, s, p);
@@ -485,6 +493,11 @@ class Reader {
         if (f == "set_tcp") return setTcp(t);
         return motion(t, p);
       }
+      // a Cartesian target accura cannot compensate: named; a joint target (servoj) needs no
+      // compensation and a speed command has none: the statement is carried, the start after
+      // it unknown
+      if (f == "servoc") return otherMotion(t, p);
+      if (kOtherMotions.count(f)) flow_.unknown();
     }
     other(t);
   }
@@ -709,6 +722,30 @@ class Reader {
     m.statement_id = static_cast<int>(src_->statements.size());
     src_->statements.push_back(st);
     p.motions.push_back(m);
+  }
+
+  /// servoc, a Cartesian motion accura does not model: kept as written and named in a warning
+  /// (Motion::target_problem); where it leaves the robot is not known.
+  void otherMotion(const std::vector<Tok>& t, Program& p) {
+    Motion m;
+    m.where = loc(t[0].b);
+    m.statement = textOf(t, 0, t.size());
+    m.tool = tool_;
+    m.base = base_;
+    m.type = MotionType::kLin;
+    m.target.where = m.where;
+    m.target_problem = t[0].s + " is a motion accura does not model (it compensates movel, movej, movep and movec)";
+    UrScriptSource::Statement st;
+    st.code_begin = t.front().b;
+    st.code_end = t.back().e;
+    st.line_begin = line_starts_[static_cast<size_t>(m.where.line - 1)];
+    const size_t nl = src_->text.find('\n', st.code_end);
+    st.eol = nl == std::string::npos ? "" : (nl > 0 && src_->text[nl - 1] == '\r' ? "\r\n" : "\n");
+    m.start_unknown = flow_.motion();
+    m.statement_id = static_cast<int>(src_->statements.size());
+    src_->statements.push_back(st);
+    p.motions.push_back(m);
+    flow_.unknown();
   }
 
   std::shared_ptr<UrScriptSource> src_;
