@@ -205,6 +205,52 @@ TEST(Rapid, MotionsAfterALabelACompactIfOrACaseAreRead) {
   EXPECT_NE(out.find("[[300.5000,0,400],"), std::string::npos) << out;
 }
 
+TEST(Rapid, MotionsAfterBlockWordsAndHeadersOverSeveralLinesAreRead) {
+  // RAPID is free format: a statement may follow THEN, DO, ELSE, ENDIF or a CASE on the same
+  // line, and a header may run over several lines. Each motion is read where it is; one that
+  // shares its line with another statement gets no auxiliary points (they would repeat the
+  // other statement or run outside its block): Motion::single_reason.
+  const std::string text =
+      "MODULE m\n"
+      "  CONST robtarget a := [[300,0,400],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
+      "  CONST robtarget b := [[300,100,400],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
+      "  VAR num tc := 2;\n"
+      "  LOCAL PROC main()\n"                                                           // line 5
+      "    MoveL a, v100, fine, tool0;\n"                                                // 0
+      "    IF reg1 = 1 THEN MoveL b, v100, fine, tool0;\n"                             // 1: after THEN
+      "    ELSE MoveL a, v100, fine, tool0;\n"                                          // 2: after ELSE
+      "    ENDIF MoveL b, v100, fine, tool0;\n"                                         // 3: after ENDIF
+      "    WHILE reg2 > 0 DO MoveL a, v100, fine, tool0;\n    ENDWHILE\n"             // 4
+      "    FOR i FROM 1 TO 3 DO MoveL b, v100, fine, tool0;\n    ENDFOR\n"            // 5
+      "    TEST reg1 CASE 1: MoveL a, v100, fine, tool0;\n    ENDTEST\n"               // 6: a one-line TEST
+      "    IF reg1 = 1 AND\n      reg2 = 2 THEN\n      MoveL b, v100, fine, tool0;\n    ENDIF\n"  // 7: line 18
+      "    WHILE reg2 > 0\n      DO\n      MoveL a, v100, fine, tool0;\n    ENDWHILE\n"  // 8: line 22
+      "    TEST reg1\n    CASE 1,\n      2:\n      MoveL b, v100, fine, tool0;\n    ENDTEST\n"  // 9: line 27
+      "    MoveL a, v100, z10 \\Inpos:=inpos20, tool0;\n"                             // 10: a stop point (line 29)
+      "    MoveL b, v100, z10, tool0 \\ID:=10;\n"                                      // 11: MultiMove
+      "    MoveL a, v100 \\T:=tc, z10, tool0;\n"                                       // 12: a time in a variable
+      "    SearchJ \\Stop, di1, sp, b, v100, tool0;\n"                                // 13: not modelled, named
+      "  ENDPROC\n"
+      "ENDMODULE\n";
+  Program p = parseRapid(text, "free.mod");
+  ASSERT_EQ(p.motions.size(), 14u);
+  const std::vector<std::pair<int, int>> where = {{6, 5},  {7, 22}, {8, 10}, {9, 11}, {10, 23}, {12, 26}, {14, 23},
+                                                  {18, 7}, {22, 7}, {27, 7}, {29, 5}, {30, 5},  {31, 5},  {32, 5}};
+  for (size_t k = 0; k < where.size(); ++k) {
+    EXPECT_EQ(p.motions[k].where.line, where[k].first) << k;
+    EXPECT_EQ(p.motions[k].where.column, where[k].second) << k;
+  }
+  const std::string shares = "it shares its line with another statement";
+  for (size_t k : {1u, 2u, 3u, 4u, 5u, 6u}) EXPECT_EQ(p.motions[k].single_reason, shares) << k;
+  for (size_t k : {0u, 7u, 8u, 9u, 10u}) EXPECT_EQ(p.motions[k].single_reason, "") << k;
+  EXPECT_NE(p.motions[11].single_reason.find("\\ID"), std::string::npos);
+  EXPECT_NE(p.motions[12].single_reason.find("\\T:= is not a number"), std::string::npos);
+  EXPECT_TRUE(p.motions[10].approximation.empty());  // \Inpos replaces the zone: a stop point
+  EXPECT_FALSE(p.motions[11].approximation.empty());
+  EXPECT_NE(p.motions[13].target_problem.find("SearchJ is a motion instruction accura does not model"), std::string::npos);
+  EXPECT_EQ(writeRapid(p), text);  // read and written back unchanged
+}
+
 TEST(Rapid, RoutinesThatDoNotMoveAndPollingLoopsKeepTheStartKnown) {
   const std::string procs =
       "  PROC main()\n"
@@ -599,6 +645,43 @@ TEST(Rapid, ASplitMoveLWithATimeGivesEachPieceItsShare) {
   // \T:= that is not a time is a located error
   EXPECT_THROW(parseRapid(inProc("    MoveL [[380,40,350],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]], v100\\T:=-2, fine, tool0;\n"), "r.mod"),
                InputError);
+}
+
+TEST(Rapid, AMotionSharingItsLineGetsNoAuxiliaryPointsAndSaysSo) {
+  // The seam's first line with another statement on it: split, its pieces would repeat the
+  // assignment. Its end point is compensated, no point is inserted before it, and the warning
+  // says why; written alone on its line, the same motion is split.
+  std::string text = example();
+  const std::string seam = "    MoveL p30, v20, z1, torch\\WObj:=table;\n";
+  ASSERT_NE(text.find(seam), std::string::npos);
+  std::string shared = text;
+  shared.replace(shared.find(seam), seam.size(), "    seams := 0; MoveL p30, v20, z1, torch\\WObj:=table;\n");
+  SimulateOptions so;
+  so.effects = {"geometric", "joint_compliance"};
+  so.set_station = false;
+  so.seed = 2;
+  so.error_scale = 3;
+  JobSettings s = settingsFor(perturbModel(irb120WithTorch(), so));
+  s.tol_mm = 0.005;
+  const ProgramCompensation alone = compensateProgramReport(parseRapid(text, "alone.mod"), s);
+  const ProgramCompensation with = compensateProgramReport(parseRapid(shared, "shared.mod"), s);
+  ASSERT_TRUE(alone.ok() && with.ok());
+  auto insertedBefore = [](const Program& p, int line) {
+    int n = 0;
+    for (const Motion& m : p.motions)
+      if (m.inserted && m.where.line == line) ++n;
+    return n;
+  };
+  const int line = parseRapid(text, "alone.mod").motions[3].where.line;  // MoveL p30
+  EXPECT_GT(insertedBefore(alone.program, line), 0);
+  EXPECT_EQ(insertedBefore(with.program, line), 0);
+  bool warned = false;
+  for (const auto& w : with.report.warnings)
+    warned = warned || (w.where.line == line && w.message.find("it shares its line with another statement: no auxiliary points inserted") != std::string::npos);
+  EXPECT_TRUE(warned);
+  const std::string written = writeRapid(with.program);
+  EXPECT_EQ(written.find("    seams := 0;"), written.rfind("    seams := 0;")) << written;  // the assignment is not repeated
+  EXPECT_NE(written.find("    seams := 0; MoveL p30, v20, z1, torch\\WObj:=table;\n"), std::string::npos);
 }
 
 TEST(Rapid, CompensatedModuleFollowsTheIntendedPathOnAPerturbedIrb120) {

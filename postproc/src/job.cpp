@@ -481,9 +481,11 @@ class Job {
     sr.max_error_after_mm = sc.max_error_after_mm;
     sr.points_added = sc.points_added;
     std::vector<PathSegment> commanded = sc.commanded;
-    if (sc.points_added > 0 && m.trigger_count > 0) {
-      // TRIGGER statements refer to the next motion: points inserted before this motion
-      // would move them. Keep the single motion (endpoints compensated).
+    // TRIGGER statements refer to the next motion: points inserted before this motion would
+    // move them; a statement's other parts would be repeated (single_reason). Keep the single
+    // motion (endpoints compensated).
+    const std::string single = m.trigger_count > 0 ? "TRIGGER statements are bound to this motion" : m.single_reason;
+    if (sc.points_added > 0 && !single.empty()) {
       PathSegment one = commanded.back();
       one.T_world_start = commanded.front().T_world_start;
       if (c.aux) {
@@ -500,10 +502,12 @@ class Job {
       commanded = {one};
       sr.points_added = 0;
       sr.max_error_after_mm = sc.max_error_before_mm;
-      sr.note = std::to_string(m.trigger_count) + " TRIGGER statement(s) bound to this motion: no auxiliary points inserted";
+      sr.note = m.trigger_count > 0
+                    ? std::to_string(m.trigger_count) + " TRIGGER statement(s) bound to this motion: no auxiliary points inserted"
+                    : single + ": no auxiliary points inserted";
       if (sc.max_error_before_mm > s_.tol_mm)
         warning(m.where, "the predicted path error " + formatMm(sc.max_error_before_mm) + " mm exceeds --tol " + formatMm(s_.tol_mm) +
-                             " mm, but TRIGGER statements are bound to this motion: no auxiliary points inserted");
+                             " mm, but " + single + ": no auxiliary points inserted");
     }
     insertPoints(m, c, end, commanded, sr.length_mm, out);
     if (commanded.size() > 1 && m.approximation.empty()) {
@@ -578,6 +582,7 @@ class Job {
       Motion ins = m;
       ins.inserted = true;
       ins.trigger_count = 0;
+      ins.single_reason.clear();
       ins.target_problem.clear();
       Target t;
       t.kind = Target::Kind::kCartesian;

@@ -194,10 +194,11 @@ auto loc = [&](size_t off) { return locate(starts_, src.path, off); };
   std::vector<int> routine_of(starts_.size() + 1, 0);  // 0: module level, 1: main routine, 2: other
   int state = 0;
   for (const Range& r : stmts_) {
-    const std::string& u = t_[r.first].u;
+    const size_t h = t_[r.first].u == "LOCAL" && r.first + 1 < r.second ? r.first + 1 : r.first;  // LOCAL PROC
+    const std::string& u = t_[h].u;
     const int a = loc(t_[r.first].b).line, b = loc(t_[r.second - 1].b).line;
     if (u == "PROC" || u == "FUNC" || u == "TRAP") {
-      size_t k = r.first + 1 + (u == "FUNC" ? 1 : 0);
+      size_t k = h + 1 + (u == "FUNC" ? 1 : 0);
       in_main = k < r.second && t_[k].s == main_routine_ && u == "PROC";
       state = in_main ? 1 : 2;
       if (in_main) main_begin = a;

@@ -45,10 +45,13 @@ const std::set<std::string> kBlockHeads = {"MODULE", "ENDMODULE", "PROC", "ENDPR
                                            "RECORD", "ENDRECORD", "IF", "ELSEIF", "ELSE", "ENDIF", "WHILE", "ENDWHILE", "FOR",
                                            "ENDFOR", "TEST", "CASE", "DEFAULT", "ENDTEST", "ERROR", "BACKWARD", "UNDO"};
 /// Motion instructions accura does not model: their targets would be missed without a word.
-const std::set<std::string> kOtherMoves = {"MOVELDO", "MOVEJDO", "MOVECDO", "MOVELSYNC", "MOVEJSYNC", "MOVECSYNC", "MOVELAO",
-                                           "MOVEJAO", "MOVECAO", "MOVELGO", "MOVEJGO", "MOVECGO", "TRIGGL", "TRIGGJ", "TRIGGC",
-                                           "TRIGGLIOS", "TRIGGJIOS", "ARCL", "ARCC", "ARCLSTART", "ARCLEND", "ARCCSTART", "ARCCEND",
-                                           "SEARCHL", "SEARCHC", "SEARCHEXTJ", "MOVEEXTJ", "SPOTL", "SPOTJ", "MOVEABSJDO"};
+const std::set<std::string> kOtherMoves = {
+    "MOVELDO", "MOVEJDO", "MOVECDO", "MOVELSYNC", "MOVEJSYNC", "MOVECSYNC", "MOVELAO", "MOVEJAO", "MOVECAO", "MOVELGO",
+    "MOVEJGO", "MOVECGO", "TRIGGL", "TRIGGJ", "TRIGGC", "TRIGGLIOS", "TRIGGJIOS", "ARCL", "ARCC", "ARCLSTART", "ARCLEND",
+    "ARCCSTART", "ARCCEND", "ARCL1", "ARCL2", "ARCC1", "ARCC2", "ARCREPL", "ARCMOVEL", "ARCMOVEC", "SEARCHL", "SEARCHC",
+    "SEARCHJ", "SEARCHEXTJ", "MOVEEXTJ", "SPOTL", "SPOTJ", "SPOTML", "SPOTMJ", "MOVEABSJDO", "CAPL", "CAPC", "PAINTL",
+    "PAINTC", "PAINTLSIG", "PAINTLDO", "DISPL", "DISPC", "CONTACTL", "FCPRESSL", "FCPRESSC", "FCPRESSLSTART",
+    "FCPRESSEND", "TRIGGRELJ", "TRIGGLDO", "TRIGGJDO", "TRIGGCDO", "CSSDEACTMOVEL", "MOVELTRACK"};
 
 class Reader {
  public:
@@ -94,8 +97,9 @@ class Reader {
   std::string text(Range r) const { return r.first < r.second ? src_->text.substr(t_[r.first].b, t_[r.second - 1].e - t_[r.first].b) : ""; }
   std::string found(size_t i, size_t end) const { return i < end ? "'" + t_[i].s + "'" : "the end of the statement"; }
 
-  /// Statements: a block header runs to the end of its line (and its brackets); any other
-  /// statement to its ';'.
+  /// Statements: a block header runs to the end of its line (and its brackets; IF, ELSEIF,
+  /// WHILE, FOR and CASE at least to their THEN, DO or ':'), and a statement that shares its
+  /// line is one of its own; a label is one; any other statement runs to its ';'.
   void split() {
     size_t i = 0;
     while (i < t_.size()) {
@@ -105,13 +109,22 @@ class Reader {
         i += 2;
         continue;
       }
-      const bool head = t_[i].kind == Tok::Kind::kIdent && kBlockHeads.count(t_[i].u);
+      const size_t h = headAt(i);
+      const bool head = h != kNoHead;
+      // a header that needs its closing word runs over lines until it: IF ... THEN (a compact
+      // IF ends with its statement's ';'), ELSEIF ... THEN, WHILE / FOR ... DO, CASE ...:
+      const std::string& hu = head ? t_[h].u : std::string();
+      const char* closing_word = hu == "IF" || hu == "ELSEIF" ? "THEN" : hu == "WHILE" || hu == "FOR" ? "DO" : nullptr;
+      bool closed = !closing_word && hu != "CASE";
       const int line = loc(t_[i].b).line;
       std::vector<size_t> open;
       size_t j = i;
       for (; j < t_.size(); ++j) {
         const Tok& t = t_[j];
-        if (head && open.empty() && j > i && loc(t.b).line != line) break;
+        if (head && open.empty() && j > i && loc(t.b).line != line && closed) break;
+        if (head && open.empty() && !closed &&
+            ((closing_word && t.kind == Tok::Kind::kIdent && t.u == closing_word) || (hu == "CASE" && isOp(t_, j, ":"))))
+          closed = true;
         if (!head && open.empty() && j > i && t.kind == Tok::Kind::kIdent && kBlockHeads.count(t.u) && loc(t.b).line != loc(t_[j - 1].b).line)
           fail(t_[j - 1].e, "expected ';' at the end of the statement '" + text({i, j}) + "', found " + t.s);
         if (opens(t)) open.push_back(j);
@@ -137,17 +150,32 @@ class Reader {
       // of its own (a compact IF's runs only when the condition holds)
       const size_t inner = head ? innerStatement({i, j}) : j;
       stmts_.push_back({i, inner});
-      if (inner < j && t_[i].u == "IF") conditional_.insert(inner);
+      if (inner < j && t_[i].u == "IF" && !(t_[inner - 1].kind == Tok::Kind::kIdent && t_[inner - 1].u == "THEN"))
+        conditional_.insert(inner);
       i = inner;
     }
   }
 
-  /// Where the statement held by a CASE / DEFAULT head (after its ':') or by a compact IF
-  /// (after its condition: the first name or '%' that follows a complete operand) begins in r;
-  /// r.second when it holds none.
+  static constexpr size_t kNoHead = static_cast<size_t>(-1);
+  /// The block keyword of a statement starting at token i (LOCAL PROC / FUNC / TRAP: the one
+  /// after LOCAL); kNoHead when it is no block header.
+  size_t headAt(size_t i) const {
+    if (t_[i].kind != Tok::Kind::kIdent) return kNoHead;
+    if (kBlockHeads.count(t_[i].u)) return i;
+    if (t_[i].u == "LOCAL" && i + 1 < t_.size() && t_[i + 1].kind == Tok::Kind::kIdent &&
+        (t_[i + 1].u == "PROC" || t_[i + 1].u == "FUNC" || t_[i + 1].u == "TRAP"))
+      return i + 1;
+    return kNoHead;
+  }
+
+  /// Where a statement that shares the header's line begins in r (r.second when none): after
+  /// THEN (IF, ELSEIF), DO (WHILE, FOR), the ':' of a CASE / DEFAULT, the word ELSE, ENDIF,
+  /// ENDWHILE, ENDFOR, ENDTEST; before the CASE of a one-line TEST; after a compact IF's
+  /// condition (the first name or '%' that follows a complete operand).
   size_t innerStatement(Range r) const {
     const std::string& u = t_[r.first].u;
-    if (u != "CASE" && u != "DEFAULT" && u != "IF") return r.second;
+    if (u == "ELSE" || u == "ENDIF" || u == "ENDWHILE" || u == "ENDFOR" || u == "ENDTEST") return r.first + 1;
+    if (u != "CASE" && u != "DEFAULT" && u != "IF" && u != "ELSEIF" && u != "WHILE" && u != "FOR" && u != "TEST") return r.second;
     static const std::set<std::string> kOperatorWords = {"AND", "OR", "XOR", "NOT", "DIV", "MOD"};
     int depth = 0;
     for (size_t k = r.first + 1; k < r.second; ++k) {
@@ -155,11 +183,21 @@ class Reader {
       if (opens(t)) ++depth;
       if (closes(t)) --depth;
       if (depth != 0) continue;
-      if (u != "IF") {
-        if (isOp(t_, k, ":")) return k + 1 < r.second ? k + 1 : r.second;
+      const bool word = t.kind == Tok::Kind::kIdent;
+      if (u == "CASE" || u == "DEFAULT") {
+        if (isOp(t_, k, ":")) return k + 1;
         continue;
       }
-      if (t.kind == Tok::Kind::kIdent && t.u == "THEN") return r.second;
+      if (u == "TEST") {
+        if (word && k > r.first + 1 && (t.u == "CASE" || t.u == "DEFAULT")) return k;
+        continue;
+      }
+      if (u == "WHILE" || u == "FOR") {
+        if (word && t.u == "DO") return k + 1;
+        continue;
+      }
+      if (word && t.u == "THEN") return k + 1;
+      if (u == "ELSEIF") continue;
       const bool starts = (t.kind == Tok::Kind::kIdent && !kOperatorWords.count(t.u)) || isOp(t_, k, "%");
       const Tok& prev = t_[k - 1];
       const bool operand_before = k > r.first + 1 &&
@@ -188,7 +226,7 @@ class Reader {
     const std::vector<Tok>& t = t_;
     const size_t i = r.first;
     const std::string& u = t[i].u;
-    if (t[i].kind == Tok::Kind::kIdent && kBlockHeads.count(u)) return block(r, p);
+    if (headAt(i) != kNoHead) return block(r, p);
     if (!module_open_) fail(t[i].b, "expected MODULE before the first statement, found '" + t[i].s + "'");
     size_t k = i;
     if (isKw(t, k, "LOCAL") || isKw(t, k, "TASK")) ++k;
@@ -232,7 +270,8 @@ class Reader {
   }
 
   void block(Range r, Program& p) {
-    const std::string& u = t_[r.first].u;
+    const size_t h = headAt(r.first);
+    const std::string& u = t_[h].u;
     if (u == "MODULE") {
       if (module_seen_) fail(t_[r.first].b, "expected one MODULE per file, found a second one");
       if (r.second - r.first < 2 || t_[r.first + 1].kind != Tok::Kind::kIdent) fail(t_[r.first].e, "expected the module name after MODULE, found " + found(r.first + 1, r.second));
@@ -249,7 +288,7 @@ class Reader {
     if (!module_open_) fail(t_[r.first].b, "expected MODULE before the first statement, found '" + t_[r.first].s + "'");
     if (u == "PROC" || u == "FUNC" || u == "TRAP") {
       if (!routine_.empty()) fail(t_[r.first].b, "expected END" + routine_kind_ + " of the routine " + routine_ + ", found " + u);
-      size_t k = r.first + 1;
+      size_t k = h + 1;
       if (u == "FUNC" && k < r.second) ++k;  // the return type
       if (k >= r.second || t_[k].kind != Tok::Kind::kIdent) fail(t_[r.first].e, "expected the routine name after " + u + ", found " + found(k, r.second));
       routine_ = t_[k].s;
@@ -648,6 +687,7 @@ class Reader {
     zone(pos[n - 2].main, opt, m);
     tool(pos[n - 1].main, m);
     wobj(opt, m);
+    singleReason(r, opt, st, m);
     if (u == "MOVEABSJ") {
       jointTarget(pos[0].main, m);
       st.targets.push_back({t_[pos[0].main.first].b, t_[pos[0].main.second - 1].e});
@@ -676,6 +716,22 @@ class Reader {
       m.target = cart(pos[u == "MOVEC" ? 1 : 0].main);
     }
     addMotion(r, m, st, p);
+  }
+
+  /// Why the pieces of this move, were it split by auxiliary points, would not do what it does
+  /// (Motion::single_reason): another statement on its line (a label, a CASE, a compact IF, an
+  /// assignment before it, a motion after it) would be repeated or run at another time; \ID
+  /// synchronises one move per ID with another task (MultiMove); a time \T that is not a
+  /// number cannot be shared among the pieces.
+  void singleReason(Range r, const std::map<std::string, Range>& opt, const RapidSource::Statement& st, Motion& m) const {
+    const std::string& s = src_->text;
+    const size_t line_end = s.find('\n', st.code_end);
+    const size_t first_code = s.find_first_not_of(" \t", st.line_begin);
+    bool other = first_code < st.code_begin;
+    for (size_t k = r.second; k < t_.size() && t_[k].b < line_end; ++k) other = true;  // code after it on its line
+    if (other) m.single_reason = "it shares its line with another statement";
+    else if (opt.count("ID")) m.single_reason = "it carries \\ID (a MultiMove synchronisation: one move per ID)";
+    else if (opt.count("T") && st.duration_s == 0) m.single_reason = "its time \\T:= is not a number that the pieces could share";
   }
 
   RapidSource::Statement statementSpan(Range r, const SourceLocation& where) const {
@@ -768,7 +824,8 @@ class Reader {
       radius = number(t_, it->second);
       if (radius && !(*radius >= 0 && *radius <= 1e4)) shape(it->second.first, "\\Z:= a zone radius in [0, 10000] mm", text(it->second));
     }
-    if (fine) return;
+    // \Inpos: stop point data, which replaces the zone (the move ends in a stop point)
+    if (fine || opt.count("INPOS")) return;
     m.approximation = {Approximation::kCDis};
     if (known && radius) m.approximation_value = *radius;
   }

@@ -133,6 +133,11 @@ struct Motion {
   int statement_id = -1;  ///< KRL: index in KrlSource::statements
   bool inserted = false;  ///< an auxiliary point added by the compensator (before statement_id)
   int trigger_count = 0;  ///< KRL: TRIGGER statements bound to this motion (since the last one)
+  /// Why no auxiliary points may be inserted before this motion ("": they may): the pieces of a
+  /// split motion would repeat or move something its statement carries (RAPID: a statement
+  /// sharing its line, a MultiMove \ID, a time \T that is not a number). The end point is
+  /// still compensated.
+  std::string single_reason;
   /// Line of the source file (RAPID, URScript) this motion's statement starts on, carried
   /// through a conversion (carrySourceLines); 0: not carried.
   int source_line = 0;
