@@ -684,6 +684,55 @@ TEST(Rapid, AMotionSharingItsLineGetsNoAuxiliaryPointsAndSaysSo) {
   EXPECT_NE(written.find("    seams := 0; MoveL p30, v20, z1, torch\\WObj:=table;\n"), std::string::npos);
 }
 
+TEST(Rapid, RunTimeValuesAreKeptAndNamedNotTakenFromTheDeclaration) {
+  // A routine's parameter hides the module datum of its name; a datum assigned while the module
+  // runs is not its declared value; a program displacement moves every target after it. Such a
+  // motion is kept as written and named (the controller runs it; the declaration would give a
+  // wrong correction), the others are compensated.
+  const std::string text =
+      "MODULE m\n"
+      "  PERS tooldata torch := [TRUE,[[0,0,150],[1,0,0,0]],[1.2,[0,0,60],[1,0,0,0],0,0,0]];\n"
+      "  PERS wobjdata table := [FALSE,TRUE,\"\",[[300,-150,100],[1,0,0,0]],[[0,0,0],[1,0,0,0]]];\n"
+      "  PERS wobjdata moved := [FALSE,TRUE,\"\",[[300,-150,100],[1,0,0,0]],[[0,0,0],[1,0,0,0]]];\n"
+      "  CONST robtarget p10 := [[40,60,120],[0,0,1,0],[-1,0,-1,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
+      "  CONST robtarget p20 := [[40,60,20],[0,0,1,0],[-1,0,-1,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
+      "  PROC main()\n"
+      "    MoveJ p10, v1000, z20, torch\\WObj:=table;\n"        // 0: compensated
+      "    draw p20, torch;\n"
+      "    moved.uframe.trans.x := 500;\n"
+      "    MoveL p20, v200, fine, torch\\WObj:=moved;\n"         // 1: its work object is assigned
+      "    PDispSet [[0,0,50],[1,0,0,0]];\n"
+      "    MoveL p10, v200, fine, torch\\WObj:=table;\n"         // 2: displaced
+      "    PDispOff;\n"
+      "    MoveL p20, v200, fine, torch\\WObj:=table;\n"         // 3: compensated
+      "  ENDPROC\n"
+      "  PROC draw(robtarget p10, PERS tooldata torch)\n"
+      "    MoveL p10, v200, fine, torch\\WObj:=table;\n"         // 4: both are the call's
+      "  ENDPROC\n"
+      "ENDMODULE\n";
+  const Program p = parseRapid(text, "runtime.mod");
+  ASSERT_EQ(p.motions.size(), 5u);
+  EXPECT_EQ(p.motions[0].target_problem, "");
+  EXPECT_TRUE(p.motions[1].base.run_time);
+  EXPECT_EQ(p.motions[1].base.note, "the wobjdata 'moved' is assigned at runtime.mod:10:5: its value at run time is not the declared one");
+  EXPECT_NE(p.motions[2].target_problem.find("a program displacement is active (PDispSet at runtime.mod:12:5)"), std::string::npos);
+  EXPECT_EQ(p.motions[3].target_problem, "");
+  EXPECT_EQ(p.motions[4].target_problem, "'p10' is a parameter of draw: its value comes from the call");
+  EXPECT_TRUE(p.motions[4].tool.run_time);
+  EXPECT_EQ(p.motions[4].tool.note, "the tooldata 'torch' is a parameter of draw: its value comes from the call");
+  // compensated: 0 and 3 changed, 1, 2 and 4 kept and named, no error
+  SimulateOptions so;
+  so.effects = {"geometric"};
+  so.set_station = false;
+  so.seed = 4;
+  const ProgramCompensation c = compensateProgramReport(p, settingsFor(perturbModel(irb120WithTorch(), so)));
+  ASSERT_TRUE(c.ok()) << c.report.errors.front().message;
+  EXPECT_EQ(c.report.motions_left_unchanged, 3);
+  const std::string written = writeRapid(c.program);
+  EXPECT_EQ(written.find("CONST robtarget p10 := [[40,60,120],"), std::string::npos);  // corrected for motion 0
+  EXPECT_EQ(written.find("CONST robtarget p20 := [[40,60,20],"), std::string::npos);   // corrected for motion 3
+}
+
 TEST(Rapid, CompensatedModuleFollowsTheIntendedPathOnAPerturbedIrb120) {
   const RobotModel controller = irb120WithTorch();
   const Program intended = parseRapid(example(), "irb120_seam.mod");

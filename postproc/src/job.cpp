@@ -359,6 +359,15 @@ class Job {
     if (m.base.source == FrameSetting::Source::kUnset && s_.initial_base) base = s_.initial_base;
     const size_t errors = r_.errors.size();
     if (m.external_tcp) error(m.where, "expected a robot-guided tool, found IPO_FRAME #TCP (external TCP): not supported");
+    // a frame the program sets to a run-time value (a routine's parameter, a datum assigned while
+    // it runs): the controller runs the motion, accura cannot evaluate it (kept, named)
+    const bool tool_run_time = !tool && m.tool.source == FrameSetting::Source::kUnknown && m.tool.run_time;
+    const bool base_run_time = !base && m.base.source == FrameSetting::Source::kUnknown && m.base.run_time;
+    if (!m.external_tcp && (tool_run_time || base_run_time) && (tool || tool_run_time) && (base || base_run_time)) {
+      const FrameSetting& f = tool_run_time ? m.tool : m.base;
+      leftUnchanged(m, "its " + std::string(&f == &m.tool ? "tool" : "base") + " is a run-time value: " + f.note);
+      return std::nullopt;
+    }
     if (!tool) error(m.where, "the tool of this motion is not known: " + frameHint(m.tool, "$TOOL"));
     if (!base) error(m.where, "the base of this motion is not known: " + frameHint(m.base, "$BASE"));
     if (r_.errors.size() != errors) return std::nullopt;

@@ -235,6 +235,11 @@ class Reader {
       (u == "CONFL" ? confl_ : confj_) = t[i + 2].u == "ON";
       return markModel(r);
     }
+    // a program displacement or an external axes offset moves every target after it
+    if (u == "PDISPON" || u == "PDISPSET") pdisp_ = loc(t[i].b), pdisp_name_ = t[i].s;
+    if (u == "PDISPOFF") pdisp_.reset();
+    if (u == "EOFFSON" || u == "EOFFSSET") eoffs_ = loc(t[i].b), eoffs_name_ = t[i].s;
+    if (u == "EOFFSOFF") eoffs_.reset();
     if (u == "MOVEL" || u == "MOVEJ" || u == "MOVEC" || u == "MOVEABSJ") return move(r, p);
     if (t[i].kind == Tok::Kind::kIdent && kOtherMoves.count(u)) return otherMove(r, p);
     // a call of one of the module's routines that move the robot, a late-bound call
@@ -295,6 +300,22 @@ class Reader {
       routine_kind_ = u;
       routine_line_ = r;
       local_ = Scope{};
+      // the parameters (name: its value comes from the call; it hides a module datum of the
+      // same name): [\][VAR|PERS|INOUT] type name[{*}], separated by ',' or '|'
+      params_.clear();
+      if (isOp(t_, k + 1, "(")) {
+        std::string last;
+        for (size_t q = k + 2; q < r.second && !isOp(t_, q, ")"); ++q) {
+          if (isOp(t_, q, ",") || isOp(t_, q, "|")) {
+            if (!last.empty()) params_.insert(last);
+            last.clear();
+          } else if (t_[q].kind == Tok::Kind::kIdent && last.empty() && q + 1 < r.second &&
+                     (isOp(t_, q + 1, ",") || isOp(t_, q + 1, "|") || isOp(t_, q + 1, ")") || isOp(t_, q + 1, "{"))) {
+            last = t_[q].u;
+          }
+        }
+        if (!last.empty()) params_.insert(last);
+      }
       flow_ = StartTracker();  // a routine's first motion: called from anywhere
       flow_.unknown();
       return;
@@ -526,6 +547,10 @@ class Reader {
     if (isOp(t_, r.first, "[")) return valueTarget(robtargetValue(r, -1));
     if (r.second == r.first + 1 && t_[r.first].kind == Tok::Kind::kIdent) {
       const std::string& u = t_[r.first].u;
+      if (params_.count(u) && !local_.robtargets.count(u)) {
+        tv.problem = "'" + t_[r.first].s + "' is a parameter of " + routine_ + ": its value comes from the call";
+        return tv;
+      }
       const int* id = lookup(&Scope::robtargets, u);
       if (!id) {
         tv.problem = "'" + t_[r.first].s + "' is not a robtarget declared with a value in this module";
@@ -688,6 +713,11 @@ class Reader {
     tool(pos[n - 1].main, m);
     wobj(opt, m);
     singleReason(r, opt, st, m);
+    if (pdisp_ && m.target_problem.empty() && u != "MOVEABSJ")
+      m.target_problem = "a program displacement is active (" + pdisp_name_ + " at " + pdisp_->str() +
+                         "): the robot goes to the displaced target, which accura does not model";
+    if (eoffs_ && m.target_problem.empty())
+      m.target_problem = "an external axes offset is active (" + eoffs_name_ + " at " + eoffs_->str() + "), which accura does not model";
     if (u == "MOVEABSJ") {
       jointTarget(pos[0].main, m);
       st.targets.push_back({t_[pos[0].main.first].b, t_[pos[0].main.second - 1].e});
@@ -839,10 +869,20 @@ class Reader {
     f.where = loc(t_[a.first].b);
     f.text = text(a);
     const bool single = a.second == a.first + 1;
-    if (single && t_[a.first].u == builtin) {
+    const std::string u = single ? t_[a.first].u : std::string();
+    const auto assigned = single ? assigned_.find(u) : assigned_.end();
+    if (single && u == builtin) {
       f.source = FrameSetting::Source::kNull;
       f.value = calib::XyzAbc{};
-    } else if (const FrameVal* v = single ? lookup(table, t_[a.first].u) : nullptr) {
+    } else if (single && params_.count(u) && !(local_.*table).count(u)) {
+      f.source = FrameSetting::Source::kUnknown;
+      f.note = "the " + type + " '" + f.text + "' is a parameter of " + routine_ + ": its value comes from the call";
+      f.run_time = true;
+    } else if (assigned != assigned_.end()) {
+      f.source = FrameSetting::Source::kUnknown;
+      f.note = "the " + type + " '" + f.text + "' is assigned at " + assigned->second.str() + ": its value at run time is not the declared one";
+      f.run_time = true;
+    } else if (const FrameVal* v = single ? lookup(table, u) : nullptr) {
       f.where = v->where;
       f.source = v->T ? FrameSetting::Source::kInline : FrameSetting::Source::kUnknown;
       if (v->T) f.value = calib::toXyzAbc(*v->T);
@@ -904,6 +944,9 @@ class Reader {
   std::vector<Tok> t_;
   std::vector<Range> stmts_;
   std::set<size_t> conditional_;  ///< first tokens of the statements a compact IF holds
+  std::set<std::string> params_;  ///< the current routine's parameters (upper case)
+  std::optional<SourceLocation> pdisp_, eoffs_;  ///< where PDispOn/PDispSet, EOffsOn/EOffsSet was (until Off)
+  std::string pdisp_name_, eoffs_name_;
   std::map<std::string, SourceLocation> assigned_;
   std::vector<std::array<std::optional<double>, 6>> ext_;  ///< external axes of each value (9E9: none)
   std::map<size_t, size_t> model_;  ///< the statements of the motion model (markModel): first token -> end

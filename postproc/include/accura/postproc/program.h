@@ -100,6 +100,10 @@ struct FrameSetting {
   std::optional<calib::XyzAbc> value;  ///< the frame when known (mm, deg)
   std::string text;             ///< how the program said it (KRL expression: "TOOL_DATA[1]")
   std::string note;             ///< for kUnknown: why accura cannot evaluate it
+  /// kUnknown: a value the program receives or computes at run time (a routine's parameter, a
+  /// datum assigned while it runs): the motion is kept as written and named; otherwise a frame
+  /// accura does not model (an error)
+  bool run_time = false;
   SourceLocation where;         ///< where it was set
 
   bool known() const { return value.has_value(); }
