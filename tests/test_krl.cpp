@@ -341,6 +341,40 @@ TEST(Krl, AFunctionThatMovesTheRobotIsCalledLikeASubroutine) {
   }
 }
 
+TEST(Krl, AFrameSetInABranchOrALoopIsNotKnownAfterIt) {
+  // $BASE set in one branch: the other branch runs with the base the IF was entered with, and
+  // after ENDIF the base is whichever the run took: a run-time value (the motion is kept and
+  // named, not corrected and split in the wrong base). A block that sets the frame it was
+  // entered with changes nothing (inline forms set $TOOL/$BASE at every motion).
+  const std::string dir = test::tempDir("krl_frame_branch");
+  test::writeText(dir + "/p.src",
+                  "DEF p( )\nDECL INT I\n$TOOL=TOOL_DATA[1]\n$BASE=BASE_DATA[1]\n"
+                  "LIN XP1\n"                                                           // 0: base 1
+                  "IF $IN[1] THEN\n  $BASE=BASE_DATA[2]\n  LIN XP2\n"                // 1: base 2
+                  "ELSE\n  LIN XP1\nENDIF\n"                                          // 2: base 1 (the ELSE)
+                  "LIN XP2\n"                                                           // 3: either
+                  "$BASE=BASE_DATA[1]\n"
+                  "IF $IN[2] THEN\n  $BASE=BASE_DATA[1]\nENDIF\n"
+                  "LIN XP1\n"                                                           // 4: base 1 either way
+                  "FOR I=1 TO 2\n  $TOOL=TOOL_DATA[2]\n  LIN XP2\nENDFOR\n"          // 5: tool 2
+                  "LIN XP1\n"                                                           // 6: tool 1 or 2
+                  "END\n");
+  test::writeText(dir + "/p.dat", "DEFDAT p\nDECL E6POS XP1={X 1000,Y 0,Z 800,A 0,B 90,C 0}\nDECL E6POS XP2={X 1000,Y 100,Z 800,A 0,B 90,C 0}\nENDDAT\n");
+  const Program p = readKrl(dir + "/p.src");
+  ASSERT_EQ(p.motions.size(), 7u);
+  const std::vector<std::string> base = {"BASE_DATA[1]", "BASE_DATA[2]", "BASE_DATA[1]", "$BASE", "BASE_DATA[1]", "BASE_DATA[1]", "BASE_DATA[1]"};
+  const std::vector<std::string> tool = {"TOOL_DATA[1]", "TOOL_DATA[1]", "TOOL_DATA[1]", "TOOL_DATA[1]", "TOOL_DATA[1]", "TOOL_DATA[2]", "$TOOL"};
+  for (size_t k = 0; k < base.size(); ++k) {
+    EXPECT_EQ(p.motions[k].base.text, base[k]) << k;
+    EXPECT_EQ(p.motions[k].tool.text, tool[k]) << k;
+  }
+  EXPECT_TRUE(p.motions[3].base.run_time);
+  EXPECT_EQ(p.motions[3].base.note, "$BASE is set inside the IF at line 6: after it, its value depends on the way the program ran");
+  EXPECT_TRUE(p.motions[6].tool.run_time);
+  EXPECT_EQ(p.motions[6].tool.note, "$TOOL is set inside the FOR at line 18: after it, its value depends on the way the program ran");
+  for (size_t k : {0u, 1u, 2u, 4u, 5u}) EXPECT_FALSE(p.motions[k].base.run_time || p.motions[k].tool.run_time) << k;
+}
+
 TEST(Krl, NestedBlocksPassTheirMotionsOutAndBlocksWithoutMotionsChangeNothing) {
   const std::string dir = test::tempDir("krl_nested");
   test::writeText(dir + "/p.src",

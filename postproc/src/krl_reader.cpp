@@ -80,11 +80,52 @@ struct Reader {
   void controlFlow(const std::vector<Tok>& t) {
     const std::string& k = t[0].up;
     const bool label = t.size() == 2 && t[0].kind == Tok::kIdent && t[1].text == ":";
-    if (k == "IF" || k == "SWITCH") flow_.open(StartTracker::Block::kBranch);
-    else if (k == "ELSE" || k == "CASE" || k == "DEFAULT") flow_.branch();
-    else if (k == "FOR" || k == "WHILE" || k == "LOOP" || k == "REPEAT") flow_.open(StartTracker::Block::kLoop);
-    else if (k == "ENDIF" || k == "ENDSWITCH" || k == "ENDFOR" || k == "ENDWHILE" || k == "ENDLOOP" || k == "UNTIL") flow_.close();
-    else if (k == "GOTO" || label) flow_.unknown();
+    if (k == "IF" || k == "SWITCH") {
+      flow_.open(StartTracker::Block::kBranch);
+      frame_blocks_.push_back({tool, base, false, false, t[0].text, f->loc(t[0].begin).line});
+    } else if (k == "ELSE" || k == "CASE" || k == "DEFAULT") {
+      flow_.branch();
+      if (!frame_blocks_.empty()) {  // each branch starts with the frames the block was entered with
+        FrameBlock& fb = frame_blocks_.back();
+        fb.tool_changed = fb.tool_changed || !sameFrame(tool, fb.tool);
+        fb.base_changed = fb.base_changed || !sameFrame(base, fb.base);
+        tool = fb.tool;
+        base = fb.base;
+      }
+    } else if (k == "FOR" || k == "WHILE" || k == "LOOP" || k == "REPEAT") {
+      flow_.open(StartTracker::Block::kLoop);
+      frame_blocks_.push_back({tool, base, false, false, t[0].text, f->loc(t[0].begin).line});
+    } else if (k == "ENDIF" || k == "ENDSWITCH" || k == "ENDFOR" || k == "ENDWHILE" || k == "ENDLOOP" || k == "UNTIL") {
+      flow_.close();
+      if (!frame_blocks_.empty()) {
+        // a frame a branch or a loop set differently is, after the block, whichever the run took
+        const FrameBlock fb = frame_blocks_.back();
+        frame_blocks_.pop_back();
+        auto after = [&](FrameSetting& cur, const FrameSetting& entry, bool changed, const char* name) {
+          if (!changed && sameFrame(cur, entry)) return;
+          FrameSetting amb = unknownFrame(name, t[0].begin,
+                                          std::string(name) + " is set inside the " + fb.kind + " at line " + std::to_string(fb.line) +
+                                              ": after it, its value depends on the way the program ran");
+          amb.run_time = true;
+          cur = amb;
+        };
+        after(tool, fb.tool, fb.tool_changed, "$TOOL");
+        after(base, fb.base, fb.base_changed, "$BASE");
+      }
+    } else if (k == "GOTO" || label) {
+      flow_.unknown();
+    }
+  }
+  /// $TOOL / $BASE on entering an open IF, SWITCH or loop, and whether a branch changed them.
+  struct FrameBlock {
+    FrameSetting tool, base;
+    bool tool_changed = false, base_changed = false;
+    std::string kind;  // IF, SWITCH, FOR, ... as written
+    int line = 0;
+  };
+  std::vector<FrameBlock> frame_blocks_;
+  static bool sameFrame(const FrameSetting& a, const FrameSetting& b) {
+    return a.source == b.source && a.index == b.index && a.text == b.text && a.note == b.note;
   }
 
   // A statement `name(...)` calling one of this file's subroutines that move the robot.
