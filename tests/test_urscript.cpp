@@ -128,6 +128,46 @@ TEST(UrScript, ServoAndSpeedCommandsAreNamedAndTheStartAfterThemIsUnknown) {
   EXPECT_EQ(writeUrScript(p), text);  // nothing changed: written back byte for byte
 }
 
+TEST(UrScript, ATcpSetInABranchAFunctionOrAtRunTimeIsNotTakenFromTheText) {
+  const std::string a = "p[0.5,0.1,0.4,0,3.14,0]", b = "p[0.5,0.2,0.4,0,3.14,0]";
+  const std::string text = "def prog():\n"
+                           "  def grip():\n    set_tcp(p[0,0,0.2,0,0,0])\n  end\n"
+                           "  set_tcp(p[0,0,0.1,0,0,0])\n"
+                           "  movel(" + a + ")\n"                                            // 0: 0.1
+                           "  if x:\n    set_tcp(p[0,0,0.15,0,0,0])\n    movel(" + b + ")\n"  // 1: 0.15
+                           "  else:\n    movel(" + a + ")\n  end\n"                        // 2: 0.1 (the else)
+                           "  movel(" + b + ")\n"                                            // 3: either
+                           "  set_tcp(p[0,0,0.1,0,0,0])\n  movel(" + a + ")\n"              // 4: 0.1
+                           "  grip()\n  movel(" + b + ")\n"                                 // 5: grip's
+                           "  set_tcp(get_tcp_offset())\n  movel(" + a + ")\n"              // 6: the controller's
+                           "end\n";
+  const Program p = parseUrScript(text, "tcp.script");
+  ASSERT_EQ(p.motions.size(), 7u);
+  const std::vector<double> z = {100, 150, 100, -1, 100, -1, -1};
+  for (size_t k = 0; k < z.size(); ++k) {
+    if (z[k] < 0) {
+      EXPECT_TRUE(p.motions[k].tool.run_time) << k;
+      EXPECT_FALSE(p.motions[k].tool.known()) << k;
+    } else {
+      ASSERT_TRUE(p.motions[k].tool.known()) << k;
+      EXPECT_NEAR(p.motions[k].tool.value->z_mm, z[k], 1e-9) << k;
+    }
+  }
+  EXPECT_EQ(p.motions[3].tool.note, "set_tcp is called inside the if at tcp.script:7:3: after it, the tool depends on the way the program ran");
+  EXPECT_EQ(p.motions[5].tool.note, "the function grip (tcp.script:2:3) calls set_tcp: the tool after the call is not followed");
+  // compensated: the run-time tools are kept and named, not an error
+  SimulateOptions so;
+  so.effects = {"geometric"};
+  so.set_station = false;
+  so.seed = 5;
+  const RobotModel ur10 = test::loadBundled("ur10");
+  JobSettings js;
+  js.calibrated = perturbModel(ur10, so);
+  const ProgramCompensation c = compensateProgramReport(p, js);
+  ASSERT_TRUE(c.ok()) << c.report.errors.front().message;
+  EXPECT_EQ(c.report.motions_left_unchanged, 3);
+}
+
 TEST(UrScript, ReadsTheMotionModelInMetresAndRotationVectors) {
   const Program p = parseUrScript(example(), "ur10_seam.script");
   EXPECT_EQ(p.name, "ur10_seam");

@@ -459,13 +459,33 @@ class Reader {
         other(t);
       }
       flow_.open(b.kind);
+      b.tool = tool_;
+      if ((isIdent(t, 0, "def") || isIdent(t, 0, "thread")) && isIdent(t, 1)) b.name = t[1].s;
       blocks_.push_back(b);
       return;
     }
     if (isIdent(t, 0, "end") && t.size() == 1) {
       if (!blocks_.empty()) {
         if (!blocks_.back().program) flow_.close();  // (the program's own end: nothing follows)
+        const OpenBlock b = blocks_.back();
         blocks_.pop_back();
+        const bool changed = b.tool_changed || !sameFrame(tool_, b.tool);
+        if (changed && b.kind == StartTracker::Block::kRoutine && !b.program) {
+          // a function's set_tcp runs where it is called: the text after its end has the tool
+          // from before it, and a call of it sets a tool accura does not follow
+          tool_ = b.tool;
+          tcp_setters_[b.name] = loc(b.at);
+        } else if (changed && !b.program) {
+          // set in a branch or a loop: after it, the tool is whichever the run took
+          FrameSetting amb;
+          amb.source = FrameSetting::Source::kUnknown;
+          amb.text = "set_tcp";
+          amb.where = loc(t[0].b);
+          amb.note = std::string("set_tcp is called inside the ") + (b.kind == StartTracker::Block::kBranch ? "if" : "while") +
+                     " at " + loc(b.at).str() + ": after it, the tool depends on the way the program ran";
+          amb.run_time = true;
+          tool_ = amb;
+        }
       }
       if (blocks_.empty() && main_open_) {
         main_open_ = false;
@@ -474,8 +494,23 @@ class Reader {
       other(t);
       return;
     }
-    if ((isIdent(t, 0, "elif") || isIdent(t, 0, "else")) && !blocks_.empty() && blocks_.back().kind == StartTracker::Block::kBranch)
+    if ((isIdent(t, 0, "elif") || isIdent(t, 0, "else")) && !blocks_.empty() && blocks_.back().kind == StartTracker::Block::kBranch) {
       flow_.branch();
+      OpenBlock& b = blocks_.back();  // each branch starts with the tool the if was entered with
+      b.tool_changed = b.tool_changed || !sameFrame(tool_, b.tool);
+      tool_ = b.tool;
+    }
+    // a call of a function of the script that calls set_tcp
+    for (size_t k = 0; k + 1 < t.size(); ++k)
+      if (isIdent(t, k) && isOp(t, k + 1, "(") && tcp_setters_.count(t[k].s)) {
+        FrameSetting f;
+        f.source = FrameSetting::Source::kUnknown;
+        f.text = t[k].s + "()";
+        f.where = loc(t[k].b);
+        f.note = "the function " + t[k].s + " (" + tcp_setters_.at(t[k].s).str() + ") calls set_tcp: the tool after the call is not followed";
+        f.run_time = true;
+        tool_ = f;
+      }
     // a call of one of the script's functions that move the robot, a thread of the script that
     // moves it started (run name()), force control
     if (isIdent(t, 0) && isOp(t, 1, "(") && defs_.count(t[0].s)) flow_.unknown();
@@ -575,6 +610,7 @@ class Reader {
     } else {
       f.source = FrameSetting::Source::kUnknown;
       f.note = v.problem;
+      f.run_time = true;  // the controller computes it (a variable, get_tcp_offset(), ...)
     }
     tool_ = f;
   }
@@ -763,7 +799,14 @@ class Reader {
     bool program = false;  ///< the program's own def
     int loop = 0;          ///< a loop id (while), else 0
     size_t at = 0;         ///< where it starts
+    std::string name;      ///< a def's or thread's name
+    FrameSetting tool;     ///< the tool when it was entered
+    bool tool_changed = false;  ///< a branch before the current one changed the tool
   };
+  static bool sameFrame(const FrameSetting& a, const FrameSetting& b) {
+    return a.source == b.source && a.text == b.text && a.note == b.note;
+  }
+  std::map<std::string, SourceLocation> tcp_setters_;  ///< the script's functions that call set_tcp
   std::vector<OpenBlock> blocks_;
   int loops_ = 0;
   struct Use {
