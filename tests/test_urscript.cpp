@@ -537,8 +537,43 @@ TEST(UrScript, AVariableAssignedAgainInTheLoopOfItsMotionIsNamed) {
   ASSERT_EQ(p.motions.size(), 3u);
   EXPECT_EQ(p.motions[1].target_problem,
             "'p1' is assigned again at loop.script:6:3 in the loop that runs this motion: its value on the next pass is not the one it has here");
-  EXPECT_EQ(p.motions[2].target_problem, "");  // after the loop: the last value, known
-  EXPECT_NEAR(p.motions[2].target.xyzAbc().y_mm, -100, 1e-9);
+  // after the loop: the value before it (no pass) or one a pass assigned (a break may come
+  // before the assignment): not known
+  EXPECT_EQ(p.motions[2].target_problem,
+            "'p1' is assigned inside the while at loop.script:4:1: after it, its value depends on the way the program ran");
+}
+
+TEST(UrScript, VariablesFollowBranchesFunctionsAndLocalScope) {
+  // a branch starts with the values the if was entered with, and after it a variable a branch
+  // assigned is not known; a function's assignment of a program variable runs where it is
+  // called; a local of a function hides the program variable of its name only inside it
+  const std::string text = "def prog():\n"
+                           "  set_tcp(p[0,0,0.1,0,0,0])\n"
+                           "  def pick():\n    target = p[0.5,0.3,0.4,0,3.14,0]\n  end\n"     // assigns a program variable
+                           "  def show():\n    local a = p[0.5,0.9,0.4,0,3.14,0]\n    textmsg(a)\n  end\n"
+                           "  a = p[0.5,0.1,0.4,0,3.14,0]\n"
+                           "  target = p[0.5,0.2,0.4,0,3.14,0]\n"
+                           "  movel(a)\n"                                                    // 0: a, y 100
+                           "  if x:\n    a = p[0.5,0.15,0.4,0,3.14,0]\n    movel(a)\n"       // 1: y 150
+                           "  else:\n    movel(a)\n  end\n"                                // 2: y 100 (the else)
+                           "  movel(a)\n"                                                    // 3: either
+                           "  movel(target)\n"                                               // 4: y 200
+                           "  pick()\n  movel(target)\n"                                    // 5: pick's
+                           "end\n";
+  const Program p = parseUrScript(text, "vars.script");
+  ASSERT_EQ(p.motions.size(), 6u);
+  const std::vector<double> y = {100, 150, 100, -1, 200, -1};
+  for (size_t k = 0; k < y.size(); ++k) {
+    if (y[k] < 0) {
+      EXPECT_NE(p.motions[k].target_problem, "") << k;
+    } else {
+      ASSERT_EQ(p.motions[k].target_problem, "") << k;
+      EXPECT_NEAR(p.motions[k].target.xyzAbc().y_mm, y[k], 1e-9) << k;
+    }
+  }
+  EXPECT_EQ(p.motions[3].target_problem, "'a' is assigned inside the if at vars.script:13:3: after it, its value depends on the way the program ran");
+  EXPECT_EQ(p.motions[5].target_problem,
+            "'target' is assigned by pick (at vars.script:3:3), called at vars.script:21:3: its value after the call is not followed");
 }
 
 TEST(UrScript, ConvertCarriesTheMotionModelOrRefusesNamingTheLine) {

@@ -419,6 +419,12 @@ class Reader {
         continue;
       }
       if (open.empty()) continue;
+      // a name assigned in the program's own body (not in a function or a thread): a program
+      // variable, which a function's assignment of the same name (without local) changes
+      const size_t name_at = first && (t.s == "global" || t.s == "local") ? k + 1 : k;
+      if (open.size() == 1 && (first || name_at != k) && name_at + 1 < toks_.size() && toks_[name_at].kind == Tok::Kind::kIdent &&
+          toks_[name_at + 1].kind == Tok::Kind::kOp && toks_[name_at + 1].s == "=")
+        program_vars_.insert(toks_[name_at].s);
       const std::string& cur = open.back().first;
       if (t.s == "movel" || t.s == "movej" || t.s == "movep" || t.s == "movec" || kOtherMotions.count(t.s) || t.s == "force_mode")
         moves[cur] = true;
@@ -460,6 +466,7 @@ class Reader {
       }
       flow_.open(b.kind);
       b.tool = tool_;
+      b.vars = vars_;
       if ((isIdent(t, 0, "def") || isIdent(t, 0, "thread")) && isIdent(t, 1)) b.name = t[1].s;
       blocks_.push_back(b);
       return;
@@ -469,6 +476,7 @@ class Reader {
         if (!blocks_.back().program) flow_.close();  // (the program's own end: nothing follows)
         const OpenBlock b = blocks_.back();
         blocks_.pop_back();
+        endVariables(b);
         const bool changed = b.tool_changed || !sameFrame(tool_, b.tool);
         if (changed && b.kind == StartTracker::Block::kRoutine && !b.program) {
           // a function's set_tcp runs where it is called: the text after its end has the tool
@@ -496,10 +504,21 @@ class Reader {
     }
     if ((isIdent(t, 0, "elif") || isIdent(t, 0, "else")) && !blocks_.empty() && blocks_.back().kind == StartTracker::Block::kBranch) {
       flow_.branch();
-      OpenBlock& b = blocks_.back();  // each branch starts with the tool the if was entered with
+      OpenBlock& b = blocks_.back();  // each branch starts with the tool and variables the if was entered with
       b.tool_changed = b.tool_changed || !sameFrame(tool_, b.tool);
       tool_ = b.tool;
+      for (const std::string& n : changedVariables(b.vars)) b.vars_changed.insert(n);
+      vars_ = b.vars;
     }
+    // a call of a function (or a started thread) of the script that assigns program variables
+    for (size_t k = 0; k + 1 < t.size(); ++k)
+      if (isIdent(t, k) && isOp(t, k + 1, "(") && fn_assigns_.count(t[k].s))
+        for (const auto& [n, at] : fn_assigns_.at(t[k].s)) {
+          Var v;
+          v.problem = "'" + n + "' is assigned by " + t[k].s + " (at " + at.str() + "), called at " + loc(t[k].b).str() +
+                      ": its value after the call is not followed";
+          vars_[n] = v;
+        }
     // a call of a function of the script that calls set_tcp
     for (size_t k = 0; k + 1 < t.size(); ++k)
       if (isIdent(t, k) && isOp(t, k + 1, "(") && tcp_setters_.count(t[k].s)) {
@@ -553,6 +572,7 @@ class Reader {
 
   void assignment(const std::vector<Tok>& t, size_t s, Program& p) {
     const std::string name = t[s].s;
+    if (s == 1 && !blocks_.empty()) (isIdent(t, 0, "local") ? blocks_.back().locals : blocks_.back().globals).insert(name);
     // a motion earlier in an enclosing loop that uses the variable sees this value on the next
     // pass, not the one it was read with
     const std::vector<int> loops = openLoops();
@@ -802,10 +822,50 @@ class Reader {
     std::string name;      ///< a def's or thread's name
     FrameSetting tool;     ///< the tool when it was entered
     bool tool_changed = false;  ///< a branch before the current one changed the tool
+    std::map<std::string, Var> vars;      ///< the variables when it was entered
+    std::set<std::string> vars_changed;   ///< assigned by a branch before the current one
+    std::set<std::string> locals, globals;  ///< names declared local / global in it
   };
   static bool sameFrame(const FrameSetting& a, const FrameSetting& b) {
     return a.source == b.source && a.text == b.text && a.note == b.note;
   }
+  static bool sameVar(const Var& a, const Var& b) {
+    return a.kind == b.kind && a.problem == b.problem && a.pose.expr == b.pose.expr && a.pose.problem == b.pose.problem && a.q == b.q;
+  }
+  /// The variables whose value differs from `entry` (or that it does not hold).
+  std::set<std::string> changedVariables(const std::map<std::string, Var>& entry) const {
+    std::set<std::string> out;
+    for (const auto& [n, v] : vars_) {
+      const auto it = entry.find(n);
+      if (it == entry.end() || !sameVar(v, it->second)) out.insert(n);
+    }
+    return out;
+  }
+  /// At a block's end: a variable a branch or a loop assigned is, after it, whichever value the
+  /// run took; a function's (or thread's) assignments run where it is called: the text after
+  /// its end has the values from before it, and a call makes the program variables it assigns
+  /// unknown (its locals, and names first assigned in it, stay its own).
+  void endVariables(const OpenBlock& b) {
+    if (b.program) return;
+    std::set<std::string> changed = changedVariables(b.vars);
+    changed.insert(b.vars_changed.begin(), b.vars_changed.end());
+    if (b.kind == StartTracker::Block::kRoutine) {
+      for (const std::string& n : changed)
+        if (((b.vars.count(n) || program_vars_.count(n)) && !b.locals.count(n)) || b.globals.count(n))
+          fn_assigns_[b.name].emplace(n, loc(b.at));
+      vars_ = b.vars;
+      return;
+    }
+    for (const std::string& n : changed) {
+      Var v;
+      v.problem = "'" + n + "' is assigned inside the " + (b.kind == StartTracker::Block::kBranch ? "if" : "while") + " at " +
+                  loc(b.at).str() + ": after it, its value depends on the way the program ran";
+      vars_[n] = v;
+    }
+  }
+  std::set<std::string> program_vars_;  ///< the names the program's own body assigns
+  /// The program variables each function or thread of the script assigns (and where it starts).
+  std::map<std::string, std::map<std::string, SourceLocation>> fn_assigns_;
   std::map<std::string, SourceLocation> tcp_setters_;  ///< the script's functions that call set_tcp
   std::vector<OpenBlock> blocks_;
   int loops_ = 0;
