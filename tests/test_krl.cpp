@@ -491,10 +491,38 @@ TEST(Krl, FramesAndPointsChangedInTheProgram) {
   EXPECT_EQ(p.motions[1].target.where.file, dir + "/p.src");  // the new value, in the .src
   EXPECT_EQ(p.motions[1].target.where.line, 7);
   EXPECT_EQ(*p.motions[1].target.pose[0], 5.0);
+  EXPECT_EQ(p.motions[0].target_problem, "");  // XP1={...} replaces the declared value whole
+  // XP1.X=8 keeps the other components of the value motion 1 goes to: corrected, its correction
+  // would carry into the PTP's target (half corrected); kept and named
+  EXPECT_EQ(p.motions[1].target_problem,
+            "XP1 is changed from its own value at " + dir + "/p.src:9:1: a correction of it here would carry into its new value");
   EXPECT_NE(p.motions[2].target_problem.find("XP1 is changed at run time (" + dir + "/p.src:9:1)"), std::string::npos)
       << p.motions[2].target_problem;
   EXPECT_EQ(p.motions[3].tool.source, FrameSetting::Source::kUnknown);
   EXPECT_EQ(p.motions[3].tool.text, "$TOOL:{X 1}");
+}
+
+TEST(Krl, APointAssignedInALoopOrASubroutineIsNotTakenFromTheText) {
+  // the text before a motion is not the run before it: a point assigned in a loop (the next
+  // pass sees the new value), a branch, or a subroutine (called before the motion) is a run-time
+  // value at every motion that uses it
+  const std::string dir = test::tempDir("krl_point_flow");
+  test::writeText(dir + "/p.src",
+                  "DEF p( )\nDECL INT I\n$TOOL=$NULLFRAME\n$BASE=$NULLFRAME\n"
+                  "FOR I=1 TO 3\n  LIN XP1\n  XP1={X 1000,Y 0,Z 900,A 0,B 90,C 0}\nENDFOR\n"  // 0
+                  "SHIFT()\nLIN XP2\n"                                                          // 1
+                  "LIN XP3\n"                                                                     // 2: never assigned
+                  "END\n\nDEF SHIFT( )\nXP2={X 1100,Y 0,Z 800,A 0,B 90,C 0}\nEND\n");
+  test::writeText(dir + "/p.dat",
+                  "DEFDAT p\nDECL E6POS XP1={X 1000,Y 0,Z 800,A 0,B 90,C 0}\nDECL E6POS XP2={X 1000,Y 100,Z 800,A 0,B 90,C 0}\n"
+                  "DECL E6POS XP3={X 1000,Y 200,Z 800,A 0,B 90,C 0}\nENDDAT\n");
+  const Program p = readKrl(dir + "/p.src");
+  ASSERT_EQ(p.motions.size(), 3u);
+  EXPECT_EQ(p.motions[0].target_problem,
+            "XP1 is assigned at " + dir + "/p.src:7:3 inside a branch or a loop: its value at a motion depends on the way the program runs");
+  EXPECT_EQ(p.motions[1].target_problem,
+            "XP2 is assigned at " + dir + "/p.src:15:1 inside a subroutine or a function: its value at a motion depends on the way the program runs");
+  EXPECT_EQ(p.motions[2].target_problem, "");
 }
 
 TEST(Krl, MalformedTargetsAreErrorsWithTheirPlace) {

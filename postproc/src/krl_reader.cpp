@@ -139,6 +139,11 @@ struct Reader {
     return false;
   }
   std::set<std::string> local_defs_;  // the subroutines this .src defines that move the robot (upper case)
+  // Points whose value at a motion may not be the one the text before it gives, whatever the
+  // motion's place: assigned field by field or from themselves (the declared value, corrected,
+  // would leak into the new one), or assigned inside a branch, a loop, a subroutine or a
+  // function (the order of the text is not the order of the run). Upper-case name -> why.
+  std::map<std::string, std::string> volatile_points_;
   std::string refuse;  // why the line just read cannot be converted ("" when it can)
 
   FrameSetting dataFrame(bool is_tool, int n, size_t at) const {
@@ -276,6 +281,7 @@ struct Reader {
       }
       const PointEntry& p = it->second;
       if (!p.problem.empty()) return p.problem;
+      if (const auto v = volatile_points_.find(up); v != volatile_points_.end()) return t[b].text + " " + v->second;
       *out = *p.value;
       out->name = t[b].text;
       return "";
@@ -346,6 +352,9 @@ struct Reader {
     // a point changed by the program
     auto it = decl.points.find(lhs0);
     if (it != decl.points.end()) {
+      bool self = !simple;
+      for (size_t i = b; i < e; ++i) self = self || (t[i].kind == Tok::kIdent && t[i].up == lhs0);
+      pointChanged(lhs0, self, t[0].begin);
       PointEntry& p = it->second;
       if (simple && t[b].text == "{" ) {
         Cursor c(*f, t, t[e - 1].end);
@@ -616,8 +625,28 @@ struct Reader {
     m.start_unknown = flow_.motion();
     m.statement_id = static_cast<int>(src->statements.size());
     src->statements.push_back(std::move(st));
+    // the motions that read a point's current value (pointChangedFromItself)
+    for (const Target* x : {&m.target, m.aux ? &*m.aux : nullptr})
+      if (x && !x->name.empty() && m.target_problem.empty()) point_uses_[upper(x->name)].push_back(program->motions.size());
     program->motions.push_back(std::move(m));
   }
+
+  // A point assigned from its own value (XP1.X = 8, XP1 = XP1 : {...}) at `at`: the motions that
+  // read its current value would, corrected, carry their correction into the new value (half
+  // corrected); they are kept and named. A complete new value (XP1 = {...}, XP1 = XP2) starts
+  // afresh.
+  void pointChanged(const std::string& up, bool from_itself, size_t at) {
+    std::vector<size_t>& uses = point_uses_[up];
+    if (from_itself)
+      for (size_t i : uses) {
+        Motion& m = program->motions[i];
+        if (m.target_problem.empty())
+          m.target_problem = (m.target.name.empty() ? up : m.target.name) + " is changed from its own value at " + f->loc(at).str() +
+                             ": a correction of it here would carry into its new value";
+      }
+    uses.clear();
+  }
+  std::map<std::string, std::vector<size_t>> point_uses_;
 
   // A line of the .src: the motion model takes what it understands; every other statement
   // (and comment) is kept as a pass-through statement for `convert`.
@@ -833,6 +862,38 @@ Program readKrl(const std::string& src_path, const KrlReadOptions& options) {
         if (t[i].kind == Tok::kIdent && t[i + 1].text == "(" && moves.count(t[i].up)) calls[cur].insert(t[i].up);
     }
     r.local_defs_ = movingRoutines(moves, calls);
+    // the points whose assignments make their value depend on more than the text before a motion
+    int depth = 0;  // open IF, SWITCH and loops
+    bool in_main = false, main_seen = false;
+    for (size_t li = 0; li < lines.size(); ++li) {
+      const std::vector<Tok>& t = lines[li];
+      if (t.empty()) continue;
+      if (!defName(t).empty()) {
+        in_main = !main_seen;
+        main_seen = true;
+        depth = 0;
+        continue;
+      }
+      const std::string& k = t[0].up;
+      if (k == "END" || k == "ENDFCT") {
+        in_main = false;
+        continue;
+      }
+      if (k == "IF" || k == "SWITCH" || k == "FOR" || k == "WHILE" || k == "LOOP" || k == "REPEAT") ++depth;
+      if ((k == "ENDIF" || k == "ENDSWITCH" || k == "ENDFOR" || k == "ENDWHILE" || k == "ENDLOOP" || k == "UNTIL") && depth > 0) --depth;
+      if (t[0].kind != Tok::kIdent || k.empty() || k[0] == '$' || r.volatile_points_.count(k)) continue;
+      size_t eq = 1;
+      const bool field = t.size() > 3 && t[1].text == "." && t[2].kind == Tok::kIdent;
+      if (field) eq = 3;
+      if (eq >= t.size() || t[eq].text != "=") continue;
+      bool self = false;  // the right-hand side reads the point itself (XP1 = XP1 : {...})
+      for (size_t i = eq + 1; i < t.size(); ++i) self = self || (t[i].kind == Tok::kIdent && t[i].up == k);
+      (void)self;
+      const std::string at = src.loc(t[0].begin).str();
+      if (!in_main || depth > 0)
+        r.volatile_points_[k] = "is assigned at " + at + (in_main ? " inside a branch or a loop" : " inside a subroutine or a function") +
+                                ": its value at a motion depends on the way the program runs";
+    }
   }
   for (const Line& l : src.lines()) r.handleLine(l);
   if (r.def_open_)
