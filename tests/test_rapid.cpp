@@ -249,6 +249,13 @@ TEST(Rapid, MotionsAfterBlockWordsAndHeadersOverSeveralLinesAreRead) {
   EXPECT_FALSE(p.motions[11].approximation.empty());
   EXPECT_NE(p.motions[13].target_problem.find("SearchJ is a motion instruction accura does not model"), std::string::npos);
   EXPECT_EQ(writeRapid(p), text);  // read and written back unchanged
+  // a TEST expression over two lines; a UTF-8 byte order mark (read past, written back)
+  std::string two = text;
+  two.replace(two.find("    TEST reg1\n    CASE 1,\n"), std::string("    TEST reg1\n    CASE 1,\n").size(), "    TEST reg1 +\n      reg2\n    CASE 1,\n");
+  const Program q = parseRapid("\xEF\xBB\xBF" + two, "bom.mod");
+  ASSERT_EQ(q.motions.size(), 14u);
+  EXPECT_EQ(q.motions[9].where.line, 28);
+  EXPECT_EQ(writeRapid(q), "\xEF\xBB\xBF" + two);
 }
 
 TEST(Rapid, RoutinesThatDoNotMoveAndPollingLoopsKeepTheStartKnown) {

@@ -126,6 +126,9 @@ TEST(UrScript, ServoAndSpeedCommandsAreNamedAndTheStartAfterThemIsUnknown) {
   EXPECT_NE(p.motions[2].target_problem.find("servoc is a motion accura does not model"), std::string::npos);
   for (size_t k : {0u, 1u, 3u, 4u, 5u, 6u, 7u}) EXPECT_EQ(p.motions[k].target_problem, "") << k;
   EXPECT_EQ(writeUrScript(p), text);  // nothing changed: written back byte for byte
+  const Program bom = parseUrScript("\xEF\xBB\xBF" + text, "bom.script");  // a UTF-8 byte order mark: read past
+  EXPECT_EQ(bom.motions.size(), p.motions.size());
+  EXPECT_EQ(writeUrScript(bom), "\xEF\xBB\xBF" + text);
 }
 
 TEST(UrScript, ATcpSetInABranchAFunctionOrAtRunTimeIsNotTakenFromTheText) {

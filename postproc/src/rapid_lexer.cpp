@@ -44,7 +44,7 @@ std::vector<Tok> lexRapid(const std::string& s, const std::string& path) {
     throw calib::InputError(l.file, l.line, l.column, msg);
   };
   std::vector<Tok> toks;
-  size_t i = 0;
+  size_t i = s.compare(0, 3, "\xEF\xBB\xBF") == 0 ? 3 : 0;  // a UTF-8 byte order mark: read past (kept in the text)
   bool line_start = true;
   while (i < s.size()) {
     const char c = s[i];

@@ -115,13 +115,17 @@ class Reader {
       // IF ends with its statement's ';'), ELSEIF ... THEN, WHILE / FOR ... DO, CASE ...:
       const std::string& hu = head ? t_[h].u : std::string();
       const char* closing_word = hu == "IF" || hu == "ELSEIF" ? "THEN" : hu == "WHILE" || hu == "FOR" ? "DO" : nullptr;
-      bool closed = !closing_word && hu != "CASE";
+      bool closed = !closing_word && hu != "CASE" && hu != "TEST";
       const int line = loc(t_[i].b).line;
       std::vector<size_t> open;
       size_t j = i;
       for (; j < t_.size(); ++j) {
         const Tok& t = t_[j];
         if (head && open.empty() && j > i && loc(t.b).line != line && closed) break;
+        // (a TEST's expression runs to its first CASE, DEFAULT or ENDTEST, which start statements of their own)
+        if (head && open.empty() && !closed && hu == "TEST" && j > i + 1 && t.kind == Tok::Kind::kIdent &&
+            (t.u == "CASE" || t.u == "DEFAULT" || t.u == "ENDTEST"))
+          break;
         if (head && open.empty() && !closed &&
             ((closing_word && t.kind == Tok::Kind::kIdent && t.u == closing_word) || (hu == "CASE" && isOp(t_, j, ":"))))
           closed = true;

@@ -175,7 +175,7 @@ class Reader {
 
   void lex() {
     const std::string& s = src_->text;
-    size_t i = 0;
+    size_t i = s.compare(0, 3, "\xEF\xBB\xBF") == 0 ? 3 : 0;  // a UTF-8 byte order mark: read past (kept in the text)
     while (i < s.size()) {
       const char c = s[i];
       if (c == '\0') fail(i, "expected a URScript text file, found a NUL byte (binary file?)");
