@@ -358,12 +358,13 @@ TEST(Krl, AFrameSetInABranchOrALoopIsNotKnownAfterIt) {
                   "LIN XP1\n"                                                           // 4: base 1 either way
                   "FOR I=1 TO 2\n  $TOOL=TOOL_DATA[2]\n  LIN XP2\nENDFOR\n"          // 5: tool 2
                   "LIN XP1\n"                                                           // 6: tool 1 or 2
-                  "END\n");
+                  "$TOOL=TOOL_DATA[1]\nGRIPPER()\nLIN XP2\n"                               // 7: the subroutine's
+                  "END\n\nDEF GRIPPER( )\n$TOOL=TOOL_DATA[3]\nEND\n");
   test::writeText(dir + "/p.dat", "DEFDAT p\nDECL E6POS XP1={X 1000,Y 0,Z 800,A 0,B 90,C 0}\nDECL E6POS XP2={X 1000,Y 100,Z 800,A 0,B 90,C 0}\nENDDAT\n");
   const Program p = readKrl(dir + "/p.src");
-  ASSERT_EQ(p.motions.size(), 7u);
-  const std::vector<std::string> base = {"BASE_DATA[1]", "BASE_DATA[2]", "BASE_DATA[1]", "$BASE", "BASE_DATA[1]", "BASE_DATA[1]", "BASE_DATA[1]"};
-  const std::vector<std::string> tool = {"TOOL_DATA[1]", "TOOL_DATA[1]", "TOOL_DATA[1]", "TOOL_DATA[1]", "TOOL_DATA[1]", "TOOL_DATA[2]", "$TOOL"};
+  ASSERT_EQ(p.motions.size(), 8u);
+  const std::vector<std::string> base = {"BASE_DATA[1]", "BASE_DATA[2]", "BASE_DATA[1]", "$BASE", "BASE_DATA[1]", "BASE_DATA[1]", "BASE_DATA[1]", "$BASE"};
+  const std::vector<std::string> tool = {"TOOL_DATA[1]", "TOOL_DATA[1]", "TOOL_DATA[1]", "TOOL_DATA[1]", "TOOL_DATA[1]", "TOOL_DATA[2]", "$TOOL", "$TOOL"};
   for (size_t k = 0; k < base.size(); ++k) {
     EXPECT_EQ(p.motions[k].base.text, base[k]) << k;
     EXPECT_EQ(p.motions[k].tool.text, tool[k]) << k;
@@ -373,6 +374,8 @@ TEST(Krl, AFrameSetInABranchOrALoopIsNotKnownAfterIt) {
   EXPECT_TRUE(p.motions[6].tool.run_time);
   EXPECT_EQ(p.motions[6].tool.note, "$TOOL is set inside the FOR at line 18: after it, its value depends on the way the program ran");
   for (size_t k : {0u, 1u, 2u, 4u, 5u}) EXPECT_FALSE(p.motions[k].base.run_time || p.motions[k].tool.run_time) << k;
+  EXPECT_TRUE(p.motions[7].tool.run_time);
+  EXPECT_EQ(p.motions[7].tool.note, "GRIPPER (called here) sets $TOOL or $BASE: the tool after the call is not followed");
 }
 
 TEST(Krl, NestedBlocksPassTheirMotionsOutAndBlocksWithoutMotionsChangeNothing) {

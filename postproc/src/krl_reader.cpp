@@ -139,6 +139,7 @@ struct Reader {
     return false;
   }
   std::set<std::string> local_defs_;  // the subroutines this .src defines that move the robot (upper case)
+  std::set<std::string> frame_defs_;  // those that set $TOOL or $BASE (themselves or through their calls)
   // Points whose value at a motion may not be the one the text before it gives, whatever the
   // motion's place: assigned field by field or from themselves (the declared value, corrected,
   // would leak into the new one), or assigned inside a branch, a loop, a subroutine or a
@@ -737,6 +738,20 @@ struct Reader {
     if (k == "BAS" && t.size() > 1 && t[1].text == "(") return handleBas(t);
     controlFlow(t);
     if (isLocalCall(t)) flow_.unknown();
+    // a call of a subroutine or function of this file that sets $TOOL or $BASE: the frames after
+    // it are its, which accura does not follow (until the program sets them again)
+    for (size_t i = 0; i + 1 < t.size(); ++i)
+      if (t[i].kind == Tok::kIdent && t[i + 1].text == "(" && frame_defs_.count(t[i].up)) {
+        for (FrameSetting* fs : {&tool, &base}) {
+          const bool is_tool = fs == &tool;
+          FrameSetting amb = unknownFrame(is_tool ? "$TOOL" : "$BASE", t[i].begin,
+                                          t[i].text + " (called here) sets $TOOL or $BASE: the " + (is_tool ? "tool" : "base") +
+                                              " after the call is not followed");
+          amb.run_time = true;
+          *fs = amb;
+        }
+        break;
+      }
     {
       Cursor c(*f, t, l.code_end);
       if (parseTableAssignment(c, decl)) return false;
@@ -836,7 +851,7 @@ Program readKrl(const std::string& src_path, const KrlReadOptions& options) {
   {
     // the subroutines defined here that move the robot, themselves or through the ones they
     // call (a call may come before the DEF)
-    std::map<std::string, bool> moves;
+    std::map<std::string, bool> moves, sets_frames;
     std::map<std::string, std::set<std::string>> calls;
     std::vector<std::vector<Tok>> lines;
     for (const Line& l : src.lines()) lines.push_back(lex(src, l.begin, l.code_end));
@@ -848,7 +863,7 @@ Program readKrl(const std::string& src_path, const KrlReadOptions& options) {
       return "";
     };
     for (const std::vector<Tok>& t : lines)
-      if (const std::string d = defName(t); !d.empty()) moves[d] = false;
+      if (const std::string d = defName(t); !d.empty()) moves[d] = sets_frames[d] = false;
     std::string cur;
     for (const std::vector<Tok>& t : lines) {
       if (t.empty()) continue;
@@ -857,11 +872,17 @@ Program readKrl(const std::string& src_path, const KrlReadOptions& options) {
         continue;
       }
       if (isMotionKeyword(t[0].up) && t[0].kind == Tok::kIdent && !cur.empty()) moves[cur] = true;
+      // $TOOL / $BASE set (an assignment, BAS(#TOOL/#BASE), an inline form's BAS with its FDAT)
+      const bool frame = ((t[0].up == "$TOOL" || t[0].up == "$BASE") && t.size() > 1 && (t[1].text == "=" || t[1].text == ".")) ||
+                         (t[0].up == "BAS" && t.size() > 2 && t[1].text == "(" &&
+                          (t[2].up == "#TOOL" || t[2].up == "#BASE" || t[2].up == "#PTP_PARAMS" || t[2].up == "#CP_PARAMS"));
+      if (frame && !cur.empty()) sets_frames[cur] = true;
       // calls: a subroutine's as a statement, a function's anywhere in an expression
       for (size_t i = 0; i + 1 < t.size() && !cur.empty(); ++i)
         if (t[i].kind == Tok::kIdent && t[i + 1].text == "(" && moves.count(t[i].up)) calls[cur].insert(t[i].up);
     }
     r.local_defs_ = movingRoutines(moves, calls);
+    r.frame_defs_ = movingRoutines(sets_frames, calls);  // (the same closure over the calls)
     // the points whose assignments make their value depend on more than the text before a motion
     int depth = 0;  // open IF, SWITCH and loops
     bool in_main = false, main_seen = false;
