@@ -740,6 +740,38 @@ TEST(Rapid, RunTimeValuesAreKeptAndNamedNotTakenFromTheDeclaration) {
   EXPECT_EQ(written.find("CONST robtarget p20 := [[40,60,20],"), std::string::npos);   // corrected for motion 3
 }
 
+TEST(Rapid, DataACallChangesAreRunTimeValues) {
+  // changed without ':=': through a routine's INOUT or VAR parameter, by Add, as SearchL's
+  // SearchPoint; a PERS parameter (how tooldata is passed) is read, not taken as changed
+  const std::string text =
+      "MODULE m\n"
+      "  PERS tooldata torch := [TRUE,[[0,0,150],[1,0,0,0]],[1.2,[0,0,60],[1,0,0,0],0,0,0]];\n"
+      "  CONST robtarget p10 := [[300,0,400],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
+      "  CONST robtarget p20 := [[300,100,400],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
+      "  PERS robtarget sp := [[300,50,400],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
+      "  VAR robtarget v1 := [[300,150,400],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
+      "  VAR robtarget v2 := [[300,200,400],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
+      "  PROC main()\n"
+      "    SearchL \\Stop, di1, sp, p20, v100, torch;\n"
+      "    MoveL sp, v200, fine, torch;\n"      // 1
+      "    shift v1, torch;\n"
+      "    MoveL v1, v200, fine, torch;\n"      // 2
+      "    Add v2.trans.z, 10;\n"
+      "    MoveL v2, v200, fine, torch;\n"      // 3
+      "    MoveL p10, v200, fine, torch;\n"     // 4
+      "  ENDPROC\n"
+      "  PROC shift(INOUT robtarget p, PERS tooldata t)\n    p.trans.x := p.trans.x + 1;\n  ENDPROC\n"
+      "ENDMODULE\n";
+  const Program p = parseRapid(text, "calls.mod");
+  ASSERT_EQ(p.motions.size(), 5u);
+  EXPECT_EQ(p.motions[1].target_problem, "'sp' is assigned at calls.mod:9:25: its value at run time is not the declared one");
+  EXPECT_EQ(p.motions[2].target_problem, "'v1' is assigned at calls.mod:11:11: its value at run time is not the declared one");
+  EXPECT_EQ(p.motions[3].target_problem, "'v2' is assigned at calls.mod:13:9: its value at run time is not the declared one");
+  EXPECT_EQ(p.motions[4].target_problem, "");
+  EXPECT_FALSE(p.motions[4].tool.run_time);  // torch passed as PERS: read
+  EXPECT_TRUE(p.motions[4].tool.known());
+}
+
 TEST(Rapid, CompensatedModuleFollowsTheIntendedPathOnAPerturbedIrb120) {
   const RobotModel controller = irb120WithTorch();
   const Program intended = parseRapid(example(), "irb120_seam.mod");

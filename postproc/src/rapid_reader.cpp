@@ -214,13 +214,58 @@ class Reader {
   }
 
   /// Names assigned anywhere (name := ..., name.field := ...): their values change at run time.
+  /// Also the data a call changes through its arguments: the INOUT and VAR parameters of the
+  /// module's routines (not PERS: tooldata and wobjdata are passed so, to be read), the first
+  /// argument of Add, and the SearchPoint of SearchL/SearchC/SearchJ.
   void scanAssignments() {
+    // the module's routines: which of their parameters a call changes (INOUT, VAR)
+    std::map<std::string, std::vector<bool>> changes;
+    for (const Range& r : stmts_) {
+      const size_t h = headAt(r.first);
+      if (h == kNoHead || (t_[h].u != "PROC" && t_[h].u != "FUNC" && t_[h].u != "TRAP")) continue;
+      size_t k = h + 1 + (t_[h].u == "FUNC" ? 1 : 0);
+      if (k >= r.second || t_[k].kind != Tok::Kind::kIdent || !isOp(t_, k + 1, "(")) continue;
+      std::vector<bool>& ch = changes[t_[k].u];
+      bool mode = false, optional = false;
+      for (size_t q = k + 2; q < r.second && !isOp(t_, q, ")"); ++q) {
+        if (isOp(t_, q, ",") || isOp(t_, q, "|")) {
+          if (!optional) ch.push_back(mode);
+          mode = optional = false;
+        } else if (isOp(t_, q, "\\")) {
+          optional = true;
+        } else if (t_[q].kind == Tok::Kind::kIdent && (t_[q].u == "INOUT" || t_[q].u == "VAR")) {
+          mode = true;
+        }
+      }
+      if (!optional && k + 3 < r.second) ch.push_back(mode);
+    }
     for (const Range& r : stmts_) {
       size_t k = r.first;
       if (k >= r.second || t_[k].kind != Tok::Kind::kIdent) continue;
       size_t j = k + 1;
       while (j + 1 < r.second && isOp(t_, j, ".") && t_[j + 1].kind == Tok::Kind::kIdent) j += 2;
-      if (isOp(t_, j, ":=") && !assigned_.count(t_[k].u)) assigned_[t_[k].u] = loc(t_[k].b);
+      if (isOp(t_, j, ":=")) {
+        if (!assigned_.count(t_[k].u)) assigned_[t_[k].u] = loc(t_[k].b);
+        continue;
+      }
+      // a procedure call: its positional arguments
+      const std::string& u = t_[k].u;
+      const bool search = u == "SEARCHL" || u == "SEARCHC" || u == "SEARCHJ";
+      const auto it = changes.find(u);
+      if (u != "ADD" && !search && it == changes.end()) continue;
+      if (headAt(k) != kNoHead || !isOp(t_, r.second - 1, ";")) continue;
+      std::vector<Range> pos;
+      for (const Arg& a : arguments({k, r.second}))
+        if (a.main.first != a.main.second) pos.push_back(a.main);
+      auto changed = [&](size_t i) {
+        if (i < pos.size() && t_[pos[i].first].kind == Tok::Kind::kIdent && !assigned_.count(t_[pos[i].first].u))
+          assigned_[t_[pos[i].first].u] = loc(t_[pos[i].first].b);
+      };
+      if (u == "ADD") changed(0);
+      if (search) changed(1);  // Search*: [\Stop|...,] Signal, SearchPoint, ...
+      if (it != changes.end())
+        for (size_t i = 0; i < it->second.size(); ++i)
+          if (it->second[i]) changed(i);
     }
   }
 
