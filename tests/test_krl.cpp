@@ -378,6 +378,31 @@ TEST(Krl, AFrameSetInABranchOrALoopIsNotKnownAfterIt) {
   EXPECT_EQ(p.motions[7].tool.note, "GRIPPER (called here) sets $TOOL or $BASE: the tool after the call is not followed");
 }
 
+TEST(Krl, ALoopsNextPassAndASubroutineSeeTheFramesAndPointsOfTheRun) {
+  // a motion before a frame change in its loop runs with the new frame on the next pass; a
+  // subroutine runs with its caller's frames, and a point the program assigns has there the
+  // value of the place it is called from
+  const std::string dir = test::tempDir("krl_loop_sub");
+  test::writeText(dir + "/p.src",
+                  "DEF p( )\nDECL INT I\n$TOOL=TOOL_DATA[1]\n$BASE=BASE_DATA[1]\n"
+                  "FOR I=1 TO 3\n  PTP XP1\n  $TOOL=TOOL_DATA[2]\n  LIN XP2\nENDFOR\n"   // 0: tool 1, then 2; 1: tool 2
+                  "XP2={X 1000,Y 300,Z 800,A 0,B 90,C 0}\nSUB()\n"
+                  "END\n\nDEF SUB( )\nLIN XP2\n"                                             // 2: the caller's tool; XP2 of the call
+                  "$TOOL=TOOL_DATA[1]\n$BASE=BASE_DATA[1]\nLIN XP1\nEND\n");              // 3: its own frames, XP1 never assigned
+  test::writeText(dir + "/p.dat", "DEFDAT p\nDECL E6POS XP1={X 1000,Y 0,Z 800,A 0,B 90,C 0}\nDECL E6POS XP2={X 1000,Y 100,Z 800,A 0,B 90,C 0}\nENDDAT\n");
+  const Program p = readKrl(dir + "/p.src");
+  ASSERT_EQ(p.motions.size(), 4u);
+  EXPECT_TRUE(p.motions[0].tool.run_time);
+  EXPECT_EQ(p.motions[0].tool.note, "$TOOL is set later in the FOR at line 5: the next pass runs this motion with the new value");
+  EXPECT_EQ(p.motions[1].tool.text, "TOOL_DATA[2]");
+  EXPECT_TRUE(p.motions[2].tool.run_time);
+  EXPECT_EQ(p.motions[2].tool.note, "a subroutine runs with the caller's $TOOL until it sets its own");
+  EXPECT_EQ(p.motions[2].target_problem,
+            "XP2 is assigned at " + dir + "/p.src:10:1: in a subroutine its value depends on where it is called");
+  EXPECT_FALSE(p.motions[3].tool.run_time || p.motions[3].base.run_time);
+  EXPECT_EQ(p.motions[3].target_problem, "");
+}
+
 TEST(Krl, NestedBlocksPassTheirMotionsOutAndBlocksWithoutMotionsChangeNothing) {
   const std::string dir = test::tempDir("krl_nested");
   test::writeText(dir + "/p.src",

@@ -759,11 +759,16 @@ TEST(Rapid, DataACallChangesAreRunTimeValues) {
       "    Add v2.trans.z, 10;\n"
       "    MoveL v2, v200, fine, torch;\n"      // 3
       "    MoveL p10, v200, fine, torch;\n"     // 4
+      "    ok := lift(p20);\n"
+      "    MoveL p20, v200, fine, torch;\n"     // 5: changed by the function
+      "    torch.tload.mass := 1.5;\n"          // (a load: the tool's frame stays)
       "  ENDPROC\n"
       "  PROC shift(INOUT robtarget p, PERS tooldata t)\n    p.trans.x := p.trans.x + 1;\n  ENDPROC\n"
+      "  FUNC bool lift(INOUT robtarget pt)\n    pt.trans.z := pt.trans.z + 50;\n    RETURN TRUE;\n  ENDFUNC\n"
       "ENDMODULE\n";
   const Program p = parseRapid(text, "calls.mod");
-  ASSERT_EQ(p.motions.size(), 5u);
+  ASSERT_EQ(p.motions.size(), 6u);
+  EXPECT_EQ(p.motions[5].target_problem, "'p20' is assigned at calls.mod:16:16: its value at run time is not the declared one");
   EXPECT_EQ(p.motions[1].target_problem, "'sp' is assigned at calls.mod:9:25: its value at run time is not the declared one");
   EXPECT_EQ(p.motions[2].target_problem, "'v1' is assigned at calls.mod:11:11: its value at run time is not the declared one");
   EXPECT_EQ(p.motions[3].target_problem, "'v2' is assigned at calls.mod:13:9: its value at run time is not the declared one");

@@ -579,6 +579,24 @@ TEST(UrScript, VariablesFollowBranchesFunctionsAndLocalScope) {
             "'target' is assigned by pick (at vars.script:3:3), called at vars.script:21:3: its value after the call is not followed");
 }
 
+TEST(UrScript, ALoopsNextPassAndAFunctionSeeTheToolAndValuesOfTheRun) {
+  const std::string a = "p[0.5,0.1,0.4,0,3.14,0]";
+  const std::string text = "def prog():\n"
+                           "  set_tcp(p[0,0,0.1,0,0,0])\n"
+                           "  pose = " + a + "\n"
+                           "  def f():\n    movel(pose)\n  end\n"                       // 0: the caller's tool and pose
+                           "  while x:\n    movel(" + a + ")\n    set_tcp(p[0,0,0.3,0,0,0])\n  end\n"  // 1: next pass: 0.3
+                           "  f()\n"
+                           "end\n";
+  const Program p = parseUrScript(text, "run.script");
+  ASSERT_EQ(p.motions.size(), 2u);
+  EXPECT_EQ(p.motions[0].target_problem, "in the function f, 'pose' has the value it has where the function is called");
+  EXPECT_TRUE(p.motions[0].tool.run_time);
+  EXPECT_EQ(p.motions[0].tool.note, "a function runs with the tool of the place it is called from until it calls set_tcp");
+  EXPECT_TRUE(p.motions[1].tool.run_time);
+  EXPECT_EQ(p.motions[1].tool.note, "set_tcp is called later in the while at run.script:7:3: the next pass runs this motion with the new tool");
+}
+
 TEST(UrScript, ConvertCarriesTheMotionModelOrRefusesNamingTheLine) {
   const std::string dir = test::tempDir("ur_convert");
   test::writeText(dir + "/seam.script", example());

@@ -94,7 +94,7 @@ struct Reader {
       }
     } else if (k == "FOR" || k == "WHILE" || k == "LOOP" || k == "REPEAT") {
       flow_.open(StartTracker::Block::kLoop);
-      frame_blocks_.push_back({tool, base, false, false, t[0].text, f->loc(t[0].begin).line});
+      frame_blocks_.push_back({tool, base, false, false, t[0].text, f->loc(t[0].begin).line, program->motions.size(), true});
     } else if (k == "ENDIF" || k == "ENDSWITCH" || k == "ENDFOR" || k == "ENDWHILE" || k == "ENDLOOP" || k == "UNTIL") {
       flow_.close();
       if (!frame_blocks_.empty()) {
@@ -109,11 +109,37 @@ struct Reader {
           amb.run_time = true;
           cur = amb;
         };
+        // a loop's next pass: its motions before the change run with the changed frame
+        if (fb.loop)
+          for (size_t i = fb.first_motion; i < program->motions.size(); ++i) {
+            Motion& m = program->motions[i];
+            for (auto [ms, cur, entry, name] : {std::make_tuple(&m.tool, &tool, &fb.tool, "$TOOL"), std::make_tuple(&m.base, &base, &fb.base, "$BASE")})
+              if (!sameFrame(*cur, *entry) && sameFrame(*ms, *entry)) {
+                FrameSetting amb = unknownFrame(name, t[0].begin,
+                                                std::string(name) + " is set later in the " + fb.kind + " at line " + std::to_string(fb.line) +
+                                                    ": the next pass runs this motion with the new value");
+                amb.run_time = true;
+                *ms = amb;
+              }
+          }
         after(tool, fb.tool, fb.tool_changed, "$TOOL");
         after(base, fb.base, fb.base_changed, "$BASE");
       }
     } else if (k == "GOTO" || label) {
       flow_.unknown();
+    }
+  }
+  /// At a subroutine's or function's start: $TOOL and $BASE are the caller's, run-time values
+  /// until the routine sets them.
+  void callerFrames(size_t at) {
+    frame_blocks_.clear();
+    for (FrameSetting* fs : {&tool, &base}) {
+      const bool is_tool = fs == &tool;
+      FrameSetting amb = unknownFrame(is_tool ? "$TOOL" : "$BASE", at,
+                                      std::string("a subroutine runs with the caller's ") + (is_tool ? "$TOOL" : "$BASE") +
+                                          " until it sets its own");
+      amb.run_time = true;
+      *fs = amb;
     }
   }
   /// $TOOL / $BASE on entering an open IF, SWITCH or loop, and whether a branch changed them.
@@ -122,6 +148,8 @@ struct Reader {
     bool tool_changed = false, base_changed = false;
     std::string kind;  // IF, SWITCH, FOR, ... as written
     int line = 0;
+    size_t first_motion = 0;  // loops: the first motion of the body
+    bool loop = false;
   };
   std::vector<FrameBlock> frame_blocks_;
   static bool sameFrame(const FrameSetting& a, const FrameSetting& b) {
@@ -145,6 +173,7 @@ struct Reader {
   // would leak into the new one), or assigned inside a branch, a loop, a subroutine or a
   // function (the order of the text is not the order of the run). Upper-case name -> why.
   std::map<std::string, std::string> volatile_points_;
+  std::map<std::string, std::string> assigned_points_;  // every point the .src assigns: where (first)
   std::string refuse;  // why the line just read cannot be converted ("" when it can)
 
   FrameSetting dataFrame(bool is_tool, int n, size_t at) const {
@@ -283,6 +312,8 @@ struct Reader {
       const PointEntry& p = it->second;
       if (!p.problem.empty()) return p.problem;
       if (const auto v = volatile_points_.find(up); v != volatile_points_.end()) return t[b].text + " " + v->second;
+      if (const auto a = assigned_points_.find(up); a != assigned_points_.end() && main_ended)
+        return t[b].text + " is assigned at " + a->second + ": in a subroutine its value depends on where it is called";
       *out = *p.value;
       out->name = t[b].text;
       return "";
@@ -685,6 +716,7 @@ struct Reader {
       def_line_ = f->loc(t[0].begin).line;
       flow_ = StartTracker();
       flow_.unknown();
+      callerFrames(t[0].begin);
       return false;
     }
     if (k == "ENDFCT" && t.size() == 1 && def_open_ && def_fct_) {
@@ -703,9 +735,10 @@ struct Reader {
         if (i + 1 < t.size() && t[i + 1].text == "(" && t.back().text == ")" && t.size() > i + 3)
           program->krl_parameters = f->text().substr(t[i + 2].begin, t[t.size() - 2].end - t[i + 2].begin);
       }
-      if (main_started) {  // a local subroutine: called from anywhere
+      if (main_started) {  // a local subroutine: called from anywhere, with the caller's frames
         flow_ = StartTracker();
         flow_.unknown();
+        callerFrames(t[0].begin);
         return false;
       }
       main_started = true;
@@ -911,6 +944,7 @@ Program readKrl(const std::string& src_path, const KrlReadOptions& options) {
       for (size_t i = eq + 1; i < t.size(); ++i) self = self || (t[i].kind == Tok::kIdent && t[i].up == k);
       (void)self;
       const std::string at = src.loc(t[0].begin).str();
+      r.assigned_points_.emplace(k, at);
       if (!in_main || depth > 0)
         r.volatile_points_[k] = "is assigned at " + at + (in_main ? " inside a branch or a loop" : " inside a subroutine or a function") +
                                 ": its value at a motion depends on the way the program runs";

@@ -244,8 +244,26 @@ class Reader {
       if (k >= r.second || t_[k].kind != Tok::Kind::kIdent) continue;
       size_t j = k + 1;
       while (j + 1 < r.second && isOp(t_, j, ".") && t_[j + 1].kind == Tok::Kind::kIdent) j += 2;
+      if (headAt(k) != kNoHead) continue;
+      // a function of the module with INOUT / VAR parameters, called in an expression
+      for (size_t q = k; q + 1 < r.second; ++q) {
+        if (t_[q].kind != Tok::Kind::kIdent || !isOp(t_, q + 1, "(")) continue;
+        const auto fn = changes.find(t_[q].u);
+        if (fn == changes.end()) continue;
+        const size_t close = closing(t_, q + 1, r.second);
+        size_t i = 0;
+        for (const Range& a : items(t_, q + 2, close)) {
+          if (a.first < a.second && isOp(t_, a.first, "\\")) continue;  // an optional argument
+          if (i < fn->second.size() && fn->second[i] && a.first < a.second && t_[a.first].kind == Tok::Kind::kIdent &&
+              !assigned_.count(t_[a.first].u))
+            assigned_[t_[a.first].u] = loc(t_[a.first].b);
+          ++i;
+        }
+      }
       if (isOp(t_, j, ":=")) {
-        if (!assigned_.count(t_[k].u)) assigned_[t_[k].u] = loc(t_[k].b);
+        // (a tool's load does not move its frame)
+        const bool load_only = j > k + 1 && t_[k + 2].u == "TLOAD";
+        if (!load_only && !assigned_.count(t_[k].u)) assigned_[t_[k].u] = loc(t_[k].b);
         continue;
       }
       // a procedure call: its positional arguments
@@ -349,6 +367,8 @@ class Reader {
       routine_kind_ = u;
       routine_line_ = r;
       local_ = Scope{};
+      pdisp_.reset();  // (a routine's text is not run after the one before it)
+      eoffs_.reset();
       // the parameters (name: its value comes from the call; it hides a module datum of the
       // same name): [\][VAR|PERS|INOUT] type name[{*}], separated by ',' or '|'
       params_.clear();

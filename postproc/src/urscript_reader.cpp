@@ -467,8 +467,25 @@ class Reader {
       flow_.open(b.kind);
       b.tool = tool_;
       b.vars = vars_;
+      b.first_motion = p.motions.size();
       if ((isIdent(t, 0, "def") || isIdent(t, 0, "thread")) && isIdent(t, 1)) b.name = t[1].s;
       blocks_.push_back(b);
+      if (b.kind == StartTracker::Block::kRoutine && !b.program) {
+        // a function (or thread) runs with the caller's tool and the program variables' values
+        // where it is called
+        FrameSetting caller;
+        caller.source = FrameSetting::Source::kUnknown;
+        caller.text = "set_tcp";
+        caller.where = loc(t[0].b);
+        caller.note = "a function runs with the tool of the place it is called from until it calls set_tcp";
+        caller.run_time = true;
+        tool_ = caller;
+        for (auto& [n, v] : vars_) {
+          Var c;
+          c.problem = "in the function " + b.name + ", '" + n + "' has the value it has where the function is called";
+          v = c;
+        }
+      }
       return;
     }
     if (isIdent(t, 0, "end") && t.size() == 1) {
@@ -478,11 +495,23 @@ class Reader {
         blocks_.pop_back();
         endVariables(b);
         const bool changed = b.tool_changed || !sameFrame(tool_, b.tool);
-        if (changed && b.kind == StartTracker::Block::kRoutine && !b.program) {
+        if (b.kind == StartTracker::Block::kLoop && changed)
+          // the next pass: the loop's motions before the change run with the changed tool
+          for (size_t i = b.first_motion; i < p.motions.size(); ++i)
+            if (sameFrame(p.motions[i].tool, b.tool)) {
+              FrameSetting amb;
+              amb.source = FrameSetting::Source::kUnknown;
+              amb.text = "set_tcp";
+              amb.where = loc(t[0].b);
+              amb.note = "set_tcp is called later in the while at " + loc(b.at).str() + ": the next pass runs this motion with the new tool";
+              amb.run_time = true;
+              p.motions[i].tool = amb;
+            }
+        if (b.kind == StartTracker::Block::kRoutine && !b.program) {
           // a function's set_tcp runs where it is called: the text after its end has the tool
           // from before it, and a call of it sets a tool accura does not follow
           tool_ = b.tool;
-          tcp_setters_[b.name] = loc(b.at);
+          if (b.sets_tcp) tcp_setters_[b.name] = loc(b.at);
         } else if (changed && !b.program) {
           // set in a branch or a loop: after it, the tool is whichever the run took
           FrameSetting amb;
@@ -573,6 +602,7 @@ class Reader {
   void assignment(const std::vector<Tok>& t, size_t s, Program& p) {
     const std::string name = t[s].s;
     if (s == 1 && !blocks_.empty()) (isIdent(t, 0, "local") ? blocks_.back().locals : blocks_.back().globals).insert(name);
+    for (OpenBlock& b : blocks_) b.assigned.insert(name);
     // a motion earlier in an enclosing loop that uses the variable sees this value on the next
     // pass, not the one it was read with
     const std::vector<int> loops = openLoops();
@@ -617,6 +647,7 @@ class Reader {
   }
 
   void setTcp(const std::vector<Tok>& t) {
+    for (OpenBlock& b : blocks_) b.sets_tcp = true;
     const auto args = items(t, 2, t.size() - 1);
     const size_t given = args.empty() || (args.size() == 1 && args[0].first == args[0].second) ? 0 : args.size();
     if (given != 1) fail(t[0].b, "expected set_tcp(pose) with 1 argument, found " + std::to_string(given));
@@ -825,6 +856,9 @@ class Reader {
     std::map<std::string, Var> vars;      ///< the variables when it was entered
     std::set<std::string> vars_changed;   ///< assigned by a branch before the current one
     std::set<std::string> locals, globals;  ///< names declared local / global in it
+    std::set<std::string> assigned;         ///< names assigned in it (functions)
+    bool sets_tcp = false;                  ///< set_tcp is called in it (functions)
+    size_t first_motion = 0;                ///< the first motion in it
   };
   static bool sameFrame(const FrameSetting& a, const FrameSetting& b) {
     return a.source == b.source && a.text == b.text && a.note == b.note;
@@ -850,7 +884,7 @@ class Reader {
     std::set<std::string> changed = changedVariables(b.vars);
     changed.insert(b.vars_changed.begin(), b.vars_changed.end());
     if (b.kind == StartTracker::Block::kRoutine) {
-      for (const std::string& n : changed)
+      for (const std::string& n : b.assigned)
         if (((b.vars.count(n) || program_vars_.count(n)) && !b.locals.count(n)) || b.globals.count(n))
           fn_assigns_[b.name].emplace(n, loc(b.at));
       vars_ = b.vars;
