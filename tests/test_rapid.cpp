@@ -618,12 +618,10 @@ Execution execute(const Program& commanded, const std::vector<bool>& inserted, c
 }
 
 // A MoveL with a time (\T) split into pieces: each piece gets its share of the time by its
-// length, so the move still takes it (a copied \T would make each piece take all of it).
-TEST(Rapid, ASplitMoveLWithATimeGivesEachPieceItsShare) {
-  std::string text = example();
-  const std::string away = "MoveL Offs(p60,0,0,100), v200, z20, torch\\WObj:=table;";
-  ASSERT_NE(text.find(away), std::string::npos);
-  text.replace(text.find(away), away.size(), "MoveL Offs(p60,0,0,100), v200\\T:=7.5, z20, torch\\WObj:=table;");
+
+/// A perturbed IRB 120 (three times the usual errors) and a tolerance of 0.005 mm: long moves
+/// are split.
+JobSettings splittingSettings() {
   SimulateOptions so;
   so.effects = {"geometric", "joint_compliance"};
   so.set_station = false;
@@ -631,6 +629,16 @@ TEST(Rapid, ASplitMoveLWithATimeGivesEachPieceItsShare) {
   so.error_scale = 3;
   JobSettings s = settingsFor(perturbModel(irb120WithTorch(), so));
   s.tol_mm = 0.005;
+  return s;
+}
+
+// length, so the move still takes it (a copied \T would make each piece take all of it).
+TEST(Rapid, ASplitMoveLWithATimeGivesEachPieceItsShare) {
+  std::string text = example();
+  const std::string away = "MoveL Offs(p60,0,0,100), v200, z20, torch\\WObj:=table;";
+  ASSERT_NE(text.find(away), std::string::npos);
+  text.replace(text.find(away), away.size(), "MoveL Offs(p60,0,0,100), v200\\T:=7.5, z20, torch\\WObj:=table;");
+  const JobSettings s = splittingSettings();
   const ProgramCompensation c = compensateProgramReport(parseRapid(text, "timed.mod"), s);
   ASSERT_TRUE(c.ok()) << c.report.errors.front().message;
   const Program back = parseRapid(writeRapid(c.program), "back.mod");
@@ -663,13 +671,7 @@ TEST(Rapid, AMotionSharingItsLineGetsNoAuxiliaryPointsAndSaysSo) {
   ASSERT_NE(text.find(seam), std::string::npos);
   std::string shared = text;
   shared.replace(shared.find(seam), seam.size(), "    seams := 0; MoveL p30, v20, z1, torch\\WObj:=table;\n");
-  SimulateOptions so;
-  so.effects = {"geometric", "joint_compliance"};
-  so.set_station = false;
-  so.seed = 2;
-  so.error_scale = 3;
-  JobSettings s = settingsFor(perturbModel(irb120WithTorch(), so));
-  s.tol_mm = 0.005;
+  const JobSettings s = splittingSettings();
   const ProgramCompensation alone = compensateProgramReport(parseRapid(text, "alone.mod"), s);
   const ProgramCompensation with = compensateProgramReport(parseRapid(shared, "shared.mod"), s);
   ASSERT_TRUE(alone.ok() && with.ok());

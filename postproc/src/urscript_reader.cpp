@@ -717,12 +717,7 @@ class Reader {
     m.tool = tool_;
     m.base = base_;
     m.type = f == "movej" ? MotionType::kPtp : f == "movec" ? MotionType::kCirc : MotionType::kLin;
-    UrScriptSource::Statement st;
-    st.code_begin = t.front().b;
-    st.code_end = t.back().e;
-    st.line_begin = line_starts_[static_cast<size_t>(m.where.line - 1)];
-    const size_t nl = src_->text.find('\n', st.code_end);
-    st.eol = nl == std::string::npos ? "" : (nl > 0 && src_->text[nl - 1] == '\r' ? "\r\n" : "\n");
+    UrScriptSource::Statement st = statementOf(t, m.where);
     auto number_arg = [&](const std::string& n, double lo, double hi, const char* what) -> std::optional<double> {
       const auto it = arg.find(n);
       if (it == arg.end()) return std::nullopt;
@@ -811,6 +806,17 @@ class Reader {
     p.motions.push_back(m);
   }
 
+  /// The span of the motion statement `t` (at `where`) in the text, and its line end.
+  UrScriptSource::Statement statementOf(const std::vector<Tok>& t, const SourceLocation& where) const {
+    UrScriptSource::Statement st;
+    st.code_begin = t.front().b;
+    st.code_end = t.back().e;
+    st.line_begin = line_starts_[static_cast<size_t>(where.line - 1)];
+    const size_t nl = src_->text.find('\n', st.code_end);
+    st.eol = nl == std::string::npos ? "" : (nl > 0 && src_->text[nl - 1] == '\r' ? "\r\n" : "\n");
+    return st;
+  }
+
   /// servoc, a Cartesian motion accura does not model: kept as written and named in a warning
   /// (Motion::target_problem); where it leaves the robot is not known.
   void otherMotion(const std::vector<Tok>& t, Program& p) {
@@ -822,12 +828,7 @@ class Reader {
     m.type = MotionType::kLin;
     m.target.where = m.where;
     m.target_problem = t[0].s + " is a motion accura does not model (it compensates movel, movej, movep and movec)";
-    UrScriptSource::Statement st;
-    st.code_begin = t.front().b;
-    st.code_end = t.back().e;
-    st.line_begin = line_starts_[static_cast<size_t>(m.where.line - 1)];
-    const size_t nl = src_->text.find('\n', st.code_end);
-    st.eol = nl == std::string::npos ? "" : (nl > 0 && src_->text[nl - 1] == '\r' ? "\r\n" : "\n");
+    UrScriptSource::Statement st = statementOf(t, m.where);
     m.start_unknown = flow_.motion();
     m.statement_id = static_cast<int>(src_->statements.size());
     src_->statements.push_back(st);
