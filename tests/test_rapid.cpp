@@ -742,6 +742,31 @@ TEST(Rapid, RunTimeValuesAreKeptAndNamedNotTakenFromTheDeclaration) {
   EXPECT_EQ(written.find("CONST robtarget p20 := [[40,60,20],"), std::string::npos);   // corrected for motion 3
 }
 
+TEST(Rapid, ARoutineCalledWithADisplacementActiveIsDisplaced) {
+  // PDispSet ... work; ... PDispOff: work's targets (and those of the routines it calls) are
+  // displaced; a routine called after PDispOff, or never with it, is not
+  const std::string text =
+      "MODULE m\n"
+      "  CONST robtarget p10 := [[300,0,400],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
+      "  PROC main()\n"
+      "    PDispSet [[0,0,50],[1,0,0,0]];\n"
+      "    work;\n"
+      "    PDispOff;\n"
+      "    plain;\n"
+      "  ENDPROC\n"
+      "  PROC work()\n    MoveL p10, v200, fine, tool0;\n    deeper;\n  ENDPROC\n"   // 0
+      "  PROC deeper()\n    MoveL p10, v200, fine, tool0;\n  ENDPROC\n"               // 1
+      "  PROC plain()\n    MoveL p10, v200, fine, tool0;\n  ENDPROC\n"                // 2
+      "ENDMODULE\n";
+  const Program p = parseRapid(text, "pdisp.mod");
+  ASSERT_EQ(p.motions.size(), 3u);
+  EXPECT_EQ(p.motions[0].target_problem,
+            "a program displacement is active (a call of work with PDispOn/PDispSet active at pdisp.mod:5:5): the robot goes to "
+            "the displaced target, which accura does not model");
+  EXPECT_NE(p.motions[1].target_problem.find("a call of deeper with PDispOn/PDispSet active at pdisp.mod:5:5"), std::string::npos);
+  EXPECT_EQ(p.motions[2].target_problem, "");
+}
+
 TEST(Rapid, DataACallChangesAreRunTimeValues) {
   // changed without ':=': through a routine's INOUT or VAR parameter, by Add, as SearchL's
   // SearchPoint; a PERS parameter (how tooldata is passed) is read, not taken as changed

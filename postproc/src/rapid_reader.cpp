@@ -68,6 +68,7 @@ class Reader {
     findMovingRoutines();
     split();
     scanAssignments();
+    findDisplacedRoutines();
     Program p;
     p.source_file = src_->path;
     p.name = fs::path(src_->path).stem().string();
@@ -214,6 +215,52 @@ class Reader {
   }
 
   /// Names assigned anywhere (name := ..., name.field := ...): their values change at run time.
+  /// The routines called while a program displacement is active (PDispOn/PDispSet before the
+  /// call in the caller's text, no PDispOff between), and those they call: their targets are
+  /// displaced from their start.
+  void findDisplacedRoutines() {
+    std::set<std::string> names;
+    for (const Range& r : stmts_) {
+      const size_t h = headAt(r.first);
+      if (h == kNoHead || (t_[h].u != "PROC" && t_[h].u != "TRAP")) continue;
+      if (h + 1 < r.second && t_[h + 1].kind == Tok::Kind::kIdent) names.insert(t_[h + 1].u);
+    }
+    std::map<std::string, std::set<std::string>> calls;  // caller -> callees
+    std::string cur;
+    bool active = false;
+    for (const Range& r : stmts_) {
+      const size_t h = headAt(r.first);
+      if (h != kNoHead) {
+        const std::string& u = t_[h].u;
+        if (u == "PROC" || u == "FUNC" || u == "TRAP") {
+          const size_t k = h + 1 + (u == "FUNC" ? 1 : 0);
+          cur = k < r.second ? t_[k].u : "";
+          active = false;
+        }
+        continue;
+      }
+      const std::string& u = t_[r.first].u;
+      if (u == "PDISPON" || u == "PDISPSET") active = true;
+      if (u == "PDISPOFF") active = false;
+      if (t_[r.first].kind == Tok::Kind::kIdent && names.count(u)) {
+        calls[cur].insert(u);
+        if (active && !displaced_.count(u)) displaced_[u] = loc(t_[r.first].b);
+      }
+    }
+    // the routines a displaced routine calls are displaced too
+    std::vector<std::string> todo;
+    for (const auto& [n, at] : displaced_) todo.push_back(n);
+    while (!todo.empty()) {
+      const std::string n = todo.back();
+      todo.pop_back();
+      for (const std::string& c : calls[n])
+        if (!displaced_.count(c)) {
+          displaced_[c] = displaced_.at(n);
+          todo.push_back(c);
+        }
+    }
+  }
+
   /// Also the data a call changes through its arguments: the INOUT and VAR parameters of the
   /// module's routines (not PERS: tooldata and wobjdata are passed so, to be read), the first
   /// argument of Add, and the SearchPoint of SearchL/SearchC/SearchJ.
@@ -369,6 +416,10 @@ class Reader {
       local_ = Scope{};
       pdisp_.reset();  // (a routine's text is not run after the one before it)
       eoffs_.reset();
+      if (const auto d = displaced_.find(t_[k].u); d != displaced_.end()) {
+        pdisp_ = d->second;  // called with a program displacement active
+        pdisp_name_ = "a call of " + routine_ + " with PDispOn/PDispSet active";
+      }
       // the parameters (name: its value comes from the call; it hides a module datum of the
       // same name): [\][VAR|PERS|INOUT] type name[{*}], separated by ',' or '|'
       params_.clear();
@@ -1026,6 +1077,7 @@ class Reader {
   bool module_seen_ = false, module_open_ = false, other_routine_motion_ = false;
   StartTracker flow_;               ///< where the robot comes from (Motion::start_unknown)
   std::set<std::string> routines_;  ///< the module's PROCs that move the robot (upper case)
+  std::map<std::string, SourceLocation> displaced_;  ///< routines called with a displacement active: the call
   bool confl_ = true, confj_ = true;
 };
 
