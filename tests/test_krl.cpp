@@ -363,7 +363,7 @@ TEST(Krl, AFrameSetInABranchOrALoopIsNotKnownAfterIt) {
   test::writeText(dir + "/p.dat", "DEFDAT p\nDECL E6POS XP1={X 1000,Y 0,Z 800,A 0,B 90,C 0}\nDECL E6POS XP2={X 1000,Y 100,Z 800,A 0,B 90,C 0}\nENDDAT\n");
   const Program p = readKrl(dir + "/p.src");
   ASSERT_EQ(p.motions.size(), 8u);
-  const std::vector<std::string> base = {"BASE_DATA[1]", "BASE_DATA[2]", "BASE_DATA[1]", "$BASE", "BASE_DATA[1]", "BASE_DATA[1]", "BASE_DATA[1]", "$BASE"};
+  const std::vector<std::string> base = {"BASE_DATA[1]", "BASE_DATA[2]", "BASE_DATA[1]", "$BASE", "BASE_DATA[1]", "BASE_DATA[1]", "BASE_DATA[1]", "BASE_DATA[1]"};
   const std::vector<std::string> tool = {"TOOL_DATA[1]", "TOOL_DATA[1]", "TOOL_DATA[1]", "TOOL_DATA[1]", "TOOL_DATA[1]", "TOOL_DATA[2]", "$TOOL", "$TOOL"};
   for (size_t k = 0; k < base.size(); ++k) {
     EXPECT_EQ(p.motions[k].base.text, base[k]) << k;
@@ -375,7 +375,8 @@ TEST(Krl, AFrameSetInABranchOrALoopIsNotKnownAfterIt) {
   EXPECT_EQ(p.motions[6].tool.note, "$TOOL is set inside the FOR at line 18: after it, its value depends on the way the program ran");
   for (size_t k : {0u, 1u, 2u, 4u, 5u}) EXPECT_FALSE(p.motions[k].base.run_time || p.motions[k].tool.run_time) << k;
   EXPECT_TRUE(p.motions[7].tool.run_time);
-  EXPECT_EQ(p.motions[7].tool.note, "GRIPPER (called here) sets $TOOL or $BASE: the tool after the call is not followed");
+  EXPECT_EQ(p.motions[7].tool.note, "GRIPPER (called here) sets $TOOL: the tool after the call is not followed");
+  EXPECT_FALSE(p.motions[7].base.run_time);  // GRIPPER leaves $BASE alone
 }
 
 TEST(Krl, ALoopsNextPassAndASubroutineSeeTheFramesAndPointsOfTheRun) {

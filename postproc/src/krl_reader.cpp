@@ -167,7 +167,7 @@ struct Reader {
     return false;
   }
   std::set<std::string> local_defs_;  // the subroutines this .src defines that move the robot (upper case)
-  std::set<std::string> frame_defs_;  // those that set $TOOL or $BASE (themselves or through their calls)
+  std::set<std::string> tool_defs_, base_defs_;  // those that set $TOOL / $BASE (themselves or through their calls)
   // Points whose value at a motion may not be the one the text before it gives, whatever the
   // motion's place: assigned field by field or from themselves (the declared value, corrected,
   // would leak into the new one), or assigned inside a branch, a loop, a subroutine or a
@@ -773,18 +773,18 @@ struct Reader {
     if (isLocalCall(t)) flow_.unknown();
     // a call of a subroutine or function of this file that sets $TOOL or $BASE: the frames after
     // it are its, which accura does not follow (until the program sets them again)
-    for (size_t i = 0; i + 1 < t.size(); ++i)
-      if (t[i].kind == Tok::kIdent && t[i + 1].text == "(" && frame_defs_.count(t[i].up)) {
-        for (FrameSetting* fs : {&tool, &base}) {
-          const bool is_tool = fs == &tool;
-          FrameSetting amb = unknownFrame(is_tool ? "$TOOL" : "$BASE", t[i].begin,
-                                          t[i].text + " (called here) sets $TOOL or $BASE: the " + (is_tool ? "tool" : "base") +
-                                              " after the call is not followed");
-          amb.run_time = true;
-          *fs = amb;
-        }
-        break;
+    for (size_t i = 0; i + 1 < t.size(); ++i) {
+      if (t[i].kind != Tok::kIdent || t[i + 1].text != "(") continue;
+      for (FrameSetting* fs : {&tool, &base}) {
+        const bool is_tool = fs == &tool;
+        if (!(is_tool ? tool_defs_ : base_defs_).count(t[i].up)) continue;
+        const std::string name = is_tool ? "$TOOL" : "$BASE";
+        FrameSetting amb = unknownFrame(name, t[i].begin, t[i].text + " (called here) sets " + name + ": the " +
+                                                              (is_tool ? "tool" : "base") + " after the call is not followed");
+        amb.run_time = true;
+        *fs = amb;
       }
+    }
     {
       Cursor c(*f, t, l.code_end);
       if (parseTableAssignment(c, decl)) return false;
@@ -884,7 +884,7 @@ Program readKrl(const std::string& src_path, const KrlReadOptions& options) {
   {
     // the subroutines defined here that move the robot, themselves or through the ones they
     // call (a call may come before the DEF)
-    std::map<std::string, bool> moves, sets_frames;
+    std::map<std::string, bool> moves, sets_tool, sets_base;
     std::map<std::string, std::set<std::string>> calls;
     std::vector<std::vector<Tok>> lines;
     for (const Line& l : src.lines()) lines.push_back(lex(src, l.begin, l.code_end));
@@ -896,7 +896,7 @@ Program readKrl(const std::string& src_path, const KrlReadOptions& options) {
       return "";
     };
     for (const std::vector<Tok>& t : lines)
-      if (const std::string d = defName(t); !d.empty()) moves[d] = sets_frames[d] = false;
+      if (const std::string d = defName(t); !d.empty()) moves[d] = sets_tool[d] = sets_base[d] = false;
     std::string cur;
     for (const std::vector<Tok>& t : lines) {
       if (t.empty()) continue;
@@ -906,16 +906,18 @@ Program readKrl(const std::string& src_path, const KrlReadOptions& options) {
       }
       if (isMotionKeyword(t[0].up) && t[0].kind == Tok::kIdent && !cur.empty()) moves[cur] = true;
       // $TOOL / $BASE set (an assignment, BAS(#TOOL/#BASE), an inline form's BAS with its FDAT)
-      const bool frame = ((t[0].up == "$TOOL" || t[0].up == "$BASE") && t.size() > 1 && (t[1].text == "=" || t[1].text == ".")) ||
-                         (t[0].up == "BAS" && t.size() > 2 && t[1].text == "(" &&
-                          (t[2].up == "#TOOL" || t[2].up == "#BASE" || t[2].up == "#PTP_PARAMS" || t[2].up == "#CP_PARAMS"));
-      if (frame && !cur.empty()) sets_frames[cur] = true;
+      const bool assigns = t.size() > 1 && (t[1].text == "=" || t[1].text == ".");
+      const bool bas = t[0].up == "BAS" && t.size() > 2 && t[1].text == "(";
+      const bool inline_form = bas && (t[2].up == "#PTP_PARAMS" || t[2].up == "#CP_PARAMS");
+      if (!cur.empty() && ((t[0].up == "$TOOL" && assigns) || (bas && t[2].up == "#TOOL") || inline_form)) sets_tool[cur] = true;
+      if (!cur.empty() && ((t[0].up == "$BASE" && assigns) || (bas && t[2].up == "#BASE") || inline_form)) sets_base[cur] = true;
       // calls: a subroutine's as a statement, a function's anywhere in an expression
       for (size_t i = 0; i + 1 < t.size() && !cur.empty(); ++i)
         if (t[i].kind == Tok::kIdent && t[i + 1].text == "(" && moves.count(t[i].up)) calls[cur].insert(t[i].up);
     }
     r.local_defs_ = movingRoutines(moves, calls);
-    r.frame_defs_ = movingRoutines(sets_frames, calls);  // (the same closure over the calls)
+    r.tool_defs_ = movingRoutines(sets_tool, calls);  // (the same closure over the calls)
+    r.base_defs_ = movingRoutines(sets_base, calls);
     // the points whose assignments make their value depend on more than the text before a motion
     int depth = 0;  // open IF, SWITCH and loops
     bool in_main = false, main_seen = false;
