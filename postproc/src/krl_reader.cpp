@@ -76,11 +76,18 @@ struct Reader {
   bool def_fct_ = false;   // that DEF is a DEFFCT (closed by ENDFCT)
   std::string openEnd() const { return def_fct_ ? "ENDFCT closing the DEFFCT" : "END closing the DEF"; }
 
+  // The KRL words that open a branch or a loop, and those that close one.
+  static bool opensBranch(const std::string& k) { return k == "IF" || k == "SWITCH"; }
+  static bool opensLoop(const std::string& k) { return k == "FOR" || k == "WHILE" || k == "LOOP" || k == "REPEAT"; }
+  static bool closesBlock(const std::string& k) {
+    return k == "ENDIF" || k == "ENDSWITCH" || k == "ENDFOR" || k == "ENDWHILE" || k == "ENDLOOP" || k == "UNTIL";
+  }
+
   // A statement that branches, loops or jumps (KRL control flow).
   void controlFlow(const std::vector<Tok>& t) {
     const std::string& k = t[0].up;
     const bool label = t.size() == 2 && t[0].kind == Tok::kIdent && t[1].text == ":";
-    if (k == "IF" || k == "SWITCH") {
+    if (opensBranch(k)) {
       flow_.open(StartTracker::Block::kBranch);
       frame_blocks_.push_back({tool, base, false, false, t[0].text, f->loc(t[0].begin).line});
     } else if (k == "ELSE" || k == "CASE" || k == "DEFAULT") {
@@ -92,10 +99,10 @@ struct Reader {
         tool = fb.tool;
         base = fb.base;
       }
-    } else if (k == "FOR" || k == "WHILE" || k == "LOOP" || k == "REPEAT") {
+    } else if (opensLoop(k)) {
       flow_.open(StartTracker::Block::kLoop);
       frame_blocks_.push_back({tool, base, false, false, t[0].text, f->loc(t[0].begin).line, program->motions.size(), true});
-    } else if (k == "ENDIF" || k == "ENDSWITCH" || k == "ENDFOR" || k == "ENDWHILE" || k == "ENDLOOP" || k == "UNTIL") {
+    } else if (closesBlock(k)) {
       flow_.close();
       if (!frame_blocks_.empty()) {
         // a frame a branch or a loop set differently is, after the block, whichever the run took
@@ -103,24 +110,19 @@ struct Reader {
         frame_blocks_.pop_back();
         auto after = [&](FrameSetting& cur, const FrameSetting& entry, bool changed, const char* name) {
           if (!changed && sameFrame(cur, entry)) return;
-          FrameSetting amb = unknownFrame(name, t[0].begin,
-                                          std::string(name) + " is set inside the " + fb.kind + " at line " + std::to_string(fb.line) +
-                                              ": after it, its value depends on the way the program ran");
-          amb.run_time = true;
-          cur = amb;
+          cur = runTimeFrame(name, f->loc(t[0].begin),
+                             std::string(name) + " is set inside the " + fb.kind + " at line " + std::to_string(fb.line) +
+                                 ": after it, its value depends on the way the program ran");
         };
         // a loop's next pass: its motions before the change run with the changed frame
         if (fb.loop)
           for (size_t i = fb.first_motion; i < program->motions.size(); ++i) {
             Motion& m = program->motions[i];
             for (auto [ms, cur, entry, name] : {std::make_tuple(&m.tool, &tool, &fb.tool, "$TOOL"), std::make_tuple(&m.base, &base, &fb.base, "$BASE")})
-              if (!sameFrame(*cur, *entry) && sameFrame(*ms, *entry)) {
-                FrameSetting amb = unknownFrame(name, t[0].begin,
-                                                std::string(name) + " is set later in the " + fb.kind + " at line " + std::to_string(fb.line) +
-                                                    ": the next pass runs this motion with the new value");
-                amb.run_time = true;
-                *ms = amb;
-              }
+              if (!sameFrame(*cur, *entry) && sameFrame(*ms, *entry))
+                *ms = runTimeFrame(name, f->loc(t[0].begin),
+                                   std::string(name) + " is set later in the " + fb.kind + " at line " + std::to_string(fb.line) +
+                                       ": the next pass runs this motion with the new value");
           }
         after(tool, fb.tool, fb.tool_changed, "$TOOL");
         after(base, fb.base, fb.base_changed, "$BASE");
@@ -133,14 +135,9 @@ struct Reader {
   /// until the routine sets them.
   void callerFrames(size_t at) {
     frame_blocks_.clear();
-    for (FrameSetting* fs : {&tool, &base}) {
-      const bool is_tool = fs == &tool;
-      FrameSetting amb = unknownFrame(is_tool ? "$TOOL" : "$BASE", at,
-                                      std::string("a subroutine runs with the caller's ") + (is_tool ? "$TOOL" : "$BASE") +
-                                          " until it sets its own");
-      amb.run_time = true;
-      *fs = amb;
-    }
+    for (const char* name : {"$TOOL", "$BASE"})
+      (name[1] == 'T' ? tool : base) =
+          runTimeFrame(name, f->loc(at), std::string("a subroutine runs with the caller's ") + name + " until it sets its own");
   }
   /// $TOOL / $BASE on entering an open IF, SWITCH or loop, and whether a branch changed them.
   struct FrameBlock {
@@ -152,9 +149,6 @@ struct Reader {
     bool loop = false;
   };
   std::vector<FrameBlock> frame_blocks_;
-  static bool sameFrame(const FrameSetting& a, const FrameSetting& b) {
-    return a.source == b.source && a.index == b.index && a.text == b.text && a.note == b.note;
-  }
 
   // A statement `name(...)` calling one of this file's subroutines that move the robot.
   // Calls of other modules' functions are taken not to move it: in KUKA programs they are the
@@ -169,9 +163,9 @@ struct Reader {
   std::set<std::string> local_defs_;  // the subroutines this .src defines that move the robot (upper case)
   std::set<std::string> tool_defs_, base_defs_;  // those that set $TOOL / $BASE (themselves or through their calls)
   // Points whose value at a motion may not be the one the text before it gives, whatever the
-  // motion's place: assigned field by field or from themselves (the declared value, corrected,
-  // would leak into the new one), or assigned inside a branch, a loop, a subroutine or a
-  // function (the order of the text is not the order of the run). Upper-case name -> why.
+  // motion's place: assigned inside a branch, a loop, a subroutine or a function (the order of
+  // the text is not the order of the run). Upper-case name -> why. (A point changed from its own
+  // value in the main program's straight line: pointChanged.)
   std::map<std::string, std::string> volatile_points_;
   std::map<std::string, std::string> assigned_points_;  // every point the .src assigns: where (first)
   std::string refuse;  // why the line just read cannot be converted ("" when it can)
@@ -775,15 +769,10 @@ struct Reader {
     // it are its, which accura does not follow (until the program sets them again)
     for (size_t i = 0; i + 1 < t.size(); ++i) {
       if (t[i].kind != Tok::kIdent || t[i + 1].text != "(") continue;
-      for (FrameSetting* fs : {&tool, &base}) {
-        const bool is_tool = fs == &tool;
-        if (!(is_tool ? tool_defs_ : base_defs_).count(t[i].up)) continue;
-        const std::string name = is_tool ? "$TOOL" : "$BASE";
-        FrameSetting amb = unknownFrame(name, t[i].begin, t[i].text + " (called here) sets " + name + ": the " +
-                                                              (is_tool ? "tool" : "base") + " after the call is not followed");
-        amb.run_time = true;
-        *fs = amb;
-      }
+      if (tool_defs_.count(t[i].up))
+        tool = runTimeFrame("$TOOL", f->loc(t[i].begin), t[i].text + " (called here) sets $TOOL: the tool after the call is not followed");
+      if (base_defs_.count(t[i].up))
+        base = runTimeFrame("$BASE", f->loc(t[i].begin), t[i].text + " (called here) sets $BASE: the base after the call is not followed");
     }
     {
       Cursor c(*f, t, l.code_end);
@@ -935,16 +924,13 @@ Program readKrl(const std::string& src_path, const KrlReadOptions& options) {
         in_main = false;
         continue;
       }
-      if (k == "IF" || k == "SWITCH" || k == "FOR" || k == "WHILE" || k == "LOOP" || k == "REPEAT") ++depth;
-      if ((k == "ENDIF" || k == "ENDSWITCH" || k == "ENDFOR" || k == "ENDWHILE" || k == "ENDLOOP" || k == "UNTIL") && depth > 0) --depth;
+      if (Reader::opensBranch(k) || Reader::opensLoop(k)) ++depth;
+      if (Reader::closesBlock(k) && depth > 0) --depth;
       if (t[0].kind != Tok::kIdent || k.empty() || k[0] == '$' || r.volatile_points_.count(k)) continue;
       size_t eq = 1;
       const bool field = t.size() > 3 && t[1].text == "." && t[2].kind == Tok::kIdent;
       if (field) eq = 3;
       if (eq >= t.size() || t[eq].text != "=") continue;
-      bool self = false;  // the right-hand side reads the point itself (XP1 = XP1 : {...})
-      for (size_t i = eq + 1; i < t.size(); ++i) self = self || (t[i].kind == Tok::kIdent && t[i].up == k);
-      (void)self;
       const std::string at = src.loc(t[0].begin).str();
       r.assigned_points_.emplace(k, at);
       if (!in_main || depth > 0)

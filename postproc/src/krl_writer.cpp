@@ -201,18 +201,6 @@ std::string frameStatement(const char* var, const FrameSetting& s, bool is_tool)
   return "";
 }
 
-bool sameFrame(const FrameSetting& a, const FrameSetting& b) {
-  if (a.source != b.source || a.index != b.index || a.value.has_value() != b.value.has_value()) return false;
-  if (a.source == FrameSetting::Source::kUnknown && a.text != b.text) return false;
-  if (a.value) {
-    const calib::XyzAbc& x = *a.value;
-    const calib::XyzAbc& y = *b.value;
-    return formatMm(x.x_mm) == formatMm(y.x_mm) && formatMm(x.y_mm) == formatMm(y.y_mm) && formatMm(x.z_mm) == formatMm(y.z_mm) &&
-           formatDeg(x.a_deg) == formatDeg(y.a_deg) && formatDeg(x.b_deg) == formatDeg(y.b_deg) && formatDeg(x.c_deg) == formatDeg(y.c_deg);
-  }
-  return true;
-}
-
 std::string declType(const Target& t) {
   if (!t.type.empty()) return t.type;
   return t.kind == Target::Kind::kAxis ? "E6AXIS" : "E6POS";

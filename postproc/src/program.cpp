@@ -72,6 +72,28 @@ bool Target::setPoseIfChanged(const calib::XyzAbc& p) {
   return changed;
 }
 
+FrameSetting runTimeFrame(const std::string& text, const SourceLocation& where, const std::string& note) {
+  FrameSetting f;
+  f.source = FrameSetting::Source::kUnknown;
+  f.text = text;
+  f.where = where;
+  f.note = note;
+  f.run_time = true;
+  return f;
+}
+
+bool sameFrame(const FrameSetting& a, const FrameSetting& b) {
+  if (a.source != b.source || a.index != b.index || a.value.has_value() != b.value.has_value()) return false;
+  if (a.source == FrameSetting::Source::kUnknown && a.text != b.text) return false;
+  if (a.value) {
+    const calib::XyzAbc& x = *a.value;
+    const calib::XyzAbc& y = *b.value;
+    return formatMm(x.x_mm) == formatMm(y.x_mm) && formatMm(x.y_mm) == formatMm(y.y_mm) && formatMm(x.z_mm) == formatMm(y.z_mm) &&
+           formatDeg(x.a_deg) == formatDeg(y.a_deg) && formatDeg(x.b_deg) == formatDeg(y.b_deg) && formatDeg(x.c_deg) == formatDeg(y.c_deg);
+  }
+  return true;
+}
+
 bool programChanged(const Program& program) {
   for (const Motion& m : program.motions) {
     if (m.inserted || m.target.modified || (m.aux && m.aux->modified)) return true;

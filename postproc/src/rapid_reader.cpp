@@ -173,6 +173,46 @@ class Reader {
     return kNoHead;
   }
 
+  /// The routine name of a PROC / FUNC / TRAP header r (its token); kNoHead for any other.
+  size_t routineNameAt(Range r) const {
+    const size_t h = headAt(r.first);
+    if (h == kNoHead || (t_[h].u != "PROC" && t_[h].u != "FUNC" && t_[h].u != "TRAP")) return kNoHead;
+    const size_t k = h + 1 + (t_[h].u == "FUNC" ? 1 : 0);  // (a FUNC's return type first)
+    return k < r.second && t_[k].kind == Tok::Kind::kIdent ? k : kNoHead;
+  }
+
+  /// A routine's parameter: its name (upper case), whether a call may change the argument
+  /// (INOUT, VAR), whether it is optional (\name).
+  struct Param {
+    std::string name;
+    bool changed = false, optional = false;
+  };
+  /// The parameters of the routine whose name is token k of its header r:
+  /// [\][VAR|PERS|INOUT] type name[{*}], separated by ',' or '|'.
+  std::vector<Param> parameters(Range r, size_t k) const {
+    std::vector<Param> out;
+    if (!isOp(t_, k + 1, "(")) return out;
+    Param cur;
+    bool any = false;
+    for (size_t q = k + 2; q < r.second && !isOp(t_, q, ")"); ++q) {
+      if (isOp(t_, q, ",") || isOp(t_, q, "|")) {
+        if (any) out.push_back(cur);
+        cur = Param{};
+        any = false;
+        continue;
+      }
+      any = true;
+      if (isOp(t_, q, "\\")) cur.optional = true;
+      if (t_[q].kind != Tok::Kind::kIdent) continue;
+      if (t_[q].u == "INOUT" || t_[q].u == "VAR") cur.changed = true;
+      if (cur.name.empty() && q + 1 < r.second &&
+          (isOp(t_, q + 1, ",") || isOp(t_, q + 1, "|") || isOp(t_, q + 1, ")") || isOp(t_, q + 1, "{")))
+        cur.name = t_[q].u;
+    }
+    if (any) out.push_back(cur);
+    return out;
+  }
+
   /// Where a statement that shares the header's line begins in r (r.second when none): after
   /// THEN (IF, ELSEIF), DO (WHILE, FOR), the ':' of a CASE / DEFAULT, the word ELSE, ENDIF,
   /// ENDWHILE, ENDFOR, ENDTEST; before the CASE of a one-line TEST; after a compact IF's
@@ -220,21 +260,15 @@ class Reader {
   /// displaced from their start.
   void findDisplacedRoutines() {
     std::set<std::string> names;
-    for (const Range& r : stmts_) {
-      const size_t h = headAt(r.first);
-      if (h == kNoHead || (t_[h].u != "PROC" && t_[h].u != "TRAP")) continue;
-      if (h + 1 < r.second && t_[h + 1].kind == Tok::Kind::kIdent) names.insert(t_[h + 1].u);
-    }
+    for (const Range& r : stmts_)
+      if (const size_t k = routineNameAt(r); k != kNoHead) names.insert(t_[k].u);
     std::map<std::string, std::set<std::string>> calls;  // caller -> callees
     std::string cur;
     bool active = false;
     for (const Range& r : stmts_) {
-      const size_t h = headAt(r.first);
-      if (h != kNoHead) {
-        const std::string& u = t_[h].u;
-        if (u == "PROC" || u == "FUNC" || u == "TRAP") {
-          const size_t k = h + 1 + (u == "FUNC" ? 1 : 0);
-          cur = k < r.second ? t_[k].u : "";
+      if (headAt(r.first) != kNoHead) {
+        if (const size_t k = routineNameAt(r); k != kNoHead) {
+          cur = t_[k].u;
           active = false;
         }
         continue;
@@ -266,25 +300,13 @@ class Reader {
   /// argument of Add, and the SearchPoint of SearchL/SearchC/SearchJ.
   void scanAssignments() {
     // the module's routines: which of their parameters a call changes (INOUT, VAR)
-    std::map<std::string, std::vector<bool>> changes;
+    std::map<std::string, std::vector<bool>> changes;  // per positional (not optional) parameter
     for (const Range& r : stmts_) {
-      const size_t h = headAt(r.first);
-      if (h == kNoHead || (t_[h].u != "PROC" && t_[h].u != "FUNC" && t_[h].u != "TRAP")) continue;
-      size_t k = h + 1 + (t_[h].u == "FUNC" ? 1 : 0);
-      if (k >= r.second || t_[k].kind != Tok::Kind::kIdent || !isOp(t_, k + 1, "(")) continue;
+      const size_t k = routineNameAt(r);
+      if (k == kNoHead || !isOp(t_, k + 1, "(")) continue;
       std::vector<bool>& ch = changes[t_[k].u];
-      bool mode = false, optional = false;
-      for (size_t q = k + 2; q < r.second && !isOp(t_, q, ")"); ++q) {
-        if (isOp(t_, q, ",") || isOp(t_, q, "|")) {
-          if (!optional) ch.push_back(mode);
-          mode = optional = false;
-        } else if (isOp(t_, q, "\\")) {
-          optional = true;
-        } else if (t_[q].kind == Tok::Kind::kIdent && (t_[q].u == "INOUT" || t_[q].u == "VAR")) {
-          mode = true;
-        }
-      }
-      if (!optional && k + 3 < r.second) ch.push_back(mode);
+      for (const Param& q : parameters(r, k))
+        if (!q.optional) ch.push_back(q.changed);
     }
     for (const Range& r : stmts_) {
       size_t k = r.first;
@@ -423,19 +445,8 @@ class Reader {
       // the parameters (name: its value comes from the call; it hides a module datum of the
       // same name): [\][VAR|PERS|INOUT] type name[{*}], separated by ',' or '|'
       params_.clear();
-      if (isOp(t_, k + 1, "(")) {
-        std::string last;
-        for (size_t q = k + 2; q < r.second && !isOp(t_, q, ")"); ++q) {
-          if (isOp(t_, q, ",") || isOp(t_, q, "|")) {
-            if (!last.empty()) params_.insert(last);
-            last.clear();
-          } else if (t_[q].kind == Tok::Kind::kIdent && last.empty() && q + 1 < r.second &&
-                     (isOp(t_, q + 1, ",") || isOp(t_, q + 1, "|") || isOp(t_, q + 1, ")") || isOp(t_, q + 1, "{"))) {
-            last = t_[q].u;
-          }
-        }
-        if (!last.empty()) params_.insert(last);
-      }
+      for (const Param& q : parameters(r, k))
+        if (!q.name.empty()) params_.insert(q.name);
       flow_ = StartTracker();  // a routine's first motion: called from anywhere
       flow_.unknown();
       return;

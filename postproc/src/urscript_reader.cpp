@@ -473,13 +473,7 @@ class Reader {
       if (b.kind == StartTracker::Block::kRoutine && !b.program) {
         // a function (or thread) runs with the caller's tool and the program variables' values
         // where it is called
-        FrameSetting caller;
-        caller.source = FrameSetting::Source::kUnknown;
-        caller.text = "set_tcp";
-        caller.where = loc(t[0].b);
-        caller.note = "a function runs with the tool of the place it is called from until it calls set_tcp";
-        caller.run_time = true;
-        tool_ = caller;
+        tool_ = runTimeFrame("set_tcp", loc(t[0].b), "a function runs with the tool of the place it is called from until it calls set_tcp");
         for (auto& [n, v] : vars_) {
           Var c;
           c.problem = "in the function " + b.name + ", '" + n + "' has the value it has where the function is called";
@@ -498,15 +492,9 @@ class Reader {
         if (b.kind == StartTracker::Block::kLoop && changed)
           // the next pass: the loop's motions before the change run with the changed tool
           for (size_t i = b.first_motion; i < p.motions.size(); ++i)
-            if (sameFrame(p.motions[i].tool, b.tool)) {
-              FrameSetting amb;
-              amb.source = FrameSetting::Source::kUnknown;
-              amb.text = "set_tcp";
-              amb.where = loc(t[0].b);
-              amb.note = "set_tcp is called later in the while at " + loc(b.at).str() + ": the next pass runs this motion with the new tool";
-              amb.run_time = true;
-              p.motions[i].tool = amb;
-            }
+            if (sameFrame(p.motions[i].tool, b.tool))
+              p.motions[i].tool = runTimeFrame("set_tcp", loc(t[0].b), "set_tcp is called later in the while at " + loc(b.at).str() +
+                                                                            ": the next pass runs this motion with the new tool");
         if (b.kind == StartTracker::Block::kRoutine && !b.program) {
           // a function's set_tcp runs where it is called: the text after its end has the tool
           // from before it, and a call of it sets a tool accura does not follow
@@ -514,14 +502,9 @@ class Reader {
           if (b.sets_tcp) tcp_setters_[b.name] = loc(b.at);
         } else if (changed && !b.program) {
           // set in a branch or a loop: after it, the tool is whichever the run took
-          FrameSetting amb;
-          amb.source = FrameSetting::Source::kUnknown;
-          amb.text = "set_tcp";
-          amb.where = loc(t[0].b);
-          amb.note = std::string("set_tcp is called inside the ") + (b.kind == StartTracker::Block::kBranch ? "if" : "while") +
-                     " at " + loc(b.at).str() + ": after it, the tool depends on the way the program ran";
-          amb.run_time = true;
-          tool_ = amb;
+          tool_ = runTimeFrame("set_tcp", loc(t[0].b),
+                               std::string("set_tcp is called inside the ") + (b.kind == StartTracker::Block::kBranch ? "if" : "while") +
+                                   " at " + loc(b.at).str() + ": after it, the tool depends on the way the program ran");
         }
       }
       if (blocks_.empty() && main_open_) {
@@ -540,25 +523,20 @@ class Reader {
       vars_ = b.vars;
     }
     // a call of a function (or a started thread) of the script that assigns program variables
-    for (size_t k = 0; k + 1 < t.size(); ++k)
-      if (isIdent(t, k) && isOp(t, k + 1, "(") && fn_assigns_.count(t[k].s))
-        for (const auto& [n, at] : fn_assigns_.at(t[k].s)) {
+    // or calls set_tcp
+    for (size_t k = 0; k + 1 < t.size(); ++k) {
+      if (!isIdent(t, k) || !isOp(t, k + 1, "(")) continue;
+      if (const auto fa = fn_assigns_.find(t[k].s); fa != fn_assigns_.end())
+        for (const auto& [n, at] : fa->second) {
           Var v;
           v.problem = "'" + n + "' is assigned by " + t[k].s + " (at " + at.str() + "), called at " + loc(t[k].b).str() +
                       ": its value after the call is not followed";
           vars_[n] = v;
         }
-    // a call of a function of the script that calls set_tcp
-    for (size_t k = 0; k + 1 < t.size(); ++k)
-      if (isIdent(t, k) && isOp(t, k + 1, "(") && tcp_setters_.count(t[k].s)) {
-        FrameSetting f;
-        f.source = FrameSetting::Source::kUnknown;
-        f.text = t[k].s + "()";
-        f.where = loc(t[k].b);
-        f.note = "the function " + t[k].s + " (" + tcp_setters_.at(t[k].s).str() + ") calls set_tcp: the tool after the call is not followed";
-        f.run_time = true;
-        tool_ = f;
-      }
+      if (const auto ts = tcp_setters_.find(t[k].s); ts != tcp_setters_.end())
+        tool_ = runTimeFrame(t[k].s + "()", loc(t[k].b),
+                             "the function " + t[k].s + " (" + ts->second.str() + ") calls set_tcp: the tool after the call is not followed");
+    }
     // a call of one of the script's functions that move the robot, a thread of the script that
     // moves it started (run name()), force control
     if (isIdent(t, 0) && isOp(t, 1, "(") && defs_.count(t[0].s)) flow_.unknown();
@@ -861,9 +839,6 @@ class Reader {
     bool sets_tcp = false;                  ///< set_tcp is called in it (functions)
     size_t first_motion = 0;                ///< the first motion in it
   };
-  static bool sameFrame(const FrameSetting& a, const FrameSetting& b) {
-    return a.source == b.source && a.text == b.text && a.note == b.note;
-  }
   static bool sameVar(const Var& a, const Var& b) {
     return a.kind == b.kind && a.problem == b.problem && a.pose.expr == b.pose.expr && a.pose.problem == b.pose.problem && a.q == b.q;
   }

@@ -411,13 +411,6 @@ void writeFrame(std::ostream& out, const char* tag, const FrameSetting& s) {
   out << "/>\n";
 }
 
-bool sameFrame(const FrameSetting& a, const FrameSetting& b) {
-  std::ostringstream x, y;
-  writeFrame(x, "f", a);
-  writeFrame(y, "f", b);
-  return a.source == b.source && x.str() == y.str();
-}
-
 void writeTarget(std::ostream& out, const char* tag, const Target& t) {
   out << "      <" << tag;
   if (!t.name.empty()) out << " name=\"" << calib::xmlEscape(t.name) << "\"";

@@ -109,6 +109,16 @@ struct FrameSetting {
   bool known() const { return value.has_value(); }
 };
 
+/// A frame the program receives or computes at run time (FrameSetting::run_time): kUnknown,
+/// written as `text`, set at `where`, `note` saying why its value is not known.
+FrameSetting runTimeFrame(const std::string& text, const SourceLocation& where, const std::string& note);
+
+/// The same frame as written: source, data index, the text of one accura cannot evaluate, and
+/// the value at the written precision (formatMm / formatDeg); not where it was set. The writers
+/// skip a frame the motion before already set; the readers compare a frame with the one a block
+/// was entered with.
+bool sameFrame(const FrameSetting& a, const FrameSetting& b);
+
 /// One motion statement.
 struct Motion {
   MotionType type = MotionType::kPtp;
