@@ -6,6 +6,8 @@ packages=(
   build-essential cmake pkg-config
   libeigen3-dev       # linear algebra, transforms
   libceres-dev        # Levenberg-Marquardt for the identification
+  libopenblas-serial-dev  # LAPACK's dense Cholesky (dpotrf) for the joint-map systems, with kernels
+                          # picked for the processor at run time
   libtinyxml2-dev     # robot files and XML programs
   libassimp-dev       # CAD meshes of the cell (reach and clearance checks)
   libfcl-dev          # distance queries robot <-> cell meshes (clearance checks, BVH of OBBRSS)

@@ -12,6 +12,7 @@
 
 #include "accura/calib/errors.h"
 #include "accura/calib/joint_map.h"
+#include "dense_cholesky.h"
 #include "identify_internal.h"
 
 namespace accura::calib::identify_detail {
@@ -409,9 +410,10 @@ void uncertainties(Problem& pb, const IdentifyOptions& options, bool robust, Ide
       Eigen::MatrixXd E = Eigen::MatrixXd::Zero(fc.n, static_cast<Eigen::Index>(reported.size()));
       for (size_t a = 0; a < reported.size(); ++a) E(reported[a], static_cast<Eigen::Index>(a)) = 1;
       Eigen::MatrixXd Ninv_cols;
-      Eigen::LLT<Eigen::MatrixXd> llt(Nn);
-      if (llt.info() == Eigen::Success) {
-        Ninv_cols = llt.solve(E);
+      Eigen::MatrixXd L = Nn;
+      if (detail::choleskyInPlace(L)) {
+        Ninv_cols = E;
+        detail::choleskySolveInPlace(L, Ninv_cols);
       } else {  // semi-definite: as the dense path
         Eigen::LDLT<Eigen::MatrixXd> ldlt(Nn);
         if (ldlt.info() != Eigen::Success)

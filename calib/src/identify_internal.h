@@ -205,6 +205,15 @@ struct SolveResult {
   bool failure = false;     ///< Ceres reported FAILURE
   std::string message;
 };
+/// The Levenberg-Marquardt's initial trust-region radius with joint maps (both solvers; Ceres'
+/// default, 1e4, elsewhere). In the Jacobi-scaled variables the LM adds diagonal / radius to the
+/// normal matrix: at 1e4 that damping is larger than the smallest eigenvalues of the smoothed
+/// maps' system, every step falls short (the model predicts the decrease exactly, rho = 1) and
+/// the solve crawls until the parameter tolerance stops it short of the optimum (5-6 steps per
+/// variance round on the KR 16 of bench_diagnose, 2e-4 of the cost left). At 1e8 the first step
+/// is the Gauss-Newton step and the next ends the solve; a step that does not decrease the cost
+/// still shrinks the radius as before (a factor 2, 4, 8, ...: 1e4 again after 5 refusals).
+constexpr double kJointMapInitialRadius = 1e8;
 /// Levenberg-Marquardt on the stacked rows from pb.x; applies the solution to pb.model and
 /// refreshes pb.data0. Ceres' on the stacked Jacobian, except with joint maps and no robust
 /// loss: then solveNormal.

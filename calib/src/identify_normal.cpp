@@ -17,6 +17,7 @@
 #include <string>
 
 #include "identify_internal.h"
+#include "dense_cholesky.h"
 
 namespace accura::calib::identify_detail {
 
@@ -111,9 +112,9 @@ bool lmStep(const Eigen::MatrixXd& Ns, const Eigen::VectorXd& gs, const Eigen::V
             Eigen::MatrixXd& M, Eigen::VectorXd* step, double* model_change) {
   M = Ns;
   M.diagonal() += diagonal / radius;
-  Eigen::LLT<Eigen::Ref<Eigen::MatrixXd>> llt(M);
-  if (llt.info() != Eigen::Success) return false;
-  *step = -llt.solve(gs);
+  if (!detail::choleskyInPlace(M)) return false;
+  *step = -gs;
+  detail::choleskySolveInPlace(M, *step);
   *model_change = -(step->dot(gs) + 0.5 * step->dot(Ns * *step));
   return step->allFinite() && *model_change > 0;
 }
@@ -174,7 +175,7 @@ SolveResult solveNormal(Problem& pb, const IdentifyOptions& options) {
   Eigen::VectorXd gs = scaled();
   double gmax = n > 0 ? g.cwiseAbs().maxCoeff() : 0.0;
 
-  double radius = 1e4, decrease_factor = 2, x_norm = -1;  // Ceres: no norm before a first step
+  double radius = kJointMapInitialRadius, decrease_factor = 2, x_norm = -1;  // Ceres: no norm before a first step
   bool successful = true, reuse_diagonal = false;
   int iteration = 0, invalid = 0;
   Eigen::VectorXd diagonal;

@@ -262,6 +262,7 @@ SolveResult solve(Problem& pb, const IdentifyOptions& options, bool robust) {
     // relative (the maps' values then move by far less than their uncertainty)
     so.function_tolerance = std::max(so.function_tolerance, 1e-9);
     so.parameter_tolerance = std::max(so.parameter_tolerance, 1e-8);
+    so.initial_trust_region_radius = kJointMapInitialRadius;
   }
   if (getenv("ACCURA_DEBUG_ITER")) so.minimizer_progress_to_stdout = true;
   so.gradient_tolerance = 1e-16;

@@ -4,11 +4,16 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
+#include <atomic>
+#include <exception>
 #include <functional>
+#include <mutex>
+#include <thread>
 #include <limits>
 #include <Eigen/Cholesky>
 
 #include "accura/calib/errors.h"
+#include "dense_cholesky.h"
 #include "accura/calib/geometry.h"
 
 namespace accura::calib {
@@ -242,11 +247,12 @@ Eigen::VectorXd solveRidged(Eigen::MatrixXd& N, const Eigen::VectorXd& b) {
   const double ridge = 1e-10 * std::max(N.diagonal().maxCoeff(), 1e-300);
   N.diagonal().array() += ridge;
   const Eigen::VectorXd d = N.diagonal();
-  {
-    // Cholesky in place on the lower triangle (blocked: several times faster than LDLT at the
-    // maps' sizes, and no copy of the matrix)
-    Eigen::LLT<Eigen::Ref<Eigen::MatrixXd>> llt(N);
-    if (llt.info() == Eigen::Success) return Eigen::VectorXd(-llt.solve(b));
+  // Cholesky in place on the lower triangle (several times faster than LDLT at the maps' sizes,
+  // and no copy of the matrix)
+  if (detail::choleskyInPlace(N)) {
+    Eigen::VectorXd delta = -b;
+    detail::choleskySolveInPlace(N, delta);
+    return delta;
   }
   // not quite positive definite in the rounding: LDLT on the matrix again (its strictly upper
   // triangle is untouched, the diagonal kept)
@@ -256,11 +262,39 @@ Eigen::VectorXd solveRidged(Eigen::MatrixXd& N, const Eigen::VectorXd& b) {
   return Eigen::VectorXd(-ldlt.solve(b));
 }
 
+// Runs task(0) .. task(count - 1) on up to `threads` threads (0: one per hardware thread; the
+// calling thread is one of them). The first exception a task throws is rethrown here, after
+// every thread has ended.
+void parallelFor(size_t count, int threads, const std::function<void(size_t)>& task) {
+  size_t n = threads > 0 ? static_cast<size_t>(threads) : std::max(1u, std::thread::hardware_concurrency());
+  n = std::min(n, count);
+  std::atomic<size_t> next{0};
+  std::exception_ptr failure;
+  std::mutex failure_mutex;
+  auto work = [&] {
+    for (size_t k; (k = next.fetch_add(1)) < count;) {
+      try {
+        task(k);
+      } catch (...) {
+        const std::lock_guard<std::mutex> lock(failure_mutex);
+        if (!failure) failure = std::current_exception();
+        next = count;  // the others stop after their current task
+      }
+    }
+  };
+  std::vector<std::thread> pool;
+  for (size_t t = 1; t < n; ++t) pool.emplace_back(work);
+  work();
+  for (auto& t : pool) t.join();
+  if (failure) std::rethrow_exception(failure);
+}
+
 }  // namespace
 
 JointMapCvResult crossValidateJointMap(const std::vector<JointMapCvRow>& rows, const std::vector<JointRange>& ranges,
                                        const std::vector<int>& centred_harmonics, const std::vector<double>& knots,
-                                       const std::vector<double>& smoothings, int folds) {
+                                       const std::vector<double>& smoothings, int folds, int threads) {
+  if (threads < 0) throw ArgumentError("joint map cross-validation: expected threads >= 0, got " + std::to_string(threads));
   if (centred_harmonics.size() != ranges.size())
     throw ArgumentError("joint map cross-validation: expected one harmonics count per mapped joint");
   if (rows.empty() || knots.empty() || smoothings.empty() || folds < 2)
@@ -370,10 +404,13 @@ JointMapCvResult crossValidateJointMap(const std::vector<JointMapCvRow>& rows, c
     }
     const size_t first_entry = result.table.size();
     for (double sm : smoothings) result.table.push_back({knot, sm, 0.0});
+    // per fold: the training system (in place of the fold's own: Nt - Nf), with the centring
+    // taken on the training rows
+    std::vector<Eigen::VectorXd> btrain(static_cast<size_t>(folds));
     for (int f = 0; f < folds; ++f) {
-      Eigen::MatrixXd Ntrain = Nt - Nf[static_cast<size_t>(f)];
-      const Eigen::VectorXd btrain = bt - bf[static_cast<size_t>(f)];
-      // centring on the training rows
+      Eigen::MatrixXd& Ntrain = Nf[static_cast<size_t>(f)];
+      Ntrain = Nt - Ntrain;
+      btrain[static_cast<size_t>(f)] = bt - bf[static_cast<size_t>(f)];
       for (int j = 0; j < J; ++j) {
         std::vector<double> qt;
         for (const auto& row : rows)
@@ -386,16 +423,24 @@ JointMapCvResult crossValidateJointMap(const std::vector<JointMapCvRow>& rows, c
           Ntrain.block(col0[static_cast<size_t>(j)], col0[static_cast<size_t>(j)], K, K) += W * (av * av.transpose()) / av.squaredNorm();
         }
       }
-      for (size_t si = 0; si < smoothings.size(); ++si) {
-        Eigen::MatrixXd N = Ntrain;
-        for (int j = 0; j < J; ++j) {
-          const Eigen::Index K = static_cast<Eigen::Index>(maps[static_cast<size_t>(j)].coef.size());
-          N.block(col0[static_cast<size_t>(j)], col0[static_cast<size_t>(j)], K, K) +=
-              smoothings[si] * scale2[static_cast<size_t>(j)] * DtD[static_cast<size_t>(j)];
-        }
-        result.table[first_entry + si].cv_rms_mm += heldOut(maps, col0, f, solveRidged(N, btrain));
-      }
     }
+    // one refit per (fold, smoothing): independent, so spread over the threads; each is the same
+    // arithmetic whichever thread runs it, and the folds are summed in their order below
+    const size_t S = smoothings.size();
+    std::vector<double> fold_ss(static_cast<size_t>(folds) * S, 0.0);
+    parallelFor(fold_ss.size(), threads, [&](size_t task) {
+      const int f = static_cast<int>(task / S);
+      const size_t si = task % S;
+      Eigen::MatrixXd N = Nf[static_cast<size_t>(f)];
+      for (int j = 0; j < J; ++j) {
+        const Eigen::Index K = static_cast<Eigen::Index>(maps[static_cast<size_t>(j)].coef.size());
+        N.block(col0[static_cast<size_t>(j)], col0[static_cast<size_t>(j)], K, K) +=
+            smoothings[si] * scale2[static_cast<size_t>(j)] * DtD[static_cast<size_t>(j)];
+      }
+      fold_ss[task] = heldOut(maps, col0, f, solveRidged(N, btrain[static_cast<size_t>(f)]));
+    });
+    for (int f = 0; f < folds; ++f)
+      for (size_t si = 0; si < S; ++si) result.table[first_entry + si].cv_rms_mm += fold_ss[static_cast<size_t>(f) * S + si];
     // (the table holds sums of squares until the end)
     double best_ss = std::numeric_limits<double>::infinity();
     for (size_t e = first_entry; e < result.table.size(); ++e) best_ss = std::min(best_ss, result.table[e].cv_rms_mm);

@@ -1,0 +1,56 @@
+// accura: dense Cholesky by LAPACK (dense_cholesky.h).
+#include "dense_cholesky.h"
+
+#include <algorithm>
+#include <climits>
+#include <string>
+
+#include "accura/calib/errors.h"
+
+extern "C" {
+// LAPACK (Fortran calling convention; OpenBLAS): the Cholesky factorisation and its solve
+void dpotrf_(const char* uplo, const int* n, double* a, const int* lda, int* info);
+void dpotrs_(const char* uplo, const int* n, const int* nrhs, const double* a, const int* lda, double* b, const int* ldb,
+             int* info);
+}
+
+namespace accura::calib::detail {
+
+namespace {
+
+int lapackSize(Eigen::Index v, const char* what) {
+  if (v < 0 || v > INT_MAX)
+    throw NumericalError(std::string("dense Cholesky: ") + what + " " + std::to_string(v) + " exceeds LAPACK's sizes");
+  return static_cast<int>(v);
+}
+
+}  // namespace
+
+bool choleskyInPlace(Eigen::Ref<Eigen::MatrixXd> A) {
+  if (A.rows() != A.cols())
+    throw ArgumentError("dense Cholesky: expected a square matrix, got " + std::to_string(A.rows()) + " x " +
+                        std::to_string(A.cols()));
+  const int n = lapackSize(A.rows(), "size"), lda = lapackSize(std::max<Eigen::Index>(A.outerStride(), 1), "stride");
+  if (n == 0) return true;
+  const char lower = 'L';
+  int info = 0;
+  dpotrf_(&lower, &n, A.data(), &lda, &info);
+  return info == 0;
+}
+
+void choleskySolveInPlace(const Eigen::Ref<const Eigen::MatrixXd>& L, Eigen::Ref<Eigen::MatrixXd> B) {
+  if (L.rows() != L.cols() || B.rows() != L.rows())
+    throw ArgumentError("dense Cholesky solve: expected a square factor and " + std::to_string(L.rows()) +
+                        " right-hand-side rows, got " + std::to_string(L.rows()) + " x " + std::to_string(L.cols()) +
+                        " and " + std::to_string(B.rows()));
+  const int n = lapackSize(L.rows(), "size"), nrhs = lapackSize(B.cols(), "right-hand sides");
+  if (n == 0 || nrhs == 0) return;
+  const int lda = lapackSize(std::max<Eigen::Index>(L.outerStride(), 1), "stride"),
+            ldb = lapackSize(std::max<Eigen::Index>(B.outerStride(), 1), "stride");
+  const char lower = 'L';
+  int info = 0;
+  dpotrs_(&lower, &n, &nrhs, L.data(), &lda, B.data(), &ldb, &info);
+  if (info != 0) throw NumericalError("dense Cholesky solve: LAPACK dpotrs reported argument " + std::to_string(-info));
+}
+
+}  // namespace accura::calib::detail
