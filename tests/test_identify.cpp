@@ -8,7 +8,7 @@
 #include <Eigen/Cholesky>
 #include <random>
 
-#include "../calib/src/dense_cholesky.h"
+#include "../calib/src/dense_linalg.h"
 #include "../calib/src/identify_internal.h"
 #include "accura/calib/errors.h"
 #include "accura/calib/geometry.h"
@@ -219,10 +219,11 @@ TEST(Identify, JointMapSolverReachesCeresOptimum) {
   EXPECT_LT((dn.translation() - dc.translation()).norm(), 1e-7);  // mm
 }
 
-// The dense Cholesky of the joint-map systems (LAPACK through OpenBLAS) against Eigen's, on a
-// symmetric positive definite matrix of the maps' size: the same factor and solution to the
-// rounding; a matrix that is not positive definite is refused, not factorised.
-TEST(Identify, DenseCholeskyAgreesWithEigen) {
+// The dense Cholesky of the joint-map systems and J^T J of the diagnosis (LAPACK and BLAS
+// through OpenBLAS) against Eigen's, on a symmetric positive definite matrix of the maps' size:
+// the same factor, solution and product to the rounding; a matrix that is not positive definite
+// is refused, not factorised.
+TEST(Identify, DenseLinearAlgebraAgreesWithEigen) {
   std::mt19937 rng(5);
   std::normal_distribution<double> g(0.0, 1.0);
   const Eigen::Index n = 300;
@@ -251,6 +252,16 @@ TEST(Identify, DenseCholeskyAgreesWithEigen) {
   EXPECT_THROW(detail::choleskyInPlace(rectangular), ArgumentError);
   Eigen::MatrixXd wrong_rows(n - 1, 1);
   EXPECT_THROW(detail::choleskySolveInPlace(L, wrong_rows), ArgumentError);
+  // J^T J on the lower triangle, added with a factor; the upper triangle untouched
+  Eigen::MatrixXd G = Eigen::MatrixXd::Constant(n, n, 7.0);
+  detail::addGramLower(G, A, -0.5);
+  const Eigen::MatrixXd expected = Eigen::MatrixXd::Constant(n, n, 7.0) - 0.5 * S;
+  EXPECT_LT((Eigen::MatrixXd(G.triangularView<Eigen::Lower>()) - Eigen::MatrixXd(expected.triangularView<Eigen::Lower>()))
+                .cwiseAbs()
+                .maxCoeff(),
+            1e-12 * S.cwiseAbs().maxCoeff());
+  EXPECT_EQ(G(0, n - 1), 7.0);
+  EXPECT_THROW(detail::addGramLower(G, rectangular), ArgumentError);
 }
 
 // With joint maps the Levenberg-Marquardt takes Gauss-Newton steps and ends because its steps

@@ -16,6 +16,7 @@
 #include "accura/calib/identify.h"
 #include "accura/calib/joint_map.h"
 #include "accura/calib/kinematics.h"
+#include "dense_linalg.h"
 #include "identify_internal.h"
 
 namespace accura::calib {
@@ -314,6 +315,7 @@ void Diagnoser::linearise() {
                 blocks_.end());
   colscale_ = norms.cwiseMax(1e-300);
   JF_ = JF * colscale_.cwiseInverse().asDiagonal();
+  JFt_ = JF_.transpose();
   const Eigen::VectorXd rw = wF_.cwiseProduct(rF_);
   mapPenalty();
   row_nz_.assign(static_cast<size_t>(m_), {});
@@ -356,7 +358,7 @@ void Diagnoser::addNormal(const std::vector<int>& poses, Eigen::MatrixXd* A, Eig
       Jw.middleRows(r, 3) = wF_.segment<3>(i3).asDiagonal() * JF_.middleRows(i3, 3);
       rw.segment<3>(r) = wF_.segment<3>(i3).cwiseProduct(rF_.segment<3>(i3));
     }
-    A->selfadjointView<Eigen::Lower>().rankUpdate(Jw.transpose());
+    detail::addGramLower(*A, Jw);
     b->noalias() += Jw.transpose() * rw;
     return;
   }
@@ -526,25 +528,38 @@ Diagnoser::Eval Diagnoser::cvEval(const std::vector<int>& S, const Scheme& schem
       x(act) = xa;
     }
     x_all(S) = x;
-    for (int i : scheme.poses[f]) {
+    const std::vector<int>& held = scheme.poses[f];
+    for (int i : held) {
       Eigen::Vector3d e = rF_.segment<3>(3 * i);
-      // the row's prediction over S's columns or its non-zero ones, the fewer
+      // the row's prediction over S's columns or its non-zero ones, the fewer (from the
+      // transposed Jacobian: the pose's three rows are contiguous there)
       const std::vector<int>& nz = row_nz_[static_cast<size_t>(i)];
+      const double* J0 = JFt_.data() + 3 * static_cast<Eigen::Index>(i) * JFt_.rows();
+      const double* J1 = J0 + JFt_.rows();
+      const double* J2 = J1 + JFt_.rows();
       if (nz.size() < S.size()) {
-        for (int c : nz) e -= JF_.col(c).segment<3>(3 * i) * x_all[c];
+        for (int c : nz) e -= Eigen::Vector3d(J0[c], J1[c], J2[c]) * x_all[c];
       } else {
-        for (Eigen::Index a = 0; a < s; ++a) e -= JF_.col(S[a]).segment<3>(3 * i) * x[a];
+        for (Eigen::Index a = 0; a < s; ++a) e -= Eigen::Vector3d(J0[S[a]], J1[S[a]], J2[S[a]]) * x[a];
       }
       // robust held-out loss: a down-weighted row counts with its weight squared (about the
       // squared cut-off for a gross outlier)
       ev.d[i] = e.squaredNorm() * robust_w_[static_cast<size_t>(i)] * robust_w_[static_cast<size_t>(i)];
-      if (leverage) {
-        const Eigen::MatrixXd Ji = JS.middleRows(3 * i, 3);
-        ev.lev[i] = llt.matrixL()
-                        .solve(static_cast<Eigen::Index>(act.size()) == s ? Eigen::MatrixXd(Ji.transpose())
-                                                                           : Eigen::MatrixXd(Ji(Eigen::all, act).transpose()))
-                        .squaredNorm();
+    }
+    if (leverage && !held.empty()) {
+      // the held-out rows' leverages |L^-1 J_i^T|^2, all rows of the fold in one triangular solve
+      const bool all_cols = static_cast<Eigen::Index>(act.size()) == s;
+      const Eigen::Index na = all_cols ? s : static_cast<Eigen::Index>(act.size());
+      Eigen::MatrixXd Jt(na, 3 * static_cast<Eigen::Index>(held.size()));
+      for (size_t k = 0; k < held.size(); ++k) {
+        const Eigen::Index r = 3 * static_cast<Eigen::Index>(held[k]), c = 3 * static_cast<Eigen::Index>(k);
+        if (all_cols)
+          Jt.middleCols(c, 3) = JS.middleRows(r, 3).transpose();
+        else
+          Jt.middleCols(c, 3) = JS.middleRows(r, 3)(Eigen::all, act).transpose();
       }
+      llt.matrixL().solveInPlace(Jt);
+      for (size_t k = 0; k < held.size(); ++k) ev.lev[held[k]] = Jt.middleCols(3 * static_cast<Eigen::Index>(k), 3).squaredNorm();
     }
   }
   ev.ok = true;
@@ -612,9 +627,18 @@ RobotModel Diagnoser::gnFit(const std::vector<int>& S, const std::vector<int>& r
   Eigen::VectorXd rw(R);
   const Eigen::MatrixXd P = penalty_(S, S);
   double last_step = 0;
+  Eigen::LLT<Eigen::MatrixXd> llt;
   for (int it = 0; it < 10; ++it) {
     // at M0 (the first iteration), the rows' system from at_m0 when it holds it
     const bool cached = it == 0 && at_m0 && at_m0->Jw.rows() == 3 * m_ && at_m0->Jw.cols() == s;
+    // a chord step once the last step was below one (scaled: one standard deviation of the
+    // parameter on all fit data): the Jacobian and its factorisation of the last iteration, new
+    // residuals only. Within a standard deviation the model is linear to far below the data's
+    // resolution: the Jacobian has changed by a tiny fraction since, and the step differs from
+    // the Gauss-Newton step by that fraction of itself. The third iteration, which typically
+    // ends the fit with a step of 1e-6 after one of 0.1-0.4, then costs one FK per row instead
+    // of a Jacobian.
+    const bool chord = it >= 2 && last_step < 1.0;
     if (!cached) stack.prepare(model);
     for (size_t k = 0; k < rows.size(); ++k) {
       const int i = rows[k];
@@ -625,8 +649,8 @@ RobotModel Diagnoser::gnFit(const std::vector<int>& S, const std::vector<int>& r
         continue;
       }
       const Measurement& row = fit_.rows[static_cast<size_t>(i)];
-      const Eigen::Isometry3d T = stack.pose(x0, row, static_cast<size_t>(i), true);
-      Jw.middleRows(r0, 3).noalias() = w_fit_[i].asDiagonal() * stack.J().topRows(3) * inv_scale.asDiagonal();
+      const Eigen::Isometry3d T = stack.pose(x0, row, static_cast<size_t>(i), !chord);
+      if (!chord) Jw.middleRows(r0, 3).noalias() = w_fit_[i].asDiagonal() * stack.J().topRows(3) * inv_scale.asDiagonal();
       rw.segment(r0, 3) = w_fit_[i].cwiseProduct(row.p_world_mm - T.translation());
     }
     if (it == 0 && at_m0 && !cached && R == 3 * m_) {
@@ -641,14 +665,17 @@ RobotModel Diagnoser::gnFit(const std::vector<int>& S, const std::vector<int>& r
     // the maps' penalty on their current (scaled) coefficients; zero for every other parameter
     Eigen::VectorXd xs(s);
     for (Eigen::Index k = 0; k < s; ++k) xs[k] = getParameter(model.deviations, sub[static_cast<size_t>(k)]) / inv_scale[k];
-    Eigen::MatrixXd A = P;
-    A.selfadjointView<Eigen::Lower>().rankUpdate(Jw.transpose());
-    mirrorLower(&A);
     Eigen::VectorXd b = -(P * xs);
     b.noalias() += Jw.transpose() * rw;
-    Eigen::LLT<Eigen::MatrixXd> llt;
     Eigen::VectorXd dx;
-    if (!solveSpd(A, b, &llt, &dx)) throw NumericalError("diagnose: the refit's normal matrix is singular");
+    if (chord) {
+      dx = llt.solve(b);
+    } else {
+      Eigen::MatrixXd A = P;
+      detail::addGramLower(A, Jw);
+      mirrorLower(&A);
+      if (!solveSpd(A, b, &llt, &dx)) throw NumericalError("diagnose: the refit's normal matrix is singular");
+    }
     for (Eigen::Index k = 0; k < s; ++k)
       setParameter(model.deviations, sub[static_cast<size_t>(k)],
                    getParameter(model.deviations, sub[static_cast<size_t>(k)]) + dx[k] * inv_scale[k]);

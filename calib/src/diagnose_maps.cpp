@@ -16,6 +16,7 @@
 #include "accura/calib/identify.h"
 #include "accura/calib/kinematic_core.h"
 #include "accura/calib/kinematics.h"
+#include "dense_linalg.h"
 
 namespace accura::calib {
 namespace diagnose_detail {
@@ -139,7 +140,7 @@ std::vector<std::vector<Correlation>> Diagnoser::scan(const std::vector<const st
     for (Eigen::Index c = 0; c < p; ++c) sc[c] = sc[c] > 1e-12 ? sc[c] : 1.0;
     X = X * sc.cwiseInverse().asDiagonal();
     Eigen::MatrixXd XtX = Eigen::MatrixXd::Zero(p, p);
-    XtX.selfadjointView<Eigen::Lower>().rankUpdate(X.transpose());
+    detail::addGramLower(XtX, X);
     for (Eigen::Index c = 1; c < p; ++c)
       for (Eigen::Index r = 0; r < c; ++r) XtX(r, c) = XtX(c, r);
     const Eigen::MatrixXd XtY = X.transpose() * Y;
@@ -155,7 +156,7 @@ std::vector<std::vector<Correlation>> Diagnoser::scan(const std::vector<const st
         Yf.middleRows(3 * static_cast<Eigen::Index>(r), 3) = Y.middleRows(3 * rows[r], 3);
       }
       Eigen::MatrixXd M = XtX;
-      M.selfadjointView<Eigen::Lower>().rankUpdate(Xf.transpose(), -1.0);
+      detail::addGramLower(M, Xf, -1.0);
       M.diagonal().array() += ridge;
       const Eigen::MatrixXd C = M.selfadjointView<Eigen::Lower>().ldlt().solve(XtY - Xf.transpose() * Yf);
       const Eigen::MatrixXd Ef = Yf - Xf * C;

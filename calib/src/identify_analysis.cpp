@@ -12,7 +12,7 @@
 
 #include "accura/calib/errors.h"
 #include "accura/calib/joint_map.h"
-#include "dense_cholesky.h"
+#include "dense_linalg.h"
 #include "identify_internal.h"
 
 namespace accura::calib::identify_detail {
@@ -112,7 +112,7 @@ int identifiability(Problem& pb, const IdentifyOptions& options, IdentifySummary
   for (size_t c = 0; c < cand_idx.size(); ++c)
     Jn.col(c) = norms[c] > 0 ? Eigen::VectorXd(Js.col(c) / norms[c]) : Eigen::VectorXd(Js.col(c));
   Eigen::MatrixXd Gram = Eigen::MatrixXd::Zero(Jn.cols(), Jn.cols());
-  Gram.selfadjointView<Eigen::Lower>().rankUpdate(Jn.transpose());
+  detail::addGramLower(Gram, Jn);
   Gram.triangularView<Eigen::StrictlyUpper>() = Gram.transpose();
   std::vector<bool>& free = pb.free;
   free.assign(pb.X, true);
@@ -443,7 +443,9 @@ void uncertainties(Problem& pb, const IdentifyOptions& options, bool robust, Ide
     if (!free_idx.empty()) {
       const Eigen::VectorXd scale = Jf.colwise().norm().cwiseMax(1e-300);
       const Eigen::MatrixXd Jn = Jf * scale.cwiseInverse().asDiagonal();
-      const Eigen::MatrixXd N = Jn.transpose() * Jn;
+      Eigen::MatrixXd N = Eigen::MatrixXd::Zero(Jn.cols(), Jn.cols());
+      detail::addGramLower(N, Jn);
+      N.triangularView<Eigen::StrictlyUpper>() = N.transpose();
       Eigen::LDLT<Eigen::MatrixXd> ldlt(N);
       if (ldlt.info() != Eigen::Success)
         throw NumericalError("identification: normal matrix is singular at the solution");

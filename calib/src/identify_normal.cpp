@@ -17,7 +17,7 @@
 #include <string>
 
 #include "identify_internal.h"
-#include "dense_cholesky.h"
+#include "dense_linalg.h"
 
 namespace accura::calib::identify_detail {
 

@@ -13,7 +13,7 @@
 #include <Eigen/Cholesky>
 
 #include "accura/calib/errors.h"
-#include "dense_cholesky.h"
+#include "dense_linalg.h"
 #include "accura/calib/geometry.h"
 
 namespace accura::calib {

@@ -1,5 +1,5 @@
-// accura: dense Cholesky by LAPACK (dense_cholesky.h).
-#include "dense_cholesky.h"
+// accura: dense Cholesky and J^T J by LAPACK and BLAS (dense_linalg.h).
+#include "dense_linalg.h"
 
 #include <algorithm>
 #include <climits>
@@ -12,6 +12,9 @@ extern "C" {
 void dpotrf_(const char* uplo, const int* n, double* a, const int* lda, int* info);
 void dpotrs_(const char* uplo, const int* n, const int* nrhs, const double* a, const int* lda, double* b, const int* ldb,
              int* info);
+// BLAS: C = alpha A^T A + beta C on one triangle of C
+void dsyrk_(const char* uplo, const char* trans, const int* n, const int* k, const double* alpha, const double* a,
+            const int* lda, const double* beta, double* c, const int* ldc);
 }
 
 namespace accura::calib::detail {
@@ -51,6 +54,19 @@ void choleskySolveInPlace(const Eigen::Ref<const Eigen::MatrixXd>& L, Eigen::Ref
   int info = 0;
   dpotrs_(&lower, &n, &nrhs, L.data(), &lda, B.data(), &ldb, &info);
   if (info != 0) throw NumericalError("dense Cholesky solve: LAPACK dpotrs reported argument " + std::to_string(-info));
+}
+
+void addGramLower(Eigen::Ref<Eigen::MatrixXd> A, const Eigen::Ref<const Eigen::MatrixXd>& J, double alpha) {
+  if (A.rows() != A.cols() || J.cols() != A.rows())
+    throw ArgumentError("J^T J: expected a square matrix of J's " + std::to_string(J.cols()) + " columns, got " +
+                        std::to_string(A.rows()) + " x " + std::to_string(A.cols()));
+  const int n = lapackSize(A.rows(), "size"), k = lapackSize(J.rows(), "rows");
+  if (n == 0 || k == 0) return;
+  const int lda = lapackSize(std::max<Eigen::Index>(J.outerStride(), 1), "stride"),
+            ldc = lapackSize(std::max<Eigen::Index>(A.outerStride(), 1), "stride");
+  const char lower = 'L', transposed = 'T';
+  const double one = 1.0;
+  dsyrk_(&lower, &transposed, &n, &k, &alpha, J.data(), &lda, &one, A.data(), &ldc);
 }
 
 }  // namespace accura::calib::detail
