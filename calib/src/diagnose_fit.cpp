@@ -315,7 +315,6 @@ void Diagnoser::linearise() {
                 blocks_.end());
   colscale_ = norms.cwiseMax(1e-300);
   JF_ = JF * colscale_.cwiseInverse().asDiagonal();
-  JFt_ = JF_.transpose();
   const Eigen::VectorXd rw = wF_.cwiseProduct(rF_);
   mapPenalty();
   row_nz_.assign(static_cast<size_t>(m_), {});
@@ -531,16 +530,12 @@ Diagnoser::Eval Diagnoser::cvEval(const std::vector<int>& S, const Scheme& schem
     const std::vector<int>& held = scheme.poses[f];
     for (int i : held) {
       Eigen::Vector3d e = rF_.segment<3>(3 * i);
-      // the row's prediction over S's columns or its non-zero ones, the fewer (from the
-      // transposed Jacobian: the pose's three rows are contiguous there)
+      // the row's prediction over S's columns or its non-zero ones, the fewer
       const std::vector<int>& nz = row_nz_[static_cast<size_t>(i)];
-      const double* J0 = JFt_.data() + 3 * static_cast<Eigen::Index>(i) * JFt_.rows();
-      const double* J1 = J0 + JFt_.rows();
-      const double* J2 = J1 + JFt_.rows();
       if (nz.size() < S.size()) {
-        for (int c : nz) e -= Eigen::Vector3d(J0[c], J1[c], J2[c]) * x_all[c];
+        for (int c : nz) e -= JF_.col(c).segment<3>(3 * i) * x_all[c];
       } else {
-        for (Eigen::Index a = 0; a < s; ++a) e -= Eigen::Vector3d(J0[S[a]], J1[S[a]], J2[S[a]]) * x[a];
+        for (Eigen::Index a = 0; a < s; ++a) e -= JF_.col(S[a]).segment<3>(3 * i) * x[a];
       }
       // robust held-out loss: a down-weighted row counts with its weight squared (about the
       // squared cut-off for a gross outlier)

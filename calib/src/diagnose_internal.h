@@ -195,7 +195,6 @@ class Diagnoser {
   Eigen::VectorXd colscale_;
   // linearisation at M0 (scaled columns)
   Eigen::MatrixXd JF_, JV_;
-  Eigen::MatrixXd JFt_;               // JF_ transposed: a pose's three rows contiguous (cvEval)
   Eigen::VectorXd rF_, rV_, wF_;
   Eigen::MatrixXd A_;                 // data normal matrix plus the maps' penalty
   Eigen::VectorXd b_;
