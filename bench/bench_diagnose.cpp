@@ -146,12 +146,10 @@ const Campaign& campaign1500() {
   return *c;
 }
 
-void identify1500(benchmark::State& state, const std::vector<std::string>& groups, double smoothing, bool ceres = false,
-                  int threads = 1) {
+void identify1500(benchmark::State& state, const std::vector<std::string>& groups, double smoothing, bool ceres = false) {
   const Campaign& c = campaign1500();
   accura::calib::IdentifyOptions o;
   o.groups = groups;
-  o.num_threads = threads;
   if (!std::isnan(smoothing)) o.joint_map_smoothing = smoothing;
   double rms = 0;
   for (auto _ : state) {
@@ -169,13 +167,6 @@ void BM_IdentifyJointMaps1500PosesChosenByCv(benchmark::State& state) {
   identify1500(state, {"geometric", "joint_map"}, std::nan(""));
 }
 BENCHMARK(BM_IdentifyJointMaps1500PosesChosenByCv)->Unit(benchmark::kMillisecond)->MinTime(2.0);
-
-// The same with the cross-validation's refits on every hardware thread (IdentifyOptions::
-// num_threads = 0, as `accura identify` runs it); real time is what counts here.
-void BM_IdentifyJointMaps1500PosesChosenByCvAllThreads(benchmark::State& state) {
-  identify1500(state, {"geometric", "joint_map"}, std::nan(""), false, 0);
-}
-BENCHMARK(BM_IdentifyJointMaps1500PosesChosenByCvAllThreads)->Unit(benchmark::kMillisecond)->MinTime(2.0)->UseRealTime();
 
 void BM_IdentifyJointMaps1500PosesStated(benchmark::State& state) {
   identify1500(state, {"geometric", "joint_map@3deg"}, 0.003);

@@ -113,7 +113,6 @@ calib::IdentifyOptions identifyOptions(const IdentifyArgs& a) {
   if (a.std_deg > 0) opt.orientation_std_deg = a.std_deg;
   if (a.map_smoothing >= 0) opt.joint_map_smoothing = a.map_smoothing;
   opt.same_station = a.same_station;
-  opt.num_threads = a.threads;
   std::string why;
   // the numbers are range-checked by their options; what IsValid finds is --loss's or --params'
   if (!opt.IsValid(&why)) throw calib::InputError((why.rfind("loss", 0) == 0 ? "--loss: " : "--params: ") + why);
@@ -464,11 +463,6 @@ void addIdentifyCommand(CLI::App& app) {
   addNumberOption(cid, "--loss-scale", id->loss_scale, "robust loss scale (residual sigmas)", NumberRange{0, 1000, true, "sigmas"})->capture_default_str();
   addNumberOption(cid, "--std-mm", id->std_mm, "position std (mm) when the data has no std columns", NumberRange{0, 1000, true, "mm"});
   addNumberOption(cid, "--std-deg", id->std_deg, "orientation std (deg) when the data has no std columns", NumberRange{0, 180, true, "deg"});
-  addIntegerOption(cid, "--threads", id->threads,
-                   "threads for the joint-map cross-validation (0: one per hardware thread); the result does not "
-                   "depend on it",
-                   0, 1024)
-      ->capture_default_str();
   cid->add_option("--out", id->out, "calibrated model file to write")->required();
   cid->add_option("--json", id->json, "summary JSON to write");
   auto* quiet = cid->add_flag("--quiet", id->quiet,

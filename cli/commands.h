@@ -54,7 +54,6 @@ struct IdentifyArgs {
   double loss_scale = 3.0;
   double std_mm = -1;   // <0: from the data or estimated
   double std_deg = -1;
-  int threads = 0;      // the joint-map cross-validation's threads (0: one per hardware thread)
   std::string out;
   std::string json;
   bool quiet = false;

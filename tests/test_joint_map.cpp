@@ -315,14 +315,8 @@ TEST(JointMap, CrossValidationTriesFinerKnotsOnlyWhileTheyGain) {
     const MeasurementSet fit = simulateMeasurements(truth, sim);
     IdentifyOptions o;
     o.groups = {"geometric", "joint_map:j2"};
-    IdentifySummary s, s3;
-    const RobotModel m = identify(nominal, fit, o, &s);
-    // the same on three threads: the same table and model to the last bit
-    o.num_threads = 3;
-    const RobotModel m3 = identify(nominal, fit, o, &s3);
-    ASSERT_EQ(s3.joint_map_cv.size(), s.joint_map_cv.size());
-    for (size_t k = 0; k < s.joint_map_cv.size(); ++k) EXPECT_EQ(s3.joint_map_cv[k].cv_rms_mm, s.joint_map_cv[k].cv_rms_mm);
-    EXPECT_EQ(m3.deviations.joint_map[1].coef, m.deviations.joint_map[1].coef);
+    IdentifySummary s;
+    identify(nominal, fit, o, &s);
     std::map<double, double> best;  // knot -> its best held-out RMS
     for (const auto& c : s.joint_map_cv)
       best[c.knot] = best.count(c.knot) ? std::min(best[c.knot], c.cv_rms_mm) : c.cv_rms_mm;

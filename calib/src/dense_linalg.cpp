@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <climits>
+#include <mutex>
 #include <string>
 
 #include "accura/calib/errors.h"
@@ -21,6 +22,17 @@ namespace accura::calib::detail {
 
 namespace {
 
+// Debian's single-threaded OpenBLAS takes its work buffers from a table without a lock (its
+// blas_memory_alloc locks only its one-time set-up): two threads calling it at once may share
+// a buffer and corrupt each other's results (seen in a review: dsyrk from two threads, about 1
+// result in 1000 wrong; the joint-map cross-validation on two threads, 1-2 % of the tables).
+// Every call into it is made under this lock, so identification and diagnosis may run on
+// several threads of the caller's (test Identify.DenseLinearAlgebraIsSafeOnSeveralThreads).
+std::mutex& blasMutex() {
+  static std::mutex m;
+  return m;
+}
+
 int lapackSize(Eigen::Index v, const char* what) {
   if (v < 0 || v > INT_MAX)
     throw NumericalError(std::string("dense Cholesky: ") + what + " " + std::to_string(v) + " exceeds LAPACK's sizes");
@@ -37,7 +49,10 @@ bool choleskyInPlace(Eigen::Ref<Eigen::MatrixXd> A) {
   if (n == 0) return true;
   const char lower = 'L';
   int info = 0;
-  dpotrf_(&lower, &n, A.data(), &lda, &info);
+  {
+    const std::lock_guard<std::mutex> lock(blasMutex());
+    dpotrf_(&lower, &n, A.data(), &lda, &info);
+  }
   return info == 0;
 }
 
@@ -52,7 +67,10 @@ void choleskySolveInPlace(const Eigen::Ref<const Eigen::MatrixXd>& L, Eigen::Ref
             ldb = lapackSize(std::max<Eigen::Index>(B.outerStride(), 1), "stride");
   const char lower = 'L';
   int info = 0;
-  dpotrs_(&lower, &n, &nrhs, L.data(), &lda, B.data(), &ldb, &info);
+  {
+    const std::lock_guard<std::mutex> lock(blasMutex());
+    dpotrs_(&lower, &n, &nrhs, L.data(), &lda, B.data(), &ldb, &info);
+  }
   if (info != 0) throw NumericalError("dense Cholesky solve: LAPACK dpotrs reported argument " + std::to_string(-info));
 }
 
@@ -66,6 +84,7 @@ void addGramLower(Eigen::Ref<Eigen::MatrixXd> A, const Eigen::Ref<const Eigen::M
             ldc = lapackSize(std::max<Eigen::Index>(A.outerStride(), 1), "stride");
   const char lower = 'L', transposed = 'T';
   const double one = 1.0;
+  const std::lock_guard<std::mutex> lock(blasMutex());
   dsyrk_(&lower, &transposed, &n, &k, &alpha, J.data(), &lda, &one, A.data(), &ldc);
 }
 

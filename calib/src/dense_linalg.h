@@ -4,11 +4,11 @@
 // the normal matrix J^T J of a tall stacked Jacobian. LAPACK's dpotrf / dpotrs and BLAS's dsyrk
 // from OpenBLAS, which picks its kernels for the processor it runs on (AVX2, AVX-512) where
 // Eigen is compiled for the baseline x86-64 (SSE2): 2.5x faster at these sizes (bench/README.md).
-// Thread safety: the joint-map cross-validation calls these from several threads at once.
-// Debian's single-threaded OpenBLAS guards its work-buffer allocation with a lock (its
-// blas_memory_alloc spins on an xchg; an OpenBLAS built with USE_THREAD=0 and without
-// USE_LOCKING=1 does not, and must not be used here); JointMap.CrossValidationTriesFinerKnots-
-// OnlyWhileTheyGain checks that three threads give the single thread's result to the bit.
+// Thread safety: Debian's single-threaded OpenBLAS is not safe to call from two threads at once
+// (it takes its work buffers from a table without a lock); every call here is made under one
+// process-wide lock, so identification and diagnosis may run on several threads of the
+// caller's. Results depend on the kernels OpenBLAS picks for the processor: equal across
+// processors to the rounding, not to the last bit.
 #pragma once
 
 #include <Eigen/Core>

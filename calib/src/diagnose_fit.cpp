@@ -628,11 +628,12 @@ RobotModel Diagnoser::gnFit(const std::vector<int>& S, const std::vector<int>& r
     const bool cached = it == 0 && at_m0 && at_m0->Jw.rows() == 3 * m_ && at_m0->Jw.cols() == s;
     // a chord step once the last step was below one (scaled: one standard deviation of the
     // parameter on all fit data): the Jacobian and its factorisation of the last iteration, new
-    // residuals only. Within a standard deviation the model is linear to far below the data's
-    // resolution: the Jacobian has changed by a tiny fraction since, and the step differs from
-    // the Gauss-Newton step by that fraction of itself. The third iteration, which typically
-    // ends the fit with a step of 1e-6 after one of 0.1-0.4, then costs one FK per row instead
-    // of a Jacobian.
+    // residuals only. The third iteration, which typically ends the fit with a step of 1e-6
+    // after one of 0.1-0.4, then costs one FK per row instead of a Jacobian. Its end point is
+    // where J0^T r = P x with the older Jacobian J0, not J^T r = P x: it differs from the
+    // Gauss-Newton one by (J - J0)^T r through the normal matrix, J having changed by a step
+    // below one standard deviation (on Series_B the diagnosis's outputs moved by 4.6e-9 mm at
+    // most, bench/README.md).
     const bool chord = it >= 2 && last_step < 1.0;
     if (!cached) stack.prepare(model);
     for (size_t k = 0; k < rows.size(); ++k) {

@@ -100,7 +100,6 @@ bool IdentifyOptions::IsValid(std::string* error) const {
     return fail("joint_map_knot must be > 0 (deg or mm), got " + std::to_string(joint_map_knot));
   if (!(std::isnan(joint_map_smoothing) || (std::isfinite(joint_map_smoothing) && joint_map_smoothing >= 0)))
     return fail("joint_map_smoothing must be >= 0, got " + std::to_string(joint_map_smoothing));
-  if (num_threads < 0) return fail("num_threads must be >= 0 (0: one per hardware thread), got " + std::to_string(num_threads));
   return true;
 }
 

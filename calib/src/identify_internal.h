@@ -212,7 +212,7 @@ struct SolveResult {
 /// the solve crawls until the parameter tolerance stops it short of the optimum (5-6 steps per
 /// variance round on the KR 16 of bench_diagnose, 2e-4 of the cost left). At 1e8 the first step
 /// is the Gauss-Newton step and the next ends the solve; a step that does not decrease the cost
-/// still shrinks the radius as before (a factor 2, 4, 8, ...: 1e4 again after 5 refusals).
+/// still shrinks the radius as before (by 2, 4, 8, ...: below 1e4 after 5 refusals in a row).
 constexpr double kJointMapInitialRadius = 1e8;
 /// Levenberg-Marquardt on the stacked rows from pb.x; applies the solution to pb.model and
 /// refreshes pb.data0. Ceres' on the stacked Jacobian, except with joint maps and no robust

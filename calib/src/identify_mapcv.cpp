@@ -113,7 +113,7 @@ RobotModel identifyWithMapCv(const RobotModel& start, const std::vector<Measurem
     std::vector<int> harmonics;
     for (int j : cv_joints)
       harmonics.push_back(m0.nominal.joints[static_cast<size_t>(j)].type == JointType::kRevolute ? kJointMapCentredHarmonics : 0);
-    cv = crossValidateJointMap(rows, ranges, harmonics, knots, smoothings, folds, options.num_threads);
+    cv = crossValidateJointMap(rows, ranges, harmonics, knots, smoothings, folds);
   }
   o1.joint_map_knot = cv.knot;
   o1.joint_map_smoothing = cv.smoothing;

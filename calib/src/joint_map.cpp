@@ -4,11 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
-#include <atomic>
-#include <exception>
 #include <functional>
-#include <mutex>
-#include <thread>
 #include <limits>
 #include <Eigen/Cholesky>
 
@@ -262,39 +258,11 @@ Eigen::VectorXd solveRidged(Eigen::MatrixXd& N, const Eigen::VectorXd& b) {
   return Eigen::VectorXd(-ldlt.solve(b));
 }
 
-// Runs task(0) .. task(count - 1) on up to `threads` threads (0: one per hardware thread; the
-// calling thread is one of them). The first exception a task throws is rethrown here, after
-// every thread has ended.
-void parallelFor(size_t count, int threads, const std::function<void(size_t)>& task) {
-  size_t n = threads > 0 ? static_cast<size_t>(threads) : std::max(1u, std::thread::hardware_concurrency());
-  n = std::min(n, count);
-  std::atomic<size_t> next{0};
-  std::exception_ptr failure;
-  std::mutex failure_mutex;
-  auto work = [&] {
-    for (size_t k; (k = next.fetch_add(1)) < count;) {
-      try {
-        task(k);
-      } catch (...) {
-        const std::lock_guard<std::mutex> lock(failure_mutex);
-        if (!failure) failure = std::current_exception();
-        next = count;  // the others stop after their current task
-      }
-    }
-  };
-  std::vector<std::thread> pool;
-  for (size_t t = 1; t < n; ++t) pool.emplace_back(work);
-  work();
-  for (auto& t : pool) t.join();
-  if (failure) std::rethrow_exception(failure);
-}
-
 }  // namespace
 
 JointMapCvResult crossValidateJointMap(const std::vector<JointMapCvRow>& rows, const std::vector<JointRange>& ranges,
                                        const std::vector<int>& centred_harmonics, const std::vector<double>& knots,
-                                       const std::vector<double>& smoothings, int folds, int threads) {
-  if (threads < 0) throw ArgumentError("joint map cross-validation: expected threads >= 0, got " + std::to_string(threads));
+                                       const std::vector<double>& smoothings, int folds) {
   if (centred_harmonics.size() != ranges.size())
     throw ArgumentError("joint map cross-validation: expected one harmonics count per mapped joint");
   if (rows.empty() || knots.empty() || smoothings.empty() || folds < 2)
@@ -424,23 +392,17 @@ JointMapCvResult crossValidateJointMap(const std::vector<JointMapCvRow>& rows, c
         }
       }
     }
-    // one refit per (fold, smoothing): independent, so spread over the threads; each is the same
-    // arithmetic whichever thread runs it, and the folds are summed in their order below
-    const size_t S = smoothings.size();
-    std::vector<double> fold_ss(static_cast<size_t>(folds) * S, 0.0);
-    parallelFor(fold_ss.size(), threads, [&](size_t task) {
-      const int f = static_cast<int>(task / S);
-      const size_t si = task % S;
-      Eigen::MatrixXd N = Nf[static_cast<size_t>(f)];
-      for (int j = 0; j < J; ++j) {
-        const Eigen::Index K = static_cast<Eigen::Index>(maps[static_cast<size_t>(j)].coef.size());
-        N.block(col0[static_cast<size_t>(j)], col0[static_cast<size_t>(j)], K, K) +=
-            smoothings[si] * scale2[static_cast<size_t>(j)] * DtD[static_cast<size_t>(j)];
-      }
-      fold_ss[task] = heldOut(maps, col0, f, solveRidged(N, btrain[static_cast<size_t>(f)]));
-    });
+    // one refit per fold and smoothing
     for (int f = 0; f < folds; ++f)
-      for (size_t si = 0; si < S; ++si) result.table[first_entry + si].cv_rms_mm += fold_ss[static_cast<size_t>(f) * S + si];
+      for (size_t si = 0; si < smoothings.size(); ++si) {
+        Eigen::MatrixXd N = Nf[static_cast<size_t>(f)];
+        for (int j = 0; j < J; ++j) {
+          const Eigen::Index K = static_cast<Eigen::Index>(maps[static_cast<size_t>(j)].coef.size());
+          N.block(col0[static_cast<size_t>(j)], col0[static_cast<size_t>(j)], K, K) +=
+              smoothings[si] * scale2[static_cast<size_t>(j)] * DtD[static_cast<size_t>(j)];
+        }
+        result.table[first_entry + si].cv_rms_mm += heldOut(maps, col0, f, solveRidged(N, btrain[static_cast<size_t>(f)]));
+      }
     // (the table holds sums of squares until the end)
     double best_ss = std::numeric_limits<double>::infinity();
     for (size_t e = first_entry; e < result.table.size(); ++e) best_ss = std::min(best_ss, result.table[e].cv_rms_mm);

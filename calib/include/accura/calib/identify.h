@@ -28,10 +28,6 @@ struct IdentifyOptions {
   /// keeps repeated configurations together and holds out regions of the slowly varying joints).
   double joint_map_knot = std::numeric_limits<double>::quiet_NaN();
   double joint_map_smoothing = std::numeric_limits<double>::quiet_NaN();
-  /// Threads for the joint-map cross-validation (its refits, one per candidate and fold, are
-  /// independent): 1 (the default) = the calling thread only; 0 = one per hardware thread. The
-  /// results do not depend on it.
-  int num_threads = 1;
   /// Several data sets (identify's vector overload): false (the default) = each set was measured
   /// from its own tracker station (6 station parameters per set beyond the first); true = they
   /// share one station.

@@ -124,13 +124,10 @@ constexpr double kJointMapCentringWeight = 1e3;
 /// tried from the widest down; a finer one only while the last one tried has a smaller best
 /// held-out RMS than the wider one before it (the rest are listed in knots_not_tried: the
 /// finest candidates have the largest systems, most of the cost). Cost per knot tried: one
-/// pass over the rows; per candidate and fold one dense Cholesky factorisation. These refits
-/// run on up to `threads` threads (1: the calling thread only; 0: one per hardware thread); the
-/// result does not depend on the number (each refit is the same arithmetic on any thread, and
-/// the folds are summed in their order). Throws ArgumentError on inconsistent sizes, empty
-/// candidates or threads < 0.
+/// pass over the rows; per candidate and fold one dense Cholesky factorisation. Throws
+/// ArgumentError on inconsistent sizes or empty candidates.
 JointMapCvResult crossValidateJointMap(const std::vector<JointMapCvRow>& rows, const std::vector<JointRange>& ranges,
                                        const std::vector<int>& centred_harmonics, const std::vector<double>& knots,
-                                       const std::vector<double>& smoothings, int folds, int threads = 1);
+                                       const std::vector<double>& smoothings, int folds);
 
 }  // namespace accura::calib
