@@ -372,13 +372,12 @@ JointMapCvResult crossValidateJointMap(const std::vector<JointMapCvRow>& rows, c
     }
     const size_t first_entry = result.table.size();
     for (double sm : smoothings) result.table.push_back({knot, sm, 0.0});
-    // per fold: the training system (in place of the fold's own: Nt - Nf), with the centring
-    // taken on the training rows
-    std::vector<Eigen::VectorXd> btrain(static_cast<size_t>(folds));
     for (int f = 0; f < folds; ++f) {
+      // the training system, in place of the fold's own (Nt - Nf: no copy), with the centring
+      // taken on the training rows
       Eigen::MatrixXd& Ntrain = Nf[static_cast<size_t>(f)];
       Ntrain = Nt - Ntrain;
-      btrain[static_cast<size_t>(f)] = bt - bf[static_cast<size_t>(f)];
+      const Eigen::VectorXd btrain = bt - bf[static_cast<size_t>(f)];
       for (int j = 0; j < J; ++j) {
         std::vector<double> qt;
         for (const auto& row : rows)
@@ -391,18 +390,16 @@ JointMapCvResult crossValidateJointMap(const std::vector<JointMapCvRow>& rows, c
           Ntrain.block(col0[static_cast<size_t>(j)], col0[static_cast<size_t>(j)], K, K) += W * (av * av.transpose()) / av.squaredNorm();
         }
       }
-    }
-    // one refit per fold and smoothing
-    for (int f = 0; f < folds; ++f)
       for (size_t si = 0; si < smoothings.size(); ++si) {
-        Eigen::MatrixXd N = Nf[static_cast<size_t>(f)];
+        Eigen::MatrixXd N = Ntrain;
         for (int j = 0; j < J; ++j) {
           const Eigen::Index K = static_cast<Eigen::Index>(maps[static_cast<size_t>(j)].coef.size());
           N.block(col0[static_cast<size_t>(j)], col0[static_cast<size_t>(j)], K, K) +=
               smoothings[si] * scale2[static_cast<size_t>(j)] * DtD[static_cast<size_t>(j)];
         }
-        result.table[first_entry + si].cv_rms_mm += heldOut(maps, col0, f, solveRidged(N, btrain[static_cast<size_t>(f)]));
+        result.table[first_entry + si].cv_rms_mm += heldOut(maps, col0, f, solveRidged(N, btrain));
       }
+    }
     // (the table holds sums of squares until the end)
     double best_ss = std::numeric_limits<double>::infinity();
     for (size_t e = first_entry; e < result.table.size(); ++e) best_ss = std::min(best_ss, result.table[e].cv_rms_mm);
