@@ -31,8 +31,10 @@ calib::MeasurementSet readMeasurements(const std::string& path, const std::strin
 void warnUnknownColumns(const calib::MeasurementSet& set);
 /// Adds the options that make a JobSettings (--robot, --tol, --base, --robroot, --payload-kg,
 /// --temp-c, --program-tool, --program-base) to a command (accura compensate, batch, check);
-/// the function returned reads them (calib::InputError on a bad value). Defined in cmd_compensate.cpp.
-std::function<postproc::JobSettings()> addJobOptions(CLI::App* c);
+/// the function returned reads them (calib::InputError on a bad value); *robot_file (when given)
+/// becomes a function returning --robot when it names a file, else "" (a bundled name): an input
+/// no output may overwrite. Defined in cmd_compensate.cpp.
+std::function<postproc::JobSettings()> addJobOptions(CLI::App* c, std::function<std::string()>* robot_file = nullptr);
 /// A numeric option's accepted values: a finite number within [lo, hi] (lo itself excluded
 /// when lo_open), in `unit` (empty: dimensionless). Issue 14: NaN, infinities, 1e308,
 /// denormals and absurd values are bad input, never a silent default.

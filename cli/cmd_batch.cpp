@@ -30,6 +30,7 @@ constexpr int kSomeFailed = 2;
 
 struct BatchArgs {
   std::function<postproc::JobSettings()> settings;
+  std::function<std::string()> robot_file;  // --robot when it names a file (never overwritten)
   std::string in;
   std::string out;
   std::string config;
@@ -62,6 +63,9 @@ int runBatch(const BatchArgs& a) {
     const fs::path j = fs::weakly_canonical(fs::absolute(a.json));
     const fs::path in = fs::weakly_canonical(fs::absolute(a.in));
     if (j.string().rfind(in.string() + "/", 0) == 0) throw calib::InputError("--json: " + a.json + " is inside the input tree, which is never modified");
+    std::vector<std::string> inputs = {a.robot_file(), a.config};
+    if (cell) inputs.push_back(cell->cell_path);
+    calib::refuseToOverwrite({{a.json, ""}}, inputs, "--json");
   }
   calib::installInterruptCleanup();
   const bool tty = ::isatty(2) != 0;
@@ -97,6 +101,11 @@ int runBatch(const BatchArgs& a) {
   std::printf("accura batch: %d compensated, %d failed, %d skipped, %zu programs in %s\n", res.converted, res.failed, res.skipped,
               res.files.size(), a.in.c_str());
   if (!a.json.empty()) {
+    // the report must not replace a program the run wrote
+    for (const auto& r : res.files)
+      for (const auto& o : r.outputs)
+        if (calib::sameFile(a.json, (fs::path(a.out) / o).string()))
+          throw calib::InputError("--json: " + a.json + " is the output of " + r.input + ": choose another path for the report");
     nlohmann::ordered_json j;
     j["in"] = a.in;
     j["out"] = a.out;
@@ -133,7 +142,7 @@ void addBatchCommand(CLI::App& app) {
   auto* c = app.add_subcommand("batch",
                                "compensate every program (*.src, *.xml, *.script, *.mod, *.prg) of a directory tree into a mirrored tree (with --cell: each checked "
                                "in the cell before it is written)");
-  args->settings = addJobOptions(c);
+  args->settings = addJobOptions(c, &args->robot_file);
   c->add_option("--in", args->in, "directory of programs (read only)")->required();
   c->add_option("--out", args->out, "output directory (the same relative paths); not inside --in")->required();
   c->add_option("--config", args->config, "$config.dat for every program: TOOL_DATA, BASE_DATA, global points");

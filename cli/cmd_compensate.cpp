@@ -37,6 +37,7 @@ struct JobArgs {
 
 struct CompensateArgs {
   std::function<postproc::JobSettings()> settings;
+  std::function<std::string()> robot_file;  // --robot when it names a file (never overwritten)
   std::string in;
   std::string dat;
   std::string config;
@@ -63,6 +64,8 @@ int runCompensate(const CompensateArgs& a) {
   request.out_dir = a.out;
   request.json_path = a.json;
   request.cell = cell_settings ? &*cell_settings : nullptr;
+  if (!a.robot_file().empty()) request.other_inputs.push_back(a.robot_file());
+  if (cell) request.other_inputs.push_back(cell->cell_path);
   calib::installInterruptCleanup();
   const ProgramFileResult result = compensateProgramFile(request, settings);
   const JobReport& report = result.report;
@@ -115,8 +118,13 @@ postproc::JobSettings jobSettings(const JobArgs& a) {
 
 }  // namespace
 
-std::function<postproc::JobSettings()> addJobOptions(CLI::App* c) {
+std::function<postproc::JobSettings()> addJobOptions(CLI::App* c, std::function<std::string()>* robot_file) {
   auto args = std::make_shared<JobArgs>();
+  if (robot_file)
+    *robot_file = [args]() {
+      std::error_code ec;
+      return std::filesystem::is_regular_file(args->robot, ec) ? args->robot : std::string();
+    };
   JobArgs& a = *args;
   c->add_option("--robot", a.robot, "calibrated model (written by accura identify), file or bundled name")->required();
   addNumberOption(c, "--tol", a.tol_mm, "bound on the predicted path error of LIN/CIRC motions (mm)", NumberRange{0.0001, 100, false, "mm"})->capture_default_str();
@@ -132,7 +140,7 @@ std::function<postproc::JobSettings()> addJobOptions(CLI::App* c) {
 void addCompensateCommand(CLI::App& app) {
   auto args = std::make_shared<CompensateArgs>();
   auto* c = app.add_subcommand("compensate", "compensate a robot program (KRL .src/.dat, XML, URScript or ABB RAPID) with a calibrated model");
-  args->settings = addJobOptions(c);
+  args->settings = addJobOptions(c, &args->robot_file);
   c->add_option("--in", args->in, "program: PROG.src (KRL, with PROG.dat next to it), PROG.xml, PROG.script (URScript) or PROG.mod/.prg (ABB RAPID)")->required();
   c->add_option("--dat", args->dat, "the KRL .dat (default: the .src's name with .dat)");
   c->add_option("--config", args->config, "$config.dat: TOOL_DATA, BASE_DATA and global points such as XHOME");

@@ -13,10 +13,12 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <mutex>
 #include <nlohmann/json.hpp>
 #include <thread>
 
 #include "accura/calib/errors.h"
+#include "accura/calib/file_io.h"
 #include "accura/postproc/batch.h"
 #include "test_util.h"
 
@@ -335,6 +337,105 @@ TEST(Batch, AtomicWriterWritesAllOrNothing) {
   for (const auto& e : fs::directory_iterator(dir)) names.push_back(e.path().filename().string());
   std::sort(names.begin(), names.end());
   EXPECT_EQ(names, (std::vector<std::string>{"a.txt", "b.txt"}));
+}
+
+// One set naming a file twice writes nothing (the second would replace the first); two threads
+// writing one path at once both succeed, each through its own temporary file, and the file holds
+// one of the two contents whole (before: one shared temporary name, so that a writer could be
+// told "written" while the other's bytes ended up in the file, and 1 call in 5 failed to rename).
+TEST(Batch, AtomicWriterRefusesOneFileTwiceAndIsSafeForConcurrentWriters) {
+  const std::string dir = test::tempDir("batch_atomic_twice");
+  EXPECT_THROW(calib::writeFilesAtomically({{dir + "/a.txt", "one"}, {dir + "/./a.txt", "two"}}), calib::InputError);
+  EXPECT_FALSE(fs::exists(dir + "/a.txt"));
+  const std::string big(1 << 20, 'A'), small = "BBBB";
+  int failures = 0;
+  std::mutex m;
+  auto writer = [&](const std::string& text) {
+    for (int k = 0; k < 40; ++k) {
+      try {
+        calib::writeFileAtomically(dir + "/same.txt", text);
+      } catch (const calib::InputError&) {
+        std::lock_guard<std::mutex> lock(m);
+        ++failures;
+      }
+    }
+  };
+  std::thread other(writer, big);
+  writer(small);
+  other.join();
+  EXPECT_EQ(failures, 0);
+  const std::string now = test::readText(dir + "/same.txt");
+  EXPECT_TRUE(now == big || now == small) << now.size();
+  for (const auto& e : fs::directory_iterator(dir)) EXPECT_EQ(e.path().filename().string().find("accura-tmp"), std::string::npos);
+}
+
+// A symbolic link in the input tree is mirrored under --out by its own name: the file it points to
+// (outside both trees here) is never written (before: its output went to the link's target).
+TEST(Batch, ASymbolicLinkInTheInputTreeIsNeverFollowedOutOfTheOutputTree) {
+  const std::string root = test::tempDir("batch_symlink");
+  copy(golden("compensate/seam.src"), root + "/elsewhere/seam.src");
+  copy(golden("compensate/seam.dat"), root + "/elsewhere/seam.dat");
+  copy(golden("compensate/seam.dat"), root + "/in/link.dat");
+  fs::create_directories(root + "/in");
+  fs::create_symlink(root + "/elsewhere/seam.src", root + "/in/link.src");
+  const auto before = snapshot(root + "/elsewhere");
+  EXPECT_EQ(findPrograms(root + "/in"), std::vector<std::string>{"link.src"});
+  const CliRun r = accura(root, "batch --robot " + golden("compensate/kr16_real.xml") + " --in in --out out --config '" +
+                                     golden("compensate/$config.dat") + "' --jobs 1");
+  EXPECT_EQ(r.code, 0) << r.out << r.err;
+  EXPECT_TRUE(fs::is_regular_file(root + "/out/link.src"));
+  EXPECT_TRUE(fs::is_regular_file(root + "/out/link.dat"));
+  EXPECT_EQ(snapshot(root + "/elsewhere"), before);
+}
+
+// Two programs whose outputs would be one file (SEAM.SRC and seam.src share seam.dat: the .dat is
+// found case-insensitively) both fail, named, and neither is written, for any --jobs (before:
+// exit 0 and one program's .src paired with the other's .dat).
+TEST(Batch, TwoProgramsWithOneOutputFileBothFailAndNeitherIsWritten) {
+  const std::string root = test::tempDir("batch_collide");
+  copy(golden("compensate/seam.src"), root + "/in/dup/SEAM.SRC");
+  copy(golden("compensate/seam.src"), root + "/in/dup/seam.src");
+  copy(golden("compensate/seam.dat"), root + "/in/dup/seam.dat");
+  copy(golden("compensate/seam.src"), root + "/in/other.src");
+  copy(golden("compensate/seam.dat"), root + "/in/other.dat");
+  for (const char* jobs : {"1", "2"}) {
+    SCOPED_TRACE(jobs);
+    fs::remove_all(root + "/out");
+    const CliRun r = accura(root, "batch --robot " + golden("compensate/kr16_real.xml") + " --in in --out out --config '" +
+                                       golden("compensate/$config.dat") + "' --jobs " + jobs);
+    EXPECT_EQ(r.code, 2) << r.out << r.err;
+    EXPECT_NE(r.out.find("FAILED dup/SEAM.SRC: its output"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("FAILED dup/seam.src: its output"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("1 compensated, 2 failed"), std::string::npos) << r.out;
+    EXPECT_FALSE(fs::exists(root + "/out/dup"));
+    EXPECT_TRUE(fs::is_regular_file(root + "/out/other.src"));
+  }
+}
+
+// A report path that names an input (the robot file, the $config.dat) or a program the run
+// writes is refused; the file keeps its bytes (before: replaced by the JSON report, exit 0).
+TEST(Batch, TheReportNeverReplacesAnInputOrAnOutput) {
+  const std::string root = test::tempDir("batch_json_inputs");
+  copy(golden("compensate/seam.src"), root + "/in/seam.src");
+  copy(golden("compensate/seam.dat"), root + "/in/seam.dat");
+  copy(golden("compensate/kr16_real.xml"), root + "/model.xml");
+  copy(golden("compensate/$config.dat"), root + "/config.dat");
+  const std::string model = test::readText(root + "/model.xml"), config = test::readText(root + "/config.dat");
+  const std::string job = "--robot model.xml --config config.dat ";
+  for (const std::string& target : {std::string("model.xml"), std::string("config.dat")}) {
+    SCOPED_TRACE(target);
+    EXPECT_EQ(accura(root, "batch " + job + "--in in --out out1 --json " + target).code, 1);
+    EXPECT_EQ(accura(root, "compensate " + job + "--in in/seam.src --out out2 --json " + target).code, 1);
+  }
+  EXPECT_EQ(test::readText(root + "/model.xml"), model);
+  EXPECT_EQ(test::readText(root + "/config.dat"), config);
+  // the report on a program the run writes: batch writes the programs, not the report; compensate nothing
+  const CliRun b = accura(root, "batch " + job + "--in in --out out3 --json out3/seam.src");
+  EXPECT_EQ(b.code, 1);
+  EXPECT_NE(b.err.find("is the output of seam.src"), std::string::npos) << b.err;
+  EXPECT_EQ(test::readText(root + "/out3/seam.src").rfind("&ACCESS", 0), 0u);
+  EXPECT_EQ(accura(root, "compensate " + job + "--in in/seam.src --out out4 --json out4/seam.src").code, 1);
+  EXPECT_FALSE(fs::exists(root + "/out4/seam.src"));
 }
 
 }  // namespace

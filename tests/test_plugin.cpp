@@ -285,6 +285,20 @@ TEST(Plugin, ProgramEqualsTheCommandLine) {
   EXPECT_EQ(accura_compensate_program(h.m, (dir + "/bad.src").c_str(), (dir + "/plugin").c_str(), &o, &s), ACCURA_ERROR_INPUT);
   EXPECT_NE(lastError(h.m).find("bad.src:2"), std::string::npos) << lastError(h.m);
   EXPECT_FALSE(std::filesystem::exists(dir + "/plugin/bad.src"));
+  // a report path on the model the handle loaded, or on the program's own output: refused,
+  // nothing written (before: the report replaced the model file; on the output, a report
+  // was left as seam.src)
+  const std::string model_copy = dir + "/model.xml", model_text = test::readText(test::sourcePath(kModel));
+  test::writeText(model_copy, model_text);
+  Handle h2(model_copy);
+  o.json_report_path = model_copy.c_str();
+  EXPECT_EQ(accura_compensate_program(h2.m, (dir + "/seam.src").c_str(), (dir + "/plugin2").c_str(), &o, &s), ACCURA_ERROR_INPUT);
+  EXPECT_NE(lastError(h2.m).find("would overwrite the input"), std::string::npos) << lastError(h2.m);
+  EXPECT_EQ(test::readText(model_copy), model_text);
+  const std::string own = dir + "/plugin3/seam.src";
+  o.json_report_path = own.c_str();
+  EXPECT_EQ(accura_compensate_program(h2.m, (dir + "/seam.src").c_str(), (dir + "/plugin3").c_str(), &o, &s), ACCURA_ERROR_INPUT);
+  EXPECT_FALSE(std::filesystem::exists(own));
 }
 
 // The plug-in's report (json_report_path) is the report of `accura compensate --json`, byte

@@ -126,6 +126,15 @@ void installInterruptCleanup() {
 bool interruptRequested() { return g_interrupted.load() != 0; }
 
 void writeFilesAtomically(const std::vector<OutputFile>& files) {
+  // one file named twice in one set: the second would silently replace the first
+  for (size_t i = 0; i < files.size(); ++i)
+    for (size_t j = 0; j < i; ++j)
+      if (sameFile(files[i].path, files[j].path))
+        throw InputError(files[i].path + ": cannot write file: it is also another output of the same call (" + files[j].path +
+                         "); choose different output paths");
+  // a temporary name of its own for every file written by this process (threads of a batch, a
+  // plug-in host's threads): two writers of one path never share a temporary file
+  static std::atomic<unsigned long> counter{0};
   std::vector<int> slots;
   std::vector<std::string> temps;
   auto cleanup = [&]() {
@@ -138,11 +147,13 @@ void writeFilesAtomically(const std::vector<OutputFile>& files) {
     for (const OutputFile& f : files) {
       const fs::path target(f.path);
       const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
-      const std::string tmp = (dir / ("." + target.filename().string() + "." + std::to_string(::getpid()) + ".accura-tmp")).string();
+      const std::string tmp = (dir / ("." + target.filename().string() + "." + std::to_string(::getpid()) + "." +
+                                       std::to_string(counter.fetch_add(1)) + ".accura-tmp"))
+                                  .string();
       const int slot = acquireSlot(tmp);
       slots.push_back(slot);
       temps.push_back(tmp);
-      const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+      const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
       g_slots[slot].state.store(kWriting);
       if (fd < 0) throw InputError(f.path, 0, 0, std::string("cannot write file: ") + std::strerror(errno));
       try {

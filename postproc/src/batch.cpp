@@ -1,11 +1,13 @@
 // Batch compensation (see batch.h); the atomic writing is in batch_write.cpp.
 #include "accura/postproc/batch.h"
+#include "accura/postproc/krl.h"
 
 #include <tinyxml2.h>
 
 #include <algorithm>
 #include <atomic>
 #include <filesystem>
+#include <map>
 #include <mutex>
 #include <thread>
 
@@ -68,7 +70,9 @@ std::vector<std::string> findPrograms(const std::string& in_dir) {
     if (!it->is_regular_file(ec)) continue;
     const std::string ext = lower(p.extension().string());
     if (ext != ".src" && ext != ".xml" && ext != ".script" && ext != ".mod" && ext != ".prg") continue;
-    out.push_back(relativeSlash(fs::relative(p, in_dir)));
+    // the name as found in the tree (lexically: a symbolic link keeps its own name, so that its
+    // output lands under --out like any other, not beside the file it points to)
+    out.push_back(relativeSlash(p.lexically_relative(in_dir)));
   }
   std::sort(out.begin(), out.end());
   return out;
@@ -128,6 +132,7 @@ ProgramFileResult compensateProgramFile(const ProgramFileRequest& q, const JobSe
   std::vector<std::string> inputs = {q.in_path, fs::path(q.in_path).replace_extension(".dat").string()};
   if (!q.read.dat_path.empty()) inputs.push_back(q.read.dat_path);
   if (!q.read.config_path.empty()) inputs.push_back(q.read.config_path);
+  inputs.insert(inputs.end(), q.other_inputs.begin(), q.other_inputs.end());
   calib::refuseToOverwrite(r.checked.files, inputs, q.out_name);
   if (!q.json_path.empty()) calib::refuseToOverwrite({{q.json_path, ""}}, inputs, q.json_name);
   // The program's files and the report are one output set: written together or not at all (a
@@ -204,6 +209,34 @@ BatchResult runBatch(const std::string& in_dir, const std::string& out_dir, cons
   const std::vector<std::string> files = findPrograms(in_dir);
   BatchResult result;
   result.files.resize(files.size());
+  // Two programs whose outputs would be one file (SEAM.SRC and seam.src sharing seam.dat: the
+  // .dat is found case-insensitively) would overwrite each other, the result depending on which
+  // thread came last: both fail, named, before any work (the same for any --jobs).
+  std::vector<bool> collides(files.size(), false);
+  {
+    std::map<std::string, size_t> owner;  // predicted output path -> the first program
+    for (size_t i = 0; i < files.size(); ++i) {
+      const fs::path in_path = fs::path(in_dir) / files[i];
+      const fs::path out_path = fs::path(out_dir) / files[i];
+      std::vector<std::string> outs = {out_path.lexically_normal().string()};
+      if (programFormat(in_path.string()) == ProgramFormat::kKrl) {
+        const std::string dat = krlDatPath(in_path.string());
+        if (!dat.empty()) outs.push_back((out_path.parent_path() / fs::path(dat).filename()).lexically_normal().string());
+      }
+      for (const std::string& o : outs) {
+        const auto [it, fresh] = owner.emplace(o, i);
+        if (fresh || it->second == i) continue;
+        for (const size_t k : {it->second, i}) {
+          collides[k] = true;
+          BatchFileResult& r = result.files[k];
+          r.input = files[k];
+          r.status = BatchFileResult::Status::kFailed;
+          r.message = "its output " + o + " would also be the output of " + files[k == i ? it->second : i] +
+                      ": neither is written (rename one of them)";
+        }
+      }
+    }
+  }
   std::atomic<size_t> next{0};
   std::mutex mutex;
   int done = 0;
@@ -225,6 +258,12 @@ BatchResult runBatch(const std::string& in_dir, const std::string& out_dir, cons
       const size_t i = next.fetch_add(1);
       if (i >= files.size()) return;
       BatchFileResult& r = result.files[i];
+      if (collides[i]) {
+        std::lock_guard<std::mutex> lock(mutex);
+        ++done;
+        if (progress) progress(r, done, static_cast<int>(files.size()));
+        continue;
+      }
       r.input = files[i];
       const fs::path in_path = fs::path(in_dir) / files[i];
       const fs::path out_path = fs::path(out_dir) / files[i];

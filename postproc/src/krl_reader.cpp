@@ -815,7 +815,11 @@ void datPassThrough(const KrlFile& f, Program& program) {
   }
 }
 
-std::string findDat(const std::string& src_path) {
+
+
+}  // namespace
+
+std::string krlDatPath(const std::string& src_path) {
   const fs::path p(src_path);
   const fs::path dir = p.has_parent_path() ? p.parent_path() : fs::path(".");
   const std::string stem = upper(p.stem().string());
@@ -835,9 +839,6 @@ std::string findDat(const std::string& src_path) {
   return found.front();
 }
 
-
-}  // namespace
-
 FrameTables readKrlFrameTables(const std::string& config_path) {
   const KrlFile f(config_path, readFileBytes(config_path, "the $config.dat"), 2);
   Declarations d;
@@ -850,7 +851,7 @@ Program readKrl(const std::string& src_path, const KrlReadOptions& options) {
   auto source = std::make_shared<KrlSource>();
   source->src_path = src_path;
   source->src_text = readFileBytes(src_path, "the KRL program");
-  source->dat_path = options.dat_path.empty() ? findDat(src_path) : options.dat_path;
+  source->dat_path = options.dat_path.empty() ? krlDatPath(src_path) : options.dat_path;
   if (!source->dat_path.empty()) source->dat_text = readFileBytes(source->dat_path, "the KRL data file");
 
   Program program;

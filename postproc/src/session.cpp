@@ -65,6 +65,8 @@ const calib::XyzAbc& checkedPose(const calib::XyzAbc& p, const std::string& what
 
 Session::Session(const SessionSettings& s) {
   job_.calibrated = readModel(s.calibrated_model, "calibrated_model");
+  model_files_ = {s.calibrated_model};
+  if (!s.controller_model.empty()) model_files_.push_back(s.controller_model);
   if (job_.calibrated.dof() > s.max_joints)
     throw calib::InputError(s.calibrated_model + ": expected at most " + std::to_string(s.max_joints) + " joints, found " +
                      std::to_string(job_.calibrated.dof()));
@@ -243,7 +245,9 @@ ProgramFileResult Session::compensateProgramFile(const ProgramFileRequest& reque
   requireFile(request.in_path, "program");
   JobSettings job = job_;
   job.tol_mm = tol_mm;
-  return postproc::compensateProgramFile(request, job);
+  ProgramFileRequest q = request;
+  q.other_inputs.insert(q.other_inputs.end(), model_files_.begin(), model_files_.end());
+  return postproc::compensateProgramFile(q, job);
 }
 
 CheckReport Session::checkProgramFile(const std::string& cell_path, const std::string& program_path, const ProgramReadOptions& read,

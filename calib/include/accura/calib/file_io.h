@@ -1,8 +1,9 @@
 // accura: the one writer of output files, used by every layer (calib's model and measurement
 // files, postproc's programs and reports, the command line, the plug-in). An output is never
 // half-written: each file is written to a temporary file in its target directory
-// (".NAME.PID.accura-tmp") and renamed into place; the files of one call (a program's .src and
-// .dat) are renamed together once all are written. With installInterruptCleanup() (the command
+// (".NAME.PID.N.accura-tmp", N counting the files this process writes: concurrent writers of one
+// path never share a temporary file) and renamed into place; the files of one call (a program's
+// .src and .dat) are renamed together once all are written. With installInterruptCleanup() (the command
 // line; a library host owns its signals), SIGINT / SIGTERM remove the temporary files in flight
 // and end the process with status 130.
 #pragma once
@@ -19,8 +20,9 @@ struct OutputFile {
 };
 
 /// Writes the files through temporary files renamed into place (see the file comment). Throws
-/// InputError ("PATH: cannot write file: ...") when a file cannot be written or renamed; the
-/// temporary files are removed then. The directories must exist.
+/// InputError ("PATH: cannot write file: ...") when a file cannot be written or renamed, or when
+/// two of the files are one (nothing is written then); the temporary files are removed. The
+/// directories must exist.
 void writeFilesAtomically(const std::vector<OutputFile>& files);
 
 /// Creates the directory `dir` and its parents where missing (nothing for ""): for the outputs

@@ -73,6 +73,8 @@ struct ProgramFileRequest {
   std::string out_dir;          ///< the output directory (created); the program keeps its file name
   std::string json_path;        ///< the report (report.h, compensationReportText); empty: none
   const CellCheckSettings* cell = nullptr;  ///< checks before writing (compensateAndCheckFile)
+  /// The other files the run read (the robot model, the cell): never overwritten either.
+  std::vector<std::string> other_inputs;
   /// How the caller names the output directory and the report in messages ("--out" /
   /// "out_dir", "--json" / "json_report_path").
   std::string out_name = "--out", json_name = "--json";
@@ -88,8 +90,9 @@ struct ProgramFileResult {
 /// writes its files into request.out_dir through writeFilesAtomically, unless the check says
 /// not to; then the report to request.json_path (when set; its outputs empty when nothing was
 /// written). Never modifies an input: throws InputError when out_dir is a file, or when an
-/// output or the report would overwrite the program, its .dat (given or next to it) or the
-/// $config.dat; otherwise throws like compensateAndCheckFile.
+/// output or the report would overwrite the program, its .dat (given or next to it), the
+/// $config.dat or one of request.other_inputs, or when the report is one of the program's
+/// outputs (nothing is written then); otherwise throws like compensateAndCheckFile.
 ProgramFileResult compensateProgramFile(const ProgramFileRequest& request, const JobSettings& job);
 
 /// One line for people: the first violation of a failed check ("file:line:column: check:

@@ -40,6 +40,11 @@ struct KrlReadOptions {
 /// motion statement, on an unreadable or binary file.
 Program readKrl(const std::string& src_path, const KrlReadOptions& options = {});
 
+/// The .dat readKrl pairs with `src_path` when no dat_path is given: the file of the same stem
+/// and extension .dat in its directory, the exact-case one first, else the first of the
+/// case-insensitive matches in byte order; "" when there is none.
+std::string krlDatPath(const std::string& src_path);
+
 /// Reads TOOL_DATA[n] / BASE_DATA[n] from a $config.dat. Throws InputError.
 FrameTables readKrlFrameTables(const std::string& config_path);
 

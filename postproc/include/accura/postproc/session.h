@@ -180,6 +180,7 @@ class Session {
 
  private:
   JobSettings job_;
+  std::vector<std::string> model_files_;  ///< the robot files read (never overwritten by an output)
   std::unique_ptr<ModelFactory> models_;
   Eigen::Isometry3d T_world_progbase_ = Eigen::Isometry3d::Identity();
   const Compensator* comp_ = nullptr;  ///< the models of the program tool (built here)
