@@ -1,5 +1,7 @@
 #include "cli_util.h"
 
+#include "accura/postproc/job.h"
+
 #include "commands.h"
 
 #include <cctype>
@@ -145,8 +147,8 @@ CLI::Option* addInteger(CLI::App* c, const std::string& name, Int& value, const 
   return o;
 }
 
-const NumberRange kPositionRange{-1e5, 1e5, false, "mm"};  // 100 m: no robot cell is larger
-const NumberRange kAngleRange{-360, 360, false, "deg"};
+const NumberRange kPositionRange{-postproc::kMaxFrameMm, postproc::kMaxFrameMm, false, "mm"};  // 100 m: no robot cell is larger
+const NumberRange kAngleRange{-postproc::kMaxFrameDeg, postproc::kMaxFrameDeg, false, "deg"};
 
 calib::XyzAbc parsePose(const std::string& text, const std::string& what, bool three_allowed) {
   const std::vector<std::string> items = splitList(text, what);

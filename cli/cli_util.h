@@ -45,7 +45,7 @@ struct NumberRange {
   std::string unit;
 };
 /// A payload: 0 to 10 t (kg).
-inline const NumberRange kPayloadRange{0, 10000, false, "kg"};
+inline const NumberRange kPayloadRange{0, postproc::kMaxPayloadKg, false, "kg"};
 /// The one validated numeric-option parser of every command: adds `name` to `c`, storing in
 /// `value`; a value that is not a plain finite number within `r` is a usage error (exit 1)
 /// naming the option and what was expected: "--std-mm: expected a number in (0, 1000] (mm),

@@ -127,11 +127,11 @@ std::function<postproc::JobSettings()> addJobOptions(CLI::App* c, std::function<
     };
   JobArgs& a = *args;
   c->add_option("--robot", a.robot, "calibrated model (written by accura identify), file or bundled name")->required();
-  addNumberOption(c, "--tol", a.tol_mm, "bound on the predicted path error of LIN/CIRC motions (mm)", NumberRange{0.0001, 100, false, "mm"})->capture_default_str();
+  addNumberOption(c, "--tol", a.tol_mm, "bound on the predicted path error of LIN/CIRC motions (mm)", NumberRange{postproc::kMinTolMm, postproc::kMaxTolMm, false, "mm"})->capture_default_str();
   c->add_option("--base", a.base, "where the OLP placed the robot in the model's world: x,y,z,A,B,C (mm, deg); default: the robot file's <base>");
   c->add_option("--robroot", a.robroot, "the controller's $ROBROOT (robot base in its $WORLD) x,y,z,A,B,C; default: identity");
   addNumberOption(c, "--payload-kg", a.payload_kg, "payload while the program runs (kg), for compliance models", kPayloadRange)->capture_default_str();
-  addNumberOption(c, "--temp-c", a.temp_c, "arm temperature while the program runs (deg C), for thermal models", NumberRange{-50, 150, false, "deg C"})->capture_default_str();
+  addNumberOption(c, "--temp-c", a.temp_c, "arm temperature while the program runs (deg C), for thermal models", NumberRange{postproc::kMinTempC, postproc::kMaxTempC, false, "deg C"})->capture_default_str();
   c->add_option("--program-tool", a.program_tool, "$TOOL x,y,z,A,B,C for motions before the program sets one (the controller's active tool)");
   c->add_option("--program-base", a.program_base, "$BASE x,y,z,A,B,C for motions before the program sets one (the controller's active base)");
   return [args]() { return jobSettings(*args); };

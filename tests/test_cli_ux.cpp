@@ -69,7 +69,7 @@ TEST(CliNumbers, EveryNumericOptionRejectsBadValuesNamingTheOption) {
       {"fk --robot kuka_kr16 --q 0,0,0,0,0,0 --payload-kg inf",
        "--payload-kg: expected a number in [0, 10000] (kg), found 'inf' (see accura fk --help)"},
       {"fk --robot kuka_kr16 --q 0x1,0,0,0,0,0", "--q: expected a number in [-100000, 100000] (deg; mm for prismatic joints), found '0x1'"},
-      {comp + "--tol 1e-300", "--tol: expected a number in [0.0001, 100] (mm), found '1e-300' (see accura compensate --help)"},
+      {comp + "--tol 1e-300", "--tol: expected a number in [0.001, 100] (mm), found '1e-300' (see accura compensate --help)"},
       {comp + "--payload-kg inf", "--payload-kg: expected a number in [0, 10000] (kg), found 'inf' (see accura compensate --help)"},
       {comp + "--temp-c nan", "--temp-c: expected a number in [-50, 150] (deg C), found 'nan' (see accura compensate --help)"},
       {"batch --robot kuka_kr16 --in i --out " + dir + "/b --jobs 100000",

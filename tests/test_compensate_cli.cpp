@@ -395,7 +395,7 @@ TEST(CompensateCli, ErrorsNameThePlaceAndWriteNothing) {
   // bad options
   r = accura(dir, "compensate --robot kr16_real.xml --in seam.src --config '$config.dat' --out o5 --tol -1");
   EXPECT_EQ(r.code, 1);
-  EXPECT_NE(r.err.find("--tol: expected a number in [0.0001, 100] (mm), found '-1' (see accura compensate --help)"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("--tol: expected a number in [0.001, 100] (mm), found '-1' (see accura compensate --help)"), std::string::npos) << r.err;
   r = accura(dir, "compensate --robot kr16_real.xml --in seam.txt --out o5");
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.err.find("expected a program file ending in .src (KUKA KRL) or .xml"), std::string::npos) << r.err;

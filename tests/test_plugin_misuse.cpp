@@ -197,6 +197,38 @@ TEST(PluginMisuse, WrongSizes) {
 // A handle used after accura_model_free, freed twice, or never made: ACCURA_ERROR_INVALID_ARGUMENT
 // with a message, on every entry point, and no read through the pointer (AddressSanitizer would
 // report one).
+// Options beyond what the command line accepts are refused with the field named, not taken
+// (before: a payload of 1e300 kg or a $ROBROOT at x = 1e300 loaded, and the calls that followed
+// returned nonsense as ACCURA_OK); a path tolerance below 0.001 mm is refused at the call.
+TEST(PluginMisuse, OptionsOutOfRangeAreRefused) {
+  accura_model* m = loaded();
+  accura_load_options lo;
+  auto reset = [&] { ASSERT_EQ(accura_load_options_init(&lo, sizeof(lo)), ACCURA_OK); };
+  reset();
+  lo.payload_kg = 1e6;
+  EXPECT_MISUSE(m, accura_model_load(m, "kuka_kr16", &lo), ACCURA_ERROR_INVALID_ARGUMENT, "payload_kg: expected a mass in [0, 10000] kg");
+  reset();
+  lo.temp_c = -1000;
+  EXPECT_MISUSE(m, accura_model_load(m, "kuka_kr16", &lo), ACCURA_ERROR_INVALID_ARGUMENT, "temp_c: expected a temperature in [-50, 150]");
+  reset();
+  lo.has_robroot_in_kukaworld = 1;
+  lo.robroot_in_kukaworld = {1e300, 0, 0, 0, 0, 0};
+  EXPECT_MISUSE(m, accura_model_load(m, "kuka_kr16", &lo), ACCURA_ERROR_INVALID_ARGUMENT, "expected x, y, z within +-100000 mm");
+  reset();
+  lo.has_program_tool = 1;
+  lo.program_tool = {0, 0, 100, 0, 400, 0};
+  EXPECT_MISUSE(m, accura_model_load(m, "kuka_kr16", &lo), ACCURA_ERROR_INVALID_ARGUMENT, "expected A, B, C within +-360 deg");
+  // the handle keeps the model it had, and its limits hold at the boundaries
+  reset();
+  lo.payload_kg = 10000;
+  lo.temp_c = 150;
+  EXPECT_EQ(accura_model_load(m, "kuka_kr16", &lo), ACCURA_OK) << messageOf(m);
+  Args a;
+  EXPECT_MISUSE(m, accura_compensate_path(m, &a.p, nullptr, &a.lin, 1, 1e-9, nullptr, 0, &a.pr, nullptr), ACCURA_ERROR_INVALID_ARGUMENT,
+                "tol_mm: expected a path tolerance in [0.001, 100] mm, found 1e-09");
+  accura_model_free(m);
+}
+
 TEST(PluginMisuse, HandlesUsedAfterFreeAreDetected) {
   accura_model* m = loaded();
   ASSERT_EQ(accura_model_free(m), ACCURA_OK);

@@ -148,8 +148,8 @@ typedef struct accura_load_options {
    * is the calibrated one; any other is taken as exact. */
   int has_program_tool;
   accura_pose program_tool;
-  double payload_kg; /* payload while the program runs (kg, >= 0), for compliance models */
-  double temp_c;     /* arm temperature (deg C), for thermal models; default 20 */
+  double payload_kg; /* payload while the program runs (kg, in [0, 10000]), for compliance models */
+  double temp_c;     /* arm temperature (deg C, in [-50, 150]), for thermal models; default 20 */
 } accura_load_options;
 
 /* Fills `options` with the defaults. `struct_size` must be sizeof(accura_load_options) of the
@@ -161,7 +161,9 @@ ACCURA_API accura_status accura_load_options_init(accura_load_options* options, 
  * ACCURA_ERROR_INPUT for a missing or malformed file (the message names it), a controller
  * model that is not the calibrated model's robot, or a calibrated base more than 50 mm /
  * 5 deg from the placement (the model was measured in another frame: set
- * has_robroot_in_world). On failure the handle keeps the model it had. */
+ * has_robroot_in_world). ACCURA_ERROR_INVALID_ARGUMENT for an option out of range: payload
+ * or temperature beyond the ranges above, a pose beyond +-100000 mm or +-360 deg. On failure
+ * the handle keeps the model it had. */
 ACCURA_API accura_status accura_model_load(accura_model* model, const char* calibrated_model,
                                            const accura_load_options* options);
 
@@ -284,7 +286,7 @@ typedef struct accura_path_result {
 
 /* Compensates a path from `start` through `n_motions` LIN / CIRC motions and inserts
  * auxiliary points until the predicted deviation of the real tool from the intended path is
- * below tol_mm (> 0) everywhere (see docs/compensation.md). Writes up to `capacity` points
+ * below tol_mm (in [0.001, 100]) everywhere (see docs/compensation.md). Writes up to `capacity` points
  * (`points` may be NULL when capacity is 0); when more are needed returns
  * ACCURA_ERROR_BUFFER_TOO_SMALL with result->n_points the count needed (call again).
  * `reports` (NULL or n_motions entries) gets each motion's numbers. `start_configuration`
@@ -303,7 +305,7 @@ typedef struct accura_program_options {
   size_t struct_size;      /* sizeof(accura_program_options), set by accura_program_options_init */
   const char* dat_path;    /* KRL: the .dat (NULL: next to the .src) */
   const char* config_path; /* $config.dat: TOOL_DATA / BASE_DATA (NULL: none) */
-  double tol_mm;           /* path tolerance (mm, > 0; default 0.05) */
+  double tol_mm;           /* path tolerance (mm, in [0.001, 100]; default 0.05) */
   const char* json_report_path; /* NULL: none; else the report of `accura compensate --json`,
                                    the same bytes for the same program and settings */
 } accura_program_options;

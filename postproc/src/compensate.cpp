@@ -19,8 +19,11 @@ bool DensifyOptions::IsValid(std::string* error) const {
     if (error) *error = m;
     return false;
   };
-  if (!(tol_mm >= 0.001 && tol_mm <= 100))
-    return fail("path tolerance must be in [0.001, 100] mm, got " + std::to_string(tol_mm));
+  if (!(tol_mm >= kMinTolMm && tol_mm <= kMaxTolMm)) {
+    std::ostringstream m;
+    m << "path tolerance must be in [" << kMinTolMm << ", " << kMaxTolMm << "] mm, got " << tol_mm;
+    return fail(m.str());
+  }
   if (!(sample_step_mm >= 0.01 && sample_step_mm <= 100))
     return fail("sample step must be in [0.01, 100] mm, got " + std::to_string(sample_step_mm));
   if (!(sample_step_deg >= 0.01 && sample_step_deg <= 10))

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <filesystem>
 #include <new>
+#include <sstream>
 
 #include "accura/calib/errors.h"
 #include "accura/calib/file_io.h"
@@ -35,8 +36,11 @@ void requireFile(const std::string& path, const char* what) {
 }
 
 void checkTolerance(double tol_mm) {
-  if (!(tol_mm > 0) || !std::isfinite(tol_mm))
-    throw calib::ArgumentError("tol_mm: expected a positive distance (mm), found " + std::to_string(tol_mm));
+  if (!(tol_mm >= kMinTolMm && tol_mm <= kMaxTolMm)) {
+    std::ostringstream m;
+    m << "tol_mm: expected a path tolerance in [" << kMinTolMm << ", " << kMaxTolMm << "] mm, found " << tol_mm;
+    throw calib::ArgumentError(m.str());
+  }
 }
 
 /// The calling thread's last error of a call without a live handle (SessionRegistry::run).
@@ -60,6 +64,14 @@ calib::Configuration checkedConfiguration(int status, int turn, int dof) {
 const calib::XyzAbc& checkedPose(const calib::XyzAbc& p, const std::string& what) {
   for (double x : {p.x_mm, p.y_mm, p.z_mm, p.a_deg, p.b_deg, p.c_deg})
     if (!std::isfinite(x)) throw calib::ArgumentError(what + ": expected finite x, y, z (mm), A, B, C (deg), found a NaN or infinity");
+  for (double x : {p.x_mm, p.y_mm, p.z_mm})
+    if (std::abs(x) > kMaxFrameMm)
+      throw calib::ArgumentError(what + ": expected x, y, z within +-" + calib::formatFixed(kMaxFrameMm, 0) + " mm, found " +
+                                 calib::formatFixed(x, 3));
+  for (double x : {p.a_deg, p.b_deg, p.c_deg})
+    if (std::abs(x) > kMaxFrameDeg)
+      throw calib::ArgumentError(what + ": expected A, B, C within +-" + calib::formatFixed(kMaxFrameDeg, 0) + " deg, found " +
+                                 calib::formatFixed(x, 3));
   return p;
 }
 
@@ -74,9 +86,12 @@ Session::Session(const SessionSettings& s) {
     checkControllerRobot(job_.calibrated.nominal, readModel(s.controller_model, "controller_model").nominal, s.controller_model);
   for (const auto* p : {&s.robroot_in_world, &s.robroot_in_kukaworld, &s.program_base, &s.program_tool})
     if (*p) checkedPose(**p, "load options");
-  if (!(s.payload_kg >= 0) || !std::isfinite(s.payload_kg))
-    throw calib::ArgumentError("payload_kg: expected a finite mass >= 0 (kg), found " + std::to_string(s.payload_kg));
-  if (!std::isfinite(s.temp_c)) throw calib::ArgumentError("temp_c: expected a finite temperature (deg C)");
+  if (!(s.payload_kg >= 0 && s.payload_kg <= kMaxPayloadKg))
+    throw calib::ArgumentError("payload_kg: expected a mass in [0, " + calib::formatFixed(kMaxPayloadKg, 0) + "] kg, found " +
+                               calib::formatFixed(s.payload_kg, 3));
+  if (!(s.temp_c >= kMinTempC && s.temp_c <= kMaxTempC))
+    throw calib::ArgumentError("temp_c: expected a temperature in [" + calib::formatFixed(kMinTempC, 0) + ", " +
+                               calib::formatFixed(kMaxTempC, 0) + "] deg C, found " + calib::formatFixed(s.temp_c, 3));
   job_.robroot_in_world = s.robroot_in_world;
   job_.robroot_in_kukaworld = s.robroot_in_kukaworld;
   job_.initial_base = s.program_base;

@@ -59,6 +59,10 @@ PoseCompensation compensatePose(const calib::RobotModel& controller, const calib
                                 const calib::Configuration& config, const Eigen::VectorXd& seed,
                                 const calib::IkOptions& options, double payload_kg = 0);
 
+/// The path tolerances accepted (mm): the command line's --tol, the plug-in's tol_mm and
+/// DensifyOptions::tol_mm.
+inline constexpr double kMinTolMm = 0.001, kMaxTolMm = 100;
+
 struct DensifyOptions {
   double tol_mm = 0.05;          ///< max predicted deviation of the real path (position)
   double sample_step_mm = 1.0;   ///< path sampling for the error prediction (see docs)

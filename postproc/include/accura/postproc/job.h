@@ -29,6 +29,14 @@
 
 namespace accura::postproc {
 
+/// The values a run's context and frames may take at every interface (the command line's
+/// options, the plug-in's load options, a Session's poses): beyond them a value is bad input,
+/// not an extrapolation.
+inline constexpr double kMaxPayloadKg = 10000;                ///< payload (kg), from 0
+inline constexpr double kMinTempC = -50, kMaxTempC = 150;     ///< arm temperature (deg C)
+inline constexpr double kMaxFrameMm = 1e5;                    ///< |x|, |y|, |z| of a frame (mm): 100 m
+inline constexpr double kMaxFrameDeg = 360;                   ///< |A|, |B|, |C| of a frame (deg)
+
 struct JobSettings {
   calib::RobotModel calibrated;  ///< the real robot (a calibrated model written by accura identify)
   /// Where the OLP placed the robot in the model's world (mm, deg); empty: the robot file's
