@@ -427,6 +427,11 @@ TEST(Batch, TheReportNeverReplacesAnInputOrAnOutput) {
     EXPECT_EQ(accura(root, "batch " + job + "--in in --out out1 --json " + target).code, 1);
     EXPECT_EQ(accura(root, "compensate " + job + "--in in/seam.src --out out2 --json " + target).code, 1);
   }
+  // an --out that is a file: refused before any work (it used to fail program by program, exit 2)
+  test::writeText(root + "/afile", "x");
+  const CliRun f = accura(root, "batch " + job + "--in in --out afile");
+  EXPECT_EQ(f.code, 1);
+  EXPECT_NE(f.err.find("afile: expected an output directory (--out), found a file"), std::string::npos) << f.err;
   EXPECT_EQ(test::readText(root + "/model.xml"), model);
   EXPECT_EQ(test::readText(root + "/config.dat"), config);
   // the report on a program the run writes: batch writes the programs, not the report; compensate nothing

@@ -7,6 +7,8 @@
 // registry is a failure too.
 #include <gtest/gtest.h>
 
+#include <filesystem>
+
 #include <atomic>
 #include <cstdint>
 #include <cstring>
@@ -226,6 +228,27 @@ TEST(PluginMisuse, OptionsOutOfRangeAreRefused) {
   Args a;
   EXPECT_MISUSE(m, accura_compensate_path(m, &a.p, nullptr, &a.lin, 1, 1e-9, nullptr, 0, &a.pr, nullptr), ACCURA_ERROR_INVALID_ARGUMENT,
                 "tol_mm: expected a path tolerance in [0.001, 100] mm, found 1e-09");
+  // accura_write_program: a program name that is not an identifier (it becomes the DEF line:
+  // a newline in it wrote a second program that moved A1), from the option or the file's name,
+  // and absurd numbers are refused; nothing is written
+  const std::string dir = test::tempDir("plugin_write_names");
+  a.wo.program_name = "weld()\nPTP {A1 90}\nEND\nDEF weld2";
+  EXPECT_MISUSE(m, accura_write_program(m, (dir + "/weld.src").c_str(), &a.pm, 1, &a.wo), ACCURA_ERROR_INVALID_ARGUMENT,
+                "program_name: expected a program name");
+  a.wo.program_name = nullptr;
+  for (const char* file : {"/123.src", "/my prog-1.src"})
+    EXPECT_MISUSE(m, accura_write_program(m, (dir + file).c_str(), &a.pm, 1, &a.wo), ACCURA_ERROR_INVALID_ARGUMENT,
+                  "the file's name: expected a program name");
+  accura_program_motion far = a.pm;
+  far.end.x_mm = 1e300;
+  EXPECT_MISUSE(m, accura_write_program(m, (dir + "/far.src").c_str(), &far, 1, &a.wo), ACCURA_ERROR_INVALID_ARGUMENT,
+                "expected x, y, z within +-100000 mm");
+  accura_program_motion fast = a.pm;
+  fast.type = ACCURA_LIN;
+  fast.vel_m_s = 1e300;
+  EXPECT_MISUSE(m, accura_write_program(m, (dir + "/fast.src").c_str(), &fast, 1, &a.wo), ACCURA_ERROR_INVALID_ARGUMENT,
+                "vel_m_s: expected a path speed up to 10 m/s");
+  EXPECT_TRUE(std::filesystem::is_empty(dir));
   accura_model_free(m);
 }
 

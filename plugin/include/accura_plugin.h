@@ -399,7 +399,7 @@ typedef struct accura_program_motion {
   accura_pose aux;   /* CIRC: the auxiliary point; ignored otherwise */
   accura_pose end;
   int approximate;   /* 1: approximated (KRL C_PTP for PTP, C_DIS for LIN / CIRC) */
-  double vel_m_s;    /* LIN / CIRC path speed (m/s; <= 0: not set) */
+  double vel_m_s;    /* LIN / CIRC path speed (m/s, up to 10; <= 0: not set) */
   /* The arm's joint values at `end` (deg / mm; n_joints 0: none, else the dof of the model
    * loaded on the handle): the configuration the arm takes there. A PTP carries it in the
    * controller's terms (KRL: S and T of its target, accura_joint_configuration); LIN and CIRC
@@ -412,7 +412,7 @@ typedef struct accura_program_motion {
 
 typedef struct accura_write_options {
   size_t struct_size;        /* sizeof(accura_write_options), set by accura_write_options_init */
-  const char* program_name;  /* NULL: the file name without its extension */
+  const char* program_name;  /* NULL: the file name without its extension; an identifier (a letter, _ or $, then letters, digits, _ or $; at most 64 characters), else ACCURA_ERROR_INVALID_ARGUMENT */
   accura_pose tool;          /* $TOOL (T_flange_tcp) of every motion */
   accura_pose base;          /* $BASE of every motion (relative to $WORLD; default identity) */
 } accura_write_options;

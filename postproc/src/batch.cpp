@@ -200,6 +200,8 @@ BatchResult runBatch(const std::string& in_dir, const std::string& out_dir, cons
   std::error_code ec;
   if (!fs::is_directory(in_dir, ec)) throw calib::InputError(in_dir + ": expected a directory of programs (--in), found none");
   if (options.jobs < 1) throw calib::InputError("--jobs: expected at least 1, found " + std::to_string(options.jobs));
+  if (fs::exists(out_dir, ec) && !fs::is_directory(out_dir, ec))
+    throw calib::InputError(out_dir + ": expected an output directory (--out), found a file");
   const fs::path in_abs = fs::weakly_canonical(fs::absolute(in_dir));
   const fs::path out_abs = fs::weakly_canonical(fs::absolute(out_dir));
   if (inside(out_abs, in_abs))

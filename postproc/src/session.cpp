@@ -2,6 +2,7 @@
 #include "accura/postproc/session.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <filesystem>
 #include <new>
@@ -417,6 +418,15 @@ void writePoseProgram(const std::string& path, const PoseProgram& spec, const Se
   const ProgramFormat format = programFormat(path);
   Program p;
   p.name = spec.name.empty() ? fs::path(path).stem().string() : spec.name;
+  // the name becomes the program's DEF / MODULE / def line: an identifier every controller
+  // language can declare (as a point name in the XML format); anything else would be copied in
+  // as text (a newline in it starts a statement of its own)
+  bool identifier = !p.name.empty() && p.name.size() <= 64 && !std::isdigit(static_cast<unsigned char>(p.name[0]));
+  for (char c : p.name) identifier = identifier && (std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '$');
+  if (!identifier)
+    throw calib::ArgumentError(std::string(spec.name.empty() ? "the file's name" : "program_name") +
+                               ": expected a program name (a letter, '_' or '$', then letters, digits, '_' or '$'; at most 64 "
+                               "characters), found '" + calib::printableBytes(p.name) + "'");
   p.robot = spec.robot.empty() && session ? session->job().calibrated.nominal.name : spec.robot;
   FrameSetting tool, base;
   tool.source = base.source = FrameSetting::Source::kInline;
@@ -433,7 +443,7 @@ void writePoseProgram(const std::string& path, const PoseProgram& spec, const Se
       m.aux->setPose(checkedPose(c.aux, w + ".aux"));
     }
     if (c.approximate) m.approximation = {m.type == MotionType::kPtp ? Approximation::kCPtp : Approximation::kCDis};
-    if (!std::isfinite(c.vel_m_s)) throw calib::ArgumentError(w + ".vel_m_s: expected a finite speed (m/s)");
+    if (!(c.vel_m_s <= 10)) throw calib::ArgumentError(w + ".vel_m_s: expected a path speed up to 10 m/s (0: not set)");
     if (m.type != MotionType::kPtp && c.vel_m_s > 0) m.vel_m_s = c.vel_m_s;
     if (!c.joints.empty() && !session)
       throw calib::ArgumentError(w + ".joints: the configuration needs the robot's geometry: load a model first");
