@@ -299,6 +299,13 @@ void requirePointers(CallPointers pointers) {
 
 const void* ifAny(size_t n, const void* p) { return n > 0 ? p : ""; }
 
+void requireCount(size_t n, const char* what) {
+  constexpr size_t kMaxCount = 10000000;
+  if (n > kMaxCount)
+    throw calib::ArgumentError(std::string(what) + ": expected at most " + std::to_string(kMaxCount) + " elements, found " +
+                               std::to_string(n));
+}
+
 void requireCapacity(size_t needed, size_t capacity, const std::string& what, const char* after) {
   if (needed > capacity)
     throw CallError(CallStatus::kBufferTooSmall, what + ", the buffer holds " + std::to_string(capacity) + after);

@@ -227,6 +227,9 @@ struct CallError : std::runtime_error {
 using CallPointers = std::initializer_list<std::pair<const void*, const char*>>;
 /// Throws CallError kNullArgument "NAME is NULL" for the first required pointer that is null.
 void requirePointers(CallPointers pointers);
+/// Throws calib::ArgumentError "WHAT: expected at most 10000000 elements, found N" for a count
+/// no caller means (an uninitialised size_t, SIZE_MAX): it would be allocated.
+void requireCount(size_t n, const char* what);
 /// `p`, or a stand-in that is not null when `n` is 0 (nothing is read through it): for an array
 /// that may be null when it is empty.
 const void* ifAny(size_t n, const void* p);
