@@ -249,11 +249,11 @@ TEST(PluginMisuse, OptionsOutOfRangeAreRefused) {
   EXPECT_MISUSE(m, accura_write_program(m, (dir + "/fast.src").c_str(), &fast, 1, &a.wo), ACCURA_ERROR_INVALID_ARGUMENT,
                 "vel_m_s: expected a path speed up to 10 m/s");
   EXPECT_TRUE(std::filesystem::is_empty(dir));
-  // counts no caller means (SIZE_MAX) and an empty output directory
-  EXPECT_MISUSE(m, accura_compensate_poses(m, &a.p, nullptr, SIZE_MAX, 0, &a.r, &a.n), ACCURA_ERROR_INVALID_ARGUMENT,
-                "n: expected at most 10000000 elements");
+  // a count too large to hold (SIZE_MAX: out of memory, as 2^40 is) and an empty output directory
+  EXPECT_MISUSE(m, accura_compensate_poses(m, &a.p, nullptr, SIZE_MAX, 0, &a.r, &a.n), ACCURA_ERROR_OUT_OF_MEMORY,
+                "out of memory (a count too large to hold)");
   EXPECT_MISUSE(m, accura_compensate_path(m, &a.p, nullptr, &a.lin, SIZE_MAX, 0.05, nullptr, 0, &a.pr, nullptr),
-                ACCURA_ERROR_INVALID_ARGUMENT, "n_motions: expected at most 10000000 elements");
+                ACCURA_ERROR_OUT_OF_MEMORY, "out of memory");
   EXPECT_MISUSE(m, accura_compensate_program(m, "a.src", "", nullptr, nullptr), ACCURA_ERROR_INVALID_ARGUMENT,
                 "out_dir: expected an output directory, found an empty string");
   accura_model_free(m);

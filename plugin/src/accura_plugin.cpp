@@ -235,7 +235,6 @@ ACCURA_API accura_status accura_compensate_poses(accura_model* model, const accu
     if (n_ok) *n_ok = 0;
     if (n == 0) return;
     requirePointers({{targets, "targets"}, {results, "results"}});
-    requireCount(n, "n");
     const auto s = slot.loaded();
     std::vector<calib::XyzAbc> t(n);
     std::vector<calib::Configuration> c(configurations ? n : 0);
@@ -254,7 +253,6 @@ ACCURA_API accura_status accura_compensate_path(accura_model* model, const accur
                                                 accura_path_result* result, accura_motion_report* reports) {
   return guarded(model, "accura_compensate_path", [&](Slot& slot) {
     requirePointers({{start, "start"}, {result, "result"}, {ifAny(n_motions, motions), "motions"}, {ifAny(capacity, points), "points"}});
-    requireCount(n_motions, "n_motions");
     *result = accura_path_result{};
     result->failed_motion = -1;
     const auto s = slot.loaded();
@@ -358,7 +356,6 @@ ACCURA_API accura_status accura_write_program(accura_model* model, const char* p
                                               size_t n_motions, const accura_write_options* options) {
   return guarded(model, "accura_write_program", [&](Slot& slot) {
     requirePointers({{path, "path"}, {options, "options"}, {ifAny(n_motions, motions), "motions"}});
-    requireCount(n_motions, "n_motions");
     const accura_write_options o = optionsOr(options, accura_write_options_init, "accura_write_options");
     PoseProgram p;
     if (o.program_name) p.name = o.program_name;

@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <new>
 #include <sstream>
+#include <stdexcept>
 
 #include "accura/calib/errors.h"
 #include "accura/calib/file_io.h"
@@ -299,12 +300,6 @@ void requirePointers(CallPointers pointers) {
 
 const void* ifAny(size_t n, const void* p) { return n > 0 ? p : ""; }
 
-void requireCount(size_t n, const char* what) {
-  constexpr size_t kMaxCount = 10000000;
-  if (n > kMaxCount)
-    throw calib::ArgumentError(std::string(what) + ": expected at most " + std::to_string(kMaxCount) + " elements, found " +
-                               std::to_string(n));
-}
 
 void requireCapacity(size_t needed, size_t capacity, const std::string& what, const char* after) {
   if (needed > capacity)
@@ -409,6 +404,8 @@ CallStatus SessionRegistry::failed(const char* fn, Slot* slot) noexcept {
       set(CallStatus::kNumerical, "", e.what());
     } catch (const std::bad_alloc&) {
       set(CallStatus::kOutOfMemory, "", "out of memory");
+    } catch (const std::length_error&) {  // a count beyond what a container can hold (SIZE_MAX)
+      set(CallStatus::kOutOfMemory, "", "out of memory (a count too large to hold)");
     } catch (const std::exception& e) {
       set(CallStatus::kInternal, "internal error: ", e.what());
     } catch (...) {

@@ -209,7 +209,7 @@ enum class CallStatus {
   kNoConfiguration,
   kNotConverged,
   kNumerical,    ///< calib::NumericalError
-  kOutOfMemory,  ///< std::bad_alloc
+  kOutOfMemory,  ///< std::bad_alloc, std::length_error (a count too large to hold)
   kInternal,     ///< any other exception: a bug
 };
 
@@ -227,9 +227,6 @@ struct CallError : std::runtime_error {
 using CallPointers = std::initializer_list<std::pair<const void*, const char*>>;
 /// Throws CallError kNullArgument "NAME is NULL" for the first required pointer that is null.
 void requirePointers(CallPointers pointers);
-/// Throws calib::ArgumentError "WHAT: expected at most 10000000 elements, found N" for a count
-/// no caller means (an uninitialised size_t, SIZE_MAX): it would be allocated.
-void requireCount(size_t n, const char* what);
 /// `p`, or a stand-in that is not null when `n` is 0 (nothing is read through it): for an array
 /// that may be null when it is empty.
 const void* ifAny(size_t n, const void* p);
@@ -280,7 +277,7 @@ class SessionRegistry {
 
   /// Runs body() for the call `fn` made without a handle: kOk, or the status of its exception
   /// (CallError: its own; calib::InputError kInput, calib::ArgumentError kInvalidArgument,
-  /// calib::NumericalError kNumerical, std::bad_alloc kOutOfMemory "out of memory", any other
+  /// calib::NumericalError kNumerical, std::bad_alloc / std::length_error kOutOfMemory "out of memory", any other
   /// kInternal "internal error: WHAT") with the message "FN: WHAT" kept as the calling
   /// thread's last error without a handle (lastError(0)). Never throws: running out of memory
   /// while keeping the message keeps the status.
