@@ -62,6 +62,7 @@ std::optional<CellCheck> cellCheck(const CellArgs& a) {
 
 struct CheckArgs {
   std::function<postproc::JobSettings()> settings;
+  std::function<std::string()> robot_file;  // --robot when it names a file (never overwritten)
   std::function<std::optional<CellCheck>()> cell;
   std::string in, dat, config, json;
 };
@@ -74,7 +75,10 @@ int runCheck(const CheckArgs& a) {
   read.dat_path = a.dat;
   read.config_path = a.config;
   const Program program = readProgram(a.in, read);
-  if (!a.json.empty()) calib::refuseToOverwrite({{a.json, ""}}, {a.in, a.dat, a.config, cc->cell_path}, "--json");
+  if (!a.json.empty())
+    calib::refuseToOverwrite({{a.json, ""}},
+                             {a.in, a.dat, program.krl ? program.krl->dat_path : std::string(), a.config, cc->cell_path, a.robot_file()},
+                             "--json");
   const CheckReport r = checkProgram(program, settings, cc->cell, cc->options);
   printCheckReport(r, a.in);
   if (!a.json.empty()) {
@@ -134,7 +138,7 @@ void printCheckReport(const postproc::CheckReport& r, const std::string& program
 void addCheckCommand(CLI::App& app) {
   auto args = std::make_shared<CheckArgs>();
   auto* c = app.add_subcommand("check", "check a program in its cell: reach, joint limits, singularities, clearance (exit 2 on a violation)");
-  args->settings = addJobOptions(c);
+  args->settings = addJobOptions(c, &args->robot_file);
   c->remove_option(c->get_option("--tol"));  // the compensation's path tolerance: not used by the checks
   args->cell = addCellOptions(c, true, true);
   c->add_option("--in", args->in, "program: PROG.src (KRL, with PROG.dat next to it), PROG.xml, PROG.script (URScript) or PROG.mod/.prg (ABB RAPID)")->required();

@@ -426,6 +426,9 @@ TEST(Batch, TheReportNeverReplacesAnInputOrAnOutput) {
     SCOPED_TRACE(target);
     EXPECT_EQ(accura(root, "batch " + job + "--in in --out out1 --json " + target).code, 1);
     EXPECT_EQ(accura(root, "compensate " + job + "--in in/seam.src --out out2 --json " + target).code, 1);
+    EXPECT_EQ(accura(root, "check " + job + "--cell " + test::sourcePath("examples/cell/seam_cell.xml") + " --in in/seam.src --json " +
+                               target).code,
+              1);
   }
   // an --out that is a file: refused before any work (it used to fail program by program, exit 2)
   test::writeText(root + "/afile", "x");
