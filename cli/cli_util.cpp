@@ -44,7 +44,12 @@ std::string& robotChainOption() {
 }
 
 calib::RobotModel loadRobot(const std::string& name) {
-  const std::string path = calib::resolveRobotPath(name);
+  std::string path;
+  try {
+    path = calib::resolveRobotPath(name);
+  } catch (const calib::InputError& e) {
+    throw calib::InputError(std::string("--robot: ") + e.what());
+  }
   const std::string& chain = robotChainOption();
   if (chain.empty()) return calib::readRobotFile(path);  // a .urdf with its default chain
   if (path.size() < 5 || path.compare(path.size() - 5, 5, ".urdf") != 0)

@@ -325,6 +325,17 @@ TEST(CheckClearance, BoundedQueriesGiveTheViolationsOfExactOnes) {
     EXPECT_FALSE(bad.IsValid(&why));
     EXPECT_NE(why.find("exact_band_mm"), std::string::npos);
   }
+  {
+    // a NaN is named as such, not as "must be >= 0"
+    CheckOptions bad;
+    bad.thresholds.min_clearance_mm = std::numeric_limits<double>::quiet_NaN();
+    std::string why;
+    EXPECT_FALSE(bad.IsValid(&why));
+    EXPECT_EQ(why, "min_clearance_mm: expected a finite distance >= 0 (mm), found nan");
+    bad.thresholds.min_clearance_mm = -1;
+    EXPECT_FALSE(bad.IsValid(&why));
+    EXPECT_EQ(why, "min_clearance_mm: expected a finite distance >= 0 (mm), found -1");
+  }
 }
 
 // A path that touches the fixture, through accura check on a KRL program.

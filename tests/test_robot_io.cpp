@@ -119,6 +119,14 @@ TEST(RobotIo, ResolveByNameOrPath) {
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("found 'kr1000'"), std::string::npos);
     EXPECT_NE(std::string(e.what()).find("kuka_kr16"), std::string::npos);
+    EXPECT_EQ(std::string(e.what()).find("--robot"), std::string::npos);  // a library message: no CLI option in it
+  }
+  // a directory is named as one (the plug-in's model_load("/tmp") said "--robot: ...")
+  try {
+    resolveRobotPath(test::tempDir("robot_dir"));
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("(a directory)"), std::string::npos) << e.what();
   }
 }
 

@@ -454,8 +454,9 @@ std::string resolveRobotPath(const std::string& name_or_path) {
   }
   std::string list;
   for (const auto& n : bundledRobotNames()) list += (list.empty() ? "" : ", ") + n;
-  throw InputError("--robot: expected a robot file or one of the bundled robots (" + list +
-                   "), found '" + name_or_path + "'");
+  const std::string what = fs::is_directory(name_or_path, ec) ? "a directory" : fs::exists(name_or_path, ec) ? "not a regular file" : "";
+  throw InputError("expected a robot file or one of the bundled robots (" + list + "), found '" + name_or_path + "'" +
+                   (what.empty() ? std::string() : " (" + what + ")"));
 }
 
 }  // namespace accura::calib

@@ -544,14 +544,21 @@ bool CheckOptions::IsValid(std::string* error) const {
     if (error) *error = m;
     return false;
   };
-  if (!(thresholds.joint_margin_deg >= 0) || !std::isfinite(thresholds.joint_margin_deg)) return bad("joint_margin_deg must be >= 0");
-  if (!(thresholds.singular_threshold >= 0) || !std::isfinite(thresholds.singular_threshold)) return bad("singular_threshold must be >= 0");
-  if (!(thresholds.min_clearance_mm >= 0) || !std::isfinite(thresholds.min_clearance_mm)) return bad("min_clearance_mm must be >= 0");
-  if (!(sample_step_mm > 0) || !std::isfinite(sample_step_mm)) return bad("sample_step_mm must be > 0");
-  if (!(sample_step_deg > 0) || !std::isfinite(sample_step_deg)) return bad("sample_step_deg must be > 0");
-  if (!(max_joint_step_deg > 0) || !std::isfinite(max_joint_step_deg)) return bad("max_joint_step_deg must be > 0");
-  if (!(resolution_mm > 0) || !std::isfinite(resolution_mm)) return bad("resolution_mm must be > 0");
-  if (!(cartesian_bound_factor >= 1) || !std::isfinite(cartesian_bound_factor)) return bad("cartesian_bound_factor must be >= 1");
+  // "expected ..., found VALUE": a NaN or an infinity is named as such, not as a value below 0
+  auto check = [&](double v, bool ok, const char* name, const char* expected) {
+    if (ok && std::isfinite(v)) return true;
+    std::ostringstream m;
+    m << name << ": expected " << expected << ", found " << v;
+    return bad(m.str());
+  };
+  if (!check(thresholds.joint_margin_deg, thresholds.joint_margin_deg >= 0, "joint_margin_deg", "a finite angle >= 0 (deg)")) return false;
+  if (!check(thresholds.singular_threshold, thresholds.singular_threshold >= 0, "singular_threshold", "a finite value >= 0")) return false;
+  if (!check(thresholds.min_clearance_mm, thresholds.min_clearance_mm >= 0, "min_clearance_mm", "a finite distance >= 0 (mm)")) return false;
+  if (!check(sample_step_mm, sample_step_mm > 0, "sample_step_mm", "a finite distance > 0 (mm)")) return false;
+  if (!check(sample_step_deg, sample_step_deg > 0, "sample_step_deg", "a finite angle > 0 (deg)")) return false;
+  if (!check(max_joint_step_deg, max_joint_step_deg > 0, "max_joint_step_deg", "a finite angle > 0 (deg)")) return false;
+  if (!check(resolution_mm, resolution_mm > 0, "resolution_mm", "a finite distance > 0 (mm)")) return false;
+  if (!check(cartesian_bound_factor, cartesian_bound_factor >= 1, "cartesian_bound_factor", "a finite factor >= 1")) return false;
   if (!(exact_band_mm > 0)) return bad("exact_band_mm must be > 0 (infinity: every distance exact)");
   return true;
 }
