@@ -88,4 +88,11 @@ void addGramLower(Eigen::Ref<Eigen::MatrixXd> A, const Eigen::Ref<const Eigen::M
   dsyrk_(&lower, &transposed, &n, &k, &alpha, J.data(), &lda, &one, A.data(), &ldc);
 }
 
+Eigen::MatrixXd gram(const Eigen::Ref<const Eigen::MatrixXd>& J) {
+  Eigen::MatrixXd G = Eigen::MatrixXd::Zero(J.cols(), J.cols());
+  addGramLower(G, J);
+  G.triangularView<Eigen::StrictlyUpper>() = G.transpose();
+  return G;
+}
+
 }  // namespace accura::calib::detail

@@ -30,4 +30,7 @@ void choleskySolveInPlace(const Eigen::Ref<const Eigen::MatrixXd>& L, Eigen::Ref
 /// the sizes do not match.
 void addGramLower(Eigen::Ref<Eigen::MatrixXd> A, const Eigen::Ref<const Eigen::MatrixXd>& J, double alpha = 1.0);
 
+/// J^T J, both triangles (addGramLower on zeros, then mirrored).
+Eigen::MatrixXd gram(const Eigen::Ref<const Eigen::MatrixXd>& J);
+
 }  // namespace accura::calib::detail

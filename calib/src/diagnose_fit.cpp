@@ -543,16 +543,10 @@ Diagnoser::Eval Diagnoser::cvEval(const std::vector<int>& S, const Scheme& schem
     }
     if (leverage && !held.empty()) {
       // the held-out rows' leverages |L^-1 J_i^T|^2, all rows of the fold in one triangular solve
-      const bool all_cols = static_cast<Eigen::Index>(act.size()) == s;
-      const Eigen::Index na = all_cols ? s : static_cast<Eigen::Index>(act.size());
-      Eigen::MatrixXd Jt(na, 3 * static_cast<Eigen::Index>(held.size()));
-      for (size_t k = 0; k < held.size(); ++k) {
-        const Eigen::Index r = 3 * static_cast<Eigen::Index>(held[k]), c = 3 * static_cast<Eigen::Index>(k);
-        if (all_cols)
-          Jt.middleCols(c, 3) = JS.middleRows(r, 3).transpose();
-        else
-          Jt.middleCols(c, 3) = JS.middleRows(r, 3)(Eigen::all, act).transpose();
-      }
+      // (act: the columns of the fold's factor, all of S or those its rows reach)
+      Eigen::MatrixXd Jt(static_cast<Eigen::Index>(act.size()), 3 * static_cast<Eigen::Index>(held.size()));
+      for (size_t k = 0; k < held.size(); ++k)
+        Jt.middleCols(3 * static_cast<Eigen::Index>(k), 3) = JS.middleRows(3 * static_cast<Eigen::Index>(held[k]), 3)(Eigen::all, act).transpose();
       llt.matrixL().solveInPlace(Jt);
       for (size_t k = 0; k < held.size(); ++k) ev.lev[held[k]] = Jt.middleCols(3 * static_cast<Eigen::Index>(k), 3).squaredNorm();
     }

@@ -139,10 +139,7 @@ std::vector<std::vector<Correlation>> Diagnoser::scan(const std::vector<const st
     Eigen::VectorXd sc = X.colwise().norm();
     for (Eigen::Index c = 0; c < p; ++c) sc[c] = sc[c] > 1e-12 ? sc[c] : 1.0;
     X = X * sc.cwiseInverse().asDiagonal();
-    Eigen::MatrixXd XtX = Eigen::MatrixXd::Zero(p, p);
-    detail::addGramLower(XtX, X);
-    for (Eigen::Index c = 1; c < p; ++c)
-      for (Eigen::Index r = 0; r < c; ++r) XtX(r, c) = XtX(c, r);
+    const Eigen::MatrixXd XtX = detail::gram(X);
     const Eigen::MatrixXd XtY = X.transpose() * Y;
     const double ridge = 1e-8;  // relative to unit-norm columns: keeps dependent columns solvable
     Eigen::MatrixXd D1(N, K);

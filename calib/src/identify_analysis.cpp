@@ -111,9 +111,7 @@ int identifiability(Problem& pb, const IdentifyOptions& options, IdentifySummary
   Eigen::MatrixXd Jn(m, static_cast<Eigen::Index>(cand_idx.size()));
   for (size_t c = 0; c < cand_idx.size(); ++c)
     Jn.col(c) = norms[c] > 0 ? Eigen::VectorXd(Js.col(c) / norms[c]) : Eigen::VectorXd(Js.col(c));
-  Eigen::MatrixXd Gram = Eigen::MatrixXd::Zero(Jn.cols(), Jn.cols());
-  detail::addGramLower(Gram, Jn);
-  Gram.triangularView<Eigen::StrictlyUpper>() = Gram.transpose();
+  Eigen::MatrixXd Gram = detail::gram(Jn);
   std::vector<bool>& free = pb.free;
   free.assign(pb.X, true);
   for (size_t k = 0; k < P; ++k)
@@ -443,9 +441,7 @@ void uncertainties(Problem& pb, const IdentifyOptions& options, bool robust, Ide
     if (!free_idx.empty()) {
       const Eigen::VectorXd scale = Jf.colwise().norm().cwiseMax(1e-300);
       const Eigen::MatrixXd Jn = Jf * scale.cwiseInverse().asDiagonal();
-      Eigen::MatrixXd N = Eigen::MatrixXd::Zero(Jn.cols(), Jn.cols());
-      detail::addGramLower(N, Jn);
-      N.triangularView<Eigen::StrictlyUpper>() = N.transpose();
+      const Eigen::MatrixXd N = detail::gram(Jn);
       Eigen::LDLT<Eigen::MatrixXd> ldlt(N);
       if (ldlt.info() != Eigen::Success)
         throw NumericalError("identification: normal matrix is singular at the solution");

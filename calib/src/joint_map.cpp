@@ -9,8 +9,8 @@
 #include <Eigen/Cholesky>
 
 #include "accura/calib/errors.h"
-#include "dense_linalg.h"
 #include "accura/calib/geometry.h"
+#include "dense_linalg.h"
 
 namespace accura::calib {
 namespace {

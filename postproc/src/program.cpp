@@ -1,8 +1,8 @@
 #include "accura/postproc/program.h"
 
+#include <algorithm>
 #include <cctype>
 #include <cmath>
-#include <algorithm>
 #include <cstdio>
 
 #include <Eigen/Geometry>
@@ -122,6 +122,11 @@ bool containsIdentifier(const std::string& text, const std::string& up) {
 }
 
 }  // namespace
+
+bool isDeclarableName(const std::string& name) {
+  if (name.empty() || name.size() > 64 || std::isdigit(static_cast<unsigned char>(name[0]))) return false;
+  return std::all_of(name.begin(), name.end(), isIdentChar);
+}
 
 namespace {
 

@@ -2,7 +2,6 @@
 #include "accura/postproc/session.h"
 
 #include <algorithm>
-#include <cctype>
 #include <cmath>
 #include <filesystem>
 #include <new>
@@ -300,7 +299,6 @@ void requirePointers(CallPointers pointers) {
 
 const void* ifAny(size_t n, const void* p) { return n > 0 ? p : ""; }
 
-
 void requireCapacity(size_t needed, size_t capacity, const std::string& what, const char* after) {
   if (needed > capacity)
     throw CallError(CallStatus::kBufferTooSmall, what + ", the buffer holds " + std::to_string(capacity) + after);
@@ -422,12 +420,8 @@ void writePoseProgram(const std::string& path, const PoseProgram& spec, const Se
   const ProgramFormat format = programFormat(path);
   Program p;
   p.name = spec.name.empty() ? fs::path(path).stem().string() : spec.name;
-  // the name becomes the program's DEF / MODULE / def line: an identifier every controller
-  // language can declare (as a point name in the XML format); anything else would be copied in
-  // as text (a newline in it starts a statement of its own)
-  bool identifier = !p.name.empty() && p.name.size() <= 64 && !std::isdigit(static_cast<unsigned char>(p.name[0]));
-  for (char c : p.name) identifier = identifier && (std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '$');
-  if (!identifier)
+  // the name becomes the program's DEF / MODULE / def line
+  if (!isDeclarableName(p.name))
     throw calib::ArgumentError(std::string(spec.name.empty() ? "the file's name" : "program_name") +
                                ": expected a program name (a letter, '_' or '$', then letters, digits, '_' or '$'; at most 64 "
                                "characters), found '" + calib::printableBytes(p.name) + "'");

@@ -69,9 +69,7 @@ class Reader {
   /// then letters, digits, '_' or '$'; at most 64 characters). Anything else would be copied into
   /// a program as text: a newline in a name becomes a statement of its own.
   std::string pointName(const XMLElement* e, const std::string& name) const {
-    bool ok = !name.empty() && name.size() <= 64 && !std::isdigit(static_cast<unsigned char>(name[0]));
-    for (char c : name) ok = ok && (std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '$');
-    if (!ok)
+    if (!isDeclarableName(name))
       fail(e, "<" + std::string(e->Name()) + "> attribute 'name': expected a point name (a letter, '_' or '$', then "
               "letters, digits, '_' or '$'; at most 64 characters), found '" + calib::printableBytes(name) + "'");
     return name;

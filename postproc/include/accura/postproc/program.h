@@ -119,6 +119,11 @@ FrameSetting runTimeFrame(const std::string& text, const SourceLocation& where, 
 /// was entered with.
 bool sameFrame(const FrameSetting& a, const FrameSetting& b);
 
+/// A name every controller language can declare (a point's, a program's): a letter, '_' or '$',
+/// then letters, digits, '_' or '$'; at most 64 characters. Anything else copied into a program
+/// as text could change it (a newline in a name starts a statement of its own).
+bool isDeclarableName(const std::string& name);
+
 /// One motion statement.
 struct Motion {
   MotionType type = MotionType::kPtp;
