@@ -241,6 +241,61 @@ TEST(KrlRules, AComponentUnchangedAtThePrecisionWrittenKeepsItsText) {
   EXPECT_EQ(writeKrl(p).dat, "DEFDAT p\nDECL E6POS XP1={X 100.0,Y 0.2000,Z 20.0,A 160.0,B 10.0,C 170.0,S 2,T 10}\nENDDAT\n");
 }
 
+TEST(KrlRules, AnglesAreWrittenInTheFormTheProgramUses) {
+  // (A, B, C) and (A + 180, 180 - B, C + 180) and any angle +- 360 are one rotation: the
+  // written form is kept, so a correction that rounds to zero keeps the text
+  Target t;
+  t.setPose(calib::XyzAbc{1000.0, 0.0, 800.0, 0.0, 180.0, 0.0});
+  EXPECT_FALSE(t.setPoseIfChanged(calib::XyzAbc{1000.0, 0.0, 800.0, 180.0, 0.0, -180.0}));
+  EXPECT_EQ(*t.pose[4], 180.0);
+  t.setPose(calib::XyzAbc{1000.0, 0.0, 800.0, 0.0, 0.0, -180.0});
+  EXPECT_FALSE(t.setPoseIfChanged(calib::XyzAbc{1000.0, 0.0, 800.0, 0.0, 0.0, 180.0}));
+  EXPECT_EQ(*t.pose[5], -180.0);
+  // a real correction: the rotation it gives, in the angles nearest the written ones
+  t.setPose(calib::XyzAbc{1000.0, 0.0, 800.0, 10.0, 170.0, 0.0});
+  const Eigen::Matrix3d R = calib::toIsometry(calib::XyzAbc{0, 0, 0, 10.0, 170.0, 0.0}).linear() *
+                            Eigen::AngleAxisd(0.01 * calib::kDegToRad, Eigen::Vector3d::UnitX()).toRotationMatrix();
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = R;
+  const calib::XyzAbc canonical = calib::toXyzAbc(T);
+  EXPECT_GT(std::abs(canonical.b_deg - 170.0), 90.0);  // the library's own form is the other one
+  EXPECT_TRUE(t.setPoseIfChanged(calib::XyzAbc{1000.0, 0.0, 800.0, canonical.a_deg, canonical.b_deg, canonical.c_deg}));
+  EXPECT_NEAR(*t.pose[3], 10.0, 0.05);
+  EXPECT_NEAR(*t.pose[4], 170.0, 0.05);
+  EXPECT_NEAR(*t.pose[5], 0.0, 0.05);
+  const Eigen::Matrix3d back = calib::toIsometry(t.xyzAbc()).linear();
+  EXPECT_LT(calib::rotationAngleDeg(back * R.transpose()), 1e-9);
+}
+
+TEST(KrlRules, APointSharedByAPtpAndALinGetsThePtpsStatusAndTurn) {
+  // PTP XP1, LIN XP2, LIN XP1 (approach, work, back): the PTP's correction moves A4 and A6
+  // across 0, so its T changes; the LINs' S/T are not used by the controller, so the one
+  // point serves both with the PTP's T (it used to be refused as two different corrections)
+  const std::string dir = test::tempDir("krl_shared_ptp_lin");
+  const std::string xp1 = "{X 1058.3862,Y -186.5680,Z 945.7945,A 169.93882,B 29.99997,C 179.95013,S 2,T 42}";
+  test::writeText(dir + "/p.src",
+                  "DEF p( )\n$TOOL = $NULLFRAME\n$BASE = $NULLFRAME\nPTP {A1 0,A2 -90,A3 90,A4 10,A5 45,A6 0}\n"
+                  "PTP XP1\nLIN XP2\nLIN XP1\nEND\n");
+  test::writeText(dir + "/p.dat", "DEFDAT p\nDECL E6POS XP1=" + xp1 +
+                                      "\nDECL E6POS XP2={X 1171.1397,Y -206.4495,Z 915.1162,A 169.93882,B 29.99997,C 179.95013,S 2,T 42}\nENDDAT\n");
+  // the same PTP alone: what XP1 must become
+  test::writeText(dir + "/q.src", "DEF q( )\n$TOOL = $NULLFRAME\n$BASE = $NULLFRAME\nPTP {A1 0,A2 -90,A3 90,A4 10,A5 45,A6 0}\nPTP XP1\nEND\n");
+  test::writeText(dir + "/q.dat", "DEFDAT q\nDECL E6POS XP1=" + xp1 + "\nENDDAT\n");
+  JobSettings s;
+  s.calibrated = calib::readRobotFile(test::sourcePath("tests/golden/compensate/kr16_real.xml"));
+  const ProgramCompensation shared = compensateProgramReport(readProgram(dir + "/p.src"), s);
+  ASSERT_TRUE(shared.ok()) << shared.report.errors.front().where.str() << ": " << shared.report.errors.front().message;
+  const ProgramCompensation alone = compensateProgramReport(readProgram(dir + "/q.src"), s);
+  ASSERT_TRUE(alone.ok());
+  const KrlText a = writeKrl(shared.program), b = writeKrl(alone.program);
+  const auto line = [](const std::string& text) {
+    const size_t at = text.find("DECL E6POS XP1=");
+    return text.substr(at, text.find('\n', at) - at);
+  };
+  EXPECT_EQ(line(a.dat), line(b.dat));
+  EXPECT_EQ(line(a.dat).find("T 42}"), std::string::npos) << line(a.dat);  // the PTP's T, not the written one
+}
+
 // ---------------------------------------------------------------------------------------------
 // External axes
 

@@ -323,6 +323,86 @@ JobSettings settingsFor(const RobotModel& real) {
   return s;
 }
 
+TEST(UrScript, GetInverseKinTakesTheSolutionNearestToQnear) {
+  // PolyScope writes every MoveJ waypoint as movej(get_inverse_kin(Waypoint_n_p,
+  // qnear=Waypoint_n_q)); the controller then takes the solution nearest qnear, not the one
+  // nearest to where the robot stands (URScript manual, get_inverse_kin). Here the robot
+  // stands with the shoulder up (q2 = +11.5 deg) and qnear asks for the shoulder down.
+  const std::string qnear = "[-1.5707963, -1.5707963, 1.5707963, -1.5707963, -1.5707963, 0.0]";
+  const std::string script =
+      "def q():\n"
+      "  set_tcp(p[0.0, 0.0, 0.15, 0.0, 0.0, 0.0])\n"
+      "  movej([-1.5707963, 0.2, -1.5707963, -1.5707963, -1.5707963, 0.0], a=1.4, v=1.05)\n"
+      "  movej(get_inverse_kin(p[-.350, .700, .300, 3.1415927, 0.0, 0.0], qnear=" + qnear + "), a=1.4, v=1.05)\n"
+      "end\n";
+  const RobotModel controller = ur10WithTorch();
+  SimulateOptions so;
+  so.effects = {"geometric"};
+  so.set_station = false;
+  so.seed = 4;
+  const RobotModel real = perturbModel(controller, so);
+  const Program p = parseUrScript(script, "q.script");
+  ASSERT_EQ(p.motions.size(), 2u);
+  ASSERT_TRUE(p.motions[1].qnear_deg.has_value());
+  EXPECT_NEAR((*p.motions[1].qnear_deg)[1], -90.0, 1e-5);
+  const ProgramCompensation c = compensateProgramReport(p, settingsFor(real));
+  ASSERT_TRUE(c.ok()) << c.report.errors.front().where.str() << ": " << c.report.errors.front().message;
+  // the expectation on its own: every solution of the real robot for the pose (from each
+  // closed-form branch), the one nearest qnear in joint space, commanded through the controller
+  const Eigen::Isometry3d T = rodrigues(-.350, .700, .300, 3.1415927, 0.0, 0.0);
+  const KinematicSolver real_ik(real), controller_ik(controller);
+  Eigen::VectorXd q_near(6), q_up(6);
+  q_near << -90, -90, 90, -90, -90, 0;
+  q_up << -90, 11.459156, -90, -90, -90, 0;
+  auto nearest = [&](const Eigen::VectorXd& to) {
+    Eigen::VectorXd best;
+    for (const Eigen::VectorXd& seed : real_ik.closedFormSolutions(T)) {
+      const IkResult r = real_ik.inverse(T, kukaConfiguration(real, seed), seed, IkOptions{});
+      if (r.status != IkStatus::kOk) continue;
+      if (best.size() == 0 || (r.q - to).norm() < (best - to).norm()) best = r.q;
+    }
+    return best;
+  };
+  const Eigen::VectorXd q_real = nearest(q_near), q_real_up = nearest(q_up);
+  ASSERT_EQ(q_real.size(), 6);
+  ASSERT_EQ(q_real_up.size(), 6);
+  const Eigen::Vector3d expected = controller_ik.forward(q_real).translation();
+  const Eigen::Vector3d from_the_robot = controller_ik.forward(q_real_up).translation();
+  // the two branches need corrections that differ by more than 0.3 mm: the test tells them apart
+  EXPECT_GT((expected - from_the_robot).norm(), 0.3);
+  const Eigen::Vector3d written = poseOf(c.program.motions[1].target).translation();
+  EXPECT_LT((written - expected).norm(), 1e-3);  // the 7 decimals written (0.1 um) and the IK's polish
+  // qnear stays as written
+  EXPECT_NE(writeUrScript(c.program).find("qnear=" + qnear + "), a=1.4"), std::string::npos);
+}
+
+TEST(UrScript, GetInverseKinArgumentsAreReadOrNamed) {
+  const std::string pose = "p[-.350, .700, .300, 3.1415927, 0.0, 0.0]";
+  auto read = [&](const std::string& call) {
+    return parseUrScript("def q():\n  movej(" + call + ", a=1.4, v=1.05)\nend\n", "q.script");
+  };
+  // positional qnear and the controller's error bounds
+  const Program positional = read("get_inverse_kin(" + pose + ", [0, -1.5, 1.5, -1.5, -1.5, 0], 1e-10, 1e-10)");
+  ASSERT_TRUE(positional.motions[0].qnear_deg.has_value());
+  EXPECT_NEAR((*positional.motions[0].qnear_deg)[1], -1.5 * kRadToDeg, 1e-9);
+  EXPECT_TRUE(positional.motions[0].target_problem.empty());
+  // no qnear: the joints where the robot stands decide (nothing to read)
+  EXPECT_FALSE(read("get_inverse_kin(" + pose + ")").motions[0].qnear_deg.has_value());
+  // a qnear accura cannot evaluate, or another TCP: the branch or the pose is not known
+  EXPECT_NE(read("get_inverse_kin(" + pose + ", qnear=get_actual_joint_positions())").motions[0].target_problem.find("qnear"),
+            std::string::npos);
+  EXPECT_NE(read("get_inverse_kin(" + pose + ", tcp=p[0, 0, 0.1, 0, 0, 0])").motions[0].target_problem.find("tcp="),
+            std::string::npos);
+  // an argument get_inverse_kin does not have: file:line:column, expected and found
+  try {
+    read("get_inverse_kin(" + pose + ", qfar=[0, 0, 0, 0, 0, 0])");
+    FAIL() << "expected an InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("q.script:2:"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("found 'qfar'"), std::string::npos) << e.what();
+  }
+}
+
 TEST(UrScript, CompensatingWithTheNominalRobotReturnsTheProgramByteForByte) {
   const Program p = parseUrScript(example(), "ur10_seam.script");
   const ProgramCompensation c = compensateProgramReport(p, settingsFor(ur10WithTorch()));

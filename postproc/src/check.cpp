@@ -354,7 +354,7 @@ class Checker {
     calib::IkOptions o;
     o.joint_margin = 0;
     o.singular_threshold = 0;
-    const Eigen::VectorXd seed = prev ? prev->q : Eigen::VectorXd();
+    const Eigen::VectorXd seed = m.type == MotionType::kPtp && m.q_near.size() ? m.q_near : prev ? prev->q : Eigen::VectorXd();
     const calib::IkResult ik = tm.ik.inverse(m.T_world_tcp_end, m.configuration, seed, o, context_);
     if (ik.status == calib::IkStatus::kOk) return ik.q;
     std::string why = std::string(toString(ik.status)) + (ik.message.empty() ? "" : " (" + ik.message + ")");
@@ -659,6 +659,8 @@ CheckReport checkProgramWith(const Program& program, const JobSettings& job, con
       if (!end) { skip("a partial target after an unknown position"); continue; }
       w.T_world_tcp_end = *end;
       w.configuration = calib::Configuration{m.target.status.value_or(-1), m.target.turn.value_or(-1)};
+      if (m.qnear_deg && m.qnear_deg->size() == static_cast<size_t>(job.calibrated.dof()))
+        w.q_near = Eigen::Map<const Eigen::VectorXd>(m.qnear_deg->data(), 6);
       if (m.type == MotionType::kCirc) {
         if (!m.aux) { skip("CIRC without an auxiliary point"); continue; }
         const auto aux = complete(*m.aux);

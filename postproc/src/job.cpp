@@ -154,17 +154,43 @@ class Job {
 
   // Records a corrected named value; an error when the same declaration needs two different
   // values.
-  void claimValue(const Target& t, const SourceLocation& motion) {
+  /// One point (value) used by several motions must get one correction. S and T count only
+  /// where a PTP uses the point: the controller ignores them on CP motions (LIN, CIRC, ...), so
+  /// a point a PTP and a LIN share is written with the PTP's S/T (unifyClaimedConfigurations).
+  void claimValue(const Target& t, const SourceLocation& motion, bool cp) {
     if (t.value_id < 0) return;
-    const std::string text = krlAggregate(t);
+    Target pose_only = t;
+    pose_only.status.reset();
+    pose_only.turn.reset();
+    Claim c{krlAggregate(pose_only), motion, cp, t.status, t.turn};
     auto it = claimed_.find(t.value_id);
     if (it == claimed_.end()) {
-      claimed_[t.value_id] = {text, motion};
+      claimed_[t.value_id] = c;
       return;
     }
-    if (it->second.first != text)
-      error(motion, targetLabel(t) + " needs a different correction here than at " + it->second.second.str() +
+    Claim& old = it->second;
+    const bool same_configuration = old.status == c.status && old.turn == c.turn;
+    if (old.pose_text != c.pose_text || (!old.cp && !cp && !same_configuration)) {
+      error(motion, targetLabel(t) + " needs a different correction here than at " + old.where.str() +
                         " (the same point with another tool, base or path): give the motions their own points");
+      return;
+    }
+    if (old.cp && !cp) old = c;  // the PTP's S/T are the ones the point needs
+  }
+
+  /// The S/T of every point a PTP claimed, on the CP motions that share it (claimValue).
+  void unifyClaimedConfigurations(Program& out) const {
+    auto unify = [&](Target& t) {
+      const auto it = claimed_.find(t.value_id);
+      if (t.value_id < 0 || it == claimed_.end() || it->second.cp) return;
+      t.status = it->second.status;
+      t.turn = it->second.turn;
+    };
+    for (Motion& m : out.motions) {
+      if (m.type == MotionType::kPtp) continue;
+      unify(m.target);
+      if (m.aux) unify(*m.aux);
+    }
   }
 
   void reportTarget(const Motion& m, const Target& t, const char* role, const Eigen::Isometry3d& T_world_progbase,
@@ -245,6 +271,7 @@ class Job {
       }
     }
     flushCpConfigurations();
+    unifyClaimedConfigurations(out);
     // the pass-through statements stay before their motion, ahead of the points inserted
     out.passthrough = in.passthrough;
     for (PassThrough& s : out.passthrough)
@@ -433,7 +460,7 @@ class Job {
         return keep(out, mo);
       }
       setPose(*mo.aux, toProgram(c.T_world_progbase, pa.T_world_tcp_command));
-      claimValue(*mo.aux, m.where);
+      claimValue(*mo.aux, m.where, true);
       reportTarget(m, *m.aux, "aux", c.T_world_progbase, T_world_aux, pa.T_world_tcp_command, c.models->calibrated_tool);
     }
     // a CP motion from a known position continues on the robot's configuration (nearest
@@ -444,6 +471,12 @@ class Job {
     if (c.end.abb_conf && ((!cp && m.conf_monitored) || (cp && !q_real_))) {  // RAPID: the programmed branch
       config = abbBranch(c.end);
       start = abbSeed(c.end);
+    }
+    if (!cp && m.qnear_deg && s_.calibrated.dof() == 6) {
+      // URScript get_inverse_kin(pose, qnear=q): the controller takes the solution nearest
+      // to qnear, not to where the robot stands
+      start = Eigen::Map<const Eigen::VectorXd>(m.qnear_deg->data(), 6);
+      config = calib::Configuration{};
     }
     const PoseCompensation pc = comp.pose(c.T_world_end, config, start, s_.ik, s_.context);
     if (pc.status != calib::IkStatus::kOk) {
@@ -456,7 +489,7 @@ class Job {
     setPose(mo.target, toProgram(c.T_world_progbase, pc.T_world_tcp_command));
     if (mo.target.turn != end.turn) mo.target.modified = true;
     mo.target.turn = end.turn;
-    claimValue(mo.target, m.where);
+    claimValue(mo.target, m.where, cp);
     reportTarget(m, m.target, "end", c.T_world_progbase, c.T_world_end, pc.T_world_tcp_command, c.models->calibrated_tool,
                  pc.q_real);
     arrived(c, pc.q_real, end);
@@ -535,7 +568,7 @@ class Job {
     const Eigen::Isometry3d T_cmd_end = commanded.back().T_world_end;
     setPose(mo.target, toProgram(c.T_world_progbase, T_cmd_end));
     mo.target.turn = end.turn;
-    claimValue(mo.target, m.where);
+    claimValue(mo.target, m.where, true);
     reportTarget(m, m.target, "end", c.T_world_progbase, c.T_world_end, T_cmd_end, c.models->calibrated_tool,
                  sc.q_real_end.back());
     if (c.aux) {
@@ -556,7 +589,7 @@ class Job {
       // the controller ignores the orientation of an auxiliary point: the program's stays
       if (!mo.aux->new_declaration) T_cmd_aux.linear() = intended.T_world_aux.linear();
       setPose(*mo.aux, toProgram(c.T_world_progbase, T_cmd_aux));
-      if (!mo.aux->new_declaration) claimValue(*mo.aux, m.where);
+      if (!mo.aux->new_declaration) claimValue(*mo.aux, m.where, true);
       if (commanded.size() == 1) {
         reportTarget(m, *m.aux, "aux", c.T_world_progbase, intended.T_world_aux, T_cmd_aux, c.models->calibrated_tool);
       } else if (mo.aux->new_declaration) {
@@ -639,7 +672,13 @@ class Job {
   SourceLocation cp_where_;
   int exact_stop_points_ = 0, exact_stop_motions_ = 0;  ///< auxiliary points inserted before exact stops
   SourceLocation exact_stop_where_;
-  std::map<int, std::pair<std::string, SourceLocation>> claimed_;
+  struct Claim {
+    std::string pose_text;  ///< the corrected value without S/T
+    SourceLocation where;
+    bool cp = false;        ///< claimed by a CP motion (S/T not used by the controller)
+    std::optional<int> status, turn;
+  };
+  std::map<int, Claim> claimed_;
 };
 
 }  // namespace

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <limits>
 #include <cstdio>
 
 #include <Eigen/Geometry>
@@ -61,7 +62,26 @@ void Target::setPose(const calib::XyzAbc& p) {
 }
 
 bool Target::setPoseIfChanged(const calib::XyzAbc& p) {
-  const double v[6] = {p.x_mm, p.y_mm, p.z_mm, p.a_deg, p.b_deg, p.c_deg};
+  double v[6] = {p.x_mm, p.y_mm, p.z_mm, p.a_deg, p.b_deg, p.c_deg};
+  if (pose[3] && pose[4] && pose[5]) {
+    // the same rotation in the angles nearest to the written ones: (A, B, C) and
+    // (A + 180, 180 - B, C + 180) are one rotation, and so is any angle +- 360; the controller
+    // takes either (KUKA normalises A, B, C itself), and a correction that rounds to zero then
+    // keeps the written text (A 0, B 180, C 0 stays, not A 180, B 0, C -180)
+    const double written[3] = {*pose[3], *pose[4], *pose[5]};
+    const double sets[2][3] = {{v[3], v[4], v[5]}, {v[3] + 180.0, 180.0 - v[4], v[5] + 180.0}};
+    double best = std::numeric_limits<double>::infinity();
+    for (const auto& set : sets) {
+      double near[3], dist = 0;
+      for (int k = 0; k < 3; ++k) {
+        near[k] = set[k] + 360.0 * std::round((written[k] - set[k]) / 360.0);
+        dist += std::abs(near[k] - written[k]);
+      }
+      if (!(dist < best)) continue;
+      best = dist;
+      for (int k = 0; k < 3; ++k) v[3 + k] = near[k];
+    }
+  }
   auto text = [](int k, double x) { return k < 3 ? formatMm(x) : formatDeg(x); };
   bool changed = false;
   for (int k = 0; k < 6; ++k) {

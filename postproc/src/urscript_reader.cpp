@@ -434,6 +434,52 @@ class Reader {
     defs_ = movingRoutines(moves, calls);
   }
 
+  /// The arguments of get_inverse_kin(x, qnear, maxPositionError, maxOrientationError, tcp)
+  /// after the pose (URScript manual): qnear, the joints whose nearest solution the controller
+  /// takes, into m.qnear_deg; the error bounds are the controller's own tolerances; a `tcp`
+  /// other than the active one is a problem of the target (accura solves for the active TCP).
+  void inverseKinArguments(const std::vector<Tok>& t, const std::vector<std::pair<size_t, size_t>>& gi, Motion& m) {
+    static const std::vector<std::string> names = {"x", "qnear", "maxPositionError", "maxOrientationError", "tcp"};
+    std::map<std::string, std::pair<size_t, size_t>> arg;
+    bool named_seen = false;
+    for (size_t k = 1; k < gi.size(); ++k) {
+      const auto [a, b] = gi[k];
+      if (a == b) fail(a < t.size() ? t[a].b : t.back().b, "expected an argument of get_inverse_kin, found an empty one");
+      std::string n;
+      size_t v = a;
+      if (isIdent(t, a) && isOp(t, a + 1, "=")) {
+        n = t[a].s;
+        v = a + 2;
+        if (std::find(names.begin() + 1, names.end(), n) == names.end())
+          fail(t[a].b, "expected an argument of get_inverse_kin (qnear, maxPositionError, maxOrientationError, tcp), found '" + n + "'");
+        if (v >= b) fail(t[a + 1].b, "expected a value after '" + n + "=', found none");
+        named_seen = true;
+      } else {
+        if (named_seen) fail(t[a].b, "expected a named argument (name=value) after a named one, found '" + textOf(t, a, b) + "'");
+        if (k >= names.size()) fail(t[a].b, "expected at most 5 arguments of get_inverse_kin, found '" + textOf(t, a, b) + "'");
+        n = names[k];
+      }
+      if (arg.count(n)) fail(t[a].b, "expected each argument of get_inverse_kin once, found '" + n + "' given twice");
+      arg[n] = {v, b};
+    }
+    if (const auto it = arg.find("tcp"); it != arg.end() && m.target_problem.empty())
+      m.target_problem = "get_inverse_kin(..., tcp=" + textOf(t, it->second.first, it->second.second) +
+                         ") solves for a TCP that is not the active one, which accura does not model";
+    const auto it = arg.find("qnear");
+    if (it == arg.end()) return;
+    std::string problem;
+    const auto q = joints(t, it->second.first, it->second.second, &problem);
+    if (!q) {
+      // the controller takes the solution nearest to qnear: without its value the branch the
+      // robot goes to is not known
+      if (m.target_problem.empty()) m.target_problem = "the qnear of get_inverse_kin: " + problem;
+      return;
+    }
+    std::array<double, 6> deg{};
+    for (size_t k = 0; k < 6; ++k) deg[k] = (*q)[k] * calib::kRadToDeg;
+    m.qnear_deg = deg;
+  }
+
   bool looksLikeJoints(const std::vector<Tok>& t, size_t i, size_t j) const {
     if (isOp(t, i, "[") && closing(t, i) == j) return true;
     if (j == i + 1 && t[i].kind == Tok::Kind::kIdent) {
@@ -748,6 +794,7 @@ class Reader {
         const auto gi = items(t, a + 2, b - 1);
         if (gi.empty() || gi[0].first == gi[0].second) fail(t[a].b, "expected get_inverse_kin(pose, ...), found no pose");
         m.target = cartesian(gi[0]);
+        inverseKinArguments(t, gi, m);
       } else if (looksLikeJoints(t, a, b)) {
         std::string problem;
         const auto q = joints(t, a, b, &problem);

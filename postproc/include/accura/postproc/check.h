@@ -203,6 +203,9 @@ struct WorldMotion {
   Eigen::Isometry3d T_world_tcp_aux = Eigen::Isometry3d::Identity();  ///< CIRC
   Eigen::VectorXd q_end;               ///< axis target (deg / mm); empty for a Cartesian one
   calib::Configuration configuration;         ///< S/T of a Cartesian end point (-1: any)
+  /// Joints (deg / mm) whose nearest solution the controller takes for a Cartesian PTP end
+  /// point (URScript get_inverse_kin's qnear); empty: the previous point's joints decide.
+  Eigen::VectorXd q_near;
   Eigen::Isometry3d T_flange_tcp = Eigen::Isometry3d::Identity();  ///< tool of the motion
   SourceLocation where;
   std::string label;                   ///< motion type for reports (LIN, SLIN, ...)

@@ -166,6 +166,10 @@ struct Motion {
   /// The position before this motion is not known (RAPID: the first motion of a routine,
   /// which may be called from anywhere): the compensation starts afresh here.
   bool start_unknown = false;
+  /// URScript movej(get_inverse_kin(pose, qnear=q)): the joints (deg) whose nearest solution
+  /// the controller takes for the pose (URScript manual, get_inverse_kin); the compensation
+  /// solves the target from them instead of from the previous point. Empty: not given.
+  std::optional<std::array<double, 6>> qnear_deg;
 };
 
 /// Text spans of a KRL program, for writing it back byte for byte with only the corrected

@@ -7,8 +7,9 @@
 //   motions   movel(pose, a, v, t, r), movep(pose, a, v, r), movec(pose_via, pose_to, a, v, r,
 //             mode) (mode 0 only: orientation interpolated from the start to pose_to; the
 //             via point's orientation is not used), movej(q | pose, a, v, t, r) and
-//             movej(get_inverse_kin(pose, qnear=q)) (the PolyScope form; qnear kept as
-//             written). Arguments positional or named. movel/movep -> LIN, movec -> CIRC,
+//             movej(get_inverse_kin(pose, qnear=q)) (the PolyScope form; qnear, into
+//             Motion::qnear_deg, kept as written; tcp= other than the active TCP, or a qnear
+//             accura cannot evaluate, is a problem of the target). Arguments positional or named. movel/movep -> LIN, movec -> CIRC,
 //             movej -> PTP (joint positions: an axis target, never changed).
 //   poses     p[x, y, z, rx, ry, rz]: metres and a rotation vector (radians), in the
 //             controller's Base frame (= DH frame 0 of UR's DH table, robots/README.md);
@@ -36,7 +37,7 @@
 // UR configuration (shoulder/elbow/wrist branch): URScript targets carry none; the controller
 // keeps the branch along movel/movec and takes the solution nearest the current joints (or
 // qnear) for movej. The compensation does the same: each target is solved from the previous
-// point's joints (compensate.h), so the branch is kept.
+// point's joints (compensate.h), so the branch is kept, or from qnear where it is given.
 #pragma once
 
 #include <cstddef>
