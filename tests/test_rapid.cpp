@@ -740,6 +740,16 @@ TEST(Rapid, RunTimeValuesAreKeptAndNamedNotTakenFromTheDeclaration) {
   const std::string written = writeRapid(c.program);
   EXPECT_EQ(written.find("CONST robtarget p10 := [[40,60,120],"), std::string::npos);  // corrected for motion 0
   EXPECT_EQ(written.find("CONST robtarget p20 := [[40,60,20],"), std::string::npos);   // corrected for motion 3
+  // the kept motions 1 and 2 move with those corrections: said at each, naming the motion the
+  // correction is for (motion 4's p10 is the call's, not the module's)
+  std::vector<std::string> moved;
+  for (const auto& w : c.report.warnings)
+    if (w.message.find("is left as written, but its point") != std::string::npos) moved.push_back(w.where.str() + " " + w.message);
+  ASSERT_EQ(moved.size(), 2u);
+  EXPECT_NE(moved[0].find("runtime.mod:13:5 this motion is left as written, but its point p10 is corrected for the motion at runtime.mod:8:5"),
+            std::string::npos) << moved[0];
+  EXPECT_NE(moved[1].find("runtime.mod:11:5 this motion is left as written, but its point p20 is corrected for the motion at runtime.mod:15:5"),
+            std::string::npos) << moved[1];
 }
 
 TEST(Rapid, ARoutineCalledWithADisplacementActiveIsDisplaced) {

@@ -3,6 +3,7 @@
 
 #include <cmath>
 #include <map>
+#include <set>
 #include <memory>
 #include <sstream>
 
@@ -272,6 +273,7 @@ class Job {
     }
     flushCpConfigurations();
     unifyClaimedConfigurations(out);
+    checkKeptValues(out);
     // the pass-through statements stay before their motion, ahead of the points inserted
     out.passthrough = in.passthrough;
     for (PassThrough& s : out.passthrough)
@@ -297,7 +299,27 @@ class Job {
   /// is not known. The caller recorded why (an error or a warning).
   void keep(Program& out, const Motion& mo) {
     forget();
+    for (const Target* t : {&mo.target, mo.aux ? &*mo.aux : nullptr})
+      if (t && t->value_id >= 0 && !kept_values_.count(t->value_id)) kept_values_[t->value_id] = mo.where;
     out.motions.push_back(mo);
+  }
+
+  /// A motion kept as written whose point another motion corrects is not unchanged on the
+  /// robot: it moves with that correction, made for the other motion's tool, base and path.
+  /// Said once per point, at the kept motion, naming the motion the correction is for (the
+  /// program is still written: the controller runs it, and the shared point is the program's).
+  void checkKeptValues(const Program& out) {
+    std::set<int> named;
+    for (const Motion& m : out.motions)
+      for (const Target* t : {&m.target, m.aux ? &*m.aux : nullptr}) {
+        if (!t || !t->modified || t->value_id < 0 || named.count(t->value_id)) continue;
+        const auto it = kept_values_.find(t->value_id);
+        if (it == kept_values_.end()) continue;
+        named.insert(t->value_id);
+        warning(it->second, "this motion is left as written, but its point " + targetLabel(*t) + " is corrected for the motion at " +
+                                m.where.str() + ": it moves with that correction, made for that motion's tool, base and path "
+                                "(give the motions their own points to keep this one as written)");
+      }
   }
 
   /// Motion `m`'s target cannot be evaluated (`why`): the motion is kept as written, counted
@@ -679,6 +701,7 @@ class Job {
     std::optional<int> status, turn;
   };
   std::map<int, Claim> claimed_;
+  std::map<int, SourceLocation> kept_values_;  ///< points of motions kept as written (keep)
 };
 
 }  // namespace
