@@ -43,12 +43,12 @@ std::string& robotChainOption() {
   return chain;
 }
 
-calib::RobotModel loadRobot(const std::string& name) {
+calib::RobotModel loadRobot(const std::string& name, const std::string& option) {
   std::string path;
   try {
     path = calib::resolveRobotPath(name);
   } catch (const calib::InputError& e) {
-    throw calib::InputError(std::string("--robot: ") + e.what());
+    throw calib::InputError(option + ": " + e.what());
   }
   const std::string& chain = robotChainOption();
   if (chain.empty()) return calib::readRobotFile(path);  // a .urdf with its default chain

@@ -20,7 +20,7 @@ nlohmann::ordered_json num(double v);
 /// {n, rms_mm, mean_mm, max_mm, p95_mm[, rot_*_deg]}
 nlohmann::ordered_json statsJson(const calib::ErrorStats& s);
 /// Reads --robot (a path or a bundled robot name; a .urdf through urdf.h, with --chain).
-calib::RobotModel loadRobot(const std::string& name_or_path);
+calib::RobotModel loadRobot(const std::string& name_or_path, const std::string& option = "--robot");
 /// The --chain ROOT:TIP option of every command with --robot (main.cpp adds it): which
 /// serial chain of a URDF robot to use; empty: the default chain.
 std::string& robotChainOption();
@@ -29,12 +29,12 @@ std::string& robotChainOption();
 calib::MeasurementSet readMeasurements(const std::string& path, const std::string& map_path, const calib::RobotDefinition& robot);
 /// Prints a warning listing the columns of a measurement file accura does not use.
 void warnUnknownColumns(const calib::MeasurementSet& set);
-/// Adds the options that make a JobSettings (--robot, --tol, --base, --robroot, --payload-kg,
-/// --temp-c, --program-tool, --program-base) to a command (accura compensate, batch, check);
-/// the function returned reads them (calib::InputError on a bad value); *robot_file (when given)
-/// becomes a function returning --robot when it names a file, else "" (a bundled name): an input
-/// no output may overwrite. Defined in cmd_compensate.cpp.
-std::function<postproc::JobSettings()> addJobOptions(CLI::App* c, std::function<std::string()>* robot_file = nullptr);
+/// Adds the options that make a JobSettings (--robot, --controller, --tol, --base, --robroot,
+/// --payload-kg, --temp-c, --program-tool, --program-base) to a command (accura compensate,
+/// batch, check); the function returned reads them (calib::InputError on a bad value);
+/// *model_files (when given) becomes a function returning --robot and --controller where they
+/// name files (not bundled names): inputs no output may overwrite. Defined in cmd_compensate.cpp.
+std::function<postproc::JobSettings()> addJobOptions(CLI::App* c, std::function<std::vector<std::string>()>* model_files = nullptr);
 /// A numeric option's accepted values: a finite number within [lo, hi] (lo itself excluded
 /// when lo_open), in `unit` (empty: dimensionless). Issue 14: NaN, infinities, 1e308,
 /// denormals and absurd values are bad input, never a silent default.

@@ -30,7 +30,7 @@ constexpr int kSomeFailed = 2;
 
 struct BatchArgs {
   std::function<postproc::JobSettings()> settings;
-  std::function<std::string()> robot_file;  // --robot when it names a file (never overwritten)
+  std::function<std::vector<std::string>()> model_files;  // --robot, --controller files (never overwritten)
   std::string in;
   std::string out;
   std::string config;
@@ -63,7 +63,8 @@ int runBatch(const BatchArgs& a) {
     const fs::path j = fs::weakly_canonical(fs::absolute(a.json));
     const fs::path in = fs::weakly_canonical(fs::absolute(a.in));
     if (j.string().rfind(in.string() + "/", 0) == 0) throw calib::InputError("--json: " + a.json + " is inside the input tree, which is never modified");
-    std::vector<std::string> inputs = {a.robot_file(), a.config};
+    std::vector<std::string> inputs = a.model_files();
+    inputs.push_back(a.config);
     if (cell) inputs.push_back(cell->cell_path);
     calib::refuseToOverwrite({{a.json, ""}}, inputs, "--json");
   }
@@ -142,7 +143,7 @@ void addBatchCommand(CLI::App& app) {
   auto* c = app.add_subcommand("batch",
                                "compensate every program (*.src, *.xml, *.script, *.mod, *.prg) of a directory tree into a mirrored tree (with --cell: each checked "
                                "in the cell before it is written)");
-  args->settings = addJobOptions(c, &args->robot_file);
+  args->settings = addJobOptions(c, &args->model_files);
   c->add_option("--in", args->in, "directory of programs (read only)")->required();
   c->add_option("--out", args->out, "output directory (the same relative paths); not inside --in")->required();
   c->add_option("--config", args->config, "$config.dat for every program: TOOL_DATA, BASE_DATA, global points");

@@ -62,7 +62,7 @@ std::optional<CellCheck> cellCheck(const CellArgs& a) {
 
 struct CheckArgs {
   std::function<postproc::JobSettings()> settings;
-  std::function<std::string()> robot_file;  // --robot when it names a file (never overwritten)
+  std::function<std::vector<std::string>()> model_files;  // --robot, --controller files (never overwritten)
   std::function<std::optional<CellCheck>()> cell;
   std::string in, dat, config, json;
 };
@@ -75,10 +75,11 @@ int runCheck(const CheckArgs& a) {
   read.dat_path = a.dat;
   read.config_path = a.config;
   const Program program = readProgram(a.in, read);
-  if (!a.json.empty())
-    calib::refuseToOverwrite({{a.json, ""}},
-                             {a.in, a.dat, program.krl ? program.krl->dat_path : std::string(), a.config, cc->cell_path, a.robot_file()},
-                             "--json");
+  if (!a.json.empty()) {
+    std::vector<std::string> inputs = {a.in, a.dat, program.krl ? program.krl->dat_path : std::string(), a.config, cc->cell_path};
+    for (const std::string& f : a.model_files()) inputs.push_back(f);
+    calib::refuseToOverwrite({{a.json, ""}}, inputs, "--json");
+  }
   const CheckReport r = checkProgram(program, settings, cc->cell, cc->options);
   printCheckReport(r, a.in);
   if (!a.json.empty()) {
@@ -138,7 +139,7 @@ void printCheckReport(const postproc::CheckReport& r, const std::string& program
 void addCheckCommand(CLI::App& app) {
   auto args = std::make_shared<CheckArgs>();
   auto* c = app.add_subcommand("check", "check a program in its cell: reach, joint limits, singularities, clearance (exit 2 on a violation)");
-  args->settings = addJobOptions(c, &args->robot_file);
+  args->settings = addJobOptions(c, &args->model_files);
   c->remove_option(c->get_option("--tol"));  // the compensation's path tolerance: not used by the checks
   args->cell = addCellOptions(c, true, true);
   c->add_option("--in", args->in, "program: PROG.src (KRL, with PROG.dat next to it), PROG.xml, PROG.script (URScript) or PROG.mod/.prg (ABB RAPID)")->required();

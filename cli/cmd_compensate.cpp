@@ -33,11 +33,12 @@ struct JobArgs {
   double temp_c = calib::kThermalReferenceC;
   std::string program_tool;
   std::string program_base;
+  std::string controller;
 };
 
 struct CompensateArgs {
   std::function<postproc::JobSettings()> settings;
-  std::function<std::string()> robot_file;  // --robot when it names a file (never overwritten)
+  std::function<std::vector<std::string>()> model_files;  // --robot, --controller files (never overwritten)
   std::string in;
   std::string dat;
   std::string config;
@@ -64,7 +65,7 @@ int runCompensate(const CompensateArgs& a) {
   request.out_dir = a.out;
   request.json_path = a.json;
   request.cell = cell_settings ? &*cell_settings : nullptr;
-  if (!a.robot_file().empty()) request.other_inputs.push_back(a.robot_file());
+  for (const std::string& f : a.model_files()) request.other_inputs.push_back(f);
   if (cell) request.other_inputs.push_back(cell->cell_path);
   calib::installInterruptCleanup();
   const ProgramFileResult result = compensateProgramFile(request, settings);
@@ -113,17 +114,21 @@ postproc::JobSettings jobSettings(const JobArgs& a) {
   s.context.temp_c = a.temp_c;
   if (!a.program_tool.empty()) s.initial_tool = parsePose6(a.program_tool, "--program-tool");
   if (!a.program_base.empty()) s.initial_base = parsePose6(a.program_base, "--program-base");
+  if (!a.controller.empty()) s.controller_kinematics = loadRobot(a.controller, "--controller");
   return s;
 }
 
 }  // namespace
 
-std::function<postproc::JobSettings()> addJobOptions(CLI::App* c, std::function<std::string()>* robot_file) {
+std::function<postproc::JobSettings()> addJobOptions(CLI::App* c, std::function<std::vector<std::string>()>* model_files) {
   auto args = std::make_shared<JobArgs>();
-  if (robot_file)
-    *robot_file = [args]() {
+  if (model_files)
+    *model_files = [args]() {
+      std::vector<std::string> files;
       std::error_code ec;
-      return std::filesystem::is_regular_file(args->robot, ec) ? args->robot : std::string();
+      for (const std::string& f : {args->robot, args->controller})
+        if (!f.empty() && std::filesystem::is_regular_file(f, ec)) files.push_back(f);
+      return files;
     };
   JobArgs& a = *args;
   c->add_option("--robot", a.robot, "calibrated model (written by accura identify), file or bundled name")->required();
@@ -134,13 +139,17 @@ std::function<postproc::JobSettings()> addJobOptions(CLI::App* c, std::function<
   addNumberOption(c, "--temp-c", a.temp_c, "arm temperature while the program runs (deg C), for thermal models", NumberRange{postproc::kMinTempC, postproc::kMaxTempC, false, "deg C"})->capture_default_str();
   c->add_option("--program-tool", a.program_tool, "$TOOL x,y,z,A,B,C for motions before the program sets one (the controller's active tool)");
   c->add_option("--program-base", a.program_base, "$BASE x,y,z,A,B,C for motions before the program sets one (the controller's active base)");
+  c->add_option("--controller", a.controller,
+                "the kinematics the robot's controller runs when they are not the nominal robot's: a UR controller runs its "
+                "factory calibration (make the model with: accura export --robot ur10 --ur-deltas calibration.conf --format robot); "
+                "default: the nominal robot");
   return [args]() { return jobSettings(*args); };
 }
 
 void addCompensateCommand(CLI::App& app) {
   auto args = std::make_shared<CompensateArgs>();
   auto* c = app.add_subcommand("compensate", "compensate a robot program (KRL .src/.dat, XML, URScript or ABB RAPID) with a calibrated model");
-  args->settings = addJobOptions(c, &args->robot_file);
+  args->settings = addJobOptions(c, &args->model_files);
   c->add_option("--in", args->in, "program: PROG.src (KRL, with PROG.dat next to it), PROG.xml, PROG.script (URScript) or PROG.mod/.prg (ABB RAPID)")->required();
   c->add_option("--dat", args->dat, "the KRL .dat (default: the .src's name with .dat)");
   c->add_option("--config", args->config, "$config.dat: TOOL_DATA, BASE_DATA and global points such as XHOME");

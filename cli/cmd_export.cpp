@@ -33,8 +33,12 @@ int runExport(const ExportArgs& a) {
       if (calib::getParameter(model.deviations, p) != 0.0)
         throw calib::InputError("--robot " + a.robot + ": UR's factory calibration applies to a nominal UR robot, found a "
                          "calibrated model (parameter " + p.name + " is not zero)");
-    model = !a.ur_deltas.empty() ? calib::modelFromUrDeltas(model.nominal, calib::readUrCalibrationConf(a.ur_deltas, model.dof()))
-                                 : calib::modelFromUrCalibrationYaml(model.nominal, a.ur_yaml);
+    try {
+      model = !a.ur_deltas.empty() ? calib::modelFromUrDeltas(model.nominal, calib::readUrCalibrationConf(a.ur_deltas, model.dof()))
+                                   : calib::modelFromUrCalibrationYaml(model.nominal, a.ur_yaml);
+    } catch (const calib::ArgumentError& e) {
+      throw calib::InputError(std::string(a.ur_deltas.empty() ? "" : a.ur_deltas + ": ") + e.what());
+    }
   }
   std::string text;
   std::vector<std::string> lost;

@@ -145,6 +145,30 @@ TEST(UrCalibration, DeltasImportEqualsUrsFormulaWithoutHugeLengths) {
   std::filesystem::remove_all(dir);
 }
 
+TEST(UrCalibration, AnotherArmsCalibrationOrAnAbsurdDeltaIsRefused) {
+  // A factory calibration moves the flange by millimetres (the forum file: a few mm on the
+  // UR10); one that moves it by more is another arm's or corrupted, and is refused by name.
+  const RobotDefinition ur10 = test::loadBundled("ur10").nominal;
+  UrDeltas d = readUrCalibrationConf(test::sourcePath("tests/data/urdf/ur_forum_calibration.conf"));
+  const RobotModel m = modelFromUrDeltas(ur10, d);
+  // the size the check measures, on its own: the flange of the calibrated model against the nominal one
+  const RobotModel nominal = RobotModel::fromDefinition(ur10);
+  Eigen::VectorXd q(6);
+  q << 10, -60, 80, -30, 90, 20;
+  const double moved = (forwardKinematics(m, q).translation() - forwardKinematics(nominal, q).translation()).norm();
+  EXPECT_GT(moved, 1.0);
+  EXPECT_LT(moved, kMaxUrFactoryCorrectionMm);
+  d.a_m[0] += 0.5;  // half a metre on the first link: not a calibration of this arm
+  try {
+    modelFromUrDeltas(ur10, d);
+    FAIL() << "expected an ArgumentError";
+  } catch (const ArgumentError& e) {
+    EXPECT_NE(std::string(e.what()).find("expected the factory calibration of a Universal Robots UR10 (CB3) (the flange within 20 mm and 2 deg"),
+              std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("found one that moves it by up to 50"), std::string::npos) << e.what();
+  }
+}
+
 TEST(UrCalibration, ControllerFileWithTensOfMetres) {
   // A real calibration.conf (tests/data/urdf/ur_forum_calibration.conf): delta_d up to 92.5 m.
   const UrDeltas d = readUrCalibrationConf(test::sourcePath("tests/data/urdf/ur_forum_calibration.conf"));

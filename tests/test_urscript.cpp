@@ -15,6 +15,7 @@
 #include "accura/calib/ik.h"
 #include "accura/calib/robot_io.h"
 #include "accura/calib/simulate.h"
+#include "accura/calib/ur_calibration.h"
 #include "accura/postproc/compensate.h"
 #include "accura/postproc/job.h"
 #include "accura/postproc/program_io.h"
@@ -374,6 +375,57 @@ TEST(UrScript, GetInverseKinTakesTheSolutionNearestToQnear) {
   EXPECT_LT((written - expected).norm(), 1e-3);  // the 7 decimals written (0.1 um) and the IK's polish
   // qnear stays as written
   EXPECT_NE(writeUrScript(c.program).find("qnear=" + qnear + "), a=1.4"), std::string::npos);
+}
+
+TEST(UrScript, AControllerThatRunsItsFactoryCalibrationIsNotCorrectedTwice) {
+  // A UR controller runs its factory calibration (calibration.conf), not the nominal DH: the
+  // compensation must command the pose that the controller's own kinematics turn into the
+  // joints the real arm needs (JobSettings::controller_kinematics). The real arm here is the
+  // factory calibration plus 0.2 mrad on the shoulder; its identified model holds both.
+  const RobotDefinition ur10 = test::loadBundled("ur10").nominal;
+  const RobotModel factory = modelFromUrDeltas(ur10, readUrCalibrationConf(test::sourcePath("tests/data/urdf/ur_forum_calibration.conf")));
+  RobotModel real = factory;
+  real.deviations.links[1].dtheta_rad += 2e-4;
+  real.nominal.T_flange_tcp = toIsometry({0, 0, 150, 0, 0, 0});  // the program's TCP is the model's (exact)
+  const std::string script =
+      "def f():\n"
+      "  set_tcp(p[0.0, 0.0, 0.15, 0.0, 0.0, 0.0])\n"
+      "  movej([-1.5707963, -1.5707963, 1.5707963, -1.5707963, -1.5707963, 0.0], a=1.4, v=1.05)\n"
+      "  movej(get_inverse_kin(p[-.350, .700, .300, 3.1415927, 0.0, 0.0], qnear=[-1.5707963, -1.5707963, 1.5707963, -1.5707963, -1.5707963, 0.0]))\n"
+      "end\n";
+  const Program p = parseUrScript(script, "f.script");
+  const Eigen::Isometry3d T = rodrigues(-.350, .700, .300, 3.1415927, 0.0, 0.0);
+  // the controller, on its own: the factory kinematics with the program's TCP, the solution
+  // nearest qnear; where the real arm then is
+  RobotModel controller = factory;
+  controller.nominal.T_flange_tcp = toIsometry({0, 0, 150, 0, 0, 0});
+  const KinematicSolver controller_ik(controller), real_fk(real);
+  Eigen::VectorXd qnear(6);
+  qnear << -90, -90, 90, -90, -90, 0;
+  auto landed = [&](const ProgramCompensation& c) {
+    const IkResult r = controller_ik.inverse(poseOf(c.program.motions[1].target), Configuration{}, qnear, IkOptions{});
+    EXPECT_EQ(r.status, IkStatus::kOk);
+    return (real_fk.forward(r.q).translation() - T.translation()).norm();
+  };
+  JobSettings s = settingsFor(real);
+  s.controller_kinematics = factory;
+  const ProgramCompensation with = compensateProgramReport(p, s);
+  ASSERT_TRUE(with.ok()) << with.report.errors.front().message;
+  EXPECT_LT(landed(with), 1e-3);  // the 7 decimals written (0.1 um) and the IK's tolerance
+  // the nominal robot as the controller's model applies the factory calibration a second time
+  const ProgramCompensation twice = compensateProgramReport(p, settingsFor(real));
+  ASSERT_TRUE(twice.ok());
+  EXPECT_GT(landed(twice), 1.0);
+  // a model with effects a controller does not run is refused by name
+  RobotModel compliant = factory;
+  compliant.deviations.compliance[1] = 1e-6;
+  s.controller_kinematics = compliant;
+  try {
+    compensateProgramReport(p, s);
+    FAIL() << "expected an InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("expected a geometric model"), std::string::npos) << e.what();
+  }
 }
 
 TEST(UrScript, GetInverseKinArgumentsAreReadOrNamed) {

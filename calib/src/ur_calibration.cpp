@@ -13,6 +13,7 @@
 
 #include "accura/calib/errors.h"
 #include "accura/calib/kinematics.h"
+#include "accura/calib/text.h"
 #include "urdf_common.h"
 
 namespace accura::calib {
@@ -262,9 +263,26 @@ SerialChain urDeltaChain(const RobotDefinition& nominal, const UrDeltas& d) {
   return c;
 }
 
+namespace {
+
+// A factory calibration moves the flange by millimetres: one that moves it by more is the
+// calibration of another arm (a UR5's on a UR10) or a corrupted file, not this arm's.
+void checkFactoryCalibrationSize(const RobotDefinition& nominal, const SerialChain& chain, const std::string& what) {
+  const ChainComparison c = compareModelWithChain(RobotModel::fromDefinition(nominal), chain);
+  if (c.max_position_mm <= kMaxUrFactoryCorrectionMm && c.max_rotation_rad * kRadToDeg <= kMaxUrFactoryCorrectionDeg) return;
+  throw ArgumentError(what + ": expected the factory calibration of a " + nominal.name + " (the flange within " +
+                      formatFixed(kMaxUrFactoryCorrectionMm, 0) + " mm and " + formatFixed(kMaxUrFactoryCorrectionDeg, 0) +
+                      " deg of the nominal arm's), found one that moves it by up to " + formatFixed(c.max_position_mm, 1) + " mm and " +
+                      formatFixed(c.max_rotation_rad * kRadToDeg, 2) +
+                      " deg: the calibration of another arm type, or values that are not this arm's");
+}
+
+}  // namespace
+
 RobotModel modelFromUrDeltas(const RobotDefinition& nominal, const UrDeltas& deltas) {
   const SerialChain chain = urDeltaChain(nominal, deltas);
   RobotModel m = modelFromChain(chain, &nominal, FormPolicy::kAuto, kUrCheckTolMm);
+  checkFactoryCalibrationSize(nominal, chain, "UR factory DH deltas");
   m.nominal.source = nominal.source + "; calibrated with UR's factory DH deltas";
   return m;
 }
@@ -394,7 +412,8 @@ RobotModel modelFromUrCalibrationYaml(const RobotDefinition& nominal, const std:
     chain.joints[i].lower = nominal.joints[i].lower;
     chain.joints[i].upper = nominal.joints[i].upper;
   }
-  RobotModel m = modelFromChain(chain, &nominal, FormPolicy::kAuto, kUrCheckTolMm);
+  RobotModel m = modelFromChain(chain, &nominal, FormPolicy::kAuto, kUrCheckTolMm);  // (its joint-by-joint errors first)
+  checkFactoryCalibrationSize(nominal, chain, path);
   m.nominal.source = nominal.source + "; calibrated with the ur_calibration YAML " + path;
   return m;
 }

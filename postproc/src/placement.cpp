@@ -61,7 +61,28 @@ JobSettings placedInCell(const JobSettings& job, const Cell& cell) {
 
 ModelFactory::ModelFactory(const JobSettings& job, const Placement& placement)
     : calibrated_(job.calibrated), tool_match_mm_(job.tool_match_mm), tool_match_deg_(job.tool_match_deg), placement_(placement) {
-  controller_flange_ = calib::RobotModel::fromDefinition(job.calibrated.nominal);
+  if (job.controller_kinematics) {
+    // the controller's own kinematics (a UR's factory calibration): its links, not its frames
+    checkControllerRobot(job.calibrated.nominal, job.controller_kinematics->nominal, "the controller's kinematics");
+    controller_flange_ = *job.controller_kinematics;
+    calib::Deviations& d = controller_flange_.deviations;
+    // a controller runs a geometric model: no load, temperature or joint-space effects
+    bool effects = d.thermal_alpha_per_k != 0;
+    for (const std::vector<double>* v : {&d.compliance, &d.gear_sin, &d.gear_cos, &d.joint_scale, &d.backlash})
+      for (double x : *v) effects = effects || x != 0;
+    for (const calib::JointMap& map : d.joint_map)
+      for (double x : map.coef) effects = effects || x != 0;
+    if (effects)
+      throw calib::InputError("the controller's kinematics ('" + job.controller_kinematics->nominal.name +
+                              "'): expected a geometric model (what a controller runs: link deviations only), found compliance, "
+                              "gear, scale, backlash, thermal or joint-map terms");
+    d.base_mm.setZero();
+    d.base_rot_rad.setZero();
+    d.tool_mm.setZero();
+    d.tool_rot_rad.setZero();
+  } else {
+    controller_flange_ = calib::RobotModel::fromDefinition(job.calibrated.nominal);
+  }
   controller_flange_.nominal.T_world_base = placement.T_world_robroot;
   controller_flange_.nominal.T_flange_tcp = Eigen::Isometry3d::Identity();
 }

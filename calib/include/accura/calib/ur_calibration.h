@@ -29,6 +29,13 @@ namespace accura::calib {
 /// and their own rounding reaches 1e-8 mm.
 constexpr double kUrCheckTolMm = 1e-6;
 
+/// The most a factory calibration may move the flange from the nominal arm's (mm, deg; largest
+/// over 64 joint vectors): a real one moves it by a few millimetres (tests/data/urdf's forum file:
+/// 3.6 mm on a UR10). More is another arm type's calibration (a UR5's on a UR10: 370 mm) or a
+/// corrupted file.
+constexpr double kMaxUrFactoryCorrectionMm = 20.0;
+constexpr double kMaxUrFactoryCorrectionDeg = 2.0;
+
 /// DH deltas per joint, as in calibration.conf: rad and metres.
 struct UrDeltas {
   std::vector<double> theta_rad, a_m, d_m, alpha_rad;  ///< one per joint each
@@ -54,7 +61,8 @@ SerialChain urDeltaChain(const RobotDefinition& nominal, const UrDeltas& deltas)
 /// The calibrated accura model of a UR arm: `nominal` (the bundled robot, e.g. ur10.xml) with
 /// the deltas as deviations in its Hayati form (the lengths stay the arm's real lengths),
 /// checked: FK equals UR's formula to kUrCheckTolMm (modelFromChain). Throws ArgumentError
-/// (checkUrNominal), NumericalError when the check fails.
+/// (checkUrNominal; deltas that move the flange by more than kMaxUrFactoryCorrectionMm / Deg
+/// from the nominal arm's), NumericalError when the check fails.
 RobotModel modelFromUrDeltas(const RobotDefinition& nominal, const UrDeltas& deltas);
 
 /// accura model -> UR deltas for the same nominal: the model's calibrated chain from DH frame 0
@@ -76,7 +84,8 @@ UrDeltasFromModel urDeltasFromModel(const RobotModel& model);
 /// InputError (file:line) on a missing or non-numeric entry.
 SerialChain readUrCalibrationYaml(const std::string& path);
 
-/// The same chain as a calibrated model of `nominal` (as modelFromUrDeltas).
+/// The same chain as a calibrated model of `nominal` (as modelFromUrDeltas; the same size check,
+/// named by the path).
 RobotModel modelFromUrCalibrationYaml(const RobotDefinition& nominal, const std::string& path);
 
 /// The YAML of a model's flange chain (DH frame 0 to the flange), `not_represented` as in

@@ -10,7 +10,8 @@
 //               default, $WORLD = robot base).
 //   $BASE       the program's base frame relative to $WORLD; targets are T_base_tcp.
 //   So T_world_tcp = T_world_robroot * inverse($ROBROOT) * $BASE * target.
-//   controller  nominal kinematics at T_world_robroot with the program's $TOOL.
+//   controller  nominal kinematics at T_world_robroot with the program's $TOOL (or the
+//               kinematics the controller itself runs: JobSettings::controller_kinematics).
 //   real        the calibrated model (its base, kinematics, compliance, ...) with the
 //               calibrated tool when the program's $TOOL equals the model's nominal tool
 //               within 1e-3 mm and 1e-3 deg (the tool that was calibrated), else with the
@@ -67,6 +68,13 @@ struct JobSettings {
     return o;
   }();
   DensifyOptions densify;  ///< tol_mm is taken from tol_mm above
+  /// The arm's kinematics the controller itself runs, when they are not the nominal robot's:
+  /// a UR controller runs its factory calibration (calibration.conf; `accura export --ur-deltas`
+  /// makes this model). Its links' deviations are used; its base and tool are not (the
+  /// placement and the program's tool apply). It must be a model of calibrated.nominal's robot
+  /// (checkControllerRobot). Empty: the nominal robot. `calibrated` is then the real arm as
+  /// identified (starting from the factory calibration, or not: it is the whole real arm).
+  std::optional<calib::RobotModel> controller_kinematics;
 };
 
 /// One corrected target (in the program's base frame).
