@@ -141,8 +141,7 @@ std::function<postproc::JobSettings()> addJobOptions(CLI::App* c, std::function<
   c->add_option("--program-base", a.program_base, "$BASE x,y,z,A,B,C for motions before the program sets one (the controller's active base)");
   c->add_option("--controller", a.controller,
                 "the kinematics the robot's controller runs when they are not the nominal robot's: a UR controller runs its "
-                "factory calibration (make the model with: accura export --robot ur10 --ur-deltas calibration.conf --format robot); "
-                "default: the nominal robot");
+                "factory calibration (the model accura export makes of its calibration.conf); default: the nominal robot");
   return [args]() { return jobSettings(*args); };
 }
 
