@@ -30,7 +30,7 @@ int runFk(const FkArgs& a) {
     const calib::JointSpec& j = model.nominal.joints[i];
     if (qv[i] < j.lower || qv[i] > j.upper)
       throw calib::InputError("--q: joint " + std::to_string(i + 1) + " (" + j.name + "): expected a value within [" +
-                       fmt("%g", j.lower) + ", " + fmt("%g", j.upper) + "], found " + fmt("%g", qv[i]));
+                       fmt("%.10g", j.lower) + ", " + fmt("%.10g", j.upper) + "], found " + fmt("%.10g", qv[i]));
   }
   if (!(a.payload_kg >= 0)) throw calib::InputError("--payload-kg: expected a mass >= 0");
   calib::KinematicWorkspace ws;

@@ -55,6 +55,7 @@ struct IdentifyRun {
   bool orient = true;                       ///< every set has orientations
   calib::MeasurementSet validation;         ///< --validate or the --holdout poses (may be empty)
   std::string validation_source;
+  std::string holdout_note;                 ///< --holdout: how many poses it keeps from the fit
   calib::IdentifyOptions opt;
   calib::IdentifySummary s;
   calib::RobotModel calibrated;
@@ -102,6 +103,8 @@ void readData(const IdentifyArgs& a, IdentifyRun& r) {
     (i % every == static_cast<size_t>(every - 1) ? r.validation : fit).rows.push_back(data.rows[i]);
   data = fit;
   r.validation_source = "every " + std::to_string(every) + "th pose of " + r.data_names + " (held out)";
+  r.holdout_note = " (" + std::to_string(r.validation.rows.size()) + " of the file's " + std::to_string(fit.rows.size() + r.validation.rows.size()) +
+                   " poses are held out for validation, --holdout " + fmt("%g", a.holdout) + ": --holdout 0 fits them all)";
 }
 
 calib::IdentifyOptions identifyOptions(const IdentifyArgs& a) {
@@ -119,6 +122,16 @@ calib::IdentifyOptions identifyOptions(const IdentifyArgs& a) {
   return opt;
 }
 
+/// calib::identify on the fit data; too few rows: the error says how many poses --holdout took.
+calib::RobotModel identifyFit(const IdentifyRun& r, const calib::IdentifyOptions& o, calib::IdentifySummary* s) {
+  try {
+    return calib::identify(r.start, r.sets, o, s);
+  } catch (const calib::InputError& e) {
+    if (r.holdout_note.empty() || std::string(e.what()).find("too few rows") == std::string::npos) throw;
+    throw calib::InputError(std::string(e.what()) + r.holdout_note);
+  }
+}
+
 /// The errors on the validation data of the calibrated model and of the nominal model with only
 /// the measurement frame and the tool registered (--validate-station new: the station
 /// re-registered for both, robot parameters held fixed).
@@ -127,7 +140,7 @@ void validate(const IdentifyArgs& a, IdentifyRun& r) {
   nominal_opt.groups = {"base", "tool"};
   nominal_opt.loss = "none";
   calib::IdentifySummary ns;
-  const calib::RobotModel nominal_registered = calib::identify(r.start, r.sets, nominal_opt, &ns);
+  const calib::RobotModel nominal_registered = identifyFit(r, nominal_opt, &ns);
   r.outside.assign(static_cast<size_t>(r.start.dof()), Outside{});
   if (!r.hasValidation()) return;
   if (a.validate_station == "new") {
@@ -396,7 +409,7 @@ int runIdentify(const IdentifyArgs& a) {
   r.start = startModel(a);
   readData(a, r);
   r.opt = identifyOptions(a);
-  r.calibrated = calib::identify(r.start, r.sets, r.opt, &r.s);
+  r.calibrated = identifyFit(r, r.opt, &r.s);
   for (const auto& d : r.sets) r.n_rows += d.rows.size();
   validate(a, r);
   for (const auto& d : r.sets) r.orient = r.orient && d.has_orientation;

@@ -135,6 +135,12 @@ TEST(Cli, BadMeasurementFilesGiveLocationAndNonZeroExit) {
   const CliRun r = run("identify --robot kuka_kr16 --holdout 0 --data " + dir + "/few.csv --out " + dir + "/x.xml");
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.err.find("few.csv: too few rows for the parameters asked for: 5 rows give 15 equations"), std::string::npos) << r.err;
+  // with the default --holdout the message says how many poses it took from the file
+  const CliRun held = run("identify --robot kuka_kr16 --data " + dir + "/few.csv --out " + dir + "/x.xml");
+  EXPECT_EQ(held.code, 1);
+  EXPECT_NE(held.err.find("4 rows give 12 equations"), std::string::npos) << held.err;
+  EXPECT_NE(held.err.find("(1 of the file's 5 poses are held out for validation, --holdout 0.2: --holdout 0 fits them all)"),
+            std::string::npos) << held.err;
 }
 
 // Several --data files: the default --holdout (a fraction of one file's poses) does not apply

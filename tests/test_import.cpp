@@ -98,6 +98,11 @@ TEST(Import, BadMappingsAndRowsSayWhereAndWhat) {
               "key 'joints': expected 6 column names, found 5");
   expectError(std::string(m).replace(m.find("euler_intrinsic_xyz"), 19, "euler_sideways_xyz"), header + row, "e.map",
               8, 15, "expected a convention");
+  // two turns about one axis in a row: not a rotation convention (two degrees of freedom)
+  expectError(std::string(m).replace(m.find("euler_intrinsic_xyz"), 19, "euler_intrinsic_xxz"), header + row, "e.map",
+              8, 15, "consecutive ones different: e.g. xyz, zyx, zyz), found 'euler_intrinsic_xxz'");
+  expectError(std::string(m).replace(m.find("euler_intrinsic_xyz"), 19, "euler_extrinsic_zzz"), header + row, "e.map",
+              8, 15, "found 'euler_extrinsic_zzz'");
   expectError(m, "Stamp;J1;J2;J3;J4;J5;J6;Pos X;Pos Y;RX;RY;RZ;SX;SY;SZ;SR;T\n" + row, "e.csv", 1, 1,
               "expected a column 'Pos Z' in the header, found none (mapped as position in");
   expectError(m, header + "1;0;-1;1;0;0.3;0;1;0;1;0;0;0;0,1;0,1;0,1;0,1;20\n", "e.csv", 2, 6,

@@ -382,6 +382,10 @@ TEST_F(MeasurementsTest, ErrorJointOutsideLimits) {
   EXPECT_EQ(std::string(low.what()),
             dataPath() +
                 ":2:1: column 'q1': expected a joint value within the joint limits [-185, 185] deg, found -185.5 deg");
+  // a hair beyond (a URDF's limit in radians, rounded: 2.87979 rad is 164.99981 deg) is read
+  EXPECT_DOUBLE_EQ(read(std::string(kHeader) + "-185.005,0,0,0,0,0,0,0,0\n").rows[0].q[0], -185.005);
+  const InputError beyond = readError(std::string(kHeader) + "-185.02,0,0,0,0,0,0,0,0\n");
+  EXPECT_NE(std::string(beyond.what()).find("found -185.02 deg"), std::string::npos) << beyond.what();
 }
 
 TEST_F(MeasurementsTest, ErrorPrismaticJointLimitInMm) {

@@ -91,6 +91,10 @@ Eigen::Matrix3d rotationFromAngles(const std::string& convention, const Eigen::V
   for (const std::string kind : {"euler_intrinsic_", "euler_extrinsic_"}) {
     if (convention.rfind(kind, 0) == 0 && convention.size() == kind.size() + 3) {
       const std::string ax = convention.substr(kind.size());
+      // two turns about one axis in a row are one turn: such a sequence has two degrees of
+      // freedom and describes no rotation in general (a misspelt convention)
+      if (ax[0] == ax[1] || ax[1] == ax[2])
+        throw ArgumentError("rotation axes '" + ax + "': expected consecutive axes that differ (e.g. xyz, zyx, zyz)");
       const Eigen::Matrix3d R1 = Eigen::AngleAxisd(a[0], axis(ax[0])).toRotationMatrix();
       const Eigen::Matrix3d R2 = Eigen::AngleAxisd(a[1], axis(ax[1])).toRotationMatrix();
       const Eigen::Matrix3d R3 = Eigen::AngleAxisd(a[2], axis(ax[2])).toRotationMatrix();
@@ -215,8 +219,8 @@ MeasurementMapping readMeasurementMapping(const std::string& path, const RobotDe
         rotationFromAngles(conv, Eigen::Vector3d::Zero());
       } catch (const ArgumentError&) {
         throw fail("orientation", "key 'orientation': expected a convention quaternion_wxyz, quaternion_xyzw, "
-                                  "kuka_abc, euler_intrinsic_<axes> or euler_extrinsic_<axes> (axes e.g. xyz, zyx, "
-                                  "zyz), found '" + conv + "'");
+                                  "kuka_abc, euler_intrinsic_<axes> or euler_extrinsic_<axes> (three axes of x, y, z, "
+                                  "consecutive ones different: e.g. xyz, zyx, zyz), found '" + conv + "'");
       }
       expectCount("orientation", m.orientation, {3});
       const std::string ou = lower(require("orientation_unit"));
@@ -362,10 +366,10 @@ void readJoints(const MappedRow& row, const std::vector<int>& jc, const RobotDef
   for (int j = 0; j < n; ++j) {
     const JointSpec& js = robot.joints[j];
     const double v = row.num(jc[j]) * (js.type == JointType::kRevolute ? row.m.joint_scale : row.m.prismatic_scale);
-    if (v < js.lower || v > js.upper) {
+    if (v < js.lower - kJointLimitReadSlack || v > js.upper + kJointLimitReadSlack) {
       const char* unit = js.type == JointType::kRevolute ? "deg" : "mm";
-      char buf[160];
-      std::snprintf(buf, sizeof buf, "expected a joint value within the joint limits [%g, %g] %s, found %.6g %s", js.lower,
+      char buf[200];
+      std::snprintf(buf, sizeof buf, "expected a joint value within the joint limits [%.10g, %.10g] %s, found %.6g %s", js.lower,
                     js.upper, unit, v, unit);
       throw InputError(row.path, row.ln, jc[j] + 1, "column '" + row.header[jc[j]] + "': " + buf);
     }

@@ -413,7 +413,7 @@ Measurement Reader::parseRow(std::string_view text, int line) const {
     switch (c.role) {
       case Role::kQ: {
         const JointSpec& joint = robot_.joints[static_cast<std::size_t>(c.joint)];
-        if (v < joint.lower || v > joint.upper) {
+        if (v < joint.lower - kJointLimitReadSlack || v > joint.upper + kJointLimitReadSlack) {
           const char* unit = joint.type == JointType::kRevolute ? " deg" : " mm";
           fail(line, column,
                where + "expected a joint value within the joint limits [" + shortest(joint.lower) + ", " +

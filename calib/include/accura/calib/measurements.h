@@ -55,7 +55,13 @@ enum class MeasuredValue { kPositionMm, kAngleDeg, kStd, kWeight, kPayloadKg, kT
 /// corrupted file, not a measurement (a denormal std would make its weight infinite).
 std::string implausibleMeasuredValue(MeasuredValue kind, double v);
 
-/// Reads a measurement CSV for `robot` (its dof and joint limits are checked).
+/// A measured joint value this far beyond a joint limit (deg; mm for a prismatic joint) is
+/// still read: a limit from a URDF in radians is rounded (2.87979 rad is 164.99981 deg, and a
+/// robot measured at its controller's limit of 165 deg is right).
+constexpr double kJointLimitReadSlack = 0.01;
+
+/// Reads a measurement CSV for `robot` (its dof and joint limits, with kJointLimitReadSlack,
+/// are checked).
 /// Throws InputError "FILE:LINE:COLUMN: expected ..., found ..." on: unreadable file, missing
 /// or duplicate column, incomplete column group (qw without qx, std_x without std_y, ...),
 /// a q column beyond the robot's joints, wrong field count, a field that is not a finite
