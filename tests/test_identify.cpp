@@ -540,5 +540,35 @@ TEST(Identify, AGroupCanBeRestrictedToSomeJoints) {
   EXPECT_EQ(compliance, (std::vector<std::string>{"j2_compliance", "j3_compliance"}));
 }
 
+TEST(Identify, OrientationsReadInAnotherConventionAreAWarning) {
+  // The same tracker data, its orientations once as written and once turned about x by the
+  // pose's own angle (what reading intrinsic angles as extrinsic ones does): the positions fit
+  // either way, the turned orientations by degrees, which no robot is off by
+  SimulateOptions o;
+  o.effects = {"geometric"};
+  o.orientation = true;
+  o.poses = 120;
+  o.seed = 7;
+  const RobotModel nominal = test::loadBundled("kuka_kr16");
+  const RobotModel truth = perturbModel(nominal, o);
+  const MeasurementSet good = simulateMeasurements(truth, o);
+  MeasurementSet turned = good;
+  for (Measurement& m : turned.rows)
+    m.R_world_tcp = Eigen::Quaterniond(Eigen::AngleAxisd(0.5 * m.q[0] * kDegToRad, Eigen::Vector3d::UnitX())) * m.R_world_tcp;
+  IdentifyOptions opt;
+  IdentifySummary s_good, s_turned;
+  identify(nominal, good, opt, &s_good);
+  identify(nominal, turned, opt, &s_turned);
+  auto warned = [](const IdentifySummary& s) {
+    for (const std::string& w : s.warnings)
+      if (w.find("the orientation data is likely read in another convention or unit") != std::string::npos) return true;
+    return false;
+  };
+  EXPECT_LT(s_good.fit.rot_rms_deg, kImplausibleOrientationRmsDeg);
+  EXPECT_FALSE(warned(s_good));
+  EXPECT_GT(s_turned.fit.rot_rms_deg, kImplausibleOrientationRmsDeg);
+  EXPECT_TRUE(warned(s_turned));
+}
+
 }  // namespace
 }  // namespace accura::calib

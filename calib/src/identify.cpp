@@ -463,6 +463,16 @@ RobotModel identify(const RobotModel& start, const std::vector<MeasurementSet>& 
   Eigen::VectorXd r;
   uncertainties(pb, options, robust, summary, &r);
   summary.fit = evaluate(pb.model, pb.data0);
+  if (summary.fit.has_orientation && summary.fit.rot_rms_deg > kImplausibleOrientationRmsDeg) {
+    char buf[400];
+    std::snprintf(buf, sizeof buf,
+                  "the orientations fit to %.3g deg RMS (max %.3g deg) while the positions fit to %.3g mm: no robot is off by "
+                  "degrees after identification; the orientation data is likely read in another convention or unit than it "
+                  "was written in (a mapping's 'orientation' and 'orientation_unit'), or is another frame's. Check it, or fit "
+                  "the positions only",
+                  summary.fit.rot_rms_deg, summary.fit.rot_max_deg, summary.fit.rms_mm);
+    summary.warnings.push_back(buf);
+  }
   finishSummary(pb, sets, r, options.joint_map_smoothing, &summary);
   // the fitted ranges belong to the model when it learnt something beyond the frames
   if (std::any_of(pb.layout.begin(), pb.layout.end(),

@@ -71,6 +71,11 @@ struct ErrorStats {
   double rot_rms_deg = 0, rot_mean_deg = 0, rot_max_deg = 0, rot_p95_deg = 0;
 };
 
+/// An orientation fit RMS above this (deg) after identification is a warning: a robot is off
+/// by hundredths of a degree, so degrees mean orientation data read in the wrong convention or
+/// unit (IdentifySummary::warnings).
+constexpr double kImplausibleOrientationRmsDeg = 1.0;
+
 struct FixedParameter {
   std::string name;
   std::string reason;
