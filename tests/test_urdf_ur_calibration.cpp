@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <random>
+#include <sstream>
 
 #include "accura/calib/errors.h"
 #include "accura/calib/file_io.h"
@@ -260,6 +261,30 @@ TEST(UrCalibration, YamlRoundTripEqualsUrsFormula) {
   // the nominal UR10's YAML: shoulder z = d1 in metres (ur_description's default 0.1273)
   const std::string nominal_yaml = formatUrCalibrationYaml(RobotModel::fromDefinition(ur10), nullptr);
   EXPECT_NE(nominal_yaml.find("  shoulder:\n    x: 0\n    y: 0\n    z: 0.1273\n"), std::string::npos) << nominal_yaml;
+  // the hash ur_description's xacro reads (marked as accura's: not the factory calibration's)
+  EXPECT_NE(yaml.find("\n  hash: calib_accura_"), std::string::npos) << yaml;
+  // the same YAML as other writers format it: a document start, 4-space indentation, quoted
+  // numbers, one link as a flow mapping: the same chain
+  std::string other = "---\n";
+  std::istringstream lines(yaml);
+  for (std::string l; std::getline(lines, l);) {
+    const size_t indent = l.find_first_not_of(' ');
+    std::string text = l.substr(indent);
+    const size_t colon = text.find(": ");
+    if (indent == 4 && colon != std::string::npos) text = text.substr(0, colon) + ": \"" + text.substr(colon + 2) + "\"";
+    other += std::string(2 * indent, ' ') + text + "\n";
+  }
+  const size_t wrist_3 = other.find("    wrist_3:\n"), hash = other.find("    hash:");
+  ASSERT_NE(wrist_3, std::string::npos);
+  std::string flow = "    wrist_3: {";
+  std::istringstream entries(other.substr(wrist_3 + 13, hash - wrist_3 - 13));
+  for (std::string l; std::getline(entries, l);) flow += (flow.back() == '{' ? "" : ", ") + l.substr(l.find_first_not_of(' '));
+  other = other.substr(0, wrist_3) + flow + "}\n" + other.substr(hash);
+  writeFileAtomically(dir + "/other.yaml", other);
+  const RobotModel o = modelFromUrCalibrationYaml(ur10, dir + "/other.yaml");
+  Eigen::VectorXd q(6);
+  q << 10, -70, 80, -30, 45, 120;
+  EXPECT_LT((forwardKinematics(o, q).translation() - forwardKinematics(y, q).translation()).norm(), 1e-9) << other;
   std::filesystem::remove_all(dir);
 }
 
@@ -301,6 +326,8 @@ TEST(UrCalibration, MalformedFilesGiveFileLineColumnExpectedFound) {
       {"", "k.yaml:1:1: kinematics: expected an entry 'shoulder:', found none"},
       {"kinematics:\n  shoulder:\n    yaw: 0x10\n", "k.yaml:3:10: shoulder.yaw: expected an angle of at most a turn (2 pi rad), found 16 rad"},
       {"kinematics:\n  shoulder:\n    z: 1e23\n", "k.yaml:3:8: shoulder.z: expected an offset of at most 1000 m, found 1e+23 m"},
+      {"kinematics:\n  shoulder:\n    z: 0.1\n    z: 0.5\n", "k.yaml:4:5: 'shoulder.z': expected one value, found a second one (the first at line 3)"},
+      {"kinematics:\n  shoulder:\n\tz: 0.1\n", "k.yaml:3:1: expected spaces for the indentation (YAML allows no tabs there), found a tab"},
   };
   expectErrors(yaml, dir + "/k.yaml", [](const std::string& p) { readUrCalibrationYaml(p); });
   // a YAML that reads but turns a joint against the UR10's (wrist_2's axis flipped by its roll):

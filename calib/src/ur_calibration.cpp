@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
@@ -329,12 +330,34 @@ UrDeltasFromModel urDeltasFromModel(const RobotModel& model) {
 
 SerialChain readUrCalibrationYaml(const std::string& path) {
   const std::vector<std::string> lines = readLines(path, "UR calibration YAML");
-  // The subset ur_calibration writes: "kinematics:", link names indented once, "key: value"
-  // indented twice (and "hash: ..." once).
+  // The subset ur_calibration writes: "kinematics:", link names indented (the first one's
+  // indentation is the links'), "key: value" indented deeper, "hash: ..." at the links' level;
+  // a link may also be written as a flow mapping "shoulder: {x: 0, y: 0, ...}", and a
+  // document may start with "---".
   std::map<std::string, std::map<std::string, double>> values;
+  std::map<std::string, std::map<std::string, int>> value_line;
   std::map<std::string, int> link_line, link_column;
   std::string link;
   int kin_line = 0;
+  size_t link_indent = 0;  // 0: not known yet
+  auto setValue = [&](int line, int key_column, int column, const std::string& key, const std::string& text) {
+    if (link.empty()) throw InputError(path, line, key_column, "'" + key + "' outside a link entry");
+    if (!(key == "x" || key == "y" || key == "z" || key == "roll" || key == "pitch" || key == "yaw"))
+      throw InputError(path, line, key_column, "'" + link + "': expected a key x, y, z, roll, pitch or yaw, found '" + key + "'");
+    if (const auto it = value_line[link].find(key); it != value_line[link].end())
+      throw InputError(path, line, key_column,
+                       "'" + link + "." + key + "': expected one value, found a second one (the first at line " + std::to_string(it->second) + ")");
+    value_line[link][key] = line;
+    // a number may be written as a quoted scalar ("0.1273" or '0.1273')
+    const bool quoted = text.size() >= 2 && (text.front() == '"' || text.front() == '\'') && text.back() == text.front();
+    const double v = parseNumber(path, line, column + (quoted ? 1 : 0), quoted ? text.substr(1, text.size() - 2) : text, link + "." + key);
+    const bool angle = key == "roll" || key == "pitch" || key == "yaw";
+    if (angle ? std::abs(v) > 2 * kPi : std::abs(v) > 1000.0)
+      throw InputError(path, line, column,
+                       link + "." + key + ": expected " + (angle ? "an angle of at most a turn (2 pi rad)" : "an offset of at most 1000 m") +
+                           ", found " + num17(v) + (angle ? " rad" : " m"));
+    values[link][key] = v;
+  };
   for (size_t k = 0; k < lines.size(); ++k) {
     const int line = static_cast<int>(k + 1);
     std::string raw = lines[k];
@@ -343,6 +366,8 @@ SerialChain readUrCalibrationYaml(const std::string& path) {
     const size_t indent = raw.find_first_not_of(' ');
     const int first = columnOfText(raw);
     const std::string l = trim(raw);
+    if (raw[indent] == '\t') throw InputError(path, line, static_cast<int>(indent) + 1, "expected spaces for the indentation (YAML allows no tabs there), found a tab");
+    if (indent == 0 && (l == "---" || l == "...")) continue;  // a YAML document's start and end
     const size_t colon = raw.find(':');
     if (colon == std::string::npos) throw InputError(path, line, first, "expected 'key: value', found '" + l + "'");
     const std::string key = trim(raw.substr(0, colon)), value = trim(raw.substr(colon + 1));
@@ -350,30 +375,40 @@ SerialChain readUrCalibrationYaml(const std::string& path) {
       if (key != "kinematics") throw InputError(path, line, first, "expected 'kinematics:', found '" + l + "'");
       kin_line = line;
       link.clear();
-    } else if (kin_line == 0) {
-      throw InputError(path, line, first, "expected 'kinematics:' before '" + l + "'");
-    } else if (value.empty()) {
+      link_indent = 0;
+      continue;
+    }
+    if (kin_line == 0) throw InputError(path, line, first, "expected 'kinematics:' before '" + l + "'");
+    if (link_indent == 0) link_indent = indent;
+    if (indent < link_indent)
+      throw InputError(path, line, first, "expected an indentation of " + std::to_string(link_indent) + " (the links') or more, found " +
+                                              std::to_string(indent));
+    if (indent == link_indent) {
+      if (key == "hash") continue;
       link = key;
       if (link_line.count(link)) throw InputError(path, line, first, "'" + link + "' given twice");
       link_line[link] = line;
       link_column[link] = first;
-    } else if (key == "hash" && indent < 4) {
+      if (value.empty()) continue;
+      // a flow mapping: {x: 0, y: 0, ...}
+      const size_t open = raw.find('{', colon), close = raw.rfind('}');
+      if (value.front() != '{' || value.back() != '}' || close == std::string::npos)
+        throw InputError(path, line, columnOfText(raw, colon + 1), "'" + link + "': expected its keys on the lines below or as {x: .., ...}, found '" + value + "'");
+      size_t at = open + 1;
+      while (at < close) {
+        size_t end = raw.find(',', at);
+        if (end == std::string::npos || end > close) end = close;
+        const std::string item = raw.substr(at, end - at);
+        const size_t c = item.find(':');
+        const int item_column = columnOfText(raw, at);
+        if (c == std::string::npos) throw InputError(path, line, item_column, "'" + link + "': expected 'key: value', found '" + trim(item) + "'");
+        setValue(line, item_column, columnOfText(raw, at + c + 1), trim(item.substr(0, c)), trim(item.substr(c + 1)));
+        at = end + 1;
+      }
+      link.clear();
       continue;
-    } else {
-      if (link.empty()) throw InputError(path, line, first, "'" + key + "' outside a link entry");
-      if (!(key == "x" || key == "y" || key == "z" || key == "roll" || key == "pitch" || key == "yaw"))
-        throw InputError(path, line, first,
-                         "'" + link + "': expected a key x, y, z, roll, pitch or yaw, found '" + key + "'");
-      const int value_column = columnOfText(raw, colon + 1);
-      const double v = parseNumber(path, line, value_column, value, link + "." + key);
-      const bool angle = key == "roll" || key == "pitch" || key == "yaw";
-      if (angle ? std::abs(v) > 2 * kPi : std::abs(v) > 1000.0)
-        throw InputError(path, line, value_column,
-                         link + "." + key + ": expected " +
-                             (angle ? "an angle of at most a turn (2 pi rad)" : "an offset of at most 1000 m") +
-                             ", found " + num17(v) + (angle ? " rad" : " m"));
-      values[link][key] = v;
     }
+    setValue(line, first, columnOfText(raw, colon + 1), key, value);
   }
   SerialChain c;
   c.name = "UR (ur_calibration YAML)";
@@ -445,6 +480,12 @@ std::string formatUrCalibrationYaml(const RobotModel& model, std::vector<std::st
   if (pending.translation().norm() > 0 || !pending.linear().isIdentity(0))
     notes.push_back("last link: a = " + num17(pending.translation().x()) +
                     " mm / alpha, beta not zero: the YAML's six entries end at the wrist_3 joint; move it into the TCP");
+  // ur_description's xacro reads kinematics.hash (a missing key stops it); the driver compares
+  // it with the connected arm's own calibration hash and warns when they differ, which they do:
+  // this is not the factory calibration. A digest of the numbers above, marked as accura's.
+  std::uint64_t fnv = 1469598103934665603ull;
+  for (const char ch : out.str()) fnv = (fnv ^ static_cast<unsigned char>(ch)) * 1099511628211ull;
+  out << "  hash: calib_accura_" << fnv << "\n";
   if (not_represented) *not_represented = notes;
   return out.str();
 }

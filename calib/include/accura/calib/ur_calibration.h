@@ -80,8 +80,11 @@ UrDeltasFromModel urDeltasFromModel(const RobotModel& model);
 
 /// ur_calibration's YAML ("kinematics:" then shoulder, upper_arm, forearm, wrist_1, wrist_2,
 /// wrist_3, each with x y z roll pitch yaw, metres / radians; roll pitch yaw read as URDF rpy,
-/// the way ur_description applies them). Reads the chain from Base to the flange. Throws
-/// InputError (file:line) on a missing or non-numeric entry.
+/// the way ur_description applies them). Reads the chain from Base to the flange. Block style
+/// with any indentation (the first link's is the links'), a link as a flow mapping
+/// ({x: 0, ...}), quoted numbers and a "---" document start are read; "hash" is skipped.
+/// Throws InputError (file:line:column) on a missing, repeated or non-numeric entry, a tab in
+/// the indentation, an unknown key.
 SerialChain readUrCalibrationYaml(const std::string& path);
 
 /// The same chain as a calibrated model of `nominal` (as modelFromUrDeltas; the same size check,
