@@ -68,6 +68,17 @@ TEST(Import, ReadsDecimalCommaRadiansMetresAndEulerStds) {
   for (int k = 0; k < 3; ++k) EXPECT_NEAR(r.std_rot_deg[k], std::sqrt(S(k, k)), 1e-9);
   ASSERT_EQ(s.unknown_columns.size(), 1u);
   EXPECT_EQ(s.unknown_columns[0], "Extra");
+  // the same export with every field in double quotes (spreadsheet style; a quoted field may
+  // hold the delimiter, "" is one quote): the same numbers
+  test::writeText(dir + "/q.csv",
+                  "\"Stamp\";\"J1\";\"J2\";\"J3\";\"J4\";\"J5\";\"J6\";\"Pos X\";\"Pos Y\";\"Pos Z\";\"RX\";\"RY\";\"RZ\";\"SX\";\"SY\";\"SZ\";\"SR\";\"T\";\"Extra\"\n"
+                  "\"1;a\";\"0,5\";\"-1\";\"1,2\";\"0\";\"0,3\";\"-0,1\";\"1,25\";\"-0,5\";\"0,75\";\"10\";\"-25\";\"40\";\"0,00001\";\"0,00002\";"
+                  "\"0,00003\";\"0,002\";\"21,5\";\"say \"\"x\"\"\"\n");
+  const MeasurementSet q = readMappedMeasurements(dir + "/q.csv", m, kr16());
+  ASSERT_EQ(q.rows.size(), 1u);
+  EXPECT_EQ(q.rows[0].q, r.q);
+  EXPECT_EQ(q.rows[0].p_world_mm, r.p_world_mm);
+  EXPECT_NEAR(q.rows[0].temp_c, 21.5, 1e-12);
 }
 
 void expectError(const std::string& map, const std::string& csv, const std::string& file_suffix, int line, int col,

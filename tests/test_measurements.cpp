@@ -369,6 +369,12 @@ TEST_F(MeasurementsTest, ErrorWrongFieldCount) {
             dataPath() + ":2:10: expected 9 fields as in the header, found 10");
 }
 
+TEST_F(MeasurementsTest, QuotedHeaderNamesAreNamed) {
+  // the native format has no quoting: the error says so (a mapping file reads quoted exports)
+  const InputError e = readError("\"q1\",\"q2\",\"q3\",\"q4\",\"q5\",\"q6\",\"x\",\"y\",\"z\"\n0,0,0,0,0,0,1,2,3\n");
+  EXPECT_NE(std::string(e.what()).find("the format has no quoting, found the quoted name \"q1\""), std::string::npos) << e.what();
+}
+
 TEST_F(MeasurementsTest, ErrorJointOutsideLimits) {
   std::string text = kHeader;
   for (int i = 0; i < 18; ++i) text += kRow;  // lines 2..19

@@ -83,6 +83,15 @@ TEST(RobotIo, BadFilesGiveFileLineAndWhat) {
                        "lower=\"-10\" upper=\"10\" mass_kg=\"1\" com_x_mm=\"0\" com_y_mm=\"0\" com_z_mm=\"0\"/>\n"
                        "  </joints>\n</robot>\n",
                    6, "'a_mm': expected a finite number, found '1,5'");
+  // hexadecimal (which strtod would read as 680) is not a number of the format
+  expectRobotError("hex_number", std::string(kHead) +
+                       "    <joint name=\"j\" type=\"revolute\" a_mm=\"0x2A8\" alpha_deg=\"90\" d_mm=\"0\" theta0_deg=\"0\" direction=\"1\" "
+                       "lower=\"-10\" upper=\"10\" mass_kg=\"1\" com_x_mm=\"0\" com_y_mm=\"0\" com_z_mm=\"0\"/>\n"
+                       "  </joints>\n</robot>\n",
+                   6, "'a_mm': expected a finite number, found '0x2A8'");
+  // two joints of one name
+  expectRobotError("same_name", std::string(kHead) + good_joint + good_joint + "  </joints>\n</robot>\n", 7,
+                   "<joint>: expected a name of its own, found 'j', the name of joint 1");
   expectRobotError("bad_direction", std::string(kHead) +
                        "    <joint name=\"j\" type=\"revolute\" a_mm=\"1\" alpha_deg=\"90\" d_mm=\"0\" theta0_deg=\"0\" direction=\"2\" "
                        "lower=\"-10\" upper=\"10\" mass_kg=\"1\" com_x_mm=\"0\" com_y_mm=\"0\" com_z_mm=\"0\"/>\n"

@@ -42,6 +42,39 @@ std::vector<std::string> splitOn(const std::string& s, char sep) {
   return out;
 }
 
+/// The fields of an export's line: split at `sep`, a field in double quotes taken as its text
+/// (it may hold the delimiter; "" is one quote), as spreadsheet and instrument exports write
+/// them (RFC 4180). Spaces around a quoted field are kept out of it.
+std::vector<std::string> splitFields(const std::string& s, char sep) {
+  std::vector<std::string> out;
+  std::string cur;
+  bool quoted = false, was_quoted = false;
+  for (size_t i = 0; i < s.size(); ++i) {
+    const char c = s[i];
+    if (quoted) {
+      if (c == '"' && i + 1 < s.size() && s[i + 1] == '"') {
+        cur += '"';
+        ++i;
+      } else if (c == '"') {
+        quoted = false;
+      } else {
+        cur += c;
+      }
+    } else if (c == '"' && cur.find_first_not_of(" \t") == std::string::npos && !was_quoted) {
+      quoted = was_quoted = true;
+      cur.clear();
+    } else if (c == sep) {
+      out.push_back(cur);
+      cur.clear();
+      was_quoted = false;
+    } else if (!(was_quoted && (c == ' ' || c == '\t' || c == '\r'))) {
+      cur += c;
+    }
+  }
+  out.push_back(cur);
+  return out;
+}
+
 std::vector<std::string> readLines(const std::string& path) {
   std::ifstream f(path, std::ios::binary);
   if (!f) throw InputError(path, 0, 0, "cannot open file");
@@ -267,7 +300,7 @@ MappedHeader readHeader(const std::string& path, const std::vector<std::string>&
   while (h.row < lines.size() && (trim(lines[h.row]).empty() || trim(lines[h.row])[0] == '#')) ++h.row;
   if (h.row == lines.size()) throw InputError(path, 1, 1, "expected a header row, found an empty file");
   h.line = static_cast<int>(h.row) + 1;
-  h.names = splitOn(lines[h.row], delimiter);
+  h.names = splitFields(lines[h.row], delimiter);
   for (size_t c = 0; c < h.names.size(); ++c) {
     h.names[c] = trim(h.names[c]);
     const std::string key = lower(h.names[c]);
@@ -477,7 +510,7 @@ MeasurementSet readMappedMeasurements(const std::string& path, const Measurement
   for (size_t li = h.row + 1; li < lines.size(); ++li) {
     const std::string t = trim(lines[li]);
     if (t.empty() || t[0] == '#') continue;
-    const MappedRow row{path, h.names, m, static_cast<int>(li) + 1, splitOn(lines[li], m.delimiter)};
+    const MappedRow row{path, h.names, m, static_cast<int>(li) + 1, splitFields(lines[li], m.delimiter)};
     if (row.f.size() != h.names.size())
       throw InputError(path, row.ln, static_cast<int>(std::min(row.f.size(), h.names.size())) + 1,
                        "expected " + std::to_string(h.names.size()) + " fields as in the header, found " +

@@ -309,6 +309,12 @@ void Reader::checkGroups(int line) const {
         L.columns[0].name.find_first_of(";\t") != std::string::npos) {
       msg += "; the delimiter is ',', found a header with ';' or tabs";
     }
+    for (const auto& c : L.columns)
+      if (!c.name.empty() && c.name.front() == '"') {
+        msg += "; the format has no quoting, found the quoted name " + c.name +
+               " (remove the quotes, or read the export through a mapping file: docs/measurement-mapping.md)";
+        break;
+      }
     fail(line, 1, msg);
   }
 

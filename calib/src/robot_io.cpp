@@ -81,7 +81,9 @@ class Reader {
     const double v = std::strtod(s.c_str(), &end);
     const bool converted = end != s.c_str();  // " " converts nothing: not a zero
     while (end && (*end == ' ' || *end == '\t')) ++end;
-    if (s.empty() || !converted || *end != '\0' || !std::isfinite(v)) {
+    // decimal only: strtod also reads hexadecimal ("0x2A8" as 680) and "infinity"
+    const bool decimal = s.find_first_of("xXpP") == std::string::npos;
+    if (s.empty() || !converted || *end != '\0' || !std::isfinite(v) || !decimal) {
       failAttribute(e, name, "<" + std::string(e->Name()) + "> attribute '" + name +
                                  "': expected a finite number, found '" + s + "'");
     }
@@ -211,7 +213,14 @@ RobotDefinition readDefinition(const Reader& R, const XMLElement* root) {
   }
   const XMLElement* joints = R.child(root, "joints", true);
   R.checkAttributes(joints, {});
-  for (const XMLElement* j = joints->FirstChildElement(); j; j = j->NextSiblingElement()) def.joints.push_back(readJoint(R, j));
+  for (const XMLElement* j = joints->FirstChildElement(); j; j = j->NextSiblingElement()) {
+    def.joints.push_back(readJoint(R, j));
+    // names identify joints (messages, the mapping files' joints, URDF export): one per joint
+    const std::string& name = def.joints.back().name;
+    for (size_t k = 0; k + 1 < def.joints.size(); ++k)
+      if (!name.empty() && def.joints[k].name == name)
+        R.failAttribute(j, "name", "<joint>: expected a name of its own, found '" + name + "', the name of joint " + std::to_string(k + 1));
+  }
   if (def.joints.empty()) R.fail(joints, "<joints>: expected at least one <joint>, found none");
   return def;
 }
