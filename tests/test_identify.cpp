@@ -540,6 +540,47 @@ TEST(Identify, AGroupCanBeRestrictedToSomeJoints) {
   EXPECT_EQ(compliance, (std::vector<std::string>{"j2_compliance", "j3_compliance"}));
 }
 
+TEST(Identify, DataThatNoFrameRegistersIsRefusedNamingWhy) {
+  // tracker data (the station 3 m away) with groups that have no 'base': nothing registers the
+  // frame, and the fit would put the error into a compliance (the probe's 2.9 m "fit")
+  SimulateOptions o;
+  o.effects = {"geometric"};
+  o.poses = 80;
+  const RobotModel nominal = test::loadBundled("kuka_kr16");
+  const RobotModel truth = perturbModel(nominal, o);
+  const MeasurementSet data = simulateMeasurements(truth, o);
+  IdentifyOptions compliance_only;
+  compliance_only.groups = {"joint_compliance:j2"};
+  try {
+    identify(nominal, data, compliance_only, nullptr);
+    FAIL() << "expected an InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("have no 'base' to register the measurement frame"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("--params base,joint_compliance:j2"), std::string::npos) << e.what();
+  }
+  // with base it fits (the same groups otherwise)
+  compliance_only.groups = {"base", "joint_compliance:j2"};
+  EXPECT_NO_THROW(identify(nominal, data, compliance_only, nullptr));
+  // two data sets said to share a station that do not: the second moved by 100 mm
+  MeasurementSet moved = data;
+  moved.file = "moved.csv";
+  for (Measurement& m : moved.rows) m.p_world_mm += Eigen::Vector3d(100, 0, 0);
+  IdentifyOptions same;
+  same.groups = {"geometric"};
+  same.same_station = true;
+  try {
+    identify(nominal, std::vector<MeasurementSet>{data, moved}, same, nullptr);
+    FAIL() << "expected an InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("moved.csv: expected data sets that share one station"), std::string::npos) << e.what();
+  }
+  // each from its own station: they fit
+  same.same_station = false;
+  IdentifySummary s;
+  identify(nominal, std::vector<MeasurementSet>{data, moved}, same, &s);
+  EXPECT_LT(s.fit.rms_mm, 0.1);
+}
+
 TEST(Identify, OrientationsReadInAnotherConventionAreAWarning) {
   // The same tracker data, its orientations once as written and once turned about x by the
   // pose's own angle (what reading intrinsic angles as extrinsic ones does): the positions fit

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <map>
 #include <filesystem>
 
@@ -85,6 +86,32 @@ TEST(JointMap, CentringRowsMeasureMeanAndTrend) {
   double trend = 0;
   for (size_t k = 0; k < m.coef.size(); ++k) trend += rows[1][k] * m.coef[k];
   EXPECT_NEAR(trend, 0.0, 1e-12);
+}
+
+TEST(JointMap, TooManyCoefficientsAreRefusedBeforeAnySolve) {
+  // six joints over 180 deg each: 0.5 deg gives 6 x (360 + 3) = 2178 coefficients (within the
+  // limit), 0.1 deg 6 x 1803 = 10818 (refused, naming the spacing that fits)
+  const std::vector<JointRange> six(6, JointRange{-90, 90});
+  EXPECT_NO_THROW(checkJointMapSize(six, 0.5));
+  try {
+    checkJointMapSize(six, 0.1);
+    FAIL() << "expected an InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("gives 10818 map coefficients"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("a spacing of at least 0.4"), std::string::npos) << e.what();
+  }
+  // identify refuses it at once, with the smoothing stated or chosen by cross-validation
+  SimulateOptions o;
+  o.effects = {"geometric"};
+  o.poses = 100;
+  const RobotModel nominal = test::loadBundled("kuka_kr16");
+  const MeasurementSet data = simulateMeasurements(perturbModel(nominal, o), o);
+  for (const double smoothing : {0.003, std::numeric_limits<double>::quiet_NaN()}) {
+    IdentifyOptions io;
+    io.groups = {"geometric", "joint_map@0.01deg"};
+    io.joint_map_smoothing = smoothing;
+    EXPECT_THROW(identify(nominal, data, io, nullptr), InputError) << smoothing;
+  }
 }
 
 TEST(JointMap, KnotSpacingIsParsedWithItsUnit) {
@@ -359,11 +386,15 @@ TEST(JointMap, SeveralDataSetsEachFromItsOwnStation) {
   EXPECT_LT(Eigen::AngleAxisd(rel.linear() * rel_true.linear().transpose()).angle() * kRadToDeg, 0.001);  // deg
   EXPECT_LT(s.fit.rms_mm, 0.05);  // noise 0.02 mm per axis
   EXPECT_EQ(s.fit.n, 500);
-  // told (wrongly) that they share a station, the fit cannot explain the data
+  // told (wrongly) that they share a station: refused, naming the second set (it used to fit
+  // them into one station and leave metres unexplained)
   o.same_station = true;
-  IdentifySummary s1;
-  identify(nominal, std::vector<MeasurementSet>{a, b}, o, &s1);
-  EXPECT_GT(s1.fit.rms_mm, 10 * s.fit.rms_mm);
+  try {
+    identify(nominal, std::vector<MeasurementSet>{a, b}, o, nullptr);
+    FAIL() << "expected an InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("expected data sets that share one station"), std::string::npos) << e.what();
+  }
   (void)m;
 }
 

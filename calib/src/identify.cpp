@@ -310,6 +310,10 @@ Problem setUp(const RobotModel& start, const std::vector<MeasurementSet>& sets, 
       }
       model.deviations.joint_map[static_cast<size_t>(j)] = makeJointMap(c.lower, c.upper, stated_knot);
     }
+    std::vector<JointRange> mapped;
+    for (int j = 0; j < n; ++j)
+      if (!model.deviations.joint_map[static_cast<size_t>(j)].empty()) mapped.push_back(summary.coverage[static_cast<size_t>(j)]);
+    checkJointMapSize(mapped, stated_knot);
   }
   // The candidate parameters: those of the requested groups (tool rotation only with
   // orientation data). Every other deviation stays as it is in `start` and is not part of
@@ -376,17 +380,33 @@ void registration(Problem& pb, const std::vector<MeasurementSet>& sets, const Id
     double s2 = 0;
     for (double e : positionErrors(model, in0)) s2 += e * e;
     summary.registration_rms_mm = std::sqrt(s2 / double(data.rows.size()));
-    if (options.register_frame && groups.count("base") && sets.size() == 1) {
+    const bool base = groups.count("base") > 0;
+    if ((options.register_frame || !base) && (sets.size() == 1 || st.extra == 0)) {
       // measurements of another robot, or in other units (positions in metres, joint angles in
       // radians): no rigid frame brings them within half their own spread of the model's (one
-      // data set: several told to share a station that do not fit one another have their own
-      // test, JointMap.SeveralDataSetsEachFromItsOwnStation)
+      // data set, or several told to share a station; several stations have their own test,
+      // JointMap.SeveralDataSetsEachFromItsOwnStation). Without 'base' nothing registers the
+      // frame: data in a tracker's frame lies metres from the model
       Eigen::Vector3d c = Eigen::Vector3d::Zero();
       for (const Measurement& r : in0.rows) c += r.p_world_mm;
       c /= double(in0.rows.size());
       double spread2 = 0;
       for (const Measurement& r : in0.rows) spread2 += (r.p_world_mm - c).squaredNorm();
       const double spread = std::sqrt(spread2 / double(in0.rows.size()));
+      if (summary.registration_rms_mm > 10.0 && summary.registration_rms_mm > 0.5 * spread && !base)
+        throw InputError(sets[0].file, 0, 0,
+                         "expected measurements in the model's world frame: the groups asked for have no 'base' to register the "
+                         "measurement frame (the tracker's), and the measured positions lie " + formatFixed(summary.registration_rms_mm, 1) +
+                             " mm RMS from the model's; add base (e.g. --params base," + options.groups.front() +
+                             ", or geometric,...), or start from a model identified in this station");
+      // several sets said to share a station: a nominal robot registered in the right frame is
+      // within millimetres (the real UR10: 1.1 mm); tens of millimetres is two stations
+      if (summary.registration_rms_mm > kMaxSharedStationRmsMm && sets.size() > 1)
+        throw InputError(sets[1].file, 0, 0,
+                         "expected data sets that share one station (they were said to: --same-station): registered together, the "
+                         "measured positions lie " + formatFixed(summary.registration_rms_mm, 1) + " mm RMS from the model's, more than " +
+                             formatFixed(kMaxSharedStationRmsMm, 0) + " mm; give each its own station (leave out --same-station), or "
+                             "check the units and the joint order");
       if (summary.registration_rms_mm > 10.0 && summary.registration_rms_mm > 0.5 * spread)
         throw InputError(sets[0].file, 0, 0,
                          "expected measurements of " + model.nominal.name + " in mm and deg: after the measurement frame is registered, the " +
@@ -463,7 +483,7 @@ RobotModel identify(const RobotModel& start, const std::vector<MeasurementSet>& 
   Eigen::VectorXd r;
   uncertainties(pb, options, robust, summary, &r);
   summary.fit = evaluate(pb.model, pb.data0);
-  if (summary.fit.has_orientation && summary.fit.rot_rms_deg > kImplausibleOrientationRmsDeg) {
+  if (summary.fit.has_orientation && summary.fit.rot_rms_deg > kImplausibleOrientationRmsDeg && summary.fit.rms_mm < 10.0) {
     char buf[400];
     std::snprintf(buf, sizeof buf,
                   "the orientations fit to %.3g deg RMS (max %.3g deg) while the positions fit to %.3g mm: no robot is off by "

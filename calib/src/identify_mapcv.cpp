@@ -41,6 +41,7 @@ RobotModel identifyWithMapCv(const RobotModel& start, const std::vector<Measurem
     cv_joints.push_back(j);
     ranges.push_back(c);
   }
+  for (const double knot : knots) checkJointMapSize(ranges, knot);  // before the cross-validation's dense solves
   IdentifyOptions o1 = options;
   o1.groups.clear();
   for (const auto& g : options.groups) o1.groups.push_back(g.substr(0, g.find('@')));

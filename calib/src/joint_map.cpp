@@ -107,6 +107,20 @@ JointMap makeJointMap(double lower, double upper, double knot) {
   return m;
 }
 
+void checkJointMapSize(const std::vector<JointRange>& ranges, double knot) {
+  size_t coefficients = 0;
+  double covered = 0;
+  for (const JointRange& r : ranges) {
+    coefficients += static_cast<size_t>(std::max(1.0, std::ceil((r.upper - r.lower) / knot - 1e-9))) + 3;
+    covered += r.upper - r.lower;
+  }
+  if (coefficients <= kMaxJointMapCoefficients) return;
+  const double fits = std::ceil(10 * covered / static_cast<double>(kMaxJointMapCoefficients - 4 * ranges.size())) / 10;
+  throw InputError("joint_map: a knot spacing of " + formatFixed(knot, 3) + " gives " + std::to_string(coefficients) +
+                   " map coefficients over the joints' covered ranges; expected at most " + std::to_string(kMaxJointMapCoefficients) +
+                   " (they are solved densely): a spacing of at least " + formatFixed(fits, 1));
+}
+
 double jointMapAmplitude(const JointMap& map) {
   if (map.empty()) return 0;
   double a = 0;

@@ -76,6 +76,12 @@ struct ErrorStats {
 /// unit (IdentifySummary::warnings).
 constexpr double kImplausibleOrientationRmsDeg = 1.0;
 
+/// Several data sets said to share one station (IdentifyOptions::same_station) that lie more
+/// than this far (mm RMS) from the start model after registering that one station are refused:
+/// a robot registered in the right frame is within millimetres, so tens of millimetres are two
+/// stations (InputError naming the second file).
+constexpr double kMaxSharedStationRmsMm = 25.0;
+
 struct FixedParameter {
   std::string name;
   std::string reason;

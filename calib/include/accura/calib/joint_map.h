@@ -54,6 +54,16 @@ std::vector<std::vector<double>> jointMapCentringRows(const JointMap& map, const
 /// Low harmonics kept out of a revolute joint's map (see jointMapCentringRows); prismatic: 0.
 constexpr int kJointMapCentredHarmonics = 1;
 
+/// The most map coefficients identify solves (all joints together): they are solved densely,
+/// and beyond this a run takes minutes to hours (a knot spacing of 0.1 deg on six joints) while
+/// no data set determines that many. The finest spacing the cross-validation tries (1.5 deg)
+/// gives at most 6 x 243 = 1458.
+constexpr size_t kMaxJointMapCoefficients = 3000;
+
+/// Throws InputError when maps of spacing `knot` over `ranges` (one per mapped joint) would
+/// have more than kMaxJointMapCoefficients coefficients, naming the spacing that fits.
+void checkJointMapSize(const std::vector<JointRange>& ranges, double knot);
+
 /// Parses a knot spacing as given on the command line: "3deg", "3" (deg for revolute joints) or
 /// "5mm" (prismatic). Returns false with *error on anything else (not a positive finite number,
 /// unknown unit).
