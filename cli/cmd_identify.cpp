@@ -284,8 +284,9 @@ void printValidation(const IdentifyArgs& a, const IdentifyRun& r) {
               r.orient ? "; orientation deg: RMS mean p95 max" : "");
   if (!a.quiet && !r.station_note.empty()) std::printf("  %s\n", r.station_note.c_str());
   if (r.outside_rows > 0) {
-    std::printf("  %d of %d validation poses %s outside the joint ranges of the fit data (joint-dependent effects "
-                "are not extrapolated there):", r.outside_rows, r.val.n, r.outside_rows == 1 ? "lies" : "lie");
+    std::printf("  %d of %d validation poses %s outside the joint ranges of the fit data (joint maps are zero there; the "
+                "other joint-dependent effects, such as gear_periodic, joint_scale and compliance, are extrapolated):",
+                r.outside_rows, r.val.n, r.outside_rows == 1 ? "lies" : "lie");
     const char* separator = " ";
     for (int j = 0; j < r.start.dof(); ++j) {
       const Outside& o = r.outside[static_cast<size_t>(j)];
@@ -299,9 +300,14 @@ void printValidation(const IdentifyArgs& a, const IdentifyRun& r) {
   }
   printStatsRow("nominal", r.nom_val);
   printStatsRow("calibrated", r.val);
-  if (r.val.rms_mm > 0)
+  if (r.val.rms_mm > 0 && r.val.rms_mm <= r.nom_val.rms_mm)
     std::printf("  position RMS improved %.1f-fold (%.4f -> %.4f mm)\n", r.nom_val.rms_mm / r.val.rms_mm, r.nom_val.rms_mm,
                 r.val.rms_mm);
+  else if (r.val.rms_mm > 0)
+    std::printf("  WARNING: position RMS %.1f-fold WORSE than the nominal robot's (%.4f -> %.4f mm): the calibrated model does not "
+                "carry over to these poses%s\n",
+                r.val.rms_mm / r.nom_val.rms_mm, r.nom_val.rms_mm, r.val.rms_mm,
+                2 * r.outside_rows > r.val.n ? " (most lie outside the fitted joint ranges: leave out the effects fitted there)" : "");
 }
 
 /// The comment at the top of the calibrated model file.

@@ -220,7 +220,8 @@ TEST(CliIdentify, ValidationOutsideTheFitRangesReadsAsASentence) {
   const int n = j["poses"].get<int>();
   ASSERT_GT(n, 0) << "60 fit poses leave some of 200 validation poses outside their ranges";
   std::string expected = "  " + std::to_string(n) + " of 200 validation poses " + (n == 1 ? "lies" : "lie") +
-                         " outside the joint ranges of the fit data (joint-dependent effects are not extrapolated there):";
+                         " outside the joint ranges of the fit data (joint maps are zero there; the other joint-dependent effects, "
+                         "such as gear_periodic, joint_scale and compliance, are extrapolated):";
   const char* separator = " ";
   for (const auto& o : j["joints"]) {
     const int k = o["poses"].get<int>();
