@@ -219,6 +219,17 @@ TEST(RealUr10, DiagnosisFindsTheResidualUnexplained) {
   }
   EXPECT_TRUE(map_tested);
   EXPECT_TRUE(scale_rejected);
+  // every confounded / overlap line is one comparison: its verdict follows its own p, and the
+  // unselected effect's RMS alone is the ranking's for that effect's best block (a line merging
+  // several joints' numbers said "cannot tell them apart" next to p = 4e-15)
+  for (const auto& c : j["confounded"]) {
+    EXPECT_EQ(c["indistinguishable"].get<bool>(), c["p_a_better"].get<double>() > 0.05) << c.dump();
+    bool ranked = false;
+    for (const auto& r : j["ranking"])
+      if (r["effect"] == c["effect_b"])
+        ranked = ranked || std::abs(r["validation_rms_after_mm"].get<double>() - c["validation_rms_b_alone_mm"].get<double>()) < 1e-9;
+    EXPECT_TRUE(ranked) << c.dump();
+  }
   for (const auto& e : j["selected"]) {
     EXPECT_TRUE(e["implausible"].empty()) << e.dump();
     EXPECT_FALSE(e["coverage"].empty());

@@ -370,7 +370,13 @@ std::string confoundingText(const Confounding& c) {
   const std::string a = c.effect_a + (c.joints_a.empty() ? "" : " " + jointsText(c.joints_a));
   const std::string b = c.effect_b + (c.joints_b.empty() ? "" : " " + jointsText(c.joints_b));
   std::string s;
-  if (c.indistinguishable) {
+  if (c.indistinguishable && c.rms_b_alone_mm < c.rms_a_alone_mm) {
+    // b alone does better on the held-out poses; it is not selected for a reason of its own
+    // (a coverage rule, a blocked fold: see the effects not selected)
+    s = "confounded: " + a + " and " + b + " explain the same residual; " + c.effect_b + " alone does better on the held-out " +
+        "poses (RMS alone " + f("%.4f", c.rms_b_alone_mm) + " vs " + f("%.4f", c.rms_a_alone_mm) + " mm) but is not selected " +
+        "(see 'not selected'; canonical correlation " + f("%.2f", c.canonical_correlation) + ")";
+  } else if (c.indistinguishable) {
     s = "confounded: " + a + " and " + b + " explain the same residual and this data cannot tell them apart (held-out RMS " +
         "alone " + f("%.4f", c.rms_a_alone_mm) + " vs " + f("%.4f", c.rms_b_alone_mm) + " mm, p = " + f("%.2g", c.p_a_better) +
         "; canonical correlation " + f("%.2f", c.canonical_correlation) + ")";

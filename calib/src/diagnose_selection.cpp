@@ -568,6 +568,7 @@ void Diagnoser::confounding() {
   const double thr1 = o_.alpha / double(std::max<size_t>(1, B));
   const Eigen::MatrixXd Jw = wF_.asDiagonal() * JF_;
   std::map<std::pair<std::string, std::string>, Confounding> pairs;
+  std::map<std::pair<std::string, std::string>, double> representative_gain;  // of the block whose comparison a line reports
   for (size_t d = 0; d < B; ++d) {
     if (std::find(sel_blocks_.begin(), sel_blocks_.end(), static_cast<int>(d)) != sel_blocks_.end()) continue;
     if (!(round1_[d].p < thr1 && round1_[d].gain >= o_.min_gain)) continue;  // D alone did not matter
@@ -602,12 +603,19 @@ void Diagnoser::confounding() {
     cf.gain_b_alone = std::max(cf.gain_b_alone, round1_[d].gain);
     cf.gain_b_given_a = std::max(cf.gain_b_given_a, best_given);
     cf.canonical_correlation = std::max(cf.canonical_correlation, canonicalCorrelation(Jw, G_, C.cols, D.cols));
-    // could the data tell them apart? C alone against D alone on the baseline
-    const Gain cd = pairedGain(round1_eval_[d].d, round1_eval_[best_c].d);
-    if (cd.p > 0.05) cf.indistinguishable = true;
-    cf.rms_a_alone_mm = std::sqrt(round1_eval_[best_c].d.mean());
-    cf.rms_b_alone_mm = std::sqrt(round1_eval_[d].d.mean());
-    cf.p_a_better = std::min(cf.p_a_better, cd.p);
+    // could the data tell them apart? C alone against D alone on the baseline. One line may
+    // hold several blocks of D (joints): its comparison is the one of D's block that gained
+    // most alone, all its numbers from that block (a merge of several blocks' numbers
+    // contradicted itself: "cannot tell them apart" next to p = 4e-15)
+    double& representative = representative_gain[{C.effect, D.effect}];
+    if (round1_[d].gain > representative) {
+      representative = round1_[d].gain;
+      const Gain cd = pairedGain(round1_eval_[d].d, round1_eval_[best_c].d);
+      cf.indistinguishable = cd.p > 0.05;
+      cf.rms_a_alone_mm = std::sqrt(round1_eval_[best_c].d.mean());
+      cf.rms_b_alone_mm = std::sqrt(round1_eval_[d].d.mean());
+      cf.p_a_better = cd.p;
+    }
   }
   for (auto& kv : pairs) {
     Confounding& cf = kv.second;
