@@ -230,11 +230,14 @@ void printSetup(const IdentifyArgs& a, const IdentifyRun& r) {
       std::printf("  knot %s not tried: the finest spacing tried was no better than the one before it\n", finer.c_str());
     }
   }
-  for (const auto& mrep : s.joint_maps)
-    std::printf("joint_map j%d: %.1f..%.1f %s, knot %.3g %s, %d coefficients, smoothing %g; amplitude %.4g %s, "
+  for (const auto& mrep : s.joint_maps) {
+    // a map the run did not fit (held as the start model has it) has no smoothing of this run
+    const std::string smoothing = std::isfinite(mrep.smoothing) ? "smoothing " + fmt("%g", mrep.smoothing) : "held from the start model";
+    std::printf("joint_map j%d: %.1f..%.1f %s, knot %.3g %s, %d coefficients, %s; amplitude %.4g %s, "
                 "RMS over the fit data %.4g %s; zero outside the interval (taper of one knot)\n",
                 mrep.joint, mrep.lower, mrep.upper, mrep.unit.c_str(), mrep.knot, mrep.unit.c_str(), mrep.coefficients,
-                mrep.smoothing, mrep.amplitude, mrep.unit.c_str(), mrep.rms, mrep.unit.c_str());
+                smoothing.c_str(), mrep.amplitude, mrep.unit.c_str(), mrep.rms, mrep.unit.c_str());
+  }
 }
 
 /// Suspicious and down-weighted rows, the station (also as --base takes it), the parameters and
@@ -418,6 +421,15 @@ int runIdentify(const IdentifyArgs& a) {
   r.start = startModel(a);
   readData(a, r);
   r.opt = identifyOptions(a);
+  // the file's std columns win (--help): say so rather than drop the option without a word
+  for (const calib::MeasurementSet& set : r.sets) {
+    if (a.std_mm > 0 && set.has_std_position)
+      std::fprintf(stderr, "accura: warning: --std-mm %g not used for %s: its std columns give each row's position std\n", a.std_mm,
+                   set.file.c_str());
+    if (a.std_deg > 0 && set.has_std_orientation)
+      std::fprintf(stderr, "accura: warning: --std-deg %g not used for %s: its std columns give each row's orientation std\n", a.std_deg,
+                   set.file.c_str());
+  }
   r.calibrated = identifyFit(r, r.opt, &r.s);
   for (const auto& d : r.sets) r.n_rows += d.rows.size();
   validate(a, r);

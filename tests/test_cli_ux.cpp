@@ -210,6 +210,26 @@ TEST(CliIdentify, QuietVerboseAndTheStationApartFromTheDeviations) {
 // identify: the validation poses outside the fit's joint ranges in plain words (one pose, two
 // poses; numbers to three digits, no trailing separator), built here from the --json report's
 // numbers; --validate's help names the station rule of --validate-station.
+// identify: options that cannot both apply are refused or said to be unused, never dropped
+// without a word; a map the run holds (not refits) has no smoothing of this run.
+TEST(CliIdentify, OptionsThatDoNotApplyAreSaid) {
+  const std::string dir = test::tempDir("cli_ux_unused");
+  ASSERT_EQ(run("simulate --robot kuka_kr16 --poses 80 --seed 5 --std --out fit.csv --truth truth.xml", dir).code, 0);
+  ASSERT_EQ(run("simulate --robot truth.xml --effects none --poses 40 --seed 6 --out val.csv", dir).code, 0);
+  const CliRun both = run("identify --robot kuka_kr16 --data fit.csv --validate val.csv --holdout 0.3 --out a.xml", dir);
+  EXPECT_EQ(both.code, 1);
+  EXPECT_NE(both.err.find("--holdout and --validate: expected one of them"), std::string::npos) << both.err;
+  const CliRun std_mm = run("identify --robot kuka_kr16 --data fit.csv --std-mm 0.05 --out b.xml", dir);
+  ASSERT_EQ(std_mm.code, 0) << std_mm.err;
+  EXPECT_NE(std_mm.err.find("warning: --std-mm 0.05 not used for fit.csv: its std columns give each row's position std"),
+            std::string::npos) << std_mm.err;
+  ASSERT_EQ(run("identify --robot kuka_kr16 --data fit.csv --params geometric,joint_map:j2@10deg --map-smoothing 0.01 --out m.xml", dir).code, 0);
+  const CliRun held = run("identify --robot m.xml --data fit.csv --params base --out h.xml", dir);
+  ASSERT_EQ(held.code, 0) << held.err;
+  EXPECT_NE(held.out.find("coefficients, held from the start model;"), std::string::npos) << held.out;
+  EXPECT_EQ(held.out.find("smoothing nan"), std::string::npos) << held.out;
+}
+
 TEST(CliIdentify, ValidationOutsideTheFitRangesReadsAsASentence) {
   const std::string dir = test::tempDir("cli_ux_outside");
   ASSERT_EQ(run("simulate --robot kuka_kr16 --tool 80,40,150 --poses 60 --seed 5 --out fit.csv --truth truth.xml", dir).code, 0);
