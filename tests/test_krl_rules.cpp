@@ -241,6 +241,39 @@ TEST(KrlRules, AComponentUnchangedAtThePrecisionWrittenKeepsItsText) {
   EXPECT_EQ(writeKrl(p).dat, "DEFDAT p\nDECL E6POS XP1={X 100.0,Y 0.2000,Z 20.0,A 160.0,B 10.0,C 170.0,S 2,T 10}\nENDDAT\n");
 }
 
+TEST(KrlRules, APtpNextToAWristSingularityThatTurnsTheWristIsAWarning) {
+  // the off-line program's joints: A5 0.1 deg from the wrist singularity; the real robot
+  // reaches the pose only with A4 and A6 turned by degrees (they trade freely next to A5 = 0).
+  // A second target with the wrist well bent: nothing to say.
+  const StCell cell;
+  const Eigen::VectorXd near = joints({0.3, -90, 95, 0.2, 0.1, -0.4}), bent = joints({10, -80, 100, 20, 45, 30});
+  const calib::Configuration c_near = calib::kukaConfiguration(cell.controller, near), c_bent = calib::kukaConfiguration(cell.controller, bent);
+  const std::string dir = test::tempDir("krl_posture");
+  test::writeText(dir + "/p.src", "DEF p( )\n$TOOL = {X 20,Y 0,Z 250,A 0,B -30,C 0}\n$BASE = $NULLFRAME\n"
+                                  "PTP {A1 0,A2 -90,A3 90,A4 0,A5 45,A6 0}\nPTP XP1\nPTP XP2\nEND\n");
+  test::writeText(dir + "/p.dat", "DEFDAT p\nDECL E6POS XP1=" + aggregate(cell.target(near), c_near.status, c_near.turn) +
+                                      "\nDECL E6POS XP2=" + aggregate(cell.target(bent), c_bent.status, c_bent.turn) + "\nENDDAT\n");
+  JobSettings s;
+  s.calibrated = cell.real;
+  const ProgramCompensation pc = compensateProgramReport(readProgram(dir + "/p.src"), s);
+  ASSERT_TRUE(pc.ok()) << pc.report.errors.front().message;
+  // the expectation on its own: the real robot's joints for each pose on its S/T, against the
+  // off-line joints
+  const calib::KinematicSolver real(cell.real);
+  auto change = [&](const Eigen::VectorXd& q, const calib::Configuration& c) {
+    const calib::IkResult r = real.inverse(cell.target(q), c, q, calib::IkOptions{});
+    EXPECT_EQ(r.status, calib::IkStatus::kOk) << r.message;
+    return r.status == calib::IkStatus::kOk ? (r.q - q).cwiseAbs().maxCoeff() : 0.0;
+  };
+  EXPECT_GT(change(near, c_near), kPostureChangeDeg);
+  EXPECT_LT(change(bent, c_bent), 1.0);
+  std::vector<std::string> said;
+  for (const auto& w : pc.report.warnings)
+    if (w.message.find("another arm posture") != std::string::npos) said.push_back(w.message);
+  ASSERT_EQ(said.size(), 1u);
+  EXPECT_EQ(said[0].rfind("XP1: the compensated joints differ from the nominal robot's for this pose by up to ", 0), 0u) << said[0];
+}
+
 TEST(KrlRules, AnglesAreWrittenInTheFormTheProgramUses) {
   // (A, B, C) and (A + 180, 180 - B, C + 180) and any angle +- 360 are one rotation: the
   // written form is kept, so a correction that rounds to zero keeps the text

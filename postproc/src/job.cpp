@@ -75,6 +75,27 @@ class Job {
     if (!cp_where_.line) cp_where_ = m.where;
   }
 
+  /// A PTP target whose compensated joints lie far from the joints the nominal robot (the
+  /// OLP's simulation) takes for it: next to a wrist singularity a sub-millimetre correction can
+  /// turn A4 and A6 by tens of degrees. The pose is reached, but the arm's posture differs
+  /// (cables, dress pack, clearance): a warning naming the joint and how far.
+  void notePostureChange(const Motion& m, const Target& t, const Compensator& comp, const Eigen::Isometry3d& T_world_target,
+                         const calib::Configuration& config, const Eigen::VectorXd& seed, const Eigen::VectorXd& q_real) {
+    calib::IkOptions o = s_.ik;
+    o.singular_threshold = 0;  // the off-line joints may lie closer to the singularity than the real ones
+    const calib::IkResult nominal = comp.controller().inverse(T_world_target, config, seed, o, calib::PoseContext{});
+    if (nominal.status != calib::IkStatus::kOk || nominal.q.size() != q_real.size()) return;
+    Eigen::Index joint = 0;
+    const double change = (q_real - nominal.q).cwiseAbs().maxCoeff(&joint);
+    if (!(change > kPostureChangeDeg)) return;
+    const bool revolute = comp.controller().model().nominal.joints[static_cast<size_t>(joint)].type == calib::JointType::kRevolute;
+    warning(m.where, targetLabel(t) + ": the compensated joints differ from the nominal robot's for this pose by up to " +
+                         calib::formatFixed(change, 1) + (revolute ? " deg" : " mm") + " (joint " + std::to_string(joint + 1) + ": " +
+                         calib::formatFixed(nominal.q[joint], 2) + " -> " + calib::formatFixed(q_real[joint], 2) +
+                         "): the pose is reached with another arm posture than the off-line simulation's (next to a "
+                         "singularity); check cables, dress pack and clearance");
+  }
+
   /// RAPID confdata as the ABB controller treats it (docs/rapid.md, "Configuration"):
   /// MoveJ with ConfJ\On goes to the programmed configuration (the compensation solves on its
   /// branch; a correction that moves axis 1, 4 or 6 across a quadrant boundary within
@@ -508,6 +529,7 @@ class Job {
     if (cp) noteCpConfiguration(m, end, comp, pc.q_real);
     else if (!checkConfig(m, end, comp, pc.q_real, c.T_world_end)) return keep(out, mo);
     if (!abbConfiguration(m, mo.target, comp, pc.q_real, cp)) return keep(out, mo);
+    if (!cp) notePostureChange(m, end, comp, c.T_world_end, config, start, pc.q_real);
     setPose(mo.target, toProgram(c.T_world_progbase, pc.T_world_tcp_command));
     if (mo.target.turn != end.turn) mo.target.modified = true;
     mo.target.turn = end.turn;

@@ -38,6 +38,11 @@ inline constexpr double kMinTempC = -50, kMaxTempC = 150;     ///< arm temperatu
 inline constexpr double kMaxFrameMm = 1e5;                    ///< |x|, |y|, |z| of a frame (mm): 100 m
 inline constexpr double kMaxFrameDeg = 360;                   ///< |A|, |B|, |C| of a frame (deg)
 
+/// A PTP target whose compensated joints differ from the nominal robot's joints for it by more
+/// than this (deg; mm for a prismatic joint) gets a warning: the arm reaches the pose in
+/// another posture than the off-line simulation (a wrist next to its singularity).
+inline constexpr double kPostureChangeDeg = 5.0;
+
 struct JobSettings {
   calib::RobotModel calibrated;  ///< the real robot (a calibrated model written by accura identify)
   /// Where the OLP placed the robot in the model's world (mm, deg); empty: the robot file's
