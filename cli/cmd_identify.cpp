@@ -215,9 +215,17 @@ void printSetup(const IdentifyArgs& a, const IdentifyRun& r) {
   std::printf("; variance factor %.3f\n", s.variance_factor);
   // the user's language first, the solver's on request (--verbose)
   const bool converged = s.termination.rfind("CONVERGENCE", 0) == 0 || s.termination.rfind("USER_SUCCESS", 0) == 0;
-  std::printf("solver: %s after %d iterations; fit RMS %.4f mm over %d poses, %d parameters\n",
+  // what else was fitted beside the robot's parameters: further stations, map coefficients
+  int map_coefficients = 0;
+  for (const auto& mrep : s.joint_maps) map_coefficients += mrep.coefficients;
+  const int stations = static_cast<int>(s.T_world_base_per_set.size()) > 1 && !a.same_station
+                           ? static_cast<int>(s.T_world_base_per_set.size()) - 1 : 0;
+  std::string also;
+  if (stations > 0) also += " + " + std::to_string(6 * stations) + " of the further station" + (stations > 1 ? "s" : "");
+  if (map_coefficients > 0) also += " + " + std::to_string(map_coefficients) + " joint-map coefficients";
+  std::printf("solver: %s after %d iterations; fit RMS %.4f mm over %d poses, %d parameters%s\n",
               converged ? "converged" : "stopped before converging (the iteration limit; --verbose says why)",
-              s.iterations, s.fit.rms_mm, s.fit.n, s.parameters_free);
+              s.iterations, s.fit.rms_mm, s.fit.n, s.parameters_free, also.c_str());
   if (a.verbose) std::printf("solver details (Ceres): %s\n", s.BriefReport().c_str());
   if (!s.joint_map_cv.empty()) {
     std::printf("joint_map: knot spacing and smoothness by blocked cross-validation (5 contiguous blocks of each "

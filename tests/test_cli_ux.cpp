@@ -223,7 +223,14 @@ TEST(CliIdentify, OptionsThatDoNotApplyAreSaid) {
   ASSERT_EQ(std_mm.code, 0) << std_mm.err;
   EXPECT_NE(std_mm.err.find("warning: --std-mm 0.05 not used for fit.csv: its std columns give each row's position std"),
             std::string::npos) << std_mm.err;
-  ASSERT_EQ(run("identify --robot kuka_kr16 --data fit.csv --params geometric,joint_map:j2@10deg --map-smoothing 0.01 --out m.xml", dir).code, 0);
+  const CliRun mapped =
+      run("identify --robot kuka_kr16 --data fit.csv --params geometric,joint_map:j2@10deg --map-smoothing 0.01 --out m.xml --json m.json", dir);
+  ASSERT_EQ(mapped.code, 0) << mapped.err;
+  // the solver line counts the map's coefficients beside the robot's parameters (it said "30 parameters")
+  const auto mj = nlohmann::json::parse(test::readText(dir + "/m.json"));
+  ASSERT_EQ(mj["joint_maps"].size(), 1u);
+  EXPECT_NE(mapped.out.find(" parameters + " + std::to_string(mj["joint_maps"][0]["coefficients"].get<int>()) + " joint-map coefficients\n"),
+            std::string::npos) << mapped.out;
   const CliRun held = run("identify --robot m.xml --data fit.csv --params base --out h.xml", dir);
   ASSERT_EQ(held.code, 0) << held.err;
   EXPECT_NE(held.out.find("coefficients, held from the start model;"), std::string::npos) << held.out;

@@ -465,9 +465,10 @@ RobotModel identify(const RobotModel& start, const std::vector<MeasurementSet>& 
 
   // 4. Solve; with variance components: solve, re-estimate from the residuals, solve again.
   const bool robust = options.loss != "none";
+  int iterations = 0;  // of every solve, the weighting rounds' included (from initial_cost to final_cost)
   if (weighting.estimate_pos || weighting.estimate_rot || options.model_error) {
     for (int round = 0; round < 4; ++round) {
-      solve(pb, options, robust);
+      iterations += solve(pb, options, robust).iterations;
       const double change = weighting.reestimate(pb, options, p_free);
       weighting.apply(pb);
       if (change < 0.01) break;
@@ -475,7 +476,7 @@ RobotModel identify(const RobotModel& start, const std::vector<MeasurementSet>& 
   }
   const SolveResult res = solve(pb, options, robust);
   summary.termination = res.termination;
-  summary.iterations = res.iterations;
+  summary.iterations = iterations + res.iterations;
   if (res.failure) throw NumericalError("identification failed: " + res.message);
   weighting.describe(pb, summary);
 

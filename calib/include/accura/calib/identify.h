@@ -125,7 +125,7 @@ struct SuspiciousRow {
 
 struct IdentifySummary {
   std::string termination;     ///< Ceres' termination reason and message
-  int iterations = 0;
+  int iterations = 0;          ///< of every solve from initial_cost to final_cost (the weighting rounds included)
   double initial_cost = 0;     ///< 1/2 sum of squared weighted residuals, after registration
   double final_cost = 0;
   double registration_rms_mm = 0;   ///< position RMS right after the closed-form registration
