@@ -68,6 +68,44 @@ calib::DiagnosisReportContext reportContext(const DiagnoseArgs& a, const calib::
   return c;
 }
 
+/// --validate is held-out data of the fit's station and joint ranges (--help): where it is not,
+/// the verdict describes the difference, not the robot. Warnings: validation poses outside the
+/// fit data's joint ranges (as identify says them), and a station that moved (re-registering
+/// the station alone, the baseline model held, takes much of the validation residual away).
+void checkValidationSet(const calib::Diagnosis& d, const calib::MeasurementSet& fit, const calib::MeasurementSet& validation,
+                        const std::string& file) {
+  const int dof = d.baseline_model.dof();
+  std::vector<double> lo(static_cast<size_t>(dof), 1e300), hi(static_cast<size_t>(dof), -1e300);
+  for (const calib::Measurement& r : fit.rows)
+    for (int j = 0; j < dof; ++j) {
+      lo[static_cast<size_t>(j)] = std::min(lo[static_cast<size_t>(j)], r.q[j]);
+      hi[static_cast<size_t>(j)] = std::max(hi[static_cast<size_t>(j)], r.q[j]);
+    }
+  int outside = 0;
+  for (const calib::Measurement& r : validation.rows)
+    for (int j = 0; j < dof; ++j)
+      if (r.q[j] < lo[static_cast<size_t>(j)] || r.q[j] > hi[static_cast<size_t>(j)]) {
+        ++outside;
+        break;
+      }
+  if (outside > 0)
+    std::fprintf(stderr,
+                 "accura: warning: %s: %d of %zu validation poses lie outside the joint ranges of the fit data: the held-out "
+                 "errors there measure extrapolation, not the effects on the fitted ranges\n",
+                 file.c_str(), outside, validation.rows.size());
+  calib::IdentifySummary rs;
+  const calib::RobotModel moved = calib::registerStation(d.baseline_model, validation, &rs);
+  const Eigen::Isometry3d D = d.baseline_model.T_world_base().inverse() * moved.T_world_base();
+  const double before = calib::evaluate(d.baseline_model, validation).rms_mm, after = rs.fit.rms_mm;
+  const double moved_mm = D.translation().norm(), moved_deg = Eigen::AngleAxisd(D.linear()).angle() * calib::kRadToDeg;
+  if ((moved_mm > 0.5 || moved_deg > 0.01) && after < 0.7 * before)
+    std::fprintf(stderr,
+                 "accura: warning: %s: looks measured from another station: re-registering the station alone (the geometric "
+                 "model held) moves it %.3f mm and %.4f deg and takes its RMS from %.4f to %.4f mm; diagnose expects --validate "
+                 "from the fit's station (identify --validate-station new re-registers one)\n",
+                 file.c_str(), moved_mm, moved_deg, before, after);
+}
+
 int runDiagnose(const DiagnoseArgs& a) {
   if (a.json.empty() && a.report.empty())
     throw calib::InputError("diagnose: expected an output, --json diag.json and/or --report diag.html, found neither");
@@ -104,6 +142,7 @@ int runDiagnose(const DiagnoseArgs& a) {
     }
   }
   std::printf("%s", calib::diagnosisText(d).c_str());
+  if (!a.validate.empty()) checkValidationSet(d, data, validation, a.validate);
   // The JSON and the HTML report are one output set (all or nothing), never onto an input.
   std::vector<calib::OutputFile> outputs;
   if (!a.json.empty()) outputs.push_back({a.json, calib::diagnosisJson(d)});

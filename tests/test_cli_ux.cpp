@@ -237,6 +237,21 @@ TEST(CliIdentify, OptionsThatDoNotApplyAreSaid) {
   EXPECT_EQ(held.out.find("smoothing nan"), std::string::npos) << held.out;
 }
 
+// diagnose --validate expects held-out data of the fit's station and ranges: a set from another
+// station is said to be one (its RMS mostly a station offset), one of the same station is not.
+TEST(CliDiagnose, AValidationSetFromAnotherStationIsSaid) {
+  const std::string dir = test::tempDir("cli_ux_diag_station");
+  ASSERT_EQ(run("simulate --robot kuka_kr16 --poses 150 --seed 5 --out fit.csv --truth truth.xml", dir).code, 0);
+  ASSERT_EQ(run("simulate --robot truth.xml --effects none --poses 60 --seed 6 --out same.csv", dir).code, 0);
+  ASSERT_EQ(run("simulate --robot truth.xml --effects none --poses 60 --seed 6 --station 2402,-1699,-600,30.05,0.4,-0.3 --out moved.csv", dir).code, 0);
+  const CliRun same = run("diagnose --robot kuka_kr16 --data fit.csv --validate same.csv --json s.json", dir);
+  ASSERT_EQ(same.code, 0) << same.err;
+  EXPECT_EQ(same.err.find("looks measured from another station"), std::string::npos) << same.err;
+  const CliRun moved = run("diagnose --robot kuka_kr16 --data fit.csv --validate moved.csv --json m.json", dir);
+  ASSERT_EQ(moved.code, 0) << moved.err;
+  EXPECT_NE(moved.err.find("moved.csv: looks measured from another station"), std::string::npos) << moved.err;
+}
+
 TEST(CliIdentify, ValidationOutsideTheFitRangesReadsAsASentence) {
   const std::string dir = test::tempDir("cli_ux_outside");
   ASSERT_EQ(run("simulate --robot kuka_kr16 --tool 80,40,150 --poses 60 --seed 5 --out fit.csv --truth truth.xml", dir).code, 0);
