@@ -428,6 +428,28 @@ TEST(UrScript, AControllerThatRunsItsFactoryCalibrationIsNotCorrectedTwice) {
   }
 }
 
+TEST(UrScript, APayloadTheProgramSetsIsSaidWhereTheModelDependsOnIt) {
+  // set_payload changes the load the arm runs with; the compensation takes one payload
+  // (--payload-kg): with a compliant model that is said, with a geometric one there is nothing to say
+  const std::string script =
+      "def l():\n  set_tcp(p[0.0, 0.0, 0.15, 0.0, 0.0, 0.0])\n  set_payload(10.0)\n"
+      "  movej([-1.5707963, -1.5707963, 1.5707963, -1.5707963, -1.5707963, 0.0], a=1.4, v=1.05)\n"
+      "  movel(p[-.350, .700, .300, 3.1415927, 0.0, 0.0], a=1.2, v=0.25)\nend\n";
+  const Program p = parseUrScript(script, "l.script");
+  auto said = [](const ProgramCompensation& c) {
+    for (const auto& w : c.report.warnings)
+      if (w.message.find("the program sets its payload here ('set_payload(10.0)')") != std::string::npos) return w.where.str();
+    return std::string();
+  };
+  SimulateOptions so;
+  so.effects = {"geometric", "joint_compliance"};
+  so.set_station = false;
+  so.seed = 2;
+  EXPECT_EQ(said(compensateProgramReport(p, settingsFor(perturbModel(ur10WithTorch(), so)))), "l.script:3:3");
+  so.effects = {"geometric"};
+  EXPECT_EQ(said(compensateProgramReport(p, settingsFor(perturbModel(ur10WithTorch(), so)))), "");
+}
+
 TEST(UrScript, GetInverseKinArgumentsAreReadOrNamed) {
   const std::string pose = "p[-.350, .700, .300, 3.1415927, 0.0, 0.0]";
   auto read = [&](const std::string& call) {

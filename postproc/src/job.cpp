@@ -1,10 +1,11 @@
 // Compensation of a whole program (see job.h).
 #include "accura/postproc/job.h"
 
+#include <cctype>
 #include <cmath>
 #include <map>
-#include <set>
 #include <memory>
+#include <set>
 #include <sstream>
 
 #include "accura/calib/errors.h"
@@ -15,6 +16,7 @@
 #include "accura/postproc/path_job.h"
 #include "accura/postproc/placement.h"
 #include "accura/postproc/rapid.h"
+#include "accura/postproc/urscript.h"
 #include "path_geometry.h"
 
 namespace accura::postproc {
@@ -73,6 +75,32 @@ class Job {
                   std::to_string(asked.turn) + ", along the path S " + std::to_string(got.status) + ", T " + std::to_string(got.turn);
     cp_disagree_.push_back(targetLabel(t));
     if (!cp_where_.line) cp_where_ = m.where;
+  }
+
+  /// A program that sets its payload (URScript set_payload, KRL $LOAD) runs its motions with
+  /// loads the compensation does not follow: it takes one payload for every motion
+  /// (JobSettings::context, --payload-kg). Said once, at the first such statement, where the
+  /// model's joint compliance makes the correction depend on the load.
+  void notePayloadChanges(const Program& in) {
+    bool compliant = false;
+    for (double c : s_.calibrated.deviations.compliance) compliant = compliant || c != 0;
+    if (!compliant) return;
+    std::vector<std::pair<SourceLocation, std::string>> loads;
+    if (in.urscript)
+      for (const auto& o : in.urscript->others)
+        if (o.text.find("set_payload") != std::string::npos) loads.push_back({o.where, o.text});
+    for (const PassThrough& p : in.passthrough) {
+      std::string up = p.text.substr(0, p.text.find(';'));  // KRL: before a comment
+      for (char& ch : up) ch = static_cast<char>(std::toupper(static_cast<unsigned char>(ch)));
+      if (p.language == "KRL" && up.find("$LOAD") != std::string::npos && up.find('=') != std::string::npos)
+        loads.push_back({p.where, p.text});
+    }
+    if (loads.empty()) return;
+    warning(loads.front().first, "the program sets its payload here ('" + loads.front().second + "'" +
+                                     (loads.size() > 1 ? ", and " + std::to_string(loads.size() - 1) + " more time(s)" : std::string()) +
+                                     "); the compensation takes one payload for every motion, " +
+                                     calib::formatFixed(s_.context.payload_kg, 2) +
+                                     " kg (--payload-kg), and the model's joint compliance makes the correction depend on it");
   }
 
   /// A PTP target whose compensated joints lie far from the joints the nominal robot (the
@@ -293,6 +321,7 @@ class Job {
       }
     }
     flushCpConfigurations();
+    notePayloadChanges(in);
     unifyClaimedConfigurations(out);
     checkKeptValues(out);
     // the pass-through statements stay before their motion, ahead of the points inserted
