@@ -277,6 +277,79 @@ TEST(CellDistance, FclSphereToBoxEqualsAnalyticAndBruteForce) {
   EXPECT_GT(outside, 150);
 }
 
+// Triangles without area (a CAD export's corner repeated, a sliver of three collinear corners)
+// are left out: with one in the box, the sphere's distance is the box's (FCL gave 0 mm for a
+// sphere 20 mm away).
+TEST(CellDistance, TrianglesWithoutAreaAreLeftOut) {
+  const std::string dir = test::tempDir("cell_degenerate");
+  std::string stl = test::readText(fixture("box_100mm.stl"));
+  const size_t end = stl.rfind("endsolid");
+  ASSERT_NE(end, std::string::npos);
+  stl.insert(end, "facet normal 0 0 0\nouter loop\nvertex 0 0 50\nvertex 0 0 50\nvertex 0 0 50\nendloop\nendfacet\n"
+                  "facet normal 0 0 0\nouter loop\nvertex -50 50 50\nvertex 0 50 50\nvertex 50 50 50\nendloop\nendfacet\n");
+  test::writeText(dir + "/box.stl", stl);
+  const Mesh plain = loadMesh(fixture("box_100mm.stl"), 1.0), degenerate = loadMesh(dir + "/box.stl", 1.0);
+  EXPECT_EQ(degenerate.triangles.size(), plain.triangles.size());
+  Cell cell;
+  CellShape box;
+  box.mesh = degenerate;
+  box.name = "box";
+  cell.objects.push_back(box);
+  const CellGeometry g(cell, kr16());
+  EXPECT_NEAR(g.sphereDistance(Eigen::Vector3d(0, 0, 80), 10, 0), 20.0, 1e-9);
+}
+
+// COLLADA: its <unit> (which assimp applies) must be the cell's units, and its coordinates are
+// taken as written (a Z_UP file is not turned to Y-up).
+TEST(CellMesh, ColladaUnitAndUpAxis) {
+  const std::string dir = test::tempDir("cell_collada");
+  // a cube of half size `half` centred at (0, 0, z0), in the file's units
+  auto dae = [&](const std::string& name, const std::string& meter, const std::string& up, double half, double z0) {
+    std::string pos;
+    for (int k = 0; k < 8; ++k)
+      pos += std::to_string((k & 1) ? half : -half) + " " + std::to_string((k & 2) ? half : -half) + " " +
+             std::to_string(z0 + ((k & 4) ? half : -half)) + " ";
+    const std::string idx = "0 2 1 1 2 3 4 5 6 5 7 6 0 1 4 1 5 4 2 6 3 3 6 7 0 4 2 2 4 6 1 3 5 3 7 5";
+    test::writeText(dir + "/" + name,
+                    "<?xml version=\"1.0\"?>\n<COLLADA xmlns=\"http://www.collada.org/2005/11/COLLADASchema\" version=\"1.4.1\">\n"
+                    "<asset><unit meter=\"" + meter + "\" name=\"u\"/><up_axis>" + up + "</up_axis></asset>\n"
+                    "<library_geometries><geometry id=\"g\"><mesh>\n"
+                    "<source id=\"p\"><float_array id=\"pa\" count=\"24\">" + pos + "</float_array>"
+                    "<technique_common><accessor source=\"#pa\" count=\"8\" stride=\"3\"><param name=\"X\" type=\"float\"/>"
+                    "<param name=\"Y\" type=\"float\"/><param name=\"Z\" type=\"float\"/></accessor></technique_common></source>\n"
+                    "<vertices id=\"v\"><input semantic=\"POSITION\" source=\"#p\"/></vertices>\n"
+                    "<triangles count=\"12\"><input semantic=\"VERTEX\" source=\"#v\" offset=\"0\"/><p>" + idx + "</p></triangles>\n"
+                    "</mesh></geometry></library_geometries>\n"
+                    "<library_visual_scenes><visual_scene id=\"s\"><node id=\"n\"><instance_geometry url=\"#g\"/></node></visual_scene>"
+                    "</library_visual_scenes>\n<scene><instance_visual_scene url=\"#s\"/></scene>\n</COLLADA>\n");
+    return dir + "/" + name;
+  };
+  auto extent = [](const Mesh& m) {
+    Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e300), hi = -lo;
+    for (const auto& v : m.vertices_mm) {
+      lo = lo.cwiseMin(v);
+      hi = hi.cwiseMax(v);
+    }
+    return std::make_pair(lo, hi);
+  };
+  // a 100 mm cube in a file in millimetres (Y_UP), the cell saying mm: 100 mm (it was read as 0.1 mm)
+  const auto [lo_mm, hi_mm] = extent(loadMesh(dae("mm.dae", "0.001", "Y_UP", 50, 0), 1.0));
+  EXPECT_NEAR(hi_mm.x() - lo_mm.x(), 100.0, 1e-4);
+  EXPECT_NEAR(hi_mm.z(), 50.0, 1e-4);
+  // the same cube 200 mm up in a Z_UP file in metres: as written (it was turned about x, to y 200)
+  const auto [lo_z, hi_z] = extent(loadMesh(dae("zup.dae", "1", "Z_UP", 0.05, 0.2), 1000.0));
+  EXPECT_NEAR(lo_z.z(), 150.0, 1e-4);
+  EXPECT_NEAR(hi_z.z(), 250.0, 1e-4);
+  EXPECT_NEAR(hi_z.y(), 50.0, 1e-4);
+  // the cell's units against the file's own: refused, naming both
+  try {
+    loadMesh(dae("mm2.dae", "0.001", "Z_UP", 50, 0), 1000.0);
+    FAIL() << "expected an InputError";
+  } catch (const calib::InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("expected the cell's units to be the file's own"), std::string::npos) << e.what();
+  }
+}
+
 // A sphere on the flange against the box: CellGeometry::distances places the tool with the
 // robot's forward kinematics.
 TEST(CellDistance, ToolSphereOnTheRobot) {

@@ -7,6 +7,7 @@
 // (a half-read file is an error, not a shorter mesh), and every scene assimp returns is
 // checked (face indices, finite coordinates, node mesh indices) before its post-processing.
 #include <assimp/Importer.hpp>
+#include <assimp/config.h>
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
 
@@ -675,12 +676,36 @@ void checkMeshBytes(const std::string& path, std::string& bytes, double scale_to
   for (const size_t at : c.mtllibOffsets()) bytes[at] = '#';
 }
 
+/// A COLLADA file's unit (mm a unit): <asset><unit meter="..."/>, 1 m when it has none (the
+/// COLLADA specification's default). Throws InputError on a value that is not a positive number.
+double colladaUnitMm(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream s;
+  s << in.rdbuf();
+  const std::string text = s.str();
+  const size_t unit = text.find("<unit");
+  const size_t end = unit == std::string::npos ? unit : text.find('>', unit);
+  if (unit == std::string::npos || end == std::string::npos) return 1000.0;
+  const std::string tag = text.substr(unit, end - unit);
+  const size_t meter = tag.find("meter=");
+  if (meter == std::string::npos || meter + 7 >= tag.size()) return 1000.0;
+  const char quote = tag[meter + 6];
+  const size_t close = tag.find(quote, meter + 7);
+  const std::string value = close == std::string::npos ? std::string() : tag.substr(meter + 7, close - meter - 7);
+  char* stop = nullptr;
+  const double m = std::strtod(value.c_str(), &stop);
+  if (value.empty() || *stop != '\0' || !(m > 0) || !std::isfinite(m))
+    throw calib::InputError(path, 0, 0, "<unit meter=...>: expected a positive number of metres, found '" + value + "'");
+  return m * 1000.0;
+}
+
 }  // namespace
 
 Mesh loadMesh(const std::string& path, double scale_to_mm) {
   if (!(scale_to_mm > 0) || !std::isfinite(scale_to_mm))
     throw calib::ArgumentError("loadMesh: scale_to_mm must be a positive number, got " + std::to_string(scale_to_mm));
   std::error_code ec;
+  if (std::filesystem::is_directory(path, ec)) throw calib::InputError(path, 0, 0, "expected a mesh file, found a directory");
   if (!std::filesystem::is_regular_file(path, ec))
     throw calib::InputError(path, 0, 0, "expected a mesh file, found no such file");
   const std::string ext = lowerExtension(path);
@@ -699,6 +724,17 @@ Mesh loadMesh(const std::string& path, double scale_to_mm) {
   // polygons, drop points and lines, merge duplicated vertices (for STL, which stores every
   // triangle's corners), apply the scene graph's node transforms.
   importer.SetPropertyInteger(AI_CONFIG_PP_SBP_REMOVE, aiPrimitiveType_POINT | aiPrimitiveType_LINE);
+  // COLLADA: coordinates as written (assimp would turn a Z_UP file into Y-up, the robot cell's
+  // z is up); its <unit>, which assimp applies (to metres), is checked against the cell's below
+  importer.SetPropertyBool(AI_CONFIG_IMPORT_COLLADA_IGNORE_UP_DIRECTION, true);
+  if (ext == ".dae") {
+    const double file_mm = colladaUnitMm(path);
+    if (std::abs(file_mm - scale_to_mm) > 1e-9 * scale_to_mm)
+      throw calib::InputError(path, 0, 0, "expected the cell's units to be the file's own (<unit meter=\"" + calib::formatFixed(file_mm / 1000, 6) +
+                                              "\">: " + calib::formatFixed(file_mm, 4) + " mm a unit), found " + calib::formatFixed(scale_to_mm, 4) +
+                                              " mm a unit: give the object units that match the file");
+    scale_to_mm = 1000.0;  // assimp has applied the file's unit: its coordinates are metres
+  }
   // the bytes checked above (not the file again), so what assimp reads is what was checked
   const aiScene* scene = checked_format ? importer.ReadFileFromMemory(bytes.data(), bytes.size(), 0, ext.c_str() + 1) : importer.ReadFile(path, 0);
   const auto unreadable = [&]() {
@@ -742,6 +778,32 @@ Mesh loadMesh(const std::string& path, double scale_to_mm) {
   }
   if (mesh.triangles.empty())
     throw calib::InputError(path, 0, 0, "expected a mesh with triangles, found none (" + std::to_string(scene->mNumMeshes) + " mesh(es), no faces)");
+  // triangles without area (three equal, two equal or collinear corners, as CAD exports leave
+  // them on edges) bound no volume, and a sphere's distance to them is not defined (FCL gave
+  // 0 mm for a sphere 100 mm away): left out
+  const size_t all = mesh.triangles.size();
+  mesh.triangles.erase(std::remove_if(mesh.triangles.begin(), mesh.triangles.end(),
+                                      [&](const std::array<int, 3>& t) {
+                                        const Eigen::Vector3d& a = mesh.vertices_mm[static_cast<size_t>(t[0])];
+                                        const Eigen::Vector3d u = mesh.vertices_mm[static_cast<size_t>(t[1])] - a;
+                                        const Eigen::Vector3d v = mesh.vertices_mm[static_cast<size_t>(t[2])] - a;
+                                        const double longest2 = std::max({u.squaredNorm(), v.squaredNorm(), (u - v).squaredNorm()});
+                                        return !(u.cross(v).norm() > 1e-12 * longest2);
+                                      }),
+                       mesh.triangles.end());
+  if (mesh.triangles.empty())
+    throw calib::InputError(path, 0, 0, "expected a mesh with triangles, found " + std::to_string(all) + " without area");
+  // a mesh smaller than a millimetre is a unit mistake (a file in metres read as mm), not an object
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e300), hi = -lo;
+  for (const auto& t : mesh.triangles)
+    for (const int k : t) {
+      lo = lo.cwiseMin(mesh.vertices_mm[static_cast<size_t>(k)]);
+      hi = hi.cwiseMax(mesh.vertices_mm[static_cast<size_t>(k)]);
+    }
+  if ((hi - lo).norm() < 1.0)
+    throw calib::InputError(path, 0, 0, "expected an object at least 1 mm across, found one of " + calib::formatFixed((hi - lo).norm(), 4) +
+                                            " mm: check the units the cell gives the file (its coordinates times " +
+                                            calib::formatFixed(scale_to_mm, 4) + " mm)");
   return mesh;
 }
 
