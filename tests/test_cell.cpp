@@ -3,6 +3,7 @@
 // brute-force point/triangle distance, and the motion bound of the clearance subdivision.
 #include <gtest/gtest.h>
 
+#include <cctype>
 #include <limits>
 #include <random>
 #include <set>
@@ -297,6 +298,24 @@ TEST(CellDistance, TrianglesWithoutAreaAreLeftOut) {
   cell.objects.push_back(box);
   const CellGeometry g(cell, kr16());
   EXPECT_NEAR(g.sphereDistance(Eigen::Vector3d(0, 0, 80), 10, 0), 20.0, 1e-9);
+}
+
+// ASCII STL as CAD tools write it: after blank lines and spaces it is read (assimp needs 'solid'
+// first); in upper case (which assimp cannot read) it is named so, not a "truncated binary STL".
+TEST(CellMesh, AsciiStlAfterBlankLinesAndInUpperCase) {
+  const std::string dir = test::tempDir("cell_stl_forms");
+  const std::string stl = test::readText(fixture("box_100mm.stl"));
+  test::writeText(dir + "/lead.stl", "\n\n  " + stl);
+  EXPECT_EQ(loadMesh(dir + "/lead.stl", 1.0).triangles.size(), loadMesh(fixture("box_100mm.stl"), 1.0).triangles.size());
+  std::string upper = stl;
+  for (char& ch : upper) ch = static_cast<char>(std::toupper(static_cast<unsigned char>(ch)));
+  test::writeText(dir + "/upper.stl", upper);
+  try {
+    loadMesh(dir + "/upper.stl", 1.0);
+    FAIL() << "expected an InputError";
+  } catch (const calib::InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("upper.stl:1:1: expected an ASCII STL's keywords in lower case"), std::string::npos) << e.what();
+  }
 }
 
 // COLLADA: its <unit> (which assimp applies) must be the cell's units, and its coordinates are

@@ -431,12 +431,22 @@ class Checker {
       const auto u = static_cast<unsigned char>(c);
       return u < 0x20 && u != '\n' && u != '\r' && u != '\t' && u != '\f' && u != '\v';
     });
+    if (!text_start && !binary_bytes && first < d_.size()) {
+      // an ASCII STL in upper case (SOLID, FACET ...): assimp reads only lower-case keywords
+      std::string head(d_.substr(first, 5));
+      for (char& ch : head) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+      if (head == "solid")
+        fail(1, static_cast<int>(first) + 1, "expected an ASCII STL's keywords in lower case ('solid', 'facet', 'vertex', ...), found '" +
+                                                 std::string(d_.substr(first, 5)) + "'");
+    }
     if (!text_start || binary_bytes) {
       if (size < 84) fail(1, 1, "expected an STL file (ASCII starting with 'solid', or binary of 84 + 50 x N bytes), found " + std::to_string(size) + " bytes");
       uint32_t n = 0;
       for (int k = 3; k >= 0; --k) n = (n << 8) | static_cast<unsigned char>(d_[80 + static_cast<size_t>(k)]);
+      const uint64_t expected = 84 + 50 * static_cast<uint64_t>(n);
       failAt(80, "expected a binary STL of 84 + 50 x N bytes (N = " + std::to_string(n) + " triangles at byte 80: " +
-                     std::to_string(84 + 50 * static_cast<uint64_t>(n)) + " bytes), found " + std::to_string(size) + " bytes (a truncated file?)");
+                     std::to_string(expected) + " bytes), found " + std::to_string(size) + " bytes" +
+                     (size > expected ? " (" + std::to_string(size - expected) + " after the last triangle)" : std::string(" (a truncated file?)")));
     }
     textOnly(d_.size());  // a vertical tab or a lone carriage return would split numbers differently for assimp
     stlAscii();
@@ -671,7 +681,15 @@ void checkMeshBytes(const std::string& path, std::string& bytes, double scale_to
   Checker c(path, bytes, scale_to_mm);
   const std::string ext = lowerExtension(path);
   if (ext == ".ply") c.ply();
-  else if (ext == ".stl") c.stl();
+  else if (ext == ".stl") {
+    c.stl();
+    // an ASCII STL after blank lines or spaces (checked above): assimp needs 'solid' first
+    uint32_t n = 0;
+    for (int k = 3; k >= 0 && bytes.size() >= 84; --k) n = (n << 8) | static_cast<unsigned char>(bytes[80 + static_cast<size_t>(k)]);
+    const bool binary = bytes.size() >= 84 && bytes.size() == 84 + 50 * static_cast<uint64_t>(n);
+    const size_t first = bytes.find_first_not_of(" \t\r\n");
+    if (!binary && first != std::string::npos && first > 0 && bytes.compare(first, 5, "solid") == 0) bytes.erase(0, first);
+  }
   else if (ext == ".obj") c.obj();
   for (const size_t at : c.mtllibOffsets()) bytes[at] = '#';
 }
