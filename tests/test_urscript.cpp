@@ -446,6 +446,10 @@ TEST(UrScript, APayloadTheProgramSetsIsSaidWhereTheModelDependsOnIt) {
   so.set_station = false;
   so.seed = 2;
   EXPECT_EQ(said(compensateProgramReport(p, settingsFor(perturbModel(ur10WithTorch(), so)))), "l.script:3:3");
+  // the payload the compensation takes is the program's: nothing to say
+  JobSettings ten = settingsFor(perturbModel(ur10WithTorch(), so));
+  ten.context.payload_kg = 10.0;
+  EXPECT_EQ(said(compensateProgramReport(p, ten)), "");
   so.effects = {"geometric"};
   EXPECT_EQ(said(compensateProgramReport(p, settingsFor(perturbModel(ur10WithTorch(), so)))), "");
 }

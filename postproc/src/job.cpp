@@ -3,6 +3,7 @@
 
 #include <cctype>
 #include <cmath>
+#include <cstdlib>
 #include <map>
 #include <memory>
 #include <set>
@@ -87,8 +88,18 @@ class Job {
     if (!compliant) return;
     std::vector<std::pair<SourceLocation, std::string>> loads;
     if (in.urscript)
-      for (const auto& o : in.urscript->others)
-        if (o.text.find("set_payload") != std::string::npos) loads.push_back({o.where, o.text});
+      for (const auto& o : in.urscript->others) {
+        const size_t at = o.text.find("set_payload");
+        if (at == std::string::npos) continue;
+        // set_payload(m, ...) with m the payload the compensation takes: nothing to say
+        const size_t open = o.text.find('(', at);
+        const char* from = open == std::string::npos ? nullptr : o.text.c_str() + open + 1;
+        char* stop = nullptr;
+        const double kg = from ? std::strtod(from, &stop) : 0.0;
+        const bool same = from && stop != from && (*stop == ',' || *stop == ')' || *stop == ' ') &&
+                          std::abs(kg - s_.context.payload_kg) <= 1e-9;
+        if (!same) loads.push_back({o.where, o.text});
+      }
     for (const PassThrough& p : in.passthrough) {
       std::string up = p.text.substr(0, p.text.find(';'));  // KRL: before a comment
       for (char& ch : up) ch = static_cast<char>(std::toupper(static_cast<unsigned char>(ch)));
