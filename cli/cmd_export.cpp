@@ -37,7 +37,8 @@ int runExport(const ExportArgs& a) {
       model = !a.ur_deltas.empty() ? calib::modelFromUrDeltas(model.nominal, calib::readUrCalibrationConf(a.ur_deltas, model.dof()))
                                    : calib::modelFromUrCalibrationYaml(model.nominal, a.ur_yaml);
     } catch (const calib::ArgumentError& e) {
-      throw calib::InputError(std::string(a.ur_deltas.empty() ? "" : a.ur_deltas + ": ") + e.what());
+      const std::string file = a.ur_deltas.empty() ? a.ur_yaml : a.ur_deltas, what = e.what();
+      throw calib::InputError(what.rfind(file, 0) == 0 ? what : file + ": " + what);  // the file named once
     }
   }
   std::string text;

@@ -79,7 +79,7 @@ void readData(const IdentifyArgs& a, IdentifyRun& r) {
   if (a.data.empty()) throw calib::InputError("--data: expected at least one measurement file");
   for (const std::string& f : a.data) r.sets.push_back(readMeasurements(f, a.map, r.start.nominal));
   for (const std::string& f : a.data) r.data_names += (r.data_names.empty() ? "" : ", ") + f;
-  if (!a.validate.empty() && a.holdout_given)
+  if (!a.validate.empty() && a.holdout_given && a.holdout > 0)
     throw calib::InputError("--holdout and --validate: expected one of them (the validation poses come from the --validate file or "
                             "from the --data file), found both");
   if (!a.validate.empty()) {

@@ -170,8 +170,8 @@ TEST(CellFile, ErrorsGiveFileLineColumnExpectedFound) {
   };
   const std::string cap = "<capsule x0_mm=\"0\" y0_mm=\"0\" z0_mm=\"0\" x1_mm=\"0\" y1_mm=\"0\" z1_mm=\"1\" radius_mm=\"2\"/>";
   const std::vector<Case> cases = {
-      {"  <object name=\"a\" file=\"" + stl + "\" units=\"mm\"/>\n  <object name=\"b\" file=\"" + stl + "\" units=\"feet\"/>\n", 4, "units=",
-       "expected mm, cm, m or inch, found 'feet'"},
+      {"  <object name=\"a\" file=\"" + stl + "\" units=\"mm\"/>\n  <object name=\"b\" file=\"" + stl + "\" units=\"yard\"/>\n", 4, "units=",
+       "expected mm, cm, m, inch or ft, found 'yard'"},
       {"  <object name=\"a\" file=\"" + stl + "\" units=\"mm\" x_mm=\"1O0\"/>\n", 3, "x_mm=", "expected a number, found '1O0'"},
       {"  <object name=\"a\" file=\"" + stl + "\" units=\"mm\" color=\"red\"/>\n", 3, "color=", "found 'color'"},
       {"\n\n  <fixture name=\"a\"/>\n", 5, "<fixture", "found <fixture>"},
@@ -360,6 +360,9 @@ TEST(CellMesh, ColladaUnitAndUpAxis) {
   EXPECT_NEAR(lo_z.z(), 150.0, 1e-4);
   EXPECT_NEAR(hi_z.z(), 250.0, 1e-4);
   EXPECT_NEAR(hi_z.y(), 50.0, 1e-4);
+  // a unit written in single precision (SketchUp's inch) is that unit
+  const auto [lo_in, hi_in] = extent(loadMesh(dae("inch.dae", "0.02539999969303608", "Z_UP", 1, 0), 25.4));
+  EXPECT_NEAR(hi_in.x() - lo_in.x(), 50.8, 1e-4);
   // the cell's units against the file's own: refused, naming both
   try {
     loadMesh(dae("mm2.dae", "0.001", "Z_UP", 50, 0), 1000.0);

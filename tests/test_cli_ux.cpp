@@ -219,6 +219,7 @@ TEST(CliIdentify, OptionsThatDoNotApplyAreSaid) {
   const CliRun both = run("identify --robot kuka_kr16 --data fit.csv --validate val.csv --holdout 0.3 --out a.xml", dir);
   EXPECT_EQ(both.code, 1);
   EXPECT_NE(both.err.find("--holdout and --validate: expected one of them"), std::string::npos) << both.err;
+  EXPECT_EQ(run("identify --robot kuka_kr16 --data fit.csv --validate val.csv --holdout 0 --out a0.xml", dir).code, 0);  // no holdout: fine
   const CliRun std_mm = run("identify --robot kuka_kr16 --data fit.csv --std-mm 0.05 --out b.xml", dir);
   ASSERT_EQ(std_mm.code, 0) << std_mm.err;
   EXPECT_NE(std_mm.err.find("warning: --std-mm 0.05 not used for fit.csv: its std columns give each row's position std"),

@@ -271,7 +271,7 @@ TEST(KrlRules, APtpNextToAWristSingularityThatTurnsTheWristIsAWarning) {
   for (const auto& w : pc.report.warnings)
     if (w.message.find("another arm posture") != std::string::npos) said.push_back(w.message);
   ASSERT_EQ(said.size(), 1u);
-  EXPECT_EQ(said[0].rfind("XP1: the compensated joints differ from the nominal robot's for this pose by up to ", 0), 0u) << said[0];
+  EXPECT_EQ(said[0].rfind("XP1: the compensated joints differ from the controller model's for this pose by up to ", 0), 0u) << said[0];
 }
 
 TEST(KrlRules, AnglesAreWrittenInTheFormTheProgramUses) {
@@ -284,6 +284,14 @@ TEST(KrlRules, AnglesAreWrittenInTheFormTheProgramUses) {
   t.setPose(calib::XyzAbc{1000.0, 0.0, 800.0, 0.0, 0.0, -180.0});
   EXPECT_FALSE(t.setPoseIfChanged(calib::XyzAbc{1000.0, 0.0, 800.0, 0.0, 0.0, 180.0}));
   EXPECT_EQ(*t.pose[5], -180.0);
+  // at B = +-90 only A - C (B = 90) or A + C (B = -90) is the rotation's: A 30, B 90, C 10 is
+  // A 20, B 90, C 0, and A 30, B -90, C 10 is A 20, B -90, C 20
+  t.setPose(calib::XyzAbc{1000.0, 0.0, 800.0, 30.0, 90.0, 10.0});
+  EXPECT_FALSE(t.setPoseIfChanged(calib::XyzAbc{1000.0, 0.0, 800.0, 20.0, 90.0, 0.0}));
+  EXPECT_EQ(*t.pose[3], 30.0);
+  t.setPose(calib::XyzAbc{1000.0, 0.0, 800.0, 30.0, -90.0, 10.0});
+  EXPECT_FALSE(t.setPoseIfChanged(calib::XyzAbc{1000.0, 0.0, 800.0, 20.0, -90.0, 20.0}));
+  EXPECT_EQ(*t.pose[5], 10.0);
   // a real correction: the rotation it gives, in the angles nearest the written ones
   t.setPose(calib::XyzAbc{1000.0, 0.0, 800.0, 10.0, 170.0, 0.0});
   const Eigen::Matrix3d R = calib::toIsometry(calib::XyzAbc{0, 0, 0, 10.0, 170.0, 0.0}).linear() *

@@ -222,6 +222,7 @@ TEST(RealUr10, DiagnosisFindsTheResidualUnexplained) {
   // every confounded / overlap line is one comparison: its verdict follows its own p, and the
   // unselected effect's RMS alone is the ranking's for that effect's best block (a line merging
   // several joints' numbers said "cannot tell them apart" next to p = 4e-15)
+  ASSERT_FALSE(j["confounded"].empty());
   for (const auto& c : j["confounded"]) {
     EXPECT_EQ(c["indistinguishable"].get<bool>(), c["p_a_better"].get<double>() > 0.05) << c.dump();
     bool ranked = false;

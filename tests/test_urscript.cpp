@@ -467,8 +467,12 @@ TEST(UrScript, GetInverseKinArgumentsAreReadOrNamed) {
   // no qnear: the joints where the robot stands decide (nothing to read)
   EXPECT_FALSE(read("get_inverse_kin(" + pose + ")").motions[0].qnear_deg.has_value());
   // a qnear accura cannot evaluate, or another TCP: the branch or the pose is not known
-  EXPECT_NE(read("get_inverse_kin(" + pose + ", qnear=get_actual_joint_positions())").motions[0].target_problem.find("qnear"),
+  EXPECT_NE(read("get_inverse_kin(" + pose + ", qnear=joints_of_the_day)").motions[0].target_problem.find("qnear"),
             std::string::npos);
+  // the controller's defaults written out: the current joints, the active TCP
+  const Program defaults = read("get_inverse_kin(" + pose + ", qnear=get_actual_joint_positions(), tcp=get_tcp_offset())");
+  EXPECT_TRUE(defaults.motions[0].target_problem.empty()) << defaults.motions[0].target_problem;
+  EXPECT_FALSE(defaults.motions[0].qnear_deg.has_value());
   EXPECT_NE(read("get_inverse_kin(" + pose + ", tcp=p[0, 0, 0.1, 0, 0, 0])").motions[0].target_problem.find("tcp="),
             std::string::npos);
   // an argument get_inverse_kin does not have: file:line:column, expected and found

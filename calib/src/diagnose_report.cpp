@@ -375,7 +375,8 @@ std::string confoundingText(const Confounding& c) {
     // (a coverage rule, a blocked fold: see the effects not selected)
     s = "confounded: " + a + " and " + b + " explain the same residual; " + c.effect_b + " alone does better on the held-out " +
         "poses (RMS alone " + f("%.4f", c.rms_b_alone_mm) + " vs " + f("%.4f", c.rms_a_alone_mm) + " mm) but is not selected " +
-        "(see 'not selected'; canonical correlation " + f("%.2f", c.canonical_correlation) + ")";
+        "(see 'not selected'; p = " + f("%.2g", c.p_a_better) + " that " + c.effect_a + " is better; canonical correlation " +
+        f("%.2f", c.canonical_correlation) + ")";
   } else if (c.indistinguishable) {
     s = "confounded: " + a + " and " + b + " explain the same residual and this data cannot tell them apart (held-out RMS " +
         "alone " + f("%.4f", c.rms_a_alone_mm) + " vs " + f("%.4f", c.rms_b_alone_mm) + " mm, p = " + f("%.2g", c.p_a_better) +

@@ -5,6 +5,7 @@
 #include <Eigen/QR>
 #include <Eigen/SVD>
 #include <algorithm>
+#include <limits>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -607,7 +608,7 @@ void Diagnoser::confounding() {
     // hold several blocks of D (joints): its comparison is the one of D's block that gained
     // most alone, all its numbers from that block (a merge of several blocks' numbers
     // contradicted itself: "cannot tell them apart" next to p = 4e-15)
-    double& representative = representative_gain[{C.effect, D.effect}];
+    double& representative = representative_gain.try_emplace({C.effect, D.effect}, -std::numeric_limits<double>::infinity()).first->second;
     if (round1_[d].gain > representative) {
       representative = round1_[d].gain;
       const Gain cd = pairedGain(round1_eval_[d].d, round1_eval_[best_c].d);

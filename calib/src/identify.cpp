@@ -310,9 +310,10 @@ Problem setUp(const RobotModel& start, const std::vector<MeasurementSet>& sets, 
       }
       model.deviations.joint_map[static_cast<size_t>(j)] = makeJointMap(c.lower, c.upper, stated_knot);
     }
-    std::vector<JointRange> mapped;
+    std::vector<JointRange> mapped;  // the maps this run fits (not those held from the start model)
     for (int j = 0; j < n; ++j)
-      if (!model.deviations.joint_map[static_cast<size_t>(j)].empty()) mapped.push_back(summary.coverage[static_cast<size_t>(j)]);
+      if ((mj.empty() || mj.count(j + 1)) && !model.deviations.joint_map[static_cast<size_t>(j)].empty())
+        mapped.push_back(summary.coverage[static_cast<size_t>(j)]);
     checkJointMapSize(mapped, stated_knot);
   }
   // The candidate parameters: those of the requested groups (tool rotation only with
@@ -401,7 +402,7 @@ void registration(Problem& pb, const std::vector<MeasurementSet>& sets, const Id
                              ", or geometric,...), or start from a model identified in this station");
       // several sets said to share a station: a nominal robot registered in the right frame is
       // within millimetres (the real UR10: 1.1 mm); tens of millimetres is two stations
-      if (summary.registration_rms_mm > kMaxSharedStationRmsMm && sets.size() > 1)
+      if (base && options.register_frame && summary.registration_rms_mm > kMaxSharedStationRmsMm && sets.size() > 1)
         throw InputError(sets[1].file, 0, 0,
                          "expected data sets that share one station (they were said to: --same-station): registered together, the "
                          "measured positions lie " + formatFixed(summary.registration_rms_mm, 1) + " mm RMS from the model's, more than " +

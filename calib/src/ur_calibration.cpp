@@ -384,7 +384,10 @@ SerialChain readUrCalibrationYaml(const std::string& path) {
       throw InputError(path, line, first, "expected an indentation of " + std::to_string(link_indent) + " (the links') or more, found " +
                                               std::to_string(indent));
     if (indent == link_indent) {
-      if (key == "hash") continue;
+      if (key == "hash") {
+        link.clear();  // a key below it is no link's
+        continue;
+      }
       link = key;
       if (link_line.count(link)) throw InputError(path, line, first, "'" + link + "' given twice");
       link_line[link] = line;

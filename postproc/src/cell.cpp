@@ -115,13 +115,14 @@ class CellReader {
 
   double unitScale(const XMLElement* e) const {
     const tinyxml2::XMLAttribute* a = attr(e, "units");
-    if (!a) fail(e, std::string("<") + e->Name() + ">: expected the attribute units (mm, cm, m or inch) with the mesh file, found none");
+    if (!a) fail(e, std::string("<") + e->Name() + ">: expected the attribute units (mm, cm, m, inch or ft) with the mesh file, found none");
     const std::string u = a->Value();
     if (u == "mm") return 1.0;
     if (u == "cm") return 10.0;
     if (u == "m") return 1000.0;
     if (u == "inch" || u == "in") return 25.4;
-    failAttribute(e, "units", std::string("<") + e->Name() + "> units: expected mm, cm, m or inch, found '" + u + "'");
+    if (u == "ft" || u == "foot" || u == "feet") return 304.8;
+    failAttribute(e, "units", std::string("<") + e->Name() + "> units: expected mm, cm, m, inch or ft, found '" + u + "'");
   }
 
   /// The shapes of an <object>, <link> or <tool>: the mesh of its file attribute and its

@@ -4,6 +4,7 @@
 #include <cctype>
 #include <cmath>
 #include <cstdlib>
+#include <cstring>
 #include <map>
 #include <memory>
 #include <set>
@@ -87,24 +88,36 @@ class Job {
     for (double c : s_.calibrated.deviations.compliance) compliant = compliant || c != 0;
     if (!compliant) return;
     std::vector<std::pair<SourceLocation, std::string>> loads;
+    // the mass a statement sets, read at `from`: the payload the compensation takes is nothing to say
+    const auto sameMass = [&](const char* from) {
+      char* stop = nullptr;
+      const double kg = std::strtod(from, &stop);
+      return stop != from && std::abs(kg - s_.context.payload_kg) <= 1e-9;
+    };
     if (in.urscript)
-      for (const auto& o : in.urscript->others) {
-        const size_t at = o.text.find("set_payload");
-        if (at == std::string::npos) continue;
-        // set_payload(m, ...) with m the payload the compensation takes: nothing to say
-        const size_t open = o.text.find('(', at);
-        const char* from = open == std::string::npos ? nullptr : o.text.c_str() + open + 1;
-        char* stop = nullptr;
-        const double kg = from ? std::strtod(from, &stop) : 0.0;
-        const bool same = from && stop != from && (*stop == ',' || *stop == ')' || *stop == ' ') &&
-                          std::abs(kg - s_.context.payload_kg) <= 1e-9;
-        if (!same) loads.push_back({o.where, o.text});
-      }
+      for (const auto& o : in.urscript->others)
+        for (const char* call : {"set_payload(", "set_target_payload("}) {
+          // the call by its whole name (not set_payload_cog): set_payload(m, ...)
+          const size_t at = o.text.find(call);
+          if (at == std::string::npos || (at > 0 && (std::isalnum(static_cast<unsigned char>(o.text[at - 1])) || o.text[at - 1] == '_')))
+            continue;
+          if (!sameMass(o.text.c_str() + at + std::strlen(call))) loads.push_back({o.where, o.text});
+          break;
+        }
     for (const PassThrough& p : in.passthrough) {
-      std::string up = p.text.substr(0, p.text.find(';'));  // KRL: before a comment
+      if (p.language != "KRL") continue;
+      // an assignment to $LOAD or $LOAD.M at the statement's start ($LOAD.M = m, $LOAD = {M m, ...}),
+      // not a comparison or a read
+      std::string up = p.text.substr(0, p.text.find(';'));  // before a comment
       for (char& ch : up) ch = static_cast<char>(std::toupper(static_cast<unsigned char>(ch)));
-      if (p.language == "KRL" && up.find("$LOAD") != std::string::npos && up.find('=') != std::string::npos)
-        loads.push_back({p.where, p.text});
+      const size_t first = up.find_first_not_of(" \t");
+      if (first == std::string::npos || up.compare(first, 5, "$LOAD") != 0) continue;
+      const size_t eq = up.find('=', first);
+      if (eq == std::string::npos || (eq + 1 < up.size() && up[eq + 1] == '=')) continue;
+      const size_t m = up.find('M', eq);
+      const bool whole = up.compare(first, 7, "$LOAD.M") == 0;
+      const char* mass = whole ? up.c_str() + eq + 1 : m != std::string::npos ? up.c_str() + m + 1 : nullptr;
+      if (!mass || !sameMass(mass)) loads.push_back({p.where, p.text});
     }
     if (loads.empty()) return;
     warning(loads.front().first, "the program sets its payload here ('" + loads.front().second + "'" +
@@ -128,7 +141,7 @@ class Job {
     const double change = (q_real - nominal.q).cwiseAbs().maxCoeff(&joint);
     if (!(change > kPostureChangeDeg)) return;
     const bool revolute = comp.controller().model().nominal.joints[static_cast<size_t>(joint)].type == calib::JointType::kRevolute;
-    warning(m.where, targetLabel(t) + ": the compensated joints differ from the nominal robot's for this pose by up to " +
+    warning(m.where, targetLabel(t) + ": the compensated joints differ from the controller model's for this pose by up to " +
                          calib::formatFixed(change, 1) + (revolute ? " deg" : " mm") + " (joint " + std::to_string(joint + 1) + ": " +
                          calib::formatFixed(nominal.q[joint], 2) + " -> " + calib::formatFixed(q_real[joint], 2) +
                          "): the pose is reached with another arm posture than the off-line simulation's (next to a "
@@ -375,7 +388,7 @@ class Job {
       for (const Target* t : {&m.target, m.aux ? &*m.aux : nullptr}) {
         if (!t || !t->modified || t->value_id < 0 || named.count(t->value_id)) continue;
         const auto it = kept_values_.find(t->value_id);
-        if (it == kept_values_.end()) continue;
+        if (it == kept_values_.end() || it->second.str() == m.where.str()) continue;  // (not the motion itself)
         named.insert(t->value_id);
         warning(it->second, "this motion is left as written, but its point " + targetLabel(*t) + " is corrected for the motion at " +
                                 m.where.str() + ": it moves with that correction, made for that motion's tool, base and path "

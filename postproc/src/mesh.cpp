@@ -413,13 +413,18 @@ class Checker {
   }
 
   // ---- STL ----
-  void stl() {
+  /// Checks an STL file; returns where an ASCII one's 'solid' starts (after blank lines or
+  /// spaces), std::string::npos for a binary one.
+  size_t stl() {
     const uint64_t size = d_.size();
     if (size >= 84) {
       uint32_t n = 0;
       for (int k = 3; k >= 0; --k) n = (n << 8) | static_cast<unsigned char>(d_[80 + static_cast<size_t>(k)]);
       const uint64_t expected = 84 + 50 * static_cast<uint64_t>(n);
-      if (expected == size) return stlBinary(n);
+      if (expected == size) {
+        stlBinary(n);
+        return std::string::npos;
+      }
       // assimp computes this size in 32 bits: a count that wraps would make it read past the end
       if (static_cast<uint32_t>(expected) == static_cast<uint32_t>(size))
         failAt(80, "expected a binary STL of 84 + 50 x " + std::to_string(n) + " = " + std::to_string(expected) + " bytes, found " + std::to_string(size) + " bytes");
@@ -450,6 +455,7 @@ class Checker {
     }
     textOnly(d_.size());  // a vertical tab or a lone carriage return would split numbers differently for assimp
     stlAscii();
+    return first;
   }
 
   void stlBinary(uint32_t n) {
@@ -682,13 +688,9 @@ void checkMeshBytes(const std::string& path, std::string& bytes, double scale_to
   const std::string ext = lowerExtension(path);
   if (ext == ".ply") c.ply();
   else if (ext == ".stl") {
-    c.stl();
-    // an ASCII STL after blank lines or spaces (checked above): assimp needs 'solid' first
-    uint32_t n = 0;
-    for (int k = 3; k >= 0 && bytes.size() >= 84; --k) n = (n << 8) | static_cast<unsigned char>(bytes[80 + static_cast<size_t>(k)]);
-    const bool binary = bytes.size() >= 84 && bytes.size() == 84 + 50 * static_cast<uint64_t>(n);
-    const size_t first = bytes.find_first_not_of(" \t\r\n");
-    if (!binary && first != std::string::npos && first > 0 && bytes.compare(first, 5, "solid") == 0) bytes.erase(0, first);
+    // an ASCII STL after blank lines or spaces (checked): assimp needs 'solid' first
+    const size_t solid = c.stl();
+    if (solid != std::string::npos && solid > 0) bytes.erase(0, solid);
   }
   else if (ext == ".obj") c.obj();
   for (const size_t at : c.mtllibOffsets()) bytes[at] = '#';
@@ -701,8 +703,10 @@ double colladaUnitMm(const std::string& path) {
   std::ostringstream s;
   s << in.rdbuf();
   const std::string text = s.str();
-  const size_t unit = text.find("<unit");
-  const size_t end = unit == std::string::npos ? unit : text.find('>', unit);
+  // the document's own <asset> (the first one, before any library): its <unit>
+  const size_t asset = text.find("<asset"), asset_end = asset == std::string::npos ? asset : text.find("</asset>", asset);
+  const size_t unit = asset_end == std::string::npos ? std::string::npos : text.find("<unit", asset);
+  const size_t end = unit == std::string::npos || unit > asset_end ? std::string::npos : text.find('>', unit);
   if (unit == std::string::npos || end == std::string::npos) return 1000.0;
   const std::string tag = text.substr(unit, end - unit);
   const size_t meter = tag.find("meter=");
@@ -747,7 +751,8 @@ Mesh loadMesh(const std::string& path, double scale_to_mm) {
   importer.SetPropertyBool(AI_CONFIG_IMPORT_COLLADA_IGNORE_UP_DIRECTION, true);
   if (ext == ".dae") {
     const double file_mm = colladaUnitMm(path);
-    if (std::abs(file_mm - scale_to_mm) > 1e-9 * scale_to_mm)
+    // (a unit written in single precision, SketchUp's inch 0.02539999969, is that unit)
+    if (std::abs(file_mm - scale_to_mm) > 1e-6 * scale_to_mm)
       throw calib::InputError(path, 0, 0, "expected the cell's units to be the file's own (<unit meter=\"" + calib::formatFixed(file_mm / 1000, 6) +
                                               "\">: " + calib::formatFixed(file_mm, 4) + " mm a unit), found " + calib::formatFixed(scale_to_mm, 4) +
                                               " mm a unit: give the object units that match the file");

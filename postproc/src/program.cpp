@@ -69,7 +69,11 @@ bool Target::setPoseIfChanged(const calib::XyzAbc& p) {
     // takes either (KUKA normalises A, B, C itself), and a correction that rounds to zero then
     // keeps the written text (A 0, B 180, C 0 stays, not A 180, B 0, C -180)
     const double written[3] = {*pose[3], *pose[4], *pose[5]};
-    const double sets[2][3] = {{v[3], v[4], v[5]}, {v[3] + 180.0, 180.0 - v[4], v[5] + 180.0}};
+    std::vector<std::array<double, 3>> sets = {{v[3], v[4], v[5]}, {v[3] + 180.0, 180.0 - v[4], v[5] + 180.0}};
+    // at B = +-90 deg (gimbal lock) only A - C (B = 90) or A + C (B = -90) is the rotation's:
+    // the written A with the C that keeps it
+    if (std::abs(std::cos(v[4] * calib::kDegToRad)) < 1e-9)
+      sets.push_back({written[0], v[4], v[4] > 0 ? written[0] - (v[3] - v[5]) : (v[3] + v[5]) - written[0]});
     double best = std::numeric_limits<double>::infinity();
     for (const auto& set : sets) {
       double near[3], dist = 0;

@@ -83,8 +83,13 @@ Session::Session(const SessionSettings& s) {
   if (job_.calibrated.dof() > s.max_joints)
     throw calib::InputError(s.calibrated_model + ": expected at most " + std::to_string(s.max_joints) + " joints, found " +
                      std::to_string(job_.calibrated.dof()));
-  if (!s.controller_model.empty())
-    checkControllerRobot(job_.calibrated.nominal, readModel(s.controller_model, "controller_model").nominal, s.controller_model);
+  if (!s.controller_model.empty()) {
+    // the kinematics the controller runs (its nominal robot, or a UR's factory calibration):
+    // the command lands where its own kinematics put it (JobSettings::controller_kinematics)
+    calib::RobotModel controller = readModel(s.controller_model, "controller_model");
+    checkControllerRobot(job_.calibrated.nominal, controller.nominal, s.controller_model);
+    job_.controller_kinematics = std::move(controller);
+  }
   for (const auto* p : {&s.robroot_in_world, &s.robroot_in_kukaworld, &s.program_base, &s.program_tool})
     if (*p) checkedPose(**p, "load options");
   if (!(s.payload_kg >= 0 && s.payload_kg <= kMaxPayloadKg))

@@ -462,11 +462,17 @@ class Reader {
       if (arg.count(n)) fail(t[a].b, "expected each argument of get_inverse_kin once, found '" + n + "' given twice");
       arg[n] = {v, b};
     }
-    if (const auto it = arg.find("tcp"); it != arg.end() && m.target_problem.empty())
+    // the controller's defaults written out: the active TCP, the current joints
+    const auto is = [&](const std::pair<size_t, size_t>& r, const char* a, const char* b) {
+      const std::string x = textOf(t, r.first, r.second);
+      return x == a || x == b;
+    };
+    if (const auto it = arg.find("tcp");
+        it != arg.end() && !is(it->second, "get_tcp_offset()", "\"active_tcp\"") && m.target_problem.empty())
       m.target_problem = "get_inverse_kin(..., tcp=" + textOf(t, it->second.first, it->second.second) +
                          ") solves for a TCP that is not the active one, which accura does not model";
     const auto it = arg.find("qnear");
-    if (it == arg.end()) return;
+    if (it == arg.end() || is(it->second, "get_actual_joint_positions()", "get_target_joint_positions()")) return;
     std::string problem;
     const auto q = joints(t, it->second.first, it->second.second, &problem);
     if (!q) {

@@ -45,8 +45,10 @@ struct SessionSettings {
   /// A robot file written by accura identify, or a bundled robot name (nominal = real).
   std::string calibrated_model;
   /// The robot the controller believes in (robot file or bundled name); empty: the nominal
-  /// data of the calibrated model. When given it must be that nominal robot
-  /// (checkControllerRobot): a check that the host loaded the model of the right robot.
+  /// data of the calibrated model. When given it must be a model of that nominal robot
+  /// (checkControllerRobot: the host loaded the model of the right robot), and its link
+  /// deviations are the kinematics the controller runs (JobSettings::controller_kinematics: a
+  /// UR controller's factory calibration, exported with accura export --ur-deltas).
   std::string controller_model;
   std::optional<calib::XyzAbc> robroot_in_world;      ///< JobSettings::robroot_in_world
   std::optional<calib::XyzAbc> robroot_in_kukaworld;  ///< $ROBROOT; empty: identity
