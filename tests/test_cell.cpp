@@ -316,6 +316,14 @@ TEST(CellMesh, AsciiStlAfterBlankLinesAndInUpperCase) {
   } catch (const calib::InputError& e) {
     EXPECT_NE(std::string(e.what()).find("upper.stl:1:1: expected an ASCII STL's keywords in lower case"), std::string::npos) << e.what();
   }
+  // the box given in metres but read as mm: 0.1 mm across, a unit mistake, named at 1:1
+  try {
+    loadMesh(fixture("box_100mm.stl"), 0.001);
+    FAIL() << "expected an InputError";
+  } catch (const calib::InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("box_100mm.stl:1:1: expected an object at least 1 mm across, found one of 0.1732 mm"),
+              std::string::npos) << e.what();
+  }
 }
 
 // COLLADA: its <unit> (which assimp applies) must be the cell's units, and its coordinates are

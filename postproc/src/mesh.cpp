@@ -815,7 +815,7 @@ Mesh loadMesh(const std::string& path, double scale_to_mm) {
                                       }),
                        mesh.triangles.end());
   if (mesh.triangles.empty())
-    throw calib::InputError(path, 0, 0, "expected a mesh with triangles, found " + std::to_string(all) + " without area");
+    throw calib::InputError(path, 1, 1, "expected a mesh with triangles, found " + std::to_string(all) + " without area");  // (the whole file: 1:1)
   // a mesh smaller than a millimetre is a unit mistake (a file in metres read as mm), not an object
   Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e300), hi = -lo;
   for (const auto& t : mesh.triangles)
@@ -824,7 +824,7 @@ Mesh loadMesh(const std::string& path, double scale_to_mm) {
       hi = hi.cwiseMax(mesh.vertices_mm[static_cast<size_t>(k)]);
     }
   if ((hi - lo).norm() < 1.0)
-    throw calib::InputError(path, 0, 0, "expected an object at least 1 mm across, found one of " + calib::formatFixed((hi - lo).norm(), 4) +
+    throw calib::InputError(path, 1, 1, "expected an object at least 1 mm across, found one of " + calib::formatFixed((hi - lo).norm(), 4) +
                                             " mm: check the units the cell gives the file (its coordinates times " +
                                             calib::formatFixed(scale_to_mm, 4) + " mm)");
   return mesh;
