@@ -31,7 +31,7 @@ constexpr double kUrCheckTolMm = 1e-6;
 
 /// The most a factory calibration may move the flange from the nominal arm's (mm, deg; largest
 /// over 64 joint vectors): a real one moves it by a few millimetres (tests/data/urdf's forum file:
-/// 3.6 mm on a UR10). More is another arm type's calibration (a UR5's on a UR10: 370 mm) or a
+/// up to about 5 mm on a UR10). More is another arm type's calibration (a UR5's on a UR10: about 400 mm) or a
 /// corrupted file.
 constexpr double kMaxUrFactoryCorrectionMm = 20.0;
 constexpr double kMaxUrFactoryCorrectionDeg = 2.0;
