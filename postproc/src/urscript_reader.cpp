@@ -434,34 +434,46 @@ class Reader {
     defs_ = movingRoutines(moves, calls);
   }
 
+  /// The arguments `list` of a call `f` whose parameters are `names`, from the `first`-th on
+  /// (the ones before it the caller reads): positional, then named (name=value); the value's
+  /// token span by name. Errors (file:line:column): an empty argument, an unknown name, a name
+  /// given twice, a name without a value, a positional argument after a named one, too many.
+  std::map<std::string, std::pair<size_t, size_t>> arguments(const std::vector<Tok>& t, const std::vector<std::pair<size_t, size_t>>& list,
+                                                              size_t first, const std::vector<std::string>& names, const std::string& f) const {
+    std::map<std::string, std::pair<size_t, size_t>> arg;
+    size_t positional = first;
+    bool named_seen = false;
+    for (size_t k = first; k < list.size(); ++k) {
+      const auto [a, b] = list[k];
+      if (a == b) fail(a < t.size() ? t[a].b : t.back().b, "expected an argument of " + f + ", found an empty one");
+      if (isIdent(t, a) && isOp(t, a + 1, "=")) {
+        const std::string& n = t[a].s;
+        if (std::find(names.begin() + static_cast<std::ptrdiff_t>(first), names.end(), n) == names.end()) {
+          std::string all;
+          for (size_t x = first; x < names.size(); ++x) all += (all.empty() ? "" : ", ") + names[x];
+          fail(t[a].b, "expected an argument of " + f + " (" + all + "), found '" + n + "'");
+        }
+        if (arg.count(n)) fail(t[a].b, "expected each argument of " + f + " once, found '" + n + "' given twice");
+        if (a + 2 >= b) fail(t[a + 1].b, "expected a value after '" + n + "=', found none");
+        arg[n] = {a + 2, b};
+        named_seen = true;
+      } else {
+        if (named_seen) fail(t[a].b, "expected a named argument (name=value) after a named one, found '" + textOf(t, a, b) + "'");
+        if (positional >= names.size())
+          fail(t[a].b, "expected at most " + std::to_string(names.size()) + " arguments of " + f + ", found '" + textOf(t, a, b) + "'");
+        arg[names[positional++]] = {a, b};
+      }
+    }
+    return arg;
+  }
+
   /// The arguments of get_inverse_kin(x, qnear, maxPositionError, maxOrientationError, tcp)
   /// after the pose (URScript manual): qnear, the joints whose nearest solution the controller
   /// takes, into m.qnear_deg; the error bounds are the controller's own tolerances; a `tcp`
   /// other than the active one is a problem of the target (accura solves for the active TCP).
   void inverseKinArguments(const std::vector<Tok>& t, const std::vector<std::pair<size_t, size_t>>& gi, Motion& m) {
     static const std::vector<std::string> names = {"x", "qnear", "maxPositionError", "maxOrientationError", "tcp"};
-    std::map<std::string, std::pair<size_t, size_t>> arg;
-    bool named_seen = false;
-    for (size_t k = 1; k < gi.size(); ++k) {
-      const auto [a, b] = gi[k];
-      if (a == b) fail(a < t.size() ? t[a].b : t.back().b, "expected an argument of get_inverse_kin, found an empty one");
-      std::string n;
-      size_t v = a;
-      if (isIdent(t, a) && isOp(t, a + 1, "=")) {
-        n = t[a].s;
-        v = a + 2;
-        if (std::find(names.begin() + 1, names.end(), n) == names.end())
-          fail(t[a].b, "expected an argument of get_inverse_kin (qnear, maxPositionError, maxOrientationError, tcp), found '" + n + "'");
-        if (v >= b) fail(t[a + 1].b, "expected a value after '" + n + "=', found none");
-        named_seen = true;
-      } else {
-        if (named_seen) fail(t[a].b, "expected a named argument (name=value) after a named one, found '" + textOf(t, a, b) + "'");
-        if (k >= names.size()) fail(t[a].b, "expected at most 5 arguments of get_inverse_kin, found '" + textOf(t, a, b) + "'");
-        n = names[k];
-      }
-      if (arg.count(n)) fail(t[a].b, "expected each argument of get_inverse_kin once, found '" + n + "' given twice");
-      arg[n] = {v, b};
-    }
+    const std::map<std::string, std::pair<size_t, size_t>> arg = arguments(t, gi, 1, names, "get_inverse_kin");
     // the controller's defaults written out: the active TCP, the current joints
     const auto is = [&](const std::pair<size_t, size_t>& r, const char* a, const char* b) {
       const std::string x = textOf(t, r.first, r.second);
@@ -715,32 +727,8 @@ class Reader {
         {"movep", {"pose", "a", "v", "r"}},
         {"movej", {"q", "a", "v", "t", "r"}},
         {"movec", {"pose_via", "pose_to", "a", "v", "r", "mode"}}};
-    const std::vector<std::string>& names = params.at(f);
     refs_.clear();
-    std::map<std::string, std::pair<size_t, size_t>> arg;
-    const auto list = items(t, 2, t.size() - 1);
-    size_t positional = 0;
-    bool named_seen = false;
-    for (const auto& [a, b] : list) {
-      if (a == b) fail(a < t.size() ? t[a].b : t.back().b, "expected an argument of " + f + ", found an empty one");
-      if (isIdent(t, a) && isOp(t, a + 1, "=")) {
-        const std::string& n = t[a].s;
-        if (std::find(names.begin(), names.end(), n) == names.end()) {
-          std::string all;
-          for (const auto& x : names) all += (all.empty() ? "" : ", ") + x;
-          fail(t[a].b, "expected an argument of " + f + " (" + all + "), found '" + n + "'");
-        }
-        if (arg.count(n)) fail(t[a].b, "expected each argument of " + f + " once, found '" + n + "' given twice");
-        if (a + 2 >= b) fail(t[a + 1].b, "expected a value after '" + n + "=', found none");
-        arg[n] = {a + 2, b};
-        named_seen = true;
-      } else {
-        if (named_seen) fail(t[a].b, "expected a named argument (name=value) after a named one, found '" + textOf(t, a, b) + "'");
-        if (positional >= names.size())
-          fail(t[a].b, "expected at most " + std::to_string(names.size()) + " arguments of " + f + ", found '" + textOf(t, a, b) + "'");
-        arg[names[positional++]] = {a, b};
-      }
-    }
+    const std::map<std::string, std::pair<size_t, size_t>> arg = arguments(t, items(t, 2, t.size() - 1), 0, params.at(f), f);
     Motion m;
     m.where = loc(t[0].b);
     m.statement = textOf(t, 0, t.size());
