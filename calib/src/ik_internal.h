@@ -170,13 +170,7 @@ inline bool hasDeviationsBeyondBaseTool(const RobotModel& m) {
   const Deviations& d = m.deviations;
   for (const LinkDeviation& l : d.links)
     if (l.dtheta_rad != 0 || l.dd_mm != 0 || l.da_mm != 0 || l.dalpha_rad != 0 || l.dbeta_rad != 0) return true;
-  for (const std::vector<double>* v : {&d.compliance, &d.gear_sin, &d.gear_cos, &d.joint_scale, &d.backlash})
-    for (double x : *v)
-      if (x != 0) return true;
-  for (const JointMap& map : d.joint_map)
-    for (double x : map.coef)
-      if (x != 0) return true;
-  return d.thermal_alpha_per_k != 0;
+  return d.hasEffectsBeyondGeometry();
 }
 
 inline std::string formatPose(const Eigen::Isometry3d& T) {

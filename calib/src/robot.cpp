@@ -20,6 +20,16 @@ std::vector<LinkForm> chooseLinkForms(const RobotDefinition& robot, FormPolicy p
   return forms;
 }
 
+bool Deviations::hasEffectsBeyondGeometry() const {
+  for (const std::vector<double>* v : {&compliance, &gear_sin, &gear_cos, &joint_scale, &backlash})
+    for (double x : *v)
+      if (x != 0) return true;
+  for (const JointMap& map : joint_map)
+    for (double x : map.coef)
+      if (x != 0) return true;
+  return thermal_alpha_per_k != 0;
+}
+
 Deviations Deviations::zero(int dof, int gear_harmonics) {
   if (gear_harmonics < 1 || gear_harmonics > kMaxGearHarmonics)
     throw ArgumentError("gear harmonics: expected 1.." + std::to_string(kMaxGearHarmonics) + ", got " +

@@ -67,12 +67,7 @@ ModelFactory::ModelFactory(const JobSettings& job, const Placement& placement)
     controller_flange_ = *job.controller_kinematics;
     calib::Deviations& d = controller_flange_.deviations;
     // a controller runs a geometric model: no load, temperature or joint-space effects
-    bool effects = d.thermal_alpha_per_k != 0;
-    for (const std::vector<double>* v : {&d.compliance, &d.gear_sin, &d.gear_cos, &d.joint_scale, &d.backlash})
-      for (double x : *v) effects = effects || x != 0;
-    for (const calib::JointMap& map : d.joint_map)
-      for (double x : map.coef) effects = effects || x != 0;
-    if (effects)
+    if (d.hasEffectsBeyondGeometry())
       throw calib::InputError("the controller's kinematics ('" + job.controller_kinematics->nominal.name +
                               "'): expected a geometric model (what a controller runs: link deviations only), found compliance, "
                               "gear, scale, backlash, thermal or joint-map terms");

@@ -148,6 +148,9 @@ struct Deviations {
 
   /// Zero deviations sized for `dof` joints and `gear_harmonics` harmonics (1..4).
   static Deviations zero(int dof, int gear_harmonics = kDefaultGearHarmonics);
+  /// True when an effect beyond the geometry is not zero: joint compliance, gear_periodic,
+  /// joint_scale, backlash, thermal, a joint map (what no controller runs).
+  bool hasEffectsBeyondGeometry() const;
 };
 
 /// The complete model: nominal definition, link forms, deviations. Immutable once built;
