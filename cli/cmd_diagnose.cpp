@@ -75,16 +75,11 @@ calib::DiagnosisReportContext reportContext(const DiagnoseArgs& a, const calib::
 void checkValidationSet(const calib::Diagnosis& d, const calib::MeasurementSet& fit, const calib::MeasurementSet& validation,
                         const std::string& file) {
   const int dof = d.baseline_model.dof();
-  std::vector<double> lo(static_cast<size_t>(dof), 1e300), hi(static_cast<size_t>(dof), -1e300);
-  for (const calib::Measurement& r : fit.rows)
-    for (int j = 0; j < dof; ++j) {
-      lo[static_cast<size_t>(j)] = std::min(lo[static_cast<size_t>(j)], r.q[j]);
-      hi[static_cast<size_t>(j)] = std::max(hi[static_cast<size_t>(j)], r.q[j]);
-    }
+  const std::vector<calib::JointRange> covered = calib::jointRanges(fit, dof);
   int outside = 0;
   for (const calib::Measurement& r : validation.rows)
     for (int j = 0; j < dof; ++j)
-      if (r.q[j] < lo[static_cast<size_t>(j)] || r.q[j] > hi[static_cast<size_t>(j)]) {
+      if (r.q[j] < covered[static_cast<size_t>(j)].lower || r.q[j] > covered[static_cast<size_t>(j)].upper) {
         ++outside;
         break;
       }

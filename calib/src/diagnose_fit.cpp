@@ -56,17 +56,9 @@ void Diagnoser::addJointMaps() {
   map_knot_ = 0;
   if (std::find(o_.effects.begin(), o_.effects.end(), "joint_map") == o_.effects.end()) return;
   const int n = M0_.dof();
-  std::vector<JointRange> range(static_cast<size_t>(n));
+  const std::vector<JointRange> range = jointRanges(fit_, n);
   double widest = 0;
-  for (int j = 0; j < n; ++j) {
-    double lo = 1e300, hi = -1e300;
-    for (const Measurement& r : fit_.rows) {
-      lo = std::min(lo, r.q[j]);
-      hi = std::max(hi, r.q[j]);
-    }
-    range[static_cast<size_t>(j)] = {lo, hi};
-    widest = std::max(widest, hi - lo);
-  }
+  for (const JointRange& c : range) widest = std::max(widest, c.upper - c.lower);
   // at least about 10 fit poses per coefficient of the widest joint's map
   double knot = o_.joint_map_knot;
   const double max_intervals = std::max(4.0, double(m_) / 10.0 - 3.0);

@@ -285,15 +285,7 @@ Problem setUp(const RobotModel& start, const std::vector<MeasurementSet>& sets, 
   const int n = model.dof();
 
   // Coverage of the fit data, per joint.
-  summary.coverage.assign(static_cast<size_t>(n), JointRange{});
-  for (int j = 0; j < n; ++j) {
-    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
-    for (const Measurement& r : data.rows) {
-      lo = std::min(lo, r.q[j]);
-      hi = std::max(hi, r.q[j]);
-    }
-    summary.coverage[static_cast<size_t>(j)] = {lo, hi};
-  }
+  summary.coverage = jointRanges(data, n);
   // Joint maps: on the covered interval of each mapped joint.
   if (want_map) {
     const std::set<int>& mj = groups["joint_map"];

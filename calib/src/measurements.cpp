@@ -583,6 +583,18 @@ std::string implausibleMeasuredValue(MeasuredValue kind, double v) {
   return "";
 }
 
+std::vector<JointRange> jointRanges(const MeasurementSet& data, int dof) {
+  std::vector<JointRange> out(static_cast<size_t>(std::max(dof, 0)),
+                              JointRange{std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity()});
+  for (const Measurement& r : data.rows)
+    for (int j = 0; j < dof; ++j) {
+      JointRange& c = out[static_cast<size_t>(j)];
+      c.lower = std::min(c.lower, r.q[j]);
+      c.upper = std::max(c.upper, r.q[j]);
+    }
+  return out;
+}
+
 MeasurementSet readMeasurementsCsv(const std::string& path, const RobotDefinition& robot) {
   return Reader(path, robot).read();
 }

@@ -69,6 +69,10 @@ constexpr double kJointLimitReadSlack = 0.01;
 /// whose norm is not 1 within 1e-3, and a file with no data row.
 MeasurementSet readMeasurementsCsv(const std::string& path, const RobotDefinition& robot);
 
+/// The range of each of the first `dof` joints over the rows of `data` (deg or mm; the fit's
+/// coverage). An empty `data` gives lower > upper for every joint.
+std::vector<JointRange> jointRanges(const MeasurementSet& data, int dof);
+
 /// Writes measurements in the same format (every column the set has; fixed formatting:
 /// q with 6 decimals, positions 6 decimals (mm), quaternions 9 decimals) through a
 /// temporary file renamed into place. `comments` lines are written first, each prefixed "# ".
