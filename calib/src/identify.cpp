@@ -289,6 +289,7 @@ Problem setUp(const RobotModel& start, const std::vector<MeasurementSet>& sets, 
   // Joint maps: on the covered interval of each mapped joint.
   if (want_map) {
     const std::set<int>& mj = groups["joint_map"];
+    std::vector<int> mapped;  // the joints this run maps
     for (int j = 0; j < n; ++j) {
       if (!mj.empty() && !mj.count(j + 1)) continue;
       const JointRange& c = summary.coverage[static_cast<size_t>(j)];
@@ -300,13 +301,16 @@ Problem setUp(const RobotModel& start, const std::vector<MeasurementSet>& sets, 
         model.deviations.joint_map[static_cast<size_t>(j)] = JointMap{};
         continue;
       }
+      mapped.push_back(j);
+    }
+    // the maps this run fits (not those held from the start model), sized before they are made
+    std::vector<JointRange> ranges;
+    for (const int j : mapped) ranges.push_back(summary.coverage[static_cast<size_t>(j)]);
+    checkJointMapSize(ranges, stated_knot);
+    for (const int j : mapped) {
+      const JointRange& c = summary.coverage[static_cast<size_t>(j)];
       model.deviations.joint_map[static_cast<size_t>(j)] = makeJointMap(c.lower, c.upper, stated_knot);
     }
-    std::vector<JointRange> mapped;  // the maps this run fits (not those held from the start model)
-    for (int j = 0; j < n; ++j)
-      if ((mj.empty() || mj.count(j + 1)) && !model.deviations.joint_map[static_cast<size_t>(j)].empty())
-        mapped.push_back(summary.coverage[static_cast<size_t>(j)]);
-    checkJointMapSize(mapped, stated_knot);
   }
   // The candidate parameters: those of the requested groups (tool rotation only with
   // orientation data). Every other deviation stays as it is in `start` and is not part of

@@ -92,6 +92,16 @@ double jointMapBasisValue(const JointMap& map, double q, int k) {
   return w[k - f];
 }
 
+namespace {
+
+/// Knot intervals of a map over [lower, upper] with spacing `knot` (at least one; a double, so
+/// that an absurd spacing is counted, not overflowed).
+double jointMapIntervals(double lower, double upper, double knot) {
+  return std::max(1.0, std::ceil((upper - lower) / knot - 1e-9));
+}
+
+}  // namespace
+
 JointMap makeJointMap(double lower, double upper, double knot) {
   if (!(std::isfinite(lower) && std::isfinite(upper) && lower < upper))
     throw ArgumentError("joint map: expected a covered interval lower < upper, got " + std::to_string(lower) + ", " +
@@ -101,7 +111,7 @@ JointMap makeJointMap(double lower, double upper, double knot) {
   JointMap m;
   m.lower = lower;
   m.upper = upper;
-  m.intervals = std::max(1, static_cast<int>(std::ceil((upper - lower) / knot - 1e-9)));
+  m.intervals = static_cast<int>(jointMapIntervals(lower, upper, knot));
   m.taper = m.knot();
   m.coef.assign(static_cast<size_t>(m.intervals) + 3, 0.0);
   return m;
@@ -111,12 +121,12 @@ void checkJointMapSize(const std::vector<JointRange>& ranges, double knot) {
   size_t coefficients = 0;
   double covered = 0;
   for (const JointRange& r : ranges) {
-    coefficients += static_cast<size_t>(std::max(1.0, std::ceil((r.upper - r.lower) / knot - 1e-9))) + 3;
+    coefficients += static_cast<size_t>(std::min(jointMapIntervals(r.lower, r.upper, knot), 1e15)) + 3;  // makeJointMap's coef.size()
     covered += r.upper - r.lower;
   }
   if (coefficients <= kMaxJointMapCoefficients) return;
   const double fits = std::ceil(10 * covered / static_cast<double>(kMaxJointMapCoefficients - 4 * ranges.size())) / 10;
-  throw InputError("joint_map: a knot spacing of " + formatFixed(knot, 3) + " gives " + std::to_string(coefficients) +
+  throw InputError("joint_map: a knot spacing of " + formatNumber("%g", knot) + " gives " + std::to_string(coefficients) +
                    " map coefficients over the joints' covered ranges; expected at most " + std::to_string(kMaxJointMapCoefficients) +
                    " (they are solved densely): a spacing of at least " + formatFixed(fits, 1));
 }
