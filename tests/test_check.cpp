@@ -1032,5 +1032,59 @@ TEST(CheckProgram, CellPlacementConflictNamesTheRobotElement) {
   EXPECT_EQ(comp.code, 1) << comp.out << comp.err;
   EXPECT_NE(comp.err.find("cell.xml:4:4: <robot>"), std::string::npos) << comp.err;
 }
+
+TEST(CheckReach, ALoopsFirstLinIsSolvedOnTheConfigurationTheRobotStandsIn) {
+  // LIN at a loop's start (from before the loop, or from the loop's end), without S/T (KUKA
+  // ignores them on a LIN): the robot keeps the configuration it stands in. check follows the
+  // text (the first pass comes from the PTP before the loop), so the LIN is checked from the
+  // PTP's joints and ends on their configuration (wrist A4 at 300 deg, 50 deg from its limit),
+  // not on the solution nearest the middle of the ranges.
+  const calib::RobotModel nominal = test::loadBundled("kuka_kr16");
+  Eigen::VectorXd q_ptp(6), q_target(6);
+  q_ptp << 10, -80, 100, 280, -30, 220;
+  q_target << 12, -78, 98, 300, -32, 215;
+  const Eigen::Isometry3d T = calib::forwardKinematics(nominal, q_target);
+  const calib::XyzAbc p = calib::toXyzAbc(T);
+  char buf[512];
+  std::snprintf(buf, sizeof buf,
+                "DEF loop( )\n$TOOL = {X 0, Y 0, Z 0, A 0, B 0, C 0}\n$BASE = {X 0, Y 0, Z 0, A 0, B 0, C 0}\n"
+                "PTP {A1 10, A2 -80, A3 100, A4 280, A5 -30, A6 220}\nLOOP\n"
+                "LIN {X %.6f, Y %.6f, Z %.6f, A %.6f, B %.6f, C %.6f}\nENDLOOP\nEND\n",
+                p.x_mm, p.y_mm, p.z_mm, p.a_deg, p.b_deg, p.c_deg);
+  const std::string dir = test::tempDir("check_loop_lib");
+  test::writeText(dir + "/loop.src", buf);
+  const Program prog = readProgram(dir + "/loop.src");
+  ASSERT_EQ(prog.motions.size(), 2u);
+  ASSERT_TRUE(prog.motions[1].start_unknown);
+  // the expectation on its own: every solution of the pose within the limits, the margin of
+  // the one nearest the PTP's joints and of the one nearest the middle of the ranges
+  const calib::KinematicSolver ik(nominal);
+  auto margin = [&](const Eigen::VectorXd& q) {
+    double m = std::numeric_limits<double>::infinity();
+    for (int i = 0; i < 6; ++i)
+      m = std::min({m, q[i] - nominal.nominal.joints[i].lower, nominal.nominal.joints[i].upper - q[i]});
+    return m;
+  };
+  Eigen::VectorXd q_mid(6);
+  for (int i = 0; i < 6; ++i) q_mid[i] = 0.5 * (nominal.nominal.joints[i].lower + nominal.nominal.joints[i].upper);
+  auto nearest = [&](const Eigen::VectorXd& to) {
+    Eigen::VectorXd best;
+    for (const Eigen::VectorXd& q : ik.closedFormSolutions(T))
+      if (best.size() == 0 || (q - to).norm() < (best - to).norm()) best = q;
+    return best;
+  };
+  const Eigen::VectorXd q_near = nearest(q_ptp), q_other = nearest(q_mid);
+  ASSERT_EQ(q_near.size(), 6);
+  EXPECT_NEAR((q_near - q_target).norm(), 0.0, 1e-6);
+  EXPECT_GT(std::abs(margin(q_near) - margin(q_other)), 1.0);  // the check tells them apart
+  Cell cell;
+  CheckOptions o;
+  JobSettings job;
+  job.calibrated = nominal;
+  const CheckReport r = checkProgram(prog, job, cell, o);
+  ASSERT_EQ(r.motions.size(), 2u);
+  EXPECT_NEAR(r.motions[1].min_joint_margin, margin(q_near), 1e-4);
+  std::filesystem::remove_all(dir);
+}
 }  // namespace
 }  // namespace accura::postproc

@@ -377,6 +377,63 @@ TEST(UrScript, GetInverseKinTakesTheSolutionNearestToQnear) {
   EXPECT_NE(writeUrScript(c.program).find("qnear=" + qnear + "), a=1.4"), std::string::npos);
 }
 
+TEST(UrScript, ALoopsFirstMoveKeepsTheConfigurationTheRobotStandsIn) {
+  // A movel at a loop's start (after the movej before it, or after the loop's own end) has no
+  // known start, and a pose names no configuration: the controller moves linearly from
+  // wherever the robot stands, on its configuration. The guess is the configuration of the
+  // last position known (the movej: elbow on the side of q2 = -90 deg), not the solution
+  // nearest the middle of the joint ranges (the other branch, q2 near +5 deg: 1-3 mm off).
+  const std::string script =
+      "def loop():\n"
+      "  set_tcp(p[0.0, 0.0, 0.15, 0.0, 0.0, 0.0])\n"
+      "  movej([-1.5707963, -1.5707963, 1.5707963, -1.5707963, -1.5707963, 0.0])\n"
+      "  while True:\n"
+      "    movel(p[-0.412576, 0.629499, 0.395540, 3.129234, 0.0, -0.051327])\n"
+      "    movel(p[-0.262466, 0.544422, 0.487802, 3.1415927, 0.0, 0.0])\n"
+      "  end\n"
+      "end\n";
+  const RobotModel controller = ur10WithTorch();
+  SimulateOptions so;
+  so.effects = {"geometric"};
+  so.set_station = false;
+  so.seed = 4;
+  const RobotModel real = perturbModel(controller, so);
+  const Program p = parseUrScript(script, "loop.script");
+  ASSERT_EQ(p.motions.size(), 3u);
+  ASSERT_TRUE(p.motions[1].start_unknown);
+  const ProgramCompensation c = compensateProgramReport(p, settingsFor(real));
+  ASSERT_TRUE(c.ok()) << c.report.errors.front().where.str() << ": " << c.report.errors.front().message;
+  // the expectation on its own: the real robot's solution nearest the movej's joints (each
+  // closed-form branch polished on the real robot), commanded through the controller
+  const KinematicSolver real_ik(real), controller_ik(controller);
+  Eigen::VectorXd q_movej(6), q_mid(6);
+  q_movej << -90, -90, 90, -90, -90, 0;
+  for (int i = 0; i < 6; ++i) q_mid[i] = 0.5 * (controller.nominal.joints[i].lower + controller.nominal.joints[i].upper);
+  const Eigen::Isometry3d T = rodrigues(-0.412576, 0.629499, 0.395540, 3.129234, 0.0, -0.051327);
+  auto nearest = [&](const Eigen::VectorXd& to) {
+    Eigen::VectorXd best;
+    for (const Eigen::VectorXd& seed : real_ik.closedFormSolutions(T)) {
+      const IkResult r = real_ik.inverse(T, kukaConfiguration(real, seed), seed, IkOptions{});
+      if (r.status != IkStatus::kOk) continue;
+      if (best.size() == 0 || (r.q - to).norm() < (best - to).norm()) best = r.q;
+    }
+    return best;
+  };
+  const Eigen::VectorXd q_real = nearest(q_movej), q_other = nearest(q_mid);
+  ASSERT_EQ(q_real.size(), 6);
+  ASSERT_EQ(q_other.size(), 6);
+  const Eigen::Vector3d expected = controller_ik.forward(q_real).translation();
+  // the other branch needs a correction more than 0.3 mm different: the test tells them apart
+  EXPECT_GT((expected - controller_ik.forward(q_other).translation()).norm(), 0.3);
+  const Eigen::Vector3d written = poseOf(c.program.motions[1].target).translation();
+  EXPECT_LT((written - expected).norm(), 1e-3);
+  // and the warning says which configuration was taken
+  bool said = false;
+  for (const auto& w : c.report.warnings)
+    said = said || (w.where.line == 5 && w.message.find("configuration of the last position known (after the motion at loop.script:3") != std::string::npos);
+  EXPECT_TRUE(said);
+}
+
 TEST(UrScript, AControllerThatRunsItsFactoryCalibrationIsNotCorrectedTwice) {
   // A UR controller runs its factory calibration (calibration.conf), not the nominal DH: the
   // compensation must command the pose that the controller's own kinematics turn into the

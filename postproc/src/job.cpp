@@ -365,6 +365,13 @@ class Job {
   };
 
   void forget() {
+    // the joints last known: the guess of where the robot stands for a motion whose start is
+    // not known and whose target names no configuration (the robot keeps its configuration
+    // unless a motion changes it; a loop or a branch usually comes back to it)
+    if (q_real_) {
+      q_hint_ = q_real_;
+      hint_where_ = q_real_where_;
+    }
     q_real_.reset();
     T_world_flange_intended_.reset();
   }
@@ -436,8 +443,15 @@ class Job {
     const bool path = m.type == MotionType::kLin || m.type == MotionType::kCirc;
     if (m.type == MotionType::kLin && T_world_flange_intended_) warnHalfTurn(m, *c);
     if (path && q_real_) return pathMotion(m, *c, out);
-    if (path)
-      warning(m.where, motionKeyword(m) + " after a position that is not known: its points are compensated, its path is not checked");
+    if (path) {
+      const bool guessed = !c->end.status && !c->end.turn && !c->end.abb_conf;
+      std::string on;
+      if (guessed && q_hint_)
+        on = ", on the configuration of the last position known (after the motion at " + hint_where_.str() + ")";
+      else if (guessed)
+        on = ", on the solution nearest the middle of the joint ranges (no position known before it)";
+      warning(m.where, motionKeyword(m) + " after a position that is not known: its points are compensated" + on + ", its path is not checked");
+    }
     pointMotion(m, *c, out);
   }
 
@@ -468,6 +482,7 @@ class Job {
       }
     }
     q_real_ = q;
+    q_real_where_ = m.where;
     calib::KinematicWorkspace ws;
     T_world_flange_intended_ = calib::forwardKinematics(models_.controllerFlange(), q, calib::PoseContext{}, ws);
     out.motions.push_back(m);
@@ -544,7 +559,9 @@ class Job {
   /// PTP, or LIN / CIRC after an unknown position: each point compensated on its own.
   void pointMotion(const Motion& m, const Cartesian& c, Program& out) {
     const Compensator& comp = *c.models->compensator;
-    const Eigen::VectorXd seed = q_real_ ? *q_real_ : Eigen::VectorXd();
+    // from an unknown position: the joints last known (q_hint_) as the guess of where the
+    // robot stands, for targets that name no configuration (the nearest solution to them)
+    const Eigen::VectorXd seed = q_real_ ? *q_real_ : q_hint_ ? *q_hint_ : Eigen::VectorXd();
     Motion mo = m;
     Target end = c.end;
     if (c.aux) {
@@ -589,7 +606,7 @@ class Job {
     claimValue(mo.target, m.where, cp);
     reportTarget(m, m.target, "end", c.T_world_progbase, c.T_world_end, pc.T_world_tcp_command, c.models->calibrated_tool,
                  pc.q_real);
-    arrived(c, pc.q_real, end);
+    arrived(m, c, pc.q_real, end);
     out.motions.push_back(mo);
   }
 
@@ -694,7 +711,7 @@ class Job {
       }
     }
     r_.segments.push_back(sr);
-    arrived(c, sc.q_real_end.back(), end);
+    arrived(m, c, sc.q_real_end.back(), end);
     out.motions.push_back(mo);
   }
 
@@ -747,8 +764,9 @@ class Job {
   }
 
   /// The real robot reached `end` with joints q_real.
-  void arrived(const Cartesian& c, const Eigen::VectorXd& q_real, const Target& end) {
+  void arrived(const Motion& m, const Cartesian& c, const Eigen::VectorXd& q_real, const Target& end) {
     q_real_ = q_real;
+    q_real_where_ = m.where;
     T_world_flange_intended_ = c.T_world_end * c.tool.inverse();
     ext_prev_ = end.ext;
   }
@@ -757,6 +775,9 @@ class Job {
   JobReport& r_;
   ModelFactory models_;
   std::optional<Eigen::VectorXd> q_real_;                    ///< real joints after the last motion
+  SourceLocation q_real_where_;                              ///< the motion q_real_ is after
+  std::optional<Eigen::VectorXd> q_hint_;                    ///< the joints last known (forget())
+  SourceLocation hint_where_;                                ///< the motion q_hint_ is after
   std::optional<Eigen::Isometry3d> T_world_flange_intended_;  ///< where the program meant the flange to be
   std::array<std::optional<double>, 6> ext_prev_{};
   const Program* in_ = nullptr;         ///< the program (names for new points)
