@@ -146,6 +146,10 @@ void validate(const IdentifyArgs& a, IdentifyRun& r) {
   const calib::RobotModel nominal_registered = identifyFit(r, nominal_opt, &ns);
   r.outside.assign(static_cast<size_t>(r.start.dof()), Outside{});
   if (!r.hasValidation()) return;
+  // gross rows (a lost beam) would decide the validation's RMS: left out and named
+  const std::vector<calib::ExcludedRow> gross = calib::removeGrossRows(r.calibrated, r.validation, a.validate_station == "new", false);
+  for (size_t k = 0; k < gross.size() && k < 10; ++k) r.s.warnings.push_back(calib::describeExcludedRow(gross[k], "the validation"));
+  if (gross.size() > 10) r.s.warnings.push_back("... and " + std::to_string(gross.size() - 10) + " more gross rows left out of the validation");
   if (a.validate_station == "new") {
     // another station: re-register it (6 parameters), robot parameters held fixed
     calib::IdentifySummary st, nst;
@@ -408,6 +412,10 @@ ordered_json identifyJson(const IdentifyArgs& a, const IdentifyRun& r) {
   for (const auto& row : s.suspicious)
     sus.push_back({{"file", row.file}, {"line", row.line}, {"normalised", num(row.normalised)}, {"error_mm", num(row.error_mm)}});
   j["suspicious_rows"] = sus;
+  ordered_json excl = ordered_json::array();
+  for (const auto& row : s.excluded)
+    excl.push_back({{"file", row.file}, {"line", row.line}, {"error_mm", num(row.error_mm)}, {"median_mm", num(row.median_mm)}});
+  j["excluded_rows"] = excl;  // gross rows left out of the fit
   j["warnings"] = s.warnings;
   if (has_val) {
     ordered_json out = ordered_json::array();

@@ -118,6 +118,29 @@ TEST(Diagnose, NoiseFloorFromRepeatedPosesOrAGivenValue) {
   EXPECT_NE(g.noise_floor_source.find("given"), std::string::npos);
 }
 
+TEST(Diagnose, AGrossRowIsLeftOutBeforeTheDiagnosis) {
+  // one row at the tracker's origin (a lost beam): without the screen it made the noise floor
+  // 250 mm and down-weighted a dozen good rows; it is left out and named, and the diagnosis is
+  // that of the data without it
+  const RobotModel nominal = nominalWithTarget("kuka_kr16");
+  SimulateOptions o = campaign(41, {"geometric"}, 200);
+  const RobotModel truth = perturbModel(nominal, o);
+  MeasurementSet fit = simulateMeasurements(truth, o);
+  fit.file = "beam.csv";
+  for (size_t i = 0; i < fit.rows.size(); ++i) fit.rows[i].line = static_cast<int>(i) + 2;
+  MeasurementSet clean = fit;
+  fit.rows[33].p_world_mm = Eigen::Vector3d::Zero();
+  const Diagnosis d = diagnose(nominal, fit, nullptr, DiagnoseOptions{});
+  ASSERT_EQ(d.excluded.size(), 1u);
+  EXPECT_EQ(d.excluded[0].line, 35);
+  clean.rows.erase(clean.rows.begin() + 33);
+  const Diagnosis expected = diagnose(nominal, clean, nullptr, DiagnoseOptions{});
+  EXPECT_NEAR(d.noise_floor_mm, expected.noise_floor_mm, 1e-12);
+  EXPECT_NEAR(d.baseline.rms_mm, expected.baseline.rms_mm, 1e-12);
+  EXPECT_EQ(d.downweighted.size(), expected.downweighted.size());
+  EXPECT_NE(diagnosisText(d).find("WARNING: beam.csv:35: left out of the diagnosis"), std::string::npos);
+}
+
 // An effect outside the catalogue: A5 turning with A4. The verdict is `unexplained` and says
 // the residual follows q4 through joint 5, rather than blaming the nearest catalogued effect.
 TEST(Diagnose, OutOfCatalogueCouplingIsUnexplainedAndFollowsItsJoint) {

@@ -492,6 +492,54 @@ TEST(Identify, RobustLossListsTheOutlierRows) {
   EXPECT_LE(evaluate(cal, c.validation).rms_mm, 1.3 * evaluate(c.truth, c.validation).rms_mm);
 }
 
+TEST(Identify, AGrossRowIsLeftOutAndNamed) {
+  // A lost tracker beam reads as a point at the tracker's origin: metres from every other
+  // row. Least squares would pull the registration and every parameter after it (the probe:
+  // 226 mm fit RMS, j5_alpha -185 deg, exit 0). It is left out, named, and the fit is the
+  // fit without it.
+  SimulateOptions sim = kr16Campaign();
+  Campaign c = makeCampaign("kuka_kr16", sim, 200, 100);
+  c.nominal.nominal.T_flange_tcp = toIsometry(sim.tool);
+  c.fit.file = "tracker.csv";
+  for (size_t i = 0; i < c.fit.rows.size(); ++i) c.fit.rows[i].line = static_cast<int>(i) + 2;
+  MeasurementSet clean = c.fit;
+  c.fit.rows[17].p_world_mm = Eigen::Vector3d::Zero();
+  IdentifySummary s;
+  const RobotModel cal = identify(c.nominal, c.fit, IdentifyOptions{}, &s);
+  ASSERT_EQ(s.excluded.size(), 1u);
+  EXPECT_EQ(s.excluded[0].file, "tracker.csv");
+  EXPECT_EQ(s.excluded[0].line, 19);
+  EXPECT_GT(s.excluded[0].error_mm, 1000.0);
+  ASSERT_FALSE(s.warnings.empty());
+  EXPECT_NE(s.warnings[0].find("tracker.csv:19: left out of the fit"), std::string::npos) << s.warnings[0];
+  EXPECT_EQ(s.fit.n, 199);
+  // the same model as the fit without the row (the expectation on its own)
+  clean.rows.erase(clean.rows.begin() + 17);
+  const RobotModel expected = identify(c.nominal, clean, IdentifyOptions{}, nullptr);
+  EXPECT_NEAR(evaluate(cal, c.validation).rms_mm, evaluate(expected, c.validation).rms_mm, 1e-9);
+  EXPECT_LE(evaluate(cal, c.validation).rms_mm, 1.3 * evaluate(c.truth, c.validation).rms_mm);
+}
+
+TEST(Identify, ManyGrossRowsAreASecondStationNotGlitches) {
+  // 10 % of the rows from a tracker moved by 400 mm: not a glitch to leave out; refused at the
+  // first of them
+  SimulateOptions sim = kr16Campaign();
+  Campaign c = makeCampaign("kuka_kr16", sim, 200, 1);
+  c.nominal.nominal.T_flange_tcp = toIsometry(sim.tool);
+  c.fit.file = "two_stations.csv";
+  for (size_t i = 0; i < c.fit.rows.size(); ++i) c.fit.rows[i].line = static_cast<int>(i) + 2;
+  for (size_t i = 180; i < 200; ++i) c.fit.rows[i].p_world_mm.x() += 400.0;
+  try {
+    identify(c.nominal, c.fit, IdentifyOptions{}, nullptr);
+    FAIL() << "expected an InputError";
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.file(), "two_stations.csv");
+    EXPECT_EQ(e.line(), 182);
+    EXPECT_NE(std::string(e.what()).find("found 20 of 200 rows"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("a second station"), std::string::npos) << e.what();
+  }
+}
+
 TEST(Identify, TooFewRowsIsAnInputError) {
   SimulateOptions sim = kr16Campaign();
   Campaign c = makeCampaign("kuka_kr16", sim, 8, 1);

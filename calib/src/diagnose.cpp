@@ -7,6 +7,7 @@
 #include <Eigen/QR>
 #include <Eigen/SVD>
 #include <algorithm>
+#include <optional>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -318,8 +319,35 @@ StationSets combineStations(const RobotModel& start, const std::vector<Measureme
   return out;
 }
 
-Diagnosis diagnose(const RobotModel& start, const std::vector<MeasurementSet>& sets, bool same_station,
-                   const MeasurementSet* validation, const DiagnoseOptions& options, StationSets* stations) {
+namespace {
+
+/// The gross rows of each set (and of the validation) left out, in `excluded`: a lost beam
+/// would decide the noise floor and every held-out error (removeGrossRows; each set in its own
+/// station frame, the tool point estimated).
+std::vector<MeasurementSet> withoutGrossRows(const RobotModel& start, const std::vector<MeasurementSet>& sets,
+                                            const MeasurementSet* validation, std::optional<MeasurementSet>& validation_out,
+                                            std::vector<ExcludedRow>& excluded) {
+  std::vector<MeasurementSet> out = sets;
+  for (MeasurementSet& d : out) {
+    const std::vector<ExcludedRow> e = removeGrossRows(start, d, true, true);
+    excluded.insert(excluded.end(), e.begin(), e.end());
+  }
+  if (validation) {
+    validation_out = *validation;
+    const std::vector<ExcludedRow> e = removeGrossRows(start, *validation_out, true, true);
+    excluded.insert(excluded.end(), e.begin(), e.end());
+  }
+  return out;
+}
+
+}  // namespace
+
+Diagnosis diagnose(const RobotModel& start, const std::vector<MeasurementSet>& sets_in, bool same_station,
+                   const MeasurementSet* validation_in, const DiagnoseOptions& options, StationSets* stations) {
+  std::vector<ExcludedRow> excluded;
+  std::optional<MeasurementSet> screened_validation;
+  const std::vector<MeasurementSet> sets = withoutGrossRows(start, sets_in, validation_in, screened_validation, excluded);
+  const MeasurementSet* validation = screened_validation ? &*screened_validation : nullptr;
   auto pass = [&](const StationSets& data) {
     diagnose_detail::Diagnoser d(start, data.combined, validation, options);
     if (data.files.size() > 1) d.setRowSets(data.set_of_row, data.files);
@@ -344,13 +372,19 @@ Diagnosis diagnose(const RobotModel& start, const std::vector<MeasurementSet>& s
                       " (what a first pass with the geometric model alone selected), then diagnosed again");
   }
   if (stations) *stations = std::move(st);
+  d.excluded = excluded;
   return d;
 }
 
-Diagnosis diagnose(const RobotModel& start, const MeasurementSet& data, const MeasurementSet* validation,
+Diagnosis diagnose(const RobotModel& start, const MeasurementSet& data_in, const MeasurementSet* validation_in,
                    const DiagnoseOptions& options) {
-  diagnose_detail::Diagnoser d(start, data, validation, options);
-  return d.run();
+  std::vector<ExcludedRow> excluded;
+  std::optional<MeasurementSet> screened_validation;
+  const MeasurementSet data = withoutGrossRows(start, {data_in}, validation_in, screened_validation, excluded).front();
+  diagnose_detail::Diagnoser d(start, data, screened_validation ? &*screened_validation : nullptr, options);
+  Diagnosis out = d.run();
+  out.excluded = excluded;
+  return out;
 }
 
 }  // namespace accura::calib

@@ -412,6 +412,10 @@ std::string diagnosisJson(const Diagnosis& d) {
   for (const DownWeighted& w : d.downweighted)
     dw.push_back({{"row", rowRef(w.file, w.line, w.index)}, {"residual_mm", num(w.residual_mm)}, {"weight", num(w.weight)}});
   j["downweighted"] = dw;
+  ordered_json excl = ordered_json::array();
+  for (const ExcludedRow& e : d.excluded)
+    excl.push_back({{"file", e.file}, {"line", e.line}, {"error_mm", num(e.error_mm)}, {"median_mm", num(e.median_mm)}});
+  j["excluded_rows"] = excl;  // gross rows left out before the diagnosis
   j["tests"] = d.tests;
   j["baseline"] = statsJson(d.baseline, d.noise_floor_mm);
   ordered_json ranking = ordered_json::array();
@@ -531,6 +535,8 @@ std::string diagnosisText(const Diagnosis& d) {
           << f("%.3f", p.distance_mm) << " mm" << (std::isfinite(p.rotation_deg) ? ", orientation jump " + f("%.3f", p.rotation_deg) + " deg" : "");
       s << "\n";
     }
+    for (size_t k = 0; k < d.excluded.size() && k < 10; ++k) s << "WARNING: " << describeExcludedRow(d.excluded[k], "the diagnosis") << "\n";
+    if (d.excluded.size() > 10) s << "WARNING: ... and " << d.excluded.size() - 10 << " more gross rows left out of the diagnosis\n";
     if (!d.downweighted.empty()) {
       s << "robust estimation down-weighted " << d.downweighted.size() << " row(s):";
       for (size_t k = 0; k < d.downweighted.size() && k < 12; ++k)

@@ -113,6 +113,20 @@ std::string IdentifySummary::BriefReport() const {
   return buf;
 }
 
+namespace {
+
+/// The gross threshold of a set of position errors (mm): the larger of kGrossRowFloorMm and
+/// kGrossRowMedianFactor times their median.
+double grossThresholdMm(std::vector<double> errors, double* median_mm = nullptr) {
+  if (errors.empty()) return std::numeric_limits<double>::infinity();
+  std::nth_element(errors.begin(), errors.begin() + static_cast<std::ptrdiff_t>(errors.size() / 2), errors.end());
+  const double median = errors[errors.size() / 2];
+  if (median_mm) *median_mm = median;
+  return std::max(kGrossRowFloorMm, kGrossRowMedianFactor * median);
+}
+
+}  // namespace
+
 double registerFrame(RobotModel& model, const MeasurementSet& data, bool estimate_tool) {
   const size_t m = data.rows.size();
   if (m < 3) throw NumericalError("registration needs at least 3 measured points, got " + std::to_string(m));
@@ -122,43 +136,65 @@ double registerFrame(RobotModel& model, const MeasurementSet& data, bool estimat
   Eigen::Vector3d tool = model.T_flange_tcp().translation();
   Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
   Eigen::Vector3d t = Eigen::Vector3d::Zero();
-  const int rounds = estimate_tool ? 20 : 1;
-  for (int round = 0; round < rounds; ++round) {
-    // Kabsch: x_i = R p_i + t
-    std::vector<Eigen::Vector3d> p(m);
-    Eigen::Vector3d pc = Eigen::Vector3d::Zero(), xc = Eigen::Vector3d::Zero();
-    for (size_t i = 0; i < m; ++i) {
-      p[i] = F[i] * tool;
-      pc += p[i];
-      xc += data.rows[i].p_world_mm;
+  // the rows that take part: all, then (robust) without the gross ones of the last pass
+  std::vector<char> in(m, 1);
+  for (int pass = 0; pass < 10; ++pass) {
+    size_t n_in = 0;
+    for (char c : in) n_in += c ? 1 : 0;
+    const int rounds = estimate_tool ? 20 : 1;
+    for (int round = 0; round < rounds; ++round) {
+      // Kabsch: x_i = R p_i + t
+      std::vector<Eigen::Vector3d> p(m);
+      Eigen::Vector3d pc = Eigen::Vector3d::Zero(), xc = Eigen::Vector3d::Zero();
+      for (size_t i = 0; i < m; ++i) {
+        p[i] = F[i] * tool;
+        if (!in[i]) continue;
+        pc += p[i];
+        xc += data.rows[i].p_world_mm;
+      }
+      pc /= double(n_in);
+      xc /= double(n_in);
+      Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
+      for (size_t i = 0; i < m; ++i)
+        if (in[i]) H += (p[i] - pc) * (data.rows[i].p_world_mm - xc).transpose();
+      Eigen::JacobiSVD<Eigen::Matrix3d> svd(H, Eigen::ComputeFullU | Eigen::ComputeFullV);
+      const Eigen::Vector3d sv = svd.singularValues();
+      if (sv[1] <= 1e-9 * std::max(1.0, sv[0]))
+        throw NumericalError("registration: the measured points are collinear (singular values " +
+                             std::to_string(sv[0]) + ", " + std::to_string(sv[1]) +
+                             " mm^2); measure poses spread over the workspace");
+      Eigen::Matrix3d D = Eigen::Matrix3d::Identity();
+      if ((svd.matrixV() * svd.matrixU().transpose()).determinant() < 0) D(2, 2) = -1;
+      R = svd.matrixV() * D * svd.matrixU().transpose();
+      t = xc - R * pc;
+      if (!estimate_tool) break;
+      // tool point: minimise sum |R (R_fi tool + p_fi) + t - x_i|^2 (linear in tool)
+      Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
+      Eigen::Vector3d b = Eigen::Vector3d::Zero();
+      for (size_t i = 0; i < m; ++i) {
+        if (!in[i]) continue;
+        const Eigen::Matrix3d Ai = R * F[i].linear();
+        A += Ai.transpose() * Ai;
+        b += Ai.transpose() * (data.rows[i].p_world_mm - t - R * F[i].translation());
+      }
+      const Eigen::Vector3d new_tool = A.ldlt().solve(b);
+      const double change = (new_tool - tool).norm();
+      tool = new_tool;
+      if (change < 1e-9) break;
     }
-    pc /= double(m);
-    xc /= double(m);
-    Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
-    for (size_t i = 0; i < m; ++i) H += (p[i] - pc) * (data.rows[i].p_world_mm - xc).transpose();
-    Eigen::JacobiSVD<Eigen::Matrix3d> svd(H, Eigen::ComputeFullU | Eigen::ComputeFullV);
-    const Eigen::Vector3d sv = svd.singularValues();
-    if (sv[1] <= 1e-9 * std::max(1.0, sv[0]))
-      throw NumericalError("registration: the measured points are collinear (singular values " +
-                           std::to_string(sv[0]) + ", " + std::to_string(sv[1]) +
-                           " mm^2); measure poses spread over the workspace");
-    Eigen::Matrix3d D = Eigen::Matrix3d::Identity();
-    if ((svd.matrixV() * svd.matrixU().transpose()).determinant() < 0) D(2, 2) = -1;
-    R = svd.matrixV() * D * svd.matrixU().transpose();
-    t = xc - R * pc;
-    if (!estimate_tool) break;
-    // tool point: minimise sum |R (R_fi tool + p_fi) + t - x_i|^2 (linear in tool)
-    Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
-    Eigen::Vector3d b = Eigen::Vector3d::Zero();
-    for (size_t i = 0; i < m; ++i) {
-      const Eigen::Matrix3d Ai = R * F[i].linear();
-      A += Ai.transpose() * Ai;
-      b += Ai.transpose() * (data.rows[i].p_world_mm - t - R * F[i].translation());
-    }
-    const Eigen::Vector3d new_tool = A.ldlt().solve(b);
-    const double change = (new_tool - tool).norm();
-    tool = new_tool;
-    if (change < 1e-9) break;
+    // the rows beyond kGrossRowFloorMm and three times the median error: registered again
+    // without them until that set holds (a frame pulled by gross rows inflates every error,
+    // and the median with them; rows within the floor always take part)
+    std::vector<double> err(m);
+    for (size_t i = 0; i < m; ++i) err[i] = (R * (F[i] * tool) + t - data.rows[i].p_world_mm).norm();
+    double median = 0;
+    grossThresholdMm(err, &median);
+    const double limit = std::max(kGrossRowFloorMm, 3.0 * median);
+    std::vector<char> next(m);
+    size_t n_next = 0;
+    for (size_t i = 0; i < m; ++i) n_next += (next[i] = err[i] <= limit ? 1 : 0);
+    if (next == in || n_next < 3) break;
+    in.swap(next);
   }
   // T_world_base = T_nom * Trans(base_mm) * Exp(base_rot)
   Eigen::Isometry3d T_wb = Eigen::Isometry3d::Identity();
@@ -183,6 +219,7 @@ double registerFrame(RobotModel& model, const MeasurementSet& data, bool estimat
     }();
     Eigen::Matrix3d S = Eigen::Matrix3d::Zero();
     for (size_t i = 0; i < m; ++i) {
+      if (!in[i]) continue;
       const Eigen::Matrix3d R_pred = (T_wb * F[i] * T_flange_toolnom_trans).linear();
       S += R_pred.transpose() * data.rows[i].R_world_tcp.toRotationMatrix();
     }
@@ -194,6 +231,48 @@ double registerFrame(RobotModel& model, const MeasurementSet& data, bool estimat
   double s2 = 0;
   for (double e : positionErrors(model, data)) s2 += e * e;
   return std::sqrt(s2 / double(m));
+}
+
+std::string describeExcludedRow(const ExcludedRow& e, const std::string& from) {
+  return e.file + ":" + std::to_string(e.line) + ": left out of " + from + ": its measured position lies " + formatFixed(e.error_mm, 1) +
+         " mm from the model's, more than " + formatFixed(kGrossRowFloorMm, 0) + " mm and " + formatFixed(kGrossRowMedianFactor, 0) +
+         " times the median row's " + formatFixed(e.median_mm, 3) + " mm (a lost beam or a corrupted row?)";
+}
+
+std::vector<ExcludedRow> removeGrossRows(const RobotModel& model, MeasurementSet& data, bool register_frame,
+                                         bool estimate_tool) {
+  std::vector<ExcludedRow> out;
+  if (data.rows.size() < static_cast<size_t>(kGrossRowsMinRows)) return out;
+  RobotModel registered = model;
+  if (register_frame) {
+    try {
+      registerFrame(registered, data, estimate_tool);
+    } catch (const NumericalError&) {
+      return out;  // (collinear points: the identification's own registration says so)
+    }
+  }
+  const std::vector<double> err = positionErrors(registered, data);
+  double median = 0;
+  const double limit = grossThresholdMm(err, &median);
+  MeasurementSet kept = data;
+  kept.rows.clear();
+  for (size_t i = 0; i < data.rows.size(); ++i) {
+    if (err[i] <= limit) {
+      kept.rows.push_back(data.rows[i]);
+    } else {
+      out.push_back({data.file, data.rows[i].line, err[i], median});
+    }
+  }
+  if (out.size() > static_cast<size_t>(kGrossRowsAllowedAlways) &&
+      double(out.size()) > kMaxGrossRowShare * double(data.rows.size()))
+    throw InputError(data.file, out.front().line, 0,
+                     "expected a few gross rows at most (a lost beam), found " + std::to_string(out.size()) + " of " +
+                         std::to_string(data.rows.size()) + " rows more than " + formatFixed(limit, 1) +
+                         " mm from the model (the median row: " + formatFixed(median, 3) + " mm; this one " +
+                         formatFixed(out.front().error_mm, 1) + " mm" + (register_frame ? ", after registering the measurement frame" : "") +
+                         "): a second station, robot or unit within one file? Give each station its own file");
+  data.rows.swap(kept.rows);
+  return out;
 }
 
 namespace {
@@ -431,6 +510,34 @@ RobotModel identify(const RobotModel& start, const std::vector<MeasurementSet>& 
       if (j > start.dof())
         throw ArgumentError("identify: parameter group '" + g.first + "': expected joints j1..j" +
                             std::to_string(start.dof()) + " of " + start.nominal.name + ", found j" + std::to_string(j));
+  {
+    // gross rows (a lost beam, a corrupted cell): left out of the fit and named; one alone
+    // would pull the registration and every parameter by metres
+    std::vector<MeasurementSet> screened = sets;
+    std::vector<ExcludedRow> excluded;
+    for (MeasurementSet& d : screened) {
+      const std::vector<ExcludedRow> e =
+          removeGrossRows(start, d, options.register_frame && groups.count("base") > 0, groups.count("tool") > 0);
+      excluded.insert(excluded.end(), e.begin(), e.end());
+    }
+    if (!excluded.empty()) {
+      const RobotModel out = identify(start, screened, options, summary_out);
+      if (summary_out) {
+        std::vector<std::string> said;
+        for (size_t k = 0; k < excluded.size(); ++k) {
+          const ExcludedRow& e = excluded[k];
+          if (k == 10) {
+            said.push_back("... and " + std::to_string(excluded.size() - 10) + " more gross rows left out of the fit");
+            break;
+          }
+          said.push_back(describeExcludedRow(e, "the fit"));
+        }
+        summary_out->warnings.insert(summary_out->warnings.begin(), said.begin(), said.end());
+        summary_out->excluded.insert(summary_out->excluded.begin(), excluded.begin(), excluded.end());
+      }
+      return out;
+    }
+  }
   if (std::isnan(stated_knot)) stated_knot = options.joint_map_knot;  // '@' overrides the option
   const bool want_map = groups.count("joint_map") > 0;
   if (want_map && (std::isnan(stated_knot) || std::isnan(options.joint_map_smoothing)))

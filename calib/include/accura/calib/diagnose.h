@@ -34,6 +34,7 @@
 #include <string>
 #include <vector>
 
+#include "accura/calib/identify.h"
 #include "accura/calib/measurements.h"
 #include "accura/calib/robot.h"
 
@@ -311,6 +312,7 @@ struct Diagnosis {
   double orientation_rms_after_deg = std::numeric_limits<double>::quiet_NaN();
   Floors floors;
   std::vector<DownWeighted> downweighted;
+  std::vector<ExcludedRow> excluded;  ///< gross rows left out before anything else (removeGrossRows)
   std::vector<Rejected> rejected;
   /// What to give `identify --params`: "geometric" plus every selected effect with its joints.
   std::string identify_params = "geometric";

@@ -123,6 +123,28 @@ struct SuspiciousRow {
   double error_mm = 0;    ///< position error of the fitted model (mm)
 };
 
+/// A measured row left out because it lies grossly far from where the model puts it (a lost
+/// tracker beam, a row of another station, a corrupted cell): removeGrossRows().
+struct ExcludedRow {
+  std::string file;
+  int line = 0;
+  double error_mm = 0;   ///< its position error (mm) after the robust registration
+  double median_mm = 0;  ///< the median position error of its data set (mm), for scale
+};
+
+/// A row is gross when its position error after registration exceeds the larger of these:
+/// kGrossRowFloorMm (mm), and kGrossRowMedianFactor times the median error of its data set.
+/// A nominal robot registered in its tracker's frame is within millimetres (the real UR10:
+/// 1.1 mm RMS); tens of millimetres above twenty times the median is no robot error.
+constexpr double kGrossRowFloorMm = 50.0;
+constexpr double kGrossRowMedianFactor = 20.0;
+/// More gross rows than this share of a data set (and more than kGrossRowsAllowedAlways) is
+/// refused: that is not a glitch but another station, robot or unit in the same file.
+constexpr double kMaxGrossRowShare = 0.05;
+constexpr int kGrossRowsAllowedAlways = 3;
+/// Data sets of fewer rows are not screened for gross rows (their median says little).
+constexpr int kGrossRowsMinRows = 10;
+
 struct IdentifySummary {
   std::string termination;     ///< Ceres' termination reason and message
   int iterations = 0;          ///< of every solve from initial_cost to final_cost (the weighting rounds included)
@@ -157,6 +179,8 @@ struct IdentifySummary {
   std::vector<double> joint_map_cv_knots_not_tried;
   /// Rows with a normalised residual above the chi quantile 0.9999 (file:line).
   std::vector<SuspiciousRow> suspicious;
+  /// Rows left out of the fit as gross (removeGrossRows; each also named in `warnings`).
+  std::vector<ExcludedRow> excluded;
   /// Physically implausible estimates and other warnings (negative compliance, thermal
   /// coefficient of the wrong sign or size, gear or map amplitude above a degree, maps left out).
   std::vector<std::string> warnings;
@@ -192,9 +216,25 @@ std::vector<double> positionErrors(const RobotModel& model, const MeasurementSet
 
 /// Closed-form registration: T_world_base (and, with estimate_tool, the tool point) that
 /// best maps the model's tool points onto the measured points (Kabsch with alternating
-/// tool-point least squares). Throws NumericalError for fewer than 3 non-collinear points.
-/// Returns the position RMS (mm) after registration.
+/// tool-point least squares). Robust to gross rows: registered again without the rows whose
+/// error exceeds kGrossRowFloorMm and three times the median error, until that set no longer
+/// changes (rows within kGrossRowFloorMm always take part). Throws NumericalError for fewer than 3 non-collinear points.
+/// Returns the position RMS (mm) after registration, over every row.
 double registerFrame(RobotModel& model, const MeasurementSet& data, bool estimate_tool);
+
+/// Removes from `data` the rows whose position error exceeds the gross threshold
+/// (kGrossRowFloorMm, kGrossRowMedianFactor) and returns them in file order. The errors are
+/// those of `model` after registerFrame() on `data` when `register_frame` (the measurement
+/// frame, and with estimate_tool the tool point), else of `model` as it is (data in its
+/// world frame). A set of fewer than kGrossRowsMinRows rows, or one whose points are
+/// collinear, is left as it is. Throws InputError (at the first gross row) when more than kMaxGrossRowShare
+/// of the rows, and more than kGrossRowsAllowedAlways, are gross.
+std::vector<ExcludedRow> removeGrossRows(const RobotModel& model, MeasurementSet& data, bool register_frame,
+                                         bool estimate_tool);
+
+/// One line naming a row removeGrossRows() left out of `from` ("the fit", "the validation"):
+/// file:line, its error and the threshold it exceeds.
+std::string describeExcludedRow(const ExcludedRow& e, const std::string& from);
 
 /// Summary statistics of a list of non-negative errors (RMS, mean, max, 95th percentile
 /// by nearest rank).
