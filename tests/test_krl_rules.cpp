@@ -12,6 +12,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 
 #include "accura/calib/errors.h"
 #include "accura/calib/geometry.h"
@@ -221,6 +222,34 @@ TEST(KrlRules, TheNominalRobotReturnsEveryProgramByteForByte) {
       EXPECT_EQ(files[1].text, test::readText(in.krl->dat_path)) << c.src;
     }
   }
+}
+
+TEST(KrlRules, AJointAtZeroKeepsTheWrittenTurn) {
+  // XP1 puts A1 and A4 at 0 (Y 0, A 0, B 90): the IK's solution may come out at -1e-14 deg,
+  // whose Turn bit differs from the written one. Either sign reaches the pose at the written
+  // precision, so with nothing to correct the .dat comes back byte for byte, with no warning.
+  const std::string dir = test::tempDir("krl_zero_turn");
+  test::writeText(dir + "/p6.src",
+                  "DEF p6( )\n$TOOL = $NULLFRAME\n$BASE = $NULLFRAME\nPTP {A1 0,A2 -90,A3 60,A4 10,A5 30,A6 0}\n"
+                  "PTP XP1\nLIN XP2\nPTP XP3\nEND\n");
+  const std::string dat =
+      "DEFDAT p6\n"
+      "DECL E6POS XP1={X 1015.737,Y 0.0,Z 1659.689,A 0.0,B 90.0,C 0.0,S 2,T 2}\n"
+      "DECL E6POS XP2={X 1106.6248,Y -402.7785,Z 1540.9335,A -20.0,B 90.0,C 0.0,S 2,T 3}\n"
+      "DECL E6POS XP3={X 1248.7522,Y 0.0,Z 806.418,A 0.0,B 90.0,C 0.0,S 6,T 18}\n"
+      "ENDDAT\n";
+  test::writeText(dir + "/p6.dat", dat);
+  const Program in = readProgram(dir + "/p6.src");
+  JobSettings s;
+  s.calibrated = test::loadBundled("kuka_kr16");
+  const ProgramCompensation pc = compensateProgramReport(in, s);
+  ASSERT_TRUE(pc.ok()) << pc.report.errors.front().where.str() << ": " << pc.report.errors.front().message;
+  EXPECT_LT(pc.report.max_correction_mm, 1e-6);
+  for (const auto& w : pc.report.warnings) EXPECT_EQ(w.message.find("T of"), std::string::npos) << w.message;
+  const std::vector<calib::OutputFile> files = renderProgram(pc.program, programFormat(dir + "/p6.src"), "out.src");
+  ASSERT_EQ(files.size(), 2u);
+  EXPECT_EQ(files[1].text, dat);
+  std::filesystem::remove_all(dir);
 }
 
 TEST(KrlRules, AComponentUnchangedAtThePrecisionWrittenKeepsItsText) {

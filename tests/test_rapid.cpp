@@ -386,6 +386,30 @@ TEST(Rapid, CompensatingWithTheNominalRobotReturnsTheModuleByteForByte) {
   EXPECT_EQ(writeRapid(c.program), example());
 }
 
+TEST(Rapid, AHomePositionAtZeroKeepsItsConfdata) {
+  // axis 1, 4 and 6 at 0 (a home position written as [0,0,0,0]): the IK's solution may come
+  // out at -1e-14 deg, in quadrant -1. Either quadrant reaches the pose at the written
+  // precision, so with nothing to correct the module comes back byte for byte, and without a
+  // warning that the correction moved an axis across a boundary.
+  const std::string module =
+      "MODULE home\n"
+      "  CONST robtarget pHome:=[[364.3538,0,594],[0.5,0,0.8660254,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
+      "  CONST robtarget pDown:=[[343.4247,0,393.5199],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
+      "  PROC main()\n"
+      "    MoveJ pHome, v500, fine, tool0;\n"
+      "    MoveJ pDown, v500, fine, tool0;\n"
+      "  ENDPROC\n"
+      "ENDMODULE\n";
+  const Program p = parseRapid(module, "home.mod");
+  JobSettings s;
+  s.calibrated = test::loadBundled("abb_irb120");
+  const ProgramCompensation c = compensateProgramReport(p, s);
+  ASSERT_TRUE(c.ok()) << c.report.errors.front().where.str() << ": " << c.report.errors.front().message;
+  EXPECT_LT(c.report.max_correction_mm, 1e-6);
+  EXPECT_TRUE(c.report.warnings.empty()) << c.report.warnings.front().message;
+  EXPECT_EQ(writeRapid(c.program), module);
+}
+
 // confdata of joint values, against the geometry worked out by hand for the IRB 120: at
 // q = 0 the wrist centre is 302 mm in front of axis 1 and the upper arm points forward, so
 // the wrist centre is in front of the lower arm (cfx 0); axis 5 negative adds 1; the upper

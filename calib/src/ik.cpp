@@ -55,7 +55,8 @@ bool configurationMatches(const Configuration& asked, const Configuration& actua
   return true;
 }
 
-bool onlyTurnBitsNearZeroDiffer(const Configuration& asked, const Configuration& actual, const Eigen::VectorXd& q) {
+bool onlyTurnBitsNearZeroDiffer(const Configuration& asked, const Configuration& actual, const Eigen::VectorXd& q,
+                                double band_deg) {
   if (configurationMatches(asked, actual)) return false;
   if (asked.status >= 0 && actual.status != asked.status) return false;
   if (asked.turn < 0 || actual.turn < 0) return false;
@@ -63,7 +64,7 @@ bool onlyTurnBitsNearZeroDiffer(const Configuration& asked, const Configuration&
   const int n = static_cast<int>(std::min<Eigen::Index>(q.size(), 30));
   if (flipped >> n) return false;  // a bit beyond the joints
   for (int i = 0; i < n; ++i)
-    if ((flipped >> i & 1) && !(std::fabs(q[i]) <= kTurnBandDeg)) return false;
+    if ((flipped >> i & 1) && !(std::fabs(q[i]) <= band_deg)) return false;
   return true;
 }
 

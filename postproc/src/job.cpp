@@ -163,13 +163,17 @@ class Job {
     if (asked == got) return true;
     const int axis[3] = {0, 3, 5};
     int worst = 0;
-    bool near_boundary = true;
+    bool near_boundary = true, at_boundary = true;
     for (int k = 0; k < 3; ++k) {
       const int d = std::abs(asked[static_cast<size_t>(k)] - got[static_cast<size_t>(k)]);
       worst = std::max(worst, d);
       const double to_boundary = std::abs(q[axis[k]] - 90.0 * std::round(q[axis[k]] / 90.0));
       if (d && to_boundary > calib::kTurnBandDeg) near_boundary = false;
+      if (d && to_boundary > calib::kJointAtBoundaryDeg) at_boundary = false;
     }
+    // axis 1, 4 or 6 on a quadrant boundary within the written precision (a home position at
+    // 0): the written confdata holds as it is, the text stays
+    if (asked[3] == got[3] && worst <= 1 && at_boundary) return true;
     auto text = [](const std::array<int, 4>& c) {
       return "[" + std::to_string(c[0]) + "," + std::to_string(c[1]) + "," + std::to_string(c[2]) + "," + std::to_string(c[3]) + "]";
     };
@@ -298,6 +302,9 @@ class Job {
     if (asked.status < 0 && asked.turn < 0) return true;
     const calib::Configuration got = calib::kukaConfiguration(comp.controller().model(), q);
     if (calib::configurationMatches(asked, got)) return true;
+    // a joint at 0 within the written precision: the written T holds as it is (either sign
+    // reaches the same pose; the text stays)
+    if (calib::onlyTurnBitsNearZeroDiffer(asked, got, q, calib::kJointAtBoundaryDeg)) return true;
     const bool only_near_zero = calib::onlyTurnBitsNearZeroDiffer(asked, got, q);
     if (only_near_zero) {
       warning(m.where, "T of " + targetLabel(t) + " changed from " + std::to_string(asked.turn) + " to " + std::to_string(got.turn) +

@@ -48,10 +48,15 @@ bool configurationMatches(const Configuration& asked, const Configuration& actua
 /// Joints within this band of 0 (deg) may flip their Turn bit by a correction: the same arm
 /// posture, and the controller needs the new sign to find the joints.
 constexpr double kTurnBandDeg = 1.0;
+/// A joint this close (deg) to 0 or to a quadrant boundary has either sign (quadrant) at the
+/// precision a program writes its poses (1e-3 mm at a metre's reach is 6e-5 deg): a written
+/// Turn bit or ABB cf1/cf4/cf6 that differs from the solution's only there still holds.
+constexpr double kJointAtBoundaryDeg = 1e-5;
 /// True when `actual` (the configuration of joints `q`, deg) differs from `asked` only in Turn
-/// bits of joints within kTurnBandDeg of 0: the Status (when asked) equal, every other Turn
+/// bits of joints within `band_deg` of 0: the Status (when asked) equal, every other Turn
 /// bit asked for equal. False when they match exactly (nothing differs) or differ otherwise.
-bool onlyTurnBitsNearZeroDiffer(const Configuration& asked, const Configuration& actual, const Eigen::VectorXd& q);
+bool onlyTurnBitsNearZeroDiffer(const Configuration& asked, const Configuration& actual, const Eigen::VectorXd& q,
+                                double band_deg = kTurnBandDeg);
 
 struct IkOptions {
   double tol_mm = 1e-3;    ///< position convergence: 1 um
