@@ -386,6 +386,48 @@ TEST(Rapid, CompensatingWithTheNominalRobotReturnsTheModuleByteForByte) {
   EXPECT_EQ(writeRapid(c.program), example());
 }
 
+TEST(Rapid, APrgWithSeveralModulesIsOneProgram) {
+  // An S4C-era .prg holds every module of the program one after the other; their global data
+  // are shared. It was refused ("expected one MODULE per file"). Each module's targets are
+  // corrected as they are when the same routines and data stand in one module.
+  const std::string head = "%%%\n  VERSION:1\n  LANGUAGE:ENGLISH\n%%%\n\n";
+  const std::string data =
+      "  PERS tooldata gun:=[TRUE,[[10,0,120],[0.9659258,0,0.258819,0]],[1.5,[0,0,50],[1,0,0,0],0,0,0]];\n"
+      "  PERS wobjdata fix:=[FALSE,TRUE,\"\",[[300,-150,100],[0.9238795,0,0,0.3826834]],[[20,10,5],[0.9961947,0,0,0.0871557]]];\n"
+      "  CONST robtarget p10:=[[203.914,-27.004,166.222],[0.04054039,-0.49091288,-0.86326515,-0.11015580],[-1,0,-1,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n";
+  const std::string main = "  PROC main()\n    MoveJ p10,v500,z10,gun\\WObj:=fix;\n    path2;\n  ENDPROC\n";
+  const std::string data2 =
+      "  CONST robtarget p20:=[[233.914,2.996,166.222],[0.04054039,-0.49091288,-0.86326515,-0.11015580],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n";
+  const std::string path2 = "  PROC path2()\n    MoveL p20,v100,fine,gun\\WObj:=fix;\n  ENDPROC\n";
+  const std::string two = head + "MODULE MAINMOD\n" + data + main + "ENDMODULE\n\nMODULE PATHS\n" + data2 + path2 + "ENDMODULE\n";
+  const std::string one = head + "MODULE MAINMOD\n" + data + data2 + main + path2 + "ENDMODULE\n";
+  const Program p2 = parseRapid(two, "two.prg"), p1 = parseRapid(one, "one.prg");
+  EXPECT_EQ(p2.name, "MAINMOD");
+  ASSERT_EQ(p2.motions.size(), 2u);
+  // the nominal robot: byte for byte
+  JobSettings nominal;
+  nominal.calibrated = test::loadBundled("abb_irb120");
+  const ProgramCompensation n = compensateProgramReport(p2, nominal);
+  ASSERT_TRUE(n.ok()) << n.report.errors.front().where.str() << ": " << n.report.errors.front().message;
+  EXPECT_EQ(writeRapid(n.program), two);
+  // a perturbed robot: the same corrections as in one module
+  SimulateOptions so;
+  so.effects = {"geometric"};
+  so.set_station = false;
+  so.seed = 9;
+  const JobSettings real = settingsFor(perturbModel(test::loadBundled("abb_irb120"), so));
+  const ProgramCompensation c2 = compensateProgramReport(p2, real), c1 = compensateProgramReport(p1, real);
+  ASSERT_TRUE(c2.ok()) << c2.report.errors.front().where.str() << ": " << c2.report.errors.front().message;
+  ASSERT_TRUE(c1.ok());
+  ASSERT_EQ(c1.program.motions.size(), c2.program.motions.size());
+  for (size_t k = 0; k < c1.program.motions.size(); ++k) {
+    const Eigen::Isometry3d a = poseOf(c1.program.motions[k].target), b = poseOf(c2.program.motions[k].target);
+    EXPECT_LT((a.translation() - b.translation()).norm(), 1e-9) << k;
+    EXPECT_GT((b.translation() - poseOf(p2.motions[k].target).translation()).norm(), 0.1) << k;  // corrected
+  }
+  EXPECT_NE(writeRapid(c2.program).find("ENDMODULE\n\nMODULE PATHS\n"), std::string::npos);
+}
+
 TEST(Rapid, AHomePositionAtZeroKeepsItsConfdata) {
   // axis 1, 4 and 6 at 0 (a home position written as [0,0,0,0]): the IK's solution may come
   // out at -1e-14 deg, in quadrant -1. Either quadrant reaches the pose at the written

@@ -414,10 +414,12 @@ class Reader {
     const size_t h = headAt(r.first);
     const std::string& u = t_[h].u;
     if (u == "MODULE") {
-      if (module_seen_) fail(t_[r.first].b, "expected one MODULE per file, found a second one");
+      // a .prg of the S4C era holds every module of the program, one after the other (their
+      // global data are shared, as in the controller); a MODULE inside a module is an error
+      if (module_open_) fail(t_[r.first].b, "expected ENDMODULE of the module " + module_name_ + " before the next MODULE, found MODULE");
       if (r.second - r.first < 2 || t_[r.first + 1].kind != Tok::Kind::kIdent) fail(t_[r.first].e, "expected the module name after MODULE, found " + found(r.first + 1, r.second));
       module_seen_ = module_open_ = true;
-      module_name_ = t_[r.first + 1].s;
+      if (module_name_.empty()) module_name_ = t_[r.first + 1].s;  // the program's name: its first module's
       return markModel(r);
     }
     if (u == "ENDMODULE") {
