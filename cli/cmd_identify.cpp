@@ -456,6 +456,9 @@ int runIdentify(const IdentifyArgs& a) {
   // --quiet: the summary line, warnings, the validation and the file written (see --help)
   if (!a.quiet) printSetup(a, r);
   for (const auto& w : r.s.warnings) std::printf("WARNING: %s\n", w.c_str());
+  if (a.quiet && !r.s.suspicious.empty())  // (listed in full without --quiet and in the JSON)
+    std::printf("%zu suspicious row(s) (normalised residual above the chi quantile 0.9999), the first %s:%d: check them for glitches\n",
+                r.s.suspicious.size(), r.s.suspicious.front().file.c_str(), r.s.suspicious.front().line);
   if (!a.quiet) printFit(r);
   printValidation(a, r);
 
@@ -516,8 +519,9 @@ void addIdentifyCommand(CLI::App& app) {
   cid->add_option("--out", id->out, "calibrated model file to write")->required();
   cid->add_option("--json", id->json, "summary JSON to write");
   auto* quiet = cid->add_flag("--quiet", id->quiet,
-                               "print only what matters: the summary line, warnings, the validation (nominal and calibrated, "
-                               "and the poses outside the fit's joint ranges) and the file written");
+                               "print only what matters: the summary line, warnings (gross rows left out among them), how many "
+                               "rows are suspicious, the validation (nominal and calibrated, and the poses outside the fit's "
+                               "joint ranges) and the file written");
   cid->add_flag("--verbose", id->verbose, "also print the solver's own report (Ceres: termination, cost)")->excludes(quiet);
   cid->callback([=]() {
     id->holdout_given = cid->count("--holdout") > 0;

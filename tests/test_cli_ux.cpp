@@ -135,6 +135,51 @@ TEST(CliUsage, AnUnknownOptionIsNamedWithTheNearestKnownOne) {
   EXPECT_EQ(r.err, "accura: error: expected options of accura fk and their values, found the stray argument(s) extra (see accura fk --help)\n");
 }
 
+// identify --quiet: a suspicious row (5 mm off: not gross) is counted and the first named; a
+// gross one (a lost beam at the tracker's origin) is a WARNING naming its line, and left out.
+TEST(CliIdentify, QuietSaysSuspiciousAndGrossRows) {
+  const std::string dir = test::tempDir("cli_ux_suspicious");
+  ASSERT_EQ(run("simulate --robot kuka_kr16 --tool 80,40,150 --poses 120 --seed 5 --out fit.csv", dir).code, 0);
+  std::vector<std::string> rows = lines(test::readText(dir + "/fit.csv"));
+  // line 3 is the header: rows from line 4; row at line 10 moved 5 mm in x, line 20 at 0,0,0
+  auto setField = [&](size_t line, int field, const std::string& value) {
+    std::vector<std::string> f;
+    std::string cur;
+    for (char c : rows[line - 1] + ",") {
+      if (c == ',') { f.push_back(cur); cur.clear(); } else { cur += c; }
+    }
+    f[static_cast<size_t>(field)] = value;
+    std::string joined;
+    for (size_t k = 0; k < f.size(); ++k) joined += (k ? "," : "") + f[k];
+    rows[line - 1] = joined;
+  };
+  {
+    std::vector<std::string> f;
+    std::string cur;
+    for (char c : rows[9] + ",") {
+      if (c == ',') { f.push_back(cur); cur.clear(); } else { cur += c; }
+    }
+    setField(10, 6, std::to_string(std::stod(f[6]) + 5.0));
+  }
+  setField(20, 6, "0");
+  setField(20, 7, "0");
+  setField(20, 8, "0");
+  std::string text;
+  for (const std::string& l : rows) text += l + "\n";
+  test::writeText(dir + "/bad.csv", text);
+  const CliRun r = run("identify --robot kuka_kr16 --tool 80,40,150 --data bad.csv --holdout 0 --out cal.xml --quiet --json s.json", dir);
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("WARNING: bad.csv:20: left out of the fit: its measured position lies "), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("1 suspicious row(s) (normalised residual above the chi quantile 0.9999), the first bad.csv:10: check them"),
+            std::string::npos)
+      << r.out;
+  const auto j = nlohmann::json::parse(test::readText(dir + "/s.json"));
+  ASSERT_EQ(j["excluded_rows"].size(), 1u);
+  EXPECT_EQ(j["excluded_rows"][0]["line"].get<int>(), 20);
+  EXPECT_EQ(j["fit"]["n"].get<int>(), 119);
+  std::filesystem::remove_all(dir);
+}
+
 // identify: the user's language first (--verbose adds the solver's report), the station apart
 // from the robot's deviations, --quiet exactly the summary line, the validation and the file.
 TEST(CliIdentify, QuietVerboseAndTheStationApartFromTheDeviations) {
