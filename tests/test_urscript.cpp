@@ -324,6 +324,20 @@ JobSettings settingsFor(const RobotModel& real) {
   return s;
 }
 
+/// The solution of `robot` for T_world_tcp nearest `to` in joint space: every closed-form
+/// branch polished on the robot (independent of the compensation's own solver path); empty
+/// when none converges.
+Eigen::VectorXd nearestSolution(const RobotModel& robot, const Eigen::Isometry3d& T, const Eigen::VectorXd& to) {
+  const KinematicSolver ik(robot);
+  Eigen::VectorXd best;
+  for (const Eigen::VectorXd& seed : ik.closedFormSolutions(T)) {
+    const IkResult r = ik.inverse(T, kukaConfiguration(robot, seed), seed, IkOptions{});
+    if (r.status != IkStatus::kOk) continue;
+    if (best.size() == 0 || (r.q - to).norm() < (best - to).norm()) best = r.q;
+  }
+  return best;
+}
+
 TEST(UrScript, GetInverseKinTakesTheSolutionNearestToQnear) {
   // PolyScope writes every MoveJ waypoint as movej(get_inverse_kin(Waypoint_n_p,
   // qnear=Waypoint_n_q)); the controller then takes the solution nearest qnear, not the one
@@ -351,19 +365,11 @@ TEST(UrScript, GetInverseKinTakesTheSolutionNearestToQnear) {
   // the expectation on its own: every solution of the real robot for the pose (from each
   // closed-form branch), the one nearest qnear in joint space, commanded through the controller
   const Eigen::Isometry3d T = rodrigues(-.350, .700, .300, 3.1415927, 0.0, 0.0);
-  const KinematicSolver real_ik(real), controller_ik(controller);
+  const KinematicSolver controller_ik(controller);
   Eigen::VectorXd q_near(6), q_up(6);
   q_near << -90, -90, 90, -90, -90, 0;
   q_up << -90, 11.459156, -90, -90, -90, 0;
-  auto nearest = [&](const Eigen::VectorXd& to) {
-    Eigen::VectorXd best;
-    for (const Eigen::VectorXd& seed : real_ik.closedFormSolutions(T)) {
-      const IkResult r = real_ik.inverse(T, kukaConfiguration(real, seed), seed, IkOptions{});
-      if (r.status != IkStatus::kOk) continue;
-      if (best.size() == 0 || (r.q - to).norm() < (best - to).norm()) best = r.q;
-    }
-    return best;
-  };
+  auto nearest = [&](const Eigen::VectorXd& to) { return nearestSolution(real, T, to); };
   const Eigen::VectorXd q_real = nearest(q_near), q_real_up = nearest(q_up);
   ASSERT_EQ(q_real.size(), 6);
   ASSERT_EQ(q_real_up.size(), 6);
@@ -405,20 +411,12 @@ TEST(UrScript, ALoopsFirstMoveKeepsTheConfigurationTheRobotStandsIn) {
   ASSERT_TRUE(c.ok()) << c.report.errors.front().where.str() << ": " << c.report.errors.front().message;
   // the expectation on its own: the real robot's solution nearest the movej's joints (each
   // closed-form branch polished on the real robot), commanded through the controller
-  const KinematicSolver real_ik(real), controller_ik(controller);
+  const KinematicSolver controller_ik(controller);
   Eigen::VectorXd q_movej(6), q_mid(6);
   q_movej << -90, -90, 90, -90, -90, 0;
   for (int i = 0; i < 6; ++i) q_mid[i] = 0.5 * (controller.nominal.joints[i].lower + controller.nominal.joints[i].upper);
   const Eigen::Isometry3d T = rodrigues(-0.412576, 0.629499, 0.395540, 3.129234, 0.0, -0.051327);
-  auto nearest = [&](const Eigen::VectorXd& to) {
-    Eigen::VectorXd best;
-    for (const Eigen::VectorXd& seed : real_ik.closedFormSolutions(T)) {
-      const IkResult r = real_ik.inverse(T, kukaConfiguration(real, seed), seed, IkOptions{});
-      if (r.status != IkStatus::kOk) continue;
-      if (best.size() == 0 || (r.q - to).norm() < (best - to).norm()) best = r.q;
-    }
-    return best;
-  };
+  auto nearest = [&](const Eigen::VectorXd& to) { return nearestSolution(real, T, to); };
   const Eigen::VectorXd q_real = nearest(q_movej), q_other = nearest(q_mid);
   ASSERT_EQ(q_real.size(), 6);
   ASSERT_EQ(q_other.size(), 6);
