@@ -593,6 +593,42 @@ TEST(Plugin, BadInputGivesStatusesAndMessages) {
   EXPECT_NE(lastError(h.m).find("pose 1"), std::string::npos) << lastError(h.m);
 }
 
+// accura_compensate_path names the motion that fails, whatever the reason: an unreachable LIN
+// and a CIRC whose auxiliary point is collinear with its start and end (or is its start) both
+// set result.failed_motion and say "motion N cannot be compensated" (before: the CIRC gave
+// ACCURA_ERROR_NUMERICAL with failed_motion -1 and no motion in the message).
+TEST(Plugin, AFailingMotionOfAPathIsNamed) {
+  Handle h(test::sourcePath(kModel));
+  const accura_pose start = cpose(1100, -250, 500, 0, 180, 0);
+  accura_path_motion mo[3] = {{ACCURA_LIN, {}, cpose(1100, -50, 500, 0, 180, 0)},
+                              {ACCURA_CIRC, cpose(1180, 30, 500, 0, 180, 0), cpose(1260, -50, 500, 0, 180, 0)},
+                              {ACCURA_LIN, {}, cpose(1260, -250, 500, 0, 180, 0)}};
+  accura_path_point pts[64];
+  accura_path_result pr;
+  ASSERT_EQ(accura_compensate_path(h.m, &start, nullptr, mo, 3, 0.05, pts, 64, &pr, nullptr), ACCURA_OK) << lastError(h.m);
+  EXPECT_EQ(pr.failed_motion, -1);
+  const std::string no_circle = "accura_compensate_path: motion 1 cannot be compensated: CIRC: start, auxiliary and end point are "
+                                "collinear or coincide (no circle through them)";
+  for (const accura_pose aux : {cpose(1180, -50, 500, 0, 180, 0), cpose(1100, -50, 500, 0, 180, 0)}) {  // collinear; the start
+    mo[1].aux = aux;
+    pr.failed_motion = 7;
+    EXPECT_EQ(accura_compensate_path(h.m, &start, nullptr, mo, 3, 0.05, pts, 64, &pr, nullptr), ACCURA_ERROR_NUMERICAL);
+    EXPECT_EQ(pr.failed_motion, 1);
+    EXPECT_EQ(lastError(h.m), no_circle);
+  }
+  // the first motion a CIRC through the midpoint of the start and its end: motion 0
+  const accura_path_motion first = {ACCURA_CIRC, cpose(1180, -150, 500, 0, 180, 0), cpose(1260, -50, 500, 0, 180, 0)};
+  EXPECT_EQ(accura_compensate_path(h.m, &start, nullptr, &first, 1, 0.05, pts, 64, &pr, nullptr), ACCURA_ERROR_NUMERICAL);
+  EXPECT_EQ(pr.failed_motion, 0);
+  EXPECT_EQ(lastError(h.m).rfind("accura_compensate_path: motion 0 cannot be compensated: CIRC: ", 0), 0u) << lastError(h.m);
+  // the unreachable LIN, as before
+  mo[1].aux = cpose(1180, 30, 500, 0, 180, 0);
+  mo[2].end = cpose(4000, -250, 500, 0, 180, 0);
+  EXPECT_EQ(accura_compensate_path(h.m, &start, nullptr, mo, 3, 0.05, pts, 64, &pr, nullptr), ACCURA_ERROR_UNREACHABLE);
+  EXPECT_EQ(pr.failed_motion, 2);
+  EXPECT_EQ(lastError(h.m).rfind("accura_compensate_path: motion 2 cannot be compensated: unreachable", 0), 0u) << lastError(h.m);
+}
+
 // The configuration asked for is enforced as accura compensate does: a target reachable only on
 // another S/T is ACCURA_ERROR_NO_CONFIGURATION (never success on another arm posture); S and T
 // outside their bit ranges are invalid arguments.

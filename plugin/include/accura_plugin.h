@@ -290,7 +290,9 @@ typedef struct accura_path_result {
  * (`points` may be NULL when capacity is 0); when more are needed returns
  * ACCURA_ERROR_BUFFER_TOO_SMALL with result->n_points the count needed (call again).
  * `reports` (NULL or n_motions entries) gets each motion's numbers. `start_configuration`
- * NULL: any. On a failing motion: its status, result->failed_motion set. */
+ * NULL: any. On a failing motion: its status (ACCURA_ERROR_NUMERICAL for a CIRC whose start,
+ * auxiliary and end point are collinear or coincide), result->failed_motion set and the
+ * message naming it ("motion 1 cannot be compensated: ..."). */
 ACCURA_API accura_status accura_compensate_path(accura_model* model, const accura_pose* start,
                                                 const accura_configuration* start_configuration,
                                                 const accura_path_motion* motions, size_t n_motions,

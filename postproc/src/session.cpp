@@ -223,6 +223,12 @@ SessionPath Session::path(const calib::XyzAbc& start, const calib::Configuration
                 (pc.start.message.empty() ? "" : ": " + pc.start.message);
     return r;
   }
+  if (pc.failed_motion >= 0 && !pc.numerical_error.empty()) {
+    r.numerical = true;
+    r.failed_motion = pc.failed_motion;
+    r.message = "motion " + std::to_string(pc.failed_motion) + " cannot be compensated: " + pc.numerical_error;
+    return r;
+  }
   if (pc.failed_motion >= 0) {
     const SegmentCompensation& sc = pc.segments.back();
     r.status = sc.status;
