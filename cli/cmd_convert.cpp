@@ -9,6 +9,7 @@
 #include "accura/calib/json_text.h"
 #include "accura/postproc/batch.h"
 #include "accura/postproc/program_io.h"
+#include "accura/postproc/urscript.h"
 #include "commands.h"
 
 namespace fs = std::filesystem;
@@ -67,9 +68,14 @@ int runConvert(const ConvertArgs& a) {
   for (const PassThrough& s : dropped) std::cerr << s.where.str() << ": dropped '" << s.text << "'\n";
   for (const auto& f : all) std::cout << "wrote " << f.path << "\n";
   std::cout << "accura convert: " << program.motions.size() << " motions";
-  if (out_format != ProgramFormat::kKrl || !program.krl)
-    std::cout << ", " << std::count_if(program.passthrough.begin(), program.passthrough.end(), [](const PassThrough& s) { return s.role.empty(); })
-              << " other statements carried verbatim";
+  if (out_format != ProgramFormat::kKrl || !program.krl) {
+    // a URScript program keeps its other statements in its source (UrScriptSource::others),
+    // not in passthrough, until a conversion carries them
+    const size_t carried = program.urscript ? program.urscript->others.size()
+                                            : static_cast<size_t>(std::count_if(program.passthrough.begin(), program.passthrough.end(),
+                                                                                [](const PassThrough& s) { return s.role.empty(); }));
+    std::cout << ", " << carried << " other statements carried verbatim";
+  }
   if (a.drop) std::cout << ", " << dropped.size() << " dropped";
   std::cout << " from " << a.in << "\n";
   return 0;
