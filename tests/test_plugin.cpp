@@ -17,6 +17,10 @@
 #include <cstring>
 #include <nlohmann/json.hpp>
 #include <thread>
+#include <fstream>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include "accura/calib/errors.h"
 #include "accura/calib/geometry.h"
@@ -627,6 +631,77 @@ TEST(Plugin, AFailingMotionOfAPathIsNamed) {
   EXPECT_EQ(accura_compensate_path(h.m, &start, nullptr, mo, 3, 0.05, pts, 64, &pr, nullptr), ACCURA_ERROR_UNREACHABLE);
   EXPECT_EQ(pr.failed_motion, 2);
   EXPECT_EQ(lastError(h.m).rfind("accura_compensate_path: motion 2 cannot be compensated: unreachable", 0), 0u) << lastError(h.m);
+}
+
+// Out of memory while a cell's mesh is read is ACCURA_ERROR_OUT_OF_MEMORY "out of memory", as
+// docs/plugin.md promises (before: ACCURA_ERROR_INPUT "expected a mesh file assimp can read ...,
+// found: std::bad_alloc", assimp catching the std::bad_alloc and keeping its text). In a child
+// process whose address space is limited (RLIMIT_AS) to what it has plus 128 MB: the 40 MB STL
+// is read, assimp's copy of it and its vertices do not fit. Not under AddressSanitizer (its
+// shadow memory needs the address space).
+TEST(Plugin, OutOfMemoryReadingAMeshIsOutOfMemory) {
+#if defined(ACCURA_TEST_ASAN)
+  GTEST_SKIP() << "RLIMIT_AS and AddressSanitizer do not go together";
+#else
+  const std::string dir = test::tempDir("plugin_oom_mesh");
+  {
+    const uint32_t n = 800000;  // 50 bytes a triangle: 40 MB
+    std::string stl(84 + size_t(n) * 50, '\0');
+    std::memcpy(&stl[80], &n, 4);
+    for (uint32_t i = 0; i < n; ++i) {
+      const float x = float(i % 1000), y = float(i / 1000);
+      const float f[12] = {0, 0, 1, x, y, 0, x + 1, y, 0, x, y + 1, 0};
+      std::memcpy(&stl[84 + size_t(i) * 50], f, sizeof f);
+    }
+    test::writeText(dir + "/big.stl", stl);
+  }
+  test::writeText(dir + "/cell.xml",
+                  "<?xml version=\"1.0\"?>\n<cell name=\"big\">\n"
+                  "  <object name=\"floor\" file=\"big.stl\" units=\"mm\" x_mm=\"3000\" y_mm=\"-2000\" z_mm=\"-700\"/>\n"
+                  "  <tool><capsule x0_mm=\"0\" y0_mm=\"0\" z0_mm=\"0\" x1_mm=\"80\" y1_mm=\"40\" z1_mm=\"150\" radius_mm=\"15\"/></tool>\n"
+                  "</cell>\n");
+  for (const char* f : {"seam.src", "seam.dat", "$config.dat"})
+    test::writeText(dir + "/" + f, test::readText(test::sourcePath(std::string("examples/") + f)));
+  Handle h("kuka_kr16");
+  accura_check_options o;
+  ASSERT_EQ(accura_check_options_init(&o, sizeof(o)), ACCURA_OK);
+  const std::string config = dir + "/$config.dat";
+  o.config_path = config.c_str();
+  int fds[2];
+  ASSERT_EQ(::pipe(fds), 0);
+  const pid_t child = ::fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {
+    ::close(fds[0]);
+    long vm_kb = 0;
+    std::ifstream status("/proc/self/status");
+    for (std::string line; std::getline(status, line);)
+      if (line.rfind("VmSize:", 0) == 0) vm_kb = std::atol(line.c_str() + 7);
+    const rlim_t limit = rlim_t(vm_kb) * 1024 + (rlim_t(128) << 20);
+    const rlimit rl = {limit, limit};
+    accura_status st = ACCURA_ERROR_INTERNAL;
+    std::string text = "setrlimit failed";
+    if (vm_kb > 0 && ::setrlimit(RLIMIT_AS, &rl) == 0) {
+      accura_check_summary cs;
+      st = accura_check_program(h.m, (dir + "/cell.xml").c_str(), (dir + "/seam.src").c_str(), &o, &cs, nullptr, 0);
+      const char* msg = "";
+      accura_last_error(h.m, &msg);
+      text = msg;
+    }
+    const std::string out = std::to_string(int(st)) + " " + text;
+    if (::write(fds[1], out.data(), out.size()) < 0) ::_exit(2);
+    ::_exit(0);
+  }
+  ::close(fds[1]);
+  std::string got;
+  char buf[512];
+  for (ssize_t k; (k = ::read(fds[0], buf, sizeof buf)) > 0;) got.append(buf, size_t(k));
+  ::close(fds[0]);
+  int wstatus = 0;
+  ASSERT_EQ(::waitpid(child, &wstatus, 0), child);
+  EXPECT_TRUE(WIFEXITED(wstatus) && WEXITSTATUS(wstatus) == 0);
+  EXPECT_EQ(got, std::to_string(int(ACCURA_ERROR_OUT_OF_MEMORY)) + " accura_check_program: out of memory");
+#endif
 }
 
 // The configuration asked for is enforced as accura compensate does: a target reachable only on
