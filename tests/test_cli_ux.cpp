@@ -348,6 +348,34 @@ TEST(CliUsage, OptionsThatWouldHaveNoEffectAreRefused) {
   std::filesystem::remove_all(dir);
 }
 
+// A robot with more joints than the kinematics take (12) is refused naming its file, as the
+// plug-in names it (before: "kinematic model: at most 12 joints, got 13", no file).
+TEST(CliMessages, ARobotWithTooManyJointsIsNamedWithItsFile) {
+  const std::string dir = test::tempDir("cli_ux_13_joints");
+  auto robot = [](int n) {
+    std::string t = "<?xml version=\"1.0\"?>\n<robot name=\"arm\">\n"
+                    "  <base x_mm=\"0\" y_mm=\"0\" z_mm=\"0\" a_deg=\"0\" b_deg=\"0\" c_deg=\"0\"/>\n"
+                    "  <tool x_mm=\"0\" y_mm=\"0\" z_mm=\"0\" a_deg=\"0\" b_deg=\"0\" c_deg=\"0\"/>\n"
+                    "  <payload com_x_mm=\"0\" com_y_mm=\"0\" com_z_mm=\"100\"/>\n  <gravity x=\"0\" y=\"0\" z=\"-9.80665\"/>\n  <joints>\n";
+    for (int j = 1; j <= n; ++j)
+      t += "    <joint name=\"J" + std::to_string(j) + "\" type=\"revolute\" a_mm=\"100\" alpha_deg=\"" + (j % 2 ? "-90" : "90") +
+           "\" d_mm=\"10\" theta0_deg=\"0\" direction=\"1\" lower=\"-170\" upper=\"170\" mass_kg=\"1\" com_x_mm=\"0\" com_y_mm=\"0\" com_z_mm=\"0\"/>\n";
+    return t + "  </joints>\n</robot>\n";
+  };
+  test::writeText(dir + "/r12.xml", robot(12));
+  test::writeText(dir + "/r13.xml", robot(13));
+  const CliRun ok = run("fk --robot r12.xml --q 0,0,0,0,0,0,0,0,0,0,0,0", dir);
+  EXPECT_EQ(ok.code, 0) << ok.err;
+  const CliRun fk = run("fk --robot r13.xml --q 0,0,0,0,0,0,0,0,0,0,0,0,0", dir);
+  EXPECT_EQ(fk.code, 1);
+  EXPECT_EQ(fk.err, "accura: error: --robot r13.xml: expected at most 12 joints, found 13\n");
+  const CliRun sim = run("simulate --robot r13.xml --out s.csv", dir);
+  EXPECT_EQ(sim.code, 1);
+  EXPECT_EQ(sim.err, "accura: error: --robot r13.xml: expected at most 12 joints, found 13\n");
+  EXPECT_FALSE(std::filesystem::exists(dir + "/s.csv"));
+  std::filesystem::remove_all(dir);
+}
+
 TEST(CliJson, FkSimulateAndConvertWriteJson) {
   const std::string dir = test::tempDir("cli_ux_json");
   CliRun r = run("fk --robot kuka_kr16 --q 10,-80,70,20,30,40 --json fk.json", dir);
