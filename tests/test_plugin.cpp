@@ -377,6 +377,39 @@ TEST(Plugin, JointsAreTheRobotFiles) {
   EXPECT_EQ(n, 6u);
 }
 
+// accura_write_program writes URScript (.script) and ABB RAPID (.mod, .prg) too, as the
+// header says; their first comment names the plug-in, not accura convert (which did not write
+// them). Read back by accura's readers: the same motions.
+TEST(Plugin, WrittenUrScriptAndRapidNameThePlugin) {
+  const std::string dir = test::tempDir("plugin_write_langs");
+  Handle h;
+  const accura_program_motion motions[3] = {{ACCURA_PTP, {}, cpose(1100, -250, 500, 0, 180, 0), 0, 0.0, 0, {}},
+                                            {ACCURA_LIN, {}, cpose(1100, -50, 500, 0, 180, 0), 0, 0.2, 0, {}},
+                                            {ACCURA_CIRC, cpose(1180, 30, 500, 0, 180, 0), cpose(1260, -50, 500, 0, 180, 0), 0, 0.1, 0, {}}};
+  accura_write_options o;
+  ASSERT_EQ(accura_write_options_init(&o, sizeof(o)), ACCURA_OK);
+  o.tool = cpose(20, 0, 250, 0, 0, 0);
+  const std::vector<std::pair<std::string, std::string>> files = {
+      {"seam.script", "  # written by the accura plug-in (accura_write_program): poses in the Base frame"},
+      {"seam.mod", "  ! written by the accura plug-in (accura_write_program): targets in the work object"},
+      {"seam.PRG", "  ! written by the accura plug-in (accura_write_program): targets in the work object"}};
+  for (const auto& [name, comment] : files) {
+    SCOPED_TRACE(name);
+    ASSERT_EQ(accura_write_program(h.m, (dir + "/" + name).c_str(), motions, 3, &o), ACCURA_OK) << lastError(h.m);
+    const std::string text = test::readText(dir + "/" + name);
+    const size_t second = text.find('\n') + 1;
+    EXPECT_EQ(text.substr(second, comment.size()), comment) << text;
+    EXPECT_EQ(text.find("accura convert"), std::string::npos) << text;
+    const Program p = readProgram(dir + "/" + name);
+    ASSERT_EQ(p.motions.size(), 3u);
+    EXPECT_EQ(p.motions[0].type, MotionType::kPtp);
+    EXPECT_EQ(p.motions[1].type, MotionType::kLin);
+    EXPECT_EQ(p.motions[2].type, MotionType::kCirc);
+    EXPECT_NEAR(p.motions[2].target.xyzAbc().x_mm, 1260, 1e-3);
+  }
+  std::filesystem::remove_all(dir);
+}
+
 // accura_write_program writes a new program with accura's writer: read back by accura's
 // readers, every value at the writer's resolution (1e-4 mm, 1e-5 deg), in KRL and XML.
 TEST(Plugin, WrittenProgramReadsBack) {

@@ -421,10 +421,13 @@ typedef struct accura_write_options {
 ACCURA_API accura_status accura_write_options_init(accura_write_options* options, size_t struct_size);
 
 /* Writes a new program in the controller language of the path's extension (.src: KUKA KRL,
- * with the .dat next to it; .xml: accura's XML program) with the writer of `accura
- * compensate` (values at 1e-4 mm and 1e-5 deg), every file through a temporary file renamed
- * into place. ACCURA_ERROR_INVALID_ARGUMENT for a motion type or pose that is not valid,
- * ACCURA_ERROR_INPUT for another extension or a file that cannot be written. `model` holds
+ * with the .dat next to it; .xml: accura's XML program; .script: URScript; .mod or .prg: ABB
+ * RAPID; the extension in any case) with the writers of `accura compensate` and `accura
+ * convert` (KRL and XML values at 1e-4 mm and 1e-5 deg; a URScript or RAPID program's first
+ * comment says "written by the accura plug-in (accura_write_program)"), every file through a
+ * temporary file renamed into place. ACCURA_ERROR_INVALID_ARGUMENT for a motion type or pose
+ * that is not valid, ACCURA_ERROR_INPUT for another extension or a file that cannot be
+ * written. `model` holds
  * the error message (no model need be loaded, except for motions with joint values; a loaded
  * model names the robot of an XML program). */
 ACCURA_API accura_status accura_write_program(accura_model* model, const char* path, const accura_program_motion* motions,

@@ -445,6 +445,7 @@ void writePoseProgram(const std::string& path, const PoseProgram& spec, const Se
                                ": expected a program name (a letter, '_' or '$', then letters, digits, '_' or '$'; at most 64 "
                                "characters), found '" + calib::printableBytes(p.name) + "'");
   p.robot = spec.robot.empty() && session ? session->job().calibrated.nominal.name : spec.robot;
+  p.written_by = "the accura plug-in (accura_write_program)";
   FrameSetting tool, base;
   tool.source = base.source = FrameSetting::Source::kInline;
   tool.value = checkedPose(spec.tool, "tool");
