@@ -108,10 +108,10 @@ ACCURA_API accura_status accura_version(int* major, int* minor, int* patch, int*
 ACCURA_API accura_status accura_status_name(accura_status status, const char** name_out);
 
 /* The message of the last failed call the calling thread made on `model` ("" when none):
- * valid until the calling thread's next call on `model` or accura_model_free. Calls that
- * succeed do not clear it. `model` NULL: ACCURA_OK and the message of the calling thread's
- * last failed call without a live handle (valid until its next such call); a handle that is
- * not live: that message too, and ACCURA_ERROR_INVALID_ARGUMENT. */
+ * valid until the calling thread's next failing call on `model` or accura_model_free (calls
+ * that succeed neither clear nor move it). `model` NULL: ACCURA_OK and the message of the
+ * calling thread's last failed call without a live handle (valid until its next such failing
+ * call); a handle that is not live: that message too, and ACCURA_ERROR_INVALID_ARGUMENT. */
 ACCURA_API accura_status accura_last_error(const accura_model* model, const char** message_out);
 
 /* ---------------------------------------------------------------------------------------- */
