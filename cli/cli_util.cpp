@@ -13,6 +13,7 @@
 
 #include "accura/calib/errors.h"
 #include "accura/calib/import.h"
+#include "accura/calib/kinematic_core.h"
 #include "accura/calib/robot_io.h"
 #include "accura/calib/text.h"
 #include "accura/calib/urdf.h"
@@ -51,10 +52,16 @@ calib::RobotModel loadRobot(const std::string& name, const std::string& option) 
     throw calib::InputError(option + ": " + e.what());
   }
   const std::string& chain = robotChainOption();
-  if (chain.empty()) return calib::readRobotFile(path);  // a .urdf with its default chain
-  if (path.size() < 5 || path.compare(path.size() - 5, 5, ".urdf") != 0)
+  if (!chain.empty() && (path.size() < 5 || path.compare(path.size() - 5, 5, ".urdf") != 0))
     throw calib::InputError("--chain " + chain + ": expected a URDF robot (.urdf) with --robot, found '" + name + "'");
-  return calib::readUrdfRobot(path, chain);
+  // (no --chain: a .urdf with its default chain)
+  calib::RobotModel model = chain.empty() ? calib::readRobotFile(path) : calib::readUrdfRobot(path, chain);
+  // the kinematics take at most kMaxDof joints: said with the file, as the plug-in says it
+  // (before: "kinematic model: at most 12 joints, got 13" at the first use, without the file)
+  if (model.dof() > calib::kMaxDof)
+    throw calib::InputError(option + " " + path + ": expected at most " + std::to_string(calib::kMaxDof) + " joints, found " +
+                            std::to_string(model.dof()));
+  return model;
 }
 
 void warnUnknownColumns(const calib::MeasurementSet& set) {

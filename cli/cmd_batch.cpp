@@ -104,8 +104,8 @@ int runBatch(const BatchArgs& a) {
   if (!a.json.empty()) {
     // the report must not replace a program the run wrote
     for (const auto& r : res.files)
-      for (const auto& o : r.outputs)
-        if (calib::sameFile(a.json, (fs::path(a.out) / o).string()))
+      for (const auto& output : r.outputs)
+        if (calib::sameFile(a.json, (fs::path(a.out) / output).string()))
           throw calib::InputError("--json: " + a.json + " is the output of " + r.input + ": choose another path for the report");
     nlohmann::ordered_json j;
     j["in"] = a.in;

@@ -36,7 +36,15 @@ struct CellArgs {
 };
 
 std::optional<CellCheck> cellCheck(const CellArgs& a) {
-  if (a.cell.empty()) return std::nullopt;
+  if (a.cell.empty()) {
+    // a threshold of a check that does not run (the checks run in a cell) is refused, like
+    // --warn-only without --cell, rather than dropped without a word
+    for (const CLI::Option* o : {a.o_margin, a.o_singular, a.o_clearance})
+      if (o->count())
+        throw calib::InputError(o->get_name() + ": expected together with --cell (a threshold of the checks, which run in a "
+                                "cell), found it without");
+    return std::nullopt;
+  }
   CellCheck c;
   c.cell_path = a.cell;
   c.cell = postproc::readCellFile(a.cell);

@@ -9,6 +9,7 @@
 #include "accura/calib/json_text.h"
 #include "accura/postproc/batch.h"
 #include "accura/postproc/program_io.h"
+#include "accura/postproc/urscript.h"
 #include "commands.h"
 
 namespace fs = std::filesystem;
@@ -67,9 +68,14 @@ int runConvert(const ConvertArgs& a) {
   for (const PassThrough& s : dropped) std::cerr << s.where.str() << ": dropped '" << s.text << "'\n";
   for (const auto& f : all) std::cout << "wrote " << f.path << "\n";
   std::cout << "accura convert: " << program.motions.size() << " motions";
-  if (out_format != ProgramFormat::kKrl || !program.krl)
-    std::cout << ", " << std::count_if(program.passthrough.begin(), program.passthrough.end(), [](const PassThrough& s) { return s.role.empty(); })
-              << " other statements carried verbatim";
+  if (out_format != ProgramFormat::kKrl || !program.krl) {
+    // a URScript program keeps its other statements in its source (UrScriptSource::others),
+    // not in passthrough, until a conversion carries them
+    const size_t carried = program.urscript ? program.urscript->others.size()
+                                            : static_cast<size_t>(std::count_if(program.passthrough.begin(), program.passthrough.end(),
+                                                                                [](const PassThrough& s) { return s.role.empty(); }));
+    std::cout << ", " << carried << " other statements carried verbatim";
+  }
   if (a.drop) std::cout << ", " << dropped.size() << " dropped";
   std::cout << " from " << a.in << "\n";
   return 0;
@@ -80,10 +86,10 @@ int runConvert(const ConvertArgs& a) {
 void addConvertCommand(CLI::App& app) {
   auto args = std::make_shared<ConvertArgs>();
   auto* c = app.add_subcommand("convert", "convert a program between KUKA KRL (.src/.dat), the XML program format (.xml), URScript (.script) and ABB RAPID (.mod, .prg)");
-  c->add_option("--in", args->in, "program to read: PROG.src (KRL, with PROG.dat next to it), PROG.xml, PROG.script or PROG.mod")->required();
+  c->add_option("--in", args->in, "program to read: PROG.src (KRL, with PROG.dat next to it), PROG.xml, PROG.script or PROG.mod/.prg")->required();
   c->add_option("--dat", args->dat, "the KRL .dat (default: the .src's name with .dat)");
   c->add_option("--config", args->config, "$config.dat: TOOL_DATA, BASE_DATA and global points such as XHOME");
-  c->add_option("--out", args->out, "program to write: OUT.xml, OUT.src (with OUT.dat), OUT.script or OUT.mod; its directory is created")->required();
+  c->add_option("--out", args->out, "program to write: OUT.xml, OUT.src (with OUT.dat), OUT.script or OUT.mod/.prg; its directory is created")->required();
   c->add_option("--json", args->json, "report: the inputs read, the motions, the files written (and the lines dropped)");
   c->add_flag("--drop-unconvertible", args->drop,
               "keep the motions only: leave out the statements the output format cannot hold, each listed on stderr "

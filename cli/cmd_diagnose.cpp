@@ -109,6 +109,11 @@ void checkValidationSet(const calib::Diagnosis& d, const calib::MeasurementSet& 
 int runDiagnose(const DiagnoseArgs& a) {
   if (a.json.empty() && a.report.empty())
     throw calib::InputError("diagnose: expected an output, --json diag.json and/or --report diag.html, found neither");
+  // options that would have no effect are refused, not dropped without a word
+  if (!a.validate_map.empty() && a.validate.empty())
+    throw calib::InputError("--validate-map: expected together with --validate (the mapping of the validation file), found it without");
+  if (a.same_station && a.data.size() < 2)
+    throw calib::InputError("--same-station: expected several --data files (measured from one tracker station), found one");
   calib::RobotModel start = loadRobot(a.robot);
   if (!a.base.empty()) start.nominal.T_world_base = calib::toIsometry(parsePose6(a.base, "--base"));
   if (!a.tool.empty()) start.nominal.T_flange_tcp = calib::toIsometry(parseTool(a.tool, "--tool"));

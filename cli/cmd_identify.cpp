@@ -1,3 +1,4 @@
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <iostream>
@@ -77,6 +78,16 @@ void readData(const IdentifyArgs& a, IdentifyRun& r) {
   if (a.validate_station == "new" && a.validate.empty())
     throw calib::InputError("--validate-station new: expected a --validate file measured from another station");
   if (a.data.empty()) throw calib::InputError("--data: expected at least one measurement file");
+  // options of the validation file without one: refused, not dropped without a word
+  if (a.validate.empty()) {
+    if (!a.validate_map.empty())
+      throw calib::InputError("--validate-map: expected together with --validate (the mapping of the validation file), found it without");
+    if (a.validate_station_given)
+      throw calib::InputError("--validate-station " + a.validate_station +
+                              ": expected together with --validate (the station of the validation file), found it without");
+  }
+  if (a.same_station && a.data.size() < 2)
+    throw calib::InputError("--same-station: expected several --data files (measured from one tracker station), found one");
   for (const std::string& f : a.data) r.sets.push_back(readMeasurements(f, a.map, r.start.nominal));
   for (const std::string& f : a.data) r.data_names += (r.data_names.empty() ? "" : ", ") + f;
   if (!a.validate.empty() && a.holdout_given && a.holdout > 0)
@@ -122,6 +133,13 @@ calib::IdentifyOptions identifyOptions(const IdentifyArgs& a) {
   std::string why;
   // the numbers are range-checked by their options; what IsValid finds is --loss's or --params'
   if (!opt.IsValid(&why)) throw calib::InputError((why.rfind("loss", 0) == 0 ? "--loss: " : "--params: ") + why);
+  // an option of a fit that does not happen is refused, not dropped without a word
+  if (a.loss_scale_given && a.loss == "none")
+    throw calib::InputError("--loss-scale: expected together with --loss huber or cauchy (the scale of a robust loss), found --loss none");
+  if (a.map_smoothing >= 0 &&
+      std::none_of(opt.groups.begin(), opt.groups.end(), [](const std::string& g) { return g.rfind("joint_map", 0) == 0; }))
+    throw calib::InputError("--map-smoothing: expected together with joint_map in --params (the smoothness of the joint maps it fits), found --params " +
+                            a.params);
   return opt;
 }
 
@@ -445,6 +463,9 @@ int runIdentify(const IdentifyArgs& a) {
     if (a.std_deg > 0 && set.has_std_orientation)
       std::fprintf(stderr, "accura: warning: --std-deg %g not used for %s: its std columns give each row's orientation std\n", a.std_deg,
                    set.file.c_str());
+    else if (a.std_deg > 0 && !set.has_orientation)
+      std::fprintf(stderr, "accura: warning: --std-deg %g not used for %s: it has no orientation columns (positions only)\n", a.std_deg,
+                   set.file.c_str());
   }
   r.calibrated = identifyFit(r, r.opt, &r.s);
   for (const auto& d : r.sets) r.n_rows += d.rows.size();
@@ -525,6 +546,8 @@ void addIdentifyCommand(CLI::App& app) {
   cid->add_flag("--verbose", id->verbose, "also print the solver's own report (Ceres: termination, cost)")->excludes(quiet);
   cid->callback([=]() {
     id->holdout_given = cid->count("--holdout") > 0;
+    id->validate_station_given = cid->count("--validate-station") > 0;
+    id->loss_scale_given = cid->count("--loss-scale") > 0;
     exitCode() = runIdentify(*id);
   });
 }

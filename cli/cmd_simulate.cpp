@@ -1,3 +1,4 @@
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <iostream>
@@ -33,6 +34,12 @@ int runSimulate(const SimulateArgs& a) {
   o.payloads_kg = parseNumbers(a.payloads, "--payloads", kPayloadRange);
   o.error_scale = a.error_scale;
   const bool none = o.effects.size() == 1 && o.effects[0] == "none";
+  // options that would have no effect are refused, not dropped without a word
+  if (a.noise_deg_given && !a.orientation)
+    throw calib::InputError("--noise-deg: expected together with --orientation (the noise of the measured orientation), found it without");
+  if (a.error_scale_given && std::find(o.effects.begin(), o.effects.end(), "geometric") == o.effects.end())
+    throw calib::InputError("--error-scale: expected together with geometric in --effects (the scale of the random geometric errors), found --effects " +
+                            a.effects);
   if (!a.station.empty()) {
     o.station = parsePose6(a.station, "--station");
   } else {
@@ -102,7 +109,11 @@ void addSimulateCommand(CLI::App& app) {
   csim->add_option("--out", sim->out, "measurement CSV to write")->required();
   csim->add_option("--truth", sim->truth, "write the real robot as a calibrated model file");
   csim->add_option("--json", sim->json, "also write what was simulated as JSON (robot, poses, seed, effects, station)");
-  csim->callback([=]() { exitCode() = runSimulate(*sim); });
+  csim->callback([=]() {
+    sim->noise_deg_given = csim->count("--noise-deg") > 0;
+    sim->error_scale_given = csim->count("--error-scale") > 0;
+    exitCode() = runSimulate(*sim);
+  });
 }
 
 }  // namespace accura::cli

@@ -24,12 +24,14 @@ struct SimulateArgs {
   std::string effects = "geometric";
   double noise_mm = 0.02;
   double noise_deg = 0.002;
+  bool noise_deg_given = false;    ///< --noise-deg on the command line (it needs --orientation)
   bool orientation = false;
   bool write_std = false;
   std::string payloads = "0";
   std::string station;  // empty: default station (unless effects == none)
   std::string tool;     // empty: the robot's tool
   double error_scale = 1.0;
+  bool error_scale_given = false;  ///< --error-scale on the command line (it scales the geometric errors)
   std::string out;
   std::string truth;
   std::string json;
@@ -44,6 +46,7 @@ struct IdentifyArgs {
   std::string map;             // mapping file for --data (and --validate) exports
   std::string validate_map;    // mapping file for --validate when it differs
   std::string validate_station = "same";  // same | new: re-register the station on --validate
+  bool validate_station_given = false;     ///< --validate-station on the command line
   double holdout = 0.2;
   bool holdout_given = false;  ///< --holdout on the command line (its default applies to one --data file)
   std::string base;
@@ -52,6 +55,7 @@ struct IdentifyArgs {
   std::string form = "auto";
   std::string loss = "none";
   double loss_scale = 3.0;
+  bool loss_scale_given = false;  ///< --loss-scale on the command line (it scales a robust loss only)
   double std_mm = -1;   // <0: from the data or estimated
   double std_deg = -1;
   std::string out;

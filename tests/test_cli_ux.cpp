@@ -331,6 +331,96 @@ TEST(CliIdentify, ValidationOutsideTheFitRangesReadsAsASentence) {
   std::filesystem::remove_all(dir);
 }
 
+// Options that would have no effect are refused with the option named (exit 1, nothing
+// written), never dropped without a word: the check thresholds without --cell (as --warn-only
+// without --cell is), the validation file's options without --validate, --same-station with
+// one --data file, --loss-scale without a robust loss, --map-smoothing without joint_map,
+// simulate's --noise-deg without --orientation and --error-scale without geometric errors.
+// (Before: compensate --min-clearance-mm 50 without --cell exited 0 and ran no check.)
+TEST(CliUsage, OptionsThatWouldHaveNoEffectAreRefused) {
+  const std::string dir = test::tempDir("cli_ux_no_effect");
+  const std::string ex = test::sourcePath("examples");
+  ASSERT_EQ(run("simulate --robot kuka_kr16 --poses 60 --seed 5 --out fit.csv", dir).code, 0);
+  ASSERT_EQ(run("simulate --robot kuka_kr16 --poses 60 --seed 6 --out fit2.csv", dir).code, 0);
+  const std::string config = " --config '" + ex + "/$config.dat' ";
+  const std::string comp = "compensate --robot kuka_kr16 --in '" + ex + "/seam.src'" + config + "--out out ";
+  const std::string batch = "batch --robot kuka_kr16 --in '" + ex + "'" + config + "--out out ";
+  const std::string id = "identify --robot kuka_kr16 --data fit.csv --out cal.xml ";
+  const std::string diag = "diagnose --robot kuka_kr16 --data fit.csv --json d.json ";
+  const std::string cell = " (a threshold of the checks, which run in a cell), found it without\n";
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {comp + "--min-clearance-mm 50", "--min-clearance-mm: expected together with --cell" + cell},
+      {comp + "--joint-margin-deg 2", "--joint-margin-deg: expected together with --cell" + cell},
+      {comp + "--singular-threshold 0.01", "--singular-threshold: expected together with --cell" + cell},
+      {batch + "--min-clearance-mm 50", "--min-clearance-mm: expected together with --cell" + cell},
+      {batch + "--joint-margin-deg 2", "--joint-margin-deg: expected together with --cell" + cell},
+      {batch + "--singular-threshold 0.01", "--singular-threshold: expected together with --cell" + cell},
+      {id + "--validate-map v.map", "--validate-map: expected together with --validate (the mapping of the validation file), found it without\n"},
+      {id + "--validate-station same",
+       "--validate-station same: expected together with --validate (the station of the validation file), found it without\n"},
+      {id + "--same-station", "--same-station: expected several --data files (measured from one tracker station), found one\n"},
+      {id + "--loss-scale 2", "--loss-scale: expected together with --loss huber or cauchy (the scale of a robust loss), found --loss none\n"},
+      {id + "--loss none --loss-scale 2",
+       "--loss-scale: expected together with --loss huber or cauchy (the scale of a robust loss), found --loss none\n"},
+      {id + "--map-smoothing 0.01",
+       "--map-smoothing: expected together with joint_map in --params (the smoothness of the joint maps it fits), found --params geometric\n"},
+      {diag + "--validate-map v.map", "--validate-map: expected together with --validate (the mapping of the validation file), found it without\n"},
+      {diag + "--same-station", "--same-station: expected several --data files (measured from one tracker station), found one\n"},
+      {"simulate --robot kuka_kr16 --noise-deg 0.01 --out s.csv",
+       "--noise-deg: expected together with --orientation (the noise of the measured orientation), found it without\n"},
+      {"simulate --robot kuka_kr16 --effects joint_compliance --error-scale 2 --out s.csv",
+       "--error-scale: expected together with geometric in --effects (the scale of the random geometric errors), found --effects joint_compliance\n"},
+  };
+  for (const auto& [args, err] : cases) {
+    const CliRun r = run(args, dir);
+    EXPECT_EQ(r.code, 1) << args;
+    EXPECT_EQ(r.err, "accura: error: " + err) << args;
+    EXPECT_EQ(r.out, "") << args;
+  }
+  for (const char* f : {"out", "cal.xml", "d.json", "s.csv"}) EXPECT_FALSE(std::filesystem::exists(dir + "/" + f)) << f;
+  // where they apply, they are taken
+  const CliRun robust = run(id + "--loss huber --loss-scale 2", dir);
+  EXPECT_EQ(robust.code, 0) << robust.err;
+  const CliRun two = run("identify --robot kuka_kr16 --data fit.csv --data fit2.csv --same-station --params base --out two.xml", dir);
+  EXPECT_EQ(two.code, 0) << two.err;
+  EXPECT_EQ(run("simulate --robot kuka_kr16 --orientation --noise-deg 0.01 --poses 10 --out o.csv", dir).code, 0);
+  EXPECT_EQ(run("simulate --robot kuka_kr16 --effects geometric,joint_compliance --error-scale 2 --poses 10 --out g.csv", dir).code, 0);
+  // a data-dependent one is said, as --std-mm beside std columns is: --std-deg on positions only
+  const CliRun std_deg = run(id + "--std-deg 0.01 --params base", dir);
+  EXPECT_EQ(std_deg.code, 0) << std_deg.err;
+  EXPECT_NE(std_deg.err.find("accura: warning: --std-deg 0.01 not used for fit.csv: it has no orientation columns (positions only)\n"),
+            std::string::npos) << std_deg.err;
+  std::filesystem::remove_all(dir);
+}
+
+// A robot with more joints than the kinematics take (12) is refused naming its file, as the
+// plug-in names it (before: "kinematic model: at most 12 joints, got 13", no file).
+TEST(CliMessages, ARobotWithTooManyJointsIsNamedWithItsFile) {
+  const std::string dir = test::tempDir("cli_ux_13_joints");
+  auto robot = [](int n) {
+    std::string t = "<?xml version=\"1.0\"?>\n<robot name=\"arm\">\n"
+                    "  <base x_mm=\"0\" y_mm=\"0\" z_mm=\"0\" a_deg=\"0\" b_deg=\"0\" c_deg=\"0\"/>\n"
+                    "  <tool x_mm=\"0\" y_mm=\"0\" z_mm=\"0\" a_deg=\"0\" b_deg=\"0\" c_deg=\"0\"/>\n"
+                    "  <payload com_x_mm=\"0\" com_y_mm=\"0\" com_z_mm=\"100\"/>\n  <gravity x=\"0\" y=\"0\" z=\"-9.80665\"/>\n  <joints>\n";
+    for (int j = 1; j <= n; ++j)
+      t += "    <joint name=\"J" + std::to_string(j) + "\" type=\"revolute\" a_mm=\"100\" alpha_deg=\"" + (j % 2 ? "-90" : "90") +
+           "\" d_mm=\"10\" theta0_deg=\"0\" direction=\"1\" lower=\"-170\" upper=\"170\" mass_kg=\"1\" com_x_mm=\"0\" com_y_mm=\"0\" com_z_mm=\"0\"/>\n";
+    return t + "  </joints>\n</robot>\n";
+  };
+  test::writeText(dir + "/r12.xml", robot(12));
+  test::writeText(dir + "/r13.xml", robot(13));
+  const CliRun ok = run("fk --robot r12.xml --q 0,0,0,0,0,0,0,0,0,0,0,0", dir);
+  EXPECT_EQ(ok.code, 0) << ok.err;
+  const CliRun fk = run("fk --robot r13.xml --q 0,0,0,0,0,0,0,0,0,0,0,0,0", dir);
+  EXPECT_EQ(fk.code, 1);
+  EXPECT_EQ(fk.err, "accura: error: --robot r13.xml: expected at most 12 joints, found 13\n");
+  const CliRun sim = run("simulate --robot r13.xml --out s.csv", dir);
+  EXPECT_EQ(sim.code, 1);
+  EXPECT_EQ(sim.err, "accura: error: --robot r13.xml: expected at most 12 joints, found 13\n");
+  EXPECT_FALSE(std::filesystem::exists(dir + "/s.csv"));
+  std::filesystem::remove_all(dir);
+}
+
 TEST(CliJson, FkSimulateAndConvertWriteJson) {
   const std::string dir = test::tempDir("cli_ux_json");
   CliRun r = run("fk --robot kuka_kr16 --q 10,-80,70,20,30,40 --json fk.json", dir);

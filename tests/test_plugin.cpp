@@ -17,6 +17,10 @@
 #include <cstring>
 #include <nlohmann/json.hpp>
 #include <thread>
+#include <fstream>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include "accura/calib/errors.h"
 #include "accura/calib/geometry.h"
@@ -373,6 +377,39 @@ TEST(Plugin, JointsAreTheRobotFiles) {
   EXPECT_EQ(n, 6u);
 }
 
+// accura_write_program writes URScript (.script) and ABB RAPID (.mod, .prg) too, as the
+// header says; their first comment names the plug-in, not accura convert (which did not write
+// them). Read back by accura's readers: the same motions.
+TEST(Plugin, WrittenUrScriptAndRapidNameThePlugin) {
+  const std::string dir = test::tempDir("plugin_write_langs");
+  Handle h;
+  const accura_program_motion motions[3] = {{ACCURA_PTP, {}, cpose(1100, -250, 500, 0, 180, 0), 0, 0.0, 0, {}},
+                                            {ACCURA_LIN, {}, cpose(1100, -50, 500, 0, 180, 0), 0, 0.2, 0, {}},
+                                            {ACCURA_CIRC, cpose(1180, 30, 500, 0, 180, 0), cpose(1260, -50, 500, 0, 180, 0), 0, 0.1, 0, {}}};
+  accura_write_options o;
+  ASSERT_EQ(accura_write_options_init(&o, sizeof(o)), ACCURA_OK);
+  o.tool = cpose(20, 0, 250, 0, 0, 0);
+  const std::vector<std::pair<std::string, std::string>> files = {
+      {"seam.script", "  # written by the accura plug-in (accura_write_program): poses in the Base frame"},
+      {"seam.mod", "  ! written by the accura plug-in (accura_write_program): targets in the work object"},
+      {"seam.PRG", "  ! written by the accura plug-in (accura_write_program): targets in the work object"}};
+  for (const auto& [name, comment] : files) {
+    SCOPED_TRACE(name);
+    ASSERT_EQ(accura_write_program(h.m, (dir + "/" + name).c_str(), motions, 3, &o), ACCURA_OK) << lastError(h.m);
+    const std::string text = test::readText(dir + "/" + name);
+    const size_t second = text.find('\n') + 1;
+    EXPECT_EQ(text.substr(second, comment.size()), comment) << text;
+    EXPECT_EQ(text.find("accura convert"), std::string::npos) << text;
+    const Program p = readProgram(dir + "/" + name);
+    ASSERT_EQ(p.motions.size(), 3u);
+    EXPECT_EQ(p.motions[0].type, MotionType::kPtp);
+    EXPECT_EQ(p.motions[1].type, MotionType::kLin);
+    EXPECT_EQ(p.motions[2].type, MotionType::kCirc);
+    EXPECT_NEAR(p.motions[2].target.xyzAbc().x_mm, 1260, 1e-3);
+  }
+  std::filesystem::remove_all(dir);
+}
+
 // accura_write_program writes a new program with accura's writer: read back by accura's
 // readers, every value at the writer's resolution (1e-4 mm, 1e-5 deg), in KRL and XML.
 TEST(Plugin, WrittenProgramReadsBack) {
@@ -591,6 +628,113 @@ TEST(Plugin, BadInputGivesStatusesAndMessages) {
   EXPECT_EQ(rs[1].status, ACCURA_ERROR_UNREACHABLE);
   EXPECT_EQ(rs[2].status, ACCURA_OK);
   EXPECT_NE(lastError(h.m).find("pose 1"), std::string::npos) << lastError(h.m);
+}
+
+// accura_compensate_path names the motion that fails, whatever the reason: an unreachable LIN
+// and a CIRC whose auxiliary point is collinear with its start and end (or is its start) both
+// set result.failed_motion and say "motion N cannot be compensated" (before: the CIRC gave
+// ACCURA_ERROR_NUMERICAL with failed_motion -1 and no motion in the message).
+TEST(Plugin, AFailingMotionOfAPathIsNamed) {
+  Handle h(test::sourcePath(kModel));
+  const accura_pose start = cpose(1100, -250, 500, 0, 180, 0);
+  accura_path_motion mo[3] = {{ACCURA_LIN, {}, cpose(1100, -50, 500, 0, 180, 0)},
+                              {ACCURA_CIRC, cpose(1180, 30, 500, 0, 180, 0), cpose(1260, -50, 500, 0, 180, 0)},
+                              {ACCURA_LIN, {}, cpose(1260, -250, 500, 0, 180, 0)}};
+  accura_path_point pts[64];
+  accura_path_result pr;
+  ASSERT_EQ(accura_compensate_path(h.m, &start, nullptr, mo, 3, 0.05, pts, 64, &pr, nullptr), ACCURA_OK) << lastError(h.m);
+  EXPECT_EQ(pr.failed_motion, -1);
+  const std::string no_circle = "accura_compensate_path: motion 1 cannot be compensated: CIRC: start, auxiliary and end point are "
+                                "collinear or coincide (no circle through them)";
+  for (const accura_pose aux : {cpose(1180, -50, 500, 0, 180, 0), cpose(1100, -50, 500, 0, 180, 0)}) {  // collinear; the start
+    mo[1].aux = aux;
+    pr.failed_motion = 7;
+    EXPECT_EQ(accura_compensate_path(h.m, &start, nullptr, mo, 3, 0.05, pts, 64, &pr, nullptr), ACCURA_ERROR_NUMERICAL);
+    EXPECT_EQ(pr.failed_motion, 1);
+    EXPECT_EQ(lastError(h.m), no_circle);
+  }
+  // the first motion a CIRC through the midpoint of the start and its end: motion 0
+  const accura_path_motion first = {ACCURA_CIRC, cpose(1180, -150, 500, 0, 180, 0), cpose(1260, -50, 500, 0, 180, 0)};
+  EXPECT_EQ(accura_compensate_path(h.m, &start, nullptr, &first, 1, 0.05, pts, 64, &pr, nullptr), ACCURA_ERROR_NUMERICAL);
+  EXPECT_EQ(pr.failed_motion, 0);
+  EXPECT_EQ(lastError(h.m).rfind("accura_compensate_path: motion 0 cannot be compensated: CIRC: ", 0), 0u) << lastError(h.m);
+  // the unreachable LIN, as before
+  mo[1].aux = cpose(1180, 30, 500, 0, 180, 0);
+  mo[2].end = cpose(4000, -250, 500, 0, 180, 0);
+  EXPECT_EQ(accura_compensate_path(h.m, &start, nullptr, mo, 3, 0.05, pts, 64, &pr, nullptr), ACCURA_ERROR_UNREACHABLE);
+  EXPECT_EQ(pr.failed_motion, 2);
+  EXPECT_EQ(lastError(h.m).rfind("accura_compensate_path: motion 2 cannot be compensated: unreachable", 0), 0u) << lastError(h.m);
+}
+
+// Out of memory while a cell's mesh is read is ACCURA_ERROR_OUT_OF_MEMORY "out of memory", as
+// docs/plugin.md promises (before: ACCURA_ERROR_INPUT "expected a mesh file assimp can read ...,
+// found: std::bad_alloc", assimp catching the std::bad_alloc and keeping its text). In a child
+// process whose address space is limited (RLIMIT_AS) to what it has plus 128 MB: the 40 MB STL
+// is read, assimp's copy of it and its vertices do not fit. Not under AddressSanitizer (its
+// shadow memory needs the address space).
+TEST(Plugin, OutOfMemoryReadingAMeshIsOutOfMemory) {
+#if defined(ACCURA_TEST_ASAN)
+  GTEST_SKIP() << "RLIMIT_AS and AddressSanitizer do not go together";
+#else
+  const std::string dir = test::tempDir("plugin_oom_mesh");
+  {
+    const uint32_t n = 800000;  // 50 bytes a triangle: 40 MB
+    std::string stl(84 + size_t(n) * 50, '\0');
+    std::memcpy(&stl[80], &n, 4);
+    for (uint32_t i = 0; i < n; ++i) {
+      const float x = float(i % 1000), y = float(i / 1000);
+      const float f[12] = {0, 0, 1, x, y, 0, x + 1, y, 0, x, y + 1, 0};
+      std::memcpy(&stl[84 + size_t(i) * 50], f, sizeof f);
+    }
+    test::writeText(dir + "/big.stl", stl);
+  }
+  test::writeText(dir + "/cell.xml",
+                  "<?xml version=\"1.0\"?>\n<cell name=\"big\">\n"
+                  "  <object name=\"floor\" file=\"big.stl\" units=\"mm\" x_mm=\"3000\" y_mm=\"-2000\" z_mm=\"-700\"/>\n"
+                  "  <tool><capsule x0_mm=\"0\" y0_mm=\"0\" z0_mm=\"0\" x1_mm=\"80\" y1_mm=\"40\" z1_mm=\"150\" radius_mm=\"15\"/></tool>\n"
+                  "</cell>\n");
+  for (const char* f : {"seam.src", "seam.dat", "$config.dat"})
+    test::writeText(dir + "/" + f, test::readText(test::sourcePath(std::string("examples/") + f)));
+  Handle h("kuka_kr16");
+  accura_check_options o;
+  ASSERT_EQ(accura_check_options_init(&o, sizeof(o)), ACCURA_OK);
+  const std::string config = dir + "/$config.dat";
+  o.config_path = config.c_str();
+  int fds[2];
+  ASSERT_EQ(::pipe(fds), 0);
+  const pid_t child = ::fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {
+    ::close(fds[0]);
+    long vm_kb = 0;
+    std::ifstream status("/proc/self/status");
+    for (std::string line; std::getline(status, line);)
+      if (line.rfind("VmSize:", 0) == 0) vm_kb = std::atol(line.c_str() + 7);
+    const rlim_t limit = rlim_t(vm_kb) * 1024 + (rlim_t(128) << 20);
+    const rlimit rl = {limit, limit};
+    accura_status st = ACCURA_ERROR_INTERNAL;
+    std::string text = "setrlimit failed";
+    if (vm_kb > 0 && ::setrlimit(RLIMIT_AS, &rl) == 0) {
+      accura_check_summary cs;
+      st = accura_check_program(h.m, (dir + "/cell.xml").c_str(), (dir + "/seam.src").c_str(), &o, &cs, nullptr, 0);
+      const char* msg = "";
+      accura_last_error(h.m, &msg);
+      text = msg;
+    }
+    const std::string out = std::to_string(int(st)) + " " + text;
+    if (::write(fds[1], out.data(), out.size()) < 0) ::_exit(2);
+    ::_exit(0);
+  }
+  ::close(fds[1]);
+  std::string got;
+  char buf[512];
+  for (ssize_t k; (k = ::read(fds[0], buf, sizeof buf)) > 0;) got.append(buf, size_t(k));
+  ::close(fds[0]);
+  int wstatus = 0;
+  ASSERT_EQ(::waitpid(child, &wstatus, 0), child);
+  EXPECT_TRUE(WIFEXITED(wstatus) && WEXITSTATUS(wstatus) == 0);
+  EXPECT_EQ(got, std::to_string(int(ACCURA_ERROR_OUT_OF_MEMORY)) + " accura_check_program: out of memory");
+#endif
 }
 
 // The configuration asked for is enforced as accura compensate does: a target reachable only on

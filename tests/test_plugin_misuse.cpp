@@ -208,10 +208,24 @@ TEST(PluginMisuse, OptionsOutOfRangeAreRefused) {
   auto reset = [&] { ASSERT_EQ(accura_load_options_init(&lo, sizeof(lo)), ACCURA_OK); };
   reset();
   lo.payload_kg = 1e6;
-  EXPECT_MISUSE(m, accura_model_load(m, "kuka_kr16", &lo), ACCURA_ERROR_INVALID_ARGUMENT, "payload_kg: expected a mass in [0, 10000] kg");
+  EXPECT_MISUSE(m, accura_model_load(m, "kuka_kr16", &lo), ACCURA_ERROR_INVALID_ARGUMENT,
+                "accura_model_load: payload_kg: expected a finite mass in [0, 10000] kg, found 1000000.000");
   reset();
   lo.temp_c = -1000;
-  EXPECT_MISUSE(m, accura_model_load(m, "kuka_kr16", &lo), ACCURA_ERROR_INVALID_ARGUMENT, "temp_c: expected a temperature in [-50, 150]");
+  EXPECT_MISUSE(m, accura_model_load(m, "kuka_kr16", &lo), ACCURA_ERROR_INVALID_ARGUMENT,
+                "accura_model_load: temp_c: expected a finite temperature in [-50, 150] deg C, found -1000.000");
+  // NaN and infinities: the field and the value named (before: "formatFixed: not a finite number")
+  for (const double v : {std::nan(""), HUGE_VAL, -HUGE_VAL}) {
+    const std::string shown = std::isnan(v) ? "nan" : v > 0 ? "inf" : "-inf";
+    reset();
+    lo.payload_kg = v;
+    EXPECT_EQ(accura_model_load(m, "kuka_kr16", &lo), ACCURA_ERROR_INVALID_ARGUMENT);
+    EXPECT_EQ(messageOf(m), "accura_model_load: payload_kg: expected a finite mass in [0, 10000] kg, found " + shown);
+    reset();
+    lo.temp_c = v;
+    EXPECT_EQ(accura_model_load(m, "kuka_kr16", &lo), ACCURA_ERROR_INVALID_ARGUMENT);
+    EXPECT_EQ(messageOf(m), "accura_model_load: temp_c: expected a finite temperature in [-50, 150] deg C, found " + shown);
+  }
   reset();
   lo.has_robroot_in_kukaworld = 1;
   lo.robroot_in_kukaworld = {1e300, 0, 0, 0, 0, 0};

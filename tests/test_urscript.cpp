@@ -858,6 +858,35 @@ TEST(UrScript, ConvertCarriesTheMotionModelOrRefusesNamingTheLine) {
       << k.err;
 }
 
+// convert's summary counts the statements it carries verbatim: the bundled example's
+// set_payload and two set_digital_out, which the XML holds as <passthrough> without a role
+// (before: "0 other statements carried verbatim", the URScript reader keeps them in its source,
+// not in the program's pass-through list).
+TEST(UrScript, ConvertCountsTheStatementsItCarries) {
+  const std::string dir = test::tempDir("ur_convert_count");
+  test::writeText(dir + "/seam.script", bundledExample());
+  const test::CliRun x = test::runAccuraIn(dir, "convert --in seam.script --out seam.xml");
+  ASSERT_EQ(x.code, 0) << x.err;
+  EXPECT_EQ(x.out, "wrote seam.xml\naccura convert: 8 motions, 3 other statements carried verbatim from seam.script\n");
+  const std::string xml = test::readText(dir + "/seam.xml");
+  std::vector<std::string> carried;
+  for (size_t at = xml.find("<passthrough language=\"URScript\" line="); at != std::string::npos;
+       at = xml.find("<passthrough language=\"URScript\" line=", at + 1)) {
+    const size_t text = xml.find('>', at) + 1;
+    carried.push_back(xml.substr(text, xml.find("</passthrough>", text) - text));
+  }
+  EXPECT_EQ(carried, (std::vector<std::string>{"  set_payload(1.2)", "  set_digital_out(0, True)  # arc on",
+                                               "  set_digital_out(0, False)  # arc off"}));
+  // the same count into URScript, from the script and from the XML; none into KRL with
+  // --drop-unconvertible (the three dropped)
+  const test::CliRun s = test::runAccuraIn(dir, "convert --in seam.script --out copy.script");
+  EXPECT_EQ(s.out, "wrote copy.script\naccura convert: 8 motions, 3 other statements carried verbatim from seam.script\n");
+  const test::CliRun back = test::runAccuraIn(dir, "convert --in seam.xml --out back.script");
+  EXPECT_EQ(back.out, "wrote back.script\naccura convert: 8 motions, 3 other statements carried verbatim from seam.xml\n");
+  const test::CliRun krl = test::runAccuraIn(dir, "convert --in seam.script --out seam.src --drop-unconvertible");
+  EXPECT_EQ(krl.out, "wrote seam.src\nwrote seam.dat\naccura convert: 8 motions, 0 other statements carried verbatim, 3 dropped from seam.script\n");
+}
+
 // The golden files (tests/golden/urscript/README.md): the example compensated with the real
 // UR10's calibrated model, and the XML weld seam converted to URScript, byte for byte; the
 // converted poses are the XML targets moved into the Base frame ($BASE * target, computed here).

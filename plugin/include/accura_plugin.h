@@ -108,10 +108,10 @@ ACCURA_API accura_status accura_version(int* major, int* minor, int* patch, int*
 ACCURA_API accura_status accura_status_name(accura_status status, const char** name_out);
 
 /* The message of the last failed call the calling thread made on `model` ("" when none):
- * valid until the calling thread's next call on `model` or accura_model_free. Calls that
- * succeed do not clear it. `model` NULL: ACCURA_OK and the message of the calling thread's
- * last failed call without a live handle (valid until its next such call); a handle that is
- * not live: that message too, and ACCURA_ERROR_INVALID_ARGUMENT. */
+ * valid until the calling thread's next failing call on `model` or accura_model_free (calls
+ * that succeed neither clear nor move it). `model` NULL: ACCURA_OK and the message of the
+ * calling thread's last failed call without a live handle (valid until its next such failing
+ * call); a handle that is not live: that message too, and ACCURA_ERROR_INVALID_ARGUMENT. */
 ACCURA_API accura_status accura_last_error(const accura_model* model, const char** message_out);
 
 /* ---------------------------------------------------------------------------------------- */
@@ -290,7 +290,9 @@ typedef struct accura_path_result {
  * (`points` may be NULL when capacity is 0); when more are needed returns
  * ACCURA_ERROR_BUFFER_TOO_SMALL with result->n_points the count needed (call again).
  * `reports` (NULL or n_motions entries) gets each motion's numbers. `start_configuration`
- * NULL: any. On a failing motion: its status, result->failed_motion set. */
+ * NULL: any. On a failing motion: its status (ACCURA_ERROR_NUMERICAL for a CIRC whose start,
+ * auxiliary and end point are collinear or coincide), result->failed_motion set and the
+ * message naming it ("motion 1 cannot be compensated: ..."). */
 ACCURA_API accura_status accura_compensate_path(accura_model* model, const accura_pose* start,
                                                 const accura_configuration* start_configuration,
                                                 const accura_path_motion* motions, size_t n_motions,
@@ -419,10 +421,13 @@ typedef struct accura_write_options {
 ACCURA_API accura_status accura_write_options_init(accura_write_options* options, size_t struct_size);
 
 /* Writes a new program in the controller language of the path's extension (.src: KUKA KRL,
- * with the .dat next to it; .xml: accura's XML program) with the writer of `accura
- * compensate` (values at 1e-4 mm and 1e-5 deg), every file through a temporary file renamed
- * into place. ACCURA_ERROR_INVALID_ARGUMENT for a motion type or pose that is not valid,
- * ACCURA_ERROR_INPUT for another extension or a file that cannot be written. `model` holds
+ * with the .dat next to it; .xml: accura's XML program; .script: URScript; .mod or .prg: ABB
+ * RAPID; the extension in any case) with the writers of `accura compensate` and `accura
+ * convert` (KRL and XML values at 1e-4 mm and 1e-5 deg; a URScript or RAPID program's first
+ * comment says "written by the accura plug-in (accura_write_program)"), every file through a
+ * temporary file renamed into place. ACCURA_ERROR_INVALID_ARGUMENT for a motion type or pose
+ * that is not valid, ACCURA_ERROR_INPUT for another extension or a file that cannot be
+ * written. `model` holds
  * the error message (no model need be loaded, except for motions with joint values; a loaded
  * model names the robot of an XML program). */
 ACCURA_API accura_status accura_write_program(accura_model* model, const char* path, const accura_program_motion* motions,

@@ -263,7 +263,9 @@ ACCURA_API accura_status accura_compensate_path(accura_model* model, const accur
     for (size_t i = 0; reports && i < n_motions; ++i) reports[i] = accura_motion_report{};
     const SessionPath p = s->path(xyz(*start), configOf(start_configuration, s->dof()), m, tol_mm);
     result->failed_motion = p.failed_motion;
-    if (!p.ok()) throw CallError(p.status == calib::IkStatus::kOk ? CallStatus::kInternal : callStatus(p.status), p.message);
+    if (!p.ok())
+      throw CallError(p.numerical ? CallStatus::kNumerical : p.status == calib::IkStatus::kOk ? CallStatus::kInternal : callStatus(p.status),
+                      p.message);
     const SessionMotionNumbers& t = p.total;
     *result = {cpose(p.start.command), cconfig(p.start.configuration), p.points.size(), t.max_error_uncompensated_mm,
                t.max_error_before_mm,  t.max_error_after_mm,            t.max_error_bound_mm, t.points_added, -1};

@@ -22,6 +22,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <new>
 #include <sstream>
 #include <string_view>
 
@@ -734,11 +735,14 @@ Mesh loadMesh(const std::string& path, double scale_to_mm) {
   const bool checked_format = ext == ".ply" || ext == ".stl" || ext == ".obj";
   std::string bytes;
   if (checked_format) {
-    std::ifstream in(path, std::ios::binary);
-    std::ostringstream s;
-    s << in.rdbuf();
-    if (!in || in.bad()) throw calib::InputError(path, 0, 0, "expected a mesh file, cannot read it");
-    bytes = s.str();
+    // read at the file's size: running out of memory is std::bad_alloc from resize (a stream
+    // copy, s << in.rdbuf(), would catch it and leave a truncated text)
+    std::ifstream in(path, std::ios::binary | std::ios::ate);
+    const std::streamoff size = in ? static_cast<std::streamoff>(in.tellg()) : -1;
+    if (size < 0) throw calib::InputError(path, 0, 0, "expected a mesh file, cannot read it");
+    bytes.resize(static_cast<size_t>(size));
+    in.seekg(0);
+    if (!in.read(bytes.data(), size) || in.gcount() != size) throw calib::InputError(path, 0, 0, "expected a mesh file, cannot read it");
     checkMeshBytes(path, bytes, scale_to_mm);
   }
   Assimp::Importer importer;
@@ -761,9 +765,14 @@ Mesh loadMesh(const std::string& path, double scale_to_mm) {
   // the bytes checked above (not the file again), so what assimp reads is what was checked
   const aiScene* scene = checked_format ? importer.ReadFileFromMemory(bytes.data(), bytes.size(), 0, ext.c_str() + 1) : importer.ReadFile(path, 0);
   const auto unreadable = [&]() {
-    const std::string why = importer.GetErrorString();
+    std::string why = importer.GetErrorString();
+    why.erase(0, std::min(why.size(), why.find_first_not_of(" \t\r\n")));
+    why.erase(why.find_last_not_of(" \t\r\n") + 1);
+    // assimp catches what is thrown inside it and keeps its text: out of memory is not a bad
+    // file (the plug-in's ACCURA_ERROR_OUT_OF_MEMORY, docs/plugin.md)
+    if (why.find("bad_alloc") != std::string::npos) throw std::bad_alloc();
     throw calib::InputError(path, 0, 0, "expected a mesh file assimp can read (STL, OBJ, PLY, 3MF, glTF, COLLADA, ...), found: " +
-                                     (why.empty() ? std::string("an unreadable file") : why));
+                                     (why.empty() ? std::string("assimp gave no reason (out of memory?)") : why));
   };
   if (!scene || (scene->mFlags & AI_SCENE_FLAGS_INCOMPLETE) || !scene->mRootNode) unreadable();
   checkScene(path, *scene, scale_to_mm);

@@ -1,6 +1,8 @@
 // A run of LIN / CIRC motions compensated from a start pose (see path_job.h).
 #include "accura/postproc/path_job.h"
 
+#include "accura/calib/errors.h"
+
 namespace accura::postproc {
 
 void enforceConfiguration(const calib::Configuration& asked, PoseCompensation& pc) {
@@ -29,7 +31,13 @@ PathCompensation compensatePath(const Compensator& comp, const Eigen::Isometry3d
   Eigen::VectorXd q = r.start.q_real;
   for (size_t i = 0; i < motions.size(); ++i) {
     r.intended.push_back(motions[i]);
-    r.segments.push_back(compensateSegmentFrom(comp, r.intended.back(), calib::Configuration{}, q, settings));
+    try {
+      r.segments.push_back(compensateSegmentFrom(comp, r.intended.back(), calib::Configuration{}, q, settings));
+    } catch (const calib::NumericalError& e) {  // the motion's own geometry (no circle through a CIRC's points)
+      r.failed_motion = static_cast<int>(i);
+      r.numerical_error = e.what();
+      return r;
+    }
     const SegmentCompensation& sc = r.segments.back();
     if (sc.status != calib::IkStatus::kOk || sc.commanded.empty() || sc.q_real_end.size() != sc.commanded.size()) {
       r.failed_motion = static_cast<int>(i);

@@ -243,7 +243,7 @@ class Generator {
     for (size_t i = 0; i < p_.motions.size(); ++i) motion(p_.motions[i], i);
     std::ostringstream o;
     o << "MODULE " << name << "\n";
-    o << "  ! written by accura convert" << (p_.source_file.empty() ? "" : " from " + std::filesystem::path(p_.source_file).filename().string())
+    o << "  ! written by " << p_.written_by << (p_.source_file.empty() ? "" : " from " + std::filesystem::path(p_.source_file).filename().string())
       << ": targets in the work object (mm, quaternion w,x,y,z); confdata the source does not give is 0 and configuration "
          "monitoring is off (ConfJ\\Off, ConfL\\Off: the controller takes the configuration nearest the current one)\n";
     for (const PassThrough& s : p_.passthrough)

@@ -48,6 +48,14 @@ void checkTolerance(double tol_mm) {
 thread_local std::string t_unbound_error;
 const char* const kNotLive = "not a live handle (freed by accura_model_free, or not made by accura_model_create)";
 
+/// A value of an option as a message shows it: 3 decimals, or nan / inf / -inf (formatFixed
+/// takes finite numbers only).
+std::string shownValue(double v) {
+  if (std::isnan(v)) return "nan";
+  if (std::isinf(v)) return v > 0 ? "inf" : "-inf";
+  return calib::formatFixed(v, 3);
+}
+
 std::string failureText(calib::IkStatus status, const std::string& message) {
   return message.empty() ? std::string(calib::toString(status)) : message;
 }
@@ -93,11 +101,11 @@ Session::Session(const SessionSettings& s) {
   for (const auto* p : {&s.robroot_in_world, &s.robroot_in_kukaworld, &s.program_base, &s.program_tool})
     if (*p) checkedPose(**p, "load options");
   if (!(s.payload_kg >= 0 && s.payload_kg <= kMaxPayloadKg))
-    throw calib::ArgumentError("payload_kg: expected a mass in [0, " + calib::formatFixed(kMaxPayloadKg, 0) + "] kg, found " +
-                               calib::formatFixed(s.payload_kg, 3));
+    throw calib::ArgumentError("payload_kg: expected a finite mass in [0, " + calib::formatFixed(kMaxPayloadKg, 0) + "] kg, found " +
+                               shownValue(s.payload_kg));
   if (!(s.temp_c >= kMinTempC && s.temp_c <= kMaxTempC))
-    throw calib::ArgumentError("temp_c: expected a temperature in [" + calib::formatFixed(kMinTempC, 0) + ", " +
-                               calib::formatFixed(kMaxTempC, 0) + "] deg C, found " + calib::formatFixed(s.temp_c, 3));
+    throw calib::ArgumentError("temp_c: expected a finite temperature in [" + calib::formatFixed(kMinTempC, 0) + ", " +
+                               calib::formatFixed(kMaxTempC, 0) + "] deg C, found " + shownValue(s.temp_c));
   job_.robroot_in_world = s.robroot_in_world;
   job_.robroot_in_kukaworld = s.robroot_in_kukaworld;
   job_.initial_base = s.program_base;
@@ -221,6 +229,12 @@ SessionPath Session::path(const calib::XyzAbc& start, const calib::Configuration
     r.status = pc.start.status;
     r.message = std::string("the start cannot be compensated: ") + calib::toString(pc.start.status) +
                 (pc.start.message.empty() ? "" : ": " + pc.start.message);
+    return r;
+  }
+  if (pc.failed_motion >= 0 && !pc.numerical_error.empty()) {
+    r.numerical = true;
+    r.failed_motion = pc.failed_motion;
+    r.message = "motion " + std::to_string(pc.failed_motion) + " cannot be compensated: " + pc.numerical_error;
     return r;
   }
   if (pc.failed_motion >= 0) {
@@ -431,6 +445,7 @@ void writePoseProgram(const std::string& path, const PoseProgram& spec, const Se
                                ": expected a program name (a letter, '_' or '$', then letters, digits, '_' or '$'; at most 64 "
                                "characters), found '" + calib::printableBytes(p.name) + "'");
   p.robot = spec.robot.empty() && session ? session->job().calibrated.nominal.name : spec.robot;
+  p.written_by = "the accura plug-in (accura_write_program)";
   FrameSetting tool, base;
   tool.source = base.source = FrameSetting::Source::kInline;
   tool.value = checkedPose(spec.tool, "tool");

@@ -307,7 +307,7 @@ std::string generate(const Program& p) {
   else refuseLogicPassThrough(p);
   std::ostringstream out;
   out << "def " << identifier(p.name.empty() ? "program" : p.name) << "():\n";
-  out << "  # written by accura convert" << (p.source_file.empty() ? "" : " from " + std::filesystem::path(p.source_file).filename().string())
+  out << "  # written by " << p.written_by << (p.source_file.empty() ? "" : " from " + std::filesystem::path(p.source_file).filename().string())
       << ": poses in the Base frame (m, rotation vector in rad), KUKA S/T and PTP speeds are not carried (the controller takes the joint solution nearest the current joints)\n";
   std::string tool;  // the set_tcp written last
   std::map<std::string, std::string> variables;  // pose variable -> its p[...]

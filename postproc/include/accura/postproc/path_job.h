@@ -28,14 +28,19 @@ struct PathCompensation {
   PoseCompensation start;
   std::vector<PathSegment> intended;          ///< the motions with their starts (world)
   std::vector<SegmentCompensation> segments;  ///< one per motion, up to the first that failed
-  /// -1, or the motion that failed (segments.back() says why); start.status != kOk: the start.
+  /// -1, or the motion that failed: numerical_error says why when it is not empty, else
+  /// segments.back(); start.status != kOk: the start.
   int failed_motion = -1;
+  /// The calib::NumericalError of motion failed_motion's geometry (a CIRC whose start,
+  /// auxiliary and end point are collinear): segments holds the motions before it.
+  std::string numerical_error;
   bool ok() const { return start.status == calib::IkStatus::kOk && failed_motion < 0; }
 };
 
 /// Compensates the start T_world_start (configuration `start_config`, enforceConfiguration),
 /// then every motion of `motions` (their T_world_start is ignored) with
-/// compensateSegmentFrom, stopping at the first failure. Throws like Compensator::segment.
+/// compensateSegmentFrom, stopping at the first failure (a calib::NumericalError of a motion
+/// is that motion's failure: numerical_error). Throws like Compensator::segment otherwise.
 PathCompensation compensatePath(const Compensator& comp, const Eigen::Isometry3d& T_world_start, const calib::Configuration& start_config,
                                 const std::vector<PathSegment>& motions, const JobSettings& settings);
 

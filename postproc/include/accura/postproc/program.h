@@ -258,6 +258,9 @@ struct Program {
   std::shared_ptr<const UrScriptSource> urscript;  ///< set by the URScript reader (urscript.h)
   std::shared_ptr<const RapidSource> rapid;        ///< set by the RAPID reader (rapid.h)
   std::string source_file;               ///< the file the program was read from
+  /// What wrote a program made from the motion model alone (no source text to patch): named
+  /// in the first comment of the URScript and RAPID writers ("written by accura convert").
+  std::string written_by = "accura convert";
 };
 
 /// True when a writer must produce new text: a target is modified, a motion inserted.

@@ -108,6 +108,9 @@ struct SessionPath {
   calib::IkStatus status = calib::IkStatus::kOk;
   std::string message;
   int failed_motion = -1;
+  /// Motion failed_motion's geometry has no solution (a CIRC whose points are collinear;
+  /// CallStatus::kNumerical); status stays kOk.
+  bool numerical = false;
   SessionPose start;                          ///< the compensated start: send it first
   std::vector<SessionPathPoint> points;       ///< every motion's points, in order
   std::vector<SessionMotionNumbers> motions;  ///< one per intended motion
