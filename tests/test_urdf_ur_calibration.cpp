@@ -288,6 +288,39 @@ TEST(UrCalibration, YamlRoundTripEqualsUrsFormula) {
   std::filesystem::remove_all(dir);
 }
 
+TEST(UrCalibration, AByteOrderMarkIsNotPartOfTheText) {
+  // Windows editors start a file with a UTF-8 byte-order mark; the CSV, mapping, URDF and robot
+  // file readers skip it, and so do the calibration.conf and YAML readers: the same numbers
+  const std::string dir = test::tempDir("ur_bom");
+  const UrDeltas deltas = testDeltas();
+  const std::string conf = formatUrCalibrationConf(deltas);
+  test::writeText(dir + "/bom.conf", "\xEF\xBB\xBF" + conf);
+  const UrDeltas read = readUrCalibrationConf(dir + "/bom.conf");
+  for (int i = 0; i < 6; ++i) {
+    EXPECT_EQ(read.theta_rad[i], kDeltaTheta[i]) << i;
+    EXPECT_EQ(read.d_m[i], kDeltaD[i]) << i;
+  }
+  const RobotDefinition ur10 = test::loadBundled("ur10").nominal;
+  const std::string yaml = formatUrCalibrationYaml(modelFromUrDeltas(ur10, deltas), nullptr);
+  test::writeText(dir + "/plain.yaml", yaml);
+  test::writeText(dir + "/bom.yaml", "\xEF\xBB\xBF" + yaml);
+  const SerialChain plain = readUrCalibrationYaml(dir + "/plain.yaml"), bom = readUrCalibrationYaml(dir + "/bom.yaml");
+  ASSERT_EQ(bom.joints.size(), 6u);
+  for (size_t k = 0; k < 6; ++k) {
+    EXPECT_TRUE(bom.joints[k].T_prev_joint.isApprox(plain.joints[k].T_prev_joint, 0)) << k;
+    EXPECT_EQ(bom.joints[k].line, plain.joints[k].line) << k;
+  }
+  // an error on the first line still names it (the mark is not counted as text there either)
+  test::writeText(dir + "/bad.yaml", "\xEF\xBB\xBFkinematic:\n");
+  try {
+    readUrCalibrationYaml(dir + "/bad.yaml");
+    ADD_FAILURE() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("bad.yaml:1:1: expected 'kinematics:', found 'kinematic:'"), std::string::npos) << e.what();
+  }
+  std::filesystem::remove_all(dir);
+}
+
 TEST(UrCalibration, MalformedFilesGiveFileLineColumnExpectedFound) {
   const std::string dir = test::tempDir("ur_bad");
   const std::string good = "[mounting]\ndelta_theta = [0, 0, 0, 0, 0, 0]\ndelta_a = [0, 0, 0, 0, 0, 0]\n"

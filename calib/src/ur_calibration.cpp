@@ -55,6 +55,9 @@ std::vector<std::string> readLines(const std::string& path, const char* what) {
   if (!in) throw InputError(path, 0, 0, std::string("cannot open ") + what);
   std::vector<std::string> lines;
   for (std::string l; std::getline(in, l);) lines.push_back(l);
+  // a UTF-8 byte-order mark (Windows editors write one) is not part of the text, as in the CSV,
+  // mapping, URDF and robot file readers
+  if (!lines.empty() && lines[0].rfind("\xEF\xBB\xBF", 0) == 0) lines[0].erase(0, 3);
   return lines;
 }
 
