@@ -334,7 +334,15 @@ TEST(UrCalibration, MalformedFilesGiveFileLineColumnExpectedFound) {
       {good + "delta_a = [0, 0, 0, 0, 0, 0]\n", "c.conf:6:1: delta_a given twice (first at line 3)"},
       {"[mounting]\ndelta_theta = [0, 0, 0, 0, 0, 0]\ndelta_a = [0, 0, 0, 0, 0, 0]\n",
        "c.conf:1:1: expected 'delta_alpha = [...]' in [mounting], found none"},
-      {"", "c.conf:1:1: expected 'delta_a = [...]' in [mounting], found none"},
+      {"", "c.conf:1:1: expected a section [mounting] with delta_theta, delta_a, delta_d and delta_alpha, found an empty file"},
+      // UR's controller writes [mounting] (forum.universal-robots.com topic 18921, tests/data/urdf/ur_forum_calibration.conf)
+      {"[Mounting]\ndelta_theta = [0, 0, 0, 0, 0, 0]\n",
+       "c.conf:1:1: expected the section header [mounting] (in lower case, as UR's controller writes calibration.conf), found '[Mounting]'"},
+      {"# no section\n\n  delta_theta = [0, 0, 0, 0, 0, 0]\n",
+       "c.conf:3:3: expected the section header [mounting] before 'delta_theta = ...' (UR's controller writes the deltas in section "
+       "[mounting]), found no section header"},
+      {"[other]\ndelta_theta = [0, 0, 0, 0, 0, 0]\n[more]\n",
+       "c.conf:1:1: expected a section [mounting] with delta_theta, delta_a, delta_d and delta_alpha, found only the section(s) [other], [more]"},
       {"[mounting]\ndelta_d = [0, 0, 5000, 0, 0, 0]\n", "c.conf:2:18: delta_d value 3: expected a DH delta of at most 1000 m, found 5000 m"},
       {"[mounting]\n  delta_d = 0\n", "c.conf:2:13: delta_d: expected a list [v1, ..., v6], found '0'"},
       {"[mounting\n", "c.conf:1:1: expected a section header like [mounting], found '[mounting'"},

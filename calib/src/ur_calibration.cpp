@@ -3,6 +3,7 @@
 #include "accura/calib/ur_calibration.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -136,6 +137,7 @@ UrDeltas readUrCalibrationConf(const std::string& path, int dof) {
   std::map<std::string, int> seen;
   std::string section;
   bool any_section = false;
+  std::string other_sections;                  // the names of the sections that are not [mounting]
   int mounting_line = 0, mounting_column = 0;  // the [mounting] header, when there is one
   for (size_t k = 0; k < lines.size(); ++k) {
     const int line = static_cast<int>(k + 1);
@@ -147,17 +149,29 @@ UrDeltas readUrCalibrationConf(const std::string& path, int dof) {
     const int first = columnOfText(raw);
     if (l.front() == '[') {
       if (l.back() != ']') throw InputError(path, line, first, "expected a section header like [mounting], found '" + l + "'");
-      section = l.substr(1, l.size() - 2);
+      section = trim(l.substr(1, l.size() - 2));
       any_section = true;
+      // UR's controller writes the section as [mounting]; another spelling is another section
+      // to an INI reader, and taking it for this one would be a guess
+      std::string lower = section;
+      for (char& c : lower) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+      if (lower == "mounting" && section != "mounting")
+        throw InputError(path, line, first, "expected the section header [mounting] (in lower case, as UR's controller writes "
+                                            "calibration.conf), found '" + l + "'");
       if (section == "mounting") {
         mounting_line = line;
         mounting_column = first;
+      } else {
+        other_sections += (other_sections.empty() ? "" : ", ") + l;
       }
       continue;
     }
-    if (any_section && section != "mounting") continue;
     const size_t eq = raw.find('=');
     if (eq == std::string::npos) throw InputError(path, line, first, "expected 'key = value', found '" + l + "'");
+    if (!any_section)  // an INI file's keys belong to a section: UR's controller writes [mounting] first
+      throw InputError(path, line, first, "expected the section header [mounting] before '" + trim(raw.substr(0, eq)) +
+                                          " = ...' (UR's controller writes the deltas in section [mounting]), found no section header");
+    if (section != "mounting") continue;
     const std::string key = trim(raw.substr(0, eq));
     auto it = wanted.find(key);
     if (it == wanted.end()) continue;  // joint_checksum, calibration_status, ...: not kinematics
@@ -193,10 +207,16 @@ UrDeltas readUrCalibrationConf(const std::string& path, int dof) {
                              ", found " + num17(x) + (angle ? " rad" : " m"));
     }
   }
+  if (!mounting_line) {
+    bool blank = true;
+    for (const std::string& l : lines) blank = blank && trim(l).empty();
+    throw InputError(path, 1, 1, "expected a section [mounting] with delta_theta, delta_a, delta_d and delta_alpha, found " +
+                                     (other_sections.empty() ? std::string(blank ? "an empty file" : "no section")
+                                                             : "only the section(s) " + other_sections));
+  }
   for (const auto& [key, vec] : wanted) {
     if (seen.count(key)) continue;
-    const auto [line, column] = mounting_line ? std::pair<int, int>{mounting_line, mounting_column} : endOfFile(lines);
-    throw InputError(path, line, column, "expected '" + key + " = [...]' in [mounting], found none");
+    throw InputError(path, mounting_line, mounting_column, "expected '" + key + " = [...]' in [mounting], found none");
   }
   return d;
 }
