@@ -225,6 +225,18 @@ TEST(UrCalibration, DeltasRoundTrip) {
   for (const auto& s : cb.not_represented) all += s + "\n";
   EXPECT_NE(all.find("base deviation"), std::string::npos) << all;
   EXPECT_NE(all.find("joint_compliance"), std::string::npos) << all;
+  // an identified model's base deviation is where the arm stands in the tracker's frame, not a
+  // mounting to set on the controller: said so (UR's installation mounting is only its tilt)
+  EXPECT_NE(all.find("base deviation (1, 2, 3) mm, rotation vector (0, 0, 0) deg: where the arm's Base stands in the world "
+                     "frame the model was identified in (the measurement frame: the laser tracker's or CMM's station), not "
+                     "part of the arm's calibration and not exported (UR's table starts at the Base frame)"),
+            std::string::npos) << all;
+  EXPECT_EQ(all.find("mounting"), std::string::npos) << all;
+  std::vector<std::string> yaml_notes;
+  formatUrCalibrationYaml(c, &yaml_notes);
+  ASSERT_FALSE(yaml_notes.empty());
+  EXPECT_EQ(yaml_notes[0].rfind("base deviation (1, 2, 3) mm, rotation vector (0, 0, 0) deg: where the arm's Base stands", 0), 0u)
+      << yaml_notes[0];
   EXPECT_LT(cb.max_difference_mm, 1e-6);
   // calibration.conf text reads back bit for bit
   const std::string dir = test::tempDir("ur_conf");

@@ -84,7 +84,9 @@ std::vector<std::string> notInUrTable(const RobotModel& model) {
   };
   if (d.base_mm.norm() > 0 || d.base_rot_rad.norm() > 0)
     out.push_back("base deviation " + vec(d.base_mm, 1) + " mm, rotation vector " + vec(d.base_rot_rad, kRadToDeg) +
-                  " deg: not in UR's table (it starts at the Base frame); set it as the installation's mounting / a feature");
+                  " deg: where the arm's Base stands in the world frame the model was identified in (the measurement "
+                  "frame: the laser tracker's or CMM's station), not part of the arm's calibration and not exported "
+                  "(UR's table starts at the Base frame)");
   if (d.tool_mm.norm() > 0 || d.tool_rot_rad.norm() > 0)
     out.push_back("tool deviation " + vec(d.tool_mm, 1) + " mm, rotation vector " + vec(d.tool_rot_rad, kRadToDeg) +
                   " deg: not in UR's table (it ends at the flange); set it in the TCP");

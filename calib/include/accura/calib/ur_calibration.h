@@ -67,7 +67,8 @@ RobotModel modelFromUrDeltas(const RobotDefinition& nominal, const UrDeltas& del
 
 /// accura model -> UR deltas for the same nominal: the model's calibrated chain from DH frame 0
 /// to the flange rewritten in pure DH. `not_represented` lists what the deltas cannot hold
-/// (the base and tool deviations: set them as the installation's mounting and TCP; the
+/// (the base deviation: where the Base stands in the measurement frame, not exported; the tool
+/// deviation: set it in the TCP; the
 /// effects beyond geometry; a near-parallel pair of axes, where DH needs a length above 1 m).
 /// `max_difference_mm`: largest flange position difference between UR's formula with the
 /// deltas and the model's flange chain over 64 random joint vectors.
