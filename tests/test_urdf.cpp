@@ -496,6 +496,27 @@ TEST(Urdf, CommandLine) {
   EXPECT_NE(r.err.find("delta_d = -92.52"), std::string::npos) << r.err;  // flagged
   const UrDeltas back = readUrCalibrationConf(dir + "/back.conf");
   EXPECT_NEAR(back.d_m[2], -92.5270326908668181, 1e-6);  // m, through the robot file's 12 digits
+  // the same on ur_description's URDF (UR's table in other frames: rewritten, not refused), and
+  // the deltas written back from it name the table they belong to
+  r = test::runAccuraIn(dir, "export --robot " + sourcePath("tests/data/urdf/ur10.urdf") + " --ur-deltas " +
+                                 sourcePath("tests/data/urdf/ur_forum_calibration.conf") + " --format robot --out urdf_cal.xml");
+  ASSERT_EQ(r.code, 0) << r.err;
+  r = test::runAccuraIn(dir, "export --robot urdf_cal.xml --format ur-deltas --out back2.conf");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.err.find("the deltas are relative to the nominal table of 'ur10' in UR's convention: d = [0.1273, 0, 0, 0.163941, "
+                       "0.1157, 0.0922] m, a = [0, -0.612, -0.5723, 0, 0, 0] m, alpha = [90, 0, 0, 90, -90, 0] deg"),
+            std::string::npos) << r.err;
+  EXPECT_NEAR(readUrCalibrationConf(dir + "/back2.conf").d_m[2], -92.5270326908668181, 1e-6);
+  // a chain that is not a UR arm's: the fix named
+  r = test::runAccuraIn(dir, "export --robot " + sourcePath("tests/data/urdf/panda_arm.urdf") + " --ur-deltas " +
+                                 sourcePath("tests/data/urdf/ur_forum_calibration.conf") + " --format robot --out p.xml");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("UR's factory calibration is for the 6 joints of a UR arm, found 7 joints in 'panda' (from a URDF: "
+                       "choose the arm's own chain with --chain ROOT:TIP, e.g. --chain base:tool0 on ur_description's URDF)"),
+            std::string::npos) << r.err;
+  r = test::runAccuraIn(dir, "export --robot kuka_kr16 --format ur-yaml");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("joint 'A3': a UR table has theta0 0 on every joint, found -90 deg in UR's convention"), std::string::npos) << r.err;
   std::filesystem::remove_all(dir);
 }
 
