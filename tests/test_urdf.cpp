@@ -453,6 +453,43 @@ TEST(Urdf, LoopsMimicBranchesAndChainsAreNamed) {
   EXPECT_LT((forwardKinematics(m, q).translation() - Eigen::Vector3d(300, 0, 750)).norm(), 1e-12);
 }
 
+// Two revolute joints a -> b -> hand, then two fingers on prismatic joints off the hand (the
+// second a mimic), as franka_description's panda with its hand.
+const char* kHand = R"(<robot name="arm_with_hand">
+  <link name="a"/> <link name="b"/> <link name="hand"/>
+  <link name="finger_l"><inertial><mass value="1.5"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial></link>
+  <link name="finger_r"><inertial><mass value="1.5"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial></link>
+  <joint name="j1" type="revolute"><parent link="a"/><child link="b"/><origin xyz="0 0 0.5"/><axis xyz="0 0 1"/>
+    <limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+  <joint name="j2" type="revolute"><parent link="b"/><child link="hand"/><origin xyz="0.3 0 0"/><axis xyz="0 1 0"/>
+    <limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+  <joint name="finger_joint1" type="prismatic"><parent link="hand"/><child link="finger_l"/><origin xyz="0 0 0.1"/>
+    <axis xyz="0 1 0"/><limit lower="0" upper="0.04" effort="20" velocity="0.2"/></joint>
+  <joint name="finger_joint2" type="prismatic"><parent link="hand"/><child link="finger_r"/><origin xyz="0 0 0.1"/>
+    <axis xyz="0 -1 0"/><limit lower="0" upper="0.04" effort="20" velocity="0.2"/><mimic joint="finger_joint1"/></joint>
+</robot>
+)";
+
+TEST(Urdf, TheDefaultChainErrorSuggestsOnlyChainsThatRead) {
+  // the tree branches at the hand into the two fingers: a chain into one finger has the other
+  // branching off the hand, which j2 moves (refused); the arm up to the hand, fingers as its
+  // load, reads. The suggestion was the refused one (--chain a:finger_l).
+  EXPECT_EQ(errorOf(kHand), "bad.urdf:2:37: expected one default chain, found the tree branching at link 'hand' into finger_l, "
+                            "finger_r; choose one with --chain ROOT:TIP: --chain a:hand (the moving joints beyond its tip are "
+                            "the last joint's load, like a gripper's fingers)");
+  EXPECT_EQ(parseUrdfChain(kHand, "hand.urdf", "a:hand").joints.size(), 2u);
+  EXPECT_NE(errorOf(kHand, "a:finger_l").find("found joint 'finger_joint2' (prismatic), which branches off the chain a:finger_l"),
+            std::string::npos);
+  // two arms on a fixed torso: each arm's chain reads (the other branches off the fixed root)
+  const std::string two_arms = replaced(replaced(kTwoJoint, "<link name=\"c\"/>", "<link name=\"c\"/><link name=\"d\"/>"), "</robot>",
+                                        R"(  <joint name="k1" type="revolute"><parent link="a"/><child link="d"/><axis xyz="0 0 1"/>
+    <limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+</robot>)");
+  EXPECT_NE(errorOf(two_arms).find("found the tree branching at link 'a' into b, d; choose one with --chain ROOT:TIP: --chain a:c or "
+                                   "--chain a:d"),
+            std::string::npos) << errorOf(two_arms);
+}
+
 TEST(Urdf, ConversionCheckCatchesAWrongModel) {
   // modelFromChain's check is real: compareModelWithChain sees a 1 um change of one length.
   const SerialChain chain = readUrdfChain(sourcePath("tests/data/urdf/irb2400.urdf"));
