@@ -490,6 +490,32 @@ TEST(Urdf, TheDefaultChainErrorSuggestsOnlyChainsThatRead) {
             std::string::npos) << errorOf(two_arms);
 }
 
+TEST(Urdf, TheLastJointCarriesTheGripperFingers) {
+  // the fingers (1.5 kg each, prismatic, one a mimic) branch off the hand, beyond the chain a:hand:
+  // j2 carries them (it had none of their mass: 0 kg), at the fingers' zero: their links'
+  // origins 0.1 m above the hand's, the hand at (0.3, 0, 0.5) m at q = 0
+  const RobotModel m = modelFromChain(parseUrdfChain(kHand, "hand.urdf", "a:hand"));
+  EXPECT_EQ(m.nominal.joints[1].mass_kg, 3.0);
+  EXPECT_EQ(m.nominal.joints[0].mass_kg, 0.0);
+  const Eigen::Isometry3d frame2 = forwardKinematics(m, Eigen::Vector2d(0, 0)) * m.nominal.T_flange_tcp.inverse();
+  EXPECT_LT((frame2 * m.nominal.joints[1].com_mm - Eigen::Vector3d(300, 0, 600)).norm(), 1e-9)
+      << (frame2 * m.nominal.joints[1].com_mm).transpose();
+  // the same with the hand's own mass and a tip below it (a TCP off the hand: the fingers now
+  // branch off a link between the last joint and the tip): 0.8 kg at the hand, 3 kg 0.1 m up
+  std::string with_tcp = replaced(kHand, "<link name=\"hand\"/>",
+                                  "<link name=\"hand\"><inertial><mass value=\"0.8\"/><inertia ixx=\"1\" ixy=\"0\" ixz=\"0\" iyy=\"1\" "
+                                  "iyz=\"0\" izz=\"1\"/></inertial></link><link name=\"tcp\"/>");
+  with_tcp = replaced(with_tcp, "</robot>", "  <joint name=\"hand-tcp\" type=\"fixed\"><parent link=\"hand\"/><child link=\"tcp\"/>"
+                                            "<origin xyz=\"0 0 0.2\"/></joint>\n</robot>");
+  const RobotModel t = modelFromChain(parseUrdfChain(with_tcp, "tcp.urdf", "a:tcp"));
+  EXPECT_DOUBLE_EQ(t.nominal.joints[1].mass_kg, 3.8);
+  const Eigen::Isometry3d t2 = forwardKinematics(t, Eigen::Vector2d(0, 0)) * t.nominal.T_flange_tcp.inverse();
+  EXPECT_LT((t2 * t.nominal.joints[1].com_mm - Eigen::Vector3d(300, 0, 500 + 3.0 * 100 / 3.8)).norm(), 1e-9);
+  // gravity: j2 (axis y through the hand) turned by 45 deg: the fingers' 3 kg 0.1 m from it
+  const Eigen::VectorXd g = gravityLoads(t, Eigen::Vector2d(0, 45), PoseContext{});
+  EXPECT_NEAR(std::abs(g[1]), 3.0 * 9.80665 * 0.1 * std::sqrt(0.5), 1e-9) << g.transpose();
+}
+
 TEST(Urdf, ConversionCheckCatchesAWrongModel) {
   // modelFromChain's check is real: compareModelWithChain sees a 1 um change of one length.
   const SerialChain chain = readUrdfChain(sourcePath("tests/data/urdf/irb2400.urdf"));

@@ -463,7 +463,9 @@ SerialChain parseUrdfChain(const std::string& text, const std::string& file, con
 
   // Mass and first moment of the links rigidly attached to `link` (fixed joints, downwards),
   // in the frame `T_frame_link` maps from; moving joints met on the way are branches unless they
-  // are the chain's next joint or (`last`) beyond the chain's end.
+  // are the chain's next joint. The last chain joint carries everything below it, whatever the
+  // joints (a gripper's fingers beyond the tip or branching off the links up to it): their links
+  // at those joints' zero (a mimic joint at its offset) are its load.
   std::function<void(const std::string&, const Eigen::Isometry3d&, bool, const std::string&, double&, Eigen::Vector3d&)> body;
   body = [&](const std::string& link, const Eigen::Isometry3d& T, bool last, const std::string& mover, double& mass,
              Eigen::Vector3d& moment) {
@@ -481,7 +483,15 @@ SerialChain parseUrdfChain(const std::string& text, const std::string& file, con
       if (info.type == "fixed") {
         const urdf::JointConstSharedPtr j = urdfJoint(jn);
         body(info.child, T * poseMm(j->parent_to_joint_origin_transform), last, mover, mass, moment);
-      } else if (!on_path.count(jn) && !last) {
+      } else if (!on_path.count(jn) && last) {
+        const urdf::JointConstSharedPtr j = urdfJoint(jn);
+        Eigen::Isometry3d at_zero = T * poseMm(j->parent_to_joint_origin_transform);
+        const double value = j->mimic ? j->mimic->offset : 0.0;  // rad or m
+        const Eigen::Vector3d axis = Eigen::Vector3d(j->axis.x, j->axis.y, j->axis.z).normalized();
+        if (value != 0.0 && (info.type == "revolute" || info.type == "continuous")) at_zero.rotate(Eigen::AngleAxisd(value, axis));
+        if (value != 0.0 && info.type == "prismatic") at_zero.translate(1000.0 * value * axis);
+        body(info.child, at_zero, last, mover, mass, moment);
+      } else if (!on_path.count(jn)) {
         ix.fail(info.element, "expected a serial chain, found joint '" + jn + "' (" + info.type + "), which branches off the chain " +
                                   root + ":" + tip + " at link '" + link + "', which joint '" + mover +
                                   "' moves (choose another --chain, or remove the branch)");
