@@ -394,6 +394,21 @@ TEST_F(MeasurementsTest, ErrorJointOutsideLimits) {
   EXPECT_NE(std::string(beyond.what()).find("found -185.02 deg"), std::string::npos) << beyond.what();
 }
 
+TEST_F(MeasurementsTest, AValueBeyondTheTurnOfAJointWithoutLimitsSaysWhichPoseItIs) {
+  // a URDF's continuous joint has no limit and is given -360..360 deg: 539 deg is refused, and
+  // the message says why and which value within a turn is the same pose
+  robot_.joints[5].lower = -360;
+  robot_.joints[5].upper = 360;
+  EXPECT_EQ(std::string(readError(std::string(kHeader) + "0,-90,90,0,45,539,1000,0,1500\n").what()),
+            dataPath() + ":2:6: column 'q6': expected a joint value within the joint limits [-360, 360] deg, found 539 deg; "
+                         "-360..360 deg is also what a joint without limits (a URDF's continuous joint) is given: 539 deg is the "
+                         "pose of 179 deg, give the value within a turn");
+  // other limits: no such note
+  EXPECT_EQ(std::string(readError(std::string(kHeader) + "0,-90,90,400,45,0,1000,0,1500\n").what()),
+            dataPath() + ":2:4: column 'q4': expected a joint value within the joint limits [-350, 350] deg, found 400 deg");
+  EXPECT_EQ(read(std::string(kHeader) + "0,-90,90,0,45,-360.004,1000,0,1500\n").rows[0].q[5], -360.004);
+}
+
 TEST_F(MeasurementsTest, ErrorPrismaticJointLimitInMm) {
   const std::string path = fixture("q1,q2,x,y,z\n0,250,1,2,3\n10,500.25,1,2,3\n");
   try {

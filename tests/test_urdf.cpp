@@ -516,6 +516,26 @@ TEST(Urdf, TheLastJointCarriesTheGripperFingers) {
   EXPECT_NEAR(std::abs(g[1]), 3.0 * 9.80665 * 0.1 * std::sqrt(0.5), 1e-9) << g.transpose();
 }
 
+TEST(Urdf, FkTakesTheMeasurementReadersSlackAtALimit) {
+  // a limit of 6.283 rad is 359.98938 deg: the CSV reader takes 0.01 deg beyond a limit
+  // (kJointLimitReadSlack), fk refused 359.995; now the same slack, and no more
+  const std::string dir = test::tempDir("urdf_fk_slack");
+  test::writeText(dir + "/r.urdf", replaced(replaced(kTwoJoint, "lower=\"-1\" upper=\"1\"", "lower=\"-6.283\" upper=\"6.283\""),
+                                            "type=\"revolute\">\n    <parent link=\"b\"/>", "type=\"continuous\">\n    <parent link=\"b\"/>"));
+  test::CliRun r = test::runAccuraIn(dir, "fk --robot r.urdf --q 359.995,0");
+  EXPECT_EQ(r.code, 0) << r.err;
+  r = test::runAccuraIn(dir, "fk --robot r.urdf --q 360,0");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("--q: joint 1 (j1): expected a value within [-359.9893827, 359.9893827], found 360"),
+            std::string::npos) << r.err;
+  // the continuous joint (-360..360 deg): 539 deg refused, the message says which pose it is
+  r = test::runAccuraIn(dir, "fk --robot r.urdf --q 0,539");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("found 539; -360..360 deg is also what a joint without limits (a URDF's continuous joint) is given: 539 deg "
+                       "is the pose of 179 deg"),
+            std::string::npos) << r.err;
+}
+
 TEST(Urdf, ConversionCheckCatchesAWrongModel) {
   // modelFromChain's check is real: compareModelWithChain sees a 1 um change of one length.
   const SerialChain chain = readUrdfChain(sourcePath("tests/data/urdf/irb2400.urdf"));

@@ -402,12 +402,12 @@ void readJoints(const MappedRow& row, const std::vector<int>& jc, const RobotDef
   for (int j = 0; j < n; ++j) {
     const JointSpec& js = robot.joints[j];
     const double v = row.num(jc[j]) * (js.type == JointType::kRevolute ? row.m.joint_scale : row.m.prismatic_scale);
-    if (v < js.lower - kJointLimitReadSlack || v > js.upper + kJointLimitReadSlack) {
+    if (!withinJointLimits(js, v)) {
       const char* unit = js.type == JointType::kRevolute ? "deg" : "mm";
       char buf[200];
       std::snprintf(buf, sizeof buf, "expected a joint value within the joint limits [%.10g, %.10g] %s, found %.6g %s", js.lower,
                     js.upper, unit, v, unit);
-      throw InputError(row.path, row.ln, jc[j] + 1, "column '" + row.header[jc[j]] + "': " + buf);
+      throw InputError(row.path, row.ln, jc[j] + 1, "column '" + row.header[jc[j]] + "': " + buf + jointTurnNote(js, v));
     }
     r.q[j] = v;
   }

@@ -451,11 +451,11 @@ Measurement Reader::parseRow(std::string_view text, int line) const {
     switch (c.role) {
       case Role::kQ: {
         const JointSpec& joint = robot_.joints[static_cast<std::size_t>(c.joint)];
-        if (v < joint.lower - kJointLimitReadSlack || v > joint.upper + kJointLimitReadSlack) {
+        if (!withinJointLimits(joint, v)) {
           const char* unit = joint.type == JointType::kRevolute ? " deg" : " mm";
           fail(line, column,
                where + "expected a joint value within the joint limits [" + shortest(joint.lower) + ", " +
-                   shortest(joint.upper) + "]" + unit + ", found " + shortest(v) + unit);
+                   shortest(joint.upper) + "]" + unit + ", found " + shortest(v) + unit + jointTurnNote(joint, v));
         }
         m.q[c.joint] = v;
         break;
@@ -592,6 +592,14 @@ void requirePositive(double v, std::size_t row, const char* what) {
 }
 
 }  // namespace
+
+std::string jointTurnNote(const JointSpec& joint, double v) {
+  if (joint.type != JointType::kRevolute || joint.lower != -360.0 || joint.upper != 360.0 || std::abs(v) <= 360.0) return "";
+  if (!std::isfinite(v) || std::abs(v) > 1e9) return "";
+  const double within = v - 360.0 * std::round(v / 360.0);
+  return "; -360..360 deg is also what a joint without limits (a URDF's continuous joint) is given: " + shortest(v) +
+         " deg is the pose of " + shortest(within) + " deg, give the value within a turn";
+}
 
 std::string implausibleMeasuredValue(MeasuredValue kind, double v) {
   switch (kind) {
