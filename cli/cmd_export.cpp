@@ -29,6 +29,11 @@ int runExport(const ExportArgs& a) {
   if (!a.ur_deltas.empty() && !a.ur_yaml.empty())
     throw calib::InputError("--ur-deltas and --ur-yaml: expected one of them, found both");
   if (!a.ur_deltas.empty() || !a.ur_yaml.empty()) {
+    if (model.dof() != 6)
+      throw calib::InputError("--robot " + a.robot + ": UR's factory calibration is for the 6 joints of a UR arm, found " +
+                              std::to_string(model.dof()) + " joints in '" + model.nominal.name +
+                              "' (from a URDF: choose the arm's own chain with --chain ROOT:TIP, e.g. --chain base:tool0 on "
+                              "ur_description's URDF)");
     for (const calib::ParamInfo& p : calib::parameterLayout(model))
       if (calib::getParameter(model.deviations, p) != 0.0)
         throw calib::InputError("--robot " + a.robot + ": UR's factory calibration applies to a nominal UR robot, found a "
@@ -53,6 +58,17 @@ int runExport(const ExportArgs& a) {
     lost = d.not_represented;
     std::cerr << "accura export: UR's formula with these deltas reproduces the model's flange chain to "
               << fmt("%.2g", d.max_difference_mm) << " mm\n";
+    if (d.table_rewritten) {  // the model's nominal in UR's convention: say which table the deltas belong to
+      std::string dd, aa, al;
+      for (const calib::JointSpec& j : d.table.joints) {
+        dd += (dd.empty() ? "" : ", ") + fmt("%.10g", j.d_mm / 1000.0);
+        aa += (aa.empty() ? "" : ", ") + fmt("%.10g", j.a_mm / 1000.0);
+        al += (al.empty() ? "" : ", ") + fmt("%.10g", j.alpha_deg);
+      }
+      std::cerr << "accura export: the deltas are relative to the nominal table of '" << model.nominal.name
+                << "' in UR's convention: d = [" << dd << "] m, a = [" << aa << "] m, alpha = [" << al
+                << "] deg; UR's controller adds them to its own table of the arm type, which must be the same\n";
+    }
   } else if (a.format == "ur-yaml") {
     text = calib::formatUrCalibrationYaml(model, &lost);
   } else if (a.format == "robot") {

@@ -28,9 +28,10 @@ int runFk(const FkArgs& a) {
   Eigen::VectorXd qv = Eigen::Map<const Eigen::VectorXd>(q.data(), static_cast<Eigen::Index>(q.size()));
   for (int i = 0; i < model.dof(); ++i) {
     const calib::JointSpec& j = model.nominal.joints[i];
-    if (qv[i] < j.lower || qv[i] > j.upper)
+    // the measurement readers' slack (a URDF's limit in radians is rounded: 6.283 rad is 359.98938 deg)
+    if (!calib::withinJointLimits(j, qv[i]))
       throw calib::InputError("--q: joint " + std::to_string(i + 1) + " (" + j.name + "): expected a value within [" +
-                       fmt("%.10g", j.lower) + ", " + fmt("%.10g", j.upper) + "], found " + fmt("%.10g", qv[i]));
+                       fmt("%.10g", j.lower) + ", " + fmt("%.10g", j.upper) + "], found " + fmt("%.10g", qv[i]) + calib::jointTurnNote(j, qv[i]));
   }
   if (!(a.payload_kg >= 0)) throw calib::InputError("--payload-kg: expected a mass >= 0");
   calib::KinematicWorkspace ws;

@@ -201,6 +201,31 @@ TEST(Diagnose, EffectsWithoutTheirContextColumnAreNotTestable) {
   EXPECT_TRUE(thermal_seen);
 }
 
+// A robot without link masses (a URDF without <inertial>) measured without payloads: no gravity
+// torque, so compliance cannot show; the note said "no parameter of it can be determined from
+// these measurements", now the cause. With payloads (or masses) it is testable.
+TEST(Diagnose, ComplianceWithoutAnyGravityTorqueSaysWhy) {
+  RobotModel nominal = nominalWithTarget("kuka_kr16");
+  for (JointSpec& j : nominal.nominal.joints) j.mass_kg = 0;
+  SimulateOptions o = campaign(67, {"geometric"}, 120);
+  o.payloads_kg = {0};
+  const RobotModel truth = perturbModel(nominal, o);
+  const MeasurementSet fit = simulateMeasurements(truth, o);
+  DiagnoseOptions opt;
+  opt.effects = {"joint_compliance"};
+  const Diagnosis d = diagnose(nominal, fit, nullptr, opt);
+  ASSERT_EQ(d.ranking.size(), 1u);
+  EXPECT_FALSE(d.ranking[0].testable);
+  EXPECT_EQ(d.ranking[0].note, "not testable: the robot's links have no mass (mass_kg 0 on every joint: a URDF without <inertial>) "
+                               "and no pose carries a payload: no gravity torque loads the joints, so there is nothing for a "
+                               "compliance to deflect (give the links' masses, or measure with payloads)");
+  // payloads on some poses: testable again
+  o.payloads_kg = {0, 10};
+  const Diagnosis p = diagnose(nominal, simulateMeasurements(truth, o), nullptr, opt);
+  ASSERT_EQ(p.ranking.size(), 1u);
+  EXPECT_TRUE(p.ranking[0].testable) << p.ranking[0].note;
+}
+
 // Several data sets, each from its own station: the second set is the same robot measured from a
 // station moved by a known transform. combineStations must find that transform (the registration by
 // the geometric identification on both sets) and the diagnosis of the two must match that of the

@@ -174,6 +174,46 @@ std::string urdf(const std::string& from, const std::string& to) {
   return t.replace(p, from.size(), to);
 }
 
+TEST(HardeningMessages, AFileEndingInsideAnElementSaysWhichIsOpen) {
+  // a forgotten </robot> was "2:1: ... text that is not XML (outside the root element?)": the
+  // error is at the end of the file and names the element left open and where it opened
+  const std::string dir = test::tempDir("xml_unclosed");
+  const auto messageOf = [&](const std::string& text) {
+    test::writeText(dir + "/r.urdf", text);
+    try {
+      calib::readUrdfChain(dir + "/r.urdf");
+    } catch (const calib::InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string("accepted");
+  };
+  EXPECT_EQ(messageOf(urdf("</robot>\n", "\n")), dir + "/r.urdf:10:11: expected well-formed XML, found the end of the file before "
+                                                       "the element <robot> opened at 1:1 was closed (its end tag </robot> is missing)");
+  // cut after the <limit> line: inside <joint> (6:3) inside <robot> (1:1); at the end of line 9
+  const std::string cut = kUrdf.substr(0, kUrdf.find("  </joint>"));
+  const int line9 = static_cast<int>(std::string("    <limit lower=\"-1\" upper=\"1\" effort=\"1\" velocity=\"1\"/>").size());
+  EXPECT_EQ(messageOf(cut), dir + "/r.urdf:9:" + std::to_string(line9 + 1) +
+                                ": expected well-formed XML, found the end of the file before the element <joint> opened at 6:3 was "
+                                "closed (its end tag </joint> is missing, and then </robot> for <robot> at 1:1)");
+  // cut inside a start tag
+  EXPECT_EQ(messageOf(kUrdf.substr(0, kUrdf.find(" effort="))),
+            dir + "/r.urdf:9:32: expected well-formed XML, found the end of the file inside the start tag <limit at 9:5 (its '>' is "
+                  "missing, and then </joint> for <joint> at 6:3, </robot> for <robot> at 1:1)");
+  // a mismatched end tag is still tinyxml2's message, at its line
+  EXPECT_NE(messageOf(urdf("  </joint>\n", "  </joint>\n  </link>\n")).find("found an element whose end tag does not match its name"),
+            std::string::npos);
+  // the robot file's reader shares it
+  test::writeText(dir + "/r.xml", kHead + kJoint);
+  try {
+    calib::readRobotFile(dir + "/r.xml");
+    ADD_FAILURE() << "accepted";
+  } catch (const calib::InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("found the end of the file before the element <joints> opened at 5:3 was closed (its end tag "
+                                         "</joints> is missing, and then </robot> for <robot> at 1:1)"),
+              std::string::npos) << e.what();
+  }
+}
+
 TEST(HardeningMessages, UrdfErrorsCarryLineColumnExpectedFound) {
   // the valid URDF reads: one revolute joint, 500 mm up, limits in degrees
   {
@@ -206,7 +246,12 @@ TEST(HardeningMessages, UrdfErrorsCarryLineColumnExpectedFound) {
       {urdf("<axis xyz=\"0 0 1\"/>", "<axis xyz=\"0 1e308 1\"/>"), 8, "xyz=",
        "joint 'j1' <axis> attribute 'xyz': expected a non-zero axis with components of at most 1e6, found '0 1e308 1'", 1},
       {urdf("<axis xyz=\"0 0 1\"/>", "<axis xyzz=\"0 0 1\"/>"), 8, "<axis", "<axis>: expected an attribute 'xyz', found none"},
-      {urdf("upper=\"1\"", "upper=\"1e308\""), 9, "upper=", "joint 'j1' <limit> attribute 'upper': expected at most 1000 rad in magnitude, found '1e308'"},
+      {urdf("upper=\"1\"", "upper=\"1e308\""), 9, "upper=",
+       "joint 'j1' <limit> attribute 'upper': expected radians (URDF limits are in rad: at most two turns, 12.566 rad, in magnitude), found '1e308'"},
+      // degrees written into a URDF: +-170 "rad" were read as +-9740 deg
+      {urdf("lower=\"-1\" upper=\"1\"", "lower=\"-170\" upper=\"170\""), 9, "lower=",
+       "joint 'j1' <limit> attribute 'lower': expected radians (URDF limits are in rad: at most two turns, 12.566 rad, in magnitude), "
+       "found '-170' (-9740.28 deg; degrees written as radians?)"},
       {urdf("lower=\"-1\"", "lower=\"2\""), 9, "lower=", "joint 'j1': <limit> expected lower < upper, found lower 2, upper 1"},
       {urdf(" effort=\"1\"", ""), 9, "<limit", "<limit>: expected an attribute 'effort', found none"},
       {urdf("<parent link=\"base\"/>", "<parent link=\"l1\"/>"), 7, "link=", "joint 'j1': expected a child link other than the parent, found 'l1' for both", 1},
@@ -221,6 +266,11 @@ TEST(HardeningMessages, UrdfErrorsCarryLineColumnExpectedFound) {
        "read its name differently (a bare '&' or a character reference in it?); write the name in plain characters"},
   };
   expectErrors("r.urdf", cases, [](const std::string& p) { calib::readUrdfChain(p); });
+  {  // two turns (12.5 rad, 716 deg) are still radians: a joint of +-2 turns reads
+    const std::string dir = test::tempDir("urdf_two_turns");
+    test::writeText(dir + "/r.urdf", urdf("lower=\"-1\" upper=\"1\"", "lower=\"-12.5\" upper=\"12.5\""));
+    EXPECT_NEAR(calib::readUrdfChain(dir + "/r.urdf").joints[0].upper, 12.5 * 180 / 3.14159265358979323846, 1e-9);
+  }
   // fuzz_urdf found a hang: two links in a closed loop of joints beside the tree (each has a
   // parent, so the root count is 1, and the walks below the root never ended)
   const std::string loop = urdf("</robot>", "  <link name=\"l2\"/> <link name=\"l3\"/>\n"

@@ -81,6 +81,38 @@ TEST(Import, ReadsDecimalCommaRadiansMetresAndEulerStds) {
   EXPECT_NEAR(q.rows[0].temp_c, 21.5, 1e-12);
 }
 
+TEST(Import, ATrailingDelimiterIsNamedAndReadAsInTheCsvFormat) {
+  // an export whose every line ends with ';': the unused column was listed with an empty name
+  // ("columns not used by accura: "); on the header or the rows only it is refused, and said
+  const std::string dir = test::tempDir("import_trailing");
+  test::writeText(dir + "/e.map", kMap);
+  const std::string header = "Stamp;J1;J2;J3;J4;J5;J6;Pos X;Pos Y;Pos Z;RX;RY;RZ;SX;SY;SZ;SR;T";
+  const std::string row = "1;0,5;-1;1,2;0;0,3;-0,1;1,25;-0,5;0,75;10;-25;40;0,00001;0,00002;0,00003;0,002;21,5";
+  test::writeText(dir + "/e.csv", header + ";\n" + row + ";\n");
+  const MeasurementMapping m = readMeasurementMapping(dir + "/e.map", kr16());
+  const MeasurementSet s = readMappedMeasurements(dir + "/e.csv", m, kr16());
+  ASSERT_EQ(s.rows.size(), 1u);
+  ASSERT_EQ(s.unknown_columns.size(), 1u);
+  EXPECT_EQ(s.unknown_columns[0], "an empty column at the end (a trailing ';')");
+  const auto error = [&](const std::string& text) {
+    test::writeText(dir + "/e.csv", text);
+    try {
+      readMappedMeasurements(dir + "/e.csv", m, kr16());
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string("accepted");
+  };
+  EXPECT_EQ(error(header + ";\n" + row + "\n"), dir + "/e.csv:2:19: expected 19 fields as in the header, found 18 (the header ends "
+                                                   "with ';': an empty column at the end, which every row must have too)");
+  EXPECT_EQ(error(header + "\n" + row + ";\n"), dir + "/e.csv:2:19: expected 18 fields as in the header, found 19 (the line ends "
+                                                   "with ';', the header does not: a trailing delimiter on the rows only)");
+  // a NUL byte in a field: shown, not cut at
+  EXPECT_EQ(error(header + "\n" + std::string("1;0,5;-1;1,2;0;0,3;-0,1;1,25;-0,5;0,7\0;10", 41) + row.substr(row.find(";-25")) + "\n"),
+            dir + "/e.csv:2:10: column 'Pos Z': expected a number with ',' as decimal mark, found '0,7\\0' (\\0 is a NUL byte: a "
+                  "binary or corrupted file?)");
+}
+
 void expectError(const std::string& map, const std::string& csv, const std::string& file_suffix, int line, int col,
                  const std::string& words) {
   const std::string dir = test::tempDir("import_bad");

@@ -364,7 +364,7 @@ TEST_F(MeasurementsTest, ErrorWrongFieldCount) {
   EXPECT_EQ(e.line(), 9);
   EXPECT_EQ(e.column(), 12);  // where the missing 12th field would start
 
-  const InputError more = readError(std::string(kHeader) + "0,0,0,0,0,0,1,2,3,\n");
+  const InputError more = readError(std::string(kHeader) + "0,0,0,0,0,0,1,2,3,4\n");
   EXPECT_EQ(std::string(more.what()),
             dataPath() + ":2:10: expected 9 fields as in the header, found 10");
 }
@@ -392,6 +392,21 @@ TEST_F(MeasurementsTest, ErrorJointOutsideLimits) {
   EXPECT_DOUBLE_EQ(read(std::string(kHeader) + "-185.005,0,0,0,0,0,0,0,0\n").rows[0].q[0], -185.005);
   const InputError beyond = readError(std::string(kHeader) + "-185.02,0,0,0,0,0,0,0,0\n");
   EXPECT_NE(std::string(beyond.what()).find("found -185.02 deg"), std::string::npos) << beyond.what();
+}
+
+TEST_F(MeasurementsTest, AValueBeyondTheTurnOfAJointWithoutLimitsSaysWhichPoseItIs) {
+  // a URDF's continuous joint has no limit and is given -360..360 deg: 539 deg is refused, and
+  // the message says why and which value within a turn is the same pose
+  robot_.joints[5].lower = -360;
+  robot_.joints[5].upper = 360;
+  EXPECT_EQ(std::string(readError(std::string(kHeader) + "0,-90,90,0,45,539,1000,0,1500\n").what()),
+            dataPath() + ":2:6: column 'q6': expected a joint value within the joint limits [-360, 360] deg, found 539 deg; "
+                         "-360..360 deg is also what a joint without limits (a URDF's continuous joint) is given: 539 deg is the "
+                         "pose of 179 deg, give the value within a turn");
+  // other limits: no such note
+  EXPECT_EQ(std::string(readError(std::string(kHeader) + "0,-90,90,400,45,0,1000,0,1500\n").what()),
+            dataPath() + ":2:4: column 'q4': expected a joint value within the joint limits [-350, 350] deg, found 400 deg");
+  EXPECT_EQ(read(std::string(kHeader) + "0,-90,90,0,45,-360.004,1000,0,1500\n").rows[0].q[5], -360.004);
 }
 
 TEST_F(MeasurementsTest, ErrorPrismaticJointLimitInMm) {
@@ -440,9 +455,47 @@ TEST_F(MeasurementsTest, ErrorDuplicateColumn) {
 }
 
 TEST_F(MeasurementsTest, ErrorEmptyColumnName) {
-  const InputError e = readError("q1,q2,q3,q4,q5,q6,x,y,z,\n0,0,0,0,0,0,1,2,3,\n");
+  const InputError e = readError("q1,q2,,q3,q4,q5,q6,x,y,z\n0,0,0,0,0,0,0,1,2,3\n");
   EXPECT_EQ(std::string(e.what()),
-            dataPath() + ":1:10: expected a column name, found an empty field");
+            dataPath() + ":1:3: expected a column name, found an empty field");
+}
+
+TEST_F(MeasurementsTest, ATrailingCommaOnEveryLineIsAnEmptyLastColumn) {
+  // spreadsheets end every line with the delimiter: the header's empty last name was refused
+  // while a mapping file read the same export (warning about a column with an empty name)
+  const MeasurementSet s = read("q1,q2,q3,q4,q5,q6,x,y,z,\n0,-90,90,0,45,0,1000,0,1500,\n1,-90,90,0,45,0,1001,0,1500,\n");
+  ASSERT_EQ(s.rows.size(), 2u);
+  EXPECT_EQ(s.rows[1].p_world_mm.x(), 1001);
+  ASSERT_EQ(s.unknown_columns.size(), 1u);
+  EXPECT_EQ(s.unknown_columns[0], "an empty column at the end (a trailing ',')");
+  // on the header or on the rows only: refused, and said
+  EXPECT_EQ(std::string(readError("q1,q2,q3,q4,q5,q6,x,y,z,\n0,-90,90,0,45,0,1000,0,1500\n").what()),
+            dataPath() + ":2:10: expected 10 fields as in the header, found 9 (the header ends with ',': an empty column at the "
+                         "end, which every row must have too)");
+  EXPECT_EQ(std::string(readError(std::string(kHeader) + "0,-90,90,0,45,0,1000,0,1500,\n").what()),
+            dataPath() + ":2:10: expected 9 fields as in the header, found 10 (the line ends with ',', the header does not: a "
+                         "trailing delimiter on the rows only)");
+}
+
+TEST_F(MeasurementsTest, ANulByteIsShownNotCutAt) {
+  // the message ended at the NUL ("found '-119.538015"): shown as \0 and named
+  const InputError e = readError(std::string(kHeader) + std::string("0,-90,90,0,45,0,1000,0,1500\0\n", 29));
+  EXPECT_EQ(std::string(e.what()), dataPath() + ":2:9: column 'z': expected a number, found '1500\\0' (\\0 is a NUL byte: a "
+                                                "binary or corrupted file?)");
+  EXPECT_EQ(e.message(), "column 'z': expected a number, found '1500\\0' (\\0 is a NUL byte: a binary or corrupted file?)");
+}
+
+TEST_F(MeasurementsTest, UnitsInColumnNamesPointToAMappingFile) {
+  // an export's names ('q1 [deg]', 'x_mm'): the missing-column error says what the names are and
+  // what reads them, as it does for a ';' delimiter
+  const InputError e = readError("q1 [deg],q2 [deg],q3 [deg],q4 [deg],q5 [deg],q6 [deg],x [mm],y [mm],z [mm]\n0,0,0,0,0,0,1,2,3\n");
+  EXPECT_EQ(std::string(e.what()), dataPath() + ":1:1: missing columns 'q1', 'q2', 'q3', 'q4', 'q5', 'q6', 'x', 'y', 'z' (expected "
+                                                "q1..q6, x, y, z); found 'q1 [deg]': the format's names carry no unit (q in deg or "
+                                                "mm, x, y, z in mm); read the export through a mapping file: "
+                                                "docs/measurement-mapping.md");
+  EXPECT_NE(std::string(readError("q1,q2,q3,q4,q5,q6,x_mm,y_mm,z_mm\n0,0,0,0,0,0,1,2,3\n").what())
+                .find("missing columns 'x', 'y', 'z' (expected q1..q6, x, y, z); found 'x_mm': the format's names carry no unit"),
+            std::string::npos);
 }
 
 TEST_F(MeasurementsTest, ErrorJointColumnBeyondRobot) {

@@ -453,6 +453,89 @@ TEST(Urdf, LoopsMimicBranchesAndChainsAreNamed) {
   EXPECT_LT((forwardKinematics(m, q).translation() - Eigen::Vector3d(300, 0, 750)).norm(), 1e-12);
 }
 
+// Two revolute joints a -> b -> hand, then two fingers on prismatic joints off the hand (the
+// second a mimic), as franka_description's panda with its hand.
+const char* kHand = R"(<robot name="arm_with_hand">
+  <link name="a"/> <link name="b"/> <link name="hand"/>
+  <link name="finger_l"><inertial><mass value="1.5"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial></link>
+  <link name="finger_r"><inertial><mass value="1.5"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial></link>
+  <joint name="j1" type="revolute"><parent link="a"/><child link="b"/><origin xyz="0 0 0.5"/><axis xyz="0 0 1"/>
+    <limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+  <joint name="j2" type="revolute"><parent link="b"/><child link="hand"/><origin xyz="0.3 0 0"/><axis xyz="0 1 0"/>
+    <limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+  <joint name="finger_joint1" type="prismatic"><parent link="hand"/><child link="finger_l"/><origin xyz="0 0 0.1"/>
+    <axis xyz="0 1 0"/><limit lower="0" upper="0.04" effort="20" velocity="0.2"/></joint>
+  <joint name="finger_joint2" type="prismatic"><parent link="hand"/><child link="finger_r"/><origin xyz="0 0 0.1"/>
+    <axis xyz="0 -1 0"/><limit lower="0" upper="0.04" effort="20" velocity="0.2"/><mimic joint="finger_joint1"/></joint>
+</robot>
+)";
+
+TEST(Urdf, TheDefaultChainErrorSuggestsOnlyChainsThatRead) {
+  // the tree branches at the hand into the two fingers: a chain into one finger has the other
+  // branching off the hand, which j2 moves (refused); the arm up to the hand, fingers as its
+  // load, reads. The suggestion was the refused one (--chain a:finger_l).
+  EXPECT_EQ(errorOf(kHand), "bad.urdf:2:37: expected one default chain, found the tree branching at link 'hand' into finger_l, "
+                            "finger_r; choose one with --chain ROOT:TIP: --chain a:hand (the moving joints beyond its tip are "
+                            "the last joint's load, like a gripper's fingers)");
+  EXPECT_EQ(parseUrdfChain(kHand, "hand.urdf", "a:hand").joints.size(), 2u);
+  EXPECT_NE(errorOf(kHand, "a:finger_l").find("found joint 'finger_joint2' (prismatic), which branches off the chain a:finger_l"),
+            std::string::npos);
+  // two arms on a fixed torso: each arm's chain reads (the other branches off the fixed root)
+  const std::string two_arms = replaced(replaced(kTwoJoint, "<link name=\"c\"/>", "<link name=\"c\"/><link name=\"d\"/>"), "</robot>",
+                                        R"(  <joint name="k1" type="revolute"><parent link="a"/><child link="d"/><axis xyz="0 0 1"/>
+    <limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+</robot>)");
+  EXPECT_NE(errorOf(two_arms).find("found the tree branching at link 'a' into b, d; choose one with --chain ROOT:TIP: --chain a:c or "
+                                   "--chain a:d"),
+            std::string::npos) << errorOf(two_arms);
+}
+
+TEST(Urdf, TheLastJointCarriesTheGripperFingers) {
+  // the fingers (1.5 kg each, prismatic, one a mimic) branch off the hand, beyond the chain a:hand:
+  // j2 carries them (it had none of their mass: 0 kg), at the fingers' zero: their links'
+  // origins 0.1 m above the hand's, the hand at (0.3, 0, 0.5) m at q = 0
+  const RobotModel m = modelFromChain(parseUrdfChain(kHand, "hand.urdf", "a:hand"));
+  EXPECT_EQ(m.nominal.joints[1].mass_kg, 3.0);
+  EXPECT_EQ(m.nominal.joints[0].mass_kg, 0.0);
+  const Eigen::Isometry3d frame2 = forwardKinematics(m, Eigen::Vector2d(0, 0)) * m.nominal.T_flange_tcp.inverse();
+  EXPECT_LT((frame2 * m.nominal.joints[1].com_mm - Eigen::Vector3d(300, 0, 600)).norm(), 1e-9)
+      << (frame2 * m.nominal.joints[1].com_mm).transpose();
+  // the same with the hand's own mass and a tip below it (a TCP off the hand: the fingers now
+  // branch off a link between the last joint and the tip): 0.8 kg at the hand, 3 kg 0.1 m up
+  std::string with_tcp = replaced(kHand, "<link name=\"hand\"/>",
+                                  "<link name=\"hand\"><inertial><mass value=\"0.8\"/><inertia ixx=\"1\" ixy=\"0\" ixz=\"0\" iyy=\"1\" "
+                                  "iyz=\"0\" izz=\"1\"/></inertial></link><link name=\"tcp\"/>");
+  with_tcp = replaced(with_tcp, "</robot>", "  <joint name=\"hand-tcp\" type=\"fixed\"><parent link=\"hand\"/><child link=\"tcp\"/>"
+                                            "<origin xyz=\"0 0 0.2\"/></joint>\n</robot>");
+  const RobotModel t = modelFromChain(parseUrdfChain(with_tcp, "tcp.urdf", "a:tcp"));
+  EXPECT_DOUBLE_EQ(t.nominal.joints[1].mass_kg, 3.8);
+  const Eigen::Isometry3d t2 = forwardKinematics(t, Eigen::Vector2d(0, 0)) * t.nominal.T_flange_tcp.inverse();
+  EXPECT_LT((t2 * t.nominal.joints[1].com_mm - Eigen::Vector3d(300, 0, 500 + 3.0 * 100 / 3.8)).norm(), 1e-9);
+  // gravity: j2 (axis y through the hand) turned by 45 deg: the fingers' 3 kg 0.1 m from it
+  const Eigen::VectorXd g = gravityLoads(t, Eigen::Vector2d(0, 45), PoseContext{});
+  EXPECT_NEAR(std::abs(g[1]), 3.0 * 9.80665 * 0.1 * std::sqrt(0.5), 1e-9) << g.transpose();
+}
+
+TEST(Urdf, FkTakesTheMeasurementReadersSlackAtALimit) {
+  // a limit of 6.283 rad is 359.98938 deg: the CSV reader takes 0.01 deg beyond a limit
+  // (kJointLimitReadSlack), fk refused 359.995; now the same slack, and no more
+  const std::string dir = test::tempDir("urdf_fk_slack");
+  test::writeText(dir + "/r.urdf", replaced(replaced(kTwoJoint, "lower=\"-1\" upper=\"1\"", "lower=\"-6.283\" upper=\"6.283\""),
+                                            "type=\"revolute\">\n    <parent link=\"b\"/>", "type=\"continuous\">\n    <parent link=\"b\"/>"));
+  test::CliRun r = test::runAccuraIn(dir, "fk --robot r.urdf --q 359.995,0");
+  EXPECT_EQ(r.code, 0) << r.err;
+  r = test::runAccuraIn(dir, "fk --robot r.urdf --q 360,0");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("--q: joint 1 (j1): expected a value within [-359.9893827, 359.9893827], found 360"),
+            std::string::npos) << r.err;
+  // the continuous joint (-360..360 deg): 539 deg refused, the message says which pose it is
+  r = test::runAccuraIn(dir, "fk --robot r.urdf --q 0,539");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("found 539; -360..360 deg is also what a joint without limits (a URDF's continuous joint) is given: 539 deg "
+                       "is the pose of 179 deg"),
+            std::string::npos) << r.err;
+}
+
 TEST(Urdf, ConversionCheckCatchesAWrongModel) {
   // modelFromChain's check is real: compareModelWithChain sees a 1 um change of one length.
   const SerialChain chain = readUrdfChain(sourcePath("tests/data/urdf/irb2400.urdf"));
@@ -496,6 +579,27 @@ TEST(Urdf, CommandLine) {
   EXPECT_NE(r.err.find("delta_d = -92.52"), std::string::npos) << r.err;  // flagged
   const UrDeltas back = readUrCalibrationConf(dir + "/back.conf");
   EXPECT_NEAR(back.d_m[2], -92.5270326908668181, 1e-6);  // m, through the robot file's 12 digits
+  // the same on ur_description's URDF (UR's table in other frames: rewritten, not refused), and
+  // the deltas written back from it name the table they belong to
+  r = test::runAccuraIn(dir, "export --robot " + sourcePath("tests/data/urdf/ur10.urdf") + " --ur-deltas " +
+                                 sourcePath("tests/data/urdf/ur_forum_calibration.conf") + " --format robot --out urdf_cal.xml");
+  ASSERT_EQ(r.code, 0) << r.err;
+  r = test::runAccuraIn(dir, "export --robot urdf_cal.xml --format ur-deltas --out back2.conf");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.err.find("the deltas are relative to the nominal table of 'ur10' in UR's convention: d = [0.1273, 0, 0, 0.163941, "
+                       "0.1157, 0.0922] m, a = [0, -0.612, -0.5723, 0, 0, 0] m, alpha = [90, 0, 0, 90, -90, 0] deg"),
+            std::string::npos) << r.err;
+  EXPECT_NEAR(readUrCalibrationConf(dir + "/back2.conf").d_m[2], -92.5270326908668181, 1e-6);
+  // a chain that is not a UR arm's: the fix named
+  r = test::runAccuraIn(dir, "export --robot " + sourcePath("tests/data/urdf/panda_arm.urdf") + " --ur-deltas " +
+                                 sourcePath("tests/data/urdf/ur_forum_calibration.conf") + " --format robot --out p.xml");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("UR's factory calibration is for the 6 joints of a UR arm, found 7 joints in 'panda' (from a URDF: "
+                       "choose the arm's own chain with --chain ROOT:TIP, e.g. --chain base:tool0 on ur_description's URDF)"),
+            std::string::npos) << r.err;
+  r = test::runAccuraIn(dir, "export --robot kuka_kr16 --format ur-yaml");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("joint 'A3': a UR table has theta0 0 on every joint, found -90 deg in UR's convention"), std::string::npos) << r.err;
   std::filesystem::remove_all(dir);
 }
 

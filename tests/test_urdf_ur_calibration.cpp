@@ -6,6 +6,8 @@
 #include <algorithm>
 
 #include <cmath>
+#include <map>
+#include <tuple>
 #include <random>
 #include <sstream>
 
@@ -14,6 +16,7 @@
 #include "accura/calib/kinematics.h"
 #include "accura/calib/robot_io.h"
 #include "accura/calib/ur_calibration.h"
+#include "accura/calib/urdf.h"
 #include "test_util.h"
 
 namespace accura::calib {
@@ -225,6 +228,18 @@ TEST(UrCalibration, DeltasRoundTrip) {
   for (const auto& s : cb.not_represented) all += s + "\n";
   EXPECT_NE(all.find("base deviation"), std::string::npos) << all;
   EXPECT_NE(all.find("joint_compliance"), std::string::npos) << all;
+  // an identified model's base deviation is where the arm stands in the tracker's frame, not a
+  // mounting to set on the controller: said so (UR's installation mounting is only its tilt)
+  EXPECT_NE(all.find("base deviation (1, 2, 3) mm, rotation vector (0, 0, 0) deg: where the arm's Base stands in the world "
+                     "frame the model was identified in (the measurement frame: the laser tracker's or CMM's station), not "
+                     "part of the arm's calibration and not exported (UR's table starts at the Base frame)"),
+            std::string::npos) << all;
+  EXPECT_EQ(all.find("mounting"), std::string::npos) << all;
+  std::vector<std::string> yaml_notes;
+  formatUrCalibrationYaml(c, &yaml_notes);
+  ASSERT_FALSE(yaml_notes.empty());
+  EXPECT_EQ(yaml_notes[0].rfind("base deviation (1, 2, 3) mm, rotation vector (0, 0, 0) deg: where the arm's Base stands", 0), 0u)
+      << yaml_notes[0];
   EXPECT_LT(cb.max_difference_mm, 1e-6);
   // calibration.conf text reads back bit for bit
   const std::string dir = test::tempDir("ur_conf");
@@ -288,6 +303,211 @@ TEST(UrCalibration, YamlRoundTripEqualsUrsFormula) {
   std::filesystem::remove_all(dir);
 }
 
+// The largest position (mm) and rotation (rad) differences of T_a * FK(a, q) and T_b * FK(b, q) over
+// 200 joint vectors within +-180 deg.
+std::pair<double, double> worstDifference(const RobotModel& a, const Eigen::Isometry3d& T_a, const RobotModel& b,
+                                          const Eigen::Isometry3d& T_b) {
+  std::mt19937_64 rng(17);
+  std::uniform_real_distribution<double> u(-180, 180);
+  double mm = 0, rad = 0;
+  for (int s = 0; s < 200; ++s) {
+    Eigen::VectorXd q(6);
+    for (int i = 0; i < 6; ++i) q[i] = s == 0 ? 0.0 : u(rng);
+    const Eigen::Isometry3d A = T_a * forwardKinematics(a, q), B = T_b * forwardKinematics(b, q);
+    mm = std::max(mm, (A.translation() - B.translation()).norm());
+    rad = std::max(rad, Eigen::AngleAxisd(A.linear().transpose() * B.linear()).angle());
+  }
+  return {mm, rad};
+}
+
+TEST(UrCalibration, TheArmOfAUrdfTakesUrsTableInUrsConvention) {
+  // ur_description's UR10 (tests/data/urdf/ur10.urdf) read as a robot: its DH frame 0 is ROS's
+  // base_link (x forward: UR's Base turned by 180 deg about z, the URDF's base_link -> base
+  // joint), its x axes give a = +612 mm, alpha_1 = -90 deg and theta0_6 = -180 deg (a frame
+  // turned about the last axis). UR's table is the same arm: the factory deltas apply to it.
+  const RobotModel ur10 = test::loadBundled("ur10");
+  const UrDeltas deltas = testDeltas();
+  const RobotModel reference = modelFromUrDeltas(ur10.nominal, deltas);  // UR's own table and frames
+  const std::string urdf = test::sourcePath("tests/data/urdf/ur10.urdf");
+  const RobotModel from_urdf = readUrdfRobot(urdf);
+  ASSERT_EQ(from_urdf.nominal.joints[5].theta0_deg, -180.0);  // what used to be refused
+  const UrConvention c = urConventionOf(from_urdf.nominal);
+  EXPECT_TRUE(c.rewritten);
+  for (int i = 0; i < 6; ++i) {  // exactly the bundled table (UR's), pi/2 rounded in the URDF snapped
+    const JointSpec &u = c.ur.joints[i], &b = ur10.nominal.joints[i];
+    EXPECT_DOUBLE_EQ(u.d_mm, b.d_mm) << i;  // (metres to mm: round-off)
+    EXPECT_DOUBLE_EQ(u.a_mm, b.a_mm) << i;
+    EXPECT_EQ(u.alpha_deg, b.alpha_deg) << i;
+    EXPECT_EQ(u.theta0_deg, 0.0) << i;
+    EXPECT_EQ(u.direction, 1) << i;
+    EXPECT_EQ(c.folded_theta0_deg[i], 0.0) << i;
+  }
+  const Eigen::Isometry3d half_turn_z(Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitZ()));
+  EXPECT_TRUE(c.T_frame0_urbase.isApprox(half_turn_z, 1e-15)) << c.T_frame0_urbase.matrix();
+  // (the half turn of frame 0 turns every x axis: theta0_6 -180 deg becomes 0, tool0 is UR's flange)
+  EXPECT_TRUE(c.T_urflange_flange.isApprox(Eigen::Isometry3d::Identity(), 0)) << c.T_urflange_flange.matrix();
+  // the calibrated model: UR's formula in the URDF's frames, world = base_link = Base turned by 180 deg
+  const RobotModel m = modelFromUrDeltas(from_urdf.nominal, deltas);
+  auto [mm, rad] = worstDifference(m, Eigen::Isometry3d::Identity(), reference, half_turn_z);
+  EXPECT_LT(mm, 1e-9);
+  EXPECT_LT(rad, 1e-12);
+  // ... and against UR's formula written out here (metres of delta_d: UR's own round-off)
+  double d_tot[6], a_tot[6], al_tot[6];
+  for (int i = 0; i < 6; ++i) {
+    d_tot[i] = kD[i] + kDeltaD[i];
+    a_tot[i] = kA[i] + kDeltaA[i];
+    al_tot[i] = kAlpha[i] + kDeltaAlpha[i];
+  }
+  Eigen::VectorXd q(6);
+  q << 0.3, -1.2, 1.4, -0.5, 0.8, 2.1;
+  const Eigen::Vector3d p_ur = 1000.0 * urFormula(d_tot, a_tot, kDeltaTheta, al_tot, q).topRightCorner<3, 1>();
+  EXPECT_LT((forwardKinematics(m, deg(q)).translation() - half_turn_z * p_ur).norm(), 1e-6);
+  // with --chain base:tool0 the world is UR's Base
+  const RobotModel in_base = modelFromUrDeltas(readUrdfRobot(urdf, "base:tool0").nominal, deltas);
+  std::tie(mm, rad) = worstDifference(in_base, Eigen::Isometry3d::Identity(), reference, Eigen::Isometry3d::Identity());
+  EXPECT_LT(mm, 1e-9);
+  EXPECT_LT(rad, 1e-12);
+  // mounted on a ceiling 2 m up: axis 1 points down, joint 1 has direction -1 in the model,
+  // which a half turn of frame 0 about x makes UR's +1
+  std::string text = test::readText(urdf);
+  const std::string mount = "<origin rpy=\"0 0 0\" xyz=\"0 0 0\"/>\n    <parent link=\"world\"/>";
+  ASSERT_NE(text.find(mount), std::string::npos);
+  text.replace(text.find(mount), mount.size(), "<origin rpy=\"3.141592653589793 0 0\" xyz=\"0 0 2\"/>\n    <parent link=\"world\"/>");
+  const std::string dir = test::tempDir("ur_urdf_convention");
+  test::writeText(dir + "/ceiling.urdf", text);
+  const RobotModel ceiling = readUrdfRobot(dir + "/ceiling.urdf");
+  EXPECT_EQ(ceiling.nominal.joints[0].direction, -1);
+  const RobotModel mc = modelFromUrDeltas(ceiling.nominal, deltas);
+  Eigen::Isometry3d T_world_base = Eigen::Isometry3d::Identity();  // world -> base_link -> Base
+  T_world_base.translation() = Eigen::Vector3d(0, 0, 2000);
+  T_world_base.rotate(Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitX()));
+  T_world_base = T_world_base * half_turn_z;
+  std::tie(mm, rad) = worstDifference(mc, Eigen::Isometry3d::Identity(), reference, T_world_base);
+  EXPECT_LT(mm, 1e-9);
+  EXPECT_LT(rad, 1e-12);
+  // back out of the model from the URDF (as identify would have it: plus a base deviation, the
+  // tracker's frame): the same deltas, the same YAML chain as UR's table with the deltas
+  RobotModel identified = m;
+  identified.deviations.base_mm = Eigen::Vector3d(2400, -1700, -600);
+  identified.deviations.base_rot_rad = Eigen::Vector3d(0, 0, 0.5);
+  const UrDeltasFromModel back = urDeltasFromModel(identified);
+  EXPECT_TRUE(back.table_rewritten);
+  EXPECT_LT(back.max_difference_mm, 1e-6);
+  for (int i = 0; i < 6; ++i) {
+    EXPECT_NEAR(back.deltas.d_m[i], kDeltaD[i], 1e-9) << i;
+    EXPECT_NEAR(back.deltas.a_m[i], kDeltaA[i], 1e-12) << i;
+    EXPECT_NEAR(back.deltas.theta_rad[i], kDeltaTheta[i], 1e-11) << i;
+    EXPECT_NEAR(back.deltas.alpha_rad[i], kDeltaAlpha[i], 1e-11) << i;
+  }
+  std::vector<std::string> notes;
+  test::writeText(dir + "/cal.yaml", formatUrCalibrationYaml(identified, &notes));
+  ASSERT_FALSE(notes.empty());
+  EXPECT_EQ(notes[0].rfind("base deviation (2400, -1700, -600) mm", 0), 0u) << notes[0];
+  const RobotModel from_yaml = modelFromUrCalibrationYaml(ur10.nominal, dir + "/cal.yaml");
+  std::tie(mm, rad) = worstDifference(from_yaml, Eigen::Isometry3d::Identity(), reference, Eigen::Isometry3d::Identity());
+  EXPECT_LT(mm, 1e-9);
+  EXPECT_LT(rad, 1e-12);
+  std::filesystem::remove_all(dir);
+}
+
+TEST(UrCalibration, ACalibratedDescriptionFoldsItsTheta0IntoTheDeltas) {
+  // ur_description with a calibration applied (its joint origins from a ur_calibration YAML):
+  // link 1's theta0 is -0.0042 deg off UR's 0 (delta_theta_1), the others too. Its YAML is
+  // the arm's own (exact), its deltas are relative to its own table (said so: not UR's).
+  const RobotModel ur10 = test::loadBundled("ur10");
+  const RobotModel reference = modelFromUrDeltas(ur10.nominal, testDeltas());
+  const std::string yaml = formatUrCalibrationYaml(reference, nullptr);
+  // the YAML's six origins as ur_description's joints, with its base_link / base frames
+  std::map<std::string, std::map<std::string, std::string>> v;
+  std::istringstream lines(yaml);
+  std::string link;
+  for (std::string l; std::getline(lines, l);) {
+    if (l.rfind("    ", 0) == 0) v[link][l.substr(4, l.find(':') - 4)] = l.substr(l.find(": ") + 2);
+    else if (l.rfind("  ", 0) == 0) link = l.substr(2, l.find(':') - 2);
+  }
+  const char* const links[6] = {"shoulder", "upper_arm", "forearm", "wrist_1", "wrist_2", "wrist_3"};
+  std::string urdf = "<robot name=\"ur10_calibrated\">\n<link name=\"base_link\"/><link name=\"base_link_inertia\"/><link name=\"base\"/>"
+                     "<link name=\"flange\"/><link name=\"tool0\"/>\n"
+                     "<joint name=\"base_link-base_link_inertia\" type=\"fixed\"><parent link=\"base_link\"/><child link=\"base_link_inertia\"/>"
+                     "<origin xyz=\"0 0 0\" rpy=\"0 0 3.141592653589793\"/></joint>\n"
+                     "<joint name=\"base_link-base_fixed_joint\" type=\"fixed\"><parent link=\"base_link\"/><child link=\"base\"/>"
+                     "<origin xyz=\"0 0 0\" rpy=\"0 0 3.141592653589793\"/></joint>\n";
+  std::string parent = "base_link_inertia";
+  for (const char* l : links) {
+    urdf += std::string("<link name=\"") + l + "_link\"/><joint name=\"" + l + "_joint\" type=\"revolute\"><parent link=\"" + parent +
+            "\"/><child link=\"" + l + "_link\"/><origin xyz=\"" + v[l]["x"] + " " + v[l]["y"] + " " + v[l]["z"] + "\" rpy=\"" +
+            v[l]["roll"] + " " + v[l]["pitch"] + " " + v[l]["yaw"] +
+            "\"/><axis xyz=\"0 0 1\"/><limit lower=\"-6.283185307179586\" upper=\"6.283185307179586\" effort=\"330\" velocity=\"2.09\"/></joint>\n";
+    parent = std::string(l) + "_link";
+  }
+  urdf += "<joint name=\"wrist_3-flange\" type=\"fixed\"><parent link=\"wrist_3_link\"/><child link=\"flange\"/>"
+          "<origin xyz=\"0 0 0\" rpy=\"0 -1.5707963267948966 -1.5707963267948966\"/></joint>\n"
+          "<joint name=\"flange-tool0\" type=\"fixed\"><parent link=\"flange\"/><child link=\"tool0\"/>"
+          "<origin xyz=\"0 0 0\" rpy=\"1.5707963267948966 0 1.5707963267948966\"/></joint>\n</robot>\n";
+  const std::string dir = test::tempDir("ur_calibrated_urdf");
+  test::writeText(dir + "/cal.urdf", urdf);
+  for (const std::string chain : {"base:tool0", ""}) {
+    const RobotModel m = readUrdfRobot(dir + "/cal.urdf", chain);
+    EXPECT_NEAR(m.nominal.joints[0].theta0_deg, kDeltaTheta[0] * 180 / M_PI, 2e-3) << chain;  // (-0.0042 deg; the rest from the other joints)
+    const UrConvention c = urConventionOf(m.nominal);
+    EXPECT_NE(c.folded_theta0_deg[0], 0.0) << chain;
+    EXPECT_EQ(c.ur.joints[0].theta0_deg, 0.0) << chain;
+    // its YAML read onto the bundled UR10: the same arm, in the Base frame
+    test::writeText(dir + "/back.yaml", formatUrCalibrationYaml(m, nullptr));
+    const RobotModel back = modelFromUrCalibrationYaml(ur10.nominal, dir + "/back.yaml");
+    auto [mm, rad] = worstDifference(back, Eigen::Isometry3d::Identity(), reference, Eigen::Isometry3d::Identity());
+    EXPECT_LT(mm, 1e-9) << chain;
+    EXPECT_LT(rad, 1e-12) << chain;
+    // deltas relative to its own table: exact for that table, link 1's theta0 in delta_theta_1
+    const UrDeltasFromModel d = urDeltasFromModel(m);
+    EXPECT_TRUE(d.table_rewritten);
+    EXPECT_LT(d.max_difference_mm, 1e-6) << chain;
+    EXPECT_NEAR(d.deltas.theta_rad[0], c.folded_theta0_deg[0] * M_PI / 180, 1e-15) << chain;
+    // UR's factory deltas on it would apply the calibration twice: refused by name
+    try {
+      modelFromUrDeltas(m.nominal, testDeltas());
+      ADD_FAILURE() << "no error";
+    } catch (const ArgumentError& e) {
+      EXPECT_NE(std::string(e.what()).find("joint 'shoulder_joint': expected UR's nominal table (theta0 0 or 180 deg), found "),
+                std::string::npos) << e.what();
+    }
+  }
+  std::filesystem::remove_all(dir);
+}
+
+TEST(UrCalibration, AByteOrderMarkIsNotPartOfTheText) {
+  // Windows editors start a file with a UTF-8 byte-order mark; the CSV, mapping, URDF and robot
+  // file readers skip it, and so do the calibration.conf and YAML readers: the same numbers
+  const std::string dir = test::tempDir("ur_bom");
+  const UrDeltas deltas = testDeltas();
+  const std::string conf = formatUrCalibrationConf(deltas);
+  test::writeText(dir + "/bom.conf", "\xEF\xBB\xBF" + conf);
+  const UrDeltas read = readUrCalibrationConf(dir + "/bom.conf");
+  for (int i = 0; i < 6; ++i) {
+    EXPECT_EQ(read.theta_rad[i], kDeltaTheta[i]) << i;
+    EXPECT_EQ(read.d_m[i], kDeltaD[i]) << i;
+  }
+  const RobotDefinition ur10 = test::loadBundled("ur10").nominal;
+  const std::string yaml = formatUrCalibrationYaml(modelFromUrDeltas(ur10, deltas), nullptr);
+  test::writeText(dir + "/plain.yaml", yaml);
+  test::writeText(dir + "/bom.yaml", "\xEF\xBB\xBF" + yaml);
+  const SerialChain plain = readUrCalibrationYaml(dir + "/plain.yaml"), bom = readUrCalibrationYaml(dir + "/bom.yaml");
+  ASSERT_EQ(bom.joints.size(), 6u);
+  for (size_t k = 0; k < 6; ++k) {
+    EXPECT_TRUE(bom.joints[k].T_prev_joint.isApprox(plain.joints[k].T_prev_joint, 0)) << k;
+    EXPECT_EQ(bom.joints[k].line, plain.joints[k].line) << k;
+  }
+  // an error on the first line still names it (the mark is not counted as text there either)
+  test::writeText(dir + "/bad.yaml", "\xEF\xBB\xBFkinematic:\n");
+  try {
+    readUrCalibrationYaml(dir + "/bad.yaml");
+    ADD_FAILURE() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("bad.yaml:1:1: expected 'kinematics:', found 'kinematic:'"), std::string::npos) << e.what();
+  }
+  std::filesystem::remove_all(dir);
+}
+
 TEST(UrCalibration, MalformedFilesGiveFileLineColumnExpectedFound) {
   const std::string dir = test::tempDir("ur_bad");
   const std::string good = "[mounting]\ndelta_theta = [0, 0, 0, 0, 0, 0]\ndelta_a = [0, 0, 0, 0, 0, 0]\n"
@@ -301,7 +521,15 @@ TEST(UrCalibration, MalformedFilesGiveFileLineColumnExpectedFound) {
       {good + "delta_a = [0, 0, 0, 0, 0, 0]\n", "c.conf:6:1: delta_a given twice (first at line 3)"},
       {"[mounting]\ndelta_theta = [0, 0, 0, 0, 0, 0]\ndelta_a = [0, 0, 0, 0, 0, 0]\n",
        "c.conf:1:1: expected 'delta_alpha = [...]' in [mounting], found none"},
-      {"", "c.conf:1:1: expected 'delta_a = [...]' in [mounting], found none"},
+      {"", "c.conf:1:1: expected a section [mounting] with delta_theta, delta_a, delta_d and delta_alpha, found an empty file"},
+      // UR's controller writes [mounting] (forum.universal-robots.com topic 18921, tests/data/urdf/ur_forum_calibration.conf)
+      {"[Mounting]\ndelta_theta = [0, 0, 0, 0, 0, 0]\n",
+       "c.conf:1:1: expected the section header [mounting] (in lower case, as UR's controller writes calibration.conf), found '[Mounting]'"},
+      {"# no section\n\n  delta_theta = [0, 0, 0, 0, 0, 0]\n",
+       "c.conf:3:3: expected the section header [mounting] before 'delta_theta = ...' (UR's controller writes the deltas in section "
+       "[mounting]), found no section header"},
+      {"[other]\ndelta_theta = [0, 0, 0, 0, 0, 0]\n[more]\n",
+       "c.conf:1:1: expected a section [mounting] with delta_theta, delta_a, delta_d and delta_alpha, found only the section(s) [other], [more]"},
       {"[mounting]\ndelta_d = [0, 0, 5000, 0, 0, 0]\n", "c.conf:2:18: delta_d value 3: expected a DH delta of at most 1000 m, found 5000 m"},
       {"[mounting]\n  delta_d = 0\n", "c.conf:2:13: delta_d: expected a list [v1, ..., v6], found '0'"},
       {"[mounting\n", "c.conf:1:1: expected a section header like [mounting], found '[mounting'"},

@@ -182,6 +182,17 @@ void Diagnoser::columns() {
     }
     if (e == "backlash" && !both([](const MeasurementSet& s) { return s.has_direction; }))
       why = "the data has no dir1..dirN columns";
+    if (e == "joint_compliance") {
+      // the deflection is compliance * the joint's gravity torque: of the links' masses and the payload
+      const bool links = std::any_of(M0_.nominal.joints.begin(), M0_.nominal.joints.end(), [](const JointSpec& j) { return j.mass_kg > 0; });
+      const auto payload = [](const MeasurementSet& s) {
+        return std::any_of(s.rows.begin(), s.rows.end(), [](const Measurement& r) { return r.context.payload_kg > 0; });
+      };
+      if (!links && !payload(fit_) && !(has_val_ && payload(val_)))
+        why = "the robot's links have no mass (mass_kg 0 on every joint: a URDF without <inertial>) and no pose carries a payload: "
+              "no gravity torque loads the joints, so there is nothing for a compliance to deflect (give the links' masses, or "
+              "measure with payloads)";
+    }
     if (!why.empty()) {
       effect_note_[e] = "not testable: " + why;
       continue;

@@ -303,6 +303,7 @@ MappedHeader readHeader(const std::string& path, const std::vector<std::string>&
   h.names = splitFields(lines[h.row], delimiter);
   for (size_t c = 0; c < h.names.size(); ++c) {
     h.names[c] = trim(h.names[c]);
+    if (h.names[c].empty()) continue;  // an unnamed column (a trailing delimiter): never mapped, reported as unused
     const std::string key = lower(h.names[c]);
     if (h.index.count(key))
       throw InputError(path, h.line, static_cast<int>(c) + 1,
@@ -371,7 +372,9 @@ struct MappedRow {
   double num(int c) const {
     double v;
     if (!parseNumber(f[c], m.decimal, &v)) {
-      const std::string shown = trim(f[c]).empty() ? "an empty field" : "'" + trim(f[c]) + "'";
+      const std::string shown = trim(f[c]).empty() ? "an empty field"
+                                : "'" + trim(f[c]) + "'" +
+                                      (f[c].find('\0') != std::string::npos ? " (\\0 is a NUL byte: a binary or corrupted file?)" : "");
       throw InputError(path, ln, c + 1, "column '" + header[c] + "': expected a number with '" + std::string(1, m.decimal) +
                                             "' as decimal mark, found " + shown);
     }
@@ -399,12 +402,12 @@ void readJoints(const MappedRow& row, const std::vector<int>& jc, const RobotDef
   for (int j = 0; j < n; ++j) {
     const JointSpec& js = robot.joints[j];
     const double v = row.num(jc[j]) * (js.type == JointType::kRevolute ? row.m.joint_scale : row.m.prismatic_scale);
-    if (v < js.lower - kJointLimitReadSlack || v > js.upper + kJointLimitReadSlack) {
+    if (!withinJointLimits(js, v)) {
       const char* unit = js.type == JointType::kRevolute ? "deg" : "mm";
       char buf[200];
       std::snprintf(buf, sizeof buf, "expected a joint value within the joint limits [%.10g, %.10g] %s, found %.6g %s", js.lower,
                     js.upper, unit, v, unit);
-      throw InputError(row.path, row.ln, jc[j] + 1, "column '" + row.header[jc[j]] + "': " + buf);
+      throw InputError(row.path, row.ln, jc[j] + 1, "column '" + row.header[jc[j]] + "': " + buf + jointTurnNote(js, v));
     }
     r.q[j] = v;
   }
@@ -505,16 +508,31 @@ MeasurementSet readMappedMeasurements(const std::string& path, const Measurement
   set.has_temperature = c.temperature >= 0;
   set.has_time = c.time >= 0;
   set.has_direction = !c.directions.empty();
-  for (size_t k = 0; k < h.names.size(); ++k)
-    if (!c.used.count(static_cast<int>(k))) set.unknown_columns.push_back(h.names[k]);
+  const std::string delimiter = m.delimiter == '\t' ? std::string("tab") : "'" + std::string(1, m.delimiter) + "'";
+  for (size_t k = 0; k < h.names.size(); ++k) {
+    if (c.used.count(static_cast<int>(k))) continue;
+    if (!h.names[k].empty()) set.unknown_columns.push_back(h.names[k]);
+    else if (k + 1 == h.names.size()) set.unknown_columns.push_back("an empty column at the end (a trailing " + delimiter + ")");
+    else set.unknown_columns.push_back("an unnamed column " + std::to_string(k + 1));
+  }
+  // a trailing delimiter on the header or on the rows only: named when the field count differs
+  const auto endsWithDelimiter = [&](const std::string& l) { const std::string t = trim(l); return !t.empty() && t.back() == m.delimiter; };
+  const bool header_trails = endsWithDelimiter(lines[h.row]);
   for (size_t li = h.row + 1; li < lines.size(); ++li) {
     const std::string t = trim(lines[li]);
     if (t.empty() || t[0] == '#') continue;
     const MappedRow row{path, h.names, m, static_cast<int>(li) + 1, splitFields(lines[li], m.delimiter)};
-    if (row.f.size() != h.names.size())
+    if (row.f.size() != h.names.size()) {
+      const bool row_trails = endsWithDelimiter(lines[li]);
+      const std::string note = row_trails && !header_trails
+                                   ? " (the line ends with " + delimiter + ", the header does not: a trailing delimiter on the rows only)"
+                               : header_trails && !row_trails
+                                   ? " (the header ends with " + delimiter + ": an empty column at the end, which every row must have too)"
+                                   : "";
       throw InputError(path, row.ln, static_cast<int>(std::min(row.f.size(), h.names.size())) + 1,
                        "expected " + std::to_string(h.names.size()) + " fields as in the header, found " +
-                                            std::to_string(row.f.size()));
+                           std::to_string(row.f.size()) + note);
+    }
     set.rows.push_back(readRow(row, c, robot));
   }
   if (set.rows.empty()) throw InputError(path, h.line, 1, "expected at least one data row after the header, found none");

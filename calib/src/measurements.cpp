@@ -50,13 +50,24 @@ std::vector<std::string_view> splitFields(std::string_view line) {
   }
 }
 
-/// A field as shown in messages: 'text' (shortened when long) or "an empty field".
+/// A field as shown in messages: 'text' (shortened when long) or "an empty field"; a NUL byte
+/// in it (a binary or corrupted file) is shown as \0 and named.
 std::string shown(std::string_view field) {
   field = trim(field);
   if (field.empty()) return "an empty field";
   constexpr std::size_t kMax = 40;
-  if (field.size() > kMax) return "'" + std::string(field.substr(0, kMax)) + "...'";
-  return "'" + std::string(field) + "'";
+  const bool nul = field.find('\0') != std::string_view::npos;
+  std::string text(field.substr(0, std::min(field.size(), kMax)));
+  for (std::size_t p = text.find('\0'); p != std::string::npos; p = text.find('\0', p + 2)) text.replace(p, 1, "\\0");
+  return "'" + text + (field.size() > kMax ? "...'" : "'") + (nul ? " (\\0 is a NUL byte: a binary or corrupted file?)" : "");
+}
+
+/// The note on a field count that differs from the header's when a trailing delimiter explains it.
+std::string trailingDelimiterNote(std::string_view header, std::string_view row) {
+  const bool h = !trim(header).empty() && trim(header).back() == ',', r = !trim(row).empty() && trim(row).back() == ',';
+  if (r && !h) return " (the line ends with ',', the header does not: a trailing delimiter on the rows only)";
+  if (h && !r) return " (the header ends with ',': an empty column at the end, which every row must have too)";
+  return "";
 }
 
 /// Shortest text that reads back as the same double ("40", "-155", "0.1").
@@ -205,6 +216,7 @@ class Reader {
 
   Layout layout_{};
   int header_line_ = 0;
+  std::string header_text_;
   MeasurementSet set_;
 };
 
@@ -239,6 +251,13 @@ void Reader::parseHeader(std::string_view text, int line) {
     const int column = static_cast<int>(i) + 1;
     Column c;
     c.name = std::string(trim(fields[i]));
+    if (c.name.empty() && i + 1 == fields.size() && fields.size() > 1) {
+      // a trailing ',' (spreadsheets write one): an empty column at the end, not used; every row
+      // must have it (the field count), its values are not read
+      layout_.columns.push_back(std::move(c));
+      set_.unknown_columns.push_back("an empty column at the end (a trailing ',')");
+      continue;
+    }
     if (c.name.empty()) fail(line, column, "expected a column name, found an empty field");
     const std::string key = toLower(c.name);
     const auto dup = std::find(keys.begin(), keys.end(), key);
@@ -308,6 +327,19 @@ void Reader::checkGroups(int line) const {
     if (L.columns.size() == 1 &&
         L.columns[0].name.find_first_of(";\t") != std::string::npos) {
       msg += "; the delimiter is ',', found a header with ';' or tabs";
+    }
+    // units in the names ('q1 [deg]', 'x (mm)'): an export's layout, not this format's
+    for (const auto& c : L.columns) {
+      if (c.role != Role::kUnknown) continue;
+      const std::size_t cut = c.name.find_first_of(" [(_");
+      if (cut == std::string::npos || cut == 0) continue;
+      const std::string bare = toLower(c.name.substr(0, cut));
+      std::string digits;
+      if (bare == "x" || bare == "y" || bare == "z" || (indexedName(bare, "q", digits) && jointNumber(digits, dof_) > 0)) {
+        msg += "; found '" + c.name + "': the format's names carry no unit (q in deg or mm, x, y, z in mm); read the export "
+               "through a mapping file: docs/measurement-mapping.md";
+        break;
+      }
     }
     for (const auto& c : L.columns)
       if (!c.name.empty() && c.name.front() == '"') {
@@ -398,7 +430,7 @@ Measurement Reader::parseRow(std::string_view text, int line) const {
     // at the first field beyond the header's, or where the first missing one would start
     fail(line, static_cast<int>(std::min(fields.size(), L.columns.size())) + 1,
          "expected " + std::to_string(L.columns.size()) + " fields as in the header, found " +
-             std::to_string(fields.size()));
+             std::to_string(fields.size()) + trailingDelimiterNote(header_text_, text));
   }
 
   Measurement m;
@@ -419,11 +451,11 @@ Measurement Reader::parseRow(std::string_view text, int line) const {
     switch (c.role) {
       case Role::kQ: {
         const JointSpec& joint = robot_.joints[static_cast<std::size_t>(c.joint)];
-        if (v < joint.lower - kJointLimitReadSlack || v > joint.upper + kJointLimitReadSlack) {
+        if (!withinJointLimits(joint, v)) {
           const char* unit = joint.type == JointType::kRevolute ? " deg" : " mm";
           fail(line, column,
                where + "expected a joint value within the joint limits [" + shortest(joint.lower) + ", " +
-                   shortest(joint.upper) + "]" + unit + ", found " + shortest(v) + unit);
+                   shortest(joint.upper) + "]" + unit + ", found " + shortest(v) + unit + jointTurnNote(joint, v));
         }
         m.q[c.joint] = v;
         break;
@@ -515,6 +547,7 @@ MeasurementSet Reader::read() {
       parseHeader(text, line);
       have_header = true;
       header_line_ = line;
+      header_text_ = std::string(text);
       set_.has_orientation = layout_.has(Role::kQw) || layout_.has(Role::kA);
       set_.has_std_position = layout_.has(Role::kStdX) || layout_.has(Role::kStdMm);
       set_.has_std_orientation = layout_.has(Role::kStdRx) || layout_.has(Role::kStdDeg);
@@ -559,6 +592,14 @@ void requirePositive(double v, std::size_t row, const char* what) {
 }
 
 }  // namespace
+
+std::string jointTurnNote(const JointSpec& joint, double v) {
+  if (joint.type != JointType::kRevolute || joint.lower != -360.0 || joint.upper != 360.0 || std::abs(v) <= 360.0) return "";
+  if (!std::isfinite(v) || std::abs(v) > 1e9) return "";
+  const double within = v - 360.0 * std::round(v / 360.0);
+  return "; -360..360 deg is also what a joint without limits (a URDF's continuous joint) is given: " + shortest(v) +
+         " deg is the pose of " + shortest(within) + " deg, give the value within a turn";
+}
 
 std::string implausibleMeasuredValue(MeasuredValue kind, double v) {
   switch (kind) {

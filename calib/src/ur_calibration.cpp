@@ -3,6 +3,7 @@
 #include "accura/calib/ur_calibration.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -55,6 +56,9 @@ std::vector<std::string> readLines(const std::string& path, const char* what) {
   if (!in) throw InputError(path, 0, 0, std::string("cannot open ") + what);
   std::vector<std::string> lines;
   for (std::string l; std::getline(in, l);) lines.push_back(l);
+  // a UTF-8 byte-order mark (Windows editors write one) is not part of the text, as in the CSV,
+  // mapping, URDF and robot file readers
+  if (!lines.empty() && lines[0].rfind("\xEF\xBB\xBF", 0) == 0) lines[0].erase(0, 3);
   return lines;
 }
 
@@ -80,7 +84,9 @@ std::vector<std::string> notInUrTable(const RobotModel& model) {
   };
   if (d.base_mm.norm() > 0 || d.base_rot_rad.norm() > 0)
     out.push_back("base deviation " + vec(d.base_mm, 1) + " mm, rotation vector " + vec(d.base_rot_rad, kRadToDeg) +
-                  " deg: not in UR's table (it starts at the Base frame); set it as the installation's mounting / a feature");
+                  " deg: where the arm's Base stands in the world frame the model was identified in (the measurement "
+                  "frame: the laser tracker's or CMM's station), not part of the arm's calibration and not exported "
+                  "(UR's table starts at the Base frame)");
   if (d.tool_mm.norm() > 0 || d.tool_rot_rad.norm() > 0)
     out.push_back("tool deviation " + vec(d.tool_mm, 1) + " mm, rotation vector " + vec(d.tool_rot_rad, kRadToDeg) +
                   " deg: not in UR's table (it ends at the flange); set it in the TCP");
@@ -113,14 +119,165 @@ SerialChain flangeChain(const RobotModel& model) {
   return c;
 }
 
-RobotDefinition urNominalOf(const RobotModel& model) {
-  RobotDefinition ur = model.nominal;
-  ur.T_world_base.setIdentity();
-  ur.T_flange_tcp.setIdentity();
-  return ur;
+// `chain` with `before` in front of its first joint and `after` behind its tip.
+SerialChain framed(SerialChain chain, const Eigen::Isometry3d& before, const Eigen::Isometry3d& after) {
+  chain.joints.front().T_prev_joint = before * chain.joints.front().T_prev_joint;
+  chain.T_last_tip = chain.T_last_tip * after;
+  return chain;
+}
+
+// The model's calibrated flange chain in UR's frames (Base to UR's flange) of `c`.
+SerialChain urFlangeChain(const RobotModel& model, const UrConvention& c) {
+  return framed(flangeChain(model), c.T_frame0_urbase.inverse(), c.T_urflange_flange.inverse());
+}
+
+// What the error of a chain that is not a UR arm's says to do.
+const char* const kUrChainHint =
+    " (from a URDF: choose the arm's own chain with --chain ROOT:TIP, e.g. --chain base:tool0 on ur_description's URDF)";
+
+// cos and sin of an angle in degrees, exact for multiples of 90 deg (the frame turns of the
+// conventions: cos(pi) from radians is exact, sin(pi) is 1.2e-16)
+std::pair<double, double> cosSinDeg(double deg) {
+  const double k = std::round(deg / 90.0);
+  if (deg == 90.0 * k) {
+    const int q = static_cast<int>(std::fmod(std::fmod(k, 4.0) + 4.0, 4.0));
+    static const double kCos[4] = {1, 0, -1, 0}, kSin[4] = {0, 1, 0, -1};
+    return {kCos[q], kSin[q]};
+  }
+  return {std::cos(deg * kDegToRad), std::sin(deg * kDegToRad)};
+}
+Eigen::Matrix3d rotZDeg(double deg) {
+  const auto [c, s] = cosSinDeg(deg);
+  Eigen::Matrix3d R;
+  R << c, -s, 0, s, c, 0, 0, 0, 1;
+  return R;
+}
+Eigen::Matrix3d rotXDeg(double deg) {
+  const auto [c, s] = cosSinDeg(deg);
+  Eigen::Matrix3d R;
+  R << 1, 0, 0, 0, c, -s, 0, s, c;
+  return R;
+}
+// A half turn about x (about z with `z_axis`) when `on`, else the identity.
+Eigen::Matrix3d halfTurnIf(bool on, bool z_axis = false) {
+  return on ? (z_axis ? rotZDeg(180) : rotXDeg(180)) : Eigen::Matrix3d::Identity();
+}
+
+// To (-180, 180] deg.
+double wrap180(double deg) {
+  const double a = std::remainder(deg, 360.0);
+  return a <= -180.0 ? a + 360.0 : a;
 }
 
 }  // namespace
+
+namespace {
+
+// urConventionOf with frame 0 turned by `base_turn_deg` more about axis 1.
+UrConvention urConventionTurned(const RobotDefinition& nominal, double base_turn_deg) {
+  const int n = nominal.dof();
+  UrConvention c;
+  RobotDefinition& ur = c.ur;
+  ur = nominal;
+  ur.T_world_base.setIdentity();
+  ur.T_flange_tcp.setIdentity();
+  c.folded_theta0_deg.assign(static_cast<size_t>(n), 0.0);
+  // Link i of the robot, A(theta0 + direction q, d, a, alpha), with the factor L = Rz(phi) Rx(180)^z
+  // left over from link i-1 in front: Rx(180) A(t, d, a, al) = A(-t, -d, a, al + 180) turns
+  // direction -1 into +1; L A = A'(q) R with A' in UR's form (theta0 0, direction 1) and R a
+  // factor for link i+1: A(t, d, a, al) = A(t - 180, d, -a, -al) Rz(180) = A(t, d, a, al - 180) Rx(180).
+  // The last frame, when a_n = 0, takes its theta0 and alpha (a turn about axis n, then about
+  // x). UR's Base is the robot's DH frame 0 (its x
+  // from the root's: ur_description's base or base_link) turned by `base_turn_deg`: link 1's
+  // theta0 within kMaxUrFactoryCorrectionDeg of 0 or 180 deg is a delta_theta (a calibrated
+  // description's), one further from them turns frame 0 (a root that is not the arm's base).
+  bool flip = nominal.joints[0].direction == -1;  // z of L
+  const double theta1 = wrap180((flip ? -1.0 : 1.0) * nominal.joints[0].theta0_deg + base_turn_deg);
+  const double rest1 = theta1 - 180.0 * std::round(theta1 / 180.0);
+  double phi = base_turn_deg - (std::abs(rest1) > kMaxUrFactoryCorrectionDeg ? rest1 : 0.0);  // phi of L
+  Eigen::Matrix3d L = rotZDeg(phi) * halfTurnIf(flip);
+  c.T_frame0_urbase.linear() = L.transpose();
+  ur.gravity_base = L * nominal.gravity_base;
+  for (int i = 0; i < n; ++i) {
+    const JointSpec& j = nominal.joints[static_cast<size_t>(i)];
+    JointSpec& u = ur.joints[static_cast<size_t>(i)];
+    const double s = flip ? -1.0 : 1.0;
+    double theta = wrap180(s * j.theta0_deg + phi);  // the constant part of the joint angle
+    double a = j.a_mm, alpha = j.alpha_deg + (flip ? 180.0 : 0.0);
+    const double d = s * j.d_mm;
+    const bool last = i + 1 == n;
+    Eigen::Matrix3d R;
+    bool next_flip = false;
+    double next_phi = 0;
+    if (last && a == 0.0) {
+      // Rz(q + theta) Tz(d) Rx(alpha) = Rz(q + rest) Tz(d) * Rz(theta - rest) Rx(alpha): as on link 1, a
+      // rest within kMaxUrFactoryCorrectionDeg of 0 or 180 deg is a delta_theta, a larger one
+      // turns the flange frame; so does alpha (UR's delta_alpha and delta_a of the last joint are 0)
+      const double rest = theta - 180.0 * std::round(theta / 180.0);
+      const bool fold = std::abs(rest) <= kMaxUrFactoryCorrectionDeg && std::abs(rest) > kUrAngleSnapDeg;
+      if (fold) c.folded_theta0_deg[static_cast<size_t>(i)] = rest;
+      const double turn = fold || std::abs(rest) <= kUrAngleSnapDeg ? theta - rest : theta;
+      R = rotZDeg(turn) * rotXDeg(std::abs(wrap180(alpha)) <= kUrAngleSnapDeg ? 0.0 : alpha);
+      theta = alpha = 0;
+    } else {
+      const double k = std::round(theta / 180.0), rest = theta - 180.0 * k;
+      if (std::abs(rest) > kMaxUrFactoryCorrectionDeg)  // (never on link 1: frame 0 turned)
+        throw ArgumentError("robot '" + nominal.name + "' joint '" + j.name + "': a UR table has theta0 0 on every joint, found " +
+                            formatNumber("%.6g", theta) + " deg in UR's convention (more than " +
+                            formatNumber("%g", kMaxUrFactoryCorrectionDeg) +
+                            " deg from 0 and 180 deg, which a turn of the DH x axis absorbs): not a UR arm's chain" + kUrChainHint);
+      if (std::abs(rest) > kUrAngleSnapDeg) c.folded_theta0_deg[static_cast<size_t>(i)] = rest;
+      const bool x_flip = k != 0.0 && std::fmod(std::abs(k), 2.0) == 1.0;
+      if (x_flip) {
+        a = -a;
+        alpha = -alpha;
+      }
+      next_flip = !last && nominal.joints[static_cast<size_t>(i + 1)].direction == -1;
+      if (next_flip) alpha -= 180.0;
+      next_phi = x_flip ? 180.0 : 0.0;
+      R = halfTurnIf(x_flip, true) * halfTurnIf(next_flip);
+      theta = 0;
+    }
+    alpha = wrap180(alpha);
+    const double k90 = std::round(alpha / 90.0);
+    if (std::abs(alpha - 90.0 * k90) <= kUrAngleSnapDeg) alpha = 90.0 * k90;
+    u.theta0_deg = 0;
+    u.direction = 1;
+    u.d_mm = d + 0.0;  // (never -0)
+    u.a_mm = a + 0.0;
+    u.alpha_deg = alpha + 0.0;
+    u.com_mm = R * j.com_mm;  // frame i of the robot = frame i of the table * R
+    if (last) {
+      c.T_urflange_flange.linear() = R;
+      ur.payload_com_mm = R * nominal.payload_com_mm;
+    }
+    flip = next_flip;
+    phi = next_phi;
+  }
+  c.rewritten = !c.T_frame0_urbase.isApprox(Eigen::Isometry3d::Identity(), 0) ||
+                !c.T_urflange_flange.isApprox(Eigen::Isometry3d::Identity(), 0);
+  for (int i = 0; i < n; ++i) {
+    const JointSpec &j = nominal.joints[static_cast<size_t>(i)], &u = ur.joints[static_cast<size_t>(i)];
+    c.rewritten = c.rewritten || j.direction != 1 || j.theta0_deg != 0.0 || j.d_mm != u.d_mm || j.a_mm != u.a_mm || j.alpha_deg != u.alpha_deg;
+  }
+  return c;
+}
+
+}  // namespace
+
+UrConvention urConventionOf(const RobotDefinition& nominal) {
+  if (nominal.dof() == 0) throw ArgumentError("robot '" + nominal.name + "': a UR table needs joints, found none");
+  for (const JointSpec& j : nominal.joints)
+    if (j.type != JointType::kRevolute)
+      throw ArgumentError("robot '" + nominal.name + "' joint '" + j.name + "': a UR table holds revolute joints, found a prismatic one" +
+                          kUrChainHint);
+  // Frame 0's x has two signs that give theta0 0 (ROS's base_link and UR's Base, turned by 180
+  // deg about axis 1 from each other); UR's tables take the one with alpha_1 = +90 deg (and
+  // a_2 < 0: the arm stretched along -x at zero).
+  UrConvention c = urConventionTurned(nominal, 0.0);
+  if (c.ur.joints[0].alpha_deg < 0.0 && c.ur.joints[0].alpha_deg > -180.0) c = urConventionTurned(nominal, 180.0);
+  return c;
+}
 
 UrDeltas readUrCalibrationConf(const std::string& path, int dof) {
   const std::vector<std::string> lines = readLines(path, "UR calibration file");
@@ -133,6 +290,7 @@ UrDeltas readUrCalibrationConf(const std::string& path, int dof) {
   std::map<std::string, int> seen;
   std::string section;
   bool any_section = false;
+  std::string other_sections;                  // the names of the sections that are not [mounting]
   int mounting_line = 0, mounting_column = 0;  // the [mounting] header, when there is one
   for (size_t k = 0; k < lines.size(); ++k) {
     const int line = static_cast<int>(k + 1);
@@ -144,17 +302,29 @@ UrDeltas readUrCalibrationConf(const std::string& path, int dof) {
     const int first = columnOfText(raw);
     if (l.front() == '[') {
       if (l.back() != ']') throw InputError(path, line, first, "expected a section header like [mounting], found '" + l + "'");
-      section = l.substr(1, l.size() - 2);
+      section = trim(l.substr(1, l.size() - 2));
       any_section = true;
+      // UR's controller writes the section as [mounting]; another spelling is another section
+      // to an INI reader, and taking it for this one would be a guess
+      std::string lower = section;
+      for (char& c : lower) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+      if (lower == "mounting" && section != "mounting")
+        throw InputError(path, line, first, "expected the section header [mounting] (in lower case, as UR's controller writes "
+                                            "calibration.conf), found '" + l + "'");
       if (section == "mounting") {
         mounting_line = line;
         mounting_column = first;
+      } else {
+        other_sections += (other_sections.empty() ? "" : ", ") + l;
       }
       continue;
     }
-    if (any_section && section != "mounting") continue;
     const size_t eq = raw.find('=');
     if (eq == std::string::npos) throw InputError(path, line, first, "expected 'key = value', found '" + l + "'");
+    if (!any_section)  // an INI file's keys belong to a section: UR's controller writes [mounting] first
+      throw InputError(path, line, first, "expected the section header [mounting] before '" + trim(raw.substr(0, eq)) +
+                                          " = ...' (UR's controller writes the deltas in section [mounting]), found no section header");
+    if (section != "mounting") continue;
     const std::string key = trim(raw.substr(0, eq));
     auto it = wanted.find(key);
     if (it == wanted.end()) continue;  // joint_checksum, calibration_status, ...: not kinematics
@@ -190,10 +360,16 @@ UrDeltas readUrCalibrationConf(const std::string& path, int dof) {
                              ", found " + num17(x) + (angle ? " rad" : " m"));
     }
   }
+  if (!mounting_line) {
+    bool blank = true;
+    for (const std::string& l : lines) blank = blank && trim(l).empty();
+    throw InputError(path, 1, 1, "expected a section [mounting] with delta_theta, delta_a, delta_d and delta_alpha, found " +
+                                     (other_sections.empty() ? std::string(blank ? "an empty file" : "no section")
+                                                             : "only the section(s) " + other_sections));
+  }
   for (const auto& [key, vec] : wanted) {
     if (seen.count(key)) continue;
-    const auto [line, column] = mounting_line ? std::pair<int, int>{mounting_line, mounting_column} : endOfFile(lines);
-    throw InputError(path, line, column, "expected '" + key + " = [...]' in [mounting], found none");
+    throw InputError(path, mounting_line, mounting_column, "expected '" + key + " = [...]' in [mounting], found none");
   }
   return d;
 }
@@ -281,20 +457,31 @@ void checkFactoryCalibrationSize(const RobotDefinition& nominal, const SerialCha
 }  // namespace
 
 RobotModel modelFromUrDeltas(const RobotDefinition& nominal, const UrDeltas& deltas) {
-  const SerialChain chain = urDeltaChain(nominal, deltas);
+  const UrConvention c = urConventionOf(nominal);
+  for (size_t i = 0; i < c.folded_theta0_deg.size(); ++i)
+    if (c.folded_theta0_deg[i] != 0.0)
+      throw ArgumentError("robot '" + nominal.name + "' joint '" + nominal.joints[i].name + "': expected UR's nominal table (theta0 0 or 180 deg), found " +
+                          formatNumber("%.6g", c.folded_theta0_deg[i]) +
+                          " deg off it: a calibrated description? UR's factory deltas apply to the nominal arm (e.g. the bundled robot or "
+                          "ur_description's URDF without a calibration)");
+  const SerialChain ur_chain = urDeltaChain(c.ur, deltas);
+  // in the robot's frames: its base, UR's table between its DH frame 0 and its flange, its tool
+  const SerialChain chain = framed(ur_chain, nominal.T_world_base * c.T_frame0_urbase, c.T_urflange_flange * nominal.T_flange_tcp);
   RobotModel m = modelFromChain(chain, &nominal, FormPolicy::kAuto, kUrCheckTolMm);
-  checkFactoryCalibrationSize(nominal, chain, "UR factory DH deltas");
+  checkFactoryCalibrationSize(c.ur, ur_chain, "UR factory DH deltas");
   m.nominal.source = nominal.source + "; calibrated with UR's factory DH deltas";
   return m;
 }
 
 UrDeltasFromModel urDeltasFromModel(const RobotModel& model) {
   model.validate();
-  const RobotDefinition ur = urNominalOf(model);
-  checkUrNominal(ur);
+  const UrConvention c = urConventionOf(model.nominal);
+  const RobotDefinition& ur = c.ur;
   UrDeltasFromModel out;
   out.not_represented = notInUrTable(model);
-  const SerialChain chain = flangeChain(model);
+  out.table = ur;
+  out.table_rewritten = c.rewritten;
+  const SerialChain chain = urFlangeChain(model, c);
   RobotModel dh_model;
   try {
     dh_model = modelFromChain(chain, &ur, FormPolicy::kDHOnly, kUrCheckTolMm);
@@ -316,10 +503,10 @@ UrDeltasFromModel urDeltasFromModel(const RobotModel& model) {
   }
   // Base and tool of the DH rewrite: the chain starts at DH frame 0 and its last frame is a
   // DH frame, so both are identity to round-off (the check below proves it).
-  // Check: the model's flange chain against UR's formula (as a chain) with these deltas.
-  RobotModel geometric = urdf_detail::geometricPart(model);  // and without base and tool:
-  geometric.nominal.T_world_base.setIdentity();
-  geometric.nominal.T_flange_tcp.setIdentity();
+  // Check: the model's flange chain (in UR's frames) against UR's formula (as a chain) with these deltas.
+  RobotModel geometric = urdf_detail::geometricPart(model);  // without base and tool deviations:
+  geometric.nominal.T_world_base = c.T_frame0_urbase.inverse();
+  geometric.nominal.T_flange_tcp = c.T_urflange_flange.inverse();
   geometric.deviations.base_mm.setZero();
   geometric.deviations.base_rot_rad.setZero();
   geometric.deviations.tool_mm.setZero();
@@ -441,17 +628,19 @@ SerialChain readUrCalibrationYaml(const std::string& path) {
 }
 
 RobotModel modelFromUrCalibrationYaml(const RobotDefinition& nominal, const std::string& path) {
-  checkUrNominal(nominal);
+  const UrConvention c = urConventionOf(nominal);
   SerialChain chain = readUrCalibrationYaml(path);
   if (nominal.dof() != static_cast<int>(chain.joints.size()))
-    throw ArgumentError("robot '" + nominal.name + "' has " + std::to_string(nominal.dof()) + " joints, the YAML 6");
+    throw ArgumentError("robot '" + nominal.name + "' has " + std::to_string(nominal.dof()) + " joints, the YAML 6" + kUrChainHint);
   for (size_t i = 0; i < chain.joints.size(); ++i) {
     chain.joints[i].name = nominal.joints[i].name;
     chain.joints[i].lower = nominal.joints[i].lower;
     chain.joints[i].upper = nominal.joints[i].upper;
   }
-  RobotModel m = modelFromChain(chain, &nominal, FormPolicy::kAuto, kUrCheckTolMm);  // (its joint-by-joint errors first)
-  checkFactoryCalibrationSize(nominal, chain, path);
+  // in the robot's frames: its base, the YAML's chain between its DH frame 0 and its flange, its tool
+  const SerialChain robot_chain = framed(chain, nominal.T_world_base * c.T_frame0_urbase, c.T_urflange_flange * nominal.T_flange_tcp);
+  RobotModel m = modelFromChain(robot_chain, &nominal, FormPolicy::kAuto, kUrCheckTolMm);  // (its joint-by-joint errors first)
+  checkFactoryCalibrationSize(c.ur, chain, path);
   m.nominal.source = nominal.source + "; calibrated with the ur_calibration YAML " + path;
   return m;
 }
@@ -459,16 +648,19 @@ RobotModel modelFromUrCalibrationYaml(const RobotDefinition& nominal, const std:
 std::string formatUrCalibrationYaml(const RobotModel& model, std::vector<std::string>* not_represented) {
   model.validate();
   if (model.dof() != 6) throw ArgumentError("UR calibration YAML: expected a 6-axis robot, '" + model.nominal.name + "' has " +
-                                            std::to_string(model.dof()) + " joints");
-  checkUrNominal(urNominalOf(model));
+                                            std::to_string(model.dof()) + " joints" + kUrChainHint);
+  const UrConvention c = urConventionOf(model.nominal);
   std::vector<std::string> notes = notInUrTable(model);
+  // A model written in another convention: its flange chain as the table's model (Hayati form)
+  const RobotModel converted = c.rewritten ? modelFromChain(urFlangeChain(model, c), &c.ur, FormPolicy::kAuto, kUrCheckTolMm) : RobotModel();
+  const RobotModel& m = c.rewritten ? converted : model;
   // Joint k's origin = [Tx(a) Rx(alpha) Ry(beta)] of link k-1 * [Rz(theta) Tz(d)] of link k.
   std::ostringstream out;
   out << "kinematics:\n";
   Eigen::Isometry3d pending = Eigen::Isometry3d::Identity();
   for (int i = 0; i < 6; ++i) {
-    const JointSpec& j = model.nominal.joints[static_cast<size_t>(i)];
-    const LinkDeviation& d = model.deviations.links[static_cast<size_t>(i)];
+    const JointSpec& j = m.nominal.joints[static_cast<size_t>(i)];
+    const LinkDeviation& d = m.deviations.links[static_cast<size_t>(i)];
     Eigen::Isometry3d O = pending;
     O.rotate(Eigen::AngleAxisd(j.theta0_deg * kDegToRad + d.dtheta_rad, Eigen::Vector3d::UnitZ()));
     O.translate(Eigen::Vector3d(0, 0, j.d_mm + d.dd_mm));

@@ -27,8 +27,9 @@ using tinyxml2::XMLElement;
 
 constexpr double kMaxUrdfLengthM = 100.0;  // a joint origin further than this is absurd for an arm
 constexpr double kMaxUrdfMassKg = 1e5;
-constexpr double kMaxUrdfAngleRad = 1000.0;  // an rpy or a revolute limit beyond this is absurd
+constexpr double kMaxUrdfAngleRad = 1000.0;  // an rpy beyond this is absurd
 constexpr double kMaxUrdfLimitM = 100.0;     // a prismatic limit beyond this is absurd
+constexpr double kMaxUrdfLimitRad = 4 * kPi;  // a revolute limit beyond two turns is no radian value
 
 struct UrdfJointInfo {
   int line = 0;
@@ -204,12 +205,20 @@ UrdfIndex indexUrdf(const tinyxml2::XMLDocument& doc, const std::string& file, c
     const XMLElement* limit = onlyChild(ix, j, "limit", info.type == "revolute" || info.type == "prismatic");
     if (limit) {
       info.limit = limit;
-      const double bound = info.type == "prismatic" ? kMaxUrdfLimitM : kMaxUrdfAngleRad;
-      for (const char* a : {"lower", "upper"})
-        if (std::abs(scalar(ix, limit, a, false)) > bound)
-          ix.failAttribute(limit, a, "joint '" + name + "' <limit> attribute '" + a + "': expected at most " +
-                                         (info.type == "prismatic" ? "100 m" : "1000 rad") + " in magnitude, found '" +
+      for (const char* a : {"lower", "upper"}) {
+        const double v = scalar(ix, limit, a, false);
+        if (info.type == "prismatic" && std::abs(v) > kMaxUrdfLimitM)
+          ix.failAttribute(limit, a, "joint '" + name + "' <limit> attribute '" + a + "': expected at most 100 m in magnitude, found '" +
                                          limit->Attribute(a) + "'");
+        // a revolute joint's limit beyond two turns is no radian value: degrees written into a URDF
+        if (info.type == "revolute" && std::abs(v) > kMaxUrdfLimitRad) {
+          std::ostringstream s;
+          s << "joint '" << name << "' <limit> attribute '" << a << "': expected radians (URDF limits are in rad: at most two turns, "
+            << formatNumber("%.5g", kMaxUrdfLimitRad) << " rad, in magnitude), found '" << limit->Attribute(a) << "'";
+          if (std::abs(v) <= 1e6) s << " (" << formatNumber("%.6g", v * kRadToDeg) << " deg; degrees written as radians?)";
+          ix.failAttribute(limit, a, s.str());
+        }
+      }
       scalar(ix, limit, "effort", true);
       scalar(ix, limit, "velocity", true);
     }
@@ -331,9 +340,9 @@ bool hasMovingBelow(const UrdfIndex& ix, const std::string& link) {
   return false;
 }
 
-std::string defaultTip(const UrdfIndex& ix, const std::string& root) {
-  if (ix.link_line.count("tool0")) return "tool0";
-  std::string link = root;
+// Down from `link` while there is one child with moving joints below it (then fixed joints
+// while there is one child): where the default chain ends, or where the tree branches.
+std::string followDown(const UrdfIndex& ix, std::string link, std::vector<std::string>* branches) {
   for (;;) {
     auto it = ix.child_joints.find(link);
     if (it == ix.child_joints.end()) return link;
@@ -346,16 +355,33 @@ std::string defaultTip(const UrdfIndex& ix, const std::string& root) {
       link = ix.joints.at(moving[0]).child;
     } else if (moving.empty() && it->second.size() == 1) {
       link = ix.joints.at(it->second[0]).child;  // a fixed frame after the last joint (flange)
-    } else if (moving.empty()) {
-      return link;
     } else {
-      std::string list;
-      for (const auto& jn : moving) list += (list.empty() ? "" : ", ") + ix.joints.at(jn).child;
-      ix.fail(ix.link_element.at(link), "expected one default chain, found the tree branching at link '" + link + "' into " + list +
-                                            "; choose one with --chain ROOT:TIP (e.g. --chain " + root + ":" +
-                                            ix.joints.at(moving[0]).child + ")");
+      if (branches) *branches = moving;
+      return link;
     }
   }
+}
+
+// `accepted(spec)`: whether --chain spec reads (the suggestions name only such chains).
+std::string defaultTip(const UrdfIndex& ix, const std::string& root, const std::function<bool(const std::string&)>& accepted) {
+  if (ix.link_line.count("tool0")) return "tool0";
+  std::vector<std::string> moving;
+  const std::string link = followDown(ix, root, &moving);
+  if (moving.size() < 2) return link;
+  std::string list;
+  for (const auto& jn : moving) list += (list.empty() ? "" : ", ") + ix.joints.at(jn).child;
+  // the chain up to the branching link (what branches off beyond its tip is the last joint's
+  // load: a gripper's fingers), then one along each branch
+  std::vector<std::string> tips = {link};
+  for (const auto& jn : moving) tips.push_back(followDown(ix, ix.joints.at(jn).child, nullptr));
+  std::string ok;
+  for (const std::string& tip : tips) {
+    if (tip == root || !accepted(root + ":" + tip)) continue;
+    ok += (ok.empty() ? "" : " or ") + ("--chain " + root + ":" + tip) +
+          (tip == link ? " (the moving joints beyond its tip are the last joint's load, like a gripper's fingers)" : "");
+  }
+  ix.fail(ix.link_element.at(link), "expected one default chain, found the tree branching at link '" + link + "' into " + list +
+                                        "; choose one with --chain ROOT:TIP" + (ok.empty() ? std::string() : ": " + ok));
 }
 
 }  // namespace
@@ -370,7 +396,14 @@ SerialChain parseUrdfChain(const std::string& text, const std::string& file, con
   std::string root, tip;
   if (chain_spec.empty()) {
     root = model->getRoot()->name;
-    tip = defaultTip(ix, root);
+    tip = defaultTip(ix, root, [&](const std::string& spec) {
+      try {
+        parseUrdfChain(text, file, spec);
+        return true;
+      } catch (const InputError&) {
+        return false;
+      }
+    });
   } else {
     const size_t colon = chain_spec.find(':');
     if (colon == std::string::npos || chain_spec.find(':', colon + 1) != std::string::npos)
@@ -430,7 +463,9 @@ SerialChain parseUrdfChain(const std::string& text, const std::string& file, con
 
   // Mass and first moment of the links rigidly attached to `link` (fixed joints, downwards),
   // in the frame `T_frame_link` maps from; moving joints met on the way are branches unless they
-  // are the chain's next joint or (`last`) beyond the chain's end.
+  // are the chain's next joint. The last chain joint carries everything below it, whatever the
+  // joints (a gripper's fingers beyond the tip or branching off the links up to it): their links
+  // at those joints' zero (a mimic joint at its offset) are its load.
   std::function<void(const std::string&, const Eigen::Isometry3d&, bool, const std::string&, double&, Eigen::Vector3d&)> body;
   body = [&](const std::string& link, const Eigen::Isometry3d& T, bool last, const std::string& mover, double& mass,
              Eigen::Vector3d& moment) {
@@ -448,7 +483,15 @@ SerialChain parseUrdfChain(const std::string& text, const std::string& file, con
       if (info.type == "fixed") {
         const urdf::JointConstSharedPtr j = urdfJoint(jn);
         body(info.child, T * poseMm(j->parent_to_joint_origin_transform), last, mover, mass, moment);
-      } else if (!on_path.count(jn) && !last) {
+      } else if (!on_path.count(jn) && last) {
+        const urdf::JointConstSharedPtr j = urdfJoint(jn);
+        Eigen::Isometry3d at_zero = T * poseMm(j->parent_to_joint_origin_transform);
+        const double value = j->mimic ? j->mimic->offset : 0.0;  // rad or m
+        const Eigen::Vector3d axis = Eigen::Vector3d(j->axis.x, j->axis.y, j->axis.z).normalized();
+        if (value != 0.0 && (info.type == "revolute" || info.type == "continuous")) at_zero.rotate(Eigen::AngleAxisd(value, axis));
+        if (value != 0.0 && info.type == "prismatic") at_zero.translate(1000.0 * value * axis);
+        body(info.child, at_zero, last, mover, mass, moment);
+      } else if (!on_path.count(jn)) {
         ix.fail(info.element, "expected a serial chain, found joint '" + jn + "' (" + info.type + "), which branches off the chain " +
                                   root + ":" + tip + " at link '" + link + "', which joint '" + mover +
                                   "' moves (choose another --chain, or remove the branch)");

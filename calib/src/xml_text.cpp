@@ -7,6 +7,8 @@
 #include <cctype>
 #include <cstring>
 #include <functional>
+#include <tuple>
+#include <vector>
 
 #include "accura/calib/errors.h"
 
@@ -32,6 +34,101 @@ std::string describeXmlError(tinyxml2::XMLError err) {
   }
 }
 
+/// 1-based line and column of `offset` in `text`.
+std::pair<int, int> lineColumnOf(const std::string& text, size_t offset) {
+  int line = 1;
+  size_t start = 0;
+  for (size_t i = 0; i < offset && i < text.size(); ++i)
+    if (text[i] == '\n') {
+      ++line;
+      start = i + 1;
+    }
+  return {line, static_cast<int>(offset - start) + 1};
+}
+
+/// When the text ends inside an element (its end tag missing: a truncated file, a forgotten
+/// </robot>) or inside a start tag, and nothing before is malformed in the ways this scan sees
+/// (a mismatched end tag): the message, and where (just after the last character that is not
+/// white space). Empty otherwise.
+struct UnclosedAtEnd {
+  std::string message;
+  int line = 0, column = 0;
+};
+UnclosedAtEnd unclosedAtEnd(const std::string& text) {
+  struct Open {
+    std::string name;
+    size_t at;
+  };
+  std::vector<Open> open;
+  const auto nameAt = [&](size_t p) {
+    size_t e = p;
+    while (e < text.size() && !std::isspace(static_cast<unsigned char>(text[e])) && text[e] != '>' && text[e] != '/') ++e;
+    return text.substr(p, e - p);
+  };
+  const auto where = [&](size_t at) {
+    const auto [l, c] = lineColumnOf(text, at);
+    return std::to_string(l) + ":" + std::to_string(c);
+  };
+  UnclosedAtEnd out;
+  size_t end = text.size();
+  while (end > 0 && std::isspace(static_cast<unsigned char>(text[end - 1]))) --end;
+  std::tie(out.line, out.column) = lineColumnOf(text, end);
+  const auto outer = [&](size_t count) {  // the end tags of the `count` innermost open elements, innermost first
+    std::string s;
+    for (size_t k = open.size(); k-- > open.size() - count;)
+      s += std::string(s.empty() ? "" : ", ") + "</" + open[k].name + "> for <" + open[k].name + "> at " + where(open[k].at);
+    return s;
+  };
+  for (size_t p = 0;;) {
+    p = text.find('<', p);
+    if (p == std::string::npos) break;
+    const auto skip = [&](const char* o, const char* c) {
+      if (text.compare(p, std::strlen(o), o) != 0) return false;
+      const size_t e = text.find(c, p + std::strlen(o));
+      p = e == std::string::npos ? std::string::npos : e + std::strlen(c);
+      return true;
+    };
+    if (skip("<!--", "-->") || skip("<![CDATA[", "]]>") || skip("<?", "?>") || skip("<!", ">")) {
+      if (p == std::string::npos) return {};  // (an unterminated comment: tinyxml2 says so)
+      continue;
+    }
+    if (p + 1 < text.size() && text[p + 1] == '/') {  // an end tag
+      const std::string name = nameAt(p + 2);
+      if (open.empty() || open.back().name != name) return {};  // mismatched: tinyxml2's message
+      open.pop_back();
+      p += 2;
+      continue;
+    }
+    // a start tag: to its '>' outside quoted values
+    const size_t start = p;
+    char quote = 0;
+    size_t q = p + 1;
+    for (; q < text.size(); ++q) {
+      if (quote) {
+        if (text[q] == quote) quote = 0;
+      } else if (text[q] == '"' || text[q] == '\'') {
+        quote = text[q];
+      } else if (text[q] == '>') {
+        break;
+      }
+    }
+    const std::string name = nameAt(start + 1);
+    if (q >= text.size()) {
+      if (quote) return {};  // an unclosed quote: tinyxml2's message (a malformed attribute)
+      out.message = "the end of the file inside the start tag <" + name + " at " + where(start) + " (its '>' is missing" +
+                    (open.empty() ? std::string(")") : ", and then " + outer(open.size()) + ")");
+      return out;
+    }
+    if (text[q - 1] != '/') open.push_back({name, start});
+    p = q + 1;
+  }
+  if (open.empty()) return {};
+  out.message = "the end of the file before the element <" + open.back().name + "> opened at " + where(open.back().at) +
+                " was closed (its end tag </" + open.back().name + "> is missing" +
+                (open.size() > 1 ? ", and then " + outer(open.size()).substr(outer(open.size()).find(", ") + 2) + ")" : std::string(")"));
+  return out;
+}
+
 }  // namespace
 
 void parseXml(tinyxml2::XMLDocument& doc, const std::string& text, const std::string& file,
@@ -42,6 +139,12 @@ void parseXml(tinyxml2::XMLDocument& doc, const std::string& text, const std::st
     const bool blank = std::all_of(text.begin(), text.end(), [](char c) { return std::isspace(static_cast<unsigned char>(c)); });
     throw InputError(file, 1, 1, "expected " + what + ", found " +
                                      (text.empty() ? "an empty file" : blank ? "only white space" : "no element"));
+  }
+  // a file that ends inside an element: tinyxml2 points at the element it was parsing ("text
+  // that is not XML" at the root's line for a missing </robot>); say what is missing instead
+  if (err == tinyxml2::XML_ERROR_PARSING || err == tinyxml2::XML_ERROR_PARSING_ELEMENT) {
+    const UnclosedAtEnd u = unclosedAtEnd(text);
+    if (!u.message.empty()) throw InputError(file, u.line, u.column, "expected well-formed XML, found " + u.message);
   }
   // tinyxml2 gives the line of the construct it failed on: its first non-blank character
   int line = std::max(1, doc.ErrorLineNum());

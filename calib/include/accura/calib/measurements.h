@@ -60,6 +60,17 @@ std::string implausibleMeasuredValue(MeasuredValue kind, double v);
 /// robot measured at its controller's limit of 165 deg is right).
 constexpr double kJointLimitReadSlack = 0.01;
 
+/// Whether joint value `v` (deg / mm) is within the joint's limits with kJointLimitReadSlack:
+/// the one test of the measurement readers and of the commands that take joint values.
+inline bool withinJointLimits(const JointSpec& joint, double v) {
+  return v >= joint.lower - kJointLimitReadSlack && v <= joint.upper + kJointLimitReadSlack;
+}
+
+/// For a revolute joint with the limits -360..360 deg (what a URDF's continuous joint, which has
+/// none, is given) and a value beyond them: "; ..." saying so and the value within one turn that
+/// is the same pose ("539 deg is the pose of 179 deg"); empty otherwise.
+std::string jointTurnNote(const JointSpec& joint, double v);
+
 /// Reads a measurement CSV for `robot` (its dof and joint limits, with kJointLimitReadSlack,
 /// are checked).
 /// Throws InputError "FILE:LINE:COLUMN: expected ..., found ..." on: unreadable file, missing

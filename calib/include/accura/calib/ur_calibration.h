@@ -11,8 +11,9 @@
 // (x y z roll pitch yaw, metres and radians) that ur_description uses as URDF joint origins:
 // the "kinematics" YAML.
 //
-// accura reads both into a calibrated model: the bundled nominal UR robot (direction +1,
-// theta0 0) plus small deviations in its Hayati form, and writes the deltas back.
+// accura reads both into a calibrated model: the nominal UR robot (the bundled one, direction
+// +1, theta0 0, or the arm read from a URDF in its own frames: urConventionOf) plus small
+// deviations in its Hayati form, and writes the deltas back.
 #pragma once
 
 #include <Eigen/Core>
@@ -52,22 +53,53 @@ std::string formatUrCalibrationConf(const UrDeltas& deltas);
 /// +1, theta0 0, identity base and tool, and as many joints as the deltas hold.
 void checkUrNominal(const RobotDefinition& nominal, const UrDeltas* deltas = nullptr);
 
+/// A robot's nominal DH table in UR's convention. UR's table has direction +1 and theta0 0 on
+/// every joint and starts at the Base frame; a robot read from a URDF (or written otherwise) may
+/// describe the same arm with joints turning about -z (direction -1), x axes of the other sign
+/// (theta0 180 deg, a and alpha negated), a frame 0 turned about axis 1 (ROS's base_link is UR's
+/// Base turned by 180 deg) or a flange turned about axis n. These are rewritten exactly:
+///   T_frame0_flange(q) = T_frame0_urbase * T_urbase_urflange(q) * T_urflange_flange
+/// with the robot's DH frame 0 and flange on the left and right and UR's table in the middle.
+/// A theta0 within kMaxUrFactoryCorrectionDeg of 0 or 180 deg (a calibrated URDF's) is folded:
+/// UR's table gets 0 and `folded_theta0_deg` the rest (a delta_theta); an alpha within
+/// kUrAngleSnapDeg of a multiple of 90 deg (pi/2 rounded in a URDF, 1.570796327) is that multiple.
+struct UrConvention {
+  /// The table: direction +1, theta0 0, identity base and tool; the robot's names, limits,
+  /// masses (centres of mass in the new frames), payload and gravity (in the new frame 0).
+  RobotDefinition ur;
+  Eigen::Isometry3d T_frame0_urbase = Eigen::Isometry3d::Identity();    ///< a rotation
+  Eigen::Isometry3d T_urflange_flange = Eigen::Isometry3d::Identity();  ///< a rotation
+  std::vector<double> folded_theta0_deg;  ///< one per joint
+  bool rewritten = false;                 ///< whether the table differs from the robot's
+};
+constexpr double kUrAngleSnapDeg = 1e-6;
+
+/// The robot's nominal in UR's convention. Throws ArgumentError naming the joint and the fix when
+/// the chain cannot be written so exactly: a prismatic joint, a theta0 more than
+/// kMaxUrFactoryCorrectionDeg from 0 and 180 deg on an inner link (or on the last one with a
+/// non-zero a): not a UR arm's chain (choose the arm with --chain ROOT:TIP).
+UrConvention urConventionOf(const RobotDefinition& nominal);
+
 /// UR's formula above at q (deg): T_base_flange in mm.
 Eigen::Isometry3d urFlangePose(const RobotDefinition& nominal, const UrDeltas& deltas, const Eigen::VectorXd& q_deg);
 
 /// The serial chain of UR's formula (root = Base, tip = flange; mm).
 SerialChain urDeltaChain(const RobotDefinition& nominal, const UrDeltas& deltas);
 
-/// The calibrated accura model of a UR arm: `nominal` (the bundled robot, e.g. ur10.xml) with
-/// the deltas as deviations in its Hayati form (the lengths stay the arm's real lengths),
-/// checked: FK equals UR's formula to kUrCheckTolMm (modelFromChain). Throws ArgumentError
-/// (checkUrNominal; deltas that move the flange by more than kMaxUrFactoryCorrectionMm / Deg
-/// from the nominal arm's), NumericalError when the check fails.
+/// The calibrated accura model of a UR arm: `nominal` (the bundled robot, e.g. ur10.xml, or the
+/// arm read from a URDF) with the deltas as deviations in its Hayati form (the lengths stay the
+/// arm's real lengths), checked: FK equals T_world_base * T_frame0_urbase * (UR's formula on
+/// urConventionOf(nominal).ur) * T_urflange_flange * T_flange_tcp to kUrCheckTolMm
+/// (modelFromChain); a theta0 folded by urConventionOf is replaced by the delta. Throws
+/// ArgumentError (urConventionOf; deltas that move the flange by more than
+/// kMaxUrFactoryCorrectionMm / Deg from the nominal arm's), NumericalError when the check fails.
 RobotModel modelFromUrDeltas(const RobotDefinition& nominal, const UrDeltas& deltas);
 
 /// accura model -> UR deltas for the same nominal: the model's calibrated chain from DH frame 0
-/// to the flange rewritten in pure DH. `not_represented` lists what the deltas cannot hold
-/// (the base and tool deviations: set them as the installation's mounting and TCP; the
+/// to the flange, in UR's convention (urConventionOf), rewritten in pure DH: the deltas are
+/// relative to urConventionOf(model.nominal).ur (a folded theta0 is in delta_theta). `not_represented` lists what the deltas cannot hold
+/// (the base deviation: where the Base stands in the measurement frame, not exported; the tool
+/// deviation: set it in the TCP; the
 /// effects beyond geometry; a near-parallel pair of axes, where DH needs a length above 1 m).
 /// `max_difference_mm`: largest flange position difference between UR's formula with the
 /// deltas and the model's flange chain over 64 random joint vectors.
@@ -75,6 +107,8 @@ struct UrDeltasFromModel {
   UrDeltas deltas;
   std::vector<std::string> not_represented;
   double max_difference_mm = 0;
+  RobotDefinition table;         ///< the nominal table the deltas are relative to (urConventionOf)
+  bool table_rewritten = false;  ///< whether it differs from the model's own nominal
 };
 UrDeltasFromModel urDeltasFromModel(const RobotModel& model);
 
@@ -91,7 +125,8 @@ SerialChain readUrCalibrationYaml(const std::string& path);
 /// named by the path).
 RobotModel modelFromUrCalibrationYaml(const RobotDefinition& nominal, const std::string& path);
 
-/// The YAML of a model's flange chain (DH frame 0 to the flange), `not_represented` as in
+/// The YAML of a model's flange chain (DH frame 0 to the flange, in UR's convention:
+/// urConventionOf), `not_represented` as in
 /// urDeltasFromModel (plus a non-zero a or alpha of the last link, which the six entries cannot
 /// hold). Throws ArgumentError for a model without 6 revolute joints.
 std::string formatUrCalibrationYaml(const RobotModel& model, std::vector<std::string>* not_represented);

@@ -99,7 +99,9 @@ ChainComparison compareModelWithChain(const RobotModel& model, const SerialChain
 /// the data. Fixed joints are folded into their neighbours; continuous joints get the limits
 /// -360..360 deg. Throws InputError (file:line:column) on a malformed file, an unknown link in
 /// chain_spec, a mimic, floating or planar joint on the chain, a moving joint branching off
-/// the chain, or limits with lower >= upper.
+/// a link that a chain joint other than the last moves, or limits with lower >= upper. What the
+/// last joint carries beyond the chain (gripper fingers on any joints) is its load (mass_kg,
+/// com_mm), those joints at zero.
 SerialChain readUrdfChain(const std::string& path, const std::string& chain_spec = "");
 /// The same for URDF text in memory; `file_name` is used in the error messages.
 SerialChain parseUrdfChain(const std::string& urdf_text, const std::string& file_name,
