@@ -345,11 +345,18 @@ struct Diagnoser::ForwardRun {
   }
   // One round over the single units (maps aside) in two families, each with its own Bonferroni
   // correction: blocks of effects already in the model (is the effect on more joints?) and blocks
-  // of new effects. True when the best passing unit was added or rejected.
+  // of new effects. True when the best passing unit (or a simpler one on the same joints that it
+  // does not beat significantly) was added or rejected.
   bool singleStep() {
+    struct Candidate {
+      size_t unit = 0;
+      int fam = 1;   // 0: an effect already in the model, 1: a new one
+      int cols = 0;  // its parameters
+      Gain gain;
+      Eval eval;
+    };
+    std::vector<Candidate> cands;
     int best[2] = {-1, -1}, tried[2] = {0, 0};
-    Gain best_gain[2];
-    Eval best_eval[2];
     std::vector<Gain> round(d.blocks_.size(), Gain{});
     for (size_t u = 0; u < units.size(); ++u) {
       if (!unused(units[u]) || isMapUnit(units[u])) continue;
@@ -359,26 +366,54 @@ struct Diagnoser::ForwardRun {
       ++tried[fam];
       const Gain g = pairedGain(fw.cur.d, e.d);
       for (int x : units[u]) round[static_cast<size_t>(x)] = g;
-      if (best[fam] < 0 || g.gain > best_gain[fam].gain) {
-        best[fam] = static_cast<int>(u);
-        best_gain[fam] = g;
-        best_eval[fam] = e;
-      }
+      int cols = 0;
+      for (int x : units[u]) cols += static_cast<int>(block(x).cols.size());
+      cands.push_back({u, fam, cols, g, e});
+      const int k = static_cast<int>(cands.size()) - 1;
+      if (best[fam] < 0 || g.gain > cands[static_cast<size_t>(best[fam])].gain.gain) best[fam] = k;
     }
     fw.last_round = round;
     if (fw.blocks.empty() && !fw.has_best_single && best[1] >= 0) {
       fw.has_best_single = true;
-      fw.best_single = units[static_cast<size_t>(best[1])];
-      fw.best_single_eval = best_eval[1];
+      fw.best_single = units[cands[static_cast<size_t>(best[1])].unit];
+      fw.best_single_eval = cands[static_cast<size_t>(best[1])].eval;
     }
+    const auto passes = [&](const Candidate& c) {
+      return c.gain.p < d.o_.alpha / double(tried[c.fam]) && c.gain.gain >= d.o_.min_gain;
+    };
     int pick = -1;
     for (int fam = 0; fam < 2; ++fam) {
       if (best[fam] < 0) continue;
-      const bool passes = best_gain[fam].p < d.o_.alpha / double(tried[fam]) && best_gain[fam].gain >= d.o_.min_gain;
-      if (passes && (pick < 0 || best_gain[fam].gain > best_gain[pick].gain)) pick = fam;
+      const Candidate& c = cands[static_cast<size_t>(best[fam])];
+      if (passes(c) && (pick < 0 || c.gain.gain > cands[static_cast<size_t>(pick)].gain.gain)) pick = best[fam];
     }
     if (pick < 0) return false;
-    tryAdd(units[static_cast<size_t>(best[pick])], best_eval[pick]);
+    // Parsimony on the same joints: an effect that fits a joint's error as well (a 4-parameter
+    // gear_periodic takes the linear ramp of a joint_scale over 190-260 deg of range) is not
+    // named in place of the simpler one unless it does significantly better. Simpler: an effect
+    // already in the model, then fewer parameters; the best such passing unit on the same joints
+    // that the pick does not beat at alpha (paired test on the held-out errors).
+    {
+      const Candidate& P = cands[static_cast<size_t>(pick)];
+      const auto key = [](const Candidate& c) { return std::make_pair(c.fam, c.cols); };
+      const auto joints = [&](const Candidate& c) {
+        std::set<int> j;
+        for (int x : units[c.unit]) j.insert(block(x).joint);
+        return j;
+      };
+      const std::set<int> jp = joints(P);
+      int alt = -1;
+      for (size_t i = 0; i < cands.size(); ++i) {
+        const Candidate& c = cands[i];
+        if (static_cast<int>(i) == pick || !(key(c) < key(P)) || !passes(c) || joints(c) != jp) continue;
+        if (pairedGain(c.eval.d, P.eval.d).p < d.o_.alpha) continue;  // the pick is significantly better
+        const Candidate* a = alt < 0 ? nullptr : &cands[static_cast<size_t>(alt)];
+        if (!a || key(c) < key(*a) || (key(c) == key(*a) && c.gain.gain > a->gain.gain)) alt = static_cast<int>(i);
+      }
+      if (alt >= 0) pick = alt;
+    }
+    const Candidate& chosen = cands[static_cast<size_t>(pick)];
+    tryAdd(units[chosen.unit], chosen.eval);
     return true;
   }
   // When no single block passes: the remaining blocks of each effect together (one candidate per
