@@ -157,6 +157,62 @@ TEST(Krl, SplineInlineFormsReadTheWithClause) {
   EXPECT_EQ(p.motions[4].tool.source, FrameSetting::Source::kNull);
 }
 
+// The KSS inline form of a spline block: SPLINE WITH $TOOL = STOOL2(FP1), $BASE =
+// SBASE(FP1.BASE_NO) sets the frames of the block's motions (the FDAT's TOOL_NO / BASE_NO into
+// the $config.dat's TOOL_DATA / BASE_DATA, as for a single motion's WITH); after ENDSPLINE the
+// program's own frames hold again. A program written anew from the model sets the frames before
+// the block (a block's segments cannot).
+TEST(Krl, ASplineBlocksWithClauseSetsTheFramesOfItsMotions) {
+  const std::string dir = test::tempDir("krl_spline_with");
+  test::writeText(dir + "/$config.dat",
+                  "DEFDAT $CONFIG\nDECL GLOBAL FRAME TOOL_DATA[16]\nTOOL_DATA[2]={X 0.0,Y 0.0,Z 200.0,A 0.0,B 90.0,C 0.0}\n"
+                  "DECL GLOBAL FRAME BASE_DATA[32]\nBASE_DATA[2]={X 900.0,Y -300.0,Z 200.0,A 30.0,B 0.0,C 0.0}\nENDDAT\n");
+  test::writeText(dir + "/p.src",
+                  "DEF p( )\nPTP {A1 10,A2 -80,A3 100,A4 20,A5 30,A6 40}\n"
+                  "SPLINE WITH $VEL.CP = 0.2, $TOOL = STOOL2(FP1), $BASE = SBASE(FP1.BASE_NO)\n  SPL XP1\n  SPL XP2\n  SLIN XP3\nENDSPLINE\n"
+                  "SLIN XP1 WITH $TOOL = STOOL2(FP1), $BASE = SBASE(FP1.BASE_NO), $VEL = SVEL_CP(0.3, , LCPDAT1) C_SPL\n"
+                  "PTP {A1 0}\nEND\n");
+  test::writeText(dir + "/p.dat",
+                  "DEFDAT p\nDECL FDAT FP1={TOOL_NO 2,BASE_NO 2,IPO_FRAME #BASE,POINT2[] \" \"}\n"
+                  "DECL E6POS XP1={X 273.087,Y -127.407,Z 618.527,A 125.327,B -47.537,C -111.572,S 2,T 2}\n"
+                  "DECL E6POS XP2={X 135.598,Y -264.075,Z 477.826,A 115.342,B -63.826,C -129.097,S 2,T 2}\n"
+                  "DECL E6POS XP3={X 93.096,Y -259.890,Z 509.745,A 136.186,B -59.107,C -177.850,S 2,T 10}\nENDDAT\n");
+  KrlReadOptions o;
+  o.config_path = dir + "/$config.dat";
+  const Program p = readKrl(dir + "/p.src", o);
+  ASSERT_EQ(p.motions.size(), 6u);
+  for (size_t i = 1; i <= 4; ++i) {
+    const Motion& m = p.motions[i];
+    EXPECT_EQ(m.tool.source, FrameSetting::Source::kData) << i;
+    EXPECT_EQ(m.tool.index, 2) << i;
+    ASSERT_TRUE(m.tool.value) << i;
+    EXPECT_EQ(m.tool.value->z_mm, 200.0) << i;
+    EXPECT_EQ(m.tool.value->b_deg, 90.0) << i;
+    EXPECT_EQ(m.base.index, 2) << i;
+    ASSERT_TRUE(m.base.value) << i;
+    EXPECT_EQ(m.base.value->x_mm, 900.0) << i;
+    EXPECT_EQ(m.base.value->a_deg, 30.0) << i;
+  }
+  EXPECT_EQ(*p.motions[1].vel_m_s, 0.2);  // the block's $VEL.CP
+  EXPECT_EQ(*p.motions[3].vel_m_s, 0.2);
+  EXPECT_EQ(*p.motions[4].vel_m_s, 0.3);  // the single SLIN's own WITH
+  EXPECT_EQ(p.motions[0].tool.source, FrameSetting::Source::kUnset);  // before the block
+  EXPECT_EQ(p.motions[5].tool.source, FrameSetting::Source::kUnset);  // after ENDSPLINE: the program's frames
+  EXPECT_EQ(p.motions[5].base.source, FrameSetting::Source::kUnset);
+
+  // written anew (from the model, as from XML): $TOOL, $BASE and $VEL.CP before SPLINE, none inside
+  Program fresh = p;
+  fresh.krl.reset();
+  const std::string src = writeKrl(fresh).src;
+  const size_t block = src.find("\nSPLINE\n"), end = src.find("\nENDSPLINE\n");
+  ASSERT_NE(block, std::string::npos) << src;
+  ASSERT_NE(end, std::string::npos) << src;
+  EXPECT_LT(src.find("\n$TOOL=TOOL_DATA[2]\n"), block) << src;
+  EXPECT_LT(src.find("\n$BASE=BASE_DATA[2]\n"), block) << src;
+  EXPECT_LT(src.find("\n$VEL.CP=0.2000\n"), block) << src;
+  EXPECT_EQ(src.substr(block, end - block).find('$'), std::string::npos) << src;
+}
+
 TEST(Krl, OlderInlineFormsWithBinaryStatusAndTurn) {
   // KRC2 inline forms: BAS(#PTP_DAT), BAS(#FRAMES), BAS(#VEL_PTP,v); the .dat is PALETTE.DAT
   const Program p = read("krc2/palette.src", true);

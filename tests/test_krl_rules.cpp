@@ -424,6 +424,48 @@ TEST(KrlRules, MotionsToRunTimeTargetsAreKeptAndNamedTheRestIsCompensated) {
   EXPECT_EQ(out.dat.find("DECL E6POS XP2={X 1000,Y 100,Z 800,A 0,B 90,C 0}"), std::string::npos) << out.dat;
 }
 
+// A spline block whose frames come from its WITH clause (SPLINE WITH $TOOL = STOOL2(FP1),
+// $BASE = SBASE(FP1.BASE_NO)) is compensated as the same block after $TOOL = TOOL_DATA[2],
+// $BASE = BASE_DATA[2] statements: the same corrected points, to the byte. (It was refused:
+// "the tool of this motion is not known".)
+TEST(KrlRules, ASplineBlockWithItsFramesInTheWithClauseIsCompensatedLikeOneAfterFrameStatements) {
+  const std::string dir = test::tempDir("krl_spline_block");
+  const std::string config = dir + "/$config.dat";
+  test::writeText(config,
+                  "DEFDAT $CONFIG\nDECL GLOBAL FRAME TOOL_DATA[16]\nTOOL_DATA[2]={X 0.0,Y 0.0,Z 200.0,A 0.0,B 90.0,C 0.0}\n"
+                  "DECL GLOBAL FRAME BASE_DATA[32]\nBASE_DATA[2]={X 900.0,Y -300.0,Z 200.0,A 30.0,B 0.0,C 0.0}\nENDDAT\n");
+  const std::string dat =
+      "DEFDAT p\nDECL FDAT FP1={TOOL_NO 2,BASE_NO 2,IPO_FRAME #BASE,POINT2[] \" \"}\n"
+      "DECL E6POS XP1={X 273.087,Y -127.407,Z 618.527,A 125.327,B -47.537,C -111.572,S 2,T 2}\n"
+      "DECL E6POS XP2={X 135.598,Y -264.075,Z 477.826,A 115.342,B -63.826,C -129.097,S 2,T 2}\n"
+      "DECL E6POS XP3={X 93.096,Y -259.890,Z 509.745,A 136.186,B -59.107,C -177.850,S 2,T 10}\nENDDAT\n";
+  const std::string block = "  SPL XP1\n  SPL XP2\n  SLIN XP3\nENDSPLINE\nEND\n";
+  std::filesystem::create_directories(dir + "/with");
+  std::filesystem::create_directories(dir + "/frames");
+  test::writeText(dir + "/with/p.src", "DEF p( )\nPTP {A1 10,A2 -80,A3 100,A4 20,A5 30,A6 40}\n"
+                                       "SPLINE WITH $VEL.CP = 0.2, $TOOL = STOOL2(FP1), $BASE = SBASE(FP1.BASE_NO)\n" + block);
+  test::writeText(dir + "/frames/p.src", "DEF p( )\nPTP {A1 10,A2 -80,A3 100,A4 20,A5 30,A6 40}\n"
+                                         "$TOOL = TOOL_DATA[2]\n$BASE = BASE_DATA[2]\n$VEL.CP = 0.2\nSPLINE\n" + block);
+  test::writeText(dir + "/with/p.dat", dat);
+  test::writeText(dir + "/frames/p.dat", dat);
+  const StCell cell;
+  JobSettings s;
+  s.calibrated = cell.real;
+  s.tol_mm = 0.05;
+  KrlReadOptions o;
+  o.config_path = config;
+  std::string written[2];
+  int k = 0;
+  for (const char* which : {"with", "frames"}) {
+    const ProgramCompensation pc = compensateProgramReport(readKrl(dir + "/" + which + "/p.src", o), s);
+    ASSERT_TRUE(pc.ok()) << which << ": " << pc.report.errors.front().where.str() << ": " << pc.report.errors.front().message;
+    EXPECT_EQ(pc.report.targets.size(), 3u) << which;
+    written[k++] = writeKrl(pc.program).dat;
+  }
+  EXPECT_NE(written[0], dat);  // corrected
+  EXPECT_EQ(written[0], written[1]);
+}
+
 // ---------------------------------------------------------------------------------------------
 // Named points keep their meaning
 

@@ -67,6 +67,9 @@ struct Reader {
   std::optional<MoveData> ldat, pdat;
   std::optional<double> vel_cp, vel_ptp, apo_cdis, apo_cptp, apo_cvel, apo_cori;
   bool in_spline = false;
+  /// The frames and speeds a SPLINE / PTP_SPLINE block's WITH clause sets for its motions
+  /// (tool, base, external_tcp, vel_m_s, vel_percent); none outside a block or without WITH.
+  std::optional<Motion> spline_block_;
   int triggers = 0;
   bool missing_dat_ = false;  // resolveTarget met a named point and no .dat (Motion::target_file_missing)
   bool main_started = false, main_ended = false;  // the main program's DEF / END seen
@@ -443,7 +446,8 @@ struct Reader {
     return true;
   }
 
-  // WITH assignments of a spline motion (valid for this motion only).
+  // WITH assignments of a spline motion (valid for this motion only), or of a SPLINE block's
+  // header (valid for the motions of the block: `m` is then the block's settings).
   void applyWith(const std::vector<Tok>& t, size_t b, size_t e, Motion& m) {
     size_t i = b;
     while (i < e) {
@@ -474,7 +478,10 @@ struct Reader {
           }
           return {0, 0};
         };
-        if (lhs == "$TOOL" || lhs == "$BASE") {
+        if ((lhs == "$TOOL" || lhs == "$BASE") && eq != i + 1) {  // $TOOL.X = ..: a frame accura does not follow
+          FrameSetting& s = lhs == "$TOOL" ? m.tool : m.base;
+          s = unknownFrame(f->text().substr(t[i].begin, t[re - 1].end - t[i].begin), t[i].begin);
+        } else if (lhs == "$TOOL" || lhs == "$BASE") {
           const bool is_tool = lhs == "$TOOL";
           FrameSetting& s = is_tool ? m.tool : m.base;
           if (fn == "STOOL2" || fn == "SBASE") {
@@ -492,6 +499,8 @@ struct Reader {
           } else {
             s = evalFrame(t, rb, re, is_tool, s);
           }
+        } else if (lhs == "$VEL" && eq == i + 3 && t[i + 1].text == "." && t[i + 2].up == "CP") {  // $VEL.CP = v (m/s)
+          m.vel_m_s = numberValue(t, rb, re);
         } else if (lhs == "$VEL" && (fn == "SVEL_CP")) {
           const auto a = arg(0);
           m.vel_m_s = numberValue(t, a.first, a.second);
@@ -608,6 +617,13 @@ struct Reader {
     m.external_tcp = external_tcp;
     if (m.type == MotionType::kPtp) m.vel_percent = vel_ptp;
     else m.vel_m_s = vel_cp;
+    if (in_spline && spline_block_) {  // the block's WITH clause, then the motion's own
+      m.tool = spline_block_->tool;
+      m.base = spline_block_->base;
+      m.external_tcp = spline_block_->external_tcp;
+      if (m.type == MotionType::kPtp) m.vel_percent = spline_block_->vel_percent;
+      else m.vel_m_s = spline_block_->vel_m_s;
+    }
     if (!m.approximation.empty()) {
       switch (m.approximation.front()) {
         case Approximation::kCDis: m.approximation_value = apo_cdis; break;
@@ -743,8 +759,28 @@ struct Reader {
       main_ended = true;
       return true;
     }
-    if (k == "SPLINE" || k == "PTP_SPLINE") { in_spline = true; return true; }
-    if (k == "ENDSPLINE") { in_spline = false; return true; }
+    if (k == "SPLINE" || k == "PTP_SPLINE") {
+      // SPLINE WITH $TOOL = .., $BASE = .., $VEL.CP = ..: the assignments hold for every motion
+      // of the block (KSS: valid for the spline block, the program's own $TOOL/$BASE unchanged)
+      in_spline = true;
+      spline_block_.reset();
+      if (t.size() > 1 && t[1].kind == Tok::kIdent && t[1].up == "WITH") {
+        Motion block;
+        block.tool = tool;
+        block.base = base;
+        block.external_tcp = external_tcp;
+        block.vel_m_s = vel_cp;
+        block.vel_percent = vel_ptp;
+        applyWith(t, 2, t.size(), block);
+        spline_block_ = std::move(block);
+      }
+      return true;
+    }
+    if (k == "ENDSPLINE") {
+      in_spline = false;
+      spline_block_.reset();
+      return true;
+    }
     if (k == "TRIGGER") { ++triggers; return false; }
     if (k == "DECL" || ((isPointType(k) || k == "FDAT" || k == "LDAT" || k == "PDAT") && t.size() > 1 && t[1].kind == Tok::kIdent)) {
       Cursor c(*f, t, l.code_end);

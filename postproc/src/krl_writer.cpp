@@ -271,29 +271,26 @@ KrlText generateKrl(const Program& p) {
   for (size_t k = 0; k < p.motions.size(); ++k) {
     const Motion& m = p.motions[k];
     carry(src, PassThrough::Section::kBody, k);
-    if (m.spline && m.type == MotionType::kSpl && !in_spline) {
-      src << "SPLINE\n";
-      in_spline = true;
-    } else if (in_spline && m.type != MotionType::kSpl) {
-      src << "ENDSPLINE\n";
-      in_spline = false;
-    }
+    // the frames, speeds and approximation this motion needs: statements, which a SPLINE block
+    // may not hold (KSS: a block's segments take the block's $TOOL, $BASE): written before the
+    // block, which ends and starts anew where they change
+    std::ostringstream settings;
     if (!sameFrame(m.tool, tool)) {
       const std::string s = frameStatement("$TOOL", m.tool, true);
-      if (!s.empty()) src << s << "\n";
+      if (!s.empty()) settings << s << "\n";
       tool = m.tool;
     }
     if (!sameFrame(m.base, base)) {
       const std::string s = frameStatement("$BASE", m.base, false);
-      if (!s.empty()) src << s << "\n";
+      if (!s.empty()) settings << s << "\n";
       base = m.base;
     }
     if (m.type == MotionType::kPtp && m.vel_percent && m.vel_percent != vel_ptp) {
-      for (int axis = 1; axis <= 6; ++axis) src << "$VEL_AXIS[" << axis << "]=" << calib::formatFixed(*m.vel_percent, 4) << "\n";
+      for (int axis = 1; axis <= 6; ++axis) settings << "$VEL_AXIS[" << axis << "]=" << calib::formatFixed(*m.vel_percent, 4) << "\n";
       vel_ptp = m.vel_percent;
     }
     if (m.type != MotionType::kPtp && m.vel_m_s && m.vel_m_s != vel_cp) {
-      src << "$VEL.CP=" << calib::formatFixed(*m.vel_m_s, 4) << "\n";
+      settings << "$VEL.CP=" << calib::formatFixed(*m.vel_m_s, 4) << "\n";
       vel_cp = m.vel_m_s;
     }
     if (!m.approximation.empty() && m.approximation_value && apo[m.approximation.front()] != m.approximation_value) {
@@ -304,8 +301,18 @@ KrlText generateKrl(const Program& p) {
         case Approximation::kCOri: var = "CORI"; break;
         default: break;
       }
-      src << "$APO." << var << "=" << calib::formatFixed(*m.approximation_value, 4) << "\n";
+      settings << "$APO." << var << "=" << calib::formatFixed(*m.approximation_value, 4) << "\n";
       apo[m.approximation.front()] = m.approximation_value;
+    }
+    const bool spl = m.spline && m.type == MotionType::kSpl;
+    if (in_spline && (!spl || !settings.str().empty())) {
+      src << "ENDSPLINE\n";
+      in_spline = false;
+    }
+    src << settings.str();
+    if (spl && !in_spline) {
+      src << "SPLINE\n";
+      in_spline = true;
     }
     std::string line = motionKeyword(m) + " ";
     if (m.aux) line += targetText(*m.aux, m) + ", ";

@@ -8,7 +8,8 @@
 //             (DECL E6POS/POS/FRAME/E6AXIS/AXIS in the .dat, the .src or the $config.dat),
 //             CIRC's CA, approximation C_PTP C_DIS C_VEL C_ORI C_SPL, WITH clauses of spline
 //             motions ($TOOL = STOOL2(F), $BASE = SBASE(F.BASE_NO), $VEL = SVEL_CP(v,..),
-//             $VEL_AXIS[1] = SVEL_JOINT(v), $APO = SAPO(L) / SAPO_PTP(P)).
+//             $VEL_AXIS[1] = SVEL_JOINT(v), $APO = SAPO(L) / SAPO_PTP(P)); a SPLINE block's
+//             WITH clause ($TOOL, $BASE, $VEL.CP) holds for every motion of the block.
 //   frames    $TOOL / $BASE = inline frame, TOOL_DATA[n] / BASE_DATA[n], $NULLFRAME;
 //             BAS(#TOOL,n), BAS(#BASE,n); inline forms: FDAT_ACT = F.. then BAS(#PTP_PARAMS,v),
 //             BAS(#CP_PARAMS,v) or BAS(#FRAMES); TOOL_DATA / BASE_DATA resolved from the
