@@ -466,6 +466,56 @@ TEST(KrlRules, ASplineBlockWithItsFramesInTheWithClauseIsCompensatedLikeOneAfter
   EXPECT_EQ(written[0], written[1]);
 }
 
+// A point of an array in the .dat (XPA[1]={X ..}) is corrected like a named point, in place:
+// its aggregate gets the numbers a scalar point with the same value gets (XQ1 in a twin
+// program), every other byte of the .dat stays. XPA[I] (an index computed at run time) is
+// kept and named. (XPA[1] was "computed at run time", not compensated.)
+TEST(KrlRules, AnArrayPointOfTheDataListIsCorrectedInPlaceLikeANamedPoint) {
+  const std::string dir = test::tempDir("krl_array_point");
+  const std::string head = "DEF p( )\nDECL INT I\n$TOOL = {X 0,Y 0,Z 200,A 0,B 90,C 0}\n$BASE = {X 900,Y -300,Z 200,A 30,B 0,C 0}\n"
+                           "PTP {A1 10,A2 -80,A3 100,A4 20,A5 30,A6 40}\n";
+  const std::string p1 = "{X 135.598,Y -264.075,Z 477.826,A 115.342,B -63.826,C -129.097,S 2,T 2,E1 0.0,E2 0.0,E3 0.0,E4 0.0,E5 0.0,E6 0.0}";
+  const std::string p2 = "{X 93.096,Y -259.890,Z 509.745,A 136.186,B -59.107,C -177.850,S 2,T 10,E1 0.0,E2 0.0,E3 0.0,E4 0.0,E5 0.0,E6 0.0}";
+  const std::string dat = "DEFDAT p\nDECL E6POS XPA[2] ; the pick points\nXPA[1]=" + p1 + "\nXPA[2]=" + p2 + "\nENDDAT\n";
+  std::filesystem::create_directories(dir + "/array");
+  std::filesystem::create_directories(dir + "/scalar");
+  test::writeText(dir + "/array/p.src", head + "PTP XPA[1]\nLIN XPA[2]\nLIN XPA[I]\nEND\n");
+  test::writeText(dir + "/array/p.dat", dat);
+  test::writeText(dir + "/scalar/p.src", head + "PTP XQ1\nLIN XQ2\nEND\n");
+  test::writeText(dir + "/scalar/p.dat", "DEFDAT p\nDECL E6POS XQ1=" + p1 + "\nDECL E6POS XQ2=" + p2 + "\nENDDAT\n");
+  JobSettings s;
+  s.calibrated = StCell().real;
+  s.tol_mm = 10;  // no auxiliary points: the twin programs' LIN ends alike
+  const ProgramCompensation array = compensateProgramReport(readKrl(dir + "/array/p.src"), s);
+  ASSERT_TRUE(array.ok()) << array.report.errors.front().message;
+  const ProgramCompensation scalar = compensateProgramReport(readKrl(dir + "/scalar/p.src"), s);
+  ASSERT_TRUE(scalar.ok()) << scalar.report.errors.front().message;
+  const std::string scalar_dat = writeKrl(scalar.program).dat;
+  const auto value = [&](const std::string& name) {  // the aggregate written for a point of the twin
+    const size_t at = scalar_dat.find("DECL E6POS " + name + "=");
+    EXPECT_NE(at, std::string::npos) << scalar_dat;
+    const size_t b = scalar_dat.find('{', at);
+    return scalar_dat.substr(b, scalar_dat.find('}', b) + 1 - b);
+  };
+  EXPECT_NE(value("XQ1"), p1);
+  EXPECT_NE(value("XQ2"), p2);
+  const KrlText out = writeKrl(array.program);
+  EXPECT_EQ(out.dat, "DEFDAT p\nDECL E6POS XPA[2] ; the pick points\nXPA[1]=" + value("XQ1") + "\nXPA[2]=" + value("XQ2") + "\nENDDAT\n");
+  EXPECT_EQ(out.src, test::readText(dir + "/array/p.src"));
+  EXPECT_EQ(array.report.targets.size(), 2u);
+  EXPECT_EQ(array.report.targets[0].name, "XPA[1]");
+  EXPECT_EQ(array.report.motions_left_unchanged, 1);
+  int kept = 0;
+  for (const ProgramIssue& w : array.report.warnings)
+    if (w.message.find("XPA[I]") != std::string::npos) {
+      ++kept;
+      EXPECT_EQ(w.where.line, 8);
+      EXPECT_NE(w.message.find("left unchanged (not compensated): the target 'XPA[I]' is an element of the array XPA whose index is computed at run time"),
+                std::string::npos) << w.message;
+    }
+  EXPECT_EQ(kept, 1);
+}
+
 // ---------------------------------------------------------------------------------------------
 // Named points keep their meaning
 

@@ -693,9 +693,11 @@ class Job {
         a.replaces = a.name;
         a.new_declaration = true;
         // KRL: declared next to the point it replaces in the .dat; a point declared elsewhere
-        // (the .src, $config.dat) is replaced by an inline aggregate (no name)
-        const bool in_dat = !in_->krl || (a.value_id >= 0 && static_cast<size_t>(a.value_id) < in_->krl->values.size() &&
-                                          in_->krl->values[static_cast<size_t>(a.value_id)].file == 1);
+        // (the .src, $config.dat) or an array's element (XPA[1]: no name to derive a new one
+        // from) is replaced by an inline aggregate (no name)
+        const bool in_dat = isDeclarableName(a.name) &&
+                            (!in_->krl || (a.value_id >= 0 && static_cast<size_t>(a.value_id) < in_->krl->values.size() &&
+                                           in_->krl->values[static_cast<size_t>(a.value_id)].file == 1));
         a.name = in_dat ? newPointName(*in_, a.name, new_names_) : std::string();
         if (in_dat) new_names_.push_back(a.name);
       }

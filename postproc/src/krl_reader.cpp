@@ -306,16 +306,43 @@ struct Reader {
         return t[b].text + " is not declared in " + src->src_path + " or " + src->dat_path +
                " (a global point: give --config $config.dat)";
       }
-      const PointEntry& p = it->second;
-      if (!p.problem.empty()) return p.problem;
-      if (const auto v = volatile_points_.find(up); v != volatile_points_.end()) return t[b].text + " " + v->second;
-      if (const auto a = assigned_points_.find(up); a != assigned_points_.end() && main_ended)
-        return t[b].text + " is assigned at " + a->second + ": in a subroutine its value depends on where it is called";
-      *out = *p.value;
-      out->name = t[b].text;
-      return "";
+      return pointValue(it->second, up, t[b].text, out);
+    }
+    // an element of a point array: XPA[1] is a point of its own when the data list gives it a
+    // value (XPA[1]={X ..}); XPA[i] is one the program chooses at run time
+    if (e - b >= 4 && t[b].kind == Tok::kIdent && t[b + 1].text == "[" && t[e - 1].text == "]") {
+      const auto a = decl.arrays.find(t[b].up);
+      if (a != decl.arrays.end()) {
+        const std::optional<int> index = integerValue(t, b + 2, e - 1);
+        if (!index)
+          return "the target '" + text + "' is an element of the array " + a->second.name + " whose index is computed at run time";
+        const std::string name = arrayElementName(a->second, *index);
+        const auto it = decl.points.find(upper(name));
+        if (it == decl.points.end())
+          return name + " is not given a value (the array " + a->second.name + " is declared at " + a->second.declared.str() + ")";
+        // an assignment of the array in a block or a routine (the prescan's volatile and
+        // assigned points hold the array, whatever the index) counts for each element
+        return pointValue(it->second, upper(name), name, out, &a->second);
+      }
     }
     return "the target '" + text + "' is computed at run time";
+  }
+
+  // The value of a declared point (upper-case name `up`, written `written`; an element of
+  // `array`, whose assignments count for each element) into `out`; the problem ("" when usable).
+  std::string pointValue(const PointEntry& p, const std::string& up, const std::string& written, Target* out,
+                         const ArrayEntry* array = nullptr) const {
+    if (!p.problem.empty()) return p.problem;
+    for (const std::string& key : {up, array ? upper(array->name) : std::string()}) {
+      if (key.empty()) continue;
+      const std::string who = key == up ? written : written + ": " + array->name;
+      if (const auto v = volatile_points_.find(key); v != volatile_points_.end()) return who + " " + v->second;
+      if (const auto a = assigned_points_.find(key); a != assigned_points_.end() && main_ended)
+        return who + " is assigned at " + a->second + ": in a subroutine its value depends on where it is called";
+    }
+    *out = *p.value;
+    out->name = written;
+    return "";
   }
 
   // True when the assignment is part of the motion model ($TOOL, $BASE, speeds, approximation,
@@ -378,14 +405,40 @@ struct Reader {
       }
       return;
     }
-    // a point changed by the program
-    auto it = decl.points.find(lhs0);
+    // a point changed by the program, or an element of a point array (XPA[2] = {..})
+    std::string key = lhs0;
+    bool whole = simple;  // the whole point is assigned (not a component)
+    if (t.size() > 1 && t[1].text == "[") {
+      const auto a = decl.arrays.find(lhs0);
+      if (a == decl.arrays.end()) return;
+      const std::optional<int> index = t.size() > 3 && t[3].text == "]" ? integerValue(t, 2, 3) : std::nullopt;
+      if (!index) {  // XPA[i] = ..: any element may be the one changed
+        for (auto& [up, p] : decl.points)
+          if (up.compare(0, lhs0.size() + 1, lhs0 + "[") == 0) {
+            pointChanged(up, true, t[0].begin);
+            p.problem = p.name + " may be changed at run time (" + f->loc(t[0].begin).str() + ": an element of " + a->second.name +
+                        " whose index is computed at run time)";
+          }
+        return;
+      }
+      key = upper(arrayElementName(a->second, *index));
+      whole = eq == 4;
+      if (!decl.points.count(key)) {  // an element the data list gives no value: from here on, this one's
+        PointEntry e;
+        e.name = arrayElementName(a->second, *index);
+        e.type = a->second.type;
+        e.declared = f->loc(t[0].begin);
+        e.problem = e.name + " is not given a value before " + f->loc(t[0].begin).str();
+        decl.points[key] = std::move(e);
+      }
+    }
+    auto it = decl.points.find(key);
     if (it != decl.points.end()) {
-      bool self = !simple;
+      bool self = !whole;
       for (size_t i = b; i < e; ++i) self = self || (t[i].kind == Tok::kIdent && t[i].up == lhs0);
-      pointChanged(lhs0, self, t[0].begin);
+      pointChanged(key, self, t[0].begin);
       PointEntry& p = it->second;
-      if (simple && t[b].text == "{" ) {
+      if (whole && t[b].text == "{" ) {
         Cursor c(*f, t, t[e - 1].end);
         c.seek(b);
         const Agg a = parseAggregate(c);
@@ -840,7 +893,12 @@ void datPassThrough(const KrlFile& f, Program& program) {
     } else {
       const std::string& k = t[0].up;
       if (t[0].text == "&" || k == "DEFDAT" || k == "ENDDAT" || (k == "PUBLIC" && t.size() > 1 && t[1].up == "DEFDAT")) continue;
-      if ((k == "DECL" || isPointType(k) || k == "FDAT" || k == "LDAT" || k == "PDAT") && declaresModelType(t)) continue;
+      // a declaration the model holds the value of; one without a value (a point array: DECL
+      // E6POS XPA[10], its elements' lines XPA[1]={..} carried too) travels as written, as in
+      // the .src, so that the program still declares what it uses
+      bool value = false;
+      for (const Tok& x : t) value = value || (x.kind == Tok::kPunct && x.text == "=");
+      if ((k == "DECL" || isPointType(k) || k == "FDAT" || k == "LDAT" || k == "PDAT") && declaresModelType(t) && value) continue;
     }
     PassThrough p;
     p.language = "KRL";
@@ -964,9 +1022,17 @@ Program readKrl(const std::string& src_path, const KrlReadOptions& options) {
       if (Reader::opensBranch(k) || Reader::opensLoop(k)) ++depth;
       if (Reader::closesBlock(k) && depth > 0) --depth;
       if (t[0].kind != Tok::kIdent || k.empty() || k[0] == '$' || r.volatile_points_.count(k)) continue;
-      size_t eq = 1;
-      const bool field = t.size() > 3 && t[1].text == "." && t[2].kind == Tok::kIdent;
-      if (field) eq = 3;
+      size_t eq = 1;  // after the name, or after an array's index (XPA[2] = .., XPA[i].X = ..: the array)
+      if (t.size() > 1 && t[1].text == "[") {
+        int depth = 0;
+        for (eq = 1; eq < t.size(); ++eq) {
+          if (t[eq].text == "[") ++depth;
+          if (t[eq].text == "]" && --depth == 0) break;
+        }
+        ++eq;
+      }
+      const bool field = t.size() > eq + 2 && t[eq].text == "." && t[eq + 1].kind == Tok::kIdent;
+      if (field) eq += 2;
       if (eq >= t.size() || t[eq].text != "=") continue;
       const std::string at = src.loc(t[0].begin).str();
       r.assigned_points_.emplace(k, at);

@@ -5,7 +5,8 @@
 // What the reader understands (keywords case-insensitive):
 //   motions   PTP LIN CIRC SPTP SLIN SCIRC SPL (inside SPLINE..ENDSPLINE), *_REL (not
 //             compensated), targets inline ({X ..}, {E6POS: ..}, {AXIS: A1 ..}) or named
-//             (DECL E6POS/POS/FRAME/E6AXIS/AXIS in the .dat, the .src or the $config.dat),
+//             (DECL E6POS/POS/FRAME/E6AXIS/AXIS in the .dat, the .src or the $config.dat;
+//             an element of a point array given a value there, XPA[1]={X ..}: "XPA[1]"),
 //             CIRC's CA, approximation C_PTP C_DIS C_VEL C_ORI C_SPL, WITH clauses of spline
 //             motions ($TOOL = STOOL2(F), $BASE = SBASE(F.BASE_NO), $VEL = SVEL_CP(v,..),
 //             $VEL_AXIS[1] = SVEL_JOINT(v), $APO = SAPO(L) / SAPO_PTP(P)); a SPLINE block's
