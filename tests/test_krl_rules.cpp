@@ -241,6 +241,106 @@ TEST(KrlRules, AComponentUnchangedAtThePrecisionWrittenKeepsItsText) {
   EXPECT_EQ(writeKrl(p).dat, "DEFDAT p\nDECL E6POS XP1={X 100.0,Y 0.2000,Z 20.0,A 160.0,B 10.0,C 170.0,S 2,T 10}\nENDDAT\n");
 }
 
+// A partial aggregate (LIN {Z 500}) takes its missing components from where the controller
+// stands when the motion starts. With the nominal robot nothing is corrected, so its text stays
+// (it was written complete); a robot standing 0.3 mm higher (a pure translation: no component
+// but Z changes) gets its Z corrected and nothing added, the complete target before it only its
+// Z too.
+TEST(KrlRules, APartialAggregateKeepsItsTextWhereTheCorrectionLeavesItsComponents) {
+  const std::string dir = test::tempDir("krl_partial_text");
+  const std::string src =
+      "DEF p( )\n\tBAS (#INITMOV,0 )\n$TOOL={X 0,Y 0,Z 200,A 0,B 90,C 0}\n$BASE={x 900,y -300,z 200,a 30,b 0,c 0} ; base\n"
+      "PTP {A1 10,A2 -80,A3 100,A4 20,A5 30,A6 40}\nPTP XP1\n"
+      "LIN { X 1.35598E+02 , Y -264.075,Z 477.826 , A 115.342,B -63.826,C -129.097 } C_DIS\nLIN {Z 500}\nEND\n";
+  test::writeText(dir + "/p.src", src);
+  test::writeText(dir + "/p.dat",
+                  "DEFDAT p\nDECL E6POS XP1={X 273.087,Y -127.407,Z 618.527,A 125.327,B -47.537,C -111.572,S 2,T 2,E1 0.0}\nENDDAT\n");
+  JobSettings s;
+  s.calibrated = test::loadBundled("kuka_kr16");
+  s.tol_mm = 0.05;
+  const ProgramCompensation nominal = compensateProgramReport(readKrl(dir + "/p.src"), s);
+  ASSERT_TRUE(nominal.ok()) << nominal.report.errors.front().message;
+  EXPECT_EQ(writeKrl(nominal.program).src, src);
+
+  s.calibrated.deviations.base_mm = Eigen::Vector3d(0, 0, 0.3);
+  const ProgramCompensation higher = compensateProgramReport(readKrl(dir + "/p.src"), s);
+  ASSERT_TRUE(higher.ok()) << higher.report.errors.front().message;
+  std::string expected = src;
+  for (const auto& [from, to] : {std::make_pair(std::string("Z 477.826 ,"), std::string("Z 477.5260 ,")),
+                                 std::make_pair(std::string("LIN {Z 500}"), std::string("LIN {Z 499.7000}"))})
+    expected.replace(expected.find(from), from.size(), to);
+  EXPECT_EQ(writeKrl(higher.program).src, expected);
+}
+
+// A partial aggregate corrected by a robot whose every component's correction differs: the
+// program as written, run by a controller that fills the missing components from where it
+// stands (the command before: the previous target as written, or the last point inserted
+// before the statement), puts the real tool on the intended pose. (Written with only its own
+// components corrected, it would carry the previous point's correction.)
+TEST(KrlRules, ACorrectedPartialAggregateLandsWhereTheControllerFillsItFromItsPosition) {
+  const StCell cell;
+  const Eigen::VectorXd q1 = joints({10, -80, 100, 20, 40, 30});
+  const calib::Configuration c1 = calib::kukaConfiguration(cell.controller, q1);
+  const calib::XyzAbc p1 = calib::toXyzAbc(cell.target(q1));
+  const std::string dir = test::tempDir("krl_partial_lands");
+  // 40 mm down, then 300 mm along X and Y (points inserted at a tolerance of 5 um)
+  test::writeText(dir + "/p.src", "DEF p( )\n$TOOL={X 20,Y 0,Z 250,A 0,B -30,C 0}\n$BASE=$NULLFRAME\nPTP XP1\nLIN {Z " +
+                                      formatMm(p1.z_mm - 40) + "}\nLIN {X " + formatMm(p1.x_mm - 200) + ",Y " + formatMm(p1.y_mm + 220) +
+                                      "} C_DIS\nEND\n");
+  test::writeText(dir + "/p.dat", "DEFDAT p\nDECL E6POS XP1=" + aggregate(cell.target(q1), c1.status, c1.turn) + "\nENDDAT\n");
+  const Program in = readKrl(dir + "/p.src");
+  JobSettings s;
+  s.calibrated = cell.real;
+  s.tol_mm = 0.005;
+  const ProgramCompensation pc = compensateProgramReport(in, s);
+  ASSERT_TRUE(pc.ok()) << pc.report.errors.front().message;
+  const KrlText text = writeKrl(pc.program);
+  const std::string out = test::tempDir("krl_partial_lands_out");
+  test::writeText(out + "/p.src", text.src);
+  test::writeText(out + "/p.dat", text.dat);
+  const Program written = readKrl(out + "/p.src");
+  ASSERT_GT(written.motions.size(), in.motions.size());  // points were inserted before the last LIN
+  // the intended poses: each partial target completed from the previous one as programmed
+  std::vector<calib::XyzAbc> intended;
+  for (const Motion& m : in.motions) {
+    calib::XyzAbc v = intended.empty() ? p1 : intended.back();
+    double* c[6] = {&v.x_mm, &v.y_mm, &v.z_mm, &v.a_deg, &v.b_deg, &v.c_deg};
+    for (int k = 0; k < 6; ++k)
+      if (m.target.pose[k]) *c[k] = *m.target.pose[k];
+    intended.push_back(v);
+  }
+  // the controller runs the written program: a partial target from the position it stands at
+  SimulatedKuka kuka(cell.controller, cell.real);
+  ASSERT_EQ(written.motions.size(), pc.program.motions.size());
+  calib::XyzAbc at{};
+  size_t statement = 0;
+  for (size_t k = 0; k < written.motions.size(); ++k) {
+    const Motion& m = written.motions[k];
+    calib::XyzAbc v = at;
+    double* c[6] = {&v.x_mm, &v.y_mm, &v.z_mm, &v.a_deg, &v.b_deg, &v.c_deg};
+    for (int k = 0; k < 6; ++k)
+      if (m.target.pose[k]) *c[k] = *m.target.pose[k];
+    const Eigen::Isometry3d T = cell.controller.nominal.T_world_base * calib::toIsometry(v);
+    if (m.type == MotionType::kPtp) {
+      ASSERT_TRUE(kuka.ptp(T, *m.target.status, *m.target.turn));
+    } else {
+      const calib::IkResult r = kuka.controller.inverse(T, calib::Configuration{}, kuka.q, calib::IkOptions{});
+      ASSERT_EQ(r.status, calib::IkStatus::kOk);
+      kuka.q = r.q;
+    }
+    at = v;
+    if (!pc.program.motions[k].inserted) {
+      // the end of an input statement: the real tool on the intended pose
+      const Eigen::Isometry3d real = kuka.real.forward(kuka.q);
+      const Eigen::Isometry3d want = cell.controller.nominal.T_world_base * calib::toIsometry(intended.at(statement));
+      EXPECT_LT((real.translation() - want.translation()).norm(), 2e-3) << "statement " << statement;
+      EXPECT_LT(calib::rotationAngleDeg(real.linear() * want.linear().transpose()), 2e-4) << "statement " << statement;
+      ++statement;
+    }
+  }
+  EXPECT_EQ(statement, in.motions.size());
+}
+
 TEST(KrlRules, APtpNextToAWristSingularityThatTurnsTheWristIsAWarning) {
   // the off-line program's joints: A5 0.1 deg from the wrist singularity; the real robot
   // reaches the pose only with A4 and A6 turned by degrees (they trade freely next to A5 = 0).

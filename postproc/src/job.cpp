@@ -56,11 +56,38 @@ class Job {
     return calib::toXyzAbc(T_world_progbase.inverse() * T_world_tcp);
   }
 
-  /// The corrected pose into `t`; a correction that rounds to zero at the written precision
-  /// leaves `t` as it was (not modified: its text is written back unchanged).
-  void setPose(Target& t, const calib::XyzAbc& p) {
-    if (t.setPoseIfChanged(p) || t.new_declaration) t.modified = true;
+  /// The corrected pose `p` (program base) into `t`; a correction that rounds to zero at the
+  /// written precision leaves `t` as it was (not modified: its text is written back unchanged).
+  /// `before`: for a partial target, the command the controller stands at when the motion's
+  /// statement starts (program base and tool; commandBefore).
+  void setPose(Target& t, const calib::XyzAbc& p, const std::optional<calib::XyzAbc>& before = std::nullopt) {
+    if (t.completePose() || !before) {
+      if (t.setPoseIfChanged(p) || t.new_declaration) t.modified = true;
+      return;
+    }
+    // A partial aggregate (LIN {Z 500}): KSS takes its missing components from the position the
+    // robot is at when the motion starts -- the command before it (the previous target as
+    // corrected, or the last point inserted before the statement) -- not from the intended
+    // position accura completed it with. The target the controller runs is the written
+    // components plus those: when that is the corrected pose at the written precision, the text
+    // stays as it is (the nominal robot returns it byte for byte). Otherwise the written
+    // components are corrected, and a missing one is added where the corrected pose needs
+    // another value than the controller would take: left out, it would carry the previous
+    // point's correction, not this one's.
+    const double b[6] = {before->x_mm, before->y_mm, before->z_mm, before->a_deg, before->b_deg, before->c_deg};
+    Target as_run = t;
+    for (int k = 0; k < 6; ++k)
+      if (!as_run.pose[k]) as_run.pose[k] = b[k];
+    if (!as_run.setPoseIfChanged(p)) {
+      if (t.new_declaration) t.modified = true;
+      return;
+    }
+    const auto text = [](int k, double v) { return k < 3 ? formatMm(v) : formatDeg(v); };
+    for (int k = 0; k < 6; ++k)
+      if (t.pose[k] || text(k, *as_run.pose[k]) != text(k, b[k])) t.pose[k] = as_run.pose[k];
+    t.modified = true;
   }
+
 
   /// CP motions (LIN, CIRC, their spline and relative forms, SPL): the controller keeps the
   /// Status of the start and lets Turn follow the path; the programmed S/T are not used
@@ -364,6 +391,16 @@ class Job {
     calib::Configuration config;
   };
 
+  /// Where the controller stands when the statement of a motion starts, in the program's base
+  /// and the motion's tool (c): the last point inserted before the statement (`commanded`: the
+  /// motion's pieces), else the previous motion's command (the controller's forward
+  /// kinematics of the joints it ended on). Nothing when that is not known.
+  std::optional<calib::XyzAbc> commandBefore(const Cartesian& c, const std::vector<PathSegment>* commanded = nullptr) const {
+    if (commanded && commanded->size() > 1) return toProgram(c.T_world_progbase, (*commanded)[commanded->size() - 2].T_world_end);
+    if (!q_real_) return std::nullopt;
+    return toProgram(c.T_world_progbase, c.models->compensator->controller().forward(*q_real_));
+  }
+
   void forget() {
     // the joints last known: the guess of where the robot stands for a motion whose start is
     // not known and whose target names no configuration (the robot keeps its configuration
@@ -572,7 +609,7 @@ class Job {
                            (pa.message.empty() ? "" : ": " + pa.message));
         return keep(out, mo);
       }
-      setPose(*mo.aux, toProgram(c.T_world_progbase, pa.T_world_tcp_command));
+      setPose(*mo.aux, toProgram(c.T_world_progbase, pa.T_world_tcp_command), commandBefore(c));
       claimValue(*mo.aux, m.where, true);
       reportTarget(m, *m.aux, "aux", c.T_world_progbase, T_world_aux, pa.T_world_tcp_command, c.models->calibrated_tool);
     }
@@ -600,7 +637,7 @@ class Job {
     else if (!checkConfig(m, end, comp, pc.q_real, c.T_world_end)) return keep(out, mo);
     if (!abbConfiguration(m, mo.target, comp, pc.q_real, cp)) return keep(out, mo);
     if (!cp) notePostureChange(m, end, comp, c.T_world_end, config, start, pc.q_real);
-    setPose(mo.target, toProgram(c.T_world_progbase, pc.T_world_tcp_command));
+    setPose(mo.target, toProgram(c.T_world_progbase, pc.T_world_tcp_command), commandBefore(c));
     if (mo.target.turn != end.turn) mo.target.modified = true;
     mo.target.turn = end.turn;
     claimValue(mo.target, m.where, cp);
@@ -680,7 +717,7 @@ class Job {
         if (ins.aux) ins.aux->abb_conf = ins.target.abb_conf;  // the circle point's confdata is not used
       }
     const Eigen::Isometry3d T_cmd_end = commanded.back().T_world_end;
-    setPose(mo.target, toProgram(c.T_world_progbase, T_cmd_end));
+    setPose(mo.target, toProgram(c.T_world_progbase, T_cmd_end), commandBefore(c, &commanded));
     mo.target.turn = end.turn;
     claimValue(mo.target, m.where, true);
     reportTarget(m, m.target, "end", c.T_world_progbase, c.T_world_end, T_cmd_end, c.models->calibrated_tool,
@@ -704,7 +741,7 @@ class Job {
       Eigen::Isometry3d T_cmd_aux = commanded.back().T_world_aux;
       // the controller ignores the orientation of an auxiliary point: the program's stays
       if (!mo.aux->new_declaration) T_cmd_aux.linear() = intended.T_world_aux.linear();
-      setPose(*mo.aux, toProgram(c.T_world_progbase, T_cmd_aux));
+      setPose(*mo.aux, toProgram(c.T_world_progbase, T_cmd_aux), commandBefore(c, &commanded));
       if (!mo.aux->new_declaration) claimValue(*mo.aux, m.where, true);
       if (commanded.size() == 1) {
         reportTarget(m, *m.aux, "aux", c.T_world_progbase, intended.T_world_aux, T_cmd_aux, c.models->calibrated_tool);

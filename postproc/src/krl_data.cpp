@@ -111,7 +111,7 @@ Target toTarget(const Agg& a, const std::string& declared, const KrlFile& f, Krl
     } else {
       t.pose[indexOf(kCartNames, it.name)] = it.num;
     }
-    value.components.push_back({it.name, it.vbegin, it.vend, it.num});
+    value.components.push_back({it.name, it.vbegin, it.vend, it.num, it.name_tok.begin});
   }
   if (src) {
     t.value_id = static_cast<int>(src->values.size());

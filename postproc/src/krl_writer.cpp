@@ -35,27 +35,15 @@ std::string componentText(const Target& t, const std::string& name) {
   return "";
 }
 
-// The new text of a target's aggregate: the numbers of the pose (or axes) replaced in place when
-// the aggregate has them all, else the whole aggregate rebuilt.
+// The new text of a target's aggregate: the numbers of the pose (or axes) replaced in place, and
+// the components the target has that the aggregate leaves out (a partial aggregate the
+// correction completed: Job::setPose) added in the canonical order, each before the first
+// written component that follows it there, else after the last one.
 std::string rewriteValue(const KrlSource::Value& v, const std::string& text, const Target& t) {
   const bool cart = t.kind == Target::Kind::kCartesian;
   const char* const* names = cart ? kCartNames : kAxisNames;
-  std::set<std::string> have;
-  for (const auto& c : v.components) have.insert(c.name);
-  bool all = true;
-  for (int k = 0; k < 6; ++k)
-    if (!have.count(names[k])) all = false;
-  if (!all) {
-    std::string agg = krlAggregate(t);
-    const std::string orig = text.substr(v.begin, v.end - v.begin);
-    const size_t colon = orig.find(':');
-    if (!t.type.empty() && colon != std::string::npos) agg = orig.substr(0, colon + 1) + " " + agg.substr(1);
-    return agg;
-  }
-  std::string out;
-  size_t pos = v.begin;
+  std::vector<std::pair<size_t, std::pair<size_t, std::string>>> edits;  // [begin, end) -> text, in order
   for (const auto& c : v.components) {
-    out += text.substr(pos, c.begin - pos);
     // the pose, and S / T when the compensation changed them
     const bool st_changed = cart && ((c.name == "S" && t.status && *t.status != c.value) ||
                                      (c.name == "T" && t.turn && *t.turn != c.value));
@@ -64,9 +52,33 @@ std::string rewriteValue(const KrlSource::Value& v, const std::string& text, con
     const int k = indexOf(names, c.name);
     const std::string now = componentText(t, c.name);
     const bool same = k >= 0 && !now.empty() && now == (cart ? (k < 3 ? formatMm(c.value) : formatDeg(c.value)) : formatAxis(c.value));
-    const bool ours = (k >= 0 && !same) || st_changed;
-    out += ours ? now : text.substr(c.begin, c.end - c.begin);
-    pos = c.end;
+    if ((k >= 0 && !same) || st_changed) edits.push_back({c.begin, {c.end, now}});
+  }
+  std::vector<std::string> order;  // the canonical order of the components
+  for (int k = 0; k < 6; ++k) order.push_back(names[k]);
+  if (cart) order.insert(order.end(), {"S", "T"});
+  for (int k = 0; k < 6; ++k) order.push_back(kExtNames[k]);
+  size_t last_end = v.begin + 1;
+  for (const auto& c : v.components) last_end = std::max(last_end, c.end);
+  for (size_t i = 0; i < order.size(); ++i) {
+    const std::string now = componentText(t, order[i]);
+    const auto written = [&](const std::string& n) {
+      return std::find_if(v.components.begin(), v.components.end(), [&](const KrlSource::Component& c) { return c.name == n; });
+    };
+    if (now.empty() || written(order[i]) != v.components.end()) continue;
+    size_t at = std::string::npos;
+    for (size_t j = i + 1; j < order.size() && at == std::string::npos; ++j)
+      if (const auto c = written(order[j]); c != v.components.end()) at = c->name_begin;
+    if (at != std::string::npos) edits.push_back({at, {at, order[i] + " " + now + ","}});
+    else edits.push_back({last_end, {last_end, "," + order[i] + " " + now}});
+  }
+  std::stable_sort(edits.begin(), edits.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  std::string out;
+  size_t pos = v.begin;
+  for (const auto& [begin, e] : edits) {
+    out += text.substr(pos, begin - pos);
+    out += e.second;
+    pos = e.first;
   }
   out += text.substr(pos, v.end - pos);
   return out;

@@ -180,6 +180,7 @@ struct KrlSource {
     size_t begin = 0;   ///< value text [begin, end) in the file
     size_t end = 0;
     double value = 0;   ///< as read
+    size_t name_begin = 0;  ///< the component's name (X in "X 100.0")
   };
   struct Value {        ///< an aggregate {...} holding a target
     int file = 0;       ///< 0: .src, 1: .dat
