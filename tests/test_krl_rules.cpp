@@ -616,6 +616,27 @@ TEST(KrlRules, AnArrayPointOfTheDataListIsCorrectedInPlaceLikeANamedPoint) {
   EXPECT_EQ(kept, 1);
 }
 
+// A point declared GLOBAL (DECL GLOBAL E6POS XG1 in a PUBLIC data list) is the value other
+// modules go to as well: corrected for this program's tool and base, it moves them too. A
+// warning at its declaration says so; a point of the program's own (XP2) gets none.
+TEST(KrlRules, ACorrectedGlobalPointIsNamedAtItsDeclaration) {
+  const std::string dir = test::tempDir("krl_global_point");
+  test::writeText(dir + "/p.src", "DEF p( )\n$TOOL = {X 0,Y 0,Z 200,A 0,B 90,C 0}\n$BASE = {X 900,Y -300,Z 200,A 30,B 0,C 0}\n"
+                                  "PTP {A1 10,A2 -80,A3 100,A4 20,A5 30,A6 40}\nPTP XP2\nLIN XG1\nEND\n");
+  test::writeText(dir + "/p.dat", "DEFDAT p PUBLIC\n"
+                                  "DECL E6POS XP2={X 273.087,Y -127.407,Z 618.527,A 125.327,B -47.537,C -111.572,S 2,T 2}\n"
+                                  "DECL GLOBAL E6POS XG1={X 135.598,Y -264.075,Z 477.826,A 115.342,B -63.826,C -129.097,S 2,T 2}\nENDDAT\n");
+  JobSettings s;
+  s.calibrated = StCell().real;
+  const ProgramCompensation pc = compensateProgramReport(readKrl(dir + "/p.src"), s);
+  ASSERT_TRUE(pc.ok()) << pc.report.errors.front().message;
+  std::vector<std::string> global;
+  for (const ProgramIssue& w : pc.report.warnings)
+    if (w.message.find("GLOBAL") != std::string::npos) global.push_back(w.where.str() + ": " + w.message);
+  EXPECT_EQ(global, std::vector<std::string>{dir + "/p.dat:3:23: GLOBAL point XG1 corrected for this program's tool and base (the motion at " +
+                                             dir + "/p.src:6:1): other modules that use it move with this correction"});
+}
+
 // ---------------------------------------------------------------------------------------------
 // Named points keep their meaning
 

@@ -375,6 +375,7 @@ class Job {
     notePayloadChanges(in);
     unifyClaimedConfigurations(out);
     checkKeptValues(out);
+    noteGlobalPoints(out);
     // the pass-through statements stay before their motion, ahead of the points inserted
     out.passthrough = in.passthrough;
     for (PassThrough& s : out.passthrough)
@@ -437,6 +438,23 @@ class Job {
         warning(it->second, "this motion is left as written, but its point " + targetLabel(*t) + " is corrected for the motion at " +
                                 m.where.str() + ": it moves with that correction, made for that motion's tool, base and path "
                                 "(give the motions their own points to keep this one as written)");
+      }
+  }
+
+  /// A corrected point declared GLOBAL (KRL DECL GLOBAL E6POS XG1 in a PUBLIC data list) is
+  /// the value other modules that use it go to as well: they move with a correction made for
+  /// this program's tool, base and motions. Said once per point, at its declaration.
+  void noteGlobalPoints(const Program& out) {
+    if (!in_ || !in_->krl) return;
+    std::set<int> named;
+    for (const Motion& m : out.motions)
+      for (const Target* t : {&m.target, m.aux ? &*m.aux : nullptr}) {
+        if (!t || !t->modified || t->new_declaration || t->value_id < 0 || named.count(t->value_id)) continue;
+        if (static_cast<size_t>(t->value_id) >= in_->krl->values.size() || !in_->krl->values[static_cast<size_t>(t->value_id)].global) continue;
+        named.insert(t->value_id);
+        warning(t->where.file.empty() ? m.where : t->where,
+                "GLOBAL point " + targetLabel(*t) + " corrected for this program's tool and base (the motion at " + m.where.str() +
+                    "): other modules that use it move with this correction");
       }
   }
 

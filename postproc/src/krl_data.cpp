@@ -218,7 +218,8 @@ MoveData toMoveData(const Agg& a) {
 void parseDeclaration(Cursor& c, Declarations& d, KrlSource* src, bool global) {
   const KrlFile& f = c.file();
   if (c.isIdent("DECL")) c.next();
-  while (c.isIdent("GLOBAL") || c.isIdent("CONST")) c.next();
+  bool global_keyword = false;  // DECL GLOBAL: other modules may use the point
+  while (c.isIdent("GLOBAL") || c.isIdent("CONST")) global_keyword = global_keyword || c.next().up == "GLOBAL";
   const Tok* type_tok = c.peek();
   if (!type_tok || type_tok->kind != Tok::kIdent) return;  // not ours
   const std::string type = type_tok->up;
@@ -236,7 +237,7 @@ void parseDeclaration(Cursor& c, Declarations& d, KrlSource* src, bool global) {
     if (c.isPunct("[")) {  // an array: its elements are run-time values
       while (!c.atEnd() && !c.isPunct("]")) c.next();
       c.expectPunct("]", "closing the array dimension");
-      if (point) d.arrays[name.up] = ArrayEntry{name.text, type, f.loc(name.begin)};
+      if (point) d.arrays[name.up] = ArrayEntry{name.text, type, f.loc(name.begin), global_keyword};
       if (c.acceptPunct("=")) c.fail("expected no initial value for the array " + name.text + ", found '='");
     } else if (c.acceptPunct("=")) {
       if (point) {
@@ -245,10 +246,12 @@ void parseDeclaration(Cursor& c, Declarations& d, KrlSource* src, bool global) {
         e.type = type;
         e.declared = f.loc(name.begin);
         e.global = global;
+        e.global_keyword = global_keyword;
         if (c.isPunct("{")) {
           const Agg a = parseAggregate(c);
           e.value = toTarget(a, type, f, global ? nullptr : src);
           e.value->name = name.text;
+          if (src && e.value->value_id >= 0) src->values[static_cast<size_t>(e.value->value_id)].global = global_keyword;
         } else {
           // initialised from another variable: not a constant accura can correct
           while (!c.atEnd() && !c.isPunct(",")) c.next();
@@ -275,6 +278,7 @@ void parseDeclaration(Cursor& c, Declarations& d, KrlSource* src, bool global) {
       e.type = type;
       e.declared = f.loc(name.begin);
       e.global = global;
+      e.global_keyword = global_keyword;
       e.problem = name.text + " is declared without a value (" + f.loc(name.begin).str() + ")";
       if (!d.points.count(name.up) || d.points[name.up].global != global) d.points[name.up] = std::move(e);
     }
@@ -339,8 +343,10 @@ bool parseArrayElement(Cursor& c, Declarations& d, KrlSource* src, bool global) 
   e.type = a->second.type;
   e.declared = f.loc(t->begin);
   e.global = global;
+  e.global_keyword = a->second.global_keyword;
   e.value = toTarget(agg, e.type, f, global ? nullptr : src);
   e.value->name = e.name;
+  if (src && e.value->value_id >= 0) src->values[static_cast<size_t>(e.value->value_id)].global = e.global_keyword;
   const std::string key = upper(e.name);
   const auto it = d.points.find(key);
   if (it != d.points.end() && it->second.global == global)

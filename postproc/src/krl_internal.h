@@ -220,6 +220,7 @@ struct PointEntry {
   std::string problem;  // why the value cannot be used (changed at run time, ...)
   SourceLocation declared;
   bool global = false;  // from $config.dat
+  bool global_keyword = false;  // declared GLOBAL (other modules may use it)
 };
 
 struct Fdat {
@@ -239,6 +240,7 @@ struct ArrayEntry {
   std::string name;  // as declared
   std::string type;  // E6POS, POS, FRAME, E6AXIS, AXIS
   SourceLocation declared;
+  bool global_keyword = false;  // DECL GLOBAL: its elements are global points
 };
 
 struct Declarations {

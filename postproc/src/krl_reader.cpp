@@ -55,6 +55,7 @@ bool declaresModelType(const std::vector<Tok>& t) {
 
 struct Reader {
   Declarations decl;
+  std::map<std::string, SourceLocation> other_globals;  // KrlReadOptions::other_globals
   KrlSource* src = nullptr;
   Program* program = nullptr;
   const KrlFile* f = nullptr;
@@ -303,6 +304,13 @@ struct Reader {
                  fs::path(src->src_path).replace_extension(".dat").string() +
                  " does not exist (give --dat; a global point: give --config $config.dat)";
         }
+        // a GLOBAL point of another program's data list (another program of the batch): the
+        // controller takes its value from there, which that program's compensation corrects
+        // for its own tool, base and motions; --config would not find it
+        if (const auto g = other_globals.find(up); g != other_globals.end())
+          return t[b].text + " is not declared in " + src->src_path + " or " + src->dat_path + ": it is the GLOBAL point of " +
+                 g->second.str() + ", another program's data list, whose compensation corrects it for that program's tool, base "
+                 "and motions; this motion moves to that value (declare a point of this program's own to compensate it)";
         return t[b].text + " is not declared in " + src->src_path + " or " + src->dat_path +
                " (a global point: give --config $config.dat)";
       }
@@ -941,6 +949,17 @@ FrameTables readKrlFrameTables(const std::string& config_path) {
   return d.tables;
 }
 
+std::map<std::string, SourceLocation> krlGlobalPoints(const std::string& dat_path) {
+  const KrlFile f(dat_path, readFileBytes(dat_path, "the KRL data file"), 1);
+  Declarations d;
+  KrlSource spans;  // (the values' text spans: not used)
+  parseDataFile(f, d, &spans, false);
+  std::map<std::string, SourceLocation> out;
+  for (const auto& [up, p] : d.points)
+    if (p.global_keyword) out[up] = p.declared;
+  return out;
+}
+
 Program readKrl(const std::string& src_path, const KrlReadOptions& options) {
   auto source = std::make_shared<KrlSource>();
   source->src_path = src_path;
@@ -953,6 +972,7 @@ Program readKrl(const std::string& src_path, const KrlReadOptions& options) {
   Reader r;
   r.src = source.get();
   r.program = &program;
+  r.other_globals = options.other_globals;
 
   if (!options.config_path.empty()) {
     const KrlFile cfg(options.config_path, readFileBytes(options.config_path, "the $config.dat"), 2);

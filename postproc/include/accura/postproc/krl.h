@@ -24,6 +24,7 @@
 // motion statement without a target, an unterminated string.
 #pragma once
 
+#include <map>
 #include <string>
 
 #include "accura/postproc/program.h"
@@ -36,6 +37,11 @@ struct KrlReadOptions {
   std::string dat_path;
   /// $config.dat (TOOL_DATA, BASE_DATA, global points such as XHOME); empty: none.
   std::string config_path;
+  /// The GLOBAL points of other programs' data lists (upper-case name -> where declared;
+  /// krlGlobalPoints), e.g. of the other programs of a batch. Not read as values: a motion of
+  /// this program to one of them is kept as written, and its warning says where the point is
+  /// declared (its value there is that program's, corrected for that program's motions).
+  std::map<std::string, SourceLocation> other_globals;
 };
 
 /// Reads a KRL program. Throws InputError (file:line:column) on a malformed target, frame or
@@ -49,6 +55,11 @@ std::string krlDatPath(const std::string& src_path);
 
 /// Reads TOOL_DATA[n] / BASE_DATA[n] from a $config.dat. Throws InputError.
 FrameTables readKrlFrameTables(const std::string& config_path);
+
+/// The points a data list (.dat) declares GLOBAL (DECL GLOBAL E6POS XG1={..}; the elements of a
+/// GLOBAL point array, "XPA[1]"): upper-case name -> where declared. Throws InputError on an
+/// unreadable or malformed file.
+std::map<std::string, SourceLocation> krlGlobalPoints(const std::string& dat_path);
 
 /// The text of a program as .src and .dat files.
 struct KrlText {

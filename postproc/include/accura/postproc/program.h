@@ -187,6 +187,9 @@ struct KrlSource {
     size_t begin = 0;   ///< '{'
     size_t end = 0;     ///< one past '}'
     std::vector<Component> components;  ///< in written order
+    /// The point is declared GLOBAL (DECL GLOBAL E6POS XG1 in a PUBLIC data list): other modules
+    /// may use it, and move with its correction.
+    bool global = false;
   };
   struct Statement {    ///< a motion statement line
     int file = 0;
