@@ -637,6 +637,71 @@ TEST(KrlRules, ACorrectedGlobalPointIsNamedAtItsDeclaration) {
                                              dir + "/p.src:6:1): other modules that use it move with this correction"});
 }
 
+// A PTP to a Cartesian point declared in the $config.dat (XPICK), which accura never rewrites:
+// the motion gets the corrected value as an inline aggregate (the numbers a twin program with
+// XPICK in its own .dat gets in its declaration), with a warning; the $config.dat and the .dat
+// stay. (It was a refusal: "cannot write the corrected value of XPICK".)
+TEST(KrlRules, AMotionToACartesianPointOfTheConfigGetsItsCorrectedValueInline) {
+  const std::string dir = test::tempDir("krl_config_point");
+  const std::string xpick = "{X 135.598,Y -264.075,Z 477.826,A 115.342,B -63.826,C -129.097,S 2,T 2,E1 0.0,E2 0.0,E3 0.0,E4 0.0,E5 0.0,E6 0.0}";
+  const std::string frames = "DEFDAT $CONFIG\nDECL GLOBAL FRAME TOOL_DATA[16]\nTOOL_DATA[2]={X 0.0,Y 0.0,Z 200.0,A 0.0,B 90.0,C 0.0}\n"
+                             "DECL GLOBAL FRAME BASE_DATA[32]\nBASE_DATA[2]={X 900.0,Y -300.0,Z 200.0,A 30.0,B 0.0,C 0.0}\n"
+                             "DECL GLOBAL E6AXIS XHOME={A1 0.0,A2 -90.0,A3 90.0,A4 0.0,A5 45.0,A6 0.0}\n";
+  const std::string src = "DEF p( )\nBAS (#INITMOV,0 )\nBAS (#TOOL,2)\nBAS (#BASE,2)\nPTP XHOME\nPTP XPICK\nEND\n";
+  std::filesystem::create_directories(dir + "/config");
+  std::filesystem::create_directories(dir + "/twin");
+  test::writeText(dir + "/config/$config.dat", frames + "DECL GLOBAL E6POS XPICK=" + xpick + "\nENDDAT\n");
+  test::writeText(dir + "/config/p.src", src);
+  test::writeText(dir + "/config/p.dat", "DEFDAT p\nENDDAT\n");
+  test::writeText(dir + "/twin/$config.dat", frames + "ENDDAT\n");
+  test::writeText(dir + "/twin/p.src", src);
+  test::writeText(dir + "/twin/p.dat", "DEFDAT p\nDECL E6POS XPICK=" + xpick + "\nENDDAT\n");
+  JobSettings s;
+  s.calibrated = StCell().real;
+  Program written[2];
+  std::string text[2];
+  int k = 0;
+  for (const char* which : {"config", "twin"}) {
+    KrlReadOptions o;
+    o.config_path = dir + "/" + which + "/$config.dat";
+    const ProgramCompensation pc = compensateProgramReport(readKrl(dir + "/" + which + "/p.src", o), s);
+    ASSERT_TRUE(pc.ok()) << which << ": " << pc.report.errors.front().message;
+    const KrlText out = writeKrl(pc.program);
+    const std::string back = dir + "/" + which + "/out";
+    std::filesystem::create_directories(back);
+    test::writeText(back + "/p.src", out.src);
+    test::writeText(back + "/p.dat", out.dat);
+    written[k] = readKrl(back + "/p.src", o);
+    text[k] = out.src;
+    if (k == 0) {
+      EXPECT_EQ(out.dat, "DEFDAT p\nENDDAT\n");
+      int inline_warnings = 0;
+      for (const ProgramIssue& w : pc.report.warnings)
+        if (w.message.find("XPICK is declared in " + dir + "/config/$config.dat:7:25, which accura does not rewrite: this motion gets "
+                           "its corrected value as an inline aggregate") == 0) {
+          ++inline_warnings;
+          EXPECT_EQ(w.where.line, 6);
+        }
+      EXPECT_EQ(inline_warnings, 1);
+    }
+    ++k;
+  }
+  // the statement holds the value the twin declares: the same numbers and S/T
+  ASSERT_EQ(written[0].motions.size(), 2u);
+  const Target& inl = written[0].motions[1].target;
+  const Target& twin = written[1].motions[1].target;
+  EXPECT_TRUE(inl.name.empty());
+  EXPECT_EQ(twin.name, "XPICK");
+  EXPECT_NE(*twin.pose[0], 135.598);  // corrected
+  for (int c = 0; c < 6; ++c) EXPECT_EQ(*inl.pose[c], *twin.pose[c]) << c;
+  EXPECT_EQ(*inl.status, *twin.status);
+  EXPECT_EQ(*inl.turn, *twin.turn);
+  // only that statement changed
+  const size_t at = text[0].find("PTP {X ");
+  ASSERT_NE(at, std::string::npos) << text[0];
+  EXPECT_EQ(text[0].substr(0, at) + "PTP XPICK" + text[0].substr(text[0].find('\n', at)), src);
+}
+
 // ---------------------------------------------------------------------------------------------
 // Named points keep their meaning
 

@@ -376,6 +376,7 @@ class Job {
     unifyClaimedConfigurations(out);
     checkKeptValues(out);
     noteGlobalPoints(out);
+    noteInlinedPoints(out);
     // the pass-through statements stay before their motion, ahead of the points inserted
     out.passthrough = in.passthrough;
     for (PassThrough& s : out.passthrough)
@@ -455,6 +456,21 @@ class Job {
         warning(t->where.file.empty() ? m.where : t->where,
                 "GLOBAL point " + targetLabel(*t) + " corrected for this program's tool and base (the motion at " + m.where.str() +
                     "): other modules that use it move with this correction");
+      }
+  }
+
+  /// A corrected point declared outside the program's files (KRL: in the $config.dat, which is
+  /// never rewritten) goes into its motion's statement as an inline aggregate (writeKrl): the
+  /// robot lands on it, while other motions and modules that use the point keep its value
+  /// there. Said at each such motion.
+  void noteInlinedPoints(const Program& out) {
+    if (!in_ || !in_->krl) return;
+    for (const Motion& m : out.motions)
+      for (const Target* t : {&m.target, m.aux ? &*m.aux : nullptr}) {
+        if (!t || !t->modified || t->new_declaration || m.inserted || t->value_id >= 0 || t->name.empty()) continue;
+        warning(m.where, t->name + " is declared in " + (t->where.file.empty() ? std::string("another file") : t->where.str()) +
+                             ", which accura does not rewrite: this motion gets its corrected value as an inline aggregate; other "
+                             "motions and modules that use " + t->name + " keep going to its value there");
       }
   }
 

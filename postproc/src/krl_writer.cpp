@@ -121,11 +121,23 @@ KrlText patchKrl(const Program& p) {
   std::map<int, std::pair<std::string, std::string>> value_text;  // value id -> (text, who)
   int order = 0;
   auto textOf = [&](int file) -> const std::string& { return file == 0 ? s.src_text : s.dat_text; };
-  auto modify = [&](const Target& t, const Motion& m) {
+  // the motion's statement with its target (`aux`: the auxiliary point) replaced by `text`
+  auto replaceInStatement = [&](const Motion& m, bool aux, const std::string& text) {
+    if (m.statement_id < 0 || m.statement_id >= static_cast<int>(s.statements.size()))
+      throw calib::ArgumentError("writeKrl: a motion whose target goes into its statement has no statement");
+    const KrlSource::Statement& st = s.statements[static_cast<size_t>(m.statement_id)];
+    const auto& span = aux ? st.targets.front() : st.targets.back();
+    edits.push_back({st.file, span.first, span.second, text, order++});
+  };
+  auto modify = [&](const Target& t, const Motion& m, bool aux) {
     if (!t.modified) return;
-    if (t.value_id < 0)
-      throw calib::ArgumentError(m.where.str() + ": cannot write the corrected value of " + (t.name.empty() ? "this target" : t.name) +
-                          ": it is declared outside the program (e.g. in $config.dat)");
+    if (t.value_id < 0) {
+      // declared outside the program's files (a $config.dat point, which accura never
+      // rewrites): the corrected value goes into this motion as an inline aggregate, as for a
+      // split CIRC's auxiliary point declared elsewhere; other users of the point keep its value
+      replaceInStatement(m, aux, krlAggregate(t));
+      return;
+    }
     const KrlSource::Value& v = s.values.at(static_cast<size_t>(t.value_id));
     const std::string text = rewriteValue(v, textOf(v.file), t);
     auto it = value_text.find(t.value_id);
@@ -143,11 +155,8 @@ KrlText patchKrl(const Program& p) {
   // names it, its DECL follows the declaration of the point it replaces in the .dat (which
   // keeps its text); a point declared elsewhere is replaced by an inline aggregate
   auto declareNew = [&](const Target& t, const Motion& m) {
-    if (m.statement_id < 0 || m.statement_id >= static_cast<int>(s.statements.size()))
-      throw calib::ArgumentError("writeKrl: a motion with a new point has no statement");
-    const KrlSource::Statement& st = s.statements[static_cast<size_t>(m.statement_id)];
     const bool in_dat = !t.name.empty() && t.value_id >= 0 && s.values.at(static_cast<size_t>(t.value_id)).file == 1;
-    edits.push_back({st.file, st.targets.front().first, st.targets.front().second, in_dat ? t.name : krlAggregate(t), order++});
+    replaceInStatement(m, true, in_dat ? t.name : krlAggregate(t));
     if (!in_dat) return;
     const KrlSource::Value& v = s.values.at(static_cast<size_t>(t.value_id));
     const std::string& text = textOf(v.file);
@@ -183,8 +192,8 @@ KrlText patchKrl(const Program& p) {
       continue;
     }
     if (m.aux && m.aux->new_declaration) declareNew(*m.aux, m);
-    else if (m.aux) modify(*m.aux, m);
-    modify(m.target, m);
+    else if (m.aux) modify(*m.aux, m, true);
+    modify(m.target, m, false);
   }
   KrlText out;
   out.src = applyEdits(s.src_text, edits, 0);

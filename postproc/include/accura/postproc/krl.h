@@ -70,10 +70,11 @@ struct KrlText {
 /// Writes a program as KRL. A program read from KRL (program.krl set) is written back byte for
 /// byte, except the values of targets marked `modified` (rewritten in place with the number
 /// formats of program.h) and the motions marked `inserted` (a copy of their anchor statement
-/// with inline targets, inserted on the line before it). Any other program is written as a new
-/// .src and .dat (named targets declared in the .dat). Throws ArgumentError when a modified
-/// value cannot be written (declared outside the program, or two motions need different values
-/// in one declaration).
+/// with inline targets, inserted on the line before it); a modified target declared outside
+/// the program's files (a $config.dat point, never rewritten) is written into its motion's
+/// statement as an inline aggregate. Any other program is written as a new .src and .dat
+/// (named targets declared in the .dat). Throws ArgumentError when two motions need different
+/// values in one declaration.
 KrlText writeKrl(const Program& program);
 
 /// The aggregate text of a target, e.g. "{X 1.0000,Y ..,A 0.00000,..,S 2,T 35}" (pose with the
