@@ -170,6 +170,46 @@ TEST(Batch, ConfigServesTheKrlProgramsOfAMixedTreeNotTheUrScriptOnes) {
   EXPECT_NE(c.err.find("--config: only for KRL and XML programs ($config.dat frames), found the URScript program"), std::string::npos) << c.err;
 }
 
+// A program that uses a GLOBAL point of another program's data list (other.src: LIN XG1, XG1
+// declared GLOBAL in p3.dat): the controller takes the value p3.dat holds, which p3's
+// compensation corrects for p3's tool and base. other's motion is kept, and the warning says
+// where the point is declared and what moves it -- not "give --config $config.dat", which
+// would not find it. p3 names the corrected GLOBAL point at its declaration.
+TEST(Batch, AProgramThatUsesAnotherProgramsGlobalPointIsToldWhereItIsDeclared) {
+  const std::string root = test::tempDir("batch_global");
+  const std::string in = root + "/in";
+  fs::create_directories(in);
+  test::writeText(in + "/other.src", "DEF other( )\n$TOOL = {X 0,Y 0,Z 100,A 0,B 0,C 0}\n$BASE = {X 900,Y -300,Z 200,A 30,B 0,C 0}\n"
+                                     "PTP {A1 10,A2 -80,A3 100,A4 20,A5 30,A6 40}\nLIN XG1\nEND\n");
+  test::writeText(in + "/other.dat", "DEFDAT other\nENDDAT\n");
+  test::writeText(in + "/p3.src", "DEF p3( )\n$TOOL = {X 0,Y 0,Z 200,A 0,B 90,C 0}\n$BASE = {X 900,Y -300,Z 200,A 30,B 0,C 0}\n"
+                                  "PTP {A1 10,A2 -80,A3 100,A4 20,A5 30,A6 40}\nLIN XG1\nEND\n");
+  test::writeText(in + "/p3.dat", "DEFDAT p3 PUBLIC\nDECL GLOBAL E6POS XG1={X 135.598,Y -264.075,Z 477.826,A 115.342,B -63.826,C -129.097,S 2,T 2}\nENDDAT\n");
+  BatchOptions o;
+  o.job.calibrated = test::loadBundled("kuka_kr16");
+  o.job.calibrated.deviations.base_mm = Eigen::Vector3d(0.2, -0.1, 0.3);
+  const BatchResult r = runBatch(in, root + "/out", o, nullptr);
+  ASSERT_EQ(r.files.size(), 2u);
+  ASSERT_EQ(r.converted, 2) << r.files[0].message << r.files[1].message;
+  const BatchFileResult& other = r.files[0];
+  ASSERT_EQ(other.input, "other.src");
+  ASSERT_EQ(other.report.warnings.size(), 1u);
+  EXPECT_EQ(other.report.warnings[0].where.line, 5);
+  EXPECT_EQ(other.report.warnings[0].message,
+            "LIN left unchanged (not compensated): XG1 is not declared in " + in + "/other.src or " + in + "/other.dat: it is the GLOBAL point of " +
+                in + "/p3.dat:2:19, another program's data list, whose compensation corrects it for that program's tool, base and motions; "
+                "this motion moves to that value (declare a point of this program's own to compensate it); the position after it is not known");
+  const BatchFileResult& p3 = r.files[1];
+  bool named = false;
+  for (const ProgramIssue& w : p3.report.warnings)
+    if (w.message.rfind("GLOBAL point XG1 corrected", 0) == 0) {
+      named = true;
+      EXPECT_EQ(w.where.str(), in + "/p3.dat:2:23");
+    }
+  EXPECT_TRUE(named);
+  EXPECT_NE(test::readText(root + "/out/p3.dat"), test::readText(in + "/p3.dat"));  // corrected
+}
+
 // SIGINT in the middle of a run: exit 130 (or 0 when it finished first); no temporary file;
 // every output file there is complete (equal to the uninterrupted run's).
 TEST(Batch, AnInterruptedRunLeavesNoHalfWrittenFile) {

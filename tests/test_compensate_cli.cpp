@@ -257,7 +257,8 @@ TEST(CompensateCli, ProgramsWithoutFramesTakeThemFromTheCommandLine) {
 
 // A partial target takes its missing components from where the program meant the robot to
 // be (the previous target as written, not as corrected): it is compensated exactly like the
-// complete target, and written complete.
+// complete target, and written with every component whose corrected value differs from the
+// controller's position before it (here all six: the same text as the complete target's).
 TEST(CompensateCli, PartialTargetsAreCompletedFromTheIntendedPosition) {
   const std::string dir = inputs("comp_partial");
   const std::string head =

@@ -157,6 +157,132 @@ TEST(Krl, SplineInlineFormsReadTheWithClause) {
   EXPECT_EQ(p.motions[4].tool.source, FrameSetting::Source::kNull);
 }
 
+// The KSS inline form of a spline block: SPLINE WITH $TOOL = STOOL2(FP1), $BASE =
+// SBASE(FP1.BASE_NO) sets the frames of the block's motions (the FDAT's TOOL_NO / BASE_NO into
+// the $config.dat's TOOL_DATA / BASE_DATA, as for a single motion's WITH); after ENDSPLINE the
+// program's own frames hold again. A program written anew from the model sets the frames before
+// the block (a block's segments cannot).
+TEST(Krl, ASplineBlocksWithClauseSetsTheFramesOfItsMotions) {
+  const std::string dir = test::tempDir("krl_spline_with");
+  test::writeText(dir + "/$config.dat",
+                  "DEFDAT $CONFIG\nDECL GLOBAL FRAME TOOL_DATA[16]\nTOOL_DATA[2]={X 0.0,Y 0.0,Z 200.0,A 0.0,B 90.0,C 0.0}\n"
+                  "DECL GLOBAL FRAME BASE_DATA[32]\nBASE_DATA[2]={X 900.0,Y -300.0,Z 200.0,A 30.0,B 0.0,C 0.0}\nENDDAT\n");
+  test::writeText(dir + "/p.src",
+                  "DEF p( )\nPTP {A1 10,A2 -80,A3 100,A4 20,A5 30,A6 40}\n"
+                  "SPLINE WITH $VEL.CP = 0.2, $TOOL = STOOL2(FP1), $BASE = SBASE(FP1.BASE_NO)\n  SPL XP1\n  SPL XP2\n  SLIN XP3\nENDSPLINE\n"
+                  "SLIN XP1 WITH $TOOL = STOOL2(FP1), $BASE = SBASE(FP1.BASE_NO), $VEL = SVEL_CP(0.3, , LCPDAT1) C_SPL\n"
+                  "PTP {A1 0}\nEND\n");
+  test::writeText(dir + "/p.dat",
+                  "DEFDAT p\nDECL FDAT FP1={TOOL_NO 2,BASE_NO 2,IPO_FRAME #BASE,POINT2[] \" \"}\n"
+                  "DECL E6POS XP1={X 273.087,Y -127.407,Z 618.527,A 125.327,B -47.537,C -111.572,S 2,T 2}\n"
+                  "DECL E6POS XP2={X 135.598,Y -264.075,Z 477.826,A 115.342,B -63.826,C -129.097,S 2,T 2}\n"
+                  "DECL E6POS XP3={X 93.096,Y -259.890,Z 509.745,A 136.186,B -59.107,C -177.850,S 2,T 10}\nENDDAT\n");
+  KrlReadOptions o;
+  o.config_path = dir + "/$config.dat";
+  const Program p = readKrl(dir + "/p.src", o);
+  ASSERT_EQ(p.motions.size(), 6u);
+  for (size_t i = 1; i <= 4; ++i) {
+    const Motion& m = p.motions[i];
+    EXPECT_EQ(m.tool.source, FrameSetting::Source::kData) << i;
+    EXPECT_EQ(m.tool.index, 2) << i;
+    ASSERT_TRUE(m.tool.value) << i;
+    EXPECT_EQ(m.tool.value->z_mm, 200.0) << i;
+    EXPECT_EQ(m.tool.value->b_deg, 90.0) << i;
+    EXPECT_EQ(m.base.index, 2) << i;
+    ASSERT_TRUE(m.base.value) << i;
+    EXPECT_EQ(m.base.value->x_mm, 900.0) << i;
+    EXPECT_EQ(m.base.value->a_deg, 30.0) << i;
+  }
+  EXPECT_EQ(*p.motions[1].vel_m_s, 0.2);  // the block's $VEL.CP
+  EXPECT_EQ(*p.motions[3].vel_m_s, 0.2);
+  EXPECT_EQ(*p.motions[4].vel_m_s, 0.3);  // the single SLIN's own WITH
+  EXPECT_EQ(p.motions[0].tool.source, FrameSetting::Source::kUnset);  // before the block
+  EXPECT_EQ(p.motions[5].tool.source, FrameSetting::Source::kUnset);  // after ENDSPLINE: the program's frames
+  EXPECT_EQ(p.motions[5].base.source, FrameSetting::Source::kUnset);
+
+  // written anew (from the model, as from XML): $TOOL, $BASE and $VEL.CP before SPLINE, none inside
+  Program fresh = p;
+  fresh.krl.reset();
+  const std::string src = writeKrl(fresh).src;
+  const size_t block = src.find("\nSPLINE\n"), end = src.find("\nENDSPLINE\n");
+  ASSERT_NE(block, std::string::npos) << src;
+  ASSERT_NE(end, std::string::npos) << src;
+  EXPECT_LT(src.find("\n$TOOL=TOOL_DATA[2]\n"), block) << src;
+  EXPECT_LT(src.find("\n$BASE=BASE_DATA[2]\n"), block) << src;
+  EXPECT_LT(src.find("\n$VEL.CP=0.2000\n"), block) << src;
+  EXPECT_EQ(src.substr(block, end - block).find('$'), std::string::npos) << src;
+}
+
+// A point array of the data list (DECL E6POS XPA[3], then XPA[1]={X ..}) : each element given
+// a value is a point of its own, as the reader takes TOOL_DATA[n]; an index the program
+// computes (XPA[I]) or an element without a value stays a run-time target, and an array the
+// program assigns in a loop is one at every element.
+TEST(Krl, ThePointsOfAnArrayInTheDataListAreNamedPoints) {
+  const std::string dir = test::tempDir("krl_array");
+  const std::string dat =
+      "DEFDAT p\nDECL E6POS XPA[3]\nXPA[1]={X 135.598,Y -264.075,Z 477.826,A 115.342,B -63.826,C -129.097,S 2,T 2,E1 0.0}\n"
+      "xpa[2]={X 93.096,Y -259.890,Z 509.745,A 136.186,B -59.107,C -177.850,S 2,T 10}\nENDDAT\n";
+  test::writeText(dir + "/p.dat", dat);
+  test::writeText(dir + "/p.src", "DEF p( )\nDECL INT I\n$TOOL={X 0,Y 0,Z 200,A 0,B 90,C 0}\n$BASE=$NULLFRAME\n"
+                                  "LIN XPA[1] C_DIS\nlin xpa[ 2 ]\nLIN XPA[I]\nLIN XPA[3]\nEND\n");
+  const Program p = readKrl(dir + "/p.src");
+  ASSERT_EQ(p.motions.size(), 4u);
+  const Target& a = p.motions[0].target;
+  EXPECT_EQ(p.motions[0].target_problem, "");
+  EXPECT_EQ(a.name, "XPA[1]");
+  EXPECT_EQ(a.type, "E6POS");
+  EXPECT_EQ(*a.pose[0], 135.598);
+  EXPECT_EQ(*a.pose[5], -129.097);
+  EXPECT_EQ(*a.turn, 2);
+  EXPECT_EQ(a.where.file, dir + "/p.dat");
+  EXPECT_EQ(a.where.line, 3);
+  EXPECT_EQ(a.where.column, 8);
+  EXPECT_EQ(p.motions[1].target_problem, "");
+  EXPECT_EQ(p.motions[1].target.name, "XPA[2]");
+  EXPECT_EQ(*p.motions[1].target.pose[1], -259.890);
+  EXPECT_EQ(*p.motions[1].target.turn, 10);
+  EXPECT_EQ(p.motions[2].target_problem, "the target 'XPA[I]' is an element of the array XPA whose index is computed at run time");
+  EXPECT_EQ(p.motions[3].target_problem, "XPA[3] is not given a value (the array XPA is declared at " + dir + "/p.dat:2:12)");
+  // written back unchanged, the array's declaration carried for a conversion
+  EXPECT_EQ(writeKrl(p).dat, dat);
+  bool declaration_carried = false;
+  for (const PassThrough& s : p.passthrough) declaration_carried = declaration_carried || s.text == "DECL E6POS XPA[3]";
+  EXPECT_TRUE(declaration_carried);
+
+  // converted: the element goes into XML as its value (XML names no array element), the
+  // array's lines stay in the data list; KRL -> XML -> KRL -> XML gives the same XML
+  test::writeText(dir + "/p.src", "DEF p( )\nBAS (#INITMOV,0 )\n$TOOL={X 0,Y 0,Z 200,A 0,B 90,C 0}\n$BASE=$NULLFRAME\nLIN XPA[1]\nEND\n");
+  const std::string xml = writeXmlProgram(readKrl(dir + "/p.src"));
+  EXPECT_NE(xml.find("<pose x_mm=\"135.5980\""), std::string::npos) << xml;
+  const std::string back = test::tempDir("krl_array_back");
+  test::writeText(back + "/p.xml", xml);
+  Program fresh = readXmlProgram(back + "/p.xml");
+  const KrlText text = writeKrl(fresh);
+  EXPECT_NE(text.dat.find("\nDECL E6POS XPA[3]\nXPA[1]={X 135.598,"), std::string::npos) << text.dat;
+  test::writeText(back + "/p.src", text.src);
+  test::writeText(back + "/p.dat", text.dat);
+  EXPECT_EQ(writeXmlProgram(readKrl(back + "/p.src")), xml);
+
+  // XPA[2] = {..} in the main program's straight line is the element's value from there on
+  test::writeText(dir + "/p.src", "DEF p( )\n$TOOL={X 0,Y 0,Z 200,A 0,B 90,C 0}\n$BASE=$NULLFRAME\n"
+                                  "LIN XPA[2]\nXPA[2]={X 1,Y 2,Z 3,A 0,B 0,C 0}\nLIN XPA[2]\nEND\n");
+  const Program q = readKrl(dir + "/p.src");
+  ASSERT_EQ(q.motions.size(), 2u);
+  EXPECT_EQ(q.motions[0].target_problem, "");
+  EXPECT_EQ(*q.motions[0].target.pose[0], 93.096);
+  EXPECT_EQ(q.motions[1].target_problem, "");
+  EXPECT_EQ(*q.motions[1].target.pose[0], 1.0);
+  EXPECT_EQ(q.motions[1].target.where.file, dir + "/p.src");
+  EXPECT_EQ(q.motions[1].target.where.line, 5);
+  // assigned in a loop (any index): every element is a run-time value
+  test::writeText(dir + "/p.src", "DEF p( )\nDECL INT I\n$TOOL={X 0,Y 0,Z 200,A 0,B 90,C 0}\n$BASE=$NULLFRAME\n"
+                                  "LIN XPA[1]\nFOR I=1 TO 2\n  XPA[I].Z = 5\nENDFOR\nEND\n");
+  const Program r = readKrl(dir + "/p.src");
+  ASSERT_EQ(r.motions.size(), 1u);
+  EXPECT_EQ(r.motions[0].target_problem, "XPA[1]: XPA is assigned at " + dir +
+                                             "/p.src:7:3 inside a branch or a loop: its value at a motion depends on the way the program runs");
+}
+
 TEST(Krl, OlderInlineFormsWithBinaryStatusAndTurn) {
   // KRC2 inline forms: BAS(#PTP_DAT), BAS(#FRAMES), BAS(#VEL_PTP,v); the .dat is PALETTE.DAT
   const Program p = read("krc2/palette.src", true);

@@ -270,6 +270,106 @@ TEST(KrlRules, AComponentUnchangedAtThePrecisionWrittenKeepsItsText) {
   EXPECT_EQ(writeKrl(p).dat, "DEFDAT p\nDECL E6POS XP1={X 100.0,Y 0.2000,Z 20.0,A 160.0,B 10.0,C 170.0,S 2,T 10}\nENDDAT\n");
 }
 
+// A partial aggregate (LIN {Z 500}) takes its missing components from where the controller
+// stands when the motion starts. With the nominal robot nothing is corrected, so its text stays
+// (it was written complete); a robot standing 0.3 mm higher (a pure translation: no component
+// but Z changes) gets its Z corrected and nothing added, the complete target before it only its
+// Z too.
+TEST(KrlRules, APartialAggregateKeepsItsTextWhereTheCorrectionLeavesItsComponents) {
+  const std::string dir = test::tempDir("krl_partial_text");
+  const std::string src =
+      "DEF p( )\n\tBAS (#INITMOV,0 )\n$TOOL={X 0,Y 0,Z 200,A 0,B 90,C 0}\n$BASE={x 900,y -300,z 200,a 30,b 0,c 0} ; base\n"
+      "PTP {A1 10,A2 -80,A3 100,A4 20,A5 30,A6 40}\nPTP XP1\n"
+      "LIN { X 1.35598E+02 , Y -264.075,Z 477.826 , A 115.342,B -63.826,C -129.097 } C_DIS\nLIN {Z 500}\nEND\n";
+  test::writeText(dir + "/p.src", src);
+  test::writeText(dir + "/p.dat",
+                  "DEFDAT p\nDECL E6POS XP1={X 273.087,Y -127.407,Z 618.527,A 125.327,B -47.537,C -111.572,S 2,T 2,E1 0.0}\nENDDAT\n");
+  JobSettings s;
+  s.calibrated = test::loadBundled("kuka_kr16");
+  s.tol_mm = 0.05;
+  const ProgramCompensation nominal = compensateProgramReport(readKrl(dir + "/p.src"), s);
+  ASSERT_TRUE(nominal.ok()) << nominal.report.errors.front().message;
+  EXPECT_EQ(writeKrl(nominal.program).src, src);
+
+  s.calibrated.deviations.base_mm = Eigen::Vector3d(0, 0, 0.3);
+  const ProgramCompensation higher = compensateProgramReport(readKrl(dir + "/p.src"), s);
+  ASSERT_TRUE(higher.ok()) << higher.report.errors.front().message;
+  std::string expected = src;
+  for (const auto& [from, to] : {std::make_pair(std::string("Z 477.826 ,"), std::string("Z 477.5260 ,")),
+                                 std::make_pair(std::string("LIN {Z 500}"), std::string("LIN {Z 499.7000}"))})
+    expected.replace(expected.find(from), from.size(), to);
+  EXPECT_EQ(writeKrl(higher.program).src, expected);
+}
+
+// A partial aggregate corrected by a robot whose every component's correction differs: the
+// program as written, run by a controller that fills the missing components from where it
+// stands (the command before: the previous target as written, or the last point inserted
+// before the statement), puts the real tool on the intended pose. (Written with only its own
+// components corrected, it would carry the previous point's correction.)
+TEST(KrlRules, ACorrectedPartialAggregateLandsWhereTheControllerFillsItFromItsPosition) {
+  const StCell cell;
+  const Eigen::VectorXd q1 = joints({10, -80, 100, 20, 40, 30});
+  const calib::Configuration c1 = calib::kukaConfiguration(cell.controller, q1);
+  const calib::XyzAbc p1 = calib::toXyzAbc(cell.target(q1));
+  const std::string dir = test::tempDir("krl_partial_lands");
+  // 40 mm down, then 300 mm along X and Y (points inserted at a tolerance of 5 um)
+  test::writeText(dir + "/p.src", "DEF p( )\n$TOOL={X 20,Y 0,Z 250,A 0,B -30,C 0}\n$BASE=$NULLFRAME\nPTP XP1\nLIN {Z " +
+                                      formatMm(p1.z_mm - 40) + "}\nLIN {X " + formatMm(p1.x_mm - 200) + ",Y " + formatMm(p1.y_mm + 220) +
+                                      "} C_DIS\nEND\n");
+  test::writeText(dir + "/p.dat", "DEFDAT p\nDECL E6POS XP1=" + aggregate(cell.target(q1), c1.status, c1.turn) + "\nENDDAT\n");
+  const Program in = readKrl(dir + "/p.src");
+  JobSettings s;
+  s.calibrated = cell.real;
+  s.tol_mm = 0.005;
+  const ProgramCompensation pc = compensateProgramReport(in, s);
+  ASSERT_TRUE(pc.ok()) << pc.report.errors.front().message;
+  const KrlText text = writeKrl(pc.program);
+  const std::string out = test::tempDir("krl_partial_lands_out");
+  test::writeText(out + "/p.src", text.src);
+  test::writeText(out + "/p.dat", text.dat);
+  const Program written = readKrl(out + "/p.src");
+  ASSERT_GT(written.motions.size(), in.motions.size());  // points were inserted before the last LIN
+  // the intended poses: each partial target completed from the previous one as programmed
+  std::vector<calib::XyzAbc> intended;
+  for (const Motion& m : in.motions) {
+    calib::XyzAbc v = intended.empty() ? p1 : intended.back();
+    double* c[6] = {&v.x_mm, &v.y_mm, &v.z_mm, &v.a_deg, &v.b_deg, &v.c_deg};
+    for (int k = 0; k < 6; ++k)
+      if (m.target.pose[k]) *c[k] = *m.target.pose[k];
+    intended.push_back(v);
+  }
+  // the controller runs the written program: a partial target from the position it stands at
+  SimulatedKuka kuka(cell.controller, cell.real);
+  ASSERT_EQ(written.motions.size(), pc.program.motions.size());
+  calib::XyzAbc at{};
+  size_t statement = 0;
+  for (size_t k = 0; k < written.motions.size(); ++k) {
+    const Motion& m = written.motions[k];
+    calib::XyzAbc v = at;
+    double* c[6] = {&v.x_mm, &v.y_mm, &v.z_mm, &v.a_deg, &v.b_deg, &v.c_deg};
+    for (int k = 0; k < 6; ++k)
+      if (m.target.pose[k]) *c[k] = *m.target.pose[k];
+    const Eigen::Isometry3d T = cell.controller.nominal.T_world_base * calib::toIsometry(v);
+    if (m.type == MotionType::kPtp) {
+      ASSERT_TRUE(kuka.ptp(T, *m.target.status, *m.target.turn));
+    } else {
+      const calib::IkResult r = kuka.controller.inverse(T, calib::Configuration{}, kuka.q, calib::IkOptions{});
+      ASSERT_EQ(r.status, calib::IkStatus::kOk);
+      kuka.q = r.q;
+    }
+    at = v;
+    if (!pc.program.motions[k].inserted) {
+      // the end of an input statement: the real tool on the intended pose
+      const Eigen::Isometry3d real = kuka.real.forward(kuka.q);
+      const Eigen::Isometry3d want = cell.controller.nominal.T_world_base * calib::toIsometry(intended.at(statement));
+      EXPECT_LT((real.translation() - want.translation()).norm(), 2e-3) << "statement " << statement;
+      EXPECT_LT(calib::rotationAngleDeg(real.linear() * want.linear().transpose()), 2e-4) << "statement " << statement;
+      ++statement;
+    }
+  }
+  EXPECT_EQ(statement, in.motions.size());
+}
+
 TEST(KrlRules, APtpNextToAWristSingularityThatTurnsTheWristIsAWarning) {
   // the off-line program's joints: A5 0.1 deg from the wrist singularity; the real robot
   // reaches the pose only with A4 and A6 turned by degrees (they trade freely next to A5 = 0).
@@ -451,6 +551,184 @@ TEST(KrlRules, MotionsToRunTimeTargetsAreKeptAndNamedTheRestIsCompensated) {
   EXPECT_NE(out.dat.find("DECL E6POS XP3={X 1000,Y 100,Z 800,A 0,B 90,C 0}"), std::string::npos) << out.dat;
   EXPECT_EQ(out.dat.find("DECL E6POS XP1={X 1000,Y 0,Z 800,A 0,B 90,C 0}"), std::string::npos) << out.dat;
   EXPECT_EQ(out.dat.find("DECL E6POS XP2={X 1000,Y 100,Z 800,A 0,B 90,C 0}"), std::string::npos) << out.dat;
+}
+
+// A spline block whose frames come from its WITH clause (SPLINE WITH $TOOL = STOOL2(FP1),
+// $BASE = SBASE(FP1.BASE_NO)) is compensated as the same block after $TOOL = TOOL_DATA[2],
+// $BASE = BASE_DATA[2] statements: the same corrected points, to the byte. (It was refused:
+// "the tool of this motion is not known".)
+TEST(KrlRules, ASplineBlockWithItsFramesInTheWithClauseIsCompensatedLikeOneAfterFrameStatements) {
+  const std::string dir = test::tempDir("krl_spline_block");
+  const std::string config = dir + "/$config.dat";
+  test::writeText(config,
+                  "DEFDAT $CONFIG\nDECL GLOBAL FRAME TOOL_DATA[16]\nTOOL_DATA[2]={X 0.0,Y 0.0,Z 200.0,A 0.0,B 90.0,C 0.0}\n"
+                  "DECL GLOBAL FRAME BASE_DATA[32]\nBASE_DATA[2]={X 900.0,Y -300.0,Z 200.0,A 30.0,B 0.0,C 0.0}\nENDDAT\n");
+  const std::string dat =
+      "DEFDAT p\nDECL FDAT FP1={TOOL_NO 2,BASE_NO 2,IPO_FRAME #BASE,POINT2[] \" \"}\n"
+      "DECL E6POS XP1={X 273.087,Y -127.407,Z 618.527,A 125.327,B -47.537,C -111.572,S 2,T 2}\n"
+      "DECL E6POS XP2={X 135.598,Y -264.075,Z 477.826,A 115.342,B -63.826,C -129.097,S 2,T 2}\n"
+      "DECL E6POS XP3={X 93.096,Y -259.890,Z 509.745,A 136.186,B -59.107,C -177.850,S 2,T 10}\nENDDAT\n";
+  const std::string block = "  SPL XP1\n  SPL XP2\n  SLIN XP3\nENDSPLINE\nEND\n";
+  std::filesystem::create_directories(dir + "/with");
+  std::filesystem::create_directories(dir + "/frames");
+  test::writeText(dir + "/with/p.src", "DEF p( )\nPTP {A1 10,A2 -80,A3 100,A4 20,A5 30,A6 40}\n"
+                                       "SPLINE WITH $VEL.CP = 0.2, $TOOL = STOOL2(FP1), $BASE = SBASE(FP1.BASE_NO)\n" + block);
+  test::writeText(dir + "/frames/p.src", "DEF p( )\nPTP {A1 10,A2 -80,A3 100,A4 20,A5 30,A6 40}\n"
+                                         "$TOOL = TOOL_DATA[2]\n$BASE = BASE_DATA[2]\n$VEL.CP = 0.2\nSPLINE\n" + block);
+  test::writeText(dir + "/with/p.dat", dat);
+  test::writeText(dir + "/frames/p.dat", dat);
+  const StCell cell;
+  JobSettings s;
+  s.calibrated = cell.real;
+  s.tol_mm = 0.05;
+  KrlReadOptions o;
+  o.config_path = config;
+  std::string written[2];
+  int k = 0;
+  for (const char* which : {"with", "frames"}) {
+    const ProgramCompensation pc = compensateProgramReport(readKrl(dir + "/" + which + "/p.src", o), s);
+    ASSERT_TRUE(pc.ok()) << which << ": " << pc.report.errors.front().where.str() << ": " << pc.report.errors.front().message;
+    EXPECT_EQ(pc.report.targets.size(), 3u) << which;
+    written[k++] = writeKrl(pc.program).dat;
+  }
+  EXPECT_NE(written[0], dat);  // corrected
+  EXPECT_EQ(written[0], written[1]);
+}
+
+// A point of an array in the .dat (XPA[1]={X ..}) is corrected like a named point, in place:
+// its aggregate gets the numbers a scalar point with the same value gets (XQ1 in a twin
+// program), every other byte of the .dat stays. XPA[I] (an index computed at run time) is
+// kept and named. (XPA[1] was "computed at run time", not compensated.)
+TEST(KrlRules, AnArrayPointOfTheDataListIsCorrectedInPlaceLikeANamedPoint) {
+  const std::string dir = test::tempDir("krl_array_point");
+  const std::string head = "DEF p( )\nDECL INT I\n$TOOL = {X 0,Y 0,Z 200,A 0,B 90,C 0}\n$BASE = {X 900,Y -300,Z 200,A 30,B 0,C 0}\n"
+                           "PTP {A1 10,A2 -80,A3 100,A4 20,A5 30,A6 40}\n";
+  const std::string p1 = "{X 135.598,Y -264.075,Z 477.826,A 115.342,B -63.826,C -129.097,S 2,T 2,E1 0.0,E2 0.0,E3 0.0,E4 0.0,E5 0.0,E6 0.0}";
+  const std::string p2 = "{X 93.096,Y -259.890,Z 509.745,A 136.186,B -59.107,C -177.850,S 2,T 10,E1 0.0,E2 0.0,E3 0.0,E4 0.0,E5 0.0,E6 0.0}";
+  const std::string dat = "DEFDAT p\nDECL E6POS XPA[2] ; the pick points\nXPA[1]=" + p1 + "\nXPA[2]=" + p2 + "\nENDDAT\n";
+  std::filesystem::create_directories(dir + "/array");
+  std::filesystem::create_directories(dir + "/scalar");
+  test::writeText(dir + "/array/p.src", head + "PTP XPA[1]\nLIN XPA[2]\nLIN XPA[I]\nEND\n");
+  test::writeText(dir + "/array/p.dat", dat);
+  test::writeText(dir + "/scalar/p.src", head + "PTP XQ1\nLIN XQ2\nEND\n");
+  test::writeText(dir + "/scalar/p.dat", "DEFDAT p\nDECL E6POS XQ1=" + p1 + "\nDECL E6POS XQ2=" + p2 + "\nENDDAT\n");
+  JobSettings s;
+  s.calibrated = StCell().real;
+  s.tol_mm = 10;  // no auxiliary points: the twin programs' LIN ends alike
+  const ProgramCompensation array = compensateProgramReport(readKrl(dir + "/array/p.src"), s);
+  ASSERT_TRUE(array.ok()) << array.report.errors.front().message;
+  const ProgramCompensation scalar = compensateProgramReport(readKrl(dir + "/scalar/p.src"), s);
+  ASSERT_TRUE(scalar.ok()) << scalar.report.errors.front().message;
+  const std::string scalar_dat = writeKrl(scalar.program).dat;
+  const auto value = [&](const std::string& name) {  // the aggregate written for a point of the twin
+    const size_t at = scalar_dat.find("DECL E6POS " + name + "=");
+    EXPECT_NE(at, std::string::npos) << scalar_dat;
+    const size_t b = scalar_dat.find('{', at);
+    return scalar_dat.substr(b, scalar_dat.find('}', b) + 1 - b);
+  };
+  EXPECT_NE(value("XQ1"), p1);
+  EXPECT_NE(value("XQ2"), p2);
+  const KrlText out = writeKrl(array.program);
+  EXPECT_EQ(out.dat, "DEFDAT p\nDECL E6POS XPA[2] ; the pick points\nXPA[1]=" + value("XQ1") + "\nXPA[2]=" + value("XQ2") + "\nENDDAT\n");
+  EXPECT_EQ(out.src, test::readText(dir + "/array/p.src"));
+  EXPECT_EQ(array.report.targets.size(), 2u);
+  EXPECT_EQ(array.report.targets[0].name, "XPA[1]");
+  EXPECT_EQ(array.report.motions_left_unchanged, 1);
+  int kept = 0;
+  for (const ProgramIssue& w : array.report.warnings)
+    if (w.message.find("XPA[I]") != std::string::npos) {
+      ++kept;
+      EXPECT_EQ(w.where.line, 8);
+      EXPECT_NE(w.message.find("left unchanged (not compensated): the target 'XPA[I]' is an element of the array XPA whose index is computed at run time"),
+                std::string::npos) << w.message;
+    }
+  EXPECT_EQ(kept, 1);
+}
+
+// A point declared GLOBAL (DECL GLOBAL E6POS XG1 in a PUBLIC data list) is the value other
+// modules go to as well: corrected for this program's tool and base, it moves them too. A
+// warning at its declaration says so; a point of the program's own (XP2) gets none.
+TEST(KrlRules, ACorrectedGlobalPointIsNamedAtItsDeclaration) {
+  const std::string dir = test::tempDir("krl_global_point");
+  test::writeText(dir + "/p.src", "DEF p( )\n$TOOL = {X 0,Y 0,Z 200,A 0,B 90,C 0}\n$BASE = {X 900,Y -300,Z 200,A 30,B 0,C 0}\n"
+                                  "PTP {A1 10,A2 -80,A3 100,A4 20,A5 30,A6 40}\nPTP XP2\nLIN XG1\nEND\n");
+  test::writeText(dir + "/p.dat", "DEFDAT p PUBLIC\n"
+                                  "DECL E6POS XP2={X 273.087,Y -127.407,Z 618.527,A 125.327,B -47.537,C -111.572,S 2,T 2}\n"
+                                  "DECL GLOBAL E6POS XG1={X 135.598,Y -264.075,Z 477.826,A 115.342,B -63.826,C -129.097,S 2,T 2}\nENDDAT\n");
+  JobSettings s;
+  s.calibrated = StCell().real;
+  const ProgramCompensation pc = compensateProgramReport(readKrl(dir + "/p.src"), s);
+  ASSERT_TRUE(pc.ok()) << pc.report.errors.front().message;
+  std::vector<std::string> global;
+  for (const ProgramIssue& w : pc.report.warnings)
+    if (w.message.find("GLOBAL") != std::string::npos) global.push_back(w.where.str() + ": " + w.message);
+  EXPECT_EQ(global, std::vector<std::string>{dir + "/p.dat:3:23: GLOBAL point XG1 corrected for this program's tool and base (the motion at " +
+                                             dir + "/p.src:6:1): other modules that use it move with this correction"});
+}
+
+// A PTP to a Cartesian point declared in the $config.dat (XPICK), which accura never rewrites:
+// the motion gets the corrected value as an inline aggregate (the numbers a twin program with
+// XPICK in its own .dat gets in its declaration), with a warning; the $config.dat and the .dat
+// stay. (It was a refusal: "cannot write the corrected value of XPICK".)
+TEST(KrlRules, AMotionToACartesianPointOfTheConfigGetsItsCorrectedValueInline) {
+  const std::string dir = test::tempDir("krl_config_point");
+  const std::string xpick = "{X 135.598,Y -264.075,Z 477.826,A 115.342,B -63.826,C -129.097,S 2,T 2,E1 0.0,E2 0.0,E3 0.0,E4 0.0,E5 0.0,E6 0.0}";
+  const std::string frames = "DEFDAT $CONFIG\nDECL GLOBAL FRAME TOOL_DATA[16]\nTOOL_DATA[2]={X 0.0,Y 0.0,Z 200.0,A 0.0,B 90.0,C 0.0}\n"
+                             "DECL GLOBAL FRAME BASE_DATA[32]\nBASE_DATA[2]={X 900.0,Y -300.0,Z 200.0,A 30.0,B 0.0,C 0.0}\n"
+                             "DECL GLOBAL E6AXIS XHOME={A1 0.0,A2 -90.0,A3 90.0,A4 0.0,A5 45.0,A6 0.0}\n";
+  const std::string src = "DEF p( )\nBAS (#INITMOV,0 )\nBAS (#TOOL,2)\nBAS (#BASE,2)\nPTP XHOME\nPTP XPICK\nEND\n";
+  std::filesystem::create_directories(dir + "/config");
+  std::filesystem::create_directories(dir + "/twin");
+  test::writeText(dir + "/config/$config.dat", frames + "DECL GLOBAL E6POS XPICK=" + xpick + "\nENDDAT\n");
+  test::writeText(dir + "/config/p.src", src);
+  test::writeText(dir + "/config/p.dat", "DEFDAT p\nENDDAT\n");
+  test::writeText(dir + "/twin/$config.dat", frames + "ENDDAT\n");
+  test::writeText(dir + "/twin/p.src", src);
+  test::writeText(dir + "/twin/p.dat", "DEFDAT p\nDECL E6POS XPICK=" + xpick + "\nENDDAT\n");
+  JobSettings s;
+  s.calibrated = StCell().real;
+  Program written[2];
+  std::string text[2];
+  int k = 0;
+  for (const char* which : {"config", "twin"}) {
+    KrlReadOptions o;
+    o.config_path = dir + "/" + which + "/$config.dat";
+    const ProgramCompensation pc = compensateProgramReport(readKrl(dir + "/" + which + "/p.src", o), s);
+    ASSERT_TRUE(pc.ok()) << which << ": " << pc.report.errors.front().message;
+    const KrlText out = writeKrl(pc.program);
+    const std::string back = dir + "/" + which + "/out";
+    std::filesystem::create_directories(back);
+    test::writeText(back + "/p.src", out.src);
+    test::writeText(back + "/p.dat", out.dat);
+    written[k] = readKrl(back + "/p.src", o);
+    text[k] = out.src;
+    if (k == 0) {
+      EXPECT_EQ(out.dat, "DEFDAT p\nENDDAT\n");
+      int inline_warnings = 0;
+      for (const ProgramIssue& w : pc.report.warnings)
+        if (w.message.find("XPICK is declared in " + dir + "/config/$config.dat:7:25, which accura does not rewrite: this motion gets "
+                           "its corrected value as an inline aggregate") == 0) {
+          ++inline_warnings;
+          EXPECT_EQ(w.where.line, 6);
+        }
+      EXPECT_EQ(inline_warnings, 1);
+    }
+    ++k;
+  }
+  // the statement holds the value the twin declares: the same numbers and S/T
+  ASSERT_EQ(written[0].motions.size(), 2u);
+  const Target& inl = written[0].motions[1].target;
+  const Target& twin = written[1].motions[1].target;
+  EXPECT_TRUE(inl.name.empty());
+  EXPECT_EQ(twin.name, "XPICK");
+  EXPECT_NE(*twin.pose[0], 135.598);  // corrected
+  for (int c = 0; c < 6; ++c) EXPECT_EQ(*inl.pose[c], *twin.pose[c]) << c;
+  EXPECT_EQ(*inl.status, *twin.status);
+  EXPECT_EQ(*inl.turn, *twin.turn);
+  // only that statement changed
+  const size_t at = text[0].find("PTP {X ");
+  ASSERT_NE(at, std::string::npos) << text[0];
+  EXPECT_EQ(text[0].substr(0, at) + "PTP XPICK" + text[0].substr(text[0].find('\n', at)), src);
 }
 
 // ---------------------------------------------------------------------------------------------

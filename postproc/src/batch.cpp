@@ -244,6 +244,21 @@ BatchResult runBatch(const std::string& in_dir, const std::string& out_dir, cons
   int done = 0;
   ProgramReadOptions read;
   read.config_path = options.config_path;
+  // the GLOBAL points of each KRL program's data list: another program of the batch that uses
+  // one is told where it is declared (a data list that cannot be read is its own program's error)
+  // (a program's own points are found in its own files first; the first declaration in sorted
+  // order stands for a name declared twice)
+  for (const std::string& file : files) {
+    const std::string in_path = (fs::path(in_dir) / file).string();
+    if (programFormat(in_path) != ProgramFormat::kKrl) continue;
+    const std::string dat = krlDatPath(in_path);
+    if (dat.empty()) continue;
+    try {
+      const std::map<std::string, SourceLocation> g = krlGlobalPoints(dat);
+      read.other_globals.insert(g.begin(), g.end());
+    } catch (const std::exception&) {
+    }
+  }
   // the cell's geometry (the BVHs of its meshes) built once for every program and thread
   std::optional<CellCheckSettings> cell = options.cell;
   if (cell && !cell->geometry) {
@@ -279,6 +294,7 @@ BatchResult runBatch(const std::string& in_dir, const std::string& out_dir, cons
           ProgramReadOptions file_read = read;
           const ProgramFormat format = programFormat(in_path.string());
           if (format != ProgramFormat::kKrl && format != ProgramFormat::kXml) file_read.config_path.clear();
+          if (format != ProgramFormat::kKrl) file_read.other_globals.clear();
           CheckedProgram out = compensateAndCheckFile(in_path.string(), out_path.string(), file_read, options.job,
                                                       cell ? &*cell : nullptr, &r.report);
           r.check = std::move(out.check);

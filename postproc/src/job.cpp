@@ -56,11 +56,38 @@ class Job {
     return calib::toXyzAbc(T_world_progbase.inverse() * T_world_tcp);
   }
 
-  /// The corrected pose into `t`; a correction that rounds to zero at the written precision
-  /// leaves `t` as it was (not modified: its text is written back unchanged).
-  void setPose(Target& t, const calib::XyzAbc& p) {
-    if (t.setPoseIfChanged(p) || t.new_declaration) t.modified = true;
+  /// The corrected pose `p` (program base) into `t`; a correction that rounds to zero at the
+  /// written precision leaves `t` as it was (not modified: its text is written back unchanged).
+  /// `before`: for a partial target, the command the controller stands at when the motion's
+  /// statement starts (program base and tool; commandBefore).
+  void setPose(Target& t, const calib::XyzAbc& p, const std::optional<calib::XyzAbc>& before = std::nullopt) {
+    if (t.completePose() || !before) {
+      if (t.setPoseIfChanged(p) || t.new_declaration) t.modified = true;
+      return;
+    }
+    // A partial aggregate (LIN {Z 500}): KSS takes its missing components from the position the
+    // robot is at when the motion starts -- the command before it (the previous target as
+    // corrected, or the last point inserted before the statement) -- not from the intended
+    // position accura completed it with. The target the controller runs is the written
+    // components plus those: when that is the corrected pose at the written precision, the text
+    // stays as it is (the nominal robot returns it byte for byte). Otherwise the written
+    // components are corrected, and a missing one is added where the corrected pose needs
+    // another value than the controller would take: left out, it would carry the previous
+    // point's correction, not this one's.
+    const double b[6] = {before->x_mm, before->y_mm, before->z_mm, before->a_deg, before->b_deg, before->c_deg};
+    Target as_run = t;
+    for (int k = 0; k < 6; ++k)
+      if (!as_run.pose[k]) as_run.pose[k] = b[k];
+    if (!as_run.setPoseIfChanged(p)) {
+      if (t.new_declaration) t.modified = true;
+      return;
+    }
+    const auto text = [](int k, double v) { return k < 3 ? formatMm(v) : formatDeg(v); };
+    for (int k = 0; k < 6; ++k)
+      if (t.pose[k] || text(k, *as_run.pose[k]) != text(k, b[k])) t.pose[k] = as_run.pose[k];
+    t.modified = true;
   }
+
 
   /// CP motions (LIN, CIRC, their spline and relative forms, SPL): the controller keeps the
   /// Status of the start and lets Turn follow the path; the programmed S/T are not used
@@ -355,6 +382,8 @@ class Job {
     notePayloadChanges(in);
     unifyClaimedConfigurations(out);
     checkKeptValues(out);
+    noteGlobalPoints(out);
+    noteInlinedPoints(out);
     // the pass-through statements stay before their motion, ahead of the points inserted
     out.passthrough = in.passthrough;
     for (PassThrough& s : out.passthrough)
@@ -370,6 +399,16 @@ class Job {
     std::optional<Target> aux;
     calib::Configuration config;
   };
+
+  /// Where the controller stands when the statement of a motion starts, in the program's base
+  /// and the motion's tool (c): the last point inserted before the statement (`commanded`: the
+  /// motion's pieces), else the previous motion's command (the controller's forward
+  /// kinematics of the joints it ended on). Nothing when that is not known.
+  std::optional<calib::XyzAbc> commandBefore(const Cartesian& c, const std::vector<PathSegment>* commanded = nullptr) const {
+    if (commanded && commanded->size() > 1) return toProgram(c.T_world_progbase, (*commanded)[commanded->size() - 2].T_world_end);
+    if (!q_real_) return std::nullopt;
+    return toProgram(c.T_world_progbase, c.models->compensator->controller().forward(*q_real_));
+  }
 
   void forget() {
     // the joints last known: the guess of where the robot stands for a motion whose start is
@@ -407,6 +446,38 @@ class Job {
         warning(it->second, "this motion is left as written, but its point " + targetLabel(*t) + " is corrected for the motion at " +
                                 m.where.str() + ": it moves with that correction, made for that motion's tool, base and path "
                                 "(give the motions their own points to keep this one as written)");
+      }
+  }
+
+  /// A corrected point declared GLOBAL (KRL DECL GLOBAL E6POS XG1 in a PUBLIC data list) is
+  /// the value other modules that use it go to as well: they move with a correction made for
+  /// this program's tool, base and motions. Said once per point, at its declaration.
+  void noteGlobalPoints(const Program& out) {
+    if (!in_ || !in_->krl) return;
+    std::set<int> named;
+    for (const Motion& m : out.motions)
+      for (const Target* t : {&m.target, m.aux ? &*m.aux : nullptr}) {
+        if (!t || !t->modified || t->new_declaration || t->value_id < 0 || named.count(t->value_id)) continue;
+        if (static_cast<size_t>(t->value_id) >= in_->krl->values.size() || !in_->krl->values[static_cast<size_t>(t->value_id)].global) continue;
+        named.insert(t->value_id);
+        warning(t->where.file.empty() ? m.where : t->where,
+                "GLOBAL point " + targetLabel(*t) + " corrected for this program's tool and base (the motion at " + m.where.str() +
+                    "): other modules that use it move with this correction");
+      }
+  }
+
+  /// A corrected point declared outside the program's files (KRL: in the $config.dat, which is
+  /// never rewritten) goes into its motion's statement as an inline aggregate (writeKrl): the
+  /// robot lands on it, while other motions and modules that use the point keep its value
+  /// there. Said at each such motion.
+  void noteInlinedPoints(const Program& out) {
+    if (!in_ || !in_->krl) return;
+    for (const Motion& m : out.motions)
+      for (const Target* t : {&m.target, m.aux ? &*m.aux : nullptr}) {
+        if (!t || !t->modified || t->new_declaration || m.inserted || t->value_id >= 0 || t->name.empty()) continue;
+        warning(m.where, t->name + " is declared in " + (t->where.file.empty() ? std::string("another file") : t->where.str()) +
+                             ", which accura does not rewrite: this motion gets its corrected value as an inline aggregate; other "
+                             "motions and modules that use " + t->name + " keep going to its value there");
       }
   }
 
@@ -579,7 +650,7 @@ class Job {
                            (pa.message.empty() ? "" : ": " + pa.message));
         return keep(out, mo);
       }
-      setPose(*mo.aux, toProgram(c.T_world_progbase, pa.T_world_tcp_command));
+      setPose(*mo.aux, toProgram(c.T_world_progbase, pa.T_world_tcp_command), commandBefore(c));
       claimValue(*mo.aux, m.where, true);
       reportTarget(m, *m.aux, "aux", c.T_world_progbase, T_world_aux, pa.T_world_tcp_command, c.models->calibrated_tool);
     }
@@ -607,7 +678,7 @@ class Job {
     else if (!checkConfig(m, end, comp, pc.q_real, c.T_world_end)) return keep(out, mo);
     if (!abbConfiguration(m, mo.target, comp, pc.q_real, cp)) return keep(out, mo);
     if (!cp) notePostureChange(m, end, comp, c.T_world_end, config, start, pc.q_real);
-    setPose(mo.target, toProgram(c.T_world_progbase, pc.T_world_tcp_command));
+    setPose(mo.target, toProgram(c.T_world_progbase, pc.T_world_tcp_command), commandBefore(c));
     if (mo.target.turn != end.turn) mo.target.modified = true;
     mo.target.turn = end.turn;
     claimValue(mo.target, m.where, cp);
@@ -687,7 +758,7 @@ class Job {
         if (ins.aux) ins.aux->abb_conf = ins.target.abb_conf;  // the circle point's confdata is not used
       }
     const Eigen::Isometry3d T_cmd_end = commanded.back().T_world_end;
-    setPose(mo.target, toProgram(c.T_world_progbase, T_cmd_end));
+    setPose(mo.target, toProgram(c.T_world_progbase, T_cmd_end), commandBefore(c, &commanded));
     mo.target.turn = end.turn;
     claimValue(mo.target, m.where, true);
     reportTarget(m, m.target, "end", c.T_world_progbase, c.T_world_end, T_cmd_end, c.models->calibrated_tool,
@@ -700,16 +771,18 @@ class Job {
         a.replaces = a.name;
         a.new_declaration = true;
         // KRL: declared next to the point it replaces in the .dat; a point declared elsewhere
-        // (the .src, $config.dat) is replaced by an inline aggregate (no name)
-        const bool in_dat = !in_->krl || (a.value_id >= 0 && static_cast<size_t>(a.value_id) < in_->krl->values.size() &&
-                                          in_->krl->values[static_cast<size_t>(a.value_id)].file == 1);
+        // (the .src, $config.dat) or an array's element (XPA[1]: no name to derive a new one
+        // from) is replaced by an inline aggregate (no name)
+        const bool in_dat = isDeclarableName(a.name) &&
+                            (!in_->krl || (a.value_id >= 0 && static_cast<size_t>(a.value_id) < in_->krl->values.size() &&
+                                           in_->krl->values[static_cast<size_t>(a.value_id)].file == 1));
         a.name = in_dat ? newPointName(*in_, a.name, new_names_) : std::string();
         if (in_dat) new_names_.push_back(a.name);
       }
       Eigen::Isometry3d T_cmd_aux = commanded.back().T_world_aux;
       // the controller ignores the orientation of an auxiliary point: the program's stays
       if (!mo.aux->new_declaration) T_cmd_aux.linear() = intended.T_world_aux.linear();
-      setPose(*mo.aux, toProgram(c.T_world_progbase, T_cmd_aux));
+      setPose(*mo.aux, toProgram(c.T_world_progbase, T_cmd_aux), commandBefore(c, &commanded));
       if (!mo.aux->new_declaration) claimValue(*mo.aux, m.where, true);
       if (commanded.size() == 1) {
         reportTarget(m, *m.aux, "aux", c.T_world_progbase, intended.T_world_aux, T_cmd_aux, c.models->calibrated_tool);

@@ -111,7 +111,7 @@ Target toTarget(const Agg& a, const std::string& declared, const KrlFile& f, Krl
     } else {
       t.pose[indexOf(kCartNames, it.name)] = it.num;
     }
-    value.components.push_back({it.name, it.vbegin, it.vend, it.num});
+    value.components.push_back({it.name, it.vbegin, it.vend, it.num, it.name_tok.begin});
   }
   if (src) {
     t.value_id = static_cast<int>(src->values.size());
@@ -218,7 +218,8 @@ MoveData toMoveData(const Agg& a) {
 void parseDeclaration(Cursor& c, Declarations& d, KrlSource* src, bool global) {
   const KrlFile& f = c.file();
   if (c.isIdent("DECL")) c.next();
-  while (c.isIdent("GLOBAL") || c.isIdent("CONST")) c.next();
+  bool global_keyword = false;  // DECL GLOBAL: other modules may use the point
+  while (c.isIdent("GLOBAL") || c.isIdent("CONST")) global_keyword = global_keyword || c.next().up == "GLOBAL";
   const Tok* type_tok = c.peek();
   if (!type_tok || type_tok->kind != Tok::kIdent) return;  // not ours
   const std::string type = type_tok->up;
@@ -236,7 +237,7 @@ void parseDeclaration(Cursor& c, Declarations& d, KrlSource* src, bool global) {
     if (c.isPunct("[")) {  // an array: its elements are run-time values
       while (!c.atEnd() && !c.isPunct("]")) c.next();
       c.expectPunct("]", "closing the array dimension");
-      if (point) d.arrays[name.up] = f.loc(name.begin);
+      if (point) d.arrays[name.up] = ArrayEntry{name.text, type, f.loc(name.begin), global_keyword};
       if (c.acceptPunct("=")) c.fail("expected no initial value for the array " + name.text + ", found '='");
     } else if (c.acceptPunct("=")) {
       if (point) {
@@ -245,10 +246,12 @@ void parseDeclaration(Cursor& c, Declarations& d, KrlSource* src, bool global) {
         e.type = type;
         e.declared = f.loc(name.begin);
         e.global = global;
+        e.global_keyword = global_keyword;
         if (c.isPunct("{")) {
           const Agg a = parseAggregate(c);
           e.value = toTarget(a, type, f, global ? nullptr : src);
           e.value->name = name.text;
+          if (src && e.value->value_id >= 0) src->values[static_cast<size_t>(e.value->value_id)].global = global_keyword;
         } else {
           // initialised from another variable: not a constant accura can correct
           while (!c.atEnd() && !c.isPunct(",")) c.next();
@@ -275,6 +278,7 @@ void parseDeclaration(Cursor& c, Declarations& d, KrlSource* src, bool global) {
       e.type = type;
       e.declared = f.loc(name.begin);
       e.global = global;
+      e.global_keyword = global_keyword;
       e.problem = name.text + " is declared without a value (" + f.loc(name.begin).str() + ")";
       if (!d.points.count(name.up) || d.points[name.up].global != global) d.points[name.up] = std::move(e);
     }
@@ -318,6 +322,39 @@ bool parseTableAssignment(Cursor& c, Declarations& d) {
   return true;
 }
 
+std::string arrayElementName(const ArrayEntry& a, int index) { return a.name + "[" + std::to_string(index) + "]"; }
+
+// XPA[1]={X ..}: a data list's value of an element of a point array declared before it.
+bool parseArrayElement(Cursor& c, Declarations& d, KrlSource* src, bool global) {
+  const Tok* t = c.peek();
+  if (!t || t->kind != Tok::kIdent || !c.isPunct("[", 1)) return false;
+  const auto a = d.arrays.find(t->up);
+  if (a == d.arrays.end()) return false;
+  const size_t start = c.pos();
+  if (!c.peek(2)) return false;
+  const std::optional<int> index = integerValue(c.tokens(), start + 2, start + 3);
+  if (!index || !c.isPunct("]", 3) || !c.isPunct("=", 4) || !c.isPunct("{", 5)) return false;  // XPA[1,2], XPA[1].X = ..
+  const KrlFile& f = c.file();
+  c.seek(start + 5);
+  const Agg agg = parseAggregate(c);
+  if (!c.atEnd()) c.fail("expected the end of the statement after the value of " + arrayElementName(a->second, *index) + ", found " + describe(c.peek()));
+  PointEntry e;
+  e.name = arrayElementName(a->second, *index);
+  e.type = a->second.type;
+  e.declared = f.loc(t->begin);
+  e.global = global;
+  e.global_keyword = a->second.global_keyword;
+  e.value = toTarget(agg, e.type, f, global ? nullptr : src);
+  e.value->name = e.name;
+  if (src && e.value->value_id >= 0) src->values[static_cast<size_t>(e.value->value_id)].global = e.global_keyword;
+  const std::string key = upper(e.name);
+  const auto it = d.points.find(key);
+  if (it != d.points.end() && it->second.global == global)
+    f.fail(t->begin, "expected one value of " + e.name + " in the data list, found a second one (the first is at " + it->second.declared.str() + ")");
+  d.points[key] = std::move(e);
+  return true;
+}
+
 void parseDataFile(const KrlFile& f, Declarations& d, KrlSource* src, bool global) {
   // DEFDAT name [PUBLIC] ... ENDDAT: a file cut short (or empty) is an error, not fewer points
   bool defdat = false, enddat = false;
@@ -340,8 +377,8 @@ void parseDataFile(const KrlFile& f, Declarations& d, KrlSource* src, bool globa
     if (first == "DECL" || ((isPointType(first) || first == "FDAT" || first == "LDAT" || first == "PDAT") &&
                             toks.size() > 1 && toks[1].kind == Tok::kIdent)) {
       parseDeclaration(c, d, src, global);
-    } else {
-      parseTableAssignment(c, d);
+    } else if (!parseTableAssignment(c, d)) {
+      parseArrayElement(c, d, src, global);
     }
   }
   if (!defdat) f.fail(f.text().size(), "expected a data list (DEFDAT name ... ENDDAT), found the end of the file");

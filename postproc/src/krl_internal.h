@@ -220,6 +220,7 @@ struct PointEntry {
   std::string problem;  // why the value cannot be used (changed at run time, ...)
   SourceLocation declared;
   bool global = false;  // from $config.dat
+  bool global_keyword = false;  // declared GLOBAL (other modules may use it)
 };
 
 struct Fdat {
@@ -233,9 +234,18 @@ struct MoveData {  // LDAT / PDAT
   std::optional<double> apo_dist;  // mm (C_DIS), percent (C_PTP)
 };
 
+/// A point array (DECL E6POS XPA[10]): its elements given a value in a data list
+/// (XPA[1]={X ..}) are points of their own in Declarations::points, named "XPA[1]".
+struct ArrayEntry {
+  std::string name;  // as declared
+  std::string type;  // E6POS, POS, FRAME, E6AXIS, AXIS
+  SourceLocation declared;
+  bool global_keyword = false;  // DECL GLOBAL: its elements are global points
+};
+
 struct Declarations {
-  std::map<std::string, PointEntry> points;  // upper-case names
-  std::map<std::string, SourceLocation> arrays;
+  std::map<std::string, PointEntry> points;  // upper-case names; array elements as "XPA[1]"
+  std::map<std::string, ArrayEntry> arrays;  // upper-case names
   std::map<std::string, Fdat> fdats;
   std::map<std::string, MoveData> ldats, pdats;
   FrameTables tables;
@@ -250,6 +260,11 @@ Fdat toFdat(const Agg& a, const KrlFile& f);
 void parseDeclaration(Cursor& c, Declarations& d, KrlSource* src, bool global);
 /// TOOL_DATA[n] = / BASE_DATA[n] = at the cursor; false when it is not one.
 bool parseTableAssignment(Cursor& c, Declarations& d);
+/// The name and upper-case key of element `index` of the point array `a`: "XPA[1]".
+std::string arrayElementName(const ArrayEntry& a, int index);
+/// NAME[n] = {...} at the cursor, NAME a point array of `d`: the element's value, a point of
+/// its own (its text spans recorded in src unless it is global); false when it is not one.
+bool parseArrayElement(Cursor& c, Declarations& d, KrlSource* src, bool global);
 /// Every declaration of a .dat or $config.dat.
 void parseDataFile(const KrlFile& f, Declarations& d, KrlSource* src, bool global);
 

@@ -55,6 +55,7 @@ bool declaresModelType(const std::vector<Tok>& t) {
 
 struct Reader {
   Declarations decl;
+  std::map<std::string, SourceLocation> other_globals;  // KrlReadOptions::other_globals
   KrlSource* src = nullptr;
   Program* program = nullptr;
   const KrlFile* f = nullptr;
@@ -67,6 +68,9 @@ struct Reader {
   std::optional<MoveData> ldat, pdat;
   std::optional<double> vel_cp, vel_ptp, apo_cdis, apo_cptp, apo_cvel, apo_cori;
   bool in_spline = false;
+  /// The frames and speeds a SPLINE / PTP_SPLINE block's WITH clause sets for its motions
+  /// (tool, base, external_tcp, vel_m_s, vel_percent); none outside a block or without WITH.
+  std::optional<Motion> spline_block_;
   int triggers = 0;
   bool missing_dat_ = false;  // resolveTarget met a named point and no .dat (Motion::target_file_missing)
   bool main_started = false, main_ended = false;  // the main program's DEF / END seen
@@ -300,19 +304,53 @@ struct Reader {
                  fs::path(src->src_path).replace_extension(".dat").string() +
                  " does not exist (give --dat; a global point: give --config $config.dat)";
         }
+        // a GLOBAL point of another program's data list (another program of the batch): the
+        // controller takes its value from there, which that program's compensation corrects
+        // for its own tool, base and motions; --config would not find it
+        if (const auto g = other_globals.find(up); g != other_globals.end())
+          return t[b].text + " is not declared in " + src->src_path + " or " + src->dat_path + ": it is the GLOBAL point of " +
+                 g->second.str() + ", another program's data list, whose compensation corrects it for that program's tool, base "
+                 "and motions; this motion moves to that value (declare a point of this program's own to compensate it)";
         return t[b].text + " is not declared in " + src->src_path + " or " + src->dat_path +
                " (a global point: give --config $config.dat)";
       }
-      const PointEntry& p = it->second;
-      if (!p.problem.empty()) return p.problem;
-      if (const auto v = volatile_points_.find(up); v != volatile_points_.end()) return t[b].text + " " + v->second;
-      if (const auto a = assigned_points_.find(up); a != assigned_points_.end() && main_ended)
-        return t[b].text + " is assigned at " + a->second + ": in a subroutine its value depends on where it is called";
-      *out = *p.value;
-      out->name = t[b].text;
-      return "";
+      return pointValue(it->second, up, t[b].text, out);
+    }
+    // an element of a point array: XPA[1] is a point of its own when the data list gives it a
+    // value (XPA[1]={X ..}); XPA[i] is one the program chooses at run time
+    if (e - b >= 4 && t[b].kind == Tok::kIdent && t[b + 1].text == "[" && t[e - 1].text == "]") {
+      const auto a = decl.arrays.find(t[b].up);
+      if (a != decl.arrays.end()) {
+        const std::optional<int> index = integerValue(t, b + 2, e - 1);
+        if (!index)
+          return "the target '" + text + "' is an element of the array " + a->second.name + " whose index is computed at run time";
+        const std::string name = arrayElementName(a->second, *index);
+        const auto it = decl.points.find(upper(name));
+        if (it == decl.points.end())
+          return name + " is not given a value (the array " + a->second.name + " is declared at " + a->second.declared.str() + ")";
+        // an assignment of the array in a block or a routine (the prescan's volatile and
+        // assigned points hold the array, whatever the index) counts for each element
+        return pointValue(it->second, upper(name), name, out, &a->second);
+      }
     }
     return "the target '" + text + "' is computed at run time";
+  }
+
+  // The value of a declared point (upper-case name `up`, written `written`; an element of
+  // `array`, whose assignments count for each element) into `out`; the problem ("" when usable).
+  std::string pointValue(const PointEntry& p, const std::string& up, const std::string& written, Target* out,
+                         const ArrayEntry* array = nullptr) const {
+    if (!p.problem.empty()) return p.problem;
+    for (const std::string& key : {up, array ? upper(array->name) : std::string()}) {
+      if (key.empty()) continue;
+      const std::string who = key == up ? written : written + ": " + array->name;
+      if (const auto v = volatile_points_.find(key); v != volatile_points_.end()) return who + " " + v->second;
+      if (const auto a = assigned_points_.find(key); a != assigned_points_.end() && main_ended)
+        return who + " is assigned at " + a->second + ": in a subroutine its value depends on where it is called";
+    }
+    *out = *p.value;
+    out->name = written;
+    return "";
   }
 
   // True when the assignment is part of the motion model ($TOOL, $BASE, speeds, approximation,
@@ -375,14 +413,40 @@ struct Reader {
       }
       return;
     }
-    // a point changed by the program
-    auto it = decl.points.find(lhs0);
+    // a point changed by the program, or an element of a point array (XPA[2] = {..})
+    std::string key = lhs0;
+    bool whole = simple;  // the whole point is assigned (not a component)
+    if (t.size() > 1 && t[1].text == "[") {
+      const auto a = decl.arrays.find(lhs0);
+      if (a == decl.arrays.end()) return;
+      const std::optional<int> index = t.size() > 3 && t[3].text == "]" ? integerValue(t, 2, 3) : std::nullopt;
+      if (!index) {  // XPA[i] = ..: any element may be the one changed
+        for (auto& [up, p] : decl.points)
+          if (up.compare(0, lhs0.size() + 1, lhs0 + "[") == 0) {
+            pointChanged(up, true, t[0].begin);
+            p.problem = p.name + " may be changed at run time (" + f->loc(t[0].begin).str() + ": an element of " + a->second.name +
+                        " whose index is computed at run time)";
+          }
+        return;
+      }
+      key = upper(arrayElementName(a->second, *index));
+      whole = eq == 4;
+      if (!decl.points.count(key)) {  // an element the data list gives no value: from here on, this one's
+        PointEntry e;
+        e.name = arrayElementName(a->second, *index);
+        e.type = a->second.type;
+        e.declared = f->loc(t[0].begin);
+        e.problem = e.name + " is not given a value before " + f->loc(t[0].begin).str();
+        decl.points[key] = std::move(e);
+      }
+    }
+    auto it = decl.points.find(key);
     if (it != decl.points.end()) {
-      bool self = !simple;
+      bool self = !whole;
       for (size_t i = b; i < e; ++i) self = self || (t[i].kind == Tok::kIdent && t[i].up == lhs0);
-      pointChanged(lhs0, self, t[0].begin);
+      pointChanged(key, self, t[0].begin);
       PointEntry& p = it->second;
-      if (simple && t[b].text == "{" ) {
+      if (whole && t[b].text == "{" ) {
         Cursor c(*f, t, t[e - 1].end);
         c.seek(b);
         const Agg a = parseAggregate(c);
@@ -443,7 +507,8 @@ struct Reader {
     return true;
   }
 
-  // WITH assignments of a spline motion (valid for this motion only).
+  // WITH assignments of a spline motion (valid for this motion only), or of a SPLINE block's
+  // header (valid for the motions of the block: `m` is then the block's settings).
   void applyWith(const std::vector<Tok>& t, size_t b, size_t e, Motion& m) {
     size_t i = b;
     while (i < e) {
@@ -474,7 +539,10 @@ struct Reader {
           }
           return {0, 0};
         };
-        if (lhs == "$TOOL" || lhs == "$BASE") {
+        if ((lhs == "$TOOL" || lhs == "$BASE") && eq != i + 1) {  // $TOOL.X = ..: a frame accura does not follow
+          FrameSetting& s = lhs == "$TOOL" ? m.tool : m.base;
+          s = unknownFrame(f->text().substr(t[i].begin, t[re - 1].end - t[i].begin), t[i].begin);
+        } else if (lhs == "$TOOL" || lhs == "$BASE") {
           const bool is_tool = lhs == "$TOOL";
           FrameSetting& s = is_tool ? m.tool : m.base;
           if (fn == "STOOL2" || fn == "SBASE") {
@@ -492,6 +560,8 @@ struct Reader {
           } else {
             s = evalFrame(t, rb, re, is_tool, s);
           }
+        } else if (lhs == "$VEL" && eq == i + 3 && t[i + 1].text == "." && t[i + 2].up == "CP") {  // $VEL.CP = v (m/s)
+          m.vel_m_s = numberValue(t, rb, re);
         } else if (lhs == "$VEL" && (fn == "SVEL_CP")) {
           const auto a = arg(0);
           m.vel_m_s = numberValue(t, a.first, a.second);
@@ -608,6 +678,13 @@ struct Reader {
     m.external_tcp = external_tcp;
     if (m.type == MotionType::kPtp) m.vel_percent = vel_ptp;
     else m.vel_m_s = vel_cp;
+    if (in_spline && spline_block_) {  // the block's WITH clause, then the motion's own
+      m.tool = spline_block_->tool;
+      m.base = spline_block_->base;
+      m.external_tcp = spline_block_->external_tcp;
+      if (m.type == MotionType::kPtp) m.vel_percent = spline_block_->vel_percent;
+      else m.vel_m_s = spline_block_->vel_m_s;
+    }
     if (!m.approximation.empty()) {
       switch (m.approximation.front()) {
         case Approximation::kCDis: m.approximation_value = apo_cdis; break;
@@ -743,8 +820,28 @@ struct Reader {
       main_ended = true;
       return true;
     }
-    if (k == "SPLINE" || k == "PTP_SPLINE") { in_spline = true; return true; }
-    if (k == "ENDSPLINE") { in_spline = false; return true; }
+    if (k == "SPLINE" || k == "PTP_SPLINE") {
+      // SPLINE WITH $TOOL = .., $BASE = .., $VEL.CP = ..: the assignments hold for every motion
+      // of the block (KSS: valid for the spline block, the program's own $TOOL/$BASE unchanged)
+      in_spline = true;
+      spline_block_.reset();
+      if (t.size() > 1 && t[1].kind == Tok::kIdent && t[1].up == "WITH") {
+        Motion block;
+        block.tool = tool;
+        block.base = base;
+        block.external_tcp = external_tcp;
+        block.vel_m_s = vel_cp;
+        block.vel_percent = vel_ptp;
+        applyWith(t, 2, t.size(), block);
+        spline_block_ = std::move(block);
+      }
+      return true;
+    }
+    if (k == "ENDSPLINE") {
+      in_spline = false;
+      spline_block_.reset();
+      return true;
+    }
     if (k == "TRIGGER") { ++triggers; return false; }
     if (k == "DECL" || ((isPointType(k) || k == "FDAT" || k == "LDAT" || k == "PDAT") && t.size() > 1 && t[1].kind == Tok::kIdent)) {
       Cursor c(*f, t, l.code_end);
@@ -804,7 +901,12 @@ void datPassThrough(const KrlFile& f, Program& program) {
     } else {
       const std::string& k = t[0].up;
       if (t[0].text == "&" || k == "DEFDAT" || k == "ENDDAT" || (k == "PUBLIC" && t.size() > 1 && t[1].up == "DEFDAT")) continue;
-      if ((k == "DECL" || isPointType(k) || k == "FDAT" || k == "LDAT" || k == "PDAT") && declaresModelType(t)) continue;
+      // a declaration the model holds the value of; one without a value (a point array: DECL
+      // E6POS XPA[10], its elements' lines XPA[1]={..} carried too) travels as written, as in
+      // the .src, so that the program still declares what it uses
+      bool value = false;
+      for (const Tok& x : t) value = value || (x.kind == Tok::kPunct && x.text == "=");
+      if ((k == "DECL" || isPointType(k) || k == "FDAT" || k == "LDAT" || k == "PDAT") && declaresModelType(t) && value) continue;
     }
     PassThrough p;
     p.language = "KRL";
@@ -847,6 +949,17 @@ FrameTables readKrlFrameTables(const std::string& config_path) {
   return d.tables;
 }
 
+std::map<std::string, SourceLocation> krlGlobalPoints(const std::string& dat_path) {
+  const KrlFile f(dat_path, readFileBytes(dat_path, "the KRL data file"), 1);
+  Declarations d;
+  KrlSource spans;  // (the values' text spans: not used)
+  parseDataFile(f, d, &spans, false);
+  std::map<std::string, SourceLocation> out;
+  for (const auto& [up, p] : d.points)
+    if (p.global_keyword) out[up] = p.declared;
+  return out;
+}
+
 Program readKrl(const std::string& src_path, const KrlReadOptions& options) {
   auto source = std::make_shared<KrlSource>();
   source->src_path = src_path;
@@ -859,6 +972,7 @@ Program readKrl(const std::string& src_path, const KrlReadOptions& options) {
   Reader r;
   r.src = source.get();
   r.program = &program;
+  r.other_globals = options.other_globals;
 
   if (!options.config_path.empty()) {
     const KrlFile cfg(options.config_path, readFileBytes(options.config_path, "the $config.dat"), 2);
@@ -928,9 +1042,17 @@ Program readKrl(const std::string& src_path, const KrlReadOptions& options) {
       if (Reader::opensBranch(k) || Reader::opensLoop(k)) ++depth;
       if (Reader::closesBlock(k) && depth > 0) --depth;
       if (t[0].kind != Tok::kIdent || k.empty() || k[0] == '$' || r.volatile_points_.count(k)) continue;
-      size_t eq = 1;
-      const bool field = t.size() > 3 && t[1].text == "." && t[2].kind == Tok::kIdent;
-      if (field) eq = 3;
+      size_t eq = 1;  // after the name, or after an array's index (XPA[2] = .., XPA[i].X = ..: the array)
+      if (t.size() > 1 && t[1].text == "[") {
+        int depth = 0;
+        for (eq = 1; eq < t.size(); ++eq) {
+          if (t[eq].text == "[") ++depth;
+          if (t[eq].text == "]" && --depth == 0) break;
+        }
+        ++eq;
+      }
+      const bool field = t.size() > eq + 2 && t[eq].text == "." && t[eq + 1].kind == Tok::kIdent;
+      if (field) eq += 2;
       if (eq >= t.size() || t[eq].text != "=") continue;
       const std::string at = src.loc(t[0].begin).str();
       r.assigned_points_.emplace(k, at);

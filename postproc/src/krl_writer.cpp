@@ -35,27 +35,15 @@ std::string componentText(const Target& t, const std::string& name) {
   return "";
 }
 
-// The new text of a target's aggregate: the numbers of the pose (or axes) replaced in place when
-// the aggregate has them all, else the whole aggregate rebuilt.
+// The new text of a target's aggregate: the numbers of the pose (or axes) replaced in place, and
+// the components the target has that the aggregate leaves out (a partial aggregate the
+// correction completed: Job::setPose) added in the canonical order, each before the first
+// written component that follows it there, else after the last one.
 std::string rewriteValue(const KrlSource::Value& v, const std::string& text, const Target& t) {
   const bool cart = t.kind == Target::Kind::kCartesian;
   const char* const* names = cart ? kCartNames : kAxisNames;
-  std::set<std::string> have;
-  for (const auto& c : v.components) have.insert(c.name);
-  bool all = true;
-  for (int k = 0; k < 6; ++k)
-    if (!have.count(names[k])) all = false;
-  if (!all) {
-    std::string agg = krlAggregate(t);
-    const std::string orig = text.substr(v.begin, v.end - v.begin);
-    const size_t colon = orig.find(':');
-    if (!t.type.empty() && colon != std::string::npos) agg = orig.substr(0, colon + 1) + " " + agg.substr(1);
-    return agg;
-  }
-  std::string out;
-  size_t pos = v.begin;
+  std::vector<std::pair<size_t, std::pair<size_t, std::string>>> edits;  // [begin, end) -> text, in order
   for (const auto& c : v.components) {
-    out += text.substr(pos, c.begin - pos);
     // the pose, and S / T when the compensation changed them
     const bool st_changed = cart && ((c.name == "S" && t.status && *t.status != c.value) ||
                                      (c.name == "T" && t.turn && *t.turn != c.value));
@@ -64,9 +52,33 @@ std::string rewriteValue(const KrlSource::Value& v, const std::string& text, con
     const int k = indexOf(names, c.name);
     const std::string now = componentText(t, c.name);
     const bool same = k >= 0 && !now.empty() && now == (cart ? (k < 3 ? formatMm(c.value) : formatDeg(c.value)) : formatAxis(c.value));
-    const bool ours = (k >= 0 && !same) || st_changed;
-    out += ours ? now : text.substr(c.begin, c.end - c.begin);
-    pos = c.end;
+    if ((k >= 0 && !same) || st_changed) edits.push_back({c.begin, {c.end, now}});
+  }
+  std::vector<std::string> order;  // the canonical order of the components
+  for (int k = 0; k < 6; ++k) order.push_back(names[k]);
+  if (cart) order.insert(order.end(), {"S", "T"});
+  for (int k = 0; k < 6; ++k) order.push_back(kExtNames[k]);
+  size_t last_end = v.begin + 1;
+  for (const auto& c : v.components) last_end = std::max(last_end, c.end);
+  for (size_t i = 0; i < order.size(); ++i) {
+    const std::string now = componentText(t, order[i]);
+    const auto written = [&](const std::string& n) {
+      return std::find_if(v.components.begin(), v.components.end(), [&](const KrlSource::Component& c) { return c.name == n; });
+    };
+    if (now.empty() || written(order[i]) != v.components.end()) continue;
+    size_t at = std::string::npos;
+    for (size_t j = i + 1; j < order.size() && at == std::string::npos; ++j)
+      if (const auto c = written(order[j]); c != v.components.end()) at = c->name_begin;
+    if (at != std::string::npos) edits.push_back({at, {at, order[i] + " " + now + ","}});
+    else edits.push_back({last_end, {last_end, "," + order[i] + " " + now}});
+  }
+  std::stable_sort(edits.begin(), edits.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  std::string out;
+  size_t pos = v.begin;
+  for (const auto& [begin, e] : edits) {
+    out += text.substr(pos, begin - pos);
+    out += e.second;
+    pos = e.first;
   }
   out += text.substr(pos, v.end - pos);
   return out;
@@ -109,11 +121,23 @@ KrlText patchKrl(const Program& p) {
   std::map<int, std::pair<std::string, std::string>> value_text;  // value id -> (text, who)
   int order = 0;
   auto textOf = [&](int file) -> const std::string& { return file == 0 ? s.src_text : s.dat_text; };
-  auto modify = [&](const Target& t, const Motion& m) {
+  // the motion's statement with its target (`aux`: the auxiliary point) replaced by `text`
+  auto replaceInStatement = [&](const Motion& m, bool aux, const std::string& text) {
+    if (m.statement_id < 0 || m.statement_id >= static_cast<int>(s.statements.size()))
+      throw calib::ArgumentError("writeKrl: a motion whose target goes into its statement has no statement");
+    const KrlSource::Statement& st = s.statements[static_cast<size_t>(m.statement_id)];
+    const auto& span = aux ? st.targets.front() : st.targets.back();
+    edits.push_back({st.file, span.first, span.second, text, order++});
+  };
+  auto modify = [&](const Target& t, const Motion& m, bool aux) {
     if (!t.modified) return;
-    if (t.value_id < 0)
-      throw calib::ArgumentError(m.where.str() + ": cannot write the corrected value of " + (t.name.empty() ? "this target" : t.name) +
-                          ": it is declared outside the program (e.g. in $config.dat)");
+    if (t.value_id < 0) {
+      // declared outside the program's files (a $config.dat point, which accura never
+      // rewrites): the corrected value goes into this motion as an inline aggregate, as for a
+      // split CIRC's auxiliary point declared elsewhere; other users of the point keep its value
+      replaceInStatement(m, aux, krlAggregate(t));
+      return;
+    }
     const KrlSource::Value& v = s.values.at(static_cast<size_t>(t.value_id));
     const std::string text = rewriteValue(v, textOf(v.file), t);
     auto it = value_text.find(t.value_id);
@@ -131,11 +155,8 @@ KrlText patchKrl(const Program& p) {
   // names it, its DECL follows the declaration of the point it replaces in the .dat (which
   // keeps its text); a point declared elsewhere is replaced by an inline aggregate
   auto declareNew = [&](const Target& t, const Motion& m) {
-    if (m.statement_id < 0 || m.statement_id >= static_cast<int>(s.statements.size()))
-      throw calib::ArgumentError("writeKrl: a motion with a new point has no statement");
-    const KrlSource::Statement& st = s.statements[static_cast<size_t>(m.statement_id)];
     const bool in_dat = !t.name.empty() && t.value_id >= 0 && s.values.at(static_cast<size_t>(t.value_id)).file == 1;
-    edits.push_back({st.file, st.targets.front().first, st.targets.front().second, in_dat ? t.name : krlAggregate(t), order++});
+    replaceInStatement(m, true, in_dat ? t.name : krlAggregate(t));
     if (!in_dat) return;
     const KrlSource::Value& v = s.values.at(static_cast<size_t>(t.value_id));
     const std::string& text = textOf(v.file);
@@ -171,8 +192,8 @@ KrlText patchKrl(const Program& p) {
       continue;
     }
     if (m.aux && m.aux->new_declaration) declareNew(*m.aux, m);
-    else if (m.aux) modify(*m.aux, m);
-    modify(m.target, m);
+    else if (m.aux) modify(*m.aux, m, true);
+    modify(m.target, m, false);
   }
   KrlText out;
   out.src = applyEdits(s.src_text, edits, 0);
@@ -271,29 +292,26 @@ KrlText generateKrl(const Program& p) {
   for (size_t k = 0; k < p.motions.size(); ++k) {
     const Motion& m = p.motions[k];
     carry(src, PassThrough::Section::kBody, k);
-    if (m.spline && m.type == MotionType::kSpl && !in_spline) {
-      src << "SPLINE\n";
-      in_spline = true;
-    } else if (in_spline && m.type != MotionType::kSpl) {
-      src << "ENDSPLINE\n";
-      in_spline = false;
-    }
+    // the frames, speeds and approximation this motion needs: statements, which a SPLINE block
+    // may not hold (KSS: a block's segments take the block's $TOOL, $BASE): written before the
+    // block, which ends and starts anew where they change
+    std::ostringstream settings;
     if (!sameFrame(m.tool, tool)) {
       const std::string s = frameStatement("$TOOL", m.tool, true);
-      if (!s.empty()) src << s << "\n";
+      if (!s.empty()) settings << s << "\n";
       tool = m.tool;
     }
     if (!sameFrame(m.base, base)) {
       const std::string s = frameStatement("$BASE", m.base, false);
-      if (!s.empty()) src << s << "\n";
+      if (!s.empty()) settings << s << "\n";
       base = m.base;
     }
     if (m.type == MotionType::kPtp && m.vel_percent && m.vel_percent != vel_ptp) {
-      for (int axis = 1; axis <= 6; ++axis) src << "$VEL_AXIS[" << axis << "]=" << calib::formatFixed(*m.vel_percent, 4) << "\n";
+      for (int axis = 1; axis <= 6; ++axis) settings << "$VEL_AXIS[" << axis << "]=" << calib::formatFixed(*m.vel_percent, 4) << "\n";
       vel_ptp = m.vel_percent;
     }
     if (m.type != MotionType::kPtp && m.vel_m_s && m.vel_m_s != vel_cp) {
-      src << "$VEL.CP=" << calib::formatFixed(*m.vel_m_s, 4) << "\n";
+      settings << "$VEL.CP=" << calib::formatFixed(*m.vel_m_s, 4) << "\n";
       vel_cp = m.vel_m_s;
     }
     if (!m.approximation.empty() && m.approximation_value && apo[m.approximation.front()] != m.approximation_value) {
@@ -304,8 +322,18 @@ KrlText generateKrl(const Program& p) {
         case Approximation::kCOri: var = "CORI"; break;
         default: break;
       }
-      src << "$APO." << var << "=" << calib::formatFixed(*m.approximation_value, 4) << "\n";
+      settings << "$APO." << var << "=" << calib::formatFixed(*m.approximation_value, 4) << "\n";
       apo[m.approximation.front()] = m.approximation_value;
+    }
+    const bool spl = m.spline && m.type == MotionType::kSpl;
+    if (in_spline && (!spl || !settings.str().empty())) {
+      src << "ENDSPLINE\n";
+      in_spline = false;
+    }
+    src << settings.str();
+    if (spl && !in_spline) {
+      src << "SPLINE\n";
+      in_spline = true;
     }
     std::string line = motionKeyword(m) + " ";
     if (m.aux) line += targetText(*m.aux, m) + ", ";

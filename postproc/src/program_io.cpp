@@ -44,6 +44,7 @@ Program readProgram(const std::string& path, const ProgramReadOptions& options) 
     KrlReadOptions o;
     o.dat_path = options.dat_path;
     o.config_path = options.config_path;
+    o.other_globals = options.other_globals;
     return readKrl(path, o);
   }
   if (!options.dat_path.empty()) throw calib::InputError("--dat: only for KRL programs (.src), found the XML program " + path);

@@ -411,8 +411,11 @@ void writeFrame(std::ostream& out, const char* tag, const FrameSetting& s) {
 
 void writeTarget(std::ostream& out, const char* tag, const Target& t) {
   out << "      <" << tag;
-  if (!t.name.empty()) out << " name=\"" << calib::xmlEscape(t.name) << "\"";
-  if (!t.type.empty()) out << " type=\"" << t.type << "\"";
+  // a name the format cannot hold (a KRL array's element, XPA[1]) is left out with its type:
+  // the target travels as an inline value (which KRL writes back untyped)
+  const bool named = isDeclarableName(t.name);
+  if (named) out << " name=\"" << calib::xmlEscape(t.name) << "\"";
+  if (!t.type.empty() && (named || t.name.empty())) out << " type=\"" << t.type << "\"";
   if (t.kind == Target::Kind::kCartesian) {
     for (int k = 0; k < 6; ++k)
       if (t.pose[k]) out << " " << kPoseAttrs[k] << "=\"" << (k < 3 ? formatMm(*t.pose[k]) : formatDeg(*t.pose[k])) << "\"";
@@ -598,7 +601,7 @@ std::string writeXmlProgram(const Program& p) {
         writeTarget(out, tag_name, t);
         return;
       }
-      if (t.name.empty())
+      if (!isDeclarableName(t.name))
         throw calib::ArgumentError(m.where.str() + ": cannot write this motion's target as XML: " +
                             (m.target_problem.empty() ? std::string("it has no value") : m.target_problem));
       out << "      <" << (aux ? "aux" : "ref") << " name=\"" << calib::xmlEscape(t.name) << "\"/>\n";

@@ -5,10 +5,12 @@
 // What the reader understands (keywords case-insensitive):
 //   motions   PTP LIN CIRC SPTP SLIN SCIRC SPL (inside SPLINE..ENDSPLINE), *_REL (not
 //             compensated), targets inline ({X ..}, {E6POS: ..}, {AXIS: A1 ..}) or named
-//             (DECL E6POS/POS/FRAME/E6AXIS/AXIS in the .dat, the .src or the $config.dat),
+//             (DECL E6POS/POS/FRAME/E6AXIS/AXIS in the .dat, the .src or the $config.dat;
+//             an element of a point array given a value there, XPA[1]={X ..}: "XPA[1]"),
 //             CIRC's CA, approximation C_PTP C_DIS C_VEL C_ORI C_SPL, WITH clauses of spline
 //             motions ($TOOL = STOOL2(F), $BASE = SBASE(F.BASE_NO), $VEL = SVEL_CP(v,..),
-//             $VEL_AXIS[1] = SVEL_JOINT(v), $APO = SAPO(L) / SAPO_PTP(P)).
+//             $VEL_AXIS[1] = SVEL_JOINT(v), $APO = SAPO(L) / SAPO_PTP(P)); a SPLINE block's
+//             WITH clause ($TOOL, $BASE, $VEL.CP) holds for every motion of the block.
 //   frames    $TOOL / $BASE = inline frame, TOOL_DATA[n] / BASE_DATA[n], $NULLFRAME;
 //             BAS(#TOOL,n), BAS(#BASE,n); inline forms: FDAT_ACT = F.. then BAS(#PTP_PARAMS,v),
 //             BAS(#CP_PARAMS,v) or BAS(#FRAMES); TOOL_DATA / BASE_DATA resolved from the
@@ -22,6 +24,7 @@
 // motion statement without a target, an unterminated string.
 #pragma once
 
+#include <map>
 #include <string>
 
 #include "accura/postproc/program.h"
@@ -34,6 +37,11 @@ struct KrlReadOptions {
   std::string dat_path;
   /// $config.dat (TOOL_DATA, BASE_DATA, global points such as XHOME); empty: none.
   std::string config_path;
+  /// The GLOBAL points of other programs' data lists (upper-case name -> where declared;
+  /// krlGlobalPoints), e.g. of the other programs of a batch. Not read as values: a motion of
+  /// this program to one of them is kept as written, and its warning says where the point is
+  /// declared (its value there is that program's, corrected for that program's motions).
+  std::map<std::string, SourceLocation> other_globals;
 };
 
 /// Reads a KRL program. Throws InputError (file:line:column) on a malformed target, frame or
@@ -48,6 +56,11 @@ std::string krlDatPath(const std::string& src_path);
 /// Reads TOOL_DATA[n] / BASE_DATA[n] from a $config.dat. Throws InputError.
 FrameTables readKrlFrameTables(const std::string& config_path);
 
+/// The points a data list (.dat) declares GLOBAL (DECL GLOBAL E6POS XG1={..}; the elements of a
+/// GLOBAL point array, "XPA[1]"): upper-case name -> where declared. Throws InputError on an
+/// unreadable or malformed file.
+std::map<std::string, SourceLocation> krlGlobalPoints(const std::string& dat_path);
+
 /// The text of a program as .src and .dat files.
 struct KrlText {
   std::string src;
@@ -57,10 +70,11 @@ struct KrlText {
 /// Writes a program as KRL. A program read from KRL (program.krl set) is written back byte for
 /// byte, except the values of targets marked `modified` (rewritten in place with the number
 /// formats of program.h) and the motions marked `inserted` (a copy of their anchor statement
-/// with inline targets, inserted on the line before it). Any other program is written as a new
-/// .src and .dat (named targets declared in the .dat). Throws ArgumentError when a modified
-/// value cannot be written (declared outside the program, or two motions need different values
-/// in one declaration).
+/// with inline targets, inserted on the line before it); a modified target declared outside
+/// the program's files (a $config.dat point, never rewritten) is written into its motion's
+/// statement as an inline aggregate. Any other program is written as a new .src and .dat
+/// (named targets declared in the .dat). Throws ArgumentError when two motions need different
+/// values in one declaration.
 KrlText writeKrl(const Program& program);
 
 /// The aggregate text of a target, e.g. "{X 1.0000,Y ..,A 0.00000,..,S 2,T 35}" (pose with the

@@ -180,12 +180,16 @@ struct KrlSource {
     size_t begin = 0;   ///< value text [begin, end) in the file
     size_t end = 0;
     double value = 0;   ///< as read
+    size_t name_begin = 0;  ///< the component's name (X in "X 100.0")
   };
   struct Value {        ///< an aggregate {...} holding a target
     int file = 0;       ///< 0: .src, 1: .dat
     size_t begin = 0;   ///< '{'
     size_t end = 0;     ///< one past '}'
     std::vector<Component> components;  ///< in written order
+    /// The point is declared GLOBAL (DECL GLOBAL E6POS XG1 in a PUBLIC data list): other modules
+    /// may use it, and move with its correction.
+    bool global = false;
   };
   struct Statement {    ///< a motion statement line
     int file = 0;

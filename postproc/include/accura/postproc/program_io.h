@@ -3,6 +3,7 @@
 // .mod, .prg: ABB RAPID).
 #pragma once
 
+#include <map>
 #include <string>
 #include <vector>
 
@@ -21,6 +22,8 @@ ProgramFormat programFormat(const std::string& path);
 struct ProgramReadOptions {
   std::string dat_path;     ///< KRL: the .dat (empty: found next to the .src)
   std::string config_path;  ///< $config.dat: TOOL_DATA / BASE_DATA (and global points for KRL)
+  /// KRL: the GLOBAL points of other programs' data lists (KrlReadOptions::other_globals)
+  std::map<std::string, SourceLocation> other_globals;
 };
 
 /// Reads a program in the format of its extension. Throws InputError (file:line:column).
