@@ -193,9 +193,9 @@ TEST(Krl, ASplineBlocksWithClauseSetsTheFramesOfItsMotions) {
     EXPECT_EQ(m.base.value->x_mm, 900.0) << i;
     EXPECT_EQ(m.base.value->a_deg, 30.0) << i;
   }
-  EXPECT_EQ(*p.motions[1].vel_m_s, 0.2);  // the block's $VEL.CP
-  EXPECT_EQ(*p.motions[3].vel_m_s, 0.2);
-  EXPECT_EQ(*p.motions[4].vel_m_s, 0.3);  // the single SLIN's own WITH
+  EXPECT_EQ(p.motions[1].vel_m_s, 0.2);  // the block's $VEL.CP
+  EXPECT_EQ(p.motions[3].vel_m_s, 0.2);
+  EXPECT_EQ(p.motions[4].vel_m_s, 0.3);  // the single SLIN's own WITH
   EXPECT_EQ(p.motions[0].tool.source, FrameSetting::Source::kUnset);  // before the block
   EXPECT_EQ(p.motions[5].tool.source, FrameSetting::Source::kUnset);  // after ENDSPLINE: the program's frames
   EXPECT_EQ(p.motions[5].base.source, FrameSetting::Source::kUnset);
@@ -231,16 +231,16 @@ TEST(Krl, ThePointsOfAnArrayInTheDataListAreNamedPoints) {
   EXPECT_EQ(p.motions[0].target_problem, "");
   EXPECT_EQ(a.name, "XPA[1]");
   EXPECT_EQ(a.type, "E6POS");
-  EXPECT_EQ(*a.pose[0], 135.598);
-  EXPECT_EQ(*a.pose[5], -129.097);
-  EXPECT_EQ(*a.turn, 2);
+  EXPECT_EQ(a.pose[0], 135.598);
+  EXPECT_EQ(a.pose[5], -129.097);
+  EXPECT_EQ(a.turn, 2);
   EXPECT_EQ(a.where.file, dir + "/p.dat");
   EXPECT_EQ(a.where.line, 3);
   EXPECT_EQ(a.where.column, 8);
   EXPECT_EQ(p.motions[1].target_problem, "");
   EXPECT_EQ(p.motions[1].target.name, "XPA[2]");
-  EXPECT_EQ(*p.motions[1].target.pose[1], -259.890);
-  EXPECT_EQ(*p.motions[1].target.turn, 10);
+  EXPECT_EQ(p.motions[1].target.pose[1], -259.890);
+  EXPECT_EQ(p.motions[1].target.turn, 10);
   EXPECT_EQ(p.motions[2].target_problem, "the target 'XPA[I]' is an element of the array XPA whose index is computed at run time");
   EXPECT_EQ(p.motions[3].target_problem, "XPA[3] is not given a value (the array XPA is declared at " + dir + "/p.dat:2:12)");
   // written back unchanged, the array's declaration carried for a conversion
@@ -269,9 +269,9 @@ TEST(Krl, ThePointsOfAnArrayInTheDataListAreNamedPoints) {
   const Program q = readKrl(dir + "/p.src");
   ASSERT_EQ(q.motions.size(), 2u);
   EXPECT_EQ(q.motions[0].target_problem, "");
-  EXPECT_EQ(*q.motions[0].target.pose[0], 93.096);
+  EXPECT_EQ(q.motions[0].target.pose[0], 93.096);
   EXPECT_EQ(q.motions[1].target_problem, "");
-  EXPECT_EQ(*q.motions[1].target.pose[0], 1.0);
+  EXPECT_EQ(q.motions[1].target.pose[0], 1.0);
   EXPECT_EQ(q.motions[1].target.where.file, dir + "/p.src");
   EXPECT_EQ(q.motions[1].target.where.line, 5);
   // assigned in a loop (any index): every element is a run-time value

@@ -631,7 +631,7 @@ TEST(KrlRules, AnArrayPointOfTheDataListIsCorrectedInPlaceLikeANamedPoint) {
   const KrlText out = writeKrl(array.program);
   EXPECT_EQ(out.dat, "DEFDAT p\nDECL E6POS XPA[2] ; the pick points\nXPA[1]=" + value("XQ1") + "\nXPA[2]=" + value("XQ2") + "\nENDDAT\n");
   EXPECT_EQ(out.src, test::readText(dir + "/array/p.src"));
-  EXPECT_EQ(array.report.targets.size(), 2u);
+  ASSERT_EQ(array.report.targets.size(), 2u);
   EXPECT_EQ(array.report.targets[0].name, "XPA[1]");
   EXPECT_EQ(array.report.motions_left_unchanged, 1);
   int kept = 0;
