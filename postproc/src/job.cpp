@@ -88,7 +88,6 @@ class Job {
     t.modified = true;
   }
 
-
   /// CP motions (LIN, CIRC, their spline and relative forms, SPL): the controller keeps the
   /// Status of the start and lets Turn follow the path; the programmed S/T are not used
   /// (docs/program-formats.md, "Status and Turn"). The target was compensated on the
