@@ -166,8 +166,7 @@ void validate(const IdentifyArgs& a, IdentifyRun& r) {
   if (!r.hasValidation()) return;
   // gross rows (a lost beam) would decide the validation's RMS: left out and named
   const std::vector<calib::ExcludedRow> gross = calib::removeGrossRows(r.calibrated, r.validation, a.validate_station == "new", false);
-  for (size_t k = 0; k < gross.size() && k < 10; ++k) r.s.warnings.push_back(calib::describeExcludedRow(gross[k], "the validation"));
-  if (gross.size() > 10) r.s.warnings.push_back("... and " + std::to_string(gross.size() - 10) + " more gross rows left out of the validation");
+  for (const std::string& w : calib::excludedRowWarnings(gross, "the validation")) r.s.warnings.push_back(w);
   if (a.validate_station == "new") {
     // another station: re-register it (6 parameters), robot parameters held fixed
     calib::IdentifySummary st, nst;

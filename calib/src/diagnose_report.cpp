@@ -535,8 +535,7 @@ std::string diagnosisText(const Diagnosis& d) {
           << f("%.3f", p.distance_mm) << " mm" << (std::isfinite(p.rotation_deg) ? ", orientation jump " + f("%.3f", p.rotation_deg) + " deg" : "");
       s << "\n";
     }
-    for (size_t k = 0; k < d.excluded.size() && k < 10; ++k) s << "WARNING: " << describeExcludedRow(d.excluded[k], "the diagnosis") << "\n";
-    if (d.excluded.size() > 10) s << "WARNING: ... and " << d.excluded.size() - 10 << " more gross rows left out of the diagnosis\n";
+    for (const std::string& w : excludedRowWarnings(d.excluded, "the diagnosis")) s << "WARNING: " << w << "\n";
     if (!d.downweighted.empty()) {
       s << "robust estimation down-weighted " << d.downweighted.size() << " row(s):";
       for (size_t k = 0; k < d.downweighted.size() && k < 12; ++k)

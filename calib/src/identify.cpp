@@ -233,10 +233,17 @@ double registerFrame(RobotModel& model, const MeasurementSet& data, bool estimat
   return std::sqrt(s2 / double(m));
 }
 
-std::string describeExcludedRow(const ExcludedRow& e, const std::string& from) {
-  return e.file + ":" + std::to_string(e.line) + ": left out of " + from + ": its measured position lies " + formatFixed(e.error_mm, 1) +
-         " mm from the model's, more than " + formatFixed(kGrossRowFloorMm, 0) + " mm and " + formatFixed(kGrossRowMedianFactor, 0) +
-         " times the median row's " + formatFixed(e.median_mm, 3) + " mm (a lost beam or a corrupted row?)";
+std::vector<std::string> excludedRowWarnings(const std::vector<ExcludedRow>& rows, const std::string& from) {
+  std::vector<std::string> out;
+  for (size_t k = 0; k < rows.size() && k < 10; ++k) {
+    const ExcludedRow& e = rows[k];
+    out.push_back(e.file + ":" + std::to_string(e.line) + ": left out of " + from + ": its measured position lies " +
+                  formatFixed(e.error_mm, 1) + " mm from the model's, more than " + formatFixed(kGrossRowFloorMm, 0) + " mm and " +
+                  formatFixed(kGrossRowMedianFactor, 0) + " times the median row's " + formatFixed(e.median_mm, 3) +
+                  " mm (a lost beam or a corrupted row?)");
+  }
+  if (rows.size() > 10) out.push_back("... and " + std::to_string(rows.size() - 10) + " more gross rows left out of " + from);
+  return out;
 }
 
 std::vector<ExcludedRow> removeGrossRows(const RobotModel& model, MeasurementSet& data, bool register_frame,
@@ -523,15 +530,7 @@ RobotModel identify(const RobotModel& start, const std::vector<MeasurementSet>& 
     if (!excluded.empty()) {
       const RobotModel out = identify(start, screened, options, summary_out);
       if (summary_out) {
-        std::vector<std::string> said;
-        for (size_t k = 0; k < excluded.size(); ++k) {
-          const ExcludedRow& e = excluded[k];
-          if (k == 10) {
-            said.push_back("... and " + std::to_string(excluded.size() - 10) + " more gross rows left out of the fit");
-            break;
-          }
-          said.push_back(describeExcludedRow(e, "the fit"));
-        }
+        const std::vector<std::string> said = excludedRowWarnings(excluded, "the fit");
         summary_out->warnings.insert(summary_out->warnings.begin(), said.begin(), said.end());
         summary_out->excluded.insert(summary_out->excluded.begin(), excluded.begin(), excluded.end());
       }

@@ -232,9 +232,10 @@ double registerFrame(RobotModel& model, const MeasurementSet& data, bool estimat
 std::vector<ExcludedRow> removeGrossRows(const RobotModel& model, MeasurementSet& data, bool register_frame,
                                          bool estimate_tool);
 
-/// One line naming a row removeGrossRows() left out of `from` ("the fit", "the validation"):
-/// file:line, its error and the threshold it exceeds.
-std::string describeExcludedRow(const ExcludedRow& e, const std::string& from);
+/// The warnings naming rows removeGrossRows() left out of `from` ("the fit", "the validation"):
+/// one line for each of the first ten (file:line, its error and the threshold it exceeds),
+/// then one line counting the rest.
+std::vector<std::string> excludedRowWarnings(const std::vector<ExcludedRow>& rows, const std::string& from);
 
 /// Summary statistics of a list of non-negative errors (RMS, mean, max, 95th percentile
 /// by nearest rank).
