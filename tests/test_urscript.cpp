@@ -324,6 +324,16 @@ JobSettings settingsFor(const RobotModel& real) {
   return s;
 }
 
+/// The "real" robot of the configuration tests: `controller` with geometric deviations (seed 4),
+/// its station untouched.
+RobotModel realUr10(const RobotModel& controller) {
+  SimulateOptions so;
+  so.effects = {"geometric"};
+  so.set_station = false;
+  so.seed = 4;
+  return perturbModel(controller, so);
+}
+
 /// The solution of `robot` for T_world_tcp nearest `to` in joint space: every closed-form
 /// branch polished on the robot (independent of the compensation's own solver path); empty
 /// when none converges.
@@ -351,11 +361,7 @@ TEST(UrScript, GetInverseKinTakesTheSolutionNearestToQnear) {
       "  movej(get_inverse_kin(p[-.350, .700, .300, 3.1415927, 0.0, 0.0], qnear=" + qnear + "), a=1.4, v=1.05)\n"
       "end\n";
   const RobotModel controller = ur10WithTorch();
-  SimulateOptions so;
-  so.effects = {"geometric"};
-  so.set_station = false;
-  so.seed = 4;
-  const RobotModel real = perturbModel(controller, so);
+  const RobotModel real = realUr10(controller);
   const Program p = parseUrScript(script, "q.script");
   ASSERT_EQ(p.motions.size(), 2u);
   ASSERT_TRUE(p.motions[1].qnear_deg.has_value());
@@ -399,11 +405,7 @@ TEST(UrScript, ALoopsFirstMoveKeepsTheConfigurationTheRobotStandsIn) {
       "  end\n"
       "end\n";
   const RobotModel controller = ur10WithTorch();
-  SimulateOptions so;
-  so.effects = {"geometric"};
-  so.set_station = false;
-  so.seed = 4;
-  const RobotModel real = perturbModel(controller, so);
+  const RobotModel real = realUr10(controller);
   const Program p = parseUrScript(script, "loop.script");
   ASSERT_EQ(p.motions.size(), 3u);
   ASSERT_TRUE(p.motions[1].start_unknown);
