@@ -418,7 +418,7 @@ TEST(Plugin, WrittenProgramReadsBack) {
   const accura_pose p1 = cpose(1100, -250, 500, 0, 180, 0), p2 = cpose(1100, -50, 500.123456, 0.1234567, 179.5, 0);
   const accura_pose aux = cpose(1180, 30, 500, 0, 180, 0), end = cpose(1260, -50, 500, 0, 180, 0);
   const accura_program_motion motions[3] = {
-      {ACCURA_PTP, {}, p1, 1, 0.0}, {ACCURA_LIN, {}, p2, 0, 0.2}, {ACCURA_CIRC, aux, end, 1, 0.1}};
+      {ACCURA_PTP, {}, p1, 1, 0.0, 0, {}}, {ACCURA_LIN, {}, p2, 0, 0.2, 0, {}}, {ACCURA_CIRC, aux, end, 1, 0.1, 0, {}}};
   accura_write_options o;
   ASSERT_EQ(accura_write_options_init(&o, sizeof(o)), ACCURA_OK);
   o.tool = cpose(20, 0, 250, 0, -30, 0);
@@ -456,10 +456,10 @@ TEST(Plugin, WrittenProgramReadsBack) {
   }
   EXPECT_TRUE(std::filesystem::exists(dir + "/sub/seam.dat"));
   // bad input: a motion type, a pose, an extension
-  accura_program_motion bad[1] = {{7, {}, p1, 0, 0.0}};
+  accura_program_motion bad[1] = {{7, {}, p1, 0, 0.0, 0, {}}};
   EXPECT_EQ(accura_write_program(h.m, (dir + "/bad.src").c_str(), bad, 1, &o), ACCURA_ERROR_INVALID_ARGUMENT);
   EXPECT_NE(lastError(h.m).find("motions[0].type"), std::string::npos) << lastError(h.m);
-  bad[0] = {ACCURA_LIN, {}, cpose(NAN, 0, 0, 0, 0, 0), 0, 0.0};
+  bad[0] = {ACCURA_LIN, {}, cpose(NAN, 0, 0, 0, 0, 0), 0, 0.0, 0, {}};
   EXPECT_EQ(accura_write_program(h.m, (dir + "/bad.src").c_str(), bad, 1, &o), ACCURA_ERROR_INVALID_ARGUMENT);
   EXPECT_EQ(accura_write_program(h.m, (dir + "/bad.txt").c_str(), motions, 3, &o), ACCURA_ERROR_INPUT);
   EXPECT_FALSE(std::filesystem::exists(dir + "/bad.src"));

@@ -432,12 +432,12 @@ struct Reader {
       key = upper(arrayElementName(a->second, *index));
       whole = eq == 4;
       if (!decl.points.count(key)) {  // an element the data list gives no value: from here on, this one's
-        PointEntry e;
-        e.name = arrayElementName(a->second, *index);
-        e.type = a->second.type;
-        e.declared = f->loc(t[0].begin);
-        e.problem = e.name + " is not given a value before " + f->loc(t[0].begin).str();
-        decl.points[key] = std::move(e);
+        PointEntry element;
+        element.name = arrayElementName(a->second, *index);
+        element.type = a->second.type;
+        element.declared = f->loc(t[0].begin);
+        element.problem = element.name + " is not given a value before " + f->loc(t[0].begin).str();
+        decl.points[key] = std::move(element);
       }
     }
     auto it = decl.points.find(key);
@@ -1044,10 +1044,10 @@ Program readKrl(const std::string& src_path, const KrlReadOptions& options) {
       if (t[0].kind != Tok::kIdent || k.empty() || k[0] == '$' || r.volatile_points_.count(k)) continue;
       size_t eq = 1;  // after the name, or after an array's index (XPA[2] = .., XPA[i].X = ..: the array)
       if (t.size() > 1 && t[1].text == "[") {
-        int depth = 0;
+        int brackets = 0;
         for (eq = 1; eq < t.size(); ++eq) {
-          if (t[eq].text == "[") ++depth;
-          if (t[eq].text == "]" && --depth == 0) break;
+          if (t[eq].text == "[") ++brackets;
+          if (t[eq].text == "]" && --brackets == 0) break;
         }
         ++eq;
       }
