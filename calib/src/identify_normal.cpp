@@ -36,11 +36,14 @@ double rowNormalEquations(const Problem& pb, const RobotModel& model, const std:
   if (N) N->setZero(fc.n, fc.n);
   if (g) g->setZero(fc.n);
   if (r) r->resize(pb.m_eq);
-  Eigen::MatrixXd Jw, JtJ;
-  Eigen::VectorXd Jte, ed;
-  std::vector<int> cols;
+  // JwT: the row's weighted free columns, transposed (a component's values contiguous over the
+  // columns)
+  Eigen::MatrixXd JwT;
+  Eigen::VectorXd ed;
+  std::vector<Eigen::Index> cols;
   double ss = 0;
   Eigen::Index row = 0;
+  const Eigen::Index ld = N ? N->outerStride() : 0;
   for (size_t i = 0; i < pb.data.rows.size(); ++i) {
     const Measurement& meas = pb.data.rows[i];
     const RowWeights& w = pb.weights[i];
@@ -54,21 +57,19 @@ double rowNormalEquations(const Problem& pb, const RobotModel& model, const std:
     // the free columns of this row
     cols.clear();
     const std::vector<int>& idx = rows.idx();
-    Jw.resize(dim, static_cast<Eigen::Index>(idx.size()));
+    JwT.resize(static_cast<Eigen::Index>(idx.size()), dim);
     for (size_t k = 0; k < idx.size(); ++k) {
       if (idx[k] < 0 || fc.col_of[static_cast<size_t>(idx[k])] < 0) continue;
-      Jw.col(static_cast<Eigen::Index>(cols.size())) =
-          w.w.head(dim).cwiseProduct(rows.Jc().col(static_cast<Eigen::Index>(k)).head(dim));
+      JwT.row(static_cast<Eigen::Index>(cols.size())) =
+          w.w.head(dim).cwiseProduct(rows.Jc().col(static_cast<Eigen::Index>(k)).head(dim)).transpose();
       cols.push_back(fc.col_of[static_cast<size_t>(idx[k])]);
     }
     const Eigen::Index nc = static_cast<Eigen::Index>(cols.size());
-    JtJ.noalias() = Jw.leftCols(nc).transpose() * Jw.leftCols(nc);
-    if (g) Jte.noalias() = Jw.leftCols(nc).transpose() * ed;
-    for (Eigen::Index a = 0; a < nc; ++a) {
-      if (g) (*g)[cols[static_cast<size_t>(a)]] += Jte[a];
-      double* Ncol = N->col(cols[static_cast<size_t>(a)]).data();
-      for (Eigen::Index b = 0; b < nc; ++b) Ncol[cols[static_cast<size_t>(b)]] += JtJ(b, a);
+    if (nc < JwT.rows()) JwT.conservativeResize(nc, dim);  // Jt[a + d nc] for the kernel
+    if (g) {
+      for (Eigen::Index a = 0; a < nc; ++a) (*g)[cols[static_cast<size_t>(a)]] += JwT.row(a).dot(ed);
     }
+    detail::scatterGramLower(N->data(), ld, JwT.data(), nc, dim, cols.data());
   }
   return 0.5 * ss;
 }
@@ -91,7 +92,7 @@ void addPenaltyNormal(const Problem& pb, const FreeColumns& fc, const Eigen::Vec
       if (!N) continue;
       for (const auto& b : terms) {
         const int cb = fc.col_of[static_cast<size_t>(b.first)];
-        if (cb >= 0) (*N)(cb, ca) += a.second * b.second;
+        if (cb >= ca) (*N)(cb, ca) += a.second * b.second;  // the lower triangle
       }
     }
   }
@@ -106,16 +107,19 @@ std::string format(const char* fmt, double a, double b) {
 }
 
 // Ceres' Levenberg-Marquardt step in the scaled variables: (Ns + diagonal / radius) z = gs,
-// step = -z (M: the workspace, factorised in place), *model_change the decrease the linear
-// model predicts. False: an invalid step (no factorisation, or no predicted decrease).
+// step = -z (Ns: its lower triangle; M: the workspace, factorised in place), *model_change the
+// decrease the linear model predicts. False: an invalid step (no factorisation, or no
+// predicted decrease).
 bool lmStep(const Eigen::MatrixXd& Ns, const Eigen::VectorXd& gs, const Eigen::VectorXd& diagonal, double radius,
             Eigen::MatrixXd& M, Eigen::VectorXd* step, double* model_change) {
-  M = Ns;
+  M.resize(Ns.rows(), Ns.cols());
+  M.triangularView<Eigen::Lower>() = Ns;
   M.diagonal() += diagonal / radius;
   if (!detail::choleskyInPlace(M)) return false;
   *step = -gs;
   detail::choleskySolveInPlace(M, *step);
-  *model_change = -(step->dot(gs) + 0.5 * step->dot(Ns * *step));
+  const Eigen::VectorXd Nstep = Ns.selfadjointView<Eigen::Lower>() * *step;
+  *model_change = -(step->dot(gs) + 0.5 * step->dot(Nstep));
   return step->allFinite() && *model_change > 0;
 }
 
@@ -145,8 +149,11 @@ SolveResult solveNormal(Problem& pb, const IdentifyOptions& options) {
     return std::sqrt(s);
   };
 
-  // the penalty rows are linear: A^T A once (from their few terms: A is sparse)
-  Eigen::MatrixXd AtA = Eigen::MatrixXd::Zero(n, n);
+  // the penalty rows are linear: A^T A once (from their few terms: A is sparse). The (n x n)
+  // matrices are the problem's workspaces, kept for every solve of it (a fresh allocation of
+  // megabytes has its pages faulted in and cleared again each time); lower triangles only.
+  Eigen::MatrixXd& AtA = pb.normal_AtA;
+  AtA.setZero(n, n);
   addPenaltyNormal(pb, fc, nullptr, &AtA, nullptr);
 
   RobotModel model = pb.model;
@@ -156,20 +163,22 @@ SolveResult solveNormal(Problem& pb, const IdentifyOptions& options) {
     const Eigen::VectorXd pv = penaltyValues(pb, xs);
     const double cost = rowNormalEquations(pb, model, xs, fc, N, g, nullptr) + 0.5 * pv.squaredNorm();
     if (N) {
-      *N += AtA;
+      N->triangularView<Eigen::Lower>() += AtA;
       addPenaltyNormal(pb, fc, &pv, nullptr, g);
     }
     return cost;
   };
 
   std::vector<double>& x = pb.x;
-  Eigen::MatrixXd N, Ns, M;
+  // Ns: the normal matrix, scaled in place after each evaluation
+  Eigen::MatrixXd &Ns = pb.normal_N, &M = pb.normal_M;
   Eigen::VectorXd g;
-  double cost = evaluate(x, &N, &g);
+  double cost = evaluate(x, &Ns, &g);
   // Jacobi scaling, from the first Jacobian
-  const Eigen::VectorXd scale = (Eigen::VectorXd::Ones(n) + N.diagonal().cwiseSqrt()).cwiseInverse();
+  const Eigen::VectorXd scale = (Eigen::VectorXd::Ones(n) + Ns.diagonal().cwiseSqrt()).cwiseInverse();
   auto scaled = [&]() {
-    Ns = scale.asDiagonal() * N * scale.asDiagonal();
+    for (Eigen::Index c = 0; c < n; ++c)
+      Ns.col(c).tail(n - c) = (Ns.col(c).tail(n - c).cwiseProduct(scale.tail(n - c))) * scale[c];
     return Eigen::VectorXd(scale.cwiseProduct(g));
   };
   Eigen::VectorXd gs = scaled();
@@ -243,7 +252,7 @@ SolveResult solveNormal(Problem& pb, const IdentifyOptions& options) {
     if (rho > min_relative_decrease) {
       x.swap(candidate);
       x_norm = norm(x);
-      cost = evaluate(x, &N, &g);
+      cost = evaluate(x, &Ns, &g);
       gs = scaled();
       gmax = g.cwiseAbs().maxCoeff();
       radius = std::min(max_radius, radius / std::max(1.0 / 3.0, 1.0 - std::pow(2.0 * rho - 1.0, 3)));
