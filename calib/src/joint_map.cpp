@@ -346,10 +346,9 @@ JointMapCvResult crossValidateJointMap(const std::vector<JointMapCvRow>& rows, c
   std::sort(order.begin(), order.end(), std::greater<double>());
   order.erase(std::unique(order.begin(), order.end()), order.end());
   double wider_best_ss = std::numeric_limits<double>::infinity();
-  // the (n x n) matrices, kept from one knot spacing to the next (lower triangles): the folds'
-  // normal equations (each then its training system), their sum, the workspace factorised
-  std::vector<Eigen::MatrixXd> Nf;
-  Eigen::MatrixXd Nt, Nwork;
+  // the (n x n) matrices, kept from one knot spacing to the next (lower triangles): the normal
+  // equations of all rows, a fold's training system, the workspace factorised
+  Eigen::MatrixXd Nt, Ntrain, Nwork;
   for (size_t ki = 0; ki < order.size(); ++ki) {
     const double knot = order[ki];
     std::vector<JointMap> maps;
@@ -360,17 +359,16 @@ JointMapCvResult crossValidateJointMap(const std::vector<JointMapCvRow>& rows, c
       col0.push_back(n);
       n += static_cast<Eigen::Index>(maps.back().coef.size());
     }
-    // the folds' normal equations: lower triangles only (Cholesky reads no more), accumulated
-    // row by row from each row's compact columns (its p, and 4 per joint: idx ascending)
-    Nf.resize(static_cast<size_t>(folds));
-    for (auto& M : Nf) M.setZero(n, n);
-    std::vector<Eigen::VectorXd> bf(static_cast<size_t>(folds), Eigen::VectorXd::Zero(n));
+    // the normal equations of all rows, lower triangle only (Cholesky reads no more),
+    // accumulated row by row from each row's compact columns (its p, and 4 per joint: idx
+    // ascending); a fold's training system is then this minus the fold's own rows (one matrix
+    // per fold would be 5 x 10 MB at 2 deg)
     const Eigen::Index nc = p + 4 * J;
     std::vector<Eigen::Index> idx(static_cast<size_t>(nc));
     for (Eigen::Index c = 0; c < p; ++c) idx[static_cast<size_t>(c)] = c;
     Eigen::MatrixXd Ct(nc, rows[0].r.size());  // the row's columns, transposed
     double w[4];
-    for (const auto& row : rows) {
+    auto columns = [&](const JointMapCvRow& row) {
       const Eigen::Index dim = row.r.size();
       if (Ct.cols() != dim) Ct.resize(nc, dim);
       Ct.topRows(p) = row.G.transpose();
@@ -381,17 +379,17 @@ JointMapCvResult crossValidateJointMap(const std::vector<JointMapCvRow>& rows, c
           idx[static_cast<size_t>(p + 4 * j + k)] = col0[static_cast<size_t>(j)] + first + k;
         }
       }
-      Eigen::MatrixXd& N = Nf[static_cast<size_t>(row.fold)];
+    };
+    Nt.setZero(n, n);
+    std::vector<Eigen::VectorXd> bf(static_cast<size_t>(folds), Eigen::VectorXd::Zero(n));
+    for (const auto& row : rows) {
+      columns(row);
       Eigen::VectorXd& b = bf[static_cast<size_t>(row.fold)];
       for (Eigen::Index a = 0; a < nc; ++a) b[idx[static_cast<size_t>(a)]] += Ct.row(a).dot(row.r);
-      detail::scatterGramLower(N.data(), N.outerStride(), Ct.data(), nc, static_cast<int>(dim), idx.data());
+      detail::scatterGramLower(Nt.data(), Nt.outerStride(), Ct.data(), nc, static_cast<int>(row.r.size()), idx.data());
     }
-    Nt.setZero(n, n);
     Eigen::VectorXd bt = Eigen::VectorXd::Zero(n);
-    for (int f = 0; f < folds; ++f) {
-      Nt.triangularView<Eigen::Lower>() += Nf[static_cast<size_t>(f)];
-      bt += bf[static_cast<size_t>(f)];
-    }
+    for (int f = 0; f < folds; ++f) bt += bf[static_cast<size_t>(f)];
     // per joint: the scale of its columns, its smoothness penalty D^T D (banded: its lower
     // band, 3 diagonals)
     std::vector<double> scale2(static_cast<size_t>(J));
@@ -419,10 +417,15 @@ JointMapCvResult crossValidateJointMap(const std::vector<JointMapCvRow>& rows, c
     const size_t first_entry = result.table.size();
     for (double sm : smoothings) result.table.push_back({knot, sm, 0.0});
     for (int f = 0; f < folds; ++f) {
-      // the training system, in place of the fold's own (Nt - Nf: no copy), with the centring
-      // taken on the training rows
-      Eigen::MatrixXd& Ntrain = Nf[static_cast<size_t>(f)];
-      Ntrain.triangularView<Eigen::Lower>() = Nt - Ntrain;
+      // the training system: all rows' less the fold's own, with the centring taken on the
+      // training rows
+      Ntrain.resize(n, n);
+      Ntrain.triangularView<Eigen::Lower>() = Nt;
+      for (const auto& row : rows) {
+        if (row.fold != f) continue;
+        columns(row);
+        detail::scatterGramLower(Ntrain.data(), Ntrain.outerStride(), Ct.data(), nc, static_cast<int>(row.r.size()), idx.data(), -1.0);
+      }
       const Eigen::VectorXd btrain = bt - bf[static_cast<size_t>(f)];
       for (int j = 0; j < J; ++j) {
         std::vector<double> qt;
