@@ -30,17 +30,68 @@ FreeColumns::FreeColumns(const Problem& pb) {
     }
 }
 
+namespace {
+
+// One row's J^T J (Jt: its weighted free columns transposed, column a's component d at Jt[a + d
+// stride]; the first nn of them the non-map columns, the rest map coefficients) into the lower
+// triangles of the three parts of the normal matrix: non-map x non-map into the compact G (pg x
+// pg, by the columns' compact indices gidx), map x non-map into the compact Mg (a map column's
+// pg entries contiguous, at Mg + col * pg), map x map into N itself. The compact parts keep the
+// entries every row touches in the cache (scattered straight into N, a megabytes-large matrix,
+// they missed it: perf had half of the accumulation on the load and store of N's entry).
+template <int Dim>
+void accumulateRow(const double* Jt, Eigen::Index stride, int dim, Eigen::Index nn, Eigen::Index nc,
+                   const Eigen::Index* cols, const Eigen::Index* gidx, double* G, Eigen::Index pg, double* Mg, double* N,
+                   Eigen::Index ld) {
+  const int D = Dim > 0 ? Dim : dim;
+  auto dot = [&](Eigen::Index a, Eigen::Index c) {
+    double v = Jt[c] * Jt[a];
+    for (int d = 1; d < D; ++d) v += Jt[c + d * stride] * Jt[a + d * stride];
+    return v;
+  };
+  for (Eigen::Index a = 0; a < nn; ++a)
+    for (Eigen::Index c = a; c < nn; ++c) {
+      const Eigen::Index ga = gidx[a], gc = gidx[c];
+      G[(ga < gc ? ga : gc) * pg + (ga < gc ? gc : ga)] += dot(a, c);
+    }
+  for (Eigen::Index m = nn; m < nc; ++m) {
+    double* row = Mg + cols[m] * pg;
+    for (Eigen::Index a = 0; a < nn; ++a) row[gidx[a]] += dot(m, a);
+  }
+  for (Eigen::Index a = nn; a < nc; ++a)
+    for (Eigen::Index c = a; c < nc; ++c) {
+      const Eigen::Index ia = cols[a], ic = cols[c];
+      N[(ia < ic ? ia : ic) * ld + (ia < ic ? ic : ia)] += dot(a, c);
+    }
+}
+
+}  // namespace
+
 double rowNormalEquations(const Problem& pb, const RobotModel& model, const std::vector<double>& x,
                           const FreeColumns& fc, Eigen::MatrixXd* N, Eigen::VectorXd* g, Eigen::VectorXd* r) {
   RowStack rows(model, pb.plan, pb.st);
   if (N) N->setZero(fc.n, fc.n);
   if (g) g->setZero(fc.n);
   if (r) r->resize(pb.m_eq);
+  // the free columns' compact indices among the non-map ones (-1: a map coefficient) and back
+  std::vector<Eigen::Index> compact(static_cast<size_t>(fc.n), -1), non_map;
+  for (Eigen::Index c = 0; c < fc.n; ++c)
+    if (!pb.isMap(static_cast<size_t>(fc.x_of[static_cast<size_t>(c)]))) {
+      compact[static_cast<size_t>(c)] = static_cast<Eigen::Index>(non_map.size());
+      non_map.push_back(c);
+    }
+  const Eigen::Index pg = static_cast<Eigen::Index>(non_map.size());
+  Eigen::MatrixXd G, Mg;
+  if (N) {
+    G.setZero(pg, pg);
+    Mg.setZero(pg, fc.n);  // column c: map column c's entries
+  }
   // JwT: the row's weighted free columns, transposed (a component's values contiguous over the
-  // columns)
+  // columns), the non-map ones first
   Eigen::MatrixXd JwT;
   Eigen::VectorXd ed;
-  std::vector<Eigen::Index> cols;
+  std::vector<Eigen::Index> cols, gidx;
+  std::vector<int> order;
   double ss = 0;
   Eigen::Index row = 0;
   const Eigen::Index ld = N ? N->outerStride() : 0;
@@ -54,22 +105,49 @@ double rowNormalEquations(const Problem& pb, const RobotModel& model, const std:
     if (r) r->segment(row, dim) = ed;
     row += dim;
     if (!N) continue;
-    // the free columns of this row
+    // the free columns of this row: the non-map ones, then the map coefficients
     cols.clear();
+    gidx.clear();
+    order.clear();
     const std::vector<int>& idx = rows.idx();
-    JwT.resize(static_cast<Eigen::Index>(idx.size()), dim);
-    for (size_t k = 0; k < idx.size(); ++k) {
-      if (idx[k] < 0 || fc.col_of[static_cast<size_t>(idx[k])] < 0) continue;
-      JwT.row(static_cast<Eigen::Index>(cols.size())) =
-          w.w.head(dim).cwiseProduct(rows.Jc().col(static_cast<Eigen::Index>(k)).head(dim)).transpose();
-      cols.push_back(fc.col_of[static_cast<size_t>(idx[k])]);
-    }
-    const Eigen::Index nc = static_cast<Eigen::Index>(cols.size());
-    if (nc < JwT.rows()) JwT.conservativeResize(nc, dim);  // Jt[a + d nc] for the kernel
+    for (int pass = 0; pass < 2; ++pass)
+      for (size_t k = 0; k < idx.size(); ++k) {
+        if (idx[k] < 0) continue;
+        const int c = fc.col_of[static_cast<size_t>(idx[k])];
+        if (c < 0 || (compact[static_cast<size_t>(c)] >= 0) != (pass == 0)) continue;
+        order.push_back(static_cast<int>(k));
+        cols.push_back(c);
+        if (pass == 0) gidx.push_back(compact[static_cast<size_t>(c)]);
+      }
+    const Eigen::Index nc = static_cast<Eigen::Index>(cols.size()), nn = static_cast<Eigen::Index>(gidx.size());
+    JwT.resize(nc, dim);
+    for (Eigen::Index a = 0; a < nc; ++a)
+      JwT.row(a) = w.w.head(dim).cwiseProduct(rows.Jc().col(order[static_cast<size_t>(a)]).head(dim)).transpose();
     if (g) {
       for (Eigen::Index a = 0; a < nc; ++a) (*g)[cols[static_cast<size_t>(a)]] += JwT.row(a).dot(ed);
     }
-    detail::scatterGramLower(N->data(), ld, JwT.data(), nc, dim, cols.data());
+    if (dim == 3)
+      accumulateRow<3>(JwT.data(), nc, dim, nn, nc, cols.data(), gidx.data(), G.data(), pg, Mg.data(), N->data(), ld);
+    else if (dim == 6)
+      accumulateRow<6>(JwT.data(), nc, dim, nn, nc, cols.data(), gidx.data(), G.data(), pg, Mg.data(), N->data(), ld);
+    else
+      accumulateRow<0>(JwT.data(), nc, dim, nn, nc, cols.data(), gidx.data(), G.data(), pg, Mg.data(), N->data(), ld);
+  }
+  if (N) {
+    // the compact parts into N's lower triangle (a pair's larger column index is the row)
+    double* Nd = N->data();
+    for (Eigen::Index b = 0; b < pg; ++b)
+      for (Eigen::Index a = b; a < pg; ++a) {
+        const Eigen::Index ca = non_map[static_cast<size_t>(a)], cb = non_map[static_cast<size_t>(b)];
+        Nd[std::min(ca, cb) * ld + std::max(ca, cb)] += G(a, b);
+      }
+    for (Eigen::Index c = 0; c < fc.n; ++c) {
+      if (compact[static_cast<size_t>(c)] >= 0) continue;
+      for (Eigen::Index a = 0; a < pg; ++a) {
+        const Eigen::Index ca = non_map[static_cast<size_t>(a)];
+        Nd[std::min(ca, c) * ld + std::max(ca, c)] += Mg(a, c);
+      }
+    }
   }
   return 0.5 * ss;
 }
