@@ -266,6 +266,44 @@ TEST(Identify, DenseLinearAlgebraAgreesWithEigen) {
   EXPECT_THROW(detail::addGramLower(G, rectangular), ArgumentError);
 }
 
+// The blocked Cholesky (blocks of 64 columns) on a size that ends in a partial block, against
+// Eigen's LLT, and a non-positive pivot in that last block; the row-block scatter of J^T J into
+// a larger matrix's lower triangle (the joint maps' accumulation) against the dense product.
+TEST(Identify, DenseLinearAlgebraBlockedCholeskyAndScatteredGram) {
+  std::mt19937 rng(9);
+  std::normal_distribution<double> g(0.0, 1.0);
+  const Eigen::Index n = 130;  // 64 + 64 + 2
+  Eigen::MatrixXd A(n + 5, n);
+  for (Eigen::Index k = 0; k < A.size(); ++k) A.data()[k] = g(rng);
+  const Eigen::MatrixXd S = A.transpose() * A;
+  Eigen::MatrixXd L = S;
+  ASSERT_TRUE(detail::choleskyInPlace(L));
+  const Eigen::MatrixXd L_eigen = Eigen::LLT<Eigen::MatrixXd>(S).matrixL();
+  EXPECT_LT((Eigen::MatrixXd(L.triangularView<Eigen::Lower>()) - L_eigen).cwiseAbs().maxCoeff(), 1e-12 * L_eigen.cwiseAbs().maxCoeff());
+  Eigen::MatrixXd last = S;
+  last(n - 1, n - 1) = 0;  // the Schur complement's last pivot <= 0
+  EXPECT_FALSE(detail::choleskyInPlace(last));
+
+  const Eigen::Index big = 40;
+  for (const int dim : {3, 6, 2}) {
+    SCOPED_TRACE(dim);
+    const Eigen::Index nc = 9;
+    const std::vector<Eigen::Index> idx = {17, 3, 30, 4, 39, 0, 22, 11, 5};  // distinct, unordered
+    Eigen::MatrixXd J(dim, nc);  // the row block's columns
+    for (Eigen::Index k = 0; k < J.size(); ++k) J.data()[k] = g(rng);
+    const Eigen::MatrixXd Jt = J.transpose();
+    Eigen::MatrixXd N = Eigen::MatrixXd::Constant(big, big, 2.0);
+    detail::scatterGramLower(N.data(), N.outerStride(), Jt.data(), nc, dim, idx.data(), -0.5);
+    Eigen::MatrixXd expected = Eigen::MatrixXd::Constant(big, big, 2.0);
+    for (Eigen::Index a = 0; a < nc; ++a)
+      for (Eigen::Index c = 0; c < nc; ++c) {
+        const Eigen::Index r = idx[static_cast<size_t>(a)], k = idx[static_cast<size_t>(c)];
+        if (r >= k) expected(r, k) -= 0.5 * J.col(a).dot(J.col(c));  // the lower triangle only
+      }
+    EXPECT_LT((N - expected).cwiseAbs().maxCoeff(), 1e-14);
+  }
+}
+
 // The same from two threads at once: Debian's single-threaded OpenBLAS is not safe for that
 // (two calls may share a work buffer; a review measured about 1 wrong J^T J in 1000 this way),
 // so every call is made under one lock. Each thread's results must equal the sequential ones

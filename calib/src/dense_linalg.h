@@ -33,4 +33,38 @@ void addGramLower(Eigen::Ref<Eigen::MatrixXd> A, const Eigen::Ref<const Eigen::M
 /// J^T J, both triangles (addGramLower on zeros, then mirrored).
 Eigen::MatrixXd gram(const Eigen::Ref<const Eigen::MatrixXd>& J);
 
+/// One row block's J^T J scattered into the lower triangle of a larger matrix: N(idx[a],
+/// idx[c]) += alpha sum_d Jt(a, d) Jt(c, d) for every pair a <= c, at the pair's larger index as the
+/// row (N column-major with leading dimension ld). Jt: the row block's columns transposed (nc x
+/// dim, column-major: component d of column a at Jt[a + d nc]); idx: the columns' indices in N,
+/// distinct. The normal equations of joint maps are accumulated pose by pose with this (a pose
+/// touches ~60 of ~1,000 columns).
+template <int Dim>
+inline void scatterGramLower(double* N, Eigen::Index ld, const double* Jt, Eigen::Index nc, const Eigen::Index* idx,
+                             double alpha) {
+  for (Eigen::Index a = 0; a < nc; ++a) {
+    double xa[Dim];
+    for (int d = 0; d < Dim; ++d) xa[d] = Jt[a + d * nc];
+    const Eigen::Index ia = idx[a];
+    for (Eigen::Index c = a; c < nc; ++c) {
+      double v = Jt[c] * xa[0];
+      for (int d = 1; d < Dim; ++d) v += Jt[c + d * nc] * xa[d];
+      const Eigen::Index ic = idx[c];
+      N[(ia < ic ? ia : ic) * ld + (ia < ic ? ic : ia)] += alpha * v;
+    }
+  }
+}
+inline void scatterGramLower(double* N, Eigen::Index ld, const double* Jt, Eigen::Index nc, int dim, const Eigen::Index* idx,
+                             double alpha = 1.0) {
+  if (dim == 3) return scatterGramLower<3>(N, ld, Jt, nc, idx, alpha);
+  if (dim == 6) return scatterGramLower<6>(N, ld, Jt, nc, idx, alpha);
+  for (Eigen::Index a = 0; a < nc; ++a)
+    for (Eigen::Index c = a; c < nc; ++c) {
+      double v = 0;
+      for (int d = 0; d < dim; ++d) v += Jt[c + d * nc] * Jt[a + d * nc];
+      const Eigen::Index ia = idx[a], ic = idx[c];
+      N[(ia < ic ? ia : ic) * ld + (ia < ic ? ic : ia)] += alpha * v;
+    }
+}
+
 }  // namespace accura::calib::detail

@@ -390,8 +390,8 @@ void uncertainties(Problem& pb, const IdentifyOptions& options, bool robust, Ide
   if (pb.sparse) {
     // joint maps: from the normal equations accumulated pose by pose, and only the sigmas that
     // are reported (not the maps' coefficients): a Cholesky factorisation and a solve per
-    // reported parameter instead of the inverse
-    Eigen::MatrixXd N;
+    // reported parameter instead of the inverse (N: its lower triangle, in the solves' workspace)
+    Eigen::MatrixXd& N = pb.normal_N;
     rowNormalEquations(pb, pb.model, pb.x, fc, &N, nullptr, &r);
     addPenaltyNormal(pb, fc, nullptr, &N, nullptr);
     summary.final_cost = 0.5 * r.squaredNorm();
@@ -404,15 +404,16 @@ void uncertainties(Problem& pb, const IdentifyOptions& options, bool robust, Ide
     }
     if (fc.n > 0 && !reported.empty()) {
       const Eigen::VectorXd scale = N.diagonal().cwiseSqrt().cwiseMax(1e-300);
-      const Eigen::MatrixXd Nn = scale.cwiseInverse().asDiagonal() * N * scale.cwiseInverse().asDiagonal();
+      const auto Nn = scale.cwiseInverse().asDiagonal() * N * scale.cwiseInverse().asDiagonal();
       Eigen::MatrixXd E = Eigen::MatrixXd::Zero(fc.n, static_cast<Eigen::Index>(reported.size()));
       for (size_t a = 0; a < reported.size(); ++a) E(reported[a], static_cast<Eigen::Index>(a)) = 1;
       Eigen::MatrixXd Ninv_cols;
-      Eigen::MatrixXd L = Nn;
+      Eigen::MatrixXd& L = pb.normal_M;
+      L = Nn;
       if (detail::choleskyInPlace(L)) {
         Ninv_cols = E;
         detail::choleskySolveInPlace(L, Ninv_cols);
-      } else {  // semi-definite: as the dense path
+      } else {  // semi-definite: as the dense path (LDLT reads the lower triangle)
         Eigen::LDLT<Eigen::MatrixXd> ldlt(Nn);
         if (ldlt.info() != Eigen::Success)
           throw NumericalError("identification: normal matrix is singular at the solution");

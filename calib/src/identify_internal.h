@@ -166,6 +166,10 @@ struct Problem {
   /// per solve, their pages are faulted in again each time).
   mutable Eigen::MatrixXd solve_J;
   mutable Eigen::VectorXd solve_r;
+  /// The (parameters x parameters) matrices of solveNormal (identify_normal.cpp), kept for every
+  /// solve of this problem for the same reason: the normal matrix, the damped one factorised in
+  /// place, the penalty rows' A^T A.
+  mutable Eigen::MatrixXd normal_N, normal_M, normal_AtA;
   /// last holds the stacking at xs with the current weights.
   bool lastAt(const std::vector<double>& xs) const;
   void keep(const std::vector<double>& xs, const Eigen::MatrixXd& J, const Eigen::VectorXd& r) const;
@@ -247,14 +251,16 @@ struct FreeColumns {
 };
 /// The normal equations of the weighted rows at `model` (the layout's values in x applied) and
 /// x over the free columns, accumulated row by row from the compact Jacobians (RowStack::
-/// poseCompact): N += J_i^T J_i, g += J_i^T r_i. r (may be null) gets the stacked weighted
-/// residual of the rows. Returns 0.5 |r|^2. The penalty rows are not included.
+/// poseCompact): N += J_i^T J_i (N's lower triangle; the strictly upper one is zero), g +=
+/// J_i^T r_i. r (may be null) gets the stacked weighted residual of the rows. Returns 0.5
+/// |r|^2. The penalty rows are not included.
 double rowNormalEquations(const Problem& pb, const RobotModel& model, const std::vector<double>& x,
                           const FreeColumns& fc, Eigen::MatrixXd* N, Eigen::VectorXd* g, Eigen::VectorXd* r);
 /// The penalty rows' values at x (fixed parameters included), one per PenaltyRow.
 Eigen::VectorXd penaltyValues(const Problem& pb, const std::vector<double>& x);
 /// Adds the penalty rows A (over the free columns) to the normal equations from their terms:
-/// A^T A to *N (may be null), A^T value to *g (may be null; value as penaltyValues()).
+/// A^T A to *N's lower triangle (may be null), A^T value to *g (may be null; value as
+/// penaltyValues()).
 void addPenaltyNormal(const Problem& pb, const FreeColumns& fc, const Eigen::VectorXd* value, Eigen::MatrixXd* N,
                       Eigen::VectorXd* g);
 /// Levenberg-Marquardt on the normal equations accumulated pose by pose (rowNormalEquations,

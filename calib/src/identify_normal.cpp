@@ -30,17 +30,71 @@ FreeColumns::FreeColumns(const Problem& pb) {
     }
 }
 
+namespace {
+
+// One row's J^T J (Jt: its weighted free columns transposed, column a's component d at Jt[a + d
+// stride]; the first nn of them the non-map columns, the rest map coefficients) into the lower
+// triangles of the three parts of the normal matrix: non-map x non-map into the compact G (pg x
+// pg, by the columns' compact indices gidx), map x non-map into the compact Mg (a map column's
+// pg entries contiguous, at Mg + col * pg), map x map into N itself. The compact parts keep the
+// entries every row touches in the cache (scattered straight into N, a megabytes-large matrix,
+// they missed it: perf had half of the accumulation on the load and store of N's entry).
+template <int Dim>
+void accumulateRow(const double* Jt, Eigen::Index stride, int dim, Eigen::Index nn, Eigen::Index nc,
+                   const Eigen::Index* cols, const Eigen::Index* gidx, double* G, Eigen::Index pg, double* Mg, double* N,
+                   Eigen::Index ld) {
+  const int D = Dim > 0 ? Dim : dim;
+  auto dot = [&](Eigen::Index a, Eigen::Index c) {
+    double v = Jt[c] * Jt[a];
+    for (int d = 1; d < D; ++d) v += Jt[c + d * stride] * Jt[a + d * stride];
+    return v;
+  };
+  for (Eigen::Index a = 0; a < nn; ++a)
+    for (Eigen::Index c = a; c < nn; ++c) {
+      const Eigen::Index ga = gidx[a], gc = gidx[c];
+      G[(ga < gc ? ga : gc) * pg + (ga < gc ? gc : ga)] += dot(a, c);
+    }
+  for (Eigen::Index m = nn; m < nc; ++m) {
+    double* row = Mg + cols[m] * pg;
+    for (Eigen::Index a = 0; a < nn; ++a) row[gidx[a]] += dot(m, a);
+  }
+  for (Eigen::Index a = nn; a < nc; ++a)
+    for (Eigen::Index c = a; c < nc; ++c) {
+      const Eigen::Index ia = cols[a], ic = cols[c];
+      N[(ia < ic ? ia : ic) * ld + (ia < ic ? ic : ia)] += dot(a, c);
+    }
+}
+
+}  // namespace
+
 double rowNormalEquations(const Problem& pb, const RobotModel& model, const std::vector<double>& x,
                           const FreeColumns& fc, Eigen::MatrixXd* N, Eigen::VectorXd* g, Eigen::VectorXd* r) {
   RowStack rows(model, pb.plan, pb.st);
   if (N) N->setZero(fc.n, fc.n);
   if (g) g->setZero(fc.n);
   if (r) r->resize(pb.m_eq);
-  Eigen::MatrixXd Jw, JtJ;
-  Eigen::VectorXd Jte, ed;
-  std::vector<int> cols;
+  // the free columns' compact indices among the non-map ones (-1: a map coefficient) and back
+  std::vector<Eigen::Index> compact(static_cast<size_t>(fc.n), -1), non_map;
+  for (Eigen::Index c = 0; c < fc.n; ++c)
+    if (!pb.isMap(static_cast<size_t>(fc.x_of[static_cast<size_t>(c)]))) {
+      compact[static_cast<size_t>(c)] = static_cast<Eigen::Index>(non_map.size());
+      non_map.push_back(c);
+    }
+  const Eigen::Index pg = static_cast<Eigen::Index>(non_map.size());
+  Eigen::MatrixXd G, Mg;
+  if (N) {
+    G.setZero(pg, pg);
+    Mg.setZero(pg, fc.n);  // column c: map column c's entries
+  }
+  // JwT: the row's weighted free columns, transposed (a component's values contiguous over the
+  // columns), the non-map ones first
+  Eigen::MatrixXd JwT;
+  Eigen::VectorXd ed;
+  std::vector<Eigen::Index> cols, gidx;
+  std::vector<int> order;
   double ss = 0;
   Eigen::Index row = 0;
+  const Eigen::Index ld = N ? N->outerStride() : 0;
   for (size_t i = 0; i < pb.data.rows.size(); ++i) {
     const Measurement& meas = pb.data.rows[i];
     const RowWeights& w = pb.weights[i];
@@ -51,23 +105,48 @@ double rowNormalEquations(const Problem& pb, const RobotModel& model, const std:
     if (r) r->segment(row, dim) = ed;
     row += dim;
     if (!N) continue;
-    // the free columns of this row
+    // the free columns of this row: the non-map ones, then the map coefficients
     cols.clear();
+    gidx.clear();
+    order.clear();
     const std::vector<int>& idx = rows.idx();
-    Jw.resize(dim, static_cast<Eigen::Index>(idx.size()));
-    for (size_t k = 0; k < idx.size(); ++k) {
-      if (idx[k] < 0 || fc.col_of[static_cast<size_t>(idx[k])] < 0) continue;
-      Jw.col(static_cast<Eigen::Index>(cols.size())) =
-          w.w.head(dim).cwiseProduct(rows.Jc().col(static_cast<Eigen::Index>(k)).head(dim));
-      cols.push_back(fc.col_of[static_cast<size_t>(idx[k])]);
+    for (int pass = 0; pass < 2; ++pass)
+      for (size_t k = 0; k < idx.size(); ++k) {
+        if (idx[k] < 0) continue;
+        const int c = fc.col_of[static_cast<size_t>(idx[k])];
+        if (c < 0 || (compact[static_cast<size_t>(c)] >= 0) != (pass == 0)) continue;
+        order.push_back(static_cast<int>(k));
+        cols.push_back(c);
+        if (pass == 0) gidx.push_back(compact[static_cast<size_t>(c)]);
+      }
+    const Eigen::Index nc = static_cast<Eigen::Index>(cols.size()), nn = static_cast<Eigen::Index>(gidx.size());
+    JwT.resize(nc, dim);
+    for (Eigen::Index a = 0; a < nc; ++a)
+      JwT.row(a) = w.w.head(dim).cwiseProduct(rows.Jc().col(order[static_cast<size_t>(a)]).head(dim)).transpose();
+    if (g) {
+      for (Eigen::Index a = 0; a < nc; ++a) (*g)[cols[static_cast<size_t>(a)]] += JwT.row(a).dot(ed);
     }
-    const Eigen::Index nc = static_cast<Eigen::Index>(cols.size());
-    JtJ.noalias() = Jw.leftCols(nc).transpose() * Jw.leftCols(nc);
-    if (g) Jte.noalias() = Jw.leftCols(nc).transpose() * ed;
-    for (Eigen::Index a = 0; a < nc; ++a) {
-      if (g) (*g)[cols[static_cast<size_t>(a)]] += Jte[a];
-      double* Ncol = N->col(cols[static_cast<size_t>(a)]).data();
-      for (Eigen::Index b = 0; b < nc; ++b) Ncol[cols[static_cast<size_t>(b)]] += JtJ(b, a);
+    if (dim == 3)
+      accumulateRow<3>(JwT.data(), nc, dim, nn, nc, cols.data(), gidx.data(), G.data(), pg, Mg.data(), N->data(), ld);
+    else if (dim == 6)
+      accumulateRow<6>(JwT.data(), nc, dim, nn, nc, cols.data(), gidx.data(), G.data(), pg, Mg.data(), N->data(), ld);
+    else
+      accumulateRow<0>(JwT.data(), nc, dim, nn, nc, cols.data(), gidx.data(), G.data(), pg, Mg.data(), N->data(), ld);
+  }
+  if (N) {
+    // the compact parts into N's lower triangle (a pair's larger column index is the row)
+    double* Nd = N->data();
+    for (Eigen::Index b = 0; b < pg; ++b)
+      for (Eigen::Index a = b; a < pg; ++a) {
+        const Eigen::Index ca = non_map[static_cast<size_t>(a)], cb = non_map[static_cast<size_t>(b)];
+        Nd[std::min(ca, cb) * ld + std::max(ca, cb)] += G(a, b);
+      }
+    for (Eigen::Index c = 0; c < fc.n; ++c) {
+      if (compact[static_cast<size_t>(c)] >= 0) continue;
+      for (Eigen::Index a = 0; a < pg; ++a) {
+        const Eigen::Index ca = non_map[static_cast<size_t>(a)];
+        Nd[std::min(ca, c) * ld + std::max(ca, c)] += Mg(a, c);
+      }
     }
   }
   return 0.5 * ss;
@@ -91,7 +170,7 @@ void addPenaltyNormal(const Problem& pb, const FreeColumns& fc, const Eigen::Vec
       if (!N) continue;
       for (const auto& b : terms) {
         const int cb = fc.col_of[static_cast<size_t>(b.first)];
-        if (cb >= 0) (*N)(cb, ca) += a.second * b.second;
+        if (cb >= ca) (*N)(cb, ca) += a.second * b.second;  // the lower triangle
       }
     }
   }
@@ -106,16 +185,19 @@ std::string format(const char* fmt, double a, double b) {
 }
 
 // Ceres' Levenberg-Marquardt step in the scaled variables: (Ns + diagonal / radius) z = gs,
-// step = -z (M: the workspace, factorised in place), *model_change the decrease the linear
-// model predicts. False: an invalid step (no factorisation, or no predicted decrease).
+// step = -z (Ns: its lower triangle; M: the workspace, factorised in place), *model_change the
+// decrease the linear model predicts. False: an invalid step (no factorisation, or no
+// predicted decrease).
 bool lmStep(const Eigen::MatrixXd& Ns, const Eigen::VectorXd& gs, const Eigen::VectorXd& diagonal, double radius,
             Eigen::MatrixXd& M, Eigen::VectorXd* step, double* model_change) {
-  M = Ns;
+  M.resize(Ns.rows(), Ns.cols());
+  M.triangularView<Eigen::Lower>() = Ns;
   M.diagonal() += diagonal / radius;
   if (!detail::choleskyInPlace(M)) return false;
   *step = -gs;
   detail::choleskySolveInPlace(M, *step);
-  *model_change = -(step->dot(gs) + 0.5 * step->dot(Ns * *step));
+  const Eigen::VectorXd Nstep = Ns.selfadjointView<Eigen::Lower>() * *step;
+  *model_change = -(step->dot(gs) + 0.5 * step->dot(Nstep));
   return step->allFinite() && *model_change > 0;
 }
 
@@ -145,8 +227,11 @@ SolveResult solveNormal(Problem& pb, const IdentifyOptions& options) {
     return std::sqrt(s);
   };
 
-  // the penalty rows are linear: A^T A once (from their few terms: A is sparse)
-  Eigen::MatrixXd AtA = Eigen::MatrixXd::Zero(n, n);
+  // the penalty rows are linear: A^T A once (from their few terms: A is sparse). The (n x n)
+  // matrices are the problem's workspaces, kept for every solve of it (a fresh allocation of
+  // megabytes has its pages faulted in and cleared again each time); lower triangles only.
+  Eigen::MatrixXd& AtA = pb.normal_AtA;
+  AtA.setZero(n, n);
   addPenaltyNormal(pb, fc, nullptr, &AtA, nullptr);
 
   RobotModel model = pb.model;
@@ -156,20 +241,22 @@ SolveResult solveNormal(Problem& pb, const IdentifyOptions& options) {
     const Eigen::VectorXd pv = penaltyValues(pb, xs);
     const double cost = rowNormalEquations(pb, model, xs, fc, N, g, nullptr) + 0.5 * pv.squaredNorm();
     if (N) {
-      *N += AtA;
+      N->triangularView<Eigen::Lower>() += AtA;
       addPenaltyNormal(pb, fc, &pv, nullptr, g);
     }
     return cost;
   };
 
   std::vector<double>& x = pb.x;
-  Eigen::MatrixXd N, Ns, M;
+  // Ns: the normal matrix, scaled in place after each evaluation
+  Eigen::MatrixXd &Ns = pb.normal_N, &M = pb.normal_M;
   Eigen::VectorXd g;
-  double cost = evaluate(x, &N, &g);
+  double cost = evaluate(x, &Ns, &g);
   // Jacobi scaling, from the first Jacobian
-  const Eigen::VectorXd scale = (Eigen::VectorXd::Ones(n) + N.diagonal().cwiseSqrt()).cwiseInverse();
+  const Eigen::VectorXd scale = (Eigen::VectorXd::Ones(n) + Ns.diagonal().cwiseSqrt()).cwiseInverse();
   auto scaled = [&]() {
-    Ns = scale.asDiagonal() * N * scale.asDiagonal();
+    for (Eigen::Index c = 0; c < n; ++c)
+      Ns.col(c).tail(n - c) = (Ns.col(c).tail(n - c).cwiseProduct(scale.tail(n - c))) * scale[c];
     return Eigen::VectorXd(scale.cwiseProduct(g));
   };
   Eigen::VectorXd gs = scaled();
@@ -243,7 +330,7 @@ SolveResult solveNormal(Problem& pb, const IdentifyOptions& options) {
     if (rho > min_relative_decrease) {
       x.swap(candidate);
       x_norm = norm(x);
-      cost = evaluate(x, &N, &g);
+      cost = evaluate(x, &Ns, &g);
       gs = scaled();
       gmax = g.cwiseAbs().maxCoeff();
       radius = std::min(max_radius, radius / std::max(1.0 / 3.0, 1.0 - std::pow(2.0 * rho - 1.0, 3)));

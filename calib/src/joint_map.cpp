@@ -262,11 +262,12 @@ namespace accura::calib {
 namespace {
 
 // Solves N delta = -b with a tiny ridge (parameters the data leave undetermined stay at the
-// linearisation point); N (symmetric) is overwritten.
-Eigen::VectorXd solveRidged(Eigen::MatrixXd& N, const Eigen::VectorXd& b) {
+// linearisation point); N: the lower triangle of the symmetric matrix, overwritten. rebuild()
+// writes the lower triangle again (for the fallback).
+template <class Rebuild>
+Eigen::VectorXd solveRidged(Eigen::MatrixXd& N, const Eigen::VectorXd& b, const Rebuild& rebuild) {
   const double ridge = 1e-10 * std::max(N.diagonal().maxCoeff(), 1e-300);
   N.diagonal().array() += ridge;
-  const Eigen::VectorXd d = N.diagonal();
   // Cholesky in place on the lower triangle (several times faster than LDLT at the maps' sizes,
   // and no copy of the matrix)
   if (detail::choleskyInPlace(N)) {
@@ -274,10 +275,10 @@ Eigen::VectorXd solveRidged(Eigen::MatrixXd& N, const Eigen::VectorXd& b) {
     detail::choleskySolveInPlace(N, delta);
     return delta;
   }
-  // not quite positive definite in the rounding: LDLT on the matrix again (its strictly upper
-  // triangle is untouched, the diagonal kept)
-  N.triangularView<Eigen::StrictlyLower>() = N.transpose();
-  N.diagonal() = d;
+  // not quite positive definite in the rounding: LDLT on the matrix again (it reads the lower
+  // triangle)
+  rebuild(N);
+  N.diagonal().array() += ridge;
   Eigen::LDLT<Eigen::MatrixXd> ldlt(N);
   return Eigen::VectorXd(-ldlt.solve(b));
 }
@@ -331,8 +332,10 @@ JointMapCvResult crossValidateJointMap(const std::vector<JointMapCvRow>& rows, c
     }
     double ss = 0;
     for (int f = 0; f < folds; ++f) {
-      Eigen::MatrixXd N = Nt - Nf[static_cast<size_t>(f)];
-      ss += heldOut({}, {}, f, solveRidged(N, bt - bf[static_cast<size_t>(f)]));
+      auto train = [&](Eigen::MatrixXd& N) { N = Nt - Nf[static_cast<size_t>(f)]; };
+      Eigen::MatrixXd N;
+      train(N);
+      ss += heldOut({}, {}, f, solveRidged(N, bt - bf[static_cast<size_t>(f)], train));
     }
     result.baseline_rms_mm = std::sqrt(ss / double(rows.size()));
   }
@@ -343,6 +346,9 @@ JointMapCvResult crossValidateJointMap(const std::vector<JointMapCvRow>& rows, c
   std::sort(order.begin(), order.end(), std::greater<double>());
   order.erase(std::unique(order.begin(), order.end()), order.end());
   double wider_best_ss = std::numeric_limits<double>::infinity();
+  // the (n x n) matrices, kept from one knot spacing to the next (lower triangles): the normal
+  // equations of all rows, a fold's training system, the workspace factorised
+  Eigen::MatrixXd Nt, Ntrain, Nwork;
   for (size_t ki = 0; ki < order.size(); ++ki) {
     const double knot = order[ki];
     std::vector<JointMap> maps;
@@ -353,54 +359,73 @@ JointMapCvResult crossValidateJointMap(const std::vector<JointMapCvRow>& rows, c
       col0.push_back(n);
       n += static_cast<Eigen::Index>(maps.back().coef.size());
     }
-    std::vector<Eigen::MatrixXd> Nf(static_cast<size_t>(folds), Eigen::MatrixXd::Zero(n, n));
-    std::vector<Eigen::VectorXd> bf(static_cast<size_t>(folds), Eigen::VectorXd::Zero(n));
-    std::vector<Eigen::Index> idx(static_cast<size_t>(p + 4 * J));
+    // the normal equations of all rows, lower triangle only (Cholesky reads no more),
+    // accumulated row by row from each row's compact columns (its p, and 4 per joint: idx
+    // ascending); a fold's training system is then this minus the fold's own rows (one matrix
+    // per fold would be 5 x 10 MB at 2 deg)
+    const Eigen::Index nc = p + 4 * J;
+    std::vector<Eigen::Index> idx(static_cast<size_t>(nc));
     for (Eigen::Index c = 0; c < p; ++c) idx[static_cast<size_t>(c)] = c;
-    Eigen::MatrixXd C(rows[0].r.size(), p + 4 * J);
+    Eigen::MatrixXd Ct(nc, rows[0].r.size());  // the row's columns, transposed
     double w[4];
-    for (const auto& row : rows) {
-      if (C.rows() != row.r.size()) C.resize(row.r.size(), p + 4 * J);
-      C.leftCols(p) = row.G;
+    auto columns = [&](const JointMapCvRow& row) {
+      const Eigen::Index dim = row.r.size();
+      if (Ct.cols() != dim) Ct.resize(nc, dim);
+      Ct.topRows(p) = row.G.transpose();
       for (int j = 0; j < J; ++j) {
         const int first = jointMapBasis(maps[static_cast<size_t>(j)], row.q[j], w);
         for (int k = 0; k < 4; ++k) {
-          C.col(p + 4 * j + k) = row.U.col(j) * w[k];
+          Ct.row(p + 4 * j + k) = row.U.col(j).transpose() * w[k];
           idx[static_cast<size_t>(p + 4 * j + k)] = col0[static_cast<size_t>(j)] + first + k;
         }
       }
-      const Eigen::MatrixXd CtC = C.transpose() * C;
-      const Eigen::VectorXd Ctr = C.transpose() * row.r;
-      Eigen::MatrixXd& N = Nf[static_cast<size_t>(row.fold)];
+    };
+    Nt.setZero(n, n);
+    std::vector<Eigen::VectorXd> bf(static_cast<size_t>(folds), Eigen::VectorXd::Zero(n));
+    for (const auto& row : rows) {
+      columns(row);
       Eigen::VectorXd& b = bf[static_cast<size_t>(row.fold)];
-      for (size_t a = 0; a < idx.size(); ++a) {
-        b[idx[a]] += Ctr[static_cast<Eigen::Index>(a)];
-        for (size_t c = 0; c < idx.size(); ++c) N(idx[a], idx[c]) += CtC(static_cast<Eigen::Index>(a), static_cast<Eigen::Index>(c));
-      }
+      for (Eigen::Index a = 0; a < nc; ++a) b[idx[static_cast<size_t>(a)]] += Ct.row(a).dot(row.r);
+      detail::scatterGramLower(Nt.data(), Nt.outerStride(), Ct.data(), nc, static_cast<int>(row.r.size()), idx.data());
     }
-    Eigen::MatrixXd Nt = Eigen::MatrixXd::Zero(n, n);
     Eigen::VectorXd bt = Eigen::VectorXd::Zero(n);
-    for (int f = 0; f < folds; ++f) {
-      Nt += Nf[static_cast<size_t>(f)];
-      bt += bf[static_cast<size_t>(f)];
-    }
-    // per joint: the scale of its columns, its smoothness penalty D^T D
+    for (int f = 0; f < folds; ++f) bt += bf[static_cast<size_t>(f)];
+    // per joint: the scale of its columns, its smoothness penalty D^T D (banded: its lower
+    // band, 3 diagonals)
     std::vector<double> scale2(static_cast<size_t>(J));
-    std::vector<Eigen::MatrixXd> DtD(static_cast<size_t>(J));
     for (int j = 0; j < J; ++j) {
       const Eigen::Index K = static_cast<Eigen::Index>(maps[static_cast<size_t>(j)].coef.size());
       scale2[static_cast<size_t>(j)] = std::max(Nt.diagonal().segment(col0[static_cast<size_t>(j)], K).mean(), 1e-300);
-      Eigen::MatrixXd D = Eigen::MatrixXd::Zero(std::max<Eigen::Index>(K - 2, 0), K);
-      for (Eigen::Index k = 0; k + 2 < K; ++k) D.row(k).segment(k, 3) << 1, -2, 1;
-      DtD[static_cast<size_t>(j)] = D.transpose() * D;
     }
+    // the smoothness penalty of smoothing sm on the lower triangle of N
+    auto addSmoothness = [&](Eigen::MatrixXd& N, double sm) {
+      for (int j = 0; j < J; ++j) {
+        const Eigen::Index K = static_cast<Eigen::Index>(maps[static_cast<size_t>(j)].coef.size());
+        const Eigen::Index c0 = col0[static_cast<size_t>(j)];
+        const double s = sm * scale2[static_cast<size_t>(j)];
+        // D^T D, D the (K-2) x K second differences (D(k, k..k+2) = 1, -2, 1): entry (a, a+o)
+        // = sum over D's rows k = max(a+o-2, 0) .. min(a, K-3) of D(k, a) D(k, a+o)
+        const double d[3] = {1, -2, 1};
+        for (Eigen::Index a = 0; a < K; ++a)
+          for (Eigen::Index o = 0; o <= 2 && a + o < K; ++o) {
+            double v = 0;
+            for (Eigen::Index k = std::max<Eigen::Index>(a + o - 2, 0); k <= std::min(a, K - 3); ++k) v += d[a - k] * d[a + o - k];
+            if (v != 0) N(c0 + a + o, c0 + a) += s * v;
+          }
+      }
+    };
     const size_t first_entry = result.table.size();
     for (double sm : smoothings) result.table.push_back({knot, sm, 0.0});
     for (int f = 0; f < folds; ++f) {
-      // the training system, in place of the fold's own (Nt - Nf: no copy), with the centring
-      // taken on the training rows
-      Eigen::MatrixXd& Ntrain = Nf[static_cast<size_t>(f)];
-      Ntrain = Nt - Ntrain;
+      // the training system: all rows' less the fold's own, with the centring taken on the
+      // training rows
+      Ntrain.resize(n, n);
+      Ntrain.triangularView<Eigen::Lower>() = Nt;
+      for (const auto& row : rows) {
+        if (row.fold != f) continue;
+        columns(row);
+        detail::scatterGramLower(Ntrain.data(), Ntrain.outerStride(), Ct.data(), nc, static_cast<int>(row.r.size()), idx.data(), -1.0);
+      }
       const Eigen::VectorXd btrain = bt - bf[static_cast<size_t>(f)];
       for (int j = 0; j < J; ++j) {
         std::vector<double> qt;
@@ -411,17 +436,19 @@ JointMapCvResult crossValidateJointMap(const std::vector<JointMapCvRow>& rows, c
           const Eigen::VectorXd av = Eigen::Map<const Eigen::VectorXd>(a.data(), K);
           if (av.norm() == 0) continue;
           const double W = kJointMapCentringWeight * kJointMapCentringWeight * scale2[static_cast<size_t>(j)];
-          Ntrain.block(col0[static_cast<size_t>(j)], col0[static_cast<size_t>(j)], K, K) += W * (av * av.transpose()) / av.squaredNorm();
+          Ntrain.block(col0[static_cast<size_t>(j)], col0[static_cast<size_t>(j)], K, K).selfadjointView<Eigen::Lower>().rankUpdate(
+              av, W / av.squaredNorm());
         }
       }
       for (size_t si = 0; si < smoothings.size(); ++si) {
-        Eigen::MatrixXd N = Ntrain;
-        for (int j = 0; j < J; ++j) {
-          const Eigen::Index K = static_cast<Eigen::Index>(maps[static_cast<size_t>(j)].coef.size());
-          N.block(col0[static_cast<size_t>(j)], col0[static_cast<size_t>(j)], K, K) +=
-              smoothings[si] * scale2[static_cast<size_t>(j)] * DtD[static_cast<size_t>(j)];
-        }
-        result.table[first_entry + si].cv_rms_mm += heldOut(maps, col0, f, solveRidged(N, btrain));
+        auto train = [&](Eigen::MatrixXd& N) {
+          N.resize(n, n);
+          N.triangularView<Eigen::Lower>() = Ntrain;
+          addSmoothness(N, smoothings[si]);
+        };
+        train(Nwork);
+        const Eigen::VectorXd dl = solveRidged(Nwork, btrain, train);
+        result.table[first_entry + si].cv_rms_mm += heldOut(maps, col0, f, dl);
       }
     }
     // (the table holds sums of squares until the end)
