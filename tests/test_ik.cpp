@@ -183,6 +183,50 @@ TEST(IkChain, SmallLinearAlgebraEqualsEigen) {
   EXPECT_GT(blocks, 30);
 }
 
+TEST(IkChain, PositiveDefiniteTestsAgreeNearTheBoundary) {
+  // positiveDefinite6 (Sylvester's criterion in 3x3 blocks where it is far from the boundary,
+  // else the L D L^T) against the singular values: A with prescribed singular values (one or
+  // two small: near one singularity or two at once; columns of very different size as a
+  // scaled Jacobian's may be), G = A^T A - t^2 I with t 0.1 % below / above the smallest
+  // (independent truth: the SVD of A)
+  std::mt19937 rng(11);
+  std::normal_distribution<double> g(0, 1);
+  std::uniform_real_distribution<double> u(-3, 0);
+  int cases = 0;
+  for (int k = 0; k < 3000; ++k) {
+    Eigen::Matrix<double, 6, 6> M;
+    for (int i = 0; i < 36; ++i) M.data()[i] = g(rng);
+    const Eigen::JacobiSVD<Eigen::Matrix<double, 6, 6>> base(M, Eigen::ComputeFullU | Eigen::ComputeFullV);
+    Eigen::Matrix<double, 6, 1> s;
+    for (int i = 0; i < 6; ++i) s[i] = std::pow(10.0, u(rng) / 3);  // 0.1 .. 1
+    if (k % 3 == 1) s[5] = std::pow(10.0, u(rng) - 2);  // 1e-5 .. 1e-2
+    if (k % 3 == 2) s.tail<2>() << std::pow(10.0, u(rng) - 1), std::pow(10.0, u(rng) - 2);
+    Eigen::Matrix<double, 6, 6> A = base.matrixU() * s.asDiagonal() * base.matrixV().transpose();
+    for (int c = 0; c < 6; ++c) A.col(c) *= std::pow(10.0, u(rng) / 3);  // column scaling 0.1 .. 1
+    const double smin = Eigen::JacobiSVD<Eigen::Matrix<double, 6, 6>>(A).singularValues().minCoeff();
+    const Eigen::Matrix<double, 6, 6> G = A.transpose() * A;
+    for (const double f : {0.999, 1.001, 0.5, 2.0}) {
+      Eigen::Matrix<double, 6, 6> H = G;
+      H.diagonal().array() -= f * smin * f * smin;
+      const bool pd = calib::detail::positiveDefinite6(H);
+      EXPECT_EQ(pd, f < 1) << "case " << k << " smin " << smin << " factor " << f;
+      EXPECT_EQ(pd, calib::detail::positiveDefiniteLdl6(H)) << "case " << k << " factor " << f;
+      ++cases;
+    }
+  }
+  EXPECT_EQ(cases, 12000);
+  // NaN and non-positive diagonals: not positive definite
+  Eigen::Matrix<double, 6, 6> N = Eigen::Matrix<double, 6, 6>::Identity();
+  N(3, 1) = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_FALSE(calib::detail::positiveDefinite6(N));
+  N.setIdentity();
+  N(4, 4) = 0;
+  EXPECT_FALSE(calib::detail::positiveDefinite6(N));
+  N.setIdentity();
+  N(5, 2) = 1.5;  // |G'(5, 2)| > 1
+  EXPECT_FALSE(calib::detail::positiveDefinite6(N));
+}
+
 TEST(IkChain, PoseErrorEqualsTheLogarithm) {
   // Newton's error: the translation difference and the rotation vector of R_target R^T, from
   // the columns and a series below 5.7 deg; independent: calib's logSO3 of the product

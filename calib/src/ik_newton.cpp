@@ -124,14 +124,31 @@ void KinematicSolver::Impl::scaled(const Jac6N& J, Jac6N& Js) const {
 
 bool KinematicSolver::Impl::singularBelow(const Jac6N& J, double t) const {
   if (n == 6) {
-    // A^T A (same singular values as A A^T for a square A), A the scaled Jacobian as a
-    // fixed-size matrix (vectorised product)
-    Eigen::Matrix<double, 6, 6> A = J.leftCols<6>();
-    A.topRows<3>() *= 1.0 / L;
-    for (int c = 0; c < 6; ++c) A.col(c) *= revolute[c] ? kRadToDeg : L;
+    // G = A^T A - t^2 I (A^T A has the singular values of A A^T for a square A), A the
+    // scaled Jacobian: only the lower triangle, which positiveDefinite6 reads (21 dot
+    // products of 6, about half the instructions of the full fixed-size product)
+    double a[6][6];  // a[c]: column c of A
+    const double inv_L = 1.0 / L;
+    for (int c = 0; c < 6; ++c) {
+      const double* Jc = J.data() + 6 * c;
+      const double s = revolute[c] ? kRadToDeg : L;
+      a[c][0] = Jc[0] * inv_L * s;
+      a[c][1] = Jc[1] * inv_L * s;
+      a[c][2] = Jc[2] * inv_L * s;
+      a[c][3] = Jc[3] * s;
+      a[c][4] = Jc[4] * s;
+      a[c][5] = Jc[5] * s;
+    }
     Eigen::Matrix<double, 6, 6> G;
-    G.noalias() = A.transpose() * A;
-    G.diagonal().array() -= t * t;
+    const double t2 = t * t;
+    for (int j = 0; j < 6; ++j) {
+      for (int i = j; i < 6; ++i) {
+        const double* x = a[i];
+        const double* y = a[j];
+        G(i, j) = (x[0] * y[0] + x[1] * y[1]) + (x[2] * y[2] + x[3] * y[3]) + (x[4] * y[4] + x[5] * y[5]);
+      }
+      G(j, j) -= t2;
+    }
     return !detail::positiveDefinite6(G);
   }
   Jac6N Js;

@@ -161,16 +161,16 @@ class Block6 {
 };
 
 /// Is the symmetric 6x6 matrix G positive definite? (L D L^T without square roots: every
-/// pivot d_j > 0; only the lower triangle is read.)
-inline bool positiveDefinite6(const Eigen::Matrix<double, 6, 6>& G) {
+/// pivot d_j > 0; only the lower triangle is read.) Pivot after pivot: each division waits
+/// for the one before.
+inline bool positiveDefiniteLdl6(const Eigen::Matrix<double, 6, 6>& G) {
   double l[6][6];  // l[i][k] * d[k] for k < i (the scaled lower factor)
-  double d[6], inv[6];
+  double inv[6];
 #pragma GCC unroll 6
   for (int j = 0; j < 6; ++j) {
     double dj = G(j, j);
     for (int k = 0; k < j; ++k) dj -= l[j][k] * l[j][k] * inv[k];
     if (!(dj > 0)) return false;
-    d[j] = dj;
     inv[j] = 1.0 / dj;
     for (int i = j + 1; i < 6; ++i) {
       double v = G(i, j);
@@ -178,8 +178,64 @@ inline bool positiveDefinite6(const Eigen::Matrix<double, 6, 6>& G) {
       l[i][j] = v;  // = L(i, j) d_j
     }
   }
-  (void)d;
   return true;
+}
+
+/// Is the symmetric 6x6 matrix G positive definite? Only the lower triangle is read; a NaN
+/// entry gives false.
+///
+/// First without a chain of divisions (the common case, a well-conditioned G, then has a short
+/// dependency chain), on G' = D^-1/2 G D^-1/2, D = diag(G) (the same answer: a congruence;
+/// unit diagonal, so every entry of a positive definite G' lies in [-1, 1]): Sylvester's
+/// criterion in 3x3 blocks, G' = [G11 G21^T; G21 G22] positive definite when G11 is and so is
+/// its Schur complement S = G22 - G21 G11^-1 G21^T; with G11's adjugate,
+/// H = det(G11) S = det(G11) G22 - G21 adj(G11) G21^T, each block by its three leading minors.
+/// Taken only where every |G'(i, j)| <= 1 (necessary for positive definiteness): the products
+/// then stay below about 5e5 in size and their rounding below 1e-10 (below 1e-13 for a positive
+/// definite G'), so an answer "positive definite" with every minor above kClear = 1e-8 is the
+/// exact one. Everywhere else
+/// (near the boundary, or not positive definite) positiveDefiniteLdl6 decides.
+inline bool positiveDefinite6(const Eigen::Matrix<double, 6, 6>& G) {
+  double r[6];  // D^-1/2 (independent of each other: no chain)
+  bool diagonal_positive = true;
+  for (int i = 0; i < 6; ++i) {
+    diagonal_positive &= G(i, i) > 0;
+    r[i] = 1.0 / std::sqrt(G(i, i));
+  }
+  if (!diagonal_positive) return false;
+  const auto g = [&](int i, int j) { return G(i, j) * r[i] * r[j]; };
+  // G11 = [1 b c; b 1 e; c e 1] and its adjugate (symmetric)
+  const double b = g(1, 0), c = g(2, 0), e = g(2, 1);
+  // |G'(i, j)| <= 1 (necessary for positive definiteness): bounds every product below
+  double largest = std::max(std::abs(b), std::max(std::abs(c), std::abs(e)));
+  const double j00 = 1 - e * e, j01 = c * e - b, j02 = b * e - c;
+  const double j11 = 1 - c * c, j12 = b * c - e, j22 = 1 - b * b;
+  const double det = j00 + b * j01 + c * j02;
+  double l[3][3];  // G21
+  for (int i = 0; i < 3; ++i)
+    for (int k = 0; k < 3; ++k) {
+      l[i][k] = g(3 + i, k);
+      largest = std::max(largest, std::abs(l[i][k]));
+    }
+  // X = adj(G11) G21^T (3x3): X(k, m) = sum_n adj(k, n) G21(m, n)
+  const double adj[3][3] = {{j00, j01, j02}, {j01, j11, j12}, {j02, j12, j22}};
+  double x[3][3];
+  for (int k = 0; k < 3; ++k)
+    for (int m = 0; m < 3; ++m) x[k][m] = adj[k][0] * l[m][0] + adj[k][1] * l[m][1] + adj[k][2] * l[m][2];
+  // H = det G22 - G21 X (lower triangle; G22's diagonal is 1)
+  const auto h = [&](int i, int m, double g22) {
+    return det * g22 - (l[i][0] * x[0][m] + l[i][1] * x[1][m] + l[i][2] * x[2][m]);
+  };
+  const double h00 = h(0, 0, 1), h10 = h(1, 0, g(4, 3)), h11 = h(1, 1, 1), h20 = h(2, 0, g(5, 3)),
+               h21 = h(2, 1, g(5, 4)), h22 = h(2, 2, 1);  // (below: |G22'(i, j)| <= 1 too)
+  const double k00 = h11 * h22 - h21 * h21, k01 = h20 * h21 - h10 * h22, k02 = h10 * h21 - h20 * h11;
+  const double det_h = h00 * k00 + h10 * k01 + h20 * k02;
+  constexpr double kClear = 1e-8;
+  const double g43 = g(4, 3), g53 = g(5, 3), g54 = g(5, 4);
+  const bool bounded = largest <= 1 && std::abs(g43) <= 1 && std::abs(g53) <= 1 && std::abs(g54) <= 1;
+  const bool clearly = bounded & (j22 > kClear) & (det > kClear) & (h00 > kClear) & (h00 * h11 - h10 * h10 > kClear) &
+                       (det_h > kClear);
+  return clearly || positiveDefiniteLdl6(G);
 }
 
 }  // namespace accura::calib::detail
