@@ -30,6 +30,10 @@ constexpr double kChi3Median = 1.5382;
 
 // Repeated configurations of the fit data (and the validation data for the pooled scatter):
 // pairs, their distances, glitches, and the pooled within-configuration scatter without them.
+// A glitch is judged against glitch_factor times the median pair distance: in a configuration
+// measured twice the pair (which row is wrong cannot be told), in one measured three times or
+// more each row against the configuration's robust centre (the per-axis median of its points),
+// so that the odd row is named once, not in a pair with every other measurement.
 void Diagnoser::repeats() {
   Floors& fl = out_.floors;
   fl.repeat_tol = o_.repeat_tol;
@@ -59,33 +63,76 @@ void Diagnoser::repeats() {
   const double med_all = median(dist);
   fl.glitch_threshold_mm = o_.glitch_factor * med_all;
   std::vector<bool> glitch_row(static_cast<size_t>(m_), false);
-  std::vector<double> clean;
-  for (size_t k = 0; k < pairs.size(); ++k) {
-    if (!(dist[k] > fl.glitch_threshold_mm)) {
-      clean.push_back(dist[k]);
+  auto rotation = [&](int i) { return rot_ok_[static_cast<size_t>(i)]; };
+  for (const std::vector<int>& g : groups_) {
+    if (g.size() < 2) continue;
+    if (g.size() == 2) {
+      const int a = g[0], b = g[1];
+      const double d = (fit_.rows[a].p_world_mm - fit_.rows[b].p_world_mm).norm();
+      if (!(d > fl.glitch_threshold_mm)) continue;
+      RepeatPair e;
+      e.index_a = a;
+      e.index_b = b;
+      e.line_a = fit_.rows[a].line;
+      e.line_b = fit_.rows[b].line;
+      e.distance_mm = d;
+      if (rotation(a) && rotation(b)) e.rotation_deg = R_fit_[a].angularDistance(R_fit_[b]) * kRadToDeg;
+      fl.glitches.push_back(e);
+      glitch_row[a] = glitch_row[b] = true;
       continue;
     }
-    RepeatPair g;
-    g.index_a = pairs[k].first;
-    g.index_b = pairs[k].second;
-    g.line_a = fit_.rows[g.index_a].line;
-    g.line_b = fit_.rows[g.index_b].line;
-    g.distance_mm = dist[k];
-    if (rot_ok_[g.index_a] && rot_ok_[g.index_b])
-      g.rotation_deg = R_fit_[g.index_a].angularDistance(R_fit_[g.index_b]) * kRadToDeg;
-    fl.glitches.push_back(g);
-    glitch_row[g.index_a] = glitch_row[g.index_b] = true;
+    Eigen::Vector3d centre;
+    for (int k = 0; k < 3; ++k) {
+      std::vector<double> c;
+      for (int i : g) c.push_back(fit_.rows[static_cast<size_t>(i)].p_world_mm[k]);
+      centre[k] = median(c);
+    }
+    std::vector<int> odd, good;
+    for (int i : g)
+      ((fit_.rows[static_cast<size_t>(i)].p_world_mm - centre).norm() > fl.glitch_threshold_mm ? odd : good).push_back(i);
+    // the orientation of the configuration: the chordal mean of its rows that are not odd
+    Eigen::Vector4d qsum = Eigen::Vector4d::Zero();
+    int nrot = 0;
+    for (int i : good) {
+      if (!rotation(i)) continue;
+      Eigen::Vector4d q = R_fit_[static_cast<size_t>(i)].coeffs();
+      if (nrot > 0 && q.dot(qsum) < 0) q = -q;
+      qsum += q;
+      ++nrot;
+    }
+    for (int i : odd) {
+      RepeatPair e;
+      e.index_a = i;
+      e.index_b = -1;
+      e.line_a = fit_.rows[static_cast<size_t>(i)].line;
+      e.line_b = 0;
+      e.distance_mm = (fit_.rows[static_cast<size_t>(i)].p_world_mm - centre).norm();
+      e.measurements = static_cast<int>(g.size());
+      if (rotation(i) && nrot > 0) {
+        Eigen::Quaterniond mean;
+        mean.coeffs() = qsum.normalized();
+        e.rotation_deg = R_fit_[static_cast<size_t>(i)].angularDistance(mean) * kRadToDeg;
+      }
+      fl.glitches.push_back(e);
+      glitch_row[static_cast<size_t>(i)] = true;
+    }
   }
+  std::vector<double> clean;
+  for (size_t k = 0; k < pairs.size(); ++k)
+    if (!glitch_row[static_cast<size_t>(pairs[k].first)] && !glitch_row[static_cast<size_t>(pairs[k].second)]) clean.push_back(dist[k]);
   std::sort(fl.glitches.begin(), fl.glitches.end(),
             [](const RepeatPair& a, const RepeatPair& b) { return a.distance_mm > b.distance_mm; });
   fl.median_pair_mm = median(clean);
-  // pooled within-configuration scatter, groups touched by a glitch left out
+  // pooled within-configuration scatter, glitch rows left out (a configuration measured twice
+  // with a glitch pair drops out)
   double ss = 0, dof = 0;
   int n_groups = 0;
   auto pool = [&](const MeasurementSet& set, const std::vector<std::vector<int>>& groups, const std::vector<bool>* skip) {
-    for (const auto& g : groups) {
+    for (const auto& g0 : groups) {
+      std::vector<int> g;
+      for (int i : g0)
+        if (!skip || !(*skip)[static_cast<size_t>(i)]) g.push_back(i);
       if (g.size() < 2) continue;
-      if (skip && std::any_of(g.begin(), g.end(), [&](int i) { return (*skip)[static_cast<size_t>(i)]; })) continue;
       Eigen::Vector3d mean = Eigen::Vector3d::Zero();
       for (int i : g) mean += set.rows[static_cast<size_t>(i)].p_world_mm;
       mean /= double(g.size());
@@ -131,7 +178,7 @@ void Diagnoser::noiseFloor() {
         "repeatability: " + std::to_string(fl.repeat_groups) + " joint configurations measured more than once (every joint within " +
         fmtg("%g", fl.repeat_tol) + " deg or mm), pooled scatter " + fmtg("%.4g", sigma) + " mm per axis (" +
         fmtg("%.0f", fl.repeat_dof) + " degrees of freedom), median pair distance " + fmtg("%.4f", fl.median_pair_mm) + " mm, " +
-        std::to_string(fl.glitches.size()) + " glitch pair(s) left out";
+        std::to_string(fl.glitches.size()) + " glitch(es) left out";
     if (fl.instrument_known)
       out_.noise_floor_source += "; the instrument states " + fmtg("%.4f", fl.instrument_rms_mm) + " mm (std columns)";
   } else if (fit_.has_std_position && (!has_val_ || val_.has_std_position)) {

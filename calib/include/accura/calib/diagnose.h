@@ -86,12 +86,16 @@ struct DiagnoseOptions {
   bool IsValid(std::string* error) const;
 };
 
-/// Two measurements of one joint configuration (within DiagnoseOptions::repeat_tol).
+/// A glitch among the repeats of one joint configuration (within DiagnoseOptions::repeat_tol).
+/// A configuration measured twice: the two rows (which of them is wrong cannot be told).
+/// Measured three times or more: the odd row alone (index_b = -1, line_b = 0), against the
+/// configuration's robust centre (the per-axis median of its measured points).
 struct RepeatPair {
   int line_a = 0, line_b = 0;    ///< source lines (0 when simulated)
-  int index_a = 0, index_b = 0;  ///< 0-based rows of the data
-  double distance_mm = 0;        ///< |p_a - p_b|
+  int index_a = 0, index_b = 0;  ///< 0-based rows of the data; index_b -1: row a against the centre
+  double distance_mm = 0;        ///< |p_a - p_b|, or |p_a - centre|
   double rotation_deg = std::numeric_limits<double>::quiet_NaN();  ///< orientation jump (6D data)
+  int measurements = 2;          ///< rows of the configuration
 };
 
 /// The floors of a data set: what the instrument states (std columns) and what the robot and
@@ -108,7 +112,9 @@ struct Floors {
   double repeat_rms_mm = std::numeric_limits<double>::quiet_NaN();       ///< 3D RMS (sqrt(3) per-axis)
   double repeat_dof = 0;
   double glitch_threshold_mm = std::numeric_limits<double>::quiet_NaN();
-  std::vector<RepeatPair> glitches;  ///< pairs disagreeing grossly (measurement glitches)
+  /// Measurement glitches: pairs disagreeing grossly, or the odd rows of a configuration
+  /// measured three times or more (RepeatPair).
+  std::vector<RepeatPair> glitches;
 };
 
 /// A pose the robust estimation down-weighted.
