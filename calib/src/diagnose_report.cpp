@@ -98,6 +98,7 @@ std::string rowRef(const Diagnosis& d, int line, int index) {
 
 // A row of a glitch (RepeatPair): row a, or row b of a pair.
 std::string glitchRowRef(const Diagnosis& d, const RepeatPair& p, bool a) {
+  if (p.validation) return a ? rowRef(d.validation_file, p.line_a, p.index_a) : rowRef(d.validation_file, p.line_b, p.index_b);
   return a ? rowRef(d, p.line_a, p.index_a) : rowRef(d, p.line_b, p.index_b);
 }
 
@@ -116,6 +117,8 @@ ordered_json floorsJson(const Diagnosis& d) {
                         {"tolerance_unit", "deg (mm for prismatic joints), every joint"},
                         {"configurations", fl.repeat_groups},
                         {"pairs", fl.repeat_pairs},
+                        {"validation_configurations", fl.repeat_groups_validation},
+                        {"validation_pairs", fl.repeat_pairs_validation},
                         {"rows_apart_min", fl.repeat_min_gap},
                         {"rows_apart_max", fl.repeat_max_gap},
                         {"median_pair_distance_mm", num(fl.median_pair_mm)},
@@ -541,10 +544,19 @@ std::string diagnosisText(const Diagnosis& d) {
   {
     const Floors& fl = d.floors;
     s << "floors: instrument (std columns) " << (fl.instrument_known ? f("%.4f", fl.instrument_rms_mm) + " mm" : std::string("unknown"))
-      << "; repeatability " << (fl.repeat_dof > 0 ? f("%.4f", fl.repeat_rms_mm) + " mm 3D RMS" : std::string("unknown")) << " from "
-      << fl.repeat_groups << " configurations measured again (" << fl.repeat_pairs << " pairs, " << fl.repeat_min_gap << "-"
-      << fl.repeat_max_gap << " rows apart, joints within " << f("%g", fl.repeat_tol) << " deg), median pair distance "
-      << f("%.4f", fl.median_pair_mm) << " mm\n";
+      << "; repeatability ";
+    if (fl.repeat_pairs == 0) {
+      s << "unknown: no configuration measured again (joints within " << f("%g", fl.repeat_tol) << " deg)\n";
+    } else {
+      s << (fl.repeat_dof > 0 ? f("%.4f", fl.repeat_rms_mm) + " mm 3D RMS" : std::string("unknown")) << " from "
+        << fl.repeat_groups << " configurations measured again (" << fl.repeat_pairs << " pairs, " << fl.repeat_min_gap << "-"
+        << fl.repeat_max_gap << " rows apart, joints within " << f("%g", fl.repeat_tol) << " deg";
+      if (fl.repeat_pairs_validation > 0)
+        s << "; the validation set's: " << fl.repeat_groups_validation << " configurations, " << fl.repeat_pairs_validation
+          << " pairs";
+      s << "), median pair distance " << (std::isfinite(fl.median_pair_mm) ? f("%.4f", fl.median_pair_mm) + " mm" : std::string("- (every pair a glitch)"))
+        << "\n";
+    }
     if (!fl.glitches.empty()) {
       s << "glitches (repeat pairs, or rows of a configuration measured three times or more against its centre, "
            "further apart than "
@@ -552,6 +564,9 @@ std::string diagnosisText(const Diagnosis& d) {
       for (const RepeatPair& p : fl.glitches)
         s << "\n  " << glitchText(d, p) << "  " << f("%.3f", p.distance_mm) << " mm" << (std::isfinite(p.rotation_deg) ? ", orientation jump " + f("%.3f", p.rotation_deg) + " deg" : "");
       s << "\n";
+      if (d.validation_glitch_rows_left_out > 0)
+        s << d.validation_glitch_rows_left_out << " validation row(s) of these glitches left out of the held-out statistics ("
+          << d.validation_poses << " validation poses remain)\n";
     }
     for (const std::string& w : excludedRowWarnings(d.excluded, "the diagnosis")) s << "WARNING: " << w << "\n";
     if (!d.downweighted.empty()) {

@@ -96,6 +96,7 @@ struct RepeatPair {
   double distance_mm = 0;        ///< |p_a - p_b|, or |p_a - centre|
   double rotation_deg = std::numeric_limits<double>::quiet_NaN();  ///< orientation jump (6D data)
   int measurements = 2;          ///< rows of the configuration
+  bool validation = false;       ///< rows of the validation set (else of the fit data)
 };
 
 /// The floors of a data set: what the instrument states (std columns) and what the robot and
@@ -104,8 +105,12 @@ struct Floors {
   bool instrument_known = false;
   double instrument_rms_mm = std::numeric_limits<double>::quiet_NaN();  ///< 3D RMS of the std columns
   double repeat_tol = 0.01;       ///< joint tolerance of a repeat (deg / mm)
-  int repeat_groups = 0;          ///< configurations measured more than once
-  int repeat_pairs = 0;           ///< pairs among them
+  /// Configurations measured more than once (glitch-free, in the pooled scatter), and the pairs
+  /// among them (all), of the fit data and the validation set together; *_validation: the
+  /// validation set's share.
+  int repeat_groups = 0;
+  int repeat_pairs = 0;
+  int repeat_groups_validation = 0, repeat_pairs_validation = 0;
   int repeat_min_gap = 0, repeat_max_gap = 0;  ///< rows between the two measurements of a pair
   double median_pair_mm = std::numeric_limits<double>::quiet_NaN();  ///< median |p_a - p_b|, glitches excluded
   double repeat_std_axis_mm = std::numeric_limits<double>::quiet_NaN();  ///< pooled, per axis
@@ -287,10 +292,13 @@ struct Diagnosis {
   std::string robot;
   std::vector<std::string> joint_names;
   std::string data_file, validation_method;  ///< "validation set FILE" or "5-fold cross-validation"
+  std::string validation_file;               ///< the validation set's file (empty without one)
   /// Several data sets (diagnose on StationSets): the file of each fit row (rows are named
   /// file:line with it); empty for one data set.
   std::vector<std::string> row_files;
   int fit_poses = 0, validation_poses = 0;
+  /// Validation rows named as glitches (Floors::glitches) and left out of the held-out statistics.
+  int validation_glitch_rows_left_out = 0;
   bool orientation_ignored = false;
   std::vector<std::string> effects_tested;
   // noise floor
