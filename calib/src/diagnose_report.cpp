@@ -620,7 +620,7 @@ std::string diagnosisText(const Diagnosis& d) {
     }
   }
   if (std::isfinite(d.orientation_rms_before_deg))
-    s << "orientation residual (constant tool rotation removed): " << f("%.4f", d.orientation_rms_before_deg) << " -> "
+    s << "orientation residual (the same parameter groups identified on positions and orientations, as identify does): " << f("%.4f", d.orientation_rms_before_deg) << " -> "
       << f("%.4f", d.orientation_rms_after_deg) << " deg RMS\n";
   s << "verdict: " << d.verdict.effect;
   if (!d.verdict.joints.empty()) s << " (" << jointsText(d.verdict.joints) << ")";

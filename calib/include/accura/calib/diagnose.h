@@ -320,8 +320,10 @@ struct Diagnosis {
   std::vector<Region> worst_regions;
   std::vector<WorstPose> worst_poses;
   std::vector<JointSpectrum> spectra;
-  /// Orientation residual of 6D data (deg, RMS over the fit data, constant tool rotation
-  /// removed) for the baseline and final models; NaN for position-only data.
+  /// Orientation residual of 6D data (deg, RMS over the fit data) of the baseline's and the final
+  /// model's parameter groups identified on positions and orientations (identify's orientation
+  /// fit RMS; the diagnosis' own models are fitted on positions alone, which leave some wrist
+  /// parameters free); NaN for position-only data or when that identification fails.
   double orientation_rms_before_deg = std::numeric_limits<double>::quiet_NaN();
   double orientation_rms_after_deg = std::numeric_limits<double>::quiet_NaN();
   Floors floors;
