@@ -1,5 +1,6 @@
 // accura diagnose: where the remaining error lies, which effect of the catalogue causes it and
 // how far it shrinks once that effect is modelled (docs/diagnosis.md).
+#include <algorithm>
 #include <cmath>
 #include <ctime>
 #include <cstdio>
@@ -147,7 +148,19 @@ int runDiagnose(const DiagnoseArgs& a) {
     }
   }
   std::printf("%s", calib::diagnosisText(d).c_str());
-  if (!a.validate.empty()) checkValidationSet(d, data, validation, a.validate);
+  if (!a.validate.empty()) {
+    // the check sees the validation rows the diagnosis used: a lost beam left out as gross
+    // (d.excluded) would otherwise pull the station's re-registration by metres
+    calib::MeasurementSet screened = validation;
+    screened.rows.clear();
+    for (const calib::Measurement& r : validation.rows) {
+      const bool gross = std::any_of(d.excluded.begin(), d.excluded.end(), [&](const calib::ExcludedRow& e) {
+        return e.file == validation.file && e.line == r.line;
+      });
+      if (!gross) screened.rows.push_back(r);
+    }
+    checkValidationSet(d, data, screened, a.validate);
+  }
   // The JSON and the HTML report are one output set (all or nothing), never onto an input.
   std::vector<calib::OutputFile> outputs;
   if (!a.json.empty()) outputs.push_back({a.json, calib::diagnosisJson(d)});

@@ -168,6 +168,11 @@ void Diagnoser::prepareData(const MeasurementSet& data, const MeasurementSet* va
   if (validation) {
     prepare(*validation, &val_);
     has_val_ = true;
+    out_.validation_file = validation->file;
+    for (const Measurement& r : validation->rows) {
+      R_val_.push_back(r.R_world_tcp);
+      rot_ok_val_.push_back(validation->has_orientation && r.has_orientation);
+    }
     nv_ = static_cast<int>(val_.rows.size());
     if (nv_ < 20)
       throw InputError(validation->file, 0, 0,

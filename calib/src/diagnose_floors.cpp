@@ -28,8 +28,14 @@ constexpr double kChi3Median = 1.5382;
 
 }  // namespace
 
-// Repeated configurations of the fit data (and the validation data for the pooled scatter):
+// Repeated configurations of the fit data and of the validation set, each within its own file
+// (the validation set is, by the contract of --validate, the same robot from the same station):
 // pairs, their distances, glitches, and the pooled within-configuration scatter without them.
+// Both files are screened alike against one threshold, glitch_factor times the median distance
+// of all their pairs: in a configuration measured twice the pair (which row is wrong cannot be
+// told), in one measured three times or more each row against the configuration's robust centre
+// (the per-axis median of its points), so that the odd row is named once, not in a pair with
+// every other measurement.
 void Diagnoser::repeats() {
   Floors& fl = out_.floors;
   fl.repeat_tol = o_.repeat_tol;
@@ -46,57 +52,128 @@ void Diagnoser::repeats() {
     fl.instrument_known = n > 0;
     fl.instrument_rms_mm = n > 0 ? std::sqrt(s2 / n) : kNaN;
   }
-  std::vector<std::pair<int, int>> pairs;
-  groups_ = repeatGroups(fit_, o_.repeat_tol, &pairs, set_of_row_.empty() ? nullptr : &set_of_row_);
-  std::vector<double> dist;
-  fl.repeat_min_gap = pairs.empty() ? 0 : 1 << 30;
-  for (const auto& pr : pairs) {
-    dist.push_back((fit_.rows[pr.first].p_world_mm - fit_.rows[pr.second].p_world_mm).norm());
-    fl.repeat_min_gap = std::min(fl.repeat_min_gap, pr.second - pr.first);
-    fl.repeat_max_gap = std::max(fl.repeat_max_gap, pr.second - pr.first);
-  }
-  fl.repeat_pairs = static_cast<int>(pairs.size());
-  const double med_all = median(dist);
-  fl.glitch_threshold_mm = o_.glitch_factor * med_all;
-  std::vector<bool> glitch_row(static_cast<size_t>(m_), false);
-  std::vector<double> clean;
-  for (size_t k = 0; k < pairs.size(); ++k) {
-    if (!(dist[k] > fl.glitch_threshold_mm)) {
-      clean.push_back(dist[k]);
-      continue;
-    }
-    RepeatPair g;
-    g.index_a = pairs[k].first;
-    g.index_b = pairs[k].second;
-    g.line_a = fit_.rows[g.index_a].line;
-    g.line_b = fit_.rows[g.index_b].line;
-    g.distance_mm = dist[k];
-    if (rot_ok_[g.index_a] && rot_ok_[g.index_b])
-      g.rotation_deg = R_fit_[g.index_a].angularDistance(R_fit_[g.index_b]) * kRadToDeg;
-    fl.glitches.push_back(g);
-    glitch_row[g.index_a] = glitch_row[g.index_b] = true;
-  }
-  std::sort(fl.glitches.begin(), fl.glitches.end(),
-            [](const RepeatPair& a, const RepeatPair& b) { return a.distance_mm > b.distance_mm; });
-  fl.median_pair_mm = median(clean);
-  // pooled within-configuration scatter, groups touched by a glitch left out
-  double ss = 0, dof = 0;
-  int n_groups = 0;
-  auto pool = [&](const MeasurementSet& set, const std::vector<std::vector<int>>& groups, const std::vector<bool>* skip) {
-    for (const auto& g : groups) {
-      if (g.size() < 2) continue;
-      if (skip && std::any_of(g.begin(), g.end(), [&](int i) { return (*skip)[static_cast<size_t>(i)]; })) continue;
-      Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-      for (int i : g) mean += set.rows[static_cast<size_t>(i)].p_world_mm;
-      mean /= double(g.size());
-      for (int i : g) ss += (set.rows[static_cast<size_t>(i)].p_world_mm - mean).squaredNorm();
-      dof += 3.0 * double(g.size() - 1);
-      ++n_groups;
-    }
+  struct Source {
+    const MeasurementSet* set;
+    const std::vector<Eigen::Quaterniond>* R;
+    const std::vector<bool>* rot_ok;
+    bool validation;
+    std::vector<std::vector<int>> groups;
+    std::vector<std::pair<int, int>> pairs;
+    std::vector<double> dist;
+    std::vector<bool> glitch_row;
   };
-  pool(fit_, groups_, &glitch_row);
-  if (has_val_) pool(val_, repeatGroups(val_, o_.repeat_tol), nullptr);
-  fl.repeat_groups = n_groups;
+  std::vector<Source> src;
+  src.push_back({&fit_, &R_fit_, &rot_ok_, false, {}, {}, {}, {}});
+  src.back().groups = repeatGroups(fit_, o_.repeat_tol, &src.back().pairs, set_of_row_.empty() ? nullptr : &set_of_row_);
+  groups_ = src.back().groups;
+  if (has_val_) {
+    src.push_back({&val_, &R_val_, &rot_ok_val_, true, {}, {}, {}, {}});
+    src.back().groups = repeatGroups(val_, o_.repeat_tol, &src.back().pairs);
+  }
+  std::vector<double> dist_all;
+  fl.repeat_pairs = 0;
+  fl.repeat_min_gap = 1 << 30;
+  fl.repeat_max_gap = 0;
+  for (Source& sc : src) {
+    for (const auto& pr : sc.pairs) {
+      sc.dist.push_back((sc.set->rows[pr.first].p_world_mm - sc.set->rows[pr.second].p_world_mm).norm());
+      fl.repeat_min_gap = std::min(fl.repeat_min_gap, pr.second - pr.first);
+      fl.repeat_max_gap = std::max(fl.repeat_max_gap, pr.second - pr.first);
+    }
+    dist_all.insert(dist_all.end(), sc.dist.begin(), sc.dist.end());
+    fl.repeat_pairs += static_cast<int>(sc.pairs.size());
+    if (sc.validation) fl.repeat_pairs_validation = static_cast<int>(sc.pairs.size());
+  }
+  if (fl.repeat_pairs == 0) fl.repeat_min_gap = 0;
+  fl.glitch_threshold_mm = o_.glitch_factor * median(dist_all);
+  for (Source& sc : src) {
+    const MeasurementSet& set = *sc.set;
+    const std::vector<Eigen::Quaterniond>& R = *sc.R;
+    sc.glitch_row.assign(set.rows.size(), false);
+    auto rotation = [&](int i) { return (*sc.rot_ok)[static_cast<size_t>(i)]; };
+    for (const std::vector<int>& g : sc.groups) {
+      if (g.size() < 2) continue;
+      if (g.size() == 2) {
+        const int a = g[0], b = g[1];
+        const double d = (set.rows[a].p_world_mm - set.rows[b].p_world_mm).norm();
+        if (!(d > fl.glitch_threshold_mm)) continue;
+        RepeatPair e;
+        e.index_a = a;
+        e.index_b = b;
+        e.line_a = set.rows[a].line;
+        e.line_b = set.rows[b].line;
+        e.distance_mm = d;
+        e.validation = sc.validation;
+        if (rotation(a) && rotation(b)) e.rotation_deg = R[a].angularDistance(R[b]) * kRadToDeg;
+        fl.glitches.push_back(e);
+        sc.glitch_row[a] = sc.glitch_row[b] = true;
+        continue;
+      }
+      Eigen::Vector3d centre;
+      for (int k = 0; k < 3; ++k) {
+        std::vector<double> c;
+        for (int i : g) c.push_back(set.rows[static_cast<size_t>(i)].p_world_mm[k]);
+        centre[k] = median(c);
+      }
+      std::vector<int> odd, good;
+      for (int i : g)
+        ((set.rows[static_cast<size_t>(i)].p_world_mm - centre).norm() > fl.glitch_threshold_mm ? odd : good).push_back(i);
+      // the orientation of the configuration: the chordal mean of its rows that are not odd
+      Eigen::Vector4d qsum = Eigen::Vector4d::Zero();
+      int nrot = 0;
+      for (int i : good) {
+        if (!rotation(i)) continue;
+        Eigen::Vector4d q = R[static_cast<size_t>(i)].coeffs();
+        if (nrot > 0 && q.dot(qsum) < 0) q = -q;
+        qsum += q;
+        ++nrot;
+      }
+      for (int i : odd) {
+        RepeatPair e;
+        e.index_a = i;
+        e.index_b = -1;
+        e.line_a = set.rows[static_cast<size_t>(i)].line;
+        e.line_b = 0;
+        e.distance_mm = (set.rows[static_cast<size_t>(i)].p_world_mm - centre).norm();
+        e.measurements = static_cast<int>(g.size());
+        e.validation = sc.validation;
+        if (rotation(i) && nrot > 0) {
+          Eigen::Quaterniond mean;
+          mean.coeffs() = qsum.normalized();
+          e.rotation_deg = R[static_cast<size_t>(i)].angularDistance(mean) * kRadToDeg;
+        }
+        fl.glitches.push_back(e);
+        sc.glitch_row[static_cast<size_t>(i)] = true;
+      }
+    }
+  }
+  std::vector<double> clean;
+  for (const Source& sc : src)
+    for (size_t k = 0; k < sc.pairs.size(); ++k)
+      if (!sc.glitch_row[static_cast<size_t>(sc.pairs[k].first)] && !sc.glitch_row[static_cast<size_t>(sc.pairs[k].second)])
+        clean.push_back(sc.dist[k]);
+  std::stable_sort(fl.glitches.begin(), fl.glitches.end(),
+                   [](const RepeatPair& a, const RepeatPair& b) { return a.distance_mm > b.distance_mm; });
+  fl.median_pair_mm = median(clean);
+  // pooled within-configuration scatter, glitch rows left out (a configuration measured twice
+  // with a glitch pair drops out)
+  double ss = 0, dof = 0;
+  fl.repeat_groups = 0;
+  for (const Source& sc : src) {
+    for (const auto& g0 : sc.groups) {
+      std::vector<int> g;
+      for (int i : g0)
+        if (!sc.glitch_row[static_cast<size_t>(i)]) g.push_back(i);
+      if (g.size() < 2) continue;
+      Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+      for (int i : g) mean += sc.set->rows[static_cast<size_t>(i)].p_world_mm;
+      mean /= double(g.size());
+      for (int i : g) ss += (sc.set->rows[static_cast<size_t>(i)].p_world_mm - mean).squaredNorm();
+      dof += 3.0 * double(g.size() - 1);
+      ++fl.repeat_groups;
+      if (sc.validation) ++fl.repeat_groups_validation;
+    }
+  }
   fl.repeat_dof = dof;
   if (dof > 0) {
     fl.repeat_std_axis_mm = std::sqrt(ss / dof);
@@ -107,6 +184,27 @@ void Diagnoser::repeats() {
 void Diagnoser::noiseFloor() {
   repeats();
   const Floors& fl = out_.floors;
+  if (has_val_) {
+    // The validation set's glitch rows (both rows of a glitch pair: which is wrong cannot be
+    // told) are left out of the held-out statistics, as the rows the robust estimation
+    // down-weights are under cross-validation; unless fewer than 20 poses would remain.
+    std::vector<bool> drop(val_.rows.size(), false);
+    for (const RepeatPair& g : fl.glitches)
+      if (g.validation) {
+        drop[static_cast<size_t>(g.index_a)] = true;
+        if (g.index_b >= 0) drop[static_cast<size_t>(g.index_b)] = true;
+      }
+    const int n_drop = static_cast<int>(std::count(drop.begin(), drop.end(), true));
+    if (n_drop > 0 && nv_ - n_drop >= 20) {
+      std::vector<Measurement> kept;
+      for (size_t i = 0; i < val_.rows.size(); ++i)
+        if (!drop[i]) kept.push_back(val_.rows[i]);
+      val_.rows = std::move(kept);
+      nv_ = static_cast<int>(val_.rows.size());
+      out_.validation_poses = nv_;
+      out_.validation_glitch_rows_left_out = n_drop;
+    }
+  }
   // Folds: repeated configurations stay together.
   folds_ = o_.folds;
   fold_.assign(m_, 0);
@@ -128,10 +226,15 @@ void Diagnoser::noiseFloor() {
     sigma = fl.repeat_std_axis_mm;
     out_.noise_floor_dof = fl.repeat_dof;
     out_.noise_floor_source =
-        "repeatability: " + std::to_string(fl.repeat_groups) + " joint configurations measured more than once (every joint within " +
-        fmtg("%g", fl.repeat_tol) + " deg or mm), pooled scatter " + fmtg("%.4g", sigma) + " mm per axis (" +
-        fmtg("%.0f", fl.repeat_dof) + " degrees of freedom), median pair distance " + fmtg("%.4f", fl.median_pair_mm) + " mm, " +
-        std::to_string(fl.glitches.size()) + " glitch pair(s) left out";
+        "repeatability: " + std::to_string(fl.repeat_groups) + " joint configurations measured more than once" +
+        (fl.repeat_groups_validation > 0
+             ? " (" + std::to_string(fl.repeat_groups - fl.repeat_groups_validation) + " in the fit data, " +
+                   std::to_string(fl.repeat_groups_validation) + " in the validation set)"
+             : std::string()) +
+        " (every joint within " + fmtg("%g", fl.repeat_tol) + " deg or mm), pooled scatter " + fmtg("%.4g", sigma) + " mm per axis (" +
+        fmtg("%.0f", fl.repeat_dof) + " degrees of freedom), median pair distance " +
+        (std::isfinite(fl.median_pair_mm) ? fmtg("%.4f", fl.median_pair_mm) + " mm" : std::string("-")) + ", " +
+        std::to_string(fl.glitches.size()) + " glitch(es) left out";
     if (fl.instrument_known)
       out_.noise_floor_source += "; the instrument states " + fmtg("%.4f", fl.instrument_rms_mm) + " mm (std columns)";
   } else if (fit_.has_std_position && (!has_val_ || val_.has_std_position)) {

@@ -211,6 +211,8 @@ class Diagnoser {
   std::vector<double> robust_w_;           // per fit row (1: not down-weighted)
   std::vector<Eigen::Quaterniond> R_fit_;  // measured orientation of the fit rows (6D data)
   std::vector<bool> rot_ok_;               // row has a measured orientation
+  std::vector<Eigen::Quaterniond> R_val_;  // the same for the validation rows
+  std::vector<bool> rot_ok_val_;
   bool fit_has_rot_ = false;
   // results
   Diagnosis out_;

@@ -96,6 +96,19 @@ std::string rowRef(const Diagnosis& d, int line, int index) {
   return rowRef(file, line, index);
 }
 
+// A row of a glitch (RepeatPair): row a, or row b of a pair.
+std::string glitchRowRef(const Diagnosis& d, const RepeatPair& p, bool a) {
+  if (p.validation) return a ? rowRef(d.validation_file, p.line_a, p.index_a) : rowRef(d.validation_file, p.line_b, p.index_b);
+  return a ? rowRef(d, p.line_a, p.index_a) : rowRef(d, p.line_b, p.index_b);
+}
+
+// A glitch in words: the pair, or the odd row against its configuration's centre.
+std::string glitchText(const Diagnosis& d, const RepeatPair& p) {
+  if (p.index_b >= 0) return glitchRowRef(d, p, true) + " / " + glitchRowRef(d, p, false);
+  return glitchRowRef(d, p, true) + " (against the centre of its configuration's " + std::to_string(p.measurements) +
+         " measurements)";
+}
+
 ordered_json floorsJson(const Diagnosis& d) {
   const Floors& fl = d.floors;
   ordered_json j;
@@ -104,6 +117,8 @@ ordered_json floorsJson(const Diagnosis& d) {
                         {"tolerance_unit", "deg (mm for prismatic joints), every joint"},
                         {"configurations", fl.repeat_groups},
                         {"pairs", fl.repeat_pairs},
+                        {"validation_configurations", fl.repeat_groups_validation},
+                        {"validation_pairs", fl.repeat_pairs_validation},
                         {"rows_apart_min", fl.repeat_min_gap},
                         {"rows_apart_max", fl.repeat_max_gap},
                         {"median_pair_distance_mm", num(fl.median_pair_mm)},
@@ -113,10 +128,15 @@ ordered_json floorsJson(const Diagnosis& d) {
   j["judged_against"] = d.noise_floor_source;
   j["glitch_threshold_mm"] = num(fl.glitch_threshold_mm);
   ordered_json g = ordered_json::array();
-  for (const RepeatPair& p : fl.glitches)
-    g.push_back({{"rows", {rowRef(d, p.line_a, p.index_a), rowRef(d, p.line_b, p.index_b)}},
+  for (const RepeatPair& p : fl.glitches) {
+    ordered_json rows = ordered_json::array({glitchRowRef(d, p, true)});
+    if (p.index_b >= 0) rows.push_back(glitchRowRef(d, p, false));
+    g.push_back({{"rows", rows},
                  {"distance_mm", num(p.distance_mm)},
+                 {"against", p.index_b >= 0 ? "pair" : "configuration centre"},
+                 {"measurements", p.measurements},
                  {"orientation_jump_deg", num(p.rotation_deg)}});
+  }
   j["glitches"] = g;
   return j;
 }
@@ -524,16 +544,29 @@ std::string diagnosisText(const Diagnosis& d) {
   {
     const Floors& fl = d.floors;
     s << "floors: instrument (std columns) " << (fl.instrument_known ? f("%.4f", fl.instrument_rms_mm) + " mm" : std::string("unknown"))
-      << "; repeatability " << (fl.repeat_dof > 0 ? f("%.4f", fl.repeat_rms_mm) + " mm 3D RMS" : std::string("unknown")) << " from "
-      << fl.repeat_groups << " configurations measured again (" << fl.repeat_pairs << " pairs, " << fl.repeat_min_gap << "-"
-      << fl.repeat_max_gap << " rows apart, joints within " << f("%g", fl.repeat_tol) << " deg), median pair distance "
-      << f("%.4f", fl.median_pair_mm) << " mm\n";
+      << "; repeatability ";
+    if (fl.repeat_pairs == 0) {
+      s << "unknown: no configuration measured again (joints within " << f("%g", fl.repeat_tol) << " deg)\n";
+    } else {
+      s << (fl.repeat_dof > 0 ? f("%.4f", fl.repeat_rms_mm) + " mm 3D RMS" : std::string("unknown")) << " from "
+        << fl.repeat_groups << " configurations measured again (" << fl.repeat_pairs << " pairs, " << fl.repeat_min_gap << "-"
+        << fl.repeat_max_gap << " rows apart, joints within " << f("%g", fl.repeat_tol) << " deg";
+      if (fl.repeat_pairs_validation > 0)
+        s << "; the validation set's: " << fl.repeat_groups_validation << " configurations, " << fl.repeat_pairs_validation
+          << " pairs";
+      s << "), median pair distance " << (std::isfinite(fl.median_pair_mm) ? f("%.4f", fl.median_pair_mm) + " mm" : std::string("- (every pair a glitch)"))
+        << "\n";
+    }
     if (!fl.glitches.empty()) {
-      s << "glitches (repeat pairs further apart than " << f("%.3f", fl.glitch_threshold_mm) << " mm):";
+      s << "glitches (repeat pairs, or rows of a configuration measured three times or more against its centre, "
+           "further apart than "
+        << f("%.3f", fl.glitch_threshold_mm) << " mm):";
       for (const RepeatPair& p : fl.glitches)
-        s << "\n  " << rowRef(d, p.line_a, p.index_a) << " / " << rowRef(d, p.line_b, p.index_b) << "  "
-          << f("%.3f", p.distance_mm) << " mm" << (std::isfinite(p.rotation_deg) ? ", orientation jump " + f("%.3f", p.rotation_deg) + " deg" : "");
+        s << "\n  " << glitchText(d, p) << "  " << f("%.3f", p.distance_mm) << " mm" << (std::isfinite(p.rotation_deg) ? ", orientation jump " + f("%.3f", p.rotation_deg) + " deg" : "");
       s << "\n";
+      if (d.validation_glitch_rows_left_out > 0)
+        s << d.validation_glitch_rows_left_out << " validation row(s) of these glitches left out of the held-out statistics ("
+          << d.validation_poses << " validation poses remain)\n";
     }
     for (const std::string& w : excludedRowWarnings(d.excluded, "the diagnosis")) s << "WARNING: " << w << "\n";
     if (!d.downweighted.empty()) {
@@ -587,7 +620,7 @@ std::string diagnosisText(const Diagnosis& d) {
     }
   }
   if (std::isfinite(d.orientation_rms_before_deg))
-    s << "orientation residual (constant tool rotation removed): " << f("%.4f", d.orientation_rms_before_deg) << " -> "
+    s << "orientation residual (the same parameter groups identified on positions and orientations, as identify does): " << f("%.4f", d.orientation_rms_before_deg) << " -> "
       << f("%.4f", d.orientation_rms_after_deg) << " deg RMS\n";
   s << "verdict: " << d.verdict.effect;
   if (!d.verdict.joints.empty()) s << " (" << jointsText(d.verdict.joints) << ")";
@@ -623,12 +656,11 @@ std::string diagnosisHtml(const Diagnosis& d, const DiagnosisReportContext& ctx)
       << (fl.instrument_known ? f("%.4f", fl.instrument_rms_mm) + " mm" : std::string("unknown")) << "; repeatability: "
       << (fl.repeat_dof > 0 ? f("%.4f", fl.repeat_rms_mm) + " mm 3D RMS" : std::string("unknown")) << " from " << fl.repeat_groups
       << " configurations measured again, median pair distance " << f("%.4f", fl.median_pair_mm) << " mm; "
-      << fl.glitches.size() << " glitch pair(s); " << d.downweighted.size() << " row(s) down-weighted by the robust fit.</p>\n";
+      << fl.glitches.size() << " glitch(es); " << d.downweighted.size() << " row(s) down-weighted by the robust fit.</p>\n";
     if (!fl.glitches.empty()) {
-      h << "<table><tr><th class=\"l\">glitch pair</th><th>distance (mm)</th><th>orientation jump (deg)</th></tr>\n";
+      h << "<table><tr><th class=\"l\">glitch (pair, or row against its configuration's centre)</th><th>distance (mm)</th><th>orientation jump (deg)</th></tr>\n";
       for (const RepeatPair& p : fl.glitches)
-        h << "<tr><td class=\"l\">" << esc(rowRef(d, p.line_a, p.index_a)) << " / "
-          << esc(rowRef(d, p.line_b, p.index_b)) << "</td><td>" << f("%.3f", p.distance_mm) << "</td><td>"
+        h << "<tr><td class=\"l\">" << esc(glitchText(d, p)) << "</td><td>" << f("%.3f", p.distance_mm) << "</td><td>"
           << f("%.3f", p.rotation_deg) << "</td></tr>\n";
       h << "</table>\n";
     }

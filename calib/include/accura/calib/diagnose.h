@@ -86,12 +86,17 @@ struct DiagnoseOptions {
   bool IsValid(std::string* error) const;
 };
 
-/// Two measurements of one joint configuration (within DiagnoseOptions::repeat_tol).
+/// A glitch among the repeats of one joint configuration (within DiagnoseOptions::repeat_tol).
+/// A configuration measured twice: the two rows (which of them is wrong cannot be told).
+/// Measured three times or more: the odd row alone (index_b = -1, line_b = 0), against the
+/// configuration's robust centre (the per-axis median of its measured points).
 struct RepeatPair {
   int line_a = 0, line_b = 0;    ///< source lines (0 when simulated)
-  int index_a = 0, index_b = 0;  ///< 0-based rows of the data
-  double distance_mm = 0;        ///< |p_a - p_b|
+  int index_a = 0, index_b = 0;  ///< 0-based rows of the data; index_b -1: row a against the centre
+  double distance_mm = 0;        ///< |p_a - p_b|, or |p_a - centre|
   double rotation_deg = std::numeric_limits<double>::quiet_NaN();  ///< orientation jump (6D data)
+  int measurements = 2;          ///< rows of the configuration
+  bool validation = false;       ///< rows of the validation set (else of the fit data)
 };
 
 /// The floors of a data set: what the instrument states (std columns) and what the robot and
@@ -100,15 +105,21 @@ struct Floors {
   bool instrument_known = false;
   double instrument_rms_mm = std::numeric_limits<double>::quiet_NaN();  ///< 3D RMS of the std columns
   double repeat_tol = 0.01;       ///< joint tolerance of a repeat (deg / mm)
-  int repeat_groups = 0;          ///< configurations measured more than once
-  int repeat_pairs = 0;           ///< pairs among them
+  /// Configurations measured more than once (glitch-free, in the pooled scatter), and the pairs
+  /// among them (all), of the fit data and the validation set together; *_validation: the
+  /// validation set's share.
+  int repeat_groups = 0;
+  int repeat_pairs = 0;
+  int repeat_groups_validation = 0, repeat_pairs_validation = 0;
   int repeat_min_gap = 0, repeat_max_gap = 0;  ///< rows between the two measurements of a pair
   double median_pair_mm = std::numeric_limits<double>::quiet_NaN();  ///< median |p_a - p_b|, glitches excluded
   double repeat_std_axis_mm = std::numeric_limits<double>::quiet_NaN();  ///< pooled, per axis
   double repeat_rms_mm = std::numeric_limits<double>::quiet_NaN();       ///< 3D RMS (sqrt(3) per-axis)
   double repeat_dof = 0;
   double glitch_threshold_mm = std::numeric_limits<double>::quiet_NaN();
-  std::vector<RepeatPair> glitches;  ///< pairs disagreeing grossly (measurement glitches)
+  /// Measurement glitches: pairs disagreeing grossly, or the odd rows of a configuration
+  /// measured three times or more (RepeatPair).
+  std::vector<RepeatPair> glitches;
 };
 
 /// A pose the robust estimation down-weighted.
@@ -281,10 +292,13 @@ struct Diagnosis {
   std::string robot;
   std::vector<std::string> joint_names;
   std::string data_file, validation_method;  ///< "validation set FILE" or "5-fold cross-validation"
+  std::string validation_file;               ///< the validation set's file (empty without one)
   /// Several data sets (diagnose on StationSets): the file of each fit row (rows are named
   /// file:line with it); empty for one data set.
   std::vector<std::string> row_files;
   int fit_poses = 0, validation_poses = 0;
+  /// Validation rows named as glitches (Floors::glitches) and left out of the held-out statistics.
+  int validation_glitch_rows_left_out = 0;
   bool orientation_ignored = false;
   std::vector<std::string> effects_tested;
   // noise floor
@@ -306,8 +320,10 @@ struct Diagnosis {
   std::vector<Region> worst_regions;
   std::vector<WorstPose> worst_poses;
   std::vector<JointSpectrum> spectra;
-  /// Orientation residual of 6D data (deg, RMS over the fit data, constant tool rotation
-  /// removed) for the baseline and final models; NaN for position-only data.
+  /// Orientation residual of 6D data (deg, RMS over the fit data) of the baseline's and the final
+  /// model's parameter groups identified on positions and orientations (identify's orientation
+  /// fit RMS; the diagnosis' own models are fitted on positions alone, which leave some wrist
+  /// parameters free); NaN for position-only data or when that identification fails.
   double orientation_rms_before_deg = std::numeric_limits<double>::quiet_NaN();
   double orientation_rms_after_deg = std::numeric_limits<double>::quiet_NaN();
   Floors floors;
