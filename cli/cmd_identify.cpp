@@ -4,6 +4,7 @@
 #include <iostream>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <set>
 #include <sstream>
 
 #include "accura/calib/json_text.h"
@@ -109,14 +110,27 @@ void readData(const IdentifyArgs& a, IdentifyRun& r) {
   }
   calib::MeasurementSet& data = r.sets[0];
   const int every = std::max(2, static_cast<int>(std::lround(1.0 / a.holdout)));
+  // every k-th joint configuration with all its repeats (measurements.h): a configuration held
+  // out must not also be in the fit, else the holdout measures the repeatability, not the model
+  // (without repeats: every k-th pose)
+  const std::vector<std::vector<int>> configs = calib::repeatedConfigurations(data);
+  std::vector<bool> held(data.rows.size(), false);
+  int held_configs = 0;
+  for (size_t g = 0; g < configs.size(); ++g) {
+    if (g % every != static_cast<size_t>(every - 1)) continue;
+    ++held_configs;
+    for (int i : configs[g]) held[static_cast<size_t>(i)] = true;
+  }
   calib::MeasurementSet fit = data;
   fit.rows.clear();
   r.validation = data;
   r.validation.rows.clear();
-  for (size_t i = 0; i < data.rows.size(); ++i)
-    (i % every == static_cast<size_t>(every - 1) ? r.validation : fit).rows.push_back(data.rows[i]);
+  for (size_t i = 0; i < data.rows.size(); ++i) (held[i] ? r.validation : fit).rows.push_back(data.rows[i]);
   data = fit;
-  r.validation_source = "every " + std::to_string(every) + "th pose of " + r.data_names + " (held out)";
+  const bool repeats = configs.size() < held.size();
+  r.validation_source = repeats ? "every " + std::to_string(every) + "th joint configuration of " + r.data_names + " with its repeats (" +
+                                      std::to_string(held_configs) + " of " + std::to_string(configs.size()) + " distinct configurations, held out)"
+                                : "every " + std::to_string(every) + "th pose of " + r.data_names + " (held out)";
   r.holdout_note = " (" + std::to_string(r.validation.rows.size()) + " of the file's " + std::to_string(fit.rows.size() + r.validation.rows.size()) +
                    " poses are held out for validation, --holdout " + fmt("%g", a.holdout) + ": --holdout 0 fits them all)";
 }
@@ -148,7 +162,8 @@ calib::RobotModel identifyFit(const IdentifyRun& r, const calib::IdentifyOptions
   try {
     return calib::identify(r.start, r.sets, o, s);
   } catch (const calib::InputError& e) {
-    if (r.holdout_note.empty() || std::string(e.what()).find("too few rows") == std::string::npos) throw;
+    const std::string what = e.what();
+    if (r.holdout_note.empty() || (what.find("too few rows") == std::string::npos && what.find("too few distinct") == std::string::npos)) throw;
     throw calib::InputError(std::string(e.what()) + r.holdout_note);
   }
 }
@@ -224,9 +239,14 @@ void printSetup(const IdentifyArgs& a, const IdentifyRun& r) {
   std::printf("\n");
   std::printf("registration: measurement frame in closed form, position RMS %.3f mm after registration\n",
               s.registration_rms_mm);
-  std::printf("identifiability: %d parameters identified from %d equations; condition number %.4g "
+  // repeats add equations, not information: the distinct configurations are counted too
+  const std::string distinct = s.configurations < s.poses
+                                   ? " (" + std::to_string(s.poses) + " poses, " + std::to_string(s.configurations) +
+                                         " distinct configurations: " + std::to_string(s.independent_equations) + " independent equations)"
+                                   : "";
+  std::printf("identifiability: %d parameters identified from %d equations%s; condition number %.4g "
               "(all %zu candidates: %s); observability index O1 %.4g\n",
-              s.parameters_free, s.equations, s.condition_number, s.fixed.size() + s.parameters_free,
+              s.parameters_free, s.equations, distinct.c_str(), s.condition_number, s.fixed.size() + s.parameters_free,
               std::isfinite(s.condition_number_all) ? fmt("%.4g", s.condition_number_all).c_str() : "inf (rank deficient)",
               s.observability_index);
   for (const auto& f : s.fixed) std::printf("  fixed %-16s %s\n", f.name.c_str(), f.reason.c_str());
@@ -304,6 +324,30 @@ void printFit(const IdentifyRun& r) {
   printStatsRow("fit", s.fit);
 }
 
+/// Why a calibrated model may be worse than the nominal one on the validation poses, as far as
+/// the run knows: few distinct configurations in the fit, effects beyond the geometric model
+/// extrapolated outside the fitted joint ranges, or the geometric model itself fitted on a
+/// small part of them.
+std::string worseAdvice(const IdentifyRun& r) {
+  std::vector<std::string> why;
+  const calib::IdentifySummary& s = r.s;
+  if (s.few_configurations)
+    why.push_back("the fit has only " + std::to_string(s.configurations) + " distinct joint configurations (" + std::to_string(s.poses) +
+                  " poses): measure more distinct ones");
+  if (2 * r.outside_rows > r.val.n) {
+    static const std::set<std::string> geometric = {"geometric", "base", "tool", "offsets", "lengths", "angles"};
+    const bool effects = std::any_of(r.opt.groups.begin(), r.opt.groups.end(), [](const std::string& g) {
+      return !geometric.count(g.substr(0, g.find_first_of(":@")));
+    });
+    why.push_back(effects ? "most lie outside the fitted joint ranges: leave out the effects fitted there"
+                          : "most lie outside the fitted joint ranges, and only the geometric model was fitted: measure fit poses "
+                            "that cover the joint ranges the robot is used in");
+  }
+  std::string out;
+  for (const std::string& w : why) out += (out.empty() ? " (" : "; ") + w;
+  return out.empty() ? out : out + ")";
+}
+
 /// The validation's accuracy, nominal against calibrated, and whether it is an extrapolation
 /// (poses outside the fit's joint ranges; --quiet: without the other notes).
 void printValidation(const IdentifyArgs& a, const IdentifyRun& r) {
@@ -338,8 +382,7 @@ void printValidation(const IdentifyArgs& a, const IdentifyRun& r) {
   else if (r.val.rms_mm > 0)
     std::printf("  WARNING: position RMS %.1f-fold WORSE than the nominal robot's (%.4f -> %.4f mm): the calibrated model does not "
                 "carry over to these poses%s\n",
-                r.val.rms_mm / r.nom_val.rms_mm, r.nom_val.rms_mm, r.val.rms_mm,
-                2 * r.outside_rows > r.val.n ? " (most lie outside the fitted joint ranges: leave out the effects fitted there)" : "");
+                r.val.rms_mm / r.nom_val.rms_mm, r.nom_val.rms_mm, r.val.rms_mm, worseAdvice(r).c_str());
 }
 
 /// The comment at the top of the calibrated model file.
@@ -386,6 +429,9 @@ ordered_json identifyJson(const IdentifyArgs& a, const IdentifyRun& r) {
                           {"observability_index", num(s.observability_index)},
                           {"parameters_free", s.parameters_free},
                           {"equations", s.equations},
+                          {"poses", s.poses},
+                          {"distinct_configurations", s.configurations},
+                          {"independent_equations", s.independent_equations},
                           {"fixed", fixed}};
   j["solver"] = {{"termination", s.termination},
                  {"iterations", s.iterations},
