@@ -292,7 +292,8 @@ struct MappedHeader {
   size_t row = 0;  ///< index of the header in the file's lines
   int line = 0;
   std::vector<std::string> names;
-  std::map<std::string, int> index;
+  std::map<std::string, int> index;             ///< the first column of each name
+  std::map<std::string, std::vector<int>> all;  ///< every column of each name (a name may repeat)
 };
 
 MappedHeader readHeader(const std::string& path, const std::vector<std::string>& lines, char delimiter) {
@@ -304,12 +305,11 @@ MappedHeader readHeader(const std::string& path, const std::vector<std::string>&
   for (size_t c = 0; c < h.names.size(); ++c) {
     h.names[c] = trim(h.names[c]);
     if (h.names[c].empty()) continue;  // an unnamed column (a trailing delimiter): never mapped, reported as unused
+    // a name may repeat (exports write 'std' after every value): ambiguous only when the mapping
+    // uses it (mapColumns)
     const std::string key = lower(h.names[c]);
-    if (h.index.count(key))
-      throw InputError(path, h.line, static_cast<int>(c) + 1,
-                       "expected each column name once in the header, found '" + h.names[c] + "' a second time (first as column " +
-                           std::to_string(h.index[key] + 1) + ")");
-    h.index[key] = static_cast<int>(c);
+    h.index.emplace(key, static_cast<int>(c));
+    h.all[key].push_back(static_cast<int>(c));
   }
   return h;
 }
@@ -334,6 +334,11 @@ MappedColumns mapColumns(const std::string& path, const MappedHeader& h, const M
                            (ml ? ":" + std::to_string(ml) : std::string()) + "; the delimiter is '" +
                            (m.delimiter == '\t' ? std::string("tab") : std::string(1, m.delimiter)) + "')");
     }
+    const std::vector<int>& same = h.all.at(it->first);
+    if (same.size() > 1)  // the mapping uses the name: which of its columns is meant is ambiguous
+      throw InputError(path, h.line, same[1] + 1,
+                       "expected each column name once in the header, found '" + h.names[static_cast<size_t>(same[1])] +
+                           "' a second time (first as column " + std::to_string(same[0] + 1) + ")");
     c.used.insert(it->second);
     return it->second;
   };
@@ -356,7 +361,7 @@ MappedColumns mapColumns(const std::string& path, const MappedHeader& h, const M
     auto it = h.index.find(lower(n));
     if (it == h.index.end())
       throw InputError(path, h.line, 1, "expected a column '" + n + "' in the header, found none (listed under 'ignore' in " + m.file + ")");
-    c.used.insert(it->second);
+    for (int same : h.all.at(it->first)) c.used.insert(same);  // every column of that name
   }
   return c;
 }
