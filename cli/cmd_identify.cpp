@@ -12,6 +12,7 @@
 #include "accura/calib/file_io.h"
 #include "accura/calib/identify.h"
 #include "accura/calib/import.h"
+#include "accura/calib/joint_map.h"
 #include "accura/calib/kinematics.h"
 #include "accura/calib/measurements.h"
 #include "accura/calib/robot_io.h"
@@ -203,7 +204,7 @@ void validate(const IdentifyArgs& a, IdentifyRun& r) {
     for (int j = 0; j < r.start.dof(); ++j) {
       const calib::JointRange& c = r.s.coverage[static_cast<size_t>(j)];
       const double d = m.q[j] < c.lower ? c.lower - m.q[j] : (m.q[j] > c.upper ? m.q[j] - c.upper : 0.0);
-      if (d <= 0) continue;
+      if (d <= calib::kFitRangeTolerance) continue;  // the rounding of a radian export is not outside
       Outside& o = r.outside[static_cast<size_t>(j)];
       ++o.count;
       o.max = std::max(o.max, d);
