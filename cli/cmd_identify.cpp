@@ -64,6 +64,7 @@ struct IdentifyRun {
   calib::RobotModel calibrated;
   calib::ErrorStats val, nom_val;           ///< on the validation data: calibrated, nominal registered
   std::string station_note;                 ///< --validate-station new: how far the station moved
+  std::string orientation_note;             ///< why the validation's orientation errors are not reported
   std::vector<Outside> outside;             ///< per joint
   int outside_rows = 0;
 
@@ -197,6 +198,16 @@ void validate(const IdentifyArgs& a, IdentifyRun& r) {
   } else {
     r.val = calib::evaluate(r.calibrated, r.validation);
     r.nom_val = calib::evaluate(nominal_registered, r.validation);
+  }
+  // a fit without orientations never identified the tool's rotation: the model's orientation is
+  // the start tool's, and an orientation error against 6D validation data measures how the target
+  // is mounted, not the robot
+  const bool fit_orientation = std::all_of(r.sets.begin(), r.sets.end(), [](const calib::MeasurementSet& d) { return d.has_orientation; });
+  if (!fit_orientation && r.val.has_orientation) {
+    r.val.has_orientation = r.nom_val.has_orientation = false;
+    r.orientation_note = "orientation errors not reported: " + r.validation_source + " has orientations, but the fit data has none, "
+                         "so the tool's rotation was never identified (the model carries the start tool's); an orientation error "
+                         "would measure how the target is mounted, not the robot";
   }
   // validation poses outside the joint ranges of the fit: per joint, how many and how far
   for (const calib::Measurement& m : r.validation.rows) {
@@ -358,8 +369,9 @@ void printValidation(const IdentifyArgs& a, const IdentifyRun& r) {
     return;
   }
   std::printf("validation on %s, %d poses (position mm: RMS mean p95 max%s):\n", r.validation_source.c_str(), r.val.n,
-              r.orient ? "; orientation deg: RMS mean p95 max" : "");
+              r.orient && r.val.has_orientation ? "; orientation deg: RMS mean p95 max" : "");
   if (!a.quiet && !r.station_note.empty()) std::printf("  %s\n", r.station_note.c_str());
+  if (!r.orientation_note.empty()) std::printf("  %s\n", r.orientation_note.c_str());
   if (r.outside_rows > 0) {
     std::printf("  %d of %d validation poses %s outside the joint ranges of the fit data (joint maps are zero there; the "
                 "other joint-dependent effects, such as gear_periodic, joint_scale and compliance, are extrapolated):",
@@ -419,6 +431,7 @@ ordered_json identifyJson(const IdentifyArgs& a, const IdentifyRun& r) {
   j["fit"] = statsJson(s.fit);
   j["validation"] = has_val ? statsJson(r.val) : ordered_json(nullptr);
   j["nominal_validation"] = has_val ? statsJson(r.nom_val) : ordered_json(nullptr);
+  if (!r.orientation_note.empty()) j["validation_orientation"] = r.orientation_note;
   ordered_json params = ordered_json::array();
   for (const auto& p : s.parameters)
     params.push_back({{"name", p.name}, {"group", p.group}, {"value", num(p.value)}, {"sigma", num(p.sigma)}, {"unit", p.unit}});
