@@ -65,6 +65,7 @@ struct IdentifyRun {
   calib::ErrorStats val, nom_val;           ///< on the validation data: calibrated, nominal registered
   std::string station_note;                 ///< --validate-station new: how far the station moved
   std::string orientation_note;             ///< why the validation's orientation errors are not reported
+  std::vector<calib::SuspiciousRow> val_suspicious;  ///< suspicious validation rows
   std::vector<Outside> outside;             ///< per joint
   int outside_rows = 0;
 
@@ -195,9 +196,11 @@ void validate(const IdentifyArgs& a, IdentifyRun& r) {
                      fmt("%.4f", Eigen::AngleAxisd(moved.linear()).angle() * calib::kRadToDeg) + " deg";
     r.val = calib::evaluate(cal_st, r.validation);
     r.nom_val = calib::evaluate(nom_st, r.validation);
+    r.val_suspicious = calib::suspiciousRows(cal_st, r.validation);
   } else {
     r.val = calib::evaluate(r.calibrated, r.validation);
     r.nom_val = calib::evaluate(nominal_registered, r.validation);
+    r.val_suspicious = calib::suspiciousRows(r.calibrated, r.validation);
   }
   // a fit without orientations never identified the tool's rotation: the model's orientation is
   // the start tool's, and an orientation error against 6D validation data measures how the target
@@ -372,6 +375,16 @@ void printValidation(const IdentifyArgs& a, const IdentifyRun& r) {
               r.orient && r.val.has_orientation ? "; orientation deg: RMS mean p95 max" : "");
   if (!a.quiet && !r.station_note.empty()) std::printf("  %s\n", r.station_note.c_str());
   if (!r.orientation_note.empty()) std::printf("  %s\n", r.orientation_note.c_str());
+  if (!r.val_suspicious.empty()) {
+    // as for the fit rows (printFit): a glitch in the validation set decides its max and moves its RMS
+    std::printf("  %zu suspicious validation row(s) (normalised residual above the chi quantile 0.9999; check them for glitches):",
+                r.val_suspicious.size());
+    for (size_t k = 0; k < r.val_suspicious.size() && k < (a.quiet ? 1u : 20u); ++k)
+      std::printf("%s%s:%d (%.3f mm)", k ? ", " : " ", r.val_suspicious[k].file.c_str(), r.val_suspicious[k].line,
+                  r.val_suspicious[k].error_mm);
+    if (r.val_suspicious.size() > (a.quiet ? 1u : 20u)) std::printf(", ... (see --json)");
+    std::printf("\n");
+  }
   if (r.outside_rows > 0) {
     std::printf("  %d of %d validation poses %s outside the joint ranges of the fit data (joint maps are zero there; the "
                 "other joint-dependent effects, such as gear_periodic, joint_scale and compliance, are extrapolated):",
@@ -489,6 +502,12 @@ ordered_json identifyJson(const IdentifyArgs& a, const IdentifyRun& r) {
   for (const auto& row : s.suspicious)
     sus.push_back({{"file", row.file}, {"line", row.line}, {"normalised", num(row.normalised)}, {"error_mm", num(row.error_mm)}});
   j["suspicious_rows"] = sus;
+  if (has_val) {
+    ordered_json vsus = ordered_json::array();
+    for (const auto& row : r.val_suspicious)
+      vsus.push_back({{"file", row.file}, {"line", row.line}, {"normalised", num(row.normalised)}, {"error_mm", num(row.error_mm)}});
+    j["validation_suspicious_rows"] = vsus;
+  }
   ordered_json excl = ordered_json::array();
   for (const auto& row : s.excluded)
     excl.push_back({{"file", row.file}, {"line", row.line}, {"error_mm", num(row.error_mm)}, {"median_mm", num(row.median_mm)}});

@@ -5,6 +5,7 @@
 
 #include <limits>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "accura/calib/joint_map.h"
@@ -250,6 +251,16 @@ std::vector<ExcludedRow> removeGrossRows(const RobotModel& model, MeasurementSet
 /// one line for each of the first ten (file:line, its error and the threshold it exceeds),
 /// then one line counting the rest.
 std::vector<std::string> excludedRowWarnings(const std::vector<ExcludedRow>& rows, const std::string& from);
+
+/// The rows whose normalised residual exceeds the chi quantile 0.9999 with `dim` (3 or 6)
+/// degrees of freedom: norms[i] is the norm of row i's weighted residual, normalised by a robust
+/// scale (the median norm over the median of chi with dim degrees of freedom). Returns (row
+/// index, normalised residual) in row order. IdentifySummary::suspicious of the fit is this.
+std::vector<std::pair<size_t, double>> suspiciousResiduals(const std::vector<double>& norms, int dim);
+
+/// The suspicious rows of `data` against `model` (validation data): suspiciousResiduals() of the
+/// position errors (dim 3, unweighted: the model's error, not the instrument's, dominates there).
+std::vector<SuspiciousRow> suspiciousRows(const RobotModel& model, const MeasurementSet& data);
 
 /// Summary statistics of a list of non-negative errors (RMS, mean, max, 95th percentile
 /// by nearest rank).
