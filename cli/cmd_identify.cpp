@@ -42,6 +42,11 @@ calib::RobotModel startModel(const IdentifyArgs& a) {
   return start;
 }
 
+/// --validate-station new on fewer distinct configurations than this is warned about: the
+/// station's 6 parameters take 6 of the 3M position equations, 2/M of a random error's variance
+/// (20% at M = 10: the RMS reads 11% low), more below.
+constexpr int kMinStationConfigurations = 10;
+
 /// Validation poses outside the joint ranges of the fit, per joint: how many and how far.
 struct Outside {
   int count = 0;
@@ -186,10 +191,40 @@ void validate(const IdentifyArgs& a, IdentifyRun& r) {
   const std::vector<calib::ExcludedRow> gross = calib::removeGrossRows(r.calibrated, r.validation, a.validate_station == "new", false);
   for (const std::string& w : calib::excludedRowWarnings(gross, "the validation")) r.s.warnings.push_back(w);
   if (a.validate_station == "new") {
-    // another station: re-register it (6 parameters), robot parameters held fixed
+    // another station: re-register it (6 parameters), robot parameters held fixed. The station
+    // is placed in closed form from the measured positions (orientations only refine it), so it
+    // needs 3 distinct, non-collinear points, and it absorbs part of the model's error at them:
+    // with M distinct configurations, 6 of the 3M position equations, 2/M of a random error's
+    // variance on average (below kMinStationConfigurations more than a fifth: the RMS reads more
+    // than 10% low; more for a smooth error over few nearby poses)
+    const int poses = static_cast<int>(r.validation.rows.size());
+    const int configs = static_cast<int>(calib::repeatedConfigurations(r.validation).size());
+    const std::string counted = std::to_string(poses) + " poses, " + std::to_string(configs) + " distinct joint configuration" +
+                                (configs == 1 ? "" : "s");
+    if (configs < 3)
+      throw calib::InputError(a.validate, 0, 0,
+                              "--validate-station new: expected at least 3 distinct joint configurations to re-register the station on "
+                              "(6 parameters, placed from the measured positions, which must not be collinear; the orientations only "
+                              "refine it), found " + counted + ": the station would absorb the model's error there and the "
+                              "validation would read as the repeatability. Validate on more distinct configurations, or from the "
+                              "fit's station (--validate-station same)");
     calib::IdentifySummary st, nst;
-    const calib::RobotModel cal_st = calib::registerStation(r.calibrated, r.validation, &st);
-    const calib::RobotModel nom_st = calib::registerStation(nominal_registered, r.validation, &nst);
+    calib::RobotModel cal_st, nom_st;
+    try {
+      cal_st = calib::registerStation(r.calibrated, r.validation, &st);
+      nom_st = calib::registerStation(nominal_registered, r.validation, &nst);
+    } catch (const calib::NumericalError& e) {
+      throw calib::NumericalError(a.validate + ": --validate-station new: " + e.what() + " (" + counted +
+                                  "; the station is placed from the measured positions)");
+    }
+    if (configs < kMinStationConfigurations)
+      r.s.warnings.push_back(
+          "--validate-station new re-registered the station (6 parameters) on " + a.validate + ": " + counted + ", fewer than " +
+          std::to_string(kMinStationConfigurations) + ". The station absorbs part of the error at so few points (6 of the " +
+          std::to_string(3 * configs) + " position equations: the RMS of a random error reads " +
+          fmt("%.0f", 100.0 * (1.0 - std::sqrt(std::max(0.0, 1.0 - 2.0 / configs)))) +
+          "% low on average, a smooth one more): the validation RMS, nominal and calibrated, understates the error. Validate "
+          "on more distinct configurations, or from the fit's station");
     const Eigen::Isometry3d moved = r.calibrated.T_world_base().inverse() * cal_st.T_world_base();
     r.station_note = "validation station re-registered on " + a.validate + " (6 parameters, robot held fixed): base moved " +
                      fmt("%.3f", moved.translation().norm()) + " mm, " +

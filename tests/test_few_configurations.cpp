@@ -10,6 +10,7 @@
 #include "accura/calib/errors.h"
 #include "accura/calib/identify.h"
 #include "accura/calib/measurements.h"
+#include "accura/calib/robot_io.h"
 #include "accura/calib/simulate.h"
 #include "test_util.h"
 
@@ -123,6 +124,61 @@ TEST(FewConfigurations, TheHoldoutKeepsTheRepeatsOfAConfigurationTogether) {
   EXPECT_NE(j["validation_source"].get<std::string>().find("12 of 60 distinct configurations"), std::string::npos)
       << j["validation_source"];
   EXPECT_NE(r.out.find("192 poses, 48 distinct configurations: 144 independent equations"), std::string::npos) << r.out;
+  std::filesystem::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace accura::calib
+
+namespace accura::calib {
+namespace {
+
+TEST(FewConfigurations, AValidationStationNeedsDistinctConfigurations) {
+  // the fit: 150 distinct simulated poses; the validations from another station: 5, 2 and 1
+  // distinct configurations x 10 repeats
+  const std::string dir = test::tempDir("few_station");
+  CliRun r = run("simulate --robot kuka_kr16 --poses 150 --seed 9 --tool 80,40,150 --out " + dir + "/fit.csv --truth " + dir +
+                 "/truth.xml");
+  ASSERT_EQ(r.code, 0) << r.err;
+  r = run("simulate --robot " + dir + "/truth.xml --effects none --poses 5 --seed 10 --station 500,300,-200,60,0,0 --out " + dir +
+          "/five.csv");
+  ASSERT_EQ(r.code, 0) << r.err;
+  const RobotModel kr16 = readRobotFile(resolveRobotPath("kuka_kr16"));
+  const MeasurementSet five = readMeasurementsCsv(dir + "/five.csv", kr16.nominal);
+  auto repeated = [&](int configs, const std::string& name) {
+    MeasurementSet s = five;
+    s.rows.clear();
+    for (int c = 0; c < configs; ++c)
+      for (int k = 0; k < 10; ++k) s.rows.push_back(five.rows[static_cast<size_t>(c)]);
+    writeMeasurementsCsv(dir + "/" + name, s, 6);
+  };
+  repeated(5, "v5.csv");
+  repeated(2, "v2.csv");
+  repeated(1, "v1.csv");
+  const std::string fit = "identify --robot kuka_kr16 --tool 80,40,150 --data " + dir + "/fit.csv --out " + dir + "/cal.xml --validate-station new --validate " + dir;
+  // 5 configurations: validated, with a warning that counts them and says what it means:
+  // 6 of 15 equations, sqrt(1 - 2/5) = 0.775 of a random error's RMS, 23% low
+  r = run(fit + "/v5.csv --json " + dir + "/s.json");
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto j = nlohmann::json::parse(test::readText(dir + "/s.json"));
+  bool warned = false;
+  for (const auto& w : j["warnings"]) {
+    const std::string t = w.get<std::string>();
+    warned = warned || (t.find("--validate-station new re-registered the station (6 parameters) on " + dir + "/v5.csv: 50 poses, 5 "
+                                "distinct joint configurations, fewer than 10") != std::string::npos &&
+                        t.find("6 of the 15 position equations") != std::string::npos && t.find("reads 23% low") != std::string::npos);
+  }
+  EXPECT_TRUE(warned) << j["warnings"];
+  // 2 and 1 configurations: refused, naming the validation file
+  for (const char* v : {"v2.csv", "v1.csv"}) {
+    r = run(fit + "/" + v);
+    EXPECT_EQ(r.code, 1) << v << r.out;
+    EXPECT_NE(r.err.find(dir + "/" + v + ": --validate-station new: expected at least 3 distinct joint configurations"), std::string::npos)
+        << r.err;
+    EXPECT_NE(r.err.find(v[1] == '2' ? "found 20 poses, 2 distinct joint configurations" : "found 10 poses, 1 distinct joint configuration:"),
+              std::string::npos)
+        << r.err;
+  }
   std::filesystem::remove_all(dir);
 }
 
