@@ -4,6 +4,7 @@
 #include <iostream>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <set>
 #include <sstream>
 
 #include "accura/calib/json_text.h"
@@ -11,6 +12,7 @@
 #include "accura/calib/file_io.h"
 #include "accura/calib/identify.h"
 #include "accura/calib/import.h"
+#include "accura/calib/joint_map.h"
 #include "accura/calib/kinematics.h"
 #include "accura/calib/measurements.h"
 #include "accura/calib/robot_io.h"
@@ -40,6 +42,11 @@ calib::RobotModel startModel(const IdentifyArgs& a) {
   return start;
 }
 
+/// --validate-station new on fewer distinct configurations than this is warned about: the
+/// station's 6 parameters take 6 of the 3M position equations, 2/M of a random error's variance
+/// (20% at M = 10: the RMS reads 11% low), more below.
+constexpr int kMinStationConfigurations = 10;
+
 /// Validation poses outside the joint ranges of the fit, per joint: how many and how far.
 struct Outside {
   int count = 0;
@@ -62,6 +69,8 @@ struct IdentifyRun {
   calib::RobotModel calibrated;
   calib::ErrorStats val, nom_val;           ///< on the validation data: calibrated, nominal registered
   std::string station_note;                 ///< --validate-station new: how far the station moved
+  std::string orientation_note;             ///< why the validation's orientation errors are not reported
+  std::vector<calib::SuspiciousRow> val_suspicious;  ///< suspicious validation rows
   std::vector<Outside> outside;             ///< per joint
   int outside_rows = 0;
 
@@ -109,14 +118,27 @@ void readData(const IdentifyArgs& a, IdentifyRun& r) {
   }
   calib::MeasurementSet& data = r.sets[0];
   const int every = std::max(2, static_cast<int>(std::lround(1.0 / a.holdout)));
+  // every k-th joint configuration with all its repeats (measurements.h): a configuration held
+  // out must not also be in the fit, else the holdout measures the repeatability, not the model
+  // (without repeats: every k-th pose)
+  const std::vector<std::vector<int>> configs = calib::repeatedConfigurations(data);
+  std::vector<bool> held(data.rows.size(), false);
+  int held_configs = 0;
+  for (size_t g = 0; g < configs.size(); ++g) {
+    if (g % every != static_cast<size_t>(every - 1)) continue;
+    ++held_configs;
+    for (int i : configs[g]) held[static_cast<size_t>(i)] = true;
+  }
   calib::MeasurementSet fit = data;
   fit.rows.clear();
   r.validation = data;
   r.validation.rows.clear();
-  for (size_t i = 0; i < data.rows.size(); ++i)
-    (i % every == static_cast<size_t>(every - 1) ? r.validation : fit).rows.push_back(data.rows[i]);
+  for (size_t i = 0; i < data.rows.size(); ++i) (held[i] ? r.validation : fit).rows.push_back(data.rows[i]);
   data = fit;
-  r.validation_source = "every " + std::to_string(every) + "th pose of " + r.data_names + " (held out)";
+  const bool repeats = configs.size() < held.size();
+  r.validation_source = repeats ? "every " + std::to_string(every) + "th joint configuration of " + r.data_names + " with its repeats (" +
+                                      std::to_string(held_configs) + " of " + std::to_string(configs.size()) + " distinct configurations, held out)"
+                                : "every " + std::to_string(every) + "th pose of " + r.data_names + " (held out)";
   r.holdout_note = " (" + std::to_string(r.validation.rows.size()) + " of the file's " + std::to_string(fit.rows.size() + r.validation.rows.size()) +
                    " poses are held out for validation, --holdout " + fmt("%g", a.holdout) + ": --holdout 0 fits them all)";
 }
@@ -148,7 +170,8 @@ calib::RobotModel identifyFit(const IdentifyRun& r, const calib::IdentifyOptions
   try {
     return calib::identify(r.start, r.sets, o, s);
   } catch (const calib::InputError& e) {
-    if (r.holdout_note.empty() || std::string(e.what()).find("too few rows") == std::string::npos) throw;
+    const std::string what = e.what();
+    if (r.holdout_note.empty() || (what.find("too few rows") == std::string::npos && what.find("too few distinct") == std::string::npos)) throw;
     throw calib::InputError(std::string(e.what()) + r.holdout_note);
   }
 }
@@ -168,19 +191,61 @@ void validate(const IdentifyArgs& a, IdentifyRun& r) {
   const std::vector<calib::ExcludedRow> gross = calib::removeGrossRows(r.calibrated, r.validation, a.validate_station == "new", false);
   for (const std::string& w : calib::excludedRowWarnings(gross, "the validation")) r.s.warnings.push_back(w);
   if (a.validate_station == "new") {
-    // another station: re-register it (6 parameters), robot parameters held fixed
+    // another station: re-register it (6 parameters), robot parameters held fixed. The station
+    // is placed in closed form from the measured positions (orientations only refine it), so it
+    // needs 3 distinct, non-collinear points, and it absorbs part of the model's error at them:
+    // with M distinct configurations, 6 of the 3M position equations, 2/M of a random error's
+    // variance on average (below kMinStationConfigurations more than a fifth: the RMS reads more
+    // than 10% low; more for a smooth error over few nearby poses)
+    const int poses = static_cast<int>(r.validation.rows.size());
+    const int configs = static_cast<int>(calib::repeatedConfigurations(r.validation).size());
+    const std::string counted = std::to_string(poses) + " poses, " + std::to_string(configs) + " distinct joint configuration" +
+                                (configs == 1 ? "" : "s");
+    if (configs < 3)
+      throw calib::InputError(a.validate, 0, 0,
+                              "--validate-station new: expected at least 3 distinct joint configurations to re-register the station on "
+                              "(6 parameters, placed from the measured positions, which must not be collinear; the orientations only "
+                              "refine it), found " + counted + ": the station would absorb the model's error there and the "
+                              "validation would read as the repeatability. Validate on more distinct configurations, or from the "
+                              "fit's station (--validate-station same)");
     calib::IdentifySummary st, nst;
-    const calib::RobotModel cal_st = calib::registerStation(r.calibrated, r.validation, &st);
-    const calib::RobotModel nom_st = calib::registerStation(nominal_registered, r.validation, &nst);
+    calib::RobotModel cal_st, nom_st;
+    try {
+      cal_st = calib::registerStation(r.calibrated, r.validation, &st);
+      nom_st = calib::registerStation(nominal_registered, r.validation, &nst);
+    } catch (const calib::NumericalError& e) {
+      throw calib::NumericalError(a.validate + ": --validate-station new: " + e.what() + " (" + counted +
+                                  "; the station is placed from the measured positions)");
+    }
+    if (configs < kMinStationConfigurations)
+      r.s.warnings.push_back(
+          "--validate-station new re-registered the station (6 parameters) on " + a.validate + ": " + counted + ", fewer than " +
+          std::to_string(kMinStationConfigurations) + ". The station absorbs part of the error at so few points (6 of the " +
+          std::to_string(3 * configs) + " position equations: the RMS of a random error reads " +
+          fmt("%.0f", 100.0 * (1.0 - std::sqrt(std::max(0.0, 1.0 - 2.0 / configs)))) +
+          "% low on average, a smooth one more): the validation RMS, nominal and calibrated, understates the error. Validate "
+          "on more distinct configurations, or from the fit's station");
     const Eigen::Isometry3d moved = r.calibrated.T_world_base().inverse() * cal_st.T_world_base();
     r.station_note = "validation station re-registered on " + a.validate + " (6 parameters, robot held fixed): base moved " +
                      fmt("%.3f", moved.translation().norm()) + " mm, " +
                      fmt("%.4f", Eigen::AngleAxisd(moved.linear()).angle() * calib::kRadToDeg) + " deg";
     r.val = calib::evaluate(cal_st, r.validation);
     r.nom_val = calib::evaluate(nom_st, r.validation);
+    r.val_suspicious = calib::suspiciousRows(cal_st, r.validation);
   } else {
     r.val = calib::evaluate(r.calibrated, r.validation);
     r.nom_val = calib::evaluate(nominal_registered, r.validation);
+    r.val_suspicious = calib::suspiciousRows(r.calibrated, r.validation);
+  }
+  // a fit without orientations never identified the tool's rotation: the model's orientation is
+  // the start tool's, and an orientation error against 6D validation data measures how the target
+  // is mounted, not the robot
+  const bool fit_orientation = std::all_of(r.sets.begin(), r.sets.end(), [](const calib::MeasurementSet& d) { return d.has_orientation; });
+  if (!fit_orientation && r.val.has_orientation) {
+    r.val.has_orientation = r.nom_val.has_orientation = false;
+    r.orientation_note = "orientation errors not reported: " + r.validation_source + " has orientations, but the fit data has none, "
+                         "so the tool's rotation was never identified (the model carries the start tool's); an orientation error "
+                         "would measure how the target is mounted, not the robot";
   }
   // validation poses outside the joint ranges of the fit: per joint, how many and how far
   for (const calib::Measurement& m : r.validation.rows) {
@@ -188,7 +253,7 @@ void validate(const IdentifyArgs& a, IdentifyRun& r) {
     for (int j = 0; j < r.start.dof(); ++j) {
       const calib::JointRange& c = r.s.coverage[static_cast<size_t>(j)];
       const double d = m.q[j] < c.lower ? c.lower - m.q[j] : (m.q[j] > c.upper ? m.q[j] - c.upper : 0.0);
-      if (d <= 0) continue;
+      if (d <= calib::kFitRangeTolerance) continue;  // the rounding of a radian export is not outside
       Outside& o = r.outside[static_cast<size_t>(j)];
       ++o.count;
       o.max = std::max(o.max, d);
@@ -224,9 +289,14 @@ void printSetup(const IdentifyArgs& a, const IdentifyRun& r) {
   std::printf("\n");
   std::printf("registration: measurement frame in closed form, position RMS %.3f mm after registration\n",
               s.registration_rms_mm);
-  std::printf("identifiability: %d parameters identified from %d equations; condition number %.4g "
+  // repeats add equations, not information: the distinct configurations are counted too
+  const std::string distinct = s.configurations < s.poses
+                                   ? " (" + std::to_string(s.poses) + " poses, " + std::to_string(s.configurations) +
+                                         " distinct configurations: " + std::to_string(s.independent_equations) + " independent equations)"
+                                   : "";
+  std::printf("identifiability: %d parameters identified from %d equations%s; condition number %.4g "
               "(all %zu candidates: %s); observability index O1 %.4g\n",
-              s.parameters_free, s.equations, s.condition_number, s.fixed.size() + s.parameters_free,
+              s.parameters_free, s.equations, distinct.c_str(), s.condition_number, s.fixed.size() + s.parameters_free,
               std::isfinite(s.condition_number_all) ? fmt("%.4g", s.condition_number_all).c_str() : "inf (rank deficient)",
               s.observability_index);
   for (const auto& f : s.fixed) std::printf("  fixed %-16s %s\n", f.name.c_str(), f.reason.c_str());
@@ -304,6 +374,30 @@ void printFit(const IdentifyRun& r) {
   printStatsRow("fit", s.fit);
 }
 
+/// Why a calibrated model may be worse than the nominal one on the validation poses, as far as
+/// the run knows: few distinct configurations in the fit, effects beyond the geometric model
+/// extrapolated outside the fitted joint ranges, or the geometric model itself fitted on a
+/// small part of them.
+std::string worseAdvice(const IdentifyRun& r) {
+  std::vector<std::string> why;
+  const calib::IdentifySummary& s = r.s;
+  if (s.few_configurations)
+    why.push_back("the fit has only " + std::to_string(s.configurations) + " distinct joint configurations (" + std::to_string(s.poses) +
+                  " poses): measure more distinct ones");
+  if (2 * r.outside_rows > r.val.n) {
+    static const std::set<std::string> geometric = {"geometric", "base", "tool", "offsets", "lengths", "angles"};
+    const bool effects = std::any_of(r.opt.groups.begin(), r.opt.groups.end(), [](const std::string& g) {
+      return !geometric.count(g.substr(0, g.find_first_of(":@")));
+    });
+    why.push_back(effects ? "most lie outside the fitted joint ranges: leave out the effects fitted there"
+                          : "most lie outside the fitted joint ranges, and only the geometric model was fitted: measure fit poses "
+                            "that cover the joint ranges the robot is used in");
+  }
+  std::string out;
+  for (const std::string& w : why) out += (out.empty() ? " (" : "; ") + w;
+  return out.empty() ? out : out + ")";
+}
+
 /// The validation's accuracy, nominal against calibrated, and whether it is an extrapolation
 /// (poses outside the fit's joint ranges; --quiet: without the other notes).
 void printValidation(const IdentifyArgs& a, const IdentifyRun& r) {
@@ -313,8 +407,19 @@ void printValidation(const IdentifyArgs& a, const IdentifyRun& r) {
     return;
   }
   std::printf("validation on %s, %d poses (position mm: RMS mean p95 max%s):\n", r.validation_source.c_str(), r.val.n,
-              r.orient ? "; orientation deg: RMS mean p95 max" : "");
+              r.orient && r.val.has_orientation ? "; orientation deg: RMS mean p95 max" : "");
   if (!a.quiet && !r.station_note.empty()) std::printf("  %s\n", r.station_note.c_str());
+  if (!r.orientation_note.empty()) std::printf("  %s\n", r.orientation_note.c_str());
+  if (!r.val_suspicious.empty()) {
+    // as for the fit rows (printFit): a glitch in the validation set decides its max and moves its RMS
+    std::printf("  %zu suspicious validation row(s) (normalised residual above the chi quantile 0.9999; check them for glitches):",
+                r.val_suspicious.size());
+    for (size_t k = 0; k < r.val_suspicious.size() && k < (a.quiet ? 1u : 20u); ++k)
+      std::printf("%s%s:%d (%.3f mm)", k ? ", " : " ", r.val_suspicious[k].file.c_str(), r.val_suspicious[k].line,
+                  r.val_suspicious[k].error_mm);
+    if (r.val_suspicious.size() > (a.quiet ? 1u : 20u)) std::printf(", ... (see --json)");
+    std::printf("\n");
+  }
   if (r.outside_rows > 0) {
     std::printf("  %d of %d validation poses %s outside the joint ranges of the fit data (joint maps are zero there; the "
                 "other joint-dependent effects, such as gear_periodic, joint_scale and compliance, are extrapolated):",
@@ -338,8 +443,7 @@ void printValidation(const IdentifyArgs& a, const IdentifyRun& r) {
   else if (r.val.rms_mm > 0)
     std::printf("  WARNING: position RMS %.1f-fold WORSE than the nominal robot's (%.4f -> %.4f mm): the calibrated model does not "
                 "carry over to these poses%s\n",
-                r.val.rms_mm / r.nom_val.rms_mm, r.nom_val.rms_mm, r.val.rms_mm,
-                2 * r.outside_rows > r.val.n ? " (most lie outside the fitted joint ranges: leave out the effects fitted there)" : "");
+                r.val.rms_mm / r.nom_val.rms_mm, r.nom_val.rms_mm, r.val.rms_mm, worseAdvice(r).c_str());
 }
 
 /// The comment at the top of the calibrated model file.
@@ -375,6 +479,7 @@ ordered_json identifyJson(const IdentifyArgs& a, const IdentifyRun& r) {
   j["fit"] = statsJson(s.fit);
   j["validation"] = has_val ? statsJson(r.val) : ordered_json(nullptr);
   j["nominal_validation"] = has_val ? statsJson(r.nom_val) : ordered_json(nullptr);
+  if (!r.orientation_note.empty()) j["validation_orientation"] = r.orientation_note;
   ordered_json params = ordered_json::array();
   for (const auto& p : s.parameters)
     params.push_back({{"name", p.name}, {"group", p.group}, {"value", num(p.value)}, {"sigma", num(p.sigma)}, {"unit", p.unit}});
@@ -386,6 +491,9 @@ ordered_json identifyJson(const IdentifyArgs& a, const IdentifyRun& r) {
                           {"observability_index", num(s.observability_index)},
                           {"parameters_free", s.parameters_free},
                           {"equations", s.equations},
+                          {"poses", s.poses},
+                          {"distinct_configurations", s.configurations},
+                          {"independent_equations", s.independent_equations},
                           {"fixed", fixed}};
   j["solver"] = {{"termination", s.termination},
                  {"iterations", s.iterations},
@@ -429,6 +537,12 @@ ordered_json identifyJson(const IdentifyArgs& a, const IdentifyRun& r) {
   for (const auto& row : s.suspicious)
     sus.push_back({{"file", row.file}, {"line", row.line}, {"normalised", num(row.normalised)}, {"error_mm", num(row.error_mm)}});
   j["suspicious_rows"] = sus;
+  if (has_val) {
+    ordered_json vsus = ordered_json::array();
+    for (const auto& row : r.val_suspicious)
+      vsus.push_back({{"file", row.file}, {"line", row.line}, {"normalised", num(row.normalised)}, {"error_mm", num(row.error_mm)}});
+    j["validation_suspicious_rows"] = vsus;
+  }
   ordered_json excl = ordered_json::array();
   for (const auto& row : s.excluded)
     excl.push_back({{"file", row.file}, {"line", row.line}, {"error_mm", num(row.error_mm)}, {"median_mm", num(row.median_mm)}});

@@ -598,6 +598,26 @@ std::vector<EffectParameter> Diagnoser::parametersOf(const std::vector<int>& S, 
 }
 
 // Gauss-Newton from M0 over the parameters S on the given fit rows.
+// Why a refit's normal matrix can be singular when the data say so: its rows hold too few
+// distinct joint configurations (repeats, measurements.h, add no information) for its
+// parameters; empty otherwise.
+static std::string singularWhy(const std::vector<std::vector<int>>& groups, const std::vector<int>& rows, int parameters) {
+  std::vector<int> group_of;
+  for (size_t g = 0; g < groups.size(); ++g)
+    for (int i : groups[g]) {
+      if (group_of.size() <= static_cast<size_t>(i)) group_of.resize(static_cast<size_t>(i) + 1, -1);
+      group_of[static_cast<size_t>(i)] = static_cast<int>(g);
+    }
+  std::set<int> distinct;
+  for (int i : rows) distinct.insert(static_cast<size_t>(i) < group_of.size() ? group_of[static_cast<size_t>(i)] : -1 - i);
+  const int configurations = static_cast<int>(distinct.size());
+  if (3 * configurations >= kMinEquationsPerParameter * parameters) return "";
+  return ": its " + std::to_string(rows.size()) + " fit rows hold only " + std::to_string(configurations) +
+         " distinct joint configurations (the others repeat one: every joint within the repeat tolerance), " +
+         std::to_string(3 * configurations) + " independent position equations for " + std::to_string(parameters) +
+         " parameters; repeats measure the noise, not the geometry: measure more distinct configurations";
+}
+
 RobotModel Diagnoser::gnFit(const std::vector<int>& S, const std::vector<int>& rows, RowSystem* at_m0) const {
   RobotModel model = M0_;
   std::vector<ParamInfo> sub;
@@ -667,7 +687,7 @@ RobotModel Diagnoser::gnFit(const std::vector<int>& S, const std::vector<int>& r
       Eigen::MatrixXd A = P;
       detail::addGramLower(A, Jw);
       mirrorLower(&A);
-      if (!solveSpd(A, b, &llt, &dx)) throw NumericalError("diagnose: the refit's normal matrix is singular");
+      if (!solveSpd(A, b, &llt, &dx)) throw NumericalError("diagnose: the refit's normal matrix is singular" + singularWhy(groups_, rows, static_cast<int>(s)));
     }
     for (Eigen::Index k = 0; k < s; ++k)
       setParameter(model.deviations, sub[static_cast<size_t>(k)],

@@ -41,12 +41,13 @@ inline std::string fmtg(const char* f, double v) { return formatNumber(f, v); }
 void statsOf(const std::vector<double>& e, HeldOutStats* s);
 /// What each effect needs to be told apart from the others.
 std::string separator(const std::string& effect, const std::vector<int>& joints);
-/// Repeated joint configurations: every joint within `tol` (deg or mm), the same payload and
-/// directions; groups of rows (ascending, groups by first row), and every pair (i < k) when asked.
-/// With `set_of_row`, only rows of the same data set are repeats.
-std::vector<std::vector<int>> repeatGroups(const MeasurementSet& set, double tol,
-                                           std::vector<std::pair<int, int>>* pairs = nullptr,
-                                           const std::vector<int>* set_of_row = nullptr);
+/// Repeated joint configurations (measurements.h: repeatedConfigurations, the one definition
+/// identify counts distinct configurations with).
+inline std::vector<std::vector<int>> repeatGroups(const MeasurementSet& set, double tol,
+                                                  std::vector<std::pair<int, int>>* pairs = nullptr,
+                                                  const std::vector<int>* set_of_row = nullptr) {
+  return repeatedConfigurations(set, tol, pairs, set_of_row);
+}
 /// Cholesky solve of a normal system with unit-scaled columns; false when it is singular
 /// (a pivot ratio below 1e-7, a condition number above 1e14).
 bool solveSpd(const Eigen::MatrixXd& M, const Eigen::VectorXd& v, Eigen::LLT<Eigen::MatrixXd>* llt,

@@ -428,6 +428,35 @@ Problem setUp(const RobotModel& start, const std::vector<MeasurementSet>& sets, 
                          "the groups asked for); measure at least " +
                          std::to_string(n_candidates / dim + 1 + 1) + " poses, better 10 times as many");
   }
+  // Repeats of one joint configuration (measurements.h: the definition diagnose's repeatability
+  // uses, within one data set) add equations but no information about the geometry: the model
+  // is determined by the distinct configurations, dim equations each.
+  const int rows = static_cast<int>(data.rows.size());
+  const int configurations = static_cast<int>(repeatedConfigurations(data, kRepeatTolerance, nullptr, &pb.set_of_row).size());
+  summary.poses = rows;
+  summary.configurations = configurations;
+  summary.independent_equations = dim * configurations;
+  if (configurations < rows) {
+    const std::string counted =
+        std::to_string(rows) + " poses hold only " + std::to_string(configurations) + " distinct joint configuration" +
+        (configurations == 1 ? "" : "s") + " (the others repeat one: every joint within " + fmtNum(kRepeatTolerance) +
+        " deg or mm, the same payload and directions), " + std::to_string(dim * configurations) + " independent equations";
+    if (dim * configurations < n_candidates + 1)
+      throw InputError(sets[0].file, 0, 0,
+                       "too few distinct joint configurations for the parameters asked for: " + counted + ", expected more than " +
+                           std::to_string(n_candidates) + " (the number of parameters in the groups asked for); repeats measure the "
+                           "noise, not the geometry: the model would pass exactly through these configurations and be wrong "
+                           "elsewhere. Measure at least " + std::to_string(n_candidates / dim + 2) +
+                           " distinct configurations, better 10 times as many");
+    summary.few_configurations = dim * configurations < kMinEquationsPerParameter * n_candidates;
+    if (summary.few_configurations)
+      summary.warnings.push_back(
+          "few distinct joint configurations: " + counted + " for " + std::to_string(n_candidates) +
+          " parameters, fewer than " + std::to_string(kMinEquationsPerParameter) +
+          " per parameter. The parameters are fitted to the errors at these few configurations and may be far off on "
+          "other poses; neither the fit RMS nor poses held out from these configurations can show it: validate on other "
+          "configurations (--validate), and measure more distinct ones");
+  }
   return pb;
 }
 

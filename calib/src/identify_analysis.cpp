@@ -513,18 +513,13 @@ void finishSummary(const Problem& pb, const std::vector<MeasurementSet>& sets, c
   const size_t rows = data0.rows.size();
   std::vector<double> norms(rows);
   for (size_t i = 0; i < rows; ++i) norms[i] = r.segment(static_cast<Eigen::Index>(i) * dim, dim).norm();
-  std::vector<double> sorted = norms;
-  std::nth_element(sorted.begin(), sorted.begin() + rows / 2, sorted.end());
-  const double chi_median = dim == 6 ? 2.3660 : 1.5382, chi_limit = dim == 6 ? 5.278 : 4.594;
-  const double scale = sorted[rows / 2] / chi_median;
   const KinematicModel km(model);
   KinematicFrames f;
-  for (size_t i = 0; i < rows && scale > 0; ++i) {
-    if (norms[i] / scale <= chi_limit) continue;
+  for (const auto& [i, normalised] : suspiciousResiduals(norms, dim)) {
     const Measurement& m = data0.rows[i];
     km.evaluate(m.q.data(), m.context, f);
     const double e = (f.T_world_tcp.translation() - m.p_world_mm).norm();
-    s->suspicious.push_back({sets[static_cast<size_t>(set_of_row[i])].file, m.line, norms[i] / scale, e});
+    s->suspicious.push_back({sets[static_cast<size_t>(set_of_row[i])].file, m.line, normalised, e});
   }
   // plausibility of the estimates
   for (const ParameterEstimate& p : s->parameters) {
@@ -551,3 +546,39 @@ void finishSummary(const Problem& pb, const std::vector<MeasurementSet>& sets, c
 }
 
 }  // namespace accura::calib::identify_detail
+
+namespace accura::calib {
+
+std::vector<std::pair<size_t, double>> suspiciousResiduals(const std::vector<double>& norms, int dim) {
+  std::vector<std::pair<size_t, double>> out;
+  const size_t rows = norms.size();
+  if (rows == 0) return out;
+  std::vector<double> sorted = norms;
+  std::nth_element(sorted.begin(), sorted.begin() + static_cast<long>(rows / 2), sorted.end());
+  const double chi_median = dim == 6 ? 2.3660 : 1.5382, chi_limit = dim == 6 ? 5.278 : 4.594;
+  const double scale = sorted[rows / 2] / chi_median;
+  for (size_t i = 0; i < rows && scale > 0; ++i)
+    if (norms[i] / scale > chi_limit) out.push_back({i, norms[i] / scale});
+  return out;
+}
+
+std::vector<SuspiciousRow> suspiciousRows(const RobotModel& model, const MeasurementSet& data) {
+  std::vector<double> norms, errors;
+  const KinematicModel km(model);
+  KinematicFrames f;
+  for (const Measurement& m : data.rows) {
+    km.evaluate(m.q.data(), m.context, f);
+    const Eigen::Vector3d e = f.T_world_tcp.translation() - m.p_world_mm;
+    errors.push_back(e.norm());
+    // unweighted: on validation data the model's error dominates, not the instrument's (the fit
+    // adds an unmodelled-error term to the stds for the same reason; weighted by the std columns
+    // alone, Series_C would flag 164 of its 2773 rows at 0.4-1 mm)
+    norms.push_back(e.norm());
+  }
+  std::vector<SuspiciousRow> out;
+  for (const auto& [i, normalised] : suspiciousResiduals(norms, 3))
+    out.push_back({data.file, data.rows[i].line, normalised, errors[i]});
+  return out;
+}
+
+}  // namespace accura::calib

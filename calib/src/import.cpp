@@ -292,7 +292,8 @@ struct MappedHeader {
   size_t row = 0;  ///< index of the header in the file's lines
   int line = 0;
   std::vector<std::string> names;
-  std::map<std::string, int> index;
+  std::map<std::string, int> index;             ///< the first column of each name
+  std::map<std::string, std::vector<int>> all;  ///< every column of each name (a name may repeat)
 };
 
 MappedHeader readHeader(const std::string& path, const std::vector<std::string>& lines, char delimiter) {
@@ -304,12 +305,11 @@ MappedHeader readHeader(const std::string& path, const std::vector<std::string>&
   for (size_t c = 0; c < h.names.size(); ++c) {
     h.names[c] = trim(h.names[c]);
     if (h.names[c].empty()) continue;  // an unnamed column (a trailing delimiter): never mapped, reported as unused
+    // a name may repeat (exports write 'std' after every value): ambiguous only when the mapping
+    // uses it (mapColumns)
     const std::string key = lower(h.names[c]);
-    if (h.index.count(key))
-      throw InputError(path, h.line, static_cast<int>(c) + 1,
-                       "expected each column name once in the header, found '" + h.names[c] + "' a second time (first as column " +
-                           std::to_string(h.index[key] + 1) + ")");
-    h.index[key] = static_cast<int>(c);
+    h.index.emplace(key, static_cast<int>(c));
+    h.all[key].push_back(static_cast<int>(c));
   }
   return h;
 }
@@ -334,6 +334,11 @@ MappedColumns mapColumns(const std::string& path, const MappedHeader& h, const M
                            (ml ? ":" + std::to_string(ml) : std::string()) + "; the delimiter is '" +
                            (m.delimiter == '\t' ? std::string("tab") : std::string(1, m.delimiter)) + "')");
     }
+    const std::vector<int>& same = h.all.at(it->first);
+    if (same.size() > 1)  // the mapping uses the name: which of its columns is meant is ambiguous
+      throw InputError(path, h.line, same[1] + 1,
+                       "expected each column name once in the header, found '" + h.names[static_cast<size_t>(same[1])] +
+                           "' a second time (first as column " + std::to_string(same[0] + 1) + ")");
     c.used.insert(it->second);
     return it->second;
   };
@@ -356,7 +361,7 @@ MappedColumns mapColumns(const std::string& path, const MappedHeader& h, const M
     auto it = h.index.find(lower(n));
     if (it == h.index.end())
       throw InputError(path, h.line, 1, "expected a column '" + n + "' in the header, found none (listed under 'ignore' in " + m.file + ")");
-    c.used.insert(it->second);
+    for (int same : h.all.at(it->first)) c.used.insert(same);  // every column of that name
   }
   return c;
 }
@@ -401,13 +406,25 @@ void readJoints(const MappedRow& row, const std::vector<int>& jc, const RobotDef
   r.q.resize(n);
   for (int j = 0; j < n; ++j) {
     const JointSpec& js = robot.joints[j];
-    const double v = row.num(jc[j]) * (js.type == JointType::kRevolute ? row.m.joint_scale : row.m.prismatic_scale);
+    const double raw = row.num(jc[j]);
+    const double v = raw * (js.type == JointType::kRevolute ? row.m.joint_scale : row.m.prismatic_scale);
     if (!withinJointLimits(js, v)) {
       const char* unit = js.type == JointType::kRevolute ? "deg" : "mm";
       char buf[200];
       std::snprintf(buf, sizeof buf, "expected a joint value within the joint limits [%.10g, %.10g] %s, found %.6g %s", js.lower,
                     js.upper, unit, v, unit);
-      throw InputError(row.path, row.ln, jc[j] + 1, "column '" + row.header[jc[j]] + "': " + buf + jointTurnNote(js, v));
+      // joint_unit = rad and a value beyond a turn in radians (2 pi) that is within the limits
+      // read as degrees: the column is in degrees, whatever the mapping says
+      std::string note = jointTurnNote(js, v);
+      if (js.type == JointType::kRevolute && row.m.joint_scale != 1.0 && std::abs(raw) > 2 * kPi && withinJointLimits(js, raw)) {
+        int ml = 0;
+        for (const auto& kl : row.m.key_lines)
+          if (kl.first == "joint_unit") ml = kl.second;
+        note = " (" + trim(row.f[static_cast<size_t>(jc[j])]) + " rad): a joint value beyond a turn in radians, and within the limits "
+               "as degrees: the column looks like degrees, not the radians the mapping states (joint_unit = rad in " + row.m.file +
+               (ml ? ":" + std::to_string(ml) : std::string()) + "); check the mapping's joint_unit";
+      }
+      throw InputError(row.path, row.ln, jc[j] + 1, "column '" + row.header[jc[j]] + "': " + buf + note);
     }
     r.q[j] = v;
   }
@@ -522,6 +539,15 @@ MeasurementSet readMappedMeasurements(const std::string& path, const Measurement
     const std::string t = trim(lines[li]);
     if (t.empty() || t[0] == '#') continue;
     const MappedRow row{path, h.names, m, static_cast<int>(li) + 1, splitFields(lines[li], m.delimiter)};
+    // the header again (two exports concatenated): said as such, not as a field that is no number
+    if (row.f.size() == h.names.size()) {
+      bool header = true;
+      for (size_t k = 0; header && k < h.names.size(); ++k) header = lower(trim(row.f[k])) == lower(h.names[k]);
+      if (header)
+        throw InputError(path, row.ln, 1,
+                         "expected a data row, found the header row again (the header is line " + std::to_string(h.line) +
+                             "): two exports joined into one file? Split them, or delete the repeated header");
+    }
     if (row.f.size() != h.names.size()) {
       const bool row_trails = endsWithDelimiter(lines[li]);
       const std::string note = row_trails && !header_trails

@@ -212,7 +212,7 @@ std::vector<OutsideFitRange> outsideFitRanges(const RobotModel& model, const Eig
     } else {
       continue;
     }
-    if (q[j] < lo || q[j] > hi) out.push_back({j + 1, q[j], lo, hi, q[j] < lo ? lo - q[j] : q[j] - hi});
+    if (q[j] < lo - kFitRangeTolerance || q[j] > hi + kFitRangeTolerance) out.push_back({j + 1, q[j], lo, hi, q[j] < lo ? lo - q[j] : q[j] - hi});
   }
   return out;
 }

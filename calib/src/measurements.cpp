@@ -8,6 +8,8 @@
 #include <cstdio>
 #include <cstring>
 #include <limits>
+#include <map>
+#include <numeric>
 #include <string_view>
 #include <system_error>
 
@@ -766,6 +768,45 @@ std::string measurementsCsvText(const MeasurementSet& set, int dof, const std::v
     out += '\n';
   }
   return out;
+}
+
+// Repeated joint configurations: every joint within `tol` (deg or mm, the file's units),
+// the same payload and directions. Sweep over the rows sorted by q1, union-find over the pairs.
+std::vector<std::vector<int>> repeatedConfigurations(const MeasurementSet& set, double tol, std::vector<std::pair<int, int>>* pairs,
+                                                     const std::vector<int>* set_of_row) {
+  const int m = static_cast<int>(set.rows.size());
+  std::vector<int> order(static_cast<size_t>(m));
+  std::iota(order.begin(), order.end(), 0);
+  if (m == 0) return {};
+  std::sort(order.begin(), order.end(), [&](int a, int b) { return set.rows[a].q[0] < set.rows[b].q[0]; });
+  std::vector<int> parent(static_cast<size_t>(m));
+  std::iota(parent.begin(), parent.end(), 0);
+  auto find = [&](int x) {
+    while (parent[x] != x) x = parent[x] = parent[parent[x]];
+    return x;
+  };
+  if (pairs) pairs->clear();
+  for (int a = 0; a < m; ++a) {
+    const Measurement& A = set.rows[order[a]];
+    for (int b = a + 1; b < m; ++b) {
+      const Measurement& B = set.rows[order[b]];
+      if (B.q[0] - A.q[0] > tol) break;
+      bool same = std::abs(A.context.payload_kg - B.context.payload_kg) <= 1e-9 && A.dir == B.dir &&
+                  (!set_of_row || (*set_of_row)[static_cast<size_t>(order[a])] == (*set_of_row)[static_cast<size_t>(order[b])]);
+      for (Eigen::Index k = 1; same && k < A.q.size(); ++k) same = std::abs(A.q[k] - B.q[k]) <= tol;
+      if (!same) continue;
+      const int i = std::min(order[a], order[b]), k = std::max(order[a], order[b]);
+      if (pairs) pairs->push_back({i, k});
+      parent[find(i)] = find(k);
+    }
+  }
+  std::map<int, std::vector<int>> by_root;
+  for (int i = 0; i < m; ++i) by_root[find(i)].push_back(i);
+  std::vector<std::vector<int>> groups;
+  for (auto& kv : by_root) groups.push_back(kv.second);  // rows ascending within a group
+  std::sort(groups.begin(), groups.end(), [](const auto& a, const auto& b) { return a.front() < b.front(); });
+  if (pairs) std::sort(pairs->begin(), pairs->end());
+  return groups;
 }
 
 }  // namespace accura::calib

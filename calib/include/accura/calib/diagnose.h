@@ -63,7 +63,7 @@ struct DiagnoseOptions {
   int joint_bins = 10;
   /// Two rows are one joint configuration measured again when every joint agrees within this
   /// tolerance (deg for revolute, mm for prismatic joints) and payload and dirN are equal.
-  double repeat_tol = 0.01;
+  double repeat_tol = kRepeatTolerance;
   /// A repeat pair whose positions disagree by more than this many times the median pair
   /// distance is a glitch (excluded from the repeatability, listed).
   double glitch_factor = 10.0;

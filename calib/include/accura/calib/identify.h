@@ -5,6 +5,7 @@
 
 #include <limits>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "accura/calib/joint_map.h"
@@ -81,6 +82,12 @@ constexpr double kImplausibleOrientationRmsDeg = 1.0;
 /// a robot registered in the right frame is within millimetres, so tens of millimetres are two
 /// stations (InputError naming the second file).
 constexpr double kMaxSharedStationRmsMm = 25.0;
+
+/// Fit data with repeated configurations whose distinct configurations give fewer independent
+/// equations than this many per candidate parameter are warned about (IdentifySummary::warnings);
+/// not more than the parameters are refused (InputError). The count of poses the refusal for too
+/// few rows advises ("better 10 times as many").
+constexpr int kMinEquationsPerParameter = 10;
 
 struct FixedParameter {
   std::string name;
@@ -161,6 +168,13 @@ struct IdentifySummary {
   double model_error_mm = 0;        ///< the unmodelled-error term (0: none needed)
   double model_error_deg = 0;
   int equations = 0, parameters_free = 0;
+  /// Fit rows, and the distinct joint configurations among them (repeatedConfigurations() within
+  /// each data set): only these carry information about the geometry; independent_equations =
+  /// configurations times 3 (positions) or 6 (with orientations).
+  int poses = 0, configurations = 0, independent_equations = 0;
+  /// Repeats leave fewer than kMinEquationsPerParameter independent equations per candidate
+  /// parameter (a warning says so).
+  bool few_configurations = false;
   std::vector<FixedParameter> fixed;
   std::vector<ParameterEstimate> parameters;
   std::vector<int> downweighted_lines;  ///< source lines the robust loss down-weighted
@@ -192,7 +206,8 @@ struct IdentifySummary {
 /// Identifies the parameters named by options.groups starting from `start` (nominal or
 /// previously calibrated; its deviations are the initial guess) on `data`.
 /// Returns the calibrated model. Throws InputError when the data is too small for the
-/// parameters asked for, ArgumentError on invalid options, NumericalError when the
+/// parameters asked for (too few rows, or too few distinct joint configurations: repeats,
+/// repeatedConfigurations(), count once), ArgumentError on invalid options, NumericalError when the
 /// registration is degenerate (collinear points) or the solver fails.
 RobotModel identify(const RobotModel& start, const MeasurementSet& data,
                     const IdentifyOptions& options, IdentifySummary* summary);
@@ -236,6 +251,16 @@ std::vector<ExcludedRow> removeGrossRows(const RobotModel& model, MeasurementSet
 /// one line for each of the first ten (file:line, its error and the threshold it exceeds),
 /// then one line counting the rest.
 std::vector<std::string> excludedRowWarnings(const std::vector<ExcludedRow>& rows, const std::string& from);
+
+/// The rows whose normalised residual exceeds the chi quantile 0.9999 with `dim` (3 or 6)
+/// degrees of freedom: norms[i] is the norm of row i's weighted residual, normalised by a robust
+/// scale (the median norm over the median of chi with dim degrees of freedom). Returns (row
+/// index, normalised residual) in row order. IdentifySummary::suspicious of the fit is this.
+std::vector<std::pair<size_t, double>> suspiciousResiduals(const std::vector<double>& norms, int dim);
+
+/// The suspicious rows of `data` against `model` (validation data): suspiciousResiduals() of the
+/// position errors (dim 3, unweighted: the model's error, not the instrument's, dominates there).
+std::vector<SuspiciousRow> suspiciousRows(const RobotModel& model, const MeasurementSet& data);
 
 /// Summary statistics of a list of non-negative errors (RMS, mean, max, 95th percentile
 /// by nearest rank).

@@ -69,6 +69,12 @@ void checkJointMapSize(const std::vector<JointRange>& ranges, double knot);
 /// unknown unit).
 bool parseJointMapKnot(const std::string& text, double* knot, std::string* unit, std::string* error);
 
+/// A joint value counts as outside a fitted joint range only beyond this (deg, or mm for a
+/// prismatic joint): exports in radians carry 6-7 significant digits (1e-6 rad = 5.7e-5 deg),
+/// so a pose at the edge of the fit data reads a few 1e-5 deg beyond it; 1e-3 deg moves the
+/// tool of a 1 m arm by 0.017 mm, and no joint-dependent effect changes over it.
+constexpr double kFitRangeTolerance = 1e-3;
+
 /// A joint value outside the range the model's joint-dependent effects were fitted on.
 struct OutsideFitRange {
   int joint = 0;            ///< 1-based
@@ -77,7 +83,7 @@ struct OutsideFitRange {
   double beyond = 0;        ///< distance beyond the nearer end (deg or mm), > 0
 };
 
-/// The joints of `q` (deg / mm) that lie outside the fitted range (Deviations::fit_range, else
+/// The joints of `q` (deg / mm) that lie outside (by more than kFitRangeTolerance) the fitted range (Deviations::fit_range, else
 /// the joint map's interval) of a joint whose effects depend on its value: a joint map, gear
 /// harmonics or a scale error of that joint; joint compliance depends on every joint's value
 /// (the gravity torques). Empty when the model has no fitted range or no such effect; there the

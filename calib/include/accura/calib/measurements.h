@@ -80,6 +80,22 @@ std::string jointTurnNote(const JointSpec& joint, double v);
 /// whose norm is not 1 within 1e-3, and a file with no data row.
 MeasurementSet readMeasurementsCsv(const std::string& path, const RobotDefinition& robot);
 
+/// Two rows are one joint configuration measured again (a repeat) when every joint agrees within
+/// this (deg, or mm for a prismatic joint) and payload and directions are the same: the
+/// tolerance of diagnose's repeatability (DiagnoseOptions::repeat_tol) and of identify's count
+/// of distinct configurations. 0.01 deg is a controller's repeat of a taught pose (encoder
+/// resolution), far below the spacing of the poses of a calibration campaign.
+constexpr double kRepeatTolerance = 0.01;
+
+/// Repeated joint configurations of `set`: rows whose every joint agrees within `tol` (deg or
+/// mm) with the same payload and directions, chained (union-find over the pairs). Returns the
+/// groups of row indices (ascending within a group, groups ordered by their first row; a row
+/// measured once is a group of one), and every pair (i < k) when `pairs` is given. With
+/// `set_of_row`, only rows of the same data set are repeats.
+std::vector<std::vector<int>> repeatedConfigurations(const MeasurementSet& set, double tol = kRepeatTolerance,
+                                                     std::vector<std::pair<int, int>>* pairs = nullptr,
+                                                     const std::vector<int>* set_of_row = nullptr);
+
 /// The range of each of the first `dof` joints over the rows of `data` (deg or mm; the fit's
 /// coverage). An empty `data` gives lower > upper for every joint.
 std::vector<JointRange> jointRanges(const MeasurementSet& data, int dof);
