@@ -334,8 +334,12 @@ TEST(Diagnose, SelfcheckRealDataCases) {
   ASSERT_EQ(r.cases.size(), 5u);
   for (const SelfcheckCase& c : r.cases) {
     EXPECT_TRUE(c.right) << c.injected << " -> " << c.verdict << "\n" << r.shrinkTable();
-    if (c.injected == "partial_range") EXPECT_LE(c.true_after_mm, 1.02 * c.true_before_mm);
-    if (c.injected == "two_effects") EXPECT_EQ(c.verdict, "backlash+joint_compliance");
+    if (c.injected == "partial_range") {
+      EXPECT_LE(c.true_after_mm, 1.02 * c.true_before_mm);
+    }
+    if (c.injected == "two_effects") {
+      EXPECT_EQ(c.verdict, "backlash+joint_compliance");
+    }
   }
 }
 
@@ -355,8 +359,11 @@ TEST(Diagnose, NegativeComplianceIsRejectedAsImplausible) {
     if (r.effect == "joint_compliance" && r.reason.find("cannot be negative") != std::string::npos) rejected = true;
   EXPECT_TRUE(rejected) << diagnosisText(d);
   // the ranking reports the negative value it found, flagged
-  for (const EffectEvidence& e : d.ranking)
-    if (e.effect == "joint_compliance") EXPECT_FALSE(e.implausible.empty()) << diagnosisText(d);
+  for (const EffectEvidence& e : d.ranking) {
+    if (e.effect == "joint_compliance") {
+      EXPECT_FALSE(e.implausible.empty()) << diagnosisText(d);
+    }
+  }
 }
 
 // Fit data over the middle third of joint 1's range (|q1| < 60 deg of the KR 16's +-185): on it
@@ -386,9 +393,11 @@ TEST(Diagnose, ScaleOrGearOfAPartlyCoveredJointIsNeverSelected) {
   const MeasurementSet fresh = simulateMeasurements(truth, of);  // joint 1 over +-166 deg
 
   const Diagnosis d = diagnose(nominal, fit, nullptr, DiagnoseOptions{});
-  for (const EffectEvidence& e : d.selected)
-    if (e.effect == "joint_scale" || e.effect == "gear_periodic")
+  for (const EffectEvidence& e : d.selected) {
+    if (e.effect == "joint_scale" || e.effect == "gear_periodic") {
       for (int j : e.joints) EXPECT_NE(j, 1) << diagnosisText(d);
+    }
+  }
   bool scale_rejected = false;
   for (const Rejected& r : d.rejected)
     if (r.effect == "joint_scale" && r.joints == std::vector<int>{1})

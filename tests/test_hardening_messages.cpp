@@ -346,14 +346,14 @@ TEST(HardeningMessages, FuzzFindingsGiveLocatedExpectedFound) {
 /// header names a column twice (no "expected"). Each is now located by accura's own checks.
 TEST(HardeningMessages, MeshesWithoutFacesAndRepeatedColumnNamesAreLocated) {
   const std::string dir = test::tempDir("messages_faces");
-  struct Case {
+  struct MeshCase {
     const char* name;
     std::string bytes;
     const char* what_ends;
   };
   const std::string ply_head = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n";
   std::string stl_binary(84, '\0');  // header and a triangle count of 0
-  const std::vector<Case> cases = {
+  const std::vector<MeshCase> cases = {
       // the finding: the face's index list is not named vertex_indices, so assimp reads no face
       {"noindices.ply", ply_head + "element face 1\nproperty list uchar int vert_x_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n",
        "noindices.ply:7:1: element 'face': expected a property list of vertex indices (property list uchar int vertex_indices), found none"},

@@ -347,8 +347,8 @@ TEST(KrlRules, ACorrectedPartialAggregateLandsWhereTheControllerFillsItFromItsPo
     const Motion& m = written.motions[k];
     calib::XyzAbc v = at;
     double* c[6] = {&v.x_mm, &v.y_mm, &v.z_mm, &v.a_deg, &v.b_deg, &v.c_deg};
-    for (int k = 0; k < 6; ++k)
-      if (m.target.pose[k]) *c[k] = *m.target.pose[k];
+    for (int i = 0; i < 6; ++i)
+      if (m.target.pose[i]) *c[i] = *m.target.pose[i];
     const Eigen::Isometry3d T = cell.controller.nominal.T_world_base * calib::toIsometry(v);
     if (m.type == MotionType::kPtp) {
       ASSERT_TRUE(kuka.ptp(T, *m.target.status, *m.target.turn));
