@@ -196,6 +196,11 @@ struct IkWorkspace::Data {
   std::array<KinematicFrames, 2> frames;
   int cur = 0;
   Jac6N J;
+  /// J factored in 3x3 blocks (6 joints; `block_valid` when the factorisation held): the next
+  /// solve's first Newton step uses it, and its determinant bounds the smallest singular value
+  /// from below (KinematicSolver::Impl::sigmaMinLowerBound).
+  detail::Block6 block;
+  bool block_valid = false;
   /// Singularity certificate (KinematicSolver::Impl::singularAt): at cert_q the scaled
   /// Jacobian's smallest singular value was shown to exceed cert_level (solver cert_solver_id;
   /// 0 = none); next_level is the level the next certificate tries.
@@ -277,7 +282,17 @@ struct KinematicSolver::Impl {
   /// where sigma_min is large, every point next to a singularity.
   /// `seed` (optional): where the last step started (the bound of the Jacobian's change from
   /// there to q decides whether a higher level is worth trying).
-  bool singularAt(const Jac6N& J, const VecN& q, double t, IkWorkspace::Data* ws, const VecN* seed) const;
+  /// `block` (optional): J factored in blocks; where its sigmaMinLowerBound exceeds a test's
+  /// level twice, the test is answered without running (the same answer, the same bookkeeping).
+  bool singularAt(const Jac6N& J, const VecN& q, double t, IkWorkspace::Data* ws, const VecN* seed,
+                  const detail::Block6* block = nullptr) const;
+
+  /// A lower bound of the scaled Jacobian's smallest singular value from J's determinant
+  /// (`block`, the factorisation of J) and its Frobenius norm: with sigma_1..sigma_6 the singular
+  /// values of Js = D_rows J D_cols, sigma_6 = |det Js| / (sigma_1 ... sigma_5) and, by the
+  /// arithmetic-geometric mean, sigma_1^2 ... sigma_5^2 <= (|Js|_F^2 / 5)^5, so
+  /// sigma_6 >= |det Js| (5 / |Js|_F^2)^(5/2). Six joints only (0 otherwise).
+  double sigmaMinLowerBound(const Jac6N& J, const detail::Block6& block) const;
 
   /// Bound of ||Js(a) - Js(b)||_2 (scaledJacobianLipschitz, which must not be empty).
   double jacobianChangeBound(const VecN& a, const VecN& b) const {
@@ -308,10 +323,11 @@ struct KinematicSolver::Impl {
   /// Newton reuses its Jacobian while each step gains at least a factor 5 (near the solution
   /// an iteration costs one FK). Every evaluation after the first counts as an iteration.
   /// `*fp.cur` holds the frames at q on entry when `f_valid`, and on return (the pair's roles
-  /// may be swapped). `J0` (optional, with `f_valid`): the joint Jacobian at q.
+  /// may be swapped). `J0` (optional, with `f_valid`): the joint Jacobian at q; `B0`
+  /// (optional, with `J0`): J0 factored in blocks (Block6::factor returned true).
   Newton newton(VecN& q, const Eigen::Isometry3d& T_target, const PoseContext& ctx, const IkOptions& o,
                 int max_iterations, FramePair& fp, bool f_valid = false, double polish_mm = 0,
-                double polish_rad = 0, const Jac6N* J0 = nullptr) const;
+                double polish_rad = 0, const Jac6N* J0 = nullptr, const detail::Block6* B0 = nullptr) const;
 
   // --- closed-form seeds ------------------------------------------------------------------
 

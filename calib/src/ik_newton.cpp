@@ -165,16 +165,46 @@ bool KinematicSolver::Impl::singularBelow(const Jac6N& J, double t) const {
   return llt.info() != Eigen::Success;
 }
 
+double KinematicSolver::Impl::sigmaMinLowerBound(const Jac6N& J, const detail::Block6& block) const {
+  if (n != 6) return 0;
+  // det Js = det J * prod(column scales) / L^3 (three position rows divided by L)
+  double col_scale = 1, frobenius2 = 0;
+  const double inv_L = 1.0 / L;
+  for (int c = 0; c < 6; ++c) {
+    const double s = revolute[c] ? kRadToDeg : L;
+    col_scale *= s;
+    const double* Jc = J.data() + 6 * c;
+    const double p = (Jc[0] * Jc[0] + Jc[1] * Jc[1] + Jc[2] * Jc[2]) * inv_L * inv_L;
+    const double r = Jc[3] * Jc[3] + Jc[4] * Jc[4] + Jc[5] * Jc[5];
+    frobenius2 += (p + r) * s * s;
+  }
+  const double det = std::abs(block.determinant()) * col_scale * inv_L * inv_L * inv_L;
+  if (!(frobenius2 > 0) || !std::isfinite(det)) return 0;
+  const double x = 5.0 / frobenius2;
+  const double bound = det * x * x * std::sqrt(x);
+  return std::isfinite(bound) ? bound : 0.0;
+}
+
 bool KinematicSolver::Impl::singularAt(const Jac6N& J, const VecN& q, double t, IkWorkspace::Data* ws,
-    const VecN* seed) const {
-  if (!ws || chain.scaledJacobianLipschitz().empty()) return singularBelow(J, t);
+    const VecN* seed, const detail::Block6* block) const {
+  // the bound computed when a test is first needed; a level it exceeds twice (its own
+  // rounding, ~1e-14 relative, cannot matter) is answered without the test
+  double sigma_lower = -1;
+  const auto below = [&](double level) {
+    if (block) {
+      if (sigma_lower < 0) sigma_lower = sigmaMinLowerBound(J, *block);
+      if (sigma_lower > 2 * level) return false;
+    }
+    return singularBelow(J, level);
+  };
+  if (!ws || chain.scaledJacobianLipschitz().empty()) return below(t);
   if (ws->cert_solver_id == id && ws->cert_level - jacobianChangeBound(q, ws->cert_q) > t) return false;
   double last_step_change = seed ? jacobianChangeBound(q, *seed) : 0.0;
   if (!(last_step_change >= 0)) last_step_change = 0;
   // the level: raised slowly while it holds, halved where it does not; not tried when the
   // region it would certify could not reach as far as the last step went (long steps)
   const double level = std::max(ws->next_level, 2 * t);
-  if (level < 1 && level - t > 1.5 * last_step_change && !singularBelow(J, level)) {
+  if (level < 1 && level - t > 1.5 * last_step_change && !below(level)) {
     ws->cert_solver_id = id;
     ws->cert_q = q;
     ws->cert_level = level;
@@ -182,7 +212,7 @@ bool KinematicSolver::Impl::singularAt(const Jac6N& J, const VecN& q, double t, 
     return false;
   }
   ws->next_level = std::max(0.5 * level, 2 * t);
-  return singularBelow(J, t);
+  return below(t);
 }
 
 double KinematicSolver::Impl::minSingularValue(const Jac6N& J) const {
@@ -214,7 +244,7 @@ void KinematicSolver::Impl::poseErr(const Eigen::Isometry3d& T_target, const Eig
 
 KinematicSolver::Impl::Newton KinematicSolver::Impl::newton(VecN& q, const Eigen::Isometry3d& T_target,
     const PoseContext& ctx, const IkOptions& o, int max_iterations, FramePair& fp, bool f_valid,
-    double polish_mm, double polish_rad, const Jac6N* J0) const {
+    double polish_mm, double polish_rad, const Jac6N* J0, const detail::Block6* B0) const {
   using MatN = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxDof, kMaxDof>;
   Newton r;
   if (!f_valid) chain.evaluate(q.data(), ctx, *fp.cur);
@@ -273,21 +303,26 @@ KinematicSolver::Impl::Newton KinematicSolver::Impl::newton(VecN& q, const Eigen
     constexpr double kRefresh2 = kRefreshAboveTol * kRefreshAboveTol;
     // the 3x3 block solve where its blocks are well conditioned, else the pivoted LU
     detail::Block6 block;
+    const detail::Block6* fact = &block;  // the block factorisation in use
     detail::Lu6 lu;
     bool fresh = false, have = false, use_block = false, finished = false;
     while (!(finished = done())) {
       if (!have) {
         const Jac6N* Jq = J0 && f_valid && fp.cur == start ? J0 : nullptr;
+        // J0 already factored (B0), else the factorisation of the Jacobian at q
+        fact = Jq ? B0 : nullptr;
         if (!Jq) {
           chain.jacobian(*fp.cur, J);
           Jq = &J;
         }
         J0 = nullptr;
-        use_block = block.factor(Jq->data());
+        B0 = nullptr;
+        use_block = fact || block.factor(Jq->data());
+        if (!fact) fact = &block;
         if (!use_block && !lu.factor(Jq->data())) break;
         have = fresh = true;
       }
-      dq = use_block ? block.solve(e) : lu.solve(e);
+      dq = use_block ? fact->solve(e) : lu.solve(e);
       if (!allFinite<6>(dq.data())) break;
       limitStep(dq);
       const double before = merit;

@@ -187,6 +187,12 @@ IkResult KinematicSolver::Impl::inverse(const Eigen::Isometry3d& T_target, const
       if (!nt.converged) return false;
     }
     chain.jacobian(*fp.cur, J);
+    // with a workspace, J factored now (the next solve's first Newton step takes this
+    // factorisation instead of computing the same one); its determinant bounds the smallest
+    // scaled singular value from below: where the bound clears a test's level twice, the test
+    // is answered
+    if (ws) ws->block_valid = n == 6 && ws->block.factor(J.data());
+    const detail::Block6* factored = ws && ws->block_valid ? &ws->block : nullptr;
     // warm and more than kWarmAcceptDeg from the seed: taken only where the Jacobian is
     // regular enough that no other solution can be nearer (another solution of the same pose
     // is about sigma_min rad away or more; docs/compensation.md)
@@ -196,7 +202,7 @@ IkResult KinematicSolver::Impl::inverse(const Eigen::Isometry3d& T_target, const
     bool regular = false;
     if (warm && moved_deg > kWarmAcceptDeg) {
       const double t_move = std::max(o.singular_threshold, moved_deg * kDegToRad);
-      if (singularBelow(J, t_move)) return false;
+      if (!(factored && sigmaMinLowerBound(J, *factored) > 2 * t_move) && singularBelow(J, t_move)) return false;
       regular = true;
       if (ws && !chain.scaledJacobianLipschitz().empty() &&
           (ws->cert_solver_id != id || ws->cert_level - jacobianChangeBound(q, ws->cert_q) < t_move)) {
@@ -206,7 +212,8 @@ IkResult KinematicSolver::Impl::inverse(const Eigen::Isometry3d& T_target, const
       }
     }
     const bool singular =
-        !regular && o.singular_threshold > 0 && singularAt(J, q, o.singular_threshold, ws, warm ? &ref : nullptr);
+        !regular && o.singular_threshold > 0 &&
+        singularAt(J, q, o.singular_threshold, ws, warm ? &ref : nullptr, factored);
     const double min_singular_value = singular || o.compute_singular_value ? minSingularValue(J) : 0.0;
     // an answer at q (status, configuration, errors, smallest singular value)
     const auto answer = [&](IkResult& a, IkStatus status) {
@@ -276,7 +283,8 @@ IkResult KinematicSolver::Impl::inverse(const Eigen::Isometry3d& T_target, const
     VecN q = ref;
     // (the Jacobian is copied in: finish() overwrites J)
     const Newton nt =
-        newton(q, T_target, ctx, o, std::min(o.max_iterations, 12), fp, reuse, polish_mm, polish_rad, reuse ? &J : nullptr);
+        newton(q, T_target, ctx, o, std::min(o.max_iterations, 12), fp, reuse, polish_mm, polish_rad, reuse ? &J : nullptr,
+               reuse && ws->block_valid ? &ws->block : nullptr);
     iterations += nt.iterations;
     if (nt.converged && finish(q, nt, true, res)) {
       res.iterations = iterations;

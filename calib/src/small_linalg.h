@@ -104,15 +104,21 @@ class Block6 {
         r_[i][j] = a[6 * j + i + 3];
         S[i][j] = a[6 * (j + 3) + i + 3];
       }
-    if (!inverse3(S, si_)) return false;
+    double det_s = 0, det_t = 0;
+    if (!inverse3(S, si_, det_s)) return false;
     // W = Q S^-1, T = P - W R
     for (int i = 0; i < 3; ++i)
       for (int j = 0; j < 3; ++j) w_[i][j] = Q[i][0] * si_[0][j] + Q[i][1] * si_[1][j] + Q[i][2] * si_[2][j];
     double T[3][3];
     for (int i = 0; i < 3; ++i)
       for (int j = 0; j < 3; ++j) T[i][j] = P[i][j] - (w_[i][0] * r_[0][j] + w_[i][1] * r_[1][j] + w_[i][2] * r_[2][j]);
-    return inverse3(T, ti_);
+    if (!inverse3(T, ti_, det_t)) return false;
+    det_ = det_s * det_t;  // det [P Q; R S] = det(S) det(P - Q S^-1 R)
+    return true;
   }
+
+  /// The matrix's determinant (after a factor() that returned true).
+  double determinant() const { return det_; }
 
   /// x = A^-1 b.
   Eigen::Matrix<double, 6, 1> solve(const Eigen::Matrix<double, 6, 1>& b) const {
@@ -130,7 +136,7 @@ class Block6 {
 
  private:
   /// inv = m^-1 by the adjugate; false when Hadamard's ratio is below kMinRatio.
-  static bool inverse3(const double (&m)[3][3], double (&inv)[3][3]) {
+  static bool inverse3(const double (&m)[3][3], double (&inv)[3][3], double& det_out) {
     const double c00 = m[1][1] * m[2][2] - m[1][2] * m[2][1];
     const double c01 = m[1][2] * m[2][0] - m[1][0] * m[2][2];
     const double c02 = m[1][0] * m[2][1] - m[1][1] * m[2][0];
@@ -140,6 +146,7 @@ class Block6 {
     // det^2 >= kMinRatio^2 |m_0|^2 |m_1|^2 |m_2|^2 (false for NaN)
     if (!(det * det >= kMinRatio * kMinRatio * (n[0] * n[1] * n[2])) || !(std::abs(det) < 1e300) || det == 0)
       return false;
+    det_out = det;
     const double id = 1.0 / det;
     inv[0][0] = c00 * id;
     inv[1][0] = c01 * id;
@@ -158,6 +165,7 @@ class Block6 {
   double si_[3][3];  ///< S^-1
   double w_[3][3];   ///< Q S^-1
   double ti_[3][3];  ///< T^-1
+  double det_;       ///< det(S) det(T)
 };
 
 /// Is the symmetric 6x6 matrix G positive definite? (L D L^T without square roots: every
