@@ -338,8 +338,11 @@ TEST(Convert, CompensatedThroughXmlGivesTheDirectlyCompensatedModule) {
   // every line that holds no robtarget value is the same
   const std::vector<std::string> la = lines(via_xml), lb = lines(direct);
   ASSERT_EQ(la.size(), lb.size());
-  for (size_t i = 0; i < la.size(); ++i)
-    if (la[i].find("[[") == std::string::npos) EXPECT_EQ(la[i], lb[i]) << i + 1;
+  for (size_t i = 0; i < la.size(); ++i) {
+    if (la[i].find("[[") == std::string::npos) {
+      EXPECT_EQ(la[i], lb[i]) << i + 1;
+    }
+  }
   }
 }
 

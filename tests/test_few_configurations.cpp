@@ -17,17 +17,8 @@
 namespace accura::calib {
 namespace {
 
-struct CliRun {
-  int code;
-  std::string out, err;
-};
-
-CliRun run(const std::string& args) {
-  const std::string dir = test::tempDir("few_cli_run");
-  const std::string cmd = std::string(ACCURA_CLI) + " " + args + " >" + dir + "/out 2>" + dir + "/err";
-  const int status = std::system(cmd.c_str());
-  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, test::readText(dir + "/out"), test::readText(dir + "/err")};
-}
+using test::CliRun;
+CliRun run(const std::string& args) { return test::runAccura(args); }
 
 // `configs` distinct simulated KR 16 poses (position only), each measured `repeats` times in a
 // row: the same joint values, 0.01 mm of extra noise per axis on each repeat.

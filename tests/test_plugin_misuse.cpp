@@ -57,7 +57,7 @@ struct Args {
     EXPECT_EQ(accura_write_options_init(&o, sizeof(o)), ACCURA_OK);
     return o;
   }();
-  const accura_program_motion pm = {ACCURA_PTP, {}, p, 0, 0};
+  const accura_program_motion pm = {ACCURA_PTP, {}, p, 0, 0, 0, {}};
   size_t n = 0;
 };
 
@@ -166,7 +166,7 @@ TEST(PluginMisuse, WrongSizes) {
   accura_check_summary cs;
   EXPECT_MISUSE(m, accura_check_program(m, "c.xml", "a.src", &co, &cs, nullptr, 0), ACCURA_ERROR_INVALID_ARGUMENT,
                 "accura_check_options: struct_size 16");
-  const accura_program_motion pm = {ACCURA_PTP, {}, {1100, 0, 500, 0, 180, 0}, 0, 0};
+  const accura_program_motion pm = {ACCURA_PTP, {}, {1100, 0, 500, 0, 180, 0}, 0, 0, 0, {}};
   EXPECT_MISUSE(m, accura_write_program(m, "a.src", &pm, 1, &wo), ACCURA_ERROR_INVALID_ARGUMENT, "accura_write_options: struct_size 16");
   // the joint count of forward kinematics: the KR 16 has 6 (q holds 12, so nothing is read beyond)
   const double q[12] = {0, -90, 90, 0, 0, 0};

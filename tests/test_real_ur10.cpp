@@ -174,8 +174,9 @@ TEST(RealUr10, DiagnosisFindsTheResidualUnexplained) {
     EXPECT_GT(g["distance_mm"].get<double>(), 0.4);
     EXPECT_GT(g["orientation_jump_deg"].get<double>(), 0.05);  // repeats agree to about 0.002 deg
     // the bad row of each gross pair (> 1 mm) is among the rows the robust fit down-weights
-    if (g["distance_mm"].get<double>() > 1.0)
+    if (g["distance_mm"].get<double>() > 1.0) {
       EXPECT_TRUE(down.count(g["rows"][0].get<std::string>()) || down.count(g["rows"][1].get<std::string>())) << g.dump();
+    }
   }
   // the geometric model leaves about 0.46 mm held out (5-fold CV); the catalogue shrinks it a
   // little and the rest is unexplained, with the part explained stated

@@ -103,6 +103,15 @@ struct CliRun {
   std::string out, err;
 };
 
+/// Runs `accura ARGS` from the current directory; its output is captured in a directory of its
+/// own (tempDir).
+inline CliRun runAccura(const std::string& args) {
+  const std::string dir = tempDir("cli_run");
+  const std::string cmd = std::string(ACCURA_CLI) + " " + args + " >" + dir + "/out 2>" + dir + "/err";
+  const int status = std::system(cmd.c_str());
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, readText(dir + "/out"), readText(dir + "/err")};
+}
+
 /// Runs `accura ARGS` in directory `dir` (relative paths in ARGS are relative to it).
 inline CliRun runAccuraIn(const std::string& dir, const std::string& args) {
   const std::string cmd = "cd '" + dir + "' && " + std::string(ACCURA_CLI) + " " + args + " >.stdout 2>.stderr";

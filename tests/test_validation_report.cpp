@@ -11,17 +11,8 @@
 namespace accura::calib {
 namespace {
 
-struct CliRun {
-  int code;
-  std::string out, err;
-};
-
-CliRun run(const std::string& args) {
-  const std::string dir = test::tempDir("valrep_cli_run");
-  const std::string cmd = std::string(ACCURA_CLI) + " " + args + " >" + dir + "/out 2>" + dir + "/err";
-  const int status = std::system(cmd.c_str());
-  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, test::readText(dir + "/out"), test::readText(dir + "/err")};
-}
+using test::CliRun;
+CliRun run(const std::string& args) { return test::runAccura(args); }
 
 TEST(ValidationReport, AGlitchInTheValidationSetIsFlaggedAsInTheFitSet) {
   // a simulated KR 16 (0.02 mm noise per axis: validation errors of ~0.04 mm after calibration);
