@@ -157,6 +157,27 @@ TEST(Krl, SplineInlineFormsReadTheWithClause) {
   EXPECT_EQ(p.motions[4].tool.source, FrameSetting::Source::kNull);
 }
 
+// `DECL GLOBAL CONST ...` (a constant other modules see) in a data list: the keywords are read
+// one after the other. The reader stopped on CONST after GLOBAL and never returned (the
+// fuzzer's finding: `DECL GLOBAL GLOBAL ...` hung it the same way).
+TEST(Krl, GlobalConstDeclarationsAreRead) {
+  const std::string dir = test::tempDir("krl_global_const");
+  test::writeText(dir + "/$config.dat",
+                  "DEFDAT $CONFIG\nDECL GLOBAL CONST INT MAX_TOOLS=16\nDECL GLOBAL GLOBAL INT TWICE=1\n"
+                  "DECL GLOBAL FRAME TOOL_DATA[16]\nTOOL_DATA[2]={X 0.0,Y 0.0,Z 200.0,A 0.0,B 90.0,C 0.0}\n"
+                  "DECL CONST GLOBAL FRAME BASE_DATA[32]\nBASE_DATA[3]={X 900.0,Y -300.0,Z 200.0,A 30.0,B 0.0,C 0.0}\n"
+                  "ENDDAT\n");
+  const FrameTables t = readKrlFrameTables(dir + "/$config.dat");
+  ASSERT_GT(t.tool.size(), 2u);
+  ASSERT_TRUE(t.tool[2].has_value());
+  EXPECT_DOUBLE_EQ(t.tool[2]->z_mm, 200.0);
+  EXPECT_DOUBLE_EQ(t.tool[2]->b_deg, 90.0);
+  ASSERT_GT(t.base.size(), 3u);
+  ASSERT_TRUE(t.base[3].has_value());
+  EXPECT_DOUBLE_EQ(t.base[3]->x_mm, 900.0);
+  EXPECT_DOUBLE_EQ(t.base[3]->a_deg, 30.0);
+}
+
 // The KSS inline form of a spline block: SPLINE WITH $TOOL = STOOL2(FP1), $BASE =
 // SBASE(FP1.BASE_NO) sets the frames of the block's motions (the FDAT's TOOL_NO / BASE_NO into
 // the $config.dat's TOOL_DATA / BASE_DATA, as for a single motion's WITH); after ENDSPLINE the

@@ -219,7 +219,10 @@ void parseDeclaration(Cursor& c, Declarations& d, KrlSource* src, bool global) {
   const KrlFile& f = c.file();
   if (c.isIdent("DECL")) c.next();
   bool global_keyword = false;  // DECL GLOBAL: other modules may use the point
-  while (c.isIdent("GLOBAL") || c.isIdent("CONST")) global_keyword = global_keyword || c.next().up == "GLOBAL";
+  while (c.isIdent("GLOBAL") || c.isIdent("CONST")) {
+    // (each keyword consumed: `DECL GLOBAL CONST ...` must not stop the cursor after GLOBAL)
+    if (c.next().up == "GLOBAL") global_keyword = true;
+  }
   const Tok* type_tok = c.peek();
   if (!type_tok || type_tok->kind != Tok::kIdent) return;  // not ours
   const std::string type = type_tok->up;
