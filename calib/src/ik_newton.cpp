@@ -119,7 +119,7 @@ VecN KinematicSolver::Impl::midRange() const {
 void KinematicSolver::Impl::scaled(const Jac6N& J, Jac6N& Js) const {
   Js = J;
   Js.topRows<3>() /= L;
-  for (int i = 0; i < n; ++i) Js.col(i) *= revolute[i] ? kRadToDeg : L;
+  for (int i = 0; i < n; ++i) Js.col(i) *= columnScale(i);
 }
 
 bool KinematicSolver::Impl::singularBelow(const Jac6N& J, double t) const {
@@ -131,7 +131,7 @@ bool KinematicSolver::Impl::singularBelow(const Jac6N& J, double t) const {
     const double inv_L = 1.0 / L;
     for (int c = 0; c < 6; ++c) {
       const double* Jc = J.data() + 6 * c;
-      const double s = revolute[c] ? kRadToDeg : L;
+      const double s = columnScale(c);
       a[c][0] = Jc[0] * inv_L * s;
       a[c][1] = Jc[1] * inv_L * s;
       a[c][2] = Jc[2] * inv_L * s;
@@ -171,7 +171,7 @@ double KinematicSolver::Impl::sigmaMinLowerBound(const Jac6N& J, const detail::B
   double col_scale = 1, frobenius2 = 0;
   const double inv_L = 1.0 / L;
   for (int c = 0; c < 6; ++c) {
-    const double s = revolute[c] ? kRadToDeg : L;
+    const double s = columnScale(c);
     col_scale *= s;
     const double* Jc = J.data() + 6 * c;
     const double p = (Jc[0] * Jc[0] + Jc[1] * Jc[1] + Jc[2] * Jc[2]) * inv_L * inv_L;
@@ -310,15 +310,15 @@ KinematicSolver::Impl::Newton KinematicSolver::Impl::newton(VecN& q, const Eigen
       if (!have) {
         const Jac6N* Jq = J0 && f_valid && fp.cur == start ? J0 : nullptr;
         // J0 already factored (B0), else the factorisation of the Jacobian at q
-        fact = Jq ? B0 : nullptr;
+        const detail::Block6* given = Jq ? B0 : nullptr;
         if (!Jq) {
           chain.jacobian(*fp.cur, J);
           Jq = &J;
         }
         J0 = nullptr;
         B0 = nullptr;
-        use_block = fact || block.factor(Jq->data());
-        if (!fact) fact = &block;
+        use_block = given || block.factor(Jq->data());
+        fact = given ? given : &block;
         if (!use_block && !lu.factor(Jq->data())) break;
         have = fresh = true;
       }
@@ -358,7 +358,7 @@ KinematicSolver::Impl::Newton KinematicSolver::Impl::newton(VecN& q, const Eigen
       MatN M = A;
       M.diagonal().array() += lambda;
       const VecN dx = M.ldlt().solve(g);
-      for (int i = 0; i < n; ++i) dq[i] = dx[i] * (revolute[i] ? kRadToDeg : L);
+      for (int i = 0; i < n; ++i) dq[i] = dx[i] * columnScale(i);
       if (!dq.allFinite()) return result();
       limitStep(dq);
       if (trial(dq)) {
