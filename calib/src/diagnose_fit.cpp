@@ -144,7 +144,7 @@ void Diagnoser::robust() {
     const std::vector<int> S = withBlocks(all);
     Eigen::LLT<Eigen::MatrixXd> llt;
     Eigen::VectorXd x;
-    if (!solveSpd(A_(S, S), b_(S), &llt, &x)) return;
+    if (!solveStaged(A_(S, S), b_(S), mapMask(S), &llt, &x)) return;
     const Eigen::VectorXd e = rF_ - JF_(Eigen::all, S) * x;
     std::vector<double> mag(static_cast<size_t>(m_));
     for (int i = 0; i < m_; ++i) mag[static_cast<size_t>(i)] = e.segment(3 * i, 3).norm();
@@ -459,6 +459,29 @@ bool solveSpd(const Eigen::MatrixXd& M, const Eigen::VectorXd& v, Eigen::LLT<Eig
   return x->allFinite();
 }
 
+bool solveStaged(const Eigen::MatrixXd& M, const Eigen::VectorXd& v, const std::vector<bool>& is_map,
+                 Eigen::LLT<Eigen::MatrixXd>* llt, Eigen::VectorXd* x) {
+  std::vector<Eigen::Index> P, Q;
+  for (size_t k = 0; k < is_map.size(); ++k) (is_map[k] ? Q : P).push_back(static_cast<Eigen::Index>(k));
+  if (P.empty() || Q.empty()) return solveSpd(M, v, llt, x);
+  // the joint factorisation: the singularity test and the leverages (the staged estimate's are
+  // close to the joint one's, not larger: the maps' columns are free of what the others hold)
+  if (!solveSpd(M, v, llt, x)) return false;
+  Eigen::LLT<Eigen::MatrixXd> stage;
+  Eigen::VectorXd xp, xq;
+  if (!solveSpd(M(P, P), v(P), &stage, &xp)) return false;
+  if (!solveSpd(M(Q, Q), v(Q) - M(Q, P) * xp, &stage, &xq)) return false;
+  (*x)(P) = xp;
+  (*x)(Q) = xq;
+  return true;
+}
+
+std::vector<bool> Diagnoser::mapMask(const std::vector<int>& S) const {
+  std::vector<bool> m;
+  for (int c : S) m.push_back(is_map_[static_cast<size_t>(c)]);
+  return m;
+}
+
 Diagnoser::Eval Diagnoser::evaluate(const std::vector<int>& S, bool leverage) const {
   // the selection, ranking, confounding and shrink steps ask for some column sets again
   const auto key = std::make_pair(S, leverage);
@@ -474,7 +497,7 @@ Diagnoser::Eval Diagnoser::evaluateUncached(const std::vector<int>& S, bool leve
   Eigen::LLT<Eigen::MatrixXd> llt;
   Eigen::VectorXd x;
   if (has_val_) {
-    if (!solveSpd(AS, bS, &llt, &x)) return ev;
+    if (!solveStaged(AS, bS, mapMask(S), &llt, &x)) return ev;
     const Eigen::MatrixXd JS = JV_(Eigen::all, S);
     const Eigen::VectorXd e = rV_ - JS * x;
     ev.d.resize(nv_);
@@ -521,11 +544,11 @@ Diagnoser::Eval Diagnoser::cvEval(const std::vector<int>& S, const Scheme& schem
       if (!(&scheme != &interleaved_ && is_map_[static_cast<size_t>(S[a])] && At(S[a], S[a]) - penalty_(S[a], S[a]) < 0.9 * data))
         act.push_back(a);
     }
-    if (static_cast<Eigen::Index>(act.size()) == s) {
-      if (!solveSpd(M, v, &llt, &x)) return ev;
-    } else {
+    {
       Eigen::VectorXd xa;
-      if (!solveSpd(M(act, act), v(act), &llt, &xa)) return ev;
+      std::vector<bool> mp;
+      for (Eigen::Index a : act) mp.push_back(is_map_[static_cast<size_t>(S[a])]);
+      if (!solveStaged(M(act, act), v(act), mp, &llt, &xa)) return ev;
       x = Eigen::VectorXd::Zero(s);
       x(act) = xa;
     }
@@ -566,7 +589,7 @@ Eigen::VectorXd Diagnoser::fitAll(const std::vector<int>& S, double* chi2, Eigen
   const Eigen::VectorXd bS = b_(S);
   Eigen::LLT<Eigen::MatrixXd> llt;
   Eigen::VectorXd x;
-  if (!solveSpd(AS, bS, &llt, &x)) throw NumericalError("diagnose: the normal matrix of the fit is singular");
+  if (!solveStaged(AS, bS, mapMask(S), &llt, &x)) throw NumericalError("diagnose: the normal matrix of the fit is singular");
   const double c2 = std::max(0.0, rr_ - bS.dot(x));
   if (chi2) *chi2 = c2;
   if (sigma) {
@@ -619,7 +642,16 @@ static std::string singularWhy(const std::vector<std::vector<int>>& groups, cons
 }
 
 RobotModel Diagnoser::gnFit(const std::vector<int>& S, const std::vector<int>& rows, RowSystem* at_m0) const {
-  RobotModel model = M0_;
+  // the maps after the other columns, fitted to what those leave, as identify does
+  std::vector<int> others, maps;
+  for (int c : S) (is_map_[static_cast<size_t>(c)] ? maps : others).push_back(c);
+  if (others.empty() || maps.empty()) return gnFitFrom(M0_, S, rows, at_m0);
+  return gnFitFrom(gnFitFrom(M0_, others, rows, at_m0), maps, rows, nullptr);
+}
+
+RobotModel Diagnoser::gnFitFrom(const RobotModel& start, const std::vector<int>& S, const std::vector<int>& rows,
+                                RowSystem* at_m0) const {
+  RobotModel model = start;
   std::vector<ParamInfo> sub;
   Eigen::VectorXd inv_scale(static_cast<Eigen::Index>(S.size()));
   for (size_t k = 0; k < S.size(); ++k) {

@@ -52,6 +52,12 @@ inline std::vector<std::vector<int>> repeatGroups(const MeasurementSet& set, dou
 /// (a pivot ratio below 1e-7, a condition number above 1e14).
 bool solveSpd(const Eigen::MatrixXd& M, const Eigen::VectorXd& v, Eigen::LLT<Eigen::MatrixXd>* llt,
               Eigen::VectorXd* x);
+/// The joint maps are fitted after the other parameters, to what those leave (docs/diagnosis.md):
+/// the normal system M x = v solved for the columns that are not maps (is_map false) alone, then
+/// for the maps' with those held. *llt gets the joint factorisation of M (singularity, leverages).
+/// One kind of column alone: solveSpd.
+bool solveStaged(const Eigen::MatrixXd& M, const Eigen::VectorXd& v, const std::vector<bool>& is_map,
+                 Eigen::LLT<Eigen::MatrixXd>* llt, Eigen::VectorXd* x);
 /// Canonical correlation of two blocks' weighted columns with the geometry projected out.
 double canonicalCorrelation(const Eigen::MatrixXd& Jw, const std::vector<int>& G, const std::vector<int>& a,
                             const std::vector<int>& b);
@@ -136,10 +142,16 @@ class Diagnoser {
     Eigen::MatrixXd Jw;
     Eigen::VectorXd rw;
   };
-  /// Gauss-Newton refit of the columns S on the fit poses `rows`, from M0. at_m0: the system of
-  /// every pose at M0 for S, used for the first iteration when it holds it, else filled when
-  /// `rows` are all poses in order.
+  /// Gauss-Newton refit of the columns S on the fit poses `rows`, from M0: the columns that are
+  /// not joint maps', then the maps' with those held (solveStaged). at_m0: the system of every
+  /// pose at M0 for the first stage's columns, used for its first iteration when it holds it,
+  /// else filled when `rows` are all poses in order.
   RobotModel gnFit(const std::vector<int>& S, const std::vector<int>& rows, RowSystem* at_m0 = nullptr) const;
+  /// Gauss-Newton over the columns S from `start` (at_m0 only when start is M0).
+  RobotModel gnFitFrom(const RobotModel& start, const std::vector<int>& S, const std::vector<int>& rows,
+                       RowSystem* at_m0) const;
+  /// Per column of S: whether it is a joint map's coefficient.
+  std::vector<bool> mapMask(const std::vector<int>& S) const;
   Exact exact(const std::vector<int>& S);
   void floorTest(const Eval& lin, const std::vector<Eigen::Vector3d>& e, const std::vector<bool>& keep,
                  HeldOutStats* s) const;

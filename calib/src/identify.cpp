@@ -596,20 +596,38 @@ RobotModel identify(const RobotModel& start, const std::vector<MeasurementSet>& 
   }
 
   // 4. Solve; with variance components: solve, re-estimate from the residuals, solve again.
+  // Joint maps are fitted after the other parameters, to what those leave: stage 1 holds the
+  // maps at zero, stage 2 everything else (docs/diagnosis.md, "Joint maps"; fitted together, the
+  // maps and the geometry trade their slow parts, and the geometry no longer carries over to
+  // joint ranges the data did not cover). The covariance is the joint one (section 5).
   const bool robust = options.loss != "none";
   int iterations = 0;  // of every solve, the weighting rounds' included (from initial_cost to final_cost)
-  if (weighting.estimate_pos || weighting.estimate_rot || options.model_error) {
-    for (int round = 0; round < 4; ++round) {
-      iterations += solve(pb, options, robust).iterations;
-      const double change = weighting.reestimate(pb, options, p_free);
-      weighting.apply(pb);
-      if (change < 0.01) break;
+  const std::vector<bool> free_all = pb.free;
+  bool others_free = false;
+  for (size_t k = 0; k < pb.X; ++k) others_free = others_free || (free_all[k] && !pb.isMap(k));
+  const bool staged = pb.n_map > 0 && others_free;
+  SolveResult res;
+  for (int stage = staged ? 1 : 0; stage <= (staged ? 2 : 0); ++stage) {
+    int stage_free = p_free;
+    if (staged) {
+      for (size_t k = 0; k < pb.X; ++k) pb.free[k] = free_all[k] && (pb.isMap(k) == (stage == 2));
+      if (stage == 1) stage_free = kept + 6 * pb.st.extra;
     }
+    if (weighting.estimate_pos || weighting.estimate_rot || options.model_error) {
+      for (int round = 0; round < 4; ++round) {
+        iterations += solve(pb, options, robust).iterations;
+        const double change = weighting.reestimate(pb, options, stage_free);
+        weighting.apply(pb);
+        if (change < 0.01) break;
+      }
+    }
+    res = solve(pb, options, robust);
+    iterations += res.iterations;
+    if (res.failure) throw NumericalError("identification failed: " + res.message);
   }
-  const SolveResult res = solve(pb, options, robust);
+  pb.free = free_all;
   summary.termination = res.termination;
-  summary.iterations = iterations + res.iterations;
-  if (res.failure) throw NumericalError("identification failed: " + res.message);
+  summary.iterations = iterations;
   weighting.describe(pb, summary);
 
   // 5. Uncertainties at the solution, the summary's diagnostics.

@@ -316,7 +316,10 @@ JointMapCvResult crossValidateJointMap(const std::vector<JointMapCvRow>& rows, c
     }
     return ss;
   };
-  // baseline: no maps
+  // baseline: no maps. Its solution on each fold's training rows is also the first stage of
+  // the fit with maps: the maps are fitted to what the other parameters leave, those held
+  // (identify, docs/diagnosis.md)
+  std::vector<Eigen::VectorXd> delta_g(static_cast<size_t>(folds));
   {
     std::vector<Eigen::MatrixXd> Nf(static_cast<size_t>(folds), Eigen::MatrixXd::Zero(p, p));
     std::vector<Eigen::VectorXd> bf(static_cast<size_t>(folds), Eigen::VectorXd::Zero(p));
@@ -335,7 +338,8 @@ JointMapCvResult crossValidateJointMap(const std::vector<JointMapCvRow>& rows, c
       auto train = [&](Eigen::MatrixXd& N) { N = Nt - Nf[static_cast<size_t>(f)]; };
       Eigen::MatrixXd N;
       train(N);
-      ss += heldOut({}, {}, f, solveRidged(N, bt - bf[static_cast<size_t>(f)], train));
+      delta_g[static_cast<size_t>(f)] = solveRidged(N, bt - bf[static_cast<size_t>(f)], train);
+      ss += heldOut({}, {}, f, delta_g[static_cast<size_t>(f)]);
     }
     result.baseline_rms_mm = std::sqrt(ss / double(rows.size()));
   }
@@ -397,11 +401,12 @@ JointMapCvResult crossValidateJointMap(const std::vector<JointMapCvRow>& rows, c
       const Eigen::Index K = static_cast<Eigen::Index>(maps[static_cast<size_t>(j)].coef.size());
       scale2[static_cast<size_t>(j)] = std::max(Nt.diagonal().segment(col0[static_cast<size_t>(j)], K).mean(), 1e-300);
     }
-    // the smoothness penalty of smoothing sm on the lower triangle of N
-    auto addSmoothness = [&](Eigen::MatrixXd& N, double sm) {
+    // the smoothness penalty of smoothing sm on the lower triangle of N, whose first column is
+    // the full system's column `first`
+    auto addSmoothness = [&](Eigen::MatrixXd& N, double sm, Eigen::Index first) {
       for (int j = 0; j < J; ++j) {
         const Eigen::Index K = static_cast<Eigen::Index>(maps[static_cast<size_t>(j)].coef.size());
-        const Eigen::Index c0 = col0[static_cast<size_t>(j)];
+        const Eigen::Index c0 = col0[static_cast<size_t>(j)] - first;
         const double s = sm * scale2[static_cast<size_t>(j)];
         // D^T D, D the (K-2) x K second differences (D(k, k..k+2) = 1, -2, 1): entry (a, a+o)
         // = sum over D's rows k = max(a+o-2, 0) .. min(a, K-3) of D(k, a) D(k, a+o)
@@ -440,14 +445,20 @@ JointMapCvResult crossValidateJointMap(const std::vector<JointMapCvRow>& rows, c
               av, W / av.squaredNorm());
         }
       }
+      // the maps' right-hand side with the fold's first stage held
+      const Eigen::Index nq = n - p;
+      const Eigen::VectorXd bq = btrain.tail(nq) + Ntrain.bottomLeftCorner(nq, p) * delta_g[static_cast<size_t>(f)];
       for (size_t si = 0; si < smoothings.size(); ++si) {
+        // the maps' block of the training system (lower triangle) with the smoothness penalty
         auto train = [&](Eigen::MatrixXd& N) {
-          N.resize(n, n);
-          N.triangularView<Eigen::Lower>() = Ntrain;
-          addSmoothness(N, smoothings[si]);
+          N.resize(nq, nq);
+          N.triangularView<Eigen::Lower>() = Ntrain.bottomRightCorner(nq, nq);
+          addSmoothness(N, smoothings[si], p);
         };
         train(Nwork);
-        const Eigen::VectorXd dl = solveRidged(Nwork, btrain, train);
+        Eigen::VectorXd dl(n);
+        dl.head(p) = delta_g[static_cast<size_t>(f)];
+        dl.tail(nq) = solveRidged(Nwork, bq, train);
         result.table[first_entry + si].cv_rms_mm += heldOut(maps, col0, f, dl);
       }
     }

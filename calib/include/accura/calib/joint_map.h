@@ -52,7 +52,11 @@ std::vector<std::vector<double>> jointMapCentringRows(const JointMap& map, const
                                                       int harmonics);
 
 /// Low harmonics kept out of a revolute joint's map (see jointMapCentringRows); prismatic: 0.
-constexpr int kJointMapCentredHarmonics = 1;
+/// Those of gear_periodic (kDefaultGearHarmonics, 1 and 2 cycles per revolution): what varies
+/// that slowly over a joint's range is the offsets', the scale's, the geometry's, the
+/// compliance's and gear_periodic's, and it does not carry over from one series to another; the
+/// map holds the errors of many cycles per revolution that none of those describe (docs/diagnosis.md).
+constexpr int kJointMapCentredHarmonics = kDefaultGearHarmonics;
 
 /// The most map coefficients identify solves (all joints together): they are solved densely,
 /// and beyond this a run takes minutes to hours (a knot spacing of 0.1 deg on six joints) while
