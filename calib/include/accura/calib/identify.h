@@ -204,8 +204,10 @@ struct IdentifySummary {
 };
 
 /// Identifies the parameters named by options.groups starting from `start` (nominal or
-/// previously calibrated; its deviations are the initial guess) on `data`.
-/// Returns the calibrated model. Throws InputError when the data is too small for the
+/// previously calibrated; its deviations are the initial guess) on `data`. With joint_map and
+/// other groups, the maps are fitted after the others, to what those leave, those held (two
+/// solves; the reported sigmas are the joint covariance's): where a map is zero the model is the
+/// one without maps. Returns the calibrated model. Throws InputError when the data is too small for the
 /// parameters asked for (too few rows, or too few distinct joint configurations: repeats,
 /// repeatedConfigurations(), count once), ArgumentError on invalid options, NumericalError when the
 /// registration is degenerate (collinear points) or the solver fails.

@@ -140,7 +140,9 @@ constexpr double kJointMapCentringWeight = 1e3;
 
 /// Refits the linearised problem for every (knot, smoothing) candidate on all folds but one and
 /// predicts the held-out fold (maps on `ranges`, one per mapped joint, the centring taken on
-/// the training rows, with centred_harmonics[j] low harmonics kept out). The knot spacings are
+/// the training rows, with centred_harmonics[j] low harmonics kept out). As identify fits them,
+/// the maps are fitted after the other columns (G): G's solution on the training rows (the
+/// baseline's), then the maps' with it held. The knot spacings are
 /// tried from the widest down; a finer one only while the last one tried has a smaller best
 /// held-out RMS than the wider one before it (the rest are listed in knots_not_tried: the
 /// finest candidates have the largest systems, most of the cost). Cost per knot tried: one
