@@ -79,7 +79,10 @@ void Diagnoser::addJointMaps() {
                                         ": no map";
       continue;
     }
-    M0_.deviations.joint_map[static_cast<size_t>(j)] = makeJointMap(c.lower, c.upper, knot);
+    std::vector<double> qj;
+    for (const Measurement& r : fit_.rows) qj.push_back(r.q[j]);
+    const JointRange support = jointMapSupport(qj);
+    M0_.deviations.joint_map[static_cast<size_t>(j)] = makeJointMap(support.lower, support.upper, knot);
     any = true;
   }
   if (any) map_knot_ = knot;

@@ -389,14 +389,17 @@ Problem setUp(const RobotModel& start, const std::vector<MeasurementSet>& sets, 
       }
       mapped.push_back(j);
     }
-    // the maps this run fits (not those held from the start model), sized before they are made
+    // the maps this run fits (not those held from the start model), on the dense part of the
+    // covered interval, sized before they are made
     std::vector<JointRange> ranges;
-    for (const int j : mapped) ranges.push_back(summary.coverage[static_cast<size_t>(j)]);
-    checkJointMapSize(ranges, stated_knot);
     for (const int j : mapped) {
-      const JointRange& c = summary.coverage[static_cast<size_t>(j)];
-      model.deviations.joint_map[static_cast<size_t>(j)] = makeJointMap(c.lower, c.upper, stated_knot);
+      std::vector<double> qj;
+      for (const Measurement& r : data.rows) qj.push_back(r.q[j]);
+      ranges.push_back(jointMapSupport(qj));
     }
+    checkJointMapSize(ranges, stated_knot);
+    for (size_t k = 0; k < mapped.size(); ++k)
+      model.deviations.joint_map[static_cast<size_t>(mapped[k])] = makeJointMap(ranges[k].lower, ranges[k].upper, stated_knot);
   }
   // The candidate parameters: those of the requested groups (tool rotation only with
   // orientation data). Every other deviation stays as it is in `start` and is not part of
@@ -613,11 +616,15 @@ RobotModel identify(const RobotModel& start, const std::vector<MeasurementSet>& 
       for (size_t k = 0; k < pb.X; ++k) pb.free[k] = free_all[k] && (pb.isMap(k) == (stage == 2));
       if (stage == 1) stage_free = kept + 6 * pb.st.extra;
     }
+    // the maps' smoothness and centring relative to the weights they are solved with
+    const bool maps_free = pb.n_map > 0 && stage != 1;
+    if (maps_free && stage == 2) refreshPenaltyRows(pb, options.joint_map_smoothing);
     if (weighting.estimate_pos || weighting.estimate_rot || options.model_error) {
       for (int round = 0; round < 4; ++round) {
         iterations += solve(pb, options, robust).iterations;
         const double change = weighting.reestimate(pb, options, stage_free);
         weighting.apply(pb);
+        if (maps_free) refreshPenaltyRows(pb, options.joint_map_smoothing);
         if (change < 0.01) break;
       }
     }

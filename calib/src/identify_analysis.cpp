@@ -67,6 +67,37 @@ void Problem::stack(Eigen::MatrixXd* J, Eigen::VectorXd* r) const {
 
 // Identifiability on the scaled weighted Jacobian at the starting point (the joint maps'
 // coefficients are not candidates here: they are regularised, see penaltyRows).
+// The weighted Jacobian's columns row by row from the compact rows (the stacked Jacobian over
+// hundreds of map coefficients is never formed): col_sq gets every column's squared norm over
+// x; each non-zero column block of a row goes to visit(first equation, x index, column).
+template <class Visit>
+void weightedColumns(const Problem& pb, Eigen::VectorXd* col_sq, const Visit& visit) {
+  col_sq->setZero(static_cast<Eigen::Index>(pb.X));
+  RowStack rows(pb.model, pb.plan, pb.st);
+  Eigen::Index row = 0;
+  for (size_t i = 0; i < pb.data.rows.size(); ++i) {
+    rows.poseCompact(pb.x, pb.data.rows[i], i);
+    const int dim = pb.weights[i].dim;
+    const Eigen::MatrixXd Jw = pb.weights[i].w.head(dim).asDiagonal() * rows.Jc().topRows(dim);
+    for (size_t k = 0; k < rows.idx().size(); ++k) {
+      const int xi = rows.idx()[k];
+      if (xi < 0) continue;
+      const Eigen::VectorXd col = Jw.col(static_cast<Eigen::Index>(k));
+      (*col_sq)[xi] += col.squaredNorm();
+      visit(row, xi, col);
+    }
+    row += dim;
+  }
+}
+
+void refreshPenaltyRows(Problem& pb, double smoothing) {
+  if (!pb.sparse) return;
+  Eigen::VectorXd col_sq;
+  weightedColumns(pb, &col_sq, [](Eigen::Index, int, const Eigen::VectorXd&) {});
+  pb.penalties.clear();
+  penaltyRows(pb, smoothing, col_sq);
+}
+
 int identifiability(Problem& pb, const IdentifyOptions& options, IdentifySummary& summary, Eigen::VectorXd* col_sq) {
   const size_t P = pb.P;
   const std::vector<ParamInfo>& layout = pb.layout;
@@ -87,22 +118,9 @@ int identifiability(Problem& pb, const IdentifyOptions& options, IdentifySummary
     std::vector<int> cand_of(pb.X, -1);
     for (size_t c = 0; c < cand_idx.size(); ++c) cand_of[static_cast<size_t>(cand_idx[c])] = static_cast<int>(c);
     Js.setZero(pb.m_eq, static_cast<Eigen::Index>(cand_idx.size()));
-    col_sq->setZero(static_cast<Eigen::Index>(pb.X));
-    RowStack rows(pb.model, pb.plan, pb.st);
-    Eigen::Index row = 0;
-    for (size_t i = 0; i < pb.data.rows.size(); ++i) {
-      rows.poseCompact(pb.x, pb.data.rows[i], i);
-      const int dim = pb.weights[i].dim;
-      const Eigen::MatrixXd Jw = pb.weights[i].w.head(dim).asDiagonal() * rows.Jc().topRows(dim);
-      for (size_t k = 0; k < rows.idx().size(); ++k) {
-        const int xi = rows.idx()[k];
-        if (xi < 0) continue;
-        (*col_sq)[xi] += Jw.col(static_cast<Eigen::Index>(k)).squaredNorm();
-        if (cand_of[static_cast<size_t>(xi)] >= 0)
-          Js.block(row, cand_of[static_cast<size_t>(xi)], dim, 1) = Jw.col(static_cast<Eigen::Index>(k));
-      }
-      row += dim;
-    }
+    weightedColumns(pb, col_sq, [&](Eigen::Index row, int xi, const Eigen::VectorXd& col) {
+      if (cand_of[static_cast<size_t>(xi)] >= 0) Js.block(row, cand_of[static_cast<size_t>(xi)], col.size(), 1) = col;
+    });
   }
   const Eigen::Index m = Js.rows();
   Eigen::VectorXd norms = Js.colwise().norm();

@@ -202,6 +202,10 @@ int identifiability(Problem& pb, const IdentifyOptions& options, IdentifySummary
 /// The joint maps' regularisation rows (smoothness, centring) into pb.penalties; col_sq as
 /// identifiability() returns it.
 void penaltyRows(Problem& pb, double smoothing, const Eigen::VectorXd& col_sq);
+/// The joint maps' regularisation rows again, scaled to the weights in force now (the weighting
+/// rounds change them: the rows' scale is the maps' weighted columns', so that the smoothness
+/// stays relative to the data's own weight). No-op without maps.
+void refreshPenaltyRows(Problem& pb, double smoothing);
 /// How a solve ended.
 struct SolveResult {
   std::string termination;  ///< Ceres' termination type and message

@@ -33,13 +33,17 @@ RobotModel identifyWithMapCv(const RobotModel& start, const std::vector<Measurem
                                              : std::vector<double>{options.joint_map_smoothing};
   const double widest = *std::max_element(knots.begin(), knots.end());
   std::vector<int> cv_joints;
-  std::vector<JointRange> ranges;
+  std::vector<JointRange> ranges;  // the maps' intervals, as identify makes them (jointMapSupport)
+  std::vector<int> set_of_row;
+  const MeasurementSet data = combine(sets, &set_of_row);
   for (int j = 0; j < m0.dof(); ++j) {
     if (!map_joints.empty() && !map_joints.count(j + 1)) continue;
     const JointRange& c = s0.coverage[static_cast<size_t>(j)];
     if (c.upper - c.lower < 2 * widest) continue;
+    std::vector<double> qj;
+    for (const Measurement& r : data.rows) qj.push_back(r.q[j]);
     cv_joints.push_back(j);
-    ranges.push_back(c);
+    ranges.push_back(jointMapSupport(qj));
   }
   for (const double knot : knots) checkJointMapSize(ranges, knot);  // before the cross-validation's dense solves
   IdentifyOptions o1 = options;
@@ -61,8 +65,6 @@ RobotModel identifyWithMapCv(const RobotModel& start, const std::vector<Measurem
       const bool revolute = m0.nominal.joints[static_cast<size_t>(j)].type == JointType::kRevolute;
       L.push_back({revolute ? ParamKind::kOffset : ParamKind::kD, j, "map_unit", "joint_map", "", 1.0});
     }
-    std::vector<int> set_of_row;
-    const MeasurementSet data = combine(sets, &set_of_row);
     Stations st = stationsFor(set_of_row, sets.size(), options.same_station);
     st.offset = L.size();
     std::vector<double> x(L.size() + 6 * static_cast<size_t>(st.extra), 0.0);

@@ -36,6 +36,21 @@ double jointMapBasisValue(const JointMap& map, double q, int k);
 /// one knot spacing. Throws ArgumentError when lower >= upper or knot <= 0 (or non-finite).
 JointMap makeJointMap(double lower, double upper, double knot);
 
+/// Width (deg, or mm for a prismatic joint) of the window jointMapSupport counts values in: the
+/// widest knot spacing the cross-validation tries, one number for every knot spacing so that
+/// the cross-validation and the fit it chooses map the same interval.
+constexpr double kJointMapSupportWindow = 3.0;
+
+/// The interval a joint's map is defined on: the fit data's range of the joint (`q_fit`, deg or
+/// mm), less the sparse tails at either end. An end moves inwards to the first value from which
+/// a window of `window` holds at least a fifth of the data's mean count per window (and at least
+/// 2 values): beyond it a map's coefficients would rest on a handful of poses, and the
+/// smoothness penalty would extrapolate the map's trend over a part of the range that other data
+/// may fill (on the real UR10, Series_C reaches joint 2's -90 deg with 1 pose; its bulk ends near
+/// -125). The whole range when the rest would be narrower than two windows. Throws
+/// ArgumentError when q_fit is empty or window is not positive and finite.
+JointRange jointMapSupport(std::vector<double> q_fit, double window = kJointMapSupportWindow);
+
 /// The largest |m(q)| over the covered interval (rad or mm), sampled at 8 points per interval.
 double jointMapAmplitude(const JointMap& map);
 
