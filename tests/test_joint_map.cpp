@@ -262,6 +262,26 @@ TEST(JointMap, OutsideFitRangesNamesTheJointsOfFittedEffects) {
   EXPECT_THROW(outsideFitRanges(m, Eigen::VectorXd::Zero(5)), ArgumentError);
 }
 
+// A simulated tracker campaign: 0.02 mm noise per axis, written in std columns.
+SimulateOptions trackerCampaign(std::uint64_t seed) {
+  SimulateOptions sim;
+  sim.seed = seed;
+  sim.noise_mm = 0.02;
+  sim.write_std = true;
+  return sim;
+}
+
+// The robot perturbed as `sim` says, with a cyclic error of 17 cycles per revolution (0.5 mrad)
+// on joints 2 and 3 over their whole ranges and 5 deg beyond.
+RobotModel cyclicTruth(const RobotModel& nominal, const SimulateOptions& sim) {
+  RobotModel truth = perturbModel(nominal, sim);
+  for (int j : {1, 2}) {
+    const JointSpec& js = nominal.nominal.joints[static_cast<size_t>(j)];
+    truth.deviations.joint_map[static_cast<size_t>(j)] = cyclicMap(js.lower - 5, js.upper + 5, 1.0, 5e-4, 17, 0.7 * j);
+  }
+  return truth;
+}
+
 // A KR 16 whose joints 2 and 3 carry a cyclic error of 17 cycles per revolution (0.5 mrad):
 // the geometric model cannot follow it; joint_map recovers it, all but its projection on the
 // slow functions a map leaves to the parametric effects (a constant, a trend and harmonics 1
@@ -272,11 +292,7 @@ TEST(JointMap, IdentifyRecoversACyclicJointErrorToTheNoiseFloor) {
   SimulateOptions sim;
   sim.seed = 11;
   sim.noise_mm = 0.02;
-  RobotModel truth = perturbModel(nominal, sim);
-  for (int j : {1, 2}) {
-    const JointSpec& js = nominal.nominal.joints[static_cast<size_t>(j)];
-    truth.deviations.joint_map[static_cast<size_t>(j)] = cyclicMap(js.lower - 5, js.upper + 5, 1.0, 5e-4, 17, 0.7 * j);
-  }
+  const RobotModel truth = cyclicTruth(nominal, sim);
   sim.poses = 1500;
   const MeasurementSet fit = simulateMeasurements(truth, sim);
   sim.seed = 12;
@@ -408,15 +424,8 @@ TEST(JointMap, SupportLeavesOutSparseTails) {
 // weighting rounds; the map solve holds them), to a thousandth of their sigma.
 TEST(JointMap, MapsLeaveTheGeometricFitAsItIs) {
   const RobotModel nominal = test::loadBundled("kuka_kr16");
-  SimulateOptions sim;
-  sim.seed = 11;
-  sim.noise_mm = 0.02;
-  sim.write_std = true;
-  RobotModel truth = perturbModel(nominal, sim);
-  for (int j : {1, 2}) {
-    const JointSpec& js = nominal.nominal.joints[static_cast<size_t>(j)];
-    truth.deviations.joint_map[static_cast<size_t>(j)] = cyclicMap(js.lower - 5, js.upper + 5, 1.0, 5e-4, 17, 0.7 * j);
-  }
+  SimulateOptions sim = trackerCampaign(11);
+  const RobotModel truth = cyclicTruth(nominal, sim);
   sim.poses = 600;
   const MeasurementSet fit = simulateMeasurements(truth, sim);
   IdentifyOptions o;
@@ -446,10 +455,7 @@ TEST(JointMap, MapsLeaveTheGeometricFitAsItIs) {
 // fit on all data came out worse than the held-out error (the KR 16 bench: 0.179 against 0.091 mm).
 TEST(JointMap, FitAgreesWithTheCrossValidationThatChoseTheSmoothing) {
   const RobotModel nominal = test::loadBundled("kuka_kr16");
-  SimulateOptions sim;
-  sim.seed = 9;
-  sim.noise_mm = 0.02;
-  sim.write_std = true;
+  SimulateOptions sim = trackerCampaign(9);
   RobotModel truth = perturbModel(nominal, sim);
   sim.poses = 800;
   MeasurementSet fit = simulateMeasurements(truth, sim);
