@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 #include <random>
 
+#include "accura/calib/diagnose.h"
 #include "accura/calib/errors.h"
 #include "accura/calib/identify.h"
 #include "accura/calib/measurements.h"
@@ -94,6 +95,36 @@ TEST(FewConfigurations, RepeatsDoNotCountAsInformationAboutTheGeometry) {
   EXPECT_EQ(sa.independent_equations, 480);
   EXPECT_FALSE(sa.few_configurations);
   for (const std::string& w : sa.warnings) EXPECT_EQ(w.find("distinct joint configurations"), std::string::npos) << w;
+}
+
+TEST(FewConfigurations, DiagnoseRefusesRepeatsOfFewConfigurationsCountingThem) {
+  // 8 configurations x 25 repeats: the diagnosis's baseline (the complete geometric model,
+  // position only: 6 base + 3 tool position + 4 x 6 joint parameters = 33) cannot be determined
+  // by 8 x 3 = 24 independent equations. Refused before any refit, naming the file and counting
+  // the rows and configurations (not a "normal matrix is singular" from a refit further on)
+  const Repeated few = repeatedCampaign(8, 25, 41);
+  ASSERT_EQ(few.set.rows.size(), 200u);
+  const std::string counts = "200 poses hold only 8 distinct joint configurations";
+  try {
+    diagnose(few.nominal, few.set, nullptr, DiagnoseOptions{});
+    FAIL() << "diagnosed 8 distinct configurations";
+  } catch (const InputError& e) {
+    const std::string w = e.what();
+    EXPECT_EQ(e.file(), "repeats.csv");
+    EXPECT_NE(w.find("too few distinct joint configurations"), std::string::npos) << w;
+    EXPECT_NE(w.find(counts), std::string::npos) << w;
+    EXPECT_NE(w.find("24 independent equations, expected more than 33"), std::string::npos) << w;
+  }
+  // what the command says: the file, the counts, exit code 1 (an input error), nothing written
+  const std::string dir = test::tempDir("few_diagnose");
+  writeMeasurementsCsv(dir + "/repeats.csv", few.set, 6);
+  const CliRun r = run("diagnose --robot kuka_kr16 --data " + dir + "/repeats.csv --json " + dir + "/d.json");
+  EXPECT_EQ(r.code, 1) << r.err << r.out;
+  EXPECT_NE(r.err.find(dir + "/repeats.csv: too few distinct joint configurations"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find(counts), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("singular"), std::string::npos) << r.err;
+  EXPECT_FALSE(std::filesystem::exists(dir + "/d.json"));
+  std::filesystem::remove_all(dir);
 }
 
 TEST(FewConfigurations, TheHoldoutKeepsTheRepeatsOfAConfigurationTogether) {

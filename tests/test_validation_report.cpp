@@ -1,11 +1,16 @@
 // What identify reports about its validation set: suspicious validation rows (as for the fit
-// rows), and no orientation statistics when the fit never identified the tool's rotation.
+// rows), no orientation statistics when the fit never identified the tool's rotation, and a
+// calibrated model worse than the nominal robot there with the reason the run knows.
 #include <gtest/gtest.h>
 
+#include <cstdio>
+#include <functional>
 #include <nlohmann/json.hpp>
 
+#include "accura/calib/identify.h"
 #include "accura/calib/measurements.h"
 #include "accura/calib/robot_io.h"
+#include "accura/calib/simulate.h"
 #include "test_util.h"
 
 namespace accura::calib {
@@ -13,6 +18,116 @@ namespace {
 
 using test::CliRun;
 CliRun run(const std::string& args) { return test::runAccura(args); }
+
+// The rows of `all` whose joint values pass `keep`, in order, as a file of its own.
+MeasurementSet rowsWhere(const MeasurementSet& all, const std::function<bool(const Eigen::VectorXd&)>& keep) {
+  MeasurementSet s = all;
+  s.rows.clear();
+  for (const Measurement& m : all.rows)
+    if (keep(m.q)) s.rows.push_back(m);
+  return s;
+}
+
+TEST(ValidationReport, AModelWorseThanTheNominalRobotSaysWhyItDoesNotCarryOver) {
+  // Validation poses all outside the fit's joint ranges, the calibrated model worse there than
+  // the nominal robot (base and tool registered): the WARNING gives both RMS figures of the
+  // summary and the reason the run knows (cmd_identify.cpp worseAdvice), one case per reason.
+  const std::string dir = test::tempDir("valrep_worse");
+  const RobotModel kr16 = test::loadBundled("kuka_kr16");
+  const int dof = kr16.dof();
+  struct Run {
+    CliRun cli;
+    nlohmann::json j;
+  };
+  auto calibrate = [&](const std::string& fit, const std::string& val, const std::string& params) {
+    Run r;
+    r.cli = run("identify --robot kuka_kr16 --tool 80,40,150 --data " + dir + "/" + fit + " --validate " + dir + "/" + val +
+                " --params " + params + " --out " + dir + "/cal.xml --json " + dir + "/s.json");
+    EXPECT_EQ(r.cli.code, 0) << r.cli.err << r.cli.out;
+    r.j = nlohmann::json::parse(test::readText(dir + "/s.json"));
+    return r;
+  };
+  // the warning as printValidation writes it, from the summary's nominal and calibrated RMS
+  auto worse = [](const Run& r, const std::string& why) {
+    const double nominal = r.j["nominal_validation"]["rms_mm"].get<double>(), calibrated = r.j["validation"]["rms_mm"].get<double>();
+    char head[160];
+    std::snprintf(head, sizeof head, "  WARNING: position RMS %.1f-fold WORSE than the nominal robot's (%.4f -> %.4f mm)",
+                  calibrated / nominal, nominal, calibrated);
+    return std::string(head) + ": the calibrated model does not carry over to these poses (" + why + ")\n";
+  };
+  auto simulate = [&](const std::vector<std::string>& effects, int poses) {
+    SimulateOptions o;
+    o.seed = 3;
+    o.poses = poses;
+    o.effects = effects;
+    o.tool = {80, 40, 150, 0, 0, 0};
+    o.set_tool = true;
+    return simulateMeasurements(perturbModel(kr16, o), o);
+  };
+  const std::string geometric_only =
+      "most lie outside the fitted joint ranges, and only the geometric model was fitted: measure fit poses that cover the joint "
+      "ranges the robot is used in";
+
+  // 1. The real robot differs from the nominal one by joint scale errors alone (j2 123 ppm for
+  // this seed). Fitted on q2 in -100..-70 deg, the geometric model takes j2's scale error for an
+  // offset of about 123 ppm x -85 deg: at q2 > 0 it is off by about 123 ppm x (q2 + 85 deg),
+  // more than the nominal robot's 123 ppm x q2. Every validation pose lies outside the fit's
+  // range of q2.
+  const MeasurementSet scale = simulate({"joint_scale"}, 3000);
+  const MeasurementSet fit = rowsWhere(scale, [](const Eigen::VectorXd& q) { return q[1] > -100 && q[1] < -70; });
+  const MeasurementSet val = rowsWhere(scale, [](const Eigen::VectorXd& q) { return q[1] > 0; });
+  ASSERT_GT(fit.rows.size(), 200u);
+  ASSERT_GT(val.rows.size(), 200u);
+  writeMeasurementsCsv(dir + "/fit.csv", fit, dof);
+  writeMeasurementsCsv(dir + "/val.csv", val, dof);
+  const int n_val = static_cast<int>(val.rows.size());
+  const Run geo = calibrate("fit.csv", "val.csv", "geometric");
+  EXPECT_EQ(geo.j["validation"]["n"], n_val);
+  EXPECT_EQ(geo.j["validation_outside_fit_ranges"]["poses"], n_val);
+  EXPECT_GT(geo.j["validation"]["rms_mm"].get<double>(), 1.2 * geo.j["nominal_validation"]["rms_mm"].get<double>());
+  EXPECT_NE(geo.cli.out.find(worse(geo, geometric_only)), std::string::npos) << worse(geo, geometric_only) << geo.cli.out;
+  EXPECT_EQ(geo.cli.out.find("improved"), std::string::npos) << geo.cli.out;
+  // the calibrated figure is the written model's error on the validation file (same station)
+  const RobotModel cal = readRobotFile(dir + "/cal.xml");
+  EXPECT_NEAR(evaluate(cal, readMeasurementsCsv(dir + "/val.csv", kr16.nominal)).rms_mm, geo.j["validation"]["rms_mm"].get<double>(), 1e-4);
+  // with the scale errors in the model it carries over: no warning
+  const Run with_scale = calibrate("fit.csv", "val.csv", "geometric,joint_scale");
+  EXPECT_LT(with_scale.j["validation"]["rms_mm"].get<double>(), with_scale.j["nominal_validation"]["rms_mm"].get<double>());
+  EXPECT_NE(with_scale.cli.out.find("position RMS improved"), std::string::npos) << with_scale.cli.out;
+  EXPECT_EQ(with_scale.cli.out.find("WORSE"), std::string::npos) << with_scale.cli.out;
+
+  // 2. The same fit poses, only 20 distinct configurations of them measured 8 times each: the
+  // repeats are named first, then the joint ranges
+  MeasurementSet repeated = fit;
+  repeated.rows.clear();
+  for (size_t c = 0; c < 20; ++c)
+    for (int k = 0; k < 8; ++k) repeated.rows.push_back(fit.rows[c]);
+  writeMeasurementsCsv(dir + "/repeated.csv", repeated, dof);
+  const Run few = calibrate("repeated.csv", "val.csv", "geometric");
+  EXPECT_EQ(few.j["identifiability"]["distinct_configurations"], 20);
+  EXPECT_EQ(few.j["validation_outside_fit_ranges"]["poses"], n_val);
+  const std::string few_why = "the fit has only 20 distinct joint configurations (160 poses): measure more distinct ones; " + geometric_only;
+  EXPECT_NE(few.cli.out.find(worse(few, few_why)), std::string::npos) << worse(few, few_why) << few.cli.out;
+
+  // 3. The real robot with geometric errors and gear harmonics, fitted on q1 in -30..30 deg and
+  // validated at q1 > 90 deg: the geometric model carries over (4-fold better than the nominal
+  // robot), gear_periodic fitted on 60 deg of joint 1 extrapolates its harmonics into an error
+  // larger than the nominal robot's: leave it out
+  const MeasurementSet gear = simulate({"geometric", "gear_periodic"}, 2000);
+  writeMeasurementsCsv(dir + "/fit_q1.csv", rowsWhere(gear, [](const Eigen::VectorXd& q) { return q[0] > -30 && q[0] < 30; }), dof);
+  const MeasurementSet val_q1 = rowsWhere(gear, [](const Eigen::VectorXd& q) { return q[0] > 90; });
+  ASSERT_GT(val_q1.rows.size(), 200u);
+  writeMeasurementsCsv(dir + "/val_q1.csv", val_q1, dof);
+  const Run plain = calibrate("fit_q1.csv", "val_q1.csv", "geometric");
+  EXPECT_LT(plain.j["validation"]["rms_mm"].get<double>(), 0.5 * plain.j["nominal_validation"]["rms_mm"].get<double>());
+  EXPECT_EQ(plain.cli.out.find("WORSE"), std::string::npos) << plain.cli.out;
+  const Run effects = calibrate("fit_q1.csv", "val_q1.csv", "geometric,gear_periodic");
+  EXPECT_EQ(effects.j["validation_outside_fit_ranges"]["poses"], static_cast<int>(val_q1.rows.size()));
+  const std::string effects_why = "most lie outside the fitted joint ranges: leave out the effects fitted there";
+  EXPECT_NE(effects.cli.out.find(worse(effects, effects_why)), std::string::npos) << worse(effects, effects_why) << effects.cli.out;
+  EXPECT_EQ(effects.cli.out.find("improved"), std::string::npos) << effects.cli.out;
+  std::filesystem::remove_all(dir);
+}
 
 TEST(ValidationReport, AGlitchInTheValidationSetIsFlaggedAsInTheFitSet) {
   // a simulated KR 16 (0.02 mm noise per axis: validation errors of ~0.04 mm after calibration);
