@@ -145,9 +145,8 @@ void Diagnoser::robust() {
   std::iota(all.begin(), all.end(), 0);
   for (int pass = 0; pass < 2; ++pass) {
     const std::vector<int> S = withBlocks(all);
-    Eigen::LLT<Eigen::MatrixXd> llt;
     Eigen::VectorXd x;
-    if (!solveStaged(A_(S, S), b_(S), mapMask(S), &llt, &x)) return;
+    if (!solveStaged(A_(S, S), b_(S), mapMask(S), nullptr, &x)) return;
     const Eigen::VectorXd e = rF_ - JF_(Eigen::all, S) * x;
     std::vector<double> mag(static_cast<size_t>(m_));
     for (int i = 0; i < m_; ++i) mag[static_cast<size_t>(i)] = e.segment(3 * i, 3).norm();
@@ -466,14 +465,16 @@ bool solveStaged(const Eigen::MatrixXd& M, const Eigen::VectorXd& v, const std::
                  Eigen::LLT<Eigen::MatrixXd>* llt, Eigen::VectorXd* x) {
   std::vector<Eigen::Index> P, Q;
   for (size_t k = 0; k < is_map.size(); ++k) (is_map[k] ? Q : P).push_back(static_cast<Eigen::Index>(k));
-  if (P.empty() || Q.empty()) return solveSpd(M, v, llt, x);
-  // the joint factorisation: the singularity test and the leverages (the staged estimate's are
-  // close to the joint one's, not larger: the maps' columns are free of what the others hold)
-  if (!solveSpd(M, v, llt, x)) return false;
+  Eigen::LLT<Eigen::MatrixXd> own;
+  if (P.empty() || Q.empty()) return solveSpd(M, v, llt ? llt : &own, x);
+  // the joint factorisation when asked for: the leverages and the covariance (the staged
+  // estimate's are close to the joint one's: the maps' columns are free of what the others hold)
+  if (llt && !solveSpd(M, v, llt, x)) return false;
   Eigen::LLT<Eigen::MatrixXd> stage;
   Eigen::VectorXd xp, xq;
   if (!solveSpd(M(P, P), v(P), &stage, &xp)) return false;
   if (!solveSpd(M(Q, Q), v(Q) - M(Q, P) * xp, &stage, &xq)) return false;
+  x->resize(M.rows());
   (*x)(P) = xp;
   (*x)(Q) = xq;
   return true;
@@ -551,7 +552,7 @@ Diagnoser::Eval Diagnoser::cvEval(const std::vector<int>& S, const Scheme& schem
       Eigen::VectorXd xa;
       std::vector<bool> mp;
       for (Eigen::Index a : act) mp.push_back(is_map_[static_cast<size_t>(S[a])]);
-      if (!solveStaged(M(act, act), v(act), mp, &llt, &xa)) return ev;
+      if (!solveStaged(M(act, act), v(act), mp, leverage ? &llt : nullptr, &xa)) return ev;
       x = Eigen::VectorXd::Zero(s);
       x(act) = xa;
     }
@@ -720,7 +721,22 @@ RobotModel Diagnoser::gnFitFrom(const RobotModel& start, const std::vector<int>&
       dx = llt.solve(b);
     } else {
       Eigen::MatrixXd A = P;
-      detail::addGramLower(A, Jw);
+      if (s > 64) {
+        // the maps' columns: a pose reaches 4 coefficients of each joint's map, a few dozen of
+        // hundreds; its 3 rows' products over those alone (the dense product was 90% of a
+        // diagnosis of Series_B and Series_C together)
+        std::vector<Eigen::Index> nz;
+        for (Eigen::Index r0 = 0; r0 < R; r0 += 3) {
+          nz.clear();
+          for (Eigen::Index c = 0; c < s; ++c)
+            if (Jw(r0, c) != 0 || Jw(r0 + 1, c) != 0 || Jw(r0 + 2, c) != 0) nz.push_back(c);
+          for (size_t a = 0; a < nz.size(); ++a)
+            for (size_t e = 0; e <= a; ++e)
+              A(nz[a], nz[e]) += Jw.block<3, 1>(r0, nz[a]).dot(Jw.block<3, 1>(r0, nz[e]));
+        }
+      } else {
+        detail::addGramLower(A, Jw);
+      }
       mirrorLower(&A);
       if (!solveSpd(A, b, &llt, &dx)) throw NumericalError("diagnose: the refit's normal matrix is singular" + singularWhy(groups_, rows, static_cast<int>(s)));
     }

@@ -54,8 +54,8 @@ bool solveSpd(const Eigen::MatrixXd& M, const Eigen::VectorXd& v, Eigen::LLT<Eig
               Eigen::VectorXd* x);
 /// The joint maps are fitted after the other parameters, to what those leave (docs/diagnosis.md):
 /// the normal system M x = v solved for the columns that are not maps (is_map false) alone, then
-/// for the maps' with those held. *llt gets the joint factorisation of M (singularity, leverages).
-/// One kind of column alone: solveSpd.
+/// for the maps' with those held. *llt (may be null) gets the joint factorisation of M
+/// (leverages, covariance). One kind of column alone: solveSpd.
 bool solveStaged(const Eigen::MatrixXd& M, const Eigen::VectorXd& v, const std::vector<bool>& is_map,
                  Eigen::LLT<Eigen::MatrixXd>* llt, Eigen::VectorXd* x);
 /// Canonical correlation of two blocks' weighted columns with the geometry projected out.
