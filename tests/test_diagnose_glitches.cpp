@@ -106,6 +106,59 @@ TEST(DiagnoseGlitches, AConfigurationMeasuredManyTimesNamesItsOddRowOnce) {
       << text;
 }
 
+// Rows written twice are not repeats: 12 configurations measured 4 times each (0.02 mm per axis)
+// and 5 of those rows copied a second time, unchanged (an export that wrote them twice). The copies
+// are named against the row they copy and left out: the pairs are those of the 48 measurements
+// (12 x 6), the pooled scatter theirs (3 x 12 x 3 = 108 degrees of freedom, the value computed
+// here from the 48 rows alone). With the copies in, 5 pairs of distance 0 would pull the median
+// pair distance and the scatter down.
+TEST(DiagnoseGlitches, RowsWrittenTwiceAreNamedAndLeftOutOfTheRepeatability) {
+  Campaign c = campaign(43);
+  const int first_line = 2000;
+  std::vector<Measurement> rep;
+  for (int k = 0; k < 12; ++k) {
+    const std::vector<Measurement> r =
+        repeated(c.truth, c.fit.rows[static_cast<size_t>(20 * k + 3)], 4, 0.02, {}, Eigen::Vector3d::Zero(), first_line + 10 * k,
+                 static_cast<std::uint64_t>(100 + k));
+    rep.insert(rep.end(), r.begin(), r.end());
+  }
+  // the expected scatter: the 48 measurements about their configurations' means (each
+  // configuration's original row of the campaign, repeated() copies its q, is a 5th member)
+  double ss = 0, dof = 0;
+  for (int k = 0; k < 12; ++k) {
+    std::vector<Eigen::Vector3d> g = {c.fit.rows[static_cast<size_t>(20 * k + 3)].p_world_mm};
+    for (int m = 0; m < 4; ++m) g.push_back(rep[static_cast<size_t>(4 * k + m)].p_world_mm);
+    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+    for (const auto& p : g) mean += p;
+    mean /= double(g.size());
+    for (const auto& p : g) ss += (p - mean).squaredNorm();
+    dof += 3.0 * double(g.size() - 1);
+  }
+  const std::vector<int> copied = {1, 9, 17, 30, 46};  // indices into rep
+  std::vector<Measurement> copies;
+  for (size_t k = 0; k < copied.size(); ++k) {
+    Measurement r = rep[static_cast<size_t>(copied[k])];
+    r.line = 3000 + static_cast<int>(k);
+    copies.push_back(r);
+  }
+  c.fit.rows.insert(c.fit.rows.end(), rep.begin(), rep.end());
+  c.fit.rows.insert(c.fit.rows.end(), copies.begin(), copies.end());
+  const Diagnosis d = diagnose(c.nominal, c.fit, nullptr, DiagnoseOptions{});
+  const Floors& fl = d.floors;
+  ASSERT_EQ(fl.duplicated_rows.size(), copied.size()) << diagnosisText(d);
+  for (size_t k = 0; k < copied.size(); ++k) {
+    EXPECT_EQ(fl.duplicated_rows[k].line_a, 3000 + static_cast<int>(k));
+    EXPECT_EQ(fl.duplicated_rows[k].line_b, rep[static_cast<size_t>(copied[k])].line);
+  }
+  EXPECT_EQ(fl.repeat_groups, 12);
+  EXPECT_EQ(fl.repeat_pairs, 12 * 5 * 4 / 2);
+  EXPECT_EQ(fl.repeat_dof, dof);
+  EXPECT_NEAR(fl.repeat_std_axis_mm, std::sqrt(ss / dof), 1e-12);
+  const std::string text = diagnosisText(d);
+  EXPECT_NE(text.find("5 row(s) repeat an earlier row of their configuration exactly"), std::string::npos) << text;
+  EXPECT_NE(text.find(":3000 = "), std::string::npos) << text;
+}
+
 // A configuration measured twice keeps its pair: which row is wrong cannot be told.
 TEST(DiagnoseGlitches, AConfigurationMeasuredTwiceNamesThePair) {
   Campaign c = campaign(42);

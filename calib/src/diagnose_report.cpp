@@ -126,6 +126,10 @@ ordered_json floorsJson(const Diagnosis& d) {
                         {"rms_3d_mm", num(fl.repeat_rms_mm)},
                         {"degrees_of_freedom", num(fl.repeat_dof)}};
   j["judged_against"] = d.noise_floor_source;
+  ordered_json dups = ordered_json::array();
+  for (const RepeatPair& p : fl.duplicated_rows)
+    dups.push_back({{"row", glitchRowRef(d, p, true)}, {"same_as", glitchRowRef(d, p, false)}});
+  j["duplicated_rows"] = dups;
   j["glitch_threshold_mm"] = num(fl.glitch_threshold_mm);
   ordered_json g = ordered_json::array();
   for (const RepeatPair& p : fl.glitches) {
@@ -556,6 +560,15 @@ std::string diagnosisText(const Diagnosis& d) {
           << " pairs";
       s << "), median pair distance " << (std::isfinite(fl.median_pair_mm) ? f("%.4f", fl.median_pair_mm) + " mm" : std::string("- (every pair a glitch)"))
         << "\n";
+    }
+    if (!fl.duplicated_rows.empty()) {
+      s << "WARNING: " << fl.duplicated_rows.size()
+        << " row(s) repeat an earlier row of their configuration exactly (every coordinate equal): the same "
+           "measurement written twice, left out of the repeatability:";
+      for (size_t k = 0; k < fl.duplicated_rows.size() && k < 12; ++k)
+        s << " " << glitchRowRef(d, fl.duplicated_rows[k], true) << " = " << glitchRowRef(d, fl.duplicated_rows[k], false);
+      if (fl.duplicated_rows.size() > 12) s << " ... (all in the JSON)";
+      s << "\n";
     }
     if (!fl.glitches.empty()) {
       s << "glitches (repeat pairs, or rows of a configuration measured three times or more against its centre, "

@@ -120,6 +120,11 @@ struct Floors {
   /// Measurement glitches: pairs disagreeing grossly, or the odd rows of a configuration
   /// measured three times or more (RepeatPair).
   std::vector<RepeatPair> glitches;
+  /// Rows of a repeated configuration whose measured position equals an earlier row's exactly
+  /// (row b, then the earlier row a; distance 0): a row written twice, not a second measurement.
+  /// Left out of the pairs, the glitch threshold and the pooled scatter (with them the
+  /// repeatability would read 0).
+  std::vector<RepeatPair> duplicated_rows;
 };
 
 /// A pose the robust estimation down-weighted.
