@@ -319,8 +319,14 @@ void printSetup(const IdentifyArgs& a, const IdentifyRun& r) {
               s.iterations, s.fit.rms_mm, s.fit.n, s.parameters_free, also.c_str());
   if (a.verbose) std::printf("solver details (Ceres): %s\n", s.BriefReport().c_str());
   if (!s.joint_map_cv.empty()) {
-    std::printf("joint_map: knot spacing and smoothness by blocked cross-validation (5 contiguous blocks of each "
-                "data set), held-out position RMS (mm); without maps %.4f:\n", s.joint_map_cv_baseline_mm);
+    // what the cross-validation chose: both, or the smoothness alone when the knot spacing was stated
+    std::set<double> knots;
+    for (const auto& c : s.joint_map_cv) knots.insert(c.knot);
+    const bool knot_stated = knots.size() == 1 && s.joint_map_cv_knots_not_tried.empty();
+    std::printf("joint_map: %s by blocked cross-validation (5 contiguous blocks of each data set), held-out position RMS "
+                "(mm); without maps %.4f:\n",
+                knot_stated ? ("smoothness (knot spacing stated: " + fmt("%g", *knots.begin()) + ")").c_str() : "knot spacing and smoothness",
+                s.joint_map_cv_baseline_mm);
     for (const auto& c : s.joint_map_cv)
       std::printf("  knot %-5g smoothing %-6g %.4f\n", c.knot, c.smoothing, c.cv_rms_mm);
     if (!s.joint_map_cv_knots_not_tried.empty()) {
@@ -389,13 +395,25 @@ std::string worseAdvice(const IdentifyRun& r) {
     const bool effects = std::any_of(r.opt.groups.begin(), r.opt.groups.end(), [](const std::string& g) {
       return !geometric.count(g.substr(0, g.find_first_of(":@")));
     });
-    why.push_back(effects ? "most lie outside the fitted joint ranges: leave out the effects fitted there"
+    why.push_back(effects ? "most lie outside the fitted joint ranges: the effects fitted there are extrapolated; try without them "
+                            "(if the geometric model alone is worse too, measure fit poses that cover these ranges)"
                           : "most lie outside the fitted joint ranges, and only the geometric model was fitted: measure fit poses "
                             "that cover the joint ranges the robot is used in");
   }
   std::string out;
   for (const std::string& w : why) out += (out.empty() ? " (" : "; ") + w;
   return out.empty() ? out : out + ")";
+}
+
+/// The warning when the calibrated model is worse than the nominal one on the validation poses
+/// (empty when it is not): printed, in the JSON's warnings and in the model file's comment.
+/// Below 1.1-fold the loss is given in percent ("1.0-fold WORSE" said nothing).
+std::string worseWarning(const IdentifyRun& r) {
+  if (!r.hasValidation() || !(r.val.rms_mm > r.nom_val.rms_mm)) return "";
+  const double ratio = r.val.rms_mm / r.nom_val.rms_mm;
+  return "position RMS " + (ratio < 1.1 ? fmt("%.1f%%", 100.0 * (ratio - 1.0)) : fmt("%.1f-fold", ratio)) +
+         " WORSE than the nominal robot's (" + fmt("%.4f", r.nom_val.rms_mm) + " -> " + fmt("%.4f", r.val.rms_mm) +
+         " mm): the calibrated model does not carry over to these poses" + worseAdvice(r);
 }
 
 /// The validation's accuracy, nominal against calibrated, and whether it is an extrapolation
@@ -441,9 +459,7 @@ void printValidation(const IdentifyArgs& a, const IdentifyRun& r) {
     std::printf("  position RMS improved %.1f-fold (%.4f -> %.4f mm)\n", r.nom_val.rms_mm / r.val.rms_mm, r.nom_val.rms_mm,
                 r.val.rms_mm);
   else if (r.val.rms_mm > 0)
-    std::printf("  WARNING: position RMS %.1f-fold WORSE than the nominal robot's (%.4f -> %.4f mm): the calibrated model does not "
-                "carry over to these poses%s\n",
-                r.val.rms_mm / r.nom_val.rms_mm, r.nom_val.rms_mm, r.val.rms_mm, worseAdvice(r).c_str());
+    std::printf("  WARNING: %s\n", worseWarning(r).c_str());
 }
 
 /// The comment at the top of the calibrated model file.
@@ -461,6 +477,7 @@ std::string modelComment(const IdentifyArgs& a, const IdentifyRun& r) {
           << "fit RMS " << fmt("%.4f", r.s.fit.rms_mm) << " mm"
           << (r.hasValidation() ? ", validation RMS " + fmt("%.4f", r.val.rms_mm) + " mm (nominal " + fmt("%.4f", r.nom_val.rms_mm) + " mm)" : "");
   for (const auto& w : r.s.warnings) comment << "\nWARNING: " << w;
+  if (const std::string w = worseWarning(r); !w.empty()) comment << "\nWARNING: " << w;
   return comment.str();
 }
 
@@ -548,6 +565,7 @@ ordered_json identifyJson(const IdentifyArgs& a, const IdentifyRun& r) {
     excl.push_back({{"file", row.file}, {"line", row.line}, {"error_mm", num(row.error_mm)}, {"median_mm", num(row.median_mm)}});
   j["excluded_rows"] = excl;  // gross rows left out of the fit
   j["warnings"] = s.warnings;
+  if (const std::string w = worseWarning(r); !w.empty()) j["warnings"].push_back(w);
   if (has_val) {
     ordered_json out = ordered_json::array();
     for (int jn = 0; jn < r.start.dof(); ++jn) {

@@ -127,6 +127,31 @@ TEST(FewConfigurations, DiagnoseRefusesRepeatsOfFewConfigurationsCountingThem) {
   std::filesystem::remove_all(dir);
 }
 
+// 12 configurations x 10 repeats are enough for the baseline on all rows (36 independent
+// equations), not on 2 folds: each fold's training rows hold 6 configurations (60 rows, 18
+// equations for the baseline's parameters). The error says so with the counts (it used to end at "singular on a
+// fold").
+TEST(FewConfigurations, AFoldWithTooFewConfigurationsSaysSo) {
+  const Repeated c = repeatedCampaign(12, 10, 47);
+  // the baseline's parameters: those the geometric identification on all rows keeps free
+  IdentifyOptions g;
+  g.groups = {"geometric"};
+  IdentifySummary s;
+  identify(c.nominal, c.set, g, &s);
+  const size_t parameters = s.parameters.size();
+  ASSERT_GT(parameters, 18u);
+  DiagnoseOptions o;
+  o.folds = 2;
+  try {
+    diagnose(c.nominal, c.set, nullptr, o);
+    FAIL() << "diagnosed 6 distinct configurations per fold";
+  } catch (const NumericalError& e) {
+    const std::string w = e.what();
+    EXPECT_NE(w.find("singular on a fold: its 60 fit rows hold only 6 distinct joint configurations"), std::string::npos) << w;
+    EXPECT_NE(w.find("18 independent position equations for " + std::to_string(parameters) + " parameters"), std::string::npos) << w;
+  }
+}
+
 TEST(FewConfigurations, TheHoldoutKeepsTheRepeatsOfAConfigurationTogether) {
   // 60 configurations x 4 repeats in a row: every 5th configuration held out with its repeats,
   // 12 of them (48 rows); the fit keeps the other 48 configurations (192 rows). Held out row by

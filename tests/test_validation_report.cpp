@@ -86,6 +86,17 @@ TEST(ValidationReport, AModelWorseThanTheNominalRobotSaysWhyItDoesNotCarryOver) 
   EXPECT_EQ(geo.j["validation_outside_fit_ranges"]["poses"], n_val);
   EXPECT_GT(geo.j["validation"]["rms_mm"].get<double>(), 1.2 * geo.j["nominal_validation"]["rms_mm"].get<double>());
   EXPECT_NE(geo.cli.out.find(worse(geo, geometric_only)), std::string::npos) << worse(geo, geometric_only) << geo.cli.out;
+  // the same warning in the JSON's warnings and in the model file's comment (without the
+  // printed line's indent and newline)
+  {
+    std::string w = worse(geo, geometric_only);
+    w = w.substr(std::string("  WARNING: ").size());
+    w.pop_back();
+    bool in_json = false;
+    for (const auto& x : geo.j["warnings"]) in_json = in_json || x.get<std::string>() == w;
+    EXPECT_TRUE(in_json) << geo.j["warnings"].dump();
+    EXPECT_NE(test::readText(dir + "/cal.xml").find("WARNING: " + w), std::string::npos);
+  }
   EXPECT_EQ(geo.cli.out.find("improved"), std::string::npos) << geo.cli.out;
   // the calibrated figure is the written model's error on the validation file (same station)
   const RobotModel cal = readRobotFile(dir + "/cal.xml");
@@ -123,7 +134,9 @@ TEST(ValidationReport, AModelWorseThanTheNominalRobotSaysWhyItDoesNotCarryOver) 
   EXPECT_EQ(plain.cli.out.find("WORSE"), std::string::npos) << plain.cli.out;
   const Run effects = calibrate("fit_q1.csv", "val_q1.csv", "geometric,gear_periodic");
   EXPECT_EQ(effects.j["validation_outside_fit_ranges"]["poses"], static_cast<int>(val_q1.rows.size()));
-  const std::string effects_why = "most lie outside the fitted joint ranges: leave out the effects fitted there";
+  const std::string effects_why =
+      "most lie outside the fitted joint ranges: the effects fitted there are extrapolated; try without them (if the geometric "
+      "model alone is worse too, measure fit poses that cover these ranges)";
   EXPECT_NE(effects.cli.out.find(worse(effects, effects_why)), std::string::npos) << worse(effects, effects_why) << effects.cli.out;
   EXPECT_EQ(effects.cli.out.find("improved"), std::string::npos) << effects.cli.out;
   std::filesystem::remove_all(dir);

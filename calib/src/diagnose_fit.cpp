@@ -628,7 +628,7 @@ std::vector<EffectParameter> Diagnoser::parametersOf(const std::vector<int>& S, 
 // Why a refit's normal matrix can be singular when the data say so: its rows hold too few
 // distinct joint configurations (repeats, measurements.h, add no information) for its
 // parameters; empty otherwise.
-static std::string singularWhy(const std::vector<std::vector<int>>& groups, const std::vector<int>& rows, int parameters) {
+std::string singularWhy(const std::vector<std::vector<int>>& groups, const std::vector<int>& rows, int parameters) {
   std::vector<int> group_of;
   for (size_t g = 0; g < groups.size(); ++g)
     for (int i : groups[g]) {

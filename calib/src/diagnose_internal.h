@@ -58,6 +58,10 @@ bool solveSpd(const Eigen::MatrixXd& M, const Eigen::VectorXd& v, Eigen::LLT<Eig
 /// (leverages, covariance). One kind of column alone: solveSpd.
 bool solveStaged(const Eigen::MatrixXd& M, const Eigen::VectorXd& v, const std::vector<bool>& is_map,
                  Eigen::LLT<Eigen::MatrixXd>* llt, Eigen::VectorXd* x);
+/// Why a fit's normal matrix can be singular when the data say so: its `rows` hold too few
+/// distinct joint configurations (`groups`: the repeated configurations) for `parameters`
+/// (": its N fit rows hold only K distinct ..."); empty otherwise.
+std::string singularWhy(const std::vector<std::vector<int>>& groups, const std::vector<int>& rows, int parameters);
 /// Canonical correlation of two blocks' weighted columns with the geometry projected out.
 double canonicalCorrelation(const Eigen::MatrixXd& Jw, const std::vector<int>& G, const std::vector<int>& a,
                             const std::vector<int>& b);
