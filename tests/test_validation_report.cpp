@@ -121,9 +121,8 @@ TEST(ValidationReport, AModelWorseThanTheNominalRobotSaysWhyItDoesNotCarryOver) 
   EXPECT_NE(few.cli.out.find(worse(few, few_why)), std::string::npos) << worse(few, few_why) << few.cli.out;
 
   // 3. The real robot with geometric errors and gear harmonics, fitted on q1 in -30..30 deg and
-  // validated at q1 > 90 deg: the geometric model carries over (4-fold better than the nominal
-  // robot), gear_periodic fitted on 60 deg of joint 1 extrapolates its harmonics into an error
-  // larger than the nominal robot's: leave it out
+  // validated at q1 > 90 deg: the geometric model carries over (better than half the nominal
+  // robot's error): no warning
   const MeasurementSet gear = simulate({"geometric", "gear_periodic"}, 2000);
   writeMeasurementsCsv(dir + "/fit_q1.csv", rowsWhere(gear, [](const Eigen::VectorXd& q) { return q[0] > -30 && q[0] < 30; }), dof);
   const MeasurementSet val_q1 = rowsWhere(gear, [](const Eigen::VectorXd& q) { return q[0] > 90; });
@@ -132,8 +131,13 @@ TEST(ValidationReport, AModelWorseThanTheNominalRobotSaysWhyItDoesNotCarryOver) 
   const Run plain = calibrate("fit_q1.csv", "val_q1.csv", "geometric");
   EXPECT_LT(plain.j["validation"]["rms_mm"].get<double>(), 0.5 * plain.j["nominal_validation"]["rms_mm"].get<double>());
   EXPECT_EQ(plain.cli.out.find("WORSE"), std::string::npos) << plain.cli.out;
-  const Run effects = calibrate("fit_q1.csv", "val_q1.csv", "geometric,gear_periodic");
-  EXPECT_EQ(effects.j["validation_outside_fit_ranges"]["poses"], static_cast<int>(val_q1.rows.size()));
+  // 4. An effect fitted where the validation does not go: the scale errors' poses of case 1 with
+  // joint 2's compliance fitted beside the geometry (on 30 deg of joint 2) are still worse than the
+  // nominal robot, and the advice names the effects. (Case 3 with gear_periodic, fitted on 60 deg
+  // of joint 1, was worse in the Release build and better under the sanitizers: a harmonic fitted
+  // on a sixth of a turn is too ill-determined to test the wording with.)
+  const Run effects = calibrate("fit.csv", "val.csv", "geometric,joint_compliance:j2");
+  EXPECT_EQ(effects.j["validation_outside_fit_ranges"]["poses"], n_val);
   const std::string effects_why =
       "most lie outside the fitted joint ranges: the effects fitted there are extrapolated; try without them (if the geometric "
       "model alone is worse too, measure fit poses that cover these ranges)";
