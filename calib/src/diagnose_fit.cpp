@@ -79,9 +79,7 @@ void Diagnoser::addJointMaps() {
                                         ": no map";
       continue;
     }
-    std::vector<double> qj;
-    for (const Measurement& r : fit_.rows) qj.push_back(r.q[j]);
-    const JointRange support = jointMapSupport(qj);
+    const JointRange support = jointMapSupport(jointValues(fit_, j));
     M0_.deviations.joint_map[static_cast<size_t>(j)] = makeJointMap(support.lower, support.upper, knot);
     any = true;
   }
@@ -116,8 +114,7 @@ void Diagnoser::mapPenalty() {
     };
     if (o_.joint_map_smoothing > 0)
       for (const auto& a : jointMapSmoothnessRows(jm)) add(a, std::sqrt(o_.joint_map_smoothing) * scale);
-    std::vector<double> qj;
-    for (const Measurement& r : fit_.rows) qj.push_back(r.q[b.joint]);
+    const std::vector<double> qj = jointValues(fit_, b.joint);
     const bool rev = M0_.nominal.joints[static_cast<size_t>(b.joint)].type == JointType::kRevolute;
     for (const auto& a : jointMapCentringRows(jm, qj, rev ? kJointMapCentredHarmonics : 0)) {
       double nrm = 0;
@@ -480,6 +477,13 @@ bool solveStaged(const Eigen::MatrixXd& M, const Eigen::VectorXd& v, const std::
   return true;
 }
 
+std::vector<int> Diagnoser::trainingRows(int f) const {
+  std::vector<int> rows;
+  for (int i = 0; i < m_; ++i)
+    if (fold_[i] != f) rows.push_back(i);
+  return rows;
+}
+
 std::vector<bool> Diagnoser::mapMask(const std::vector<int>& S) const {
   std::vector<bool> m;
   for (int c : S) m.push_back(is_map_[static_cast<size_t>(c)]);
@@ -795,10 +799,7 @@ Diagnoser::Exact Diagnoser::exact(const std::vector<int>& S) {
   } else {
     ex.e.resize(static_cast<size_t>(m_));
     for (int f = 0; f < folds_; ++f) {
-      std::vector<int> train;
-      for (int i = 0; i < m_; ++i)
-        if (fold_[i] != f) train.push_back(i);
-      const RobotModel mf = gnFit(S, train, &at_m0);
+      const RobotModel mf = gnFit(S, trainingRows(f), &at_m0);
       for (int i : fold_poses_[f]) {
         const Measurement& r = fit_.rows[static_cast<size_t>(i)];
         ex.e[i] = r.p_world_mm - forwardKinematics(mf, r.q, r.context, ws).translation();

@@ -154,6 +154,8 @@ class Diagnoser {
   /// Gauss-Newton over the columns S from `start` (at_m0 only when start is M0).
   RobotModel gnFitFrom(const RobotModel& start, const std::vector<int>& S, const std::vector<int>& rows,
                        RowSystem* at_m0) const;
+  /// The fit poses of every interleaved fold but f (its training rows), in order.
+  std::vector<int> trainingRows(int f) const;
   /// Per column of S: whether it is a joint map's coefficient.
   std::vector<bool> mapMask(const std::vector<int>& S) const;
   Exact exact(const std::vector<int>& S);

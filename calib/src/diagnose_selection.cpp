@@ -498,14 +498,7 @@ void Diagnoser::selection() {
   if (!base_eval_.ok) {
     // the fold whose training rows hold too few distinct configurations, when one does
     std::string why;
-    for (size_t f = 0; f < interleaved_.poses.size() && why.empty(); ++f) {
-      std::vector<bool> held(static_cast<size_t>(m_), false);
-      for (int i : interleaved_.poses[f]) held[static_cast<size_t>(i)] = true;
-      std::vector<int> training;
-      for (int i = 0; i < m_; ++i)
-        if (!held[static_cast<size_t>(i)]) training.push_back(i);
-      why = singularWhy(groups_, training, static_cast<int>(G_.size()));
-    }
+    for (int f = 0; f < folds_ && why.empty(); ++f) why = singularWhy(groups_, trainingRows(f), static_cast<int>(G_.size()));
     throw NumericalError("diagnose: the baseline's normal matrix is singular on a fold" + why);
   }
   const size_t B = blocks_.size();

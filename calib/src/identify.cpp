@@ -392,11 +392,7 @@ Problem setUp(const RobotModel& start, const std::vector<MeasurementSet>& sets, 
     // the maps this run fits (not those held from the start model), on the dense part of the
     // covered interval, sized before they are made
     std::vector<JointRange> ranges;
-    for (const int j : mapped) {
-      std::vector<double> qj;
-      for (const Measurement& r : data.rows) qj.push_back(r.q[j]);
-      ranges.push_back(jointMapSupport(qj));
-    }
+    for (const int j : mapped) ranges.push_back(jointMapSupport(jointValues(data, j)));
     checkJointMapSize(ranges, stated_knot);
     for (size_t k = 0; k < mapped.size(); ++k)
       model.deviations.joint_map[static_cast<size_t>(mapped[k])] = makeJointMap(ranges[k].lower, ranges[k].upper, stated_knot);

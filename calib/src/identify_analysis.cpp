@@ -65,8 +65,6 @@ void Problem::stack(Eigen::MatrixXd* J, Eigen::VectorXd* r) const {
   if (J) keep(x, *J, rr);
 }
 
-// Identifiability on the scaled weighted Jacobian at the starting point (the joint maps'
-// coefficients are not candidates here: they are regularised, see penaltyRows).
 // The weighted Jacobian's columns row by row from the compact rows (the stacked Jacobian over
 // hundreds of map coefficients is never formed): col_sq gets every column's squared norm over
 // x; each non-zero column block of a row goes to visit(first equation, x index, column).
@@ -98,6 +96,8 @@ void refreshPenaltyRows(Problem& pb, double smoothing) {
   penaltyRows(pb, smoothing, col_sq);
 }
 
+// Identifiability on the scaled weighted Jacobian at the starting point (the joint maps'
+// coefficients are not candidates here: they are regularised, see penaltyRows).
 int identifiability(Problem& pb, const IdentifyOptions& options, IdentifySummary& summary, Eigen::VectorXd* col_sq) {
   const size_t P = pb.P;
   const std::vector<ParamInfo>& layout = pb.layout;
@@ -223,8 +223,7 @@ void penaltyRows(Problem& pb, double smoothing, const Eigen::VectorXd& col_sq) {
     };
     if (smoothing > 0)
       for (const auto& a : jointMapSmoothnessRows(jm)) add(a, std::sqrt(smoothing) * scale);
-    std::vector<double> qj;
-    for (const Measurement& r : pb.data.rows) qj.push_back(r.q[j]);
+    const std::vector<double> qj = jointValues(pb.data, j);
     const bool revolute = model.nominal.joints[static_cast<size_t>(j)].type == JointType::kRevolute;
     for (const auto& a : jointMapCentringRows(jm, qj, revolute ? kJointMapCentredHarmonics : 0)) {
       double nrm = 0;

@@ -40,10 +40,8 @@ RobotModel identifyWithMapCv(const RobotModel& start, const std::vector<Measurem
     if (!map_joints.empty() && !map_joints.count(j + 1)) continue;
     const JointRange& c = s0.coverage[static_cast<size_t>(j)];
     if (c.upper - c.lower < 2 * widest) continue;
-    std::vector<double> qj;
-    for (const Measurement& r : data.rows) qj.push_back(r.q[j]);
     cv_joints.push_back(j);
-    ranges.push_back(jointMapSupport(qj));
+    ranges.push_back(jointMapSupport(jointValues(data, j)));
   }
   for (const double knot : knots) checkJointMapSize(ranges, knot);  // before the cross-validation's dense solves
   IdentifyOptions o1 = options;

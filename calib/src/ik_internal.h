@@ -270,11 +270,11 @@ struct KinematicSolver::Impl {
   // or per L mm (prismatic): dimensionless.
   void scaled(const Jac6N& J, Jac6N& Js) const;
 
-  /// Smallest singular value of the scaled Jacobian below t? (Cholesky of the Gram matrix
-  /// shifted by t^2: it fails exactly when some singular value is <= t.)
   /// The scaled Jacobian's column scale of joint i: deg per rad (revolute), L (prismatic).
   double columnScale(int i) const { return revolute[i] ? kRadToDeg : L; }
 
+  /// Smallest singular value of the scaled Jacobian below t? (Cholesky of the Gram matrix
+  /// shifted by t^2: it fails exactly when some singular value is <= t.)
   bool singularBelow(const Jac6N& J, double t) const;
 
   /// singularBelow(J, t) for the Jacobian J at q, skipped where a certificate stored in the

@@ -186,28 +186,27 @@ std::vector<std::vector<double>> jointMapCentringRows(const JointMap& map, const
 JointRange jointMapSupport(std::vector<double> q, double window) {
   if (q.empty() || !(window > 0) || !std::isfinite(window))
     throw ArgumentError("joint map support: expected fit values and a positive, finite window");
-  const double knot = window;
   std::sort(q.begin(), q.end());
   const JointRange all{q.front(), q.back()};
   const double width = all.upper - all.lower;
-  if (!(width > knot)) return all;
-  const size_t need = std::max<size_t>(2, static_cast<size_t>(std::ceil(0.2 * double(q.size()) * knot / width)));
+  if (!(width > window)) return all;
+  const size_t need = std::max<size_t>(2, static_cast<size_t>(std::ceil(0.2 * double(q.size()) * window / width)));
   JointRange r = all;
-  for (size_t i = 0; i < q.size(); ++i) {  // the lowest value with `need` values within one knot above it
-    const size_t j = static_cast<size_t>(std::upper_bound(q.begin(), q.end(), q[i] + knot) - q.begin());
+  for (size_t i = 0; i < q.size(); ++i) {  // the lowest value with `need` values within one window above it
+    const size_t j = static_cast<size_t>(std::upper_bound(q.begin(), q.end(), q[i] + window) - q.begin());
     if (j - i >= need) {
       r.lower = q[i];
       break;
     }
   }
-  for (size_t i = q.size(); i-- > 0;) {  // the highest value with `need` values within one knot below it
-    const size_t j = static_cast<size_t>(std::lower_bound(q.begin(), q.end(), q[i] - knot) - q.begin());
+  for (size_t i = q.size(); i-- > 0;) {  // the highest value with `need` values within one window below it
+    const size_t j = static_cast<size_t>(std::lower_bound(q.begin(), q.end(), q[i] - window) - q.begin());
     if (i + 1 - j >= need) {
       r.upper = q[i];
       break;
     }
   }
-  return r.upper - r.lower >= 2 * knot ? r : all;
+  return r.upper - r.lower >= 2 * window ? r : all;
 }
 
 std::vector<OutsideFitRange> outsideFitRanges(const RobotModel& model, const Eigen::VectorXd& q) {

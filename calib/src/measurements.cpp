@@ -638,6 +638,13 @@ std::vector<JointRange> jointRanges(const MeasurementSet& data, int dof) {
   return out;
 }
 
+std::vector<double> jointValues(const MeasurementSet& data, int joint) {
+  std::vector<double> out;
+  out.reserve(data.rows.size());
+  for (const Measurement& r : data.rows) out.push_back(r.q[joint]);
+  return out;
+}
+
 MeasurementSet readMeasurementsCsv(const std::string& path, const RobotDefinition& robot) {
   return Reader(path, robot).read();
 }

@@ -100,6 +100,9 @@ std::vector<std::vector<int>> repeatedConfigurations(const MeasurementSet& set, 
 /// coverage). An empty `data` gives lower > upper for every joint.
 std::vector<JointRange> jointRanges(const MeasurementSet& data, int dof);
 
+/// The values of joint `joint` (0-based; deg or mm) over the rows of `data`, in row order.
+std::vector<double> jointValues(const MeasurementSet& data, int joint);
+
 /// Writes measurements in the same format (every column the set has; fixed formatting:
 /// q with 6 decimals, positions 6 decimals (mm), quaternions 9 decimals) through a
 /// temporary file renamed into place. `comments` lines are written first, each prefixed "# ".
