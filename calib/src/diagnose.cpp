@@ -231,9 +231,10 @@ Diagnosis Diagnoser::run() {
 }
 
 
-void Diagnoser::setRowSets(const std::vector<int>& set_of_row, const std::vector<std::string>& files) {
+void Diagnoser::setRowSets(const std::vector<int>& set_of_row, const std::vector<std::string>& files, bool own_stations) {
   if (static_cast<int>(set_of_row.size()) != m_) throw ArgumentError("diagnose: expected a data set per fit row");
   set_of_row_ = set_of_row;
+  own_stations_ = own_stations;
   out_.row_files.clear();
   for (int s : set_of_row) {
     if (s < 0 || static_cast<size_t>(s) >= files.size()) throw ArgumentError("diagnose: a row's data set has no file");
@@ -316,7 +317,7 @@ Diagnosis diagnose(const RobotModel& start, const std::vector<MeasurementSet>& s
   const MeasurementSet* validation = screened_validation ? &*screened_validation : nullptr;
   auto pass = [&](const StationSets& data) {
     diagnose_detail::Diagnoser d(start, data.combined, validation, options);
-    if (data.files.size() > 1) d.setRowSets(data.set_of_row, data.files);
+    if (data.files.size() > 1) d.setRowSets(data.set_of_row, data.files, !same_station);
     return d.run();
   };
   StationSets st = combineStations(start, sets, same_station);

@@ -24,6 +24,18 @@
 namespace accura::calib::diagnose_detail {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+/// Fewest held-out poses of a data set on which the cross-validation re-registers its station
+/// (6 parameters on 3 coordinates a pose: with 20 poses the registration takes about a tenth of
+/// the noise's squared error, alike for every model compared).
+constexpr int kReregisterPoses = 20;
+/// The share of a joint's covered range a fold's training rows must span for the fold to judge an
+/// effect given by a formula of the angles (compliance, a scale, thermal, backlash). The halves of
+/// a joint spread over its range train on about half of it; where the data are clusters (several
+/// series in different ranges: on the UR10's Series_B + Series_C, joint 2's lower half is 38 of
+/// 191 deg, one series) a fold trains on a sliver and extrapolates over more than twice its width:
+/// further than any fitted model is extrapolated (carriesOver: half the covered width), so it does
+/// not judge such an effect. Its other folds and schemes still do.
+constexpr double kFairTrainingShare = 1.0 / 3.0;
 
 /// One-sided upper tail of the standard normal distribution.
 double upperTail(double z);
@@ -71,8 +83,11 @@ class Diagnoser {
   Diagnoser(const RobotModel& start, const MeasurementSet& data, const MeasurementSet* validation,
             const DiagnoseOptions& options);
   Diagnosis run();
-  /// Several data sets: the data set of each fit row and the files (before run()).
-  void setRowSets(const std::vector<int>& set_of_row, const std::vector<std::string>& files);
+  /// Several data sets: the data set of each fit row and the files (before run()). With
+  /// `own_stations` (each set measured from its own tracker station), every held-out error of the
+  /// cross-validation is taken after re-registering the station of each data set on its held-out
+  /// rows (reregister), as `identify --validate-station new` does with new data.
+  void setRowSets(const std::vector<int>& set_of_row, const std::vector<std::string>& files, bool own_stations);
 
  private:
   struct Block {
@@ -87,13 +102,18 @@ class Diagnoser {
   };
   /// Cross-validation folds with their per-fold normal equations (weighted, scaled columns).
   struct Scheme {
-    std::string name;                       // "interleaved", "pose order", "q3 blocks"
+    std::string name;                       // "interleaved", "pose order", "q3 blocks", "data sets"
+    int joint = -1;                         // the joint whose angle the folds cut (0-based; -1: none)
     std::vector<std::vector<int>> poses;    // fit rows held out in each fold
     std::vector<Eigen::MatrixXd> At;        // per fold: the normal equations without its rows
     std::vector<Eigen::VectorXd> bt;
     /// Schemes over a joint's angle: the folds at either end of the range (held out, the
     /// training data do not reach them: what new data outside the covered range see).
     std::vector<int> end_folds;
+    /// Per fold: whether it judges an effect given by a formula of the angles (compliance, a
+    /// scale, thermal, backlash): its training rows cover at least kFairTrainingShare of the
+    /// scheme joint's range (blockedSchemes).
+    std::vector<bool> fair;
   };
   struct Exact {
     std::vector<Eigen::Vector3d> e;  // held-out residual per pose (measured - model)
@@ -122,6 +142,10 @@ class Diagnoser {
   Eval evaluateUncached(const std::vector<int>& S, bool leverage) const;
   Eval cvEval(const std::vector<int>& S, const Scheme& scheme, bool leverage) const;
   void buildScheme(Scheme* s) const;
+  /// Held-out residuals `e` (measured - model, mm, per pose of `held`) after a rigid re-registration
+  /// of each data set's station on its held-out rows (6 parameters, linear least squares in the
+  /// fit's weights; a set with fewer than kReregisterPoses held-out poses keeps the training's).
+  void reregister(const std::vector<int>& held, std::vector<Eigen::Vector3d>* e) const;
   /// Adds the weighted normal equations of the fit poses `poses` (scaled columns, each row over
   /// its non-zero columns only) to the lower triangle of *A and to *b; mirrorLower() completes A.
   void addNormal(const std::vector<int>& poses, Eigen::MatrixXd* A, Eigen::VectorXd* b) const;
@@ -199,6 +223,7 @@ class Diagnoser {
   int m_ = 0, nv_ = 0;  // fit / validation poses
   int folds_ = 5;
   std::vector<int> set_of_row_;            // per fit pose: its data set (empty: one)
+  bool own_stations_ = false;              // the data sets come from different stations
   std::vector<int> fold_;                  // per fit pose
   std::vector<std::vector<int>> fold_poses_;
   // noise

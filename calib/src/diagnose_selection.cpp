@@ -212,7 +212,7 @@ bool Diagnoser::admissible(const std::vector<int>& cur, const std::vector<int>& 
     // coverage rule of carriesOver, fold by fold).
     std::vector<int> judged;
     for (size_t f = 0; f < sc.poses.size(); ++f) {
-      bool ok = true;
+      bool ok = local || periodic || sc.fair.empty() || sc.fair[f];
       for (int j : periodic_joints) {
         const std::pair<double, double> r = trainingRange(sc, f, j);
         ok = ok && r.second - r.first >= kPeriodicCoverageDeg;
