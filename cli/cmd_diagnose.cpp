@@ -36,6 +36,7 @@ struct DiagnoseArgs {
   double alpha = 0.01;
   double repeat_tol = 0.01;
   double robust_k = 4.03;
+  bool position_only = false;
   std::string json;
   std::string report;
 };
@@ -128,6 +129,7 @@ int runDiagnose(const DiagnoseArgs& a) {
   o.alpha = a.alpha;
   o.repeat_tol = a.repeat_tol;
   o.robust_k = a.robust_k;
+  o.use_orientation = !a.position_only;
   std::string why;
   if (!o.IsValid(&why)) throw calib::InputError("diagnose: " + why);
 
@@ -140,7 +142,7 @@ int runDiagnose(const DiagnoseArgs& a) {
   const calib::Diagnosis d = calib::diagnose(start, sets, a.same_station, a.validate.empty() ? nullptr : &validation, o, &stations);
   const calib::MeasurementSet& data = stations.combined;
   if (sets.size() > 1) {
-    std::printf("%zu data sets%s:\n", sets.size(), a.same_station ? ", one station" : ", each from its own station (registered by the geometric identification on all of them, then held)");
+    std::printf("%zu data sets%s:\n", sets.size(), a.same_station ? ", one station" : ", each from its own station (registered by the geometric identification on all of them; the cross-validation registers a held-out set's station again on its rows)");
     for (size_t k = 0; k < sets.size(); ++k) {
       const Eigen::Isometry3d& T = stations.T_first_station[k];
       std::printf("  %s: %zu poses; station %zu, %.3f mm and %.4f deg from the first\n", sets[k].file.c_str(), sets[k].rows.size(), k + 1,
@@ -185,6 +187,9 @@ void addDiagnoseCommand(CLI::App& app) {
                 "unless --same-station")
       ->required();
   c->add_flag("--same-station", a->same_station, "the --data files were measured from one tracker station");
+  c->add_flag("--position-only", a->position_only,
+              "6D data: fit the positions alone (default: the fits use the measured orientations too, as identify "
+              "does; the held-out errors are positions either way)");
   c->add_option("--validate", a->validate, "held-out measurement CSV of the same robot and station "
                                            "(default: k-fold cross-validation over --data)");
   c->add_option("--map", a->map, "mapping file: how to read --data (and --validate) as exported by the instrument");

@@ -48,5 +48,48 @@ TEST(DiagnoseOrientation, ResidualIsThatOfIdentifyOnPositionsAndOrientations) {
   EXPECT_NEAR(d.orientation_rms_before_deg, s.fit.rot_rms_deg, 0.1 * noise);
 }
 
+// 6D data: the diagnosis' linearised fits and refits use the orientations as identify fits them
+// (DiagnoseOptions::use_orientation). A UR10 with the reflector on axis 6 and compliant joints:
+// joint 2's compliance is determined better with the orientation rows than from the positions
+// alone (a smaller sigma: the orientation carries the joint's deflection directly), and both
+// estimates agree with the simulated truth.
+TEST(DiagnoseOrientation, TheFitsUseTheOrientationsAsIdentifyDoes) {
+  RobotModel nominal = test::loadBundled("ur10");
+  const XyzAbc tool = {0, 0, 109, 0, 0, 0};
+  nominal.nominal.T_flange_tcp = toIsometry(tool);
+  SimulateOptions o;
+  o.poses = 300;
+  o.seed = 71;
+  o.noise_mm = 0.02;
+  o.noise_deg = 0.002;
+  o.orientation = true;
+  o.write_std = true;
+  o.effects = {"geometric", "joint_compliance"};
+  o.payloads_kg = {0, 5, 10};
+  o.tool = tool;
+  o.set_tool = true;
+  const RobotModel truth = perturbModel(nominal, o);
+  const MeasurementSet fit = simulateMeasurements(truth, o);
+  DiagnoseOptions position_only;
+  position_only.use_orientation = false;
+  const Diagnosis d6 = diagnose(nominal, fit, nullptr, DiagnoseOptions{});
+  const Diagnosis d3 = diagnose(nominal, fit, nullptr, position_only);
+  EXPECT_FALSE(d6.orientation_ignored);
+  EXPECT_TRUE(d3.orientation_ignored);
+  auto j2 = [](const Diagnosis& d) {
+    for (const EffectEvidence& e : d.selected)
+      for (const EffectParameter& p : e.parameters)
+        if (p.name == "j2_compliance") return p;
+    ADD_FAILURE() << "joint 2's compliance not selected\n" << diagnosisText(d);
+    return EffectParameter{};
+  };
+  const EffectParameter p6 = j2(d6), p3 = j2(d3);
+  const double true_urad_per_nm = truth.deviations.compliance[1] * 1e6;
+  EXPECT_NEAR(p6.value, true_urad_per_nm, 3 * p6.sigma) << p6.sigma;
+  EXPECT_NEAR(p3.value, true_urad_per_nm, 3 * p3.sigma) << p3.sigma;
+  EXPECT_GT(p6.sigma, 0);
+  EXPECT_LT(p6.sigma, 0.95 * p3.sigma);
+}
+
 }  // namespace
 }  // namespace accura::calib

@@ -253,6 +253,11 @@ TEST(RealUr10, DiagnosisFindsTheResidualUnexplained) {
     } else {
       EXPECT_GT(e["blocked_gain_percent"].get<double>(), 0.0);
     }
+    // joint 2's compliance, fitted on positions and orientations as identify fits it, keeps
+    // 11.6% in its worst blocked scheme (3.6% when the diagnosis fitted positions alone)
+    if (e["effect"] == "joint_compliance" && e["joints"] == nlohmann::json::array({2})) {
+      EXPECT_GT(e["blocked_gain_percent"].get<double>(), 8.0) << e.dump();
+    }
   }
   // the maps, fitted after the geometry and the compliance to what those leave, pass every
   // blocked scheme on Series_B and are selected
@@ -303,30 +308,16 @@ TEST(RealUr10, Joint2ComplianceCarriesOverFromEachSeriesToTheOther) {
 }
 
 // Diagnosing the two series together (each from its own station: the user's path to a model of
-// both, about 20 s). The
-// two lie in different joint ranges: the lower half of joint 2's poses is one series' sliver of
-// the range, and trained on it joint 2's compliance extrapolated over four times that width made
-// the other half worse, so it was rejected although it carries over from each whole series to
-// the other (the test above). A fold trained on less than a third of a joint's range no longer
-// judges such an effect (the note says which), each series held out in turn does ("data sets",
-// its station re-registered as identify --validate-station new does), and the compliance is
-// selected beside the maps.
-TEST(RealUr10, TwoSeriesDiagnosisHoldsOutEachSeriesAndNotASliver) {
+// both, about 20 s). The two lie in different joint ranges: joint 2's lower half is a sliver of
+// Series_C (38 of the 191 deg covered). Fitted on positions alone, trained on that sliver, joint
+// 2's compliance made the other half worse and was rejected, although it carries over from each
+// whole series to the other (the test above). The diagnosis now fits the orientations too, as
+// identify does (with them the sliver determines the compliance), holds out each series in turn
+// ("data sets", the held-out series' station re-registered as identify --validate-station new
+// does), and selects the compliance beside the maps.
+TEST(RealUr10, TwoSeriesDiagnosisSelectsTheComplianceThatCarriesOver) {
   const std::string dir = test::tempDir("ur10_diag2");
   const std::string data = test::sourcePath("tests/data/ipa-robot-accuracy/");
-  std::vector<double> q2;  // deg, every row the diagnosis reads
-  for (const std::string name : {"series_b_joint_configurations", "series_c_random_poses"}) {
-    std::ifstream in(data + name + ".csv");
-    std::string line;
-    std::getline(in, line);
-    while (std::getline(in, line)) {
-      std::string cell = line;
-      for (int k = 0; k < 8; ++k) cell = cell.substr(cell.find(';') + 1);  // shoulder_lift_joint, rad
-      cell = cell.substr(0, cell.find(';'));
-      std::replace(cell.begin(), cell.end(), ',', '.');
-      q2.push_back(std::stod(cell) * 180.0 / M_PI);
-    }
-  }
   const std::string cmd = std::string(ACCURA_CLI) + " diagnose --robot ur10 --map " +
                           test::sourcePath("docs/mappings/ipa_robot_accuracy.map") + " --data " + data +
                           "series_b_joint_configurations.csv --data " + data +
@@ -335,31 +326,16 @@ TEST(RealUr10, TwoSeriesDiagnosisHoldsOutEachSeriesAndNotASliver) {
   const int status = std::system(cmd.c_str());
   ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << test::readText(dir + "/out.txt");
   const auto j = nlohmann::json::parse(test::readText(dir + "/d.json"));
-  // the fold that trains on joint 2's lower half, named with its range (the gross rows the
-  // diagnosis leaves out move the median by less than a degree)
-  std::sort(q2.begin(), q2.end());
-  const double lo = q2.front(), median = q2[q2.size() / 2 - 1], width = q2.back() - q2.front();
-  ASSERT_LT(median - lo, width / 3);
-  bool named = false;
-  for (const auto& n : j["notes"]) {
-    const std::string s = n.get<std::string>();
-    const std::string head = "q2 halves: the fold trained on q2 ";
-    if (s.rfind(head, 0) != 0) continue;
-    double a = 0, b = 0, covered = 0, of = 0;
-    ASSERT_EQ(std::sscanf(s.c_str() + head.size(), "%lf..%lf deg (%lf of %lf deg)", &a, &b, &covered, &of), 4) << s;
-    EXPECT_NEAR(a, lo, 0.5);
-    EXPECT_NEAR(b, median, 1.0);
-    EXPECT_NEAR(of, width, 0.5);
-    named = std::abs(covered - (b - a)) <= 0.5 && s.find("does not judge effects given by a formula") != std::string::npos;
-  }
-  EXPECT_TRUE(named) << j["notes"].dump();
   bool compliance = false, maps = false;
   for (const auto& e : j["selected"]) {
     compliance = compliance || (e["effect"] == "joint_compliance" && e["joints"] == nlohmann::json::array({2}));
     maps = maps || e["effect"] == "joint_map";
-    if (e["effect"] != "joint_map") EXPECT_GT(e["blocked_gain_percent"].get<double>(), 0.0) << e.dump();
+    if (e["effect"] != "joint_map") {
+      EXPECT_GT(e["blocked_gain_percent"].get<double>(), 0.0) << e.dump();
+    }
   }
   EXPECT_TRUE(compliance) << j["selected"].dump();
+  EXPECT_FALSE(j["orientation_ignored"].get<bool>());
   EXPECT_TRUE(maps);
   EXPECT_NE(j["identify_params"].get<std::string>().find("joint_compliance:j2"), std::string::npos);
   std::filesystem::remove_all(dir);

@@ -158,6 +158,14 @@ void Diagnoser::prepareData(const MeasurementSet& data, const MeasurementSet* va
   prepare(data, &fit_);
   m_ = static_cast<int>(fit_.rows.size());
   fit_has_rot_ = data.has_orientation;
+  use_rot_ = o_.use_orientation && data.has_orientation &&
+             std::count_if(data.rows.begin(), data.rows.end(), [](const Measurement& r) { return r.has_orientation; }) >= 30;
+  if (use_rot_) {
+    fit_rot_ = fit_;
+    fit_rot_.has_orientation = true;
+    fit_rot_.has_std_orientation = data.has_std_orientation;
+    for (int i = 0; i < m_; ++i) fit_rot_.rows[static_cast<size_t>(i)].has_orientation = data.rows[static_cast<size_t>(i)].has_orientation;
+  }
   for (const Measurement& r : data.rows) {
     R_fit_.push_back(r.R_world_tcp);
     rot_ok_.push_back(data.has_orientation && r.has_orientation);
@@ -178,6 +186,7 @@ void Diagnoser::prepareData(const MeasurementSet& data, const MeasurementSet* va
       throw InputError(validation->file, 0, 0,
                        "the diagnosis needs at least 20 validation poses, found " + std::to_string(nv_));
   }
+  if (use_rot_) out_.orientation_ignored = false;  // (the held-out errors are positions)
   out_.data_file = data.file;
   out_.fit_poses = m_;
   out_.validation_poses = has_val_ ? nv_ : m_;

@@ -32,7 +32,7 @@ IdentifyOptions Diagnoser::baselineOptions() const {
 
 void Diagnoser::baseline() {
   IdentifySummary s;
-  M0_ = identify(start_, fit_, baselineOptions(), &s);
+  M0_ = identify(start_, use_rot_ ? fit_rot_ : fit_, baselineOptions(), &s);
   robust_w_.assign(static_cast<size_t>(m_), 1.0);
   addJointMaps();
   layout_ = parameterLayout(M0_);
@@ -49,6 +49,35 @@ void Diagnoser::baseline() {
     for (size_t i = 0; i < w_fit_.size(); ++i) w_fit_[i] *= std::sqrt(fit_.rows[i].weight);
     if (has_val_)
       for (size_t i = 0; i < w_val_.size(); ++i) w_val_[i] = Eigen::Vector3d::Constant(std::sqrt(val_.rows[i].weight) / s.position_std_mm);
+  } else if (use_rot_ && fit_.has_std_position && s.model_error_mm > 0) {
+    // 6D data whose std columns explain the residual badly: the baseline's unmodelled-error term
+    // joins every row's std, as identify weights (1 / sqrt(std^2 + tau^2) per axis), so that
+    // positions and orientations weigh in the fits as they do in identify's
+    const double tau2 = s.model_error_mm * s.model_error_mm;
+    auto weigh = [&](const MeasurementSet& set, std::vector<Eigen::Vector3d>* w) {
+      for (size_t i = 0; i < w->size(); ++i)
+        (*w)[i] = std::sqrt(set.rows[i].weight) * (set.rows[i].std_mm.array().square() + tau2).rsqrt().matrix();
+    };
+    weigh(fit_, &w_fit_);
+    if (has_val_ && val_.has_std_position) weigh(val_, &w_val_);
+  }
+  // the orientation rows' weights (1/rad), as identify's: the std columns or the std it
+  // estimated, with its unmodelled-error term
+  w_rot_.assign(static_cast<size_t>(m_), Eigen::Vector3d::Zero());
+  noise_rot_.assign(static_cast<size_t>(m_), Eigen::Vector3d::Zero());
+  if (use_rot_) {
+    const double tau_rad = s.model_error_deg * kDegToRad;
+    for (int i = 0; i < m_; ++i) {
+      const Measurement& r = fit_rot_.rows[static_cast<size_t>(i)];
+      if (!r.has_orientation) continue;
+      const Eigen::Vector3d sd = fit_rot_.has_std_orientation && r.std_rot_deg.allFinite()
+                                     ? Eigen::Vector3d(r.std_rot_deg * kDegToRad)
+                                     : Eigen::Vector3d::Constant(s.orientation_std_deg * kDegToRad);
+      const Eigen::Array3d v = sd.array().square() + tau_rad * tau_rad;
+      if (!(v > 0).all()) continue;  // no std to weigh with: the row's orientation is left out
+      w_rot_[static_cast<size_t>(i)] = std::sqrt(r.weight) * v.rsqrt().matrix();
+      noise_rot_[static_cast<size_t>(i)] = sd;
+    }
   }
 }
 
@@ -137,7 +166,7 @@ void Diagnoser::robust() {
   if (!(o_.robust_k > 0) || blocks_.empty()) return;
   std::vector<double> w0;
   for (const Measurement& r : fit_.rows) w0.push_back(r.weight);
-  const std::vector<Eigen::Vector3d> wf0 = w_fit_;
+  const std::vector<Eigen::Vector3d> wf0 = w_fit_, wr0 = w_rot_;
   std::vector<int> all(blocks_.size());
   std::iota(all.begin(), all.end(), 0);
   for (int pass = 0; pass < 2; ++pass) {
@@ -153,10 +182,12 @@ void Diagnoser::robust() {
       const double w = w0[static_cast<size_t>(i)] * robust_w_[static_cast<size_t>(i)];
       changed = changed || w != fit_.rows[static_cast<size_t>(i)].weight;
       fit_.rows[static_cast<size_t>(i)].weight = w;
+      if (use_rot_) fit_rot_.rows[static_cast<size_t>(i)].weight = w;
       w_fit_[static_cast<size_t>(i)] = wf0[static_cast<size_t>(i)] * std::sqrt(robust_w_[static_cast<size_t>(i)]);
+      w_rot_[static_cast<size_t>(i)] = wr0[static_cast<size_t>(i)] * std::sqrt(robust_w_[static_cast<size_t>(i)]);
     }
     if (!changed) break;
-    M0_ = identify(M0_, fit_, baselineOptions(), nullptr);
+    M0_ = identify(M0_, use_rot_ ? fit_rot_ : fit_, baselineOptions(), nullptr);
     linearise();
   }
 }
@@ -237,34 +268,61 @@ void Diagnoser::linearise() {
   const int C = static_cast<int>(cols_.size());
   std::vector<ParamInfo> sub;
   for (int c : cols_) sub.push_back(layout_[c]);
-  // identify's residual stacking (unit weights: position rows only), measured minus model
+  // identify's residual stacking (unit weights; with 6D data the orientation rows too), measured minus model
   const identify_detail::JacobianPlan plan = identify_detail::makePlan(M0_, sub);
-  auto build = [&](const MeasurementSet& set, Eigen::MatrixXd* J, Eigen::VectorXd* r) {
+  auto build = [&](const MeasurementSet& set, Eigen::MatrixXd* J, Eigen::VectorXd* r, int dim) {
     identify_detail::Stations st;
     st.of_row.assign(set.rows.size(), 0);
     identify_detail::RowStack stack(M0_, plan, st);
-    stack.stack(std::vector<double>(sub.size(), 0.0), set, std::vector<identify_detail::RowWeights>(set.rows.size()), J, r);
+    identify_detail::RowWeights unit;
+    unit.dim = dim;
+    stack.stack(std::vector<double>(sub.size(), 0.0), set, std::vector<identify_detail::RowWeights>(set.rows.size(), unit), J, r);
     *r = -*r;
   };
-  Eigen::MatrixXd JF;
-  build(fit_, &JF, &rF_);
+  Eigen::MatrixXd JF, JR;
+  if (use_rot_) {
+    // 6 rows a pose: the position's 3 (mm), the orientation's 3 (rad)
+    Eigen::MatrixXd J6;
+    Eigen::VectorXd r6;
+    build(fit_rot_, &J6, &r6, 6);
+    JF.resize(3 * m_, J6.cols());
+    JR.resize(3 * m_, J6.cols());
+    rF_.resize(3 * m_);
+    rR_.resize(3 * m_);
+    for (int i = 0; i < m_; ++i) {
+      JF.middleRows(3 * i, 3) = J6.middleRows(6 * i, 3);
+      JR.middleRows(3 * i, 3) = J6.middleRows(6 * i + 3, 3);
+      rF_.segment<3>(3 * i) = r6.segment<3>(6 * i);
+      rR_.segment<3>(3 * i) = r6.segment<3>(6 * i + 3);
+    }
+  } else {
+    build(fit_, &JF, &rF_, 3);
+    JR.resize(0, JF.cols());
+    rR_.resize(0);
+  }
   wF_.resize(3 * m_);
   for (int i = 0; i < m_; ++i) wF_.segment(3 * i, 3) = w_fit_[i];
-  // weighted column norms: scale, and screen zero / dependent columns
-  Eigen::MatrixXd Jw = wF_.asDiagonal() * JF;
+  wR_.resize(JR.rows());
+  for (Eigen::Index i = 0; i < JR.rows() / 3; ++i) wR_.segment(3 * i, 3) = w_rot_[static_cast<size_t>(i)];
+  equations_ = 3.0 * m_;
+  for (Eigen::Index k = 0; k < wR_.size(); ++k) equations_ += wR_[k] > 0 ? 1.0 : 0.0;
+  // weighted column norms over every row: scale, and screen zero / dependent columns
+  Eigen::MatrixXd Jw(JF.rows() + JR.rows(), JF.cols());
+  Jw << wF_.asDiagonal() * JF, wR_.asDiagonal() * JR;
+  const Eigen::Index R = Jw.rows();
   Eigen::VectorXd norms = Jw.colwise().norm();
   double gmax = 0;
   for (int c : G_) gmax = std::max(gmax, norms[c]);
   // orthonormal basis of the geometric columns
-  Eigen::MatrixXd Gs(3 * m_, static_cast<Eigen::Index>(G_.size()));
+  Eigen::MatrixXd Gs(R, static_cast<Eigen::Index>(G_.size()));
   for (size_t k = 0; k < G_.size(); ++k) Gs.col(static_cast<Eigen::Index>(k)) = Jw.col(G_[k]) / norms[G_[k]];
   Eigen::HouseholderQR<Eigen::MatrixXd> qr(Gs);
-  Eigen::MatrixXd Q = qr.householderQ() * Eigen::MatrixXd::Identity(3 * m_, Gs.cols());
+  Eigen::MatrixXd Q = qr.householderQ() * Eigen::MatrixXd::Identity(R, Gs.cols());
   std::vector<bool> keep(static_cast<size_t>(C), true);
   // a block's columns kept so far, orthonormalised against Q and each other
   size_t widest_block = 0;
   for (const Block& b : blocks_) widest_block = std::max(widest_block, b.cols.size());
-  Eigen::MatrixXd E(3 * m_, static_cast<Eigen::Index>(widest_block));
+  Eigen::MatrixXd E(R, static_cast<Eigen::Index>(widest_block));
   for (Block& b : blocks_) {
     Eigen::Index ne = 0;
     std::vector<int> kept;
@@ -317,7 +375,7 @@ void Diagnoser::linearise() {
                 blocks_.end());
   colscale_ = norms.cwiseMax(1e-300);
   JF_ = JF * colscale_.cwiseInverse().asDiagonal();
-  const Eigen::VectorXd rw = wF_.cwiseProduct(rF_);
+  JR_ = JR * colscale_.cwiseInverse().asDiagonal();
   mapPenalty();
   row_nz_.assign(static_cast<size_t>(m_), {});
   for (int i = 0; i < m_; ++i)
@@ -331,9 +389,20 @@ void Diagnoser::linearise() {
   addNormal(all, &A_, &b_);
   mirrorLower(&A_);
   A_ += penalty_;
-  rr_ = rw.squaredNorm();
+  if (use_rot_) {
+    mF_.resize(wF_.size());
+    mR_.resize(wR_.size());
+    for (int i = 0; i < m_; ++i) {
+      mF_.segment<3>(3 * i) = wF_.segment<3>(3 * i).array().square() * noise_fit_[static_cast<size_t>(i)].array();
+      mR_.segment<3>(3 * i) = wR_.segment<3>(3 * i).array().square() * noise_rot_[static_cast<size_t>(i)].array();
+    }
+    Bm_ = Eigen::MatrixXd::Zero(A_.rows(), A_.cols());
+    addNormal(all, &Bm_, nullptr, true);
+    mirrorLower(&Bm_);
+  }
+  rr_ = wF_.cwiseProduct(rF_).squaredNorm() + wR_.cwiseProduct(rR_).squaredNorm();
   if (has_val_) {
-    build(val_, &JV_, &rV_);
+    build(val_, &JV_, &rV_, 3);
     JV_ = JV_ * colscale_.cwiseInverse().asDiagonal();
   }
 }
@@ -348,19 +417,24 @@ void Diagnoser::schemes() {
 // A row's non-zero columns come in runs of consecutive columns (the parametric ones, and per
 // joint the few map coefficients near its angle): the products are taken run by run, each
 // column of the lower triangle as three contiguous multiply-adds.
-void Diagnoser::addNormal(const std::vector<int>& poses, Eigen::MatrixXd* A, Eigen::VectorXd* b) const {
+void Diagnoser::addNormal(const std::vector<int>& poses, Eigen::MatrixXd* A, Eigen::VectorXd* b, bool meat) const {
   const Eigen::Index C = JF_.cols();
+  const int blocks = use_rot_ ? 2 : 1;  // a pose's 3-row blocks: position, orientation
+  const Eigen::MatrixXd* Js[2] = {&JF_, &JR_};
+  const Eigen::VectorXd* rs[2] = {&rF_, &rR_};
+  const Eigen::VectorXd* ws[2] = {meat ? &mF_ : &wF_, meat ? &mR_ : &wR_};
   if (std::all_of(poses.begin(), poses.end(), [&](int i) { return static_cast<Eigen::Index>(row_nz_[static_cast<size_t>(i)].size()) == C; })) {
     // every column of every row (no maps): one symmetric rank update of the weighted rows
-    Eigen::MatrixXd Jw(3 * static_cast<Eigen::Index>(poses.size()), C);
+    Eigen::MatrixXd Jw(3 * blocks * static_cast<Eigen::Index>(poses.size()), C);
     Eigen::VectorXd rw(Jw.rows());
-    for (size_t k = 0; k < poses.size(); ++k) {
-      const Eigen::Index r = 3 * static_cast<Eigen::Index>(k), i3 = 3 * static_cast<Eigen::Index>(poses[k]);
-      Jw.middleRows(r, 3) = wF_.segment<3>(i3).asDiagonal() * JF_.middleRows(i3, 3);
-      rw.segment<3>(r) = wF_.segment<3>(i3).cwiseProduct(rF_.segment<3>(i3));
-    }
+    for (size_t k = 0; k < poses.size(); ++k)
+      for (int t = 0; t < blocks; ++t) {
+        const Eigen::Index r = 3 * (blocks * static_cast<Eigen::Index>(k) + t), i3 = 3 * static_cast<Eigen::Index>(poses[k]);
+        Jw.middleRows(r, 3) = ws[t]->segment<3>(i3).asDiagonal() * Js[t]->middleRows(i3, 3);
+        rw.segment<3>(r) = ws[t]->segment<3>(i3).cwiseProduct(rs[t]->segment<3>(i3));
+      }
     detail::addGramLower(*A, Jw);
-    b->noalias() += Jw.transpose() * rw;
+    if (b) b->noalias() += Jw.transpose() * rw;
     return;
   }
   struct Run {
@@ -373,34 +447,37 @@ void Diagnoser::addNormal(const std::vector<int>& poses, Eigen::MatrixXd* A, Eig
   for (int i : poses) {
     const std::vector<int>& nz = row_nz_[static_cast<size_t>(i)];
     const int n = static_cast<int>(nz.size());
-    Eigen::Vector3d ri;
-    for (int k = 0; k < 3; ++k) {
-      const double w = wF_[3 * i + k];
-      ri[k] = w * rF_[3 * i + k];
-      for (int a = 0; a < n; ++a) W(a, k) = w * JF_(3 * i + k, nz[static_cast<size_t>(a)]);
-    }
     runs.clear();
     for (int a = 0; a < n; ++a) {
       if (!runs.empty() && nz[static_cast<size_t>(a)] == runs.back().col + runs.back().len) ++runs.back().len;
       else runs.push_back({nz[static_cast<size_t>(a)], a, 1});
     }
-    for (int a = 0; a < n; ++a) (*b)[nz[static_cast<size_t>(a)]] += W(a, 0) * ri[0] + W(a, 1) * ri[1] + W(a, 2) * ri[2];
-    const double* w0 = &W(0, 0);
-    const double* w1 = &W(0, 1);
-    const double* w2 = &W(0, 2);
-    for (size_t ra = 0; ra < runs.size(); ++ra)
-      for (int a = 0; a < runs[ra].len; ++a) {
-        const int ia = runs[ra].off + a;
-        const double s0 = w0[ia], s1 = w1[ia], s2 = w2[ia];
-        double* const col = a0 + static_cast<Eigen::Index>(runs[ra].col + a) * lda;
-        for (size_t rb = ra; rb < runs.size(); ++rb) {
-          const int first = rb == ra ? a : 0;  // the lower triangle only
-          const int ib = runs[rb].off + first;
-          double* const dst = col + runs[rb].col + first;
-          const int len = runs[rb].len - first;
-          axpy3(dst, w0 + ib, w1 + ib, w2 + ib, s0, s1, s2, len);
-        }
+    for (int t = 0; t < blocks; ++t) {
+      Eigen::Vector3d ri;
+      for (int k = 0; k < 3; ++k) {
+        const double w = (*ws[t])[3 * i + k];
+        ri[k] = w * (*rs[t])[3 * i + k];
+        for (int a = 0; a < n; ++a) W(a, k) = w * (*Js[t])(3 * i + k, nz[static_cast<size_t>(a)]);
       }
+      if (b)
+        for (int a = 0; a < n; ++a) (*b)[nz[static_cast<size_t>(a)]] += W(a, 0) * ri[0] + W(a, 1) * ri[1] + W(a, 2) * ri[2];
+      const double* w0 = &W(0, 0);
+      const double* w1 = &W(0, 1);
+      const double* w2 = &W(0, 2);
+      for (size_t ra = 0; ra < runs.size(); ++ra)
+        for (int a = 0; a < runs[ra].len; ++a) {
+          const int ia = runs[ra].off + a;
+          const double s0 = w0[ia], s1 = w1[ia], s2 = w2[ia];
+          double* const col = a0 + static_cast<Eigen::Index>(runs[ra].col + a) * lda;
+          for (size_t rb = ra; rb < runs.size(); ++rb) {
+            const int first = rb == ra ? a : 0;  // the lower triangle only
+            const int ib = runs[rb].off + first;
+            double* const dst = col + runs[rb].col + first;
+            const int len = runs[rb].len - first;
+            axpy3(dst, w0 + ib, w1 + ib, w2 + ib, s0, s1, s2, len);
+          }
+        }
+    }
   }
 }
 
@@ -442,42 +519,25 @@ void Diagnoser::blockedSchemes() {
       blocked_.push_back(std::move(sc));
     }
   }
-  auto cut = [&](const std::vector<int>& order, const std::string& name, int folds, int joint) {
+  auto cut = [&](const std::vector<int>& order, const std::string& name, int folds) {
     Scheme sc;
     sc.name = name;
-    sc.joint = joint;
     sc.poses.assign(static_cast<size_t>(folds), {});
     for (int k = 0; k < m_; ++k)
       sc.poses[static_cast<size_t>(static_cast<long>(k) * folds / m_)].push_back(order[static_cast<size_t>(k)]);
     if (name != "pose order" && folds > 2) sc.end_folds = {0, folds - 1};
-    sc.fair.assign(static_cast<size_t>(folds), true);
-    if (joint >= 0) {
-      const double width = fit_.rows[static_cast<size_t>(order.back())].q[joint] - fit_.rows[static_cast<size_t>(order.front())].q[joint];
-      for (int f = 0; f < folds; ++f) {
-        const std::pair<double, double> r = trainingRange(sc, static_cast<size_t>(f), joint);
-        if (r.second - r.first >= kFairTrainingShare * width) continue;
-        sc.fair[static_cast<size_t>(f)] = false;
-        const std::string unit = M0_.nominal.joints[static_cast<size_t>(joint)].type == JointType::kRevolute ? " deg" : " mm";
-        effect_note_["scheme:" + name + ":" + std::to_string(f)] =
-            name + ": the fold trained on q" + std::to_string(joint + 1) + " " + fmtg("%.1f", r.first) + ".." +
-            fmtg("%.1f", r.second) + unit + " (" + fmtg("%.0f", r.second - r.first) + " of " + fmtg("%.0f", width) + unit +
-            ") does not judge effects given by a formula of the angles (compliance, scale, thermal, backlash): "
-            "trained on less than a third of the joint's range, they would be extrapolated over more than twice "
-            "the width they were fitted on";
-      }
-    }
     buildScheme(&sc);
     blocked_.push_back(std::move(sc));
   };
   std::vector<int> order(static_cast<size_t>(m_));
   std::iota(order.begin(), order.end(), 0);
-  cut(order, "pose order", K, -1);
+  cut(order, "pose order", K);
   for (int j = 0; j < M0_.dof(); ++j) {
     std::vector<int> by = order;
     std::stable_sort(by.begin(), by.end(), [&](int a, int b) { return fit_.rows[a].q[j] < fit_.rows[b].q[j]; });
     if (!(fit_.rows[by.back()].q[j] - fit_.rows[by.front()].q[j] > 1e-6)) continue;
-    cut(by, "q" + std::to_string(j + 1) + " blocks", K, j);
-    cut(by, "q" + std::to_string(j + 1) + " halves", 2, j);  // train on one half, predict the other
+    cut(by, "q" + std::to_string(j + 1) + " blocks", K);
+    cut(by, "q" + std::to_string(j + 1) + " halves", 2);  // train on one half, predict the other
   }
 }
 
@@ -544,7 +604,9 @@ Diagnoser::Eval Diagnoser::evaluateUncached(const std::vector<int>& S, bool leve
     const Eigen::VectorXd e = rV_ - JS * x;
     ev.d.resize(nv_);
     for (int i = 0; i < nv_; ++i) ev.d[i] = e.segment(3 * i, 3).squaredNorm();
-    if (leverage) {
+    if (leverage && use_rot_) {
+      sandwichLeverage(llt, JS, Bm_(S, S), &ev.lev);
+    } else if (leverage) {
       ev.lev.resize(nv_);
       for (int i = 0; i < nv_; ++i)
         ev.lev[i] = llt.matrixL().solve(Eigen::MatrixXd(JS.middleRows(3 * i, 3).transpose())).squaredNorm();
@@ -615,7 +677,20 @@ Diagnoser::Eval Diagnoser::cvEval(const std::vector<int>& S, const Scheme& schem
       const double w = robust_w_[static_cast<size_t>(held[k])];
       ev.d[held[k]] = e[k].squaredNorm() * w * w;
     }
-    if (leverage && !held.empty()) {
+    if (leverage && !held.empty() && use_rot_) {
+      // the fold's meat: every row's less the held-out ones'
+      Eigen::MatrixXd Bh = Eigen::MatrixXd::Zero(Bm_.rows(), Bm_.cols());
+      addNormal(held, &Bh, nullptr, true);
+      mirrorLower(&Bh);
+      std::vector<Eigen::Index> Sa;
+      for (Eigen::Index a : act) Sa.push_back(S[a]);
+      Eigen::MatrixXd Jh(3 * static_cast<Eigen::Index>(held.size()), static_cast<Eigen::Index>(act.size()));
+      for (size_t k = 0; k < held.size(); ++k)
+        for (size_t a = 0; a < act.size(); ++a) Jh.block<3, 1>(3 * static_cast<Eigen::Index>(k), static_cast<Eigen::Index>(a)) = JF_.col(Sa[a]).segment<3>(3 * held[k]);
+      Eigen::VectorXd lev;
+      sandwichLeverage(llt, Jh, Eigen::MatrixXd(Bm_(Sa, Sa) - Bh(Sa, Sa)), &lev);
+      for (size_t k = 0; k < held.size(); ++k) ev.lev[held[k]] = lev[static_cast<Eigen::Index>(k)];
+    } else if (leverage && !held.empty()) {
       // the held-out rows' leverages |L^-1 J_i^T|^2, all rows of the fold in one triangular solve
       // (act: the columns of the fold's factor, all of S or those its rows reach)
       Eigen::MatrixXd Jt(static_cast<Eigen::Index>(act.size()), 3 * static_cast<Eigen::Index>(held.size()));
@@ -666,6 +741,15 @@ void Diagnoser::reregister(const std::vector<int>& held, std::vector<Eigen::Vect
   }
 }
 
+void Diagnoser::sandwichLeverage(const Eigen::LLT<Eigen::MatrixXd>& llt, const Eigen::MatrixXd& Jrows, const Eigen::MatrixXd& B,
+                                 Eigen::VectorXd* lev) const {
+  // Y = A^-1 J_i^T per row; the pose's variance is the trace of Y^T B Y over its 3 rows
+  const Eigen::MatrixXd Y = llt.solve(Eigen::MatrixXd(Jrows.transpose()));
+  const Eigen::MatrixXd BY = B * Y;
+  lev->resize(Jrows.rows() / 3);
+  for (Eigen::Index k = 0; k < lev->size(); ++k) (*lev)[k] = Y.middleCols(3 * k, 3).cwiseProduct(BY.middleCols(3 * k, 3)).sum();
+}
+
 // Linear fit on all fit data: parameter update (scaled) and weighted chi^2; sigma (scaled,
 // times the variance factor) when asked.
 Eigen::VectorXd Diagnoser::fitAll(const std::vector<int>& S, double* chi2, Eigen::VectorXd* sigma) const {
@@ -678,7 +762,7 @@ Eigen::VectorXd Diagnoser::fitAll(const std::vector<int>& S, double* chi2, Eigen
   const double c2 = std::max(0.0, rr_ - bS.dot(x));
   if (chi2) *chi2 = c2;
   if (sigma) {
-    const double dof = std::max(1.0, 3.0 * m_ - double(s));
+    const double dof = std::max(1.0, equations_ - double(s));
     const double s0 = c2 / dof;
     const Eigen::MatrixXd inv = llt.solve(Eigen::MatrixXd::Identity(s, s));
     *sigma = (s0 * inv.diagonal()).cwiseMax(0).cwiseSqrt();
@@ -751,7 +835,10 @@ RobotModel Diagnoser::gnFitFrom(const RobotModel& start, const std::vector<int>&
   st.of_row.assign(fit_.rows.size(), 0);
   identify_detail::RowStack stack(model, plan, st);
   const std::vector<double> x0(sub.size(), 0.0);  // (no station parameters)
-  const Eigen::Index R = 3 * static_cast<Eigen::Index>(rows.size());
+  // per pose its position's 3 rows (mm) and, with 6D data, its orientation's 3 (rad)
+  const Eigen::Index D = use_rot_ ? 6 : 3;
+  const MeasurementSet& data = use_rot_ ? fit_rot_ : fit_;
+  const Eigen::Index R = D * static_cast<Eigen::Index>(rows.size());
   Eigen::MatrixXd Jw(R, s);  // weighted, scaled
   Eigen::VectorXd rw(R);
   const Eigen::MatrixXd P = penalty_(S, S);
@@ -759,7 +846,7 @@ RobotModel Diagnoser::gnFitFrom(const RobotModel& start, const std::vector<int>&
   Eigen::LLT<Eigen::MatrixXd> llt;
   for (int it = 0; it < 10; ++it) {
     // at M0 (the first iteration), the rows' system from at_m0 when it holds it
-    const bool cached = it == 0 && at_m0 && at_m0->Jw.rows() == 3 * m_ && at_m0->Jw.cols() == s;
+    const bool cached = it == 0 && at_m0 && at_m0->Jw.rows() == D * m_ && at_m0->Jw.cols() == s;
     // a chord step once the last step was below one (scaled: one standard deviation of the
     // parameter on all fit data): the Jacobian and its factorisation of the last iteration, new
     // residuals only. The third iteration, which typically ends the fit with a step of 1e-6
@@ -772,24 +859,29 @@ RobotModel Diagnoser::gnFitFrom(const RobotModel& start, const std::vector<int>&
     if (!cached) stack.prepare(model);
     for (size_t k = 0; k < rows.size(); ++k) {
       const int i = rows[k];
-      const Eigen::Index r0 = 3 * static_cast<Eigen::Index>(k);
+      const Eigen::Index r0 = D * static_cast<Eigen::Index>(k);
       if (cached) {
-        Jw.middleRows(r0, 3) = at_m0->Jw.middleRows(3 * i, 3);
-        rw.segment(r0, 3) = at_m0->rw.segment(3 * i, 3);
+        Jw.middleRows(r0, D) = at_m0->Jw.middleRows(D * i, D);
+        rw.segment(r0, D) = at_m0->rw.segment(D * i, D);
         continue;
       }
-      const Measurement& row = fit_.rows[static_cast<size_t>(i)];
+      const Measurement& row = data.rows[static_cast<size_t>(i)];
       const Eigen::Isometry3d T = stack.pose(x0, row, static_cast<size_t>(i), !chord);
       if (!chord) Jw.middleRows(r0, 3).noalias() = w_fit_[i].asDiagonal() * stack.J().topRows(3) * inv_scale.asDiagonal();
       rw.segment(r0, 3) = w_fit_[i].cwiseProduct(row.p_world_mm - T.translation());
+      if (D == 6) {
+        const Eigen::Vector3d& wr = w_rot_[static_cast<size_t>(i)];
+        if (!chord) Jw.middleRows(r0 + 3, 3).noalias() = wr.asDiagonal() * stack.J().bottomRows(3) * inv_scale.asDiagonal();
+        rw.segment(r0 + 3, 3) = -wr.cwiseProduct(identify_detail::rowError(T, row, 6).tail<3>());
+      }
     }
-    if (it == 0 && at_m0 && !cached && R == 3 * m_) {
+    if (it == 0 && at_m0 && !cached && R == D * m_) {
       // every pose: keep the system at M0 for the other fits of S
       at_m0->Jw.resize(R, s);
       at_m0->rw.resize(R);
       for (size_t k = 0; k < rows.size(); ++k) {
-        at_m0->Jw.middleRows(3 * rows[k], 3) = Jw.middleRows(3 * static_cast<Eigen::Index>(k), 3);
-        at_m0->rw.segment(3 * rows[k], 3) = rw.segment(3 * static_cast<Eigen::Index>(k), 3);
+        at_m0->Jw.middleRows(D * rows[k], D) = Jw.middleRows(D * static_cast<Eigen::Index>(k), D);
+        at_m0->rw.segment(D * rows[k], D) = rw.segment(D * static_cast<Eigen::Index>(k), D);
       }
     }
     // the maps' penalty on their current (scaled) coefficients; zero for every other parameter

@@ -292,8 +292,10 @@ void Diagnoser::noiseFloor() {
       (*w)[i] = std::sqrt(r.weight) * s.cwiseInverse();
       const Eigen::Vector3d sf = per_row ? r.std_mm : Eigen::Vector3d::Constant(std::isnan(sigma) ? 0.0 : sigma);
       (*var)[static_cast<Eigen::Index>(i)] = sf.squaredNorm();
+      if (&set == &fit_) noise_fit_[i] = sf;
     }
   };
+  noise_fit_.assign(fit_.rows.size(), Eigen::Vector3d::Zero());
   fill(fit_, &w_fit_, &var_fit_);
   if (has_val_) fill(val_, &w_val_, &var_val_);
   if (out_.noise_floor_known) {

@@ -28,14 +28,6 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 /// (6 parameters on 3 coordinates a pose: with 20 poses the registration takes about a tenth of
 /// the noise's squared error, alike for every model compared).
 constexpr int kReregisterPoses = 20;
-/// The share of a joint's covered range a fold's training rows must span for the fold to judge an
-/// effect given by a formula of the angles (compliance, a scale, thermal, backlash). The halves of
-/// a joint spread over its range train on about half of it; where the data are clusters (several
-/// series in different ranges: on the UR10's Series_B + Series_C, joint 2's lower half is 38 of
-/// 191 deg, one series) a fold trains on a sliver and extrapolates over more than twice its width:
-/// further than any fitted model is extrapolated (carriesOver: half the covered width), so it does
-/// not judge such an effect. Its other folds and schemes still do.
-constexpr double kFairTrainingShare = 1.0 / 3.0;
 
 /// One-sided upper tail of the standard normal distribution.
 double upperTail(double z);
@@ -103,17 +95,12 @@ class Diagnoser {
   /// Cross-validation folds with their per-fold normal equations (weighted, scaled columns).
   struct Scheme {
     std::string name;                       // "interleaved", "pose order", "q3 blocks", "data sets"
-    int joint = -1;                         // the joint whose angle the folds cut (0-based; -1: none)
     std::vector<std::vector<int>> poses;    // fit rows held out in each fold
     std::vector<Eigen::MatrixXd> At;        // per fold: the normal equations without its rows
     std::vector<Eigen::VectorXd> bt;
     /// Schemes over a joint's angle: the folds at either end of the range (held out, the
     /// training data do not reach them: what new data outside the covered range see).
     std::vector<int> end_folds;
-    /// Per fold: whether it judges an effect given by a formula of the angles (compliance, a
-    /// scale, thermal, backlash): its training rows cover at least kFairTrainingShare of the
-    /// scheme joint's range (blockedSchemes).
-    std::vector<bool> fair;
   };
   struct Exact {
     std::vector<Eigen::Vector3d> e;  // held-out residual per pose (measured - model)
@@ -148,7 +135,12 @@ class Diagnoser {
   void reregister(const std::vector<int>& held, std::vector<Eigen::Vector3d>* e) const;
   /// Adds the weighted normal equations of the fit poses `poses` (scaled columns, each row over
   /// its non-zero columns only) to the lower triangle of *A and to *b; mirrorLower() completes A.
-  void addNormal(const std::vector<int>& poses, Eigen::MatrixXd* A, Eigen::VectorXd* b) const;
+  /// meat: with the row weights w^2 s of the noise-only covariance (mF_, mR_), b untouched.
+  void addNormal(const std::vector<int>& poses, Eigen::MatrixXd* A, Eigen::VectorXd* b, bool meat = false) const;
+  /// Prediction variance (mm^2) of the held-out rows `held` of the fit with the columns
+  /// S(act) whose normal matrix llt factors, from the noise alone; `B` that fit's meat on S.
+  void sandwichLeverage(const Eigen::LLT<Eigen::MatrixXd>& llt, const Eigen::MatrixXd& Jrows, const Eigen::MatrixXd& B,
+                        Eigen::VectorXd* lev) const;
   void blockedSchemes();
   /// The checks an addition to the model must pass besides the held-out test: physically
   /// plausible parameters and a gain that survives blocked cross-validation. Fills *why when not.
@@ -229,6 +221,7 @@ class Diagnoser {
   // noise
   std::vector<Eigen::Vector3d> w_fit_, w_val_;  // per-axis weights sqrt(weight)/sigma
   Eigen::VectorXd var_fit_, var_val_;          // per pose: sum of the three noise variances (mm^2)
+  std::vector<Eigen::Vector3d> noise_fit_;     // per fit pose: the noise std per axis (mm; 0: unknown)
   // model and columns
   RobotModel M0_;
   std::vector<ParamInfo> layout_;
@@ -254,6 +247,20 @@ class Diagnoser {
   std::vector<std::vector<int>> groups_;   // repeated configurations of the fit data
   std::vector<double> robust_w_;           // per fit row (1: not down-weighted)
   std::vector<Eigen::Quaterniond> R_fit_;  // measured orientation of the fit rows (6D data)
+  // 6D data in the linearised fits (use_orientation): the fit rows with their orientation, and
+  // per pose 3 orientation rows (rad; weight 0 where a row has none) beside the 3 position rows
+  bool use_rot_ = false;
+  MeasurementSet fit_rot_;
+  std::vector<Eigen::Vector3d> w_rot_;  // per-axis weights of the orientation rows (1/rad)
+  Eigen::MatrixXd JR_;                  // orientation Jacobian (rad per scaled column)
+  Eigen::VectorXd rR_, wR_;             // measured minus model (rad), weights
+  double equations_ = 0;                // weighted equations of the fit (3 per pose, 3 more with an orientation)
+  // The weights above carry the unmodelled-error term: the prediction variance from the noise
+  // alone is the sandwich A^-1 B A^-1, B the normal matrix with row weights w^2 s (s the noise
+  // std): these weights and B over every fit row (6D data only; else B = A).
+  std::vector<Eigen::Vector3d> noise_rot_;  // per fit pose: the orientation noise std (rad)
+  Eigen::VectorXd mF_, mR_;
+  Eigen::MatrixXd Bm_;
   std::vector<bool> rot_ok_;               // row has a measured orientation
   std::vector<Eigen::Quaterniond> R_val_;  // the same for the validation rows
   std::vector<bool> rot_ok_val_;

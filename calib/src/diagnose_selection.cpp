@@ -212,7 +212,7 @@ bool Diagnoser::admissible(const std::vector<int>& cur, const std::vector<int>& 
     // coverage rule of carriesOver, fold by fold).
     std::vector<int> judged;
     for (size_t f = 0; f < sc.poses.size(); ++f) {
-      bool ok = local || periodic || sc.fair.empty() || sc.fair[f];
+      bool ok = true;
       for (int j : periodic_joints) {
         const std::pair<double, double> r = trainingRange(sc, f, j);
         ok = ok && r.second - r.first >= kPeriodicCoverageDeg;
@@ -567,7 +567,7 @@ void Diagnoser::ranking() {
     double chi_with = 0, chi_without = 0;
     fitAll(S, &chi_with, nullptr);
     fitAll(G_, &chi_without, nullptr);
-    ev.delta_bic = chi_with - chi_without + double(S.size() - G_.size()) * std::log(3.0 * m_);
+    ev.delta_bic = chi_with - chi_without + double(S.size() - G_.size()) * std::log(equations_);
     ev.parameters = parametersOf(S, e);
     ev.implausible = implausible(ev.parameters);
     if (!ev.significant) {
@@ -607,7 +607,8 @@ double canonicalCorrelation(const Eigen::MatrixXd& Jw, const std::vector<int>& G
 void Diagnoser::confounding() {
   const size_t B = blocks_.size();
   const double thr1 = o_.alpha / double(std::max<size_t>(1, B));
-  const Eigen::MatrixXd Jw = wF_.asDiagonal() * JF_;
+  Eigen::MatrixXd Jw(JF_.rows() + JR_.rows(), JF_.cols());  // every weighted row (6D: the orientation's too)
+  Jw << wF_.asDiagonal() * JF_, wR_.asDiagonal() * JR_;
   std::map<std::pair<std::string, std::string>, Confounding> pairs;
   std::map<std::pair<std::string, std::string>, double> representative_gain;  // of the block whose comparison a line reports
   for (size_t d = 0; d < B; ++d) {
@@ -712,7 +713,7 @@ void Diagnoser::shrink() {
     fitAll(S, &chi_with, nullptr);
     std::vector<int> before(cumulative.begin(), cumulative.end() - static_cast<long>(blocks_of[e].size()));
     fitAll(withBlocks(before), &chi_without, nullptr);
-    ev.delta_bic = chi_with - chi_without + double(S.size() - withBlocks(before).size()) * std::log(3.0 * m_);
+    ev.delta_bic = chi_with - chi_without + double(S.size() - withBlocks(before).size()) * std::log(equations_);
     ev.parameters = parametersOf(S, e);
     ev.implausible = implausible(ev.parameters);
     ev.coverage = coverageOf(e, ev.joints);

@@ -74,6 +74,11 @@ struct DiagnoseOptions {
   /// Blocked cross-validation (the check that mimics new data): contiguous blocks of each
   /// joint's angle and of the pose order.
   int blocked_folds = 5;
+  /// 6D data: the linearised fits use the measured orientations too, as identify fits them
+  /// (rows weighted like identify's: 1 / sqrt(std^2 + tau^2) per axis and component type, tau
+  /// the geometric baseline's unmodelled-error term); the held-out errors stay positions (mm).
+  /// false: positions only.
+  bool use_orientation = true;
   /// Highest number of cycles per revolution of the per-joint spectrum of the residual.
   int spectrum_max_cycles = 90;
   /// joint_map candidates: knot spacing (deg for revolute joints, mm for prismatic ones; made
