@@ -150,6 +150,7 @@ void Diagnoser::mapPenalty() {
       for (double v : a) nrm += v * v;
       if (nrm > 0) add(a, kJointMapCentringWeight * scale / std::sqrt(nrm));
     }
+    for (const auto& a : jointMapSparseRows(jm, qj)) add(a, kJointMapSparseWeight * scale);
     for (int k = 0; k < K; ++k)
       for (int l = 0; l < K; ++l)
         if (col[static_cast<size_t>(k)] >= 0 && col[static_cast<size_t>(l)] >= 0)

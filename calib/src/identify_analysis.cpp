@@ -230,6 +230,7 @@ void penaltyRows(Problem& pb, double smoothing, const Eigen::VectorXd& col_sq) {
       for (double v : a) nrm += v * v;
       if (nrm > 0) add(a, kJointMapCentringWeight * scale / std::sqrt(nrm));
     }
+    for (const auto& a : jointMapSparseRows(jm, qj)) add(a, kJointMapSparseWeight * scale);
   }
 }
 

@@ -153,6 +153,34 @@ std::vector<std::vector<double>> jointMapSmoothnessRows(const JointMap& map) {
   return rows;
 }
 
+std::vector<std::vector<double>> jointMapSparseRows(const JointMap& map, const std::vector<double>& q_fit) {
+  std::vector<std::vector<double>> rows;
+  const size_t K = map.coef.size();
+  if (K == 0 || q_fit.empty() || !(map.upper > map.lower)) return rows;
+  // the data mass of each coefficient, and what it would be with the data spread evenly over
+  // the map's interval (a boundary coefficient's basis reaches into the interval only in part)
+  std::vector<double> mass(K, 0.0), even(K, 0.0);
+  double w[4];
+  for (double q : q_fit) {
+    const int f = jointMapBasis(map, q, w);
+    if (f < 0) continue;
+    for (int k = 0; k < 4; ++k) mass[static_cast<size_t>(f + k)] += w[k];
+  }
+  const int samples = 16 * std::max(map.intervals, 1);
+  for (int s = 0; s < samples; ++s) {
+    const int f = jointMapBasis(map, map.lower + (map.upper - map.lower) * (s + 0.5) / samples, w);
+    if (f < 0) continue;
+    for (int k = 0; k < 4; ++k) even[static_cast<size_t>(f + k)] += w[k] * double(q_fit.size()) / samples;
+  }
+  for (size_t k = 0; k < K; ++k) {
+    if (!(mass[k] < kJointMapSparseShare * even[k])) continue;
+    std::vector<double> r(K, 0.0);
+    r[k] = 1.0;
+    rows.push_back(r);
+  }
+  return rows;
+}
+
 std::vector<std::vector<double>> jointMapCentringRows(const JointMap& map, const std::vector<double>& q_fit,
                                                       int harmonics) {
   const size_t K = map.coef.size();
@@ -463,13 +491,17 @@ JointMapCvResult crossValidateJointMap(const std::vector<JointMapCvRow>& rows, c
         for (const auto& row : rows)
           if (row.fold != f) qt.push_back(row.q[j]);
         const Eigen::Index K = static_cast<Eigen::Index>(maps[static_cast<size_t>(j)].coef.size());
+        const double W = kJointMapCentringWeight * kJointMapCentringWeight * scale2[static_cast<size_t>(j)];
         for (const auto& a : jointMapCentringRows(maps[static_cast<size_t>(j)], qt, centred_harmonics[static_cast<size_t>(j)])) {
           const Eigen::VectorXd av = Eigen::Map<const Eigen::VectorXd>(a.data(), K);
           if (av.norm() == 0) continue;
-          const double W = kJointMapCentringWeight * kJointMapCentringWeight * scale2[static_cast<size_t>(j)];
           Ntrain.block(col0[static_cast<size_t>(j)], col0[static_cast<size_t>(j)], K, K).selfadjointView<Eigen::Lower>().rankUpdate(
               av, W / av.squaredNorm());
         }
+        for (const auto& a : jointMapSparseRows(maps[static_cast<size_t>(j)], qt))
+          for (Eigen::Index k = 0; k < K; ++k)
+            if (a[static_cast<size_t>(k)] != 0)
+              Ntrain(col0[static_cast<size_t>(j)] + k, col0[static_cast<size_t>(j)] + k) += kJointMapSparseWeight * kJointMapSparseWeight * scale2[static_cast<size_t>(j)];
       }
       // the maps' right-hand side with the fold's first stage held
       const Eigen::Index nq = n - p;
