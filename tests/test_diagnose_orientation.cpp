@@ -5,6 +5,9 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdint>
+#include <string>
+#include <vector>
 
 #include "accura/calib/diagnose.h"
 #include "accura/calib/identify.h"
@@ -14,24 +17,36 @@
 namespace accura::calib {
 namespace {
 
+const XyzAbc kTmac = {0, 0, 109, 0, 0, 0};  // the reflector on axis 6, 109 mm from the flange
+
+RobotModel ur10WithTmac() {
+  RobotModel nominal = test::loadBundled("ur10");
+  nominal.nominal.T_flange_tcp = toIsometry(kTmac);
+  return nominal;
+}
+
+// 6D campaign of 300 poses, 0.02 mm and 0.002 deg noise per axis, std columns
+SimulateOptions campaign6d(std::uint64_t seed, const std::vector<std::string>& effects) {
+  SimulateOptions o;
+  o.poses = 300;
+  o.seed = seed;
+  o.noise_mm = 0.02;
+  o.noise_deg = 0.002;
+  o.orientation = true;
+  o.write_std = true;
+  o.effects = effects;
+  o.tool = kTmac;
+  o.set_tool = true;
+  return o;
+}
+
 // A UR10 whose reflector sits on axis 6, 109 mm from the flange (as on the real UR10 of
 // Series_B/C), 6D data with 0.02 mm and 0.002 deg noise per axis: the orientation residual of
 // the geometric model is the orientation noise, sqrt(3) x 0.002 = 0.00346 deg (the angle of a
 // rotation with three independent 0.002 deg components), and identify's on the same rows.
 TEST(DiagnoseOrientation, ResidualIsThatOfIdentifyOnPositionsAndOrientations) {
-  RobotModel nominal = test::loadBundled("ur10");
-  const XyzAbc tool = {0, 0, 109, 0, 0, 0};
-  nominal.nominal.T_flange_tcp = toIsometry(tool);
-  SimulateOptions o;
-  o.poses = 300;
-  o.seed = 61;
-  o.noise_mm = 0.02;
-  o.noise_deg = 0.002;
-  o.orientation = true;
-  o.write_std = true;
-  o.effects = {"geometric"};
-  o.tool = tool;
-  o.set_tool = true;
+  const RobotModel nominal = ur10WithTmac();
+  const SimulateOptions o = campaign6d(61, {"geometric"});
   const RobotModel truth = perturbModel(nominal, o);
   const MeasurementSet fit = simulateMeasurements(truth, o);
   ASSERT_TRUE(fit.has_orientation);
@@ -54,20 +69,9 @@ TEST(DiagnoseOrientation, ResidualIsThatOfIdentifyOnPositionsAndOrientations) {
 // alone (a smaller sigma: the orientation carries the joint's deflection directly), and both
 // estimates agree with the simulated truth.
 TEST(DiagnoseOrientation, TheFitsUseTheOrientationsAsIdentifyDoes) {
-  RobotModel nominal = test::loadBundled("ur10");
-  const XyzAbc tool = {0, 0, 109, 0, 0, 0};
-  nominal.nominal.T_flange_tcp = toIsometry(tool);
-  SimulateOptions o;
-  o.poses = 300;
-  o.seed = 71;
-  o.noise_mm = 0.02;
-  o.noise_deg = 0.002;
-  o.orientation = true;
-  o.write_std = true;
-  o.effects = {"geometric", "joint_compliance"};
+  const RobotModel nominal = ur10WithTmac();
+  SimulateOptions o = campaign6d(71, {"geometric", "joint_compliance"});
   o.payloads_kg = {0, 5, 10};
-  o.tool = tool;
-  o.set_tool = true;
   const RobotModel truth = perturbModel(nominal, o);
   const MeasurementSet fit = simulateMeasurements(truth, o);
   DiagnoseOptions position_only;

@@ -187,6 +187,7 @@ void Diagnoser::prepareData(const MeasurementSet& data, const MeasurementSet* va
                        "the diagnosis needs at least 20 validation poses, found " + std::to_string(nv_));
   }
   if (use_rot_) out_.orientation_ignored = false;  // (the held-out errors are positions)
+  out_.fits_orientation = use_rot_;
   out_.data_file = data.file;
   out_.fit_poses = m_;
   out_.validation_poses = has_val_ ? nv_ : m_;

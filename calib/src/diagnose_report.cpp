@@ -424,6 +424,7 @@ std::string diagnosisJson(const Diagnosis& d) {
   j["validation"] = {{"method", d.validation_method}, {"poses", d.validation_poses}};
   j["fit_poses"] = d.fit_poses;
   j["orientation_ignored"] = d.orientation_ignored;
+  j["fits_orientation"] = d.fits_orientation;
   j["effects_tested"] = d.effects_tested;
   j["noise_floor_mm"] = num(d.noise_floor_mm);
   j["noise_floor"] = {{"rms_3d_mm", num(d.noise_floor_mm)},
@@ -542,7 +543,10 @@ std::string diagnosisText(const Diagnosis& d) {
   std::ostringstream s;
   s << "accura diagnose: " << d.robot << ", " << d.fit_poses << " poses from " << d.data_file << "\n";
   s << "held-out error by " << d.validation_method << "\n";
-  if (d.orientation_ignored) s << "orientation columns are not used by the diagnosis (position only)\n";
+  if (d.orientation_ignored) s << "orientation columns are not used by the diagnosis' fits (positions only)\n";
+  if (d.fits_orientation)
+    s << "fits: positions and orientations, each row weighted as identify weights it (std and the geometric baseline's "
+         "unmodelled-error term); held-out errors: positions\n";
   s << "noise floor: " << f("%.4f", d.noise_floor_mm) << " mm (3D RMS; " << f("%.4f", d.noise_std_axis_mm)
     << " mm per axis); source: " << d.noise_floor_source << "\n";
   {

@@ -309,7 +309,11 @@ struct Diagnosis {
   int fit_poses = 0, validation_poses = 0;
   /// Validation rows named as glitches (Floors::glitches) and left out of the held-out statistics.
   int validation_glitch_rows_left_out = 0;
+  /// The data have orientation columns and the fits did not use them (use_orientation false,
+  /// or fewer than 30 rows with an orientation); the held-out errors are positions either way.
   bool orientation_ignored = false;
+  /// The fits used the measured orientations beside the positions (6D data, use_orientation).
+  bool fits_orientation = false;
   std::vector<std::string> effects_tested;
   // noise floor
   double noise_floor_mm = 0;      ///< expected 3D RMS of pure noise (sqrt(3) x per-axis std)
