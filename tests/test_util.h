@@ -19,6 +19,20 @@
 
 namespace accura::test {
 
+/// Whether this test binary (and the accura it runs: the sanitizer build builds both) runs under
+/// AddressSanitizer, some 10-20 times slower than the Release build.
+#if defined(__SANITIZE_ADDRESS__)
+inline constexpr bool kUnderSanitizers = true;
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+inline constexpr bool kUnderSanitizers = true;
+#else
+inline constexpr bool kUnderSanitizers = false;
+#endif
+#else
+inline constexpr bool kUnderSanitizers = false;
+#endif
+
 /// Pieces of a split timed motion: their durations `t_s` and TCP path lengths `len_mm`. Returns
 /// the largest |t_i - total * len_i / sum(len)| (s) and sets *sum_s to the sum of the durations.
 inline double durationShareError(const std::vector<double>& t_s, const std::vector<double>& len_mm, double total_s, double* sum_s) {
