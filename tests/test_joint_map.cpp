@@ -22,7 +22,6 @@
 namespace accura::calib {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 
 // A map on [lower, upper] whose coefficients sample amp * sin(cycles * q + phase) at the
 // coefficients' Greville points (q in deg; cycles per revolution).
