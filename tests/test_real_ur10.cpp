@@ -254,7 +254,7 @@ TEST(RealUr10, DiagnosisFindsTheResidualUnexplained) {
       EXPECT_GT(e["blocked_gain_percent"].get<double>(), 0.0);
     }
     // joint 2's compliance, fitted on positions and orientations as identify fits it, keeps
-    // 11.6% in its worst blocked scheme (3.6% when the diagnosis fitted positions alone)
+    // 11.6% in its worst blocked scheme (3.5% with --position-only)
     if (e["effect"] == "joint_compliance" && e["joints"] == nlohmann::json::array({2})) {
       EXPECT_GT(e["blocked_gain_percent"].get<double>(), 8.0) << e.dump();
     }
