@@ -46,6 +46,10 @@ calib::RobotModel startModel(const IdentifyArgs& a) {
 /// station's 6 parameters take 6 of the 3M position equations, 2/M of a random error's variance
 /// (20% at M = 10: the RMS reads 11% low), more below.
 constexpr int kMinStationConfigurations = 10;
+/// worseAdvice: the nominal robot counts as at the measurement noise when its validation RMS is
+/// within this factor of the 3D RMS the std columns state (a registered nominal model on a
+/// robot without errors comes to about 1.03 of it).
+constexpr double kNominalAtNoise = 1.2;
 
 /// Validation poses outside the joint ranges of the fit, per joint: how many and how far.
 struct Outside {
@@ -381,12 +385,29 @@ void printFit(const IdentifyRun& r) {
 }
 
 /// Why a calibrated model may be worse than the nominal one on the validation poses, as far as
-/// the run knows: few distinct configurations in the fit, effects beyond the geometric model
-/// extrapolated outside the fitted joint ranges, or the geometric model itself fitted on a
-/// small part of them.
+/// the run knows: the nominal robot already at the noise the validation's std columns state
+/// (nothing to correct: the loss is the fitted parameters' uncertainty), few distinct
+/// configurations in the fit, effects beyond the geometric model extrapolated outside the fitted
+/// joint ranges, or the geometric model itself fitted on a small part of them.
 std::string worseAdvice(const IdentifyRun& r) {
   std::vector<std::string> why;
   const calib::IdentifySummary& s = r.s;
+  if (r.validation.has_std_position) {
+    // the 3D RMS the instrument states for the validation rows
+    double v = 0;
+    int n = 0;
+    for (const calib::Measurement& m : r.validation.rows)
+      if (m.std_mm.allFinite()) {
+        v += m.std_mm.squaredNorm();
+        ++n;
+      }
+    const double noise_mm = n > 0 ? std::sqrt(v / n) : 0.0;
+    if (noise_mm > 0 && r.nom_val.rms_mm <= kNominalAtNoise * noise_mm)
+      why.push_back("the nominal robot is already at the measurement noise on these poses, " + fmt("%.4f", r.nom_val.rms_mm) +
+                    " mm against " + fmt("%.4f", noise_mm) +
+                    " mm from the std columns: there is nothing to correct, and the loss is the fitted parameters' "
+                    "uncertainty; keep the nominal model");
+  }
   if (s.few_configurations)
     why.push_back("the fit has only " + std::to_string(s.configurations) + " distinct joint configurations (" + std::to_string(s.poses) +
                   " poses): measure more distinct ones");

@@ -143,6 +143,40 @@ TEST(ValidationReport, AModelWorseThanTheNominalRobotSaysWhyItDoesNotCarryOver) 
       "model alone is worse too, measure fit poses that cover these ranges)";
   EXPECT_NE(effects.cli.out.find(worse(effects, effects_why)), std::string::npos) << worse(effects, effects_why) << effects.cli.out;
   EXPECT_EQ(effects.cli.out.find("improved"), std::string::npos) << effects.cli.out;
+
+  // 5. A robot exactly as its nominal model, measured with 0.02 mm noise per axis and std
+  // columns: the registered nominal model is at the noise, and the calibrated one (60 fit poses)
+  // can only add its parameters' uncertainty. Less than 1.1-fold worse: the loss in percent, and
+  // the advice says there is nothing to correct (the 3D RMS the std columns state: sqrt(3) x 0.02).
+  {
+    SimulateOptions o;
+    o.effects = {};
+    o.noise_mm = 0.02;
+    o.write_std = true;
+    o.tool = {80, 40, 150, 0, 0, 0};
+    o.set_tool = true;
+    o.poses = 60;
+    o.seed = 5;
+    writeMeasurementsCsv(dir + "/exact_fit.csv", simulateMeasurements(perturbModel(kr16, o), o), dof);
+    o.poses = 200;
+    o.seed = 6;
+    writeMeasurementsCsv(dir + "/exact_val.csv", simulateMeasurements(perturbModel(kr16, o), o), dof);
+    const Run exact = calibrate("exact_fit.csv", "exact_val.csv", "geometric");
+    const double nominal = exact.j["nominal_validation"]["rms_mm"].get<double>(), calibrated = exact.j["validation"]["rms_mm"].get<double>();
+    ASSERT_GT(calibrated, nominal);
+    ASSERT_LT(calibrated, 1.1 * nominal);
+    char head[200];
+    std::snprintf(head, sizeof head, "  WARNING: position RMS %.1f%% WORSE than the nominal robot's (%.4f -> %.4f mm)",
+                  100.0 * (calibrated / nominal - 1.0), nominal, calibrated);
+    char noise[200];
+    std::snprintf(noise, sizeof noise,
+                  "(the nominal robot is already at the measurement noise on these poses, %.4f mm against %.4f mm from the "
+                  "std columns: there is nothing to correct",
+                  nominal, std::sqrt(3.0) * 0.02);
+    EXPECT_NE(exact.cli.out.find(std::string(head) + ": the calibrated model does not carry over to these poses " + noise),
+              std::string::npos)
+        << head << "\n" << noise << "\n" << exact.cli.out;
+  }
   std::filesystem::remove_all(dir);
 }
 
