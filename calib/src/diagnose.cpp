@@ -160,12 +160,7 @@ void Diagnoser::prepareData(const MeasurementSet& data, const MeasurementSet* va
   fit_has_rot_ = data.has_orientation;
   use_rot_ = o_.use_orientation && data.has_orientation &&
              std::count_if(data.rows.begin(), data.rows.end(), [](const Measurement& r) { return r.has_orientation; }) >= 30;
-  if (use_rot_) {
-    fit_rot_ = fit_;
-    fit_rot_.has_orientation = true;
-    fit_rot_.has_std_orientation = data.has_std_orientation;
-    for (int i = 0; i < m_; ++i) fit_rot_.rows[static_cast<size_t>(i)].has_orientation = data.rows[static_cast<size_t>(i)].has_orientation;
-  }
+  fit_has_std_rot_ = data.has_std_orientation;
   for (const Measurement& r : data.rows) {
     R_fit_.push_back(r.R_world_tcp);
     rot_ok_.push_back(data.has_orientation && r.has_orientation);

@@ -30,9 +30,17 @@ IdentifyOptions Diagnoser::baselineOptions() const {
   return io;
 }
 
+MeasurementSet Diagnoser::fitWithOrientation() const {
+  MeasurementSet six = fit_;
+  six.has_orientation = true;
+  six.has_std_orientation = fit_has_std_rot_;
+  for (int i = 0; i < m_; ++i) six.rows[static_cast<size_t>(i)].has_orientation = rot_ok_[static_cast<size_t>(i)];
+  return six;
+}
+
 void Diagnoser::baseline() {
   IdentifySummary s;
-  M0_ = identify(start_, use_rot_ ? fit_rot_ : fit_, baselineOptions(), &s);
+  M0_ = identify(start_, use_rot_ ? fitWithOrientation() : fit_, baselineOptions(), &s);
   robust_w_.assign(static_cast<size_t>(m_), 1.0);
   addJointMaps();
   layout_ = parameterLayout(M0_);
@@ -68,9 +76,9 @@ void Diagnoser::baseline() {
   if (use_rot_) {
     const double tau_rad = s.model_error_deg * kDegToRad;
     for (int i = 0; i < m_; ++i) {
-      const Measurement& r = fit_rot_.rows[static_cast<size_t>(i)];
-      if (!r.has_orientation) continue;
-      const Eigen::Vector3d sd = fit_rot_.has_std_orientation && r.std_rot_deg.allFinite()
+      const Measurement& r = fit_.rows[static_cast<size_t>(i)];
+      if (!rot_ok_[static_cast<size_t>(i)]) continue;
+      const Eigen::Vector3d sd = fit_has_std_rot_ && r.std_rot_deg.allFinite()
                                      ? Eigen::Vector3d(r.std_rot_deg * kDegToRad)
                                      : Eigen::Vector3d::Constant(s.orientation_std_deg * kDegToRad);
       const Eigen::Array3d v = sd.array().square() + tau_rad * tau_rad;
@@ -183,12 +191,11 @@ void Diagnoser::robust() {
       const double w = w0[static_cast<size_t>(i)] * robust_w_[static_cast<size_t>(i)];
       changed = changed || w != fit_.rows[static_cast<size_t>(i)].weight;
       fit_.rows[static_cast<size_t>(i)].weight = w;
-      if (use_rot_) fit_rot_.rows[static_cast<size_t>(i)].weight = w;
       w_fit_[static_cast<size_t>(i)] = wf0[static_cast<size_t>(i)] * std::sqrt(robust_w_[static_cast<size_t>(i)]);
       w_rot_[static_cast<size_t>(i)] = wr0[static_cast<size_t>(i)] * std::sqrt(robust_w_[static_cast<size_t>(i)]);
     }
     if (!changed) break;
-    M0_ = identify(M0_, use_rot_ ? fit_rot_ : fit_, baselineOptions(), nullptr);
+    M0_ = identify(M0_, use_rot_ ? fitWithOrientation() : fit_, baselineOptions(), nullptr);
     linearise();
   }
 }
@@ -282,10 +289,11 @@ void Diagnoser::linearise() {
   };
   Eigen::MatrixXd JF, JR;
   if (use_rot_) {
-    // 6 rows a pose: the position's 3 (mm), the orientation's 3 (rad)
+    // 6 rows a pose: the position's 3 (mm), the orientation's 3 (rad; the fit rows keep their
+    // measured orientation, a row without one has no weight)
     Eigen::MatrixXd J6;
     Eigen::VectorXd r6;
-    build(fit_rot_, &J6, &r6, 6);
+    build(fit_, &J6, &r6, 6);
     JF.resize(3 * m_, J6.cols());
     JR.resize(3 * m_, J6.cols());
     rF_.resize(3 * m_);
@@ -838,7 +846,6 @@ RobotModel Diagnoser::gnFitFrom(const RobotModel& start, const std::vector<int>&
   const std::vector<double> x0(sub.size(), 0.0);  // (no station parameters)
   // per pose its position's 3 rows (mm) and, with 6D data, its orientation's 3 (rad)
   const Eigen::Index D = use_rot_ ? 6 : 3;
-  const MeasurementSet& data = use_rot_ ? fit_rot_ : fit_;
   const Eigen::Index R = D * static_cast<Eigen::Index>(rows.size());
   Eigen::MatrixXd Jw(R, s);  // weighted, scaled
   Eigen::VectorXd rw(R);
@@ -866,7 +873,7 @@ RobotModel Diagnoser::gnFitFrom(const RobotModel& start, const std::vector<int>&
         rw.segment(r0, D) = at_m0->rw.segment(D * i, D);
         continue;
       }
-      const Measurement& row = data.rows[static_cast<size_t>(i)];
+      const Measurement& row = fit_.rows[static_cast<size_t>(i)];
       const Eigen::Isometry3d T = stack.pose(x0, row, static_cast<size_t>(i), !chord);
       if (!chord) Jw.middleRows(r0, 3).noalias() = w_fit_[i].asDiagonal() * stack.J().topRows(3) * inv_scale.asDiagonal();
       rw.segment(r0, 3) = w_fit_[i].cwiseProduct(row.p_world_mm - T.translation());

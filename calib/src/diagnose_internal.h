@@ -122,6 +122,9 @@ class Diagnoser {
   void robustWeights(const std::vector<double>& residual_mm);
   void columns();
   void linearise();
+  /// The fit rows as 6D data for identify (fit_ keeps every row's measured orientation and its
+  /// std, with the flags off; rot_ok_ says which rows have one).
+  MeasurementSet fitWithOrientation() const;
   void schemes();
   /// Held-out squared errors of the linearised fit with the columns S (cached until the next
   /// linearisation or set of schemes).
@@ -247,10 +250,10 @@ class Diagnoser {
   std::vector<std::vector<int>> groups_;   // repeated configurations of the fit data
   std::vector<double> robust_w_;           // per fit row (1: not down-weighted)
   std::vector<Eigen::Quaterniond> R_fit_;  // measured orientation of the fit rows (6D data)
-  // 6D data in the linearised fits (use_orientation): the fit rows with their orientation, and
-  // per pose 3 orientation rows (rad; weight 0 where a row has none) beside the 3 position rows
+  // 6D data in the linearised fits (use_orientation): per pose 3 orientation rows (rad; weight 0
+  // where a row has none) beside the 3 position rows
   bool use_rot_ = false;
-  MeasurementSet fit_rot_;
+  bool fit_has_std_rot_ = false;        // the fit data have orientation std columns
   std::vector<Eigen::Vector3d> w_rot_;  // per-axis weights of the orientation rows (1/rad)
   Eigen::MatrixXd JR_;                  // orientation Jacobian (rad per scaled column)
   Eigen::VectorXd rR_, wR_;             // measured minus model (rad), weights
