@@ -392,16 +392,8 @@ void printFit(const IdentifyRun& r) {
 std::string worseAdvice(const IdentifyRun& r) {
   std::vector<std::string> why;
   const calib::IdentifySummary& s = r.s;
-  if (r.validation.has_std_position) {
-    // the 3D RMS the instrument states for the validation rows
-    double v = 0;
-    int n = 0;
-    for (const calib::Measurement& m : r.validation.rows)
-      if (m.std_mm.allFinite()) {
-        v += m.std_mm.squaredNorm();
-        ++n;
-      }
-    const double noise_mm = n > 0 ? std::sqrt(v / n) : 0.0;
+  {
+    const double noise_mm = calib::statedPositionNoiseRms({&r.validation});  // NaN without std columns
     if (noise_mm > 0 && r.nom_val.rms_mm <= kNominalAtNoise * noise_mm)
       why.push_back("the nominal robot is already at the measurement noise on these poses, " + fmt("%.4f", r.nom_val.rms_mm) +
                     " mm against " + fmt("%.4f", noise_mm) +

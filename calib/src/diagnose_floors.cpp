@@ -40,17 +40,8 @@ void Diagnoser::repeats() {
   Floors& fl = out_.floors;
   fl.repeat_tol = o_.repeat_tol;
   if (fit_.has_std_position && (!has_val_ || val_.has_std_position)) {
-    double s2 = 0;
-    int n = 0;
-    for (const MeasurementSet* set : {&fit_, has_val_ ? &val_ : nullptr}) {
-      if (!set) continue;
-      for (const Measurement& r : set->rows) {
-        s2 += r.std_mm.squaredNorm();
-        ++n;
-      }
-    }
-    fl.instrument_known = n > 0;
-    fl.instrument_rms_mm = n > 0 ? std::sqrt(s2 / n) : kNaN;
+    fl.instrument_rms_mm = statedPositionNoiseRms({&fit_, has_val_ ? &val_ : nullptr});
+    fl.instrument_known = std::isfinite(fl.instrument_rms_mm);
   }
   struct Source {
     const MeasurementSet* set;

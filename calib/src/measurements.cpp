@@ -645,6 +645,20 @@ std::vector<double> jointValues(const MeasurementSet& data, int joint) {
   return out;
 }
 
+double statedPositionNoiseRms(const std::vector<const MeasurementSet*>& sets) {
+  double s2 = 0;
+  int n = 0;
+  for (const MeasurementSet* set : sets) {
+    if (!set || !set->has_std_position) continue;
+    for (const Measurement& r : set->rows)
+      if (r.std_mm.allFinite()) {
+        s2 += r.std_mm.squaredNorm();
+        ++n;
+      }
+  }
+  return n > 0 ? std::sqrt(s2 / n) : std::numeric_limits<double>::quiet_NaN();
+}
+
 MeasurementSet readMeasurementsCsv(const std::string& path, const RobotDefinition& robot) {
   return Reader(path, robot).read();
 }

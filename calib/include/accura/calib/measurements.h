@@ -103,6 +103,11 @@ std::vector<JointRange> jointRanges(const MeasurementSet& data, int dof);
 /// The values of joint `joint` (0-based; deg or mm) over the rows of `data`, in row order.
 std::vector<double> jointValues(const MeasurementSet& data, int joint);
 
+/// The 3D RMS position noise the std columns state over every row of `sets` (mm): sqrt of the
+/// mean of |std_mm|^2. NaN when no set has std columns or no row a finite std (null entries
+/// are skipped).
+double statedPositionNoiseRms(const std::vector<const MeasurementSet*>& sets);
+
 /// Writes measurements in the same format (every column the set has; fixed formatting:
 /// q with 6 decimals, positions 6 decimals (mm), quaternions 9 decimals) through a
 /// temporary file renamed into place. `comments` lines are written first, each prefixed "# ".
