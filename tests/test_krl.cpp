@@ -678,6 +678,52 @@ TEST(Krl, FramesAndPointsChangedInTheProgram) {
   EXPECT_EQ(p.motions[3].tool.text, "$TOOL:{X 1}");
 }
 
+TEST(Krl, FramesLinkedWithTheGeometricOperatorAreEvaluated) {
+  // KRL's ':' links frames (A:B is T_A * T_B): $BASE=$BASE:{..} shifts the base in its own
+  // axes, and a FRAME of the data list or one the program assigns is a frame like TOOL_DATA[n].
+  // Expected values by hand: BASE_DATA[1] is X 100 turned A 90 about Z, so its own X 10 is the
+  // world's Y 10.
+  const std::string dir = test::tempDir("krl_frame_linkage");
+  test::writeText(dir + "/p.src",
+                  "DEF p( )\nDECL INT I\nDECL FRAME FB\n"
+                  "BASE_DATA[1]={X 100,Y 0,Z 0,A 90,B 0,C 0}\nTOOL_DATA[1]={X 0,Y 0,Z 200,A 0,B 0,C 0}\n"
+                  "$TOOL=TOOL_DATA[1]\n$BASE=BASE_DATA[1]:{X 10,Y 0,Z 0,A 0,B 0,C 0}\n"
+                  "LIN XP1\n"                                                                  // 0
+                  "$BASE=$BASE:{X 0,Y 0,Z 5,A 0,B 0,C 0}:{X 0,Y 0,Z 0,A 0,B 0,C 30}\n"
+                  "$TOOL=$TOOL:{FRAME: X 0,Y 0,Z 50,A 0,B 0,C 0}\n"
+                  "LIN XP1\n"                                                                  // 1
+                  "FB={X 1,Y 2,Z 3,A 0,B 0,C 0}\n$BASE=FB\nLIN XP1\n"                      // 2
+                  "$BASE=MYBASE:FB\nLIN XP1\n"                                                // 3
+                  "$BASE=$BASE:{X 1}\nLIN XP1\n"                                              // 4: partial operand
+                  "$BASE=$NULLFRAME\nFOR I=1 TO 2\n  $BASE=$BASE:{X 10,Y 0,Z 0,A 0,B 0,C 0}\n  LIN XP1\nENDFOR\n"  // 5
+                  "END\n");
+  test::writeText(dir + "/p.dat",
+                  "DEFDAT p\nDECL E6POS XP1={X 1000,Y 0,Z 800,A 0,B 90,C 0}\nDECL FRAME MYBASE={X 0,Y 0,Z 0,A -90,B 0,C 0}\nENDDAT\n");
+  const Program p = readKrl(dir + "/p.src");
+  ASSERT_EQ(p.motions.size(), 6u);
+  auto expectFrame = [](const FrameSetting& s, const calib::XyzAbc& v, const char* what) {
+    ASSERT_TRUE(s.value) << what << ": " << s.text << " " << s.note;
+    EXPECT_EQ(s.source, FrameSetting::Source::kInline) << what;
+    const double got[6] = {s.value->x_mm, s.value->y_mm, s.value->z_mm, s.value->a_deg, s.value->b_deg, s.value->c_deg};
+    const double want[6] = {v.x_mm, v.y_mm, v.z_mm, v.a_deg, v.b_deg, v.c_deg};
+    for (int k = 0; k < 6; ++k) EXPECT_NEAR(got[k], want[k], 1e-9) << what << " component " << k;  // mm, deg
+  };
+  expectFrame(p.motions[0].base, {100, 10, 0, 90, 0, 0}, "BASE_DATA[1]:{X 10}");
+  EXPECT_EQ(p.motions[0].base.text, "BASE_DATA[1]:{X 10,Y 0,Z 0,A 0,B 0,C 0}");
+  // Z 5 along the base's Z, then 30 deg about its X (KUKA C)
+  expectFrame(p.motions[1].base, {100, 10, 5, 90, 0, 30}, "$BASE:{Z 5}:{C 30}");
+  expectFrame(p.motions[1].tool, {0, 0, 250, 0, 0, 0}, "$TOOL:{FRAME: Z 50}");
+  expectFrame(p.motions[2].base, {1, 2, 3, 0, 0, 0}, "FB");
+  // MYBASE turns -90 deg about Z: FB's X 1, Y 2 become X 2, Y -1
+  expectFrame(p.motions[3].base, {2, -1, 3, -90, 0, 0}, "MYBASE:FB");
+  EXPECT_EQ(p.motions[4].base.source, FrameSetting::Source::kUnknown);
+  EXPECT_FALSE(p.motions[4].base.run_time);
+  EXPECT_NE(p.motions[4].base.note.find("leaves out components of the frame"), std::string::npos) << p.motions[4].base.note;
+  // in a loop each pass links the base once more: a run-time value, the motion kept as written
+  EXPECT_TRUE(p.motions[5].base.run_time);
+  EXPECT_EQ(p.motions[5].base.note, "it is composed from $BASE inside the FOR at line 20: each pass may compose another value");
+}
+
 TEST(Krl, APointAssignedInALoopOrASubroutineIsNotTakenFromTheText) {
   // the text before a motion is not the run before it: a point assigned in a loop (the next
   // pass sees the new value), a branch, or a subroutine (called before the motion) is a run-time

@@ -199,10 +199,29 @@ struct Reader {
     return s;
   }
 
-  // Evaluates the right-hand side of $TOOL = ... / $BASE = ... (tokens [b, e)).
+  // Evaluates the right-hand side of $TOOL = ... / $BASE = ... (tokens [b, e)): an aggregate
+  // (its missing components from `current`: KRL changes only the components it lists),
+  // $NULLFRAME, TOOL_DATA[n] / BASE_DATA[n], a FRAME / POS / E6POS of the data lists, $TOOL,
+  // $BASE, or the frame linkage of such operands with KRL's geometric operator
+  // ($BASE = $BASE:{X 10,Y 0,Z 0,A 0,B 0,C 0}: A:B is T_A * T_B).
   FrameSetting evalFrame(const std::vector<Tok>& toks, size_t b, size_t e, bool is_tool, const FrameSetting& current) const {
     const std::string text = f->text().substr(toks[b].begin, toks[e - 1].end - toks[b].begin);
-    if (toks[b].text == "{") {
+    // the operands of ':' at depth 0 (an aggregate's own "FRAME:" is inside its braces)
+    std::vector<std::pair<size_t, size_t>> operands;
+    int depth = 0;
+    size_t from = b;
+    for (size_t i = b; i < e; ++i) {
+      const Tok& k = toks[i];
+      if (k.kind != Tok::kPunct) continue;
+      if (k.text == "(" || k.text == "[" || k.text == "{") ++depth;
+      if (k.text == ")" || k.text == "]" || k.text == "}") --depth;
+      if (depth == 0 && k.text == ":") {
+        operands.emplace_back(from, i);
+        from = i + 1;
+      }
+    }
+    operands.emplace_back(from, e);
+    if (operands.size() == 1 && toks[b].text == "{") {
       Cursor c(*f, toks, toks[e - 1].end);
       c.seek(b);
       const Agg a = parseAggregate(c);
@@ -230,13 +249,99 @@ struct Reader {
       s.where = f->loc(toks[b].begin);
       return s;
     }
-    if (e - b == 4 && (toks[b].up == "TOOL_DATA" || toks[b].up == "BASE_DATA" || toks[b].up == "$TOOL_DATA" ||
-                       toks[b].up == "$BASE_DATA") &&
-        toks[b + 1].text == "[" && toks[b + 2].kind == Tok::kNumber && toks[b + 3].text == "]") {
-      const bool tool_table = toks[b].up.find("TOOL") != std::string::npos;
-      if (tool_table == is_tool) return dataFrame(is_tool, std::atoi(toks[b + 2].text.c_str()), toks[b].begin);
+    if (const std::optional<int> n = tableIndex(toks, b, e, is_tool)) return dataFrame(is_tool, *n, toks[b].begin);
+    // an expression: T_1 * T_2 * ... of its operands
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    for (const auto& [ob, oe] : operands) {
+      if (ob == oe) return unknownFrame(text, toks[b].begin, "expected an operand of ':', found none");
+      FrameSetting operand;  // its value, or why there is none
+      const std::string why = operandFrame(toks, ob, oe, &operand);
+      if (!why.empty()) {
+        FrameSetting s = unknownFrame(text, toks[b].begin, why);
+        s.run_time = operand.run_time;
+        return s;
+      }
+      T = T * calib::toIsometry(*operand.value);
     }
-    return unknownFrame(text, toks[b].begin);
+    FrameSetting s;
+    s.source = FrameSetting::Source::kInline;
+    s.value = calib::toXyzAbc(T);
+    s.text = text;
+    s.where = f->loc(toks[b].begin);
+    return s;
+  }
+
+  // TOOL_DATA[n] / BASE_DATA[n] (also with '$'; the table of the frame assigned) in [b, e): n.
+  static std::optional<int> tableIndex(const std::vector<Tok>& toks, size_t b, size_t e, bool is_tool) {
+    if (e - b != 4 || toks[b + 1].text != "[" || toks[b + 2].kind != Tok::kNumber || toks[b + 3].text != "]") return std::nullopt;
+    const std::string& up = toks[b].up;
+    const bool tool_table = up == "TOOL_DATA" || up == "$TOOL_DATA";
+    const bool base_table = up == "BASE_DATA" || up == "$BASE_DATA";
+    if (!(is_tool ? tool_table : base_table)) return std::nullopt;
+    return std::atoi(toks[b + 2].text.c_str());
+  }
+
+  // One operand of a frame expression [b, e) into out->value; returns why it has no value
+  // ("" when it has one; out->run_time when the value is the program's run-time state).
+  std::string operandFrame(const std::vector<Tok>& toks, size_t b, size_t e, FrameSetting* out) const {
+    const std::string text = f->text().substr(toks[b].begin, toks[e - 1].end - toks[b].begin);
+    if (toks[b].text == "{") {
+      Cursor c(*f, toks, toks[e - 1].end);
+      c.seek(b);
+      const Agg a = parseAggregate(c);
+      if (c.pos() != e) return "expected the end of the operand after the aggregate " + text + ", found " + describe(c.peek());
+      bool partial = false;
+      out->value = toFrame(a, *f, std::nullopt, &partial);
+      if (!out->value)
+        return "the aggregate " + text + " leaves out components of the frame (expected all of X, Y, Z, A, B, C: accura "
+               "does not assume values for the missing ones in an expression)";
+      return "";
+    }
+    if (e - b == 1 && toks[b].up == "$NULLFRAME") {
+      out->value = calib::XyzAbc{};
+      return "";
+    }
+    for (const bool table_of_tool : {true, false})
+      if (const std::optional<int> n = tableIndex(toks, b, e, table_of_tool)) {
+        const FrameSetting d = dataFrame(table_of_tool, *n, toks[b].begin);
+        if (!d.value) return d.text + " has no value here (its value needs the $config.dat: --config)";
+        out->value = d.value;
+        return "";
+      }
+    if (e - b == 1 && (toks[b].up == "$TOOL" || toks[b].up == "$BASE")) {
+      const bool of_tool = toks[b].up == "$TOOL";
+      const FrameSetting& now = of_tool ? tool : base;
+      for (const FrameBlock& fb : frame_blocks_)
+        if (fb.loop) {
+          out->run_time = true;
+          return std::string("it is composed from ") + toks[b].text + " inside the " + fb.kind + " at line " + std::to_string(fb.line) +
+                 ": each pass may compose another value";
+        }
+      if (!now.value) {
+        out->run_time = now.run_time;
+        return toks[b].text + " is not known here" +
+               (now.source == FrameSetting::Source::kUnset ? std::string(" (not set before)") : " (" + now.text + (now.note.empty() ? "" : ": " + now.note) + ")");
+      }
+      out->value = now.value;
+      return "";
+    }
+    if (e - b == 1 && toks[b].kind == Tok::kIdent && toks[b].up[0] != '$') {
+      const auto it = decl.points.find(toks[b].up);
+      if (it == decl.points.end())
+        return toks[b].text + " is not declared in the program's files (a global frame: give --config $config.dat)";
+      if (it->second.type != "FRAME" && it->second.type != "POS" && it->second.type != "E6POS")
+        return toks[b].text + " is a " + it->second.type + ", not a frame";
+      Target v;
+      const std::string problem = pointValue(it->second, toks[b].up, toks[b].text, &v);
+      if (!problem.empty()) {
+        out->run_time = true;
+        return problem;
+      }
+      if (!v.completePose()) return toks[b].text + " does not give all of X, Y, Z, A, B, C (" + it->second.declared.str() + ")";
+      out->value = v.xyzAbc();
+      return "";
+    }
+    return "'" + text + "' is an expression accura does not evaluate";
   }
 
   void applyFdatFrames(size_t at) {
