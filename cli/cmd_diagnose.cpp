@@ -8,6 +8,7 @@
 #include <memory>
 #include <string>
 
+#include "accura/calib/joint_map.h"
 #include "accura/calib/diagnose.h"
 #include "accura/calib/errors.h"
 #include "accura/calib/file_io.h"
@@ -81,7 +82,7 @@ void checkValidationSet(const calib::Diagnosis& d, const calib::MeasurementSet& 
   int outside = 0;
   for (const calib::Measurement& r : validation.rows)
     for (int j = 0; j < dof; ++j)
-      if (r.q[j] < covered[static_cast<size_t>(j)].lower || r.q[j] > covered[static_cast<size_t>(j)].upper) {
+      if (calib::beyondFitRange(covered[static_cast<size_t>(j)], r.q[j], calib::fitRangePeriod(d.baseline_model, j)) > 0) {
         ++outside;
         break;
       }

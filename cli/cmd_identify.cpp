@@ -255,8 +255,7 @@ void validate(const IdentifyArgs& a, IdentifyRun& r) {
   for (const calib::Measurement& m : r.validation.rows) {
     bool any = false;
     for (int j = 0; j < r.start.dof(); ++j) {
-      const calib::JointRange& c = r.s.coverage[static_cast<size_t>(j)];
-      const double d = m.q[j] < c.lower ? c.lower - m.q[j] : (m.q[j] > c.upper ? m.q[j] - c.upper : 0.0);
+      const double d = calib::beyondFitRange(r.s.coverage[static_cast<size_t>(j)], m.q[j], calib::fitRangePeriod(r.calibrated, j));
       if (d <= calib::kFitRangeTolerance) continue;  // the rounding of a radian export is not outside
       Outside& o = r.outside[static_cast<size_t>(j)];
       ++o.count;

@@ -421,6 +421,122 @@ TEST(JointMap, SupportLeavesOutSparseTails) {
   EXPECT_THROW(jointMapSupport({1.0, 2.0}, std::nan("")), ArgumentError);
 }
 
+// A revolute joint's map is a function of its angle modulo one turn (the gear's and the
+// encoder's errors repeat with each turn; a UR's joints turn +-360 deg): the map, the FK and the
+// Jacobian at q and q +- 360 deg are the same; data from two turns make one turn's interval; a
+// pose a turn away from the fitted range is not outside it; the robot file keeps the period.
+TEST(JointMap, ARevoluteJointsMapRepeatsWithEachTurn) {
+  JointMap m = makeJointMap(-175, -52, 3, 360);
+  EXPECT_EQ(m.period, 360.0);
+  for (size_t k = 0; k < m.coef.size(); ++k) m.coef[k] = 5e-4 * std::sin(17 * (m.lower + (k - 1.0) * m.knot()) * kDegToRad);
+  for (double q : {-170.2, -120.0, -53.5, -52.0 + 0.4 * m.taper}) {
+    double s0 = 0, s1 = 0, s2 = 0;
+    const double v = jointMapValue(m, q, &s0);
+    EXPECT_NE(v, 0.0) << q;
+    EXPECT_NEAR(jointMapValue(m, q + 360, &s1), v, 1e-15) << q;  // rad
+    EXPECT_NEAR(jointMapValue(m, q - 720, &s2), v, 1e-15) << q;
+    EXPECT_NEAR(s1, s0, 1e-12) << q;  // rad per deg
+    EXPECT_NEAR(s2, s0, 1e-12) << q;
+    // the slope a turn away against central differences there
+    const double h = 1e-6;  // deg
+    EXPECT_NEAR((jointMapValue(m, q + 360 + h) - jointMapValue(m, q + 360 - h)) / (2 * h), s1, 1e-9) << q;
+  }
+  // away from the interval on the circle: zero in every turn (100 deg is 85 deg below -175 a turn down)
+  for (double q : {100.0, -260.0, 0.0, 460.0}) EXPECT_EQ(jointMapValue(m, q), 0.0) << q;
+  // without a period, as before: zero a turn away
+  JointMap flat = m;
+  flat.period = 0;
+  EXPECT_EQ(jointMapValue(flat, -120.0 + 360), 0.0);
+  // an interval wider than a turn less its tapers is narrowed about its centre
+  const JointMap wide = makeJointMap(-200, 200, 3, 360);
+  EXPECT_NEAR(wide.lower, -177.0, 1e-12);
+  EXPECT_NEAR(wide.upper, 177.0, 1e-12);
+  EXPECT_LE(wide.upper - wide.lower + 2 * wide.taper, 360.0 + 1e-9);
+  EXPECT_THROW(makeJointMap(-10, 10, 200, 360), ArgumentError);  // knot spacing >= half a turn
+  EXPECT_THROW(makeJointMap(-10, 10, 3, -360), ArgumentError);
+
+  // the support: data in two turns of the same angles (-250..-200 and 110..160 deg) make one
+  // interval of 50 deg (without a period: 410 deg), and data across +-180 deg one of 20 deg
+  std::vector<double> two_turns, across;
+  for (int i = 0; i <= 500; ++i) {
+    two_turns.push_back(-250.0 + 0.1 * i);
+    two_turns.push_back(110.0 + 0.1 * i);
+  }
+  for (int i = 0; i <= 100; ++i) {
+    across.push_back(170.0 + 0.1 * i);
+    across.push_back(-190.0 + 0.1 * i);  // 170..180 deg a turn down
+    across.push_back(-180.0 + 0.1 * i);
+  }
+  const JointRange r2 = jointMapSupport(two_turns, kJointMapSupportWindow, 360);
+  EXPECT_NEAR(r2.upper - r2.lower, 50.0, 1e-9);
+  EXPECT_NEAR(std::remainder(r2.lower + 250.0, 360.0), 0.0, 1e-9);
+  EXPECT_NEAR(jointMapSupport(two_turns).upper - jointMapSupport(two_turns).lower, 410.0, 1e-9);
+  const JointRange ra = jointMapSupport(across, kJointMapSupportWindow, 360);
+  EXPECT_NEAR(ra.upper - ra.lower, 20.0, 1e-9);
+  // data within one turn keep their values bit for bit
+  const JointRange one = jointMapSupport({-175.5, -120.25, -52.125}, kJointMapSupportWindow, 360);
+  EXPECT_EQ(one.lower, -175.5);
+  EXPECT_EQ(one.upper, -52.125);
+
+  // the complete model: FK and parameter Jacobian at q and with joint 1 a turn away
+  RobotModel model = test::loadBundled("ur10");
+  model.deviations.joint_map[0] = m;
+  const std::vector<ParamInfo> layout = parameterLayout(model);
+  PoseContext ctx;
+  KinematicWorkspace ws;
+  Eigen::VectorXd q(6);
+  q << -120, -80, 60, -40, 90, 10;
+  Eigen::MatrixXd J0, J1;
+  const Eigen::Isometry3d T0 = parameterJacobian(model, layout, q, ctx, ws, J0);
+  Eigen::VectorXd q1 = q;
+  q1[0] += 360;
+  const Eigen::Isometry3d T1 = parameterJacobian(model, layout, q1, ctx, ws, J1);
+  EXPECT_LT((T1.translation() - T0.translation()).norm(), 1e-9);  // mm
+  for (size_t k = 0; k < layout.size(); ++k) {
+    const Eigen::Index c = static_cast<Eigen::Index>(k);
+    if (layout[k].kind == ParamKind::kJointScale) continue;  // d/d(scale) is q itself: not periodic
+    EXPECT_LT((J1.col(c) - J0.col(c)).norm(), 1e-9 * std::max(1.0, J0.col(c).norm())) << layout[k].name;
+  }
+  // the map moves the tool there (so the equality is not the nominal robot's periodicity alone)
+  RobotModel nomap = model;
+  nomap.deviations.joint_map[0] = JointMap{};
+  EXPECT_GT((forwardKinematics(nomap, q1, ctx, ws).translation() - T1.translation()).norm(), 0.05);  // mm
+
+  // a pose a turn away from the fitted range is inside it
+  model.deviations.fit_range.assign(6, JointRange{-360, 360});
+  model.deviations.fit_range[0] = {-175, -52};
+  EXPECT_TRUE(outsideFitRanges(model, q1).empty());
+  q1[0] = 100;  // 85 deg below -175 a turn down
+  const std::vector<OutsideFitRange> o = outsideFitRanges(model, q1);
+  ASSERT_EQ(o.size(), 1u);
+  EXPECT_NEAR(o[0].beyond, 85.0, 1e-9);  // deg
+  EXPECT_NEAR(beyondFitRange({-175, -52}, 100, 0), 152.0, 1e-12);
+  // a joint scale does not repeat: then the range is q's own
+  model.deviations.joint_scale[0] = 1e-4;
+  EXPECT_EQ(fitRangePeriod(model, 0), 0.0);
+
+  // the robot file keeps the period; without the attribute (older files) there is none
+  model.deviations.joint_scale[0] = 0;
+  const std::string dir = test::tempDir("joint_map_period");
+  writeRobotFile(dir + "/m.xml", model);
+  const RobotModel back = readRobotFile(dir + "/m.xml");
+  EXPECT_EQ(back.deviations.joint_map[0].period, 360.0);
+  std::string text = test::readText(dir + "/m.xml");
+  const size_t at = text.find(" period=\"360\"");
+  ASSERT_NE(at, std::string::npos);
+  test::writeText(dir + "/old.xml", std::string(text).erase(at, 13));
+  EXPECT_EQ(readRobotFile(dir + "/old.xml").deviations.joint_map[0].period, 0.0);
+  test::writeText(dir + "/bad.xml", std::string(text).replace(at, 13, " period=\"100\""));
+  try {
+    readRobotFile(dir + "/bad.xml");
+    FAIL() << "expected an InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("attribute 'period': expected at least the interval and its tapers"), std::string::npos)
+        << e.what();
+  }
+  std::filesystem::remove_all(dir);
+}
+
 // Inside the interval: the coefficients the data barely reach are pulled to zero. Values evenly
 // over 0..100 deg (10 per deg) but for a gap 40..60 deg holding one value at 50 (Series_B's joint
 // 3 near 0 deg): every coefficient whose basis lies inside the gap gets a row, none whose basis

@@ -116,8 +116,9 @@ void Diagnoser::addJointMaps() {
                                         ": no map";
       continue;
     }
-    const JointRange support = jointMapSupport(jointValues(fit_, j));
-    M0_.deviations.joint_map[static_cast<size_t>(j)] = makeJointMap(support.lower, support.upper, knot);
+    const double period = jointMapPeriod(M0_, j);
+    const JointRange support = jointMapSupport(jointValues(fit_, j), kJointMapSupportWindow, period);
+    M0_.deviations.joint_map[static_cast<size_t>(j)] = makeJointMap(support.lower, support.upper, knot, period);
     any = true;
   }
   if (any) map_knot_ = knot;

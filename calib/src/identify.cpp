@@ -392,10 +392,11 @@ Problem setUp(const RobotModel& start, const std::vector<MeasurementSet>& sets, 
     // the maps this run fits (not those held from the start model), on the dense part of the
     // covered interval, sized before they are made
     std::vector<JointRange> ranges;
-    for (const int j : mapped) ranges.push_back(jointMapSupport(jointValues(data, j)));
+    for (const int j : mapped) ranges.push_back(jointMapSupport(jointValues(data, j), kJointMapSupportWindow, jointMapPeriod(model, j)));
     checkJointMapSize(ranges, stated_knot);
     for (size_t k = 0; k < mapped.size(); ++k)
-      model.deviations.joint_map[static_cast<size_t>(mapped[k])] = makeJointMap(ranges[k].lower, ranges[k].upper, stated_knot);
+      model.deviations.joint_map[static_cast<size_t>(mapped[k])] =
+          makeJointMap(ranges[k].lower, ranges[k].upper, stated_knot, jointMapPeriod(model, mapped[k]));
   }
   // The candidate parameters: those of the requested groups (tool rotation only with
   // orientation data). Every other deviation stays as it is in `start` and is not part of

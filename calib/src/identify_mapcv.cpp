@@ -34,6 +34,7 @@ RobotModel identifyWithMapCv(const RobotModel& start, const std::vector<Measurem
   const double widest = *std::max_element(knots.begin(), knots.end());
   std::vector<int> cv_joints;
   std::vector<JointRange> ranges;  // the maps' intervals, as identify makes them (jointMapSupport)
+  std::vector<double> periods;     // and their periods (jointMapPeriod)
   std::vector<int> set_of_row;
   const MeasurementSet data = combine(sets, &set_of_row);
   for (int j = 0; j < m0.dof(); ++j) {
@@ -41,7 +42,8 @@ RobotModel identifyWithMapCv(const RobotModel& start, const std::vector<Measurem
     const JointRange& c = s0.coverage[static_cast<size_t>(j)];
     if (c.upper - c.lower < 2 * widest) continue;
     cv_joints.push_back(j);
-    ranges.push_back(jointMapSupport(jointValues(data, j)));
+    periods.push_back(jointMapPeriod(m0, j));
+    ranges.push_back(jointMapSupport(jointValues(data, j), kJointMapSupportWindow, periods.back()));
   }
   for (const double knot : knots) checkJointMapSize(ranges, knot);  // before the cross-validation's dense solves
   IdentifyOptions o1 = options;
@@ -114,7 +116,7 @@ RobotModel identifyWithMapCv(const RobotModel& start, const std::vector<Measurem
     std::vector<int> harmonics;
     for (int j : cv_joints)
       harmonics.push_back(m0.nominal.joints[static_cast<size_t>(j)].type == JointType::kRevolute ? kJointMapCentredHarmonics : 0);
-    cv = crossValidateJointMap(rows, ranges, harmonics, knots, smoothings, folds);
+    cv = crossValidateJointMap(rows, ranges, periods, harmonics, knots, smoothings, folds);
   }
   o1.joint_map_knot = cv.knot;
   o1.joint_map_smoothing = cv.smoothing;

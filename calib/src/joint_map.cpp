@@ -36,6 +36,10 @@ void splineWeights(double t, double w[4], double dw[4]) {
 int basis(const JointMap& m, double q, double w[4], double dw[4]) {
   const int N = m.intervals;
   const double h = (m.upper - m.lower) / N;
+  if (m.period > 0) {  // the turn of q nearest the interval's centre (dq/dq unchanged)
+    const double centre = 0.5 * (m.lower + m.upper);
+    q = centre + std::remainder(q - centre, m.period);
+  }
   double taper = 1, dtaper = 0, qe = q;
   if (q < m.lower || q > m.upper) {
     const double s = q < m.lower ? m.lower - q : q - m.upper;  // distance beyond the end
@@ -102,7 +106,7 @@ double jointMapIntervals(double lower, double upper, double knot) {
 
 }  // namespace
 
-JointMap makeJointMap(double lower, double upper, double knot) {
+JointMap makeJointMap(double lower, double upper, double knot, double period) {
   if (!(std::isfinite(lower) && std::isfinite(upper) && lower < upper))
     throw ArgumentError("joint map: expected a covered interval lower < upper, got " + std::to_string(lower) + ", " +
                         std::to_string(upper));
@@ -113,6 +117,21 @@ JointMap makeJointMap(double lower, double upper, double knot) {
   m.upper = upper;
   m.intervals = static_cast<int>(jointMapIntervals(lower, upper, knot));
   m.taper = m.knot();
+  if (!(period == 0 || (std::isfinite(period) && period > 0)))
+    throw ArgumentError("joint map: expected a period of 0 (none) or > 0, got " + std::to_string(period));
+  if (period > 0 && upper - lower + 2 * knot > period) {
+    // the interval and its tapers within one turn: narrowed about its centre (the data beyond
+    // its ends get the tapered map, as everywhere at the ends)
+    const double centre = 0.5 * (lower + upper), half = 0.5 * period - knot;
+    if (!(half > 0))
+      throw ArgumentError("joint map: expected a knot spacing below half the period " + std::to_string(period) + ", got " +
+                          std::to_string(knot));
+    m.lower = centre - half;
+    m.upper = centre + half;
+    m.intervals = static_cast<int>(jointMapIntervals(m.lower, m.upper, knot));
+    m.taper = m.knot();
+  }
+  m.period = period;
   m.coef.assign(static_cast<size_t>(m.intervals) + 3, 0.0);
   return m;
 }
@@ -129,6 +148,12 @@ void checkJointMapSize(const std::vector<JointRange>& ranges, double knot) {
   throw InputError("joint_map: a knot spacing of " + formatNumber("%g", knot) + " gives " + std::to_string(coefficients) +
                    " map coefficients over the joints' covered ranges; expected at most " + std::to_string(kMaxJointMapCoefficients) +
                    " (they are solved densely): a spacing of at least " + formatFixed(fits, 1));
+}
+
+double jointMapPeriod(const RobotModel& model, int j) {
+  if (j < 0 || j >= model.dof())
+    throw ArgumentError("jointMapPeriod: expected a joint index 0.." + std::to_string(model.dof() - 1) + ", got " + std::to_string(j));
+  return model.nominal.joints[static_cast<size_t>(j)].type == JointType::kRevolute ? 360.0 : 0.0;
 }
 
 double jointMapAmplitude(const JointMap& map) {
@@ -211,9 +236,27 @@ std::vector<std::vector<double>> jointMapCentringRows(const JointMap& map, const
   return rows;
 }
 
-JointRange jointMapSupport(std::vector<double> q, double window) {
+JointRange jointMapSupport(std::vector<double> q, double window, double period) {
   if (q.empty() || !(window > 0) || !std::isfinite(window))
     throw ArgumentError("joint map support: expected fit values and a positive, finite window");
+  if (!(period == 0 || (std::isfinite(period) && period > 0)))
+    throw ArgumentError("joint map support: expected a period of 0 (none) or > 0, got " + std::to_string(period));
+  if (period > 0) {
+    // the values as angles of one turn, starting after the widest gap between neighbouring
+    // angles (a value already within one turn of that start is left as it is, bit for bit)
+    std::vector<std::pair<double, double>> angle(q.size());  // (angle in [0, period), value)
+    for (size_t i = 0; i < q.size(); ++i) angle[i] = {q[i] - period * std::floor(q[i] / period), q[i]};
+    std::sort(angle.begin(), angle.end());
+    size_t start = 0;
+    double widest = angle.front().first + period - angle.back().first;  // the gap across the turn's end
+    for (size_t i = 1; i < angle.size(); ++i)
+      if (angle[i].first - angle[i - 1].first > widest) {
+        widest = angle[i].first - angle[i - 1].first;
+        start = i;
+      }
+    const double from = angle[start].second;
+    for (double& v : q) v -= period * std::floor((v - from) / period);
+  }
   std::sort(q.begin(), q.end());
   const JointRange all{q.front(), q.back()};
   const double width = all.upper - all.lower;
@@ -235,6 +278,25 @@ JointRange jointMapSupport(std::vector<double> q, double window) {
     }
   }
   return r.upper - r.lower >= 2 * window ? r : all;
+}
+
+double fitRangePeriod(const RobotModel& model, int j) {
+  if (j < 0 || j >= model.dof())
+    throw ArgumentError("fitRangePeriod: expected a joint index 0.." + std::to_string(model.dof() - 1) + ", got " + std::to_string(j));
+  const size_t J = static_cast<size_t>(j);
+  const Deviations& d = model.deviations;
+  if (model.nominal.joints[J].type != JointType::kRevolute) return 0.0;
+  if (J < d.joint_scale.size() && d.joint_scale[J] != 0) return 0.0;
+  if (J < d.joint_map.size() && !d.joint_map[J].empty() && d.joint_map[J].period == 0) return 0.0;
+  return 360.0;
+}
+
+double beyondFitRange(const JointRange& c, double q, double period) {
+  if (period > 0 && c.upper - c.lower < period) {
+    const double centre = 0.5 * (c.lower + c.upper);
+    q = centre + std::remainder(q - centre, period);
+  }
+  return q < c.lower ? c.lower - q : (q > c.upper ? q - c.upper : 0.0);
 }
 
 std::vector<OutsideFitRange> outsideFitRanges(const RobotModel& model, const Eigen::VectorXd& q) {
@@ -266,7 +328,8 @@ std::vector<OutsideFitRange> outsideFitRanges(const RobotModel& model, const Eig
     } else {
       continue;
     }
-    if (q[j] < lo - kFitRangeTolerance || q[j] > hi + kFitRangeTolerance) out.push_back({j + 1, q[j], lo, hi, q[j] < lo ? lo - q[j] : q[j] - hi});
+    const double beyond = beyondFitRange({lo, hi}, q[j], fitRangePeriod(model, j));
+    if (beyond > kFitRangeTolerance) out.push_back({j + 1, q[j], lo, hi, beyond});
   }
   return out;
 }
@@ -340,10 +403,13 @@ Eigen::VectorXd solveRidged(Eigen::MatrixXd& N, const Eigen::VectorXd& b, const 
 }  // namespace
 
 JointMapCvResult crossValidateJointMap(const std::vector<JointMapCvRow>& rows, const std::vector<JointRange>& ranges,
+                                       const std::vector<double>& periods,
                                        const std::vector<int>& centred_harmonics, const std::vector<double>& knots,
                                        const std::vector<double>& smoothings, int folds) {
-  if (centred_harmonics.size() != ranges.size())
-    throw ArgumentError("joint map cross-validation: expected one harmonics count per mapped joint");
+  if (centred_harmonics.size() != ranges.size() || periods.size() != ranges.size())
+    throw ArgumentError("joint map cross-validation: expected one period and one harmonics count per mapped joint, got " +
+                        std::to_string(periods.size()) + " and " + std::to_string(centred_harmonics.size()) + " for " +
+                        std::to_string(ranges.size()) + " joints");
   if (rows.empty() || knots.empty() || smoothings.empty() || folds < 2)
     throw ArgumentError("joint map cross-validation: expected rows, candidates and >= 2 folds");
   const Eigen::Index p = rows[0].G.cols();
@@ -413,7 +479,7 @@ JointMapCvResult crossValidateJointMap(const std::vector<JointMapCvRow>& rows, c
     std::vector<Eigen::Index> col0;
     Eigen::Index n = p;
     for (const JointRange& r : ranges) {
-      maps.push_back(makeJointMap(r.lower, r.upper, knot));
+      maps.push_back(makeJointMap(r.lower, r.upper, knot, periods[maps.size()]));
       col0.push_back(n);
       n += static_cast<Eigen::Index>(maps.back().coef.size());
     }

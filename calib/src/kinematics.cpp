@@ -61,7 +61,7 @@ bool sameKinematics(const RobotModel& a, const RobotModel& b) {
   for (size_t i = 0; i < p.joint_map.size(); ++i) {
     const JointMap &x = p.joint_map[i], &y = r.joint_map[i];
     if (x.lower != y.lower || x.upper != y.upper || x.intervals != y.intervals || x.taper != y.taper ||
-        x.coef != y.coef)
+        x.period != y.period || x.coef != y.coef)
       return false;
   }
   for (size_t i = 0; i < p.links.size(); ++i) {

@@ -108,6 +108,9 @@ void RobotModel::validate() const {
                           std::to_string(m.coef.size()));
     if (!(std::isfinite(m.taper) && m.taper > 0))
       throw ArgumentError(j + "expected a taper width > 0, got " + std::to_string(m.taper));
+    if (!(m.period == 0 || (std::isfinite(m.period) && m.period >= m.upper - m.lower)))
+      throw ArgumentError(j + "expected a period of 0 (none) or at least the covered interval's width " +
+                          std::to_string(m.upper - m.lower) + ", got " + std::to_string(m.period));
     for (double c : m.coef)
       if (!std::isfinite(c)) throw ArgumentError(j + "non-finite coefficient");
   }

@@ -232,7 +232,7 @@ void readJointCurve(const Reader& R, const XMLElement* p, RobotModel& model, std
   const std::string tag = p->Name();
   const int dof = model.dof();
   R.checkAttributes(p, tag == "fit_range" ? std::set<std::string>{"joint", "lower", "upper", "unit"}
-                                          : std::set<std::string>{"joint", "lower", "upper", "intervals", "taper", "unit"});
+                                          : std::set<std::string>{"joint", "lower", "upper", "intervals", "taper", "period", "unit"});
   const double jv = R.number(p, "joint");
   if (jv != std::floor(jv) || jv < 1 || jv > dof)
     R.failAttribute(p, "joint", "<" + tag + "> attribute 'joint': expected 1.." + std::to_string(dof) + ", found '" +
@@ -264,6 +264,14 @@ void readJointCurve(const Reader& R, const XMLElement* p, RobotModel& model, std
   m.intervals = static_cast<int>(iv);
   m.taper = R.number(p, "taper");
   if (!(m.taper > 0)) R.failAttribute(p, "taper", "<joint_map> attribute 'taper': expected > 0, found " + fmt(m.taper));
+  if (p->Attribute("period")) {  // written for revolute joints since 2026-11-27; absent: no period (older files)
+    m.period = R.number(p, "period");
+    if (!revolute || !(m.period + 1e-6 >= upper - lower + 2 * m.taper))  // deg; the file's rounding
+      R.failAttribute(p, "period", "<joint_map> of joint " + std::to_string(j + 1) + " attribute 'period': expected " +
+                                       (revolute ? "at least the interval and its tapers, " + fmt(upper - lower + 2 * m.taper) + " deg"
+                                                 : std::string("none for a prismatic joint")) +
+                                       ", found " + fmt(m.period));
+  }
   const double scale = revolute ? kRadToDeg : 1.0;
   std::istringstream values(p->GetText() ? p->GetText() : "");
   for (std::string v; values >> v;) {
@@ -424,7 +432,8 @@ std::string robotFileText(const RobotModel& model, const std::vector<ParameterRe
     if (m.empty()) continue;
     const bool revolute = d.joints[static_cast<size_t>(i)].type == JointType::kRevolute;
     params << "    <joint_map joint=\"" << i + 1 << "\" lower=\"" << fmt(m.lower) << "\" upper=\"" << fmt(m.upper)
-           << "\" intervals=\"" << m.intervals << "\" taper=\"" << fmt(m.taper) << "\" unit=\""
+           << "\" intervals=\"" << m.intervals << "\" taper=\"" << fmt(m.taper)
+           << (m.period > 0 ? "\" period=\"" + fmt(m.period) : std::string()) << "\" unit=\""
            << (revolute ? "deg" : "mm") << "\">";
     for (size_t k = 0; k < m.coef.size(); ++k)
       params << (k % 8 == 0 ? "\n      " : " ") << fmt(m.coef[k] * (revolute ? kRadToDeg : 1.0));

@@ -108,7 +108,12 @@ void fillPoseResult(const SessionPose& p, int dof, accura_pose_result* r) {
   for (int i = 0; i < p.q_real.size() && i < ACCURA_MAX_JOINTS; ++i) r->q_real[i] = p.q_real[i];
 }
 
-ProgramReadOptions readOptions(const char* dat_path, const char* config_path) { return {dat_path ? dat_path : "", config_path ? config_path : ""}; }
+ProgramReadOptions readOptions(const char* dat_path, const char* config_path) {
+  ProgramReadOptions o;
+  o.dat_path = dat_path ? dat_path : "";
+  o.config_path = config_path ? config_path : "";
+  return o;
+}
 
 }  // namespace
 

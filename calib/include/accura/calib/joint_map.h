@@ -33,8 +33,17 @@ double jointMapBasisValue(const JointMap& map, double q, int k);
 
 /// A zero map on [lower, upper] (deg or mm) with knot spacing close to `knot` (the interval is
 /// divided into ceil((upper - lower) / knot) equal intervals, at least 1) and a taper width of
-/// one knot spacing. Throws ArgumentError when lower >= upper or knot <= 0 (or non-finite).
-JointMap makeJointMap(double lower, double upper, double knot);
+/// one knot spacing. `period` (deg; jointMapPeriod): a map of the joint's angle modulo `period`,
+/// evaluated at the turn of q nearest the interval; an interval wider than period - 2 knot is
+/// narrowed about its centre to that width, so that the map and its tapers fit in one turn.
+/// Throws ArgumentError when lower >= upper, knot <= 0, period < 0 or knot >= period / 2 (or
+/// non-finite values).
+JointMap makeJointMap(double lower, double upper, double knot, double period = 0);
+
+/// The period of joint j's map (0-based): 360 deg for a revolute joint (the gear's and the
+/// encoder's errors repeat with each turn of the joint; the UR's joints turn +-360 deg, and a
+/// program may reach an angle the fit data hold one turn away), 0 for a prismatic joint.
+double jointMapPeriod(const RobotModel& model, int j);
 
 /// Width (deg, or mm for a prismatic joint) of the window jointMapSupport counts values in: the
 /// widest knot spacing the cross-validation tries, one number for every knot spacing so that
@@ -47,9 +56,13 @@ constexpr double kJointMapSupportWindow = 3.0;
 /// 2 values): beyond it a map's coefficients would rest on a handful of poses, and the
 /// smoothness penalty would extrapolate the map's trend over a part of the range that other data
 /// may fill (on the real UR10, Series_C reaches joint 2's -90 deg with 1 pose; its bulk ends near
-/// -125). The whole range when the rest would be narrower than two windows. Throws
-/// ArgumentError when q_fit is empty or window is not positive and finite.
-JointRange jointMapSupport(std::vector<double> q_fit, double window = kJointMapSupportWindow);
+/// -125). The whole range when the rest would be narrower than two windows. With a `period`
+/// (jointMapPeriod) the values are first taken as angles of one turn: each is moved by whole
+/// periods into the turn that starts after the widest gap between the data's angles (values
+/// already in that turn keep their value; Series_C's joint 4, -254..289 deg, becomes one turn
+/// that holds all of its data). Throws ArgumentError when q_fit is empty, window is not
+/// positive and finite, or period is negative or not finite.
+JointRange jointMapSupport(std::vector<double> q_fit, double window = kJointMapSupportWindow, double period = 0);
 
 /// The largest |m(q)| over the covered interval (rad or mm), sampled at 8 points per interval.
 double jointMapAmplitude(const JointMap& map);
@@ -101,6 +114,17 @@ bool parseJointMapKnot(const std::string& text, double* knot, std::string* unit,
 /// so a pose at the edge of the fit data reads a few 1e-5 deg beyond it; 1e-3 deg moves the
 /// tool of a 1 m arm by 0.017 mm, and no joint-dependent effect changes over it.
 constexpr double kFitRangeTolerance = 1e-3;
+
+/// The period of joint j's (0-based) fitted range in `model` (deg): 360 for a revolute joint
+/// whose joint-dependent effects all repeat with each turn (maps with a period, gear_periodic,
+/// the gravity torques of compliance), 0 when one does not (a joint_scale of that joint, a map
+/// without a period) and for prismatic joints. Throws ArgumentError on a bad index.
+double fitRangePeriod(const RobotModel& model, int j);
+
+/// How far q lies beyond the fitted range c (deg or mm; 0 within it). With a `period`
+/// (fitRangePeriod) q counts at its turn nearest the range, when the range is narrower than a
+/// turn: 100 deg is 260 deg beyond -260..-200 without a period, within it with one.
+double beyondFitRange(const JointRange& c, double q, double period = 0);
 
 /// A joint value outside the range the model's joint-dependent effects were fitted on.
 struct OutsideFitRange {
@@ -182,6 +206,7 @@ constexpr double kJointMapSparseShare = 0.2;
 /// pass over the rows; per candidate and fold one dense Cholesky factorisation. Throws
 /// ArgumentError on inconsistent sizes or empty candidates.
 JointMapCvResult crossValidateJointMap(const std::vector<JointMapCvRow>& rows, const std::vector<JointRange>& ranges,
+                                       const std::vector<double>& periods,
                                        const std::vector<int>& centred_harmonics, const std::vector<double>& knots,
                                        const std::vector<double>& smoothings, int folds);
 

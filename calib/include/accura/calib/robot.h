@@ -87,6 +87,11 @@ struct JointMap {
   double upper = 0;          ///< end of the covered interval (deg or mm)
   int intervals = 0;         ///< number of knot intervals (>= 1 when coef is not empty)
   double taper = 0;          ///< width of the taper to zero outside [lower, upper] (> 0)
+  /// 360 (deg) for a revolute joint's map: a function of the joint's angle modulo one turn
+  /// (q and q + 360 are the same angle of the gear and the encoder, so the map holds there
+  /// too); then upper - lower <= period. 0: a function of q itself (prismatic joints, and maps
+  /// of model files written before the period was, which have no `period` attribute).
+  double period = 0;
   std::vector<double> coef;  ///< B-spline coefficients: rad (revolute) or mm (prismatic)
   bool empty() const { return coef.empty(); }
   double knot() const { return intervals > 0 ? (upper - lower) / intervals : 0.0; }
