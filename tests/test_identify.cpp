@@ -403,6 +403,35 @@ TEST(Identify, Kr16GeometricReachesTheNoiseFloorAndTheTruth) {
   expectWithin3Sigma(s, truthInIdentifiedSet(c.nominal, c.truth, sim, opt, s));
 }
 
+// Positions without std columns: the std is estimated from the residuals, and each estimate
+// scales every row's weight alike, which leaves the least-squares solution where it is. The
+// identification solves once, as with the std stated (no estimate, no unmodelled-error term),
+// and ends at the same parameters (the solves the estimates used to add confirmed them with
+// steps of ~1e-15 relative).
+TEST(Identify, AWeightingThatScalesEveryRowAlikeIsNotSolvedAgain) {
+  const SimulateOptions sim = kr16Campaign();
+  Campaign c = makeCampaign("kuka_kr16", sim, 300, 10);
+  c.nominal.nominal.T_flange_tcp = toIsometry(sim.tool);
+  IdentifyOptions estimated;  // defaults: std from the residuals
+  IdentifySummary se, sg;
+  const RobotModel a = identify(c.nominal, c.fit, estimated, &se);
+  IdentifyOptions stated;
+  stated.position_std_mm = 0.02;
+  stated.model_error = false;
+  const RobotModel b = identify(c.nominal, c.fit, stated, &sg);
+  EXPECT_EQ(se.weighting, "position: std estimated from the residuals");
+  EXPECT_EQ(sg.weighting, "position: std given");
+  ASSERT_EQ(se.parameters.size(), sg.parameters.size());
+  for (size_t k = 0; k < se.parameters.size(); ++k)
+    EXPECT_NEAR(se.parameters[k].value, sg.parameters[k].value, 1e-9 * std::max(1.0, std::abs(sg.parameters[k].value)))
+        << se.parameters[k].name;  // display units (mm, deg)
+  EXPECT_EQ(se.iterations, sg.iterations);
+  KinematicWorkspace wa, wb;
+  for (const Measurement& m : c.fit.rows)
+    EXPECT_LT((forwardKinematics(a, m.q, m.context, wa).translation() - forwardKinematics(b, m.q, m.context, wb).translation()).norm(),
+              1e-9);  // mm
+}
+
 TEST(Identify, MeasurementsInOtherUnitsAreRefusedNotFitted) {
   // positions in metres or joint angles in radians: the closed-form registration cannot bring
   // them near the model; identify says so instead of writing a model shrunk a thousandfold

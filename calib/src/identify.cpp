@@ -355,6 +355,20 @@ RobotModel identify(const RobotModel& start, const MeasurementSet& data,
 
 namespace {
 
+// True when every weight of `b` is the same multiple of `a`'s (to 1e-12 relative): rows,
+// components and dimensions alike.
+bool sameUpToScale(const std::vector<RowWeights>& a, const std::vector<RowWeights>& b) {
+  if (a.size() != b.size() || a.empty()) return false;
+  const double c = b[0].w[0] / a[0].w[0];
+  if (!(std::isfinite(c) && c > 0)) return false;
+  for (size_t i = 0; i < a.size(); ++i) {
+    if (a[i].dim != b[i].dim) return false;
+    for (int k = 0; k < a[i].dim; ++k)
+      if (!(std::abs(b[i].w[k] - c * a[i].w[k]) <= 1e-12 * std::abs(b[i].w[k]))) return false;
+  }
+  return true;
+}
+
 // The problem of `sets` for the groups asked for: coverage of the fit data, the joint maps on
 // their covered intervals, the candidate parameters' layout, the stations.
 Problem setUp(const RobotModel& start, const std::vector<MeasurementSet>& sets, const IdentifyOptions& options,
@@ -616,17 +630,32 @@ RobotModel identify(const RobotModel& start, const std::vector<MeasurementSet>& 
     // the maps' smoothness and centring relative to the weights they are solved with
     const bool maps_free = pb.n_map > 0 && stage != 1;
     if (maps_free && stage == 2) refreshPenaltyRows(pb, options.joint_map_smoothing);
+    // solved: pb.x is the solution at the weights in force. A re-estimate that scales every
+    // row's weights by one factor leaves it there (the least-squares optimum of c r is that of
+    // r; not so with a robust loss, whose threshold is in weighted units, or with penalty rows,
+    // scaled on their own): the next solve would only confirm it, with a step of ~1e-15
+    // relative (a single variance component: positions alone from one station, no stds, or
+    // equal stds), and is not run.
+    bool solved = false;
     if (weighting.estimate_pos || weighting.estimate_rot || options.model_error) {
       for (int round = 0; round < 4; ++round) {
-        iterations += solve(pb, options, robust).iterations;
+        if (!solved) {
+          res = solve(pb, options, robust);
+          iterations += res.iterations;
+          if (res.failure) throw NumericalError("identification failed: " + res.message);
+        }
+        const std::vector<RowWeights> before = pb.weights;
         const double change = weighting.reestimate(pb, options, stage_free);
         weighting.apply(pb);
         if (maps_free) refreshPenaltyRows(pb, options.joint_map_smoothing);
+        solved = !robust && pb.penalties.empty() && sameUpToScale(before, pb.weights);
         if (change < 0.01) break;
       }
     }
-    res = solve(pb, options, robust);
-    iterations += res.iterations;
+    if (!solved) {
+      res = solve(pb, options, robust);
+      iterations += res.iterations;
+    }
     if (res.failure) throw NumericalError("identification failed: " + res.message);
   }
   pb.free = free_all;
