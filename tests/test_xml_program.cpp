@@ -85,6 +85,44 @@ TEST(XmlProgram, CanonicalFilesAreWrittenBackByteForByte) {
   EXPECT_NE(once.find("<tool source=\"unknown\" text=\"STOOL2(FX)\"/>"), std::string::npos) << once;
 }
 
+// Comments are the user's data: a compensated XML program keeps every comment of the input
+// (inside <motions> where it was; before <motions> at their start, after it at their end), and a
+// conversion writes them as comments of the other language, one per line.
+TEST(XmlProgram, CommentsAreKeptWhenTheProgramChangesAndConvertedToKrlComments) {
+  const std::string text =
+      "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<!-- from the OLP -->\n<program name=\"p\" version=\"1\">\n"
+      "  <!-- cell 4 -->\n  <motions>\n    <tool source=\"inline\" x_mm=\"0\" y_mm=\"0\" z_mm=\"200\" a_deg=\"0\" b_deg=\"0\" c_deg=\"0\"/>\n"
+      "    <base source=\"null\"/>\n    <!-- approach,\n         slowly -->\n"
+      "    <lin vel_m_s=\"0.1\">\n      <pose x_mm=\"1000\" y_mm=\"0\" z_mm=\"800\" a_deg=\"0\" b_deg=\"90\" c_deg=\"0\"/>\n    </lin>\n"
+      "    <!-- the seam -->\n"
+      "    <lin vel_m_s=\"0.1\">\n      <pose x_mm=\"1000\" y_mm=\"100\" z_mm=\"800\" a_deg=\"0\" b_deg=\"90\" c_deg=\"0\"/>\n    </lin>\n"
+      "  </motions>\n  <!-- end -->\n</program>\n";
+  Program p = parseXmlProgram(text, "c.xml");
+  ASSERT_EQ(p.motions.size(), 2u);
+  EXPECT_EQ(writeXmlProgram(p), text);  // unchanged: the bytes as read
+  p.motions[1].target.modified = true;
+  const std::string out = writeXmlProgram(p);
+  const std::vector<std::string> comments = {"<!-- from the OLP -->", "<!-- cell 4 -->", "<!-- approach,\n         slowly -->",
+                                             "<!-- the seam -->", "<!-- end -->"};
+  size_t at = 0;
+  for (const std::string& c : comments) {  // each one, in order
+    const size_t found = out.find(c, at);
+    ASSERT_NE(found, std::string::npos) << c << " in\n" << out;
+    at = found + c.size();
+  }
+  // the seam's comment stays between the two motions, the end's after the last
+  EXPECT_LT(out.find("<!-- the seam -->"), out.find("y_mm=\"100.0000\""));
+  EXPECT_GT(out.find("<!-- the seam -->"), out.find("<lin"));
+  EXPECT_GT(out.find("<!-- end -->"), out.rfind("</lin>"));
+  EXPECT_EQ(writeXmlProgram(parseXmlProgram(out, "out.xml")), out);
+  // into KRL: comment lines where the comments were
+  const KrlText k = writeKrl(withoutCarriedLines(p, "KRL"));
+  for (const char* c : {"; from the OLP \n", "; cell 4 \n", "; approach,\n", ";         slowly \n", "; the seam \n", "; end \n"})
+    EXPECT_NE(k.src.find(c), std::string::npos) << c << " in\n" << k.src;
+  EXPECT_LT(k.src.find("; the seam"), k.src.find("Y 100"));
+  EXPECT_GT(k.src.find("; the seam"), k.src.find("LIN"));
+}
+
 TEST(XmlProgram, KrlToXmlToKrlKeepsTheMotions) {
   KrlReadOptions o;
   o.config_path = golden("krl/config/$config.dat");

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <limits>
 #include <cstdio>
+#include <sstream>
 
 #include <Eigen/Geometry>
 
@@ -312,11 +313,28 @@ Program reattachCarried(const Program& program, Program parsed) {
   return parsed;
 }
 
+bool isXmlComment(const PassThrough& s) { return s.language == "XML" && s.role == "comment"; }
+
 Program withoutCarriedLines(const Program& program, const std::string& language) {
   Program out = program;
   out.passthrough.clear();
-  for (const PassThrough& s : program.passthrough)
+  // (indented as the writers indent a routine's statements)
+  const char* marker = language == "KRL" ? ";" : language == "RAPID" ? "    !" : language == "URScript" ? "  #" : nullptr;
+  for (const PassThrough& s : program.passthrough) {
+    if (isXmlComment(s) && marker) {
+      std::istringstream lines(s.text);
+      for (std::string line; std::getline(lines, line);) {
+        if (!line.empty() && line.back() == '\r') line.pop_back();
+        PassThrough c = s;
+        c.language = language;
+        c.role.clear();
+        c.text = marker + line;
+        out.passthrough.push_back(std::move(c));
+      }
+      continue;
+    }
     if (s.role.empty() || s.language == language) out.passthrough.push_back(s);
+  }
   return out;
 }
 

@@ -245,6 +245,10 @@ const char* sectionName(PassThrough::Section s) {
 }
 
 void writePassThrough(std::ostream& out, const PassThrough& s) {
+  if (isXmlComment(s)) {  // an XML comment of the program, as it was (its text cannot hold "--")
+    out << "    <!--" << s.text << "-->\n";
+    return;
+  }
   out << "    <passthrough language=\"" << calib::xmlEscape(s.language) << "\"";
   if (s.section != PassThrough::Section::kBody) out << " section=\"" << sectionName(s.section) << "\"";
   if (!s.role.empty()) out << " role=\"" << calib::xmlEscape(s.role) << "\"";
@@ -314,6 +318,17 @@ PassThrough readPassThrough(const Reader& R, const XMLElement* e, size_t before_
 }
 
 std::string describe(const XMLElement* e) { return e ? "<" + std::string(e->Name()) + ">" : "nothing"; }
+
+// An XML comment of the program as a pass-through line before motion `before_motion`.
+PassThrough xmlComment(const tinyxml2::XMLComment* c, const std::string& file, size_t before_motion) {
+  PassThrough p;
+  p.language = "XML";
+  p.role = "comment";
+  p.text = c->Value() ? c->Value() : "";
+  p.before_motion = before_motion;
+  p.where = {file, c->GetLineNum(), 0};
+  return p;
+}
 
 Motion readMotion(const Reader& R, const XMLElement* e) {
   R.checkAttributes(e, motionAttrs());
@@ -492,9 +507,31 @@ Program parseXmlProgram(const std::string& text, const std::string& file, const 
     }
   }
   if (!motions) R.fail(root, "<program>: expected a <motions> element, found none");
+  // comments outside <motions> (before the root, in <program> before or after <motions>): kept
+  // at the start or the end of the motions, where the writer puts them back
+  std::vector<PassThrough> leading, trailing;
+  bool after = false;
+  for (const tinyxml2::XMLNode* n = doc.FirstChild(); n; n = n->NextSibling()) {
+    if (n == root) {
+      for (const tinyxml2::XMLNode* c = root->FirstChild(); c; c = c->NextSibling()) {
+        if (c == motions) after = true;
+        if (const tinyxml2::XMLComment* cm = c->ToComment()) (after ? trailing : leading).push_back(xmlComment(cm, file, 0));
+      }
+      after = true;
+    } else if (const tinyxml2::XMLComment* cm = n->ToComment()) {
+      (after ? trailing : leading).push_back(xmlComment(cm, file, 0));
+    }
+  }
+  p.passthrough = leading;
   FrameSetting tool, base;
   int triggers = 0;
-  for (const XMLElement* c = motions->FirstChildElement(); c; c = c->NextSiblingElement()) {
+  for (const tinyxml2::XMLNode* node = motions->FirstChild(); node; node = node->NextSibling()) {
+    if (const tinyxml2::XMLComment* cm = node->ToComment()) {
+      p.passthrough.push_back(xmlComment(cm, file, p.motions.size()));
+      continue;
+    }
+    const XMLElement* c = node->ToElement();
+    if (!c) continue;
     const std::string n = c->Name();
     if (n == "tool") {
       tool = readFrame(R, c, true, tables);
@@ -521,6 +558,10 @@ Program parseXmlProgram(const std::string& text, const std::string& file, const 
       triggers = 0;
       p.motions.push_back(std::move(m));
     }
+  }
+  for (PassThrough& t : trailing) {
+    t.before_motion = p.motions.size();
+    p.passthrough.push_back(std::move(t));
   }
   auto source = std::make_shared<XmlSource>();
   source->text = text;

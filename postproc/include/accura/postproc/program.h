@@ -302,8 +302,14 @@ std::optional<std::string> carriedSource(const Program& program, const std::stri
 Program reattachCarried(const Program& program, Program parsed);
 
 /// `program` without the lines carried only for `language`'s byte-for-byte return (a role
-/// set), for a writer of another language.
+/// set), for a writer of another language. An XML comment (isXmlComment) becomes comment lines
+/// of `language` instead, one per line of its text: KRL `;`, RAPID `!`, URScript `#` (RAPID and
+/// URScript indented like a routine's statements).
 Program withoutCarriedLines(const Program& program, const std::string& language);
+
+/// True for a comment of an XML program (`<!-- .. -->`, read as language "XML", role "comment"):
+/// the XML writer writes it back where it was.
+bool isXmlComment(const PassThrough& s);
 
 /// A point name that `program` does not use yet (no target of it, no identifier of its KRL
 /// text, case-insensitive) and `taken` does not hold: `base` followed by "_1", "_2", ...,
