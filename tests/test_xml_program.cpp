@@ -123,6 +123,44 @@ TEST(XmlProgram, CommentsAreKeptWhenTheProgramChangesAndConvertedToKrlComments) 
   EXPECT_GT(k.src.find("; the seam"), k.src.find("LIN"));
 }
 
+// A point the data list declares GLOBAL is used by other modules by its name: through XML and
+// back into KRL it stays GLOBAL (a $config.dat's point, the controller's own, is not declared
+// GLOBAL again in the program's data list).
+TEST(XmlProgram, AGlobalPointStaysGlobalThroughXml) {
+  const std::string dir = test::tempDir("xml_global");
+  test::writeText(dir + "/pg.src", "DEF pg( )\n$TOOL={X 0,Y 0,Z 200,A 0,B 0,C 0}\n$BASE=$NULLFRAME\nPTP XP1\nLIN XP2\nPTP XHOME\nEND\n");
+  test::writeText(dir + "/pg.dat",
+                  "DEFDAT pg PUBLIC\nDECL GLOBAL E6POS XP1={X 1000,Y 0,Z 800,A 0,B 90,C 0,S 2,T 2}\n"
+                  "DECL E6POS XP2={X 1000,Y 100,Z 800,A 0,B 90,C 0,S 2,T 2}\nENDDAT\n");
+  test::writeText(dir + "/config.dat", "DEFDAT $CONFIG\nDECL GLOBAL E6AXIS XHOME={A1 0,A2 -90,A3 90,A4 0,A5 45,A6 0}\nENDDAT\n");
+  KrlReadOptions o;
+  o.config_path = dir + "/config.dat";
+  const Program k = readKrl(dir + "/pg.src", o);
+  ASSERT_EQ(k.motions.size(), 3u);
+  EXPECT_TRUE(k.motions[0].target.global);
+  EXPECT_FALSE(k.motions[1].target.global);
+  EXPECT_FALSE(k.motions[2].target.global);  // the $config.dat's
+  const std::string xml = writeXmlProgram(k);
+  EXPECT_NE(xml.find("<pose name=\"XP1\" type=\"E6POS\" global=\"true\""), std::string::npos) << xml;
+  EXPECT_EQ(xml.find("name=\"XP2\" type=\"E6POS\" global"), std::string::npos) << xml;
+  const Program x = parseXmlProgram(xml, "pg.xml");
+  EXPECT_TRUE(x.motions[0].target.global);
+  const KrlText back = writeKrl(withoutCarriedLines(x, "KRL"));
+  EXPECT_NE(back.dat.find("DEFDAT pg PUBLIC\n"), std::string::npos) << back.dat;
+  EXPECT_NE(back.dat.find("\nDECL GLOBAL E6POS XP1={"), std::string::npos) << back.dat;
+  EXPECT_NE(back.dat.find("\nDECL E6POS XP2={"), std::string::npos) << back.dat;
+  EXPECT_NE(back.dat.find("\nDECL E6AXIS XHOME={"), std::string::npos) << back.dat;
+  // the attribute is checked
+  std::string bad = xml;
+  bad.replace(bad.find("global=\"true\""), 13, "global=\"yes\"");
+  try {
+    parseXmlProgram(bad, "bad.xml");
+    FAIL() << "expected an InputError";
+  } catch (const calib::InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("attribute 'global': expected true or false, found 'yes'"), std::string::npos) << e.what();
+  }
+}
+
 TEST(XmlProgram, KrlToXmlToKrlKeepsTheMotions) {
   KrlReadOptions o;
   o.config_path = golden("krl/config/$config.dat");

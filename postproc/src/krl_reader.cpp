@@ -455,6 +455,9 @@ struct Reader {
     }
     *out = *p.value;
     out->name = written;
+    // declared GLOBAL in this program's data list (a $config.dat's point is the controller's,
+    // which a program written anew must not declare again)
+    out->global = p.global_keyword && !p.global;
     return "";
   }
 

@@ -283,7 +283,7 @@ KrlText generateKrl(const Program& p) {
     auto it = declared.find(up);
     if (it == declared.end()) {
       declared[up] = agg;
-      dat << "DECL " << declType(t) << " " << t.name << "=" << agg << "\n";
+      dat << (t.global ? "DECL GLOBAL " : "DECL ") << declType(t) << " " << t.name << "=" << agg << "\n";
     } else if (it->second != agg) {
       throw calib::ArgumentError(m.where.str() + ": the point " + t.name + " has two different values in this program");
     }

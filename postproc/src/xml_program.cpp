@@ -26,7 +26,7 @@ const char* const kExtAttrs[] = {"e1", "e2", "e3", "e4", "e5", "e6"};
 const char* const kMotionElements[] = {"ptp", "lin", "circ", "sptp", "slin", "scirc", "spl"};
 
 std::set<std::string> targetAttrs(bool cartesian) {
-  std::set<std::string> s = {"name", "type"};
+  std::set<std::string> s = {"name", "type", "global"};
   for (const char* a : cartesian ? kPoseAttrs : kAxisAttrs) s.insert(a);
   for (const char* a : kExtAttrs) s.insert(a);
   if (cartesian) {
@@ -156,6 +156,13 @@ Target readTarget(const Reader& R, const XMLElement* e, bool cartesian) {
       R.fail(e, "<" + std::string(e->Name()) + "> attribute 'type': expected " +
                     (cartesian ? "E6POS, POS or FRAME" : "E6AXIS or AXIS") + ", found '" + *ty + "'");
     t.type = u;
+  }
+  if (const auto g = R.text(e, "global")) {
+    if (*g != "true" && *g != "false")
+      R.fail(e, "<" + std::string(e->Name()) + "> attribute 'global': expected true or false, found '" + *g + "'");
+    if (*g == "true" && t.name.empty())
+      R.fail(e, "<" + std::string(e->Name()) + "> attribute 'global': expected a 'name' with it (a global point is a declared one), found none");
+    t.global = *g == "true";
   }
   for (int k = 0; k < 6; ++k) {
     if (cartesian) t.pose[k] = R.number(e, kPoseAttrs[k]);
@@ -431,6 +438,7 @@ void writeTarget(std::ostream& out, const char* tag, const Target& t) {
   const bool named = isDeclarableName(t.name);
   if (named) out << " name=\"" << calib::xmlEscape(t.name) << "\"";
   if (!t.type.empty() && (named || t.name.empty())) out << " type=\"" << t.type << "\"";
+  if (named && t.global) out << " global=\"true\"";
   if (t.kind == Target::Kind::kCartesian) {
     for (int k = 0; k < 6; ++k)
       if (t.pose[k]) out << " " << kPoseAttrs[k] << "=\"" << (k < 3 ? formatMm(*t.pose[k]) : formatDeg(*t.pose[k])) << "\"";

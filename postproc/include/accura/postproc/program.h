@@ -72,6 +72,10 @@ struct Target {
   /// Motion::conf_monitored) and writes back the quadrants the compensated point has where
   /// a correction moves a monitored axis across a quadrant boundary.
   std::optional<std::array<int, 4>> abb_conf;
+  /// KRL: the point is declared GLOBAL (`DECL GLOBAL E6POS XP1=..` in a PUBLIC data list):
+  /// other modules use it by its name. XML `global="true"`; a KRL program written anew declares
+  /// it GLOBAL again.
+  bool global = false;
 
   /// True when X, Y, Z, A, B and C are all given.
   bool completePose() const;
