@@ -724,6 +724,29 @@ TEST(Krl, FramesLinkedWithTheGeometricOperatorAreEvaluated) {
   EXPECT_EQ(p.motions[5].base.note, "it is composed from $BASE inside the FOR at line 20: each pass may compose another value");
 }
 
+// A frame table's entry chosen by a variable (a routine's parameter, a counter) is the run's
+// value: the motion is kept as written and named, not refused with the whole program.
+TEST(Krl, AFrameNumberComputedAtRunTimeIsARunTimeValue) {
+  const std::string dir = test::tempDir("krl_frame_index");
+  test::writeText(dir + "/p.src",
+                  "DEF p( )\nDECL INT I\nI=2\n$TOOL=TOOL_DATA[1]\n$BASE=BASE_DATA[I]\nLIN XP1\n"  // 0
+                  "BAS(#BASE,I)\nLIN XP1\n"                                                      // 1
+                  "$BASE=BASE_DATA[I+1]:{X 0,Y 0,Z 5,A 0,B 0,C 0}\nLIN XP1\n"                    // 2
+                  "$BASE=BASE_DATA[2]\nLIN XP1\nEND\n");                                          // 3
+  test::writeText(dir + "/p.dat", "DEFDAT p\nDECL E6POS XP1={X 1000,Y 0,Z 800,A 0,B 90,C 0}\nENDDAT\n");
+  const Program p = readKrl(dir + "/p.src");
+  ASSERT_EQ(p.motions.size(), 4u);
+  for (size_t k = 0; k < 3; ++k) {
+    EXPECT_TRUE(p.motions[k].base.run_time) << k;
+    EXPECT_FALSE(p.motions[k].base.known()) << k;
+  }
+  EXPECT_EQ(p.motions[0].base.note, "the index of BASE_DATA[I] is computed at run time");
+  EXPECT_EQ(p.motions[1].base.note, "the frame's number is computed at run time");
+  EXPECT_EQ(p.motions[2].base.note, "the index of BASE_DATA[I+1] is computed at run time");
+  EXPECT_FALSE(p.motions[3].base.run_time);
+  EXPECT_EQ(p.motions[3].base.text, "BASE_DATA[2]");
+}
+
 TEST(Krl, APointAssignedInALoopOrASubroutineIsNotTakenFromTheText) {
   // the text before a motion is not the run before it: a point assigned in a loop (the next
   // pass sees the new value), a branch, or a subroutine (called before the motion) is a run-time

@@ -301,6 +301,13 @@ struct Reader {
       out->value = calib::XyzAbc{};
       return "";
     }
+    // TOOL_DATA[i] / BASE_DATA[i] with an index computed at run time (a variable, a routine's
+    // parameter): the value the run takes
+    if (e - b >= 4 && toks[b + 1].text == "[" && toks[e - 1].text == "]" && !(e - b == 4 && toks[b + 2].kind == Tok::kNumber) &&
+        (toks[b].up == "TOOL_DATA" || toks[b].up == "$TOOL_DATA" || toks[b].up == "BASE_DATA" || toks[b].up == "$BASE_DATA")) {
+      out->run_time = true;
+      return "the index of " + text + " is computed at run time";
+    }
     for (const bool table_of_tool : {true, false})
       if (const std::optional<int> n = tableIndex(toks, b, e, table_of_tool)) {
         const FrameSetting d = dataFrame(table_of_tool, *n, toks[b].begin);
@@ -590,6 +597,8 @@ struct Reader {
       const auto n = t.size() >= 6 && t[3].text == "," ? integerValue(t, 4, t.size() - 1) : std::nullopt;
       FrameSetting& s = cmd == "#TOOL" ? tool : base;
       if (n) s = dataFrame(cmd == "#TOOL", *n, at);
+      else if (t.size() >= 6 && t[3].text == ",")  // BAS(#TOOL, n) with n a variable: the run's value
+        s = runTimeFrame(f->text().substr(t[0].begin, t.back().end - t[0].begin), f->loc(at), "the frame's number is computed at run time");
       else s = unknownFrame(f->text().substr(t[0].begin, t.back().end - t[0].begin), at);
     } else if (cmd == "#PTP_PARAMS") {
       applyFdatFrames(at);
