@@ -732,11 +732,13 @@ TEST(Krl, AFrameNumberComputedAtRunTimeIsARunTimeValue) {
                   "DEF p( )\nDECL INT I\nI=2\n$TOOL=TOOL_DATA[1]\n$BASE=BASE_DATA[I]\nLIN XP1\n"  // 0
                   "BAS(#BASE,I)\nLIN XP1\n"                                                      // 1
                   "$BASE=BASE_DATA[I+1]:{X 0,Y 0,Z 5,A 0,B 0,C 0}\nLIN XP1\n"                    // 2
-                  "$BASE=BASE_DATA[2]\nLIN XP1\nEND\n");                                          // 3
+                  "$BASE=BASE_DATA[2]\nLIN XP1\n"                                                  // 3
+                  "$BASE=BASE_DATA[2]:{X OFFS,Y 0,Z 0,A 0,B 0,C 0}\nLIN XP1\n"                    // 4: a variable
+                  "$BASE={X -DX,Y 0,Z 0,A 0,B 0,C 0}\nLIN XP1\nEND\n");                           // 5: -variable
   test::writeText(dir + "/p.dat", "DEFDAT p\nDECL E6POS XP1={X 1000,Y 0,Z 800,A 0,B 90,C 0}\nENDDAT\n");
   const Program p = readKrl(dir + "/p.src");
-  ASSERT_EQ(p.motions.size(), 4u);
-  for (size_t k = 0; k < 3; ++k) {
+  ASSERT_EQ(p.motions.size(), 6u);
+  for (size_t k : {0u, 1u, 2u, 4u, 5u}) {
     EXPECT_TRUE(p.motions[k].base.run_time) << k;
     EXPECT_FALSE(p.motions[k].base.known()) << k;
   }
@@ -745,6 +747,10 @@ TEST(Krl, AFrameNumberComputedAtRunTimeIsARunTimeValue) {
   EXPECT_EQ(p.motions[2].base.note, "the index of BASE_DATA[I+1] is computed at run time");
   EXPECT_FALSE(p.motions[3].base.run_time);
   EXPECT_EQ(p.motions[3].base.text, "BASE_DATA[2]");
+  EXPECT_EQ(p.motions[4].base.note, "the aggregate {X OFFS,Y 0,Z 0,A 0,B 0,C 0} holds values computed at run time ('OFFS')");
+  EXPECT_NE(p.motions[5].base.note.find("the aggregate {X -DX,Y 0,Z 0,A 0,B 0,C 0} holds values accura does not evaluate"),
+            std::string::npos)
+      << p.motions[5].base.note;
 }
 
 TEST(Krl, APointAssignedInALoopOrASubroutineIsNotTakenFromTheText) {

@@ -121,6 +121,15 @@ TEST(XmlProgram, CommentsAreKeptWhenTheProgramChangesAndConvertedToKrlComments) 
     EXPECT_NE(k.src.find(c), std::string::npos) << c << " in\n" << k.src;
   EXPECT_LT(k.src.find("; the seam"), k.src.find("Y 100"));
   EXPECT_GT(k.src.find("; the seam"), k.src.find("LIN"));
+  // a comment that reads like a KRL fold marker does not open a fold
+  Program f = parseXmlProgram(std::string(text).replace(text.find("<!-- the seam -->"), 17, "<!--FOLD seam-->"), "f.xml");
+  const KrlText kf = writeKrl(withoutCarriedLines(f, "KRL"));
+  EXPECT_NE(kf.src.find("; FOLD seam\n"), std::string::npos) << kf.src;
+  EXPECT_EQ(kf.src.find(";FOLD seam"), std::string::npos) << kf.src;
+  // the language XML is the comments' own: a <passthrough> of it is refused
+  const std::string fake = std::string(text).replace(text.find("<!-- the seam -->"), 17,
+                                                     "<passthrough language=\"XML\">--><ptp/><!--</passthrough>");
+  EXPECT_THROW(parseXmlProgram(fake, "fake.xml"), calib::InputError);
 }
 
 // A point the data list declares GLOBAL is used by other modules by its name: through XML and

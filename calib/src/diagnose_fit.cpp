@@ -110,14 +110,15 @@ void Diagnoser::addJointMaps() {
       effect_note_["joint_map:" + jn] = "joint_map " + jn + ": the starting model already has a map of this joint (kept as it is)";
       continue;
     }
-    if (c.upper - c.lower < 4 * knot) {
-      effect_note_["joint_map:" + jn] = "joint_map " + jn + ": the fit data cover " + fmtg("%.3g", c.upper - c.lower) +
+    const double period = jointMapPeriod(M0_, j);
+    const JointRange support = jointMapSupport(jointValues(fit_, j), kJointMapSupportWindow, period);
+    const double width = std::min(c.upper - c.lower, support.upper - support.lower);  // values a turn apart count once
+    if (c.upper - c.lower < 4 * knot || width < std::min(4 * knot, 2 * kJointMapSupportWindow)) {
+      effect_note_["joint_map:" + jn] = "joint_map " + jn + ": the fit data cover " + fmtg("%.3g", width) +
                                         (rev ? " deg" : " mm") + ", less than 4 knot spacings of " + fmtg("%.3g", knot) +
                                         ": no map";
       continue;
     }
-    const double period = jointMapPeriod(M0_, j);
-    const JointRange support = jointMapSupport(jointValues(fit_, j), kJointMapSupportWindow, period);
     M0_.deviations.joint_map[static_cast<size_t>(j)] = makeJointMap(support.lower, support.upper, knot, period);
     any = true;
   }

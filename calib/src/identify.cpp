@@ -390,23 +390,26 @@ Problem setUp(const RobotModel& start, const std::vector<MeasurementSet>& sets, 
   if (want_map) {
     const std::set<int>& mj = groups["joint_map"];
     std::vector<int> mapped;  // the joints this run maps
+    // the maps this run fits (not those held from the start model), on the dense part of the
+    // covered interval (of one turn: values a turn apart are one angle), sized before they are made
+    std::vector<JointRange> ranges;
     for (int j = 0; j < n; ++j) {
       if (!mj.empty() && !mj.count(j + 1)) continue;
       const JointRange& c = summary.coverage[static_cast<size_t>(j)];
       const bool revolute = model.nominal.joints[static_cast<size_t>(j)].type == JointType::kRevolute;
-      if (c.upper - c.lower < 2 * stated_knot) {
-        summary.warnings.push_back("joint_map: j" + std::to_string(j + 1) + " covers only " +
-                                   fmtNum(c.upper - c.lower) + (revolute ? " deg" : " mm") +
-                                   " in the fit data (less than two knot spacings): no map for this joint");
+      const JointRange support = jointMapSupport(jointValues(data, j), kJointMapSupportWindow, jointMapPeriod(model, j));
+      const double width = std::min(c.upper - c.lower, support.upper - support.lower);
+      if (c.upper - c.lower < 2 * stated_knot || width < std::min(2 * stated_knot, 2 * kJointMapSupportWindow)) {
+        summary.warnings.push_back("joint_map: j" + std::to_string(j + 1) + " covers only " + fmtNum(width) +
+                                   (revolute ? " deg" : " mm") +
+                                   " in the fit data (less than two knot spacings; values a turn apart count once): no map for "
+                                   "this joint");
         model.deviations.joint_map[static_cast<size_t>(j)] = JointMap{};
         continue;
       }
       mapped.push_back(j);
+      ranges.push_back(support);
     }
-    // the maps this run fits (not those held from the start model), on the dense part of the
-    // covered interval, sized before they are made
-    std::vector<JointRange> ranges;
-    for (const int j : mapped) ranges.push_back(jointMapSupport(jointValues(data, j), kJointMapSupportWindow, jointMapPeriod(model, j)));
     checkJointMapSize(ranges, stated_knot);
     for (size_t k = 0; k < mapped.size(); ++k)
       model.deviations.joint_map[static_cast<size_t>(mapped[k])] =
@@ -648,7 +651,8 @@ RobotModel identify(const RobotModel& start, const std::vector<MeasurementSet>& 
         const double change = weighting.reestimate(pb, options, stage_free);
         weighting.apply(pb);
         if (maps_free) refreshPenaltyRows(pb, options.joint_map_smoothing);
-        solved = !robust && pb.penalties.empty() && sameUpToScale(before, pb.weights);
+        // (only after a solve that converged: one stopped by its iteration limit goes on)
+        solved = !robust && pb.penalties.empty() && res.termination.rfind("CONVERGENCE", 0) == 0 && sameUpToScale(before, pb.weights);
         if (change < 0.01) break;
       }
     }

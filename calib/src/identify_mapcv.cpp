@@ -41,9 +41,11 @@ RobotModel identifyWithMapCv(const RobotModel& start, const std::vector<Measurem
     if (!map_joints.empty() && !map_joints.count(j + 1)) continue;
     const JointRange& c = s0.coverage[static_cast<size_t>(j)];
     if (c.upper - c.lower < 2 * widest) continue;
+    const JointRange support = jointMapSupport(jointValues(data, j), kJointMapSupportWindow, jointMapPeriod(m0, j));
+    if (support.upper - support.lower < std::min(2 * widest, 2 * kJointMapSupportWindow)) continue;  // values a turn apart count once
     cv_joints.push_back(j);
     periods.push_back(jointMapPeriod(m0, j));
-    ranges.push_back(jointMapSupport(jointValues(data, j), kJointMapSupportWindow, periods.back()));
+    ranges.push_back(support);
   }
   for (const double knot : knots) checkJointMapSize(ranges, knot);  // before the cross-validation's dense solves
   IdentifyOptions o1 = options;

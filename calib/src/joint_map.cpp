@@ -119,13 +119,13 @@ JointMap makeJointMap(double lower, double upper, double knot, double period) {
   m.taper = m.knot();
   if (!(period == 0 || (std::isfinite(period) && period > 0)))
     throw ArgumentError("joint map: expected a period of 0 (none) or > 0, got " + std::to_string(period));
-  if (period > 0 && upper - lower + 2 * knot > period) {
+  if (period > 0 && upper - lower + 2 * knot > period && knot > 0.25 * period) {
+    // a knot spacing this coarse would leave less than half a turn: q's own map, as before
+    period = 0;
+  } else if (period > 0 && upper - lower + 2 * knot > period) {
     // the interval and its tapers within one turn: narrowed about its centre (the data beyond
     // its ends get the tapered map, as everywhere at the ends)
     const double centre = 0.5 * (lower + upper), half = 0.5 * period - knot;
-    if (!(half > 0))
-      throw ArgumentError("joint map: expected a knot spacing below half the period " + std::to_string(period) + ", got " +
-                          std::to_string(knot));
     m.lower = centre - half;
     m.upper = centre + half;
     m.intervals = static_cast<int>(jointMapIntervals(m.lower, m.upper, knot));
@@ -292,7 +292,8 @@ double fitRangePeriod(const RobotModel& model, int j) {
 }
 
 double beyondFitRange(const JointRange& c, double q, double period) {
-  if (period > 0 && c.upper - c.lower < period) {
+  if (period > 0 && c.upper - c.lower >= period) return 0.0;  // every angle of a turn is covered
+  if (period > 0) {
     const double centre = 0.5 * (c.lower + c.upper);
     q = centre + std::remainder(q - centre, period);
   }

@@ -108,9 +108,10 @@ void RobotModel::validate() const {
                           std::to_string(m.coef.size()));
     if (!(std::isfinite(m.taper) && m.taper > 0))
       throw ArgumentError(j + "expected a taper width > 0, got " + std::to_string(m.taper));
-    if (!(m.period == 0 || (std::isfinite(m.period) && m.period >= m.upper - m.lower)))
-      throw ArgumentError(j + "expected a period of 0 (none) or at least the covered interval's width " +
-                          std::to_string(m.upper - m.lower) + ", got " + std::to_string(m.period));
+    // the interval and its tapers within one period (rounding of a file's values allowed)
+    if (!(m.period == 0 || (std::isfinite(m.period) && m.period + 1e-6 >= m.upper - m.lower + 2 * m.taper)))
+      throw ArgumentError(j + "expected a period of 0 (none) or at least the covered interval and its tapers, " +
+                          std::to_string(m.upper - m.lower + 2 * m.taper) + ", got " + std::to_string(m.period));
     for (double c : m.coef)
       if (!std::isfinite(c)) throw ArgumentError(j + "non-finite coefficient");
   }

@@ -266,9 +266,9 @@ void readJointCurve(const Reader& R, const XMLElement* p, RobotModel& model, std
   if (!(m.taper > 0)) R.failAttribute(p, "taper", "<joint_map> attribute 'taper': expected > 0, found " + fmt(m.taper));
   if (p->Attribute("period")) {  // written for revolute joints since 2026-11-27; absent: no period (older files)
     m.period = R.number(p, "period");
-    if (!revolute || !(m.period + 1e-6 >= upper - lower + 2 * m.taper))  // deg; the file's rounding
+    if (!revolute || m.period != 360.0 || !(m.period + 1e-6 >= upper - lower + 2 * m.taper))  // deg; the file's rounding
       R.failAttribute(p, "period", "<joint_map> of joint " + std::to_string(j + 1) + " attribute 'period': expected " +
-                                       (revolute ? "at least the interval and its tapers, " + fmt(upper - lower + 2 * m.taper) + " deg"
+                                       (revolute ? "360 (one turn), at least the interval and its tapers, " + fmt(upper - lower + 2 * m.taper) + " deg"
                                                  : std::string("none for a prismatic joint")) +
                                        ", found " + fmt(m.period));
   }

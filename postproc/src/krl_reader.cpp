@@ -222,10 +222,12 @@ struct Reader {
     }
     operands.emplace_back(from, e);
     if (operands.size() == 1 && toks[b].text == "{") {
-      Cursor c(*f, toks, toks[e - 1].end);
-      c.seek(b);
-      const Agg a = parseAggregate(c);
-      if (c.pos() != e) return unknownFrame(text, toks[b].begin);
+      Agg a;
+      if (const std::string why = frameAggregate(toks, b, e, &a); !why.empty()) {
+        FrameSetting s = unknownFrame(text, toks[b].begin, why);
+        s.run_time = true;
+        return s;
+      }
       bool partial = false;
       const auto v = toFrame(a, *f, current.value, &partial);
       FrameSetting s;
@@ -251,24 +253,46 @@ struct Reader {
     }
     if (const std::optional<int> n = tableIndex(toks, b, e, is_tool)) return dataFrame(is_tool, *n, toks[b].begin);
     // an expression: T_1 * T_2 * ... of its operands
+    // (an operand the run computes makes the frame a run-time value, whatever the others lack)
     Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    std::optional<FrameSetting> problem;
     for (const auto& [ob, oe] : operands) {
       if (ob == oe) return unknownFrame(text, toks[b].begin, "expected an operand of ':', found none");
       FrameSetting operand;  // its value, or why there is none
       const std::string why = operandFrame(toks, ob, oe, &operand);
       if (!why.empty()) {
-        FrameSetting s = unknownFrame(text, toks[b].begin, why);
-        s.run_time = operand.run_time;
-        return s;
+        if (!problem || (operand.run_time && !problem->run_time)) {
+          problem = unknownFrame(text, toks[b].begin, why);
+          problem->run_time = operand.run_time;
+        }
+        continue;
       }
       T = T * calib::toIsometry(*operand.value);
     }
+    if (problem) return *problem;
     FrameSetting s;
     s.source = FrameSetting::Source::kInline;
     s.value = calib::toXyzAbc(T);
     s.text = text;
     s.where = f->loc(toks[b].begin);
     return s;
+  }
+
+  // The aggregate [b, e) of a frame into *a when each of its components is a number; else why
+  // not ({X OFFS,..}, {X -DX,..}: values the program computes at run time).
+  std::string frameAggregate(const std::vector<Tok>& toks, size_t b, size_t e, Agg* a) const {
+    const std::string text = f->text().substr(toks[b].begin, toks[e - 1].end - toks[b].begin);
+    try {
+      Cursor c(*f, toks, toks[e - 1].end);
+      c.seek(b);
+      *a = parseAggregate(c);
+      if (c.pos() != e) return "expected the end of the frame after the aggregate " + text + ", found " + describe(c.peek());
+    } catch (const calib::InputError& x) {  // -DX, a function call: not a number accura can read
+      return "the aggregate " + text + " holds values accura does not evaluate (" + x.what() + ")";
+    }
+    for (const AggItem& it : a->items)
+      if (it.vk != AggItem::kNum) return "the aggregate " + text + " holds values computed at run time ('" + it.text + "')";
+    return "";
   }
 
   // TOOL_DATA[n] / BASE_DATA[n] (also with '$'; the table of the frame assigned) in [b, e): n.
@@ -286,10 +310,11 @@ struct Reader {
   std::string operandFrame(const std::vector<Tok>& toks, size_t b, size_t e, FrameSetting* out) const {
     const std::string text = f->text().substr(toks[b].begin, toks[e - 1].end - toks[b].begin);
     if (toks[b].text == "{") {
-      Cursor c(*f, toks, toks[e - 1].end);
-      c.seek(b);
-      const Agg a = parseAggregate(c);
-      if (c.pos() != e) return "expected the end of the operand after the aggregate " + text + ", found " + describe(c.peek());
+      Agg a;
+      if (const std::string why = frameAggregate(toks, b, e, &a); !why.empty()) {
+        out->run_time = true;
+        return why;
+      }
       bool partial = false;
       out->value = toFrame(a, *f, std::nullopt, &partial);
       if (!out->value)
@@ -576,6 +601,9 @@ struct Reader {
             v.name = p.name;
             p.value = v;
             p.problem.clear();
+            // a $config.dat's GLOBAL point the program assigns stays the controller's: not
+            // declared GLOBAL again in a program written anew
+            if (p.global) p.global_keyword = false;
             p.global = false;
             return;
           }

@@ -252,8 +252,11 @@ const char* sectionName(PassThrough::Section s) {
 }
 
 void writePassThrough(std::ostream& out, const PassThrough& s) {
-  if (isXmlComment(s)) {  // an XML comment of the program, as it was (its text cannot hold "--")
-    out << "    <!--" << s.text << "-->\n";
+  if (isXmlComment(s)) {  // an XML comment of the program, as it was (read from XML, its text holds no "--")
+    std::string text = s.text;
+    for (size_t at = text.find("--"); at != std::string::npos; at = text.find("--", at)) text.insert(at + 1, " ");
+    if (!text.empty() && text.back() == '-') text += ' ';
+    out << "    <!--" << text << "-->\n";
     return;
   }
   out << "    <passthrough language=\"" << calib::xmlEscape(s.language) << "\"";
@@ -284,6 +287,9 @@ PassThrough readPassThrough(const Reader& R, const XMLElement* e, size_t before_
   const auto language = R.text(e, "language");
   if (!language || language->empty()) R.fail(e, "<passthrough>: expected attribute 'language' (KRL, ...)");
   p.language = R.plain(e, "language", *language);
+  if (p.language == "XML")  // the program's own comments are <!-- -->, not pass-through statements
+    R.fail(e, "<passthrough> attribute 'language': expected the language of a robot program (KRL, RAPID, URScript), found 'XML' "
+              "(write a comment of the XML program as <!-- ... -->)");
   const std::string section = R.text(e, "section").value_or("body");
   if (section == "body") p.section = PassThrough::Section::kBody;
   else if (section == "trailer") p.section = PassThrough::Section::kTrailer;

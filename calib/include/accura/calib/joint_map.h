@@ -35,9 +35,10 @@ double jointMapBasisValue(const JointMap& map, double q, int k);
 /// divided into ceil((upper - lower) / knot) equal intervals, at least 1) and a taper width of
 /// one knot spacing. `period` (deg; jointMapPeriod): a map of the joint's angle modulo `period`,
 /// evaluated at the turn of q nearest the interval; an interval wider than period - 2 knot is
-/// narrowed about its centre to that width, so that the map and its tapers fit in one turn.
-/// Throws ArgumentError when lower >= upper, knot <= 0, period < 0 or knot >= period / 2 (or
-/// non-finite values).
+/// narrowed about its centre to that width, so that the map and its tapers fit in one turn
+/// (with a knot spacing above a quarter of the period, which would leave less than half a turn,
+/// the map has no period instead). Throws ArgumentError when lower >= upper, knot <= 0 or
+/// period < 0 (or non-finite values).
 JointMap makeJointMap(double lower, double upper, double knot, double period = 0);
 
 /// The period of joint j's map (0-based): 360 deg for a revolute joint (the gear's and the
@@ -122,8 +123,8 @@ constexpr double kFitRangeTolerance = 1e-3;
 double fitRangePeriod(const RobotModel& model, int j);
 
 /// How far q lies beyond the fitted range c (deg or mm; 0 within it). With a `period`
-/// (fitRangePeriod) q counts at its turn nearest the range, when the range is narrower than a
-/// turn: 100 deg is 260 deg beyond -260..-200 without a period, within it with one.
+/// (fitRangePeriod) q counts at its turn nearest the range (100 deg is 260 deg beyond -260..-200
+/// without a period, within it with one), and a range of a turn or more holds every q.
 double beyondFitRange(const JointRange& c, double q, double period = 0);
 
 /// A joint value outside the range the model's joint-dependent effects were fitted on.
