@@ -53,18 +53,16 @@ void Diagnoser::baseline() {
     }
   if (!fit_.has_std_position && !out_.noise_floor_known) {
     // weights from the baseline's variance-component estimate (uniform: only their ratio matters)
-    for (auto& w : w_fit_) w = Eigen::Vector3d::Constant(1.0 / s.position_std_mm);
-    for (size_t i = 0; i < w_fit_.size(); ++i) w_fit_[i] *= std::sqrt(fit_.rows[i].weight);
+    for (size_t i = 0; i < w_fit_.size(); ++i) w_fit_[i].setConstant(rowComponentWeight(fit_.rows[i].weight, s.position_std_mm, 0));
     if (has_val_)
-      for (size_t i = 0; i < w_val_.size(); ++i) w_val_[i] = Eigen::Vector3d::Constant(std::sqrt(val_.rows[i].weight) / s.position_std_mm);
+      for (size_t i = 0; i < w_val_.size(); ++i) w_val_[i].setConstant(rowComponentWeight(val_.rows[i].weight, s.position_std_mm, 0));
   } else if (use_rot_ && fit_.has_std_position && s.model_error_mm > 0) {
     // 6D data whose std columns explain the residual badly: the baseline's unmodelled-error term
     // joins every row's std, as identify weights (1 / sqrt(std^2 + tau^2) per axis), so that
     // positions and orientations weigh in the fits as they do in identify's
-    const double tau2 = s.model_error_mm * s.model_error_mm;
     auto weigh = [&](const MeasurementSet& set, std::vector<Eigen::Vector3d>* w) {
       for (size_t i = 0; i < w->size(); ++i)
-        (*w)[i] = std::sqrt(set.rows[i].weight) * (set.rows[i].std_mm.array().square() + tau2).rsqrt().matrix();
+        for (int k = 0; k < 3; ++k) (*w)[i][k] = rowComponentWeight(set.rows[i].weight, set.rows[i].std_mm[k], s.model_error_mm);
     };
     weigh(fit_, &w_fit_);
     if (has_val_ && val_.has_std_position) weigh(val_, &w_val_);
@@ -83,7 +81,7 @@ void Diagnoser::baseline() {
                                      : Eigen::Vector3d::Constant(s.orientation_std_deg * kDegToRad);
       const Eigen::Array3d v = sd.array().square() + tau_rad * tau_rad;
       if (!(v > 0).all()) continue;  // no std to weigh with: the row's orientation is left out
-      w_rot_[static_cast<size_t>(i)] = std::sqrt(r.weight) * v.rsqrt().matrix();
+      for (int k = 0; k < 3; ++k) w_rot_[static_cast<size_t>(i)][k] = rowComponentWeight(r.weight, sd[k], tau_rad);
       noise_rot_[static_cast<size_t>(i)] = sd;
     }
   }

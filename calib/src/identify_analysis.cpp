@@ -255,11 +255,7 @@ void Weighting::apply(Problem& pb) const {
     const Measurement& r = pb.data.rows[i];
     RowWeights& w = pb.weights[i];
     w.dim = pb.dim;
-    const double sw = std::sqrt(r.weight);
-    for (int k = 0; k < 6; ++k) {
-      const double s = baseStd(r, k), tau = k < 3 ? tau_pos_mm : tau_rot_rad;
-      w.w[k] = sw / std::sqrt(s * s + tau * tau);
-    }
+    for (int k = 0; k < 6; ++k) w.w[k] = rowComponentWeight(r.weight, baseStd(r, k), k < 3 ? tau_pos_mm : tau_rot_rad);
   }
 }
 

@@ -1,6 +1,8 @@
 // accura: measured poses (laser tracker, CMM) read from CSV. Format: docs/measurement-format.md.
 #pragma once
 
+#include <cmath>
+
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <limits>
@@ -107,6 +109,15 @@ std::vector<double> jointValues(const MeasurementSet& data, int joint);
 /// mean of |std_mm|^2. NaN when no set has std columns or no row a finite std (null entries
 /// are skipped).
 double statedPositionNoiseRms(const std::vector<const MeasurementSet*>& sets);
+
+/// The weight of one component of a measured row as identify weighs it (1/mm or 1/rad):
+/// sqrt(row_weight) / sqrt(std^2 + tau^2), `std` the component's standard deviation (the std
+/// column, or the stated or estimated std), `tau` the unmodelled-error term of its component
+/// type (IdentifyOptions::model_error; same unit as std). Shared with the diagnosis, which fits
+/// as identify does.
+inline double rowComponentWeight(double row_weight, double std, double tau) {
+  return std::sqrt(row_weight) / std::sqrt(std * std + tau * tau);
+}
 
 /// Writes measurements in the same format (every column the set has; fixed formatting:
 /// q with 6 decimals, positions 6 decimals (mm), quaternions 9 decimals) through a
