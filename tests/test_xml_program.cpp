@@ -137,7 +137,9 @@ TEST(XmlProgram, CommentsAreKeptWhenTheProgramChangesAndConvertedToKrlComments) 
 // GLOBAL again in the program's data list).
 TEST(XmlProgram, AGlobalPointStaysGlobalThroughXml) {
   const std::string dir = test::tempDir("xml_global");
-  test::writeText(dir + "/pg.src", "DEF pg( )\n$TOOL={X 0,Y 0,Z 200,A 0,B 0,C 0}\n$BASE=$NULLFRAME\nPTP XP1\nLIN XP2\nPTP XHOME\nEND\n");
+  // (the program assigns the $config.dat's XHOME a value of its own: still the controller's point)
+  test::writeText(dir + "/pg.src", "DEF pg( )\n$TOOL={X 0,Y 0,Z 200,A 0,B 0,C 0}\n$BASE=$NULLFRAME\nPTP XP1\nLIN XP2\n"
+                                   "XHOME={A1 0,A2 -90,A3 90,A4 0,A5 30,A6 0}\nPTP XHOME\nEND\n");
   test::writeText(dir + "/pg.dat",
                   "DEFDAT pg PUBLIC\nDECL GLOBAL E6POS XP1={X 1000,Y 0,Z 800,A 0,B 90,C 0,S 2,T 2}\n"
                   "DECL E6POS XP2={X 1000,Y 100,Z 800,A 0,B 90,C 0,S 2,T 2}\nENDDAT\n");

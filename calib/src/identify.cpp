@@ -645,7 +645,6 @@ RobotModel identify(const RobotModel& start, const std::vector<MeasurementSet>& 
         if (!solved) {
           res = solve(pb, options, robust);
           iterations += res.iterations;
-          if (res.failure) throw NumericalError("identification failed: " + res.message);
         }
         const std::vector<RowWeights> before = pb.weights;
         const double change = weighting.reestimate(pb, options, stage_free);
