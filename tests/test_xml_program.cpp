@@ -95,7 +95,7 @@ TEST(XmlProgram, CommentsAreKeptWhenTheProgramChangesAndConvertedToKrlComments) 
       "    <base source=\"null\"/>\n    <!-- approach,\n         slowly -->\n"
       "    <lin vel_m_s=\"0.1\">\n      <pose x_mm=\"1000\" y_mm=\"0\" z_mm=\"800\" a_deg=\"0\" b_deg=\"90\" c_deg=\"0\"/>\n    </lin>\n"
       "    <!-- the seam -->\n"
-      "    <lin vel_m_s=\"0.1\">\n      <pose x_mm=\"1000\" y_mm=\"100\" z_mm=\"800\" a_deg=\"0\" b_deg=\"90\" c_deg=\"0\"/>\n    </lin>\n"
+      "    <lin vel_m_s=\"0.1\">\n      <!-- 100 mm -->\n      <pose x_mm=\"1000\" y_mm=\"100\" z_mm=\"800\" a_deg=\"0\" b_deg=\"90\" c_deg=\"0\"/>\n    </lin>\n"
       "  </motions>\n  <!-- end -->\n</program>\n";
   Program p = parseXmlProgram(text, "c.xml");
   ASSERT_EQ(p.motions.size(), 2u);
@@ -103,7 +103,7 @@ TEST(XmlProgram, CommentsAreKeptWhenTheProgramChangesAndConvertedToKrlComments) 
   p.motions[1].target.modified = true;
   const std::string out = writeXmlProgram(p);
   const std::vector<std::string> comments = {"<!-- from the OLP -->", "<!-- cell 4 -->", "<!-- approach,\n         slowly -->",
-                                             "<!-- the seam -->", "<!-- end -->"};
+                                             "<!-- the seam -->", "<!-- 100 mm -->", "<!-- end -->"};
   size_t at = 0;
   for (const std::string& c : comments) {  // each one, in order
     const size_t found = out.find(c, at);

@@ -565,6 +565,9 @@ Program parseXmlProgram(const std::string& text, const std::string& file, const 
       bool motion = false;
       for (const char* k : kMotionElements) motion = motion || n == k;
       if (!motion) R.fail(c, "unknown element <" + n + "> in <motions> (expected tool, base, ptp, lin, circ, sptp, slin, scirc, spl, passthrough)");
+      // comments inside the motion's element: kept just before the motion
+      for (const tinyxml2::XMLNode* inner = c->FirstChild(); inner; inner = inner->NextSibling())
+        if (const tinyxml2::XMLComment* cm = inner->ToComment()) p.passthrough.push_back(xmlComment(cm, file, p.motions.size()));
       Motion m = readMotion(R, c);
       m.tool = tool;
       m.base = base;
