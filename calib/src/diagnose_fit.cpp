@@ -110,8 +110,8 @@ void Diagnoser::addJointMaps() {
     }
     const double period = jointMapPeriod(M0_, j);
     const JointRange support = jointMapSupport(jointValues(fit_, j), kJointMapSupportWindow, period);
-    const double width = std::min(c.upper - c.lower, support.upper - support.lower);  // values a turn apart count once
-    if (c.upper - c.lower < 4 * knot || width < std::min(4 * knot, 2 * kJointMapSupportWindow)) {
+    double width = 0;  // values a turn apart count once
+    if (!jointMapCovers(c, support, 4 * knot, &width)) {
       effect_note_["joint_map:" + jn] = "joint_map " + jn + ": the fit data cover " + fmtg("%.3g", width) +
                                         (rev ? " deg" : " mm") + ", less than 4 knot spacings of " + fmtg("%.3g", knot) +
                                         ": no map";

@@ -398,8 +398,8 @@ Problem setUp(const RobotModel& start, const std::vector<MeasurementSet>& sets, 
       const JointRange& c = summary.coverage[static_cast<size_t>(j)];
       const bool revolute = model.nominal.joints[static_cast<size_t>(j)].type == JointType::kRevolute;
       const JointRange support = jointMapSupport(jointValues(data, j), kJointMapSupportWindow, jointMapPeriod(model, j));
-      const double width = std::min(c.upper - c.lower, support.upper - support.lower);
-      if (c.upper - c.lower < 2 * stated_knot || width < std::min(2 * stated_knot, 2 * kJointMapSupportWindow)) {
+      double width = 0;
+      if (!jointMapCovers(c, support, 2 * stated_knot, &width)) {
         summary.warnings.push_back("joint_map: j" + std::to_string(j + 1) + " covers only " + fmtNum(width) +
                                    (revolute ? " deg" : " mm") +
                                    " in the fit data (less than two knot spacings; values a turn apart count once): no map for "

@@ -40,11 +40,12 @@ RobotModel identifyWithMapCv(const RobotModel& start, const std::vector<Measurem
   for (int j = 0; j < m0.dof(); ++j) {
     if (!map_joints.empty() && !map_joints.count(j + 1)) continue;
     const JointRange& c = s0.coverage[static_cast<size_t>(j)];
-    if (c.upper - c.lower < 2 * widest) continue;
-    const JointRange support = jointMapSupport(jointValues(data, j), kJointMapSupportWindow, jointMapPeriod(m0, j));
-    if (support.upper - support.lower < std::min(2 * widest, 2 * kJointMapSupportWindow)) continue;  // values a turn apart count once
+    if (c.upper - c.lower < 2 * widest) continue;  // (before the support is computed)
+    const double period = jointMapPeriod(m0, j);
+    const JointRange support = jointMapSupport(jointValues(data, j), kJointMapSupportWindow, period);
+    if (!jointMapCovers(c, support, 2 * widest)) continue;
     cv_joints.push_back(j);
-    periods.push_back(jointMapPeriod(m0, j));
+    periods.push_back(period);
     ranges.push_back(support);
   }
   for (const double knot : knots) checkJointMapSize(ranges, knot);  // before the cross-validation's dense solves

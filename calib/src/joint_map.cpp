@@ -280,6 +280,12 @@ JointRange jointMapSupport(std::vector<double> q, double window, double period) 
   return r.upper - r.lower >= 2 * window ? r : all;
 }
 
+bool jointMapCovers(const JointRange& coverage, const JointRange& support, double need, double* width) {
+  const double w = std::min(coverage.upper - coverage.lower, support.upper - support.lower);
+  if (width) *width = w;
+  return coverage.upper - coverage.lower >= need && w >= std::min(need, 2 * kJointMapSupportWindow);
+}
+
 double fitRangePeriod(const RobotModel& model, int j) {
   if (j < 0 || j >= model.dof())
     throw ArgumentError("fitRangePeriod: expected a joint index 0.." + std::to_string(model.dof() - 1) + ", got " + std::to_string(j));

@@ -295,13 +295,17 @@ struct Reader {
     return "";
   }
 
+  // 'T' for the name of the tool table (TOOL_DATA, $TOOL_DATA), 'B' for the base table's, 0 else.
+  static char frameTable(const std::string& up) {
+    if (up == "TOOL_DATA" || up == "$TOOL_DATA") return 'T';
+    if (up == "BASE_DATA" || up == "$BASE_DATA") return 'B';
+    return 0;
+  }
+
   // TOOL_DATA[n] / BASE_DATA[n] (also with '$'; the table of the frame assigned) in [b, e): n.
   static std::optional<int> tableIndex(const std::vector<Tok>& toks, size_t b, size_t e, bool is_tool) {
     if (e - b != 4 || toks[b + 1].text != "[" || toks[b + 2].kind != Tok::kNumber || toks[b + 3].text != "]") return std::nullopt;
-    const std::string& up = toks[b].up;
-    const bool tool_table = up == "TOOL_DATA" || up == "$TOOL_DATA";
-    const bool base_table = up == "BASE_DATA" || up == "$BASE_DATA";
-    if (!(is_tool ? tool_table : base_table)) return std::nullopt;
+    if (frameTable(toks[b].up) != (is_tool ? 'T' : 'B')) return std::nullopt;
     return std::atoi(toks[b + 2].text.c_str());
   }
 
@@ -329,7 +333,7 @@ struct Reader {
     // TOOL_DATA[i] / BASE_DATA[i] with an index computed at run time (a variable, a routine's
     // parameter): the value the run takes
     if (e - b >= 4 && toks[b + 1].text == "[" && toks[e - 1].text == "]" && !(e - b == 4 && toks[b + 2].kind == Tok::kNumber) &&
-        (toks[b].up == "TOOL_DATA" || toks[b].up == "$TOOL_DATA" || toks[b].up == "BASE_DATA" || toks[b].up == "$BASE_DATA")) {
+        frameTable(toks[b].up)) {
       out->run_time = true;
       return "the index of " + text + " is computed at run time";
     }

@@ -329,8 +329,7 @@ Program withoutCarriedLines(const Program& program, const std::string& language)
         c.language = language;
         c.role.clear();
         // not a KRL fold marker (;FOLD / ;ENDFOLD), which the KUKA editor pairs
-        std::string up = line.substr(0, 7);
-        for (char& ch : up) ch = static_cast<char>(std::toupper(static_cast<unsigned char>(ch)));
+        const std::string up = upperAscii(line.substr(0, 7));
         const bool fold = language == "KRL" && (up.compare(0, 4, "FOLD") == 0 || up == "ENDFOLD");
         c.text = marker + std::string(fold ? " " : "") + line;
         out.passthrough.push_back(std::move(c));

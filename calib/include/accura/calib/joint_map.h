@@ -105,6 +105,14 @@ constexpr size_t kMaxJointMapCoefficients = 3000;
 /// have more than kMaxJointMapCoefficients coefficients, naming the spacing that fits.
 void checkJointMapSize(const std::vector<JointRange>& ranges, double knot);
 
+/// Whether a joint's fit values leave a map room for `need` (deg or mm: a multiple of the knot
+/// spacing): q's own range `coverage` must reach it, and so must the map's interval `support`
+/// (jointMapSupport with the joint's period) up to two support windows (a support trims sparse
+/// tails; it is narrower than that only where values a turn apart are one angle, e.g. a joint
+/// held at -90 deg written 270 deg in half the rows). *width: the width that counts, the
+/// smaller of the two.
+bool jointMapCovers(const JointRange& coverage, const JointRange& support, double need, double* width = nullptr);
+
 /// Parses a knot spacing as given on the command line: "3deg", "3" (deg for revolute joints) or
 /// "5mm" (prismatic). Returns false with *error on anything else (not a positive finite number,
 /// unknown unit).
