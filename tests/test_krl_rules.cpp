@@ -466,6 +466,61 @@ TEST(KrlRules, APointSharedByAPtpAndALinGetsThePtpsStatusAndTurn) {
   EXPECT_EQ(line(a.dat).find("T 42}"), std::string::npos) << line(a.dat);  // the PTP's T, not the written one
 }
 
+// A point that is a motion's target and also a frame ($BASE = XFB): its correction written into
+// its declaration would move the base, and every motion after it with it. The declaration keeps
+// its value; the motion goes to a new point with the correction. Expected: XFB_1 is what XFB
+// becomes in the same program without the frame statement, and XP1 (after it) is corrected as in
+// a program that writes XFB's value as the base inline.
+TEST(KrlRules, APointAlsoUsedAsAFrameKeepsItsValueAndTheMotionGetsANewPoint) {
+  const std::string dir = test::tempDir("krl_point_as_frame");
+  const std::string head = "DEF p( )\n$TOOL={X 0,Y 0,Z 200,A 0,B 0,C 0}\n$BASE=$NULLFRAME\nPTP XHOME\nLIN XFB\n";
+  const std::string xfb = "{X 1000,Y 100,Z 600,A 0,B 90,C 0,S 2,T 2}";
+  const std::string dat = "DEFDAT p\n  DECL E6POS XHOME={X 900,Y 0,Z 900,A 0,B 90,C 0,S 2,T 2}\n  DECL E6POS XFB=" + xfb +
+                          "\n  DECL E6POS XP1={X 10,Y 20,Z 30,A 0,B 0,C 0,S 2,T 2}\nENDDAT\n";
+  for (const char* d : {"/frame", "/alone", "/inline"}) std::filesystem::create_directories(dir + d);
+  test::writeText(dir + "/frame/p.src", head + "$BASE=XFB\nLIN XP1\nEND\n");
+  test::writeText(dir + "/alone/p.src", head + "END\n");
+  test::writeText(dir + "/inline/p.src", head + "$BASE={X 1000,Y 100,Z 600,A 0,B 90,C 0}\nLIN XP1\nEND\n");
+  for (const char* d : {"/frame", "/alone", "/inline"}) test::writeText(dir + d + "/p.dat", dat);
+  JobSettings s;
+  s.calibrated = calib::readRobotFile(test::sourcePath("tests/golden/compensate/kr16_real.xml"));
+  std::map<std::string, KrlText> out;
+  std::map<std::string, ProgramCompensation> pcs;
+  for (const char* d : {"/frame", "/alone", "/inline"}) {
+    pcs[d] = compensateProgramReport(readKrl(dir + d + "/p.src"), s);
+    ASSERT_TRUE(pcs[d].ok()) << d << ": " << pcs[d].report.errors.front().message;
+    out[d] = writeKrl(pcs[d].program);
+  }
+  const auto value = [](const std::string& text, const std::string& name) {
+    const size_t at = text.find("DECL E6POS " + name + "=");
+    if (at == std::string::npos) return std::string("(no ") + name + ")";
+    const size_t b = text.find('=', at) + 1;
+    return text.substr(b, text.find('\n', at) - b);
+  };
+  EXPECT_EQ(value(out["/frame"].dat, "XFB"), xfb);                                   // the frame keeps its value
+  EXPECT_NE(value(out["/alone"].dat, "XFB"), xfb);                                   // (a correction there is)
+  EXPECT_EQ(value(out["/frame"].dat, "XFB_1"), value(out["/alone"].dat, "XFB"));     // the motion's point
+  EXPECT_NE(out["/frame"].dat.find("\n  DECL E6POS XFB_1="), std::string::npos);     // after XFB, indented like it
+  EXPECT_LT(out["/frame"].dat.find("XFB="), out["/frame"].dat.find("XFB_1="));
+  EXPECT_NE(out["/frame"].src.find("\nLIN XFB_1\n$BASE=XFB\n"), std::string::npos) << out["/frame"].src;
+  EXPECT_EQ(value(out["/frame"].dat, "XP1"), value(out["/inline"].dat, "XP1"));
+  EXPECT_NE(value(out["/frame"].dat, "XP1"), "{X 10,Y 20,Z 30,A 0,B 0,C 0,S 2,T 2}");
+  bool said = false;
+  for (const ProgramIssue& w : pcs["/frame"].report.warnings)
+    said = said || (w.where.line == 5 && w.message.find("XFB is also read at " + dir + "/frame/p.src:6:7 ($BASE=XFB)") != std::string::npos &&
+                    w.message.find("the new point XFB_1") != std::string::npos);
+  EXPECT_TRUE(said);
+  // a plain motion target, a CIRC's two points and a WITH clause's frame are told apart
+  const std::string src = "DEF q( )\nLIN XP1 C_DIS\nCIRC XFB, XHOME\nSLIN XP1 WITH $BASE=XHOME\nEND\n";
+  test::writeText(dir + "/q.src", src);
+  test::writeText(dir + "/q.dat", "DEFDAT q\nDECL E6POS XHOME={X 1}\nDECL E6POS XFB={X 2}\nDECL E6POS XP1={X 3}\nENDDAT\n");
+  const Program q = readKrl(dir + "/q.src");
+  ASSERT_EQ(q.krl->values.size(), 3u);
+  EXPECT_EQ(q.krl->values[0].read_elsewhere, dir + "/q.src:4:21 (SLIN XP1 WITH $BASE=XHOME)");
+  EXPECT_EQ(q.krl->values[1].read_elsewhere, "");
+  EXPECT_EQ(q.krl->values[2].read_elsewhere, "");
+}
+
 // ---------------------------------------------------------------------------------------------
 // External axes
 
@@ -550,7 +605,10 @@ TEST(KrlRules, MotionsToRunTimeTargetsAreKeptAndNamedTheRestIsCompensated) {
   EXPECT_NE(out.src.find("\nLIN {Z 900}\n"), std::string::npos) << out.src;
   EXPECT_NE(out.dat.find("DECL E6POS XP3={X 1000,Y 100,Z 800,A 0,B 90,C 0}"), std::string::npos) << out.dat;
   EXPECT_EQ(out.dat.find("DECL E6POS XP1={X 1000,Y 0,Z 800,A 0,B 90,C 0}"), std::string::npos) << out.dat;
-  EXPECT_EQ(out.dat.find("DECL E6POS XP2={X 1000,Y 100,Z 800,A 0,B 90,C 0}"), std::string::npos) << out.dat;
+  // XP3 = XP2 reads XP2: corrected in place, XP2 would move XP3's motion, which is left as
+  // written; XP2 keeps its value, and its own motion goes to the corrected copy XP2_1
+  EXPECT_NE(out.dat.find("DECL E6POS XP2={X 1000,Y 100,Z 800,A 0,B 90,C 0}\nDECL E6POS XP2_1={"), std::string::npos) << out.dat;
+  EXPECT_NE(out.src.find("\nLIN XP3\nLIN XP2_1\nEND"), std::string::npos) << out.src;
 }
 
 // A spline block whose frames come from its WITH clause (SPLINE WITH $TOOL = STOOL2(FP1),

@@ -380,6 +380,7 @@ class Job {
     flushCpConfigurations();
     notePayloadChanges(in);
     unifyClaimedConfigurations(out);
+    copyPointsReadElsewhere(out);
     checkKeptValues(out);
     noteGlobalPoints(out);
     noteInlinedPoints(out);
@@ -430,6 +431,37 @@ class Job {
     out.motions.push_back(mo);
   }
 
+  /// A corrected point the program also reads other than as a motion's target (KRL: `$BASE =
+  /// XFB`, `XP2 = XFB`; KrlSource::Value::read_elsewhere): written into its declaration, the
+  /// correction would move that frame or point too, and every motion after it. The declaration
+  /// keeps its value; the motions that correct it go to a new point declared after it (a point
+  /// declared in the .src: an inline aggregate in each motion). Said once per point.
+  void copyPointsReadElsewhere(Program& out) {
+    if (!in_ || !in_->krl) return;
+    const std::vector<KrlSource::Value>& values = in_->krl->values;
+    std::map<int, std::string> copies;  // value id -> the new point's name ("": inline)
+    for (Motion& m : out.motions)
+      for (Target* t : {&m.target, m.aux ? &*m.aux : nullptr}) {
+        if (!t || !t->modified || t->new_declaration || t->value_id < 0 || static_cast<size_t>(t->value_id) >= values.size()) continue;
+        const KrlSource::Value& v = values[static_cast<size_t>(t->value_id)];
+        if (v.read_elsewhere.empty()) continue;
+        auto it = copies.find(t->value_id);
+        if (it == copies.end()) {
+          const bool in_dat = isDeclarableName(t->name) && v.file == 1;
+          const std::string name = in_dat ? newPointName(*in_, t->name, new_names_) : std::string();
+          if (in_dat) new_names_.push_back(name);
+          it = copies.emplace(t->value_id, name).first;
+          warning(m.where, targetLabel(*t) + " is also read at " + v.read_elsewhere + ", which its correction would move: " +
+                               "its declaration keeps its value, and " +
+                               (name.empty() ? std::string("the motions that correct it get the corrected value as an inline aggregate")
+                                             : "the motions that correct it go to the new point " + name + " (declared after it)"));
+        }
+        t->replaces = t->name;
+        t->new_declaration = true;
+        t->name = it->second;
+      }
+  }
+
   /// A motion kept as written whose point another motion corrects is not unchanged on the
   /// robot: it moves with that correction, made for the other motion's tool, base and path.
   /// Said once per point, at the kept motion, naming the motion the correction is for (the
@@ -438,7 +470,7 @@ class Job {
     std::set<int> named;
     for (const Motion& m : out.motions)
       for (const Target* t : {&m.target, m.aux ? &*m.aux : nullptr}) {
-        if (!t || !t->modified || t->value_id < 0 || named.count(t->value_id)) continue;
+        if (!t || !t->modified || t->new_declaration || t->value_id < 0 || named.count(t->value_id)) continue;
         const auto it = kept_values_.find(t->value_id);
         if (it == kept_values_.end() || it->second.str() == m.where.str()) continue;  // (not the motion itself)
         named.insert(t->value_id);

@@ -1109,6 +1109,53 @@ std::map<std::string, SourceLocation> krlGlobalPoints(const std::string& dat_pat
   return out;
 }
 
+namespace {
+
+// Every point of the program's files whose value a statement of the .src reads other than as a
+// motion's target (`$BASE = XFB`, `XP2 = XFB`, `LIN XP1 WITH $TOOL = XT`, `IF XP1.X > 0`, a
+// call's argument): KrlSource::Value::read_elsewhere, the first such place. Declarations, the
+// DEF line and a point's own assignment (XP1 = .., XP1.X = ..: the left-hand side) are not reads.
+void notePointReads(const KrlFile& src, const Declarations& decl, KrlSource& source) {
+  for (const Line& l : src.lines()) {
+    const std::vector<Tok> t = lex(src, l.begin, l.code_end);
+    if (t.empty() || t[0].text == "&") continue;
+    const std::string& k = t[0].up;
+    if (k == "DECL" || k == "DEF" || k == "DEFFCT" || k == "GLOBAL" || isPointType(k)) continue;
+    const bool motion = isMotionKeyword(k) && t[0].kind == Tok::kIdent;
+    // an assignment's left-hand side ends at its depth-0 '='
+    size_t from = 0;
+    if (!motion && t[0].kind == Tok::kIdent) {
+      int depth = 0;
+      for (size_t i = 1; i < t.size(); ++i) {
+        const std::string& x = t[i].text;
+        if (x == "[" || x == "(") ++depth;
+        else if (x == "]" || x == ")") --depth;
+        else if (depth == 0 && x == "=" && t[i].kind == Tok::kPunct) { from = i + 1; break; }
+        else if (depth == 0 && x != "." && t[i].kind == Tok::kPunct) break;
+      }
+    }
+    int depth = 0;
+    for (size_t i = from; i < t.size(); ++i) {
+      const std::string& x = t[i].text;
+      if (x == "[" || x == "(" || x == "{") ++depth;
+      if (x == "]" || x == ")" || x == "}") --depth;
+      if (t[i].kind != Tok::kIdent) continue;
+      const auto it = decl.points.find(t[i].up);
+      if (it == decl.points.end() || !it->second.value || it->second.value->value_id < 0) continue;
+      // a motion's target written as the point's name alone: LIN XP1 C_DIS, CIRC XA, XB
+      const bool target = motion && depth == 0 && (i == 1 || t[i - 1].text == ",") &&
+                          (i + 1 == t.size() || t[i + 1].text == "," || t[i + 1].kind == Tok::kIdent);
+      if (target) continue;
+      const size_t id = static_cast<size_t>(it->second.value->value_id);
+      if (id >= source.values.size() || !source.values[id].read_elsewhere.empty()) continue;
+      source.values[id].read_elsewhere =
+          src.loc(t[i].begin).str() + " (" + src.text().substr(t[0].begin, t.back().end - t[0].begin) + ")";
+    }
+  }
+}
+
+}  // namespace
+
 Program readKrl(const std::string& src_path, const KrlReadOptions& options) {
   auto source = std::make_shared<KrlSource>();
   source->src_path = src_path;
@@ -1213,6 +1260,7 @@ Program readKrl(const std::string& src_path, const KrlReadOptions& options) {
   for (const Line& l : src.lines()) r.handleLine(l);
   if (r.def_open_)
     src.fail(src.text().size(), "expected " + r.openEnd() + " at line " + std::to_string(r.def_line_) + ", found the end of the file");
+  notePointReads(src, r.decl, *source);
   if (!source->dat_path.empty()) datPassThrough(KrlFile(source->dat_path, source->dat_text, 1), program);
   if (program.name.empty()) {
     bool any = false;

@@ -151,20 +151,32 @@ KrlText patchKrl(const Program& p) {
     value_text[t.value_id] = {text, m.where.str()};
     edits.push_back({v.file, v.begin, v.end, text, order++});
   };
-  // a new point (Target::new_declaration) for the auxiliary point of a motion: the statement
-  // names it, its DECL follows the declaration of the point it replaces in the .dat (which
+  // a new point (Target::new_declaration: a split CIRC's last auxiliary point, a corrected
+  // point the program also reads elsewhere): the statement names it, its DECL (once, for every
+  // motion that names it) follows the declaration of the point it replaces in the .dat (which
   // keeps its text); a point declared elsewhere is replaced by an inline aggregate
-  auto declareNew = [&](const Target& t, const Motion& m) {
+  std::map<std::string, std::string> declared_new;  // new name -> its value's text
+  auto declareNew = [&](const Target& t, const Motion& m, bool aux) {
     const bool in_dat = !t.name.empty() && t.value_id >= 0 && s.values.at(static_cast<size_t>(t.value_id)).file == 1;
-    replaceInStatement(m, true, in_dat ? t.name : krlAggregate(t));
+    replaceInStatement(m, aux, in_dat ? t.name : krlAggregate(t));
     if (!in_dat) return;
     const KrlSource::Value& v = s.values.at(static_cast<size_t>(t.value_id));
     const std::string& text = textOf(v.file);
+    // the aggregate written like the one it replaces (its S, T, E1..E6 texts)
+    const std::string agg = rewriteValue(v, text, t);
+    if (const auto d = declared_new.find(t.name); d != declared_new.end()) {
+      if (d->second != agg) throw calib::ArgumentError(m.where.str() + ": the new point " + t.name + " has two different values");
+      return;
+    }
+    declared_new[t.name] = agg;
     const size_t nl = text.find('\n', v.end);
     const size_t at = nl == std::string::npos ? text.size() : nl + 1;
     const std::string eol = dominantEol(text);
-    // the aggregate written like the one it replaces (its S, T, E1..E6 texts)
-    std::string decl = "DECL " + (t.type.empty() ? std::string("E6POS") : t.type) + " " + t.name + "=" + rewriteValue(v, text, t);
+    // indented like the declaration it follows
+    const size_t line = text.rfind('\n', v.begin);
+    const size_t line_begin = line == std::string::npos ? 0 : line + 1;
+    const std::string indent = text.substr(line_begin, text.find_first_not_of(" \t", line_begin) - line_begin);
+    std::string decl = indent + "DECL " + (t.type.empty() ? std::string("E6POS") : t.type) + " " + t.name + "=" + agg;
     decl = nl == std::string::npos ? eol + decl : decl + eol;
     edits.push_back({v.file, at, at, decl, order++});
   };
@@ -191,9 +203,10 @@ KrlText patchKrl(const Program& p) {
       edits.push_back({st.file, st.line_begin, st.line_begin, line, order++});
       continue;
     }
-    if (m.aux && m.aux->new_declaration) declareNew(*m.aux, m);
+    if (m.aux && m.aux->new_declaration) declareNew(*m.aux, m, true);
     else if (m.aux) modify(*m.aux, m, true);
-    modify(m.target, m, false);
+    if (m.target.new_declaration) declareNew(m.target, m, false);
+    else modify(m.target, m, false);
   }
   KrlText out;
   out.src = applyEdits(s.src_text, edits, 0);

@@ -194,6 +194,10 @@ struct KrlSource {
     /// The point is declared GLOBAL (DECL GLOBAL E6POS XG1 in a PUBLIC data list): other modules
     /// may use it, and move with its correction.
     bool global = false;
+    /// Where the program reads the point's value other than as a motion's target ("" when it
+    /// does not), e.g. "P.src:6:3 ($BASE = XFB)": a frame or another point taken from it. A
+    /// correction written into this value would move that use too; it goes into a new point.
+    std::string read_elsewhere;
   };
   struct Statement {    ///< a motion statement line
     int file = 0;
