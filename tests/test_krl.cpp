@@ -234,6 +234,49 @@ TEST(Krl, ASplineBlocksWithClauseSetsTheFramesOfItsMotions) {
   EXPECT_EQ(src.substr(block, end - block).find('$'), std::string::npos) << src;
 }
 
+// SLIN, SCIRC and SPTP are segments of a block (one path, no stop between them) inside SPLINE /
+// PTP_SPLINE ... ENDSPLINE, motions of their own (each stops unless approximated) outside one:
+// the model numbers the blocks, the XML keeps the numbers, and KRL written anew from it has the
+// same blocks. (Written anew, every SLIN, SCIRC and SPTP came out of its block.)
+TEST(Krl, SplineBlocksSurviveTheXmlRoundTrip) {
+  const std::string dir = test::tempDir("krl_spline_blocks");
+  const std::string body = "PTP XP1\nSPLINE\nSLIN XP2\nSPL XP3\nSCIRC XP4, XP5\nSPL XP6\nENDSPLINE\nSLIN XP3\n"
+                           "PTP_SPLINE\nSPTP XP1\nSPTP XP2\nENDSPLINE\nSPLINE\nSPL XP4\nENDSPLINE\n";
+  test::writeText(dir + "/p.src", "DEF p( )\n" + body + "END\n");
+  std::string dat = "DEFDAT p\n";
+  for (int k = 1; k <= 6; ++k)
+    dat += "DECL E6POS XP" + std::to_string(k) + "={X " + std::to_string(900 + 20 * k) + ",Y 0,Z 800,A 0,B 90,C 0}\n";
+  test::writeText(dir + "/p.dat", dat + "ENDDAT\n");
+  const Program p = readKrl(dir + "/p.src");
+  ASSERT_EQ(p.motions.size(), 9u);
+  const int blocks[9] = {0, 1, 1, 1, 1, 0, 2, 2, 3};
+  for (size_t k = 0; k < 9; ++k) {
+    EXPECT_EQ(p.motions[k].spline_block, blocks[k]) << k;
+    EXPECT_EQ(p.motions[k].ptp_spline_block, blocks[k] == 2) << k;
+  }
+  const std::string xml = writeXmlProgram(p);
+  EXPECT_NE(xml.find("<sptp spline_block=\"2\" spline_block_type=\"PTP_SPLINE\">"), std::string::npos) << xml;
+  const std::string path = dir + "/p.xml";
+  test::writeText(path, xml);
+  Program back = readXmlProgram(path);
+  ASSERT_EQ(back.motions.size(), 9u);
+  for (size_t k = 0; k < 9; ++k) EXPECT_EQ(back.motions[k].spline_block, blocks[k]) << k;
+  const std::string src = writeKrl(back).src;
+  EXPECT_NE(src.find("\n" + body + "END\n"), std::string::npos) << src;
+  // an XML's block number on a motion that cannot be a segment is an error naming it
+  test::writeText(path, "<program name=\"p\" version=\"1\"><motions><lin spline_block=\"1\"><pose x_mm=\"1\" y_mm=\"2\" z_mm=\"3\" "
+                        "a_deg=\"0\" b_deg=\"0\" c_deg=\"0\"/></lin></motions></program>\n");
+  try {
+    readXmlProgram(path);
+    FAIL();
+  } catch (const calib::InputError& e) {
+    EXPECT_EQ(e.line(), 1);
+    EXPECT_NE(e.message().find("attribute 'spline_block': expected a positive block number on sptp, slin, scirc or spl, found '1' on lin"),
+              std::string::npos)
+        << e.message();
+  }
+}
+
 // A point array of the data list (DECL E6POS XPA[3], then XPA[1]={X ..}) : each element given
 // a value is a point of its own, as the reader takes TOOL_DATA[n]; an index the program
 // computes (XPA[I]) or an element without a value stays a run-time target, and an array the
@@ -799,6 +842,8 @@ TEST(Krl, MalformedTargetsAreErrorsWithTheirPlace) {
       {"DEF p( )\nPTP XP1 C_PTP XYZ\nEND\n", "", 2, 15, "expected an approximation flag (C_PTP, C_DIS, C_VEL, C_ORI, C_SPL) or WITH after the target, found 'XYZ'"},
       {"; no program here\n$OUT[1]=TRUE\n", "", 1, 1, "expected a KRL program (DEF name( ) ... END), found no DEF line"},
       {"DEF p( )\nSPL {X 1,Y 2,Z 3}\nEND\n", "", 2, 1, "expected SPL inside a SPLINE ... ENDSPLINE block, found it outside"},
+      {"DEF p( )\nSPLINE\n  SPL {X 1,Y 2,Z 3}\n  LIN {X 1,Y 2,Z 4}\nENDSPLINE\nEND\n", "", 4, 3,
+       "expected a spline segment (SPL, SLIN, SCIRC, SPTP) inside the SPLINE block, found LIN"},
   };
   for (const Case& c : cases) {
     const calib::InputError e = readError(c.src, c.dat);

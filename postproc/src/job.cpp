@@ -775,8 +775,9 @@ class Job {
                              " mm, but " + single + ": no auxiliary points inserted");
     }
     insertPoints(m, c, end, commanded, sr.length_mm, out);
-    if (commanded.size() > 1 && m.approximation.empty()) {
-      // the inserted points take the motion's exact stop: the robot stops at each
+    if (commanded.size() > 1 && m.approximation.empty() && m.spline_block == 0) {
+      // the inserted points take the motion's exact stop: the robot stops at each (not in a
+      // spline block, whose segments are one path without stops)
       if (exact_stop_points_ == 0) exact_stop_where_ = m.where;
       exact_stop_points_ += static_cast<int>(commanded.size()) - 1;
       ++exact_stop_motions_;

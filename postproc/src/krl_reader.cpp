@@ -71,6 +71,9 @@ struct Reader {
   /// The frames and speeds a SPLINE / PTP_SPLINE block's WITH clause sets for its motions
   /// (tool, base, external_tcp, vel_m_s, vel_percent); none outside a block or without WITH.
   std::optional<Motion> spline_block_;
+  int spline_blocks_ = 0;         // SPLINE / PTP_SPLINE blocks so far
+  int spline_block_number_ = 0;   // the open block's number (Motion::spline_block), 0: none
+  bool ptp_spline_block_ = false; // the open block is a PTP_SPLINE block
   int triggers = 0;
   bool missing_dat_ = false;  // resolveTarget met a named point and no .dat (Motion::target_file_missing)
   bool main_started = false, main_ended = false;  // the main program's DEF / END seen
@@ -757,6 +760,11 @@ struct Reader {
     else m.type = MotionType::kSpl;
     if (m.type == MotionType::kSpl && !in_spline)
       f->fail(t[0].begin, "expected SPL inside a SPLINE ... ENDSPLINE block, found it outside");
+    if (in_spline && !m.spline)
+      f->fail(t[0].begin, "expected a spline segment (SPL, SLIN, SCIRC, SPTP) inside the " + std::string(ptp_spline_block_ ? "PTP_SPLINE" : "SPLINE") +
+                              " block, found " + t[0].text);
+    m.spline_block = in_spline ? spline_block_number_ : 0;
+    m.ptp_spline_block = in_spline && ptp_spline_block_;
 
     KrlSource::Statement st;
     st.file = f->index();
@@ -973,6 +981,8 @@ struct Reader {
       // SPLINE WITH $TOOL = .., $BASE = .., $VEL.CP = ..: the assignments hold for every motion
       // of the block (KSS: valid for the spline block, the program's own $TOOL/$BASE unchanged)
       in_spline = true;
+      spline_block_number_ = ++spline_blocks_;
+      ptp_spline_block_ = k == "PTP_SPLINE";
       spline_block_.reset();
       if (t.size() > 1 && t[1].kind == Tok::kIdent && t[1].up == "WITH") {
         Motion block;
@@ -988,6 +998,7 @@ struct Reader {
     }
     if (k == "ENDSPLINE") {
       in_spline = false;
+      spline_block_number_ = 0;
       spline_block_.reset();
       return true;
     }

@@ -285,6 +285,7 @@ KrlText generateKrl(const Program& p) {
   std::optional<double> vel_cp, vel_ptp;
   std::map<Approximation, std::optional<double>> apo;
   bool in_spline = false;
+  int open_block = 0;  // the open block's Motion::spline_block (-1: SPLs without a number)
   auto targetText = [&](const Target& t, const Motion& m) -> std::string {
     if (t.name.empty()) return krlAggregate(t);
     const std::string up = upper(t.name);
@@ -338,15 +339,18 @@ KrlText generateKrl(const Program& p) {
       settings << "$APO." << var << "=" << calib::formatFixed(*m.approximation_value, 4) << "\n";
       apo[m.approximation.front()] = m.approximation_value;
     }
-    const bool spl = m.spline && m.type == MotionType::kSpl;
-    if (in_spline && (!spl || !settings.str().empty())) {
+    // the spline block the motion is a segment of (Motion::spline_block; an SPL without a
+    // number, from an XML written before blocks were numbered: one block with the SPLs next to it)
+    const int block = m.spline_block > 0 ? m.spline_block : m.spline && m.type == MotionType::kSpl ? -1 : 0;
+    if (in_spline && (block != open_block || !settings.str().empty())) {
       src << "ENDSPLINE\n";
       in_spline = false;
     }
     src << settings.str();
-    if (spl && !in_spline) {
-      src << "SPLINE\n";
+    if (block != 0 && !in_spline) {
+      src << (m.ptp_spline_block ? "PTP_SPLINE\n" : "SPLINE\n");
       in_spline = true;
+      open_block = block;
     }
     std::string line = motionKeyword(m) + " ";
     if (m.aux) line += targetText(*m.aux, m) + ", ";

@@ -45,7 +45,7 @@ std::set<std::string> frameAttrs() {
 
 std::set<std::string> motionAttrs() {
   return {"vel_percent", "vel_m_s", "approx", "approx_value", "ca_deg", "relative", "external_tcp", "conf_monitored", "source_line",
-          "start_unknown"};
+          "start_unknown", "spline_block", "spline_block_type"};
 }
 
 class Reader {
@@ -377,6 +377,18 @@ Motion readMotion(const Reader& R, const XMLElement* e) {
   if (const auto l = R.integer(e, "source_line")) m.source_line = *l;
   if (e->Attribute("start_unknown")) m.start_unknown = R.flag(e, "start_unknown");
   if (m.type == MotionType::kSpl && m.relative) R.fail(e, "<spl>: attribute 'relative' is not allowed");
+  if (const auto b = R.integer(e, "spline_block")) {
+    if (!m.spline || *b < 1)
+      R.fail(e, "<" + n + "> attribute 'spline_block': expected a positive block number on sptp, slin, scirc or spl, found '" +
+                    *R.text(e, "spline_block") + "' on " + n);
+    m.spline_block = *b;
+  }
+  if (const auto k = R.text(e, "spline_block_type")) {
+    if (m.spline_block == 0 || (*k != "SPLINE" && *k != "PTP_SPLINE"))
+      R.fail(e, "<" + n + "> attribute 'spline_block_type': expected SPLINE or PTP_SPLINE with 'spline_block', found '" + *k + "'" +
+                    (m.spline_block == 0 ? " without 'spline_block'" : ""));
+    m.ptp_spline_block = *k == "PTP_SPLINE";
+  }
 
   const XMLElement* c = e->FirstChildElement();
   if (m.type == MotionType::kCirc) {
@@ -653,6 +665,8 @@ std::string writeXmlProgram(const Program& p) {
     if (!m.conf_monitored) out << " conf_monitored=\"false\"";
     if (m.source_line > 0 && !m.inserted) out << " source_line=\"" << m.source_line << "\"";
     if (m.start_unknown && !m.inserted) out << " start_unknown=\"true\"";
+    if (m.spline_block > 0)
+      out << " spline_block=\"" << m.spline_block << "\" spline_block_type=\"" << (m.ptp_spline_block ? "PTP_SPLINE" : "SPLINE") << "\"";
     out << ">\n";
     auto refOrValue = [&](const char* tag_name, const Target& t, bool aux) {
       if (hasValues(t)) {

@@ -132,6 +132,12 @@ bool isDeclarableName(const std::string& name);
 struct Motion {
   MotionType type = MotionType::kPtp;
   bool spline = false;    ///< SPTP / SLIN / SCIRC / SPL (KUKA spline motions)
+  /// KUKA: the spline block (SPLINE ... ENDSPLINE, PTP_SPLINE ... ENDSPLINE) the motion is a
+  /// segment of, numbered 1, 2, ... in the program's order; 0: not in a block (a PTP, LIN, CIRC,
+  /// or an SPTP / SLIN / SCIRC on its own, which stops at its end unless approximated). The
+  /// segments of one block are one path, without stops between them.
+  int spline_block = 0;
+  bool ptp_spline_block = false;  ///< the block is a PTP_SPLINE block (else SPLINE)
   bool relative = false;  ///< PTP_REL / LIN_REL / CIRC_REL (not compensated)
   Target target;          ///< end point
   std::optional<Target> aux;  ///< CIRC auxiliary point
