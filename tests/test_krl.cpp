@@ -234,6 +234,30 @@ TEST(Krl, ASplineBlocksWithClauseSetsTheFramesOfItsMotions) {
   EXPECT_EQ(src.substr(block, end - block).find('$'), std::string::npos) << src;
 }
 
+// A module of functions only (GLOBAL DEFFCT .. ENDFCT, no DEF; KRC backups hold many) is a module
+// the controller loads: read, without motions, written back as it is; written in another form
+// it is refused (there is no program to write). It was refused as "found no DEF line".
+TEST(Krl, AModuleOfFunctionsOnlyIsReadAndWrittenBackAsItIs) {
+  const std::string dir = test::tempDir("krl_functions_only");
+  const std::string text = "&ACCESS RVP\r\n&REL 2\r\nGLOBAL DEFFCT REAL clamp(v:IN)\r\n  REAL v\r\n  IF v>100 THEN\r\n    RETURN 100\r\n"
+                           "  ENDIF\r\n  RETURN v\r\nENDFCT\r\n";
+  test::writeText(dir + "/tools.src", text);
+  const Program p = readKrl(dir + "/tools.src");
+  EXPECT_TRUE(p.motions.empty());
+  EXPECT_EQ(p.name, "tools");
+  EXPECT_EQ(p.krl_functions_only, "clamp (" + dir + "/tools.src:3:1)");
+  EXPECT_EQ(writeKrl(p).src, text);
+  try {
+    writeXmlProgram(p);
+    FAIL();
+  } catch (const calib::ArgumentError& e) {
+    EXPECT_NE(std::string(e.what()).find("the module holds functions only (the first: clamp ("), std::string::npos) << e.what();
+  }
+  // without a DEFFCT either, still no program
+  test::writeText(dir + "/none.src", "&ACCESS RVP\n$OUT[1]=TRUE\n");
+  EXPECT_THROW(readKrl(dir + "/none.src"), calib::InputError);
+}
+
 // SLIN, SCIRC and SPTP are segments of a block (one path, no stop between them) inside SPLINE /
 // PTP_SPLINE ... ENDSPLINE, motions of their own (each stops unless approximated) outside one:
 // the model numbers the blocks, the XML keeps the numbers, and KRL written anew from it has the

@@ -71,6 +71,7 @@ struct Reader {
   /// The frames and speeds a SPLINE / PTP_SPLINE block's WITH clause sets for its motions
   /// (tool, base, external_tcp, vel_m_s, vel_percent); none outside a block or without WITH.
   std::optional<Motion> spline_block_;
+  std::string first_function_;   // the file's first DEFFCT: "name (file:line:column)"
   int spline_blocks_ = 0;         // SPLINE / PTP_SPLINE blocks so far
   int spline_block_number_ = 0;   // the open block's number (Motion::spline_block), 0: none
   bool ptp_spline_block_ = false; // the open block is a PTP_SPLINE block
@@ -939,6 +940,9 @@ struct Reader {
     if (k == "DEFFCT" || (k == "GLOBAL" && t.size() > 1 && t[1].up == "DEFFCT")) {
       // a function of this file (after the main program's END): called from anywhere
       if (def_open_) f->fail(t[0].begin, "expected " + openEnd() + " at line " + std::to_string(def_line_) + ", found DEFFCT");
+      const size_t name_at = k == "DEFFCT" ? 2 : 3;  // DEFFCT type name(..)
+      if (first_function_.empty() && name_at < t.size() && t[name_at].kind == Tok::kIdent)
+        first_function_ = t[name_at].text + " (" + f->loc(t[0].begin).str() + ")";
       def_open_ = true;
       def_fct_ = true;
       def_line_ = f->loc(t[0].begin).line;
@@ -1273,6 +1277,11 @@ Program readKrl(const std::string& src_path, const KrlReadOptions& options) {
     src.fail(src.text().size(), "expected " + r.openEnd() + " at line " + std::to_string(r.def_line_) + ", found the end of the file");
   notePointReads(src, r.decl, *source);
   if (!source->dat_path.empty()) datPassThrough(KrlFile(source->dat_path, source->dat_text, 1), program);
+  if (program.name.empty() && !r.first_function_.empty()) {
+    // a module of functions only (KRC backups hold many): loaded by the controller, no motions
+    program.name = fs::path(src_path).stem().string();
+    program.krl_functions_only = r.first_function_;
+  }
   if (program.name.empty()) {
     bool any = false;
     for (const Line& l : src.lines())

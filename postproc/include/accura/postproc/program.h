@@ -279,6 +279,10 @@ struct Program {
   /// What wrote a program made from the motion model alone (no source text to patch): named
   /// in the first comment of the URScript and RAPID writers ("written by accura convert").
   std::string written_by = "accura convert";
+  /// KRL: the module holds functions only (GLOBAL DEFFCT ... ENDFCT, no DEF): a module the
+  /// controller loads, without motions; `compensate` and `batch` write it as it is, a writer of
+  /// another form refuses it. Says which function and where ("" for every other program).
+  std::string krl_functions_only;
 };
 
 /// True when a writer must produce new text: a target is modified, a motion inserted.
