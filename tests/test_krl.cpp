@@ -868,6 +868,12 @@ TEST(Krl, MalformedTargetsAreErrorsWithTheirPlace) {
       {"DEF p( )\nSPL {X 1,Y 2,Z 3}\nEND\n", "", 2, 1, "expected SPL inside a SPLINE ... ENDSPLINE block, found it outside"},
       {"DEF p( )\nSPLINE\n  SPL {X 1,Y 2,Z 3}\n  LIN {X 1,Y 2,Z 4}\nENDSPLINE\nEND\n", "", 4, 3,
        "expected a spline segment (SPL, SLIN, SCIRC, SPTP) inside the SPLINE block, found LIN"},
+      // the control structures as the compiler checks them
+      {"DEF p( )\nIF TRUE THEN\n  $OUT[1]=TRUE\nEND\n", "", 4, 1, "expected ENDIF to close the IF at line 2, found END"},
+      {"DEF p( )\nWAIT SEC 1\nENDLOOP\nEND\n", "", 3, 1, "expected ENDLOOP to close a LOOP, found no open LOOP"},
+      {"DEF p( )\nFOR I=1 TO 3\n  IF I>1 THEN\n  ENDFOR\nENDIF\nEND\n", "", 4, 3, "expected ENDIF to close the IF at line 3, found ENDFOR"},
+      {"DEF p( )\nWHILE TRUE\n  ELSE\nENDWHILE\nEND\n", "", 3, 3, "expected ELSE inside an IF, found it inside the WHILE at line 2 (not closed)"},
+      {"DEF p( )\nCASE 1\nEND\n", "", 2, 1, "expected CASE inside a SWITCH, found it outside any block"},
   };
   for (const Case& c : cases) {
     const calib::InputError e = readError(c.src, c.dat);

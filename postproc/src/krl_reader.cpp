@@ -72,6 +72,7 @@ struct Reader {
   /// (tool, base, external_tcp, vel_m_s, vel_percent); none outside a block or without WITH.
   std::optional<Motion> spline_block_;
   std::string first_function_;   // the file's first DEFFCT: "name (file:line:column)"
+  std::vector<std::pair<std::string, int>> structure_;  // the open IF, SWITCH, loops: keyword, line
   int spline_blocks_ = 0;         // SPLINE / PTP_SPLINE blocks so far
   int spline_block_number_ = 0;   // the open block's number (Motion::spline_block), 0: none
   bool ptp_spline_block_ = false; // the open block is a PTP_SPLINE block
@@ -89,6 +90,41 @@ struct Reader {
   static bool opensLoop(const std::string& k) { return k == "FOR" || k == "WHILE" || k == "LOOP" || k == "REPEAT"; }
   static bool closesBlock(const std::string& k) {
     return k == "ENDIF" || k == "ENDSWITCH" || k == "ENDFOR" || k == "ENDWHILE" || k == "ENDLOOP" || k == "UNTIL";
+  }
+
+  // The nesting of the control structures, as the KRL compiler checks it: every IF, SWITCH, FOR,
+  // WHILE, LOOP and REPEAT closed by its own end inside its routine, ELSE inside an IF, CASE and
+  // DEFAULT inside a SWITCH. A file that breaks it is not a program the controller runs: an
+  // error at the statement that breaks it (the structure decides where the robot may come from).
+  void checkStructure(const std::vector<Tok>& t) {
+    static const std::map<std::string, std::string> end_of = {{"IF", "ENDIF"},     {"SWITCH", "ENDSWITCH"}, {"FOR", "ENDFOR"},
+                                                              {"WHILE", "ENDWHILE"}, {"LOOP", "ENDLOOP"},     {"REPEAT", "UNTIL"}};
+    const std::string& k = t[0].up;
+    if (t[0].kind != Tok::kIdent) return;
+    const auto open = [&]() {
+      const auto& [kw, line] = structure_.back();
+      return "the " + kw + " at line " + std::to_string(line);
+    };
+    if (end_of.count(k)) {
+      structure_.emplace_back(k, f->loc(t[0].begin).line);
+      return;
+    }
+    const bool routine_end = (k == "END" || k == "ENDFCT") && t.size() == 1;
+    const bool routine_start = k == "DEF" || k == "DEFFCT" || (k == "GLOBAL" && t.size() > 1 && (t[1].up == "DEF" || t[1].up == "DEFFCT"));
+    if ((routine_end || routine_start) && !structure_.empty())
+      f->fail(t[0].begin, "expected " + end_of.at(structure_.back().first) + " to close " + open() + ", found " + t[0].text);
+    if (k == "ELSE" && (structure_.empty() || structure_.back().first != "IF"))
+      f->fail(t[0].begin, "expected ELSE inside an IF, found it " +
+                              (structure_.empty() ? std::string("outside any block") : "inside " + open() + " (not closed)"));
+    if ((k == "CASE" || k == "DEFAULT") && (structure_.empty() || structure_.back().first != "SWITCH"))
+      f->fail(t[0].begin, "expected " + t[0].text + " inside a SWITCH, found it " +
+                              (structure_.empty() ? std::string("outside any block") : "inside " + open() + " (not closed)"));
+    for (const auto& [kw, end] : end_of) {
+      if (k != end) continue;
+      if (structure_.empty()) f->fail(t[0].begin, "expected " + end + " to close a " + kw + ", found no open " + kw);
+      if (structure_.back().first != kw) f->fail(t[0].begin, "expected " + end_of.at(structure_.back().first) + " to close " + open() + ", found " + t[0].text);
+      structure_.pop_back();
+    }
   }
 
   // A statement that branches, loops or jumps (KRL control flow).
@@ -936,6 +972,7 @@ struct Reader {
       return f->text().find_first_not_of(" \t\r", l.begin) >= l.content_end;
     }
     if (t[0].text == "&") return true;
+    checkStructure(t);
     const std::string& k = t[0].up;
     if (k == "DEFFCT" || (k == "GLOBAL" && t.size() > 1 && t[1].up == "DEFFCT")) {
       // a function of this file (after the main program's END): called from anywhere
