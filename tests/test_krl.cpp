@@ -258,6 +258,26 @@ TEST(Krl, AModuleOfFunctionsOnlyIsReadAndWrittenBackAsItIs) {
   EXPECT_THROW(readKrl(dir + "/none.src"), calib::InputError);
 }
 
+// The data list is the module's: DEFDAT names the module (its file, or its DEF; any case). Another
+// module's data list (DEFDAT other next to mism.src) is not this module's: its points would
+// silently replace the program's.
+TEST(Krl, ADataListOfAnotherModuleIsAnError) {
+  const std::string dir = test::tempDir("krl_defdat_name");
+  test::writeText(dir + "/mism.src", "DEF mism( )\nLIN XP1\nEND\n");
+  test::writeText(dir + "/mism.dat", "&ACCESS RVP\nDEFDAT  other PUBLIC\nDECL E6POS XP1={X 1000,Y 0,Z 800,A 0,B 90,C 0}\nENDDAT\n");
+  try {
+    readKrl(dir + "/mism.src");
+    FAIL();
+  } catch (const calib::InputError& e) {
+    EXPECT_EQ(e.file(), dir + "/mism.dat");
+    EXPECT_EQ(e.line(), 2);
+    EXPECT_EQ(e.column(), 9);
+    EXPECT_EQ(e.message(), "expected the data list of the module mism (DEFDAT mism), found DEFDAT other");
+  }
+  test::writeText(dir + "/mism.dat", "DEFDAT MISM\nDECL E6POS XP1={X 1000,Y 0,Z 800,A 0,B 90,C 0}\nENDDAT\n");
+  EXPECT_EQ(readKrl(dir + "/mism.src").motions.size(), 1u);
+}
+
 // SLIN, SCIRC and SPTP are segments of a block (one path, no stop between them) inside SPLINE /
 // PTP_SPLINE ... ENDSPLINE, motions of their own (each stops unless approximated) outside one:
 // the model numbers the blocks, the XML keeps the numbers, and KRL written anew from it has the

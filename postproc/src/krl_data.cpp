@@ -370,6 +370,10 @@ void parseDataFile(const KrlFile& f, Declarations& d, KrlSource* src, bool globa
     if (enddat) f.fail(toks[0].begin, "expected nothing after ENDDAT, found " + describe(&toks[0]));
     if (first == "DEFDAT" && !defdat) {
       defdat = true;
+      if (!global && toks.size() > 1 && toks[1].kind == Tok::kIdent) {
+        d.defdat_name = toks[1].text;
+        d.defdat_where = f.loc(toks[1].begin);
+      }
       continue;
     }
     if (!defdat) f.fail(toks[0].begin, "expected the data list to start with DEFDAT name, found " + describe(&toks[0]));

@@ -249,6 +249,9 @@ struct Declarations {
   std::map<std::string, Fdat> fdats;
   std::map<std::string, MoveData> ldats, pdats;
   FrameTables tables;
+  /// The program's data list's name (DEFDAT name) as written, and where the name is.
+  std::string defdat_name;
+  SourceLocation defdat_where;
 };
 
 /// A literal number (with an optional sign) in toks[b, e), else nullopt.

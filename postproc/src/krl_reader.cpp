@@ -1314,6 +1314,18 @@ Program readKrl(const std::string& src_path, const KrlReadOptions& options) {
     src.fail(src.text().size(), "expected " + r.openEnd() + " at line " + std::to_string(r.def_line_) + ", found the end of the file");
   notePointReads(src, r.decl, *source);
   if (!source->dat_path.empty()) datPassThrough(KrlFile(source->dat_path, source->dat_text, 1), program);
+  // the data list is the module's: DEFDAT names the module (its file) or its DEF (KSS: a data
+  // list of another name is not the module's, whose points it would silently replace)
+  if (!r.decl.defdat_name.empty()) {
+    const std::string dat = upper(r.decl.defdat_name), stem = upper(fs::path(src_path).stem().string());
+    if (dat != stem && dat != upper(program.name)) {
+      const SourceLocation& w = r.decl.defdat_where;
+      throw calib::InputError(w.file, w.line, w.column,
+                              "expected the data list of the module " + fs::path(src_path).stem().string() +
+                                  (program.name.empty() || upper(program.name) == stem ? std::string() : " (DEF " + program.name + ")") +
+                                  " (DEFDAT " + fs::path(src_path).stem().string() + "), found DEFDAT " + r.decl.defdat_name);
+    }
+  }
   if (program.name.empty() && !r.first_function_.empty()) {
     // a module of functions only (KRC backups hold many): loaded by the controller, no motions
     program.name = fs::path(src_path).stem().string();
