@@ -278,6 +278,44 @@ TEST(Krl, ADataListOfAnotherModuleIsAnError) {
   EXPECT_EQ(readKrl(dir + "/mism.src").motions.size(), 1u);
 }
 
+// A point of the $config.dat (PTP XHOME) is the controller's: through the XML it stays a
+// reference (external="true", its values kept for the other languages), and KRL written anew
+// does not declare it in the module's data list, where it would hide the $config.dat's. (It was
+// declared there.) Corrected, it travels as a value without its name.
+TEST(Krl, APointOfTheConfigDatStaysTheConfigDatsThroughTheXml) {
+  const std::string dir = test::tempDir("krl_external_point");
+  test::writeText(dir + "/$config.dat",
+                  "DEFDAT $CONFIG\nDECL GLOBAL E6AXIS XHOME={A1 0,A2 -90,A3 90,A4 0,A5 45,A6 0}\n"
+                  "DECL GLOBAL E6POS XPICK={X 1000,Y 0,Z 800,A 0,B 90,C 0,S 2,T 2}\nENDDAT\n");
+  test::writeText(dir + "/p.src", "DEF p( )\n$TOOL=$NULLFRAME\n$BASE=$NULLFRAME\nPTP XHOME\nPTP XPICK\nPTP XHOME\nEND\n");
+  KrlReadOptions o;
+  o.config_path = dir + "/$config.dat";
+  Program p = readKrl(dir + "/p.src", o);
+  ASSERT_EQ(p.motions.size(), 3u);
+  EXPECT_TRUE(p.motions[0].target.external);
+  EXPECT_TRUE(p.motions[1].target.external);
+  const std::string xml = writeXmlProgram(p);
+  EXPECT_NE(xml.find("<axes name=\"XHOME\" type=\"E6AXIS\" external=\"true\" a1=\"0.0000\""), std::string::npos) << xml;
+  test::writeText(dir + "/p.xml", xml);
+  const Program back = readXmlProgram(dir + "/p.xml");
+  EXPECT_TRUE(back.motions[0].target.external);
+  const KrlText fresh = writeKrl(back);
+  EXPECT_EQ(fresh.dat.find("XHOME"), std::string::npos) << fresh.dat;
+  EXPECT_EQ(fresh.dat.find("XPICK"), std::string::npos) << fresh.dat;
+  EXPECT_NE(fresh.src.find("\nPTP XHOME\nPTP XPICK\nPTP XHOME\n"), std::string::npos) << fresh.src;
+  // corrected: a value without the name, in the XML and in KRL written anew
+  p.motions[1].target.setPose({1000.5, 0, 800, 0, 90, 0});
+  p.motions[1].target.modified = true;
+  const std::string corrected = writeXmlProgram(p);
+  EXPECT_EQ(corrected.find("name=\"XPICK\""), std::string::npos) << corrected;
+  EXPECT_NE(corrected.find("<pose type=\"E6POS\" x_mm=\"1000.5000\""), std::string::npos) << corrected;
+  Program fresh_corrected = p;
+  fresh_corrected.krl.reset();
+  EXPECT_NE(writeKrl(fresh_corrected).src.find("\nPTP {X 1000.5000,Y 0.0000,Z 800.0000,A 0.00000,B 90.00000,C 0.00000,S 2,T 2}\n"),
+            std::string::npos)
+      << writeKrl(fresh_corrected).src;
+}
+
 // SLIN, SCIRC and SPTP are segments of a block (one path, no stop between them) inside SPLINE /
 // PTP_SPLINE ... ENDSPLINE, motions of their own (each stops unless approximated) outside one:
 // the model numbers the blocks, the XML keeps the numbers, and KRL written anew from it has the

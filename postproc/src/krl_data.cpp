@@ -248,7 +248,7 @@ void parseDeclaration(Cursor& c, Declarations& d, KrlSource* src, bool global) {
         e.name = name.text;
         e.type = type;
         e.declared = f.loc(name.begin);
-        e.global = global;
+        e.global = e.config = global;
         e.global_keyword = global_keyword;
         if (c.isPunct("{")) {
           const Agg a = parseAggregate(c);
@@ -280,7 +280,7 @@ void parseDeclaration(Cursor& c, Declarations& d, KrlSource* src, bool global) {
       e.name = name.text;
       e.type = type;
       e.declared = f.loc(name.begin);
-      e.global = global;
+      e.global = e.config = global;
       e.global_keyword = global_keyword;
       e.problem = name.text + " is declared without a value (" + f.loc(name.begin).str() + ")";
       if (!d.points.count(name.up) || d.points[name.up].global != global) d.points[name.up] = std::move(e);
@@ -345,7 +345,7 @@ bool parseArrayElement(Cursor& c, Declarations& d, KrlSource* src, bool global) 
   e.name = arrayElementName(a->second, *index);
   e.type = a->second.type;
   e.declared = f.loc(t->begin);
-  e.global = global;
+  e.global = e.config = global;
   e.global_keyword = a->second.global_keyword;
   e.value = toTarget(agg, e.type, f, global ? nullptr : src);
   e.value->name = e.name;

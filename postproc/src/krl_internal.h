@@ -220,6 +220,7 @@ struct PointEntry {
   std::string problem;  // why the value cannot be used (changed at run time, ...)
   SourceLocation declared;
   bool global = false;  // from $config.dat
+  bool config = false;  // declared in the $config.dat (also after the program assigns it a value)
   bool global_keyword = false;  // declared GLOBAL (other modules may use it)
 };
 

@@ -534,6 +534,7 @@ struct Reader {
     // declared GLOBAL in this program's data list (a $config.dat's point is the controller's,
     // which a program written anew must not declare again)
     out->global = p.global_keyword && !p.global;
+    out->external = p.config;
     return "";
   }
 

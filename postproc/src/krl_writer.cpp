@@ -287,7 +287,8 @@ KrlText generateKrl(const Program& p) {
   bool in_spline = false;
   int open_block = 0;  // the open block's Motion::spline_block (-1: SPLs without a number)
   auto targetText = [&](const Target& t, const Motion& m) -> std::string {
-    if (t.name.empty()) return krlAggregate(t);
+    if (t.name.empty() || (t.external && t.modified)) return krlAggregate(t);
+    if (t.external) return t.name;  // the $config.dat's: not declared here, which would hide it
     const std::string up = upper(t.name);
     bool any = false;
     for (const auto& c : t.pose) any = any || c.has_value();

@@ -26,7 +26,7 @@ const char* const kExtAttrs[] = {"e1", "e2", "e3", "e4", "e5", "e6"};
 const char* const kMotionElements[] = {"ptp", "lin", "circ", "sptp", "slin", "scirc", "spl"};
 
 std::set<std::string> targetAttrs(bool cartesian) {
-  std::set<std::string> s = {"name", "type", "global"};
+  std::set<std::string> s = {"name", "type", "global", "external"};
   for (const char* a : cartesian ? kPoseAttrs : kAxisAttrs) s.insert(a);
   for (const char* a : kExtAttrs) s.insert(a);
   if (cartesian) {
@@ -163,6 +163,11 @@ Target readTarget(const Reader& R, const XMLElement* e, bool cartesian) {
     if (*g == "true" && t.name.empty())
       R.fail(e, "<" + std::string(e->Name()) + "> attribute 'global': expected a 'name' with it (a global point is a declared one), found none");
     t.global = *g == "true";
+  }
+  if (e->Attribute("external")) {
+    t.external = R.flag(e, "external");
+    if (t.external && t.name.empty())
+      R.fail(e, "<" + std::string(e->Name()) + "> attribute 'external': expected a 'name' with it (the point it refers to), found none");
   }
   for (int k = 0; k < 6; ++k) {
     if (cartesian) t.pose[k] = R.number(e, kPoseAttrs[k]);
@@ -452,11 +457,14 @@ void writeFrame(std::ostream& out, const char* tag, const FrameSetting& s) {
 void writeTarget(std::ostream& out, const char* tag, const Target& t) {
   out << "      <" << tag;
   // a name the format cannot hold (a KRL array's element, XPA[1]) is left out with its type:
-  // the target travels as an inline value (which KRL writes back untyped)
-  const bool named = isDeclarableName(t.name);
+  // the target travels as an inline value (which KRL writes back untyped); so is a corrected
+  // point declared outside the program (its declaration there keeps the other value)
+  const bool inline_external = t.external && t.modified;
+  const bool named = isDeclarableName(t.name) && !inline_external;
   if (named) out << " name=\"" << calib::xmlEscape(t.name) << "\"";
-  if (!t.type.empty() && (named || t.name.empty())) out << " type=\"" << t.type << "\"";
+  if (!t.type.empty() && (named || t.name.empty() || inline_external)) out << " type=\"" << t.type << "\"";
   if (named && t.global) out << " global=\"true\"";
+  if (named && t.external) out << " external=\"true\"";
   if (t.kind == Target::Kind::kCartesian) {
     for (int k = 0; k < 6; ++k)
       if (t.pose[k]) out << " " << kPoseAttrs[k] << "=\"" << (k < 3 ? formatMm(*t.pose[k]) : formatDeg(*t.pose[k])) << "\"";

@@ -76,6 +76,11 @@ struct Target {
   /// other modules use it by its name. XML `global="true"`; a KRL program written anew declares
   /// it GLOBAL again.
   bool global = false;
+  /// KRL: declared outside the program's files (in the $config.dat, given with --config): the
+  /// program refers to it by name. XML `external="true"` (with its values, for the other
+  /// languages); a KRL program written anew does not declare it (a declaration in the module's
+  /// data list would hide the $config.dat's); corrected, it is written as an inline value.
+  bool external = false;
 
   /// True when X, Y, Z, A, B and C are all given.
   bool completePose() const;
