@@ -249,6 +249,35 @@ TEST(UrCalibration, DeltasRoundTrip) {
   std::filesystem::remove_all(dir);
 }
 
+// Axes 2, 3 and 4 exactly parallel, as UR's table has them (DH, d = 0): the nominal arm and a
+// calibration that changes only the offsets and lengths in the plane. The common normal of two
+// parallel axes lies anywhere along them; the table's d picks it. (The export refused: "found it
+// parallel to that joint's axis".) Expected: the deltas put in.
+TEST(UrCalibration, DeltasOfParallelAxesAreExported) {
+  const RobotModel nominal = test::loadBundled("ur10");
+  const UrDeltasFromModel zero = urDeltasFromModel(nominal);
+  EXPECT_LT(zero.max_difference_mm, 1e-9);
+  for (int i = 0; i < 6; ++i) {
+    EXPECT_NEAR(zero.deltas.theta_rad[i], 0.0, 1e-15) << i;
+    EXPECT_NEAR(zero.deltas.a_m[i], 0.0, 1e-15) << i;
+    EXPECT_NEAR(zero.deltas.d_m[i], 0.0, 1e-15) << i;
+    EXPECT_NEAR(zero.deltas.alpha_rad[i], 0.0, 1e-15) << i;
+  }
+  UrDeltas in;
+  in.theta_rad = {1.1e-05, -0.000312, 0.00041, -0.00021, 5.3e-05, 2.2e-05};
+  in.a_m = {0, 0.00012, 0.00031, 0, 0, 0};
+  in.d_m = {0.00015, 0, 0, 0, 0, 0};
+  in.alpha_rad = {0, 0, 0, 0, 0, 0};
+  const UrDeltasFromModel back = urDeltasFromModel(modelFromUrDeltas(nominal.nominal, in));
+  EXPECT_LT(back.max_difference_mm, 1e-9);
+  for (int i = 0; i < 6; ++i) {
+    EXPECT_NEAR(back.deltas.theta_rad[i], in.theta_rad[i], 1e-12) << i;  // rad
+    EXPECT_NEAR(back.deltas.a_m[i], in.a_m[i], 1e-12) << i;              // m
+    EXPECT_NEAR(back.deltas.d_m[i], in.d_m[i], 1e-12) << i;
+    EXPECT_NEAR(back.deltas.alpha_rad[i], in.alpha_rad[i], 1e-12) << i;
+  }
+}
+
 TEST(UrCalibration, YamlRoundTripEqualsUrsFormula) {
   const RobotDefinition ur10 = test::loadBundled("ur10").nominal;
   const RobotModel m = modelFromUrDeltas(ur10, testDeltas());

@@ -207,8 +207,12 @@ LinkParams innerLink(const SerialChain& chain, const RobotDefinition* reference,
   const Eigen::Vector3d x_hint = reference ? Eigen::Vector3d(c.R_frame[i + 1].linear().col(0)) : x_prev;
   LinkParams L;
   Eigen::Vector3d x;
-  if (hayati) {
-    L.form = LinkForm::kHayati;
+  // DH with exactly parallel axes where the reference uses DH (a UR's links 2 and 3, d = 0: its
+  // nominal arm, an offsets-only calibration): the common normal may lie anywhere along the axis,
+  // and the reference's d picks it; the link is then the Hayati construction with beta = 0
+  const bool parallel_dh = !hayati && reference && s < 1e-9;
+  if (hayati || parallel_dh) {
+    L.form = parallel_dh ? LinkForm::kDH : LinkForm::kHayati;
     L.d = reference ? reference->joints[static_cast<size_t>(i)].d_mm : 0.0;
     const Eigen::Vector3d o2 = o + L.d * z;
     const double cz = Zn.dot(z);
@@ -224,6 +228,10 @@ LinkParams innerLink(const SerialChain& chain, const RobotDefinition* reference,
     L.a = v.dot(x);
     L.theta = angleAbout(z, x_prev, x);
     const Eigen::Vector3d y = z.cross(x);
+    if (parallel_dh) {
+      L.alpha = std::atan2(Zn.dot(x.cross(z)), Zn.dot(z));  // 0 or pi: the axes are parallel
+      return L;
+    }
     L.beta = std::asin(std::max(-1.0, std::min(1.0, Zn.dot(x))));
     L.alpha = std::atan2(-Zn.dot(y), Zn.dot(z));
     return L;
