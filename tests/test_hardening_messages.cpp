@@ -7,6 +7,8 @@
 // rejected at the field.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include <string>
 #include <vector>
 
@@ -202,6 +204,13 @@ TEST(HardeningMessages, AFileEndingInsideAnElementSaysWhichIsOpen) {
   // a mismatched end tag is still tinyxml2's message, at its line
   EXPECT_NE(messageOf(urdf("  </joint>\n", "  </joint>\n  </link>\n")).find("found an element whose end tag does not match its name"),
             std::string::npos);
+  // an element after the root's end tag (a joint pasted after </robot>) was dropped silently
+  EXPECT_EQ(messageOf(kUrdf + "  <joint name=\"tool0_joint\" type=\"fixed\"/>\n"),
+            dir + "/r.urdf:" + std::to_string(1 + static_cast<int>(std::count(kUrdf.begin(), kUrdf.end(), '\n'))) +
+                ":3: expected a URDF with root element <robot> and nothing after its end tag </robot>, found another element <joint>");
+  // UTF-16 ("Unicode" in a Windows editor) is named, not read as bytes
+  EXPECT_EQ(messageOf(std::string("\xFF\xFE<\0r\0", 6)),
+            dir + "/r.urdf:1:1: expected a URDF with root element <robot> in UTF-8, found UTF-16 (byte-order mark FF FE): save it as UTF-8");
   // the robot file's reader shares it
   test::writeText(dir + "/r.xml", kHead + kJoint);
   try {

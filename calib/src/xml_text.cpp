@@ -133,8 +133,28 @@ UnclosedAtEnd unclosedAtEnd(const std::string& text) {
 
 void parseXml(tinyxml2::XMLDocument& doc, const std::string& text, const std::string& file,
               const std::string& what) {
+  // UTF-16 (a Windows editor's "Unicode"): every other byte a NUL, which XML reads as garbage
+  if (text.size() >= 2 && ((text[0] == '\xFF' && text[1] == '\xFE') || (text[0] == '\xFE' && text[1] == '\xFF')))
+    throw InputError(file, 1, 1, "expected " + what + " in UTF-8, found UTF-16 (byte-order mark " +
+                                     std::string(text[0] == '\xFF' ? "FF FE" : "FE FF") + "): save it as UTF-8");
   const tinyxml2::XMLError err = doc.Parse(text.data(), text.size());
-  if (err == tinyxml2::XML_SUCCESS && doc.RootElement()) return;
+  if (err == tinyxml2::XML_SUCCESS && doc.RootElement()) {
+    // one root element: a second one (a file pasted after the first's end tag) is not part of
+    // the document, and reading the first alone would silently drop it
+    if (const tinyxml2::XMLElement* second = doc.RootElement()->NextSiblingElement()) {
+      const int line = std::max(1, second->GetLineNum());
+      size_t start = 0;
+      for (int l = 1; l < line && start != std::string::npos; ++l) {
+        start = text.find('\n', start);
+        if (start != std::string::npos) ++start;
+      }
+      const size_t lt = start == std::string::npos ? std::string::npos : text.find('<', start);
+      const int column = lt == std::string::npos ? 1 : static_cast<int>(lt - start) + 1;
+      throw InputError(file, line, column, "expected " + what + " and nothing after its end tag </" + doc.RootElement()->Name() +
+                                               ">, found another element <" + second->Name() + ">");
+    }
+    return;
+  }
   if (err == tinyxml2::XML_SUCCESS || err == tinyxml2::XML_ERROR_EMPTY_DOCUMENT) {  // no element at all
     const bool blank = std::all_of(text.begin(), text.end(), [](char c) { return std::isspace(static_cast<unsigned char>(c)); });
     throw InputError(file, 1, 1, "expected " + what + ", found " +
