@@ -9,6 +9,8 @@
 #include "accura/calib/errors.h"
 #include "accura/postproc/job.h"
 #include "accura/postproc/krl.h"
+#include "accura/postproc/rapid.h"
+#include "accura/postproc/urscript.h"
 #include "accura/postproc/xml_program.h"
 #include "test_util.h"
 
@@ -117,7 +119,7 @@ TEST(XmlProgram, CommentsAreKeptWhenTheProgramChangesAndConvertedToKrlComments) 
   EXPECT_EQ(writeXmlProgram(parseXmlProgram(out, "out.xml")), out);
   // into KRL: comment lines where the comments were
   const KrlText k = writeKrl(withoutCarriedLines(p, "KRL"));
-  for (const char* c : {"; from the OLP \n", "; cell 4 \n", "; approach,\n", ";         slowly \n", "; the seam \n", "; end \n"})
+  for (const char* c : {"; from the OLP\n", "; cell 4\n", "; approach,\n", ";         slowly\n", "; the seam\n", "; end\n"})
     EXPECT_NE(k.src.find(c), std::string::npos) << c << " in\n" << k.src;
   EXPECT_LT(k.src.find("; the seam"), k.src.find("Y 100"));
   EXPECT_GT(k.src.find("; the seam"), k.src.find("LIN"));
@@ -126,6 +128,24 @@ TEST(XmlProgram, CommentsAreKeptWhenTheProgramChangesAndConvertedToKrlComments) 
   const KrlText kf = writeKrl(withoutCarriedLines(f, "KRL"));
   EXPECT_NE(kf.src.find("; FOLD seam\n"), std::string::npos) << kf.src;
   EXPECT_EQ(kf.src.find(";FOLD seam"), std::string::npos) << kf.src;
+  // into URScript too (it was refused: "the URScript statement '# approach,' is not a motion"),
+  // where the comments were
+  const std::string ur = writeUrScript(withoutCarriedLines(p, "URScript"));
+  for (const char* c : {"\n  # from the OLP\n  # cell 4\n", "\n  # the seam\n  # 100 mm\n  movel(", "\n  # end\nend\n"})
+    EXPECT_NE(ur.find(c), std::string::npos) << c << " in\n" << ur;
+  // a comment line of one robot language is one of another: KRL ';' into RAPID '!' and URScript
+  // '#' (a Latin-1 byte as UTF-8 in a script); a fold marker is not a comment
+  const std::string dir = test::tempDir("xml_comments_across");
+  test::writeText(dir + "/c.src", "DEF c( )\n; approach the part\n;FOLD PTP HOME\n$TOOL={X 0,Y 0,Z 200,A 0,B 0,C 0}\n$BASE=$NULLFRAME\n"
+                                  "PTP {A1 0,A2 -90,A3 90,A4 0,A5 45,A6 0}\n;ENDFOLD\n  ; Werkst\xFC" "ck 4711  \nEND\n");
+  const Program krl = readKrl(dir + "/c.src");
+  const std::string rapid = writeRapid(withoutCarriedLines(krl, "RAPID"));
+  EXPECT_NE(rapid.find("\n    ! approach the part\n"), std::string::npos) << rapid;
+  EXPECT_NE(rapid.find("\n    ! Werkst\xFC" "ck 4711\n  ENDPROC"), std::string::npos) << rapid;
+  const std::string script = writeUrScript(withoutCarriedLines(krl, "URScript"));
+  EXPECT_NE(script.find("\n  # approach the part\n  set_tcp("), std::string::npos) << script;
+  EXPECT_NE(script.find("\n  # Werkst\xC3\xBC" "ck 4711\nend\n"), std::string::npos) << script;
+  EXPECT_EQ(script.find("FOLD"), std::string::npos) << script;
   // the language XML is the comments' own: a <passthrough> of it is refused
   const std::string fake = std::string(text).replace(text.find("<!-- the seam -->"), 17,
                                                      "<passthrough language=\"XML\">--><ptp/><!--</passthrough>");

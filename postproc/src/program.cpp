@@ -315,16 +315,31 @@ Program reattachCarried(const Program& program, Program parsed) {
 
 bool isXmlComment(const PassThrough& s) { return s.language == "XML" && s.role == "comment"; }
 
+std::optional<std::string> commentText(const PassThrough& s) {
+  if (isXmlComment(s)) return s.text;
+  if (!s.role.empty()) return std::nullopt;
+  const char marker = s.language == "KRL" ? ';' : s.language == "RAPID" ? '!' : s.language == "URScript" ? '#' : '\0';
+  const size_t b = s.text.find_first_not_of(" \t");
+  if (!marker || b == std::string::npos || s.text[b] != marker || s.text.find('\n') != std::string::npos) return std::nullopt;
+  std::string text = s.text.substr(b + 1);
+  if (s.language == "KRL") {
+    const std::string up = upperAscii(text.substr(0, 7));
+    if (up.compare(0, 4, "FOLD") == 0 || up == "ENDFOLD") return std::nullopt;
+  }
+  return text;
+}
+
 Program withoutCarriedLines(const Program& program, const std::string& language) {
   Program out = program;
   out.passthrough.clear();
   // (indented as the writers indent a routine's statements)
   const char* marker = language == "KRL" ? ";" : language == "RAPID" ? "    !" : language == "URScript" ? "  #" : nullptr;
   for (const PassThrough& s : program.passthrough) {
-    if (isXmlComment(s) && marker) {
-      std::istringstream lines(s.text);
+    const std::optional<std::string> comment = s.language == language ? std::nullopt : commentText(s);
+    if (comment && marker) {
+      std::istringstream lines(*comment);
       for (std::string line; std::getline(lines, line);) {
-        if (!line.empty() && line.back() == '\r') line.pop_back();
+        while (!line.empty() && (line.back() == '\r' || line.back() == ' ' || line.back() == '\t')) line.pop_back();
         PassThrough c = s;
         c.language = language;
         c.role.clear();

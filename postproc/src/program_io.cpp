@@ -63,7 +63,8 @@ Program dropUnconvertible(const Program& program, ProgramFormat format, std::vec
                                                                          : program;
   std::vector<PassThrough> kept;
   for (const PassThrough& s : out.passthrough) {
-    if (!s.role.empty() || (s.language == language && s.refuse.empty())) kept.push_back(s);
+    // (a comment of another language becomes one of this language: withoutCarriedLines)
+    if (!s.role.empty() || (s.language == language && s.refuse.empty()) || commentText(s)) kept.push_back(s);
     else dropped->push_back(s);
   }
   out.passthrough = std::move(kept);

@@ -8,6 +8,7 @@
 #include <sstream>
 
 #include "accura/calib/errors.h"
+#include "accura/calib/text.h"
 #include "accura/postproc/krl.h"
 #include "urscript_internal.h"
 
@@ -288,6 +289,7 @@ void refuseKrlLogic(const KrlSource& k) {
 void refuseLogicPassThrough(const Program& p) {
   for (const PassThrough& s : p.passthrough) {
     if (!s.role.empty()) continue;  // carried for its own language only
+    if (s.language == "URScript" && commentText(s)) continue;  // a comment: written (generate)
     const bool krl = s.refuse.empty() && s.language == "KRL";
     if (krl && (s.section == PassThrough::Section::kData || motionModelLine(upperTrim(s.text)))) continue;
     throw calib::ArgumentError(s.where.str() + ": cannot convert to URScript: the " + s.language + " statement '" +
@@ -302,6 +304,24 @@ bool isIdentifier(const std::string& s) {
   return true;
 }
 
+/// A comment's text as UTF-8, which a script is read as: UTF-8 as it is, else its bytes read as
+/// ISO-8859-1 (a KUKA or ABB program's comments: "Werkst\xFCck" becomes "Werkstück"); control
+/// characters become '?'.
+std::string asUtf8(const std::string& text) {
+  if (calib::isPlainText(text)) return text;
+  std::string out;
+  for (const char ch : text) {
+    const unsigned char c = static_cast<unsigned char>(ch);
+    if (c < 0x20 || (c >= 0x7F && c < 0xA0)) out += c == '\t' ? '\t' : '?';
+    else if (c < 0x80) out += ch;
+    else {
+      out += static_cast<char>(0xC0 | (c >> 6));
+      out += static_cast<char>(0x80 | (c & 0x3F));
+    }
+  }
+  return out;
+}
+
 std::string generate(const Program& p) {
   if (p.krl) refuseKrlLogic(*p.krl);  // its pass-through statements are the .src's own lines
   else refuseLogicPassThrough(p);
@@ -311,7 +331,17 @@ std::string generate(const Program& p) {
       << ": poses in the Base frame (m, rotation vector in rad), KUKA S/T and PTP speeds are not carried (the controller takes the joint solution nearest the current joints)\n";
   std::string tool;  // the set_tcp written last
   std::map<std::string, std::string> variables;  // pose variable -> its p[...]
-  for (const Motion& m : p.motions) {
+  // the comments (withoutCarriedLines made every language's URScript lines) where they were:
+  // before motion k, then after the last
+  const auto comments = [&](size_t k) {
+    for (const PassThrough& s : p.passthrough)
+      if (s.role.empty() && s.language == "URScript" && s.section == PassThrough::Section::kBody &&
+          std::min(s.before_motion, p.motions.size()) == k && commentText(s))
+        out << "  #" << asUtf8(*commentText(s)) << "\n";
+  };
+  for (size_t mi = 0; mi < p.motions.size(); ++mi) {
+    comments(mi);
+    const Motion& m = p.motions[mi];
     if (m.relative) refuse(m, "URScript has no relative motion");
     if (m.type == MotionType::kSpl) refuse(m, "URScript has no spline motion");
     if (m.circ_angle_deg) refuse(m, "URScript's movec has no circular angle (CA)");
@@ -367,6 +397,7 @@ std::string generate(const Program& p) {
     if (m.approximation_value && !m.approximation.empty()) args += ", r=" + calib::formatFixed(*m.approximation_value / 1000.0, kDecimals);
     out << "  " << f << "(" << args << ")\n";
   }
+  comments(p.motions.size());
   out << "end\n";
   return out.str();
 }

@@ -9,7 +9,7 @@ MODULE line_arc
   PROC main()
     ConfJ\Off;
     ConfL\Off;
-    ! written by hand: a motion-only program for the XML -> RAPID conversion (tests/golden/rapid/line_arc.mod) 
+    ! written by hand: a motion-only program for the XML -> RAPID conversion (tests/golden/rapid/line_arc.mod)
     MoveAbsJ [[0.00000,0.00000,0.00000,0.00000,30.00000,0.00000],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]], v1000, fine, accura_tool1\WObj:=accura_wobj1;
     MoveJ P1, v1000, fine, accura_tool1\WObj:=accura_wobj1;
     MoveL P2, [250.0000,500,5000,1000], z5, accura_tool1\WObj:=accura_wobj1;

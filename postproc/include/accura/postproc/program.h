@@ -325,10 +325,17 @@ std::optional<std::string> carriedSource(const Program& program, const std::stri
 Program reattachCarried(const Program& program, Program parsed);
 
 /// `program` without the lines carried only for `language`'s byte-for-byte return (a role
-/// set), for a writer of another language. An XML comment (isXmlComment) becomes comment lines
-/// of `language` instead, one per line of its text: KRL `;`, RAPID `!`, URScript `#` (RAPID and
-/// URScript indented like a routine's statements).
+/// set), for a writer of another language. A comment (commentText: an XML comment, a KRL `;`,
+/// RAPID `!` or URScript `#` line) of another language becomes comment lines of `language`
+/// instead, one per line of its text: KRL `;`, RAPID `!`, URScript `#` (RAPID and URScript
+/// indented like a routine's statements).
 Program withoutCarriedLines(const Program& program, const std::string& language);
+
+/// The text of a carried statement that is a comment and nothing else, without its marker and
+/// the blanks around it: an XML comment (isXmlComment), a KRL line starting with `;` (not a fold
+/// marker, which the KUKA editor pairs), a RAPID `!` line, a URScript `#` line. nullopt for any
+/// other statement.
+std::optional<std::string> commentText(const PassThrough& s);
 
 /// True for a comment of an XML program (`<!-- .. -->`, read as language "XML", role "comment"):
 /// the XML writer writes it back where it was.
