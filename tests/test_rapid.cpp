@@ -1002,5 +1002,26 @@ TEST(Rapid, BatchAndCheckInTheCell) {
   EXPECT_NEAR(std::sqrt(10.0 * 10.0 + 100.0 * 100.0) - 10, 90.499, 5e-4);
 }
 
+// docs/rapid.md lists a NUL byte as an error: one in a comment, a string or the %%% header was
+// read past (the comment and string scanners skipped it), and the module was compensated.
+// Anywhere in the file it is the error, at its line and column.
+TEST(Rapid, ANulByteInACommentAStringOrTheHeaderIsAnError) {
+  const std::string nul(1, '\0');
+  const std::string msg = "expected a RAPID text file, found a NUL byte (binary file?)";
+  // in a comment on a statement's line (the tester's bad_nul.mod: "SetDO do_torch, 1;  ! arc<NUL>on")
+  std::string text = example();
+  const std::string arc = "SetDO do_torch, 1;  ! arc on";
+  ASSERT_NE(text.find(arc), std::string::npos);
+  text.replace(text.find(arc), arc.size(), "SetDO do_torch, 1;  ! arc" + nul + "on");
+  EXPECT_EQ(errorOf(text), "bad.mod:20:30: " + msg);  // (line 20: "    SetDO", the NUL after "! arc")
+  // in a string
+  EXPECT_EQ(errorOf(inProc("    TPWrite \"a" + nul + "b\";\n")), "bad.mod:3:15: " + msg);
+  // in a comment line of its own, and in a .prg's %%% header
+  EXPECT_EQ(errorOf("MODULE m\n  ! x" + nul + "\n  PROC main()\n  ENDPROC\nENDMODULE\n"), "bad.mod:2:6: " + msg);
+  EXPECT_EQ(errorOf("%%%\n  VERSION:1" + nul + "\n%%%\nMODULE m\nENDMODULE\n"), "bad.mod:2:12: " + msg);
+  // the first of several
+  EXPECT_EQ(errorOf("MODULE m" + nul + "\n  !" + nul + "\nENDMODULE\n"), "bad.mod:1:9: " + msg);
+}
+
 }  // namespace
 }  // namespace accura::postproc

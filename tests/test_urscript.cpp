@@ -1038,5 +1038,14 @@ TEST(UrScript, RealUr10CalibratedThenTheExampleCompensated) {
   for (size_t k = 0; k < in.urscript->others.size(); ++k) EXPECT_EQ(out.urscript->others[k].text, in.urscript->others[k].text);
 }
 
+// A NUL byte in a comment or a string was read past (the comment and string scanners skipped
+// it); anywhere in the file it is the error, at its line and column.
+TEST(UrScript, ANulByteInACommentOrAStringIsAnError) {
+  const std::string nul(1, '\0');
+  const std::string msg = "expected a URScript text file, found a NUL byte (binary file?)";
+  EXPECT_EQ(errorOf("def f():\n  # a" + nul + "b\n  movel(p[0.1, 0.2, 0.3, 0, 0, 0])\nend\n"), "bad.script:2:6: " + msg);
+  EXPECT_EQ(errorOf("def f():\n  popup(\"a" + nul + "b\")\nend\n"), "bad.script:2:11: " + msg);
+}
+
 }  // namespace
 }  // namespace accura::postproc

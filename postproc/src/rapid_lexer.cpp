@@ -43,12 +43,14 @@ std::vector<Tok> lexRapid(const std::string& s, const std::string& path) {
     const SourceLocation l = locate(starts, path, off);
     throw calib::InputError(l.file, l.line, l.column, msg);
   };
+  // a NUL byte anywhere (code, a comment, a string, the %%% header) is no text the controller
+  // loads: the first one is the error
+  if (const size_t nul = s.find('\0'); nul != std::string::npos) fail(nul, "expected a RAPID text file, found a NUL byte (binary file?)");
   std::vector<Tok> toks;
   size_t i = s.compare(0, 3, "\xEF\xBB\xBF") == 0 ? 3 : 0;  // a UTF-8 byte order mark: read past (kept in the text)
   bool line_start = true;
   while (i < s.size()) {
     const char c = s[i];
-    if (c == '\0') fail(i, "expected a RAPID text file, found a NUL byte (binary file?)");
     if (line_start && s.compare(i, 3, "%%%") == 0) {  // .prg header block %%% ... %%%
       size_t j = s.find("%%%", i + 3);
       if (j == std::string::npos) fail(i, "expected the '%%%' that closes this header, found the end of the file");

@@ -175,10 +175,11 @@ class Reader {
 
   void lex() {
     const std::string& s = src_->text;
+    // a NUL byte anywhere (code, a comment, a string) is no text: the first one is the error
+    if (const size_t nul = s.find('\0'); nul != std::string::npos) fail(nul, "expected a URScript text file, found a NUL byte (binary file?)");
     size_t i = s.compare(0, 3, "\xEF\xBB\xBF") == 0 ? 3 : 0;  // a UTF-8 byte order mark: read past (kept in the text)
     while (i < s.size()) {
       const char c = s[i];
-      if (c == '\0') fail(i, "expected a URScript text file, found a NUL byte (binary file?)");
       if (c == '#') {
         while (i < s.size() && s[i] != '\n') ++i;
         continue;
