@@ -367,7 +367,7 @@ TEST(Rapid, MalformedModulesAreErrorsWithFileLineAndColumn) {
             "bad.mod:3:72: expected an offset in mm within +-100000 in Offs, found '09E+09'");
   EXPECT_EQ(errorOf(inProc("    MoveL Offs(Offs([[90000,2,3],[1,0,0,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]],9000,0,0),9000,0,0), v100, fine, tool0;\n")),
             "bad.mod:3:11: expected Offs(...) to give a position within +-100000 mm, found 108000.0000 in "
-            "'Offs(Offs([[90000,2,3],[1,0,0,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]],9000,0,0),9000,0,0)'");
+            "'Offs(Offs([[90000,2,3],[1,0,0,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]],9000,0,...'");  // (quoted: 80 bytes at most)
   EXPECT_EQ(errorOf("  PROC main()\n  ENDPROC\n"), "bad.mod:1:3: expected MODULE before the first statement, found 'PROC'");
   EXPECT_EQ(errorOf("MODULE m\n  PROC main()\n  ENDPROC\n"), "bad.mod:4:1: expected ENDMODULE, found the end of the file");
   EXPECT_EQ(errorOf("MODULE m\n  PROC main()\nENDMODULE\n"), "bad.mod:3:1: expected ENDPROC of the routine main, found ENDMODULE");
@@ -1021,6 +1021,49 @@ TEST(Rapid, ANulByteInACommentAStringOrTheHeaderIsAnError) {
   EXPECT_EQ(errorOf("%%%\n  VERSION:1" + nul + "\n%%%\nMODULE m\nENDMODULE\n"), "bad.mod:2:12: " + msg);
   // the first of several
   EXPECT_EQ(errorOf("MODULE m" + nul + "\n  !" + nul + "\nENDMODULE\n"), "bad.mod:1:9: " + msg);
+}
+
+// An error quoted the offending text whole: 20000 nested '[' (the tester's bad_nest.mod) gave a
+// 40 KB message. Every quoted excerpt is at most 80 bytes: its first 77 and "...", not cut
+// inside a UTF-8 character.
+TEST(Rapid, AnErrorQuotesAtMost80BytesOfTheText) {
+  const std::string deep = std::string(20000, '[') + std::string(20000, ']');
+  const std::string nest = errorOf(inProc("    MoveL " + deep + ", v100, fine, tool0;\n"));
+  EXPECT_EQ(nest, "bad.mod:3:11: expected a robtarget [[x,y,z],[q1,q2,q3,q4],[cf1,cf4,cf6,cfx],[eax_a,..,eax_f]] with 4 items, found 1 in '" +
+                      std::string(77, '[') + "...'");
+  // a statement without its ';' that runs on: 'TPWrite "x' and 2-byte characters (U+00E9): the
+  // 77th byte would be the first of one, which is left out whole (76 bytes and "...")
+  std::string e_acute;
+  for (int k = 0; k < 200; ++k) e_acute += "\xC3\xA9";
+  const std::string semi = errorOf(inProc("    TPWrite \"x" + e_acute + "\"\n"));
+  std::string want_q = "TPWrite \"x";
+  for (int k = 0; k < 33; ++k) want_q += "\xC3\xA9";
+  ASSERT_EQ(want_q.size(), 76u);
+  EXPECT_EQ(semi, "bad.mod:3:416: expected ';' at the end of the statement '" + want_q + "...', found ENDPROC");
+  // a 5000-digit number in a position, a 3000-character name
+  const std::string digits = "1" + std::string(4999, '0');
+  EXPECT_EQ(errorOf(inProc("    MoveL [[1,2," + digits + "],[1,0,0,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]], v100, fine, tool0;\n")),
+            "bad.mod:3:17: expected a finite number, found '" + digits.substr(0, 77) + "...'");
+  const std::string name(3000, 'q');
+  EXPECT_EQ(errorOf(name + ";\n"), "bad.mod:1:1: expected MODULE before the first statement, found '" + name.substr(0, 77) + "...'");
+}
+
+// Offs/RelTool nested 20000 deep overflowed the stack (each level a call): a crash, not an
+// error. Nesting is bounded; 100 levels are read.
+TEST(Rapid, OffsNestedBeyondABoundIsAnErrorNotACrash) {
+  auto nested = [](int n) {
+    std::string s;
+    for (int k = 0; k < n; ++k) s += "Offs(";
+    s += "[[1,2,3],[1,0,0,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]]";
+    for (int k = 0; k < n; ++k) s += ",0,0,1)";
+    return s;
+  };
+  const Program p = parseRapid(inProc("    MoveL " + nested(100) + ", v100, fine, tool0;\n"), "ok.mod");
+  ASSERT_EQ(p.motions.size(), 1u);
+  EXPECT_NEAR(poseOf(p.motions[0].target).translation().z(), 103.0, 1e-9);  // 3 + 100 x 1 mm
+  // (column 511: the 101st Offs, after 100 x "Offs(" from column 11)
+  EXPECT_EQ(errorOf(inProc("    MoveL " + nested(20000) + ", v100, fine, tool0;\n")),
+            "bad.mod:3:511: expected Offs/RelTool nested at most 100 deep, found deeper nesting");
 }
 
 }  // namespace

@@ -1047,5 +1047,41 @@ TEST(UrScript, ANulByteInACommentOrAStringIsAnError) {
   EXPECT_EQ(errorOf("def f():\n  popup(\"a" + nul + "b\")\nend\n"), "bad.script:2:11: " + msg);
 }
 
+// Errors quoted the offending text whole; every quoted excerpt is at most 80 bytes (its first
+// 77 and "...").
+TEST(UrScript, AnErrorQuotesAtMost80BytesOfTheText) {
+  const std::string name(5000, 'z');
+  EXPECT_EQ(errorOf("movel(p[0.1, 0.2, 0.3, 0, 0, 0], " + name + "=1)\n"),
+            "bad.script:1:34: expected an argument of movel (pose, a, v, t, r), found '" + name.substr(0, 77) + "...'");
+  const std::string digits = "1" + std::string(3000, '0');
+  EXPECT_EQ(errorOf("movej(p[" + digits + ", 0, 0, 0, 0, 0])\n"), "bad.script:1:9: expected a finite number, found '" + digits.substr(0, 77) + "...'");
+  std::string five = "p[" + std::string(200, '1') + ", 0, 0, 0, 0]";
+  EXPECT_EQ(errorOf("movel(" + five + ")\n"), "bad.script:1:7: expected p[x, y, z, rx, ry, rz] with 6 numbers, found 5 in '" + five.substr(0, 77) + "...'");
+}
+
+// pose_trans nested 20000 deep, or a chain of 100000 pose variables each built on the one
+// before, overflowed the stack (a call per level): a crash, not an error. Both are bounded.
+TEST(UrScript, PosesNestedOrChainedBeyondABoundAreAnErrorNotACrash) {
+  auto nested = [](int n) {
+    std::string s;
+    for (int k = 0; k < n; ++k) s += "pose_trans(p[0, 0, 0.001, 0, 0, 0], ";
+    s += "p[0.1, 0.2, 0.3, 0, 0, 0]";
+    return s + std::string(static_cast<size_t>(n), ')');
+  };
+  const Program p = parseUrScript("movel(" + nested(100) + ")\n", "ok.script");
+  ASSERT_EQ(p.motions.size(), 1u);
+  EXPECT_NEAR(p.motions[0].target.xyzAbc().z_mm, 400.0, 1e-9);  // 300 + 100 x 1 mm
+  // (column 3607: the 101st pose_trans, after 100 x 36 bytes from column 7)
+  EXPECT_EQ(errorOf("movel(" + nested(20000) + ")\n"), "bad.script:1:3607: expected pose_trans/pose_add nested at most 100 deep, found deeper nesting");
+  std::string chain = "q0 = p[0.1, 0.2, 0.3, 0, 0, 0]\n";
+  for (int k = 1; k <= 1000; ++k) chain += "q" + std::to_string(k) + " = pose_trans(q" + std::to_string(k - 1) + ", p[0, 0, 0.0001, 0, 0, 0])\n";
+  const Program c = parseUrScript(chain + "movel(q1000)\n", "ok.script");
+  ASSERT_EQ(c.motions.size(), 1u);
+  EXPECT_NEAR(c.motions[0].target.xyzAbc().z_mm, 400.0, 1e-9);  // 300 + 1000 x 0.1 mm
+  for (int k = 1001; k <= 100000; ++k) chain += "q" + std::to_string(k) + " = pose_trans(q" + std::to_string(k - 1) + ", p[0, 0, 0.0001, 0, 0, 0])\n";
+  EXPECT_EQ(errorOf(chain + "movel(q100000)\n"),
+            "bad.script:1002:9: expected a pose built of at most 1000 pose_trans/pose_add (through the variables it uses), found a deeper one");
+}
+
 }  // namespace
 }  // namespace accura::postproc

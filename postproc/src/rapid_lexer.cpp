@@ -8,6 +8,7 @@
 #include "accura/calib/errors.h"
 #include "accura/calib/ik.h"
 #include "decimal.h"
+#include "excerpt.h"
 #include "rapid_internal.h"
 
 namespace accura::postproc {
@@ -74,12 +75,12 @@ std::vector<Tok> lexRapid(const std::string& s, const std::string& path) {
       const size_t j = detail::scanDecimal(s, i, &e);
       if (e != std::string_view::npos)
         fail(e, "expected the digits of an exponent, found '" + s.substr(e, std::min<size_t>(j + 1, s.size()) - e) + "'");
-      if (j < s.size() && isIdentStart(s[j])) fail(j, "expected an operator or a separator after the number " + s.substr(i, j - i) + ", found '" + s[j] + "'");
+      if (j < s.size() && isIdentStart(s[j])) fail(j, "expected an operator or a separator after the number " + detail::excerpt(s.substr(i, j - i)) + ", found '" + s[j] + "'");
       t.kind = Tok::Kind::kNumber;
       t.e = j;
       t.s = s.substr(i, j - i);
       t.num = std::strtod(t.s.c_str(), nullptr);
-      if (!std::isfinite(t.num)) fail(i, "expected a finite number, found '" + t.s + "'");
+      if (!std::isfinite(t.num)) fail(i, "expected a finite number, found '" + detail::excerpt(t.s) + "'");
     } else if (isIdentStart(c)) {
       size_t j = i;
       while (j < s.size() && isIdentChar(s[j])) ++j;
@@ -231,7 +232,7 @@ auto loc = [&](size_t off) { return locate(starts_, src.path, off); };
     s.section = routine_of[l] == 0 ? PassThrough::Section::kData : routine_of[l] == 1 ? PassThrough::Section::kBody : PassThrough::Section::kTrailer;
     s.before_motion = next_motion;
     if (other_routine_motion_ && routine_of[l] == 2)
-      s.refuse = "the motions of the routine on this line are outside the program's main routine " + main_routine_ +
+      s.refuse = "the motions of the routine on this line are outside the program's main routine " + detail::excerpt(main_routine_) +
                  ", which the other formats cannot hold";
     p.passthrough.push_back(std::move(s));
   }

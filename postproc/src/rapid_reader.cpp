@@ -7,6 +7,7 @@
 #include <set>
 
 #include "accura/calib/errors.h"
+#include "excerpt.h"
 #include "rapid_internal.h"
 #include "start_tracker.h"
 
@@ -16,6 +17,7 @@ namespace accura::postproc {
 namespace {
 
 using namespace rapid_detail;
+using detail::excerpt;
 
 /// A target expression evaluated (wobj frame, mm) or why it cannot be.
 struct TargetVal {
@@ -81,7 +83,7 @@ class Reader {
         flow_.unknown();
     }
     if (!module_seen_) fail(t_.empty() ? 0 : t_.front().b, "expected a RAPID module (MODULE name ... ENDMODULE), found " +
-                                                               (t_.empty() ? std::string("an empty file") : "'" + t_.front().s + "'"));
+                                                               (t_.empty() ? std::string("an empty file") : "'" + excerpt(t_.front().s) + "'"));
     if (module_open_) fail(src_->text.size(), "expected ENDMODULE, found the end of the file");
     if (!module_name_.empty()) p.name = module_name_;
     passThrough(p);
@@ -96,7 +98,9 @@ class Reader {
     throw calib::InputError(l.file, l.line, l.column, msg);
   }
   std::string text(Range r) const { return r.first < r.second ? src_->text.substr(t_[r.first].b, t_[r.second - 1].e - t_[r.first].b) : ""; }
-  std::string found(size_t i, size_t end) const { return i < end ? "'" + t_[i].s + "'" : "the end of the statement"; }
+  /// The text of r as a message quotes it (detail::excerpt: at most 80 bytes).
+  std::string quoted(Range r) const { return excerpt(text(r)); }
+  std::string found(size_t i, size_t end) const { return i < end ? "'" + excerpt(t_[i].s) + "'" : "the end of the statement"; }
 
   /// Statements: a block header runs to the end of its line (and its brackets; IF, ELSEIF,
   /// WHILE, FOR and CASE at least to their THEN, DO or ':'), and a statement that shares its
@@ -131,7 +135,7 @@ class Reader {
             ((closing_word && t.kind == Tok::Kind::kIdent && t.u == closing_word) || (hu == "CASE" && isOp(t_, j, ":"))))
           closed = true;
         if (!head && open.empty() && j > i && t.kind == Tok::Kind::kIdent && kBlockHeads.count(t.u) && loc(t.b).line != loc(t_[j - 1].b).line)
-          fail(t_[j - 1].e, "expected ';' at the end of the statement '" + text({i, j}) + "', found " + t.s);
+          fail(t_[j - 1].e, "expected ';' at the end of the statement '" + quoted({i, j}) + "', found " + excerpt(t.s));
         if (opens(t)) open.push_back(j);
         if (closes(t)) {
           if (open.empty()) fail(t.b, "expected a statement, found an unmatched '" + t.s + "'");
@@ -150,7 +154,7 @@ class Reader {
         fail(o.b, "expected '" + std::string(o.s == "(" ? ")" : o.s == "[" ? "]" : "}") + "' to close this '" + o.s + "', found the end of the file");
       }
       if (!head && (j > t_.size() || !isOp(t_, j - 1, ";")))
-        fail(t_[j - 1].e, "expected ';' at the end of the statement '" + text({i, j}) + "', found the end of the file");
+        fail(t_[j - 1].e, "expected ';' at the end of the statement '" + quoted({i, j}) + "', found the end of the file");
       // the statement a CASE, a DEFAULT or a compact IF (without THEN) holds on its line is one
       // of its own (a compact IF's runs only when the condition holds)
       const size_t inner = head ? innerStatement({i, j}) : j;
@@ -363,7 +367,7 @@ class Reader {
     const size_t i = r.first;
     const std::string& u = t[i].u;
     if (headAt(i) != kNoHead) return block(r, p);
-    if (!module_open_) fail(t[i].b, "expected MODULE before the first statement, found '" + t[i].s + "'");
+    if (!module_open_) fail(t[i].b, "expected MODULE before the first statement, found '" + excerpt(t[i].s) + "'");
     size_t k = i;
     if (isKw(t, k, "LOCAL") || isKw(t, k, "TASK")) ++k;
     if (isKw(t, k, "CONST") || isKw(t, k, "PERS") || isKw(t, k, "VAR")) return declaration(r, k, p);
@@ -416,7 +420,7 @@ class Reader {
     if (u == "MODULE") {
       // a .prg of the S4C era holds every module of the program, one after the other (their
       // global data are shared, as in the controller); a MODULE inside a module is an error
-      if (module_open_) fail(t_[r.first].b, "expected ENDMODULE of the module " + module_name_ + " before the next MODULE, found MODULE");
+      if (module_open_) fail(t_[r.first].b, "expected ENDMODULE of the module " + excerpt(module_name_) + " before the next MODULE, found MODULE");
       if (r.second - r.first < 2 || t_[r.first + 1].kind != Tok::Kind::kIdent) fail(t_[r.first].e, "expected the module name after MODULE, found " + found(r.first + 1, r.second));
       module_seen_ = module_open_ = true;
       if (module_name_.empty()) module_name_ = t_[r.first + 1].s;  // the program's name: its first module's
@@ -424,13 +428,13 @@ class Reader {
     }
     if (u == "ENDMODULE") {
       if (!module_open_) fail(t_[r.first].b, "expected MODULE before ENDMODULE, found ENDMODULE");
-      if (!routine_.empty()) fail(t_[r.first].b, "expected END" + routine_kind_ + " of the routine " + routine_ + ", found ENDMODULE");
+      if (!routine_.empty()) fail(t_[r.first].b, "expected END" + routine_kind_ + " of the routine " + excerpt(routine_) + ", found ENDMODULE");
       module_open_ = false;
       return markModel(r);
     }
-    if (!module_open_) fail(t_[r.first].b, "expected MODULE before the first statement, found '" + t_[r.first].s + "'");
+    if (!module_open_) fail(t_[r.first].b, "expected MODULE before the first statement, found '" + excerpt(t_[r.first].s) + "'");
     if (u == "PROC" || u == "FUNC" || u == "TRAP") {
-      if (!routine_.empty()) fail(t_[r.first].b, "expected END" + routine_kind_ + " of the routine " + routine_ + ", found " + u);
+      if (!routine_.empty()) fail(t_[r.first].b, "expected END" + routine_kind_ + " of the routine " + excerpt(routine_) + ", found " + u);
       size_t k = h + 1;
       if (u == "FUNC" && k < r.second) ++k;  // the return type
       if (k >= r.second || t_[k].kind != Tok::Kind::kIdent) fail(t_[r.first].e, "expected the routine name after " + u + ", found " + found(k, r.second));
@@ -473,7 +477,7 @@ class Reader {
     }
     if (u == "ENDPROC" || u == "ENDFUNC" || u == "ENDTRAP") {
       if (routine_.empty() || "END" + routine_kind_ != u)
-        fail(t_[r.first].b, "expected " + (routine_.empty() ? std::string("a routine before it") : "END" + routine_kind_ + " of " + routine_) + ", found " + u);
+        fail(t_[r.first].b, "expected " + (routine_.empty() ? std::string("a routine before it") : "END" + routine_kind_ + " of " + excerpt(routine_)) + ", found " + u);
       if (main_routine_ == routine_) {
         markModel(routine_line_);
         markModel(r);
@@ -487,7 +491,7 @@ class Reader {
   // --- data
 
   [[noreturn]] void shape(size_t at, const std::string& what, const std::string& got) const {
-    fail(t_[at].b, "expected " + what + ", found '" + got + "'");
+    fail(t_[at].b, "expected " + what + ", found '" + excerpt(got) + "'");
   }
 
   /// [[x,y,z],[q1,q2,q3,q4]] (pose) at r: the spans and values of its 7 numbers.
@@ -503,7 +507,7 @@ class Reader {
     for (int k = 0; k < 3; ++k)
       if (std::abs(v[k]) > kMaxPositionMm)
         fail(spans[k].first, "expected a position in mm within +-" + calib::formatFixed(kMaxPositionMm, 0) + ", found " +
-                                 src_->text.substr(spans[k].first, spans[k].second - spans[k].first));
+                                 excerpt(src_->text.substr(spans[k].first, spans[k].second - spans[k].first)));
     const double n = std::sqrt(v[3] * v[3] + v[4] * v[4] + v[5] * v[5] + v[6] * v[6]);
     if (!(std::abs(n - 1.0) <= kQuaternionNormTol))
       fail(spans[3].first, "expected a unit quaternion (norm 1 within " + calib::formatFixed(kQuaternionNormTol, 3) + "), found norm " +
@@ -515,7 +519,7 @@ class Reader {
     if (!(isOp(t_, r.first, "[") && closing(t_, r.first, r.second) == r.second)) shape(r.first < r.second ? r.first : r.first - 1, what, text(r));
     auto parts = items(t_, r.first + 1, r.second - 1);
     if (parts.size() != n || parts.front().first == parts.front().second)
-      fail(t_[r.first].b, "expected " + what + " with " + std::to_string(n) + " items, found " + std::to_string(r.first + 2 == r.second ? 0 : parts.size()) + " in '" + text(r) + "'");
+      fail(t_[r.first].b, "expected " + what + " with " + std::to_string(n) + " items, found " + std::to_string(r.first + 2 == r.second ? 0 : parts.size()) + " in '" + quoted(r) + "'");
     return parts;
   }
 
@@ -542,7 +546,7 @@ class Reader {
     numbers(parts[2], 4, "confdata [cf1,cf4,cf6,cfx]", v.num + 7, v.v + 7);
     for (int k = 7; k < 11; ++k)
       if (v.v[k] != std::floor(v.v[k]) || std::abs(v.v[k]) > 1000)
-        fail(v.num[k].first, "expected an integer in confdata, found " + src_->text.substr(v.num[k].first, v.num[k].second - v.num[k].first));
+        fail(v.num[k].first, "expected an integer in confdata, found " + excerpt(src_->text.substr(v.num[k].first, v.num[k].second - v.num[k].first)));
     std::pair<size_t, size_t> es[6];
     double ev[6];
     numbers(parts[3], 6, "external axes [eax_a,..,eax_f]", es, ev);
@@ -595,7 +599,7 @@ class Reader {
     const Eigen::Isometry3d uf = framePose(parts[3], "the uframe of wobjdata " + name);
     const Eigen::Isometry3d of = framePose(parts[4], "the oframe of wobjdata " + name);
     if (robhold) f.note = "wobjdata " + name + " has robhold TRUE (the robot holds the work object: a stationary tool), which accura does not model";
-    else if (!ufprog) f.note = "wobjdata " + name + " has ufprog FALSE (a user frame moved by the mechanical unit " + text(parts[2]) + "), which accura does not model";
+    else if (!ufprog) f.note = "wobjdata " + name + " has ufprog FALSE (a user frame moved by the mechanical unit " + quoted(parts[2]) + "), which accura does not model";
     else f.T = uf * of;
     return f;
   }
@@ -628,11 +632,11 @@ class Reader {
       return markModel(r);
     }
     if (ty == "TOOLDATA" && isOp(t, val.first, "[")) {
-      scope().tools[t[name].u] = toolValue(val, nm);
+      scope().tools[t[name].u] = toolValue(val, excerpt(nm));
       return markModel(r);
     }
     if (ty == "WOBJDATA" && isOp(t, val.first, "[")) {
-      scope().wobjs[t[name].u] = wobjValue(val, nm);
+      scope().wobjs[t[name].u] = wobjValue(val, excerpt(nm));
       return markModel(r);
     }
     if (ty == "JOINTTARGET" && isOp(t, val.first, "[")) {
@@ -647,14 +651,14 @@ class Reader {
     if (ty == "ZONEDATA" && isOp(t, val.first, "[")) {
       const auto parts = bracketItems(val, 7, "a zonedata [finep, pzone_tcp, pzone_ori, pzone_eax, zone_ori, zone_leax, zone_reax]");
       const std::optional<double> z = number(t, parts[1]);
-      if (!z || *z < 0) shape(parts[1].first, "pzone_tcp >= 0 (mm) in zonedata " + nm, text(parts[1]));
-      scope().zones[t[name].u] = boolean(parts[0], "finep of zonedata " + nm) ? std::nullopt : std::optional<double>(*z);
+      if (!z || *z < 0) shape(parts[1].first, "pzone_tcp >= 0 (mm) in zonedata " + excerpt(nm), text(parts[1]));
+      scope().zones[t[name].u] = boolean(parts[0], "finep of zonedata " + excerpt(nm)) ? std::nullopt : std::optional<double>(*z);
       return;
     }
     if (ty == "SPEEDDATA" && isOp(t, val.first, "[")) {
       const auto parts = bracketItems(val, 4, "a speeddata [v_tcp, v_ori, v_leax, v_reax]");
       const std::optional<double> v = number(t, parts[0]);
-      if (!v || *v <= 0) shape(parts[0].first, "v_tcp > 0 (mm/s) in speeddata " + nm, text(parts[0]));
+      if (!v || *v <= 0) shape(parts[0].first, "v_tcp > 0 (mm/s) in speeddata " + excerpt(nm), text(parts[0]));
       scope().speeds[t[name].u] = *v;
     }
   }
@@ -681,24 +685,24 @@ class Reader {
     if (r.second == r.first + 1 && t_[r.first].kind == Tok::Kind::kIdent) {
       const std::string& u = t_[r.first].u;
       if (params_.count(u) && !local_.robtargets.count(u)) {
-        tv.problem = "'" + t_[r.first].s + "' is a parameter of " + routine_ + ": its value comes from the call";
+        tv.problem = "'" + excerpt(t_[r.first].s) + "' is a parameter of " + excerpt(routine_) + ": its value comes from the call";
         return tv;
       }
       const int* id = lookup(&Scope::robtargets, u);
       if (!id) {
-        tv.problem = "'" + t_[r.first].s + "' is not a robtarget declared with a value in this module";
+        tv.problem = "'" + excerpt(t_[r.first].s) + "' is not a robtarget declared with a value in this module";
         return tv;
       }
       const auto a = assigned_.find(u);
       if (a != assigned_.end()) {
-        tv.problem = "'" + t_[r.first].s + "' is assigned at " + a->second.str() + ": its value at run time is not the declared one";
+        tv.problem = "'" + excerpt(t_[r.first].s) + "' is assigned at " + a->second.str() + ": its value at run time is not the declared one";
         return tv;
       }
       return valueTarget(*id);
     }
     const bool offs = isKw(t_, r.first, "OFFS"), reltool = isKw(t_, r.first, "RELTOOL");
     if ((offs || reltool) && isOp(t_, r.first + 1, "(") && closing(t_, r.first + 1, r.second) == r.second) return offset(r, reltool);
-    tv.problem = "'" + text(r) + "' is not a target accura can evaluate (a robtarget, a declared robtarget, Offs or RelTool of one)";
+    tv.problem = "'" + quoted(r) + "' is not a target accura can evaluate (a robtarget, a declared robtarget, Offs or RelTool of one)";
     return tv;
   }
 
@@ -717,13 +721,13 @@ class Reader {
       while (o < r.second - 1) {
         if (!(isOp(t_, o, "\\") && o + 2 < r.second && t_[o + 1].kind == Tok::Kind::kIdent && isOp(t_, o + 2, ":=")) ||
             !(t_[o + 1].u == "RX" || t_[o + 1].u == "RY" || t_[o + 1].u == "RZ"))
-          fail(t_[o].b, "expected \\Rx:=, \\Ry:= or \\Rz:= in RelTool, found '" + t_[o].s + (o + 1 < r.second ? t_[o + 1].s : "") + "'");
+          fail(t_[o].b, "expected \\Rx:=, \\Ry:= or \\Rz:= in RelTool, found '" + excerpt(t_[o].s + (o + 1 < r.second ? t_[o + 1].s : "")) + "'");
         size_t e = o + 3;
         while (e < r.second - 1 && !isOp(t_, e, "\\")) ++e;
         const std::optional<double> x = number(t_, {o + 3, e});
         if (!x) {
           TargetVal tv;
-          tv.problem = "RelTool(...) at " + loc(t_[r.first].b).str() + " has a rotation that is not a number ('" + text({o + 3, e}) + "')";
+          tv.problem = "RelTool(...) at " + loc(t_[r.first].b).str() + " has a rotation that is not a number ('" + quoted({o + 3, e}) + "')";
           return tv;
         }
         if (std::abs(*x) > kMaxAngleDeg) shape(o + 3, "a rotation in deg within +-" + calib::formatFixed(kMaxAngleDeg, 0) + " in RelTool", text({o + 3, e}));
@@ -732,7 +736,11 @@ class Reader {
       }
     }
     if (args.size() != 4) fail(t_[r.first].b, "expected " + f + "(point, dx, dy, dz) with 4 arguments, found " + std::to_string(args.size()));
+    // (each level is a call: a pathological depth would overflow the stack)
+    if (++offset_depth_ > kMaxOffsetNesting)
+      fail(t_[r.first].b, "expected Offs/RelTool nested at most " + std::to_string(kMaxOffsetNesting) + " deep, found deeper nesting");
     TargetVal base = target(args[0]);
+    --offset_depth_;
     TargetVal tv;
     if (!base.problem.empty()) {
       tv.problem = f + "(...) at " + loc(t_[r.first].b).str() + " cannot be evaluated: " + base.problem;
@@ -742,7 +750,7 @@ class Reader {
     for (int k = 0; k < 3; ++k) {
       const std::optional<double> x = number(t_, args[static_cast<size_t>(k + 1)]);
       if (!x) {
-        tv.problem = f + "(...) at " + loc(t_[r.first].b).str() + " has an offset that is not a number ('" + text(args[static_cast<size_t>(k + 1)]) + "')";
+        tv.problem = f + "(...) at " + loc(t_[r.first].b).str() + " has an offset that is not a number ('" + quoted(args[static_cast<size_t>(k + 1)]) + "')";
         return tv;
       }
       if (std::abs(*x) > kMaxPositionMm)
@@ -765,7 +773,7 @@ class Reader {
     for (int k = 0; k < 3; ++k)
       if (std::abs(tv.T.translation()[k]) > kMaxPositionMm)
         fail(t_[r.first].b, "expected " + f + "(...) to give a position within +-" + calib::formatFixed(kMaxPositionMm, 0) + " mm, found " +
-                                calib::formatFixed(tv.T.translation()[k], 4) + " in '" + text(r) + "'");
+                                calib::formatFixed(tv.T.translation()[k], 4) + " in '" + quoted(r) + "'");
     return tv;
   }
 
@@ -822,7 +830,7 @@ class Reader {
     if (pos.size() != want) {
       static const char* sig[] = {"ToPoint, Speed, Zone, Tool", "CirPoint, ToPoint, Speed, Zone, Tool", "ToJointPos, Speed, Zone, Tool"};
       fail(t_[r.first].b, "expected " + f + " " + sig[u == "MOVEC" ? 1 : u == "MOVEABSJ" ? 2 : 0] + " (" + std::to_string(want) +
-                              " arguments), found " + std::to_string(pos.size()) + " in '" + text(r) + "'");
+                              " arguments), found " + std::to_string(pos.size()) + " in '" + quoted(r) + "'");
     }
     Motion m;
     m.where = loc(t_[r.first].b);
@@ -908,7 +916,7 @@ class Reader {
   }
 
   void addMotion(Range r, Motion& m, RapidSource::Statement& st, Program& p) {
-    if (routine_.empty()) fail(t_[r.first].b, "expected " + t_[r.first].s + " inside a routine (PROC), found it at module level");
+    if (routine_.empty()) fail(t_[r.first].b, "expected " + excerpt(t_[r.first].s) + " inside a routine (PROC), found it at module level");
     if (main_routine_.empty()) main_routine_ = routine_;
     if (routine_ != main_routine_) other_routine_motion_ = true;
     m.statement_id = static_cast<int>(src_->statements.size());
@@ -935,7 +943,7 @@ class Reader {
     if (q && !assigned_.count(t_[a.first].u)) {
       for (int k = 0; k < 6; ++k) m.target.axes[static_cast<size_t>(k)] = (*q)[static_cast<size_t>(k)];
     } else {
-      m.target_problem = "'" + text(a) + "' is not a jointtarget declared with a constant value in this module";
+      m.target_problem = "'" + quoted(a) + "' is not a jointtarget declared with a constant value in this module";
     }
   }
 
@@ -1009,11 +1017,11 @@ class Reader {
       f.value = calib::XyzAbc{};
     } else if (single && params_.count(u) && !(local_.*table).count(u)) {
       f.source = FrameSetting::Source::kUnknown;
-      f.note = "the " + type + " '" + f.text + "' is a parameter of " + routine_ + ": its value comes from the call";
+      f.note = "the " + type + " '" + excerpt(f.text) + "' is a parameter of " + excerpt(routine_) + ": its value comes from the call";
       f.run_time = true;
     } else if (assigned != assigned_.end()) {
       f.source = FrameSetting::Source::kUnknown;
-      f.note = "the " + type + " '" + f.text + "' is assigned at " + assigned->second.str() + ": its value at run time is not the declared one";
+      f.note = "the " + type + " '" + excerpt(f.text) + "' is assigned at " + assigned->second.str() + ": its value at run time is not the declared one";
       f.run_time = true;
     } else if (const FrameVal* v = single ? lookup(table, u) : nullptr) {
       f.where = v->where;
@@ -1022,7 +1030,7 @@ class Reader {
       f.note = v->note;
     } else {
       f.source = FrameSetting::Source::kUnset;
-      f.note = "the " + type + " '" + f.text + "' is not declared with a value in this module (" + option + ")";
+      f.note = "the " + type + " '" + excerpt(f.text) + "' is not declared with a value in this module (" + option + ")";
     }
     return f;
   }
@@ -1092,6 +1100,9 @@ class Reader {
   std::set<std::string> routines_;  ///< the module's PROCs that move the robot (upper case)
   std::map<std::string, SourceLocation> displaced_;  ///< routines called with a displacement active: the call
   bool confl_ = true, confj_ = true;
+  /// Offs/RelTool nested in the target being read: at most kMaxOffsetNesting.
+  int offset_depth_ = 0;
+  static constexpr int kMaxOffsetNesting = 100;
 };
 
 }  // namespace
