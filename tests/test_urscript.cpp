@@ -1083,5 +1083,28 @@ TEST(UrScript, PosesNestedOrChainedBeyondABoundAreAnErrorNotACrash) {
             "bad.script:1002:9: expected a pose built of at most 1000 pose_trans/pose_add (through the variables it uses), found a deeper one");
 }
 
+// An empty .script (0 bytes, blanks, or comments only) was accepted, and compensate and convert
+// wrote an empty program with exit 0 (an empty .mod or .src is an error). It is an error at
+// 1:1; a script of statements without a motion is a program (read, 0 motions).
+TEST(UrScript, AScriptWithoutAStatementIsAnError) {
+  const std::string want = "bad.script:1:1: expected a URScript program (def name(): ... end, or its statements such as movel(...)), found an empty file";
+  EXPECT_EQ(errorOf(""), want);
+  EXPECT_EQ(errorOf(" \r\n\t\n\n"), want);
+  EXPECT_EQ(errorOf("# exported by PolyScope\n\n  # nothing else\n"), want + " (only comments and blank lines)");
+  const Program io = parseUrScript("set_digital_out(1, True)\n", "io.script");
+  EXPECT_EQ(io.motions.size(), 0u);
+  // the command line: exit 1, the error, nothing written
+  const std::string dir = test::tempDir("ur_empty");
+  test::writeText(dir + "/empty.script", "");
+  const test::CliRun c = test::runAccuraIn(dir, "convert --in empty.script --out out/empty.mod");
+  EXPECT_EQ(c.code, 1);
+  EXPECT_NE(c.err.find("empty.script:1:1: expected a URScript program"), std::string::npos) << c.err;
+  EXPECT_FALSE(std::filesystem::exists(dir + "/out/empty.mod"));
+  const test::CliRun k = test::runAccuraIn(dir, "compensate --robot ur10 --in empty.script --out comp");
+  EXPECT_EQ(k.code, 1);
+  EXPECT_NE(k.err.find("empty.script:1:1: expected a URScript program"), std::string::npos) << k.err;
+  EXPECT_FALSE(std::filesystem::exists(dir + "/comp/empty.script"));
+}
+
 }  // namespace
 }  // namespace accura::postproc

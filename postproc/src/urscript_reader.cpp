@@ -147,6 +147,13 @@ class Reader {
       statement(st, p);
       i = j;
     }
+    // a script without a statement (0 bytes, blanks, comments only) is no program: an empty
+    // output would be written without a word (a script of statements without a motion is one)
+    if (std::none_of(toks_.begin(), toks_.end(), [](const Tok& t) { return t.kind != Tok::Kind::kNewline; })) {
+      const bool comments = src_->text.find('#') != std::string::npos;
+      fail(0, std::string("expected a URScript program (def name(): ... end, or its statements such as movel(...)), found an empty file") +
+                  (comments ? " (only comments and blank lines)" : ""));
+    }
     if (!blocks_.empty())
       fail(src_->text.size(), "expected end closing the block at " + loc(blocks_.back().at).str() + ", found the end of the file");
     if (!main_name_.empty()) p.name = main_name_;
