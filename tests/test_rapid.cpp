@@ -1066,5 +1066,163 @@ TEST(Rapid, OffsNestedBeyondABoundIsAnErrorNotACrash) {
             "bad.mod:3:511: expected Offs/RelTool nested at most 100 deep, found deeper nesting");
 }
 
+// The same program with its data first, in one module: the reference the tests of the data's
+// scope compare with (targets of a perturbed IRB 120's compensation).
+const std::string kTool = "  PERS tooldata tWeld:=[TRUE,[[0,0,150],[1,0,0,0]],[1.2,[0,0,60],[1,0,0,0],0,0,0]];\n";
+const std::string kWobj = "  PERS wobjdata wTable:=[FALSE,TRUE,\"\",[[300,-150,100],[1,0,0,0]],[[0,0,0],[1,0,0,0]]];\n";
+const std::string kP10 = "  PERS robtarget p10:=[[40,60,120],[0,0,1,0],[-1,0,-1,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n";
+const std::string kP20 = "  PERS robtarget p20:=[[40,60,20],[0,0,1,0],[-1,0,-1,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n";
+const std::string kMain = "  PROC main()\n    ConfL\\Off;\n    MoveJ p10,v1000,z50,tWeld\\WObj:=wTable;\n    MoveL p20,v200,fine,tWeld\\WObj:=wTable;\n  ENDPROC\n";
+
+JobSettings perturbedIrb120() {
+  SimulateOptions so;
+  so.effects = {"geometric"};
+  so.set_station = false;
+  so.seed = 9;
+  return settingsFor(perturbModel(test::loadBundled("abb_irb120"), so));
+}
+
+/// The compensated targets of `text` (each motion's, in order); the compensation must succeed
+/// without leaving a motion unchanged.
+std::vector<Eigen::Isometry3d> compensatedTargets(const std::string& text, const std::string& name) {
+  const ProgramCompensation c = compensateProgramReport(parseRapid(text, name), perturbedIrb120());
+  EXPECT_TRUE(c.ok()) << name << ": " << (c.ok() ? std::string() : c.report.errors.front().message);
+  EXPECT_EQ(c.report.motions_left_unchanged, 0) << name << ": " << (c.report.warnings.empty() ? "" : c.report.warnings.front().message);
+  std::vector<Eigen::Isometry3d> out;
+  for (const Motion& m : c.program.motions)
+    if (m.target.completePose()) out.push_back(poseOf(m.target));
+  return out;
+}
+
+// A .prg whose main module comes first and whose data module (tooldata, wobjdata, robtargets,
+// all global) comes after it: the data were not found ("'p10' is not a robtarget declared
+// with a value in this module"), every motion left unchanged with exit 0, and convert to XML
+// wrote <ref name="p10"/>. The global data of a task are visible in every module whatever the
+// order: the corrections are those of the same program in one module, data first.
+TEST(Rapid, GlobalDataOfALaterModuleAreVisibleInEveryModule) {
+  const std::string head = "%%%\n  VERSION:1\n  LANGUAGE:ENGLISH\n%%%\n\n";
+  const std::string two = head + "MODULE mainmod\n" + kMain + "ENDMODULE\n\nMODULE datamod\n" + kTool + kWobj + kP10 + kP20 + "ENDMODULE\n";
+  const std::string one = head + "MODULE mainmod\n" + kTool + kWobj + kP10 + kP20 + kMain + "ENDMODULE\n";
+  const Program p = parseRapid(two, "r14_xmod.prg");
+  ASSERT_EQ(p.motions.size(), 2u);
+  for (const Motion& m : p.motions) {
+    EXPECT_EQ(m.target_problem, "");
+    ASSERT_TRUE(m.tool.value && m.base.value);
+    EXPECT_LT((toIsometry(*m.tool.value).translation() - Eigen::Vector3d(0, 0, 150)).norm(), 1e-12);
+    EXPECT_LT((toIsometry(*m.base.value).translation() - Eigen::Vector3d(300, -150, 100)).norm(), 1e-12);
+  }
+  EXPECT_LT((poseOf(p.motions[0].target).translation() - Eigen::Vector3d(40, 60, 120)).norm(), 1e-12);
+  const std::vector<Eigen::Isometry3d> a = compensatedTargets(two, "two.prg"), b = compensatedTargets(one, "one.prg");
+  ASSERT_EQ(a.size(), 2u);
+  ASSERT_EQ(b.size(), 2u);
+  for (size_t k = 0; k < 2; ++k) {
+    EXPECT_LT((a[k].translation() - b[k].translation()).norm(), 1e-9) << k;
+    EXPECT_LT((a[k].linear() - b[k].linear()).norm(), 1e-12) << k;
+    EXPECT_GT((a[k].translation() - poseOf(p.motions[k].target).translation()).norm(), 0.1) << k;  // corrected
+  }
+  // written into the data module's declarations
+  const ProgramCompensation c = compensateProgramReport(p, perturbedIrb120());
+  const std::string written = writeRapid(c.program);
+  EXPECT_EQ(written.find(kP10), std::string::npos);
+  EXPECT_NE(written.find("ENDMODULE\n\nMODULE datamod\n" + kTool + kWobj + "  PERS robtarget p10:=[["), std::string::npos) << written;
+  // convert to XML: the targets' values and the frames, not <ref name="p10"/>
+  const std::string dir = test::tempDir("rapid_xmod");
+  test::writeText(dir + "/r14_xmod.prg", two);
+  const test::CliRun x = test::runAccuraIn(dir, "convert --in r14_xmod.prg --out r14.xml");
+  ASSERT_EQ(x.code, 0) << x.err;
+  const std::string xml = test::readText(dir + "/r14.xml");
+  EXPECT_EQ(xml.find("<ref name="), std::string::npos) << xml;
+  EXPECT_NE(xml.find("<pose name=\"p10\" x_mm=\"40.0000\" y_mm=\"60.0000\" z_mm=\"120.0000\""), std::string::npos) << xml;
+  EXPECT_NE(xml.find("<tool source=\"inline\" x_mm=\"0.0000\" y_mm=\"0.0000\" z_mm=\"150.0000\""), std::string::npos) << xml;
+  EXPECT_NE(xml.find("<base source=\"inline\" x_mm=\"300.0000\" y_mm=\"-150.0000\" z_mm=\"100.0000\""), std::string::npos) << xml;
+}
+
+// Module data declared after the routines that use them (the tester's r15_toolafter.mod: the
+// tooldata and wobjdata after ENDPROC; r04_args.mod: a robtarget after ENDPROC) were "not
+// declared with a value in this module" (an error, or the motion left unchanged). A module's
+// data are visible to all its routines: the corrections are those of the data-first module.
+TEST(Rapid, ModuleDataDeclaredAfterTheRoutinesAreVisibleToThem) {
+  const std::string tool_after = "MODULE ToolAfter\n" + kP10 + kP20 + kMain + kTool + kWobj + "ENDMODULE\n";
+  const std::string all_after = "MODULE AllAfter\n" + kMain + kTool + kWobj + kP10 + kP20 + "ENDMODULE\n";
+  const std::string first = "MODULE First\n" + kTool + kWobj + kP10 + kP20 + kMain + "ENDMODULE\n";
+  const std::vector<Eigen::Isometry3d> want = compensatedTargets(first, "first.mod");
+  ASSERT_EQ(want.size(), 2u);
+  for (const std::string* text : {&tool_after, &all_after}) {
+    const std::vector<Eigen::Isometry3d> got = compensatedTargets(*text, "after.mod");
+    ASSERT_EQ(got.size(), 2u);
+    for (size_t k = 0; k < 2; ++k) EXPECT_LT((got[k].translation() - want[k].translation()).norm(), 1e-9) << *text << k;
+  }
+  const Program p = parseRapid(all_after, "after.mod");
+  EXPECT_EQ(p.motions[1].target.where.line, 10);  // p20's value, after ENDPROC (line 10)
+  // convert to XML: the tool is there
+  const std::string dir = test::tempDir("rapid_after");
+  test::writeText(dir + "/after.mod", tool_after);
+  const test::CliRun x = test::runAccuraIn(dir, "convert --in after.mod --out after.xml");
+  ASSERT_EQ(x.code, 0) << x.err;
+  EXPECT_NE(test::readText(dir + "/after.xml").find("<tool source=\"inline\" x_mm=\"0.0000\" y_mm=\"0.0000\" z_mm=\"150.0000\""), std::string::npos);
+}
+
+// The scope rules kept with the module data read first: LOCAL data are their module's only (a
+// LOCAL datum hides a global one of its name there), a routine's data are its own and hide the
+// module's (also a routine's datum of another type), and a name whose value accura reads
+// declared twice in one scope is an error naming both (the controller refuses it).
+TEST(Rapid, LocalAndRoutineDataKeepTheirScope) {
+  const std::string v1 = "[[40,60,120],[0,0,1,0],[-1,0,-1,0],[9E9,9E9,9E9,9E9,9E9,9E9]]";
+  const std::string v2 = "[[160,60,20],[0,0,1,0],[-1,0,-1,0],[9E9,9E9,9E9,9E9,9E9,9E9]]";
+  const std::string text =
+      "MODULE a\n"
+      "  PROC main()\n"
+      "    MoveJ p10,v1000,z50,tool0;\n"          // 0: a's LOCAL p10 (declared after)
+      "    MoveJ q,v1000,z50,tool0;\n"            // 1: b's LOCAL q: not visible here
+      "    MoveJ r,v1000,z50,tool0;\n"            // 2: b's global r
+      "    side;\n"
+      "  ENDPROC\n"
+      "  PROC side()\n"
+      "    VAR num p10 := 1;\n"
+      "    MoveJ p10,v1000,z50,tool0;\n"          // 3: side's num p10 hides the robtarget
+      "  ENDPROC\n"
+      "  LOCAL CONST robtarget p10 := " + v2 + ";\n"
+      "ENDMODULE\n"
+      "MODULE b\n"
+      "  PROC work()\n"
+      "    MoveJ p10,v1000,z50,tool0;\n"          // 4: b's global p10, not a's LOCAL one
+      "    MoveJ q,v1000,z50,tool0;\n"            // 5: b's LOCAL q
+      "  ENDPROC\n"
+      "  CONST robtarget p10 := " + v1 + ";\n"
+      "  LOCAL CONST robtarget q := " + v1 + ";\n"
+      "  CONST robtarget r := " + v2 + ";\n"
+      "ENDMODULE\n";
+  const Program p = parseRapid(text, "scope.prg");
+  ASSERT_EQ(p.motions.size(), 6u);
+  auto x = [&](size_t k) { return poseOf(p.motions[k].target).translation().x(); };
+  EXPECT_EQ(p.motions[0].target_problem, "");
+  EXPECT_EQ(x(0), 160);
+  EXPECT_EQ(p.motions[1].target_problem, "'q' is not a robtarget declared with a value in this module");
+  EXPECT_EQ(p.motions[2].target_problem, "");
+  EXPECT_EQ(x(2), 160);
+  EXPECT_EQ(p.motions[3].target_problem, "'p10' is not a robtarget declared with a value in this module");
+  EXPECT_EQ(p.motions[4].target_problem, "");
+  EXPECT_EQ(x(4), 40);
+  EXPECT_EQ(x(5), 40);
+  // a routine's robtarget hides the module's there only (r07_shadow.mod)
+  const Program sh = parseRapid("MODULE m\n  CONST robtarget p10 := " + v1 + ";\n  PROC main()\n    CONST robtarget p10 := " + v2 +
+                                    ";\n    MoveJ p10,v1000,z50,tool0;\n  ENDPROC\n  PROC other()\n    MoveJ p10,v1000,z50,tool0;\n  ENDPROC\nENDMODULE\n",
+                                "shadow.mod");
+  ASSERT_EQ(sh.motions.size(), 2u);
+  EXPECT_EQ(poseOf(sh.motions[0].target).translation().x(), 160);
+  EXPECT_EQ(poseOf(sh.motions[1].target).translation().x(), 40);
+  // two declarations of one name
+  EXPECT_EQ(errorOf("MODULE a\n  CONST robtarget p10 := " + v1 + ";\nENDMODULE\nMODULE b\n  PERS robtarget p10 := " + v2 + ";\nENDMODULE\n"),
+            "bad.mod:5:18: expected one declaration of 'p10' in the program's global data (its modules share the data that is not LOCAL), "
+            "found a second (the first at bad.mod:2:19)");
+  EXPECT_EQ(errorOf("MODULE a\n  CONST robtarget p10 := " + v1 + ";\n  PROC main()\n  ENDPROC\n  LOCAL CONST robtarget p10 := " + v2 + ";\nENDMODULE\n"),
+            "bad.mod:5:25: expected one declaration of 'p10' in the module, found a second (the first at bad.mod:2:19)");
+  EXPECT_EQ(errorOf("MODULE a\n  PROC main()\n    VAR tooldata t := [TRUE,[[0,0,1],[1,0,0,0]],[1,[0,0,1],[1,0,0,0],0,0,0]];\n"
+                    "    VAR tooldata t := [TRUE,[[0,0,2],[1,0,0,0]],[1,[0,0,1],[1,0,0,0],0,0,0]];\n  ENDPROC\nENDMODULE\n"),
+            "bad.mod:4:18: expected one declaration of 't' in the routine main, found a second (the first at bad.mod:3:18)");
+  // a LOCAL datum of one module and a global one of another: both fine (each module its own)
+  EXPECT_NO_THROW(parseRapid("MODULE a\n  LOCAL CONST robtarget p10 := " + v1 + ";\nENDMODULE\nMODULE b\n  CONST robtarget p10 := " + v2 + ";\nENDMODULE\n", "ok.prg"));
+}
+
 }  // namespace
 }  // namespace accura::postproc

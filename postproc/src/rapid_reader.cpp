@@ -35,13 +35,25 @@ struct FrameVal {
   SourceLocation where;
 };
 
+/// The data a scope declares: a routine's, a module's (its LOCAL data included) or the
+/// program's global data (every module's data that is not LOCAL: RAPID's task-global data,
+/// visible in every module of the task whatever the order).
 struct Scope {
+  /// Every name the scope declares, of any type (upper case -> where): the innermost scope that
+  /// declares a name is the one it refers to, also when it is not a datum accura reads (a
+  /// routine's `VAR num p10` hides the module's robtarget p10).
+  std::map<std::string, SourceLocation> names;
+  std::set<std::string> read_names;       ///< those of a datum of kReadTypes
   std::map<std::string, int> robtargets;  ///< upper-case name -> value
   std::map<std::string, FrameVal> tools, wobjs;
   std::map<std::string, std::array<double, 6>> joints;
   std::map<std::string, std::optional<double>> zones;   ///< zone radius (nullopt: fine)
   std::map<std::string, double> speeds;                 ///< v_tcp (mm/s)
 };
+
+/// The data types whose values accura reads (a second declaration of one of them in a scope is
+/// an error: the controller refuses the ambiguous name).
+const std::set<std::string> kReadTypes = {"ROBTARGET", "TOOLDATA", "WOBJDATA", "JOINTTARGET", "ZONEDATA", "SPEEDDATA"};
 
 const std::set<std::string> kBlockHeads = {"MODULE", "ENDMODULE", "PROC", "ENDPROC", "FUNC", "ENDFUNC", "TRAP", "ENDTRAP",
                                            "RECORD", "ENDRECORD", "IF", "ELSEIF", "ELSE", "ENDIF", "WHILE", "ENDWHILE", "FOR",
@@ -71,6 +83,7 @@ class Reader {
     split();
     scanAssignments();
     findDisplacedRoutines();
+    moduleData();
     Program p;
     p.source_file = src_->path;
     p.name = fs::path(src_->path).stem().string();
@@ -362,15 +375,54 @@ class Reader {
 
   void markModel(Range r) { model_[r.first] = r.second; }
 
+  /// The declaration keyword (CONST, PERS, VAR) of a statement starting at i, after LOCAL or
+  /// TASK; kNoHead when it is no declaration.
+  size_t declarationAt(size_t i) const {
+    size_t k = i;
+    if (isKw(t_, k, "LOCAL") || isKw(t_, k, "TASK")) ++k;
+    return isKw(t_, k, "CONST") || isKw(t_, k, "PERS") || isKw(t_, k, "VAR") ? k : kNoHead;
+  }
+
+  /// The module-level data of every module, read before any routine: a module's data are
+  /// visible to all its routines, and its global (not LOCAL) data to every module of the
+  /// program, whatever the order in which they are written (RAPID, "Scope of data"). A
+  /// routine's own data are read where they are, at its start (they are its only). Statements
+  /// outside a module are left to the reading in order, which names them.
+  void moduleData() {
+    bool open = false, in_routine = false;
+    for (const Range& r : stmts_) {
+      const size_t h = headAt(r.first);
+      const std::string& u = h != kNoHead ? t_[h].u : std::string();
+      if (u == "MODULE") {
+        ++module_index_;
+        modules_.resize(static_cast<size_t>(module_index_) + 1);
+        open = true;
+      } else if (u == "ENDMODULE") {
+        open = false;
+      } else if (routineNameAt(r) != kNoHead) {
+        in_routine = true;
+      } else if (u == "ENDPROC" || u == "ENDFUNC" || u == "ENDTRAP") {
+        in_routine = false;
+      } else if (h == kNoHead && open && !in_routine) {
+        const size_t k = declarationAt(r.first);
+        if (k == kNoHead) continue;
+        declaration(r, k);
+        module_data_.insert(r.first);
+      }
+    }
+    module_index_ = -1;  // (the reading in order counts the modules again)
+  }
+
   void statement(Range r, Program& p) {
     const std::vector<Tok>& t = t_;
     const size_t i = r.first;
     const std::string& u = t[i].u;
     if (headAt(i) != kNoHead) return block(r, p);
     if (!module_open_) fail(t[i].b, "expected MODULE before the first statement, found '" + excerpt(t[i].s) + "'");
-    size_t k = i;
-    if (isKw(t, k, "LOCAL") || isKw(t, k, "TASK")) ++k;
-    if (isKw(t, k, "CONST") || isKw(t, k, "PERS") || isKw(t, k, "VAR")) return declaration(r, k, p);
+    if (const size_t k = declarationAt(i); k != kNoHead) {
+      if (!module_data_.count(i)) declaration(r, k);  // (a routine's data; the modules' are read first)
+      return;
+    }
     if ((u == "CONFL" || u == "CONFJ") && r.second - i == 4 && isOp(t, i + 1, "\\") && (isKw(t, i + 2, "ON") || isKw(t, i + 2, "OFF"))) {
       (u == "CONFL" ? confl_ : confj_) = t[i + 2].u == "ON";
       return markModel(r);
@@ -423,6 +475,7 @@ class Reader {
       if (module_open_) fail(t_[r.first].b, "expected ENDMODULE of the module " + excerpt(module_name_) + " before the next MODULE, found MODULE");
       if (r.second - r.first < 2 || t_[r.first + 1].kind != Tok::Kind::kIdent) fail(t_[r.first].e, "expected the module name after MODULE, found " + found(r.first + 1, r.second));
       module_seen_ = module_open_ = true;
+      ++module_index_;
       if (module_name_.empty()) module_name_ = t_[r.first + 1].s;  // the program's name: its first module's
       return markModel(r);
     }
@@ -604,15 +657,43 @@ class Reader {
     return f;
   }
 
-  Scope& scope() { return routine_.empty() ? module_ : local_; }
+  /// The scopes a declaration at r (its type at k + 1, its name at k + 2) goes into: the
+  /// routine's, or the module's and, unless LOCAL, the program's global data. A second
+  /// declaration of a name whose value accura reads in one scope is an error naming the first
+  /// (the controller refuses the ambiguous name; which one accura took would be a guess).
+  std::vector<Scope*> declare(Range r, size_t k, size_t name) {
+    std::vector<Scope*> into;
+    into.push_back(routine_.empty() ? &modules_.at(static_cast<size_t>(module_index_)) : &local_);
+    if (routine_.empty() && !isKw(t_, r.first, "LOCAL")) into.push_back(&global_);
+    const std::string& u = t_[name].u;
+    const bool read_type = kReadTypes.count(t_[k + 1].u) > 0;
+    for (Scope* s : into) {
+      const auto it = s->names.find(u);
+      if (it == s->names.end()) {
+        s->names[u] = loc(t_[name].b);
+        if (read_type) s->read_names.insert(u);
+        continue;
+      }
+      if (read_type && s->read_names.count(u))
+        fail(t_[name].b, "expected one declaration of '" + excerpt(t_[name].s) + "' in " +
+                             (s == &global_ ? "the program's global data (its modules share the data that is not LOCAL)"
+                              : s == &local_ ? "the routine " + excerpt(routine_)
+                                             : std::string("the module")) +
+                             ", found a second (the first at " + it->second.str() + ")");
+    }
+    return into;
+  }
 
-  void declaration(Range r, size_t k, Program& p) {
-    (void)p;
+  void declaration(Range r, size_t k) {
     const std::vector<Tok>& t = t_;
     const size_t type = k + 1, name = k + 2;
-    if (name >= r.second || t[type].kind != Tok::Kind::kIdent || t[name].kind != Tok::Kind::kIdent) return;  // arrays etc.: pass-through
+    if (name >= r.second || t[type].kind != Tok::Kind::kIdent || t[name].kind != Tok::Kind::kIdent) return;  // pass-through
+    // the name is the scope's (an array, a datum without a value or of another type too: it
+    // hides a datum of its name declared further out)
+    const std::vector<Scope*> into = declare(r, k, name);
     const std::string& ty = t[type].u;
     const std::string& nm = t[name].s;
+    const std::string& u = t[name].u;
     if (!isOp(t, name + 1, ":=")) return;  // no initial value (VAR robtarget p;): an unknown value
     const Range val{name + 2, r.second - 1};
     if (val.first >= val.second) fail(t[name + 1].e, "expected a value after ':=', found ';'");
@@ -628,15 +709,17 @@ class Reader {
       src_->decls.push_back(d);
       const int id = robtargetValue(val, static_cast<int>(src_->decls.size()) - 1);
       src_->decls.back().value = id;
-      scope().robtargets[t[name].u] = id;
+      for (Scope* s : into) s->robtargets[u] = id;
       return markModel(r);
     }
     if (ty == "TOOLDATA" && isOp(t, val.first, "[")) {
-      scope().tools[t[name].u] = toolValue(val, excerpt(nm));
+      const FrameVal f = toolValue(val, excerpt(nm));
+      for (Scope* s : into) s->tools[u] = f;
       return markModel(r);
     }
     if (ty == "WOBJDATA" && isOp(t, val.first, "[")) {
-      scope().wobjs[t[name].u] = wobjValue(val, excerpt(nm));
+      const FrameVal f = wobjValue(val, excerpt(nm));
+      for (Scope* s : into) s->wobjs[u] = f;
       return markModel(r);
     }
     if (ty == "JOINTTARGET" && isOp(t, val.first, "[")) {
@@ -645,32 +728,42 @@ class Reader {
       double v[6], e[6];
       numbers(parts[0], 6, "robot axes [rax_1,..,rax_6] (deg)", s, v);
       numbers(parts[1], 6, "external axes [eax_a,..,eax_f]", s, e);
-      scope().joints[t[name].u] = {v[0], v[1], v[2], v[3], v[4], v[5]};
+      for (Scope* sc : into) sc->joints[u] = {v[0], v[1], v[2], v[3], v[4], v[5]};
       return;  // a MoveAbsJ target: pass-through data (never changed)
     }
     if (ty == "ZONEDATA" && isOp(t, val.first, "[")) {
       const auto parts = bracketItems(val, 7, "a zonedata [finep, pzone_tcp, pzone_ori, pzone_eax, zone_ori, zone_leax, zone_reax]");
       const std::optional<double> z = number(t, parts[1]);
       if (!z || *z < 0) shape(parts[1].first, "pzone_tcp >= 0 (mm) in zonedata " + excerpt(nm), text(parts[1]));
-      scope().zones[t[name].u] = boolean(parts[0], "finep of zonedata " + excerpt(nm)) ? std::nullopt : std::optional<double>(*z);
+      const std::optional<double> radius = boolean(parts[0], "finep of zonedata " + excerpt(nm)) ? std::nullopt : std::optional<double>(*z);
+      for (Scope* s : into) s->zones[u] = radius;
       return;
     }
     if (ty == "SPEEDDATA" && isOp(t, val.first, "[")) {
       const auto parts = bracketItems(val, 4, "a speeddata [v_tcp, v_ori, v_leax, v_reax]");
       const std::optional<double> v = number(t, parts[0]);
       if (!v || *v <= 0) shape(parts[0].first, "v_tcp > 0 (mm/s) in speeddata " + excerpt(nm), text(parts[0]));
-      scope().speeds[t[name].u] = *v;
+      for (Scope* s : into) s->speeds[u] = *v;
     }
   }
 
+  /// The innermost scope that declares `u` (upper case) where the text being read is: the
+  /// routine's data, its module's (LOCAL included), the program's global data; nullptr: none.
+  const Scope* declaring(const std::string& u) const {
+    if (!routine_.empty() && local_.names.count(u)) return &local_;
+    if (module_index_ >= 0 && static_cast<size_t>(module_index_) < modules_.size() && modules_[static_cast<size_t>(module_index_)].names.count(u))
+      return &modules_[static_cast<size_t>(module_index_)];
+    return global_.names.count(u) ? &global_ : nullptr;
+  }
+
+  /// The value of the datum `u` (upper case) of a type (`m`) that the text being read refers
+  /// to; nullptr when the name it refers to is no such datum with a value.
   template <class T>
   const T* lookup(const std::map<std::string, T> Scope::*m, const std::string& u) const {
-    if (!routine_.empty()) {
-      const auto it = (local_.*m).find(u);
-      if (it != (local_.*m).end()) return &it->second;
-    }
-    const auto it = (module_.*m).find(u);
-    return it == (module_.*m).end() ? nullptr : &it->second;
+    const Scope* s = declaring(u);
+    if (!s) return nullptr;
+    const auto it = (s->*m).find(u);
+    return it == (s->*m).end() ? nullptr : &it->second;
   }
 
   // --- target expressions
@@ -684,7 +777,7 @@ class Reader {
     if (isOp(t_, r.first, "[")) return valueTarget(robtargetValue(r, -1));
     if (r.second == r.first + 1 && t_[r.first].kind == Tok::Kind::kIdent) {
       const std::string& u = t_[r.first].u;
-      if (params_.count(u) && !local_.robtargets.count(u)) {
+      if (params_.count(u) && !local_.names.count(u)) {
         tv.problem = "'" + excerpt(t_[r.first].s) + "' is a parameter of " + excerpt(routine_) + ": its value comes from the call";
         return tv;
       }
@@ -1015,7 +1108,7 @@ class Reader {
     if (single && u == builtin) {
       f.source = FrameSetting::Source::kNull;
       f.value = calib::XyzAbc{};
-    } else if (single && params_.count(u) && !(local_.*table).count(u)) {
+    } else if (single && params_.count(u) && !local_.names.count(u)) {
       f.source = FrameSetting::Source::kUnknown;
       f.note = "the " + type + " '" + excerpt(f.text) + "' is a parameter of " + excerpt(routine_) + ": its value comes from the call";
       f.run_time = true;
@@ -1092,7 +1185,10 @@ class Reader {
   std::vector<std::array<std::optional<double>, 6>> ext_;  ///< external axes of each value (9E9: none)
   std::map<size_t, size_t> model_;  ///< the statements of the motion model (markModel): first token -> end
   std::vector<int> motion_lines_;
-  Scope module_, local_;
+  std::vector<Scope> modules_;  ///< each module's data (moduleData), by module_index_
+  Scope global_, local_;        ///< the program's global data; the current routine's
+  int module_index_ = -1;       ///< the module being read (its MODULE's count - 1)
+  std::set<size_t> module_data_;  ///< first tokens of the module-level declarations (read first)
   std::string module_name_, routine_, routine_kind_, main_routine_;
   Range routine_line_{0, 0};
   bool module_seen_ = false, module_open_ = false, other_routine_motion_ = false;
