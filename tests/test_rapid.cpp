@@ -1224,5 +1224,32 @@ TEST(Rapid, LocalAndRoutineDataKeepTheirScope) {
   EXPECT_NO_THROW(parseRapid("MODULE a\n  LOCAL CONST robtarget p10 := " + v1 + ";\nENDMODULE\nMODULE b\n  CONST robtarget p10 := " + v2 + ";\nENDMODULE\n", "ok.prg"));
 }
 
+// A convert of a module whose tooldata is not declared in it (nor in another module of the
+// file: a system module's) wrote an XML without tool, without a word (the tester's
+// r15_toolafter.mod before its tool was found). Refused naming the motion and the tooldata;
+// compensate still names the option that supplies it.
+TEST(Rapid, ConvertRefusesAMotionWhoseToolOrWorkObjectIsNotDeclared) {
+  const std::string dir = test::tempDir("rapid_notool");
+  test::writeText(dir + "/notool.mod", "MODULE m\n" + kWobj + kP10 + "  PROC main()\n    MoveJ p10,v1000,z50,tSys\\WObj:=wTable;\n  ENDPROC\nENDMODULE\n");
+  for (const char* out : {"notool.xml", "notool.src", "notool.script"}) {
+    const test::CliRun c = test::runAccuraIn(dir, std::string("convert --in notool.mod --out ") + out);
+    EXPECT_EQ(c.code, 1) << out;
+    EXPECT_NE(c.err.find("notool.mod:5:5: cannot convert 'MoveJ p10,v1000,z50,tSys\\WObj:=wTable;': the tooldata 'tSys' is not declared with a "
+                         "value in the program (a system module's?), so the converted motion would have no tool"),
+              std::string::npos)
+        << c.err;
+    EXPECT_FALSE(std::filesystem::exists(dir + "/" + out));
+  }
+  test::writeText(dir + "/nowobj.mod", "MODULE m\n" + kTool + kP10 + "  PROC main()\n    MoveJ p10,v1000,z50,tWeld\\WObj:=wSys;\n  ENDPROC\nENDMODULE\n");
+  const test::CliRun w = test::runAccuraIn(dir, "convert --in nowobj.mod --out nowobj.xml");
+  EXPECT_EQ(w.code, 1);
+  EXPECT_NE(w.err.find("nowobj.mod:5:5: cannot convert 'MoveJ p10,v1000,z50,tWeld\\WObj:=wSys;': the wobjdata 'wSys' is not declared"), std::string::npos)
+      << w.err;
+  // the same module into RAPID: as it is
+  const test::CliRun r = test::runAccuraIn(dir, "convert --in notool.mod --out same.mod");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(test::readText(dir + "/same.mod"), test::readText(dir + "/notool.mod"));
+}
+
 }  // namespace
 }  // namespace accura::postproc

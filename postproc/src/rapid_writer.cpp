@@ -6,8 +6,10 @@
 #include <filesystem>
 #include <map>
 #include <sstream>
+#include <tuple>
 
 #include "accura/calib/errors.h"
+#include "excerpt.h"
 #include "rapid_internal.h"
 
 namespace accura::postproc {
@@ -359,6 +361,15 @@ std::string writeRapid(const Program& program) {
 Program rapidForConversion(const Program& program) {
   Program out = program;
   if (!program.rapid) return out;
+  // a tooldata or wobjdata the module names but does not declare (a system module's): the other
+  // format's motion would have no tool or base, which no one would notice (compensate names the
+  // option that supplies it)
+  for (const Motion& m : program.motions)
+    for (const auto& [f, what, type] : {std::make_tuple(&m.tool, "tool", "tooldata"), std::make_tuple(&m.base, "work object", "wobjdata")})
+      if (f->source == FrameSetting::Source::kUnset && !f->text.empty())
+        throw calib::ArgumentError(m.where.str() + ": cannot convert '" + detail::excerpt(m.statement) + "': the " + type + " '" +
+                                   detail::excerpt(f->text) + "' is not declared with a value in the program (a system module's?), so the " +
+                                   "converted motion would have no " + what + ": declare it in the module, or convert the .prg that holds its module");
   std::vector<std::pair<size_t, size_t>> spans;
   for (const Motion& m : out.motions) {
     const RapidSource::Statement& st = program.rapid->statements.at(static_cast<size_t>(m.statement_id));
