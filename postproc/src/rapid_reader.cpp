@@ -25,6 +25,7 @@ struct TargetVal {
   std::array<int, 4> conf{};
   std::array<std::optional<double>, 6> ext;
   int value = -1;        ///< the robtarget value it is (-1: an expression)
+  int reads = -1;        ///< an Offs/RelTool expression: the robtarget value it is built on
   std::string problem;
 };
 
@@ -55,6 +56,8 @@ struct Scope {
 /// an error: the controller refuses the ambiguous name).
 const std::set<std::string> kReadTypes = {"ROBTARGET", "TOOLDATA", "WOBJDATA", "JOINTTARGET", "ZONEDATA", "SPEEDDATA"};
 
+/// Block headers whose condition or expression may read data.
+const std::set<std::string> kConditionHeads = {"IF", "ELSEIF", "WHILE", "FOR", "TEST", "CASE"};
 const std::set<std::string> kBlockHeads = {"MODULE", "ENDMODULE", "PROC", "ENDPROC", "FUNC", "ENDFUNC", "TRAP", "ENDTRAP",
                                            "RECORD", "ENDRECORD", "IF", "ELSEIF", "ELSE", "ENDIF", "WHILE", "ENDWHILE", "FOR",
                                            "ENDFOR", "TEST", "CASE", "DEFAULT", "ENDTEST", "ERROR", "BACKWARD", "UNDO"};
@@ -375,6 +378,23 @@ class Reader {
 
   void markModel(Range r) { model_[r.first] = r.second; }
 
+  /// The robtargets the tokens `r` of statement `st` read (a name that refers to a declared
+  /// robtarget where it stands: not a field or an optional argument's name, not a routine's
+  /// parameter): the first such place of each is its declaration's read_elsewhere.
+  void noteReads(Range r, Range st) {
+    for (size_t k = r.first; k < r.second; ++k) {
+      if (t_[k].kind != Tok::Kind::kIdent || (k > 0 && (isOp(t_, k - 1, ".") || isOp(t_, k - 1, "\\")))) continue;
+      const std::string& u = t_[k].u;
+      if (params_.count(u) && !local_.names.count(u)) continue;  // (the call's value)
+      const int* id = lookup(&Scope::robtargets, u);
+      if (!id || *id < 0) continue;
+      const int d = src_->values[static_cast<size_t>(*id)].decl;
+      if (d < 0 || !src_->decls[static_cast<size_t>(d)].read_elsewhere.empty()) continue;
+      src_->decls[static_cast<size_t>(d)].read_elsewhere = loc(t_[k].b).str() + " ('" + quoted(st) + "')";
+    }
+  }
+  void noteReads(Range r) { noteReads(r, r); }
+
   /// The declaration keyword (CONST, PERS, VAR) of a statement starting at i, after LOCAL or
   /// TASK; kNoHead when it is no declaration.
   size_t declarationAt(size_t i) const {
@@ -417,10 +437,14 @@ class Reader {
     const std::vector<Tok>& t = t_;
     const size_t i = r.first;
     const std::string& u = t[i].u;
-    if (headAt(i) != kNoHead) return block(r, p);
+    if (const size_t h = headAt(i); h != kNoHead) {
+      if (kConditionHeads.count(t[h].u)) noteReads(r);  // (IF p20.trans.z > 0 THEN)
+      return block(r, p);
+    }
     if (!module_open_) fail(t[i].b, "expected MODULE before the first statement, found '" + excerpt(t[i].s) + "'");
     if (const size_t k = declarationAt(i); k != kNoHead) {
       if (!module_data_.count(i)) declaration(r, k);  // (a routine's data; the modules' are read first)
+      if (k + 2 < r.second) noteReads({k + 3, r.second}, r);  // its value (CONST robtarget p30 := p20;)
       return;
     }
     if ((u == "CONFL" || u == "CONFJ") && r.second - i == 4 && isOp(t, i + 1, "\\") && (isKw(t, i + 2, "ON") || isKw(t, i + 2, "OFF"))) {
@@ -433,7 +457,18 @@ class Reader {
     if (u == "EOFFSON" || u == "EOFFSSET") eoffs_ = loc(t[i].b), eoffs_name_ = t[i].s;
     if (u == "EOFFSOFF") eoffs_.reset();
     if (u == "MOVEL" || u == "MOVEJ" || u == "MOVEC" || u == "MOVEABSJ") return move(r, p);
-    if (t[i].kind == Tok::Kind::kIdent && kOtherMoves.count(u)) return otherMove(r, p);
+    if (t[i].kind == Tok::Kind::kIdent && kOtherMoves.count(u)) {
+      noteReads(r);  // (its target is kept as written)
+      return otherMove(r, p);
+    }
+    // an assignment reads its right-hand side (its left one is a run-time value: scanAssignments)
+    size_t from = i;
+    for (size_t k = i; k < r.second; ++k)
+      if (isOp(t, k, ":=")) {
+        from = k + 1;
+        break;
+      }
+    noteReads({from, r.second}, r);
     // a call of one of the module's routines that move the robot, a late-bound call
     // (%"name"%, CallByVar), a jump or a label (reached from a GOTO)
     if ((t[i].kind == Tok::Kind::kIdent && (routines_.count(u) || u == "GOTO" || u == "CALLBYVAR")) || isOp(t, i, "%") ||
@@ -853,6 +888,7 @@ class Reader {
     }
     tv = base;
     tv.value = -1;
+    tv.reads = base.value >= 0 ? base.value : base.reads;
     if (reltool) {
       Eigen::Isometry3d D = Eigen::Isometry3d::Identity();
       D.translation() = Eigen::Vector3d(d[0], d[1], d[2]);
@@ -952,10 +988,21 @@ class Reader {
                          "): the robot goes to the displaced target, which accura does not model";
     if (eoffs_ && m.target_problem.empty())
       m.target_problem = "an external axes offset is active (" + eoffs_name_ + " at " + eoffs_->str() + "), which accura does not model";
+    // what the move reads besides its plain targets (Offs of a run-time value, a \WObj, ...)
+    std::vector<Range> targets;
+    if (u != "MOVEABSJ") targets.push_back(pos[0].main);
+    if (u == "MOVEC") targets.push_back(pos[1].main);
+    size_t from = r.first + 1;
+    for (const Range& a : targets) {
+      noteReads({from, a.first}, r);
+      from = a.second;
+    }
+    noteReads({from, r.second}, r);
     if (u == "MOVEABSJ") {
       jointTarget(pos[0].main, m);
       st.targets.push_back({t_[pos[0].main.first].b, t_[pos[0].main.second - 1].e});
       st.target_value.push_back(-1);
+      st.target_reads.push_back(-1);
     } else {
       auto cart = [&](Range a) {
         const TargetVal v = target(a);
@@ -974,6 +1021,9 @@ class Reader {
         }
         st.targets.push_back({t_[a.first].b, t_[a.second - 1].e});
         st.target_value.push_back(v.problem.empty() ? v.value : -1);
+        st.target_reads.push_back(v.problem.empty() ? v.reads : -1);
+        // a target the motion keeps as written (an Offs of a run-time value) reads its points
+        if (!v.problem.empty() && !(a.second == a.first + 1)) noteReads(a, r);
         return tg;
       };
       if (u == "MOVEC") m.aux = cart(pos[0].main);

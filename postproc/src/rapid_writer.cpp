@@ -89,9 +89,11 @@ std::string lineEnd(const RapidSource& s, const std::string& eol) {
 /// Edits of one motion's targets (not inserted). `movej_conf`: per robtarget value, the confdata
 /// a MoveJ to it was compensated on (ConfJ\On needs it exactly; a MoveL/MoveC keeps what is
 /// written and ConfL\On accepts axes 1, 4, 6 within one quadrant): a value shared by both is
-/// written with the MoveJ's.
+/// written with the MoveJ's. `new_points`: the new declarations written so far (name -> value,
+/// the motion), each written once.
 void targetEdits(const Program& p, const Motion& m, std::map<int, std::pair<std::string, std::string>>& values,
-                 const std::map<int, std::array<int, 4>>& movej_conf, std::vector<Edit>& edits, int& order) {
+                 std::map<std::string, std::pair<std::string, std::string>>& new_points, const std::map<int, std::array<int, 4>>& movej_conf,
+                 std::vector<Edit>& edits, int& order) {
   const RapidSource& s = *p.rapid;
   const RapidSource::Statement& st = s.statements[static_cast<size_t>(m.statement_id)];
   std::vector<const Target*> ts;
@@ -105,11 +107,25 @@ void targetEdits(const Program& p, const Motion& m, std::map<int, std::pair<std:
     const double unit[4] = {1, 0, 0, 0};
     if (t.new_declaration) {
       const bool declared = v && v->decl >= 0 && !t.name.empty();
-      const std::string value = robtargetText(t, v ? v->v + 3 : unit, unusedAxisText(s.text));
+      // (a MoveJ and a MoveL to the new point: the MoveJ's confdata, as for a declared one)
+      Target shared = t;
+      const auto mj = movej_conf.find(vid);
+      if (m.type != MotionType::kPtp && mj != movej_conf.end() && t.abb_conf && vid >= 0) shared.abb_conf = mj->second;
+      const std::string value = robtargetText(declared ? shared : t, v ? v->v + 3 : unit, unusedAxisText(s.text));
       if (!declared) {
         edits.push_back({st.targets[k].first, st.targets[k].second, value, order++});
         continue;
       }
+      // a new point several motions go to (Job::copyRapidPointsReadElsewhere) is declared once
+      const auto seen = new_points.find(t.name);
+      if (seen != new_points.end()) {
+        if (seen->second.first != value)
+          throw calib::ArgumentError(m.where.str() + ": " + t.name + " (for " + t.replaces + ") needs a different correction here than at " +
+                                     seen->second.second + " (the same robtarget with another tool, work object or path): give the motions their own robtargets");
+        edits.push_back({st.targets[k].first, st.targets[k].second, t.name, order++});
+        continue;
+      }
+      new_points[t.name] = {value, m.where.str()};
       const RapidSource::Decl& d = s.decls[static_cast<size_t>(v->decl)];
       const std::string eol = d.line_end > 1 && s.text[d.line_end - 2] == '\r' ? "\r\n" : "\n";
       std::string line = d.indent + d.head + t.name + " := " + value + ";" + eol;
@@ -142,6 +158,7 @@ std::string patch(const Program& p) {
   int order = 0;
   std::vector<Edit> edits;
   std::map<int, std::pair<std::string, std::string>> values;
+  std::map<std::string, std::pair<std::string, std::string>> new_points;  // a new declaration's name -> its value, the motion
   std::map<int, std::array<int, 4>> movej_conf;
   for (const Motion& m : p.motions) {
     if (m.inserted || m.type != MotionType::kPtp || m.target.kind != Target::Kind::kCartesian || !m.target.modified ||
@@ -158,7 +175,7 @@ std::string patch(const Program& p) {
     // a move with a time \T split into pieces: each piece its share of the time
     const std::string duration = pieceDurationText(p, i, st.duration_s);
     if (!m.inserted) {
-      targetEdits(p, m, values, movej_conf, edits, order);
+      targetEdits(p, m, values, new_points, movej_conf, edits, order);
       if (!duration.empty()) edits.push_back({st.duration_text.first, st.duration_text.second, duration, order++});
       continue;
     }
