@@ -977,6 +977,9 @@ class Reader {
       if (time_s) {
         st.duration_text = {t_[it->second.first].b, t_[it->second.second - 1].e};
         st.duration_s = *time_s;
+        m.duration_s = *time_s;
+      } else {
+        m.duration_expr = it->second.first < it->second.second ? text(it->second) : std::string("\\T");
       }
     }
     zone(pos[n - 2].main, opt, m);

@@ -334,8 +334,9 @@ class Generator {
     return known == value ? t.name : value;
   }
 
-  void motion(const Motion& m, size_t) {
+  void motion(const Motion& m, size_t index) {
     if (m.relative) refuse(m, "a relative motion (RAPID has Offs/RelTool of a known point instead)");
+    if (!m.duration_expr.empty()) refuse(m, "its time (" + detail::excerpt(m.duration_expr) + ") is computed at run time in its own language");
     if (m.type == MotionType::kSpl) refuse(m, "RAPID has no spline motion");
     if (m.circ_angle_deg) refuse(m, "MoveC has no circular angle (CA)");
     if (m.external_tcp) refuse(m, "a stationary tool is not converted");
@@ -355,7 +356,14 @@ class Generator {
       if (m.aux) s += target(m, *m.aux) + ", ";
       s += target(m, m.target);
     }
-    s += ", " + speedText(m) + ", " + zoneText(m) + ", " + tool + (wobj == "wobj0" ? "" : "\\WObj:=" + wobj) + ";\n";
+    // the move's time (\T:=, s): the controller makes it take that long; a piece of a split
+    // motion its share
+    std::string time;
+    if (m.duration_s) {
+      const std::string piece = pieceDurationText(p_, index, *m.duration_s);
+      time = "\\T:=" + (piece.empty() ? calib::formatFixed(*m.duration_s, 4) : piece);
+    }
+    s += ", " + speedText(m) + time + ", " + zoneText(m) + ", " + tool + (wobj == "wobj0" ? "" : "\\WObj:=" + wobj) + ";\n";
     body_.push_back(s);
   }
 

@@ -775,6 +775,9 @@ class Reader {
       const std::pair<size_t, size_t> r = arg.at("t");
       st.duration_text = {t[r.first].b, t[r.second - 1].e};
       st.duration_s = *time_s;
+      m.duration_s = *time_s;
+    } else if (!time_s && arg.count("t")) {
+      m.duration_expr = textOf(t, arg.at("t").first, arg.at("t").second);  // (t=tm: the controller's)
     }
     if (f == "movej") {
       number_arg("v", 0, 1e3, "a joint speed in [0, 1000] rad/s");
