@@ -419,4 +419,165 @@ TEST(Convert, AStatementBesideAMotionOnItsLineIsNotLost) {
   }
 }
 
+namespace {
+
+// A move's programmed time (URScript movel's t, RAPID's \T:=) was dropped by a conversion
+// without a word: the converted move ran at its speed instead of taking the time. It is
+// carried where the language can say it (RAPID \T:=, URScript t=, XML time_s), a split move's
+// pieces each with their share; where it cannot (KRL), the conversion is refused naming the
+// motion, or --drop-unconvertible converts without it and lists it.
+const char* kTimedScript =
+    "def timed():\n"
+    "  set_tcp(p[0,0,0.15,0,0,0])\n"
+    "  movej([-1.5707963, -1.5707963, 1.5707963, -1.5707963, -1.5707963, 0.0], a=1.4, v=1.05)\n"
+    "  movel(p[-0.35, 0.7, 0.2, 3.1415927, 0, 0], a=1.2, v=0.25, t=4)\n"
+    "end\n";
+const char* kTimedModule =
+    "MODULE TimeMod\n"
+    "  PERS tooldata tWeld:=[TRUE,[[0,0,150],[1,0,0,0]],[1.2,[0,0,60],[1,0,0,0],0,0,0]];\n"
+    "  CONST robtarget p10:=[[340,-90,120],[0,0,1,0],[-1,0,-1,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
+    "  CONST robtarget p20:=[[340,-90,20],[0,0,1,0],[-1,0,-1,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
+    "  PROC main()\n"
+    "    MoveJ p10,v1000,fine,tWeld;\n"
+    "    MoveL p20,v200\\T:=4,fine,tWeld;\n"
+    "  ENDPROC\n"
+    "ENDMODULE\n";
+
+TEST(Convert, AMovesTimeIsCarriedOrTheConversionRefusedNamingIt) {
+  const std::string dir = test::tempDir("convert_time");
+  test::writeText(dir + "/u07.script", kTimedScript);
+  test::writeText(dir + "/r18.mod", kTimedModule);
+  // URScript -> RAPID: \T:=; read back, the move takes 4 s
+  ASSERT_EQ(test::runAccuraIn(dir, "convert --in u07.script --out u07.mod").code, 0);
+  const Program m = readProgram(dir + "/u07.mod");
+  ASSERT_EQ(m.motions.size(), 2u);
+  EXPECT_FALSE(m.motions[0].duration_s.has_value());
+  ASSERT_TRUE(m.motions[1].duration_s.has_value());
+  EXPECT_EQ(*m.motions[1].duration_s, 4.0);
+  EXPECT_EQ(m.rapid->statements[1].duration_s, 4.0);
+  EXPECT_NE(test::readText(dir + "/u07.mod").find("[250.0000,500,5000,1000]\\T:=4.0000, fine, accura_tool1;"), std::string::npos);
+  // RAPID -> URScript: t=; read back, 4 s
+  ASSERT_EQ(test::runAccuraIn(dir, "convert --in r18.mod --out r18.script").code, 0);
+  EXPECT_NE(test::readText(dir + "/r18.script").find("  movel(p20, v=0.2000, t=4.0000)\n"), std::string::npos);
+  const Program u = readProgram(dir + "/r18.script");
+  ASSERT_EQ(u.motions.size(), 2u);
+  EXPECT_EQ(u.motions[1].duration_s.value_or(0), 4.0);
+  // through XML (time_s) and back: byte for byte; the same language: byte for byte
+  for (const std::string& f : {std::string("u07.script"), std::string("r18.mod")}) {
+    const std::string stem = f.substr(0, f.find('.'));
+    ASSERT_EQ(test::runAccuraIn(dir, "convert --in " + f + " --out " + stem + ".xml").code, 0);
+    EXPECT_NE(test::readText(dir + "/" + stem + ".xml").find("source_line=\"" + std::string(stem == "u07" ? "4" : "7") + "\" time_s=\"4.0000\">"),
+              std::string::npos)
+        << test::readText(dir + "/" + stem + ".xml");
+    EXPECT_EQ(readProgram(dir + "/" + stem + ".xml").motions[1].duration_s.value_or(0), 4.0);
+    ASSERT_EQ(test::runAccuraIn(dir, "convert --in " + stem + ".xml --out back_" + f).code, 0);
+    EXPECT_EQ(test::readText(dir + "/back_" + f), test::readText(dir + "/" + f));
+    ASSERT_EQ(test::runAccuraIn(dir, "convert --in " + f + " --out same_" + f).code, 0);
+    EXPECT_EQ(test::readText(dir + "/same_" + f), test::readText(dir + "/" + f));
+  }
+  // -> KRL: refused naming the motion, nothing written
+  const test::CliRun k = test::runAccuraIn(dir, "convert --in r18.mod --out r18.src");
+  EXPECT_EQ(k.code, 1);
+  EXPECT_NE(k.err.find("r18.mod:7:5: cannot convert 'MoveL p20,v200\\T:=4,fine,tWeld;' to KRL: its time 4.0000 s cannot be carried, KRL has no "
+                       "per-motion time"),
+            std::string::npos)
+      << k.err;
+  EXPECT_FALSE(std::filesystem::exists(dir + "/r18.src"));
+  const test::CliRun ku = test::runAccuraIn(dir, "convert --in u07.script --out u07.src");
+  EXPECT_EQ(ku.code, 1);
+  EXPECT_NE(ku.err.find("u07.script:4:3: cannot convert 'movel(p[-0.35, 0.7, 0.2, 3.1415927, 0, 0], a=1.2, v=0.25, t=4)' to KRL"), std::string::npos)
+      << ku.err;
+  // --drop-unconvertible: converted without it, listed (stderr and the report)
+  const test::CliRun d = test::runAccuraIn(dir, "convert --in u07.script --out u07.src --drop-unconvertible --json drop.json");
+  ASSERT_EQ(d.code, 0) << d.err;
+  EXPECT_NE(d.err.find("u07.script:4:3: dropped 'time 4.0000 s of movel(p[-0.35, 0.7, 0.2, 3.1415927, 0, 0], a=1.2, v=0.25, t=4) (KRL has no "
+                       "per-motion time)'"),
+            std::string::npos)
+      << d.err;
+  const nlohmann::json j = nlohmann::json::parse(test::readText(dir + "/drop.json"));
+  ASSERT_EQ(j["dropped"].size(), 1u);
+  EXPECT_EQ(j["dropped"][0]["line"], 4);
+  EXPECT_EQ(readProgram(dir + "/u07.src").motions.size(), 2u);
+}
+
+TEST(Convert, ATimeAnotherLanguageCannotSayIsRefusedAndXmlChecksIt) {
+  const std::string dir = test::tempDir("convert_time_refused");
+  std::string text = kTimedModule;
+  // a time computed at run time: no other format can carry it
+  const std::string timed = "MoveL p20,v200\\T:=4,fine,tWeld;";
+  text.replace(text.find(timed), timed.size(), "MoveL p20,v200\\T:=tm,fine,tWeld;");
+  test::writeText(dir + "/expr.mod", text);
+  for (const char* out : {"expr.xml", "expr.script", "expr.src"}) {
+    const test::CliRun c = test::runAccuraIn(dir, std::string("convert --in expr.mod --out ") + out);
+    EXPECT_EQ(c.code, 1) << out;
+    EXPECT_NE(c.err.find("expr.mod:7:5: cannot "), std::string::npos) << out << c.err;
+    EXPECT_NE(c.err.find("its time"), std::string::npos) << out << c.err;
+    EXPECT_NE(c.err.find("tm"), std::string::npos) << out << c.err;
+  }
+  const test::CliRun d = test::runAccuraIn(dir, "convert --in expr.mod --out expr.xml --drop-unconvertible");
+  ASSERT_EQ(d.code, 0) << d.err;
+  EXPECT_NE(d.err.find("expr.mod:7:5: dropped 'time 'tm' of MoveL p20,v200\\T:=tm,fine,tWeld;"), std::string::npos) << d.err;
+  // a MoveC with a time: URScript's movec has none
+  test::writeText(dir + "/arc.mod", "MODULE arc\n  PROC main()\n    MoveJ [[340,-90,120],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]],v1000,fine,tool0;\n"
+                                    "    MoveC [[360,-70,120],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]],[[380,-90,120],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]],v100\\T:=2,fine,tool0;\n"
+                                    "  ENDPROC\nENDMODULE\n");
+  const test::CliRun a = test::runAccuraIn(dir, "convert --in arc.mod --out arc.script");
+  EXPECT_EQ(a.code, 1);
+  EXPECT_NE(a.err.find("arc.mod:4:5: cannot convert"), std::string::npos) << a.err;
+  EXPECT_NE(a.err.find("URScript's movec has no time t"), std::string::npos) << a.err;
+  // XML: time_s must be a time; a carried statement's time must be the XML's
+  test::writeText(dir + "/r18.mod", kTimedModule);
+  ASSERT_EQ(test::runAccuraIn(dir, "convert --in r18.mod --out r18.xml").code, 0);
+  const std::string xml = test::readText(dir + "/r18.xml");
+  const std::string attr = "time_s=\"4.0000\"";
+  ASSERT_NE(xml.find(attr), std::string::npos);
+  std::string bad = xml;
+  bad.replace(bad.find(attr), attr.size(), "time_s=\"-1\"");
+  test::writeText(dir + "/bad.xml", bad);
+  const test::CliRun b = test::runAccuraIn(dir, "convert --in bad.xml --out bad.mod");
+  EXPECT_EQ(b.code, 1);
+  EXPECT_NE(b.err.find("attribute 'time_s': expected the move's time in (0, 1e6] s, found -1.0000"), std::string::npos) << b.err;
+  std::string other = xml;
+  other.replace(other.find(attr), attr.size(), "time_s=\"5.0000\"");
+  test::writeText(dir + "/other.xml", other);
+  const test::CliRun o = test::runAccuraIn(dir, "convert --in other.xml --out other.mod");
+  EXPECT_EQ(o.code, 1);
+  EXPECT_NE(o.err.find("differs from its carried statement at line 7"), std::string::npos) << o.err;
+}
+
+// An XML program compensated with points inserted gives each piece of a timed move its share
+// of the time (by length), adding up to it; written back into its carried RAPID, the \T:= of
+// the pieces add up to the time too.
+TEST(Convert, ATimedMoveSplitInXmlGivesEachPieceItsShare) {
+  const std::string dir = test::tempDir("convert_time_split");
+  test::writeText(dir + "/r18.mod", kTimedModule);
+  const Program x = parseXmlProgram(renderProgram(readProgram(dir + "/r18.mod"), ProgramFormat::kXml, dir + "/r18.xml").at(0).text, "r18.xml");
+  JobSettings s;
+  s.calibrated = calib::readRobotFile(test::sourcePath("tests/golden/rapid/irb120_real.xml"));
+  s.tol_mm = 0.001;
+  const Program c = compensateProgram(x, s, nullptr);
+  const Program back = parseXmlProgram(writeXmlProgram(c), "c.xml");
+  std::vector<double> t, len;
+  ASSERT_TRUE(back.motions.front().target.kind == Target::Kind::kCartesian);
+  Eigen::Vector3d at = calib::toIsometry(back.motions.front().target.xyzAbc()).translation();
+  for (size_t k = 1; k < back.motions.size(); ++k) {
+    const Eigen::Vector3d to = calib::toIsometry(back.motions[k].target.xyzAbc()).translation();
+    ASSERT_TRUE(back.motions[k].duration_s.has_value()) << k;
+    t.push_back(*back.motions[k].duration_s);
+    len.push_back((to - at).norm());
+    at = to;
+  }
+  ASSERT_GE(t.size(), 2u) << "not split at tol 0.001 mm";
+  double sum = 0;
+  EXPECT_LT(test::durationShareError(t, len, 4.0, &sum), 2e-4);
+  EXPECT_NEAR(sum, 4.0, 1e-9);
+  const Program mod = parseRapid(writeRapid(back), "back.mod");
+  double sum_mod = 0;
+  for (const Motion& m : mod.motions) sum_mod += m.duration_s.value_or(0);
+  EXPECT_NEAR(sum_mod, 4.0, 1e-9);
+  EXPECT_EQ(mod.motions.size(), back.motions.size());
+}
+
+}  // namespace
+
 }  // namespace accura::postproc

@@ -510,6 +510,9 @@ TEST(KrlRules, APointAlsoUsedAsAFrameKeepsItsValueAndTheMotionGetsANewPoint) {
     said = said || (w.where.line == 5 && w.message.find("XFB is also read at " + dir + "/frame/p.src:6:7 ($BASE=XFB)") != std::string::npos &&
                     w.message.find("the new point XFB_1") != std::string::npos);
   EXPECT_TRUE(said);
+  int reported = 0;  // the report names the point the motion goes to
+  for (const TargetReport& tr : pcs["/frame"].report.targets) reported += tr.name == "XFB_1" && tr.new_point_replaces == "XFB";
+  EXPECT_EQ(reported, 1);
   // a plain motion target, a CIRC's two points and a WITH clause's frame are told apart
   const std::string src = "DEF q( )\nLIN XP1 C_DIS\nCIRC XFB, XHOME\nSLIN XP1 WITH $BASE=XHOME\nEND\n";
   test::writeText(dir + "/q.src", src);

@@ -1042,5 +1042,73 @@ TEST(UrScript, RealUr10CalibratedThenTheExampleCompensated) {
   for (size_t k = 0; k < in.urscript->others.size(); ++k) EXPECT_EQ(out.urscript->others[k].text, in.urscript->others[k].text);
 }
 
+// A NUL byte in a comment or a string was read past (the comment and string scanners skipped
+// it); anywhere in the file it is the error, at its line and column.
+TEST(UrScript, ANulByteInACommentOrAStringIsAnError) {
+  const std::string nul(1, '\0');
+  const std::string msg = "expected a URScript text file, found a NUL byte (binary file?)";
+  EXPECT_EQ(errorOf("def f():\n  # a" + nul + "b\n  movel(p[0.1, 0.2, 0.3, 0, 0, 0])\nend\n"), "bad.script:2:6: " + msg);
+  EXPECT_EQ(errorOf("def f():\n  popup(\"a" + nul + "b\")\nend\n"), "bad.script:2:11: " + msg);
+}
+
+// Errors quoted the offending text whole; every quoted excerpt is at most 80 bytes (its first
+// 77 and "...").
+TEST(UrScript, AnErrorQuotesAtMost80BytesOfTheText) {
+  const std::string name(5000, 'z');
+  EXPECT_EQ(errorOf("movel(p[0.1, 0.2, 0.3, 0, 0, 0], " + name + "=1)\n"),
+            "bad.script:1:34: expected an argument of movel (pose, a, v, t, r), found '" + name.substr(0, 77) + "...'");
+  const std::string digits = "1" + std::string(3000, '0');
+  EXPECT_EQ(errorOf("movej(p[" + digits + ", 0, 0, 0, 0, 0])\n"), "bad.script:1:9: expected a finite number, found '" + digits.substr(0, 77) + "...'");
+  std::string five = "p[" + std::string(200, '1') + ", 0, 0, 0, 0]";
+  EXPECT_EQ(errorOf("movel(" + five + ")\n"), "bad.script:1:7: expected p[x, y, z, rx, ry, rz] with 6 numbers, found 5 in '" + five.substr(0, 77) + "...'");
+}
+
+// pose_trans nested 20000 deep, or a chain of 100000 pose variables each built on the one
+// before, overflowed the stack (a call per level): a crash, not an error. Both are bounded.
+TEST(UrScript, PosesNestedOrChainedBeyondABoundAreAnErrorNotACrash) {
+  auto nested = [](int n) {
+    std::string s;
+    for (int k = 0; k < n; ++k) s += "pose_trans(p[0, 0, 0.001, 0, 0, 0], ";
+    s += "p[0.1, 0.2, 0.3, 0, 0, 0]";
+    return s + std::string(static_cast<size_t>(n), ')');
+  };
+  const Program p = parseUrScript("movel(" + nested(100) + ")\n", "ok.script");
+  ASSERT_EQ(p.motions.size(), 1u);
+  EXPECT_NEAR(p.motions[0].target.xyzAbc().z_mm, 400.0, 1e-9);  // 300 + 100 x 1 mm
+  // (column 3607: the 101st pose_trans, after 100 x 36 bytes from column 7)
+  EXPECT_EQ(errorOf("movel(" + nested(20000) + ")\n"), "bad.script:1:3607: expected pose_trans/pose_add nested at most 100 deep, found deeper nesting");
+  std::string chain = "q0 = p[0.1, 0.2, 0.3, 0, 0, 0]\n";
+  for (int k = 1; k <= 1000; ++k) chain += "q" + std::to_string(k) + " = pose_trans(q" + std::to_string(k - 1) + ", p[0, 0, 0.0001, 0, 0, 0])\n";
+  const Program c = parseUrScript(chain + "movel(q1000)\n", "ok.script");
+  ASSERT_EQ(c.motions.size(), 1u);
+  EXPECT_NEAR(c.motions[0].target.xyzAbc().z_mm, 400.0, 1e-9);  // 300 + 1000 x 0.1 mm
+  for (int k = 1001; k <= 100000; ++k) chain += "q" + std::to_string(k) + " = pose_trans(q" + std::to_string(k - 1) + ", p[0, 0, 0.0001, 0, 0, 0])\n";
+  EXPECT_EQ(errorOf(chain + "movel(q100000)\n"),
+            "bad.script:1002:9: expected a pose built of at most 1000 pose_trans/pose_add (through the variables it uses), found a deeper one");
+}
+
+// An empty .script (0 bytes, blanks, or comments only) was accepted, and compensate and convert
+// wrote an empty program with exit 0 (an empty .mod or .src is an error). It is an error at
+// 1:1; a script of statements without a motion is a program (read, 0 motions).
+TEST(UrScript, AScriptWithoutAStatementIsAnError) {
+  const std::string want = "bad.script:1:1: expected a URScript program (def name(): ... end, or its statements such as movel(...)), found an empty file";
+  EXPECT_EQ(errorOf(""), want);
+  EXPECT_EQ(errorOf(" \r\n\t\n\n"), want);
+  EXPECT_EQ(errorOf("# exported by PolyScope\n\n  # nothing else\n"), want + " (only comments and blank lines)");
+  const Program io = parseUrScript("set_digital_out(1, True)\n", "io.script");
+  EXPECT_EQ(io.motions.size(), 0u);
+  // the command line: exit 1, the error, nothing written
+  const std::string dir = test::tempDir("ur_empty");
+  test::writeText(dir + "/empty.script", "");
+  const test::CliRun c = test::runAccuraIn(dir, "convert --in empty.script --out out/empty.mod");
+  EXPECT_EQ(c.code, 1);
+  EXPECT_NE(c.err.find("empty.script:1:1: expected a URScript program"), std::string::npos) << c.err;
+  EXPECT_FALSE(std::filesystem::exists(dir + "/out/empty.mod"));
+  const test::CliRun k = test::runAccuraIn(dir, "compensate --robot ur10 --in empty.script --out comp");
+  EXPECT_EQ(k.code, 1);
+  EXPECT_NE(k.err.find("empty.script:1:1: expected a URScript program"), std::string::npos) << k.err;
+  EXPECT_FALSE(std::filesystem::exists(dir + "/comp/empty.script"));
+}
+
 }  // namespace
 }  // namespace accura::postproc

@@ -19,6 +19,7 @@
 #include "accura/postproc/placement.h"
 #include "accura/postproc/rapid.h"
 #include "accura/postproc/urscript.h"
+#include "excerpt.h"
 #include "path_geometry.h"
 
 namespace accura::postproc {
@@ -381,6 +382,7 @@ class Job {
     notePayloadChanges(in);
     unifyClaimedConfigurations(out);
     copyPointsReadElsewhere(out);
+    copyRapidPointsReadElsewhere(out);
     checkKeptValues(out);
     noteGlobalPoints(out);
     noteInlinedPoints(out);
@@ -456,10 +458,85 @@ class Job {
                                (name.empty() ? std::string("the motions that correct it get the corrected value as an inline aggregate")
                                              : "the motions that correct it go to the new point " + name + " (declared after it)"));
         }
+        for (TargetReport& tr : r_.targets)  // the report names the point the motion goes to
+          if (tr.motion.str() == m.where.str() && tr.name == t->name && tr.new_point_replaces.empty() && !it->second.empty()) {
+            tr.name = it->second;
+            tr.new_point_replaces = t->name;
+          }
         t->replaces = t->name;
         t->new_declaration = true;
         t->name = it->second;
       }
+  }
+
+  /// RAPID: a robtarget that motions correct and that the program also reads other than as
+  /// a motion's plain ToPoint/CirPoint (RapidSource::Decl::read_elsewhere: `p30 := p20;`, a
+  /// call's argument, `Offs(p20, 0, 0, dz)` of a run-time dz; or an evaluated Offs/RelTool
+  /// target written back as it is, uncorrected: RapidSource::Statement::target_reads) keeps its
+  /// declaration: corrected, that read would silently move with a correction made for another
+  /// motion's tool, base and path. The motions that correct it go to a new point declared right
+  /// after it (Target::new_declaration, named by newPointName; its value_id is -1: it has no text
+  /// in the module), with a warning naming where the point is also read. The report's targets
+  /// name the new point (new_point_replaces).
+  void copyRapidPointsReadElsewhere(Program& out) {
+    if (!in_ || !in_->rapid) return;
+    const RapidSource& src = *in_->rapid;
+    auto targetsOf = [](Motion& m) {
+      std::vector<Target*> ts;
+      if (m.aux) ts.push_back(&*m.aux);
+      if (m.target.kind == Target::Kind::kCartesian) ts.push_back(&m.target);
+      return ts;
+    };
+    auto statementOf = [&](const Motion& m) -> const RapidSource::Statement* {
+      if (m.inserted || m.statement_id < 0 || static_cast<size_t>(m.statement_id) >= src.statements.size()) return nullptr;
+      return &src.statements[static_cast<size_t>(m.statement_id)];
+    };
+    auto declOf = [&](int value) {
+      return value >= 0 && static_cast<size_t>(value) < src.values.size() ? src.values[static_cast<size_t>(value)].decl : -1;
+    };
+    // where each declaration is read: its reader's record, else an Offs/RelTool target that
+    // stays as written
+    std::map<int, std::string> read;
+    for (size_t d = 0; d < src.decls.size(); ++d)
+      if (!src.decls[d].read_elsewhere.empty()) read[static_cast<int>(d)] = src.decls[d].read_elsewhere;
+    for (Motion& m : out.motions) {
+      const RapidSource::Statement* st = statementOf(m);
+      if (!st) continue;
+      const std::vector<Target*> ts = targetsOf(m);
+      for (size_t k = 0; k < ts.size() && k < st->target_reads.size(); ++k) {
+        const int d = declOf(st->target_reads[k]);
+        if (d >= 0 && !ts[k]->modified && !read.count(d)) read[d] = m.where.str() + " ('" + detail::excerpt(m.statement) + "')";
+      }
+    }
+    if (read.empty()) return;
+    std::map<int, std::string> renamed;  // declaration -> its new point
+    for (Motion& m : out.motions) {
+      const RapidSource::Statement* st = statementOf(m);
+      if (!st) continue;
+      const std::vector<Target*> ts = targetsOf(m);
+      for (size_t k = 0; k < ts.size() && k < st->target_value.size(); ++k) {
+        Target& t = *ts[k];
+        const int d = declOf(st->target_value[k]);
+        if (!t.modified || t.new_declaration || d < 0 || !read.count(d)) continue;
+        const std::string old = t.name;
+        auto it = renamed.find(d);
+        if (it == renamed.end()) {
+          it = renamed.emplace(d, newPointName(*in_, src.decls[static_cast<size_t>(d)].name, new_names_)).first;
+          new_names_.push_back(it->second);
+          warning(m.where, old + " is corrected for this motion and also read at " + read.at(d) + ", which the correction must not " +
+                               "move: the motion goes to a new point " + it->second + " declared after " + old + ", which keeps its value");
+        }
+        t.new_declaration = true;
+        t.replaces = old;
+        t.name = it->second;
+        t.value_id = -1;
+        for (TargetReport& tr : r_.targets)
+          if (tr.motion.str() == m.where.str() && tr.name == old && tr.new_point_replaces.empty()) {
+            tr.name = t.name;
+            tr.new_point_replaces = old;
+          }
+      }
+    }
   }
 
   /// A motion kept as written whose point another motion corrects is not unchanged on the

@@ -279,6 +279,18 @@ Program reattachCarried(const Program& program, Program parsed) {
     }
     into.modified = into.modified || changed;
   };
+  // the time of a carried motion's pieces (a split one: each its share) adds up to its
+  // statement's, within the 4 decimals each is written with
+  auto sameTime = [](const std::vector<const Motion*>& pieces, const Motion& q) {
+    double sum = 0;
+    bool any = false;
+    for (const Motion* x : pieces) {
+      any = any || x->duration_s.has_value();
+      sum += x->duration_s.value_or(0);
+    }
+    if (!q.duration_s) return !any;
+    return std::abs(sum - *q.duration_s) <= 0.5e-4 * static_cast<double>(pieces.size()) + 1e-9;
+  };
   std::vector<Motion> motions;
   size_t j = 0;
   std::vector<const Motion*> pending;  // motions without a line, before the next carried one
@@ -288,8 +300,10 @@ Program reattachCarried(const Program& program, Program parsed) {
       continue;
     }
     Motion& q = parsed.motions[j++];
+    std::vector<const Motion*> pieces = pending;
+    pieces.push_back(&m);
     if (q.type != m.type || q.where.line != m.source_line || !near(q.vel_m_s, m.vel_m_s) || !near(q.approximation_value, m.approximation_value) ||
-        q.approximation != m.approximation)
+        q.approximation != m.approximation || !sameTime(pieces, q))
       throw calib::ArgumentError(m.where.str() + ": cannot write the carried source back: the motion " + motionName(m) +
                                  " differs from its carried statement at line " + std::to_string(m.source_line) + " (" + motionName(q) + ")");
     for (const Motion* a : pending) {

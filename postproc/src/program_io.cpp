@@ -1,5 +1,6 @@
 #include "accura/postproc/program_io.h"
 
+#include <algorithm>
 #include <cctype>
 #include <filesystem>
 
@@ -8,10 +9,31 @@
 #include "accura/postproc/rapid.h"
 #include "accura/postproc/urscript.h"
 #include "accura/postproc/xml_program.h"
+#include "excerpt.h"
 
 namespace fs = std::filesystem;
 
 namespace accura::postproc {
+
+namespace {
+
+/// Why `format` cannot carry motion `m`'s programmed time (Motion::duration_s / duration_expr),
+/// "" when it can: KRL has no per-motion time; URScript's movec has no `t`; a time computed
+/// at run time is its own language's only.
+std::string timeNotCarried(const Motion& m, ProgramFormat format) {
+  if (!m.duration_expr.empty()) return "the controller computes it at run time in the source's language";
+  if (!m.duration_s) return "";
+  if (format == ProgramFormat::kKrl) return "KRL has no per-motion time";
+  if (format == ProgramFormat::kUrScript && m.type == MotionType::kCirc) return "URScript's movec has no time t";
+  return "";
+}
+
+/// The time of `m` as a message names it: "4.0000 s", or the expression.
+std::string timeText(const Motion& m) {
+  return m.duration_s ? calib::formatFixed(*m.duration_s, 4) + " s" : "'" + detail::excerpt(m.duration_expr) + "'";
+}
+
+}  // namespace
 
 ProgramFormat programFormat(const std::string& path) {
   std::string ext = fs::path(path).extension().string();
@@ -56,7 +78,31 @@ Program readProgram(const std::string& path, const ProgramReadOptions& options) 
 }
 
 Program dropUnconvertible(const Program& program, ProgramFormat format, std::vector<PassThrough>* dropped) {
-  if (format == ProgramFormat::kXml) return program;
+  // a motion's time the output cannot carry: the motion converts without it, listed
+  const auto dropTimes = [&](Program& p) {
+    std::vector<PassThrough> times;
+    for (Motion& m : p.motions) {
+      const std::string why = timeNotCarried(m, format);
+      if (why.empty()) continue;
+      PassThrough s;
+      s.language = "time";
+      s.where = m.where;
+      s.text = "time " + timeText(m) + " of " + detail::excerpt(m.statement) + " (" + why + ")";
+      times.push_back(std::move(s));
+      m.duration_s.reset();
+      m.duration_expr.clear();
+    }
+    // (in the program's order with the statements dropped before)
+    const size_t before = dropped->size();
+    dropped->insert(dropped->end(), times.begin(), times.end());
+    std::stable_sort(dropped->begin() + static_cast<std::ptrdiff_t>(before), dropped->end(),
+                     [](const PassThrough& a, const PassThrough& b) { return a.where.line < b.where.line; });
+  };
+  if (format == ProgramFormat::kXml) {
+    Program out = program;
+    dropTimes(out);
+    return out;
+  }
   const char* language = format == ProgramFormat::kKrl ? "KRL" : format == ProgramFormat::kRapid ? "RAPID" : "URScript";
   Program out = program.rapid && format != ProgramFormat::kRapid         ? rapidForConversion(program)
                 : program.urscript && format != ProgramFormat::kUrScript ? urScriptForConversion(program, "XML")
@@ -71,6 +117,7 @@ Program dropUnconvertible(const Program& program, ProgramFormat format, std::vec
   // into another language, the KRL text is not written back: its logic lines were the
   // pass-through statements just left out
   if (format != ProgramFormat::kKrl) out.krl.reset();
+  if (!(format == ProgramFormat::kRapid && program.rapid) && !(format == ProgramFormat::kUrScript && program.urscript)) dropTimes(out);
   return out;
 }
 
@@ -86,6 +133,11 @@ std::vector<calib::OutputFile> renderProgram(const Program& program, ProgramForm
     Program p = program;
     return {{path, writeXmlProgram(p)}};
   }
+  if (!program.krl)  // (a program read from KRL has no time)
+    for (const Motion& m : program.motions)
+      if (const std::string why = timeNotCarried(m, ProgramFormat::kKrl); !why.empty())
+        throw calib::ArgumentError(m.where.str() + ": cannot convert '" + detail::excerpt(m.statement) + "' to KRL: its time " + timeText(m) +
+                                   " cannot be carried, " + why + " (convert --drop-unconvertible converts the motion without it and lists it)");
   const KrlText t = writeKrl(withoutCarriedLines(program, "KRL"));
   std::vector<calib::OutputFile> out = {{path, t.src}};
   const bool has_dat = program.krl ? !program.krl->dat_path.empty() : true;

@@ -8,6 +8,7 @@
 #include "accura/calib/errors.h"
 #include "accura/calib/ik.h"
 #include "decimal.h"
+#include "excerpt.h"
 #include "rapid_internal.h"
 
 namespace accura::postproc {
@@ -43,12 +44,14 @@ std::vector<Tok> lexRapid(const std::string& s, const std::string& path) {
     const SourceLocation l = locate(starts, path, off);
     throw calib::InputError(l.file, l.line, l.column, msg);
   };
+  // a NUL byte anywhere (code, a comment, a string, the %%% header) is no text the controller
+  // loads: the first one is the error
+  if (const size_t nul = s.find('\0'); nul != std::string::npos) fail(nul, "expected a RAPID text file, found a NUL byte (binary file?)");
   std::vector<Tok> toks;
   size_t i = s.compare(0, 3, "\xEF\xBB\xBF") == 0 ? 3 : 0;  // a UTF-8 byte order mark: read past (kept in the text)
   bool line_start = true;
   while (i < s.size()) {
     const char c = s[i];
-    if (c == '\0') fail(i, "expected a RAPID text file, found a NUL byte (binary file?)");
     if (line_start && s.compare(i, 3, "%%%") == 0) {  // .prg header block %%% ... %%%
       size_t j = s.find("%%%", i + 3);
       if (j == std::string::npos) fail(i, "expected the '%%%' that closes this header, found the end of the file");
@@ -72,12 +75,12 @@ std::vector<Tok> lexRapid(const std::string& s, const std::string& path) {
       const size_t j = detail::scanDecimal(s, i, &e);
       if (e != std::string_view::npos)
         fail(e, "expected the digits of an exponent, found '" + s.substr(e, std::min<size_t>(j + 1, s.size()) - e) + "'");
-      if (j < s.size() && isIdentStart(s[j])) fail(j, "expected an operator or a separator after the number " + s.substr(i, j - i) + ", found '" + s[j] + "'");
+      if (j < s.size() && isIdentStart(s[j])) fail(j, "expected an operator or a separator after the number " + detail::excerpt(s.substr(i, j - i)) + ", found '" + s[j] + "'");
       t.kind = Tok::Kind::kNumber;
       t.e = j;
       t.s = s.substr(i, j - i);
       t.num = std::strtod(t.s.c_str(), nullptr);
-      if (!std::isfinite(t.num)) fail(i, "expected a finite number, found '" + t.s + "'");
+      if (!std::isfinite(t.num)) fail(i, "expected a finite number, found '" + detail::excerpt(t.s) + "'");
     } else if (isIdentStart(c)) {
       size_t j = i;
       while (j < s.size() && isIdentChar(s[j])) ++j;
@@ -229,7 +232,7 @@ auto loc = [&](size_t off) { return locate(starts_, src.path, off); };
     s.section = routine_of[l] == 0 ? PassThrough::Section::kData : routine_of[l] == 1 ? PassThrough::Section::kBody : PassThrough::Section::kTrailer;
     s.before_motion = next_motion;
     if (other_routine_motion_ && routine_of[l] == 2)
-      s.refuse = "the motions of the routine on this line are outside the program's main routine " + main_routine_ +
+      s.refuse = "the motions of the routine on this line are outside the program's main routine " + detail::excerpt(main_routine_) +
                  ", which the other formats cannot hold";
     p.passthrough.push_back(std::move(s));
   }

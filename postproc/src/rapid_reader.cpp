@@ -7,6 +7,7 @@
 #include <set>
 
 #include "accura/calib/errors.h"
+#include "excerpt.h"
 #include "rapid_internal.h"
 #include "start_tracker.h"
 
@@ -16,6 +17,7 @@ namespace accura::postproc {
 namespace {
 
 using namespace rapid_detail;
+using detail::excerpt;
 
 /// A target expression evaluated (wobj frame, mm) or why it cannot be.
 struct TargetVal {
@@ -23,6 +25,7 @@ struct TargetVal {
   std::array<int, 4> conf{};
   std::array<std::optional<double>, 6> ext;
   int value = -1;        ///< the robtarget value it is (-1: an expression)
+  int reads = -1;        ///< an Offs/RelTool expression: the robtarget value it is built on
   std::string problem;
 };
 
@@ -33,7 +36,15 @@ struct FrameVal {
   SourceLocation where;
 };
 
+/// The data a scope declares: a routine's, a module's (its LOCAL data included) or the
+/// program's global data (every module's data that is not LOCAL: RAPID's task-global data,
+/// visible in every module of the task whatever the order).
 struct Scope {
+  /// Every name the scope declares, of any type (upper case -> where): the innermost scope that
+  /// declares a name is the one it refers to, also when it is not a datum accura reads (a
+  /// routine's `VAR num p10` hides the module's robtarget p10).
+  std::map<std::string, SourceLocation> names;
+  std::set<std::string> read_names;       ///< those of a datum of kReadTypes
   std::map<std::string, int> robtargets;  ///< upper-case name -> value
   std::map<std::string, FrameVal> tools, wobjs;
   std::map<std::string, std::array<double, 6>> joints;
@@ -41,6 +52,12 @@ struct Scope {
   std::map<std::string, double> speeds;                 ///< v_tcp (mm/s)
 };
 
+/// The data types whose values accura reads (a second declaration of one of them in a scope is
+/// an error: the controller refuses the ambiguous name).
+const std::set<std::string> kReadTypes = {"ROBTARGET", "TOOLDATA", "WOBJDATA", "JOINTTARGET", "ZONEDATA", "SPEEDDATA"};
+
+/// Block headers whose condition or expression may read data.
+const std::set<std::string> kConditionHeads = {"IF", "ELSEIF", "WHILE", "FOR", "TEST", "CASE"};
 const std::set<std::string> kBlockHeads = {"MODULE", "ENDMODULE", "PROC", "ENDPROC", "FUNC", "ENDFUNC", "TRAP", "ENDTRAP",
                                            "RECORD", "ENDRECORD", "IF", "ELSEIF", "ELSE", "ENDIF", "WHILE", "ENDWHILE", "FOR",
                                            "ENDFOR", "TEST", "CASE", "DEFAULT", "ENDTEST", "ERROR", "BACKWARD", "UNDO"};
@@ -69,6 +86,7 @@ class Reader {
     split();
     scanAssignments();
     findDisplacedRoutines();
+    moduleData();
     Program p;
     p.source_file = src_->path;
     p.name = fs::path(src_->path).stem().string();
@@ -81,7 +99,7 @@ class Reader {
         flow_.unknown();
     }
     if (!module_seen_) fail(t_.empty() ? 0 : t_.front().b, "expected a RAPID module (MODULE name ... ENDMODULE), found " +
-                                                               (t_.empty() ? std::string("an empty file") : "'" + t_.front().s + "'"));
+                                                               (t_.empty() ? std::string("an empty file") : "'" + excerpt(t_.front().s) + "'"));
     if (module_open_) fail(src_->text.size(), "expected ENDMODULE, found the end of the file");
     if (!module_name_.empty()) p.name = module_name_;
     passThrough(p);
@@ -96,7 +114,9 @@ class Reader {
     throw calib::InputError(l.file, l.line, l.column, msg);
   }
   std::string text(Range r) const { return r.first < r.second ? src_->text.substr(t_[r.first].b, t_[r.second - 1].e - t_[r.first].b) : ""; }
-  std::string found(size_t i, size_t end) const { return i < end ? "'" + t_[i].s + "'" : "the end of the statement"; }
+  /// The text of r as a message quotes it (detail::excerpt: at most 80 bytes).
+  std::string quoted(Range r) const { return excerpt(text(r)); }
+  std::string found(size_t i, size_t end) const { return i < end ? "'" + excerpt(t_[i].s) + "'" : "the end of the statement"; }
 
   /// Statements: a block header runs to the end of its line (and its brackets; IF, ELSEIF,
   /// WHILE, FOR and CASE at least to their THEN, DO or ':'), and a statement that shares its
@@ -131,7 +151,7 @@ class Reader {
             ((closing_word && t.kind == Tok::Kind::kIdent && t.u == closing_word) || (hu == "CASE" && isOp(t_, j, ":"))))
           closed = true;
         if (!head && open.empty() && j > i && t.kind == Tok::Kind::kIdent && kBlockHeads.count(t.u) && loc(t.b).line != loc(t_[j - 1].b).line)
-          fail(t_[j - 1].e, "expected ';' at the end of the statement '" + text({i, j}) + "', found " + t.s);
+          fail(t_[j - 1].e, "expected ';' at the end of the statement '" + quoted({i, j}) + "', found " + excerpt(t.s));
         if (opens(t)) open.push_back(j);
         if (closes(t)) {
           if (open.empty()) fail(t.b, "expected a statement, found an unmatched '" + t.s + "'");
@@ -150,7 +170,7 @@ class Reader {
         fail(o.b, "expected '" + std::string(o.s == "(" ? ")" : o.s == "[" ? "]" : "}") + "' to close this '" + o.s + "', found the end of the file");
       }
       if (!head && (j > t_.size() || !isOp(t_, j - 1, ";")))
-        fail(t_[j - 1].e, "expected ';' at the end of the statement '" + text({i, j}) + "', found the end of the file");
+        fail(t_[j - 1].e, "expected ';' at the end of the statement '" + quoted({i, j}) + "', found the end of the file");
       // the statement a CASE, a DEFAULT or a compact IF (without THEN) holds on its line is one
       // of its own (a compact IF's runs only when the condition holds)
       const size_t inner = head ? innerStatement({i, j}) : j;
@@ -358,15 +378,75 @@ class Reader {
 
   void markModel(Range r) { model_[r.first] = r.second; }
 
+  /// The robtargets the tokens `r` of statement `st` read (a name that refers to a declared
+  /// robtarget where it stands: not a field or an optional argument's name, not a routine's
+  /// parameter): the first such place of each is its declaration's read_elsewhere.
+  void noteReads(Range r, Range st) {
+    for (size_t k = r.first; k < r.second; ++k) {
+      if (t_[k].kind != Tok::Kind::kIdent || (k > 0 && (isOp(t_, k - 1, ".") || isOp(t_, k - 1, "\\")))) continue;
+      const std::string& u = t_[k].u;
+      if (params_.count(u) && !local_.names.count(u)) continue;  // (the call's value)
+      const int* id = lookup(&Scope::robtargets, u);
+      if (!id || *id < 0) continue;
+      const int d = src_->values[static_cast<size_t>(*id)].decl;
+      if (d < 0 || !src_->decls[static_cast<size_t>(d)].read_elsewhere.empty()) continue;
+      src_->decls[static_cast<size_t>(d)].read_elsewhere = loc(t_[k].b).str() + " ('" + quoted(st) + "')";
+    }
+  }
+  void noteReads(Range r) { noteReads(r, r); }
+
+  /// The declaration keyword (CONST, PERS, VAR) of a statement starting at i, after LOCAL or
+  /// TASK; kNoHead when it is no declaration.
+  size_t declarationAt(size_t i) const {
+    size_t k = i;
+    if (isKw(t_, k, "LOCAL") || isKw(t_, k, "TASK")) ++k;
+    return isKw(t_, k, "CONST") || isKw(t_, k, "PERS") || isKw(t_, k, "VAR") ? k : kNoHead;
+  }
+
+  /// The module-level data of every module, read before any routine: a module's data are
+  /// visible to all its routines, and its global (not LOCAL) data to every module of the
+  /// program, whatever the order in which they are written (RAPID, "Scope of data"). A
+  /// routine's own data are read where they are, at its start (they are its only). Statements
+  /// outside a module are left to the reading in order, which names them.
+  void moduleData() {
+    bool open = false, in_routine = false;
+    for (const Range& r : stmts_) {
+      const size_t h = headAt(r.first);
+      const std::string& u = h != kNoHead ? t_[h].u : std::string();
+      if (u == "MODULE") {
+        ++module_index_;
+        modules_.resize(static_cast<size_t>(module_index_) + 1);
+        open = true;
+      } else if (u == "ENDMODULE") {
+        open = false;
+      } else if (routineNameAt(r) != kNoHead) {
+        in_routine = true;
+      } else if (u == "ENDPROC" || u == "ENDFUNC" || u == "ENDTRAP") {
+        in_routine = false;
+      } else if (h == kNoHead && open && !in_routine) {
+        const size_t k = declarationAt(r.first);
+        if (k == kNoHead) continue;
+        declaration(r, k);
+        module_data_.insert(r.first);
+      }
+    }
+    module_index_ = -1;  // (the reading in order counts the modules again)
+  }
+
   void statement(Range r, Program& p) {
     const std::vector<Tok>& t = t_;
     const size_t i = r.first;
     const std::string& u = t[i].u;
-    if (headAt(i) != kNoHead) return block(r, p);
-    if (!module_open_) fail(t[i].b, "expected MODULE before the first statement, found '" + t[i].s + "'");
-    size_t k = i;
-    if (isKw(t, k, "LOCAL") || isKw(t, k, "TASK")) ++k;
-    if (isKw(t, k, "CONST") || isKw(t, k, "PERS") || isKw(t, k, "VAR")) return declaration(r, k, p);
+    if (const size_t h = headAt(i); h != kNoHead) {
+      if (kConditionHeads.count(t[h].u)) noteReads(r);  // (IF p20.trans.z > 0 THEN)
+      return block(r, p);
+    }
+    if (!module_open_) fail(t[i].b, "expected MODULE before the first statement, found '" + excerpt(t[i].s) + "'");
+    if (const size_t k = declarationAt(i); k != kNoHead) {
+      if (!module_data_.count(i)) declaration(r, k);  // (a routine's data; the modules' are read first)
+      if (k + 2 < r.second) noteReads({k + 3, r.second}, r);  // its value (CONST robtarget p30 := p20;)
+      return;
+    }
     if ((u == "CONFL" || u == "CONFJ") && r.second - i == 4 && isOp(t, i + 1, "\\") && (isKw(t, i + 2, "ON") || isKw(t, i + 2, "OFF"))) {
       (u == "CONFL" ? confl_ : confj_) = t[i + 2].u == "ON";
       return markModel(r);
@@ -377,7 +457,18 @@ class Reader {
     if (u == "EOFFSON" || u == "EOFFSSET") eoffs_ = loc(t[i].b), eoffs_name_ = t[i].s;
     if (u == "EOFFSOFF") eoffs_.reset();
     if (u == "MOVEL" || u == "MOVEJ" || u == "MOVEC" || u == "MOVEABSJ") return move(r, p);
-    if (t[i].kind == Tok::Kind::kIdent && kOtherMoves.count(u)) return otherMove(r, p);
+    if (t[i].kind == Tok::Kind::kIdent && kOtherMoves.count(u)) {
+      noteReads(r);  // (its target is kept as written)
+      return otherMove(r, p);
+    }
+    // an assignment reads its right-hand side (its left one is a run-time value: scanAssignments)
+    size_t from = i;
+    for (size_t k = i; k < r.second; ++k)
+      if (isOp(t, k, ":=")) {
+        from = k + 1;
+        break;
+      }
+    noteReads({from, r.second}, r);
     // a call of one of the module's routines that move the robot, a late-bound call
     // (%"name"%, CallByVar), a jump or a label (reached from a GOTO)
     if ((t[i].kind == Tok::Kind::kIdent && (routines_.count(u) || u == "GOTO" || u == "CALLBYVAR")) || isOp(t, i, "%") ||
@@ -416,21 +507,22 @@ class Reader {
     if (u == "MODULE") {
       // a .prg of the S4C era holds every module of the program, one after the other (their
       // global data are shared, as in the controller); a MODULE inside a module is an error
-      if (module_open_) fail(t_[r.first].b, "expected ENDMODULE of the module " + module_name_ + " before the next MODULE, found MODULE");
+      if (module_open_) fail(t_[r.first].b, "expected ENDMODULE of the module " + excerpt(module_name_) + " before the next MODULE, found MODULE");
       if (r.second - r.first < 2 || t_[r.first + 1].kind != Tok::Kind::kIdent) fail(t_[r.first].e, "expected the module name after MODULE, found " + found(r.first + 1, r.second));
       module_seen_ = module_open_ = true;
+      ++module_index_;
       if (module_name_.empty()) module_name_ = t_[r.first + 1].s;  // the program's name: its first module's
       return markModel(r);
     }
     if (u == "ENDMODULE") {
       if (!module_open_) fail(t_[r.first].b, "expected MODULE before ENDMODULE, found ENDMODULE");
-      if (!routine_.empty()) fail(t_[r.first].b, "expected END" + routine_kind_ + " of the routine " + routine_ + ", found ENDMODULE");
+      if (!routine_.empty()) fail(t_[r.first].b, "expected END" + routine_kind_ + " of the routine " + excerpt(routine_) + ", found ENDMODULE");
       module_open_ = false;
       return markModel(r);
     }
-    if (!module_open_) fail(t_[r.first].b, "expected MODULE before the first statement, found '" + t_[r.first].s + "'");
+    if (!module_open_) fail(t_[r.first].b, "expected MODULE before the first statement, found '" + excerpt(t_[r.first].s) + "'");
     if (u == "PROC" || u == "FUNC" || u == "TRAP") {
-      if (!routine_.empty()) fail(t_[r.first].b, "expected END" + routine_kind_ + " of the routine " + routine_ + ", found " + u);
+      if (!routine_.empty()) fail(t_[r.first].b, "expected END" + routine_kind_ + " of the routine " + excerpt(routine_) + ", found " + u);
       size_t k = h + 1;
       if (u == "FUNC" && k < r.second) ++k;  // the return type
       if (k >= r.second || t_[k].kind != Tok::Kind::kIdent) fail(t_[r.first].e, "expected the routine name after " + u + ", found " + found(k, r.second));
@@ -473,7 +565,7 @@ class Reader {
     }
     if (u == "ENDPROC" || u == "ENDFUNC" || u == "ENDTRAP") {
       if (routine_.empty() || "END" + routine_kind_ != u)
-        fail(t_[r.first].b, "expected " + (routine_.empty() ? std::string("a routine before it") : "END" + routine_kind_ + " of " + routine_) + ", found " + u);
+        fail(t_[r.first].b, "expected " + (routine_.empty() ? std::string("a routine before it") : "END" + routine_kind_ + " of " + excerpt(routine_)) + ", found " + u);
       if (main_routine_ == routine_) {
         markModel(routine_line_);
         markModel(r);
@@ -487,7 +579,7 @@ class Reader {
   // --- data
 
   [[noreturn]] void shape(size_t at, const std::string& what, const std::string& got) const {
-    fail(t_[at].b, "expected " + what + ", found '" + got + "'");
+    fail(t_[at].b, "expected " + what + ", found '" + excerpt(got) + "'");
   }
 
   /// [[x,y,z],[q1,q2,q3,q4]] (pose) at r: the spans and values of its 7 numbers.
@@ -503,7 +595,7 @@ class Reader {
     for (int k = 0; k < 3; ++k)
       if (std::abs(v[k]) > kMaxPositionMm)
         fail(spans[k].first, "expected a position in mm within +-" + calib::formatFixed(kMaxPositionMm, 0) + ", found " +
-                                 src_->text.substr(spans[k].first, spans[k].second - spans[k].first));
+                                 excerpt(src_->text.substr(spans[k].first, spans[k].second - spans[k].first)));
     const double n = std::sqrt(v[3] * v[3] + v[4] * v[4] + v[5] * v[5] + v[6] * v[6]);
     if (!(std::abs(n - 1.0) <= kQuaternionNormTol))
       fail(spans[3].first, "expected a unit quaternion (norm 1 within " + calib::formatFixed(kQuaternionNormTol, 3) + "), found norm " +
@@ -515,7 +607,7 @@ class Reader {
     if (!(isOp(t_, r.first, "[") && closing(t_, r.first, r.second) == r.second)) shape(r.first < r.second ? r.first : r.first - 1, what, text(r));
     auto parts = items(t_, r.first + 1, r.second - 1);
     if (parts.size() != n || parts.front().first == parts.front().second)
-      fail(t_[r.first].b, "expected " + what + " with " + std::to_string(n) + " items, found " + std::to_string(r.first + 2 == r.second ? 0 : parts.size()) + " in '" + text(r) + "'");
+      fail(t_[r.first].b, "expected " + what + " with " + std::to_string(n) + " items, found " + std::to_string(r.first + 2 == r.second ? 0 : parts.size()) + " in '" + quoted(r) + "'");
     return parts;
   }
 
@@ -542,7 +634,7 @@ class Reader {
     numbers(parts[2], 4, "confdata [cf1,cf4,cf6,cfx]", v.num + 7, v.v + 7);
     for (int k = 7; k < 11; ++k)
       if (v.v[k] != std::floor(v.v[k]) || std::abs(v.v[k]) > 1000)
-        fail(v.num[k].first, "expected an integer in confdata, found " + src_->text.substr(v.num[k].first, v.num[k].second - v.num[k].first));
+        fail(v.num[k].first, "expected an integer in confdata, found " + excerpt(src_->text.substr(v.num[k].first, v.num[k].second - v.num[k].first)));
     std::pair<size_t, size_t> es[6];
     double ev[6];
     numbers(parts[3], 6, "external axes [eax_a,..,eax_f]", es, ev);
@@ -595,20 +687,48 @@ class Reader {
     const Eigen::Isometry3d uf = framePose(parts[3], "the uframe of wobjdata " + name);
     const Eigen::Isometry3d of = framePose(parts[4], "the oframe of wobjdata " + name);
     if (robhold) f.note = "wobjdata " + name + " has robhold TRUE (the robot holds the work object: a stationary tool), which accura does not model";
-    else if (!ufprog) f.note = "wobjdata " + name + " has ufprog FALSE (a user frame moved by the mechanical unit " + text(parts[2]) + "), which accura does not model";
+    else if (!ufprog) f.note = "wobjdata " + name + " has ufprog FALSE (a user frame moved by the mechanical unit " + quoted(parts[2]) + "), which accura does not model";
     else f.T = uf * of;
     return f;
   }
 
-  Scope& scope() { return routine_.empty() ? module_ : local_; }
+  /// The scopes a declaration at r (its type at k + 1, its name at k + 2) goes into: the
+  /// routine's, or the module's and, unless LOCAL, the program's global data. A second
+  /// declaration of a name whose value accura reads in one scope is an error naming the first
+  /// (the controller refuses the ambiguous name; which one accura took would be a guess).
+  std::vector<Scope*> declare(Range r, size_t k, size_t name) {
+    std::vector<Scope*> into;
+    into.push_back(routine_.empty() ? &modules_.at(static_cast<size_t>(module_index_)) : &local_);
+    if (routine_.empty() && !isKw(t_, r.first, "LOCAL")) into.push_back(&global_);
+    const std::string& u = t_[name].u;
+    const bool read_type = kReadTypes.count(t_[k + 1].u) > 0;
+    for (Scope* s : into) {
+      const auto it = s->names.find(u);
+      if (it == s->names.end()) {
+        s->names[u] = loc(t_[name].b);
+        if (read_type) s->read_names.insert(u);
+        continue;
+      }
+      if (read_type && s->read_names.count(u))
+        fail(t_[name].b, "expected one declaration of '" + excerpt(t_[name].s) + "' in " +
+                             (s == &global_ ? "the program's global data (its modules share the data that is not LOCAL)"
+                              : s == &local_ ? "the routine " + excerpt(routine_)
+                                             : std::string("the module")) +
+                             ", found a second (the first at " + it->second.str() + ")");
+    }
+    return into;
+  }
 
-  void declaration(Range r, size_t k, Program& p) {
-    (void)p;
+  void declaration(Range r, size_t k) {
     const std::vector<Tok>& t = t_;
     const size_t type = k + 1, name = k + 2;
-    if (name >= r.second || t[type].kind != Tok::Kind::kIdent || t[name].kind != Tok::Kind::kIdent) return;  // arrays etc.: pass-through
+    if (name >= r.second || t[type].kind != Tok::Kind::kIdent || t[name].kind != Tok::Kind::kIdent) return;  // pass-through
+    // the name is the scope's (an array, a datum without a value or of another type too: it
+    // hides a datum of its name declared further out)
+    const std::vector<Scope*> into = declare(r, k, name);
     const std::string& ty = t[type].u;
     const std::string& nm = t[name].s;
+    const std::string& u = t[name].u;
     if (!isOp(t, name + 1, ":=")) return;  // no initial value (VAR robtarget p;): an unknown value
     const Range val{name + 2, r.second - 1};
     if (val.first >= val.second) fail(t[name + 1].e, "expected a value after ':=', found ';'");
@@ -624,15 +744,17 @@ class Reader {
       src_->decls.push_back(d);
       const int id = robtargetValue(val, static_cast<int>(src_->decls.size()) - 1);
       src_->decls.back().value = id;
-      scope().robtargets[t[name].u] = id;
+      for (Scope* s : into) s->robtargets[u] = id;
       return markModel(r);
     }
     if (ty == "TOOLDATA" && isOp(t, val.first, "[")) {
-      scope().tools[t[name].u] = toolValue(val, nm);
+      const FrameVal f = toolValue(val, excerpt(nm));
+      for (Scope* s : into) s->tools[u] = f;
       return markModel(r);
     }
     if (ty == "WOBJDATA" && isOp(t, val.first, "[")) {
-      scope().wobjs[t[name].u] = wobjValue(val, nm);
+      const FrameVal f = wobjValue(val, excerpt(nm));
+      for (Scope* s : into) s->wobjs[u] = f;
       return markModel(r);
     }
     if (ty == "JOINTTARGET" && isOp(t, val.first, "[")) {
@@ -641,32 +763,42 @@ class Reader {
       double v[6], e[6];
       numbers(parts[0], 6, "robot axes [rax_1,..,rax_6] (deg)", s, v);
       numbers(parts[1], 6, "external axes [eax_a,..,eax_f]", s, e);
-      scope().joints[t[name].u] = {v[0], v[1], v[2], v[3], v[4], v[5]};
+      for (Scope* sc : into) sc->joints[u] = {v[0], v[1], v[2], v[3], v[4], v[5]};
       return;  // a MoveAbsJ target: pass-through data (never changed)
     }
     if (ty == "ZONEDATA" && isOp(t, val.first, "[")) {
       const auto parts = bracketItems(val, 7, "a zonedata [finep, pzone_tcp, pzone_ori, pzone_eax, zone_ori, zone_leax, zone_reax]");
       const std::optional<double> z = number(t, parts[1]);
-      if (!z || *z < 0) shape(parts[1].first, "pzone_tcp >= 0 (mm) in zonedata " + nm, text(parts[1]));
-      scope().zones[t[name].u] = boolean(parts[0], "finep of zonedata " + nm) ? std::nullopt : std::optional<double>(*z);
+      if (!z || *z < 0) shape(parts[1].first, "pzone_tcp >= 0 (mm) in zonedata " + excerpt(nm), text(parts[1]));
+      const std::optional<double> radius = boolean(parts[0], "finep of zonedata " + excerpt(nm)) ? std::nullopt : std::optional<double>(*z);
+      for (Scope* s : into) s->zones[u] = radius;
       return;
     }
     if (ty == "SPEEDDATA" && isOp(t, val.first, "[")) {
       const auto parts = bracketItems(val, 4, "a speeddata [v_tcp, v_ori, v_leax, v_reax]");
       const std::optional<double> v = number(t, parts[0]);
-      if (!v || *v <= 0) shape(parts[0].first, "v_tcp > 0 (mm/s) in speeddata " + nm, text(parts[0]));
-      scope().speeds[t[name].u] = *v;
+      if (!v || *v <= 0) shape(parts[0].first, "v_tcp > 0 (mm/s) in speeddata " + excerpt(nm), text(parts[0]));
+      for (Scope* s : into) s->speeds[u] = *v;
     }
   }
 
+  /// The innermost scope that declares `u` (upper case) where the text being read is: the
+  /// routine's data, its module's (LOCAL included), the program's global data; nullptr: none.
+  const Scope* declaring(const std::string& u) const {
+    if (!routine_.empty() && local_.names.count(u)) return &local_;
+    if (module_index_ >= 0 && static_cast<size_t>(module_index_) < modules_.size() && modules_[static_cast<size_t>(module_index_)].names.count(u))
+      return &modules_[static_cast<size_t>(module_index_)];
+    return global_.names.count(u) ? &global_ : nullptr;
+  }
+
+  /// The value of the datum `u` (upper case) of a type (`m`) that the text being read refers
+  /// to; nullptr when the name it refers to is no such datum with a value.
   template <class T>
   const T* lookup(const std::map<std::string, T> Scope::*m, const std::string& u) const {
-    if (!routine_.empty()) {
-      const auto it = (local_.*m).find(u);
-      if (it != (local_.*m).end()) return &it->second;
-    }
-    const auto it = (module_.*m).find(u);
-    return it == (module_.*m).end() ? nullptr : &it->second;
+    const Scope* s = declaring(u);
+    if (!s) return nullptr;
+    const auto it = (s->*m).find(u);
+    return it == (s->*m).end() ? nullptr : &it->second;
   }
 
   // --- target expressions
@@ -680,25 +812,25 @@ class Reader {
     if (isOp(t_, r.first, "[")) return valueTarget(robtargetValue(r, -1));
     if (r.second == r.first + 1 && t_[r.first].kind == Tok::Kind::kIdent) {
       const std::string& u = t_[r.first].u;
-      if (params_.count(u) && !local_.robtargets.count(u)) {
-        tv.problem = "'" + t_[r.first].s + "' is a parameter of " + routine_ + ": its value comes from the call";
+      if (params_.count(u) && !local_.names.count(u)) {
+        tv.problem = "'" + excerpt(t_[r.first].s) + "' is a parameter of " + excerpt(routine_) + ": its value comes from the call";
         return tv;
       }
       const int* id = lookup(&Scope::robtargets, u);
       if (!id) {
-        tv.problem = "'" + t_[r.first].s + "' is not a robtarget declared with a value in this module";
+        tv.problem = "'" + excerpt(t_[r.first].s) + "' is not a robtarget declared with a value in this module";
         return tv;
       }
       const auto a = assigned_.find(u);
       if (a != assigned_.end()) {
-        tv.problem = "'" + t_[r.first].s + "' is assigned at " + a->second.str() + ": its value at run time is not the declared one";
+        tv.problem = "'" + excerpt(t_[r.first].s) + "' is assigned at " + a->second.str() + ": its value at run time is not the declared one";
         return tv;
       }
       return valueTarget(*id);
     }
     const bool offs = isKw(t_, r.first, "OFFS"), reltool = isKw(t_, r.first, "RELTOOL");
     if ((offs || reltool) && isOp(t_, r.first + 1, "(") && closing(t_, r.first + 1, r.second) == r.second) return offset(r, reltool);
-    tv.problem = "'" + text(r) + "' is not a target accura can evaluate (a robtarget, a declared robtarget, Offs or RelTool of one)";
+    tv.problem = "'" + quoted(r) + "' is not a target accura can evaluate (a robtarget, a declared robtarget, Offs or RelTool of one)";
     return tv;
   }
 
@@ -717,13 +849,13 @@ class Reader {
       while (o < r.second - 1) {
         if (!(isOp(t_, o, "\\") && o + 2 < r.second && t_[o + 1].kind == Tok::Kind::kIdent && isOp(t_, o + 2, ":=")) ||
             !(t_[o + 1].u == "RX" || t_[o + 1].u == "RY" || t_[o + 1].u == "RZ"))
-          fail(t_[o].b, "expected \\Rx:=, \\Ry:= or \\Rz:= in RelTool, found '" + t_[o].s + (o + 1 < r.second ? t_[o + 1].s : "") + "'");
+          fail(t_[o].b, "expected \\Rx:=, \\Ry:= or \\Rz:= in RelTool, found '" + excerpt(t_[o].s + (o + 1 < r.second ? t_[o + 1].s : "")) + "'");
         size_t e = o + 3;
         while (e < r.second - 1 && !isOp(t_, e, "\\")) ++e;
         const std::optional<double> x = number(t_, {o + 3, e});
         if (!x) {
           TargetVal tv;
-          tv.problem = "RelTool(...) at " + loc(t_[r.first].b).str() + " has a rotation that is not a number ('" + text({o + 3, e}) + "')";
+          tv.problem = "RelTool(...) at " + loc(t_[r.first].b).str() + " has a rotation that is not a number ('" + quoted({o + 3, e}) + "')";
           return tv;
         }
         if (std::abs(*x) > kMaxAngleDeg) shape(o + 3, "a rotation in deg within +-" + calib::formatFixed(kMaxAngleDeg, 0) + " in RelTool", text({o + 3, e}));
@@ -732,7 +864,11 @@ class Reader {
       }
     }
     if (args.size() != 4) fail(t_[r.first].b, "expected " + f + "(point, dx, dy, dz) with 4 arguments, found " + std::to_string(args.size()));
+    // (each level is a call: a pathological depth would overflow the stack)
+    if (++offset_depth_ > kMaxOffsetNesting)
+      fail(t_[r.first].b, "expected Offs/RelTool nested at most " + std::to_string(kMaxOffsetNesting) + " deep, found deeper nesting");
     TargetVal base = target(args[0]);
+    --offset_depth_;
     TargetVal tv;
     if (!base.problem.empty()) {
       tv.problem = f + "(...) at " + loc(t_[r.first].b).str() + " cannot be evaluated: " + base.problem;
@@ -742,7 +878,7 @@ class Reader {
     for (int k = 0; k < 3; ++k) {
       const std::optional<double> x = number(t_, args[static_cast<size_t>(k + 1)]);
       if (!x) {
-        tv.problem = f + "(...) at " + loc(t_[r.first].b).str() + " has an offset that is not a number ('" + text(args[static_cast<size_t>(k + 1)]) + "')";
+        tv.problem = f + "(...) at " + loc(t_[r.first].b).str() + " has an offset that is not a number ('" + quoted(args[static_cast<size_t>(k + 1)]) + "')";
         return tv;
       }
       if (std::abs(*x) > kMaxPositionMm)
@@ -752,6 +888,7 @@ class Reader {
     }
     tv = base;
     tv.value = -1;
+    tv.reads = base.value >= 0 ? base.value : base.reads;
     if (reltool) {
       Eigen::Isometry3d D = Eigen::Isometry3d::Identity();
       D.translation() = Eigen::Vector3d(d[0], d[1], d[2]);
@@ -765,7 +902,7 @@ class Reader {
     for (int k = 0; k < 3; ++k)
       if (std::abs(tv.T.translation()[k]) > kMaxPositionMm)
         fail(t_[r.first].b, "expected " + f + "(...) to give a position within +-" + calib::formatFixed(kMaxPositionMm, 0) + " mm, found " +
-                                calib::formatFixed(tv.T.translation()[k], 4) + " in '" + text(r) + "'");
+                                calib::formatFixed(tv.T.translation()[k], 4) + " in '" + quoted(r) + "'");
     return tv;
   }
 
@@ -822,7 +959,7 @@ class Reader {
     if (pos.size() != want) {
       static const char* sig[] = {"ToPoint, Speed, Zone, Tool", "CirPoint, ToPoint, Speed, Zone, Tool", "ToJointPos, Speed, Zone, Tool"};
       fail(t_[r.first].b, "expected " + f + " " + sig[u == "MOVEC" ? 1 : u == "MOVEABSJ" ? 2 : 0] + " (" + std::to_string(want) +
-                              " arguments), found " + std::to_string(pos.size()) + " in '" + text(r) + "'");
+                              " arguments), found " + std::to_string(pos.size()) + " in '" + quoted(r) + "'");
     }
     Motion m;
     m.where = loc(t_[r.first].b);
@@ -840,6 +977,9 @@ class Reader {
       if (time_s) {
         st.duration_text = {t_[it->second.first].b, t_[it->second.second - 1].e};
         st.duration_s = *time_s;
+        m.duration_s = *time_s;
+      } else {
+        m.duration_expr = it->second.first < it->second.second ? text(it->second) : std::string("\\T");
       }
     }
     zone(pos[n - 2].main, opt, m);
@@ -851,10 +991,21 @@ class Reader {
                          "): the robot goes to the displaced target, which accura does not model";
     if (eoffs_ && m.target_problem.empty())
       m.target_problem = "an external axes offset is active (" + eoffs_name_ + " at " + eoffs_->str() + "), which accura does not model";
+    // what the move reads besides its plain targets (Offs of a run-time value, a \WObj, ...)
+    std::vector<Range> targets;
+    if (u != "MOVEABSJ") targets.push_back(pos[0].main);
+    if (u == "MOVEC") targets.push_back(pos[1].main);
+    size_t from = r.first + 1;
+    for (const Range& a : targets) {
+      noteReads({from, a.first}, r);
+      from = a.second;
+    }
+    noteReads({from, r.second}, r);
     if (u == "MOVEABSJ") {
       jointTarget(pos[0].main, m);
       st.targets.push_back({t_[pos[0].main.first].b, t_[pos[0].main.second - 1].e});
       st.target_value.push_back(-1);
+      st.target_reads.push_back(-1);
     } else {
       auto cart = [&](Range a) {
         const TargetVal v = target(a);
@@ -873,6 +1024,9 @@ class Reader {
         }
         st.targets.push_back({t_[a.first].b, t_[a.second - 1].e});
         st.target_value.push_back(v.problem.empty() ? v.value : -1);
+        st.target_reads.push_back(v.problem.empty() ? v.reads : -1);
+        // a target the motion keeps as written (an Offs of a run-time value) reads its points
+        if (!v.problem.empty() && !(a.second == a.first + 1)) noteReads(a, r);
         return tg;
       };
       if (u == "MOVEC") m.aux = cart(pos[0].main);
@@ -908,7 +1062,7 @@ class Reader {
   }
 
   void addMotion(Range r, Motion& m, RapidSource::Statement& st, Program& p) {
-    if (routine_.empty()) fail(t_[r.first].b, "expected " + t_[r.first].s + " inside a routine (PROC), found it at module level");
+    if (routine_.empty()) fail(t_[r.first].b, "expected " + excerpt(t_[r.first].s) + " inside a routine (PROC), found it at module level");
     if (main_routine_.empty()) main_routine_ = routine_;
     if (routine_ != main_routine_) other_routine_motion_ = true;
     m.statement_id = static_cast<int>(src_->statements.size());
@@ -935,7 +1089,7 @@ class Reader {
     if (q && !assigned_.count(t_[a.first].u)) {
       for (int k = 0; k < 6; ++k) m.target.axes[static_cast<size_t>(k)] = (*q)[static_cast<size_t>(k)];
     } else {
-      m.target_problem = "'" + text(a) + "' is not a jointtarget declared with a constant value in this module";
+      m.target_problem = "'" + quoted(a) + "' is not a jointtarget declared with a constant value in this module";
     }
   }
 
@@ -1007,13 +1161,13 @@ class Reader {
     if (single && u == builtin) {
       f.source = FrameSetting::Source::kNull;
       f.value = calib::XyzAbc{};
-    } else if (single && params_.count(u) && !(local_.*table).count(u)) {
+    } else if (single && params_.count(u) && !local_.names.count(u)) {
       f.source = FrameSetting::Source::kUnknown;
-      f.note = "the " + type + " '" + f.text + "' is a parameter of " + routine_ + ": its value comes from the call";
+      f.note = "the " + type + " '" + excerpt(f.text) + "' is a parameter of " + excerpt(routine_) + ": its value comes from the call";
       f.run_time = true;
     } else if (assigned != assigned_.end()) {
       f.source = FrameSetting::Source::kUnknown;
-      f.note = "the " + type + " '" + f.text + "' is assigned at " + assigned->second.str() + ": its value at run time is not the declared one";
+      f.note = "the " + type + " '" + excerpt(f.text) + "' is assigned at " + assigned->second.str() + ": its value at run time is not the declared one";
       f.run_time = true;
     } else if (const FrameVal* v = single ? lookup(table, u) : nullptr) {
       f.where = v->where;
@@ -1022,7 +1176,7 @@ class Reader {
       f.note = v->note;
     } else {
       f.source = FrameSetting::Source::kUnset;
-      f.note = "the " + type + " '" + f.text + "' is not declared with a value in this module (" + option + ")";
+      f.note = "the " + type + " '" + excerpt(f.text) + "' is not declared with a value in this module (" + option + ")";
     }
     return f;
   }
@@ -1084,7 +1238,10 @@ class Reader {
   std::vector<std::array<std::optional<double>, 6>> ext_;  ///< external axes of each value (9E9: none)
   std::map<size_t, size_t> model_;  ///< the statements of the motion model (markModel): first token -> end
   std::vector<int> motion_lines_;
-  Scope module_, local_;
+  std::vector<Scope> modules_;  ///< each module's data (moduleData), by module_index_
+  Scope global_, local_;        ///< the program's global data; the current routine's
+  int module_index_ = -1;       ///< the module being read (its MODULE's count - 1)
+  std::set<size_t> module_data_;  ///< first tokens of the module-level declarations (read first)
   std::string module_name_, routine_, routine_kind_, main_routine_;
   Range routine_line_{0, 0};
   bool module_seen_ = false, module_open_ = false, other_routine_motion_ = false;
@@ -1092,6 +1249,9 @@ class Reader {
   std::set<std::string> routines_;  ///< the module's PROCs that move the robot (upper case)
   std::map<std::string, SourceLocation> displaced_;  ///< routines called with a displacement active: the call
   bool confl_ = true, confj_ = true;
+  /// Offs/RelTool nested in the target being read: at most kMaxOffsetNesting.
+  int offset_depth_ = 0;
+  static constexpr int kMaxOffsetNesting = 100;
 };
 
 }  // namespace

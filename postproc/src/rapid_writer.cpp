@@ -6,8 +6,10 @@
 #include <filesystem>
 #include <map>
 #include <sstream>
+#include <tuple>
 
 #include "accura/calib/errors.h"
+#include "excerpt.h"
 #include "rapid_internal.h"
 
 namespace accura::postproc {
@@ -87,9 +89,11 @@ std::string lineEnd(const RapidSource& s, const std::string& eol) {
 /// Edits of one motion's targets (not inserted). `movej_conf`: per robtarget value, the confdata
 /// a MoveJ to it was compensated on (ConfJ\On needs it exactly; a MoveL/MoveC keeps what is
 /// written and ConfL\On accepts axes 1, 4, 6 within one quadrant): a value shared by both is
-/// written with the MoveJ's.
+/// written with the MoveJ's. `new_points`: the new declarations written so far (name -> value,
+/// the motion), each written once.
 void targetEdits(const Program& p, const Motion& m, std::map<int, std::pair<std::string, std::string>>& values,
-                 const std::map<int, std::array<int, 4>>& movej_conf, std::vector<Edit>& edits, int& order) {
+                 std::map<std::string, std::pair<std::string, std::string>>& new_points, const std::map<int, std::array<int, 4>>& movej_conf,
+                 std::vector<Edit>& edits, int& order) {
   const RapidSource& s = *p.rapid;
   const RapidSource::Statement& st = s.statements[static_cast<size_t>(m.statement_id)];
   std::vector<const Target*> ts;
@@ -103,11 +107,25 @@ void targetEdits(const Program& p, const Motion& m, std::map<int, std::pair<std:
     const double unit[4] = {1, 0, 0, 0};
     if (t.new_declaration) {
       const bool declared = v && v->decl >= 0 && !t.name.empty();
-      const std::string value = robtargetText(t, v ? v->v + 3 : unit, unusedAxisText(s.text));
+      // (a MoveJ and a MoveL to the new point: the MoveJ's confdata, as for a declared one)
+      Target shared = t;
+      const auto mj = movej_conf.find(vid);
+      if (m.type != MotionType::kPtp && mj != movej_conf.end() && t.abb_conf && vid >= 0) shared.abb_conf = mj->second;
+      const std::string value = robtargetText(declared ? shared : t, v ? v->v + 3 : unit, unusedAxisText(s.text));
       if (!declared) {
         edits.push_back({st.targets[k].first, st.targets[k].second, value, order++});
         continue;
       }
+      // a new point several motions go to (Job::copyRapidPointsReadElsewhere) is declared once
+      const auto seen = new_points.find(t.name);
+      if (seen != new_points.end()) {
+        if (seen->second.first != value)
+          throw calib::ArgumentError(m.where.str() + ": " + t.name + " (for " + t.replaces + ") needs a different correction here than at " +
+                                     seen->second.second + " (the same robtarget with another tool, work object or path): give the motions their own robtargets");
+        edits.push_back({st.targets[k].first, st.targets[k].second, t.name, order++});
+        continue;
+      }
+      new_points[t.name] = {value, m.where.str()};
       const RapidSource::Decl& d = s.decls[static_cast<size_t>(v->decl)];
       const std::string eol = d.line_end > 1 && s.text[d.line_end - 2] == '\r' ? "\r\n" : "\n";
       std::string line = d.indent + d.head + t.name + " := " + value + ";" + eol;
@@ -140,6 +158,7 @@ std::string patch(const Program& p) {
   int order = 0;
   std::vector<Edit> edits;
   std::map<int, std::pair<std::string, std::string>> values;
+  std::map<std::string, std::pair<std::string, std::string>> new_points;  // a new declaration's name -> its value, the motion
   std::map<int, std::array<int, 4>> movej_conf;
   for (const Motion& m : p.motions) {
     if (m.inserted || m.type != MotionType::kPtp || m.target.kind != Target::Kind::kCartesian || !m.target.modified ||
@@ -156,7 +175,7 @@ std::string patch(const Program& p) {
     // a move with a time \T split into pieces: each piece its share of the time
     const std::string duration = pieceDurationText(p, i, st.duration_s);
     if (!m.inserted) {
-      targetEdits(p, m, values, movej_conf, edits, order);
+      targetEdits(p, m, values, new_points, movej_conf, edits, order);
       if (!duration.empty()) edits.push_back({st.duration_text.first, st.duration_text.second, duration, order++});
       continue;
     }
@@ -315,8 +334,9 @@ class Generator {
     return known == value ? t.name : value;
   }
 
-  void motion(const Motion& m, size_t) {
+  void motion(const Motion& m, size_t index) {
     if (m.relative) refuse(m, "a relative motion (RAPID has Offs/RelTool of a known point instead)");
+    if (!m.duration_expr.empty()) refuse(m, "its time (" + detail::excerpt(m.duration_expr) + ") is computed at run time in its own language");
     if (m.type == MotionType::kSpl) refuse(m, "RAPID has no spline motion");
     if (m.circ_angle_deg) refuse(m, "MoveC has no circular angle (CA)");
     if (m.external_tcp) refuse(m, "a stationary tool is not converted");
@@ -336,7 +356,14 @@ class Generator {
       if (m.aux) s += target(m, *m.aux) + ", ";
       s += target(m, m.target);
     }
-    s += ", " + speedText(m) + ", " + zoneText(m) + ", " + tool + (wobj == "wobj0" ? "" : "\\WObj:=" + wobj) + ";\n";
+    // the move's time (\T:=, s): the controller makes it take that long; a piece of a split
+    // motion its share
+    std::string time;
+    if (m.duration_s) {
+      const std::string piece = pieceDurationText(p_, index, *m.duration_s);
+      time = "\\T:=" + (piece.empty() ? calib::formatFixed(*m.duration_s, 4) : piece);
+    }
+    s += ", " + speedText(m) + time + ", " + zoneText(m) + ", " + tool + (wobj == "wobj0" ? "" : "\\WObj:=" + wobj) + ";\n";
     body_.push_back(s);
   }
 
@@ -359,6 +386,15 @@ std::string writeRapid(const Program& program) {
 Program rapidForConversion(const Program& program) {
   Program out = program;
   if (!program.rapid) return out;
+  // a tooldata or wobjdata the module names but does not declare (a system module's): the other
+  // format's motion would have no tool or base, which no one would notice (compensate names the
+  // option that supplies it)
+  for (const Motion& m : program.motions)
+    for (const auto& [f, what, type] : {std::make_tuple(&m.tool, "tool", "tooldata"), std::make_tuple(&m.base, "work object", "wobjdata")})
+      if (f->source == FrameSetting::Source::kUnset && !f->text.empty())
+        throw calib::ArgumentError(m.where.str() + ": cannot convert '" + detail::excerpt(m.statement) + "': the " + type + " '" +
+                                   detail::excerpt(f->text) + "' is not declared with a value in the program (a system module's?), so the " +
+                                   "converted motion would have no " + what + ": declare it in the module, or convert the .prg that holds its module");
   std::vector<std::pair<size_t, size_t>> spans;
   for (const Motion& m : out.motions) {
     const RapidSource::Statement& st = program.rapid->statements.at(static_cast<size_t>(m.statement_id));

@@ -11,6 +11,7 @@
 
 #include "accura/calib/errors.h"
 #include "decimal.h"
+#include "excerpt.h"
 #include "start_tracker.h"
 #include "urscript_internal.h"
 
@@ -57,6 +58,7 @@ Eigen::Isometry3d evaluate(const UrScriptSource& src, int id, const std::map<int
 namespace {
 
 using namespace ur_detail;
+using detail::excerpt;
 
 struct Tok {
   enum class Kind { kIdent, kNumber, kString, kOp, kNewline };
@@ -145,6 +147,13 @@ class Reader {
       statement(st, p);
       i = j;
     }
+    // a script without a statement (0 bytes, blanks, comments only) is no program: an empty
+    // output would be written without a word (a script of statements without a motion is one)
+    if (std::none_of(toks_.begin(), toks_.end(), [](const Tok& t) { return t.kind != Tok::Kind::kNewline; })) {
+      const bool comments = src_->text.find('#') != std::string::npos;
+      fail(0, std::string("expected a URScript program (def name(): ... end, or its statements such as movel(...)), found an empty file") +
+                  (comments ? " (only comments and blank lines)" : ""));
+    }
     if (!blocks_.empty())
       fail(src_->text.size(), "expected end closing the block at " + loc(blocks_.back().at).str() + ", found the end of the file");
     if (!main_name_.empty()) p.name = main_name_;
@@ -172,13 +181,16 @@ class Reader {
   std::string textOf(const std::vector<Tok>& t, size_t i, size_t j) const {
     return i < j ? textOf(t[i].b, t[j - 1].e) : std::string();
   }
+  /// The tokens [i, j) as a message quotes them (detail::excerpt: at most 80 bytes).
+  std::string quoted(const std::vector<Tok>& t, size_t i, size_t j) const { return excerpt(textOf(t, i, j)); }
 
   void lex() {
     const std::string& s = src_->text;
+    // a NUL byte anywhere (code, a comment, a string) is no text: the first one is the error
+    if (const size_t nul = s.find('\0'); nul != std::string::npos) fail(nul, "expected a URScript text file, found a NUL byte (binary file?)");
     size_t i = s.compare(0, 3, "\xEF\xBB\xBF") == 0 ? 3 : 0;  // a UTF-8 byte order mark: read past (kept in the text)
     while (i < s.size()) {
       const char c = s[i];
-      if (c == '\0') fail(i, "expected a URScript text file, found a NUL byte (binary file?)");
       if (c == '#') {
         while (i < s.size() && s[i] != '\n') ++i;
         continue;
@@ -203,7 +215,7 @@ class Reader {
         t.e = j;
         t.s = s.substr(i, j - i);
         t.num = std::strtod(t.s.c_str(), nullptr);
-        if (!std::isfinite(t.num)) fail(i, "expected a finite number, found '" + t.s + "'");
+        if (!std::isfinite(t.num)) fail(i, "expected a finite number, found '" + excerpt(t.s) + "'");
       } else if (isIdentStart(c)) {
         size_t j = i;
         while (j < s.size() && isIdentChar(s[j])) ++j;
@@ -277,8 +289,18 @@ class Reader {
     return std::nullopt;
   }
 
-  int addExpr(UrScriptSource::Expr e) {
+  /// Adds e at `at` (its operator's token): a pose_trans/pose_add of variables built on each
+  /// other may chain any number of statements, and evaluating it is a call per level, so the
+  /// chain is bounded (kMaxExprDepth).
+  int addExpr(UrScriptSource::Expr e, size_t at) {
+    int depth = 0;  // the pose_trans/pose_add on the way down to its deepest literal
+    for (int operand : {e.a, e.b})
+      if (operand >= 0) depth = std::max(depth, 1 + expr_depth_[static_cast<size_t>(operand)]);
+    if (depth > kMaxExprDepth)
+      fail(at, "expected a pose built of at most " + std::to_string(kMaxExprDepth) +
+                   " pose_trans/pose_add (through the variables it uses), found a deeper one");
     src_->exprs.push_back(e);
+    expr_depth_.push_back(depth);
     return static_cast<int>(src_->exprs.size()) - 1;
   }
 
@@ -294,22 +316,22 @@ class Reader {
       const auto parts = items(t, i + 2, j - 1);
       if (parts.size() != 6 || (parts.size() == 1 && parts[0].first == parts[0].second))
         fail(t[i].b, "expected p[x, y, z, rx, ry, rz] with 6 numbers, found " + std::to_string(i + 2 == j - 1 ? 0 : parts.size()) +
-                         " in '" + text + "'");
+                         " in '" + excerpt(text) + "'");
       UrScriptSource::Literal lit;
       lit.begin = t[i].b;
       lit.end = t[j - 1].e;
       for (int k = 0; k < 6; ++k) {
         const auto [a, b] = parts[static_cast<size_t>(k)];
-        if (a == b) fail(a < j ? t[a].b : t[j - 1].b, "expected a number in p[...], found '" + (a < j ? t[a].s : std::string("]")) + "'");
+        if (a == b) fail(a < j ? t[a].b : t[j - 1].b, "expected a number in p[...], found '" + (a < j ? excerpt(t[a].s) : std::string("]")) + "'");
         const std::optional<double> n = number(t, a, b);
         if (!n) {
-          v.problem = "p[...] at " + loc(t[i].b).str() + " has a component that is not a number ('" + textOf(t, a, b) + "')";
+          v.problem = "p[...] at " + loc(t[i].b).str() + " has a component that is not a number ('" + quoted(t, a, b) + "')";
           return v;
         }
         const double lim = k < 3 ? kMaxPositionM : kMaxRotationRad;
         if (std::abs(*n) > lim)
           fail(t[a].b, std::string("expected ") + (k < 3 ? "a position in metres" : "a rotation vector component in radians") +
-                           " within +-" + calib::formatFixed(lim, 0) + ", found " + textOf(t, a, b));
+                           " within +-" + calib::formatFixed(lim, 0) + ", found " + quoted(t, a, b));
         lit.number[k] = {t[a].b, t[b - 1].e};
         lit.value[k] = *n;
       }
@@ -317,27 +339,31 @@ class Reader {
       v.literal = static_cast<int>(src_->literals.size()) - 1;
       UrScriptSource::Expr e;
       e.literal = v.literal;
-      v.expr = addExpr(e);
+      v.expr = addExpr(e, t[i].b);
       return v;
     }
     if (j == i + 1 && t[i].kind == Tok::Kind::kIdent) {
       const auto it = vars_.find(t[i].s);
       if (it == vars_.end()) {
-        v.problem = "'" + t[i].s + "' is not assigned a pose before this line";
+        v.problem = "'" + excerpt(t[i].s) + "' is not assigned a pose before this line";
         return v;
       }
       refs_.push_back(t[i].s);
       if (it->second.kind == Var::Kind::kPose) return it->second.pose;
-      v.problem = it->second.problem.empty() ? "'" + t[i].s + "' is not a pose" : it->second.problem;
+      v.problem = it->second.problem.empty() ? "'" + excerpt(t[i].s) + "' is not a pose" : it->second.problem;
       return v;
     }
     if (t[i].kind == Tok::Kind::kIdent && isOp(t, i + 1, "(") && closing(t, i + 1) == j) {
       const std::string& f = t[i].s;
       if (f == "pose_trans" || f == "pose_add") {
         const auto args = items(t, i + 2, j - 1);
-        if (args.size() != 2) fail(t[i].b, "expected " + f + "(pose, pose) with 2 arguments, found " + std::to_string(args.size()));
+        if (args.size() != 2) fail(t[i].b, "expected " + excerpt(f) + "(pose, pose) with 2 arguments, found " + std::to_string(args.size()));
+        // (each level is a call: a pathological depth would overflow the stack)
+        if (++pose_depth_ > kMaxPoseNesting)
+          fail(t[i].b, "expected pose_trans/pose_add nested at most " + std::to_string(kMaxPoseNesting) + " deep, found deeper nesting");
         const PoseVal a = pose(t, args[0].first, args[0].second);
         const PoseVal b = pose(t, args[1].first, args[1].second);
+        --pose_depth_;
         if (!a.problem.empty() || !b.problem.empty()) {
           v.problem = f + "(...) at " + loc(t[i].b).str() + " cannot be evaluated: " + (a.problem.empty() ? b.problem : a.problem);
           return v;
@@ -346,14 +372,14 @@ class Reader {
         e.kind = f == "pose_trans" ? UrScriptSource::Expr::Kind::kTrans : UrScriptSource::Expr::Kind::kAdd;
         e.a = a.expr;
         e.b = b.expr;
-        v.expr = addExpr(e);
+        v.expr = addExpr(e, t[i].b);
         v.literal = b.literal >= 0 ? b.literal : a.literal;
         return v;
       }
-      v.problem = f + "(...) is computed by the controller at run time (accura evaluates p[...], pose variables, pose_trans and pose_add)";
+      v.problem = excerpt(f) + "(...) is computed by the controller at run time (accura evaluates p[...], pose variables, pose_trans and pose_add)";
       return v;
     }
-    v.problem = "'" + text + "' is not a pose accura can evaluate (p[...], a pose variable, pose_trans, pose_add)";
+    v.problem = "'" + excerpt(text) + "' is not a pose accura can evaluate (p[...], a pose variable, pose_trans, pose_add)";
     return v;
   }
 
@@ -364,15 +390,15 @@ class Reader {
       if (parts.size() != 6) fail(t[i].b, "expected 6 joint positions [q1, .., q6] (rad), found " + std::to_string(parts.size()));
       std::array<double, 6> q{};
       for (int k = 0; k < 6; ++k) {
-        if (parts[k].first == parts[k].second) fail(t[parts[k].first].b, "expected a joint position, found '" + t[parts[k].first].s + "'");
+        if (parts[k].first == parts[k].second) fail(t[parts[k].first].b, "expected a joint position, found '" + excerpt(t[parts[k].first].s) + "'");
         const std::optional<double> n = number(t, parts[k].first, parts[k].second);
         if (!n) {
           *problem = "the joint list at " + loc(t[i].b).str() + " has a value that is not a number ('" +
-                     textOf(t, parts[k].first, parts[k].second) + "')";
+                     quoted(t, parts[k].first, parts[k].second) + "')";
           return std::nullopt;
         }
         if (std::abs(*n) > kMaxJointRad)
-          fail(t[parts[k].first].b, "expected a joint position in radians within +-100, found " + textOf(t, parts[k].first, parts[k].second));
+          fail(t[parts[k].first].b, "expected a joint position in radians within +-100, found " + quoted(t, parts[k].first, parts[k].second));
         q[static_cast<size_t>(k)] = *n;
       }
       return q;
@@ -382,7 +408,7 @@ class Reader {
       refs_.push_back(t[i].s);
       if (it != vars_.end() && it->second.kind == Var::Kind::kJoints) return it->second.q;
     }
-    *problem = "'" + textOf(t, i, j) + "' is not a joint list accura can evaluate";
+    *problem = "'" + quoted(t, i, j) + "' is not a joint list accura can evaluate";
     return std::nullopt;
   }
 
@@ -451,16 +477,16 @@ class Reader {
         if (std::find(names.begin() + static_cast<std::ptrdiff_t>(first), names.end(), n) == names.end()) {
           std::string all;
           for (size_t x = first; x < names.size(); ++x) all += (all.empty() ? "" : ", ") + names[x];
-          fail(t[a].b, "expected an argument of " + f + " (" + all + "), found '" + n + "'");
+          fail(t[a].b, "expected an argument of " + f + " (" + all + "), found '" + excerpt(n) + "'");
         }
-        if (arg.count(n)) fail(t[a].b, "expected each argument of " + f + " once, found '" + n + "' given twice");
-        if (a + 2 >= b) fail(t[a + 1].b, "expected a value after '" + n + "=', found none");
+        if (arg.count(n)) fail(t[a].b, "expected each argument of " + f + " once, found '" + excerpt(n) + "' given twice");
+        if (a + 2 >= b) fail(t[a + 1].b, "expected a value after '" + excerpt(n) + "=', found none");
         arg[n] = {a + 2, b};
         named_seen = true;
       } else {
-        if (named_seen) fail(t[a].b, "expected a named argument (name=value) after a named one, found '" + textOf(t, a, b) + "'");
+        if (named_seen) fail(t[a].b, "expected a named argument (name=value) after a named one, found '" + quoted(t, a, b) + "'");
         if (positional >= names.size())
-          fail(t[a].b, "expected at most " + std::to_string(names.size()) + " arguments of " + f + ", found '" + textOf(t, a, b) + "'");
+          fail(t[a].b, "expected at most " + std::to_string(names.size()) + " arguments of " + f + ", found '" + quoted(t, a, b) + "'");
         arg[names[positional++]] = {a, b};
       }
     }
@@ -481,7 +507,7 @@ class Reader {
     };
     if (const auto it = arg.find("tcp");
         it != arg.end() && !is(it->second, "get_tcp_offset()", "\"active_tcp\"") && m.target_problem.empty())
-      m.target_problem = "get_inverse_kin(..., tcp=" + textOf(t, it->second.first, it->second.second) +
+      m.target_problem = "get_inverse_kin(..., tcp=" + quoted(t, it->second.first, it->second.second) +
                          ") solves for a TCP that is not the active one, which accura does not model";
     const auto it = arg.find("qnear");
     if (it == arg.end() || is(it->second, "get_actual_joint_positions()", "get_target_joint_positions()")) return;
@@ -540,7 +566,7 @@ class Reader {
         tool_ = runTimeFrame("set_tcp", loc(t[0].b), "a function runs with the tool of the place it is called from until it calls set_tcp");
         for (auto& [n, v] : vars_) {
           Var c;
-          c.problem = "in the function " + b.name + ", '" + n + "' has the value it has where the function is called";
+          c.problem = "in the function " + excerpt(b.name) + ", '" + excerpt(n) + "' has the value it has where the function is called";
           v = c;
         }
       }
@@ -593,13 +619,13 @@ class Reader {
       if (const auto fa = fn_assigns_.find(t[k].s); fa != fn_assigns_.end())
         for (const auto& [n, at] : fa->second) {
           Var v;
-          v.problem = "'" + n + "' is assigned by " + t[k].s + " (at " + at.str() + "), called at " + loc(t[k].b).str() +
+          v.problem = "'" + excerpt(n) + "' is assigned by " + excerpt(t[k].s) + " (at " + at.str() + "), called at " + loc(t[k].b).str() +
                       ": its value after the call is not followed";
           vars_[n] = v;
         }
       if (const auto ts = tcp_setters_.find(t[k].s); ts != tcp_setters_.end())
         tool_ = runTimeFrame(t[k].s + "()", loc(t[k].b),
-                             "the function " + t[k].s + " (" + ts->second.str() + ") calls set_tcp: the tool after the call is not followed");
+                             "the function " + excerpt(t[k].s) + " (" + ts->second.str() + ") calls set_tcp: the tool after the call is not followed");
     }
     // a call of one of the script's functions that move the robot, a thread of the script that
     // moves it started (run name()), force control
@@ -614,7 +640,7 @@ class Reader {
       const std::string& f = t[0].s;
       if (f == "movel" || f == "movej" || f == "movep" || f == "movec" || f == "set_tcp") {
         const size_t close = closing(t, 1);
-        if (close != t.size()) fail(t[close].b, "expected the end of the statement after " + f + "(...), found '" + t[close].s + "'");
+        if (close != t.size()) fail(t[close].b, "expected the end of the statement after " + f + "(...), found '" + excerpt(t[close].s) + "'");
         if (f == "set_tcp") return setTcp(t);
         return motion(t, p);
       }
@@ -654,7 +680,7 @@ class Reader {
       for (int l : u.loops) same_loop = same_loop || std::find(loops.begin(), loops.end(), l) != loops.end();
       Motion& m = p.motions[u.motion];
       if (same_loop && m.target_problem.empty())
-        m.target_problem = "'" + name + "' is assigned again at " + loc(t[s].b).str() +
+        m.target_problem = "'" + excerpt(name) + "' is assigned again at " + loc(t[s].b).str() +
                            " in the loop that runs this motion: its value on the next pass is not the one it has here";
     }
     const size_t i = s + 2, j = t.size();
@@ -665,7 +691,7 @@ class Reader {
                            (j == i + 1 && t[i].kind == Tok::Kind::kIdent && vars_.count(t[i].s) && vars_.at(t[i].s).kind == Var::Kind::kPose);
     if (i >= j) fail(t[s + 1].b, "expected a value after '=', found the end of the statement");
     if (mentions(t, i, j, name) && (pose_like || was_model)) {
-      v.problem = "'" + name + "' is changed at run time at " + loc(t[s].b).str() + " (" + textOf(t, s, j) + ")";
+      v.problem = "'" + excerpt(name) + "' is changed at run time at " + loc(t[s].b).str() + " (" + quoted(t, s, j) + ")";
       other(t);
     } else if (pose_like) {
       v.kind = Var::Kind::kPose;
@@ -682,7 +708,7 @@ class Reader {
         other(t);
       }
     } else {
-      v.problem = "'" + name + "' is assigned '" + textOf(t, i, j) + "' at " + loc(t[s].b).str() + ", which accura cannot evaluate";
+      v.problem = "'" + excerpt(name) + "' is assigned '" + quoted(t, i, j) + "' at " + loc(t[s].b).str() + ", which accura cannot evaluate";
       other(t);
     }
     vars_[name] = v;
@@ -741,7 +767,7 @@ class Reader {
       if (it == arg.end()) return std::nullopt;
       const std::optional<double> x = number(t, it->second.first, it->second.second);
       if (x && !(*x >= lo && *x <= hi))
-        fail(t[it->second.first].b, "expected " + std::string(what) + ", found " + textOf(t, it->second.first, it->second.second));
+        fail(t[it->second.first].b, "expected " + std::string(what) + ", found " + quoted(t, it->second.first, it->second.second));
       return x;
     };
     number_arg("a", 0, 1e3, "an acceleration in [0, 1000]");
@@ -749,6 +775,9 @@ class Reader {
       const std::pair<size_t, size_t> r = arg.at("t");
       st.duration_text = {t[r.first].b, t[r.second - 1].e};
       st.duration_s = *time_s;
+      m.duration_s = *time_s;
+    } else if (!time_s && arg.count("t")) {
+      m.duration_expr = textOf(t, arg.at("t").first, arg.at("t").second);  // (t=tm: the controller's)
     }
     if (f == "movej") {
       number_arg("v", 0, 1e3, "a joint speed in [0, 1000] rad/s");
@@ -909,7 +938,7 @@ class Reader {
     }
     for (const std::string& n : changed) {
       Var v;
-      v.problem = "'" + n + "' is assigned inside the " + (b.kind == StartTracker::Block::kBranch ? "if" : "while") + " at " +
+      v.problem = "'" + excerpt(n) + "' is assigned inside the " + (b.kind == StartTracker::Block::kBranch ? "if" : "while") + " at " +
                   loc(b.at).str() + ": after it, its value depends on the way the program ran";
       vars_[n] = v;
     }
@@ -927,6 +956,11 @@ class Reader {
   };
   std::vector<Use> uses_;          ///< variables the motions' targets read
   std::vector<std::string> refs_;  ///< variables read by the motion being parsed
+  /// pose_trans/pose_add nested in the pose being read: at most kMaxPoseNesting.
+  int pose_depth_ = 0;
+  static constexpr int kMaxPoseNesting = 100;
+  std::vector<int> expr_depth_;  ///< per expression of src_->exprs: its depth (addExpr)
+  static constexpr int kMaxExprDepth = 1000;
 };
 
 }  // namespace

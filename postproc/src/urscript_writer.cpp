@@ -10,6 +10,7 @@
 #include "accura/calib/errors.h"
 #include "accura/calib/text.h"
 #include "accura/postproc/krl.h"
+#include "excerpt.h"
 #include "urscript_internal.h"
 
 namespace accura::postproc {
@@ -347,6 +348,9 @@ std::string generate(const Program& p) {
     if (m.circ_angle_deg) refuse(m, "URScript's movec has no circular angle (CA)");
     if (m.external_tcp) refuse(m, "URScript has no external TCP");
     if (!m.target_problem.empty()) refuse(m, m.target_problem);
+    if (!m.duration_expr.empty()) refuse(m, "its time (" + detail::excerpt(m.duration_expr) + ") is computed at run time in its own language");
+    if (m.duration_s && m.type == MotionType::kCirc)
+      refuse(m, "its time (" + calib::formatFixed(*m.duration_s, 4) + " s): URScript's movec has no time t (convert --drop-unconvertible converts it without)");
     for (const auto& e : m.target.ext)
       if (e && *e != 0) refuse(m, "the target moves external axes, which a UR has none of");
     if (!m.approximation.empty() && (m.approximation.front() != Approximation::kCDis || !m.approximation_value))
@@ -394,6 +398,10 @@ std::string generate(const Program& p) {
     }
     const char* f = m.type == MotionType::kPtp ? "movej" : m.type == MotionType::kCirc ? "movec" : "movel";
     if (m.type != MotionType::kPtp && m.vel_m_s) args += ", v=" + calib::formatFixed(*m.vel_m_s, 4);
+    if (m.duration_s) {  // the move's time (s): a piece of a split motion its share
+      const std::string piece = pieceDurationText(p, static_cast<size_t>(&m - p.motions.data()), *m.duration_s);
+      args += ", t=" + (piece.empty() ? calib::formatFixed(*m.duration_s, 4) : piece);
+    }
     if (m.approximation_value && !m.approximation.empty()) args += ", r=" + calib::formatFixed(*m.approximation_value / 1000.0, kDecimals);
     out << "  " << f << "(" << args << ")\n";
   }

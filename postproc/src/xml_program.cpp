@@ -14,6 +14,7 @@
 
 #include "accura/calib/errors.h"
 #include "accura/calib/xml_text.h"
+#include "excerpt.h"
 
 namespace accura::postproc {
 namespace {
@@ -45,7 +46,7 @@ std::set<std::string> frameAttrs() {
 
 std::set<std::string> motionAttrs() {
   return {"vel_percent", "vel_m_s", "approx", "approx_value", "ca_deg", "relative", "external_tcp", "conf_monitored", "source_line",
-          "start_unknown", "spline_block", "spline_block_type"};
+          "start_unknown", "spline_block", "spline_block_type", "time_s"};
 }
 
 class Reader {
@@ -381,6 +382,9 @@ Motion readMotion(const Reader& R, const XMLElement* e) {
   if (e->Attribute("conf_monitored")) m.conf_monitored = R.flag(e, "conf_monitored");
   if (const auto l = R.integer(e, "source_line")) m.source_line = *l;
   if (e->Attribute("start_unknown")) m.start_unknown = R.flag(e, "start_unknown");
+  m.duration_s = R.number(e, "time_s");
+  if (m.duration_s && !(*m.duration_s > 0 && *m.duration_s <= 1e6))
+    R.fail(e, "<" + n + "> attribute 'time_s': expected the move's time in (0, 1e6] s, found " + calib::formatFixed(*m.duration_s, 4));
   if (m.type == MotionType::kSpl && m.relative) R.fail(e, "<spl>: attribute 'relative' is not allowed");
   if (const auto b = R.integer(e, "spline_block")) {
     if (!m.spline || *b < 1)
@@ -678,6 +682,15 @@ std::string writeXmlProgram(const Program& p) {
     if (m.start_unknown && !m.inserted) out << " start_unknown=\"true\"";
     if (m.spline_block > 0)
       out << " spline_block=\"" << m.spline_block << "\" spline_block_type=\"" << (m.ptp_spline_block ? "PTP_SPLINE" : "SPLINE") << "\"";
+    if (!m.duration_expr.empty())
+      throw calib::ArgumentError(m.where.str() + ": cannot write '" + detail::excerpt(m.statement) + "' as XML: its time (" +
+                                 detail::excerpt(m.duration_expr) + ") is computed at run time, which the XML's motion model cannot hold " +
+                                 "(convert --drop-unconvertible converts the motion without it)");
+    if (m.duration_s) {
+      // a motion the compensation split: each piece its share of the time (program.h)
+      const std::string piece = pieceDurationText(p, k, *m.duration_s);
+      out << " time_s=\"" << (piece.empty() ? calib::formatFixed(*m.duration_s, 4) : piece) << "\"";
+    }
     out << ">\n";
     auto refOrValue = [&](const char* tag_name, const Target& t, bool aux) {
       if (hasValues(t)) {

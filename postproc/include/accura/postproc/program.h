@@ -181,6 +181,16 @@ struct Motion {
   /// The position before this motion is not known (RAPID: the first motion of a routine,
   /// which may be called from anywhere): the compensation starts afresh here.
   bool start_unknown = false;
+  /// The programmed duration of the motion's statement (s): RAPID `\T:=`, URScript movel's and
+  /// movej's `t`, XML `time_s`. The controller makes the move take that long (its speed is
+  /// then not used). A writer carries it where its language can (RAPID `\T:=`, URScript `t=`,
+  /// XML; a motion split into pieces gives each its share: pieceDurationText) and refuses a
+  /// motion it cannot carry it for (KRL has no per-motion time). Empty: none.
+  std::optional<double> duration_s;
+  /// A duration the statement gives as an expression the controller computes (RAPID
+  /// `\T:=tm`, URScript `t=tm`): its text. No other format can carry it (a conversion refuses
+  /// the motion, or --drop-unconvertible leaves it out and lists it). Empty: none.
+  std::string duration_expr;
   /// URScript movej(get_inverse_kin(pose, qnear=q)): the joints (deg) whose nearest solution
   /// the controller takes for the pose (URScript manual, get_inverse_kin); the compensation
   /// solves the target from them instead of from the previous point. Empty: not given.

@@ -59,6 +59,13 @@ struct RapidSource {
     std::string indent;                   ///< the blanks before it
     std::string head;                     ///< the text before the name ("CONST robtarget ")
     int value = -1;                       ///< index in values
+    /// The first place the program reads this robtarget's value other than as the plain
+    /// ToPoint/CirPoint of a MoveL/MoveJ/MoveC, "file:line:column ('statement')" (excerpt);
+    /// empty when there is none: an assignment (`p30 := p20;`), a call's argument, an Offs or
+    /// RelTool the reader cannot evaluate (`Offs(p20, 0, 0, dz)`), a motion instruction accura
+    /// does not model, a condition. Such a read gets the declared value even where the
+    /// compensation corrects it for a motion (Job: the motions then go to a new point).
+    std::string read_elsewhere;
   };
   /// A motion statement.
   struct Statement {
@@ -68,6 +75,10 @@ struct RapidSource {
     std::vector<std::pair<size_t, size_t>> targets;
     /// The robtarget value each target reads (-1: none, e.g. an Offs/RelTool expression).
     std::vector<int> target_value;
+    /// The robtarget value an Offs/RelTool target the reader evaluated is built on, for each
+    /// target (-1: none): the expression reads that point as long as it is written as it is (a
+    /// corrected one is written as an inline robtarget, which reads nothing).
+    std::vector<int> target_reads;
     /// The programmed duration's number [begin, end) in the text (a move's \T:=), {0, 0}
     /// when there is none; duration_s its value (s). A motion split by the
     /// compensation gets each piece its share (durationShares, program.h).
