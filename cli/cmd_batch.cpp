@@ -86,6 +86,7 @@ int runBatch(const BatchArgs& a) {
     std::fflush(stderr);
   };
   const BatchResult res = postproc::runBatch(a.in, a.out, o, progress);
+  int warnings = 0;
   for (const auto& r : res.files) {
     if (r.status == BatchFileResult::Status::kConverted) {
       std::printf("compensated %s: %d targets corrected (max %.4f mm), %d point(s) added, path error %.4f -> %.4f mm%s\n", r.input.c_str(),
@@ -95,12 +96,15 @@ int runBatch(const BatchArgs& a) {
         std::printf("  %s: %d motion(s) left unchanged (targets accura cannot evaluate; see the warnings)\n", r.input.c_str(),
                     r.report.motions_left_unchanged);
       if (!r.message.empty()) std::fprintf(stderr, "accura: warning: %s: %s\n", r.input.c_str(), r.message.c_str());
+      // the program's warnings, as compensate prints them (a T changed, a point read elsewhere, ..)
+      for (const auto& w : r.report.warnings) std::fprintf(stderr, "accura: warning: %s: %s\n", w.where.str().c_str(), w.message.c_str());
+      warnings += static_cast<int>(r.report.warnings.size());
     } else {
       std::printf("%s %s: %s\n", statusWord(r).c_str(), r.input.c_str(), r.message.c_str());
     }
   }
-  std::printf("accura batch: %d compensated, %d failed, %d skipped, %zu programs in %s\n", res.converted, res.failed, res.skipped,
-              res.files.size(), a.in.c_str());
+  std::printf("accura batch: %d compensated, %d failed, %d skipped, %zu programs in %s%s\n", res.converted, res.failed, res.skipped,
+              res.files.size(), a.in.c_str(), warnings ? ("; " + std::to_string(warnings) + " warning(s), on stderr").c_str() : "");
   if (!a.json.empty()) {
     // the report must not replace a program the run wrote
     for (const auto& r : res.files)

@@ -524,6 +524,40 @@ TEST(KrlRules, APointAlsoUsedAsAFrameKeepsItsValueAndTheMotionGetsANewPoint) {
   EXPECT_EQ(q.krl->values[2].read_elsewhere, "");
 }
 
+// S and T written as bit strings ('B001010', as the inline forms and many OLP tools write them)
+// are rewritten as bit strings when the correction changes them (T 'B001010' became T 34 next to
+// an unchanged S 'B010'); decimal ones stay decimal. Expected: the same T as the decimal point's.
+TEST(KrlRules, AChangedTurnKeepsTheFormItWasWrittenIn) {
+  const std::string dir = test::tempDir("krl_turn_form");
+  test::writeText(dir + "/p.src", "DEF p( )\n$TOOL = {X 20.0,Y 0.0,Z 250.0,A 0.0,B -30.0,C 0.0}\n$BASE = $NULLFRAME\n"
+                                  "PTP {A1 0,A2 -90,A3 90,A4 0,A5 45,A6 0}\nPTP XP3\nPTP XP4\nEND\n");
+  test::writeText(dir + "/p.dat", "DEFDAT p\n"
+                                  "DECL E6POS XP3={X 1058.3831,Y -186.5855,Z 945.7945,A 170.00540,B 30.00000,C 179.98985,S 'B010',T 'B001010'}\n"
+                                  "DECL E6POS XP4={X 1058.3831,Y -186.5855,Z 945.7945,A 170.00540,B 30.00000,C 179.98985,S 2,T 10}\nENDDAT\n");
+  JobSettings s;
+  s.calibrated = calib::readRobotFile(test::sourcePath("tests/data/plugin/kr16_calibrated.xml"));
+  const ProgramCompensation pc = compensateProgramReport(readKrl(dir + "/p.src"), s);
+  ASSERT_TRUE(pc.ok()) << pc.report.errors.front().message;
+  const std::string dat = writeKrl(pc.program).dat;
+  const auto component = [&](const std::string& point, const std::string& name) {
+    const size_t at = dat.find("," + name + " ", dat.find("DECL E6POS " + point + "=")) + 1;
+    return dat.substr(at + name.size() + 1, dat.find_first_of(",}", at) - at - name.size() - 1);
+  };
+  ASSERT_NE(component("XP4", "T"), "10");  // the correction changes T (a joint crosses 0)
+  int turn = 0;
+  for (char c : component("XP3", "T").substr(2, 6)) turn = 2 * turn + (c - '0');
+  EXPECT_EQ(turn, std::stoi(component("XP4", "T")));
+  EXPECT_EQ(component("XP3", "T").size(), 9u) << component("XP3", "T");  // 'B' and six digits, quoted
+  EXPECT_EQ(component("XP3", "S"), "'B010'");
+  // batch prints a program's warnings as compensate does (it printed none: a T rewritten unseen)
+  std::filesystem::create_directories(dir + "/in");
+  for (const char* f : {"p.src", "p.dat"}) test::writeText(dir + "/in/" + f, test::readText(dir + "/" + f));
+  const test::CliRun b = test::runAccuraIn(dir, "batch --robot " + test::sourcePath("tests/data/plugin/kr16_calibrated.xml") + " --in in --out out --jobs 1");
+  ASSERT_EQ(b.code, 0) << b.err;
+  EXPECT_NE(b.err.find("accura: warning: in/p.src:5:1: T of XP3 changed from 10 to "), std::string::npos) << b.err;
+  EXPECT_NE(b.out.find(" warning(s), on stderr\n"), std::string::npos) << b.out;
+}
+
 // ---------------------------------------------------------------------------------------------
 // External axes
 

@@ -39,6 +39,20 @@ std::string componentText(const Target& t, const std::string& name) {
 // the components the target has that the aggregate leaves out (a partial aggregate the
 // correction completed: Job::setPose) added in the canonical order, each before the first
 // written component that follows it there, else after the last one.
+/// `value` written like `written`: a KRL bit string ('B010010', the inline forms' and many OLP
+/// tools' S and T) as one with at least as many digits, a hexadecimal one ('H12') as hex, else
+/// decimal.
+std::string integerLike(const std::string& written, int value) {
+  const bool literal = written.size() >= 3 && written.front() == '\'' && written.back() == '\'';
+  const char kind = literal ? static_cast<char>(std::toupper(static_cast<unsigned char>(written[1]))) : '\0';
+  if ((kind != 'B' && kind != 'H') || value < 0) return std::to_string(value);
+  const int base = kind == 'B' ? 2 : 16;
+  std::string digits;
+  for (int v = value; v > 0; v /= base) digits.insert(digits.begin(), "0123456789ABCDEF"[v % base]);
+  while (digits.size() < written.size() - 3 || digits.empty()) digits.insert(digits.begin(), '0');
+  return std::string("'") + written[1] + digits + "'";
+}
+
 std::string rewriteValue(const KrlSource::Value& v, const std::string& text, const Target& t) {
   const bool cart = t.kind == Target::Kind::kCartesian;
   const char* const* names = cart ? kCartNames : kAxisNames;
@@ -52,7 +66,8 @@ std::string rewriteValue(const KrlSource::Value& v, const std::string& text, con
     const int k = indexOf(names, c.name);
     const std::string now = componentText(t, c.name);
     const bool same = k >= 0 && !now.empty() && now == (cart ? (k < 3 ? formatMm(c.value) : formatDeg(c.value)) : formatAxis(c.value));
-    if ((k >= 0 && !same) || st_changed) edits.push_back({c.begin, {c.end, now}});
+    if (k >= 0 && !same) edits.push_back({c.begin, {c.end, now}});
+    if (st_changed) edits.push_back({c.begin, {c.end, integerLike(text.substr(c.begin, c.end - c.begin), c.name == "S" ? *t.status : *t.turn)}});
   }
   std::vector<std::string> order;  // the canonical order of the components
   for (int k = 0; k < 6; ++k) order.push_back(names[k]);
