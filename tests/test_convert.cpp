@@ -396,6 +396,33 @@ TEST(Convert, DropUnconvertibleListsEveryDroppedLine) {
   EXPECT_NE(u.out.find("3 dropped"), std::string::npos) << u.out;
 }
 
+// Dropping an if/else around motions ran both branches one after the other (a loop's body once):
+// the converted program took a path the original never did. Refused, naming the statement and
+// the motion; a branch without motions inside is still dropped.
+TEST(Convert, DroppingABranchOrALoopAroundMotionsIsRefused) {
+  const std::string dir = test::tempDir("convert_drop_flow");
+  test::writeText(dir + "/b.script", "def branch():\n  set_tcp(p[0,0,0.15,0,0,0])\n  movej([-1.5707963, -1.5707963, 1.5707963, -1.5707963, -1.5707963, 0.0])\n"
+                                     "  if get_standard_digital_in(0):\n    movel(p[-0.35, 0.7, 0.2, 3.1415927, 0, 0])\n  else:\n"
+                                     "    movel(p[-0.35, 0.7, 0.5, 3.1415927, 0, 0])\n  end\nend\n");
+  const test::CliRun ur = test::runAccuraIn(dir, "convert --in b.script --out b.mod --drop-unconvertible");
+  EXPECT_EQ(ur.code, 1);
+  EXPECT_NE(ur.err.find("b.script:4:3: cannot drop '  if get_standard_digital_in(0):': it branches or loops around the motion at "
+                        "b.script:5:5, which would then run unconditionally"),
+            std::string::npos)
+      << ur.err;
+  EXPECT_FALSE(std::filesystem::exists(dir + "/b.mod"));
+  const std::string head = "DEF k( )\n$TOOL={X 0,Y 0,Z 200,A 0,B 0,C 0}\n$BASE=$NULLFRAME\nPTP {A1 0,A2 -90,A3 90,A4 0,A5 45,A6 0}\n";
+  test::writeText(dir + "/loop.src", head + "FOR I=1 TO 3\n  LIN {X 1000,Y 0,Z 800,A 0,B 90,C 0}\nENDFOR\nEND\n");
+  const test::CliRun loop = test::runAccuraIn(dir, "convert --in loop.src --out loop.script --drop-unconvertible");
+  EXPECT_EQ(loop.code, 1);
+  EXPECT_NE(loop.err.find("loop.src:5:1: cannot drop 'FOR I=1 TO 3': it branches or loops around the motion at loop.src:6:3"), std::string::npos)
+      << loop.err;
+  test::writeText(dir + "/io.src", head + "IF $IN[1] THEN\n  $OUT[2]=TRUE\nENDIF\nLIN {X 1000,Y 0,Z 800,A 0,B 90,C 0}\nEND\n");
+  const test::CliRun io = test::runAccuraIn(dir, "convert --in io.src --out io.script --drop-unconvertible");
+  EXPECT_EQ(io.code, 0) << io.err;
+  EXPECT_NE(io.err.find("io.src:5:1: dropped 'IF $IN[1] THEN'"), std::string::npos) << io.err;
+}
+
 }  // namespace
 // A statement on the line of a motion (legal RAPID) is not the motion model's: converting the
 // module is refused at that line rather than carrying the SetDO inside the motion's line, where

@@ -960,6 +960,7 @@ struct Reader {
     p.text = text;
     p.section = before_main_end ? PassThrough::Section::kBody : PassThrough::Section::kTrailer;
     p.before_motion = program->motions.size();
+    p.spline_block = in_spline ? spline_block_number_ : 0;
     p.where = f->loc(l.begin);
     p.refuse = refuse;
     program->passthrough.push_back(std::move(p));

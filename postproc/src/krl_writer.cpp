@@ -259,7 +259,26 @@ KrlText generateKrl(const Program& p) {
   checkPassThrough(p, "KRL");
   const std::string name = p.name.empty() ? "program" : p.name;
   std::ostringstream src, dat;
-  // the pass-through statements of a section, in order; for the body those before motion `k`
+  // the spline block open in the body (Motion::spline_block; -1: SPLs without a number, from
+  // an XML written before blocks were numbered, one block with the SPLs and statements between)
+  bool in_spline = false;
+  int open_block = 0;
+  // the body at block `block` (0: outside every block): the open one ended, `block` opened
+  auto enterBlock = [&](std::ostream& out, int block, bool ptp) {
+    if (in_spline && block == open_block) return;
+    if (in_spline) out << "ENDSPLINE\n";
+    in_spline = block != 0;
+    open_block = block;
+    if (in_spline) out << (ptp ? "PTP_SPLINE\n" : "SPLINE\n");
+  };
+  // whether block number b is a PTP_SPLINE block (from its segments)
+  auto ptpBlock = [&](int b) {
+    for (const Motion& m : p.motions)
+      if (m.spline_block == b) return m.ptp_spline_block;
+    return false;
+  };
+  // the pass-through statements of a section, in order; for the body those before motion `k`,
+  // each in the block it was in (PassThrough::spline_block: TIME_BLOCK inside, $OUT after it)
   size_t next_body = 0;
   auto carry = [&](std::ostream& out, PassThrough::Section section, size_t before) {
     for (const PassThrough& s : p.passthrough)
@@ -267,7 +286,10 @@ KrlText generateKrl(const Program& p) {
     while (section == PassThrough::Section::kBody && next_body < p.passthrough.size()) {
       const PassThrough& s = p.passthrough[next_body];
       if (s.section == PassThrough::Section::kBody && s.before_motion > before) break;
-      if (s.section == PassThrough::Section::kBody) out << s.text << "\n";
+      if (s.section == PassThrough::Section::kBody) {
+        if (!(in_spline && open_block < 0)) enterBlock(out, s.spline_block, ptpBlock(s.spline_block));
+        out << s.text << "\n";
+      }
       ++next_body;
     }
   };
@@ -299,8 +321,6 @@ KrlText generateKrl(const Program& p) {
   FrameSetting tool, base;
   std::optional<double> vel_cp, vel_ptp;
   std::map<Approximation, std::optional<double>> apo;
-  bool in_spline = false;
-  int open_block = 0;  // the open block's Motion::spline_block (-1: SPLs without a number)
   auto targetText = [&](const Target& t, const Motion& m) -> std::string {
     if (t.name.empty() || (t.external && t.modified)) return krlAggregate(t);
     if (t.external) return t.name;  // the $config.dat's: not declared here, which would hide it
@@ -322,9 +342,17 @@ KrlText generateKrl(const Program& p) {
   for (size_t k = 0; k < p.motions.size(); ++k) {
     const Motion& m = p.motions[k];
     carry(src, PassThrough::Section::kBody, k);
-    // the frames, speeds and approximation this motion needs: statements, which a SPLINE block
-    // may not hold (KSS: a block's segments take the block's $TOOL, $BASE): written before the
-    // block, which ends and starts anew where they change
+    const int block = m.spline_block > 0 ? m.spline_block : m.spline && m.type == MotionType::kSpl ? -1 : 0;
+    // inside the block the motion continues, a path speed is the segment's own (SLIN XP2 WITH
+    // $VEL.CP=0.2); other settings are statements, which a SPLINE block may not hold (KSS: a
+    // block's segments take the block's $TOOL, $BASE): written before the block, which ends and
+    // starts anew where they change
+    const bool continues = in_spline && block == open_block;
+    std::string with;
+    if (continues && m.type != MotionType::kPtp && m.vel_m_s && m.vel_m_s != vel_cp) {
+      with = " WITH $VEL.CP=" + calib::formatFixed(*m.vel_m_s, 4);
+      vel_cp = m.vel_m_s;
+    }
     std::ostringstream settings;
     if (!sameFrame(m.tool, tool)) {
       const std::string s = frameStatement("$TOOL", m.tool, true);
@@ -355,28 +383,19 @@ KrlText generateKrl(const Program& p) {
       settings << "$APO." << var << "=" << calib::formatFixed(*m.approximation_value, 4) << "\n";
       apo[m.approximation.front()] = m.approximation_value;
     }
-    // the spline block the motion is a segment of (Motion::spline_block; an SPL without a
-    // number, from an XML written before blocks were numbered: one block with the SPLs next to it)
-    const int block = m.spline_block > 0 ? m.spline_block : m.spline && m.type == MotionType::kSpl ? -1 : 0;
-    if (in_spline && (block != open_block || !settings.str().empty())) {
-      src << "ENDSPLINE\n";
-      in_spline = false;
-    }
+    if (!settings.str().empty()) enterBlock(src, 0, false);
     src << settings.str();
-    if (block != 0 && !in_spline) {
-      src << (m.ptp_spline_block ? "PTP_SPLINE\n" : "SPLINE\n");
-      in_spline = true;
-      open_block = block;
-    }
+    enterBlock(src, block, m.ptp_spline_block);
     std::string line = motionKeyword(m) + " ";
     if (m.aux) line += targetText(*m.aux, m) + ", ";
     line += targetText(m.target, m);
     if (m.circ_angle_deg) line += ", CA " + formatDeg(*m.circ_angle_deg);
+    line += with;
     for (Approximation a : m.approximation) line += std::string(" ") + toString(a);
     src << line << "\n";
   }
-  if (in_spline) src << "ENDSPLINE\n";
   carry(src, PassThrough::Section::kBody, p.motions.size());
+  enterBlock(src, 0, false);
   src << "END\n";
   carry(src, PassThrough::Section::kTrailer, 0);
   dat << "ENDDAT\n";

@@ -77,6 +77,71 @@ Program readProgram(const std::string& path, const ProgramReadOptions& options) 
   return readXmlProgram(path);
 }
 
+namespace {
+
+// How a statement steers the run: opens a block (IF .. THEN, a loop, SWITCH / TEST, URScript's
+// `if ..:`), continues it (ELSE, CASE, elif), closes it, or jumps (GOTO, RETURN, EXIT); 0 else.
+char flowRole(const PassThrough& s) {
+  const size_t b = s.text.find_first_not_of(" \t");
+  if (b == std::string::npos) return 0;
+  size_t e = b;
+  while (e < s.text.size() && (std::isalnum(static_cast<unsigned char>(s.text[e])) || s.text[e] == '_')) ++e;
+  const std::string word = s.text.substr(b, e - b);
+  std::string up = word;
+  for (char& c : up) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+  if (s.language == "URScript") {
+    std::string line = s.text;
+    while (!line.empty() && std::isspace(static_cast<unsigned char>(line.back()))) line.pop_back();
+    if ((word == "if" || word == "while" || word == "for" || word == "thread" || word == "def") && !line.empty() && line.back() == ':')
+      return 'o';
+    if (word == "elif" || word == "else") return 'm';
+    if (word == "end") return 'c';
+    if (word == "return" || word == "halt") return 'j';
+    return 0;
+  }
+  if (s.language == "RAPID") {
+    std::string text = s.text;
+    for (char& c : text) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+    if ((up == "IF" && text.find("THEN") != std::string::npos) || up == "FOR" || up == "WHILE" || up == "TEST") return 'o';
+    if (up == "ELSEIF" || up == "ELSE" || up == "CASE" || up == "DEFAULT") return 'm';
+    if (up == "ENDIF" || up == "ENDFOR" || up == "ENDWHILE" || up == "ENDTEST") return 'c';
+    if (up == "GOTO" || up == "RETURN" || up == "EXIT" || (up == "IF" && text.find("GOTO") != std::string::npos)) return 'j';
+    return 0;
+  }
+  if (s.language == "KRL") {
+    if (up == "IF" || up == "SWITCH" || up == "FOR" || up == "WHILE" || up == "LOOP" || up == "REPEAT") return 'o';
+    if (up == "ELSE" || up == "CASE" || up == "DEFAULT") return 'm';
+    if (up == "ENDIF" || up == "ENDSWITCH" || up == "ENDFOR" || up == "ENDWHILE" || up == "ENDLOOP" || up == "UNTIL") return 'c';
+    if (up == "GOTO" || up == "RETURN" || up == "EXIT") return 'j';
+  }
+  return 0;
+}
+
+// Dropping a branch, a loop or a jump around motions would run them unconditionally (both
+// branches one after the other, a loop's body once, the motions after a RETURN): another path
+// than the program's. Refused, naming the statement and the motion it governs.
+void refuseDroppedFlowAroundMotions(const std::vector<PassThrough>& dropped, const std::vector<Motion>& motions) {
+  const auto refuse = [&](const PassThrough& s, size_t motion) {
+    throw calib::ArgumentError(s.where.str() + ": cannot drop '" + detail::excerpt(s.text) + "': it " +
+                               (flowRole(s) == 'j' ? "jumps over or ends before" : "branches or loops around") + " the motion at " +
+                               motions[std::min(motion, motions.size() - 1)].where.str() +
+                               ", which would then run unconditionally (the converted program would take another path)");
+  };
+  std::vector<const PassThrough*> open;
+  for (const PassThrough& s : dropped) {
+    if (s.section != PassThrough::Section::kBody) continue;
+    const char role = flowRole(s);
+    if (role == 'o') open.push_back(&s);
+    if ((role == 'm' || role == 'c') && !open.empty() && open.back()->before_motion != s.before_motion) refuse(*open.back(), open.back()->before_motion);
+    if (role == 'c' && !open.empty()) open.pop_back();
+    if (role == 'j' && s.before_motion < motions.size()) refuse(s, s.before_motion);
+  }
+  for (const PassThrough* s : open)
+    if (s->before_motion < motions.size()) refuse(*s, s->before_motion);
+}
+
+}  // namespace
+
 Program dropUnconvertible(const Program& program, ProgramFormat format, std::vector<PassThrough>* dropped) {
   // a motion's time the output cannot carry: the motion converts without it, listed
   const auto dropTimes = [&](Program& p) {
@@ -114,6 +179,7 @@ Program dropUnconvertible(const Program& program, ProgramFormat format, std::vec
     else dropped->push_back(s);
   }
   out.passthrough = std::move(kept);
+  refuseDroppedFlowAroundMotions(*dropped, out.motions);
   // into another language, the KRL text is not written back: its logic lines were the
   // pass-through statements just left out
   if (format != ProgramFormat::kKrl) out.krl.reset();

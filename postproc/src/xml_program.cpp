@@ -268,6 +268,7 @@ void writePassThrough(std::ostream& out, const PassThrough& s) {
   out << "    <passthrough language=\"" << calib::xmlEscape(s.language) << "\"";
   if (s.section != PassThrough::Section::kBody) out << " section=\"" << sectionName(s.section) << "\"";
   if (!s.role.empty()) out << " role=\"" << calib::xmlEscape(s.role) << "\"";
+  if (s.spline_block > 0) out << " spline_block=\"" << s.spline_block << "\"";
   if (s.line > 0) {
     out << " line=\"" << s.line << "\"";
     if (s.eol != "\n") out << " eol=\"" << (s.eol == "\r\n" ? "crlf" : "none") << "\"";
@@ -286,7 +287,7 @@ void writePassThrough(std::ostream& out, const PassThrough& s) {
 }
 
 PassThrough readPassThrough(const Reader& R, const XMLElement* e, size_t before_motion) {
-  R.checkAttributes(e, {"language", "section", "encoding", "role", "line", "eol"});
+  R.checkAttributes(e, {"language", "section", "encoding", "role", "line", "eol", "spline_block"});
   PassThrough p;
   p.where = R.loc(e);
   p.before_motion = before_motion;
@@ -333,6 +334,10 @@ PassThrough readPassThrough(const Reader& R, const XMLElement* e, size_t before_
   else R.fail(e, "<passthrough> attribute 'eol': expected lf, crlf or none, found '" + eol + "'");
   if ((e->Attribute("role") || e->Attribute("eol")) && p.line == 0)
     R.fail(e, "<passthrough>: expected the attribute 'line' with 'role' or 'eol' (a line carried with its place), found none");
+  if (const auto b = R.integer(e, "spline_block")) {
+    if (*b < 1) R.fail(e, "<passthrough> attribute 'spline_block': expected a positive block number, found '" + std::to_string(*b) + "'");
+    p.spline_block = *b;
+  }
   return p;
 }
 

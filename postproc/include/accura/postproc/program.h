@@ -250,6 +250,9 @@ struct PassThrough {
   std::string text;          ///< one line as written, without its line end
   Section section = Section::kBody;
   size_t before_motion = 0;  ///< kBody: index in Program::motions (motions.size(): after the last)
+  /// KRL: the spline block the statement is inside (Motion::spline_block: TIME_BLOCK, a
+  /// trigger), 0: outside every block.
+  int spline_block = 0;
   SourceLocation where;      ///< where it was read
   /// Why no other program can carry it (a motion of a KRL local subroutine, which the
   /// motion model does not hold): writers other than the in-place KRL one refuse it.
