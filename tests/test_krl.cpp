@@ -345,6 +345,15 @@ TEST(Krl, SplineBlocksSurviveTheXmlRoundTrip) {
   for (size_t k = 0; k < 9; ++k) EXPECT_EQ(back.motions[k].spline_block, blocks[k]) << k;
   const std::string src = writeKrl(back).src;
   EXPECT_NE(src.find("\n" + body + "END\n"), std::string::npos) << src;
+  // statements keep their side of SPLINE / ENDSPLINE (TIME_BLOCK inside, $OUT and an IF
+  // around a LIN after it), and a segment's own speed stays its own (WITH), not a new block
+  const std::string body2 = "PTP XP1\nSPLINE\n  TIME_BLOCK START\nSLIN XP2\nSLIN XP3\n  TIME_BLOCK END = 2.0\nENDSPLINE\n$OUT[1] = TRUE\n"
+                            "IF $IN[1] THEN\nLIN XP1\nENDIF\nSPLINE\nSLIN XP2\nSLIN XP3 WITH $VEL.CP=0.2000\nENDSPLINE\n";
+  test::writeText(dir + "/q.src", "DEF q( )\n" + body2 + "END\n");
+  test::writeText(dir + "/q.dat", "DEFDAT q\n" + dat.substr(dat.find('\n') + 1) + "ENDDAT\n");
+  test::writeText(dir + "/q.xml", writeXmlProgram(readKrl(dir + "/q.src")));
+  const std::string q_back = writeKrl(readXmlProgram(dir + "/q.xml")).src;
+  EXPECT_NE(q_back.find("\n" + body2 + "END\n"), std::string::npos) << q_back;
   // an XML's block number on a motion that cannot be a segment is an error naming it
   test::writeText(path, "<program name=\"p\" version=\"1\"><motions><lin spline_block=\"1\"><pose x_mm=\"1\" y_mm=\"2\" z_mm=\"3\" "
                         "a_deg=\"0\" b_deg=\"0\" c_deg=\"0\"/></lin></motions></program>\n");

@@ -9,6 +9,7 @@
 #include "accura/calib/errors.h"
 #include "accura/postproc/job.h"
 #include "accura/postproc/krl.h"
+#include "accura/postproc/program_io.h"
 #include "accura/postproc/rapid.h"
 #include "accura/postproc/urscript.h"
 #include "accura/postproc/xml_program.h"
@@ -146,6 +147,27 @@ TEST(XmlProgram, CommentsAreKeptWhenTheProgramChangesAndConvertedToKrlComments) 
   EXPECT_NE(script.find("\n  # approach the part\n  set_tcp("), std::string::npos) << script;
   EXPECT_NE(script.find("\n  # Werkst\xC3\xBC" "ck 4711\nend\n"), std::string::npos) << script;
   EXPECT_EQ(script.find("FOLD"), std::string::npos) << script;
+  // RAPID '!' and URScript '#' comments the other way (they were dropped); an inline form's
+  // parameter line is the editor's, not a comment
+  test::writeText(dir + "/m.mod", "MODULE m\n  ! module comment\n  PERS tooldata t1:=[TRUE,[[0,0,150],[1,0,0,0]],[1,[0,0,1],[1,0,0,0],0,0,0]];\n"
+                                  "  PROC main()\n    ! body comment\n    MoveL [[500,0,500],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]],v100,fine,t1;\n"
+                                  "    ! last\n  ENDPROC\nENDMODULE\n");
+  const Program mod = readProgram(dir + "/m.mod");
+  const std::vector<calib::OutputFile> to_krl = renderProgram(mod, ProgramFormat::kKrl, dir + "/m.src", "");
+  EXPECT_NE(to_krl[0].text.find("\n; body comment\n$TOOL="), std::string::npos) << to_krl[0].text;
+  EXPECT_NE(to_krl[0].text.find("\n; last\nEND\n"), std::string::npos) << to_krl[0].text;
+  const std::vector<calib::OutputFile> to_ur = renderProgram(mod, ProgramFormat::kUrScript, dir + "/m.script", "");
+  EXPECT_NE(to_ur[0].text.find("\n  # body comment\n  set_tcp("), std::string::npos) << to_ur[0].text;
+  test::writeText(dir + "/s.script", "def s():\n  # body comment\n  set_tcp(p[0,0,0.15,0,0,0])\n  movel(p[0.5,0,0.5,3.14159,0,0])\n  # last\nend\n");
+  const Program ur_in = readProgram(dir + "/s.script");
+  EXPECT_NE(renderProgram(ur_in, ProgramFormat::kRapid, dir + "/s.mod", "")[0].text.find("\n    ! body comment\n"), std::string::npos);
+  EXPECT_NE(renderProgram(ur_in, ProgramFormat::kKrl, dir + "/s.src", "")[0].text.find("\n; last\nEND\n"), std::string::npos);
+  PassThrough params;
+  params.language = "KRL";
+  params.text = ";Params IlfProvider=kukaroboter.basistech.inlineforms.movement.spline; Kuka.PointName=P1";
+  EXPECT_FALSE(commentText(params));
+  params.text = "  ; a note";
+  EXPECT_EQ(commentText(params), std::optional<std::string>(" a note"));
   // the language XML is the comments' own: a <passthrough> of it is refused
   const std::string fake = std::string(text).replace(text.find("<!-- the seam -->"), 17,
                                                      "<passthrough language=\"XML\">--><ptp/><!--</passthrough>");

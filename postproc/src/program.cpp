@@ -331,14 +331,16 @@ bool isXmlComment(const PassThrough& s) { return s.language == "XML" && s.role =
 
 std::optional<std::string> commentText(const PassThrough& s) {
   if (isXmlComment(s)) return s.text;
-  if (!s.role.empty()) return std::nullopt;
+  // (a RAPID or URScript source line carried whole is role "comment": a comment or a blank line)
+  if (!s.role.empty() && s.role != "comment") return std::nullopt;
   const char marker = s.language == "KRL" ? ';' : s.language == "RAPID" ? '!' : s.language == "URScript" ? '#' : '\0';
   const size_t b = s.text.find_first_not_of(" \t");
   if (!marker || b == std::string::npos || s.text[b] != marker || s.text.find('\n') != std::string::npos) return std::nullopt;
   std::string text = s.text.substr(b + 1);
   if (s.language == "KRL") {
+    // the editor's: fold markers (paired), an inline form's parameter lines (;%{PE}, ;Params ..)
     const std::string up = upperAscii(text.substr(0, 7));
-    if (up.compare(0, 4, "FOLD") == 0 || up == "ENDFOLD") return std::nullopt;
+    if (up.compare(0, 4, "FOLD") == 0 || up == "ENDFOLD" || text.compare(0, 2, "%{") == 0 || up == "PARAMS ") return std::nullopt;
   }
   return text;
 }
@@ -357,6 +359,8 @@ Program withoutCarriedLines(const Program& program, const std::string& language)
         PassThrough c = s;
         c.language = language;
         c.role.clear();
+        c.line = 0;  // a statement of its own, not a line of a carried source
+        c.eol = "\n";
         // not a KRL fold marker (;FOLD / ;ENDFOLD), which the KUKA editor pairs
         const std::string up = upperAscii(line.substr(0, 7));
         const bool fold = language == "KRL" && (up.compare(0, 4, "FOLD") == 0 || up == "ENDFOLD");

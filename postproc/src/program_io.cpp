@@ -190,8 +190,8 @@ Program dropUnconvertible(const Program& program, ProgramFormat format, std::vec
 std::vector<calib::OutputFile> renderProgram(const Program& program, ProgramFormat format, const std::string& path,
                                       const std::string& dat_path) {
   if (format == ProgramFormat::kRapid)
-    return {{path, writeRapid(program.rapid || !program.urscript ? withoutCarriedLines(program, "RAPID")
-                                                                 : urScriptForConversion(program, "RAPID"))}};
+    return {{path, writeRapid(withoutCarriedLines(program.rapid || !program.urscript ? program : urScriptForConversion(program, "RAPID"),
+                                                  "RAPID"))}};
   if (program.rapid) return renderProgram(rapidForConversion(program), format, path, dat_path);
   if (format == ProgramFormat::kUrScript) return {{path, writeUrScript(withoutCarriedLines(program, "URScript"))}};
   if (program.urscript) return renderProgram(urScriptForConversion(program, format == ProgramFormat::kXml ? "XML" : "KRL"), format, path, dat_path);

@@ -441,7 +441,19 @@ Program urScriptForConversion(const Program& program, const char* format_name) {
       spans.emplace_back(st.code_begin, st.code_end);
     }
     carrySourceLines(out, program.urscript->text, "URScript", '#', spans);
-  } else if (!program.urscript->others.empty()) {
+  } else if (program.urscript->others.empty()) {
+    // the script's comment lines, which the other language writes as its own comments
+    // (withoutCarriedLines)
+    Program lines = out;
+    std::vector<std::pair<size_t, size_t>> spans;
+    for (const Motion& m : lines.motions) {
+      const UrScriptSource::Statement& st = program.urscript->statements.at(static_cast<size_t>(m.statement_id));
+      spans.emplace_back(st.code_begin, st.code_end);
+    }
+    carrySourceLines(lines, program.urscript->text, "URScript", '#', spans);
+    for (const PassThrough& s : lines.passthrough)
+      if (s.role == "comment" && commentText(s)) out.passthrough.push_back(s);
+  } else {
     const UrScriptSource::Other& o = program.urscript->others.front();
     throw calib::ArgumentError(o.where.str() + ": cannot convert to " + format_name + ": the URScript statement '" + o.text +
                         "' is not a motion, set_tcp or pose assignment, and the conversion carries the motion model only" +
