@@ -4,8 +4,11 @@
 // inserted points change; malformed targets are errors with file:line:column.
 #include <gtest/gtest.h>
 
+#include <filesystem>
+
 #include "accura/calib/errors.h"
 #include "accura/postproc/krl.h"
+#include "accura/postproc/program_io.h"
 #include "accura/postproc/xml_program.h"
 #include "test_util.h"
 
@@ -247,12 +250,19 @@ TEST(Krl, AModuleOfFunctionsOnlyIsReadAndWrittenBackAsItIs) {
   EXPECT_EQ(p.name, "tools");
   EXPECT_EQ(p.krl_functions_only, "clamp (" + dir + "/tools.src:3:1)");
   EXPECT_EQ(writeKrl(p).src, text);
-  try {
-    writeXmlProgram(p);
-    FAIL();
-  } catch (const calib::ArgumentError& e) {
-    EXPECT_NE(std::string(e.what()).find("the module holds functions only (the first: clamp ("), std::string::npos) << e.what();
+  for (const ProgramFormat f : {ProgramFormat::kXml, ProgramFormat::kRapid, ProgramFormat::kUrScript}) {
+    try {
+      renderProgram(p, f, dir + "/out");
+      ADD_FAILURE() << "written";
+    } catch (const calib::ArgumentError& e) {
+      EXPECT_NE(std::string(e.what()).find("the module holds functions only (the first: clamp ("), std::string::npos) << e.what();
+    }
   }
+  // with its statements dropped it would be an empty program: refused too
+  const test::CliRun drop = test::runAccuraIn(dir, "convert --in tools.src --out lib.mod --drop-unconvertible");
+  EXPECT_EQ(drop.code, 1);
+  EXPECT_NE(drop.err.find("the module holds functions only"), std::string::npos) << drop.err;
+  EXPECT_FALSE(std::filesystem::exists(dir + "/lib.mod"));
   // without a DEFFCT either, still no program
   test::writeText(dir + "/none.src", "&ACCESS RVP\n$OUT[1]=TRUE\n");
   EXPECT_THROW(readKrl(dir + "/none.src"), calib::InputError);
@@ -941,6 +951,10 @@ TEST(Krl, MalformedTargetsAreErrorsWithTheirPlace) {
       {"DEF p( )\nFOR I=1 TO 3\n  IF I>1 THEN\n  ENDFOR\nENDIF\nEND\n", "", 4, 3, "expected ENDIF to close the IF at line 3, found ENDFOR"},
       {"DEF p( )\nWHILE TRUE\n  ELSE\nENDWHILE\nEND\n", "", 3, 3, "expected ELSE inside an IF, found it inside the WHILE at line 2 (not closed)"},
       {"DEF p( )\nCASE 1\nEND\n", "", 2, 1, "expected CASE inside a SWITCH, found it outside any block"},
+      {"DEF p( )\nIF TRUE THEN\nSPLINE\n  SPL {X 1,Y 2,Z 3}\nENDIF\nENDSPLINE\nEND\n", "", 5, 1,
+       "expected ENDSPLINE to close the SPLINE at line 3, found ENDIF"},
+      {"DEF p( )\nENDSPLINE\nEND\n", "", 2, 1, "expected ENDSPLINE to close a SPLINE or PTP_SPLINE block, found no open block"},
+      {"DEF p( )\nPTP_SPLINE\n  SLIN {X 1,Y 2,Z 3}\nENDSPLINE\nEND\n", "", 3, 3, "expected SPTP inside the PTP_SPLINE block, found SLIN"},
   };
   for (const Case& c : cases) {
     const calib::InputError e = readError(c.src, c.dat);

@@ -97,8 +97,9 @@ struct Reader {
   // DEFAULT inside a SWITCH. A file that breaks it is not a program the controller runs: an
   // error at the statement that breaks it (the structure decides where the robot may come from).
   void checkStructure(const std::vector<Tok>& t) {
-    static const std::map<std::string, std::string> end_of = {{"IF", "ENDIF"},     {"SWITCH", "ENDSWITCH"}, {"FOR", "ENDFOR"},
-                                                              {"WHILE", "ENDWHILE"}, {"LOOP", "ENDLOOP"},     {"REPEAT", "UNTIL"}};
+    static const std::map<std::string, std::string> end_of = {
+        {"IF", "ENDIF"},     {"SWITCH", "ENDSWITCH"}, {"FOR", "ENDFOR"},        {"WHILE", "ENDWHILE"},
+        {"LOOP", "ENDLOOP"}, {"REPEAT", "UNTIL"},     {"SPLINE", "ENDSPLINE"}, {"PTP_SPLINE", "ENDSPLINE"}};
     const std::string& k = t[0].up;
     if (t[0].kind != Tok::kIdent) return;
     const auto open = [&]() {
@@ -119,6 +120,13 @@ struct Reader {
     if ((k == "CASE" || k == "DEFAULT") && (structure_.empty() || structure_.back().first != "SWITCH"))
       f->fail(t[0].begin, "expected " + t[0].text + " inside a SWITCH, found it " +
                               (structure_.empty() ? std::string("outside any block") : "inside " + open() + " (not closed)"));
+    if (k == "ENDSPLINE") {  // closes either kind of spline block
+      if (structure_.empty()) f->fail(t[0].begin, "expected ENDSPLINE to close a SPLINE or PTP_SPLINE block, found no open block");
+      if (end_of.at(structure_.back().first) != "ENDSPLINE")
+        f->fail(t[0].begin, "expected " + end_of.at(structure_.back().first) + " to close " + open() + ", found ENDSPLINE");
+      structure_.pop_back();
+      return;
+    }
     for (const auto& [kw, end] : end_of) {
       if (k != end) continue;
       if (structure_.empty()) f->fail(t[0].begin, "expected " + end + " to close a " + kw + ", found no open " + kw);
@@ -801,6 +809,8 @@ struct Reader {
     if (in_spline && !m.spline)
       f->fail(t[0].begin, "expected a spline segment (SPL, SLIN, SCIRC, SPTP) inside the " + std::string(ptp_spline_block_ ? "PTP_SPLINE" : "SPLINE") +
                               " block, found " + t[0].text);
+    if (in_spline && ptp_spline_block_ && m.type != MotionType::kPtp)
+      f->fail(t[0].begin, "expected SPTP inside the PTP_SPLINE block, found " + t[0].text);
     m.spline_block = in_spline ? spline_block_number_ : 0;
     m.ptp_spline_block = in_spline && ptp_spline_block_;
 

@@ -189,6 +189,11 @@ Program dropUnconvertible(const Program& program, ProgramFormat format, std::vec
 
 std::vector<calib::OutputFile> renderProgram(const Program& program, ProgramFormat format, const std::string& path,
                                       const std::string& dat_path) {
+  // a KRL module of functions only has no program another language could hold (with its
+  // statements dropped, an empty one)
+  if (!program.krl_functions_only.empty() && (format != ProgramFormat::kKrl || !program.krl))
+    throw calib::ArgumentError(program.source_file + ": cannot write it as a program: the module holds functions only (the first: " +
+                               program.krl_functions_only + "), no DEF program with motions");
   if (format == ProgramFormat::kRapid)
     return {{path, writeRapid(withoutCarriedLines(program.rapid || !program.urscript ? program : urScriptForConversion(program, "RAPID"),
                                                   "RAPID"))}};

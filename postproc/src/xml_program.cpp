@@ -628,9 +628,6 @@ Program readXmlProgram(const std::string& path, const FrameTables* tables) {
 std::string writeXmlProgram(const Program& p) {
   // read from XML and unchanged (nothing corrected, nothing inserted): the bytes as read
   if (p.xml && p.motions.size() == p.xml->motions && !programChanged(p)) return p.xml->text;
-  if (!p.krl_functions_only.empty())
-    throw calib::ArgumentError(p.source_file + ": cannot write it as a program: the module holds functions only (the first: " +
-                               p.krl_functions_only + "), no DEF program with motions");
   checkPassThrough(p, "");
   std::ostringstream out;
   out << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n";
