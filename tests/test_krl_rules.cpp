@@ -522,6 +522,18 @@ TEST(KrlRules, APointAlsoUsedAsAFrameKeepsItsValueAndTheMotionGetsANewPoint) {
   EXPECT_EQ(q.krl->values[0].read_elsewhere, dir + "/q.src:4:21 (SLIN XP1 WITH $BASE=XHOME)");
   EXPECT_EQ(q.krl->values[1].read_elsewhere, "");
   EXPECT_EQ(q.krl->values[2].read_elsewhere, "");
+  // an array's element is read by its index (every element by a computed one); a subroutine's
+  // parameter or own declaration of a point's name is not the data list's point
+  test::writeText(dir + "/r.src", "DEF r( )\nLIN XPA[1]\nLIN XPA[2]\nLIN XP2\nIF XPA[1].X > 1 THEN\nENDIF\nEND\n"
+                                  "DEF sub(XP2:IN)\nIF XP2.X > 0 THEN\nENDIF\nEND\nDEF sub2( )\nDECL E6POS XP3\nXP3 = {X 1}\nIF XP3.X > 0 THEN\nENDIF\nEND\n"
+                                  "DEF sub3( )\nDECL INT I\nIF XPA[I].X > 0 THEN\nENDIF\nEND\n");
+  test::writeText(dir + "/r.dat", "DEFDAT r\nDECL E6POS XPA[3]\nXPA[1]={X 1}\nXPA[2]={X 2}\nDECL E6POS XP2={X 3}\nDECL E6POS XP3={X 4}\nENDDAT\n");
+  const Program r = readKrl(dir + "/r.src");
+  ASSERT_EQ(r.krl->values.size(), 5u);  // (and sub2's assignment, in the .src)
+  EXPECT_EQ(r.krl->values[0].read_elsewhere, dir + "/r.src:5:4 (IF XPA[1].X > 1 THEN)");   // XPA[1]
+  EXPECT_EQ(r.krl->values[1].read_elsewhere, dir + "/r.src:20:4 (IF XPA[I].X > 0 THEN)");  // XPA[2], by XPA[I]
+  EXPECT_EQ(r.krl->values[2].read_elsewhere, "");  // XP2: sub's parameter
+  EXPECT_EQ(r.krl->values[3].read_elsewhere, "");  // XP3: sub2's own
 }
 
 // S and T written as bit strings ('B001010', as the inline forms and many OLP tools write them)

@@ -1177,17 +1177,49 @@ namespace {
 
 // Every point of the program's files whose value a statement of the .src reads other than as a
 // motion's target (`$BASE = XFB`, `XP2 = XFB`, `LIN XP1 WITH $TOOL = XT`, `IF XP1.X > 0`, a
-// call's argument): KrlSource::Value::read_elsewhere, the first such place. Declarations, the
-// DEF line and a point's own assignment (XP1 = .., XP1.X = ..: the left-hand side) are not reads.
+// call's argument; an array's element XPA[1], and every element for XPA[I]):
+// KrlSource::Value::read_elsewhere, the first such place. Declarations, the DEF line, a point's
+// own assignment (XP1 = .., XP1.X = ..: the left-hand side) and, in a subroutine, the names of
+// its parameters and its own declarations (which hide the data list's points) are not reads.
 void notePointReads(const KrlFile& src, const Declarations& decl, KrlSource& source) {
+  const auto noteRead = [&](const PointEntry& p, const std::vector<Tok>& t, size_t i) {
+    if (!p.value || p.value->value_id < 0) return;
+    const size_t id = static_cast<size_t>(p.value->value_id);
+    if (id >= source.values.size() || !source.values[id].read_elsewhere.empty()) return;
+    source.values[id].read_elsewhere = src.loc(t[i].begin).str() + " (" + src.text().substr(t[0].begin, t.back().end - t[0].begin) + ")";
+  };
+  bool main_seen = false, in_subroutine = false;
+  std::set<std::string> local;  // a subroutine's parameters and declarations (upper case)
   for (const Line& l : src.lines()) {
     const std::vector<Tok> t = lex(src, l.begin, l.code_end);
     if (t.empty() || t[0].text == "&") continue;
     const std::string& k = t[0].up;
-    if (k == "DECL" || k == "DEF" || k == "DEFFCT" || k == "GLOBAL" || isPointType(k)) continue;
+    const size_t def_at = k == "GLOBAL" && t.size() > 1 ? 1 : 0;
+    if (t[def_at].up == "DEF" || t[def_at].up == "DEFFCT") {
+      in_subroutine = main_seen || t[def_at].up == "DEFFCT";
+      main_seen = main_seen || t[def_at].up == "DEF";
+      local.clear();
+      if (in_subroutine)  // its parameters: NAME:IN / NAME:OUT
+        for (size_t i = 0; i + 1 < t.size(); ++i)
+          if (t[i].kind == Tok::kIdent && t[i + 1].text == ":") local.insert(t[i].up);
+      continue;
+    }
+    if (k == "DECL" || isPointType(k) || (k == "GLOBAL" && t.size() > 1 && t[1].up == "DECL")) {
+      if (in_subroutine) {  // the names it declares (outside braces and brackets)
+        int depth = 0;
+        for (size_t i = 1; i < t.size(); ++i) {
+          const std::string& x = t[i].text;
+          if (x == "[" || x == "(" || x == "{") ++depth;
+          if (x == "]" || x == ")" || x == "}") --depth;
+          if (depth == 0 && t[i].kind == Tok::kIdent && (i + 1 == t.size() || t[i + 1].text == "," || t[i + 1].text == "=" || t[i + 1].text == "["))
+            local.insert(t[i].up);
+        }
+      }
+      continue;
+    }
     const bool motion = isMotionKeyword(k) && t[0].kind == Tok::kIdent;
-    // an assignment's left-hand side ends at its depth-0 '='
-    size_t from = 0;
+    // an assignment's left-hand side ends at its depth-0 '='; a motion's keyword is not a read
+    size_t from = motion ? 1 : 0;
     if (!motion && t[0].kind == Tok::kIdent) {
       int depth = 0;
       for (size_t i = 1; i < t.size(); ++i) {
@@ -1203,17 +1235,29 @@ void notePointReads(const KrlFile& src, const Declarations& decl, KrlSource& sou
       const std::string& x = t[i].text;
       if (x == "[" || x == "(" || x == "{") ++depth;
       if (x == "]" || x == ")" || x == "}") --depth;
-      if (t[i].kind != Tok::kIdent) continue;
-      const auto it = decl.points.find(t[i].up);
-      if (it == decl.points.end() || !it->second.value || it->second.value->value_id < 0) continue;
-      // a motion's target written as the point's name alone: LIN XP1 C_DIS, CIRC XA, XB
+      if (t[i].kind != Tok::kIdent || local.count(t[i].up)) continue;
+      // the tokens the operand takes: NAME, or NAME[ index ] of an array
+      size_t last = i;
+      const auto array = decl.arrays.find(t[i].up);
+      std::optional<int> index;
+      if (array != decl.arrays.end() && i + 1 < t.size() && t[i + 1].text == "[") {
+        size_t close = i + 1;
+        while (close < t.size() && t[close].text != "]") ++close;
+        if (close == t.size()) continue;
+        index = integerValue(t, i + 2, close);
+        last = close;
+      }
+      // a motion's target written as the point's name alone: LIN XP1 C_DIS, CIRC XA, XB, LIN XPA[2]
       const bool target = motion && depth == 0 && (i == 1 || t[i - 1].text == ",") &&
-                          (i + 1 == t.size() || t[i + 1].text == "," || t[i + 1].kind == Tok::kIdent);
+                          (last + 1 == t.size() || t[last + 1].text == "," || t[last + 1].kind == Tok::kIdent);
       if (target) continue;
-      const size_t id = static_cast<size_t>(it->second.value->value_id);
-      if (id >= source.values.size() || !source.values[id].read_elsewhere.empty()) continue;
-      source.values[id].read_elsewhere =
-          src.loc(t[i].begin).str() + " (" + src.text().substr(t[0].begin, t.back().end - t[0].begin) + ")";
+      if (array != decl.arrays.end() && last > i) {
+        const std::string prefix = upper(array->second.name) + "[";
+        for (const auto& [up, p] : decl.points)  // XPA[1], or every element for XPA[I]
+          if (up.compare(0, prefix.size(), prefix) == 0 && (!index || up == upper(arrayElementName(array->second, *index)))) noteRead(p, t, i);
+        continue;
+      }
+      if (const auto it = decl.points.find(t[i].up); it != decl.points.end()) noteRead(it->second, t, i);
     }
   }
 }
