@@ -334,11 +334,15 @@ std::string generate(const Program& p) {
   std::map<std::string, std::string> variables;  // pose variable -> its p[...]
   // the comments (withoutCarriedLines made every language's URScript lines) where they were:
   // before motion k, then after the last
+  // (a KRL program's data-list comments first, its local subroutines' after the last motion)
   const auto comments = [&](size_t k) {
-    for (const PassThrough& s : p.passthrough)
-      if (s.role.empty() && s.language == "URScript" && s.section == PassThrough::Section::kBody &&
-          std::min(s.before_motion, p.motions.size()) == k && commentText(s))
-        out << "  #" << asUtf8(*commentText(s)) << "\n";
+    for (const PassThrough& s : p.passthrough) {
+      if (!s.role.empty() || s.language != "URScript" || !commentText(s)) continue;
+      const size_t at = s.section == PassThrough::Section::kBody    ? std::min(s.before_motion, p.motions.size())
+                        : s.section == PassThrough::Section::kData ? 0
+                                                                    : p.motions.size();
+      if (at == k) out << "  #" << asUtf8(*commentText(s)) << "\n";
+    }
   };
   for (size_t mi = 0; mi < p.motions.size(); ++mi) {
     comments(mi);
