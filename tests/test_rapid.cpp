@@ -1231,6 +1231,16 @@ TEST(Rapid, LocalAndRoutineDataKeepTheirScope) {
   EXPECT_EQ(errorOf("MODULE a\n  PROC main()\n    VAR tooldata t := [TRUE,[[0,0,1],[1,0,0,0]],[1,[0,0,1],[1,0,0,0],0,0,0]];\n"
                     "    VAR tooldata t := [TRUE,[[0,0,2],[1,0,0,0]],[1,[0,0,1],[1,0,0,0],0,0,0]];\n  ENDPROC\nENDMODULE\n"),
             "bad.mod:4:18: expected one declaration of 't' in the routine main, found a second (the first at bad.mod:3:18)");
+  // the same persistent declared alike in two modules (a tool module and the main module): one
+  // object they share, read; declared with different values, still the error
+  const Program shared = parseRapid("MODULE a\n  PERS robtarget p10 := " + v1 + ";\n  PROC main()\n    MoveJ p10,v1000,z50,tool0;\n  ENDPROC\n"
+                                    "ENDMODULE\nMODULE b\n  PERS robtarget p10 := " + v1 + ";\nENDMODULE\n", "shared.prg");
+  ASSERT_EQ(shared.motions.size(), 1u);
+  EXPECT_EQ(shared.motions[0].target_problem, "");
+  EXPECT_EQ(poseOf(shared.motions[0].target).translation().x(), 40);
+  EXPECT_NE(errorOf("MODULE a\n  PERS robtarget p10 := " + v1 + ";\nENDMODULE\nMODULE b\n  PERS robtarget p10 := " + v2 + ";\nENDMODULE\n")
+                .find("expected one declaration of 'p10' in the program's global data"),
+            std::string::npos);
   // a LOCAL datum of one module and a global one of another: both fine (each module its own)
   EXPECT_NO_THROW(parseRapid("MODULE a\n  LOCAL CONST robtarget p10 := " + v1 + ";\nENDMODULE\nMODULE b\n  CONST robtarget p10 := " + v2 + ";\nENDMODULE\n", "ok.prg"));
 }

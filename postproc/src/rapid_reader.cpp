@@ -45,6 +45,9 @@ struct Scope {
   /// routine's `VAR num p10` hides the module's robtarget p10).
   std::map<std::string, SourceLocation> names;
   std::set<std::string> read_names;       ///< those of a datum of kReadTypes
+  /// PERS declarations: upper-case name -> their type and value as written (a persistent the
+  /// same in several modules is one object the modules share)
+  std::map<std::string, std::string> persistents;
   std::map<std::string, int> robtargets;  ///< upper-case name -> value
   std::map<std::string, FrameVal> tools, wobjs;
   std::map<std::string, std::array<double, 6>> joints;
@@ -702,13 +705,20 @@ class Reader {
     if (routine_.empty() && !isKw(t_, r.first, "LOCAL")) into.push_back(&global_);
     const std::string& u = t_[name].u;
     const bool read_type = kReadTypes.count(t_[k + 1].u) > 0;
+    // a PERS: its type and value as written, without blanks
+    std::string pers;
+    if (isKw(t_, k, "PERS"))
+      for (size_t i = k + 1; i < r.second; ++i) pers += t_[i].u + " ";
     for (Scope* s : into) {
       const auto it = s->names.find(u);
       if (it == s->names.end()) {
         s->names[u] = loc(t_[name].b);
         if (read_type) s->read_names.insert(u);
+        if (!pers.empty()) s->persistents[u] = pers;
         continue;
       }
+      // the same persistent declared alike in two modules: one object they share
+      if (s == &global_ && !pers.empty() && s->persistents.count(u) && s->persistents.at(u) == pers) continue;
       if (read_type && s->read_names.count(u))
         fail(t_[name].b, "expected one declaration of '" + excerpt(t_[name].s) + "' in " +
                              (s == &global_ ? "the program's global data (its modules share the data that is not LOCAL)"
