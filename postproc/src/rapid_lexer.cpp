@@ -232,8 +232,9 @@ auto loc = [&](size_t off) { return locate(starts_, src.path, off); };
     s.section = routine_of[l] == 0 ? PassThrough::Section::kData : routine_of[l] == 1 ? PassThrough::Section::kBody : PassThrough::Section::kTrailer;
     s.before_motion = next_motion;
     if (other_routine_motion_ && routine_of[l] == 2)
-      s.refuse = "the motions of the routine on this line are outside the program's main routine " + detail::excerpt(main_routine_) +
-                 ", which the other formats cannot hold";
+      s.refuse = "the motions of the routine on this line are outside " + detail::excerpt(main_routine_) +
+                 ", the first routine with motions, whose motions alone the other formats hold (one routine's; compensate "
+                 "corrects every routine's in the module itself)";
     p.passthrough.push_back(std::move(s));
   }
 }
