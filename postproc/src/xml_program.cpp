@@ -26,6 +26,8 @@ const char* const kAxisAttrs[] = {"a1", "a2", "a3", "a4", "a5", "a6"};
 const char* const kExtAttrs[] = {"e1", "e2", "e3", "e4", "e5", "e6"};
 const char* const kMotionElements[] = {"ptp", "lin", "circ", "sptp", "slin", "scirc", "spl"};
 
+std::set<std::string> passThroughAttrs() { return {"language", "section", "encoding", "role", "line", "eol", "spline_block"}; }
+
 std::set<std::string> targetAttrs(bool cartesian) {
   std::set<std::string> s = {"name", "type", "global", "external"};
   for (const char* a : cartesian ? kPoseAttrs : kAxisAttrs) s.insert(a);
@@ -287,7 +289,7 @@ void writePassThrough(std::ostream& out, const PassThrough& s) {
 }
 
 PassThrough readPassThrough(const Reader& R, const XMLElement* e, size_t before_motion) {
-  R.checkAttributes(e, {"language", "section", "encoding", "role", "line", "eol", "spline_block"});
+  R.checkAttributes(e, passThroughAttrs());
   PassThrough p;
   p.where = R.loc(e);
   p.before_motion = before_motion;
@@ -511,7 +513,7 @@ const std::map<std::string, std::set<std::string>>& xmlProgramVocabulary() {
     m["aux"] = targetAttrs(true);
     m["axes"] = targetAttrs(false);
     m["ref"] = {"name"};
-    m["passthrough"] = {"language", "section", "encoding", "role", "line", "eol"};
+    m["passthrough"] = passThroughAttrs();
     return m;
   }();
   return v;
