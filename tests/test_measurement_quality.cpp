@@ -71,5 +71,64 @@ TEST(MeasurementQuality, AMappingThatReadsOneColumnInTwoRolesIsRefused) {
   EXPECT_FALSE(std::filesystem::exists(dir + "/o.xml"));
 }
 
+// A simulated KR 16 campaign (geometric errors, tracker 3 m away, 0.02 mm noise per axis) of
+// `poses` distinct configurations, positions only, and the robot it measured.
+struct Campaign {
+  RobotModel nominal, truth;
+  MeasurementSet set;
+};
+Campaign campaign(int poses, std::uint64_t seed, const std::string& file = "fit.csv") {
+  Campaign c;
+  c.nominal = test::loadBundled("kuka_kr16");
+  SimulateOptions o;
+  o.seed = seed;
+  o.poses = poses;
+  o.noise_mm = 0.02;
+  o.tool = {80, 40, 150, 0, 0, 0};
+  o.set_tool = true;
+  c.truth = perturbModel(c.nominal, o);
+  c.set = simulateMeasurements(c.truth, o);
+  c.set.file = file;
+  return c;
+}
+
+bool anyWarning(const std::vector<std::string>& warnings, const std::string& part) {
+  return std::any_of(warnings.begin(), warnings.end(), [&](const std::string& w) { return w.find(part) != std::string::npos; });
+}
+
+// Fewer than 10 equations per parameter from distinct configurations is warned about whether or
+// not some rows repeat a configuration (the warning was only given when one did): 25 distinct
+// poses give 75 position equations for the 33 candidates of the KR 16's geometric model
+// (6 base + 3 tool + 24 joint parameters), 2.3 per parameter.
+TEST(MeasurementQuality, FewDistinctConfigurationsAreWarnedAboutWithoutRepeats) {
+  const Campaign c = campaign(25, 61);
+  IdentifySummary s;
+  identify(c.nominal, c.set, IdentifyOptions{}, &s);
+  EXPECT_EQ(s.poses, 25);
+  EXPECT_EQ(s.configurations, 25);
+  EXPECT_EQ(s.independent_equations, 75);
+  EXPECT_EQ(static_cast<int>(s.parameters.size() + s.fixed.size()), 33);
+  EXPECT_TRUE(s.few_configurations);
+  EXPECT_TRUE(anyWarning(s.warnings, "few distinct joint configurations: 25 poses, each its own joint configuration: 75 independent "
+                                     "equations for 33 parameters, fewer than 10 per parameter"))
+      << ::testing::PrintToString(s.warnings);
+  // 110 poses: 330 equations, 10 per parameter: no warning
+  const Campaign enough = campaign(110, 62);
+  IdentifySummary e;
+  identify(enough.nominal, enough.set, IdentifyOptions{}, &e);
+  EXPECT_EQ(e.independent_equations, 330);
+  EXPECT_FALSE(e.few_configurations);
+  EXPECT_FALSE(anyWarning(e.warnings, "few distinct joint configurations")) << ::testing::PrintToString(e.warnings);
+  // the command prints it with --quiet too
+  const std::string dir = test::tempDir("mq_few");
+  writeMeasurementsCsv(dir + "/few.csv", c.set, 6);
+  const CliRun r = test::runAccura("identify --robot kuka_kr16 --tool 80,40,150 --data " + dir + "/few.csv --holdout 0 --quiet --out " +
+                                   dir + "/o.xml");
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("WARNING: few distinct joint configurations: 25 poses, each its own joint configuration: 75 independent equations"),
+            std::string::npos)
+      << r.out;
+}
+
 }  // namespace
 }  // namespace accura::calib

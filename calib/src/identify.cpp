@@ -453,11 +453,15 @@ Problem setUp(const RobotModel& start, const std::vector<MeasurementSet>& sets, 
   summary.poses = rows;
   summary.configurations = configurations;
   summary.independent_equations = dim * configurations;
+  // (without repeats the few-configurations warning below counts the poses themselves)
+  const std::string counted =
+      configurations < rows
+          ? std::to_string(rows) + " poses hold only " + std::to_string(configurations) + " distinct joint configuration" +
+                (configurations == 1 ? "" : "s") + " (the others repeat one: every joint within " + fmtNum(kRepeatTolerance) +
+                " deg or mm, the same payload and directions), " + std::to_string(dim * configurations) + " independent equations"
+          : std::to_string(rows) + " poses, each its own joint configuration: " + std::to_string(dim * configurations) +
+                " independent equations";
   if (configurations < rows) {
-    const std::string counted =
-        std::to_string(rows) + " poses hold only " + std::to_string(configurations) + " distinct joint configuration" +
-        (configurations == 1 ? "" : "s") + " (the others repeat one: every joint within " + fmtNum(kRepeatTolerance) +
-        " deg or mm, the same payload and directions), " + std::to_string(dim * configurations) + " independent equations";
     if (dim * configurations < n_candidates + 1)
       throw InputError(sets[0].file, 0, 0,
                        "too few distinct joint configurations for the parameters asked for: " + counted + ", expected more than " +
@@ -465,15 +469,17 @@ Problem setUp(const RobotModel& start, const std::vector<MeasurementSet>& sets, 
                            "noise, not the geometry: the model would pass exactly through these configurations and be wrong "
                            "elsewhere. Measure at least " + std::to_string(n_candidates / dim + 2) +
                            " distinct configurations, better 10 times as many");
-    summary.few_configurations = dim * configurations < kMinEquationsPerParameter * n_candidates;
-    if (summary.few_configurations)
-      summary.warnings.push_back(
-          "few distinct joint configurations: " + counted + " for " + std::to_string(n_candidates) +
-          " parameters, fewer than " + std::to_string(kMinEquationsPerParameter) +
-          " per parameter. The parameters are fitted to the errors at these few configurations and may be far off on "
-          "other poses; neither the fit RMS nor poses held out from these configurations can show it: validate on other "
-          "configurations (--validate), and measure more distinct ones");
   }
+  // fewer than 10 equations per parameter from distinct configurations: warned about whether
+  // or not some rows repeat a configuration (README, "The command")
+  summary.few_configurations = dim * configurations < kMinEquationsPerParameter * n_candidates;
+  if (summary.few_configurations)
+    summary.warnings.push_back(
+        "few distinct joint configurations: " + counted + " for " + std::to_string(n_candidates) +
+        " parameters, fewer than " + std::to_string(kMinEquationsPerParameter) +
+        " per parameter. The parameters are fitted to the errors at these few configurations and may be far off on "
+        "other poses; neither the fit RMS nor poses held out from these configurations can show it: validate on other "
+        "configurations (--validate), and measure more distinct ones");
   return pb;
 }
 

@@ -172,8 +172,8 @@ struct IdentifySummary {
   /// each data set): only these carry information about the geometry; independent_equations =
   /// configurations times 3 (positions) or 6 (with orientations).
   int poses = 0, configurations = 0, independent_equations = 0;
-  /// Repeats leave fewer than kMinEquationsPerParameter independent equations per candidate
-  /// parameter (a warning says so).
+  /// The distinct configurations give fewer than kMinEquationsPerParameter independent
+  /// equations per candidate parameter, repeats or not (a warning says so).
   bool few_configurations = false;
   std::vector<FixedParameter> fixed;
   std::vector<ParameterEstimate> parameters;
