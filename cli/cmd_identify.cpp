@@ -68,6 +68,7 @@ struct IdentifyRun {
   calib::MeasurementSet validation;         ///< --validate or the --holdout poses (may be empty)
   std::string validation_source;
   std::string holdout_note;                 ///< --holdout: how many poses it keeps from the fit
+  std::vector<std::string> data_warnings;   ///< about the --data files as read (rows written twice)
   calib::IdentifyOptions opt;
   calib::IdentifySummary s;
   calib::RobotModel calibrated;
@@ -103,6 +104,10 @@ void readData(const IdentifyArgs& a, IdentifyRun& r) {
     throw calib::InputError("--same-station: expected several --data files (measured from one tracker station), found one");
   for (const std::string& f : a.data) r.sets.push_back(readMeasurements(f, a.map, r.start.nominal));
   for (const std::string& f : a.data) r.data_names += (r.data_names.empty() ? "" : ", ") + f;
+  // a row written twice is one measurement: counted once in the fit and in a --holdout alike
+  for (calib::MeasurementSet& set : r.sets)
+    if (const std::string w = calib::duplicatedRowsWarning(set.file, calib::removeDuplicatedRows(set)); !w.empty())
+      r.data_warnings.push_back(w);
   if (!a.validate.empty() && a.holdout_given && a.holdout > 0)
     throw calib::InputError("--holdout and --validate: expected one of them (the validation poses come from the --validate file or "
                             "from the --data file), found both");
@@ -611,6 +616,7 @@ int runIdentify(const IdentifyArgs& a) {
                    set.file.c_str());
   }
   r.calibrated = identifyFit(r, r.opt, &r.s);
+  r.s.warnings.insert(r.s.warnings.begin(), r.data_warnings.begin(), r.data_warnings.end());
   for (const auto& d : r.sets) r.n_rows += d.rows.size();
   validate(a, r);
   for (const auto& d : r.sets) r.orient = r.orient && d.has_orientation;

@@ -130,5 +130,101 @@ TEST(MeasurementQuality, FewDistinctConfigurationsAreWarnedAboutWithoutRepeats) 
       << r.out;
 }
 
+// The file `set` written to `path` and read back (lines as a reader numbers them).
+MeasurementSet roundTrip(const MeasurementSet& set, const std::string& path, const RobotModel& robot) {
+  writeMeasurementsCsv(path, set, robot.dof());
+  return readMeasurementsCsv(path, robot.nominal);
+}
+
+// Every third row of a campaign written twice (an export that repeated it): the copies carry no
+// information and count once in every statistic. The diagnosis of the file with the copies is
+// the diagnosis of the file without them, number for number (held-out errors, floor, ranking,
+// spectra, verdict), the copies named; identify's parameters and sigmas are those of the file
+// without them (counted twice, the sigmas came out about sqrt(3/4) of these).
+TEST(MeasurementQuality, RowsWrittenTwiceCountOnceInEveryStatistic) {
+  const std::string dir = test::tempDir("mq_dup");
+  const Campaign c = campaign(300, 63);
+  const MeasurementSet base = roundTrip(c.set, dir + "/base.csv", c.nominal);
+  MeasurementSet twice = c.set;
+  twice.rows.clear();
+  for (size_t i = 0; i < c.set.rows.size(); ++i) {
+    twice.rows.push_back(c.set.rows[i]);
+    if (i % 3 == 2) twice.rows.push_back(c.set.rows[i]);
+  }
+  const MeasurementSet dup = roundTrip(twice, dir + "/dup.csv", c.nominal);
+  ASSERT_EQ(dup.rows.size(), 400u);
+  // the copies: rows 3, 6, 9, ... of the campaign; in dup.csv the copy of row i (0-based, i % 3
+  // == 2) follows it: line 2 + i + i / 3 + 1
+  const std::vector<DuplicatedRow> found = duplicatedRows(dup);
+  ASSERT_EQ(found.size(), 100u);
+  EXPECT_EQ(found[0].line, 2 + 2 + 0 + 1);
+  EXPECT_EQ(found[0].same_as_line, 2 + 2 + 0);
+  EXPECT_EQ(found[99].line, 2 + 299 + 99 + 1);
+  EXPECT_EQ(found[99].same_as_line, 2 + 299 + 99);
+
+  const Diagnosis a = diagnose(c.nominal, base, nullptr, DiagnoseOptions{});
+  const Diagnosis b = diagnose(c.nominal, dup, nullptr, DiagnoseOptions{});
+  EXPECT_EQ(b.fit_poses, 300);
+  EXPECT_EQ(b.verdict.effect, a.verdict.effect);
+  EXPECT_EQ(b.verdict.explanation, a.verdict.explanation);
+  EXPECT_EQ(b.identify_params, a.identify_params);
+  EXPECT_EQ(b.baseline.n, a.baseline.n);
+  EXPECT_DOUBLE_EQ(b.baseline.rms_mm, a.baseline.rms_mm);
+  EXPECT_DOUBLE_EQ(b.baseline.max_mm, a.baseline.max_mm);
+  EXPECT_DOUBLE_EQ(b.baseline.p95_mm, a.baseline.p95_mm);
+  EXPECT_DOUBLE_EQ(b.noise_floor_mm, a.noise_floor_mm);
+  ASSERT_EQ(b.ranking.size(), a.ranking.size());
+  for (size_t k = 0; k < a.ranking.size(); ++k) {
+    EXPECT_EQ(b.ranking[k].effect, a.ranking[k].effect);
+    EXPECT_DOUBLE_EQ(b.ranking[k].p_value, a.ranking[k].p_value) << a.ranking[k].effect;
+    EXPECT_DOUBLE_EQ(b.ranking[k].rms_after_mm, a.ranking[k].rms_after_mm) << a.ranking[k].effect;
+  }
+  ASSERT_EQ(b.spectra.size(), a.spectra.size());
+  for (size_t k = 0; k < a.spectra.size(); ++k) {
+    EXPECT_EQ(b.spectra[k].peak_cycles, a.spectra[k].peak_cycles);
+    EXPECT_DOUBLE_EQ(b.spectra[k].peak_p, a.spectra[k].peak_p) << "j" << a.spectra[k].joint;
+    EXPECT_DOUBLE_EQ(b.spectra[k].peak_amplitude_urad, a.spectra[k].peak_amplitude_urad) << "j" << a.spectra[k].joint;
+  }
+  // named, each against the row it copies, in the text and the JSON
+  ASSERT_EQ(b.floors.duplicated_rows.size(), 100u);
+  EXPECT_TRUE(a.floors.duplicated_rows.empty());
+  const std::string text = diagnosisText(b);
+  EXPECT_NE(text.find("accura diagnose: KUKA KR 16, 300 poses from " + dir + "/dup.csv"), std::string::npos) << text;
+  EXPECT_NE(text.find("WARNING: 100 row(s) repeat an earlier row of their configuration exactly (every measured value equal): the "
+                      "same measurement written twice, counted once (left out of the diagnosis): " +
+                      dir + "/dup.csv:5 = " + dir + "/dup.csv:4 "),
+            std::string::npos)
+      << text;
+  const auto j = nlohmann::json::parse(diagnosisJson(b));
+  EXPECT_EQ(j["floors"]["duplicated_rows"][99]["row"], dir + "/dup.csv:" + std::to_string(found[99].line));
+  EXPECT_EQ(j["floors"]["duplicated_rows"][99]["same_as"], dir + "/dup.csv:" + std::to_string(found[99].same_as_line));
+
+  // identify: the same parameters and sigmas, the same count of poses and equations
+  IdentifySummary sa, sb;
+  identify(c.nominal, base, IdentifyOptions{}, &sa);
+  identify(c.nominal, dup, IdentifyOptions{}, &sb);
+  EXPECT_EQ(sb.poses, 300);
+  EXPECT_EQ(sb.equations, sa.equations);
+  ASSERT_EQ(sb.parameters.size(), sa.parameters.size());
+  for (size_t k = 0; k < sa.parameters.size(); ++k) {
+    EXPECT_DOUBLE_EQ(sb.parameters[k].value, sa.parameters[k].value) << sa.parameters[k].name;
+    EXPECT_DOUBLE_EQ(sb.parameters[k].sigma, sa.parameters[k].sigma) << sa.parameters[k].name;
+  }
+  EXPECT_TRUE(anyWarning(sb.warnings, "100 row(s) of " + dir + "/dup.csv repeat an earlier row of their joint configuration exactly"))
+      << ::testing::PrintToString(sb.warnings);
+  // the command: the --holdout of the file with the copies is that of the file without them
+  const CliRun ra = test::runAccura("identify --robot kuka_kr16 --tool 80,40,150 --data " + dir + "/base.csv --out " + dir +
+                                    "/a.xml --json " + dir + "/a.json --quiet");
+  const CliRun rb = test::runAccura("identify --robot kuka_kr16 --tool 80,40,150 --data " + dir + "/dup.csv --out " + dir +
+                                    "/b.xml --json " + dir + "/b.json --quiet");
+  ASSERT_EQ(ra.code, 0) << ra.err;
+  ASSERT_EQ(rb.code, 0) << rb.err;
+  const auto ja = nlohmann::json::parse(test::readText(dir + "/a.json")), jb = nlohmann::json::parse(test::readText(dir + "/b.json"));
+  EXPECT_EQ(jb["validation"], ja["validation"]);
+  EXPECT_EQ(jb["parameters"], ja["parameters"]);
+  EXPECT_EQ(jb["identifiability"]["poses"], 240);
+  EXPECT_NE(rb.out.find("WARNING: 100 row(s) of " + dir + "/dup.csv repeat an earlier row"), std::string::npos) << rb.out;
+}
+
 }  // namespace
 }  // namespace accura::calib

@@ -98,6 +98,7 @@ std::string rowRef(const Diagnosis& d, int line, int index) {
 
 // A row of a glitch (RepeatPair): row a, or row b of a pair.
 std::string glitchRowRef(const Diagnosis& d, const RepeatPair& p, bool a) {
+  if (!p.file.empty()) return a ? rowRef(p.file, p.line_a, p.index_a) : rowRef(p.file, p.line_b, p.index_b);
   if (p.validation) return a ? rowRef(d.validation_file, p.line_a, p.index_a) : rowRef(d.validation_file, p.line_b, p.index_b);
   return a ? rowRef(d, p.line_a, p.index_a) : rowRef(d, p.line_b, p.index_b);
 }
@@ -567,8 +568,8 @@ std::string diagnosisText(const Diagnosis& d) {
     }
     if (!fl.duplicated_rows.empty()) {
       s << "WARNING: " << fl.duplicated_rows.size()
-        << " row(s) repeat an earlier row of their configuration exactly (every coordinate equal): the same "
-           "measurement written twice, left out of the repeatability:";
+        << " row(s) repeat an earlier row of their configuration exactly (every measured value equal): the same "
+           "measurement written twice, counted once (left out of the diagnosis):";
       for (size_t k = 0; k < fl.duplicated_rows.size() && k < 12; ++k)
         s << " " << glitchRowRef(d, fl.duplicated_rows[k], true) << " = " << glitchRowRef(d, fl.duplicated_rows[k], false);
       if (fl.duplicated_rows.size() > 12) s << " ... (all in the JSON)";

@@ -570,6 +570,19 @@ RobotModel identify(const RobotModel& start, const std::vector<MeasurementSet>& 
         throw ArgumentError("identify: parameter group '" + g.first + "': expected joints j1..j" +
                             std::to_string(start.dof()) + " of " + start.nominal.name + ", found j" + std::to_string(j));
   {
+    // rows written twice (every measured value of an earlier row of the configuration): the same
+    // measurement counts once, else it would count as independent evidence (the sigmas too small)
+    std::vector<MeasurementSet> once = sets;
+    std::vector<std::string> said;
+    for (MeasurementSet& d : once)
+      if (const std::string w = duplicatedRowsWarning(d.file, removeDuplicatedRows(d)); !w.empty()) said.push_back(w);
+    if (!said.empty()) {
+      const RobotModel out = identify(start, once, options, summary_out);
+      if (summary_out) summary_out->warnings.insert(summary_out->warnings.begin(), said.begin(), said.end());
+      return out;
+    }
+  }
+  {
     // gross rows (a lost beam, a corrupted cell): left out of the fit and named; one alone
     // would pull the registration and every parameter by metres
     std::vector<MeasurementSet> screened = sets;

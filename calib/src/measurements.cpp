@@ -830,4 +830,53 @@ std::vector<std::vector<int>> repeatedConfigurations(const MeasurementSet& set, 
   return groups;
 }
 
+std::vector<DuplicatedRow> duplicatedRows(const MeasurementSet& set, double tol) {
+  std::vector<DuplicatedRow> out;
+  const std::vector<Measurement>& rows = set.rows;
+  auto same = [&](int a, int b) {
+    const Measurement& A = rows[static_cast<size_t>(a)];
+    const Measurement& B = rows[static_cast<size_t>(b)];
+    if (A.p_world_mm != B.p_world_mm || A.has_orientation != B.has_orientation) return false;
+    return !A.has_orientation || A.R_world_tcp.coeffs() == B.R_world_tcp.coeffs();
+  };
+  for (const std::vector<int>& g : repeatedConfigurations(set, tol)) {
+    if (g.size() < 2) continue;
+    std::vector<int> kept;  // the first row of each distinct measurement of the configuration
+    for (int i : g) {
+      const auto first = std::find_if(kept.begin(), kept.end(), [&](int k) { return same(i, k); });
+      if (first == kept.end()) {
+        kept.push_back(i);
+        continue;
+      }
+      out.push_back({i, rows[static_cast<size_t>(i)].line, *first, rows[static_cast<size_t>(*first)].line});
+    }
+  }
+  std::sort(out.begin(), out.end(), [](const DuplicatedRow& a, const DuplicatedRow& b) { return a.index < b.index; });
+  return out;
+}
+
+std::vector<DuplicatedRow> removeDuplicatedRows(MeasurementSet& set, double tol) {
+  const std::vector<DuplicatedRow> dups = duplicatedRows(set, tol);
+  if (dups.empty()) return dups;
+  std::vector<bool> drop(set.rows.size(), false);
+  for (const DuplicatedRow& d : dups) drop[static_cast<size_t>(d.index)] = true;
+  std::vector<Measurement> kept;
+  kept.reserve(set.rows.size() - dups.size());
+  for (size_t i = 0; i < set.rows.size(); ++i)
+    if (!drop[i]) kept.push_back(std::move(set.rows[i]));
+  set.rows = std::move(kept);
+  return dups;
+}
+
+std::string duplicatedRowsWarning(const std::string& file, const std::vector<DuplicatedRow>& rows) {
+  if (rows.empty()) return "";
+  std::string list;
+  for (size_t k = 0; k < rows.size() && k < 10; ++k)
+    list += (k ? ", " : "") + file + ":" + std::to_string(rows[k].line) + " = " + file + ":" + std::to_string(rows[k].same_as_line);
+  if (rows.size() > 10) list += ", ... (" + std::to_string(rows.size() - 10) + " more)";
+  return std::to_string(rows.size()) + " row(s) of " + file +
+         " repeat an earlier row of their joint configuration exactly (every measured value equal: " + list +
+         "): the same measurement written twice, not a second measurement; each is counted once";
+}
+
 }  // namespace accura::calib

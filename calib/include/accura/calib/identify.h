@@ -207,7 +207,9 @@ struct IdentifySummary {
 /// previously calibrated; its deviations are the initial guess) on `data`. With joint_map and
 /// other groups, the maps are fitted after the others, to what those leave, those held (two
 /// solves; the reported sigmas are the joint covariance's): where a map is zero the model is the
-/// one without maps. Returns the calibrated model. Throws InputError when the data is too small for the
+/// one without maps. A row written twice (duplicatedRows(): every measured value of an earlier row of
+/// its configuration) counts once: it is left out, and a warning names it. Returns the calibrated
+/// model. Throws InputError when the data is too small for the
 /// parameters asked for (too few rows, or too few distinct joint configurations: repeats,
 /// repeatedConfigurations(), count once), ArgumentError on invalid options, NumericalError when the
 /// registration is degenerate (collinear points) or the solver fails.
