@@ -102,7 +102,9 @@ void readData(const IdentifyArgs& a, IdentifyRun& r) {
   }
   if (a.same_station && a.data.size() < 2)
     throw calib::InputError("--same-station: expected several --data files (measured from one tracker station), found one");
+  refuseRepeatedDataFiles(a.data);
   for (const std::string& f : a.data) r.sets.push_back(readMeasurements(f, a.map, r.start.nominal));
+  calib::refuseSharedMeasurements(r.sets);  // (a copy of a file under another name)
   for (const std::string& f : a.data) r.data_names += (r.data_names.empty() ? "" : ", ") + f;
   // a row written twice is one measurement: counted once in the fit and in a --holdout alike
   for (calib::MeasurementSet& set : r.sets)

@@ -226,5 +226,73 @@ TEST(MeasurementQuality, RowsWrittenTwiceCountOnceInEveryStatistic) {
   EXPECT_NE(rb.out.find("WARNING: 100 row(s) of " + dir + "/dup.csv repeat an earlier row"), std::string::npos) << rb.out;
 }
 
+// The same measurements given twice (--data A --data A, or a byte copy of A under another name)
+// would count every pose twice, as if measured twice: identify's sigmas sqrt(2) too small (with
+// one shared station), the diagnosis' tests too significant. Refused, naming both files, by the
+// command and by the library; a file that shares only some rows with another is refused too,
+// counting them.
+TEST(MeasurementQuality, TheSameDataGivenTwiceIsRefusedNamingBothFiles) {
+  const std::string dir = test::tempDir("mq_twice");
+  const Campaign c = campaign(120, 64);
+  const MeasurementSet a = roundTrip(c.set, dir + "/A.csv", c.nominal);
+  std::filesystem::copy_file(dir + "/A.csv", dir + "/A_copy.csv");
+  MeasurementSet copy = a;
+  copy.file = dir + "/A_copy.csv";
+  const std::string same = "expected measurements of its own, found every one of its 120 rows identical to rows of " + dir +
+                           "/A.csv (joint values and measured values equal to the last bit; the first: " + dir + "/A_copy.csv:2 = " +
+                           dir + "/A.csv:2): the same measurements given twice would count twice";
+  for (bool same_station : {false, true}) {
+    IdentifyOptions o;
+    o.same_station = same_station;
+    try {
+      identify(c.nominal, std::vector<MeasurementSet>{a, copy}, o, nullptr);
+      ADD_FAILURE() << "identify fitted the same data twice";
+    } catch (const InputError& e) {
+      EXPECT_EQ(e.file(), dir + "/A_copy.csv");
+      EXPECT_EQ(e.line(), 2);
+      EXPECT_NE(e.message().find(same), std::string::npos) << e.message();
+    }
+  }
+  try {
+    diagnose(c.nominal, std::vector<MeasurementSet>{a, copy}, false, nullptr, DiagnoseOptions{}, nullptr);
+    ADD_FAILURE() << "diagnose took the same data twice";
+  } catch (const InputError& e) {
+    EXPECT_NE(e.message().find(same), std::string::npos) << e.message();
+  }
+  // a second file of 40 new poses and 10 rows of the first (rows 31..40, lines 33..42)
+  const Campaign other = campaign(40, 65);
+  MeasurementSet mixed = other.set;
+  for (size_t i = 30; i < 40; ++i) mixed.rows.push_back(c.set.rows[i]);
+  const MeasurementSet b = roundTrip(mixed, dir + "/B.csv", c.nominal);
+  try {
+    identify(c.nominal, std::vector<MeasurementSet>{a, b}, IdentifyOptions{}, nullptr);
+    ADD_FAILURE() << "identify fitted 10 measurements twice";
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.file(), dir + "/B.csv");
+    EXPECT_EQ(e.line(), 42);
+    EXPECT_NE(e.message().find("found 10 of its 50 rows identical to rows of " + dir + "/A.csv (joint values and measured values equal "
+                               "to the last bit; the first: " + dir + "/B.csv:42 = " + dir + "/A.csv:32)"),
+              std::string::npos)
+        << e.message();
+  }
+  // the command: the same file by two paths, or its copy; identify and diagnose; nothing written
+  const std::string robot = "--robot kuka_kr16 --tool 80,40,150 ";
+  for (const std::string& cmd : {"identify " + robot + "--out " + dir + "/o.xml", "diagnose " + robot + "--json " + dir + "/o.json"}) {
+    CliRun r = test::runAccura(cmd + " --data " + dir + "/A.csv --data " + dir + "/../" + std::filesystem::path(dir).filename().string() +
+                               "/A.csv");
+    EXPECT_EQ(r.code, 1) << cmd << r.out;
+    EXPECT_NE(r.err.find("accura: error: --data " + dir + "/../"), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("/A.csv: expected each measurement file once, found the same file as --data " + dir + "/A.csv: its measurements "
+                         "would count twice"),
+              std::string::npos)
+        << r.err;
+    r = test::runAccura(cmd + " --data " + dir + "/A.csv --data " + dir + "/A_copy.csv");
+    EXPECT_EQ(r.code, 1) << cmd << r.out;
+    EXPECT_NE(r.err.find("accura: error: " + dir + "/A_copy.csv:2: " + same), std::string::npos) << r.err;
+    EXPECT_FALSE(std::filesystem::exists(dir + "/o.xml"));
+    EXPECT_FALSE(std::filesystem::exists(dir + "/o.json"));
+  }
+}
+
 }  // namespace
 }  // namespace accura::calib

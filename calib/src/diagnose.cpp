@@ -340,6 +340,7 @@ std::vector<RepeatPair> withoutDuplicatedRows(std::vector<MeasurementSet>& sets,
 
 Diagnosis diagnose(const RobotModel& start, const std::vector<MeasurementSet>& sets_given, bool same_station,
                    const MeasurementSet* validation_given, const DiagnoseOptions& options, StationSets* stations) {
+  refuseSharedMeasurements(sets_given);  // the same data twice would count twice
   std::vector<MeasurementSet> sets_in = sets_given;
   std::optional<MeasurementSet> validation_copy;
   if (validation_given) validation_copy = *validation_given;

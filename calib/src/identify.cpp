@@ -561,6 +561,7 @@ RobotModel identify(const RobotModel& start, const std::vector<MeasurementSet>& 
   if (sets.empty()) throw ArgumentError("identify: no data set given");
   for (const auto& d : sets)
     if (d.rows.empty()) throw InputError(d.file, 0, 0, "expected measured rows, found none");
+  refuseSharedMeasurements(sets);  // the same data twice would count twice
   start.validate();
   double stated_knot = 0;
   std::map<std::string, std::set<int>> groups = parseGroups(options, &stated_knot);

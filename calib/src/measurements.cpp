@@ -12,6 +12,7 @@
 #include <numeric>
 #include <string_view>
 #include <system_error>
+#include <unordered_map>
 
 #include "accura/calib/errors.h"
 #include "accura/calib/file_io.h"
@@ -877,6 +878,55 @@ std::string duplicatedRowsWarning(const std::string& file, const std::vector<Dup
   return std::to_string(rows.size()) + " row(s) of " + file +
          " repeat an earlier row of their joint configuration exactly (every measured value equal: " + list +
          "): the same measurement written twice, not a second measurement; each is counted once";
+}
+
+void refuseSharedMeasurements(const std::vector<MeasurementSet>& sets) {
+  if (sets.size() < 2) return;
+  // a row's joint values and measured values, bit for bit
+  auto key = [](const Measurement& r) {
+    std::string k;
+    auto put = [&](double v) { k.append(reinterpret_cast<const char*>(&v), sizeof v); };
+    for (Eigen::Index j = 0; j < r.q.size(); ++j) put(r.q[j]);
+    for (int a = 0; a < 3; ++a) put(r.p_world_mm[a]);
+    k.push_back(r.has_orientation ? 'R' : 'P');
+    if (r.has_orientation)
+      for (int a = 0; a < 4; ++a) put(r.R_world_tcp.coeffs()[a]);
+    return k;
+  };
+  std::unordered_map<std::string, std::pair<size_t, size_t>> seen;  // key -> (set, row) of its first occurrence
+  for (size_t s = 0; s < sets.size(); ++s) {
+    const std::vector<Measurement>& rows = sets[s].rows;
+    std::vector<std::string> keys(rows.size());
+    size_t shared = 0, first_row = 0, first_other_set = 0, first_other_row = 0;
+    for (size_t i = 0; i < rows.size(); ++i) {
+      keys[i] = key(rows[i]);
+      const auto it = seen.find(keys[i]);
+      if (it == seen.end() || it->second.first == s) continue;
+      if (shared++ == 0) {
+        first_row = i;
+        first_other_set = it->second.first;
+        first_other_row = it->second.second;
+      }
+    }
+    if (shared > 0) {
+      const MeasurementSet& other = sets[first_other_set];
+      size_t with_other = 0;  // of the shared rows, those of that earlier set
+      for (size_t i = 0; i < rows.size(); ++i) {
+        const auto it = seen.find(keys[i]);
+        with_other += it != seen.end() && it->second.first == first_other_set ? 1 : 0;
+      }
+      throw InputError(sets[s].file, rows[first_row].line, 0,
+                       "expected measurements of its own, found " +
+                           (with_other == rows.size() ? "every one of its " + std::to_string(rows.size()) + " rows"
+                                                      : std::to_string(with_other) + " of its " + std::to_string(rows.size()) + " rows") +
+                           " identical to rows of " + other.file + " (joint values and measured values equal to the last bit; the first: " +
+                           sets[s].file + ":" + std::to_string(rows[first_row].line) + " = " + other.file + ":" +
+                           std::to_string(other.rows[first_other_row].line) +
+                           "): the same measurements given twice would count twice, as if measured twice (the parameters' sigmas "
+                           "too small, every test too significant); give each measurement once");
+    }
+    for (size_t i = 0; i < rows.size(); ++i) seen.emplace(keys[i], std::make_pair(s, i));
+  }
 }
 
 }  // namespace accura::calib

@@ -121,6 +121,14 @@ std::vector<DuplicatedRow> removeDuplicatedRows(MeasurementSet& set, double tol 
 /// ten as FILE:LINE = FILE:LINE); empty when there are none.
 std::string duplicatedRowsWarning(const std::string& file, const std::vector<DuplicatedRow>& rows);
 
+/// Throws InputError when two of `sets` hold the same measurements: a row of a later set whose
+/// joint values and measured values (the position, and the orientation when both rows have one)
+/// equal a row of an earlier set to the last bit. The same file given twice, or a copy of it,
+/// would count every such measurement twice (the parameters' sigmas sqrt(2) too small, every
+/// test too significant). The error is at the later set's first such row (file:line) and names
+/// the earlier set's file and row and how many rows the two share.
+void refuseSharedMeasurements(const std::vector<MeasurementSet>& sets);
+
 /// The range of each of the first `dof` joints over the rows of `data` (deg or mm; the fit's
 /// coverage). An empty `data` gives lower > upper for every joint.
 std::vector<JointRange> jointRanges(const MeasurementSet& data, int dof);
