@@ -294,5 +294,67 @@ TEST(MeasurementQuality, TheSameDataGivenTwiceIsRefusedNamingBothFiles) {
   }
 }
 
+// The number printed right after `label` in `text` (NaN when the label is not there).
+double numberAfter(const std::string& text, const std::string& label) {
+  const size_t at = text.find(label);
+  return at == std::string::npos ? std::nan("") : std::stod(text.substr(at + label.size()));
+}
+
+// identify --validate with a file measured from another tracker station, without
+// --validate-station new: the validation is of another frame (metres off), and the run said
+// "improved 1.0-fold" and nothing else. It now says so in place of the comparison, with the
+// median error, the tracker the re-registration finds (where the simulation put it) and the
+// remedy; a validation of the fit's station says nothing of the kind.
+TEST(MeasurementQuality, AValidationFromAnotherStationIsSaidToBeOne) {
+  const std::string dir = test::tempDir("mq_station");
+  CliRun r = test::runAccura("simulate --robot kuka_kr16 --poses 150 --seed 21 --tool 80,40,150 --out " + dir + "/fit.csv --truth " +
+                             dir + "/truth.xml");
+  ASSERT_EQ(r.code, 0) << r.err;
+  const std::string other = "1900,-1300,-400,120,0.4,-0.3";  // the tracker turned 90 deg and moved
+  r = test::runAccura("simulate --robot " + dir + "/truth.xml --effects none --poses 60 --seed 22 --station " + other + " --out " + dir +
+                      "/other.csv");
+  ASSERT_EQ(r.code, 0) << r.err;
+  r = test::runAccura("simulate --robot " + dir + "/truth.xml --effects none --poses 60 --seed 23 --out " + dir + "/same.csv");
+  ASSERT_EQ(r.code, 0) << r.err;
+  const std::string fit = "identify --robot kuka_kr16 --tool 80,40,150 --data " + dir + "/fit.csv --out " + dir + "/cal.xml --json " + dir +
+                          "/s.json --quiet --validate " + dir;
+  r = test::runAccura(fit + "/other.csv");
+  ASSERT_EQ(r.code, 0) << r.err;
+  const std::string head = "  WARNING: the validation on " + dir + "/other.csv is grossly off: its median position error is ";
+  ASSERT_NE(r.out.find(head), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find("improved"), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find("WORSE"), std::string::npos) << r.out;
+  // the median error: the written model's on the file
+  const RobotModel truth = readRobotFile(dir + "/truth.xml");
+  const RobotModel cal = readRobotFile(dir + "/cal.xml");
+  std::vector<double> e = positionErrors(cal, readMeasurementsCsv(dir + "/other.csv", truth.nominal));
+  std::nth_element(e.begin(), e.begin() + static_cast<long>(e.size() / 2), e.end());
+  EXPECT_NEAR(numberAfter(r.out, head), e[e.size() / 2], 0.051);
+  EXPECT_GT(e[e.size() / 2], 100.0);
+  // the tracker where the simulation put it: T_fit_other = T_world_base(fit) T_world_base(other)^-1
+  const Eigen::Isometry3d moved = truth.T_world_base() * toIsometry(XyzAbc{1900, -1300, -400, 120, 0.4, -0.3}).inverse();
+  const std::string where = "It is likely measured from another tracker station: re-registering the station alone (6 parameters, the "
+                            "robot held) puts its tracker ";
+  const size_t at = r.out.find(where);
+  ASSERT_NE(at, std::string::npos) << r.out;
+  EXPECT_NEAR(std::stod(r.out.substr(at + where.size())), moved.translation().norm(), 0.11) << r.out;
+  const size_t deg = r.out.find(" mm and ", at + where.size());
+  ASSERT_NE(deg, std::string::npos);
+  EXPECT_NEAR(std::stod(r.out.substr(deg + 8)), Eigen::AngleAxisd(moved.linear()).angle() * kRadToDeg, 0.011) << r.out;
+  EXPECT_NEAR(Eigen::AngleAxisd(moved.linear()).angle() * kRadToDeg, 90.0, 0.1);
+  EXPECT_NE(r.out.find(" mm. Validate it with --validate-station new\n"), std::string::npos) << r.out;
+  const auto j = nlohmann::json::parse(test::readText(dir + "/s.json"));
+  EXPECT_TRUE(anyWarning(j["warnings"].get<std::vector<std::string>>(), "Validate it with --validate-station new"));
+  // --validate-station new validates it; a file of the fit's station is not said to be another's
+  r = test::runAccura(fit + "/other.csv --validate-station new");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(r.out.find("grossly off"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("position RMS improved"), std::string::npos) << r.out;
+  r = test::runAccura(fit + "/same.csv");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(r.out.find("grossly off"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("position RMS improved"), std::string::npos) << r.out;
+}
+
 }  // namespace
 }  // namespace accura::calib
