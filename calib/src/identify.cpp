@@ -714,6 +714,34 @@ RobotModel identify(const RobotModel& start, const std::vector<MeasurementSet>& 
                                    "where they may make the model worse than without them");
     }
   finishSummary(pb, sets, r, options.joint_map_smoothing, &summary);
+  if (!robust) {
+    // gross outliers (a joint glitch, a wrong target: far beyond the noise, below the 50 mm of a
+    // row left out as gross) pull every parameter of a least-squares fit: said, with the remedy
+    std::vector<const SuspiciousRow*> gross;
+    for (const SuspiciousRow& row : summary.suspicious)
+      if (row.normalised > kGrossOutlierSigmas) gross.push_back(&row);
+    if (!gross.empty()) {
+      double lo = gross[0]->normalised, hi = lo, elo = gross[0]->error_mm, ehi = elo;
+      std::string rows;
+      for (size_t k = 0; k < gross.size(); ++k) {
+        lo = std::min(lo, gross[k]->normalised);
+        hi = std::max(hi, gross[k]->normalised);
+        elo = std::min(elo, gross[k]->error_mm);
+        ehi = std::max(ehi, gross[k]->error_mm);
+        if (k < 10) rows += (k ? ", " : "") + gross[k]->file + ":" + std::to_string(gross[k]->line);
+      }
+      if (gross.size() > 10) rows += ", ...";
+      const auto range = [](double a, double b, int digits) {
+        return a == b ? formatFixed(a, digits) : formatFixed(a, digits) + " to " + formatFixed(b, digits);
+      };
+      summary.warnings.push_back(std::to_string(gross.size()) + " row(s) lie more than " + formatFixed(kGrossOutlierSigmas, 0) +
+                                 " robust standard deviations from the fitted model (normalised residual " + range(lo, hi, 1) +
+                                 ", position error " + range(elo, ehi, 3) + " mm; " + rows +
+                                 "): gross outliers (a joint glitch, a wrong target, a lost beam's last point) that a least-squares "
+                                 "fit (--loss none, the default) follows with every parameter. Check those rows, or fit with --loss "
+                                 "huber, which down-weights them");
+    }
+  }
   // the fitted ranges belong to the model when it learnt something beyond the frames
   if (std::any_of(pb.layout.begin(), pb.layout.end(),
                   [](const ParamInfo& p) { return p.group != "base" && p.group != "tool"; }))

@@ -152,6 +152,14 @@ constexpr int kGrossRowsAllowedAlways = 3;
 /// Data sets of fewer rows are not screened for gross rows (their median says little).
 constexpr int kGrossRowsMinRows = 10;
 
+/// A fit row whose normalised residual (SuspiciousRow::normalised: its weighted residual over the
+/// robust scale of all rows, the median's chi with 3 or 6 degrees of freedom) exceeds this is a
+/// gross outlier: Gaussian noise reaches 10 robust standard deviations with a probability below
+/// 1e-18, and one such row weighs at least 100/dim (17-33) typical rows in the least-squares cost.
+/// A fit without a robust loss (--loss none) that has such rows warns, counting them and
+/// recommending --loss huber.
+constexpr double kGrossOutlierSigmas = 10.0;
+
 struct IdentifySummary {
   std::string termination;     ///< Ceres' termination reason and message
   int iterations = 0;          ///< of every solve from initial_cost to final_cost (the weighting rounds included)
