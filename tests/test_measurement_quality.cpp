@@ -10,6 +10,7 @@
 #include "accura/calib/errors.h"
 #include "accura/calib/identify.h"
 #include "accura/calib/import.h"
+#include "accura/calib/kinematics.h"
 #include "accura/calib/measurements.h"
 #include "accura/calib/robot_io.h"
 #include "accura/calib/simulate.h"
@@ -402,6 +403,60 @@ TEST(MeasurementQuality, GrossOutliersInALeastSquaresFitRecommendARobustLoss) {
   IdentifySummary cs;
   identify(clean.nominal, clean.set, IdentifyOptions{}, &cs);
   EXPECT_FALSE(anyWarning(cs.warnings, "robust standard deviations")) << ::testing::PrintToString(cs.warnings);
+}
+
+// A campaign with joint 4 held at 30 deg (the same poses otherwise, measured on the same robot):
+// the model is determined at that angle of joint 4 only. identify and diagnose say so, naming the
+// joint and the angle; identify lists what it fixed for it, parameters of links 4 and 5 that the
+// same poses with joint 4 moving do determine.
+TEST(MeasurementQuality, AJointThatNeverMovesIsSaid) {
+  const Campaign moving = campaign(300, 68);
+  Campaign held = moving;
+  KinematicWorkspace ws;
+  for (Measurement& m : held.set.rows) {
+    const Eigen::Vector3d noise = m.p_world_mm - forwardKinematics(moving.truth, m.q, m.context, ws).translation();
+    m.q[3] = 30.0;
+    m.p_world_mm = forwardKinematics(held.truth, m.q, m.context, ws).translation() + noise;
+  }
+  IdentifySummary sm, sh;
+  identify(moving.nominal, moving.set, IdentifyOptions{}, &sm);
+  identify(held.nominal, held.set, IdentifyOptions{}, &sh);
+  EXPECT_FALSE(anyWarning(sm.warnings, "never moves")) << ::testing::PrintToString(sm.warnings);
+  const std::string said = "joint 4 never moves in the data (held at 30 deg in all 300 rows, within 0.01 deg): the model holds only at "
+                           "that angle. The parameters that need joint 4's motion are fixed (in this fit: ";
+  const auto w = std::find_if(sh.warnings.begin(), sh.warnings.end(), [&](const std::string& x) { return x.rfind(said, 0) == 0; });
+  ASSERT_NE(w, sh.warnings.end()) << ::testing::PrintToString(sh.warnings);
+  EXPECT_NE(w->find(") or absorbed by others, and the data say nothing of the robot at other angles of joint 4: measure poses with "
+                    "joint 4 moving over its range"),
+            std::string::npos)
+      << *w;
+  // what it lists: fixed here, of links 4 and 5, and determined when joint 4 moves
+  const std::string list = w->substr(said.size(), w->find(')', said.size()) - said.size());
+  std::vector<std::string> names;
+  for (size_t a = 0; a <= list.size();) {
+    const size_t b = std::min(list.find(", ", a), list.size());
+    names.push_back(list.substr(a, b - a));
+    a = b + 2;
+  }
+  ASSERT_GE(names.size(), 2u) << list;
+  auto fixedIn = [](const IdentifySummary& s, const std::string& name) {
+    return std::any_of(s.fixed.begin(), s.fixed.end(), [&](const FixedParameter& f) { return f.name == name; });
+  };
+  for (const std::string& n : names) {
+    EXPECT_TRUE(n.rfind("j4_", 0) == 0 || n.rfind("j5_", 0) == 0) << n;
+    EXPECT_TRUE(fixedIn(sh, n)) << n;
+    EXPECT_FALSE(fixedIn(sm, n)) << n << " is fixed with joint 4 moving too";
+  }
+  // the diagnosis: the same warning (without the fit's list), in the text and the JSON
+  const Diagnosis d = diagnose(held.nominal, held.set, nullptr, DiagnoseOptions{});
+  ASSERT_EQ(d.warnings.size(), 1u) << ::testing::PrintToString(d.warnings);
+  EXPECT_EQ(d.warnings[0],
+            "joint 4 never moves in the data (held at 30 deg in all 300 rows, within 0.01 deg): the model holds only at that angle. The "
+            "parameters that need joint 4's motion are fixed or absorbed by others, and the data say nothing of the robot at other "
+            "angles of joint 4: measure poses with joint 4 moving over its range");
+  EXPECT_NE(diagnosisText(d).find("\nWARNING: " + d.warnings[0] + "\n"), std::string::npos);
+  EXPECT_EQ(nlohmann::json::parse(diagnosisJson(d))["warnings"][0], d.warnings[0]);
+  EXPECT_TRUE(diagnose(moving.nominal, moving.set, nullptr, DiagnoseOptions{}).warnings.empty());
 }
 
 }  // namespace

@@ -373,6 +373,8 @@ Diagnosis diagnose(const RobotModel& start, const std::vector<MeasurementSet>& s
     d.notes.push_back("stations registered by the geometric model plus " + d.identify_params.substr(std::string("geometric").size() + 1) +
                       " (what a first pass with the geometric model alone selected), then diagnosed again");
   }
+  for (const HeldJoint& h : heldJoints(st.combined, start.nominal, options.repeat_tol))
+    d.warnings.push_back(heldJointWarning(start.nominal, h, st.combined.rows.size(), options.repeat_tol));
   if (stations) *stations = std::move(st);
   d.excluded = excluded;
   d.floors.duplicated_rows = duplicated;
@@ -393,6 +395,8 @@ Diagnosis diagnose(const RobotModel& start, const MeasurementSet& data_given, co
   Diagnosis out = d.run();
   out.excluded = excluded;
   out.floors.duplicated_rows = duplicated;
+  for (const HeldJoint& h : heldJoints(data, start.nominal, options.repeat_tol))
+    out.warnings.push_back(heldJointWarning(start.nominal, h, data.rows.size(), options.repeat_tol));
   return out;
 }
 

@@ -536,6 +536,7 @@ std::string diagnosisJson(const Diagnosis& d) {
   where["worst_poses"] = poses;
   j["where"] = where;
   j["notes"] = d.notes;
+  j["warnings"] = d.warnings;
   j["seconds"] = num(d.seconds);
   return calib::jsonText(j);
 }
@@ -544,6 +545,7 @@ std::string diagnosisText(const Diagnosis& d) {
   std::ostringstream s;
   s << "accura diagnose: " << d.robot << ", " << d.fit_poses << " poses from " << d.data_file << "\n";
   s << "held-out error by " << d.validation_method << "\n";
+  for (const std::string& w : d.warnings) s << "WARNING: " << w << "\n";
   if (d.orientation_ignored) s << "orientation columns are not used by the diagnosis' fits (positions only)\n";
   if (d.fits_orientation)
     s << "fits: positions and orientations, each row weighted as identify weights it (std and the geometric baseline's "
@@ -663,6 +665,7 @@ std::string diagnosisHtml(const Diagnosis& d, const DiagnosisReportContext& ctx)
   h << "<p class=\"small\">" << d.fit_poses << " poses from " << esc(d.data_file) << "; held-out error by "
     << esc(d.validation_method) << "; noise floor " << f("%.4f", d.noise_floor_mm) << " mm (3D RMS); source: "
     << esc(d.noise_floor_source) << "</p>\n";
+  for (const std::string& w : d.warnings) h << "<p><b>Warning:</b> " << esc(w) << "</p>\n";
   h << "<div class=\"verdict " << esc(d.verdict.effect) << "\"><b>Verdict: " << esc(d.verdict.effect);
   if (!d.verdict.joints.empty()) h << " (" << esc(jointsText(d.verdict.joints)) << ")";
   h << "</b> &mdash; held-out RMS " << f("%.4f", d.baseline.rms_mm) << " &rarr; " << f("%.4f", d.verdict.validation_rms_after_mm)

@@ -743,9 +743,19 @@ RobotModel identify(const RobotModel& start, const std::vector<MeasurementSet>& 
     }
   }
   // the fitted ranges belong to the model when it learnt something beyond the frames
-  if (std::any_of(pb.layout.begin(), pb.layout.end(),
-                  [](const ParamInfo& p) { return p.group != "base" && p.group != "tool"; }))
-    pb.model.deviations.fit_range = summary.coverage;
+  const bool robot_parameters = std::any_of(pb.layout.begin(), pb.layout.end(),
+                                            [](const ParamInfo& p) { return p.group != "base" && p.group != "tool"; });
+  if (robot_parameters) pb.model.deviations.fit_range = summary.coverage;
+  // a joint that never moves: the model holds at its angle only (said, with what was fixed for
+  // it: the parameters of its link and the next one's)
+  if (robot_parameters)
+    for (const HeldJoint& h : heldJoints(pb.data, pb.model.nominal, kRepeatTolerance)) {
+      std::string fixed;
+      for (const FixedParameter& f : summary.fixed)
+        for (int j : {h.joint + 1, h.joint + 2})
+          if (f.name.rfind("j" + std::to_string(j) + "_", 0) == 0) fixed += (fixed.empty() ? "" : ", ") + f.name;
+      summary.warnings.push_back(heldJointWarning(pb.model.nominal, h, pb.data.rows.size(), kRepeatTolerance, fixed));
+    }
   if (summary_out) *summary_out = summary;
   return pb.model;
 }

@@ -929,4 +929,31 @@ void refuseSharedMeasurements(const std::vector<MeasurementSet>& sets) {
   }
 }
 
+std::vector<HeldJoint> heldJoints(const MeasurementSet& data, const RobotDefinition& robot, double tol) {
+  std::vector<HeldJoint> out;
+  if (data.rows.empty()) return out;
+  const std::vector<JointRange> ranges = jointRanges(data, robot.dof());
+  for (int j = 0; j < robot.dof(); ++j) {
+    const JointRange& r = ranges[static_cast<size_t>(j)];
+    if (!(r.upper - r.lower <= tol)) continue;
+    double sum = 0;
+    for (const Measurement& m : data.rows) sum += m.q[j];
+    out.push_back({j, sum / double(data.rows.size())});
+  }
+  return out;
+}
+
+std::string heldJointWarning(const RobotDefinition& robot, const HeldJoint& held, size_t rows, double tol,
+                             const std::string& fixed) {
+  const std::string n = std::to_string(held.joint + 1);
+  const char* unit = robot.joints[static_cast<size_t>(held.joint)].type == JointType::kRevolute ? "deg" : "mm";
+  const double value = std::abs(held.value) < 0.5 * tol ? 0.0 : held.value;  // (no "-0")
+  return "joint " + n + " never moves in the data (held at " + formatNumber("%.6g", value) + " " + unit + " in all " +
+         std::to_string(rows) + " rows, within " + formatNumber("%g", tol) + " " + unit +
+         "): the model holds only at that angle. The parameters that need joint " + n + "'s motion are fixed" +
+         (fixed.empty() ? std::string() : " (in this fit: " + fixed + ")") +
+         " or absorbed by others, and the data say nothing of the robot at other angles of joint " + n +
+         ": measure poses with joint " + n + " moving over its range";
+}
+
 }  // namespace accura::calib

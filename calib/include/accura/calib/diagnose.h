@@ -352,6 +352,8 @@ struct Diagnosis {
   std::string identify_params = "geometric";
   Verdict verdict;
   std::vector<std::string> notes;  ///< parameters left out and why
+  /// What limits the data (a joint that never moves: heldJointWarning), printed as WARNING lines.
+  std::vector<std::string> warnings;
   double seconds = 0;  ///< wall time of the diagnosis
   /// The baseline (complete geometric) model and the final model (baseline plus the
   /// selected effects), both fitted on all fit data.

@@ -129,6 +129,23 @@ std::string duplicatedRowsWarning(const std::string& file, const std::vector<Dup
 /// the earlier set's file and row and how many rows the two share.
 void refuseSharedMeasurements(const std::vector<MeasurementSet>& sets);
 
+/// A joint that never moves in a data set: its 0-based index and the value it is held at (the
+/// mean of its rows; deg or mm).
+struct HeldJoint {
+  int joint = 0;
+  double value = 0;
+};
+
+/// The joints of `robot` whose values over the rows of `data` span at most `tol` (deg or mm; the
+/// repeat tolerance: what a controller reports for one angle): the data determine the robot at
+/// that angle of the joint only.
+std::vector<HeldJoint> heldJoints(const MeasurementSet& data, const RobotDefinition& robot, double tol = kRepeatTolerance);
+
+/// The warning for a held joint of a data set of `rows` rows: it never moves, the model holds at
+/// that angle only; `fixed` (may be empty), the parameters the identification fixed for it.
+std::string heldJointWarning(const RobotDefinition& robot, const HeldJoint& held, size_t rows, double tol,
+                             const std::string& fixed = "");
+
 /// The range of each of the first `dof` joints over the rows of `data` (deg or mm; the fit's
 /// coverage). An empty `data` gives lower > upper for every joint.
 std::vector<JointRange> jointRanges(const MeasurementSet& data, int dof);
