@@ -573,11 +573,12 @@ RobotModel identify(const RobotModel& start, const std::vector<MeasurementSet>& 
   {
     // rows written twice (every measured value of an earlier row of the configuration): the same
     // measurement counts once, else it would count as independent evidence (the sigmas too small)
-    std::vector<MeasurementSet> once = sets;
-    std::vector<std::string> said;
-    for (MeasurementSet& d : once)
-      if (const std::string w = duplicatedRowsWarning(d.file, removeDuplicatedRows(d)); !w.empty()) said.push_back(w);
-    if (!said.empty()) {
+    // (the sets are copied only when one has such rows: identify runs many times in the diagnosis)
+    if (std::any_of(sets.begin(), sets.end(), [](const MeasurementSet& d) { return !duplicatedRows(d).empty(); })) {
+      std::vector<MeasurementSet> once = sets;
+      std::vector<std::string> said;
+      for (MeasurementSet& d : once)
+        if (const std::string w = duplicatedRowsWarning(d.file, removeDuplicatedRows(d)); !w.empty()) said.push_back(w);
       const RobotModel out = identify(start, once, options, summary_out);
       if (summary_out) summary_out->warnings.insert(summary_out->warnings.begin(), said.begin(), said.end());
       return out;
