@@ -7,6 +7,7 @@
 #include <cctype>
 #include <cerrno>
 #include <cmath>
+#include <filesystem>
 #include <cstdio>
 #include <iostream>
 #include <type_traits>
@@ -62,6 +63,17 @@ calib::RobotModel loadRobot(const std::string& name, const std::string& option) 
     throw calib::InputError(option + " " + path + ": expected at most " + std::to_string(calib::kMaxDof) + " joints, found " +
                             std::to_string(model.dof()));
   return model;
+}
+
+void refuseRepeatedDataFiles(const std::vector<std::string>& files, const std::string& option) {
+  for (size_t k = 1; k < files.size(); ++k)
+    for (size_t i = 0; i < k; ++i) {
+      std::error_code ec;
+      if (std::filesystem::equivalent(files[i], files[k], ec) && !ec)
+        throw calib::InputError(option + " " + files[k] + ": expected each measurement file once, found the same file as " + option + " " +
+                                files[i] + ": its measurements would count twice, as if measured twice (the parameters' sigmas "
+                                "too small, every test too significant); give it once");
+    }
 }
 
 void warnUnknownColumns(const calib::MeasurementSet& set) {

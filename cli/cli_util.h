@@ -27,6 +27,10 @@ std::string& robotChainOption();
 /// Reads a measurement file: accura's CSV format, or an instrument export through the mapping
 /// file `map_path` when it is not empty (docs/measurement-mapping.md). Warns about unused columns.
 calib::MeasurementSet readMeasurements(const std::string& path, const std::string& map_path, const calib::RobotDefinition& robot);
+/// Refuses (InputError) a measurement file given twice among `files` (the same file by any path:
+/// std::filesystem::equivalent), naming both: its measurements would count twice. A byte copy
+/// under another name is caught once read (calib::refuseSharedMeasurements).
+void refuseRepeatedDataFiles(const std::vector<std::string>& files, const std::string& option = "--data");
 /// Prints a warning listing the columns of a measurement file accura does not use.
 void warnUnknownColumns(const calib::MeasurementSet& set);
 /// Adds the options that make a JobSettings (--robot, --controller, --tol, --base, --robroot,

@@ -134,8 +134,10 @@ int runDiagnose(const DiagnoseArgs& a) {
   std::string why;
   if (!o.IsValid(&why)) throw calib::InputError("diagnose: " + why);
 
+  refuseRepeatedDataFiles(a.data);
   std::vector<calib::MeasurementSet> sets;
   for (const std::string& f : a.data) sets.push_back(readMeasurements(f, a.map, start.nominal));
+  calib::refuseSharedMeasurements(sets);  // (a copy of a file under another name)
   calib::MeasurementSet validation;
   if (!a.validate.empty())
     validation = readMeasurements(a.validate, a.validate_map.empty() ? a.map : a.validate_map, start.nominal);

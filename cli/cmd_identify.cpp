@@ -51,6 +51,18 @@ constexpr int kMinStationConfigurations = 10;
 /// robot without errors comes to about 1.03 of it).
 constexpr double kNominalAtNoise = 1.2;
 
+/// A validation said to be from the fit's station (--validate-station same, --holdout) is gross
+/// when its median position error exceeds both kGrossValidationFloorMm and
+/// calib::kGrossRowMedianFactor times the fit's RMS (what makes a single row gross against its
+/// set's median): a robot registered in its tracker's frame is within millimetres even
+/// uncalibrated (the KR 16 example 1.7 mm RMS, the real UR10 1.0 mm; 3.3 mm at most), and a
+/// calibrated model extrapolated beyond its joint ranges is off by a fraction of that. Such a
+/// validation is of another frame: another station (the common case), robot or unit.
+constexpr double kGrossValidationFloorMm = 5.0;
+/// Re-registering the station alone explains a validation (as diagnose's check of --validate):
+/// it moves the station more than this (mm or deg) and takes more than 30% off the RMS.
+constexpr double kStationMovedMm = 0.5, kStationMovedDeg = 0.01, kStationRmsShare = 0.7;
+
 /// Validation poses outside the joint ranges of the fit, per joint: how many and how far.
 struct Outside {
   int count = 0;
@@ -68,12 +80,14 @@ struct IdentifyRun {
   calib::MeasurementSet validation;         ///< --validate or the --holdout poses (may be empty)
   std::string validation_source;
   std::string holdout_note;                 ///< --holdout: how many poses it keeps from the fit
+  std::vector<std::string> data_warnings;   ///< about the --data files as read (rows written twice)
   calib::IdentifyOptions opt;
   calib::IdentifySummary s;
   calib::RobotModel calibrated;
   calib::ErrorStats val, nom_val;           ///< on the validation data: calibrated, nominal registered
   std::string station_note;                 ///< --validate-station new: how far the station moved
   std::string orientation_note;             ///< why the validation's orientation errors are not reported
+  std::string gross_validation;             ///< a validation of the fit's station grossly off: why (else empty)
   std::vector<calib::SuspiciousRow> val_suspicious;  ///< suspicious validation rows
   std::vector<Outside> outside;             ///< per joint
   int outside_rows = 0;
@@ -101,8 +115,14 @@ void readData(const IdentifyArgs& a, IdentifyRun& r) {
   }
   if (a.same_station && a.data.size() < 2)
     throw calib::InputError("--same-station: expected several --data files (measured from one tracker station), found one");
+  refuseRepeatedDataFiles(a.data);
   for (const std::string& f : a.data) r.sets.push_back(readMeasurements(f, a.map, r.start.nominal));
+  calib::refuseSharedMeasurements(r.sets);  // (a copy of a file under another name)
   for (const std::string& f : a.data) r.data_names += (r.data_names.empty() ? "" : ", ") + f;
+  // a row written twice is one measurement: counted once in the fit and in a --holdout alike
+  for (calib::MeasurementSet& set : r.sets)
+    if (const std::string w = calib::duplicatedRowsWarning(set.file, calib::removeDuplicatedRows(set)); !w.empty())
+      r.data_warnings.push_back(w);
   if (!a.validate.empty() && a.holdout_given && a.holdout > 0)
     throw calib::InputError("--holdout and --validate: expected one of them (the validation poses come from the --validate file or "
                             "from the --data file), found both");
@@ -180,6 +200,38 @@ calib::RobotModel identifyFit(const IdentifyRun& r, const calib::IdentifyOptions
   }
 }
 
+/// Empty, or why a validation of the fit's station is grossly off (kGrossValidationFloorMm): its
+/// median error against the fit's RMS, and whether re-registering the station alone (the robot
+/// held) explains it, as diagnose checks its --validate: the likely cause named, the remedy given.
+std::string grossValidation(const IdentifyRun& r) {
+  std::vector<double> e = calib::positionErrors(r.calibrated, r.validation);
+  if (e.empty()) return "";
+  std::nth_element(e.begin(), e.begin() + static_cast<std::ptrdiff_t>(e.size() / 2), e.end());
+  const double median = e[e.size() / 2], fit = r.s.fit.rms_mm;
+  if (!(median > kGrossValidationFloorMm && median > calib::kGrossRowMedianFactor * fit)) return "";
+  std::string w = "the validation on " + r.validation_source + " is grossly off: its median position error is " + fmt("%.1f", median) +
+                  " mm, more than " + fmt("%.0f", kGrossValidationFloorMm) + " mm and " + fmt("%.0f", calib::kGrossRowMedianFactor) +
+                  " times the fit's RMS (" + fmt("%.4f", fit) +
+                  " mm), which no robot's own error makes on poses measured from the fit's station: its figures describe another "
+                  "frame, not the model. ";
+  calib::IdentifySummary st;
+  try {
+    const calib::RobotModel moved = calib::registerStation(r.calibrated, r.validation, &st);
+    // the validation's tracker in the fit's tracker frame: T_fit_val = T_fit_base T_val_base^-1
+    const Eigen::Isometry3d D = r.calibrated.T_world_base() * moved.T_world_base().inverse();
+    const double mm = D.translation().norm(), deg = Eigen::AngleAxisd(D.linear()).angle() * calib::kRadToDeg;
+    const std::string re = "re-registering the station alone (6 parameters, the robot held) puts its tracker " + fmt("%.1f", mm) +
+                           " mm and " + fmt("%.2f", deg) + " deg from the fit's and takes the RMS from " + fmt("%.4f", r.val.rms_mm) +
+                           " to " + fmt("%.4f", st.fit.rms_mm) + " mm";
+    if ((mm > kStationMovedMm || deg > kStationMovedDeg) && st.fit.rms_mm < kStationRmsShare * r.val.rms_mm)
+      return w + "It is likely measured from another tracker station: " + re + ". Validate it with --validate-station new";
+    return w + "Another station does not explain it (" + re + "): check that it measures this robot, in mm and deg, with the fit "
+               "data's joint order and columns";
+  } catch (const std::exception& ex) {
+    return w + "Re-registering the station on it failed (" + ex.what() + "): check that it measures this robot, in mm and deg";
+  }
+}
+
 /// The errors on the validation data of the calibrated model and of the nominal model with only
 /// the measurement frame and the tool registered (--validate-station new: the station
 /// re-registered for both, robot parameters held fixed).
@@ -240,6 +292,7 @@ void validate(const IdentifyArgs& a, IdentifyRun& r) {
     r.val = calib::evaluate(r.calibrated, r.validation);
     r.nom_val = calib::evaluate(nominal_registered, r.validation);
     r.val_suspicious = calib::suspiciousRows(r.calibrated, r.validation);
+    r.gross_validation = grossValidation(r);
   }
   // a fit without orientations never identified the tool's rotation: the model's orientation is
   // the start tool's, and an orientation error against 6D validation data measures how the target
@@ -421,7 +474,8 @@ std::string worseAdvice(const IdentifyRun& r) {
 /// (empty when it is not): printed, in the JSON's warnings and in the model file's comment.
 /// Below 1.1-fold the loss is given in percent ("1.0-fold WORSE" said nothing).
 std::string worseWarning(const IdentifyRun& r) {
-  if (!r.hasValidation() || !(r.val.rms_mm > r.nom_val.rms_mm)) return "";
+  // (a validation grossly off compares nothing: grossValidation says so instead)
+  if (!r.hasValidation() || !(r.val.rms_mm > r.nom_val.rms_mm) || !r.gross_validation.empty()) return "";
   const double ratio = r.val.rms_mm / r.nom_val.rms_mm;
   return "position RMS " + (ratio < 1.1 ? fmt("%.1f%%", 100.0 * (ratio - 1.0)) : fmt("%.1f-fold", ratio)) +
          " WORSE than the nominal robot's (" + fmt("%.4f", r.nom_val.rms_mm) + " -> " + fmt("%.4f", r.val.rms_mm) +
@@ -467,7 +521,9 @@ void printValidation(const IdentifyArgs& a, const IdentifyRun& r) {
   }
   printStatsRow("nominal", r.nom_val);
   printStatsRow("calibrated", r.val);
-  if (r.val.rms_mm > 0 && r.val.rms_mm <= r.nom_val.rms_mm)
+  if (!r.gross_validation.empty())  // (in place of an improvement that compares two other frames)
+    std::printf("  WARNING: %s\n", r.gross_validation.c_str());
+  else if (r.val.rms_mm > 0 && r.val.rms_mm <= r.nom_val.rms_mm)
     std::printf("  position RMS improved %.1f-fold (%.4f -> %.4f mm)\n", r.nom_val.rms_mm / r.val.rms_mm, r.nom_val.rms_mm,
                 r.val.rms_mm);
   else if (r.val.rms_mm > 0)
@@ -489,6 +545,7 @@ std::string modelComment(const IdentifyArgs& a, const IdentifyRun& r) {
           << "fit RMS " << fmt("%.4f", r.s.fit.rms_mm) << " mm"
           << (r.hasValidation() ? ", validation RMS " + fmt("%.4f", r.val.rms_mm) + " mm (nominal " + fmt("%.4f", r.nom_val.rms_mm) + " mm)" : "");
   for (const auto& w : r.s.warnings) comment << "\nWARNING: " << w;
+  if (!r.gross_validation.empty()) comment << "\nWARNING: " << r.gross_validation;
   if (const std::string w = worseWarning(r); !w.empty()) comment << "\nWARNING: " << w;
   return comment.str();
 }
@@ -577,6 +634,7 @@ ordered_json identifyJson(const IdentifyArgs& a, const IdentifyRun& r) {
     excl.push_back({{"file", row.file}, {"line", row.line}, {"error_mm", num(row.error_mm)}, {"median_mm", num(row.median_mm)}});
   j["excluded_rows"] = excl;  // gross rows left out of the fit
   j["warnings"] = s.warnings;
+  if (!r.gross_validation.empty()) j["warnings"].push_back(r.gross_validation);
   if (const std::string w = worseWarning(r); !w.empty()) j["warnings"].push_back(w);
   if (has_val) {
     ordered_json out = ordered_json::array();
@@ -611,6 +669,7 @@ int runIdentify(const IdentifyArgs& a) {
                    set.file.c_str());
   }
   r.calibrated = identifyFit(r, r.opt, &r.s);
+  r.s.warnings.insert(r.s.warnings.begin(), r.data_warnings.begin(), r.data_warnings.end());
   for (const auto& d : r.sets) r.n_rows += d.rows.size();
   validate(a, r);
   for (const auto& d : r.sets) r.orient = r.orient && d.has_orientation;

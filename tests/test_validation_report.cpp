@@ -5,6 +5,7 @@
 
 #include <cstdio>
 #include <functional>
+#include <random>
 #include <nlohmann/json.hpp>
 
 #include "accura/calib/identify.h"
@@ -108,11 +109,18 @@ TEST(ValidationReport, AModelWorseThanTheNominalRobotSaysWhyItDoesNotCarryOver) 
   EXPECT_EQ(with_scale.cli.out.find("WORSE"), std::string::npos) << with_scale.cli.out;
 
   // 2. The same fit poses, only 20 distinct configurations of them measured 8 times each: the
-  // repeats are named first, then the joint ranges
+  // repeats are named first, then the joint ranges. (Each repeat a measurement of its own, 0.01
+  // mm of noise per axis: a row copied unchanged is the same measurement written twice, which
+  // identify counts once.)
   MeasurementSet repeated = fit;
   repeated.rows.clear();
+  std::mt19937 rng(11);
+  std::normal_distribution<double> repeat_noise(0.0, 0.01);
   for (size_t c = 0; c < 20; ++c)
-    for (int k = 0; k < 8; ++k) repeated.rows.push_back(fit.rows[c]);
+    for (int k = 0; k < 8; ++k) {
+      repeated.rows.push_back(fit.rows[c]);
+      repeated.rows.back().p_world_mm += Eigen::Vector3d(repeat_noise(rng), repeat_noise(rng), repeat_noise(rng));
+    }
   writeMeasurementsCsv(dir + "/repeated.csv", repeated, dof);
   const Run few = calibrate("repeated.csv", "val.csv", "geometric");
   EXPECT_EQ(few.j["identifiability"]["distinct_configurations"], 20);

@@ -312,10 +312,40 @@ std::vector<MeasurementSet> withoutGrossRows(const RobotModel& start, const std:
   return out;
 }
 
+/// The rows of each set (and of the validation) written twice, left out before anything else:
+/// the same measurement counts once in every statistic (removeDuplicatedRows; repeats are
+/// looked for within each file). Returns them as Floors::duplicated_rows names them.
+std::vector<RepeatPair> withoutDuplicatedRows(std::vector<MeasurementSet>& sets, std::optional<MeasurementSet>& validation,
+                                              double tol) {
+  std::vector<RepeatPair> out;
+  auto take = [&](MeasurementSet& set, bool is_validation) {
+    for (const DuplicatedRow& d : removeDuplicatedRows(set, tol)) {
+      RepeatPair e;
+      e.index_a = d.index;
+      e.index_b = d.same_as_index;
+      e.line_a = d.line;
+      e.line_b = d.same_as_line;
+      e.distance_mm = 0;
+      e.validation = is_validation;
+      e.file = set.file;
+      out.push_back(e);
+    }
+  };
+  for (MeasurementSet& s : sets) take(s, false);
+  if (validation) take(*validation, true);
+  return out;
+}
+
 }  // namespace
 
-Diagnosis diagnose(const RobotModel& start, const std::vector<MeasurementSet>& sets_in, bool same_station,
-                   const MeasurementSet* validation_in, const DiagnoseOptions& options, StationSets* stations) {
+Diagnosis diagnose(const RobotModel& start, const std::vector<MeasurementSet>& sets_given, bool same_station,
+                   const MeasurementSet* validation_given, const DiagnoseOptions& options, StationSets* stations) {
+  refuseSharedMeasurements(sets_given);  // the same data twice would count twice
+  std::vector<MeasurementSet> sets_in = sets_given;
+  std::optional<MeasurementSet> validation_copy;
+  if (validation_given) validation_copy = *validation_given;
+  const std::vector<RepeatPair> duplicated = withoutDuplicatedRows(sets_in, validation_copy, options.repeat_tol);
+  const MeasurementSet* validation_in = validation_copy ? &*validation_copy : nullptr;
   std::vector<ExcludedRow> excluded;
   std::optional<MeasurementSet> screened_validation;
   const std::vector<MeasurementSet> sets = withoutGrossRows(start, sets_in, validation_in, screened_validation, excluded);
@@ -343,19 +373,30 @@ Diagnosis diagnose(const RobotModel& start, const std::vector<MeasurementSet>& s
     d.notes.push_back("stations registered by the geometric model plus " + d.identify_params.substr(std::string("geometric").size() + 1) +
                       " (what a first pass with the geometric model alone selected), then diagnosed again");
   }
+  for (const HeldJoint& h : heldJoints(st.combined, start.nominal, options.repeat_tol))
+    d.warnings.push_back(heldJointWarning(start.nominal, h, st.combined.rows.size(), options.repeat_tol));
   if (stations) *stations = std::move(st);
   d.excluded = excluded;
+  d.floors.duplicated_rows = duplicated;
   return d;
 }
 
-Diagnosis diagnose(const RobotModel& start, const MeasurementSet& data_in, const MeasurementSet* validation_in,
+Diagnosis diagnose(const RobotModel& start, const MeasurementSet& data_given, const MeasurementSet* validation_given,
                    const DiagnoseOptions& options) {
+  std::vector<MeasurementSet> given = {data_given};
+  std::optional<MeasurementSet> validation_copy;
+  if (validation_given) validation_copy = *validation_given;
+  const std::vector<RepeatPair> duplicated = withoutDuplicatedRows(given, validation_copy, options.repeat_tol);
   std::vector<ExcludedRow> excluded;
   std::optional<MeasurementSet> screened_validation;
-  const MeasurementSet data = withoutGrossRows(start, {data_in}, validation_in, screened_validation, excluded).front();
+  const MeasurementSet data =
+      withoutGrossRows(start, given, validation_copy ? &*validation_copy : nullptr, screened_validation, excluded).front();
   diagnose_detail::Diagnoser d(start, data, screened_validation ? &*screened_validation : nullptr, options);
   Diagnosis out = d.run();
   out.excluded = excluded;
+  out.floors.duplicated_rows = duplicated;
+  for (const HeldJoint& h : heldJoints(data, start.nominal, options.repeat_tol))
+    out.warnings.push_back(heldJointWarning(start.nominal, h, data.rows.size(), options.repeat_tol));
   return out;
 }
 

@@ -61,40 +61,8 @@ void Diagnoser::repeats() {
     src.push_back({&val_, &R_val_, &rot_ok_val_, true, {}, {}, {}, {}});
     src.back().groups = repeatGroups(val_, o_.repeat_tol, &src.back().pairs);
   }
-  // a row whose measured position equals an earlier one's of its configuration exactly is the
-  // same measurement written twice: named, and left out of the repeatability
-  fl.duplicated_rows.clear();
-  for (Source& sc : src) {
-    const std::vector<Measurement>& rows = sc.set->rows;
-    std::vector<bool> dup(rows.size(), false);
-    for (std::vector<int>& g : sc.groups) {
-      std::vector<int> kept;
-      for (int i : g) {
-        const auto same = std::find_if(kept.begin(), kept.end(), [&](int j) {
-          return rows[static_cast<size_t>(i)].p_world_mm == rows[static_cast<size_t>(j)].p_world_mm;
-        });
-        if (same == kept.end()) {
-          kept.push_back(i);
-          continue;
-        }
-        dup[static_cast<size_t>(i)] = true;
-        RepeatPair e;
-        e.index_a = i;
-        e.index_b = *same;
-        e.line_a = rows[static_cast<size_t>(i)].line;
-        e.line_b = rows[static_cast<size_t>(*same)].line;
-        e.measurements = static_cast<int>(g.size());
-        e.validation = sc.validation;
-        fl.duplicated_rows.push_back(e);
-      }
-      g = kept;
-    }
-    sc.pairs.erase(std::remove_if(sc.pairs.begin(), sc.pairs.end(),
-                                  [&](const std::pair<int, int>& p) {
-                                    return dup[static_cast<size_t>(p.first)] || dup[static_cast<size_t>(p.second)];
-                                  }),
-                   sc.pairs.end());
-  }
+  // (rows written twice, the same measurement as an earlier row, were left out before: diagnose()
+  // with removeDuplicatedRows, Floors::duplicated_rows)
   std::vector<double> dist_all;
   fl.repeat_pairs = 0;
   fl.repeat_min_gap = 1 << 30;

@@ -98,6 +98,7 @@ std::string rowRef(const Diagnosis& d, int line, int index) {
 
 // A row of a glitch (RepeatPair): row a, or row b of a pair.
 std::string glitchRowRef(const Diagnosis& d, const RepeatPair& p, bool a) {
+  if (!p.file.empty()) return a ? rowRef(p.file, p.line_a, p.index_a) : rowRef(p.file, p.line_b, p.index_b);
   if (p.validation) return a ? rowRef(d.validation_file, p.line_a, p.index_a) : rowRef(d.validation_file, p.line_b, p.index_b);
   return a ? rowRef(d, p.line_a, p.index_a) : rowRef(d, p.line_b, p.index_b);
 }
@@ -535,6 +536,7 @@ std::string diagnosisJson(const Diagnosis& d) {
   where["worst_poses"] = poses;
   j["where"] = where;
   j["notes"] = d.notes;
+  j["warnings"] = d.warnings;
   j["seconds"] = num(d.seconds);
   return calib::jsonText(j);
 }
@@ -543,6 +545,7 @@ std::string diagnosisText(const Diagnosis& d) {
   std::ostringstream s;
   s << "accura diagnose: " << d.robot << ", " << d.fit_poses << " poses from " << d.data_file << "\n";
   s << "held-out error by " << d.validation_method << "\n";
+  for (const std::string& w : d.warnings) s << "WARNING: " << w << "\n";
   if (d.orientation_ignored) s << "orientation columns are not used by the diagnosis' fits (positions only)\n";
   if (d.fits_orientation)
     s << "fits: positions and orientations, each row weighted as identify weights it (std and the geometric baseline's "
@@ -567,8 +570,8 @@ std::string diagnosisText(const Diagnosis& d) {
     }
     if (!fl.duplicated_rows.empty()) {
       s << "WARNING: " << fl.duplicated_rows.size()
-        << " row(s) repeat an earlier row of their configuration exactly (every coordinate equal): the same "
-           "measurement written twice, left out of the repeatability:";
+        << " row(s) repeat an earlier row of their configuration exactly (every measured value equal): the same "
+           "measurement written twice, counted once (left out of the diagnosis):";
       for (size_t k = 0; k < fl.duplicated_rows.size() && k < 12; ++k)
         s << " " << glitchRowRef(d, fl.duplicated_rows[k], true) << " = " << glitchRowRef(d, fl.duplicated_rows[k], false);
       if (fl.duplicated_rows.size() > 12) s << " ... (all in the JSON)";
@@ -662,6 +665,7 @@ std::string diagnosisHtml(const Diagnosis& d, const DiagnosisReportContext& ctx)
   h << "<p class=\"small\">" << d.fit_poses << " poses from " << esc(d.data_file) << "; held-out error by "
     << esc(d.validation_method) << "; noise floor " << f("%.4f", d.noise_floor_mm) << " mm (3D RMS); source: "
     << esc(d.noise_floor_source) << "</p>\n";
+  for (const std::string& w : d.warnings) h << "<p><b>Warning:</b> " << esc(w) << "</p>\n";
   h << "<div class=\"verdict " << esc(d.verdict.effect) << "\"><b>Verdict: " << esc(d.verdict.effect);
   if (!d.verdict.joints.empty()) h << " (" << esc(jointsText(d.verdict.joints)) << ")";
   h << "</b> &mdash; held-out RMS " << f("%.4f", d.baseline.rms_mm) << " &rarr; " << f("%.4f", d.verdict.validation_rms_after_mm)

@@ -453,11 +453,15 @@ Problem setUp(const RobotModel& start, const std::vector<MeasurementSet>& sets, 
   summary.poses = rows;
   summary.configurations = configurations;
   summary.independent_equations = dim * configurations;
+  // (without repeats the few-configurations warning below counts the poses themselves)
+  const std::string counted =
+      configurations < rows
+          ? std::to_string(rows) + " poses hold only " + std::to_string(configurations) + " distinct joint configuration" +
+                (configurations == 1 ? "" : "s") + " (the others repeat one: every joint within " + fmtNum(kRepeatTolerance) +
+                " deg or mm, the same payload and directions), " + std::to_string(dim * configurations) + " independent equations"
+          : std::to_string(rows) + " poses, each its own joint configuration: " + std::to_string(dim * configurations) +
+                " independent equations";
   if (configurations < rows) {
-    const std::string counted =
-        std::to_string(rows) + " poses hold only " + std::to_string(configurations) + " distinct joint configuration" +
-        (configurations == 1 ? "" : "s") + " (the others repeat one: every joint within " + fmtNum(kRepeatTolerance) +
-        " deg or mm, the same payload and directions), " + std::to_string(dim * configurations) + " independent equations";
     if (dim * configurations < n_candidates + 1)
       throw InputError(sets[0].file, 0, 0,
                        "too few distinct joint configurations for the parameters asked for: " + counted + ", expected more than " +
@@ -465,15 +469,17 @@ Problem setUp(const RobotModel& start, const std::vector<MeasurementSet>& sets, 
                            "noise, not the geometry: the model would pass exactly through these configurations and be wrong "
                            "elsewhere. Measure at least " + std::to_string(n_candidates / dim + 2) +
                            " distinct configurations, better 10 times as many");
-    summary.few_configurations = dim * configurations < kMinEquationsPerParameter * n_candidates;
-    if (summary.few_configurations)
-      summary.warnings.push_back(
-          "few distinct joint configurations: " + counted + " for " + std::to_string(n_candidates) +
-          " parameters, fewer than " + std::to_string(kMinEquationsPerParameter) +
-          " per parameter. The parameters are fitted to the errors at these few configurations and may be far off on "
-          "other poses; neither the fit RMS nor poses held out from these configurations can show it: validate on other "
-          "configurations (--validate), and measure more distinct ones");
   }
+  // fewer than 10 equations per parameter from distinct configurations: warned about whether
+  // or not some rows repeat a configuration (README, "The command")
+  summary.few_configurations = dim * configurations < kMinEquationsPerParameter * n_candidates;
+  if (summary.few_configurations)
+    summary.warnings.push_back(
+        "few distinct joint configurations: " + counted + " for " + std::to_string(n_candidates) +
+        " parameters, fewer than " + std::to_string(kMinEquationsPerParameter) +
+        " per parameter. The parameters are fitted to the errors at these few configurations and may be far off on "
+        "other poses; neither the fit RMS nor poses held out from these configurations can show it: validate on other "
+        "configurations (--validate), and measure more distinct ones");
   return pb;
 }
 
@@ -555,6 +561,7 @@ RobotModel identify(const RobotModel& start, const std::vector<MeasurementSet>& 
   if (sets.empty()) throw ArgumentError("identify: no data set given");
   for (const auto& d : sets)
     if (d.rows.empty()) throw InputError(d.file, 0, 0, "expected measured rows, found none");
+  refuseSharedMeasurements(sets);  // the same data twice would count twice
   start.validate();
   double stated_knot = 0;
   std::map<std::string, std::set<int>> groups = parseGroups(options, &stated_knot);
@@ -563,6 +570,20 @@ RobotModel identify(const RobotModel& start, const std::vector<MeasurementSet>& 
       if (j > start.dof())
         throw ArgumentError("identify: parameter group '" + g.first + "': expected joints j1..j" +
                             std::to_string(start.dof()) + " of " + start.nominal.name + ", found j" + std::to_string(j));
+  {
+    // rows written twice (every measured value of an earlier row of the configuration): the same
+    // measurement counts once, else it would count as independent evidence (the sigmas too small)
+    // (the sets are copied only when one has such rows: identify runs many times in the diagnosis)
+    if (std::any_of(sets.begin(), sets.end(), [](const MeasurementSet& d) { return !duplicatedRows(d).empty(); })) {
+      std::vector<MeasurementSet> once = sets;
+      std::vector<std::string> said;
+      for (MeasurementSet& d : once)
+        if (const std::string w = duplicatedRowsWarning(d.file, removeDuplicatedRows(d)); !w.empty()) said.push_back(w);
+      const RobotModel out = identify(start, once, options, summary_out);
+      if (summary_out) summary_out->warnings.insert(summary_out->warnings.begin(), said.begin(), said.end());
+      return out;
+    }
+  }
   {
     // gross rows (a lost beam, a corrupted cell): left out of the fit and named; one alone
     // would pull the registration and every parameter by metres
@@ -694,10 +715,48 @@ RobotModel identify(const RobotModel& start, const std::vector<MeasurementSet>& 
                                    "where they may make the model worse than without them");
     }
   finishSummary(pb, sets, r, options.joint_map_smoothing, &summary);
+  if (!robust) {
+    // gross outliers (a joint glitch, a wrong target: far beyond the noise, below the 50 mm of a
+    // row left out as gross) pull every parameter of a least-squares fit: said, with the remedy
+    std::vector<const SuspiciousRow*> gross;
+    for (const SuspiciousRow& row : summary.suspicious)
+      if (row.normalised > kGrossOutlierSigmas) gross.push_back(&row);
+    if (!gross.empty()) {
+      double lo = gross[0]->normalised, hi = lo, elo = gross[0]->error_mm, ehi = elo;
+      std::string rows;
+      for (size_t k = 0; k < gross.size(); ++k) {
+        lo = std::min(lo, gross[k]->normalised);
+        hi = std::max(hi, gross[k]->normalised);
+        elo = std::min(elo, gross[k]->error_mm);
+        ehi = std::max(ehi, gross[k]->error_mm);
+        if (k < 10) rows += (k ? ", " : "") + gross[k]->file + ":" + std::to_string(gross[k]->line);
+      }
+      if (gross.size() > 10) rows += ", ...";
+      const auto range = [](double a, double b, int digits) {
+        return a == b ? formatFixed(a, digits) : formatFixed(a, digits) + " to " + formatFixed(b, digits);
+      };
+      summary.warnings.push_back(std::to_string(gross.size()) + " row(s) lie more than " + formatFixed(kGrossOutlierSigmas, 0) +
+                                 " robust standard deviations from the fitted model (normalised residual " + range(lo, hi, 1) +
+                                 ", position error " + range(elo, ehi, 3) + " mm; " + rows +
+                                 "): gross outliers (a joint glitch, a wrong target, a lost beam's last point) that a least-squares "
+                                 "fit (--loss none, the default) follows with every parameter. Check those rows, or fit with --loss "
+                                 "huber, which down-weights them");
+    }
+  }
   // the fitted ranges belong to the model when it learnt something beyond the frames
-  if (std::any_of(pb.layout.begin(), pb.layout.end(),
-                  [](const ParamInfo& p) { return p.group != "base" && p.group != "tool"; }))
-    pb.model.deviations.fit_range = summary.coverage;
+  const bool robot_parameters = std::any_of(pb.layout.begin(), pb.layout.end(),
+                                            [](const ParamInfo& p) { return p.group != "base" && p.group != "tool"; });
+  if (robot_parameters) pb.model.deviations.fit_range = summary.coverage;
+  // a joint that never moves: the model holds at its angle only (said, with what was fixed for
+  // it: the parameters of its link and the next one's)
+  if (robot_parameters)
+    for (const HeldJoint& h : heldJoints(pb.data, pb.model.nominal, kRepeatTolerance)) {
+      std::string fixed;
+      for (const FixedParameter& f : summary.fixed)
+        for (int j : {h.joint + 1, h.joint + 2})
+          if (f.name.rfind("j" + std::to_string(j) + "_", 0) == 0) fixed += (fixed.empty() ? "" : ", ") + f.name;
+      summary.warnings.push_back(heldJointWarning(pb.model.nominal, h, pb.data.rows.size(), kRepeatTolerance, fixed));
+    }
   if (summary_out) *summary_out = summary;
   return pb.model;
 }

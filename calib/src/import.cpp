@@ -144,6 +144,13 @@ MeasurementMapping readMeasurementMapping(const std::string& path, const RobotDe
   m.file = path;
   std::map<std::string, std::pair<std::string, int>> kv;  // key -> (value, line)
   std::map<std::string, int> value_col;
+  // key -> its line's text and where its value lies in it ([from, to): after '=', before a
+  // trailing comment), for the column of each name the value lists
+  struct ValueText {
+    std::string line;
+    size_t from = 0, to = 0;
+  };
+  std::map<std::string, ValueText> value_text;
   for (size_t i = 0; i < lines.size(); ++i) {
     const int ln = static_cast<int>(i) + 1;
     const std::string t = trim(lines[i]);
@@ -155,6 +162,7 @@ MeasurementMapping readMeasurementMapping(const std::string& path, const RobotDe
     std::string value = lines[i].substr(eq + 1);
     // trailing comment: ' #' outside the value (a '#' right after '=' may be a delimiter)
     const size_t hash = value.find(" #");
+    value_text[lower(trim(lines[i].substr(0, eq)))] = {lines[i], eq + 1, hash == std::string::npos ? lines[i].size() : eq + 1 + hash};
     if (hash != std::string::npos) value = value.substr(0, hash);
     value = trim(value);
     const int col = static_cast<int>(lines[i].find_first_not_of(" \t")) + 1;
@@ -281,6 +289,45 @@ MeasurementMapping readMeasurementMapping(const std::string& path, const RobotDe
   m.directions = columns("directions", optional("directions"));
   if (!m.directions.empty()) expectCount("directions", m.directions, {static_cast<size_t>(robot.dof())});
   m.ignore = columns("ignore", optional("ignore"));
+
+  // Each column of the export in one role: a column mapped twice would be read as two
+  // quantities at once (x also as y, a temperature also as a weight) and one listed under
+  // 'ignore' that is also mapped is both used and not. Refused at its second mention, in the
+  // order of the file, naming the first.
+  {
+    static const std::set<std::string> roles = {"joints", "position", "orientation", "position_std", "orientation_std", "weight",
+                                                 "payload_kg", "temperature_c", "time_s", "directions", "ignore"};
+    struct First {
+      std::string role;
+      int line = 0;
+    };
+    std::map<std::string, First> seen;  // lower-cased column name -> its first role
+    for (const auto& [key, ln] : m.key_lines) {
+      if (!roles.count(key)) continue;
+      const ValueText& t = value_text.at(key);
+      size_t from = t.from;
+      if (key == "orientation") {  // 'CONVENTION: names'
+        const size_t colon = t.line.find(':', from);
+        if (colon != std::string::npos && colon < t.to) from = colon + 1;
+      }
+      size_t start = from;
+      for (size_t k = from; k <= t.to; ++k) {
+        if (k < t.to && t.line[k] != ',') continue;
+        const std::string piece = t.line.substr(start, k - start);
+        const size_t lead = piece.find_first_not_of(" \t");
+        if (lead != std::string::npos) {
+          const std::string name = trim(piece);
+          const int column = static_cast<int>(start + lead) + 1;
+          const auto [it, first] = seen.emplace(lower(name), First{key, ln});
+          if (!first)
+            throw InputError(path, ln, column,
+                             "key '" + key + "': expected each column in one role, found column '" + name + "' mapped twice (first as " +
+                                 it->second.role + ", line " + std::to_string(it->second.line) + ")");
+        }
+        start = k + 1;
+      }
+    }
+  }
   return m;
 }
 

@@ -12,6 +12,7 @@
 #include <numeric>
 #include <string_view>
 #include <system_error>
+#include <unordered_map>
 
 #include "accura/calib/errors.h"
 #include "accura/calib/file_io.h"
@@ -828,6 +829,131 @@ std::vector<std::vector<int>> repeatedConfigurations(const MeasurementSet& set, 
   std::sort(groups.begin(), groups.end(), [](const auto& a, const auto& b) { return a.front() < b.front(); });
   if (pairs) std::sort(pairs->begin(), pairs->end());
   return groups;
+}
+
+std::vector<DuplicatedRow> duplicatedRows(const MeasurementSet& set, double tol) {
+  std::vector<DuplicatedRow> out;
+  const std::vector<Measurement>& rows = set.rows;
+  auto same = [&](int a, int b) {
+    const Measurement& A = rows[static_cast<size_t>(a)];
+    const Measurement& B = rows[static_cast<size_t>(b)];
+    if (A.p_world_mm != B.p_world_mm || A.has_orientation != B.has_orientation) return false;
+    return !A.has_orientation || A.R_world_tcp.coeffs() == B.R_world_tcp.coeffs();
+  };
+  for (const std::vector<int>& g : repeatedConfigurations(set, tol)) {
+    if (g.size() < 2) continue;
+    std::vector<int> kept;  // the first row of each distinct measurement of the configuration
+    for (int i : g) {
+      const auto first = std::find_if(kept.begin(), kept.end(), [&](int k) { return same(i, k); });
+      if (first == kept.end()) {
+        kept.push_back(i);
+        continue;
+      }
+      out.push_back({i, rows[static_cast<size_t>(i)].line, *first, rows[static_cast<size_t>(*first)].line});
+    }
+  }
+  std::sort(out.begin(), out.end(), [](const DuplicatedRow& a, const DuplicatedRow& b) { return a.index < b.index; });
+  return out;
+}
+
+std::vector<DuplicatedRow> removeDuplicatedRows(MeasurementSet& set, double tol) {
+  const std::vector<DuplicatedRow> dups = duplicatedRows(set, tol);
+  if (dups.empty()) return dups;
+  std::vector<bool> drop(set.rows.size(), false);
+  for (const DuplicatedRow& d : dups) drop[static_cast<size_t>(d.index)] = true;
+  std::vector<Measurement> kept;
+  kept.reserve(set.rows.size() - dups.size());
+  for (size_t i = 0; i < set.rows.size(); ++i)
+    if (!drop[i]) kept.push_back(std::move(set.rows[i]));
+  set.rows = std::move(kept);
+  return dups;
+}
+
+std::string duplicatedRowsWarning(const std::string& file, const std::vector<DuplicatedRow>& rows) {
+  if (rows.empty()) return "";
+  std::string list;
+  for (size_t k = 0; k < rows.size() && k < 10; ++k)
+    list += (k ? ", " : "") + file + ":" + std::to_string(rows[k].line) + " = " + file + ":" + std::to_string(rows[k].same_as_line);
+  if (rows.size() > 10) list += ", ... (" + std::to_string(rows.size() - 10) + " more)";
+  return std::to_string(rows.size()) + " row(s) of " + file +
+         " repeat an earlier row of their joint configuration exactly (every measured value equal: " + list +
+         "): the same measurement written twice, not a second measurement; each is counted once";
+}
+
+void refuseSharedMeasurements(const std::vector<MeasurementSet>& sets) {
+  if (sets.size() < 2) return;
+  // a row's joint values and measured values, bit for bit
+  auto key = [](const Measurement& r) {
+    std::string k;
+    auto put = [&](double v) { k.append(reinterpret_cast<const char*>(&v), sizeof v); };
+    for (Eigen::Index j = 0; j < r.q.size(); ++j) put(r.q[j]);
+    for (int a = 0; a < 3; ++a) put(r.p_world_mm[a]);
+    k.push_back(r.has_orientation ? 'R' : 'P');
+    if (r.has_orientation)
+      for (int a = 0; a < 4; ++a) put(r.R_world_tcp.coeffs()[a]);
+    return k;
+  };
+  std::unordered_map<std::string, std::pair<size_t, size_t>> seen;  // key -> (set, row) of its first occurrence
+  for (size_t s = 0; s < sets.size(); ++s) {
+    const std::vector<Measurement>& rows = sets[s].rows;
+    std::vector<std::string> keys(rows.size());
+    size_t shared = 0, first_row = 0, first_other_set = 0, first_other_row = 0;
+    for (size_t i = 0; i < rows.size(); ++i) {
+      keys[i] = key(rows[i]);
+      const auto it = seen.find(keys[i]);
+      if (it == seen.end() || it->second.first == s) continue;
+      if (shared++ == 0) {
+        first_row = i;
+        first_other_set = it->second.first;
+        first_other_row = it->second.second;
+      }
+    }
+    if (shared > 0) {
+      const MeasurementSet& other = sets[first_other_set];
+      size_t with_other = 0;  // of the shared rows, those of that earlier set
+      for (size_t i = 0; i < rows.size(); ++i) {
+        const auto it = seen.find(keys[i]);
+        with_other += it != seen.end() && it->second.first == first_other_set ? 1 : 0;
+      }
+      throw InputError(sets[s].file, rows[first_row].line, 0,
+                       "expected measurements of its own, found " +
+                           (with_other == rows.size() ? "every one of its " + std::to_string(rows.size()) + " rows"
+                                                      : std::to_string(with_other) + " of its " + std::to_string(rows.size()) + " rows") +
+                           " identical to rows of " + other.file + " (joint values and measured values equal to the last bit; the first: " +
+                           sets[s].file + ":" + std::to_string(rows[first_row].line) + " = " + other.file + ":" +
+                           std::to_string(other.rows[first_other_row].line) +
+                           "): the same measurements given twice would count twice, as if measured twice (the parameters' sigmas "
+                           "too small, every test too significant); give each measurement once");
+    }
+    for (size_t i = 0; i < rows.size(); ++i) seen.emplace(keys[i], std::make_pair(s, i));
+  }
+}
+
+std::vector<HeldJoint> heldJoints(const MeasurementSet& data, const RobotDefinition& robot, double tol) {
+  std::vector<HeldJoint> out;
+  if (data.rows.empty()) return out;
+  const std::vector<JointRange> ranges = jointRanges(data, robot.dof());
+  for (int j = 0; j < robot.dof(); ++j) {
+    const JointRange& r = ranges[static_cast<size_t>(j)];
+    if (!(r.upper - r.lower <= tol)) continue;
+    double sum = 0;
+    for (const Measurement& m : data.rows) sum += m.q[j];
+    out.push_back({j, sum / double(data.rows.size())});
+  }
+  return out;
+}
+
+std::string heldJointWarning(const RobotDefinition& robot, const HeldJoint& held, size_t rows, double tol,
+                             const std::string& fixed) {
+  const std::string n = std::to_string(held.joint + 1);
+  const char* unit = robot.joints[static_cast<size_t>(held.joint)].type == JointType::kRevolute ? "deg" : "mm";
+  const double value = std::abs(held.value) < 0.5 * tol ? 0.0 : held.value;  // (no "-0")
+  return "joint " + n + " never moves in the data (held at " + formatNumber("%.6g", value) + " " + unit + " in all " +
+         std::to_string(rows) + " rows, within " + formatNumber("%g", tol) + " " + unit +
+         "): the model holds only at that angle. The parameters that need joint " + n + "'s motion are fixed" +
+         (fixed.empty() ? std::string() : " (in this fit: " + fixed + ")") +
+         " or absorbed by others, and the data say nothing of the robot at other angles of joint " + n +
+         ": measure poses with joint " + n + " moving over its range";
 }
 
 }  // namespace accura::calib

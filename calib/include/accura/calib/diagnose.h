@@ -102,6 +102,9 @@ struct RepeatPair {
   double rotation_deg = std::numeric_limits<double>::quiet_NaN();  ///< orientation jump (6D data)
   int measurements = 2;          ///< rows of the configuration
   bool validation = false;       ///< rows of the validation set (else of the fit data)
+  /// The rows' file when they are named by it (a duplicated row: no longer among the rows, its
+  /// index that of the set as given); empty: by the index (Diagnosis::row_files).
+  std::string file;
 };
 
 /// The floors of a data set: what the instrument states (std columns) and what the robot and
@@ -125,10 +128,11 @@ struct Floors {
   /// Measurement glitches: pairs disagreeing grossly, or the odd rows of a configuration
   /// measured three times or more (RepeatPair).
   std::vector<RepeatPair> glitches;
-  /// Rows of a repeated configuration whose measured position equals an earlier row's exactly
-  /// (row b, then the earlier row a; distance 0): a row written twice, not a second measurement.
-  /// Left out of the pairs, the glitch threshold and the pooled scatter (with them the
-  /// repeatability would read 0).
+  /// Rows that repeat an earlier row of their configuration exactly, every measured value equal
+  /// (duplicatedRows(): row a the copy, row b the earlier row; distance 0, `file` set): the same
+  /// measurement written twice, not a second measurement. Left out of the diagnosis before
+  /// anything else, so that each measurement counts once in every statistic (with them the
+  /// repeatability would read 0, and every test count the row twice).
   std::vector<RepeatPair> duplicated_rows;
 };
 
@@ -348,6 +352,8 @@ struct Diagnosis {
   std::string identify_params = "geometric";
   Verdict verdict;
   std::vector<std::string> notes;  ///< parameters left out and why
+  /// What limits the data (a joint that never moves: heldJointWarning), printed as WARNING lines.
+  std::vector<std::string> warnings;
   double seconds = 0;  ///< wall time of the diagnosis
   /// The baseline (complete geometric) model and the final model (baseline plus the
   /// selected effects), both fitted on all fit data.

@@ -152,6 +152,14 @@ constexpr int kGrossRowsAllowedAlways = 3;
 /// Data sets of fewer rows are not screened for gross rows (their median says little).
 constexpr int kGrossRowsMinRows = 10;
 
+/// A fit row whose normalised residual (SuspiciousRow::normalised: its weighted residual over the
+/// robust scale of all rows, the median's chi with 3 or 6 degrees of freedom) exceeds this is a
+/// gross outlier: Gaussian noise reaches 10 robust standard deviations with a probability below
+/// 1e-18, and one such row weighs at least 100/dim (17-33) typical rows in the least-squares cost.
+/// A fit without a robust loss (--loss none) that has such rows warns, counting them and
+/// recommending --loss huber.
+constexpr double kGrossOutlierSigmas = 10.0;
+
 struct IdentifySummary {
   std::string termination;     ///< Ceres' termination reason and message
   int iterations = 0;          ///< of every solve from initial_cost to final_cost (the weighting rounds included)
@@ -172,8 +180,8 @@ struct IdentifySummary {
   /// each data set): only these carry information about the geometry; independent_equations =
   /// configurations times 3 (positions) or 6 (with orientations).
   int poses = 0, configurations = 0, independent_equations = 0;
-  /// Repeats leave fewer than kMinEquationsPerParameter independent equations per candidate
-  /// parameter (a warning says so).
+  /// The distinct configurations give fewer than kMinEquationsPerParameter independent
+  /// equations per candidate parameter, repeats or not (a warning says so).
   bool few_configurations = false;
   std::vector<FixedParameter> fixed;
   std::vector<ParameterEstimate> parameters;
@@ -207,7 +215,9 @@ struct IdentifySummary {
 /// previously calibrated; its deviations are the initial guess) on `data`. With joint_map and
 /// other groups, the maps are fitted after the others, to what those leave, those held (two
 /// solves; the reported sigmas are the joint covariance's): where a map is zero the model is the
-/// one without maps. Returns the calibrated model. Throws InputError when the data is too small for the
+/// one without maps. A row written twice (duplicatedRows(): every measured value of an earlier row of
+/// its configuration) counts once: it is left out, and a warning names it. Returns the calibrated
+/// model. Throws InputError when the data is too small for the
 /// parameters asked for (too few rows, or too few distinct joint configurations: repeats,
 /// repeatedConfigurations(), count once), ArgumentError on invalid options, NumericalError when the
 /// registration is degenerate (collinear points) or the solver fails.

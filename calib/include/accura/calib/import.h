@@ -34,7 +34,8 @@ struct MeasurementMapping {
 };
 
 /// Reads a mapping file. Throws InputError (mapping file:line:column) on an unknown key, a
-/// missing required key, a bad unit or convention, a wrong number of columns.
+/// missing required key, a bad unit or convention, a wrong number of columns, a column given
+/// two roles (mapped twice, or mapped and ignored: at its second mention).
 MeasurementMapping readMeasurementMapping(const std::string& path, const RobotDefinition& robot);
 
 /// Reads an export through a mapping into accura's measurement form (mm, deg, world frame,

@@ -98,6 +98,54 @@ std::vector<std::vector<int>> repeatedConfigurations(const MeasurementSet& set, 
                                                      std::vector<std::pair<int, int>>* pairs = nullptr,
                                                      const std::vector<int>* set_of_row = nullptr);
 
+/// A row that repeats an earlier row of its data set exactly (duplicatedRows()).
+struct DuplicatedRow {
+  int index = 0, line = 0;                  ///< the row (0-based, in the set as given) and its line
+  int same_as_index = 0, same_as_line = 0;  ///< the earlier row it repeats
+};
+
+/// The rows of `set` that repeat an earlier row exactly: the same joint configuration
+/// (repeatedConfigurations() with `tol`: every joint within tol, the same payload and
+/// directions) and every measured value equal to the last bit (the position, and the
+/// orientation when the rows have one). Such a row is the same measurement written twice (an
+/// export that repeated it), not a second measurement of the configuration: it carries no new
+/// information, and counted again it counts as independent evidence (the parameters' sigmas too
+/// small, a repeatability of 0, spectral peaks and tests too significant). In row order, each
+/// against the first row it equals.
+std::vector<DuplicatedRow> duplicatedRows(const MeasurementSet& set, double tol = kRepeatTolerance);
+
+/// Removes duplicatedRows() from `set`, so that each measurement counts once, and returns them.
+std::vector<DuplicatedRow> removeDuplicatedRows(MeasurementSet& set, double tol = kRepeatTolerance);
+
+/// The warning naming the rows of `file` removeDuplicatedRows() took out (how many, the first
+/// ten as FILE:LINE = FILE:LINE); empty when there are none.
+std::string duplicatedRowsWarning(const std::string& file, const std::vector<DuplicatedRow>& rows);
+
+/// Throws InputError when two of `sets` hold the same measurements: a row of a later set whose
+/// joint values and measured values (the position, and the orientation when both rows have one)
+/// equal a row of an earlier set to the last bit. The same file given twice, or a copy of it,
+/// would count every such measurement twice (the parameters' sigmas sqrt(2) too small, every
+/// test too significant). The error is at the later set's first such row (file:line) and names
+/// the earlier set's file and row and how many rows the two share.
+void refuseSharedMeasurements(const std::vector<MeasurementSet>& sets);
+
+/// A joint that never moves in a data set: its 0-based index and the value it is held at (the
+/// mean of its rows; deg or mm).
+struct HeldJoint {
+  int joint = 0;
+  double value = 0;
+};
+
+/// The joints of `robot` whose values over the rows of `data` span at most `tol` (deg or mm; the
+/// repeat tolerance: what a controller reports for one angle): the data determine the robot at
+/// that angle of the joint only.
+std::vector<HeldJoint> heldJoints(const MeasurementSet& data, const RobotDefinition& robot, double tol = kRepeatTolerance);
+
+/// The warning for a held joint of a data set of `rows` rows: it never moves, the model holds at
+/// that angle only; `fixed` (may be empty), the parameters the identification fixed for it.
+std::string heldJointWarning(const RobotDefinition& robot, const HeldJoint& held, size_t rows, double tol,
+                             const std::string& fixed = "");
+
 /// The range of each of the first `dof` joints over the rows of `data` (deg or mm; the fit's
 /// coverage). An empty `data` gives lower > upper for every joint.
 std::vector<JointRange> jointRanges(const MeasurementSet& data, int dof);
