@@ -420,11 +420,12 @@ TEST(MeasurementQuality, AJointThatNeverMovesIsSaid) {
   identify(held.nominal, held.set, IdentifyOptions{}, &sh);
   EXPECT_FALSE(anyWarning(sm.warnings, "never moves")) << ::testing::PrintToString(sm.warnings);
   const std::string said = "joint 4 never moves in the data (held at 30 deg in all 300 rows, within 0.01 deg): the model holds only at "
-                           "that angle. The parameters that need joint 4's motion are fixed (in this fit: ";
+                           "that angle. What needs joint 4's motion to be determined is fixed or absorbed by other parameters (this fit "
+                           "fixed, of links 4 and 5: ";
   const auto w = std::find_if(sh.warnings.begin(), sh.warnings.end(), [&](const std::string& x) { return x.rfind(said, 0) == 0; });
   ASSERT_NE(w, sh.warnings.end()) << ::testing::PrintToString(sh.warnings);
-  EXPECT_NE(w->find(") or absorbed by others, and the data say nothing of the robot at other angles of joint 4: measure poses with "
-                    "joint 4 moving over its range"),
+  EXPECT_NE(w->find("), and the data say nothing of the robot at other angles of joint 4: measure poses with joint 4 moving over its "
+                    "range"),
             std::string::npos)
       << *w;
   // what it lists: fixed here, of links 4 and 5, and determined when joint 4 moves
@@ -446,9 +447,9 @@ TEST(MeasurementQuality, AJointThatNeverMovesIsSaid) {
   }
   // the diagnosis: the same warning (without the fit's list), in the text and the JSON
   const std::string held4 =
-      "joint 4 never moves in the data (held at 30 deg in all 300 rows, within 0.01 deg): the model holds only at that angle. The "
-      "parameters that need joint 4's motion are fixed or absorbed by others, and the data say nothing of the robot at other "
-      "angles of joint 4: measure poses with joint 4 moving over its range";
+      "joint 4 never moves in the data (held at 30 deg in all 300 rows, within 0.01 deg): the model holds only at that angle. What "
+      "needs joint 4's motion to be determined is fixed or absorbed by other parameters, and the data say nothing of the robot at "
+      "other angles of joint 4: measure poses with joint 4 moving over its range";
   const Diagnosis d = diagnose(held.nominal, held.set, nullptr, DiagnoseOptions{});
   EXPECT_NE(diagnosisText(d).find("\nWARNING: " + held4 + "\n"), std::string::npos) << diagnosisText(d);
   EXPECT_EQ(nlohmann::json::parse(diagnosisJson(d))["warnings"], nlohmann::json::array({held4}));

@@ -950,9 +950,13 @@ std::string heldJointWarning(const RobotDefinition& robot, const HeldJoint& held
   const double value = std::abs(held.value) < 0.5 * tol ? 0.0 : held.value;  // (no "-0")
   return "joint " + n + " never moves in the data (held at " + formatNumber("%.6g", value) + " " + unit + " in all " +
          std::to_string(rows) + " rows, within " + formatNumber("%g", tol) + " " + unit +
-         "): the model holds only at that angle. The parameters that need joint " + n + "'s motion are fixed" +
-         (fixed.empty() ? std::string() : " (in this fit: " + fixed + ")") +
-         " or absorbed by others, and the data say nothing of the robot at other angles of joint " + n +
+         "): the model holds only at that angle. What needs joint " + n + "'s motion to be determined is fixed or absorbed by " +
+         "other parameters" +
+         (fixed.empty() ? std::string()
+                        : " (this fit fixed, of " +
+                              (held.joint + 1 < robot.dof() ? "links " + n + " and " + std::to_string(held.joint + 2) : "link " + n) +
+                              ": " + fixed + ")") +
+         ", and the data say nothing of the robot at other angles of joint " + n +
          ": measure poses with joint " + n + " moving over its range";
 }
 

@@ -142,7 +142,8 @@ struct HeldJoint {
 std::vector<HeldJoint> heldJoints(const MeasurementSet& data, const RobotDefinition& robot, double tol = kRepeatTolerance);
 
 /// The warning for a held joint of a data set of `rows` rows: it never moves, the model holds at
-/// that angle only; `fixed` (may be empty), the parameters the identification fixed for it.
+/// that angle only; `fixed` (may be empty), the parameters of its link and the next one's that the
+/// identification fixed.
 std::string heldJointWarning(const RobotDefinition& robot, const HeldJoint& held, size_t rows, double tol,
                              const std::string& fixed = "");
 
