@@ -433,6 +433,15 @@ class Job {
     out.motions.push_back(mo);
   }
 
+  /// The report's target of motion `m` named `old` goes to the new point `now` (new_point_replaces).
+  void reportNewName(const Motion& m, const std::string& old, const std::string& now) {
+    for (TargetReport& tr : r_.targets)
+      if (tr.motion.str() == m.where.str() && tr.name == old && tr.new_point_replaces.empty()) {
+        tr.name = now;
+        tr.new_point_replaces = old;
+      }
+  }
+
   /// A corrected point the program also reads other than as a motion's target (KRL: `$BASE =
   /// XFB`, `XP2 = XFB`; KrlSource::Value::read_elsewhere): written into its declaration, the
   /// correction would move that frame or point too, and every motion after it. The declaration
@@ -458,11 +467,7 @@ class Job {
                                (name.empty() ? std::string("the motions that correct it get the corrected value as an inline aggregate")
                                              : "the motions that correct it go to the new point " + name + " (declared after it)"));
         }
-        for (TargetReport& tr : r_.targets)  // the report names the point the motion goes to
-          if (tr.motion.str() == m.where.str() && tr.name == t->name && tr.new_point_replaces.empty() && !it->second.empty()) {
-            tr.name = it->second;
-            tr.new_point_replaces = t->name;
-          }
+        if (!it->second.empty()) reportNewName(m, t->name, it->second);
         t->replaces = t->name;
         t->new_declaration = true;
         t->name = it->second;
@@ -530,11 +535,7 @@ class Job {
         t.replaces = old;
         t.name = it->second;
         t.value_id = -1;
-        for (TargetReport& tr : r_.targets)
-          if (tr.motion.str() == m.where.str() && tr.name == old && tr.new_point_replaces.empty()) {
-            tr.name = t.name;
-            tr.new_point_replaces = old;
-          }
+        reportNewName(m, old, t.name);
       }
     }
   }

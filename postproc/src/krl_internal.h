@@ -17,6 +17,9 @@ namespace accura::postproc::krl_detail {
 
 /// Upper case (ASCII).
 std::string upper(std::string s);
+/// ;FOLD / ;ENDFOLD (any case, after blanks): the KUKA editor's structure, which it pairs; not a
+/// statement (an inline form's fold holds the motion the model writes anew) nor a comment.
+bool isFoldMarker(const std::string& line);
 
 // ---------------------------------------------------------------------------------------------
 // Files and lines (krl_lexer.cpp)

@@ -37,6 +37,13 @@ bool parseCharLiteral(const std::string& text, double* value) {
 
 }  // namespace
 
+bool isFoldMarker(const std::string& line) {
+  const size_t b = line.find_first_not_of(" \t");
+  if (b == std::string::npos || line[b] != ';') return false;
+  const std::string u = upper(line.substr(b + 1, 7));
+  return u.compare(0, 4, "FOLD") == 0 || u.compare(0, 7, "ENDFOLD") == 0;
+}
+
 std::string upper(std::string s) {
   for (char& c : s) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
   return s;

@@ -34,15 +34,6 @@ bool isApproxTok(const Tok& t) {
   return t.kind == Tok::kIdent && parseApproximation(t.text, &a);
 }
 
-// ;FOLD / ;ENDFOLD: the editor's structure, not a statement (an inline form's fold holds the
-// motion the model writes anew).
-bool isFoldMarker(const std::string& line) {
-  const size_t b = line.find_first_not_of(" \t");
-  if (b == std::string::npos || line[b] != ';') return false;
-  const std::string u = upper(line.substr(b + 1, 7));
-  return u.compare(0, 4, "FOLD") == 0 || u.compare(0, 7, "ENDFOLD") == 0;
-}
-
 // DECL [GLOBAL] [CONST] TYPE ...: true for the types of the motion model (points, FDAT, LDAT,
 // PDAT), whose values the model holds.
 bool declaresModelType(const std::vector<Tok>& t) {

@@ -12,6 +12,7 @@
 #include "accura/calib/errors.h"
 #include "accura/calib/geometry.h"
 #include "accura/postproc/rapid.h"
+#include "krl_internal.h"
 
 namespace accura::postproc {
 
@@ -337,11 +338,9 @@ std::optional<std::string> commentText(const PassThrough& s) {
   const size_t b = s.text.find_first_not_of(" \t");
   if (!marker || b == std::string::npos || s.text[b] != marker || s.text.find('\n') != std::string::npos) return std::nullopt;
   std::string text = s.text.substr(b + 1);
-  if (s.language == "KRL") {
-    // the editor's: fold markers (paired), an inline form's parameter lines (;%{PE}, ;Params ..)
-    const std::string up = upperAscii(text.substr(0, 7));
-    if (up.compare(0, 4, "FOLD") == 0 || up == "ENDFOLD" || text.compare(0, 2, "%{") == 0 || up == "PARAMS ") return std::nullopt;
-  }
+  // the editor's: fold markers (paired), an inline form's parameter lines (;%{PE}, ;Params ..)
+  if (s.language == "KRL" && (krl_detail::isFoldMarker(s.text) || text.compare(0, 2, "%{") == 0 || upperAscii(text.substr(0, 7)) == "PARAMS "))
+    return std::nullopt;
   return text;
 }
 
@@ -362,8 +361,7 @@ Program withoutCarriedLines(const Program& program, const std::string& language)
         c.line = 0;  // a statement of its own, not a line of a carried source
         c.eol = "\n";
         // not a KRL fold marker (;FOLD / ;ENDFOLD), which the KUKA editor pairs
-        const std::string up = upperAscii(line.substr(0, 7));
-        const bool fold = language == "KRL" && (up.compare(0, 4, "FOLD") == 0 || up == "ENDFOLD");
+        const bool fold = language == "KRL" && krl_detail::isFoldMarker(";" + line);
         c.text = marker + std::string(fold ? " " : "") + line;
         out.passthrough.push_back(std::move(c));
       }
