@@ -35,10 +35,6 @@ std::string componentText(const Target& t, const std::string& name) {
   return "";
 }
 
-// The new text of a target's aggregate: the numbers of the pose (or axes) replaced in place, and
-// the components the target has that the aggregate leaves out (a partial aggregate the
-// correction completed: Job::setPose) added in the canonical order, each before the first
-// written component that follows it there, else after the last one.
 /// `value` written like `written`: a KRL bit string ('B010010', the inline forms' and many OLP
 /// tools' S and T) as one with at least as many digits, a hexadecimal one ('H12') as hex, else
 /// decimal.
@@ -53,6 +49,10 @@ std::string integerLike(const std::string& written, int value) {
   return std::string("'") + written[1] + digits + "'";
 }
 
+// The new text of a target's aggregate: the numbers of the pose (or axes) replaced in place, and
+// the components the target has that the aggregate leaves out (a partial aggregate the
+// correction completed: Job::setPose) added in the canonical order, each before the first
+// written component that follows it there, else after the last one.
 std::string rewriteValue(const KrlSource::Value& v, const std::string& text, const Target& t) {
   const bool cart = t.kind == Target::Kind::kCartesian;
   const char* const* names = cart ? kCartNames : kAxisNames;
