@@ -312,7 +312,11 @@ struct KinematicSolver::Impl {
   struct Newton {
     bool converged = false;
     int iterations = 0;
-    double ep = 0, er = 0;  ///< final position (mm) and rotation (rad) errors
+    /// final position (mm^2) and rotation (rad^2) errors, squared (the square roots only where
+    /// an answer reports them: ep(), er())
+    double ep2 = 0, er2 = 0;
+    double ep() const { return std::sqrt(ep2); }
+    double er() const { return std::sqrt(er2); }
   };
 
   static void poseErr(const Eigen::Isometry3d& T_target, const Eigen::Isometry3d& T, Vector6d& e);

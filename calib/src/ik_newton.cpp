@@ -236,7 +236,8 @@ void KinematicSolver::Impl::poseErr(const Eigen::Isometry3d& T_target, const Eig
   const Eigen::Vector3d half(0.5 * (dr(2, 1) - dr(1, 2)), 0.5 * (dr(0, 2) - dr(2, 0)), 0.5 * (dr(1, 0) - dr(0, 1)));
   const double s2 = half.squaredNorm();
   if (s2 < 0.01 && dr(0, 0) + dr(1, 1) + dr(2, 2) > 0) {
-    e.tail<3>() = half * (1 + s2 * (1.0 / 6 + s2 * (3.0 / 40 + s2 * (5.0 / 112))));
+    // (Estrin's scheme: two dependent steps after s2 instead of Horner's four)
+    e.tail<3>() = half * ((1 + s2 * (1.0 / 6)) + (s2 * s2) * (3.0 / 40 + s2 * (5.0 / 112)));
   } else {
     e.tail<3>() = logSO3(Rt * R.transpose());
   }
@@ -253,8 +254,8 @@ KinematicSolver::Impl::Newton KinematicSolver::Impl::newton(VecN& q, const Eigen
   const KinematicFrames* const start = fp.cur;
   Vector6d e;
   poseErr(T_target, fp.cur->T_world_tcp, e);
-  // the merit and the tests on squared norms (no square root in the loop; r.ep and r.er are
-  // the norms on return)
+  // the merit and the tests on squared norms (no square root in the loop nor on return: r.ep2 and
+  // r.er2 are the squares)
   double merit = meritSquared(e);
   const double tol_mm2 = o.tol_mm * o.tol_mm, tol_rad2 = o.tol_rad * o.tol_rad;
   // converged at the tolerance; then, when polishing, up to kPolishSteps more while they
@@ -270,8 +271,8 @@ KinematicSolver::Impl::Newton KinematicSolver::Impl::newton(VecN& q, const Eigen
     return r.iterations >= max_iterations;
   };
   auto result = [&]() {
-    r.ep = e.head<3>().norm();
-    r.er = e.tail<3>().norm();
+    r.ep2 = e.head<3>().squaredNorm();
+    r.er2 = e.tail<3>().squaredNorm();
     return r;
   };
   VecN qt(n), dq(n);
@@ -323,7 +324,7 @@ KinematicSolver::Impl::Newton KinematicSolver::Impl::newton(VecN& q, const Eigen
         have = fresh = true;
       }
       dq = use_block ? fact->solve(e) : lu.solve(e);
-      if (!allFinite<6>(dq.data())) break;
+      if (!allFinite(dq.data(), 6)) break;
       limitStep(dq);
       const double before = merit;
       if (trial(dq)) {

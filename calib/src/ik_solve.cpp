@@ -219,8 +219,8 @@ IkResult KinematicSolver::Impl::inverse(const Eigen::Isometry3d& T_target, const
     const auto answer = [&](IkResult& a, IkStatus status) {
       a.status = status;
       a.configuration = conf;
-      a.position_error_mm = nt.ep;
-      a.rotation_error_rad = nt.er;
+      a.position_error_mm = nt.ep();
+      a.rotation_error_rad = nt.er();
       a.min_singular_value = min_singular_value;
     };
     if (!configurationMatches(config, conf)) {
@@ -311,9 +311,9 @@ IkResult KinematicSolver::Impl::inverse(const Eigen::Isometry3d& T_target, const
     const Newton nt = newton(q, T_target, ctx, o, max_iterations, fp, false, polish_mm, polish_rad);
     iterations += nt.iterations;
     if (!nt.converged) {
-      if (nt.ep / o.tol_mm + nt.er / o.tol_rad < best_ep / o.tol_mm + best_er / o.tol_rad) {
-        best_ep = nt.ep;
-        best_er = nt.er;
+      if (nt.ep() / o.tol_mm + nt.er() / o.tol_rad < best_ep / o.tol_mm + best_er / o.tol_rad) {
+        best_ep = nt.ep();
+        best_er = nt.er();
       }
       return false;
     }
