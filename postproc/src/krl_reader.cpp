@@ -63,7 +63,7 @@ struct Reader {
   /// (tool, base, external_tcp, vel_m_s, vel_percent); none outside a block or without WITH.
   std::optional<Motion> spline_block_;
   std::string first_function_;   // the file's first DEFFCT: "name (file:line:column)"
-  std::vector<std::pair<std::string, int>> structure_;  // the open IF, SWITCH, loops: keyword, line
+  std::vector<std::pair<std::string, int>> structure_;  // the open IF, SWITCH, loops, spline blocks: keyword, line
   int spline_blocks_ = 0;         // SPLINE / PTP_SPLINE blocks so far
   int spline_block_number_ = 0;   // the open block's number (Motion::spline_block), 0: none
   bool ptp_spline_block_ = false; // the open block is a PTP_SPLINE block
@@ -76,35 +76,33 @@ struct Reader {
   bool def_fct_ = false;   // that DEF is a DEFFCT (closed by ENDFCT)
   std::string openEnd() const { return def_fct_ ? "ENDFCT closing the DEFFCT" : "END closing the DEF"; }
 
-  // The KRL words that open a branch or a loop, and those that close one.
-  static bool opensBranch(const std::string& k) { return k == "IF" || k == "SWITCH"; }
-  static bool opensLoop(const std::string& k) { return k == "FOR" || k == "WHILE" || k == "LOOP" || k == "REPEAT"; }
-  static bool closesBlock(const std::string& k) {
-    return k == "ENDIF" || k == "ENDSWITCH" || k == "ENDFOR" || k == "ENDWHILE" || k == "ENDLOOP" || k == "UNTIL";
-  }
+  // The KRL words that open a branch or a loop, and those that close one (not a spline block's:
+  // its motions run one after the other).
+  static bool opensBranch(const std::string& k) { return blockOpenedBy(k) && blockOpenedBy(k)->kind == BlockWords::kBranch; }
+  static bool opensLoop(const std::string& k) { return blockOpenedBy(k) && blockOpenedBy(k)->kind == BlockWords::kLoop; }
+  static bool closesBlock(const std::string& k) { return blockClosedBy(k) && blockClosedBy(k)->kind != BlockWords::kSpline; }
 
   // The nesting of the control structures, as the KRL compiler checks it: every IF, SWITCH, FOR,
   // WHILE, LOOP and REPEAT closed by its own end inside its routine, ELSE inside an IF, CASE and
   // DEFAULT inside a SWITCH. A file that breaks it is not a program the controller runs: an
   // error at the statement that breaks it (the structure decides where the robot may come from).
   void checkStructure(const std::vector<Tok>& t) {
-    static const std::map<std::string, std::string> end_of = {
-        {"IF", "ENDIF"},     {"SWITCH", "ENDSWITCH"}, {"FOR", "ENDFOR"},        {"WHILE", "ENDWHILE"},
-        {"LOOP", "ENDLOOP"}, {"REPEAT", "UNTIL"},     {"SPLINE", "ENDSPLINE"}, {"PTP_SPLINE", "ENDSPLINE"}};
     const std::string& k = t[0].up;
     if (t[0].kind != Tok::kIdent) return;
     const auto open = [&]() {
       const auto& [kw, line] = structure_.back();
       return "the " + kw + " at line " + std::to_string(line);
     };
-    if (end_of.count(k)) {
+    // the word that closes the innermost open block
+    const auto end = [&]() { return std::string(blockOpenedBy(structure_.back().first)->close); };
+    if (blockOpenedBy(k)) {
       structure_.emplace_back(k, f->loc(t[0].begin).line);
       return;
     }
     const bool routine_end = (k == "END" || k == "ENDFCT") && t.size() == 1;
     const bool routine_start = k == "DEF" || k == "DEFFCT" || (k == "GLOBAL" && t.size() > 1 && (t[1].up == "DEF" || t[1].up == "DEFFCT"));
     if ((routine_end || routine_start) && !structure_.empty())
-      f->fail(t[0].begin, "expected " + end_of.at(structure_.back().first) + " to close " + open() + ", found " + t[0].text);
+      f->fail(t[0].begin, "expected " + end() + " to close " + open() + ", found " + t[0].text);
     if (k == "ELSE" && (structure_.empty() || structure_.back().first != "IF"))
       f->fail(t[0].begin, "expected ELSE inside an IF, found it " +
                               (structure_.empty() ? std::string("outside any block") : "inside " + open() + " (not closed)"));
@@ -113,15 +111,14 @@ struct Reader {
                               (structure_.empty() ? std::string("outside any block") : "inside " + open() + " (not closed)"));
     if (k == "ENDSPLINE") {  // closes either kind of spline block
       if (structure_.empty()) f->fail(t[0].begin, "expected ENDSPLINE to close a SPLINE or PTP_SPLINE block, found no open block");
-      if (end_of.at(structure_.back().first) != "ENDSPLINE")
-        f->fail(t[0].begin, "expected " + end_of.at(structure_.back().first) + " to close " + open() + ", found ENDSPLINE");
+      if (end() != "ENDSPLINE") f->fail(t[0].begin, "expected " + end() + " to close " + open() + ", found ENDSPLINE");
       structure_.pop_back();
       return;
     }
-    for (const auto& [kw, end] : end_of) {
-      if (k != end) continue;
-      if (structure_.empty()) f->fail(t[0].begin, "expected " + end + " to close a " + kw + ", found no open " + kw);
-      if (structure_.back().first != kw) f->fail(t[0].begin, "expected " + end_of.at(structure_.back().first) + " to close " + open() + ", found " + t[0].text);
+    if (const BlockWords* b = blockClosedBy(k)) {
+      const std::string kw = b->open;
+      if (structure_.empty()) f->fail(t[0].begin, "expected " + k + " to close a " + kw + ", found no open " + kw);
+      if (structure_.back().first != kw) f->fail(t[0].begin, "expected " + end() + " to close " + open() + ", found " + t[0].text);
       structure_.pop_back();
     }
   }
@@ -133,7 +130,7 @@ struct Reader {
     if (opensBranch(k)) {
       flow_.open(StartTracker::Block::kBranch);
       frame_blocks_.push_back({tool, base, false, false, t[0].text, f->loc(t[0].begin).line});
-    } else if (k == "ELSE" || k == "CASE" || k == "DEFAULT") {
+    } else if (startsBranch(k)) {
       flow_.branch();
       if (!frame_blocks_.empty()) {  // each branch starts with the frames the block was entered with
         FrameBlock& fb = frame_blocks_.back();
