@@ -44,6 +44,21 @@ bool declaresModelType(const std::vector<Tok>& t) {
   return false;
 }
 
+// An assignment's depth-0 '=' (not '==', nor one inside an index or a call): its index in t,
+// 0 when the statement is not an assignment.
+size_t assignmentEnd(const std::vector<Tok>& t) {
+  if (t.empty() || t[0].kind != Tok::kIdent) return 0;
+  int depth = 0;
+  for (size_t i = 1; i < t.size(); ++i) {
+    const std::string& x = t[i].text;
+    if (x == "[" || x == "(") ++depth;
+    else if (x == "]" || x == ")") --depth;
+    else if (depth == 0 && x == "=" && t[i].kind == Tok::kPunct) return i;
+    else if (depth == 0 && x != "." && t[i].kind == Tok::kPunct) break;
+  }
+  return 0;
+}
+
 struct Reader {
   Declarations decl;
   std::map<std::string, SourceLocation> other_globals;  // KrlReadOptions::other_globals
@@ -1076,17 +1091,8 @@ struct Reader {
       Cursor c(*f, t, l.code_end);
       if (parseTableAssignment(c, decl)) return false;
     }
-    // assignment: find a depth-0 '=' (not '==')
-    if (t[0].kind == Tok::kIdent) {
-      int depth = 0;
-      for (size_t i = 1; i < t.size(); ++i) {
-        const std::string& x = t[i].text;
-        if (x == "[" || x == "(") ++depth;
-        else if (x == "]" || x == ")") --depth;
-        else if (depth == 0 && x == "=" && t[i].kind == Tok::kPunct) return handleAssignment(t, i);
-        else if (depth == 0 && x != "." && t[i].kind == Tok::kPunct) break;
-      }
-    }
+    // an assignment: at its depth-0 '='
+    if (const size_t eq = assignmentEnd(t)) return handleAssignment(t, eq);
     return false;
   }
 };
@@ -1169,7 +1175,8 @@ namespace {
 // KrlSource::Value::read_elsewhere, the first such place. Declarations, the DEF line, a point's
 // own assignment (XP1 = .., XP1.X = ..: the left-hand side) and, in a subroutine, the names of
 // its parameters and its own declarations (which hide the data list's points) are not reads.
-void notePointReads(const KrlFile& src, const Declarations& decl, KrlSource& source) {
+// `lines`: the tokens of the .src's lines, in order.
+void notePointReads(const KrlFile& src, const std::vector<std::vector<Tok>>& lines, const Declarations& decl, KrlSource& source) {
   const auto noteRead = [&](const PointEntry& p, const std::vector<Tok>& t, size_t i) {
     if (!p.value || p.value->value_id < 0) return;
     const size_t id = static_cast<size_t>(p.value->value_id);
@@ -1178,8 +1185,7 @@ void notePointReads(const KrlFile& src, const Declarations& decl, KrlSource& sou
   };
   bool main_seen = false, in_subroutine = false;
   std::set<std::string> local;  // a subroutine's parameters and declarations (upper case)
-  for (const Line& l : src.lines()) {
-    const std::vector<Tok> t = lex(src, l.begin, l.code_end);
+  for (const std::vector<Tok>& t : lines) {
     if (t.empty() || t[0].text == "&") continue;
     const std::string& k = t[0].up;
     const size_t def_at = k == "GLOBAL" && t.size() > 1 ? 1 : 0;
@@ -1208,16 +1214,7 @@ void notePointReads(const KrlFile& src, const Declarations& decl, KrlSource& sou
     const bool motion = isMotionKeyword(k) && t[0].kind == Tok::kIdent;
     // an assignment's left-hand side ends at its depth-0 '='; a motion's keyword is not a read
     size_t from = motion ? 1 : 0;
-    if (!motion && t[0].kind == Tok::kIdent) {
-      int depth = 0;
-      for (size_t i = 1; i < t.size(); ++i) {
-        const std::string& x = t[i].text;
-        if (x == "[" || x == "(") ++depth;
-        else if (x == "]" || x == ")") --depth;
-        else if (depth == 0 && x == "=" && t[i].kind == Tok::kPunct) { from = i + 1; break; }
-        else if (depth == 0 && x != "." && t[i].kind == Tok::kPunct) break;
-      }
-    }
+    if (const size_t eq = motion ? 0 : assignmentEnd(t)) from = eq + 1;
     int depth = 0;
     for (size_t i = from; i < t.size(); ++i) {
       const std::string& x = t[i].text;
@@ -1277,13 +1274,14 @@ Program readKrl(const std::string& src_path, const KrlReadOptions& options) {
   }
   const KrlFile src(src_path, source->src_text, 0);
   r.f = &src;
+  // the .src's lines' tokens, lexed once for the prescan and notePointReads
+  std::vector<std::vector<Tok>> lines;
+  for (const Line& l : src.lines()) lines.push_back(lex(src, l.begin, l.code_end));
   {
     // the subroutines defined here that move the robot, themselves or through the ones they
     // call (a call may come before the DEF)
     std::map<std::string, bool> moves, sets_tool, sets_base;
     std::map<std::string, std::set<std::string>> calls;
-    std::vector<std::vector<Tok>> lines;
-    for (const Line& l : src.lines()) lines.push_back(lex(src, l.begin, l.code_end));
     // "" unless the line is a DEF or a DEFFCT (DEFFCT type name(...))
     auto defName = [](const std::vector<Tok>& t) -> std::string {
       const size_t i = !t.empty() && t[0].up == "GLOBAL" ? 1 : 0;
@@ -1356,7 +1354,7 @@ Program readKrl(const std::string& src_path, const KrlReadOptions& options) {
   for (const Line& l : src.lines()) r.handleLine(l);
   if (r.def_open_)
     src.fail(src.text().size(), "expected " + r.openEnd() + " at line " + std::to_string(r.def_line_) + ", found the end of the file");
-  notePointReads(src, r.decl, *source);
+  notePointReads(src, lines, r.decl, *source);
   if (!source->dat_path.empty()) datPassThrough(KrlFile(source->dat_path, source->dat_text, 1), program);
   // the data list is the module's: DEFDAT names the module (its file) or its DEF (KSS: a data
   // list of another name is not the module's, whose points it would silently replace)
