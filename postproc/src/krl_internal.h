@@ -22,6 +22,37 @@ std::string upper(std::string s);
 bool isFoldMarker(const std::string& line);
 
 // ---------------------------------------------------------------------------------------------
+// Control structures (krl_lexer.cpp): for the reader's structure check and flow tracking
+// (krl_reader.cpp) and the pass-through statements' flow roles (program_io.cpp)
+
+/// A KRL block: the word that opens it, the word that closes it, and what it is. A branch or a
+/// loop steers the run; a spline block (SPLINE / PTP_SPLINE .. ENDSPLINE) holds motions only.
+struct BlockWords {
+  enum Kind { kBranch, kLoop, kSpline };
+  const char* open;
+  const char* close;
+  Kind kind;
+};
+inline constexpr BlockWords kBlocks[] = {
+    {"IF", "ENDIF", BlockWords::kBranch},       {"SWITCH", "ENDSWITCH", BlockWords::kBranch},
+    {"FOR", "ENDFOR", BlockWords::kLoop},       {"WHILE", "ENDWHILE", BlockWords::kLoop},
+    {"LOOP", "ENDLOOP", BlockWords::kLoop},     {"REPEAT", "UNTIL", BlockWords::kLoop},
+    {"SPLINE", "ENDSPLINE", BlockWords::kSpline}, {"PTP_SPLINE", "ENDSPLINE", BlockWords::kSpline}};
+/// The words that start another branch of the open block: ELSE an IF's, CASE and DEFAULT a SWITCH's.
+inline constexpr const char* kBranchWords[] = {"ELSE", "CASE", "DEFAULT"};
+/// The words that jump.
+inline constexpr const char* kJumpWords[] = {"GOTO", "RETURN", "EXIT"};
+
+/// The block the (upper-case) word `up` opens, null when it opens none.
+const BlockWords* blockOpenedBy(const std::string& up);
+/// The block `up` closes (ENDSPLINE: the first spline block, it closes either), null when none.
+const BlockWords* blockClosedBy(const std::string& up);
+/// `up` is one of kBranchWords.
+bool startsBranch(const std::string& up);
+/// `up` is one of kJumpWords.
+bool isJump(const std::string& up);
+
+// ---------------------------------------------------------------------------------------------
 // Files and lines (krl_lexer.cpp)
 
 struct Line {

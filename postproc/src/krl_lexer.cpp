@@ -44,6 +44,30 @@ bool isFoldMarker(const std::string& line) {
   return u.compare(0, 4, "FOLD") == 0 || u.compare(0, 7, "ENDFOLD") == 0;
 }
 
+const BlockWords* blockOpenedBy(const std::string& up) {
+  for (const BlockWords& b : kBlocks)
+    if (up == b.open) return &b;
+  return nullptr;
+}
+
+const BlockWords* blockClosedBy(const std::string& up) {
+  for (const BlockWords& b : kBlocks)
+    if (up == b.close) return &b;
+  return nullptr;
+}
+
+bool startsBranch(const std::string& up) {
+  for (const char* w : kBranchWords)
+    if (up == w) return true;
+  return false;
+}
+
+bool isJump(const std::string& up) {
+  for (const char* w : kJumpWords)
+    if (up == w) return true;
+  return false;
+}
+
 std::string upper(std::string s) {
   for (char& c : s) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
   return s;

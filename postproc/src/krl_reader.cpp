@@ -44,6 +44,21 @@ bool declaresModelType(const std::vector<Tok>& t) {
   return false;
 }
 
+// An assignment's depth-0 '=' (not '==', nor one inside an index or a call): its index in t,
+// 0 when the statement is not an assignment.
+size_t assignmentEnd(const std::vector<Tok>& t) {
+  if (t.empty() || t[0].kind != Tok::kIdent) return 0;
+  int depth = 0;
+  for (size_t i = 1; i < t.size(); ++i) {
+    const std::string& x = t[i].text;
+    if (x == "[" || x == "(") ++depth;
+    else if (x == "]" || x == ")") --depth;
+    else if (depth == 0 && x == "=" && t[i].kind == Tok::kPunct) return i;
+    else if (depth == 0 && x != "." && t[i].kind == Tok::kPunct) break;
+  }
+  return 0;
+}
+
 struct Reader {
   Declarations decl;
   std::map<std::string, SourceLocation> other_globals;  // KrlReadOptions::other_globals
@@ -63,7 +78,7 @@ struct Reader {
   /// (tool, base, external_tcp, vel_m_s, vel_percent); none outside a block or without WITH.
   std::optional<Motion> spline_block_;
   std::string first_function_;   // the file's first DEFFCT: "name (file:line:column)"
-  std::vector<std::pair<std::string, int>> structure_;  // the open IF, SWITCH, loops: keyword, line
+  std::vector<std::pair<std::string, int>> structure_;  // the open IF, SWITCH, loops, spline blocks: keyword, line
   int spline_blocks_ = 0;         // SPLINE / PTP_SPLINE blocks so far
   int spline_block_number_ = 0;   // the open block's number (Motion::spline_block), 0: none
   bool ptp_spline_block_ = false; // the open block is a PTP_SPLINE block
@@ -76,35 +91,33 @@ struct Reader {
   bool def_fct_ = false;   // that DEF is a DEFFCT (closed by ENDFCT)
   std::string openEnd() const { return def_fct_ ? "ENDFCT closing the DEFFCT" : "END closing the DEF"; }
 
-  // The KRL words that open a branch or a loop, and those that close one.
-  static bool opensBranch(const std::string& k) { return k == "IF" || k == "SWITCH"; }
-  static bool opensLoop(const std::string& k) { return k == "FOR" || k == "WHILE" || k == "LOOP" || k == "REPEAT"; }
-  static bool closesBlock(const std::string& k) {
-    return k == "ENDIF" || k == "ENDSWITCH" || k == "ENDFOR" || k == "ENDWHILE" || k == "ENDLOOP" || k == "UNTIL";
-  }
+  // The KRL words that open a branch or a loop, and those that close one (not a spline block's:
+  // its motions run one after the other).
+  static bool opensBranch(const std::string& k) { return blockOpenedBy(k) && blockOpenedBy(k)->kind == BlockWords::kBranch; }
+  static bool opensLoop(const std::string& k) { return blockOpenedBy(k) && blockOpenedBy(k)->kind == BlockWords::kLoop; }
+  static bool closesBlock(const std::string& k) { return blockClosedBy(k) && blockClosedBy(k)->kind != BlockWords::kSpline; }
 
   // The nesting of the control structures, as the KRL compiler checks it: every IF, SWITCH, FOR,
   // WHILE, LOOP and REPEAT closed by its own end inside its routine, ELSE inside an IF, CASE and
   // DEFAULT inside a SWITCH. A file that breaks it is not a program the controller runs: an
   // error at the statement that breaks it (the structure decides where the robot may come from).
   void checkStructure(const std::vector<Tok>& t) {
-    static const std::map<std::string, std::string> end_of = {
-        {"IF", "ENDIF"},     {"SWITCH", "ENDSWITCH"}, {"FOR", "ENDFOR"},        {"WHILE", "ENDWHILE"},
-        {"LOOP", "ENDLOOP"}, {"REPEAT", "UNTIL"},     {"SPLINE", "ENDSPLINE"}, {"PTP_SPLINE", "ENDSPLINE"}};
     const std::string& k = t[0].up;
     if (t[0].kind != Tok::kIdent) return;
     const auto open = [&]() {
       const auto& [kw, line] = structure_.back();
       return "the " + kw + " at line " + std::to_string(line);
     };
-    if (end_of.count(k)) {
+    // the word that closes the innermost open block
+    const auto end = [&]() { return std::string(blockOpenedBy(structure_.back().first)->close); };
+    if (blockOpenedBy(k)) {
       structure_.emplace_back(k, f->loc(t[0].begin).line);
       return;
     }
     const bool routine_end = (k == "END" || k == "ENDFCT") && t.size() == 1;
     const bool routine_start = k == "DEF" || k == "DEFFCT" || (k == "GLOBAL" && t.size() > 1 && (t[1].up == "DEF" || t[1].up == "DEFFCT"));
     if ((routine_end || routine_start) && !structure_.empty())
-      f->fail(t[0].begin, "expected " + end_of.at(structure_.back().first) + " to close " + open() + ", found " + t[0].text);
+      f->fail(t[0].begin, "expected " + end() + " to close " + open() + ", found " + t[0].text);
     if (k == "ELSE" && (structure_.empty() || structure_.back().first != "IF"))
       f->fail(t[0].begin, "expected ELSE inside an IF, found it " +
                               (structure_.empty() ? std::string("outside any block") : "inside " + open() + " (not closed)"));
@@ -113,15 +126,14 @@ struct Reader {
                               (structure_.empty() ? std::string("outside any block") : "inside " + open() + " (not closed)"));
     if (k == "ENDSPLINE") {  // closes either kind of spline block
       if (structure_.empty()) f->fail(t[0].begin, "expected ENDSPLINE to close a SPLINE or PTP_SPLINE block, found no open block");
-      if (end_of.at(structure_.back().first) != "ENDSPLINE")
-        f->fail(t[0].begin, "expected " + end_of.at(structure_.back().first) + " to close " + open() + ", found ENDSPLINE");
+      if (end() != "ENDSPLINE") f->fail(t[0].begin, "expected " + end() + " to close " + open() + ", found ENDSPLINE");
       structure_.pop_back();
       return;
     }
-    for (const auto& [kw, end] : end_of) {
-      if (k != end) continue;
-      if (structure_.empty()) f->fail(t[0].begin, "expected " + end + " to close a " + kw + ", found no open " + kw);
-      if (structure_.back().first != kw) f->fail(t[0].begin, "expected " + end_of.at(structure_.back().first) + " to close " + open() + ", found " + t[0].text);
+    if (const BlockWords* b = blockClosedBy(k)) {
+      const std::string kw = b->open;
+      if (structure_.empty()) f->fail(t[0].begin, "expected " + k + " to close a " + kw + ", found no open " + kw);
+      if (structure_.back().first != kw) f->fail(t[0].begin, "expected " + end() + " to close " + open() + ", found " + t[0].text);
       structure_.pop_back();
     }
   }
@@ -133,7 +145,7 @@ struct Reader {
     if (opensBranch(k)) {
       flow_.open(StartTracker::Block::kBranch);
       frame_blocks_.push_back({tool, base, false, false, t[0].text, f->loc(t[0].begin).line});
-    } else if (k == "ELSE" || k == "CASE" || k == "DEFAULT") {
+    } else if (startsBranch(k)) {
       flow_.branch();
       if (!frame_blocks_.empty()) {  // each branch starts with the frames the block was entered with
         FrameBlock& fb = frame_blocks_.back();
@@ -1079,17 +1091,8 @@ struct Reader {
       Cursor c(*f, t, l.code_end);
       if (parseTableAssignment(c, decl)) return false;
     }
-    // assignment: find a depth-0 '=' (not '==')
-    if (t[0].kind == Tok::kIdent) {
-      int depth = 0;
-      for (size_t i = 1; i < t.size(); ++i) {
-        const std::string& x = t[i].text;
-        if (x == "[" || x == "(") ++depth;
-        else if (x == "]" || x == ")") --depth;
-        else if (depth == 0 && x == "=" && t[i].kind == Tok::kPunct) return handleAssignment(t, i);
-        else if (depth == 0 && x != "." && t[i].kind == Tok::kPunct) break;
-      }
-    }
+    // an assignment: at its depth-0 '='
+    if (const size_t eq = assignmentEnd(t)) return handleAssignment(t, eq);
     return false;
   }
 };
@@ -1172,7 +1175,8 @@ namespace {
 // KrlSource::Value::read_elsewhere, the first such place. Declarations, the DEF line, a point's
 // own assignment (XP1 = .., XP1.X = ..: the left-hand side) and, in a subroutine, the names of
 // its parameters and its own declarations (which hide the data list's points) are not reads.
-void notePointReads(const KrlFile& src, const Declarations& decl, KrlSource& source) {
+// `lines`: the tokens of the .src's lines, in order.
+void notePointReads(const KrlFile& src, const std::vector<std::vector<Tok>>& lines, const Declarations& decl, KrlSource& source) {
   const auto noteRead = [&](const PointEntry& p, const std::vector<Tok>& t, size_t i) {
     if (!p.value || p.value->value_id < 0) return;
     const size_t id = static_cast<size_t>(p.value->value_id);
@@ -1181,8 +1185,7 @@ void notePointReads(const KrlFile& src, const Declarations& decl, KrlSource& sou
   };
   bool main_seen = false, in_subroutine = false;
   std::set<std::string> local;  // a subroutine's parameters and declarations (upper case)
-  for (const Line& l : src.lines()) {
-    const std::vector<Tok> t = lex(src, l.begin, l.code_end);
+  for (const std::vector<Tok>& t : lines) {
     if (t.empty() || t[0].text == "&") continue;
     const std::string& k = t[0].up;
     const size_t def_at = k == "GLOBAL" && t.size() > 1 ? 1 : 0;
@@ -1211,16 +1214,7 @@ void notePointReads(const KrlFile& src, const Declarations& decl, KrlSource& sou
     const bool motion = isMotionKeyword(k) && t[0].kind == Tok::kIdent;
     // an assignment's left-hand side ends at its depth-0 '='; a motion's keyword is not a read
     size_t from = motion ? 1 : 0;
-    if (!motion && t[0].kind == Tok::kIdent) {
-      int depth = 0;
-      for (size_t i = 1; i < t.size(); ++i) {
-        const std::string& x = t[i].text;
-        if (x == "[" || x == "(") ++depth;
-        else if (x == "]" || x == ")") --depth;
-        else if (depth == 0 && x == "=" && t[i].kind == Tok::kPunct) { from = i + 1; break; }
-        else if (depth == 0 && x != "." && t[i].kind == Tok::kPunct) break;
-      }
-    }
+    if (const size_t eq = motion ? 0 : assignmentEnd(t)) from = eq + 1;
     int depth = 0;
     for (size_t i = from; i < t.size(); ++i) {
       const std::string& x = t[i].text;
@@ -1280,13 +1274,14 @@ Program readKrl(const std::string& src_path, const KrlReadOptions& options) {
   }
   const KrlFile src(src_path, source->src_text, 0);
   r.f = &src;
+  // the .src's lines' tokens, lexed once for the prescan and notePointReads
+  std::vector<std::vector<Tok>> lines;
+  for (const Line& l : src.lines()) lines.push_back(lex(src, l.begin, l.code_end));
   {
     // the subroutines defined here that move the robot, themselves or through the ones they
     // call (a call may come before the DEF)
     std::map<std::string, bool> moves, sets_tool, sets_base;
     std::map<std::string, std::set<std::string>> calls;
-    std::vector<std::vector<Tok>> lines;
-    for (const Line& l : src.lines()) lines.push_back(lex(src, l.begin, l.code_end));
     // "" unless the line is a DEF or a DEFFCT (DEFFCT type name(...))
     auto defName = [](const std::vector<Tok>& t) -> std::string {
       const size_t i = !t.empty() && t[0].up == "GLOBAL" ? 1 : 0;
@@ -1359,7 +1354,7 @@ Program readKrl(const std::string& src_path, const KrlReadOptions& options) {
   for (const Line& l : src.lines()) r.handleLine(l);
   if (r.def_open_)
     src.fail(src.text().size(), "expected " + r.openEnd() + " at line " + std::to_string(r.def_line_) + ", found the end of the file");
-  notePointReads(src, r.decl, *source);
+  notePointReads(src, lines, r.decl, *source);
   if (!source->dat_path.empty()) datPassThrough(KrlFile(source->dat_path, source->dat_text, 1), program);
   // the data list is the module's: DEFDAT names the module (its file) or its DEF (KSS: a data
   // list of another name is not the module's, whose points it would silently replace)

@@ -271,11 +271,12 @@ KrlText generateKrl(const Program& p) {
     open_block = block;
     if (in_spline) out << (ptp ? "PTP_SPLINE\n" : "SPLINE\n");
   };
-  // whether block number b is a PTP_SPLINE block (from its segments)
+  // whether block number b is a PTP_SPLINE block (from its first segment; gathered once, not per statement)
+  std::map<int, bool> ptp_block;
+  for (const Motion& m : p.motions) ptp_block.emplace(m.spline_block, m.ptp_spline_block);
   auto ptpBlock = [&](int b) {
-    for (const Motion& m : p.motions)
-      if (m.spline_block == b) return m.ptp_spline_block;
-    return false;
+    const auto it = ptp_block.find(b);
+    return it != ptp_block.end() && it->second;
   };
   // the pass-through statements of a section, in order; for the body those before motion `k`,
   // each in the block it was in (PassThrough::spline_block: TIME_BLOCK inside, $OUT after it)

@@ -10,6 +10,7 @@
 #include "accura/postproc/urscript.h"
 #include "accura/postproc/xml_program.h"
 #include "excerpt.h"
+#include "krl_internal.h"
 
 namespace fs = std::filesystem;
 
@@ -108,11 +109,14 @@ char flowRole(const PassThrough& s) {
     if (up == "GOTO" || up == "RETURN" || up == "EXIT" || (up == "IF" && text.find("GOTO") != std::string::npos)) return 'j';
     return 0;
   }
-  if (s.language == "KRL") {
-    if (up == "IF" || up == "SWITCH" || up == "FOR" || up == "WHILE" || up == "LOOP" || up == "REPEAT") return 'o';
-    if (up == "ELSE" || up == "CASE" || up == "DEFAULT") return 'm';
-    if (up == "ENDIF" || up == "ENDSWITCH" || up == "ENDFOR" || up == "ENDWHILE" || up == "ENDLOOP" || up == "UNTIL") return 'c';
-    if (up == "GOTO" || up == "RETURN" || up == "EXIT") return 'j';
+  if (s.language == "KRL") {  // (a spline block holds motions only: it does not steer the run)
+    using krl_detail::BlockWords;
+    const BlockWords* open = krl_detail::blockOpenedBy(up);
+    const BlockWords* close = krl_detail::blockClosedBy(up);
+    if (open && open->kind != BlockWords::kSpline) return 'o';
+    if (krl_detail::startsBranch(up)) return 'm';
+    if (close && close->kind != BlockWords::kSpline) return 'c';
+    if (krl_detail::isJump(up)) return 'j';
   }
   return 0;
 }
