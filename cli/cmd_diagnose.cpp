@@ -1,6 +1,7 @@
 // accura diagnose: where the remaining error lies, which effect of the catalogue causes it and
 // how far it shrinks once that effect is modelled (docs/diagnosis.md).
 #include <algorithm>
+#include <cstdarg>
 #include <cmath>
 #include <ctime>
 #include <cstdio>
@@ -71,12 +72,35 @@ calib::DiagnosisReportContext reportContext(const DiagnoseArgs& a, const calib::
   return c;
 }
 
+/// printf into a string (the warnings below hold several values).
+std::string format(const char* f, ...) __attribute__((format(printf, 1, 2)));
+std::string format(const char* f, ...) {
+  va_list args, again;
+  va_start(args, f);
+  va_copy(again, args);
+  const int n = std::vsnprintf(nullptr, 0, f, args);
+  va_end(args);
+  std::string out(static_cast<size_t>(std::max(n, 0)) + 1, '\0');
+  std::vsnprintf(out.data(), out.size(), f, again);
+  va_end(again);
+  out.resize(static_cast<size_t>(std::max(n, 0)));
+  return out;
+}
+
+/// What checkValidationSet finds: warnings (without the "accura: warning: " of stderr) and, for a
+/// validation set of another station, the sentence the verdict leads with.
+struct ValidationCheck {
+  std::vector<std::string> warnings;
+  std::string verdict_caveat;  ///< empty unless the validation set looks measured from another station
+};
+
 /// --validate is held-out data of the fit's station and joint ranges (--help): where it is not,
 /// the verdict describes the difference, not the robot. Warnings: validation poses outside the
 /// fit data's joint ranges (as identify says them), and a station that moved (re-registering
 /// the station alone, the baseline model held, takes much of the validation residual away).
-void checkValidationSet(const calib::Diagnosis& d, const calib::MeasurementSet& fit, const calib::MeasurementSet& validation,
-                        const std::string& file) {
+ValidationCheck checkValidationSet(const calib::Diagnosis& d, const calib::MeasurementSet& fit,
+                                   const calib::MeasurementSet& validation, const std::string& file) {
+  ValidationCheck out;
   const int dof = d.baseline_model.dof();
   const std::vector<calib::JointRange> covered = calib::jointRanges(fit, dof);
   int outside = 0;
@@ -87,26 +111,32 @@ void checkValidationSet(const calib::Diagnosis& d, const calib::MeasurementSet& 
         break;
       }
   if (outside > 0)
-    std::fprintf(stderr,
-                 "accura: warning: %s: %d of %zu validation poses lie outside the joint ranges of the fit data: the held-out "
-                 "errors there measure extrapolation, not the effects on the fitted ranges\n",
-                 file.c_str(), outside, validation.rows.size());
+    out.warnings.push_back(format("%s: %d of %zu validation poses lie outside the joint ranges of the fit data: the held-out "
+                               "errors there measure extrapolation, not the effects on the fitted ranges",
+                               file.c_str(), outside, validation.rows.size()));
   calib::IdentifySummary rs;
   calib::RobotModel moved;
   try {
     moved = calib::registerStation(d.baseline_model, validation, &rs);
   } catch (const std::exception&) {
-    return;  // (a check that cannot run says nothing; the diagnosis stands)
+    return out;  // (a check that cannot run says nothing; the diagnosis stands)
   }
   const Eigen::Isometry3d D = d.baseline_model.T_world_base().inverse() * moved.T_world_base();
   const double before = calib::evaluate(d.baseline_model, validation).rms_mm, after = rs.fit.rms_mm;
   const double moved_mm = D.translation().norm(), moved_deg = Eigen::AngleAxisd(D.linear()).angle() * calib::kRadToDeg;
-  if ((moved_mm > 0.5 || moved_deg > 0.01) && after < 0.7 * before)
-    std::fprintf(stderr,
-                 "accura: warning: %s: looks measured from another station: re-registering the station alone (the geometric "
-                 "model held) moves it %.3f mm and %.4f deg and takes its RMS from %.4f to %.4f mm; diagnose expects --validate "
-                 "from the fit's station (identify --validate-station new re-registers one)\n",
-                 file.c_str(), moved_mm, moved_deg, before, after);
+  if ((moved_mm > 0.5 || moved_deg > 0.01) && after < 0.7 * before) {
+    out.warnings.push_back(format("%s: looks measured from another station: re-registering the station alone (the geometric "
+                               "model held) moves it %.3f mm and %.4f deg and takes its RMS from %.4f to %.4f mm; diagnose "
+                               "expects --validate from the fit's station (identify --validate-station new re-registers one)",
+                               file.c_str(), moved_mm, moved_deg, before, after));
+    out.verdict_caveat = format("The validation set %s looks measured from another station (re-registering the station alone "
+                             "moves it %.3f mm and %.4f deg and takes its RMS from %.4f to %.4f mm): the held-out errors below "
+                             "hold the difference of the two stations, so this verdict describes that difference as much as "
+                             "the robot. Diagnose with --validate from the fit's station, without --validate (cross-validation), "
+                             "or with the file as a second --data (each its own station).",
+                             file.c_str(), moved_mm, moved_deg, before, after);
+  }
+  return out;
 }
 
 int runDiagnose(const DiagnoseArgs& a) {
@@ -142,17 +172,9 @@ int runDiagnose(const DiagnoseArgs& a) {
   if (!a.validate.empty())
     validation = readMeasurements(a.validate, a.validate_map.empty() ? a.map : a.validate_map, start.nominal);
   calib::StationSets stations;
-  const calib::Diagnosis d = calib::diagnose(start, sets, a.same_station, a.validate.empty() ? nullptr : &validation, o, &stations);
+  calib::Diagnosis d = calib::diagnose(start, sets, a.same_station, a.validate.empty() ? nullptr : &validation, o, &stations);
   const calib::MeasurementSet& data = stations.combined;
-  if (sets.size() > 1) {
-    std::printf("%zu data sets%s:\n", sets.size(), a.same_station ? ", one station" : ", each from its own station (registered by the geometric identification on all of them; the cross-validation registers a held-out set's station again on its rows)");
-    for (size_t k = 0; k < sets.size(); ++k) {
-      const Eigen::Isometry3d& T = stations.T_first_station[k];
-      std::printf("  %s: %zu poses; station %zu, %.3f mm and %.4f deg from the first\n", sets[k].file.c_str(), sets[k].rows.size(), k + 1,
-                  T.translation().norm(), Eigen::AngleAxisd(T.linear()).angle() * calib::kRadToDeg);
-    }
-  }
-  std::printf("%s", calib::diagnosisText(d).c_str());
+  ValidationCheck checked;
   if (!a.validate.empty()) {
     // the check sees the validation rows the diagnosis used: a lost beam left out as gross
     // (d.excluded) would otherwise pull the station's re-registration by metres
@@ -164,8 +186,23 @@ int runDiagnose(const DiagnoseArgs& a) {
       });
       if (!gross) screened.rows.push_back(r);
     }
-    checkValidationSet(d, data, screened, a.validate);
+    checked = checkValidationSet(d, data, screened, a.validate);
   }
+  // the verdict (text, JSON, report) leads with what its held-out errors hold
+  if (!checked.verdict_caveat.empty()) d.verdict.explanation = checked.verdict_caveat + " " + d.verdict.explanation;
+  if (sets.size() > 1) {
+    std::printf("%zu data sets%s:\n", sets.size(), a.same_station ? ", one station" : ", each from its own station (registered by the geometric identification on all of them; the cross-validation registers a held-out set's station again on its rows)");
+    for (size_t k = 0; k < sets.size(); ++k) {
+      const Eigen::Isometry3d& T = stations.T_first_station[k];
+      std::printf("  %s: %zu poses; station %zu, %.3f mm and %.4f deg from the first\n", sets[k].file.c_str(), sets[k].rows.size(), k + 1,
+                  T.translation().norm(), Eigen::AngleAxisd(T.linear()).angle() * calib::kRadToDeg);
+    }
+  }
+  std::printf("%s", calib::diagnosisText(d).c_str());
+  // printed on stderr after the text (as before), and part of the JSON's and the report's warnings,
+  // where they qualify the verdict that a reader of those outputs would otherwise take as is
+  for (const std::string& w : checked.warnings) std::fprintf(stderr, "accura: warning: %s\n", w.c_str());
+  d.warnings.insert(d.warnings.end(), checked.warnings.begin(), checked.warnings.end());
   // The JSON and the HTML report are one output set (all or nothing), never onto an input.
   std::vector<calib::OutputFile> outputs;
   if (!a.json.empty()) outputs.push_back({a.json, calib::diagnosisJson(d)});

@@ -303,6 +303,44 @@ TEST(CliDiagnose, AValidationSetFromAnotherStationIsSaid) {
   EXPECT_NE(moved.err.find("moved.csv: looks measured from another station"), std::string::npos) << moved.err;
 }
 
+// The station check of diagnose --validate is part of the diagnosis' outputs, not of stderr alone:
+// a validation set measured from a tracker 4 m and 90 deg away left the JSON and the HTML report
+// (the deliverable) with the verdict `unexplained` at 4000 mm held out, "acting like a translation",
+// and no word of the station in `warnings` or the verdict.
+TEST(CliDiagnose, AValidationSetFromAnotherStationIsSaidInTheJsonAndTheVerdict) {
+  const std::string dir = test::tempDir("cli_ux_diag_station_json");
+  const XyzAbc fit_station{2400, -1700, -600, 30, 0.4, -0.3}, val_station{-1500, 2200, -350, 120, 2.5, -1.5};
+  ASSERT_EQ(run("simulate --robot kuka_kr16 --poses 150 --seed 5 --station 2400,-1700,-600,30,0.4,-0.3 --out fit.csv --truth truth.xml",
+                dir).code, 0);
+  ASSERT_EQ(run("simulate --robot truth.xml --effects none --poses 60 --seed 6 --station -1500,2200,-350,120,2.5,-1.5 --out far.csv",
+                dir).code, 0);
+  const CliRun far = run("diagnose --robot kuka_kr16 --data fit.csv --validate far.csv --json f.json --report f.html", dir);
+  ASSERT_EQ(far.code, 0) << far.err;
+  EXPECT_NE(far.err.find("far.csv: looks measured from another station"), std::string::npos) << far.err;
+  // where the validation's tracker stood against the fit's: T_base_fit^-1 T_base_validation of the two stations
+  const Eigen::Isometry3d D = toIsometry(fit_station).inverse() * toIsometry(val_station);
+  const auto j = nlohmann::json::parse(test::readText(dir + "/f.json"));
+  std::string said;
+  for (const auto& w : j["warnings"])
+    if (w.get<std::string>().find("looks measured from another station") != std::string::npos) said = w.get<std::string>();
+  ASSERT_FALSE(said.empty()) << j["warnings"].dump();
+  EXPECT_EQ(said.find("accura: warning"), std::string::npos) << said;
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(said, m, std::regex("moves it ([0-9.]+) mm and ([0-9.]+) deg"))) << said;
+  EXPECT_NEAR(std::stod(m[1]), D.translation().norm(), 5.0) << said;  // the geometric errors: a few mm at most
+  EXPECT_NEAR(std::stod(m[2]), Eigen::AngleAxisd(D.linear()).angle() * kRadToDeg, 0.1) << said;
+  // the verdict says what its held-out errors hold, before it names what they follow
+  const std::string explanation = j["verdict"]["explanation"].get<std::string>();
+  EXPECT_EQ(explanation.rfind("The validation set far.csv looks measured from another station", 0), 0u) << explanation;
+  EXPECT_NE(test::readText(dir + "/f.html").find("looks measured from another station"), std::string::npos);
+  // a validation set of the fit's station: no such warning, no such verdict
+  ASSERT_EQ(run("simulate --robot truth.xml --effects none --poses 60 --seed 6 --out same.csv", dir).code, 0);
+  ASSERT_EQ(run("diagnose --robot kuka_kr16 --data fit.csv --validate same.csv --json s.json", dir).code, 0);
+  const auto s = nlohmann::json::parse(test::readText(dir + "/s.json"));
+  EXPECT_EQ(s["verdict"]["explanation"].get<std::string>().find("another station"), std::string::npos);
+  EXPECT_EQ(s["warnings"].dump().find("another station"), std::string::npos) << s["warnings"].dump();
+}
+
 TEST(CliIdentify, ValidationOutsideTheFitRangesReadsAsASentence) {
   const std::string dir = test::tempDir("cli_ux_outside");
   ASSERT_EQ(run("simulate --robot kuka_kr16 --tool 80,40,150 --poses 60 --seed 5 --out fit.csv --truth truth.xml", dir).code, 0);
