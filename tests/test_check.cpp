@@ -524,6 +524,34 @@ TEST(CheckClearance, CompensateTheGoldenSeamInItsCell) {
   EXPECT_GE(v["value"].get<double>(), tip.z() - 15 - 690 - 2e-3);
 }
 
+// The mesh files a cell names are inputs like the cell file: a --json (check, compensate,
+// batch) that names one is refused (exit 1) and the mesh is left byte for byte; before, the
+// report replaced the fixture's mesh and the next run could not read the cell.
+TEST(CheckClearance, AReportThatNamesAMeshOfTheCellIsRefused) {
+  const std::string dir = test::tempDir("check_mesh_input");
+  std::filesystem::create_directories(dir + "/progs");
+  for (const char* f : {"seam.src", "seam.dat", "$config.dat", "kr16_real.xml"}) {
+    test::writeText(dir + "/" + f, test::readText(test::sourcePath(std::string("tests/golden/compensate/") + f)));
+    test::writeText(dir + "/progs/" + f, test::readText(test::sourcePath(std::string("tests/golden/compensate/") + f)));
+  }
+  for (const char* f : {"seam_cell.xml", "plate_m.obj"}) test::writeText(dir + "/" + f, test::readText(fixture(f)));
+  const std::string mesh = test::readText(dir + "/plate_m.obj");
+  const std::string job = "--robot kr16_real.xml --config '$config.dat' --cell seam_cell.xml ";
+  for (const std::string& args : {"check " + job + "--in seam.src --json plate_m.obj", "compensate " + job + "--tol 0.02 --in seam.src --out out --json plate_m.obj",
+                                  "batch " + job + "--tol 0.02 --in progs --out outs --json ./plate_m.obj"}) {
+    const test::CliRun r = test::runAccuraIn(dir, args);
+    EXPECT_EQ(r.code, 1) << args << r.out << r.err;
+    EXPECT_NE(r.err.find("plate_m.obj: the output would overwrite the input plate_m.obj: choose another --json"), std::string::npos)
+        << args << r.err;
+    EXPECT_EQ(test::readText(dir + "/plate_m.obj"), mesh) << args;
+  }
+  EXPECT_FALSE(std::filesystem::exists(dir + "/out/seam.src"));
+  EXPECT_FALSE(std::filesystem::exists(dir + "/outs/seam.src"));
+  // the same run with another report name passes
+  EXPECT_EQ(test::runAccuraIn(dir, "check " + job + "--in seam.src --json r.json").code, 0);
+  std::filesystem::remove_all(dir);
+}
+
 // sigma_min of the scaled joint Jacobian at A5 = 0.5 deg, against the singular values of a
 // central-difference Jacobian of the forward kinematics.
 TEST(CheckSingularity, SigmaMinMatchesFiniteDifferences) {
