@@ -1,6 +1,7 @@
 #include <gtest/gtest.h>
 
 #include <random>
+#include <tuple>
 
 #include "accura/calib/errors.h"
 #include "accura/calib/kinematics.h"
@@ -165,6 +166,40 @@ TEST(RobotIo, ChildrenAndTextWhereTheFormatHasNoneAreErrors) {
   const std::string path = test::tempDir("robot_content") + "/comment.xml";
   test::writeText(path, std::string(kHead) + "    <!-- the first axis -->\n    <joint " + joint_attrs + "><!-- A1 --></joint>\n" + tail);
   EXPECT_EQ(readRobotFile(path).nominal.joints.at(0).upper, 10.0);
+}
+
+// Gravity is m/s^2: a vector in mm/s^2, in g or zero would scale every gravity load of the
+// compliance model silently (by 1000, 1/9.81 or to nothing).
+TEST(RobotIo, GravityInOtherUnitsIsAnError) {
+  const std::string joint =
+      "    <joint name=\"j\" type=\"revolute\" a_mm=\"1\" alpha_deg=\"90\" d_mm=\"0\" theta0_deg=\"0\" direction=\"1\" "
+      "lower=\"-10\" upper=\"10\" mass_kg=\"1\" com_x_mm=\"0\" com_y_mm=\"0\" com_z_mm=\"0\"/>\n";
+  const auto withGravity = [&](const std::string& name, const std::string& xyz) {
+    std::string xml = kHead;
+    xml.insert(xml.find("  <joints>"), "  <gravity " + xyz + "/>\n");
+    const std::string path = test::tempDir("robot_gravity") + "/" + name + ".xml";
+    test::writeText(path, xml + joint + "  </joints>\n</robot>\n");
+    return path;
+  };
+  for (const auto& [name, xyz, magnitude] : std::vector<std::tuple<std::string, std::string, std::string>>{
+           {"mm", "x=\"0\" y=\"0\" z=\"-9806.65\"", "9806.65 (mm/s^2?)"},
+           {"g", "x=\"0\" y=\"0\" z=\"-1\"", "1 (in g?)"},
+           {"zero", "x=\"0\" y=\"0\" z=\"0\"", "0"},
+           {"tilted_mm", "x=\"3000\" y=\"0\" z=\"-4000\"", "5000"}}) {
+    const std::string path = withGravity(name, xyz);
+    try {
+      readRobotFile(path);
+      ADD_FAILURE() << "accepted gravity " << xyz;
+    } catch (const InputError& e) {
+      EXPECT_EQ(std::string(e.what()), path + ":5:3: <gravity>: expected the gravity vector in m/s^2, of magnitude about 9.81 (9 to 10.5; "
+                                              "standard 0 0 -9.80665), found magnitude " + magnitude);
+    }
+  }
+  // floor, ceiling, a wall (tilted), a rounded 10: read as written
+  EXPECT_EQ(readRobotFile(withGravity("floor", "x=\"0\" y=\"0\" z=\"-9.80665\"")).nominal.gravity_base.z(), -9.80665);
+  EXPECT_EQ(readRobotFile(withGravity("ceiling", "x=\"0\" y=\"0\" z=\"9.81\"")).nominal.gravity_base.z(), 9.81);
+  EXPECT_EQ(readRobotFile(withGravity("wall", "x=\"-6\" y=\"0\" z=\"-8\"")).nominal.gravity_base.x(), -6.0);
+  EXPECT_EQ(readRobotFile(withGravity("rounded", "x=\"0\" y=\"0\" z=\"-10\"")).nominal.gravity_base.z(), -10.0);
 }
 
 TEST(RobotIo, ResolveByNameOrPath) {

@@ -227,6 +227,13 @@ RobotDefinition readDefinition(const Reader& R, const XMLElement* root) {
     R.checkAttributes(g, {"x", "y", "z"});
     R.checkContent(g, false);
     def.gravity_base = Eigen::Vector3d(R.number(g, "x"), R.number(g, "y"), R.number(g, "z"));
+    // m/s^2 on the Earth's surface (9.78 to 9.83; 10 when rounded): a vector in mm/s^2, in g or
+    // zero is a unit mistake, and it would scale every gravity load (compliance) silently
+    const double magnitude = def.gravity_base.norm();
+    if (!(magnitude >= 9.0 && magnitude <= 10.5))
+      R.fail(g, "<gravity>: expected the gravity vector in m/s^2, of magnitude about 9.81 (9 to 10.5; standard 0 0 -9.80665), found magnitude " +
+                    formatNumber("%.6g", magnitude) +
+                    (magnitude > 9000 && magnitude < 10500 ? " (mm/s^2?)" : magnitude > 0.9 && magnitude < 1.05 ? " (in g?)" : ""));
   }
   const XMLElement* joints = R.child(root, "joints", true);
   R.checkAttributes(joints, {});
