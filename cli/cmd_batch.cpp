@@ -65,7 +65,8 @@ int runBatch(const BatchArgs& a) {
     if (j.string().rfind(in.string() + "/", 0) == 0) throw calib::InputError("--json: " + a.json + " is inside the input tree, which is never modified");
     std::vector<std::string> inputs = a.model_files();
     inputs.push_back(a.config);
-    if (cell) inputs.push_back(cell->cell_path);
+    if (cell)
+      for (const std::string& f : cell->files()) inputs.push_back(f);
     calib::refuseToOverwrite({{a.json, ""}}, inputs, "--json");
   }
   calib::installInterruptCleanup();

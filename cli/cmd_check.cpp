@@ -1,5 +1,6 @@
 // accura check: reach, joint-limit, singularity and clearance checks of a program in its cell
 // (docs/checks.md), and the --cell options accura compensate shares.
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -34,6 +35,21 @@ struct CellArgs {
   CLI::Option* o_singular = nullptr;
   CLI::Option* o_clearance = nullptr;
 };
+
+}  // namespace
+
+std::vector<std::string> CellCheck::files() const {
+  std::vector<std::string> out = {cell_path};
+  const auto add = [&](const postproc::CellShape& s) {
+    if (s.mesh && !s.mesh->file.empty() && std::find(out.begin(), out.end(), s.mesh->file) == out.end()) out.push_back(s.mesh->file);
+  };
+  for (const auto& s : cell.objects) add(s);
+  for (const auto& [joint, s] : cell.link_shapes) add(s);
+  for (const auto& s : cell.tool_shapes) add(s);
+  return out;
+}
+
+namespace {
 
 std::optional<CellCheck> cellCheck(const CellArgs& a) {
   if (a.cell.empty()) {
@@ -84,7 +100,8 @@ int runCheck(const CheckArgs& a) {
   read.config_path = a.config;
   const Program program = readProgram(a.in, read);
   if (!a.json.empty()) {
-    std::vector<std::string> inputs = {a.in, a.dat, program.krl ? program.krl->dat_path : std::string(), a.config, cc->cell_path};
+    std::vector<std::string> inputs = {a.in, a.dat, program.krl ? program.krl->dat_path : std::string(), a.config};
+    for (const std::string& f : cc->files()) inputs.push_back(f);
     for (const std::string& f : a.model_files()) inputs.push_back(f);
     calib::refuseToOverwrite({{a.json, ""}}, inputs, "--json");
   }

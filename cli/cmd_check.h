@@ -6,6 +6,7 @@
 #include <functional>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "accura/postproc/cell.h"
 #include "accura/postproc/check.h"
@@ -17,6 +18,8 @@ struct CellCheck {
   std::string cell_path;
   postproc::Cell cell;
   postproc::CheckOptions options;
+  /// The cell file and every mesh file it names: inputs, which a --json or --out never overwrites.
+  std::vector<std::string> files() const;
 };
 
 /// Exit status of accura check / compensate --cell when a check fails.

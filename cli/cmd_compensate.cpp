@@ -66,7 +66,8 @@ int runCompensate(const CompensateArgs& a) {
   request.json_path = a.json;
   request.cell = cell_settings ? &*cell_settings : nullptr;
   for (const std::string& f : a.model_files()) request.other_inputs.push_back(f);
-  if (cell) request.other_inputs.push_back(cell->cell_path);
+  if (cell)
+    for (const std::string& f : cell->files()) request.other_inputs.push_back(f);
   calib::installInterruptCleanup();
   const ProgramFileResult result = compensateProgramFile(request, settings);
   const JobReport& report = result.report;

@@ -26,6 +26,16 @@ struct ExportArgs {
 
 int runExport(const ExportArgs& a) {
   calib::RobotModel model = loadRobot(a.robot);
+  if (!a.out.empty()) {
+    // the robot file and the controller's calibration.conf / YAML are inputs, never overwritten
+    // (an exported calibration.conf holds the deltas only, not the controller's checksums)
+    std::vector<std::string> inputs = {a.ur_deltas, a.ur_yaml};
+    try {
+      inputs.push_back(calib::resolveRobotPath(a.robot));
+    } catch (const calib::InputError&) {
+    }
+    calib::refuseToOverwrite({{a.out, ""}}, inputs, "--out");
+  }
   if (!a.ur_deltas.empty() && !a.ur_yaml.empty())
     throw calib::InputError("--ur-deltas and --ur-yaml: expected one of them, found both");
   if (!a.ur_deltas.empty() || !a.ur_yaml.empty()) {

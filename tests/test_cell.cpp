@@ -241,6 +241,43 @@ TEST(CellFile, ErrorsGiveFileLineColumnExpectedFound) {
   }
 }
 
+// What an element holds besides its attributes is never ignored: a <capsule> inside a capsule
+// (a 300 mm torch body that would be left out of the clearance check) and text in any element
+// are errors at the child's '<' or the text's first character.
+TEST(CellFile, ChildrenAndTextWhereTheFormatHasNoneAreErrors) {
+  const std::string dir = test::tempDir("cell_content");
+  const std::string cap = "<capsule x0_mm=\"0\" y0_mm=\"0\" z0_mm=\"0\" x1_mm=\"0\" y1_mm=\"0\" z1_mm=\"60\" radius_mm=\"20\"";
+  struct Case {
+    std::string body, at, says;
+  };
+  const std::vector<Case> cases = {
+      {"  <tool>" + cap + "><capsule x0_mm=\"0\" y0_mm=\"0\" z0_mm=\"0\" x1_mm=\"0\" y1_mm=\"0\" z1_mm=\"900\" radius_mm=\"300\"/></capsule></tool>\n",
+       "<capsule x0_mm=\"0\" y0_mm=\"0\" z0_mm=\"0\" x1_mm=\"0\" y1_mm=\"0\" z1_mm=\"900\"", "<capsule>: expected no children, found <capsule>"},
+      {"  <tool>" + cap + ">torch</capsule></tool>\n", "torch", "<capsule>: expected no text, found 'torch'"},
+      {"  <tool>MIG torch " + cap + "/></tool>\n", "MIG", "<tool>: expected no text, found 'MIG torch'"},
+      {"  <object name=\"post\">" + cap + "/>60 mm</object>\n", "60 mm", "<object>: expected no text, found '60 mm'"},
+      {"  <thresholds min_clearance_mm=\"5\">10</thresholds>\n", "10", "<thresholds>: expected no text, found '10'"},
+      {"  <robot z_mm=\"10\">500</robot>\n", "500", "<robot>: expected no text, found '500'"},
+      {"  <tool>" + cap + "/></tool> fixture\n", "fixture", "<cell>: expected no text, found 'fixture'"},
+  };
+  for (const Case& c : cases) {
+    const std::string path = writeCell(dir, c.body);
+    try {
+      readCellFile(path);
+      ADD_FAILURE() << "accepted: " << c.body;
+    } catch (const calib::InputError& e) {
+      // line 3 (after the declaration and <cell>), the column of the child's '<' or of the text
+      const int column = static_cast<int>(c.body.find(c.at)) + 1;
+      EXPECT_EQ(std::string(e.what()), path + ":3:" + std::to_string(column) + ": " + c.says) << c.body;
+    }
+  }
+  // comments and white space are no content
+  const Cell ok = readCellFile(writeCell(dir, "  <tool>\n    <!-- torch -->\n    " + cap + "/>\n  </tool>\n"));
+  ASSERT_EQ(ok.tool_shapes.size(), 1u);
+  ASSERT_TRUE(ok.tool_shapes[0].capsule);
+  EXPECT_EQ(ok.tool_shapes[0].capsule->radius_mm, 20.0);
+}
+
 // The <robot> element's position is kept for the message when it disagrees with --base.
 TEST(CellFile, RobotElementPosition) {
   const std::string dir = test::tempDir("cell_robot_pos");

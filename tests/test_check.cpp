@@ -524,6 +524,72 @@ TEST(CheckClearance, CompensateTheGoldenSeamInItsCell) {
   EXPECT_GE(v["value"].get<double>(), tip.z() - 15 - 690 - 2e-3);
 }
 
+// The mesh files a cell names are inputs like the cell file: a --json (check, compensate,
+// batch) that names one is refused (exit 1) and the mesh is left byte for byte; before, the
+// report replaced the fixture's mesh and the next run could not read the cell.
+TEST(CheckClearance, AReportThatNamesAMeshOfTheCellIsRefused) {
+  const std::string dir = test::tempDir("check_mesh_input");
+  std::filesystem::create_directories(dir + "/progs");
+  for (const char* f : {"seam.src", "seam.dat", "$config.dat", "kr16_real.xml"}) {
+    test::writeText(dir + "/" + f, test::readText(test::sourcePath(std::string("tests/golden/compensate/") + f)));
+    test::writeText(dir + "/progs/" + f, test::readText(test::sourcePath(std::string("tests/golden/compensate/") + f)));
+  }
+  for (const char* f : {"seam_cell.xml", "plate_m.obj"}) test::writeText(dir + "/" + f, test::readText(fixture(f)));
+  const std::string mesh = test::readText(dir + "/plate_m.obj");
+  const std::string job = "--robot kr16_real.xml --config '$config.dat' --cell seam_cell.xml ";
+  for (const std::string& args : {"check " + job + "--in seam.src --json plate_m.obj", "compensate " + job + "--tol 0.02 --in seam.src --out out --json plate_m.obj",
+                                  "batch " + job + "--tol 0.02 --in progs --out outs --json ./plate_m.obj"}) {
+    const test::CliRun r = test::runAccuraIn(dir, args);
+    EXPECT_EQ(r.code, 1) << args << r.out << r.err;
+    EXPECT_NE(r.err.find("plate_m.obj: the output would overwrite the input plate_m.obj: choose another --json"), std::string::npos)
+        << args << r.err;
+    EXPECT_EQ(test::readText(dir + "/plate_m.obj"), mesh) << args;
+  }
+  EXPECT_FALSE(std::filesystem::exists(dir + "/out/seam.src"));
+  EXPECT_FALSE(std::filesystem::exists(dir + "/outs/seam.src"));
+  // the same run with another report name passes
+  EXPECT_EQ(test::runAccuraIn(dir, "check " + job + "--in seam.src --json r.json").code, 0);
+  std::filesystem::remove_all(dir);
+}
+
+// A mesh in metres given units="mm" is a thousand times too small: one of 1 m or more passes
+// loadMesh's 1 mm floor (a 2 x 3 x 1 m table is 3.742 mm across) and would leave the object
+// out of the clearance check without a word. The check says so, at the cell's <object>, and
+// still runs (a small real part is not refused); given units="m" there is no warning.
+TEST(CheckClearance, AMeshOnlyMillimetresAcrossIsAWarning) {
+  const std::string dir = test::tempDir("check_small_mesh");
+  for (const char* f : {"seam.src", "seam.dat", "$config.dat", "kr16_real.xml"})
+    test::writeText(dir + "/" + f, test::readText(test::sourcePath(std::string("tests/golden/compensate/") + f)));
+  test::writeText(dir + "/plate_m.obj", test::readText(fixture("plate_m.obj")));
+  // a 2 x 3 x 1 m box far from the robot, in metres: 3.742 mm across when read as mm
+  test::writeText(dir + "/table_m.obj", "v 0 0 0\nv 2 0 0\nv 2 3 0\nv 0 3 0\nv 0 0 1\nv 2 0 1\nv 2 3 1\nv 0 3 1\n"
+                                        "f 1 3 2\nf 1 4 3\nf 5 6 7\nf 5 7 8\nf 1 2 6\nf 1 6 5\nf 2 3 7\nf 2 7 6\nf 3 4 8\nf 3 8 7\nf 4 1 5\nf 4 5 8\n");
+  std::string cell = test::readText(fixture("seam_cell.xml"));
+  const std::string table = "  <object name=\"table\" file=\"table_m.obj\" units=\"mm\" x_mm=\"-3000\"/>\n";
+  cell.insert(cell.find("</cell>"), table);
+  test::writeText(dir + "/cell.xml", cell);
+  const std::string run = "check --robot kr16_real.xml --config '$config.dat' --cell cell.xml --in seam.src --json r.json";
+  const test::CliRun r = test::runAccuraIn(dir, run);
+  EXPECT_EQ(r.code, 0) << r.out << r.err;
+  // the <object>'s line and column in the cell file
+  size_t line_start = cell.rfind("\n", cell.find(table)) + 1;
+  const int line = static_cast<int>(std::count(cell.begin(), cell.begin() + static_cast<std::ptrdiff_t>(line_start), '\n')) + 1;
+  const std::string message = "object 'table': its mesh table_m.obj is only 3.742 mm across: check the units the cell gives the file (a file "
+                              "in metres needs units=\"m\"); the check measures it as it is";
+  EXPECT_NE(r.err.find("cell.xml:" + std::to_string(line) + ":3: " + message), std::string::npos) << r.err;
+  const auto j = nlohmann::json::parse(test::readText(dir + "/r.json"));
+  ASSERT_EQ(j["warnings"].size(), 1u) << j["warnings"].dump();
+  EXPECT_EQ(j["warnings"][0]["message"], message);
+  EXPECT_TRUE(j["passed"].get<bool>());
+  // in metres: no warning
+  std::string metres = cell;
+  metres.replace(metres.find("table_m.obj\" units=\"mm\""), std::string("table_m.obj\" units=\"mm\"").size(), "table_m.obj\" units=\"m\"");
+  test::writeText(dir + "/cell.xml", metres);
+  EXPECT_EQ(test::runAccuraIn(dir, run).code, 0);
+  EXPECT_TRUE(nlohmann::json::parse(test::readText(dir + "/r.json"))["warnings"].empty());
+  std::filesystem::remove_all(dir);
+}
+
 // sigma_min of the scaled joint Jacobian at A5 = 0.5 deg, against the singular values of a
 // central-difference Jacobian of the forward kinematics.
 TEST(CheckSingularity, SigmaMinMatchesFiniteDifferences) {

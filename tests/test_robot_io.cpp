@@ -1,6 +1,7 @@
 #include <gtest/gtest.h>
 
 #include <random>
+#include <tuple>
 
 #include "accura/calib/errors.h"
 #include "accura/calib/kinematics.h"
@@ -117,6 +118,88 @@ TEST(RobotIo, BadFilesGiveFileLineAndWhat) {
                        "  </joints>\n  <calibration form=\"auto\">\n    <parameter name=\"j1_a\" value=\"1\" unit=\"deg\"/>\n"
                        "  </calibration>\n</robot>\n",
                    9, "expected unit 'mm', found 'deg'");
+}
+
+// What an element holds besides its attributes is never ignored: a child element where the
+// format has none (a <limit> inside a <joint>, written as in a URDF) and text (a value put
+// between the tags) are errors at the child's '<' or at the text.
+TEST(RobotIo, ChildrenAndTextWhereTheFormatHasNoneAreErrors) {
+  const std::string joint_attrs =
+      "name=\"j\" type=\"revolute\" a_mm=\"1\" alpha_deg=\"90\" d_mm=\"0\" theta0_deg=\"0\" direction=\"1\" "
+      "lower=\"-10\" upper=\"10\" mass_kg=\"1\" com_x_mm=\"0\" com_y_mm=\"0\" com_z_mm=\"0\"";
+  const std::string joint = "    <joint " + joint_attrs + "/>\n";
+  const std::string tail = "  </joints>\n</robot>\n";
+  struct Case {
+    std::string name, xml;
+    int line;
+    std::string line_text, at, says;
+  };
+  const std::string limit_line = "    <joint " + joint_attrs + "><limit lower=\"-5\" upper=\"5\"/></joint>";
+  const std::string base_line = "  <base x_mm=\"0\" y_mm=\"0\" z_mm=\"0\" a_deg=\"0\" b_deg=\"0\" c_deg=\"0\">500</base>";
+  const std::string param_line = "    <parameter name=\"j1_a\" value=\"1\" unit=\"mm\">0.5</parameter>";
+  const std::string range_line = "    <fit_range joint=\"1\" lower=\"-5\" upper=\"5\" unit=\"deg\"><note/></fit_range>";
+  std::string head_with_text_base = kHead;
+  head_with_text_base.replace(head_with_text_base.find("  <base"), head_with_text_base.find("\n", head_with_text_base.find("  <base")) -
+                                                                        head_with_text_base.find("  <base"), base_line);
+  const std::vector<Case> cases = {
+      {"joint_child", std::string(kHead) + limit_line + "\n" + tail, 6, limit_line, "<limit", "<joint>: expected no child elements, found <limit>"},
+      {"base_text", head_with_text_base + joint + tail, 2, base_line, "500", "<base>: expected no text, found '500'"},
+      {"joints_text", std::string(kHead) + "    A1\n" + joint + tail, 6, "    A1", "A1", "<joints>: expected no text, found 'A1'"},
+      {"param_text", std::string(kHead) + joint + "  </joints>\n  <calibration form=\"auto\">\n" + param_line + "\n  </calibration>\n</robot>\n", 9,
+       param_line, "0.5", "<parameter>: expected no text, found '0.5'"},
+      {"range_child", std::string(kHead) + joint + "  </joints>\n  <calibration form=\"auto\">\n" + range_line + "\n  </calibration>\n</robot>\n", 9,
+       range_line, "<note", "<fit_range>: expected no child elements, found <note>"},
+      {"robot_text", std::string(kHead) + joint + "  </joints>\n  end\n</robot>\n", 8, "  end", "end", "<robot>: expected no text, found 'end'"},
+  };
+  for (const Case& c : cases) {
+    const std::string path = test::tempDir("robot_content") + "/" + c.name + ".xml";
+    test::writeText(path, c.xml);
+    try {
+      readRobotFile(path);
+      ADD_FAILURE() << "accepted: " << c.name;
+    } catch (const InputError& e) {
+      const int column = static_cast<int>(c.line_text.find(c.at)) + 1;
+      EXPECT_EQ(std::string(e.what()), path + ":" + std::to_string(c.line) + ":" + std::to_string(column) + ": " + c.says) << c.name;
+    }
+  }
+  // comments are no content
+  const std::string path = test::tempDir("robot_content") + "/comment.xml";
+  test::writeText(path, std::string(kHead) + "    <!-- the first axis -->\n    <joint " + joint_attrs + "><!-- A1 --></joint>\n" + tail);
+  EXPECT_EQ(readRobotFile(path).nominal.joints.at(0).upper, 10.0);
+}
+
+// Gravity is m/s^2: a vector in mm/s^2, in g or zero would scale every gravity load of the
+// compliance model silently (by 1000, 1/9.81 or to nothing).
+TEST(RobotIo, GravityInOtherUnitsIsAnError) {
+  const std::string joint =
+      "    <joint name=\"j\" type=\"revolute\" a_mm=\"1\" alpha_deg=\"90\" d_mm=\"0\" theta0_deg=\"0\" direction=\"1\" "
+      "lower=\"-10\" upper=\"10\" mass_kg=\"1\" com_x_mm=\"0\" com_y_mm=\"0\" com_z_mm=\"0\"/>\n";
+  const auto withGravity = [&](const std::string& name, const std::string& xyz) {
+    std::string xml = kHead;
+    xml.insert(xml.find("  <joints>"), "  <gravity " + xyz + "/>\n");
+    const std::string path = test::tempDir("robot_gravity") + "/" + name + ".xml";
+    test::writeText(path, xml + joint + "  </joints>\n</robot>\n");
+    return path;
+  };
+  for (const auto& [name, xyz, magnitude] : std::vector<std::tuple<std::string, std::string, std::string>>{
+           {"mm", "x=\"0\" y=\"0\" z=\"-9806.65\"", "9806.65 (mm/s^2?)"},
+           {"g", "x=\"0\" y=\"0\" z=\"-1\"", "1 (in g?)"},
+           {"zero", "x=\"0\" y=\"0\" z=\"0\"", "0"},
+           {"tilted_mm", "x=\"3000\" y=\"0\" z=\"-4000\"", "5000"}}) {
+    const std::string path = withGravity(name, xyz);
+    try {
+      readRobotFile(path);
+      ADD_FAILURE() << "accepted gravity " << xyz;
+    } catch (const InputError& e) {
+      EXPECT_EQ(std::string(e.what()), path + ":5:3: <gravity>: expected the gravity vector in m/s^2, of magnitude about 9.81 (9 to 10.5; "
+                                              "standard 0 0 -9.80665), found magnitude " + magnitude);
+    }
+  }
+  // floor, ceiling, a wall (tilted), a rounded 10: read as written
+  EXPECT_EQ(readRobotFile(withGravity("floor", "x=\"0\" y=\"0\" z=\"-9.80665\"")).nominal.gravity_base.z(), -9.80665);
+  EXPECT_EQ(readRobotFile(withGravity("ceiling", "x=\"0\" y=\"0\" z=\"9.81\"")).nominal.gravity_base.z(), 9.81);
+  EXPECT_EQ(readRobotFile(withGravity("wall", "x=\"-6\" y=\"0\" z=\"-8\"")).nominal.gravity_base.x(), -6.0);
+  EXPECT_EQ(readRobotFile(withGravity("rounded", "x=\"0\" y=\"0\" z=\"-10\"")).nominal.gravity_base.z(), -10.0);
 }
 
 TEST(RobotIo, ResolveByNameOrPath) {

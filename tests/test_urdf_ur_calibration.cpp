@@ -609,5 +609,50 @@ TEST(UrCalibration, MalformedFilesGiveFileLineColumnExpectedFound) {
   std::filesystem::remove_all(dir);
 }
 
+// export writes its --out to a temporary file renamed into place, and never over one of its
+// inputs: the controller's calibration.conf (its joint checksums and status would be lost to a
+// file of the four delta lists), the ur_calibration YAML or the robot file (by path or by the
+// bundled name) are refused, exit 1, each left byte for byte.
+TEST(UrCalibration, ExportNeverOverwritesItsInputs) {
+  const std::string dir = test::tempDir("ur_export_inputs");
+  // the bundled robots from a copy (a regression must not overwrite the source tree's)
+  std::filesystem::create_directories(dir + "/robots");
+  test::writeText(dir + "/robots/ur10.xml", test::readText(test::sourcePath("robots/ur10.xml")));
+  ASSERT_EQ(::setenv("ACCURA_ROBOTS_DIR", (dir + "/robots").c_str(), 1), 0);
+  struct Unset {
+    ~Unset() { ::unsetenv("ACCURA_ROBOTS_DIR"); }
+  } unset;
+  const std::string conf = test::readText(test::sourcePath("tests/data/urdf/ur_forum_calibration.conf"));
+  test::writeText(dir + "/calibration.conf", conf);
+  test::CliRun r = test::runAccuraIn(dir, "export --robot ur10 --ur-deltas calibration.conf --format robot --out ur10_cal.xml");
+  ASSERT_EQ(r.code, 0) << r.err;
+  r = test::runAccuraIn(dir, "export --robot ur10 --format ur-yaml --out ur10.yaml");
+  ASSERT_EQ(r.code, 0) << r.err;
+  const std::string cal = test::readText(dir + "/ur10_cal.xml"), yaml = test::readText(dir + "/ur10.yaml");
+  const std::string bundled = test::readText(dir + "/robots/ur10.xml");
+  const std::vector<std::tuple<std::string, std::string, std::string>> runs = {
+      {"export --robot ur10 --ur-deltas calibration.conf --format ur-deltas --out calibration.conf", "calibration.conf", "calibration.conf"},
+      {"export --robot ur10 --ur-deltas calibration.conf --format robot --out ./calibration.conf", "./calibration.conf", "calibration.conf"},
+      {"export --robot ur10 --ur-yaml ur10.yaml --format ur-yaml --out ur10.yaml", "ur10.yaml", "ur10.yaml"},
+      {"export --robot ur10_cal.xml --format robot --out ur10_cal.xml", "ur10_cal.xml", "ur10_cal.xml"},
+      {"export --robot ur10_cal.xml --format urdf --out " + dir + "/ur10_cal.xml", dir + "/ur10_cal.xml", "ur10_cal.xml"},
+      {"export --robot ur10 --format robot --out robots/ur10.xml", "robots/ur10.xml", dir + "/robots/ur10.xml"},
+  };
+  for (const auto& [args, out, in] : runs) {
+    r = test::runAccuraIn(dir, args);
+    EXPECT_EQ(r.code, 1) << args;
+    EXPECT_EQ(r.err, "accura: error: " + out + ": the output would overwrite the input " + in + ": choose another --out\n") << args;
+  }
+  EXPECT_EQ(test::readText(dir + "/calibration.conf"), conf);
+  EXPECT_EQ(test::readText(dir + "/ur10.yaml"), yaml);
+  EXPECT_EQ(test::readText(dir + "/ur10_cal.xml"), cal);
+  EXPECT_EQ(test::readText(dir + "/robots/ur10.xml"), bundled);
+  // another name is written as before
+  r = test::runAccuraIn(dir, "export --robot ur10_cal.xml --format ur-deltas --out back.conf");
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_NEAR(readUrCalibrationConf(dir + "/back.conf").d_m[2], -92.5270326908668181, 1e-6);
+  std::filesystem::remove_all(dir);
+}
+
 }  // namespace
 }  // namespace accura::calib

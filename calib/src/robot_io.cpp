@@ -95,6 +95,7 @@ class Reader {
 
   Eigen::Isometry3d pose(const XMLElement* e) const {
     checkAttributes(e, {"x_mm", "y_mm", "z_mm", "a_deg", "b_deg", "c_deg"});
+    checkContent(e, false);
     XyzAbc p;
     p.x_mm = number(e, "x_mm");
     p.y_mm = number(e, "y_mm");
@@ -103,6 +104,18 @@ class Reader {
     p.b_deg = number(e, "b_deg");
     p.c_deg = number(e, "c_deg");
     return toIsometry(p);
+  }
+
+  /// What an element holds besides its attributes: no text (`<base ...>500</base>`), and no
+  /// child elements unless `children` (`<joint ...><limit .../></joint>`): never ignored.
+  void checkContent(const XMLElement* e, bool children) const {
+    if (!children)
+      if (const XMLElement* c = e->FirstChildElement())
+        fail(c, "<" + std::string(e->Name()) + ">: expected no child elements, found <" + c->Name() + ">");
+    const std::string t = strayText(e);
+    if (!t.empty())
+      failContent(e, t.substr(0, t.find_first_of("\r\n&<")),
+                  "<" + std::string(e->Name()) + ">: expected no text, found '" + printableBytes(t.substr(0, 40)) + (t.size() > 40 ? "...'" : "'"));
   }
 
   const XMLElement* child(const XMLElement* parent, const char* name, bool required) const {
@@ -163,6 +176,7 @@ JointSpec readJoint(const Reader& R, const XMLElement* j) {
     R.fail(j, "<joints>: expected <joint>, found <" + std::string(j->Name()) + ">");
   R.checkAttributes(j, {"name", "type", "a_mm", "alpha_deg", "d_mm", "theta0_deg", "direction",
                         "lower", "upper", "mass_kg", "com_x_mm", "com_y_mm", "com_z_mm"});
+  R.checkContent(j, false);
   JointSpec s;
   s.name = R.text(j, "name");
   const std::string type = R.text(j, "type");
@@ -191,6 +205,7 @@ JointSpec readJoint(const Reader& R, const XMLElement* j) {
 /// The nominal robot: <robot>'s attributes, base, tool, payload, gravity and joints.
 RobotDefinition readDefinition(const Reader& R, const XMLElement* root) {
   R.checkAttributes(root, {"name", "source"});
+  R.checkContent(root, true);
   for (const XMLElement* c = root->FirstChildElement(); c; c = c->NextSiblingElement()) {
     static const std::set<std::string> known = {"base", "tool", "payload", "gravity", "joints",
                                                 "calibration"};
@@ -205,14 +220,24 @@ RobotDefinition readDefinition(const Reader& R, const XMLElement* root) {
   def.T_flange_tcp = R.pose(R.child(root, "tool", true));
   const XMLElement* payload = R.child(root, "payload", true);
   R.checkAttributes(payload, {"com_x_mm", "com_y_mm", "com_z_mm"});
+  R.checkContent(payload, false);
   def.payload_com_mm = Eigen::Vector3d(R.number(payload, "com_x_mm"), R.number(payload, "com_y_mm"),
                                        R.number(payload, "com_z_mm"));
   if (const XMLElement* g = R.child(root, "gravity", false)) {
     R.checkAttributes(g, {"x", "y", "z"});
+    R.checkContent(g, false);
     def.gravity_base = Eigen::Vector3d(R.number(g, "x"), R.number(g, "y"), R.number(g, "z"));
+    // m/s^2 on the Earth's surface (9.78 to 9.83; 10 when rounded): a vector in mm/s^2, in g or
+    // zero is a unit mistake, and it would scale every gravity load (compliance) silently
+    const double magnitude = def.gravity_base.norm();
+    if (!(magnitude >= 9.0 && magnitude <= 10.5))
+      R.fail(g, "<gravity>: expected the gravity vector in m/s^2, of magnitude about 9.81 (9 to 10.5; standard 0 0 -9.80665), found magnitude " +
+                    formatNumber("%.6g", magnitude) +
+                    (magnitude > 9000 && magnitude < 10500 ? " (mm/s^2?)" : magnitude > 0.9 && magnitude < 1.05 ? " (in g?)" : ""));
   }
   const XMLElement* joints = R.child(root, "joints", true);
   R.checkAttributes(joints, {});
+  R.checkContent(joints, true);
   for (const XMLElement* j = joints->FirstChildElement(); j; j = j->NextSiblingElement()) {
     def.joints.push_back(readJoint(R, j));
     // names identify joints (messages, the mapping files' joints, URDF export): one per joint
@@ -233,6 +258,10 @@ void readJointCurve(const Reader& R, const XMLElement* p, RobotModel& model, std
   const int dof = model.dof();
   R.checkAttributes(p, tag == "fit_range" ? std::set<std::string>{"joint", "lower", "upper", "unit"}
                                           : std::set<std::string>{"joint", "lower", "upper", "intervals", "taper", "period", "unit"});
+  // a <fit_range> holds nothing, a <joint_map> its values (text) only
+  if (tag == "fit_range") R.checkContent(p, false);
+  else if (const XMLElement* c = p->FirstChildElement())
+    R.fail(c, "<joint_map>: expected its values (text) only, found <" + std::string(c->Name()) + ">");
   const double jv = R.number(p, "joint");
   if (jv != std::floor(jv) || jv < 1 || jv > dof)
     R.failAttribute(p, "joint", "<" + tag + "> attribute 'joint': expected 1.." + std::to_string(dof) + ", found '" +
@@ -303,6 +332,7 @@ void readCalibration(const Reader& R, const XMLElement* cal, FormPolicy policy, 
     if (tag != "parameter")
       R.fail(p, "<calibration>: expected <parameter>, <joint_map> or <fit_range>, found <" + tag + ">");
     R.checkAttributes(p, {"name", "value", "sigma", "unit"});
+    R.checkContent(p, false);
     const std::string name = R.text(p, "name");
     auto it = std::find_if(layout.begin(), layout.end(),
                            [&](const ParamInfo& info) { return info.name == name; });
@@ -356,6 +386,7 @@ RobotModel readRobotFile(const std::string& path) {
   const XMLElement* cal = R.child(root, "calibration", false);
   if (cal) {
     R.checkAttributes(cal, {"form", "data"});
+    R.checkContent(cal, true);
     const std::string form = R.text(cal, "form");
     if (form == "dh") policy = FormPolicy::kDHOnly;
     else if (form != "auto") R.failAttribute(cal, "form", "<calibration> attribute 'form': expected 'auto' or 'dh', found '" + form + "'");

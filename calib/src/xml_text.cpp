@@ -257,6 +257,18 @@ std::pair<int, int> XmlPositions::attribute(const XMLElement* e, const std::stri
   return found == std::string::npos ? element(e) : lineColumn(found);
 }
 
+std::string strayText(const XMLElement* e) {
+  if (!e) return {};
+  for (const tinyxml2::XMLNode* n = e->FirstChild(); n; n = n->NextSibling()) {
+    const tinyxml2::XMLText* t = n->ToText();
+    if (!t || !t->Value()) continue;
+    const std::string s = t->Value();
+    const size_t a = s.find_first_not_of(" \t\r\n");
+    if (a != std::string::npos) return s.substr(a, s.find_last_not_of(" \t\r\n") - a + 1);
+  }
+  return {};
+}
+
 std::pair<int, int> XmlPositions::content(const XMLElement* e, const std::string& token) const {
   if (!e) return {0, 0};
   const size_t body = startTagEnd(e);

@@ -20,6 +20,7 @@
 
 #include "accura/calib/errors.h"
 #include "accura/calib/geometry.h"
+#include "accura/calib/text.h"
 #include "accura/calib/xml_text.h"
 #include "decimal.h"
 
@@ -43,6 +44,16 @@ class CellReader {
     throw calib::InputError(file_, line, column, msg);
   }
   std::pair<int, int> where(const XMLElement* e) const { return pos_.element(e); }
+
+  /// Text in an element of the cell file, which holds none (`<tool>torch<capsule .../></tool>`):
+  /// never ignored.
+  void checkNoText(const XMLElement* e) const {
+    const std::string t = calib::strayText(e);
+    if (t.empty()) return;
+    const auto [line, column] = pos_.content(e, t.substr(0, t.find_first_of("\r\n&<")));
+    throw calib::InputError(file_, line, column, std::string("<") + e->Name() + ">: expected no text, found '" +
+                                                     calib::printableBytes(t.substr(0, 40)) + (t.size() > 40 ? "...'" : "'"));
+  }
 
   void checkAttributes(const XMLElement* e, const std::set<std::string>& allowed) const {
     for (const tinyxml2::XMLAttribute* a = e->FirstAttribute(); a; a = a->Next()) {
@@ -129,6 +140,7 @@ class CellReader {
   /// <capsule> children, all placed by its placement attributes.
   std::vector<CellShape> shapes(const XMLElement* e, const std::string& name, const std::string& dir) const {
     std::vector<CellShape> out;
+    checkNoText(e);
     const Eigen::Isometry3d T = placement(e);
     if (attr(e, "file")) {
       const std::string rel = text(e, "file");
@@ -153,6 +165,8 @@ class CellReader {
       if (std::string(c->Name()) != "capsule")
         fail(c, std::string("<") + e->Name() + ">: expected <capsule> children only, found <" + c->Name() + ">");
       checkAttributes(c, {"x0_mm", "y0_mm", "z0_mm", "x1_mm", "y1_mm", "z1_mm", "radius_mm"});
+      if (const XMLElement* cc = c->FirstChildElement()) fail(cc, "<capsule>: expected no children, found <" + std::string(cc->Name()) + ">");
+      checkNoText(c);
       Capsule cap;
       const double B = kMaxCellExtent_mm;
       cap.p0_mm = {bounded(c, "x0_mm", nullptr, B, "mm"), bounded(c, "y0_mm", nullptr, B, "mm"), bounded(c, "z0_mm", nullptr, B, "mm")};
@@ -199,6 +213,7 @@ Cell readCellFile(const std::string& path) {
   if (!root || std::string(root->Name()) != "cell")
     R.fail(root, std::string("expected the root element <cell>, found ") + (root ? "<" + std::string(root->Name()) + ">" : "none"));
   R.checkAttributes(root, {"name"});
+  R.checkNoText(root);
   const std::string dir = std::filesystem::path(path).parent_path().string();
   Cell cell;
   cell.file = path;
@@ -218,12 +233,14 @@ Cell readCellFile(const std::string& path) {
       if (t.singular_threshold < 0) R.failAttribute(e, "singular_threshold", "<thresholds> singular_threshold: expected a value >= 0, found " + std::to_string(t.singular_threshold));
       if (t.min_clearance_mm < 0) R.failAttribute(e, "min_clearance_mm", "<thresholds> min_clearance_mm: expected a distance >= 0, found " + std::to_string(t.min_clearance_mm));
       if (e->FirstChildElement()) R.fail(e->FirstChildElement(), "<thresholds>: expected no children, found <" + std::string(e->FirstChildElement()->Name()) + ">");
+      R.checkNoText(e);
     } else if (tag == "robot") {
       if (cell.T_world_base) R.fail(e, "expected one <robot>, found a second one");
       R.checkAttributes(e, {"x_mm", "y_mm", "z_mm", "a_deg", "b_deg", "c_deg"});
       cell.T_world_base = R.placement(e);
       std::tie(cell.robot_line, cell.robot_column) = R.where(e);
       if (e->FirstChildElement()) R.fail(e->FirstChildElement(), "<robot>: expected no children, found <" + std::string(e->FirstChildElement()->Name()) + ">");
+      R.checkNoText(e);
     } else if (tag == "object") {
       R.checkAttributes(e, {"name", "file", "units", "x_mm", "y_mm", "z_mm", "a_deg", "b_deg", "c_deg"});
       const std::string name = R.text(e, "name");

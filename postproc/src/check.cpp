@@ -519,6 +519,25 @@ CheckReport checkWorld(const calib::RobotModel& real, const calib::RobotModel& c
                           "clearance not checked: the cell has " + std::to_string(cell.objects.size()) +
                               " object(s) but no robot geometry (no <tool>, no <link>), so no distance was measured; add the tool "
                               "and link geometry to the cell file to check the clearance"});
+  // a mesh only millimetres across is a file in metres (or inches) given units="mm", more
+  // likely than a real part: a 2 m table read so is 2 mm and would leave its clearance unchecked
+  const auto smallMesh = [&](const CellShape& s, const std::string& what) {
+    if (!s.mesh || s.mesh->vertices_mm.empty()) return;
+    Eigen::Vector3d lo = s.mesh->vertices_mm.front(), hi = lo;
+    for (const auto& v : s.mesh->vertices_mm) {
+      lo = lo.cwiseMin(v);
+      hi = hi.cwiseMax(v);
+    }
+    const double across = (hi - lo).norm();
+    if (across < kSmallMesh_mm)
+      r.warnings.push_back({SourceLocation{cell.file, s.line, s.column},
+                            what + ": its mesh " + s.mesh->file + " is only " + calib::formatFixed(across, 3) +
+                                " mm across: check the units the cell gives the file (a file in metres needs units=\"m\"); the check "
+                                "measures it as it is"});
+  };
+  for (const CellShape& s : cell.objects) smallMesh(s, "object '" + s.name + "'");
+  for (const auto& [joint, s] : cell.link_shapes) smallMesh(s, s.name);
+  for (const CellShape& s : cell.tool_shapes) smallMesh(s, s.name);
   Checker c(real, models, cell, options, context, r, geometry);
   c.run(motions, indices, start_unknown);
   finish(r);

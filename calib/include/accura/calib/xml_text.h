@@ -29,6 +29,11 @@ namespace accura::calib {
 void parseXml(tinyxml2::XMLDocument& doc, const std::string& text, const std::string& file,
               const std::string& what);
 
+/// The first text of `e`'s own content (not its children's) that is more than white space,
+/// trimmed; empty when there is none. Comments are not text. For the readers' errors: text
+/// where the format has none (`<base ...>500</base>`) is never ignored.
+std::string strayText(const tinyxml2::XMLElement* e);
+
 /// Positions of a parsed document's elements and attributes in its text.
 class XmlPositions {
  public:

@@ -29,6 +29,10 @@ inline constexpr double kMaxCellExtent_mm = 1e5;
 inline constexpr double kMaxCellAngle_deg = 360;
 
 /// A triangle mesh (mm) in its own frame.
+/// A mesh less than this across (mm) is reported by the checks as a likely unit mistake (a
+/// file in metres given units="mm"; below 1 mm loadMesh refuses it).
+inline constexpr double kSmallMesh_mm = 10.0;
+
 struct Mesh {
   std::vector<Eigen::Vector3d> vertices_mm;
   std::vector<std::array<int, 3>> triangles;  ///< vertex indices, counter-clockwise
