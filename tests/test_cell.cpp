@@ -337,6 +337,31 @@ TEST(CellDistance, TrianglesWithoutAreaAreLeftOut) {
   EXPECT_NEAR(g.sphereDistance(Eigen::Vector3d(0, 0, 80), 10, 0), 20.0, 1e-9);
 }
 
+// A facet without area whose normal the exporter wrote as nan or inf (the normals are not used):
+// read, the facet left out; a normal that is no number is still an error at it.
+TEST(CellMesh, AsciiStlNormalsOfNanOrInfAreRead) {
+  const std::string dir = test::tempDir("cell_stl_nan_normal");
+  std::string stl = test::readText(fixture("box_100mm.stl"));
+  const size_t end = stl.rfind("endsolid");
+  ASSERT_NE(end, std::string::npos);
+  std::string with = stl;
+  with.insert(end, "facet normal nan nan nan\nouter loop\nvertex 0 0 50\nvertex 0 0 50\nvertex 0 0 50\nendloop\nendfacet\n"
+                   "facet normal -NaN +inf -Infinity\nouter loop\nvertex -50 50 50\nvertex 0 50 50\nvertex 50 50 50\nendloop\nendfacet\n");
+  test::writeText(dir + "/nan.stl", with);
+  EXPECT_EQ(loadMesh(dir + "/nan.stl", 1.0).triangles.size(), loadMesh(fixture("box_100mm.stl"), 1.0).triangles.size());
+  std::string bad = stl;
+  bad.insert(end, "facet normal 0 n/a 0\nouter loop\nvertex 0 0 50\nvertex 1 0 50\nvertex 0 1 50\nendloop\nendfacet\n");
+  test::writeText(dir + "/bad.stl", bad);
+  const int line = 1 + static_cast<int>(std::count(stl.begin(), stl.begin() + static_cast<long>(end), '\n'));
+  try {
+    loadMesh(dir + "/bad.stl", 1.0);
+    FAIL() << "expected an InputError";
+  } catch (const calib::InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("bad.stl:" + std::to_string(line) + ":16: expected a component of the facet's normal"),
+              std::string::npos) << e.what();
+  }
+}
+
 // ASCII STL as CAD tools write it: after blank lines and spaces it is read (assimp needs 'solid'
 // first); in upper case (which assimp cannot read) it is named so, not a "truncated binary STL".
 TEST(CellMesh, AsciiStlAfterBlankLinesAndInUpperCase) {

@@ -132,6 +132,19 @@ class Checker {
     if (!parseDecimal(w.text, &v)) fail(w, std::string("expected ") + what + " (a finite decimal number), found " + quoted(w.text));
     return v;
   }
+  // A facet normal's component (ASCII STL): the normals are not used (the triangle's corners
+  // are), and exporters write nan or inf for a facet without area; so as assimp reads them
+  // ([+-] nan, inf, infinity in any case), else a decimal number.
+  void normalComponent(const Word& w) const {
+    double v = 0;
+    if (parseDecimal(w.text, &v)) return;
+    std::string t(w.text);
+    for (char& c : t) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    if (!t.empty() && (t[0] == '-' || t[0] == '+')) t.erase(0, 1);
+    if (t == "nan" || t == "inf" || t == "infinity") return;
+    fail(w, "expected a component of the facet's normal (a decimal number, or nan / inf as exporters write for a facet "
+            "without area), found " + quoted(w.text));
+  }
   double coordinate(const Word& w, const char* what) const {
     const double v = number(w, what);
     coordinate(v, [&](const std::string& m) { fail(w, std::string(what) + ": " + m); });
@@ -500,7 +513,7 @@ class Checker {
         for (int k = 0; k < 3; ++k) {
           // on the keyword's line, as assimp reads them
           if (!s.wordOnLine(&w)) fail(s.here(), "expected the 3 numbers of the facet's normal on its line, found the end of the line");
-          number(w, "a component of the facet's normal");
+          normalComponent(w);
         }
         expect("outer", "");
         expect("loop", " after 'outer'");
