@@ -505,9 +505,23 @@ void printValidation(const IdentifyArgs& a, const IdentifyRun& r) {
     std::printf("\n");
   }
   if (r.outside_rows > 0) {
-    std::printf("  %d of %d validation poses %s outside the joint ranges of the fit data (joint maps are zero there; the "
-                "other joint-dependent effects, such as gear_periodic, joint_scale and compliance, are extrapolated):",
-                r.outside_rows, r.val.n, r.outside_rows == 1 ? "lies" : "lie");
+    // what the calibrated model does there: its joint maps are zero, its other joint-dependent
+    // effects extrapolated; only the geometry when it has neither
+    const calib::Deviations& d = r.calibrated.deviations;
+    const auto any = [](const std::vector<double>& v) { return std::any_of(v.begin(), v.end(), [](double x) { return x != 0; }); };
+    const bool maps = std::any_of(d.joint_map.begin(), d.joint_map.end(), [](const calib::JointMap& m) { return !m.empty(); });
+    std::vector<std::string> extrapolated;
+    if (any(d.gear_sin) || any(d.gear_cos)) extrapolated.push_back("gear_periodic");
+    if (any(d.joint_scale)) extrapolated.push_back("joint_scale");
+    if (any(d.compliance)) extrapolated.push_back("joint_compliance");
+    std::string what;
+    for (size_t k = 0; k < extrapolated.size(); ++k)
+      what += (k == 0 ? "" : k + 1 == extrapolated.size() ? " and " : ", ") + extrapolated[k];
+    if (!extrapolated.empty()) what = "its " + what + (extrapolated.size() == 1 ? " is" : " are") + " extrapolated";
+    if (maps) what = "the model's joint maps are zero there" + (what.empty() ? std::string() : "; " + what);
+    if (what.empty()) what = "the model has no joint-dependent effect beyond the geometry, which the fit did not see there";
+    std::printf("  %d of %d validation poses %s outside the joint ranges of the fit data (%s):", r.outside_rows, r.val.n,
+                r.outside_rows == 1 ? "lies" : "lie", what.c_str());
     const char* separator = " ";
     for (int j = 0; j < r.start.dof(); ++j) {
       const Outside& o = r.outside[static_cast<size_t>(j)];

@@ -351,8 +351,8 @@ TEST(CliIdentify, ValidationOutsideTheFitRangesReadsAsASentence) {
   const int n = j["poses"].get<int>();
   ASSERT_GT(n, 0) << "60 fit poses leave some of 200 validation poses outside their ranges";
   std::string expected = "  " + std::to_string(n) + " of 200 validation poses " + (n == 1 ? "lies" : "lie") +
-                         " outside the joint ranges of the fit data (joint maps are zero there; the other joint-dependent effects, "
-                         "such as gear_periodic, joint_scale and compliance, are extrapolated):";
+                         " outside the joint ranges of the fit data (the model has no joint-dependent effect beyond the geometry, "
+                         "which the fit did not see there):";
   const char* separator = " ";
   for (const auto& o : j["joints"]) {
     const int k = o["poses"].get<int>();
@@ -367,6 +367,11 @@ TEST(CliIdentify, ValidationOutsideTheFitRangesReadsAsASentence) {
   EXPECT_EQ(r.out.find(";\n"), std::string::npos) << r.out;
   const CliRun quiet = run("identify --robot kuka_kr16 --tool 80,40,150 --data fit.csv --validate val.csv --out cal.xml --quiet", dir);
   EXPECT_NE(quiet.out.find(expected + "\n"), std::string::npos) << "--quiet says it too (eyes F5)\n" << quiet.out;
+  // with a joint-dependent effect in the model, the sentence names it as extrapolated
+  const CliRun c = run("identify --robot kuka_kr16 --tool 80,40,150 --data fit.csv --params geometric,joint_compliance "
+                       "--validate val.csv --out cc.xml", dir);
+  ASSERT_EQ(c.code, 0) << c.err;
+  EXPECT_NE(c.out.find(" outside the joint ranges of the fit data (its joint_compliance is extrapolated):"), std::string::npos) << c.out;
   const CliRun help = run("identify --help", dir);
   EXPECT_NE(help.out.find("held-out measurement CSV (from the fit's station; another: --validate-station new)"), std::string::npos)
       << help.out;
