@@ -169,8 +169,10 @@ int runDiagnose(const DiagnoseArgs& a) {
   for (const std::string& f : a.data) sets.push_back(readMeasurements(f, a.map, start.nominal));
   calib::refuseSharedMeasurements(sets);  // (a copy of a file under another name)
   calib::MeasurementSet validation;
-  if (!a.validate.empty())
+  if (!a.validate.empty()) {
     validation = readMeasurements(a.validate, a.validate_map.empty() ? a.map : a.validate_map, start.nominal);
+    calib::refuseValidationInFitData(sets, validation);
+  }
   calib::StationSets stations;
   calib::Diagnosis d = calib::diagnose(start, sets, a.same_station, a.validate.empty() ? nullptr : &validation, o, &stations);
   const calib::MeasurementSet& data = stations.combined;

@@ -128,6 +128,10 @@ void readData(const IdentifyArgs& a, IdentifyRun& r) {
                             "from the --data file), found both");
   if (!a.validate.empty()) {
     r.validation = readMeasurements(a.validate, a.validate_map.empty() ? a.map : a.validate_map, r.start.nominal);
+    calib::refuseValidationInFitData(r.sets, r.validation);
+    // a row written twice is one measurement: counted once in the validation too
+    if (const std::string w = calib::duplicatedRowsWarning(r.validation.file, calib::removeDuplicatedRows(r.validation)); !w.empty())
+      r.data_warnings.push_back(w);
     r.validation_source = a.validate;
     return;
   }

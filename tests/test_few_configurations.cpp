@@ -195,8 +195,12 @@ TEST(FewConfigurations, AValidationStationNeedsDistinctConfigurations) {
   auto repeated = [&](int configs, const std::string& name) {
     MeasurementSet s = five;
     s.rows.clear();
+    // (each repeat measured anew: 1 um apart, not the same row written twice, which counts once)
     for (int c = 0; c < configs; ++c)
-      for (int k = 0; k < 10; ++k) s.rows.push_back(five.rows[static_cast<size_t>(c)]);
+      for (int k = 0; k < 10; ++k) {
+        s.rows.push_back(five.rows[static_cast<size_t>(c)]);
+        s.rows.back().p_world_mm.x() += 0.001 * k;
+      }
     writeMeasurementsCsv(dir + "/" + name, s, 6);
   };
   repeated(5, "v5.csv");

@@ -292,6 +292,61 @@ TEST(MeasurementQuality, TheSameDataGivenTwiceIsRefusedNamingBothFiles) {
   }
 }
 
+// A validation file that holds rows of the fit data (the fit file given again, or part of it)
+// measures the fit, not the accuracy on new poses: identify and diagnose refuse it at its first
+// such row, naming the fit file's row and how many rows the two share, and write nothing. Rows
+// written twice in a validation file count once (identify said nothing and counted them twice).
+TEST(MeasurementQuality, AValidationOnTheFitDataIsRefusedAndItsRowsWrittenTwiceCountOnce) {
+  const std::string dir = test::tempDir("mq_validate_fit");
+  const Campaign c = campaign(120, 66);
+  (void)roundTrip(c.set, dir + "/A.csv", c.nominal);
+  // 40 new poses, then rows 11..15 of A (validation lines 42..46; A's lines 12..16)
+  const Campaign other = campaign(40, 67);
+  MeasurementSet mixed = other.set;
+  for (size_t i = 10; i < 15; ++i) mixed.rows.push_back(c.set.rows[i]);
+  (void)roundTrip(mixed, dir + "/V.csv", c.nominal);
+  const std::string robot = "--robot kuka_kr16 --tool 80,40,150 --data " + dir + "/A.csv ";
+  for (const std::string& cmd : {"identify " + robot + "--out " + dir + "/o.xml", "diagnose " + robot + "--json " + dir + "/o.json"}) {
+    CliRun r = test::runAccura(cmd + " --validate " + dir + "/A.csv");
+    EXPECT_EQ(r.code, 1) << cmd << r.out;
+    EXPECT_NE(r.err.find("accura: error: " + dir + "/A.csv:2: expected held-out measurements, not in the fit data, found every one "
+                         "of its 120 rows identical to rows of the fit data (joint values and measured values equal to the last bit; "
+                         "the first: " + dir + "/A.csv:2 = " + dir + "/A.csv:2)"),
+              std::string::npos)
+        << cmd << "\n" << r.err;
+    r = test::runAccura(cmd + " --validate " + dir + "/V.csv");
+    EXPECT_EQ(r.code, 1) << cmd << r.out;
+    EXPECT_NE(r.err.find("accura: error: " + dir + "/V.csv:42: expected held-out measurements, not in the fit data, found 5 of its 45 "
+                         "rows identical to rows of the fit data (joint values and measured values equal to the last bit; the first: " +
+                         dir + "/V.csv:42 = " + dir + "/A.csv:12)"),
+              std::string::npos)
+        << cmd << "\n" << r.err;
+    EXPECT_FALSE(std::filesystem::exists(dir + "/o.xml"));
+    EXPECT_FALSE(std::filesystem::exists(dir + "/o.json"));
+  }
+  // a validation of 40 new poses with every 4th row written twice: identify's held-out figures
+  // are those of the 40 poses once each
+  MeasurementSet twice = other.set;
+  twice.rows.clear();
+  for (size_t i = 0; i < other.set.rows.size(); ++i) {
+    twice.rows.push_back(other.set.rows[i]);
+    if (i % 4 == 0) twice.rows.push_back(other.set.rows[i]);
+  }
+  (void)roundTrip(twice, dir + "/W.csv", c.nominal);
+  (void)roundTrip(other.set, dir + "/W1.csv", c.nominal);
+  const CliRun w = test::runAccura("identify " + robot + "--out " + dir + "/w.xml --json " + dir + "/w.json --validate " + dir + "/W.csv");
+  const CliRun w1 = test::runAccura("identify " + robot + "--out " + dir + "/w1.xml --json " + dir + "/w1.json --validate " + dir + "/W1.csv");
+  ASSERT_EQ(w.code, 0) << w.err;
+  ASSERT_EQ(w1.code, 0) << w1.err;
+  EXPECT_NE((w.out + w.err).find("10 row(s) of " + dir + "/W.csv repeat an earlier row of their joint configuration exactly"),
+            std::string::npos)
+      << w.out << w.err;
+  const auto jw = nlohmann::json::parse(test::readText(dir + "/w.json")), jw1 = nlohmann::json::parse(test::readText(dir + "/w1.json"));
+  EXPECT_EQ(jw["validation"]["n"].get<int>(), 40) << jw["validation"].dump();
+  EXPECT_NEAR(jw["validation"]["rms_mm"].get<double>(), jw1["validation"]["rms_mm"].get<double>(), 1e-12);
+  std::filesystem::remove_all(dir);
+}
+
 // The number printed right after `label` in `text` (NaN when the label is not there).
 double numberAfter(const std::string& text, const std::string& label) {
   const size_t at = text.find(label);

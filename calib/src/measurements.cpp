@@ -880,19 +880,54 @@ std::string duplicatedRowsWarning(const std::string& file, const std::vector<Dup
          "): the same measurement written twice, not a second measurement; each is counted once";
 }
 
+namespace {
+
+/// A row's joint values and measured values, bit for bit (refuseSharedMeasurements,
+/// refuseValidationInFitData).
+std::string measurementKey(const Measurement& r) {
+  std::string k;
+  auto put = [&](double v) { k.append(reinterpret_cast<const char*>(&v), sizeof v); };
+  for (Eigen::Index j = 0; j < r.q.size(); ++j) put(r.q[j]);
+  for (int a = 0; a < 3; ++a) put(r.p_world_mm[a]);
+  k.push_back(r.has_orientation ? 'R' : 'P');
+  if (r.has_orientation)
+    for (int a = 0; a < 4; ++a) put(r.R_world_tcp.coeffs()[a]);
+  return k;
+}
+
+}  // namespace
+
+void refuseValidationInFitData(const std::vector<MeasurementSet>& fit, const MeasurementSet& validation) {
+  std::unordered_map<std::string, std::pair<size_t, size_t>> in_fit;  // key -> (set, row)
+  for (size_t s = 0; s < fit.size(); ++s)
+    for (size_t i = 0; i < fit[s].rows.size(); ++i) in_fit.emplace(measurementKey(fit[s].rows[i]), std::make_pair(s, i));
+  size_t shared = 0;
+  const Measurement* first = nullptr;
+  std::pair<size_t, size_t> first_fit{0, 0};
+  for (const Measurement& r : validation.rows) {
+    const auto it = in_fit.find(measurementKey(r));
+    if (it == in_fit.end()) continue;
+    if (shared++ == 0) {
+      first = &r;
+      first_fit = it->second;
+    }
+  }
+  if (shared == 0) return;
+  const MeasurementSet& f = fit[first_fit.first];
+  throw InputError(validation.file, first->line, 0,
+                   "expected held-out measurements, not in the fit data, found " +
+                       (shared == validation.rows.size() ? "every one of its " + std::to_string(shared) + " rows"
+                                                         : std::to_string(shared) + " of its " + std::to_string(validation.rows.size()) + " rows") +
+                       " identical to rows of the fit data (joint values and measured values equal to the last bit; the first: " +
+                       validation.file + ":" + std::to_string(first->line) + " = " + f.file + ":" +
+                       std::to_string(f.rows[first_fit.second].line) +
+                       "): a validation on measurements the fit has seen measures the fit, not the accuracy on new poses; "
+                       "validate on measurements kept apart from the fit data (or use --holdout)");
+}
+
 void refuseSharedMeasurements(const std::vector<MeasurementSet>& sets) {
   if (sets.size() < 2) return;
-  // a row's joint values and measured values, bit for bit
-  auto key = [](const Measurement& r) {
-    std::string k;
-    auto put = [&](double v) { k.append(reinterpret_cast<const char*>(&v), sizeof v); };
-    for (Eigen::Index j = 0; j < r.q.size(); ++j) put(r.q[j]);
-    for (int a = 0; a < 3; ++a) put(r.p_world_mm[a]);
-    k.push_back(r.has_orientation ? 'R' : 'P');
-    if (r.has_orientation)
-      for (int a = 0; a < 4; ++a) put(r.R_world_tcp.coeffs()[a]);
-    return k;
-  };
+  const auto key = measurementKey;
   std::unordered_map<std::string, std::pair<size_t, size_t>> seen;  // key -> (set, row) of its first occurrence
   for (size_t s = 0; s < sets.size(); ++s) {
     const std::vector<Measurement>& rows = sets[s].rows;

@@ -129,6 +129,13 @@ std::string duplicatedRowsWarning(const std::string& file, const std::vector<Dup
 /// the earlier set's file and row and how many rows the two share.
 void refuseSharedMeasurements(const std::vector<MeasurementSet>& sets);
 
+/// Throws InputError when the held-out set `validation` holds rows of the fit data `fit` (joint
+/// values and measured values equal to the last bit, as refuseSharedMeasurements compares
+/// them): a validation on measurements the fit has seen measures the fit, not the accuracy on
+/// new poses. The error is at the validation's first such row and names the fit file's row and
+/// how many rows the two share.
+void refuseValidationInFitData(const std::vector<MeasurementSet>& fit, const MeasurementSet& validation);
+
 /// A joint that never moves in a data set: its 0-based index and the value it is held at (the
 /// mean of its rows; deg or mm).
 struct HeldJoint {
