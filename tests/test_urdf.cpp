@@ -416,8 +416,8 @@ TEST(Urdf, LoopsMimicBranchesAndChainsAreNamed) {
   EXPECT_NE(e.find("'j2'"), std::string::npos) << e;
   EXPECT_NE(e.find("mimics joint 'j1'"), std::string::npos) << e;
 
-  // a moving branch off link b (moved by j1) on the chain a:c
-  const std::string branch = replaced(kTwoJoint, "</robot>", R"(  <link name="d"/>
+  // a moving branch off link b (moved by j1) on the chain a:c, its link d weighing 2 kg
+  const std::string branch = replaced(kTwoJoint, "</robot>", R"(  <link name="d"><inertial><mass value="2"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial></link>
   <joint name="pan" type="continuous">
     <parent link="b"/><child link="d"/>
     <axis xyz="1 0 0"/>
@@ -427,12 +427,14 @@ TEST(Urdf, LoopsMimicBranchesAndChainsAreNamed) {
   EXPECT_NE(e.find("bad.urdf:18"), std::string::npos) << e;
   EXPECT_NE(e.find("'pan'"), std::string::npos) << e;
   EXPECT_NE(e.find("branches off the chain"), std::string::npos) << e;
+  EXPECT_NE(e.find("weigh 2 kg"), std::string::npos) << e;
   // without --chain the default cannot choose: the error says where and how
   e = errorOf(branch);
   EXPECT_NE(e.find("--chain"), std::string::npos) << e;
-  // the chain a:d is serial (j1, pan) and fine; c then branches off but below no chain joint's
-  // body other than j1's, which moves b: j2 is a branch of a:d
-  e = errorOf(branch, "a:d");
+  // the chain a:d is serial (j1, pan); c then branches off link b, which j1 moves: j2 is a
+  // branch of a:d, fine because its link c has no mass (it loads no joint), refused with 1 kg
+  EXPECT_EQ(parseUrdfChain(branch, "branch.urdf", "a:d").joints.size(), 2u);
+  e = errorOf(replaced(branch, "<link name=\"c\"/>", R"(<link name="c"><inertial><mass value="1"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial></link>)"), "a:d");
   EXPECT_NE(e.find("'j2'"), std::string::npos) << e;
   // unknown link in --chain
   e = errorOf(kTwoJoint, "a:zz");

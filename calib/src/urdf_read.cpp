@@ -466,6 +466,15 @@ SerialChain parseUrdfChain(const std::string& text, const std::string& file, con
   // are the chain's next joint. The last chain joint carries everything below it, whatever the
   // joints (a gripper's fingers beyond the tip or branching off the links up to it): their links
   // at those joints' zero (a mimic joint at its offset) are its load.
+  // Mass of the links below `link`, the link itself included (every joint).
+  std::function<double(const std::string&)> subtreeMass = [&](const std::string& link) {
+    const urdf::LinkConstSharedPtr l = model->getLink(link);
+    double mass = l && l->inertial && l->inertial->mass > 0 ? l->inertial->mass : 0.0;
+    auto it = ix.child_joints.find(link);
+    if (it != ix.child_joints.end())
+      for (const auto& jn : it->second) mass += subtreeMass(ix.joints.at(jn).child);
+    return mass;
+  };
   std::function<void(const std::string&, const Eigen::Isometry3d&, bool, const std::string&, double&, Eigen::Vector3d&)> body;
   body = [&](const std::string& link, const Eigen::Isometry3d& T, bool last, const std::string& mover, double& mass,
              Eigen::Vector3d& moment) {
@@ -491,10 +500,13 @@ SerialChain parseUrdfChain(const std::string& text, const std::string& file, con
         if (value != 0.0 && (info.type == "revolute" || info.type == "continuous")) at_zero.rotate(Eigen::AngleAxisd(value, axis));
         if (value != 0.0 && info.type == "prismatic") at_zero.translate(1000.0 * value * axis);
         body(info.child, at_zero, last, mover, mass, moment);
+      } else if (!on_path.count(jn) && subtreeMass(info.child) == 0) {
+        // a massless branch (ROS-Industrial's mimic links of a balancing cylinder and its
+        // piston, frames for visuals): it loads no joint, whatever its joints' values
       } else if (!on_path.count(jn)) {
         ix.fail(info.element, "expected a serial chain, found joint '" + jn + "' (" + info.type + "), which branches off the chain " +
                                   root + ":" + tip + " at link '" + link + "', which joint '" + mover +
-                                  "' moves (choose another --chain, or remove the branch)");
+                                  "' moves, and its links weigh " + formatNumber("%.6g", subtreeMass(info.child)) + " kg whose gravity load on the joints between would change with its configuration (choose another --chain, or remove the branch)");
       }
     }
   };
