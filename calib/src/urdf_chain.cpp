@@ -162,8 +162,18 @@ ChainAxes chainAxes(const SerialChain& chain, const RobotDefinition* reference, 
   c.Z.resize(n);
   c.direction.assign(n, 1);
   for (int k = 0; k < n; ++k) {
+    // without a reference: z along the joint's axis, except where the axis is the previous
+    // joint's turned round (FANUC's and Yaskawa's J3 against J2 in their ROS-Industrial URDFs):
+    // z then along the previous z, the joint turning the other way (direction -1), so the two
+    // axes are parallel with alpha 0, not 180 deg (the closed-form IK and the Hayati form are
+    // those of parallel axes: the same arm)
+    // (two revolute joints: a prismatic one's direction also signs its gravity load)
+    Eigen::Vector3d own = c.U[k];
+    if (k > 0 && chain.joints[static_cast<size_t>(k)].type == JointType::kRevolute &&
+        chain.joints[static_cast<size_t>(k - 1)].type == JointType::kRevolute && c.U[k].dot(c.Z[k - 1]) < -1 + 1e-12)
+      own = c.Z[k - 1];  // (within 1.4e-6 rad)
     const Eigen::Vector3d hint = reference ? Eigen::Vector3d(c.R_frame[k].linear().col(2))
-                                           : (k == 0 ? Eigen::Vector3d::UnitZ() : c.U[k]);
+                                           : (k == 0 ? Eigen::Vector3d::UnitZ() : own);
     c.direction[k] = c.U[k].dot(hint) >= 0 ? 1 : -1;
     c.Z[k] = c.direction[k] * c.U[k];
     if (reference && c.direction[k] != reference->joints[static_cast<size_t>(k)].direction) {
