@@ -14,6 +14,7 @@
 
 #include "accura/calib/diagnose.h"
 #include "accura/calib/geometry.h"
+#include "accura/calib/ik.h"
 #include "accura/calib/kinematics.h"
 #include "test_util.h"
 
@@ -601,6 +602,49 @@ TEST(CliMessages, TargetUnreachableInItsProgrammedConfigurationSaysSo) {
                    "(the robot reaches it with S 2, T 10; program that configuration)\n");
   EXPECT_EQ(r.err.find("configuration boundary"), std::string::npos);
   EXPECT_FALSE(std::filesystem::exists(dir + "/o"));
+}
+
+// A PTP target programmed 0.2 deg inside A6's limit (349.8 of 350 deg, T bit 6 clear) on a
+// robot whose A6 is 0.5 deg off: the corrected target needs A6 beyond 350 in the programmed
+// configuration; the robot reaches it only with A6 360 deg away (T bit 6 set). The message says
+// that (joint, value, limit), not "next to a configuration boundary".
+TEST(CliMessages, ACorrectionPastAJointLimitSaysWhichJoint) {
+  const std::string dir = test::tempDir("cli_ux_limit");
+  std::string robot = test::readText(std::string(ACCURA_SOURCE_DIR) + "/robots/kuka_kr16.xml");
+  const size_t end = robot.rfind("</robot>");
+  ASSERT_NE(end, std::string::npos);
+  robot.insert(end, "  <calibration form=\"auto\">\n    <parameter name=\"j6_offset\" value=\"VALUE\" unit=\"deg\"/>\n  </calibration>\n");
+  const calib::RobotModel nominal = test::loadBundled("kuka_kr16");
+  Eigen::VectorXd q(6);
+  q << 10, -80, 100, 20, 40, 349.8;
+  const calib::XyzAbc p = calib::toXyzAbc(calib::forwardKinematics(nominal, q));
+  const calib::Configuration c = calib::kukaConfiguration(nominal, q);
+  ASSERT_EQ((c.turn >> 5) & 1, 0);
+  char target[256];
+  std::snprintf(target, sizeof target, "{X %.4f,Y %.4f,Z %.4f,A %.5f,B %.5f,C %.5f,S %d,T %d}", p.x_mm, p.y_mm, p.z_mm, p.a_deg, p.b_deg,
+                p.c_deg, c.status, c.turn);
+  test::writeText(dir + "/lim.src", std::string("DEF lim( )\n$TOOL={X 0,Y 0,Z 0,A 0,B 0,C 0}\n$BASE={X 0,Y 0,Z 0,A 0,B 0,C 0}\nPTP ") +
+                                        target + "\nEND\n");
+  // the real A6 turned by -0.5 deg or +0.5 deg: one of the two needs A6 at 350.3 to reach the target
+  bool said = false;
+  for (const char* offset : {"0.5", "-0.5"}) {
+    std::string r6 = robot;
+    r6.replace(r6.find("VALUE"), 5, offset);
+    test::writeText(dir + "/cal.xml", r6);
+    const CliRun r = run("compensate --robot cal.xml --in lim.src --out o", dir);
+    if (r.code == 0) continue;
+    EXPECT_EQ(r.code, 1) << r.err;
+    EXPECT_NE(r.err.find("lim.src:4:1: the compensation of the inline target needs joint 6 (A6) at 350.30 deg in its programmed "
+                         "configuration S " + std::to_string(c.status) + ", T " + std::to_string(c.turn) + ", beyond its limit 350.00 deg"),
+              std::string::npos)
+        << r.err;
+    EXPECT_NE(r.err.find("the robot reaches it only with T " + std::to_string(c.turn | 32) + ", joint 6 at -9.70 deg"), std::string::npos)
+        << r.err;
+    EXPECT_EQ(r.err.find("configuration boundary"), std::string::npos) << r.err;
+    said = true;
+  }
+  EXPECT_TRUE(said) << "one of the two offsets needs A6 beyond its limit";
+  std::filesystem::remove_all(dir);
 }
 
 TEST(CliMessages, DiagnoseWritesOnlyTheReportWhenOnlyTheReportIsAsked) {

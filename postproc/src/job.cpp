@@ -348,6 +348,26 @@ class Job {
                          std::to_string(got.turn) + "; program that configuration)");
       return false;
     }
+    // the Turn bits alone differ and a joint's value with the programmed sign (360 deg away) lies
+    // beyond its limit: the corrected target needs the joint past its limit in the programmed
+    // configuration (a target programmed next to a limit), which is what to say
+    if (asked.status < 0 || asked.status == got.status) {
+      const calib::RobotDefinition& robot = comp.controller().model().nominal;
+      for (int i = 0; i < robot.dof() && i < 30 && asked.turn >= 0; ++i) {
+        const calib::JointSpec& j = robot.joints[static_cast<size_t>(i)];
+        if (j.type != calib::JointType::kRevolute || ((asked.turn ^ got.turn) >> i & 1) == 0) continue;
+        const double programmed = q[i] < 0 ? q[i] + 360.0 : q[i] - 360.0;  // the value with the programmed sign
+        if (programmed >= j.lower && programmed <= j.upper) continue;
+        error(m.where, "the compensation of " + targetLabel(t) + " needs joint " + std::to_string(i + 1) + " (" + j.name + ") at " +
+                           calib::formatFixed(programmed, 2) + " deg in its programmed configuration S " + std::to_string(asked.status) +
+                           ", T " + std::to_string(asked.turn) + ", beyond its limit " +
+                           calib::formatFixed(programmed > j.upper ? j.upper : j.lower, 2) +
+                           " deg (the target is programmed next to the limit; the robot reaches it only with T " +
+                           std::to_string(got.turn) + ", joint " + std::to_string(i + 1) + " at " + calib::formatFixed(q[i], 2) +
+                           " deg: move the target away from the limit or give that configuration)");
+        return false;
+      }
+    }
     error(m.where, "the compensation of " + targetLabel(t) + " would change its configuration from S " + std::to_string(asked.status) +
                        ", T " + std::to_string(asked.turn) + " to S " + std::to_string(got.status) + ", T " + std::to_string(got.turn) +
                        " (the target is next to a configuration boundary; move it away or give the other configuration)");
