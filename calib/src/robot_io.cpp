@@ -112,10 +112,7 @@ class Reader {
     if (!children)
       if (const XMLElement* c = e->FirstChildElement())
         fail(c, "<" + std::string(e->Name()) + ">: expected no child elements, found <" + c->Name() + ">");
-    const std::string t = strayText(e);
-    if (!t.empty())
-      failContent(e, t.substr(0, t.find_first_of("\r\n&<")),
-                  "<" + std::string(e->Name()) + ">: expected no text, found '" + printableBytes(t.substr(0, 40)) + (t.size() > 40 ? "...'" : "'"));
+    refuseStrayText(e, pos_, file_);
   }
 
   const XMLElement* child(const XMLElement* parent, const char* name, bool required) const {

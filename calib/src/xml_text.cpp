@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "accura/calib/errors.h"
+#include "accura/calib/text.h"
 
 namespace accura::calib {
 
@@ -267,6 +268,14 @@ std::string strayText(const XMLElement* e) {
     if (a != std::string::npos) return s.substr(a, s.find_last_not_of(" \t\r\n") - a + 1);
   }
   return {};
+}
+
+void refuseStrayText(const XMLElement* e, const XmlPositions& positions, const std::string& file) {
+  const std::string t = strayText(e);
+  if (t.empty()) return;
+  const auto [line, column] = positions.content(e, t.substr(0, t.find_first_of("\r\n&<")));
+  throw InputError(file, line, column, std::string("<") + e->Name() + ">: expected no text, found '" + printableBytes(t.substr(0, 40)) +
+                                           (t.size() > 40 ? "...'" : "'"));
 }
 
 std::pair<int, int> XmlPositions::content(const XMLElement* e, const std::string& token) const {

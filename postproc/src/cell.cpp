@@ -20,7 +20,6 @@
 
 #include "accura/calib/errors.h"
 #include "accura/calib/geometry.h"
-#include "accura/calib/text.h"
 #include "accura/calib/xml_text.h"
 #include "decimal.h"
 
@@ -47,13 +46,7 @@ class CellReader {
 
   /// Text in an element of the cell file, which holds none (`<tool>torch<capsule .../></tool>`):
   /// never ignored.
-  void checkNoText(const XMLElement* e) const {
-    const std::string t = calib::strayText(e);
-    if (t.empty()) return;
-    const auto [line, column] = pos_.content(e, t.substr(0, t.find_first_of("\r\n&<")));
-    throw calib::InputError(file_, line, column, std::string("<") + e->Name() + ">: expected no text, found '" +
-                                                     calib::printableBytes(t.substr(0, 40)) + (t.size() > 40 ? "...'" : "'"));
-  }
+  void checkNoText(const XMLElement* e) const { calib::refuseStrayText(e, pos_, file_); }
 
   void checkAttributes(const XMLElement* e, const std::set<std::string>& allowed) const {
     for (const tinyxml2::XMLAttribute* a = e->FirstAttribute(); a; a = a->Next()) {

@@ -34,6 +34,7 @@ void parseXml(tinyxml2::XMLDocument& doc, const std::string& text, const std::st
 /// where the format has none (`<base ...>500</base>`) is never ignored.
 std::string strayText(const tinyxml2::XMLElement* e);
 
+
 /// Positions of a parsed document's elements and attributes in its text.
 class XmlPositions {
  public:
@@ -61,5 +62,9 @@ class XmlPositions {
   std::vector<size_t> line_start_;
   std::map<const tinyxml2::XMLElement*, size_t> element_;
 };
+
+/// Throws InputError at `e`'s stray text (strayText(e), when there is any: its line and column
+/// in `positions`) saying "<name>: expected no text, found '...'" (the first 40 bytes).
+void refuseStrayText(const tinyxml2::XMLElement* e, const XmlPositions& positions, const std::string& file);
 
 }  // namespace accura::calib
