@@ -647,6 +647,52 @@ TEST(CliMessages, ACorrectionPastAJointLimitSaysWhichJoint) {
   std::filesystem::remove_all(dir);
 }
 
+// The same on a LIN (KUKA ignores S/T there: the controller follows the line from where it
+// stands): from A6 at 347 deg to a target at 349.8 deg on a robot whose A6 is 0.5 deg off, the
+// corrected line needs A6 past 350 deg, where the controller stops. The compensator's IK answered
+// with A6 at -9.9 deg (the same pose) and the program was written; it is refused, naming the joint
+// and the limit. With the offset the other way the same program is compensated.
+TEST(CliMessages, ALinWhoseCorrectionRunsAJointPastItsLimitIsRefused) {
+  const std::string dir = test::tempDir("cli_ux_lin_limit");
+  std::string robot = test::readText(std::string(ACCURA_SOURCE_DIR) + "/robots/kuka_kr16.xml");
+  const size_t end = robot.rfind("</robot>");
+  ASSERT_NE(end, std::string::npos);
+  robot.insert(end, "  <calibration form=\"auto\">\n    <parameter name=\"j6_offset\" value=\"VALUE\" unit=\"deg\"/>\n  </calibration>\n");
+  const calib::RobotModel nominal = test::loadBundled("kuka_kr16");
+  const auto pose = [&](double q6, bool st) {
+    Eigen::VectorXd q(6);
+    q << 10, -80, 100, 20, 40, q6;
+    const calib::XyzAbc p = calib::toXyzAbc(calib::forwardKinematics(nominal, q));
+    const calib::Configuration c = calib::kukaConfiguration(nominal, q);
+    char text[256];
+    std::snprintf(text, sizeof text, "{X %.4f,Y %.4f,Z %.4f,A %.5f,B %.5f,C %.5f", p.x_mm, p.y_mm, p.z_mm, p.a_deg, p.b_deg, p.c_deg);
+    return std::string(text) + (st ? ",S " + std::to_string(c.status) + ",T " + std::to_string(c.turn) : std::string()) + "}";
+  };
+  test::writeText(dir + "/lin.src", "DEF lin( )\n$TOOL={X 0,Y 0,Z 0,A 0,B 0,C 0}\n$BASE={X 0,Y 0,Z 0,A 0,B 0,C 0}\nPTP " + pose(347, true) +
+                                        "\nLIN " + pose(349.8, false) + "\nEND\n");
+  int refused = 0, written = 0;
+  for (const char* offset : {"0.5", "-0.5"}) {
+    std::string r6 = robot;
+    r6.replace(r6.find("VALUE"), 5, offset);
+    test::writeText(dir + "/cal.xml", r6);
+    std::filesystem::remove_all(dir + "/o");
+    const CliRun r = run("compensate --robot cal.xml --in lin.src --out o", dir);
+    if (r.code == 0) {
+      ++written;
+      continue;
+    }
+    ++refused;
+    EXPECT_EQ(r.code, 1) << r.err;
+    EXPECT_NE(r.err.find("lin.src:5:1: the LIN to the inline target cannot be compensated"), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("the controller takes joint 6 (A6) from "), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find(" deg past its limit 350.00 deg "), std::string::npos) << r.err;
+    EXPECT_FALSE(std::filesystem::exists(dir + "/o/lin.src"));
+  }
+  EXPECT_EQ(refused, 1);
+  EXPECT_EQ(written, 1);
+  std::filesystem::remove_all(dir);
+}
+
 TEST(CliMessages, DiagnoseWritesOnlyTheReportWhenOnlyTheReportIsAsked) {
   const std::string dir = test::tempDir("cli_ux_diag");
   ASSERT_EQ(run("simulate --robot kuka_kr16 --tool 80,40,150 --poses 60 --seed 1 --out d.csv", dir).code, 0);

@@ -101,7 +101,7 @@ struct SegmentWork {
   /// the real robot following, with `m` samples.
   Prediction predict(const PathGeometry& cmd, const Eigen::VectorXd& q_start, int m) const {
     Prediction p;
-    Eigen::VectorXd q = q_start;
+    Eigen::VectorXd q = q_start, q_prev = q_start;
     calib::IkWorkspace ws;  // each solve continues from the previous solution
     Eigen::Vector3d D_prev2 = Eigen::Vector3d::Zero(), D_prev = Eigen::Vector3d::Zero();
     double max_second = 0;
@@ -119,7 +119,24 @@ struct SegmentWork {
           p.message = msg.str();
           return p;
         }
+        // a revolute joint a turn away from the last sample: the line took it past its limit,
+        // where the controller stops (software limit), and its IK answered with the value 360
+        // deg away, the same pose; no continuous motion moves a joint so far between samples
+        const calib::RobotDefinition& robot = comp.controller().model().nominal;
+        for (int j = 0; j < robot.dof(); ++j) {
+          const calib::JointSpec& spec = robot.joints[static_cast<size_t>(j)];
+          const double moved = q[j] - q_prev[j];
+          if (spec.type != calib::JointType::kRevolute || !(std::abs(moved) > 180.0)) continue;
+          const double limit = moved < 0 ? spec.upper : spec.lower;  // the limit the joint ran into
+          p.status = calib::IkStatus::kNoConfiguration;
+          p.message = "along the commanded path the controller takes joint " + std::to_string(j + 1) + " (" + spec.name + ") from " +
+                      calib::formatFixed(q_prev[j], 2) + " deg past its limit " + calib::formatFixed(limit, 2) + " deg " +
+                      calib::formatFixed(100 * s, 0) + " % along it (the controller stops there; the pose is reached only with the joint at " +
+                      calib::formatFixed(q[j], 2) + " deg): the target lies too near the limit for its correction; move it away from the limit";
+          return p;
+        }
       }
+      q_prev = q;
       const Eigen::Vector3d x = comp.real().forward(q, ctx).translation();
       const Eigen::Vector3d D = intended.deviation(x);
       p.max_mm = std::max(p.max_mm, intended.distance(x));
