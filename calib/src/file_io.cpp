@@ -3,12 +3,14 @@
 #include "accura/calib/file_io.h"
 
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <atomic>
 #include <cerrno>
 #include <chrono>
 #include <csignal>
+#include <cstdio>
 #include <cstring>
 #include <ctime>
 #include <filesystem>
@@ -110,6 +112,47 @@ void writeAll(int fd, const std::string& text, const std::string& path) {
   }
 }
 
+// An output that is not a file to replace but a stream to write into: the process's own
+// standard output or error named as a file (/dev/stdout, /dev/stderr, /dev/fd/N,
+// /proc/self/fd/N: written to the descriptor N), or an existing character device, FIFO or
+// socket (/dev/null, a named pipe: opened and written). A temporary file renamed onto such a
+// path would replace the device or the link with a regular file (as root, /dev/null itself)
+// and nobody would read the output. Returns -1 for an ordinary file (written through a
+// temporary file), the descriptor number N, or kOpenByPath.
+constexpr int kOpenByPath = -2;
+
+int streamTarget(const std::string& path) {
+  for (const char* prefix : {"/dev/fd/", "/proc/self/fd/"}) {
+    const std::string pre(prefix);
+    if (path.size() > pre.size() && path.size() - pre.size() < 6 && path.compare(0, pre.size(), pre) == 0 &&
+        path.find_first_not_of("0123456789", pre.size()) == std::string::npos)
+      return std::stoi(path.substr(pre.size()));
+  }
+  if (path == "/dev/stdout") return 1;
+  if (path == "/dev/stderr") return 2;
+  struct stat st;  // (stat only: opening a FIFO to look would end its reader's input)
+  if (::stat(path.c_str(), &st) != 0 || S_ISREG(st.st_mode) || S_ISDIR(st.st_mode)) return -1;
+  return kOpenByPath;
+}
+
+void writeStream(const OutputFile& f) {
+  const int target = streamTarget(f.path);
+  if (target != kOpenByPath) {  // the descriptor the C and C++ streams write to: what they hold goes first
+    std::fflush(nullptr);
+    writeAll(target, f.text, f.path);
+    return;
+  }
+  const int fd = ::open(f.path.c_str(), O_WRONLY | O_CLOEXEC);
+  if (fd < 0) throw InputError(f.path, 0, 0, std::string("cannot write file: ") + std::strerror(errno));
+  try {
+    writeAll(fd, f.text, f.path);
+  } catch (...) {
+    ::close(fd);
+    throw;
+  }
+  if (::close(fd) != 0) throw InputError(f.path, 0, 0, std::string("cannot write file: ") + std::strerror(errno));
+}
+
 }  // namespace
 
 void installInterruptCleanup() {
@@ -135,6 +178,14 @@ void writeFilesAtomically(const std::vector<OutputFile>& files) {
   // a temporary name of its own for every file written by this process (threads of a batch, a
   // plug-in host's threads): two writers of one path never share a temporary file
   static std::atomic<unsigned long> counter{0};
+  // streams (/dev/stdout, /dev/null, a FIFO) are written into once the files are in place
+  std::vector<OutputFile> regular, streams;
+  for (const OutputFile& f : files) (streamTarget(f.path) != -1 ? streams : regular).push_back(f);
+  if (!streams.empty()) {
+    if (!regular.empty()) writeFilesAtomically(regular);
+    for (const OutputFile& f : streams) writeStream(f);
+    return;
+  }
   std::vector<int> slots;
   std::vector<std::string> temps;
   auto cleanup = [&]() {
