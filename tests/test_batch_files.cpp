@@ -213,3 +213,35 @@ TEST(BatchFiles, ConvertIntoADirectoryThatCannotBeCreatedIsAnInputError) {
 
 }  // namespace
 }  // namespace accura::postproc
+
+namespace accura::postproc {
+namespace {
+
+// An --out that cannot be resolved (a symbolic link in a loop) and a batch --json /dev/stdout
+// whose standard output is a pipe (/proc/self/fd/1 -> "pipe:[N]", no path) threw
+// std::filesystem's exception: "internal error", exit 4, nothing written. Now the first is the
+// command's own error (exit 1) and the second writes the report into the pipe.
+TEST(BatchFiles, AnOutputThatDoesNotResolveIsAnInputErrorAndTheReportGoesIntoAPipe) {
+  const std::string root = test::tempDir("batchfiles_resolve");
+  seam(root + "/in/seam.src");
+  fs::create_symlink("loop", root + "/loop");
+  for (const char* out : {"loop", "loop/x"}) {
+    SCOPED_TRACE(out);
+    const CliRun r = accura(root, "batch " + job() + "--in in --out " + out);
+    EXPECT_EQ(r.code, 1) << r.err;
+    EXPECT_NE(r.err.find(std::string(out) + ": cannot resolve the output directory (--out): Too many levels of symbolic links"),
+              std::string::npos)
+        << r.err;
+  }
+  const std::string cmd = "cd '" + root + "' && { " + std::string(ACCURA_CLI) + " batch " + job() +
+                          "--in in --out out --json /dev/stdout 2>err.txt; echo $? >rc.txt; } | cat >piped.txt";
+  ASSERT_EQ(std::system(cmd.c_str()), 0);
+  EXPECT_EQ(test::readText(root + "/rc.txt"), "0\n") << test::readText(root + "/err.txt");
+  const std::string piped = test::readText(root + "/piped.txt");
+  EXPECT_NE(piped.find("\"compensated\": 1"), std::string::npos) << piped.substr(0, 300);
+  EXPECT_NE(piped.find("wrote /dev/stdout"), std::string::npos);
+  EXPECT_TRUE(fs::is_regular_file(root + "/out/seam.src"));
+}
+
+}  // namespace
+}  // namespace accura::postproc

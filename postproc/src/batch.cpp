@@ -248,8 +248,10 @@ BatchResult runBatch(const std::string& in_dir, const std::string& out_dir, cons
   if (options.jobs < 1) throw calib::InputError("--jobs: expected at least 1, found " + std::to_string(options.jobs));
   if (fs::exists(out_dir, ec) && !fs::is_directory(out_dir, ec))
     throw calib::InputError(out_dir + ": expected an output directory (--out), found a file");
-  const fs::path in_abs = fs::weakly_canonical(fs::absolute(in_dir));
-  const fs::path out_abs = fs::weakly_canonical(fs::absolute(out_dir));
+  const fs::path in_abs = fs::weakly_canonical(fs::absolute(in_dir), ec);
+  if (ec) throw calib::InputError(in_dir + ": cannot resolve the input directory (--in): " + ec.message());
+  const fs::path out_abs = fs::weakly_canonical(fs::absolute(out_dir), ec);
+  if (ec) throw calib::InputError(out_dir + ": cannot resolve the output directory (--out): " + ec.message());
   if (inside(out_abs, in_abs))
     throw calib::InputError(out_dir + ": the output directory is inside the input tree " + in_dir + ", which is never modified: choose another --out");
   if (inside(in_abs, out_abs))
