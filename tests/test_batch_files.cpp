@@ -245,3 +245,30 @@ TEST(BatchFiles, AnOutputThatDoesNotResolveIsAnInputErrorAndTheReportGoesIntoAPi
 
 }  // namespace
 }  // namespace accura::postproc
+
+namespace accura::postproc {
+namespace {
+
+// A program whose name is 250 bytes long (a file name may have 255) could not be written: its
+// temporary file ".NAME.PID.N.accura-tmp" was longer than a file name may be ("cannot write
+// file: File name too long", the program failed). The temporary name is now cut to fit.
+TEST(BatchFiles, AProgramWithALongButLegalNameIsWritten) {
+  const std::string root = test::tempDir("batchfiles_longname");
+  const std::string name(246, 'p');
+  seam(root + "/in/" + name + ".src");
+  const CliRun r = accura(root, "batch " + job() + "--in in --out out --jobs 1");
+  EXPECT_EQ(r.code, 0) << r.out.substr(0, 600);
+  EXPECT_TRUE(fs::is_regular_file(root + "/out/" + name + ".src"));
+  EXPECT_TRUE(fs::is_regular_file(root + "/out/" + name + ".dat"));
+  size_t entries = 0;
+  for (const auto& e : fs::directory_iterator(root + "/out")) entries += e.path().filename().string().find("accura-tmp") == std::string::npos;
+  EXPECT_EQ(entries, 2u);
+  // the writer on its own, two files of one set whose cut temporary names would begin alike
+  const std::string a = root + "/" + std::string(255, 'a'), b = root + "/" + std::string(254, 'a') + "b";
+  calib::writeFilesAtomically({{a, "A"}, {b, "B"}});
+  EXPECT_EQ(test::readText(a), "A");
+  EXPECT_EQ(test::readText(b), "B");
+}
+
+}  // namespace
+}  // namespace accura::postproc

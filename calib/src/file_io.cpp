@@ -28,6 +28,7 @@ namespace {
 // Temporary files in flight, visible to the signal handler.
 
 constexpr int kSlots = 256;
+constexpr size_t kNameMax = 255;  // NAME_MAX of Linux file systems (ext4, xfs, btrfs, tmpfs)
 constexpr size_t kPathMax = 4096;
 enum SlotState : int { kFree = 0, kWriting = 1, kCommitting = 2, kReserved = 3 };
 
@@ -198,9 +199,12 @@ void writeFilesAtomically(const std::vector<OutputFile>& files) {
     for (const OutputFile& f : files) {
       const fs::path target(f.path);
       const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
-      const std::string tmp = (dir / ("." + target.filename().string() + "." + std::to_string(::getpid()) + "." +
-                                       std::to_string(counter.fetch_add(1)) + ".accura-tmp"))
-                                  .string();
+      // the name is cut where the temporary name would be longer than a file name may be (255
+      // bytes): a program whose own name is legal is written (the pid and counter keep it unique)
+      const std::string suffix = "." + std::to_string(::getpid()) + "." + std::to_string(counter.fetch_add(1)) + ".accura-tmp";
+      std::string name = target.filename().string();
+      if (1 + name.size() + suffix.size() > kNameMax) name.resize(kNameMax - 1 - suffix.size());
+      const std::string tmp = (dir / ("." + name + suffix)).string();
       const int slot = acquireSlot(tmp);
       slots.push_back(slot);
       temps.push_back(tmp);
