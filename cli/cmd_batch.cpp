@@ -60,9 +60,11 @@ int runBatch(const BatchArgs& a) {
   if (cell) o.cell = CellCheckSettings{cell->cell, cell->options, a.warn_only, nullptr};
   if (a.jobs < 1) throw calib::InputError("--jobs: expected at least 1, found " + std::to_string(a.jobs));
   if (!a.json.empty()) {
-    const fs::path j = fs::weakly_canonical(fs::absolute(a.json));
-    const fs::path in = fs::weakly_canonical(fs::absolute(a.in));
-    if (j.string().rfind(in.string() + "/", 0) == 0) throw calib::InputError("--json: " + a.json + " is inside the input tree, which is never modified");
+    // (a path that does not resolve, e.g. /dev/stdout on a pipe, is no file of the tree)
+    std::error_code ec_j, ec_in;
+    const fs::path j = fs::weakly_canonical(fs::absolute(a.json), ec_j);
+    const fs::path in = fs::weakly_canonical(fs::absolute(a.in), ec_in);
+    if (!ec_j && !ec_in && j.string().rfind(in.string() + "/", 0) == 0) throw calib::InputError("--json: " + a.json + " is inside the input tree, which is never modified");
     std::vector<std::string> inputs = a.model_files();
     inputs.push_back(a.config);
     if (cell)

@@ -6,6 +6,7 @@
 #include <nlohmann/json.hpp>
 
 #include "accura/calib/errors.h"
+#include "accura/calib/file_io.h"
 #include "accura/calib/json_text.h"
 #include "accura/postproc/batch.h"
 #include "accura/postproc/program_io.h"
@@ -61,7 +62,7 @@ int runConvert(const ConvertArgs& a) {
   calib::installInterruptCleanup();
   // like compensate: the output's directory is created
   const fs::path dir = fs::path(a.out).parent_path();
-  if (!dir.empty()) fs::create_directories(dir);
+  if (!dir.empty()) calib::createDirectories(dir.string());
   std::vector<calib::OutputFile> all = files;
   if (!a.json.empty()) all.push_back({a.json, json_text});
   calib::writeFilesAtomically(all);

@@ -3,12 +3,14 @@
 #include "accura/calib/file_io.h"
 
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <atomic>
 #include <cerrno>
 #include <chrono>
 #include <csignal>
+#include <cstdio>
 #include <cstring>
 #include <ctime>
 #include <filesystem>
@@ -26,6 +28,7 @@ namespace {
 // Temporary files in flight, visible to the signal handler.
 
 constexpr int kSlots = 256;
+constexpr size_t kNameMax = 255;  // NAME_MAX of Linux file systems (ext4, xfs, btrfs, tmpfs)
 constexpr size_t kPathMax = 4096;
 enum SlotState : int { kFree = 0, kWriting = 1, kCommitting = 2, kReserved = 3 };
 
@@ -110,6 +113,47 @@ void writeAll(int fd, const std::string& text, const std::string& path) {
   }
 }
 
+// An output that is not a file to replace but a stream to write into: the process's own
+// standard output or error named as a file (/dev/stdout, /dev/stderr, /dev/fd/N,
+// /proc/self/fd/N: written to the descriptor N), or an existing character device, FIFO or
+// socket (/dev/null, a named pipe: opened and written). A temporary file renamed onto such a
+// path would replace the device or the link with a regular file (as root, /dev/null itself)
+// and nobody would read the output. Returns -1 for an ordinary file (written through a
+// temporary file), the descriptor number N, or kOpenByPath.
+constexpr int kOpenByPath = -2;
+
+int streamTarget(const std::string& path) {
+  for (const char* prefix : {"/dev/fd/", "/proc/self/fd/"}) {
+    const std::string pre(prefix);
+    if (path.size() > pre.size() && path.size() - pre.size() < 6 && path.compare(0, pre.size(), pre) == 0 &&
+        path.find_first_not_of("0123456789", pre.size()) == std::string::npos)
+      return std::stoi(path.substr(pre.size()));
+  }
+  if (path == "/dev/stdout") return 1;
+  if (path == "/dev/stderr") return 2;
+  struct stat st;  // (stat only: opening a FIFO to look would end its reader's input)
+  if (::stat(path.c_str(), &st) != 0 || S_ISREG(st.st_mode) || S_ISDIR(st.st_mode)) return -1;
+  return kOpenByPath;
+}
+
+void writeStream(const OutputFile& f) {
+  const int target = streamTarget(f.path);
+  if (target != kOpenByPath) {  // the descriptor the C and C++ streams write to: what they hold goes first
+    std::fflush(nullptr);
+    writeAll(target, f.text, f.path);
+    return;
+  }
+  const int fd = ::open(f.path.c_str(), O_WRONLY | O_CLOEXEC);
+  if (fd < 0) throw InputError(f.path, 0, 0, std::string("cannot write file: ") + std::strerror(errno));
+  try {
+    writeAll(fd, f.text, f.path);
+  } catch (...) {
+    ::close(fd);
+    throw;
+  }
+  if (::close(fd) != 0) throw InputError(f.path, 0, 0, std::string("cannot write file: ") + std::strerror(errno));
+}
+
 }  // namespace
 
 void installInterruptCleanup() {
@@ -135,6 +179,14 @@ void writeFilesAtomically(const std::vector<OutputFile>& files) {
   // a temporary name of its own for every file written by this process (threads of a batch, a
   // plug-in host's threads): two writers of one path never share a temporary file
   static std::atomic<unsigned long> counter{0};
+  // streams (/dev/stdout, /dev/null, a FIFO) are written into once the files are in place
+  std::vector<OutputFile> regular, streams;
+  for (const OutputFile& f : files) (streamTarget(f.path) != -1 ? streams : regular).push_back(f);
+  if (!streams.empty()) {
+    if (!regular.empty()) writeFilesAtomically(regular);
+    for (const OutputFile& f : streams) writeStream(f);
+    return;
+  }
   std::vector<int> slots;
   std::vector<std::string> temps;
   auto cleanup = [&]() {
@@ -147,9 +199,12 @@ void writeFilesAtomically(const std::vector<OutputFile>& files) {
     for (const OutputFile& f : files) {
       const fs::path target(f.path);
       const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
-      const std::string tmp = (dir / ("." + target.filename().string() + "." + std::to_string(::getpid()) + "." +
-                                       std::to_string(counter.fetch_add(1)) + ".accura-tmp"))
-                                  .string();
+      // the name is cut where the temporary name would be longer than a file name may be (255
+      // bytes): a program whose own name is legal is written (the pid and counter keep it unique)
+      const std::string suffix = "." + std::to_string(::getpid()) + "." + std::to_string(counter.fetch_add(1)) + ".accura-tmp";
+      std::string name = target.filename().string();
+      if (1 + name.size() + suffix.size() > kNameMax) name.resize(kNameMax - 1 - suffix.size());
+      const std::string tmp = (dir / ("." + name + suffix)).string();
       const int slot = acquireSlot(tmp);
       slots.push_back(slot);
       temps.push_back(tmp);

@@ -55,28 +55,74 @@ bool inside(const fs::path& child, const fs::path& parent) {
 
 }  // namespace
 
-std::vector<std::string> findPrograms(const std::string& in_dir) {
-  std::vector<std::string> out;
+namespace {
+
+bool programExtension(const fs::path& p) {
+  const std::string ext = lower(p.extension().string());
+  return ext == ".src" || ext == ".xml" || ext == ".script" || ext == ".mod" || ext == ".prg";
+}
+
+// One directory of the tree, its subdirectories depth first. A directory that cannot be listed
+// (or whose listing breaks off) is a problem of the tree, not the end of the walk: the walk goes
+// on with the others (problems null: an InputError).
+void walk(const fs::path& in_dir, const fs::path& dir, std::vector<std::string>& out, std::vector<TreeProblem>* problems) {
+  const auto problem = [&](const fs::path& p, bool failed, const std::string& message) {
+    if (!problems) {
+      // without a list: a directory that cannot be listed is an error, the rest is left out
+      if (message.rfind("cannot list", 0) == 0) throw calib::InputError(p.string() + ": " + message);
+      return;
+    }
+    problems->push_back({relativeSlash(p.lexically_relative(in_dir)), failed, message});
+  };
   std::error_code ec;
-  fs::recursive_directory_iterator it(in_dir, fs::directory_options::none, ec), end;
-  if (ec) throw calib::InputError(in_dir, 0, 0, "cannot list the directory: " + ec.message());
-  for (; it != end; it.increment(ec)) {
-    if (ec) throw calib::InputError(in_dir, 0, 0, "cannot list the directory: " + ec.message());
+  fs::directory_iterator it(dir, ec), end;
+  if (ec) {
+    if (dir == in_dir) throw calib::InputError(in_dir.string(), 0, 0, "cannot list the directory: " + ec.message());
+    problem(dir, true, "cannot list the directory: " + ec.message() + " (the programs under it are not compensated)");
+    return;
+  }
+  std::vector<fs::path> subdirs;
+  for (; !ec && it != end; it.increment(ec)) {
     const fs::path p = it->path();
-    if (isHidden(p)) {
-      if (it->is_directory(ec)) it.disable_recursion_pending();
+    if (isHidden(p)) continue;  // not recursed into either
+    std::error_code sec;
+    const bool link = it->is_symlink(sec);
+    const fs::file_status st = fs::status(p, sec);  // follows a symbolic link
+    if (sec || !fs::exists(st)) {
+      // a symbolic link to nothing, or in a loop: a program by its name that cannot be read
+      if (link && programExtension(p)) problem(p, true, "cannot read the program: a symbolic link that leads to no file");
       continue;
     }
-    if (!it->is_regular_file(ec)) continue;
-    const std::string ext = lower(p.extension().string());
-    if (ext != ".src" && ext != ".xml" && ext != ".script" && ext != ".mod" && ext != ".prg") continue;
+    if (fs::is_directory(st)) {
+      if (link) problem(p, false, "a symbolic link to a directory: not followed (give its target as --in to compensate its programs)");
+      else subdirs.push_back(p);
+      continue;
+    }
+    if (!programExtension(p)) continue;
+    if (!fs::is_regular_file(st)) {
+      problem(p, true, "cannot read the program: not a regular file");
+      continue;
+    }
     // the name as found in the tree (lexically: a symbolic link keeps its own name, so that its
     // output lands under --out like any other, not beside the file it points to)
     out.push_back(relativeSlash(p.lexically_relative(in_dir)));
   }
+  if (ec) problem(dir, true, "cannot list the directory: " + ec.message() + " (the programs under it are not compensated)");
+  for (const fs::path& d : subdirs) walk(in_dir, d, out, problems);
+}
+
+}  // namespace
+
+std::vector<std::string> findPrograms(const std::string& in_dir, std::vector<TreeProblem>* problems) {
+  std::vector<std::string> out;
+  walk(fs::path(in_dir), fs::path(in_dir), out, problems);
   std::sort(out.begin(), out.end());
+  if (problems)
+    std::sort(problems->begin(), problems->end(), [](const TreeProblem& a, const TreeProblem& b) { return a.path < b.path; });
   return out;
 }
+
+std::vector<std::string> findPrograms(const std::string& in_dir) { return findPrograms(in_dir, nullptr); }
 
 namespace {
 
@@ -202,19 +248,23 @@ BatchResult runBatch(const std::string& in_dir, const std::string& out_dir, cons
   if (options.jobs < 1) throw calib::InputError("--jobs: expected at least 1, found " + std::to_string(options.jobs));
   if (fs::exists(out_dir, ec) && !fs::is_directory(out_dir, ec))
     throw calib::InputError(out_dir + ": expected an output directory (--out), found a file");
-  const fs::path in_abs = fs::weakly_canonical(fs::absolute(in_dir));
-  const fs::path out_abs = fs::weakly_canonical(fs::absolute(out_dir));
+  const fs::path in_abs = fs::weakly_canonical(fs::absolute(in_dir), ec);
+  if (ec) throw calib::InputError(in_dir + ": cannot resolve the input directory (--in): " + ec.message());
+  const fs::path out_abs = fs::weakly_canonical(fs::absolute(out_dir), ec);
+  if (ec) throw calib::InputError(out_dir + ": cannot resolve the output directory (--out): " + ec.message());
   if (inside(out_abs, in_abs))
     throw calib::InputError(out_dir + ": the output directory is inside the input tree " + in_dir + ", which is never modified: choose another --out");
   if (inside(in_abs, out_abs))
     throw calib::InputError(out_dir + ": the output directory contains the input tree " + in_dir + ": choose another --out");
-  const std::vector<std::string> files = findPrograms(in_dir);
+  std::vector<TreeProblem> problems;
+  const std::vector<std::string> files = findPrograms(in_dir, &problems);
   BatchResult result;
   result.files.resize(files.size());
   // Two programs whose outputs would be one file (SEAM.SRC and seam.src sharing seam.dat: the
   // .dat is found case-insensitively) would overwrite each other, the result depending on which
   // thread came last: both fail, named, before any work (the same for any --jobs).
   std::vector<bool> collides(files.size(), false);
+  std::vector<std::vector<std::string>> predicted(files.size());  // each program's output paths
   {
     std::map<std::string, size_t> owner;  // predicted output path -> the first program
     for (size_t i = 0; i < files.size(); ++i) {
@@ -225,6 +275,7 @@ BatchResult runBatch(const std::string& in_dir, const std::string& out_dir, cons
         const std::string dat = krlDatPath(in_path.string());
         if (!dat.empty()) outs.push_back((out_path.parent_path() / fs::path(dat).filename()).lexically_normal().string());
       }
+      predicted[i] = outs;
       for (const std::string& o : outs) {
         const auto [it, fresh] = owner.emplace(o, i);
         if (fresh || it->second == i) continue;
@@ -284,6 +335,7 @@ BatchResult runBatch(const std::string& in_dir, const std::string& out_dir, cons
       r.input = files[i];
       const fs::path in_path = fs::path(in_dir) / files[i];
       const fs::path out_path = fs::path(out_dir) / files[i];
+      std::error_code ec_dir;
       try {
         if (lower(in_path.extension().string()) == ".xml" && !isXmlProgram(in_path.string())) {
           r.status = BatchFileResult::Status::kSkipped;
@@ -301,6 +353,14 @@ BatchResult runBatch(const std::string& in_dir, const std::string& out_dir, cons
           if (r.check && !r.check->passed()) r.message = "failed the checks of " + cell->cell.file + ": " + firstCheckProblem(*r.check);
           if (!out.compensation_error.empty()) r.message += "; it cannot be compensated either: " + out.compensation_error;
           if (out.write) {
+            // --out is outside the input tree, but a directory under it may be a symbolic link
+            // back into the tree (a copy made with links, a link left by hand): writing through
+            // it would replace the input programs
+            const fs::path real_dir = fs::weakly_canonical(fs::absolute(out_path.parent_path()), ec_dir);
+            if (!ec_dir && inside(real_dir, in_abs))
+              throw calib::InputError(out_path.parent_path().string() + ": the output directory is " + real_dir.string() +
+                                      " (through a symbolic link), inside the input tree " + in_dir +
+                                      ", which is never modified: not written");
             calib::createDirectories(out_path.parent_path().string());
             calib::writeFilesAtomically(out.files);
             for (const auto& f : out.files) r.outputs.push_back(relativeSlash(fs::relative(f.path, out_dir)));
@@ -323,6 +383,27 @@ BatchResult runBatch(const std::string& in_dir, const std::string& out_dir, cons
   for (int t = 1; t < n; ++t) threads.emplace_back(work);
   work();
   for (auto& t : threads) t.join();
+  // a program not written this time whose output path holds a file (an earlier run's output
+  // into the same --out): that file is not this run's result, and the tree must not pass it off
+  // as one
+  for (size_t i = 0; i < files.size(); ++i) {
+    BatchFileResult& r = result.files[i];
+    if (r.status != BatchFileResult::Status::kFailed) continue;
+    std::string stale;
+    for (const std::string& o : predicted[i])
+      if (fs::exists(fs::symlink_status(o, ec))) stale += (stale.empty() ? "" : ", ") + o;
+    if (!stale.empty())
+      r.message += "; not written, but " + stale + " exist" + (stale.find(", ") == std::string::npos ? "s" : "") +
+                   " from an earlier run: not this run's output (remove or replace it)";
+  }
+  // what the tree holds but no program was read from: said, not silently left out
+  for (const TreeProblem& p : problems) {
+    BatchFileResult r;
+    r.input = p.path;
+    r.status = p.failed ? BatchFileResult::Status::kFailed : BatchFileResult::Status::kSkipped;
+    r.message = p.message;
+    result.files.push_back(std::move(r));
+  }
   for (const auto& r : result.files) {
     if (r.status == BatchFileResult::Status::kConverted) ++result.converted;
     else if (r.status == BatchFileResult::Status::kSkipped) ++result.skipped;

@@ -5,7 +5,10 @@
 // path never share a temporary file) and renamed into place; the files of one call (a program's
 // .src and .dat) are renamed together once all are written. With installInterruptCleanup() (the command
 // line; a library host owns its signals), SIGINT / SIGTERM remove the temporary files in flight
-// and end the process with status 130.
+// and end the process with status 130. A path that is a stream, not a file to replace
+// (/dev/stdout, /dev/stderr, /dev/fd/N, /proc/self/fd/N, an existing character device, FIFO or
+// socket such as /dev/null or a named pipe), is written into directly once the set's files are
+// in place: renaming a file onto it would replace the device or link itself.
 #pragma once
 
 #include <string>

@@ -123,12 +123,28 @@ struct BatchFileResult {
 };
 
 struct BatchResult {
-  std::vector<BatchFileResult> files;  ///< in the order of findPrograms
+  /// in the order of findPrograms, then its TreeProblems (a directory that cannot be listed:
+  /// kFailed, a symbolic link to a directory: kSkipped)
+  std::vector<BatchFileResult> files;
   int converted = 0, failed = 0, skipped = 0;
 };
 
-/// The programs of a tree: every *.src (any case) and every *.xml, relative paths sorted
-/// byte-wise ('/' separated). Hidden entries (starting with '.') are skipped.
+/// What a tree holds that is not a program read: a directory that cannot be listed, a program
+/// name that is a symbolic link to nothing (or in a loop) or not a regular file (failed), a
+/// symbolic link to a directory, which is not followed (skipped).
+struct TreeProblem {
+  std::string path;  ///< relative to the input directory ('/' separated)
+  bool failed = true;
+  std::string message;
+};
+
+/// The programs of a tree: every *.src, *.xml, *.script, *.mod, *.prg (any case), relative
+/// paths sorted byte-wise ('/' separated). Hidden entries (starting with '.') are skipped; a
+/// symbolic link to a file is a program by its own name, one to a directory is not followed.
+/// Every TreeProblem goes to `problems` (sorted by path) and the walk goes on; with `problems`
+/// null the first one that fails is an InputError. Throws InputError when `in_dir` cannot be
+/// listed.
+std::vector<std::string> findPrograms(const std::string& in_dir, std::vector<TreeProblem>* problems);
 std::vector<std::string> findPrograms(const std::string& in_dir);
 
 /// Compensates every program of `in_dir` into the same relative path under `out_dir` (created
@@ -136,7 +152,10 @@ std::vector<std::string> findPrograms(const std::string& in_dir);
 /// (reading, compensation, or the check in options.cell) is reported in its result and not
 /// written; the others go on. With options.cell, the cell's geometry is prepared once (an
 /// InputError when its link shapes do not fit the robot). An .xml file whose root element is not <program> is skipped.
-/// The input tree is only read. `progress` (may be empty) is called after each file, from the
+/// The input tree is only read, and never written through a symbolic link under `out_dir` that
+/// leads back into it (that program fails). A program that is not written while its output path
+/// holds a file (an earlier run's) says so in its message. The tree's TreeProblems follow the
+/// programs in the result. `progress` (may be empty) is called after each file, from the
 /// worker thread, one call at a time. Throws InputError when `in_dir` is not a directory or
 /// `out_dir` is inside it.
 BatchResult runBatch(const std::string& in_dir, const std::string& out_dir, const BatchOptions& options,
