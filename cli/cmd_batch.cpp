@@ -106,8 +106,14 @@ int runBatch(const BatchArgs& a) {
       std::printf("%s %s: %s\n", statusWord(r).c_str(), r.input.c_str(), r.message.c_str());
     }
   }
-  std::printf("accura batch: %d compensated, %d failed, %d skipped, %zu programs in %s%s\n", res.converted, res.failed, res.skipped,
-              res.files.size(), a.in.c_str(), warnings ? ("; " + std::to_string(warnings) + " warning(s), on stderr").c_str() : "");
+  // (the tree's other entries, a directory that cannot be listed or a link not followed, are
+  // counted in failed / skipped and named above, but they are no programs)
+  const size_t others = res.files.size() - static_cast<size_t>(res.programs);
+  const std::string other_entries =
+      others ? " and " + std::to_string(others) + " other entr" + (others == 1 ? "y" : "ies") + " of the tree" : std::string();
+  std::printf("accura batch: %d compensated, %d failed, %d skipped, %d programs%s in %s%s\n", res.converted, res.failed, res.skipped,
+              res.programs, other_entries.c_str(), a.in.c_str(),
+              warnings ? ("; " + std::to_string(warnings) + " warning(s), on stderr").c_str() : "");
   if (!a.json.empty()) {
     // the report must not replace a program the run wrote
     for (const auto& r : res.files)
@@ -125,6 +131,7 @@ int runBatch(const BatchArgs& a) {
     j["compensated"] = res.converted;
     j["failed"] = res.failed;
     j["skipped"] = res.skipped;
+    j["programs"] = res.programs;  // (the entries of "files" beyond them: the tree's other entries)
     nlohmann::ordered_json files = nlohmann::ordered_json::array();
     for (const auto& r : res.files) {
       nlohmann::ordered_json f;

@@ -396,6 +396,7 @@ BatchResult runBatch(const std::string& in_dir, const std::string& out_dir, cons
       r.message += "; not written, but " + stale + " exist" + (stale.find(", ") == std::string::npos ? "s" : "") +
                    " from an earlier run: not this run's output (remove or replace it)";
   }
+  result.programs = static_cast<int>(files.size());
   // what the tree holds but no program was read from: said, not silently left out
   for (const TreeProblem& p : problems) {
     BatchFileResult r;

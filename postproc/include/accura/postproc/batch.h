@@ -127,6 +127,8 @@ struct BatchResult {
   /// kFailed, a symbolic link to a directory: kSkipped)
   std::vector<BatchFileResult> files;
   int converted = 0, failed = 0, skipped = 0;
+  /// How many of `files` are programs (the first ones); the rest are TreeProblems.
+  int programs = 0;
 };
 
 /// What a tree holds that is not a program read: a directory that cannot be listed, a program
