@@ -113,6 +113,20 @@ void writeAll(int fd, const std::string& text, const std::string& path) {
   }
 }
 
+// f's text into the descriptor `fd` just opened for it (-1: the open failed, errno says why),
+// synced to the disk first when `sync`, then closed; every failure an InputError naming f.
+void writeOpened(int fd, const OutputFile& f, bool sync) {
+  if (fd < 0) throw InputError(f.path, 0, 0, std::string("cannot write file: ") + std::strerror(errno));
+  try {
+    writeAll(fd, f.text, f.path);
+  } catch (...) {
+    ::close(fd);
+    throw;
+  }
+  if ((sync && ::fsync(fd) != 0) || ::close(fd) != 0)
+    throw InputError(f.path, 0, 0, std::string("cannot write file: ") + std::strerror(errno));
+}
+
 // An output that is not a file to replace but a stream to write into: the process's own
 // standard output or error named as a file (/dev/stdout, /dev/stderr, /dev/fd/N,
 // /proc/self/fd/N: written to the descriptor N), or an existing character device, FIFO or
@@ -143,15 +157,7 @@ void writeStream(const OutputFile& f) {
     writeAll(target, f.text, f.path);
     return;
   }
-  const int fd = ::open(f.path.c_str(), O_WRONLY | O_CLOEXEC);
-  if (fd < 0) throw InputError(f.path, 0, 0, std::string("cannot write file: ") + std::strerror(errno));
-  try {
-    writeAll(fd, f.text, f.path);
-  } catch (...) {
-    ::close(fd);
-    throw;
-  }
-  if (::close(fd) != 0) throw InputError(f.path, 0, 0, std::string("cannot write file: ") + std::strerror(errno));
+  writeOpened(::open(f.path.c_str(), O_WRONLY | O_CLOEXEC), f, false);
 }
 
 }  // namespace
@@ -210,15 +216,7 @@ void writeFilesAtomically(const std::vector<OutputFile>& files) {
       temps.push_back(tmp);
       const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
       g_slots[slot].state.store(kWriting);
-      if (fd < 0) throw InputError(f.path, 0, 0, std::string("cannot write file: ") + std::strerror(errno));
-      try {
-        writeAll(fd, f.text, f.path);
-      } catch (...) {
-        ::close(fd);
-        throw;
-      }
-      if (::fsync(fd) != 0 || ::close(fd) != 0)
-        throw InputError(f.path, 0, 0, std::string("cannot write file: ") + std::strerror(errno));
+      writeOpened(fd, f, true);
     }
   } catch (...) {
     cleanup();
