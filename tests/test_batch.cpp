@@ -32,11 +32,6 @@ CliRun accura(const std::string& dir, const std::string& args) { return test::ru
 
 std::string golden(const std::string& rel) { return test::sourcePath("tests/golden/" + rel); }
 
-void copy(const std::string& from, const std::string& to) {
-  fs::create_directories(fs::path(to).parent_path());
-  test::writeText(to, test::readText(from));
-}
-
 // Every regular file of a tree: relative path -> content (a content "hash" that cannot collide).
 std::map<std::string, std::string> snapshot(const std::string& dir) {
   std::map<std::string, std::string> m;
@@ -49,22 +44,22 @@ std::map<std::string, std::string> snapshot(const std::string& dir) {
 // with a malformed target, an unreachable one, and a robot file (not a program).
 std::string makeTree(const std::string& root, int extra_copies = 0) {
   const std::string in = root + "/in";
-  copy(golden("compensate/seam.src"), in + "/seam.src");
-  copy(golden("compensate/seam.dat"), in + "/seam.dat");
-  copy(golden("compensate/seam.src"), in + "/cell2/Seam_B.SRC");
-  copy(golden("compensate/seam.dat"), in + "/cell2/Seam_B.dat");
-  copy(golden("compensate/seam.src"), in + "/cell2/deep/seam.src");
-  copy(golden("compensate/seam.dat"), in + "/cell2/deep/seam.dat");
-  copy(golden("xml/weld_seam.xml"), in + "/cell2/weld_seam.xml");
-  copy(golden("compensate/kr16_real.xml"), in + "/robot_model.xml");
+  test::copyText(golden("compensate/seam.src"), in + "/seam.src");
+  test::copyText(golden("compensate/seam.dat"), in + "/seam.dat");
+  test::copyText(golden("compensate/seam.src"), in + "/cell2/Seam_B.SRC");
+  test::copyText(golden("compensate/seam.dat"), in + "/cell2/Seam_B.dat");
+  test::copyText(golden("compensate/seam.src"), in + "/cell2/deep/seam.src");
+  test::copyText(golden("compensate/seam.dat"), in + "/cell2/deep/seam.dat");
+  test::copyText(golden("xml/weld_seam.xml"), in + "/cell2/weld_seam.xml");
+  test::copyText(golden("compensate/kr16_real.xml"), in + "/robot_model.xml");
   test::writeText(in + "/cell2/broken.src", "DEF broken( )\n$TOOL={X 0,Y 0,Z 100,A 0,B 0,C 0}\n$BASE=$NULLFRAME\nLIN {X 1000,Y 0,Z 800,A 0,B 90,Q 0}\nEND\n");
   test::writeText(in + "/far.src", "DEF far( )\n$TOOL={X 0,Y 0,Z 100,A 0,B 0,C 0}\n$BASE=$NULLFRAME\nPTP {X 5000,Y 0,Z 800,A 0,B 90,C 0}\nEND\n");
   for (int k = 0; k < extra_copies; ++k) {
-    copy(golden("compensate/seam.src"), in + "/many/p" + std::to_string(k) + ".src");
-    copy(golden("compensate/seam.dat"), in + "/many/p" + std::to_string(k) + ".dat");
+    test::copyText(golden("compensate/seam.src"), in + "/many/p" + std::to_string(k) + ".src");
+    test::copyText(golden("compensate/seam.dat"), in + "/many/p" + std::to_string(k) + ".dat");
   }
-  copy(golden("compensate/kr16_real.xml"), root + "/model.xml");
-  copy(golden("compensate/$config.dat"), root + "/$config.dat");
+  test::copyText(golden("compensate/kr16_real.xml"), root + "/model.xml");
+  test::copyText(golden("compensate/$config.dat"), root + "/$config.dat");
   return in;
 }
 
@@ -136,10 +131,10 @@ TEST(Batch, ABadFileIsReportedTheRestConvertedInputUnchanged) {
 
 TEST(Batch, AllConvertedExitsZeroAndTheOutputMayNotBeInsideTheInput) {
   const std::string root = test::tempDir("batch_ok");
-  copy(golden("compensate/seam.src"), root + "/in/a/seam.src");
-  copy(golden("compensate/seam.dat"), root + "/in/a/seam.dat");
-  copy(golden("compensate/kr16_real.xml"), root + "/model.xml");
-  copy(golden("compensate/$config.dat"), root + "/$config.dat");
+  test::copyText(golden("compensate/seam.src"), root + "/in/a/seam.src");
+  test::copyText(golden("compensate/seam.dat"), root + "/in/a/seam.dat");
+  test::copyText(golden("compensate/kr16_real.xml"), root + "/model.xml");
+  test::copyText(golden("compensate/$config.dat"), root + "/$config.dat");
   CliRun r = accura(root, "batch --robot model.xml --config '$config.dat' --in in --out out --jobs 3");
   EXPECT_EQ(r.code, 0) << r.err;
   EXPECT_TRUE(fs::exists(root + "/out/a/seam.src"));
@@ -159,8 +154,8 @@ TEST(Batch, AllConvertedExitsZeroAndTheOutputMayNotBeInsideTheInput) {
 // there is nothing to correct: the script comes back byte for byte.
 TEST(Batch, ConfigServesTheKrlProgramsOfAMixedTreeNotTheUrScriptOnes) {
   const std::string root = test::tempDir("batch_mixed");
-  copy(golden("urscript/ur10_seam.script"), root + "/in/ur/seam.script");
-  copy(golden("compensate/$config.dat"), root + "/$config.dat");
+  test::copyText(golden("urscript/ur10_seam.script"), root + "/in/ur/seam.script");
+  test::copyText(golden("compensate/$config.dat"), root + "/$config.dat");
   const CliRun r = accura(root, "batch --robot ur10 --config '$config.dat' --in in --out out --jobs 1");
   EXPECT_EQ(r.code, 0) << r.err;
   EXPECT_EQ(test::readText(root + "/out/ur/seam.script"), test::readText(golden("urscript/ur10_seam.script")));
@@ -263,10 +258,10 @@ TEST(Batch, AnInterruptedRunLeavesNoHalfWrittenFile) {
 TEST(Batch, CellCheckFailsTheProgramWhosePathTouchesAFixture) {
   const std::string root = test::tempDir("batch_cell");
   const std::string in = root + "/in";
-  copy(golden("compensate/seam.src"), in + "/seam.src");
-  copy(golden("compensate/seam.dat"), in + "/seam.dat");
-  copy(golden("compensate/seam.src"), in + "/sub/seam.src");
-  copy(golden("compensate/seam.dat"), in + "/sub/seam.dat");
+  test::copyText(golden("compensate/seam.src"), in + "/seam.src");
+  test::copyText(golden("compensate/seam.dat"), in + "/seam.dat");
+  test::copyText(golden("compensate/seam.src"), in + "/sub/seam.src");
+  test::copyText(golden("compensate/seam.dat"), in + "/sub/seam.dat");
   std::string touch = test::readText(golden("compensate/seam.src"));
   const std::string retreat = "lin {X 400.0,Y 150.0,Z 600.0,A 150.0,B 20.0,C -170.0}";
   const size_t at = touch.find(retreat);
@@ -274,10 +269,10 @@ TEST(Batch, CellCheckFailsTheProgramWhosePathTouchesAFixture) {
   touch.replace(at, retreat.size(), "lin {X 400.0,Y -250.0,Z 380.0,A 150.0,B 25.0,C -175.0}");  // XP3 - 40 mm in z
   const int touch_line = 1 + static_cast<int>(std::count(touch.begin(), touch.begin() + static_cast<long>(at), '\n'));
   test::writeText(in + "/touch.src", touch);
-  copy(golden("compensate/seam.dat"), in + "/touch.dat");
-  copy(golden("compensate/kr16_real.xml"), root + "/model.xml");
-  copy(golden("compensate/$config.dat"), root + "/$config.dat");
-  for (const char* f : {"seam_cell.xml", "plate_m.obj"}) copy(test::sourcePath(std::string("tests/data/cell/") + f), root + "/cell/" + f);
+  test::copyText(golden("compensate/seam.dat"), in + "/touch.dat");
+  test::copyText(golden("compensate/kr16_real.xml"), root + "/model.xml");
+  test::copyText(golden("compensate/$config.dat"), root + "/$config.dat");
+  for (const char* f : {"seam_cell.xml", "plate_m.obj"}) test::copyText(test::sourcePath(std::string("tests/data/cell/") + f), root + "/cell/" + f);
   const auto before = snapshot(in);
   const std::string common = "--robot model.xml --config '$config.dat' --tol 0.02 --cell cell/seam_cell.xml";
 
@@ -413,9 +408,9 @@ TEST(Batch, AtomicWriterRefusesOneFileTwiceAndIsSafeForConcurrentWriters) {
 // (outside both trees here) is never written (before: its output went to the link's target).
 TEST(Batch, ASymbolicLinkInTheInputTreeIsNeverFollowedOutOfTheOutputTree) {
   const std::string root = test::tempDir("batch_symlink");
-  copy(golden("compensate/seam.src"), root + "/elsewhere/seam.src");
-  copy(golden("compensate/seam.dat"), root + "/elsewhere/seam.dat");
-  copy(golden("compensate/seam.dat"), root + "/in/link.dat");
+  test::copyText(golden("compensate/seam.src"), root + "/elsewhere/seam.src");
+  test::copyText(golden("compensate/seam.dat"), root + "/elsewhere/seam.dat");
+  test::copyText(golden("compensate/seam.dat"), root + "/in/link.dat");
   fs::create_directories(root + "/in");
   fs::create_symlink(root + "/elsewhere/seam.src", root + "/in/link.src");
   const auto before = snapshot(root + "/elsewhere");
@@ -433,11 +428,11 @@ TEST(Batch, ASymbolicLinkInTheInputTreeIsNeverFollowedOutOfTheOutputTree) {
 // exit 0 and one program's .src paired with the other's .dat).
 TEST(Batch, TwoProgramsWithOneOutputFileBothFailAndNeitherIsWritten) {
   const std::string root = test::tempDir("batch_collide");
-  copy(golden("compensate/seam.src"), root + "/in/dup/SEAM.SRC");
-  copy(golden("compensate/seam.src"), root + "/in/dup/seam.src");
-  copy(golden("compensate/seam.dat"), root + "/in/dup/seam.dat");
-  copy(golden("compensate/seam.src"), root + "/in/other.src");
-  copy(golden("compensate/seam.dat"), root + "/in/other.dat");
+  test::copyText(golden("compensate/seam.src"), root + "/in/dup/SEAM.SRC");
+  test::copyText(golden("compensate/seam.src"), root + "/in/dup/seam.src");
+  test::copyText(golden("compensate/seam.dat"), root + "/in/dup/seam.dat");
+  test::copyText(golden("compensate/seam.src"), root + "/in/other.src");
+  test::copyText(golden("compensate/seam.dat"), root + "/in/other.dat");
   for (const char* jobs : {"1", "2"}) {
     SCOPED_TRACE(jobs);
     fs::remove_all(root + "/out");
@@ -456,10 +451,10 @@ TEST(Batch, TwoProgramsWithOneOutputFileBothFailAndNeitherIsWritten) {
 // writes is refused; the file keeps its bytes (before: replaced by the JSON report, exit 0).
 TEST(Batch, TheReportNeverReplacesAnInputOrAnOutput) {
   const std::string root = test::tempDir("batch_json_inputs");
-  copy(golden("compensate/seam.src"), root + "/in/seam.src");
-  copy(golden("compensate/seam.dat"), root + "/in/seam.dat");
-  copy(golden("compensate/kr16_real.xml"), root + "/model.xml");
-  copy(golden("compensate/$config.dat"), root + "/config.dat");
+  test::copyText(golden("compensate/seam.src"), root + "/in/seam.src");
+  test::copyText(golden("compensate/seam.dat"), root + "/in/seam.dat");
+  test::copyText(golden("compensate/kr16_real.xml"), root + "/model.xml");
+  test::copyText(golden("compensate/$config.dat"), root + "/config.dat");
   const std::string model = test::readText(root + "/model.xml"), config = test::readText(root + "/config.dat");
   const std::string job = "--robot model.xml --config config.dat ";
   for (const std::string& target : {std::string("model.xml"), std::string("config.dat")}) {

@@ -30,14 +30,9 @@ using test::CliRun;
 CliRun accura(const std::string& dir, const std::string& args) { return test::runAccuraIn(dir, args); }
 std::string golden(const std::string& rel) { return test::sourcePath("tests/golden/" + rel); }
 
-void copy(const std::string& from, const std::string& to) {
-  fs::create_directories(fs::path(to).parent_path());
-  test::writeText(to, test::readText(from));
-}
-
 void seam(const std::string& src_path) {  // the golden seam (.src and .dat) under another name
-  copy(golden("compensate/seam.src"), src_path);
-  copy(golden("compensate/seam.dat"), fs::path(src_path).replace_extension(".dat").string());
+  test::copyText(golden("compensate/seam.src"), src_path);
+  test::copyText(golden("compensate/seam.dat"), fs::path(src_path).replace_extension(".dat").string());
 }
 
 std::map<std::string, std::string> snapshot(const std::string& dir) {

@@ -604,33 +604,45 @@ TEST(CliMessages, TargetUnreachableInItsProgrammedConfigurationSaysSo) {
   EXPECT_FALSE(std::filesystem::exists(dir + "/o"));
 }
 
+// The bundled KR 16 whose real A6 is `offset_deg` off (a calibration with that one parameter).
+std::string kr16WithA6Offset(const std::string& offset_deg) {
+  std::string robot = test::readText(test::sourcePath("robots/kuka_kr16.xml"));
+  const size_t end = robot.rfind("</robot>");
+  if (end == std::string::npos) return robot;  // (the reader then says what is missing)
+  robot.insert(end, "  <calibration form=\"auto\">\n    <parameter name=\"j6_offset\" value=\"" + offset_deg +
+                        "\" unit=\"deg\"/>\n  </calibration>\n");
+  return robot;
+}
+
+// The nominal KR 16's pose at (10, -80, 100, 20, 40, q6) as a KRL inline target, with its S and
+// T when `st`.
+std::string kr16Target(double q6, bool st) {
+  const calib::RobotModel nominal = test::loadBundled("kuka_kr16");
+  Eigen::VectorXd q(6);
+  q << 10, -80, 100, 20, 40, q6;
+  const calib::XyzAbc p = calib::toXyzAbc(calib::forwardKinematics(nominal, q));
+  const calib::Configuration c = calib::kukaConfiguration(nominal, q);
+  char text[256];
+  std::snprintf(text, sizeof text, "{X %.4f,Y %.4f,Z %.4f,A %.5f,B %.5f,C %.5f", p.x_mm, p.y_mm, p.z_mm, p.a_deg, p.b_deg, p.c_deg);
+  return std::string(text) + (st ? ",S " + std::to_string(c.status) + ",T " + std::to_string(c.turn) : std::string()) + "}";
+}
+
 // A PTP target programmed 0.2 deg inside A6's limit (349.8 of 350 deg, T bit 6 clear) on a
 // robot whose A6 is 0.5 deg off: the corrected target needs A6 beyond 350 in the programmed
 // configuration; the robot reaches it only with A6 360 deg away (T bit 6 set). The message says
 // that (joint, value, limit), not "next to a configuration boundary".
 TEST(CliMessages, ACorrectionPastAJointLimitSaysWhichJoint) {
   const std::string dir = test::tempDir("cli_ux_limit");
-  std::string robot = test::readText(std::string(ACCURA_SOURCE_DIR) + "/robots/kuka_kr16.xml");
-  const size_t end = robot.rfind("</robot>");
-  ASSERT_NE(end, std::string::npos);
-  robot.insert(end, "  <calibration form=\"auto\">\n    <parameter name=\"j6_offset\" value=\"VALUE\" unit=\"deg\"/>\n  </calibration>\n");
-  const calib::RobotModel nominal = test::loadBundled("kuka_kr16");
   Eigen::VectorXd q(6);
   q << 10, -80, 100, 20, 40, 349.8;
-  const calib::XyzAbc p = calib::toXyzAbc(calib::forwardKinematics(nominal, q));
-  const calib::Configuration c = calib::kukaConfiguration(nominal, q);
+  const calib::Configuration c = calib::kukaConfiguration(test::loadBundled("kuka_kr16"), q);
   ASSERT_EQ((c.turn >> 5) & 1, 0);
-  char target[256];
-  std::snprintf(target, sizeof target, "{X %.4f,Y %.4f,Z %.4f,A %.5f,B %.5f,C %.5f,S %d,T %d}", p.x_mm, p.y_mm, p.z_mm, p.a_deg, p.b_deg,
-                p.c_deg, c.status, c.turn);
-  test::writeText(dir + "/lim.src", std::string("DEF lim( )\n$TOOL={X 0,Y 0,Z 0,A 0,B 0,C 0}\n$BASE={X 0,Y 0,Z 0,A 0,B 0,C 0}\nPTP ") +
-                                        target + "\nEND\n");
+  test::writeText(dir + "/lim.src", "DEF lim( )\n$TOOL={X 0,Y 0,Z 0,A 0,B 0,C 0}\n$BASE={X 0,Y 0,Z 0,A 0,B 0,C 0}\nPTP " +
+                                        kr16Target(349.8, true) + "\nEND\n");
   // the real A6 turned by -0.5 deg or +0.5 deg: one of the two needs A6 at 350.3 to reach the target
   bool said = false;
   for (const char* offset : {"0.5", "-0.5"}) {
-    std::string r6 = robot;
-    r6.replace(r6.find("VALUE"), 5, offset);
-    test::writeText(dir + "/cal.xml", r6);
+    test::writeText(dir + "/cal.xml", kr16WithA6Offset(offset));
     const CliRun r = run("compensate --robot cal.xml --in lim.src --out o", dir);
     if (r.code == 0) continue;
     EXPECT_EQ(r.code, 1) << r.err;
@@ -654,27 +666,11 @@ TEST(CliMessages, ACorrectionPastAJointLimitSaysWhichJoint) {
 // and the limit. With the offset the other way the same program is compensated.
 TEST(CliMessages, ALinWhoseCorrectionRunsAJointPastItsLimitIsRefused) {
   const std::string dir = test::tempDir("cli_ux_lin_limit");
-  std::string robot = test::readText(std::string(ACCURA_SOURCE_DIR) + "/robots/kuka_kr16.xml");
-  const size_t end = robot.rfind("</robot>");
-  ASSERT_NE(end, std::string::npos);
-  robot.insert(end, "  <calibration form=\"auto\">\n    <parameter name=\"j6_offset\" value=\"VALUE\" unit=\"deg\"/>\n  </calibration>\n");
-  const calib::RobotModel nominal = test::loadBundled("kuka_kr16");
-  const auto pose = [&](double q6, bool st) {
-    Eigen::VectorXd q(6);
-    q << 10, -80, 100, 20, 40, q6;
-    const calib::XyzAbc p = calib::toXyzAbc(calib::forwardKinematics(nominal, q));
-    const calib::Configuration c = calib::kukaConfiguration(nominal, q);
-    char text[256];
-    std::snprintf(text, sizeof text, "{X %.4f,Y %.4f,Z %.4f,A %.5f,B %.5f,C %.5f", p.x_mm, p.y_mm, p.z_mm, p.a_deg, p.b_deg, p.c_deg);
-    return std::string(text) + (st ? ",S " + std::to_string(c.status) + ",T " + std::to_string(c.turn) : std::string()) + "}";
-  };
-  test::writeText(dir + "/lin.src", "DEF lin( )\n$TOOL={X 0,Y 0,Z 0,A 0,B 0,C 0}\n$BASE={X 0,Y 0,Z 0,A 0,B 0,C 0}\nPTP " + pose(347, true) +
-                                        "\nLIN " + pose(349.8, false) + "\nEND\n");
+  test::writeText(dir + "/lin.src", "DEF lin( )\n$TOOL={X 0,Y 0,Z 0,A 0,B 0,C 0}\n$BASE={X 0,Y 0,Z 0,A 0,B 0,C 0}\nPTP " +
+                                        kr16Target(347, true) + "\nLIN " + kr16Target(349.8, false) + "\nEND\n");
   int refused = 0, written = 0;
   for (const char* offset : {"0.5", "-0.5"}) {
-    std::string r6 = robot;
-    r6.replace(r6.find("VALUE"), 5, offset);
-    test::writeText(dir + "/cal.xml", r6);
+    test::writeText(dir + "/cal.xml", kr16WithA6Offset(offset));
     std::filesystem::remove_all(dir + "/o");
     const CliRun r = run("compensate --robot cal.xml --in lin.src --out o", dir);
     if (r.code == 0) {

@@ -96,6 +96,13 @@ inline void writeText(const std::string& path, const std::string& text) {
   f << text;
 }
 
+/// Copies the file `from` to `to` (its directories created).
+inline void copyText(const std::string& from, const std::string& to) {
+  std::filesystem::create_directories(std::filesystem::path(to).parent_path());
+  std::ifstream in(from, std::ios::binary);
+  std::ofstream(to, std::ios::binary) << in.rdbuf();
+}
+
 inline std::string readText(const std::string& path) {
   std::ifstream f(path, std::ios::binary);
   return std::string((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
