@@ -927,14 +927,13 @@ void refuseValidationInFitData(const std::vector<MeasurementSet>& fit, const Mea
 
 void refuseSharedMeasurements(const std::vector<MeasurementSet>& sets) {
   if (sets.size() < 2) return;
-  const auto key = measurementKey;
   std::unordered_map<std::string, std::pair<size_t, size_t>> seen;  // key -> (set, row) of its first occurrence
   for (size_t s = 0; s < sets.size(); ++s) {
     const std::vector<Measurement>& rows = sets[s].rows;
     std::vector<std::string> keys(rows.size());
     size_t shared = 0, first_row = 0, first_other_set = 0, first_other_row = 0;
     for (size_t i = 0; i < rows.size(); ++i) {
-      keys[i] = key(rows[i]);
+      keys[i] = measurementKey(rows[i]);
       const auto it = seen.find(keys[i]);
       if (it == seen.end() || it->second.first == s) continue;
       if (shared++ == 0) {

@@ -351,9 +351,9 @@ class Job {
     // the Turn bits alone differ and a joint's value with the programmed sign (360 deg away) lies
     // beyond its limit: the corrected target needs the joint past its limit in the programmed
     // configuration (a target programmed next to a limit), which is what to say
-    if (asked.status < 0 || asked.status == got.status) {
+    if (asked.turn >= 0 && (asked.status < 0 || asked.status == got.status)) {
       const calib::RobotDefinition& robot = comp.controller().model().nominal;
-      for (int i = 0; i < robot.dof() && i < 30 && asked.turn >= 0; ++i) {
+      for (int i = 0; i < robot.dof() && i < 30; ++i) {
         const calib::JointSpec& j = robot.joints[static_cast<size_t>(i)];
         if (j.type != calib::JointType::kRevolute || ((asked.turn ^ got.turn) >> i & 1) == 0) continue;
         const double programmed = q[i] < 0 ? q[i] + 360.0 : q[i] - 360.0;  // the value with the programmed sign
