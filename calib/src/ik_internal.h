@@ -159,7 +159,22 @@ inline bool allFinite(const double* v) {
   return (Eigen::Map<const Eigen::Array<double, N, 1>>(v) * 0.0).sum() == 0;
 }
 
+/// f(i) for every joint i < n; for six joints with a constant trip count, so that the compiler
+/// unrolls the loop (the IK's per-joint tests and sums in the path-following hot path; the same
+/// operations in the same order either way).
+template <class F>
+inline void forEachJoint(int n, F&& f) {
+  if (n == 6) {
+    for (int i = 0; i < 6; ++i) f(i);
+  } else {
+    for (int i = 0; i < n; ++i) f(i);
+  }
+}
+
 inline int turnBits(const double* q, int n) {
+  if (n == 6)  // (the same bits, unrolled)
+    return static_cast<int>(q[0] < 0) | static_cast<int>(q[1] < 0) << 1 | static_cast<int>(q[2] < 0) << 2 |
+           static_cast<int>(q[3] < 0) << 3 | static_cast<int>(q[4] < 0) << 4 | static_cast<int>(q[5] < 0) << 5;
   int t = 0;
   const int m = std::min(n, 30);
   for (int i = 0; i < m; ++i) t |= static_cast<int>(q[i] < 0) << i;  // (no branch per joint)
@@ -211,6 +226,8 @@ struct IkWorkspace::Data {
   /// The stored solution's Status bit 0 and a lower bound of |x_a1| (mm; finish()).
   double x_a1_abs_lo = 0;
   bool x_a1_negative = false;
+  /// The stored solution's Status bits 1 and 2 (StatusGeometry::elbowWristBits; finish()).
+  int elbow_wrist_bits = 0;
 
   bool holds(std::uint64_t id, const Eigen::VectorXd& seed, const PoseContext& ctx) const {
     if (solver_id == 0 || solver_id != id || seed.size() != q.size()) return false;

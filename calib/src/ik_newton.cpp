@@ -64,10 +64,10 @@ bool KinematicSolver::Impl::fitLimits(VecN& q, int turn, const VecN& ref, const 
     // to move
     // (the signs asked for: the Turn bits of q against `turn`, joints 0..n-1; n <= kMaxDof)
     bool all = !check_sign || ((turnBits(q.data(), n) ^ turn) & ((1 << n) - 1)) == 0;
-    for (int i = 0; i < n; ++i) {
+    forEachJoint(n, [&](int i) {
       const double qi = q[i];
       all &= (qi >= lower[i] - slack) & (qi <= upper[i] + slack) & (std::abs(qi - ref[i]) <= wrap_band[i]);
-    }
+    });
     if (all) return true;
   }
   for (int i = 0; i < n; ++i) {
@@ -279,19 +279,32 @@ KinematicSolver::Impl::Newton KinematicSolver::Impl::newton(VecN& q, const Eigen
   Vector6d et;
   Jac6N J, Js;
   auto trial = [&](const VecN& step) {
-    qt = q + step;
+    if (n == 6) {
+      qt.head<6>() = q.head<6>() + step.head<6>();  // (the same sums, unrolled)
+    } else {
+      qt = q + step;
+    }
     chain.evaluate(qt.data(), ctx, *fp.tmp, fp.cur);
     poseErr(T_target, fp.tmp->T_world_tcp, et);
     ++r.iterations;
     const double mt = meritSquared(et);
     if (!(mt < merit)) return false;
-    q += step;  // = qt (the same sum), without a copy
+    if (n == 6) {
+      q.head<6>() = qt.head<6>();
+    } else {
+      q += step;  // = qt (the same sum), without a copy
+    }
     std::swap(fp.cur, fp.tmp);
     e = et;
     merit = mt;
     return true;
   };
   auto limitStep = [&](VecN& step) {
+    // s = min(1, min_i limit_i / |step_i|): nothing to do unless a joint's step exceeds its
+    // limit (the common case; one pass without a branch per joint)
+    bool over = false;
+    forEachJoint(n, [&](int i) { over |= std::abs(step[i]) > step_limit[i]; });
+    if (!over) return;
     double s = 1;
     for (int i = 0; i < n; ++i)
       if (std::abs(step[i]) * s > step_limit[i]) s = step_limit[i] / std::abs(step[i]);
@@ -324,7 +337,7 @@ KinematicSolver::Impl::Newton KinematicSolver::Impl::newton(VecN& q, const Eigen
         have = fresh = true;
       }
       dq = use_block ? fact->solve(e) : lu.solve(e);
-      if (!allFinite(dq.data(), 6)) break;
+      if (!allFinite<6>(dq.data())) break;
       limitStep(dq);
       const double before = merit;
       if (trial(dq)) {

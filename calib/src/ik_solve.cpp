@@ -6,7 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <optional>
+#include <memory>
 #include <sstream>
 
 #include "accura/calib/errors.h"
@@ -135,7 +135,9 @@ IkResult KinematicSolver::Impl::inverse(const Eigen::Isometry3d& T_target, const
   int iterations = 0;
 
   std::vector<IkResult> other_configuration;  // converged solutions on other configurations
-  std::optional<IkResult> singular_solution;  // the first singular one on the configuration
+  // the first singular one on the configuration (rare: allocated when found, not zeroed on
+  // every call as an optional's room is)
+  std::unique_ptr<IkResult> singular_solution;
   int limit_failures = 0;
   // A converged q (frames in *fp.cur): limits, singularity, configuration. Returns true when
   // `out` is the answer.
@@ -148,11 +150,11 @@ IkResult KinematicSolver::Impl::inverse(const Eigen::Isometry3d& T_target, const
     // the largest joint move from the seed (deg / mm), and the sum of the first five (rad)
     double moved_deg = 0, moved_rad = 0;
     if (warm) {
-      for (int i = 0; i < n; ++i) {
+      forEachJoint(n, [&](int i) {
         const double d = std::abs(q[i] - ref[i]);
         moved_deg = std::max(moved_deg, d);
         if (i < 5) moved_rad += d * kDegToRad;
-      }
+      });
     }
     if (warm && moved_deg > kWarmMaxDeg) return false;
     Configuration conf;  // (the IkResult is built only where it is the answer)
@@ -174,7 +176,9 @@ IkResult KinematicSolver::Impl::inverse(const Eigen::Isometry3d& T_target, const
     // warm: accepted only next to the seed and on its Status (else another solution may be
     // nearer: next to a singularity two branches come close; the closed form decides)
     if (warm && status_geometry.defined) {
-      if ((conf.status & 6) != status_geometry.elbowWristBits(ref.data())) return false;
+      // (reused: the seed is the stored solution, whose bits the workspace keeps)
+      const int seed_bits = reuse ? ws->elbow_wrist_bits : status_geometry.elbowWristBits(ref.data());
+      if ((conf.status & 6) != seed_bits) return false;
       // bit 0: recomputed for the seed only when the move could have crossed 0
       if (!bit0_known && std::abs(x_a1) <= L * moved_rad &&
           (status_geometry.status(ref.data()) & 1) != (conf.status & 1))
@@ -249,7 +253,10 @@ IkResult KinematicSolver::Impl::inverse(const Eigen::Isometry3d& T_target, const
         asSingular(out);
         return true;
       }
-      if (!warm && !singular_solution) asSingular(singular_solution.emplace());
+      if (!warm && !singular_solution) {
+        singular_solution = std::make_unique<IkResult>();
+        asSingular(*singular_solution);
+      }
       return false;
     }
     // `out` is still a default IkResult here (written only when finish() returns true)
@@ -268,9 +275,10 @@ IkResult KinematicSolver::Impl::inverse(const Eigen::Isometry3d& T_target, const
       ws->q = q;
       ws->payload_kg = ctx.payload_kg;
       ws->temp_c = ctx.temp_c;
-      ws->dir = ctx.dir;
+      if (!reuse) ws->dir = ctx.dir;  // (reused: the same, holds() compared them)
       ws->x_a1_abs_lo = status_geometry.defined ? x_a1_abs_lo : 0.0;
       ws->x_a1_negative = (conf.status & 1) != 0;
+      ws->elbow_wrist_bits = conf.status & 6;
     }
     return true;
   };
