@@ -746,5 +746,18 @@ TEST(CliUsage, HelpIsACommandThatPrintsTheHelp) {
             "export; or help), found 'identfy' (see accura --help)\n");
 }
 
+// --holdout 0.5 held out "every 2th pose", 0.34 "every 3th": English ordinals (1/0.5 = 2nd,
+// 1/0.34 rounds to 3rd, 1/0.2 = 5th).
+TEST(CliIdentify, TheHoldoutNamesEveryKthPoseWithItsOrdinal) {
+  const std::string dir = test::tempDir("cli_holdout");
+  const CliRun sim = run("simulate --robot kuka_kr16 --poses 60 --seed 3 --out d.csv", dir);
+  ASSERT_EQ(sim.code, 0) << sim.err;
+  for (const auto& [holdout, nth] : std::vector<std::pair<std::string, std::string>>{{"0.5", "2nd"}, {"0.34", "3rd"}, {"0.2", "5th"}}) {
+    const CliRun r = run("identify --robot kuka_kr16 --data d.csv --holdout " + holdout + " --out m.xml --quiet", dir);
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_NE(r.out.find("validation on every " + nth + " pose of d.csv (held out)"), std::string::npos) << holdout << "\n" << r.out;
+  }
+}
+
 }  // namespace
 }  // namespace accura::calib
