@@ -239,7 +239,7 @@ void addDiagnoseCommand(CLI::App& app) {
   c->add_option("--base", a->base, "nominal T_world_base x,y,z,A,B,C (mm, deg), as for identify");
   c->add_option("--tool", a->tool, "nominal T_flange_tcp x,y,z[,A,B,C] (mm, deg), as for identify");
   c->add_option("--effects", a->effects,
-                "effects to test (default: the catalogue: joint_compliance, gear_periodic, joint_scale, backlash, thermal)");
+                "effects to test (default: the catalogue: joint_compliance, gear_periodic, joint_scale, backlash, thermal, joint_map)");
   addIntegerOption(c, "--harmonics", a->harmonics, "harmonics 1..H of gear_periodic", 1, calib::kMaxGearHarmonics)->capture_default_str();
   addIntegerOption(c, "--folds", a->folds, "folds of the cross-validation without --validate", 2, 20)->capture_default_str();
   addNumberOption(c, "--noise-mm", a->noise_mm,

@@ -24,6 +24,13 @@ namespace accura::cli {
 namespace {
 using nlohmann::ordered_json;
 
+/// "2nd", "3rd", "5th", "11th", "21st": which of every n poses --holdout keeps.
+std::string ordinal(int n) {
+  const int last2 = n % 100, last = n % 10;
+  const char* suffix = (last2 >= 11 && last2 <= 13) ? "th" : last == 1 ? "st" : last == 2 ? "nd" : last == 3 ? "rd" : "th";
+  return std::to_string(n) + suffix;
+}
+
 /// The start model of --robot in the link forms of --form, with --base and --tool.
 calib::RobotModel startModel(const IdentifyArgs& a) {
   calib::RobotModel start = loadRobot(a.robot);
@@ -164,9 +171,9 @@ void readData(const IdentifyArgs& a, IdentifyRun& r) {
   for (size_t i = 0; i < data.rows.size(); ++i) (held[i] ? r.validation : fit).rows.push_back(data.rows[i]);
   data = fit;
   const bool repeats = configs.size() < held.size();
-  r.validation_source = repeats ? "every " + std::to_string(every) + "th joint configuration of " + r.data_names + " with its repeats (" +
+  r.validation_source = repeats ? "every " + ordinal(every) + " joint configuration of " + r.data_names + " with its repeats (" +
                                       std::to_string(held_configs) + " of " + std::to_string(configs.size()) + " distinct configurations, held out)"
-                                : "every " + std::to_string(every) + "th pose of " + r.data_names + " (held out)";
+                                : "every " + ordinal(every) + " pose of " + r.data_names + " (held out)";
   r.holdout_note = " (" + std::to_string(r.validation.rows.size()) + " of the file's " + std::to_string(fit.rows.size() + r.validation.rows.size()) +
                    " poses are held out for validation, --holdout " + fmt("%g", a.holdout) + ": --holdout 0 fits them all)";
 }
@@ -740,7 +747,7 @@ void addIdentifyCommand(CLI::App& app) {
                   "parameters) on it with the robot's parameters held fixed")
       ->capture_default_str();
   addNumberOption(cid, "--holdout", id->holdout,
-                  "without --validate: fraction of the poses held out for validation (every k-th)",
+                  "without --validate: fraction held out for validation (every k-th joint configuration with its repeats; every k-th pose when there are none)",
                   NumberRange{0, 0.5, false, ""})
       ->capture_default_str();
   cid->add_option("--base", id->base, "nominal T_world_base x,y,z,A,B,C (mm, deg)");

@@ -1,4 +1,4 @@
-// accura: command-line entry point. Subcommands are in commands.cpp.
+// accura: command-line entry point. Subcommands are in cmd_*.cpp (declared in commands.h).
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <cctype>
@@ -80,18 +80,36 @@ int main(int argc, char** argv) {
                       "URDF robots: the serial chain ROOT_LINK:TIP_LINK (default: root link to tool0, "
                       "else to the end of the only moving branch)");
 
-  // an unknown command is named as such (CLI11 would only say that a subcommand is required)
-  if (argc > 1 && argv[1][0] != '-') {
+  // an unknown command is named as such (CLI11 would only say that a subcommand is required);
+  // `accura help` is `accura --help`, `accura help CMD` is `accura CMD --help`
+  const bool asks_help = argc > 1 && std::string(argv[1]) == "help";
+  if (asks_help && (argc > 3 || (argc == 3 && argv[2][0] == '-'))) {
+    std::cerr << "accura: error: expected 'accura help' or 'accura help COMMAND', found '" << argv[argc - 1]
+              << "' after help (see accura --help)\n";
+    return 1;
+  }
+  const int command_arg = asks_help ? 2 : 1;
+  if (argc > command_arg && argv[command_arg][0] != '-') {
     bool known = false;
     std::string names;
     for (const CLI::App* sub : app.get_subcommands({})) {
-      known = known || sub->get_name() == argv[1];
+      known = known || sub->get_name() == argv[command_arg];
       names += (names.empty() ? "" : ", ") + sub->get_name();
     }
     if (!known) {
-      std::cerr << "accura: error: expected a command (" << names << "), found '" << argv[1] << "'\n";
+      std::cerr << "accura: error: expected a command (" << names << (asks_help ? "" : "; or help") << "), found '"
+                << argv[command_arg] << "' (see accura --help)\n";
       return 1;
     }
+  }
+  std::string help_flag = "--help";
+  std::vector<char*> help_argv;
+  if (asks_help) {  // parsed as the --help it stands for, so that both print the same text
+    help_argv = {argv[0]};
+    if (argc == 3) help_argv.push_back(argv[2]);
+    help_argv.push_back(help_flag.data());
+    argc = static_cast<int>(help_argv.size());
+    argv = help_argv.data();
   }
   try {
     try {

@@ -716,5 +716,48 @@ TEST(CliMessages, CheckGivesUnitsAndTheFrameOfItsCoordinates) {
   EXPECT_EQ(l[l.size() - 2].substr(l[l.size() - 2].size() - 4), " deg") << l[l.size() - 2];
 }
 
+// `accura help` failed as an unknown command ("expected a command (...), found 'help'"): it is
+// `accura --help`, and `accura help CMD` is `accura CMD --help`, the same text and exit 0.
+TEST(CliUsage, HelpIsACommandThatPrintsTheHelp) {
+  const CliRun all = run("--help");
+  ASSERT_EQ(all.code, 0) << all.err;
+  const CliRun help = run("help");
+  EXPECT_EQ(help.code, 0) << help.err;
+  EXPECT_EQ(help.out, all.out);
+  EXPECT_EQ(help.err, "");
+  const CliRun identify = run("identify --help");
+  ASSERT_EQ(identify.code, 0) << identify.err;
+  const CliRun help_identify = run("help identify");
+  EXPECT_EQ(help_identify.code, 0) << help_identify.err;
+  EXPECT_EQ(help_identify.out, identify.out);
+  EXPECT_NE(help_identify.out.find(" identify [OPTIONS]\n"), std::string::npos) << help_identify.out;  // "Usage: ARGV0 identify"
+  const CliRun unknown = run("help identfy");
+  EXPECT_EQ(unknown.code, 1);
+  EXPECT_EQ(unknown.err,
+            "accura: error: expected a command (fk, simulate, identify, convert, compensate, batch, diagnose, selfcheck, check, "
+            "export), found 'identfy' (see accura --help)\n");
+  const CliRun extra = run("help identify fk");
+  EXPECT_EQ(extra.code, 1);
+  EXPECT_EQ(extra.err, "accura: error: expected 'accura help' or 'accura help COMMAND', found 'fk' after help (see accura --help)\n");
+  const CliRun typo = run("identfy");
+  EXPECT_EQ(typo.code, 1);
+  EXPECT_EQ(typo.err,
+            "accura: error: expected a command (fk, simulate, identify, convert, compensate, batch, diagnose, selfcheck, check, "
+            "export; or help), found 'identfy' (see accura --help)\n");
+}
+
+// --holdout 0.5 held out "every 2th pose", 0.34 "every 3th": English ordinals (1/0.5 = 2nd,
+// 1/0.34 rounds to 3rd, 1/0.2 = 5th).
+TEST(CliIdentify, TheHoldoutNamesEveryKthPoseWithItsOrdinal) {
+  const std::string dir = test::tempDir("cli_holdout");
+  const CliRun sim = run("simulate --robot kuka_kr16 --poses 60 --seed 3 --out d.csv", dir);
+  ASSERT_EQ(sim.code, 0) << sim.err;
+  for (const auto& [holdout, nth] : std::vector<std::pair<std::string, std::string>>{{"0.5", "2nd"}, {"0.34", "3rd"}, {"0.2", "5th"}}) {
+    const CliRun r = run("identify --robot kuka_kr16 --data d.csv --holdout " + holdout + " --out m.xml --quiet", dir);
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_NE(r.out.find("validation on every " + nth + " pose of d.csv (held out)"), std::string::npos) << holdout << "\n" << r.out;
+  }
+}
+
 }  // namespace
 }  // namespace accura::calib

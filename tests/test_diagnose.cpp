@@ -531,5 +531,16 @@ TEST(Diagnose, CommandRejectsBadOptionsWithExitCode1) {
   EXPECT_NE(r.err.find("/nonexistent.csv"), std::string::npos) << r.err;
 }
 
+// A rejected effect without joints (thermal) printed "not selected: thermal : ..." (the empty
+// joint list between two spaces); one with joints names them after one space.
+TEST(DiagnoseText, ARejectedEffectWithoutJointsHasNoStraySpace) {
+  Diagnosis d;
+  d.rejected = {{"thermal", {}, "physically implausible: thermal_alpha = -194.8 ppm/K"}, {"joint_scale", {1, 2}, "coverage-limited"}};
+  const std::string text = diagnosisText(d);
+  EXPECT_NE(text.find("\nnot selected: thermal: physically implausible: thermal_alpha = -194.8 ppm/K\n"), std::string::npos) << text;
+  EXPECT_NE(text.find("\nnot selected: joint_scale j1,j2: coverage-limited\n"), std::string::npos) << text;
+  EXPECT_EQ(text.find("thermal :"), std::string::npos) << text;
+}
+
 }  // namespace
 }  // namespace accura::calib

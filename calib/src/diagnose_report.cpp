@@ -626,7 +626,8 @@ std::string diagnosisText(const Diagnosis& d) {
     for (const Coverage& c : e.coverage) s << " " << c.variable << " " << f("%.1f", c.lo) << ".." << f("%.1f", c.hi) << " " << c.unit;
     s << "\n";
   }
-  for (const Rejected& r : d.rejected) s << "not selected: " << r.effect << " " << jointsText(r.joints) << ": " << r.reason << "\n";
+  for (const Rejected& r : d.rejected)
+    s << "not selected: " << r.effect << (r.joints.empty() ? "" : " " + jointsText(r.joints)) << ": " << r.reason << "\n";
   s << "identify --params " << d.identify_params << "\n";
   for (const Confounding& c : d.confounded) s << confoundingText(c) << "\n";
   if (!d.spectra.empty()) {

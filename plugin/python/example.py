@@ -131,7 +131,7 @@ def main():
                 f.write(SEAM_PROGRAM)
             out = os.path.join(d, "out")
             s = model.compensate_program(src, out, tol_mm=tol_mm)
-            print("program: %d targets corrected (max %.4f mm), %d points added, path error %.4f -> %.4f mm; wrote %s" %
+            print("program: %d targets corrected (max %.4f mm), %d point(s) added, path error %.4f -> %.4f mm; wrote %s" %
                   (s.targets_corrected, s.max_correction_mm, s.points_added, s.max_error_uncompensated_mm,
                    s.max_error_after_mm, s.output_path.decode()))
             check(s.targets_corrected >= 4, "targets corrected: %d (PTP, LIN, CIRC, LIN)" % s.targets_corrected)
