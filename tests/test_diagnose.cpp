@@ -542,5 +542,19 @@ TEST(DiagnoseText, ARejectedEffectWithoutJointsHasNoStraySpace) {
   EXPECT_EQ(text.find("thermal :"), std::string::npos) << text;
 }
 
+TEST(DiagnoseText, AnUnexplainedVerdictSaysWhatItsJointIs) {
+  Diagnosis d;
+  d.verdict.effect = "unexplained";
+  d.verdict.joints = {2};
+  d.verdict.validation_rms_after_mm = 0.2009;
+  EXPECT_NE(diagnosisText(d).find("\nverdict: unexplained (the rest acts most like a motion of j2), held-out RMS after 0.2009 mm\n"),
+            std::string::npos)
+      << diagnosisText(d);
+  d.verdict.effect = "joint_compliance";
+  d.verdict.joints = {2, 3};
+  EXPECT_NE(diagnosisText(d).find("\nverdict: joint_compliance (j2,j3), held-out RMS after 0.2009 mm\n"), std::string::npos)
+      << diagnosisText(d);
+}
+
 }  // namespace
 }  // namespace accura::calib

@@ -644,7 +644,10 @@ std::string diagnosisText(const Diagnosis& d) {
     s << "orientation residual (the same parameter groups identified on positions and orientations, as identify does): " << f("%.4f", d.orientation_rms_before_deg) << " -> "
       << f("%.4f", d.orientation_rms_after_deg) << " deg RMS\n";
   s << "verdict: " << d.verdict.effect;
-  if (!d.verdict.joints.empty()) s << " (" << jointsText(d.verdict.joints) << ")";
+  // unexplained: the joint is not a cause's but the one whose motion the residual acts like most
+  if (!d.verdict.joints.empty())
+    s << (d.verdict.effect == "unexplained" ? " (the rest acts most like a motion of " : " (")
+      << jointsText(d.verdict.joints) << ")";
   s << ", held-out RMS after " << f("%.4f", d.verdict.validation_rms_after_mm) << " mm\n  " << d.verdict.explanation << "\n";
   return s.str();
 }
