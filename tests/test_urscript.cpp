@@ -16,6 +16,7 @@
 #include "accura/calib/robot_io.h"
 #include "accura/calib/simulate.h"
 #include "accura/calib/ur_calibration.h"
+#include "accura/postproc/check.h"
 #include "accura/postproc/compensate.h"
 #include "accura/postproc/job.h"
 #include "accura/postproc/program_io.h"
@@ -495,6 +496,15 @@ TEST(UrScript, ATargetWithJointsAtZeroIsNotTurnedByItsKukaTurnBits) {
   // the S/T are kept as written (the UR does not read them)
   EXPECT_EQ(*c.program.motions[1].target.status, st_a.status);
   EXPECT_EQ(*c.program.motions[1].target.turn, st_a.turn);
+  // accura check follows the same rule: on the written Turn bits the end point had joint 1 at
+  // 359.97 deg and the LIN ran it past 360 (two joint-limit violations); the margin is that of
+  // the joints the arm takes (joint 4 at about -110 deg is the nearest to its limit)
+  CheckOptions o;
+  o.thresholds.joint_margin_deg = 1.0;
+  const CheckReport r = checkProgram(p, s, Cell{}, o);
+  EXPECT_TRUE(r.passed()) << (r.violations.empty() ? std::string() : r.violations.front().message);
+  const double largest = std::max(q_exec_a.cwiseAbs().maxCoeff(), q_exec_b.cwiseAbs().maxCoeff());
+  EXPECT_NEAR(r.min_joint_margin, 360.0 - largest, 0.5);
 }
 
 TEST(UrScript, AControllerThatRunsItsFactoryCalibrationIsNotCorrectedTwice) {

@@ -27,6 +27,23 @@ namespace {
 
 std::string targetLabel(const Target& t) { return t.name.empty() ? std::string("the inline target") : t.name; }
 
+std::string frameHint(const FrameSetting& f, const char* var) {
+  std::string s = std::string(var) + " ";
+  switch (f.source) {
+    case FrameSetting::Source::kUnset:
+      if (!f.note.empty()) return f.note;  // the reader's own hint (URScript: set_tcp)
+      return s + "is not set before this motion (assign " + var + " or use BAS(#" + (std::string(var) == "$TOOL" ? "TOOL" : "BASE") +
+             ",n) in the program, or give the frame active on the controller with " +
+             (std::string(var) == "$TOOL" ? "--program-tool" : "--program-base") + " x,y,z,A,B,C)";
+    case FrameSetting::Source::kData:
+      return s + "is " + f.text + " (set at " + f.where.str() + "), whose value needs the $config.dat (--config)" ;
+    default:
+      return s + "is '" + f.text + "' (set at " + f.where.str() + "), which accura cannot evaluate" + (f.note.empty() ? "" : ": " + f.note);
+  }
+}
+
+}  // namespace
+
 // A URScript program runs on a Universal Robots controller, whose arm has joints 2, 3 and 4
 // parallel and no spherical wrist (alpha 90, 0, 0, 90, -90, 0 up to sign; a4 = a5 = a6 = 0): its
 // shoulder/elbow/wrist branches (docs/urscript.md) are those of that geometry. Another arm
@@ -44,20 +61,7 @@ bool universalRobotsArm(const calib::RobotDefinition& d) {
   return true;
 }
 
-std::string frameHint(const FrameSetting& f, const char* var) {
-  std::string s = std::string(var) + " ";
-  switch (f.source) {
-    case FrameSetting::Source::kUnset:
-      if (!f.note.empty()) return f.note;  // the reader's own hint (URScript: set_tcp)
-      return s + "is not set before this motion (assign " + var + " or use BAS(#" + (std::string(var) == "$TOOL" ? "TOOL" : "BASE") +
-             ",n) in the program, or give the frame active on the controller with " +
-             (std::string(var) == "$TOOL" ? "--program-tool" : "--program-base") + " x,y,z,A,B,C)";
-    case FrameSetting::Source::kData:
-      return s + "is " + f.text + " (set at " + f.where.str() + "), whose value needs the $config.dat (--config)" ;
-    default:
-      return s + "is '" + f.text + "' (set at " + f.where.str() + "), which accura cannot evaluate" + (f.note.empty() ? "" : ": " + f.note);
-  }
-}
+namespace {
 
 class Job {
  public:
