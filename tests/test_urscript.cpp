@@ -16,10 +16,12 @@
 #include "accura/calib/robot_io.h"
 #include "accura/calib/simulate.h"
 #include "accura/calib/ur_calibration.h"
+#include "accura/postproc/check.h"
 #include "accura/postproc/compensate.h"
 #include "accura/postproc/job.h"
 #include "accura/postproc/program_io.h"
 #include "accura/postproc/urscript.h"
+#include "accura/postproc/xml_program.h"
 #include "test_util.h"
 
 namespace accura::postproc {
@@ -432,6 +434,77 @@ TEST(UrScript, ALoopsFirstMoveKeepsTheConfigurationTheRobotStandsIn) {
   for (const auto& w : c.report.warnings)
     said = said || (w.where.line == 5 && w.message.find("configuration of the last position known (after the motion at loop.script:3") != std::string::npos);
   EXPECT_TRUE(said);
+}
+
+TEST(UrScript, ATargetWithJointsAtZeroIsNotTurnedByItsKukaTurnBits) {
+  // A UR controller has no Status/Turn: movej(pose) takes the solution nearest the joints the
+  // robot stands on (URScript manual, movej / get_inverse_kin). A program in the neutral XML
+  // format made for the UR (an OLP's) may still carry KUKA S/T: here those of the joints
+  // {0, -60, 80, -110, -90, 0}, T 26 (joints 1 and 6 at exactly 0: their Turn bits clear).
+  // The real arm reaches the pose with joints 1 and 6 a few hundredths of a degree below 0;
+  // solved on the written Turn bits they went a full turn round (359.97 deg), and the LIN
+  // after it, turning them further up, ran into their 360 deg limit and was refused.
+  const RobotModel controller = ur10WithTorch();
+  SimulateOptions so;
+  so.effects = {"geometric"};
+  so.set_station = false;
+  so.seed = 2;
+  const RobotModel real = perturbModel(controller, so);
+  const KinematicSolver nominal(controller);
+  Eigen::VectorXd q_home(6), q_a(6), q_b(6);
+  q_home << 0, -90, 90, -90, -90, 0;
+  q_a << 0, -60, 80, -110, -90, 0;
+  q_b << 5, -60, 80, -110, -90, 5;
+  const Eigen::Isometry3d T_a = nominal.forward(q_a), T_b = nominal.forward(q_b);
+  const Configuration st_a = kukaConfiguration(controller, q_a);
+  ASSERT_EQ(st_a.turn, 26);  // joints 1 and 6 at 0: bits 0 and 5 clear
+  auto pose = [](const Eigen::Isometry3d& T, const Configuration& c) {
+    const XyzAbc p = toXyzAbc(T);
+    char b[400];
+    std::snprintf(b, sizeof b, "<pose x_mm=\"%.6f\" y_mm=\"%.6f\" z_mm=\"%.6f\" a_deg=\"%.7f\" b_deg=\"%.7f\" c_deg=\"%.7f\" s=\"%d\" t=\"%d\"/>",
+                  p.x_mm, p.y_mm, p.z_mm, p.a_deg, p.b_deg, p.c_deg, c.status, c.turn);
+    return std::string(b);
+  };
+  const std::string xml = "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<program name=\"zero\" version=\"1\">\n  <motions>\n"
+                          "    <ptp><axes a1=\"0\" a2=\"-90\" a3=\"90\" a4=\"-90\" a5=\"-90\" a6=\"0\"/></ptp>\n"
+                          "    <ptp>" + pose(T_a, st_a) + "</ptp>\n"
+                          "    <lin>" + pose(T_b, st_a) + "</lin>\n  </motions>\n</program>\n";
+  const Program p = parseXmlProgram(xml, "zero.xml");
+  ASSERT_EQ(p.motions.size(), 3u);
+  JobSettings s = settingsFor(real);
+  s.initial_tool = XyzAbc{0, 0, 150, 0, 0, 0};  // the torch of the model (ur10WithTorch)
+  s.initial_base = XyzAbc{0, 0, 0, 0, 0, 0};
+  const ProgramCompensation c = compensateProgramReport(p, s);
+  ASSERT_TRUE(c.ok()) << c.report.errors.front().where.str() << ": " << c.report.errors.front().message;
+  ASSERT_EQ(c.program.motions.size(), 3u);  // the LIN: no point added on 100 mm of a 0.05 mm tolerance
+  // the expectation on its own: the UR runs the written poses, each from the joints it stands
+  // on (its IK's solution nearest them: every closed-form branch polished on the controller
+  // model), and the real arm's FK of those joints is the intended pose
+  const Eigen::VectorXd q_exec_a = nearestSolution(controller, poseOf(c.program.motions[1].target), q_home);
+  ASSERT_EQ(q_exec_a.size(), 6);
+  const Eigen::VectorXd q_exec_b = nearestSolution(controller, poseOf(c.program.motions[2].target), q_exec_a);
+  ASSERT_EQ(q_exec_b.size(), 6);
+  const KinematicSolver real_fk(real);
+  EXPECT_LT((real_fk.forward(q_exec_a).translation() - T_a.translation()).norm(), 1e-3);
+  EXPECT_LT(rotationAngleDeg(real_fk.forward(q_exec_a).linear() * T_a.linear().transpose()), 1e-4);
+  EXPECT_LT((real_fk.forward(q_exec_b).translation() - T_b.translation()).norm(), 1e-3);
+  // the arm stays where the program put it (no joint a turn round): joints 1 and 6 within 0.5 deg of 0
+  EXPECT_LT((q_exec_a - q_a).cwiseAbs().maxCoeff(), 0.5);
+  EXPECT_LT((q_exec_b - q_b).cwiseAbs().maxCoeff(), 0.5);
+  // at least one of joints 1 and 6 lies below 0 on the real arm: the case of the Turn bit
+  EXPECT_TRUE(q_exec_a[0] < 0 || q_exec_a[5] < 0) << q_exec_a.transpose();
+  // the S/T are kept as written (the UR does not read them)
+  EXPECT_EQ(*c.program.motions[1].target.status, st_a.status);
+  EXPECT_EQ(*c.program.motions[1].target.turn, st_a.turn);
+  // accura check follows the same rule: on the written Turn bits the end point had joint 1 at
+  // 359.97 deg and the LIN ran it past 360 (two joint-limit violations); the margin is that of
+  // the joints the arm takes (joint 4 at about -110 deg is the nearest to its limit)
+  CheckOptions o;
+  o.thresholds.joint_margin_deg = 1.0;
+  const CheckReport r = checkProgram(p, s, Cell{}, o);
+  EXPECT_TRUE(r.passed()) << (r.violations.empty() ? std::string() : r.violations.front().message);
+  const double largest = std::max(q_exec_a.cwiseAbs().maxCoeff(), q_exec_b.cwiseAbs().maxCoeff());
+  EXPECT_NEAR(r.min_joint_margin, 360.0 - largest, 0.5);
 }
 
 TEST(UrScript, AControllerThatRunsItsFactoryCalibrationIsNotCorrectedTwice) {

@@ -42,9 +42,31 @@ std::string frameHint(const FrameSetting& f, const char* var) {
   }
 }
 
+}  // namespace
+
+// A URScript program runs on a Universal Robots controller, whose arm has joints 2, 3 and 4
+// parallel and no spherical wrist (alpha 90, 0, 0, 90, -90, 0 up to sign; a4 = a5 = a6 = 0): its
+// shoulder/elbow/wrist branches (docs/urscript.md) are those of that geometry. Another arm
+// (a KUKA or ABB model given by mistake) would be compensated into nonsense without a word.
+bool universalRobotsArm(const calib::RobotDefinition& d) {
+  if (d.dof() != 6) return false;
+  const double alpha[6] = {90, 0, 0, 90, 90, 0};
+  for (int i = 0; i < 6; ++i) {
+    const calib::JointSpec& j = d.joints[static_cast<size_t>(i)];
+    if (j.type != calib::JointType::kRevolute) return false;
+    const double a = std::fmod(std::fabs(j.alpha_deg), 180.0);
+    if (std::min(std::fabs(a - alpha[i]), 180.0 - std::fabs(a - alpha[i])) > 1.0) return false;
+    if (i >= 3 && std::fabs(j.a_mm) > 1.0) return false;
+  }
+  return true;
+}
+
+namespace {
+
 class Job {
  public:
-  Job(const JobSettings& s, JobReport* r) : s_(s), r_(*r), models_(s, placeRobot(s)) {
+  Job(const JobSettings& s, JobReport* r)
+      : s_(s), r_(*r), models_(s, placeRobot(s)), ur_arm_(universalRobotsArm(s.calibrated.nominal)) {
     r_.robroot_in_world = calib::toXyzAbc(models_.placement().T_world_robroot);
     r_.calibrated_base_in_world = calib::toXyzAbc(models_.placement().T_world_calbase);
   }
@@ -792,6 +814,15 @@ class Job {
       config = abbBranch(c.end);
       start = abbSeed(c.end);
     }
+    if (ur_arm_) {
+      // a Universal Robots controller has no Status/Turn: movej(pose) goes to the solution
+      // nearest the joints the robot stands on (docs/urscript.md). S/T a program written for it
+      // carries (XML from an OLP) are not asked: a Turn bit asked of a joint at 0 turned it a
+      // full turn round (-0.03 deg -> 359.97 deg, within the UR's +-360 deg) to keep its sign.
+      // From an unknown position the written Status stays the guess of the branch.
+      if (q_real_) config = calib::Configuration{};
+      else config.turn = -1;
+    }
     if (!cp && m.qnear_deg && s_.calibrated.dof() == 6) {
       // URScript get_inverse_kin(pose, qnear=q): the controller takes the solution nearest
       // to qnear, not to where the robot stands
@@ -804,7 +835,7 @@ class Job {
       return keep(out, mo);
     }
     if (cp) noteCpConfiguration(m, end, comp, pc.q_real);
-    else if (!checkConfig(m, end, comp, pc.q_real, c.T_world_end)) return keep(out, mo);
+    else if (!ur_arm_ && !checkConfig(m, end, comp, pc.q_real, c.T_world_end)) return keep(out, mo);  // (a UR: S/T kept as written)
     if (!abbConfiguration(m, mo.target, comp, pc.q_real, cp)) return keep(out, mo);
     if (!cp) notePostureChange(m, end, comp, c.T_world_end, config, start, pc.q_real);
     setPose(mo.target, toProgram(c.T_world_progbase, pc.T_world_tcp_command), commandBefore(c));
@@ -984,6 +1015,8 @@ class Job {
   const JobSettings& s_;
   JobReport& r_;
   ModelFactory models_;
+  /// A Universal Robots arm: its controller reads no Status/Turn (pointMotion)
+  bool ur_arm_ = false;
   std::optional<Eigen::VectorXd> q_real_;                    ///< real joints after the last motion
   SourceLocation q_real_where_;                              ///< the motion q_real_ is after
   std::optional<Eigen::VectorXd> q_hint_;                    ///< the joints last known (forget())
@@ -1044,25 +1077,6 @@ void warnOutsideFitRanges(const calib::RobotModel& calibrated, JobReport* r) {
   r->warnings.insert(r->warnings.end(), found.begin(), found.end());
   r->warnings.push_back({first, std::to_string(found.size()) + " of " + std::to_string(r->targets.size()) +
                                     " target(s) outside the fitted joint ranges; the correction there is an extrapolation"});
-}
-}  // namespace
-
-namespace {
-// A URScript program runs on a Universal Robots controller, whose arm has joints 2, 3 and 4
-// parallel and no spherical wrist (alpha 90, 0, 0, 90, -90, 0 up to sign; a4 = a5 = a6 = 0): its
-// shoulder/elbow/wrist branches (docs/urscript.md) are those of that geometry. Another arm
-// (a KUKA or ABB model given by mistake) would be compensated into nonsense without a word.
-bool universalRobotsArm(const calib::RobotDefinition& d) {
-  if (d.dof() != 6) return false;
-  const double alpha[6] = {90, 0, 0, 90, 90, 0};
-  for (int i = 0; i < 6; ++i) {
-    const calib::JointSpec& j = d.joints[static_cast<size_t>(i)];
-    if (j.type != calib::JointType::kRevolute) return false;
-    const double a = std::fmod(std::fabs(j.alpha_deg), 180.0);
-    if (std::min(std::fabs(a - alpha[i]), 180.0 - std::fabs(a - alpha[i])) > 1.0) return false;
-    if (i >= 3 && std::fabs(j.a_mm) > 1.0) return false;
-  }
-  return true;
 }
 }  // namespace
 

@@ -158,6 +158,11 @@ ProgramCompensation compensateProgramReport(const Program& program, const JobSet
 /// naming the program and the model otherwise. Used by compensate, check and batch.
 void requireArmForProgram(const Program& program, const calib::RobotDefinition& robot);
 
+/// True for a Universal Robots arm (6 revolute joints, joints 2, 3 and 4 parallel, no spherical
+/// wrist). Its controller reads no Status/Turn: a Cartesian PTP (movej(pose)) goes to the
+/// solution nearest the current joints, so compensate and check ask no S/T a program carries.
+bool universalRobotsArm(const calib::RobotDefinition& robot);
+
 /// The InputError that lists every error of `report` (the first with its file:line:column).
 /// Requires !report.errors.empty().
 calib::InputError compensationError(const JobReport& report);
