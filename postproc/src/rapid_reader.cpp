@@ -103,6 +103,10 @@ class Reader {
     }
     if (!module_seen_) fail(t_.empty() ? 0 : t_.front().b, "expected a RAPID module (MODULE name ... ENDMODULE), found " +
                                                                (t_.empty() ? std::string("an empty file") : "'" + excerpt(t_.front().s) + "'"));
+    // a module cut short inside a routine: the routine's end is what is missing first
+    if (module_open_ && !routine_.empty())
+      fail(src_->text.size(), "expected END" + routine_kind_ + " of the routine " + excerpt(routine_) + " (" + routine_kind_ + " at line " +
+                                  std::to_string(loc(t_[routine_line_.first].b).line) + "), then ENDMODULE, found the end of the file");
     if (module_open_) fail(src_->text.size(), "expected ENDMODULE, found the end of the file");
     if (!module_name_.empty()) p.name = module_name_;
     passThrough(p);
@@ -112,9 +116,14 @@ class Reader {
 
  private:
   SourceLocation loc(size_t off) const { return locate(starts_, src_->path, off); }
+  /// An InputError at off. A statement that ends where the file ends (nothing but white space
+  /// after off: a file cut short) found the end of the file, not the end of a statement.
   [[noreturn]] void fail(size_t off, const std::string& msg) const {
     const SourceLocation l = loc(off);
-    throw calib::InputError(l.file, l.line, l.column, msg);
+    static const std::string kStatementEnd = "found the end of the statement";
+    const bool cut = msg.size() >= kStatementEnd.size() && msg.compare(msg.size() - kStatementEnd.size(), kStatementEnd.size(), kStatementEnd) == 0 &&
+                     src_->text.find_first_not_of(" \t\r\n", std::min(off, src_->text.size())) == std::string::npos;
+    throw calib::InputError(l.file, l.line, l.column, cut ? msg.substr(0, msg.size() - kStatementEnd.size()) + "found the end of the file" : msg);
   }
   std::string text(Range r) const { return r.first < r.second ? src_->text.substr(t_[r.first].b, t_[r.second - 1].e - t_[r.first].b) : ""; }
   /// The text of r as a message quotes it (detail::excerpt: at most 80 bytes).
