@@ -128,6 +128,8 @@ TEST(Truncation, EveryReaderSaysWhatTheEndOfTheFileCutOff) {
       {Reader::kUrScript, script, "", "end", 0, 0, "ur10_seam.script:1:1, found the end of the file (the block is the def ur10_seam opened there)"},
       {Reader::kUrScript, script, "", "movej(home", 10, 0, "expected ')' to close this '(', found the end of the file"},
       {Reader::kUrScript, script, "", "approach = ", 11, 0, "expected a value after '=', found the end of the file"},
+      {Reader::kUrScript, script, "", "def ur10_seam", 2, 0,
+       "expected a statement (a call such as de(...), an assignment, end), found 'de' and then the end of the file (a file cut short?)"},
       // XML: what the end of the file is inside
       {Reader::kXml, xml, "", "</program>", 0, 0, "expected well-formed XML, found the end of the file before the element <program> opened at 2:1"},
       {Reader::kXml, xml, "", "</program>", 3, 0, "found the end of the file inside the end tag </p at 59:1 (the end tag </program> of <program> at 2:1 is cut short)"},
@@ -233,6 +235,27 @@ TEST(Truncation, ASrcOfCommentsOnlyIsNotWrittenAsAProgram) {
       << run.err;
   EXPECT_FALSE(std::filesystem::exists(dir + "/out/p.src"));
   EXPECT_FALSE(std::filesystem::exists(dir + "/out/p.dat"));
+}
+
+// A script of statements without a def, or a def cut in its first word ('de'), cut inside a
+// name: the bare name was read as a statement and the script written as a shorter one. A bare
+// name the script defines or uses elsewhere, and the keyword statements, are still read.
+TEST(Truncation, AScriptCutInsideANameIsNotAShorterScript) {
+  const std::string text =
+      "movel(p[-0.35, 0.86, 0.2, 3.14, 0, 0], a=1.2, v=0.25)\nset_digital_out(0, True)\nmovel(p[-0.35, 0.86, 0.3, 3.14, 0, 0], a=1.2, v=0.25)\n";
+  for (const std::string& cut : {std::string("m"), std::string("de"), text.substr(0, text.find("set_digital_out") + 6),
+                                 text.substr(0, text.rfind("movel") + 3)}) {
+    try {
+      parseUrScript(cut, "cut.script");
+      ADD_FAILURE() << cut << ": read";
+    } catch (const calib::InputError& e) {
+      EXPECT_EQ(e.line(), lineAtEnd(cut)) << e.what();
+      EXPECT_NE(e.message().find("' and then the end of the file (a file cut short?)"), std::string::npos) << e.what();
+    }
+  }
+  EXPECT_EQ(parseUrScript("x = 1\nx", "x.script").motions.size(), 0u);  // a variable of the script
+  EXPECT_EQ(parseUrScript("movel(p[-0.35, 0.86, 0.2, 3.14, 0, 0])\nhalt", "h.script").motions.size(), 1u);
+  EXPECT_EQ(parseUrScript("movel(p[-0.35, 0.86, 0.2, 3.14, 0, 0])\nhalt # stop", "h.script").motions.size(), 1u);
 }
 
 // Control structures of each kind cut before their end (a program written for the test).

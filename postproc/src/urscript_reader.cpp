@@ -144,6 +144,7 @@ class Reader {
       std::vector<Tok> st;
       for (size_t k = i; k < j; ++k)
         if (toks_[k].kind != Tok::Kind::kNewline) st.push_back(toks_[k]);
+      if (j >= toks_.size()) cutName(st);
       statement(st, p);
       i = j;
     }
@@ -179,6 +180,24 @@ class Reader {
   [[noreturn]] void fail(size_t off, const std::string& msg) const {
     const SourceLocation l = loc(off);
     throw calib::InputError(l.file, l.line, l.column, msg);
+  }
+
+  /// The last statement `st`, a bare name where the file ends without a line end ('de' of
+  /// 'def ...', 'set_di' of 'set_digital_out(...)'): a file cut short inside a name, not a
+  /// statement. (A bare name the controller runs names a variable or a function the script
+  /// defines, so it occurs elsewhere in it; the statement keywords are statements.) Inside an
+  /// open block the end of the file is that block's error.
+  void cutName(const std::vector<Tok>& st) const {
+    static const std::set<std::string> kStatements = {"end", "else", "break", "continue", "pass", "return", "halt"};
+    const std::string& text = src_->text;
+    if (!blocks_.empty()) return;  // (the end of the file leaves a block open: that error names it)
+    if (st.size() != 1 || st[0].kind != Tok::Kind::kIdent || kStatements.count(st[0].s) || text.empty() || text.back() == '\n' ||
+        text.back() == '\r' || st[0].e < text.find_last_not_of(" \t") + 1)
+      return;
+    for (const Tok& t : toks_)
+      if (t.kind == Tok::Kind::kIdent && t.s == st[0].s && t.b != st[0].b) return;
+    fail(text.size(), "expected a statement (a call such as " + excerpt(st[0].s) + "(...), an assignment, end), found '" + excerpt(st[0].s) +
+                          "' and then the end of the file (a file cut short?)");
   }
 
   std::string textOf(size_t b, size_t e) const { return src_->text.substr(b, e - b); }
