@@ -188,7 +188,9 @@ class Reader {
   /// defines, so it occurs elsewhere in it; the statement keywords are statements.) Inside an
   /// open block the end of the file is that block's error.
   void cutName(const std::vector<Tok>& st) const {
-    static const std::set<std::string> kStatements = {"end", "else", "break", "continue", "pass", "return", "halt"};
+    // (and the words that open a block: the block's end-of-file error names it)
+    static const std::set<std::string> kStatements = {"end",  "else", "break", "continue", "pass",  "return",
+                                                      "halt", "def",  "thread", "if",      "while", "elif"};
     const std::string& text = src_->text;
     if (!blocks_.empty()) return;  // (the end of the file leaves a block open: that error names it)
     if (st.size() != 1 || st[0].kind != Tok::Kind::kIdent || kStatements.count(st[0].s) || text.empty() || text.back() == '\n' ||
