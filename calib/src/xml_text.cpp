@@ -48,9 +48,10 @@ std::pair<int, int> lineColumnOf(const std::string& text, size_t offset) {
 }
 
 /// When the text ends inside an element (its end tag missing: a truncated file, a forgotten
-/// </robot>) or inside a start tag, and nothing before is malformed in the ways this scan sees
-/// (a mismatched end tag): the message, and where (just after the last character that is not
-/// white space). Empty otherwise.
+/// </robot>), inside a start tag (also inside an attribute's value), an end tag, a comment, a
+/// CDATA section or a declaration, and nothing before is malformed in the ways this scan sees (a
+/// mismatched end tag): the message, and where (just after the last character that is not white
+/// space). Empty otherwise.
 struct UnclosedAtEnd {
   std::string message;
   int line = 0, column = 0;
@@ -89,12 +90,27 @@ UnclosedAtEnd unclosedAtEnd(const std::string& text) {
       p = e == std::string::npos ? std::string::npos : e + std::strlen(c);
       return true;
     };
-    if (skip("<!--", "-->") || skip("<![CDATA[", "]]>") || skip("<?", "?>") || skip("<!", ">")) {
-      if (p == std::string::npos) return {};  // (an unterminated comment: tinyxml2 says so)
-      continue;
-    }
+    const size_t construct = p;
+    for (const auto& [o, c, what] : {std::make_tuple("<!--", "-->", "a comment"), std::make_tuple("<![CDATA[", "]]>", "a CDATA section"),
+                                     std::make_tuple("<?", "?>", "a declaration"), std::make_tuple("<!", ">", "a <!...> construct")})
+      if (skip(o, c)) {
+        if (p == std::string::npos) {  // cut short inside it (a file cut short: what is open around it)
+          out.message = std::string("the end of the file inside ") + what + " opened at " + where(construct) + " (its '" + c + "' is missing" +
+                        (open.empty() ? std::string(")") : ", and then " + outer(open.size()) + ")");
+          return out;
+        }
+        break;
+      }
+    if (p != construct) continue;
     if (p + 1 < text.size() && text[p + 1] == '/') {  // an end tag
       const std::string name = nameAt(p + 2);
+      if (!open.empty() && text.find('>', p) == std::string::npos && open.back().name.compare(0, name.size(), name) == 0) {
+        // cut short inside the end tag of the innermost open element
+        out.message = "the end of the file inside the end tag </" + name + " at " + where(p) + " (the end tag </" + open.back().name + "> of <" +
+                      open.back().name + "> at " + where(open.back().at) + " is cut short" +
+                      (open.size() > 1 ? ", and then " + outer(open.size()).substr(outer(open.size()).find(", ") + 2) + ")" : std::string(")"));
+        return out;
+      }
       if (open.empty() || open.back().name != name) return {};  // mismatched: tinyxml2's message
       open.pop_back();
       p += 2;
@@ -103,19 +119,28 @@ UnclosedAtEnd unclosedAtEnd(const std::string& text) {
     // a start tag: to its '>' outside quoted values
     const size_t start = p;
     char quote = 0;
-    size_t q = p + 1;
+    size_t q = p + 1, quote_at = 0;
     for (; q < text.size(); ++q) {
       if (quote) {
         if (text[q] == quote) quote = 0;
       } else if (text[q] == '"' || text[q] == '\'') {
         quote = text[q];
+        quote_at = q;
       } else if (text[q] == '>') {
         break;
       }
     }
     const std::string name = nameAt(start + 1);
     if (q >= text.size()) {
-      if (quote) return {};  // an unclosed quote: tinyxml2's message (a malformed attribute)
+      // an unclosed quote: the file cut short inside an attribute's value when the value runs on
+      // its line to the end of the file; else tinyxml2's message (a malformed attribute)
+      if (quote && text.find_first_of("<>\n", quote_at) != std::string::npos) return {};
+      if (quote) {
+        out.message = "the end of the file inside the value of an attribute of <" + name + " at " + where(start) + " (its closing " +
+                      (quote == '"' ? "'\"'" : "\"'\"") + " and the start tag's '>' are missing" +
+                      (open.empty() ? std::string(")") : ", and then " + outer(open.size()) + ")");
+        return out;
+      }
       out.message = "the end of the file inside the start tag <" + name + " at " + where(start) + " (its '>' is missing" +
                     (open.empty() ? std::string(")") : ", and then " + outer(open.size()) + ")");
       return out;
@@ -163,7 +188,13 @@ void parseXml(tinyxml2::XMLDocument& doc, const std::string& text, const std::st
   }
   // a file that ends inside an element: tinyxml2 points at the element it was parsing ("text
   // that is not XML" at the root's line for a missing </robot>); say what is missing instead
-  if (err == tinyxml2::XML_ERROR_PARSING || err == tinyxml2::XML_ERROR_PARSING_ELEMENT) {
+  // (whatever tinyxml2 calls it: malformed text, attribute or declaration, a mismatched end tag
+  // where the file ends right after a start tag; the scan says the end of the file when the text
+  // before it is well-formed as far as it sees and the file ends inside something)
+  if (err == tinyxml2::XML_ERROR_PARSING || err == tinyxml2::XML_ERROR_PARSING_ELEMENT || err == tinyxml2::XML_ERROR_PARSING_TEXT ||
+      err == tinyxml2::XML_ERROR_PARSING_ATTRIBUTE || err == tinyxml2::XML_ERROR_MISMATCHED_ELEMENT ||
+      err == tinyxml2::XML_ERROR_PARSING_DECLARATION || err == tinyxml2::XML_ERROR_PARSING_COMMENT ||
+      err == tinyxml2::XML_ERROR_PARSING_CDATA || err == tinyxml2::XML_ERROR_PARSING_UNKNOWN) {
     const UnclosedAtEnd u = unclosedAtEnd(text);
     if (!u.message.empty()) throw InputError(file, u.line, u.column, "expected well-formed XML, found " + u.message);
   }

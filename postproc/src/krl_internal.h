@@ -3,6 +3,7 @@
 // (krl_reader.cpp) and the writer (krl_writer.cpp). Not installed: see krl.h for the API.
 #pragma once
 
+#include <algorithm>
 #include <cstddef>
 #include <map>
 #include <memory>
@@ -110,13 +111,22 @@ class KrlFile {
       return s;
     }
     s.line = lines_[lo].number;
-    s.column = static_cast<int>(offset - lines_[lo].begin) + 1;
+    // (the end of a file that ends with a line end: its last line, after its text)
+    s.column = static_cast<int>(std::min(offset, lines_[lo].content_end) - lines_[lo].begin) + 1;
     return s;
   }
 
+  /// An InputError at offset. A statement, string or literal cut off by the end of the file
+  /// (the error lies on a last line without a line end: a file cut short) found the end of the
+  /// file, not the end of a statement or a line: the message says so.
   [[noreturn]] void fail(size_t offset, const std::string& msg) const {
     const SourceLocation s = loc(offset);
-    throw calib::InputError(s.file, s.line, s.column, msg);
+    std::string m = msg;
+    if (!lines_.empty() && lines_.back().eol.empty() && offset >= lines_.back().begin)
+      for (const char* cut : {"found the end of the statement", "found the end of the line"})
+        if (const size_t at = m.rfind(cut); at != std::string::npos && at + std::string(cut).size() == m.size())
+          m = m.substr(0, at) + "found the end of the file";
+    throw calib::InputError(s.file, s.line, s.column, m);
   }
 
  private:

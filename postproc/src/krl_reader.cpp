@@ -1352,10 +1352,34 @@ Program readKrl(const std::string& src_path, const KrlReadOptions& options) {
     }
   }
   for (const Line& l : src.lines()) r.handleLine(l);
+  // a file cut short: the innermost block still open is what the end of the file cut off
+  // (an IF inside the DEF: its ENDIF is missing first)
+  if (!r.structure_.empty()) {
+    const auto& [kw, line] = r.structure_.back();
+    src.fail(src.text().size(), "expected " + std::string(blockOpenedBy(kw)->close) + " to close the " + kw + " at line " + std::to_string(line) +
+                                    (r.def_open_ ? " (and " + r.openEnd() + " at line " + std::to_string(r.def_line_) + ")" : std::string()) +
+                                    ", found the end of the file");
+  }
   if (r.def_open_)
     src.fail(src.text().size(), "expected " + r.openEnd() + " at line " + std::to_string(r.def_line_) + ", found the end of the file");
   notePointReads(src, lines, r.decl, *source);
   if (!source->dat_path.empty()) datPassThrough(KrlFile(source->dat_path, source->dat_text, 1), program);
+  if (program.name.empty() && !r.first_function_.empty()) {
+    // a module of functions only (KRC backups hold many): loaded by the controller, no motions
+    program.name = fs::path(src_path).stem().string();
+    program.krl_functions_only = r.first_function_;
+  }
+  // no DEF (nor DEFFCT): no program. Before the data list's name is checked against the DEF's:
+  // a .src cut short before its DEF is that, not a data list of another module.
+  if (program.name.empty()) {
+    bool any = false;  // a statement (not the & header, a comment, a fold or a blank line)
+    for (const Line& l : src.lines())
+      if (l.code_end > l.begin && src.text()[src.text().find_first_not_of(" \t", l.begin)] != '&') any = true;
+    if (any) throw calib::InputError(src_path, 1, 1, "expected a KRL program (DEF name( ) ... END), found no DEF line");
+    // nothing but the header, comments and blank lines: the file ends before its DEF (cut short,
+    // or empty); written back, it would be a module without its program
+    src.fail(src.text().size(), "expected a KRL program (DEF name( ) ... END), found the end of the file before any DEF line");
+  }
   // the data list is the module's: DEFDAT names the module (its file) or its DEF (KSS: a data
   // list of another name is not the module's, whose points it would silently replace)
   if (!r.decl.defdat_name.empty()) {
@@ -1367,17 +1391,6 @@ Program readKrl(const std::string& src_path, const KrlReadOptions& options) {
                                   (program.name.empty() || upper(program.name) == stem ? std::string() : " (DEF " + program.name + ")") +
                                   " (DEFDAT " + fs::path(src_path).stem().string() + "), found DEFDAT " + r.decl.defdat_name);
     }
-  }
-  if (program.name.empty() && !r.first_function_.empty()) {
-    // a module of functions only (KRC backups hold many): loaded by the controller, no motions
-    program.name = fs::path(src_path).stem().string();
-    program.krl_functions_only = r.first_function_;
-  }
-  if (program.name.empty()) {
-    bool any = false;
-    for (const Line& l : src.lines())
-      if (l.code_end > l.begin) any = true;
-    if (any || src.lines().empty()) throw calib::InputError(src_path, 1, 1, "expected a KRL program (DEF name( ) ... END), found no DEF line");
   }
   program.krl = source;
   return program;

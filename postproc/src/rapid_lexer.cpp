@@ -74,7 +74,8 @@ std::vector<Tok> lexRapid(const std::string& s, const std::string& path) {
       size_t e = 0;
       const size_t j = detail::scanDecimal(s, i, &e);
       if (e != std::string_view::npos)
-        fail(e, "expected the digits of an exponent, found '" + s.substr(e, std::min<size_t>(j + 1, s.size()) - e) + "'");
+        fail(e, "expected the digits of an exponent, found '" + s.substr(e, std::min<size_t>(j + 1, s.size()) - e) + "'" +
+                (j >= s.size() ? " and then the end of the file" : ""));  // (a file cut short in the number)
       if (j < s.size() && isIdentStart(s[j])) fail(j, "expected an operator or a separator after the number " + detail::excerpt(s.substr(i, j - i)) + ", found '" + s[j] + "'");
       t.kind = Tok::Kind::kNumber;
       t.e = j;
@@ -90,7 +91,8 @@ std::vector<Tok> lexRapid(const std::string& s, const std::string& path) {
     } else if (c == '"') {
       size_t j = i + 1;
       while (j < s.size() && s[j] != '\n' && !(s[j] == '"' && !(j + 1 < s.size() && s[j + 1] == '"'))) j += s[j] == '"' ? 2 : 1;
-      if (j >= s.size() || s[j] != '"') fail(i, "expected the closing '\"' of this string on its line, found the end of the line");
+      if (j >= s.size() || s[j] != '"')  // (a file cut short in the string: its end)
+        fail(i, std::string("expected the closing '\"' of this string on its line, found the end of the ") + (j >= s.size() ? "file" : "line"));
       t.kind = Tok::Kind::kString;
       t.e = j + 1;
       t.s = s.substr(i, t.e - i);

@@ -103,6 +103,18 @@ class Reader {
     }
     if (!module_seen_) fail(t_.empty() ? 0 : t_.front().b, "expected a RAPID module (MODULE name ... ENDMODULE), found " +
                                                                (t_.empty() ? std::string("an empty file") : "'" + excerpt(t_.front().s) + "'"));
+    if (cut_.second > cut_.first) {
+      std::string then;
+      if (module_open_ && !routine_.empty())
+        then += ", then END" + routine_kind_ + " of the routine " + excerpt(routine_) + " (" + routine_kind_ + " at line " +
+                std::to_string(loc(t_[routine_line_.first].b).line) + ")";
+      if (module_open_) then += ", then ENDMODULE";
+      fail(t_[cut_.second - 1].e, "expected ';' at the end of the statement '" + quoted(cut_) + "'" + then + ", found the end of the file");
+    }
+    // a module cut short inside a routine: the routine's end is what is missing first
+    if (module_open_ && !routine_.empty())
+      fail(src_->text.size(), "expected END" + routine_kind_ + " of the routine " + excerpt(routine_) + " (" + routine_kind_ + " at line " +
+                                  std::to_string(loc(t_[routine_line_.first].b).line) + "), then ENDMODULE, found the end of the file");
     if (module_open_) fail(src_->text.size(), "expected ENDMODULE, found the end of the file");
     if (!module_name_.empty()) p.name = module_name_;
     passThrough(p);
@@ -112,9 +124,14 @@ class Reader {
 
  private:
   SourceLocation loc(size_t off) const { return locate(starts_, src_->path, off); }
+  /// An InputError at off. A statement that ends where the file ends (nothing but white space
+  /// after off: a file cut short) found the end of the file, not the end of a statement.
   [[noreturn]] void fail(size_t off, const std::string& msg) const {
     const SourceLocation l = loc(off);
-    throw calib::InputError(l.file, l.line, l.column, msg);
+    static const std::string kStatementEnd = "found the end of the statement";
+    const bool cut = msg.size() >= kStatementEnd.size() && msg.compare(msg.size() - kStatementEnd.size(), kStatementEnd.size(), kStatementEnd) == 0 &&
+                     src_->text.find_first_not_of(" \t\r\n", std::min(off, src_->text.size())) == std::string::npos;
+    throw calib::InputError(l.file, l.line, l.column, cut ? msg.substr(0, msg.size() - kStatementEnd.size()) + "found the end of the file" : msg);
   }
   std::string text(Range r) const { return r.first < r.second ? src_->text.substr(t_[r.first].b, t_[r.second - 1].e - t_[r.first].b) : ""; }
   /// The text of r as a message quotes it (detail::excerpt: at most 80 bytes).
@@ -172,8 +189,12 @@ class Reader {
         const Tok& o = t_[open.back()];
         fail(o.b, "expected '" + std::string(o.s == "(" ? ")" : o.s == "[" ? "]" : "}") + "' to close this '" + o.s + "', found the end of the file");
       }
-      if (!head && (j > t_.size() || !isOp(t_, j - 1, ";")))
-        fail(t_[j - 1].e, "expected ';' at the end of the statement '" + quoted({i, j}) + "', found the end of the file");
+      if (!head && (j > t_.size() || !isOp(t_, j - 1, ";"))) {
+        // the end of the file cut the last statement: an error after the statements before it
+        // (read()), which says what else the end of the file cut off (the routine, the module)
+        cut_ = {i, j};
+        break;
+      }
       // the statement a CASE, a DEFAULT or a compact IF (without THEN) holds on its line is one
       // of its own (a compact IF's runs only when the condition holds)
       const size_t inner = head ? innerStatement({i, j}) : j;
@@ -1254,6 +1275,7 @@ class Reader {
   std::set<size_t> module_data_;  ///< first tokens of the module-level declarations (read first)
   std::string module_name_, routine_, routine_kind_, main_routine_;
   Range routine_line_{0, 0};
+  Range cut_{0, 0};  // a last statement the end of the file cut off (no ';'), when there is one
   bool module_seen_ = false, module_open_ = false, other_routine_motion_ = false;
   StartTracker flow_;               ///< where the robot comes from (Motion::start_unknown)
   std::set<std::string> routines_;  ///< the module's PROCs that move the robot (upper case)

@@ -144,6 +144,7 @@ class Reader {
       std::vector<Tok> st;
       for (size_t k = i; k < j; ++k)
         if (toks_[k].kind != Tok::Kind::kNewline) st.push_back(toks_[k]);
+      if (j >= toks_.size()) cutName(st);
       statement(st, p);
       i = j;
     }
@@ -154,8 +155,12 @@ class Reader {
       fail(0, std::string("expected a URScript program (def name(): ... end, or its statements such as movel(...)), found an empty file") +
                   (comments ? " (only comments and blank lines)" : ""));
     }
-    if (!blocks_.empty())
-      fail(src_->text.size(), "expected end closing the block at " + loc(blocks_.back().at).str() + ", found the end of the file");
+    if (!blocks_.empty()) {  // a script cut short: the innermost open block, and what it is
+      const OpenBlock& b = blocks_.back();
+      fail(src_->text.size(), "expected end closing the block at " + loc(b.at).str() + ", found the end of the file (the block is the " + b.head +
+                                  (b.name.empty() ? std::string() : " " + excerpt(b.name)) + " opened there" +
+                                  (blocks_.size() > 1 ? ", inside " + std::to_string(blocks_.size() - 1) + " more open block(s)" : std::string()) + ")");
+    }
     if (!main_name_.empty()) p.name = main_name_;
     p.urscript = src_;
     return p;
@@ -175,6 +180,26 @@ class Reader {
   [[noreturn]] void fail(size_t off, const std::string& msg) const {
     const SourceLocation l = loc(off);
     throw calib::InputError(l.file, l.line, l.column, msg);
+  }
+
+  /// The last statement `st`, a bare name where the file ends without a line end ('de' of
+  /// 'def ...', 'set_di' of 'set_digital_out(...)'): a file cut short inside a name, not a
+  /// statement. (A bare name the controller runs names a variable or a function the script
+  /// defines, so it occurs elsewhere in it; the statement keywords are statements.) Inside an
+  /// open block the end of the file is that block's error.
+  void cutName(const std::vector<Tok>& st) const {
+    // (and the words that open a block: the block's end-of-file error names it)
+    static const std::set<std::string> kStatements = {"end",  "else", "break", "continue", "pass",  "return",
+                                                      "halt", "def",  "thread", "if",      "while", "elif"};
+    const std::string& text = src_->text;
+    if (!blocks_.empty()) return;  // (the end of the file leaves a block open: that error names it)
+    if (st.size() != 1 || st[0].kind != Tok::Kind::kIdent || kStatements.count(st[0].s) || text.empty() || text.back() == '\n' ||
+        text.back() == '\r' || st[0].e < text.find_last_not_of(" \t") + 1)
+      return;
+    for (const Tok& t : toks_)
+      if (t.kind == Tok::Kind::kIdent && t.s == st[0].s && t.b != st[0].b) return;
+    fail(text.size(), "expected a statement (a call such as " + excerpt(st[0].s) + "(...), an assignment, end), found '" + excerpt(st[0].s) +
+                          "' and then the end of the file (a file cut short?)");
   }
 
   std::string textOf(size_t b, size_t e) const { return src_->text.substr(b, e - b); }
@@ -210,7 +235,8 @@ class Reader {
         size_t e = 0;
         const size_t j = detail::scanDecimal(s, i, &e);
         if (e != std::string_view::npos)
-          fail(e, "expected the digits of an exponent, found '" + s.substr(e, std::min<size_t>(j + 1, s.size()) - e) + "'");
+          fail(e, "expected the digits of an exponent, found '" + s.substr(e, std::min<size_t>(j + 1, s.size()) - e) + "'" +
+                  (j >= s.size() ? " and then the end of the file" : ""));  // (a file cut short in the number)
         t.kind = Tok::Kind::kNumber;
         t.e = j;
         t.s = s.substr(i, j - i);
@@ -225,7 +251,8 @@ class Reader {
       } else if (c == '"') {
         size_t j = i + 1;
         while (j < s.size() && s[j] != '"' && s[j] != '\n') j += s[j] == '\\' && j + 1 < s.size() && s[j + 1] != '\n' ? 2 : 1;
-        if (j >= s.size() || s[j] != '"') fail(i, "expected the closing '\"' of this string on its line, found the end of the line");
+        if (j >= s.size() || s[j] != '"')  // (a file cut short in the string: its end)
+        fail(i, std::string("expected the closing '\"' of this string on its line, found the end of the ") + (j >= s.size() ? "file" : "line"));
         t.kind = Tok::Kind::kString;
         t.e = j + 1;
         t.s = s.substr(i, t.e - i);
@@ -545,6 +572,7 @@ class Reader {
     if (isIdent(t, 0, "def") || isIdent(t, 0, "thread") || isIdent(t, 0, "if") || isIdent(t, 0, "while")) {
       OpenBlock b;
       b.at = t[0].b;
+      b.head = t[0].s;
       b.loop = isIdent(t, 0, "while") ? ++loops_ : 0;
       b.kind = isIdent(t, 0, "if") ? StartTracker::Block::kBranch : b.loop ? StartTracker::Block::kLoop : StartTracker::Block::kRoutine;
       if (isIdent(t, 0, "def") && blocks_.empty() && main_name_.empty() && isIdent(t, 1)) {
@@ -689,7 +717,9 @@ class Reader {
     const bool was_model = prev != vars_.end() && prev->second.kind != Var::Kind::kOther;
     const bool pose_like = (isIdent(t, i, "p") && isOp(t, i + 1, "[")) || isIdent(t, i, "pose_trans") || isIdent(t, i, "pose_add") ||
                            (j == i + 1 && t[i].kind == Tok::Kind::kIdent && vars_.count(t[i].s) && vars_.at(t[i].s).kind == Var::Kind::kPose);
-    if (i >= j) fail(t[s + 1].b, "expected a value after '=', found the end of the statement");
+    if (i >= j)  // (nothing after the '=' on its line; nothing at all after it: a file cut short)
+      fail(t[s + 1].b, std::string("expected a value after '=', found the end of the ") +
+                           (src_->text.find_first_not_of(" \t\r\n", t[s + 1].e) == std::string::npos ? "file" : "statement"));
     if (mentions(t, i, j, name) && (pose_like || was_model)) {
       v.problem = "'" + excerpt(name) + "' is changed at run time at " + loc(t[s].b).str() + " (" + quoted(t, s, j) + ")";
       other(t);
@@ -900,6 +930,7 @@ class Reader {
     int loop = 0;          ///< a loop id (while), else 0
     size_t at = 0;         ///< where it starts
     std::string name;      ///< a def's or thread's name
+    std::string head;      ///< the word that opens it: def, thread, if, while
     FrameSetting tool;     ///< the tool when it was entered
     bool tool_changed = false;  ///< a branch before the current one changed the tool
     std::map<std::string, Var> vars;      ///< the variables when it was entered
