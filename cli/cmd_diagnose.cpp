@@ -147,6 +147,10 @@ int runDiagnose(const DiagnoseArgs& a) {
     throw calib::InputError("--validate-map: expected together with --validate (the mapping of the validation file), found it without");
   if (a.same_station && a.data.size() < 2)
     throw calib::InputError("--same-station: expected several --data files (measured from one tracker station), found one");
+  std::vector<std::string> inputs = {a.robot, a.validate, a.map, a.validate_map};
+  inputs.insert(inputs.end(), a.data.begin(), a.data.end());
+  // the outputs' directories and the overwrite guard before the diagnosis, not after it
+  calib::refuseUnwritableOutputs({a.json, a.report}, inputs, "--json / --report");
   calib::RobotModel start = loadRobot(a.robot);
   if (!a.base.empty()) start.nominal.T_world_base = calib::toIsometry(parsePose6(a.base, "--base"));
   if (!a.tool.empty()) start.nominal.T_flange_tcp = calib::toIsometry(parseTool(a.tool, "--tool"));
@@ -209,8 +213,6 @@ int runDiagnose(const DiagnoseArgs& a) {
   std::vector<calib::OutputFile> outputs;
   if (!a.json.empty()) outputs.push_back({a.json, calib::diagnosisJson(d)});
   if (!a.report.empty()) outputs.push_back({a.report, calib::diagnosisHtml(d, reportContext(a, start, data, d))});
-  std::vector<std::string> inputs = {a.robot, a.validate, a.map, a.validate_map};
-  inputs.insert(inputs.end(), a.data.begin(), a.data.end());
   calib::refuseToOverwrite(outputs, inputs, "--json / --report");
   calib::writeFilesAtomically(outputs);
   for (const calib::OutputFile& f : outputs) std::printf("wrote %s\n", f.path.c_str());

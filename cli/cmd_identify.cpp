@@ -680,6 +680,10 @@ int runIdentify(const IdentifyArgs& a) {
   IdentifyRun r;
   r.start = startModel(a);
   readData(a, r);
+  // the outputs' directories and the overwrite guard before the fit, not after it
+  std::vector<std::string> inputs = a.data;
+  for (const std::string* f : {&a.robot, &a.validate, &a.map, &a.validate_map}) inputs.push_back(*f);
+  calib::refuseUnwritableOutputs({a.out, a.json}, inputs, "--out / --json");
   r.opt = identifyOptions(a);
   // the file's std columns win (--help): say so rather than drop the option without a word
   for (const calib::MeasurementSet& set : r.sets) {
@@ -716,8 +720,6 @@ int runIdentify(const IdentifyArgs& a) {
   // land on an input.
   std::vector<calib::OutputFile> outputs = {{a.out, calib::robotFileText(r.calibrated, records, modelComment(a, r))}};
   if (!a.json.empty()) outputs.push_back({a.json, calib::jsonText(identifyJson(a, r))});
-  std::vector<std::string> inputs = a.data;
-  for (const std::string* f : {&a.robot, &a.validate, &a.map, &a.validate_map}) inputs.push_back(*f);
   calib::refuseToOverwrite(outputs, inputs, "--out / --json");
   calib::writeFilesAtomically(outputs);
   std::printf("wrote calibrated model %s\n", a.out.c_str());

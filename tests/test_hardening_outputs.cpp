@@ -107,6 +107,24 @@ TEST(HardeningOutputs, ASecondOutputThatCannotBeWrittenLeavesNoFirstOutput) {
   EXPECT_FALSE(c.exists("o2/s.csv"));
 }
 
+TEST(HardeningOutputs, AnOutputThatCannotBeWrittenIsRefusedBeforeTheFit) {
+  Copy c("D8_partial_output_second_output_fails");
+  const auto before = c.files();
+  const test::CliRun id = test::runAccuraIn(c.dir(), "identify --robot kr16_real.xml --data fit.csv --out nodir/m.xml");
+  EXPECT_EQ(id.code, 1) << id.err;
+  EXPECT_NE(id.err.find("nodir/m.xml: cannot write file: the directory nodir does not exist"), std::string::npos) << id.err;
+  EXPECT_EQ(id.out.find("solver:"), std::string::npos) << id.out;  // refused before the fit, not after it
+  const test::CliRun onto = test::runAccuraIn(c.dir(), "identify --robot kr16_real.xml --data fit.csv --out m.xml --json fit.csv");
+  EXPECT_EQ(onto.code, 1) << onto.err;
+  EXPECT_NE(onto.err.find("fit.csv: the output would overwrite the input fit.csv"), std::string::npos) << onto.err;
+  EXPECT_EQ(onto.out.find("solver:"), std::string::npos) << onto.out;
+  const test::CliRun dg = test::runAccuraIn(c.dir(), "diagnose --robot kr16_real.xml --data fit.csv --json . --report r.html");
+  EXPECT_EQ(dg.code, 1) << dg.err;
+  EXPECT_NE(dg.err.find(".: cannot write file: it is a directory"), std::string::npos) << dg.err;
+  EXPECT_EQ(dg.out.find("verdict"), std::string::npos) << dg.out;
+  EXPECT_EQ(c.files(), before);
+}
+
 TEST(HardeningOutputs, AnOutputOntoAnInputIsRefused) {
   Copy c("D9_output_overwrites_input");
   const auto before = c.files();

@@ -263,4 +263,22 @@ void refuseToOverwrite(const std::vector<OutputFile>& outputs, const std::vector
         throw InputError(f.path + ": the output would overwrite the input " + in + ": choose another " + out_name);
 }
 
+void refuseUnwritableOutputs(const std::vector<std::string>& outputs, const std::vector<std::string>& inputs,
+                             const std::string& out_name) {
+  std::vector<OutputFile> named;
+  for (const std::string& path : outputs) {
+    if (path.empty()) continue;
+    named.push_back({path, ""});
+    std::error_code ec;
+    if (fs::is_directory(path, ec)) throw InputError(path, 0, 0, "cannot write file: it is a directory");
+    const fs::path parent = fs::path(path).parent_path();
+    const std::string dir = parent.empty() ? std::string(".") : parent.string();
+    if (!fs::exists(dir, ec)) throw InputError(path, 0, 0, "cannot write file: the directory " + dir + " does not exist");
+    if (!fs::is_directory(dir, ec)) throw InputError(path, 0, 0, "cannot write file: " + dir + " is not a directory");
+    if (::access(dir.c_str(), W_OK | X_OK) != 0)
+      throw InputError(path, 0, 0, "cannot write file: the directory " + dir + " is not writable (" + std::strerror(errno) + ")");
+  }
+  refuseToOverwrite(named, inputs, out_name);
+}
+
 }  // namespace accura::calib

@@ -46,6 +46,14 @@ bool interruptRequested();
 /// normalised absolute path (a file about to be written onto an input). Never throws.
 bool sameFile(const std::string& a, const std::string& b);
 
+/// The checks a command that works long before it writes makes first (identify, diagnose): every
+/// non-empty path in `outputs` must lie in an existing, writable directory and must not be a
+/// directory itself, and none may be one of `inputs` (refuseToOverwrite). Throws InputError
+/// ("PATH: cannot write file: ...", or refuseToOverwrite's) before any work is done. The final
+/// write checks again: a directory may still vanish in between.
+void refuseUnwritableOutputs(const std::vector<std::string>& outputs, const std::vector<std::string>& inputs,
+                             const std::string& out_name);
+
 /// The overwrite guard of every command that writes: throws InputError ("OUT: the output would
 /// overwrite the input IN: choose another <out_name>") when an output is one of `inputs`
 /// (sameFile); inputs that are empty strings are skipped.
