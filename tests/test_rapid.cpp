@@ -494,6 +494,41 @@ RobotModel shiftedIrb120() {
   return real;
 }
 
+// RAPID lets an optional argument follow the one before it with or without a comma (RAPID
+// kernel, function calls: <function argument> ::= .. | ',' <optional function argument>), and
+// programs write RelTool(p,0,0,0,\Rz:=a): the whole module was refused ("expected RelTool(point,
+// dx, dy, dz) with 4 arguments, found 5"), a program the controller runs.
+TEST(Rapid, RelToolTakesItsRotationsAfterACommaAsTheControllerDoes) {
+  auto module = [](const std::string& reltool) {
+    return "MODULE m\n  CONST robtarget a := [[380,40,350],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n  PROC main()\n    ConfL\\Off;\n"
+           "    MoveJ a, v100, fine, tool0;\n    MoveL " + reltool + ", v100, fine, tool0;\n  ENDPROC\nENDMODULE\n";
+  };
+  const std::string comma = module("RelTool(a, 0, 0, 10, \\Rx:=0, \\Rz:=90)");
+  const Program p = parseRapid(comma, "r.mod");
+  ASSERT_EQ(p.motions.size(), 2u);
+  ASSERT_EQ(p.motions[1].target_problem, "");
+  // a * Trans(0,0,10) * Rz(90): the tool's z is the world's -z (a turned 180 deg about y)
+  Eigen::Matrix3d Rz;
+  Rz << 0, -1, 0, 1, 0, 0, 0, 0, 1;
+  EXPECT_LT((poseOf(p.motions[1].target).translation() - Eigen::Vector3d(380, 40, 340)).norm(), 1e-9);
+  EXPECT_LT((poseOf(p.motions[1].target).linear() - quatMatrix(0, 0, 1, 0) * Rz).norm(), 1e-9);
+  // compensated (the base 0.2, -0.1, 0.3 mm off): the inline robtarget, as without the commas
+  const ProgramCompensation c = compensateProgramReport(p, settingsFor(shiftedIrb120()));
+  ASSERT_TRUE(c.ok()) << c.report.errors.front().message;
+  const std::string written = writeRapid(c.program);
+  EXPECT_NE(written.find("\n    MoveL [[379.8000,40.1000,339.7000],[0.000000000,0.707106781,0.707106781,0.000000000],[0,0,0,0],"
+                         "[9E9,9E9,9E9,9E9,9E9,9E9]], v100, fine, tool0;\n"),
+            std::string::npos)
+      << written;
+  const ProgramCompensation c2 = compensateProgramReport(parseRapid(module("RelTool(a, 0, 0, 10 \\Rx:=0 \\Rz:=90)"), "r.mod"), settingsFor(shiftedIrb120()));
+  ASSERT_TRUE(c2.ok()) << c2.report.errors.front().message;
+  EXPECT_EQ(writeRapid(c2.program), written);
+  // a rotation the controller computes, after a comma: kept as written and named
+  const Program q = parseRapid(module("RelTool(a,0,0,10,\\Rz:=turn)"), "r.mod");
+  ASSERT_EQ(q.motions.size(), 2u);
+  EXPECT_EQ(q.motions[1].target_problem, "RelTool(...) at r.mod:6:11 has a rotation that is not a number ('turn')");
+}
+
 // The joints the compensation of `move` to the test pose ends at, with monitoring off (the
 // controller's nearest configuration).
 Eigen::VectorXd jointsOff(const std::string& move) {

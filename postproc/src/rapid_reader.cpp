@@ -850,25 +850,37 @@ class Reader {
     const std::string f = reltool ? "RelTool" : "Offs";
     auto args = items(t_, r.first + 2, r.second - 1);
     std::map<std::string, double> rot;
-    if (reltool && args.size() >= 4) {  // the optional \Rx:=.. follow dz without a comma
+    // an optional argument follows the one before it with or without a comma (RAPID kernel,
+    // function calls: <function argument> ::= .. | <optional function argument> | ','
+    // <optional function argument>): `RelTool(p,0,0,0,\Rz:=45)` as `RelTool(p,0,0,0\Rz:=45)`
+    if (reltool)
+      for (size_t i = args.size(); i-- > 1;)
+        if (args[i].first < args[i].second && isOp(t_, args[i].first, "\\")) {
+          args[i - 1].second = args[i].second;
+          args.erase(args.begin() + static_cast<std::ptrdiff_t>(i));
+        }
+    // (a comma before an optional argument is not part of the value it follows)
+    auto valueEnd = [&](size_t b, size_t e) { return e > b && isOp(t_, e - 1, ",") ? e - 1 : e; };
+    if (reltool && args.size() >= 4) {  // the optional \Rx:=.. follow dz
       Range& last = args.back();
       size_t k = last.first;
       while (k < last.second && !isOp(t_, k, "\\")) ++k;
       size_t o = k;
-      last.second = k;
+      last.second = valueEnd(last.first, k);
       while (o < r.second - 1) {
         if (!(isOp(t_, o, "\\") && o + 2 < r.second && t_[o + 1].kind == Tok::Kind::kIdent && isOp(t_, o + 2, ":=")) ||
             !(t_[o + 1].u == "RX" || t_[o + 1].u == "RY" || t_[o + 1].u == "RZ"))
           fail(t_[o].b, "expected \\Rx:=, \\Ry:= or \\Rz:= in RelTool, found '" + excerpt(t_[o].s + (o + 1 < r.second ? t_[o + 1].s : "")) + "'");
         size_t e = o + 3;
         while (e < r.second - 1 && !isOp(t_, e, "\\")) ++e;
-        const std::optional<double> x = number(t_, {o + 3, e});
+        const size_t ve = valueEnd(o + 3, e);
+        const std::optional<double> x = number(t_, {o + 3, ve});
         if (!x) {
           TargetVal tv;
-          tv.problem = "RelTool(...) at " + loc(t_[r.first].b).str() + " has a rotation that is not a number ('" + quoted({o + 3, e}) + "')";
+          tv.problem = "RelTool(...) at " + loc(t_[r.first].b).str() + " has a rotation that is not a number ('" + quoted({o + 3, ve}) + "')";
           return tv;
         }
-        if (std::abs(*x) > kMaxAngleDeg) shape(o + 3, "a rotation in deg within +-" + calib::formatFixed(kMaxAngleDeg, 0) + " in RelTool", text({o + 3, e}));
+        if (std::abs(*x) > kMaxAngleDeg) shape(o + 3, "a rotation in deg within +-" + calib::formatFixed(kMaxAngleDeg, 0) + " in RelTool", text({o + 3, ve}));
         rot[t_[o + 1].u] = *x;
         o = e;
       }
