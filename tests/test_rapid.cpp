@@ -529,6 +529,40 @@ TEST(Rapid, RelToolTakesItsRotationsAfterACommaAsTheControllerDoes) {
   EXPECT_EQ(q.motions[1].target_problem, "RelTool(...) at r.mod:6:11 has a rotation that is not a number ('turn')");
 }
 
+// A routine with optional parameters, declared as RAPID allows without a comma before them
+// (RAPID kernel, <next parameter declaration> ::= .. | <optional parameter declaration>) and
+// passed on as conditional arguments (\WObj?wo: given only when the caller gives wo). Before:
+// `PROC approach(robtarget p10 \switch slow)` hid no module datum (p10 was not read as a
+// parameter), so the module's p10 was corrected for a motion that goes where the call says;
+// and `\WObj?wo` refused the module ("the wobjdata '?wo' is not declared with a value").
+TEST(Rapid, OptionalParametersAndConditionalArgumentsAreTheCallersValues) {
+  const std::string text =
+      "MODULE m\n"
+      "  CONST robtarget p10 := [[380,40,350],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
+      "  CONST robtarget p20 := [[380,40,300],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
+      "  PROC main()\n"
+      "    approach p20;\n"
+      "  ENDPROC\n"
+      "  PROC approach(robtarget p10 \\PERS wobjdata wo \\switch slow)\n"
+      "    MoveL p10, v100, fine, tool0;\n"
+      "    MoveL p20, v100, fine, tool0 \\WObj?wo;\n"
+      "  ENDPROC\n"
+      "ENDMODULE\n";
+  const Program p = parseRapid(text, "r.mod");
+  ASSERT_EQ(p.motions.size(), 2u);
+  EXPECT_EQ(p.motions[0].target_problem, "'p10' is a parameter of approach: its value comes from the call");
+  const ProgramCompensation c = compensateProgramReport(p, settingsFor(shiftedIrb120()));
+  ASSERT_TRUE(c.ok()) << c.report.errors.front().message;
+  std::vector<std::string> warnings;
+  for (const auto& w : c.report.warnings) warnings.push_back(w.where.str() + ": " + w.message);
+  ASSERT_EQ(warnings.size(), 2u);
+  EXPECT_EQ(warnings[0], "r.mod:8:5: MoveL left unchanged (not compensated): 'p10' is a parameter of approach: its value comes from the call; "
+                         "the position after it is not known");
+  EXPECT_EQ(warnings[1], "r.mod:9:5: MoveL left unchanged (not compensated): its base is a run-time value: the wobjdata is the conditional "
+                         "argument '?wo' of approach: given or left out by the call; the position after it is not known");
+  EXPECT_EQ(writeRapid(c.program), text);  // nothing this module's text says is corrected
+}
+
 // The joints the compensation of `move` to the test pose ends at, with monitoring off (the
 // controller's nearest configuration).
 Eigen::VectorXd jointsOff(const std::string& move) {

@@ -211,25 +211,27 @@ class Reader {
     bool changed = false, optional = false;
   };
   /// The parameters of the routine whose name is token k of its header r:
-  /// [\][VAR|PERS|INOUT] type name[{*}], separated by ',' or '|'.
+  /// [\][VAR|PERS|INOUT] type name[{*}], separated by ',' or '|'; an optional one (\..) also
+  /// without a comma before it (RAPID kernel, <next parameter declaration> ::= ',' <parameter
+  /// declaration> | <optional parameter declaration> | ..: `PROC p(robtarget t \switch s)`).
   std::vector<Param> parameters(Range r, size_t k) const {
     std::vector<Param> out;
     if (!isOp(t_, k + 1, "(")) return out;
     Param cur;
     bool any = false;
     for (size_t q = k + 2; q < r.second && !isOp(t_, q, ")"); ++q) {
-      if (isOp(t_, q, ",") || isOp(t_, q, "|")) {
+      if (isOp(t_, q, ",") || isOp(t_, q, "|") || (isOp(t_, q, "\\") && any)) {
         if (any) out.push_back(cur);
         cur = Param{};
         any = false;
-        continue;
+        if (!isOp(t_, q, "\\")) continue;
       }
       any = true;
       if (isOp(t_, q, "\\")) cur.optional = true;
       if (t_[q].kind != Tok::Kind::kIdent) continue;
       if (t_[q].u == "INOUT" || t_[q].u == "VAR") cur.changed = true;
       if (cur.name.empty() && q + 1 < r.second &&
-          (isOp(t_, q + 1, ",") || isOp(t_, q + 1, "|") || isOp(t_, q + 1, ")") || isOp(t_, q + 1, "{")))
+          (isOp(t_, q + 1, ",") || isOp(t_, q + 1, "|") || isOp(t_, q + 1, ")") || isOp(t_, q + 1, "{") || isOp(t_, q + 1, "\\")))
         cur.name = t_[q].u;
     }
     if (any) out.push_back(cur);
@@ -1183,6 +1185,13 @@ class Reader {
     if (single && u == builtin) {
       f.source = FrameSetting::Source::kNull;
       f.value = calib::XyzAbc{};
+    } else if (isOp(t_, a.first, "?")) {
+      // a conditional argument (\WObj?wo: RAPID kernel, <conditional procedure argument>):
+      // given only when the routine's caller gives its optional parameter, else left out
+      f.source = FrameSetting::Source::kUnknown;
+      f.note = "the " + type + " is the conditional argument '" + excerpt(f.text) + "' of " + excerpt(routine_) +
+               ": given or left out by the call";
+      f.run_time = true;
     } else if (single && params_.count(u) && !local_.names.count(u)) {
       f.source = FrameSetting::Source::kUnknown;
       f.note = "the " + type + " '" + excerpt(f.text) + "' is a parameter of " + excerpt(routine_) + ": its value comes from the call";
