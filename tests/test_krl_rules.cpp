@@ -695,6 +695,25 @@ TEST(KrlRules, ASubroutinesParameterHidesTheDataListsPointOfItsName) {
                      "DECL E6POS XP2={X 1000,Y 100,Z 800,A 0,B 90,C 0}\nDECL E6POS XP3={X 1000,Y 200,Z 800,A 0,B 90,C 0}\nENDDAT\n");
 }
 
+// An element of a two-dimensional point array with constant indices (XPA[1,2]) is kept and
+// named for what it is; the warning said its index was "computed at run time".
+TEST(KrlRules, AnElementOfATwoDimensionalArrayIsKeptAndNamedForWhatItIs) {
+  const std::string dir = test::tempDir("krl_array2");
+  test::writeText(dir + "/p.src", "DEF p( )\n$TOOL={X 0,Y 0,Z 100,A 0,B 0,C 0}\n$BASE=$NULLFRAME\nPTP XPA[1,2]\nEND\n");
+  const std::string dat = "DEFDAT p\nDECL E6POS XPA[2,2]\nXPA[1,2]={X 1000,Y 0,Z 800,A 0,B 90,C 0,S 2,T 10}\nENDDAT\n";
+  test::writeText(dir + "/p.dat", dat);
+  JobSettings s;
+  s.calibrated = test::loadBundled("kuka_kr16");
+  s.calibrated.deviations.base_mm = Eigen::Vector3d(0.2, -0.1, 0.3);
+  const ProgramCompensation pc = compensateProgramReport(readKrl(dir + "/p.src"), s);
+  ASSERT_TRUE(pc.ok()) << pc.report.errors.front().where.str() << ": " << pc.report.errors.front().message;
+  ASSERT_EQ(pc.report.warnings.size(), 1u);
+  EXPECT_EQ(pc.report.warnings[0].message,
+            "PTP left unchanged (not compensated): the target 'XPA[1,2]' is an element of the multi-dimensional array XPA, which accura "
+            "does not read (it corrects the elements of one-dimensional point arrays); the position after it is not known");
+  EXPECT_EQ(writeKrl(pc.program).dat, dat);
+}
+
 // A spline block whose frames come from its WITH clause (SPLINE WITH $TOOL = STOOL2(FP1),
 // $BASE = SBASE(FP1.BASE_NO)) is compensated as the same block after $TOOL = TOOL_DATA[2],
 // $BASE = BASE_DATA[2] statements: the same corrected points, to the byte. (It was refused:

@@ -551,8 +551,16 @@ struct Reader {
       const auto a = decl.arrays.find(t[b].up);
       if (a != decl.arrays.end()) {
         const std::optional<int> index = integerValue(t, b + 2, e - 1);
-        if (!index)
+        if (!index) {
+          // XPA[1,2]: constant indices of a two- or three-dimensional array, not a run-time one
+          bool constant = true;
+          for (size_t i = b + 2; i < e - 1; ++i)
+            constant = constant && (t[i].kind == Tok::kNumber || t[i].text == "," || t[i].text == "+");
+          if (constant)
+            return "the target '" + text + "' is an element of the multi-dimensional array " + a->second.name +
+                   ", which accura does not read (it corrects the elements of one-dimensional point arrays)";
           return "the target '" + text + "' is an element of the array " + a->second.name + " whose index is computed at run time";
+        }
         const std::string name = arrayElementName(a->second, *index);
         const auto it = decl.points.find(upper(name));
         if (it == decl.points.end())
