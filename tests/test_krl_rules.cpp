@@ -660,6 +660,60 @@ TEST(KrlRules, MotionsToRunTimeTargetsAreKeptAndNamedTheRestIsCompensated) {
   EXPECT_NE(out.src.find("\nLIN XP3\nLIN XP2_1\nEND"), std::string::npos) << out.src;
 }
 
+// A subroutine's parameter (DEF weld(XP2:IN) with DECL E6POS XP2) and a point it declares
+// without a value hide the data list's points of their names: the motion goes where the call
+// (or the run) says. Before, `LIN XP2` in weld corrected the data list's XP2 in place, a point
+// the motion does not use, and counted the motion as compensated.
+TEST(KrlRules, ASubroutinesParameterHidesTheDataListsPointOfItsName) {
+  const std::string dir = test::tempDir("krl_param");
+  const std::string src =
+      "DEF p( )\n$TOOL={X 0,Y 0,Z 100,A 0,B 0,C 0}\n$BASE=$NULLFRAME\nPTP XP1\nweld(XP3)\nEND\n\n"
+      "DEF weld(XP2:IN)\nDECL E6POS XP2\nDECL E6POS XP3\n$TOOL={X 0,Y 0,Z 100,A 0,B 0,C 0}\n$BASE=$NULLFRAME\nLIN XP2\nLIN XP3\nEND\n";
+  const std::string dat =
+      "DEFDAT p\nDECL E6POS XP1={X 1000,Y 0,Z 800,A 0,B 90,C 0}\nDECL E6POS XP2={X 1000,Y 100,Z 800,A 0,B 90,C 0}\n"
+      "DECL E6POS XP3={X 1000,Y 200,Z 800,A 0,B 90,C 0}\nENDDAT\n";
+  test::writeText(dir + "/p.src", src);
+  test::writeText(dir + "/p.dat", dat);
+  JobSettings s;
+  s.calibrated = test::loadBundled("kuka_kr16");
+  s.calibrated.deviations.base_mm = Eigen::Vector3d(0.2, -0.1, 0.3);
+  const ProgramCompensation pc = compensateProgramReport(readKrl(dir + "/p.src"), s);
+  ASSERT_TRUE(pc.ok()) << pc.report.errors.front().where.str() << ": " << pc.report.errors.front().message;
+  std::vector<std::string> unchanged;
+  for (const ProgramIssue& w : pc.report.warnings)
+    if (w.message.find("left unchanged (not compensated)") != std::string::npos) unchanged.push_back(w.where.str() + ": " + w.message);
+  const std::string at = dir + "/p.src:";
+  EXPECT_EQ(unchanged, (std::vector<std::string>{
+                           at + "13:1: LIN left unchanged (not compensated): XP2 is a parameter of weld: its value comes from the call; "
+                                "the position after it is not known",
+                           at + "14:1: LIN left unchanged (not compensated): XP3 is declared in weld without a value (" + at +
+                               "10:12): the routine's own, not the data list's point; the position after it is not known"}));
+  // XP2 and XP3 of the data list keep their text; only XP1 (the main program's PTP) is corrected
+  const KrlText out = writeKrl(pc.program);
+  EXPECT_EQ(out.src, src);
+  EXPECT_EQ(out.dat, "DEFDAT p\nDECL E6POS XP1={X 999.8000,Y 0.1000,Z 799.7000,A 0,B 90,C 0}\n"
+                     "DECL E6POS XP2={X 1000,Y 100,Z 800,A 0,B 90,C 0}\nDECL E6POS XP3={X 1000,Y 200,Z 800,A 0,B 90,C 0}\nENDDAT\n");
+}
+
+// An element of a two-dimensional point array with constant indices (XPA[1,2]) is kept and
+// named for what it is; the warning said its index was "computed at run time".
+TEST(KrlRules, AnElementOfATwoDimensionalArrayIsKeptAndNamedForWhatItIs) {
+  const std::string dir = test::tempDir("krl_array2");
+  test::writeText(dir + "/p.src", "DEF p( )\n$TOOL={X 0,Y 0,Z 100,A 0,B 0,C 0}\n$BASE=$NULLFRAME\nPTP XPA[1,2]\nEND\n");
+  const std::string dat = "DEFDAT p\nDECL E6POS XPA[2,2]\nXPA[1,2]={X 1000,Y 0,Z 800,A 0,B 90,C 0,S 2,T 10}\nENDDAT\n";
+  test::writeText(dir + "/p.dat", dat);
+  JobSettings s;
+  s.calibrated = test::loadBundled("kuka_kr16");
+  s.calibrated.deviations.base_mm = Eigen::Vector3d(0.2, -0.1, 0.3);
+  const ProgramCompensation pc = compensateProgramReport(readKrl(dir + "/p.src"), s);
+  ASSERT_TRUE(pc.ok()) << pc.report.errors.front().where.str() << ": " << pc.report.errors.front().message;
+  ASSERT_EQ(pc.report.warnings.size(), 1u);
+  EXPECT_EQ(pc.report.warnings[0].message,
+            "PTP left unchanged (not compensated): the target 'XPA[1,2]' is an element of the multi-dimensional array XPA, which accura "
+            "does not read (it corrects the elements of one-dimensional point arrays); the position after it is not known");
+  EXPECT_EQ(writeKrl(pc.program).dat, dat);
+}
+
 // A spline block whose frames come from its WITH clause (SPLINE WITH $TOOL = STOOL2(FP1),
 // $BASE = SBASE(FP1.BASE_NO)) is compensated as the same block after $TOOL = TOOL_DATA[2],
 // $BASE = BASE_DATA[2] statements: the same corrected points, to the byte. (It was refused:

@@ -494,6 +494,75 @@ RobotModel shiftedIrb120() {
   return real;
 }
 
+// RAPID lets an optional argument follow the one before it with or without a comma (RAPID
+// kernel, function calls: <function argument> ::= .. | ',' <optional function argument>), and
+// programs write RelTool(p,0,0,0,\Rz:=a): the whole module was refused ("expected RelTool(point,
+// dx, dy, dz) with 4 arguments, found 5"), a program the controller runs.
+TEST(Rapid, RelToolTakesItsRotationsAfterACommaAsTheControllerDoes) {
+  auto module = [](const std::string& reltool) {
+    return "MODULE m\n  CONST robtarget a := [[380,40,350],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n  PROC main()\n    ConfL\\Off;\n"
+           "    MoveJ a, v100, fine, tool0;\n    MoveL " + reltool + ", v100, fine, tool0;\n  ENDPROC\nENDMODULE\n";
+  };
+  const std::string comma = module("RelTool(a, 0, 0, 10, \\Rx:=0, \\Rz:=90)");
+  const Program p = parseRapid(comma, "r.mod");
+  ASSERT_EQ(p.motions.size(), 2u);
+  ASSERT_EQ(p.motions[1].target_problem, "");
+  // a * Trans(0,0,10) * Rz(90): the tool's z is the world's -z (a turned 180 deg about y)
+  Eigen::Matrix3d Rz;
+  Rz << 0, -1, 0, 1, 0, 0, 0, 0, 1;
+  EXPECT_LT((poseOf(p.motions[1].target).translation() - Eigen::Vector3d(380, 40, 340)).norm(), 1e-9);
+  EXPECT_LT((poseOf(p.motions[1].target).linear() - quatMatrix(0, 0, 1, 0) * Rz).norm(), 1e-9);
+  // compensated (the base 0.2, -0.1, 0.3 mm off): the inline robtarget, as without the commas
+  const ProgramCompensation c = compensateProgramReport(p, settingsFor(shiftedIrb120()));
+  ASSERT_TRUE(c.ok()) << c.report.errors.front().message;
+  const std::string written = writeRapid(c.program);
+  EXPECT_NE(written.find("\n    MoveL [[379.8000,40.1000,339.7000],[0.000000000,0.707106781,0.707106781,0.000000000],[0,0,0,0],"
+                         "[9E9,9E9,9E9,9E9,9E9,9E9]], v100, fine, tool0;\n"),
+            std::string::npos)
+      << written;
+  const ProgramCompensation c2 = compensateProgramReport(parseRapid(module("RelTool(a, 0, 0, 10 \\Rx:=0 \\Rz:=90)"), "r.mod"), settingsFor(shiftedIrb120()));
+  ASSERT_TRUE(c2.ok()) << c2.report.errors.front().message;
+  EXPECT_EQ(writeRapid(c2.program), written);
+  // a rotation the controller computes, after a comma: kept as written and named
+  const Program q = parseRapid(module("RelTool(a,0,0,10,\\Rz:=turn)"), "r.mod");
+  ASSERT_EQ(q.motions.size(), 2u);
+  EXPECT_EQ(q.motions[1].target_problem, "RelTool(...) at r.mod:6:11 has a rotation that is not a number ('turn')");
+}
+
+// A routine with optional parameters, declared as RAPID allows without a comma before them
+// (RAPID kernel, <next parameter declaration> ::= .. | <optional parameter declaration>) and
+// passed on as conditional arguments (\WObj?wo: given only when the caller gives wo). Before:
+// `PROC approach(robtarget p10 \switch slow)` hid no module datum (p10 was not read as a
+// parameter), so the module's p10 was corrected for a motion that goes where the call says;
+// and `\WObj?wo` refused the module ("the wobjdata '?wo' is not declared with a value").
+TEST(Rapid, OptionalParametersAndConditionalArgumentsAreTheCallersValues) {
+  const std::string text =
+      "MODULE m\n"
+      "  CONST robtarget p10 := [[380,40,350],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
+      "  CONST robtarget p20 := [[380,40,300],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
+      "  PROC main()\n"
+      "    approach p20;\n"
+      "  ENDPROC\n"
+      "  PROC approach(robtarget p10 \\PERS wobjdata wo \\switch slow)\n"
+      "    MoveL p10, v100, fine, tool0;\n"
+      "    MoveL p20, v100, fine, tool0 \\WObj?wo;\n"
+      "  ENDPROC\n"
+      "ENDMODULE\n";
+  const Program p = parseRapid(text, "r.mod");
+  ASSERT_EQ(p.motions.size(), 2u);
+  EXPECT_EQ(p.motions[0].target_problem, "'p10' is a parameter of approach: its value comes from the call");
+  const ProgramCompensation c = compensateProgramReport(p, settingsFor(shiftedIrb120()));
+  ASSERT_TRUE(c.ok()) << c.report.errors.front().message;
+  std::vector<std::string> warnings;
+  for (const auto& w : c.report.warnings) warnings.push_back(w.where.str() + ": " + w.message);
+  ASSERT_EQ(warnings.size(), 2u);
+  EXPECT_EQ(warnings[0], "r.mod:8:5: MoveL left unchanged (not compensated): 'p10' is a parameter of approach: its value comes from the call; "
+                         "the position after it is not known");
+  EXPECT_EQ(warnings[1], "r.mod:9:5: MoveL left unchanged (not compensated): its base is a run-time value: the wobjdata is the conditional "
+                         "argument '?wo' of approach: given or left out by the call; the position after it is not known");
+  EXPECT_EQ(writeRapid(c.program), text);  // nothing this module's text says is corrected
+}
+
 // The joints the compensation of `move` to the test pose ends at, with monitoring off (the
 // controller's nearest configuration).
 Eigen::VectorXd jointsOff(const std::string& move) {

@@ -216,6 +216,38 @@ struct Reader {
     return false;
   }
   std::set<std::string> local_defs_;  // the subroutines this .src defines that move the robot (upper case)
+  // The names the routine being read holds itself (upper case -> why its value is not the data
+  // list's): its parameters (NAME:IN / NAME:OUT, the value of the call) and, in a subroutine or a
+  // function, the points it declares without a value. They hide the data list's points of
+  // their names there (KRL: a routine's own data first), so a motion to one is not a motion to
+  // the data list's point.
+  std::map<std::string, std::string> routine_names_;
+
+  // Starts a routine (DEF / DEFFCT line t, its name at `name_at`): its parameters.
+  void startRoutine(const std::vector<Tok>& t, size_t name_at) {
+    routine_names_.clear();
+    routine_ = name_at < t.size() ? t[name_at].text : std::string();
+    for (size_t i = name_at + 1; i + 1 < t.size(); ++i)
+      if (t[i].kind == Tok::kIdent && t[i + 1].text == ":")
+        routine_names_[t[i].up] = " is a parameter of " + routine_ + ": its value comes from the call";
+  }
+  std::string routine_;
+
+  // A subroutine's or function's declaration line t of points without a value: its own.
+  void noteRoutineDeclarations(const std::vector<Tok>& t) {
+    size_t type = t[0].up == "DECL" ? 1 : 0;
+    if (type < t.size() && t[type].up == "GLOBAL") ++type;
+    if (type >= t.size() || !isPointType(t[type].up)) return;
+    int depth = 0;
+    for (size_t i = type + 1; i < t.size(); ++i) {
+      const std::string& x = t[i].text;
+      if (x == "[" || x == "(" || x == "{") ++depth;
+      if (x == "]" || x == ")" || x == "}") --depth;
+      if (depth == 0 && t[i].kind == Tok::kIdent && (i + 1 == t.size() || t[i + 1].text == "," || t[i + 1].text == "["))
+        routine_names_.emplace(t[i].up, " is declared in " + routine_ + " without a value (" + f->loc(t[i].begin).str() +
+                                            "): the routine's own, not the data list's point");
+    }
+  }
   std::set<std::string> tool_defs_, base_defs_;  // those that set $TOOL / $BASE (themselves or through their calls)
   // Points whose value at a motion may not be the one the text before it gives, whatever the
   // motion's place: assigned inside a branch, a loop, a subroutine or a function (the order of
@@ -413,6 +445,10 @@ struct Reader {
       return "";
     }
     if (e - b == 1 && toks[b].kind == Tok::kIdent && toks[b].up[0] != '$') {
+      if (const auto own = routine_names_.find(toks[b].up); own != routine_names_.end()) {
+        out->run_time = true;
+        return toks[b].text + own->second;
+      }
       const auto it = decl.points.find(toks[b].up);
       if (it == decl.points.end())
         return toks[b].text + " is not declared in the program's files (a global frame: give --config $config.dat)";
@@ -487,6 +523,7 @@ struct Reader {
       const std::string& up = t[b].up;
       out->name = t[b].text;
       if (!up.empty() && up[0] == '$') return "the target is the system variable " + t[b].text;
+      if (const auto own = routine_names_.find(up); own != routine_names_.end()) return t[b].text + own->second;
       auto it = decl.points.find(up);
       if (it == decl.points.end()) {
         if (decl.arrays.count(up)) return t[b].text + " is an array";
@@ -514,8 +551,16 @@ struct Reader {
       const auto a = decl.arrays.find(t[b].up);
       if (a != decl.arrays.end()) {
         const std::optional<int> index = integerValue(t, b + 2, e - 1);
-        if (!index)
+        if (!index) {
+          // XPA[1,2]: constant indices of a two- or three-dimensional array, not a run-time one
+          bool constant = true;
+          for (size_t i = b + 2; i < e - 1; ++i)
+            constant = constant && (t[i].kind == Tok::kNumber || t[i].text == "," || t[i].text == "+");
+          if (constant)
+            return "the target '" + text + "' is an element of the multi-dimensional array " + a->second.name +
+                   ", which accura does not read (it corrects the elements of one-dimensional point arrays)";
           return "the target '" + text + "' is an element of the array " + a->second.name + " whose index is computed at run time";
+        }
         const std::string name = arrayElementName(a->second, *index);
         const auto it = decl.points.find(upper(name));
         if (it == decl.points.end())
@@ -998,6 +1043,7 @@ struct Reader {
       def_open_ = true;
       def_fct_ = true;
       def_line_ = f->loc(t[0].begin).line;
+      startRoutine(t, name_at);
       flow_ = StartTracker();
       flow_.unknown();
       callerFrames(t[0].begin);
@@ -1012,6 +1058,7 @@ struct Reader {
       def_open_ = true;
       def_fct_ = false;
       def_line_ = f->loc(t[0].begin).line;
+      startRoutine(t, k == "DEF" ? 1 : 2);
       if (program->name.empty()) {
         const size_t i = k == "DEF" ? 1 : 2;
         if (i < t.size() && t[i].kind == Tok::kIdent) program->name = t[i].text;
@@ -1062,6 +1109,7 @@ struct Reader {
     if (k == "DECL" || ((isPointType(k) || k == "FDAT" || k == "LDAT" || k == "PDAT") && t.size() > 1 && t[1].kind == Tok::kIdent)) {
       Cursor c(*f, t, l.code_end);
       parseDeclaration(c, decl, src, false);
+      if (main_ended || def_fct_) noteRoutineDeclarations(t);
       // a point declared without a value (the program assigns it) is not written anew from the
       // model: it travels as a pass-through statement, so that the program still declares it
       bool value = false;

@@ -232,25 +232,27 @@ class Reader {
     bool changed = false, optional = false;
   };
   /// The parameters of the routine whose name is token k of its header r:
-  /// [\][VAR|PERS|INOUT] type name[{*}], separated by ',' or '|'.
+  /// [\][VAR|PERS|INOUT] type name[{*}], separated by ',' or '|'; an optional one (\..) also
+  /// without a comma before it (RAPID kernel, <next parameter declaration> ::= ',' <parameter
+  /// declaration> | <optional parameter declaration> | ..: `PROC p(robtarget t \switch s)`).
   std::vector<Param> parameters(Range r, size_t k) const {
     std::vector<Param> out;
     if (!isOp(t_, k + 1, "(")) return out;
     Param cur;
     bool any = false;
     for (size_t q = k + 2; q < r.second && !isOp(t_, q, ")"); ++q) {
-      if (isOp(t_, q, ",") || isOp(t_, q, "|")) {
+      if (isOp(t_, q, ",") || isOp(t_, q, "|") || (isOp(t_, q, "\\") && any)) {
         if (any) out.push_back(cur);
         cur = Param{};
         any = false;
-        continue;
+        if (!isOp(t_, q, "\\")) continue;
       }
       any = true;
       if (isOp(t_, q, "\\")) cur.optional = true;
       if (t_[q].kind != Tok::Kind::kIdent) continue;
       if (t_[q].u == "INOUT" || t_[q].u == "VAR") cur.changed = true;
       if (cur.name.empty() && q + 1 < r.second &&
-          (isOp(t_, q + 1, ",") || isOp(t_, q + 1, "|") || isOp(t_, q + 1, ")") || isOp(t_, q + 1, "{")))
+          (isOp(t_, q + 1, ",") || isOp(t_, q + 1, "|") || isOp(t_, q + 1, ")") || isOp(t_, q + 1, "{") || isOp(t_, q + 1, "\\")))
         cur.name = t_[q].u;
     }
     if (any) out.push_back(cur);
@@ -871,25 +873,37 @@ class Reader {
     const std::string f = reltool ? "RelTool" : "Offs";
     auto args = items(t_, r.first + 2, r.second - 1);
     std::map<std::string, double> rot;
-    if (reltool && args.size() >= 4) {  // the optional \Rx:=.. follow dz without a comma
+    // an optional argument follows the one before it with or without a comma (RAPID kernel,
+    // function calls: <function argument> ::= .. | <optional function argument> | ','
+    // <optional function argument>): `RelTool(p,0,0,0,\Rz:=45)` as `RelTool(p,0,0,0\Rz:=45)`
+    if (reltool)
+      for (size_t i = args.size(); i-- > 1;)
+        if (args[i].first < args[i].second && isOp(t_, args[i].first, "\\")) {
+          args[i - 1].second = args[i].second;
+          args.erase(args.begin() + static_cast<std::ptrdiff_t>(i));
+        }
+    // (a comma before an optional argument is not part of the value it follows)
+    auto valueEnd = [&](size_t b, size_t e) { return e > b && isOp(t_, e - 1, ",") ? e - 1 : e; };
+    if (reltool && args.size() >= 4) {  // the optional \Rx:=.. follow dz
       Range& last = args.back();
       size_t k = last.first;
       while (k < last.second && !isOp(t_, k, "\\")) ++k;
       size_t o = k;
-      last.second = k;
+      last.second = valueEnd(last.first, k);
       while (o < r.second - 1) {
         if (!(isOp(t_, o, "\\") && o + 2 < r.second && t_[o + 1].kind == Tok::Kind::kIdent && isOp(t_, o + 2, ":=")) ||
             !(t_[o + 1].u == "RX" || t_[o + 1].u == "RY" || t_[o + 1].u == "RZ"))
           fail(t_[o].b, "expected \\Rx:=, \\Ry:= or \\Rz:= in RelTool, found '" + excerpt(t_[o].s + (o + 1 < r.second ? t_[o + 1].s : "")) + "'");
         size_t e = o + 3;
         while (e < r.second - 1 && !isOp(t_, e, "\\")) ++e;
-        const std::optional<double> x = number(t_, {o + 3, e});
+        const size_t ve = valueEnd(o + 3, e);
+        const std::optional<double> x = number(t_, {o + 3, ve});
         if (!x) {
           TargetVal tv;
-          tv.problem = "RelTool(...) at " + loc(t_[r.first].b).str() + " has a rotation that is not a number ('" + quoted({o + 3, e}) + "')";
+          tv.problem = "RelTool(...) at " + loc(t_[r.first].b).str() + " has a rotation that is not a number ('" + quoted({o + 3, ve}) + "')";
           return tv;
         }
-        if (std::abs(*x) > kMaxAngleDeg) shape(o + 3, "a rotation in deg within +-" + calib::formatFixed(kMaxAngleDeg, 0) + " in RelTool", text({o + 3, e}));
+        if (std::abs(*x) > kMaxAngleDeg) shape(o + 3, "a rotation in deg within +-" + calib::formatFixed(kMaxAngleDeg, 0) + " in RelTool", text({o + 3, ve}));
         rot[t_[o + 1].u] = *x;
         o = e;
       }
@@ -1192,6 +1206,13 @@ class Reader {
     if (single && u == builtin) {
       f.source = FrameSetting::Source::kNull;
       f.value = calib::XyzAbc{};
+    } else if (isOp(t_, a.first, "?")) {
+      // a conditional argument (\WObj?wo: RAPID kernel, <conditional procedure argument>):
+      // given only when the routine's caller gives its optional parameter, else left out
+      f.source = FrameSetting::Source::kUnknown;
+      f.note = "the " + type + " is the conditional argument '" + excerpt(f.text) + "' of " + excerpt(routine_) +
+               ": given or left out by the call";
+      f.run_time = true;
     } else if (single && params_.count(u) && !local_.names.count(u)) {
       f.source = FrameSetting::Source::kUnknown;
       f.note = "the " + type + " '" + excerpt(f.text) + "' is a parameter of " + excerpt(routine_) + ": its value comes from the call";
