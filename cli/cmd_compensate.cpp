@@ -86,7 +86,7 @@ int runCompensate(const CompensateArgs& a) {
   std::printf("targets corrected: %d (max %.4f mm, RMS %.4f mm, max %.5f deg); auxiliary points added: %d\n", report.targets_corrected,
               report.max_correction_mm, report.rms_correction_mm, report.max_correction_deg, report.points_added);
   if (report.motions_left_unchanged > 0)
-    std::printf("motions left unchanged (targets accura cannot evaluate, such as run-time values; see the warnings): %d\n", report.motions_left_unchanged);
+    std::printf("motions left unchanged (what accura cannot evaluate or does not model, such as run-time values; see the warnings): %d\n", report.motions_left_unchanged);
   if (!report.segments.empty())
     std::printf("largest path error: %.4f mm as programmed -> %.4f mm endpoints compensated -> %.4f mm written\n",
                 report.max_error_uncompensated_mm, report.max_error_before_mm, report.max_error_after_mm);

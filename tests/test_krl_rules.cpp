@@ -573,29 +573,60 @@ TEST(KrlRules, AChangedTurnKeepsTheFormItWasWrittenIn) {
 // ---------------------------------------------------------------------------------------------
 // External axes
 
-TEST(KrlRules, ATargetThatMovesAnExternalAxisIsRefusedNamingIt) {
+// A target that moves an external axis (a track, a positioner) is a program the controller runs;
+// the robot file models no external axes, so the motion is kept as written and named (it was
+// refused), and the rest is compensated.
+TEST(KrlRules, ATargetThatMovesAnExternalAxisIsKeptAndNamed) {
   const std::string dir = test::tempDir("krl_ext");
   test::writeText(dir + "/p.src", "DEF p( )\n$TOOL={X 0,Y 0,Z 100,A 0,B 0,C 0}\n$BASE=$NULLFRAME\nPTP XP1\nLIN XP2\nEND\n");
-  test::writeText(dir + "/p.dat",
-                  "DEFDAT p\nDECL E6POS XP1={X 1000,Y 0,Z 800,A 0,B 90,C 0,E1 0.0}\n"
-                  "DECL E6POS XP2={X 1000,Y 100,Z 800,A 0,B 90,C 0,E1 0.0,E2 250.5}\nENDDAT\n");
+  const std::string xp2 = "DECL E6POS XP2={X 1000,Y 100,Z 800,A 0,B 90,C 0,E1 0.0,E2 250.5}\n";
+  test::writeText(dir + "/p.dat", "DEFDAT p\nDECL E6POS XP1={X 1000,Y 0,Z 800,A 0,B 90,C 0,E1 0.0}\n" + xp2 + "ENDDAT\n");
   const Program in = readKrl(dir + "/p.src");
   JobSettings s;
   s.calibrated = test::loadBundled("kuka_kr16");
+  s.calibrated.deviations.base_mm = Eigen::Vector3d(0.2, -0.1, 0.3);
   const ProgramCompensation pc = compensateProgramReport(in, s);
-  ASSERT_EQ(pc.report.errors.size(), 1u);
-  const ProgramIssue& e = pc.report.errors.front();
-  EXPECT_EQ(e.where.file, dir + "/p.dat");
-  EXPECT_EQ(e.where.line, 3);
-  EXPECT_EQ(e.where.column, 16);  // the aggregate of XP2
-  EXPECT_NE(e.message.find("XP2"), std::string::npos) << e.message;
-  EXPECT_NE(e.message.find("E2 250.5000"), std::string::npos) << e.message;
-  EXPECT_NE(e.message.find("models no external axes"), std::string::npos) << e.message;
-  // the command line: exit 1, file:line:column
+  ASSERT_TRUE(pc.report.errors.empty()) << pc.report.errors.front().message;
+  EXPECT_EQ(pc.report.motions_left_unchanged, 1);
+  ASSERT_EQ(pc.report.warnings.size(), 1u);
+  const ProgramIssue& w = pc.report.warnings.front();
+  EXPECT_EQ(w.where.str(), dir + "/p.src:5:1");  // the LIN
+  EXPECT_EQ(w.message,
+            "LIN left unchanged (not compensated): XP2 moves external axes (E2 250.5000: a track or a positioner), which the robot "
+            "file '" + s.calibrated.nominal.name + "' does not model; the position after it is not known");
+  // the command line: exit 0, XP2 as written, XP1 corrected (by the base's 0.2, -0.1, 0.3 mm)
   test::writeText(dir + "/kr16.xml", test::readText(test::sourcePath("tests/golden/compensate/kr16_real.xml")));
   const test::CliRun r = test::runAccuraIn(dir, "compensate --robot kr16.xml --in p.src --out out");
-  EXPECT_EQ(r.code, 1) << r.err;
-  EXPECT_NE(r.err.find("p.dat:3:16"), std::string::npos) << r.err;
+  EXPECT_EQ(r.code, 0) << r.err;
+  const std::string dat = test::readText(dir + "/out/p.dat");
+  EXPECT_NE(dat.find(xp2), std::string::npos) << dat;
+  EXPECT_EQ(dat.find("DECL E6POS XP1={X 1000,Y 0,Z 800,A 0,B 90,C 0,E1 0.0}"), std::string::npos) << dat;
+  EXPECT_NE(r.out.find("left unchanged"), std::string::npos) << r.out << r.err;
+}
+
+// An inline form whose FDAT has IPO_FRAME #TCP (an external TCP: the robot carries the part past
+// a fixed tool) is a program the controller runs: that motion is kept as written and named (the
+// program was refused), the others are compensated.
+TEST(KrlRules, AMotionWithAnExternalTcpIsKeptAndNamed) {
+  const std::string dir = test::tempDir("krl_ext_tcp");
+  for (const char* f : {"seam.src", "$config.dat"}) test::writeText(dir + "/" + f, test::readText(test::sourcePath(std::string("examples/") + f)));
+  std::string dat = test::readText(test::sourcePath("examples/seam.dat"));
+  const std::string fp2 = "DECL FDAT FP2={TOOL_NO 1,BASE_NO 1,IPO_FRAME #";
+  ASSERT_NE(dat.find(fp2 + "BASE"), std::string::npos);
+  dat.replace(dat.find(fp2 + "BASE"), fp2.size() + 4, fp2 + "TCP");
+  test::writeText(dir + "/seam.dat", dat);
+  test::writeText(dir + "/kr16.xml", test::readText(test::sourcePath("tests/golden/compensate/kr16_real.xml")));
+  const test::CliRun r = test::runAccuraIn(dir, "compensate --robot kr16.xml --in seam.src --config '$config.dat' --out out");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.err.find("seam.src:42:1: LIN left unchanged (not compensated): an external TCP (IPO_FRAME #TCP: the robot carries the part "
+                       "past a fixed tool), which accura does not model; the position after it is not known"),
+            std::string::npos)
+      << r.err;
+  const std::string out = test::readText(dir + "/out/seam.dat");
+  const std::string xp2 = "DECL E6POS XP2={X 100.0,Y 0.0,Z 20.0,A 160.0,B 10.0,C 170.0,S 2,T 10,E1 0.0,E2 0.0,E3 0.0,E4 0.0,E5 0.0,E6 0.0}";
+  ASSERT_NE(dat.find(xp2), std::string::npos);
+  EXPECT_NE(out.find(xp2), std::string::npos) << out;  // the LIN's point as written
+  EXPECT_EQ(out.find("DECL E6POS XP3={X 100.0,Y 500.0,Z 20.0,"), std::string::npos) << out;  // the next one corrected
 }
 
 // ---------------------------------------------------------------------------------------------

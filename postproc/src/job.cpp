@@ -725,14 +725,23 @@ class Job {
     if (m.tool.source == FrameSetting::Source::kUnset && s_.initial_tool) tool = s_.initial_tool;
     if (m.base.source == FrameSetting::Source::kUnset && s_.initial_base) base = s_.initial_base;
     const size_t errors = r_.errors.size();
-    if (m.external_tcp) error(m.where, "expected a robot-guided tool, found IPO_FRAME #TCP (external TCP): not supported");
+    // What the controller runs and accura does not model or cannot evaluate is kept as written
+    // and named, not refused (a program the controller runs is never rejected): an external TCP,
     // a frame the program sets to a run-time value (a routine's parameter, a datum assigned while
-    // it runs): the controller runs the motion, accura cannot evaluate it (kept, named)
-    const bool tool_run_time = !tool && m.tool.source == FrameSetting::Source::kUnknown && m.tool.run_time;
-    const bool base_run_time = !base && m.base.source == FrameSetting::Source::kUnknown && m.base.run_time;
-    if (!m.external_tcp && (tool_run_time || base_run_time) && (tool || tool_run_time) && (base || base_run_time)) {
-      const FrameSetting& f = tool_run_time ? m.tool : m.base;
-      leftUnchanged(m, "its " + std::string(&f == &m.tool ? "tool" : "base") + " is a run-time value: " + f.note);
+    // it runs) or to one accura does not model (a stationary tool, a work object a mechanical
+    // unit moves). A frame that is missing (not set, or TOOL_DATA[n] without the $config.dat) is
+    // the user's to give: an error.
+    if (m.external_tcp) {
+      leftUnchanged(m, "an external TCP (IPO_FRAME #TCP: the robot carries the part past a fixed tool), which accura does not model");
+      return std::nullopt;
+    }
+    const bool tool_unknown = !tool && m.tool.source == FrameSetting::Source::kUnknown;
+    const bool base_unknown = !base && m.base.source == FrameSetting::Source::kUnknown;
+    if ((tool_unknown || base_unknown) && (tool || tool_unknown) && (base || base_unknown)) {
+      const FrameSetting& f = tool_unknown ? m.tool : m.base;
+      const bool is_tool = &f == &m.tool;
+      leftUnchanged(m, "its " + std::string(is_tool ? "tool" : "base") +
+                           (f.run_time ? " is a run-time value: " + f.note : ": " + frameHint(f, is_tool ? "$TOOL" : "$BASE")));
       return std::nullopt;
     }
     if (!tool) error(m.where, "the tool of this motion is not known: " + frameHint(m.tool, "$TOOL"));
@@ -767,9 +776,9 @@ class Job {
     return c;
   }
 
-  /// False (with the error recorded, at the target's value) when `t` moves an external axis:
-  /// the robot files model none, so compensating it as if the axes did not move the robot or
-  /// the part would be wrong without a word.
+  /// False (the motion named as left unchanged) when `t` moves an external axis: the robot files
+  /// model none, so compensating it as if the axes did not move the robot or the part would be
+  /// wrong; the controller runs it as written.
   bool externalAxesZero(const Motion& m, const Target& t) {
     const bool abb = t.abb_conf.has_value();  // RAPID: eax_a..eax_f, 9E9 (not used) read as none
     std::string moved;
@@ -778,10 +787,9 @@ class Job {
         moved += (moved.empty() ? "" : ", ") + (abb ? std::string("eax_") + static_cast<char>('a' + k) : "E" + std::to_string(k + 1)) + " " +
                  calib::formatFixed(*t.ext[k], 4);
     if (moved.empty()) return true;
-    error(t.where.file.empty() ? m.where : t.where,
-          std::string("expected external axes ") + (abb ? "eax_a..eax_f at 0 or 9E9" : "E1..E6 at 0") + " in " + targetLabel(t) + ", found " + moved +
-              " (a track or a positioner): the robot file '" + s_.calibrated.nominal.name +
-              "' models no external axes, so the correction would ignore them; refused");
+    // the controller runs it; accura's correction would ignore the axes: kept as written, named
+    leftUnchanged(m, targetLabel(t) + " moves external axes (" + moved + ": a track or a positioner), which the robot file '" +
+                         s_.calibrated.nominal.name + "' does not model");
     return false;
   }
 
