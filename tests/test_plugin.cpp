@@ -24,7 +24,9 @@
 
 #include "accura/calib/errors.h"
 #include "accura/calib/geometry.h"
+#include "accura/calib/ik.h"
 #include "accura/calib/robot_io.h"
+#include "accura/calib/simulate.h"
 #include "accura/postproc/compensate.h"
 #include "accura/postproc/job.h"
 #include "accura/postproc/program_io.h"
@@ -777,6 +779,110 @@ TEST(Plugin, TheConfigurationAskedForIsEnforced) {
     EXPECT_EQ(accura_compensate_pose(h.m, &t, &bad, &r), ACCURA_ERROR_INVALID_ARGUMENT) << bad.status << " " << bad.turn;
     EXPECT_NE(lastError(h.m).find("expected S in 0..7 and T in 0..63"), std::string::npos) << lastError(h.m);
   }
+}
+
+/// The solution of `robot` for T nearest `to` in joint space (every closed-form branch polished
+/// on the robot: independent of the compensation's own solver path); empty when none converges.
+Eigen::VectorXd nearestSolution(const calib::RobotModel& robot, const Eigen::Isometry3d& T, const Eigen::VectorXd& to) {
+  const calib::KinematicSolver ik(robot);
+  Eigen::VectorXd best;
+  for (const Eigen::VectorXd& seed : ik.closedFormSolutions(T)) {
+    const calib::IkResult r = ik.inverse(T, calib::kukaConfiguration(robot, seed), seed, calib::IkOptions{});
+    if (r.status != calib::IkStatus::kOk) continue;
+    if (best.size() == 0 || (r.q - to).norm() < (best - to).norm()) best = r.q;
+  }
+  return best;
+}
+
+// A UR controller reads no Status/Turn (movej(pose): the solution nearest the joints), so the
+// plug-in asks none of it either, as accura compensate does (docs/compensation.md, section 2;
+// UrScript.ATargetWithJointsAtZeroIsNotTurnedByItsKukaTurnBits for a program). A host (the
+// FreeCAD module) passes the S/T of its arm's joints {0, -60, 80, -110, -90, 0}: T 26, joints 1
+// and 6 at exactly 0 with their Turn bits clear. The real arm reaches the pose with joint 1 or
+// 6 a few hundredths below 0: on the Turn bits it went a full turn round (359.97 deg, inside
+// the UR's +-360 deg) and the LIN after it, turning them further up, was refused at 360 deg.
+TEST(Plugin, AUrArmIsNotTurnedByTheTurnBitsOfTheHostsJoints) {
+  const std::string dir = test::tempDir("plugin_ur_turn");
+  calib::RobotModel controller = test::loadBundled("ur10");
+  controller.nominal.T_flange_tcp = calib::toIsometry({0, 0, 150, 0, 0, 0});
+  calib::SimulateOptions so;
+  so.effects = {"geometric"};
+  so.set_station = false;
+  so.seed = 2;
+  const calib::RobotModel real = calib::perturbModel(controller, so);
+  calib::writeRobotFile(dir + "/ur10_calibrated.xml", real);
+  Handle h(dir + "/ur10_calibrated.xml");
+  const calib::RobotModel real_read = calib::readRobotFile(dir + "/ur10_calibrated.xml");  // the model the plug-in runs
+  const double q_a[6] = {0, -60, 80, -110, -90, 0}, q_b[6] = {5, -60, 80, -110, -90, 5};
+  const Eigen::Map<const Eigen::VectorXd> qa(q_a, 6), qb(q_b, 6);
+  accura_pose p_a, p_b;
+  ASSERT_EQ(accura_forward_kinematics(h.m, ACCURA_CONTROLLER, q_a, 6, &p_a), ACCURA_OK) << lastError(h.m);
+  ASSERT_EQ(accura_forward_kinematics(h.m, ACCURA_CONTROLLER, q_b, 6, &p_b), ACCURA_OK) << lastError(h.m);
+  const Eigen::Isometry3d T_a = calib::toIsometry(xyz(p_a)), T_b = calib::toIsometry(xyz(p_b));
+  // the poses on their own: the nominal FK of the host's joints (base = world, tool = the torch)
+  EXPECT_LT(positionDiff(T_a, calib::KinematicSolver(controller).forward(qa)), 1e-9);
+  accura_configuration st;
+  ASSERT_EQ(accura_joint_configuration(h.m, q_a, 6, &st), ACCURA_OK) << lastError(h.m);
+  ASSERT_EQ(st.turn, 26);  // joints 1 and 6 at 0: bits 0 and 5 clear
+  const calib::KinematicSolver real_fk(real_read);
+  // the joints the UR takes for a command from where it stands, and where they put the real tool
+  auto lands = [&](const accura_pose& command, const Eigen::VectorXd& from, const Eigen::Isometry3d& T, const Eigen::VectorXd& q_host,
+                   const char* what) {
+    SCOPED_TRACE(what);
+    const Eigen::VectorXd q = nearestSolution(controller, calib::toIsometry(xyz(command)), from);
+    EXPECT_EQ(q.size(), 6);
+    if (q.size() != 6) return q;
+    EXPECT_LT(positionDiff(real_fk.forward(q), T), 1e-3);                  // 1 um
+    EXPECT_LT(angleDiffRad(real_fk.forward(q), T) * 180 / M_PI, 1e-4);  // deg
+    EXPECT_LT((q - q_host).cwiseAbs().maxCoeff(), 0.5) << q.transpose();  // no joint a turn round
+    return q;
+  };
+
+  // one pose: the S asked (the guess of the branch), no Turn
+  accura_pose_result r;
+  ASSERT_EQ(accura_compensate_pose(h.m, &p_a, &st, &r), ACCURA_OK) << lastError(h.m);
+  ASSERT_EQ(r.dof, 6);
+  const Eigen::Map<const Eigen::VectorXd> q_real(r.q_real, 6);
+  EXPECT_LT((q_real - qa).cwiseAbs().maxCoeff(), 0.5) << q_real.transpose();
+  EXPECT_TRUE(q_real[0] < 0 || q_real[5] < 0) << q_real.transpose();  // the case of the Turn bit
+  const Eigen::VectorXd q_exec_a = lands(r.command, qa, T_a, qa, "pose");
+  ASSERT_EQ(q_exec_a.size(), 6);
+  EXPECT_LT((q_exec_a - q_real).cwiseAbs().maxCoeff(), 1e-6);  // the joints the result says
+  // reported: the configuration reached (KUKA's rule on q_real), not a change asked for
+  const calib::Configuration reached = calib::kukaConfiguration(controller, q_real);
+  EXPECT_EQ(r.configuration.status, reached.status);
+  EXPECT_EQ(r.configuration.turn, reached.turn);
+  EXPECT_NE(r.configuration.turn, st.turn);
+  EXPECT_EQ(r.configuration_changed, 0);
+
+  // a list, continuous: the second from the first's joints (the solution nearest them)
+  const accura_pose list[2] = {p_a, p_b};
+  const accura_configuration configs[2] = {st, st};
+  accura_pose_result rs[2];
+  size_t n_ok = 0;
+  ASSERT_EQ(accura_compensate_poses(h.m, list, configs, 2, 1, rs, &n_ok), ACCURA_OK) << lastError(h.m);
+  EXPECT_EQ(n_ok, 2u);
+  const Eigen::VectorXd q0 = lands(rs[0].command, qa, T_a, qa, "poses[0]");
+  if (q0.size() == 6) lands(rs[1].command, q0, T_b, qb, "poses[1]");
+
+  // a path: the start on the host's S/T, then a LIN of 5 deg on joints 1 and 6
+  const accura_path_motion lin = {ACCURA_LIN, {}, p_b};
+  std::vector<accura_path_point> points(64);
+  accura_path_result pr;
+  ASSERT_EQ(accura_compensate_path(h.m, &p_a, &st, &lin, 1, 0.05, points.data(), points.size(), &pr, nullptr), ACCURA_OK)
+      << lastError(h.m);
+  ASSERT_GE(pr.n_points, 1u);
+  EXPECT_EQ(pr.failed_motion, -1);
+  Eigen::VectorXd q = lands(pr.start_command, qa, T_a, qa, "path start");
+  for (size_t i = 0; i < pr.n_points && q.size() == 6; ++i) {
+    if (points[i].inserted) {  // an auxiliary point: the joints nearest the previous, on the way from q_a to q_b
+      q = nearestSolution(controller, calib::toIsometry(xyz(points[i].end)), q);
+      EXPECT_LT((q - qa).cwiseAbs().maxCoeff(), 5.5) << q.transpose();
+    } else {
+      q = lands(points[i].end, q, T_b, qb, "path end");
+    }
+  }
+  std::filesystem::remove_all(dir);
 }
 
 // One handle, several threads at once: the results equal the single-threaded ones, and each

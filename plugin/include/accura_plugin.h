@@ -90,7 +90,16 @@ typedef struct accura_pose {
 
 /* KUKA configuration: Status and Turn bits (postproc/include/accura/postproc/compensate.h:
  * T bit i set when joint i+1 < 0; S bit 0 overhead, bit 1 elbow, bit 2 A5 < 0). -1: not
- * specified (any). */
+ * specified (any).
+ * A Universal Robots arm (the model's geometry: joints 2-4 parallel, no spherical wrist) has a
+ * controller that reads no S/T (movej(pose) takes the solution nearest the current joints), and
+ * the compensation calls ask none of it, as `accura compensate` does (docs/compensation.md,
+ * section 2): a pose without a seed on the Status given, as the guess of the branch, and the
+ * Turn of the solution nearest the middle of the joint ranges (a joint at 0 deg whose real value
+ * lies a few hundredths below 0 stays there, not a full turn round to keep its Turn bit); a pose
+ * continued from the previous one (accura_compensate_poses, continuous 1) on the solution nearest
+ * its joints, whatever S/T were given. The configuration returned is then the S/T of the joints
+ * reached (KUKA's rule on q_real), for information, and configuration_changed is 0. */
 typedef struct accura_configuration {
   int status;
   int turn;
@@ -213,8 +222,10 @@ ACCURA_API accura_status accura_joint_configuration(accura_model* model, const d
 typedef struct accura_pose_result {
   accura_status status;        /* ACCURA_OK or why this pose has no compensation */
   accura_pose command;         /* the pose to send the controller (program base frame) */
-  accura_configuration configuration; /* S/T of q_real: the program must carry it */
-  int configuration_changed;   /* 1: the configuration asked for differs (see compensate.h) */
+  accura_configuration configuration; /* S/T of q_real: the program must carry it (a UR arm:
+                                          the configuration reached, see accura_configuration) */
+  int configuration_changed;   /* 1: the configuration asked for differs (see compensate.h);
+                                  always 0 on a UR arm (its controller reads no S/T) */
   double correction_mm;        /* |command - target| (position) */
   double correction_deg;       /* rotation angle between command and target */
   int dof;
@@ -222,8 +233,8 @@ typedef struct accura_pose_result {
 } accura_pose_result;
 
 /* Compensates one pose. `configuration` NULL: any (the branch nearest to the middle of the
- * joint ranges). The pose's own failure (unreachable, ...) is the returned status and
- * result->status. */
+ * joint ranges); on a UR arm only its Status is asked (see accura_configuration). The pose's
+ * own failure (unreachable, ...) is the returned status and result->status. */
 ACCURA_API accura_status accura_compensate_pose(accura_model* model, const accura_pose* target,
                                                 const accura_configuration* configuration,
                                                 accura_pose_result* result);
@@ -286,7 +297,9 @@ typedef struct accura_path_result {
 
 /* Compensates a path from `start` through `n_motions` LIN / CIRC motions and inserts
  * auxiliary points until the predicted deviation of the real tool from the intended path is
- * below tol_mm (in [0.001, 100]) everywhere (see docs/compensation.md). Writes up to `capacity` points
+ * below tol_mm (in [0.001, 100]) everywhere (see docs/compensation.md). The start is solved as
+ * accura_compensate_pose solves a pose (a UR arm: only the Status of `start_configuration`);
+ * every point after it continues on the solution nearest the joints before. Writes up to `capacity` points
  * (`points` may be NULL when capacity is 0); when more are needed returns
  * ACCURA_ERROR_BUFFER_TOO_SMALL with result->n_points the count needed (call again).
  * `reports` (NULL or n_motions entries) gets each motion's numbers. `start_configuration`

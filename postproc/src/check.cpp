@@ -614,7 +614,7 @@ CheckReport checkProgramWith(const Program& program, const JobSettings& job, con
   std::optional<Eigen::Isometry3d> T_world_flange;  // where the program meant the flange to be
   std::optional<Eigen::VectorXd> q_known;
   const int dof = job.calibrated.dof();
-  const bool ur_arm = universalRobotsArm(job.calibrated.nominal);
+  const bool reads_st = controllerReadsConfiguration(job.calibrated.nominal);
   for (size_t i = 0; i < program.motions.size(); ++i) {
     const Motion& m = program.motions[i];
     auto skip = [&](const std::string& why) {
@@ -681,7 +681,7 @@ CheckReport checkProgramWith(const Program& program, const JobSettings& job, con
       w.configuration = calib::Configuration{m.target.status.value_or(-1), m.target.turn.value_or(-1)};
       // a UR controller reads no S/T (docs/compensation.md, section 2): the solution nearest the
       // joints before, the written Status only as the guess of the branch after an unknown start
-      if (ur_arm) w.configuration = calib::Configuration{wm.empty() || unknown || m.start_unknown ? w.configuration.status : -1, -1};
+      w.configuration = askedConfiguration(reads_st, w.configuration, !(wm.empty() || unknown || m.start_unknown));
       if (m.qnear_deg && m.qnear_deg->size() == static_cast<size_t>(job.calibrated.dof()))
         w.q_near = Eigen::Map<const Eigen::VectorXd>(m.qnear_deg->data(), 6);
       if (m.type == MotionType::kCirc) {

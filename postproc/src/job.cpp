@@ -61,12 +61,19 @@ bool universalRobotsArm(const calib::RobotDefinition& d) {
   return true;
 }
 
+bool controllerReadsConfiguration(const calib::RobotDefinition& robot) { return !universalRobotsArm(robot); }
+
+calib::Configuration askedConfiguration(bool reads, const calib::Configuration& written, bool position_known) {
+  if (reads) return written;
+  return position_known ? calib::Configuration{} : calib::Configuration{written.status, -1};
+}
+
 namespace {
 
 class Job {
  public:
   Job(const JobSettings& s, JobReport* r)
-      : s_(s), r_(*r), models_(s, placeRobot(s)), ur_arm_(universalRobotsArm(s.calibrated.nominal)) {
+      : s_(s), r_(*r), models_(s, placeRobot(s)), reads_st_(controllerReadsConfiguration(s.calibrated.nominal)) {
     r_.robroot_in_world = calib::toXyzAbc(models_.placement().T_world_robroot);
     r_.calibrated_base_in_world = calib::toXyzAbc(models_.placement().T_world_calbase);
   }
@@ -822,15 +829,11 @@ class Job {
       config = abbBranch(c.end);
       start = abbSeed(c.end);
     }
-    if (ur_arm_) {
-      // a Universal Robots controller has no Status/Turn: movej(pose) goes to the solution
-      // nearest the joints the robot stands on (docs/urscript.md). S/T a program written for it
-      // carries (XML from an OLP) are not asked: a Turn bit asked of a joint at 0 turned it a
-      // full turn round (-0.03 deg -> 359.97 deg, within the UR's +-360 deg) to keep its sign.
-      // From an unknown position the written Status stays the guess of the branch.
-      if (q_real_) config = calib::Configuration{};
-      else config.turn = -1;
-    }
+    // a Universal Robots controller has no Status/Turn: movej(pose) goes to the solution
+    // nearest the joints the robot stands on (docs/urscript.md). S/T a program written for it
+    // carries (XML from an OLP) are not asked (askedConfiguration); from an unknown position the
+    // written Status stays the guess of the branch.
+    config = askedConfiguration(reads_st_, config, q_real_.has_value());
     if (!cp && m.qnear_deg && s_.calibrated.dof() == 6) {
       // URScript get_inverse_kin(pose, qnear=q): the controller takes the solution nearest
       // to qnear, not to where the robot stands
@@ -843,7 +846,7 @@ class Job {
       return keep(out, mo);
     }
     if (cp) noteCpConfiguration(m, end, comp, pc.q_real);
-    else if (!ur_arm_ && !checkConfig(m, end, comp, pc.q_real, c.T_world_end)) return keep(out, mo);  // (a UR: S/T kept as written)
+    else if (reads_st_ && !checkConfig(m, end, comp, pc.q_real, c.T_world_end)) return keep(out, mo);  // (a UR: S/T kept as written)
     if (!abbConfiguration(m, mo.target, comp, pc.q_real, cp)) return keep(out, mo);
     if (!cp) notePostureChange(m, end, comp, c.T_world_end, config, start, pc.q_real);
     setPose(mo.target, toProgram(c.T_world_progbase, pc.T_world_tcp_command), commandBefore(c));
@@ -1023,8 +1026,8 @@ class Job {
   const JobSettings& s_;
   JobReport& r_;
   ModelFactory models_;
-  /// A Universal Robots arm: its controller reads no Status/Turn (pointMotion)
-  bool ur_arm_ = false;
+  /// The controller reads the Status/Turn of a Cartesian PTP (not a Universal Robots arm's; pointMotion)
+  bool reads_st_ = true;
   std::optional<Eigen::VectorXd> q_real_;                    ///< real joints after the last motion
   SourceLocation q_real_where_;                              ///< the motion q_real_ is after
   std::optional<Eigen::VectorXd> q_hint_;                    ///< the joints last known (forget())

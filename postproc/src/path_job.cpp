@@ -13,6 +13,20 @@ void enforceConfiguration(const calib::Configuration& asked, PoseCompensation& p
                ", not with the configuration asked for (S " + std::to_string(asked.status) + ", T " + std::to_string(asked.turn) + ")";
 }
 
+PoseCompensation compensateTarget(const Compensator& comp, const Eigen::Isometry3d& T_world_tcp, const calib::Configuration& asked,
+                                  const Eigen::VectorXd& seed, const JobSettings& settings) {
+  const bool reads = controllerReadsConfiguration(settings.calibrated.nominal);
+  const calib::Configuration config = askedConfiguration(reads, asked, seed.size() > 0);
+  PoseCompensation pc = comp.pose(T_world_tcp, config, seed, settings.ik, settings.context);
+  if (reads) {
+    enforceConfiguration(config, pc);
+  } else if (pc.status == calib::IkStatus::kOk) {  // a UR: the S/T reached, nothing to carry
+    pc.configuration_changed = false;
+    pc.message.clear();
+  }
+  return pc;
+}
+
 SegmentCompensation compensateSegmentFrom(const Compensator& comp, PathSegment& intended, const calib::Configuration& config,
                                           const Eigen::VectorXd& q_real, const JobSettings& settings) {
   intended.T_world_start = comp.real().forward(q_real, settings.context);
@@ -25,8 +39,7 @@ SegmentCompensation compensateSegmentFrom(const Compensator& comp, PathSegment& 
 PathCompensation compensatePath(const Compensator& comp, const Eigen::Isometry3d& T_world_start, const calib::Configuration& start_config,
                                 const std::vector<PathSegment>& motions, const JobSettings& settings) {
   PathCompensation r;
-  r.start = comp.pose(T_world_start, start_config, Eigen::VectorXd(), settings.ik, settings.context);
-  enforceConfiguration(start_config, r.start);
+  r.start = compensateTarget(comp, T_world_start, start_config, Eigen::VectorXd(), settings);
   if (r.start.status != calib::IkStatus::kOk) return r;
   Eigen::VectorXd q = r.start.q_real;
   for (size_t i = 0; i < motions.size(); ++i) {

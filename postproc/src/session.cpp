@@ -169,8 +169,8 @@ calib::Configuration Session::configurationAt(const std::vector<double>& q, cons
 }
 
 SessionPose Session::pose(const calib::XyzAbc& target, const calib::Configuration& asked, const Eigen::VectorXd& seed) const {
-  PoseCompensation pc = comp_->pose(toWorld(target, "target"), asked, seed, job_.ik, job_.context);
-  enforceConfiguration(asked, pc);
+  // the configuration rule of a PTP of accura compensate (a UR arm's controller reads no S/T)
+  const PoseCompensation pc = compensateTarget(*comp_, toWorld(target, "target"), asked, seed, job_);
   SessionPose r;
   r.status = pc.status;
   if (pc.status != calib::IkStatus::kOk) {

@@ -163,6 +163,20 @@ void requireArmForProgram(const Program& program, const calib::RobotDefinition& 
 /// solution nearest the current joints, so compensate and check ask no S/T a program carries.
 bool universalRobotsArm(const calib::RobotDefinition& robot);
 
+/// Whether the controller of `robot` reads the Status/Turn of a Cartesian target (KUKA; ABB's
+/// confdata is read apart): false on a Universal Robots arm (universalRobotsArm). The one
+/// place that decides it for accura compensate, accura check and the plug-in (Session).
+bool controllerReadsConfiguration(const calib::RobotDefinition& robot);
+
+/// The S/T the IK asks of a Cartesian target that carries `written` (docs/compensation.md,
+/// section 2; a PTP's, and a CP motion's after an unknown position): `written` on a controller that reads them (`reads`,
+/// controllerReadsConfiguration); on one that reads none, nothing after a known position
+/// (`position_known`: the solution nearest the joints the robot stands on, as movej(pose)
+/// takes it) and only the written Status, as the guess of the branch, after an unknown one.
+/// A Turn asked there turned a joint at 0 deg whose real value lies a few hundredths below
+/// 0 a full turn round (-0.03 -> 359.97 deg, inside the UR's +-360 deg) to keep its sign.
+calib::Configuration askedConfiguration(bool reads, const calib::Configuration& written, bool position_known);
+
 /// The InputError that lists every error of `report` (the first with its file:line:column).
 /// Requires !report.errors.empty().
 calib::InputError compensationError(const JobReport& report);

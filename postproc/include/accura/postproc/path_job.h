@@ -16,6 +16,17 @@ namespace accura::postproc {
 /// configuration_changed).
 void enforceConfiguration(const calib::Configuration& asked, PoseCompensation& pc);
 
+/// A Cartesian target of a host (the plug-in's poses, a path's start) compensated like a PTP of
+/// accura compensate (docs/compensation.md, section 2). A controller that reads S/T
+/// (controllerReadsConfiguration): on `asked`, enforceConfiguration. One that reads none (a
+/// Universal Robots arm): on askedConfiguration(asked, a seed given), i.e. the solution nearest
+/// `seed` (the joints the robot stands on), without one on the Status asked as the guess of the
+/// branch and the Turn of the solution nearest the middle of the joint ranges; the result's
+/// configuration is the S/T of the joints reached and configuration_changed is never set
+/// (the controller reads nothing the program would have to carry).
+PoseCompensation compensateTarget(const Compensator& comp, const Eigen::Isometry3d& T_world_tcp, const calib::Configuration& asked,
+                                  const Eigen::VectorXd& seed, const JobSettings& settings);
+
 /// One LIN / CIRC segment compensated from where the real robot is: sets
 /// intended.T_world_start to the real model's tool pose at `q_real` (in settings.context),
 /// then Compensator::segment with settings.densify, settings.tol_mm and settings.ik.
@@ -37,7 +48,7 @@ struct PathCompensation {
   bool ok() const { return start.status == calib::IkStatus::kOk && failed_motion < 0; }
 };
 
-/// Compensates the start T_world_start (configuration `start_config`, enforceConfiguration),
+/// Compensates the start T_world_start (configuration `start_config`, compensateTarget without a seed),
 /// then every motion of `motions` (their T_world_start is ignored) with
 /// compensateSegmentFrom, stopping at the first failure (a calib::NumericalError of a motion
 /// is that motion's failure: numerical_error). Throws like Compensator::segment otherwise.

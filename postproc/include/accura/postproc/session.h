@@ -159,8 +159,10 @@ class Session {
   static constexpr double kJointsOnTargetMm = 0.01;
   static constexpr double kJointsOnTargetDeg = 0.01;
 
-  /// Compensates one pose (Compensator::pose with the configuration rule of accura
-  /// compensate, enforceConfiguration); `seed`: real joints to continue from (empty: none).
+  /// Compensates one pose (compensateTarget: the configuration rule of a PTP of accura
+  /// compensate; a Universal Robots arm's controller reads no S/T, so only the Status of
+  /// `asked` is asked, as the guess of the branch, and nothing after a seed); `seed`: real
+  /// joints to continue from (empty: none).
   SessionPose pose(const calib::XyzAbc& target, const calib::Configuration& asked, const Eigen::VectorXd& seed = Eigen::VectorXd()) const;
   /// Compensates every target (asked: empty or one per target; every value validated before
   /// any work). `continuous`: each pose continues from the real joints of the previous
