@@ -28,6 +28,14 @@
 namespace accura::postproc {
 namespace {
 
+/// The KR 16 whose base is 0.2, -0.1, 0.3 mm off: a correction every target shows.
+JobSettings kr16BaseOff() {
+  JobSettings s;
+  s.calibrated = test::loadBundled("kuka_kr16");
+  s.calibrated.deviations.base_mm = Eigen::Vector3d(0.2, -0.1, 0.3);
+  return s;
+}
+
 std::string aggregate(const Eigen::Isometry3d& T, int s, int t) {
   const calib::XyzAbc p = calib::toXyzAbc(T);
   return "{X " + formatMm(p.x_mm) + ",Y " + formatMm(p.y_mm) + ",Z " + formatMm(p.z_mm) + ",A " + formatDeg(p.a_deg) +
@@ -582,9 +590,7 @@ TEST(KrlRules, ATargetThatMovesAnExternalAxisIsKeptAndNamed) {
   const std::string xp2 = "DECL E6POS XP2={X 1000,Y 100,Z 800,A 0,B 90,C 0,E1 0.0,E2 250.5}\n";
   test::writeText(dir + "/p.dat", "DEFDAT p\nDECL E6POS XP1={X 1000,Y 0,Z 800,A 0,B 90,C 0,E1 0.0}\n" + xp2 + "ENDDAT\n");
   const Program in = readKrl(dir + "/p.src");
-  JobSettings s;
-  s.calibrated = test::loadBundled("kuka_kr16");
-  s.calibrated.deviations.base_mm = Eigen::Vector3d(0.2, -0.1, 0.3);
+  const JobSettings s = kr16BaseOff();
   const ProgramCompensation pc = compensateProgramReport(in, s);
   ASSERT_TRUE(pc.report.errors.empty()) << pc.report.errors.front().message;
   EXPECT_EQ(pc.report.motions_left_unchanged, 1);
@@ -641,9 +647,7 @@ TEST(KrlRules, ACircWithACircularAngleIsKeptAndNamed) {
   test::writeText(dir + "/p.dat",
                   "DEFDAT p\nDECL E6POS XP1={X 1000,Y 0,Z 800,A 0,B 90,C 0}\nDECL E6POS XP2={X 1050,Y 50,Z 800,A 0,B 90,C 0}\n"
                   "DECL E6POS XP3={X 1000,Y 100,Z 800,A 0,B 90,C 0}\nENDDAT\n");
-  JobSettings s;
-  s.calibrated = test::loadBundled("kuka_kr16");
-  s.calibrated.deviations.base_mm = Eigen::Vector3d(0.2, -0.1, 0.3);
+  const JobSettings s = kr16BaseOff();
   const ProgramCompensation pc = compensateProgramReport(readKrl(dir + "/p.src"), s);
   ASSERT_TRUE(pc.ok()) << pc.report.errors.front().where.str() << ": " << pc.report.errors.front().message;
   EXPECT_EQ(pc.report.motions_left_unchanged, 1);
@@ -669,9 +673,7 @@ TEST(KrlRules, MotionsToRunTimeTargetsAreKeptAndNamedTheRestIsCompensated) {
                   "DEFDAT p\nDECL E6POS XP1={X 1000,Y 0,Z 800,A 0,B 90,C 0}\nDECL E6POS XP2={X 1000,Y 100,Z 800,A 0,B 90,C 0}\n"
                   "DECL E6POS XP3={X 1000,Y 100,Z 800,A 0,B 90,C 0}\nENDDAT\n");
   const Program in = readKrl(dir + "/p.src");
-  JobSettings s;
-  s.calibrated = test::loadBundled("kuka_kr16");
-  s.calibrated.deviations.base_mm = Eigen::Vector3d(0.2, -0.1, 0.3);
+  const JobSettings s = kr16BaseOff();
   const ProgramCompensation pc = compensateProgramReport(in, s);
   ASSERT_TRUE(pc.ok()) << pc.report.errors.front().where.str() << ": " << pc.report.errors.front().message;
   EXPECT_EQ(pc.report.motions_left_unchanged, 3);
@@ -705,9 +707,7 @@ TEST(KrlRules, ASubroutinesParameterHidesTheDataListsPointOfItsName) {
       "DECL E6POS XP3={X 1000,Y 200,Z 800,A 0,B 90,C 0}\nENDDAT\n";
   test::writeText(dir + "/p.src", src);
   test::writeText(dir + "/p.dat", dat);
-  JobSettings s;
-  s.calibrated = test::loadBundled("kuka_kr16");
-  s.calibrated.deviations.base_mm = Eigen::Vector3d(0.2, -0.1, 0.3);
+  const JobSettings s = kr16BaseOff();
   const ProgramCompensation pc = compensateProgramReport(readKrl(dir + "/p.src"), s);
   ASSERT_TRUE(pc.ok()) << pc.report.errors.front().where.str() << ": " << pc.report.errors.front().message;
   std::vector<std::string> unchanged;
@@ -733,9 +733,7 @@ TEST(KrlRules, AnElementOfATwoDimensionalArrayIsKeptAndNamedForWhatItIs) {
   test::writeText(dir + "/p.src", "DEF p( )\n$TOOL={X 0,Y 0,Z 100,A 0,B 0,C 0}\n$BASE=$NULLFRAME\nPTP XPA[1,2]\nEND\n");
   const std::string dat = "DEFDAT p\nDECL E6POS XPA[2,2]\nXPA[1,2]={X 1000,Y 0,Z 800,A 0,B 90,C 0,S 2,T 10}\nENDDAT\n";
   test::writeText(dir + "/p.dat", dat);
-  JobSettings s;
-  s.calibrated = test::loadBundled("kuka_kr16");
-  s.calibrated.deviations.base_mm = Eigen::Vector3d(0.2, -0.1, 0.3);
+  const JobSettings s = kr16BaseOff();
   const ProgramCompensation pc = compensateProgramReport(readKrl(dir + "/p.src"), s);
   ASSERT_TRUE(pc.ok()) << pc.report.errors.front().where.str() << ": " << pc.report.errors.front().message;
   ASSERT_EQ(pc.report.warnings.size(), 1u);
