@@ -123,6 +123,11 @@ TEST(HardeningOutputs, AnOutputThatCannotBeWrittenIsRefusedBeforeTheFit) {
   EXPECT_NE(dg.err.find(".: cannot write file: it is a directory"), std::string::npos) << dg.err;
   EXPECT_EQ(dg.out.find("verdict"), std::string::npos) << dg.out;
   EXPECT_EQ(c.files(), before);
+  // a stream is no file in a directory (/dev is not writable to a user): written into as before
+  const test::CliRun to_stdout =
+      test::runAccuraIn(c.dir(), "identify --robot kr16_real.xml --data fit.csv --quiet --out /dev/null --json /dev/stdout");
+  EXPECT_EQ(to_stdout.code, 0) << to_stdout.err;
+  EXPECT_NE(to_stdout.out.find("\"parameters\""), std::string::npos) << to_stdout.out;
 }
 
 TEST(HardeningOutputs, AnOutputOntoAnInputIsRefused) {

@@ -269,6 +269,7 @@ void refuseUnwritableOutputs(const std::vector<std::string>& outputs, const std:
   for (const std::string& path : outputs) {
     if (path.empty()) continue;
     named.push_back({path, ""});
+    if (streamTarget(path) != -1) continue;  // (a stream is written into, not replaced: no directory of its own)
     std::error_code ec;
     if (fs::is_directory(path, ec)) throw InputError(path, 0, 0, "cannot write file: it is a directory");
     const fs::path parent = fs::path(path).parent_path();
