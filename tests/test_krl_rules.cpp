@@ -635,6 +635,43 @@ TEST(KrlRules, AMotionWithAnExternalTcpIsKeptAndNamed) {
   EXPECT_EQ(out.find("DECL E6POS XP3={X 100.0,Y 500.0,Z 20.0,"), std::string::npos) << out;  // the next one corrected
 }
 
+// One point two motions need corrected differently (XP1 with a 100 mm tool, then with a 200 mm
+// one) is a program the controller runs: the second motion goes to a new point of its own (it
+// was refused: "give the motions their own points"). The new point's pose is the correction of
+// XP1 for the 200 mm tool that a program of that motion alone gets.
+TEST(KrlRules, APointTwoMotionsNeedCorrectedDifferentlyGetsAPointOfItsOwn) {
+  const std::string dir = test::tempDir("krl_own_point");
+  const std::string pose = "X 1000,Y 300,Z 700,A 20,B 60,C 10";
+  test::writeText(dir + "/kr16.xml", test::readText(test::sourcePath("tests/golden/compensate/kr16_real.xml")));
+  std::filesystem::create_directories(dir + "/both");
+  std::filesystem::create_directories(dir + "/alone");
+  const std::string src = "DEF p( )\n$TOOL={X 0,Y 0,Z 100,A 0,B 0,C 0}\n$BASE=$NULLFRAME\nPTP XP1\n$TOOL={X 0,Y 0,Z 200,A 0,B 0,C 0}\nLIN XP1\nEND\n";
+  test::writeText(dir + "/both/p.src", src);
+  test::writeText(dir + "/both/p.dat", "DEFDAT p\nDECL E6POS XP1={" + pose + ",S 6,T 59}\nENDDAT\n");
+  test::writeText(dir + "/alone/p.src", "DEF p( )\n$TOOL={X 0,Y 0,Z 200,A 0,B 0,C 0}\n$BASE=$NULLFRAME\nPTP XP1\nEND\n");
+  test::writeText(dir + "/alone/p.dat", "DEFDAT p\nDECL E6POS XP1={" + pose + ",S 6,T 51}\nENDDAT\n");
+  const test::CliRun both = test::runAccuraIn(dir, "compensate --robot kr16.xml --in both/p.src --out both/out");
+  ASSERT_EQ(both.code, 0) << both.err;
+  EXPECT_NE(both.err.find("both/p.src:6:1: XP1 needs a different correction here than at both/p.src:4:1 (the same point with another "
+                          "tool, base or path): this motion goes to a new point XP1_1 declared after XP1, which keeps the correction for "
+                          "both/p.src:4:1"),
+            std::string::npos)
+      << both.err;
+  const test::CliRun alone = test::runAccuraIn(dir, "compensate --robot kr16.xml --in alone/p.src --out alone/out");
+  ASSERT_EQ(alone.code, 0) << alone.err;
+  // the pose part of a corrected declaration (up to its S)
+  const auto corrected = [](const std::string& dat, const std::string& name) {
+    const size_t b = dat.find("DECL E6POS " + name + "={");
+    return b == std::string::npos ? std::string("none") : dat.substr(b + 13 + name.size(), dat.find(",S ", b) - b - 13 - name.size());
+  };
+  const std::string out = test::readText(dir + "/both/out/p.dat"), ref = test::readText(dir + "/alone/out/p.dat");
+  ASSERT_NE(corrected(ref, "XP1"), pose);  // (a correction)
+  EXPECT_EQ(corrected(out, "XP1_1"), corrected(ref, "XP1")) << out << ref;
+  EXPECT_NE(corrected(out, "XP1"), corrected(out, "XP1_1")) << out;
+  EXPECT_NE(out.find("DECL E6POS XP1_1={" + corrected(ref, "XP1") + ",S 6,T 59}\n"), std::string::npos) << out;  // (a CP target's S/T as written)
+  EXPECT_EQ(test::readText(dir + "/both/out/p.src"), "DEF p( )\n$TOOL={X 0,Y 0,Z 100,A 0,B 0,C 0}\n$BASE=$NULLFRAME\nPTP XP1\n$TOOL={X 0,Y 0,Z 200,A 0,B 0,C 0}\nLIN XP1_1\nEND\n");
+}
+
 // ---------------------------------------------------------------------------------------------
 // Targets known only at run time
 

@@ -286,12 +286,13 @@ class Job {
                            "kept as written. First: " + cp_first_);
   }
 
-  // Records a corrected named value; an error when the same declaration needs two different
-  // values.
   /// One point (value) used by several motions must get one correction. S and T count only
   /// where a PTP uses the point: the controller ignores them on CP motions (LIN, CIRC, ...), so
   /// a point a PTP and a LIN share is written with the PTP's S/T (unifyClaimedConfigurations).
-  void claimValue(const Target& t, const SourceLocation& motion, bool cp) {
+  /// A motion that needs another correction of the point (another tool, base or path) goes to a
+  /// point of its own (ownPoint: KRL and RAPID); where the program has no declarations to add
+  /// one to (URScript, XML) that is an error.
+  void claimValue(Target& t, const SourceLocation& motion, bool cp) {
     if (t.value_id < 0) return;
     Target pose_only = t;
     pose_only.status.reset();
@@ -305,6 +306,9 @@ class Job {
     Claim& old = it->second;
     const bool same_configuration = old.status == c.status && old.turn == c.turn;
     if (old.pose_text != c.pose_text || (!old.cp && !cp && !same_configuration)) {
+      if (in_ && (in_->krl || in_->rapid) && !t.name.empty())
+        return ownPoint(t, motion, old.where,
+                        c.pose_text + (cp ? std::string() : " S " + std::to_string(c.status.value_or(-1)) + " T " + std::to_string(c.turn.value_or(-1))));
       error(motion, targetLabel(t) + " needs a different correction here than at " + old.where.str() +
                         " (the same point with another tool, base or path): give the motions their own points");
       return;
@@ -312,11 +316,33 @@ class Job {
     if (old.cp && !cp) old = c;  // the PTP's S/T are the ones the point needs
   }
 
+  /// Motion `motion` needs point `t` corrected otherwise than the motion at `first` did (to
+  /// `correction`: its pose, and its S/T for a PTP): the controller runs both, so the motion goes to a new point declared after the
+  /// one it named (the point keeps the first correction), one new point per distinct correction,
+  /// as a point the program also reads elsewhere does (copyPointsReadElsewhere).
+  void ownPoint(Target& t, const SourceLocation& motion, const SourceLocation& first, const std::string& correction) {
+    const std::string key = std::to_string(t.value_id) + "|" + correction;
+    auto it = own_points_.find(key);
+    if (it == own_points_.end()) {
+      const std::string name = newPointName(*in_, t.name, new_names_);
+      new_names_.push_back(name);
+      it = own_points_.emplace(key, name).first;
+      warning(motion, targetLabel(t) + " needs a different correction here than at " + first.str() +
+                          " (the same point with another tool, base or path): this motion goes to a new point " + name + " declared after " +
+                          t.name + ", which keeps the correction for " + first.str());
+    }
+    own_point_names_.push_back({motion, t.name, it->second});
+    t.replaces = t.name;
+    t.new_declaration = true;
+    t.name = it->second;
+    if (in_->rapid) t.value_id = -1;  // (RAPID's writer finds the declaration by the statement; KRL's by the value)
+  }
+
   /// The S/T of every point a PTP claimed, on the CP motions that share it (claimValue).
   void unifyClaimedConfigurations(Program& out) const {
     auto unify = [&](Target& t) {
       const auto it = claimed_.find(t.value_id);
-      if (t.value_id < 0 || it == claimed_.end() || it->second.cp) return;
+      if (t.value_id < 0 || t.new_declaration || it == claimed_.end() || it->second.cp) return;
       t.status = it->second.status;
       t.turn = it->second.turn;
     };
@@ -430,6 +456,7 @@ class Job {
     flushCpConfigurations();
     notePayloadChanges(in);
     unifyClaimedConfigurations(out);
+    for (const OwnPointName& o : own_point_names_) reportNewName(o.motion, o.old_name, o.new_name);
     copyPointsReadElsewhere(out);
     copyRapidPointsReadElsewhere(out);
     checkKeptValues(out);
@@ -483,9 +510,10 @@ class Job {
   }
 
   /// The report's target of motion `m` named `old` goes to the new point `now` (new_point_replaces).
-  void reportNewName(const Motion& m, const std::string& old, const std::string& now) {
+  void reportNewName(const Motion& m, const std::string& old, const std::string& now) { reportNewName(m.where, old, now); }
+  void reportNewName(const SourceLocation& motion, const std::string& old, const std::string& now) {
     for (TargetReport& tr : r_.targets)
-      if (tr.motion.str() == m.where.str() && tr.name == old && tr.new_point_replaces.empty()) {
+      if (tr.motion.str() == motion.str() && tr.name == old && tr.new_point_replaces.empty()) {
         tr.name = now;
         tr.new_point_replaces = old;
       }
@@ -1051,6 +1079,12 @@ class Job {
     std::optional<int> status, turn;
   };
   std::map<int, Claim> claimed_;
+  std::map<std::string, std::string> own_points_;  ///< ownPoint: point and correction -> the new point's name
+  struct OwnPointName {
+    SourceLocation motion;
+    std::string old_name, new_name;
+  };
+  std::vector<OwnPointName> own_point_names_;  ///< for the report (reportNewName), after the motions
   std::map<int, SourceLocation> kept_values_;  ///< points of motions kept as written (keep)
 };
 
