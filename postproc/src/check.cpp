@@ -678,10 +678,11 @@ CheckReport checkProgramWith(const Program& program, const JobSettings& job, con
       const auto end = complete(m.target);
       if (!end) { skip("a partial target after an unknown position"); continue; }
       w.T_world_tcp_end = *end;
-      w.configuration = calib::Configuration{m.target.status.value_or(-1), m.target.turn.value_or(-1)};
-      // a UR controller reads no S/T (docs/compensation.md, section 2): the solution nearest the
-      // joints before, the written Status only as the guess of the branch after an unknown start
-      w.configuration = askedConfiguration(reads_st, w.configuration, !(wm.empty() || unknown || m.start_unknown));
+      // the written S/T; a UR controller reads none (docs/compensation.md, section 2): the solution
+      // nearest the joints before, the written Status only as the guess of the branch after an
+      // unknown start
+      w.configuration = askedConfiguration(reads_st, calib::Configuration{m.target.status.value_or(-1), m.target.turn.value_or(-1)},
+                                           !(wm.empty() || unknown || m.start_unknown));
       if (m.qnear_deg && m.qnear_deg->size() == static_cast<size_t>(job.calibrated.dof()))
         w.q_near = Eigen::Map<const Eigen::VectorXd>(m.qnear_deg->data(), 6);
       if (m.type == MotionType::kCirc) {

@@ -306,30 +306,33 @@ class Job {
     Claim& old = it->second;
     const bool same_configuration = old.status == c.status && old.turn == c.turn;
     if (old.pose_text != c.pose_text || (!old.cp && !cp && !same_configuration)) {
+      const std::string conflict = targetLabel(t) + " needs a different correction here than at " + old.where.str() +
+                                   " (the same point with another tool, base or path)";
       if (in_ && (in_->krl || in_->rapid) && !t.name.empty())
-        return ownPoint(t, motion, old.where,
+        return ownPoint(t, motion, conflict, old.where,
                         c.pose_text + (cp ? std::string() : " S " + std::to_string(c.status.value_or(-1)) + " T " + std::to_string(c.turn.value_or(-1))));
-      error(motion, targetLabel(t) + " needs a different correction here than at " + old.where.str() +
-                        " (the same point with another tool, base or path): give the motions their own points");
+      error(motion, conflict + ": give the motions their own points");
       return;
     }
     if (old.cp && !cp) old = c;  // the PTP's S/T are the ones the point needs
   }
 
   /// Motion `motion` needs point `t` corrected otherwise than the motion at `first` did (to
-  /// `correction`: its pose, and its S/T for a PTP): the controller runs both, so the motion goes to a new point declared after the
-  /// one it named (the point keeps the first correction), one new point per distinct correction,
-  /// as a point the program also reads elsewhere does (copyPointsReadElsewhere).
-  void ownPoint(Target& t, const SourceLocation& motion, const SourceLocation& first, const std::string& correction) {
+  /// `correction`: its pose, and its S/T for a PTP): the controller runs both, so the motion
+  /// goes to a new point declared after the one it named (the point keeps the first
+  /// correction), one new point per distinct correction, as a point the program also reads
+  /// elsewhere does (copyPointsReadElsewhere). Said once per new point: `conflict` (claimValue's
+  /// words), and where the motion goes.
+  void ownPoint(Target& t, const SourceLocation& motion, const std::string& conflict, const SourceLocation& first,
+                const std::string& correction) {
     const std::string key = std::to_string(t.value_id) + "|" + correction;
     auto it = own_points_.find(key);
     if (it == own_points_.end()) {
       const std::string name = newPointName(*in_, t.name, new_names_);
       new_names_.push_back(name);
       it = own_points_.emplace(key, name).first;
-      warning(motion, targetLabel(t) + " needs a different correction here than at " + first.str() +
-                          " (the same point with another tool, base or path): this motion goes to a new point " + name + " declared after " +
-                          t.name + ", which keeps the correction for " + first.str());
+      warning(motion, conflict + ": this motion goes to a new point " + name + " declared after " + t.name +
+                          ", which keeps the correction for " + first.str());
     }
     own_point_names_.push_back({motion, t.name, it->second});
     t.replaces = t.name;
@@ -509,8 +512,7 @@ class Job {
     out.motions.push_back(mo);
   }
 
-  /// The report's target of motion `m` named `old` goes to the new point `now` (new_point_replaces).
-  void reportNewName(const Motion& m, const std::string& old, const std::string& now) { reportNewName(m.where, old, now); }
+  /// The report's target of the motion at `motion` named `old` goes to the new point `now` (new_point_replaces).
   void reportNewName(const SourceLocation& motion, const std::string& old, const std::string& now) {
     for (TargetReport& tr : r_.targets)
       if (tr.motion.str() == motion.str() && tr.name == old && tr.new_point_replaces.empty()) {
@@ -544,7 +546,7 @@ class Job {
                                (name.empty() ? std::string("the motions that correct it get the corrected value as an inline aggregate")
                                              : "the motions that correct it go to the new point " + name + " (declared after it)"));
         }
-        if (!it->second.empty()) reportNewName(m, t->name, it->second);
+        if (!it->second.empty()) reportNewName(m.where, t->name, it->second);
         t->replaces = t->name;
         t->new_declaration = true;
         t->name = it->second;
@@ -612,7 +614,7 @@ class Job {
         t.replaces = old;
         t.name = it->second;
         t.value_id = -1;
-        reportNewName(m, old, t.name);
+        reportNewName(m.where, old, t.name);
       }
     }
   }

@@ -103,18 +103,17 @@ class Reader {
     }
     if (!module_seen_) fail(t_.empty() ? 0 : t_.front().b, "expected a RAPID module (MODULE name ... ENDMODULE), found " +
                                                                (t_.empty() ? std::string("an empty file") : "'" + excerpt(t_.front().s) + "'"));
-    if (cut_.second > cut_.first) {
-      std::string then;
-      if (module_open_ && !routine_.empty())
-        then += ", then END" + routine_kind_ + " of the routine " + excerpt(routine_) + " (" + routine_kind_ + " at line " +
-                std::to_string(loc(t_[routine_line_.first].b).line) + ")";
-      if (module_open_) then += ", then ENDMODULE";
-      fail(t_[cut_.second - 1].e, "expected ';' at the end of the statement '" + quoted(cut_) + "'" + then + ", found the end of the file");
-    }
-    // a module cut short inside a routine: the routine's end is what is missing first
-    if (module_open_ && !routine_.empty())
-      fail(src_->text.size(), "expected END" + routine_kind_ + " of the routine " + excerpt(routine_) + " (" + routine_kind_ + " at line " +
-                                  std::to_string(loc(t_[routine_line_.first].b).line) + "), then ENDMODULE, found the end of the file");
+    // what the end of the file left open: the routine's end (a module cut short inside a
+    // routine: missing first), then the module's
+    const std::string routine_end = module_open_ && !routine_.empty()
+                                        ? "END" + routine_kind_ + " of the routine " + excerpt(routine_) + " (" + routine_kind_ + " at line " +
+                                              std::to_string(loc(t_[routine_line_.first].b).line) + ")"
+                                        : std::string();
+    if (cut_.second > cut_.first)
+      fail(t_[cut_.second - 1].e, "expected ';' at the end of the statement '" + quoted(cut_) + "'" +
+                                      (routine_end.empty() ? std::string() : ", then " + routine_end) +
+                                      (module_open_ ? ", then ENDMODULE" : "") + ", found the end of the file");
+    if (!routine_end.empty()) fail(src_->text.size(), "expected " + routine_end + ", then ENDMODULE, found the end of the file");
     if (module_open_) fail(src_->text.size(), "expected ENDMODULE, found the end of the file");
     if (!module_name_.empty()) p.name = module_name_;
     passThrough(p);

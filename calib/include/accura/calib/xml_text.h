@@ -34,7 +34,6 @@ void parseXml(tinyxml2::XMLDocument& doc, const std::string& text, const std::st
 /// where the format has none (`<base ...>500</base>`) is never ignored.
 std::string strayText(const tinyxml2::XMLElement* e);
 
-
 /// Positions of a parsed document's elements and attributes in its text.
 class XmlPositions {
  public:
