@@ -144,7 +144,7 @@ std::vector<calib::OutputFile> compensateFile(const std::string& in_path, const 
 CheckedProgram compensateAndCheckFile(const std::string& in_path, const std::string& out_path, const ProgramReadOptions& read,
                                       const JobSettings& job, const CellCheckSettings* cell, JobReport* report) {
   const ProgramFormat format = programFormat(in_path);
-  const Program program = readProgram(in_path, read);
+  Program program = readProgram(in_path, read);
   CheckedProgram out;
   const JobSettings placed = cell ? placedInCell(job, cell->cell) : job;
   // with a cell, the check first, on the program as read (its targets are where the tool must
@@ -154,13 +154,15 @@ CheckedProgram compensateAndCheckFile(const std::string& in_path, const std::str
     out.check = cell->geometry ? checkProgram(program, placed, cell->cell, cell->options, *cell->geometry)
                                : checkProgram(program, placed, cell->cell, cell->options);
   ProgramCompensation pc = compensateProgramReport(program, placed);
-  if (report) *report = pc.report;  // complete, its errors included (errors.h, "The rule")
+  program = Program();  // not needed any more: a long path's motions are not kept twice while it is written
   if (!pc.ok()) {
+    if (report) *report = pc.report;  // complete, its errors included (errors.h, "The rule")
     if (!out.check || !compensationFailureExplained(*out.check, pc.report)) throw compensationError(pc.report);
     out.compensation_error = compensationError(pc.report).what();
     out.write = false;
     return out;
   }
+  if (report) *report = std::move(pc.report);
   out.files = render(pc.program, format, out_path);
   if (!cell) return out;
   out.write = out.check->passed() || cell->warn_only;

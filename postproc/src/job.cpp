@@ -441,6 +441,8 @@ class Job {
     }
     std::vector<size_t> first_out;  // the first output motion of each input motion
     first_out.reserve(in.motions.size());
+    // (room for a few auxiliary points: a long path is not reallocated, twice its size, at its end)
+    out.motions.reserve(out.motions.size() + in.motions.size() + in.motions.size() / 16 + 16);
     for (const Motion& m : in.motions) {
       first_out.push_back(out.motions.size());
       if (m.inserted) {  // already compensated once: keep as it is

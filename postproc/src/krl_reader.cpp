@@ -1324,7 +1324,11 @@ Program readKrl(const std::string& src_path, const KrlReadOptions& options) {
   r.f = &src;
   // the .src's lines' tokens, lexed once for the prescan and notePointReads
   std::vector<std::vector<Tok>> lines;
-  for (const Line& l : src.lines()) lines.push_back(lex(src, l.begin, l.code_end));
+  lines.reserve(src.lines().size());
+  for (const Line& l : src.lines()) {
+    lines.push_back(lex(src, l.begin, l.code_end));
+    lines.back().shrink_to_fit();  // kept for the whole file: not its growth's spare room (a CAM path has 10^5 lines)
+  }
   {
     // the subroutines defined here that move the robot, themselves or through the ones they
     // call (a call may come before the DEF)

@@ -191,6 +191,20 @@ Program dropUnconvertible(const Program& program, ProgramFormat format, std::vec
   return out;
 }
 
+namespace {
+
+/// write(withoutCarriedLines(program, language)), copying the program only when that changes
+/// it (a line carried for another language, a comment of another language): a compensated path
+/// of 100 000 motions is some 170 MB of motions, not to be copied for nothing.
+template <class Write>
+auto writeWithoutCarriedLines(const Program& program, const char* language, Write write) {
+  for (const PassThrough& s : program.passthrough)
+    if (s.language != language && (!s.role.empty() || commentText(s))) return write(withoutCarriedLines(program, language));
+  return write(program);
+}
+
+}  // namespace
+
 std::vector<calib::OutputFile> renderProgram(const Program& program, ProgramFormat format, const std::string& path,
                                       const std::string& dat_path) {
   // a KRL module of functions only has no program another language could hold (with its
@@ -198,22 +212,20 @@ std::vector<calib::OutputFile> renderProgram(const Program& program, ProgramForm
   if (!program.krl_functions_only.empty() && (format != ProgramFormat::kKrl || !program.krl))
     throw calib::ArgumentError(program.source_file + ": cannot write it as a program: the module holds functions only (the first: " +
                                program.krl_functions_only + "), no DEF program with motions");
-  if (format == ProgramFormat::kRapid)
-    return {{path, writeRapid(withoutCarriedLines(program.rapid || !program.urscript ? program : urScriptForConversion(program, "RAPID"),
-                                                  "RAPID"))}};
-  if (program.rapid) return renderProgram(rapidForConversion(program), format, path, dat_path);
-  if (format == ProgramFormat::kUrScript) return {{path, writeUrScript(withoutCarriedLines(program, "URScript"))}};
-  if (program.urscript) return renderProgram(urScriptForConversion(program, format == ProgramFormat::kXml ? "XML" : "KRL"), format, path, dat_path);
-  if (format == ProgramFormat::kXml) {
-    Program p = program;
-    return {{path, writeXmlProgram(p)}};
+  if (format == ProgramFormat::kRapid) {
+    if (!program.rapid && program.urscript) return renderProgram(urScriptForConversion(program, "RAPID"), format, path, dat_path);
+    return {{path, writeWithoutCarriedLines(program, "RAPID", writeRapid)}};
   }
+  if (program.rapid) return renderProgram(rapidForConversion(program), format, path, dat_path);
+  if (format == ProgramFormat::kUrScript) return {{path, writeWithoutCarriedLines(program, "URScript", writeUrScript)}};
+  if (program.urscript) return renderProgram(urScriptForConversion(program, format == ProgramFormat::kXml ? "XML" : "KRL"), format, path, dat_path);
+  if (format == ProgramFormat::kXml) return {{path, writeXmlProgram(program)}};
   if (!program.krl)  // (a program read from KRL has no time)
     for (const Motion& m : program.motions)
       if (const std::string why = timeNotCarried(m, ProgramFormat::kKrl); !why.empty())
         throw calib::ArgumentError(m.where.str() + ": cannot convert '" + detail::excerpt(m.statement) + "' to KRL: its time " + timeText(m) +
                                    " cannot be carried, " + why + " (convert --drop-unconvertible converts the motion without it and lists it)");
-  const KrlText t = writeKrl(withoutCarriedLines(program, "KRL"));
+  const KrlText t = writeWithoutCarriedLines(program, "KRL", writeKrl);
   std::vector<calib::OutputFile> out = {{path, t.src}};
   const bool has_dat = program.krl ? !program.krl->dat_path.empty() : true;
   if (has_dat) out.push_back({dat_path.empty() ? fs::path(path).replace_extension(".dat").string() : dat_path, t.dat});
