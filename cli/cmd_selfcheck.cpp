@@ -27,6 +27,13 @@ struct SelfcheckArgs {
   std::string json;
 };
 
+// {effect: footprint (mm)} of the injected catalogue effects of a case (SelfcheckCase::footprints_mm).
+ordered_json footprints(const calib::SelfcheckCase& c) {
+  ordered_json j = ordered_json::object();
+  for (const auto& [e, mm] : c.footprints_mm) j[e] = num(mm);
+  return j;
+}
+
 int runSelfcheck(const SelfcheckArgs& a) {
   calib::SelfcheckOptions o;
   o.robots = splitList(a.robots, "--robots");
@@ -82,6 +89,10 @@ int runSelfcheck(const SelfcheckArgs& a) {
                        {"true_rms_before_mm", num(c.true_before_mm)},
                        {"true_rms_after_mm", num(c.true_after_mm)},
                        {"systematic_rms_mm", num(c.systematic_mm)},
+                       {"detection_limit_mm", num(c.detection_limit_mm)},
+                       {"footprints_mm", footprints(c)},
+                       {"expected_detectable", c.expected_detectable},
+                       {"right_by_limit", c.right_by_limit},
                        {"seconds", num(c.seconds)}});
     j["cases"] = cases;
     writeTextAtomically(a.json, calib::jsonText(j));

@@ -717,5 +717,28 @@ TEST(JointMap, SeveralDataSetsEachFromItsOwnStation) {
   (void)m;
 }
 
+
+// A periodic term holds over a joint's limits when the data cover 162 deg or more, or reach
+// within a fifth of their width of both limits (a joint that turns less than half a turn).
+TEST(JointMap, APeriodicTermHoldsWhereTheDataReachTheJointsLimits) {
+  JointSpec j3;  // the IRB 120's joint 3
+  j3.lower = -110;
+  j3.upper = 70;
+  EXPECT_TRUE(periodicTermHoldsOverLimits(j3, -98.7, 60.5));    // 11.3 deg beyond, width 159.2: 7 %
+  EXPECT_TRUE(periodicTermHoldsOverLimits(j3, -95.0, 55.0));    // 15 deg beyond, width 150: 10 %
+  EXPECT_FALSE(periodicTermHoldsOverLimits(j3, -80.0, 50.0));   // 30 deg beyond, width 130: 23 %
+  JointSpec ur;  // a UR joint, +-360 deg
+  ur.lower = -360;
+  ur.upper = 360;
+  EXPECT_FALSE(periodicTermHoldsOverLimits(ur, -180, -45));     // Series_B's joint 1: 135 deg of 720
+  EXPECT_TRUE(periodicTermHoldsOverLimits(ur, -100, 62));       // 162 deg: told apart from offset and scale
+  EXPECT_FALSE(periodicTermHoldsOverLimits(ur, -100, 61.9));
+  JointSpec slide;
+  slide.type = JointType::kPrismatic;
+  slide.lower = 0;
+  slide.upper = 100;
+  EXPECT_FALSE(periodicTermHoldsOverLimits(slide, 0, 100));     // no period
+}
+
 }  // namespace
 }  // namespace accura::calib

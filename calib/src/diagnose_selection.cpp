@@ -15,6 +15,7 @@
 
 #include "accura/calib/errors.h"
 #include "accura/calib/identify.h"
+#include "accura/calib/joint_map.h"
 #include "accura/calib/kinematics.h"
 
 namespace accura::calib {
@@ -23,9 +24,6 @@ namespace diagnose_detail {
 // A blocked scheme whose held-out error is worse with the addition at this z (one-sided p 0.01)
 // shows harm beyond chance.
 constexpr double kHarmZ = 2.326;
-// The share of a turn a periodic term of a joint needs in the fit data to be told apart from the
-// joint's offset and scale (0.45 turn).
-constexpr double kPeriodicCoverageDeg = 162.0;
 
 
 // Physically implausible values of an effect's parameters (display units): a negative or absurd
@@ -109,7 +107,8 @@ std::pair<double, double> Diagnoser::trainingRange(const Scheme& sc, size_t f, i
 // A scale or a gear harmonic is a formula of the joint's angle over its whole range: what the fit
 // data determine on the covered range is extrapolated everywhere else. Periodic terms fitted on
 // less than about half a turn (0.45 turn, 162 deg) are not determined (inside the range the
-// geometric parameters compensate them, outside they do not); and neither term is extrapolated to
+// geometric parameters compensate them, outside they do not), unless the joint's limits leave
+// nothing beyond the data (periodicTermHoldsOverLimits); and neither term is extrapolated to
 // joint limits further beyond the covered range than half its width (on the KR 16 with joint 1
 // covered over its middle third, a scale of joint 1 fitted there made fresh poses over the whole
 // range worse than the geometric model: 0.317 -> 0.455 mm). A periodic term whose data cover a
@@ -130,7 +129,7 @@ bool Diagnoser::carriesOver(const Block& B, std::string* why) const {
   const std::string unit = rev ? " deg" : " mm";
   const std::string covered = "the fit data cover " + fmtg("%.0f", width) + unit + " of joint " + std::to_string(B.joint + 1) +
                               " (" + fmtg("%.1f", lo) + ".." + fmtg("%.1f", hi) + ")";
-  if (periodic && width < kPeriodicCoverageDeg) {
+  if (periodic && !periodicTermHoldsOverLimits(J, lo, hi)) {
     *why = covered + ": " + B.effect + " fitted on less than about half a turn does not carry over to the rest of the range";
     return false;
   }

@@ -19,6 +19,11 @@
 namespace accura::calib {
 namespace diagnose_detail {
 
+// A selected effect whose paired test against the model without it reaches this z is named as a
+// cause however small its share of the drop (one-sided p 3e-5: beyond the multiple testing of the
+// forward selection).
+constexpr double kNamedCauseZ = 4.0;
+
 void Diagnoser::verdict() {
   const std::vector<std::string>& order = order_;
   std::map<std::string, std::vector<int>>& blocks_of = blocks_of_;
@@ -128,13 +133,22 @@ void Diagnoser::verdict() {
     for (const std::string& e : order)
       if (drop_of[e] > drop_of[best]) best = e;
     v.effect = best;
-    // every selected effect that takes at least 10% of the total drop is named as a cause
+    // every selected effect that takes at least 10% of the total drop is named as a cause, and
+    // one whose own gain is beyond doubt (z >= kNamedCauseZ in its selection test, where a small
+    // effect beside a large one can take less than a tenth of the drop: a compliance of a few
+    // micrometres beside a backlash of a tenth of a millimetre)
     double total = 0;
     for (const std::string& e : order) total += std::max(0.0, drop_of[e]);
+    auto selectedZ = [&](const std::string& e) {
+      double z = 0;
+      for (const EffectEvidence& ev : out_.selected)
+        if (ev.effect == e) z = std::max(z, ev.z);
+      return z;
+    };
     v.effects.push_back(best);
     for (const std::string& e : order)
       if (e != best && total > 0 &&
-          (drop_of[e] >= 0.1 * total || std::sqrt(std::max(0.0, drop_of[e])) >= out_.noise_floor_mm))
+          (drop_of[e] >= 0.1 * total || std::sqrt(std::max(0.0, drop_of[e])) >= out_.noise_floor_mm || selectedZ(e) >= kNamedCauseZ))
         v.effects.push_back(e);
     for (int b : blocks_of[best])
       if (blocks_[b].joint >= 0) v.joints.push_back(blocks_[b].joint + 1);

@@ -702,13 +702,14 @@ RobotModel identify(const RobotModel& start, const std::vector<MeasurementSet>& 
     summary.warnings.push_back(buf);
   }
   // a periodic term fitted on less than half a turn is an extrapolation over the rest of the
-  // joint's range (the diagnosis does not select it there): said, with the range
+  // joint's range where its limits reach beyond the data (the diagnosis does not select it
+  // there: periodicTermHoldsOverLimits): said, with the range
   if (const auto g = groups.find("gear_periodic"); g != groups.end())
     for (int j = 0; j < pb.model.dof(); ++j) {
       const JointRange& c = summary.coverage[static_cast<size_t>(j)];
       if ((!g->second.empty() && !g->second.count(j + 1)) || pb.model.nominal.joints[static_cast<size_t>(j)].type != JointType::kRevolute)
         continue;
-      if (c.upper - c.lower < 180.0)
+      if (!periodicTermHoldsOverLimits(pb.model.nominal.joints[static_cast<size_t>(j)], c.lower, c.upper))
         summary.warnings.push_back("gear_periodic j" + std::to_string(j + 1) + ": fitted on " + fmtNum(c.upper - c.lower) + " deg (" +
                                    fmtNum(c.lower) + ".." + fmtNum(c.upper) +
                                    "), less than half a turn: its harmonics are extrapolated over the rest of the joint's range, "

@@ -306,6 +306,14 @@ double beyondFitRange(const JointRange& c, double q, double period) {
   return q < c.lower ? c.lower - q : (q > c.upper ? q - c.upper : 0.0);
 }
 
+bool periodicTermHoldsOverLimits(const JointSpec& joint, double lower, double upper) {
+  if (joint.type != JointType::kRevolute) return false;
+  const double width = upper - lower;
+  if (width >= kPeriodicCoverageDeg) return true;
+  const double beyond = joint.upper > joint.lower ? std::max(lower - joint.lower, joint.upper - upper) : 0.0;
+  return width > 0 && beyond <= kPeriodicLimitShare * width;
+}
+
 std::vector<OutsideFitRange> outsideFitRanges(const RobotModel& model, const Eigen::VectorXd& q) {
   const int n = model.dof();
   if (q.size() != n)

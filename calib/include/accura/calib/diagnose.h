@@ -477,6 +477,21 @@ struct SelfcheckCase {
   /// Systematic error of the geometric model: its RMS on fresh noise-free poses (how large
   /// the withheld effect is after geometry has absorbed what it can).
   double systematic_mm = 0;
+  /// The smallest footprint the data can show: 8 sigma / sqrt(N) (mm; sigma the noise per axis,
+  /// N the fit poses): a paired test of N held-out squared errors sees an effect of RMS s beyond
+  /// the geometric model at z = s sqrt(N) / (2 sigma), so z = 4 (about what the diagnosis' tests,
+  /// corrected for the variants tried, need).
+  double detection_limit_mm = 0;
+  /// Each injected catalogue effect (joint_compliance, gear_periodic, joint_scale, backlash,
+  /// thermal) with its footprint: the RMS (mm) of the complete geometric model plus the other
+  /// injected effects, identified on fresh noise-free poses of the simulated robot (the part of
+  /// the effect nothing else in the model takes).
+  std::vector<std::pair<std::string, double>> footprints_mm;
+  /// The verdict the data can show when it differs from `expected`: `expected` without the
+  /// injected effects whose footprint lies below detection_limit_mm ("none" when none is left).
+  /// Either counts as right (`right_by_limit` when only this one matched). Empty otherwise.
+  std::string expected_detectable;
+  bool right_by_limit = false;
   double seconds = 0;
 };
 

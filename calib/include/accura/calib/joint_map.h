@@ -135,6 +135,21 @@ double fitRangePeriod(const RobotModel& model, int j);
 /// without a period, within it with one), and a range of a turn or more holds every q.
 double beyondFitRange(const JointRange& c, double q, double period = 0);
 
+/// The share of a turn a gear_periodic term of a joint needs in the fit data to be told apart
+/// from the joint's offset and scale (0.45 turn, deg).
+constexpr double kPeriodicCoverageDeg = 162.0;
+/// How far (a share of the covered width) a joint's limits may lie beyond the fit data's range for
+/// a periodic term fitted on less than kPeriodicCoverageDeg: a joint whose limits span less than
+/// half a turn (the IRB 120's joint 3: -110..70 deg) cannot give more, and data that reach this
+/// close to both limits leave nothing of its range to extrapolate to.
+constexpr double kPeriodicLimitShare = 0.2;
+
+/// Whether a gear_periodic term of `joint` fitted on data covering [lower, upper] (deg) holds
+/// wherever the joint can move: the data cover at least kPeriodicCoverageDeg, or the joint's
+/// limits lie no further than kPeriodicLimitShare of the covered width beyond them. False for a
+/// prismatic joint (no period).
+bool periodicTermHoldsOverLimits(const JointSpec& joint, double lower, double upper);
+
 /// A joint value outside the range the model's joint-dependent effects were fitted on.
 struct OutsideFitRange {
   int joint = 0;            ///< 1-based
