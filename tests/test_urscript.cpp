@@ -16,6 +16,7 @@
 #include "accura/calib/robot_io.h"
 #include "accura/calib/simulate.h"
 #include "accura/calib/ur_calibration.h"
+#include "accura/calib/urdf.h"
 #include "accura/postproc/check.h"
 #include "accura/postproc/compensate.h"
 #include "accura/postproc/job.h"
@@ -584,6 +585,42 @@ TEST(UrScript, APayloadTheProgramSetsIsSaidWhereTheModelDependsOnIt) {
   EXPECT_EQ(said(compensateProgramReport(p, settingsFor(perturbModel(ur10WithTorch(), so)))), "");
 }
 
+TEST(UrScript, AMountingTheProgramSetsIsSaidWhereItDiffersFromTheModels) {
+  // set_gravity(d): d points away from the earth's centre, in Base (URScript manual; PolyScope
+  // writes the installation's mounting so, here a wall mount as a public PolyScope export has
+  // it). The model's joint compliance bends the arm under its <gravity> (0, 0, -9.80665): a
+  // wall mount is 90 deg from it, a floor mount nothing to say, a geometric model neither.
+  auto said = [](const std::string& gravity, const std::vector<std::string>& effects) {
+    const Program p = parseUrScript("def g():\n  set_tcp(p[0.0, 0.0, 0.15, 0.0, 0.0, 0.0])\n  " + gravity +
+                                        "\n  movej([-1.5707963, -1.5707963, 1.5707963, -1.5707963, -1.5707963, 0.0], a=1.4, v=1.05)\n"
+                                        "  movel(p[-.350, .700, .300, 3.1415927, 0.0, 0.0], a=1.2, v=0.25)\nend\n",
+                                    "g.script");
+    SimulateOptions so;
+    so.effects = effects;
+    so.set_station = false;
+    so.seed = 2;
+    const ProgramCompensation c = compensateProgramReport(p, settingsFor(perturbModel(ur10WithTorch(), so)));
+    EXPECT_TRUE(c.ok());
+    for (const auto& w : c.report.warnings)
+      if (w.message.find("mounting") != std::string::npos) return w.where.str() + ": " + w.message;
+    return std::string();
+  };
+  const std::vector<std::string> compliant = {"geometric", "joint_compliance"};
+  EXPECT_EQ(said("set_gravity([-9.82, 1.803904735144051E-15, 6.013015783813504E-16])", compliant),
+            "g.script:3:3: the program sets the arm's mounting here ('set_gravity([-9.82, 1.803904735144051E-15, 6.013015783813504E-16])': "
+            "gravity along (1.000, 0.000, 0.000) in the robot's frame 0, 90.0 deg from the model's <gravity> (0.000, 0.000, -1.000)); "
+            "the model's joint compliance bends the arm under its own <gravity>, so the deflections corrected are those of another "
+            "mounting (give the robot file the gravity of this one)");
+  EXPECT_EQ(said("set_gravity([0.0, 0.0, 9.82])", compliant), "");
+  // 0.5 deg of tilt is within kGravityDisagreeDeg; 2 deg is not
+  EXPECT_EQ(said("set_gravity([0, " + std::to_string(9.82 * std::sin(0.5 * kDegToRad)) + ", " + std::to_string(9.82 * std::cos(0.5 * kDegToRad)) + "])", compliant), "");
+  EXPECT_NE(said("set_gravity([0, " + std::to_string(9.82 * std::sin(2 * kDegToRad)) + ", " + std::to_string(9.82 * std::cos(2 * kDegToRad)) + "])", compliant)
+                .find(", 2.0 deg from the model's <gravity>"),
+            std::string::npos);
+  EXPECT_NE(said("set_gravity(g_dir)", compliant).find("'set_gravity(g_dir)': accura cannot read its direction"), std::string::npos);
+  EXPECT_EQ(said("set_gravity([-9.82, 0, 0])", {"geometric"}), "");
+}
+
 TEST(UrScript, GetInverseKinArgumentsAreReadOrNamed) {
   const std::string pose = "p[-.350, .700, .300, 3.1415927, 0.0, 0.0]";
   auto read = [&](const std::string& call) {
@@ -642,6 +679,36 @@ TEST(UrScript, PosesAreInTheControllersBaseFrameDhFrameZero) {
   EXPECT_NEAR(t.dx_mm, delta * -200, 1e-4);
   EXPECT_NEAR(t.dy_mm, -delta * -800, 1e-4);
   EXPECT_NEAR(t.dz_mm, 0, 1e-4);
+}
+
+TEST(UrScript, PosesAreInUrsBaseWhenTheRobotComesFromUrDescriptionsUrdf) {
+  // ur_description's chain from its root ('world', = base_link) has DH frame 0 turned 180 deg
+  // about z from UR's Base (docs/robot-format.md, "Frames"); URScript poses are in Base
+  // (URScript manual: p[x, y, z, rx, ry, rz] in the robot's base frame). The same real arm (the
+  // forum's factory calibration) read three ways (the bundled UR10, the URDF from 'base' and
+  // from its root) gets the same corrections: the bundled one's frame is pinned by
+  // PosesAreInTheControllersBaseFrameDhFrameZero.
+  const UrDeltas deltas = readUrCalibrationConf(test::sourcePath("tests/data/urdf/ur_forum_calibration.conf"));
+  const std::string urdf = test::sourcePath("tests/data/urdf/ur10.urdf");
+  const Program p = parseUrScript(
+      "set_tcp(p[0, 0, 0.15, 0, 0, 0])\nmovej([-1.5707963, -1.5707963, 1.5707963, -1.5707963, -1.5707963, 0])\n"
+      "movel(p[-0.35, 0.7, 0.3, 3.1415927, 0, 0])\nmovel(p[0.05, 0.7, 0.3, 3.1415927, 0, 0])\n",
+      "root.script");
+  auto corrections = [&](const RobotDefinition& nominal) {
+    const ProgramCompensation c = compensateProgramReport(p, settingsFor(modelFromUrDeltas(nominal, deltas)));
+    EXPECT_TRUE(c.ok()) << (c.report.errors.empty() ? std::string() : c.report.errors.front().message);
+    std::vector<Eigen::Vector3d> d;
+    for (const TargetReport& t : c.report.targets) d.emplace_back(t.dx_mm, t.dy_mm, t.dz_mm);
+    return d;
+  };
+  const std::vector<Eigen::Vector3d> bundled = corrections(test::loadBundled("ur10").nominal);
+  ASSERT_EQ(bundled.size(), 2u);
+  EXPECT_GT(bundled[0].norm(), 1.0);  // the factory calibration moves the TCP by millimetres
+  for (const char* chain : {"base:tool0", ""}) {
+    const std::vector<Eigen::Vector3d> d = corrections(readUrdfRobot(urdf, chain).nominal);
+    ASSERT_EQ(d.size(), bundled.size()) << chain;
+    for (size_t k = 0; k < d.size(); ++k) EXPECT_LT((d[k] - bundled[k]).norm(), 1e-4) << "chain '" << chain << "' target " << k;
+  }
 }
 
 // The simulated UR controller: joint targets as given; a Cartesian movej to the IK solution
