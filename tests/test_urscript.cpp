@@ -621,6 +621,31 @@ TEST(UrScript, AMountingTheProgramSetsIsSaidWhereItDiffersFromTheModels) {
   EXPECT_EQ(said("set_gravity([-9.82, 0, 0])", {"geometric"}), "");
 }
 
+TEST(UrScript, AProgramToolTheScriptReplacesBeforeItsFirstMotionIsSaidWhereTheyDiffer) {
+  // --program-tool is the TCP active before the program sets one; a set_tcp before the first
+  // motion (PolyScope writes the installation's TCP so) makes every motion run with the
+  // script's TCP, as on the controller: a different --program-tool is said, not silently dropped
+  auto said = [](const std::string& script, const XyzAbc& tool) {
+    JobSettings s = settingsFor(ur10WithTorch());
+    s.initial_tool = tool;
+    const ProgramCompensation c = compensateProgramReport(parseUrScript(script, "t.script"), s);
+    EXPECT_TRUE(c.ok());
+    for (const auto& w : c.report.warnings)
+      if (w.message.find("--program-tool") != std::string::npos) return w.where.str() + ": " + w.message;
+    return std::string();
+  };
+  const std::string moves = "  movej([-1.5707963, -1.5707963, 1.5707963, -1.5707963, -1.5707963, 0.0])\n"
+                            "  movel(p[-.350, .700, .300, 3.1415927, 0.0, 0.0])\n";
+  const std::string first = "def t():\n  set_tcp(p[0.0, 0.0, 0.15, 0.0, 0.0, 0.0])\n" + moves + "end\n";
+  EXPECT_EQ(said(first, {0, 0, 200, 0, 0, 0}),
+            "t.script:2:3: --program-tool is not used: the program sets its TCP here (set_tcp(p[0.0, 0.0, 0.15, 0.0, 0.0, 0.0])) before its "
+            "first motion, and every motion runs with the program's TCP, 50.000 mm and 0.000 deg from --program-tool's (check which TCP "
+            "the cell uses)");
+  EXPECT_EQ(said(first, {0, 0, 150, 0, 0, 0}), "");  // the same TCP: nothing to say
+  // a motion before the set_tcp runs with --program-tool: it is used
+  EXPECT_EQ(said("def t():\n" + moves + "  set_tcp(p[0.0, 0.0, 0.15, 0.0, 0.0, 0.0])\n" + moves + "end\n", {0, 0, 200, 0, 0, 0}), "");
+}
+
 TEST(UrScript, GetInverseKinArgumentsAreReadOrNamed) {
   const std::string pose = "p[-.350, .700, .300, 3.1415927, 0.0, 0.0]";
   auto read = [&](const std::string& call) {

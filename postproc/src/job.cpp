@@ -244,6 +244,27 @@ class Job {
     }
   }
 
+  /// --program-tool is the TCP active on the controller before the program sets one (URScript:
+  /// the installation's TCP). A script whose set_tcp comes before its first motion runs every
+  /// motion with its own TCP, as the controller does (PolyScope writes the installation's TCP
+  /// so at the top of each program): a --program-tool that no motion uses and that differs from
+  /// that set_tcp is said, since the TCP the user believes active is not the program's.
+  void noteUnusedProgramTool(const Program& in) {
+    if (!s_.initial_tool || !in.urscript) return;
+    const FrameSetting* first = nullptr;
+    for (const Motion& m : in.motions) {
+      if (m.tool.source == FrameSetting::Source::kUnset) return;  // it is used
+      if (!first && m.tool.source == FrameSetting::Source::kInline && m.tool.value) first = &m.tool;
+    }
+    if (!first) return;
+    const Eigen::Isometry3d d = calib::toIsometry(*s_.initial_tool).inverse() * calib::toIsometry(*first->value);
+    const double mm = d.translation().norm(), deg = calib::rotationAngleDeg(d.linear());
+    if (!(mm > s_.tool_match_mm || deg > s_.tool_match_deg)) return;
+    warning(first->where, "--program-tool is not used: the program sets its TCP here (set_tcp(" + first->text +
+                              ")) before its first motion, and every motion runs with the program's TCP, " + calib::formatFixed(mm, 3) +
+                              " mm and " + calib::formatFixed(deg, 3) + " deg from --program-tool's (check which TCP the cell uses)");
+  }
+
   /// A PTP target whose compensated joints lie far from the joints the nominal robot (the
   /// OLP's simulation) takes for it: next to a wrist singularity a sub-millimetre correction can
   /// turn A4 and A6 by tens of degrees. The pose is reached, but the arm's posture differs
@@ -520,6 +541,7 @@ class Job {
     flushCpConfigurations();
     notePayloadChanges(in);
     noteGravity(in);
+    noteUnusedProgramTool(in);
     unifyClaimedConfigurations(out);
     for (const OwnPointName& o : own_point_names_) reportNewName(o.motion, o.old_name, o.new_name);
     copyPointsReadElsewhere(out);
