@@ -963,6 +963,31 @@ TEST(UrScript, VariablesFollowBranchesFunctionsAndLocalScope) {
             "'target' is assigned by pick (at vars.script:3:3), called at vars.script:21:3: its value after the call is not followed");
 }
 
+TEST(UrScript, AFunctionThatCallsOneThatSetsTheTcpOrAVariableSetsThemToo) {
+  // f only calls g; g sets the TCP and assigns a program variable: on the controller a call of
+  // f runs g's set_tcp and assignment, so after f() the tool and the variable are not the text's
+  const std::string text = "def prog():\n"
+                           "  global wp = p[0.5,0.1,0.4,0,3.14,0]\n"
+                           "  def g():\n    set_tcp(p[0,0.05,0.25,0,0,0])\n    wp = p[0.5,0.2,0.4,0,3.14,0]\n  end\n"
+                           "  def f():\n    g()\n  end\n"
+                           "  set_tcp(p[0,0,0.15,0,0,0])\n"
+                           "  movel(wp)\n"     // 0: tool 0.15, y 100
+                           "  f()\n"
+                           "  movel(wp)\n"     // 1: g's tool and value
+                           "end\n";
+  const Program p = parseUrScript(text, "calls.script");
+  ASSERT_EQ(p.motions.size(), 2u);
+  ASSERT_TRUE(p.motions[0].tool.known());
+  EXPECT_NEAR(p.motions[0].tool.value->z_mm, 150, 1e-9);
+  EXPECT_EQ(p.motions[0].target_problem, "");
+  EXPECT_NEAR(p.motions[0].target.xyzAbc().y_mm, 100, 1e-9);
+  EXPECT_TRUE(p.motions[1].tool.run_time);
+  EXPECT_FALSE(p.motions[1].tool.known());
+  EXPECT_EQ(p.motions[1].tool.note, "the function f (calls.script:7:3) calls set_tcp: the tool after the call is not followed");
+  EXPECT_EQ(p.motions[1].target_problem,
+            "'wp' is assigned by f (at calls.script:7:3), called at calls.script:12:3: its value after the call is not followed");
+}
+
 TEST(UrScript, ALoopsNextPassAndAFunctionSeeTheToolAndValuesOfTheRun) {
   const std::string a = "p[0.5,0.1,0.4,0,3.14,0]";
   const std::string text = "def prog():\n"

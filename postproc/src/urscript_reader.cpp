@@ -641,7 +641,8 @@ class Reader {
       vars_ = b.vars;
     }
     // a call of a function (or a started thread) of the script that assigns program variables
-    // or calls set_tcp
+    // or calls set_tcp; inside a function, the call makes them the function's own (a function
+    // that calls one that sets the TCP sets it too)
     for (size_t k = 0; k + 1 < t.size(); ++k) {
       if (!isIdent(t, k) || !isOp(t, k + 1, "(")) continue;
       if (const auto fa = fn_assigns_.find(t[k].s); fa != fn_assigns_.end())
@@ -650,10 +651,13 @@ class Reader {
           v.problem = "'" + excerpt(n) + "' is assigned by " + excerpt(t[k].s) + " (at " + at.str() + "), called at " + loc(t[k].b).str() +
                       ": its value after the call is not followed";
           vars_[n] = v;
+          for (OpenBlock& b : blocks_) b.assigned.insert(n);
         }
-      if (const auto ts = tcp_setters_.find(t[k].s); ts != tcp_setters_.end())
+      if (const auto ts = tcp_setters_.find(t[k].s); ts != tcp_setters_.end()) {
         tool_ = runTimeFrame(t[k].s + "()", loc(t[k].b),
                              "the function " + excerpt(t[k].s) + " (" + ts->second.str() + ") calls set_tcp: the tool after the call is not followed");
+        for (OpenBlock& b : blocks_) b.sets_tcp = true;
+      }
     }
     // a call of one of the script's functions that move the robot, a thread of the script that
     // moves it started (run name()), force control
