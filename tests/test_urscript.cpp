@@ -988,6 +988,24 @@ TEST(UrScript, AFunctionThatCallsOneThatSetsTheTcpOrAVariableSetsThemToo) {
             "'wp' is assigned by f (at calls.script:7:3), called at calls.script:12:3: its value after the call is not followed");
 }
 
+TEST(UrScript, AFunctionDefinedAfterItsCallerIsFollowedThroughTheCall) {
+  // f calls g, which the text defines after f: g exists when f() runs, so f() sets g's TCP
+  const std::string text = "def prog():\n"
+                           "  global wp = p[0.5,0.1,0.4,0,3.14,0]\n"
+                           "  def f():\n    g()\n  end\n"
+                           "  def g():\n    set_tcp(p[0,0.05,0.25,0,0,0])\n    wp = p[0.5,0.2,0.4,0,3.14,0]\n  end\n"
+                           "  set_tcp(p[0,0,0.15,0,0,0])\n"
+                           "  f()\n"
+                           "  movel(wp)\n"
+                           "end\n";
+  const Program p = parseUrScript(text, "order.script");
+  ASSERT_EQ(p.motions.size(), 1u);
+  EXPECT_TRUE(p.motions[0].tool.run_time);
+  EXPECT_EQ(p.motions[0].tool.note, "the function g (order.script:6:3), which f calls, calls set_tcp: the tool after the call is not followed");
+  EXPECT_EQ(p.motions[0].target_problem,
+            "'wp' is assigned by g (at order.script:6:3), which f calls, called at order.script:11:3: its value after the call is not followed");
+}
+
 TEST(UrScript, ALoopsNextPassAndAFunctionSeeTheToolAndValuesOfTheRun) {
   const std::string a = "p[0.5,0.1,0.4,0,3.14,0]";
   const std::string text = "def prog():\n"
