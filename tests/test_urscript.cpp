@@ -619,6 +619,7 @@ TEST(UrScript, AMountingTheProgramSetsIsSaidWhereItDiffersFromTheModels) {
             std::string::npos);
   EXPECT_NE(said("set_gravity(g_dir)", compliant).find("'set_gravity(g_dir)': accura cannot read its direction"), std::string::npos);
   EXPECT_EQ(said("set_gravity([-9.82, 0, 0])", {"geometric"}), "");
+  EXPECT_EQ(said("textmsg(\"set_gravity([-9.82, 0, 0])\")", compliant), "");  // a string is no statement
 }
 
 TEST(UrScript, AProgramToolTheScriptReplacesBeforeItsFirstMotionIsSaidWhereTheyDiffer) {

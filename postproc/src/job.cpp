@@ -202,8 +202,9 @@ class Job {
     Eigen::Vector3d model = s_.calibrated.nominal.gravity_base.normalized();
     for (int k = 0; k < 3; ++k) model[k] = std::abs(model[k]) < 1e-12 ? 0.0 : model[k];
     for (const auto& o : in.urscript->others) {
-      const size_t at = o.text.find("set_gravity(");
-      if (at == std::string::npos || (at > 0 && (std::isalnum(static_cast<unsigned char>(o.text[at - 1])) || o.text[at - 1] == '_'))) continue;
+      // the statement set_gravity(...) (not the name inside a string or another call)
+      const size_t at = 0;
+      if (o.text.compare(0, 12, "set_gravity(") != 0) continue;
       // set_gravity([x, y, z]): three numbers, else a value the controller computes
       Eigen::Vector3d d;
       const char* c = o.text.c_str() + at + std::strlen("set_gravity(");
