@@ -16,6 +16,7 @@
 #include "accura/calib/robot_io.h"
 #include "accura/calib/simulate.h"
 #include "accura/calib/ur_calibration.h"
+#include "accura/calib/urdf.h"
 #include "accura/postproc/check.h"
 #include "accura/postproc/compensate.h"
 #include "accura/postproc/job.h"
@@ -584,6 +585,68 @@ TEST(UrScript, APayloadTheProgramSetsIsSaidWhereTheModelDependsOnIt) {
   EXPECT_EQ(said(compensateProgramReport(p, settingsFor(perturbModel(ur10WithTorch(), so)))), "");
 }
 
+TEST(UrScript, AMountingTheProgramSetsIsSaidWhereItDiffersFromTheModels) {
+  // set_gravity(d): d points away from the earth's centre, in Base (URScript manual; PolyScope
+  // writes the installation's mounting so, here a wall mount as a public PolyScope export has
+  // it). The model's joint compliance bends the arm under its <gravity> (0, 0, -9.80665): a
+  // wall mount is 90 deg from it, a floor mount nothing to say, a geometric model neither.
+  auto said = [](const std::string& gravity, const std::vector<std::string>& effects) {
+    const Program p = parseUrScript("def g():\n  set_tcp(p[0.0, 0.0, 0.15, 0.0, 0.0, 0.0])\n  " + gravity +
+                                        "\n  movej([-1.5707963, -1.5707963, 1.5707963, -1.5707963, -1.5707963, 0.0], a=1.4, v=1.05)\n"
+                                        "  movel(p[-.350, .700, .300, 3.1415927, 0.0, 0.0], a=1.2, v=0.25)\nend\n",
+                                    "g.script");
+    SimulateOptions so;
+    so.effects = effects;
+    so.set_station = false;
+    so.seed = 2;
+    const ProgramCompensation c = compensateProgramReport(p, settingsFor(perturbModel(ur10WithTorch(), so)));
+    EXPECT_TRUE(c.ok());
+    for (const auto& w : c.report.warnings)
+      if (w.message.find("mounting") != std::string::npos) return w.where.str() + ": " + w.message;
+    return std::string();
+  };
+  const std::vector<std::string> compliant = {"geometric", "joint_compliance"};
+  EXPECT_EQ(said("set_gravity([-9.82, 1.803904735144051E-15, 6.013015783813504E-16])", compliant),
+            "g.script:3:3: the program sets the arm's mounting here ('set_gravity([-9.82, 1.803904735144051E-15, 6.013015783813504E-16])': "
+            "gravity along (1.000, 0.000, 0.000) in the robot's frame 0, 90.0 deg from the model's <gravity> (0.000, 0.000, -1.000)); "
+            "the model's joint compliance bends the arm under its own <gravity>, so the deflections corrected are those of another "
+            "mounting (give the robot file the gravity of this one)");
+  EXPECT_EQ(said("set_gravity([0.0, 0.0, 9.82])", compliant), "");
+  // 0.5 deg of tilt is within kGravityDisagreeDeg; 2 deg is not
+  EXPECT_EQ(said("set_gravity([0, " + std::to_string(9.82 * std::sin(0.5 * kDegToRad)) + ", " + std::to_string(9.82 * std::cos(0.5 * kDegToRad)) + "])", compliant), "");
+  EXPECT_NE(said("set_gravity([0, " + std::to_string(9.82 * std::sin(2 * kDegToRad)) + ", " + std::to_string(9.82 * std::cos(2 * kDegToRad)) + "])", compliant)
+                .find(", 2.0 deg from the model's <gravity>"),
+            std::string::npos);
+  EXPECT_NE(said("set_gravity(g_dir)", compliant).find("'set_gravity(g_dir)': accura cannot read its direction"), std::string::npos);
+  EXPECT_EQ(said("set_gravity([-9.82, 0, 0])", {"geometric"}), "");
+  EXPECT_EQ(said("textmsg(\"set_gravity([-9.82, 0, 0])\")", compliant), "");  // a string is no statement
+}
+
+TEST(UrScript, AProgramToolTheScriptReplacesBeforeItsFirstMotionIsSaidWhereTheyDiffer) {
+  // --program-tool is the TCP active before the program sets one; a set_tcp before the first
+  // motion (PolyScope writes the installation's TCP so) makes every motion run with the
+  // script's TCP, as on the controller: a different --program-tool is said, not silently dropped
+  auto said = [](const std::string& script, const XyzAbc& tool) {
+    JobSettings s = settingsFor(ur10WithTorch());
+    s.initial_tool = tool;
+    const ProgramCompensation c = compensateProgramReport(parseUrScript(script, "t.script"), s);
+    EXPECT_TRUE(c.ok());
+    for (const auto& w : c.report.warnings)
+      if (w.message.find("--program-tool") != std::string::npos) return w.where.str() + ": " + w.message;
+    return std::string();
+  };
+  const std::string moves = "  movej([-1.5707963, -1.5707963, 1.5707963, -1.5707963, -1.5707963, 0.0])\n"
+                            "  movel(p[-.350, .700, .300, 3.1415927, 0.0, 0.0])\n";
+  const std::string first = "def t():\n  set_tcp(p[0.0, 0.0, 0.15, 0.0, 0.0, 0.0])\n" + moves + "end\n";
+  EXPECT_EQ(said(first, {0, 0, 200, 0, 0, 0}),
+            "t.script:2:3: --program-tool is not used: the program sets its TCP here (set_tcp(p[0.0, 0.0, 0.15, 0.0, 0.0, 0.0])) before its "
+            "first motion, and every motion runs with the program's TCP, 50.000 mm and 0.000 deg from --program-tool's (check which TCP "
+            "the cell uses)");
+  EXPECT_EQ(said(first, {0, 0, 150, 0, 0, 0}), "");  // the same TCP: nothing to say
+  // a motion before the set_tcp runs with --program-tool: it is used
+  EXPECT_EQ(said("def t():\n" + moves + "  set_tcp(p[0.0, 0.0, 0.15, 0.0, 0.0, 0.0])\n" + moves + "end\n", {0, 0, 200, 0, 0, 0}), "");
+}
+
 TEST(UrScript, GetInverseKinArgumentsAreReadOrNamed) {
   const std::string pose = "p[-.350, .700, .300, 3.1415927, 0.0, 0.0]";
   auto read = [&](const std::string& call) {
@@ -642,6 +705,36 @@ TEST(UrScript, PosesAreInTheControllersBaseFrameDhFrameZero) {
   EXPECT_NEAR(t.dx_mm, delta * -200, 1e-4);
   EXPECT_NEAR(t.dy_mm, -delta * -800, 1e-4);
   EXPECT_NEAR(t.dz_mm, 0, 1e-4);
+}
+
+TEST(UrScript, PosesAreInUrsBaseWhenTheRobotComesFromUrDescriptionsUrdf) {
+  // ur_description's chain from its root ('world', = base_link) has DH frame 0 turned 180 deg
+  // about z from UR's Base (docs/robot-format.md, "Frames"); URScript poses are in Base
+  // (URScript manual: p[x, y, z, rx, ry, rz] in the robot's base frame). The same real arm (the
+  // forum's factory calibration) read three ways (the bundled UR10, the URDF from 'base' and
+  // from its root) gets the same corrections: the bundled one's frame is pinned by
+  // PosesAreInTheControllersBaseFrameDhFrameZero.
+  const UrDeltas deltas = readUrCalibrationConf(test::sourcePath("tests/data/urdf/ur_forum_calibration.conf"));
+  const std::string urdf = test::sourcePath("tests/data/urdf/ur10.urdf");
+  const Program p = parseUrScript(
+      "set_tcp(p[0, 0, 0.15, 0, 0, 0])\nmovej([-1.5707963, -1.5707963, 1.5707963, -1.5707963, -1.5707963, 0])\n"
+      "movel(p[-0.35, 0.7, 0.3, 3.1415927, 0, 0])\nmovel(p[0.05, 0.7, 0.3, 3.1415927, 0, 0])\n",
+      "root.script");
+  auto corrections = [&](const RobotDefinition& nominal) {
+    const ProgramCompensation c = compensateProgramReport(p, settingsFor(modelFromUrDeltas(nominal, deltas)));
+    EXPECT_TRUE(c.ok()) << (c.report.errors.empty() ? std::string() : c.report.errors.front().message);
+    std::vector<Eigen::Vector3d> d;
+    for (const TargetReport& t : c.report.targets) d.emplace_back(t.dx_mm, t.dy_mm, t.dz_mm);
+    return d;
+  };
+  const std::vector<Eigen::Vector3d> bundled = corrections(test::loadBundled("ur10").nominal);
+  ASSERT_EQ(bundled.size(), 2u);
+  EXPECT_GT(bundled[0].norm(), 1.0);  // the factory calibration moves the TCP by millimetres
+  for (const char* chain : {"base:tool0", ""}) {
+    const std::vector<Eigen::Vector3d> d = corrections(readUrdfRobot(urdf, chain).nominal);
+    ASSERT_EQ(d.size(), bundled.size()) << chain;
+    for (size_t k = 0; k < d.size(); ++k) EXPECT_LT((d[k] - bundled[k]).norm(), 1e-4) << "chain '" << chain << "' target " << k;
+  }
 }
 
 // The simulated UR controller: joint targets as given; a Cartesian movej to the IK solution
@@ -869,6 +962,49 @@ TEST(UrScript, VariablesFollowBranchesFunctionsAndLocalScope) {
   EXPECT_EQ(p.motions[3].target_problem, "'a' is assigned inside the if at vars.script:13:3: after it, its value depends on the way the program ran");
   EXPECT_EQ(p.motions[5].target_problem,
             "'target' is assigned by pick (at vars.script:3:3), called at vars.script:21:3: its value after the call is not followed");
+}
+
+TEST(UrScript, AFunctionThatCallsOneThatSetsTheTcpOrAVariableSetsThemToo) {
+  // f only calls g; g sets the TCP and assigns a program variable: on the controller a call of
+  // f runs g's set_tcp and assignment, so after f() the tool and the variable are not the text's
+  const std::string text = "def prog():\n"
+                           "  global wp = p[0.5,0.1,0.4,0,3.14,0]\n"
+                           "  def g():\n    set_tcp(p[0,0.05,0.25,0,0,0])\n    wp = p[0.5,0.2,0.4,0,3.14,0]\n  end\n"
+                           "  def f():\n    g()\n  end\n"
+                           "  set_tcp(p[0,0,0.15,0,0,0])\n"
+                           "  movel(wp)\n"     // 0: tool 0.15, y 100
+                           "  f()\n"
+                           "  movel(wp)\n"     // 1: g's tool and value
+                           "end\n";
+  const Program p = parseUrScript(text, "calls.script");
+  ASSERT_EQ(p.motions.size(), 2u);
+  ASSERT_TRUE(p.motions[0].tool.known());
+  EXPECT_NEAR(p.motions[0].tool.value->z_mm, 150, 1e-9);
+  EXPECT_EQ(p.motions[0].target_problem, "");
+  EXPECT_NEAR(p.motions[0].target.xyzAbc().y_mm, 100, 1e-9);
+  EXPECT_TRUE(p.motions[1].tool.run_time);
+  EXPECT_FALSE(p.motions[1].tool.known());
+  EXPECT_EQ(p.motions[1].tool.note, "the function f (calls.script:7:3) calls set_tcp: the tool after the call is not followed");
+  EXPECT_EQ(p.motions[1].target_problem,
+            "'wp' is assigned by f (at calls.script:7:3), called at calls.script:12:3: its value after the call is not followed");
+}
+
+TEST(UrScript, AFunctionDefinedAfterItsCallerIsFollowedThroughTheCall) {
+  // f calls g, which the text defines after f: g exists when f() runs, so f() sets g's TCP
+  const std::string text = "def prog():\n"
+                           "  global wp = p[0.5,0.1,0.4,0,3.14,0]\n"
+                           "  def f():\n    g()\n  end\n"
+                           "  def g():\n    set_tcp(p[0,0.05,0.25,0,0,0])\n    wp = p[0.5,0.2,0.4,0,3.14,0]\n  end\n"
+                           "  set_tcp(p[0,0,0.15,0,0,0])\n"
+                           "  f()\n"
+                           "  movel(wp)\n"
+                           "end\n";
+  const Program p = parseUrScript(text, "order.script");
+  ASSERT_EQ(p.motions.size(), 1u);
+  EXPECT_TRUE(p.motions[0].tool.run_time);
+  EXPECT_EQ(p.motions[0].tool.note, "the function g (order.script:6:3), which f calls, calls set_tcp: the tool after the call is not followed");
+  EXPECT_EQ(p.motions[0].target_problem,
+            "'wp' is assigned by g (at order.script:6:3), which f calls, called at order.script:11:3: its value after the call is not followed");
 }
 
 TEST(UrScript, ALoopsNextPassAndAFunctionSeeTheToolAndValuesOfTheRun) {

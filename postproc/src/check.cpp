@@ -595,9 +595,10 @@ CheckReport checkMotions(const calib::RobotModel& real, const calib::RobotModel&
 
 namespace {
 
-CheckReport checkProgramWith(const Program& program, const JobSettings& job, const Cell& cell, const CheckOptions& options,
+CheckReport checkProgramWith(const Program& program, const JobSettings& given, const Cell& cell, const CheckOptions& options,
                              const CellGeometry* geometry) {
-  requireArmForProgram(program, job.calibrated.nominal);
+  requireArmForProgram(program, given.calibrated.nominal);
+  const JobSettings job = settingsForProgram(program, given);  // (a URScript program's Base)
   CheckReport r;
   // frames and models, as compensateProgram (placement.h); the cell's <robot> is the placement
   // unless --base gives it

@@ -1,10 +1,12 @@
 // Compensation of a whole program (see job.h).
 #include "accura/postproc/job.h"
 
+#include <algorithm>
 #include <cctype>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
+#include <iomanip>
 #include <map>
 #include <memory>
 #include <set>
@@ -14,6 +16,7 @@
 #include "accura/calib/geometry.h"
 #include "accura/calib/joint_map.h"
 #include "accura/calib/kinematics.h"
+#include "accura/calib/ur_calibration.h"
 #include "accura/postproc/krl.h"
 #include "accura/postproc/path_job.h"
 #include "accura/postproc/placement.h"
@@ -181,6 +184,86 @@ class Job {
                                      "); the compensation takes one payload for every motion, " +
                                      calib::formatFixed(s_.context.payload_kg, 2) +
                                      " kg (--payload-kg), and the model's joint compliance makes the correction depend on it");
+  }
+
+  /// A URScript program's set_gravity(d) states the arm's mounting: d is the acceleration "away
+  /// from the earth's centre" in Base (URScript manual, set_gravity: [0, 0, 9.82] on a floor).
+  /// The model's joint compliance bends the arm under its gravity_base (the robot file's
+  /// <gravity>, in DH frame 0); a d more than kGravityDisagreeDeg from its opposite (a wall or
+  /// ceiling mount, a tilted base) means the deflections corrected are another mounting's, and
+  /// a d accura cannot read (a variable) leaves the mounting unknown: said once, at the first.
+  void noteGravity(const Program& in) {
+    bool compliant = false;
+    for (double c : s_.calibrated.deviations.compliance) compliant = compliant || c != 0;
+    if (!compliant || !in.urscript) return;
+    // Base -> DH frame 0 (settingsForProgram's $ROBROOT: frame 0 in Base)
+    const Eigen::Matrix3d R_frame0_base =
+        s_.robroot_in_kukaworld ? Eigen::Matrix3d(calib::toIsometry(*s_.robroot_in_kukaworld).linear().transpose()) : Eigen::Matrix3d::Identity();
+    Eigen::Vector3d model = s_.calibrated.nominal.gravity_base.normalized();
+    for (int k = 0; k < 3; ++k) model[k] = std::abs(model[k]) < 1e-12 ? 0.0 : model[k];
+    for (const auto& o : in.urscript->others) {
+      // the statement set_gravity(...) (not the name inside a string or another call)
+      const size_t at = 0;
+      if (o.text.compare(0, 12, "set_gravity(") != 0) continue;
+      // set_gravity([x, y, z]): three numbers, else a value the controller computes
+      Eigen::Vector3d d;
+      const char* c = o.text.c_str() + at + std::strlen("set_gravity(");
+      bool read = false;
+      while (*c == ' ' || *c == '\t') ++c;
+      if (*c == '[') {
+        read = true;
+        ++c;
+        for (int k = 0; k < 3 && read; ++k) {
+          char* stop = nullptr;
+          d[k] = std::strtod(c, &stop);
+          read = stop != c && std::isfinite(d[k]);
+          c = stop;
+          while (*c == ' ' || *c == '\t') ++c;
+          if (read) read = *c == (k < 2 ? ',' : ']');
+          ++c;
+        }
+      }
+      std::string problem;
+      if (!read || !(d.norm() > 0)) {
+        problem = "accura cannot read its direction: the mounting the arm runs with is not known";
+      } else {
+        Eigen::Vector3d g = R_frame0_base * -d.normalized();
+        const double deg = std::acos(std::clamp(g.dot(model), -1.0, 1.0)) * calib::kRadToDeg;
+        if (!(deg > kGravityDisagreeDeg)) continue;
+        for (int k = 0; k < 3; ++k) g[k] = std::abs(g[k]) < 5e-4 ? 0.0 : g[k];  // (no "-0.000")
+        std::ostringstream m;
+        m.setf(std::ios::fixed);
+        m.precision(3);
+        m << "gravity along (" << g.x() << ", " << g.y() << ", " << g.z() << ") in the robot's frame 0, " << std::setprecision(1) << deg
+          << " deg from the model's <gravity> (" << std::setprecision(3) << model.x() << ", " << model.y() << ", " << model.z() << ")";
+        problem = m.str();
+      }
+      warning(o.where, "the program sets the arm's mounting here ('" + o.text + "': " + problem +
+                           "); the model's joint compliance bends the arm under its own <gravity>, so the deflections corrected are those "
+                           "of another mounting (give the robot file the gravity of this one)");
+      return;
+    }
+  }
+
+  /// --program-tool is the TCP active on the controller before the program sets one (URScript:
+  /// the installation's TCP). A script whose set_tcp comes before its first motion runs every
+  /// motion with its own TCP, as the controller does (PolyScope writes the installation's TCP
+  /// so at the top of each program): a --program-tool that no motion uses and that differs from
+  /// that set_tcp is said, since the TCP the user believes active is not the program's.
+  void noteUnusedProgramTool(const Program& in) {
+    if (!s_.initial_tool || !in.urscript) return;
+    const FrameSetting* first = nullptr;
+    for (const Motion& m : in.motions) {
+      if (m.tool.source == FrameSetting::Source::kUnset) return;  // it is used
+      if (!first && m.tool.source == FrameSetting::Source::kInline && m.tool.value) first = &m.tool;
+    }
+    if (!first) return;
+    const Eigen::Isometry3d d = calib::toIsometry(*s_.initial_tool).inverse() * calib::toIsometry(*first->value);
+    const double mm = d.translation().norm(), deg = calib::rotationAngleDeg(d.linear());
+    if (!(mm > s_.tool_match_mm || deg > s_.tool_match_deg)) return;
+    warning(first->where, "--program-tool is not used: the program sets its TCP here (set_tcp(" + first->text +
+                              ")) before its first motion, and every motion runs with the program's TCP, " + calib::formatFixed(mm, 3) +
+                              " mm and " + calib::formatFixed(deg, 3) + " deg from --program-tool's (check which TCP the cell uses)");
   }
 
   /// A PTP target whose compensated joints lie far from the joints the nominal robot (the
@@ -460,6 +543,8 @@ class Job {
     }
     flushCpConfigurations();
     notePayloadChanges(in);
+    noteGravity(in);
+    noteUnusedProgramTool(in);
     unifyClaimedConfigurations(out);
     for (const OwnPointName& o : own_point_names_) reportNewName(o.motion, o.old_name, o.new_name);
     copyPointsReadElsewhere(out);
@@ -1139,7 +1224,27 @@ void requireArmForProgram(const Program& program, const calib::RobotDefinition& 
                             robot.name + "': give the model of the UR that runs the program");
 }
 
-ProgramCompensation compensateProgramReport(const Program& program, const JobSettings& settings) {
+JobSettings settingsForProgram(const Program& program, const JobSettings& settings) {
+  bool urscript = program.urscript != nullptr;
+  for (const PassThrough& s : program.passthrough) urscript = urscript || s.language == "URScript";
+  if (!urscript || settings.robroot_in_kukaworld || !universalRobotsArm(settings.calibrated.nominal)) return settings;
+  // URScript poses are in the controller's Base, UR's DH frame 0; a robot read from
+  // ur_description's URDF from its root ('world', base_link) has its frame 0 turned 180 deg
+  // about axis 1 from it (ur_calibration.h, urConventionOf): Base is then that turn away
+  Eigen::Isometry3d T_frame0_urbase = Eigen::Isometry3d::Identity();
+  try {
+    T_frame0_urbase = calib::urConventionOf(settings.calibrated.nominal).T_frame0_urbase;
+  } catch (const calib::ArgumentError&) {
+    return settings;  // (no UR table: the arm's frame 0 is taken as its Base)
+  }
+  if (!(calib::rotationAngleDeg(T_frame0_urbase.linear()) > 1e-9)) return settings;
+  JobSettings s = settings;
+  s.robroot_in_kukaworld = calib::toXyzAbc(T_frame0_urbase.inverse());  // frame 0 in Base
+  return s;
+}
+
+ProgramCompensation compensateProgramReport(const Program& program, const JobSettings& given) {
+  const JobSettings settings = settingsForProgram(program, given);
   if (!(settings.tol_mm > 0) || !std::isfinite(settings.tol_mm))
     throw calib::ArgumentError("compensateProgram: tol_mm must be > 0 (mm)");
   std::string why;

@@ -618,6 +618,7 @@ class Reader {
           // from before it, and a call of it sets a tool accura does not follow
           tool_ = b.tool;
           if (b.sets_tcp) tcp_setters_[b.name] = loc(b.at);
+          fn_calls_[b.name].insert(b.calls.begin(), b.calls.end());
         } else if (changed && !b.program) {
           // set in a branch or a loop: after it, the tool is whichever the run took
           tool_ = runTimeFrame("set_tcp", loc(t[0].b),
@@ -641,19 +642,42 @@ class Reader {
       vars_ = b.vars;
     }
     // a call of a function (or a started thread) of the script that assigns program variables
-    // or calls set_tcp
+    // or calls set_tcp; inside a function, the call makes them the function's own (a function
+    // that calls one that sets the TCP sets it too)
     for (size_t k = 0; k + 1 < t.size(); ++k) {
       if (!isIdent(t, k) || !isOp(t, k + 1, "(")) continue;
-      if (const auto fa = fn_assigns_.find(t[k].s); fa != fn_assigns_.end())
-        for (const auto& [n, at] : fa->second) {
-          Var v;
-          v.problem = "'" + excerpt(n) + "' is assigned by " + excerpt(t[k].s) + " (at " + at.str() + "), called at " + loc(t[k].b).str() +
-                      ": its value after the call is not followed";
-          vars_[n] = v;
+      for (OpenBlock& b : blocks_) b.calls.insert(t[k].s);
+      // the functions this call runs: the one called and, through the calls in their bodies,
+      // those it calls (also those defined after it in the text: they exist when it runs);
+      // the one called last, so that its own words are the ones kept
+      std::vector<std::string> runs, todo = {t[k].s};
+      std::set<std::string> seen = {t[k].s};
+      while (!todo.empty()) {
+        const std::string n = todo.back();
+        todo.pop_back();
+        if (n != t[k].s) runs.push_back(n);
+        if (const auto c = fn_calls_.find(n); c != fn_calls_.end())
+          for (const std::string& m : c->second)
+            if (seen.insert(m).second) todo.push_back(m);
+      }
+      runs.push_back(t[k].s);
+      for (const std::string& f : runs) {
+        const std::string through = f == t[k].s ? std::string() : ", which " + excerpt(t[k].s) + " calls";
+        if (const auto fa = fn_assigns_.find(f); fa != fn_assigns_.end())
+          for (const auto& [n, at] : fa->second) {
+            Var v;
+            v.problem = "'" + excerpt(n) + "' is assigned by " + excerpt(f) + " (at " + at.str() + ")" + through + ", called at " + loc(t[k].b).str() +
+                        ": its value after the call is not followed";
+            vars_[n] = v;
+            for (OpenBlock& b : blocks_) b.assigned.insert(n);
+          }
+        if (const auto ts = tcp_setters_.find(f); ts != tcp_setters_.end()) {
+          tool_ = runTimeFrame(t[k].s + "()", loc(t[k].b),
+                               "the function " + excerpt(f) + " (" + ts->second.str() + ")" + (through.empty() ? "" : through + ",") +
+                                   " calls set_tcp: the tool after the call is not followed");
+          for (OpenBlock& b : blocks_) b.sets_tcp = true;
         }
-      if (const auto ts = tcp_setters_.find(t[k].s); ts != tcp_setters_.end())
-        tool_ = runTimeFrame(t[k].s + "()", loc(t[k].b),
-                             "the function " + excerpt(t[k].s) + " (" + ts->second.str() + ") calls set_tcp: the tool after the call is not followed");
+      }
     }
     // a call of one of the script's functions that move the robot, a thread of the script that
     // moves it started (run name()), force control
@@ -938,6 +962,7 @@ class Reader {
     std::set<std::string> locals, globals;  ///< names declared local / global in it
     std::set<std::string> assigned;         ///< names assigned in it (functions)
     bool sets_tcp = false;                  ///< set_tcp is called in it (functions)
+    std::set<std::string> calls;            ///< the names called in it (functions)
     size_t first_motion = 0;                ///< the first motion in it
   };
   static bool sameVar(const Var& a, const Var& b) {
@@ -978,6 +1003,7 @@ class Reader {
   /// The program variables each function or thread of the script assigns (and where it starts).
   std::map<std::string, std::map<std::string, SourceLocation>> fn_assigns_;
   std::map<std::string, SourceLocation> tcp_setters_;  ///< the script's functions that call set_tcp
+  std::map<std::string, std::set<std::string>> fn_calls_;  ///< the names each function of the script calls
   std::vector<OpenBlock> blocks_;
   int loops_ = 0;
   struct Use {

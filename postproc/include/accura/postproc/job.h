@@ -43,6 +43,11 @@ inline constexpr double kMaxFrameDeg = 360;                   ///< |A|, |B|, |C|
 /// another posture than the off-line simulation (a wrist next to its singularity).
 inline constexpr double kPostureChangeDeg = 5.0;
 
+/// A URScript set_gravity whose direction differs from the model's <gravity> by more than this
+/// (deg) gets a warning where the model has joint compliance: the mounting differs (about 1.7 %
+/// of the gravity deflection per degree).
+inline constexpr double kGravityDisagreeDeg = 1.0;
+
 struct JobSettings {
   calib::RobotModel calibrated;  ///< the real robot (a calibrated model written by accura identify)
   /// Where the OLP placed the robot in the model's world (mm, deg); empty: the robot file's
@@ -157,6 +162,14 @@ ProgramCompensation compensateProgramReport(const Program& program, const JobSet
 /// the controller's shoulder/elbow/wrist branches are that geometry's). Throws InputError
 /// naming the program and the model otherwise. Used by compensate, check and batch.
 void requireArmForProgram(const Program& program, const calib::RobotDefinition& robot);
+
+/// The settings `program` runs with on its controller: a URScript program's poses are in the UR
+/// controller's Base frame, UR's DH frame 0 (URScript manual; ur_calibration.h, urConventionOf),
+/// which a robot read from ur_description's URDF from its root (base_link) has turned by 180 deg
+/// about axis 1: without robroot_in_kukaworld (--robroot) that turn is set as $ROBROOT (the
+/// robot's frame 0 in Base). Any other program or robot: `settings` as given. Used by
+/// compensateProgramReport and checkProgram.
+JobSettings settingsForProgram(const Program& program, const JobSettings& settings);
 
 /// True for a Universal Robots arm (6 revolute joints, joints 2, 3 and 4 parallel, no spherical
 /// wrist). Its controller reads no Status/Turn: a Cartesian PTP (movej(pose)) goes to the
