@@ -1438,5 +1438,36 @@ TEST(Rapid, TheReaderRecordsTheFirstReadOfEachRobtargetOtherThanAPlainTarget) {
   EXPECT_EQ(firstRead("", "  PROC other()\n    VAR robtarget p20" + v + "    pa := p20;\n  ENDPROC\n"), "");
 }
 
+// --program-tool / --program-base give the frame of one tooldata / wobjdata the module names
+// but does not declare (a system module's, user.sys); a second undeclared name is another frame
+// on the controller (ABB RAPID: each tooldata is a datum of its own), which the option does not
+// give: refused naming both, not given the first one's TCP without a word. The same name in
+// another case is the same datum (RAPID names are case-insensitive).
+TEST(Rapid, OneProgramToolIsTheFrameOfOneUndeclaredToolNotOfEvery) {
+  const std::string t1 = "[[380,40,350],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]]";
+  const std::string t2 = "[[380,40,300],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]]";
+  JobSettings s = settingsFor(test::loadBundled("abb_irb120"));
+  s.initial_tool = XyzAbc{0, 0, 100, 0, 0, 0};
+  const Program two = parseRapid(inProc("    MoveL " + t1 + ", v100, fine, tGripper;\n    MoveL " + t2 + ", v100, fine, tWeld;\n"), "r.mod");
+  try {
+    compensateProgramReport(two, s);
+    ADD_FAILURE() << "two undeclared tooldata took one --program-tool";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()),
+              "r.mod:4:5: expected one tooldata that the program does not declare (--program-tool gives its TCP, taken for 'tGripper' at "
+              "r.mod:3:5), found a second, 'tWeld', whose value the controller has and accura does not: declare it in the module");
+  }
+  // the same for work objects
+  JobSettings sb = settingsFor(test::loadBundled("abb_irb120"));
+  sb.initial_base = XyzAbc{0, 0, 0, 0, 0, 0};
+  EXPECT_THROW(compensateProgramReport(parseRapid(inProc("    MoveL " + t1 + ", v100, fine, tool0\\WObj:=wA;\n    MoveL " + t2 +
+                                                         ", v100, fine, tool0\\WObj:=wB;\n"), "r.mod"), sb),
+               InputError);
+  // one undeclared tool written in two cases: the option's TCP for both
+  const ProgramCompensation one =
+      compensateProgramReport(parseRapid(inProc("    MoveL " + t1 + ", v100, fine, tGripper;\n    MoveL " + t2 + ", v100, fine, TGRIPPER;\n"), "r.mod"), s);
+  EXPECT_TRUE(one.ok());
+}
+
 }  // namespace
 }  // namespace accura::postproc

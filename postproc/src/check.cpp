@@ -598,6 +598,7 @@ namespace {
 CheckReport checkProgramWith(const Program& program, const JobSettings& job, const Cell& cell, const CheckOptions& options,
                              const CellGeometry* geometry) {
   requireArmForProgram(program, job.calibrated.nominal);
+  requireOneUndeclaredFrame(program, job);
   CheckReport r;
   // frames and models, as compensateProgram (placement.h); the cell's <robot> is the placement
   // unless --base gives it
