@@ -1429,7 +1429,8 @@ TEST(Rapid, TheReaderRecordsTheFirstReadOfEachRobtargetOtherThanAPlainTarget) {
   EXPECT_EQ(firstRead("    draw p20;\n", "  PROC draw(robtarget p)\n  ENDPROC\n"), "r.mod:5:10 ('draw p20;')");
   EXPECT_EQ(firstRead("    IF p20.trans.z > 10 THEN\n    ENDIF\n"), "r.mod:5:8 ('IF p20.trans.z > 10 THEN')");
   EXPECT_EQ(firstRead("    VAR robtarget pb := p20;\n"), "r.mod:5:25 ('VAR robtarget pb := p20;')");
-  EXPECT_EQ(firstRead("    MoveLDO p20,v200,fine,tool0,do1,1;\n"), "r.mod:5:13 ('MoveLDO p20,v200,fine,tool0,do1,1;')");
+  EXPECT_EQ(firstRead("    SearchL \\Stop,di1,pa,p20,v200,tool0;\n"), "r.mod:5:26 ('SearchL \\Stop,di1,pa,p20,v200,tool0;')");
+  EXPECT_EQ(firstRead("    MoveLDO p20,v200,fine,tool0,do1,1;\n    TriggC p20,p20,v200,gunon,fine,tool0;\n"), "");  // (compensated as MoveL's)
   EXPECT_EQ(firstRead("    MoveL RelTool(p20,0,0,n),v200,fine,tool0;\n"), "r.mod:5:19 ('MoveL RelTool(p20,0,0,n),v200,fine,tool0;')");
   EXPECT_EQ(firstRead("    MoveJ CalcRobT(CalcJointT(p20,tool0),tool0),v200,fine,tool0;\n"),
             "r.mod:5:31 ('MoveJ CalcRobT(CalcJointT(p20,tool0),tool0),v200,fine,tool0;')");
@@ -1467,6 +1468,71 @@ TEST(Rapid, OneProgramToolIsTheFrameOfOneUndeclaredToolNotOfEvery) {
   const ProgramCompensation one =
       compensateProgramReport(parseRapid(inProc("    MoveL " + t1 + ", v100, fine, tGripper;\n    MoveL " + t2 + ", v100, fine, TGRIPPER;\n"), "r.mod"), s);
   EXPECT_TRUE(one.ok());
+}
+
+// MoveJDO, MoveLSync, TriggL, MoveCDO (ABB, Technical reference manual - RAPID Instructions:
+// each moves as MoveJ / MoveL / MoveC and sets a signal, calls a procedure or fires triggers
+// besides) have their targets compensated as those of MoveJ / MoveL / MoveC: the module written
+// is the one the plain instructions give (a different route, the instructions compensated since
+// issue 12), with only the instruction lines as written. Their other arguments (\Conc, \T2,
+// the signal, the procedure) are kept byte for byte, they are never split (the pieces would
+// repeat the signal, the triggers, the procedure), and no other format takes them. Before:
+// kept as written, uncompensated.
+TEST(Rapid, MoveDoSyncAndTriggInstructionsHaveTheirTargetsCompensatedAsMoveLJC) {
+  const std::pair<std::string, std::string> lines[] = {
+      {"MoveJ p10, v1000, z20, torch\\WObj:=table;", "MoveJDO p10, v1000, z20, torch\\WObj:=table, do_gun, 0;"},
+      {"MoveL p20, v200, fine, torch\\WObj:=table;", "MoveLSync p20, v200, fine, torch\\WObj:=table, \"gun_ready\";"},
+      {"MoveL p30, v20, z1, torch\\WObj:=table;", "TriggL \\Conc, p30, v20, gunon \\T2:=gunoff, z1, torch\\WObj:=table;"},
+      {"MoveC p40, p50, v20, z1, torch\\WObj:=table;", "MoveCDO p40, p50, v20, z1, torch\\WObj:=table, do_gun, 1;"}};
+  auto special = [&](std::string text) {
+    for (const auto& [plain, other] : lines) {
+      const size_t at = text.find(plain);
+      EXPECT_NE(at, std::string::npos) << plain;
+      if (at != std::string::npos) text.replace(at, plain.size(), other);
+    }
+    return text;
+  };
+  SimulateOptions so;
+  so.effects = {"geometric", "joint_compliance"};
+  so.set_station = false;
+  so.seed = 2;
+  JobSettings s = settingsFor(perturbModel(irb120WithTorch(), so));
+  s.tol_mm = 10;  // (no piece in the plain module either)
+  const ProgramCompensation plain = compensateProgramReport(parseRapid(example(), "plain.mod"), s);
+  ASSERT_TRUE(plain.ok()) << plain.report.errors.front().message;
+  const std::string written_plain = writeRapid(plain.program);
+  ASSERT_NE(written_plain, example());  // (the targets are corrected)
+  const ProgramCompensation c = compensateProgramReport(parseRapid(special(example()), "other.mod"), s);
+  ASSERT_TRUE(c.ok()) << c.report.errors.front().message;
+  for (const ProgramIssue& w : c.report.warnings) EXPECT_EQ(w.message.find("left unchanged"), std::string::npos) << w.message;
+  EXPECT_EQ(writeRapid(c.program), special(written_plain));
+  // a tolerance that splits the plain MoveL p30 and MoveC: the others are not split
+  JobSettings fine_tol = s;
+  fine_tol.tol_mm = 0.001;
+  const ProgramCompensation split = compensateProgramReport(parseRapid(example(), "plain.mod"), fine_tol);
+  ASSERT_TRUE(split.ok());
+  ASSERT_GT(split.program.motions.size(), plain.program.motions.size());
+  const ProgramCompensation kept = compensateProgramReport(parseRapid(special(example()), "other.mod"), fine_tol);
+  ASSERT_TRUE(kept.ok());
+  auto pieces = [](const ProgramCompensation& pc, const std::string& of) {
+    int n = 0;
+    for (const Motion& m : pc.program.motions) n += m.inserted && m.statement == of ? 1 : 0;
+    return n;
+  };
+  for (const auto& [plain_line, other] : lines) {
+    if (plain_line.rfind("MoveJ", 0) != 0) {
+      EXPECT_GT(pieces(split, plain_line), 0) << plain_line;
+    }
+    EXPECT_EQ(pieces(kept, other), 0) << other;
+  }
+  // another format would lose the signal, the triggers, the procedure: refused, named
+  try {
+    renderProgram(parseRapid(special(example()), "other.mod"), ProgramFormat::kXml, "other.xml");
+    ADD_FAILURE() << "a MoveJDO converted";
+  } catch (const std::exception& e) {
+    EXPECT_NE(std::string(e.what()).find("MoveJDO does more than move (a signal, a trigger or a procedure), which only RAPID carries"),
+              std::string::npos) << e.what();
+  }
 }
 
 }  // namespace

@@ -73,6 +73,30 @@ const std::set<std::string> kOtherMoves = {
     "PAINTC", "PAINTLSIG", "PAINTLDO", "DISPL", "DISPC", "CONTACTL", "FCPRESSL", "FCPRESSC", "FCPRESSLSTART",
     "FCPRESSEND", "TRIGGRELJ", "TRIGGLDO", "TRIGGJDO", "TRIGGCDO", "CSSDEACTMOVEL", "MOVELTRACK"};
 
+/// The motion instructions with a robtarget that move as MoveL, MoveJ or MoveC and do
+/// something else besides (ABB, Technical reference manual - RAPID Instructions, Functions and
+/// Data types: MoveLDO ToPoint [\ID] Speed [\T] Zone Tool [\WObj] [\TLoad] Signal Value;
+/// MoveLAO the same with an analog signal; MoveLSync ToPoint .. Tool [\WObj] [\TLoad] ProcName;
+/// TriggL [\Conc] ToPoint [\ID] Speed [\T] Trigg_1 [\T2] .. [\T8] Zone [\Inpos] Tool [\WObj]
+/// [\Corr] [\TLoad]; the J and C forms alike, C with CirPoint first): their targets are
+/// compensated as those of MoveL/MoveJ/MoveC. The positional arguments: how many, and which are
+/// the speed, the zone and the tool (the targets come first). Another count (an instruction of
+/// another RobotWare, a typo the controller would refuse) is kept as written and named, as the
+/// instructions of kOtherMoves are.
+struct MoveLayout {
+  MotionType type;
+  size_t count, speed, zone, tool;
+};
+const std::map<std::string, MoveLayout> kLayouts = {
+    {"MOVEL", {MotionType::kLin, 4, 1, 2, 3}},       {"MOVEJ", {MotionType::kPtp, 4, 1, 2, 3}},
+    {"MOVEC", {MotionType::kCirc, 5, 2, 3, 4}},      {"MOVEABSJ", {MotionType::kPtp, 4, 1, 2, 3}},
+    {"MOVELDO", {MotionType::kLin, 6, 1, 2, 3}},     {"MOVEJDO", {MotionType::kPtp, 6, 1, 2, 3}},
+    {"MOVECDO", {MotionType::kCirc, 7, 2, 3, 4}},    {"MOVELAO", {MotionType::kLin, 6, 1, 2, 3}},
+    {"MOVEJAO", {MotionType::kPtp, 6, 1, 2, 3}},     {"MOVECAO", {MotionType::kCirc, 7, 2, 3, 4}},
+    {"MOVELSYNC", {MotionType::kLin, 5, 1, 2, 3}},   {"MOVEJSYNC", {MotionType::kPtp, 5, 1, 2, 3}},
+    {"MOVECSYNC", {MotionType::kCirc, 6, 2, 3, 4}},  {"TRIGGL", {MotionType::kLin, 5, 1, 3, 4}},
+    {"TRIGGJ", {MotionType::kPtp, 5, 1, 3, 4}},      {"TRIGGC", {MotionType::kCirc, 6, 2, 4, 5}}};
+
 class Reader {
  public:
   Reader(const std::string& text, const std::string& path) : src_(std::make_shared<RapidSource>()) {
@@ -482,6 +506,7 @@ class Reader {
     if (u == "EOFFSON" || u == "EOFFSSET") eoffs_ = loc(t[i].b), eoffs_name_ = t[i].s;
     if (u == "EOFFSOFF") eoffs_.reset();
     if (u == "MOVEL" || u == "MOVEJ" || u == "MOVEC" || u == "MOVEABSJ") return move(r, p);
+    if (t[i].kind == Tok::Kind::kIdent && kLayouts.count(u) && positionalCount(r) == kLayouts.at(u).count) return move(r, p);
     if (t[i].kind == Tok::Kind::kIdent && kOtherMoves.count(u)) {
       noteReads(r);  // (its target is kept as written)
       return otherMove(r, p);
@@ -989,9 +1014,18 @@ class Reader {
     return out;
   }
 
+  /// The number of positional (not optional) arguments of the instruction statement r.
+  size_t positionalCount(Range r) {
+    size_t n = 0;
+    for (const Arg& a : arguments(r)) n += a.main.first != a.main.second ? 1 : 0;
+    return n;
+  }
+
   void move(Range r, Program& p) {
     const std::string& f = t_[r.first].s;
     const std::string u = t_[r.first].u;
+    const MoveLayout& lay = kLayouts.at(u);
+    const bool circ = lay.type == MotionType::kCirc;
     std::vector<Arg> all = arguments({r.first, r.second});
     std::vector<Arg> pos;
     std::map<std::string, Range> opt;
@@ -999,7 +1033,7 @@ class Reader {
       if (a.main.first != a.main.second) pos.push_back(a);
       for (const auto& o : a.opts) opt[o.first] = o.second;
     }
-    const size_t want = u == "MOVEC" ? 5 : 4;
+    const size_t want = lay.count;
     if (pos.size() != want) {
       static const char* sig[] = {"ToPoint, Speed, Zone, Tool", "CirPoint, ToPoint, Speed, Zone, Tool", "ToJointPos, Speed, Zone, Tool"};
       fail(t_[r.first].b, "expected " + f + " " + sig[u == "MOVEC" ? 1 : u == "MOVEABSJ" ? 2 : 0] + " (" + std::to_string(want) +
@@ -1008,12 +1042,11 @@ class Reader {
     Motion m;
     m.where = loc(t_[r.first].b);
     m.statement = text(r);
-    m.type = u == "MOVEL" ? MotionType::kLin : u == "MOVEC" ? MotionType::kCirc : MotionType::kPtp;
+    m.type = lay.type;
     m.conf_monitored = m.type == MotionType::kPtp ? confj_ : confl_;
     m.start_unknown = flow_.motion();
     RapidSource::Statement st = statementSpan(r, m.where);
-    const size_t n = pos.size();
-    speed(pos[n - 3].main, opt, m);
+    speed(pos[lay.speed].main, opt, m);
     if (const auto it = opt.find("T"); it != opt.end()) {
       // \T:= the motion's duration (s): a motion split by the compensation gets each piece its share
       const std::optional<double> time_s = number(t_, it->second);
@@ -1026,10 +1059,13 @@ class Reader {
         m.duration_expr = it->second.first < it->second.second ? text(it->second) : std::string("\\T");
       }
     }
-    zone(pos[n - 2].main, opt, m);
-    tool(pos[n - 1].main, m);
+    zone(pos[lay.zone].main, opt, m);
+    tool(pos[lay.tool].main, m);
     wobj(opt, m);
     singleReason(r, opt, st, m);
+    // (its pieces would each set the signal, fire the triggers or call the procedure)
+    if (m.single_reason.empty() && u != "MOVEL" && u != "MOVEJ" && u != "MOVEC" && u != "MOVEABSJ")
+      m.single_reason = "it is a " + f + ", whose pieces would each repeat what it does besides moving (a signal, a trigger, a procedure)";
     if (pdisp_ && m.target_problem.empty() && u != "MOVEABSJ")
       m.target_problem = "a program displacement is active (" + pdisp_name_ + " at " + pdisp_->str() +
                          "): the robot goes to the displaced target, which accura does not model";
@@ -1038,7 +1074,7 @@ class Reader {
     // what the move reads besides its plain targets (Offs of a run-time value, a \WObj, ...)
     std::vector<Range> targets;
     if (u != "MOVEABSJ") targets.push_back(pos[0].main);
-    if (u == "MOVEC") targets.push_back(pos[1].main);
+    if (circ) targets.push_back(pos[1].main);
     size_t from = r.first + 1;
     for (const Range& a : targets) {
       noteReads({from, a.first}, r);
@@ -1073,8 +1109,8 @@ class Reader {
         if (!v.problem.empty() && !(a.second == a.first + 1)) noteReads(a, r);
         return tg;
       };
-      if (u == "MOVEC") m.aux = cart(pos[0].main);
-      m.target = cart(pos[u == "MOVEC" ? 1 : 0].main);
+      if (circ) m.aux = cart(pos[0].main);
+      m.target = cart(pos[circ ? 1 : 0].main);
     }
     addMotion(r, m, st, p);
   }
