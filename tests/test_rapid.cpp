@@ -526,7 +526,42 @@ TEST(Rapid, RelToolTakesItsRotationsAfterACommaAsTheControllerDoes) {
   // a rotation the controller computes, after a comma: kept as written and named
   const Program q = parseRapid(module("RelTool(a,0,0,10,\\Rz:=turn)"), "r.mod");
   ASSERT_EQ(q.motions.size(), 2u);
-  EXPECT_EQ(q.motions[1].target_problem, "RelTool(...) at r.mod:6:11 has a rotation that is not a number ('turn')");
+  EXPECT_EQ(q.motions[1].target_problem, "RelTool(...) at r.mod:6:11 has a rotation that is not a number or a CONST num ('turn')");
+}
+
+// Offs / RelTool with CONST num arguments (`CONST num dz := 100;`, the way production modules
+// name their approach heights): a constant's value is the one written (RAPID: a CONST is
+// never assigned), so the target is evaluated and compensated as with the numbers written out.
+// A VAR / PERS num (changed while it runs) and a routine's datum or parameter that hides the
+// constant stay run-time values: kept as written and named. Before: every name was a run-time
+// value (MoveL left unchanged).
+TEST(Rapid, OffsAndRelToolTakeTheValueOfACONSTNum) {
+  auto module = [](const std::string& target, const std::string& local = "") {
+    return "MODULE m\n  CONST robtarget a := [[380,40,350],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
+           "  CONST num dz := 100;\n  CONST num turn := -9E1;\n  VAR num vz := 100;\n  PROC main()\n" + local + "    ConfL\\Off;\n"
+           "    MoveJ a, v100, fine, tool0;\n    MoveL " + target + ", v100, fine, tool0;\n  ENDPROC\nENDMODULE\n";
+  };
+  const JobSettings s = settingsFor(shiftedIrb120());
+  auto written = [&](const std::string& text) {
+    const ProgramCompensation c = compensateProgramReport(parseRapid(text, "r.mod"), s);
+    EXPECT_TRUE(c.ok()) << (c.ok() ? std::string() : c.report.errors.front().message);
+    for (const ProgramIssue& w : c.report.warnings) EXPECT_EQ(w.message.find("left unchanged"), std::string::npos) << w.message;
+    return writeRapid(c.program);
+  };
+  // the base is 0.2, -0.1, 0.3 mm off: Offs(a,0,0,100) = [380,40,450] is written 0.2, -0.1, 0.3 mm back
+  const std::string offs = written(module("Offs(a, 0, 0, 100)"));
+  EXPECT_NE(offs.find("\n    MoveL [[379.8000,40.1000,449.7000],"), std::string::npos) << offs;
+  EXPECT_EQ(written(module("Offs(a, 0, 0, dz)")), offs);
+  const std::string rel = written(module("RelTool(a, 0, 0, -100 \\Rz:=-90)"));
+  EXPECT_NE(rel, written(module("RelTool(a, 0, 0, -100)")));  // (the rotation is taken)
+  EXPECT_EQ(written(module("RelTool(a, 0, 0, -dz \\Rz:=turn)")), rel);
+  // run-time values: kept, named
+  auto problem = [&](const std::string& text) { return parseRapid(text, "r.mod").motions.at(1).target_problem; };
+  EXPECT_EQ(problem(module("Offs(a, 0, 0, vz)")), "Offs(...) at r.mod:9:11 has an offset that is not a number or a CONST num ('vz')");
+  EXPECT_EQ(problem(module("Offs(a, 0, 0, dz)", "    VAR num dz := 5;\n")),
+            "Offs(...) at r.mod:10:11 has an offset that is not a number or a CONST num ('dz')");
+  EXPECT_EQ(problem(module("Offs(a, 0, 0, dz)", "    CONST num dz := 5;\n")), "");
+  EXPECT_EQ(problem(module("Offs(a, 0, 0, dz * 2)")), "Offs(...) at r.mod:9:11 has an offset that is not a number or a CONST num ('dz * 2')");
 }
 
 // A routine with optional parameters, declared as RAPID allows without a comma before them
@@ -1358,12 +1393,12 @@ TEST(Rapid, ConvertRefusesAMotionWhoseToolOrWorkObjectIsNotDeclared) {
 }
 
 // A robtarget corrected by one motion and also read elsewhere (the tester's r13_syntax.mod:
-// `MoveL Offs(p20, 0, 0, dz)` with dz not a number is kept as written) silently moved that read
+// `MoveL Offs(p20, 0, 0, dz)` with dz a VAR num is kept as written) silently moved that read
 // with the correction. The reader records the first such read of each declaration; the
 // compensation leaves the declaration as it is and sends the motions that correct it to a new
 // point declared after it, with the value the point gets where nothing else reads it.
 TEST(Rapid, APointAlsoReadElsewhereKeepsItsValueAndTheMotionsGoToANewPoint) {
-  const std::string head = "MODULE m\n" + kTool + kWobj + "  CONST num dz:=50;\n" + kP10 + kP20;
+  const std::string head = "MODULE m\n" + kTool + kWobj + "  VAR num dz:=50;\n" + kP10 + kP20;  // (a run-time value)
   const std::string moves_a = "  PROC main()\n    ConfL\\Off;\n    MoveJ p10,v1000,z50,tWeld\\WObj:=wTable;\n    MoveL p20,v200,fine,tWeld\\WObj:=wTable;\n";
   const std::string offs = "    MoveL Offs(p20,0,0,dz),v200,fine,tWeld\\WObj:=wTable;\n";
   const std::string moves_b = "    MoveL p20,v200,z10,tWeld\\WObj:=wTable;\n  ENDPROC\nENDMODULE\n";

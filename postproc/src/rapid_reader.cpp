@@ -53,6 +53,7 @@ struct Scope {
   std::map<std::string, std::array<double, 6>> joints;
   std::map<std::string, std::optional<double>> zones;   ///< zone radius (nullopt: fine)
   std::map<std::string, double> speeds;                 ///< v_tcp (mm/s)
+  std::map<std::string, double> consts;  ///< CONST num declared with a number (its value)
 };
 
 /// The data types whose values accura reads (a second declaration of one of them in a scope is
@@ -831,6 +832,11 @@ class Reader {
       for (Scope* s : into) s->zones[u] = radius;
       return;
     }
+    if (ty == "NUM" && isKw(t, k, "CONST")) {
+      // (a constant: its value is the one written; a VAR or PERS num may change while it runs)
+      if (const std::optional<double> x = number(t, val)) for (Scope* s : into) s->consts[u] = *x;
+      return;
+    }
     if (ty == "SPEEDDATA" && isOp(t, val.first, "[")) {
       const auto parts = bracketItems(val, 4, "a speeddata [v_tcp, v_ori, v_leax, v_reax]");
       const std::optional<double> v = number(t, parts[0]);
@@ -859,6 +865,22 @@ class Reader {
   }
 
   // --- target expressions
+
+  /// The number r is: a literal (with its sign), or the name of a CONST num declared with a
+  /// number where the text refers to it, with an optional sign (`Offs(p, 0, 0, dz)`,
+  /// `\Rz:=-ang`); nullopt for anything else (a VAR or PERS num, an expression, a parameter).
+  std::optional<double> numValue(Range r) const {
+    if (const std::optional<double> x = number(t_, r)) return x;
+    size_t k = r.first;
+    const bool minus = r.second == r.first + 2 && isOp(t_, k, "-");
+    if (r.second == r.first + 2 && (minus || isOp(t_, k, "+"))) ++k;
+    if (k + 1 != r.second || t_[k].kind != Tok::Kind::kIdent) return std::nullopt;
+    const std::string& u = t_[k].u;
+    if (params_.count(u) && !local_.names.count(u)) return std::nullopt;  // (the call's value)
+    const double* c = lookup(&Scope::consts, u);
+    if (!c) return std::nullopt;
+    return minus ? -*c : *c;
+  }
 
   TargetVal target(Range r) {
     TargetVal tv;
@@ -921,10 +943,10 @@ class Reader {
         size_t e = o + 3;
         while (e < r.second - 1 && !isOp(t_, e, "\\")) ++e;
         const size_t ve = valueEnd(o + 3, e);
-        const std::optional<double> x = number(t_, {o + 3, ve});
+        const std::optional<double> x = numValue({o + 3, ve});
         if (!x) {
           TargetVal tv;
-          tv.problem = "RelTool(...) at " + loc(t_[r.first].b).str() + " has a rotation that is not a number ('" + quoted({o + 3, ve}) + "')";
+          tv.problem = "RelTool(...) at " + loc(t_[r.first].b).str() + " has a rotation that is not a number or a CONST num ('" + quoted({o + 3, ve}) + "')";
           return tv;
         }
         if (std::abs(*x) > kMaxAngleDeg) shape(o + 3, "a rotation in deg within +-" + calib::formatFixed(kMaxAngleDeg, 0) + " in RelTool", text({o + 3, ve}));
@@ -945,9 +967,9 @@ class Reader {
     }
     double d[3];
     for (int k = 0; k < 3; ++k) {
-      const std::optional<double> x = number(t_, args[static_cast<size_t>(k + 1)]);
+      const std::optional<double> x = numValue(args[static_cast<size_t>(k + 1)]);
       if (!x) {
-        tv.problem = f + "(...) at " + loc(t_[r.first].b).str() + " has an offset that is not a number ('" + quoted(args[static_cast<size_t>(k + 1)]) + "')";
+        tv.problem = f + "(...) at " + loc(t_[r.first].b).str() + " has an offset that is not a number or a CONST num ('" + quoted(args[static_cast<size_t>(k + 1)]) + "')";
         return tv;
       }
       if (std::abs(*x) > kMaxPositionMm)
