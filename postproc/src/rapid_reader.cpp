@@ -378,8 +378,10 @@ class Reader {
       for (const Param& q : parameters(r, k))
         if (!q.optional) ch.push_back(q.changed);
     }
+    std::string cur;  // the routine being scanned (upper case)
     for (const Range& r : stmts_) {
       size_t k = r.first;
+      if (const size_t n = routineNameAt(r); n != kNoHead) cur = t_[n].u;
       if (k >= r.second || t_[k].kind != Tok::Kind::kIdent) continue;
       size_t j = k + 1;
       while (j + 1 < r.second && isOp(t_, j, ".") && t_[j + 1].kind == Tok::Kind::kIdent) j += 2;
@@ -393,9 +395,10 @@ class Reader {
         size_t i = 0;
         for (const Range& a : items(t_, q + 2, close)) {
           if (a.first < a.second && isOp(t_, a.first, "\\")) continue;  // an optional argument
-          if (i < fn->second.size() && fn->second[i] && a.first < a.second && t_[a.first].kind == Tok::Kind::kIdent &&
-              !assigned_.count(t_[a.first].u))
-            assigned_[t_[a.first].u] = loc(t_[a.first].b);
+          if (i < fn->second.size() && fn->second[i] && a.first < a.second && t_[a.first].kind == Tok::Kind::kIdent) {
+            assigners_[t_[a.first].u].insert("");
+            if (!assigned_.count(t_[a.first].u)) assigned_[t_[a.first].u] = loc(t_[a.first].b);
+          }
           ++i;
         }
       }
@@ -403,6 +406,7 @@ class Reader {
         // (a tool's load does not move its frame)
         const bool load_only = j > k + 1 && t_[k + 2].u == "TLOAD";
         if (!load_only && !assigned_.count(t_[k].u)) assigned_[t_[k].u] = loc(t_[k].b);
+        if (!load_only) assigners_[t_[k].u].insert(cur);
         continue;
       }
       // a procedure call: its positional arguments
@@ -415,8 +419,9 @@ class Reader {
       for (const Arg& a : arguments({k, r.second}))
         if (a.main.first != a.main.second) pos.push_back(a.main);
       auto changed = [&](size_t i) {
-        if (i < pos.size() && t_[pos[i].first].kind == Tok::Kind::kIdent && !assigned_.count(t_[pos[i].first].u))
-          assigned_[t_[pos[i].first].u] = loc(t_[pos[i].first].b);
+        if (i >= pos.size() || t_[pos[i].first].kind != Tok::Kind::kIdent) return;
+        assigners_[t_[pos[i].first].u].insert("");
+        if (!assigned_.count(t_[pos[i].first].u)) assigned_[t_[pos[i].first].u] = loc(t_[pos[i].first].b);
       };
       if (u == "ADD") changed(0);
       if (search) changed(1);  // Search*: [\Stop|...,] Signal, SearchPoint, ...
@@ -512,6 +517,7 @@ class Reader {
       noteReads(r);  // (its target is kept as written)
       return otherMove(r, p);
     }
+    frameAssignment(r);
     // an assignment reads its right-hand side (its left one is a run-time value: scanAssignments)
     size_t from = i;
     for (size_t k = i; k < r.second; ++k)
@@ -525,6 +531,44 @@ class Reader {
     if ((t[i].kind == Tok::Kind::kIdent && (routines_.count(u) || u == "GOTO" || u == "CALLBYVAR")) || isOp(t, i, "%") ||
         (r.second - i == 2 && t[i].kind == Tok::Kind::kIdent && isOp(t, i + 1, ":")))
       flow_.unknown();
+    // a label: reached from a GOTO, maybe before the assignments above it ran
+    if (r.second - i == 2 && t[i].kind == Tok::Kind::kIdent && isOp(t, i + 1, ":")) assigned_here_ = Scope{};
+  }
+
+  /// A tooldata or wobjdata given a value in the routine being read (RoboDK's ABB output sets
+  /// `rdkTool := [TRUE,[[..],[..]],..];` and `rdkWObj := [..];` at the start of the routine
+  /// before every motion): the motions after it, in the routine's straight-line code, use that
+  /// value, as they do on the controller (statements run in order). Only a whole value written
+  /// out (an aggregate of numbers), at the routine's top level (not in a branch, a loop, a
+  /// compact IF or an error handler), of a datum assigned in this routine only and changed by
+  /// no call; any other assignment of it (a field, a branch's) makes it a run-time value again
+  /// from there, as does a label (a GOTO may come from before the assignment). Motions before
+  /// it, and in other routines, use a value the program sets at run time (kept, named).
+  void frameAssignment(Range r) {
+    const size_t i = r.first;
+    if (routine_.empty() || t_[i].kind != Tok::Kind::kIdent || headAt(i) != kNoHead || declarationAt(i) != kNoHead) return;
+    size_t j = i + 1;
+    while (j + 1 < r.second && isOp(t_, j, ".") && t_[j + 1].kind == Tok::Kind::kIdent) j += 2;
+    if (!isOp(t_, j, ":=")) return;
+    const std::string& u = t_[i].u;
+    if (j > i + 1 && t_[i + 2].u == "TLOAD") return;  // (a tool's load does not move its frame)
+    assigned_here_.tools.erase(u);
+    assigned_here_.wobjs.erase(u);
+    const Scope* s = declaring(u);
+    const bool tool = s && s->tools.count(u), wobj = s && s->wobjs.count(u);
+    const auto by = assigners_.find(u);
+    std::string routine_u = routine_;
+    for (char& c : routine_u) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+    if (!(tool || wobj) || j != i + 1 || depth_ != 0 || in_handler_ || conditional_.count(i) || (params_.count(u) && !local_.names.count(u)) ||
+        by == assigners_.end() || by->second != std::set<std::string>{routine_u} || !isOp(t_, j + 1, "[") || !isOp(t_, r.second - 1, ";"))
+      return;
+    const Range val{j + 1, r.second - 1};
+    try {
+      const FrameVal f = tool ? toolValue(val, excerpt(t_[i].s)) : wobjValue(val, excerpt(t_[i].s));
+      (tool ? assigned_here_.tools : assigned_here_.wobjs)[u] = f;
+    } catch (const calib::InputError&) {
+      // (a value the controller computes: names or expressions in the aggregate)
+    }
   }
 
   /// The module's PROCs that move the robot, themselves or through the ones they call (a call
@@ -590,6 +634,9 @@ class Reader {
       // the parameters (name: its value comes from the call; it hides a module datum of the
       // same name): [\][VAR|PERS|INOUT] type name[{*}], separated by ',' or '|'
       params_.clear();
+      assigned_here_ = Scope{};
+      depth_ = 0;
+      in_handler_ = false;
       for (const Param& q : parameters(r, k))
         if (!q.name.empty()) params_.insert(q.name);
       flow_ = StartTracker();  // a routine's first motion: called from anywhere
@@ -600,16 +647,23 @@ class Reader {
     if (u == "IF") {
       bool then = false;
       for (size_t k = r.first; k < r.second; ++k) then = then || (t_[k].kind == Tok::Kind::kIdent && t_[k].u == "THEN");
-      if (then) return flow_.open(StartTracker::Block::kBranch);
+      if (then) {
+        ++depth_;
+        return flow_.open(StartTracker::Block::kBranch);
+      }
       for (size_t k = r.first; k < r.second; ++k)
         if (t_[k].kind == Tok::Kind::kIdent && (routines_.count(t_[k].u) || t_[k].u == "GOTO")) flow_.unknown();
       return;
     }
+    if (u == "TEST" || u == "WHILE" || u == "FOR") ++depth_;
+    if (u == "ENDIF" || u == "ENDTEST" || u == "ENDWHILE" || u == "ENDFOR") depth_ = std::max(0, depth_ - 1);
     if (u == "TEST") return flow_.open(StartTracker::Block::kBranch);
     if (u == "ELSEIF" || u == "ELSE" || u == "CASE" || u == "DEFAULT") return flow_.branch();
     if (u == "WHILE" || u == "FOR") return flow_.open(StartTracker::Block::kLoop);
     if (u == "ENDIF" || u == "ENDTEST" || u == "ENDWHILE" || u == "ENDFOR") return flow_.close();
     if (u == "ERROR" || u == "BACKWARD" || u == "UNDO") {  // a handler: entered from wherever the routine was
+      assigned_here_ = Scope{};
+      in_handler_ = true;
       flow_ = StartTracker();
       flow_.unknown();
       return;
@@ -1274,6 +1328,11 @@ class Reader {
       f.source = FrameSetting::Source::kUnknown;
       f.note = "the " + type + " '" + excerpt(f.text) + "' is a parameter of " + excerpt(routine_) + ": its value comes from the call";
       f.run_time = true;
+    } else if (const auto h = single ? (assigned_here_.*table).find(u) : (assigned_here_.*table).end(); h != (assigned_here_.*table).end()) {
+      f.where = h->second.where;  // (the value the routine assigned before this motion)
+      f.source = h->second.T ? FrameSetting::Source::kInline : FrameSetting::Source::kUnknown;
+      if (h->second.T) f.value = calib::toXyzAbc(*h->second.T);
+      f.note = h->second.note;
     } else if (assigned != assigned_.end()) {
       f.source = FrameSetting::Source::kUnknown;
       f.note = "the " + type + " '" + excerpt(f.text) + "' is assigned at " + assigned->second.str() + ": its value at run time is not the declared one";
@@ -1344,6 +1403,13 @@ class Reader {
   std::optional<SourceLocation> pdisp_, eoffs_;  ///< where PDispOn/PDispSet, EOffsOn/EOffsSet was (until Off)
   std::string pdisp_name_, eoffs_name_;
   std::map<std::string, SourceLocation> assigned_;
+  /// The routines (upper case) whose statements assign each name with ':=' (whole or a field,
+  /// not a tool's load); "" for a change through a call's argument (INOUT, VAR, Add, Search*).
+  std::map<std::string, std::set<std::string>> assigners_;
+  /// The tooldata / wobjdata values the routine being read has assigned so far (frameAssignment).
+  Scope assigned_here_;
+  int depth_ = 0;            ///< blocks (IF, WHILE, FOR, TEST) open in the routine being read
+  bool in_handler_ = false;  ///< in the routine's ERROR / BACKWARD / UNDO handler
   std::vector<std::array<std::optional<double>, 6>> ext_;  ///< external axes of each value (9E9: none)
   std::map<size_t, size_t> model_;  ///< the statements of the motion model (markModel): first token -> end
   std::vector<int> motion_lines_;
