@@ -1508,26 +1508,24 @@ TEST(Rapid, OneProgramToolIsTheFrameOfOneUndeclaredToolNotOfEvery) {
 
 // MoveJDO, MoveLSync, TriggL, MoveCDO (ABB, Technical reference manual - RAPID Instructions:
 // each moves as MoveJ / MoveL / MoveC and sets a signal, calls a procedure or fires triggers
-// besides) have their targets compensated as those of MoveJ / MoveL / MoveC: the module written
+// besides) and ArcLStart, ArcC, ArcLEnd (arc welding: they move as MoveL / MoveC and weld)
+// have their targets compensated as those of MoveJ / MoveL / MoveC: the module written
 // is the one the plain instructions give (a different route, the instructions compensated since
 // issue 12), with only the instruction lines as written. Their other arguments (\Conc, \T2,
 // the signal, the procedure) are kept byte for byte, they are never split (the pieces would
 // repeat the signal, the triggers, the procedure), and no other format takes them. Before:
 // kept as written, uncompensated.
-TEST(Rapid, MoveDoSyncAndTriggInstructionsHaveTheirTargetsCompensatedAsMoveLJC) {
-  const std::pair<std::string, std::string> lines[] = {
-      {"MoveJ p10, v1000, z20, torch\\WObj:=table;", "MoveJDO p10, v1000, z20, torch\\WObj:=table, do_gun, 0;"},
-      {"MoveL p20, v200, fine, torch\\WObj:=table;", "MoveLSync p20, v200, fine, torch\\WObj:=table, \"gun_ready\";"},
-      {"MoveL p30, v20, z1, torch\\WObj:=table;", "TriggL \\Conc, p30, v20, gunon \\T2:=gunoff, z1, torch\\WObj:=table;"},
-      {"MoveC p40, p50, v20, z1, torch\\WObj:=table;", "MoveCDO p40, p50, v20, z1, torch\\WObj:=table, do_gun, 1;"}};
-  auto special = [&](std::string text) {
-    for (const auto& [plain, other] : lines) {
-      const size_t at = text.find(plain);
-      EXPECT_NE(at, std::string::npos) << plain;
-      if (at != std::string::npos) text.replace(at, plain.size(), other);
-    }
-    return text;
-  };
+TEST(Rapid, MoveDoSyncTriggAndArcInstructionsHaveTheirTargetsCompensatedAsMoveLJC) {
+  using Lines = std::vector<std::pair<std::string, std::string>>;
+  const Lines sets[] = {
+      {{"MoveJ p10, v1000, z20, torch\\WObj:=table;", "MoveJDO p10, v1000, z20, torch\\WObj:=table, do_gun, 0;"},
+       {"MoveL p20, v200, fine, torch\\WObj:=table;", "MoveLSync p20, v200, fine, torch\\WObj:=table, \"gun_ready\";"},
+       {"MoveL p30, v20, z1, torch\\WObj:=table;", "TriggL \\Conc, p30, v20, gunon \\T2:=gunoff, z1, torch\\WObj:=table;"},
+       {"MoveC p40, p50, v20, z1, torch\\WObj:=table;", "MoveCDO p40, p50, v20, z1, torch\\WObj:=table, do_gun, 1;"}},
+      // arc welding (RobotWare Arc: ArcLStart ToPoint, Speed, Seam, Weld [\Weave], Zone, Tool [\WObj] [\Track], as production modules write it)
+      {{"MoveL p30, v20, z1, torch\\WObj:=table;", "ArcLStart p30, v20, seam1, weld1, z1, torch\\WObj:=table;"},
+       {"MoveC p40, p50, v20, z1, torch\\WObj:=table;", "ArcC p40, p50, v20, seam1, weld1\\Weave:=weave1, z1, torch\\WObj:=table\\Track:=track1;"},
+       {"MoveL p60, v20, fine, torch\\WObj:=table;", "ArcLEnd p60, v20, seam1, weld1\\Weave:=weave1, fine, torch\\WObj:=table;"}}};
   SimulateOptions so;
   so.effects = {"geometric", "joint_compliance"};
   so.set_station = false;
@@ -1538,36 +1536,47 @@ TEST(Rapid, MoveDoSyncAndTriggInstructionsHaveTheirTargetsCompensatedAsMoveLJC) 
   ASSERT_TRUE(plain.ok()) << plain.report.errors.front().message;
   const std::string written_plain = writeRapid(plain.program);
   ASSERT_NE(written_plain, example());  // (the targets are corrected)
-  const ProgramCompensation c = compensateProgramReport(parseRapid(special(example()), "other.mod"), s);
-  ASSERT_TRUE(c.ok()) << c.report.errors.front().message;
-  for (const ProgramIssue& w : c.report.warnings) EXPECT_EQ(w.message.find("left unchanged"), std::string::npos) << w.message;
-  EXPECT_EQ(writeRapid(c.program), special(written_plain));
-  // a tolerance that splits the plain MoveL p30 and MoveC: the others are not split
+  // a tolerance that splits the plain MoveLs and the MoveC
   JobSettings fine_tol = s;
   fine_tol.tol_mm = 0.001;
   const ProgramCompensation split = compensateProgramReport(parseRapid(example(), "plain.mod"), fine_tol);
   ASSERT_TRUE(split.ok());
-  ASSERT_GT(split.program.motions.size(), plain.program.motions.size());
-  const ProgramCompensation kept = compensateProgramReport(parseRapid(special(example()), "other.mod"), fine_tol);
-  ASSERT_TRUE(kept.ok());
   auto pieces = [](const ProgramCompensation& pc, const std::string& of) {
     int n = 0;
     for (const Motion& m : pc.program.motions) n += m.inserted && m.statement == of ? 1 : 0;
     return n;
   };
-  for (const auto& [plain_line, other] : lines) {
-    if (plain_line.rfind("MoveJ", 0) != 0) {
-      EXPECT_GT(pieces(split, plain_line), 0) << plain_line;
+  for (const Lines& lines : sets) {
+    auto special = [&](std::string text) {
+      for (const auto& [plain_line, other] : lines) {
+        const size_t at = text.find(plain_line);
+        EXPECT_NE(at, std::string::npos) << plain_line;
+        if (at != std::string::npos) text.replace(at, plain_line.size(), other);
+      }
+      return text;
+    };
+    const ProgramCompensation c = compensateProgramReport(parseRapid(special(example()), "other.mod"), s);
+    ASSERT_TRUE(c.ok()) << c.report.errors.front().message;
+    for (const ProgramIssue& w : c.report.warnings) EXPECT_EQ(w.message.find("left unchanged"), std::string::npos) << w.message;
+    EXPECT_EQ(writeRapid(c.program), special(written_plain));
+    // not split where the plain instruction is
+    const ProgramCompensation kept = compensateProgramReport(parseRapid(special(example()), "other.mod"), fine_tol);
+    ASSERT_TRUE(kept.ok());
+    for (const auto& [plain_line, other] : lines) {
+      if (plain_line.rfind("MoveJ", 0) != 0) {
+        EXPECT_GT(pieces(split, plain_line), 0) << plain_line;
+      }
+      EXPECT_EQ(pieces(kept, other), 0) << other;
     }
-    EXPECT_EQ(pieces(kept, other), 0) << other;
-  }
-  // another format would lose the signal, the triggers, the procedure: refused, named
-  try {
-    renderProgram(parseRapid(special(example()), "other.mod"), ProgramFormat::kXml, "other.xml");
-    ADD_FAILURE() << "a MoveJDO converted";
-  } catch (const std::exception& e) {
-    EXPECT_NE(std::string(e.what()).find("MoveJDO does more than move (a signal, a trigger or a procedure), which only RAPID carries"),
-              std::string::npos) << e.what();
+    // another format would lose the signal, the triggers, the procedure, the weld: refused, named
+    const std::string first = lines.front().second.substr(0, lines.front().second.find(' '));
+    try {
+      renderProgram(parseRapid(special(example()), "other.mod"), ProgramFormat::kXml, "other.xml");
+      ADD_FAILURE() << first << " converted";
+    } catch (const std::exception& e) {
+      EXPECT_NE(std::string(e.what()).find(first + " does more than move (a signal, a trigger, a procedure or a weld), which only RAPID carries"),
+                std::string::npos) << e.what();
+    }
   }
 }
 

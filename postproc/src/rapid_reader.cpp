@@ -79,7 +79,9 @@ const std::set<std::string> kOtherMoves = {
 /// Data types: MoveLDO ToPoint [\ID] Speed [\T] Zone Tool [\WObj] [\TLoad] Signal Value;
 /// MoveLAO the same with an analog signal; MoveLSync ToPoint .. Tool [\WObj] [\TLoad] ProcName;
 /// TriggL [\Conc] ToPoint [\ID] Speed [\T] Trigg_1 [\T2] .. [\T8] Zone [\Inpos] Tool [\WObj]
-/// [\Corr] [\TLoad]; the J and C forms alike, C with CirPoint first): their targets are
+/// [\Corr] [\TLoad]; the J and C forms alike, C with CirPoint first; the arc welding option's
+/// ArcL, ArcLStart, ArcLEnd ToPoint [\ID] Speed [\T] Seam Weld [\Weave] Zone [\Z] Tool [\WObj]
+/// [\Corr] [\Track] [\SeamName], ArcC.. with CirPoint first): their targets are
 /// compensated as those of MoveL/MoveJ/MoveC. The positional arguments: how many, and which are
 /// the speed, the zone and the tool (the targets come first). Another count (an instruction of
 /// another RobotWare, a typo the controller would refuse) is kept as written and named, as the
@@ -96,7 +98,10 @@ const std::map<std::string, MoveLayout> kLayouts = {
     {"MOVEJAO", {MotionType::kPtp, 6, 1, 2, 3}},     {"MOVECAO", {MotionType::kCirc, 7, 2, 3, 4}},
     {"MOVELSYNC", {MotionType::kLin, 5, 1, 2, 3}},   {"MOVEJSYNC", {MotionType::kPtp, 5, 1, 2, 3}},
     {"MOVECSYNC", {MotionType::kCirc, 6, 2, 3, 4}},  {"TRIGGL", {MotionType::kLin, 5, 1, 3, 4}},
-    {"TRIGGJ", {MotionType::kPtp, 5, 1, 3, 4}},      {"TRIGGC", {MotionType::kCirc, 6, 2, 4, 5}}};
+    {"TRIGGJ", {MotionType::kPtp, 5, 1, 3, 4}},      {"TRIGGC", {MotionType::kCirc, 6, 2, 4, 5}},
+    {"ARCL", {MotionType::kLin, 6, 1, 4, 5}},        {"ARCLSTART", {MotionType::kLin, 6, 1, 4, 5}},
+    {"ARCLEND", {MotionType::kLin, 6, 1, 4, 5}},     {"ARCC", {MotionType::kCirc, 7, 2, 5, 6}},
+    {"ARCCSTART", {MotionType::kCirc, 7, 2, 5, 6}},  {"ARCCEND", {MotionType::kCirc, 7, 2, 5, 6}}};
 
 class Reader {
  public:
@@ -1141,7 +1146,7 @@ class Reader {
     singleReason(r, opt, st, m);
     // (its pieces would each set the signal, fire the triggers or call the procedure)
     if (m.single_reason.empty() && u != "MOVEL" && u != "MOVEJ" && u != "MOVEC" && u != "MOVEABSJ")
-      m.single_reason = "it is a " + f + ", whose pieces would each repeat what it does besides moving (a signal, a trigger, a procedure)";
+      m.single_reason = "it is a " + f + ", whose pieces would each repeat what it does besides moving (a signal, a trigger, a procedure, a weld)";
     if (pdisp_ && m.target_problem.empty() && u != "MOVEABSJ")
       m.target_problem = "a program displacement is active (" + pdisp_name_ + " at " + pdisp_->str() +
                          "): the robot goes to the displaced target, which accura does not model";

@@ -404,7 +404,7 @@ Program rapidForConversion(const Program& program) {
     for (char& c : u) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
     if (m.target_problem.empty() && u != "MOVEL" && u != "MOVEJ" && u != "MOVEC" && u != "MOVEABSJ")
       throw calib::ArgumentError(m.where.str() + ": cannot convert '" + detail::excerpt(m.statement) + "': " + word +
-                                 " does more than move (a signal, a trigger or a procedure), which only RAPID carries");
+                                 " does more than move (a signal, a trigger, a procedure or a weld), which only RAPID carries");
   }
   std::vector<std::pair<size_t, size_t>> spans;
   for (const Motion& m : out.motions) {
