@@ -1587,8 +1587,8 @@ TEST(Rapid, MoveDoSyncTriggAndArcInstructionsHaveTheirTargetsCompensatedAsMoveLJ
 // ("the tooldata 'rdkTool' is assigned at ...: its value at run time is not the declared one").
 // Now the motions after a top-level assignment of a written-out value are compensated exactly
 // as with that value declared (a different route: the declaration read since issue 12); a
-// motion before it, an assignment in a branch, a field assignment, a label after it, or an
-// assignment in another routine too keep the motion as written, named.
+// motion before it, an assignment in a branch, a field assignment, a label after it, a call of
+// a routine that assigns it or a TRAP that does keep the motion as written, named.
 TEST(Rapid, ATooldataAndWobjdataAssignedAtTheRoutineStartAreTheValueOfTheMotionsAfterIt) {
   const std::string tool = "[TRUE,[[0.000, 0.000, 150.000],[1.00000000, 0.00000000, 0.00000000, 0.00000000]],[1,[0,0,50],[1,0,0,0],0,0,0.005]]";
   const std::string wobj = "[FALSE, TRUE, \"\", [[300.000, -150.000, 100.000],[1.0, 0.0, 0.0, 0.0]],[[0,0,0],[1,0,0,0]]]";
@@ -1632,7 +1632,21 @@ TEST(Rapid, ATooldataAndWobjdataAssignedAtTheRoutineStartAreTheValueOfTheMotions
   EXPECT_EQ(kept(module(zero_tool, zero_wobj, "    IF reg1 = 1 THEN\n" + assign + "    ENDIF\n" + moves)), 2);
   EXPECT_EQ(kept(module(zero_tool, zero_wobj, assign + "    IF reg1 = 1 rdkTool.tframe.trans.z := 10;\n" + moves)), 2);
   EXPECT_EQ(kept(module(zero_tool, zero_wobj, assign + "    again:\n" + moves)), 2);
-  EXPECT_EQ(kept(module(zero_tool, zero_wobj, assign + moves, "PROC other()\n    rdkTool := " + tool + ";\nENDPROC\n")), 2);
+  // another routine that assigns it: a call of it between the assignment and the motions
+  // (also through a routine that calls it) changes the value; a TRAP may run at any time
+  const std::string other = "PROC other()\n    rdkTool := " + zero_tool + ";\nENDPROC\nPROC outer()\n    other;\nENDPROC\n";
+  EXPECT_EQ(kept(module(zero_tool, zero_wobj, assign + "    other;\n" + moves, other)), 2);
+  EXPECT_EQ(kept(module(zero_tool, zero_wobj, assign + "    outer;\n" + moves, other)), 2);
+  EXPECT_EQ(kept(module(zero_tool, zero_wobj, assign + moves, "TRAP t1\n    rdkTool := " + zero_tool + ";\nENDTRAP\n")), 2);
+  EXPECT_EQ(motionLines(module(zero_tool, zero_wobj, assign + moves, other), &n_assigned), declared);  // (not called)
+  EXPECT_EQ(n_assigned, 0);
+  EXPECT_EQ(motionLines(module(zero_tool, zero_wobj, assign + "    gripper;\n" + moves, "PROC gripper()\n    SetDO do1, 1;\nENDPROC\n"), &n_assigned),
+            declared);
+  EXPECT_EQ(n_assigned, 0);
+  // RoboDK's module of several programs: each assigns the frames before its motions
+  EXPECT_EQ(motionLines(module(zero_tool, zero_wobj, assign + moves, "PROC Prog2()\n" + assign + moves + "ENDPROC\n"), &n_assigned),
+            declared + declared);
+  EXPECT_EQ(n_assigned, 0);
   // the tool's load does not move its frame
   int n = -1;
   EXPECT_EQ(motionLines(module(zero_tool, zero_wobj, assign + "    rdkTool.tload.mass := 3;\n" + moves), &n), declared);

@@ -383,6 +383,8 @@ class Reader {
       for (const Param& q : parameters(r, k))
         if (!q.optional) ch.push_back(q.changed);
     }
+    for (const Range& r : stmts_)
+      if (const size_t n = routineNameAt(r); n != kNoHead) routine_kinds_[t_[n].u] = t_[headAt(r.first)].u;
     std::string cur;  // the routine being scanned (upper case)
     for (const Range& r : stmts_) {
       size_t k = r.first;
@@ -390,6 +392,9 @@ class Reader {
       if (k >= r.second || t_[k].kind != Tok::Kind::kIdent) continue;
       size_t j = k + 1;
       while (j + 1 < r.second && isOp(t_, j, ".") && t_[j + 1].kind == Tok::Kind::kIdent) j += 2;
+      if (!isOp(t_, j, ":=") && routine_kinds_.count(t_[k].u) && headAt(k) == kNoHead) callees_[cur].insert(t_[k].u);
+      for (size_t q = k; q + 1 < r.second; ++q)  // (a FUNC of the module called in an expression)
+        if (t_[q].kind == Tok::Kind::kIdent && isOp(t_, q + 1, "(") && routine_kinds_.count(t_[q].u)) callees_[cur].insert(t_[q].u);
       if (headAt(k) != kNoHead) continue;
       // a function of the module with INOUT / VAR parameters, called in an expression
       for (size_t q = k; q + 1 < r.second; ++q) {
@@ -523,6 +528,14 @@ class Reader {
       return otherMove(r, p);
     }
     frameAssignment(r);
+    // a call: the data the routine (or one it calls) assigns are its values from here on
+    if (isOp(t, i, "%") || u == "CALLBYVAR") assigned_here_ = Scope{};
+    for (size_t k = i; k < r.second; ++k)
+      if (t[k].kind == Tok::Kind::kIdent && routine_kinds_.count(t[k].u) && (k == i || isOp(t, k + 1, "(")) && !isOp(t, k + 1, ":="))
+        for (const std::string& n : assignedThrough(t[k].u)) {
+          assigned_here_.tools.erase(n);
+          assigned_here_.wobjs.erase(n);
+        }
     // an assignment reads its right-hand side (its left one is a run-time value: scanAssignments)
     size_t from = i;
     for (size_t k = i; k < r.second; ++k)
@@ -545,10 +558,13 @@ class Reader {
   /// before every motion): the motions after it, in the routine's straight-line code, use that
   /// value, as they do on the controller (statements run in order). Only a whole value written
   /// out (an aggregate of numbers), at the routine's top level (not in a branch, a loop, a
-  /// compact IF or an error handler), of a datum assigned in this routine only and changed by
-  /// no call; any other assignment of it (a field, a branch's) makes it a run-time value again
-  /// from there, as does a label (a GOTO may come from before the assignment). Motions before
-  /// it, and in other routines, use a value the program sets at run time (kept, named).
+  /// compact IF or an error handler), of a datum that only PROCs assign (not a FUNC or a TRAP,
+  /// which may run inside an expression or at any time) and no call changes through an
+  /// argument; any other assignment of it (a field, a branch's) makes it a run-time value again
+  /// from there, as do a call of a routine that assigns it (itself or through the ones it
+  /// calls), a late-bound call and a label (a GOTO may come from before the assignment).
+  /// Motions before it, and in other routines, use a value the program sets at run time (kept,
+  /// named).
   void frameAssignment(Range r) {
     const size_t i = r.first;
     if (routine_.empty() || t_[i].kind != Tok::Kind::kIdent || headAt(i) != kNoHead || declarationAt(i) != kNoHead) return;
@@ -562,10 +578,11 @@ class Reader {
     const Scope* s = declaring(u);
     const bool tool = s && s->tools.count(u), wobj = s && s->wobjs.count(u);
     const auto by = assigners_.find(u);
-    std::string routine_u = routine_;
-    for (char& c : routine_u) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+    bool procs_only = by != assigners_.end();
+    if (procs_only)
+      for (const std::string& a : by->second) procs_only = procs_only && routine_kinds_.count(a) && routine_kinds_.at(a) == "PROC";
     if (!(tool || wobj) || j != i + 1 || depth_ != 0 || in_handler_ || conditional_.count(i) || (params_.count(u) && !local_.names.count(u)) ||
-        by == assigners_.end() || by->second != std::set<std::string>{routine_u} || !isOp(t_, j + 1, "[") || !isOp(t_, r.second - 1, ";"))
+        !procs_only || !isOp(t_, j + 1, "[") || !isOp(t_, r.second - 1, ";"))
       return;
     const Range val{j + 1, r.second - 1};
     try {
@@ -574,6 +591,25 @@ class Reader {
     } catch (const calib::InputError&) {
       // (a value the controller computes: names or expressions in the aggregate)
     }
+  }
+
+  /// The names that the routine `callee` (upper case) assigns, itself or through the routines
+  /// it calls.
+  std::set<std::string> assignedThrough(const std::string& callee) const {
+    std::set<std::string> seen{callee};
+    std::vector<std::string> todo{callee};
+    while (!todo.empty()) {
+      const std::string c = todo.back();
+      todo.pop_back();
+      if (const auto it = callees_.find(c); it != callees_.end())
+        for (const std::string& n : it->second)
+          if (seen.insert(n).second) todo.push_back(n);
+    }
+    std::set<std::string> out;
+    for (const auto& [name, by] : assigners_)
+      for (const std::string& a : by)
+        if (seen.count(a)) out.insert(name);
+    return out;
   }
 
   /// The module's PROCs that move the robot, themselves or through the ones they call (a call
@@ -1411,6 +1447,8 @@ class Reader {
   /// The routines (upper case) whose statements assign each name with ':=' (whole or a field,
   /// not a tool's load); "" for a change through a call's argument (INOUT, VAR, Add, Search*).
   std::map<std::string, std::set<std::string>> assigners_;
+  std::map<std::string, std::string> routine_kinds_;           ///< the module's routines (upper case) -> PROC, FUNC or TRAP
+  std::map<std::string, std::set<std::string>> callees_;       ///< routine -> the module's routines its statements call
   /// The tooldata / wobjdata values the routine being read has assigned so far (frameAssignment).
   Scope assigned_here_;
   int depth_ = 0;            ///< blocks (IF, WHILE, FOR, TEST) open in the routine being read
