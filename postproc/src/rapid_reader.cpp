@@ -593,6 +593,28 @@ class Reader {
     }
   }
 
+  /// A loop whose header is r: what its body assigns (also through a call) runs before its
+  /// first statements from the second pass on, so those values are not known in the loop.
+  void forgetAssignedInLoop(Range r) {
+    int open = 0;
+    for (size_t k = r.second; k < t_.size(); ++k) {
+      const Tok& t = t_[k];
+      if (t.kind != Tok::Kind::kIdent) continue;
+      if (t.u == "WHILE" || t.u == "FOR") ++open;
+      if ((t.u == "ENDWHILE" || t.u == "ENDFOR") && open-- == 0) return;
+      if (t.u == "ENDPROC" || t.u == "ENDFUNC" || t.u == "ENDTRAP") return;
+      std::set<std::string> names;
+      size_t j = k + 1;
+      while (j + 1 < t_.size() && isOp(t_, j, ".") && t_[j + 1].kind == Tok::Kind::kIdent) j += 2;
+      if (isOp(t_, j, ":=")) names.insert(t.u);
+      if (routine_kinds_.count(t.u)) names = assignedThrough(t.u);
+      for (const std::string& n : names) {
+        assigned_here_.tools.erase(n);
+        assigned_here_.wobjs.erase(n);
+      }
+    }
+  }
+
   /// The names that the routine `callee` (upper case) assigns, itself or through the routines
   /// it calls.
   std::set<std::string> assignedThrough(const std::string& callee) const {
@@ -697,6 +719,7 @@ class Reader {
       return;
     }
     if (u == "TEST" || u == "WHILE" || u == "FOR") ++depth_;
+    if (u == "WHILE" || u == "FOR") forgetAssignedInLoop(r);
     if (u == "ENDIF" || u == "ENDTEST" || u == "ENDWHILE" || u == "ENDFOR") depth_ = std::max(0, depth_ - 1);
     if (u == "TEST") return flow_.open(StartTracker::Block::kBranch);
     if (u == "ELSEIF" || u == "ELSE" || u == "CASE" || u == "DEFAULT") return flow_.branch();
