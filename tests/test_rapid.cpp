@@ -1632,6 +1632,8 @@ TEST(Rapid, ATooldataAndWobjdataAssignedAtTheRoutineStartAreTheValueOfTheMotions
   EXPECT_EQ(kept(module(zero_tool, zero_wobj, "    IF reg1 = 1 THEN\n" + assign + "    ENDIF\n" + moves)), 2);
   EXPECT_EQ(kept(module(zero_tool, zero_wobj, assign + "    IF reg1 = 1 rdkTool.tframe.trans.z := 10;\n" + moves)), 2);
   EXPECT_EQ(kept(module(zero_tool, zero_wobj, assign + "    again:\n" + moves)), 2);
+  // an error handler that assigns it (RETRY goes back into the body)
+  EXPECT_EQ(kept(module(zero_tool, zero_wobj, assign + moves + "  ERROR\n    rdkTool := " + zero_tool + ";\n    RETRY;\n")), 2);
   // a loop whose body assigns it: from the second pass on its motions run after that assignment
   EXPECT_EQ(kept(module(zero_tool, zero_wobj, assign + "    WHILE TRUE DO\n" + moves + "      rdkTool := " + zero_tool + ";\n    ENDWHILE\n")), 2);
   // another routine that assigns it: a call of it between the assignment and the motions

@@ -582,7 +582,7 @@ class Reader {
     if (procs_only)
       for (const std::string& a : by->second) procs_only = procs_only && routine_kinds_.count(a) && routine_kinds_.at(a) == "PROC";
     if (!(tool || wobj) || j != i + 1 || depth_ != 0 || in_handler_ || conditional_.count(i) || (params_.count(u) && !local_.names.count(u)) ||
-        !procs_only || !isOp(t_, j + 1, "[") || !isOp(t_, r.second - 1, ";"))
+        !procs_only || handler_assigns_.count(u) || !isOp(t_, j + 1, "[") || !isOp(t_, r.second - 1, ";"))
       return;
     const Range val{j + 1, r.second - 1};
     try {
@@ -596,23 +596,31 @@ class Reader {
   /// A loop whose header is r: what its body assigns (also through a call) runs before its
   /// first statements from the second pass on, so those values are not known in the loop.
   void forgetAssignedInLoop(Range r) {
+    for (const std::string& n : assignedFrom(r.second, true)) {
+      assigned_here_.tools.erase(n);
+      assigned_here_.wobjs.erase(n);
+    }
+  }
+
+  /// The names the statements from token `from` assign (name := .., name.field := .., or a call
+  /// of a routine that assigns them), up to the end of the loop they are in (`loop`) or of the
+  /// routine.
+  std::set<std::string> assignedFrom(size_t from, bool loop) const {
+    std::set<std::string> out;
     int open = 0;
-    for (size_t k = r.second; k < t_.size(); ++k) {
+    for (size_t k = from; k < t_.size(); ++k) {
       const Tok& t = t_[k];
       if (t.kind != Tok::Kind::kIdent) continue;
       if (t.u == "WHILE" || t.u == "FOR") ++open;
-      if ((t.u == "ENDWHILE" || t.u == "ENDFOR") && open-- == 0) return;
-      if (t.u == "ENDPROC" || t.u == "ENDFUNC" || t.u == "ENDTRAP") return;
-      std::set<std::string> names;
+      if (loop && (t.u == "ENDWHILE" || t.u == "ENDFOR") && open-- == 0) break;
+      if (t.u == "ENDPROC" || t.u == "ENDFUNC" || t.u == "ENDTRAP") break;
       size_t j = k + 1;
       while (j + 1 < t_.size() && isOp(t_, j, ".") && t_[j + 1].kind == Tok::Kind::kIdent) j += 2;
-      if (isOp(t_, j, ":=")) names.insert(t.u);
-      if (routine_kinds_.count(t.u)) names = assignedThrough(t.u);
-      for (const std::string& n : names) {
-        assigned_here_.tools.erase(n);
-        assigned_here_.wobjs.erase(n);
-      }
+      if (isOp(t_, j, ":=")) out.insert(t.u);
+      if (routine_kinds_.count(t.u))
+        for (const std::string& n : assignedThrough(t.u)) out.insert(n);
     }
+    return out;
   }
 
   /// The names that the routine `callee` (upper case) assigns, itself or through the routines
@@ -700,6 +708,13 @@ class Reader {
       assigned_here_ = Scope{};
       depth_ = 0;
       in_handler_ = false;
+      // what its error handler assigns: a RETRY / TRYNEXT goes back into the routine's body
+      handler_assigns_.clear();
+      for (size_t q = r.second; q < t_.size() && !(t_[q].kind == Tok::Kind::kIdent && (t_[q].u == "ENDPROC" || t_[q].u == "ENDFUNC" || t_[q].u == "ENDTRAP")); ++q)
+        if (t_[q].kind == Tok::Kind::kIdent && (t_[q].u == "ERROR" || t_[q].u == "BACKWARD" || t_[q].u == "UNDO")) {
+          handler_assigns_ = assignedFrom(q + 1, false);
+          break;
+        }
       for (const Param& q : parameters(r, k))
         if (!q.name.empty()) params_.insert(q.name);
       flow_ = StartTracker();  // a routine's first motion: called from anywhere
@@ -1476,6 +1491,7 @@ class Reader {
   Scope assigned_here_;
   int depth_ = 0;            ///< blocks (IF, WHILE, FOR, TEST) open in the routine being read
   bool in_handler_ = false;  ///< in the routine's ERROR / BACKWARD / UNDO handler
+  std::set<std::string> handler_assigns_;  ///< what the routine's handler assigns (assignedFrom)
   std::vector<std::array<std::optional<double>, 6>> ext_;  ///< external axes of each value (9E9: none)
   std::map<size_t, size_t> model_;  ///< the statements of the motion model (markModel): first token -> end
   std::vector<int> motion_lines_;
