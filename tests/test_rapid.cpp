@@ -1642,6 +1642,7 @@ TEST(Rapid, ATooldataAndWobjdataAssignedAtTheRoutineStartAreTheValueOfTheMotions
   EXPECT_EQ(kept(module(zero_tool, zero_wobj, assign + "    other;\n" + moves, other)), 2);
   EXPECT_EQ(kept(module(zero_tool, zero_wobj, assign + "    outer;\n" + moves, other)), 2);
   EXPECT_EQ(kept(module(zero_tool, zero_wobj, assign + moves, "TRAP t1\n    rdkTool := " + zero_tool + ";\nENDTRAP\n")), 2);
+  EXPECT_EQ(kept(module(zero_tool, zero_wobj, assign + moves, other + "TRAP t2\n    outer;\nENDTRAP\n")), 2);
   EXPECT_EQ(motionLines(module(zero_tool, zero_wobj, assign + moves, other), &n_assigned), declared);  // (not called)
   EXPECT_EQ(n_assigned, 0);
   EXPECT_EQ(motionLines(module(zero_tool, zero_wobj, assign + "    gripper;\n" + moves, "PROC gripper()\n    SetDO do1, 1;\nENDPROC\n"), &n_assigned),

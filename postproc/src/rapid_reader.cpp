@@ -581,6 +581,8 @@ class Reader {
     bool procs_only = by != assigners_.end();
     if (procs_only)
       for (const std::string& a : by->second) procs_only = procs_only && routine_kinds_.count(a) && routine_kinds_.at(a) == "PROC";
+    for (const auto& [name, kind] : routine_kinds_)  // (also through a PROC a FUNC or a TRAP calls)
+      if (procs_only && kind != "PROC") procs_only = !assignedThrough(name).count(u);
     if (!(tool || wobj) || j != i + 1 || depth_ != 0 || in_handler_ || conditional_.count(i) || (params_.count(u) && !local_.names.count(u)) ||
         !procs_only || handler_assigns_.count(u) || !isOp(t_, j + 1, "[") || !isOp(t_, r.second - 1, ";"))
       return;
