@@ -9,6 +9,7 @@
 #include <cmath>
 #include <filesystem>
 #include <nlohmann/json.hpp>
+#include <sstream>
 
 #include "accura/calib/errors.h"
 #include "accura/calib/ik.h"
@@ -526,7 +527,42 @@ TEST(Rapid, RelToolTakesItsRotationsAfterACommaAsTheControllerDoes) {
   // a rotation the controller computes, after a comma: kept as written and named
   const Program q = parseRapid(module("RelTool(a,0,0,10,\\Rz:=turn)"), "r.mod");
   ASSERT_EQ(q.motions.size(), 2u);
-  EXPECT_EQ(q.motions[1].target_problem, "RelTool(...) at r.mod:6:11 has a rotation that is not a number ('turn')");
+  EXPECT_EQ(q.motions[1].target_problem, "RelTool(...) at r.mod:6:11 has a rotation that is not a number or a CONST num ('turn')");
+}
+
+// Offs / RelTool with CONST num arguments (`CONST num dz := 100;`, the way production modules
+// name their approach heights): a constant's value is the one written (RAPID: a CONST is
+// never assigned), so the target is evaluated and compensated as with the numbers written out.
+// A VAR / PERS num (changed while it runs) and a routine's datum or parameter that hides the
+// constant stay run-time values: kept as written and named. Before: every name was a run-time
+// value (MoveL left unchanged).
+TEST(Rapid, OffsAndRelToolTakeTheValueOfACONSTNum) {
+  auto module = [](const std::string& target, const std::string& local = "") {
+    return "MODULE m\n  CONST robtarget a := [[380,40,350],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
+           "  CONST num dz := 100;\n  CONST num turn := -9E1;\n  VAR num vz := 100;\n  PROC main()\n" + local + "    ConfL\\Off;\n"
+           "    MoveJ a, v100, fine, tool0;\n    MoveL " + target + ", v100, fine, tool0;\n  ENDPROC\nENDMODULE\n";
+  };
+  const JobSettings s = settingsFor(shiftedIrb120());
+  auto written = [&](const std::string& text) {
+    const ProgramCompensation c = compensateProgramReport(parseRapid(text, "r.mod"), s);
+    EXPECT_TRUE(c.ok()) << (c.ok() ? std::string() : c.report.errors.front().message);
+    for (const ProgramIssue& w : c.report.warnings) EXPECT_EQ(w.message.find("left unchanged"), std::string::npos) << w.message;
+    return writeRapid(c.program);
+  };
+  // the base is 0.2, -0.1, 0.3 mm off: Offs(a,0,0,100) = [380,40,450] is written 0.2, -0.1, 0.3 mm back
+  const std::string offs = written(module("Offs(a, 0, 0, 100)"));
+  EXPECT_NE(offs.find("\n    MoveL [[379.8000,40.1000,449.7000],"), std::string::npos) << offs;
+  EXPECT_EQ(written(module("Offs(a, 0, 0, dz)")), offs);
+  const std::string rel = written(module("RelTool(a, 0, 0, -100 \\Rz:=-90)"));
+  EXPECT_NE(rel, written(module("RelTool(a, 0, 0, -100)")));  // (the rotation is taken)
+  EXPECT_EQ(written(module("RelTool(a, 0, 0, -dz \\Rz:=turn)")), rel);
+  // run-time values: kept, named
+  auto problem = [&](const std::string& text) { return parseRapid(text, "r.mod").motions.at(1).target_problem; };
+  EXPECT_EQ(problem(module("Offs(a, 0, 0, vz)")), "Offs(...) at r.mod:9:11 has an offset that is not a number or a CONST num ('vz')");
+  EXPECT_EQ(problem(module("Offs(a, 0, 0, dz)", "    VAR num dz := 5;\n")),
+            "Offs(...) at r.mod:10:11 has an offset that is not a number or a CONST num ('dz')");
+  EXPECT_EQ(problem(module("Offs(a, 0, 0, dz)", "    CONST num dz := 5;\n")), "");
+  EXPECT_EQ(problem(module("Offs(a, 0, 0, dz * 2)")), "Offs(...) at r.mod:9:11 has an offset that is not a number or a CONST num ('dz * 2')");
 }
 
 // A routine with optional parameters, declared as RAPID allows without a comma before them
@@ -1358,12 +1394,12 @@ TEST(Rapid, ConvertRefusesAMotionWhoseToolOrWorkObjectIsNotDeclared) {
 }
 
 // A robtarget corrected by one motion and also read elsewhere (the tester's r13_syntax.mod:
-// `MoveL Offs(p20, 0, 0, dz)` with dz not a number is kept as written) silently moved that read
+// `MoveL Offs(p20, 0, 0, dz)` with dz a VAR num is kept as written) silently moved that read
 // with the correction. The reader records the first such read of each declaration; the
 // compensation leaves the declaration as it is and sends the motions that correct it to a new
 // point declared after it, with the value the point gets where nothing else reads it.
 TEST(Rapid, APointAlsoReadElsewhereKeepsItsValueAndTheMotionsGoToANewPoint) {
-  const std::string head = "MODULE m\n" + kTool + kWobj + "  CONST num dz:=50;\n" + kP10 + kP20;
+  const std::string head = "MODULE m\n" + kTool + kWobj + "  VAR num dz:=50;\n" + kP10 + kP20;  // (a run-time value)
   const std::string moves_a = "  PROC main()\n    ConfL\\Off;\n    MoveJ p10,v1000,z50,tWeld\\WObj:=wTable;\n    MoveL p20,v200,fine,tWeld\\WObj:=wTable;\n";
   const std::string offs = "    MoveL Offs(p20,0,0,dz),v200,fine,tWeld\\WObj:=wTable;\n";
   const std::string moves_b = "    MoveL p20,v200,z10,tWeld\\WObj:=wTable;\n  ENDPROC\nENDMODULE\n";
@@ -1429,13 +1465,197 @@ TEST(Rapid, TheReaderRecordsTheFirstReadOfEachRobtargetOtherThanAPlainTarget) {
   EXPECT_EQ(firstRead("    draw p20;\n", "  PROC draw(robtarget p)\n  ENDPROC\n"), "r.mod:5:10 ('draw p20;')");
   EXPECT_EQ(firstRead("    IF p20.trans.z > 10 THEN\n    ENDIF\n"), "r.mod:5:8 ('IF p20.trans.z > 10 THEN')");
   EXPECT_EQ(firstRead("    VAR robtarget pb := p20;\n"), "r.mod:5:25 ('VAR robtarget pb := p20;')");
-  EXPECT_EQ(firstRead("    MoveLDO p20,v200,fine,tool0,do1,1;\n"), "r.mod:5:13 ('MoveLDO p20,v200,fine,tool0,do1,1;')");
+  EXPECT_EQ(firstRead("    SearchL \\Stop,di1,pa,p20,v200,tool0;\n"), "r.mod:5:26 ('SearchL \\Stop,di1,pa,p20,v200,tool0;')");
+  EXPECT_EQ(firstRead("    MoveLDO p20,v200,fine,tool0,do1,1;\n    TriggC p20,p20,v200,gunon,fine,tool0;\n"), "");  // (compensated as MoveL's)
   EXPECT_EQ(firstRead("    MoveL RelTool(p20,0,0,n),v200,fine,tool0;\n"), "r.mod:5:19 ('MoveL RelTool(p20,0,0,n),v200,fine,tool0;')");
   EXPECT_EQ(firstRead("    MoveJ CalcRobT(CalcJointT(p20,tool0),tool0),v200,fine,tool0;\n"),
             "r.mod:5:31 ('MoveJ CalcRobT(CalcJointT(p20,tool0),tool0),v200,fine,tool0;')");
   // another routine's parameter or datum of the name is not the module's p20
   EXPECT_EQ(firstRead("", "  PROC other(robtarget p20)\n    pa := p20;\n  ENDPROC\n"), "");
   EXPECT_EQ(firstRead("", "  PROC other()\n    VAR robtarget p20" + v + "    pa := p20;\n  ENDPROC\n"), "");
+}
+
+// --program-tool / --program-base give the frame of one tooldata / wobjdata the module names
+// but does not declare (a system module's, user.sys); a second undeclared name is another frame
+// on the controller (ABB RAPID: each tooldata is a datum of its own), which the option does not
+// give: refused naming both, not given the first one's TCP without a word. The same name in
+// another case is the same datum (RAPID names are case-insensitive).
+TEST(Rapid, OneProgramToolIsTheFrameOfOneUndeclaredToolNotOfEvery) {
+  const std::string t1 = "[[380,40,350],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]]";
+  const std::string t2 = "[[380,40,300],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]]";
+  JobSettings s = settingsFor(test::loadBundled("abb_irb120"));
+  s.initial_tool = XyzAbc{0, 0, 100, 0, 0, 0};
+  const Program two = parseRapid(inProc("    MoveL " + t1 + ", v100, fine, tGripper;\n    MoveL " + t2 + ", v100, fine, tWeld;\n"), "r.mod");
+  try {
+    compensateProgramReport(two, s);
+    ADD_FAILURE() << "two undeclared tooldata took one --program-tool";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()),
+              "r.mod:4:5: expected one tooldata that the program does not declare (--program-tool gives its TCP, taken for 'tGripper' at "
+              "r.mod:3:5), found a second, 'tWeld', whose value the controller has and accura does not: declare it in the module");
+  }
+  // the same for work objects
+  JobSettings sb = settingsFor(test::loadBundled("abb_irb120"));
+  sb.initial_base = XyzAbc{0, 0, 0, 0, 0, 0};
+  EXPECT_THROW(compensateProgramReport(parseRapid(inProc("    MoveL " + t1 + ", v100, fine, tool0\\WObj:=wA;\n    MoveL " + t2 +
+                                                         ", v100, fine, tool0\\WObj:=wB;\n"), "r.mod"), sb),
+               InputError);
+  // one undeclared tool written in two cases: the option's TCP for both
+  const ProgramCompensation one =
+      compensateProgramReport(parseRapid(inProc("    MoveL " + t1 + ", v100, fine, tGripper;\n    MoveL " + t2 + ", v100, fine, TGRIPPER;\n"), "r.mod"), s);
+  EXPECT_TRUE(one.ok());
+}
+
+// MoveJDO, MoveLSync, TriggL, MoveCDO (ABB, Technical reference manual - RAPID Instructions:
+// each moves as MoveJ / MoveL / MoveC and sets a signal, calls a procedure or fires triggers
+// besides) and ArcLStart, ArcC, ArcLEnd (arc welding: they move as MoveL / MoveC and weld)
+// have their targets compensated as those of MoveJ / MoveL / MoveC: the module written
+// is the one the plain instructions give (a different route, the instructions compensated since
+// issue 12), with only the instruction lines as written. Their other arguments (\Conc, \T2,
+// the signal, the procedure) are kept byte for byte, they are never split (the pieces would
+// repeat the signal, the triggers, the procedure), and no other format takes them. Before:
+// kept as written, uncompensated.
+TEST(Rapid, MoveDoSyncTriggAndArcInstructionsHaveTheirTargetsCompensatedAsMoveLJC) {
+  using Lines = std::vector<std::pair<std::string, std::string>>;
+  const Lines sets[] = {
+      {{"MoveJ p10, v1000, z20, torch\\WObj:=table;", "MoveJDO p10, v1000, z20, torch\\WObj:=table, do_gun, 0;"},
+       {"MoveL p20, v200, fine, torch\\WObj:=table;", "MoveLSync p20, v200, fine, torch\\WObj:=table, \"gun_ready\";"},
+       {"MoveL p30, v20, z1, torch\\WObj:=table;", "TriggL \\Conc, p30, v20, gunon \\T2:=gunoff, z1, torch\\WObj:=table;"},
+       {"MoveC p40, p50, v20, z1, torch\\WObj:=table;", "MoveCDO p40, p50, v20, z1, torch\\WObj:=table, do_gun, 1;"}},
+      // arc welding (RobotWare Arc: ArcLStart ToPoint, Speed, Seam, Weld [\Weave], Zone, Tool [\WObj] [\Track], as production modules write it)
+      {{"MoveL p30, v20, z1, torch\\WObj:=table;", "ArcLStart p30, v20, seam1, weld1, z1, torch\\WObj:=table;"},
+       {"MoveC p40, p50, v20, z1, torch\\WObj:=table;", "ArcC p40, p50, v20, seam1, weld1\\Weave:=weave1, z1, torch\\WObj:=table\\Track:=track1;"},
+       {"MoveL p60, v20, fine, torch\\WObj:=table;", "ArcLEnd p60, v20, seam1, weld1\\Weave:=weave1, fine, torch\\WObj:=table;"}}};
+  SimulateOptions so;
+  so.effects = {"geometric", "joint_compliance"};
+  so.set_station = false;
+  so.seed = 2;
+  JobSettings s = settingsFor(perturbModel(irb120WithTorch(), so));
+  s.tol_mm = 10;  // (no piece in the plain module either)
+  const ProgramCompensation plain = compensateProgramReport(parseRapid(example(), "plain.mod"), s);
+  ASSERT_TRUE(plain.ok()) << plain.report.errors.front().message;
+  const std::string written_plain = writeRapid(plain.program);
+  ASSERT_NE(written_plain, example());  // (the targets are corrected)
+  // a tolerance that splits the plain MoveLs and the MoveC
+  JobSettings fine_tol = s;
+  fine_tol.tol_mm = 0.001;
+  const ProgramCompensation split = compensateProgramReport(parseRapid(example(), "plain.mod"), fine_tol);
+  ASSERT_TRUE(split.ok());
+  auto pieces = [](const ProgramCompensation& pc, const std::string& of) {
+    int n = 0;
+    for (const Motion& m : pc.program.motions) n += m.inserted && m.statement == of ? 1 : 0;
+    return n;
+  };
+  for (const Lines& lines : sets) {
+    auto special = [&](std::string text) {
+      for (const auto& [plain_line, other] : lines) {
+        const size_t at = text.find(plain_line);
+        EXPECT_NE(at, std::string::npos) << plain_line;
+        if (at != std::string::npos) text.replace(at, plain_line.size(), other);
+      }
+      return text;
+    };
+    const ProgramCompensation c = compensateProgramReport(parseRapid(special(example()), "other.mod"), s);
+    ASSERT_TRUE(c.ok()) << c.report.errors.front().message;
+    for (const ProgramIssue& w : c.report.warnings) EXPECT_EQ(w.message.find("left unchanged"), std::string::npos) << w.message;
+    EXPECT_EQ(writeRapid(c.program), special(written_plain));
+    // not split where the plain instruction is
+    const ProgramCompensation kept = compensateProgramReport(parseRapid(special(example()), "other.mod"), fine_tol);
+    ASSERT_TRUE(kept.ok());
+    for (const auto& [plain_line, other] : lines) {
+      if (plain_line.rfind("MoveJ", 0) != 0) {
+        EXPECT_GT(pieces(split, plain_line), 0) << plain_line;
+      }
+      EXPECT_EQ(pieces(kept, other), 0) << other;
+    }
+    // another format would lose the signal, the triggers, the procedure, the weld: refused, named
+    const std::string first = lines.front().second.substr(0, lines.front().second.find(' '));
+    try {
+      renderProgram(parseRapid(special(example()), "other.mod"), ProgramFormat::kXml, "other.xml");
+      ADD_FAILURE() << first << " converted";
+    } catch (const std::exception& e) {
+      EXPECT_NE(std::string(e.what()).find(first + " does more than move (a signal, a trigger, a procedure or a weld), which only RAPID carries"),
+                std::string::npos) << e.what();
+    }
+  }
+}
+
+// RoboDK's ABB post-processor declares `PERS tooldata rdkTool` / `PERS wobjdata rdkWObj` with
+// zero frames and assigns their values at the start of the routine, before every motion
+// (`rdkTool := [TRUE,[[..],[..]],..];`). The controller runs the statements in order: the
+// motions after the assignment use the assigned value. Every such module was left unchanged
+// ("the tooldata 'rdkTool' is assigned at ...: its value at run time is not the declared one").
+// Now the motions after a top-level assignment of a written-out value are compensated exactly
+// as with that value declared (a different route: the declaration read since issue 12); a
+// motion before it, an assignment in a branch, a field assignment, a label after it, a call of
+// a routine that assigns it or a TRAP that does keep the motion as written, named.
+TEST(Rapid, ATooldataAndWobjdataAssignedAtTheRoutineStartAreTheValueOfTheMotionsAfterIt) {
+  const std::string tool = "[TRUE,[[0.000, 0.000, 150.000],[1.00000000, 0.00000000, 0.00000000, 0.00000000]],[1,[0,0,50],[1,0,0,0],0,0,0.005]]";
+  const std::string wobj = "[FALSE, TRUE, \"\", [[300.000, -150.000, 100.000],[1.0, 0.0, 0.0, 0.0]],[[0,0,0],[1,0,0,0]]]";
+  const std::string zero_tool = "[TRUE,[[0,0,0],[1,0,0,0]],[2,[0,0,15],[1,0,0,0],0,0,0.005]]";
+  const std::string zero_wobj = "[FALSE, TRUE, \"\", [[0,0,0],[1,0,0,0]],[[0,0,0],[1,0,0,0]]]";
+  const std::string moves =
+      "    MoveL [[40.000, 60.000, 120.000],[0.00000000, 0.00000000, 1.00000000, 0.00000000],[-1,0,-1,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]],"
+      "[500,500,5000,1000],fine,rdkTool,\\WObj:=rdkWObj;\n"
+      "    MoveL [[40.000, 60.000, 20.000],[0.00000000, 0.00000000, 1.00000000, 0.00000000],[-1,0,-1,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]],"
+      "[100.00,500,5000,1000],fine,rdkTool,\\WObj:=rdkWObj;\n";
+  auto module = [&](const std::string& t, const std::string& w, const std::string& body, const std::string& more = "") {
+    return "MODULE MOD_Prog1\n\nPERS tooldata rdkTool := " + t + ";\nPERS wobjdata rdkWObj := " + w + ";\n\nPROC Prog1()\n" + body +
+           "ENDPROC\n" + more + "\nENDMODULE\n";
+  };
+  const std::string assign = "    rdkWObj := " + wobj + ";\n    rdkTool := " + tool + ";\n";
+  const JobSettings s = perturbedIrb120();
+  auto motionLines = [&](const std::string& text, int* left_unchanged) {
+    const ProgramCompensation c = compensateProgramReport(parseRapid(text, "Prog1.mod"), s);
+    EXPECT_TRUE(c.ok()) << (c.ok() ? std::string() : c.report.errors.front().message);
+    *left_unchanged = 0;
+    for (const ProgramIssue& w : c.report.warnings) *left_unchanged += w.message.find("left unchanged") != std::string::npos;
+    std::string lines;
+    std::istringstream in(writeRapid(c.program));
+    for (std::string l; std::getline(in, l);)
+      if (l.rfind("    Move", 0) == 0) lines += l + "\n";
+    return lines;
+  };
+  int n_declared = -1, n_assigned = -1;
+  const std::string declared = motionLines(module(tool, wobj, moves), &n_declared);
+  ASSERT_NE(declared, moves);  // (corrected)
+  EXPECT_EQ(n_declared, 0);
+  EXPECT_EQ(motionLines(module(zero_tool, zero_wobj, "    ! Program generated by RoboDK\n" + assign + moves), &n_assigned), declared);
+  EXPECT_EQ(n_assigned, 0);
+  // run-time values: kept, named
+  auto kept = [&](const std::string& text) {
+    int n = 0;
+    EXPECT_EQ(motionLines(text, &n), moves) << text;
+    return n;
+  };
+  EXPECT_EQ(kept(module(zero_tool, zero_wobj, moves + assign)), 2);  // before the assignment
+  EXPECT_EQ(kept(module(zero_tool, zero_wobj, "    IF reg1 = 1 THEN\n" + assign + "    ENDIF\n" + moves)), 2);
+  EXPECT_EQ(kept(module(zero_tool, zero_wobj, assign + "    IF reg1 = 1 rdkTool.tframe.trans.z := 10;\n" + moves)), 2);
+  EXPECT_EQ(kept(module(zero_tool, zero_wobj, assign + "    again:\n" + moves)), 2);
+  // an error handler that assigns it (RETRY goes back into the body)
+  EXPECT_EQ(kept(module(zero_tool, zero_wobj, assign + moves + "  ERROR\n    rdkTool := " + zero_tool + ";\n    RETRY;\n")), 2);
+  // a loop whose body assigns it: from the second pass on its motions run after that assignment
+  EXPECT_EQ(kept(module(zero_tool, zero_wobj, assign + "    WHILE TRUE DO\n" + moves + "      rdkTool := " + zero_tool + ";\n    ENDWHILE\n")), 2);
+  // another routine that assigns it: a call of it between the assignment and the motions
+  // (also through a routine that calls it) changes the value; a TRAP may run at any time
+  const std::string other = "PROC other()\n    rdkTool := " + zero_tool + ";\nENDPROC\nPROC outer()\n    other;\nENDPROC\n";
+  EXPECT_EQ(kept(module(zero_tool, zero_wobj, assign + "    other;\n" + moves, other)), 2);
+  EXPECT_EQ(kept(module(zero_tool, zero_wobj, assign + "    outer;\n" + moves, other)), 2);
+  EXPECT_EQ(kept(module(zero_tool, zero_wobj, assign + moves, "TRAP t1\n    rdkTool := " + zero_tool + ";\nENDTRAP\n")), 2);
+  EXPECT_EQ(kept(module(zero_tool, zero_wobj, assign + moves, other + "TRAP t2\n    outer;\nENDTRAP\n")), 2);
+  EXPECT_EQ(motionLines(module(zero_tool, zero_wobj, assign + moves, other), &n_assigned), declared);  // (not called)
+  EXPECT_EQ(n_assigned, 0);
+  EXPECT_EQ(motionLines(module(zero_tool, zero_wobj, assign + "    gripper;\n" + moves, "PROC gripper()\n    SetDO do1, 1;\nENDPROC\n"), &n_assigned),
+            declared);
+  EXPECT_EQ(n_assigned, 0);
+  // RoboDK's module of several programs: each assigns the frames before its motions
+  EXPECT_EQ(motionLines(module(zero_tool, zero_wobj, assign + moves, "PROC Prog2()\n" + assign + moves + "ENDPROC\n"), &n_assigned),
+            declared + declared);
+  EXPECT_EQ(n_assigned, 0);
+  // the tool's load does not move its frame
+  int n = -1;
+  EXPECT_EQ(motionLines(module(zero_tool, zero_wobj, assign + "    rdkTool.tload.mass := 3;\n" + moves), &n), declared);
+  EXPECT_EQ(n, 0);
 }
 
 }  // namespace

@@ -599,6 +599,7 @@ CheckReport checkProgramWith(const Program& program, const JobSettings& given, c
                              const CellGeometry* geometry) {
   requireArmForProgram(program, given.calibrated.nominal);
   const JobSettings job = settingsForProgram(program, given);  // (a URScript program's Base)
+  requireOneUndeclaredFrame(program, job);
   CheckReport r;
   // frames and models, as compensateProgram (placement.h); the cell's <robot> is the placement
   // unless --base gives it

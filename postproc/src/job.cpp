@@ -1224,6 +1224,35 @@ void requireArmForProgram(const Program& program, const calib::RobotDefinition& 
                             robot.name + "': give the model of the UR that runs the program");
 }
 
+void requireOneUndeclaredFrame(const Program& program, const JobSettings& settings) {
+  // a RAPID motion names its tooldata / wobjdata (Source::kUnset with its name: declared in a
+  // system module, not in the file); each name is a frame of its own on the controller, and
+  // --program-tool / --program-base give one
+  for (const bool tool : {true, false}) {
+    if (!(tool ? settings.initial_tool : settings.initial_base)) continue;
+    const Motion* first = nullptr;
+    std::string first_name;
+    for (const Motion& m : program.motions) {
+      const FrameSetting& f = tool ? m.tool : m.base;
+      if (f.source != FrameSetting::Source::kUnset || f.text.empty()) continue;
+      std::string u = f.text;
+      for (char& c : u) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));  // (RAPID names: any case)
+      if (!first) {
+        first = &m;
+        first_name = u;
+      } else if (u != first_name) {
+        const char* type = tool ? "tooldata" : "wobjdata";
+        throw calib::InputError(m.where.file, m.where.line, m.where.column,
+                                std::string("expected one ") + type + " that the program does not declare (" +
+                                    (tool ? "--program-tool gives its TCP" : "--program-base gives its frame") + ", taken for '" +
+                                    detail::excerpt(tool ? first->tool.text : first->base.text) +
+                                    "' at " + first->where.str() + "), found a second, '" + detail::excerpt(f.text) +
+                                    "', whose value the controller has and accura does not: declare it in the module");
+      }
+    }
+  }
+}
+
 JobSettings settingsForProgram(const Program& program, const JobSettings& settings) {
   bool urscript = program.urscript != nullptr;
   for (const PassThrough& s : program.passthrough) urscript = urscript || s.language == "URScript";
@@ -1251,6 +1280,7 @@ ProgramCompensation compensateProgramReport(const Program& program, const JobSet
   if (!settings.ik.IsValid(&why)) throw calib::ArgumentError("compensateProgram: IK options: " + why);
   settings.calibrated.validate();
   requireArmForProgram(program, settings.calibrated.nominal);
+  requireOneUndeclaredFrame(program, settings);
   ProgramCompensation pc;
   JobReport& r = pc.report;
   pc.program = program;

@@ -53,6 +53,7 @@ struct Scope {
   std::map<std::string, std::array<double, 6>> joints;
   std::map<std::string, std::optional<double>> zones;   ///< zone radius (nullopt: fine)
   std::map<std::string, double> speeds;                 ///< v_tcp (mm/s)
+  std::map<std::string, double> consts;  ///< CONST num declared with a number (its value)
 };
 
 /// The data types whose values accura reads (a second declaration of one of them in a scope is
@@ -72,6 +73,35 @@ const std::set<std::string> kOtherMoves = {
     "SEARCHJ", "SEARCHEXTJ", "MOVEEXTJ", "SPOTL", "SPOTJ", "SPOTML", "SPOTMJ", "MOVEABSJDO", "CAPL", "CAPC", "PAINTL",
     "PAINTC", "PAINTLSIG", "PAINTLDO", "DISPL", "DISPC", "CONTACTL", "FCPRESSL", "FCPRESSC", "FCPRESSLSTART",
     "FCPRESSEND", "TRIGGRELJ", "TRIGGLDO", "TRIGGJDO", "TRIGGCDO", "CSSDEACTMOVEL", "MOVELTRACK"};
+
+/// The motion instructions with a robtarget that move as MoveL, MoveJ or MoveC and do
+/// something else besides (ABB, Technical reference manual - RAPID Instructions, Functions and
+/// Data types: MoveLDO ToPoint [\ID] Speed [\T] Zone Tool [\WObj] [\TLoad] Signal Value;
+/// MoveLAO the same with an analog signal; MoveLSync ToPoint .. Tool [\WObj] [\TLoad] ProcName;
+/// TriggL [\Conc] ToPoint [\ID] Speed [\T] Trigg_1 [\T2] .. [\T8] Zone [\Inpos] Tool [\WObj]
+/// [\Corr] [\TLoad]; the J and C forms alike, C with CirPoint first; the arc welding option's
+/// ArcL, ArcLStart, ArcLEnd ToPoint [\ID] Speed [\T] Seam Weld [\Weave] Zone [\Z] Tool [\WObj]
+/// [\Corr] [\Track] [\SeamName], ArcC.. with CirPoint first): their targets are
+/// compensated as those of MoveL/MoveJ/MoveC. The positional arguments: how many, and which are
+/// the speed, the zone and the tool (the targets come first). Another count (an instruction of
+/// another RobotWare, a typo the controller would refuse) is kept as written and named, as the
+/// instructions of kOtherMoves are.
+struct MoveLayout {
+  MotionType type;
+  size_t count, speed, zone, tool;
+};
+const std::map<std::string, MoveLayout> kLayouts = {
+    {"MOVEL", {MotionType::kLin, 4, 1, 2, 3}},       {"MOVEJ", {MotionType::kPtp, 4, 1, 2, 3}},
+    {"MOVEC", {MotionType::kCirc, 5, 2, 3, 4}},      {"MOVEABSJ", {MotionType::kPtp, 4, 1, 2, 3}},
+    {"MOVELDO", {MotionType::kLin, 6, 1, 2, 3}},     {"MOVEJDO", {MotionType::kPtp, 6, 1, 2, 3}},
+    {"MOVECDO", {MotionType::kCirc, 7, 2, 3, 4}},    {"MOVELAO", {MotionType::kLin, 6, 1, 2, 3}},
+    {"MOVEJAO", {MotionType::kPtp, 6, 1, 2, 3}},     {"MOVECAO", {MotionType::kCirc, 7, 2, 3, 4}},
+    {"MOVELSYNC", {MotionType::kLin, 5, 1, 2, 3}},   {"MOVEJSYNC", {MotionType::kPtp, 5, 1, 2, 3}},
+    {"MOVECSYNC", {MotionType::kCirc, 6, 2, 3, 4}},  {"TRIGGL", {MotionType::kLin, 5, 1, 3, 4}},
+    {"TRIGGJ", {MotionType::kPtp, 5, 1, 3, 4}},      {"TRIGGC", {MotionType::kCirc, 6, 2, 4, 5}},
+    {"ARCL", {MotionType::kLin, 6, 1, 4, 5}},        {"ARCLSTART", {MotionType::kLin, 6, 1, 4, 5}},
+    {"ARCLEND", {MotionType::kLin, 6, 1, 4, 5}},     {"ARCC", {MotionType::kCirc, 7, 2, 5, 6}},
+    {"ARCCSTART", {MotionType::kCirc, 7, 2, 5, 6}},  {"ARCCEND", {MotionType::kCirc, 7, 2, 5, 6}}};
 
 class Reader {
  public:
@@ -353,11 +383,18 @@ class Reader {
       for (const Param& q : parameters(r, k))
         if (!q.optional) ch.push_back(q.changed);
     }
+    for (const Range& r : stmts_)
+      if (const size_t n = routineNameAt(r); n != kNoHead) routine_kinds_[t_[n].u] = t_[headAt(r.first)].u;
+    std::string cur;  // the routine being scanned (upper case)
     for (const Range& r : stmts_) {
       size_t k = r.first;
+      if (const size_t n = routineNameAt(r); n != kNoHead) cur = t_[n].u;
       if (k >= r.second || t_[k].kind != Tok::Kind::kIdent) continue;
       size_t j = k + 1;
       while (j + 1 < r.second && isOp(t_, j, ".") && t_[j + 1].kind == Tok::Kind::kIdent) j += 2;
+      if (!isOp(t_, j, ":=") && routine_kinds_.count(t_[k].u) && headAt(k) == kNoHead) callees_[cur].insert(t_[k].u);
+      for (size_t q = k; q + 1 < r.second; ++q)  // (a FUNC of the module called in an expression)
+        if (t_[q].kind == Tok::Kind::kIdent && isOp(t_, q + 1, "(") && routine_kinds_.count(t_[q].u)) callees_[cur].insert(t_[q].u);
       if (headAt(k) != kNoHead) continue;
       // a function of the module with INOUT / VAR parameters, called in an expression
       for (size_t q = k; q + 1 < r.second; ++q) {
@@ -368,9 +405,10 @@ class Reader {
         size_t i = 0;
         for (const Range& a : items(t_, q + 2, close)) {
           if (a.first < a.second && isOp(t_, a.first, "\\")) continue;  // an optional argument
-          if (i < fn->second.size() && fn->second[i] && a.first < a.second && t_[a.first].kind == Tok::Kind::kIdent &&
-              !assigned_.count(t_[a.first].u))
-            assigned_[t_[a.first].u] = loc(t_[a.first].b);
+          if (i < fn->second.size() && fn->second[i] && a.first < a.second && t_[a.first].kind == Tok::Kind::kIdent) {
+            assigners_[t_[a.first].u].insert("");
+            if (!assigned_.count(t_[a.first].u)) assigned_[t_[a.first].u] = loc(t_[a.first].b);
+          }
           ++i;
         }
       }
@@ -378,6 +416,7 @@ class Reader {
         // (a tool's load does not move its frame)
         const bool load_only = j > k + 1 && t_[k + 2].u == "TLOAD";
         if (!load_only && !assigned_.count(t_[k].u)) assigned_[t_[k].u] = loc(t_[k].b);
+        if (!load_only) assigners_[t_[k].u].insert(cur);
         continue;
       }
       // a procedure call: its positional arguments
@@ -390,8 +429,9 @@ class Reader {
       for (const Arg& a : arguments({k, r.second}))
         if (a.main.first != a.main.second) pos.push_back(a.main);
       auto changed = [&](size_t i) {
-        if (i < pos.size() && t_[pos[i].first].kind == Tok::Kind::kIdent && !assigned_.count(t_[pos[i].first].u))
-          assigned_[t_[pos[i].first].u] = loc(t_[pos[i].first].b);
+        if (i >= pos.size() || t_[pos[i].first].kind != Tok::Kind::kIdent) return;
+        assigners_[t_[pos[i].first].u].insert("");
+        if (!assigned_.count(t_[pos[i].first].u)) assigned_[t_[pos[i].first].u] = loc(t_[pos[i].first].b);
       };
       if (u == "ADD") changed(0);
       if (search) changed(1);  // Search*: [\Stop|...,] Signal, SearchPoint, ...
@@ -482,10 +522,20 @@ class Reader {
     if (u == "EOFFSON" || u == "EOFFSSET") eoffs_ = loc(t[i].b), eoffs_name_ = t[i].s;
     if (u == "EOFFSOFF") eoffs_.reset();
     if (u == "MOVEL" || u == "MOVEJ" || u == "MOVEC" || u == "MOVEABSJ") return move(r, p);
+    if (t[i].kind == Tok::Kind::kIdent && kLayouts.count(u) && positionalCount(r) == kLayouts.at(u).count) return move(r, p);
     if (t[i].kind == Tok::Kind::kIdent && kOtherMoves.count(u)) {
       noteReads(r);  // (its target is kept as written)
       return otherMove(r, p);
     }
+    frameAssignment(r);
+    // a call: the data the routine (or one it calls) assigns are its values from here on
+    if (isOp(t, i, "%") || u == "CALLBYVAR") assigned_here_ = Scope{};
+    for (size_t k = i; k < r.second; ++k)
+      if (t[k].kind == Tok::Kind::kIdent && routine_kinds_.count(t[k].u) && (k == i || isOp(t, k + 1, "(")) && !isOp(t, k + 1, ":="))
+        for (const std::string& n : assignedThrough(t[k].u)) {
+          assigned_here_.tools.erase(n);
+          assigned_here_.wobjs.erase(n);
+        }
     // an assignment reads its right-hand side (its left one is a run-time value: scanAssignments)
     size_t from = i;
     for (size_t k = i; k < r.second; ++k)
@@ -499,6 +549,99 @@ class Reader {
     if ((t[i].kind == Tok::Kind::kIdent && (routines_.count(u) || u == "GOTO" || u == "CALLBYVAR")) || isOp(t, i, "%") ||
         (r.second - i == 2 && t[i].kind == Tok::Kind::kIdent && isOp(t, i + 1, ":")))
       flow_.unknown();
+    // a label: reached from a GOTO, maybe before the assignments above it ran
+    if (r.second - i == 2 && t[i].kind == Tok::Kind::kIdent && isOp(t, i + 1, ":")) assigned_here_ = Scope{};
+  }
+
+  /// A tooldata or wobjdata given a value in the routine being read (RoboDK's ABB output sets
+  /// `rdkTool := [TRUE,[[..],[..]],..];` and `rdkWObj := [..];` at the start of the routine
+  /// before every motion): the motions after it, in the routine's straight-line code, use that
+  /// value, as they do on the controller (statements run in order). Only a whole value written
+  /// out (an aggregate of numbers), at the routine's top level (not in a branch, a loop, a
+  /// compact IF or an error handler), of a datum that only PROCs assign (not a FUNC or a TRAP,
+  /// which may run inside an expression or at any time) and no call changes through an
+  /// argument; any other assignment of it (a field, a branch's) makes it a run-time value again
+  /// from there, as do a call of a routine that assigns it (itself or through the ones it
+  /// calls), a late-bound call and a label (a GOTO may come from before the assignment).
+  /// Motions before it, and in other routines, use a value the program sets at run time (kept,
+  /// named).
+  void frameAssignment(Range r) {
+    const size_t i = r.first;
+    if (routine_.empty() || t_[i].kind != Tok::Kind::kIdent || headAt(i) != kNoHead || declarationAt(i) != kNoHead) return;
+    size_t j = i + 1;
+    while (j + 1 < r.second && isOp(t_, j, ".") && t_[j + 1].kind == Tok::Kind::kIdent) j += 2;
+    if (!isOp(t_, j, ":=")) return;
+    const std::string& u = t_[i].u;
+    if (j > i + 1 && t_[i + 2].u == "TLOAD") return;  // (a tool's load does not move its frame)
+    assigned_here_.tools.erase(u);
+    assigned_here_.wobjs.erase(u);
+    const Scope* s = declaring(u);
+    const bool tool = s && s->tools.count(u), wobj = s && s->wobjs.count(u);
+    const auto by = assigners_.find(u);
+    bool procs_only = by != assigners_.end();
+    if (procs_only)
+      for (const std::string& a : by->second) procs_only = procs_only && routine_kinds_.count(a) && routine_kinds_.at(a) == "PROC";
+    for (const auto& [name, kind] : routine_kinds_)  // (also through a PROC a FUNC or a TRAP calls)
+      if (procs_only && kind != "PROC") procs_only = !assignedThrough(name).count(u);
+    if (!(tool || wobj) || j != i + 1 || depth_ != 0 || in_handler_ || conditional_.count(i) || (params_.count(u) && !local_.names.count(u)) ||
+        !procs_only || handler_assigns_.count(u) || !isOp(t_, j + 1, "[") || !isOp(t_, r.second - 1, ";"))
+      return;
+    const Range val{j + 1, r.second - 1};
+    try {
+      const FrameVal f = tool ? toolValue(val, excerpt(t_[i].s)) : wobjValue(val, excerpt(t_[i].s));
+      (tool ? assigned_here_.tools : assigned_here_.wobjs)[u] = f;
+    } catch (const calib::InputError&) {
+      // (a value the controller computes: names or expressions in the aggregate)
+    }
+  }
+
+  /// A loop whose header is r: what its body assigns (also through a call) runs before its
+  /// first statements from the second pass on, so those values are not known in the loop.
+  void forgetAssignedInLoop(Range r) {
+    for (const std::string& n : assignedFrom(r.second, true)) {
+      assigned_here_.tools.erase(n);
+      assigned_here_.wobjs.erase(n);
+    }
+  }
+
+  /// The names the statements from token `from` assign (name := .., name.field := .., or a call
+  /// of a routine that assigns them), up to the end of the loop they are in (`loop`) or of the
+  /// routine.
+  std::set<std::string> assignedFrom(size_t from, bool loop) const {
+    std::set<std::string> out;
+    int open = 0;
+    for (size_t k = from; k < t_.size(); ++k) {
+      const Tok& t = t_[k];
+      if (t.kind != Tok::Kind::kIdent) continue;
+      if (t.u == "WHILE" || t.u == "FOR") ++open;
+      if (loop && (t.u == "ENDWHILE" || t.u == "ENDFOR") && open-- == 0) break;
+      if (t.u == "ENDPROC" || t.u == "ENDFUNC" || t.u == "ENDTRAP") break;
+      size_t j = k + 1;
+      while (j + 1 < t_.size() && isOp(t_, j, ".") && t_[j + 1].kind == Tok::Kind::kIdent) j += 2;
+      if (isOp(t_, j, ":=")) out.insert(t.u);
+      if (routine_kinds_.count(t.u))
+        for (const std::string& n : assignedThrough(t.u)) out.insert(n);
+    }
+    return out;
+  }
+
+  /// The names that the routine `callee` (upper case) assigns, itself or through the routines
+  /// it calls.
+  std::set<std::string> assignedThrough(const std::string& callee) const {
+    std::set<std::string> seen{callee};
+    std::vector<std::string> todo{callee};
+    while (!todo.empty()) {
+      const std::string c = todo.back();
+      todo.pop_back();
+      if (const auto it = callees_.find(c); it != callees_.end())
+        for (const std::string& n : it->second)
+          if (seen.insert(n).second) todo.push_back(n);
+    }
+    std::set<std::string> out;
+    for (const auto& [name, by] : assigners_)
+      for (const std::string& a : by)
+        if (seen.count(a)) out.insert(name);
+    return out;
   }
 
   /// The module's PROCs that move the robot, themselves or through the ones they call (a call
@@ -564,6 +707,16 @@ class Reader {
       // the parameters (name: its value comes from the call; it hides a module datum of the
       // same name): [\][VAR|PERS|INOUT] type name[{*}], separated by ',' or '|'
       params_.clear();
+      assigned_here_ = Scope{};
+      depth_ = 0;
+      in_handler_ = false;
+      // what its error handler assigns: a RETRY / TRYNEXT goes back into the routine's body
+      handler_assigns_.clear();
+      for (size_t q = r.second; q < t_.size() && !(t_[q].kind == Tok::Kind::kIdent && (t_[q].u == "ENDPROC" || t_[q].u == "ENDFUNC" || t_[q].u == "ENDTRAP")); ++q)
+        if (t_[q].kind == Tok::Kind::kIdent && (t_[q].u == "ERROR" || t_[q].u == "BACKWARD" || t_[q].u == "UNDO")) {
+          handler_assigns_ = assignedFrom(q + 1, false);
+          break;
+        }
       for (const Param& q : parameters(r, k))
         if (!q.name.empty()) params_.insert(q.name);
       flow_ = StartTracker();  // a routine's first motion: called from anywhere
@@ -574,16 +727,24 @@ class Reader {
     if (u == "IF") {
       bool then = false;
       for (size_t k = r.first; k < r.second; ++k) then = then || (t_[k].kind == Tok::Kind::kIdent && t_[k].u == "THEN");
-      if (then) return flow_.open(StartTracker::Block::kBranch);
+      if (then) {
+        ++depth_;
+        return flow_.open(StartTracker::Block::kBranch);
+      }
       for (size_t k = r.first; k < r.second; ++k)
         if (t_[k].kind == Tok::Kind::kIdent && (routines_.count(t_[k].u) || t_[k].u == "GOTO")) flow_.unknown();
       return;
     }
+    if (u == "TEST" || u == "WHILE" || u == "FOR") ++depth_;
+    if (u == "WHILE" || u == "FOR") forgetAssignedInLoop(r);
+    if (u == "ENDIF" || u == "ENDTEST" || u == "ENDWHILE" || u == "ENDFOR") depth_ = std::max(0, depth_ - 1);
     if (u == "TEST") return flow_.open(StartTracker::Block::kBranch);
     if (u == "ELSEIF" || u == "ELSE" || u == "CASE" || u == "DEFAULT") return flow_.branch();
     if (u == "WHILE" || u == "FOR") return flow_.open(StartTracker::Block::kLoop);
     if (u == "ENDIF" || u == "ENDTEST" || u == "ENDWHILE" || u == "ENDFOR") return flow_.close();
     if (u == "ERROR" || u == "BACKWARD" || u == "UNDO") {  // a handler: entered from wherever the routine was
+      assigned_here_ = Scope{};
+      in_handler_ = true;
       flow_ = StartTracker();
       flow_.unknown();
       return;
@@ -806,6 +967,11 @@ class Reader {
       for (Scope* s : into) s->zones[u] = radius;
       return;
     }
+    if (ty == "NUM" && isKw(t, k, "CONST")) {
+      // (a constant: its value is the one written; a VAR or PERS num may change while it runs)
+      if (const std::optional<double> x = number(t, val)) for (Scope* s : into) s->consts[u] = *x;
+      return;
+    }
     if (ty == "SPEEDDATA" && isOp(t, val.first, "[")) {
       const auto parts = bracketItems(val, 4, "a speeddata [v_tcp, v_ori, v_leax, v_reax]");
       const std::optional<double> v = number(t, parts[0]);
@@ -834,6 +1000,22 @@ class Reader {
   }
 
   // --- target expressions
+
+  /// The number r is: a literal (with its sign), or the name of a CONST num declared with a
+  /// number where the text refers to it, with an optional sign (`Offs(p, 0, 0, dz)`,
+  /// `\Rz:=-ang`); nullopt for anything else (a VAR or PERS num, an expression, a parameter).
+  std::optional<double> numValue(Range r) const {
+    if (const std::optional<double> x = number(t_, r)) return x;
+    size_t k = r.first;
+    const bool minus = r.second == r.first + 2 && isOp(t_, k, "-");
+    if (r.second == r.first + 2 && (minus || isOp(t_, k, "+"))) ++k;
+    if (k + 1 != r.second || t_[k].kind != Tok::Kind::kIdent) return std::nullopt;
+    const std::string& u = t_[k].u;
+    if (params_.count(u) && !local_.names.count(u)) return std::nullopt;  // (the call's value)
+    const double* c = lookup(&Scope::consts, u);
+    if (!c) return std::nullopt;
+    return minus ? -*c : *c;
+  }
 
   TargetVal target(Range r) {
     TargetVal tv;
@@ -896,10 +1078,10 @@ class Reader {
         size_t e = o + 3;
         while (e < r.second - 1 && !isOp(t_, e, "\\")) ++e;
         const size_t ve = valueEnd(o + 3, e);
-        const std::optional<double> x = number(t_, {o + 3, ve});
+        const std::optional<double> x = numValue({o + 3, ve});
         if (!x) {
           TargetVal tv;
-          tv.problem = "RelTool(...) at " + loc(t_[r.first].b).str() + " has a rotation that is not a number ('" + quoted({o + 3, ve}) + "')";
+          tv.problem = "RelTool(...) at " + loc(t_[r.first].b).str() + " has a rotation that is not a number or a CONST num ('" + quoted({o + 3, ve}) + "')";
           return tv;
         }
         if (std::abs(*x) > kMaxAngleDeg) shape(o + 3, "a rotation in deg within +-" + calib::formatFixed(kMaxAngleDeg, 0) + " in RelTool", text({o + 3, ve}));
@@ -920,9 +1102,9 @@ class Reader {
     }
     double d[3];
     for (int k = 0; k < 3; ++k) {
-      const std::optional<double> x = number(t_, args[static_cast<size_t>(k + 1)]);
+      const std::optional<double> x = numValue(args[static_cast<size_t>(k + 1)]);
       if (!x) {
-        tv.problem = f + "(...) at " + loc(t_[r.first].b).str() + " has an offset that is not a number ('" + quoted(args[static_cast<size_t>(k + 1)]) + "')";
+        tv.problem = f + "(...) at " + loc(t_[r.first].b).str() + " has an offset that is not a number or a CONST num ('" + quoted(args[static_cast<size_t>(k + 1)]) + "')";
         return tv;
       }
       if (std::abs(*x) > kMaxPositionMm)
@@ -989,9 +1171,18 @@ class Reader {
     return out;
   }
 
+  /// The number of positional (not optional) arguments of the instruction statement r.
+  size_t positionalCount(Range r) {
+    size_t n = 0;
+    for (const Arg& a : arguments(r)) n += a.main.first != a.main.second ? 1 : 0;
+    return n;
+  }
+
   void move(Range r, Program& p) {
     const std::string& f = t_[r.first].s;
     const std::string u = t_[r.first].u;
+    const MoveLayout& lay = kLayouts.at(u);
+    const bool circ = lay.type == MotionType::kCirc;
     std::vector<Arg> all = arguments({r.first, r.second});
     std::vector<Arg> pos;
     std::map<std::string, Range> opt;
@@ -999,7 +1190,7 @@ class Reader {
       if (a.main.first != a.main.second) pos.push_back(a);
       for (const auto& o : a.opts) opt[o.first] = o.second;
     }
-    const size_t want = u == "MOVEC" ? 5 : 4;
+    const size_t want = lay.count;
     if (pos.size() != want) {
       static const char* sig[] = {"ToPoint, Speed, Zone, Tool", "CirPoint, ToPoint, Speed, Zone, Tool", "ToJointPos, Speed, Zone, Tool"};
       fail(t_[r.first].b, "expected " + f + " " + sig[u == "MOVEC" ? 1 : u == "MOVEABSJ" ? 2 : 0] + " (" + std::to_string(want) +
@@ -1008,12 +1199,11 @@ class Reader {
     Motion m;
     m.where = loc(t_[r.first].b);
     m.statement = text(r);
-    m.type = u == "MOVEL" ? MotionType::kLin : u == "MOVEC" ? MotionType::kCirc : MotionType::kPtp;
+    m.type = lay.type;
     m.conf_monitored = m.type == MotionType::kPtp ? confj_ : confl_;
     m.start_unknown = flow_.motion();
     RapidSource::Statement st = statementSpan(r, m.where);
-    const size_t n = pos.size();
-    speed(pos[n - 3].main, opt, m);
+    speed(pos[lay.speed].main, opt, m);
     if (const auto it = opt.find("T"); it != opt.end()) {
       // \T:= the motion's duration (s): a motion split by the compensation gets each piece its share
       const std::optional<double> time_s = number(t_, it->second);
@@ -1026,10 +1216,13 @@ class Reader {
         m.duration_expr = it->second.first < it->second.second ? text(it->second) : std::string("\\T");
       }
     }
-    zone(pos[n - 2].main, opt, m);
-    tool(pos[n - 1].main, m);
+    zone(pos[lay.zone].main, opt, m);
+    tool(pos[lay.tool].main, m);
     wobj(opt, m);
     singleReason(r, opt, st, m);
+    // (its pieces would each set the signal, fire the triggers or call the procedure)
+    if (m.single_reason.empty() && u != "MOVEL" && u != "MOVEJ" && u != "MOVEC" && u != "MOVEABSJ")
+      m.single_reason = "it is a " + f + ", whose pieces would each repeat what it does besides moving (a signal, a trigger, a procedure, a weld)";
     if (pdisp_ && m.target_problem.empty() && u != "MOVEABSJ")
       m.target_problem = "a program displacement is active (" + pdisp_name_ + " at " + pdisp_->str() +
                          "): the robot goes to the displaced target, which accura does not model";
@@ -1038,7 +1231,7 @@ class Reader {
     // what the move reads besides its plain targets (Offs of a run-time value, a \WObj, ...)
     std::vector<Range> targets;
     if (u != "MOVEABSJ") targets.push_back(pos[0].main);
-    if (u == "MOVEC") targets.push_back(pos[1].main);
+    if (circ) targets.push_back(pos[1].main);
     size_t from = r.first + 1;
     for (const Range& a : targets) {
       noteReads({from, a.first}, r);
@@ -1073,8 +1266,8 @@ class Reader {
         if (!v.problem.empty() && !(a.second == a.first + 1)) noteReads(a, r);
         return tg;
       };
-      if (u == "MOVEC") m.aux = cart(pos[0].main);
-      m.target = cart(pos[u == "MOVEC" ? 1 : 0].main);
+      if (circ) m.aux = cart(pos[0].main);
+      m.target = cart(pos[circ ? 1 : 0].main);
     }
     addMotion(r, m, st, p);
   }
@@ -1216,6 +1409,11 @@ class Reader {
       f.source = FrameSetting::Source::kUnknown;
       f.note = "the " + type + " '" + excerpt(f.text) + "' is a parameter of " + excerpt(routine_) + ": its value comes from the call";
       f.run_time = true;
+    } else if (const auto h = single ? (assigned_here_.*table).find(u) : (assigned_here_.*table).end(); h != (assigned_here_.*table).end()) {
+      f.where = h->second.where;  // (the value the routine assigned before this motion)
+      f.source = h->second.T ? FrameSetting::Source::kInline : FrameSetting::Source::kUnknown;
+      if (h->second.T) f.value = calib::toXyzAbc(*h->second.T);
+      f.note = h->second.note;
     } else if (assigned != assigned_.end()) {
       f.source = FrameSetting::Source::kUnknown;
       f.note = "the " + type + " '" + excerpt(f.text) + "' is assigned at " + assigned->second.str() + ": its value at run time is not the declared one";
@@ -1286,6 +1484,16 @@ class Reader {
   std::optional<SourceLocation> pdisp_, eoffs_;  ///< where PDispOn/PDispSet, EOffsOn/EOffsSet was (until Off)
   std::string pdisp_name_, eoffs_name_;
   std::map<std::string, SourceLocation> assigned_;
+  /// The routines (upper case) whose statements assign each name with ':=' (whole or a field,
+  /// not a tool's load); "" for a change through a call's argument (INOUT, VAR, Add, Search*).
+  std::map<std::string, std::set<std::string>> assigners_;
+  std::map<std::string, std::string> routine_kinds_;           ///< the module's routines (upper case) -> PROC, FUNC or TRAP
+  std::map<std::string, std::set<std::string>> callees_;       ///< routine -> the module's routines its statements call
+  /// The tooldata / wobjdata values the routine being read has assigned so far (frameAssignment).
+  Scope assigned_here_;
+  int depth_ = 0;            ///< blocks (IF, WHILE, FOR, TEST) open in the routine being read
+  bool in_handler_ = false;  ///< in the routine's ERROR / BACKWARD / UNDO handler
+  std::set<std::string> handler_assigns_;  ///< what the routine's handler assigns (assignedFrom)
   std::vector<std::array<std::optional<double>, 6>> ext_;  ///< external axes of each value (9E9: none)
   std::map<size_t, size_t> model_;  ///< the statements of the motion model (markModel): first token -> end
   std::vector<int> motion_lines_;

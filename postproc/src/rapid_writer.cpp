@@ -395,6 +395,17 @@ Program rapidForConversion(const Program& program) {
         throw calib::ArgumentError(m.where.str() + ": cannot convert '" + detail::excerpt(m.statement) + "': the " + type + " '" +
                                    detail::excerpt(f->text) + "' is not declared with a value in the program (a system module's?), so the " +
                                    "converted motion would have no " + what + ": declare it in the module, or convert the .prg that holds its module");
+  // MoveLDO, TriggL, MoveLSync, ... (their targets compensated as MoveL's): the motion model
+  // holds the move and not what the instruction does besides (a signal, a trigger, a
+  // procedure), so no other format can carry it (an XML would give KRL a plain LIN): refused
+  for (const Motion& m : program.motions) {
+    const std::string word = m.statement.substr(0, m.statement.find_first_of(" \t\r\n\\,;"));
+    std::string u = word;
+    for (char& c : u) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+    if (m.target_problem.empty() && u != "MOVEL" && u != "MOVEJ" && u != "MOVEC" && u != "MOVEABSJ")
+      throw calib::ArgumentError(m.where.str() + ": cannot convert '" + detail::excerpt(m.statement) + "': " + word +
+                                 " does more than move (a signal, a trigger, a procedure or a weld), which only RAPID carries");
+  }
   std::vector<std::pair<size_t, size_t>> spans;
   for (const Motion& m : out.motions) {
     const RapidSource::Statement& st = program.rapid->statements.at(static_cast<size_t>(m.statement_id));

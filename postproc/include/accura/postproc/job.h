@@ -171,6 +171,14 @@ void requireArmForProgram(const Program& program, const calib::RobotDefinition& 
 /// compensateProgramReport and checkProgram.
 JobSettings settingsForProgram(const Program& program, const JobSettings& settings);
 
+/// RAPID: a motion's tooldata or wobjdata that the program names but does not declare (a
+/// system module's, Source::kUnset with its name) takes its value from --program-tool /
+/// --program-base (JobSettings::initial_tool / initial_base), which give one frame. A second
+/// such name (any case) is another frame on the controller, whose value accura does not have:
+/// throws InputError at its first motion, naming both, when the setting is given. Used by
+/// compensate, check and batch.
+void requireOneUndeclaredFrame(const Program& program, const JobSettings& settings);
+
 /// True for a Universal Robots arm (6 revolute joints, joints 2, 3 and 4 parallel, no spherical
 /// wrist). Its controller reads no Status/Turn: a Cartesian PTP (movej(pose)) goes to the
 /// solution nearest the current joints, so compensate and check ask no S/T a program carries.
