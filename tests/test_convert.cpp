@@ -116,6 +116,50 @@ TEST(Convert, TheDefsParametersAndAPointDeclaredWithoutAValueSurviveTheRoundTrip
   EXPECT_EQ(back.dat.find("lp1"), std::string::npos) << back.dat;  // declared once, where the program had it
 }
 
+// A point with a value that no motion of the model names (a GLOBAL point other modules use, one
+// the program only reads, a motion's target changed at run time, one a subroutine declares) is
+// not declared by the KRL written anew from the model: its declaration is carried as written.
+// (Before: dropped, and the converted program did not compile, 'XP9' undeclared.)
+TEST(Convert, APointNoMotionOfTheModelNamesKeepsItsDeclaration) {
+  const std::string dir = test::tempDir("convert_unnamed_points");
+  test::writeText(dir + "/p.src",
+                  "DEF p( )\r\nDECL E6POS XLOC={X 5,Y 6,Z 7,A 0,B 90,C 0}\r\nDECL E6POS XUSED={X 1000,Y 50,Z 800,A 0,B 90,C 0}\r\n"
+                  "$TOOL={X 0,Y 0,Z 100,A 0,B 0,C 0}\r\n$BASE=XFB\r\nPTP XP1\r\nLIN XUSED\r\nIF XP9.X>0 THEN\r\n  $OUT[1]=TRUE\r\nENDIF\r\n"
+                  "XTMP=XP8\r\nXTMP=XLOC\r\nFOR I=1 TO 3\r\n  LIN XP2\r\n  XP2.Z=XP2.Z+10\r\nENDFOR\r\nEND\r\nDEF sub( )\r\n"
+                  "DECL E6POS XSUB={X 1,Y 2,Z 3,A 0,B 90,C 0}\r\nXTMP=XSUB\r\nEND\r\n");
+  const std::string g1 = "DECL GLOBAL E6POS XG1={X 100.0,Y 50.0,Z 30.0,A 160.0,B 10.0,C 170.0,S 2,T 10}";
+  const std::string p2 = "DECL E6POS XP2={X 1000,Y 0,Z 700,A 0,B 90,C 0}";
+  const std::string p8 = "DECL E6POS XP8={X 1000,Y 80,Z 800,A 0,B 90,C 0}";
+  const std::string p9 = "DECL E6POS XP9={X 1000,Y 90,Z 800,A 0,B 90,C 0}";
+  const std::string fb = "DECL FRAME XFB={X 10,Y 0,Z 0,A 0,B 0,C 0}";
+  test::writeText(dir + "/p.dat", "DEFDAT p PUBLIC\r\n" + g1 + "\r\nDECL E6POS XP1={X 1000,Y 0,Z 800,A 0,B 90,C 0}\r\n" + p2 + "\r\n" +
+                                      p8 + "\r\n" + p9 + "\r\n" + fb + "\r\nDECL E6POS XTMP\r\nDECL INT I\r\nENDDAT\r\n");
+  const Program krl = readKrl(dir + "/p.src");
+  const std::string xml = writeXmlProgram(krl);
+  const KrlText back = writeKrl(parseXmlProgram(xml, "p.xml"));
+  const std::vector<std::string> dat = lines(back.dat), src = lines(back.src);
+  for (const std::string& d : {g1, p2, p8, p9, fb}) EXPECT_NE(indexOf(dat, d), std::string::npos) << d << "\n" << back.dat;
+  EXPECT_NE(indexOf(src, "DECL E6POS XLOC={X 5,Y 6,Z 7,A 0,B 90,C 0}"), std::string::npos) << back.src;
+  EXPECT_NE(indexOf(src, "DECL E6POS XSUB={X 1,Y 2,Z 3,A 0,B 90,C 0}"), std::string::npos) << back.src;
+  // the points the motions name are declared once, by the model
+  for (const char* name : {"XP1=", "XUSED=", "XP2="}) {
+    size_t n = 0;
+    for (const std::string& l : dat) n += l.find(std::string(" ") + name) != std::string::npos;
+    for (const std::string& l : src) n += l.find(std::string(" ") + name) != std::string::npos;
+    EXPECT_EQ(n, 1u) << name << "\n" << back.src << back.dat;
+  }
+  EXPECT_NE(indexOf(dat, "DECL E6POS XUSED={X 1000.0000,Y 50.0000,Z 800.0000,A 0.00000,B 90.00000,C 0.00000}"), std::string::npos)
+      << back.dat;
+  // and the converted program reads back with the same declarations (its XML differs from the
+  // first only by the INI fold the writer gave the program, which had none)
+  const std::string again = test::tempDir("convert_unnamed_points_again");
+  test::writeText(again + "/p.src", back.src);
+  test::writeText(again + "/p.dat", back.dat);
+  const std::string xml2 = writeXmlProgram(readKrl(again + "/p.src"));
+  EXPECT_EQ(xml2, xml.substr(0, xml.find("    <tool ")) + "    <passthrough language=\"KRL\">  BAS (#INITMOV,0 )</passthrough>\n" +
+                      xml.substr(xml.find("    <tool ")));
+}
+
 TEST(Convert, AnUnknownStartTravelsThroughXml) {
   // compensating the XML must not densify the segment after a branch the KRL program has
   const std::string dir = test::tempDir("convert_start");

@@ -44,6 +44,40 @@ bool declaresModelType(const std::vector<Tok>& t) {
   return false;
 }
 
+// The names (upper case) a declaration of points gives a value: DECL [GLOBAL] [CONST] E6POS
+// XP1={..}, XP2={..} -> XP1, XP2; none for other types and for names without a value.
+std::vector<std::string> pointsDeclaredWithValue(const std::vector<Tok>& t) {
+  size_t i = 0;
+  while (i < t.size() && t[i].kind == Tok::kIdent && (t[i].up == "DECL" || t[i].up == "GLOBAL" || t[i].up == "CONST")) ++i;
+  std::vector<std::string> names;
+  if (i >= t.size() || !isPointType(t[i].up)) return names;
+  int depth = 0;
+  for (++i; i < t.size(); ++i) {
+    const std::string& x = t[i].text;
+    if (x == "[" || x == "(" || x == "{") ++depth;
+    if (x == "]" || x == ")" || x == "}") --depth;
+    if (depth == 0 && t[i].kind == Tok::kIdent && i + 1 < t.size() && t[i + 1].kind == Tok::kPunct && t[i + 1].text == "=")
+      names.push_back(t[i].up);
+  }
+  return names;
+}
+
+// The points (upper case) a KRL program written anew from the motion model declares itself
+// (generateKrl): the named targets with a value that are not the $config.dat's. The
+// declaration of any other point is carried as a pass-through statement (readKrl).
+std::set<std::string> pointsTheModelDeclares(const Program& program) {
+  std::set<std::string> out;
+  for (const Motion& m : program.motions)
+    for (const Target* x : {&m.target, m.aux ? &*m.aux : nullptr}) {
+      if (!x || x->name.empty() || x->external) continue;
+      bool any = false;
+      for (const auto& c : x->pose) any = any || c.has_value();
+      for (const auto& c : x->axes) any = any || c.has_value();
+      if (any) out.insert(upper(x->name));
+    }
+  return out;
+}
+
 // An assignment's depth-0 '=' (not '==', nor one inside an index or a call): its index in t,
 // 0 when the statement is not an assignment.
 size_t assignmentEnd(const std::vector<Tok>& t) {
@@ -1009,6 +1043,7 @@ struct Reader {
   void handleLine(const Line& l) {
     const bool before_main_end = !main_ended;
     refuse.clear();
+    declared_points_.clear();
     const bool model = interpretLine(l);
     if (model) return;
     const std::string text = f->text().substr(l.begin, l.content_end - l.begin);
@@ -1021,8 +1056,15 @@ struct Reader {
     p.spline_block = in_spline ? spline_block_number_ : 0;
     p.where = f->loc(l.begin);
     p.refuse = refuse;
+    if (!declared_points_.empty() && p.section == PassThrough::Section::kBody)
+      point_declarations_.emplace_back(program->passthrough.size(), declared_points_);
     program->passthrough.push_back(std::move(p));
   }
+  // The points the line just read declares with a value (pointsDeclaredWithValue).
+  std::vector<std::string> declared_points_;
+  // The main program's declarations of points with a value, carried for now (pass-through
+  // index, names): readKrl drops those whose points the motion model declares itself.
+  std::vector<std::pair<size_t, std::vector<std::string>>> point_declarations_;
 
   // True when the line is part of the motion model or carries nothing (blank, attribute
   // lines, the main program's DEF and END).
@@ -1111,10 +1153,13 @@ struct Reader {
       parseDeclaration(c, decl, src, false);
       if (main_ended || def_fct_) noteRoutineDeclarations(t);
       // a point declared without a value (the program assigns it) is not written anew from the
-      // model: it travels as a pass-through statement, so that the program still declares it
+      // model: it travels as a pass-through statement, so that the program still declares it;
+      // so does one with a value that no motion of the model names (readKrl: a point the
+      // program only reads, a GLOBAL one other modules use, a run-time target)
       bool value = false;
       for (const Tok& x : t) value = value || (x.text == "=" && x.kind == Tok::kPunct);
-      return declaresModelType(t) && value;
+      declared_points_ = pointsDeclaredWithValue(t);
+      return declaresModelType(t) && value && declared_points_.empty();
     }
     if (isMotionKeyword(k) && t[0].kind == Tok::kIdent) {
       // "LIN = 3" would be an assignment to a variable named like a keyword: not KRL
@@ -1148,6 +1193,7 @@ struct Reader {
 // The .dat's statements outside the motion model (declarations of other types, EXT, comments)
 // as pass-through statements of the data part.
 void datPassThrough(const KrlFile& f, Program& program) {
+  const std::set<std::string> model_points = pointsTheModelDeclares(program);
   for (const Line& l : f.lines()) {
     const std::string text = f.text().substr(l.begin, l.content_end - l.begin);
     const std::vector<Tok> t = lex(f, l.begin, l.code_end);
@@ -1158,10 +1204,14 @@ void datPassThrough(const KrlFile& f, Program& program) {
       if (t[0].text == "&" || k == "DEFDAT" || k == "ENDDAT" || (k == "PUBLIC" && t.size() > 1 && t[1].up == "DEFDAT")) continue;
       // a declaration the model holds the value of; one without a value (a point array: DECL
       // E6POS XPA[10], its elements' lines XPA[1]={..} carried too) travels as written, as in
-      // the .src, so that the program still declares what it uses
+      // the .src, so that the program still declares what it uses. So does a point with a value
+      // that no motion of the model names (the model would not declare it): one the program only
+      // reads (IF XP9.X>0, XP2=XP8), a GLOBAL one other modules use, a run-time target.
       bool value = false;
       for (const Tok& x : t) value = value || (x.kind == Tok::kPunct && x.text == "=");
-      if ((k == "DECL" || isPointType(k) || k == "FDAT" || k == "LDAT" || k == "PDAT") && declaresModelType(t) && value) continue;
+      const std::vector<std::string> points = pointsDeclaredWithValue(t);
+      const bool model_declares = std::all_of(points.begin(), points.end(), [&](const std::string& n) { return model_points.count(n) > 0; });
+      if ((k == "DECL" || isPointType(k) || k == "FDAT" || k == "LDAT" || k == "PDAT") && declaresModelType(t) && value && model_declares) continue;
     }
     PassThrough p;
     p.language = "KRL";
@@ -1410,6 +1460,13 @@ Program readKrl(const std::string& src_path, const KrlReadOptions& options) {
   }
   if (r.def_open_)
     src.fail(src.text().size(), "expected " + r.openEnd() + " at line " + std::to_string(r.def_line_) + ", found the end of the file");
+  // the main program's declarations of points the model declares itself are not carried
+  {
+    const std::set<std::string> model_points = pointsTheModelDeclares(program);
+    for (auto it = r.point_declarations_.rbegin(); it != r.point_declarations_.rend(); ++it)
+      if (std::all_of(it->second.begin(), it->second.end(), [&](const std::string& n) { return model_points.count(n) > 0; }))
+        program.passthrough.erase(program.passthrough.begin() + static_cast<std::ptrdiff_t>(it->first));
+  }
   notePointReads(src, lines, r.decl, *source);
   if (!source->dat_path.empty()) datPassThrough(KrlFile(source->dat_path, source->dat_text, 1), program);
   if (program.name.empty() && !r.first_function_.empty()) {
