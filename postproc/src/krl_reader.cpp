@@ -107,6 +107,7 @@ struct Reader {
   std::string fdat_problem;
   std::optional<MoveData> ldat, pdat;
   std::optional<double> vel_cp, vel_ptp, apo_cdis, apo_cptp, apo_cvel, apo_cori;
+  std::string ori_type_;  // $ORI_TYPE (Motion::ori_type): "" #VAR, the default
   bool in_spline = false;
   /// The frames and speeds a SPLINE / PTP_SPLINE block's WITH clause sets for its motions
   /// (tool, base, external_tcp, vel_m_s, vel_percent); none outside a block or without WITH.
@@ -636,12 +637,28 @@ struct Reader {
     return model.count(t[0].up) > 0;
   }
 
+  // The value of $ORI_TYPE = t[b, e) (Motion::ori_type): the constant in upper case ("" for
+  // #VAR, the default), else the expression as written.
+  std::string oriTypeValue(const std::vector<Tok>& t, size_t b, size_t e) const {
+    if (e == b + 1 && t[b].kind == Tok::kEnum) return t[b].up == "#VAR" ? std::string() : t[b].up;
+    return f->text().substr(t[b].begin, t[e - 1].end - t[b].begin);
+  }
+  // $ORI_TYPE from an LDAT's ORI_TYP (BAS(#CP_PARAMS), SORI_TYP(LDAT)); unchanged when the LDAT
+  // or its ORI_TYP is not known
+  void oriTypeOf(const std::optional<MoveData>& l, std::string* ori_type) const {
+    if (l && !l->ori_typ.empty()) *ori_type = l->ori_typ == "#VAR" ? std::string() : l->ori_typ;
+  }
+
   void assignModel(const std::vector<Tok>& t, size_t eq) {
     // lhs = t[0, eq), rhs = t[eq+1, end)
     const size_t b = eq + 1, e = t.size();
     if (b >= e) return;
     const std::string lhs0 = t[0].up;
     const bool simple = eq == 1;
+    if (simple && lhs0 == "$ORI_TYPE") {  // a statement of its own (carried), and the model's
+      ori_type_ = oriTypeValue(t, b, e);
+      return;
+    }
     const bool field = eq == 3 && t[1].text == ".";
     const std::string fieldname = field ? t[2].up : "";
     if (simple && (lhs0 == "$TOOL" || lhs0 == "$BASE")) {
@@ -771,12 +788,14 @@ struct Reader {
       applyFdatFrames(at);
       vel_cp = value;
       if (ldat && ldat->apo_dist) apo_cdis = ldat->apo_dist;
+      oriTypeOf(ldat, &ori_type_);  // KSS: $ORI_TYPE = LDAT_ACT.ORI_TYP
     } else if (cmd == "#FRAMES") {
       applyFdatFrames(at);
     } else if (cmd == "#PTP_DAT") {  // KRC2 inline forms: PDAT_ACT, then BAS(#PTP_DAT)
       if (pdat && pdat->apo_dist) apo_cptp = pdat->apo_dist;
     } else if (cmd == "#CP_DAT") {
       if (ldat && ldat->apo_dist) apo_cdis = ldat->apo_dist;
+      oriTypeOf(ldat, &ori_type_);
     } else if (cmd == "#VEL_PTP") {
       vel_ptp = value;
     } else if (cmd == "#VEL_CP") {
@@ -854,6 +873,16 @@ struct Reader {
             const auto& table = fn == "SAPO" ? decl.ldats : decl.pdats;
             auto it = table.find(t[a.first].up);
             if (it != table.end() && it->second.apo_dist && !m.approximation.empty()) m.approximation_value = it->second.apo_dist;
+          }
+        } else if (lhs == "$ORI_TYPE" && eq == i + 1) {
+          if (fn == "SORI_TYP") {  // the spline inline forms: SORI_TYP(LCPDAT1), the LDAT's ORI_TYP
+            const auto a = arg(0);
+            if (a.second == a.first + 1) {
+              const auto it = decl.ldats.find(t[a.first].up);
+              if (it != decl.ldats.end()) oriTypeOf(it->second, &m.ori_type);
+            }
+          } else {
+            m.ori_type = oriTypeValue(t, rb, re);
           }
         } else if (lhs == "$IPO_MODE" && fn == "SIPO_MODE") {
           const auto a = arg(0);
@@ -963,12 +992,14 @@ struct Reader {
     m.tool = tool;
     m.base = base;
     m.external_tcp = external_tcp;
+    m.ori_type = ori_type_;
     if (m.type == MotionType::kPtp) m.vel_percent = vel_ptp;
     else m.vel_m_s = vel_cp;
     if (in_spline && spline_block_) {  // the block's WITH clause, then the motion's own
       m.tool = spline_block_->tool;
       m.base = spline_block_->base;
       m.external_tcp = spline_block_->external_tcp;
+      m.ori_type = spline_block_->ori_type;
       if (m.type == MotionType::kPtp) m.vel_percent = spline_block_->vel_percent;
       else m.vel_m_s = spline_block_->vel_m_s;
     }
@@ -1134,6 +1165,7 @@ struct Reader {
         block.tool = tool;
         block.base = base;
         block.external_tcp = external_tcp;
+        block.ori_type = ori_type_;
         block.vel_m_s = vel_cp;
         block.vel_percent = vel_ptp;
         applyWith(t, 2, t.size(), block);
