@@ -450,6 +450,41 @@ TEST(KrlRules, AConstantOrientationLinIsCorrectedForTheOrientationTheRobotKeeps)
   EXPECT_LT(path_error, s.tol_mm + 1e-3);
 }
 
+// KSS $CIRC_TYPE #PATH (a statement, an LDAT's CIRC_TYP, WITH .. SCIRC_TYP(LDAT)): the
+// orientation of a circle turns with the path, which accura does not predict. The end point is
+// compensated, the path not checked (a warning); with $ORI_TYPE #CONSTANT the robot ends on the
+// start's orientation turned by the arc: kept and named. (Before: compensated as base-related.)
+TEST(KrlRules, APathRelatedCircleIsCompensatedAtItsEndOrKeptAndNamed) {
+  const std::string dir = test::tempDir("krl_circ_path");
+  test::writeText(dir + "/p.src", "DEF p( )\n$TOOL={X 0,Y 0,Z 100,A 0,B 0,C 0}\n$BASE=$NULLFRAME\nPTP XP1\n$CIRC_TYPE = #PATH\n"
+                                  "CIRC XP2, XP3\nSCIRC XP4, XP1 WITH $ORI_TYPE = #CONSTANT\nLIN XP3\n"
+                                  "SCIRC XP4, XP1 WITH $CIRC_TYPE = SCIRC_TYP(LCPDAT1)\nEND\n");
+  test::writeText(dir + "/p.dat",
+                  "DEFDAT p\nDECL E6POS XP1={X 1000,Y 0,Z 800,A 0,B 90,C 0}\nDECL E6POS XP2={X 1050,Y 50,Z 800,A 0,B 90,C 0}\n"
+                  "DECL E6POS XP3={X 1000,Y 100,Z 800,A 0,B 90,C 0}\nDECL E6POS XP4={X 950,Y 50,Z 800,A 0,B 90,C 0}\n"
+                  "DECL LDAT LCPDAT1={VEL 0.2,ORI_TYP #VAR,CIRC_TYP #BASE}\nENDDAT\n");
+  const Program in = readKrl(dir + "/p.src");
+  ASSERT_EQ(in.motions.size(), 5u);
+  const char* const kCirc[5] = {"", "#PATH", "#PATH", "#PATH", ""};
+  for (size_t k = 0; k < 5; ++k) EXPECT_EQ(in.motions[k].circ_type, kCirc[k]) << k;
+  const JobSettings s = kr16BaseOff();
+  const ProgramCompensation pc = compensateProgramReport(in, s);
+  ASSERT_TRUE(pc.ok()) << pc.report.errors.front().where.str() << ": " << pc.report.errors.front().message;
+  EXPECT_EQ(pc.report.motions_left_unchanged, 1);
+  const auto warned = [&](int line, const std::string& what) {
+    for (const ProgramIssue& w : pc.report.warnings)
+      if (w.where.line == line && w.message.find(what) != std::string::npos) return true;
+    return false;
+  };
+  EXPECT_TRUE(warned(6, "CIRC with $CIRC_TYPE #PATH (the controller turns the orientation with the circle"));
+  EXPECT_TRUE(warned(7, "SCIRC left unchanged (not compensated): its orientation control $CIRC_TYPE #PATH with $ORI_TYPE #CONSTANT"));
+  // the end point compensated on its own: the real robot's base is 0.2, -0.1, 0.3 mm off, the
+  // orientation the same, so the target moves by minus that offset
+  const KrlText out = writeKrl(pc.program);
+  EXPECT_NE(out.dat.find("DECL E6POS XP3={X 999.8000,Y 100.1000,Z 799.7000,A 0,B 90,C 0}"), std::string::npos) << out.dat;
+  EXPECT_TRUE(pc.report.segments.empty() || pc.report.segments.front().motion.line != 6);  // its path not checked
+}
+
 TEST(KrlRules, APtpNextToAWristSingularityThatTurnsTheWristIsAWarning) {
   // the off-line program's joints: A5 0.1 deg from the wrist singularity; the real robot
   // reaches the pose only with A4 and A6 turned by degrees (they trade freely next to A5 = 0).

@@ -709,17 +709,27 @@ class Job {
       leftUnchanged(m, "its orientation control $ORI_TYPE " + m.ori_type + " is not modelled (#VAR, #CONSTANT and #JOINT are)");
       return keep(out, m);
     }
+    // $CIRC_TYPE #PATH: the orientation turns with the circle; with #CONSTANT the robot ends on
+    // the start's orientation turned by the arc, neither the written one nor the start's
+    const bool path_circ = m.type == MotionType::kCirc && !m.circ_type.empty();
+    if (path_circ && (m.circ_type != "#PATH" || m.ori_type == "#CONSTANT")) {
+      leftUnchanged(m, "its orientation control $CIRC_TYPE " + m.circ_type + (m.ori_type.empty() ? std::string() : " with $ORI_TYPE " + m.ori_type) +
+                           " is not modelled");
+      return keep(out, m);
+    }
     const std::optional<Cartesian> c = cartesian(m);
     if (!c) return keep(out, m);
     const bool path = m.type == MotionType::kLin || m.type == MotionType::kCirc;
     // KSS $ORI_TYPE #JOINT: the wrist axes turn linearly from the start to the target (the
     // target's pose is reached as written), a path accura does not predict
-    const bool joint_ori = m.type != MotionType::kPtp && m.ori_type == "#JOINT";
+    const bool joint_ori = m.type != MotionType::kPtp && (m.ori_type == "#JOINT" || path_circ);
     if (m.type == MotionType::kLin && T_world_flange_intended_ && !joint_ori) warnHalfTurn(m, *c);
     if (path && q_real_ && !joint_ori) return pathMotion(m, *c, out);
     if (path && q_real_) {
-      warning(m.where, motionKeyword(m) + " with $ORI_TYPE #JOINT (the controller turns the wrist axes linearly, a path accura does not "
-                                          "predict): its points are compensated, its path is not checked");
+      warning(m.where, motionKeyword(m) + " with " +
+                           (m.ori_type == "#JOINT" ? std::string("$ORI_TYPE #JOINT (the controller turns the wrist axes linearly")
+                                                   : std::string("$CIRC_TYPE #PATH (the controller turns the orientation with the circle")) +
+                           ", a path accura does not predict): its points are compensated, its path is not checked");
     } else if (path) {
       const bool guessed = !c->end.status && !c->end.turn && !c->end.abb_conf;
       std::string on;

@@ -108,6 +108,7 @@ struct Reader {
   std::optional<MoveData> ldat, pdat;
   std::optional<double> vel_cp, vel_ptp, apo_cdis, apo_cptp, apo_cvel, apo_cori;
   std::string ori_type_;  // $ORI_TYPE (Motion::ori_type): "" #VAR, the default
+  std::string circ_type_;  // $CIRC_TYPE (Motion::circ_type): "" #BASE, the default
   bool in_spline = false;
   /// The frames and speeds a SPLINE / PTP_SPLINE block's WITH clause sets for its motions
   /// (tool, base, external_tcp, vel_m_s, vel_percent); none outside a block or without WITH.
@@ -639,14 +640,16 @@ struct Reader {
 
   // The value of $ORI_TYPE = t[b, e) (Motion::ori_type): the constant in upper case ("" for
   // #VAR, the default), else the expression as written.
-  std::string oriTypeValue(const std::vector<Tok>& t, size_t b, size_t e) const {
-    if (e == b + 1 && t[b].kind == Tok::kEnum) return t[b].up == "#VAR" ? std::string() : t[b].up;
+  // (Likewise $CIRC_TYPE, "" for #BASE: `default_value`.)
+  std::string oriTypeValue(const std::vector<Tok>& t, size_t b, size_t e, const char* default_value = "#VAR") const {
+    if (e == b + 1 && t[b].kind == Tok::kEnum) return t[b].up == default_value ? std::string() : t[b].up;
     return f->text().substr(t[b].begin, t[e - 1].end - t[b].begin);
   }
-  // $ORI_TYPE from an LDAT's ORI_TYP (BAS(#CP_PARAMS), SORI_TYP(LDAT)); unchanged when the LDAT
-  // or its ORI_TYP is not known
-  void oriTypeOf(const std::optional<MoveData>& l, std::string* ori_type) const {
-    if (l && !l->ori_typ.empty()) *ori_type = l->ori_typ == "#VAR" ? std::string() : l->ori_typ;
+  // $ORI_TYPE and $CIRC_TYPE from an LDAT's ORI_TYP and CIRC_TYP (BAS(#CP_PARAMS), SORI_TYP(LDAT),
+  // SCIRC_TYP(LDAT)); each unchanged when the LDAT or its value is not known
+  void oriTypeOf(const std::optional<MoveData>& l, std::string* ori_type, std::string* circ_type = nullptr) const {
+    if (l && !l->ori_typ.empty() && ori_type) *ori_type = l->ori_typ == "#VAR" ? std::string() : l->ori_typ;
+    if (l && !l->circ_typ.empty() && circ_type) *circ_type = l->circ_typ == "#BASE" ? std::string() : l->circ_typ;
   }
 
   void assignModel(const std::vector<Tok>& t, size_t eq) {
@@ -657,6 +660,10 @@ struct Reader {
     const bool simple = eq == 1;
     if (simple && lhs0 == "$ORI_TYPE") {  // a statement of its own (carried), and the model's
       ori_type_ = oriTypeValue(t, b, e);
+      return;
+    }
+    if (simple && lhs0 == "$CIRC_TYPE") {
+      circ_type_ = oriTypeValue(t, b, e, "#BASE");
       return;
     }
     const bool field = eq == 3 && t[1].text == ".";
@@ -788,14 +795,14 @@ struct Reader {
       applyFdatFrames(at);
       vel_cp = value;
       if (ldat && ldat->apo_dist) apo_cdis = ldat->apo_dist;
-      oriTypeOf(ldat, &ori_type_);  // KSS: $ORI_TYPE = LDAT_ACT.ORI_TYP
+      oriTypeOf(ldat, &ori_type_, &circ_type_);  // KSS: $ORI_TYPE = LDAT_ACT.ORI_TYP, $CIRC_TYPE = LDAT_ACT.CIRC_TYP
     } else if (cmd == "#FRAMES") {
       applyFdatFrames(at);
     } else if (cmd == "#PTP_DAT") {  // KRC2 inline forms: PDAT_ACT, then BAS(#PTP_DAT)
       if (pdat && pdat->apo_dist) apo_cptp = pdat->apo_dist;
     } else if (cmd == "#CP_DAT") {
       if (ldat && ldat->apo_dist) apo_cdis = ldat->apo_dist;
-      oriTypeOf(ldat, &ori_type_);
+      oriTypeOf(ldat, &ori_type_, &circ_type_);
     } else if (cmd == "#VEL_PTP") {
       vel_ptp = value;
     } else if (cmd == "#VEL_CP") {
@@ -883,6 +890,16 @@ struct Reader {
             }
           } else {
             m.ori_type = oriTypeValue(t, rb, re);
+          }
+        } else if (lhs == "$CIRC_TYPE" && eq == i + 1) {
+          if (fn == "SCIRC_TYP") {  // SCIRC_TYP(LCPDAT1), the LDAT's CIRC_TYP
+            const auto a = arg(0);
+            if (a.second == a.first + 1) {
+              const auto it = decl.ldats.find(t[a.first].up);
+              if (it != decl.ldats.end()) oriTypeOf(it->second, nullptr, &m.circ_type);
+            }
+          } else {
+            m.circ_type = oriTypeValue(t, rb, re, "#BASE");
           }
         } else if (lhs == "$IPO_MODE" && fn == "SIPO_MODE") {
           const auto a = arg(0);
@@ -993,6 +1010,7 @@ struct Reader {
     m.base = base;
     m.external_tcp = external_tcp;
     m.ori_type = ori_type_;
+    m.circ_type = circ_type_;
     if (m.type == MotionType::kPtp) m.vel_percent = vel_ptp;
     else m.vel_m_s = vel_cp;
     if (in_spline && spline_block_) {  // the block's WITH clause, then the motion's own
@@ -1000,6 +1018,7 @@ struct Reader {
       m.base = spline_block_->base;
       m.external_tcp = spline_block_->external_tcp;
       m.ori_type = spline_block_->ori_type;
+      m.circ_type = spline_block_->circ_type;
       if (m.type == MotionType::kPtp) m.vel_percent = spline_block_->vel_percent;
       else m.vel_m_s = spline_block_->vel_m_s;
     }
@@ -1166,6 +1185,7 @@ struct Reader {
         block.base = base;
         block.external_tcp = external_tcp;
         block.ori_type = ori_type_;
+        block.circ_type = circ_type_;
         block.vel_m_s = vel_cp;
         block.vel_percent = vel_ptp;
         applyWith(t, 2, t.size(), block);

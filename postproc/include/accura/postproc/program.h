@@ -161,6 +161,9 @@ struct Motion {
   /// orientation is kept, the target's ignored), "#JOINT" (the wrist axes turn linearly),
   /// "#IGNORE", or the expression as written when it is not a constant.
   std::string ori_type;
+  /// KUKA: the orientation reference of a circular motion ($CIRC_TYPE, upper case): "" (#BASE,
+  /// the default), "#PATH" (the orientation turns with the path), or the expression as written.
+  std::string circ_type;
   /// Why the target cannot be evaluated (an undeclared name, an expression computed at run
   /// time, a point changed at run time); empty when it can.
   std::string target_problem;
