@@ -160,6 +160,52 @@ TEST(Convert, APointNoMotionOfTheModelNamesKeepsItsDeclaration) {
                       xml.substr(xml.find("    <tool ")));
 }
 
+// KUKA's orientation control ($ORI_TYPE, $CIRC_TYPE) of each CP motion travels through the XML
+// (ori_type, circ_type) and comes back into KRL written anew: a statement before a LIN or CIRC
+// (none where a carried statement already sets it), a spline motion's own WITH. (Before: the
+// values of an LDAT and of a WITH clause were lost, the robot ran #VAR where the program said
+// #CONSTANT or #JOINT.)
+TEST(Convert, TheOrientationControlOfEachMotionSurvivesTheRoundTrip) {
+  const std::string dir = test::tempDir("convert_ori_type");
+  test::writeText(dir + "/p.src", "DEF p( )\n$TOOL=$NULLFRAME\n$BASE=$NULLFRAME\nPTP XP1\n$ORI_TYPE = #CONSTANT\nLIN XP2\n"
+                                  "LDAT_ACT=LCPDAT1\nFDAT_ACT=FP1\nBAS(#CP_PARAMS,0.2)\nCIRC XP3, XP1\nSLIN XP2 WITH $ORI_TYPE = #CONSTANT\n"
+                                  "SPLINE WITH $ORI_TYPE = #VAR\nSPL XP1\nENDSPLINE\nLIN XP2\nEND\n");
+  test::writeText(dir + "/p.dat", "DEFDAT p\nDECL E6POS XP1={X 1000,Y 0,Z 800,A 0,B 90,C 0}\nDECL E6POS XP2={X 1000,Y 100,Z 800,A 0,B 90,C 0}\n"
+                                  "DECL E6POS XP3={X 1050,Y 50,Z 800,A 0,B 90,C 0}\nDECL FDAT FP1={TOOL_NO 0,BASE_NO 0,IPO_FRAME #BASE}\n"
+                                  "DECL LDAT LCPDAT1={VEL 0.2,APO_DIST 10,ORI_TYP #JOINT,CIRC_TYP #PATH}\nENDDAT\n");
+  const Program krl = readKrl(dir + "/p.src");
+  ASSERT_EQ(krl.motions.size(), 6u);
+  const char* const kOri[6] = {"", "#CONSTANT", "#JOINT", "#CONSTANT", "", "#JOINT"};
+  for (size_t k = 0; k < 6; ++k) EXPECT_EQ(krl.motions[k].ori_type, kOri[k]) << k;
+  EXPECT_EQ(krl.motions[2].circ_type, "#PATH");
+  const std::string xml = writeXmlProgram(krl);
+  EXPECT_NE(xml.find("<circ vel_m_s=\"0.2000\" ori_type=\"#JOINT\" circ_type=\"#PATH\">"), std::string::npos) << xml;
+  const KrlText back = writeKrl(parseXmlProgram(xml, "p.xml"));
+  EXPECT_NE(back.src.find("\n$ORI_TYPE = #CONSTANT\nLIN XP2\n"), std::string::npos) << back.src;  // carried, not doubled
+  EXPECT_NE(back.src.find("\n$ORI_TYPE=#JOINT\n$CIRC_TYPE=#PATH\n$VEL.CP=0.2000\nCIRC XP3, XP1\nSLIN XP2 WITH $ORI_TYPE=#CONSTANT\n"), std::string::npos)
+      << back.src;
+  EXPECT_NE(back.src.find("\nSPLINE\nSPL XP1 WITH $ORI_TYPE=#VAR\nENDSPLINE\nLIN XP2\n"), std::string::npos) << back.src;
+  // read back: every motion runs with the orientation control it had
+  const std::string again = test::tempDir("convert_ori_type_again");
+  test::writeText(again + "/p.src", back.src);
+  test::writeText(again + "/p.dat", back.dat);
+  const Program krl2 = readKrl(again + "/p.src");
+  ASSERT_EQ(krl2.motions.size(), 6u);
+  for (size_t k = 0; k < 6; ++k) {
+    EXPECT_EQ(krl2.motions[k].ori_type, kOri[k]) << k;
+    EXPECT_EQ(krl2.motions[k].circ_type, krl.motions[k].circ_type) << k;
+  }
+  // an XML attribute where it means nothing is an error naming it
+  try {
+    parseXmlProgram("<program version=\"1\"><motions><ptp ori_type=\"#CONSTANT\"><pose x_mm=\"1\" y_mm=\"2\" z_mm=\"3\" a_deg=\"0\" "
+                    "b_deg=\"0\" c_deg=\"0\"/></ptp></motions></program>\n",
+                    "q.xml");
+    FAIL();
+  } catch (const calib::InputError& e) {
+    EXPECT_NE(e.message().find("attribute 'ori_type': expected it on a CP motion"), std::string::npos) << e.message();
+  }
+}
+
 TEST(Convert, AnUnknownStartTravelsThroughXml) {
   // compensating the XML must not densify the segment after a branch the KRL program has
   const std::string dir = test::tempDir("convert_start");

@@ -465,7 +465,7 @@ TEST(KrlRules, APathRelatedCircleIsCompensatedAtItsEndOrKeptAndNamed) {
                   "DECL LDAT LCPDAT1={VEL 0.2,ORI_TYP #VAR,CIRC_TYP #BASE}\nENDDAT\n");
   const Program in = readKrl(dir + "/p.src");
   ASSERT_EQ(in.motions.size(), 5u);
-  const char* const kCirc[5] = {"", "#PATH", "#PATH", "#PATH", ""};
+  const char* const kCirc[5] = {"", "#PATH", "#PATH", "", ""};  // (only circles read it)
   for (size_t k = 0; k < 5; ++k) EXPECT_EQ(in.motions[k].circ_type, kCirc[k]) << k;
   const JobSettings s = kr16BaseOff();
   const ProgramCompensation pc = compensateProgramReport(in, s);

@@ -1032,6 +1032,7 @@ struct Reader {
       }
     }
     if (with_e > with_b) applyWith(t, with_b, with_e, m);
+    if (m.type != MotionType::kCirc) m.circ_type.clear();  // (only circles read $CIRC_TYPE)
 
     // targets
     std::string problem;
