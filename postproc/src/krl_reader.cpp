@@ -78,6 +78,13 @@ std::set<std::string> pointsTheModelDeclares(const Program& program) {
   return out;
 }
 
+// INTERRUPT DECL n WHEN .. DO handler( ) (also GLOBAL): it declares the handler, it does not
+// call it (the handler runs when the condition fires, wherever the program is).
+bool declaresInterrupt(const std::vector<Tok>& t) {
+  const size_t i = !t.empty() && t[0].up == "GLOBAL" ? 1 : 0;
+  return t.size() > i + 1 && t[i].up == "INTERRUPT" && t[i + 1].up == "DECL";
+}
+
 // An assignment's depth-0 '=' (not '==', nor one inside an index or a call): its index in t,
 // 0 when the statement is not an assignment.
 size_t assignmentEnd(const std::vector<Tok>& t) {
@@ -1222,6 +1229,7 @@ struct Reader {
       return !main_ended;
     }
     if (k == "BAS" && t.size() > 1 && t[1].text == "(") return handleBas(t);
+    if (declaresInterrupt(t)) return false;  // (not a call of its handler)
     controlFlow(t);
     if (isLocalCall(t)) flow_.unknown();
     // a call of a subroutine or function of this file that sets $TOOL or $BASE: the frames after
@@ -1456,8 +1464,9 @@ Program readKrl(const std::string& src_path, const KrlReadOptions& options) {
       const bool inline_form = bas && (t[2].up == "#PTP_PARAMS" || t[2].up == "#CP_PARAMS");
       if (!cur.empty() && ((t[0].up == "$TOOL" && assigns) || (bas && t[2].up == "#TOOL") || inline_form)) sets_tool[cur] = true;
       if (!cur.empty() && ((t[0].up == "$BASE" && assigns) || (bas && t[2].up == "#BASE") || inline_form)) sets_base[cur] = true;
-      // calls: a subroutine's as a statement, a function's anywhere in an expression
-      for (size_t i = 0; i + 1 < t.size() && !cur.empty(); ++i)
+      // calls: a subroutine's as a statement, a function's anywhere in an expression (an
+      // interrupt's declaration names its handler without calling it)
+      for (size_t i = 0; i + 1 < t.size() && !cur.empty() && !declaresInterrupt(t); ++i)
         if (t[i].kind == Tok::kIdent && t[i + 1].text == "(" && moves.count(t[i].up)) calls[cur].insert(t[i].up);
     }
     r.local_defs_ = movingRoutines(moves, calls);
