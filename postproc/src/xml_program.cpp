@@ -691,10 +691,10 @@ std::string writeXmlProgram(const Program& p) {
     if (m.relative) out << " relative=\"true\"";
     if (m.external_tcp) out << " external_tcp=\"true\"";
     if (!m.conf_monitored) out << " conf_monitored=\"false\"";
-    if (!m.ori_type.empty()) out << " ori_type=\"" << calib::xmlEscape(m.ori_type) << "\"";
-    if (!m.circ_type.empty()) out << " circ_type=\"" << calib::xmlEscape(m.circ_type) << "\"";
     if (m.source_line > 0 && !m.inserted) out << " source_line=\"" << m.source_line << "\"";
     if (m.start_unknown && !m.inserted) out << " start_unknown=\"true\"";
+    if (!m.ori_type.empty()) out << " ori_type=\"" << calib::xmlEscape(m.ori_type) << "\"";
+    if (!m.circ_type.empty()) out << " circ_type=\"" << calib::xmlEscape(m.circ_type) << "\"";
     if (m.spline_block > 0)
       out << " spline_block=\"" << m.spline_block << "\" spline_block_type=\"" << (m.ptp_spline_block ? "PTP_SPLINE" : "SPLINE") << "\"";
     if (!m.duration_expr.empty())
