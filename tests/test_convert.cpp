@@ -116,6 +116,96 @@ TEST(Convert, TheDefsParametersAndAPointDeclaredWithoutAValueSurviveTheRoundTrip
   EXPECT_EQ(back.dat.find("lp1"), std::string::npos) << back.dat;  // declared once, where the program had it
 }
 
+// A point with a value that no motion of the model names (a GLOBAL point other modules use, one
+// the program only reads, a motion's target changed at run time, one a subroutine declares) is
+// not declared by the KRL written anew from the model: its declaration is carried as written.
+// (Before: dropped, and the converted program did not compile, 'XP9' undeclared.)
+TEST(Convert, APointNoMotionOfTheModelNamesKeepsItsDeclaration) {
+  const std::string dir = test::tempDir("convert_unnamed_points");
+  test::writeText(dir + "/p.src",
+                  "DEF p( )\r\nDECL E6POS XLOC={X 5,Y 6,Z 7,A 0,B 90,C 0}\r\nDECL E6POS XUSED={X 1000,Y 50,Z 800,A 0,B 90,C 0}\r\n"
+                  "$TOOL={X 0,Y 0,Z 100,A 0,B 0,C 0}\r\n$BASE=XFB\r\nPTP XP1\r\nLIN XUSED\r\nIF XP9.X>0 THEN\r\n  $OUT[1]=TRUE\r\nENDIF\r\n"
+                  "XTMP=XP8\r\nXTMP=XLOC\r\nFOR I=1 TO 3\r\n  LIN XP2\r\n  XP2.Z=XP2.Z+10\r\nENDFOR\r\nEND\r\nDEF sub( )\r\n"
+                  "DECL E6POS XSUB={X 1,Y 2,Z 3,A 0,B 90,C 0}\r\nXTMP=XSUB\r\nEND\r\n");
+  const std::string g1 = "DECL GLOBAL E6POS XG1={X 100.0,Y 50.0,Z 30.0,A 160.0,B 10.0,C 170.0,S 2,T 10}";
+  const std::string p2 = "DECL E6POS XP2={X 1000,Y 0,Z 700,A 0,B 90,C 0}";
+  const std::string p8 = "DECL E6POS XP8={X 1000,Y 80,Z 800,A 0,B 90,C 0}";
+  const std::string p9 = "DECL E6POS XP9={X 1000,Y 90,Z 800,A 0,B 90,C 0}";
+  const std::string fb = "DECL FRAME XFB={X 10,Y 0,Z 0,A 0,B 0,C 0}";
+  test::writeText(dir + "/p.dat", "DEFDAT p PUBLIC\r\n" + g1 + "\r\nDECL E6POS XP1={X 1000,Y 0,Z 800,A 0,B 90,C 0}\r\n" + p2 + "\r\n" +
+                                      p8 + "\r\n" + p9 + "\r\n" + fb + "\r\nDECL E6POS XTMP\r\nDECL INT I\r\nENDDAT\r\n");
+  const Program krl = readKrl(dir + "/p.src");
+  const std::string xml = writeXmlProgram(krl);
+  const KrlText back = writeKrl(parseXmlProgram(xml, "p.xml"));
+  const std::vector<std::string> dat = lines(back.dat), src = lines(back.src);
+  for (const std::string& d : {g1, p2, p8, p9, fb}) EXPECT_NE(indexOf(dat, d), std::string::npos) << d << "\n" << back.dat;
+  EXPECT_NE(indexOf(src, "DECL E6POS XLOC={X 5,Y 6,Z 7,A 0,B 90,C 0}"), std::string::npos) << back.src;
+  EXPECT_NE(indexOf(src, "DECL E6POS XSUB={X 1,Y 2,Z 3,A 0,B 90,C 0}"), std::string::npos) << back.src;
+  // the points the motions name are declared once, by the model
+  for (const char* name : {"XP1=", "XUSED=", "XP2="}) {
+    size_t n = 0;
+    for (const std::string& l : dat) n += l.find(std::string(" ") + name) != std::string::npos;
+    for (const std::string& l : src) n += l.find(std::string(" ") + name) != std::string::npos;
+    EXPECT_EQ(n, 1u) << name << "\n" << back.src << back.dat;
+  }
+  EXPECT_NE(indexOf(dat, "DECL E6POS XUSED={X 1000.0000,Y 50.0000,Z 800.0000,A 0.00000,B 90.00000,C 0.00000}"), std::string::npos)
+      << back.dat;
+  // and the converted program reads back with the same declarations (its XML differs from the
+  // first only by the INI fold the writer gave the program, which had none)
+  const std::string again = test::tempDir("convert_unnamed_points_again");
+  test::writeText(again + "/p.src", back.src);
+  test::writeText(again + "/p.dat", back.dat);
+  const std::string xml2 = writeXmlProgram(readKrl(again + "/p.src"));
+  EXPECT_EQ(xml2, xml.substr(0, xml.find("    <tool ")) + "    <passthrough language=\"KRL\">  BAS (#INITMOV,0 )</passthrough>\n" +
+                      xml.substr(xml.find("    <tool ")));
+}
+
+// KUKA's orientation control ($ORI_TYPE, $CIRC_TYPE) of each CP motion travels through the XML
+// (ori_type, circ_type) and comes back into KRL written anew: a statement before a LIN or CIRC
+// (none where a carried statement already sets it), a spline motion's own WITH. (Before: the
+// values of an LDAT and of a WITH clause were lost, the robot ran #VAR where the program said
+// #CONSTANT or #JOINT.)
+TEST(Convert, TheOrientationControlOfEachMotionSurvivesTheRoundTrip) {
+  const std::string dir = test::tempDir("convert_ori_type");
+  test::writeText(dir + "/p.src", "DEF p( )\n$TOOL=$NULLFRAME\n$BASE=$NULLFRAME\nPTP XP1\n$ORI_TYPE = #CONSTANT\nLIN XP2\n"
+                                  "LDAT_ACT=LCPDAT1\nFDAT_ACT=FP1\nBAS(#CP_PARAMS,0.2)\nCIRC XP3, XP1\nSLIN XP2 WITH $ORI_TYPE = #CONSTANT\n"
+                                  "SPLINE WITH $ORI_TYPE = #VAR\nSPL XP1\nENDSPLINE\nLIN XP2\nEND\n");
+  test::writeText(dir + "/p.dat", "DEFDAT p\nDECL E6POS XP1={X 1000,Y 0,Z 800,A 0,B 90,C 0}\nDECL E6POS XP2={X 1000,Y 100,Z 800,A 0,B 90,C 0}\n"
+                                  "DECL E6POS XP3={X 1050,Y 50,Z 800,A 0,B 90,C 0}\nDECL FDAT FP1={TOOL_NO 0,BASE_NO 0,IPO_FRAME #BASE}\n"
+                                  "DECL LDAT LCPDAT1={VEL 0.2,APO_DIST 10,ORI_TYP #JOINT,CIRC_TYP #PATH}\nENDDAT\n");
+  const Program krl = readKrl(dir + "/p.src");
+  ASSERT_EQ(krl.motions.size(), 6u);
+  const char* const kOri[6] = {"", "#CONSTANT", "#JOINT", "#CONSTANT", "", "#JOINT"};
+  for (size_t k = 0; k < 6; ++k) EXPECT_EQ(krl.motions[k].ori_type, kOri[k]) << k;
+  EXPECT_EQ(krl.motions[2].circ_type, "#PATH");
+  const std::string xml = writeXmlProgram(krl);
+  EXPECT_NE(xml.find("<circ vel_m_s=\"0.2000\" ori_type=\"#JOINT\" circ_type=\"#PATH\">"), std::string::npos) << xml;
+  const KrlText back = writeKrl(parseXmlProgram(xml, "p.xml"));
+  EXPECT_NE(back.src.find("\n$ORI_TYPE = #CONSTANT\nLIN XP2\n"), std::string::npos) << back.src;  // carried, not doubled
+  EXPECT_NE(back.src.find("\n$ORI_TYPE=#JOINT\n$CIRC_TYPE=#PATH\n$VEL.CP=0.2000\nCIRC XP3, XP1\nSLIN XP2 WITH $ORI_TYPE=#CONSTANT\n"), std::string::npos)
+      << back.src;
+  EXPECT_NE(back.src.find("\nSPLINE\nSPL XP1 WITH $ORI_TYPE=#VAR\nENDSPLINE\nLIN XP2\n"), std::string::npos) << back.src;
+  // read back: every motion runs with the orientation control it had
+  const std::string again = test::tempDir("convert_ori_type_again");
+  test::writeText(again + "/p.src", back.src);
+  test::writeText(again + "/p.dat", back.dat);
+  const Program krl2 = readKrl(again + "/p.src");
+  ASSERT_EQ(krl2.motions.size(), 6u);
+  for (size_t k = 0; k < 6; ++k) {
+    EXPECT_EQ(krl2.motions[k].ori_type, kOri[k]) << k;
+    EXPECT_EQ(krl2.motions[k].circ_type, krl.motions[k].circ_type) << k;
+  }
+  // an XML attribute where it means nothing is an error naming it
+  try {
+    parseXmlProgram("<program version=\"1\"><motions><ptp ori_type=\"#CONSTANT\"><pose x_mm=\"1\" y_mm=\"2\" z_mm=\"3\" a_deg=\"0\" "
+                    "b_deg=\"0\" c_deg=\"0\"/></ptp></motions></program>\n",
+                    "q.xml");
+    FAIL();
+  } catch (const calib::InputError& e) {
+    EXPECT_NE(e.message().find("attribute 'ori_type': expected it on a CP motion"), std::string::npos) << e.message();
+  }
+}
+
 TEST(Convert, AnUnknownStartTravelsThroughXml) {
   // compensating the XML must not densify the segment after a branch the KRL program has
   const std::string dir = test::tempDir("convert_start");

@@ -604,6 +604,28 @@ TEST(Krl, TheStartIsUnknownAfterACallABranchOrALoopAndInASubroutine) {
   for (size_t k = 0; k < expected.size(); ++k) EXPECT_EQ(p.motions[k].start_unknown, expected[k]) << "motion " << k;
 }
 
+// INTERRUPT DECL n WHEN .. DO handler( ) declares the handler, it does not call it (KRL: the
+// handler runs when the condition fires, wherever the program is): the motion after the
+// declaration starts where the one before it ended, as after INTERRUPT ON. A subroutine that
+// declares an interrupt with a moving handler does not move the robot by that. (Before: the
+// declaration counted as a call of the moving handler, the next LIN's path was not compensated.)
+TEST(Krl, AnInterruptDeclarationIsNotACallOfItsHandler) {
+  const std::string dir = test::tempDir("krl_interrupt_decl");
+  test::writeText(dir + "/p.src",
+                  "DEF p( )\r\n$TOOL={X 0,Y 0,Z 100,A 0,B 0,C 0}\r\n$BASE=$NULLFRAME\r\nLIN XP1\r\n"
+                  "INTERRUPT DECL 5 WHEN $IN[7]==FALSE DO recover( )\r\nINTERRUPT ON 5\r\nLIN XP2\r\n"  // 1
+                  "GLOBAL INTERRUPT DECL 6 WHEN $IN[8] DO recover( )\r\nLIN XP1\r\n"                // 2
+                  "arm( )\r\nLIN XP2\r\n"                                                           // 3: arm() moves nothing
+                  "recover( )\r\nLIN XP1\r\n"                                                       // 4: a call
+                  "END\r\nDEF recover( )\r\nBRAKE\r\nLIN $POS_RET\r\nRESUME\r\nEND\r\n"
+                  "DEF arm( )\r\nINTERRUPT DECL 7 WHEN $IN[9] DO recover( )\r\nINTERRUPT ON 7\r\nEND\r\n");
+  test::writeText(dir + "/p.dat", "DEFDAT p\r\nDECL E6POS XP1={X 1000,Y 0,Z 800,A 0,B 90,C 0}\r\nDECL E6POS XP2={X 1000,Y 100,Z 800,A 0,B 90,C 0}\r\nENDDAT\r\n");
+  const Program p = readKrl(dir + "/p.src");
+  ASSERT_EQ(p.motions.size(), 6u);
+  const std::vector<bool> expected = {false, false, false, false, true, true};  // (5: recover's own, from anywhere)
+  for (size_t k = 0; k < expected.size(); ++k) EXPECT_EQ(p.motions[k].start_unknown, expected[k]) << "motion " << k;
+}
+
 TEST(Krl, AFunctionThatMovesTheRobotIsCalledLikeASubroutine) {
   // a DEFFCT of the .src that moves the robot, called in an expression: the motion after the
   // call starts where the function left the robot, and the function's first motion wherever it

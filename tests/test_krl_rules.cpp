@@ -378,6 +378,113 @@ TEST(KrlRules, ACorrectedPartialAggregateLandsWhereTheControllerFillsItFromItsPo
   EXPECT_EQ(statement, in.motions.size());
 }
 
+// KSS $ORI_TYPE (Operating and Programming Instructions for System Integrators, "Orientation
+// control"): #CONSTANT keeps the orientation the motion starts with and ignores the target's;
+// #JOINT turns the wrist axes linearly to the target's orientation. Set by a statement, by an
+// LDAT's ORI_TYP (BAS(#CP_PARAMS), SORI_TYP of the spline inline forms) or a WITH clause.
+// A #CONSTANT LIN is compensated for the orientation the robot keeps, its written angles stay
+// (the controller ignores them); a #JOINT one gets its end point compensated, its path (which
+// accura does not predict) unchecked. (Before: the target was corrected for its written
+// orientation, which the robot never takes: the position missed by the difference.)
+TEST(KrlRules, AConstantOrientationLinIsCorrectedForTheOrientationTheRobotKeeps) {
+  const StCell cell;
+  const Eigen::VectorXd q1 = joints({10, -80, 100, 20, 40, 30});
+  const Eigen::VectorXd q2 = joints({25, -70, 95, -10, 60, 80});  // the wrist turned: another orientation
+  const Eigen::VectorXd q3 = joints({30, -75, 100, 0, 50, 40});
+  const calib::Configuration c1 = calib::kukaConfiguration(cell.controller, q1);
+  const calib::XyzAbc p1 = calib::toXyzAbc(cell.target(q1));
+  const std::string dir = test::tempDir("krl_ori_constant");
+  test::writeText(dir + "/p.src", "DEF p( )\n$TOOL={X 20,Y 0,Z 250,A 0,B -30,C 0}\n$BASE=$NULLFRAME\nPTP XP1\n$ORI_TYPE = #CONSTANT\nLIN XP2\n"
+                                  "TOOL_DATA[1]={X 20,Y 0,Z 250,A 0,B -30,C 0}\nLDAT_ACT=LCPDAT1\nFDAT_ACT=FP3\nBAS(#CP_PARAMS,0.2)\nLIN XP3 C_DIS\nSLIN XP2 WITH $ORI_TYPE = SORI_TYP(LCPDAT2)\n"
+                                  "IF $IN[1] THEN\nLIN XP3\nENDIF\nLIN XP2\nEND\n");
+  test::writeText(dir + "/p.dat", "DEFDAT p\nDECL E6POS XP1=" + aggregate(cell.target(q1), c1.status, c1.turn) +
+                                      "\nDECL E6POS XP2=" + aggregate(cell.target(q2), c1.status, c1.turn) +
+                                      "\nDECL E6POS XP3=" + aggregate(cell.target(q3), c1.status, c1.turn) +
+                                      "\nDECL LDAT LCPDAT1={VEL 0.2,ACC 100.0,APO_DIST 10.0,ORI_TYP #CONSTANT,CIRC_TYP #BASE}"
+                                      "\nDECL LDAT LCPDAT2={VEL 0.2,ACC 100.0,APO_DIST 10.0,ORI_TYP #JOINT,CIRC_TYP #BASE}"
+                                      "\nDECL FDAT FP3={TOOL_NO 1,BASE_NO 0,IPO_FRAME #BASE}\nENDDAT\n");
+  const Program in = readKrl(dir + "/p.src");
+  ASSERT_EQ(in.motions.size(), 6u);
+  const char* const kOri[6] = {"", "#CONSTANT", "#CONSTANT", "#JOINT", "#CONSTANT", "#CONSTANT"};
+  for (size_t k = 0; k < 6; ++k) EXPECT_EQ(in.motions[k].ori_type, kOri[k]) << k;
+  JobSettings s;
+  s.calibrated = cell.real;
+  const ProgramCompensation pc = compensateProgramReport(in, s);
+  ASSERT_TRUE(pc.ok()) << pc.report.errors.front().message;
+  const auto warned = [&](int line, const std::string& what) {
+    for (const ProgramIssue& w : pc.report.warnings)
+      if (w.where.line == line && w.message.find(what) != std::string::npos) return true;
+    return false;
+  };
+  EXPECT_TRUE(warned(12, "SLIN with $ORI_TYPE #JOINT")) << "the #JOINT SLIN";
+  // after the IF the start is not known: the orientation a #CONSTANT LIN keeps is not either
+  EXPECT_TRUE(warned(16, "LIN left unchanged (not compensated): $ORI_TYPE #CONSTANT keeps the orientation"));
+  const KrlText text = writeKrl(pc.program);
+  // the written angles of XP2 and XP3 stay (the controller ignores them), their positions change
+  for (const auto& [name, q] : {std::make_pair("XP2", q2), std::make_pair("XP3", q3)}) {
+    const calib::XyzAbc w = calib::toXyzAbc(cell.target(q));
+    const std::string angles = ",A " + formatDeg(w.a_deg) + ",B " + formatDeg(w.b_deg) + ",C " + formatDeg(w.c_deg) + ",";
+    const size_t at = text.dat.find(std::string("DECL E6POS ") + name + "={");
+    ASSERT_NE(at, std::string::npos) << text.dat;
+    const std::string decl = text.dat.substr(at, text.dat.find('\n', at) - at);
+    EXPECT_NE(decl.find(angles), std::string::npos) << decl;
+    EXPECT_EQ(decl.find("X " + formatMm(w.x_mm) + ","), std::string::npos) << decl;
+  }
+  // the controller runs the written program: PTP XP1, then LIN XP2 (and the points inserted
+  // before it) with the orientation of the start kept, the written one ignored
+  const std::vector<Motion>& written = pc.program.motions;
+  SimulatedKuka kuka(cell.controller, cell.real);
+  const Eigen::Isometry3d T1 = cell.controller.nominal.T_world_base * calib::toIsometry(written[0].target.xyzAbc());
+  ASSERT_TRUE(kuka.ptp(T1, *written[0].target.status, *written[0].target.turn));
+  const Eigen::Matrix3d R_start = kuka.controller.forward(kuka.q).linear();
+  const Eigen::Vector3d intended_start = (cell.controller.nominal.T_world_base * calib::toIsometry(p1)).translation();
+  const Eigen::Vector3d intended_end = (cell.controller.nominal.T_world_base * cell.target(q2)).translation();
+  double path_error = 0;
+  for (size_t k = 1; k < written.size(); ++k) {
+    Eigen::Isometry3d T = cell.controller.nominal.T_world_base * calib::toIsometry(written[k].target.xyzAbc());
+    T.linear() = R_start;  // #CONSTANT
+    for (const Eigen::Vector3d& x : kuka.lin(T)) path_error = std::max(path_error, distanceToSegment(x, intended_start, intended_end));
+    if (!written[k].inserted) break;  // LIN XP2 itself
+  }
+  EXPECT_LT((kuka.real.forward(kuka.q).translation() - intended_end).norm(), 2e-3);
+  EXPECT_LT(path_error, s.tol_mm + 1e-3);
+}
+
+// KSS $CIRC_TYPE #PATH (a statement, an LDAT's CIRC_TYP, WITH .. SCIRC_TYP(LDAT)): the
+// orientation of a circle turns with the path, which accura does not predict. The end point is
+// compensated, the path not checked (a warning); with $ORI_TYPE #CONSTANT the robot ends on the
+// start's orientation turned by the arc: kept and named. (Before: compensated as base-related.)
+TEST(KrlRules, APathRelatedCircleIsCompensatedAtItsEndOrKeptAndNamed) {
+  const std::string dir = test::tempDir("krl_circ_path");
+  test::writeText(dir + "/p.src", "DEF p( )\n$TOOL={X 0,Y 0,Z 100,A 0,B 0,C 0}\n$BASE=$NULLFRAME\nPTP XP1\n$CIRC_TYPE = #PATH\n"
+                                  "CIRC XP2, XP3\nSCIRC XP4, XP1 WITH $ORI_TYPE = #CONSTANT\nLIN XP3\n"
+                                  "SCIRC XP4, XP1 WITH $CIRC_TYPE = SCIRC_TYP(LCPDAT1)\nEND\n");
+  test::writeText(dir + "/p.dat",
+                  "DEFDAT p\nDECL E6POS XP1={X 1000,Y 0,Z 800,A 0,B 90,C 0}\nDECL E6POS XP2={X 1050,Y 50,Z 800,A 0,B 90,C 0}\n"
+                  "DECL E6POS XP3={X 1000,Y 100,Z 800,A 0,B 90,C 0}\nDECL E6POS XP4={X 950,Y 50,Z 800,A 0,B 90,C 0}\n"
+                  "DECL LDAT LCPDAT1={VEL 0.2,ORI_TYP #VAR,CIRC_TYP #BASE}\nENDDAT\n");
+  const Program in = readKrl(dir + "/p.src");
+  ASSERT_EQ(in.motions.size(), 5u);
+  const char* const kCirc[5] = {"", "#PATH", "#PATH", "", ""};  // (only circles read it)
+  for (size_t k = 0; k < 5; ++k) EXPECT_EQ(in.motions[k].circ_type, kCirc[k]) << k;
+  const JobSettings s = kr16BaseOff();
+  const ProgramCompensation pc = compensateProgramReport(in, s);
+  ASSERT_TRUE(pc.ok()) << pc.report.errors.front().where.str() << ": " << pc.report.errors.front().message;
+  EXPECT_EQ(pc.report.motions_left_unchanged, 1);
+  const auto warned = [&](int line, const std::string& what) {
+    for (const ProgramIssue& w : pc.report.warnings)
+      if (w.where.line == line && w.message.find(what) != std::string::npos) return true;
+    return false;
+  };
+  EXPECT_TRUE(warned(6, "CIRC with $CIRC_TYPE #PATH (the controller turns the orientation with the circle"));
+  EXPECT_TRUE(warned(7, "SCIRC left unchanged (not compensated): its orientation control $CIRC_TYPE #PATH with $ORI_TYPE #CONSTANT"));
+  // the end point compensated on its own: the real robot's base is 0.2, -0.1, 0.3 mm off, the
+  // orientation the same, so the target moves by minus that offset
+  const KrlText out = writeKrl(pc.program);
+  EXPECT_NE(out.dat.find("DECL E6POS XP3={X 999.8000,Y 100.1000,Z 799.7000,A 0,B 90,C 0}"), std::string::npos) << out.dat;
+  EXPECT_TRUE(pc.report.segments.empty() || pc.report.segments.front().motion.line != 6);  // its path not checked
+}
+
 TEST(KrlRules, APtpNextToAWristSingularityThatTurnsTheWristIsAWarning) {
   // the off-line program's joints: A5 0.1 deg from the wrist singularity; the real robot
   // reaches the pose only with A4 and A6 turned by degrees (they trade freely next to A5 = 0).

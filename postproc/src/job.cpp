@@ -791,12 +791,33 @@ class Job {
       leftUnchanged(m, "a CIRC with CA " + formatDeg(*m.circ_angle_deg) + " (circular angle) ends elsewhere than its written target");
       return keep(out, m);
     }
+    if (m.type != MotionType::kPtp && !m.ori_type.empty() && m.ori_type != "#CONSTANT" && m.ori_type != "#JOINT") {
+      // the controller runs it; where the tool's orientation goes is not accura's to know
+      leftUnchanged(m, "its orientation control $ORI_TYPE " + m.ori_type + " is not modelled (#VAR, #CONSTANT and #JOINT are)");
+      return keep(out, m);
+    }
+    // $CIRC_TYPE #PATH: the orientation turns with the circle; with #CONSTANT the robot ends on
+    // the start's orientation turned by the arc, neither the written one nor the start's
+    const bool path_circ = m.type == MotionType::kCirc && !m.circ_type.empty();
+    if (path_circ && (m.circ_type != "#PATH" || m.ori_type == "#CONSTANT")) {
+      leftUnchanged(m, "its orientation control $CIRC_TYPE " + m.circ_type + (m.ori_type.empty() ? std::string() : " with $ORI_TYPE " + m.ori_type) +
+                           " is not modelled");
+      return keep(out, m);
+    }
     const std::optional<Cartesian> c = cartesian(m);
     if (!c) return keep(out, m);
     const bool path = m.type == MotionType::kLin || m.type == MotionType::kCirc;
-    if (m.type == MotionType::kLin && T_world_flange_intended_) warnHalfTurn(m, *c);
-    if (path && q_real_) return pathMotion(m, *c, out);
-    if (path) {
+    // KSS $ORI_TYPE #JOINT: the wrist axes turn linearly from the start to the target (the
+    // target's pose is reached as written), a path accura does not predict
+    const bool joint_ori = m.type != MotionType::kPtp && (m.ori_type == "#JOINT" || path_circ);
+    if (m.type == MotionType::kLin && T_world_flange_intended_ && !joint_ori) warnHalfTurn(m, *c);
+    if (path && q_real_ && !joint_ori) return pathMotion(m, *c, out);
+    if (path && q_real_) {
+      warning(m.where, motionKeyword(m) + " with " +
+                           (m.ori_type == "#JOINT" ? std::string("$ORI_TYPE #JOINT (the controller turns the wrist axes linearly")
+                                                   : std::string("$CIRC_TYPE #PATH (the controller turns the orientation with the circle")) +
+                           ", a path accura does not predict): its points are compensated, its path is not checked");
+    } else if (path) {
       const bool guessed = !c->end.status && !c->end.turn && !c->end.abb_conf;
       std::string on;
       if (guessed && q_hint_)
@@ -894,6 +915,19 @@ class Job {
     c.end = m.target;
     c.aux = m.aux;
     if (!complete(c.end, "target") || (c.aux && !complete(*c.aux, "auxiliary point"))) return std::nullopt;
+    if (m.type != MotionType::kPtp && m.ori_type == "#CONSTANT") {
+      // KSS $ORI_TYPE #CONSTANT: the controller keeps the orientation the motion starts with and
+      // ignores the target's; the robot arrives with the orientation the program meant it to
+      // have at the start (the written one stays in the target: keepIgnoredOrientation)
+      if (!T_world_flange_intended_) {
+        leftUnchanged(m, "$ORI_TYPE #CONSTANT keeps the orientation the robot has at its start, which is not known here");
+        return std::nullopt;
+      }
+      const calib::XyzAbc prev = toProgram(c.T_world_progbase, *T_world_flange_intended_ * c.tool);
+      c.end.pose[3] = prev.a_deg;
+      c.end.pose[4] = prev.b_deg;
+      c.end.pose[5] = prev.c_deg;
+    }
     if (!externalAxesZero(m, c.end) || (c.aux && !externalAxesZero(m, *c.aux))) return std::nullopt;
     c.T_world_end = c.T_world_progbase * calib::toIsometry(c.end.xyzAbc());
     c.config = calib::Configuration{c.end.status.value_or(-1), c.end.turn.value_or(-1)};
@@ -967,6 +1001,7 @@ class Job {
     if (!abbConfiguration(m, mo.target, comp, pc.q_real, cp)) return keep(out, mo);
     if (!cp) notePostureChange(m, end, comp, c.T_world_end, config, start, pc.q_real);
     setPose(mo.target, toProgram(c.T_world_progbase, pc.T_world_tcp_command), commandBefore(c));
+    keepIgnoredOrientation(m, mo.target);
     if (mo.target.turn != end.turn) mo.target.modified = true;
     mo.target.turn = end.turn;
     claimValue(mo.target, m.where, cp);
@@ -1048,6 +1083,7 @@ class Job {
       }
     const Eigen::Isometry3d T_cmd_end = commanded.back().T_world_end;
     setPose(mo.target, toProgram(c.T_world_progbase, T_cmd_end), commandBefore(c, &commanded));
+    keepIgnoredOrientation(m, mo.target);
     mo.target.turn = end.turn;
     claimValue(mo.target, m.where, true);
     reportTarget(m, m.target, "end", c.T_world_progbase, c.T_world_end, T_cmd_end, c.models->calibrated_tool,
@@ -1130,6 +1166,14 @@ class Job {
       }
       out.motions.push_back(ins);
     }
+  }
+
+  /// $ORI_TYPE #CONSTANT: the controller ignores the target's orientation (it keeps the one the
+  /// motion starts with): the written angles stay (or stay left out), only the position is
+  /// corrected.
+  static void keepIgnoredOrientation(const Motion& m, Target& t) {
+    if (m.type == MotionType::kPtp || m.ori_type != "#CONSTANT") return;
+    for (int k = 3; k < 6; ++k) t.pose[k] = m.target.pose[k];
   }
 
   /// The real robot reached `end` with joints q_real.

@@ -206,6 +206,8 @@ Fdat toFdat(const Agg& a, const KrlFile& f) {
 MoveData toMoveData(const Agg& a) {
   MoveData m;
   for (const auto& it : a.items) {
+    if (it.name == "ORI_TYP" && it.vk == AggItem::kEnum) m.ori_typ = upper(it.text);
+    if (it.name == "CIRC_TYP" && it.vk == AggItem::kEnum) m.circ_typ = upper(it.text);
     if (it.vk != AggItem::kNum) continue;
     if (it.name == "VEL") m.vel = it.num;
     if (it.name == "APO_DIST") m.apo_dist = it.num;

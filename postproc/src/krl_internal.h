@@ -277,6 +277,8 @@ struct Fdat {
 struct MoveData {  // LDAT / PDAT
   std::optional<double> vel;       // m/s (LDAT), percent (PDAT)
   std::optional<double> apo_dist;  // mm (C_DIS), percent (C_PTP)
+  std::string ori_typ;             // LDAT: ORI_TYP (#VAR, #CONSTANT, #JOINT; upper case), "" not given
+  std::string circ_typ;            // LDAT: CIRC_TYP (#BASE, #PATH; upper case), "" not given
 };
 
 /// A point array (DECL E6POS XPA[10]): its elements given a value in a data list

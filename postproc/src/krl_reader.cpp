@@ -44,6 +44,47 @@ bool declaresModelType(const std::vector<Tok>& t) {
   return false;
 }
 
+// The names (upper case) a declaration of points gives a value: DECL [GLOBAL] [CONST] E6POS
+// XP1={..}, XP2={..} -> XP1, XP2; none for other types and for names without a value.
+std::vector<std::string> pointsDeclaredWithValue(const std::vector<Tok>& t) {
+  size_t i = 0;
+  while (i < t.size() && t[i].kind == Tok::kIdent && (t[i].up == "DECL" || t[i].up == "GLOBAL" || t[i].up == "CONST")) ++i;
+  std::vector<std::string> names;
+  if (i >= t.size() || !isPointType(t[i].up)) return names;
+  int depth = 0;
+  for (++i; i < t.size(); ++i) {
+    const std::string& x = t[i].text;
+    if (x == "[" || x == "(" || x == "{") ++depth;
+    if (x == "]" || x == ")" || x == "}") --depth;
+    if (depth == 0 && t[i].kind == Tok::kIdent && i + 1 < t.size() && t[i + 1].kind == Tok::kPunct && t[i + 1].text == "=")
+      names.push_back(t[i].up);
+  }
+  return names;
+}
+
+// The points (upper case) a KRL program written anew from the motion model declares itself
+// (generateKrl): the named targets with a value that are not the $config.dat's. The
+// declaration of any other point is carried as a pass-through statement (readKrl).
+std::set<std::string> pointsTheModelDeclares(const Program& program) {
+  std::set<std::string> out;
+  for (const Motion& m : program.motions)
+    for (const Target* x : {&m.target, m.aux ? &*m.aux : nullptr}) {
+      if (!x || x->name.empty() || x->external) continue;
+      bool any = false;
+      for (const auto& c : x->pose) any = any || c.has_value();
+      for (const auto& c : x->axes) any = any || c.has_value();
+      if (any) out.insert(upper(x->name));
+    }
+  return out;
+}
+
+// INTERRUPT DECL n WHEN .. DO handler( ) (also GLOBAL): it declares the handler, it does not
+// call it (the handler runs when the condition fires, wherever the program is).
+bool declaresInterrupt(const std::vector<Tok>& t) {
+  const size_t i = !t.empty() && t[0].up == "GLOBAL" ? 1 : 0;
+  return t.size() > i + 1 && t[i].up == "INTERRUPT" && t[i + 1].up == "DECL";
+}
+
 // An assignment's depth-0 '=' (not '==', nor one inside an index or a call): its index in t,
 // 0 when the statement is not an assignment.
 size_t assignmentEnd(const std::vector<Tok>& t) {
@@ -73,6 +114,8 @@ struct Reader {
   std::string fdat_problem;
   std::optional<MoveData> ldat, pdat;
   std::optional<double> vel_cp, vel_ptp, apo_cdis, apo_cptp, apo_cvel, apo_cori;
+  std::string ori_type_;  // $ORI_TYPE (Motion::ori_type): "" #VAR, the default
+  std::string circ_type_;  // $CIRC_TYPE (Motion::circ_type): "" #BASE, the default
   bool in_spline = false;
   /// The frames and speeds a SPLINE / PTP_SPLINE block's WITH clause sets for its motions
   /// (tool, base, external_tcp, vel_m_s, vel_percent); none outside a block or without WITH.
@@ -602,12 +645,34 @@ struct Reader {
     return model.count(t[0].up) > 0;
   }
 
+  // The value of $ORI_TYPE = t[b, e) (Motion::ori_type): the constant in upper case ("" for
+  // #VAR, the default), else the expression as written.
+  // (Likewise $CIRC_TYPE, "" for #BASE: `default_value`.)
+  std::string oriTypeValue(const std::vector<Tok>& t, size_t b, size_t e, const char* default_value = "#VAR") const {
+    if (e == b + 1 && t[b].kind == Tok::kEnum) return t[b].up == default_value ? std::string() : t[b].up;
+    return f->text().substr(t[b].begin, t[e - 1].end - t[b].begin);
+  }
+  // $ORI_TYPE and $CIRC_TYPE from an LDAT's ORI_TYP and CIRC_TYP (BAS(#CP_PARAMS), SORI_TYP(LDAT),
+  // SCIRC_TYP(LDAT)); each unchanged when the LDAT or its value is not known
+  void oriTypeOf(const std::optional<MoveData>& l, std::string* ori_type, std::string* circ_type = nullptr) const {
+    if (l && !l->ori_typ.empty() && ori_type) *ori_type = l->ori_typ == "#VAR" ? std::string() : l->ori_typ;
+    if (l && !l->circ_typ.empty() && circ_type) *circ_type = l->circ_typ == "#BASE" ? std::string() : l->circ_typ;
+  }
+
   void assignModel(const std::vector<Tok>& t, size_t eq) {
     // lhs = t[0, eq), rhs = t[eq+1, end)
     const size_t b = eq + 1, e = t.size();
     if (b >= e) return;
     const std::string lhs0 = t[0].up;
     const bool simple = eq == 1;
+    if (simple && lhs0 == "$ORI_TYPE") {  // a statement of its own (carried), and the model's
+      ori_type_ = oriTypeValue(t, b, e);
+      return;
+    }
+    if (simple && lhs0 == "$CIRC_TYPE") {
+      circ_type_ = oriTypeValue(t, b, e, "#BASE");
+      return;
+    }
     const bool field = eq == 3 && t[1].text == ".";
     const std::string fieldname = field ? t[2].up : "";
     if (simple && (lhs0 == "$TOOL" || lhs0 == "$BASE")) {
@@ -737,12 +802,14 @@ struct Reader {
       applyFdatFrames(at);
       vel_cp = value;
       if (ldat && ldat->apo_dist) apo_cdis = ldat->apo_dist;
+      oriTypeOf(ldat, &ori_type_, &circ_type_);  // KSS: $ORI_TYPE = LDAT_ACT.ORI_TYP, $CIRC_TYPE = LDAT_ACT.CIRC_TYP
     } else if (cmd == "#FRAMES") {
       applyFdatFrames(at);
     } else if (cmd == "#PTP_DAT") {  // KRC2 inline forms: PDAT_ACT, then BAS(#PTP_DAT)
       if (pdat && pdat->apo_dist) apo_cptp = pdat->apo_dist;
     } else if (cmd == "#CP_DAT") {
       if (ldat && ldat->apo_dist) apo_cdis = ldat->apo_dist;
+      oriTypeOf(ldat, &ori_type_, &circ_type_);
     } else if (cmd == "#VEL_PTP") {
       vel_ptp = value;
     } else if (cmd == "#VEL_CP") {
@@ -820,6 +887,26 @@ struct Reader {
             const auto& table = fn == "SAPO" ? decl.ldats : decl.pdats;
             auto it = table.find(t[a.first].up);
             if (it != table.end() && it->second.apo_dist && !m.approximation.empty()) m.approximation_value = it->second.apo_dist;
+          }
+        } else if (lhs == "$ORI_TYPE" && eq == i + 1) {
+          if (fn == "SORI_TYP") {  // the spline inline forms: SORI_TYP(LCPDAT1), the LDAT's ORI_TYP
+            const auto a = arg(0);
+            if (a.second == a.first + 1) {
+              const auto it = decl.ldats.find(t[a.first].up);
+              if (it != decl.ldats.end()) oriTypeOf(it->second, &m.ori_type);
+            }
+          } else {
+            m.ori_type = oriTypeValue(t, rb, re);
+          }
+        } else if (lhs == "$CIRC_TYPE" && eq == i + 1) {
+          if (fn == "SCIRC_TYP") {  // SCIRC_TYP(LCPDAT1), the LDAT's CIRC_TYP
+            const auto a = arg(0);
+            if (a.second == a.first + 1) {
+              const auto it = decl.ldats.find(t[a.first].up);
+              if (it != decl.ldats.end()) oriTypeOf(it->second, nullptr, &m.circ_type);
+            }
+          } else {
+            m.circ_type = oriTypeValue(t, rb, re, "#BASE");
           }
         } else if (lhs == "$IPO_MODE" && fn == "SIPO_MODE") {
           const auto a = arg(0);
@@ -929,12 +1016,16 @@ struct Reader {
     m.tool = tool;
     m.base = base;
     m.external_tcp = external_tcp;
+    m.ori_type = ori_type_;
+    m.circ_type = circ_type_;
     if (m.type == MotionType::kPtp) m.vel_percent = vel_ptp;
     else m.vel_m_s = vel_cp;
     if (in_spline && spline_block_) {  // the block's WITH clause, then the motion's own
       m.tool = spline_block_->tool;
       m.base = spline_block_->base;
       m.external_tcp = spline_block_->external_tcp;
+      m.ori_type = spline_block_->ori_type;
+      m.circ_type = spline_block_->circ_type;
       if (m.type == MotionType::kPtp) m.vel_percent = spline_block_->vel_percent;
       else m.vel_m_s = spline_block_->vel_m_s;
     }
@@ -948,6 +1039,7 @@ struct Reader {
       }
     }
     if (with_e > with_b) applyWith(t, with_b, with_e, m);
+    if (m.type != MotionType::kCirc) m.circ_type.clear();  // (only circles read $CIRC_TYPE)
 
     // targets
     std::string problem;
@@ -1009,6 +1101,7 @@ struct Reader {
   void handleLine(const Line& l) {
     const bool before_main_end = !main_ended;
     refuse.clear();
+    declared_points_.clear();
     const bool model = interpretLine(l);
     if (model) return;
     const std::string text = f->text().substr(l.begin, l.content_end - l.begin);
@@ -1021,8 +1114,15 @@ struct Reader {
     p.spline_block = in_spline ? spline_block_number_ : 0;
     p.where = f->loc(l.begin);
     p.refuse = refuse;
+    if (!declared_points_.empty() && p.section == PassThrough::Section::kBody)
+      point_declarations_.emplace_back(program->passthrough.size(), declared_points_);
     program->passthrough.push_back(std::move(p));
   }
+  // The points the line just read declares with a value (pointsDeclaredWithValue).
+  std::vector<std::string> declared_points_;
+  // The main program's declarations of points with a value, carried for now (pass-through
+  // index, names): readKrl drops those whose points the motion model declares itself.
+  std::vector<std::pair<size_t, std::vector<std::string>>> point_declarations_;
 
   // True when the line is part of the motion model or carries nothing (blank, attribute
   // lines, the main program's DEF and END).
@@ -1092,6 +1192,8 @@ struct Reader {
         block.tool = tool;
         block.base = base;
         block.external_tcp = external_tcp;
+        block.ori_type = ori_type_;
+        block.circ_type = circ_type_;
         block.vel_m_s = vel_cp;
         block.vel_percent = vel_ptp;
         applyWith(t, 2, t.size(), block);
@@ -1111,10 +1213,13 @@ struct Reader {
       parseDeclaration(c, decl, src, false);
       if (main_ended || def_fct_) noteRoutineDeclarations(t);
       // a point declared without a value (the program assigns it) is not written anew from the
-      // model: it travels as a pass-through statement, so that the program still declares it
+      // model: it travels as a pass-through statement, so that the program still declares it;
+      // so does one with a value that no motion of the model names (readKrl: a point the
+      // program only reads, a GLOBAL one other modules use, a run-time target)
       bool value = false;
       for (const Tok& x : t) value = value || (x.text == "=" && x.kind == Tok::kPunct);
-      return declaresModelType(t) && value;
+      declared_points_ = pointsDeclaredWithValue(t);
+      return declaresModelType(t) && value && declared_points_.empty();
     }
     if (isMotionKeyword(k) && t[0].kind == Tok::kIdent) {
       // "LIN = 3" would be an assignment to a variable named like a keyword: not KRL
@@ -1124,6 +1229,7 @@ struct Reader {
       return !main_ended;
     }
     if (k == "BAS" && t.size() > 1 && t[1].text == "(") return handleBas(t);
+    if (declaresInterrupt(t)) return false;  // (not a call of its handler)
     controlFlow(t);
     if (isLocalCall(t)) flow_.unknown();
     // a call of a subroutine or function of this file that sets $TOOL or $BASE: the frames after
@@ -1148,6 +1254,7 @@ struct Reader {
 // The .dat's statements outside the motion model (declarations of other types, EXT, comments)
 // as pass-through statements of the data part.
 void datPassThrough(const KrlFile& f, Program& program) {
+  const std::set<std::string> model_points = pointsTheModelDeclares(program);
   for (const Line& l : f.lines()) {
     const std::string text = f.text().substr(l.begin, l.content_end - l.begin);
     const std::vector<Tok> t = lex(f, l.begin, l.code_end);
@@ -1158,10 +1265,14 @@ void datPassThrough(const KrlFile& f, Program& program) {
       if (t[0].text == "&" || k == "DEFDAT" || k == "ENDDAT" || (k == "PUBLIC" && t.size() > 1 && t[1].up == "DEFDAT")) continue;
       // a declaration the model holds the value of; one without a value (a point array: DECL
       // E6POS XPA[10], its elements' lines XPA[1]={..} carried too) travels as written, as in
-      // the .src, so that the program still declares what it uses
+      // the .src, so that the program still declares what it uses. So does a point with a value
+      // that no motion of the model names (the model would not declare it): one the program only
+      // reads (IF XP9.X>0, XP2=XP8), a GLOBAL one other modules use, a run-time target.
       bool value = false;
       for (const Tok& x : t) value = value || (x.kind == Tok::kPunct && x.text == "=");
-      if ((k == "DECL" || isPointType(k) || k == "FDAT" || k == "LDAT" || k == "PDAT") && declaresModelType(t) && value) continue;
+      const std::vector<std::string> points = pointsDeclaredWithValue(t);
+      const bool model_declares = std::all_of(points.begin(), points.end(), [&](const std::string& n) { return model_points.count(n) > 0; });
+      if ((k == "DECL" || isPointType(k) || k == "FDAT" || k == "LDAT" || k == "PDAT") && declaresModelType(t) && value && model_declares) continue;
     }
     PassThrough p;
     p.language = "KRL";
@@ -1357,8 +1468,9 @@ Program readKrl(const std::string& src_path, const KrlReadOptions& options) {
       const bool inline_form = bas && (t[2].up == "#PTP_PARAMS" || t[2].up == "#CP_PARAMS");
       if (!cur.empty() && ((t[0].up == "$TOOL" && assigns) || (bas && t[2].up == "#TOOL") || inline_form)) sets_tool[cur] = true;
       if (!cur.empty() && ((t[0].up == "$BASE" && assigns) || (bas && t[2].up == "#BASE") || inline_form)) sets_base[cur] = true;
-      // calls: a subroutine's as a statement, a function's anywhere in an expression
-      for (size_t i = 0; i + 1 < t.size() && !cur.empty(); ++i)
+      // calls: a subroutine's as a statement, a function's anywhere in an expression (an
+      // interrupt's declaration names its handler without calling it)
+      for (size_t i = 0; i + 1 < t.size() && !cur.empty() && !declaresInterrupt(t); ++i)
         if (t[i].kind == Tok::kIdent && t[i + 1].text == "(" && moves.count(t[i].up)) calls[cur].insert(t[i].up);
     }
     r.local_defs_ = movingRoutines(moves, calls);
@@ -1414,6 +1526,13 @@ Program readKrl(const std::string& src_path, const KrlReadOptions& options) {
   }
   if (r.def_open_)
     src.fail(src.text().size(), "expected " + r.openEnd() + " at line " + std::to_string(r.def_line_) + ", found the end of the file");
+  // the main program's declarations of points the model declares itself are not carried
+  {
+    const std::set<std::string> model_points = pointsTheModelDeclares(program);
+    for (auto it = r.point_declarations_.rbegin(); it != r.point_declarations_.rend(); ++it)
+      if (std::all_of(it->second.begin(), it->second.end(), [&](const std::string& n) { return model_points.count(n) > 0; }))
+        program.passthrough.erase(program.passthrough.begin() + static_cast<std::ptrdiff_t>(it->first));
+  }
   notePointReads(src, lines, r.decl, *source);
   if (!source->dat_path.empty()) datPassThrough(KrlFile(source->dat_path, source->dat_text, 1), program);
   if (program.name.empty() && !r.first_function_.empty()) {

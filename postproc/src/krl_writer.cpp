@@ -278,6 +278,27 @@ KrlText generateKrl(const Program& p) {
     const auto it = ptp_block.find(b);
     return it != ptp_block.end() && it->second;
   };
+  // $ORI_TYPE and $CIRC_TYPE as the program written so far leaves them ("": #VAR, #BASE, the
+  // values BAS(#INITMOV) gives; a carried statement `$ORI_TYPE = #CONSTANT` sets them too)
+  std::string ori_type, circ_type;
+  auto noteCarried = [&](const std::string& text) {
+    std::istringstream in(text);
+    std::string lhs, eq, value;
+    in >> lhs;
+    const size_t at = lhs.find('=');
+    if (at != std::string::npos) {  // $ORI_TYPE=#CONSTANT
+      value = lhs.substr(at + 1);
+      lhs = lhs.substr(0, at);
+    } else {
+      in >> eq;
+      if (eq.size() > 1 && eq[0] == '=') value = eq.substr(1);
+      else if (eq == "=") in >> value;
+    }
+    if (value.empty() || value[0] != '#') return;
+    const std::string v = upper(value), l = upper(lhs);
+    if (l == "$ORI_TYPE") ori_type = v == "#VAR" ? "" : v;
+    if (l == "$CIRC_TYPE") circ_type = v == "#BASE" ? "" : v;
+  };
   // the pass-through statements of a section, in order; for the body those before motion `k`,
   // each in the block it was in (PassThrough::spline_block: TIME_BLOCK inside, $OUT after it)
   size_t next_body = 0;
@@ -290,6 +311,7 @@ KrlText generateKrl(const Program& p) {
       if (s.section == PassThrough::Section::kBody) {
         if (!(in_spline && open_block < 0)) enterBlock(out, s.spline_block, ptpBlock(s.spline_block));
         out << s.text << "\n";
+        noteCarried(s.text.substr(0, s.text.find(';')));
       }
       ++next_body;
     }
@@ -355,6 +377,22 @@ KrlText generateKrl(const Program& p) {
       vel_cp = m.vel_m_s;
     }
     std::ostringstream settings;
+    // the orientation control of a CP motion: a spline motion's own (WITH, which a block's
+    // segment needs: a block holds no statements), a LIN's or CIRC's a statement
+    if (m.type != MotionType::kPtp) {
+      const std::string circ = m.type == MotionType::kCirc ? m.circ_type : circ_type;  // (only circles read it)
+      for (const auto& [var, want, now, fallback] : {std::make_tuple("$ORI_TYPE", &m.ori_type, &ori_type, "#VAR"),
+                                                     std::make_tuple("$CIRC_TYPE", &circ, &circ_type, "#BASE")}) {
+        if (*want == *now) continue;
+        const std::string a = std::string(var) + "=" + (want->empty() ? std::string(fallback) : *want);
+        if (m.spline) {
+          with += (with.empty() ? " WITH " : ", ") + a;
+        } else {
+          settings << a << "\n";
+          *now = *want;
+        }
+      }
+    }
     if (!sameFrame(m.tool, tool)) {
       const std::string s = frameStatement("$TOOL", m.tool, true);
       if (!s.empty()) settings << s << "\n";

@@ -48,7 +48,7 @@ std::set<std::string> frameAttrs() {
 
 std::set<std::string> motionAttrs() {
   return {"vel_percent", "vel_m_s", "approx", "approx_value", "ca_deg", "relative", "external_tcp", "conf_monitored", "source_line",
-          "start_unknown", "spline_block", "spline_block_type", "time_s"};
+          "start_unknown", "spline_block", "spline_block_type", "time_s", "ori_type", "circ_type"};
 }
 
 class Reader {
@@ -393,6 +393,15 @@ Motion readMotion(const Reader& R, const XMLElement* e) {
   if (m.duration_s && !(*m.duration_s > 0 && *m.duration_s <= 1e6))
     R.fail(e, "<" + n + "> attribute 'time_s': expected the move's time in (0, 1e6] s, found " + calib::formatFixed(*m.duration_s, 4));
   if (m.type == MotionType::kSpl && m.relative) R.fail(e, "<spl>: attribute 'relative' is not allowed");
+  // KUKA $ORI_TYPE / $CIRC_TYPE of a CP motion (program.h; absent: #VAR / #BASE)
+  if (const auto o = R.text(e, "ori_type")) {
+    if (m.type == MotionType::kPtp || o->empty()) R.fail(e, "<" + n + "> attribute 'ori_type': expected it on a CP motion, not empty, found '" + *o + "' on " + n);
+    m.ori_type = *o == "#VAR" ? std::string() : *o;
+  }
+  if (const auto c = R.text(e, "circ_type")) {
+    if (m.type != MotionType::kCirc || c->empty()) R.fail(e, "<" + n + "> attribute 'circ_type': expected it on circ or scirc, not empty, found '" + *c + "' on " + n);
+    m.circ_type = *c == "#BASE" ? std::string() : *c;
+  }
   if (const auto b = R.integer(e, "spline_block")) {
     if (!m.spline || *b < 1)
       R.fail(e, "<" + n + "> attribute 'spline_block': expected a positive block number on sptp, slin, scirc or spl, found '" +
@@ -684,6 +693,8 @@ std::string writeXmlProgram(const Program& p) {
     if (!m.conf_monitored) out << " conf_monitored=\"false\"";
     if (m.source_line > 0 && !m.inserted) out << " source_line=\"" << m.source_line << "\"";
     if (m.start_unknown && !m.inserted) out << " start_unknown=\"true\"";
+    if (!m.ori_type.empty()) out << " ori_type=\"" << calib::xmlEscape(m.ori_type) << "\"";
+    if (!m.circ_type.empty()) out << " circ_type=\"" << calib::xmlEscape(m.circ_type) << "\"";
     if (m.spline_block > 0)
       out << " spline_block=\"" << m.spline_block << "\" spline_block_type=\"" << (m.ptp_spline_block ? "PTP_SPLINE" : "SPLINE") << "\"";
     if (!m.duration_expr.empty())

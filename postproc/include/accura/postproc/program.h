@@ -156,6 +156,14 @@ struct Motion {
   FrameSetting tool;   ///< T_flange_tcp active at this motion
   FrameSetting base;   ///< T_world_base (program base, relative to the controller's $WORLD)
   bool external_tcp = false;  ///< IPO_FRAME #TCP (stationary tool): not compensated
+  /// KUKA: the orientation control of a CP motion ($ORI_TYPE, upper case): "" (#VAR, the
+  /// default: the orientation turns from the start's to the target's), "#CONSTANT" (the start's
+  /// orientation is kept, the target's ignored), "#JOINT" (the wrist axes turn linearly),
+  /// "#IGNORE", or the expression as written when it is not a constant.
+  std::string ori_type;
+  /// KUKA: the orientation reference of a circular motion ($CIRC_TYPE, upper case): "" (#BASE,
+  /// the default), "#PATH" (the orientation turns with the path), or the expression as written.
+  std::string circ_type;
   /// Why the target cannot be evaluated (an undeclared name, an expression computed at run
   /// time, a point changed at run time); empty when it can.
   std::string target_problem;
