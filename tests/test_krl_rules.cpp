@@ -13,6 +13,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <set>
 
 #include "accura/calib/errors.h"
 #include "accura/calib/geometry.h"
@@ -386,6 +387,64 @@ TEST(KrlRules, ACorrectedPartialAggregateLandsWhereTheControllerFillsItFromItsPo
 // (the controller ignores them); a #JOINT one gets its end point compensated, its path (which
 // accura does not predict) unchecked. (Before: the target was corrected for its written
 // orientation, which the robot never takes: the position missed by the difference.)
+// $ORI_TYPE / $CIRC_TYPE where the reader cannot follow them, as $TOOL and $BASE: set inside a
+// branch (after it: whichever the run took), later in a loop (the next pass), by a routine the
+// program calls, or a subroutine's (the caller's). Such a CP motion is kept and named, not
+// compensated for a value the controller may not run; a program whose only value is the default
+// (#VAR, #BASE) has nothing to follow.
+TEST(KrlRules, AnOrientationControlTheReaderCannotFollowIsKeptAndNamed) {
+  const std::string dir = test::tempDir("krl_ori_flow");
+  auto read = [&](const std::string& value) {
+    test::writeText(dir + "/p.src", "DEF p( )\n$TOOL={X 0,Y 0,Z 200,A 0,B 0,C 0}\n$BASE={X 1200,Y 0,Z 400,A 0,B 0,C 0}\nPTP XP1\n"
+                                    "IF $IN[1] THEN\n$ORI_TYPE = " + value + "\nENDIF\nLIN XP2\n$ORI_TYPE = #VAR\nLIN XP1\n"
+                                    "LOOP\nLIN XP2\n$ORI_TYPE = " + value + "\nENDLOOP\n$ORI_TYPE = #VAR\nsetori( )\nLIN XP1\nsub( )\nEND\n"
+                                    "DEF sub( )\n$TOOL={X 0,Y 0,Z 200,A 0,B 0,C 0}\n$BASE={X 1200,Y 0,Z 400,A 0,B 0,C 0}\nPTP XP1\nLIN XP2\nEND\n"
+                                    "DEF setori( )\n$ORI_TYPE = " + value + "\nEND\n");
+    test::writeText(dir + "/p.dat", "DEFDAT p\nDECL E6POS XP1={X 100,Y 0,Z 100,A 0,B 90,C 0}\nDECL E6POS XP2={X 150,Y 50,Z 100,A 0,B 90,C 0}\nENDDAT\n");
+    return readKrl(dir + "/p.src");
+  };
+  const Program p = read("#CONSTANT");
+  ASSERT_EQ(p.motions.size(), 7u);
+  // PTP XP1, LIN XP2 (after the IF), LIN XP1, LIN XP2 (in the LOOP), LIN XP1 (after setori), sub's PTP and LIN
+  EXPECT_EQ(p.motions[1].ori_type, "?$ORI_TYPE is set inside the IF at line 5: after it, its value depends on the way the program ran");
+  EXPECT_EQ(p.motions[2].ori_type, "");
+  EXPECT_EQ(p.motions[3].ori_type, "?$ORI_TYPE is set later in the LOOP at line 11: the next pass runs this motion with the new value");
+  EXPECT_EQ(p.motions[4].ori_type, "?setori (called at " + dir + "/p.src:16:1) sets $ORI_TYPE: its value after the call is not followed");
+  EXPECT_EQ(p.motions[6].ori_type, "?a subroutine runs with the caller's $ORI_TYPE until it sets its own");
+  JobSettings s;
+  s.calibrated = calib::readRobotFile(test::sourcePath("tests/data/plugin/kr16_calibrated.xml"));
+  const ProgramCompensation pc = compensateProgramReport(p, s);
+  ASSERT_TRUE(pc.ok()) << pc.report.errors.front().message;
+  std::set<int> kept;
+  for (const ProgramIssue& w : pc.report.warnings)
+    if (w.message.find("left unchanged (not compensated): its orientation control is not known here") != std::string::npos) kept.insert(w.where.line);
+  EXPECT_EQ(kept, (std::set<int>{8, 12, 17, 24}));
+  // converted to XML the motion would state a value it does not have: refused, naming it
+  test::writeText(dir + "/q.src", "DEF q( )\n$TOOL={X 0,Y 0,Z 200,A 0,B 0,C 0}\n$BASE={X 1200,Y 0,Z 400,A 0,B 0,C 0}\nPTP XP1\n"
+                                  "IF $IN[1] THEN\n$ORI_TYPE = #CONSTANT\nENDIF\nLIN XP2\nEND\n");
+  test::writeText(dir + "/q.dat", "DEFDAT q\nDECL E6POS XP1={X 100,Y 0,Z 100,A 0,B 90,C 0}\nDECL E6POS XP2={X 150,Y 50,Z 100,A 0,B 90,C 0}\nENDDAT\n");
+  try {
+    (void)writeXmlProgram(readKrl(dir + "/q.src"));
+    ADD_FAILURE() << "expected the unknown orientation control to be refused";
+  } catch (const calib::ArgumentError& e) {
+    EXPECT_NE(std::string(e.what()).find("q.src:8:1: cannot write 'LIN XP2' as an XML motion: its orientation control is not known here"),
+              std::string::npos)
+        << e.what();
+  }
+  // only the default anywhere: nothing to follow, every motion with it
+  for (const Motion& m : read("#VAR").motions) EXPECT_EQ(m.ori_type, "") << m.where.str();
+  // an XML program names the value in any case, as KRL does (#constant is #CONSTANT)
+  test::writeText(dir + "/r.src", "DEF r( )\n$TOOL={X 0,Y 0,Z 200,A 0,B 0,C 0}\n$BASE={X 1200,Y 0,Z 400,A 0,B 0,C 0}\nPTP XP1\n"
+                                  "$ORI_TYPE = #CONSTANT\nLIN XP2\nEND\n");
+  test::writeText(dir + "/r.dat", "DEFDAT r\nDECL E6POS XP1={X 100,Y 0,Z 100,A 0,B 90,C 0}\nDECL E6POS XP2={X 150,Y 50,Z 100,A 0,B 90,C 0}\nENDDAT\n");
+  std::string xml = writeXmlProgram(readKrl(dir + "/r.src"));
+  const size_t at = xml.find("ori_type=\"#CONSTANT\"");
+  ASSERT_NE(at, std::string::npos) << xml;
+  xml.replace(at, std::string("ori_type=\"#CONSTANT\"").size(), "ori_type=\"#constant\"");
+  test::writeText(dir + "/r.xml", xml);
+  EXPECT_EQ(readXmlProgram(dir + "/r.xml").motions.at(1).ori_type, "#CONSTANT");
+}
+
 TEST(KrlRules, AConstantOrientationLinIsCorrectedForTheOrientationTheRobotKeeps) {
   const StCell cell;
   const Eigen::VectorXd q1 = joints({10, -80, 100, 20, 40, 30});

@@ -620,6 +620,8 @@ TEST(UrScript, AMountingTheProgramSetsIsSaidWhereItDiffersFromTheModels) {
   EXPECT_NE(said("set_gravity(g_dir)", compliant).find("'set_gravity(g_dir)': accura cannot read its direction"), std::string::npos);
   EXPECT_EQ(said("set_gravity([-9.82, 0, 0])", {"geometric"}), "");
   EXPECT_EQ(said("textmsg(\"set_gravity([-9.82, 0, 0])\")", compliant), "");  // a string is no statement
+  // blanks before the parenthesis are the same statement
+  EXPECT_NE(said("set_gravity ([-9.82, 0.0, 0.0])", compliant).find("90.0 deg from the model's <gravity>"), std::string::npos);
 }
 
 TEST(UrScript, AProgramToolTheScriptReplacesBeforeItsFirstMotionIsSaidWhereTheyDiffer) {
@@ -645,6 +647,11 @@ TEST(UrScript, AProgramToolTheScriptReplacesBeforeItsFirstMotionIsSaidWhereTheyD
   EXPECT_EQ(said(first, {0, 0, 150, 0, 0, 0}), "");  // the same TCP: nothing to say
   // a motion before the set_tcp runs with --program-tool: it is used
   EXPECT_EQ(said("def t():\n" + moves + "  set_tcp(p[0.0, 0.0, 0.15, 0.0, 0.0, 0.0])\n" + moves + "end\n", {0, 0, 200, 0, 0, 0}), "");
+  // the first motion runs with a TCP accura cannot evaluate: no set_tcp with a value comes
+  // before it, so none is said to (the one after the first motion is not "before its first")
+  EXPECT_EQ(said("def t():\n  set_tcp(pose_inv(tt))\n" + moves + "  set_tcp(p[0.0, 0.0, 0.15, 0.0, 0.0, 0.0])\n" + moves + "end\n",
+                 {0, 0, 100, 0, 0, 0}),
+            "");
 }
 
 TEST(UrScript, GetInverseKinArgumentsAreReadOrNamed) {

@@ -203,11 +203,12 @@ class Job {
     for (int k = 0; k < 3; ++k) model[k] = std::abs(model[k]) < 1e-12 ? 0.0 : model[k];
     for (const auto& o : in.urscript->others) {
       // the statement set_gravity(...) (not the name inside a string or another call)
-      const size_t at = 0;
-      if (o.text.compare(0, 12, "set_gravity(") != 0) continue;
+      if (o.text.compare(0, 11, "set_gravity") != 0) continue;
+      const size_t paren = o.text.find_first_not_of(" \t", 11);
+      if (paren == std::string::npos || o.text[paren] != '(') continue;
       // set_gravity([x, y, z]): three numbers, else a value the controller computes
       Eigen::Vector3d d;
-      const char* c = o.text.c_str() + at + std::strlen("set_gravity(");
+      const char* c = o.text.c_str() + paren + 1;
       bool read = false;
       while (*c == ' ' || *c == '\t') ++c;
       if (*c == '[') {
@@ -251,13 +252,12 @@ class Job {
   /// so at the top of each program): a --program-tool that no motion uses and that differs from
   /// that set_tcp is said, since the TCP the user believes active is not the program's.
   void noteUnusedProgramTool(const Program& in) {
-    if (!s_.initial_tool || !in.urscript) return;
-    const FrameSetting* first = nullptr;
-    for (const Motion& m : in.motions) {
+    if (!s_.initial_tool || !in.urscript || in.motions.empty()) return;
+    for (const Motion& m : in.motions)
       if (m.tool.source == FrameSetting::Source::kUnset) return;  // it is used
-      if (!first && m.tool.source == FrameSetting::Source::kInline && m.tool.value) first = &m.tool;
-    }
-    if (!first) return;
+    // the TCP of the first motion: the script's set_tcp with a value (else no claim is made)
+    const FrameSetting* first = &in.motions.front().tool;
+    if (first->source != FrameSetting::Source::kInline || !first->value) return;
     const Eigen::Isometry3d d = calib::toIsometry(*s_.initial_tool).inverse() * calib::toIsometry(*first->value);
     const double mm = d.translation().norm(), deg = calib::rotationAngleDeg(d.linear());
     if (!(mm > s_.tool_match_mm || deg > s_.tool_match_deg)) return;
@@ -791,6 +791,12 @@ class Job {
       leftUnchanged(m, "a CIRC with CA " + formatDeg(*m.circ_angle_deg) + " (circular angle) ends elsewhere than its written target");
       return keep(out, m);
     }
+    // a value the reader could not follow ("?why": set in a branch, by the caller, by a call)
+    for (const auto& [v, applies] : {std::make_pair(&m.ori_type, m.type != MotionType::kPtp), std::make_pair(&m.circ_type, m.type == MotionType::kCirc)})
+      if (applies && !v->empty() && (*v)[0] == '?') {
+        leftUnchanged(m, "its orientation control is not known here: " + v->substr(1));
+        return keep(out, m);
+      }
     if (m.type != MotionType::kPtp && !m.ori_type.empty() && m.ori_type != "#CONSTANT" && m.ori_type != "#JOINT") {
       // the controller runs it; where the tool's orientation goes is not accura's to know
       leftUnchanged(m, "its orientation control $ORI_TYPE " + m.ori_type + " is not modelled (#VAR, #CONSTANT and #JOINT are)");

@@ -114,8 +114,13 @@ struct Reader {
   std::string fdat_problem;
   std::optional<MoveData> ldat, pdat;
   std::optional<double> vel_cp, vel_ptp, apo_cdis, apo_cptp, apo_cvel, apo_cori;
-  std::string ori_type_;  // $ORI_TYPE (Motion::ori_type): "" #VAR, the default
-  std::string circ_type_;  // $CIRC_TYPE (Motion::circ_type): "" #BASE, the default
+  std::string ori_type_;  // $ORI_TYPE (Motion::ori_type): "" #VAR, the default; "?why" not known here
+  std::string circ_type_;  // $CIRC_TYPE (Motion::circ_type): "" #BASE, the default; "?why" not known here
+  // The program gives $ORI_TYPE / $CIRC_TYPE a value other than the default somewhere (an
+  // assignment, an LDAT, a WITH): only then can a branch, a caller or a call leave it unknown
+  bool ori_varies_ = false, circ_varies_ = false;
+  std::set<std::string> ori_defs_, circ_defs_;  // the routines that set $ORI_TYPE / $CIRC_TYPE (themselves or through their calls)
+  static std::string unknownOri(const std::string& why) { return "?" + why; }
   bool in_spline = false;
   /// The frames and speeds a SPLINE / PTP_SPLINE block's WITH clause sets for its motions
   /// (tool, base, external_tcp, vel_m_s, vel_percent); none outside a block or without WITH.
@@ -187,7 +192,7 @@ struct Reader {
     const bool label = t.size() == 2 && t[0].kind == Tok::kIdent && t[1].text == ":";
     if (opensBranch(k)) {
       flow_.open(StartTracker::Block::kBranch);
-      frame_blocks_.push_back({tool, base, false, false, t[0].text, f->loc(t[0].begin).line});
+      frame_blocks_.push_back({tool, base, false, false, t[0].text, f->loc(t[0].begin).line, 0, false, ori_type_, circ_type_});
     } else if (startsBranch(k)) {
       flow_.branch();
       if (!frame_blocks_.empty()) {  // each branch starts with the frames the block was entered with
@@ -196,10 +201,15 @@ struct Reader {
         fb.base_changed = fb.base_changed || !sameFrame(base, fb.base);
         tool = fb.tool;
         base = fb.base;
+        fb.ori_changed = fb.ori_changed || ori_type_ != fb.ori;
+        fb.circ_changed = fb.circ_changed || circ_type_ != fb.circ;
+        ori_type_ = fb.ori;
+        circ_type_ = fb.circ;
       }
     } else if (opensLoop(k)) {
       flow_.open(StartTracker::Block::kLoop);
-      frame_blocks_.push_back({tool, base, false, false, t[0].text, f->loc(t[0].begin).line, program->motions.size(), true});
+      frame_blocks_.push_back(
+          {tool, base, false, false, t[0].text, f->loc(t[0].begin).line, program->motions.size(), true, ori_type_, circ_type_});
     } else if (closesBlock(k)) {
       flow_.close();
       if (!frame_blocks_.empty()) {
@@ -224,6 +234,20 @@ struct Reader {
           }
         after(tool, fb.tool, fb.tool_changed, "$TOOL");
         after(base, fb.base, fb.base_changed, "$BASE");
+        // $ORI_TYPE / $CIRC_TYPE the same way (a loop's motions before the change run with it
+        // on the next pass; after a block that set it, whichever the run took)
+        for (auto [cur, entry, changed, name, field] :
+             {std::make_tuple(&ori_type_, &fb.ori, fb.ori_changed, "$ORI_TYPE", &Motion::ori_type),
+              std::make_tuple(&circ_type_, &fb.circ, fb.circ_changed, "$CIRC_TYPE", &Motion::circ_type)}) {
+          if (fb.loop && *cur != *entry)
+            for (size_t i = fb.first_motion; i < program->motions.size(); ++i)
+              if (program->motions[i].*field == *entry)
+                program->motions[i].*field = unknownOri(std::string(name) + " is set later in the " + fb.kind + " at line " +
+                                                        std::to_string(fb.line) + ": the next pass runs this motion with the new value");
+          if (changed || *cur != *entry)
+            *cur = unknownOri(std::string(name) + " is set inside the " + fb.kind + " at line " + std::to_string(fb.line) +
+                              ": after it, its value depends on the way the program ran");
+        }
       }
     } else if (k == "GOTO" || label) {
       flow_.unknown();
@@ -233,6 +257,8 @@ struct Reader {
   /// until the routine sets them.
   void callerFrames(size_t at) {
     frame_blocks_.clear();
+    if (ori_varies_) ori_type_ = unknownOri("a subroutine runs with the caller's $ORI_TYPE until it sets its own");
+    if (circ_varies_) circ_type_ = unknownOri("a subroutine runs with the caller's $CIRC_TYPE until it sets its own");
     for (const char* name : {"$TOOL", "$BASE"})
       (name[1] == 'T' ? tool : base) =
           runTimeFrame(name, f->loc(at), std::string("a subroutine runs with the caller's ") + name + " until it sets its own");
@@ -245,6 +271,8 @@ struct Reader {
     int line = 0;
     size_t first_motion = 0;  // loops: the first motion of the body
     bool loop = false;
+    std::string ori, circ;  // $ORI_TYPE / $CIRC_TYPE on entering the block
+    bool ori_changed = false, circ_changed = false;
   };
   std::vector<FrameBlock> frame_blocks_;
 
@@ -1240,6 +1268,10 @@ struct Reader {
         tool = runTimeFrame("$TOOL", f->loc(t[i].begin), t[i].text + " (called here) sets $TOOL: the tool after the call is not followed");
       if (base_defs_.count(t[i].up))
         base = runTimeFrame("$BASE", f->loc(t[i].begin), t[i].text + " (called here) sets $BASE: the base after the call is not followed");
+      if (ori_varies_ && ori_defs_.count(t[i].up))
+        ori_type_ = unknownOri(t[i].text + " (called at " + f->loc(t[i].begin).str() + ") sets $ORI_TYPE: its value after the call is not followed");
+      if (circ_varies_ && circ_defs_.count(t[i].up))
+        circ_type_ = unknownOri(t[i].text + " (called at " + f->loc(t[i].begin).str() + ") sets $CIRC_TYPE: its value after the call is not followed");
     }
     {
       Cursor c(*f, t, l.code_end);
@@ -1443,7 +1475,7 @@ Program readKrl(const std::string& src_path, const KrlReadOptions& options) {
   {
     // the subroutines defined here that move the robot, themselves or through the ones they
     // call (a call may come before the DEF)
-    std::map<std::string, bool> moves, sets_tool, sets_base;
+    std::map<std::string, bool> moves, sets_tool, sets_base, sets_ori, sets_circ;
     std::map<std::string, std::set<std::string>> calls;
     // "" unless the line is a DEF or a DEFFCT (DEFFCT type name(...))
     auto defName = [](const std::vector<Tok>& t) -> std::string {
@@ -1453,7 +1485,7 @@ Program readKrl(const std::string& src_path, const KrlReadOptions& options) {
       return "";
     };
     for (const std::vector<Tok>& t : lines)
-      if (const std::string d = defName(t); !d.empty()) moves[d] = sets_tool[d] = sets_base[d] = false;
+      if (const std::string d = defName(t); !d.empty()) moves[d] = sets_tool[d] = sets_base[d] = sets_ori[d] = sets_circ[d] = false;
     std::string cur;
     for (const std::vector<Tok>& t : lines) {
       if (t.empty()) continue;
@@ -1468,6 +1500,16 @@ Program readKrl(const std::string& src_path, const KrlReadOptions& options) {
       const bool inline_form = bas && (t[2].up == "#PTP_PARAMS" || t[2].up == "#CP_PARAMS");
       if (!cur.empty() && ((t[0].up == "$TOOL" && assigns) || (bas && t[2].up == "#TOOL") || inline_form)) sets_tool[cur] = true;
       if (!cur.empty() && ((t[0].up == "$BASE" && assigns) || (bas && t[2].up == "#BASE") || inline_form)) sets_base[cur] = true;
+      // $ORI_TYPE / $CIRC_TYPE set (an assignment, an LDAT made active by BAS(#CP_PARAMS / #CP_DAT))
+      const bool cp_bas = bas && (t[2].up == "#CP_PARAMS" || t[2].up == "#CP_DAT");
+      if (!cur.empty() && ((t[0].up == "$ORI_TYPE" && assigns) || cp_bas)) sets_ori[cur] = true;
+      if (!cur.empty() && ((t[0].up == "$CIRC_TYPE" && assigns) || cp_bas)) sets_circ[cur] = true;
+      // a value other than the default anywhere (an assignment or a WITH of $ORI_TYPE / $CIRC_TYPE)
+      for (size_t i = 0; i + 2 < t.size(); ++i) {
+        if (t[i + 1].text != "=") continue;
+        if (t[i].up == "$ORI_TYPE" && t[i + 2].up != "#VAR") r.ori_varies_ = true;
+        if (t[i].up == "$CIRC_TYPE" && t[i + 2].up != "#BASE") r.circ_varies_ = true;
+      }
       // calls: a subroutine's as a statement, a function's anywhere in an expression (an
       // interrupt's declaration names its handler without calling it)
       for (size_t i = 0; i + 1 < t.size() && !cur.empty() && !declaresInterrupt(t); ++i)
@@ -1476,6 +1518,12 @@ Program readKrl(const std::string& src_path, const KrlReadOptions& options) {
     r.local_defs_ = movingRoutines(moves, calls);
     r.tool_defs_ = movingRoutines(sets_tool, calls);  // (the same closure over the calls)
     r.base_defs_ = movingRoutines(sets_base, calls);
+    r.ori_defs_ = movingRoutines(sets_ori, calls);
+    r.circ_defs_ = movingRoutines(sets_circ, calls);
+    for (const auto& [name, l] : r.decl.ldats) {  // (SORI_TYP(LDAT) and BAS read these)
+      r.ori_varies_ = r.ori_varies_ || (!l.ori_typ.empty() && l.ori_typ != "#VAR");
+      r.circ_varies_ = r.circ_varies_ || (!l.circ_typ.empty() && l.circ_typ != "#BASE");
+    }
     // the points whose assignments make their value depend on more than the text before a motion
     int depth = 0;  // open IF, SWITCH and loops
     bool in_main = false, main_seen = false;

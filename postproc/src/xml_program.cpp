@@ -396,11 +396,17 @@ Motion readMotion(const Reader& R, const XMLElement* e) {
   // KUKA $ORI_TYPE / $CIRC_TYPE of a CP motion (program.h; absent: #VAR / #BASE)
   if (const auto o = R.text(e, "ori_type")) {
     if (m.type == MotionType::kPtp || o->empty()) R.fail(e, "<" + n + "> attribute 'ori_type': expected it on a CP motion, not empty, found '" + *o + "' on " + n);
-    m.ori_type = *o == "#VAR" ? std::string() : *o;
+    std::string v = *o;  // (KRL's names: any case; an enumeration value upper case as the KRL reader gives it)
+    if (v[0] == '#')
+      for (char& ch : v) ch = static_cast<char>(std::toupper(static_cast<unsigned char>(ch)));
+    m.ori_type = v == "#VAR" ? std::string() : v;
   }
   if (const auto c = R.text(e, "circ_type")) {
     if (m.type != MotionType::kCirc || c->empty()) R.fail(e, "<" + n + "> attribute 'circ_type': expected it on circ or scirc, not empty, found '" + *c + "' on " + n);
-    m.circ_type = *c == "#BASE" ? std::string() : *c;
+    std::string v = *c;
+    if (v[0] == '#')
+      for (char& ch : v) ch = static_cast<char>(std::toupper(static_cast<unsigned char>(ch)));
+    m.circ_type = v == "#BASE" ? std::string() : v;
   }
   if (const auto b = R.integer(e, "spline_block")) {
     if (!m.spline || *b < 1)
@@ -693,6 +699,11 @@ std::string writeXmlProgram(const Program& p) {
     if (!m.conf_monitored) out << " conf_monitored=\"false\"";
     if (m.source_line > 0 && !m.inserted) out << " source_line=\"" << m.source_line << "\"";
     if (m.start_unknown && !m.inserted) out << " start_unknown=\"true\"";
+    for (const std::string* v : {&m.ori_type, &m.circ_type})
+      if (!v->empty() && (*v)[0] == '?')  // (the KRL reader could not follow it: krl_reader.cpp)
+        throw calib::ArgumentError(m.where.str() + ": cannot write '" + detail::excerpt(m.statement) +
+                                   "' as an XML motion: its orientation control is not known here (" + v->substr(1) +
+                                   "), and the XML program states each motion's");
     if (!m.ori_type.empty()) out << " ori_type=\"" << calib::xmlEscape(m.ori_type) << "\"";
     if (!m.circ_type.empty()) out << " circ_type=\"" << calib::xmlEscape(m.circ_type) << "\"";
     if (m.spline_block > 0)
