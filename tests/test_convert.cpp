@@ -120,6 +120,32 @@ TEST(Convert, TheDefsParametersAndAPointDeclaredWithoutAValueSurviveTheRoundTrip
 // the program only reads, a motion's target changed at run time, one a subroutine declares) is
 // not declared by the KRL written anew from the model: its declaration is carried as written.
 // (Before: dropped, and the converted program did not compile, 'XP9' undeclared.)
+// A line declaring several points, of which the model declares some (a motion names them) and
+// carries the others: only the others travel, so that KRL written anew declares each point once
+// (the whole line carried declared XP1 twice: the module did not compile).
+TEST(Convert, ALineDeclaringSeveralPointsCarriesOnlyThoseTheModelDoesNotDeclare) {
+  const std::string dir = test::tempDir("convert_multi_decl");
+  test::writeText(dir + "/m.src", "DEF m( )\nDECL E6POS XP3={X 1000,Y 30,Z 800,A 0,B 90,C 0},XP8={X 1,Y 8,Z 3,A 0,B 0,C 0}\n"
+                                  "$TOOL={X 0,Y 0,Z 200,A 0,B 0,C 0}\n$BASE=$NULLFRAME\nPTP XP1\nLIN XP3\nIF XP9.X > 0 THEN\nLIN XP2\nENDIF\n"
+                                  "XTMP=XP8\nEND\n");
+  test::writeText(dir + "/m.dat", "DEFDAT m\nDECL E6POS XP1={X 1000,Y 0,Z 800,A 0,B 90,C 0},XP9={X 1,Y 2,Z 3,A 0,B 0,C 0} ; two\n"
+                                  "DECL E6POS XP2={X 1000,Y 50,Z 800,A 0,B 90,C 0}\nENDDAT\n");
+  const Program p = readKrl(dir + "/m.src");
+  std::vector<std::string> carried;
+  for (const PassThrough& s : p.passthrough)
+    if (s.text.find("DECL") != std::string::npos) carried.push_back(s.text);
+  EXPECT_EQ(carried, (std::vector<std::string>{"DECL E6POS XP8={X 1,Y 8,Z 3,A 0,B 0,C 0}", "DECL E6POS XP9={X 1,Y 2,Z 3,A 0,B 0,C 0} ; two"}));
+  // KRL written anew from its XML declares every point once
+  test::writeText(dir + "/m.xml", writeXmlProgram(p));
+  const KrlText k = writeKrl(readXmlProgram(dir + "/m.xml"));
+  for (const char* name : {"XP1=", "XP2=", "XP3=", "XP8=", "XP9="}) {
+    const std::string all = k.src + k.dat;
+    const size_t first = all.find(name);
+    EXPECT_NE(first, std::string::npos) << name << "\n" << all;
+    EXPECT_EQ(all.find(name, first + 1), std::string::npos) << name << "\n" << all;
+  }
+}
+
 TEST(Convert, APointNoMotionOfTheModelNamesKeepsItsDeclaration) {
   const std::string dir = test::tempDir("convert_unnamed_points");
   test::writeText(dir + "/p.src",

@@ -62,6 +62,32 @@ std::vector<std::string> pointsDeclaredWithValue(const std::vector<Tok>& t) {
   return names;
 }
 
+// A declaration line of several points (DECL E6POS XP1={..},XP9={..}) without the points the
+// motion model declares itself (`model`), which a KRL program written anew declares once: the
+// line's text with the others only, its comment kept. `l` is the line of `f`, `t` its tokens.
+std::string withoutModelPoints(const KrlFile& f, const Line& l, const std::vector<Tok>& t, const std::set<std::string>& model) {
+  size_t i = 0;
+  while (i < t.size() && t[i].kind == Tok::kIdent && (t[i].up == "DECL" || t[i].up == "GLOBAL" || t[i].up == "CONST")) ++i;
+  const std::string& text = f.text();
+  std::vector<std::string> kept;
+  int depth = 0;
+  size_t item = i + 1;  // the first token of the item being read
+  for (size_t k = i + 1; k <= t.size(); ++k) {
+    if (k < t.size()) {
+      const std::string& x = t[k].text;
+      if (x == "[" || x == "(" || x == "{") ++depth;
+      if (x == "]" || x == ")" || x == "}") --depth;
+      if (!(depth == 0 && x == ",")) continue;
+    }
+    if (item < k && !model.count(t[item].up)) kept.push_back(text.substr(t[item].begin, t[k - 1].end - t[item].begin));
+    item = k + 1;
+  }
+  if (kept.empty() || i + 1 >= t.size()) return std::string();
+  std::string out = text.substr(l.begin, t[i + 1].begin - l.begin);
+  for (size_t k = 0; k < kept.size(); ++k) out += (k ? "," : "") + kept[k];
+  return out + text.substr(t.back().end, l.content_end - t.back().end);
+}
+
 // The points (upper case) a KRL program written anew from the motion model declares itself
 // (generateKrl): the named targets with a value that are not the $config.dat's. The
 // declaration of any other point is carried as a pass-through statement (readKrl).
@@ -1305,6 +1331,16 @@ void datPassThrough(const KrlFile& f, Program& program) {
       const std::vector<std::string> points = pointsDeclaredWithValue(t);
       const bool model_declares = std::all_of(points.begin(), points.end(), [&](const std::string& n) { return model_points.count(n) > 0; });
       if ((k == "DECL" || isPointType(k) || k == "FDAT" || k == "LDAT" || k == "PDAT") && declaresModelType(t) && value && model_declares) continue;
+      // some of its points the model declares: the others travel (a point declared twice would not compile)
+      if (std::any_of(points.begin(), points.end(), [&](const std::string& n) { return model_points.count(n) > 0; })) {
+        PassThrough p;
+        p.language = "KRL";
+        p.text = withoutModelPoints(f, l, t, model_points);
+        p.section = PassThrough::Section::kData;
+        p.where = f.loc(l.begin);
+        program.passthrough.push_back(std::move(p));
+        continue;
+      }
     }
     PassThrough p;
     p.language = "KRL";
@@ -1577,9 +1613,16 @@ Program readKrl(const std::string& src_path, const KrlReadOptions& options) {
   // the main program's declarations of points the model declares itself are not carried
   {
     const std::set<std::string> model_points = pointsTheModelDeclares(program);
-    for (auto it = r.point_declarations_.rbegin(); it != r.point_declarations_.rend(); ++it)
-      if (std::all_of(it->second.begin(), it->second.end(), [&](const std::string& n) { return model_points.count(n) > 0; }))
+    for (auto it = r.point_declarations_.rbegin(); it != r.point_declarations_.rend(); ++it) {
+      if (std::all_of(it->second.begin(), it->second.end(), [&](const std::string& n) { return model_points.count(n) > 0; })) {
         program.passthrough.erase(program.passthrough.begin() + static_cast<std::ptrdiff_t>(it->first));
+      } else if (std::any_of(it->second.begin(), it->second.end(), [&](const std::string& n) { return model_points.count(n) > 0; })) {
+        // some of them: the others travel (withoutModelPoints)
+        PassThrough& p = program.passthrough[it->first];
+        const Line& l = src.lines().at(static_cast<size_t>(p.where.line - 1));
+        p.text = withoutModelPoints(src, l, lex(src, l.begin, l.code_end), model_points);
+      }
+    }
   }
   notePointReads(src, lines, r.decl, *source);
   if (!source->dat_path.empty()) datPassThrough(KrlFile(source->dat_path, source->dat_text, 1), program);
