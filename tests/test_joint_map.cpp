@@ -733,6 +733,9 @@ TEST(JointMap, APeriodicTermHoldsWhereTheDataReachTheJointsLimits) {
   EXPECT_FALSE(periodicTermHoldsOverLimits(ur, -180, -45));     // Series_B's joint 1: 135 deg of 720
   EXPECT_TRUE(periodicTermHoldsOverLimits(ur, -100, 62));       // 162 deg: told apart from offset and scale
   EXPECT_FALSE(periodicTermHoldsOverLimits(ur, -100, 61.9));
+  JointSpec free;  // no limits known (upper <= lower)
+  EXPECT_FALSE(periodicTermHoldsOverLimits(free, -98.7, 60.5));
+  EXPECT_TRUE(periodicTermHoldsOverLimits(free, -100, 62));
   JointSpec slide;
   slide.type = JointType::kPrismatic;
   slide.lower = 0;

@@ -310,7 +310,8 @@ bool periodicTermHoldsOverLimits(const JointSpec& joint, double lower, double up
   if (joint.type != JointType::kRevolute) return false;
   const double width = upper - lower;
   if (width >= kPeriodicCoverageDeg) return true;
-  const double beyond = joint.upper > joint.lower ? std::max(lower - joint.lower, joint.upper - upper) : 0.0;
+  if (!(joint.upper > joint.lower)) return false;  // no limits known: the rest of the turn may be reached
+  const double beyond = std::max(lower - joint.lower, joint.upper - upper);
   return width > 0 && beyond <= kPeriodicLimitShare * width;
 }
 

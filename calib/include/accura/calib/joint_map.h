@@ -147,7 +147,8 @@ constexpr double kPeriodicLimitShare = 0.2;
 /// Whether a gear_periodic term of `joint` fitted on data covering [lower, upper] (deg) holds
 /// wherever the joint can move: the data cover at least kPeriodicCoverageDeg, or the joint's
 /// limits lie no further than kPeriodicLimitShare of the covered width beyond them. False for a
-/// prismatic joint (no period).
+/// prismatic joint (no period), and below kPeriodicCoverageDeg for a joint without limits
+/// (upper <= lower: the rest of the turn may be reached).
 bool periodicTermHoldsOverLimits(const JointSpec& joint, double lower, double upper);
 
 /// A joint value outside the range the model's joint-dependent effects were fitted on.
