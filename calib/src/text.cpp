@@ -62,6 +62,11 @@ bool isPlainText(const std::string& s) {
   return true;
 }
 
+std::string upperAscii(std::string s) {
+  for (char& c : s) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+  return s;
+}
+
 std::string printableBytes(const std::string& s) {
   static const char* const kHex = "0123456789ABCDEF";
   std::string out;

@@ -16,6 +16,7 @@
 #include "accura/calib/geometry.h"
 #include "accura/calib/joint_map.h"
 #include "accura/calib/kinematics.h"
+#include "accura/calib/text.h"
 #include "accura/calib/ur_calibration.h"
 #include "accura/postproc/krl.h"
 #include "accura/postproc/path_job.h"
@@ -201,31 +202,10 @@ class Job {
         s_.robroot_in_kukaworld ? Eigen::Matrix3d(calib::toIsometry(*s_.robroot_in_kukaworld).linear().transpose()) : Eigen::Matrix3d::Identity();
     Eigen::Vector3d model = s_.calibrated.nominal.gravity_base.normalized();
     for (int k = 0; k < 3; ++k) model[k] = std::abs(model[k]) < 1e-12 ? 0.0 : model[k];
-    for (const auto& o : in.urscript->others) {
-      // the statement set_gravity(...) (not the name inside a string or another call)
-      if (o.text.compare(0, 11, "set_gravity") != 0) continue;
-      const size_t paren = o.text.find_first_not_of(" \t", 11);
-      if (paren == std::string::npos || o.text[paren] != '(') continue;
-      // set_gravity([x, y, z]): three numbers, else a value the controller computes
-      Eigen::Vector3d d;
-      const char* c = o.text.c_str() + paren + 1;
-      bool read = false;
-      while (*c == ' ' || *c == '\t') ++c;
-      if (*c == '[') {
-        read = true;
-        ++c;
-        for (int k = 0; k < 3 && read; ++k) {
-          char* stop = nullptr;
-          d[k] = std::strtod(c, &stop);
-          read = stop != c && std::isfinite(d[k]);
-          c = stop;
-          while (*c == ' ' || *c == '\t') ++c;
-          if (read) read = *c == (k < 2 ? ',' : ']');
-          ++c;
-        }
-      }
+    for (const UrScriptSource::Gravity& o : in.urscript->gravity) {
+      const Eigen::Vector3d d = o.d ? Eigen::Vector3d((*o.d)[0], (*o.d)[1], (*o.d)[2]) : Eigen::Vector3d::Zero();
       std::string problem;
-      if (!read || !(d.norm() > 0)) {
+      if (!(d.norm() > 0)) {
         problem = "accura cannot read its direction: the mounting the arm runs with is not known";
       } else {
         Eigen::Vector3d g = R_frame0_base * -d.normalized();
@@ -1264,10 +1244,21 @@ void warnOutsideFitRanges(const calib::RobotModel& calibrated, JobReport* r) {
 }
 }  // namespace
 
+namespace {
+
+// A program read from URScript, or carrying a script's lines (converted through XML): it runs
+// on a UR controller.
+bool runsOnUrController(const Program& program) {
+  if (program.urscript) return true;
+  for (const PassThrough& s : program.passthrough)
+    if (s.language == "URScript") return true;
+  return false;
+}
+
+}  // namespace
+
 void requireArmForProgram(const Program& program, const calib::RobotDefinition& robot) {
-  bool urscript = program.urscript != nullptr;
-  for (const PassThrough& s : program.passthrough) urscript = urscript || s.language == "URScript";
-  if (urscript && !universalRobotsArm(robot))
+  if (runsOnUrController(program) && !universalRobotsArm(robot))
     throw calib::InputError((program.source_file.empty() ? program.name : program.source_file) +
                             ": expected a Universal Robots arm for a URScript program (joints 2, 3 and 4 parallel, no "
                             "spherical wrist: the controller's shoulder/elbow/wrist branches are that geometry's), found '" +
@@ -1285,8 +1276,7 @@ void requireOneUndeclaredFrame(const Program& program, const JobSettings& settin
     for (const Motion& m : program.motions) {
       const FrameSetting& f = tool ? m.tool : m.base;
       if (f.source != FrameSetting::Source::kUnset || f.text.empty()) continue;
-      std::string u = f.text;
-      for (char& c : u) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));  // (RAPID names: any case)
+      const std::string u = calib::upperAscii(f.text);  // (RAPID names: any case)
       if (!first) {
         first = &m;
         first_name = u;
@@ -1304,9 +1294,7 @@ void requireOneUndeclaredFrame(const Program& program, const JobSettings& settin
 }
 
 JobSettings settingsForProgram(const Program& program, const JobSettings& settings) {
-  bool urscript = program.urscript != nullptr;
-  for (const PassThrough& s : program.passthrough) urscript = urscript || s.language == "URScript";
-  if (!urscript || settings.robroot_in_kukaworld || !universalRobotsArm(settings.calibrated.nominal)) return settings;
+  if (!runsOnUrController(program) || settings.robroot_in_kukaworld || !universalRobotsArm(settings.calibrated.nominal)) return settings;
   // URScript poses are in the controller's Base, UR's DH frame 0; a robot read from
   // ur_description's URDF from its root ('world', base_link) has its frame 0 turned 180 deg
   // about axis 1 from it (ur_calibration.h, urConventionOf): Base is then that turn away

@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "accura/calib/errors.h"
+#include "accura/calib/text.h"
 #include "krl_internal.h"
 
 namespace fs = std::filesystem;
@@ -68,10 +69,7 @@ bool isJump(const std::string& up) {
   return false;
 }
 
-std::string upper(std::string s) {
-  for (char& c : s) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
-  return s;
-}
+std::string upper(std::string s) { return calib::upperAscii(std::move(s)); }
 
 std::string readFileBytes(const std::string& path, const std::string& what) {
   std::error_code ec;

@@ -88,6 +88,12 @@ std::string withoutModelPoints(const KrlFile& f, const Line& l, const std::vecto
   return out + text.substr(t.back().end, l.content_end - t.back().end);
 }
 
+// How many of the points `names` (upper case) the model declares itself (`model`,
+// pointsTheModelDeclares): none, some (the line carries the others: withoutModelPoints) or all.
+size_t declaredByModel(const std::vector<std::string>& names, const std::set<std::string>& model) {
+  return static_cast<size_t>(std::count_if(names.begin(), names.end(), [&](const std::string& n) { return model.count(n) > 0; }));
+}
+
 // The points (upper case) a KRL program written anew from the motion model declares itself
 // (generateKrl): the named targets with a value that are not the $config.dat's. The
 // declaration of any other point is carried as a pass-through statement (readKrl).
@@ -1315,6 +1321,7 @@ void datPassThrough(const KrlFile& f, Program& program) {
   const std::set<std::string> model_points = pointsTheModelDeclares(program);
   for (const Line& l : f.lines()) {
     const std::string text = f.text().substr(l.begin, l.content_end - l.begin);
+    std::string carried = text;  // what travels of the line
     const std::vector<Tok> t = lex(f, l.begin, l.code_end);
     if (t.empty()) {
       if (text.find_first_not_of(" \t\r") == std::string::npos || isFoldMarker(text)) continue;
@@ -1329,22 +1336,15 @@ void datPassThrough(const KrlFile& f, Program& program) {
       bool value = false;
       for (const Tok& x : t) value = value || (x.kind == Tok::kPunct && x.text == "=");
       const std::vector<std::string> points = pointsDeclaredWithValue(t);
-      const bool model_declares = std::all_of(points.begin(), points.end(), [&](const std::string& n) { return model_points.count(n) > 0; });
+      const size_t by_model = declaredByModel(points, model_points);
+      const bool model_declares = by_model == points.size();
       if ((k == "DECL" || isPointType(k) || k == "FDAT" || k == "LDAT" || k == "PDAT") && declaresModelType(t) && value && model_declares) continue;
       // some of its points the model declares: the others travel (a point declared twice would not compile)
-      if (std::any_of(points.begin(), points.end(), [&](const std::string& n) { return model_points.count(n) > 0; })) {
-        PassThrough p;
-        p.language = "KRL";
-        p.text = withoutModelPoints(f, l, t, model_points);
-        p.section = PassThrough::Section::kData;
-        p.where = f.loc(l.begin);
-        program.passthrough.push_back(std::move(p));
-        continue;
-      }
+      if (by_model > 0) carried = withoutModelPoints(f, l, t, model_points);
     }
     PassThrough p;
     p.language = "KRL";
-    p.text = text;
+    p.text = carried;
     p.section = PassThrough::Section::kData;
     p.where = f.loc(l.begin);
     program.passthrough.push_back(std::move(p));
@@ -1614,9 +1614,10 @@ Program readKrl(const std::string& src_path, const KrlReadOptions& options) {
   {
     const std::set<std::string> model_points = pointsTheModelDeclares(program);
     for (auto it = r.point_declarations_.rbegin(); it != r.point_declarations_.rend(); ++it) {
-      if (std::all_of(it->second.begin(), it->second.end(), [&](const std::string& n) { return model_points.count(n) > 0; })) {
+      const size_t by_model = declaredByModel(it->second, model_points);
+      if (by_model == it->second.size()) {
         program.passthrough.erase(program.passthrough.begin() + static_cast<std::ptrdiff_t>(it->first));
-      } else if (std::any_of(it->second.begin(), it->second.end(), [&](const std::string& n) { return model_points.count(n) > 0; })) {
+      } else if (by_model > 0) {
         // some of them: the others travel (withoutModelPoints)
         PassThrough& p = program.passthrough[it->first];
         const Line& l = src.lines().at(static_cast<size_t>(p.where.line - 1));

@@ -11,6 +11,7 @@
 
 #include "accura/calib/errors.h"
 #include "accura/calib/geometry.h"
+#include "accura/calib/text.h"
 #include "accura/postproc/rapid.h"
 #include "krl_internal.h"
 
@@ -129,10 +130,7 @@ bool programChanged(const Program& program) {
 
 namespace {
 
-std::string upperAscii(std::string s) {
-  for (char& c : s) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
-  return s;
-}
+using calib::upperAscii;
 
 bool isIdentChar(char c) { return std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '$'; }
 

@@ -9,6 +9,7 @@
 #include <tuple>
 
 #include "accura/calib/errors.h"
+#include "accura/calib/text.h"
 #include "excerpt.h"
 #include "rapid_internal.h"
 
@@ -400,8 +401,7 @@ Program rapidForConversion(const Program& program) {
   // procedure), so no other format can carry it (an XML would give KRL a plain LIN): refused
   for (const Motion& m : program.motions) {
     const std::string word = m.statement.substr(0, m.statement.find_first_of(" \t\r\n\\,;"));
-    std::string u = word;
-    for (char& c : u) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+    const std::string u = calib::upperAscii(word);
     if (m.target_problem.empty() && u != "MOVEL" && u != "MOVEJ" && u != "MOVEC" && u != "MOVEABSJ")
       throw calib::ArgumentError(m.where.str() + ": cannot convert '" + detail::excerpt(m.statement) + "': " + word +
                                  " does more than move (a signal, a trigger, a procedure or a weld), which only RAPID carries");

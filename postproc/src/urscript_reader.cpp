@@ -701,8 +701,29 @@ class Reader {
       // it unknown
       if (f == "servoc") return otherMotion(t, p);
       if (kOtherMotions.count(f)) flow_.unknown();
+      if (f == "set_gravity") gravity(t);
     }
     other(t);
+  }
+
+  /// set_gravity(d): d read where it is a list of three numbers (UrScriptSource::Gravity).
+  void gravity(const std::vector<Tok>& t) {
+    UrScriptSource::Gravity g;
+    g.where = loc(t.front().b);
+    g.text = textOf(t, 0, t.size());
+    const size_t close = closing(t, 1);  // one past the ')'
+    if (close == t.size() && isOp(t, 2, "[") && closing(t, 2) == close - 1) {
+      const auto parts = items(t, 3, close - 2);
+      std::array<double, 3> d{};
+      bool all = parts.size() == 3;
+      for (size_t k = 0; k < parts.size() && all; ++k) {
+        const std::optional<double> n = number(t, parts[k].first, parts[k].second);
+        all = n && std::isfinite(*n);
+        if (all) d[k] = *n;
+      }
+      if (all) g.d = d;
+    }
+    src_->gravity.push_back(g);
   }
 
   bool mentions(const std::vector<Tok>& t, size_t i, size_t j, const std::string& name) const {

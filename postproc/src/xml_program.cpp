@@ -396,16 +396,13 @@ Motion readMotion(const Reader& R, const XMLElement* e) {
   // KUKA $ORI_TYPE / $CIRC_TYPE of a CP motion (program.h; absent: #VAR / #BASE)
   if (const auto o = R.text(e, "ori_type")) {
     if (m.type == MotionType::kPtp || o->empty()) R.fail(e, "<" + n + "> attribute 'ori_type': expected it on a CP motion, not empty, found '" + *o + "' on " + n);
-    std::string v = *o;  // (KRL's names: any case; an enumeration value upper case as the KRL reader gives it)
-    if (v[0] == '#')
-      for (char& ch : v) ch = static_cast<char>(std::toupper(static_cast<unsigned char>(ch)));
+    // (KRL's names: any case; an enumeration value upper case as the KRL reader gives it)
+    const std::string v = (*o)[0] == '#' ? calib::upperAscii(*o) : *o;
     m.ori_type = v == "#VAR" ? std::string() : v;
   }
   if (const auto c = R.text(e, "circ_type")) {
     if (m.type != MotionType::kCirc || c->empty()) R.fail(e, "<" + n + "> attribute 'circ_type': expected it on circ or scirc, not empty, found '" + *c + "' on " + n);
-    std::string v = *c;
-    if (v[0] == '#')
-      for (char& ch : v) ch = static_cast<char>(std::toupper(static_cast<unsigned char>(ch)));
+    const std::string v = (*c)[0] == '#' ? calib::upperAscii(*c) : *c;
     m.circ_type = v == "#BASE" ? std::string() : v;
   }
   if (const auto b = R.integer(e, "spline_block")) {

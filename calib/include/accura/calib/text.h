@@ -18,6 +18,10 @@ bool isPlainText(const std::string& s);
 /// (upper-case hex), the rest as it is. Never throws but std::bad_alloc.
 std::string printableBytes(const std::string& s);
 
+/// `s` with its ASCII letters in upper case, every other byte as it is (the names of the
+/// case-insensitive program languages: KRL, RAPID).
+std::string upperAscii(std::string s);
+
 /// A number with a fixed count of decimals ("%.*f"), never "-0.000" (a value that rounds to
 /// zero is written without a sign): the same text on every machine. Throws ArgumentError for a
 /// NaN or infinity (the writers must not write one) and for decimals outside 0..17.

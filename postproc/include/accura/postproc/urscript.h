@@ -40,7 +40,9 @@
 // point's joints (compensate.h), so the branch is kept, or from qnear where it is given.
 #pragma once
 
+#include <array>
 #include <cstddef>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -83,12 +85,20 @@ struct UrScriptSource {
     SourceLocation where;
     std::string text;
   };
+  /// A set_gravity(d) statement (also one of `others`): the arm's mounting, d the acceleration
+  /// away from the earth's centre in the controller's Base (m/s^2; URScript manual).
+  struct Gravity {
+    SourceLocation where;
+    std::string text;                         ///< the statement as written
+    std::optional<std::array<double, 3>> d;   ///< empty: not a list of three numbers (a variable, an expression)
+  };
   std::string path;
   std::string text;
   std::vector<Literal> literals;
   std::vector<Expr> exprs;
   std::vector<Statement> statements;
   std::vector<Other> others;
+  std::vector<Gravity> gravity;  ///< in the script's order
 };
 
 /// Reads a URScript program. Throws calib::InputError (file:line:column) on malformed input and on
