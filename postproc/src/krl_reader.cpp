@@ -44,34 +44,15 @@ bool declaresModelType(const std::vector<Tok>& t) {
   return false;
 }
 
-// The names (upper case) a declaration of points gives a value: DECL [GLOBAL] [CONST] E6POS
-// XP1={..}, XP2={..} -> XP1, XP2; none for other types and for names without a value.
-std::vector<std::string> pointsDeclaredWithValue(const std::vector<Tok>& t) {
+// The items of a declaration of points, DECL [GLOBAL] [CONST] E6POS XP1={..}, XP2, ..: the
+// token ranges [first, last] between its depth-0 commas; none for a declaration of another type.
+std::vector<std::pair<size_t, size_t>> declarationItems(const std::vector<Tok>& t) {
   size_t i = 0;
   while (i < t.size() && t[i].kind == Tok::kIdent && (t[i].up == "DECL" || t[i].up == "GLOBAL" || t[i].up == "CONST")) ++i;
-  std::vector<std::string> names;
-  if (i >= t.size() || !isPointType(t[i].up)) return names;
+  std::vector<std::pair<size_t, size_t>> items;
+  if (i >= t.size() || !isPointType(t[i].up)) return items;
   int depth = 0;
-  for (++i; i < t.size(); ++i) {
-    const std::string& x = t[i].text;
-    if (x == "[" || x == "(" || x == "{") ++depth;
-    if (x == "]" || x == ")" || x == "}") --depth;
-    if (depth == 0 && t[i].kind == Tok::kIdent && i + 1 < t.size() && t[i + 1].kind == Tok::kPunct && t[i + 1].text == "=")
-      names.push_back(t[i].up);
-  }
-  return names;
-}
-
-// A declaration line of several points (DECL E6POS XP1={..},XP9={..}) without the points the
-// motion model declares itself (`model`), which a KRL program written anew declares once: the
-// line's text with the others only, its comment kept. `l` is the line of `f`, `t` its tokens.
-std::string withoutModelPoints(const KrlFile& f, const Line& l, const std::vector<Tok>& t, const std::set<std::string>& model) {
-  size_t i = 0;
-  while (i < t.size() && t[i].kind == Tok::kIdent && (t[i].up == "DECL" || t[i].up == "GLOBAL" || t[i].up == "CONST")) ++i;
-  const std::string& text = f.text();
-  std::vector<std::string> kept;
-  int depth = 0;
-  size_t item = i + 1;  // the first token of the item being read
+  size_t first = i + 1;
   for (size_t k = i + 1; k <= t.size(); ++k) {
     if (k < t.size()) {
       const std::string& x = t[k].text;
@@ -79,13 +60,33 @@ std::string withoutModelPoints(const KrlFile& f, const Line& l, const std::vecto
       if (x == "]" || x == ")" || x == "}") --depth;
       if (!(depth == 0 && x == ",")) continue;
     }
-    if (item < k && !model.count(t[item].up)) kept.push_back(text.substr(t[item].begin, t[k - 1].end - t[item].begin));
-    item = k + 1;
+    if (first < k) items.emplace_back(first, k - 1);
+    first = k + 1;
   }
-  if (kept.empty() || i + 1 >= t.size()) return std::string();
-  std::string out = text.substr(l.begin, t[i + 1].begin - l.begin);
-  for (size_t k = 0; k < kept.size(); ++k) out += (k ? "," : "") + kept[k];
-  return out + text.substr(t.back().end, l.content_end - t.back().end);
+  return items;
+}
+
+// The names (upper case) a declaration of points gives a value: DECL [GLOBAL] [CONST] E6POS
+// XP1={..}, XP2={..} -> XP1, XP2; none for other types and for names without a value.
+std::vector<std::string> pointsDeclaredWithValue(const std::vector<Tok>& t) {
+  std::vector<std::string> names;
+  for (const auto& [first, last] : declarationItems(t))
+    if (last > first && t[first].kind == Tok::kIdent && t[first + 1].kind == Tok::kPunct && t[first + 1].text == "=")
+      names.push_back(t[first].up);
+  return names;
+}
+
+// A declaration line of several points (DECL E6POS XP1={..},XP9={..}) without the points the
+// motion model declares itself (`model`), which a KRL program written anew declares once: the
+// line's text with the others only, its comment kept. `l` is the line of `f`, `t` its tokens.
+std::string withoutModelPoints(const KrlFile& f, const Line& l, const std::vector<Tok>& t, const std::set<std::string>& model) {
+  const std::vector<std::pair<size_t, size_t>> items = declarationItems(t);
+  const std::string& text = f.text();
+  std::string kept;
+  for (const auto& [first, last] : items)
+    if (!model.count(t[first].up)) kept += (kept.empty() ? "" : ",") + text.substr(t[first].begin, t[last].end - t[first].begin);
+  if (kept.empty()) return std::string();
+  return text.substr(l.begin, t[items.front().first].begin - l.begin) + kept + text.substr(t.back().end, l.content_end - t.back().end);
 }
 
 // How many of the points `names` (upper case) the model declares itself (`model`,
