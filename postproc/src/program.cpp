@@ -342,6 +342,12 @@ std::optional<std::string> commentText(const PassThrough& s) {
   return text;
 }
 
+bool withoutCarriedLinesChanges(const Program& program, const std::string& language) {
+  for (const PassThrough& s : program.passthrough)
+    if (s.language != language && (!s.role.empty() || commentText(s))) return true;
+  return false;
+}
+
 Program withoutCarriedLines(const Program& program, const std::string& language) {
   Program out = program;
   out.passthrough.clear();

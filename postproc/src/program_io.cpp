@@ -194,13 +194,11 @@ Program dropUnconvertible(const Program& program, ProgramFormat format, std::vec
 namespace {
 
 /// write(withoutCarriedLines(program, language)), copying the program only when that changes
-/// it (a line carried for another language, a comment of another language): a compensated path
-/// of 100 000 motions is some 170 MB of motions, not to be copied for nothing.
+/// it (withoutCarriedLinesChanges): a compensated path of 100 000 motions is some 170 MB of
+/// motions, not to be copied for nothing.
 template <class Write>
 auto writeWithoutCarriedLines(const Program& program, const char* language, Write write) {
-  for (const PassThrough& s : program.passthrough)
-    if (s.language != language && (!s.role.empty() || commentText(s))) return write(withoutCarriedLines(program, language));
-  return write(program);
+  return withoutCarriedLinesChanges(program, language) ? write(withoutCarriedLines(program, language)) : write(program);
 }
 
 }  // namespace

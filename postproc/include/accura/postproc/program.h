@@ -351,6 +351,9 @@ Program reattachCarried(const Program& program, Program parsed);
 /// instead, one per line of its text: KRL `;`, RAPID `!`, URScript `#` (RAPID and URScript
 /// indented like a routine's statements).
 Program withoutCarriedLines(const Program& program, const std::string& language);
+/// Whether withoutCarriedLines(program, language) differs from `program` (a line carried for
+/// another language, a comment of another language to rewrite): else the writer needs no copy.
+bool withoutCarriedLinesChanges(const Program& program, const std::string& language);
 
 /// The text of a carried statement that is a comment and nothing else, without its marker and
 /// the blanks around it: an XML comment (isXmlComment), a KRL line starting with `;` (not a fold
