@@ -14,7 +14,8 @@ bin="${1:?usage: fuzz/run.sh BUILD_FUZZ_DIR [SECONDS] [TARGET...]}"
 seconds="${2:-20}"
 shift 2 || shift $#
 targets=("$@")
-if [ ${#targets[@]} -eq 0 ]; then targets=(krl krl_config xml_program urscript rapid robot measurements mapping cell mesh urdf); fi
+# (the longest first: two cores finish together)
+if [ ${#targets[@]} -eq 0 ]; then targets=(cell mapping krl krl_config robot measurements mesh urdf rapid urscript xml_program); fi
 export ASAN_OPTIONS="${ASAN_OPTIONS:-detect_leaks=1}"
 # leaks inside assimp itself (not accura's; findings/README.md) are suppressed
 export LSAN_OPTIONS="${LSAN_OPTIONS:-suppressions=$here/lsan.supp:print_suppressions=0}"
@@ -25,14 +26,15 @@ export UBSAN_OPTIONS="${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}"
 # off.
 strict="${FUZZ_STRICT:-1}"
 lenient=" ${FUZZ_LENIENT-} "
-status=0
-for t in "${targets[@]}"; do
+# One target: replay (and mutate) or a timed run; prints its lines, returns 1 on a finding.
+run_target() {
+  local t="$1" status=0 work scratch start runs corpus_size
+  local dict=()
   if [ "$strict" = 1 ] && [[ "$lenient" != *" $t "* ]]; then export FUZZ_STRICT=1; else export FUZZ_STRICT=0; fi
   work="$(mktemp -d)"
   # the target's scratch files go here: a fuzzer that dies on a finding cannot remove its own
   scratch="$(mktemp -d)"
   mkdir -p "$here/findings"
-  dict=()
   [ -f "$here/dict/$t.dict" ] && dict=(-dict="$here/dict/$t.dict")
   start=$(date +%s)
   if [ "$seconds" -eq 0 ]; then
@@ -61,7 +63,7 @@ for t in "${targets[@]}"; do
       status=1
     fi
     rm -rf "$work" "$work.log" "$scratch"
-    continue
+    return $status
   fi
   if TMPDIR="$scratch" "$bin/fuzz_$t" "$work" "$here/corpus/$t" "${dict[@]}" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 \
        -max_len=65536 -print_final_stats=1 -artifact_prefix="$here/findings/$t-" >"$work.log" 2>&1; then
@@ -72,5 +74,23 @@ for t in "${targets[@]}"; do
     status=1
   fi
   rm -rf "$work" "$work.log" "$scratch"
+  return $status
+}
+
+# The targets run side by side, JOBS at a time (default: the cores; each libFuzzer process is
+# single-threaded and deterministic on its own, so the result does not depend on JOBS); each
+# one's lines are printed in the order of the list when it ends.
+jobs_max="${JOBS:-$(nproc)}"
+out="$(mktemp -d)"
+trap 'rm -rf "$out"' EXIT
+for t in "${targets[@]}"; do
+  while [ "$(jobs -rp | wc -l)" -ge "$jobs_max" ]; do wait -n || true; done
+  ( set +e; run_target "$t" >"$out/$t.log" 2>&1; echo $? >"$out/$t.rc" ) &
+done
+wait
+status=0
+for t in "${targets[@]}"; do
+  cat "$out/$t.log"
+  [ "$(cat "$out/$t.rc" 2>/dev/null)" = 0 ] || status=1
 done
 exit $status
