@@ -1658,5 +1658,60 @@ TEST(Rapid, ATooldataAndWobjdataAssignedAtTheRoutineStartAreTheValueOfTheMotions
   EXPECT_EQ(n, 0);
 }
 
+// MoveExtJ moves one or several mechanical units without a TCP (ABB, Technical reference manual -
+// RAPID Instructions, Functions and Data types, MoveExtJ): the arm's axes stay where they are.
+// It made the next motion's start unknown, so the MoveL after it got no auxiliary points (and
+// a \T split by the length of no path). Now the MoveL after it is compensated as if the
+// MoveExtJ were not there (the same text, pieces and time shares), the MoveExtJ kept as written
+// and named; a next target that gives an external axis (0 here: a track that may carry the
+// robot and moved) starts from an unknown position, as before.
+TEST(Rapid, MoveExtJLeavesTheArmWhereItWasForTheNextMotion) {
+  const std::string seam = "    MoveL p30, v20, z1, torch\\WObj:=table;\n";
+  const std::string timed = "    MoveL p30, v20\\T:=3, z1, torch\\WObj:=table;\n";
+  const std::string ext = "    MoveExtJ jpos10, vrot10, fine;\n";
+  const std::string arc_on = "    SetDO do_torch, 1;  ! arc on\n";
+  auto with = [&](std::string text) {  // the MoveExtJ after the SetDO before MoveL p30 (and its pieces)
+    const size_t at = text.find(arc_on);
+    EXPECT_NE(at, std::string::npos);
+    return at == std::string::npos ? text : text.insert(at + arc_on.size(), ext);
+  };
+  auto replaced = [&](std::string text, const std::string& from, const std::string& to) {
+    const size_t at = text.find(from);
+    EXPECT_NE(at, std::string::npos) << from;
+    return at == std::string::npos ? text : text.replace(at, from.size(), to);
+  };
+  const JobSettings s = splittingSettings();
+  const std::string plain = replaced(example(), seam, timed);
+  const ProgramCompensation a = compensateProgramReport(parseRapid(plain, "plain.mod"), s);
+  const ProgramCompensation b = compensateProgramReport(parseRapid(with(plain), "ext.mod"), s);
+  ASSERT_TRUE(a.ok() && b.ok());
+  const int line = parseRapid(plain, "plain.mod").motions[3].where.line;  // MoveL p30
+  int pieces = 0;
+  for (const Motion& m : a.program.motions) pieces += m.inserted && m.where.line == line ? 1 : 0;
+  ASSERT_GT(pieces, 0);  // (the plain MoveL p30 is split, so its start matters)
+  EXPECT_EQ(writeRapid(b.program), with(writeRapid(a.program)));
+  EXPECT_EQ(b.report.motions_left_unchanged, 1);
+  ASSERT_FALSE(b.report.warnings.empty());
+  bool named = false;
+  for (const ProgramIssue& w : b.report.warnings)
+    named = named || w.where.str() + ": " + w.message ==
+                         "ext.mod:" + std::to_string(line) + ":5: MoveExtJ left unchanged (not compensated): MoveExtJ moves external axes only "
+                         "(mechanical units without a TCP), which accura does not model; the robot arm does not move, so the next motion "
+                         "starts where it was, unless that motion's target gives an external axis (a track may carry the robot)";
+  EXPECT_TRUE(named);
+  // p30 with its track axis given (0: compensated as the robot stands on it): after the
+  // MoveExtJ its start is not known, so it is not split
+  const std::string p30 = "CONST robtarget p30 := [[160,60,20],[0,0,1,0],[-1,0,-1,0],[9E9,9E9,9E9,9E9,9E9,9E9]];";
+  const std::string track = replaced(plain, p30, "CONST robtarget p30 := [[160,60,20],[0,0,1,0],[-1,0,-1,0],[0,9E9,9E9,9E9,9E9,9E9]];");
+  const ProgramCompensation c = compensateProgramReport(parseRapid(track, "track.mod"), s);
+  const ProgramCompensation d = compensateProgramReport(parseRapid(with(track), "track_ext.mod"), s);
+  ASSERT_TRUE(c.ok() && d.ok());
+  int track_pieces = 0, after_ext = 0;
+  for (const Motion& m : c.program.motions) track_pieces += m.inserted && m.where.line == line ? 1 : 0;
+  for (const Motion& m : d.program.motions) after_ext += m.inserted && m.where.line == line + 1 ? 1 : 0;
+  EXPECT_GT(track_pieces, 0);
+  EXPECT_EQ(after_ext, 0);
+}
+
 }  // namespace
 }  // namespace accura::postproc

@@ -1457,6 +1457,12 @@ class Reader {
     m.type = u.find('J') != std::string::npos && u.find("MOVEJ") == 0 ? MotionType::kPtp : MotionType::kLin;
     m.start_unknown = flow_.motion();
     m.target_problem = t_[r.first].s + " is a motion instruction accura does not model (MoveL, MoveJ, MoveC, MoveAbsJ)";
+    // MoveExtJ moves one or several mechanical units without a TCP (ABB, Technical reference
+    // manual - RAPID Instructions, Functions and Data types, MoveExtJ): the arm's axes stay
+    if (u == "MOVEEXTJ") {
+      m.arm_stays = true;
+      m.target_problem = t_[r.first].s + " moves external axes only (mechanical units without a TCP), which accura does not model";
+    }
     RapidSource::Statement st = statementSpan(r, m.where);
     addMotion(r, m, st, p);
   }
