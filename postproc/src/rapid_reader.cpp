@@ -7,6 +7,7 @@
 #include <set>
 
 #include "accura/calib/errors.h"
+#include "accura/calib/text.h"
 #include "excerpt.h"
 #include "rapid_internal.h"
 #include "start_tracker.h"
@@ -83,25 +84,38 @@ const std::set<std::string> kOtherMoves = {
 /// ArcL, ArcLStart, ArcLEnd ToPoint [\ID] Speed [\T] Seam Weld [\Weave] Zone [\Z] Tool [\WObj]
 /// [\Corr] [\Track] [\SeamName], ArcC.. with CirPoint first): their targets are
 /// compensated as those of MoveL/MoveJ/MoveC. The positional arguments: how many, and which are
-/// the speed, the zone and the tool (the targets come first). Another count (an instruction of
-/// another RobotWare, a typo the controller would refuse) is kept as written and named, as the
-/// instructions of kOtherMoves are.
+/// the speed, the zone and the tool (the targets come first); `names`: the parameter names of the
+/// positional arguments, one per argument (as the manual writes them; a required argument may be written with
+/// its name, `ToPoint:=p20`). Another count (an instruction of another RobotWare, a typo the
+/// controller would refuse) is kept as written and named, as the instructions of kOtherMoves are.
 struct MoveLayout {
   MotionType type;
   size_t count, speed, zone, tool;
+  const char* names;  ///< comma-separated, `count` of them
 };
 const std::map<std::string, MoveLayout> kLayouts = {
-    {"MOVEL", {MotionType::kLin, 4, 1, 2, 3}},       {"MOVEJ", {MotionType::kPtp, 4, 1, 2, 3}},
-    {"MOVEC", {MotionType::kCirc, 5, 2, 3, 4}},      {"MOVEABSJ", {MotionType::kPtp, 4, 1, 2, 3}},
-    {"MOVELDO", {MotionType::kLin, 6, 1, 2, 3}},     {"MOVEJDO", {MotionType::kPtp, 6, 1, 2, 3}},
-    {"MOVECDO", {MotionType::kCirc, 7, 2, 3, 4}},    {"MOVELAO", {MotionType::kLin, 6, 1, 2, 3}},
-    {"MOVEJAO", {MotionType::kPtp, 6, 1, 2, 3}},     {"MOVECAO", {MotionType::kCirc, 7, 2, 3, 4}},
-    {"MOVELSYNC", {MotionType::kLin, 5, 1, 2, 3}},   {"MOVEJSYNC", {MotionType::kPtp, 5, 1, 2, 3}},
-    {"MOVECSYNC", {MotionType::kCirc, 6, 2, 3, 4}},  {"TRIGGL", {MotionType::kLin, 5, 1, 3, 4}},
-    {"TRIGGJ", {MotionType::kPtp, 5, 1, 3, 4}},      {"TRIGGC", {MotionType::kCirc, 6, 2, 4, 5}},
-    {"ARCL", {MotionType::kLin, 6, 1, 4, 5}},        {"ARCLSTART", {MotionType::kLin, 6, 1, 4, 5}},
-    {"ARCLEND", {MotionType::kLin, 6, 1, 4, 5}},     {"ARCC", {MotionType::kCirc, 7, 2, 5, 6}},
-    {"ARCCSTART", {MotionType::kCirc, 7, 2, 5, 6}},  {"ARCCEND", {MotionType::kCirc, 7, 2, 5, 6}}};
+    {"MOVEL", {MotionType::kLin, 4, 1, 2, 3, "ToPoint,Speed,Zone,Tool"}},
+    {"MOVEJ", {MotionType::kPtp, 4, 1, 2, 3, "ToPoint,Speed,Zone,Tool"}},
+    {"MOVEC", {MotionType::kCirc, 5, 2, 3, 4, "CirPoint,ToPoint,Speed,Zone,Tool"}},
+    {"MOVEABSJ", {MotionType::kPtp, 4, 1, 2, 3, "ToJointPos,Speed,Zone,Tool"}},
+    {"MOVELDO", {MotionType::kLin, 6, 1, 2, 3, "ToPoint,Speed,Zone,Tool,Signal,Value"}},
+    {"MOVEJDO", {MotionType::kPtp, 6, 1, 2, 3, "ToPoint,Speed,Zone,Tool,Signal,Value"}},
+    {"MOVECDO", {MotionType::kCirc, 7, 2, 3, 4, "CirPoint,ToPoint,Speed,Zone,Tool,Signal,Value"}},
+    {"MOVELAO", {MotionType::kLin, 6, 1, 2, 3, "ToPoint,Speed,Zone,Tool,Signal,Value"}},
+    {"MOVEJAO", {MotionType::kPtp, 6, 1, 2, 3, "ToPoint,Speed,Zone,Tool,Signal,Value"}},
+    {"MOVECAO", {MotionType::kCirc, 7, 2, 3, 4, "CirPoint,ToPoint,Speed,Zone,Tool,Signal,Value"}},
+    {"MOVELSYNC", {MotionType::kLin, 5, 1, 2, 3, "ToPoint,Speed,Zone,Tool,ProcName"}},
+    {"MOVEJSYNC", {MotionType::kPtp, 5, 1, 2, 3, "ToPoint,Speed,Zone,Tool,ProcName"}},
+    {"MOVECSYNC", {MotionType::kCirc, 6, 2, 3, 4, "CirPoint,ToPoint,Speed,Zone,Tool,ProcName"}},
+    {"TRIGGL", {MotionType::kLin, 5, 1, 3, 4, "ToPoint,Speed,Trigg_1,Zone,Tool"}},
+    {"TRIGGJ", {MotionType::kPtp, 5, 1, 3, 4, "ToPoint,Speed,Trigg_1,Zone,Tool"}},
+    {"TRIGGC", {MotionType::kCirc, 6, 2, 4, 5, "CirPoint,ToPoint,Speed,Trigg_1,Zone,Tool"}},
+    {"ARCL", {MotionType::kLin, 6, 1, 4, 5, "ToPoint,Speed,Seam,Weld,Zone,Tool"}},
+    {"ARCLSTART", {MotionType::kLin, 6, 1, 4, 5, "ToPoint,Speed,Seam,Weld,Zone,Tool"}},
+    {"ARCLEND", {MotionType::kLin, 6, 1, 4, 5, "ToPoint,Speed,Seam,Weld,Zone,Tool"}},
+    {"ARCC", {MotionType::kCirc, 7, 2, 5, 6, "CirPoint,ToPoint,Speed,Seam,Weld,Zone,Tool"}},
+    {"ARCCSTART", {MotionType::kCirc, 7, 2, 5, 6, "CirPoint,ToPoint,Speed,Seam,Weld,Zone,Tool"}},
+    {"ARCCEND", {MotionType::kCirc, 7, 2, 5, 6, "CirPoint,ToPoint,Speed,Seam,Weld,Zone,Tool"}}};
 
 class Reader {
  public:
@@ -403,8 +417,9 @@ class Reader {
         if (fn == changes.end()) continue;
         const size_t close = closing(t_, q + 1, r.second);
         size_t i = 0;
-        for (const Range& a : items(t_, q + 2, close)) {
+        for (Range a : items(t_, q + 2, close)) {
           if (a.first < a.second && isOp(t_, a.first, "\\")) continue;  // an optional argument
+          if (a.second >= a.first + 3 && t_[a.first].kind == Tok::Kind::kIdent && isOp(t_, a.first + 1, ":=")) a.first += 2;  // (named)
           if (i < fn->second.size() && fn->second[i] && a.first < a.second && t_[a.first].kind == Tok::Kind::kIdent) {
             assigners_[t_[a.first].u].insert("");
             if (!assigned_.count(t_[a.first].u)) assigned_[t_[a.first].u] = loc(t_[a.first].b);
@@ -449,6 +464,7 @@ class Reader {
   void noteReads(Range r, Range st) {
     for (size_t k = r.first; k < r.second; ++k) {
       if (t_[k].kind != Tok::Kind::kIdent || (k > 0 && (isOp(t_, k - 1, ".") || isOp(t_, k - 1, "\\")))) continue;
+      if (isOp(t_, k + 1, ":=")) continue;  // (a named argument's parameter, `Point:=p20`)
       const std::string& u = t_[k].u;
       if (params_.count(u) && !local_.names.count(u)) continue;  // (the call's value)
       const int* id = lookup(&Scope::robtargets, u);
@@ -536,13 +552,11 @@ class Reader {
           assigned_here_.tools.erase(n);
           assigned_here_.wobjs.erase(n);
         }
-    // an assignment reads its right-hand side (its left one is a run-time value: scanAssignments)
-    size_t from = i;
-    for (size_t k = i; k < r.second; ++k)
-      if (isOp(t, k, ":=")) {
-        from = k + 1;
-        break;
-      }
+    // an assignment reads its right-hand side (its left one is a run-time value: scanAssignments);
+    // a call reads every argument, also those after a named one (`weld p30, Speed:=2;`)
+    size_t from = i, j = i + 1;
+    while (j + 1 < r.second && isOp(t, j, ".") && t[j + 1].kind == Tok::Kind::kIdent) j += 2;
+    if (t[i].kind == Tok::Kind::kIdent && isOp(t, j, ":=")) from = j + 1;
     noteReads({from, r.second}, r);
     // a call of one of the module's routines that move the robot, a late-bound call
     // (%"name"%, CallByVar), a jump or a label (reached from a GOTO)
@@ -1135,7 +1149,10 @@ class Reader {
   // --- motions
 
   struct Arg {
-    Range main;
+    Range main;  ///< a required argument's value (after its name, when it is named)
+    /// The parameter name of a required argument written with it (`ToPoint:=p20`; upper case;
+    /// RAPID kernel, procedure call: <required procedure argument> ::= [<identifier> ':='] <expression>)
+    std::string name;
     std::vector<std::pair<std::string, Range>> opts;  ///< \Name[:=value] (upper-case name)
   };
 
@@ -1151,6 +1168,11 @@ class Reader {
         ++k;
       }
       a.main = {it.first, k};
+      if (k >= it.first + 2 && t_[it.first].kind == Tok::Kind::kIdent && isOp(t_, it.first + 1, ":=")) {
+        a.name = t_[it.first].u;
+        a.main.first += 2;
+        if (a.main.first == a.main.second) fail(t_[it.first + 1].e, "expected a value after '" + excerpt(t_[it.first].s) + ":=', found " + found(k, it.second));
+      }
       while (k < it.second) {
         if (k + 1 >= it.second || t_[k + 1].kind != Tok::Kind::kIdent) fail(t_[k].b, "expected an optional argument name after '\\', found " + found(k + 1, it.second));
         const std::string n = t_[k + 1].u;
@@ -1195,6 +1217,23 @@ class Reader {
       static const char* sig[] = {"ToPoint, Speed, Zone, Tool", "CirPoint, ToPoint, Speed, Zone, Tool", "ToJointPos, Speed, Zone, Tool"};
       fail(t_[r.first].b, "expected " + f + " " + sig[u == "MOVEC" ? 1 : u == "MOVEABSJ" ? 2 : 0] + " (" + std::to_string(want) +
                               " arguments), found " + std::to_string(pos.size()) + " in '" + quoted(r) + "'");
+    }
+    // a required argument written with its name is the positional one when the name is that
+    // argument's; another name (arguments in another order, a misspelt name) is kept as written
+    {
+      std::vector<std::string> names;
+      std::string all_names = lay.names;
+      for (size_t b = 0, e; b <= all_names.size(); b = e + 1) {
+        e = all_names.find(',', b);
+        if (e == std::string::npos) e = all_names.size();
+        names.push_back(all_names.substr(b, e - b));
+      }
+      for (size_t i = 0; i < pos.size() && i < names.size(); ++i)
+        if (!pos[i].name.empty() && pos[i].name != calib::upperAscii(names[i])) {
+          noteReads(r);
+          return otherMove(r, p, "its argument " + std::to_string(i + 1) + " is named " + t_[pos[i].main.first - 2].s + ", where " + f +
+                                     "'s argument " + std::to_string(i + 1) + " is " + names[i] + ": accura reads a named argument in its place only");
+        }
     }
     Motion m;
     m.where = loc(t_[r.first].b);
@@ -1448,15 +1487,16 @@ class Reader {
     m.base = frameArg(a, &Scope::wobjs, "WOBJ0", "wobjdata", "give its frame with --program-base x,y,z,A,B,C");
   }
 
-  /// A motion instruction accura does not model: kept, and reported by compensate.
-  void otherMove(Range r, Program& p) {
+  /// A motion instruction accura does not model (or, `why`, does not read as written): kept, and
+  /// reported by compensate.
+  void otherMove(Range r, Program& p, const std::string& why = std::string()) {
     Motion m;
     m.where = loc(t_[r.first].b);
     m.statement = text(r);
     const std::string& u = t_[r.first].u;
     m.type = u.find('J') != std::string::npos && u.find("MOVEJ") == 0 ? MotionType::kPtp : MotionType::kLin;
     m.start_unknown = flow_.motion();
-    m.target_problem = t_[r.first].s + " is a motion instruction accura does not model (MoveL, MoveJ, MoveC, MoveAbsJ)";
+    m.target_problem = why.empty() ? t_[r.first].s + " is a motion instruction accura does not model (MoveL, MoveJ, MoveC, MoveAbsJ)" : why;
     // MoveExtJ moves one or several mechanical units without a TCP (ABB, Technical reference
     // manual - RAPID Instructions, Functions and Data types, MoveExtJ): the arm's axes stay
     if (u == "MOVEEXTJ") {
