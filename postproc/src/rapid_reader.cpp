@@ -117,6 +117,9 @@ const std::map<std::string, MoveLayout> kLayouts = {
     {"ARCCSTART", {MotionType::kCirc, 7, 2, 5, 6, "CirPoint,ToPoint,Speed,Seam,Weld,Zone,Tool"}},
     {"ARCCEND", {MotionType::kCirc, 7, 2, 5, 6, "CirPoint,ToPoint,Speed,Seam,Weld,Zone,Tool"}}};
 
+/// A motion instruction (upper case): MoveL, MoveJ, MoveC, MoveAbsJ or one of kOtherMoves.
+bool isMove(const std::string& u) { return isPlainMove(u) || kOtherMoves.count(u) > 0; }
+
 class Reader {
  public:
   Reader(const std::string& text, const std::string& path) : src_(std::make_shared<RapidSource>()) {
@@ -142,7 +145,7 @@ class Reader {
       // after a motion that runs only when a compact IF's condition holds, the robot is at
       // its target or where it was before
       const std::string& u = t_[st.first].u;
-      if (conditional_.count(st.first) && (u == "MOVEL" || u == "MOVEJ" || u == "MOVEC" || u == "MOVEABSJ" || kOtherMoves.count(u)))
+      if (conditional_.count(st.first) && isMove(u))
         flow_.unknown();
     }
     if (!module_seen_) fail(t_.empty() ? 0 : t_.front().b, "expected a RAPID module (MODULE name ... ENDMODULE), found " +
@@ -258,6 +261,17 @@ class Reader {
         (t_[i + 1].u == "PROC" || t_[i + 1].u == "FUNC" || t_[i + 1].u == "TRAP"))
       return i + 1;
     return kNoHead;
+  }
+
+  /// The ':=' of the assignment statement r (`name := ..`, `name.field.field := ..`); kNoHead
+  /// when r is no assignment. (A name followed by ':=' elsewhere in a statement is a named or
+  /// optional argument, `ToPoint:=p20`, `\WObj:=table`.)
+  size_t assignmentAt(Range r) const {
+    const size_t i = r.first;
+    if (i >= r.second || t_[i].kind != Tok::Kind::kIdent || headAt(i) != kNoHead) return kNoHead;
+    size_t j = i + 1;
+    while (j + 1 < r.second && isOp(t_, j, ".") && t_[j + 1].kind == Tok::Kind::kIdent) j += 2;
+    return j < r.second && isOp(t_, j, ":=") ? j : kNoHead;
   }
 
   /// The routine name of a PROC / FUNC / TRAP header r (its token); kNoHead for any other.
@@ -404,9 +418,8 @@ class Reader {
       size_t k = r.first;
       if (const size_t n = routineNameAt(r); n != kNoHead) cur = t_[n].u;
       if (k >= r.second || t_[k].kind != Tok::Kind::kIdent) continue;
-      size_t j = k + 1;
-      while (j + 1 < r.second && isOp(t_, j, ".") && t_[j + 1].kind == Tok::Kind::kIdent) j += 2;
-      if (!isOp(t_, j, ":=") && routine_kinds_.count(t_[k].u) && headAt(k) == kNoHead) callees_[cur].insert(t_[k].u);
+      const size_t j = assignmentAt(r);
+      if (j == kNoHead && routine_kinds_.count(t_[k].u) && headAt(k) == kNoHead) callees_[cur].insert(t_[k].u);
       for (size_t q = k; q + 1 < r.second; ++q)  // (a FUNC of the module called in an expression)
         if (t_[q].kind == Tok::Kind::kIdent && isOp(t_, q + 1, "(") && routine_kinds_.count(t_[q].u)) callees_[cur].insert(t_[q].u);
       if (headAt(k) != kNoHead) continue;
@@ -427,7 +440,7 @@ class Reader {
           ++i;
         }
       }
-      if (isOp(t_, j, ":=")) {
+      if (j != kNoHead) {
         // (a tool's load does not move its frame)
         const bool load_only = j > k + 1 && t_[k + 2].u == "TLOAD";
         if (!load_only && !assigned_.count(t_[k].u)) assigned_[t_[k].u] = loc(t_[k].b);
@@ -537,7 +550,7 @@ class Reader {
     if (u == "PDISPOFF") pdisp_.reset();
     if (u == "EOFFSON" || u == "EOFFSSET") eoffs_ = loc(t[i].b), eoffs_name_ = t[i].s;
     if (u == "EOFFSOFF") eoffs_.reset();
-    if (u == "MOVEL" || u == "MOVEJ" || u == "MOVEC" || u == "MOVEABSJ") return move(r, p);
+    if (isPlainMove(u)) return move(r, p);
     if (t[i].kind == Tok::Kind::kIdent && kLayouts.count(u) && positionalCount(r) == kLayouts.at(u).count) return move(r, p);
     if (t[i].kind == Tok::Kind::kIdent && kOtherMoves.count(u)) {
       noteReads(r);  // (its target is kept as written)
@@ -554,10 +567,8 @@ class Reader {
         }
     // an assignment reads its right-hand side (its left one is a run-time value: scanAssignments);
     // a call reads every argument, also those after a named one (`weld p30, Speed:=2;`)
-    size_t from = i, j = i + 1;
-    while (j + 1 < r.second && isOp(t, j, ".") && t[j + 1].kind == Tok::Kind::kIdent) j += 2;
-    if (t[i].kind == Tok::Kind::kIdent && isOp(t, j, ":=")) from = j + 1;
-    noteReads({from, r.second}, r);
+    const size_t assign = assignmentAt(r);
+    noteReads({assign == kNoHead ? i : assign + 1, r.second}, r);
     // a call of one of the module's routines that move the robot, a late-bound call
     // (%"name"%, CallByVar), a jump or a label (reached from a GOTO)
     if ((t[i].kind == Tok::Kind::kIdent && (routines_.count(u) || u == "GOTO" || u == "CALLBYVAR")) || isOp(t, i, "%") ||
@@ -581,10 +592,8 @@ class Reader {
   /// named).
   void frameAssignment(Range r) {
     const size_t i = r.first;
-    if (routine_.empty() || t_[i].kind != Tok::Kind::kIdent || headAt(i) != kNoHead || declarationAt(i) != kNoHead) return;
-    size_t j = i + 1;
-    while (j + 1 < r.second && isOp(t_, j, ".") && t_[j + 1].kind == Tok::Kind::kIdent) j += 2;
-    if (!isOp(t_, j, ":=")) return;
+    const size_t j = assignmentAt(r);
+    if (routine_.empty() || j == kNoHead || declarationAt(i) != kNoHead) return;
     const std::string& u = t_[i].u;
     if (j > i + 1 && t_[i + 2].u == "TLOAD") return;  // (a tool's load does not move its frame)
     assigned_here_.tools.erase(u);
@@ -618,23 +627,22 @@ class Reader {
     }
   }
 
-  /// The names the statements from token `from` assign (name := .., name.field := .., or a call
-  /// of a routine that assigns them), up to the end of the loop they are in (`loop`) or of the
-  /// routine.
+  /// The names the statements from token `from` assign (assignmentAt: name := .., name.field
+  /// := .., a tool's load too; or a call of a routine that assigns them), up to the end of the
+  /// loop they are in (`loop`) or of the routine.
   std::set<std::string> assignedFrom(size_t from, bool loop) const {
     std::set<std::string> out;
     int open = 0;
-    for (size_t k = from; k < t_.size(); ++k) {
-      const Tok& t = t_[k];
-      if (t.kind != Tok::Kind::kIdent) continue;
-      if (t.u == "WHILE" || t.u == "FOR") ++open;
-      if (loop && (t.u == "ENDWHILE" || t.u == "ENDFOR") && open-- == 0) break;
-      if (t.u == "ENDPROC" || t.u == "ENDFUNC" || t.u == "ENDTRAP") break;
-      size_t j = k + 1;
-      while (j + 1 < t_.size() && isOp(t_, j, ".") && t_[j + 1].kind == Tok::Kind::kIdent) j += 2;
-      if (isOp(t_, j, ":=")) out.insert(t.u);
-      if (routine_kinds_.count(t.u))
-        for (const std::string& n : assignedThrough(t.u)) out.insert(n);
+    for (const Range& r : stmts_) {
+      if (r.first < from) continue;
+      const std::string& u = t_[r.first].kind == Tok::Kind::kIdent ? t_[r.first].u : std::string();
+      if (u == "WHILE" || u == "FOR") ++open;
+      if (loop && (u == "ENDWHILE" || u == "ENDFOR") && open-- == 0) break;
+      if (u == "ENDPROC" || u == "ENDFUNC" || u == "ENDTRAP") break;
+      if (assignmentAt(r) != kNoHead) out.insert(u);
+      for (size_t k = r.first; k < r.second; ++k)
+        if (t_[k].kind == Tok::Kind::kIdent && routine_kinds_.count(t_[k].u))
+          for (const std::string& n : assignedThrough(t_[k].u)) out.insert(n);
     }
     return out;
   }
@@ -674,7 +682,7 @@ class Reader {
         ++k;
       } else if (u == "ENDPROC" || u == "ENDFUNC" || u == "ENDTRAP") {
         cur.clear();
-      } else if (!cur.empty() && (u == "MOVEL" || u == "MOVEJ" || u == "MOVEC" || u == "MOVEABSJ" || kOtherMoves.count(u))) {
+      } else if (!cur.empty() && isMove(u)) {
         moves[cur] = true;
       } else if (!cur.empty() && moves.count(u)) {
         calls[cur].insert(u);
@@ -1260,7 +1268,7 @@ class Reader {
     wobj(opt, m);
     singleReason(r, opt, st, m);
     // (its pieces would each set the signal, fire the triggers or call the procedure)
-    if (m.single_reason.empty() && u != "MOVEL" && u != "MOVEJ" && u != "MOVEC" && u != "MOVEABSJ")
+    if (m.single_reason.empty() && !isPlainMove(u))
       m.single_reason = "it is a " + f + ", whose pieces would each repeat what it does besides moving (a signal, a trigger, a procedure, a weld)";
     if (pdisp_ && m.target_problem.empty() && u != "MOVEABSJ")
       m.target_problem = "a program displacement is active (" + pdisp_name_ + " at " + pdisp_->str() +
