@@ -1658,5 +1658,142 @@ TEST(Rapid, ATooldataAndWobjdataAssignedAtTheRoutineStartAreTheValueOfTheMotions
   EXPECT_EQ(n, 0);
 }
 
+// MoveExtJ moves one or several mechanical units without a TCP (ABB, Technical reference manual -
+// RAPID Instructions, Functions and Data types, MoveExtJ): the arm's axes stay where they are.
+// It made the next motion's start unknown, so the MoveL after it got no auxiliary points (and
+// a \T split by the length of no path). Now the MoveL after it is compensated as if the
+// MoveExtJ were not there (the same text, pieces and time shares), the MoveExtJ kept as written
+// and named; a next target that gives an external axis (0 here: a track that may carry the
+// robot and moved) starts from an unknown position, as before.
+TEST(Rapid, MoveExtJLeavesTheArmWhereItWasForTheNextMotion) {
+  const std::string seam = "    MoveL p30, v20, z1, torch\\WObj:=table;\n";
+  const std::string timed = "    MoveL p30, v20\\T:=3, z1, torch\\WObj:=table;\n";
+  const std::string ext = "    MoveExtJ jpos10, vrot10, fine;\n";
+  const std::string arc_on = "    SetDO do_torch, 1;  ! arc on\n";
+  auto with = [&](std::string text) {  // the MoveExtJ after the SetDO before MoveL p30 (and its pieces)
+    const size_t at = text.find(arc_on);
+    EXPECT_NE(at, std::string::npos);
+    return at == std::string::npos ? text : text.insert(at + arc_on.size(), ext);
+  };
+  auto replaced = [&](std::string text, const std::string& from, const std::string& to) {
+    const size_t at = text.find(from);
+    EXPECT_NE(at, std::string::npos) << from;
+    return at == std::string::npos ? text : text.replace(at, from.size(), to);
+  };
+  const JobSettings s = splittingSettings();
+  const std::string plain = replaced(example(), seam, timed);
+  const ProgramCompensation a = compensateProgramReport(parseRapid(plain, "plain.mod"), s);
+  const ProgramCompensation b = compensateProgramReport(parseRapid(with(plain), "ext.mod"), s);
+  ASSERT_TRUE(a.ok() && b.ok());
+  const int line = parseRapid(plain, "plain.mod").motions[3].where.line;  // MoveL p30
+  int pieces = 0;
+  for (const Motion& m : a.program.motions) pieces += m.inserted && m.where.line == line ? 1 : 0;
+  ASSERT_GT(pieces, 0);  // (the plain MoveL p30 is split, so its start matters)
+  EXPECT_EQ(writeRapid(b.program), with(writeRapid(a.program)));
+  EXPECT_EQ(b.report.motions_left_unchanged, 1);
+  ASSERT_FALSE(b.report.warnings.empty());
+  bool named = false;
+  for (const ProgramIssue& w : b.report.warnings)
+    named = named || w.where.str() + ": " + w.message ==
+                         "ext.mod:" + std::to_string(line) + ":5: MoveExtJ left unchanged (not compensated): MoveExtJ moves external axes only "
+                         "(mechanical units without a TCP), which accura does not model; the robot arm does not move, so the next motion "
+                         "starts where it was, unless that motion's target gives an external axis (a track may carry the robot)";
+  EXPECT_TRUE(named);
+  // p30 with its track axis given (0: compensated as the robot stands on it): after the
+  // MoveExtJ its start is not known, so it is not split
+  const std::string p30 = "CONST robtarget p30 := [[160,60,20],[0,0,1,0],[-1,0,-1,0],[9E9,9E9,9E9,9E9,9E9,9E9]];";
+  const std::string track = replaced(plain, p30, "CONST robtarget p30 := [[160,60,20],[0,0,1,0],[-1,0,-1,0],[0,9E9,9E9,9E9,9E9,9E9]];");
+  const ProgramCompensation c = compensateProgramReport(parseRapid(track, "track.mod"), s);
+  const ProgramCompensation d = compensateProgramReport(parseRapid(with(track), "track_ext.mod"), s);
+  ASSERT_TRUE(c.ok() && d.ok());
+  int track_pieces = 0, after_ext = 0;
+  for (const Motion& m : c.program.motions) track_pieces += m.inserted && m.where.line == line ? 1 : 0;
+  for (const Motion& m : d.program.motions) after_ext += m.inserted && m.where.line == line + 1 ? 1 : 0;
+  EXPECT_GT(track_pieces, 0);
+  EXPECT_EQ(after_ext, 0);
+}
+
+// A required argument may be written with its parameter's name (ABB, Technical reference
+// manual - RAPID kernel, procedure call: <required procedure argument> ::= [<identifier> ':=']
+// <expression>; so does the public RAPID grammar of rapidchecker 0.1.5, parser/grammar.py:
+// required_arg = Optional(identifier + ":=") + expression). `MoveL ToPoint:=p20, ...` was kept
+// as written ("'ToPoint:=p20' is not a target accura can evaluate"), a named Tool was taken for
+// an undeclared tooldata (an error), and a point or a frame passed by name to a routine that
+// changes it (`SearchL di1, SearchPoint:=sp, ...`, an INOUT parameter) or after a named
+// argument (`weld p30, Speed:=2;`) was not seen as changed or read. Now a named argument in its
+// place is read as the positional one (the same corrections, written in place of the value);
+// a name that is not its place's is kept as written and named.
+TEST(Rapid, NamedRequiredArgumentsAreReadAsThePositionalOnes) {
+  using Lines = std::vector<std::pair<std::string, std::string>>;
+  const Lines named = {
+      {"MoveAbsJ home, v1000, z50, torch;", "MoveAbsJ ToJointPos:=home, v1000, z50, torch;"},
+      {"MoveJ p10, v1000, z20, torch\\WObj:=table;", "MoveJ \\Conc, ToPoint:=p10, Speed:=v1000, Zone:=z20, Tool:=torch\\WObj:=table;"},
+      {"MoveL p20, v200, fine, torch\\WObj:=table;", "MoveL topoint:=p20, v200, fine, torch\\WObj:=table;"},
+      {"MoveC p40, p50, v20, z1, torch\\WObj:=table;", "MoveC CirPoint:=p40, ToPoint:=p50, v20, z1, Tool:=torch\\WObj:=table;"}};
+  const Lines offs = {{"MoveL Offs(p60,0,0,100), v200, z20, torch\\WObj:=table;", "MoveL ToPoint:=Offs(p60,0,0,100), v200, z20, torch\\WObj:=table;"}};
+  auto special = [&](std::string text, const Lines& lines) {
+    for (const auto& [plain_line, other] : lines) {
+      const size_t at = text.find(plain_line);
+      EXPECT_NE(at, std::string::npos) << plain_line;
+      if (at != std::string::npos) text.replace(at, plain_line.size(), other);
+    }
+    return text;
+  };
+  SimulateOptions so;
+  so.effects = {"geometric", "joint_compliance"};
+  so.set_station = false;
+  so.seed = 2;
+  JobSettings s = settingsFor(perturbModel(irb120WithTorch(), so));
+  s.tol_mm = 10;  // (no piece: the statements are written as they are)
+  const ProgramCompensation plain = compensateProgramReport(parseRapid(example(), "plain.mod"), s);
+  const ProgramCompensation c = compensateProgramReport(parseRapid(special(special(example(), named), offs), "named.mod"), s);
+  ASSERT_TRUE(plain.ok() && c.ok()) << (c.ok() ? std::string() : c.report.errors.front().message);
+  const std::string written_plain = writeRapid(plain.program);
+  ASSERT_NE(written_plain, example());
+  EXPECT_EQ(c.report.motions_left_unchanged, 0) << c.report.warnings.front().message;
+  // (the corrected Offs is an inline robtarget, written in place of the named value)
+  const std::string wait = "    WaitTime 0.5;\n    MoveL [[";
+  std::string expected = special(written_plain, named);
+  ASSERT_NE(expected.find(wait), std::string::npos);
+  expected.replace(expected.find(wait), wait.size(), "    WaitTime 0.5;\n    MoveL ToPoint:=[[");
+  EXPECT_EQ(writeRapid(c.program), expected);
+  // a name that is not its place's: kept as written, named
+  const std::string misplaced = special(example(), {{"MoveL p20, v200, fine, torch\\WObj:=table;", "MoveL Zone:=p20, v200, fine, torch\\WObj:=table;"}});
+  const ProgramCompensation k = compensateProgramReport(parseRapid(misplaced, "r.mod"), s);
+  ASSERT_TRUE(k.ok());
+  EXPECT_EQ(k.report.motions_left_unchanged, 1);
+  ASSERT_FALSE(k.report.warnings.empty());
+  EXPECT_EQ(k.report.warnings.front().where.str() + ": " + k.report.warnings.front().message,
+            "r.mod:19:5: MoveL left unchanged (not compensated): its argument 1 is named Zone, where MoveL's argument 1 is ToPoint: accura "
+            "reads a named argument in its place only; the position after it is not known");
+  EXPECT_NE(writeRapid(k.program).find("\n    MoveL Zone:=p20, v200, fine, torch\\WObj:=table;\n"), std::string::npos);
+  // what a call changes or reads through a named argument
+  const std::string t = "[[380,40,350],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]]";
+  const Program q = parseRapid("MODULE m\n  VAR robtarget sp := " + t + ";\n  VAR robtarget pm := " + t + ";\n  CONST robtarget p30 := " + t + ";\n"
+                               "  VAR robtarget pf := " + t + ";\n"
+                               "  PROC main()\n"
+                               "    SearchL di1, SearchPoint:=sp, sp, v100, tool0;\n"
+                               "    MoveL sp, v100, fine, tool0;\n"
+                               "    modify t:=pm;\n"
+                               "    MoveL pm, v100, fine, tool0;\n"
+                               "    MoveL p30, v100, fine, tool0;\n"
+                               "    weld p30, Speed:=2;\n"
+                               "    reg1 := changed(t:=pf);\n"
+                               "    MoveL pf, v100, fine, tool0;\n"
+                               "  ENDPROC\n"
+                               "  FUNC num changed(INOUT robtarget t)\n    t.trans.x := 1;\n    RETURN 1;\n  ENDFUNC\n"
+                               "  PROC modify(INOUT robtarget t)\n    t.trans.z := 10;\n  ENDPROC\n"
+                               "  PROC weld(robtarget p, num speed)\n  ENDPROC\n"
+                               "ENDMODULE\n",
+                               "q.mod");
+  ASSERT_EQ(q.motions.size(), 5u);
+  EXPECT_EQ(q.motions[1].target_problem, "'sp' is assigned at q.mod:7:31: its value at run time is not the declared one");
+  EXPECT_EQ(q.motions[2].target_problem, "'pm' is assigned at q.mod:9:15: its value at run time is not the declared one");
+  EXPECT_TRUE(q.motions[3].target_problem.empty());
+  EXPECT_EQ(q.motions[4].target_problem, "'pf' is assigned at q.mod:13:24: its value at run time is not the declared one");
+  ASSERT_EQ(q.rapid->decls.size(), 4u);
+  EXPECT_EQ(q.rapid->decls[2].read_elsewhere, "q.mod:12:10 ('weld p30, Speed:=2;')");
+}
+
 }  // namespace
 }  // namespace accura::postproc

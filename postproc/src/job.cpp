@@ -752,6 +752,24 @@ class Job {
   /// One motion of the program into `out` (with the points inserted before it).
   void motion(const Motion& m, Program& out) {
     if (m.start_unknown) forget();
+    if (after_arm_stays_) {
+      // after a MoveExtJ the arm stands where it was; an external axis in this target or in the
+      // one it stands on may be a track that carries the robot, which moved with the MoveExtJ
+      after_arm_stays_ = false;
+      bool ext = false;
+      for (const Target* t : {&m.target, m.aux ? &*m.aux : nullptr})
+        for (size_t k = 0; t && k < 6; ++k) ext = ext || t->ext[k].has_value() || ext_prev_[k].has_value();
+      if (ext) forget();
+    }
+    if (m.arm_stays && !m.target_problem.empty()) {
+      ++r_.motions_left_unchanged;
+      warning(m.where, motionInstruction(m) + " left unchanged (not compensated): " + m.target_problem +
+                           "; the robot arm does not move, so the next motion starts where it was, unless that motion's target gives an "
+                           "external axis (a track may carry the robot)");
+      after_arm_stays_ = true;
+      out.motions.push_back(m);
+      return;
+    }
     if (!m.target_problem.empty()) {
       // A target the program computes at run time (Offs of a counter, CRobT, a variable the
       // program assigns, an instruction accura does not model) is a program the controller
@@ -1181,6 +1199,7 @@ class Job {
   SourceLocation hint_where_;                                ///< the motion q_hint_ is after
   std::optional<Eigen::Isometry3d> T_world_flange_intended_;  ///< where the program meant the flange to be
   std::array<std::optional<double>, 6> ext_prev_{};
+  bool after_arm_stays_ = false;  ///< the motion before moved external axes only (Motion::arm_stays)
   const Program* in_ = nullptr;         ///< the program (names for new points)
   std::vector<std::string> new_names_;  ///< new points named so far
   std::vector<std::string> abb_disagree_;  ///< RAPID CP targets whose confdata differ from the path's (accepted)

@@ -451,7 +451,10 @@ std::vector<double> durationShares(const Program& program, size_t index) {
   const size_t k = last - first + 1;
   if (k == 1) return {1.0};
   std::vector<double> shares(k, 1.0 / double(k));
-  const Motion* before = first > 0 ? &ms[first - 1] : nullptr;
+  // (a motion that moves external axes only leaves the arm where the one before it did)
+  size_t b = first;
+  while (b > 0 && ms[b - 1].arm_stays) --b;
+  const Motion* before = b > 0 ? &ms[b - 1] : nullptr;
   if (!before || ms[last].start_unknown || before->target.kind != Target::Kind::kCartesian || !before->target.completePose())
     return shares;
   std::vector<Eigen::Isometry3d> T{calib::toIsometry(before->target.xyzAbc())};

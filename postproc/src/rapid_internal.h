@@ -43,6 +43,10 @@ std::optional<double> predefinedZoneMm(const std::string& upper);
 /// The TCP speed (mm/s) of a predefined speeddata (v5 .. v7000); nullopt when not one.
 std::optional<double> predefinedSpeedMmS(const std::string& upper);
 
+/// MoveL, MoveJ, MoveC or MoveAbsJ (`upper`: upper case): the motion instructions that only move
+/// (the MoveLDO, TriggL, ArcL, ... family does something else besides).
+inline bool isPlainMove(const std::string& upper) { return upper == "MOVEL" || upper == "MOVEJ" || upper == "MOVEC" || upper == "MOVEABSJ"; }
+
 using Range = std::pair<size_t, size_t>;  ///< token indices [first, second)
 
 bool isOp(const std::vector<Tok>& t, size_t i, const char* s);

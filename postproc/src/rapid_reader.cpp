@@ -7,6 +7,7 @@
 #include <set>
 
 #include "accura/calib/errors.h"
+#include "accura/calib/text.h"
 #include "excerpt.h"
 #include "rapid_internal.h"
 #include "start_tracker.h"
@@ -83,25 +84,41 @@ const std::set<std::string> kOtherMoves = {
 /// ArcL, ArcLStart, ArcLEnd ToPoint [\ID] Speed [\T] Seam Weld [\Weave] Zone [\Z] Tool [\WObj]
 /// [\Corr] [\Track] [\SeamName], ArcC.. with CirPoint first): their targets are
 /// compensated as those of MoveL/MoveJ/MoveC. The positional arguments: how many, and which are
-/// the speed, the zone and the tool (the targets come first). Another count (an instruction of
-/// another RobotWare, a typo the controller would refuse) is kept as written and named, as the
-/// instructions of kOtherMoves are.
+/// the speed, the zone and the tool (the targets come first); `names`: the parameter names of the
+/// positional arguments, one per argument (as the manual writes them; a required argument may be written with
+/// its name, `ToPoint:=p20`). Another count (an instruction of another RobotWare, a typo the
+/// controller would refuse) is kept as written and named, as the instructions of kOtherMoves are.
 struct MoveLayout {
   MotionType type;
   size_t count, speed, zone, tool;
+  const char* names;  ///< comma-separated, `count` of them
 };
 const std::map<std::string, MoveLayout> kLayouts = {
-    {"MOVEL", {MotionType::kLin, 4, 1, 2, 3}},       {"MOVEJ", {MotionType::kPtp, 4, 1, 2, 3}},
-    {"MOVEC", {MotionType::kCirc, 5, 2, 3, 4}},      {"MOVEABSJ", {MotionType::kPtp, 4, 1, 2, 3}},
-    {"MOVELDO", {MotionType::kLin, 6, 1, 2, 3}},     {"MOVEJDO", {MotionType::kPtp, 6, 1, 2, 3}},
-    {"MOVECDO", {MotionType::kCirc, 7, 2, 3, 4}},    {"MOVELAO", {MotionType::kLin, 6, 1, 2, 3}},
-    {"MOVEJAO", {MotionType::kPtp, 6, 1, 2, 3}},     {"MOVECAO", {MotionType::kCirc, 7, 2, 3, 4}},
-    {"MOVELSYNC", {MotionType::kLin, 5, 1, 2, 3}},   {"MOVEJSYNC", {MotionType::kPtp, 5, 1, 2, 3}},
-    {"MOVECSYNC", {MotionType::kCirc, 6, 2, 3, 4}},  {"TRIGGL", {MotionType::kLin, 5, 1, 3, 4}},
-    {"TRIGGJ", {MotionType::kPtp, 5, 1, 3, 4}},      {"TRIGGC", {MotionType::kCirc, 6, 2, 4, 5}},
-    {"ARCL", {MotionType::kLin, 6, 1, 4, 5}},        {"ARCLSTART", {MotionType::kLin, 6, 1, 4, 5}},
-    {"ARCLEND", {MotionType::kLin, 6, 1, 4, 5}},     {"ARCC", {MotionType::kCirc, 7, 2, 5, 6}},
-    {"ARCCSTART", {MotionType::kCirc, 7, 2, 5, 6}},  {"ARCCEND", {MotionType::kCirc, 7, 2, 5, 6}}};
+    {"MOVEL", {MotionType::kLin, 4, 1, 2, 3, "ToPoint,Speed,Zone,Tool"}},
+    {"MOVEJ", {MotionType::kPtp, 4, 1, 2, 3, "ToPoint,Speed,Zone,Tool"}},
+    {"MOVEC", {MotionType::kCirc, 5, 2, 3, 4, "CirPoint,ToPoint,Speed,Zone,Tool"}},
+    {"MOVEABSJ", {MotionType::kPtp, 4, 1, 2, 3, "ToJointPos,Speed,Zone,Tool"}},
+    {"MOVELDO", {MotionType::kLin, 6, 1, 2, 3, "ToPoint,Speed,Zone,Tool,Signal,Value"}},
+    {"MOVEJDO", {MotionType::kPtp, 6, 1, 2, 3, "ToPoint,Speed,Zone,Tool,Signal,Value"}},
+    {"MOVECDO", {MotionType::kCirc, 7, 2, 3, 4, "CirPoint,ToPoint,Speed,Zone,Tool,Signal,Value"}},
+    {"MOVELAO", {MotionType::kLin, 6, 1, 2, 3, "ToPoint,Speed,Zone,Tool,Signal,Value"}},
+    {"MOVEJAO", {MotionType::kPtp, 6, 1, 2, 3, "ToPoint,Speed,Zone,Tool,Signal,Value"}},
+    {"MOVECAO", {MotionType::kCirc, 7, 2, 3, 4, "CirPoint,ToPoint,Speed,Zone,Tool,Signal,Value"}},
+    {"MOVELSYNC", {MotionType::kLin, 5, 1, 2, 3, "ToPoint,Speed,Zone,Tool,ProcName"}},
+    {"MOVEJSYNC", {MotionType::kPtp, 5, 1, 2, 3, "ToPoint,Speed,Zone,Tool,ProcName"}},
+    {"MOVECSYNC", {MotionType::kCirc, 6, 2, 3, 4, "CirPoint,ToPoint,Speed,Zone,Tool,ProcName"}},
+    {"TRIGGL", {MotionType::kLin, 5, 1, 3, 4, "ToPoint,Speed,Trigg_1,Zone,Tool"}},
+    {"TRIGGJ", {MotionType::kPtp, 5, 1, 3, 4, "ToPoint,Speed,Trigg_1,Zone,Tool"}},
+    {"TRIGGC", {MotionType::kCirc, 6, 2, 4, 5, "CirPoint,ToPoint,Speed,Trigg_1,Zone,Tool"}},
+    {"ARCL", {MotionType::kLin, 6, 1, 4, 5, "ToPoint,Speed,Seam,Weld,Zone,Tool"}},
+    {"ARCLSTART", {MotionType::kLin, 6, 1, 4, 5, "ToPoint,Speed,Seam,Weld,Zone,Tool"}},
+    {"ARCLEND", {MotionType::kLin, 6, 1, 4, 5, "ToPoint,Speed,Seam,Weld,Zone,Tool"}},
+    {"ARCC", {MotionType::kCirc, 7, 2, 5, 6, "CirPoint,ToPoint,Speed,Seam,Weld,Zone,Tool"}},
+    {"ARCCSTART", {MotionType::kCirc, 7, 2, 5, 6, "CirPoint,ToPoint,Speed,Seam,Weld,Zone,Tool"}},
+    {"ARCCEND", {MotionType::kCirc, 7, 2, 5, 6, "CirPoint,ToPoint,Speed,Seam,Weld,Zone,Tool"}}};
+
+/// A motion instruction (upper case): MoveL, MoveJ, MoveC, MoveAbsJ or one of kOtherMoves.
+bool isMove(const std::string& u) { return isPlainMove(u) || kOtherMoves.count(u) > 0; }
 
 class Reader {
  public:
@@ -128,7 +145,7 @@ class Reader {
       // after a motion that runs only when a compact IF's condition holds, the robot is at
       // its target or where it was before
       const std::string& u = t_[st.first].u;
-      if (conditional_.count(st.first) && (u == "MOVEL" || u == "MOVEJ" || u == "MOVEC" || u == "MOVEABSJ" || kOtherMoves.count(u)))
+      if (conditional_.count(st.first) && isMove(u))
         flow_.unknown();
     }
     if (!module_seen_) fail(t_.empty() ? 0 : t_.front().b, "expected a RAPID module (MODULE name ... ENDMODULE), found " +
@@ -244,6 +261,17 @@ class Reader {
         (t_[i + 1].u == "PROC" || t_[i + 1].u == "FUNC" || t_[i + 1].u == "TRAP"))
       return i + 1;
     return kNoHead;
+  }
+
+  /// The ':=' of the assignment statement r (`name := ..`, `name.field.field := ..`); kNoHead
+  /// when r is no assignment. (A name followed by ':=' elsewhere in a statement is a named or
+  /// optional argument, `ToPoint:=p20`, `\WObj:=table`.)
+  size_t assignmentAt(Range r) const {
+    const size_t i = r.first;
+    if (i >= r.second || t_[i].kind != Tok::Kind::kIdent || headAt(i) != kNoHead) return kNoHead;
+    size_t j = i + 1;
+    while (j + 1 < r.second && isOp(t_, j, ".") && t_[j + 1].kind == Tok::Kind::kIdent) j += 2;
+    return j < r.second && isOp(t_, j, ":=") ? j : kNoHead;
   }
 
   /// The routine name of a PROC / FUNC / TRAP header r (its token); kNoHead for any other.
@@ -390,9 +418,8 @@ class Reader {
       size_t k = r.first;
       if (const size_t n = routineNameAt(r); n != kNoHead) cur = t_[n].u;
       if (k >= r.second || t_[k].kind != Tok::Kind::kIdent) continue;
-      size_t j = k + 1;
-      while (j + 1 < r.second && isOp(t_, j, ".") && t_[j + 1].kind == Tok::Kind::kIdent) j += 2;
-      if (!isOp(t_, j, ":=") && routine_kinds_.count(t_[k].u) && headAt(k) == kNoHead) callees_[cur].insert(t_[k].u);
+      const size_t j = assignmentAt(r);
+      if (j == kNoHead && routine_kinds_.count(t_[k].u) && headAt(k) == kNoHead) callees_[cur].insert(t_[k].u);
       for (size_t q = k; q + 1 < r.second; ++q)  // (a FUNC of the module called in an expression)
         if (t_[q].kind == Tok::Kind::kIdent && isOp(t_, q + 1, "(") && routine_kinds_.count(t_[q].u)) callees_[cur].insert(t_[q].u);
       if (headAt(k) != kNoHead) continue;
@@ -403,8 +430,9 @@ class Reader {
         if (fn == changes.end()) continue;
         const size_t close = closing(t_, q + 1, r.second);
         size_t i = 0;
-        for (const Range& a : items(t_, q + 2, close)) {
+        for (Range a : items(t_, q + 2, close)) {
           if (a.first < a.second && isOp(t_, a.first, "\\")) continue;  // an optional argument
+          if (a.second >= a.first + 3 && t_[a.first].kind == Tok::Kind::kIdent && isOp(t_, a.first + 1, ":=")) a.first += 2;  // (named)
           if (i < fn->second.size() && fn->second[i] && a.first < a.second && t_[a.first].kind == Tok::Kind::kIdent) {
             assigners_[t_[a.first].u].insert("");
             if (!assigned_.count(t_[a.first].u)) assigned_[t_[a.first].u] = loc(t_[a.first].b);
@@ -412,7 +440,7 @@ class Reader {
           ++i;
         }
       }
-      if (isOp(t_, j, ":=")) {
+      if (j != kNoHead) {
         // (a tool's load does not move its frame)
         const bool load_only = j > k + 1 && t_[k + 2].u == "TLOAD";
         if (!load_only && !assigned_.count(t_[k].u)) assigned_[t_[k].u] = loc(t_[k].b);
@@ -449,6 +477,7 @@ class Reader {
   void noteReads(Range r, Range st) {
     for (size_t k = r.first; k < r.second; ++k) {
       if (t_[k].kind != Tok::Kind::kIdent || (k > 0 && (isOp(t_, k - 1, ".") || isOp(t_, k - 1, "\\")))) continue;
+      if (isOp(t_, k + 1, ":=")) continue;  // (a named argument's parameter, `Point:=p20`)
       const std::string& u = t_[k].u;
       if (params_.count(u) && !local_.names.count(u)) continue;  // (the call's value)
       const int* id = lookup(&Scope::robtargets, u);
@@ -521,7 +550,7 @@ class Reader {
     if (u == "PDISPOFF") pdisp_.reset();
     if (u == "EOFFSON" || u == "EOFFSSET") eoffs_ = loc(t[i].b), eoffs_name_ = t[i].s;
     if (u == "EOFFSOFF") eoffs_.reset();
-    if (u == "MOVEL" || u == "MOVEJ" || u == "MOVEC" || u == "MOVEABSJ") return move(r, p);
+    if (isPlainMove(u)) return move(r, p);
     if (t[i].kind == Tok::Kind::kIdent && kLayouts.count(u) && positionalCount(r) == kLayouts.at(u).count) return move(r, p);
     if (t[i].kind == Tok::Kind::kIdent && kOtherMoves.count(u)) {
       noteReads(r);  // (its target is kept as written)
@@ -536,14 +565,10 @@ class Reader {
           assigned_here_.tools.erase(n);
           assigned_here_.wobjs.erase(n);
         }
-    // an assignment reads its right-hand side (its left one is a run-time value: scanAssignments)
-    size_t from = i;
-    for (size_t k = i; k < r.second; ++k)
-      if (isOp(t, k, ":=")) {
-        from = k + 1;
-        break;
-      }
-    noteReads({from, r.second}, r);
+    // an assignment reads its right-hand side (its left one is a run-time value: scanAssignments);
+    // a call reads every argument, also those after a named one (`weld p30, Speed:=2;`)
+    const size_t assign = assignmentAt(r);
+    noteReads({assign == kNoHead ? i : assign + 1, r.second}, r);
     // a call of one of the module's routines that move the robot, a late-bound call
     // (%"name"%, CallByVar), a jump or a label (reached from a GOTO)
     if ((t[i].kind == Tok::Kind::kIdent && (routines_.count(u) || u == "GOTO" || u == "CALLBYVAR")) || isOp(t, i, "%") ||
@@ -567,10 +592,8 @@ class Reader {
   /// named).
   void frameAssignment(Range r) {
     const size_t i = r.first;
-    if (routine_.empty() || t_[i].kind != Tok::Kind::kIdent || headAt(i) != kNoHead || declarationAt(i) != kNoHead) return;
-    size_t j = i + 1;
-    while (j + 1 < r.second && isOp(t_, j, ".") && t_[j + 1].kind == Tok::Kind::kIdent) j += 2;
-    if (!isOp(t_, j, ":=")) return;
+    const size_t j = assignmentAt(r);
+    if (routine_.empty() || j == kNoHead || declarationAt(i) != kNoHead) return;
     const std::string& u = t_[i].u;
     if (j > i + 1 && t_[i + 2].u == "TLOAD") return;  // (a tool's load does not move its frame)
     assigned_here_.tools.erase(u);
@@ -604,23 +627,22 @@ class Reader {
     }
   }
 
-  /// The names the statements from token `from` assign (name := .., name.field := .., or a call
-  /// of a routine that assigns them), up to the end of the loop they are in (`loop`) or of the
-  /// routine.
+  /// The names the statements from token `from` assign (assignmentAt: name := .., name.field
+  /// := .., a tool's load too; or a call of a routine that assigns them), up to the end of the
+  /// loop they are in (`loop`) or of the routine.
   std::set<std::string> assignedFrom(size_t from, bool loop) const {
     std::set<std::string> out;
     int open = 0;
-    for (size_t k = from; k < t_.size(); ++k) {
-      const Tok& t = t_[k];
-      if (t.kind != Tok::Kind::kIdent) continue;
-      if (t.u == "WHILE" || t.u == "FOR") ++open;
-      if (loop && (t.u == "ENDWHILE" || t.u == "ENDFOR") && open-- == 0) break;
-      if (t.u == "ENDPROC" || t.u == "ENDFUNC" || t.u == "ENDTRAP") break;
-      size_t j = k + 1;
-      while (j + 1 < t_.size() && isOp(t_, j, ".") && t_[j + 1].kind == Tok::Kind::kIdent) j += 2;
-      if (isOp(t_, j, ":=")) out.insert(t.u);
-      if (routine_kinds_.count(t.u))
-        for (const std::string& n : assignedThrough(t.u)) out.insert(n);
+    for (const Range& r : stmts_) {
+      if (r.first < from) continue;
+      const std::string& u = t_[r.first].kind == Tok::Kind::kIdent ? t_[r.first].u : std::string();
+      if (u == "WHILE" || u == "FOR") ++open;
+      if (loop && (u == "ENDWHILE" || u == "ENDFOR") && open-- == 0) break;
+      if (u == "ENDPROC" || u == "ENDFUNC" || u == "ENDTRAP") break;
+      if (assignmentAt(r) != kNoHead) out.insert(u);
+      for (size_t k = r.first; k < r.second; ++k)
+        if (t_[k].kind == Tok::Kind::kIdent && routine_kinds_.count(t_[k].u))
+          for (const std::string& n : assignedThrough(t_[k].u)) out.insert(n);
     }
     return out;
   }
@@ -660,7 +682,7 @@ class Reader {
         ++k;
       } else if (u == "ENDPROC" || u == "ENDFUNC" || u == "ENDTRAP") {
         cur.clear();
-      } else if (!cur.empty() && (u == "MOVEL" || u == "MOVEJ" || u == "MOVEC" || u == "MOVEABSJ" || kOtherMoves.count(u))) {
+      } else if (!cur.empty() && isMove(u)) {
         moves[cur] = true;
       } else if (!cur.empty() && moves.count(u)) {
         calls[cur].insert(u);
@@ -1135,7 +1157,10 @@ class Reader {
   // --- motions
 
   struct Arg {
-    Range main;
+    Range main;  ///< a required argument's value (after its name, when it is named)
+    /// The parameter name of a required argument written with it (`ToPoint:=p20`; upper case;
+    /// RAPID kernel, procedure call: <required procedure argument> ::= [<identifier> ':='] <expression>)
+    std::string name;
     std::vector<std::pair<std::string, Range>> opts;  ///< \Name[:=value] (upper-case name)
   };
 
@@ -1151,6 +1176,11 @@ class Reader {
         ++k;
       }
       a.main = {it.first, k};
+      if (k >= it.first + 2 && t_[it.first].kind == Tok::Kind::kIdent && isOp(t_, it.first + 1, ":=")) {
+        a.name = t_[it.first].u;
+        a.main.first += 2;
+        if (a.main.first == a.main.second) fail(t_[it.first + 1].e, "expected a value after '" + excerpt(t_[it.first].s) + ":=', found " + found(k, it.second));
+      }
       while (k < it.second) {
         if (k + 1 >= it.second || t_[k + 1].kind != Tok::Kind::kIdent) fail(t_[k].b, "expected an optional argument name after '\\', found " + found(k + 1, it.second));
         const std::string n = t_[k + 1].u;
@@ -1196,6 +1226,23 @@ class Reader {
       fail(t_[r.first].b, "expected " + f + " " + sig[u == "MOVEC" ? 1 : u == "MOVEABSJ" ? 2 : 0] + " (" + std::to_string(want) +
                               " arguments), found " + std::to_string(pos.size()) + " in '" + quoted(r) + "'");
     }
+    // a required argument written with its name is the positional one when the name is that
+    // argument's; another name (arguments in another order, a misspelt name) is kept as written
+    {
+      std::vector<std::string> names;
+      std::string all_names = lay.names;
+      for (size_t b = 0, e; b <= all_names.size(); b = e + 1) {
+        e = all_names.find(',', b);
+        if (e == std::string::npos) e = all_names.size();
+        names.push_back(all_names.substr(b, e - b));
+      }
+      for (size_t i = 0; i < pos.size() && i < names.size(); ++i)
+        if (!pos[i].name.empty() && pos[i].name != calib::upperAscii(names[i])) {
+          noteReads(r);
+          return otherMove(r, p, "its argument " + std::to_string(i + 1) + " is named " + t_[pos[i].main.first - 2].s + ", where " + f +
+                                     "'s argument " + std::to_string(i + 1) + " is " + names[i] + ": accura reads a named argument in its place only");
+        }
+    }
     Motion m;
     m.where = loc(t_[r.first].b);
     m.statement = text(r);
@@ -1221,7 +1268,7 @@ class Reader {
     wobj(opt, m);
     singleReason(r, opt, st, m);
     // (its pieces would each set the signal, fire the triggers or call the procedure)
-    if (m.single_reason.empty() && u != "MOVEL" && u != "MOVEJ" && u != "MOVEC" && u != "MOVEABSJ")
+    if (m.single_reason.empty() && !isPlainMove(u))
       m.single_reason = "it is a " + f + ", whose pieces would each repeat what it does besides moving (a signal, a trigger, a procedure, a weld)";
     if (pdisp_ && m.target_problem.empty() && u != "MOVEABSJ")
       m.target_problem = "a program displacement is active (" + pdisp_name_ + " at " + pdisp_->str() +
@@ -1448,15 +1495,22 @@ class Reader {
     m.base = frameArg(a, &Scope::wobjs, "WOBJ0", "wobjdata", "give its frame with --program-base x,y,z,A,B,C");
   }
 
-  /// A motion instruction accura does not model: kept, and reported by compensate.
-  void otherMove(Range r, Program& p) {
+  /// A motion instruction accura does not model (or, `why`, does not read as written): kept, and
+  /// reported by compensate.
+  void otherMove(Range r, Program& p, const std::string& why = std::string()) {
     Motion m;
     m.where = loc(t_[r.first].b);
     m.statement = text(r);
     const std::string& u = t_[r.first].u;
     m.type = u.find('J') != std::string::npos && u.find("MOVEJ") == 0 ? MotionType::kPtp : MotionType::kLin;
     m.start_unknown = flow_.motion();
-    m.target_problem = t_[r.first].s + " is a motion instruction accura does not model (MoveL, MoveJ, MoveC, MoveAbsJ)";
+    m.target_problem = why.empty() ? t_[r.first].s + " is a motion instruction accura does not model (MoveL, MoveJ, MoveC, MoveAbsJ)" : why;
+    // MoveExtJ moves one or several mechanical units without a TCP (ABB, Technical reference
+    // manual - RAPID Instructions, Functions and Data types, MoveExtJ): the arm's axes stay
+    if (u == "MOVEEXTJ") {
+      m.arm_stays = true;
+      m.target_problem = t_[r.first].s + " moves external axes only (mechanical units without a TCP), which accura does not model";
+    }
     RapidSource::Statement st = statementSpan(r, m.where);
     addMotion(r, m, st, p);
   }

@@ -402,7 +402,7 @@ Program rapidForConversion(const Program& program) {
   for (const Motion& m : program.motions) {
     const std::string word = m.statement.substr(0, m.statement.find_first_of(" \t\r\n\\,;"));
     const std::string u = calib::upperAscii(word);
-    if (m.target_problem.empty() && u != "MOVEL" && u != "MOVEJ" && u != "MOVEC" && u != "MOVEABSJ")
+    if (m.target_problem.empty() && !isPlainMove(u))
       throw calib::ArgumentError(m.where.str() + ": cannot convert '" + detail::excerpt(m.statement) + "': " + word +
                                  " does more than move (a signal, a trigger, a procedure or a weld), which only RAPID carries");
   }

@@ -189,6 +189,12 @@ struct Motion {
   /// The position before this motion is not known (RAPID: the first motion of a routine,
   /// which may be called from anywhere): the compensation starts afresh here.
   bool start_unknown = false;
+  /// The motion moves external axes only and never the robot arm (RAPID MoveExtJ: mechanical
+  /// units without a TCP). It is kept as written (target_problem says why); the arm's joints
+  /// after it are those before it, so the next motion starts where the arm was, unless that
+  /// motion's target (or the one the arm stands on) gives an external axis (a track may carry
+  /// the robot).
+  bool arm_stays = false;
   /// The programmed duration of the motion's statement (s): RAPID `\T:=`, URScript movel's and
   /// movej's `t`, XML `time_s`. The controller makes the move take that long (its speed is
   /// then not used). A writer carries it where its language can (RAPID `\T:=`, URScript `t=`,
