@@ -481,5 +481,27 @@ TEST(Batch, TheReportNeverReplacesAnInputOrAnOutput) {
   EXPECT_FALSE(fs::exists(root + "/out4/seam.src"));
 }
 
+// An --out that cannot be created (here: under a file) is refused before any work, as an --out
+// that is a file is; before, every program was compensated and then failed on its own
+// ("out/d0: cannot create the directory: Not a directory", exit 2 and one line per program).
+TEST(Batch, AnOutputDirectoryThatCannotBeCreatedIsRefusedBeforeAnyWork) {
+  const std::string root = test::tempDir("batch_out_under_file");
+  test::copyText(golden("compensate/seam.src"), root + "/in/sub/seam.src");
+  test::copyText(golden("compensate/seam.dat"), root + "/in/sub/seam.dat");
+  test::writeText(root + "/afile", "x");
+  BatchOptions o;
+  o.job.calibrated = test::loadBundled("kuka_kr16");
+  int calls = 0;
+  std::string message;
+  try {
+    runBatch(root + "/in", root + "/afile/out", o, [&](const BatchFileResult&, int, int) { ++calls; });
+  } catch (const calib::InputError& e) {
+    message = e.what();
+  }
+  EXPECT_EQ(message, root + "/afile/out: cannot create the output directory (--out): " + root + "/afile is a file, not a directory");
+  EXPECT_EQ(calls, 0);  // no program was read
+  EXPECT_EQ(test::readText(root + "/afile"), "x");
+}
+
 }  // namespace
 }  // namespace accura::postproc
