@@ -354,6 +354,16 @@ TEST_F(MeasurementsTest, ErrorDecimalCommaChangesFieldCount) {
   EXPECT_EQ(e.column(), 10);  // the first field beyond the header's
 }
 
+// A file whose header row is missing (it starts with the data) is told so, not that the numbers
+// taken as names are a duplicate column (before: "column '0': expected each column name once").
+TEST_F(MeasurementsTest, ErrorDataRowWhereTheHeaderShouldBe) {
+  const InputError e = readError("# tracker export\n0,-90,90,0,45,0,1235.412,0.087,1410.236\n12.5,-75,80,-30,60,15,1301.774,288.912,1372.530\n");
+  EXPECT_EQ(std::string(e.what()), dataPath() + ":2:1: expected a header row (q1..q6, x, y, z), found a row starting with the "
+                                                "number '0': the first line that is neither a comment nor blank names the columns");
+  EXPECT_EQ(e.line(), 2);
+  EXPECT_EQ(e.column(), 1);
+}
+
 TEST_F(MeasurementsTest, ErrorWrongFieldCount) {
   // 12 columns: 9 required + 3 unknown; line 9 has 11 fields.
   std::string text = "# c\n# c\nq1,q2,q3,q4,q5,q6,x,y,z,u1,u2,u3\n";  // header on line 3

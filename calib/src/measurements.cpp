@@ -249,6 +249,13 @@ void Reader::parseHeader(std::string_view text, int line) {
   layout_.dir_col.assign(static_cast<std::size_t>(dof_), -1);
 
   const std::vector<std::string_view> fields = splitFields(text);
+  // A file without its header row (a data row first): the numbers taken as names would fail as
+  // a duplicate name or a missing column, which does not say that the names are missing.
+  double first_value = 0;
+  std::string why;
+  if (parseNumber(fields.front(), first_value, why))
+    fail(line, 1, "expected a header row (" + rangeName("q", dof_) + ", x, y, z), found a row starting with the number " +
+                      shown(trim(fields.front())) + ": the first line that is neither a comment nor blank names the columns");
   std::vector<std::string> keys;
   for (std::size_t i = 0; i < fields.size(); ++i) {
     const int column = static_cast<int>(i) + 1;
