@@ -73,6 +73,15 @@ std::string trailingDelimiterNote(std::string_view header, std::string_view row)
   return "";
 }
 
+/// The note on a row with more fields than the header when a decimal comma explains it: the
+/// line has no '.' at all and at least two fields too many (a spreadsheet of a locale that
+/// writes 1,5 for 1.5 splits every measured coordinate; one field too many is as likely a stray
+/// value).
+std::string decimalCommaNote(std::string_view row, std::size_t found, std::size_t expected) {
+  if (found < expected + 2 || row.find('.') != std::string_view::npos) return "";
+  return " (no '.' in the line: a decimal comma? numbers take a decimal point, ',' separates the fields)";
+}
+
 /// Shortest text that reads back as the same double ("40", "-155", "0.1").
 std::string shortest(double v) {
   char buf[64];
@@ -440,7 +449,8 @@ Measurement Reader::parseRow(std::string_view text, int line) const {
     // at the first field beyond the header's, or where the first missing one would start
     fail(line, static_cast<int>(std::min(fields.size(), L.columns.size())) + 1,
          "expected " + std::to_string(L.columns.size()) + " fields as in the header, found " +
-             std::to_string(fields.size()) + trailingDelimiterNote(header_text_, text));
+             std::to_string(fields.size()) + trailingDelimiterNote(header_text_, text) +
+             (trailingDelimiterNote(header_text_, text).empty() ? decimalCommaNote(text, fields.size(), L.columns.size()) : ""));
   }
 
   Measurement m;
