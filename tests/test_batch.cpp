@@ -366,7 +366,15 @@ TEST(Batch, AtomicWriterWritesAllOrNothing) {
   EXPECT_EQ(test::readText(dir + "/a.txt"), "new a");
   EXPECT_EQ(test::readText(dir + "/b.txt"), "new b");
   // the second file cannot be written: the first stays as it was, no temporary file is left
-  EXPECT_THROW(calib::writeFilesAtomically({{dir + "/a.txt", "newer"}, {dir + "/missing/c.txt", "c"}}), calib::InputError);
+  std::string message;
+  try {
+    calib::writeFilesAtomically({{dir + "/a.txt", "newer"}, {dir + "/missing/c.txt", "c"}});
+  } catch (const calib::InputError& e) {
+    message = e.what();
+  }
+  // the missing directory is named (before: "cannot write file: No such file or directory", as if
+  // the output file itself had to exist)
+  EXPECT_EQ(message, dir + "/missing/c.txt: cannot write file: the directory " + dir + "/missing does not exist");
   EXPECT_EQ(test::readText(dir + "/a.txt"), "new a");
   std::vector<std::string> names;
   for (const auto& e : fs::directory_iterator(dir)) names.push_back(e.path().filename().string());
