@@ -54,6 +54,23 @@ std::string unknownOptionMessage(const CLI::App& command, int argc, char** argv)
   return "";
 }
 
+// CLI11 says "--tol: At Most 1 required but received 2" for an option given twice and "--tol: 1
+// required NUMBER:in [0.001, 100] (mm) missing" for one given without its value: say what was
+// expected and what was found, as every other error does. Any other message is kept.
+std::string argumentMismatchMessage(const std::string& what) {
+  const size_t colon = what.find(": ");
+  if (colon == std::string::npos) return what;
+  const std::string name = what.substr(0, colon), rest = what.substr(colon + 2);
+  const std::string at_most = "At Most 1 required but received ";
+  if (rest.rfind(at_most, 0) == 0)
+    return name + ": expected once, found it given " + rest.substr(at_most.size()) + " times (give it once)";
+  const std::string one = "1 required ", missing = " missing";
+  if (rest.rfind(one, 0) == 0 && rest.size() > one.size() + missing.size() &&
+      rest.compare(rest.size() - missing.size(), missing.size(), missing) == 0)
+    return name + ": expected a value (" + rest.substr(one.size(), rest.size() - one.size() - missing.size()) + "), found none";
+  return what;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -140,7 +157,8 @@ int main(int argc, char** argv) {
       // the help to see is the command's (argv[1] is a known command here), else accura's
       const std::string help = argc > 1 && argv[1][0] != '-' ? std::string("accura ") + argv[1] + " --help"
                                                              : std::string("accura --help");
-      std::cerr << "accura: error: " << e.what() << " (see " << help << ")\n";
+      const std::string what = dynamic_cast<const CLI::ArgumentMismatch*>(&e) ? argumentMismatchMessage(e.what()) : e.what();
+      std::cerr << "accura: error: " << what << " (see " << help << ")\n";
       return 1;
     }
     return exitCode();

@@ -366,7 +366,15 @@ TEST(Batch, AtomicWriterWritesAllOrNothing) {
   EXPECT_EQ(test::readText(dir + "/a.txt"), "new a");
   EXPECT_EQ(test::readText(dir + "/b.txt"), "new b");
   // the second file cannot be written: the first stays as it was, no temporary file is left
-  EXPECT_THROW(calib::writeFilesAtomically({{dir + "/a.txt", "newer"}, {dir + "/missing/c.txt", "c"}}), calib::InputError);
+  std::string message;
+  try {
+    calib::writeFilesAtomically({{dir + "/a.txt", "newer"}, {dir + "/missing/c.txt", "c"}});
+  } catch (const calib::InputError& e) {
+    message = e.what();
+  }
+  // the missing directory is named (before: "cannot write file: No such file or directory", as if
+  // the output file itself had to exist)
+  EXPECT_EQ(message, dir + "/missing/c.txt: cannot write file: the directory " + dir + "/missing does not exist");
   EXPECT_EQ(test::readText(dir + "/a.txt"), "new a");
   std::vector<std::string> names;
   for (const auto& e : fs::directory_iterator(dir)) names.push_back(e.path().filename().string());
@@ -479,6 +487,28 @@ TEST(Batch, TheReportNeverReplacesAnInputOrAnOutput) {
   EXPECT_EQ(test::readText(root + "/out3/seam.src").rfind("&ACCESS", 0), 0u);
   EXPECT_EQ(accura(root, "compensate " + job + "--in in/seam.src --out out4 --json out4/seam.src").code, 1);
   EXPECT_FALSE(fs::exists(root + "/out4/seam.src"));
+}
+
+// An --out that cannot be created (here: under a file) is refused before any work, as an --out
+// that is a file is; before, every program was compensated and then failed on its own
+// ("out/d0: cannot create the directory: Not a directory", exit 2 and one line per program).
+TEST(Batch, AnOutputDirectoryThatCannotBeCreatedIsRefusedBeforeAnyWork) {
+  const std::string root = test::tempDir("batch_out_under_file");
+  test::copyText(golden("compensate/seam.src"), root + "/in/sub/seam.src");
+  test::copyText(golden("compensate/seam.dat"), root + "/in/sub/seam.dat");
+  test::writeText(root + "/afile", "x");
+  BatchOptions o;
+  o.job.calibrated = test::loadBundled("kuka_kr16");
+  int calls = 0;
+  std::string message;
+  try {
+    runBatch(root + "/in", root + "/afile/out", o, [&](const BatchFileResult&, int, int) { ++calls; });
+  } catch (const calib::InputError& e) {
+    message = e.what();
+  }
+  EXPECT_EQ(message, root + "/afile/out: cannot create the output directory (--out): " + root + "/afile is a file, not a directory");
+  EXPECT_EQ(calls, 0);  // no program was read
+  EXPECT_EQ(test::readText(root + "/afile"), "x");
 }
 
 }  // namespace

@@ -187,5 +187,19 @@ TEST(Cli, BadOptionsAreReported) {
   EXPECT_NE(r.err.find("unknown effect 'warp'"), std::string::npos) << r.err;
 }
 
+// An option given twice, or given without its value, is said so in words (before: CLI11's
+// "--tol: At Most 1 required but received 2" and "--tol: 1 required NUMBER:... missing").
+TEST(Cli, AnOptionGivenTwiceOrWithoutItsValueIsSaidSo) {
+  CliRun r = run("fk --robot kuka_kr16 --q 0,-90,90,0,0,0 --q 0,0,0,0,0,0");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_EQ(r.err, "accura: error: --q: expected once, found it given 2 times (give it once) (see accura fk --help)\n");
+  r = run("fk --robot kuka_kr16 --q 0,-90,90,0,0,0 --payload-kg");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_EQ(r.err, "accura: error: --payload-kg: expected a value (NUMBER:in [0, 10000] (kg)), found none (see accura fk --help)\n");
+  r = run("fk --robot kuka_kr16 --robot ur10 --robot scara --q 0");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_EQ(r.err, "accura: error: --robot: expected once, found it given 3 times (give it once) (see accura fk --help)\n");
+}
+
 }  // namespace
 }  // namespace accura::calib

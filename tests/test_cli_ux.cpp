@@ -525,6 +525,16 @@ TEST(CliMessages, SrcWithoutItsDatNamesTheMissingFile) {
             std::string::npos)
       << p.err;
   EXPECT_FALSE(std::filesystem::exists(dir + "/o"));
+  // with the $config.dat given, the point is not there either: said so (before: "give --config
+  // $config.dat", which the user had given)
+  std::filesystem::copy_file(test::sourcePath("examples/$config.dat"), dir + "/config.dat");
+  const CliRun c = run("compensate --robot kuka_kr16 --in ptp.src --config config.dat --out o", dir);
+  EXPECT_EQ(c.code, 1) << c.err;
+  EXPECT_NE(c.err.find("ptp.src:35:1: expected a target accura can correct for PTP, found: XP1 is not declared in ptp.src, and "
+                       "its data file ptp.dat does not exist (give --dat; nor is it a global point of config.dat)"),
+            std::string::npos)
+      << c.err;
+  EXPECT_FALSE(std::filesystem::exists(dir + "/o"));
 }
 
 // A target outside the workspace: the pose and its frame said once ("unreachable (unreachable:

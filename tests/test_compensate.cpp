@@ -9,8 +9,10 @@
 #include "accura/calib/errors.h"
 #include "accura/calib/geometry.h"
 #include "accura/calib/kinematics.h"
+#include "accura/calib/text.h"
 #include "accura/calib/simulate.h"
 #include "accura/postproc/compensate.h"
+#include "accura/postproc/placement.h"
 #include "test_util.h"
 
 namespace accura {
@@ -347,6 +349,42 @@ TEST(Densify, UnreachablePathIsReported) {
   EXPECT_NE(r.status, calib::IkStatus::kOk);
   EXPECT_TRUE(r.commanded.empty());
   EXPECT_FALSE(r.message.empty());
+}
+
+// A placement that was given (--base) and misses the calibrated base by metres is named as the
+// user's value, with its units, not answered with "give --base" (which they did): here the
+// tracker-frame base 2400,-1700,-600 mm given in metres.
+TEST(Placement, AGivenPlacementThatMissesTheCalibratedBaseIsNamedWithItsUnits) {
+  JobSettings job;
+  job.calibrated = test::loadBundled("kuka_kr16");  // nominal base: the identity
+  job.calibrated.deviations.base_mm = Eigen::Vector3d(2400, -1700, -600);
+  job.robroot_in_world = calib::XyzAbc{2.4, -1.7, -0.6, 0, 0, 0};
+  std::string message;
+  try {
+    placeRobot(job);
+  } catch (const calib::InputError& e) {
+    message = e.what();
+  }
+  const double off = std::sqrt(2397.6 * 2397.6 + 1698.3 * 1698.3 + 599.4 * 599.4);  // 3000.4 mm
+  EXPECT_NE(message.find("is " + calib::formatFixed(off, 4) + " mm and 0.00000 deg from the nominal base (2.4000, -1.7000, -0.6000 mm"),
+            std::string::npos)
+      << message;
+  EXPECT_NE(message.find("The placement given (--base x,y,z,A,B,C, or the cell file's <robot>) is not where the model's base was measured: "
+                         "give it in the model's frame (the calibrated base above), x,y,z in mm and A,B,C in deg (not metres, not radians)"),
+            std::string::npos)
+      << message;
+  EXPECT_EQ(message.find("give --base"), std::string::npos) << message;
+  // without a placement the message asks for one, as before
+  job.robroot_in_world.reset();
+  message.clear();
+  try {
+    placeRobot(job);
+  } catch (const calib::InputError& e) {
+    message = e.what();
+  }
+  EXPECT_NE(message.find("The model was measured in another frame (a tracker's): give --base x,y,z,A,B,C, where the robot stands"),
+            std::string::npos)
+      << message;
 }
 
 }  // namespace

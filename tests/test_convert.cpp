@@ -474,6 +474,11 @@ TEST(Convert, DropUnconvertibleListsEveryDroppedLine) {
   EXPECT_NE(refused.err.find("cannot convert the RAPID statement '  CONST jointtarget home := [[0,0,0,0,30,0],[9E9,9E9,9E9,9E9,9E9,9E9]];' to KRL"),
             std::string::npos)
       << refused.err;
+  // ... and names the option that converts the motions without it (before: the refusal alone)
+  EXPECT_NE(refused.err.find("to KRL: it is outside the motion model and only RAPID can carry it (convert --drop-unconvertible leaves "
+                             "such statements out and lists them)\n"),
+            std::string::npos)
+      << refused.err;
   const test::CliRun r = test::runAccuraIn(dir, "convert --in seam.mod --out seam.src --drop-unconvertible --json drop.json");
   ASSERT_EQ(r.code, 0) << r.err;
   // the lines of the module that are statements outside the motion model, independently:

@@ -88,6 +88,10 @@ TEST(HardeningMessages, RobotFileErrorsCarryLineColumnExpectedFound) {
       {"", 1, "", "expected a robot file with root element <robot>, found an empty file"},
       {"  \n", 1, " ", "expected a robot file with root element <robot>, found only white space"},
       {"<!-- nothing -->\n", 1, "<", "expected a robot file with root element <robot>, found no element"},
+      // a file that is not XML (a measurement CSV given as --robot): before, "expected well-formed
+      // XML, found malformed text (an unescaped '<' or '&'?)"
+      {"\n# KR 16, laser tracker\nq1,q2,q3,q4,q5,q6,x,y,z\n0,-90,90,0,45,0,1235.412,0.087,1410.236\n", 2, "#",
+       "expected a robot file with root element <robot> (XML, which starts with '<'), found text that is not XML: '# KR 16, laser tracker'"},
       {kHead + "    <joint name=\"k\" a_mm=1/>\n" + kTail, 6, "<joint",
        "expected well-formed XML, found a malformed attribute (name=\"value\")"},
       // tinyxml2 names the element whose end tag does not match: <joints>

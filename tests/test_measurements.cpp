@@ -350,8 +350,25 @@ TEST_F(MeasurementsTest, ErrorMalformedNumbers) {
 
 TEST_F(MeasurementsTest, ErrorDecimalCommaChangesFieldCount) {
   const InputError e = readError(std::string(kHeader) + "0,0,0,0,0,0,1,5,2,5,3\n");
-  EXPECT_EQ(std::string(e.what()), dataPath() + ":2:10: expected 9 fields as in the header, found 11");
+  // the line has no '.': the message names the likely cause (before: the counts alone)
+  EXPECT_EQ(std::string(e.what()), dataPath() + ":2:10: expected 9 fields as in the header, found 11 (no '.' in the line: a "
+                                                "decimal comma? numbers take a decimal point, ',' separates the fields)");
   EXPECT_EQ(e.column(), 10);  // the first field beyond the header's
+  // a line with a decimal point, or one field too many, is not said to have a decimal comma
+  EXPECT_EQ(std::string(readError(std::string(kHeader) + "0,0,0,0,0,0,1.5,2,5,3,4\n").what()),
+            dataPath() + ":2:10: expected 9 fields as in the header, found 11");
+  EXPECT_EQ(std::string(readError(std::string(kHeader) + "0,0,0,0,0,0,1,2,5,3\n").what()),
+            dataPath() + ":2:10: expected 9 fields as in the header, found 10");
+}
+
+// A file whose header row is missing (it starts with the data) is told so, not that the numbers
+// taken as names are a duplicate column (before: "column '0': expected each column name once").
+TEST_F(MeasurementsTest, ErrorDataRowWhereTheHeaderShouldBe) {
+  const InputError e = readError("# tracker export\n0,-90,90,0,45,0,1235.412,0.087,1410.236\n12.5,-75,80,-30,60,15,1301.774,288.912,1372.530\n");
+  EXPECT_EQ(std::string(e.what()), dataPath() + ":2:1: expected a header row (q1..q6, x, y, z), found a row starting with the "
+                                                "number '0': the first line that is neither a comment nor blank names the columns");
+  EXPECT_EQ(e.line(), 2);
+  EXPECT_EQ(e.column(), 1);
 }
 
 TEST_F(MeasurementsTest, ErrorWrongFieldCount) {

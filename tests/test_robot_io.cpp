@@ -220,6 +220,15 @@ TEST(RobotIo, ResolveByNameOrPath) {
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("(a directory)"), std::string::npos) << e.what();
   }
+  // a path where nothing is (a mistyped model file): said so (before: the bare name)
+  const std::string missing = test::tempDir("robot_missing") + "/kr16_calbrated.xml";
+  try {
+    resolveRobotPath(missing);
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()), "expected a robot file or one of the bundled robots (abb_irb120, kuka_kr16, scara, ur10), found '" +
+                                         missing + "' (no such file)");
+  }
 }
 
 }  // namespace

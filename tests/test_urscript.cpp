@@ -1041,7 +1041,8 @@ TEST(UrScript, ConvertCarriesTheMotionModelOrRefusesNamingTheLine) {
   const test::CliRun r = test::runAccuraIn(dir, "convert --in seam.script --out seam.src");
   EXPECT_NE(r.code, 0);
   EXPECT_NE(r.err.find("seam.script:6:3: cannot convert to KRL: the URScript statement 'set_payload(1.2)' is not a motion, set_tcp or "
-                       "pose assignment, and the conversion carries the motion model only (2 more such statement(s))"),
+                       "pose assignment, and the conversion carries the motion model only (2 more such statement(s)); convert "
+                       "--drop-unconvertible leaves such statements out and lists them\n"),
             std::string::npos)
       << r.err;
   // motions only: URScript -> XML -> URScript keeps every pose (to the 7 decimals written)

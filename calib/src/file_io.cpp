@@ -116,7 +116,15 @@ void writeAll(int fd, const std::string& text, const std::string& path) {
 // f's text into the descriptor `fd` just opened for it (-1: the open failed, errno says why),
 // synced to the disk first when `sync`, then closed; every failure an InputError naming f.
 void writeOpened(int fd, const OutputFile& f, bool sync) {
-  if (fd < 0) throw InputError(f.path, 0, 0, std::string("cannot write file: ") + std::strerror(errno));
+  if (fd < 0) {
+    // ENOENT of an open with O_CREAT: the directory is missing ("No such file or directory"
+    // would read as the output file's own absence); named as refuseUnwritableOutputs names it
+    const int err = errno;
+    const std::string dir = fs::path(f.path).parent_path().empty() ? std::string(".") : fs::path(f.path).parent_path().string();
+    std::error_code ec;
+    if (err == ENOENT && !fs::exists(dir, ec)) throw InputError(f.path, 0, 0, "cannot write file: the directory " + dir + " does not exist");
+    throw InputError(f.path, 0, 0, std::string("cannot write file: ") + std::strerror(err));
+  }
   try {
     writeAll(fd, f.text, f.path);
   } catch (...) {

@@ -73,6 +73,15 @@ std::string trailingDelimiterNote(std::string_view header, std::string_view row)
   return "";
 }
 
+/// The note on a row with more fields than the header when a decimal comma explains it: the
+/// line has no '.' at all and at least two fields too many (a spreadsheet of a locale that
+/// writes 1,5 for 1.5 splits every measured coordinate; one field too many is as likely a stray
+/// value).
+std::string decimalCommaNote(std::string_view row, std::size_t found, std::size_t expected) {
+  if (found < expected + 2 || row.find('.') != std::string_view::npos) return "";
+  return " (no '.' in the line: a decimal comma? numbers take a decimal point, ',' separates the fields)";
+}
+
 /// Shortest text that reads back as the same double ("40", "-155", "0.1").
 std::string shortest(double v) {
   char buf[64];
@@ -249,6 +258,13 @@ void Reader::parseHeader(std::string_view text, int line) {
   layout_.dir_col.assign(static_cast<std::size_t>(dof_), -1);
 
   const std::vector<std::string_view> fields = splitFields(text);
+  // A file without its header row (a data row first): the numbers taken as names would fail as
+  // a duplicate name or a missing column, which does not say that the names are missing.
+  double first_value = 0;
+  std::string why;
+  if (parseNumber(fields.front(), first_value, why))
+    fail(line, 1, "expected a header row (" + rangeName("q", dof_) + ", x, y, z), found a row starting with the number " +
+                      shown(trim(fields.front())) + ": the first line that is neither a comment nor blank names the columns");
   std::vector<std::string> keys;
   for (std::size_t i = 0; i < fields.size(); ++i) {
     const int column = static_cast<int>(i) + 1;
@@ -433,7 +449,8 @@ Measurement Reader::parseRow(std::string_view text, int line) const {
     // at the first field beyond the header's, or where the first missing one would start
     fail(line, static_cast<int>(std::min(fields.size(), L.columns.size())) + 1,
          "expected " + std::to_string(L.columns.size()) + " fields as in the header, found " +
-             std::to_string(fields.size()) + trailingDelimiterNote(header_text_, text));
+             std::to_string(fields.size()) + trailingDelimiterNote(header_text_, text) +
+             (trailingDelimiterNote(header_text_, text).empty() ? decimalCommaNote(text, fields.size(), L.columns.size()) : ""));
   }
 
   Measurement m;

@@ -500,7 +500,8 @@ std::string resolveRobotPath(const std::string& name_or_path) {
   }
   std::string list;
   for (const auto& n : bundledRobotNames()) list += (list.empty() ? "" : ", ") + n;
-  const std::string what = fs::is_directory(name_or_path, ec) ? "a directory" : fs::exists(name_or_path, ec) ? "not a regular file" : "";
+  // (a path mistyped, or a model not yet written: say that nothing is there)
+  const std::string what = fs::is_directory(name_or_path, ec) ? "a directory" : fs::exists(name_or_path, ec) ? "not a regular file" : "no such file";
   throw InputError("expected a robot file or one of the bundled robots (" + list + "), found '" + name_or_path + "'" +
                    (what.empty() ? std::string() : " (" + what + ")"));
 }

@@ -164,6 +164,21 @@ void parseXml(tinyxml2::XMLDocument& doc, const std::string& text, const std::st
     throw InputError(file, 1, 1, "expected " + what + " in UTF-8, found UTF-16 (byte-order mark " +
                                      std::string(text[0] == '\xFF' ? "FF FE" : "FE FF") + "): save it as UTF-8");
   const tinyxml2::XMLError err = doc.Parse(text.data(), text.size());
+  if (err != tinyxml2::XML_SUCCESS) {
+    // a file that is not XML at all (a measurement CSV or a KRL program given as --robot or
+    // --cell): tinyxml2's "malformed text (an unescaped '<' or '&'?)" would send the user into
+    // the file to look for a '<'; say that it does not start as XML does, with its first text
+    size_t p = text.compare(0, 3, "\xEF\xBB\xBF") == 0 ? 3 : 0;
+    while (p < text.size() && std::isspace(static_cast<unsigned char>(text[p]))) ++p;
+    if (p < text.size() && text[p] != '<') {
+      const size_t line_start = text.rfind('\n', p) == std::string::npos ? 0 : text.rfind('\n', p) + 1;
+      const int line = 1 + static_cast<int>(std::count(text.begin(), text.begin() + static_cast<std::ptrdiff_t>(p), '\n'));
+      std::string first = text.substr(p, std::min(text.find_first_of("\r\n", p), text.size()) - p);
+      if (first.size() > 40) first = first.substr(0, 40) + "...";
+      throw InputError(file, line, static_cast<int>(p - line_start) + 1,
+                       "expected " + what + " (XML, which starts with '<'), found text that is not XML: '" + first + "'");
+    }
+  }
   if (err == tinyxml2::XML_SUCCESS && doc.RootElement()) {
     // one root element: a second one (a file pasted after the first's end tag) is not part of
     // the document, and reading the first alone would silently drop it

@@ -4,8 +4,12 @@
 
 #include <tinyxml2.h>
 
+#include <unistd.h>
+
 #include <algorithm>
 #include <atomic>
+#include <cerrno>
+#include <cstring>
 #include <filesystem>
 #include <map>
 #include <mutex>
@@ -250,6 +254,19 @@ BatchResult runBatch(const std::string& in_dir, const std::string& out_dir, cons
   if (options.jobs < 1) throw calib::InputError("--jobs: expected at least 1, found " + std::to_string(options.jobs));
   if (fs::exists(out_dir, ec) && !fs::is_directory(out_dir, ec))
     throw calib::InputError(out_dir + ": expected an output directory (--out), found a file");
+  // --out and its directories are created as the programs are written: an --out that cannot be
+  // created (under a file, in a directory that is not writable) would fail every program, one
+  // by one, after its work (exit 2). Refused before any work, as an --out that is a file is.
+  {
+    fs::path existing = fs::path(out_dir);
+    while (!existing.empty() && !fs::exists(existing, ec)) existing = existing.parent_path();
+    const std::string dir = existing.empty() ? std::string(".") : existing.string();
+    if (!fs::is_directory(dir, ec))
+      throw calib::InputError(out_dir + ": cannot create the output directory (--out): " + dir + " is a file, not a directory");
+    if (::access(dir.c_str(), W_OK | X_OK) != 0)
+      throw calib::InputError(out_dir + ": cannot " + (dir == fs::path(out_dir).string() ? "write into" : "create") +
+                              " the output directory (--out): " + dir + " is not writable (" + std::strerror(errno) + ")");
+  }
   const fs::path in_abs = fs::weakly_canonical(fs::absolute(in_dir), ec);
   if (ec) throw calib::InputError(in_dir + ": cannot resolve the input directory (--in): " + ec.message());
   const fs::path out_abs = fs::weakly_canonical(fs::absolute(out_dir), ec);

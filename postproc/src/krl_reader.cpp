@@ -631,11 +631,13 @@ struct Reader {
       auto it = decl.points.find(up);
       if (it == decl.points.end()) {
         if (decl.arrays.count(up)) return t[b].text + " is an array";
+        // where a global point would be: the $config.dat given (it is not there either), else ask for it
+        const std::string global = decl.tables.file.empty() ? "a global point: give --config $config.dat"
+                                                            : "nor is it a global point of " + decl.tables.file;
         if (src->dat_path.empty()) {  // the missing .dat named, not only the undeclared point (issue 17)
           missing_dat_ = true;
           return t[b].text + " is not declared in " + src->src_path + ", and its data file " +
-                 fs::path(src->src_path).replace_extension(".dat").string() +
-                 " does not exist (give --dat; a global point: give --config $config.dat)";
+                 fs::path(src->src_path).replace_extension(".dat").string() + " does not exist (give --dat; " + global + ")";
         }
         // a GLOBAL point of another program's data list (another program of the batch): the
         // controller takes its value from there, which that program's compensation corrects
@@ -644,8 +646,7 @@ struct Reader {
           return t[b].text + " is not declared in " + src->src_path + " or " + src->dat_path + ": it is the GLOBAL point of " +
                  g->second.str() + ", another program's data list, whose compensation corrects it for that program's tool, base "
                  "and motions; this motion moves to that value (declare a point of this program's own to compensate it)";
-        return t[b].text + " is not declared in " + src->src_path + " or " + src->dat_path +
-               " (a global point: give --config $config.dat)";
+        return t[b].text + " is not declared in " + src->src_path + " or " + src->dat_path + " (" + global + ")";
       }
       return pointValue(it->second, up, t[b].text, out);
     }

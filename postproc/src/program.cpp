@@ -401,7 +401,8 @@ void checkPassThrough(const Program& program, const std::string& language) {
       throw calib::ArgumentError(s.where.str() + ": cannot convert '" + s.text + "': " + s.refuse);
     if (!language.empty() && s.language != language)
       throw calib::ArgumentError(s.where.str() + ": cannot convert the " + s.language + " statement '" + s.text + "' to " + language +
-                          ": it is outside the motion model and only " + s.language + " can carry it");
+                          ": it is outside the motion model and only " + s.language +
+                          " can carry it (convert --drop-unconvertible leaves such statements out and lists them)");
   }
 }
 

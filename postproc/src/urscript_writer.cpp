@@ -463,7 +463,8 @@ Program urScriptForConversion(const Program& program, const char* format_name) {
                         "' is not a motion, set_tcp or pose assignment, and the conversion carries the motion model only" +
                         (program.urscript->others.size() > 1
                              ? " (" + std::to_string(program.urscript->others.size() - 1) + " more such statement(s))"
-                             : std::string()));
+                             : std::string()) +
+                        "; convert --drop-unconvertible leaves such statements out and lists them");
   }
   for (Motion& m : out.motions) {
     if (!isIdentifier(m.target.name)) m.target.name.clear();
