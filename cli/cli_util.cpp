@@ -77,10 +77,16 @@ void refuseRepeatedDataFiles(const std::vector<std::string>& files, const std::s
 }
 
 void warnUnknownColumns(const calib::MeasurementSet& set) {
-  if (set.unknown_columns.empty()) return;
-  std::string list;
-  for (const auto& c : set.unknown_columns) list += (list.empty() ? "" : ", ") + c;
-  std::cerr << "accura: warning: " << set.file << ": columns not used by accura: " << list << "\n";
+  auto joined = [](const std::vector<std::string>& names) {
+    std::string list;
+    for (const auto& c : names) list += (list.empty() ? "" : ", ") + c;
+    return list;
+  };
+  if (!set.unknown_columns.empty())
+    std::cerr << "accura: warning: " << set.file << ": columns not used by accura: " << joined(set.unknown_columns) << "\n";
+  if (!set.ignored_absent_columns.empty())
+    std::cerr << "accura: warning: " << set.file << ": columns the mapping lists under 'ignore' that this file does not have: "
+              << joined(set.ignored_absent_columns) << "\n";
 }
 
 void printStatsRow(const std::string& label, const calib::ErrorStats& s) {

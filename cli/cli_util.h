@@ -31,7 +31,8 @@ calib::MeasurementSet readMeasurements(const std::string& path, const std::strin
 /// std::filesystem::equivalent), naming both: its measurements would count twice. A byte copy
 /// under another name is caught once read (calib::refuseSharedMeasurements).
 void refuseRepeatedDataFiles(const std::vector<std::string>& files, const std::string& option = "--data");
-/// Prints a warning listing the columns of a measurement file accura does not use.
+/// Prints a warning listing the columns of a measurement file accura does not use, and one
+/// listing the names its mapping leaves out (`ignore`) that the file does not have.
 void warnUnknownColumns(const calib::MeasurementSet& set);
 /// Adds the options that make a JobSettings (--robot, --controller, --tol, --base, --robroot,
 /// --payload-kg, --temp-c, --program-tool, --program-base) to a command (accura compensate,

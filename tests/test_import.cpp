@@ -79,6 +79,20 @@ TEST(Import, ReadsDecimalCommaRadiansMetresAndEulerStds) {
   EXPECT_EQ(q.rows[0].q, r.q);
   EXPECT_EQ(q.rows[0].p_world_mm, r.p_world_mm);
   EXPECT_NEAR(q.rows[0].temp_c, 21.5, 1e-12);
+  EXPECT_TRUE(s.ignored_absent_columns.empty());
+  // the same export without the column the mapping leaves out (another series of the same data
+  // set, written without its time stamp): the same numbers, the name said (was an error: the
+  // whole file refused for a column nobody reads)
+  test::writeText(dir + "/n.csv",
+                  "J1;J2;J3;J4;J5;J6;Pos X;Pos Y;Pos Z;RX;RY;RZ;SX;SY;SZ;SR;T\n"
+                  "0,5;-1;1,2;0;0,3;-0,1;1,25;-0,5;0,75;10;-25;40;0,00001;0,00002;0,00003;0,002;21,5\n");
+  const MeasurementSet n = readMappedMeasurements(dir + "/n.csv", m, kr16());
+  ASSERT_EQ(n.rows.size(), 1u);
+  EXPECT_EQ(n.rows[0].q, r.q);
+  EXPECT_EQ(n.rows[0].p_world_mm, r.p_world_mm);
+  EXPECT_EQ(n.rows[0].R_world_tcp.coeffs(), r.R_world_tcp.coeffs());
+  EXPECT_EQ(n.ignored_absent_columns, std::vector<std::string>{"Stamp"});
+  EXPECT_TRUE(n.unknown_columns.empty());
 }
 
 TEST(Import, ATrailingDelimiterIsNamedAndReadAsInTheCsvFormat) {

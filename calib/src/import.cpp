@@ -366,6 +366,7 @@ struct MappedColumns {
   std::vector<int> joints, position, orientation, position_std, orientation_std, directions;
   int weight = -1, payload = -1, temperature = -1, time = -1;
   std::set<int> used;
+  std::vector<std::string> ignored_absent;  ///< names under `ignore` the header does not have
 };
 
 MappedColumns mapColumns(const std::string& path, const MappedHeader& h, const MeasurementMapping& m) {
@@ -405,9 +406,13 @@ MappedColumns mapColumns(const std::string& path, const MappedHeader& h, const M
   c.temperature = m.temperature_c.empty() ? -1 : col(m.temperature_c, "temperature_c");
   c.time = m.time_s.empty() ? -1 : col(m.time_s, "time_s");
   for (const auto& n : m.ignore) {
+    // a column to leave out that this export does not have loses nothing: said, not refused (one
+    // mapping serves a data set's series, some written without a column others have)
     auto it = h.index.find(lower(n));
-    if (it == h.index.end())
-      throw InputError(path, h.line, 1, "expected a column '" + n + "' in the header, found none (listed under 'ignore' in " + m.file + ")");
+    if (it == h.index.end()) {
+      c.ignored_absent.push_back(n);
+      continue;
+    }
     for (int same : h.all.at(it->first)) c.used.insert(same);  // every column of that name
   }
   return c;
@@ -572,6 +577,7 @@ MeasurementSet readMappedMeasurements(const std::string& path, const Measurement
   set.has_temperature = c.temperature >= 0;
   set.has_time = c.time >= 0;
   set.has_direction = !c.directions.empty();
+  set.ignored_absent_columns = c.ignored_absent;
   const std::string delimiter = m.delimiter == '\t' ? std::string("tab") : "'" + std::string(1, m.delimiter) + "'";
   for (size_t k = 0; k < h.names.size(); ++k) {
     if (c.used.count(static_cast<int>(k))) continue;

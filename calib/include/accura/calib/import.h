@@ -44,7 +44,8 @@ MeasurementMapping readMeasurementMapping(const std::string& path, const RobotDe
 /// for a missing column, a field that is not a number in the mapping's decimal format, a
 /// row with the wrong number of fields, a joint outside its limits, a non-unit quaternion
 /// (norm off by more than 1e-3), a non-positive std. Columns neither mapped nor ignored are
-/// listed in MeasurementSet::unknown_columns.
+/// listed in MeasurementSet::unknown_columns; names under `ignore` the header does not have, in
+/// MeasurementSet::ignored_absent_columns (not an error: nothing is lost).
 MeasurementSet readMappedMeasurements(const std::string& path, const MeasurementMapping& mapping,
                                       const RobotDefinition& robot);
 

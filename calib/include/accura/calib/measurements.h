@@ -44,6 +44,9 @@ struct MeasurementSet {
   bool has_direction = false;
   bool has_time = false;
   std::vector<std::string> unknown_columns;  ///< header names accura does not use, in order
+  /// Names a measurement mapping lists under `ignore` that the header does not have (read with
+  /// readMappedMeasurements; nothing is lost, the caller says it).
+  std::vector<std::string> ignored_absent_columns;
 };
 
 /// The kinds of measured values whose plausible ranges both readers (the CSV, and an
