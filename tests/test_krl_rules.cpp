@@ -445,6 +445,48 @@ TEST(KrlRules, AnOrientationControlTheReaderCannotFollowIsKeptAndNamed) {
   EXPECT_EQ(readXmlProgram(dir + "/r.xml").motions.at(1).ori_type, "#CONSTANT");
 }
 
+// BAS(#CP_PARAMS / #CP_DAT) runs BAS.SRC's CP_DAT: `$ORI_TYPE=LDAT_ACT.ORI_TYP`, #VAR where the
+// LDAT has no ORI_TYP (ON_ERROR_PROCEED; KSS 8.x BAS.SRC, public copies e.g.
+// github.com/Naqiu06/KUKA-Robotics KRC/R1/System/bas.src). An LDAT the files do not declare (a
+// global one, another module's) has an ORI_TYP that is not known: where the program gives a
+// value other than #VAR somewhere, its LIN is kept and named, as after a branch. (Before: the
+// previous value was kept, and the LIN compensated for #CONSTANT the robot may not run.)
+TEST(KrlRules, AnUndeclaredLdatLeavesTheOrientationControlNotKnown) {
+  const std::string dir = test::tempDir("krl_ori_ldat");
+  auto read = [&](const std::string& first) {
+    test::writeText(dir + "/p.src", "DEF p( )\n$TOOL={X 0,Y 0,Z 200,A 0,B 0,C 0}\n$BASE={X 1200,Y 0,Z 400,A 0,B 0,C 0}\nPTP XP1\n$ORI_TYPE = " + first +
+                                        "\nLIN XP2\nLDAT_ACT=LCPDAT9\nBAS(#CP_PARAMS,0.2)\nLIN XP1\nLDAT_ACT=LCPDAT1\nBAS(#CP_PARAMS,0.2)\nLIN XP2\n"
+                                        "$ORI_TYPE = #JOINT\nLDAT_ACT=LCPDAT2\nBAS(#CP_PARAMS,0.2)\nLIN XP1\nEND\n");
+    test::writeText(dir + "/p.dat", "DEFDAT p\nDECL E6POS XP1={X 100,Y 0,Z 100,A 0,B 90,C 0}\nDECL E6POS XP2={X 150,Y 50,Z 100,A 0,B 90,C 0}\n"
+                                    "DECL LDAT LCPDAT1={VEL 0.2,ACC 100.0,APO_DIST 10.0,ORI_TYP #CONSTANT}\nDECL LDAT LCPDAT2={VEL 0.2,ACC 100.0,APO_DIST 10.0}\nENDDAT\n");
+    return readKrl(dir + "/p.src");
+  };
+  const Program p = read("#CONSTANT");
+  ASSERT_EQ(p.motions.size(), 5u);
+  EXPECT_EQ(p.motions[1].ori_type, "#CONSTANT");
+  EXPECT_EQ(p.motions[2].ori_type, "?$ORI_TYPE is LDAT_ACT's ORI_TYP (BAS(#CP_PARAMS,0.2) at " + dir +
+                                       "/p.src:8:1), but LDAT_ACT=LCPDAT9 (" + dir +
+                                       "/p.src:7:1) names an LDAT the program's files do not declare (a global one: give --config $config.dat)");
+  EXPECT_EQ(p.motions[3].ori_type, "#CONSTANT");  // LCPDAT1's
+  EXPECT_EQ(p.motions[4].ori_type, "") << "LCPDAT2 has no ORI_TYP: CP_DAT sets #VAR";
+  JobSettings s;
+  s.calibrated = calib::readRobotFile(test::sourcePath("tests/data/plugin/kr16_calibrated.xml"));
+  const ProgramCompensation pc = compensateProgramReport(p, s);
+  ASSERT_TRUE(pc.ok()) << pc.report.errors.front().message;
+  std::set<int> kept;
+  for (const ProgramIssue& w : pc.report.warnings)
+    if (w.message.find("left unchanged (not compensated): its orientation control is not known here: $ORI_TYPE is LDAT_ACT's ORI_TYP") != std::string::npos)
+      kept.insert(w.where.line);
+  EXPECT_EQ(kept, (std::set<int>{9}));
+  // a program that gives no other value than #VAR has nothing to follow
+  test::writeText(dir + "/q.src", "DEF q( )\n$TOOL={X 0,Y 0,Z 200,A 0,B 0,C 0}\n$BASE={X 1200,Y 0,Z 400,A 0,B 0,C 0}\nPTP XP1\n"
+                                  "LDAT_ACT=LCPDAT9\nBAS(#CP_PARAMS,0.2)\nLIN XP2\nEND\n");
+  test::writeText(dir + "/q.dat", "DEFDAT q\nDECL E6POS XP1={X 100,Y 0,Z 100,A 0,B 90,C 0}\nDECL E6POS XP2={X 150,Y 50,Z 100,A 0,B 90,C 0}\nENDDAT\n");
+  const Program q = readKrl(dir + "/q.src");
+  ASSERT_EQ(q.motions.size(), 2u);
+  EXPECT_EQ(q.motions[1].ori_type, "");
+}
+
 TEST(KrlRules, AConstantOrientationLinIsCorrectedForTheOrientationTheRobotKeeps) {
   const StCell cell;
   const Eigen::VectorXd q1 = joints({10, -80, 100, 20, 40, 30});

@@ -146,6 +146,9 @@ struct Reader {
   std::optional<Fdat> fdat;
   std::string fdat_problem;
   std::optional<MoveData> ldat, pdat;
+  // why LDAT_ACT's values are not known where `ldat` is empty (BAS(#CP_PARAMS) makes its ORI_TYP
+  // the $ORI_TYPE): not set by the program, or an LDAT the files do not declare
+  std::string ldat_unknown_ = "the program does not set LDAT_ACT before it";
   std::optional<double> vel_cp, vel_ptp, apo_cdis, apo_cptp, apo_cvel, apo_cori;
   std::string ori_type_;  // $ORI_TYPE (Motion::ori_type): "" #VAR, the default; "?why" not known here
   std::string circ_type_;  // $CIRC_TYPE (Motion::circ_type): "" #BASE, the default; "?why" not known here
@@ -290,6 +293,8 @@ struct Reader {
   /// until the routine sets them.
   void callerFrames(size_t at) {
     frame_blocks_.clear();
+    ldat.reset();
+    ldat_unknown_ = "a subroutine runs with the caller's LDAT_ACT until it sets its own";
     if (ori_varies_) ori_type_ = unknownOri("a subroutine runs with the caller's $ORI_TYPE until it sets its own");
     if (circ_varies_) circ_type_ = unknownOri("a subroutine runs with the caller's $CIRC_TYPE until it sets its own");
     for (const char* name : {"$TOOL", "$BASE"})
@@ -713,7 +718,7 @@ struct Reader {
     if (e == b + 1 && t[b].kind == Tok::kEnum) return t[b].up == default_value ? std::string() : t[b].up;
     return f->text().substr(t[b].begin, t[e - 1].end - t[b].begin);
   }
-  // $ORI_TYPE and $CIRC_TYPE from an LDAT's ORI_TYP and CIRC_TYP (BAS(#CP_PARAMS), SORI_TYP(LDAT),
+  // $ORI_TYPE and $CIRC_TYPE from an LDAT's ORI_TYP and CIRC_TYP (SORI_TYP(LDAT),
   // SCIRC_TYP(LDAT)); each unchanged when the LDAT or its value is not known
   void oriTypeOf(const std::optional<MoveData>& l, std::string* ori_type, std::string* circ_type = nullptr) const {
     if (l && !l->ori_typ.empty() && ori_type) *ori_type = l->ori_typ == "#VAR" ? std::string() : l->ori_typ;
@@ -777,6 +782,9 @@ struct Reader {
         auto& table = lhs0 == "LDAT_ACT" ? decl.ldats : decl.pdats;
         auto it = table.find(key);
         (lhs0 == "LDAT_ACT" ? ldat : pdat) = it != table.end() ? std::optional<MoveData>(it->second) : std::nullopt;
+        if (lhs0 == "LDAT_ACT" && it == table.end())
+          ldat_unknown_ = f->text().substr(t[0].begin, t[e - 1].end - t[0].begin) + " (" + f->loc(t[0].begin).str() +
+                          ") names an LDAT the program's files do not declare (a global one: give --config $config.dat)";
       }
       return;
     }
@@ -840,6 +848,20 @@ struct Reader {
     }
   }
 
+  // BAS(#CP_PARAMS / #CP_DAT) = t: BAS.SRC's CP_DAT sets $ORI_TYPE = LDAT_ACT.ORI_TYP, #VAR where
+  // that is not initialised (ON_ERROR_PROCEED); an LDAT whose ORI_TYP is not known leaves it not
+  // known. $CIRC_TYPE from the LDAT's CIRC_TYP where it gives one (the later BAS.SRC's), else kept.
+  void cpDatOriType(const std::vector<Tok>& t) {
+    if (ldat) {
+      ori_type_ = ldat->ori_typ == "#VAR" ? std::string() : ldat->ori_typ;
+      oriTypeOf(ldat, nullptr, &circ_type_);
+      return;
+    }
+    const std::string why = " (" + f->text().substr(t[0].begin, t.back().end - t[0].begin) + " at " + f->loc(t[0].begin).str() + "), but " + ldat_unknown_;
+    if (ori_varies_) ori_type_ = unknownOri("$ORI_TYPE is LDAT_ACT's ORI_TYP" + why);
+    if (circ_varies_) circ_type_ = unknownOri("$CIRC_TYPE is LDAT_ACT's CIRC_TYP" + why);
+  }
+
   // True when the BAS call is part of the motion model (frames, speeds, approximation).
   bool handleBas(const std::vector<Tok>& t) {
     // BAS ( #CMD [, value] )
@@ -863,14 +885,14 @@ struct Reader {
       applyFdatFrames(at);
       vel_cp = value;
       if (ldat && ldat->apo_dist) apo_cdis = ldat->apo_dist;
-      oriTypeOf(ldat, &ori_type_, &circ_type_);  // KSS: $ORI_TYPE = LDAT_ACT.ORI_TYP, $CIRC_TYPE = LDAT_ACT.CIRC_TYP
+      cpDatOriType(t);
     } else if (cmd == "#FRAMES") {
       applyFdatFrames(at);
     } else if (cmd == "#PTP_DAT") {  // KRC2 inline forms: PDAT_ACT, then BAS(#PTP_DAT)
       if (pdat && pdat->apo_dist) apo_cptp = pdat->apo_dist;
     } else if (cmd == "#CP_DAT") {
       if (ldat && ldat->apo_dist) apo_cdis = ldat->apo_dist;
-      oriTypeOf(ldat, &ori_type_, &circ_type_);
+      cpDatOriType(t);
     } else if (cmd == "#VEL_PTP") {
       vel_ptp = value;
     } else if (cmd == "#VEL_CP") {
