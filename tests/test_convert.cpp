@@ -232,6 +232,70 @@ TEST(Convert, TheOrientationControlOfEachMotionSurvivesTheRoundTrip) {
   }
 }
 
+// RAPID and URScript have no orientation control: their path motions turn the orientation from
+// the start's to the target's (KUKA's #VAR). A KRL LIN with $ORI_TYPE #CONSTANT keeps the
+// orientation it starts with (KSS 8.x, "Orientation control LIN, CIRC"): converted exactly, to its
+// target with the start's orientation. #JOINT (and $CIRC_TYPE #PATH, a #CONSTANT start that is not
+// known) cannot be said: refused naming the motion, or with --drop-unconvertible converted without
+// it and listed. (Before: the setting was dropped silently, the robot turned to the written
+// orientation the KUKA program never reaches.)
+TEST(Convert, AnOrientationControlRapidAndUrScriptCannotSayIsWrittenExactlyOrRefused) {
+  const std::string dir = test::tempDir("convert_ori_other");
+  test::writeText(dir + "/p.src", "DEF p( )\n$TOOL={X 0,Y 0,Z 200,A 0,B 0,C 0}\n$BASE=$NULLFRAME\nPTP XP1\n$ORI_TYPE = #CONSTANT\nLIN XP2\nLIN XP3\n"
+                                  "$ORI_TYPE = #JOINT\nLIN XP2\nEND\n");
+  test::writeText(dir + "/p.dat", "DEFDAT p\nDECL E6POS XP1={X 1000,Y 0,Z 800,A 0,B 90,C 0,S 2,T 2}\nDECL E6POS XP2={X 1000,Y 100,Z 800,A 10,B 80,C 5,S 2,T 2}\n"
+                                  "DECL E6POS XP3={X 1050,Y 50,Z 800,A 20,B 70,C 0,S 2,T 2}\nENDDAT\n");
+  const Program krl = readKrl(dir + "/p.src");
+  ASSERT_EQ(krl.motions.size(), 4u);
+  for (const auto& [format, language] : {std::make_pair(ProgramFormat::kRapid, "RAPID"), std::make_pair(ProgramFormat::kUrScript, "URScript")}) {
+    try {
+      (void)renderProgram(krl, format, dir + "/out");
+      ADD_FAILURE() << "expected the #JOINT LIN to be refused in " << language;
+    } catch (const calib::ArgumentError& e) {
+      EXPECT_NE(std::string(e.what()).find(dir + "/p.src:9:1: cannot convert 'LIN XP2' to " + language +
+                                           ": its orientation control $ORI_TYPE #JOINT cannot be carried"),
+                std::string::npos)
+          << e.what();
+    }
+    std::vector<PassThrough> dropped;
+    const Program out = dropUnconvertible(krl, format, &dropped);
+    // (the statements setting it are KRL's: dropped and listed too)
+    ASSERT_EQ(dropped.size(), 3u);
+    EXPECT_EQ(dropped[0].text, "$ORI_TYPE = #CONSTANT");
+    EXPECT_EQ(dropped[1].text, "$ORI_TYPE = #JOINT");
+    EXPECT_EQ(dropped[2].where.line, 9);
+    EXPECT_EQ(dropped[2].text, std::string("orientation control $ORI_TYPE #JOINT of LIN XP2 (the controller turns the wrist axes linearly; ") +
+                                   language + " has no such setting)");
+    // written and read back: the #CONSTANT LINs go to their positions with XP1's orientation,
+    // the last LIN to XP2 as written
+    const std::string file = dir + (format == ProgramFormat::kRapid ? "/p.mod" : "/p.script");
+    test::writeText(file, renderProgram(out, format, file).at(0).text);
+    const Program back = readProgram(file);
+    ASSERT_EQ(back.motions.size(), 4u);
+    const double xyz[4][3] = {{1000, 0, 800}, {1000, 100, 800}, {1050, 50, 800}, {1000, 100, 800}};
+    const double abc[4][3] = {{0, 90, 0}, {0, 90, 0}, {0, 90, 0}, {10, 80, 5}};
+    for (size_t k = 0; k < 4; ++k) {
+      const calib::XyzAbc want{xyz[k][0], xyz[k][1], xyz[k][2], abc[k][0], abc[k][1], abc[k][2]};
+      // (a URScript pose is the TCP in the robot base: the tool's flange-side frame is set_tcp's)
+      const Eigen::Isometry3d got = calib::toIsometry(back.motions[k].target.xyzAbc());
+      EXPECT_LT((got.translation() - calib::toIsometry(want).translation()).norm(), 1e-3) << language << " " << k;
+      EXPECT_LT((got.linear() - calib::toIsometry(want).linear()).norm(), 1e-5) << language << " " << k;
+    }
+  }
+  // a #CONSTANT LIN whose start is not known (the program's first motion) cannot be written exactly
+  test::writeText(dir + "/q.src", "DEF q( )\n$TOOL={X 0,Y 0,Z 200,A 0,B 0,C 0}\n$BASE=$NULLFRAME\n$ORI_TYPE = #CONSTANT\nLIN XP2\nEND\n");
+  test::writeText(dir + "/q.dat", "DEFDAT q\nDECL E6POS XP2={X 1000,Y 100,Z 800,A 10,B 80,C 5,S 2,T 2}\nENDDAT\n");
+  try {
+    (void)renderProgram(readKrl(dir + "/q.src"), ProgramFormat::kRapid, dir + "/q.mod");
+    ADD_FAILURE() << "expected the #CONSTANT LIN without a known start to be refused";
+  } catch (const calib::ArgumentError& e) {
+    EXPECT_NE(std::string(e.what()).find("q.src:5:1: cannot convert 'LIN XP2' to RAPID: its orientation control $ORI_TYPE #CONSTANT cannot be carried "
+                                         "(it keeps the orientation the robot has at its start, which is not known here"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
 TEST(Convert, AnUnknownStartTravelsThroughXml) {
   // compensating the XML must not densify the segment after a branch the KRL program has
   const std::string dir = test::tempDir("convert_start");
