@@ -232,6 +232,25 @@ TEST(Convert, TheOrientationControlOfEachMotionSurvivesTheRoundTrip) {
   }
 }
 
+// A carried BAS(#INITMOV, ..) sets $ORI_TYPE / $CIRC_TYPE back to #VAR / #BASE (BAS.SRC's
+// INITMOV): KRL written anew says the value again after it where a motion needs another one, and
+// nothing where it needs the default. (Before: the writer took the value set before it as still
+// active, and a #CONSTANT LIN after it ran #VAR.)
+TEST(Convert, KrlWrittenAnewSaysTheOrientationControlAgainAfterInitmov) {
+  const std::string dir = test::tempDir("convert_ori_initmov");
+  test::writeText(dir + "/p.src", "DEF p( )\n$TOOL=$NULLFRAME\n$BASE=$NULLFRAME\nPTP XP1\n$ORI_TYPE = #CONSTANT\nLIN XP2\n"
+                                  "BAS (#INITMOV,0 )\n$TOOL=$NULLFRAME\n$BASE=$NULLFRAME\nLIN XP1\nLIN XP2\nEND\n");
+  test::writeText(dir + "/p.dat", "DEFDAT p\nDECL E6POS XP1={X 1000,Y 0,Z 800,A 0,B 90,C 0}\nDECL E6POS XP2={X 1000,Y 100,Z 800,A 0,B 90,C 0}\nENDDAT\n");
+  std::string xml = writeXmlProgram(readKrl(dir + "/p.src"));
+  // the LIN XP2 after INITMOV made #CONSTANT in the XML (as an OLP would): said again
+  const size_t last = xml.rfind("<lin>");
+  ASSERT_NE(last, std::string::npos) << xml;
+  xml.replace(last, 5, "<lin ori_type=\"#CONSTANT\">");
+  const KrlText back = writeKrl(parseXmlProgram(xml, "p.xml"));
+  EXPECT_NE(back.src.find("\n$ORI_TYPE = #CONSTANT\nLIN XP2\nBAS (#INITMOV,0 )\nLIN XP1\n$ORI_TYPE=#CONSTANT\nLIN XP2\nEND\n"), std::string::npos)
+      << back.src;
+}
+
 // RAPID and URScript have no orientation control: their path motions turn the orientation from
 // the start's to the target's (KUKA's #VAR). A KRL LIN with $ORI_TYPE #CONSTANT keeps the
 // orientation it starts with (KSS 8.x, "Orientation control LIN, CIRC"): converted exactly, to its

@@ -487,6 +487,26 @@ TEST(KrlRules, AnUndeclaredLdatLeavesTheOrientationControlNotKnown) {
   EXPECT_EQ(q.motions[1].ori_type, "");
 }
 
+// BAS(#INITMOV) sets $ORI_TYPE and $CIRC_TYPE back to their defaults (KSS 8.x BAS.SRC, INITMOV:
+// `$ORI_TYPE=#VAR`, `$CIRC_TYPE=DEF_CIRC_TYP`, #BASE in the $config.dat; public copies e.g.
+// github.com/Naqiu06/KUKA-Robotics KRC/R1/System/bas.src): the motions after it run with #VAR,
+// #BASE; a routine that calls it changes them. (Before: the value set before it was kept.)
+TEST(KrlRules, InitmovSetsTheOrientationControlBack) {
+  const std::string dir = test::tempDir("krl_ori_initmov");
+  test::writeText(dir + "/p.src", "DEF p( )\n$TOOL={X 0,Y 0,Z 200,A 0,B 0,C 0}\n$BASE={X 1200,Y 0,Z 400,A 0,B 0,C 0}\nPTP XP1\n"
+                                  "$ORI_TYPE = #CONSTANT\n$CIRC_TYPE = #PATH\nCIRC XP2, XP1\nBAS (#INITMOV,0 )\n$TOOL={X 0,Y 0,Z 200,A 0,B 0,C 0}\n"
+                                  "$BASE={X 1200,Y 0,Z 400,A 0,B 0,C 0}\nCIRC XP2, XP1\n$ORI_TYPE = #CONSTANT\nini( )\nLIN XP2\nEND\n"
+                                  "DEF ini( )\nBAS (#INITMOV,0 )\nEND\n");
+  test::writeText(dir + "/p.dat", "DEFDAT p\nDECL E6POS XP1={X 100,Y 0,Z 100,A 0,B 90,C 0}\nDECL E6POS XP2={X 150,Y 50,Z 100,A 0,B 90,C 0}\nENDDAT\n");
+  const Program p = readKrl(dir + "/p.src");
+  ASSERT_EQ(p.motions.size(), 4u);
+  EXPECT_EQ(p.motions[1].ori_type, "#CONSTANT");
+  EXPECT_EQ(p.motions[1].circ_type, "#PATH");
+  EXPECT_EQ(p.motions[2].ori_type, "");
+  EXPECT_EQ(p.motions[2].circ_type, "");
+  EXPECT_EQ(p.motions[3].ori_type, "?ini (called at " + dir + "/p.src:13:1) sets $ORI_TYPE: its value after the call is not followed");
+}
+
 TEST(KrlRules, AConstantOrientationLinIsCorrectedForTheOrientationTheRobotKeeps) {
   const StCell cell;
   const Eigen::VectorXd q1 = joints({10, -80, 100, 20, 40, 30});

@@ -870,6 +870,13 @@ struct Reader {
     std::optional<double> value;
     if (t.size() >= 6 && t[3].text == ",") value = numberValue(t, 4, t.size() - 1);
     const size_t at = t[0].begin;
+    if (cmd == "#INITMOV") {
+      // BAS.SRC's INITMOV: `$ORI_TYPE=#VAR`, `$CIRC_TYPE=DEF_CIRC_TYP` (#BASE in the $config.dat);
+      // the statement itself is carried (a program written anew initialises itself with it)
+      ori_type_.clear();
+      circ_type_.clear();
+      return false;
+    }
     if (cmd == "#TOOL" || cmd == "#BASE") {
       const auto n = t.size() >= 6 && t[3].text == "," ? integerValue(t, 4, t.size() - 1) : std::nullopt;
       FrameSetting& s = cmd == "#TOOL" ? tool : base;
@@ -1559,8 +1566,9 @@ Program readKrl(const std::string& src_path, const KrlReadOptions& options) {
       const bool inline_form = bas && (t[2].up == "#PTP_PARAMS" || t[2].up == "#CP_PARAMS");
       if (!cur.empty() && ((t[0].up == "$TOOL" && assigns) || (bas && t[2].up == "#TOOL") || inline_form)) sets_tool[cur] = true;
       if (!cur.empty() && ((t[0].up == "$BASE" && assigns) || (bas && t[2].up == "#BASE") || inline_form)) sets_base[cur] = true;
-      // $ORI_TYPE / $CIRC_TYPE set (an assignment, an LDAT made active by BAS(#CP_PARAMS / #CP_DAT))
-      const bool cp_bas = bas && (t[2].up == "#CP_PARAMS" || t[2].up == "#CP_DAT");
+      // $ORI_TYPE / $CIRC_TYPE set (an assignment, an LDAT made active by BAS(#CP_PARAMS / #CP_DAT),
+      // BAS(#INITMOV) setting them back to #VAR, #BASE)
+      const bool cp_bas = bas && (t[2].up == "#CP_PARAMS" || t[2].up == "#CP_DAT" || t[2].up == "#INITMOV");
       if (!cur.empty() && ((t[0].up == "$ORI_TYPE" && assigns) || cp_bas)) sets_ori[cur] = true;
       if (!cur.empty() && ((t[0].up == "$CIRC_TYPE" && assigns) || cp_bas)) sets_circ[cur] = true;
       // a value other than the default anywhere (an assignment or a WITH of $ORI_TYPE / $CIRC_TYPE)

@@ -279,9 +279,19 @@ KrlText generateKrl(const Program& p) {
     return it != ptp_block.end() && it->second;
   };
   // $ORI_TYPE and $CIRC_TYPE as the program written so far leaves them ("": #VAR, #BASE, the
-  // values BAS(#INITMOV) gives; a carried statement `$ORI_TYPE = #CONSTANT` sets them too)
+  // values BAS(#INITMOV) gives; a carried statement `$ORI_TYPE = #CONSTANT` sets them too, a
+  // carried BAS(#INITMOV, ..) sets them back: BAS.SRC's INITMOV, `$ORI_TYPE=#VAR`,
+  // `$CIRC_TYPE=DEF_CIRC_TYP`, #BASE in the $config.dat)
   std::string ori_type, circ_type;
   auto noteCarried = [&](const std::string& text) {
+    std::string compact;
+    for (char c : text)
+      if (c != ' ' && c != '\t') compact += static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+    if (compact.rfind("BAS(#INITMOV", 0) == 0) {
+      ori_type.clear();
+      circ_type.clear();
+      return;
+    }
     std::istringstream in(text);
     std::string lhs, eq, value;
     in >> lhs;
