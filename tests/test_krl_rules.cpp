@@ -445,6 +445,17 @@ TEST(KrlRules, AnOrientationControlTheReaderCannotFollowIsKeptAndNamed) {
   EXPECT_EQ(readXmlProgram(dir + "/r.xml").motions.at(1).ori_type, "#CONSTANT");
 }
 
+// The one rule by which the KRL reader, the KRL writer and the XML reader take a $ORI_TYPE /
+// $CIRC_TYPE value (program.h): a constant in upper case, "" for the default, else as written.
+TEST(KrlRules, OneRuleReadsAnOrientationControlValue) {
+  EXPECT_EQ(orientationControlValue("#constant", false), "#CONSTANT");
+  EXPECT_EQ(orientationControlValue("#Var", false), "");
+  EXPECT_EQ(orientationControlValue("#VAR", true), "#VAR");  // not $CIRC_TYPE's default
+  EXPECT_EQ(orientationControlValue("#base", true), "");
+  EXPECT_EQ(orientationControlValue("#path", true), "#PATH");
+  EXPECT_EQ(orientationControlValue("SORI_TYP(lcpdat1)", false), "SORI_TYP(lcpdat1)");
+}
+
 // BAS(#CP_PARAMS / #CP_DAT) runs BAS.SRC's CP_DAT: `$ORI_TYPE=LDAT_ACT.ORI_TYP`, #VAR where the
 // LDAT has no ORI_TYP (ON_ERROR_PROCEED; KSS 8.x BAS.SRC, public copies e.g.
 // github.com/Naqiu06/KUKA-Robotics KRC/R1/System/bas.src). An LDAT the files do not declare (a

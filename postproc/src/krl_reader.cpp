@@ -711,18 +711,17 @@ struct Reader {
     return model.count(t[0].up) > 0;
   }
 
-  // The value of $ORI_TYPE = t[b, e) (Motion::ori_type): the constant in upper case ("" for
-  // #VAR, the default), else the expression as written.
-  // (Likewise $CIRC_TYPE, "" for #BASE: `default_value`.)
-  std::string oriTypeValue(const std::vector<Tok>& t, size_t b, size_t e, const char* default_value = "#VAR") const {
-    if (e == b + 1 && t[b].kind == Tok::kEnum) return t[b].up == default_value ? std::string() : t[b].up;
+  // The value of $ORI_TYPE = t[b, e) (Motion::ori_type; $CIRC_TYPE with `circ`):
+  // orientationControlValue of the constant, else the expression as written.
+  std::string oriTypeValue(const std::vector<Tok>& t, size_t b, size_t e, bool circ = false) const {
+    if (e == b + 1 && t[b].kind == Tok::kEnum) return orientationControlValue(t[b].text, circ);
     return f->text().substr(t[b].begin, t[e - 1].end - t[b].begin);
   }
   // $ORI_TYPE and $CIRC_TYPE from an LDAT's ORI_TYP and CIRC_TYP (SORI_TYP(LDAT),
   // SCIRC_TYP(LDAT)); each unchanged when the LDAT or its value is not known
   void oriTypeOf(const std::optional<MoveData>& l, std::string* ori_type, std::string* circ_type = nullptr) const {
-    if (l && !l->ori_typ.empty() && ori_type) *ori_type = l->ori_typ == "#VAR" ? std::string() : l->ori_typ;
-    if (l && !l->circ_typ.empty() && circ_type) *circ_type = l->circ_typ == "#BASE" ? std::string() : l->circ_typ;
+    if (l && !l->ori_typ.empty() && ori_type) *ori_type = orientationControlValue(l->ori_typ, false);
+    if (l && !l->circ_typ.empty() && circ_type) *circ_type = orientationControlValue(l->circ_typ, true);
   }
 
   void assignModel(const std::vector<Tok>& t, size_t eq) {
@@ -736,7 +735,7 @@ struct Reader {
       return;
     }
     if (simple && lhs0 == "$CIRC_TYPE") {
-      circ_type_ = oriTypeValue(t, b, e, "#BASE");
+      circ_type_ = oriTypeValue(t, b, e, true);
       return;
     }
     const bool field = eq == 3 && t[1].text == ".";
@@ -853,7 +852,7 @@ struct Reader {
   // known. $CIRC_TYPE from the LDAT's CIRC_TYP where it gives one (the later BAS.SRC's), else kept.
   void cpDatOriType(const std::vector<Tok>& t) {
     if (ldat) {
-      ori_type_ = ldat->ori_typ == "#VAR" ? std::string() : ldat->ori_typ;
+      ori_type_ = orientationControlValue(ldat->ori_typ, false);
       oriTypeOf(ldat, nullptr, &circ_type_);
       return;
     }
@@ -996,7 +995,7 @@ struct Reader {
               if (it != decl.ldats.end()) oriTypeOf(it->second, nullptr, &m.circ_type);
             }
           } else {
-            m.circ_type = oriTypeValue(t, rb, re, "#BASE");
+            m.circ_type = oriTypeValue(t, rb, re, true);
           }
         } else if (lhs == "$IPO_MODE" && fn == "SIPO_MODE") {
           const auto a = arg(0);
@@ -1574,8 +1573,8 @@ Program readKrl(const std::string& src_path, const KrlReadOptions& options) {
       // a value other than the default anywhere (an assignment or a WITH of $ORI_TYPE / $CIRC_TYPE)
       for (size_t i = 0; i + 2 < t.size(); ++i) {
         if (t[i + 1].text != "=") continue;
-        if (t[i].up == "$ORI_TYPE" && t[i + 2].up != "#VAR") r.ori_varies_ = true;
-        if (t[i].up == "$CIRC_TYPE" && t[i + 2].up != "#BASE") r.circ_varies_ = true;
+        if (t[i].up == "$ORI_TYPE" && !orientationControlValue(t[i + 2].text, false).empty()) r.ori_varies_ = true;
+        if (t[i].up == "$CIRC_TYPE" && !orientationControlValue(t[i + 2].text, true).empty()) r.circ_varies_ = true;
       }
       // calls: a subroutine's as a statement, a function's anywhere in an expression (an
       // interrupt's declaration names its handler without calling it)
@@ -1588,8 +1587,8 @@ Program readKrl(const std::string& src_path, const KrlReadOptions& options) {
     r.ori_defs_ = movingRoutines(sets_ori, calls);
     r.circ_defs_ = movingRoutines(sets_circ, calls);
     for (const auto& [name, l] : r.decl.ldats) {  // (SORI_TYP(LDAT) and BAS read these)
-      r.ori_varies_ = r.ori_varies_ || (!l.ori_typ.empty() && l.ori_typ != "#VAR");
-      r.circ_varies_ = r.circ_varies_ || (!l.circ_typ.empty() && l.circ_typ != "#BASE");
+      r.ori_varies_ = r.ori_varies_ || !orientationControlValue(l.ori_typ, false).empty();
+      r.circ_varies_ = r.circ_varies_ || !orientationControlValue(l.circ_typ, true).empty();
     }
     // the points whose assignments make their value depend on more than the text before a motion
     int depth = 0;  // open IF, SWITCH and loops

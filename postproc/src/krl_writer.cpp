@@ -305,9 +305,9 @@ KrlText generateKrl(const Program& p) {
       else if (eq == "=") in >> value;
     }
     if (value.empty() || value[0] != '#') return;
-    const std::string v = upper(value), l = upper(lhs);
-    if (l == "$ORI_TYPE") ori_type = v == "#VAR" ? "" : v;
-    if (l == "$CIRC_TYPE") circ_type = v == "#BASE" ? "" : v;
+    const std::string l = upper(lhs);
+    if (l == "$ORI_TYPE") ori_type = orientationControlValue(value, false);
+    if (l == "$CIRC_TYPE") circ_type = orientationControlValue(value, true);
   };
   // the pass-through statements of a section, in order; for the body those before motion `k`,
   // each in the block it was in (PassThrough::spline_block: TIME_BLOCK inside, $OUT after it)
