@@ -50,7 +50,7 @@ TEST(Convert, KrlToXmlToKrlKeepsEveryStatementInItsPlace) {
   const Program krl = readSeam();
   const std::string xml = writeXmlProgram(krl);
   const Program from_xml = parseXmlProgram(xml, "seam.xml");
-  const KrlText back = writeKrl(from_xml);
+  const KrlText back = test::lf(writeKrl(from_xml));
   const std::vector<std::string> src = lines(back.src);
 
   // the statements a weld needs, byte for byte (indentation and comments included)
@@ -111,7 +111,7 @@ TEST(Convert, TheDefsParametersAndAPointDeclaredWithoutAValueSurviveTheRoundTrip
   EXPECT_EQ(krl.krl_parameters, "count :IN");
   const std::string xml = writeXmlProgram(krl);
   EXPECT_NE(xml.find("<program name=\"p\" krl_parameters=\"count :IN\" version=\"1\">"), std::string::npos) << xml;
-  const KrlText back = writeKrl(parseXmlProgram(xml, "p.xml"));
+  const KrlText back = test::lf(writeKrl(parseXmlProgram(xml, "p.xml")));
   EXPECT_NE(back.src.find("\nDEF p(count :IN)\n  INT count\n  DECL E6POS lp1\n"), std::string::npos) << back.src;
   EXPECT_EQ(back.dat.find("lp1"), std::string::npos) << back.dat;  // declared once, where the program had it
 }
@@ -206,7 +206,7 @@ TEST(Convert, TheOrientationControlOfEachMotionSurvivesTheRoundTrip) {
   EXPECT_EQ(krl.motions[2].circ_type, "#PATH");
   const std::string xml = writeXmlProgram(krl);
   EXPECT_NE(xml.find("<circ vel_m_s=\"0.2000\" ori_type=\"#JOINT\" circ_type=\"#PATH\">"), std::string::npos) << xml;
-  const KrlText back = writeKrl(parseXmlProgram(xml, "p.xml"));
+  const KrlText back = test::lf(writeKrl(parseXmlProgram(xml, "p.xml")));
   EXPECT_NE(back.src.find("\n$ORI_TYPE = #CONSTANT\nLIN XP2\n"), std::string::npos) << back.src;  // carried, not doubled
   EXPECT_NE(back.src.find("\n$ORI_TYPE=#JOINT\n$CIRC_TYPE=#PATH\n$VEL.CP=0.2000\nCIRC XP3, XP1\nSLIN XP2 WITH $ORI_TYPE=#CONSTANT\n"), std::string::npos)
       << back.src;
@@ -232,6 +232,44 @@ TEST(Convert, TheOrientationControlOfEachMotionSurvivesTheRoundTrip) {
   }
 }
 
+// The line end of KRL: a file read from KRL keeps its own (CRLF stays CRLF, also in the lines
+// the compensation inserts and declares); KRL written anew has CRLF, the line end of the
+// controller's own files (the KSS HMI runs on Windows: the inline-form programs of
+// tests/golden/krl/kss8_inline and krc2, examples/seam.src). (Before: KRL written anew had LF,
+// and a CRLF program through XML came back with LF.)
+TEST(Convert, KrlKeepsItsLineEndsAndKrlWrittenAnewHasTheControllersCrlf) {
+  auto bareLf = [](const std::string& text) {
+    for (size_t i = 0; i < text.size(); ++i)
+      if (text[i] == '\n' && (i == 0 || text[i - 1] != '\r')) return true;
+    return false;
+  };
+  // KRC's seam (CRLF) through XML and back; RoboDK's program (LF) too
+  for (const std::string& f : {std::string("examples/seam.src"), std::string("tests/golden/krl/robodk/Pick_Place.src")}) {
+    KrlReadOptions o;
+    if (f == "examples/seam.src") o.config_path = test::sourcePath("examples/$config.dat");
+    const KrlText back = writeKrl(parseXmlProgram(writeXmlProgram(readKrl(test::sourcePath(f), o)), "p.xml"));
+    EXPECT_FALSE(bareLf(back.src)) << f << "\n" << back.src;
+    EXPECT_FALSE(bareLf(back.dat)) << f << "\n" << back.dat;
+    EXPECT_EQ(back.src.substr(0, 21), "&ACCESS RVP\r\n&REL 1\r\n") << f;
+  }
+  // a CRLF program compensated: corrected in place, a point declared anew, CRLF throughout
+  const std::string dir = test::tempDir("convert_crlf");
+  const std::string src = "DEF p( )\r\n$TOOL={X 0,Y 0,Z 200,A 0,B 0,C 0}\r\n$BASE={X 1200,Y 0,Z 400,A 0,B 0,C 0}\r\nPTP XP1\r\nLIN XP2\r\n"
+                          "$BASE={X 1200,Y 10,Z 400,A 0,B 0,C 0}\r\nLIN XP2\r\nEND\r\n";
+  const std::string dat = "DEFDAT p\r\nDECL E6POS XP1={X 100,Y 0,Z 100,A 0,B 90,C 0}\r\nDECL E6POS XP2={X 150,Y 50,Z 100,A 0,B 90,C 0}\r\nENDDAT\r\n";
+  test::writeText(dir + "/p.src", src);
+  test::writeText(dir + "/p.dat", dat);
+  JobSettings s;
+  s.calibrated = calib::readRobotFile(test::sourcePath("tests/data/plugin/kr16_calibrated.xml"));
+  const ProgramCompensation pc = compensateProgramReport(readKrl(dir + "/p.src"), s);
+  ASSERT_TRUE(pc.ok()) << pc.report.errors.front().message;
+  const KrlText out = writeKrl(pc.program);
+  EXPECT_NE(out.src, src);
+  EXPECT_NE(out.dat.find("\r\nDECL E6POS XP2_1={"), std::string::npos) << out.dat;  // XP2 in another base: a point of its own
+  EXPECT_FALSE(bareLf(out.src)) << out.src;
+  EXPECT_FALSE(bareLf(out.dat)) << out.dat;
+}
+
 // A carried BAS(#INITMOV, ..) sets $ORI_TYPE / $CIRC_TYPE back to #VAR / #BASE (BAS.SRC's
 // INITMOV): KRL written anew says the value again after it where a motion needs another one, and
 // nothing where it needs the default. (Before: the writer took the value set before it as still
@@ -246,7 +284,7 @@ TEST(Convert, KrlWrittenAnewSaysTheOrientationControlAgainAfterInitmov) {
   const size_t last = xml.rfind("<lin>");
   ASSERT_NE(last, std::string::npos) << xml;
   xml.replace(last, 5, "<lin ori_type=\"#CONSTANT\">");
-  const KrlText back = writeKrl(parseXmlProgram(xml, "p.xml"));
+  const KrlText back = test::lf(writeKrl(parseXmlProgram(xml, "p.xml")));
   EXPECT_NE(back.src.find("\n$ORI_TYPE = #CONSTANT\nLIN XP2\nBAS (#INITMOV,0 )\nLIN XP1\n$ORI_TYPE=#CONSTANT\nLIN XP2\nEND\n"), std::string::npos)
       << back.src;
 }

@@ -448,7 +448,18 @@ KrlText generateKrl(const Program& p) {
   src << "END\n";
   carry(src, PassThrough::Section::kTrailer, 0);
   dat << "ENDDAT\n";
-  return {src.str(), dat.str()};
+  // the line end of the controller's own files: the KSS HMI (Windows) writes .src and .dat with
+  // CRLF (a file read from KRL keeps its own: patchKrl)
+  auto crlf = [](const std::string& text) {
+    std::string out;
+    out.reserve(text.size() + text.size() / 16);
+    for (size_t i = 0; i < text.size(); ++i) {
+      if (text[i] == '\n' && (i == 0 || text[i - 1] != '\r')) out += '\r';
+      out += text[i];
+    }
+    return out;
+  };
+  return {crlf(src.str()), crlf(dat.str())};
 }
 
 
