@@ -445,6 +445,34 @@ TEST(KrlRules, AnOrientationControlTheReaderCannotFollowIsKeptAndNamed) {
   EXPECT_EQ(readXmlProgram(dir + "/r.xml").motions.at(1).ori_type, "#CONSTANT");
 }
 
+// An inline form's fold names its point without the X (`;FOLD LIN P2 ..;%{PE}..%P 1:LIN, 2:P2`,
+// `Kuka.PointName=P2`; the pendant writes `LIN XP2`, `FDAT_ACT=FP2` from it: KSS-written folds,
+// tests/golden/krl/kss8_inline, and public generators of them). A motion in it that goes to a new
+// point (XP2_1) keeps the header, whose rewriting KUKA does not document (the form would look for
+// an FDAT FP2_1 the program does not declare), and is named: re-opened on the pendant the form
+// shows P2, and its Touch Up or OK would go back to XP2. (Before: nothing said so.)
+TEST(KrlRules, AnInlineFormWhoseMotionGoesToANewPointIsNamed) {
+  const std::string dir = test::tempDir("krl_fold_new_point");
+  const std::string header = ";FOLD LIN P2 Vel=0.2 m/s CPDAT1 Tool[1] Base[0];%{PE}%R 8.3.31,%MKUKATPBASIS,%CMOVE,%VLIN,%P 1:LIN, 2:P2, 3:, 5:0.2, 7:CPDAT1\n";
+  test::writeText(dir + "/p.src", "DEF p( )\n$TOOL={X 0,Y 0,Z 200,A 0,B 0,C 0}\n$BASE={X 1200,Y 0,Z 400,A 0,B 0,C 0}\nPTP XP1\n" + header +
+                                      "LIN XP2\n;ENDFOLD\n$BASE={X 1200,Y 10,Z 400,A 0,B 0,C 0}\n" + header + "LIN XP2\n;ENDFOLD\nEND\n");
+  test::writeText(dir + "/p.dat", "DEFDAT p\nDECL E6POS XP1={X 100,Y 0,Z 100,A 0,B 90,C 0}\nDECL E6POS XP2={X 150,Y 50,Z 100,A 0,B 90,C 0}\nENDDAT\n");
+  JobSettings s;
+  s.calibrated = calib::readRobotFile(test::sourcePath("tests/data/plugin/kr16_calibrated.xml"));
+  const ProgramCompensation pc = compensateProgramReport(readKrl(dir + "/p.src"), s);
+  ASSERT_TRUE(pc.ok()) << pc.report.errors.front().message;
+  std::vector<std::string> folds;
+  for (const ProgramIssue& w : pc.report.warnings)
+    if (w.message.find("inline form") != std::string::npos) folds.push_back(w.where.str() + ": " + w.message);
+  ASSERT_EQ(folds.size(), 1u);
+  EXPECT_EQ(folds[0], dir + "/p.src:9:1: the inline form's fold names P2, but its motion (" + dir +
+                          "/p.src:10:1) now goes to the new point XP2_1 (declared after XP2): re-opened on the pendant the form shows P2, "
+                          "Touch Up teaches XP2 and OK writes the motion to XP2 back; the fold's header is kept (edit the motion as text, or "
+                          "compensate again after editing)");
+  const KrlText out = writeKrl(pc.program);
+  EXPECT_NE(out.src.find("\n" + header + "LIN XP2_1\n;ENDFOLD\n"), std::string::npos) << out.src;
+}
+
 // The one rule by which the KRL reader, the KRL writer and the XML reader take a $ORI_TYPE /
 // $CIRC_TYPE value (program.h): a constant in upper case, "" for the default, else as written.
 TEST(KrlRules, OneRuleReadsAnOrientationControlValue) {
