@@ -50,7 +50,7 @@ TEST(Convert, KrlToXmlToKrlKeepsEveryStatementInItsPlace) {
   const Program krl = readSeam();
   const std::string xml = writeXmlProgram(krl);
   const Program from_xml = parseXmlProgram(xml, "seam.xml");
-  const KrlText back = writeKrl(from_xml);
+  const KrlText back = test::lf(writeKrl(from_xml));
   const std::vector<std::string> src = lines(back.src);
 
   // the statements a weld needs, byte for byte (indentation and comments included)
@@ -111,7 +111,7 @@ TEST(Convert, TheDefsParametersAndAPointDeclaredWithoutAValueSurviveTheRoundTrip
   EXPECT_EQ(krl.krl_parameters, "count :IN");
   const std::string xml = writeXmlProgram(krl);
   EXPECT_NE(xml.find("<program name=\"p\" krl_parameters=\"count :IN\" version=\"1\">"), std::string::npos) << xml;
-  const KrlText back = writeKrl(parseXmlProgram(xml, "p.xml"));
+  const KrlText back = test::lf(writeKrl(parseXmlProgram(xml, "p.xml")));
   EXPECT_NE(back.src.find("\nDEF p(count :IN)\n  INT count\n  DECL E6POS lp1\n"), std::string::npos) << back.src;
   EXPECT_EQ(back.dat.find("lp1"), std::string::npos) << back.dat;  // declared once, where the program had it
 }
@@ -206,7 +206,7 @@ TEST(Convert, TheOrientationControlOfEachMotionSurvivesTheRoundTrip) {
   EXPECT_EQ(krl.motions[2].circ_type, "#PATH");
   const std::string xml = writeXmlProgram(krl);
   EXPECT_NE(xml.find("<circ vel_m_s=\"0.2000\" ori_type=\"#JOINT\" circ_type=\"#PATH\">"), std::string::npos) << xml;
-  const KrlText back = writeKrl(parseXmlProgram(xml, "p.xml"));
+  const KrlText back = test::lf(writeKrl(parseXmlProgram(xml, "p.xml")));
   EXPECT_NE(back.src.find("\n$ORI_TYPE = #CONSTANT\nLIN XP2\n"), std::string::npos) << back.src;  // carried, not doubled
   EXPECT_NE(back.src.find("\n$ORI_TYPE=#JOINT\n$CIRC_TYPE=#PATH\n$VEL.CP=0.2000\nCIRC XP3, XP1\nSLIN XP2 WITH $ORI_TYPE=#CONSTANT\n"), std::string::npos)
       << back.src;
@@ -229,6 +229,127 @@ TEST(Convert, TheOrientationControlOfEachMotionSurvivesTheRoundTrip) {
     FAIL();
   } catch (const calib::InputError& e) {
     EXPECT_NE(e.message().find("attribute 'ori_type': expected it on a CP motion"), std::string::npos) << e.message();
+  }
+}
+
+// The line end of KRL: a file read from KRL keeps its own (CRLF stays CRLF, also in the lines
+// the compensation inserts and declares); KRL written anew has CRLF, the line end of the
+// controller's own files (the KSS HMI runs on Windows: the inline-form programs of
+// tests/golden/krl/kss8_inline and krc2, examples/seam.src). (Before: KRL written anew had LF,
+// and a CRLF program through XML came back with LF.)
+TEST(Convert, KrlKeepsItsLineEndsAndKrlWrittenAnewHasTheControllersCrlf) {
+  auto bareLf = [](const std::string& text) {
+    for (size_t i = 0; i < text.size(); ++i)
+      if (text[i] == '\n' && (i == 0 || text[i - 1] != '\r')) return true;
+    return false;
+  };
+  // KRC's seam (CRLF) through XML and back; RoboDK's program (LF) too
+  for (const std::string& f : {std::string("examples/seam.src"), std::string("tests/golden/krl/robodk/Pick_Place.src")}) {
+    KrlReadOptions o;
+    if (f == "examples/seam.src") o.config_path = test::sourcePath("examples/$config.dat");
+    const KrlText back = writeKrl(parseXmlProgram(writeXmlProgram(readKrl(test::sourcePath(f), o)), "p.xml"));
+    EXPECT_FALSE(bareLf(back.src)) << f << "\n" << back.src;
+    EXPECT_FALSE(bareLf(back.dat)) << f << "\n" << back.dat;
+    EXPECT_EQ(back.src.substr(0, 21), "&ACCESS RVP\r\n&REL 1\r\n") << f;
+  }
+  // a CRLF program compensated: corrected in place, a point declared anew, CRLF throughout
+  const std::string dir = test::tempDir("convert_crlf");
+  const std::string src = "DEF p( )\r\n$TOOL={X 0,Y 0,Z 200,A 0,B 0,C 0}\r\n$BASE={X 1200,Y 0,Z 400,A 0,B 0,C 0}\r\nPTP XP1\r\nLIN XP2\r\n"
+                          "$BASE={X 1200,Y 10,Z 400,A 0,B 0,C 0}\r\nLIN XP2\r\nEND\r\n";
+  const std::string dat = "DEFDAT p\r\nDECL E6POS XP1={X 100,Y 0,Z 100,A 0,B 90,C 0}\r\nDECL E6POS XP2={X 150,Y 50,Z 100,A 0,B 90,C 0}\r\nENDDAT\r\n";
+  test::writeText(dir + "/p.src", src);
+  test::writeText(dir + "/p.dat", dat);
+  JobSettings s;
+  s.calibrated = calib::readRobotFile(test::sourcePath("tests/data/plugin/kr16_calibrated.xml"));
+  const ProgramCompensation pc = compensateProgramReport(readKrl(dir + "/p.src"), s);
+  ASSERT_TRUE(pc.ok()) << pc.report.errors.front().message;
+  const KrlText out = writeKrl(pc.program);
+  EXPECT_NE(out.src, src);
+  EXPECT_NE(out.dat.find("\r\nDECL E6POS XP2_1={"), std::string::npos) << out.dat;  // XP2 in another base: a point of its own
+  EXPECT_FALSE(bareLf(out.src)) << out.src;
+  EXPECT_FALSE(bareLf(out.dat)) << out.dat;
+}
+
+// A carried BAS(#INITMOV, ..) sets $ORI_TYPE / $CIRC_TYPE back to #VAR / #BASE (BAS.SRC's
+// INITMOV): KRL written anew says the value again after it where a motion needs another one, and
+// nothing where it needs the default. (Before: the writer took the value set before it as still
+// active, and a #CONSTANT LIN after it ran #VAR.)
+TEST(Convert, KrlWrittenAnewSaysTheOrientationControlAgainAfterInitmov) {
+  const std::string dir = test::tempDir("convert_ori_initmov");
+  test::writeText(dir + "/p.src", "DEF p( )\n$TOOL=$NULLFRAME\n$BASE=$NULLFRAME\nPTP XP1\n$ORI_TYPE = #CONSTANT\nLIN XP2\n"
+                                  "BAS (#INITMOV,0 )\n$TOOL=$NULLFRAME\n$BASE=$NULLFRAME\nLIN XP1\nLIN XP2\nEND\n");
+  test::writeText(dir + "/p.dat", "DEFDAT p\nDECL E6POS XP1={X 1000,Y 0,Z 800,A 0,B 90,C 0}\nDECL E6POS XP2={X 1000,Y 100,Z 800,A 0,B 90,C 0}\nENDDAT\n");
+  std::string xml = writeXmlProgram(readKrl(dir + "/p.src"));
+  // the LIN XP2 after INITMOV made #CONSTANT in the XML (as an OLP would): said again
+  const size_t last = xml.rfind("<lin>");
+  ASSERT_NE(last, std::string::npos) << xml;
+  xml.replace(last, 5, "<lin ori_type=\"#CONSTANT\">");
+  const KrlText back = test::lf(writeKrl(parseXmlProgram(xml, "p.xml")));
+  EXPECT_NE(back.src.find("\n$ORI_TYPE = #CONSTANT\nLIN XP2\nBAS (#INITMOV,0 )\nLIN XP1\n$ORI_TYPE=#CONSTANT\nLIN XP2\nEND\n"), std::string::npos)
+      << back.src;
+}
+
+// RAPID and URScript have no orientation control: their path motions turn the orientation from
+// the start's to the target's (KUKA's #VAR). A KRL LIN with $ORI_TYPE #CONSTANT keeps the
+// orientation it starts with (KSS 8.x, "Orientation control LIN, CIRC"): converted exactly, to its
+// target with the start's orientation. #JOINT (and $CIRC_TYPE #PATH, a #CONSTANT start that is not
+// known) cannot be said: refused naming the motion, or with --drop-unconvertible converted without
+// it and listed. (Before: the setting was dropped silently, the robot turned to the written
+// orientation the KUKA program never reaches.)
+TEST(Convert, AnOrientationControlRapidAndUrScriptCannotSayIsWrittenExactlyOrRefused) {
+  const std::string dir = test::tempDir("convert_ori_other");
+  test::writeText(dir + "/p.src", "DEF p( )\n$TOOL={X 0,Y 0,Z 200,A 0,B 0,C 0}\n$BASE=$NULLFRAME\nPTP XP1\n$ORI_TYPE = #CONSTANT\nLIN XP2\nLIN XP3\n"
+                                  "$ORI_TYPE = #JOINT\nLIN XP2\nEND\n");
+  test::writeText(dir + "/p.dat", "DEFDAT p\nDECL E6POS XP1={X 1000,Y 0,Z 800,A 0,B 90,C 0,S 2,T 2}\nDECL E6POS XP2={X 1000,Y 100,Z 800,A 10,B 80,C 5,S 2,T 2}\n"
+                                  "DECL E6POS XP3={X 1050,Y 50,Z 800,A 20,B 70,C 0,S 2,T 2}\nENDDAT\n");
+  const Program krl = readKrl(dir + "/p.src");
+  ASSERT_EQ(krl.motions.size(), 4u);
+  for (const auto& [format, language] : {std::make_pair(ProgramFormat::kRapid, "RAPID"), std::make_pair(ProgramFormat::kUrScript, "URScript")}) {
+    try {
+      (void)renderProgram(krl, format, dir + "/out");
+      ADD_FAILURE() << "expected the #JOINT LIN to be refused in " << language;
+    } catch (const calib::ArgumentError& e) {
+      EXPECT_NE(std::string(e.what()).find(dir + "/p.src:9:1: cannot convert 'LIN XP2' to " + language +
+                                           ": its orientation control $ORI_TYPE #JOINT cannot be carried"),
+                std::string::npos)
+          << e.what();
+    }
+    std::vector<PassThrough> dropped;
+    const Program out = dropUnconvertible(krl, format, &dropped);
+    // (the statements setting it are KRL's: dropped and listed too)
+    ASSERT_EQ(dropped.size(), 3u);
+    EXPECT_EQ(dropped[0].text, "$ORI_TYPE = #CONSTANT");
+    EXPECT_EQ(dropped[1].text, "$ORI_TYPE = #JOINT");
+    EXPECT_EQ(dropped[2].where.line, 9);
+    EXPECT_EQ(dropped[2].text, std::string("orientation control $ORI_TYPE #JOINT of LIN XP2 (the controller turns the wrist axes linearly; ") +
+                                   language + " has no such setting)");
+    // written and read back: the #CONSTANT LINs go to their positions with XP1's orientation,
+    // the last LIN to XP2 as written
+    const std::string file = dir + (format == ProgramFormat::kRapid ? "/p.mod" : "/p.script");
+    test::writeText(file, renderProgram(out, format, file).at(0).text);
+    const Program back = readProgram(file);
+    ASSERT_EQ(back.motions.size(), 4u);
+    const double xyz[4][3] = {{1000, 0, 800}, {1000, 100, 800}, {1050, 50, 800}, {1000, 100, 800}};
+    const double abc[4][3] = {{0, 90, 0}, {0, 90, 0}, {0, 90, 0}, {10, 80, 5}};
+    for (size_t k = 0; k < 4; ++k) {
+      const calib::XyzAbc want{xyz[k][0], xyz[k][1], xyz[k][2], abc[k][0], abc[k][1], abc[k][2]};
+      // (a URScript pose is the TCP in the robot base: the tool's flange-side frame is set_tcp's)
+      const Eigen::Isometry3d got = calib::toIsometry(back.motions[k].target.xyzAbc());
+      EXPECT_LT((got.translation() - calib::toIsometry(want).translation()).norm(), 1e-3) << language << " " << k;
+      EXPECT_LT((got.linear() - calib::toIsometry(want).linear()).norm(), 1e-5) << language << " " << k;
+    }
+  }
+  // a #CONSTANT LIN whose start is not known (the program's first motion) cannot be written exactly
+  test::writeText(dir + "/q.src", "DEF q( )\n$TOOL={X 0,Y 0,Z 200,A 0,B 0,C 0}\n$BASE=$NULLFRAME\n$ORI_TYPE = #CONSTANT\nLIN XP2\nEND\n");
+  test::writeText(dir + "/q.dat", "DEFDAT q\nDECL E6POS XP2={X 1000,Y 100,Z 800,A 10,B 80,C 5,S 2,T 2}\nENDDAT\n");
+  try {
+    (void)renderProgram(readKrl(dir + "/q.src"), ProgramFormat::kRapid, dir + "/q.mod");
+    ADD_FAILURE() << "expected the #CONSTANT LIN without a known start to be refused";
+  } catch (const calib::ArgumentError& e) {
+    EXPECT_NE(std::string(e.what()).find("q.src:5:1: cannot convert 'LIN XP2' to RAPID: its orientation control $ORI_TYPE #CONSTANT cannot be carried "
+                                         "(it keeps the orientation the robot has at its start, which is not known here"),
+              std::string::npos)
+        << e.what();
   }
 }
 

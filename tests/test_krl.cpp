@@ -227,7 +227,7 @@ TEST(Krl, ASplineBlocksWithClauseSetsTheFramesOfItsMotions) {
   // written anew (from the model, as from XML): $TOOL, $BASE and $VEL.CP before SPLINE, none inside
   Program fresh = p;
   fresh.krl.reset();
-  const std::string src = writeKrl(fresh).src;
+  const std::string src = test::lf(writeKrl(fresh).src);
   const size_t block = src.find("\nSPLINE\n"), end = src.find("\nENDSPLINE\n");
   ASSERT_NE(block, std::string::npos) << src;
   ASSERT_NE(end, std::string::npos) << src;
@@ -309,7 +309,7 @@ TEST(Krl, APointOfTheConfigDatStaysTheConfigDatsThroughTheXml) {
   test::writeText(dir + "/p.xml", xml);
   const Program back = readXmlProgram(dir + "/p.xml");
   EXPECT_TRUE(back.motions[0].target.external);
-  const KrlText fresh = writeKrl(back);
+  const KrlText fresh = test::lf(writeKrl(back));
   EXPECT_EQ(fresh.dat.find("XHOME"), std::string::npos) << fresh.dat;
   EXPECT_EQ(fresh.dat.find("XPICK"), std::string::npos) << fresh.dat;
   EXPECT_NE(fresh.src.find("\nPTP XHOME\nPTP XPICK\nPTP XHOME\n"), std::string::npos) << fresh.src;
@@ -321,9 +321,9 @@ TEST(Krl, APointOfTheConfigDatStaysTheConfigDatsThroughTheXml) {
   EXPECT_NE(corrected.find("<pose type=\"E6POS\" x_mm=\"1000.5000\""), std::string::npos) << corrected;
   Program fresh_corrected = p;
   fresh_corrected.krl.reset();
-  EXPECT_NE(writeKrl(fresh_corrected).src.find("\nPTP {X 1000.5000,Y 0.0000,Z 800.0000,A 0.00000,B 90.00000,C 0.00000,S 2,T 2}\n"),
+  EXPECT_NE(test::lf(writeKrl(fresh_corrected).src).find("\nPTP {X 1000.5000,Y 0.0000,Z 800.0000,A 0.00000,B 90.00000,C 0.00000,S 2,T 2}\n"),
             std::string::npos)
-      << writeKrl(fresh_corrected).src;
+      << test::lf(writeKrl(fresh_corrected).src);
 }
 
 // SLIN, SCIRC and SPTP are segments of a block (one path, no stop between them) inside SPLINE /
@@ -353,7 +353,7 @@ TEST(Krl, SplineBlocksSurviveTheXmlRoundTrip) {
   Program back = readXmlProgram(path);
   ASSERT_EQ(back.motions.size(), 9u);
   for (size_t k = 0; k < 9; ++k) EXPECT_EQ(back.motions[k].spline_block, blocks[k]) << k;
-  const std::string src = writeKrl(back).src;
+  const std::string src = test::lf(writeKrl(back).src);
   EXPECT_NE(src.find("\n" + body + "END\n"), std::string::npos) << src;
   // statements keep their side of SPLINE / ENDSPLINE (TIME_BLOCK inside, $OUT and an IF
   // around a LIN after it), and a segment's own speed stays its own (WITH), not a new block
@@ -362,7 +362,7 @@ TEST(Krl, SplineBlocksSurviveTheXmlRoundTrip) {
   test::writeText(dir + "/q.src", "DEF q( )\n" + body2 + "END\n");
   test::writeText(dir + "/q.dat", "DEFDAT q\n" + dat.substr(dat.find('\n') + 1) + "ENDDAT\n");
   test::writeText(dir + "/q.xml", writeXmlProgram(readKrl(dir + "/q.src")));
-  const std::string q_back = writeKrl(readXmlProgram(dir + "/q.xml")).src;
+  const std::string q_back = test::lf(writeKrl(readXmlProgram(dir + "/q.xml")).src);
   EXPECT_NE(q_back.find("\n" + body2 + "END\n"), std::string::npos) << q_back;
   // an XML's block number on a motion that cannot be a segment is an error naming it
   test::writeText(path, "<program name=\"p\" version=\"1\"><motions><lin spline_block=\"1\"><pose x_mm=\"1\" y_mm=\"2\" z_mm=\"3\" "
@@ -422,7 +422,7 @@ TEST(Krl, ThePointsOfAnArrayInTheDataListAreNamedPoints) {
   const std::string back = test::tempDir("krl_array_back");
   test::writeText(back + "/p.xml", xml);
   Program fresh = readXmlProgram(back + "/p.xml");
-  const KrlText text = writeKrl(fresh);
+  const KrlText text = test::lf(writeKrl(fresh));
   EXPECT_NE(text.dat.find("\nDECL E6POS XPA[3]\nXPA[1]={X 135.598,"), std::string::npos) << text.dat;
   test::writeText(back + "/p.src", text.src);
   test::writeText(back + "/p.dat", text.dat);

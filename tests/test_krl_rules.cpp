@@ -445,6 +445,107 @@ TEST(KrlRules, AnOrientationControlTheReaderCannotFollowIsKeptAndNamed) {
   EXPECT_EQ(readXmlProgram(dir + "/r.xml").motions.at(1).ori_type, "#CONSTANT");
 }
 
+// An inline form's fold names its point without the X (`;FOLD LIN P2 ..;%{PE}..%P 1:LIN, 2:P2`,
+// `Kuka.PointName=P2`; the pendant writes `LIN XP2`, `FDAT_ACT=FP2` from it: KSS-written folds,
+// tests/golden/krl/kss8_inline, and public generators of them). A motion in it that goes to a new
+// point (XP2_1) keeps the header, whose rewriting KUKA does not document (the form would look for
+// an FDAT FP2_1 the program does not declare), and is named: re-opened on the pendant the form
+// shows P2, and its Touch Up or OK would go back to XP2. (Before: nothing said so.)
+TEST(KrlRules, AnInlineFormWhoseMotionGoesToANewPointIsNamed) {
+  const std::string dir = test::tempDir("krl_fold_new_point");
+  const std::string header = ";FOLD LIN P2 Vel=0.2 m/s CPDAT1 Tool[1] Base[0];%{PE}%R 8.3.31,%MKUKATPBASIS,%CMOVE,%VLIN,%P 1:LIN, 2:P2, 3:, 5:0.2, 7:CPDAT1\n";
+  test::writeText(dir + "/p.src", "DEF p( )\n$TOOL={X 0,Y 0,Z 200,A 0,B 0,C 0}\n$BASE={X 1200,Y 0,Z 400,A 0,B 0,C 0}\nPTP XP1\n" + header +
+                                      "LIN XP2\n;ENDFOLD\n$BASE={X 1200,Y 10,Z 400,A 0,B 0,C 0}\n" + header + "LIN XP2\n;ENDFOLD\nEND\n");
+  test::writeText(dir + "/p.dat", "DEFDAT p\nDECL E6POS XP1={X 100,Y 0,Z 100,A 0,B 90,C 0}\nDECL E6POS XP2={X 150,Y 50,Z 100,A 0,B 90,C 0}\nENDDAT\n");
+  JobSettings s;
+  s.calibrated = calib::readRobotFile(test::sourcePath("tests/data/plugin/kr16_calibrated.xml"));
+  const ProgramCompensation pc = compensateProgramReport(readKrl(dir + "/p.src"), s);
+  ASSERT_TRUE(pc.ok()) << pc.report.errors.front().message;
+  std::vector<std::string> folds;
+  for (const ProgramIssue& w : pc.report.warnings)
+    if (w.message.find("inline form") != std::string::npos) folds.push_back(w.where.str() + ": " + w.message);
+  ASSERT_EQ(folds.size(), 1u);
+  EXPECT_EQ(folds[0], dir + "/p.src:9:1: the inline form's fold names P2, but its motion (" + dir +
+                          "/p.src:10:1) now goes to the new point XP2_1 (declared after XP2): re-opened on the pendant the form shows P2, "
+                          "Touch Up teaches XP2 and OK writes the motion to XP2 back; the fold's header is kept (edit the motion as text, or "
+                          "compensate again after editing)");
+  const KrlText out = writeKrl(pc.program);
+  EXPECT_NE(out.src.find("\n" + header + "LIN XP2_1\n;ENDFOLD\n"), std::string::npos) << out.src;
+}
+
+// The one rule by which the KRL reader, the KRL writer and the XML reader take a $ORI_TYPE /
+// $CIRC_TYPE value (program.h): a constant in upper case, "" for the default, else as written.
+TEST(KrlRules, OneRuleReadsAnOrientationControlValue) {
+  EXPECT_EQ(orientationControlValue("#constant", false), "#CONSTANT");
+  EXPECT_EQ(orientationControlValue("#Var", false), "");
+  EXPECT_EQ(orientationControlValue("#VAR", true), "#VAR");  // not $CIRC_TYPE's default
+  EXPECT_EQ(orientationControlValue("#base", true), "");
+  EXPECT_EQ(orientationControlValue("#path", true), "#PATH");
+  EXPECT_EQ(orientationControlValue("SORI_TYP(lcpdat1)", false), "SORI_TYP(lcpdat1)");
+}
+
+// BAS(#CP_PARAMS / #CP_DAT) runs BAS.SRC's CP_DAT: `$ORI_TYPE=LDAT_ACT.ORI_TYP`, #VAR where the
+// LDAT has no ORI_TYP (ON_ERROR_PROCEED; KSS 8.x BAS.SRC, public copies e.g.
+// github.com/Naqiu06/KUKA-Robotics KRC/R1/System/bas.src). An LDAT the files do not declare (a
+// global one, another module's) has an ORI_TYP that is not known: where the program gives a
+// value other than #VAR somewhere, its LIN is kept and named, as after a branch. (Before: the
+// previous value was kept, and the LIN compensated for #CONSTANT the robot may not run.)
+TEST(KrlRules, AnUndeclaredLdatLeavesTheOrientationControlNotKnown) {
+  const std::string dir = test::tempDir("krl_ori_ldat");
+  auto read = [&](const std::string& first) {
+    test::writeText(dir + "/p.src", "DEF p( )\n$TOOL={X 0,Y 0,Z 200,A 0,B 0,C 0}\n$BASE={X 1200,Y 0,Z 400,A 0,B 0,C 0}\nPTP XP1\n$ORI_TYPE = " + first +
+                                        "\nLIN XP2\nLDAT_ACT=LCPDAT9\nBAS(#CP_PARAMS,0.2)\nLIN XP1\nLDAT_ACT=LCPDAT1\nBAS(#CP_PARAMS,0.2)\nLIN XP2\n"
+                                        "$ORI_TYPE = #JOINT\nLDAT_ACT=LCPDAT2\nBAS(#CP_PARAMS,0.2)\nLIN XP1\nEND\n");
+    test::writeText(dir + "/p.dat", "DEFDAT p\nDECL E6POS XP1={X 100,Y 0,Z 100,A 0,B 90,C 0}\nDECL E6POS XP2={X 150,Y 50,Z 100,A 0,B 90,C 0}\n"
+                                    "DECL LDAT LCPDAT1={VEL 0.2,ACC 100.0,APO_DIST 10.0,ORI_TYP #CONSTANT}\nDECL LDAT LCPDAT2={VEL 0.2,ACC 100.0,APO_DIST 10.0}\nENDDAT\n");
+    return readKrl(dir + "/p.src");
+  };
+  const Program p = read("#CONSTANT");
+  ASSERT_EQ(p.motions.size(), 5u);
+  EXPECT_EQ(p.motions[1].ori_type, "#CONSTANT");
+  EXPECT_EQ(p.motions[2].ori_type, "?$ORI_TYPE is LDAT_ACT's ORI_TYP (BAS(#CP_PARAMS,0.2) at " + dir +
+                                       "/p.src:8:1), but LDAT_ACT=LCPDAT9 (" + dir +
+                                       "/p.src:7:1) names an LDAT the program's files do not declare (a global one: give --config $config.dat)");
+  EXPECT_EQ(p.motions[3].ori_type, "#CONSTANT");  // LCPDAT1's
+  EXPECT_EQ(p.motions[4].ori_type, "") << "LCPDAT2 has no ORI_TYP: CP_DAT sets #VAR";
+  JobSettings s;
+  s.calibrated = calib::readRobotFile(test::sourcePath("tests/data/plugin/kr16_calibrated.xml"));
+  const ProgramCompensation pc = compensateProgramReport(p, s);
+  ASSERT_TRUE(pc.ok()) << pc.report.errors.front().message;
+  std::set<int> kept;
+  for (const ProgramIssue& w : pc.report.warnings)
+    if (w.message.find("left unchanged (not compensated): its orientation control is not known here: $ORI_TYPE is LDAT_ACT's ORI_TYP") != std::string::npos)
+      kept.insert(w.where.line);
+  EXPECT_EQ(kept, (std::set<int>{9}));
+  // a program that gives no other value than #VAR has nothing to follow
+  test::writeText(dir + "/q.src", "DEF q( )\n$TOOL={X 0,Y 0,Z 200,A 0,B 0,C 0}\n$BASE={X 1200,Y 0,Z 400,A 0,B 0,C 0}\nPTP XP1\n"
+                                  "LDAT_ACT=LCPDAT9\nBAS(#CP_PARAMS,0.2)\nLIN XP2\nEND\n");
+  test::writeText(dir + "/q.dat", "DEFDAT q\nDECL E6POS XP1={X 100,Y 0,Z 100,A 0,B 90,C 0}\nDECL E6POS XP2={X 150,Y 50,Z 100,A 0,B 90,C 0}\nENDDAT\n");
+  const Program q = readKrl(dir + "/q.src");
+  ASSERT_EQ(q.motions.size(), 2u);
+  EXPECT_EQ(q.motions[1].ori_type, "");
+}
+
+// BAS(#INITMOV) sets $ORI_TYPE and $CIRC_TYPE back to their defaults (KSS 8.x BAS.SRC, INITMOV:
+// `$ORI_TYPE=#VAR`, `$CIRC_TYPE=DEF_CIRC_TYP`, #BASE in the $config.dat; public copies e.g.
+// github.com/Naqiu06/KUKA-Robotics KRC/R1/System/bas.src): the motions after it run with #VAR,
+// #BASE; a routine that calls it changes them. (Before: the value set before it was kept.)
+TEST(KrlRules, InitmovSetsTheOrientationControlBack) {
+  const std::string dir = test::tempDir("krl_ori_initmov");
+  test::writeText(dir + "/p.src", "DEF p( )\n$TOOL={X 0,Y 0,Z 200,A 0,B 0,C 0}\n$BASE={X 1200,Y 0,Z 400,A 0,B 0,C 0}\nPTP XP1\n"
+                                  "$ORI_TYPE = #CONSTANT\n$CIRC_TYPE = #PATH\nCIRC XP2, XP1\nBAS (#INITMOV,0 )\n$TOOL={X 0,Y 0,Z 200,A 0,B 0,C 0}\n"
+                                  "$BASE={X 1200,Y 0,Z 400,A 0,B 0,C 0}\nCIRC XP2, XP1\n$ORI_TYPE = #CONSTANT\nini( )\nLIN XP2\nEND\n"
+                                  "DEF ini( )\nBAS (#INITMOV,0 )\nEND\n");
+  test::writeText(dir + "/p.dat", "DEFDAT p\nDECL E6POS XP1={X 100,Y 0,Z 100,A 0,B 90,C 0}\nDECL E6POS XP2={X 150,Y 50,Z 100,A 0,B 90,C 0}\nENDDAT\n");
+  const Program p = readKrl(dir + "/p.src");
+  ASSERT_EQ(p.motions.size(), 4u);
+  EXPECT_EQ(p.motions[1].ori_type, "#CONSTANT");
+  EXPECT_EQ(p.motions[1].circ_type, "#PATH");
+  EXPECT_EQ(p.motions[2].ori_type, "");
+  EXPECT_EQ(p.motions[2].circ_type, "");
+  EXPECT_EQ(p.motions[3].ori_type, "?ini (called at " + dir + "/p.src:13:1) sets $ORI_TYPE: its value after the call is not followed");
+}
+
 TEST(KrlRules, AConstantOrientationLinIsCorrectedForTheOrientationTheRobotKeeps) {
   const StCell cell;
   const Eigen::VectorXd q1 = joints({10, -80, 100, 20, 40, 30});

@@ -103,6 +103,22 @@ inline void copyText(const std::string& from, const std::string& to) {
   std::ofstream(to, std::ios::binary) << in.rdbuf();
 }
 
+/// `text` with its CRLF line ends as LF: KRL written anew has the controller's CRLF
+/// (krl_writer.cpp), tests look for its lines with LF.
+inline std::string lf(const std::string& text) {
+  std::string out;
+  for (size_t i = 0; i < text.size(); ++i)
+    if (!(text[i] == '\r' && i + 1 < text.size() && text[i + 1] == '\n')) out += text[i];
+  return out;
+}
+/// A KrlText (.src and .dat) with LF line ends (lf).
+template <class Text>
+Text lf(Text t) {
+  t.src = lf(t.src);
+  t.dat = lf(t.dat);
+  return t;
+}
+
 inline std::string readText(const std::string& path) {
   std::ifstream f(path, std::ios::binary);
   return std::string((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());

@@ -119,14 +119,14 @@ TEST(XmlProgram, CommentsAreKeptWhenTheProgramChangesAndConvertedToKrlComments) 
   EXPECT_GT(out.find("<!-- end -->"), out.rfind("</lin>"));
   EXPECT_EQ(writeXmlProgram(parseXmlProgram(out, "out.xml")), out);
   // into KRL: comment lines where the comments were
-  const KrlText k = writeKrl(withoutCarriedLines(p, "KRL"));
+  const KrlText k = test::lf(writeKrl(withoutCarriedLines(p, "KRL")));
   for (const char* c : {"; from the OLP\n", "; cell 4\n", "; approach,\n", ";         slowly\n", "; the seam\n", "; end\n"})
     EXPECT_NE(k.src.find(c), std::string::npos) << c << " in\n" << k.src;
   EXPECT_LT(k.src.find("; the seam"), k.src.find("Y 100"));
   EXPECT_GT(k.src.find("; the seam"), k.src.find("LIN"));
   // a comment that reads like a KRL fold marker does not open a fold
   Program f = parseXmlProgram(std::string(text).replace(text.find("<!-- the seam -->"), 17, "<!--FOLD seam-->"), "f.xml");
-  const KrlText kf = writeKrl(withoutCarriedLines(f, "KRL"));
+  const KrlText kf = test::lf(writeKrl(withoutCarriedLines(f, "KRL")));
   EXPECT_NE(kf.src.find("; FOLD seam\n"), std::string::npos) << kf.src;
   EXPECT_EQ(kf.src.find(";FOLD seam"), std::string::npos) << kf.src;
   // into URScript too (it was refused: "the URScript statement '# approach,' is not a motion"),
@@ -154,14 +154,14 @@ TEST(XmlProgram, CommentsAreKeptWhenTheProgramChangesAndConvertedToKrlComments) 
                                   "    ! last\n  ENDPROC\nENDMODULE\n");
   const Program mod = readProgram(dir + "/m.mod");
   const std::vector<calib::OutputFile> to_krl = renderProgram(mod, ProgramFormat::kKrl, dir + "/m.src", "");
-  EXPECT_NE(to_krl[0].text.find("\n; body comment\n$TOOL="), std::string::npos) << to_krl[0].text;
-  EXPECT_NE(to_krl[0].text.find("\n; last\nEND\n"), std::string::npos) << to_krl[0].text;
+  EXPECT_NE(to_krl[0].text.find("\r\n; body comment\r\n$TOOL="), std::string::npos) << to_krl[0].text;
+  EXPECT_NE(to_krl[0].text.find("\r\n; last\r\nEND\r\n"), std::string::npos) << to_krl[0].text;
   const std::vector<calib::OutputFile> to_ur = renderProgram(mod, ProgramFormat::kUrScript, dir + "/m.script", "");
   EXPECT_NE(to_ur[0].text.find("\n  # body comment\n  set_tcp("), std::string::npos) << to_ur[0].text;
   test::writeText(dir + "/s.script", "def s():\n  # body comment\n  set_tcp(p[0,0,0.15,0,0,0])\n  movel(p[0.5,0,0.5,3.14159,0,0])\n  # last\nend\n");
   const Program ur_in = readProgram(dir + "/s.script");
   EXPECT_NE(renderProgram(ur_in, ProgramFormat::kRapid, dir + "/s.mod", "")[0].text.find("\n    ! body comment\n"), std::string::npos);
-  EXPECT_NE(renderProgram(ur_in, ProgramFormat::kKrl, dir + "/s.src", "")[0].text.find("\n; last\nEND\n"), std::string::npos);
+  EXPECT_NE(renderProgram(ur_in, ProgramFormat::kKrl, dir + "/s.src", "")[0].text.find("\r\n; last\r\nEND\r\n"), std::string::npos);
   PassThrough params;
   params.language = "KRL";
   params.text = ";Params IlfProvider=kukaroboter.basistech.inlineforms.movement.spline; Kuka.PointName=P1";
@@ -198,7 +198,7 @@ TEST(XmlProgram, AGlobalPointStaysGlobalThroughXml) {
   EXPECT_EQ(xml.find("name=\"XP2\" type=\"E6POS\" global"), std::string::npos) << xml;
   const Program x = parseXmlProgram(xml, "pg.xml");
   EXPECT_TRUE(x.motions[0].target.global);
-  const KrlText back = writeKrl(withoutCarriedLines(x, "KRL"));
+  const KrlText back = test::lf(writeKrl(withoutCarriedLines(x, "KRL")));
   EXPECT_NE(back.dat.find("DEFDAT pg PUBLIC\n"), std::string::npos) << back.dat;
   EXPECT_NE(back.dat.find("\nDECL GLOBAL E6POS XP1={"), std::string::npos) << back.dat;
   EXPECT_NE(back.dat.find("\nDECL E6POS XP2={"), std::string::npos) << back.dat;
@@ -247,7 +247,7 @@ TEST(XmlProgram, KrlToXmlToKrlKeepsTheMotions) {
     EXPECT_EQ(a.base.index, b.base.index) << i;
   }
   // and to KRL again: a new .src/.dat with the same points
-  const KrlText t = writeKrl(back);
+  const KrlText t = test::lf(writeKrl(back));
   EXPECT_NE(t.src.find("\nLIN XP2 C_DIS C_DIS\n"), std::string::npos) << t.src;
   EXPECT_NE(t.src.find("\nCIRC XP4, XP5\n"), std::string::npos) << t.src;
   EXPECT_NE(t.src.find("\n$TOOL=TOOL_DATA[1]\n"), std::string::npos) << t.src;

@@ -1244,6 +1244,69 @@ calib::RobotModel realModelForTool(const calib::RobotModel& calibrated, const Ei
 }
 
 namespace {
+// A KRL motion inside an inline form's fold (`;FOLD LIN P1 Vel=2 m/s CPDAT1 ..;%{PE}`, its
+// parameters `%P .. 2:P1` or `Kuka.PointName=P1`) that now goes to a new point (XP1_1): the
+// form names its point by the name without the X (the pendant writes `LIN XP1`, `FDAT_ACT=FP1`
+// from it) and still says P1. Re-opened on the pendant it shows P1; Touch Up teaches XP1 and
+// OK writes `LIN XP1` back. Whether the form would take a renamed header (P1_1, with no FDAT
+// FP1_1) is not documented, so the header is kept and the motion named in a warning, once per fold.
+void warnInlineFormsOfNewPoints(const Program& p, JobReport* r) {
+  if (!p.krl) return;
+  const KrlSource& s = *p.krl;
+  std::set<size_t> warned;  // fold headers (their first byte)
+  for (const Motion& m : p.motions) {
+    if (m.inserted || m.statement_id < 0 || m.statement_id >= static_cast<int>(s.statements.size())) continue;
+    const KrlSource::Statement& st = s.statements[static_cast<size_t>(m.statement_id)];
+    if (st.file != 0) continue;
+    for (const Target* t : {m.aux ? &*m.aux : nullptr, &m.target}) {
+      if (!t || !t->new_declaration || t->replaces.empty() || t->name.empty()) continue;
+      // the fold the statement is in: back over the lines before it, skipping closed folds
+      const std::string& text = s.src_text;
+      int depth = 0;
+      size_t end = st.line_begin;  // the line before ends with the '\n' at end - 1
+      while (end > 0) {
+        const size_t nl = end - 1;
+        const size_t prev = nl == 0 ? std::string::npos : text.rfind('\n', nl - 1);
+        const size_t line_begin = prev == std::string::npos ? 0 : prev + 1;
+        const std::string line = calib::upperAscii(text.substr(line_begin, nl - line_begin));
+        end = line_begin;
+        const size_t b = line.find_first_not_of(" \t");
+        if (b == std::string::npos) continue;
+        if (line.compare(b, 8, ";ENDFOLD") == 0) {
+          ++depth;
+        } else if (line.compare(b, 5, ";FOLD") == 0) {
+          if (depth > 0) {
+            --depth;
+            continue;
+          }
+          const std::string old = calib::upperAscii(t->replaces);
+          const std::string form_name = old.size() > 1 && old[0] == 'X' ? old.substr(1) : old;
+          const std::string header = line.substr(b);
+          const auto names = [&](const std::string& name) {
+            for (size_t at = header.find(name); at != std::string::npos; at = header.find(name, at + 1)) {
+              const auto word = [](char c) { return std::isalnum(static_cast<unsigned char>(c)) || c == '_'; };
+              if ((at == 0 || !word(header[at - 1])) && (at + name.size() >= header.size() || !word(header[at + name.size()]))) return true;
+            }
+            return false;
+          };
+          if (header.find("%{PE}") != std::string::npos && names(form_name) && warned.insert(line_begin).second) {
+            SourceLocation w;
+            w.file = s.src_path;
+            w.line = 1 + static_cast<int>(std::count(text.begin(), text.begin() + static_cast<std::ptrdiff_t>(line_begin), '\n'));
+            w.column = 1;
+            r->warnings.push_back({w, "the inline form's fold names " + form_name + ", but its motion (" + m.where.str() + ") now goes to the new point " +
+                                          t->name + " (declared after " + t->replaces + "): re-opened on the pendant the form shows " + form_name +
+                                          ", Touch Up teaches " + t->replaces + " and OK writes the motion to " + t->replaces +
+                                          " back; the fold's header is kept (edit the motion as text, or compensate again after editing)"});
+          }
+          end = 0;
+        }
+        if (end == 0) break;
+      }
+    }
+  }
+}
+
 // Issue 11: each target whose real joint values lie outside the ranges the model's
 // joint-dependent effects were fitted on (compliance, gear, scale, joint maps: fit_range in the
 // model file), with how far, then how many: the correction there is an extrapolation.
@@ -1344,6 +1407,7 @@ ProgramCompensation compensateProgramReport(const Program& program, const JobSet
   pc.program.motions.clear();
   Job job(settings, &r);
   job.run(program, pc.program);
+  warnInlineFormsOfNewPoints(pc.program, &r);
   warnOutsideFitRanges(settings.calibrated, &r);
 
   double sum2 = 0;

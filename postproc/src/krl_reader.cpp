@@ -146,6 +146,9 @@ struct Reader {
   std::optional<Fdat> fdat;
   std::string fdat_problem;
   std::optional<MoveData> ldat, pdat;
+  // why LDAT_ACT's values are not known where `ldat` is empty (BAS(#CP_PARAMS) makes its ORI_TYP
+  // the $ORI_TYPE): not set by the program, or an LDAT the files do not declare
+  std::string ldat_unknown_ = "the program does not set LDAT_ACT before it";
   std::optional<double> vel_cp, vel_ptp, apo_cdis, apo_cptp, apo_cvel, apo_cori;
   std::string ori_type_;  // $ORI_TYPE (Motion::ori_type): "" #VAR, the default; "?why" not known here
   std::string circ_type_;  // $CIRC_TYPE (Motion::circ_type): "" #BASE, the default; "?why" not known here
@@ -290,6 +293,8 @@ struct Reader {
   /// until the routine sets them.
   void callerFrames(size_t at) {
     frame_blocks_.clear();
+    ldat.reset();
+    ldat_unknown_ = "a subroutine runs with the caller's LDAT_ACT until it sets its own";
     if (ori_varies_) ori_type_ = unknownOri("a subroutine runs with the caller's $ORI_TYPE until it sets its own");
     if (circ_varies_) circ_type_ = unknownOri("a subroutine runs with the caller's $CIRC_TYPE until it sets its own");
     for (const char* name : {"$TOOL", "$BASE"})
@@ -707,18 +712,17 @@ struct Reader {
     return model.count(t[0].up) > 0;
   }
 
-  // The value of $ORI_TYPE = t[b, e) (Motion::ori_type): the constant in upper case ("" for
-  // #VAR, the default), else the expression as written.
-  // (Likewise $CIRC_TYPE, "" for #BASE: `default_value`.)
-  std::string oriTypeValue(const std::vector<Tok>& t, size_t b, size_t e, const char* default_value = "#VAR") const {
-    if (e == b + 1 && t[b].kind == Tok::kEnum) return t[b].up == default_value ? std::string() : t[b].up;
+  // The value of $ORI_TYPE = t[b, e) (Motion::ori_type; $CIRC_TYPE with `circ`):
+  // orientationControlValue of the constant, else the expression as written.
+  std::string oriTypeValue(const std::vector<Tok>& t, size_t b, size_t e, bool circ = false) const {
+    if (e == b + 1 && t[b].kind == Tok::kEnum) return orientationControlValue(t[b].text, circ);
     return f->text().substr(t[b].begin, t[e - 1].end - t[b].begin);
   }
-  // $ORI_TYPE and $CIRC_TYPE from an LDAT's ORI_TYP and CIRC_TYP (BAS(#CP_PARAMS), SORI_TYP(LDAT),
+  // $ORI_TYPE and $CIRC_TYPE from an LDAT's ORI_TYP and CIRC_TYP (SORI_TYP(LDAT),
   // SCIRC_TYP(LDAT)); each unchanged when the LDAT or its value is not known
   void oriTypeOf(const std::optional<MoveData>& l, std::string* ori_type, std::string* circ_type = nullptr) const {
-    if (l && !l->ori_typ.empty() && ori_type) *ori_type = l->ori_typ == "#VAR" ? std::string() : l->ori_typ;
-    if (l && !l->circ_typ.empty() && circ_type) *circ_type = l->circ_typ == "#BASE" ? std::string() : l->circ_typ;
+    if (l && !l->ori_typ.empty() && ori_type) *ori_type = orientationControlValue(l->ori_typ, false);
+    if (l && !l->circ_typ.empty() && circ_type) *circ_type = orientationControlValue(l->circ_typ, true);
   }
 
   void assignModel(const std::vector<Tok>& t, size_t eq) {
@@ -732,7 +736,7 @@ struct Reader {
       return;
     }
     if (simple && lhs0 == "$CIRC_TYPE") {
-      circ_type_ = oriTypeValue(t, b, e, "#BASE");
+      circ_type_ = oriTypeValue(t, b, e, true);
       return;
     }
     const bool field = eq == 3 && t[1].text == ".";
@@ -778,6 +782,9 @@ struct Reader {
         auto& table = lhs0 == "LDAT_ACT" ? decl.ldats : decl.pdats;
         auto it = table.find(key);
         (lhs0 == "LDAT_ACT" ? ldat : pdat) = it != table.end() ? std::optional<MoveData>(it->second) : std::nullopt;
+        if (lhs0 == "LDAT_ACT" && it == table.end())
+          ldat_unknown_ = f->text().substr(t[0].begin, t[e - 1].end - t[0].begin) + " (" + f->loc(t[0].begin).str() +
+                          ") names an LDAT the program's files do not declare (a global one: give --config $config.dat)";
       }
       return;
     }
@@ -841,6 +848,20 @@ struct Reader {
     }
   }
 
+  // BAS(#CP_PARAMS / #CP_DAT) = t: BAS.SRC's CP_DAT sets $ORI_TYPE = LDAT_ACT.ORI_TYP, #VAR where
+  // that is not initialised (ON_ERROR_PROCEED); an LDAT whose ORI_TYP is not known leaves it not
+  // known. $CIRC_TYPE from the LDAT's CIRC_TYP where it gives one (the later BAS.SRC's), else kept.
+  void cpDatOriType(const std::vector<Tok>& t) {
+    if (ldat) {
+      ori_type_ = orientationControlValue(ldat->ori_typ, false);
+      oriTypeOf(ldat, nullptr, &circ_type_);
+      return;
+    }
+    const std::string why = " (" + f->text().substr(t[0].begin, t.back().end - t[0].begin) + " at " + f->loc(t[0].begin).str() + "), but " + ldat_unknown_;
+    if (ori_varies_) ori_type_ = unknownOri("$ORI_TYPE is LDAT_ACT's ORI_TYP" + why);
+    if (circ_varies_) circ_type_ = unknownOri("$CIRC_TYPE is LDAT_ACT's CIRC_TYP" + why);
+  }
+
   // True when the BAS call is part of the motion model (frames, speeds, approximation).
   bool handleBas(const std::vector<Tok>& t) {
     // BAS ( #CMD [, value] )
@@ -849,6 +870,13 @@ struct Reader {
     std::optional<double> value;
     if (t.size() >= 6 && t[3].text == ",") value = numberValue(t, 4, t.size() - 1);
     const size_t at = t[0].begin;
+    if (cmd == "#INITMOV") {
+      // BAS.SRC's INITMOV: `$ORI_TYPE=#VAR`, `$CIRC_TYPE=DEF_CIRC_TYP` (#BASE in the $config.dat);
+      // the statement itself is carried (a program written anew initialises itself with it)
+      ori_type_.clear();
+      circ_type_.clear();
+      return false;
+    }
     if (cmd == "#TOOL" || cmd == "#BASE") {
       const auto n = t.size() >= 6 && t[3].text == "," ? integerValue(t, 4, t.size() - 1) : std::nullopt;
       FrameSetting& s = cmd == "#TOOL" ? tool : base;
@@ -864,14 +892,14 @@ struct Reader {
       applyFdatFrames(at);
       vel_cp = value;
       if (ldat && ldat->apo_dist) apo_cdis = ldat->apo_dist;
-      oriTypeOf(ldat, &ori_type_, &circ_type_);  // KSS: $ORI_TYPE = LDAT_ACT.ORI_TYP, $CIRC_TYPE = LDAT_ACT.CIRC_TYP
+      cpDatOriType(t);
     } else if (cmd == "#FRAMES") {
       applyFdatFrames(at);
     } else if (cmd == "#PTP_DAT") {  // KRC2 inline forms: PDAT_ACT, then BAS(#PTP_DAT)
       if (pdat && pdat->apo_dist) apo_cptp = pdat->apo_dist;
     } else if (cmd == "#CP_DAT") {
       if (ldat && ldat->apo_dist) apo_cdis = ldat->apo_dist;
-      oriTypeOf(ldat, &ori_type_, &circ_type_);
+      cpDatOriType(t);
     } else if (cmd == "#VEL_PTP") {
       vel_ptp = value;
     } else if (cmd == "#VEL_CP") {
@@ -968,7 +996,7 @@ struct Reader {
               if (it != decl.ldats.end()) oriTypeOf(it->second, nullptr, &m.circ_type);
             }
           } else {
-            m.circ_type = oriTypeValue(t, rb, re, "#BASE");
+            m.circ_type = oriTypeValue(t, rb, re, true);
           }
         } else if (lhs == "$IPO_MODE" && fn == "SIPO_MODE") {
           const auto a = arg(0);
@@ -1538,15 +1566,16 @@ Program readKrl(const std::string& src_path, const KrlReadOptions& options) {
       const bool inline_form = bas && (t[2].up == "#PTP_PARAMS" || t[2].up == "#CP_PARAMS");
       if (!cur.empty() && ((t[0].up == "$TOOL" && assigns) || (bas && t[2].up == "#TOOL") || inline_form)) sets_tool[cur] = true;
       if (!cur.empty() && ((t[0].up == "$BASE" && assigns) || (bas && t[2].up == "#BASE") || inline_form)) sets_base[cur] = true;
-      // $ORI_TYPE / $CIRC_TYPE set (an assignment, an LDAT made active by BAS(#CP_PARAMS / #CP_DAT))
-      const bool cp_bas = bas && (t[2].up == "#CP_PARAMS" || t[2].up == "#CP_DAT");
+      // $ORI_TYPE / $CIRC_TYPE set (an assignment, an LDAT made active by BAS(#CP_PARAMS / #CP_DAT),
+      // BAS(#INITMOV) setting them back to #VAR, #BASE)
+      const bool cp_bas = bas && (t[2].up == "#CP_PARAMS" || t[2].up == "#CP_DAT" || t[2].up == "#INITMOV");
       if (!cur.empty() && ((t[0].up == "$ORI_TYPE" && assigns) || cp_bas)) sets_ori[cur] = true;
       if (!cur.empty() && ((t[0].up == "$CIRC_TYPE" && assigns) || cp_bas)) sets_circ[cur] = true;
       // a value other than the default anywhere (an assignment or a WITH of $ORI_TYPE / $CIRC_TYPE)
       for (size_t i = 0; i + 2 < t.size(); ++i) {
         if (t[i + 1].text != "=") continue;
-        if (t[i].up == "$ORI_TYPE" && t[i + 2].up != "#VAR") r.ori_varies_ = true;
-        if (t[i].up == "$CIRC_TYPE" && t[i + 2].up != "#BASE") r.circ_varies_ = true;
+        if (t[i].up == "$ORI_TYPE" && !orientationControlValue(t[i + 2].text, false).empty()) r.ori_varies_ = true;
+        if (t[i].up == "$CIRC_TYPE" && !orientationControlValue(t[i + 2].text, true).empty()) r.circ_varies_ = true;
       }
       // calls: a subroutine's as a statement, a function's anywhere in an expression (an
       // interrupt's declaration names its handler without calling it)
@@ -1559,8 +1588,8 @@ Program readKrl(const std::string& src_path, const KrlReadOptions& options) {
     r.ori_defs_ = movingRoutines(sets_ori, calls);
     r.circ_defs_ = movingRoutines(sets_circ, calls);
     for (const auto& [name, l] : r.decl.ldats) {  // (SORI_TYP(LDAT) and BAS read these)
-      r.ori_varies_ = r.ori_varies_ || (!l.ori_typ.empty() && l.ori_typ != "#VAR");
-      r.circ_varies_ = r.circ_varies_ || (!l.circ_typ.empty() && l.circ_typ != "#BASE");
+      r.ori_varies_ = r.ori_varies_ || !orientationControlValue(l.ori_typ, false).empty();
+      r.circ_varies_ = r.circ_varies_ || !orientationControlValue(l.circ_typ, true).empty();
     }
     // the points whose assignments make their value depend on more than the text before a motion
     int depth = 0;  // open IF, SWITCH and loops

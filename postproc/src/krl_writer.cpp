@@ -279,9 +279,19 @@ KrlText generateKrl(const Program& p) {
     return it != ptp_block.end() && it->second;
   };
   // $ORI_TYPE and $CIRC_TYPE as the program written so far leaves them ("": #VAR, #BASE, the
-  // values BAS(#INITMOV) gives; a carried statement `$ORI_TYPE = #CONSTANT` sets them too)
+  // values BAS(#INITMOV) gives; a carried statement `$ORI_TYPE = #CONSTANT` sets them too, a
+  // carried BAS(#INITMOV, ..) sets them back: BAS.SRC's INITMOV, `$ORI_TYPE=#VAR`,
+  // `$CIRC_TYPE=DEF_CIRC_TYP`, #BASE in the $config.dat)
   std::string ori_type, circ_type;
   auto noteCarried = [&](const std::string& text) {
+    std::string compact;
+    for (char c : text)
+      if (c != ' ' && c != '\t') compact += static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+    if (compact.rfind("BAS(#INITMOV", 0) == 0) {
+      ori_type.clear();
+      circ_type.clear();
+      return;
+    }
     std::istringstream in(text);
     std::string lhs, eq, value;
     in >> lhs;
@@ -295,9 +305,9 @@ KrlText generateKrl(const Program& p) {
       else if (eq == "=") in >> value;
     }
     if (value.empty() || value[0] != '#') return;
-    const std::string v = upper(value), l = upper(lhs);
-    if (l == "$ORI_TYPE") ori_type = v == "#VAR" ? "" : v;
-    if (l == "$CIRC_TYPE") circ_type = v == "#BASE" ? "" : v;
+    const std::string l = upper(lhs);
+    if (l == "$ORI_TYPE") ori_type = orientationControlValue(value, false);
+    if (l == "$CIRC_TYPE") circ_type = orientationControlValue(value, true);
   };
   // the pass-through statements of a section, in order; for the body those before motion `k`,
   // each in the block it was in (PassThrough::spline_block: TIME_BLOCK inside, $OUT after it)
@@ -438,7 +448,18 @@ KrlText generateKrl(const Program& p) {
   src << "END\n";
   carry(src, PassThrough::Section::kTrailer, 0);
   dat << "ENDDAT\n";
-  return {src.str(), dat.str()};
+  // the line end of the controller's own files: the KSS HMI (Windows) writes .src and .dat with
+  // CRLF (a file read from KRL keeps its own: patchKrl)
+  auto crlf = [](const std::string& text) {
+    std::string out;
+    out.reserve(text.size() + text.size() / 16);
+    for (size_t i = 0; i < text.size(); ++i) {
+      if (text[i] == '\n' && (i == 0 || text[i - 1] != '\r')) out += '\r';
+      out += text[i];
+    }
+    return out;
+  };
+  return {crlf(src.str()), crlf(dat.str())};
 }
 
 

@@ -109,6 +109,12 @@ FrameSetting runTimeFrame(const std::string& text, const SourceLocation& where, 
   return f;
 }
 
+std::string orientationControlValue(const std::string& value, bool circ) {
+  if (value.empty() || value[0] != '#') return value;
+  const std::string v = calib::upperAscii(value);
+  return v == (circ ? "#BASE" : "#VAR") ? std::string() : v;
+}
+
 bool sameFrame(const FrameSetting& a, const FrameSetting& b) {
   if (a.source != b.source || a.index != b.index || a.value.has_value() != b.value.has_value()) return false;
   if (a.source == FrameSetting::Source::kUnknown && a.text != b.text) return false;

@@ -34,6 +34,82 @@ std::string timeText(const Motion& m) {
   return m.duration_s ? calib::formatFixed(*m.duration_s, 4) + " s" : "'" + detail::excerpt(m.duration_expr) + "'";
 }
 
+/// Whether a motion of `program` has a KUKA orientation control other than the default
+/// (Motion::ori_type of a CP motion, circ_type of a circle).
+bool hasOrientationControl(const Program& program) {
+  for (const Motion& m : program.motions)
+    if ((m.type != MotionType::kPtp && !m.ori_type.empty()) || (m.type == MotionType::kCirc && !m.circ_type.empty())) return true;
+  return false;
+}
+
+/// `program` for RAPID or URScript (`format`), which have no orientation control: their path
+/// motions turn the orientation from the start's to the target's (KUKA's $ORI_TYPE #VAR,
+/// $CIRC_TYPE #BASE). A CP motion with $ORI_TYPE #CONSTANT keeps the orientation it starts
+/// with (KSS 8.x Operating and Programming Instructions for System Integrators, "Orientation
+/// control LIN, CIRC"): written exactly as a motion to its target with that orientation (the
+/// auxiliary point's too), where it is known (the previous motion's Cartesian target or kept
+/// orientation, in the same tool and base, no call or branch in between). Another value (#JOINT,
+/// $CIRC_TYPE #PATH, one the KRL reader could not follow) or a #CONSTANT start that is not known
+/// cannot be written: an error naming the motion, or with `dropped` the motion converts without
+/// it and is listed there (in the program's order). The result has no orientation control left.
+Program orientationControlWritten(const Program& program, ProgramFormat format, std::vector<PassThrough>* dropped) {
+  const char* language = format == ProgramFormat::kRapid ? "RAPID" : "URScript";
+  Program out = program;
+  std::vector<PassThrough> listed;
+  std::optional<std::array<double, 3>> ori;  // A, B, C (deg) the robot has after the previous motion
+  const Motion* prev = nullptr;
+  for (Motion& m : out.motions) {
+    const bool known_start = prev && !m.start_unknown && ori && sameFrame(m.tool, prev->tool) && sameFrame(m.base, prev->base);
+    const std::optional<std::array<double, 3>> start = known_start ? ori : std::nullopt;
+    const std::string o = m.type != MotionType::kPtp ? m.ori_type : "";
+    const std::string c = m.type == MotionType::kCirc ? m.circ_type : "";
+    std::string setting, why;
+    if (!o.empty() && o[0] == '?') {
+      setting = "$ORI_TYPE";
+      why = "it is not known here: " + o.substr(1);
+    } else if (!c.empty() && c[0] == '?') {
+      setting = "$CIRC_TYPE";
+      why = "it is not known here: " + c.substr(1);
+    } else if (!c.empty()) {
+      setting = "$CIRC_TYPE " + c + (o.empty() ? "" : " with $ORI_TYPE " + o);
+      why = "the orientation turns with the circle";
+    } else if (o == "#CONSTANT" && !start) {
+      setting = "$ORI_TYPE #CONSTANT";
+      why = "it keeps the orientation the robot has at its start, which is not known here";
+    } else if (!o.empty() && o != "#CONSTANT") {
+      setting = "$ORI_TYPE " + o;
+      why = o == "#JOINT" ? "the controller turns the wrist axes linearly" : "not a setting accura writes";
+    }
+    // the orientation after the motion, as the KUKA controller runs it
+    std::optional<std::array<double, 3>> after;
+    const Target& t = m.target;
+    if (o == "#CONSTANT" && c.empty()) after = start;
+    else if (t.kind == Target::Kind::kCartesian && t.pose[3] && t.pose[4] && t.pose[5] && (c.empty() || o.empty()))
+      after = std::array<double, 3>{*t.pose[3], *t.pose[4], *t.pose[5]};
+    if (o == "#CONSTANT" && start && c.empty()) {
+      for (Target* p : {&m.target, m.aux ? &*m.aux : nullptr})
+        if (p && p->kind == Target::Kind::kCartesian)
+          for (size_t k = 0; k < 3; ++k) p->pose[3 + k] = (*start)[k];
+    } else if (!setting.empty()) {
+      if (!dropped)
+        throw calib::ArgumentError(m.where.str() + ": cannot convert '" + detail::excerpt(m.statement) + "' to " + language + ": its orientation control " +
+                                   setting + " cannot be carried (" + why + "; " + language +
+                                   " turns the orientation from the start's to the target's) (convert --drop-unconvertible converts the motion without it and lists it)");
+      PassThrough s;
+      s.language = "orientation";
+      s.where = m.where;
+      s.text = "orientation control " + setting + " of " + detail::excerpt(m.statement) + " (" + why + "; " + language + " has no such setting)";
+      listed.push_back(std::move(s));
+    }
+    m.ori_type.clear();
+    m.circ_type.clear();
+    ori = after;
+    prev = &m;
+  }
+  if (dropped) dropped->insert(dropped->end(), listed.begin(), listed.end());
+  return out;
+}
+
 }  // namespace
 
 ProgramFormat programFormat(const std::string& path) {
@@ -188,6 +264,7 @@ Program dropUnconvertible(const Program& program, ProgramFormat format, std::vec
   // pass-through statements just left out
   if (format != ProgramFormat::kKrl) out.krl.reset();
   if (!(format == ProgramFormat::kRapid && program.rapid) && !(format == ProgramFormat::kUrScript && program.urscript)) dropTimes(out);
+  if (format != ProgramFormat::kKrl && hasOrientationControl(out)) out = orientationControlWritten(out, format, dropped);
   return out;
 }
 
@@ -210,6 +287,8 @@ std::vector<calib::OutputFile> renderProgram(const Program& program, ProgramForm
   if (!program.krl_functions_only.empty() && (format != ProgramFormat::kKrl || !program.krl))
     throw calib::ArgumentError(program.source_file + ": cannot write it as a program: the module holds functions only (the first: " +
                                program.krl_functions_only + "), no DEF program with motions");
+  if ((format == ProgramFormat::kRapid || format == ProgramFormat::kUrScript) && hasOrientationControl(program))
+    return renderProgram(orientationControlWritten(program, format, nullptr), format, path, dat_path);
   if (format == ProgramFormat::kRapid) {
     if (!program.rapid && program.urscript) return renderProgram(urScriptForConversion(program, "RAPID"), format, path, dat_path);
     return {{path, writeWithoutCarriedLines(program, "RAPID", writeRapid)}};

@@ -397,13 +397,11 @@ Motion readMotion(const Reader& R, const XMLElement* e) {
   if (const auto o = R.text(e, "ori_type")) {
     if (m.type == MotionType::kPtp || o->empty()) R.fail(e, "<" + n + "> attribute 'ori_type': expected it on a CP motion, not empty, found '" + *o + "' on " + n);
     // (KRL's names: any case; an enumeration value upper case as the KRL reader gives it)
-    const std::string v = (*o)[0] == '#' ? calib::upperAscii(*o) : *o;
-    m.ori_type = v == "#VAR" ? std::string() : v;
+    m.ori_type = orientationControlValue(*o, false);
   }
   if (const auto c = R.text(e, "circ_type")) {
     if (m.type != MotionType::kCirc || c->empty()) R.fail(e, "<" + n + "> attribute 'circ_type': expected it on circ or scirc, not empty, found '" + *c + "' on " + n);
-    const std::string v = (*c)[0] == '#' ? calib::upperAscii(*c) : *c;
-    m.circ_type = v == "#BASE" ? std::string() : v;
+    m.circ_type = orientationControlValue(*c, true);
   }
   if (const auto b = R.integer(e, "spline_block")) {
     if (!m.spline || *b < 1)

@@ -128,6 +128,12 @@ FrameSetting runTimeFrame(const std::string& text, const SourceLocation& where, 
 /// was entered with.
 bool sameFrame(const FrameSetting& a, const FrameSetting& b);
 
+/// A KUKA `$ORI_TYPE` (`circ` false) or `$CIRC_TYPE` (`circ` true) value as Motion::ori_type /
+/// circ_type hold it: an enumeration constant (`#constant`, any case) in upper case, "" for the
+/// default (#VAR, #BASE); anything else (an expression, `SORI_TYP(LCPDAT1)`) as written. The one
+/// rule of the KRL reader, the KRL writer (a carried statement) and the XML reader.
+std::string orientationControlValue(const std::string& value, bool circ);
+
 /// A name every controller language can declare (a point's, a program's): a letter, '_' or '$',
 /// then letters, digits, '_' or '$'; at most 64 characters. Anything else copied into a program
 /// as text could change it (a newline in a name starts a statement of its own).
