@@ -31,9 +31,9 @@ run_target() {
   local t="$1" status=0 work scratch start runs corpus_size
   local dict=()
   if [ "$strict" = 1 ] && [[ "$lenient" != *" $t "* ]]; then export FUZZ_STRICT=1; else export FUZZ_STRICT=0; fi
-  work="$(mktemp -d)"
+  work="$(mktemp -d "$out/work.XXXXXX")"
   # the target's scratch files go here: a fuzzer that dies on a finding cannot remove its own
-  scratch="$(mktemp -d)"
+  scratch="$(mktemp -d "$out/scratch.XXXXXX")"
   mkdir -p "$here/findings"
   [ -f "$here/dict/$t.dict" ] && dict=(-dict="$here/dict/$t.dict")
   start=$(date +%s)
@@ -78,11 +78,25 @@ run_target() {
 }
 
 # The targets run side by side, JOBS at a time (default: the cores; each libFuzzer process is
-# single-threaded and deterministic on its own, so the result does not depend on JOBS); each
-# one's lines are printed in the order of the list when it ends.
+# single-threaded: with SECONDS 0 the inputs, seeded, do not depend on JOBS; a timed run's count
+# of inputs does, as the targets share the cores); each one's lines are printed in the order of
+# the list when it ends.
 jobs_max="${JOBS:-$(nproc)}"
+if ! [[ "$jobs_max" =~ ^[1-9][0-9]*$ ]]; then
+  echo "fuzz/run.sh: JOBS: expected a whole number of targets at a time (>= 1), found '$jobs_max'" >&2
+  exit 2
+fi
+# every target's logs, work and scratch directories under one directory, removed at the end; each
+# target in a process group of its own (set -m), so that an interrupted run stops its fuzzers too
 out="$(mktemp -d)"
+stop() {
+  for p in $(jobs -p); do kill -TERM -- "-$p" 2>/dev/null || true; done
+  wait 2>/dev/null || true
+  rm -rf "$out"
+}
 trap 'rm -rf "$out"' EXIT
+trap 'stop; exit 130' INT TERM
+set -m
 for t in "${targets[@]}"; do
   while [ "$(jobs -rp | wc -l)" -ge "$jobs_max" ]; do wait -n || true; done
   ( set +e; run_target "$t" >"$out/$t.log" 2>&1; echo $? >"$out/$t.rc" ) &

@@ -509,6 +509,20 @@ TEST(Batch, AnOutputDirectoryThatCannotBeCreatedIsRefusedBeforeAnyWork) {
   EXPECT_EQ(message, root + "/afile/out: cannot create the output directory (--out): " + root + "/afile is a file, not a directory");
   EXPECT_EQ(calls, 0);  // no program was read
   EXPECT_EQ(test::readText(root + "/afile"), "x");
+  // an --out that is a symbolic link to nothing: its directories cannot be created (before: the
+  // check walked up to the link's directory and passed; every program then failed after its work)
+  std::filesystem::create_symlink(root + "/nowhere", root + "/dangling");
+  message.clear();
+  try {
+    runBatch(root + "/in", root + "/dangling", o, [&](const BatchFileResult&, int, int) { ++calls; });
+  } catch (const calib::InputError& e) {
+    message = e.what();
+  }
+  EXPECT_EQ(message, root + "/dangling: cannot create the output directory (--out): it is a symbolic link to " + root +
+                         "/nowhere, which does not exist");
+  EXPECT_EQ(calls, 0);
+  EXPECT_FALSE(std::filesystem::exists(root + "/nowhere"));
+  std::filesystem::remove_all(root);
 }
 
 }  // namespace

@@ -366,10 +366,10 @@ TEST(Placement, AGivenPlacementThatMissesTheCalibratedBaseIsNamedWithItsUnits) {
     message = e.what();
   }
   const double off = std::sqrt(2397.6 * 2397.6 + 1698.3 * 1698.3 + 599.4 * 599.4);  // 3000.4 mm
-  EXPECT_NE(message.find("is " + calib::formatFixed(off, 4) + " mm and 0.00000 deg from the nominal base (2.4000, -1.7000, -0.6000 mm"),
+  EXPECT_NE(message.find("is " + calib::formatFixed(off, 4) + " mm and 0.00000 deg from the placement given (2.4000, -1.7000, -0.6000 mm"),
             std::string::npos)
       << message;
-  EXPECT_NE(message.find("The placement given (--base x,y,z,A,B,C, or the cell file's <robot>) is not where the model's base was measured: "
+  EXPECT_NE(message.find("The placement given (--base x,y,z,A,B,C) is not where the model's base was measured: "
                          "give it in the model's frame (the calibrated base above), x,y,z in mm and A,B,C in deg (not metres, not radians)"),
             std::string::npos)
       << message;
@@ -385,6 +385,7 @@ TEST(Placement, AGivenPlacementThatMissesTheCalibratedBaseIsNamedWithItsUnits) {
   EXPECT_NE(message.find("The model was measured in another frame (a tracker's): give --base x,y,z,A,B,C, where the robot stands"),
             std::string::npos)
       << message;
+  EXPECT_NE(message.find("deg from the nominal base (0.0000, 0.0000, 0.0000 mm"), std::string::npos) << message;
 }
 
 }  // namespace

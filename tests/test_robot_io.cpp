@@ -1,6 +1,7 @@
 #include <gtest/gtest.h>
 
 #include <random>
+#include <system_error>
 #include <tuple>
 
 #include "accura/calib/errors.h"
@@ -228,6 +229,17 @@ TEST(RobotIo, ResolveByNameOrPath) {
   } catch (const InputError& e) {
     EXPECT_EQ(std::string(e.what()), "expected a robot file or one of the bundled robots (abb_irb120, kuka_kr16, scara, ur10), found '" +
                                          missing + "' (no such file)");
+  }
+  // a path that cannot be looked at (here through a file; likewise a directory without search
+  // permission): its reason, not "no such file"
+  const std::string through = test::tempDir("robot_missing") + "/afile";
+  test::writeText(through, "x");
+  try {
+    resolveRobotPath(through + "/model.xml");
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()), "expected a robot file or one of the bundled robots (abb_irb120, kuka_kr16, scara, ur10), found '" +
+                                         through + "/model.xml' (" + std::make_error_code(std::errc::not_a_directory).message() + ")");
   }
 }
 

@@ -1075,6 +1075,11 @@ TEST(UrScript, ConvertCarriesTheMotionModelOrRefusesNamingTheLine) {
   EXPECT_NE(k.err.find("examples/seam.src:45: cannot convert to URScript: the KRL statement '$OUT[17]=TRUE' is not a motion, frame or speed"),
             std::string::npos)
       << k.err;
+  // ... and says which option converts it without such statements
+  EXPECT_NE(k.err.find("URScript output carries the motion model only (convert --drop-unconvertible leaves such statements out and lists "
+                       "them)"),
+            std::string::npos)
+      << k.err;
 }
 
 // convert's summary counts the statements it carries verbatim: the bundled example's
@@ -1127,6 +1132,7 @@ TEST(UrScript, GoldenFiles) {
   EXPECT_NE(refused.err.find("weld_seam.xml:26:5: cannot convert to URScript: the KRL statement '$OUT[17]=TRUE' is not a motion"),
             std::string::npos)
       << refused.err;
+  EXPECT_NE(refused.err.find("(convert --drop-unconvertible leaves such statements out and lists them)"), std::string::npos) << refused.err;
   EXPECT_FALSE(std::filesystem::exists(dir + "/weld_seam.script"));
   // ... or, asked to, it keeps the motions and lists every pass-through statement it leaves out
   const std::string xml_text = test::readText(dir + "/weld_seam.xml");

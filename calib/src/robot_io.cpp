@@ -501,9 +501,14 @@ std::string resolveRobotPath(const std::string& name_or_path) {
   std::string list;
   for (const auto& n : bundledRobotNames()) list += (list.empty() ? "" : ", ") + n;
   // (a path mistyped, or a model not yet written: say that nothing is there)
-  const std::string what = fs::is_directory(name_or_path, ec) ? "a directory" : fs::exists(name_or_path, ec) ? "not a regular file" : "no such file";
-  throw InputError("expected a robot file or one of the bundled robots (" + list + "), found '" + name_or_path + "'" +
-                   (what.empty() ? std::string() : " (" + what + ")"));
+  // (a status that cannot be read, e.g. a directory on the way without search permission: its
+  // reason, not "no such file")
+  const fs::file_status st = fs::status(name_or_path, ec);
+  const std::string what = ec && ec != std::errc::no_such_file_or_directory ? ec.message()
+                           : fs::is_directory(st)                          ? "a directory"
+                           : fs::exists(st)                                ? "not a regular file"
+                                                                           : "no such file";
+  throw InputError("expected a robot file or one of the bundled robots (" + list + "), found '" + name_or_path + "' (" + what + ")");
 }
 
 }  // namespace accura::calib

@@ -255,17 +255,22 @@ BatchResult runBatch(const std::string& in_dir, const std::string& out_dir, cons
   if (fs::exists(out_dir, ec) && !fs::is_directory(out_dir, ec))
     throw calib::InputError(out_dir + ": expected an output directory (--out), found a file");
   // --out and its directories are created as the programs are written: an --out that cannot be
-  // created (under a file, in a directory that is not writable) would fail every program, one
-  // by one, after its work (exit 2). Refused before any work, as an --out that is a file is.
-  {
-    fs::path existing = fs::path(out_dir);
+  // created (under a file, in a directory that is not writable, a link to nowhere) would fail
+  // every program, one by one, after its work (exit 2). Refused before any work, as an --out
+  // that is a file is. An --out that exists is not judged as a whole: the programs go into its
+  // subdirectories, which may be writable where it is not (each failure is the file's own).
+  if (!fs::exists(out_dir, ec)) {
+    if (fs::is_symlink(fs::symlink_status(out_dir, ec)))
+      throw calib::InputError(out_dir + ": cannot create the output directory (--out): it is a symbolic link to " +
+                              fs::read_symlink(out_dir, ec).string() + ", which does not exist");
+    fs::path existing = fs::path(out_dir).parent_path();
     while (!existing.empty() && !fs::exists(existing, ec)) existing = existing.parent_path();
     const std::string dir = existing.empty() ? std::string(".") : existing.string();
     if (!fs::is_directory(dir, ec))
       throw calib::InputError(out_dir + ": cannot create the output directory (--out): " + dir + " is a file, not a directory");
     if (::access(dir.c_str(), W_OK | X_OK) != 0)
-      throw calib::InputError(out_dir + ": cannot " + (dir == fs::path(out_dir).string() ? "write into" : "create") +
-                              " the output directory (--out): " + dir + " is not writable (" + std::strerror(errno) + ")");
+      throw calib::InputError(out_dir + ": cannot create the output directory (--out): " + dir + " is not writable (" +
+                              std::strerror(errno) + ")");
   }
   const fs::path in_abs = fs::weakly_canonical(fs::absolute(in_dir), ec);
   if (ec) throw calib::InputError(in_dir + ": cannot resolve the input directory (--in): " + ec.message());

@@ -604,7 +604,7 @@ CheckReport checkProgramWith(const Program& program, const JobSettings& given, c
   // frames and models, as compensateProgram (placement.h); the cell's <robot> is the placement
   // unless --base gives it
   const JobSettings placed = placedInCell(job, cell);
-  ModelFactory models(placed, placeRobot(placed, "--base x,y,z,A,B,C or the cell's <robot>"));
+  ModelFactory models(placed, placeRobot(placed, "--base x,y,z,A,B,C or the cell file's <robot>"));
   const Eigen::Isometry3d T_world_kworld = models.placement().T_world_kworld;
   const calib::RobotModel controller = models.forTool(job.calibrated.nominal.T_flange_tcp).controller;
 

@@ -35,12 +35,13 @@ Placement placeRobot(const JobSettings& job, const std::string& placement_settin
     const calib::XyzAbc b = calib::toXyzAbc(p.T_world_robroot), c = calib::toXyzAbc(p.T_world_calbase);
     std::ostringstream m;
     m << "the calibrated base (" << poseText(c, ", ") << " mm, " << anglesText(c) << " deg) is " << formatMm(off_mm) << " mm and "
-      << formatDeg(off_deg) << " deg from the nominal base (" << poseText(b, ", ") << " mm, " << anglesText(b)
-      << " deg): expected at most " << job.max_base_offset_mm << " mm and " << job.max_base_offset_deg << " deg. ";
+      << formatDeg(off_deg) << " deg from " << (job.robroot_in_world ? "the placement given (" : "the nominal base (") << poseText(b, ", ")
+      << " mm, " << anglesText(b) << " deg): expected at most " << job.max_base_offset_mm << " mm and " << job.max_base_offset_deg
+      << " deg. ";
     // A placement that was given and still misses is most often in other units (metres, radians)
     // or in another frame: telling the user to give it would not say what is wrong with it.
     if (job.robroot_in_world)
-      m << "The placement given (" << placement_setting << ", or the cell file's <robot>) is not where the model's base was "
+      m << "The placement given (" << placement_setting << ") is not where the model's base was "
         << "measured: give it in the model's frame (the calibrated base above), x,y,z in mm and A,B,C in deg (not metres, not radians)";
     else
       m << "The model was measured in another frame (a tracker's): give " << placement_setting

@@ -408,7 +408,7 @@ void checkPassThrough(const Program& program, const std::string& language) {
     if (!language.empty() && s.language != language)
       throw calib::ArgumentError(s.where.str() + ": cannot convert the " + s.language + " statement '" + s.text + "' to " + language +
                           ": it is outside the motion model and only " + s.language +
-                          " can carry it (convert --drop-unconvertible leaves such statements out and lists them)");
+                          " can carry it (" + kDropStatementsHint + ")");
   }
 }
 

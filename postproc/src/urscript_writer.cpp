@@ -276,7 +276,8 @@ void refuseKrlLogic(const KrlSource& k) {
     if (!in_motion && !motionModelLine(u))
       throw calib::ArgumentError(k.src_path + ":" + std::to_string(line) + ": cannot convert to URScript: the KRL statement '" +
                           trimmedCode(k.src_text.substr(pos, nl - pos)) +
-                          "' is not a motion, frame or speed, and URScript output carries the motion model only");
+                          "' is not a motion, frame or speed, and URScript output carries the motion model only (" +
+                          kDropStatementsHint + ")");
     pos = nl + 1;
     ++line;
   }
@@ -294,7 +295,8 @@ void refuseLogicPassThrough(const Program& p) {
     const bool krl = s.refuse.empty() && s.language == "KRL";
     if (krl && (s.section == PassThrough::Section::kData || motionModelLine(upperTrim(s.text)))) continue;
     throw calib::ArgumentError(s.where.str() + ": cannot convert to URScript: the " + s.language + " statement '" +
-                               trimmedCode(s.text) + "' is not a motion, frame or speed, and URScript output carries the motion model only");
+                               trimmedCode(s.text) + "' is not a motion, frame or speed, and URScript output carries the motion model only (" +
+                               kDropStatementsHint + ")");
   }
 }
 
@@ -464,7 +466,7 @@ Program urScriptForConversion(const Program& program, const char* format_name) {
                         (program.urscript->others.size() > 1
                              ? " (" + std::to_string(program.urscript->others.size() - 1) + " more such statement(s))"
                              : std::string()) +
-                        "; convert --drop-unconvertible leaves such statements out and lists them");
+                        "; " + kDropStatementsHint);
   }
   for (Motion& m : out.motions) {
     if (!isIdentifier(m.target.name)) m.target.name.clear();

@@ -331,6 +331,10 @@ bool programChanged(const Program& program);
 /// `language` empty: a writer that carries every language (XML).
 void checkPassThrough(const Program& program, const std::string& language);
 
+/// How a refusal to convert a statement outside the motion model ends: the option that converts
+/// the program without such statements.
+inline constexpr const char* kDropStatementsHint = "convert --drop-unconvertible leaves such statements out and lists them";
+
 /// Carries the whole source `text` of a program read from `language` (RAPID, URScript) in
 /// Program::passthrough, so that the writer of that language gives it back byte for byte after
 /// a conversion (docs/program-formats.md, "Pass-through statements"): every line gets its
