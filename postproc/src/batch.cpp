@@ -259,7 +259,9 @@ BatchResult runBatch(const std::string& in_dir, const std::string& out_dir, cons
   // every program, one by one, after its work (exit 2). Refused before any work, as an --out
   // that is a file is. An --out that exists is not judged as a whole: the programs go into its
   // subdirectories, which may be writable where it is not (each failure is the file's own).
-  if (!fs::exists(out_dir, ec)) {
+  const fs::file_status out_status = fs::status(out_dir, ec);
+  // (a status that cannot be read, a loop of links: said by the resolution below)
+  if (!fs::exists(out_status) && (!ec || ec == std::errc::no_such_file_or_directory || ec == std::errc::not_a_directory)) {
     if (fs::is_symlink(fs::symlink_status(out_dir, ec)))
       throw calib::InputError(out_dir + ": cannot create the output directory (--out): it is a symbolic link to " +
                               fs::read_symlink(out_dir, ec).string() + ", which does not exist");
