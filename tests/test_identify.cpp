@@ -93,6 +93,36 @@ SimulateOptions kr16Campaign() {
 // parameter of the layout, the joint maps' coefficients through their unit columns, and a
 // second station's 6 parameters) against central differences of the row's pose, on a KR 16
 // with every effect, maps on j1..j3 and rows from both stations.
+// Stated stds far above what the residuals show (20 mm where 0.02 mm was meant) are said, with
+// the factor; the positions alone are fitted the same (a common scale of the weights cancels).
+TEST(Identify, StatedStdsFarAboveTheResidualsAreSaid) {
+  SimulateOptions o;
+  o.seed = 11;
+  o.noise_mm = 0.02;
+  const Campaign c = makeCampaign("kuka_kr16", o, 200, 20);
+  IdentifyOptions right, wrong;
+  right.position_std_mm = 0.02;
+  wrong.position_std_mm = 20;
+  IdentifySummary sr, sw;
+  const RobotModel mr = identify(c.nominal, c.fit, right, &sr), mw = identify(c.nominal, c.fit, wrong, &sw);
+  auto said = [](const IdentifySummary& s) {
+    for (const std::string& w : s.warnings)
+      if (w.rfind("the stated stds are about ", 0) == 0) return w;
+    return std::string();
+  };
+  EXPECT_EQ(said(sr), "") << sr.variance_factor;
+  const std::string w = said(sw);
+  // variance factor: the per-axis residual variance over (20 mm)^2, about 1e-6 (within the
+  // degrees of freedom the parameters take, 6%): the stds about 1000 times the residuals
+  const double per_axis = sw.fit.rms_mm * sw.fit.rms_mm / 3;
+  EXPECT_NEAR(sw.variance_factor, per_axis / 400, 0.1 * per_axis / 400);
+  char expected[64];
+  std::snprintf(expected, sizeof expected, "the stated stds are about %.0f times", 1.0 / std::sqrt(sw.variance_factor));
+  EXPECT_EQ(w.rfind(expected, 0), 0u) << w;
+  EXPECT_NE(w.find("check their unit"), std::string::npos) << w;
+  EXPECT_NEAR(evaluate(mw, c.validation).rms_mm, evaluate(mr, c.validation).rms_mm, 1e-9);
+}
+
 TEST(Identify, StackedRowJacobianMatchesCentralDifferences) {
   using namespace identify_detail;
   std::mt19937_64 rng(41);

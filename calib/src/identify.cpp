@@ -22,6 +22,10 @@
 
 namespace accura::calib {
 
+// Variance factor below which the stated stds are said to be too large: stds more than 10 times
+// the residuals' scale (a factor 100 in variance).
+constexpr double kStatedStdTooLargeVarianceFactor = 0.01;
+
 using namespace identify_detail;
 
 namespace identify_detail {
@@ -699,6 +703,18 @@ RobotModel identify(const RobotModel& start, const std::vector<MeasurementSet>& 
                   "was written in (a mapping's 'orientation' and 'orientation_unit'), or is another frame's. Check it, or fit "
                   "the positions only",
                   summary.fit.rot_rms_deg, summary.fit.rot_max_deg, summary.fit.rms_mm);
+    summary.warnings.push_back(buf);
+  }
+  // stated stds far above what the residuals show: most often given in another unit (a std of
+  // 20 mm where 0.02 mm, or micrometres, were meant). They weigh positions against orientations
+  // and scale nothing else: the sigmas follow the residuals (the variance factor).
+  if (summary.variance_factor > 0 && summary.variance_factor < kStatedStdTooLargeVarianceFactor && summary.fit.rms_mm > 0) {
+    char buf[400];
+    std::snprintf(buf, sizeof buf,
+                  "the stated stds are about %.0f times what the residuals show (variance factor %.2g; position RMS %.4g mm after "
+                  "the fit): check their unit (mm for positions, deg for angles: --std-mm, --std-deg or the std columns); they "
+                  "weigh positions against orientations, the parameters' sigmas follow the residuals",
+                  1.0 / std::sqrt(summary.variance_factor), summary.variance_factor, summary.fit.rms_mm);
     summary.warnings.push_back(buf);
   }
   // a periodic term fitted on less than half a turn is an extrapolation over the rest of the
