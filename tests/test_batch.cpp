@@ -506,7 +506,7 @@ TEST(Batch, AnOutputDirectoryThatCannotBeCreatedIsRefusedBeforeAnyWork) {
   } catch (const calib::InputError& e) {
     message = e.what();
   }
-  EXPECT_EQ(message, root + "/afile/out: cannot create the output directory (--out): " + root + "/afile is a file, not a directory");
+  EXPECT_EQ(message, root + "/afile/out: cannot create the output directory (--out): " + root + "/afile is not a directory");
   EXPECT_EQ(calls, 0);  // no program was read
   EXPECT_EQ(test::readText(root + "/afile"), "x");
   // an --out that is a symbolic link to nothing: its directories cannot be created (before: the

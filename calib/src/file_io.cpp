@@ -117,13 +117,11 @@ void writeAll(int fd, const std::string& text, const std::string& path) {
 // synced to the disk first when `sync`, then closed; every failure an InputError naming f.
 void writeOpened(int fd, const OutputFile& f, bool sync) {
   if (fd < 0) {
-    // ENOENT of an open with O_CREAT: the directory is missing ("No such file or directory"
-    // would read as the output file's own absence); named as refuseUnwritableOutputs names it
+    // a missing or unwritable directory ("No such file or directory" would read as the output
+    // file's own absence): named as refuseUnwritableOutputs names it; else the open's reason
     const int err = errno;
-    const std::string dir = fs::path(f.path).parent_path().empty() ? std::string(".") : fs::path(f.path).parent_path().string();
-    std::error_code ec;
-    if (err == ENOENT && !fs::exists(dir, ec)) throw InputError(f.path, 0, 0, "cannot write file: the directory " + dir + " does not exist");
-    throw InputError(f.path, 0, 0, std::string("cannot write file: ") + std::strerror(err));
+    const std::string problem = directoryWriteProblem(fs::path(f.path).parent_path().string());
+    throw InputError(f.path, 0, 0, "cannot write file: " + (problem.empty() ? std::string(std::strerror(err)) : problem));
   }
   try {
     writeAll(fd, f.text, f.path);
@@ -271,6 +269,15 @@ void refuseToOverwrite(const std::vector<OutputFile>& outputs, const std::vector
         throw InputError(f.path + ": the output would overwrite the input " + in + ": choose another " + out_name);
 }
 
+std::string directoryWriteProblem(const std::string& dir_or_empty) {
+  const std::string dir = dir_or_empty.empty() ? std::string(".") : dir_or_empty;
+  std::error_code ec;
+  if (!fs::exists(dir, ec)) return "the directory " + dir + " does not exist";
+  if (!fs::is_directory(dir, ec)) return dir + " is not a directory";
+  if (::access(dir.c_str(), W_OK | X_OK) != 0) return "the directory " + dir + " is not writable (" + std::strerror(errno) + ")";
+  return "";
+}
+
 void refuseUnwritableOutputs(const std::vector<std::string>& outputs, const std::vector<std::string>& inputs,
                              const std::string& out_name) {
   std::vector<OutputFile> named;
@@ -280,12 +287,8 @@ void refuseUnwritableOutputs(const std::vector<std::string>& outputs, const std:
     if (streamTarget(path) != -1) continue;  // (a stream is written into, not replaced: no directory of its own)
     std::error_code ec;
     if (fs::is_directory(path, ec)) throw InputError(path, 0, 0, "cannot write file: it is a directory");
-    const fs::path parent = fs::path(path).parent_path();
-    const std::string dir = parent.empty() ? std::string(".") : parent.string();
-    if (!fs::exists(dir, ec)) throw InputError(path, 0, 0, "cannot write file: the directory " + dir + " does not exist");
-    if (!fs::is_directory(dir, ec)) throw InputError(path, 0, 0, "cannot write file: " + dir + " is not a directory");
-    if (::access(dir.c_str(), W_OK | X_OK) != 0)
-      throw InputError(path, 0, 0, "cannot write file: the directory " + dir + " is not writable (" + std::strerror(errno) + ")");
+    const std::string problem = directoryWriteProblem(fs::path(path).parent_path().string());
+    if (!problem.empty()) throw InputError(path, 0, 0, "cannot write file: " + problem);
   }
   refuseToOverwrite(named, inputs, out_name);
 }

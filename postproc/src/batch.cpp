@@ -4,12 +4,8 @@
 
 #include <tinyxml2.h>
 
-#include <unistd.h>
-
 #include <algorithm>
 #include <atomic>
-#include <cerrno>
-#include <cstring>
 #include <filesystem>
 #include <map>
 #include <mutex>
@@ -267,12 +263,8 @@ BatchResult runBatch(const std::string& in_dir, const std::string& out_dir, cons
                               fs::read_symlink(out_dir, ec).string() + ", which does not exist");
     fs::path existing = fs::path(out_dir).parent_path();
     while (!existing.empty() && !fs::exists(existing, ec)) existing = existing.parent_path();
-    const std::string dir = existing.empty() ? std::string(".") : existing.string();
-    if (!fs::is_directory(dir, ec))
-      throw calib::InputError(out_dir + ": cannot create the output directory (--out): " + dir + " is a file, not a directory");
-    if (::access(dir.c_str(), W_OK | X_OK) != 0)
-      throw calib::InputError(out_dir + ": cannot create the output directory (--out): " + dir + " is not writable (" +
-                              std::strerror(errno) + ")");
+    const std::string problem = calib::directoryWriteProblem(existing.string());
+    if (!problem.empty()) throw calib::InputError(out_dir + ": cannot create the output directory (--out): " + problem);
   }
   const fs::path in_abs = fs::weakly_canonical(fs::absolute(in_dir), ec);
   if (ec) throw calib::InputError(in_dir + ": cannot resolve the input directory (--in): " + ec.message());

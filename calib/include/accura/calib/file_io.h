@@ -46,6 +46,11 @@ bool interruptRequested();
 /// normalised absolute path (a file about to be written onto an input). Never throws.
 bool sameFile(const std::string& a, const std::string& b);
 
+/// Why files cannot be created in the directory `dir` ("" empty: the current directory), in words
+/// for a message: "the directory D does not exist", "D is not a directory", "the directory D is
+/// not writable (reason)"; "" when they can. Never throws.
+std::string directoryWriteProblem(const std::string& dir);
+
 /// The checks a command that works long before it writes makes first (identify, diagnose): every
 /// non-empty path in `outputs` must lie in an existing, writable directory and must not be a
 /// directory itself, and none may be one of `inputs` (refuseToOverwrite). Throws InputError
