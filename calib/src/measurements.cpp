@@ -446,11 +446,12 @@ Measurement Reader::parseRow(std::string_view text, int line) const {
   const Layout& L = layout_;
   const std::vector<std::string_view> fields = splitFields(text);
   if (fields.size() != L.columns.size()) {
-    // at the first field beyond the header's, or where the first missing one would start
+    // at the first field beyond the header's, or where the first missing one would start; the
+    // likely cause: a trailing delimiter, else a decimal comma
+    const std::string trailing = trailingDelimiterNote(header_text_, text);
     fail(line, static_cast<int>(std::min(fields.size(), L.columns.size())) + 1,
-         "expected " + std::to_string(L.columns.size()) + " fields as in the header, found " +
-             std::to_string(fields.size()) + trailingDelimiterNote(header_text_, text) +
-             (trailingDelimiterNote(header_text_, text).empty() ? decimalCommaNote(text, fields.size(), L.columns.size()) : ""));
+         "expected " + std::to_string(L.columns.size()) + " fields as in the header, found " + std::to_string(fields.size()) +
+             (trailing.empty() ? decimalCommaNote(text, fields.size(), L.columns.size()) : trailing));
   }
 
   Measurement m;

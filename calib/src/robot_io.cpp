@@ -500,9 +500,9 @@ std::string resolveRobotPath(const std::string& name_or_path) {
   }
   std::string list;
   for (const auto& n : bundledRobotNames()) list += (list.empty() ? "" : ", ") + n;
-  // (a path mistyped, or a model not yet written: say that nothing is there)
-  // (a status that cannot be read, e.g. a directory on the way without search permission: its
-  // reason, not "no such file")
+  // what is at the path: nothing (a path mistyped, a model not yet written), a directory, another
+  // kind of file, or a status that cannot be read (a directory on the way without search
+  // permission: its reason, not "no such file")
   const fs::file_status st = fs::status(name_or_path, ec);
   const std::string what = ec && ec != std::errc::no_such_file_or_directory ? ec.message()
                            : fs::is_directory(st)                          ? "a directory"

@@ -7,6 +7,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <iomanip>
+#include <limits>
 #include <map>
 #include <memory>
 #include <set>
@@ -791,7 +792,7 @@ class Job {
     }
     // a value the reader could not follow ("?why": set in a branch, by the caller, by a call)
     for (const auto& [v, applies] : {std::make_pair(&m.ori_type, m.type != MotionType::kPtp), std::make_pair(&m.circ_type, m.type == MotionType::kCirc)})
-      if (applies && !v->empty() && (*v)[0] == '?') {
+      if (applies && orientationControlNotKnown(*v)) {
         leftUnchanged(m, "its orientation control is not known here: " + v->substr(1));
         return keep(out, m);
       }
@@ -1253,55 +1254,67 @@ namespace {
 void warnInlineFormsOfNewPoints(const Program& p, JobReport* r) {
   if (!p.krl) return;
   const KrlSource& s = *p.krl;
-  std::set<size_t> warned;  // fold headers (their first byte)
+  const auto redirected = [](const Target* t) { return t && t->new_declaration && !t->replaces.empty() && !t->name.empty(); };
+  const auto inSrc = [&](const Motion& m) {
+    return !m.inserted && m.statement_id >= 0 && m.statement_id < static_cast<int>(s.statements.size()) &&
+           s.statements[static_cast<size_t>(m.statement_id)].file == 0;
+  };
+  bool any = false;
+  for (const Motion& m : p.motions) any = any || (inSrc(m) && (redirected(&m.target) || redirected(m.aux ? &*m.aux : nullptr)));
+  if (!any) return;
+  // the fold each line of the .src is in (the innermost open one; closed folds skipped): one pass
+  // over the file with a stack of the open folds' headers (upper case, from the ';')
+  struct Fold {
+    size_t line_begin;
+    int line;
+    std::string header;
+  };
+  const std::string& text = s.src_text;
+  std::vector<Fold> folds;
+  std::vector<size_t> open;
+  std::vector<std::pair<size_t, size_t>> fold_of_line;  // (the line's first byte, its fold's index + 1; 0: none)
+  int line_no = 1;
+  for (size_t b = 0; b < text.size(); ++line_no) {
+    const size_t nl = std::min(text.find('\n', b), text.size());
+    fold_of_line.emplace_back(b, open.empty() ? 0 : open.back() + 1);
+    const std::string line = calib::upperAscii(text.substr(b, nl - b));
+    const size_t first = line.find_first_not_of(" \t");
+    if (first != std::string::npos && line.compare(first, 8, ";ENDFOLD") == 0) {
+      if (!open.empty()) open.pop_back();
+    } else if (first != std::string::npos && line.compare(first, 5, ";FOLD") == 0) {
+      open.push_back(folds.size());
+      folds.push_back({b, line_no, line.substr(first)});
+    }
+    b = nl + 1;
+  }
+  std::set<size_t> warned;  // folds warned about
   for (const Motion& m : p.motions) {
-    if (m.inserted || m.statement_id < 0 || m.statement_id >= static_cast<int>(s.statements.size())) continue;
+    if (!inSrc(m)) continue;
     const KrlSource::Statement& st = s.statements[static_cast<size_t>(m.statement_id)];
-    if (st.file != 0) continue;
+    auto at = std::upper_bound(fold_of_line.begin(), fold_of_line.end(), std::make_pair(st.line_begin, std::numeric_limits<size_t>::max()));
+    if (at == fold_of_line.begin() || (at - 1)->second == 0) continue;
+    const size_t fold = (at - 1)->second - 1;
+    const std::string& header = folds[fold].header;
     for (const Target* t : {m.aux ? &*m.aux : nullptr, &m.target}) {
-      if (!t || !t->new_declaration || t->replaces.empty() || t->name.empty()) continue;
-      // the fold the statement is in: back over the lines before it, skipping closed folds
-      const std::string& text = s.src_text;
-      int depth = 0;
-      size_t end = st.line_begin;  // the line before ends with the '\n' at end - 1
-      while (end > 0) {
-        const size_t nl = end - 1;
-        const size_t prev = nl == 0 ? std::string::npos : text.rfind('\n', nl - 1);
-        const size_t line_begin = prev == std::string::npos ? 0 : prev + 1;
-        const std::string line = calib::upperAscii(text.substr(line_begin, nl - line_begin));
-        end = line_begin;
-        const size_t b = line.find_first_not_of(" \t");
-        if (b == std::string::npos) continue;
-        if (line.compare(b, 8, ";ENDFOLD") == 0) {
-          ++depth;
-        } else if (line.compare(b, 5, ";FOLD") == 0) {
-          if (depth > 0) {
-            --depth;
-            continue;
-          }
-          const std::string old = calib::upperAscii(t->replaces);
-          const std::string form_name = old.size() > 1 && old[0] == 'X' ? old.substr(1) : old;
-          const std::string header = line.substr(b);
-          const auto names = [&](const std::string& name) {
-            for (size_t at = header.find(name); at != std::string::npos; at = header.find(name, at + 1)) {
-              const auto word = [](char c) { return std::isalnum(static_cast<unsigned char>(c)) || c == '_'; };
-              if ((at == 0 || !word(header[at - 1])) && (at + name.size() >= header.size() || !word(header[at + name.size()]))) return true;
-            }
-            return false;
-          };
-          if (header.find("%{PE}") != std::string::npos && names(form_name) && warned.insert(line_begin).second) {
-            SourceLocation w;
-            w.file = s.src_path;
-            w.line = 1 + static_cast<int>(std::count(text.begin(), text.begin() + static_cast<std::ptrdiff_t>(line_begin), '\n'));
-            w.column = 1;
-            r->warnings.push_back({w, "the inline form's fold names " + form_name + ", but its motion (" + m.where.str() + ") now goes to the new point " +
-                                          t->name + " (declared after " + t->replaces + "): re-opened on the pendant the form shows " + form_name +
-                                          ", Touch Up teaches " + t->replaces + " and OK writes the motion to " + t->replaces +
-                                          " back; the fold's header is kept (edit the motion as text, or compensate again after editing)"});
-          }
-          end = 0;
+      if (!redirected(t)) continue;
+      const std::string old = calib::upperAscii(t->replaces);
+      const std::string form_name = old.size() > 1 && old[0] == 'X' ? old.substr(1) : old;
+      const auto names = [&](const std::string& name) {
+        for (size_t n = header.find(name); n != std::string::npos; n = header.find(name, n + 1)) {
+          const auto word = [](char c) { return std::isalnum(static_cast<unsigned char>(c)) || c == '_'; };
+          if ((n == 0 || !word(header[n - 1])) && (n + name.size() >= header.size() || !word(header[n + name.size()]))) return true;
         }
-        if (end == 0) break;
+        return false;
+      };
+      if (header.find("%{PE}") != std::string::npos && names(form_name) && warned.insert(fold).second) {
+        SourceLocation w;
+        w.file = s.src_path;
+        w.line = folds[fold].line;
+        w.column = 1;
+        r->warnings.push_back({w, "the inline form's fold names " + form_name + ", but its motion (" + m.where.str() + ") now goes to the new point " +
+                                      t->name + " (declared after " + t->replaces + "): re-opened on the pendant the form shows " + form_name +
+                                      ", Touch Up teaches " + t->replaces + " and OK writes the motion to " + t->replaces +
+                                      " back; the fold's header is kept (edit the motion as text, or compensate again after editing)"});
       }
     }
   }

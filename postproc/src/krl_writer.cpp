@@ -286,8 +286,8 @@ KrlText generateKrl(const Program& p) {
   auto noteCarried = [&](const std::string& text) {
     std::string compact;
     for (char c : text)
-      if (c != ' ' && c != '\t') compact += static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
-    if (compact.rfind("BAS(#INITMOV", 0) == 0) {
+      if (c != ' ' && c != '\t') compact += c;
+    if (upper(compact).rfind("BAS(#INITMOV", 0) == 0) {
       ori_type.clear();
       circ_type.clear();
       return;

@@ -64,10 +64,10 @@ Program orientationControlWritten(const Program& program, ProgramFormat format, 
     const std::string o = m.type != MotionType::kPtp ? m.ori_type : "";
     const std::string c = m.type == MotionType::kCirc ? m.circ_type : "";
     std::string setting, why;
-    if (!o.empty() && o[0] == '?') {
+    if (orientationControlNotKnown(o)) {
       setting = "$ORI_TYPE";
       why = "it is not known here: " + o.substr(1);
-    } else if (!c.empty() && c[0] == '?') {
+    } else if (orientationControlNotKnown(c)) {
       setting = "$CIRC_TYPE";
       why = "it is not known here: " + c.substr(1);
     } else if (!c.empty()) {
@@ -94,7 +94,7 @@ Program orientationControlWritten(const Program& program, ProgramFormat format, 
       if (!dropped)
         throw calib::ArgumentError(m.where.str() + ": cannot convert '" + detail::excerpt(m.statement) + "' to " + language + ": its orientation control " +
                                    setting + " cannot be carried (" + why + "; " + language +
-                                   " turns the orientation from the start's to the target's) (convert --drop-unconvertible converts the motion without it and lists it)");
+                                   " turns the orientation from the start's to the target's) (" + kDropSettingHint + ")");
       PassThrough s;
       s.language = "orientation";
       s.where = m.where;
@@ -301,7 +301,7 @@ std::vector<calib::OutputFile> renderProgram(const Program& program, ProgramForm
     for (const Motion& m : program.motions)
       if (const std::string why = timeNotCarried(m, ProgramFormat::kKrl); !why.empty())
         throw calib::ArgumentError(m.where.str() + ": cannot convert '" + detail::excerpt(m.statement) + "' to KRL: its time " + timeText(m) +
-                                   " cannot be carried, " + why + " (convert --drop-unconvertible converts the motion without it and lists it)");
+                                   " cannot be carried, " + why + " (" + kDropSettingHint + ")");
   const KrlText t = writeWithoutCarriedLines(program, "KRL", writeKrl);
   std::vector<calib::OutputFile> out = {{path, t.src}};
   const bool has_dat = program.krl ? !program.krl->dat_path.empty() : true;

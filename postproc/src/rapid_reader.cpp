@@ -91,31 +91,31 @@ const std::set<std::string> kOtherMoves = {
 struct MoveLayout {
   MotionType type;
   size_t count, speed, zone, tool;
-  const char* names;  ///< comma-separated, `count` of them
+  std::vector<std::string> names;  ///< `count` of them
 };
 const std::map<std::string, MoveLayout> kLayouts = {
-    {"MOVEL", {MotionType::kLin, 4, 1, 2, 3, "ToPoint,Speed,Zone,Tool"}},
-    {"MOVEJ", {MotionType::kPtp, 4, 1, 2, 3, "ToPoint,Speed,Zone,Tool"}},
-    {"MOVEC", {MotionType::kCirc, 5, 2, 3, 4, "CirPoint,ToPoint,Speed,Zone,Tool"}},
-    {"MOVEABSJ", {MotionType::kPtp, 4, 1, 2, 3, "ToJointPos,Speed,Zone,Tool"}},
-    {"MOVELDO", {MotionType::kLin, 6, 1, 2, 3, "ToPoint,Speed,Zone,Tool,Signal,Value"}},
-    {"MOVEJDO", {MotionType::kPtp, 6, 1, 2, 3, "ToPoint,Speed,Zone,Tool,Signal,Value"}},
-    {"MOVECDO", {MotionType::kCirc, 7, 2, 3, 4, "CirPoint,ToPoint,Speed,Zone,Tool,Signal,Value"}},
-    {"MOVELAO", {MotionType::kLin, 6, 1, 2, 3, "ToPoint,Speed,Zone,Tool,Signal,Value"}},
-    {"MOVEJAO", {MotionType::kPtp, 6, 1, 2, 3, "ToPoint,Speed,Zone,Tool,Signal,Value"}},
-    {"MOVECAO", {MotionType::kCirc, 7, 2, 3, 4, "CirPoint,ToPoint,Speed,Zone,Tool,Signal,Value"}},
-    {"MOVELSYNC", {MotionType::kLin, 5, 1, 2, 3, "ToPoint,Speed,Zone,Tool,ProcName"}},
-    {"MOVEJSYNC", {MotionType::kPtp, 5, 1, 2, 3, "ToPoint,Speed,Zone,Tool,ProcName"}},
-    {"MOVECSYNC", {MotionType::kCirc, 6, 2, 3, 4, "CirPoint,ToPoint,Speed,Zone,Tool,ProcName"}},
-    {"TRIGGL", {MotionType::kLin, 5, 1, 3, 4, "ToPoint,Speed,Trigg_1,Zone,Tool"}},
-    {"TRIGGJ", {MotionType::kPtp, 5, 1, 3, 4, "ToPoint,Speed,Trigg_1,Zone,Tool"}},
-    {"TRIGGC", {MotionType::kCirc, 6, 2, 4, 5, "CirPoint,ToPoint,Speed,Trigg_1,Zone,Tool"}},
-    {"ARCL", {MotionType::kLin, 6, 1, 4, 5, "ToPoint,Speed,Seam,Weld,Zone,Tool"}},
-    {"ARCLSTART", {MotionType::kLin, 6, 1, 4, 5, "ToPoint,Speed,Seam,Weld,Zone,Tool"}},
-    {"ARCLEND", {MotionType::kLin, 6, 1, 4, 5, "ToPoint,Speed,Seam,Weld,Zone,Tool"}},
-    {"ARCC", {MotionType::kCirc, 7, 2, 5, 6, "CirPoint,ToPoint,Speed,Seam,Weld,Zone,Tool"}},
-    {"ARCCSTART", {MotionType::kCirc, 7, 2, 5, 6, "CirPoint,ToPoint,Speed,Seam,Weld,Zone,Tool"}},
-    {"ARCCEND", {MotionType::kCirc, 7, 2, 5, 6, "CirPoint,ToPoint,Speed,Seam,Weld,Zone,Tool"}}};
+    {"MOVEL", {MotionType::kLin, 4, 1, 2, 3, {"ToPoint", "Speed", "Zone", "Tool"}}},
+    {"MOVEJ", {MotionType::kPtp, 4, 1, 2, 3, {"ToPoint", "Speed", "Zone", "Tool"}}},
+    {"MOVEC", {MotionType::kCirc, 5, 2, 3, 4, {"CirPoint", "ToPoint", "Speed", "Zone", "Tool"}}},
+    {"MOVEABSJ", {MotionType::kPtp, 4, 1, 2, 3, {"ToJointPos", "Speed", "Zone", "Tool"}}},
+    {"MOVELDO", {MotionType::kLin, 6, 1, 2, 3, {"ToPoint", "Speed", "Zone", "Tool", "Signal", "Value"}}},
+    {"MOVEJDO", {MotionType::kPtp, 6, 1, 2, 3, {"ToPoint", "Speed", "Zone", "Tool", "Signal", "Value"}}},
+    {"MOVECDO", {MotionType::kCirc, 7, 2, 3, 4, {"CirPoint", "ToPoint", "Speed", "Zone", "Tool", "Signal", "Value"}}},
+    {"MOVELAO", {MotionType::kLin, 6, 1, 2, 3, {"ToPoint", "Speed", "Zone", "Tool", "Signal", "Value"}}},
+    {"MOVEJAO", {MotionType::kPtp, 6, 1, 2, 3, {"ToPoint", "Speed", "Zone", "Tool", "Signal", "Value"}}},
+    {"MOVECAO", {MotionType::kCirc, 7, 2, 3, 4, {"CirPoint", "ToPoint", "Speed", "Zone", "Tool", "Signal", "Value"}}},
+    {"MOVELSYNC", {MotionType::kLin, 5, 1, 2, 3, {"ToPoint", "Speed", "Zone", "Tool", "ProcName"}}},
+    {"MOVEJSYNC", {MotionType::kPtp, 5, 1, 2, 3, {"ToPoint", "Speed", "Zone", "Tool", "ProcName"}}},
+    {"MOVECSYNC", {MotionType::kCirc, 6, 2, 3, 4, {"CirPoint", "ToPoint", "Speed", "Zone", "Tool", "ProcName"}}},
+    {"TRIGGL", {MotionType::kLin, 5, 1, 3, 4, {"ToPoint", "Speed", "Trigg_1", "Zone", "Tool"}}},
+    {"TRIGGJ", {MotionType::kPtp, 5, 1, 3, 4, {"ToPoint", "Speed", "Trigg_1", "Zone", "Tool"}}},
+    {"TRIGGC", {MotionType::kCirc, 6, 2, 4, 5, {"CirPoint", "ToPoint", "Speed", "Trigg_1", "Zone", "Tool"}}},
+    {"ARCL", {MotionType::kLin, 6, 1, 4, 5, {"ToPoint", "Speed", "Seam", "Weld", "Zone", "Tool"}}},
+    {"ARCLSTART", {MotionType::kLin, 6, 1, 4, 5, {"ToPoint", "Speed", "Seam", "Weld", "Zone", "Tool"}}},
+    {"ARCLEND", {MotionType::kLin, 6, 1, 4, 5, {"ToPoint", "Speed", "Seam", "Weld", "Zone", "Tool"}}},
+    {"ARCC", {MotionType::kCirc, 7, 2, 5, 6, {"CirPoint", "ToPoint", "Speed", "Seam", "Weld", "Zone", "Tool"}}},
+    {"ARCCSTART", {MotionType::kCirc, 7, 2, 5, 6, {"CirPoint", "ToPoint", "Speed", "Seam", "Weld", "Zone", "Tool"}}},
+    {"ARCCEND", {MotionType::kCirc, 7, 2, 5, 6, {"CirPoint", "ToPoint", "Speed", "Seam", "Weld", "Zone", "Tool"}}}};
 
 /// A motion instruction (upper case): MoveL, MoveJ, MoveC, MoveAbsJ or one of kOtherMoves.
 bool isMove(const std::string& u) { return isPlainMove(u) || kOtherMoves.count(u) > 0; }
@@ -1228,21 +1228,12 @@ class Reader {
     }
     // a required argument written with its name is the positional one when the name is that
     // argument's; another name (arguments in another order, a misspelt name) is kept as written
-    {
-      std::vector<std::string> names;
-      std::string all_names = lay.names;
-      for (size_t b = 0, e; b <= all_names.size(); b = e + 1) {
-        e = all_names.find(',', b);
-        if (e == std::string::npos) e = all_names.size();
-        names.push_back(all_names.substr(b, e - b));
+    for (size_t i = 0; i < pos.size() && i < lay.names.size(); ++i)
+      if (!pos[i].name.empty() && pos[i].name != calib::upperAscii(lay.names[i])) {
+        noteReads(r);
+        return otherMove(r, p, "its argument " + std::to_string(i + 1) + " is named " + t_[pos[i].main.first - 2].s + ", where " + f +
+                                   "'s argument " + std::to_string(i + 1) + " is " + lay.names[i] + ": accura reads a named argument in its place only");
       }
-      for (size_t i = 0; i < pos.size() && i < names.size(); ++i)
-        if (!pos[i].name.empty() && pos[i].name != calib::upperAscii(names[i])) {
-          noteReads(r);
-          return otherMove(r, p, "its argument " + std::to_string(i + 1) + " is named " + t_[pos[i].main.first - 2].s + ", where " + f +
-                                     "'s argument " + std::to_string(i + 1) + " is " + names[i] + ": accura reads a named argument in its place only");
-        }
-    }
     Motion m;
     m.where = loc(t_[r.first].b);
     m.statement = text(r);

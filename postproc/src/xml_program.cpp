@@ -695,7 +695,7 @@ std::string writeXmlProgram(const Program& p) {
     if (m.source_line > 0 && !m.inserted) out << " source_line=\"" << m.source_line << "\"";
     if (m.start_unknown && !m.inserted) out << " start_unknown=\"true\"";
     for (const std::string* v : {&m.ori_type, &m.circ_type})
-      if (!v->empty() && (*v)[0] == '?')  // (the KRL reader could not follow it: krl_reader.cpp)
+      if (orientationControlNotKnown(*v))  // (the KRL reader could not follow it: krl_reader.cpp)
         throw calib::ArgumentError(m.where.str() + ": cannot write '" + detail::excerpt(m.statement) +
                                    "' as an XML motion: its orientation control is not known here (" + v->substr(1) +
                                    "), and the XML program states each motion's");

@@ -134,6 +134,10 @@ bool sameFrame(const FrameSetting& a, const FrameSetting& b);
 /// rule of the KRL reader, the KRL writer (a carried statement) and the XML reader.
 std::string orientationControlValue(const std::string& value, bool circ);
 
+/// Whether a Motion::ori_type / circ_type value is one the KRL reader could not follow ("?why":
+/// set in a branch, by the caller, by a call); its reason is the text after the '?'.
+inline bool orientationControlNotKnown(const std::string& value) { return !value.empty() && value[0] == '?'; }
+
 /// A name every controller language can declare (a point's, a program's): a letter, '_' or '$',
 /// then letters, digits, '_' or '$'; at most 64 characters. Anything else copied into a program
 /// as text could change it (a newline in a name starts a statement of its own).
@@ -334,6 +338,8 @@ void checkPassThrough(const Program& program, const std::string& language);
 /// How a refusal to convert a statement outside the motion model ends: the option that converts
 /// the program without such statements.
 inline constexpr const char* kDropStatementsHint = "convert --drop-unconvertible leaves such statements out and lists them";
+/// The same for a setting of a motion another language cannot hold.
+inline constexpr const char* kDropSettingHint = "convert --drop-unconvertible converts the motion without it and lists it";
 
 /// Carries the whole source `text` of a program read from `language` (RAPID, URScript) in
 /// Program::passthrough, so that the writer of that language gives it back byte for byte after
