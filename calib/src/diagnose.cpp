@@ -225,8 +225,8 @@ Diagnosis Diagnoser::run() {
                 "at the baseline, shrink table and verdict on exact non-linear refits; noise floor: z-test of the "
                 "held-out squared errors against noise plus parameter variance, p < %.3g; confounding: an effect "
                 "whose significant gain on the baseline drops below half once another is in the model; structure "
-                "scan: the residual regressed on each variable times the joint Jacobian and a translation, %d-fold "
-                "cross-validated",
+                "scan: the residual regressed on each variable times the joint Jacobian and a translation, made "
+                "orthogonal to the geometric parameters' columns (added-variable), %d-fold cross-validated",
                 out_.validation_method.c_str(), o_.alpha, 100 * o_.min_gain, o_.floor_alpha, folds_);
   out_.tests = tests;
   for (const auto& kv : effect_note_)

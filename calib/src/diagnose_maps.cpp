@@ -66,12 +66,10 @@ std::vector<std::vector<Correlation>> Diagnoser::scan(const std::vector<const st
       c[i] = std::cos(v);
     }
     if (!varies(q)) continue;
-    Variable var{"q" + std::to_string(j + 1), {centred(q)}, q};
-    if (revolute) {
-      var.f.push_back(s);
-      var.f.push_back(c);
-    }
-    vars.push_back(var);
+    // linear in q (a coupling, a scale) and periodic in q apart: each regression keeps few
+    // columns, and so the power to see a small dependence in a few hundred poses
+    vars.push_back({"q" + std::to_string(j + 1), {centred(q)}, q});
+    if (revolute) vars.push_back({"q" + std::to_string(j + 1) + "_periodic", {s, c}, q});
   }
   for (int j = 0; j < n; ++j) {
     Eigen::VectorXd t(N);
@@ -121,6 +119,28 @@ std::vector<std::vector<Correlation>> Diagnoser::scan(const std::vector<const st
     }
   }
   std::vector<std::vector<Correlation>> out(static_cast<size_t>(K));
+  // Added-variable regressors (Frisch-Waugh): the geometric model took from the residual all it
+  // could, so what a variable predicts beyond geometry is the part of its regressors outside
+  // the geometric parameters' span at these poses. Unprojected, an effect that geometry absorbs
+  // in part (a linear coupling of two joints: q_i times joint j's Jacobian column) leaves a
+  // residual that its own regressors cannot reproduce, and the scan finds no structure in it.
+  // Q: an orthonormal basis of the geometric columns (unit-weight rows, as the residuals).
+  Eigen::MatrixXd Q;
+  {
+    const Eigen::MatrixXd& Jgeo = has_val_ ? JV_ : JF_;
+    if (Jgeo.rows() != 3 * static_cast<Eigen::Index>(N))
+      throw ArgumentError("diagnose scan: expected " + std::to_string(3 * N) + " Jacobian rows, got " + std::to_string(Jgeo.rows()));
+    if (!G_.empty()) {
+      Eigen::MatrixXd G = Jgeo(Eigen::all, G_);
+      for (Eigen::Index c = 0; c < G.cols(); ++c) {
+        const double norm = G.col(c).norm();
+        if (norm > 0) G.col(c) /= norm;
+      }
+      Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(G);
+      qr.setThreshold(1e-10);  // relative to the largest pivot of unit-norm columns
+      Q = qr.householderQ() * Eigen::MatrixXd::Identity(G.rows(), qr.rank());
+    }
+  }
   // the regressors of each variable, in one buffer for all (no large allocation per variable)
   size_t most_f = 0;
   for (const Variable& var : vars) most_f = std::max(most_f, var.f.size());
@@ -137,6 +157,18 @@ std::vector<std::vector<Correlation>> Diagnoser::scan(const std::vector<const st
       }
     }
     Eigen::VectorXd sc = X.colwise().norm();
+    if (Q.cols() > 0) {
+      X -= Q * (Q.transpose() * X);
+      // a column geometry takes whole (to rounding) carries nothing beyond it
+      for (Eigen::Index c = 0; c < p; ++c) {
+        const double before = sc[c];
+        sc[c] = X.col(c).norm();
+        if (!(sc[c] > 1e-8 * before)) {
+          X.col(c).setZero();
+          sc[c] = 0;
+        }
+      }
+    }
     for (Eigen::Index c = 0; c < p; ++c) sc[c] = sc[c] > 1e-12 ? sc[c] : 1.0;
     X = X * sc.cwiseInverse().asDiagonal();
     const Eigen::MatrixXd XtX = detail::gram(X);
