@@ -127,9 +127,12 @@ void readData(const IdentifyArgs& a, IdentifyRun& r) {
   calib::refuseSharedMeasurements(r.sets);  // (a copy of a file under another name)
   for (const std::string& f : a.data) r.data_names += (r.data_names.empty() ? "" : ", ") + f;
   // a row written twice is one measurement: counted once in the fit and in a --holdout alike
-  for (calib::MeasurementSet& set : r.sets)
+  for (calib::MeasurementSet& set : r.sets) {
     if (const std::string w = calib::duplicatedRowsWarning(set.file, calib::removeDuplicatedRows(set)); !w.empty())
       r.data_warnings.push_back(w);
+    if (const std::string w = calib::staleReadingsWarning(set.file, calib::staleReadings(set)); !w.empty())
+      r.data_warnings.push_back(w);
+  }
   if (!a.validate.empty() && a.holdout_given && a.holdout > 0)
     throw calib::InputError("--holdout and --validate: expected one of them (the validation poses come from the --validate file or "
                             "from the --data file), found both");
@@ -138,6 +141,8 @@ void readData(const IdentifyArgs& a, IdentifyRun& r) {
     calib::refuseValidationInFitData(r.sets, r.validation);
     // a row written twice is one measurement: counted once in the validation too
     if (const std::string w = calib::duplicatedRowsWarning(r.validation.file, calib::removeDuplicatedRows(r.validation)); !w.empty())
+      r.data_warnings.push_back(w);
+    if (const std::string w = calib::staleReadingsWarning(r.validation.file, calib::staleReadings(r.validation)); !w.empty())
       r.data_warnings.push_back(w);
     r.validation_source = a.validate;
     return;

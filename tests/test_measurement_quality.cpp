@@ -97,6 +97,40 @@ bool anyWarning(const std::vector<std::string>& warnings, const std::string& par
   return std::any_of(warnings.begin(), warnings.end(), [&](const std::string& w) { return w.find(part) != std::string::npos; });
 }
 
+// A tracker that did not update writes the last pose's reading again for the next pose: the
+// row's measured values equal the row before it to the last bit at another configuration. It is
+// named (the row and the row before it) and kept; the same reading at the same configuration is
+// a row written twice (duplicatedRows), and equal readings that are not consecutive are not this.
+TEST(MeasurementQuality, AReadingWrittenAgainForTheNextPoseIsNamed) {
+  Campaign c = campaign(60, 5);
+  for (size_t i = 0; i < c.set.rows.size(); ++i) c.set.rows[i].line = static_cast<int>(i) + 2;
+  c.set.rows[7].p_world_mm = c.set.rows[6].p_world_mm;     // stale: lines 8 -> 9
+  c.set.rows[20].p_world_mm = c.set.rows[12].p_world_mm;   // equal, not consecutive
+  c.set.rows[25].q = c.set.rows[24].q;                      // written twice: same configuration
+  c.set.rows[25].p_world_mm = c.set.rows[24].p_world_mm;
+  const std::vector<DuplicatedRow> stale = staleReadings(c.set);
+  ASSERT_EQ(stale.size(), 1u);
+  EXPECT_EQ(stale[0].index, 7);
+  EXPECT_EQ(stale[0].line, 9);
+  EXPECT_EQ(stale[0].same_as_index, 6);
+  EXPECT_EQ(stale[0].same_as_line, 8);
+  EXPECT_EQ(staleReadingsWarning("fit.csv", stale),
+            "1 row(s) of fit.csv carry the measured values of the row before them to the last digit at another joint "
+            "configuration (fit.csv:9 = 8): most likely that row's reading written again (an instrument that did not update), "
+            "not a measurement of their own pose; they are kept: check them, and delete the rows if so");
+  EXPECT_EQ(staleReadingsWarning("fit.csv", {}), "");
+  // another payload at the same joints is another pose of the robot too
+  Campaign d = campaign(30, 5);
+  d.set.rows[11].q = d.set.rows[10].q;
+  d.set.rows[11].p_world_mm = d.set.rows[10].p_world_mm;
+  d.set.rows[11].context.payload_kg = d.set.rows[10].context.payload_kg + 5;
+  ASSERT_EQ(staleReadings(d.set).size(), 1u);
+  EXPECT_EQ(staleReadings(d.set)[0].index, 11);
+  // the diagnosis says it as a warning, and keeps the row (every pose is diagnosed)
+  const Diagnosis diag = diagnose(c.nominal, c.set, nullptr, DiagnoseOptions{});
+  EXPECT_TRUE(anyWarning(diag.warnings, "(fit.csv:9 = 8)"));
+}
+
 // Fewer than 10 equations per parameter from distinct configurations is warned about whether or
 // not some rows repeat a configuration (the warning was only given when one did): 25 distinct
 // poses give 75 position equations for the 33 candidates of the KR 16's geometric model

@@ -21,6 +21,8 @@
 
 #include <unistd.h>
 
+#include "accura/calib/import.h"
+#include "accura/calib/measurements.h"
 #include "test_util.h"
 
 namespace accura::calib {
@@ -97,6 +99,22 @@ TEST(RealUr10, CompleteModelWithOrientationAndComplianceBeatsTheReference) {
   bool compliance = false;
   for (const auto& p : j["parameters"]) compliance |= p["name"] == "j2_compliance";
   EXPECT_TRUE(compliance);
+}
+
+// Series_B holds two rows whose six measured values equal the row before them as written in
+// the file (lines 534 = 533, 1065 = 1064; found by comparing the CSV's text), at joint values
+// up to 136 deg apart: a tracker reading written again for the next pose. Series_C has none.
+TEST(RealUr10, StaleTrackerReadingsOfSeriesBAreNamed) {
+  const RobotModel ur10 = test::loadBundled("ur10");
+  const MeasurementMapping map = readMeasurementMapping(test::sourcePath("docs/mappings/ipa_robot_accuracy.map"), ur10.nominal);
+  const std::string data = test::sourcePath("tests/data/ipa-robot-accuracy/");
+  const std::vector<DuplicatedRow> b = staleReadings(readMappedMeasurements(data + "series_b_joint_configurations.csv", map, ur10.nominal));
+  ASSERT_EQ(b.size(), 2u);
+  EXPECT_EQ(b[0].line, 534);
+  EXPECT_EQ(b[0].same_as_line, 533);
+  EXPECT_EQ(b[1].line, 1065);
+  EXPECT_EQ(b[1].same_as_line, 1064);
+  EXPECT_TRUE(staleReadings(readMappedMeasurements(data + "series_c_random_poses.csv", map, ur10.nominal)).empty());
 }
 
 // The joint maps (issue 11): fitted on Series_B, Series_C lies outside B's joint ranges (joint 1

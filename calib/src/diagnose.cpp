@@ -336,6 +336,17 @@ std::vector<RepeatPair> withoutDuplicatedRows(std::vector<MeasurementSet>& sets,
   return out;
 }
 
+/// The stale readings (staleReadings) of each set and of the validation, as warnings; found
+/// after the rows written twice are out, before the gross rows are (a stale row is often one).
+std::vector<std::string> staleReadingWarnings(const std::vector<MeasurementSet>& sets, const MeasurementSet* validation, double tol) {
+  std::vector<std::string> out;
+  for (const MeasurementSet& s : sets)
+    if (std::string w = staleReadingsWarning(s.file, staleReadings(s, tol)); !w.empty()) out.push_back(std::move(w));
+  if (validation)
+    if (std::string w = staleReadingsWarning(validation->file, staleReadings(*validation, tol)); !w.empty()) out.push_back(std::move(w));
+  return out;
+}
+
 }  // namespace
 
 Diagnosis diagnose(const RobotModel& start, const std::vector<MeasurementSet>& sets_given, bool same_station,
@@ -375,6 +386,7 @@ Diagnosis diagnose(const RobotModel& start, const std::vector<MeasurementSet>& s
   }
   for (const HeldJoint& h : heldJoints(st.combined, start.nominal, options.repeat_tol))
     d.warnings.push_back(heldJointWarning(start.nominal, h, st.combined.rows.size(), options.repeat_tol));
+  for (const std::string& w : staleReadingWarnings(sets_in, validation_in, options.repeat_tol)) d.warnings.push_back(w);
   if (stations) *stations = std::move(st);
   d.excluded = excluded;
   d.floors.duplicated_rows = duplicated;
@@ -397,6 +409,8 @@ Diagnosis diagnose(const RobotModel& start, const MeasurementSet& data_given, co
   out.floors.duplicated_rows = duplicated;
   for (const HeldJoint& h : heldJoints(data, start.nominal, options.repeat_tol))
     out.warnings.push_back(heldJointWarning(start.nominal, h, data.rows.size(), options.repeat_tol));
+  for (const std::string& w : staleReadingWarnings(given, validation_copy ? &*validation_copy : nullptr, options.repeat_tol))
+    out.warnings.push_back(w);
   return out;
 }
 

@@ -898,6 +898,32 @@ std::string duplicatedRowsWarning(const std::string& file, const std::vector<Dup
          "): the same measurement written twice, not a second measurement; each is counted once";
 }
 
+std::vector<DuplicatedRow> staleReadings(const MeasurementSet& set, double tol) {
+  std::vector<DuplicatedRow> out;
+  for (size_t i = 1; i < set.rows.size(); ++i) {
+    const Measurement& a = set.rows[i - 1];
+    const Measurement& b = set.rows[i];
+    if (a.p_world_mm != b.p_world_mm) continue;
+    if (a.has_orientation && b.has_orientation && a.R_world_tcp.coeffs() != b.R_world_tcp.coeffs()) continue;
+    bool moved = a.q.size() != b.q.size() || a.context.payload_kg != b.context.payload_kg;
+    for (Eigen::Index j = 0; !moved && j < a.q.size(); ++j) moved = std::abs(a.q[j] - b.q[j]) > tol;
+    if (moved) out.push_back({static_cast<int>(i), b.line, static_cast<int>(i - 1), a.line});
+  }
+  return out;
+}
+
+std::string staleReadingsWarning(const std::string& file, const std::vector<DuplicatedRow>& rows) {
+  if (rows.empty()) return "";
+  std::string list;
+  for (size_t k = 0; k < rows.size() && k < 10; ++k)
+    list += (k ? ", " : "") + file + ":" + std::to_string(rows[k].line) + " = " + std::to_string(rows[k].same_as_line);
+  if (rows.size() > 10) list += ", ... (" + std::to_string(rows.size() - 10) + " more)";
+  return std::to_string(rows.size()) + " row(s) of " + file +
+         " carry the measured values of the row before them to the last digit at another joint configuration (" + list +
+         "): most likely that row's reading written again (an instrument that did not update), not a measurement of "
+         "their own pose; they are kept: check them, and delete the rows if so";
+}
+
 namespace {
 
 /// A row's joint values and measured values, bit for bit (refuseSharedMeasurements,

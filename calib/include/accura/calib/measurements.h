@@ -124,6 +124,19 @@ std::vector<DuplicatedRow> removeDuplicatedRows(MeasurementSet& set, double tol 
 /// ten as FILE:LINE = FILE:LINE); empty when there are none.
 std::string duplicatedRowsWarning(const std::string& file, const std::vector<DuplicatedRow>& rows);
 
+/// The rows of `set` whose measured values equal those of the row just before them to the last
+/// bit (the position, and the orientation when both rows have one) while their joint
+/// configuration differs (a joint beyond `tol`, deg or mm; another payload): an instrument does
+/// not measure two poses to the same bits, so the reading is most likely the previous pose's
+/// written again (a tracker that did not update before the export). Such a row is kept (an
+/// export rounded coarsely can give two configurations that reach one point the same numbers)
+/// and named: staleReadingsWarning(). Each as a DuplicatedRow: the row, and the row before it.
+std::vector<DuplicatedRow> staleReadings(const MeasurementSet& set, double tol = kRepeatTolerance);
+
+/// The warning naming staleReadings() of `file` (how many, the first ten as FILE:LINE = LINE);
+/// empty when there are none.
+std::string staleReadingsWarning(const std::string& file, const std::vector<DuplicatedRow>& rows);
+
 /// Throws InputError when two of `sets` hold the same measurements: a row of a later set whose
 /// joint values and measured values (the position, and the orientation when both rows have one)
 /// equal a row of an earlier set to the last bit. The same file given twice, or a copy of it,
