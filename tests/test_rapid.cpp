@@ -1931,5 +1931,33 @@ TEST(Rapid, ArrayElementsOfConstantsSearchesParametersAndArraysWithoutAValue) {
   EXPECT_EQ(p.rapid->decls[2].read_elsewhere, "r.mod:10:32 ('SearchL \\Stop, di1, sp{2}, pts{3}, v100, tWeld\\WObj:=wTable;')");
 }
 
+// A MoveC to elements of an array split by the compensation: its last sub-arc's circle point
+// is a new scalar robtarget declared after the array (pts_2_1), the element keeps its value, as
+// p3 and p3_1 of the same program with scalar robtargets. Expected: that program's text, with
+// the array's elements and names in place of the scalars.
+TEST(Rapid, ASplitMoveCToArrayElementsGetsANewCirclePointAsTheScalarProgramDoes) {
+  const std::string v4 = "[[120,100,20],[0,0,1,0],[-1,0,-1,0],[9E9,9E9,9E9,9E9,9E9,9E9]]";
+  const std::string body = "  PROC main()\n    ConfL\\Off;\n    MoveJ p1,v1000,fine,tWeld\\WObj:=wTable;\n    MoveC p3, p4,v200,fine,tWeld\\WObj:=wTable;\n  ENDPROC\nENDMODULE\n";
+  const std::string scalar = "MODULE m\n" + kTool + kWobj + "  CONST robtarget p1 := " + kV1 + ";\n  CONST robtarget p3 := " + kV3 +
+                             ";\n  CONST robtarget p4 := " + v4 + ";\n" + body;
+  auto named = [](std::string t) {
+    for (const auto& [from, to] : {std::pair<std::string, std::string>{"p1", "pts{1}"}, {"p3_1", "pts_2_1"}, {"p3", "pts{2}"}, {"p4", "pts{3}"}})
+      for (size_t at = t.find(from); at != std::string::npos; at = t.find(from, at + to.size())) t.replace(at, from.size(), to);
+    return t;
+  };
+  const std::string array = "MODULE m\n" + kTool + kWobj + "  CONST robtarget pts{3} := [" + kV1 + ", " + kV3 + ", " + v4 + "];\n" + named(body);
+  const JobSettings s = splittingSettings();
+  const ProgramCompensation cs = compensateProgramReport(parseRapid(scalar, "s.mod"), s), ca = compensateProgramReport(parseRapid(array, "a.mod"), s);
+  ASSERT_TRUE(cs.ok() && ca.ok());
+  ASSERT_GT(cs.report.points_added, 0);
+  const std::string ws = writeRapid(cs.program);
+  ASSERT_NE(ws.find("  CONST robtarget p3 := " + kV3 + ";\n  CONST robtarget p3_1 := "), std::string::npos) << ws;
+  const std::string want = "MODULE m\n" + kTool + kWobj + "  CONST robtarget pts{3} := [" + declaredValue(ws, "p1 := ") + ", " + kV3 + ", " +
+                           declaredValue(ws, "p4 := ") + "];\n  CONST robtarget pts_2_1 := " + declaredValue(ws, "p3_1 := ") + ";\n" +
+                           named(ws.substr(ws.find("  PROC main()")));
+  EXPECT_EQ(writeRapid(ca.program), want);
+  EXPECT_EQ(ca.report.points_added, cs.report.points_added);
+}
+
 }  // namespace
 }  // namespace accura::postproc
