@@ -939,6 +939,44 @@ TEST(KrlRules, APointTwoMotionsNeedCorrectedDifferentlyGetsAPointOfItsOwn) {
   EXPECT_EQ(test::readText(dir + "/both/out/p.src"), "DEF p( )\n$TOOL={X 0,Y 0,Z 100,A 0,B 0,C 0}\n$BASE=$NULLFRAME\nPTP XP1\n$TOOL={X 0,Y 0,Z 200,A 0,B 0,C 0}\nLIN XP1_1\nEND\n");
 }
 
+// The same with an element of a point array (XPA[1]): the new point was named `XPA[1]_1`,
+// declared `DECL E6POS XPA[1]_1=..` and moved to by `LIN XPA[1]_1`, which the controller does
+// not load (a name is letters, digits, '_' and '$'). An element has no name to derive a new
+// one from: the motion gets the correction as an inline aggregate, as a split CIRC's point of
+// an array does. Expected: the pose the program of that motion alone writes for XP1.
+TEST(KrlRules, AnArrayElementTwoMotionsNeedCorrectedDifferentlyGivesTheSecondAnInlineAggregate) {
+  const std::string dir = test::tempDir("krl_own_element");
+  const std::string pose = "X 1000,Y 300,Z 700,A 20,B 60,C 10";
+  JobSettings s;
+  s.calibrated = calib::readRobotFile(test::sourcePath("tests/golden/compensate/kr16_real.xml"));
+  std::filesystem::create_directories(dir + "/both");
+  std::filesystem::create_directories(dir + "/alone");
+  test::writeText(dir + "/both/p.src", "DEF p( )\n$TOOL={X 0,Y 0,Z 100,A 0,B 0,C 0}\n$BASE=$NULLFRAME\nPTP XPA[1]\n$TOOL={X 0,Y 0,Z 200,A 0,B 0,C 0}\nLIN XPA[1]\nEND\n");
+  test::writeText(dir + "/both/p.dat", "DEFDAT p\nDECL E6POS XPA[2]\nXPA[1]={" + pose + ",S 6,T 59}\nENDDAT\n");
+  test::writeText(dir + "/alone/p.src", "DEF p( )\n$TOOL={X 0,Y 0,Z 200,A 0,B 0,C 0}\n$BASE=$NULLFRAME\nPTP XP1\nEND\n");
+  test::writeText(dir + "/alone/p.dat", "DEFDAT p\nDECL E6POS XP1={" + pose + ",S 6,T 51}\nENDDAT\n");
+  const ProgramCompensation both = compensateProgramReport(readKrl(dir + "/both/p.src"), s);
+  const ProgramCompensation alone = compensateProgramReport(readKrl(dir + "/alone/p.src"), s);
+  ASSERT_TRUE(both.ok() && alone.ok());
+  bool said = false;
+  for (const auto& w : both.report.warnings)
+    said = said || (w.where.line == 6 && w.message == "XPA[1] needs a different correction here than at " + dir +
+                                                           "/both/p.src:4:1 (the same point with another tool, base or path): this motion gets its "
+                                                           "corrected value as an inline aggregate (XPA[1] has no name of its own to derive a new "
+                                                           "point's from); XPA[1] keeps the correction for " + dir + "/both/p.src:4:1");
+  EXPECT_TRUE(said);
+  const std::string ref = test::lf(writeKrl(alone.program)).dat;
+  const size_t b = ref.find("DECL E6POS XP1={");
+  ASSERT_NE(b, std::string::npos);
+  const std::string corrected = ref.substr(b + 16, ref.find(",S ", b) - b - 16);
+  ASSERT_NE(corrected, pose);  // (a correction)
+  const KrlText out = test::lf(writeKrl(both.program));
+  EXPECT_EQ(out.src.substr(0, out.src.find("LIN ")), "DEF p( )\n$TOOL={X 0,Y 0,Z 100,A 0,B 0,C 0}\n$BASE=$NULLFRAME\nPTP XPA[1]\n$TOOL={X 0,Y 0,Z 200,A 0,B 0,C 0}\n");
+  EXPECT_EQ(out.src.find("XPA[1]_1"), std::string::npos) << out.src;
+  EXPECT_EQ(out.dat.find("XPA[1]_1"), std::string::npos) << out.dat;
+  EXPECT_NE(out.src.find("LIN {" + corrected + ","), std::string::npos) << out.src << ref;
+}
+
 // ---------------------------------------------------------------------------------------------
 // Targets known only at run time
 

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <filesystem>
 #include <nlohmann/json.hpp>
+#include <set>
 #include <sstream>
 
 #include "accura/calib/errors.h"
@@ -1793,6 +1794,169 @@ TEST(Rapid, NamedRequiredArgumentsAreReadAsThePositionalOnes) {
   EXPECT_EQ(q.motions[4].target_problem, "'pf' is assigned at q.mod:13:24: its value at run time is not the declared one");
   ASSERT_EQ(q.rapid->decls.size(), 4u);
   EXPECT_EQ(q.rapid->decls[2].read_elsewhere, "q.mod:12:10 ('weld p30, Speed:=2;')");
+}
+
+// Robtarget arrays: a motion to an element with a constant index (`MoveL pts{2}, ...`, also as
+// `ToPoint:=pts{1}` and in a two-dimensional array) was kept uncorrected, named as a target
+// accura cannot evaluate. The controller goes to the element's declared value, as to a scalar
+// robtarget: the element is corrected in the array's value. Expected: the numbers of the same
+// program written with scalar robtargets, compensated the same way; the rest of the array's
+// text (the element no motion names, the blanks and line breaks between elements) as written.
+const std::string kV1 = "[[40,60,120],[0,0,1,0],[-1,0,-1,0],[9E9,9E9,9E9,9E9,9E9,9E9]]";
+const std::string kV2 = "[[40,60,20],[0,0,1,0],[-1,0,-1,0],[9E9,9E9,9E9,9E9,9E9,9E9]]";
+const std::string kV3 = "[[80, 60, 20],[0,0,1,0],[-1,0,-1,0],[9E9,9E9,9E9,9E9,9E9,9E9]]";  // no motion names it
+
+std::string arrayModule(const std::string& data, const std::string& a, const std::string& b) {
+  return "MODULE m\n" + kTool + kWobj + data + "  PROC main()\n    ConfL\\Off;\n    MoveJ " + a + ",v1000,z50,tWeld\\WObj:=wTable;\n    MoveL " + b +
+         ",v200,fine,tWeld\\WObj:=wTable;\n    MoveL ToPoint:=" + a + ",Speed:=v200,fine,tWeld\\WObj:=wTable;\n  ENDPROC\nENDMODULE\n";
+}
+
+/// The value written for the declaration `head` ("p1 := ") in `text`.
+std::string declaredValue(const std::string& text, const std::string& head) {
+  const size_t at = text.find(head);
+  if (at == std::string::npos) return "(" + head + " not found)";
+  const size_t b = at + head.size();
+  return text.substr(b, text.find(";", b) - b);
+}
+
+TEST(Rapid, ArrayElementsWithAConstantIndexAreCorrectedInTheArraysValue) {
+  const std::string scalar = arrayModule("  CONST robtarget p1 := " + kV1 + ";\n  CONST robtarget p2 := " + kV2 + ";\n", "p1", "p2");
+  const std::string one = arrayModule("  CONST robtarget pts{3} := [" + kV1 + ",\n    " + kV2 + ", " + kV3 + "];\n", "pts{1}", "pts{ 2 }");
+  const std::string two = arrayModule("  LOCAL PERS robtarget grid{2,2} := [[" + kV3 + "," + kV1 + "],[" + kV2 + "," + kV3 + "]];\n", "grid{1,2}", "grid{2,1}");
+  const Program p = parseRapid(one, "one.mod");
+  ASSERT_EQ(p.motions.size(), 3u);
+  EXPECT_EQ(p.motions[1].target.name, "pts{ 2 }");
+  EXPECT_EQ(p.motions[1].target_problem, "");
+  EXPECT_LT((poseOf(p.motions[1].target).translation() - Eigen::Vector3d(40, 60, 20)).norm(), 1e-12);
+  EXPECT_LT((poseOf(p.motions[2].target).translation() - Eigen::Vector3d(40, 60, 120)).norm(), 1e-12);
+  EXPECT_EQ(p.motions[1].target.where.str(), "one.mod:5:5");  // the element's value
+  const JobSettings real = perturbedIrb120();
+  const ProgramCompensation s = compensateProgramReport(parseRapid(scalar, "s.mod"), real);
+  ASSERT_TRUE(s.ok());
+  ASSERT_EQ(s.report.motions_left_unchanged, 0);
+  const std::string ws = writeRapid(s.program);
+  const std::string c1 = declaredValue(ws, "p1 := "), c2 = declaredValue(ws, "p2 := ");
+  ASSERT_NE(c1, kV1);  // (corrected)
+  ASSERT_NE(c2, kV2);
+  for (const std::string& text : {one, two}) {
+    const ProgramCompensation c = compensateProgramReport(parseRapid(text, "a.mod"), real);
+    ASSERT_TRUE(c.ok()) << text;
+    EXPECT_EQ(c.report.motions_left_unchanged, 0) << text;
+    std::string want = text;
+    want.replace(want.find(kV1), kV1.size(), c1);
+    want.replace(want.find(kV2), kV2.size(), c2);
+    EXPECT_EQ(writeRapid(c.program), want);
+  }
+  // the nominal robot: byte for byte
+  JobSettings nominal;
+  nominal.calibrated = test::loadBundled("abb_irb120");
+  for (const std::string& text : {one, two}) {
+    const ProgramCompensation n = compensateProgramReport(parseRapid(text, "a.mod"), nominal);
+    ASSERT_TRUE(n.ok());
+    EXPECT_EQ(writeRapid(n.program), text);
+  }
+}
+
+// An element whose index the controller computes (pts{i}), one outside the array (pts{4}), and
+// the element of an array the program assigns are kept as written and named. A motion to pts{i}
+// reads every element: pts{1} and pts{2}, corrected for the motions that name them, keep their
+// value in the array (byte for byte) and those motions go to new scalar robtargets declared
+// after the array, with the values the scalar program gets.
+TEST(Rapid, ArrayElementsOfARunTimeIndexOrOutsideTheArrayAreKeptAndNamed) {
+  const std::string head = "MODULE m\n" + kTool + kWobj;
+  const std::string array = "  CONST robtarget pts{3} := [" + kV1 + ", " + kV2 + ", " + kV3 + "];\n";
+  const std::string vp = "  VAR robtarget vp{2} := [" + kV1 + ", " + kV2 + "];\n";
+  const std::string text = head + array + vp +
+                           "  PROC main()\n    ConfL\\Off;\n    MoveJ pts{1},v1000,z50,tWeld\\WObj:=wTable;\n    MoveL pts{2},v200,fine,tWeld\\WObj:=wTable;\n"
+                           "    FOR i FROM 1 TO 3 DO\n      MoveL pts{i},v200,fine,tWeld\\WObj:=wTable;\n    ENDFOR\n"
+                           "    MoveL pts{4},v200,fine,tWeld\\WObj:=wTable;\n    vp{1} := CRobT();\n    MoveL vp{2},v200,fine,tWeld\\WObj:=wTable;\n"
+                           "  ENDPROC\nENDMODULE\n";
+  const Program p = parseRapid(text, "r.mod");
+  ASSERT_EQ(p.motions.size(), 5u);
+  EXPECT_EQ(p.motions[2].target_problem, "the index of 'pts{i}' is computed at run time");
+  EXPECT_EQ(p.motions[3].target_problem,
+            "'pts{4}' is outside the array pts{3} (declared at r.mod:4:19; indices from 1): the controller stops with an error when it runs this motion");
+  EXPECT_EQ(p.motions[4].target_problem, "'vp{2}' is an element of vp, which is assigned at r.mod:14:5: its value at run time is not the declared one");
+  ASSERT_EQ(p.rapid->decls.size(), 5u);  // pts{1..3}, vp{1..2}
+  EXPECT_EQ(p.rapid->decls[1].name, "pts{2}");
+  EXPECT_EQ(p.rapid->decls[1].read_elsewhere, "r.mod:11:13 ('MoveL pts{i},v200,fine,tWeld\\WObj:=wTable;')");
+  const JobSettings real = perturbedIrb120();
+  const std::string scalar = head + "  CONST robtarget p1 := " + kV1 + ";\n  CONST robtarget p2 := " + kV2 + ";\n" +
+                             "  PROC main()\n    ConfL\\Off;\n    MoveJ p1,v1000,z50,tWeld\\WObj:=wTable;\n    MoveL p2,v200,fine,tWeld\\WObj:=wTable;\n"
+                             "  ENDPROC\nENDMODULE\n";
+  const ProgramCompensation s = compensateProgramReport(parseRapid(scalar, "s.mod"), real);
+  ASSERT_TRUE(s.ok());
+  const std::string ws = writeRapid(s.program);
+  const ProgramCompensation c = compensateProgramReport(p, real);
+  ASSERT_TRUE(c.ok());
+  EXPECT_EQ(c.report.motions_left_unchanged, 3);
+  const std::string w = writeRapid(c.program);
+  const std::string want = head + array + "  CONST robtarget pts_1_1 := " + declaredValue(ws, "p1 := ") + ";\n  CONST robtarget pts_2_1 := " +
+                           declaredValue(ws, "p2 := ") + ";\n" + vp +
+                           "  PROC main()\n    ConfL\\Off;\n    MoveJ pts_1_1,v1000,z50,tWeld\\WObj:=wTable;\n    MoveL pts_2_1,v200,fine,tWeld\\WObj:=wTable;\n" +
+                           text.substr(text.find("    FOR i"));
+  EXPECT_EQ(w, want);
+  std::set<std::string> said;
+  for (const auto& m : c.report.warnings) said.insert(m.where.str() + " " + m.message);
+  EXPECT_TRUE(said.count("r.mod:11:7 MoveL left unchanged (not compensated): the index of 'pts{i}' is computed at run time; the position after it is not known"));
+  EXPECT_TRUE(said.count("r.mod:8:5 pts{1} is corrected for this motion and also read at r.mod:11:13 ('MoveL pts{i},v200,fine,tWeld\\WObj:=wTable;'), "
+                         "which the correction must not move: the motion goes to a new point pts_1_1 declared after pts{1}, which keeps its value"));
+  int renamed = 0;
+  for (const TargetReport& t : c.report.targets) renamed += (t.name == "pts_1_1" && t.new_point_replaces == "pts{1}") + (t.name == "pts_2_1" && t.new_point_replaces == "pts{2}");
+  EXPECT_EQ(renamed, 2);
+}
+
+// What else names an element: a CONST num index is a constant (the element it names is read);
+// the SearchPoint of SearchL is overwritten by the search (its array is a run-time value), and
+// its ToPoint is read by an instruction accura does not model (that element's read elsewhere);
+// an array without a value, another number of indices, an array parameter: kept and named.
+TEST(Rapid, ArrayElementsOfConstantsSearchesParametersAndArraysWithoutAValue) {
+  const std::string text = "MODULE m\n" + kTool + kWobj + "  CONST num k := 2;\n  CONST robtarget pts{3} := [" + kV1 + ", " + kV2 + ", " + kV3 +
+                           "];\n  VAR robtarget sp{2} := [" + kV1 + ", " + kV2 + "];\n  VAR robtarget buf{4};\n  PROC main()\n"
+                           "    MoveL pts{k},v200,fine,tWeld\\WObj:=wTable;\n    SearchL \\Stop, di1, sp{2}, pts{3}, v100, tWeld\\WObj:=wTable;\n"
+                           "    MoveL sp{1},v200,fine,tWeld\\WObj:=wTable;\n    MoveL buf{1},v200,fine,tWeld\\WObj:=wTable;\n"
+                           "    MoveL pts{1,2},v200,fine,tWeld\\WObj:=wTable;\n  ENDPROC\n  PROC side(robtarget arr{*})\n"
+                           "    MoveL arr{1},v200,fine,tWeld\\WObj:=wTable;\n  ENDPROC\nENDMODULE\n";
+  const Program p = parseRapid(text, "r.mod");
+  ASSERT_EQ(p.motions.size(), 6u);
+  EXPECT_EQ(p.motions[0].target_problem, "");
+  EXPECT_LT((poseOf(p.motions[0].target).translation() - Eigen::Vector3d(40, 60, 20)).norm(), 1e-12);
+  EXPECT_EQ(p.motions[2].target_problem, "'sp{1}' is an element of sp, which is assigned at r.mod:10:25: its value at run time is not the declared one");
+  EXPECT_EQ(p.motions[3].target_problem, "'buf{1}' is an element of an array accura cannot read: the robtarget array buf is declared without a value");
+  EXPECT_EQ(p.motions[4].target_problem, "'pts{1,2}' gives 2 index(es) of the array pts, which has 1 dimension(s)");
+  EXPECT_EQ(p.motions[5].target_problem, "'arr{1}' is an element of arr, a parameter of side: its value comes from the call");
+  ASSERT_EQ(p.rapid->decls.size(), 5u);  // pts{1..3}, sp{1..2}
+  EXPECT_EQ(p.rapid->decls[0].read_elsewhere, "");
+  EXPECT_EQ(p.rapid->decls[1].read_elsewhere, "");  // (pts{k}: a plain target)
+  EXPECT_EQ(p.rapid->decls[2].read_elsewhere, "r.mod:10:32 ('SearchL \\Stop, di1, sp{2}, pts{3}, v100, tWeld\\WObj:=wTable;')");
+}
+
+// A MoveC to elements of an array split by the compensation: its last sub-arc's circle point
+// is a new scalar robtarget declared after the array (pts_2_1), the element keeps its value, as
+// p3 and p3_1 of the same program with scalar robtargets. Expected: that program's text, with
+// the array's elements and names in place of the scalars.
+TEST(Rapid, ASplitMoveCToArrayElementsGetsANewCirclePointAsTheScalarProgramDoes) {
+  const std::string v4 = "[[120,100,20],[0,0,1,0],[-1,0,-1,0],[9E9,9E9,9E9,9E9,9E9,9E9]]";
+  const std::string body = "  PROC main()\n    ConfL\\Off;\n    MoveJ p1,v1000,fine,tWeld\\WObj:=wTable;\n    MoveC p3, p4,v200,fine,tWeld\\WObj:=wTable;\n  ENDPROC\nENDMODULE\n";
+  const std::string scalar = "MODULE m\n" + kTool + kWobj + "  CONST robtarget p1 := " + kV1 + ";\n  CONST robtarget p3 := " + kV3 +
+                             ";\n  CONST robtarget p4 := " + v4 + ";\n" + body;
+  auto named = [](std::string t) {
+    for (const auto& [from, to] : {std::pair<std::string, std::string>{"p1", "pts{1}"}, {"p3_1", "pts_2_1"}, {"p3", "pts{2}"}, {"p4", "pts{3}"}})
+      for (size_t at = t.find(from); at != std::string::npos; at = t.find(from, at + to.size())) t.replace(at, from.size(), to);
+    return t;
+  };
+  const std::string array = "MODULE m\n" + kTool + kWobj + "  CONST robtarget pts{3} := [" + kV1 + ", " + kV3 + ", " + v4 + "];\n" + named(body);
+  const JobSettings s = splittingSettings();
+  const ProgramCompensation cs = compensateProgramReport(parseRapid(scalar, "s.mod"), s), ca = compensateProgramReport(parseRapid(array, "a.mod"), s);
+  ASSERT_TRUE(cs.ok() && ca.ok());
+  ASSERT_GT(cs.report.points_added, 0);
+  const std::string ws = writeRapid(cs.program);
+  ASSERT_NE(ws.find("  CONST robtarget p3 := " + kV3 + ";\n  CONST robtarget p3_1 := "), std::string::npos) << ws;
+  const std::string want = "MODULE m\n" + kTool + kWobj + "  CONST robtarget pts{3} := [" + declaredValue(ws, "p1 := ") + ", " + kV3 + ", " +
+                           declaredValue(ws, "p4 := ") + "];\n  CONST robtarget pts_2_1 := " + declaredValue(ws, "p3_1 := ") + ";\n" +
+                           named(ws.substr(ws.find("  PROC main()")));
+  EXPECT_EQ(writeRapid(ca.program), want);
+  EXPECT_EQ(ca.report.points_added, cs.report.points_added);
 }
 
 }  // namespace

@@ -32,6 +32,26 @@ namespace {
 
 std::string targetLabel(const Target& t) { return t.name.empty() ? std::string("the inline target") : t.name; }
 
+/// The name a new RAPID point is derived from: the point's own, or for an element of a
+/// robtarget array (`pts{2}`, `grid{ 1, 3 }`, `pts{k}` of a CONST num k), which has none to add
+/// a suffix to, the array's name and its indices as written (`pts_2`, `grid_1_3`, `pts_k`; a new
+/// point pts_2_1 is a scalar robtarget declared after the array).
+std::string rapidPointBase(const std::string& name) {
+  const size_t open = name.find('{');
+  if (open == std::string::npos || name.back() != '}' || !isDeclarableName(name.substr(0, open))) return name;
+  std::string base = name.substr(0, open), item;
+  for (size_t i = open + 1; i < name.size(); ++i) {
+    const char c = name[i];
+    if (std::isalnum(static_cast<unsigned char>(c)) || c == '_') {
+      item += c;
+    } else if (c == ',' || c == '}') {  // (a sign or blanks: left out)
+      base += "_" + (item.empty() ? std::string("i") : item);
+      item.clear();
+    }
+  }
+  return base;
+}
+
 std::string frameHint(const FrameSetting& f, const char* var) {
   std::string s = std::string(var) + " ";
   switch (f.source) {
@@ -392,13 +412,21 @@ class Job {
     const std::string key = std::to_string(t.value_id) + "|" + correction;
     auto it = own_points_.find(key);
     if (it == own_points_.end()) {
-      const std::string name = newPointName(*in_, t.name, new_names_);
-      new_names_.push_back(name);
+      // KRL: an array's element (XPA[1]) has no name to derive a new one from: the motion gets
+      // its corrected value as an inline aggregate, as a split CIRC's point and a point read
+      // elsewhere do (`XPA[1]_1` was written, which the controller does not load). RAPID: a
+      // scalar robtarget named after the array and the index (rapidPointBase).
+      const std::string base = in_->rapid ? rapidPointBase(t.name) : t.name;
+      const std::string name = isDeclarableName(base) ? newPointName(*in_, base, new_names_) : std::string();
+      if (!name.empty()) new_names_.push_back(name);
       it = own_points_.emplace(key, name).first;
-      warning(motion, conflict + ": this motion goes to a new point " + name + " declared after " + t.name +
-                          ", which keeps the correction for " + first.str());
+      warning(motion, conflict + (name.empty() ? ": this motion gets its corrected value as an inline aggregate (" + t.name +
+                                                     " has no name of its own to derive a new point's from); " + t.name + " keeps the correction for " +
+                                                     first.str()
+                                               : ": this motion goes to a new point " + name + " declared after " + t.name +
+                                                     ", which keeps the correction for " + first.str()));
     }
-    own_point_names_.push_back({motion, t.name, it->second});
+    if (!it->second.empty()) own_point_names_.push_back({motion, t.name, it->second});
     t.replaces = t.name;
     t.new_declaration = true;
     t.name = it->second;
@@ -673,7 +701,7 @@ class Job {
         const std::string old = t.name;
         auto it = renamed.find(d);
         if (it == renamed.end()) {
-          it = renamed.emplace(d, newPointName(*in_, src.decls[static_cast<size_t>(d)].name, new_names_)).first;
+          it = renamed.emplace(d, newPointName(*in_, rapidPointBase(src.decls[static_cast<size_t>(d)].name), new_names_)).first;
           new_names_.push_back(it->second);
           warning(m.where, old + " is corrected for this motion and also read at " + read.at(d) + ", which the correction must not " +
                                "move: the motion goes to a new point " + it->second + " declared after " + old + ", which keeps its value");
@@ -1103,10 +1131,12 @@ class Job {
         // KRL: declared next to the point it replaces in the .dat; a point declared elsewhere
         // (the .src, $config.dat) or an array's element (XPA[1]: no name to derive a new one
         // from) is replaced by an inline aggregate (no name)
-        const bool in_dat = isDeclarableName(a.name) &&
+        // RAPID: an element of a robtarget array gets a scalar robtarget after the array
+        const std::string base = in_->rapid ? rapidPointBase(a.name) : a.name;
+        const bool in_dat = isDeclarableName(base) &&
                             (!in_->krl || (a.value_id >= 0 && static_cast<size_t>(a.value_id) < in_->krl->values.size() &&
                                            in_->krl->values[static_cast<size_t>(a.value_id)].file == 1));
-        a.name = in_dat ? newPointName(*in_, a.name, new_names_) : std::string();
+        a.name = in_dat ? newPointName(*in_, base, new_names_) : std::string();
         if (in_dat) new_names_.push_back(a.name);
       }
       Eigen::Isometry3d T_cmd_aux = commanded.back().T_world_aux;

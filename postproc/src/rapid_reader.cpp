@@ -30,6 +30,19 @@ struct TargetVal {
   std::string problem;
 };
 
+/// A robtarget array declared with a value (`CONST robtarget pts{3} := [v1, v2, v3];`,
+/// `grid{2,3}`: RAPID's arrays have up to 3 dimensions, indexed from 1).
+struct ArrayVal {
+  std::string name;        ///< as written
+  std::vector<int> dims;   ///< the size of each dimension
+  /// The Decl (RapidSource::decls) of each element, row-major (the last index runs fastest,
+  /// as RAPID writes the aggregate: [[g{1,1}, g{1,2}], [g{2,1}, g{2,2}]]); -1: an element not
+  /// written as a robtarget value (a name, an expression)
+  std::vector<int> decls;
+  std::string problem;     ///< why its elements have no values ("" when they have)
+  SourceLocation where;    ///< its declaration
+};
+
 /// A frame declaration (tooldata / wobjdata) evaluated.
 struct FrameVal {
   std::optional<Eigen::Isometry3d> T;
@@ -50,6 +63,7 @@ struct Scope {
   /// same in several modules is one object the modules share)
   std::map<std::string, std::string> persistents;
   std::map<std::string, int> robtargets;  ///< upper-case name -> value
+  std::map<std::string, int> robtarget_arrays;  ///< upper-case name -> index in Reader::arrays_
   std::map<std::string, FrameVal> tools, wobjs;
   std::map<std::string, std::array<double, 6>> joints;
   std::map<std::string, std::optional<double>> zones;   ///< zone radius (nullopt: fine)
@@ -270,7 +284,15 @@ class Reader {
     const size_t i = r.first;
     if (i >= r.second || t_[i].kind != Tok::Kind::kIdent || headAt(i) != kNoHead) return kNoHead;
     size_t j = i + 1;
-    while (j + 1 < r.second && isOp(t_, j, ".") && t_[j + 1].kind == Tok::Kind::kIdent) j += 2;
+    // (an array's element: `pts{2} := ..`, `pts{2}.trans.x := ..`)
+    auto index = [&] {
+      if (isOp(t_, j, "{")) j = closing(t_, j, r.second);
+    };
+    index();
+    while (j + 1 < r.second && isOp(t_, j, ".") && t_[j + 1].kind == Tok::Kind::kIdent) {
+      j += 2;
+      index();
+    }
     return j < r.second && isOp(t_, j, ":=") ? j : kNoHead;
   }
 
@@ -480,11 +502,30 @@ class Reader {
       if (isOp(t_, k + 1, ":=")) continue;  // (a named argument's parameter, `Point:=p20`)
       const std::string& u = t_[k].u;
       if (params_.count(u) && !local_.names.count(u)) continue;  // (the call's value)
+      auto note = [&](int d) {
+        if (d >= 0 && src_->decls[static_cast<size_t>(d)].read_elsewhere.empty())
+          src_->decls[static_cast<size_t>(d)].read_elsewhere = loc(t_[k].b).str() + " ('" + quoted(st) + "')";
+      };
+      if (const int* a = lookup(&Scope::robtarget_arrays, u)) {
+        // an array's element: the one a constant index names (none when it is outside the
+        // array); every element when the index is a run-time value or the whole array is read
+        const ArrayVal& arr = arrays_[static_cast<size_t>(*a)];
+        if (isOp(t_, k + 1, "{")) {
+          const size_t close = closing(t_, k + 1, r.second);
+          std::string why;
+          bool run_time = false;
+          const int e = elementIndex(arr, {k + 2, close - 1}, why, run_time);
+          if (e >= 0 && static_cast<size_t>(e) < arr.decls.size()) note(arr.decls[static_cast<size_t>(e)]);  // (none: no value)
+          if (run_time)
+            for (int d : arr.decls) note(d);
+        } else {
+          for (int d : arr.decls) note(d);
+        }
+        continue;
+      }
       const int* id = lookup(&Scope::robtargets, u);
       if (!id || *id < 0) continue;
-      const int d = src_->values[static_cast<size_t>(*id)].decl;
-      if (d < 0 || !src_->decls[static_cast<size_t>(d)].read_elsewhere.empty()) continue;
-      src_->decls[static_cast<size_t>(d)].read_elsewhere = loc(t_[k].b).str() + " ('" + quoted(st) + "')";
+      note(src_->values[static_cast<size_t>(*id)].decl);
     }
   }
   void noteReads(Range r) { noteReads(r, r); }
@@ -944,6 +985,7 @@ class Reader {
     const std::string& ty = t[type].u;
     const std::string& nm = t[name].s;
     const std::string& u = t[name].u;
+    if (ty == "ROBTARGET" && isOp(t, name + 1, "{")) return robtargetArray(r, k, into);
     if (!isOp(t, name + 1, ":=")) return;  // no initial value (VAR robtarget p;): an unknown value
     const Range val{name + 2, r.second - 1};
     if (val.first >= val.second) fail(t[name + 1].e, "expected a value after ':=', found ';'");
@@ -1000,6 +1042,146 @@ class Reader {
       if (!v || *v <= 0) shape(parts[0].first, "v_tcp > 0 (mm/s) in speeddata " + excerpt(nm), text(parts[0]));
       for (Scope* s : into) s->speeds[u] = *v;
     }
+  }
+
+  /// A robtarget array `CONST|PERS|VAR robtarget name{d1[,d2[,d3]]} [:= value];` (the type at
+  /// k + 1, the name at k + 2): each element written as a robtarget value gets its Decl, as a
+  /// scalar robtarget does, so that a motion to `name{2}` is corrected in the array's value (the
+  /// other elements keep their text) or goes to a new point declared after the array. An array
+  /// whose sizes are not constants, that has no value or whose value does not have the declared
+  /// shape keeps its elements' motions as written, named with the reason.
+  void robtargetArray(Range r, size_t k, const std::vector<Scope*>& into) {
+    const size_t name = k + 2, open = name + 1;
+    const size_t close = closing(t_, open, r.second);
+    ArrayVal a;
+    a.name = t_[name].s;
+    a.where = loc(t_[name].b);
+    for (const Range& d : items(t_, open + 1, close - 1)) {
+      const std::optional<double> n = numValue(d);
+      if (!n || *n != std::floor(*n) || *n < 1 || *n > 1e6) {
+        a.problem = "the size of the robtarget array " + excerpt(a.name) + " ('" + quoted(d) + "') is not a number accura reads";
+        break;
+      }
+      a.dims.push_back(static_cast<int>(*n));
+    }
+    if (a.problem.empty() && (a.dims.empty() || a.dims.size() > 3))
+      a.problem = "the robtarget array " + excerpt(a.name) + " has " + std::to_string(a.dims.size()) + " dimensions (RAPID: 1 to 3)";
+    if (a.problem.empty() && !isOp(t_, close, ":=")) a.problem = "the robtarget array " + excerpt(a.name) + " is declared without a value";
+    std::vector<Range> elements;
+    if (a.problem.empty()) {
+      // the value: one aggregate per dimension, the elements in the innermost
+      std::vector<Range> level{{close + 1, r.second - 1}};
+      for (size_t dim = 0; dim < a.dims.size() && a.problem.empty(); ++dim) {
+        std::vector<Range> next;
+        for (const Range& v : level) {
+          const std::vector<Range> parts = v.first < v.second && isOp(t_, v.first, "[") && closing(t_, v.first, v.second) == v.second
+                                               ? items(t_, v.first + 1, v.second - 1)
+                                               : std::vector<Range>{};
+          if (parts.size() != static_cast<size_t>(a.dims[dim])) {
+            a.problem = "the value of the robtarget array " + excerpt(a.name) + " is not written as an aggregate of " + std::to_string(a.dims[dim]) +
+                        " element(s) ('" + quoted(v) + "')";
+            break;
+          }
+          next.insert(next.end(), parts.begin(), parts.end());
+        }
+        level = next;
+      }
+      if (a.problem.empty()) elements = level;
+    }
+    a.decls.assign(elements.size(), -1);
+    // (the array's declaration, which a new point follows)
+    RapidSource::Decl decl;
+    decl.line_begin = starts_[static_cast<size_t>(loc(t_[r.first].b).line - 1)];
+    const size_t nl = src_->text.find('\n', t_[r.second - 1].e);
+    decl.line_end = nl == std::string::npos ? src_->text.size() : nl + 1;
+    decl.indent = src_->text.substr(decl.line_begin, t_[r.first].b - decl.line_begin);
+    decl.head = src_->text.substr(t_[r.first].b, t_[name].b - t_[r.first].b);
+    for (size_t e = 0; e < elements.size(); ++e) {
+      const Range v = elements[e];
+      if (!(v.first < v.second && isOp(t_, v.first, "["))) continue;  // (a name or an expression: its value at load)
+      std::string index;
+      size_t rest = e;
+      for (size_t dim = a.dims.size(); dim-- > 0;) {
+        index = std::to_string(rest % static_cast<size_t>(a.dims[dim]) + 1) + (index.empty() ? "" : "," + index);
+        rest /= static_cast<size_t>(a.dims[dim]);
+      }
+      RapidSource::Decl d = decl;
+      d.name = a.name + "{" + index + "}";
+      src_->decls.push_back(d);
+      const int id = robtargetValue(v, static_cast<int>(src_->decls.size()) - 1);
+      src_->decls.back().value = id;
+      a.decls[e] = static_cast<int>(src_->decls.size()) - 1;
+    }
+    arrays_.push_back(a);
+    for (Scope* s : into) s->robtarget_arrays[t_[name].u] = static_cast<int>(arrays_.size()) - 1;
+    if (a.problem.empty()) markModel(r);
+  }
+
+  /// The element (row-major) of array `a` that the indices `r` (inside its braces) name; -1 with
+  /// `why` when there is none: `run_time` when an index is a value the controller computes
+  /// (a variable, an expression); else a constant index outside the array, or another number of
+  /// indices than the array's dimensions.
+  int elementIndex(const ArrayVal& a, Range r, std::string& why, bool& run_time) const {
+    const std::vector<Range> idx = items(t_, r.first, r.second);
+    const std::string written = excerpt(a.name) + "{" + quoted(r) + "}";
+    size_t flat = 0;
+    for (size_t i = 0; i < idx.size(); ++i) {
+      const std::optional<double> n = idx[i].first < idx[i].second ? numValue(idx[i]) : std::nullopt;
+      if (!n) {
+        run_time = true;
+        why = "the index of '" + written + "' is computed at run time";
+        return -1;
+      }
+      if (i >= a.dims.size()) break;
+      if (*n != std::floor(*n) || *n < 1 || *n > a.dims[i]) {
+        std::string size;
+        for (size_t j = 0; j < a.dims.size(); ++j) size += (j ? "," : "") + std::to_string(a.dims[j]);
+        why = "'" + written + "' is outside the array " + excerpt(a.name) + "{" + size + "} (declared at " + a.where.str() +
+              "; indices from 1): the controller stops with an error when it runs this motion";
+        return -1;
+      }
+      flat = flat * static_cast<size_t>(a.dims[i]) + static_cast<size_t>(*n) - 1;
+    }
+    if (idx.size() != a.dims.size()) {
+      why = "'" + written + "' gives " + std::to_string(idx.size()) + " index(es) of the array " + excerpt(a.name) + ", which has " +
+            std::to_string(a.dims.size()) + " dimension(s)";
+      return -1;
+    }
+    return static_cast<int>(flat);
+  }
+
+  /// A target `name{i[,j[,k]]}`: the value of an element of a robtarget array.
+  TargetVal element(Range r) const {
+    TargetVal tv;
+    const std::string& u = t_[r.first].u;
+    if (params_.count(u) && !local_.names.count(u)) {
+      tv.problem = "'" + quoted(r) + "' is an element of " + excerpt(t_[r.first].s) + ", a parameter of " + excerpt(routine_) + ": its value comes from the call";
+      return tv;
+    }
+    const int* id = lookup(&Scope::robtarget_arrays, u);
+    if (!id) {
+      tv.problem = "'" + quoted(r) + "' is not an element of a robtarget array declared in this module";
+      return tv;
+    }
+    const ArrayVal& a = arrays_[static_cast<size_t>(*id)];
+    if (!a.problem.empty()) {
+      tv.problem = "'" + quoted(r) + "' is an element of an array accura cannot read: " + a.problem;
+      return tv;
+    }
+    if (const auto as = assigned_.find(u); as != assigned_.end()) {
+      tv.problem = "'" + quoted(r) + "' is an element of " + excerpt(a.name) + ", which is assigned at " + as->second.str() +
+                   ": its value at run time is not the declared one";
+      return tv;
+    }
+    bool run_time = false;
+    const int e = elementIndex(a, {r.first + 2, r.second - 1}, tv.problem, run_time);
+    if (e < 0) return tv;
+    const int d = a.decls[static_cast<size_t>(e)];
+    if (d < 0) {
+      tv.problem = "'" + quoted(r) + "' is not written as a robtarget value in the declaration of " + excerpt(a.name) + " at " + a.where.str();
+      return tv;
+    }
+    return valueTarget(src_->decls[static_cast<size_t>(d)].value);
   }
 
   /// The innermost scope that declares `u` (upper case) where the text being read is: the
@@ -1064,6 +1246,7 @@ class Reader {
       }
       return valueTarget(*id);
     }
+    if (t_[r.first].kind == Tok::Kind::kIdent && isOp(t_, r.first + 1, "{") && closing(t_, r.first + 1, r.second) == r.second) return element(r);
     const bool offs = isKw(t_, r.first, "OFFS"), reltool = isKw(t_, r.first, "RELTOOL");
     if ((offs || reltool) && isOp(t_, r.first + 1, "(") && closing(t_, r.first + 1, r.second) == r.second) return offset(r, reltool);
     tv.problem = "'" + quoted(r) + "' is not a target accura can evaluate (a robtarget, a declared robtarget, Offs or RelTool of one)";
@@ -1540,6 +1723,7 @@ class Reader {
   bool in_handler_ = false;  ///< in the routine's ERROR / BACKWARD / UNDO handler
   std::set<std::string> handler_assigns_;  ///< what the routine's handler assigns (assignedFrom)
   std::vector<std::array<std::optional<double>, 6>> ext_;  ///< external axes of each value (9E9: none)
+  std::vector<ArrayVal> arrays_;  ///< the robtarget arrays (Scope::robtarget_arrays)
   std::map<size_t, size_t> model_;  ///< the statements of the motion model (markModel): first token -> end
   std::vector<int> motion_lines_;
   std::vector<Scope> modules_;  ///< each module's data (moduleData), by module_index_

@@ -11,6 +11,7 @@
 //   targets   inline [[x,y,z],[q1,q2,q3,q4],[cf1,cf4,cf6,cfx],[eax_a,..,eax_f]] (mm, a
 //             quaternion w,x,y,z: normalised on read, an error when its norm is off 1 by more
 //             than 1e-3), CONST/PERS/VAR robtarget declared in the module or the routine,
+//             an element of a robtarget array with a constant index (pts{2}, grid{1,3}),
 //             Offs(p, dx, dy, dz) and RelTool(p, dx, dy, dz [\Rx] [\Ry] [\Rz]) of such targets
 //             with constant numbers (a corrected one is written as an inline robtarget).
 //   frames    tooldata (robhold TRUE: T_flange_tcp = tframe; tool0 = the flange) and
@@ -52,7 +53,10 @@ struct RapidSource {
     /// The declaration holding it (-1: inline in a statement).
     int decl = -1;
   };
-  /// A robtarget declaration: `[LOCAL] CONST|PERS|VAR robtarget name := value;`.
+  /// A robtarget declaration: `[LOCAL] CONST|PERS|VAR robtarget name := value;`, or one element
+  /// of a robtarget array declared with its value (`CONST robtarget pts{3} := [v1, v2, v3];`,
+  /// one Decl per element written as a robtarget value: name `pts{2}`, `grid{1,3}`; the lines,
+  /// indent and head are the array's, so that a new point goes after the array's declaration).
   struct Decl {
     std::string name;
     size_t line_begin = 0, line_end = 0;  ///< the line(s) of the declaration, with the line end
