@@ -1900,7 +1900,7 @@ TEST(Rapid, ArrayElementsOfARunTimeIndexOrOutsideTheArrayAreKeptAndNamed) {
   for (const auto& m : c.report.warnings) said.insert(m.where.str() + " " + m.message);
   EXPECT_TRUE(said.count("r.mod:11:7 MoveL left unchanged (not compensated): the index of 'pts{i}' is computed at run time; the position after it is not known"));
   EXPECT_TRUE(said.count("r.mod:8:5 pts{1} is corrected for this motion and also read at r.mod:11:13 ('MoveL pts{i},v200,fine,tWeld\\WObj:=wTable;'), "
-                         "which the correction must not move: the motion goes to a new point pts_1_1 declared after pts{1}, which keeps its value"));
+                         "which the correction must not move: the motion goes to a new point pts_1_1 declared after the array pts; pts{1} keeps its value"));
   int renamed = 0;
   for (const TargetReport& t : c.report.targets) renamed += (t.name == "pts_1_1" && t.new_point_replaces == "pts{1}") + (t.name == "pts_2_1" && t.new_point_replaces == "pts{2}");
   EXPECT_EQ(renamed, 2);

@@ -52,6 +52,14 @@ std::string rapidPointBase(const std::string& name) {
   return base;
 }
 
+/// Where a new point for `name` is declared and that `name` keeps its value, in a warning's
+/// words: "p20, which keeps", or for an element of a robtarget array "the array pts; pts{2}
+/// keeps" (KRL's XPA[1] gets no new point).
+std::string declaredAfterAndKeeps(const std::string& name) {
+  const size_t open = name.find('{');
+  return open == std::string::npos ? name + ", which keeps" : "the array " + name.substr(0, open) + "; " + name + " keeps";
+}
+
 std::string frameHint(const FrameSetting& f, const char* var) {
   std::string s = std::string(var) + " ";
   switch (f.source) {
@@ -423,8 +431,8 @@ class Job {
       warning(motion, conflict + (name.empty() ? ": this motion gets its corrected value as an inline aggregate (" + t.name +
                                                      " has no name of its own to derive a new point's from); " + t.name + " keeps the correction for " +
                                                      first.str()
-                                               : ": this motion goes to a new point " + name + " declared after " + t.name +
-                                                     ", which keeps the correction for " + first.str()));
+                                               : ": this motion goes to a new point " + name + " declared after " + declaredAfterAndKeeps(t.name) +
+                                                     " the correction for " + first.str()));
     }
     if (!it->second.empty()) own_point_names_.push_back({motion, t.name, it->second});
     t.replaces = t.name;
@@ -704,7 +712,8 @@ class Job {
           it = renamed.emplace(d, newPointName(*in_, rapidPointBase(src.decls[static_cast<size_t>(d)].name), new_names_)).first;
           new_names_.push_back(it->second);
           warning(m.where, old + " is corrected for this motion and also read at " + read.at(d) + ", which the correction must not " +
-                               "move: the motion goes to a new point " + it->second + " declared after " + old + ", which keeps its value");
+                               "move: the motion goes to a new point " + it->second + " declared after " + declaredAfterAndKeeps(old) +
+                               " its value");
         }
         t.new_declaration = true;
         t.replaces = old;
