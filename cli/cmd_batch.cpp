@@ -155,7 +155,7 @@ int runBatch(const BatchArgs& a) {
 void addBatchCommand(CLI::App& app) {
   auto args = std::make_shared<BatchArgs>();
   auto* c = app.add_subcommand("batch",
-                               "compensate every program (*.src, *.xml, *.script, *.mod, *.prg) of a directory tree into a mirrored tree (with --cell: each checked "
+                               "compensate every program (*.src, *.xml, *.script, *.mod, *.modx, *.prg) of a directory tree into a mirrored tree (with --cell: each checked "
                                "in the cell before it is written)");
   args->settings = addJobOptions(c, &args->model_files);
   c->add_option("--in", args->in, "directory of programs (read only)")->required();

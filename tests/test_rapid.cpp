@@ -15,6 +15,7 @@
 #include "accura/calib/ik.h"
 #include "accura/calib/kinematics.h"
 #include "accura/calib/simulate.h"
+#include "accura/postproc/batch.h"
 #include "accura/postproc/execution.h"
 #include "accura/postproc/job.h"
 #include "accura/postproc/path.h"
@@ -1132,6 +1133,28 @@ TEST(Rapid, BatchAndCheckInTheCell) {
   ASSERT_EQ(c.code, 0) << c.err;
   EXPECT_NE(c.out.find("smallest clearance 90.499 mm"), std::string::npos) << c.out;
   EXPECT_NEAR(std::sqrt(10.0 * 10.0 + 100.0 * 100.0) - 10, 90.499, 5e-4);
+}
+
+// RobotStudio saves the modules of RobotWare 6 and later as .modx (system modules .sysx), the
+// same RAPID text as .mod / .sys (public backups hold MODULE .. ENDMODULE in MainModule.modx,
+// Module1.modx, CalibData.modx). They were refused ("expected a program file ending in ..
+// .mod/.prg"): a module the controller loads. Read, compensated and converted as .mod; batch
+// takes the program modules (.modx), not the controller's system modules (.sys, .sysx).
+TEST(Rapid, ModulesSavedAsModxSysOrSysxAreRead) {
+  for (const char* name : {"a.modx", "B.MODX", "user.sys", "c.sysx"}) EXPECT_EQ(programFormat(name), ProgramFormat::kRapid) << name;
+  const std::string dir = test::tempDir("rapid_modx");
+  std::filesystem::create_directories(dir + "/in");
+  for (const char* name : {"in/seam.modx", "in/user.sys", "in/calib.sysx"}) test::writeText(dir + "/" + name, example());
+  const Program mod = parseRapid(example(), "seam.mod");
+  const Program modx = readProgram(dir + "/in/seam.modx");
+  ASSERT_EQ(modx.motions.size(), mod.motions.size());
+  EXPECT_EQ(writeRapid(modx), example());  // written back byte for byte, as a .mod is
+  EXPECT_EQ(readProgram(dir + "/in/user.sys").motions.size(), mod.motions.size());
+  // written as RAPID by the extension of the output
+  const std::vector<calib::OutputFile> files = renderProgram(mod, programFormat(dir + "/out.sysx"), dir + "/out.sysx");
+  ASSERT_EQ(files.size(), 1u);
+  EXPECT_EQ(files[0].text, example());
+  EXPECT_EQ(findPrograms(dir + "/in"), std::vector<std::string>{"seam.modx"});
 }
 
 // docs/rapid.md lists a NUL byte as an error: one in a comment, a string or the %%% header was

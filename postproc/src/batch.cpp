@@ -59,7 +59,9 @@ namespace {
 
 bool programExtension(const fs::path& p) {
   const std::string ext = lower(p.extension().string());
-  return ext == ".src" || ext == ".xml" || ext == ".script" || ext == ".mod" || ext == ".prg";
+  // (RAPID: the program modules; system modules, .sys/.sysx, are the controller's: a backup's
+  // base.sys and user.sys hold no program. Give one with compensate --in.)
+  return ext == ".src" || ext == ".xml" || ext == ".script" || ext == ".mod" || ext == ".modx" || ext == ".prg";
 }
 
 // One directory of the tree, its subdirectories depth first. A directory that cannot be listed

@@ -118,8 +118,10 @@ ProgramFormat programFormat(const std::string& path) {
   if (ext == ".src") return ProgramFormat::kKrl;
   if (ext == ".xml") return ProgramFormat::kXml;
   if (ext == ".script") return ProgramFormat::kUrScript;
-  if (ext == ".mod" || ext == ".prg") return ProgramFormat::kRapid;
-  throw calib::InputError(path + ": expected a program file ending in .src (KUKA KRL) or .xml (accura XML program) or .script (URScript) or .mod/.prg (ABB RAPID), found '" +
+  // RAPID modules: .mod and .sys (program and system modules, RobotWare 5), .modx and .sysx
+  // (the same text as RobotStudio saves them for RobotWare 6 and later), .prg (S4C era)
+  if (ext == ".mod" || ext == ".modx" || ext == ".sys" || ext == ".sysx" || ext == ".prg") return ProgramFormat::kRapid;
+  throw calib::InputError(path + ": expected a program file ending in .src (KUKA KRL) or .xml (accura XML program) or .script (URScript) or .mod/.modx/.sys/.sysx/.prg (ABB RAPID), found '" +
                    fs::path(path).extension().string() + "'");
 }
 

@@ -15,7 +15,7 @@ namespace accura::postproc {
 enum class ProgramFormat { kKrl, kXml, kUrScript, kRapid };
 
 /// The format of a program file by its extension (case-insensitive): .src -> KRL, .xml -> XML,
-/// .script -> URScript (urscript.h), .mod / .prg -> ABB RAPID (rapid.h).
+/// .script -> URScript (urscript.h), .mod / .modx / .sys / .sysx / .prg -> ABB RAPID (rapid.h).
 /// Throws InputError for any other extension.
 ProgramFormat programFormat(const std::string& path);
 
