@@ -125,6 +125,12 @@ ProgramFormat programFormat(const std::string& path) {
                    fs::path(path).extension().string() + "'");
 }
 
+bool isRapidModulePath(const std::string& path) {
+  std::string ext = fs::path(path).extension().string();
+  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return ext == ".mod" || ext == ".modx" || ext == ".sys" || ext == ".sysx" || ext == ".prg";
+}
+
 Program readProgram(const std::string& path, const ProgramReadOptions& options) {
   const ProgramFormat format = programFormat(path);
   if (format == ProgramFormat::kUrScript) {
@@ -136,11 +142,18 @@ Program readProgram(const std::string& path, const ProgramReadOptions& options) 
   }
   if (format == ProgramFormat::kRapid) {
     if (!options.dat_path.empty()) throw calib::InputError("--dat: only for KRL programs (.src), found the RAPID module " + path);
-    if (!options.config_path.empty())
-      throw calib::InputError("--config: only for KRL and XML programs ($config.dat frames), found the RAPID module " + path +
-                              " (its tooldata and wobjdata are read from the module, or give --program-tool / --program-base)");
-    return readRapid(path);
+    // --config for a RAPID module: another module of its task (CalibData.mod, user.sys) whose
+    // tooldata and wobjdata it uses; a $config.dat (KUKA's frames) is of no use to it
+    if (!options.config_path.empty() && !isRapidModulePath(options.config_path))
+      throw calib::InputError("--config: a KUKA $config.dat is only for KRL and XML programs, found the RAPID module " + path +
+                              " (give the module of its task that declares its tooldata and wobjdata, CalibData.mod or user.sys, "
+                              "or --program-tool / --program-base)");
+    return readRapid(path, options.config_path);
   }
+  if (!options.config_path.empty() && isRapidModulePath(options.config_path))
+    throw calib::InputError("--config: a RAPID module (the tooldata and wobjdata of an ABB task) is only for RAPID programs, found " +
+                            std::string(format == ProgramFormat::kKrl ? "the KRL program " : "the XML program ") + path +
+                            " (give the $config.dat with TOOL_DATA and BASE_DATA)");
   if (format == ProgramFormat::kKrl) {
     KrlReadOptions o;
     o.dat_path = options.dat_path;
