@@ -1135,6 +1135,34 @@ TEST(Rapid, BatchAndCheckInTheCell) {
   EXPECT_NEAR(std::sqrt(10.0 * 10.0 + 100.0 * 100.0) - 10, 90.499, 5e-4);
 }
 
+// EGMRunPose (Externally Guided Motion: the robot goes where a sensor streams it, bypassing the
+// path planning; public EGM modules run it between two Moves) was read as a statement that does
+// not move the robot: the MoveL after it was compensated and its path predicted from the target
+// before it, where the robot is not. It is a motion accura does not model (kept and named), and
+// the next motion's start is not known; so are EGMRunJoint, EGMMoveL/EGMMoveC (an EGM-corrected
+// path) and the path recorder's and the independent axes' moves.
+TEST(Rapid, AnExternallyGuidedMotionMovesTheRobotWhereTheTextDoesNotSay) {
+  const std::string text = inProc("    MoveJ [[380,-60,350],[0,0,1,0],[-1,0,-1,0],[9E9,9E9,9E9,9E9,9E9,9E9]], v100, fine, tool0;\n"
+                                  "    EGMRunPose egmID1, EGM_STOP_HOLD \\X \\Y \\Z \\CondTime:=10 \\RampInTime:=0.05;\n"
+                                  "    MoveL [[380,60,350],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]], v100, fine, tool0;\n"
+                                  "    EGMMoveL egmID1, [[380,0,350],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]], v10, fine, tool0;\n"
+                                  "    PathRecMoveBwd;\n    IndAMove Station_A,2\\ToAbsNum:=90,20;\n");
+  const Program p = parseRapid(text, "egm.mod");
+  ASSERT_EQ(p.motions.size(), 6u);
+  EXPECT_EQ(p.motions[1].target_problem, "EGMRunPose is a motion instruction accura does not model (MoveL, MoveJ, MoveC, MoveAbsJ)");
+  EXPECT_EQ(p.motions[3].target_problem, "EGMMoveL is a motion instruction accura does not model (MoveL, MoveJ, MoveC, MoveAbsJ)");
+  EXPECT_NE(p.motions[4].target_problem.find("PathRecMoveBwd"), std::string::npos);
+  EXPECT_NE(p.motions[5].target_problem.find("IndAMove"), std::string::npos);
+  EXPECT_EQ(writeRapid(p), text);
+  const ProgramCompensation c = compensateProgramReport(p, settingsFor(shiftedIrb120()));
+  ASSERT_TRUE(c.ok()) << c.report.errors.front().message;
+  EXPECT_EQ(c.report.motions_left_unchanged, 4);
+  bool unknown_start = false;
+  for (const ProgramIssue& w : c.report.warnings)
+    unknown_start = unknown_start || (w.where.line == 5 && w.message.find("after a position that is not known") != std::string::npos);
+  EXPECT_TRUE(unknown_start);
+}
+
 // RobotStudio saves the modules of RobotWare 6 and later as .modx (system modules .sysx), the
 // same RAPID text as .mod / .sys (public backups hold MODULE .. ENDMODULE in MainModule.modx,
 // Module1.modx, CalibData.modx). They were refused ("expected a program file ending in ..

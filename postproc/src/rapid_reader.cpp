@@ -73,7 +73,14 @@ const std::set<std::string> kOtherMoves = {
     "ARCCSTART", "ARCCEND", "ARCL1", "ARCL2", "ARCC1", "ARCC2", "ARCREPL", "ARCMOVEL", "ARCMOVEC", "SEARCHL", "SEARCHC",
     "SEARCHJ", "SEARCHEXTJ", "MOVEEXTJ", "SPOTL", "SPOTJ", "SPOTML", "SPOTMJ", "MOVEABSJDO", "CAPL", "CAPC", "PAINTL",
     "PAINTC", "PAINTLSIG", "PAINTLDO", "DISPL", "DISPC", "CONTACTL", "FCPRESSL", "FCPRESSC", "FCPRESSLSTART",
-    "FCPRESSEND", "TRIGGRELJ", "TRIGGLDO", "TRIGGJDO", "TRIGGCDO", "CSSDEACTMOVEL", "MOVELTRACK"};
+    "FCPRESSEND", "TRIGGRELJ", "TRIGGLDO", "TRIGGJDO", "TRIGGCDO", "CSSDEACTMOVEL", "MOVELTRACK",
+    // Externally Guided Motion moves the robot where a sensor streams it (EGMRunPose,
+    // EGMRunJoint) or corrects a programmed path on line (EGMMoveL, EGMMoveC: ToPoint after the
+    // EGM id); the path recorder and the independent axes move the robot or an axis too
+    // (PathRecMoveBwd, PathRecMoveFwd, StepBwdPath; IndAMove, IndCMove, IndDMove, IndRMove):
+    // the position after them is not the target written before
+    "EGMRUNPOSE", "EGMRUNJOINT", "EGMMOVEL", "EGMMOVEC", "PATHRECMOVEBWD", "PATHRECMOVEFWD", "STEPBWDPATH", "INDAMOVE",
+    "INDCMOVE", "INDDMOVE", "INDRMOVE"};
 
 /// The motion instructions with a robtarget that move as MoveL, MoveJ or MoveC and do
 /// something else besides (ABB, Technical reference manual - RAPID Instructions, Functions and
