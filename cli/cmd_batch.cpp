@@ -155,12 +155,13 @@ int runBatch(const BatchArgs& a) {
 void addBatchCommand(CLI::App& app) {
   auto args = std::make_shared<BatchArgs>();
   auto* c = app.add_subcommand("batch",
-                               "compensate every program (*.src, *.xml, *.script, *.mod, *.prg) of a directory tree into a mirrored tree (with --cell: each checked "
+                               "compensate every program (*.src, *.xml, *.script, *.mod, *.modx, *.prg) of a directory tree into a mirrored tree (with --cell: each checked "
                                "in the cell before it is written)");
   args->settings = addJobOptions(c, &args->model_files);
   c->add_option("--in", args->in, "directory of programs (read only)")->required();
   c->add_option("--out", args->out, "output directory (the same relative paths); not inside --in")->required();
-  c->add_option("--config", args->config, "$config.dat for every program: TOOL_DATA, BASE_DATA, global points");
+  c->add_option("--config", args->config, "$config.dat for every KRL and XML program: TOOL_DATA, BASE_DATA, global points; or, for every RAPID module, the "
+                "module of the task that declares the tooldata and wobjdata (CalibData.mod, user.sys)");
   addIntegerOption(c, "--jobs", args->jobs, "programs compensated in parallel (default: the number of cores)", 1, 1024)->capture_default_str();
   c->add_option("--json", args->json, "report of every program (with --cell: its check)");
   args->cell = addCellOptions(c, false, false);

@@ -167,9 +167,10 @@ void addCheckCommand(CLI::App& app) {
   args->settings = addJobOptions(c, &args->model_files);
   c->remove_option(c->get_option("--tol"));  // the compensation's path tolerance: not used by the checks
   args->cell = addCellOptions(c, true, true);
-  c->add_option("--in", args->in, "program: PROG.src (KRL, with PROG.dat next to it), PROG.xml, PROG.script (URScript) or PROG.mod/.prg (ABB RAPID)")->required();
+  c->add_option("--in", args->in, "program: PROG.src (KRL, with PROG.dat next to it), PROG.xml, PROG.script (URScript) or PROG.mod/.modx/.sys/.sysx/.prg (ABB RAPID)")->required();
   c->add_option("--dat", args->dat, "the KRL .dat (default: the .src's name with .dat)");
-  c->add_option("--config", args->config, "$config.dat: TOOL_DATA, BASE_DATA and global points such as XHOME");
+  c->add_option("--config", args->config, "$config.dat: TOOL_DATA, BASE_DATA and global points such as XHOME; for a RAPID module: the module of its task that "
+                "declares its tooldata and wobjdata (CalibData.mod, user.sys)");
   c->add_option("--json", args->json, "report: every violation (where, joints, which check, by how much) and per motion the margins");
   c->callback([=]() { exitCode() = runCheck(*args); });
 }

@@ -86,11 +86,12 @@ int runConvert(const ConvertArgs& a) {
 
 void addConvertCommand(CLI::App& app) {
   auto args = std::make_shared<ConvertArgs>();
-  auto* c = app.add_subcommand("convert", "convert a program between KUKA KRL (.src/.dat), the XML program format (.xml), URScript (.script) and ABB RAPID (.mod, .prg)");
-  c->add_option("--in", args->in, "program to read: PROG.src (KRL, with PROG.dat next to it), PROG.xml, PROG.script or PROG.mod/.prg")->required();
+  auto* c = app.add_subcommand("convert", "convert a program between KUKA KRL (.src/.dat), the XML program format (.xml), URScript (.script) and ABB RAPID (.mod, .modx, .sys, .sysx, .prg)");
+  c->add_option("--in", args->in, "program to read: PROG.src (KRL, with PROG.dat next to it), PROG.xml, PROG.script or PROG.mod/.modx/.sys/.sysx/.prg")->required();
   c->add_option("--dat", args->dat, "the KRL .dat (default: the .src's name with .dat)");
-  c->add_option("--config", args->config, "$config.dat: TOOL_DATA, BASE_DATA and global points such as XHOME");
-  c->add_option("--out", args->out, "program to write: OUT.xml, OUT.src (with OUT.dat), OUT.script or OUT.mod/.prg; its directory is created")->required();
+  c->add_option("--config", args->config, "$config.dat: TOOL_DATA, BASE_DATA and global points such as XHOME; for a RAPID module: the module of its task that "
+                "declares its tooldata and wobjdata (CalibData.mod, user.sys)");
+  c->add_option("--out", args->out, "program to write: OUT.xml, OUT.src (with OUT.dat), OUT.script or OUT.mod/.modx/.sys/.sysx/.prg; its directory is created")->required();
   c->add_option("--json", args->json, "report: the inputs read, the motions, the files written (and the lines dropped)");
   c->add_flag("--drop-unconvertible", args->drop,
               "keep the motions only: leave out the statements the output format cannot hold, each listed on stderr "

@@ -1177,6 +1177,39 @@ TEST(KrlRules, AnArrayPointOfTheDataListIsCorrectedInPlaceLikeANamedPoint) {
   EXPECT_EQ(kept, 1);
 }
 
+// A motion to an element of a point array chosen at run time (LIN XPA[I] in a loop, as a milling
+// job of a public KSS backup runs its work points) is kept as written, but it goes to the element
+// the index names, which another motion (LIN XPA[2]) corrects in place: on the robot it moves with
+// that correction. It was not said (the loop's motion was "left unchanged", silently not so); a
+// warning at it now names the corrected elements, as for a kept motion whose named point another
+// motion corrects (docs/program-formats.md).
+TEST(KrlRules, AMotionToAnArrayElementChosenAtRunTimeSaysWhichElementsAreCorrected) {
+  const std::string dir = test::tempDir("krl_array_run_time");
+  const std::string p1 = "{X 135.598,Y -264.075,Z 477.826,A 115.342,B -63.826,C -129.097,S 2,T 2,E1 0.0,E2 0.0,E3 0.0,E4 0.0,E5 0.0,E6 0.0}";
+  const std::string p2 = "{X 93.096,Y -259.890,Z 509.745,A 136.186,B -59.107,C -177.850,S 2,T 10,E1 0.0,E2 0.0,E3 0.0,E4 0.0,E5 0.0,E6 0.0}";
+  test::writeText(dir + "/p.src", "DEF p( )\nDECL INT I\n$TOOL = {X 0,Y 0,Z 200,A 0,B 90,C 0}\n$BASE = {X 900,Y -300,Z 200,A 30,B 0,C 0}\n"
+                                  "PTP {A1 10,A2 -80,A3 100,A4 20,A5 30,A6 40}\nFOR I = 1 TO 2\n  LIN XPA[I] C_VEL\nENDFOR\n"
+                                  "LIN XPA[2]\nPTP XPA[1]\nEND\n");
+  test::writeText(dir + "/p.dat", "DEFDAT p\nDECL E6POS XPA[3]\nXPA[1]=" + p1 + "\nXPA[2]=" + p2 + "\nXPA[3]=" + p1 + "\nENDDAT\n");
+  JobSettings s;
+  s.calibrated = StCell().real;
+  s.tol_mm = 10;
+  const ProgramCompensation pc = compensateProgramReport(readKrl(dir + "/p.src"), s);
+  ASSERT_TRUE(pc.ok()) << pc.report.errors.front().message;
+  const std::string dat = writeKrl(pc.program).dat;
+  EXPECT_EQ(dat.find("XPA[1]=" + p1), std::string::npos) << dat;  // both corrected in place (what the warning says)
+  EXPECT_EQ(dat.find("XPA[2]=" + p2), std::string::npos) << dat;
+  EXPECT_NE(dat.find("XPA[3]=" + p1), std::string::npos) << dat;  // no motion names it: as written
+  std::vector<std::string> said;
+  for (const ProgramIssue& w : pc.report.warnings)
+    if (w.message.find("chosen at run time, and") != std::string::npos) said.push_back(w.where.str() + " " + w.message);
+  ASSERT_EQ(said.size(), 1u);
+  EXPECT_EQ(said[0], dir + "/p.src:7:3 this motion is left as written, but the element of the array it goes to is chosen at run time, and XPA[2] "
+                     "(corrected for the motion at " + dir + "/p.src:9:1) and 1 more element(s) are corrected: where the index names a corrected "
+                     "element, the motion moves with that correction, made for that motion's tool, base and path (give the motions their own "
+                     "points to keep this one as written)");
+}
+
 // A point declared GLOBAL (DECL GLOBAL E6POS XG1 in a PUBLIC data list) is the value other
 // modules go to as well: corrected for this program's tool and base, it moves them too. A
 // warning at its declaration says so; a point of the program's own (XP2) gets none.

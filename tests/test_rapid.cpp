@@ -16,6 +16,7 @@
 #include "accura/calib/ik.h"
 #include "accura/calib/kinematics.h"
 #include "accura/calib/simulate.h"
+#include "accura/postproc/batch.h"
 #include "accura/postproc/execution.h"
 #include "accura/postproc/job.h"
 #include "accura/postproc/path.h"
@@ -719,7 +720,7 @@ TEST(Rapid, WhatAccuraCannotModelIsKeptNamingIt) {
   // an undeclared tooldata: named, with the option that supplies it
   EXPECT_EQ(firstError(inProc("    MoveJ " + t + ", v100, fine, gun;\n")),
             "r.mod:3:5: the tool of this motion is not known: the tooldata 'gun' is not declared with a value in this module (give its TCP with "
-            "--program-tool x,y,z,A,B,C)");
+            "--program-tool x,y,z,A,B,C, or the module that declares it with --config)");
 }
 
 // The simulated ABB controller, written here on its own: MoveAbsJ to its joints; MoveJ with
@@ -1133,6 +1134,113 @@ TEST(Rapid, BatchAndCheckInTheCell) {
   ASSERT_EQ(c.code, 0) << c.err;
   EXPECT_NE(c.out.find("smallest clearance 90.499 mm"), std::string::npos) << c.out;
   EXPECT_NEAR(std::sqrt(10.0 * 10.0 + 100.0 * 100.0) - 10, 90.499, 5e-4);
+}
+
+// EGMRunPose (Externally Guided Motion: the robot goes where a sensor streams it, bypassing the
+// path planning; public EGM modules run it between two Moves) was read as a statement that does
+// not move the robot: the MoveL after it was compensated and its path predicted from the target
+// before it, where the robot is not. It is a motion accura does not model (kept and named), and
+// the next motion's start is not known; so are EGMRunJoint, EGMMoveL/EGMMoveC (an EGM-corrected
+// path) and the path recorder's and the independent axes' moves.
+TEST(Rapid, AnExternallyGuidedMotionMovesTheRobotWhereTheTextDoesNotSay) {
+  const std::string text = inProc("    MoveJ [[380,-60,350],[0,0,1,0],[-1,0,-1,0],[9E9,9E9,9E9,9E9,9E9,9E9]], v100, fine, tool0;\n"
+                                  "    EGMRunPose egmID1, EGM_STOP_HOLD \\X \\Y \\Z \\CondTime:=10 \\RampInTime:=0.05;\n"
+                                  "    MoveL [[380,60,350],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]], v100, fine, tool0;\n"
+                                  "    EGMMoveL egmID1, [[380,0,350],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]], v10, fine, tool0;\n"
+                                  "    PathRecMoveBwd;\n    IndAMove Station_A,2\\ToAbsNum:=90,20;\n");
+  const Program p = parseRapid(text, "egm.mod");
+  ASSERT_EQ(p.motions.size(), 6u);
+  EXPECT_EQ(p.motions[1].target_problem, "EGMRunPose is a motion instruction accura does not model (MoveL, MoveJ, MoveC, MoveAbsJ)");
+  EXPECT_EQ(p.motions[3].target_problem, "EGMMoveL is a motion instruction accura does not model (MoveL, MoveJ, MoveC, MoveAbsJ)");
+  EXPECT_NE(p.motions[4].target_problem.find("PathRecMoveBwd"), std::string::npos);
+  EXPECT_NE(p.motions[5].target_problem.find("IndAMove"), std::string::npos);
+  EXPECT_EQ(writeRapid(p), text);
+  const ProgramCompensation c = compensateProgramReport(p, settingsFor(shiftedIrb120()));
+  ASSERT_TRUE(c.ok()) << c.report.errors.front().message;
+  EXPECT_EQ(c.report.motions_left_unchanged, 4);
+  bool unknown_start = false;
+  for (const ProgramIssue& w : c.report.warnings)
+    unknown_start = unknown_start || (w.where.line == 5 && w.message.find("after a position that is not known") != std::string::npos);
+  EXPECT_TRUE(unknown_start);
+}
+
+// RobotStudio saves the modules of RobotWare 6 and later as .modx (system modules .sysx), the
+// same RAPID text as .mod / .sys (public backups hold MODULE .. ENDMODULE in MainModule.modx,
+// Module1.modx, CalibData.modx). They were refused ("expected a program file ending in ..
+// .mod/.prg"): a module the controller loads. Read, compensated and converted as .mod; batch
+// takes the program modules (.modx), not the controller's system modules (.sys, .sysx).
+TEST(Rapid, ModulesSavedAsModxSysOrSysxAreRead) {
+  for (const char* name : {"a.modx", "B.MODX", "user.sys", "c.sysx"}) EXPECT_EQ(programFormat(name), ProgramFormat::kRapid) << name;
+  const std::string dir = test::tempDir("rapid_modx");
+  std::filesystem::create_directories(dir + "/in");
+  for (const char* name : {"in/seam.modx", "in/user.sys", "in/calib.sysx"}) test::writeText(dir + "/" + name, example());
+  const Program mod = parseRapid(example(), "seam.mod");
+  const Program modx = readProgram(dir + "/in/seam.modx");
+  ASSERT_EQ(modx.motions.size(), mod.motions.size());
+  EXPECT_EQ(writeRapid(modx), example());  // written back byte for byte, as a .mod is
+  EXPECT_EQ(readProgram(dir + "/in/user.sys").motions.size(), mod.motions.size());
+  // written as RAPID by the extension of the output
+  const std::vector<calib::OutputFile> files = renderProgram(mod, programFormat(dir + "/out.sysx"), dir + "/out.sysx");
+  ASSERT_EQ(files.size(), 1u);
+  EXPECT_EQ(files[0].text, example());
+  EXPECT_EQ(findPrograms(dir + "/in"), std::vector<std::string>{"seam.modx"});
+}
+
+// A module whose tooldata and wobjdata another module of its task declares (CalibData.mod,
+// user.sys: RAPID's global data are visible in every module of the task), as public RobotStudio
+// modules use `Servo\WObj:=pickTablew` and `\WObj:=dropTablew` declared elsewhere. Two work
+// objects cannot both be --program-base: the module was refused ("not declared with a value in
+// this module"; --config: "only for KRL and XML programs"), a program the controller runs.
+// --config names that module: its data serve the names the module does not declare, and the
+// module is compensated exactly as the one module that declares them itself.
+TEST(Rapid, TheTasksToolAndWorkObjectsComeFromTheModuleGivenWithConfig) {
+  const std::string torch = "  PERS tooldata torch := [TRUE,[[0,0,150],[1,0,0,0]],[1.2,[0,0,60],[1,0,0,0],0,0,0]];\n";
+  const std::string table = "  PERS wobjdata table := [FALSE,TRUE,\"\",[[300,-150,100],[1,0,0,0]],[[0,0,0],[1,0,0,0]]];\n";
+  const std::string table2 = "  PERS wobjdata table2 := [FALSE,TRUE,\"\",[[300,-150,110],[1,0,0,0]],[[0,0,0],[1,0,0,0]]];\n";
+  std::string split = example();
+  for (const std::string& line : {torch, table}) {
+    ASSERT_NE(split.find(line), std::string::npos);
+    split.erase(split.find(line), line.size());
+  }
+  for (const char* motion : {"MoveC p40, p50, v20, z1, torch\\WObj:=table;", "MoveL p60, v20, fine, torch\\WObj:=table;"}) {
+    const std::string m = motion;
+    ASSERT_NE(split.find(m), std::string::npos) << m;
+    split.replace(split.find(m), m.size(), m.substr(0, m.size() - 1) + "2;");
+  }
+  const size_t decl = split.find("  CONST jointtarget home");
+  const std::string whole = split.substr(0, decl) + torch + table + table2 + split.substr(decl);
+  const std::string dir = test::tempDir("rapid_task_data");
+  test::writeText(dir + "/seam.mod", split);
+  test::writeText(dir + "/calib.sys", "MODULE CalibData(SYSMODULE)\n" + torch + table + table2 + "  LOCAL PERS tooldata spare := [TRUE,[[0,0,9],[1,0,0,0]],[1,[0,0,1],[1,0,0,0],0,0,0]];\nENDMODULE\n");
+  ProgramReadOptions o;
+  o.config_path = dir + "/calib.sys";
+  const Program p = readProgram(dir + "/seam.mod", o);
+  const ProgramCompensation a = compensateProgramReport(p, settingsFor(shiftedIrb120()));
+  ASSERT_TRUE(a.ok()) << a.report.errors.front().message;
+  const ProgramCompensation b = compensateProgramReport(parseRapid(whole, "seam.mod"), settingsFor(shiftedIrb120()));
+  ASSERT_TRUE(b.ok()) << b.report.errors.front().message;
+  std::string expected = writeRapid(b.program);
+  expected.erase(expected.find(torch), torch.size() + table.size() + table2.size());
+  const std::string written = writeRapid(a.program);
+  EXPECT_EQ(written, expected);
+  EXPECT_NE(written, split);  // (corrected: the base is 0.3 mm off)
+  EXPECT_EQ(p.motions[5].base.text, "table2");
+  ASSERT_TRUE(p.motions[5].base.value.has_value());
+  EXPECT_NEAR(p.motions[5].base.value->z_mm, 110, 1e-12);
+  // without it, the names are unknown and the message names the option; a $config.dat is not a module of the task
+  const ProgramCompensation alone = compensateProgramReport(parseRapid(split, "seam.mod"), settingsFor(shiftedIrb120()));
+  bool named = false;
+  for (const ProgramIssue& e : alone.report.errors)
+    named = named || e.message == "the base of this motion is not known: the wobjdata 'table2' is not declared with a value in this module (give "
+                                  "its frame with --program-base x,y,z,A,B,C, or the module that declares it with --config)";
+  EXPECT_TRUE(named);
+  o.config_path = dir + "/$config.dat";
+  try {
+    readProgram(dir + "/seam.mod", o);
+    ADD_FAILURE() << "a $config.dat read for a RAPID module";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("--config: a KUKA $config.dat is only for KRL and XML programs"), std::string::npos) << e.what();
+  }
 }
 
 // docs/rapid.md lists a NUL byte as an error: one in a comment, a string or the %%% header was

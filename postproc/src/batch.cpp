@@ -59,7 +59,9 @@ namespace {
 
 bool programExtension(const fs::path& p) {
   const std::string ext = lower(p.extension().string());
-  return ext == ".src" || ext == ".xml" || ext == ".script" || ext == ".mod" || ext == ".prg";
+  // (RAPID: the program modules; system modules, .sys/.sysx, are the controller's: a backup's
+  // base.sys and user.sys hold no program. Give one with compensate --in.)
+  return ext == ".src" || ext == ".xml" || ext == ".script" || ext == ".mod" || ext == ".modx" || ext == ".prg";
 }
 
 // One directory of the tree, its subdirectories depth first. A directory that cannot be listed
@@ -360,10 +362,13 @@ BatchResult runBatch(const std::string& in_dir, const std::string& out_dir, cons
           r.message = "not an XML program (its root element is not <program>)";
         } else {
           // $config.dat holds KUKA's frames: it serves the KRL and XML programs of a mixed tree; a
-          // URScript program in the same tree carries its own TCP (set_tcp) and base
+          // URScript program in the same tree carries its own TCP (set_tcp) and base. A RAPID
+          // module given as --config (the task's tooldata and wobjdata) serves the RAPID modules.
           ProgramReadOptions file_read = read;
           const ProgramFormat format = programFormat(in_path.string());
-          if (format != ProgramFormat::kKrl && format != ProgramFormat::kXml) file_read.config_path.clear();
+          const bool rapid_config = isRapidModulePath(file_read.config_path);
+          if (rapid_config ? format != ProgramFormat::kRapid : format != ProgramFormat::kKrl && format != ProgramFormat::kXml)
+            file_read.config_path.clear();
           if (format != ProgramFormat::kKrl) file_read.other_globals.clear();
           CheckedProgram out = compensateAndCheckFile(in_path.string(), out_path.string(), file_read, options.job,
                                                       cell ? &*cell : nullptr, &r.report);

@@ -567,6 +567,7 @@ class Job {
     copyPointsReadElsewhere(out);
     copyRapidPointsReadElsewhere(out);
     checkKeptValues(out);
+    checkElementsChosenAtRunTime(out);
     noteGlobalPoints(out);
     noteInlinedPoints(out);
     // the pass-through statements stay before their motion, ahead of the points inserted
@@ -740,6 +741,37 @@ class Job {
                                 m.where.str() + ": it moves with that correction, made for that motion's tool, base and path "
                                 "(give the motions their own points to keep this one as written)");
       }
+  }
+
+  /// A motion kept as written whose point the program chooses at run time among the elements
+  /// of an array (KRL `LIN XPA[I]`) goes to an element another motion corrects (`LIN XPA[2]`)
+  /// whenever the index names it: it moves with that correction, as in checkKeptValues. Said
+  /// once per such motion, naming the first corrected element and how many there are.
+  void checkElementsChosenAtRunTime(const Program& out) {
+    if (!in_ || !in_->krl) return;
+    struct Corrected {
+      std::string first;  // "XPA[2] (corrected for the motion at ..)"
+      std::set<int> ids;
+    };
+    std::map<std::string, std::pair<SourceLocation, Corrected>> at;  // by the kept motion's place
+    for (const Motion& m : out.motions)
+      for (const Target* t : {&m.target, m.aux ? &*m.aux : nullptr}) {
+        if (!t || !t->modified || t->new_declaration || t->value_id < 0 || static_cast<size_t>(t->value_id) >= in_->krl->values.size())
+          continue;
+        for (const SourceLocation& kept : in_->krl->values[static_cast<size_t>(t->value_id)].chosen_at_run_time) {
+          auto& [where, c] = at[kept.str()];
+          where = kept;
+          if (c.ids.empty()) c.first = targetLabel(*t) + " (corrected for the motion at " + m.where.str() + ")";
+          c.ids.insert(t->value_id);
+        }
+      }
+    for (const auto& [key, v] : at) {
+      const size_t more = v.second.ids.size() - 1;
+      warning(v.first, "this motion is left as written, but the element of the array it goes to is chosen at run time, and " +
+                           v.second.first + (more ? " and " + std::to_string(more) + " more element(s) are" : " is") +
+                           " corrected: where the index names a corrected element, the motion moves with that correction, made for "
+                           "that motion's tool, base and path (give the motions their own points to keep this one as written)");
+    }
   }
 
   /// A corrected point declared GLOBAL (KRL DECL GLOBAL E6POS XG1 in a PUBLIC data list) is

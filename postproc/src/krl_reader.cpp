@@ -1492,6 +1492,15 @@ void notePointReads(const KrlFile& src, const std::vector<std::vector<Tok>>& lin
       // a motion's target written as the point's name alone: LIN XP1 C_DIS, CIRC XA, XB, LIN XPA[2]
       const bool target = motion && depth == 0 && (i == 1 || t[i - 1].text == ",") &&
                           (last + 1 == t.size() || t[last + 1].text == "," || t[last + 1].kind == Tok::kIdent);
+      if (target && array != decl.arrays.end() && last > i && !index) {
+        // LIN XPA[I]: the motion goes to whichever element the index names at run time
+        const std::string prefix = upper(array->second.name) + "[";
+        for (const auto& [up, p] : decl.points)
+          if (up.compare(0, prefix.size(), prefix) == 0 && p.value && p.value->value_id >= 0 &&
+              static_cast<size_t>(p.value->value_id) < source.values.size())
+            source.values[static_cast<size_t>(p.value->value_id)].chosen_at_run_time.push_back(src.loc(t[0].begin));
+        continue;
+      }
       if (target) continue;
       if (array != decl.arrays.end() && last > i) {
         const std::string prefix = upper(array->second.name) + "[";

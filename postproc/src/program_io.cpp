@@ -118,9 +118,17 @@ ProgramFormat programFormat(const std::string& path) {
   if (ext == ".src") return ProgramFormat::kKrl;
   if (ext == ".xml") return ProgramFormat::kXml;
   if (ext == ".script") return ProgramFormat::kUrScript;
-  if (ext == ".mod" || ext == ".prg") return ProgramFormat::kRapid;
-  throw calib::InputError(path + ": expected a program file ending in .src (KUKA KRL) or .xml (accura XML program) or .script (URScript) or .mod/.prg (ABB RAPID), found '" +
+  // RAPID modules: .mod and .sys (program and system modules, RobotWare 5), .modx and .sysx
+  // (the same text as RobotStudio saves them for RobotWare 6 and later), .prg (S4C era)
+  if (ext == ".mod" || ext == ".modx" || ext == ".sys" || ext == ".sysx" || ext == ".prg") return ProgramFormat::kRapid;
+  throw calib::InputError(path + ": expected a program file ending in .src (KUKA KRL) or .xml (accura XML program) or .script (URScript) or .mod/.modx/.sys/.sysx/.prg (ABB RAPID), found '" +
                    fs::path(path).extension().string() + "'");
+}
+
+bool isRapidModulePath(const std::string& path) {
+  std::string ext = fs::path(path).extension().string();
+  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return ext == ".mod" || ext == ".modx" || ext == ".sys" || ext == ".sysx" || ext == ".prg";
 }
 
 Program readProgram(const std::string& path, const ProgramReadOptions& options) {
@@ -134,11 +142,18 @@ Program readProgram(const std::string& path, const ProgramReadOptions& options) 
   }
   if (format == ProgramFormat::kRapid) {
     if (!options.dat_path.empty()) throw calib::InputError("--dat: only for KRL programs (.src), found the RAPID module " + path);
-    if (!options.config_path.empty())
-      throw calib::InputError("--config: only for KRL and XML programs ($config.dat frames), found the RAPID module " + path +
-                              " (its tooldata and wobjdata are read from the module, or give --program-tool / --program-base)");
-    return readRapid(path);
+    // --config for a RAPID module: another module of its task (CalibData.mod, user.sys) whose
+    // tooldata and wobjdata it uses; a $config.dat (KUKA's frames) is of no use to it
+    if (!options.config_path.empty() && !isRapidModulePath(options.config_path))
+      throw calib::InputError("--config: a KUKA $config.dat is only for KRL and XML programs, found the RAPID module " + path +
+                              " (give the module of its task that declares its tooldata and wobjdata, CalibData.mod or user.sys, "
+                              "or --program-tool / --program-base)");
+    return readRapid(path, options.config_path);
   }
+  if (!options.config_path.empty() && isRapidModulePath(options.config_path))
+    throw calib::InputError("--config: a RAPID module (the tooldata and wobjdata of an ABB task) is only for RAPID programs, found " +
+                            std::string(format == ProgramFormat::kKrl ? "the KRL program " : "the XML program ") + path +
+                            " (give the $config.dat with TOOL_DATA and BASE_DATA)");
   if (format == ProgramFormat::kKrl) {
     KrlReadOptions o;
     o.dat_path = options.dat_path;

@@ -87,7 +87,14 @@ const std::set<std::string> kOtherMoves = {
     "ARCCSTART", "ARCCEND", "ARCL1", "ARCL2", "ARCC1", "ARCC2", "ARCREPL", "ARCMOVEL", "ARCMOVEC", "SEARCHL", "SEARCHC",
     "SEARCHJ", "SEARCHEXTJ", "MOVEEXTJ", "SPOTL", "SPOTJ", "SPOTML", "SPOTMJ", "MOVEABSJDO", "CAPL", "CAPC", "PAINTL",
     "PAINTC", "PAINTLSIG", "PAINTLDO", "DISPL", "DISPC", "CONTACTL", "FCPRESSL", "FCPRESSC", "FCPRESSLSTART",
-    "FCPRESSEND", "TRIGGRELJ", "TRIGGLDO", "TRIGGJDO", "TRIGGCDO", "CSSDEACTMOVEL", "MOVELTRACK"};
+    "FCPRESSEND", "TRIGGRELJ", "TRIGGLDO", "TRIGGJDO", "TRIGGCDO", "CSSDEACTMOVEL", "MOVELTRACK",
+    // Externally Guided Motion moves the robot where a sensor streams it (EGMRunPose,
+    // EGMRunJoint) or corrects a programmed path on line (EGMMoveL, EGMMoveC: ToPoint after the
+    // EGM id); the path recorder and the independent axes move the robot or an axis too
+    // (PathRecMoveBwd, PathRecMoveFwd, StepBwdPath; IndAMove, IndCMove, IndDMove, IndRMove):
+    // the position after them is not the target written before
+    "EGMRUNPOSE", "EGMRUNJOINT", "EGMMOVEL", "EGMMOVEC", "PATHRECMOVEBWD", "PATHRECMOVEFWD", "STEPBWDPATH", "INDAMOVE",
+    "INDCMOVE", "INDDMOVE", "INDRMOVE"};
 
 /// The motion instructions with a robtarget that move as MoveL, MoveJ or MoveC and do
 /// something else besides (ABB, Technical reference manual - RAPID Instructions, Functions and
@@ -144,6 +151,24 @@ class Reader {
       if (text[i] == '\n') starts_.push_back(i + 1);
   }
 
+  /// The task-global data of the module(s) in the text (what another module of the task sees:
+  /// every module datum that is not LOCAL), read as run() reads them. InputError for text that is
+  /// no module.
+  Scope taskData() {
+    t_ = lexRapid(src_->text, src_->path);
+    split();
+    moduleData();
+    if (modules_.empty())
+      fail(t_.empty() ? 0 : t_.front().b, "expected a RAPID module (MODULE name ... ENDMODULE) with the task's tooldata and wobjdata, found " +
+                                              (t_.empty() ? std::string("an empty file") : "'" + excerpt(t_.front().s) + "'"));
+    return global_;
+  }
+
+  /// Another module of the task (CalibData.mod, user.sys) whose task-global data this module
+  /// uses: RAPID's global data are visible in every module of the task. Its tooldata, wobjdata,
+  /// speeddata, zonedata and CONST nums serve the names this program does not declare itself.
+  void useTaskData(Scope other) { task_data_ = std::move(other); }
+
   Program run() {
     t_ = lexRapid(src_->text, src_->path);
     findMovingRoutines();
@@ -151,6 +176,7 @@ class Reader {
     scanAssignments();
     findDisplacedRoutines();
     moduleData();
+    addTaskData();
     Program p;
     p.source_file = src_->path;
     p.name = fs::path(src_->path).stem().string();
@@ -566,6 +592,31 @@ class Reader {
       }
     }
     module_index_ = -1;  // (the reading in order counts the modules again)
+  }
+
+  /// task_data_'s frames, speeds, zones and constants into the program's global data, for the
+  /// names no module of the program declares (its own declaration is the one it refers to).
+  void addTaskData() {
+    for (const auto& [u, where] : task_data_.names) {
+      bool declared = global_.names.count(u) > 0;
+      for (const Scope& m : modules_) declared = declared || m.names.count(u) > 0;
+      if (declared) continue;
+      bool used = false;
+      const auto take = [&](auto table) {
+        const auto it = (task_data_.*table).find(u);
+        if (it == (task_data_.*table).end()) return;
+        (global_.*table)[u] = it->second;
+        used = true;
+      };
+      take(&Scope::tools);
+      take(&Scope::wobjs);
+      take(&Scope::speeds);
+      take(&Scope::zones);
+      take(&Scope::consts);
+      if (!used) continue;  // (a robtarget of that module: its value is in that module's text)
+      global_.names[u] = where;
+      if (task_data_.read_names.count(u)) global_.read_names.insert(u);
+    }
   }
 
   void statement(Range r, Program& p) {
@@ -1652,7 +1703,8 @@ class Reader {
   }
 
   void tool(Range a, Motion& m) {
-    m.tool = frameArg(a, &Scope::tools, "TOOL0", "tooldata", "give its TCP with --program-tool x,y,z,A,B,C");
+    m.tool = frameArg(a, &Scope::tools, "TOOL0", "tooldata",
+                      "give its TCP with --program-tool x,y,z,A,B,C, or the module that declares it with --config");
   }
 
   void wobj(const std::map<std::string, Range>& opt, Motion& m) {
@@ -1666,7 +1718,8 @@ class Reader {
     }
     const Range a = it->second;
     if (a.first >= a.second) fail(t_[a.first - 1].e, "expected a wobjdata after \\WObj:=, found nothing");
-    m.base = frameArg(a, &Scope::wobjs, "WOBJ0", "wobjdata", "give its frame with --program-base x,y,z,A,B,C");
+    m.base = frameArg(a, &Scope::wobjs, "WOBJ0", "wobjdata",
+                      "give its frame with --program-base x,y,z,A,B,C, or the module that declares it with --config");
   }
 
   /// A motion instruction accura does not model (or, `why`, does not read as written): kept, and
@@ -1728,6 +1781,7 @@ class Reader {
   std::vector<int> motion_lines_;
   std::vector<Scope> modules_;  ///< each module's data (moduleData), by module_index_
   Scope global_, local_;        ///< the program's global data; the current routine's
+  Scope task_data_;             ///< another module's task-global data (useTaskData)
   int module_index_ = -1;       ///< the module being read (its MODULE's count - 1)
   std::set<size_t> module_data_;  ///< first tokens of the module-level declarations (read first)
   std::string module_name_, routine_, routine_kind_, main_routine_;
@@ -1747,14 +1801,28 @@ class Reader {
 
 Program parseRapid(const std::string& text, const std::string& path) { return Reader(text, path).run(); }
 
-Program readRapid(const std::string& path) {
+namespace {
+
+std::string moduleText(const std::string& path) {
   std::error_code ec;
   if (!fs::is_regular_file(path, ec)) throw calib::InputError(path, 0, 0, "cannot read the RAPID module: no such file");
   std::ifstream f(path, std::ios::binary);
   if (!f) throw calib::InputError(path, 0, 0, "cannot read the RAPID module");
   std::string text((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
   if (f.bad()) throw calib::InputError(path, 0, 0, "cannot read the RAPID module");
-  return parseRapid(text, path);
+  return text;
+}
+
+}  // namespace
+
+Program readRapid(const std::string& path) { return parseRapid(moduleText(path), path); }
+
+Program readRapid(const std::string& path, const std::string& task_module) {
+  if (task_module.empty()) return readRapid(path);
+  Reader data(moduleText(task_module), task_module);
+  Reader r(moduleText(path), path);
+  r.useTaskData(data.taskData());
+  return r.run();
 }
 
 }  // namespace accura::postproc

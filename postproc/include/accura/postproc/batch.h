@@ -140,7 +140,8 @@ struct TreeProblem {
   std::string message;
 };
 
-/// The programs of a tree: every *.src, *.xml, *.script, *.mod, *.prg (any case), relative
+/// The programs of a tree: every *.src, *.xml, *.script, *.mod, *.modx, *.prg (any case; not the
+/// RAPID system modules *.sys, *.sysx: the controller's, compensate takes one with --in), relative
 /// paths sorted byte-wise ('/' separated). Hidden entries (starting with '.') are skipped; a
 /// symbolic link to a file is a program by its own name, one to a directory is not followed.
 /// Every TreeProblem goes to `problems` (sorted by path) and the walk goes on; with `problems`

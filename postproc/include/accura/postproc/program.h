@@ -243,6 +243,10 @@ struct KrlSource {
     /// does not), e.g. "P.src:6:3 ($BASE = XFB)": a frame or another point taken from it. A
     /// correction written into this value would move that use too; it goes into a new point.
     std::string read_elsewhere;
+    /// The motions whose target is an element of this point's array chosen at run time (`LIN
+    /// XPA[I]`, kept as written): they go to this value when the index says so, and move with
+    /// its correction.
+    std::vector<SourceLocation> chosen_at_run_time;
   };
   struct Statement {    ///< a motion statement line
     int file = 0;

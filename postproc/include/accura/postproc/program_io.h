@@ -15,13 +15,19 @@ namespace accura::postproc {
 enum class ProgramFormat { kKrl, kXml, kUrScript, kRapid };
 
 /// The format of a program file by its extension (case-insensitive): .src -> KRL, .xml -> XML,
-/// .script -> URScript (urscript.h), .mod / .prg -> ABB RAPID (rapid.h).
+/// .script -> URScript (urscript.h), .mod / .modx / .sys / .sysx / .prg -> ABB RAPID (rapid.h).
 /// Throws InputError for any other extension.
 ProgramFormat programFormat(const std::string& path);
 
+/// True when `path` names a RAPID module by its extension (programFormat's: .mod, .modx, .sys,
+/// .sysx, .prg), e.g. the module of a task that declares its tooldata and wobjdata.
+bool isRapidModulePath(const std::string& path);
+
 struct ProgramReadOptions {
   std::string dat_path;     ///< KRL: the .dat (empty: found next to the .src)
-  std::string config_path;  ///< $config.dat: TOOL_DATA / BASE_DATA (and global points for KRL)
+  /// KRL and XML: the $config.dat: TOOL_DATA / BASE_DATA (and global points for KRL). RAPID:
+  /// another module of the task whose tooldata and wobjdata the module uses (readRapid).
+  std::string config_path;
   /// KRL: the GLOBAL points of other programs' data lists (KrlReadOptions::other_globals)
   std::map<std::string, SourceLocation> other_globals;
 };

@@ -99,6 +99,12 @@ struct RapidSource {
 /// Reads a RAPID module. Throws calib::InputError (file:line:column) on malformed input and
 /// on an unreadable or binary file.
 Program readRapid(const std::string& path);
+/// The same, with another module of the task, `task_module` (CalibData.mod, user.sys; "" none),
+/// whose task-global data (those not LOCAL: RAPID's global data are visible in every module of
+/// the task) the module uses without declaring them: its tooldata, wobjdata, speeddata,
+/// zonedata and CONST nums serve the names the module does not declare itself. That module is
+/// only read. Throws like readRapid, for either file.
+Program readRapid(const std::string& path, const std::string& task_module);
 /// The same from text (`path` names it in messages).
 Program parseRapid(const std::string& text, const std::string& path);
 
