@@ -229,6 +229,24 @@ TEST(CompensateCli, ConvertKrlToXmlAndBack) {
   EXPECT_NE(r.err.find("the output would overwrite the input"), std::string::npos) << r.err;
 }
 
+// A cell's program often leaves its frames to a routine of another module (MoveSettings(base,
+// tool, ..)), which accura cannot read: the refusal names that call and the option that gives
+// the frame it sets; KRL's own statements with parentheses (PULSE) are not taken for one.
+TEST(CompensateCli, FramesLeftToAnotherModulesRoutineNameTheCall) {
+  const std::string dir = inputs("comp_external_frames");
+  test::writeText(dir + "/cell.src",
+                  "DEF cell()\n  PULSE($OUT[1], TRUE, 0.1)\n  MoveSettings(1, 2)\n  PTP {A1 0,A2 -90,A3 90,A4 0,A5 45,A6 0}\n"
+                  "  LIN {X 900,Y 0,Z 1100,A 0,B 90,C 0}\nEND\n");
+  CliRun r = accura(dir, "compensate --robot kr16_real.xml --in cell.src --out o");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("cell.src:5:3: the tool of this motion is not known: $TOOL is not set in this file before this motion; "
+                       "MoveSettings (called at cell.src:3:3), a routine this file does not define, may set it: give the frame it "
+                       "sets with --program-tool x,y,z,A,B,C, or set $TOOL in the program"),
+            std::string::npos)
+      << r.err;
+  EXPECT_FALSE(std::filesystem::exists(dir + "/o/cell.src"));
+}
+
 // FreeCAD's compact KRL sets neither $TOOL nor $BASE: the controller's active frames are
 // given on the command line; the numbers of the inline targets change, their comments stay.
 TEST(CompensateCli, ProgramsWithoutFramesTakeThemFromTheCommandLine) {

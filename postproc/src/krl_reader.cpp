@@ -358,6 +358,23 @@ struct Reader {
     }
   }
   std::set<std::string> tool_defs_, base_defs_;  // those that set $TOOL / $BASE (themselves or through their calls)
+  std::set<std::string> defined_routines_;        // every DEF / DEFFCT of this .src (upper case)
+
+  // A statement that only calls a routine this file does not define (`MoveSettings(1, 2)`; not
+  // a control statement, nor one of KRL's own statements written with parentheses): its name.
+  std::string externalCall(const std::vector<Tok>& t) const {
+    static const std::set<std::string> kKrlStatements = {
+        "IF", "WHILE", "UNTIL", "SWITCH", "CASE", "RETURN", "WAIT", "FOR", "REPEAT", "LOOP", "EXIT", "ELSE", "GOTO",
+        "HALT", "INTERRUPT", "TRIGGER", "PULSE", "ANIN", "ANOUT", "CWRITE", "CREAD", "SWRITE", "SREAD", "BRAKE", "RESUME"};
+    if (t.size() < 3 || t[0].kind != Tok::kIdent || t[1].text != "(" || t.back().text != ")") return "";
+    if (kKrlStatements.count(t[0].up) || defined_routines_.count(t[0].up)) return "";
+    int depth = 0;
+    for (size_t i = 1; i < t.size(); ++i) {
+      depth += t[i].text == "(" ? 1 : t[i].text == ")" ? -1 : 0;
+      if (depth == 0 && i + 1 < t.size()) return "";  // the call's ')' is not the statement's end
+    }
+    return t[0].text;
+  }
   // Points whose value at a motion may not be the one the text before it gives, whatever the
   // motion's place: assigned inside a branch, a loop, a subroutine or a function (the order of
   // the text is not the order of the run). Upper-case name -> why. (A point changed from its own
@@ -1335,6 +1352,17 @@ struct Reader {
       if (circ_varies_ && circ_defs_.count(t[i].up))
         circ_type_ = unknownOri(t[i].text + " (called at " + f->loc(t[i].begin).str() + ") sets $CIRC_TYPE: its value after the call is not followed");
     }
+    // a routine of another module called while the program has not set $TOOL / $BASE (a cell's
+    // MoveSettings(base, tool, ..)) may set them, which accura cannot see: the refusal of the
+    // motions after it names the first such call and the option that gives the frame
+    if (const std::string call = externalCall(t); !call.empty()) {
+      const std::string at = f->loc(t[0].begin).str();
+      for (auto [frame, var, option] : {std::make_tuple(&tool, "$TOOL", "--program-tool"), std::make_tuple(&base, "$BASE", "--program-base")})
+        if (frame->source == FrameSetting::Source::kUnset && frame->note.empty())
+          frame->note = std::string(var) + " is not set in this file before this motion; " + call + " (called at " + at +
+                        "), a routine this file does not define, may set it: give the frame it sets with " + option +
+                        " x,y,z,A,B,C, or set " + var + " in the program";
+    }
     {
       Cursor c(*f, t, l.code_end);
       if (parseTableAssignment(c, decl)) return false;
@@ -1591,6 +1619,7 @@ Program readKrl(const std::string& src_path, const KrlReadOptions& options) {
       for (size_t i = 0; i + 1 < t.size() && !cur.empty() && !declaresInterrupt(t); ++i)
         if (t[i].kind == Tok::kIdent && t[i + 1].text == "(" && moves.count(t[i].up)) calls[cur].insert(t[i].up);
     }
+    for (const auto& kv : moves) r.defined_routines_.insert(kv.first);
     r.local_defs_ = movingRoutines(moves, calls);
     r.tool_defs_ = movingRoutines(sets_tool, calls);  // (the same closure over the calls)
     r.base_defs_ = movingRoutines(sets_base, calls);
