@@ -193,6 +193,22 @@ TEST(Diagnose, AResidualAVariablePredictsIsNotNoiseEvenBelowTheFloorTest) {
       << d.verdict.explanation;
 }
 
+// Backlash on 150 poses: the selected backlash takes 98% of the gap, and a small structured rest
+// remains (a joint the selection did not take). The backlash is the cause; the rest is said in
+// the explanation, with its share and what it follows (before: `unexplained` with a partial
+// explanation, as if most of the gap remained).
+TEST(Diagnose, AnEffectThatTakesNearlyAllTheGapIsTheCauseAndItsSmallRestIsSaid) {
+  const RobotModel nominal = nominalWithTarget("kuka_kr16");
+  SimulateOptions o = campaign(3, {"geometric", "backlash"}, 150);
+  const Diagnosis d = diagnose(nominal, simulateMeasurements(perturbModel(nominal, o), o), nullptr, DiagnoseOptions{});
+  EXPECT_EQ(d.verdict.effect, "backlash") << d.verdict.explanation;
+  EXPECT_GE(d.verdict.explained_share, 0.95);
+  // the rest's share as the explanation states it: 1 - explained_share, in whole percent
+  const std::string rest = std::to_string(static_cast<int>(std::lround(100 * (1 - d.verdict.explained_share)))) + "% of the gap) and follows ";
+  EXPECT_NE(d.verdict.explanation.find(rest), std::string::npos) << d.verdict.explanation;
+  EXPECT_NE(d.verdict.explanation.find("a small rest the selected effects do not take"), std::string::npos) << d.verdict.explanation;
+}
+
 // Joint 2 confined to 40 deg: a scale error of A2 and its first harmonics look alike there.
 TEST(Diagnose, ConfoundedEffectsAreNamedWithWhatSeparatesThem) {
   RobotModel nominal = nominalWithTarget("kuka_kr16");
