@@ -340,6 +340,23 @@ TEST(CompensateCli, TurnBitOfAJointNextToZeroIsRewrittenWithAWarning) {
   EXPECT_EQ(warnings, static_cast<size_t>(flipped)) << r.err;
 }
 
+// A target in the wrist singularity (the KR 16 at A1..A6 = 0,-90,90,0,0,0: A5 = 0, so A4 and A6
+// turn about one axis and the Jacobian's smallest singular value is 0; accura fk gives X 1088,
+// Z 1320, B 90 there): the error says "singular" once, then why (before: "singular: singular:
+// the smallest ...", the status word and the IK's message both starting with it).
+TEST(CompensateCli, ASingularTargetSaysSingularOnce) {
+  const std::string dir = test::tempDir("comp_singular");
+  test::writeText(dir + "/sing.src", "DEF sing( )\n$TOOL={X 0,Y 0,Z 0,A 0,B 0,C 0}\n$BASE={X 0,Y 0,Z 0,A 0,B 0,C 0}\n"
+                                     "PTP {X 1088,Y 0,Z 1320,A 0,B 90,C 0}\nEND\n");
+  const CliRun r = accura(dir, "compensate --robot kuka_kr16 --in sing.src --out o");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("accura: error: sing.src:4:1: the inline target cannot be compensated: singular: the smallest scaled singular "
+                       "value of the Jacobian is "),
+            std::string::npos)
+      << r.err;
+  EXPECT_EQ(r.err.find("singular: singular"), std::string::npos) << r.err;
+}
+
 TEST(CompensateCli, ErrorsNameThePlaceAndWriteNothing) {
   const std::string dir = inputs("comp_err");
   // the output directory is the input's: the outputs would overwrite the inputs
