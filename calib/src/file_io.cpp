@@ -38,8 +38,17 @@ struct Slot {
 };
 
 Slot g_slots[kSlots];
-std::atomic<int> g_interrupted{0};
+std::atomic<int> g_interrupted{0};  // signals received
+// installInterruptStop: the first signal only asks the work to stop (the note is said); the
+// second acts at once
+std::atomic<const char*> g_stop_note{nullptr};
 std::once_flag g_install_once;
+
+// The process is to end now: a signal without installInterruptStop, or the second one with it.
+bool exitRequested() {
+  const int n = g_interrupted.load();
+  return n >= (g_stop_note.load() ? 2 : 1);
+}
 
 void writeStderr(const char* msg) {
   const size_t n = std::strlen(msg);
@@ -70,7 +79,11 @@ void unlinkWriting() {
 }
 
 extern "C" void onInterrupt(int) {
-  g_interrupted.store(1);
+  const int n = g_interrupted.fetch_add(1) + 1;
+  if (const char* note = g_stop_note.load(); note && n == 1) {  // the work stops, the command reports it
+    writeStderr(note);
+    return;
+  }
   bool committing = false;
   for (Slot& s : g_slots) {
     const int st = s.state.load();
@@ -88,7 +101,7 @@ int acquireSlot(const std::string& path) {
       int expected = kFree;
       if (g_slots[i].state.compare_exchange_strong(expected, kReserved)) {
         std::memcpy(g_slots[i].path, path.c_str(), path.size() + 1);
-        if (g_interrupted.load()) {  // interrupted: no new temporary file; the handler exits
+        if (exitRequested()) {  // interrupted: no new temporary file; the handler exits
           g_slots[i].state.store(kFree);
           for (;;) std::this_thread::sleep_for(std::chrono::seconds(1));
         }
@@ -168,6 +181,11 @@ void writeStream(const OutputFile& f) {
 
 }  // namespace
 
+void installInterruptStop(const char* note) {
+  g_stop_note.store(note);
+  installInterruptCleanup();
+}
+
 void installInterruptCleanup() {
   std::call_once(g_install_once, [] {
     struct sigaction sa;
@@ -230,7 +248,7 @@ void writeFilesAtomically(const std::vector<OutputFile>& files) {
   }
   // commit: all written; rename them together
   for (int s : slots) g_slots[s].state.store(kCommitting);
-  if (interruptRequested()) {
+  if (exitRequested()) {
     cleanup();
     exitInterrupted();
   }
@@ -243,7 +261,7 @@ void writeFilesAtomically(const std::vector<OutputFile>& files) {
     }
   }
   for (int s : slots) releaseSlot(s);
-  if (interruptRequested()) exitInterrupted();
+  if (exitRequested()) exitInterrupted();
 }
 
 void createDirectories(const std::string& dir) {

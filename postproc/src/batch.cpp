@@ -401,12 +401,21 @@ BatchResult runBatch(const std::string& in_dir, const std::string& out_dir, cons
   for (int t = 1; t < n; ++t) threads.emplace_back(work);
   work();
   for (auto& t : threads) t.join();
+  // interrupted: the programs no worker took (a colliding pair failed before any work)
+  result.interrupted = calib::interruptRequested();
+  for (size_t i = 0; i < files.size(); ++i) {
+    BatchFileResult& r = result.files[i];
+    if (!r.input.empty()) continue;
+    r.input = files[i];
+    r.status = BatchFileResult::Status::kNotStarted;
+    r.message = "not compensated: the run was interrupted before it";
+  }
   // a program not written this time whose output path holds a file (an earlier run's output
   // into the same --out): that file is not this run's result, and the tree must not pass it off
   // as one
   for (size_t i = 0; i < files.size(); ++i) {
     BatchFileResult& r = result.files[i];
-    if (r.status != BatchFileResult::Status::kFailed) continue;
+    if (r.status != BatchFileResult::Status::kFailed && r.status != BatchFileResult::Status::kNotStarted) continue;
     std::string stale;
     for (const std::string& o : predicted[i])
       if (fs::exists(fs::symlink_status(o, ec))) stale += (stale.empty() ? "" : ", ") + o;
@@ -426,6 +435,7 @@ BatchResult runBatch(const std::string& in_dir, const std::string& out_dir, cons
   for (const auto& r : result.files) {
     if (r.status == BatchFileResult::Status::kConverted) ++result.converted;
     else if (r.status == BatchFileResult::Status::kSkipped) ++result.skipped;
+    else if (r.status == BatchFileResult::Status::kNotStarted) ++result.not_started;
     else ++result.failed;
   }
   return result;

@@ -39,6 +39,14 @@ void writeFileAtomically(const std::string& path, const std::string& content);
 /// status 130. Idempotent.
 void installInterruptCleanup();
 
+/// installInterruptCleanup for a command that reports what it finished (batch): the first
+/// SIGINT / SIGTERM only writes `note` (a string literal: it must live as long as the process)
+/// to stderr and makes interruptRequested() true; nothing is removed and nothing exits, the
+/// files being written are written and renamed into place as usual, and the command stops its
+/// work, writes its report and ends with status 130 itself. A second signal acts as
+/// installInterruptCleanup's at once (no report). Idempotent.
+void installInterruptStop(const char* note);
+
 /// True once SIGINT / SIGTERM arrived (workers stop taking new files).
 bool interruptRequested();
 
