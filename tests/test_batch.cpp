@@ -438,6 +438,35 @@ TEST(Batch, AtomicWriterWritesAllOrNothing) {
   EXPECT_EQ(names, (std::vector<std::string>{"a.txt", "b.txt"}));
 }
 
+// A directory where an output file goes (simulate --out DIR) is said to be one, as identify's
+// pre-check says it (before: "cannot rename the temporary file into place: Is a directory"), and
+// nothing is left behind; a program file given to batch as --in is said to be a file, with the
+// command for one program (before: "found none", as if it did not exist).
+TEST(Batch, ADirectoryForAFileAndAFileForADirectoryAreNamed) {
+  const std::string dir = test::tempDir("batch_dir_file");
+  fs::create_directories(dir + "/out.csv");
+  std::string message;
+  try {
+    calib::writeFileAtomically(dir + "/out.csv", "x");
+  } catch (const calib::InputError& e) {
+    message = e.what();
+  }
+  EXPECT_EQ(message, dir + "/out.csv: cannot write file: it is a directory");
+  EXPECT_EQ(std::distance(fs::directory_iterator(dir), fs::directory_iterator()), 1);  // no temporary file left
+  EXPECT_TRUE(fs::is_empty(dir + "/out.csv"));
+  test::copyText(golden("compensate/seam.src"), dir + "/seam.src");
+  BatchOptions o;
+  o.job.calibrated = test::loadBundled("kuka_kr16");
+  message.clear();
+  try {
+    runBatch(dir + "/seam.src", dir + "/o", o);
+  } catch (const calib::InputError& e) {
+    message = e.what();
+  }
+  EXPECT_EQ(message, dir + "/seam.src: expected a directory of programs (--in), found a file; one program: accura compensate --in " + dir +
+                         "/seam.src --out DIR");
+}
+
 // One set naming a file twice writes nothing (the second would replace the first); two threads
 // writing one path at once both succeed, each through its own temporary file, and the file holds
 // one of the two contents whole (before: one shared temporary name, so that a writer could be

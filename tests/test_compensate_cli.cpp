@@ -357,6 +357,26 @@ TEST(CompensateCli, ASingularTargetSaysSingularOnce) {
   EXPECT_EQ(r.err.find("singular: singular"), std::string::npos) << r.err;
 }
 
+// A directory given as compensate's --in (a new user's tree of programs): said as a directory,
+// with the command for a tree (before: "found ''", the directory's empty extension); a directory
+// where convert expects a program is named as one too.
+TEST(CompensateCli, ADirectoryGivenForAProgramIsSaidToBeOne) {
+  const std::string dir = test::tempDir("comp_dir_in");
+  std::filesystem::create_directories(dir + "/progs");
+  CliRun r = accura(dir, "compensate --robot kuka_kr16 --in progs --out o");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("accura: error: progs: expected a program file (--in), found a directory; every program of a directory tree: "
+                       "accura batch --in progs --out DIR"),
+            std::string::npos)
+      << r.err;
+  r = accura(dir, "convert --in progs --out p.xml");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("progs: expected a program file ending in .src (KUKA KRL) or .xml (accura XML program) or .script (URScript) or "
+                       ".mod/.prg (ABB RAPID), found a directory"),
+            std::string::npos)
+      << r.err;
+}
+
 TEST(CompensateCli, ErrorsNameThePlaceAndWriteNothing) {
   const std::string dir = inputs("comp_err");
   // the output directory is the input's: the outputs would overwrite the inputs

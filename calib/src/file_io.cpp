@@ -254,10 +254,12 @@ void writeFilesAtomically(const std::vector<OutputFile>& files) {
   }
   for (size_t i = 0; i < files.size(); ++i) {
     if (::rename(temps[i].c_str(), files[i].path.c_str()) != 0) {
-      const std::string why = std::strerror(errno);
+      // a directory where the file goes (simulate --out DIR): said as refuseUnwritableOutputs says it
+      const std::string why = errno == EISDIR ? std::string("it is a directory")
+                                              : std::string("cannot rename the temporary file into place: ") + std::strerror(errno);
       for (size_t j = i; j < files.size(); ++j) ::unlink(temps[j].c_str());
       for (int s : slots) releaseSlot(s);
-      throw InputError(files[i].path, 0, 0, "cannot write file: cannot rename the temporary file into place: " + why);
+      throw InputError(files[i].path, 0, 0, "cannot write file: " + why);
     }
   }
   for (int s : slots) releaseSlot(s);

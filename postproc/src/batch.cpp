@@ -246,7 +246,13 @@ std::string firstCheckProblem(const CheckReport& check) {
 BatchResult runBatch(const std::string& in_dir, const std::string& out_dir, const BatchOptions& options,
                      const std::function<void(const BatchFileResult&, int, int)>& progress) {
   std::error_code ec;
-  if (!fs::is_directory(in_dir, ec)) throw calib::InputError(in_dir + ": expected a directory of programs (--in), found none");
+  if (!fs::is_directory(in_dir, ec)) {
+    // one program given to batch: said with the command that takes one
+    if (fs::exists(in_dir, ec))
+      throw calib::InputError(in_dir + ": expected a directory of programs (--in), found a file; one program: accura compensate --in " + in_dir +
+                              " --out DIR");
+    throw calib::InputError(in_dir + ": expected a directory of programs (--in), found none");
+  }
   if (options.jobs < 1) throw calib::InputError("--jobs: expected at least 1, found " + std::to_string(options.jobs));
   if (fs::exists(out_dir, ec) && !fs::is_directory(out_dir, ec))
     throw calib::InputError(out_dir + ": expected an output directory (--out), found a file");

@@ -119,8 +119,10 @@ ProgramFormat programFormat(const std::string& path) {
   if (ext == ".xml") return ProgramFormat::kXml;
   if (ext == ".script") return ProgramFormat::kUrScript;
   if (ext == ".mod" || ext == ".prg") return ProgramFormat::kRapid;
-  throw calib::InputError(path + ": expected a program file ending in .src (KUKA KRL) or .xml (accura XML program) or .script (URScript) or .mod/.prg (ABB RAPID), found '" +
-                   fs::path(path).extension().string() + "'");
+  std::error_code ec;
+  const bool dir = fs::is_directory(path, ec);  // (a directory given for a program: say so, not its empty extension)
+  throw calib::InputError(path + ": expected a program file ending in .src (KUKA KRL) or .xml (accura XML program) or .script (URScript) or .mod/.prg (ABB RAPID), found " +
+                          (dir ? std::string("a directory") : "'" + fs::path(path).extension().string() + "'"));
 }
 
 Program readProgram(const std::string& path, const ProgramReadOptions& options) {
