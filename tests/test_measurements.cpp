@@ -466,6 +466,11 @@ TEST_F(MeasurementsTest, ErrorSemicolonDelimiterGetsAHint) {
   const std::string what = e.what();
   EXPECT_EQ(what.rfind(dataPath() + ":1:1: missing columns 'q1', 'q2'", 0), 0u) << what;
   EXPECT_NE(what.find("the delimiter is ','"), std::string::npos) << what;
+  // and where such an export is read as it is (before: the delimiter alone, as if the file had
+  // to be rewritten)
+  EXPECT_EQ(what.substr(what.find("; the delimiter")),
+            "; the delimiter is ',', found a header with ';' or tabs (an export with another delimiter or decimal commas is read as it "
+            "is through a mapping file, --map: docs/measurement-mapping.md)");
 }
 
 TEST_F(MeasurementsTest, ErrorDuplicateColumn) {

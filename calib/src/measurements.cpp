@@ -356,7 +356,9 @@ void Reader::checkGroups(int line) const {
                       ", x, y, z)";
     if (L.columns.size() == 1 &&
         L.columns[0].name.find_first_of(";\t") != std::string::npos) {
-      msg += "; the delimiter is ',', found a header with ';' or tabs";
+      // (a spreadsheet's export with ';' usually has decimal commas too: the mapping reads both)
+      msg += "; the delimiter is ',', found a header with ';' or tabs (an export with another delimiter or decimal commas is read "
+             "as it is through a mapping file, --map: docs/measurement-mapping.md)";
     }
     // units in the names ('q1 [deg]', 'x (mm)'): an export's layout, not this format's
     for (const auto& c : L.columns) {
