@@ -13,10 +13,13 @@
 
 #include <cstdlib>
 #include <fstream>
+#include <functional>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "accura/calib/errors.h"
 #include "accura/calib/robot_io.h"
+#include "accura/postproc/cell.h"
 #include "accura/postproc/compensate.h"
 #include "accura/postproc/krl.h"
 #include "accura/postproc/xml_program.h"
@@ -375,6 +378,23 @@ TEST(CompensateCli, ADirectoryGivenForAProgramIsSaidToBeOne) {
                        ".mod/.prg (ABB RAPID), found a directory"),
             std::string::npos)
       << r.err;
+  // a directory given for the data list, the $config.dat or the cell: "it is a directory"
+  // (before: "no such file", and for the cell "found an empty file")
+  test::writeText(dir + "/p.src", "DEF p( )\n$TOOL={X 0,Y 0,Z 100,A 0,B 0,C 0}\n$BASE=$NULLFRAME\nPTP {X 1000,Y 0,Z 800,A 0,B 90,C 0}\nEND\n");
+  const auto message = [](const std::function<void()>& read) {
+    try {
+      read();
+    } catch (const calib::InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  KrlReadOptions dat, config;
+  dat.dat_path = dir + "/progs";
+  config.config_path = dir + "/progs";
+  EXPECT_EQ(message([&] { readKrl(dir + "/p.src", dat); }), dir + "/progs: cannot read the KRL data file: it is a directory");
+  EXPECT_EQ(message([&] { readKrl(dir + "/p.src", config); }), dir + "/progs: cannot read the $config.dat: it is a directory");
+  EXPECT_EQ(message([&] { readCellFile(dir + "/progs"); }), dir + "/progs: cannot read the cell file: it is a directory");
 }
 
 TEST(CompensateCli, ErrorsNameThePlaceAndWriteNothing) {

@@ -273,6 +273,14 @@ void createDirectories(const std::string& dir) {
   if (ec) throw InputError(dir + ": cannot create the directory: " + ec.message());
 }
 
+std::string notAFileProblem(const std::string& path) {
+  std::error_code ec;
+  const fs::file_status st = fs::status(path, ec);
+  if (ec && ec != std::errc::no_such_file_or_directory) return ec.message();
+  if (fs::is_regular_file(st)) return "";
+  return fs::is_directory(st) ? "it is a directory" : fs::exists(st) ? "not a regular file" : "no such file";
+}
+
 void writeFileAtomically(const std::string& path, const std::string& content) { writeFilesAtomically({{path, content}}); }
 
 bool sameFile(const std::string& a, const std::string& b) {

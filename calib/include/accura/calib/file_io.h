@@ -54,6 +54,11 @@ bool interruptRequested();
 /// normalised absolute path (a file about to be written onto an input). Never throws.
 bool sameFile(const std::string& a, const std::string& b);
 
+/// What is at `path` when it is no file to read, in words for a message: "no such file", "it is a
+/// directory", "not a regular file", or the reason its status cannot be read; "" for a regular
+/// file. Never throws.
+std::string notAFileProblem(const std::string& path);
+
 /// Why files cannot be created in the directory `dir` ("" empty: the current directory), in words
 /// for a message: "the directory D does not exist", "D is not a directory", "the directory D is
 /// not writable (reason)"; "" when they can. Never throws.
