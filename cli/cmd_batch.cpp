@@ -27,6 +27,8 @@ namespace {
 
 /// Exit status of a batch in which some programs were not compensated.
 constexpr int kSomeFailed = 2;
+/// Exit status of an interrupted batch (SIGINT / SIGTERM: 128 + 2, the shell's convention).
+constexpr int kInterrupted = 130;
 
 struct BatchArgs {
   std::function<postproc::JobSettings()> settings;
@@ -45,6 +47,7 @@ std::string statusWord(const postproc::BatchFileResult& r) {
     case postproc::BatchFileResult::Status::kConverted: return "compensated";
     case postproc::BatchFileResult::Status::kSkipped: return "skipped";
     case postproc::BatchFileResult::Status::kFailed: return "FAILED";
+    case postproc::BatchFileResult::Status::kNotStarted: return "not started";
   }
   return "?";
 }
@@ -71,7 +74,12 @@ int runBatch(const BatchArgs& a) {
       for (const std::string& f : cell->files()) inputs.push_back(f);
     calib::refuseToOverwrite({{a.json, ""}}, inputs, "--json");
   }
-  calib::installInterruptCleanup();
+  // Ctrl-C / SIGTERM: the programs in progress are finished, the others not started, and the
+  // report of the run says so (a process engineer needs to know which programs of the tree are
+  // this run's); a second signal stops at once, without the report. Either way no file is
+  // half-written.
+  calib::installInterruptStop("\naccura batch: interrupted: finishing the programs in progress, then the report "
+                              "(interrupt again to stop at once, without it)\n");
   const bool tty = ::isatty(2) != 0;
   const auto progress = [&](const BatchFileResult& r, int done, int total) {
     if (tty) {
@@ -90,7 +98,12 @@ int runBatch(const BatchArgs& a) {
   };
   const BatchResult res = postproc::runBatch(a.in, a.out, o, progress);
   int warnings = 0;
+  const BatchFileResult* first_not_started = nullptr;
   for (const auto& r : res.files) {
+    if (r.status == BatchFileResult::Status::kNotStarted) {  // one line for them all (the report lists each)
+      if (!first_not_started) first_not_started = &r;
+      continue;
+    }
     if (r.status == BatchFileResult::Status::kConverted) {
       std::printf("compensated %s: %d targets corrected (max %.4f mm), %d point(s) added, path error %.4f -> %.4f mm%s\n", r.input.c_str(),
                   r.report.targets_corrected, r.report.max_correction_mm, r.report.points_added, r.report.max_error_uncompensated_mm,
@@ -111,8 +124,12 @@ int runBatch(const BatchArgs& a) {
   const size_t others = res.files.size() - static_cast<size_t>(res.programs);
   const std::string other_entries =
       others ? " and " + std::to_string(others) + " other entr" + (others == 1 ? "y" : "ies") + " of the tree" : std::string();
-  std::printf("accura batch: %d compensated, %d failed, %d skipped, %d programs%s in %s%s\n", res.converted, res.failed, res.skipped,
-              res.programs, other_entries.c_str(), a.in.c_str(),
+  if (first_not_started)
+    std::printf("not started: %d program(s), from %s on in sorted order: the run was interrupted\n", res.not_started,
+                first_not_started->input.c_str());
+  const std::string not_started = res.interrupted ? ", " + std::to_string(res.not_started) + " not started" : std::string();
+  std::printf("accura batch: %s%d compensated, %d failed, %d skipped%s, %d programs%s in %s%s\n", res.interrupted ? "interrupted: " : "",
+              res.converted, res.failed, res.skipped, not_started.c_str(), res.programs, other_entries.c_str(), a.in.c_str(),
               warnings ? ("; " + std::to_string(warnings) + " warning(s), on stderr").c_str() : "");
   if (!a.json.empty()) {
     // the report must not replace a program the run wrote
@@ -131,12 +148,15 @@ int runBatch(const BatchArgs& a) {
     j["compensated"] = res.converted;
     j["failed"] = res.failed;
     j["skipped"] = res.skipped;
+    j["interrupted"] = res.interrupted;    // (the programs no worker had taken: "not started")
+    j["not_started"] = res.not_started;
     j["programs"] = res.programs;  // (the entries of "files" beyond them: the tree's other entries)
     nlohmann::ordered_json files = nlohmann::ordered_json::array();
     for (const auto& r : res.files) {
       nlohmann::ordered_json f;
       f["input"] = r.input;
-      f["status"] = statusWord(r) == "FAILED" ? "failed" : statusWord(r);
+      f["status"] = r.status == BatchFileResult::Status::kFailed ? "failed"
+                    : r.status == BatchFileResult::Status::kNotStarted ? "not_started" : statusWord(r);
       f["outputs"] = r.outputs;
       if (!r.message.empty()) f["message"] = r.message;
       if (r.status == BatchFileResult::Status::kConverted || r.check) f.update(jobReportJson(r.report, a.in));
@@ -147,6 +167,7 @@ int runBatch(const BatchArgs& a) {
     calib::writeFilesAtomically({{a.json, calib::jsonText(j)}});
     std::printf("wrote %s\n", a.json.c_str());
   }
+  if (res.interrupted) return kInterrupted;
   return res.failed == 0 ? 0 : kSomeFailed;
 }
 

@@ -50,6 +50,11 @@ struct CompensateArgs {
 
 int runCompensate(const CompensateArgs& a) {
   using namespace postproc;
+  // a directory of programs given to compensate (one program): said with the command that does it
+  std::error_code ec;
+  if (fs::is_directory(a.in, ec))
+    throw calib::InputError(a.in + ": expected a program file (--in), found a directory; every program of a directory tree: accura batch --in " +
+                            a.in + " --out DIR");
   const JobSettings settings = a.settings();
   // --cell: the program is checked in its cell before anything is written (the shared logic
   // of compensate --cell and batch --cell: compensateAndCheckFile); its robot placement is

@@ -24,6 +24,10 @@ namespace accura::cli {
 namespace {
 using nlohmann::ordered_json;
 
+/// --holdout: the fraction of the poses held out (0: none; at most half: the fit keeps at least
+/// every other configuration). The one range: the option's parser refuses anything outside it.
+const NumberRange kHoldoutRange{0, 0.5, false, ""};
+
 /// "2nd", "3rd", "5th", "11th", "21st": which of every n poses --holdout keeps.
 std::string ordinal(int n) {
   const int last2 = n % 100, last = n % 10;
@@ -147,8 +151,7 @@ void readData(const IdentifyArgs& a, IdentifyRun& r) {
     r.validation_source = a.validate;
     return;
   }
-  if (!(a.holdout >= 0 && a.holdout < 0.9))
-    throw calib::InputError("--holdout: expected a fraction in [0, 0.9), found " + fmt("%g", a.holdout));
+  // (a.holdout is within kHoldoutRange: the option's parser refuses anything else)
   if (a.holdout <= 0) return;
   if (r.sets.size() > 1) {
     // each set has its own station: a held-out file (--validate) says which station it is from
@@ -755,7 +758,7 @@ void addIdentifyCommand(CLI::App& app) {
       ->capture_default_str();
   addNumberOption(cid, "--holdout", id->holdout,
                   "without --validate: fraction held out for validation (every k-th joint configuration with its repeats; every k-th pose when there are none)",
-                  NumberRange{0, 0.5, false, ""})
+                  kHoldoutRange)
       ->capture_default_str();
   cid->add_option("--base", id->base, "nominal T_world_base x,y,z,A,B,C (mm, deg)");
   cid->add_option("--tool", id->tool, "nominal T_flange_tcp x,y,z[,A,B,C] (mm, deg)");

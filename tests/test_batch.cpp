@@ -221,8 +221,9 @@ TEST(Batch, AnInterruptedRunLeavesNoHalfWrittenFile) {
     if (pid == 0) {
       if (chdir(root.c_str()) != 0) _exit(99);
       const std::string outarg = "out" + std::to_string(delay_ms);
+      const std::string jsonarg = outarg + ".json";
       execl(ACCURA_CLI, ACCURA_CLI, "batch", "--robot", "model.xml", "--config", "$config.dat", "--in", "in", "--out",
-            outarg.c_str(), "--jobs", "2", static_cast<char*>(nullptr));
+            outarg.c_str(), "--jobs", "2", "--json", jsonarg.c_str(), static_cast<char*>(nullptr));
       _exit(98);
     }
     std::this_thread::sleep_for(std::chrono::milliseconds(delay_ms));
@@ -237,6 +238,22 @@ TEST(Batch, AnInterruptedRunLeavesNoHalfWrittenFile) {
       ASSERT_TRUE(WIFEXITED(status));
       const int code = WEXITSTATUS(status);
       EXPECT_TRUE(code == 130 || code == 2) << code;
+      // the report of what the run did, written whole (before: none when interrupted): each
+      // program compensated, failed, or not started, and the files on disk agree with it
+      const nlohmann::json report = nlohmann::json::parse(test::readText(out + ".json"));
+      EXPECT_EQ(report["interrupted"], code == 130);
+      int not_started = 0;
+      for (const auto& f : report["files"]) {
+        const std::string input = f["input"], st = f["status"];
+        if (st == "not_started") {
+          ++not_started;
+          EXPECT_FALSE(fs::exists(out + "/" + input)) << input;
+        } else if (st == "compensated") {
+          EXPECT_TRUE(fs::exists(out + "/" + input)) << input;
+        }
+      }
+      EXPECT_EQ(report["not_started"], not_started);
+      EXPECT_EQ(report["compensated"].get<int>() + report["failed"].get<int>() + not_started, report["programs"].get<int>());
     }
     if (!fs::exists(out)) continue;  // interrupted before the first file
     for (const auto& [path, text] : snapshot(out)) {
@@ -246,6 +263,45 @@ TEST(Batch, AnInterruptedRunLeavesNoHalfWrittenFile) {
     }
   }
   EXPECT_EQ(snapshot(in), before);
+}
+
+// The batch under installInterruptStop (accura batch's handler), a SIGINT raised as the first
+// program is done (--jobs 1, three programs): the run stops taking programs, says it was
+// interrupted, the first program is compensated and written, the other two are "not started"
+// and nothing of them is written. In a child process: the handler and the signal are the
+// process's. (Before: the handler ended the process at once and the report was never written.)
+TEST(Batch, AnInterruptStopsTakingProgramsAndTheResultSaysWhichWereNotStarted) {
+  const std::string root = test::tempDir("batch_stop");
+  for (const char* name : {"a", "b", "c"}) {
+    test::copyText(golden("compensate/seam.src"), root + "/in/" + name + ".src");
+    test::copyText(golden("compensate/seam.dat"), root + "/in/" + name + ".dat");
+  }
+  const pid_t pid = fork();
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {
+    calib::installInterruptStop("");
+    BatchOptions o;
+    o.job.calibrated = test::loadBundled("kuka_kr16");
+    o.config_path = golden("compensate/$config.dat");
+    o.jobs = 1;
+    const BatchResult r = runBatch(root + "/in", root + "/out", o, [](const BatchFileResult&, int done, int) {
+      if (done == 1) raise(SIGINT);
+    });
+    std::string text = r.interrupted ? "interrupted" : "finished";
+    for (const BatchFileResult& f : r.files) text += " " + f.input + ":" + std::to_string(static_cast<int>(f.status));
+    text += " " + std::to_string(r.converted) + "/" + std::to_string(r.not_started);
+    std::FILE* f = std::fopen((root + "/result.txt").c_str(), "w");
+    std::fputs(text.c_str(), f);
+    std::fclose(f);
+    _exit(0);
+  }
+  int status = 0;
+  waitpid(pid, &status, 0);
+  ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << status;
+  // statuses: 0 converted, 3 not started
+  EXPECT_EQ(test::readText(root + "/result.txt"), "interrupted a.src:0 b.src:3 c.src:3 1/2");
+  EXPECT_TRUE(fs::exists(root + "/out/a.src") && fs::exists(root + "/out/a.dat"));
+  EXPECT_FALSE(fs::exists(root + "/out/b.src") || fs::exists(root + "/out/c.src"));
 }
 
 // accura batch --cell: a tree with the golden seam twice and a copy of it whose retreat (its
@@ -380,6 +436,35 @@ TEST(Batch, AtomicWriterWritesAllOrNothing) {
   for (const auto& e : fs::directory_iterator(dir)) names.push_back(e.path().filename().string());
   std::sort(names.begin(), names.end());
   EXPECT_EQ(names, (std::vector<std::string>{"a.txt", "b.txt"}));
+}
+
+// A directory where an output file goes (simulate --out DIR) is said to be one, as identify's
+// pre-check says it (before: "cannot rename the temporary file into place: Is a directory"), and
+// nothing is left behind; a program file given to batch as --in is said to be a file, with the
+// command for one program (before: "found none", as if it did not exist).
+TEST(Batch, ADirectoryForAFileAndAFileForADirectoryAreNamed) {
+  const std::string dir = test::tempDir("batch_dir_file");
+  fs::create_directories(dir + "/out.csv");
+  std::string message;
+  try {
+    calib::writeFileAtomically(dir + "/out.csv", "x");
+  } catch (const calib::InputError& e) {
+    message = e.what();
+  }
+  EXPECT_EQ(message, dir + "/out.csv: cannot write file: it is a directory");
+  EXPECT_EQ(std::distance(fs::directory_iterator(dir), fs::directory_iterator()), 1);  // no temporary file left
+  EXPECT_TRUE(fs::is_empty(dir + "/out.csv"));
+  test::copyText(golden("compensate/seam.src"), dir + "/seam.src");
+  BatchOptions o;
+  o.job.calibrated = test::loadBundled("kuka_kr16");
+  message.clear();
+  try {
+    runBatch(dir + "/seam.src", dir + "/o", o);
+  } catch (const calib::InputError& e) {
+    message = e.what();
+  }
+  EXPECT_EQ(message, dir + "/seam.src: expected a directory of programs (--in), found a file; one program: accura compensate --in " + dir +
+                         "/seam.src --out DIR");
 }
 
 // One set naming a file twice writes nothing (the second would replace the first); two threads

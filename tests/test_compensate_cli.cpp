@@ -13,10 +13,13 @@
 
 #include <cstdlib>
 #include <fstream>
+#include <functional>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "accura/calib/errors.h"
 #include "accura/calib/robot_io.h"
+#include "accura/postproc/cell.h"
 #include "accura/postproc/compensate.h"
 #include "accura/postproc/krl.h"
 #include "accura/postproc/xml_program.h"
@@ -356,6 +359,60 @@ TEST(CompensateCli, TurnBitOfAJointNextToZeroIsRewrittenWithAWarning) {
   size_t warnings = 0;
   for (size_t p = r.err.find("T of "); p != std::string::npos; p = r.err.find("T of ", p + 1)) ++warnings;
   EXPECT_EQ(warnings, static_cast<size_t>(flipped)) << r.err;
+}
+
+// A target in the wrist singularity (the KR 16 at A1..A6 = 0,-90,90,0,0,0: A5 = 0, so A4 and A6
+// turn about one axis and the Jacobian's smallest singular value is 0; accura fk gives X 1088,
+// Z 1320, B 90 there): the error says "singular" once, then why (before: "singular: singular:
+// the smallest ...", the status word and the IK's message both starting with it).
+TEST(CompensateCli, ASingularTargetSaysSingularOnce) {
+  const std::string dir = test::tempDir("comp_singular");
+  test::writeText(dir + "/sing.src", "DEF sing( )\n$TOOL={X 0,Y 0,Z 0,A 0,B 0,C 0}\n$BASE={X 0,Y 0,Z 0,A 0,B 0,C 0}\n"
+                                     "PTP {X 1088,Y 0,Z 1320,A 0,B 90,C 0}\nEND\n");
+  const CliRun r = accura(dir, "compensate --robot kuka_kr16 --in sing.src --out o");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("accura: error: sing.src:4:1: the inline target cannot be compensated: singular: the smallest scaled singular "
+                       "value of the Jacobian is "),
+            std::string::npos)
+      << r.err;
+  EXPECT_EQ(r.err.find("singular: singular"), std::string::npos) << r.err;
+}
+
+// A directory given as compensate's --in (a new user's tree of programs): said as a directory,
+// with the command for a tree (before: "found ''", the directory's empty extension); a directory
+// where convert expects a program is named as one too.
+TEST(CompensateCli, ADirectoryGivenForAProgramIsSaidToBeOne) {
+  const std::string dir = test::tempDir("comp_dir_in");
+  std::filesystem::create_directories(dir + "/progs");
+  CliRun r = accura(dir, "compensate --robot kuka_kr16 --in progs --out o");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("accura: error: progs: expected a program file (--in), found a directory; every program of a directory tree: "
+                       "accura batch --in progs --out DIR"),
+            std::string::npos)
+      << r.err;
+  r = accura(dir, "convert --in progs --out p.xml");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("progs: expected a program file ending in .src (KUKA KRL) or .xml (accura XML program) or .script (URScript) or "
+                       ".mod/.modx/.sys/.sysx/.prg (ABB RAPID), found a directory"),
+            std::string::npos)
+      << r.err;
+  // a directory given for the data list, the $config.dat or the cell: "it is a directory"
+  // (before: "no such file", and for the cell "found an empty file")
+  test::writeText(dir + "/p.src", "DEF p( )\n$TOOL={X 0,Y 0,Z 100,A 0,B 0,C 0}\n$BASE=$NULLFRAME\nPTP {X 1000,Y 0,Z 800,A 0,B 90,C 0}\nEND\n");
+  const auto message = [](const std::function<void()>& read) {
+    try {
+      read();
+    } catch (const calib::InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  KrlReadOptions dat, config;
+  dat.dat_path = dir + "/progs";
+  config.config_path = dir + "/progs";
+  EXPECT_EQ(message([&] { readKrl(dir + "/p.src", dat); }), dir + "/progs: cannot read the KRL data file: it is a directory");
+  EXPECT_EQ(message([&] { readKrl(dir + "/p.src", config); }), dir + "/progs: cannot read the $config.dat: it is a directory");
+  EXPECT_EQ(message([&] { readCellFile(dir + "/progs"); }), dir + "/progs: cannot read the cell file: it is a directory");
 }
 
 TEST(CompensateCli, ErrorsNameThePlaceAndWriteNothing) {

@@ -1,8 +1,12 @@
 // Instrument exports read through mapping files: conventions, units, decimal comma, errors.
 #include <gtest/gtest.h>
 
+#include <random>
+
 #include "accura/calib/errors.h"
+#include "accura/calib/identify.h"
 #include "accura/calib/import.h"
+#include "accura/calib/kinematics.h"
 #include "test_util.h"
 
 namespace accura::calib {
@@ -93,6 +97,45 @@ TEST(Import, ReadsDecimalCommaRadiansMetresAndEulerStds) {
   EXPECT_EQ(n.rows[0].R_world_tcp.coeffs(), r.R_world_tcp.coeffs());
   EXPECT_EQ(n.ignored_absent_columns, std::vector<std::string>{"Stamp"});
   EXPECT_TRUE(n.unknown_columns.empty());
+}
+
+// An export in millimetres read through a mapping that says metres: identify doubts the units
+// and names the mapping's unit keys with their lines, the place the user can fix them (before:
+// "check the units (positions in mm, joint angles in deg)", accura's own, which the export
+// does not have to use).
+TEST(Import, IdentifyNamesTheMappingsUnitKeysWhenTheUnitsLookWrong) {
+  const std::string dir = test::tempDir("import_units");
+  test::writeText(dir + "/mm.map",
+                  "# positions said to be in metres\n"
+                  "delimiter = ,\ndecimal = .\n"
+                  "joints = a1, a2, a3, a4, a5, a6\n"
+                  "joint_unit = deg\n"                  // line 5
+                  "position = px, py, pz\n"
+                  "position_unit = m\n");               // line 7
+  const RobotModel robot = test::loadBundled("kuka_kr16");
+  std::mt19937_64 rng(7);
+  std::string csv = "a1,a2,a3,a4,a5,a6,px,py,pz\n";
+  for (int k = 0; k < 30; ++k) {
+    const Eigen::VectorXd q = test::randomQ(robot, rng);
+    const Eigen::Vector3d p = forwardKinematics(robot, q).translation();  // mm: the export's true unit
+    char row[300];
+    std::snprintf(row, sizeof row, "%.6f,%.6f,%.6f,%.6f,%.6f,%.6f,%.4f,%.4f,%.4f\n", q[0], q[1], q[2], q[3], q[4], q[5], p.x(), p.y(), p.z());
+    csv += row;
+  }
+  test::writeText(dir + "/e.csv", csv);
+  const MeasurementMapping m = readMeasurementMapping(dir + "/mm.map", robot.nominal);
+  const MeasurementSet s = readMappedMeasurements(dir + "/e.csv", m, robot.nominal);
+  EXPECT_EQ(s.units_stated, "joint_unit = deg (" + dir + "/mm.map:5), position_unit = m (" + dir + "/mm.map:7)");
+  try {
+    identify(robot, s, IdentifyOptions{}, nullptr);
+    FAIL() << "positions 1000 times too large were fitted";
+  } catch (const InputError& e) {
+    const std::string w = e.what();
+    const std::string tail = "check the units the mapping states (joint_unit = deg (" + dir + "/mm.map:5), position_unit = m (" + dir +
+                             "/mm.map:7)), the joint order and the robot file";
+    ASSERT_GE(w.size(), tail.size()) << w;
+    EXPECT_EQ(w.substr(w.size() - tail.size()), tail) << w;
+  }
 }
 
 TEST(Import, ATrailingDelimiterIsNamedAndReadAsInTheCsvFormat) {

@@ -349,12 +349,21 @@ TEST_F(MeasurementsTest, ErrorMalformedNumbers) {
 }
 
 TEST_F(MeasurementsTest, ErrorDecimalCommaChangesFieldCount) {
-  const InputError e = readError(std::string(kHeader) + "0,0,0,0,0,0,1,5,2,5,3\n");
-  // the line has no '.': the message names the likely cause (before: the counts alone)
-  EXPECT_EQ(std::string(e.what()), dataPath() + ":2:10: expected 9 fields as in the header, found 11 (no '.' in the line: a "
-                                                "decimal comma? numbers take a decimal point, ',' separates the fields)");
+  // a tracker's x, y, z written with decimal commas (1235,412 0,087 1410,236): three fields too
+  // many and no '.': the message names the likely cause (before: the counts alone)
+  const std::string note = " (no '.' in the line: a decimal comma? numbers take a decimal point, ',' separates the fields)";
+  const InputError e = readError(std::string(kHeader) + "0,-90,90,0,45,0,1235,412,0,087,1410,236\n");
+  EXPECT_EQ(std::string(e.what()), dataPath() + ":2:10: expected 9 fields as in the header, found 12" + note);
   EXPECT_EQ(e.column(), 10);  // the first field beyond the header's
-  // a line with a decimal point, or one field too many, is not said to have a decimal comma
+  // two fields too many, one of them the digits after a decimal comma ("05" of 2,05): said too
+  EXPECT_EQ(std::string(readError(std::string(kHeader) + "0,0,0,0,0,0,1,5,2,05,3\n").what()),
+            dataPath() + ":2:10: expected 9 fields as in the header, found 11" + note);
+  // two whole numbers too many: as likely stray values, no decimal comma said (before: it was);
+  // nor on a line with a decimal point, or one field too many
+  EXPECT_EQ(std::string(readError(std::string(kHeader) + "0,0,0,0,0,0,1,5,2,5,3\n").what()),
+            dataPath() + ":2:10: expected 9 fields as in the header, found 11");
+  EXPECT_EQ(std::string(readError(std::string(kHeader) + "0,-90,90,0,45,0,1235,87,1410,1,2\n").what()),
+            dataPath() + ":2:10: expected 9 fields as in the header, found 11");
   EXPECT_EQ(std::string(readError(std::string(kHeader) + "0,0,0,0,0,0,1.5,2,5,3,4\n").what()),
             dataPath() + ":2:10: expected 9 fields as in the header, found 11");
   EXPECT_EQ(std::string(readError(std::string(kHeader) + "0,0,0,0,0,0,1,2,5,3\n").what()),
@@ -457,6 +466,11 @@ TEST_F(MeasurementsTest, ErrorSemicolonDelimiterGetsAHint) {
   const std::string what = e.what();
   EXPECT_EQ(what.rfind(dataPath() + ":1:1: missing columns 'q1', 'q2'", 0), 0u) << what;
   EXPECT_NE(what.find("the delimiter is ','"), std::string::npos) << what;
+  // and where such an export is read as it is (before: the delimiter alone, as if the file had
+  // to be rewritten)
+  EXPECT_EQ(what.substr(what.find("; the delimiter")),
+            "; the delimiter is ',', found a header with ';' or tabs (an export with another delimiter or decimal commas is read as it "
+            "is through a mapping file, --map: docs/measurement-mapping.md)");
 }
 
 TEST_F(MeasurementsTest, ErrorDuplicateColumn) {

@@ -657,6 +657,44 @@ TEST(Rapid, ConfLOnStopsBeyondOneQuadrantConfLOffFollowsThePath) {
   EXPECT_NE(writeRapid(c_near.program).find(one), std::string::npos);
 }
 
+// A RAPID module compensated with a robot of other than six axes (a SCARA: ABB's IRB 910SC is
+// programmed in RAPID too): ABB's confdata [cf1,cf4,cf6,cfx] describe a 6-axis arm, so they are
+// not interpreted there, kept as written, and one warning says so. Before: the seed in the
+// programmed quadrants wrote axes 5 and 6 of the SCARA's 4-joint vector ("double free or
+// corruption", the process killed).
+TEST(Rapid, ConfdataAreNotInterpretedForARobotOfOtherThanSixAxes) {
+  const ProgramCompensation r = compensateProgramReport(parseRapid(example(), "irb120_seam.mod"), settingsFor(test::loadBundled("scara")));
+  ASSERT_TRUE(r.ok()) << r.report.errors.front().message;
+  ASSERT_EQ(r.report.warnings.size(), 1u);
+  EXPECT_EQ(r.report.warnings[0].where.str(), "irb120_seam.mod:18:5");  // MoveJ p10, the first target with confdata
+  EXPECT_EQ(r.report.warnings[0].message,
+            "the confdata of the RAPID targets are not interpreted for Adept Cobra s600 (SCARA, RRPR) (4 axes; ABB's confdata "
+            "[cf1,cf4,cf6,cfx] describe a 6-axis arm): each target is compensated on the configuration nearest the robot's, and "
+            "its confdata are kept as written. First: this motion");
+  // the nominal robot: nothing to correct, the module comes back byte for byte
+  EXPECT_EQ(writeRapid(r.program), example());
+}
+
+// The IRB 120's module compensated with a KUKA KR 16 as --robot (a wrong model given by
+// mistake): its six targets with checked confdata (MoveJ p10, MoveL p20, p30, the MoveC's end
+// p50, p60, Offs(p60,..): counted in examples/irb120_seam.mod) are all on other configurations
+// there. The first message says the module looks written for another robot model, then the
+// first target's own error (before: the confdata errors alone, target by target).
+TEST(Rapid, AModuleForAnotherRobotModelIsSaidSoFirst) {
+  const Program p = parseRapid(example(), "irb120_seam.mod");
+  const ProgramCompensation r = compensateProgramReport(p, settingsFor(test::loadBundled("kuka_kr16")));
+  ASSERT_FALSE(r.ok());
+  const std::string head = "the module looks written for another robot model than KUKA KR 16 (--robot): 6 of its 6 targets with checked "
+                           "confdata (ConfJ\\On, ConfL\\On) are reached on another configuration than the one programmed, while a "
+                           "calibration moves a target by millimetres; check --robot. First: p10 is not reachable in its programmed "
+                           "confdata [-1,0,-1,0] (ConfJ\\On; ";
+  EXPECT_EQ(r.report.errors.front().message.substr(0, head.size()), head);
+  EXPECT_EQ(r.report.errors.front().where.str(), "irb120_seam.mod:18:5");
+  // the other errors are the targets' own, unchanged; only the first carries the verdict
+  for (size_t k = 1; k < r.report.errors.size(); ++k)
+    EXPECT_EQ(r.report.errors[k].message.find("another robot model"), std::string::npos) << r.report.errors[k].message;
+}
+
 // What the controller runs and accura does not model (external axes in use, a stationary tool, a
 // work object a mechanical unit moves) or cannot evaluate (a target computed at run time) is kept
 // as written and named: a program the controller runs is never refused (the first three were).

@@ -38,8 +38,17 @@ struct Slot {
 };
 
 Slot g_slots[kSlots];
-std::atomic<int> g_interrupted{0};
+std::atomic<int> g_interrupted{0};  // signals received
+// installInterruptStop: the first signal only asks the work to stop (the note is said); the
+// second acts at once
+std::atomic<const char*> g_stop_note{nullptr};
 std::once_flag g_install_once;
+
+// The process is to end now: a signal without installInterruptStop, or the second one with it.
+bool exitRequested() {
+  const int n = g_interrupted.load();
+  return n >= (g_stop_note.load() ? 2 : 1);
+}
 
 void writeStderr(const char* msg) {
   const size_t n = std::strlen(msg);
@@ -70,7 +79,11 @@ void unlinkWriting() {
 }
 
 extern "C" void onInterrupt(int) {
-  g_interrupted.store(1);
+  const int n = g_interrupted.fetch_add(1) + 1;
+  if (const char* note = g_stop_note.load(); note && n == 1) {  // the work stops, the command reports it
+    writeStderr(note);
+    return;
+  }
   bool committing = false;
   for (Slot& s : g_slots) {
     const int st = s.state.load();
@@ -88,7 +101,7 @@ int acquireSlot(const std::string& path) {
       int expected = kFree;
       if (g_slots[i].state.compare_exchange_strong(expected, kReserved)) {
         std::memcpy(g_slots[i].path, path.c_str(), path.size() + 1);
-        if (g_interrupted.load()) {  // interrupted: no new temporary file; the handler exits
+        if (exitRequested()) {  // interrupted: no new temporary file; the handler exits
           g_slots[i].state.store(kFree);
           for (;;) std::this_thread::sleep_for(std::chrono::seconds(1));
         }
@@ -168,6 +181,11 @@ void writeStream(const OutputFile& f) {
 
 }  // namespace
 
+void installInterruptStop(const char* note) {
+  g_stop_note.store(note);
+  installInterruptCleanup();
+}
+
 void installInterruptCleanup() {
   std::call_once(g_install_once, [] {
     struct sigaction sa;
@@ -230,20 +248,22 @@ void writeFilesAtomically(const std::vector<OutputFile>& files) {
   }
   // commit: all written; rename them together
   for (int s : slots) g_slots[s].state.store(kCommitting);
-  if (interruptRequested()) {
+  if (exitRequested()) {
     cleanup();
     exitInterrupted();
   }
   for (size_t i = 0; i < files.size(); ++i) {
     if (::rename(temps[i].c_str(), files[i].path.c_str()) != 0) {
-      const std::string why = std::strerror(errno);
+      // a directory where the file goes (simulate --out DIR): said as refuseUnwritableOutputs says it
+      const std::string why = errno == EISDIR ? std::string("it is a directory")
+                                              : std::string("cannot rename the temporary file into place: ") + std::strerror(errno);
       for (size_t j = i; j < files.size(); ++j) ::unlink(temps[j].c_str());
       for (int s : slots) releaseSlot(s);
-      throw InputError(files[i].path, 0, 0, "cannot write file: cannot rename the temporary file into place: " + why);
+      throw InputError(files[i].path, 0, 0, "cannot write file: " + why);
     }
   }
   for (int s : slots) releaseSlot(s);
-  if (interruptRequested()) exitInterrupted();
+  if (exitRequested()) exitInterrupted();
 }
 
 void createDirectories(const std::string& dir) {
@@ -251,6 +271,14 @@ void createDirectories(const std::string& dir) {
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
   if (ec) throw InputError(dir + ": cannot create the directory: " + ec.message());
+}
+
+std::string notAFileProblem(const std::string& path) {
+  std::error_code ec;
+  const fs::file_status st = fs::status(path, ec);
+  if (ec && ec != std::errc::no_such_file_or_directory) return ec.message();
+  if (fs::is_regular_file(st)) return "";
+  return fs::is_directory(st) ? "it is a directory" : fs::exists(st) ? "not a regular file" : "no such file";
 }
 
 void writeFileAtomically(const std::string& path, const std::string& content) { writeFilesAtomically({{path, content}}); }

@@ -487,6 +487,12 @@ Problem setUp(const RobotModel& start, const std::vector<MeasurementSet>& sets, 
   return pb;
 }
 
+// The units a message that doubts them asks to check, where the user can fix them: those the
+// mapping states (its unit keys with their lines) for an export read through one, else accura's.
+std::string unitsToCheck(const MeasurementSet& set) {
+  return set.units_stated.empty() ? "the units (positions in mm, joint angles in deg)" : "the units the mapping states (" + set.units_stated + ")";
+}
+
 // 1. Closed-form registration of the measurement frame (and the tool point) on the first
 // station's rows; every further station registered in closed form against that model: into
 // pb.model and the stations' part of pb.x.
@@ -545,13 +551,13 @@ void registration(Problem& pb, const std::vector<MeasurementSet>& sets, const Id
                          "expected data sets that share one station (they were said to: --same-station): registered together, the "
                          "measured positions lie " + formatFixed(summary.registration_rms_mm, 1) + " mm RMS from the model's, more than " +
                              formatFixed(kMaxSharedStationRmsMm, 0) + " mm; give each its own station (leave out --same-station), or "
-                             "check the units and the joint order");
+                             "check " + unitsToCheck(sets[1]) + " and the joint order");
       if (summary.registration_rms_mm > 10.0 && summary.registration_rms_mm > 0.5 * spread)
         throw InputError(sets[0].file, 0, 0,
                          "expected measurements of " + model.nominal.name + " in mm and deg: after the measurement frame is registered, the " +
                              "measured positions lie " + formatFixed(summary.registration_rms_mm, 1) + " mm RMS from the model's, more than " +
-                             "half their own spread (" + formatFixed(spread, 1) + " mm RMS about their centre); check the units (positions " +
-                             "in mm, joint angles in deg), the joint order and the robot file");
+                             "half their own spread (" + formatFixed(spread, 1) + " mm RMS about their centre); check " + unitsToCheck(sets[0]) +
+                             ", the joint order and the robot file");
     }
   }
 }

@@ -245,7 +245,7 @@ IkResult KinematicSolver::Impl::inverse(const Eigen::Isometry3d& T_target, const
         answer(solution, IkStatus::kSingular);
         solution.q = q;
         std::ostringstream m;
-        m << "singular: the smallest scaled singular value of the Jacobian is " << min_singular_value << ", below "
+        m << "the smallest scaled singular value of the Jacobian is " << min_singular_value << ", below "
           << o.singular_threshold;
         solution.message = m.str();
       };

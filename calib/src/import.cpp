@@ -578,6 +578,19 @@ MeasurementSet readMappedMeasurements(const std::string& path, const Measurement
   set.has_time = c.time >= 0;
   set.has_direction = !c.directions.empty();
   set.ignored_absent_columns = c.ignored_absent;
+  {
+    const auto stated = [&](const std::string& key, const std::string& unit) {
+      int line = 0;
+      for (const auto& kl : m.key_lines)
+        if (kl.first == key) line = kl.second;
+      return key + " = " + unit + " (" + m.file + (line ? ":" + std::to_string(line) : std::string()) + ")";
+    };
+    const bool prismatic = std::any_of(robot.joints.begin(), robot.joints.end(), [](const JointSpec& j) { return j.type == JointType::kPrismatic; });
+    const bool revolute = std::any_of(robot.joints.begin(), robot.joints.end(), [](const JointSpec& j) { return j.type == JointType::kRevolute; });
+    set.units_stated = (revolute ? stated("joint_unit", m.joint_scale == 1.0 ? "deg" : "rad") + ", " : std::string()) +
+                       (prismatic ? stated("prismatic_unit", m.prismatic_scale == 1.0 ? "mm" : "m") + ", " : std::string()) +
+                       stated("position_unit", m.position_scale == 1.0 ? "mm" : "m");
+  }
   const std::string delimiter = m.delimiter == '\t' ? std::string("tab") : "'" + std::string(1, m.delimiter) + "'";
   for (size_t k = 0; k < h.names.size(); ++k) {
     if (c.used.count(static_cast<int>(k))) continue;

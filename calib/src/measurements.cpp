@@ -74,11 +74,22 @@ std::string trailingDelimiterNote(std::string_view header, std::string_view row)
 }
 
 /// The note on a row with more fields than the header when a decimal comma explains it: the
-/// line has no '.' at all and at least two fields too many (a spreadsheet of a locale that
-/// writes 1,5 for 1.5 splits every measured coordinate; one field too many is as likely a stray
-/// value).
+/// line has no '.' at all, and its fields look like numbers split at a decimal comma: at least
+/// three fields too many (a spreadsheet of a locale that writes 1,5 for 1.5 splits every
+/// measured coordinate, and a tracker's x, y, z are never whole millimetres), or at least two
+/// and a field that can only be the digits after a decimal comma ("087" of 0,087: a whole
+/// number has no leading zero). Two whole numbers too many are as likely stray values.
 std::string decimalCommaNote(std::string_view row, std::size_t found, std::size_t expected) {
   if (found < expected + 2 || row.find('.') != std::string_view::npos) return "";
+  bool fraction_digits = false;
+  for (std::size_t b = 0; b <= row.size() && !fraction_digits;) {
+    std::size_t e = row.find(',', b);
+    if (e == std::string_view::npos) e = row.size();
+    const std::string_view f = trim(row.substr(b, e - b));
+    fraction_digits = f.size() >= 2 && f[0] == '0' && f.find_first_not_of("0123456789") == std::string_view::npos;
+    b = e + 1;
+  }
+  if (found < expected + 3 && !fraction_digits) return "";
   return " (no '.' in the line: a decimal comma? numbers take a decimal point, ',' separates the fields)";
 }
 
@@ -345,7 +356,9 @@ void Reader::checkGroups(int line) const {
                       ", x, y, z)";
     if (L.columns.size() == 1 &&
         L.columns[0].name.find_first_of(";\t") != std::string::npos) {
-      msg += "; the delimiter is ',', found a header with ';' or tabs";
+      // (a spreadsheet's export with ';' usually has decimal commas too: the mapping reads both)
+      msg += "; the delimiter is ',', found a header with ';' or tabs (an export with another delimiter or decimal commas is read "
+             "as it is through a mapping file, --map: docs/measurement-mapping.md)";
     }
     // units in the names ('q1 [deg]', 'x (mm)'): an export's layout, not this format's
     for (const auto& c : L.columns) {

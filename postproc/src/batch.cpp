@@ -248,7 +248,13 @@ std::string firstCheckProblem(const CheckReport& check) {
 BatchResult runBatch(const std::string& in_dir, const std::string& out_dir, const BatchOptions& options,
                      const std::function<void(const BatchFileResult&, int, int)>& progress) {
   std::error_code ec;
-  if (!fs::is_directory(in_dir, ec)) throw calib::InputError(in_dir + ": expected a directory of programs (--in), found none");
+  if (!fs::is_directory(in_dir, ec)) {
+    // one program given to batch: said with the command that takes one
+    if (fs::exists(in_dir, ec))
+      throw calib::InputError(in_dir + ": expected a directory of programs (--in), found a file; one program: accura compensate --in " + in_dir +
+                              " --out DIR");
+    throw calib::InputError(in_dir + ": expected a directory of programs (--in), found none");
+  }
   if (options.jobs < 1) throw calib::InputError("--jobs: expected at least 1, found " + std::to_string(options.jobs));
   if (fs::exists(out_dir, ec) && !fs::is_directory(out_dir, ec))
     throw calib::InputError(out_dir + ": expected an output directory (--out), found a file");
@@ -406,12 +412,21 @@ BatchResult runBatch(const std::string& in_dir, const std::string& out_dir, cons
   for (int t = 1; t < n; ++t) threads.emplace_back(work);
   work();
   for (auto& t : threads) t.join();
+  // interrupted: the programs no worker took (a colliding pair failed before any work)
+  result.interrupted = calib::interruptRequested();
+  for (size_t i = 0; i < files.size(); ++i) {
+    BatchFileResult& r = result.files[i];
+    if (!r.input.empty()) continue;
+    r.input = files[i];
+    r.status = BatchFileResult::Status::kNotStarted;
+    r.message = "not compensated: the run was interrupted before it";
+  }
   // a program not written this time whose output path holds a file (an earlier run's output
   // into the same --out): that file is not this run's result, and the tree must not pass it off
   // as one
   for (size_t i = 0; i < files.size(); ++i) {
     BatchFileResult& r = result.files[i];
-    if (r.status != BatchFileResult::Status::kFailed) continue;
+    if (r.status != BatchFileResult::Status::kFailed && r.status != BatchFileResult::Status::kNotStarted) continue;
     std::string stale;
     for (const std::string& o : predicted[i])
       if (fs::exists(fs::symlink_status(o, ec))) stale += (stale.empty() ? "" : ", ") + o;
@@ -431,6 +446,7 @@ BatchResult runBatch(const std::string& in_dir, const std::string& out_dir, cons
   for (const auto& r : result.files) {
     if (r.status == BatchFileResult::Status::kConverted) ++result.converted;
     else if (r.status == BatchFileResult::Status::kSkipped) ++result.skipped;
+    else if (r.status == BatchFileResult::Status::kNotStarted) ++result.not_started;
     else ++result.failed;
   }
   return result;

@@ -19,6 +19,7 @@
 #include <tuple>
 
 #include "accura/calib/errors.h"
+#include "accura/calib/file_io.h"
 #include "accura/calib/geometry.h"
 #include "accura/calib/xml_text.h"
 #include "decimal.h"
@@ -189,6 +190,9 @@ class CellReader {
 
 Cell readCellFile(const std::string& path) {
   std::string text;
+  // a directory opens as an empty stream ("found an empty file"): said as what it is
+  if (const std::string problem = calib::notAFileProblem(path); !problem.empty())
+    throw calib::InputError(path, 0, 0, "cannot read the cell file: " + problem);
   {
     std::ifstream in(path, std::ios::binary);
     if (!in) throw calib::InputError(path, 0, 0, "expected a cell file, cannot open it");

@@ -305,9 +305,10 @@ class Job {
   /// one-quadrant difference is accepted (kept as written, one warning per program);
   /// ConfJ\Off / ConfL\Off: the configuration nearest the current one, confdata kept.
   bool abbConfiguration(const Motion& m, Target& t, const Compensator& comp, const Eigen::VectorXd& q, bool cp) {
-    if (!t.abb_conf || !m.conf_monitored || q.size() < 6) return true;
+    if (!t.abb_conf || !m.conf_monitored || !abbConfModelled(m)) return true;
     const std::array<int, 4> asked = *t.abb_conf;
     const std::array<int, 4> got = abbConfdata(comp.controller().model(), q);
+    ++abb_checked_;
     if (asked == got) return true;
     const int axis[3] = {0, 3, 5};
     int worst = 0;
@@ -322,6 +323,7 @@ class Job {
     // axis 1, 4 or 6 on a quadrant boundary within the written precision (a home position at
     // 0): the written confdata holds as it is, the text stays
     if (asked[3] == got[3] && worst <= 1 && at_boundary) return true;
+    ++abb_mismatched_;
     auto text = [](const std::array<int, 4>& c) {
       return "[" + std::to_string(c[0]) + "," + std::to_string(c[1]) + "," + std::to_string(c[2]) + "," + std::to_string(c[3]) + "]";
     };
@@ -340,12 +342,24 @@ class Job {
       t.modified = true;
       return true;
     }
+    if (abb_first_error_ < 0) abb_first_error_ = static_cast<int>(r_.errors.size());
     if (cp)
       error(m.where, "ConfL\\On: the path reaches " + targetLabel(t) + " with confdata " + text(got) + ", programmed " + text(asked) +
                          " (axis 1, 4 or 6 more than one quadrant away, or another cfx): the controller stops here; program the confdata the path has, or ConfL\\Off");
     else
       error(m.where, targetLabel(t) + " is not reachable in its programmed confdata " + text(asked) + " (ConfJ\\On; the compensated point has " + text(got) +
                          "; program that configuration, or ConfJ\\Off)");
+    return false;
+  }
+
+  /// Whether the robot has the six axes ABB's confdata describe (the quadrants of axes 1, 4, 6
+  /// and the arm branch of a 6-axis arm; a 7-axis arm's cfx means another thing, a 4-axis
+  /// SCARA or palletiser has no axis 6): else the confdata of a RAPID target are not
+  /// interpreted, kept as written, and one warning per program says so (before: the seed in the
+  /// programmed quadrants wrote axes 4-6 of a 4-axis robot beyond its joint vector).
+  bool abbConfModelled(const Motion& m) {
+    if (s_.calibrated.dof() == 6) return true;
+    if (!abb_unmodelled_where_.line) abb_unmodelled_where_ = m.where;
     return false;
   }
 
@@ -362,6 +376,24 @@ class Job {
   }
 
   void flushCpConfigurations() {
+    // Most of the checked confdata off, and a stop among them: the module was not made for this
+    // robot (an OLP writes the confdata its IK gives on the robot it simulated, and a calibration
+    // moves a pose by millimetres, far less than a quadrant): said first, before the targets
+    // (before: only the confdata errors, target by target). A program that is right gets no
+    // other verdict: this changes the first message only.
+    if (abb_first_error_ >= 0 && abb_mismatched_ >= 3 && 2 * abb_mismatched_ > abb_checked_) {
+      ProgramIssue& e = r_.errors[static_cast<size_t>(abb_first_error_)];
+      e.message = "the module looks written for another robot model than " + s_.calibrated.nominal.name + " (--robot): " +
+                  std::to_string(abb_mismatched_) + " of its " + std::to_string(abb_checked_) + " targets with checked confdata (ConfJ\\On, "
+                  "ConfL\\On) are reached on another configuration than the one programmed, while a calibration moves a target by "
+                  "millimetres; check --robot. First: " + e.message;
+      std::rotate(r_.errors.begin(), r_.errors.begin() + abb_first_error_, r_.errors.begin() + abb_first_error_ + 1);
+    }
+    if (abb_unmodelled_where_.line)
+      warning(abb_unmodelled_where_, "the confdata of the RAPID targets are not interpreted for " + s_.calibrated.nominal.name + " (" +
+                                         std::to_string(s_.calibrated.dof()) + " axes; ABB's confdata [cf1,cf4,cf6,cfx] describe a "
+                                         "6-axis arm): each target is compensated on the configuration nearest the robot's, and its "
+                                         "confdata are kept as written. First: this motion");
     if (!abb_disagree_.empty())
       warning(abb_where_, std::to_string(abb_disagree_.size()) + " target(s) of MoveL/MoveC carry confdata that the path does not have; with ConfL\\On " +
                               "the controller accepts axis 1, 4 and 6 within one quadrant of the programmed one, so they were compensated on " +
@@ -1050,7 +1082,7 @@ class Job {
     const bool cp = m.type != MotionType::kPtp;
     calib::Configuration config = cp && q_real_ ? calib::Configuration{} : c.config;
     Eigen::VectorXd start = seed;
-    if (c.end.abb_conf && ((!cp && m.conf_monitored) || (cp && !q_real_))) {  // RAPID: the programmed branch
+    if (c.end.abb_conf && ((!cp && m.conf_monitored) || (cp && !q_real_)) && abbConfModelled(m)) {  // RAPID: the programmed branch
       config = abbBranch(c.end);
       start = abbSeed(c.end);
     }
@@ -1148,7 +1180,7 @@ class Job {
       exact_stop_points_ += static_cast<int>(commanded.size()) - 1;
       ++exact_stop_motions_;
     }
-    if (end.abb_conf && commanded.size() == sc.q_real_end.size())  // RAPID: the confdata the path has at each inserted point
+    if (end.abb_conf && commanded.size() == sc.q_real_end.size() && abbConfModelled(m))  // RAPID: the confdata the path has at each inserted point
       for (size_t k = 0; k + 1 < commanded.size(); ++k)
       {
         Motion& ins = out.motions[out.motions.size() - commanded.size() + 1 + k];
@@ -1277,6 +1309,10 @@ class Job {
   std::vector<std::string> abb_disagree_;  ///< RAPID CP targets whose confdata differ from the path's (accepted)
   std::string abb_first_;
   SourceLocation abb_where_;
+  int abb_checked_ = 0;      ///< RAPID targets whose confdata were compared with the compensated joints
+  int abb_mismatched_ = 0;   ///< ... and differed (beyond a quadrant boundary at the written precision)
+  int abb_first_error_ = -1; ///< index in r_.errors of the first confdata error
+  SourceLocation abb_unmodelled_where_;  ///< the first RAPID target whose confdata are not interpreted (not 6 axes)
   std::vector<std::string> cp_disagree_;  ///< CP targets whose S/T differ from the path's
   std::string cp_first_;
   SourceLocation cp_where_;

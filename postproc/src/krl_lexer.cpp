@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "accura/calib/errors.h"
+#include "accura/calib/file_io.h"
 #include "accura/calib/text.h"
 #include "krl_internal.h"
 
@@ -72,8 +73,8 @@ bool isJump(const std::string& up) {
 std::string upper(std::string s) { return calib::upperAscii(std::move(s)); }
 
 std::string readFileBytes(const std::string& path, const std::string& what) {
-  std::error_code ec;
-  if (!fs::is_regular_file(path, ec)) throw calib::InputError(path, 0, 0, "cannot read " + what + ": no such file");
+  if (const std::string problem = calib::notAFileProblem(path); !problem.empty())
+    throw calib::InputError(path, 0, 0, "cannot read " + what + ": " + problem);  // (a directory is not "no such file")
   std::ifstream f(path, std::ios::binary);
   if (!f) throw calib::InputError(path, 0, 0, "cannot read " + what);
   std::string text((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());

@@ -7,6 +7,7 @@
 #include <set>
 
 #include "accura/calib/errors.h"
+#include "accura/calib/file_io.h"
 #include "accura/calib/text.h"
 #include "excerpt.h"
 #include "rapid_internal.h"
@@ -1804,8 +1805,8 @@ Program parseRapid(const std::string& text, const std::string& path) { return Re
 namespace {
 
 std::string moduleText(const std::string& path) {
-  std::error_code ec;
-  if (!fs::is_regular_file(path, ec)) throw calib::InputError(path, 0, 0, "cannot read the RAPID module: no such file");
+  if (const std::string problem = calib::notAFileProblem(path); !problem.empty())
+    throw calib::InputError(path, 0, 0, "cannot read the RAPID module: " + problem);
   std::ifstream f(path, std::ios::binary);
   if (!f) throw calib::InputError(path, 0, 0, "cannot read the RAPID module");
   std::string text((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());

@@ -10,6 +10,7 @@
 #include <set>
 
 #include "accura/calib/errors.h"
+#include "accura/calib/file_io.h"
 #include "decimal.h"
 #include "excerpt.h"
 #include "start_tracker.h"
@@ -1046,8 +1047,8 @@ class Reader {
 Program parseUrScript(const std::string& text, const std::string& path) { return Reader(text, path).run(); }
 
 Program readUrScript(const std::string& path) {
-  std::error_code ec;
-  if (!fs::is_regular_file(path, ec)) throw calib::InputError(path, 0, 0, "cannot read the URScript program: no such file");
+  if (const std::string problem = calib::notAFileProblem(path); !problem.empty())
+    throw calib::InputError(path, 0, 0, "cannot read the URScript program: " + problem);
   std::ifstream f(path, std::ios::binary);
   if (!f) throw calib::InputError(path, 0, 0, "cannot read the URScript program");
   std::string text((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());

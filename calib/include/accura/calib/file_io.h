@@ -39,12 +39,25 @@ void writeFileAtomically(const std::string& path, const std::string& content);
 /// status 130. Idempotent.
 void installInterruptCleanup();
 
+/// installInterruptCleanup for a command that reports what it finished (batch): the first
+/// SIGINT / SIGTERM only writes `note` (a string literal: it must live as long as the process)
+/// to stderr and makes interruptRequested() true; nothing is removed and nothing exits, the
+/// files being written are written and renamed into place as usual, and the command stops its
+/// work, writes its report and ends with status 130 itself. A second signal acts as
+/// installInterruptCleanup's at once (no report). Idempotent.
+void installInterruptStop(const char* note);
+
 /// True once SIGINT / SIGTERM arrived (workers stop taking new files).
 bool interruptRequested();
 
 /// True when `a` and `b` name the same file: the same inode when both exist, else the same
 /// normalised absolute path (a file about to be written onto an input). Never throws.
 bool sameFile(const std::string& a, const std::string& b);
+
+/// What is at `path` when it is no file to read, in words for a message: "no such file", "it is a
+/// directory", "not a regular file", or the reason its status cannot be read; "" for a regular
+/// file. Never throws.
+std::string notAFileProblem(const std::string& path);
 
 /// Why files cannot be created in the directory `dir` ("" empty: the current directory), in words
 /// for a message: "the directory D does not exist", "D is not a directory", "the directory D is

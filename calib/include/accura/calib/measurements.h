@@ -47,6 +47,11 @@ struct MeasurementSet {
   /// Names a measurement mapping lists under `ignore` that the header does not have (read with
   /// readMappedMeasurements; nothing is lost, the caller says it).
   std::vector<std::string> ignored_absent_columns;
+  /// Where the file's units are stated, for a message that doubts them: empty for accura's CSV
+  /// (mm and deg by its format); for an export read through a mapping, its unit keys with their
+  /// places ("joint_unit = rad (export.map:5), position_unit = mm (export.map:7)"), the place the
+  /// user can fix them.
+  std::string units_stated;
 };
 
 /// The kinds of measured values whose plausible ranges both readers (the CSV, and an

@@ -114,7 +114,9 @@ struct BatchOptions {
 struct BatchFileResult {
   std::string input;                 ///< path relative to the input directory ('/' separated)
   std::vector<std::string> outputs;  ///< paths written (relative to the output directory)
-  enum class Status { kConverted, kFailed, kSkipped } status = Status::kFailed;
+  /// kNotStarted: the run was interrupted (calib::interruptRequested()) before a worker took
+  /// this program; nothing of it was written.
+  enum class Status { kConverted, kFailed, kSkipped, kNotStarted } status = Status::kFailed;
   /// The error (kFailed: firstCheckProblem when the check failed), why it was skipped, or
   /// (kConverted with warn_only) the check's first problem.
   std::string message;
@@ -126,7 +128,10 @@ struct BatchResult {
   /// in the order of findPrograms, then its TreeProblems (a directory that cannot be listed:
   /// kFailed, a symbolic link to a directory: kSkipped)
   std::vector<BatchFileResult> files;
-  int converted = 0, failed = 0, skipped = 0;
+  int converted = 0, failed = 0, skipped = 0, not_started = 0;
+  /// The run was interrupted: the programs in progress were finished (and written), the others
+  /// are kNotStarted.
+  bool interrupted = false;
   /// How many of `files` are programs (the first ones); the rest are TreeProblems.
   int programs = 0;
 };
@@ -158,7 +163,9 @@ std::vector<std::string> findPrograms(const std::string& in_dir);
 /// The input tree is only read, and never written through a symbolic link under `out_dir` that
 /// leads back into it (that program fails). A program that is not written while its output path
 /// holds a file (an earlier run's) says so in its message. The tree's TreeProblems follow the
-/// programs in the result. `progress` (may be empty) is called after each file, from the
+/// programs in the result. Once calib::interruptRequested() (installInterruptStop), no program
+/// is started: those in progress are finished, the rest are kNotStarted, and the result says
+/// it was interrupted. `progress` (may be empty) is called after each file, from the
 /// worker thread, one call at a time. Throws InputError when `in_dir` is not a directory or
 /// `out_dir` is inside it.
 BatchResult runBatch(const std::string& in_dir, const std::string& out_dir, const BatchOptions& options,
