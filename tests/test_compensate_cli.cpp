@@ -234,11 +234,11 @@ TEST(CompensateCli, ConvertKrlToXmlAndBack) {
 
 // A cell's program often leaves its frames to a routine of another module (MoveSettings(base,
 // tool, ..)), which accura cannot read: the refusal names that call and the option that gives
-// the frame it sets; KRL's own statements with parentheses (PULSE) are not taken for one.
+// the frame it sets; KRL's own statements with parentheses (CAST_TO, PULSE) are not taken for one.
 TEST(CompensateCli, FramesLeftToAnotherModulesRoutineNameTheCall) {
   const std::string dir = inputs("comp_external_frames");
   test::writeText(dir + "/cell.src",
-                  "DEF cell()\n  PULSE($OUT[1], TRUE, 0.1)\n  MoveSettings(1, 2)\n  PTP {A1 0,A2 -90,A3 90,A4 0,A5 45,A6 0}\n"
+                  "DEF cell()\n  CAST_TO(BUF[],OFS,1)\n  MoveSettings(1, 2)\n  PTP {A1 0,A2 -90,A3 90,A4 0,A5 45,A6 0}\n"
                   "  LIN {X 900,Y 0,Z 1100,A 0,B 90,C 0}\nEND\n");
   CliRun r = accura(dir, "compensate --robot kr16_real.xml --in cell.src --out o");
   EXPECT_EQ(r.code, 1);

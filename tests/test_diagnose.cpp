@@ -209,6 +209,20 @@ TEST(Diagnose, AnEffectThatTakesNearlyAllTheGapIsTheCauseAndItsSmallRestIsSaid) 
   EXPECT_NE(d.verdict.explanation.find("a small rest the selected effects do not take"), std::string::npos) << d.verdict.explanation;
 }
 
+// The description of the tests names the data file, whose path has no bound: it is whole however
+// long the path (it was cut at 1023 characters, mid-word, without a word).
+TEST(Diagnose, TheTestsDescriptionIsWholeWithALongDataPath) {
+  const RobotModel nominal = nominalWithTarget("kuka_kr16");
+  SimulateOptions o = campaign(5, {"geometric"}, 60);
+  MeasurementSet fit = simulateMeasurements(perturbModel(nominal, o), o);
+  fit.file = "/" + std::string(1500, 'd') + "/fit.csv";
+  const Diagnosis d = diagnose(nominal, fit, nullptr, DiagnoseOptions{});
+  EXPECT_NE(d.tests.find(fit.file), std::string::npos);
+  const std::string end = "orthogonal to the geometric parameters' columns (added-variable), 5-fold cross-validated";
+  ASSERT_GE(d.tests.size(), end.size());
+  EXPECT_EQ(d.tests.substr(d.tests.size() - end.size()), end);
+}
+
 // Joint 2 confined to 40 deg: a scale error of A2 and its first harmonics look alike there.
 TEST(Diagnose, ConfoundedEffectsAreNamedWithWhatSeparatesThem) {
   RobotModel nominal = nominalWithTarget("kuka_kr16");

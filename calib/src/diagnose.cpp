@@ -217,18 +217,17 @@ Diagnosis Diagnoser::run() {
   orientation();
   verdict();
   where();
-  char tests[1024];
-  std::snprintf(tests, sizeof tests,
-                "held-out error: %s; selection: forward over (effect, joint) blocks, one-sided paired z-test of the "
-                "per-pose held-out squared errors, p < %.3g / (blocks tried in the round) (Bonferroni) and a drop of "
-                "the held-out mean squared error of at least %.3g%%; ranking and selection on the model linearised "
-                "at the baseline, shrink table and verdict on exact non-linear refits; noise floor: z-test of the "
-                "held-out squared errors against noise plus parameter variance, p < %.3g; confounding: an effect "
-                "whose significant gain on the baseline drops below half once another is in the model; structure "
-                "scan: the residual regressed on each variable times the joint Jacobian and a translation, made "
-                "orthogonal to the geometric parameters' columns (added-variable), %d-fold cross-validated",
-                out_.validation_method.c_str(), o_.alpha, 100 * o_.min_gain, o_.floor_alpha, folds_);
-  out_.tests = tests;
+  // (a std::string: the validation method names the data files, whose paths have no bound)
+  out_.tests = "held-out error: " + out_.validation_method +
+               "; selection: forward over (effect, joint) blocks, one-sided paired z-test of the per-pose held-out squared "
+               "errors, p < " + fmtg("%.3g", o_.alpha) + " / (blocks tried in the round) (Bonferroni) and a drop of the held-out "
+               "mean squared error of at least " + fmtg("%.3g", 100 * o_.min_gain) +
+               "%; ranking and selection on the model linearised at the baseline, shrink table and verdict on exact non-linear "
+               "refits; noise floor: z-test of the held-out squared errors against noise plus parameter variance, p < " +
+               fmtg("%.3g", o_.floor_alpha) +
+               "; confounding: an effect whose significant gain on the baseline drops below half once another is in the model; "
+               "structure scan: the residual regressed on each variable times the joint Jacobian and a translation, made "
+               "orthogonal to the geometric parameters' columns (added-variable), " + std::to_string(folds_) + "-fold cross-validated";
   for (const auto& kv : effect_note_)
     if (kv.first.find(':') != std::string::npos) out_.notes.push_back(kv.second);
   out_.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -900,12 +900,24 @@ std::vector<DuplicatedRow> removeDuplicatedRows(MeasurementSet& set, double tol)
   return dups;
 }
 
-std::string duplicatedRowsWarning(const std::string& file, const std::vector<DuplicatedRow>& rows) {
-  if (rows.empty()) return "";
+namespace {
+
+/// The first ten of `rows` as FILE:LINE = SAME (SAME: FILE:LINE, or LINE alone when `same_file_short`),
+/// then how many more.
+std::string rowPairList(const std::string& file, const std::vector<DuplicatedRow>& rows, bool same_file_short) {
   std::string list;
   for (size_t k = 0; k < rows.size() && k < 10; ++k)
-    list += (k ? ", " : "") + file + ":" + std::to_string(rows[k].line) + " = " + file + ":" + std::to_string(rows[k].same_as_line);
+    list += (k ? ", " : "") + file + ":" + std::to_string(rows[k].line) + " = " + (same_file_short ? "" : file + ":") +
+            std::to_string(rows[k].same_as_line);
   if (rows.size() > 10) list += ", ... (" + std::to_string(rows.size() - 10) + " more)";
+  return list;
+}
+
+}  // namespace
+
+std::string duplicatedRowsWarning(const std::string& file, const std::vector<DuplicatedRow>& rows) {
+  if (rows.empty()) return "";
+  const std::string list = rowPairList(file, rows, false);
   return std::to_string(rows.size()) + " row(s) of " + file +
          " repeat an earlier row of their joint configuration exactly (every measured value equal: " + list +
          "): the same measurement written twice, not a second measurement; each is counted once";
@@ -927,10 +939,7 @@ std::vector<DuplicatedRow> staleReadings(const MeasurementSet& set, double tol) 
 
 std::string staleReadingsWarning(const std::string& file, const std::vector<DuplicatedRow>& rows) {
   if (rows.empty()) return "";
-  std::string list;
-  for (size_t k = 0; k < rows.size() && k < 10; ++k)
-    list += (k ? ", " : "") + file + ":" + std::to_string(rows[k].line) + " = " + std::to_string(rows[k].same_as_line);
-  if (rows.size() > 10) list += ", ... (" + std::to_string(rows.size() - 10) + " more)";
+  const std::string list = rowPairList(file, rows, true);
   return std::to_string(rows.size()) + " row(s) of " + file +
          " carry the measured values of the row before them to the last digit at another joint configuration (" + list +
          "): most likely that row's reading written again (an instrument that did not update), not a measurement of "

@@ -14,6 +14,7 @@
 #include "accura/calib/errors.h"
 #include "accura/calib/file_io.h"
 #include "accura/calib/geometry.h"
+#include "accura/postproc/program_io.h"
 #include "accura/postproc/report.h"
 
 namespace fs = std::filesystem;
@@ -61,7 +62,7 @@ bool programExtension(const fs::path& p) {
   const std::string ext = lower(p.extension().string());
   // (RAPID: the program modules; system modules, .sys/.sysx, are the controller's: a backup's
   // base.sys and user.sys hold no program. Give one with compensate --in.)
-  return ext == ".src" || ext == ".xml" || ext == ".script" || ext == ".mod" || ext == ".modx" || ext == ".prg";
+  return ext == ".src" || ext == ".xml" || ext == ".script" || (isRapidModulePath(p.string()) && ext != ".sys" && ext != ".sysx");
 }
 
 // One directory of the tree, its subdirectories depth first. A directory that cannot be listed

@@ -365,7 +365,9 @@ struct Reader {
   std::string externalCall(const std::vector<Tok>& t) const {
     static const std::set<std::string> kKrlStatements = {
         "IF", "WHILE", "UNTIL", "SWITCH", "CASE", "RETURN", "WAIT", "FOR", "REPEAT", "LOOP", "EXIT", "ELSE", "GOTO",
-        "HALT", "INTERRUPT", "TRIGGER", "PULSE", "ANIN", "ANOUT", "CWRITE", "CREAD", "SWRITE", "SREAD", "BRAKE", "RESUME"};
+        "HALT", "INTERRUPT", "TRIGGER", "PULSE", "ANIN", "ANOUT", "CWRITE", "CREAD", "SWRITE", "SREAD", "BRAKE", "RESUME",
+        "CAST_TO", "CAST_FROM", "COPEN", "CCLOSE", "CIOCTL", "SET_CD_PARAMS", "ON_ERROR_PROCEED", "STRCLEAR", "STRCOPY",
+        "STRADD", "STRFIND", "STRCOMP", "STRLEN", "STRDECLLEN", "WAIT_FOR_ON", "EB_TEST"};
     if (t.size() < 3 || t[0].kind != Tok::kIdent || t[1].text != "(" || t.back().text != ")") return "";
     if (kKrlStatements.count(t[0].up) || defined_routines_.count(t[0].up)) return "";
     int depth = 0;

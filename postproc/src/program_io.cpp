@@ -118,15 +118,15 @@ ProgramFormat programFormat(const std::string& path) {
   if (ext == ".src") return ProgramFormat::kKrl;
   if (ext == ".xml") return ProgramFormat::kXml;
   if (ext == ".script") return ProgramFormat::kUrScript;
-  // RAPID modules: .mod and .sys (program and system modules, RobotWare 5), .modx and .sysx
-  // (the same text as RobotStudio saves them for RobotWare 6 and later), .prg (S4C era)
-  if (ext == ".mod" || ext == ".modx" || ext == ".sys" || ext == ".sysx" || ext == ".prg") return ProgramFormat::kRapid;
+  if (isRapidModulePath(path)) return ProgramFormat::kRapid;
   std::error_code ec;
   const bool dir = fs::is_directory(path, ec);  // (a directory given for a program: say so, not its empty extension)
   throw calib::InputError(path + ": expected a program file ending in .src (KUKA KRL) or .xml (accura XML program) or .script (URScript) or .mod/.modx/.sys/.sysx/.prg (ABB RAPID), found " +
                           (dir ? std::string("a directory") : "'" + fs::path(path).extension().string() + "'"));
 }
 
+// RAPID modules: .mod and .sys (program and system modules, RobotWare 5), .modx and .sysx (the
+// same text as RobotStudio saves them for RobotWare 6 and later), .prg (S4C era)
 bool isRapidModulePath(const std::string& path) {
   std::string ext = fs::path(path).extension().string();
   for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
