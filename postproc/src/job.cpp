@@ -1098,6 +1098,16 @@ class Job {
       config = calib::Configuration{};
     }
     const PoseCompensation pc = comp.pose(c.T_world_end, config, start, s_.ik, s_.context);
+    if (pc.status == calib::IkStatus::kSingular) {
+      // The controller runs a motion to a singular point by its own rule (KUKA: a PTP end point
+      // in the wrist singularity takes axis 4 at 0 deg or at its start value, $SINGUL_POS[3],
+      // and adapts axis 6): the program is not refused. A correction would move the target off
+      // the singularity, where axes 4 and 6 follow the correction's tiny wrist angle: kept as
+      // written, and named.
+      leftUnchanged(m, targetLabel(end) + " lies at a singularity of the arm, where the controller chooses the axes by its own rule (" +
+                           pc.message + "); a correction would move it off the singularity, where the wrist axes follow the correction");
+      return keep(out, mo);
+    }
     if (pc.status != calib::IkStatus::kOk) {
       error(m.where, targetLabel(end) + " cannot be compensated: " + toString(pc.status) + (pc.message.empty() ? "" : ": " + pc.message));
       return keep(out, mo);
