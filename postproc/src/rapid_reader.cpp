@@ -598,7 +598,8 @@ class Reader {
   /// task_data_'s frames, speeds, zones and constants into the program's global data, for the
   /// names no module of the program declares (its own declaration is the one it refers to).
   void addTaskData() {
-    for (const auto& [u, where] : task_data_.names) {
+    for (const auto& name_where : task_data_.names) {
+      const std::string& u = name_where.first;  // (a structured binding cannot be captured in C++17)
       bool declared = global_.names.count(u) > 0;
       for (const Scope& m : modules_) declared = declared || m.names.count(u) > 0;
       if (declared) continue;
@@ -615,7 +616,7 @@ class Reader {
       take(&Scope::zones);
       take(&Scope::consts);
       if (!used) continue;  // (a robtarget of that module: its value is in that module's text)
-      global_.names[u] = where;
+      global_.names[u] = name_where.second;
       if (task_data_.read_names.count(u)) global_.read_names.insert(u);
     }
   }
