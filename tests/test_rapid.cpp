@@ -2105,5 +2105,139 @@ TEST(Rapid, ASplitMoveCToArrayElementsGetsANewCirclePointAsTheScalarProgramDoes)
   EXPECT_EQ(ca.report.points_added, cs.report.points_added);
 }
 
+// A robtarget value accura cannot read (a CONST num in its position, a non-unit quaternion) is
+// no error of the module: the controller loads it. Before, any such element of an array (and
+// any such scalar) refused the whole module ("expected a number in a position [x,y,z] (mm),
+// found 'x0'"), also when no motion went to it. Now the other elements and points are read and
+// compensated; a motion to such a value is kept as written and named with the reason; a value of
+// the wrong shape (3 items) is still an error.
+TEST(Rapid, ARobtargetValueAccuraCannotReadIsNamedOnlyByTheMotionsThatGoToIt) {
+  const std::string text = "MODULE m\n" + kTool + kWobj + "  CONST num x0 := 40;\n  CONST robtarget pts{3} := [" + kV1 +
+                           ", [[x0,60,20],[0,0,1,0],[-1,0,-1,0],[9E9,9E9,9E9,9E9,9E9,9E9]], [[40,60,20],[0,0,1,0.5],[-1,0,-1,0],[9E9,9E9,9E9,9E9,9E9,9E9]]];\n"
+                           "  CONST robtarget ps := [[x0,60,120],[0,0,1,0],[-1,0,-1,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
+                           "  CONST robtarget qs := [[40,60,20],[0,0,1,0.5],[-1,0,-1,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
+                           "  PROC main()\n    ConfL\\Off;\n    MoveJ pts{1},v1000,z50,tWeld\\WObj:=wTable;\n    MoveL pts{2},v200,fine,tWeld\\WObj:=wTable;\n"
+                           "    MoveL qs,v200,fine,tWeld\\WObj:=wTable;\n  ENDPROC\nENDMODULE\n";
+  const Program p = parseRapid(text, "u.mod");
+  ASSERT_EQ(p.motions.size(), 3u);
+  EXPECT_EQ(p.motions[0].target_problem, "");
+  EXPECT_LT((poseOf(p.motions[0].target).translation() - Eigen::Vector3d(40, 60, 120)).norm(), 1e-12);
+  EXPECT_EQ(p.motions[1].target_problem, "'pts{2}' is declared in the array pts with a value accura cannot read "
+                                         "(u.mod:5:95: expected a number in a position [x,y,z] (mm), found 'x0')");
+  EXPECT_EQ(p.motions[2].target_problem, "'qs' is declared with a value accura cannot read (u.mod:7:38: expected a unit quaternion (norm 1 within 0.001), found norm 1.118034)");
+  ASSERT_EQ(p.rapid->decls.size(), 1u);  // pts{1}
+  // compensated: pts{1} corrected in the array (as the scalar p1 of the same motions), the rest byte for byte
+  const std::string scalar = arrayModule("  CONST robtarget p1 := " + kV1 + ";\n  CONST robtarget p2 := " + kV2 + ";\n", "p1", "p2");
+  const JobSettings real = perturbedIrb120();
+  const ProgramCompensation s = compensateProgramReport(parseRapid(scalar, "s.mod"), real);
+  ASSERT_TRUE(s.ok());
+  const ProgramCompensation c = compensateProgramReport(p, real);
+  ASSERT_TRUE(c.ok());
+  EXPECT_EQ(c.report.motions_left_unchanged, 2);
+  std::string want = text;
+  want.replace(want.find(kV1), kV1.size(), declaredValue(writeRapid(s.program), "p1 := "));
+  EXPECT_NE(want, text);
+  EXPECT_EQ(writeRapid(c.program), want);
+  std::set<std::string> said;
+  for (const auto& m : c.report.warnings) said.insert(m.where.str() + " " + m.message);
+  EXPECT_TRUE(said.count("u.mod:12:5 MoveL left unchanged (not compensated): " + p.motions[2].target_problem + "; the position after it is not known"));
+  // the wrong shape is still an error (the controller does not load it)
+  EXPECT_EQ(errorOf("MODULE m\n  CONST robtarget pts{1} := [[[x0,60,20],[0,0,1,0],[-1,0,-1,0]]];\nENDMODULE\n"),
+            "bad.mod:2:30: expected a robtarget [[x,y,z],[q1,q2,q3,q4],[cf1,cf4,cf6,cfx],[eax_a,..,eax_f]] with 4 items, found 3 in "
+            "'[[x0,60,20],[0,0,1,0],[-1,0,-1,0]]'");
+}
+
+// With --config, the task module's routines run in the task too: a PROC there that assigns its
+// tooldata (`torch.tframe.trans.z := 250;`) or wobjdata makes them run-time values, as the same
+// PROC in the program's own module does. Before, the task module's assignments were not read:
+// the MoveL after `setTorch;` was compensated with the declared z = 150, without a word.
+TEST(Rapid, DataTheConfigModuleAssignsAreRunTimeValues) {
+  const std::string dir = test::tempDir("rapid_task_assigned");
+  const std::string procs = "  PROC setTorch()\n    torch.tframe.trans.z := 250;\n  ENDPROC\n  PROC moveTable()\n    table := [FALSE,TRUE,\"\",[[310,-150,100],[1,0,0,0]],[[0,0,0],[1,0,0,0]]];\n  ENDPROC\n";
+  test::writeText(dir + "/calib.sys", "MODULE CalibData(SYSMODULE)\n" + kTool + "  PERS tooldata torch:=[TRUE,[[0,0,150],[1,0,0,0]],[1.2,[0,0,60],[1,0,0,0],0,0,0]];\n" +
+                                          "  PERS wobjdata table:=[FALSE,TRUE,\"\",[[300,-150,100],[1,0,0,0]],[[0,0,0],[1,0,0,0]]];\n" + kWobj + procs + "ENDMODULE\n");
+  const std::string body = "  PROC main()\n    setTorch;\n    moveTable;\n    MoveL p10,v200,fine,torch\\WObj:=table;\n    MoveL p20,v200,fine,tWeld\\WObj:=wTable;\n"
+                           "    torch := [TRUE,[[0,0,200],[1,0,0,0]],[1.2,[0,0,60],[1,0,0,0],0,0,0]];\n    MoveL p20,v200,fine,torch\\WObj:=wTable;\n  ENDPROC\n";
+  test::writeText(dir + "/m1.mod", "MODULE m1\n" + kP10 + kP20 + body + "ENDMODULE\n");
+  ProgramReadOptions o;
+  o.config_path = dir + "/calib.sys";
+  const Program p = readProgram(dir + "/m1.mod", o);
+  ASSERT_EQ(p.motions.size(), 3u);
+  EXPECT_TRUE(p.motions[0].tool.run_time);
+  EXPECT_EQ(p.motions[0].tool.note, "the tooldata 'torch' is assigned at " + dir + "/calib.sys:7:5: its value at run time is not the declared one");
+  EXPECT_TRUE(p.motions[0].base.run_time);
+  EXPECT_EQ(p.motions[0].base.note, "the wobjdata 'table' is assigned at " + dir + "/calib.sys:10:5: its value at run time is not the declared one");
+  // the data it does not assign keep their declared values
+  ASSERT_TRUE(p.motions[1].tool.value && p.motions[1].base.value);
+  EXPECT_NEAR(p.motions[1].tool.value->z_mm, 150, 1e-12);
+  // after an assignment in this module's routine too: a call may run the task module's routine,
+  // whose assignments this module does not see
+  EXPECT_TRUE(p.motions[2].tool.run_time);
+  // the same PROCs in the program's own module: the same reading, at that module's lines
+  const Program q = parseRapid("MODULE m1\n" + kTool + "  PERS tooldata torch:=[TRUE,[[0,0,150],[1,0,0,0]],[1.2,[0,0,60],[1,0,0,0],0,0,0]];\n" +
+                                   "  PERS wobjdata table:=[FALSE,TRUE,\"\",[[300,-150,100],[1,0,0,0]],[[0,0,0],[1,0,0,0]]];\n" + kWobj + kP10 + kP20 + procs + body +
+                                   "ENDMODULE\n",
+                               "one.mod");
+  ASSERT_EQ(q.motions.size(), 3u);
+  EXPECT_EQ(q.motions[0].tool.note, "the tooldata 'torch' is assigned at one.mod:9:5: its value at run time is not the declared one");
+  EXPECT_TRUE(q.motions[0].base.run_time);
+  const ProgramCompensation c = compensateProgramReport(p, perturbedIrb120());
+  bool named = false;
+  for (const ProgramIssue& e : c.report.errors) named = named || (e.where.line == 7 && e.message.find("calib.sys:7:5") != std::string::npos);
+  for (const ProgramIssue& e : c.report.warnings) named = named || (e.where.line == 7 && e.message.find("calib.sys:7:5") != std::string::npos);
+  EXPECT_TRUE(named);
+  std::filesystem::remove_all(dir);
+}
+
+// A new point's name is one the module given with --config does not use: its global data are
+// the task's. Before, only the module's own text was looked at: with `CONST robtarget p10_1`
+// declared in calib.sys, a point moved to with two tools got a second global p10_1 (the
+// controller refuses the ambiguous name). Expected: p10_2, as when p10_1 is in the module.
+TEST(Rapid, ANewPointIsNotNamedAsADatumOfTheConfigModule) {
+  const std::string dir = test::tempDir("rapid_task_names");
+  const std::string torch = "  PERS tooldata torch:=[TRUE,[[0,0,100],[1,0,0,0]],[1.2,[0,0,60],[1,0,0,0],0,0,0]];\n";
+  const std::string taken = "  CONST robtarget p10_1:=[[0,0,0],[1,0,0,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n";
+  test::writeText(dir + "/calib.sys", "MODULE CalibData(SYSMODULE)\n" + kTool + torch + kWobj + taken + "ENDMODULE\n");
+  const std::string body = "  PROC main()\n    ConfL\\Off;\n    MoveJ p10,v1000,fine,tWeld\\WObj:=wTable;\n    MoveJ p10,v1000,fine,torch\\WObj:=wTable;\n  ENDPROC\n";
+  test::writeText(dir + "/m3.mod", "MODULE m3\n" + kP10 + body + "ENDMODULE\n");
+  ProgramReadOptions o;
+  o.config_path = dir + "/calib.sys";
+  const ProgramCompensation c = compensateProgramReport(readProgram(dir + "/m3.mod", o), perturbedIrb120());
+  ASSERT_TRUE(c.ok());
+  // the same with every datum in one module (p10_1 there: the module's own name, avoided before too)
+  const ProgramCompensation one =
+      compensateProgramReport(parseRapid("MODULE m3\n" + kTool + torch + kWobj + taken + kP10 + body + "ENDMODULE\n", "m3.mod"), perturbedIrb120());
+  ASSERT_TRUE(one.ok());
+  std::string want = writeRapid(one.program);
+  ASSERT_NE(want.find("p10_2"), std::string::npos) << want;
+  want.erase(want.find(kTool), kTool.size() + torch.size() + kWobj.size() + taken.size());
+  const std::string written = writeRapid(c.program);
+  EXPECT_EQ(written, want);
+  EXPECT_EQ(written.find("p10_1"), std::string::npos);
+  std::filesystem::remove_all(dir);
+}
+
+// With --config given, a tool or work object it does not supply is said as what it is there:
+// LOCAL in that module (invisible to the others: RAPID's LOCAL data), or not declared there.
+// Before, the message still said "or the module that declares it with --config", as if none
+// had been given.
+TEST(Rapid, AToolLocalInTheConfigModuleOrNotDeclaredThereIsSaidSo) {
+  const std::string dir = test::tempDir("rapid_task_local");
+  test::writeText(dir + "/calib.sys", "MODULE CalibData(SYSMODULE)\n" + kWobj +
+                                          "  LOCAL PERS tooldata spare:=[TRUE,[[0,0,9],[1,0,0,0]],[1,[0,0,1],[1,0,0,0],0,0,0]];\nENDMODULE\n");
+  test::writeText(dir + "/m.mod", "MODULE m\n" + kP10 + "  PROC main()\n    MoveL p10,v200,fine,spare\\WObj:=wTable;\n    MoveL p10,v200,fine,tWeld\\WObj:=wBox;\n  ENDPROC\nENDMODULE\n");
+  ProgramReadOptions o;
+  o.config_path = dir + "/calib.sys";
+  const Program p = readProgram(dir + "/m.mod", o);
+  ASSERT_EQ(p.motions.size(), 2u);
+  EXPECT_EQ(p.motions[0].tool.note, "the tooldata 'spare' is not declared with a value in this module, and is LOCAL in the module given with --config (" + dir +
+                                        "/calib.sys:3:23): invisible to other modules (give its TCP with --program-tool x,y,z,A,B,C)");
+  EXPECT_EQ(p.motions[1].tool.note, "the tooldata 'tWeld' is not declared with a value in this module nor in the module given with --config, " + dir +
+                                        "/calib.sys (give its TCP with --program-tool x,y,z,A,B,C)");
+  EXPECT_EQ(p.motions[1].base.note, "the wobjdata 'wBox' is not declared with a value in this module nor in the module given with --config, " + dir +
+                                        "/calib.sys (give its frame with --program-base x,y,z,A,B,C)");
+  std::filesystem::remove_all(dir);
+}
+
 }  // namespace
 }  // namespace accura::postproc

@@ -33,9 +33,13 @@ namespace {
 std::string targetLabel(const Target& t) { return t.name.empty() ? std::string("the inline target") : t.name; }
 
 /// The name a new RAPID point is derived from: the point's own, or for an element of a
-/// robtarget array (`pts{2}`, `grid{ 1, 3 }`, `pts{k}` of a CONST num k), which has none to add
-/// a suffix to, the array's name and its indices as written (`pts_2`, `grid_1_3`, `pts_k`; a new
-/// point pts_2_1 is a scalar robtarget declared after the array).
+/// robtarget array, which has none to add a suffix to, the array's name and the indices in
+/// `name` as they are written there, letters and digits only (`pts{2}` -> pts_2, `grid{ 1, 3 }`
+/// -> grid_1_3, `pts{k}` -> pts_k; a new point pts_2_1 is a scalar robtarget declared after the
+/// array). `name` is the motion's target as written for the new point of a motion that needs
+/// another correction and for a split MoveC's circle point (`MoveJ pts{k}` -> pts_k_1), the
+/// element's declaration name for the new point of an element read elsewhere
+/// (copyPointsReadElsewhere: `pts{2}` -> pts_2_1, also when the motion writes pts{k}).
 std::string rapidPointBase(const std::string& name) {
   const size_t open = name.find('{');
   if (open == std::string::npos || name.back() != '}' || !isDeclarableName(name.substr(0, open))) return name;

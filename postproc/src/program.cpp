@@ -393,7 +393,8 @@ std::string newPointName(const Program& program, const std::string& base, const 
       used = used || upperAscii(m.target.name) == up || (m.aux && upperAscii(m.aux->name) == up);
     }
     if (program.krl) used = used || containsIdentifier(program.krl->src_text, up) || containsIdentifier(program.krl->dat_text, up);
-    if (program.rapid) used = used || containsIdentifier(program.rapid->text, up);
+    // (and the names of the module given with --config: its global data are the task's)
+    if (program.rapid) used = used || containsIdentifier(program.rapid->text, up) || containsIdentifier(program.rapid->task_text, up);
     for (const PassThrough& s : program.passthrough) used = used || containsIdentifier(s.text, up);
     if (!used) return name;
   }

@@ -41,6 +41,10 @@ struct ArrayVal {
   /// written as a robtarget value (a name, an expression)
   std::vector<int> decls;
   std::string problem;     ///< why its elements have no values ("" when they have)
+  /// Why accura cannot read an element written as a robtarget value (a CONST num in its
+  /// position, a non-unit quaternion: the controller loads the module), by element; "" when it
+  /// reads it or the element is no such value
+  std::vector<std::string> unread;
   SourceLocation where;    ///< its declaration
 };
 
@@ -64,6 +68,8 @@ struct Scope {
   /// same in several modules is one object the modules share)
   std::map<std::string, std::string> persistents;
   std::map<std::string, int> robtargets;  ///< upper-case name -> value
+  /// robtargets declared with a value accura cannot read: upper-case name -> why (unreadValue)
+  std::map<std::string, std::string> unread_robtargets;
   std::map<std::string, int> robtarget_arrays;  ///< upper-case name -> index in Reader::arrays_
   std::map<std::string, FrameVal> tools, wobjs;
   std::map<std::string, std::array<double, 6>> joints;
@@ -152,23 +158,42 @@ class Reader {
       if (text[i] == '\n') starts_.push_back(i + 1);
   }
 
-  /// The task-global data of the module(s) in the text (what another module of the task sees:
-  /// every module datum that is not LOCAL), read as run() reads them. InputError for text that is
-  /// no module.
-  Scope taskData() {
+  /// Another module of the task as a module of it sees it (the module given with --config).
+  struct TaskModule {
+    std::string path, text;
+    Scope data;  ///< its task-global data (every module datum that is not LOCAL)
+    /// The names it assigns (its routines run in the task too: `torch.tframe.trans.z := 250;`
+    /// in a PROC of that module), with the first place.
+    std::map<std::string, SourceLocation> assigned;
+    std::map<std::string, SourceLocation> locals;  ///< its LOCAL data (upper case): invisible to other modules
+  };
+
+  /// The text as another module of the task (TaskModule), read as run() reads it. InputError for
+  /// text that is no module.
+  TaskModule taskData() {
     t_ = lexRapid(src_->text, src_->path);
     split();
+    scanAssignments();
     moduleData();
     if (modules_.empty())
       fail(t_.empty() ? 0 : t_.front().b, "expected a RAPID module (MODULE name ... ENDMODULE) with the task's tooldata and wobjdata, found " +
                                               (t_.empty() ? std::string("an empty file") : "'" + excerpt(t_.front().s) + "'"));
-    return global_;
+    TaskModule m{src_->path, src_->text, global_, assigned_, {}};
+    for (const Scope& s : modules_)
+      for (const auto& [u, where] : s.names)
+        if (!global_.names.count(u)) m.locals.emplace(u, where);
+    return m;
   }
 
   /// Another module of the task (CalibData.mod, user.sys) whose task-global data this module
   /// uses: RAPID's global data are visible in every module of the task. Its tooldata, wobjdata,
-  /// speeddata, zonedata and CONST nums serve the names this program does not declare itself.
-  void useTaskData(Scope other) { task_data_ = std::move(other); }
+  /// speeddata, zonedata and CONST nums serve the names this program does not declare itself;
+  /// what it assigns is a run-time value here too; its names are not a new point's
+  /// (RapidSource::task_text).
+  void useTaskData(TaskModule other) {
+    task_ = std::move(other);
+    src_->task_text = task_.text;
+  }
 
   Program run() {
     t_ = lexRapid(src_->text, src_->path);
@@ -595,18 +620,18 @@ class Reader {
     module_index_ = -1;  // (the reading in order counts the modules again)
   }
 
-  /// task_data_'s frames, speeds, zones and constants into the program's global data, for the
+  /// The task module's (task_) frames, speeds, zones and constants into the program's global data, for the
   /// names no module of the program declares (its own declaration is the one it refers to).
   void addTaskData() {
-    for (const auto& name_where : task_data_.names) {
+    for (const auto& name_where : task_.data.names) {
       const std::string& u = name_where.first;  // (a structured binding cannot be captured in C++17)
       bool declared = global_.names.count(u) > 0;
       for (const Scope& m : modules_) declared = declared || m.names.count(u) > 0;
       if (declared) continue;
       bool used = false;
       const auto take = [&](auto table) {
-        const auto it = (task_data_.*table).find(u);
-        if (it == (task_data_.*table).end()) return;
+        const auto it = (task_.data.*table).find(u);
+        if (it == (task_.data.*table).end()) return;
         (global_.*table)[u] = it->second;
         used = true;
       };
@@ -616,8 +641,15 @@ class Reader {
       take(&Scope::zones);
       take(&Scope::consts);
       if (!used) continue;  // (a robtarget of that module: its value is in that module's text)
+      // assigned in that module: a run-time value here too, also after this module's own
+      // assignment (a call may run that module's routine, which this module does not see: ""
+      // as a change through a call); the place named is that module's (not in this text)
+      if (const auto a = task_.assigned.find(u); a != task_.assigned.end()) {
+        assigned_[u] = a->second;
+        assigners_[u].insert("");
+      }
       global_.names[u] = name_where.second;
-      if (task_data_.read_names.count(u)) global_.read_names.insert(u);
+      if (task_.data.read_names.count(u)) global_.read_names.insert(u);
     }
   }
 
@@ -947,6 +979,31 @@ class Reader {
     return static_cast<int>(src_->values.size()) - 1;
   }
 
+  /// Whether the robtarget aggregate r has the shape the controller loads: 4 items, each
+  /// written as [..] of 3, 4, 4 and 6 items or as another expression (a name, a call). A value of
+  /// that shape that accura cannot read (a CONST num or an expression in its position, a
+  /// non-unit quaternion, a position beyond kMaxPositionMm) is a module the controller loads:
+  /// not an error of the module, only of the motions that go to it (kept and named).
+  bool readableShape(Range r) const {
+    if (!(isOp(t_, r.first, "[") && closing(t_, r.first, r.second) == r.second)) return false;
+    const std::vector<Range> parts = items(t_, r.first + 1, r.second - 1);
+    static const size_t kCounts[4] = {3, 4, 4, 6};
+    if (parts.size() != 4) return false;
+    for (size_t k = 0; k < 4; ++k) {
+      const Range q = parts[k];
+      if (q.first >= q.second) return false;
+      if (!isOp(t_, q.first, "[")) continue;
+      if (closing(t_, q.first, q.second) != q.second) return false;
+      const std::vector<Range> n = items(t_, q.first + 1, q.second - 1);
+      if (n.size() != kCounts[k] || n.front().first == n.front().second) return false;
+    }
+    return true;
+  }
+  /// Why a declared robtarget value is not read: the error, where it is.
+  static std::string unreadValue(const calib::InputError& e) {
+    return SourceLocation{e.file(), e.line(), e.column()}.str() + ": " + e.message();
+  }
+
   TargetVal valueTarget(int id) const {
     const RapidSource::Value& v = src_->values[static_cast<size_t>(id)];
     TargetVal tv;
@@ -1052,7 +1109,15 @@ class Reader {
       d.indent = src_->text.substr(d.line_begin, t[r.first].b - d.line_begin);
       d.head = src_->text.substr(t[r.first].b, t[name].b - t[r.first].b);
       src_->decls.push_back(d);
-      const int id = robtargetValue(val, static_cast<int>(src_->decls.size()) - 1);
+      int id = -1;
+      try {
+        id = robtargetValue(val, static_cast<int>(src_->decls.size()) - 1);
+      } catch (const calib::InputError& e) {
+        if (!readableShape(val)) throw;
+        src_->decls.pop_back();  // (its text is passed through)
+        for (Scope* s : into) s->unread_robtargets[u] = unreadValue(e);
+        return;
+      }
       src_->decls.back().value = id;
       for (Scope* s : into) s->robtargets[u] = id;
       return markModel(r);
@@ -1142,6 +1207,7 @@ class Reader {
       if (a.problem.empty()) elements = level;
     }
     a.decls.assign(elements.size(), -1);
+    a.unread.assign(elements.size(), std::string());
     // (the array's declaration, which a new point follows)
     RapidSource::Decl decl;
     decl.line_begin = starts_[static_cast<size_t>(loc(t_[r.first].b).line - 1)];
@@ -1161,7 +1227,16 @@ class Reader {
       RapidSource::Decl d = decl;
       d.name = a.name + "{" + index + "}";
       src_->decls.push_back(d);
-      const int id = robtargetValue(v, static_cast<int>(src_->decls.size()) - 1);
+      int id = -1;
+      try {
+        id = robtargetValue(v, static_cast<int>(src_->decls.size()) - 1);
+      } catch (const calib::InputError& err) {
+        // (the other elements are read; this one is named by the motions that go to it)
+        if (!readableShape(v)) throw;
+        src_->decls.pop_back();
+        a.unread[e] = unreadValue(err);
+        continue;
+      }
       src_->decls.back().value = id;
       a.decls[e] = static_cast<int>(src_->decls.size()) - 1;
     }
@@ -1230,6 +1305,10 @@ class Reader {
     const int e = elementIndex(a, {r.first + 2, r.second - 1}, tv.problem, run_time);
     if (e < 0) return tv;
     const int d = a.decls[static_cast<size_t>(e)];
+    if (!a.unread[static_cast<size_t>(e)].empty()) {
+      tv.problem = "'" + quoted(r) + "' is declared in the array " + excerpt(a.name) + " with a value accura cannot read (" + a.unread[static_cast<size_t>(e)] + ")";
+      return tv;
+    }
     if (d < 0) {
       tv.problem = "'" + quoted(r) + "' is not written as a robtarget value in the declaration of " + excerpt(a.name) + " at " + a.where.str();
       return tv;
@@ -1288,6 +1367,10 @@ class Reader {
         return tv;
       }
       const int* id = lookup(&Scope::robtargets, u);
+      if (const std::string* why = id ? nullptr : lookup(&Scope::unread_robtargets, u)) {
+        tv.problem = "'" + excerpt(t_[r.first].s) + "' is declared with a value accura cannot read (" + *why + ")";
+        return tv;
+      }
       if (!id) {
         tv.problem = "'" + excerpt(t_[r.first].s) + "' is not a robtarget declared with a value in this module";
         return tv;
@@ -1699,14 +1782,24 @@ class Reader {
       f.note = v->note;
     } else {
       f.source = FrameSetting::Source::kUnset;
-      f.note = "the " + type + " '" + excerpt(f.text) + "' is not declared with a value in this module (" + option + ")";
+      // with --config given: LOCAL there (RAPID: a LOCAL datum is its module's only) or not
+      // declared there with a value; else that option is the other way to give it
+      const auto local = task_.path.empty() || !single ? task_.locals.end() : task_.locals.find(u);
+      if (task_.path.empty())
+        f.note = "the " + type + " '" + excerpt(f.text) + "' is not declared with a value in this module (" + option + ", or the module that declares it with --config)";
+      else if (local != task_.locals.end())
+        f.note = "the " + type + " '" + excerpt(f.text) + "' is not declared with a value in this module, and is LOCAL in the module given with --config (" +
+                 local->second.str() + "): invisible to other modules (" + option + ")";
+      else
+        f.note = "the " + type + " '" + excerpt(f.text) + "' is not declared with a value in this module nor in the module given with --config, " +
+                 task_.path + " (" + option + ")";
     }
     return f;
   }
 
   void tool(Range a, Motion& m) {
     m.tool = frameArg(a, &Scope::tools, "TOOL0", "tooldata",
-                      "give its TCP with --program-tool x,y,z,A,B,C, or the module that declares it with --config");
+                      "give its TCP with --program-tool x,y,z,A,B,C");
   }
 
   void wobj(const std::map<std::string, Range>& opt, Motion& m) {
@@ -1721,7 +1814,7 @@ class Reader {
     const Range a = it->second;
     if (a.first >= a.second) fail(t_[a.first - 1].e, "expected a wobjdata after \\WObj:=, found nothing");
     m.base = frameArg(a, &Scope::wobjs, "WOBJ0", "wobjdata",
-                      "give its frame with --program-base x,y,z,A,B,C, or the module that declares it with --config");
+                      "give its frame with --program-base x,y,z,A,B,C");
   }
 
   /// A motion instruction accura does not model (or, `why`, does not read as written): kept, and
@@ -1783,7 +1876,7 @@ class Reader {
   std::vector<int> motion_lines_;
   std::vector<Scope> modules_;  ///< each module's data (moduleData), by module_index_
   Scope global_, local_;        ///< the program's global data; the current routine's
-  Scope task_data_;             ///< another module's task-global data (useTaskData)
+  TaskModule task_;             ///< another module of the task (useTaskData; path "": none)
   int module_index_ = -1;       ///< the module being read (its MODULE's count - 1)
   std::set<size_t> module_data_;  ///< first tokens of the module-level declarations (read first)
   std::string module_name_, routine_, routine_kind_, main_routine_;

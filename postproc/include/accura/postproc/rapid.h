@@ -94,6 +94,9 @@ struct RapidSource {
   std::vector<Value> values;
   std::vector<Decl> decls;
   std::vector<Statement> statements;
+  /// The text of the task module given with the module (readRapid(path, task_module); "" none):
+  /// its global names are the task's too, so a new point's name must not be one of its names.
+  std::string task_text;
 };
 
 /// Reads a RAPID module. Throws calib::InputError (file:line:column) on malformed input and
