@@ -195,13 +195,15 @@ TEST(Diagnose, AResidualAVariablePredictsIsNotNoiseEvenBelowTheFloorTest) {
       << d.verdict.explanation;
 }
 
-// Backlash on 150 poses: the selected backlash takes 98% of the gap, and a small structured rest
-// remains (a joint the selection did not take). The backlash is the cause; the rest is said in
-// the explanation, with its share and what it follows (before: `unexplained` with a partial
-// explanation, as if most of the gap remained).
+// Backlash and, outside the catalogue, a small coupling of A5 to A4 (25 urad/rad): the selected
+// backlash takes about 98% of the gap and the coupling leaves a small structured rest. The
+// backlash is the cause; the rest is said in the explanation, with its share and what it
+// follows (before: `unexplained` with a partial explanation, as if most of the gap remained).
 TEST(Diagnose, AnEffectThatTakesNearlyAllTheGapIsTheCauseAndItsSmallRestIsSaid) {
   const RobotModel nominal = nominalWithTarget("kuka_kr16");
-  SimulateOptions o = campaign(3, {"geometric", "backlash"}, 150);
+  SimulateOptions o = campaign(2, {"geometric", "backlash", "unmodelled_coupling"});
+  o.coupling = defaultCoupling(nominal);  // A4 -> A5
+  o.coupling.ratio = 25e-6;
   const Diagnosis d = diagnose(nominal, simulateMeasurements(perturbModel(nominal, o), o), nullptr, DiagnoseOptions{});
   EXPECT_EQ(d.verdict.effect, "backlash") << d.verdict.explanation;
   EXPECT_GE(d.verdict.explained_share, 0.95);
@@ -209,6 +211,8 @@ TEST(Diagnose, AnEffectThatTakesNearlyAllTheGapIsTheCauseAndItsSmallRestIsSaid) 
   const std::string rest = std::to_string(static_cast<int>(std::lround(100 * (1 - d.verdict.explained_share)))) + "% of the gap) and follows ";
   EXPECT_NE(d.verdict.explanation.find(rest), std::string::npos) << d.verdict.explanation;
   EXPECT_NE(d.verdict.explanation.find("a small rest the selected effects do not take"), std::string::npos) << d.verdict.explanation;
+  ASSERT_FALSE(d.verdict.correlates.empty());
+  EXPECT_EQ(d.verdict.correlates[0].rfind("q4", 0), 0u) << d.verdict.correlates[0];
 }
 
 // The description of the tests names the data file, whose path has no bound: it is whole however
