@@ -1004,6 +1004,25 @@ class Reader {
     return SourceLocation{e.file(), e.line(), e.column()}.str() + ": " + e.message();
   }
 
+  /// Declaration `d` (a scalar robtarget, or one element of an array) with its value `v`: added
+  /// to src_->decls with the value read, and its value's id returned. A value of the right shape
+  /// that accura cannot read (a CONST in a number: the controller loads it) gives -1, the reason
+  /// in `*unread` (file:line:column: what), and no declaration (its text is passed through); a
+  /// value of the wrong shape throws.
+  int declaredRobtarget(const RapidSource::Decl& d, Range v, std::string* unread) {
+    src_->decls.push_back(d);
+    try {
+      const int id = robtargetValue(v, static_cast<int>(src_->decls.size()) - 1);
+      src_->decls.back().value = id;
+      return id;
+    } catch (const calib::InputError& e) {
+      if (!readableShape(v)) throw;
+      src_->decls.pop_back();
+      *unread = unreadValue(e);
+      return -1;
+    }
+  }
+
   TargetVal valueTarget(int id) const {
     const RapidSource::Value& v = src_->values[static_cast<size_t>(id)];
     TargetVal tv;
@@ -1108,17 +1127,12 @@ class Reader {
       d.line_end = nl == std::string::npos ? src_->text.size() : nl + 1;
       d.indent = src_->text.substr(d.line_begin, t[r.first].b - d.line_begin);
       d.head = src_->text.substr(t[r.first].b, t[name].b - t[r.first].b);
-      src_->decls.push_back(d);
-      int id = -1;
-      try {
-        id = robtargetValue(val, static_cast<int>(src_->decls.size()) - 1);
-      } catch (const calib::InputError& e) {
-        if (!readableShape(val)) throw;
-        src_->decls.pop_back();  // (its text is passed through)
-        for (Scope* s : into) s->unread_robtargets[u] = unreadValue(e);
+      std::string unread;
+      const int id = declaredRobtarget(d, val, &unread);
+      if (id < 0) {
+        for (Scope* s : into) s->unread_robtargets[u] = unread;
         return;
       }
-      src_->decls.back().value = id;
       for (Scope* s : into) s->robtargets[u] = id;
       return markModel(r);
     }
@@ -1226,18 +1240,12 @@ class Reader {
       }
       RapidSource::Decl d = decl;
       d.name = a.name + "{" + index + "}";
-      src_->decls.push_back(d);
-      int id = -1;
-      try {
-        id = robtargetValue(v, static_cast<int>(src_->decls.size()) - 1);
-      } catch (const calib::InputError& err) {
-        // (the other elements are read; this one is named by the motions that go to it)
-        if (!readableShape(v)) throw;
-        src_->decls.pop_back();
-        a.unread[e] = unreadValue(err);
+      // (the other elements are read; one accura cannot read is named by the motions that go to it)
+      std::string unread;
+      if (declaredRobtarget(d, v, &unread) < 0) {
+        a.unread[e] = unread;
         continue;
       }
-      src_->decls.back().value = id;
       a.decls[e] = static_cast<int>(src_->decls.size()) - 1;
     }
     arrays_.push_back(a);
