@@ -130,24 +130,21 @@ void readData(const IdentifyArgs& a, IdentifyRun& r) {
   for (const std::string& f : a.data) r.sets.push_back(readMeasurements(f, a.map, r.start.nominal));
   calib::refuseSharedMeasurements(r.sets);  // (a copy of a file under another name)
   for (const std::string& f : a.data) r.data_names += (r.data_names.empty() ? "" : ", ") + f;
-  // a row written twice is one measurement: counted once in the fit and in a --holdout alike
-  for (calib::MeasurementSet& set : r.sets) {
-    if (const std::string w = calib::duplicatedRowsWarning(set.file, calib::removeDuplicatedRows(set)); !w.empty())
-      r.data_warnings.push_back(w);
-    if (const std::string w = calib::staleReadingsWarning(set.file, calib::staleReadings(set)); !w.empty())
-      r.data_warnings.push_back(w);
-  }
+  // a row written twice is one measurement: counted once in the fit, in a --holdout and in the
+  // validation alike; a reading written again for the next pose is named
+  const auto screenRows = [&](calib::MeasurementSet& set) {
+    for (const std::string& w : {calib::duplicatedRowsWarning(set.file, calib::removeDuplicatedRows(set)),
+                                 calib::staleReadingsWarning(set.file, calib::staleReadings(set))})
+      if (!w.empty()) r.data_warnings.push_back(w);
+  };
+  for (calib::MeasurementSet& set : r.sets) screenRows(set);
   if (!a.validate.empty() && a.holdout_given && a.holdout > 0)
     throw calib::InputError("--holdout and --validate: expected one of them (the validation poses come from the --validate file or "
                             "from the --data file), found both");
   if (!a.validate.empty()) {
     r.validation = readMeasurements(a.validate, a.validate_map.empty() ? a.map : a.validate_map, r.start.nominal);
     calib::refuseValidationInFitData(r.sets, r.validation);
-    // a row written twice is one measurement: counted once in the validation too
-    if (const std::string w = calib::duplicatedRowsWarning(r.validation.file, calib::removeDuplicatedRows(r.validation)); !w.empty())
-      r.data_warnings.push_back(w);
-    if (const std::string w = calib::staleReadingsWarning(r.validation.file, calib::staleReadings(r.validation)); !w.empty())
-      r.data_warnings.push_back(w);
+    screenRows(r.validation);
     r.validation_source = a.validate;
     return;
   }

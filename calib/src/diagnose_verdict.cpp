@@ -118,6 +118,8 @@ void Diagnoser::verdict() {
                            fmtg("%.0f", sp->peak_amplitude_urad) + " urad, " + fmtg("%.0f", 100 * sp->peak_share) +
                            "% of the residual projected on joint " + std::to_string(sp->joint) + ", p " + fmtg("%.2g", sp->peak_p) + ")");
   }
+  std::string followed;  // the correlates, as the explanations name them
+  for (const std::string& c : v.correlates) followed += (followed.empty() ? "" : "; ") + c;
   if (above_floor_) {
     v.effect = "unexplained";
     std::set<int> js;
@@ -128,9 +130,7 @@ void Diagnoser::verdict() {
       v.explanation += " The excess alone is within what noise could give (floor test p " + fmtg("%.2g", final_stats_.floor_p) +
                        "); that variables of the pose predict the residual is what shows it is not noise.";
     if (!v.correlates.empty()) {
-      v.explanation += " It follows ";
-      for (size_t k = 0; k < v.correlates.size(); ++k) v.explanation += (k ? "; " : "") + v.correlates[k];
-      v.explanation += ".";
+      v.explanation += " It follows " + followed + ".";
     } else {
       v.explanation += " No single variable of the pose or context predicts it.";
     }
@@ -181,10 +181,8 @@ void Diagnoser::verdict() {
                     fmtg("%.4f", final_stats_.rms_mm) + " mm with " + after + "; " + against + ".";
     if (small_rest_structured) {
       v.explanation += " What remains is above the noise floor (" + fmtg("%.4f", excess_mm) + " mm in quadrature, " +
-                       fmtg("%.0f", 100 * (1 - v.explained_share)) + "% of the gap) and follows ";
-      for (size_t k = 0; k < v.correlates.size(); ++k) v.explanation += (k ? "; " : "") + v.correlates[k];
-      if (v.correlates.empty()) v.explanation += "no single variable";
-      v.explanation += ": a small rest the selected effects do not take.";
+                       fmtg("%.0f", 100 * (1 - v.explained_share)) + "% of the gap) and follows " +
+                       (followed.empty() ? std::string("no single variable") : followed) + ": a small rest the selected effects do not take.";
     } else if (significant_excess) {
       v.explanation += " What remains is slightly above the noise floor (" + fmtg("%.4f", excess_mm) +
                        " mm in quadrature) but follows no variable of the pose or context.";
