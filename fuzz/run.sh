@@ -38,25 +38,30 @@ run_target() {
   [ -f "$here/dict/$t.dict" ] && dict=(-dict="$here/dict/$t.dict")
   start=$(date +%s)
   if [ "$seconds" -eq 0 ]; then
-    # replay: every committed corpus input once, no mutation (deterministic; what CI runs)
     corpus_size=$(ls "$here/corpus/$t" | wc -l)
-    if TMPDIR="$scratch" "$bin/fuzz_$t" -runs=0 -timeout=10 -rss_limit_mb=2048 "$here/corpus/$t" >"$work.log" 2>&1; then
-      echo "fuzz_$t: replayed $corpus_size corpus inputs, ok"
-      runs="${FUZZ_RUNS:-0}"
-      if [ "$runs" -gt 0 ]; then
-        # N mutated inputs beyond the corpus (libFuzzer's -runs counts the corpus too), seed 1;
-        # new inputs go to $work (removed), a finding to fuzz/findings/ as in a timed run
-        mkdir -p "$work"
-        if TMPDIR="$scratch" "$bin/fuzz_$t" "$work" "$here/corpus/$t" "${dict[@]}" -seed=1 -runs=$((corpus_size + runs)) \
-             -timeout=10 -rss_limit_mb=2048 -max_len=65536 -print_final_stats=1 -artifact_prefix="$here/findings/$t-" \
-             >"$work.log" 2>&1; then
-          echo "fuzz_$t: $runs mutated inputs (seed 1) in $(( $(date +%s) - start )) s, ok, $(grep -o 'cov: [0-9]*' "$work.log" | tail -1)"
-        else
-          echo "fuzz_$t: FINDING among the mutated inputs (saved under fuzz/findings/); the end of its log:"
-          tail -40 "$work.log"
-          status=1
-        fi
+    runs="${FUZZ_RUNS:-0}"
+    if [ "$runs" -gt 0 ]; then
+      # N mutated inputs beyond the corpus (libFuzzer's -runs counts the corpus too), seed 1;
+      # libFuzzer first runs every corpus input once (the replay: its log says INITED when that
+      # is done), then mutates. New inputs go to $work (removed), a finding to fuzz/findings/ as
+      # in a timed run. (One process: a replay of its own before it ran every input twice.)
+      mkdir -p "$work"
+      if TMPDIR="$scratch" "$bin/fuzz_$t" "$work" "$here/corpus/$t" "${dict[@]}" -seed=1 -runs=$((corpus_size + runs)) \
+           -timeout=10 -rss_limit_mb=2048 -max_len=65536 -print_final_stats=1 -artifact_prefix="$here/findings/$t-" \
+           >"$work.log" 2>&1; then
+        echo "fuzz_$t: replayed $corpus_size corpus inputs, then $runs mutated inputs (seed 1) in $(( $(date +%s) - start )) s, ok, $(grep -o 'cov: [0-9]*' "$work.log" | tail -1)"
+      elif grep -q 'INITED' "$work.log"; then
+        echo "fuzz_$t: FINDING among the mutated inputs (saved under fuzz/findings/); the end of its log:"
+        tail -40 "$work.log"
+        status=1
+      else
+        echo "fuzz_$t: FINDING while replaying the corpus (saved under fuzz/findings/); the end of its log:"
+        tail -40 "$work.log"
+        status=1
       fi
+    # replay: every committed corpus input once, no mutation (deterministic)
+    elif TMPDIR="$scratch" "$bin/fuzz_$t" -runs=0 -timeout=10 -rss_limit_mb=2048 "$here/corpus/$t" >"$work.log" 2>&1; then
+      echo "fuzz_$t: replayed $corpus_size corpus inputs, ok"
     else
       echo "fuzz_$t: FINDING while replaying the corpus; the end of its log:"
       tail -40 "$work.log"
