@@ -633,6 +633,51 @@ TEST(Rapid, ConfJOnGoesToTheProgrammedQuadrantsConfJOffToTheNearest) {
                                                   confText(c[0], c[1], c[2], c[3]) + "; program that configuration, or ConfJ\\Off)");
 }
 
+// A point on a quadrant boundary of axis 1 (y = 0: q1 = 0, cf1 0) that the correction moves
+// just across it (the real base 0.1 mm off in y): ConfJ\On updates cf1, with a warning. Three
+// MoveJs go to the point: the warning was printed three times, once per MoveJ; it is said once
+// for the point, naming the other two MoveJs and the count.
+TEST(Rapid, AChangedConfdataIsSaidOncePerPointNamingItsMotions) {
+  const std::string text =
+      "MODULE m\n"
+      "  CONST robtarget p10 := [[380,0,350],[0,0.258819045,0.965925826,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
+      "  CONST robtarget p20 := [[380,60,350],[0,0.258819045,0.965925826,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
+      "  PROC main()\n"
+      "    MoveJ p10, v100, fine, tool0;\n"
+      "    MoveJ p20, v100, fine, tool0;\n"
+      "    MoveJ p10, v100, fine, tool0;\n"
+      "    MoveJ p20, v100, fine, tool0;\n"
+      "    MoveJ p10, v100, fine, tool0;\n"
+      "  ENDPROC\n"
+      "ENDMODULE\n";
+  for (const double dy : {0.1, -0.1}) {
+    RobotModel real = test::loadBundled("abb_irb120");
+    real.deviations.base_mm = Eigen::Vector3d(0, dy, 0);
+    const ProgramCompensation c = compensateProgramReport(parseRapid(text, "once.mod"), settingsFor(real));
+    ASSERT_TRUE(c.ok()) << c.report.errors.front().message;
+    std::vector<std::string> changed;
+    for (const ProgramIssue& w : c.report.warnings)
+      if (w.message.find("confdata of p10 changed") != std::string::npos) changed.push_back(w.where.str() + ": " + w.message);
+    // the correction moves q1 off 0 by atan(0.1 / 380) = 0.015 deg: to quadrant -1 for one sign of dy
+    const double q1 = c.report.targets.front().q_real[0];
+    ASSERT_GT(std::abs(q1), 0.01);
+    ASSERT_LT(std::abs(q1), 0.02);
+    if (q1 > 0) {
+      EXPECT_TRUE(changed.empty());
+      continue;
+    }
+    ASSERT_EQ(changed.size(), 1u) << changed.back();
+    const std::string got = confText(-1, 0, 0, 0);
+    EXPECT_EQ(changed[0].substr(0, changed[0].find(":", 16)), "once.mod:5:5: confdata of p10 changed from [0,0,0,0] to " + got);
+    EXPECT_NE(changed[0].find("(ConfJ\\On goes to the programmed quadrant); the same for the MoveJ(s) at once.mod:7:5, once.mod:9:5 (3 motions to this point)"),
+              std::string::npos)
+        << changed[0];
+    EXPECT_NE(writeRapid(c.program).find("p10 := [[380,"), std::string::npos);
+    return;
+  }
+  ADD_FAILURE() << "neither sign of the base's y offset moved q1 below 0";
+}
+
 TEST(Rapid, ConfLOnStopsBeyondOneQuadrantConfLOffFollowsThePath) {
   const Eigen::VectorXd q = jointsOff("MoveL");
   const std::array<int, 4> c = abbConfdata(test::loadBundled("abb_irb120"), q);

@@ -340,8 +340,24 @@ class Job {
       return true;
     }
     if (!cp && cfx_same && worst <= 1 && near_boundary) {
-      warning(m.where, "confdata of " + targetLabel(t) + " changed from " + text(asked) + " to " + text(got) + ": the correction moves axis 1, 4 or 6 within " +
-                           calib::formatFixed(calib::kTurnBandDeg, 1) + " deg of a quadrant boundary across it (ConfJ\\On goes to the programmed quadrant)");
+      // said once per point: the MoveJs that go to one declared robtarget (value) and need the
+      // same change are named in that one warning (it was repeated for each of them)
+      const std::string key = (t.value_id >= 0 ? std::to_string(t.value_id) : "@" + m.where.str()) + " " + text(asked) + " " + text(got);
+      const std::string said = "confdata of " + targetLabel(t) + " changed from " + text(asked) + " to " + text(got) +
+                               ": the correction moves axis 1, 4 or 6 within " + calib::formatFixed(calib::kTurnBandDeg, 1) +
+                               " deg of a quadrant boundary across it (ConfJ\\On goes to the programmed quadrant)";
+      auto it = conf_changed_.find(key);
+      if (it == conf_changed_.end()) {
+        conf_changed_[key] = {r_.warnings.size(), {m.where.str()}};
+        warning(m.where, said);
+      } else if (std::find(it->second.second.begin(), it->second.second.end(), m.where.str()) == it->second.second.end()) {
+        std::vector<std::string>& motions = it->second.second;
+        motions.push_back(m.where.str());
+        std::string others;
+        for (size_t k = 1; k < motions.size(); ++k) others += (k > 1 ? ", " : "") + motions[k];
+        r_.warnings[it->second.first].message = said + "; the same for the MoveJ(s) at " + others + " (" + std::to_string(motions.size()) +
+                                                " motions to this point)";
+      }
       t.abb_conf = got;
       t.modified = true;
       return true;
@@ -1321,6 +1337,8 @@ class Job {
   const Program* in_ = nullptr;         ///< the program (names for new points)
   std::vector<std::string> new_names_;  ///< new points named so far
   std::vector<std::string> abb_disagree_;  ///< RAPID CP targets whose confdata differ from the path's (accepted)
+  /// "confdata of X changed" said once per point and change: key -> the warning's index, the motions (file:line:column)
+  std::map<std::string, std::pair<size_t, std::vector<std::string>>> conf_changed_;
   std::string abb_first_;
   SourceLocation abb_where_;
   int abb_checked_ = 0;      ///< RAPID targets whose confdata were compared with the compensated joints
