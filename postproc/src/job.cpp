@@ -442,6 +442,14 @@ class Job {
     pose_only.status.reset();
     pose_only.turn.reset();
     Claim c{krlAggregate(pose_only), motion, cp, t.status, t.turn};
+    // RAPID: a robtarget a module given with --config declares, which accura only reads: a
+    // correction goes to a new point of this module, one per distinct correction (ownPoint)
+    if (const std::string place = taskModuleOf(t); !place.empty()) {
+      // (by the pose: a MoveJ and a MoveL to it share one new point, written with the MoveJ's
+      // confdata as a declared point is, rapid_writer.cpp)
+      if (t.modified) ownPoint(t, motion, "", motion, c.pose_text, place);
+      return;
+    }
     auto it = claimed_.find(t.value_id);
     if (it == claimed_.end()) {
       claimed_[t.value_id] = c;
@@ -467,8 +475,11 @@ class Job {
   /// correction), one new point per distinct correction, as a point the program also reads
   /// elsewhere does (copyPointsReadElsewhere). Said once per new point: `conflict` (claimValue's
   /// words), and where the motion goes.
+  /// `task_place`: t is a robtarget a module given with --config declares there
+  /// (RapidSource::Decl::task_module), which keeps its value: every correction of it goes to a
+  /// new point of this module, said so instead of `conflict`.
   void ownPoint(Target& t, const SourceLocation& motion, const std::string& conflict, const SourceLocation& first,
-                const std::string& correction) {
+                const std::string& correction, const std::string& task_place = std::string()) {
     const std::string key = std::to_string(t.value_id) + "|" + correction;
     auto it = own_points_.find(key);
     if (it == own_points_.end()) {
@@ -480,7 +491,12 @@ class Job {
       const std::string name = isDeclarableName(base) ? newPointName(*in_, base, new_names_) : std::string();
       if (!name.empty()) new_names_.push_back(name);
       it = own_points_.emplace(key, name).first;
-      warning(motion, conflict + (name.empty() ? ": this motion gets its corrected value as an inline aggregate (" + t.name +
+      if (!task_place.empty())
+        warning(motion, t.name + " is declared in " + task_place + ", a module given with --config, which accura only reads: this motion " +
+                            "goes to a new point " + name + " declared in this module (LOCAL, after its data) with the correction; " + t.name +
+                            " keeps its value");
+      else
+        warning(motion, conflict + (name.empty() ? ": this motion gets its corrected value as an inline aggregate (" + t.name +
                                                      " has no name of its own to derive a new point's from); " + t.name + " keeps the correction for " +
                                                      first.str()
                                                : ": this motion goes to a new point " + name + " declared after " + declaredAfterAndKeeps(t.name) +
@@ -491,6 +507,14 @@ class Job {
     t.new_declaration = true;
     t.name = it->second;
     if (in_->rapid) t.value_id = -1;  // (RAPID's writer finds the declaration by the statement; KRL's by the value)
+  }
+
+  /// Where a module given with --config declares the RAPID robtarget `t` is
+  /// (RapidSource::Decl::task_module); "" for any other target.
+  std::string taskModuleOf(const Target& t) const {
+    if (!in_ || !in_->rapid || t.value_id < 0 || static_cast<size_t>(t.value_id) >= in_->rapid->values.size()) return std::string();
+    const int d = in_->rapid->values[static_cast<size_t>(t.value_id)].decl;
+    return d >= 0 ? in_->rapid->decls[static_cast<size_t>(d)].task_module : std::string();
   }
 
   /// The S/T of every point a PTP claimed, on the CP motions that share it (claimValue).
