@@ -35,7 +35,7 @@ struct BatchArgs {
   std::function<std::vector<std::string>()> model_files;  // --robot, --controller files (never overwritten)
   std::string in;
   std::string out;
-  std::string config;
+  std::vector<std::string> config;  // --config, once or more (RAPID: the task's other modules)
   int jobs = std::max(1u, std::thread::hardware_concurrency());  // the outputs do not depend on it
   std::string json;
   std::function<std::optional<CellCheck>()> cell;  // --cell: every program checked before it is written (cmd_check.cpp)
@@ -56,7 +56,8 @@ int runBatch(const BatchArgs& a) {
   using namespace postproc;
   BatchOptions o;
   o.job = a.settings();
-  o.config_path = a.config;
+  o.config_path = a.config.empty() ? std::string() : a.config.front();
+  if (a.config.size() > 1) o.more_config_paths.assign(a.config.begin() + 1, a.config.end());
   o.jobs = a.jobs;
   const std::optional<CellCheck> cell = a.cell();
   if (a.warn_only && !cell) throw calib::InputError("--warn-only: expected together with --cell, found it without");
@@ -69,7 +70,7 @@ int runBatch(const BatchArgs& a) {
     const fs::path in = fs::weakly_canonical(fs::absolute(a.in), ec_in);
     if (!ec_j && !ec_in && j.string().rfind(in.string() + "/", 0) == 0) throw calib::InputError("--json: " + a.json + " is inside the input tree, which is never modified");
     std::vector<std::string> inputs = a.model_files();
-    inputs.push_back(a.config);
+    inputs.insert(inputs.end(), a.config.begin(), a.config.end());
     if (cell)
       for (const std::string& f : cell->files()) inputs.push_back(f);
     calib::refuseToOverwrite({{a.json, ""}}, inputs, "--json");
@@ -181,8 +182,10 @@ void addBatchCommand(CLI::App& app) {
   args->settings = addJobOptions(c, &args->model_files);
   c->add_option("--in", args->in, "directory of programs (read only)")->required();
   c->add_option("--out", args->out, "output directory (the same relative paths); not inside --in")->required();
-  c->add_option("--config", args->config, "$config.dat for every KRL and XML program: TOOL_DATA, BASE_DATA, global points; or, for every RAPID module, the "
-                "module of the task that declares the tooldata and wobjdata (CalibData.mod, user.sys)");
+  c->add_option("--config", args->config, "$config.dat for every KRL and XML program: TOOL_DATA, BASE_DATA, global points; or, for every RAPID module, a "
+                "module of the task that declares tooldata, wobjdata or robtargets (CalibData.mod, user.sys; once per module)")
+      ->expected(1)
+      ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
   addIntegerOption(c, "--jobs", args->jobs, "programs compensated in parallel (default: the number of cores)", 1, 1024)->capture_default_str();
   c->add_option("--json", args->json, "report of every program (with --cell: its check)");
   args->cell = addCellOptions(c, false, false);

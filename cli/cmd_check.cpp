@@ -88,7 +88,8 @@ struct CheckArgs {
   std::function<postproc::JobSettings()> settings;
   std::function<std::vector<std::string>()> model_files;  // --robot, --controller files (never overwritten)
   std::function<std::optional<CellCheck>()> cell;
-  std::string in, dat, config, json;
+  std::string in, dat, json;
+  std::vector<std::string> config;  // --config, once or more (RAPID: the task's other modules)
 };
 
 int runCheck(const CheckArgs& a) {
@@ -97,10 +98,11 @@ int runCheck(const CheckArgs& a) {
   const std::optional<CellCheck> cc = a.cell();
   postproc::ProgramReadOptions read;
   read.dat_path = a.dat;
-  read.config_path = a.config;
+  setConfigPaths(read, a.config);
   const Program program = readProgram(a.in, read);
   if (!a.json.empty()) {
-    std::vector<std::string> inputs = {a.in, a.dat, program.krl ? program.krl->dat_path : std::string(), a.config};
+    std::vector<std::string> inputs = {a.in, a.dat, program.krl ? program.krl->dat_path : std::string()};
+    inputs.insert(inputs.end(), a.config.begin(), a.config.end());
     for (const std::string& f : cc->files()) inputs.push_back(f);
     for (const std::string& f : a.model_files()) inputs.push_back(f);
     calib::refuseToOverwrite({{a.json, ""}}, inputs, "--json");
@@ -169,8 +171,10 @@ void addCheckCommand(CLI::App& app) {
   args->cell = addCellOptions(c, true, true);
   c->add_option("--in", args->in, "program: PROG.src (KRL, with PROG.dat next to it), PROG.xml, PROG.script (URScript) or PROG.mod/.modx/.sys/.sysx/.prg (ABB RAPID)")->required();
   c->add_option("--dat", args->dat, "the KRL .dat (default: the .src's name with .dat)");
-  c->add_option("--config", args->config, "$config.dat: TOOL_DATA, BASE_DATA and global points such as XHOME; for a RAPID module: the module of its task that "
-                "declares its tooldata and wobjdata (CalibData.mod, user.sys)");
+  c->add_option("--config", args->config, "$config.dat: TOOL_DATA, BASE_DATA and global points such as XHOME; for a RAPID module: a module of its task that "
+                "declares its tooldata, wobjdata or robtargets (CalibData.mod, user.sys; once per module)")
+      ->expected(1)
+      ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
   c->add_option("--json", args->json, "report: every violation (where, joints, which check, by how much) and per motion the margins");
   c->callback([=]() { exitCode() = runCheck(*args); });
 }

@@ -41,7 +41,7 @@ struct CompensateArgs {
   std::function<std::vector<std::string>()> model_files;  // --robot, --controller files (never overwritten)
   std::string in;
   std::string dat;
-  std::string config;
+  std::vector<std::string> config;  // --config, once or more (RAPID: the task's other modules)
   std::string out;
   std::string json;
   std::function<std::optional<CellCheck>()> cell;  // --cell: checks before writing (cmd_check.cpp)
@@ -66,7 +66,7 @@ int runCompensate(const CompensateArgs& a) {
   ProgramFileRequest request;
   request.in_path = a.in;
   request.read.dat_path = a.dat;
-  request.read.config_path = a.config;
+  setConfigPaths(request.read, a.config);
   request.out_dir = a.out;
   request.json_path = a.json;
   request.cell = cell_settings ? &*cell_settings : nullptr;
@@ -157,8 +157,10 @@ void addCompensateCommand(CLI::App& app) {
   args->settings = addJobOptions(c, &args->model_files);
   c->add_option("--in", args->in, "program: PROG.src (KRL, with PROG.dat next to it), PROG.xml, PROG.script (URScript) or PROG.mod/.modx/.sys/.sysx/.prg (ABB RAPID)")->required();
   c->add_option("--dat", args->dat, "the KRL .dat (default: the .src's name with .dat)");
-  c->add_option("--config", args->config, "$config.dat: TOOL_DATA, BASE_DATA and global points such as XHOME; for a RAPID module: the module of its task that "
-                "declares its tooldata and wobjdata (CalibData.mod, user.sys)");
+  c->add_option("--config", args->config, "$config.dat: TOOL_DATA, BASE_DATA and global points such as XHOME; for a RAPID module: a module of its task that "
+                "declares its tooldata, wobjdata or robtargets (CalibData.mod, user.sys; once per module)")
+      ->expected(1)
+      ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
   c->add_option("--out", args->out, "output directory (the program keeps its file names)")->required();
   c->add_option("--json", args->json, "report: per target its correction, per segment the path error before and after");
   args->cell = addCellOptions(c, false, false);

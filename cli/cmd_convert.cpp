@@ -21,7 +21,7 @@ namespace {
 struct ConvertArgs {
   std::string in;
   std::string dat;
-  std::string config;
+  std::vector<std::string> config;  // --config, once or more (RAPID: the task's other modules)
   std::string out;
   std::string json;
   bool drop = false;
@@ -32,7 +32,7 @@ int runConvert(const ConvertArgs& a) {
   const ProgramFormat out_format = programFormat(a.out);
   ProgramReadOptions read;
   read.dat_path = a.dat;
-  read.config_path = a.config;
+  setConfigPaths(read, a.config);
   const Program read_program = readProgram(a.in, read);
   std::vector<PassThrough> dropped;
   const Program program = a.drop ? dropUnconvertible(read_program, out_format, &dropped) : read_program;
@@ -40,7 +40,7 @@ int runConvert(const ConvertArgs& a) {
   const std::vector<calib::OutputFile> files = renderProgram(program, out_format, a.out);
   std::vector<std::string> inputs = {a.in};
   if (program.krl && !program.krl->dat_path.empty()) inputs.push_back(program.krl->dat_path);
-  if (!a.config.empty()) inputs.push_back(a.config);
+  inputs.insert(inputs.end(), a.config.begin(), a.config.end());
   calib::refuseToOverwrite(files, inputs, "--out");
   std::string json_text;
   if (!a.json.empty()) {
@@ -89,8 +89,10 @@ void addConvertCommand(CLI::App& app) {
   auto* c = app.add_subcommand("convert", "convert a program between KUKA KRL (.src/.dat), the XML program format (.xml), URScript (.script) and ABB RAPID (.mod, .modx, .sys, .sysx, .prg)");
   c->add_option("--in", args->in, "program to read: PROG.src (KRL, with PROG.dat next to it), PROG.xml, PROG.script or PROG.mod/.modx/.sys/.sysx/.prg")->required();
   c->add_option("--dat", args->dat, "the KRL .dat (default: the .src's name with .dat)");
-  c->add_option("--config", args->config, "$config.dat: TOOL_DATA, BASE_DATA and global points such as XHOME; for a RAPID module: the module of its task that "
-                "declares its tooldata and wobjdata (CalibData.mod, user.sys)");
+  c->add_option("--config", args->config, "$config.dat: TOOL_DATA, BASE_DATA and global points such as XHOME; for a RAPID module: a module of its task that "
+                "declares its tooldata, wobjdata or robtargets (CalibData.mod, user.sys; once per module)")
+      ->expected(1)
+      ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
   c->add_option("--out", args->out, "program to write: OUT.xml, OUT.src (with OUT.dat), OUT.script or OUT.mod/.modx/.sys/.sysx/.prg; its directory is created")->required();
   c->add_option("--json", args->json, "report: the inputs read, the motions, the files written (and the lines dropped)");
   c->add_flag("--drop-unconvertible", args->drop,

@@ -540,6 +540,54 @@ TEST(Batch, TwoProgramsWithOneOutputFileBothFailAndNeitherIsWritten) {
   }
 }
 
+// --config given once per module of an ABB task (the tool and work object in calib.sys, the
+// approach points in points.mod) and once for the $config.dat of the KRL programs of the same
+// tree: each program takes its own (before: --config was taken once). The RAPID module's
+// points from points.mod go to new points of its own, with the golden module's corrections.
+TEST(Batch, ConfigGivenPerModuleOfTheTaskAndForTheKrlPrograms) {
+  const std::string root = test::tempDir("batch_rapid_task");
+  test::copyText(golden("compensate/seam.src"), root + "/in/seam.src");
+  test::copyText(golden("compensate/seam.dat"), root + "/in/seam.dat");
+  std::string module = test::readText(golden("rapid/irb120_seam.mod"));
+  std::string calib = "MODULE CalibData(SYSMODULE)\n", points = "MODULE Points\n";
+  for (const char* head : {"  PERS tooldata torch", "  PERS wobjdata table", "  CONST robtarget p10 ", "  CONST robtarget p20 "}) {
+    const size_t b = module.find(head), e = module.find('\n', b) + 1;
+    ASSERT_NE(b, std::string::npos) << head;
+    (std::string(head).find("robtarget") != std::string::npos ? points : calib) += module.substr(b, e - b);
+    module.erase(b, e - b);
+  }
+  fs::create_directories(root + "/in/abb");
+  fs::create_directories(root + "/task");
+  test::writeText(root + "/in/abb/seam.mod", module);
+  test::writeText(root + "/task/calib.sys", calib + "ENDMODULE\n");
+  test::writeText(root + "/task/points.mod", points + "ENDMODULE\n");
+  const auto before = snapshot(root);
+  const CliRun r = accura(root, "batch --robot " + golden("rapid/irb120_real.xml") + " --in in/abb --out out/abb --config task/calib.sys --config task/points.mod");
+  ASSERT_EQ(r.code, 0) << r.out << r.err;
+  const std::string want = test::readText(golden("rapid/expected/irb120_seam.mod"));
+  const size_t v = want.find("  CONST robtarget p10 := ") + 25;
+  const std::string written = test::readText(root + "/out/abb/seam.mod");
+  EXPECT_NE(written.find("  VAR num seams := 0;\n  LOCAL CONST robtarget p10_1 := " + want.substr(v, want.find(';', v) - v) + ";\n  LOCAL CONST robtarget p20_1 := "),
+            std::string::npos)
+      << written;
+  EXPECT_NE(written.find("    MoveJ p10_1, v1000, z20, torch\\WObj:=table;\n    MoveL p20_1, v200, fine, torch\\WObj:=table;\n"), std::string::npos) << written;
+  // a mixed tree: the RAPID modules take the modules, the KRL program the $config.dat
+  const CliRun m = accura(root, "batch --robot " + golden("compensate/kr16_real.xml") + " --in in --out out/mixed --config task/calib.sys --config '" +
+                                    golden("compensate/$config.dat") + "' --config task/points.mod --jobs 2");
+  EXPECT_NE(m.out.find("compensated seam.src"), std::string::npos) << m.out << m.err;
+  EXPECT_TRUE(fs::is_regular_file(root + "/out/mixed/seam.src"));
+  EXPECT_EQ(m.out.find("FAILED seam.src"), std::string::npos) << m.out;
+  // two $config.dat: refused before anything is written
+  const CliRun k = accura(root, "batch --robot " + golden("compensate/kr16_real.xml") + " --in in --out out/two --config '" + golden("compensate/$config.dat") +
+                                    "' --config in/seam.dat");
+  EXPECT_EQ(k.code, 1) << k.out << k.err;
+  EXPECT_NE(k.err.find("--config: one $config.dat for the KRL and XML programs of the tree (the controller has one, KRC:\\R1\\System\\$config.dat), found "),
+            std::string::npos)
+      << k.err;
+  EXPECT_FALSE(fs::exists(root + "/out/two"));
+  for (const auto& [path, text] : before) EXPECT_EQ(test::readText(root + "/" + path), text) << path;
+}
+
 // A report path that names an input (the robot file, the $config.dat) or a program the run
 // writes is refused; the file keeps its bytes (before: replaced by the JSON report, exit 0).
 TEST(Batch, TheReportNeverReplacesAnInputOrAnOutput) {

@@ -481,5 +481,68 @@ TEST(CompensateCli, ErrorsNameThePlaceAndWriteNothing) {
   EXPECT_NE(r.err.find("expected a program file ending in .src (KUKA KRL) or .xml"), std::string::npos) << r.err;
 }
 
+// An ABB task as a cell engineer has it: the program module, its tool and work object in
+// calib.sys, its approach points in a module of global robtargets. `--config` was taken once
+// (a second one: CLI11 refused or the last one won); it is now given once per module, each
+// only read. The points of points.mod that motions correct go to new points of the program
+// module (LOCAL, after its data): the golden module's corrections (tests/golden/rapid/expected,
+// the module that declares everything itself), under new names, and nothing else changes.
+TEST(CompensateCli, RapidTaskModulesGivenWithConfigEachOnce) {
+  const std::string g = test::sourcePath("tests/golden/rapid/");
+  const std::string dir = test::tempDir("comp_rapid_task");
+  const std::vector<std::string> in = lines(test::readText(g + "irb120_seam.mod"));
+  const std::vector<std::string> want = lines(test::readText(g + "expected/irb120_seam.mod"));
+  ASSERT_EQ(trimmed(in[3]).substr(0, 14), "PERS tooldata ");
+  ASSERT_EQ(trimmed(in[6]).substr(0, 20), "CONST robtarget p10 ");
+  ASSERT_EQ(trimmed(in[7]).substr(0, 20), "CONST robtarget p20 ");
+  // lines 4, 5 (torch, table) to calib.sys, 7 and 8 (p10, p20) to points.mod
+  std::string program, expected;
+  for (size_t k = 0; k < in.size(); ++k)
+    if (k != 3 && k != 4 && k != 6 && k != 7) program += in[k] + "\n";
+  test::writeText(dir + "/seam.mod", program);
+  const std::string calib = "MODULE CalibData(SYSMODULE)\n" + in[3] + "\n" + in[4] + "\nENDMODULE\n";
+  const std::string points = "MODULE Points\n" + in[6] + "\n" + in[7] + "\nENDMODULE\n";
+  test::writeText(dir + "/calib.sys", calib);
+  test::writeText(dir + "/points.mod", points);
+  test::writeText(dir + "/irb120_real.xml", test::readText(g + "irb120_real.xml"));
+  auto value = [](const std::string& line) { return line.substr(line.find(":= ") + 3, line.rfind(';') - line.find(":= ") - 3); };
+  for (size_t k = 0; k < want.size(); ++k) {
+    if (k == 3 || k == 4 || k == 6 || k == 7) continue;
+    std::string l = want[k];
+    for (const char* m : {"MoveJ p10,", "MoveL p20,"})
+      if (l.find(m) != std::string::npos) l.replace(l.find(m), 9, std::string(m).substr(0, 9) + "_1");
+    expected += l + "\n";
+    if (trimmed(want[k]) == "VAR num seams := 0;")
+      expected += "  LOCAL CONST robtarget p10_1 := " + value(want[6]) + ";\n  LOCAL CONST robtarget p20_1 := " + value(want[7]) + ";\n";
+  }
+  const CliRun r = accura(dir, "compensate --robot irb120_real.xml --in seam.mod --config calib.sys --config points.mod --out out");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(test::readText(dir + "/out/seam.mod"), expected);
+  EXPECT_NE(r.err.find("seam.mod:14:5: p10 is declared in points.mod:2:26, a module given with --config, which accura only reads: this motion goes to "
+                       "a new point p10_1 declared in this module (LOCAL, after its data) with the correction; p10 keeps its value"),
+            std::string::npos)
+      << r.err;
+  // the modules given with --config are only read, and nothing else is written
+  EXPECT_EQ(test::readText(dir + "/calib.sys"), calib);
+  EXPECT_EQ(test::readText(dir + "/points.mod"), points);
+  EXPECT_EQ(test::readText(dir + "/seam.mod"), program);
+  size_t written = 0;
+  for (const auto& e : std::filesystem::directory_iterator(dir + "/out")) written += e.is_regular_file();
+  EXPECT_EQ(written, 1u);
+  // check and convert take them too
+  const CliRun v = accura(dir, "convert --in seam.mod --config calib.sys --config points.mod --out conv/seam.xml");
+  ASSERT_EQ(v.code, 0) << v.err;
+  // a KRL program with two $config.dat: refused, naming both
+  const std::string krl = inputs("comp_rapid_task_krl");
+  const CliRun k = accura(krl, "compensate --robot kr16_real.xml --in seam.src --config '$config.dat' --config seam.dat --out o");
+  EXPECT_EQ(k.code, 1);
+  EXPECT_NE(k.err.find("--config: a KRL or XML program takes one $config.dat (the controller has one, KRC:\\R1\\System\\$config.dat), found 2: $config.dat "
+                       "and seam.dat"),
+            std::string::npos)
+      << k.err;
+  std::filesystem::remove_all(dir);
+  std::filesystem::remove_all(krl);
+}
+
 }  // namespace
 }  // namespace accura::postproc

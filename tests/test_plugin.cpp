@@ -15,6 +15,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <nlohmann/json.hpp>
 #include <thread>
 #include <fstream>
@@ -224,6 +225,43 @@ TEST(Plugin, PathEqualsTheCppApi) {
   EXPECT_GE(added, 3);  // the CIRC and the long LIN need points
   EXPECT_GT(res.max_error_uncompensated_mm, 0.5);
   EXPECT_LE(res.max_error_after_mm, tol_mm);
+}
+
+// An ABB module with the other modules of its task: accura_compensate_program_modules takes
+// them as `accura compensate --config` given once per module does (before, the C API took one
+// config_path), with the same bytes; the modules are only read.
+TEST(Plugin, ProgramWithTheModulesOfItsTaskEqualsTheCommandLine) {
+  const std::string g = test::sourcePath("tests/golden/rapid/");
+  const std::string dir = test::tempDir("plugin_rapid_task");
+  std::string module = test::readText(g + "irb120_seam.mod");
+  std::string calib = "MODULE CalibData(SYSMODULE)\n", points = "MODULE Points\n";
+  for (const char* head : {"  PERS tooldata torch", "  PERS wobjdata table", "  CONST robtarget p10 ", "  CONST robtarget p20 "}) {
+    const size_t b = module.find(head), e = module.find('\n', b) + 1;
+    ASSERT_NE(b, std::string::npos) << head;
+    (std::string(head).find("robtarget") != std::string::npos ? points : calib) += module.substr(b, e - b);
+    module.erase(b, e - b);
+  }
+  test::writeText(dir + "/seam.mod", module);
+  test::writeText(dir + "/calib.sys", calib + "ENDMODULE\n");
+  test::writeText(dir + "/points.mod", points + "ENDMODULE\n");
+  Handle h(g + "irb120_real.xml");
+  accura_program_options o;
+  ASSERT_EQ(accura_program_options_init(&o, sizeof(o)), ACCURA_OK);
+  const std::string calib_path = dir + "/calib.sys", points_path = dir + "/points.mod";
+  const char* modules[] = {calib_path.c_str(), points_path.c_str()};
+  accura_program_summary s;
+  ASSERT_EQ(accura_compensate_program_modules(h.m, (dir + "/seam.mod").c_str(), (dir + "/plugin").c_str(), &o, modules, 2, &s), ACCURA_OK) << lastError(h.m);
+  const test::CliRun cli = test::runAccuraIn(dir, "compensate --robot " + g + "irb120_real.xml --in seam.mod --config calib.sys --config points.mod --out cli");
+  ASSERT_EQ(cli.code, 0) << cli.err;
+  const std::string ours = test::readText(dir + "/plugin/seam.mod");
+  EXPECT_EQ(ours, test::readText(dir + "/cli/seam.mod"));
+  EXPECT_NE(ours.find("  LOCAL CONST robtarget p10_1 := [["), std::string::npos) << ours;
+  EXPECT_EQ(test::readText(points_path), points + "ENDMODULE\n");
+  // a NULL among the paths is an argument error, not a crash
+  const char* with_null[] = {calib_path.c_str(), nullptr};
+  EXPECT_EQ(accura_compensate_program_modules(h.m, (dir + "/seam.mod").c_str(), (dir + "/plugin2").c_str(), &o, with_null, 2, &s), ACCURA_ERROR_INVALID_ARGUMENT);
+  EXPECT_NE(std::string(lastError(h.m)).find("task_modules[1]: expected a path, found NULL"), std::string::npos) << lastError(h.m);
+  std::filesystem::remove_all(dir);
 }
 
 // accura_compensate_program writes the same bytes as `accura compensate` with the same settings.

@@ -633,6 +633,51 @@ TEST(Rapid, ConfJOnGoesToTheProgrammedQuadrantsConfJOffToTheNearest) {
                                                   confText(c[0], c[1], c[2], c[3]) + "; program that configuration, or ConfJ\\Off)");
 }
 
+// A point on a quadrant boundary of axis 1 (y = 0: q1 = 0, cf1 0) that the correction moves
+// just across it (the real base 0.1 mm off in y): ConfJ\On updates cf1, with a warning. Three
+// MoveJs go to the point: the warning was printed three times, once per MoveJ; it is said once
+// for the point, naming the other two MoveJs and the count.
+TEST(Rapid, AChangedConfdataIsSaidOncePerPointNamingItsMotions) {
+  const std::string text =
+      "MODULE m\n"
+      "  CONST robtarget p10 := [[380,0,350],[0,0.258819045,0.965925826,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
+      "  CONST robtarget p20 := [[380,60,350],[0,0.258819045,0.965925826,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n"
+      "  PROC main()\n"
+      "    MoveJ p10, v100, fine, tool0;\n"
+      "    MoveJ p20, v100, fine, tool0;\n"
+      "    MoveJ p10, v100, fine, tool0;\n"
+      "    MoveJ p20, v100, fine, tool0;\n"
+      "    MoveJ p10, v100, fine, tool0;\n"
+      "  ENDPROC\n"
+      "ENDMODULE\n";
+  for (const double dy : {0.1, -0.1}) {
+    RobotModel real = test::loadBundled("abb_irb120");
+    real.deviations.base_mm = Eigen::Vector3d(0, dy, 0);
+    const ProgramCompensation c = compensateProgramReport(parseRapid(text, "once.mod"), settingsFor(real));
+    ASSERT_TRUE(c.ok()) << c.report.errors.front().message;
+    std::vector<std::string> changed;
+    for (const ProgramIssue& w : c.report.warnings)
+      if (w.message.find("confdata of p10 changed") != std::string::npos) changed.push_back(w.where.str() + ": " + w.message);
+    // the correction moves q1 off 0 by atan(0.1 / 380) = 0.015 deg: to quadrant -1 for one sign of dy
+    const double q1 = c.report.targets.front().q_real[0];
+    ASSERT_GT(std::abs(q1), 0.01);
+    ASSERT_LT(std::abs(q1), 0.02);
+    if (q1 > 0) {
+      EXPECT_TRUE(changed.empty());
+      continue;
+    }
+    ASSERT_EQ(changed.size(), 1u) << changed.back();
+    const std::string got = confText(-1, 0, 0, 0);
+    EXPECT_EQ(changed[0].substr(0, changed[0].find(":", 16)), "once.mod:5:5: confdata of p10 changed from [0,0,0,0] to " + got);
+    EXPECT_NE(changed[0].find("(ConfJ\\On goes to the programmed quadrant); the same for the MoveJ(s) at once.mod:7:5, once.mod:9:5 (3 motions to this point)"),
+              std::string::npos)
+        << changed[0];
+    EXPECT_NE(writeRapid(c.program).find("p10 := [[380,"), std::string::npos);
+    return;
+  }
+  ADD_FAILURE() << "neither sign of the base's y offset moved q1 below 0";
+}
+
 TEST(Rapid, ConfLOnStopsBeyondOneQuadrantConfLOffFollowsThePath) {
   const Eigen::VectorXd q = jointsOff("MoveL");
   const std::array<int, 4> c = abbConfdata(test::loadBundled("abb_irb120"), q);
@@ -2236,6 +2281,162 @@ TEST(Rapid, AToolLocalInTheConfigModuleOrNotDeclaredThereIsSaidSo) {
                                         "/calib.sys (give its TCP with --program-tool x,y,z,A,B,C)");
   EXPECT_EQ(p.motions[1].base.note, "the wobjdata 'wBox' is not declared with a value in this module nor in the module given with --config, " + dir +
                                         "/calib.sys (give its frame with --program-base x,y,z,A,B,C)");
+  std::filesystem::remove_all(dir);
+}
+
+// A RAPID task has several modules beside the program's: --config given more than once reads
+// each (the tool from calib.sys, the work object and the robtargets from points.mod). Before,
+// ProgramReadOptions took one module. A name two of them declare global is the controller's
+// load error (one global name per task: ABB, RAPID reference manual, "Basic characteristics",
+// Data scope; open_abb issue 29, "ambiguity of global variables"), naming both places; a PERS
+// both declare is one persistent they share. KRL: the controller has one $config.dat, so a
+// second is refused, naming both.
+TEST(Rapid, ConfigGivenTwiceReadsBothModulesAndAGlobalNameInTwoIsAnError) {
+  const std::string dir = test::tempDir("rapid_task_two");
+  test::writeText(dir + "/calib.sys", "MODULE CalibData(SYSMODULE)\n" + kTool + "  CONST num pB_1 := 3;\nENDMODULE\n");
+  const std::string points = "MODULE Points\n" + kWobj + "  CONST robtarget pA:=[[40,60,120],[0,0,1,0],[-1,0,-1,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n" +
+                             "  VAR robtarget pB:=[[40,60,20],[0,0,1,0],[-1,0,-1,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n" +
+                             "  PERS robtarget pC:=[[40,100,20],[0,0,1,0],[-1,0,-1,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n" +
+                             "  CONST robtarget pA_1:=[[0,0,0],[1,0,0,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\nENDMODULE\n";
+  test::writeText(dir + "/points.mod", points);
+  const std::string body = "  PROC main()\n    ConfL\\Off;\n    MoveJ pA,v1000,z50,tWeld\\WObj:=wTable;\n    MoveL pB,v200,fine,tWeld\\WObj:=wTable;\n"
+                           "    MoveL pC,v200,fine,tWeld\\WObj:=wTable;\n  ENDPROC\n";
+  const std::string module = "MODULE m\n  VAR num n := 0;\n" + body + "ENDMODULE\n";
+  test::writeText(dir + "/m.mod", module);
+  ProgramReadOptions o;
+  setConfigPaths(o, {dir + "/calib.sys", dir + "/points.mod"});
+  const Program p = readProgram(dir + "/m.mod", o);
+  ASSERT_EQ(p.motions.size(), 3u);
+  ASSERT_TRUE(p.motions[0].tool.value && p.motions[0].base.value);
+  EXPECT_NEAR(p.motions[0].tool.value->z_mm, 150, 1e-12);   // calib.sys's tWeld
+  EXPECT_NEAR(p.motions[0].base.value->x_mm, 300, 1e-12);   // points.mod's wTable
+  EXPECT_EQ(p.motions[0].target_problem, "");
+  EXPECT_NEAR(p.motions[0].target.xyzAbc().z_mm, 120, 1e-12);  // points.mod's pA
+  EXPECT_EQ(p.motions[0].target.where.str(), dir + "/points.mod:3:23");
+  EXPECT_NEAR(p.motions[1].target.xyzAbc().z_mm, 20, 1e-12);
+  // a name declared global in both modules: the second names the first
+  test::writeText(dir + "/points.mod", "MODULE Points\n  CONST num n2 := 1;\n  PERS tooldata tWeld:=[TRUE,[[0,0,160],[1,0,0,0]],[1.2,[0,0,60],[1,0,0,0],0,0,0]];\nENDMODULE\n");
+  test::writeText(dir + "/calib.sys", "MODULE CalibData(SYSMODULE)\n  CONST tooldata tWeld:=[TRUE,[[0,0,150],[1,0,0,0]],[1.2,[0,0,60],[1,0,0,0],0,0,0]];\n"
+                                      "  CONST num pB_1 := 3;\nENDMODULE\n");
+  try {
+    readProgram(dir + "/m.mod", o);
+    ADD_FAILURE() << "tWeld declared global in two modules of the task";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()), dir + "/points.mod:3:17: expected one declaration of 'tWeld' in the task's global data (the modules of a task share the data "
+                                           "that is not LOCAL, and the controller refuses a task that declares one twice), found a second (the first at " +
+                                           dir + "/calib.sys:2:18)");
+  }
+  // the program's own global datum and a --config module's: the same error
+  test::writeText(dir + "/calib.sys", "MODULE CalibData(SYSMODULE)\n" + kTool + "  VAR num n := 1;\nENDMODULE\n");
+  test::writeText(dir + "/points.mod", points);
+  try {
+    readProgram(dir + "/m.mod", o);
+    ADD_FAILURE() << "n declared global in the program and in calib.sys";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()), dir + "/calib.sys:3:11: expected one declaration of 'n' in the task's global data (the modules of a task share the data "
+                                           "that is not LOCAL, and the controller refuses a task that declares one twice), found a second (the first at " +
+                                           dir + "/m.mod:2:11)");
+  }
+  // a PERS both declare is one persistent (kTool is PERS tWeld)
+  test::writeText(dir + "/calib.sys", "MODULE CalibData(SYSMODULE)\n" + kTool + "ENDMODULE\n");
+  test::writeText(dir + "/points.mod", "MODULE Points\n" + kTool + kWobj + "ENDMODULE\n");
+  EXPECT_EQ(readProgram(dir + "/m.mod", o).motions.size(), 3u);
+  // KRL: one $config.dat
+  test::writeText(dir + "/a.src", "DEF a()\n  PTP {A1 0, A2 -90, A3 90, A4 0, A5 0, A6 0}\nEND\n");
+  ProgramReadOptions k;
+  setConfigPaths(k, {dir + "/$config.dat", dir + "/other.dat"});
+  try {
+    readProgram(dir + "/a.src", k);
+    ADD_FAILURE() << "two $config.dat taken";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()), "--config: a KRL or XML program takes one $config.dat (the controller has one, KRC:\\R1\\System\\$config.dat), found 2: " + dir +
+                                         "/$config.dat and " + dir + "/other.dat (the GLOBAL points of other programs' .dat files are found by accura batch in its tree)");
+  }
+  std::filesystem::remove_all(dir);
+}
+
+// A robtarget a module given with --config declares, which a motion of the program uses: it
+// was kept as written and named ("not a robtarget declared with a value in this module"), not
+// corrected. That module is only read, so the correction goes to a new point of the program's
+// module, as a point needing a second correction does (Job::ownPoint): LOCAL (no other module
+// of the task can declare its name too), after the module's data, named to avoid every name of
+// the task (pA_1 is points.mod's, pB_1 calib.sys's), the motion redirected to it. Its value is
+// the one the same module gets when it declares the point itself. A PERS robtarget is kept
+// and named: its value is shared at run time, a copy would freeze it.
+TEST(Rapid, ARobtargetOfAConfigModuleIsCorrectedIntoANewPointOfTheProgram) {
+  const std::string dir = test::tempDir("rapid_task_points");
+  const std::string a = "[[40,60,120],[0,0,1,0],[-1,0,-1,0],[9E9,9E9,9E9,9E9,9E9,9E9]]";
+  const std::string b = "[[40,60,20],[0,0,1,0],[-1,0,-1,0],[9E9,9E9,9E9,9E9,9E9,9E9]]";
+  test::writeText(dir + "/calib.sys", "MODULE CalibData(SYSMODULE)\n" + kTool + kWobj + "  CONST num pB_1 := 3;\nENDMODULE\n");
+  const std::string points = "MODULE Points\n  CONST robtarget pA:=" + a + ";\n  VAR robtarget pB:=" + b + ";\n" +
+                             "  PERS robtarget pC:=[[40,100,20],[0,0,1,0],[-1,0,-1,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n" +
+                             "  CONST robtarget pA_1:=[[0,0,0],[1,0,0,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\nENDMODULE\n";
+  test::writeText(dir + "/points.mod", points);
+  const std::string body = "  PROC main()\n    ConfL\\Off;\n    MoveJ pA,v1000,z50,tWeld\\WObj:=wTable;\n    MoveL pB,v200,fine,tWeld\\WObj:=wTable;\n"
+                           "    MoveL pA,v200,fine,tWeld\\WObj:=wTable;\n    MoveL pC,v200,fine,tWeld\\WObj:=wTable;\n  ENDPROC\n";
+  const std::string module = "MODULE m\n  VAR num n := 0;\n" + body + "ENDMODULE\n";
+  test::writeText(dir + "/m.mod", module);
+  ProgramReadOptions o;
+  setConfigPaths(o, {dir + "/calib.sys", dir + "/points.mod"});
+  const Program p = readProgram(dir + "/m.mod", o);
+  EXPECT_EQ(p.motions[3].target_problem, "'pC' is a PERS robtarget of " + dir + "/points.mod (" + dir + "/points.mod:4:18), a module given with --config: a "
+                                         "persistent's value is shared at run time (the modules and tasks that use it, ModPos, write it), so its correction "
+                                         "can be neither written there (that module is only read) nor frozen into a copy in this module");
+  const ProgramCompensation c = compensateProgramReport(p, perturbedIrb120());
+  ASSERT_TRUE(c.ok()) << c.report.errors.front().message;
+  // the same module declaring pA and pB itself: the corrections the new points must carry
+  const std::string whole = "MODULE m\n  VAR num n := 0;\n  CONST robtarget pA:=" + a + ";\n  VAR robtarget pB:=" + b + ";\n" +
+                            "  PERS robtarget pC:=[[40,100,20],[0,0,1,0],[-1,0,-1,0],[9E9,9E9,9E9,9E9,9E9,9E9]];\n" + kTool + kWobj + body + "ENDMODULE\n";
+  const ProgramCompensation w = compensateProgramReport(parseRapid(whole, "whole.mod"), perturbedIrb120());
+  ASSERT_TRUE(w.ok());
+  const std::string written = writeRapid(c.program);
+  // the module as it was, with the two new points after its data and the motions going to them
+  const size_t decl = written.find("  VAR num n := 0;\n") + std::string("  VAR num n := 0;\n").size();
+  const size_t after = written.find("  PROC main()");
+  ASSERT_NE(after, std::string::npos) << written;
+  const std::string added = written.substr(decl, after - decl);
+  std::string renamed = body;
+  for (const char* m : {"MoveJ pA,", "MoveL pB,", "MoveL pA,"}) {
+    const std::string from = m;
+    renamed.replace(renamed.find(from), from.size(), from.substr(0, from.size() - 1) + "_2,");
+  }
+  EXPECT_EQ(written.substr(0, decl) + written.substr(after), "MODULE m\n  VAR num n := 0;\n" + renamed + "ENDMODULE\n");
+  EXPECT_EQ(added.substr(0, added.find(":= ")), "  LOCAL CONST robtarget pA_2 ");
+  ASSERT_NE(added.find("\n  LOCAL VAR robtarget pB_2 := [["), std::string::npos) << added;
+  // their values: the corrections of the module that declares the points itself
+  const std::string probe = "MODULE t\n" + added + "  PROC main()\n    MoveL pA_2,v100,fine,tool0;\n    MoveL pB_2,v100,fine,tool0;\n  ENDPROC\nENDMODULE\n";
+  const Program t = parseRapid(probe, "t.mod");
+  ASSERT_EQ(t.motions.size(), 2u);
+  std::vector<const Motion*> programmed;  // (not the points a split inserts)
+  for (const Motion& m : w.program.motions)
+    if (!m.inserted) programmed.push_back(&m);
+  ASSERT_EQ(programmed.size(), 4u);
+  for (size_t k = 0; k < 2; ++k) {
+    const Eigen::Isometry3d got = poseOf(t.motions[k].target), want = poseOf(programmed[k]->target);
+    EXPECT_LT((got.translation() - want.translation()).norm(), 1e-4) << k;  // (written with 4 decimals)
+    EXPECT_GT((want.translation() - poseOf(p.motions[k].target).translation()).norm(), 0.05) << k;  // (corrected)
+  }
+  // the warnings: one per new point, and the PERS kept
+  std::vector<std::string> said;
+  for (const ProgramIssue& i : c.report.warnings) said.push_back(i.where.str() + ": " + i.message);
+  EXPECT_NE(std::find(said.begin(), said.end(), dir + "/m.mod:5:5: pA is declared in " + dir + "/points.mod:2:23, a module given with --config, which accura only "
+                                                "reads: this motion goes to a new point pA_2 declared in this module (LOCAL, after its data) with the correction; "
+                                                "pA keeps its value"),
+            said.end());
+  int new_points = 0;
+  for (const std::string& m : said) new_points += m.find("a module given with --config, which accura only reads") != std::string::npos;
+  EXPECT_EQ(new_points, 2);
+  // the report names the new points
+  int replaced = 0;
+  for (const TargetReport& tr : c.report.targets) replaced += tr.new_point_replaces == "pA" && tr.name == "pA_2";
+  EXPECT_EQ(replaced, 2);
+  // with the nominal robot nothing is corrected: the module comes back byte for byte
+  JobSettings nominal;
+  nominal.calibrated = test::loadBundled("abb_irb120");
+  const ProgramCompensation n = compensateProgramReport(p, nominal);
+  ASSERT_TRUE(n.ok());
+  EXPECT_EQ(writeRapid(n.program), module);
+  EXPECT_EQ(test::readText(dir + "/points.mod"), points);
   std::filesystem::remove_all(dir);
 }
 

@@ -347,6 +347,19 @@ ACCURA_API accura_status accura_compensate_program(accura_model* model, const ch
                                                    const accura_program_options* options,
                                                    accura_program_summary* summary);
 
+/* The same for an ABB RAPID module with the other modules of its task (`accura compensate
+ * --config` given once per module: CalibData.mod, user.sys, a module of global robtargets;
+ * docs/rapid.md): `task_modules`, `n_task_modules` paths (each read only, never written), taken
+ * after options->config_path when that is set. A name two of them declare global is
+ * ACCURA_ERROR_INPUT naming both places; a KRL or XML program with more than one $config.dat
+ * too (the controller has one). n_task_modules 0: accura_compensate_program. */
+ACCURA_API accura_status accura_compensate_program_modules(accura_model* model, const char* program_path,
+                                                           const char* out_dir,
+                                                           const accura_program_options* options,
+                                                           const char* const* task_modules,
+                                                           size_t n_task_modules,
+                                                           accura_program_summary* summary);
+
 /* ---------------------------------------------------------------------------------------- */
 /* Reach and clearance checks (docs/checks.md) */
 

@@ -299,8 +299,14 @@ ACCURA_API accura_status accura_program_options_init(accura_program_options* o, 
 
 ACCURA_API accura_status accura_compensate_program(accura_model* model, const char* program_path, const char* out_dir,
                                                    const accura_program_options* options, accura_program_summary* summary) {
-  return guarded(model, "accura_compensate_program", [&](Slot& slot) {
-    requirePointers({{program_path, "program_path"}, {out_dir, "out_dir"}});
+  return accura_compensate_program_modules(model, program_path, out_dir, options, nullptr, 0, summary);
+}
+
+ACCURA_API accura_status accura_compensate_program_modules(accura_model* model, const char* program_path, const char* out_dir,
+                                                           const accura_program_options* options, const char* const* task_modules,
+                                                           size_t n_task_modules, accura_program_summary* summary) {
+  return guarded(model, n_task_modules ? "accura_compensate_program_modules" : "accura_compensate_program", [&](Slot& slot) {
+    requirePointers({{program_path, "program_path"}, {out_dir, "out_dir"}, {ifAny(n_task_modules, task_modules), "task_modules"}});
     // (an empty out_dir would be the host process's working directory, wherever that is)
     if (!*out_dir) throw calib::ArgumentError("out_dir: expected an output directory, found an empty string");
     const accura_program_options o = optionsOr(options, accura_program_options_init, "accura_program_options");
@@ -308,6 +314,11 @@ ACCURA_API accura_status accura_compensate_program(accura_model* model, const ch
     q.in_path = program_path;
     q.out_dir = out_dir;
     q.read = readOptions(o.dat_path, o.config_path);
+    for (size_t i = 0; i < n_task_modules; ++i) {
+      if (!task_modules[i]) throw calib::ArgumentError("task_modules[" + std::to_string(i) + "]: expected a path, found NULL");
+      if (q.read.config_path.empty()) q.read.config_path = task_modules[i];
+      else q.read.more_config_paths.push_back(task_modules[i]);
+    }
     if (o.json_report_path) q.json_path = o.json_report_path;
     q.out_name = "out_dir";
     q.json_name = "json_report_path";

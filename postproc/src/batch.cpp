@@ -182,7 +182,7 @@ ProgramFileResult compensateProgramFile(const ProgramFileRequest& q, const JobSe
   r.checked = compensateAndCheckFile(q.in_path, out_path, q.read, job, q.cell, &r.report);
   std::vector<std::string> inputs = {q.in_path, fs::path(q.in_path).replace_extension(".dat").string()};
   if (!q.read.dat_path.empty()) inputs.push_back(q.read.dat_path);
-  if (!q.read.config_path.empty()) inputs.push_back(q.read.config_path);
+  for (const std::string& c : configPaths(q.read)) inputs.push_back(c);
   inputs.insert(inputs.end(), q.other_inputs.begin(), q.other_inputs.end());
   calib::refuseToOverwrite(r.checked.files, inputs, q.out_name);
   if (!q.json_path.empty()) calib::refuseToOverwrite({{q.json_path, ""}}, inputs, q.json_name);
@@ -321,7 +321,14 @@ BatchResult runBatch(const std::string& in_dir, const std::string& out_dir, cons
   std::mutex mutex;
   int done = 0;
   ProgramReadOptions read;
-  read.config_path = options.config_path;
+  // the RAPID modules given with --config serve the RAPID modules of the tree, the $config.dat
+  // the KRL and XML programs (one: KUKA's controller has one)
+  std::vector<std::string> rapid_configs, kuka_configs;
+  for (const std::string& c : configPaths(ProgramReadOptions{"", options.config_path, options.more_config_paths, {}}))
+    (isRapidModulePath(c) ? rapid_configs : kuka_configs).push_back(c);
+  if (kuka_configs.size() > 1)
+    throw calib::InputError("--config: one $config.dat for the KRL and XML programs of the tree (the controller has one, KRC:\\R1\\System\\$config.dat), found " +
+                            kuka_configs[0] + " and " + kuka_configs[1]);
   // the GLOBAL points of each KRL program's data list: another program of the batch that uses
   // one is told where it is declared (a data list that cannot be read is its own program's error)
   // (a program's own points are found in its own files first; the first declaration in sorted
@@ -373,9 +380,8 @@ BatchResult runBatch(const std::string& in_dir, const std::string& out_dir, cons
           // module given as --config (the task's tooldata and wobjdata) serves the RAPID modules.
           ProgramReadOptions file_read = read;
           const ProgramFormat format = programFormat(in_path.string());
-          const bool rapid_config = isRapidModulePath(file_read.config_path);
-          if (rapid_config ? format != ProgramFormat::kRapid : format != ProgramFormat::kKrl && format != ProgramFormat::kXml)
-            file_read.config_path.clear();
+          if (format == ProgramFormat::kRapid) setConfigPaths(file_read, rapid_configs);
+          else if (format == ProgramFormat::kKrl || format == ProgramFormat::kXml) setConfigPaths(file_read, kuka_configs);
           if (format != ProgramFormat::kKrl) file_read.other_globals.clear();
           CheckedProgram out = compensateAndCheckFile(in_path.string(), out_path.string(), file_read, options.job,
                                                       cell ? &*cell : nullptr, &r.report);

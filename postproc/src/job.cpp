@@ -340,8 +340,24 @@ class Job {
       return true;
     }
     if (!cp && cfx_same && worst <= 1 && near_boundary) {
-      warning(m.where, "confdata of " + targetLabel(t) + " changed from " + text(asked) + " to " + text(got) + ": the correction moves axis 1, 4 or 6 within " +
-                           calib::formatFixed(calib::kTurnBandDeg, 1) + " deg of a quadrant boundary across it (ConfJ\\On goes to the programmed quadrant)");
+      // said once per point: the MoveJs that go to one declared robtarget (value) and need the
+      // same change are named in that one warning (it was repeated for each of them)
+      const std::string key = (t.value_id >= 0 ? std::to_string(t.value_id) : "@" + m.where.str()) + " " + text(asked) + " " + text(got);
+      const std::string said = "confdata of " + targetLabel(t) + " changed from " + text(asked) + " to " + text(got) +
+                               ": the correction moves axis 1, 4 or 6 within " + calib::formatFixed(calib::kTurnBandDeg, 1) +
+                               " deg of a quadrant boundary across it (ConfJ\\On goes to the programmed quadrant)";
+      auto it = conf_changed_.find(key);
+      if (it == conf_changed_.end()) {
+        conf_changed_[key] = {r_.warnings.size(), {m.where.str()}};
+        warning(m.where, said);
+      } else if (std::find(it->second.second.begin(), it->second.second.end(), m.where.str()) == it->second.second.end()) {
+        std::vector<std::string>& motions = it->second.second;
+        motions.push_back(m.where.str());
+        std::string others;
+        for (size_t k = 1; k < motions.size(); ++k) others += (k > 1 ? ", " : "") + motions[k];
+        r_.warnings[it->second.first].message = said + "; the same for the MoveJ(s) at " + others + " (" + std::to_string(motions.size()) +
+                                                " motions to this point)";
+      }
       t.abb_conf = got;
       t.modified = true;
       return true;
@@ -426,6 +442,14 @@ class Job {
     pose_only.status.reset();
     pose_only.turn.reset();
     Claim c{krlAggregate(pose_only), motion, cp, t.status, t.turn};
+    // RAPID: a robtarget a module given with --config declares, which accura only reads: a
+    // correction goes to a new point of this module, one per distinct correction (ownPoint)
+    if (const std::string place = taskModuleOf(t); !place.empty()) {
+      // (by the pose: a MoveJ and a MoveL to it share one new point, written with the MoveJ's
+      // confdata as a declared point is, rapid_writer.cpp)
+      if (t.modified) ownPoint(t, motion, "", motion, c.pose_text, place);
+      return;
+    }
     auto it = claimed_.find(t.value_id);
     if (it == claimed_.end()) {
       claimed_[t.value_id] = c;
@@ -451,8 +475,11 @@ class Job {
   /// correction), one new point per distinct correction, as a point the program also reads
   /// elsewhere does (copyPointsReadElsewhere). Said once per new point: `conflict` (claimValue's
   /// words), and where the motion goes.
+  /// `task_place`: t is a robtarget a module given with --config declares there
+  /// (RapidSource::Decl::task_module), which keeps its value: every correction of it goes to a
+  /// new point of this module, said so instead of `conflict`.
   void ownPoint(Target& t, const SourceLocation& motion, const std::string& conflict, const SourceLocation& first,
-                const std::string& correction) {
+                const std::string& correction, const std::string& task_place = std::string()) {
     const std::string key = std::to_string(t.value_id) + "|" + correction;
     auto it = own_points_.find(key);
     if (it == own_points_.end()) {
@@ -464,7 +491,12 @@ class Job {
       const std::string name = isDeclarableName(base) ? newPointName(*in_, base, new_names_) : std::string();
       if (!name.empty()) new_names_.push_back(name);
       it = own_points_.emplace(key, name).first;
-      warning(motion, conflict + (name.empty() ? ": this motion gets its corrected value as an inline aggregate (" + t.name +
+      if (!task_place.empty())
+        warning(motion, t.name + " is declared in " + task_place + ", a module given with --config, which accura only reads: this motion " +
+                            "goes to a new point " + name + " declared in this module (LOCAL, after its data) with the correction; " + t.name +
+                            " keeps its value");
+      else
+        warning(motion, conflict + (name.empty() ? ": this motion gets its corrected value as an inline aggregate (" + t.name +
                                                      " has no name of its own to derive a new point's from); " + t.name + " keeps the correction for " +
                                                      first.str()
                                                : ": this motion goes to a new point " + name + " declared after " + declaredAfterAndKeeps(t.name) +
@@ -475,6 +507,14 @@ class Job {
     t.new_declaration = true;
     t.name = it->second;
     if (in_->rapid) t.value_id = -1;  // (RAPID's writer finds the declaration by the statement; KRL's by the value)
+  }
+
+  /// Where a module given with --config declares the RAPID robtarget `t` is
+  /// (RapidSource::Decl::task_module); "" for any other target.
+  std::string taskModuleOf(const Target& t) const {
+    if (!in_ || !in_->rapid || t.value_id < 0 || static_cast<size_t>(t.value_id) >= in_->rapid->values.size()) return std::string();
+    const int d = in_->rapid->values[static_cast<size_t>(t.value_id)].decl;
+    return d >= 0 ? in_->rapid->decls[static_cast<size_t>(d)].task_module : std::string();
   }
 
   /// The S/T of every point a PTP claimed, on the CP motions that share it (claimValue).
@@ -1321,6 +1361,8 @@ class Job {
   const Program* in_ = nullptr;         ///< the program (names for new points)
   std::vector<std::string> new_names_;  ///< new points named so far
   std::vector<std::string> abb_disagree_;  ///< RAPID CP targets whose confdata differ from the path's (accepted)
+  /// "confdata of X changed" said once per point and change: key -> the warning's index, the motions (file:line:column)
+  std::map<std::string, std::pair<size_t, std::vector<std::string>>> conf_changed_;
   std::string abb_first_;
   SourceLocation abb_where_;
   int abb_checked_ = 0;      ///< RAPID targets whose confdata were compared with the compensated joints

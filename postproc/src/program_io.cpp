@@ -133,29 +133,52 @@ bool isRapidModulePath(const std::string& path) {
   return ext == ".mod" || ext == ".modx" || ext == ".sys" || ext == ".sysx" || ext == ".prg";
 }
 
+void setConfigPaths(ProgramReadOptions& options, const std::vector<std::string>& paths) {
+  options.config_path = paths.empty() ? std::string() : paths.front();
+  options.more_config_paths.assign(paths.size() > 1 ? paths.begin() + 1 : paths.end(), paths.end());
+}
+
+std::vector<std::string> configPaths(const ProgramReadOptions& options) {
+  std::vector<std::string> out;
+  if (!options.config_path.empty()) out.push_back(options.config_path);
+  for (const std::string& p : options.more_config_paths)
+    if (!p.empty()) out.push_back(p);
+  return out;
+}
+
 Program readProgram(const std::string& path, const ProgramReadOptions& options) {
   const ProgramFormat format = programFormat(path);
+  const std::vector<std::string> configs = configPaths(options);
   if (format == ProgramFormat::kUrScript) {
     if (!options.dat_path.empty()) throw calib::InputError("--dat: only for KRL programs (.src), found the URScript program " + path);
-    if (!options.config_path.empty())
+    if (!configs.empty())
       throw calib::InputError("--config: only for KRL and XML programs ($config.dat frames), found the URScript program " + path +
                        " (its TCP comes from set_tcp or --program-tool)");
     return readUrScript(path);
   }
   if (format == ProgramFormat::kRapid) {
     if (!options.dat_path.empty()) throw calib::InputError("--dat: only for KRL programs (.src), found the RAPID module " + path);
-    // --config for a RAPID module: another module of its task (CalibData.mod, user.sys) whose
-    // tooldata and wobjdata it uses; a $config.dat (KUKA's frames) is of no use to it
-    if (!options.config_path.empty() && !isRapidModulePath(options.config_path))
-      throw calib::InputError("--config: a KUKA $config.dat is only for KRL and XML programs, found the RAPID module " + path +
-                              " (give the module of its task that declares its tooldata and wobjdata, CalibData.mod or user.sys, "
-                              "or --program-tool / --program-base)");
-    return readRapid(path, options.config_path);
+    // --config for a RAPID module: the other modules of its task (CalibData.mod, user.sys)
+    // whose data it uses; a $config.dat (KUKA's frames) is of no use to it
+    for (const std::string& c : configs)
+      if (!isRapidModulePath(c))
+        throw calib::InputError("--config: a KUKA $config.dat is only for KRL and XML programs, found the RAPID module " + path +
+                                (configs.size() > 1 ? " and " + c : std::string()) +
+                                " (give the module of its task that declares its tooldata and wobjdata, CalibData.mod or user.sys, "
+                                "or --program-tool / --program-base)");
+    return readRapid(path, configs);
   }
-  if (!options.config_path.empty() && isRapidModulePath(options.config_path))
-    throw calib::InputError("--config: a RAPID module (the tooldata and wobjdata of an ABB task) is only for RAPID programs, found " +
-                            std::string(format == ProgramFormat::kKrl ? "the KRL program " : "the XML program ") + path +
-                            " (give the $config.dat with TOOL_DATA and BASE_DATA)");
+  for (const std::string& c : configs)
+    if (isRapidModulePath(c))
+      throw calib::InputError("--config: a RAPID module (the tooldata and wobjdata of an ABB task) is only for RAPID programs, found " +
+                              std::string(format == ProgramFormat::kKrl ? "the KRL program " : "the XML program ") + path +
+                              (configs.size() > 1 ? " and " + c : std::string()) + " (give the $config.dat with TOOL_DATA and BASE_DATA)");
+  // KUKA's controller has one $config.dat (KRC:\R1\System\$config.dat, the system's global
+  // data list); a second one would be another controller's, and taking either would be a guess
+  if (configs.size() > 1)
+    throw calib::InputError("--config: a KRL or XML program takes one $config.dat (the controller has one, KRC:\\R1\\System\\$config.dat), found " +
+                            std::to_string(configs.size()) + ": " + configs[0] + " and " + configs[1] +
+                            " (the GLOBAL points of other programs' .dat files are found by accura batch in its tree)");
   if (format == ProgramFormat::kKrl) {
     KrlReadOptions o;
     o.dat_path = options.dat_path;

@@ -1,5 +1,6 @@
 // RAPID reader (see rapid.h): statements, declarations, the motion model, pass-through lines.
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -76,6 +77,11 @@ struct Scope {
   std::map<std::string, std::optional<double>> zones;   ///< zone radius (nullopt: fine)
   std::map<std::string, double> speeds;                 ///< v_tcp (mm/s)
   std::map<std::string, double> consts;  ///< CONST num declared with a number (its value)
+  /// robtargets a module given with --config declares (upper-case name -> the index of that
+  /// module in Reader::tasks_): read from there when a motion goes to them (Reader::taskRobtarget)
+  std::map<std::string, size_t> task_robtargets;
+  /// robtargets of a module given with --config that a motion keeps as written: upper-case name -> why
+  std::map<std::string, std::string> task_kept;
 };
 
 /// The data types whose values accura reads (a second declaration of one of them in a scope is
@@ -166,6 +172,9 @@ class Reader {
     /// in a PROC of that module), with the first place.
     std::map<std::string, SourceLocation> assigned;
     std::map<std::string, SourceLocation> locals;  ///< its LOCAL data (upper case): invisible to other modules
+    /// its text as read: the robtarget values and declarations data.robtargets refers to
+    std::shared_ptr<const RapidSource> source;
+    std::vector<std::array<std::optional<double>, 6>> ext;  ///< external axes of each of its values
   };
 
   /// The text as another module of the task (TaskModule), read as run() reads it. InputError for
@@ -178,7 +187,7 @@ class Reader {
     if (modules_.empty())
       fail(t_.empty() ? 0 : t_.front().b, "expected a RAPID module (MODULE name ... ENDMODULE) with the task's tooldata and wobjdata, found " +
                                               (t_.empty() ? std::string("an empty file") : "'" + excerpt(t_.front().s) + "'"));
-    TaskModule m{src_->path, src_->text, global_, assigned_, {}};
+    TaskModule m{src_->path, src_->text, global_, assigned_, {}, src_, ext_};
     for (const Scope& s : modules_)
       for (const auto& [u, where] : s.names)
         if (!global_.names.count(u)) m.locals.emplace(u, where);
@@ -191,8 +200,21 @@ class Reader {
   /// what it assigns is a run-time value here too; its names are not a new point's
   /// (RapidSource::task_text).
   void useTaskData(TaskModule other) {
-    task_ = std::move(other);
-    src_->task_text = task_.text;
+    std::vector<TaskModule> one;
+    one.push_back(std::move(other));
+    useTaskData(std::move(one));
+  }
+  /// Several modules of the task (--config given more than once): as above for each. A name
+  /// two of them declare global (not LOCAL) is an error naming both: the controller refuses to
+  /// load a task whose modules declare one global name twice (ABB, RAPID reference manual,
+  /// "Basic characteristics", Data scope: global data are visible in every module of the task);
+  /// a PERS declared alike in both is one persistent they share, as in one program's modules.
+  void useTaskData(std::vector<TaskModule> others) {
+    for (size_t j = 0; j < others.size(); ++j)
+      for (size_t i = 0; i < j; ++i) sameGlobalName(others[i].data, others[j].data, others[j]);
+    tasks_ = std::move(others);
+    src_->task_text.clear();
+    for (const TaskModule& m : tasks_) src_->task_text += m.text + "\n";
   }
 
   Program run() {
@@ -596,18 +618,31 @@ class Reader {
   /// routine's own data are read where they are, at its start (they are its only). Statements
   /// outside a module are left to the reading in order, which names them.
   void moduleData() {
-    bool open = false, in_routine = false;
+    bool open = false, in_routine = false, routine_seen = false;
     for (const Range& r : stmts_) {
       const size_t h = headAt(r.first);
       const std::string& u = h != kNoHead ? t_[h].u : std::string();
+      // where a new point this module declares goes (taskRobtarget): after its data written
+      // before its first routine, else after its MODULE line
+      auto lineAfter = [&](Range st) {
+        const size_t nl = src_->text.find('\n', t_[st.second - 1].e);
+        return nl == std::string::npos ? src_->text.size() : nl + 1;
+      };
+      auto indentOf = [&](Range st) {
+        const size_t b = starts_[static_cast<size_t>(loc(t_[st.first].b).line - 1)];
+        return src_->text.substr(b, t_[st.first].b - b);
+      };
       if (u == "MODULE") {
         ++module_index_;
         modules_.resize(static_cast<size_t>(module_index_) + 1);
+        module_insert_.resize(modules_.size(), {lineAfter(r), indentOf(r) + "  "});
+        routine_seen = false;
         open = true;
       } else if (u == "ENDMODULE") {
         open = false;
       } else if (routineNameAt(r) != kNoHead) {
         in_routine = true;
+        routine_seen = true;
       } else if (u == "ENDPROC" || u == "ENDFUNC" || u == "ENDTRAP") {
         in_routine = false;
       } else if (h == kNoHead && open && !in_routine) {
@@ -615,42 +650,140 @@ class Reader {
         if (k == kNoHead) continue;
         declaration(r, k);
         module_data_.insert(r.first);
+        if (!routine_seen && !module_insert_.empty()) module_insert_.back() = {lineAfter(r), indentOf(r)};
       }
     }
     module_index_ = -1;  // (the reading in order counts the modules again)
   }
 
-  /// The task module's (task_) frames, speeds, zones and constants into the program's global data, for the
-  /// names no module of the program declares (its own declaration is the one it refers to).
-  void addTaskData() {
-    for (const auto& name_where : task_.data.names) {
-      const std::string& u = name_where.first;  // (a structured binding cannot be captured in C++17)
-      bool declared = global_.names.count(u) > 0;
-      for (const Scope& m : modules_) declared = declared || m.names.count(u) > 0;
-      if (declared) continue;
-      bool used = false;
-      const auto take = [&](auto table) {
-        const auto it = (task_.data.*table).find(u);
-        if (it == (task_.data.*table).end()) return;
-        (global_.*table)[u] = it->second;
-        used = true;
-      };
-      take(&Scope::tools);
-      take(&Scope::wobjs);
-      take(&Scope::speeds);
-      take(&Scope::zones);
-      take(&Scope::consts);
-      if (!used) continue;  // (a robtarget of that module: its value is in that module's text)
-      // assigned in that module: a run-time value here too, also after this module's own
-      // assignment (a call may run that module's routine, which this module does not see: ""
-      // as a change through a call); the place named is that module's (not in this text)
-      if (const auto a = task_.assigned.find(u); a != task_.assigned.end()) {
-        assigned_[u] = a->second;
-        assigners_[u].insert("");
-      }
-      global_.names[u] = name_where.second;
-      if (task_.data.read_names.count(u)) global_.read_names.insert(u);
+  /// A name `second` (the global data of the module `where`, given with --config) declares that
+  /// `first` (another such module's, or this program's) declares too: an error at the second,
+  /// naming the first (RAPID: one global name per task). A persistent declared in both is one
+  /// object they share (PERS, TASK PERS: its value is the task's, wherever it is declared).
+  void sameGlobalName(const Scope& first, const Scope& second, const TaskModule& where) const {
+    for (const auto& name_where : second.names) {
+      const auto it = first.names.find(name_where.first);
+      if (it == first.names.end()) continue;
+      if (first.persistents.count(name_where.first) && second.persistents.count(name_where.first)) continue;
+      const SourceLocation& l = name_where.second;
+      throw calib::InputError(l.file, l.line, l.column,
+                              "expected one declaration of '" + excerpt(nameAt(where.text, l)) + "' in the task's global data (the modules of a " +
+                                  "task share the data that is not LOCAL, and the controller refuses a task that declares one twice), found a " +
+                                  "second (the first at " + it->second.str() + ")");
     }
+  }
+
+  /// The identifier at line:column of `text` (a declaration's name where a Scope records it).
+  static std::string nameAt(const std::string& text, const SourceLocation& l) {
+    size_t off = 0;
+    for (int line = 1; line < l.line && off != std::string::npos; ++line) {
+      off = text.find('\n', off);
+      if (off != std::string::npos) ++off;
+    }
+    if (off == std::string::npos) return std::string();
+    off += static_cast<size_t>(std::max(l.column, 1) - 1);
+    size_t e = off;
+    while (e < text.size() && (std::isalnum(static_cast<unsigned char>(text[e])) || text[e] == '_')) ++e;
+    return off < text.size() ? text.substr(off, e - off) : std::string();
+  }
+
+  /// The task modules' (tasks_) frames, speeds, zones, constants and robtargets into the
+  /// program's global data (its own global data and theirs are one name space: a name both
+  /// declare is an error, sameGlobalName; its LOCAL data hide theirs).
+  void addTaskData() {
+    // (the program's own names against each module's first: the names added below are theirs)
+    for (const TaskModule& task : tasks_) sameGlobalName(global_, task.data, task);
+    for (size_t k = 0; k < tasks_.size(); ++k)
+      for (const auto& name_where : tasks_[k].data.names) addTaskDatum(k, name_where.first, name_where.second);
+  }
+
+  void addTaskDatum(size_t k, const std::string& u, const SourceLocation& where) {
+    const TaskModule& task = tasks_[k];
+    for (const Scope& m : modules_)
+      if (m.names.count(u)) return;  // (this module's LOCAL datum hides it)
+    bool used = false;
+    const auto take = [&](auto table) {
+      const auto it = (task.data.*table).find(u);
+      if (it == (task.data.*table).end()) return;
+      (global_.*table)[u] = it->second;
+      used = true;
+    };
+    take(&Scope::tools);
+    take(&Scope::wobjs);
+    take(&Scope::speeds);
+    take(&Scope::zones);
+    take(&Scope::consts);
+    const auto assigned = task.assigned.find(u);
+    if (const auto r = task.data.robtargets.find(u); r != task.data.robtargets.end()) {
+      // a robtarget of that module: corrected into a new point of this module (taskRobtarget),
+      // as that module is only read; kept as written where a copy would not be what the robot
+      // uses (a persistent, a run-time value)
+      const RapidSource::Decl& d = task.source->decls[static_cast<size_t>(task.source->values[static_cast<size_t>(r->second)].decl)];
+      const std::string head = calib::upperAscii(d.head);
+      if (task.data.persistents.count(u) || head.find("PERS") != std::string::npos)
+        global_.task_kept[u] = "'" + excerpt(d.name) + "' is a PERS robtarget of " + task.path + " (" + where.str() + "), a module given with --config: " +
+                               "a persistent's value is shared at run time (the modules and tasks that use it, ModPos, write it), so its " +
+                               "correction can be neither written there (that module is only read) nor frozen into a copy in this module";
+      else if (assigned != task.assigned.end())
+        global_.task_kept[u] = "'" + excerpt(d.name) + "' is assigned at " + assigned->second.str() + ": its value at run time is not the declared one";
+      else
+        global_.task_robtargets[u] = k;
+      used = true;
+    } else if (const auto w = task.data.unread_robtargets.find(u); w != task.data.unread_robtargets.end()) {
+      global_.task_kept[u] = "'" + excerpt(nameAt(task.text, where)) + "' is declared in " + task.path + ", a module given with --config, with a value accura cannot read (" +
+                             w->second + ")";
+      used = true;
+    }
+    if (!used) return;  // (a robtarget array of that module: its motions are kept, as not declared here)
+    // assigned in that module: a run-time value here too, also after this module's own
+    // assignment (a call may run that module's routine, which this module does not see: ""
+    // as a change through a call); the place named is that module's (not in this text)
+    if (assigned != task.assigned.end()) {
+      assigned_[u] = assigned->second;
+      assigners_[u].insert("");
+    }
+    global_.names[u] = where;
+    if (task.data.read_names.count(u)) global_.read_names.insert(u);
+  }
+
+  /// The value of robtarget `u` that the module given with --config tasks_[k] declares, as a
+  /// value of this module's source (one per module of this file): its declaration is that
+  /// module's (RapidSource::Decl::task_module) with the place a new point goes in this module
+  /// (after the module's data, LOCAL: the compensation never writes the value itself, Job).
+  int taskRobtarget(const std::string& u, size_t k) {
+    const auto key = std::make_pair(module_index_, u);
+    if (const auto it = task_values_.find(key); it != task_values_.end()) return it->second;
+    const TaskModule& task = tasks_[k];
+    const int id = task.data.robtargets.at(u);
+    RapidSource::Value v = task.source->values[static_cast<size_t>(id)];
+    const RapidSource::Decl& from = task.source->decls[static_cast<size_t>(v.decl)];
+    RapidSource::Decl d;
+    d.name = from.name;
+    const std::pair<size_t, std::string> at = module_insert_.at(static_cast<size_t>(module_index_));
+    d.line_begin = d.line_end = at.first;
+    d.indent = at.second;
+    std::string storage = calib::upperAscii(from.head).find("VAR") != std::string::npos ? "VAR" : "CONST";
+    d.head = "LOCAL " + storage + " robtarget ";
+    const SourceLocation declared = locate(lineStarts(task.source->text), task.path, v.begin);
+    d.task_module = declared.str();
+    v.begin = v.end = 0;
+    for (auto& n : v.num) n = {0, 0};
+    src_->decls.push_back(d);
+    v.decl = static_cast<int>(src_->decls.size()) - 1;
+    src_->values.push_back(v);
+    ext_.push_back(task.ext[static_cast<size_t>(id)]);
+    const int mine = static_cast<int>(src_->values.size()) - 1;
+    src_->decls.back().value = mine;
+    task_where_[mine] = declared;
+    task_values_[key] = mine;
+    return mine;
+  }
+
+  static std::vector<size_t> lineStarts(const std::string& text) {
+    std::vector<size_t> starts{0};
+    for (size_t i = 0; i < text.size(); ++i)
+      if (text[i] == '\n') starts.push_back(i + 1);
+    return starts;
   }
 
   void statement(Range r, Program& p) {
@@ -1379,6 +1512,15 @@ class Reader {
         tv.problem = "'" + excerpt(t_[r.first].s) + "' is declared with a value accura cannot read (" + *why + ")";
         return tv;
       }
+      if (const std::string* why = id ? nullptr : lookup(&Scope::task_kept, u)) {
+        tv.problem = *why;
+        return tv;
+      }
+      int task_id = -1;
+      if (const size_t* k = id ? nullptr : lookup(&Scope::task_robtargets, u)) {
+        task_id = taskRobtarget(u, *k);
+        id = &task_id;
+      }
       if (!id) {
         tv.problem = "'" + excerpt(t_[r.first].s) + "' is not a robtarget declared with a value in this module";
         return tv;
@@ -1620,7 +1762,8 @@ class Reader {
           tg.abb_conf = v.conf;
           tg.ext = v.ext;
           tg.value_id = v.value;
-          if (v.value >= 0 && src_->values[static_cast<size_t>(v.value)].decl >= 0) tg.where = loc(src_->values[static_cast<size_t>(v.value)].begin);
+          if (const auto w = task_where_.find(v.value); w != task_where_.end()) tg.where = w->second;  // (a --config module's)
+          else if (v.value >= 0 && src_->values[static_cast<size_t>(v.value)].decl >= 0) tg.where = loc(src_->values[static_cast<size_t>(v.value)].begin);
         } else if (m.target_problem.empty()) {
           m.target_problem = v.problem;
         }
@@ -1792,15 +1935,21 @@ class Reader {
       f.source = FrameSetting::Source::kUnset;
       // with --config given: LOCAL there (RAPID: a LOCAL datum is its module's only) or not
       // declared there with a value; else that option is the other way to give it
-      const auto local = task_.path.empty() || !single ? task_.locals.end() : task_.locals.find(u);
-      if (task_.path.empty())
+      const SourceLocation* local = nullptr;
+      std::string paths;
+      for (const TaskModule& task : tasks_) {
+        paths += (paths.empty() ? "" : ", ") + task.path;
+        const auto it = task.locals.find(u);
+        if (single && !local && it != task.locals.end()) local = &it->second;
+      }
+      const std::string given = tasks_.size() > 1 ? "the modules given with --config" : "the module given with --config";
+      if (tasks_.empty())
         f.note = "the " + type + " '" + excerpt(f.text) + "' is not declared with a value in this module (" + option + ", or the module that declares it with --config)";
-      else if (local != task_.locals.end())
-        f.note = "the " + type + " '" + excerpt(f.text) + "' is not declared with a value in this module, and is LOCAL in the module given with --config (" +
-                 local->second.str() + "): invisible to other modules (" + option + ")";
+      else if (local)
+        f.note = "the " + type + " '" + excerpt(f.text) + "' is not declared with a value in this module, and is LOCAL in " +
+                 (tasks_.size() > 1 ? std::string("a module") : std::string("the module")) + " given with --config (" + local->str() + "): invisible to other modules (" + option + ")";
       else
-        f.note = "the " + type + " '" + excerpt(f.text) + "' is not declared with a value in this module nor in the module given with --config, " +
-                 task_.path + " (" + option + ")";
+        f.note = "the " + type + " '" + excerpt(f.text) + "' is not declared with a value in this module nor in " + given + ", " + paths + " (" + option + ")";
     }
     return f;
   }
@@ -1884,7 +2033,12 @@ class Reader {
   std::vector<int> motion_lines_;
   std::vector<Scope> modules_;  ///< each module's data (moduleData), by module_index_
   Scope global_, local_;        ///< the program's global data; the current routine's
-  TaskModule task_;             ///< another module of the task (useTaskData; path "": none)
+  std::vector<TaskModule> tasks_;  ///< the other modules of the task (useTaskData; none: empty)
+  /// (module of this file, robtarget) -> its value read from a module of tasks_ (taskRobtarget)
+  std::map<std::pair<int, std::string>, int> task_values_;
+  std::map<int, SourceLocation> task_where_;  ///< those values -> their place in that module
+  /// each module of this file: where a new point goes (taskRobtarget), the indent it takes
+  std::vector<std::pair<size_t, std::string>> module_insert_;
   int module_index_ = -1;       ///< the module being read (its MODULE's count - 1)
   std::set<size_t> module_data_;  ///< first tokens of the module-level declarations (read first)
   std::string module_name_, routine_, routine_kind_, main_routine_;
@@ -1922,9 +2076,18 @@ Program readRapid(const std::string& path) { return parseRapid(moduleText(path),
 
 Program readRapid(const std::string& path, const std::string& task_module) {
   if (task_module.empty()) return readRapid(path);
-  Reader data(moduleText(task_module), task_module);
+  return readRapid(path, std::vector<std::string>{task_module});
+}
+
+Program readRapid(const std::string& path, const std::vector<std::string>& task_modules) {
+  if (task_modules.empty()) return readRapid(path);
+  std::vector<Reader::TaskModule> tasks;
+  for (const std::string& m : task_modules) {
+    Reader data(moduleText(m), m);
+    tasks.push_back(data.taskData());
+  }
   Reader r(moduleText(path), path);
-  r.useTaskData(data.taskData());
+  r.useTaskData(std::move(tasks));
   return r.run();
 }
 

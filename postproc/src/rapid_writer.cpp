@@ -135,6 +135,11 @@ void targetEdits(const Program& p, const Motion& m, std::map<int, std::pair<std:
       edits.push_back({st.targets[k].first, st.targets[k].second, t.name, order++});
       continue;
     }
+    // (a robtarget of a module given with --config: its text is not this module's; Job sends
+    // every correction of it to a new point)
+    if (v && v->decl >= 0 && !s.decls[static_cast<size_t>(v->decl)].task_module.empty())
+      throw calib::ArgumentError(m.where.str() + ": " + label(t) + " is declared in " + s.decls[static_cast<size_t>(v->decl)].task_module +
+                                 ", a module given with --config, which is only read: its correction must go to a new point");
     if (!v) {  // Offs / RelTool: the corrected point as an inline robtarget
       edits.push_back({st.targets[k].first, st.targets[k].second, robtargetText(t, unit, unusedAxisText(s.text)), order++});
       continue;

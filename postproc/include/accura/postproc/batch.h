@@ -104,6 +104,10 @@ std::string firstCheckProblem(const CheckReport& check);
 struct BatchOptions {
   JobSettings job;
   std::string config_path;  ///< $config.dat for every program (empty: none)
+  /// --config given again: every RAPID module among config_path and these serves the RAPID
+  /// modules of the tree (the task's other modules, readRapid); one $config.dat among them
+  /// serves the KRL and XML programs (two: an InputError, KUKA's controller has one)
+  std::vector<std::string> more_config_paths;
   int jobs = 1;             ///< worker threads (>= 1)
   /// Every program is checked in this cell before it is written (compensateAndCheckFile): a
   /// program that fails is reported as kFailed with its first violation and not written

@@ -28,9 +28,19 @@ struct ProgramReadOptions {
   /// KRL and XML: the $config.dat: TOOL_DATA / BASE_DATA (and global points for KRL). RAPID:
   /// another module of the task whose tooldata and wobjdata the module uses (readRapid).
   std::string config_path;
+  /// --config given more than once, the second and further: RAPID, more modules of the task
+  /// (readRapid's task_modules: CalibData.mod, user.sys, a module of global robtargets). KRL and
+  /// XML: refused (InputError): KUKA's controller has one $config.dat.
+  std::vector<std::string> more_config_paths;
   /// KRL: the GLOBAL points of other programs' data lists (KrlReadOptions::other_globals)
   std::map<std::string, SourceLocation> other_globals;
 };
+
+/// The --config paths as given, in order: the first into config_path, the others into
+/// more_config_paths.
+void setConfigPaths(ProgramReadOptions& options, const std::vector<std::string>& paths);
+/// Every --config path of `options` (config_path, then more_config_paths; empty ones left out).
+std::vector<std::string> configPaths(const ProgramReadOptions& options);
 
 /// Reads a program in the format of its extension. Throws InputError (file:line:column).
 Program readProgram(const std::string& path, const ProgramReadOptions& options = {});

@@ -70,6 +70,12 @@ struct RapidSource {
     /// does not model, a condition. Such a read gets the declared value even where the
     /// compensation corrects it for a motion (Job: the motions then go to a new point).
     std::string read_elsewhere;
+    /// A robtarget a module given with --config declares (only read), "file:line:column" there;
+    /// "" for a declaration of this module. Its value's text is not in `text` (Value::begin ==
+    /// end): a motion that corrects it goes to a new point (Job), declared at line_end with
+    /// `head` (`LOCAL CONST robtarget `: this module's own, so no other module of the task can
+    /// declare its name too).
+    std::string task_module;
   };
   /// A motion statement.
   struct Statement {
@@ -94,8 +100,9 @@ struct RapidSource {
   std::vector<Value> values;
   std::vector<Decl> decls;
   std::vector<Statement> statements;
-  /// The text of the task module given with the module (readRapid(path, task_module); "" none):
-  /// its global names are the task's too, so a new point's name must not be one of its names.
+  /// The texts of the task modules given with the module (readRapid(path, task_modules), one
+  /// after the other; "" none): their global names are the task's too, so a new point's name
+  /// must not be one of their names.
   std::string task_text;
 };
 
@@ -108,6 +115,13 @@ Program readRapid(const std::string& path);
 /// zonedata and CONST nums serve the names the module does not declare itself. That module is
 /// only read. Throws like readRapid, for either file.
 Program readRapid(const std::string& path, const std::string& task_module);
+/// The same with several modules of the task (--config given more than once): each serves the
+/// names the module does not declare; a name two of them (or one of them and this module)
+/// declare global is an InputError at the second naming the first (the controller refuses to
+/// load such a task), except a PERS both declare (one persistent they share). A robtarget
+/// one of them declares (CONST or VAR, not assigned in them, read) is the value of the motions
+/// that go to it (RapidSource::Decl::task_module); a PERS one is kept, named (Motion::target_problem).
+Program readRapid(const std::string& path, const std::vector<std::string>& task_modules);
 /// The same from text (`path` names it in messages).
 Program parseRapid(const std::string& text, const std::string& path);
 
