@@ -99,43 +99,85 @@ TEST(Import, ReadsDecimalCommaRadiansMetresAndEulerStds) {
   EXPECT_TRUE(n.unknown_columns.empty());
 }
 
-// An export in millimetres read through a mapping that says metres: identify doubts the units
-// and names the mapping's unit keys with their lines, the place the user can fix them (before:
-// "check the units (positions in mm, joint angles in deg)", accura's own, which the export
-// does not have to use).
-TEST(Import, IdentifyNamesTheMappingsUnitKeysWhenTheUnitsLookWrong) {
-  const std::string dir = test::tempDir("import_units");
-  test::writeText(dir + "/mm.map",
-                  "# positions said to be in metres\n"
-                  "delimiter = ,\ndecimal = .\n"
-                  "joints = a1, a2, a3, a4, a5, a6\n"
-                  "joint_unit = deg\n"                  // line 5
-                  "position = px, py, pz\n"
-                  "position_unit = m\n");               // line 7
+// An export whose units are not the ones read: 30 KR 16 poses written in `pos_unit` (mm or m) and
+// `joint_unit` (deg or rad), read through a mapping stating `map_pos` and `map_joint` (lines 5
+// and 7), or as accura's CSV when `map_joint` is empty. What identify says.
+std::string identifyWithWrongUnits(const std::string& name, const std::string& pos_unit, const std::string& joint_unit,
+                                   const std::string& map_joint, const std::string& map_pos, std::string* dir_out,
+                                   const std::string& position_columns = "px, py, pz") {
+  const std::string dir = *dir_out = test::tempDir(name);
   const RobotModel robot = test::loadBundled("kuka_kr16");
   std::mt19937_64 rng(7);
-  std::string csv = "a1,a2,a3,a4,a5,a6,px,py,pz\n";
+  const bool own = map_joint.empty();
+  std::string csv = own ? "q1,q2,q3,q4,q5,q6,x,y,z\n" : "a1,a2,a3,a4,a5,a6,px,py,pz\n";
   for (int k = 0; k < 30; ++k) {
     const Eigen::VectorXd q = test::randomQ(robot, rng);
-    const Eigen::Vector3d p = forwardKinematics(robot, q).translation();  // mm: the export's true unit
+    const Eigen::Vector3d p = forwardKinematics(robot, q).translation() * (pos_unit == "m" ? 1e-3 : 1.0);
+    const Eigen::VectorXd qw = q * (joint_unit == "rad" ? kDegToRad : 1.0);
     char row[300];
-    std::snprintf(row, sizeof row, "%.6f,%.6f,%.6f,%.6f,%.6f,%.6f,%.4f,%.4f,%.4f\n", q[0], q[1], q[2], q[3], q[4], q[5], p.x(), p.y(), p.z());
+    std::snprintf(row, sizeof row, "%.9f,%.9f,%.9f,%.9f,%.9f,%.9f,%.7f,%.7f,%.7f\n", qw[0], qw[1], qw[2], qw[3], qw[4], qw[5], p.x(), p.y(), p.z());
     csv += row;
   }
   test::writeText(dir + "/e.csv", csv);
-  const MeasurementMapping m = readMeasurementMapping(dir + "/mm.map", robot.nominal);
-  const MeasurementSet s = readMappedMeasurements(dir + "/e.csv", m, robot.nominal);
-  EXPECT_EQ(s.units_stated, "joint_unit = deg (" + dir + "/mm.map:5), position_unit = m (" + dir + "/mm.map:7)");
+  MeasurementSet s;
+  if (own) {
+    s = readMeasurementsCsv(dir + "/e.csv", robot.nominal);
+  } else {
+    test::writeText(dir + "/u.map",
+                    "# the export's units as the mapping states them\n"
+                    "delimiter = ,\ndecimal = .\n"
+                    "joints = a1, a2, a3, a4, a5, a6\n"
+                    "joint_unit = " + map_joint + "\n"        // line 5
+                    "position = " + position_columns + "\n"
+                    "position_unit = " + map_pos + "\n");     // line 7
+    s = readMappedMeasurements(dir + "/e.csv", readMeasurementMapping(dir + "/u.map", robot.nominal), robot.nominal);
+  }
   try {
     identify(robot, s, IdentifyOptions{}, nullptr);
-    FAIL() << "positions 1000 times too large were fitted";
   } catch (const InputError& e) {
     const std::string w = e.what();
-    const std::string tail = "check the units the mapping states (joint_unit = deg (" + dir + "/mm.map:5), position_unit = m (" + dir +
-                             "/mm.map:7)), the joint order and the robot file";
-    ASSERT_GE(w.size(), tail.size()) << w;
-    EXPECT_EQ(w.substr(w.size() - tail.size()), tail) << w;
+    const size_t cut = w.find("mm RMS about their centre); ");
+    return cut == std::string::npos ? w : w.substr(cut + 28);
   }
+  return "fitted";
+}
+
+// An export in millimetres read through a mapping that says metres: identify says the factor it
+// finds between the measured points and the model's and the mapping line to change (before: only
+// "check the units the mapping states (joint_unit = deg (e.map:5), position_unit = m (e.map:7)),
+// the joint order and the robot file", and the RMS of 947064.9 mm the user had to read as a
+// factor 1000 himself). The same for an export in metres read as mm, joint angles in radians
+// read as degrees and the reverse, and accura's CSV written in metres or radians.
+TEST(Import, IdentifyNamesTheFactorAndTheMappingLineWhenTheUnitsAreWrong) {
+  std::string dir, said;
+  said = identifyWithWrongUnits("units_mm_as_m", "mm", "deg", "deg", "m", &dir);
+  EXPECT_EQ(said,
+            "the measured positions spread 1000.0 times as far as the model's points: positions in mm read as m (so converted, they lie "
+            "0.0 mm RMS from the model's after registration): change position_unit = m (" + dir + "/u.map:7) to mm");
+  said = identifyWithWrongUnits("units_m_as_mm", "m", "deg", "deg", "mm", &dir);
+  EXPECT_EQ(said,
+            "the measured positions spread 1/1000.0 as far as the model's points: positions in m read as mm (so converted, they lie "
+            "0.0 mm RMS from the model's after registration): change position_unit = mm (" + dir + "/u.map:7) to m");
+  said = identifyWithWrongUnits("units_rad_as_deg", "mm", "rad", "deg", "mm", &dir);
+  EXPECT_EQ(said,
+            "the joint angles fit at 180/pi times the values read: angles in rad read as deg (so converted, they lie 0.0 mm RMS from the "
+            "model's after registration): change joint_unit = deg (" + dir + "/u.map:5) to rad");
+  said = identifyWithWrongUnits("units_both", "m", "rad", "deg", "mm", &dir);
+  EXPECT_EQ(said,
+            "the measured positions spread 1/1000.0 as far as the model's points: positions in m read as mm, and the joint angles fit at "
+            "180/pi times the values read: angles in rad read as deg (so converted, they lie 0.0 mm RMS from the model's after "
+            "registration): change position_unit = mm (" + dir + "/u.map:7) to m, and change joint_unit = deg (" + dir + "/u.map:5) to rad");
+  said = identifyWithWrongUnits("units_own_m", "m", "deg", "", "", &dir);
+  EXPECT_EQ(said,
+            "the measured positions spread 1/1000.0 as far as the model's points: positions in m read as mm (so converted, they lie 0.0 "
+            "mm RMS from the model's after registration): convert the positions to mm (times 1000; accura's CSV is in mm and deg, "
+            "docs/measurement-format.md), or read the file through a mapping file with position_unit = m (docs/measurement-mapping.md)");
+  // the units right: fitted; y and z swapped (a mirror image, no rigid frame, no unit's factor):
+  // what to check, as before
+  EXPECT_EQ(identifyWithWrongUnits("units_right", "mm", "deg", "deg", "mm", &dir), "fitted");
+  said = identifyWithWrongUnits("units_yz", "mm", "deg", "deg", "mm", &dir, "px, pz, py");
+  EXPECT_EQ(said, "check the units the mapping states (joint_unit = deg (" + dir + "/u.map:5), position_unit = mm (" + dir +
+                      "/u.map:7)), the joint order and the robot file");
 }
 
 TEST(Import, ATrailingDelimiterIsNamedAndReadAsInTheCsvFormat) {

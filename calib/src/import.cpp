@@ -583,7 +583,8 @@ MeasurementSet readMappedMeasurements(const std::string& path, const Measurement
       int line = 0;
       for (const auto& kl : m.key_lines)
         if (kl.first == key) line = kl.second;
-      return key + " = " + unit + " (" + m.file + (line ? ":" + std::to_string(line) : std::string()) + ")";
+      set.units.push_back({key, unit, m.file + (line ? ":" + std::to_string(line) : std::string())});
+      return key + " = " + unit + " (" + set.units.back().place + ")";
     };
     const bool prismatic = std::any_of(robot.joints.begin(), robot.joints.end(), [](const JointSpec& j) { return j.type == JointType::kPrismatic; });
     const bool revolute = std::any_of(robot.joints.begin(), robot.joints.end(), [](const JointSpec& j) { return j.type == JointType::kRevolute; });
