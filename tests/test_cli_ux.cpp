@@ -289,6 +289,49 @@ TEST(CliIdentify, OptionsThatDoNotApplyAreSaid) {
   EXPECT_EQ(held.out.find("smoothing nan"), std::string::npos) << held.out;
 }
 
+// --map given a measurement file or --data given a mapping (the two swapped), in identify and
+// diagnose, for --data and --validate alike: the error says that the file is the other kind and
+// which option takes it (before: "expected 'key = value', found 'Timestamp;Goal x;...'" and
+// "expected a column 'shoulder_pan_joint' in the header, found none").
+TEST(CliMessages, AMeasurementFileAsTheMappingOrAMappingAsTheMeasurementsIsSaidToBeTheOtherKind) {
+  const std::string dir = test::tempDir("cli_ux_swapped");
+  const std::string map = test::sourcePath("docs/mappings/ipa_robot_accuracy.map");
+  const std::string b = test::sourcePath("tests/data/ipa-robot-accuracy/series_b_joint_configurations.csv");
+  const std::string c = test::sourcePath("tests/data/ipa-robot-accuracy/series_c_random_poses.csv");
+  const std::string is_data =
+      "Timestamp;Goal x;Goal y;Goal z;Goal roll;Goal pitch;Goal ...': this looks like a measurement file, not a mapping: its first "
+      "line is a row of 26 fields separated by ';'; give the measurements with --data (or --validate) and the mapping (key = value "
+      "lines, docs/measurement-mapping.md) with --map";
+  const std::string is_map =
+      "this looks like a mapping file, not a measurement file: its first line 'delimiter = ;' is a mapping's key = value; give the "
+      "mapping with --map (or --validate-map) and the measurements with --data (or --validate)";
+  const struct {
+    std::string args, error;
+  } cases[] = {
+      {"identify --robot ur10 --map " + b + " --data " + map + " --out " + dir + "/o.xml",
+       b + ":1:1: expected 'key = value', found '" + is_data},
+      {"identify --robot ur10 --map " + map + " --data " + map + " --out " + dir + "/o.xml",
+       map + ":4:1: expected a header row naming the export's columns, found a line of a mapping: " + is_map},
+      {"identify --robot ur10 --data " + map + " --out " + dir + "/o.xml",
+       map + ":4:1: expected a header row (q1..q6, x, y, z), found a line of a mapping: " + is_map},
+      {"identify --robot ur10 --map " + map + " --data " + b + " --validate " + map + " --out " + dir + "/o.xml",
+       map + ":4:1: expected a header row naming the export's columns, found a line of a mapping: " + is_map},
+      {"identify --robot ur10 --map " + map + " --data " + b + " --validate " + c + " --validate-map " + c + " --out " + dir + "/o.xml",
+       c + ":1:1: expected 'key = value', found '" + is_data},
+      {"diagnose --robot ur10 --map " + b + " --data " + map + " --json " + dir + "/d.json",
+       b + ":1:1: expected 'key = value', found '" + is_data},
+      {"diagnose --robot ur10 --map " + map + " --data " + map + " --json " + dir + "/d.json",
+       map + ":4:1: expected a header row naming the export's columns, found a line of a mapping: " + is_map},
+  };
+  for (const auto& k : cases) {
+    const CliRun r = run(k.args);
+    EXPECT_EQ(r.code, 1) << k.args;
+    EXPECT_EQ(r.err, "accura: error: " + k.error + "\n") << k.args;
+  }
+  EXPECT_FALSE(std::filesystem::exists(dir + "/o.xml"));
+  EXPECT_FALSE(std::filesystem::exists(dir + "/d.json"));
+}
+
 // diagnose --validate expects held-out data of the fit's station and ranges: a set from another
 // station is said to be one (its RMS mostly a station offset), one of the same station is not.
 TEST(CliDiagnose, AValidationSetFromAnotherStationIsSaid) {

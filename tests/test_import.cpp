@@ -1,6 +1,7 @@
 // Instrument exports read through mapping files: conventions, units, decimal comma, errors.
 #include <gtest/gtest.h>
 
+#include <functional>
 #include <random>
 
 #include "accura/calib/errors.h"
@@ -210,6 +211,48 @@ TEST(Import, ATrailingDelimiterIsNamedAndReadAsInTheCsvFormat) {
   EXPECT_EQ(error(header + "\n" + std::string("1;0,5;-1;1,2;0;0,3;-0,1;1,25;-0,5;0,7\0;10", 41) + row.substr(row.find(";-25")) + "\n"),
             dir + "/e.csv:2:10: column 'Pos Z': expected a number with ',' as decimal mark, found '0,7\\0' (\\0 is a NUL byte: a "
                   "binary or corrupted file?)");
+}
+
+// A measurement file given as the mapping, or a mapping given as the measurements (--map and
+// --data swapped): the error says which kind of file it is and where each belongs (before: "expected
+// 'key = value', found 'Stamp;J1;...'", "expected a column 'J1' in the header, found none", "missing
+// columns 'q1', ...": true, but not that the file was the other kind).
+TEST(Import, AMeasurementFileGivenAsTheMappingAndAMappingGivenAsTheMeasurementsAreSaidSo) {
+  const std::string dir = test::tempDir("import_swapped");
+  test::writeText(dir + "/e.map", kMap);
+  const std::string header = "Stamp;J1;J2;J3;J4;J5;J6;Pos X;Pos Y;Pos Z;RX;RY;RZ;SX;SY;SZ;SR;T";
+  test::writeText(dir + "/e.csv", header + "\n1;0,5;-1;1,2;0;0,3;-0,1;1,25;-0,5;0,75;10;-25;40;0,00001;0,00002;0,00003;0,002;21,5\n");
+  test::writeText(dir + "/own.csv", "# accura's own format\nq1,q2,q3,q4,q5,q6,x,y,z\n0,-90,90,0,0,0,1000,0,1200\n");
+  const auto error = [](const std::function<void()>& f) {
+    try {
+      f();
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string("accepted");
+  };
+  const std::string to_data =
+      ": this looks like a measurement file, not a mapping: its first line is a row of 18 fields separated by ';'; give the "
+      "measurements with --data (or --validate) and the mapping (key = value lines, docs/measurement-mapping.md) with --map";
+  EXPECT_EQ(error([&] { readMeasurementMapping(dir + "/e.csv", kr16()); }),
+            dir + "/e.csv:1:1: expected 'key = value', found '" + header.substr(0, 57) + "...'" + to_data);
+  // accura's own CSV as the mapping: its header (after its comment), 9 fields separated by ','
+  EXPECT_EQ(error([&] { readMeasurementMapping(dir + "/own.csv", kr16()); }),
+            dir + "/own.csv:2:1: expected 'key = value', found 'q1,q2,q3,q4,q5,q6,x,y,z': this looks like a measurement file, not a "
+                  "mapping: its first line is a row of 9 fields separated by ','; give the measurements with --data (or --validate) "
+                  "and the mapping (key = value lines, docs/measurement-mapping.md) with --map");
+  // a mapping's later line without '=' is a mapping's error, not a measurement file
+  test::writeText(dir + "/typo.map", std::string(kMap) + "ignore2 ; x, y, z\n");
+  EXPECT_EQ(error([&] { readMeasurementMapping(dir + "/typo.map", kr16()); }),
+            dir + "/typo.map:14:1: expected 'key = value', found 'ignore2 ; x, y, z'");
+  const std::string to_map =
+      "this looks like a mapping file, not a measurement file: its first line 'delimiter = ;' is a mapping's key = value; give the "
+      "mapping with --map (or --validate-map) and the measurements with --data (or --validate)";
+  const MeasurementMapping m = readMeasurementMapping(dir + "/e.map", kr16());
+  EXPECT_EQ(error([&] { readMappedMeasurements(dir + "/e.map", m, kr16()); }),
+            dir + "/e.map:2:1: expected a header row naming the export's columns, found a line of a mapping: " + to_map);
+  EXPECT_EQ(error([&] { readMeasurementsCsv(dir + "/e.map", kr16()); }),
+            dir + "/e.map:2:1: expected a header row (q1..q6, x, y, z), found a line of a mapping: " + to_map);
 }
 
 void expectError(const std::string& map, const std::string& csv, const std::string& file_suffix, int line, int col,
