@@ -385,6 +385,34 @@ TEST(CliDiagnose, AValidationSetFromAnotherStationIsSaidInTheJsonAndTheVerdict) 
   EXPECT_EQ(s["warnings"].dump().find("another station"), std::string::npos) << s["warnings"].dump();
 }
 
+// diagnose --validate with the validation file read in the wrong unit (its mapping says metres,
+// the file is in mm): the re-registration of its station, which cannot run on it, was left
+// without a word ("a check that cannot run says nothing"), and the verdict read "unexplained,
+// held-out RMS after 3007822.69 mm" (the real UR10's Series_C). Now a warning and the verdict say
+// why, with the factor found and the mapping line to change, as identify does.
+TEST(CliDiagnose, AValidationSetInTheWrongUnitIsSaidWithTheLineToChange) {
+  const std::string dir = test::tempDir("cli_ux_diag_units");
+  ASSERT_EQ(run("simulate --robot kuka_kr16 --poses 150 --seed 5 --out fit.csv --truth truth.xml", dir).code, 0);
+  ASSERT_EQ(run("simulate --robot truth.xml --effects none --poses 60 --seed 6 --out same.csv", dir).code, 0);
+  test::writeText(dir + "/m.map",
+                  "delimiter = ,\ndecimal = .\njoints = q1, q2, q3, q4, q5, q6\njoint_unit = deg\nposition = x, y, z\n"
+                  "position_unit = m\n"  // line 6: the file is in mm
+                  "ignore = payload_kg, temp_c, dir1, dir2, dir3, dir4, dir5, dir6, time_s\n");
+  const CliRun r = run("diagnose --robot kuka_kr16 --data fit.csv --validate same.csv --validate-map m.map --json d.json", dir);
+  ASSERT_EQ(r.code, 0) << r.err;
+  const std::string why = "positions in mm read as m (so converted, they lie ";
+  const std::string change = "change position_unit = m (m.map:6) to mm";
+  EXPECT_NE(r.err.find("accura: warning: same.csv: expected measurements of KUKA KR 16 in mm and deg"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find(why), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find(change + " (re-registering the validation set's station alone on it"), std::string::npos) << r.err;
+  const auto j = nlohmann::json::parse(test::readText(dir + "/d.json"));
+  const std::string explanation = j["verdict"]["explanation"].get<std::string>();
+  EXPECT_EQ(explanation.rfind("The validation set same.csv fits no frame of the model: re-registering its station alone on it says: "
+                              "same.csv: expected measurements of KUKA KR 16 in mm and deg", 0), 0u) << explanation;
+  EXPECT_NE(explanation.find(change + ". The held-out errors below measure that, not the robot."), std::string::npos) << explanation;
+  EXPECT_NE(j["warnings"].dump().find(change), std::string::npos) << j["warnings"].dump();
+}
+
 TEST(CliIdentify, ValidationOutsideTheFitRangesReadsAsASentence) {
   const std::string dir = test::tempDir("cli_ux_outside");
   ASSERT_EQ(run("simulate --robot kuka_kr16 --tool 80,40,150 --poses 60 --seed 5 --out fit.csv --truth truth.xml", dir).code, 0);
