@@ -118,8 +118,17 @@ ValidationCheck checkValidationSet(const calib::Diagnosis& d, const calib::Measu
   calib::RobotModel moved;
   try {
     moved = calib::registerStation(d.baseline_model, validation, &rs);
+  } catch (const calib::InputError& e) {
+    // no frame of the model holds the validation set (its units, joint order or robot wrong: the
+    // registration says which, with the factor of a unit it finds): its held-out errors measure
+    // that, not the robot (they were reported as the robot's, the verdict "unexplained")
+    out.warnings.push_back(std::string(e.what()) + " (re-registering the validation set's station alone on it: its held-out errors "
+                                                   "measure this, not the robot)");
+    out.verdict_caveat = "The validation set " + file + " fits no frame of the model: re-registering its station alone on it "
+                         "says: " + e.what() + ". The held-out errors below measure that, not the robot.";
+    return out;
   } catch (const std::exception&) {
-    return out;  // (a check that cannot run says nothing; the diagnosis stands)
+    return out;  // (a check that cannot run, degenerate points, says nothing; the diagnosis stands)
   }
   const Eigen::Isometry3d D = d.baseline_model.T_world_base().inverse() * moved.T_world_base();
   const double before = calib::evaluate(d.baseline_model, validation).rms_mm, after = rs.fit.rms_mm;

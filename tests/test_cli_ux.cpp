@@ -289,6 +289,49 @@ TEST(CliIdentify, OptionsThatDoNotApplyAreSaid) {
   EXPECT_EQ(held.out.find("smoothing nan"), std::string::npos) << held.out;
 }
 
+// --map given a measurement file or --data given a mapping (the two swapped), in identify and
+// diagnose, for --data and --validate alike: the error says that the file is the other kind and
+// which option takes it (before: "expected 'key = value', found 'Timestamp;Goal x;...'" and
+// "expected a column 'shoulder_pan_joint' in the header, found none").
+TEST(CliMessages, AMeasurementFileAsTheMappingOrAMappingAsTheMeasurementsIsSaidToBeTheOtherKind) {
+  const std::string dir = test::tempDir("cli_ux_swapped");
+  const std::string map = test::sourcePath("docs/mappings/ipa_robot_accuracy.map");
+  const std::string b = test::sourcePath("tests/data/ipa-robot-accuracy/series_b_joint_configurations.csv");
+  const std::string c = test::sourcePath("tests/data/ipa-robot-accuracy/series_c_random_poses.csv");
+  const std::string is_data =
+      "Timestamp;Goal x;Goal y;Goal z;Goal roll;Goal pitch;Goal ...': this looks like a measurement file, not a mapping: its first "
+      "line is a row of 26 fields separated by ';'; give the measurements with --data (or --validate) and the mapping (key = value "
+      "lines, docs/measurement-mapping.md) with --map";
+  const std::string is_map =
+      "this looks like a mapping file, not a measurement file: its first line 'delimiter = ;' is a mapping's key = value; give the "
+      "mapping with --map (or --validate-map) and the measurements with --data (or --validate)";
+  const struct {
+    std::string args, error;
+  } cases[] = {
+      {"identify --robot ur10 --map " + b + " --data " + map + " --out " + dir + "/o.xml",
+       b + ":1:1: expected 'key = value', found '" + is_data},
+      {"identify --robot ur10 --map " + map + " --data " + map + " --out " + dir + "/o.xml",
+       map + ":4:1: expected a header row naming the export's columns, found a line of a mapping: " + is_map},
+      {"identify --robot ur10 --data " + map + " --out " + dir + "/o.xml",
+       map + ":4:1: expected a header row (q1..q6, x, y, z), found a line of a mapping: " + is_map},
+      {"identify --robot ur10 --map " + map + " --data " + b + " --validate " + map + " --out " + dir + "/o.xml",
+       map + ":4:1: expected a header row naming the export's columns, found a line of a mapping: " + is_map},
+      {"identify --robot ur10 --map " + map + " --data " + b + " --validate " + c + " --validate-map " + c + " --out " + dir + "/o.xml",
+       c + ":1:1: expected 'key = value', found '" + is_data},
+      {"diagnose --robot ur10 --map " + b + " --data " + map + " --json " + dir + "/d.json",
+       b + ":1:1: expected 'key = value', found '" + is_data},
+      {"diagnose --robot ur10 --map " + map + " --data " + map + " --json " + dir + "/d.json",
+       map + ":4:1: expected a header row naming the export's columns, found a line of a mapping: " + is_map},
+  };
+  for (const auto& k : cases) {
+    const CliRun r = run(k.args);
+    EXPECT_EQ(r.code, 1) << k.args;
+    EXPECT_EQ(r.err, "accura: error: " + k.error + "\n") << k.args;
+  }
+  EXPECT_FALSE(std::filesystem::exists(dir + "/o.xml"));
+  EXPECT_FALSE(std::filesystem::exists(dir + "/d.json"));
+}
+
 // diagnose --validate expects held-out data of the fit's station and ranges: a set from another
 // station is said to be one (its RMS mostly a station offset), one of the same station is not.
 TEST(CliDiagnose, AValidationSetFromAnotherStationIsSaid) {
@@ -340,6 +383,34 @@ TEST(CliDiagnose, AValidationSetFromAnotherStationIsSaidInTheJsonAndTheVerdict) 
   const auto s = nlohmann::json::parse(test::readText(dir + "/s.json"));
   EXPECT_EQ(s["verdict"]["explanation"].get<std::string>().find("another station"), std::string::npos);
   EXPECT_EQ(s["warnings"].dump().find("another station"), std::string::npos) << s["warnings"].dump();
+}
+
+// diagnose --validate with the validation file read in the wrong unit (its mapping says metres,
+// the file is in mm): the re-registration of its station, which cannot run on it, was left
+// without a word ("a check that cannot run says nothing"), and the verdict read "unexplained,
+// held-out RMS after 3007822.69 mm" (the real UR10's Series_C). Now a warning and the verdict say
+// why, with the factor found and the mapping line to change, as identify does.
+TEST(CliDiagnose, AValidationSetInTheWrongUnitIsSaidWithTheLineToChange) {
+  const std::string dir = test::tempDir("cli_ux_diag_units");
+  ASSERT_EQ(run("simulate --robot kuka_kr16 --poses 150 --seed 5 --out fit.csv --truth truth.xml", dir).code, 0);
+  ASSERT_EQ(run("simulate --robot truth.xml --effects none --poses 60 --seed 6 --out same.csv", dir).code, 0);
+  test::writeText(dir + "/m.map",
+                  "delimiter = ,\ndecimal = .\njoints = q1, q2, q3, q4, q5, q6\njoint_unit = deg\nposition = x, y, z\n"
+                  "position_unit = m\n"  // line 6: the file is in mm
+                  "ignore = payload_kg, temp_c, dir1, dir2, dir3, dir4, dir5, dir6, time_s\n");
+  const CliRun r = run("diagnose --robot kuka_kr16 --data fit.csv --validate same.csv --validate-map m.map --json d.json", dir);
+  ASSERT_EQ(r.code, 0) << r.err;
+  const std::string why = "positions in mm read as m (so converted, they lie ";
+  const std::string change = "change position_unit = m (m.map:6) to mm";
+  EXPECT_NE(r.err.find("accura: warning: same.csv: expected measurements of KUKA KR 16 in mm and deg"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find(why), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find(change + " (re-registering the validation set's station alone on it"), std::string::npos) << r.err;
+  const auto j = nlohmann::json::parse(test::readText(dir + "/d.json"));
+  const std::string explanation = j["verdict"]["explanation"].get<std::string>();
+  EXPECT_EQ(explanation.rfind("The validation set same.csv fits no frame of the model: re-registering its station alone on it says: "
+                              "same.csv: expected measurements of KUKA KR 16 in mm and deg", 0), 0u) << explanation;
+  EXPECT_NE(explanation.find(change + ". The held-out errors below measure that, not the robot."), std::string::npos) << explanation;
+  EXPECT_NE(j["warnings"].dump().find(change), std::string::npos) << j["warnings"].dump();
 }
 
 TEST(CliIdentify, ValidationOutsideTheFitRangesReadsAsASentence) {

@@ -484,7 +484,10 @@ TEST(Identify, MeasurementsInOtherUnitsAreRefusedNotFitted) {
   for (Measurement& r : metres.rows) r.p_world_mm *= 1e-3;
   for (Measurement& r : radians.rows) r.q *= kDegToRad;
   EXPECT_NE(refused(metres).find("expected measurements of KUKA KR 16 in mm and deg"), std::string::npos) << refused(metres);
-  EXPECT_NE(refused(radians).find("check the units (positions in mm, joint angles in deg)"), std::string::npos) << refused(radians);
+  // the factor a unit leaves is found and said (before: "check the units (positions in mm, joint angles in deg)")
+  EXPECT_NE(refused(radians).find("the joint angles fit at 180/pi times the values read: angles in rad read as deg"), std::string::npos)
+      << refused(radians);
+  EXPECT_NE(refused(metres).find("positions in m read as mm"), std::string::npos) << refused(metres);
 }
 
 TEST(Identify, Kr16WithComplianceAndSeveralPayloads) {

@@ -1,6 +1,7 @@
 // Instrument exports read through mapping files: conventions, units, decimal comma, errors.
 #include <gtest/gtest.h>
 
+#include <functional>
 #include <random>
 
 #include "accura/calib/errors.h"
@@ -99,43 +100,85 @@ TEST(Import, ReadsDecimalCommaRadiansMetresAndEulerStds) {
   EXPECT_TRUE(n.unknown_columns.empty());
 }
 
-// An export in millimetres read through a mapping that says metres: identify doubts the units
-// and names the mapping's unit keys with their lines, the place the user can fix them (before:
-// "check the units (positions in mm, joint angles in deg)", accura's own, which the export
-// does not have to use).
-TEST(Import, IdentifyNamesTheMappingsUnitKeysWhenTheUnitsLookWrong) {
-  const std::string dir = test::tempDir("import_units");
-  test::writeText(dir + "/mm.map",
-                  "# positions said to be in metres\n"
-                  "delimiter = ,\ndecimal = .\n"
-                  "joints = a1, a2, a3, a4, a5, a6\n"
-                  "joint_unit = deg\n"                  // line 5
-                  "position = px, py, pz\n"
-                  "position_unit = m\n");               // line 7
+// An export whose units are not the ones read: 30 KR 16 poses written in `pos_unit` (mm or m) and
+// `joint_unit` (deg or rad), read through a mapping stating `map_pos` and `map_joint` (lines 5
+// and 7), or as accura's CSV when `map_joint` is empty. What identify says.
+std::string identifyWithWrongUnits(const std::string& name, const std::string& pos_unit, const std::string& joint_unit,
+                                   const std::string& map_joint, const std::string& map_pos, std::string* dir_out,
+                                   const std::string& position_columns = "px, py, pz") {
+  const std::string dir = *dir_out = test::tempDir(name);
   const RobotModel robot = test::loadBundled("kuka_kr16");
   std::mt19937_64 rng(7);
-  std::string csv = "a1,a2,a3,a4,a5,a6,px,py,pz\n";
+  const bool own = map_joint.empty();
+  std::string csv = own ? "q1,q2,q3,q4,q5,q6,x,y,z\n" : "a1,a2,a3,a4,a5,a6,px,py,pz\n";
   for (int k = 0; k < 30; ++k) {
     const Eigen::VectorXd q = test::randomQ(robot, rng);
-    const Eigen::Vector3d p = forwardKinematics(robot, q).translation();  // mm: the export's true unit
+    const Eigen::Vector3d p = forwardKinematics(robot, q).translation() * (pos_unit == "m" ? 1e-3 : 1.0);
+    const Eigen::VectorXd qw = q * (joint_unit == "rad" ? kDegToRad : 1.0);
     char row[300];
-    std::snprintf(row, sizeof row, "%.6f,%.6f,%.6f,%.6f,%.6f,%.6f,%.4f,%.4f,%.4f\n", q[0], q[1], q[2], q[3], q[4], q[5], p.x(), p.y(), p.z());
+    std::snprintf(row, sizeof row, "%.9f,%.9f,%.9f,%.9f,%.9f,%.9f,%.7f,%.7f,%.7f\n", qw[0], qw[1], qw[2], qw[3], qw[4], qw[5], p.x(), p.y(), p.z());
     csv += row;
   }
   test::writeText(dir + "/e.csv", csv);
-  const MeasurementMapping m = readMeasurementMapping(dir + "/mm.map", robot.nominal);
-  const MeasurementSet s = readMappedMeasurements(dir + "/e.csv", m, robot.nominal);
-  EXPECT_EQ(s.units_stated, "joint_unit = deg (" + dir + "/mm.map:5), position_unit = m (" + dir + "/mm.map:7)");
+  MeasurementSet s;
+  if (own) {
+    s = readMeasurementsCsv(dir + "/e.csv", robot.nominal);
+  } else {
+    test::writeText(dir + "/u.map",
+                    "# the export's units as the mapping states them\n"
+                    "delimiter = ,\ndecimal = .\n"
+                    "joints = a1, a2, a3, a4, a5, a6\n"
+                    "joint_unit = " + map_joint + "\n"        // line 5
+                    "position = " + position_columns + "\n"
+                    "position_unit = " + map_pos + "\n");     // line 7
+    s = readMappedMeasurements(dir + "/e.csv", readMeasurementMapping(dir + "/u.map", robot.nominal), robot.nominal);
+  }
   try {
     identify(robot, s, IdentifyOptions{}, nullptr);
-    FAIL() << "positions 1000 times too large were fitted";
   } catch (const InputError& e) {
     const std::string w = e.what();
-    const std::string tail = "check the units the mapping states (joint_unit = deg (" + dir + "/mm.map:5), position_unit = m (" + dir +
-                             "/mm.map:7)), the joint order and the robot file";
-    ASSERT_GE(w.size(), tail.size()) << w;
-    EXPECT_EQ(w.substr(w.size() - tail.size()), tail) << w;
+    const size_t cut = w.find("mm RMS about their centre); ");
+    return cut == std::string::npos ? w : w.substr(cut + 28);
   }
+  return "fitted";
+}
+
+// An export in millimetres read through a mapping that says metres: identify says the factor it
+// finds between the measured points and the model's and the mapping line to change (before: only
+// "check the units the mapping states (joint_unit = deg (e.map:5), position_unit = m (e.map:7)),
+// the joint order and the robot file", and the RMS of 947064.9 mm the user had to read as a
+// factor 1000 himself). The same for an export in metres read as mm, joint angles in radians
+// read as degrees and the reverse, and accura's CSV written in metres or radians.
+TEST(Import, IdentifyNamesTheFactorAndTheMappingLineWhenTheUnitsAreWrong) {
+  std::string dir, said;
+  said = identifyWithWrongUnits("units_mm_as_m", "mm", "deg", "deg", "m", &dir);
+  EXPECT_EQ(said,
+            "the measured positions spread 1000.0 times as far as the model's points: positions in mm read as m (so converted, they lie "
+            "0.0 mm RMS from the model's after registration): change position_unit = m (" + dir + "/u.map:7) to mm");
+  said = identifyWithWrongUnits("units_m_as_mm", "m", "deg", "deg", "mm", &dir);
+  EXPECT_EQ(said,
+            "the measured positions spread 1/1000.0 as far as the model's points: positions in m read as mm (so converted, they lie "
+            "0.0 mm RMS from the model's after registration): change position_unit = mm (" + dir + "/u.map:7) to m");
+  said = identifyWithWrongUnits("units_rad_as_deg", "mm", "rad", "deg", "mm", &dir);
+  EXPECT_EQ(said,
+            "the joint angles fit at 180/pi times the values read: angles in rad read as deg (so converted, they lie 0.0 mm RMS from the "
+            "model's after registration): change joint_unit = deg (" + dir + "/u.map:5) to rad");
+  said = identifyWithWrongUnits("units_both", "m", "rad", "deg", "mm", &dir);
+  EXPECT_EQ(said,
+            "the measured positions spread 1/1000.0 as far as the model's points: positions in m read as mm, and the joint angles fit at "
+            "180/pi times the values read: angles in rad read as deg (so converted, they lie 0.0 mm RMS from the model's after "
+            "registration): change position_unit = mm (" + dir + "/u.map:7) to m, and change joint_unit = deg (" + dir + "/u.map:5) to rad");
+  said = identifyWithWrongUnits("units_own_m", "m", "deg", "", "", &dir);
+  EXPECT_EQ(said,
+            "the measured positions spread 1/1000.0 as far as the model's points: positions in m read as mm (so converted, they lie 0.0 "
+            "mm RMS from the model's after registration): convert the positions to mm (times 1000; accura's CSV is in mm and deg, "
+            "docs/measurement-format.md), or read the file through a mapping file with position_unit = m (docs/measurement-mapping.md)");
+  // the units right: fitted; y and z swapped (a mirror image, no rigid frame, no unit's factor):
+  // what to check, as before
+  EXPECT_EQ(identifyWithWrongUnits("units_right", "mm", "deg", "deg", "mm", &dir), "fitted");
+  said = identifyWithWrongUnits("units_yz", "mm", "deg", "deg", "mm", &dir, "px, pz, py");
+  EXPECT_EQ(said, "check the units the mapping states (joint_unit = deg (" + dir + "/u.map:5), position_unit = mm (" + dir +
+                      "/u.map:7)), the joint order and the robot file");
 }
 
 TEST(Import, ATrailingDelimiterIsNamedAndReadAsInTheCsvFormat) {
@@ -168,6 +211,48 @@ TEST(Import, ATrailingDelimiterIsNamedAndReadAsInTheCsvFormat) {
   EXPECT_EQ(error(header + "\n" + std::string("1;0,5;-1;1,2;0;0,3;-0,1;1,25;-0,5;0,7\0;10", 41) + row.substr(row.find(";-25")) + "\n"),
             dir + "/e.csv:2:10: column 'Pos Z': expected a number with ',' as decimal mark, found '0,7\\0' (\\0 is a NUL byte: a "
                   "binary or corrupted file?)");
+}
+
+// A measurement file given as the mapping, or a mapping given as the measurements (--map and
+// --data swapped): the error says which kind of file it is and where each belongs (before: "expected
+// 'key = value', found 'Stamp;J1;...'", "expected a column 'J1' in the header, found none", "missing
+// columns 'q1', ...": true, but not that the file was the other kind).
+TEST(Import, AMeasurementFileGivenAsTheMappingAndAMappingGivenAsTheMeasurementsAreSaidSo) {
+  const std::string dir = test::tempDir("import_swapped");
+  test::writeText(dir + "/e.map", kMap);
+  const std::string header = "Stamp;J1;J2;J3;J4;J5;J6;Pos X;Pos Y;Pos Z;RX;RY;RZ;SX;SY;SZ;SR;T";
+  test::writeText(dir + "/e.csv", header + "\n1;0,5;-1;1,2;0;0,3;-0,1;1,25;-0,5;0,75;10;-25;40;0,00001;0,00002;0,00003;0,002;21,5\n");
+  test::writeText(dir + "/own.csv", "# accura's own format\nq1,q2,q3,q4,q5,q6,x,y,z\n0,-90,90,0,0,0,1000,0,1200\n");
+  const auto error = [](const std::function<void()>& f) {
+    try {
+      f();
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string("accepted");
+  };
+  const std::string to_data =
+      ": this looks like a measurement file, not a mapping: its first line is a row of 18 fields separated by ';'; give the "
+      "measurements with --data (or --validate) and the mapping (key = value lines, docs/measurement-mapping.md) with --map";
+  EXPECT_EQ(error([&] { readMeasurementMapping(dir + "/e.csv", kr16()); }),
+            dir + "/e.csv:1:1: expected 'key = value', found '" + header.substr(0, 57) + "...'" + to_data);
+  // accura's own CSV as the mapping: its header (after its comment), 9 fields separated by ','
+  EXPECT_EQ(error([&] { readMeasurementMapping(dir + "/own.csv", kr16()); }),
+            dir + "/own.csv:2:1: expected 'key = value', found 'q1,q2,q3,q4,q5,q6,x,y,z': this looks like a measurement file, not a "
+                  "mapping: its first line is a row of 9 fields separated by ','; give the measurements with --data (or --validate) "
+                  "and the mapping (key = value lines, docs/measurement-mapping.md) with --map");
+  // a mapping's later line without '=' is a mapping's error, not a measurement file
+  test::writeText(dir + "/typo.map", std::string(kMap) + "ignore2 ; x, y, z\n");
+  EXPECT_EQ(error([&] { readMeasurementMapping(dir + "/typo.map", kr16()); }),
+            dir + "/typo.map:14:1: expected 'key = value', found 'ignore2 ; x, y, z'");
+  const std::string to_map =
+      "this looks like a mapping file, not a measurement file: its first line 'delimiter = ;' is a mapping's key = value; give the "
+      "mapping with --map (or --validate-map) and the measurements with --data (or --validate)";
+  const MeasurementMapping m = readMeasurementMapping(dir + "/e.map", kr16());
+  EXPECT_EQ(error([&] { readMappedMeasurements(dir + "/e.map", m, kr16()); }),
+            dir + "/e.map:2:1: expected a header row naming the export's columns, found a line of a mapping: " + to_map);
+  EXPECT_EQ(error([&] { readMeasurementsCsv(dir + "/e.map", kr16()); }),
+            dir + "/e.map:2:1: expected a header row (q1..q6, x, y, z), found a line of a mapping: " + to_map);
 }
 
 void expectError(const std::string& map, const std::string& csv, const std::string& file_suffix, int line, int col,

@@ -493,6 +493,112 @@ std::string unitsToCheck(const MeasurementSet& set) {
   return set.units_stated.empty() ? "the units (positions in mm, joint angles in deg)" : "the units the mapping states (" + set.units_stated + ")";
 }
 
+// The RMS spread of points about their centre (mm).
+double spreadRms(const std::vector<Eigen::Vector3d>& p) {
+  Eigen::Vector3d c = Eigen::Vector3d::Zero();
+  for (const Eigen::Vector3d& v : p) c += v;
+  c /= double(p.size());
+  double s2 = 0;
+  for (const Eigen::Vector3d& v : p) s2 += (v - c).squaredNorm();
+  return std::sqrt(s2 / double(p.size()));
+}
+
+// Whether positions `rms_mm` from the model after registration, with `spread_mm` of their own,
+// are of no rigid frame (units or joint order wrong, another robot): the test registration()
+// refuses a data set by.
+bool ofNoFrame(double rms_mm, double spread_mm) { return rms_mm > 10.0 && rms_mm > 0.5 * spread_mm; }
+
+// What to check when the measured positions are of no frame of the model (ofNoFrame): when the
+// units read are wrong by a factor of a unit (positions in m read as mm or the reverse: 1000;
+// joint angles in rad read as deg or the reverse: 180/pi), the factor found and the unit to
+// change (the mapping's key and line, or how to convert accura's CSV); else unitsToCheck's list,
+// the joint order and the robot file. The factors are tried on `set`, registered as
+// registration() does; one is said when its registration passes the test the data failed and
+// takes the RMS below half of `rms_mm`.
+std::string unitsAdvice(const RobotModel& model, const MeasurementSet& set, bool estimate_tool, double rms_mm) {
+  const std::string general = "check " + unitsToCheck(set) + ", the joint order and the robot file";
+  if (set.rows.size() < 3) return general;
+  const auto statedUnit = [&](const std::string& key) -> const MeasurementSet::StatedUnit* {
+    for (const MeasurementSet::StatedUnit& u : set.units)
+      if (u.key == key) return &u;
+    return nullptr;
+  };
+  const MeasurementSet::StatedUnit* pos_key = statedUnit("position_unit");
+  const MeasurementSet::StatedUnit* joint_key = statedUnit("joint_unit");
+  const bool pos_in_m = pos_key && pos_key->unit == "m";
+  const bool joints_in_rad = joint_key && joint_key->unit == "rad";
+  // factors from what was read to the truth: positions (mm per mm read), revolute joints
+  std::vector<double> pos_factors = {1.0}, joint_factors = {1.0};
+  if (pos_in_m) pos_factors.push_back(1e-3);  // mm read as m (m read as km is no unit of an export)
+  else pos_factors.insert(pos_factors.end(), {1e3, 1e-3});  // m, or um, read as mm
+  const bool revolute = std::any_of(model.nominal.joints.begin(), model.nominal.joints.end(),
+                                    [](const JointSpec& j) { return j.type == JointType::kRevolute; });
+  if (revolute) joint_factors.push_back(joints_in_rad ? 1.0 / kRadToDeg : kRadToDeg);
+  double best_rms = rms_mm, best_pos = 1, best_joint = 1;
+  for (double fp : pos_factors)
+    for (double fj : joint_factors) {
+      if (fp == 1.0 && fj == 1.0) continue;
+      MeasurementSet scaled = set;
+      std::vector<Eigen::Vector3d> points;
+      for (Measurement& r : scaled.rows) {
+        r.p_world_mm *= fp;
+        for (int j = 0; j < model.dof(); ++j)
+          if (model.nominal.joints[static_cast<size_t>(j)].type == JointType::kRevolute) r.q[j] *= fj;
+        points.push_back(r.p_world_mm);
+      }
+      RobotModel m = model;
+      double rms = 0;
+      try {
+        rms = registerFrame(m, scaled, estimate_tool);
+      } catch (const NumericalError&) {
+        continue;
+      }
+      if (!ofNoFrame(rms, spreadRms(points)) && rms < 0.5 * rms_mm && rms < best_rms) {
+        best_rms = rms;
+        best_pos = fp;
+        best_joint = fj;
+      }
+    }
+  if (best_pos == 1.0 && best_joint == 1.0) return general;
+  std::string found, change;
+  if (best_pos != 1.0) {
+    // the factor the data show: the measured points' spread over the model's points' (rigid
+    // frames keep it; the tool point not yet fitted moves it by a few percent)
+    std::vector<Eigen::Vector3d> measured, modelled;
+    KinematicWorkspace ws;
+    for (const Measurement& r : set.rows) {
+      measured.push_back(r.p_world_mm);
+      Eigen::VectorXd q = r.q;
+      for (int j = 0; j < model.dof(); ++j)
+        if (model.nominal.joints[static_cast<size_t>(j)].type == JointType::kRevolute) q[j] *= best_joint;
+      modelled.push_back(forwardKinematics(model, q, r.context, ws).translation());
+    }
+    const double ratio = spreadRms(measured) / spreadRms(modelled);
+    const std::string read = pos_in_m ? "m" : "mm";
+    const std::string truth = best_pos * (pos_in_m ? 1000.0 : 1.0) == 1000.0 ? "m" : best_pos * (pos_in_m ? 1000.0 : 1.0) == 1.0 ? "mm" : "um";
+    found = "the measured positions spread " + (ratio >= 1 ? formatFixed(ratio, 1) + " times as far as" : "1/" + formatFixed(1 / ratio, 1) + " as far as") +
+            " the model's points: positions in " + truth + " read as " + read;
+    if (pos_key && truth != "um")
+      change = "change position_unit = " + pos_key->unit + " (" + pos_key->place + ") to " + truth;
+    else if (truth == "m")
+      change = "convert the positions to mm (times 1000; accura's CSV is in mm and deg, docs/measurement-format.md), or read the file "
+               "through a mapping file with position_unit = m (docs/measurement-mapping.md)";
+    else
+      change = "convert the positions to mm (divided by 1000; accura reads mm or m)";
+  }
+  if (best_joint != 1.0) {
+    const std::string truth = joints_in_rad ? "deg" : "rad", read = joints_in_rad ? "rad" : "deg";
+    found += std::string(found.empty() ? "" : ", and ") + "the joint angles fit at " +
+             (joints_in_rad ? "pi/180" : "180/pi") + " times the values read: angles in " + truth + " read as " + read;
+    const std::string c = joint_key ? "change joint_unit = " + joint_key->unit + " (" + joint_key->place + ") to " + truth
+                                    : "convert the joint angles to deg (times 180/pi; accura's CSV is in mm and deg, "
+                                      "docs/measurement-format.md), or read the file through a mapping file with joint_unit = rad "
+                                      "(docs/measurement-mapping.md)";
+    change += (change.empty() ? "" : ", and ") + c;
+  }
+  return found + " (so converted, they lie " + formatFixed(best_rms, 1) + " mm RMS from the model's after registration): " + change;
+}
+
 // 1. Closed-form registration of the measurement frame (and the tool point) on the first
 // station's rows; every further station registered in closed form against that model: into
 // pb.model and the stations' part of pb.x.
@@ -504,6 +610,7 @@ void registration(Problem& pb, const std::vector<MeasurementSet>& sets, const Id
   const size_t P = pb.P;
   std::vector<double>& x = pb.x;
   x.assign(pb.X, 0.0);
+  const RobotModel unregistered = model;  // (unitsAdvice registers data in other units from it)
   {
     MeasurementSet first = data;
     first.rows.clear();
@@ -532,13 +639,11 @@ void registration(Problem& pb, const std::vector<MeasurementSet>& sets, const Id
       // data set, or several told to share a station; several stations have their own test,
       // JointMap.SeveralDataSetsEachFromItsOwnStation). Without 'base' nothing registers the
       // frame: data in a tracker's frame lies metres from the model
-      Eigen::Vector3d c = Eigen::Vector3d::Zero();
-      for (const Measurement& r : in0.rows) c += r.p_world_mm;
-      c /= double(in0.rows.size());
-      double spread2 = 0;
-      for (const Measurement& r : in0.rows) spread2 += (r.p_world_mm - c).squaredNorm();
-      const double spread = std::sqrt(spread2 / double(in0.rows.size()));
-      if (summary.registration_rms_mm > 10.0 && summary.registration_rms_mm > 0.5 * spread && !base)
+      std::vector<Eigen::Vector3d> points;
+      for (const Measurement& r : in0.rows) points.push_back(r.p_world_mm);
+      const double spread = spreadRms(points);
+      const bool no_frame = ofNoFrame(summary.registration_rms_mm, spread);
+      if (no_frame && !base)
         throw InputError(sets[0].file, 0, 0,
                          "expected measurements in the model's world frame: the groups asked for have no 'base' to register the "
                          "measurement frame (the tracker's), and the measured positions lie " + formatFixed(summary.registration_rms_mm, 1) +
@@ -552,12 +657,12 @@ void registration(Problem& pb, const std::vector<MeasurementSet>& sets, const Id
                          "measured positions lie " + formatFixed(summary.registration_rms_mm, 1) + " mm RMS from the model's, more than " +
                              formatFixed(kMaxSharedStationRmsMm, 0) + " mm; give each its own station (leave out --same-station), or "
                              "check " + unitsToCheck(sets[1]) + " and the joint order");
-      if (summary.registration_rms_mm > 10.0 && summary.registration_rms_mm > 0.5 * spread)
+      if (no_frame)
         throw InputError(sets[0].file, 0, 0,
                          "expected measurements of " + model.nominal.name + " in mm and deg: after the measurement frame is registered, the " +
                              "measured positions lie " + formatFixed(summary.registration_rms_mm, 1) + " mm RMS from the model's, more than " +
-                             "half their own spread (" + formatFixed(spread, 1) + " mm RMS about their centre); check " + unitsToCheck(sets[0]) +
-                             ", the joint order and the robot file");
+                             "half their own spread (" + formatFixed(spread, 1) + " mm RMS about their centre); " +
+                             unitsAdvice(unregistered, sets[0], groups.count("tool") > 0, summary.registration_rms_mm));
     }
   }
 }

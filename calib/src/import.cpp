@@ -109,7 +109,33 @@ const std::set<std::string> kKeys = {
     "orientation", "orientation_unit", "position_std", "orientation_std", "weight", "payload_kg",
     "temperature_c", "time_s", "directions", "ignore"};
 
+/// The first line of a measurement file given where a mapping is expected (--map and --data
+/// swapped): a row of at least 3 fields separated by ';', a tab or ',' and no '='. What the file
+/// looks like, for the error at that line; else "".
+std::string measurementFileNote(const std::string& line) {
+  if (line.find('=') != std::string::npos) return "";
+  for (const char sep : {';', '\t', ','}) {
+    const std::vector<std::string> fields = splitFields(line, sep);
+    if (fields.size() < 3) continue;
+    const std::string name = sep == '\t' ? "tabs" : "'" + std::string(1, sep) + "'";
+    return ": this looks like a measurement file, not a mapping: its first line is a row of " + std::to_string(fields.size()) +
+           " fields separated by " + name +
+           "; give the measurements with --data (or --validate) and the mapping (key = value lines, docs/measurement-mapping.md) "
+           "with --map";
+  }
+  return "";
+}
+
 }  // namespace
+
+std::string mappingFileNote(const std::string& line) {
+  const size_t eq = line.find('=');
+  if (eq == std::string::npos) return "";
+  const std::string key = lower(trim(line.substr(0, eq)));
+  if (!kKeys.count(key)) return "";
+  return "this looks like a mapping file, not a measurement file: its first line '" + trim(line) + "' is a mapping's key = value; give "
+         "the mapping with --map (or --validate-map) and the measurements with --data (or --validate)";
+}
 
 Eigen::Matrix3d rotationFromAngles(const std::string& convention, const Eigen::Vector3d& a) {
   auto axis = [](char c) {
@@ -156,8 +182,11 @@ MeasurementMapping readMeasurementMapping(const std::string& path, const RobotDe
     const std::string t = trim(lines[i]);
     if (t.empty() || t[0] == '#') continue;
     const size_t eq = lines[i].find('=');
-    if (eq == std::string::npos)
-      throw InputError(path, ln, 1, "expected 'key = value', found '" + t + "'");
+    if (eq == std::string::npos) {
+      const std::string note = kv.empty() ? measurementFileNote(t) : std::string();
+      throw InputError(path, ln, 1, "expected 'key = value', found '" + (note.empty() || t.size() <= 60 ? t : t.substr(0, 57) + "...") +
+                                        "'" + note);
+    }
     const std::string key = lower(trim(lines[i].substr(0, eq)));
     std::string value = lines[i].substr(eq + 1);
     // trailing comment: ' #' outside the value (a '#' right after '=' may be a delimiter)
@@ -348,6 +377,9 @@ MappedHeader readHeader(const std::string& path, const std::vector<std::string>&
   while (h.row < lines.size() && (trim(lines[h.row]).empty() || trim(lines[h.row])[0] == '#')) ++h.row;
   if (h.row == lines.size()) throw InputError(path, 1, 1, "expected a header row, found an empty file");
   h.line = static_cast<int>(h.row) + 1;
+  // a mapping given as the measurements (--data and --map swapped)
+  if (const std::string note = mappingFileNote(lines[h.row]); !note.empty())
+    throw InputError(path, h.line, 1, "expected a header row naming the export's columns, found a line of a mapping: " + note);
   h.names = splitFields(lines[h.row], delimiter);
   for (size_t c = 0; c < h.names.size(); ++c) {
     h.names[c] = trim(h.names[c]);
@@ -583,7 +615,8 @@ MeasurementSet readMappedMeasurements(const std::string& path, const Measurement
       int line = 0;
       for (const auto& kl : m.key_lines)
         if (kl.first == key) line = kl.second;
-      return key + " = " + unit + " (" + m.file + (line ? ":" + std::to_string(line) : std::string()) + ")";
+      set.units.push_back({key, unit, m.file + (line ? ":" + std::to_string(line) : std::string())});
+      return key + " = " + unit + " (" + set.units.back().place + ")";
     };
     const bool prismatic = std::any_of(robot.joints.begin(), robot.joints.end(), [](const JointSpec& j) { return j.type == JointType::kPrismatic; });
     const bool revolute = std::any_of(robot.joints.begin(), robot.joints.end(), [](const JointSpec& j) { return j.type == JointType::kRevolute; });

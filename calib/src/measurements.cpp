@@ -16,6 +16,7 @@
 
 #include "accura/calib/errors.h"
 #include "accura/calib/file_io.h"
+#include "accura/calib/import.h"
 #include "accura/calib/text.h"
 
 namespace accura::calib {
@@ -268,6 +269,9 @@ void Reader::parseHeader(std::string_view text, int line) {
   layout_.q_col.assign(static_cast<std::size_t>(dof_), -1);
   layout_.dir_col.assign(static_cast<std::size_t>(dof_), -1);
 
+  // a mapping given as the measurements (--data and --map swapped)
+  if (const std::string note = mappingFileNote(std::string(text)); !note.empty())
+    fail(line, 1, "expected a header row (" + rangeName("q", dof_) + ", x, y, z), found a line of a mapping: " + note);
   const std::vector<std::string_view> fields = splitFields(text);
   // A file without its header row (a data row first): the numbers taken as names would fail as
   // a duplicate name or a missing column, which does not say that the names are missing.

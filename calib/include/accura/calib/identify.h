@@ -219,7 +219,11 @@ struct IdentifySummary {
 /// its configuration) counts once: it is left out, and a warning names it. Returns the calibrated
 /// model. Throws InputError when the data is too small for the
 /// parameters asked for (too few rows, or too few distinct joint configurations: repeats,
-/// repeatedConfigurations(), count once), ArgumentError on invalid options, NumericalError when the
+/// repeatedConfigurations(), count once) and when, registered, the measured positions lie more
+/// than 10 mm and half their own spread from the model's (units, joint order or robot wrong: a
+/// factor of a unit, positions times 1000 or 1/1000 or joint angles times 180/pi or pi/180, that
+/// brings them onto the model is said, with the mapping's line to change, MeasurementSet::units),
+/// ArgumentError on invalid options, NumericalError when the
 /// registration is degenerate (collinear points) or the solver fails.
 RobotModel identify(const RobotModel& start, const MeasurementSet& data,
                     const IdentifyOptions& options, IdentifySummary* summary);

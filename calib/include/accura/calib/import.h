@@ -33,10 +33,18 @@ struct MeasurementMapping {
   std::vector<std::pair<std::string, int>> key_lines;  ///< mapping file line of each key
 };
 
-/// Reads a mapping file. Throws InputError (mapping file:line:column) on an unknown key, a
+/// Reads a mapping file. Throws InputError (mapping file:line:column) on a line that is not
+/// `key = value` (a measurement file's header as the first such line: "this looks like a
+/// measurement file, not a mapping"), an unknown key, a
 /// missing required key, a bad unit or convention, a wrong number of columns, a column given
 /// two roles (mapped twice, or mapped and ignored: at its second mention).
 MeasurementMapping readMeasurementMapping(const std::string& path, const RobotDefinition& robot);
+
+/// For the measurement readers: when `line`, the first line of a file given as measurements that
+/// is neither blank nor a comment, is a mapping's `key = value` with one of the mapping's keys
+/// (the mapping given as --data, the export as --map), what the file looks like and where each
+/// belongs ("this looks like a mapping file, not a measurement file: ..."); else "".
+std::string mappingFileNote(const std::string& line);
 
 /// Reads an export through a mapping into accura's measurement form (mm, deg, world frame,
 /// unit quaternions; orientation stds converted to stds about the world axes through the

@@ -52,6 +52,12 @@ struct MeasurementSet {
   /// places ("joint_unit = rad (export.map:5), position_unit = mm (export.map:7)"), the place the
   /// user can fix them.
   std::string units_stated;
+  /// The same, key by key, for a message that names the one to change: {"position_unit", "m",
+  /// "export.map:7"}; empty for accura's CSV (mm and deg).
+  struct StatedUnit {
+    std::string key, unit, place;
+  };
+  std::vector<StatedUnit> units;
 };
 
 /// The kinds of measured values whose plausible ranges both readers (the CSV, and an
