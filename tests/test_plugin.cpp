@@ -259,8 +259,11 @@ TEST(Plugin, ProgramWithTheModulesOfItsTaskEqualsTheCommandLine) {
   EXPECT_EQ(test::readText(points_path), points + "ENDMODULE\n");
   // a NULL among the paths is an argument error, not a crash
   const char* with_null[] = {calib_path.c_str(), nullptr};
-  EXPECT_EQ(accura_compensate_program_modules(h.m, (dir + "/seam.mod").c_str(), (dir + "/plugin2").c_str(), &o, with_null, 2, &s), ACCURA_ERROR_INVALID_ARGUMENT);
-  EXPECT_NE(std::string(lastError(h.m)).find("task_modules[1]: expected a path, found NULL"), std::string::npos) << lastError(h.m);
+  EXPECT_EQ(accura_compensate_program_modules(h.m, (dir + "/seam.mod").c_str(), (dir + "/plugin2").c_str(), &o, with_null, 2, &s), ACCURA_ERROR_NULL_ARGUMENT);
+  EXPECT_NE(std::string(lastError(h.m)).find("accura_compensate_program_modules: task_modules[1] is NULL"), std::string::npos) << lastError(h.m);
+  // its errors carry its own name also without modules
+  EXPECT_EQ(accura_compensate_program_modules(h.m, nullptr, (dir + "/plugin2").c_str(), &o, nullptr, 0, &s), ACCURA_ERROR_NULL_ARGUMENT);
+  EXPECT_NE(std::string(lastError(h.m)).find("accura_compensate_program_modules: program_path is NULL"), std::string::npos) << lastError(h.m);
   std::filesystem::remove_all(dir);
 }
 

@@ -2341,6 +2341,27 @@ TEST(Rapid, ConfigGivenTwiceReadsBothModulesAndAGlobalNameInTwoIsAnError) {
   test::writeText(dir + "/calib.sys", "MODULE CalibData(SYSMODULE)\n" + kTool + "ENDMODULE\n");
   test::writeText(dir + "/points.mod", "MODULE Points\n" + kTool + kWobj + "ENDMODULE\n");
   EXPECT_EQ(readProgram(dir + "/m.mod", o).motions.size(), 3u);
+  // ... but declared with another value in the other module: which one the task starts with
+  // depends on the load order, an error as for two modules of one program
+  test::writeText(dir + "/points.mod",
+                  "MODULE Points\n  PERS tooldata tWeld:=[TRUE,[[0,0,200],[1,0,0,0]],[1.2,[0,0,60],[1,0,0,0],0,0,0]];\n" + kWobj + "ENDMODULE\n");
+  try {
+    readProgram(dir + "/m.mod", o);
+    ADD_FAILURE() << "PERS tWeld declared with two values";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()), dir + "/points.mod:2:17: expected the persistent 'tWeld' declared as at " + dir + "/calib.sys:2:17 (one object the "
+                                           "modules of the task share), found another type or value: the value it starts with would depend on the "
+                                           "order in which the controller loads the modules");
+  }
+  // a module is loaded once: given twice, or the program itself given as --config (a task's
+  // folder), it is that one module, not a second declaration of each of its names
+  test::writeText(dir + "/points.mod", points);
+  test::writeText(dir + "/calib.sys", "MODULE CalibData(SYSMODULE)\n" + kTool + "ENDMODULE\n");
+  setConfigPaths(o, {dir + "/calib.sys", dir + "/points.mod", dir + "/../" + std::filesystem::path(dir).filename().string() + "/points.mod", dir + "/m.mod"});
+  const Program twice = readProgram(dir + "/m.mod", o);
+  ASSERT_EQ(twice.motions.size(), 3u);
+  EXPECT_NEAR(twice.motions[0].target.xyzAbc().z_mm, 120, 1e-12);  // points.mod's pA
+  setConfigPaths(o, {dir + "/calib.sys", dir + "/points.mod"});
   // KRL: one $config.dat
   test::writeText(dir + "/a.src", "DEF a()\n  PTP {A1 0, A2 -90, A3 90, A4 0, A5 0, A6 0}\nEND\n");
   ProgramReadOptions k;

@@ -232,6 +232,8 @@ class Plugin:
                                        P(PathPoint), ctypes.c_size_t, P(PathResult), P(MotionReport)],
             "accura_program_options_init": [P(ProgramOptions), ctypes.c_size_t],
             "accura_compensate_program": [vp, ctypes.c_char_p, ctypes.c_char_p, P(ProgramOptions), P(ProgramSummary)],
+            "accura_compensate_program_modules": [vp, ctypes.c_char_p, ctypes.c_char_p, P(ProgramOptions),
+                                                  P(ctypes.c_char_p), ctypes.c_size_t, P(ProgramSummary)],
             "accura_model_get_joints": [vp, P(Joint), ctypes.c_size_t, P(ctypes.c_size_t)],
             "accura_write_options_init": [P(WriteOptions), ctypes.c_size_t],
             "accura_write_program": [vp, ctypes.c_char_p, P(ProgramMotion), ctypes.c_size_t, P(WriteOptions)],
@@ -438,8 +440,10 @@ class Model:
             self._check(st)
             return result, list(points[:result.n_points]), list(reports[:n])
 
-    def compensate_program(self, program, out_dir, tol_mm=0.05, dat=None, config=None, json_report=None):
-        """Compensates a program file (KRL .src or XML) into out_dir; returns a ProgramSummary."""
+    def compensate_program(self, program, out_dir, tol_mm=0.05, dat=None, config=None, json_report=None, task_modules=()):
+        """Compensates a program file (KRL .src, XML, RAPID module, URScript) into out_dir; returns a
+        ProgramSummary. task_modules: for an ABB RAPID module, the other modules of its task
+        (CalibData.mod, user.sys, ...), each only read (accura_compensate_program_modules)."""
         o = ProgramOptions()
         self._check(self.lib.accura_program_options_init(ctypes.byref(o), ctypes.sizeof(o)))
         o.tol_mm = tol_mm
@@ -447,8 +451,14 @@ class Model:
         o.config_path = _bytes(config)
         o.json_report_path = _bytes(json_report)
         s = ProgramSummary()
-        self._check(self.lib.accura_compensate_program(self.handle, _bytes(program), _bytes(out_dir), ctypes.byref(o),
-                                                       ctypes.byref(s)))
+        if task_modules:
+            paths = (ctypes.c_char_p * len(task_modules))(*[_bytes(m) for m in task_modules])
+            self._check(self.lib.accura_compensate_program_modules(self.handle, _bytes(program), _bytes(out_dir),
+                                                                   ctypes.byref(o), paths, len(task_modules),
+                                                                   ctypes.byref(s)))
+        else:
+            self._check(self.lib.accura_compensate_program(self.handle, _bytes(program), _bytes(out_dir), ctypes.byref(o),
+                                                           ctypes.byref(s)))
         return s
 
     def check_program(self, cell, program, as_written=False, capacity=64):

@@ -297,15 +297,13 @@ ACCURA_API accura_status accura_program_options_init(accura_program_options* o, 
   return initOptions(o, struct_size, "accura_program_options_init", [](accura_program_options& x) { x.tol_mm = 0.05; });
 }
 
-ACCURA_API accura_status accura_compensate_program(accura_model* model, const char* program_path, const char* out_dir,
-                                                   const accura_program_options* options, accura_program_summary* summary) {
-  return accura_compensate_program_modules(model, program_path, out_dir, options, nullptr, 0, summary);
-}
-
-ACCURA_API accura_status accura_compensate_program_modules(accura_model* model, const char* program_path, const char* out_dir,
-                                                           const accura_program_options* options, const char* const* task_modules,
-                                                           size_t n_task_modules, accura_program_summary* summary) {
-  return guarded(model, n_task_modules ? "accura_compensate_program_modules" : "accura_compensate_program", [&](Slot& slot) {
+namespace {
+/// accura_compensate_program and accura_compensate_program_modules, their errors prefixed with
+/// `function`.
+accura_status compensateProgram(const char* function, accura_model* model, const char* program_path, const char* out_dir,
+                                const accura_program_options* options, const char* const* task_modules, size_t n_task_modules,
+                                accura_program_summary* summary) {
+  return guarded(model, function, [&](Slot& slot) {
     requirePointers({{program_path, "program_path"}, {out_dir, "out_dir"}, {ifAny(n_task_modules, task_modules), "task_modules"}});
     // (an empty out_dir would be the host process's working directory, wherever that is)
     if (!*out_dir) throw calib::ArgumentError("out_dir: expected an output directory, found an empty string");
@@ -315,7 +313,7 @@ ACCURA_API accura_status accura_compensate_program_modules(accura_model* model, 
     q.out_dir = out_dir;
     q.read = readOptions(o.dat_path, o.config_path);
     for (size_t i = 0; i < n_task_modules; ++i) {
-      if (!task_modules[i]) throw calib::ArgumentError("task_modules[" + std::to_string(i) + "]: expected a path, found NULL");
+      if (!task_modules[i]) throw CallError(CallStatus::kNullArgument, "task_modules[" + std::to_string(i) + "] is NULL");
       if (q.read.config_path.empty()) q.read.config_path = task_modules[i];
       else q.read.more_config_paths.push_back(task_modules[i]);
     }
@@ -331,6 +329,18 @@ ACCURA_API accura_status accura_compensate_program_modules(accura_model* model, 
     copyString(summary->output_path, sizeof(summary->output_path),
                result.checked.files.empty() ? std::string() : result.checked.files.front().path);
   });
+}
+}  // namespace
+
+ACCURA_API accura_status accura_compensate_program(accura_model* model, const char* program_path, const char* out_dir,
+                                                   const accura_program_options* options, accura_program_summary* summary) {
+  return compensateProgram("accura_compensate_program", model, program_path, out_dir, options, nullptr, 0, summary);
+}
+
+ACCURA_API accura_status accura_compensate_program_modules(accura_model* model, const char* program_path, const char* out_dir,
+                                                           const accura_program_options* options, const char* const* task_modules,
+                                                           size_t n_task_modules, accura_program_summary* summary) {
+  return compensateProgram("accura_compensate_program_modules", model, program_path, out_dir, options, task_modules, n_task_modules, summary);
 }
 
 ACCURA_API accura_status accura_check_options_init(accura_check_options* o, size_t struct_size) {

@@ -175,6 +175,7 @@ class Reader {
     /// its text as read: the robtarget values and declarations data.robtargets refers to
     std::shared_ptr<const RapidSource> source;
     std::vector<std::array<std::optional<double>, 6>> ext;  ///< external axes of each of its values
+    std::vector<size_t> line_starts;  ///< the offset of each of its lines (a place in its text as line:column)
   };
 
   /// The text as another module of the task (TaskModule), read as run() reads it. InputError for
@@ -187,7 +188,7 @@ class Reader {
     if (modules_.empty())
       fail(t_.empty() ? 0 : t_.front().b, "expected a RAPID module (MODULE name ... ENDMODULE) with the task's tooldata and wobjdata, found " +
                                               (t_.empty() ? std::string("an empty file") : "'" + excerpt(t_.front().s) + "'"));
-    TaskModule m{src_->path, src_->text, global_, assigned_, {}, src_, ext_};
+    TaskModule m{src_->path, src_->text, global_, assigned_, {}, src_, ext_, starts_};
     for (const Scope& s : modules_)
       for (const auto& [u, where] : s.names)
         if (!global_.names.count(u)) m.locals.emplace(u, where);
@@ -612,6 +613,16 @@ class Reader {
     return isKw(t_, k, "CONST") || isKw(t_, k, "PERS") || isKw(t_, k, "VAR") ? k : kNoHead;
   }
 
+  /// The offset of the first character of the line statement st starts on.
+  size_t lineBegin(Range st) const { return starts_[static_cast<size_t>(loc(t_[st.first].b).line - 1)]; }
+  /// The offset just after the line end that ends statement st (the text's end without one).
+  size_t lineAfter(Range st) const {
+    const size_t nl = src_->text.find('\n', t_[st.second - 1].e);
+    return nl == std::string::npos ? src_->text.size() : nl + 1;
+  }
+  /// The blanks before statement st on its line.
+  std::string indentOf(Range st) const { return src_->text.substr(lineBegin(st), t_[st.first].b - lineBegin(st)); }
+
   /// The module-level data of every module, read before any routine: a module's data are
   /// visible to all its routines, and its global (not LOCAL) data to every module of the
   /// program, whatever the order in which they are written (RAPID, "Scope of data"). A
@@ -624,14 +635,6 @@ class Reader {
       const std::string& u = h != kNoHead ? t_[h].u : std::string();
       // where a new point this module declares goes (taskRobtarget): after its data written
       // before its first routine, else after its MODULE line
-      auto lineAfter = [&](Range st) {
-        const size_t nl = src_->text.find('\n', t_[st.second - 1].e);
-        return nl == std::string::npos ? src_->text.size() : nl + 1;
-      };
-      auto indentOf = [&](Range st) {
-        const size_t b = starts_[static_cast<size_t>(loc(t_[st.first].b).line - 1)];
-        return src_->text.substr(b, t_[st.first].b - b);
-      };
       if (u == "MODULE") {
         ++module_index_;
         modules_.resize(static_cast<size_t>(module_index_) + 1);
@@ -658,16 +661,28 @@ class Reader {
 
   /// A name `second` (the global data of the module `where`, given with --config) declares that
   /// `first` (another such module's, or this program's) declares too: an error at the second,
-  /// naming the first (RAPID: one global name per task). A persistent declared in both is one
-  /// object they share (PERS, TASK PERS: its value is the task's, wherever it is declared).
+  /// naming the first (RAPID: one global name per task). A persistent declared alike in both is
+  /// one object they share (PERS, TASK PERS: its value is the task's, wherever it is declared);
+  /// one of a type accura reads (a tooldata, a robtarget, ...) declared with another type or
+  /// value is an error too, as in one program's modules (declare()): the value it starts with
+  /// depends on the order in which the controller loads the modules.
   void sameGlobalName(const Scope& first, const Scope& second, const TaskModule& where) const {
     for (const auto& name_where : second.names) {
-      const auto it = first.names.find(name_where.first);
+      const std::string& u = name_where.first;
+      const auto it = first.names.find(u);
       if (it == first.names.end()) continue;
-      if (first.persistents.count(name_where.first) && second.persistents.count(name_where.first)) continue;
+      const auto p1 = first.persistents.find(u), p2 = second.persistents.find(u);
+      const bool both_pers = p1 != first.persistents.end() && p2 != second.persistents.end();
+      if (both_pers && (p1->second == p2->second || !(first.read_names.count(u) || second.read_names.count(u)))) continue;
       const SourceLocation& l = name_where.second;
+      const std::string name = excerpt(nameAt(where.text, l));
+      if (both_pers)
+        throw calib::InputError(l.file, l.line, l.column,
+                                "expected the persistent '" + name + "' declared as at " + it->second.str() + " (one object the modules of the task " +
+                                    "share), found another type or value: the value it starts with would depend on the order in which the " +
+                                    "controller loads the modules");
       throw calib::InputError(l.file, l.line, l.column,
-                              "expected one declaration of '" + excerpt(nameAt(where.text, l)) + "' in the task's global data (the modules of a " +
+                              "expected one declaration of '" + name + "' in the task's global data (the modules of a " +
                                   "task share the data that is not LOCAL, and the controller refuses a task that declares one twice), found a " +
                                   "second (the first at " + it->second.str() + ")");
     }
@@ -764,7 +779,7 @@ class Reader {
     d.indent = at.second;
     std::string storage = calib::upperAscii(from.head).find("VAR") != std::string::npos ? "VAR" : "CONST";
     d.head = "LOCAL " + storage + " robtarget ";
-    const SourceLocation declared = locate(lineStarts(task.source->text), task.path, v.begin);
+    const SourceLocation declared = locate(task.line_starts, task.path, v.begin);
     d.task_module = declared.str();
     v.begin = v.end = 0;
     for (auto& n : v.num) n = {0, 0};
@@ -777,13 +792,6 @@ class Reader {
     task_where_[mine] = declared;
     task_values_[key] = mine;
     return mine;
-  }
-
-  static std::vector<size_t> lineStarts(const std::string& text) {
-    std::vector<size_t> starts{0};
-    for (size_t i = 0; i < text.size(); ++i)
-      if (text[i] == '\n') starts.push_back(i + 1);
-    return starts;
   }
 
   void statement(Range r, Program& p) {
@@ -1255,10 +1263,9 @@ class Reader {
       if (!isOp(t, val.first, "[")) return;
       RapidSource::Decl d;
       d.name = nm;
-      d.line_begin = starts_[static_cast<size_t>(loc(t[r.first].b).line - 1)];
-      const size_t nl = src_->text.find('\n', t[r.second - 1].e);
-      d.line_end = nl == std::string::npos ? src_->text.size() : nl + 1;
-      d.indent = src_->text.substr(d.line_begin, t[r.first].b - d.line_begin);
+      d.line_begin = lineBegin(r);
+      d.line_end = lineAfter(r);
+      d.indent = indentOf(r);
       d.head = src_->text.substr(t[r.first].b, t[name].b - t[r.first].b);
       std::string unread;
       const int id = declaredRobtarget(d, val, &unread);
@@ -1357,10 +1364,9 @@ class Reader {
     a.unread.assign(elements.size(), std::string());
     // (the array's declaration, which a new point follows)
     RapidSource::Decl decl;
-    decl.line_begin = starts_[static_cast<size_t>(loc(t_[r.first].b).line - 1)];
-    const size_t nl = src_->text.find('\n', t_[r.second - 1].e);
-    decl.line_end = nl == std::string::npos ? src_->text.size() : nl + 1;
-    decl.indent = src_->text.substr(decl.line_begin, t_[r.first].b - decl.line_begin);
+    decl.line_begin = lineBegin(r);
+    decl.line_end = lineAfter(r);
+    decl.indent = indentOf(r);
     decl.head = src_->text.substr(t_[r.first].b, t_[name].b - t_[r.first].b);
     for (size_t e = 0; e < elements.size(); ++e) {
       const Range v = elements[e];
@@ -2081,13 +2087,26 @@ Program readRapid(const std::string& path, const std::string& task_module) {
 
 Program readRapid(const std::string& path, const std::vector<std::string>& task_modules) {
   if (task_modules.empty()) return readRapid(path);
+  // a module is loaded into the task once: the program itself given with --config (a batch
+  // over a task's folder whose --config points into it), or one module given twice, is that
+  // one module (the same file, through whatever path)
+  std::vector<std::string> paths{path};
+  const auto sameFile = [&paths](const std::string& m) {
+    for (const std::string& q : paths) {
+      std::error_code ec;
+      if (q == m || fs::equivalent(q, m, ec)) return true;
+    }
+    return false;
+  };
   std::vector<Reader::TaskModule> tasks;
   for (const std::string& m : task_modules) {
+    if (sameFile(m)) continue;
+    paths.push_back(m);
     Reader data(moduleText(m), m);
     tasks.push_back(data.taskData());
   }
   Reader r(moduleText(path), path);
-  r.useTaskData(std::move(tasks));
+  if (!tasks.empty()) r.useTaskData(std::move(tasks));
   return r.run();
 }
 
