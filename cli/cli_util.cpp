@@ -219,6 +219,10 @@ CLI::Option* addIntegerOption(CLI::App* c, const std::string& name, unsigned lon
   return addInteger<unsigned long long>(c, name, value, help, lo, hi);
 }
 
+CLI::Option* addConfigOption(CLI::App* c, std::vector<std::string>& paths, const std::string& help) {
+  return c->add_option("--config", paths, help)->expected(1)->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
+}
+
 calib::XyzAbc parsePose6(const std::string& text, const std::string& what) { return parsePose(text, what, false); }
 calib::XyzAbc parseTool(const std::string& text, const std::string& what) { return parsePose(text, what, true); }
 

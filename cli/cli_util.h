@@ -63,6 +63,9 @@ CLI::Option* addIntegerOption(CLI::App* c, const std::string& name, int& value, 
                               long long hi);
 CLI::Option* addIntegerOption(CLI::App* c, const std::string& name, unsigned long long& value, const std::string& help,
                               unsigned long long lo, unsigned long long hi);
+/// --config of compensate, check, convert and batch: once per file, in the order given (a RAPID
+/// task's modules; one $config.dat for KRL and XML, postproc::readProgram refuses a second).
+CLI::Option* addConfigOption(CLI::App* c, std::vector<std::string>& paths, const std::string& help);
 /// The text check behind addNumberOption, for numbers inside list options ("--payloads"):
 /// the parsed value, or calib::InputError "<what>: expected a number in [lo, hi] (unit), found '<text>'".
 double parseNumber(const std::string& text, const std::string& what, const NumberRange& r);

@@ -182,10 +182,8 @@ void addBatchCommand(CLI::App& app) {
   args->settings = addJobOptions(c, &args->model_files);
   c->add_option("--in", args->in, "directory of programs (read only)")->required();
   c->add_option("--out", args->out, "output directory (the same relative paths); not inside --in")->required();
-  c->add_option("--config", args->config, "$config.dat for every KRL and XML program: TOOL_DATA, BASE_DATA, global points; or, for every RAPID module, a "
-                "module of the task that declares tooldata, wobjdata or robtargets (CalibData.mod, user.sys; once per module)")
-      ->expected(1)
-      ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
+  addConfigOption(c, args->config, "$config.dat for every KRL and XML program: TOOL_DATA, BASE_DATA, global points; or, for every RAPID module, a "
+                "module of the task that declares tooldata, wobjdata or robtargets (CalibData.mod, user.sys; once per module)");
   addIntegerOption(c, "--jobs", args->jobs, "programs compensated in parallel (default: the number of cores)", 1, 1024)->capture_default_str();
   c->add_option("--json", args->json, "report of every program (with --cell: its check)");
   args->cell = addCellOptions(c, false, false);

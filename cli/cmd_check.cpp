@@ -171,10 +171,8 @@ void addCheckCommand(CLI::App& app) {
   args->cell = addCellOptions(c, true, true);
   c->add_option("--in", args->in, "program: PROG.src (KRL, with PROG.dat next to it), PROG.xml, PROG.script (URScript) or PROG.mod/.modx/.sys/.sysx/.prg (ABB RAPID)")->required();
   c->add_option("--dat", args->dat, "the KRL .dat (default: the .src's name with .dat)");
-  c->add_option("--config", args->config, "$config.dat: TOOL_DATA, BASE_DATA and global points such as XHOME; for a RAPID module: a module of its task that "
-                "declares its tooldata, wobjdata or robtargets (CalibData.mod, user.sys; once per module)")
-      ->expected(1)
-      ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
+  addConfigOption(c, args->config, "$config.dat: TOOL_DATA, BASE_DATA and global points such as XHOME; for a RAPID module: a module of its task that "
+                "declares its tooldata, wobjdata or robtargets (CalibData.mod, user.sys; once per module)");
   c->add_option("--json", args->json, "report: every violation (where, joints, which check, by how much) and per motion the margins");
   c->callback([=]() { exitCode() = runCheck(*args); });
 }

@@ -157,10 +157,8 @@ void addCompensateCommand(CLI::App& app) {
   args->settings = addJobOptions(c, &args->model_files);
   c->add_option("--in", args->in, "program: PROG.src (KRL, with PROG.dat next to it), PROG.xml, PROG.script (URScript) or PROG.mod/.modx/.sys/.sysx/.prg (ABB RAPID)")->required();
   c->add_option("--dat", args->dat, "the KRL .dat (default: the .src's name with .dat)");
-  c->add_option("--config", args->config, "$config.dat: TOOL_DATA, BASE_DATA and global points such as XHOME; for a RAPID module: a module of its task that "
-                "declares its tooldata, wobjdata or robtargets (CalibData.mod, user.sys; once per module)")
-      ->expected(1)
-      ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
+  addConfigOption(c, args->config, "$config.dat: TOOL_DATA, BASE_DATA and global points such as XHOME; for a RAPID module: a module of its task that "
+                "declares its tooldata, wobjdata or robtargets (CalibData.mod, user.sys; once per module)");
   c->add_option("--out", args->out, "output directory (the program keeps its file names)")->required();
   c->add_option("--json", args->json, "report: per target its correction, per segment the path error before and after");
   args->cell = addCellOptions(c, false, false);

@@ -11,6 +11,7 @@
 #include "accura/postproc/batch.h"
 #include "accura/postproc/program_io.h"
 #include "accura/postproc/urscript.h"
+#include "cli_util.h"
 #include "commands.h"
 
 namespace fs = std::filesystem;
@@ -89,10 +90,8 @@ void addConvertCommand(CLI::App& app) {
   auto* c = app.add_subcommand("convert", "convert a program between KUKA KRL (.src/.dat), the XML program format (.xml), URScript (.script) and ABB RAPID (.mod, .modx, .sys, .sysx, .prg)");
   c->add_option("--in", args->in, "program to read: PROG.src (KRL, with PROG.dat next to it), PROG.xml, PROG.script or PROG.mod/.modx/.sys/.sysx/.prg")->required();
   c->add_option("--dat", args->dat, "the KRL .dat (default: the .src's name with .dat)");
-  c->add_option("--config", args->config, "$config.dat: TOOL_DATA, BASE_DATA and global points such as XHOME; for a RAPID module: a module of its task that "
-                "declares its tooldata, wobjdata or robtargets (CalibData.mod, user.sys; once per module)")
-      ->expected(1)
-      ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
+  addConfigOption(c, args->config, "$config.dat: TOOL_DATA, BASE_DATA and global points such as XHOME; for a RAPID module: a module of its task that "
+                "declares its tooldata, wobjdata or robtargets (CalibData.mod, user.sys; once per module)");
   c->add_option("--out", args->out, "program to write: OUT.xml, OUT.src (with OUT.dat), OUT.script or OUT.mod/.modx/.sys/.sysx/.prg; its directory is created")->required();
   c->add_option("--json", args->json, "report: the inputs read, the motions, the files written (and the lines dropped)");
   c->add_flag("--drop-unconvertible", args->drop,
