@@ -21,7 +21,7 @@ if command -v ccache >/dev/null 2>&1; then launcher=(-DCMAKE_CXX_COMPILER_LAUNCH
 # minutes; -UNDEBUG (RelWithDebInfo without -DNDEBUG): Eigen's and the project's assertions on.
 CC=clang CXX=clang++ cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo \
   -DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 -DCMAKE_C_FLAGS_RELWITHDEBINFO=-O1 \
-  -DACCURA_SANITIZE=ON -DACCURA_BUILD_FUZZ=ON -DACCURA_BUILD_BENCH=OFF "${launcher[@]}" >/dev/null
+  -DACCURA_SANITIZE=ON -DACCURA_BUILD_FUZZ=ON -DACCURA_BUILD_BENCH=OFF -DACCURA_UNITY_BUILD=ON "${launcher[@]}" >/dev/null
 cmake --build "$build" -j"$jobs"
 
 # halt on the first report, with a stack trace; leaks are errors

@@ -1,7 +1,7 @@
 // The plug-in's C interface (plugin/include/accura_plugin.h, issue 6): the same numbers as the
 // C++ API for the same input, the same files as `accura compensate`, error statuses and
 // messages for bad input, and concurrent use of one handle from several threads.
-#if defined(__SANITIZE_ADDRESS__)
+#if defined(ACCURA_UNDER_SANITIZERS) || defined(__SANITIZE_ADDRESS__)  // (tests/CMakeLists.txt)
 #define ACCURA_TEST_ASAN 1
 #elif defined(__has_feature)
 #if __has_feature(address_sanitizer)

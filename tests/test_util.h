@@ -20,8 +20,9 @@
 namespace accura::test {
 
 /// Whether this test binary (and the accura it runs: the sanitizer build builds both) runs under
-/// AddressSanitizer, some 10-20 times slower than the Release build.
-#if defined(__SANITIZE_ADDRESS__)
+/// AddressSanitizer, some 10-20 times slower than the Release build. (The sanitizer build compiles
+/// the test code itself uninstrumented and says so with ACCURA_UNDER_SANITIZERS: tests/CMakeLists.txt.)
+#if defined(ACCURA_UNDER_SANITIZERS) || defined(__SANITIZE_ADDRESS__)
 inline constexpr bool kUnderSanitizers = true;
 #elif defined(__has_feature)
 #if __has_feature(address_sanitizer)
