@@ -1,13 +1,6 @@
 // The plug-in's C interface (plugin/include/accura_plugin.h, issue 6): the same numbers as the
 // C++ API for the same input, the same files as `accura compensate`, error statuses and
 // messages for bad input, and concurrent use of one handle from several threads.
-#if defined(ACCURA_UNDER_SANITIZERS) || defined(__SANITIZE_ADDRESS__)  // (tests/CMakeLists.txt)
-#define ACCURA_TEST_ASAN 1
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define ACCURA_TEST_ASAN 1
-#endif
-#endif
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -646,10 +639,10 @@ TEST(Plugin, BadInputGivesStatusesAndMessages) {
   EXPECT_EQ(accura_model_free(nullptr), ACCURA_OK);
   // out of memory: 2^40 poses need 128 TB of workspace (std::bad_alloc inside). Not under
   // AddressSanitizer, whose operator new reports and dies where the real one throws.
-#if !defined(ACCURA_TEST_ASAN)
-  EXPECT_EQ(accura_compensate_poses(h.m, &t, nullptr, size_t(1) << 40, 0, &r, nullptr), ACCURA_ERROR_OUT_OF_MEMORY);
-  EXPECT_NE(lastError(h.m).find("out of memory"), std::string::npos) << lastError(h.m);
-#endif
+  if (!test::kUnderSanitizers) {
+    EXPECT_EQ(accura_compensate_poses(h.m, &t, nullptr, size_t(1) << 40, 0, &r, nullptr), ACCURA_ERROR_OUT_OF_MEMORY);
+    EXPECT_NE(lastError(h.m).find("out of memory"), std::string::npos) << lastError(h.m);
+  }
   // values out of range
   accura_pose nan_pose = t;
   nan_pose.y_mm = std::nan("");
@@ -716,9 +709,7 @@ TEST(Plugin, AFailingMotionOfAPathIsNamed) {
 // is read, assimp's copy of it and its vertices do not fit. Not under AddressSanitizer (its
 // shadow memory needs the address space).
 TEST(Plugin, OutOfMemoryReadingAMeshIsOutOfMemory) {
-#if defined(ACCURA_TEST_ASAN)
-  GTEST_SKIP() << "RLIMIT_AS and AddressSanitizer do not go together";
-#else
+  if (test::kUnderSanitizers) GTEST_SKIP() << "RLIMIT_AS and AddressSanitizer do not go together";
   const std::string dir = test::tempDir("plugin_oom_mesh");
   {
     const uint32_t n = 800000;  // 50 bytes a triangle: 40 MB
@@ -777,7 +768,6 @@ TEST(Plugin, OutOfMemoryReadingAMeshIsOutOfMemory) {
   ASSERT_EQ(::waitpid(child, &wstatus, 0), child);
   EXPECT_TRUE(WIFEXITED(wstatus) && WEXITSTATUS(wstatus) == 0);
   EXPECT_EQ(got, std::to_string(int(ACCURA_ERROR_OUT_OF_MEMORY)) + " accura_check_program: out of memory");
-#endif
 }
 
 // The configuration asked for is enforced as accura compensate does: a target reachable only on
