@@ -6,7 +6,7 @@
 # the run. Used by .ci/run after scripts/test.sh.
 #
 #   FUZZ_SECONDS=0 bash scripts/sanitize.sh     # tests, then each corpus replayed once
-#   FUZZ_SECONDS=0 FUZZ_RUNS=20000 bash scripts/sanitize.sh   # ... and 20000 mutated inputs each, seed 1 (CI)
+#   FUZZ_SECONDS=0 FUZZ_RUNS=5000 bash scripts/sanitize.sh   # ... and 5000 mutated inputs each, seed 1 (CI)
 #   JOBS=1 bash scripts/sanitize.sh             # build and test with one core
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"

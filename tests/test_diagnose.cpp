@@ -372,6 +372,9 @@ TEST(Diagnose, BadInputIsAClearError) {
 // The selfcheck on one robot and one seed: every injected effect gets its verdict, and the
 // estimated shrink agrees with the same models measured on fresh poses.
 TEST(Diagnose, SelfcheckGetsEveryVerdictRight) {
+  if (test::kUnderSanitizers)
+    GTEST_SKIP() << "7 diagnoses of simulated campaigns: 29 s under the sanitizers; runSelfcheck's code is covered there "
+                    "by SelfcheckRealDataCases";
   SelfcheckOptions o;
   o.robots = {"kuka_kr16"};
   o.seeds = {9};
@@ -425,6 +428,8 @@ TEST(Diagnose, SelfcheckRealDataCases) {
 // - the same kind of compliance alone at 0.03 mm noise: below what 300 poses can show, so `none`
 //   is the data's verdict and counts as right (detection limit 8 sigma / sqrt(N)).
 TEST(Diagnose, SelfcheckOnASmallRobot) {
+  if (test::kUnderSanitizers)
+    GTEST_SKIP() << "3 selfchecks: 21 s under the sanitizers; runSelfcheck's code is covered there by SelfcheckRealDataCases";
   SelfcheckOptions o;
   o.robots = {"abb_irb120"};
   o.seeds = {1};

@@ -41,6 +41,9 @@ nlohmann::json identifyUr10(const std::string& name, const std::string& map, con
 }
 
 TEST(RealUr10, PositionOnlyGeometricFitMatchesThePublishedReference) {
+  if (test::kUnderSanitizers)
+    GTEST_SKIP() << "an identification of the real series: 17 s under the sanitizers; identify's code on the real "
+                    "data is covered there by CompleteModelWithOrientationAndComplianceBeatsTheReference";
   // the same data read without the orientation columns
   const std::string dir = test::tempDir("ur10_map");
   std::string map = test::readText(test::sourcePath("docs/mappings/ipa_robot_accuracy.map"));

@@ -1,5 +1,6 @@
 // accura: measurement exports read through a mapping file (docs/measurement-mapping.md).
 #include "accura/calib/import.h"
+#include "accura/calib/text.h"
 
 #include <algorithm>
 #include <charconv>
@@ -14,12 +15,6 @@
 
 namespace accura::calib {
 namespace {
-
-std::string trim(const std::string& s) {
-  const auto b = s.find_first_not_of(" \t\r");
-  if (b == std::string::npos) return "";
-  return s.substr(b, s.find_last_not_of(" \t\r") - b + 1);
-}
 
 std::string lower(std::string s) {
   for (char& c : s)
@@ -91,7 +86,7 @@ std::vector<std::string> readLines(const std::string& path) {
 
 // Parses a number written with `decimal` as the decimal separator; no thousands separators.
 bool parseNumber(std::string text, char decimal, double* value) {
-  text = trim(text);
+  text = trimBlanks(text);
   if (text.empty()) return false;
   if (decimal == ',') {
     if (text.find('.') != std::string::npos) return false;  // '.' is not the decimal mark here
@@ -131,9 +126,9 @@ std::string measurementFileNote(const std::string& line) {
 std::string mappingFileNote(const std::string& line) {
   const size_t eq = line.find('=');
   if (eq == std::string::npos) return "";
-  const std::string key = lower(trim(line.substr(0, eq)));
+  const std::string key = lower(trimBlanks(line.substr(0, eq)));
   if (!kKeys.count(key)) return "";
-  return "this looks like a mapping file, not a measurement file: its first line '" + trim(line) + "' is a mapping's key = value; give "
+  return "this looks like a mapping file, not a measurement file: its first line '" + trimBlanks(line) + "' is a mapping's key = value; give "
          "the mapping with --map (or --validate-map) and the measurements with --data (or --validate)";
 }
 
@@ -179,7 +174,7 @@ MeasurementMapping readMeasurementMapping(const std::string& path, const RobotDe
   std::map<std::string, ValueText> value_text;
   for (size_t i = 0; i < lines.size(); ++i) {
     const int ln = static_cast<int>(i) + 1;
-    const std::string t = trim(lines[i]);
+    const std::string t = trimBlanks(lines[i]);
     if (t.empty() || t[0] == '#') continue;
     const size_t eq = lines[i].find('=');
     if (eq == std::string::npos) {
@@ -187,13 +182,13 @@ MeasurementMapping readMeasurementMapping(const std::string& path, const RobotDe
       throw InputError(path, ln, 1, "expected 'key = value', found '" + (note.empty() || t.size() <= 60 ? t : t.substr(0, 57) + "...") +
                                         "'" + note);
     }
-    const std::string key = lower(trim(lines[i].substr(0, eq)));
+    const std::string key = lower(trimBlanks(lines[i].substr(0, eq)));
     std::string value = lines[i].substr(eq + 1);
     // trailing comment: ' #' outside the value (a '#' right after '=' may be a delimiter)
     const size_t hash = value.find(" #");
-    value_text[lower(trim(lines[i].substr(0, eq)))] = {lines[i], eq + 1, hash == std::string::npos ? lines[i].size() : eq + 1 + hash};
+    value_text[lower(trimBlanks(lines[i].substr(0, eq)))] = {lines[i], eq + 1, hash == std::string::npos ? lines[i].size() : eq + 1 + hash};
     if (hash != std::string::npos) value = value.substr(0, hash);
-    value = trim(value);
+    value = trimBlanks(value);
     const int col = static_cast<int>(lines[i].find_first_not_of(" \t")) + 1;
     if (!kKeys.count(key)) {
       std::string list;
@@ -226,7 +221,7 @@ MeasurementMapping readMeasurementMapping(const std::string& path, const RobotDe
     std::vector<std::string> out;
     if (value.empty()) return out;
     for (const auto& c : splitOn(value, ',')) {
-      const std::string name = trim(c);
+      const std::string name = trimBlanks(c);
       if (name.empty()) throw fail(key, "key '" + key + "': expected column names separated by ',', found an empty name");
       out.push_back(name);
     }
@@ -279,7 +274,7 @@ MeasurementMapping readMeasurementMapping(const std::string& path, const RobotDe
     const size_t colon = ori.find(':');
     if (colon == std::string::npos)
       throw fail("orientation", "key 'orientation': expected 'CONVENTION: column, column, ...', found '" + ori + "'");
-    m.orientation_convention = lower(trim(ori.substr(0, colon)));
+    m.orientation_convention = lower(trimBlanks(ori.substr(0, colon)));
     m.orientation = columns("orientation", ori.substr(colon + 1));
     const std::string& conv = m.orientation_convention;
     if (conv == "quaternion_wxyz" || conv == "quaternion_xyzw") {
@@ -345,7 +340,7 @@ MeasurementMapping readMeasurementMapping(const std::string& path, const RobotDe
         const std::string piece = t.line.substr(start, k - start);
         const size_t lead = piece.find_first_not_of(" \t");
         if (lead != std::string::npos) {
-          const std::string name = trim(piece);
+          const std::string name = trimBlanks(piece);
           const int column = static_cast<int>(start + lead) + 1;
           const auto [it, first] = seen.emplace(lower(name), First{key, ln});
           if (!first)
@@ -374,7 +369,7 @@ struct MappedHeader {
 
 MappedHeader readHeader(const std::string& path, const std::vector<std::string>& lines, char delimiter) {
   MappedHeader h;
-  while (h.row < lines.size() && (trim(lines[h.row]).empty() || trim(lines[h.row])[0] == '#')) ++h.row;
+  while (h.row < lines.size() && (trimBlanks(lines[h.row]).empty() || trimBlanks(lines[h.row])[0] == '#')) ++h.row;
   if (h.row == lines.size()) throw InputError(path, 1, 1, "expected a header row, found an empty file");
   h.line = static_cast<int>(h.row) + 1;
   // a mapping given as the measurements (--data and --map swapped)
@@ -382,7 +377,7 @@ MappedHeader readHeader(const std::string& path, const std::vector<std::string>&
     throw InputError(path, h.line, 1, "expected a header row naming the export's columns, found a line of a mapping: " + note);
   h.names = splitFields(lines[h.row], delimiter);
   for (size_t c = 0; c < h.names.size(); ++c) {
-    h.names[c] = trim(h.names[c]);
+    h.names[c] = trimBlanks(h.names[c]);
     if (h.names[c].empty()) continue;  // an unnamed column (a trailing delimiter): never mapped, reported as unused
     // a name may repeat (exports write 'std' after every value): ambiguous only when the mapping
     // uses it (mapColumns)
@@ -461,8 +456,8 @@ struct MappedRow {
   double num(int c) const {
     double v;
     if (!parseNumber(f[c], m.decimal, &v)) {
-      const std::string shown = trim(f[c]).empty() ? "an empty field"
-                                : "'" + trim(f[c]) + "'" +
+      const std::string shown = trimBlanks(f[c]).empty() ? "an empty field"
+                                : "'" + trimBlanks(f[c]) + "'" +
                                       (f[c].find('\0') != std::string::npos ? " (\\0 is a NUL byte: a binary or corrupted file?)" : "");
       throw InputError(path, ln, c + 1, "column '" + header[c] + "': expected a number with '" + std::string(1, m.decimal) +
                                             "' as decimal mark, found " + shown);
@@ -478,7 +473,7 @@ struct MappedRow {
       char converted[64] = "";
       if (scale != 1) std::snprintf(converted, sizeof converted, " (%.6g %s)", v, unit);
       throw InputError(path, ln, c + 1,
-                       "column '" + header[c] + "': expected " + expected + ", found '" + trim(f[c]) + "'" + converted);
+                       "column '" + header[c] + "': expected " + expected + ", found '" + trimBlanks(f[c]) + "'" + converted);
     }
     return v;
   }
@@ -504,7 +499,7 @@ void readJoints(const MappedRow& row, const std::vector<int>& jc, const RobotDef
         int ml = 0;
         for (const auto& kl : row.m.key_lines)
           if (kl.first == "joint_unit") ml = kl.second;
-        note = " (" + trim(row.f[static_cast<size_t>(jc[j])]) + " rad): a joint value beyond a turn in radians, and within the limits "
+        note = " (" + trimBlanks(row.f[static_cast<size_t>(jc[j])]) + " rad): a joint value beyond a turn in radians, and within the limits "
                "as degrees: the column looks like degrees, not the radians the mapping states (joint_unit = rad in " + row.m.file +
                (ml ? ":" + std::to_string(ml) : std::string()) + "); check the mapping's joint_unit";
       }
@@ -582,7 +577,7 @@ Measurement readRow(const MappedRow& row, const MappedColumns& c, const RobotDef
   for (int col : c.directions) {
     const double d = row.num(col);
     if (d != 1.0 && d != -1.0)
-      throw InputError(row.path, row.ln, col + 1, "column '" + row.header[col] + "': expected +1 or -1, found " + trim(row.f[col]));
+      throw InputError(row.path, row.ln, col + 1, "column '" + row.header[col] + "': expected +1 or -1, found " + trimBlanks(row.f[col]));
     r.dir.push_back(static_cast<int>(d));
   }
   // the model's context (kinematics.h): temperature and approach directions, when given
@@ -632,16 +627,16 @@ MeasurementSet readMappedMeasurements(const std::string& path, const Measurement
     else set.unknown_columns.push_back("an unnamed column " + std::to_string(k + 1));
   }
   // a trailing delimiter on the header or on the rows only: named when the field count differs
-  const auto endsWithDelimiter = [&](const std::string& l) { const std::string t = trim(l); return !t.empty() && t.back() == m.delimiter; };
+  const auto endsWithDelimiter = [&](const std::string& l) { const std::string t = trimBlanks(l); return !t.empty() && t.back() == m.delimiter; };
   const bool header_trails = endsWithDelimiter(lines[h.row]);
   for (size_t li = h.row + 1; li < lines.size(); ++li) {
-    const std::string t = trim(lines[li]);
+    const std::string t = trimBlanks(lines[li]);
     if (t.empty() || t[0] == '#') continue;
     const MappedRow row{path, h.names, m, static_cast<int>(li) + 1, splitFields(lines[li], m.delimiter)};
     // the header again (two exports concatenated): said as such, not as a field that is no number
     if (row.f.size() == h.names.size()) {
       bool header = true;
-      for (size_t k = 0; header && k < h.names.size(); ++k) header = lower(trim(row.f[k])) == lower(h.names[k]);
+      for (size_t k = 0; header && k < h.names.size(); ++k) header = lower(trimBlanks(row.f[k])) == lower(h.names[k]);
       if (header)
         throw InputError(path, row.ln, 1,
                          "expected a data row, found the header row again (the header is line " + std::to_string(h.line) +

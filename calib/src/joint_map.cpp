@@ -15,8 +15,6 @@
 namespace accura::calib {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
-
 // Uniform cubic B-spline weights at t in [0, 1] of the interval, and their derivatives d/dt.
 void splineWeights(double t, double w[4], double dw[4]) {
   const double u = 1 - t, t2 = t * t, t3 = t2 * t;

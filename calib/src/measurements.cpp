@@ -209,9 +209,9 @@ struct Layout {
   bool has(Role r) const { return at(r) >= 0; }
 };
 
-class Reader {
+class MeasurementReader {
  public:
-  Reader(const std::string& path, const RobotDefinition& robot)
+  MeasurementReader(const std::string& path, const RobotDefinition& robot)
       : path_(path), robot_(robot), dof_(robot.dof()) {}
 
   MeasurementSet read();
@@ -244,7 +244,7 @@ class Reader {
   MeasurementSet set_;
 };
 
-std::string Reader::loadFile() const {
+std::string MeasurementReader::loadFile() const {
   errno = 0;
   std::FILE* f = std::fopen(path_.c_str(), "rb");
   if (f == nullptr) {
@@ -264,7 +264,7 @@ std::string Reader::loadFile() const {
   return content;
 }
 
-void Reader::parseHeader(std::string_view text, int line) {
+void MeasurementReader::parseHeader(std::string_view text, int line) {
   std::fill(std::begin(layout_.col), std::end(layout_.col), -1);
   layout_.q_col.assign(static_cast<std::size_t>(dof_), -1);
   layout_.dir_col.assign(static_cast<std::size_t>(dof_), -1);
@@ -330,7 +330,7 @@ void Reader::parseHeader(std::string_view text, int line) {
 }
 
 /// A group of columns that must appear together (all or none).
-void Reader::requireGroup(int line, const std::string& what, const std::vector<Role>& roles,
+void MeasurementReader::requireGroup(int line, const std::string& what, const std::vector<Role>& roles,
                           const std::vector<std::string>& names) const {
   std::vector<std::string> found, missing;
   for (std::size_t i = 0; i < roles.size(); ++i) {
@@ -344,7 +344,7 @@ void Reader::requireGroup(int line, const std::string& what, const std::vector<R
   }
 }
 
-void Reader::checkGroups(int line) const {
+void MeasurementReader::checkGroups(int line) const {
   const Layout& L = layout_;
   // Required columns.
   std::vector<std::string> missing;
@@ -459,7 +459,7 @@ MeasuredValue measuredValueOf(Role role) {
   }
 }
 
-Measurement Reader::parseRow(std::string_view text, int line) const {
+Measurement MeasurementReader::parseRow(std::string_view text, int line) const {
   const Layout& L = layout_;
   const std::vector<std::string_view> fields = splitFields(text);
   if (fields.size() != L.columns.size()) {
@@ -559,7 +559,7 @@ Measurement Reader::parseRow(std::string_view text, int line) const {
   return m;
 }
 
-MeasurementSet Reader::read() {
+MeasurementSet MeasurementReader::read() {
   if (dof_ < 1) throw ArgumentError("readMeasurementsCsv: the robot has no joints");
   set_.file = path_;
   const std::string content = loadFile();
@@ -696,7 +696,7 @@ double statedPositionNoiseRms(const std::vector<const MeasurementSet*>& sets) {
 }
 
 MeasurementSet readMeasurementsCsv(const std::string& path, const RobotDefinition& robot) {
-  return Reader(path, robot).read();
+  return MeasurementReader(path, robot).read();
 }
 
 void writeMeasurementsCsv(const std::string& path, const MeasurementSet& set, int dof,

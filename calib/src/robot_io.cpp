@@ -31,9 +31,9 @@ using tinyxml2::XMLElement;
 
 /// The robot file's reader: every error at file:line:column (xml_text.h), saying what was
 /// expected and what was found.
-class Reader {
+class RobotReader {
  public:
-  Reader(std::string file, const XmlPositions& pos) : file_(std::move(file)), pos_(pos) {}
+  RobotReader(std::string file, const XmlPositions& pos) : file_(std::move(file)), pos_(pos) {}
 
   /// An error in the element (at its '<').
   [[noreturn]] void fail(const XMLElement* e, const std::string& msg) const {
@@ -168,7 +168,7 @@ std::string robotsDir() {
 
 namespace {
 
-JointSpec readJoint(const Reader& R, const XMLElement* j) {
+JointSpec readJoint(const RobotReader& R, const XMLElement* j) {
   if (std::string(j->Name()) != "joint")
     R.fail(j, "<joints>: expected <joint>, found <" + std::string(j->Name()) + ">");
   R.checkAttributes(j, {"name", "type", "a_mm", "alpha_deg", "d_mm", "theta0_deg", "direction",
@@ -200,7 +200,7 @@ JointSpec readJoint(const Reader& R, const XMLElement* j) {
 }
 
 /// The nominal robot: <robot>'s attributes, base, tool, payload, gravity and joints.
-RobotDefinition readDefinition(const Reader& R, const XMLElement* root) {
+RobotDefinition readDefinition(const RobotReader& R, const XMLElement* root) {
   R.checkAttributes(root, {"name", "source"});
   R.checkContent(root, true);
   for (const XMLElement* c = root->FirstChildElement(); c; c = c->NextSiblingElement()) {
@@ -249,7 +249,7 @@ RobotDefinition readDefinition(const Reader& R, const XMLElement* root) {
 
 /// A <joint_map> or <fit_range> of <calibration>: the joint's index (0-based), its limits
 /// checked. The map itself goes into the model; a range into `ranges`.
-void readJointCurve(const Reader& R, const XMLElement* p, RobotModel& model, std::vector<JointRange>& ranges,
+void readJointCurve(const RobotReader& R, const XMLElement* p, RobotModel& model, std::vector<JointRange>& ranges,
                     std::set<int>& range_seen) {
   const std::string tag = p->Name();
   const int dof = model.dof();
@@ -303,7 +303,7 @@ void readJointCurve(const Reader& R, const XMLElement* p, RobotModel& model, std
   for (std::string v; values >> v;) {
     char* end = nullptr;
     const double x = std::strtod(v.c_str(), &end);
-    if (end == v.c_str() || *end != '\0' || !std::isfinite(x) || std::abs(x) > Reader::kMaxMagnitude)
+    if (end == v.c_str() || *end != '\0' || !std::isfinite(x) || std::abs(x) > RobotReader::kMaxMagnitude)
       R.failContent(p, v, "<joint_map> of joint " + std::to_string(j + 1) +
                               ": expected finite numbers of magnitude at most 1e6, found '" + v + "'");
     m.coef.push_back(x / scale);
@@ -314,7 +314,7 @@ void readJointCurve(const Reader& R, const XMLElement* p, RobotModel& model, std
 }
 
 /// <calibration>'s parameters, joint maps and fitted ranges into the model's deviations.
-void readCalibration(const Reader& R, const XMLElement* cal, FormPolicy policy, RobotModel& model) {
+void readCalibration(const RobotReader& R, const XMLElement* cal, FormPolicy policy, RobotModel& model) {
   const std::vector<ParamInfo> layout = parameterLayout(model);
   std::set<std::string> seen;
   model.deviations.fit_range.clear();
@@ -372,7 +372,7 @@ RobotModel readRobotFile(const std::string& path) {
   tinyxml2::XMLDocument doc;
   parseXml(doc, text, path, "a robot file with root element <robot>");
   const XmlPositions positions(text, doc);
-  const Reader R(path, positions);
+  const RobotReader R(path, positions);
   const XMLElement* root = doc.RootElement();
   if (!root || std::string(root->Name()) != "robot")
     R.fail(root, "expected root element <robot>, found <" + std::string(root ? root->Name() : "nothing") + ">");
@@ -440,10 +440,10 @@ std::string robotFileText(const RobotModel& model, const std::vector<ParameterRe
     if (p.kind == ParamKind::kJointMap) continue;  // written as <joint_map> below
     auto it = by_name.find(p.name);
     if (v == 0.0 && it == by_name.end()) continue;
-    // the reader takes magnitudes up to 1e6 (Reader::kMaxMagnitude): a file it would refuse is
+    // the reader takes magnitudes up to 1e6 (RobotReader::kMaxMagnitude): a file it would refuse is
     // not written; such a value is a parameter the data did not determine
     const double sigma = it != by_name.end() ? it->second->sigma : 0.0;
-    if (std::abs(v) > Reader::kMaxMagnitude || (std::isfinite(sigma) && std::abs(sigma) > Reader::kMaxMagnitude))
+    if (std::abs(v) > RobotReader::kMaxMagnitude || (std::isfinite(sigma) && std::abs(sigma) > RobotReader::kMaxMagnitude))
       throw NumericalError(p.name + " = " + fmt(v) + (it != by_name.end() ? " +- " + fmt(sigma) : std::string()) + " " + p.unit +
                            ": beyond what a robot file holds (magnitude at most 1e6): the data does not determine it, and the "
                            "model is not written; leave it out of --params (e.g. joint_compliance:j1+j2+j3), or measure what "

@@ -67,6 +67,12 @@ std::string upperAscii(std::string s) {
   return s;
 }
 
+std::string trimBlanks(const std::string& s) {
+  const size_t first = s.find_first_not_of(" \t\r");
+  if (first == std::string::npos) return "";
+  return s.substr(first, s.find_last_not_of(" \t\r") - first + 1);
+}
+
 std::string printableBytes(const std::string& s) {
   static const char* const kHex = "0123456789ABCDEF";
   std::string out;

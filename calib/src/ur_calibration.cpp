@@ -23,12 +23,6 @@ namespace {
 
 constexpr auto num17 = urdf_detail::shortestNumber;
 
-std::string trim(const std::string& s) {
-  const size_t a = s.find_first_not_of(" \t\r");
-  if (a == std::string::npos) return "";
-  return s.substr(a, s.find_last_not_of(" \t\r") - a + 1);
-}
-
 /// 1-based column of the first character of `raw` from `from` on that is not blank (one past
 /// the end when there is none).
 int columnOfText(const std::string& raw, size_t from = 0) {
@@ -37,7 +31,7 @@ int columnOfText(const std::string& raw, size_t from = 0) {
 }
 
 double parseNumber(const std::string& file, int line, int column, const std::string& text, const std::string& what) {
-  const std::string t = trim(text);
+  const std::string t = trimBlanks(text);
   char* end = nullptr;
   const double v = std::strtod(t.c_str(), &end);
   if (t.empty() || *end != '\0' || !std::isfinite(v))
@@ -297,12 +291,12 @@ UrDeltas readUrCalibrationConf(const std::string& path, int dof) {
     // (the columns are those of the line as written: a comment is cut off at its end)
     std::string raw = lines[k];
     if (const size_t hash = raw.find('#'); hash != std::string::npos) raw = raw.substr(0, hash);
-    const std::string l = trim(raw);
+    const std::string l = trimBlanks(raw);
     if (l.empty()) continue;
     const int first = columnOfText(raw);
     if (l.front() == '[') {
       if (l.back() != ']') throw InputError(path, line, first, "expected a section header like [mounting], found '" + l + "'");
-      section = trim(l.substr(1, l.size() - 2));
+      section = trimBlanks(l.substr(1, l.size() - 2));
       any_section = true;
       // UR's controller writes the section as [mounting]; another spelling is another section
       // to an INI reader, and taking it for this one would be a guess
@@ -322,17 +316,17 @@ UrDeltas readUrCalibrationConf(const std::string& path, int dof) {
     const size_t eq = raw.find('=');
     if (eq == std::string::npos) throw InputError(path, line, first, "expected 'key = value', found '" + l + "'");
     if (!any_section)  // an INI file's keys belong to a section: UR's controller writes [mounting] first
-      throw InputError(path, line, first, "expected the section header [mounting] before '" + trim(raw.substr(0, eq)) +
+      throw InputError(path, line, first, "expected the section header [mounting] before '" + trimBlanks(raw.substr(0, eq)) +
                                           " = ...' (UR's controller writes the deltas in section [mounting]), found no section header");
     if (section != "mounting") continue;
-    const std::string key = trim(raw.substr(0, eq));
+    const std::string key = trimBlanks(raw.substr(0, eq));
     auto it = wanted.find(key);
     if (it == wanted.end()) continue;  // joint_checksum, calibration_status, ...: not kinematics
     if (seen.count(key))
       throw InputError(path, line, first, key + " given twice (first at line " + std::to_string(seen[key]) + ")");
     seen[key] = line;
     const int value_column = columnOfText(raw, eq + 1);
-    const std::string v = trim(raw.substr(eq + 1));
+    const std::string v = trimBlanks(raw.substr(eq + 1));
     if (v.size() < 2 || v.front() != '[' || v.back() != ']')
       throw InputError(path, line, value_column,
                        key + ": expected a list [v1, ..., v" + std::to_string(dof) + "], found '" + v + "'");
@@ -362,7 +356,7 @@ UrDeltas readUrCalibrationConf(const std::string& path, int dof) {
   }
   if (!mounting_line) {
     bool blank = true;
-    for (const std::string& l : lines) blank = blank && trim(l).empty();
+    for (const std::string& l : lines) blank = blank && trimBlanks(l).empty();
     throw InputError(path, 1, 1, "expected a section [mounting] with delta_theta, delta_a, delta_d and delta_alpha, found " +
                                      (other_sections.empty() ? std::string(blank ? "an empty file" : "no section")
                                                              : "only the section(s) " + other_sections));
@@ -549,15 +543,15 @@ SerialChain readUrCalibrationYaml(const std::string& path) {
     const int line = static_cast<int>(k + 1);
     std::string raw = lines[k];
     if (const size_t hash = raw.find('#'); hash != std::string::npos) raw = raw.substr(0, hash);
-    if (trim(raw).empty()) continue;
+    if (trimBlanks(raw).empty()) continue;
     const size_t indent = raw.find_first_not_of(' ');
     const int first = columnOfText(raw);
-    const std::string l = trim(raw);
+    const std::string l = trimBlanks(raw);
     if (raw[indent] == '\t') throw InputError(path, line, static_cast<int>(indent) + 1, "expected spaces for the indentation (YAML allows no tabs there), found a tab");
     if (indent == 0 && (l == "---" || l == "...")) continue;  // a YAML document's start and end
     const size_t colon = raw.find(':');
     if (colon == std::string::npos) throw InputError(path, line, first, "expected 'key: value', found '" + l + "'");
-    const std::string key = trim(raw.substr(0, colon)), value = trim(raw.substr(colon + 1));
+    const std::string key = trimBlanks(raw.substr(0, colon)), value = trimBlanks(raw.substr(colon + 1));
     if (indent == 0) {
       if (key != "kinematics") throw InputError(path, line, first, "expected 'kinematics:', found '" + l + "'");
       kin_line = line;
@@ -591,8 +585,8 @@ SerialChain readUrCalibrationYaml(const std::string& path) {
         const std::string item = raw.substr(at, end - at);
         const size_t c = item.find(':');
         const int item_column = columnOfText(raw, at);
-        if (c == std::string::npos) throw InputError(path, line, item_column, "'" + link + "': expected 'key: value', found '" + trim(item) + "'");
-        setValue(line, item_column, columnOfText(raw, at + c + 1), trim(item.substr(0, c)), trim(item.substr(c + 1)));
+        if (c == std::string::npos) throw InputError(path, line, item_column, "'" + link + "': expected 'key: value', found '" + trimBlanks(item) + "'");
+        setValue(line, item_column, columnOfText(raw, at + c + 1), trimBlanks(item.substr(0, c)), trimBlanks(item.substr(c + 1)));
         at = end + 1;
       }
       link.clear();

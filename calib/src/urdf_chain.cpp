@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <sstream>
 
+#include "accura/calib/text.h"
 #include "accura/calib/errors.h"
 #include "accura/calib/kinematics.h"
 #include "accura/calib/urdf.h"
@@ -52,13 +53,6 @@ Eigen::Vector3d perpendicular(const Eigen::Vector3d& v, const Eigen::Vector3d& z
   if (p.norm() < 1e-6) p = fallback - fallback.dot(z) * z;
   if (p.norm() < 1e-6) p = z.unitOrthogonal();
   return p.normalized();
-}
-
-std::string fmtNum(double v) {
-  std::ostringstream s;
-  s.precision(3);
-  s << v;
-  return s.str();
 }
 
 // Link parameters in internal units (rad, mm).
@@ -416,8 +410,8 @@ RobotModel modelFromChain(const SerialChain& chain, const RobotDefinition* refer
   if (!(cmp.max_position_mm <= tol_mm) || !(cmp.max_rotation_rad <= tol_rad)) {
     throw NumericalError("converting the serial chain " + chain.root_link + ":" + chain.tip_link + " of '" +
                          chain.source + "' into accura's model: the model's FK differs from the chain's by " +
-                         fmtNum(cmp.max_position_mm) + " mm / " + fmtNum(cmp.max_rotation_rad) +
-                         " rad (allowed " + fmtNum(tol_mm) + " mm / " + fmtNum(tol_rad) + " rad)");
+                         formatNumber("%.3g", cmp.max_position_mm) + " mm / " + formatNumber("%.3g", cmp.max_rotation_rad) +
+                         " rad (allowed " + formatNumber("%.3g", tol_mm) + " mm / " + formatNumber("%.3g", tol_rad) + " rad)");
   }
   return model;
 }

@@ -109,9 +109,9 @@ class Scanner {
 using detail::parseDecimal;
 using detail::parseDecimalInteger;
 
-class Checker {
+class MeshChecker {
  public:
-  Checker(const std::string& path, std::string_view data, double scale_to_mm) : path_(path), d_(data), scale_(scale_to_mm) {}
+  MeshChecker(const std::string& path, std::string_view data, double scale_to_mm) : path_(path), d_(data), scale_(scale_to_mm) {}
 
   [[noreturn]] void fail(int line, int column, const std::string& msg) const { throw calib::InputError(path_, line, column, msg); }
   [[noreturn]] void fail(const Word& w, const std::string& msg) const { throw calib::InputError(path_, w.line, w.column, msg); }
@@ -698,7 +698,7 @@ void checkScene(const std::string& path, const aiScene& scene, double scale_to_m
 /// Checks a PLY, STL or OBJ file's bytes (throws InputError) and makes an OBJ's mtllib
 /// statements comments (the bytes assimp reads are these).
 void checkMeshBytes(const std::string& path, std::string& bytes, double scale_to_mm) {
-  Checker c(path, bytes, scale_to_mm);
+  MeshChecker c(path, bytes, scale_to_mm);
   const std::string ext = lowerExtension(path);
   if (ext == ".ply") c.ply();
   else if (ext == ".stl") {

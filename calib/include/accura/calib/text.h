@@ -22,6 +22,9 @@ std::string printableBytes(const std::string& s);
 /// case-insensitive program languages: KRL, RAPID).
 std::string upperAscii(std::string s);
 
+/// `s` without its leading and trailing blanks (space, tab, CR); "" when it is all blanks.
+std::string trimBlanks(const std::string& s);
+
 /// A number with a fixed count of decimals ("%.*f"), never "-0.000" (a value that rounds to
 /// zero is written without a sign): the same text on every machine. Throws ArgumentError for a
 /// NaN or infinity (the writers must not write one) and for decimals outside 0..17.
