@@ -1,6 +1,5 @@
 // accura: measurement exports read through a mapping file (docs/measurement-mapping.md).
 #include "accura/calib/import.h"
-#include "accura/calib/text.h"
 
 #include <algorithm>
 #include <charconv>
@@ -12,6 +11,7 @@
 
 #include "accura/calib/errors.h"
 #include "accura/calib/geometry.h"
+#include "accura/calib/text.h"
 
 namespace accura::calib {
 namespace {

@@ -3,11 +3,10 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
-#include <sstream>
 
-#include "accura/calib/text.h"
 #include "accura/calib/errors.h"
 #include "accura/calib/kinematics.h"
+#include "accura/calib/text.h"
 #include "accura/calib/urdf.h"
 #include "urdf_common.h"
 
