@@ -373,7 +373,7 @@ TEST(Diagnose, BadInputIsAClearError) {
 // estimated shrink agrees with the same models measured on fresh poses.
 TEST(Diagnose, SelfcheckGetsEveryVerdictRight) {
   if (test::kUnderSanitizers)
-    GTEST_SKIP() << "7 diagnoses of simulated campaigns: 29 s under the sanitizers; runSelfcheck's code is covered there "
+    GTEST_SKIP() << "7 diagnoses of simulated campaigns: 15 s under the sanitizers; runSelfcheck's code is covered there "
                     "by SelfcheckRealDataCases";
   SelfcheckOptions o;
   o.robots = {"kuka_kr16"};
@@ -429,7 +429,7 @@ TEST(Diagnose, SelfcheckRealDataCases) {
 //   is the data's verdict and counts as right (detection limit 8 sigma / sqrt(N)).
 TEST(Diagnose, SelfcheckOnASmallRobot) {
   if (test::kUnderSanitizers)
-    GTEST_SKIP() << "3 selfchecks: 21 s under the sanitizers; runSelfcheck's code is covered there by SelfcheckRealDataCases";
+    GTEST_SKIP() << "3 selfchecks: 10 s under the sanitizers; runSelfcheck's code is covered there by SelfcheckRealDataCases";
   SelfcheckOptions o;
   o.robots = {"abb_irb120"};
   o.seeds = {1};

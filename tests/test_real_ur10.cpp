@@ -41,9 +41,6 @@ nlohmann::json identifyUr10(const std::string& name, const std::string& map, con
 }
 
 TEST(RealUr10, PositionOnlyGeometricFitMatchesThePublishedReference) {
-  if (test::kUnderSanitizers)
-    GTEST_SKIP() << "an identification of the real series: 17 s under the sanitizers; identify's code on the real "
-                    "data is covered there by CompleteModelWithOrientationAndComplianceBeatsTheReference";
   // the same data read without the orientation columns
   const std::string dir = test::tempDir("ur10_map");
   std::string map = test::readText(test::sourcePath("docs/mappings/ipa_robot_accuracy.map"));
@@ -65,9 +62,6 @@ TEST(RealUr10, PositionOnlyGeometricFitMatchesThePublishedReference) {
 }
 
 TEST(RealUr10, AModelWorseThanTheNominalRobotOnTheValidationSaysSo) {
-  if (test::kUnderSanitizers)
-    GTEST_SKIP() << "an identification of the real series: 26 s under the sanitizers (1 s in Release); identify's "
-                    "code is covered there by CompleteModelWithOrientationAndComplianceBeatsTheReference and Identify.*";
   // gear_periodic fitted on less than half a turn of joints 1, 2, 5 and 6 (Series_B) takes
   // Series_C, outside those ranges, to twice the nominal robot's error: both are said (the run
   // used to print "improved 0.5-fold" and "not extrapolated there")
@@ -123,9 +117,6 @@ TEST(RealUr10, StaleTrackerReadingsOfSeriesBAreNamed) {
 // The joint maps (issue 11): fitted on Series_B, Series_C lies outside B's joint ranges (joint 1
 // everywhere): the maps must do no harm there and the output must say so.
 TEST(RealUr10, JointMapsOnSeriesBDoNoHarmOnSeriesCAndSayItLiesOutside) {
-  if (test::kUnderSanitizers)
-    GTEST_SKIP() << "the joint maps' cross-validation on the real series: 46 s under the sanitizers (1 s in Release); "
-                    "its code is covered there by JointMap.*";
   const auto j = identifyUr10("jmap", test::sourcePath("docs/mappings/ipa_robot_accuracy.map"),
                               "--params geometric,joint_compliance,joint_map");
   EXPECT_LE(j["validation"]["rms_mm"].get<double>(), 0.505);  // 0.503 without maps (README)
@@ -143,7 +134,7 @@ TEST(RealUr10, JointMapsOnSeriesBDoNoHarmOnSeriesCAndSayItLiesOutside) {
 // the error to about 0.13 mm (0.45 without them).
 TEST(RealUr10, TwoSeriesFromTwoStationsWithJointMaps) {
   if (test::kUnderSanitizers)
-    GTEST_SKIP() << "two real series with joint maps: 78 s under the sanitizers (2 s in Release); its code is "
+    GTEST_SKIP() << "two real series with joint maps: 12 s under the sanitizers (2 s in Release); its code is "
                     "covered there by JointMap.* and Diagnose.SeveralDataSetsEachFromItsOwnStation";
   const std::string dir = test::tempDir("ur10_two");
   const std::string data = test::sourcePath("tests/data/ipa-robot-accuracy/");
@@ -174,7 +165,7 @@ TEST(RealUr10, TwoSeriesFromTwoStationsWithJointMaps) {
 
 TEST(RealUr10, DiagnosisFindsTheResidualUnexplained) {
   if (test::kUnderSanitizers)
-    GTEST_SKIP() << "the diagnosis of the real Series_B: 137 s under the sanitizers (4 s in Release); its code "
+    GTEST_SKIP() << "the diagnosis of the real Series_B: 24 s under the sanitizers (4 s in Release); its code "
                     "paths are covered there by Diagnose.*, DiagnoseGlitches.* and DiagnoseOrientation.*";
   const std::string dir = test::tempDir("ur10_diag");
   const std::string data = test::sourcePath("tests/data/ipa-robot-accuracy/series_b_joint_configurations.csv");
@@ -319,7 +310,7 @@ TEST(RealUr10, DiagnosisFindsTheResidualUnexplained) {
 // over both ways. This is what the diagnosis' "data sets" scheme measures on the two together.
 TEST(RealUr10, Joint2ComplianceCarriesOverFromEachSeriesToTheOther) {
   if (test::kUnderSanitizers)
-    GTEST_SKIP() << "four identifications of the real series: 126 s under the sanitizers (3 s in Release); identify's "
+    GTEST_SKIP() << "four identifications of the real series: 27 s under the sanitizers (3 s in Release); identify's "
                     "code is covered there by the other RealUr10 and Identify tests";
   const std::string dir = test::tempDir("ur10_cross");
   const std::string data = test::sourcePath("tests/data/ipa-robot-accuracy/");
@@ -353,8 +344,8 @@ TEST(RealUr10, Joint2ComplianceCarriesOverFromEachSeriesToTheOther) {
 // does), and selects the compliance beside the maps.
 TEST(RealUr10, TwoSeriesDiagnosisSelectsTheComplianceThatCarriesOver) {
   if (test::kUnderSanitizers)
-    GTEST_SKIP() << "the diagnosis of both real series (4268 poses) ran into ctest's 600 s timeout under the sanitizers "
-                    "(30 s in Release); its code paths are covered there by Diagnose.SeveralDataSetsEachFromItsOwnStation "
+    GTEST_SKIP() << "the diagnosis of both real series (4268 poses): 116 s under the sanitizers (30 s in "
+                    "Release); its code paths are covered there by Diagnose.SeveralDataSetsEachFromItsOwnStation "
                     "(several stations, each held out) and DiagnoseOrientation.* (6D fits)";
   const std::string dir = test::tempDir("ur10_diag2");
   const std::string data = test::sourcePath("tests/data/ipa-robot-accuracy/");

@@ -20,7 +20,7 @@
 namespace accura::test {
 
 /// Whether this test binary (and the accura it runs: the sanitizer build builds both) runs under
-/// AddressSanitizer, some 10-20 times slower than the Release build. (The sanitizer build compiles
+/// AddressSanitizer, some 4-10 times slower than the Release build. (The sanitizer build compiles
 /// the test code itself uninstrumented and says so with ACCURA_UNDER_SANITIZERS: tests/CMakeLists.txt.)
 #if defined(ACCURA_UNDER_SANITIZERS) || defined(__SANITIZE_ADDRESS__)
 inline constexpr bool kUnderSanitizers = true;
