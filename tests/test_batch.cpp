@@ -30,36 +30,26 @@ namespace {
 using test::CliRun;
 CliRun accura(const std::string& dir, const std::string& args) { return test::runAccuraIn(dir, args); }
 
-std::string golden(const std::string& rel) { return test::sourcePath("tests/golden/" + rel); }
-
-// Every regular file of a tree: relative path -> content (a content "hash" that cannot collide).
-std::map<std::string, std::string> snapshot(const std::string& dir) {
-  std::map<std::string, std::string> m;
-  for (const auto& e : fs::recursive_directory_iterator(dir))
-    if (e.is_regular_file()) m[fs::relative(e.path(), dir).generic_string()] = test::readText(e.path().string());
-  return m;
-}
-
 // A tree of programs: the golden seam (KRL, CRLF) in three places, an XML program, a program
 // with a malformed target, an unreachable one, and a robot file (not a program).
 std::string makeTree(const std::string& root, int extra_copies = 0) {
   const std::string in = root + "/in";
-  test::copyText(golden("compensate/seam.src"), in + "/seam.src");
-  test::copyText(golden("compensate/seam.dat"), in + "/seam.dat");
-  test::copyText(golden("compensate/seam.src"), in + "/cell2/Seam_B.SRC");
-  test::copyText(golden("compensate/seam.dat"), in + "/cell2/Seam_B.dat");
-  test::copyText(golden("compensate/seam.src"), in + "/cell2/deep/seam.src");
-  test::copyText(golden("compensate/seam.dat"), in + "/cell2/deep/seam.dat");
-  test::copyText(golden("xml/weld_seam.xml"), in + "/cell2/weld_seam.xml");
-  test::copyText(golden("compensate/kr16_real.xml"), in + "/robot_model.xml");
+  test::copyText(test::golden("compensate/seam.src"), in + "/seam.src");
+  test::copyText(test::golden("compensate/seam.dat"), in + "/seam.dat");
+  test::copyText(test::golden("compensate/seam.src"), in + "/cell2/Seam_B.SRC");
+  test::copyText(test::golden("compensate/seam.dat"), in + "/cell2/Seam_B.dat");
+  test::copyText(test::golden("compensate/seam.src"), in + "/cell2/deep/seam.src");
+  test::copyText(test::golden("compensate/seam.dat"), in + "/cell2/deep/seam.dat");
+  test::copyText(test::golden("xml/weld_seam.xml"), in + "/cell2/weld_seam.xml");
+  test::copyText(test::golden("compensate/kr16_real.xml"), in + "/robot_model.xml");
   test::writeText(in + "/cell2/broken.src", "DEF broken( )\n$TOOL={X 0,Y 0,Z 100,A 0,B 0,C 0}\n$BASE=$NULLFRAME\nLIN {X 1000,Y 0,Z 800,A 0,B 90,Q 0}\nEND\n");
   test::writeText(in + "/far.src", "DEF far( )\n$TOOL={X 0,Y 0,Z 100,A 0,B 0,C 0}\n$BASE=$NULLFRAME\nPTP {X 5000,Y 0,Z 800,A 0,B 90,C 0}\nEND\n");
   for (int k = 0; k < extra_copies; ++k) {
-    test::copyText(golden("compensate/seam.src"), in + "/many/p" + std::to_string(k) + ".src");
-    test::copyText(golden("compensate/seam.dat"), in + "/many/p" + std::to_string(k) + ".dat");
+    test::copyText(test::golden("compensate/seam.src"), in + "/many/p" + std::to_string(k) + ".src");
+    test::copyText(test::golden("compensate/seam.dat"), in + "/many/p" + std::to_string(k) + ".dat");
   }
-  test::copyText(golden("compensate/kr16_real.xml"), root + "/model.xml");
-  test::copyText(golden("compensate/$config.dat"), root + "/$config.dat");
+  test::copyText(test::golden("compensate/kr16_real.xml"), root + "/model.xml");
+  test::copyText(test::golden("compensate/$config.dat"), root + "/$config.dat");
   return in;
 }
 
@@ -75,16 +65,16 @@ TEST(Batch, FindsProgramsSorted) {
 TEST(Batch, ABadFileIsReportedTheRestConvertedInputUnchanged) {
   const std::string root = test::tempDir("batch_tree");
   const std::string in = makeTree(root);
-  const auto before = snapshot(in);
+  const auto before = test::snapshot(in);
   const std::string common = "batch --robot model.xml --config '$config.dat' --in in --tol 0.02";
   const CliRun r1 = accura(root, common + " --out out1 --jobs 1 --json report1.json");
   const CliRun r2 = accura(root, common + " --out out2 --jobs 2 --json report2.json");
   EXPECT_EQ(r1.code, 2) << r1.err;
   EXPECT_EQ(r2.code, 2) << r2.err;
-  EXPECT_EQ(snapshot(in), before);  // the input tree is never modified
+  EXPECT_EQ(test::snapshot(in), before);  // the input tree is never modified
 
   // --jobs 1 and --jobs 2: byte-identical outputs, summary and report (but its out path)
-  const auto out1 = snapshot(root + "/out1"), out2 = snapshot(root + "/out2");
+  const auto out1 = test::snapshot(root + "/out1"), out2 = test::snapshot(root + "/out2");
   EXPECT_EQ(out1, out2);
   EXPECT_EQ(r1.out.substr(0, r1.out.find("wrote report")), r2.out.substr(0, r2.out.find("wrote report")));
   std::string j1 = test::readText(root + "/report1.json"), j2 = test::readText(root + "/report2.json");
@@ -99,10 +89,10 @@ TEST(Batch, ABadFileIsReportedTheRestConvertedInputUnchanged) {
                                              "cell2/weld_seam.xml", "seam.dat", "seam.src"};
   EXPECT_EQ(files, expected);
   // each KRL program equals the single-program compensation (the golden)
-  EXPECT_EQ(out1.at("seam.src"), test::readText(golden("compensate/expected/seam.src")));
-  EXPECT_EQ(out1.at("seam.dat"), test::readText(golden("compensate/expected/seam.dat")));
-  EXPECT_EQ(out1.at("cell2/deep/seam.dat"), test::readText(golden("compensate/expected/seam.dat")));
-  EXPECT_EQ(out1.at("cell2/Seam_B.SRC"), test::readText(golden("compensate/expected/seam.src")));
+  EXPECT_EQ(out1.at("seam.src"), test::readText(test::golden("compensate/expected/seam.src")));
+  EXPECT_EQ(out1.at("seam.dat"), test::readText(test::golden("compensate/expected/seam.dat")));
+  EXPECT_EQ(out1.at("cell2/deep/seam.dat"), test::readText(test::golden("compensate/expected/seam.dat")));
+  EXPECT_EQ(out1.at("cell2/Seam_B.SRC"), test::readText(test::golden("compensate/expected/seam.src")));
 
   // the report: the bad files with their errors (file:line:column), in sorted order
   EXPECT_NE(r1.out.find("FAILED cell2/broken.src: in/cell2/broken.src:4:32: expected a component of a Cartesian target"),
@@ -131,18 +121,18 @@ TEST(Batch, ABadFileIsReportedTheRestConvertedInputUnchanged) {
 
 TEST(Batch, AllConvertedExitsZeroAndTheOutputMayNotBeInsideTheInput) {
   const std::string root = test::tempDir("batch_ok");
-  test::copyText(golden("compensate/seam.src"), root + "/in/a/seam.src");
-  test::copyText(golden("compensate/seam.dat"), root + "/in/a/seam.dat");
-  test::copyText(golden("compensate/kr16_real.xml"), root + "/model.xml");
-  test::copyText(golden("compensate/$config.dat"), root + "/$config.dat");
+  test::copyText(test::golden("compensate/seam.src"), root + "/in/a/seam.src");
+  test::copyText(test::golden("compensate/seam.dat"), root + "/in/a/seam.dat");
+  test::copyText(test::golden("compensate/kr16_real.xml"), root + "/model.xml");
+  test::copyText(test::golden("compensate/$config.dat"), root + "/$config.dat");
   CliRun r = accura(root, "batch --robot model.xml --config '$config.dat' --in in --out out --jobs 3");
   EXPECT_EQ(r.code, 0) << r.err;
   EXPECT_TRUE(fs::exists(root + "/out/a/seam.src"));
-  const auto before = snapshot(root + "/in");
+  const auto before = test::snapshot(root + "/in");
   r = accura(root, "batch --robot model.xml --config '$config.dat' --in in --out in/compensated");
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.err.find("the output directory is inside the input tree"), std::string::npos) << r.err;
-  EXPECT_EQ(snapshot(root + "/in"), before);
+  EXPECT_EQ(test::snapshot(root + "/in"), before);
   r = accura(root, "batch --robot model.xml --in in --out out --jobs 0");
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.err.find("--jobs: expected an integer in [1, 1024], found '0' (see accura batch --help)"), std::string::npos) << r.err;
@@ -154,11 +144,11 @@ TEST(Batch, AllConvertedExitsZeroAndTheOutputMayNotBeInsideTheInput) {
 // there is nothing to correct: the script comes back byte for byte.
 TEST(Batch, ConfigServesTheKrlProgramsOfAMixedTreeNotTheUrScriptOnes) {
   const std::string root = test::tempDir("batch_mixed");
-  test::copyText(golden("urscript/ur10_seam.script"), root + "/in/ur/seam.script");
-  test::copyText(golden("compensate/$config.dat"), root + "/$config.dat");
+  test::copyText(test::golden("urscript/ur10_seam.script"), root + "/in/ur/seam.script");
+  test::copyText(test::golden("compensate/$config.dat"), root + "/$config.dat");
   const CliRun r = accura(root, "batch --robot ur10 --config '$config.dat' --in in --out out --jobs 1");
   EXPECT_EQ(r.code, 0) << r.err;
-  EXPECT_EQ(test::readText(root + "/out/ur/seam.script"), test::readText(golden("urscript/ur10_seam.script")));
+  EXPECT_EQ(test::readText(root + "/out/ur/seam.script"), test::readText(test::golden("urscript/ur10_seam.script")));
   // a single URScript program given --config is still told that it has no use for it
   const CliRun c = accura(root, "compensate --robot ur10 --config '$config.dat' --in in/ur/seam.script --out single");
   EXPECT_EQ(c.code, 1);
@@ -212,8 +202,8 @@ TEST(Batch, AnInterruptedRunLeavesNoHalfWrittenFile) {
   const std::string in = makeTree(root, 40);
   const CliRun ref = accura(root, "batch --robot model.xml --config '$config.dat' --in in --out ref --jobs 2");
   ASSERT_EQ(ref.code, 2) << ref.err;
-  const auto reference = snapshot(root + "/ref");
-  const auto before = snapshot(in);
+  const auto reference = test::snapshot(root + "/ref");
+  const auto before = test::snapshot(in);
   for (int delay_ms : {30, 120}) {
     const std::string out = root + "/out" + std::to_string(delay_ms);
     const pid_t pid = fork();
@@ -256,13 +246,13 @@ TEST(Batch, AnInterruptedRunLeavesNoHalfWrittenFile) {
       EXPECT_EQ(report["compensated"].get<int>() + report["failed"].get<int>() + not_started, report["programs"].get<int>());
     }
     if (!fs::exists(out)) continue;  // interrupted before the first file
-    for (const auto& [path, text] : snapshot(out)) {
+    for (const auto& [path, text] : test::snapshot(out)) {
       EXPECT_EQ(path.find("accura-tmp"), std::string::npos) << path;
       ASSERT_TRUE(reference.count(path)) << path;
       EXPECT_EQ(text, reference.at(path)) << path;
     }
   }
-  EXPECT_EQ(snapshot(in), before);
+  EXPECT_EQ(test::snapshot(in), before);
 }
 
 // The batch under installInterruptStop (accura batch's handler), a SIGINT raised as the first
@@ -273,8 +263,8 @@ TEST(Batch, AnInterruptedRunLeavesNoHalfWrittenFile) {
 TEST(Batch, AnInterruptStopsTakingProgramsAndTheResultSaysWhichWereNotStarted) {
   const std::string root = test::tempDir("batch_stop");
   for (const char* name : {"a", "b", "c"}) {
-    test::copyText(golden("compensate/seam.src"), root + "/in/" + name + ".src");
-    test::copyText(golden("compensate/seam.dat"), root + "/in/" + name + ".dat");
+    test::copyText(test::golden("compensate/seam.src"), root + "/in/" + name + ".src");
+    test::copyText(test::golden("compensate/seam.dat"), root + "/in/" + name + ".dat");
   }
   const pid_t pid = fork();
   ASSERT_GE(pid, 0);
@@ -282,7 +272,7 @@ TEST(Batch, AnInterruptStopsTakingProgramsAndTheResultSaysWhichWereNotStarted) {
     calib::installInterruptStop("");
     BatchOptions o;
     o.job.calibrated = test::loadBundled("kuka_kr16");
-    o.config_path = golden("compensate/$config.dat");
+    o.config_path = test::golden("compensate/$config.dat");
     o.jobs = 1;
     const BatchResult r = runBatch(root + "/in", root + "/out", o, [](const BatchFileResult&, int done, int) {
       if (done == 1) raise(SIGINT);
@@ -314,22 +304,22 @@ TEST(Batch, AnInterruptStopsTakingProgramsAndTheResultSaysWhichWereNotStarted) {
 TEST(Batch, CellCheckFailsTheProgramWhosePathTouchesAFixture) {
   const std::string root = test::tempDir("batch_cell");
   const std::string in = root + "/in";
-  test::copyText(golden("compensate/seam.src"), in + "/seam.src");
-  test::copyText(golden("compensate/seam.dat"), in + "/seam.dat");
-  test::copyText(golden("compensate/seam.src"), in + "/sub/seam.src");
-  test::copyText(golden("compensate/seam.dat"), in + "/sub/seam.dat");
-  std::string touch = test::readText(golden("compensate/seam.src"));
+  test::copyText(test::golden("compensate/seam.src"), in + "/seam.src");
+  test::copyText(test::golden("compensate/seam.dat"), in + "/seam.dat");
+  test::copyText(test::golden("compensate/seam.src"), in + "/sub/seam.src");
+  test::copyText(test::golden("compensate/seam.dat"), in + "/sub/seam.dat");
+  std::string touch = test::readText(test::golden("compensate/seam.src"));
   const std::string retreat = "lin {X 400.0,Y 150.0,Z 600.0,A 150.0,B 20.0,C -170.0}";
   const size_t at = touch.find(retreat);
   ASSERT_NE(at, std::string::npos);
   touch.replace(at, retreat.size(), "lin {X 400.0,Y -250.0,Z 380.0,A 150.0,B 25.0,C -175.0}");  // XP3 - 40 mm in z
   const int touch_line = 1 + static_cast<int>(std::count(touch.begin(), touch.begin() + static_cast<long>(at), '\n'));
   test::writeText(in + "/touch.src", touch);
-  test::copyText(golden("compensate/seam.dat"), in + "/touch.dat");
-  test::copyText(golden("compensate/kr16_real.xml"), root + "/model.xml");
-  test::copyText(golden("compensate/$config.dat"), root + "/$config.dat");
+  test::copyText(test::golden("compensate/seam.dat"), in + "/touch.dat");
+  test::copyText(test::golden("compensate/kr16_real.xml"), root + "/model.xml");
+  test::copyText(test::golden("compensate/$config.dat"), root + "/$config.dat");
   for (const char* f : {"seam_cell.xml", "plate_m.obj"}) test::copyText(test::sourcePath(std::string("tests/data/cell/") + f), root + "/cell/" + f);
-  const auto before = snapshot(in);
+  const auto before = test::snapshot(in);
   const std::string common = "--robot model.xml --config '$config.dat' --tol 0.02 --cell cell/seam_cell.xml";
 
   // the single-program runs: the seam passes, the touching copy fails (nothing written)
@@ -350,8 +340,8 @@ TEST(Batch, CellCheckFailsTheProgramWhosePathTouchesAFixture) {
   const CliRun r2 = accura(root, "batch " + common + " --in in --out out2 --jobs 2 --json report2.json");
   EXPECT_EQ(r1.code, 2) << r1.out << r1.err;  // not every program converted
   EXPECT_EQ(r2.code, 2) << r2.out << r2.err;
-  EXPECT_EQ(snapshot(in), before);
-  const auto out1 = snapshot(root + "/out1"), out2 = snapshot(root + "/out2");
+  EXPECT_EQ(test::snapshot(in), before);
+  const auto out1 = test::snapshot(root + "/out1"), out2 = test::snapshot(root + "/out2");
   EXPECT_EQ(out1, out2);
   std::string j1 = test::readText(root + "/report1.json"), j2 = test::readText(root + "/report2.json");
   j1.replace(j1.find("\"out1\""), 6, "\"out\"");
@@ -365,7 +355,7 @@ TEST(Batch, CellCheckFailsTheProgramWhosePathTouchesAFixture) {
   EXPECT_EQ(out1.at("seam.src"), test::readText(root + "/single/seam.src"));
   EXPECT_EQ(out1.at("seam.dat"), test::readText(root + "/single/seam.dat"));
   EXPECT_EQ(out1.at("sub/seam.src"), test::readText(root + "/single/seam.src"));
-  EXPECT_EQ(out1.at("seam.src"), test::readText(golden("compensate/expected/seam.src")));  // the check changes no byte
+  EXPECT_EQ(out1.at("seam.src"), test::readText(test::golden("compensate/expected/seam.src")));  // the check changes no byte
 
   // the report names the violation: file:line, the check, by how much
   const std::string where = "in/touch.src:" + std::to_string(touch_line) + ":";
@@ -454,7 +444,7 @@ TEST(Batch, ADirectoryForAFileAndAFileForADirectoryAreNamed) {
   EXPECT_EQ(message, dir + "/out.csv: cannot write file: it is a directory");
   EXPECT_EQ(std::distance(fs::directory_iterator(dir), fs::directory_iterator()), 1);  // no temporary file left
   EXPECT_TRUE(fs::is_empty(dir + "/out.csv"));
-  test::copyText(golden("compensate/seam.src"), dir + "/seam.src");
+  test::copyText(test::golden("compensate/seam.src"), dir + "/seam.src");
   BatchOptions o;
   o.job.calibrated = test::loadBundled("kuka_kr16");
   message.clear();
@@ -501,19 +491,19 @@ TEST(Batch, AtomicWriterRefusesOneFileTwiceAndIsSafeForConcurrentWriters) {
 // (outside both trees here) is never written (before: its output went to the link's target).
 TEST(Batch, ASymbolicLinkInTheInputTreeIsNeverFollowedOutOfTheOutputTree) {
   const std::string root = test::tempDir("batch_symlink");
-  test::copyText(golden("compensate/seam.src"), root + "/elsewhere/seam.src");
-  test::copyText(golden("compensate/seam.dat"), root + "/elsewhere/seam.dat");
-  test::copyText(golden("compensate/seam.dat"), root + "/in/link.dat");
+  test::copyText(test::golden("compensate/seam.src"), root + "/elsewhere/seam.src");
+  test::copyText(test::golden("compensate/seam.dat"), root + "/elsewhere/seam.dat");
+  test::copyText(test::golden("compensate/seam.dat"), root + "/in/link.dat");
   fs::create_directories(root + "/in");
   fs::create_symlink(root + "/elsewhere/seam.src", root + "/in/link.src");
-  const auto before = snapshot(root + "/elsewhere");
+  const auto before = test::snapshot(root + "/elsewhere");
   EXPECT_EQ(findPrograms(root + "/in"), std::vector<std::string>{"link.src"});
-  const CliRun r = accura(root, "batch --robot " + golden("compensate/kr16_real.xml") + " --in in --out out --config '" +
-                                     golden("compensate/$config.dat") + "' --jobs 1");
+  const CliRun r = accura(root, "batch --robot " + test::golden("compensate/kr16_real.xml") + " --in in --out out --config '" +
+                                     test::golden("compensate/$config.dat") + "' --jobs 1");
   EXPECT_EQ(r.code, 0) << r.out << r.err;
   EXPECT_TRUE(fs::is_regular_file(root + "/out/link.src"));
   EXPECT_TRUE(fs::is_regular_file(root + "/out/link.dat"));
-  EXPECT_EQ(snapshot(root + "/elsewhere"), before);
+  EXPECT_EQ(test::snapshot(root + "/elsewhere"), before);
 }
 
 // Two programs whose outputs would be one file (SEAM.SRC and seam.src share seam.dat: the .dat is
@@ -521,16 +511,16 @@ TEST(Batch, ASymbolicLinkInTheInputTreeIsNeverFollowedOutOfTheOutputTree) {
 // exit 0 and one program's .src paired with the other's .dat).
 TEST(Batch, TwoProgramsWithOneOutputFileBothFailAndNeitherIsWritten) {
   const std::string root = test::tempDir("batch_collide");
-  test::copyText(golden("compensate/seam.src"), root + "/in/dup/SEAM.SRC");
-  test::copyText(golden("compensate/seam.src"), root + "/in/dup/seam.src");
-  test::copyText(golden("compensate/seam.dat"), root + "/in/dup/seam.dat");
-  test::copyText(golden("compensate/seam.src"), root + "/in/other.src");
-  test::copyText(golden("compensate/seam.dat"), root + "/in/other.dat");
+  test::copyText(test::golden("compensate/seam.src"), root + "/in/dup/SEAM.SRC");
+  test::copyText(test::golden("compensate/seam.src"), root + "/in/dup/seam.src");
+  test::copyText(test::golden("compensate/seam.dat"), root + "/in/dup/seam.dat");
+  test::copyText(test::golden("compensate/seam.src"), root + "/in/other.src");
+  test::copyText(test::golden("compensate/seam.dat"), root + "/in/other.dat");
   for (const char* jobs : {"1", "2"}) {
     SCOPED_TRACE(jobs);
     fs::remove_all(root + "/out");
-    const CliRun r = accura(root, "batch --robot " + golden("compensate/kr16_real.xml") + " --in in --out out --config '" +
-                                       golden("compensate/$config.dat") + "' --jobs " + jobs);
+    const CliRun r = accura(root, "batch --robot " + test::golden("compensate/kr16_real.xml") + " --in in --out out --config '" +
+                                       test::golden("compensate/$config.dat") + "' --jobs " + jobs);
     EXPECT_EQ(r.code, 2) << r.out << r.err;
     EXPECT_NE(r.out.find("FAILED dup/SEAM.SRC: its output"), std::string::npos) << r.out;
     EXPECT_NE(r.out.find("FAILED dup/seam.src: its output"), std::string::npos) << r.out;
@@ -546,9 +536,9 @@ TEST(Batch, TwoProgramsWithOneOutputFileBothFailAndNeitherIsWritten) {
 // points from points.mod go to new points of its own, with the golden module's corrections.
 TEST(Batch, ConfigGivenPerModuleOfTheTaskAndForTheKrlPrograms) {
   const std::string root = test::tempDir("batch_rapid_task");
-  test::copyText(golden("compensate/seam.src"), root + "/in/seam.src");
-  test::copyText(golden("compensate/seam.dat"), root + "/in/seam.dat");
-  std::string module = test::readText(golden("rapid/irb120_seam.mod"));
+  test::copyText(test::golden("compensate/seam.src"), root + "/in/seam.src");
+  test::copyText(test::golden("compensate/seam.dat"), root + "/in/seam.dat");
+  std::string module = test::readText(test::golden("rapid/irb120_seam.mod"));
   std::string calib = "MODULE CalibData(SYSMODULE)\n", points = "MODULE Points\n";
   for (const char* head : {"  PERS tooldata torch", "  PERS wobjdata table", "  CONST robtarget p10 ", "  CONST robtarget p20 "}) {
     const size_t b = module.find(head), e = module.find('\n', b) + 1;
@@ -561,10 +551,10 @@ TEST(Batch, ConfigGivenPerModuleOfTheTaskAndForTheKrlPrograms) {
   test::writeText(root + "/in/abb/seam.mod", module);
   test::writeText(root + "/task/calib.sys", calib + "ENDMODULE\n");
   test::writeText(root + "/task/points.mod", points + "ENDMODULE\n");
-  const auto before = snapshot(root);
-  const CliRun r = accura(root, "batch --robot " + golden("rapid/irb120_real.xml") + " --in in/abb --out out/abb --config task/calib.sys --config task/points.mod");
+  const auto before = test::snapshot(root);
+  const CliRun r = accura(root, "batch --robot " + test::golden("rapid/irb120_real.xml") + " --in in/abb --out out/abb --config task/calib.sys --config task/points.mod");
   ASSERT_EQ(r.code, 0) << r.out << r.err;
-  const std::string want = test::readText(golden("rapid/expected/irb120_seam.mod"));
+  const std::string want = test::readText(test::golden("rapid/expected/irb120_seam.mod"));
   const size_t v = want.find("  CONST robtarget p10 := ") + 25;
   const std::string written = test::readText(root + "/out/abb/seam.mod");
   EXPECT_NE(written.find("  VAR num seams := 0;\n  LOCAL CONST robtarget p10_1 := " + want.substr(v, want.find(';', v) - v) + ";\n  LOCAL CONST robtarget p20_1 := "),
@@ -572,13 +562,13 @@ TEST(Batch, ConfigGivenPerModuleOfTheTaskAndForTheKrlPrograms) {
       << written;
   EXPECT_NE(written.find("    MoveJ p10_1, v1000, z20, torch\\WObj:=table;\n    MoveL p20_1, v200, fine, torch\\WObj:=table;\n"), std::string::npos) << written;
   // a mixed tree: the RAPID modules take the modules, the KRL program the $config.dat
-  const CliRun m = accura(root, "batch --robot " + golden("compensate/kr16_real.xml") + " --in in --out out/mixed --config task/calib.sys --config '" +
-                                    golden("compensate/$config.dat") + "' --config task/points.mod --jobs 2");
+  const CliRun m = accura(root, "batch --robot " + test::golden("compensate/kr16_real.xml") + " --in in --out out/mixed --config task/calib.sys --config '" +
+                                    test::golden("compensate/$config.dat") + "' --config task/points.mod --jobs 2");
   EXPECT_NE(m.out.find("compensated seam.src"), std::string::npos) << m.out << m.err;
   EXPECT_TRUE(fs::is_regular_file(root + "/out/mixed/seam.src"));
   EXPECT_EQ(m.out.find("FAILED seam.src"), std::string::npos) << m.out;
   // two $config.dat: refused before anything is written
-  const CliRun k = accura(root, "batch --robot " + golden("compensate/kr16_real.xml") + " --in in --out out/two --config '" + golden("compensate/$config.dat") +
+  const CliRun k = accura(root, "batch --robot " + test::golden("compensate/kr16_real.xml") + " --in in --out out/two --config '" + test::golden("compensate/$config.dat") +
                                     "' --config in/seam.dat");
   EXPECT_EQ(k.code, 1) << k.out << k.err;
   EXPECT_NE(k.err.find("--config: one $config.dat for the KRL and XML programs of the tree (the controller has one, KRC:\\R1\\System\\$config.dat), found "),
@@ -592,10 +582,10 @@ TEST(Batch, ConfigGivenPerModuleOfTheTaskAndForTheKrlPrograms) {
 // writes is refused; the file keeps its bytes (before: replaced by the JSON report, exit 0).
 TEST(Batch, TheReportNeverReplacesAnInputOrAnOutput) {
   const std::string root = test::tempDir("batch_json_inputs");
-  test::copyText(golden("compensate/seam.src"), root + "/in/seam.src");
-  test::copyText(golden("compensate/seam.dat"), root + "/in/seam.dat");
-  test::copyText(golden("compensate/kr16_real.xml"), root + "/model.xml");
-  test::copyText(golden("compensate/$config.dat"), root + "/config.dat");
+  test::copyText(test::golden("compensate/seam.src"), root + "/in/seam.src");
+  test::copyText(test::golden("compensate/seam.dat"), root + "/in/seam.dat");
+  test::copyText(test::golden("compensate/kr16_real.xml"), root + "/model.xml");
+  test::copyText(test::golden("compensate/$config.dat"), root + "/config.dat");
   const std::string model = test::readText(root + "/model.xml"), config = test::readText(root + "/config.dat");
   const std::string job = "--robot model.xml --config config.dat ";
   for (const std::string& target : {std::string("model.xml"), std::string("config.dat")}) {
@@ -627,8 +617,8 @@ TEST(Batch, TheReportNeverReplacesAnInputOrAnOutput) {
 // ("out/d0: cannot create the directory: Not a directory", exit 2 and one line per program).
 TEST(Batch, AnOutputDirectoryThatCannotBeCreatedIsRefusedBeforeAnyWork) {
   const std::string root = test::tempDir("batch_out_under_file");
-  test::copyText(golden("compensate/seam.src"), root + "/in/sub/seam.src");
-  test::copyText(golden("compensate/seam.dat"), root + "/in/sub/seam.dat");
+  test::copyText(test::golden("compensate/seam.src"), root + "/in/sub/seam.src");
+  test::copyText(test::golden("compensate/seam.dat"), root + "/in/sub/seam.dat");
   test::writeText(root + "/afile", "x");
   BatchOptions o;
   o.job.calibrated = test::loadBundled("kuka_kr16");

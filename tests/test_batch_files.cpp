@@ -28,22 +28,14 @@ namespace {
 
 using test::CliRun;
 CliRun accura(const std::string& dir, const std::string& args) { return test::runAccuraIn(dir, args); }
-std::string golden(const std::string& rel) { return test::sourcePath("tests/golden/" + rel); }
 
 void seam(const std::string& src_path) {  // the golden seam (.src and .dat) under another name
-  test::copyText(golden("compensate/seam.src"), src_path);
-  test::copyText(golden("compensate/seam.dat"), fs::path(src_path).replace_extension(".dat").string());
-}
-
-std::map<std::string, std::string> snapshot(const std::string& dir) {
-  std::map<std::string, std::string> m;
-  for (const auto& e : fs::recursive_directory_iterator(dir))
-    if (e.is_regular_file()) m[fs::relative(e.path(), dir).generic_string()] = test::readText(e.path().string());
-  return m;
+  test::copyText(test::golden("compensate/seam.src"), src_path);
+  test::copyText(test::golden("compensate/seam.dat"), fs::path(src_path).replace_extension(".dat").string());
 }
 
 std::string job() {
-  return "--robot " + golden("compensate/kr16_real.xml") + " --config '" + golden("compensate/$config.dat") + "' ";
+  return "--robot " + test::golden("compensate/kr16_real.xml") + " --config '" + test::golden("compensate/$config.dat") + "' ";
 }
 
 // A directory under --out that is a symbolic link back into the input tree: writing through it
@@ -56,7 +48,7 @@ TEST(BatchFiles, AnOutputDirectoryLinkedBackIntoTheInputTreeNeverReplacesAnInput
   seam(root + "/in/cell2/c.src");
   fs::create_directories(root + "/out");
   fs::create_directory_symlink("../in/cell1", root + "/out/cell1");
-  const auto before = snapshot(root + "/in");
+  const auto before = test::snapshot(root + "/in");
   for (const char* jobs : {"1", "2"}) {
     SCOPED_TRACE(jobs);
     const CliRun r = accura(root, "batch " + job() + "--in in --out out --jobs " + jobs);
@@ -66,7 +58,7 @@ TEST(BatchFiles, AnOutputDirectoryLinkedBackIntoTheInputTreeNeverReplacesAnInput
     EXPECT_NE(r.out.find("inside the input tree in, which is never modified: not written"), std::string::npos) << r.out;
     EXPECT_NE(r.out.find("1 compensated, 2 failed"), std::string::npos) << r.out;
     EXPECT_TRUE(fs::is_regular_file(root + "/out/cell2/c.src"));
-    EXPECT_EQ(snapshot(root + "/in"), before);
+    EXPECT_EQ(test::snapshot(root + "/in"), before);
   }
 }
 

@@ -10,6 +10,7 @@
 #include <random>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <string>
 #include <system_error>
 #include <vector>
@@ -123,6 +124,18 @@ Text lf(Text t) {
 inline std::string readText(const std::string& path) {
   std::ifstream f(path, std::ios::binary);
   return std::string((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+}
+
+/// The path of a file of tests/golden/: golden("compensate/seam.src").
+inline std::string golden(const std::string& rel) { return sourcePath("tests/golden/" + rel); }
+
+/// Every regular file of a directory tree: its path relative to `dir` -> its bytes. Two snapshots
+/// are equal exactly when the trees hold the same files with the same contents.
+inline std::map<std::string, std::string> snapshot(const std::string& dir) {
+  std::map<std::string, std::string> m;
+  for (const auto& e : std::filesystem::recursive_directory_iterator(dir))
+    if (e.is_regular_file()) m[std::filesystem::relative(e.path(), dir).generic_string()] = readText(e.path().string());
+  return m;
 }
 
 /// Random joint values uniformly within the joint limits.

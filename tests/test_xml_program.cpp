@@ -18,13 +18,11 @@
 namespace accura::postproc {
 namespace {
 
-std::string golden(const std::string& rel) { return test::sourcePath("tests/golden/" + rel); }
-
 TEST(XmlProgram, ReadsEveryElementOfTheFormat) {
   FrameTables tables;
   tables.base.resize(4);
   tables.base[3] = calib::XyzAbc{1020.25, -35.5, 410, -90, 0, 0};
-  const Program p = readXmlProgram(golden("xml/cell_program.xml"), &tables);
+  const Program p = readXmlProgram(test::golden("xml/cell_program.xml"), &tables);
   EXPECT_EQ(p.name, "cell_program");
   EXPECT_EQ(p.robot, "KUKA KR 16");
   ASSERT_EQ(p.motions.size(), 7u);
@@ -72,13 +70,13 @@ TEST(XmlProgram, ReadsEveryElementOfTheFormat) {
 }
 
 TEST(XmlProgram, CanonicalFilesAreWrittenBackByteForByte) {
-  const std::string text = test::readText(golden("xml/weld_seam.xml"));
-  const Program p = readXmlProgram(golden("xml/weld_seam.xml"));
+  const std::string text = test::readText(test::golden("xml/weld_seam.xml"));
+  const Program p = readXmlProgram(test::golden("xml/weld_seam.xml"));
   EXPECT_EQ(writeXmlProgram(p), text);
   // a hand-written file is written back as it is while nothing changes (compensating with the
   // nominal robot); once a target changes it becomes canonical, then stays
-  const std::string hand = test::readText(golden("xml/cell_program.xml"));
-  Program changed = readXmlProgram(golden("xml/cell_program.xml"));
+  const std::string hand = test::readText(test::golden("xml/cell_program.xml"));
+  Program changed = readXmlProgram(test::golden("xml/cell_program.xml"));
   EXPECT_EQ(writeXmlProgram(changed), hand);
   changed.motions[1].target.modified = true;
   const std::string once = writeXmlProgram(changed);
@@ -219,10 +217,10 @@ TEST(XmlProgram, AGlobalPointStaysGlobalThroughXml) {
 
 TEST(XmlProgram, KrlToXmlToKrlKeepsTheMotions) {
   KrlReadOptions o;
-  o.config_path = golden("krl/config/$config.dat");
-  const Program krl = readKrl(golden("krl/kss8_inline/weld_seam.src"), o);
+  o.config_path = test::golden("krl/config/$config.dat");
+  const Program krl = readKrl(test::golden("krl/kss8_inline/weld_seam.src"), o);
   const std::string xml = writeXmlProgram(krl);
-  EXPECT_EQ(xml, test::readText(golden("xml/weld_seam.xml")));
+  EXPECT_EQ(xml, test::readText(test::golden("xml/weld_seam.xml")));
   const Program back = parseXmlProgram(xml, "weld_seam.xml");
   ASSERT_EQ(back.motions.size(), krl.motions.size());
   for (size_t i = 0; i < krl.motions.size(); ++i) {

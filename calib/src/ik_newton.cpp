@@ -66,7 +66,8 @@ bool KinematicSolver::Impl::fitLimits(VecN& q, int turn, const VecN& ref, const 
     bool all = !check_sign || ((turnBits(q.data(), n) ^ turn) & ((1 << n) - 1)) == 0;
     forEachJoint(n, [&](int i) {
       const double qi = q[i];
-      all &= (qi >= lower[i] - slack) & (qi <= upper[i] + slack) & (std::abs(qi - ref[i]) <= wrap_band[i]);
+      // bitwise on purpose (no branch per comparison): as ints, which clang does not warn of
+      all &= (int(qi >= lower[i] - slack) & int(qi <= upper[i] + slack) & int(std::abs(qi - ref[i]) <= wrap_band[i])) != 0;
     });
     if (all) return true;
   }
