@@ -331,7 +331,7 @@ void MeasurementReader::parseHeader(std::string_view text, int line) {
 
 /// A group of columns that must appear together (all or none).
 void MeasurementReader::requireGroup(int line, const std::string& what, const std::vector<Role>& roles,
-                          const std::vector<std::string>& names) const {
+                                     const std::vector<std::string>& names) const {
   std::vector<std::string> found, missing;
   for (std::size_t i = 0; i < roles.size(); ++i) {
     (layout_.has(roles[i]) ? found : missing).push_back(names[i]);
