@@ -659,6 +659,34 @@ TEST(DiagnoseText, ARejectedEffectWithoutJointsHasNoStraySpace) {
   EXPECT_EQ(text.find("thermal :"), std::string::npos) << text;
 }
 
+// A selected joint map's worst blocked gain is about zero by design (the map is zero where the
+// held-out block lies beyond its data; it is judged on doing no harm): the line says so, where it
+// read as a selected effect that gains nothing ("gain -0.1% (worst: q3 end blocks)").
+TEST(DiagnoseText, ASelectedJointMapSaysItIsHeldToNoHarm) {
+  Diagnosis d;
+  EffectEvidence map, comp;
+  map.effect = "joint_map";
+  map.params = "joint_map:j1+j2@3deg";
+  map.blocked_gain = -0.001;
+  map.blocked_scheme = "q3 end blocks";
+  map.coverage = {{"q1", "deg", -180, -44.9}};
+  comp.effect = "joint_compliance";
+  comp.params = "joint_compliance:j2";
+  comp.blocked_gain = 0.116;
+  comp.blocked_scheme = "q5 blocks";
+  comp.coverage = {{"q2", "deg", -138.2, 4.5}};
+  d.selected = {comp, map};
+  const std::string text = diagnosisText(d);
+  EXPECT_NE(text.find("\nselected: joint_map:j1+j2@3deg  blocked cross-validation gain -0.1% (worst: q3 end blocks), held to no "
+                      "harm: a map is zero outside the range it is fitted on; fitted on q1 -180.0..-44.9 deg\n"),
+            std::string::npos)
+      << text;
+  EXPECT_NE(text.find("\nselected: joint_compliance:j2  blocked cross-validation gain 11.6% (worst: q5 blocks); fitted on q2 "
+                      "-138.2..4.5 deg\n"),
+            std::string::npos)
+      << text;
+}
+
 TEST(DiagnoseText, AnUnexplainedVerdictSaysWhatItsJointIs) {
   Diagnosis d;
   d.verdict.effect = "unexplained";

@@ -622,7 +622,11 @@ std::string diagnosisText(const Diagnosis& d) {
   }
   for (const EffectEvidence& e : d.selected) {
     s << "selected: " << e.params << "  blocked cross-validation gain " << f("%.1f", 100 * e.blocked_gain) << "% (worst: "
-      << e.blocked_scheme << "); fitted on";
+      << e.blocked_scheme << ")";
+    // a map is zero outside the range its data cover: held-out blocks beyond it can only show
+    // harm, so a selected map's worst blocked gain may be about zero (admissible)
+    if (e.effect == "joint_map") s << ", held to no harm: a map is zero outside the range it is fitted on";
+    s << "; fitted on";
     for (const Coverage& c : e.coverage) s << " " << c.variable << " " << f("%.1f", c.lo) << ".." << f("%.1f", c.hi) << " " << c.unit;
     s << "\n";
   }
