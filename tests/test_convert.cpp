@@ -232,6 +232,40 @@ TEST(Convert, TheOrientationControlOfEachMotionSurvivesTheRoundTrip) {
   }
 }
 
+// A relative motion's coordinate system (KSS: `LIN_REL {Z -100} #TOOL` moves along the tool's
+// axes, `#BASE`, the default, along the base's; "Without an optional frame argument, LIN_REL
+// defaults to Base coordinates. Append #TOOL for Tool-relative motion.") survives KRL -> XML ->
+// KRL. (Before: the reader skipped `#TOOL`, and the KRL written anew moved along the base.)
+TEST(Convert, ARelativeMotionInTheToolFrameKeepsItsFrame) {
+  const std::string dir = test::tempDir("convert_rel_tool");
+  test::writeText(dir + "/p.src", "DEF p( )\n$TOOL=$NULLFRAME\n$BASE=$NULLFRAME\nPTP {A1 0,A2 -90,A3 90,A4 0,A5 45,A6 0}\n"
+                                  "LIN_REL {Z -10.0} C_DIS #TOOL\nLIN_REL {Z 10.0} #BASE\nCIRC_REL {X 25,Y 25},{X 50,Y 0} #tool\n"
+                                  "PTP_REL {A6 10}\nEND\n");
+  test::writeText(dir + "/p.dat", "DEFDAT p\nENDDAT\n");
+  const Program krl = readKrl(dir + "/p.src");
+  ASSERT_EQ(krl.motions.size(), 5u);
+  const bool kInTool[5] = {false, true, false, true, false};
+  for (size_t k = 0; k < 5; ++k) EXPECT_EQ(krl.motions[k].relative_in_tool, kInTool[k]) << k;
+  const std::string xml = writeXmlProgram(krl);
+  EXPECT_NE(xml.find("<lin approx=\"C_DIS\" relative=\"true\" relative_frame=\"tool\">"), std::string::npos) << xml;
+  EXPECT_NE(xml.find("<circ relative=\"true\" relative_frame=\"tool\">"), std::string::npos) << xml;
+  const std::vector<std::string> back = lines(writeKrl(parseXmlProgram(xml, "p.xml")).src);
+  EXPECT_NE(indexOf(back, "LIN_REL {Z -10.0000} C_DIS #TOOL"), std::string::npos) << writeKrl(parseXmlProgram(xml, "p.xml")).src;
+  EXPECT_NE(indexOf(back, "LIN_REL {Z 10.0000}"), std::string::npos);
+  EXPECT_NE(indexOf(back, "CIRC_REL {X 25.0000,Y 25.0000}, {X 50.0000,Y 0.0000} #TOOL"), std::string::npos);
+  EXPECT_NE(indexOf(back, "PTP_REL {A6 10.0000}"), std::string::npos);
+  // the XML attribute where it means nothing is an error naming it
+  try {
+    parseXmlProgram("<program version=\"1\"><motions><lin relative_frame=\"tool\"><pose z_mm=\"1\"/></lin></motions></program>\n", "q.xml");
+    FAIL();
+  } catch (const calib::InputError& e) {
+    EXPECT_NE(e.message().find("attribute 'relative_frame': expected 'base' or 'tool' on a motion with relative=\"true\", found 'tool' on a "
+                               "motion that is not relative"),
+              std::string::npos)
+        << e.message();
+  }
+}
+
 // The line end of KRL: a file read from KRL keeps its own (CRLF stays CRLF, also in the lines
 // the compensation inserts and declares); KRL written anew has CRLF, the line end of the
 // controller's own files (the KSS HMI runs on Windows: the inline-form programs of

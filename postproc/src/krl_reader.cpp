@@ -1115,6 +1115,7 @@ struct Reader {
         with_e = i;
         c.seek(i);
       } else if (k.kind == Tok::kEnum && m.relative && (k.up == "#BASE" || k.up == "#TOOL")) {
+        m.relative_in_tool = k.up == "#TOOL";
         c.next();
       } else {
         c.fail("expected an approximation flag (C_PTP, C_DIS, C_VEL, C_ORI, C_SPL) or WITH after the target, found " + describe(&k));
