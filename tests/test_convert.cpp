@@ -100,6 +100,34 @@ TEST(Convert, TheMotionModelsLinesAreNotCarried) {
   EXPECT_GE(krl.passthrough.size(), 10u);
 }
 
+// Of $VEL and $APO the motion model holds $VEL.CP and $APO.CDIS/CPTP/CVEL/CORI. The orientation
+// speeds ($VEL.ORI1, $VEL.ORI2: deg/s, BAS.SRC's DEF_VEL_ORI1/2; a CP motion runs no faster than
+// they allow) and an assignment of the whole structure are statements of their own: carried in
+// their places. (Before: read as part of the model and so not carried, they were lost, and the
+// KRL written anew, after its BAS(#INITMOV), turned the tool at the default speeds.)
+TEST(Convert, TheOrientationSpeedsAndWholeStructuresOfVelAndApoAreCarried) {
+  const std::string dir = test::tempDir("convert_vel_ori");
+  test::writeText(dir + "/p.src", "DEF p( )\n$TOOL=$NULLFRAME\n$BASE=$NULLFRAME\n$VEL.CP=0.2\n$VEL.ORI1=100\n$VEL.ORI2 = 90\nPTP XP1\n"
+                                  "LIN XP2\n$VEL={CP 0.3,ORI1 150,ORI2 150}\n$APO={CVEL 80,CPTP 20,CDIS 5,CORI 5}\n$APO.CDIS=7\nLIN XP1 C_DIS\nEND\n");
+  test::writeText(dir + "/p.dat", "DEFDAT p\nDECL E6POS XP1={X 1000,Y 0,Z 800,A 0,B 90,C 0}\nDECL E6POS XP2={X 1000,Y 100,Z 800,A 0,B 90,C 0}\nENDDAT\n");
+  const Program krl = readKrl(dir + "/p.src");
+  std::vector<std::string> carried;
+  for (const PassThrough& s : krl.passthrough) carried.push_back(s.text);
+  EXPECT_EQ(carried, (std::vector<std::string>{"$VEL.ORI1=100", "$VEL.ORI2 = 90", "$VEL={CP 0.3,ORI1 150,ORI2 150}",
+                                               "$APO={CVEL 80,CPTP 20,CDIS 5,CORI 5}"}));
+  ASSERT_EQ(krl.motions.size(), 3u);
+  EXPECT_EQ(*krl.motions[1].vel_m_s, 0.2);  // $VEL.CP and $APO.CDIS: the model's, not carried
+  EXPECT_EQ(*krl.motions[2].approximation_value, 7.0);
+  const std::vector<std::string> back = lines(writeKrl(parseXmlProgram(writeXmlProgram(krl), "p.xml")).src);
+  const size_t ori1 = indexOf(back, "$VEL.ORI1=100"), lin = indexOf(back, "LIN XP2");
+  ASSERT_NE(ori1, std::string::npos);
+  EXPECT_EQ(indexOf(back, "$VEL.ORI2 = 90"), ori1 + 1);
+  EXPECT_LT(ori1, lin);
+  EXPECT_LT(lin, indexOf(back, "$VEL={CP 0.3,ORI1 150,ORI2 150}"));
+  EXPECT_LT(indexOf(back, "$APO={CVEL 80,CPTP 20,CDIS 5,CORI 5}"), indexOf(back, "LIN XP1 C_DIS"));
+  EXPECT_EQ(indexOf(back, "$VEL.CP=0.2"), std::string::npos);  // written anew, in the model's format
+}
+
 TEST(Convert, TheDefsParametersAndAPointDeclaredWithoutAValueSurviveTheRoundTrip) {
   // without them the converted program does not compile: `count` and `lp1` would be undeclared
   const std::string dir = test::tempDir("convert_params");
@@ -229,6 +257,40 @@ TEST(Convert, TheOrientationControlOfEachMotionSurvivesTheRoundTrip) {
     FAIL();
   } catch (const calib::InputError& e) {
     EXPECT_NE(e.message().find("attribute 'ori_type': expected it on a CP motion"), std::string::npos) << e.message();
+  }
+}
+
+// A relative motion's coordinate system (KSS: `LIN_REL {Z -100} #TOOL` moves along the tool's
+// axes, `#BASE`, the default, along the base's; "Without an optional frame argument, LIN_REL
+// defaults to Base coordinates. Append #TOOL for Tool-relative motion.") survives KRL -> XML ->
+// KRL. (Before: the reader skipped `#TOOL`, and the KRL written anew moved along the base.)
+TEST(Convert, ARelativeMotionInTheToolFrameKeepsItsFrame) {
+  const std::string dir = test::tempDir("convert_rel_tool");
+  test::writeText(dir + "/p.src", "DEF p( )\n$TOOL=$NULLFRAME\n$BASE=$NULLFRAME\nPTP {A1 0,A2 -90,A3 90,A4 0,A5 45,A6 0}\n"
+                                  "LIN_REL {Z -10.0} C_DIS #TOOL\nLIN_REL {Z 10.0} #BASE\nCIRC_REL {X 25,Y 25},{X 50,Y 0} #tool\n"
+                                  "PTP_REL {A6 10}\nEND\n");
+  test::writeText(dir + "/p.dat", "DEFDAT p\nENDDAT\n");
+  const Program krl = readKrl(dir + "/p.src");
+  ASSERT_EQ(krl.motions.size(), 5u);
+  const bool kInTool[5] = {false, true, false, true, false};
+  for (size_t k = 0; k < 5; ++k) EXPECT_EQ(krl.motions[k].relative_in_tool, kInTool[k]) << k;
+  const std::string xml = writeXmlProgram(krl);
+  EXPECT_NE(xml.find("<lin approx=\"C_DIS\" relative=\"true\" relative_frame=\"tool\">"), std::string::npos) << xml;
+  EXPECT_NE(xml.find("<circ relative=\"true\" relative_frame=\"tool\">"), std::string::npos) << xml;
+  const std::vector<std::string> back = lines(writeKrl(parseXmlProgram(xml, "p.xml")).src);
+  EXPECT_NE(indexOf(back, "LIN_REL {Z -10.0000} C_DIS #TOOL"), std::string::npos) << writeKrl(parseXmlProgram(xml, "p.xml")).src;
+  EXPECT_NE(indexOf(back, "LIN_REL {Z 10.0000}"), std::string::npos);
+  EXPECT_NE(indexOf(back, "CIRC_REL {X 25.0000,Y 25.0000}, {X 50.0000,Y 0.0000} #TOOL"), std::string::npos);
+  EXPECT_NE(indexOf(back, "PTP_REL {A6 10.0000}"), std::string::npos);
+  // the XML attribute where it means nothing is an error naming it
+  try {
+    parseXmlProgram("<program version=\"1\"><motions><lin relative_frame=\"tool\"><pose z_mm=\"1\"/></lin></motions></program>\n", "q.xml");
+    FAIL();
+  } catch (const calib::InputError& e) {
+    EXPECT_NE(e.message().find("attribute 'relative_frame': expected 'base' or 'tool' on a motion with relative=\"true\", found 'tool' on a "
+                               "motion that is not relative"),
+              std::string::npos)
+        << e.message();
   }
 }
 

@@ -317,7 +317,7 @@ TEST(XmlProgram, ErrorsNameFileLineAndColumn) {
   const std::vector<Case> cases = {
       {"    <lin><pose x_mm=\"1\" y_mm=\"abc\"/></lin>\n", 4, 10, "<pose> attribute 'y_mm': expected a finite number, found 'abc'"},
       {"    <lin speed=\"1\"><pose x_mm=\"1\"/></lin>\n", 4, 5,
-       "<lin>: unknown attribute 'speed' (expected one of: approx, approx_value, ca_deg, circ_type, conf_monitored, external_tcp, ori_type, relative, source_line, spline_block, spline_block_type, start_unknown, time_s, vel_m_s, vel_percent)"},
+       "<lin>: unknown attribute 'speed' (expected one of: approx, approx_value, ca_deg, circ_type, conf_monitored, external_tcp, ori_type, relative, relative_frame, source_line, spline_block, spline_block_type, start_unknown, time_s, vel_m_s, vel_percent)"},
       {"    <move/>\n", 4, 5, "unknown element <move> in <motions> (expected tool, base, ptp, lin, circ, sptp, slin, scirc, spl, passthrough)"},
       {"    <lin/>\n", 4, 5, "<lin>: expected a target (<pose>, <axes> or <ref>), found nothing"},
       {"    <lin><axes a1=\"0\"/></lin>\n", 4, 10, "<lin>: expected a Cartesian target (<pose>), found <axes>"},

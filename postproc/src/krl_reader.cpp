@@ -728,7 +728,16 @@ struct Reader {
   bool handleAssignment(const std::vector<Tok>& t, size_t eq) {
     assignModel(t, eq);
     static const std::set<std::string> model = {"$TOOL", "$BASE", "$VEL", "$VEL_AXIS", "$APO", "FDAT_ACT", "LDAT_ACT", "PDAT_ACT"};
-    return model.count(t[0].up) > 0;
+    if (model.count(t[0].up) == 0) return false;
+    // of $VEL and $APO the model holds $VEL.CP and $APO.CDIS / CPTP / CVEL / CORI: another
+    // component ($VEL.ORI1, $VEL.ORI2, the orientation speeds) or the whole structure
+    // ($VEL = {CP 0.2,ORI1 200,ORI2 200}) is a statement of its own, carried where it is
+    if (t[0].up == "$VEL" || t[0].up == "$APO") {
+      if (eq != 3 || t[1].text != ".") return false;
+      static const std::set<std::string> fields = {"CP", "CDIS", "CPTP", "CVEL", "CORI"};
+      return fields.count(t[2].up) > 0 && (t[0].up == "$APO") == (t[2].up != "CP");
+    }
+    return true;
   }
 
   // The value of $ORI_TYPE = t[b, e) (Motion::ori_type; $CIRC_TYPE with `circ`):
@@ -1115,6 +1124,7 @@ struct Reader {
         with_e = i;
         c.seek(i);
       } else if (k.kind == Tok::kEnum && m.relative && (k.up == "#BASE" || k.up == "#TOOL")) {
+        m.relative_in_tool = k.up == "#TOOL";
         c.next();
       } else {
         c.fail("expected an approximation flag (C_PTP, C_DIS, C_VEL, C_ORI, C_SPL) or WITH after the target, found " + describe(&k));

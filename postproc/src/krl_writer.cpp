@@ -441,6 +441,7 @@ KrlText generateKrl(const Program& p) {
     if (m.circ_angle_deg) line += ", CA " + formatDeg(*m.circ_angle_deg);
     line += with;
     for (Approximation a : m.approximation) line += std::string(" ") + toString(a);
+    if (m.relative && m.relative_in_tool) line += " #TOOL";  // after the flags, as KRL writes it
     src << line << "\n";
   }
   carry(src, PassThrough::Section::kBody, p.motions.size());

@@ -47,7 +47,7 @@ std::set<std::string> frameAttrs() {
 }
 
 std::set<std::string> motionAttrs() {
-  return {"vel_percent", "vel_m_s", "approx", "approx_value", "ca_deg", "relative", "external_tcp", "conf_monitored", "source_line",
+  return {"vel_percent", "vel_m_s", "approx", "approx_value", "ca_deg", "relative", "relative_frame", "external_tcp", "conf_monitored", "source_line",
           "start_unknown", "spline_block", "spline_block_type", "time_s", "ori_type", "circ_type"};
 }
 
@@ -385,6 +385,12 @@ Motion readMotion(const Reader& R, const XMLElement* e) {
   m.circ_angle_deg = R.number(e, "ca_deg");
   if (m.circ_angle_deg && m.type != MotionType::kCirc) R.fail(e, "<" + n + ">: attribute 'ca_deg' is only for circ and scirc");
   m.relative = R.flag(e, "relative");
+  if (const auto f = R.text(e, "relative_frame")) {
+    if (!m.relative || (*f != "base" && *f != "tool"))
+      R.fail(e, "<" + n + "> attribute 'relative_frame': expected 'base' or 'tool' on a motion with relative=\"true\", found '" + *f +
+                    "'" + (m.relative ? "" : " on a motion that is not relative"));
+    m.relative_in_tool = *f == "tool";
+  }
   m.external_tcp = R.flag(e, "external_tcp");
   if (e->Attribute("conf_monitored")) m.conf_monitored = R.flag(e, "conf_monitored");
   if (const auto l = R.integer(e, "source_line")) m.source_line = *l;
@@ -690,6 +696,7 @@ std::string writeXmlProgram(const Program& p) {
     }
     if (m.circ_angle_deg) out << " ca_deg=\"" << formatDeg(*m.circ_angle_deg) << "\"";
     if (m.relative) out << " relative=\"true\"";
+    if (m.relative && m.relative_in_tool) out << " relative_frame=\"tool\"";
     if (m.external_tcp) out << " external_tcp=\"true\"";
     if (!m.conf_monitored) out << " conf_monitored=\"false\"";
     if (m.source_line > 0 && !m.inserted) out << " source_line=\"" << m.source_line << "\"";

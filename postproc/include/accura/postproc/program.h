@@ -154,6 +154,9 @@ struct Motion {
   int spline_block = 0;
   bool ptp_spline_block = false;  ///< the block is a PTP_SPLINE block (else SPLINE)
   bool relative = false;  ///< PTP_REL / LIN_REL / CIRC_REL (not compensated)
+  /// KUKA: the coordinate system of a relative motion, `#TOOL` written after it (the offset in
+  /// the tool frame at the motion's start); false: `#BASE`, the default (written or not)
+  bool relative_in_tool = false;
   Target target;          ///< end point
   std::optional<Target> aux;  ///< CIRC auxiliary point
   std::optional<double> circ_angle_deg;  ///< CIRC ... CA angle (not compensated)
