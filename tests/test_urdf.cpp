@@ -434,6 +434,10 @@ TEST(Urdf, AnUnexpandedXacroFileIsNamedAsSuch) {
                              "lower=\"-1\" upper=\"1\" effort=\"${effort}\" velocity=\"1\"/>\n  </joint>\n</robot>")),
             "bad.urdf:15:33: <limit> attribute 'effort': expected a finite number, found '${effort}' (an unexpanded "
             "xacro expression: give accura xacro's output, xacro FILE.xacro > FILE.urdf)");
+  // a declaration alone changes nothing: the URDF ROS reads
+  EXPECT_EQ(errorOf(replaced(kTwoJoint, "<link name=\"a\"/>", "<xacro:property name=\"pi\" value=\"3.1415926535897931\"/>\n"
+                                                             "  <xacro:arg name=\"prefix\" default=\"\"/><link name=\"a\"/>")),
+            "no error");
   // a number that is merely wrong gets no such note
   EXPECT_EQ(errorOf(replaced(kTwoJoint, "xyz=\"0.3 0 0\"", "xyz=\"0.3 0 x\"")),
             "bad.urdf:13:13: <origin> attribute 'xyz': expected three finite numbers, found '0.3 0 x'");

@@ -76,10 +76,14 @@ std::string xacroNote(const char* value) {
              : "";
 }
 
-// The first xacro element (<xacro:include>, <xacro:macro>, a macro call) in document order.
+// The first xacro element (<xacro:include>, <xacro:macro>, a macro call) in document order; a
+// declaration (<xacro:property>, <xacro:arg>) changes nothing by itself (a value that uses it holds
+// ${...}), and ROS reads such a file as the URDF it otherwise is.
 const XMLElement* firstXacroElement(const XMLElement* e) {
   for (; e; e = e->NextSiblingElement()) {
-    if (std::string(e->Name()).rfind("xacro:", 0) == 0) return e;
+    const std::string name = e->Name();
+    if (name == "xacro:property" || name == "xacro:arg") continue;
+    if (name.rfind("xacro:", 0) == 0) return e;
     if (const XMLElement* inner = firstXacroElement(e->FirstChildElement())) return inner;
   }
   return nullptr;
