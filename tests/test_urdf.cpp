@@ -399,6 +399,50 @@ TEST(Urdf, MalformedFilesGiveFileAndLine) {
   EXPECT_THROW(readUrdfRobot("/nonexistent/robot.urdf"), InputError);
 }
 
+// The vendors' ROS packages ship the arm as xacro sources (kr6r900sixx_macro.xacro,
+// ur.urdf.xacro); given one, the user hears that it is a xacro source, not the symptom it causes
+// (a <robot> without a name, an accura robot file with an unknown attribute 'xmlns:xacro').
+TEST(Urdf, AnUnexpandedXacroFileIsNamedAsSuch) {
+  const std::string xacro =
+      "<?xml version=\"1.0\"?>\n"
+      "<robot xmlns:xacro=\"http://wiki.ros.org/xacro\">\n"
+      "  <xacro:include filename=\"$(find kuka_kr6_support)/urdf/kr6r900sixx_macro.xacro\"/>\n"
+      "  <xacro:kuka_kr6r900sixx prefix=\"\"/>\n"
+      "</robot>\n";
+  const std::string expected =
+      ":3:3: expected a URDF (xacro's output: xacro FILE.xacro > FILE.urdf), found the xacro element "
+      "<xacro:include>: the file is an unexpanded xacro source";
+  EXPECT_EQ(errorOf(xacro), "bad.urdf" + expected);
+  // under its own name, where --robot reads a robot file unless it holds a URDF
+  const std::string dir = test::tempDir("urdf_xacro");
+  test::writeText(dir + "/kr6r900sixx.urdf.xacro", xacro);
+  try {
+    readRobotFile(dir + "/kr6r900sixx.urdf.xacro");
+    FAIL() << "accepted";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()), dir + "/kr6r900sixx.urdf.xacro" + expected);
+  }
+  // a macro's body: the element inside a joint
+  EXPECT_EQ(errorOf(replaced(kTwoJoint, "<origin xyz=\"0.3 0 0\" rpy=\"0 0 0\"/>", "<xacro:insert_block name=\"origin\"/>")),
+            "bad.urdf:13:5: expected a URDF (xacro's output: xacro FILE.xacro > FILE.urdf), found the xacro element "
+            "<xacro:insert_block>: the file is an unexpanded xacro source");
+  // an expression left in a value says so
+  EXPECT_EQ(errorOf(replaced(kTwoJoint, "rpy=\"0 0 0\"/>\n    <axis xyz=\"0 1 0\"/>", "rpy=\"0 0 ${pi/2}\"/>\n    <axis xyz=\"0 1 0\"/>")),
+            "bad.urdf:13:27: <origin> attribute 'rpy': expected three finite numbers, found '0 0 ${pi/2}' (an unexpanded "
+            "xacro expression: give accura xacro's output, xacro FILE.xacro > FILE.urdf)");
+  EXPECT_EQ(errorOf(replaced(kTwoJoint, "lower=\"-1\" upper=\"1\" effort=\"1\" velocity=\"1\"/>\n  </joint>\n</robot>",
+                             "lower=\"-1\" upper=\"1\" effort=\"${effort}\" velocity=\"1\"/>\n  </joint>\n</robot>")),
+            "bad.urdf:15:33: <limit> attribute 'effort': expected a finite number, found '${effort}' (an unexpanded "
+            "xacro expression: give accura xacro's output, xacro FILE.xacro > FILE.urdf)");
+  // a declaration alone changes nothing: the URDF ROS reads
+  EXPECT_EQ(errorOf(replaced(kTwoJoint, "<link name=\"a\"/>", "<xacro:property name=\"pi\" value=\"3.1415926535897931\"/>\n"
+                                                             "  <xacro:arg name=\"prefix\" default=\"\"/><link name=\"a\"/>")),
+            "no error");
+  // a number that is merely wrong gets no such note
+  EXPECT_EQ(errorOf(replaced(kTwoJoint, "xyz=\"0.3 0 0\"", "xyz=\"0.3 0 x\"")),
+            "bad.urdf:13:13: <origin> attribute 'xyz': expected three finite numbers, found '0.3 0 x'");
+}
+
 TEST(Urdf, LoopsMimicBranchesAndChainsAreNamed) {
   // a second parent for link c: a closed loop
   const std::string loop = replaced(kTwoJoint, "</robot>", R"(  <joint name="j3" type="fixed">

@@ -439,6 +439,49 @@ TEST(UrCalibration, TheArmOfAUrdfTakesUrsTableInUrsConvention) {
   std::filesystem::remove_all(dir);
 }
 
+// ur_description's URDF with the arm on a 0.8 m pedestal (its xacro's origin argument: world ->
+// base_link): read from its root, DH frame 0 lies at the pedestal's foot and d1 holds the pedestal,
+// which the YAML's shoulder entry (from UR's Base) does not. The YAML of this very arm was refused
+// as "the calibration of another arm type"; now the message names the mount and the chain that
+// reads, and that chain takes the YAML.
+TEST(UrCalibration, AYamlOnAnArmReadFromItsMountSaysWhereTheBaseIs) {
+  const RobotModel ur10 = test::loadBundled("ur10");
+  const RobotModel reference = modelFromUrDeltas(ur10.nominal, testDeltas());  // shoulder z 127.3 + 0.656 mm
+  const std::string dir = test::tempDir("ur_yaml_pedestal");
+  test::writeText(dir + "/cal.yaml", formatUrCalibrationYaml(reference, nullptr));
+  std::string text = test::readText(test::sourcePath("tests/data/urdf/ur10.urdf"));
+  const std::string mount = "<origin rpy=\"0 0 0\" xyz=\"0 0 0\"/>\n    <parent link=\"world\"/>";
+  ASSERT_NE(text.find(mount), std::string::npos);
+  text.replace(text.find(mount), mount.size(), "<origin rpy=\"0 0 0\" xyz=\"0 0 0.8\"/>\n    <parent link=\"world\"/>");
+  test::writeText(dir + "/pedestal.urdf", text);
+  try {
+    modelFromUrCalibrationYaml(readUrdfRobot(dir + "/pedestal.urdf").nominal, dir + "/cal.yaml");
+    FAIL() << "accepted";
+  } catch (const ArgumentError& e) {
+    EXPECT_EQ(std::string(e.what()),
+              dir + "/cal.yaml: expected UR's Base at the robot's DH frame 0, the shoulder 927.3 mm from it (d1 of 'ur10' in UR's "
+                    "convention), found the shoulder 128.0 mm from UR's Base in the YAML: the robot's DH frame 0 lies about 799.3 mm "
+                    "from the arm's Base along axis 1 (a mount between the chain's root and the arm), where the YAML cannot place "
+                    "the arm (from a URDF: read the arm from its own base with --chain base:tool0 on ur_description's URDF)");
+  }
+  // the arm read from its own base: UR's formula with the deltas, world = Base
+  const RobotModel m = modelFromUrCalibrationYaml(readUrdfRobot(dir + "/pedestal.urdf", "base:tool0").nominal, dir + "/cal.yaml");
+  auto [mm, rad] = worstDifference(m, Eigen::Isometry3d::Identity(), reference, Eigen::Isometry3d::Identity());
+  EXPECT_LT(mm, 1e-9);
+  EXPECT_LT(rad, 1e-12);
+  // the calibration of another arm type on the mount is still that
+  RobotModel other = reference;
+  other.nominal.joints[1].a_mm = 425;  // a UR5e's upper arm
+  test::writeText(dir + "/other.yaml", formatUrCalibrationYaml(other, nullptr));
+  try {
+    modelFromUrCalibrationYaml(readUrdfRobot(dir + "/pedestal.urdf").nominal, dir + "/other.yaml");
+    FAIL() << "accepted";
+  } catch (const ArgumentError& e) {
+    EXPECT_NE(std::string(e.what()).find("the calibration of another arm type"), std::string::npos) << e.what();
+  }
+  std::filesystem::remove_all(dir);
+}
+
 TEST(UrCalibration, ACalibratedDescriptionFoldsItsTheta0IntoTheDeltas) {
   // ur_description with a calibration applied (its joint origins from a ur_calibration YAML):
   // link 1's theta0 is -0.0042 deg off UR's 0 (delta_theta_1), the others too. Its YAML is

@@ -376,8 +376,12 @@ RobotModel readRobotFile(const std::string& path) {
   const XMLElement* root = doc.RootElement();
   if (!root || std::string(root->Name()) != "robot")
     R.fail(root, "expected root element <robot>, found <" + std::string(root ? root->Name() : "nothing") + ">");
-  // a URDF under another name (robot_description.xml): its <robot> holds <link>s and no <joints>
-  if (root->FirstChildElement("link") && !root->FirstChildElement("joints")) return readUrdfRobot(path);
+  // a URDF under another name (robot_description.xml): its <robot> holds <link>s and no <joints>;
+  // so is a xacro source (<xacro:include>, <xacro:macro>, macro calls), which the URDF reader names
+  bool xacro = false;
+  for (const XMLElement* c = root->FirstChildElement(); c && !xacro; c = c->NextSiblingElement())
+    xacro = std::string(c->Name()).rfind("xacro:", 0) == 0;
+  if ((root->FirstChildElement("link") || xacro) && !root->FirstChildElement("joints")) return readUrdfRobot(path);
   const RobotDefinition def = readDefinition(R, root);
   FormPolicy policy = FormPolicy::kAuto;
   const XMLElement* cal = R.child(root, "calibration", false);

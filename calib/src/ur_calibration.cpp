@@ -631,6 +631,24 @@ RobotModel modelFromUrCalibrationYaml(const RobotDefinition& nominal, const std:
     chain.joints[i].lower = nominal.joints[i].lower;
     chain.joints[i].upper = nominal.joints[i].upper;
   }
+  // The YAML's shoulder entry places joint 1 from UR's Base, which the table puts at the robot's
+  // DH frame 0: the foot of the perpendicular from its chain's root onto axis 1. A root on a mount
+  // (a pedestal or a ceiling under ur_description's base_link) puts frame 0 at the mount's level
+  // and d1 holds the mount's height, which the YAML does not (the deltas of calibration.conf add
+  // to d1, which a shift along axis 1 leaves alone). The arm the YAML describes from there:
+  const double mount_mm = c.ur.joints[0].d_mm - chain.joints[0].T_prev_joint.translation().z();
+  if (std::abs(mount_mm) > kMaxUrFactoryCorrectionMm) {
+    SerialChain on_mount = chain;
+    on_mount.joints[0].T_prev_joint.translation().z() += mount_mm;
+    const ChainComparison m = compareModelWithChain(RobotModel::fromDefinition(c.ur), on_mount);
+    if (m.max_position_mm <= kMaxUrFactoryCorrectionMm && m.max_rotation_rad * kRadToDeg <= kMaxUrFactoryCorrectionDeg)
+      throw ArgumentError(path + ": expected UR's Base at the robot's DH frame 0, the shoulder " + formatFixed(c.ur.joints[0].d_mm, 1) +
+                          " mm from it (d1 of '" + nominal.name + "' in UR's convention), found the shoulder " +
+                          formatFixed(chain.joints[0].T_prev_joint.translation().z(), 1) +
+                          " mm from UR's Base in the YAML: the robot's DH frame 0 lies about " + formatFixed(std::abs(mount_mm), 1) +
+                          " mm from the arm's Base along axis 1 (a mount between the chain's root and the arm), where the YAML cannot place the arm"
+                          " (from a URDF: read the arm from its own base with --chain base:tool0 on ur_description's URDF)");
+  }
   // in the robot's frames: its base, the YAML's chain between its DH frame 0 and its flange, its tool
   const SerialChain robot_chain = framed(chain, nominal.T_world_base * c.T_frame0_urbase, c.T_urflange_flange * nominal.T_flange_tcp);
   RobotModel m = modelFromChain(robot_chain, &nominal, FormPolicy::kAuto, kUrCheckTolMm);  // (its joint-by-joint errors first)

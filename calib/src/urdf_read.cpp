@@ -67,6 +67,28 @@ bool isMoving(const std::string& type) {
   return type == "revolute" || type == "continuous" || type == "prismatic";
 }
 
+// What an error about a value adds when the value holds a xacro expression ("${pi/2}",
+// "$(find pkg)"): the file is a xacro source, or its expansion failed part-way.
+std::string xacroNote(const char* value) {
+  const std::string v = value ? value : "";
+  return v.find("${") != std::string::npos || v.find("$(") != std::string::npos
+             ? " (an unexpanded xacro expression: give accura xacro's output, xacro FILE.xacro > FILE.urdf)"
+             : "";
+}
+
+// The first xacro element (<xacro:include>, <xacro:macro>, a macro call) in document order; a
+// declaration (<xacro:property>, <xacro:arg>) changes nothing by itself (a value that uses it holds
+// ${...}), and ROS reads such a file as the URDF it otherwise is.
+const XMLElement* firstXacroElement(const XMLElement* e) {
+  for (; e; e = e->NextSiblingElement()) {
+    const std::string name = e->Name();
+    if (name == "xacro:property" || name == "xacro:arg") continue;
+    if (name.rfind("xacro:", 0) == 0) return e;
+    if (const XMLElement* inner = firstXacroElement(e->FirstChildElement())) return inner;
+  }
+  return nullptr;
+}
+
 // "a b c": three finite numbers, else InputError at the element's line.
 Eigen::Vector3d triple(const UrdfIndex& ix, const XMLElement* e, const char* attr, const Eigen::Vector3d& dflt) {
   const char* v = e->Attribute(attr);
@@ -80,12 +102,12 @@ Eigen::Vector3d triple(const UrdfIndex& ix, const XMLElement* e, const char* att
     const double x = std::strtod(tok.c_str(), &end);
     if (k >= 3 || end == tok.c_str() || *end != '\0' || !std::isfinite(x))
       ix.failAttribute(e, attr, "<" + std::string(e->Name()) + "> attribute '" + attr +
-                                    "': expected three finite numbers, found '" + v + "'");
+                                    "': expected three finite numbers, found '" + v + "'" + xacroNote(v));
     r[k++] = x;
   }
   if (k != 3)
     ix.failAttribute(e, attr, "<" + std::string(e->Name()) + "> attribute '" + attr +
-                                  "': expected three finite numbers, found '" + v + "'");
+                                  "': expected three finite numbers, found '" + v + "'" + xacroNote(v));
   return r;
 }
 
@@ -100,7 +122,7 @@ double scalar(const UrdfIndex& ix, const XMLElement* e, const char* attr, bool r
   while (end && (*end == ' ' || *end == '\t')) ++end;
   if (end == v || *end != '\0' || !std::isfinite(x))
     ix.failAttribute(e, attr, "<" + std::string(e->Name()) + "> attribute '" + attr +
-                                  "': expected a finite number, found '" + v + "'");
+                                  "': expected a finite number, found '" + v + "'" + xacroNote(v));
   return x;
 }
 
@@ -154,6 +176,11 @@ UrdfIndex indexUrdf(const tinyxml2::XMLDocument& doc, const std::string& file, c
     ix.fail(robot, std::string("expected root element <robot>, found <") + (robot ? robot->Name() : "nothing") + ">");
   ix.robot_line = robot->GetLineNum();
   ix.robot = robot;
+  // a xacro source (ROS packages ship the arm as <arm>_macro.xacro and <arm>.urdf.xacro): its
+  // macros and includes are not URDF; every check below would name a symptom instead
+  if (const XMLElement* x = firstXacroElement(robot->FirstChildElement()))
+    ix.fail(x, "expected a URDF (xacro's output: xacro FILE.xacro > FILE.urdf), found the xacro element <" +
+                   std::string(x->Name()) + ">: the file is an unexpanded xacro source");
   nameAttr(ix, robot);
   for (const XMLElement* l = robot->FirstChildElement("link"); l; l = l->NextSiblingElement("link")) {
     const std::string name = nameAttr(ix, l);

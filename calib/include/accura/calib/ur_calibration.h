@@ -122,7 +122,8 @@ UrDeltasFromModel urDeltasFromModel(const RobotModel& model);
 SerialChain readUrCalibrationYaml(const std::string& path);
 
 /// The same chain as a calibrated model of `nominal` (as modelFromUrDeltas; the same size check,
-/// named by the path).
+/// named by the path). ArgumentError naming the distance when the YAML's arm fits only with UR's
+/// Base moved along axis 1 from `nominal`'s DH frame 0 (a URDF read from a root on a mount).
 RobotModel modelFromUrCalibrationYaml(const RobotDefinition& nominal, const std::string& path);
 
 /// The YAML of a model's flange chain (DH frame 0 to the flange, in UR's convention:

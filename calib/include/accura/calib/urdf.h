@@ -95,7 +95,7 @@ ChainComparison compareModelWithChain(const RobotModel& model, const SerialChain
 /// Reads the serial chain `chain_spec` ("root_link:tip_link"; empty: the default, see
 /// docs/robot-format.md) of a URDF file. The file is parsed twice: with tinyxml2, to check it
 /// and to give file:line:column for every error (malformed XML, missing or non-numeric attributes,
-/// unknown link names, a link with two parents, ...), then with urdfdom, whose model gives
+/// unknown link names, a link with two parents, an unexpanded xacro source, ...), then with urdfdom, whose model gives
 /// the data. Fixed joints are folded into their neighbours; continuous joints get the limits
 /// -360..360 deg. Throws InputError (file:line:column) on a malformed file, an unknown link in
 /// chain_spec, a mimic, floating or planar joint on the chain, a moving joint branching off
