@@ -479,6 +479,20 @@ TEST(UrCalibration, AYamlOnAnArmReadFromItsMountSaysWhereTheBaseIs) {
   } catch (const ArgumentError& e) {
     EXPECT_NE(std::string(e.what()).find("the calibration of another arm type"), std::string::npos) << e.what();
   }
+  // the YAML of the arm read from its mount would lift it by the pedestal once more (shoulder z
+  // 0.9273 m where the arm's is 0.1273): refused; read from its own base, the arm's 0.1273 m
+  try {
+    formatUrCalibrationYaml(readUrdfRobot(dir + "/pedestal.urdf"), nullptr);
+    FAIL() << "written";
+  } catch (const ArgumentError& e) {
+    EXPECT_EQ(std::string(e.what()),
+              "UR calibration YAML: expected the shoulder within 300 mm of UR's Base (d1 of every UR arm: 89.2 to 236.3 mm), found "
+              "it 927.3 mm from the DH frame 0 of 'ur10' along axis 1: its chain's root stands on a mount, whose height the YAML "
+              "cannot hold (written, it would lift the arm by it once more); from a URDF, read the arm from its own base with "
+              "--chain base:tool0");
+  }
+  const std::string own = formatUrCalibrationYaml(readUrdfRobot(dir + "/pedestal.urdf", "base:tool0"), nullptr);
+  EXPECT_NE(own.find("  shoulder:\n    x: 0\n    y: 0\n    z: 0.1273"), std::string::npos) << own;
   std::filesystem::remove_all(dir);
 }
 

@@ -676,6 +676,14 @@ std::string formatUrCalibrationYaml(const RobotModel& model, std::vector<std::st
     Eigen::Isometry3d O = pending;
     O.rotate(Eigen::AngleAxisd(j.theta0_deg * kDegToRad + d.dtheta_rad, Eigen::Vector3d::UnitZ()));
     O.translate(Eigen::Vector3d(0, 0, j.d_mm + d.dd_mm));
+    // UR's Base is the arm's own: a model read from a root on a mount has the mount's height in
+    // d1 (frame 0 at the mount's foot), which the YAML would place under the arm once more
+    if (i == 0 && std::abs(O.translation().z()) > kMaxUrShoulderHeightMm)
+      throw ArgumentError("UR calibration YAML: expected the shoulder within " + formatFixed(kMaxUrShoulderHeightMm, 0) +
+                          " mm of UR's Base (d1 of every UR arm: 89.2 to 236.3 mm), found it " + formatFixed(O.translation().z(), 1) +
+                          " mm from the DH frame 0 of '" + model.nominal.name +
+                          "' along axis 1: its chain's root stands on a mount, whose height the YAML cannot hold (written, it would"
+                          " lift the arm by it once more); from a URDF, read the arm from its own base with --chain base:tool0");
     const Eigen::Vector3d p = O.translation() / 1000.0, rpy = urdf_detail::urdfRpy(O.linear());
     out << "  " << kYamlLinks[i] << ":\n    x: " << num17(p.x()) << "\n    y: " << num17(p.y()) << "\n    z: " << num17(p.z())
         << "\n    roll: " << num17(rpy.x()) << "\n    pitch: " << num17(rpy.y()) << "\n    yaw: " << num17(rpy.z()) << "\n";

@@ -126,10 +126,16 @@ SerialChain readUrCalibrationYaml(const std::string& path);
 /// Base moved along axis 1 from `nominal`'s DH frame 0 (a URDF read from a root on a mount).
 RobotModel modelFromUrCalibrationYaml(const RobotDefinition& nominal, const std::string& path);
 
+/// The highest shoulder above UR's Base of any UR arm (mm): d1 is 89.2 (UR5) to 236.3 (UR20,
+/// UR30); a YAML's shoulder z above this places the arm on whatever stood under the model's root.
+constexpr double kMaxUrShoulderHeightMm = 300.0;
+
 /// The YAML of a model's flange chain (DH frame 0 to the flange, in UR's convention:
 /// urConventionOf), `not_represented` as in
 /// urDeltasFromModel (plus a non-zero a or alpha of the last link, which the six entries cannot
-/// hold). Throws ArgumentError for a model without 6 revolute joints.
+/// hold). Throws ArgumentError for a model without 6 revolute joints, and for one whose shoulder
+/// stands more than kMaxUrShoulderHeightMm from DH frame 0 along axis 1 (no UR arm's does: a root
+/// on a mount, whose height the YAML's shoulder entry would add to the arm's own).
 std::string formatUrCalibrationYaml(const RobotModel& model, std::vector<std::string>* not_represented);
 
 }  // namespace accura::calib
