@@ -87,6 +87,40 @@ TEST(MappedColumns, DegreesReadAsRadiansAndARepeatedHeaderAreSaidSo) {
   std::filesystem::remove_all(dir);
 }
 
+TEST(MappedColumns, AnExportWithCrLineEndsOrInUtf16IsNamedAsSuch) {
+  const std::string dir = test::tempDir("mapped_text");
+  const RobotModel robot = readRobotFile(resolveRobotPath("ur10"));
+  test::writeText(dir + "/e.map", "delimiter = ;\ndecimal = ,\njoints = a, b, c, d, e, f\njoint_unit = deg\nposition = x, y, z\n"
+                                  "position_unit = mm\n");
+  const MeasurementMapping m = readMeasurementMapping(dir + "/e.map", robot.nominal);
+  const std::string header = "a;b;c;d;e;f;x;y;z", row = "10;-80;70;20;30;40;100,5;200;300";
+  const auto errorOf = [&](const std::string& text) {
+    test::writeText(dir + "/e.csv", text);
+    try {
+      (void)readMappedMeasurements(dir + "/e.csv", m, robot.nominal);
+      ADD_FAILURE() << "read";
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  // lines ending in CR only (a classic Mac OS export): was "e.csv:1:1: expected at least one data
+  // row after the header, found none" (the file read as one line)
+  EXPECT_EQ(errorOf(header + "\r" + row + "\r" + row + "\r"),
+            dir + "/e.csv:1:1: expected lines that end in LF or CRLF, found a CR without LF after the text of line 1 (lines that end "
+                  "in CR only, as classic Mac OS exports write them, 'CSV (Macintosh)'?): the file would read as one line; convert its "
+                  "line ends (e.g. tr '\\r' '\\n' < in.csv > out.csv)");
+  // UTF-16 (a spreadsheet's "Unicode Text"): was "e.csv:1:1: expected a column 'a' in the header, found none"
+  std::string utf16 = "\xFF\xFE";
+  for (char c : header + "\r\n" + row + "\r\n") utf16 += std::string(1, c) + '\0';
+  EXPECT_EQ(errorOf(utf16), dir + "/e.csv:1:1: expected UTF-8 or ASCII text, found UTF-16 (the byte-order mark FF FE at the start of "
+                                  "the file): save the export as UTF-8 text (a spreadsheet's 'CSV UTF-8', not 'Unicode Text')");
+  // CRLF, a BOM and no final line end are read as before
+  test::writeText(dir + "/ok.csv", "\xEF\xBB\xBF" + header + "\r\n" + row + "\r\n" + row);
+  EXPECT_EQ(readMappedMeasurements(dir + "/ok.csv", m, robot.nominal).rows.size(), 2u);
+  std::filesystem::remove_all(dir);
+}
+
 TEST(MappedColumns, ExcursionsBelowTheRangeToleranceAreNotOutsideTheFit) {
   // a model with joint compliance fitted on j2 in -120..-30 deg: 5.7e-5 deg beyond (1e-6 rad, the
   // rounding of a radian export) is within kFitRangeTolerance (1e-3 deg); 2e-3 deg beyond is outside

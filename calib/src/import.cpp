@@ -73,13 +73,19 @@ std::vector<std::string> splitFields(const std::string& s, char sep) {
 std::vector<std::string> readLines(const std::string& path) {
   std::ifstream f(path, std::ios::binary);
   if (!f) throw InputError(path, 0, 0, "cannot open file");
+  std::ostringstream bytes;
+  bytes << f.rdbuf();
+  if (f.bad()) throw InputError(path, 0, 0, "read error");
+  const std::string content = bytes.str();
+  int bad_line = 0;
+  if (const std::string why = unsplittableText(content, &bad_line); !why.empty()) throw InputError(path, bad_line, 1, why);
   std::vector<std::string> lines;
+  std::istringstream in(content);
   std::string line;
-  while (std::getline(f, line)) {
+  while (std::getline(in, line)) {
     if (!line.empty() && line.back() == '\r') line.pop_back();
     lines.push_back(line);
   }
-  if (f.bad()) throw InputError(path, 0, 0, "read error");
   if (!lines.empty() && lines[0].rfind("\xEF\xBB\xBF", 0) == 0) lines[0].erase(0, 3);
   return lines;
 }

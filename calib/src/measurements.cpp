@@ -563,6 +563,8 @@ MeasurementSet MeasurementReader::read() {
   if (dof_ < 1) throw ArgumentError("readMeasurementsCsv: the robot has no joints");
   set_.file = path_;
   const std::string content = loadFile();
+  int bad_line = 0;
+  if (const std::string why = unsplittableText(content, &bad_line); !why.empty()) fail(bad_line, 1, why);
 
   bool have_header = false;
   bool saw_anything = false;
@@ -637,6 +639,26 @@ std::string jointTurnNote(const JointSpec& joint, double v) {
   const double within = v - 360.0 * std::round(v / 360.0);
   return "; -360..360 deg is also what a joint without limits (a URDF's continuous joint) is given: " + shortest(v) +
          " deg is the pose of " + shortest(within) + " deg, give the value within a turn";
+}
+
+std::string unsplittableText(const std::string& content, int* line) {
+  *line = 1;
+  if (content.rfind("\xFF\xFE", 0) == 0 || content.rfind("\xFE\xFF", 0) == 0)
+    return std::string("expected UTF-8 or ASCII text, found UTF-16 (the byte-order mark ") + (content[0] == '\xFF' ? "FF FE" : "FE FF") +
+           " at the start of the file): save the export as UTF-8 text (a spreadsheet's 'CSV UTF-8', not 'Unicode Text')";
+  const std::size_t first_end = content.find('\n');
+  if (content.find('\0') < first_end)
+    return "expected UTF-8 or ASCII text, found a NUL byte in the first line (UTF-16 text without a byte-order mark, or a binary "
+           "file?): save the export as UTF-8 text";
+  for (std::size_t p = content.find('\r'); p != std::string::npos; p = content.find('\r', p + 1)) {
+    if (p + 1 < content.size() && content[p + 1] == '\n') continue;
+    if (p + 1 == content.size()) continue;  // (the last line's CR: read as the end of the line)
+    *line = 1 + static_cast<int>(std::count(content.begin(), content.begin() + static_cast<std::ptrdiff_t>(p), '\n'));
+    return "expected lines that end in LF or CRLF, found a CR without LF after the text of line " + std::to_string(*line) +
+           " (lines that end in CR only, as classic Mac OS exports write them, 'CSV (Macintosh)'?): the file would read as one "
+           "line; convert its line ends (e.g. tr '\\r' '\\n' < in.csv > out.csv)";
+  }
+  return "";
 }
 
 std::string implausibleMeasuredValue(MeasuredValue kind, double v) {
