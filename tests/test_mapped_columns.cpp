@@ -121,6 +121,29 @@ TEST(MappedColumns, AnExportWithCrLineEndsOrInUtf16IsNamedAsSuch) {
   std::filesystem::remove_all(dir);
 }
 
+TEST(MappedColumns, ASignAfterAPlusIsNoNumber) {
+  const std::string dir = test::tempDir("mapped_sign");
+  const RobotModel robot = readRobotFile(resolveRobotPath("ur10"));
+  test::writeText(dir + "/e.map", "delimiter = tab\ndecimal = .\njoints = a, b, c, d, e, f\njoint_unit = deg\nposition = x, y, z\n"
+                                  "position_unit = m\n");
+  const MeasurementMapping m = readMeasurementMapping(dir + "/e.map", robot.nominal);
+  // '+-1.5' was read as -1.5 m (accura's own CSV refuses it); '+1.5' stays 1.5
+  test::writeText(dir + "/e.csv", "a\tb\tc\td\te\tf\tx\ty\tz\n10\t-80\t70\t20\t30\t40\t+1.5\t0.2\t0.3\n10\t-80\t70\t20\t30\t40\t+-1.5\t0.2\t0.3\n");
+  try {
+    (void)readMappedMeasurements(dir + "/e.csv", m, robot.nominal);
+    ADD_FAILURE() << "'+-1.5' read as a number";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()), dir + "/e.csv:3:7: column 'x': expected a number with '.' as decimal mark, found '+-1.5'");
+  }
+  test::writeText(dir + "/ok.csv", "a\tb\tc\td\te\tf\tx\ty\tz\n10\t-80\t70\t20\t30\t40\t+1.5\t+.2\t-0.3\n");
+  const MeasurementSet set = readMappedMeasurements(dir + "/ok.csv", m, robot.nominal);
+  ASSERT_EQ(set.rows.size(), 1u);
+  EXPECT_DOUBLE_EQ(set.rows[0].p_world_mm.x(), 1500.0);
+  EXPECT_DOUBLE_EQ(set.rows[0].p_world_mm.y(), 200.0);
+  EXPECT_DOUBLE_EQ(set.rows[0].p_world_mm.z(), -300.0);
+  std::filesystem::remove_all(dir);
+}
+
 TEST(MappedColumns, ExcursionsBelowTheRangeToleranceAreNotOutsideTheFit) {
   // a model with joint compliance fitted on j2 in -120..-30 deg: 5.7e-5 deg beyond (1e-6 rad, the
   // rounding of a radian export) is within kFitRangeTolerance (1e-3 deg); 2e-3 deg beyond is outside

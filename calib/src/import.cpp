@@ -99,7 +99,7 @@ bool parseNumber(std::string text, char decimal, double* value) {
     std::replace(text.begin(), text.end(), ',', '.');
   }
   const char* b = text.c_str();
-  if (*b == '+') ++b;
+  if (*b == '+' && b[1] != '-' && b[1] != '+') ++b;  // "+-1.5" is no number (was read as -1.5)
   const char* e = text.c_str() + text.size();
   const auto r = std::from_chars(b, e, *value);
   return r.ec == std::errc() && r.ptr == e && std::isfinite(*value);
