@@ -144,6 +144,25 @@ TEST(MappedColumns, ASignAfterAPlusIsNoNumber) {
   std::filesystem::remove_all(dir);
 }
 
+TEST(MappedColumns, TheHeaderAgainAfterAByteOrderMarkIsNamed) {
+  // two exports with a byte-order mark each, joined byte for byte (cat a.csv b.csv): was
+  // "two.csv:3:1: column 'a': expected a number with ',' as decimal mark, found '\xEF\xBB\xBF\"a\"'"
+  const std::string dir = test::tempDir("mapped_bom_header");
+  const RobotModel robot = readRobotFile(resolveRobotPath("ur10"));
+  test::writeText(dir + "/e.map", "delimiter = ;\ndecimal = ,\njoints = a, b, c, d, e, f\njoint_unit = deg\nposition = x, y, z\n"
+                                  "position_unit = mm\n");
+  const std::string one = "\xEF\xBB\xBF\"a\";\"b\";\"c\";\"d\";\"e\";\"f\";\"x\";\"y\";\"z\"\r\n10;-80;70;20;30;40;100,5;200;300\r\n";
+  test::writeText(dir + "/two.csv", one + one);
+  try {
+    (void)readMappedMeasurements(dir + "/two.csv", readMeasurementMapping(dir + "/e.map", robot.nominal), robot.nominal);
+    ADD_FAILURE() << "a repeated header read";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()), dir + "/two.csv:3:1: expected a data row, found the header row again (the header is line 1): two "
+                                           "exports joined into one file? Split them, or delete the repeated header");
+  }
+  std::filesystem::remove_all(dir);
+}
+
 TEST(MappedColumns, ExcursionsBelowTheRangeToleranceAreNotOutsideTheFit) {
   // a model with joint compliance fitted on j2 in -120..-30 deg: 5.7e-5 deg beyond (1e-6 rad, the
   // rounding of a radian export) is within kFitRangeTolerance (1e-3 deg); 2e-3 deg beyond is outside

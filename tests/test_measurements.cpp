@@ -539,6 +539,20 @@ TEST_F(MeasurementsTest, LinesEndingInCrOnlyAndUtf16AreNamedNotReadAsAHeaderAlon
   EXPECT_EQ(read(std::string(kHeader) + "0,-90,90,0,45,0,1000,0,1500\r").rows.size(), 1u);
 }
 
+TEST_F(MeasurementsTest, TheHeaderAgainIsNamedAsTwoExportsJoined) {
+  // two files joined (cat a.csv b.csv): was "data.csv:4:1: column 'q1': expected a number, found 'q1'"
+  const std::string joined = std::string(kHeader) + kRow + kRow + "Q1, q2,q3,q4,q5,q6,x,y,z\n" + kRow;
+  EXPECT_EQ(std::string(readError(joined).what()),
+            dataPath() + ":4:1: expected a data row, found the header row again (the header is line 1): two exports joined into one "
+                         "file? Split them, or delete the repeated header");
+  // the second file's byte-order mark before it (joined byte for byte)
+  const std::string with_bom = "\xEF\xBB\xBF" + std::string(kHeader) + kRow + "\xEF\xBB\xBF" + kHeader + kRow;
+  EXPECT_EQ(readError(with_bom).line(), 3);
+  EXPECT_EQ(readError(with_bom).message(),
+            "expected a data row, found the header row again (the header is line 1): two exports joined into one file? Split them, or "
+            "delete the repeated header");
+}
+
 TEST_F(MeasurementsTest, UnitsInColumnNamesPointToAMappingFile) {
   // an export's names ('q1 [deg]', 'x_mm'): the missing-column error says what the names are and
   // what reads them, as it does for a ';' delimiter

@@ -639,10 +639,14 @@ MeasurementSet readMappedMeasurements(const std::string& path, const Measurement
     const std::string t = trimBlanks(lines[li]);
     if (t.empty() || t[0] == '#') continue;
     const MappedRow row{path, h.names, m, static_cast<int>(li) + 1, splitFields(lines[li], m.delimiter)};
-    // the header again (two exports concatenated): said as such, not as a field that is no number
-    if (row.f.size() == h.names.size()) {
+    // the header again (two exports concatenated): said as such, not as a field that is no number;
+    // with the second export's byte-order mark before it when they were joined byte for byte
+    // (cat a.csv b.csv)
+    const std::vector<std::string> again =
+        lines[li].rfind("\xEF\xBB\xBF", 0) == 0 ? splitFields(lines[li].substr(3), m.delimiter) : row.f;
+    if (again.size() == h.names.size()) {
       bool header = true;
-      for (size_t k = 0; header && k < h.names.size(); ++k) header = lower(trimBlanks(row.f[k])) == lower(h.names[k]);
+      for (size_t k = 0; header && k < h.names.size(); ++k) header = lower(trimBlanks(again[k])) == lower(h.names[k]);
       if (header)
         throw InputError(path, row.ln, 1,
                          "expected a data row, found the header row again (the header is line " + std::to_string(h.line) +

@@ -226,6 +226,7 @@ class MeasurementReader {
   void requireGroup(int line, const std::string& what, const std::vector<Role>& roles,
                     const std::vector<std::string>& names) const;
   Measurement parseRow(std::string_view text, int line) const;
+  bool isHeaderAgain(std::string_view text) const;
 
   const std::string& path_;
   const RobotDefinition& robot_;
@@ -559,6 +560,17 @@ Measurement MeasurementReader::parseRow(std::string_view text, int line) const {
   return m;
 }
 
+/// True when the row `text` names the header's columns again (case-insensitive, trimmed), a
+/// byte-order mark before it or not.
+bool MeasurementReader::isHeaderAgain(std::string_view text) const {
+  if (text.substr(0, 3) == "\xEF\xBB\xBF") text.remove_prefix(3);
+  const std::vector<std::string_view> fields = splitFields(text);
+  if (fields.size() != layout_.columns.size()) return false;
+  for (std::size_t i = 0; i < fields.size(); ++i)
+    if (toLower(trim(fields[i])) != toLower(layout_.columns[i].name)) return false;
+  return true;
+}
+
 MeasurementSet MeasurementReader::read() {
   if (dof_ < 1) throw ArgumentError("readMeasurementsCsv: the robot has no joints");
   set_.file = path_;
@@ -597,6 +609,12 @@ MeasurementSet MeasurementReader::read() {
       set_.has_direction = layout_.dir_col[0] >= 0;
       set_.has_time = layout_.has(Role::kTime);
       continue;
+    }
+    // the header again (two exports concatenated, the second one's byte-order mark before it when
+    // joined byte for byte): said as such, not as a field that is no number ("found 'q1'")
+    if (isHeaderAgain(text)) {
+      fail(line, 1, "expected a data row, found the header row again (the header is line " + std::to_string(header_line_) +
+                        "): two exports joined into one file? Split them, or delete the repeated header");
     }
     set_.rows.push_back(parseRow(text, line));
   }
