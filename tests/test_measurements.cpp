@@ -533,8 +533,8 @@ TEST_F(MeasurementsTest, LinesEndingInCrOnlyAndUtf16AreNamedNotReadAsAHeaderAlon
             dataPath() + ":1:1: expected UTF-8 or ASCII text, found UTF-16 (the byte-order mark FF FE at the start of the file): "
                          "save the export as UTF-8 text (a spreadsheet's 'CSV UTF-8', not 'Unicode Text')");
   EXPECT_EQ(readError(utf16.substr(2)).message(),
-            "expected UTF-8 or ASCII text, found a NUL byte in the first line (UTF-16 text without a byte-order mark, or a binary "
-            "file?): save the export as UTF-8 text");
+            "expected UTF-8 or ASCII text, found a NUL byte at the start of the file (UTF-16 text without a byte-order mark, or a "
+            "binary file?): save the export as UTF-8 text");
   // a CR that ends the file's last line (no LF after it) is that line's end, as before
   EXPECT_EQ(read(std::string(kHeader) + "0,-90,90,0,45,0,1000,0,1500\r").rows.size(), 1u);
 }

@@ -664,10 +664,10 @@ std::string unsplittableText(const std::string& content, int* line) {
   if (content.rfind("\xFF\xFE", 0) == 0 || content.rfind("\xFE\xFF", 0) == 0)
     return std::string("expected UTF-8 or ASCII text, found UTF-16 (the byte-order mark ") + (content[0] == '\xFF' ? "FF FE" : "FE FF") +
            " at the start of the file): save the export as UTF-8 text (a spreadsheet's 'CSV UTF-8', not 'Unicode Text')";
-  const std::size_t first_end = content.find('\n');
-  if (content.find('\0') < first_end)
-    return "expected UTF-8 or ASCII text, found a NUL byte in the first line (UTF-16 text without a byte-order mark, or a binary "
-           "file?): save the export as UTF-8 text";
+  // (UTF-16 of ASCII text: every other byte NUL; a NUL further on, in a comment, is not this)
+  if (content.size() >= 2 && (content[0] == '\0' || content[1] == '\0'))
+    return "expected UTF-8 or ASCII text, found a NUL byte at the start of the file (UTF-16 text without a byte-order mark, or a "
+           "binary file?): save the export as UTF-8 text";
   for (std::size_t p = content.find('\r'); p != std::string::npos; p = content.find('\r', p + 1)) {
     if (p + 1 < content.size() && content[p + 1] == '\n') continue;
     if (p + 1 == content.size()) continue;  // (the last line's CR: read as the end of the line)
