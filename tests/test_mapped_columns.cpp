@@ -163,6 +163,28 @@ TEST(MappedColumns, TheHeaderAgainAfterAByteOrderMarkIsNamed) {
   std::filesystem::remove_all(dir);
 }
 
+TEST(MappedColumns, OrientationInDegreesReadAsRadiansIsSaidSo) {
+  // Euler angles in degrees under orientation_unit = rad: -178.9 rad is -10250 deg, beyond the
+  // plausible range; was only "expected an angle within +-1e+04 deg, found '-178,9' (-10250.3 deg)"
+  const std::string dir = test::tempDir("mapped_angle_unit");
+  const RobotModel robot = readRobotFile(resolveRobotPath("ur10"));
+  test::writeText(dir + "/e.map", "delimiter = ;\ndecimal = ,\njoints = a, b, c, d, e, f\njoint_unit = deg\nposition = x, y, z\n"
+                                  "position_unit = mm\norientation = euler_intrinsic_xyz: rx, ry, rz\norientation_unit = rad\n");
+  const MeasurementMapping m = readMeasurementMapping(dir + "/e.map", robot.nominal);
+  test::writeText(dir + "/e.csv", "a;b;c;d;e;f;x;y;z;rx;ry;rz\n10;-80;70;20;30;40;100;200;300;0,5;-0,25;3\n"
+                                  "10;-80;70;20;30;40;100;200;300;-90,5;-20,1;-178,9\n");
+  try {
+    (void)readMappedMeasurements(dir + "/e.csv", m, robot.nominal);
+    ADD_FAILURE() << "degrees read as radians";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()), dir + "/e.csv:3:12: column 'rz': expected an angle within +-1e+04 deg, found '-178,9' "
+                                           "(-10250.2 deg): an angle beyond a turn in radians, and within a turn as degrees: the column "
+                                           "looks like degrees, not the radians the mapping states (orientation_unit = rad in " +
+                                           dir + "/e.map:8); check the mapping's orientation_unit");
+  }
+  std::filesystem::remove_all(dir);
+}
+
 TEST(MappedColumns, ExcursionsBelowTheRangeToleranceAreNotOutsideTheFit) {
   // a model with joint compliance fitted on j2 in -120..-30 deg: 5.7e-5 deg beyond (1e-6 rad, the
   // rounding of a radian export) is within kFitRangeTolerance (1e-3 deg); 2e-3 deg beyond is outside

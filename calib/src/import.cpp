@@ -534,7 +534,26 @@ Eigen::Vector3d readOrientation(const MappedRow& row, const MappedColumns& c, Me
       throw InputError(row.path, row.ln, oc[0] + 1, "expected a unit quaternion (norm 1 within 1e-3), found norm " + std::to_string(norm));
     r.R_world_tcp = Eigen::Quaterniond(w / norm, x / norm, y / norm, z / norm);
   } else {
-    for (int k = 0; k < 3; ++k) angles_rad[k] = row.value(oc[k], m.angle_scale, MeasuredValue::kAngleDeg, "deg") * kDegToRad;
+    for (int k = 0; k < 3; ++k) {
+      // orientation_unit = rad and an angle beyond the plausible range that is within a turn read
+      // as degrees: the column is in degrees, whatever the mapping says (as for a joint)
+      const double raw = row.num(oc[k]);
+      if (m.angle_scale != 1.0 && std::abs(raw) > 2 * kPi && std::abs(raw) <= 360.0 &&
+          !implausibleMeasuredValue(MeasuredValue::kAngleDeg, raw * m.angle_scale).empty()) {
+        int ml = 0;
+        for (const auto& kl : m.key_lines)
+          if (kl.first == "orientation_unit") ml = kl.second;
+        char buf[160];
+        std::snprintf(buf, sizeof buf, "expected %s, found '%s' (%.6g deg)", implausibleMeasuredValue(MeasuredValue::kAngleDeg, raw * m.angle_scale).c_str(),
+                      trimBlanks(row.f[static_cast<size_t>(oc[k])]).c_str(), raw * m.angle_scale);
+        throw InputError(row.path, row.ln, oc[k] + 1,
+                         "column '" + row.header[static_cast<size_t>(oc[k])] + "': " + buf +
+                             ": an angle beyond a turn in radians, and within a turn as degrees: the column looks like degrees, not the "
+                             "radians the mapping states (orientation_unit = rad in " + m.file + (ml ? ":" + std::to_string(ml) : std::string()) +
+                             "); check the mapping's orientation_unit");
+      }
+      angles_rad[k] = row.value(oc[k], m.angle_scale, MeasuredValue::kAngleDeg, "deg") * kDegToRad;
+    }
     r.R_world_tcp = Eigen::Quaterniond(rotationFromAngles(m.orientation_convention, angles_rad));
   }
   return angles_rad;
