@@ -535,6 +535,8 @@ TEST_F(MeasurementsTest, LinesEndingInCrOnlyAndUtf16AreNamedNotReadAsAHeaderAlon
   EXPECT_EQ(readError(utf16.substr(2)).message(),
             "expected UTF-8 or ASCII text, found a NUL byte at the start of the file (UTF-16 text without a byte-order mark, or a "
             "binary file?): save the export as UTF-8 text");
+  // a stray CR in a comment of an LF file is not read, as before
+  EXPECT_EQ(read("# pasted\rnote\n" + std::string(kHeader) + kRow).rows.size(), 1u);
   // a CR that ends the file's last line (no LF after it) is that line's end, as before
   EXPECT_EQ(read(std::string(kHeader) + "0,-90,90,0,45,0,1000,0,1500\r").rows.size(), 1u);
 }

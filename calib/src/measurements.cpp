@@ -668,9 +668,19 @@ std::string unsplittableText(const std::string& content, int* line) {
   if (content.size() >= 2 && (content[0] == '\0' || content[1] == '\0'))
     return "expected UTF-8 or ASCII text, found a NUL byte at the start of the file (UTF-16 text without a byte-order mark, or a "
            "binary file?): save the export as UTF-8 text";
+  const bool has_lf = content.find('\n') != std::string::npos;
   for (std::size_t p = content.find('\r'); p != std::string::npos; p = content.find('\r', p + 1)) {
     if (p + 1 < content.size() && content[p + 1] == '\n') continue;
     if (p + 1 == content.size()) continue;  // (the last line's CR: read as the end of the line)
+    // a stray CR in a comment of a file with LF line ends is not read: on to the next line
+    const std::size_t lf = content.rfind('\n', p);
+    const std::size_t from = lf == std::string::npos ? (content.rfind("\xEF\xBB\xBF", 0) == 0 ? 3 : 0) : lf + 1;
+    const std::size_t text = content.find_first_not_of(" \t", from);
+    if (has_lf && text < p && content[text] == '#') {
+      p = content.find('\n', p);
+      if (p == std::string::npos) break;
+      continue;
+    }
     *line = 1 + static_cast<int>(std::count(content.begin(), content.begin() + static_cast<std::ptrdiff_t>(p), '\n'));
     return "expected lines that end in LF or CRLF, found a CR without LF after the text of line " + std::to_string(*line) +
            " (lines that end in CR only, as classic Mac OS exports write them, 'CSV (Macintosh)'?): the file would read as one "
