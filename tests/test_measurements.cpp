@@ -516,6 +516,45 @@ TEST_F(MeasurementsTest, ANulByteIsShownNotCutAt) {
   EXPECT_EQ(e.message(), "column 'z': expected a number, found '1500\\0' (\\0 is a NUL byte: a binary or corrupted file?)");
 }
 
+TEST_F(MeasurementsTest, LinesEndingInCrOnlyAndUtf16AreNamedNotReadAsAHeaderAlone) {
+  // a classic Mac OS export ends its lines in CR only: the file was one line, a header alone
+  // ("data.csv:1:1: expected at least one data row after the header, found none")
+  const std::string cr_only = std::string("q1,q2,q3,q4,q5,q6,x,y,z\r") + "0,-90,90,0,45,0,1000,0,1500\r" + "0,-90,90,0,45,0,1001,0,1500\r";
+  EXPECT_EQ(std::string(readError(cr_only).what()),
+            dataPath() + ":1:1: expected lines that end in LF or CRLF, found a CR without LF after the text of line 1 (lines that end "
+                         "in CR only, as classic Mac OS exports write them, 'CSV (Macintosh)'?): the file would read as one line; "
+                         "convert its line ends (e.g. tr '\\r' '\\n' < in.csv > out.csv)");
+  // a stray CR inside a CRLF file's third line: named at that line
+  EXPECT_EQ(readError(std::string(kHeader) + kRow + "0,-90,90,0,45,0\r,1000,0,1500\r\n").line(), 3);
+  // UTF-16 (a spreadsheet's "Unicode Text"): was "missing columns 'q1', ..., 'z'"
+  std::string utf16 = "\xFF\xFE";
+  for (char c : std::string(kHeader) + kRow) utf16 += std::string(1, c) + '\0';
+  EXPECT_EQ(std::string(readError(utf16).what()),
+            dataPath() + ":1:1: expected UTF-8 or ASCII text, found UTF-16 (the byte-order mark FF FE at the start of the file): "
+                         "save the export as UTF-8 text (a spreadsheet's 'CSV UTF-8', not 'Unicode Text')");
+  EXPECT_EQ(readError(utf16.substr(2)).message(),
+            "expected UTF-8 or ASCII text, found a NUL byte at the start of the file (UTF-16 text without a byte-order mark, or a "
+            "binary file?): save the export as UTF-8 text");
+  // a stray CR in a comment of an LF file is not read, as before
+  EXPECT_EQ(read("# pasted\rnote\n" + std::string(kHeader) + kRow).rows.size(), 1u);
+  // a CR that ends the file's last line (no LF after it) is that line's end, as before
+  EXPECT_EQ(read(std::string(kHeader) + "0,-90,90,0,45,0,1000,0,1500\r").rows.size(), 1u);
+}
+
+TEST_F(MeasurementsTest, TheHeaderAgainIsNamedAsTwoExportsJoined) {
+  // two files joined (cat a.csv b.csv): was "data.csv:4:1: column 'q1': expected a number, found 'q1'"
+  const std::string joined = std::string(kHeader) + kRow + kRow + "Q1, q2,q3,q4,q5,q6,x,y,z\n" + kRow;
+  EXPECT_EQ(std::string(readError(joined).what()),
+            dataPath() + ":4:1: expected a data row, found the header row again (the header is line 1): two exports joined into one "
+                         "file? Split them, or delete the repeated header");
+  // the second file's byte-order mark before it (joined byte for byte)
+  const std::string with_bom = "\xEF\xBB\xBF" + std::string(kHeader) + kRow + "\xEF\xBB\xBF" + kHeader + kRow;
+  EXPECT_EQ(readError(with_bom).line(), 3);
+  EXPECT_EQ(readError(with_bom).message(),
+            "expected a data row, found the header row again (the header is line 1): two exports joined into one file? Split them, or "
+            "delete the repeated header");
+}
+
 TEST_F(MeasurementsTest, UnitsInColumnNamesPointToAMappingFile) {
   // an export's names ('q1 [deg]', 'x_mm'): the missing-column error says what the names are and
   // what reads them, as it does for a ';' delimiter

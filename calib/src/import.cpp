@@ -73,13 +73,19 @@ std::vector<std::string> splitFields(const std::string& s, char sep) {
 std::vector<std::string> readLines(const std::string& path) {
   std::ifstream f(path, std::ios::binary);
   if (!f) throw InputError(path, 0, 0, "cannot open file");
+  std::ostringstream bytes;
+  bytes << f.rdbuf();
+  if (f.bad()) throw InputError(path, 0, 0, "read error");
+  const std::string content = bytes.str();
+  int bad_line = 0;
+  if (const std::string why = unsplittableText(content, &bad_line); !why.empty()) throw InputError(path, bad_line, 1, why);
   std::vector<std::string> lines;
+  std::istringstream in(content);
   std::string line;
-  while (std::getline(f, line)) {
+  while (std::getline(in, line)) {
     if (!line.empty() && line.back() == '\r') line.pop_back();
     lines.push_back(line);
   }
-  if (f.bad()) throw InputError(path, 0, 0, "read error");
   if (!lines.empty() && lines[0].rfind("\xEF\xBB\xBF", 0) == 0) lines[0].erase(0, 3);
   return lines;
 }
@@ -93,7 +99,7 @@ bool parseNumber(std::string text, char decimal, double* value) {
     std::replace(text.begin(), text.end(), ',', '.');
   }
   const char* b = text.c_str();
-  if (*b == '+') ++b;
+  if (*b == '+' && b[1] != '-' && b[1] != '+') ++b;  // "+-1.5" is no number (was read as -1.5)
   const char* e = text.c_str() + text.size();
   const auto r = std::from_chars(b, e, *value);
   return r.ec == std::errc() && r.ptr == e && std::isfinite(*value);
@@ -528,7 +534,26 @@ Eigen::Vector3d readOrientation(const MappedRow& row, const MappedColumns& c, Me
       throw InputError(row.path, row.ln, oc[0] + 1, "expected a unit quaternion (norm 1 within 1e-3), found norm " + std::to_string(norm));
     r.R_world_tcp = Eigen::Quaterniond(w / norm, x / norm, y / norm, z / norm);
   } else {
-    for (int k = 0; k < 3; ++k) angles_rad[k] = row.value(oc[k], m.angle_scale, MeasuredValue::kAngleDeg, "deg") * kDegToRad;
+    for (int k = 0; k < 3; ++k) {
+      // orientation_unit = rad and an angle beyond the plausible range that is within a turn read
+      // as degrees: the column is in degrees, whatever the mapping says (as for a joint)
+      const double raw = row.num(oc[k]);
+      if (m.angle_scale != 1.0 && std::abs(raw) > 2 * kPi && std::abs(raw) <= 360.0 &&
+          !implausibleMeasuredValue(MeasuredValue::kAngleDeg, raw * m.angle_scale).empty()) {
+        int ml = 0;
+        for (const auto& kl : m.key_lines)
+          if (kl.first == "orientation_unit") ml = kl.second;
+        char buf[160];
+        std::snprintf(buf, sizeof buf, "expected %s, found '%s' (%.6g deg)", implausibleMeasuredValue(MeasuredValue::kAngleDeg, raw * m.angle_scale).c_str(),
+                      trimBlanks(row.f[static_cast<size_t>(oc[k])]).c_str(), raw * m.angle_scale);
+        throw InputError(row.path, row.ln, oc[k] + 1,
+                         "column '" + row.header[static_cast<size_t>(oc[k])] + "': " + buf +
+                             ": an angle beyond a turn in radians, and within a turn as degrees: the column looks like degrees, not the "
+                             "radians the mapping states (orientation_unit = rad in " + m.file + (ml ? ":" + std::to_string(ml) : std::string()) +
+                             "); check the mapping's orientation_unit");
+      }
+      angles_rad[k] = row.value(oc[k], m.angle_scale, MeasuredValue::kAngleDeg, "deg") * kDegToRad;
+    }
     r.R_world_tcp = Eigen::Quaterniond(rotationFromAngles(m.orientation_convention, angles_rad));
   }
   return angles_rad;
@@ -633,10 +658,14 @@ MeasurementSet readMappedMeasurements(const std::string& path, const Measurement
     const std::string t = trimBlanks(lines[li]);
     if (t.empty() || t[0] == '#') continue;
     const MappedRow row{path, h.names, m, static_cast<int>(li) + 1, splitFields(lines[li], m.delimiter)};
-    // the header again (two exports concatenated): said as such, not as a field that is no number
-    if (row.f.size() == h.names.size()) {
+    // the header again (two exports concatenated): said as such, not as a field that is no number;
+    // with the second export's byte-order mark before it when they were joined byte for byte
+    // (cat a.csv b.csv)
+    const std::vector<std::string> again =
+        lines[li].rfind("\xEF\xBB\xBF", 0) == 0 ? splitFields(lines[li].substr(3), m.delimiter) : row.f;
+    if (again.size() == h.names.size()) {
       bool header = true;
-      for (size_t k = 0; header && k < h.names.size(); ++k) header = lower(trimBlanks(row.f[k])) == lower(h.names[k]);
+      for (size_t k = 0; header && k < h.names.size(); ++k) header = lower(trimBlanks(again[k])) == lower(h.names[k]);
       if (header)
         throw InputError(path, row.ln, 1,
                          "expected a data row, found the header row again (the header is line " + std::to_string(h.line) +

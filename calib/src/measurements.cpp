@@ -226,6 +226,7 @@ class MeasurementReader {
   void requireGroup(int line, const std::string& what, const std::vector<Role>& roles,
                     const std::vector<std::string>& names) const;
   Measurement parseRow(std::string_view text, int line) const;
+  bool isHeaderAgain(std::string_view text) const;
 
   const std::string& path_;
   const RobotDefinition& robot_;
@@ -559,10 +560,23 @@ Measurement MeasurementReader::parseRow(std::string_view text, int line) const {
   return m;
 }
 
+/// True when the row `text` names the header's columns again (case-insensitive, trimmed), a
+/// byte-order mark before it or not.
+bool MeasurementReader::isHeaderAgain(std::string_view text) const {
+  if (text.substr(0, 3) == "\xEF\xBB\xBF") text.remove_prefix(3);
+  const std::vector<std::string_view> fields = splitFields(text);
+  if (fields.size() != layout_.columns.size()) return false;
+  for (std::size_t i = 0; i < fields.size(); ++i)
+    if (toLower(trim(fields[i])) != toLower(layout_.columns[i].name)) return false;
+  return true;
+}
+
 MeasurementSet MeasurementReader::read() {
   if (dof_ < 1) throw ArgumentError("readMeasurementsCsv: the robot has no joints");
   set_.file = path_;
   const std::string content = loadFile();
+  int bad_line = 0;
+  if (const std::string why = unsplittableText(content, &bad_line); !why.empty()) fail(bad_line, 1, why);
 
   bool have_header = false;
   bool saw_anything = false;
@@ -595,6 +609,12 @@ MeasurementSet MeasurementReader::read() {
       set_.has_direction = layout_.dir_col[0] >= 0;
       set_.has_time = layout_.has(Role::kTime);
       continue;
+    }
+    // the header again (two exports concatenated, the second one's byte-order mark before it when
+    // joined byte for byte): said as such, not as a field that is no number ("found 'q1'")
+    if (isHeaderAgain(text)) {
+      fail(line, 1, "expected a data row, found the header row again (the header is line " + std::to_string(header_line_) +
+                        "): two exports joined into one file? Split them, or delete the repeated header");
     }
     set_.rows.push_back(parseRow(text, line));
   }
@@ -637,6 +657,36 @@ std::string jointTurnNote(const JointSpec& joint, double v) {
   const double within = v - 360.0 * std::round(v / 360.0);
   return "; -360..360 deg is also what a joint without limits (a URDF's continuous joint) is given: " + shortest(v) +
          " deg is the pose of " + shortest(within) + " deg, give the value within a turn";
+}
+
+std::string unsplittableText(const std::string& content, int* line) {
+  *line = 1;
+  if (content.rfind("\xFF\xFE", 0) == 0 || content.rfind("\xFE\xFF", 0) == 0)
+    return std::string("expected UTF-8 or ASCII text, found UTF-16 (the byte-order mark ") + (content[0] == '\xFF' ? "FF FE" : "FE FF") +
+           " at the start of the file): save the export as UTF-8 text (a spreadsheet's 'CSV UTF-8', not 'Unicode Text')";
+  // (UTF-16 of ASCII text: every other byte NUL; a NUL further on, in a comment, is not this)
+  if (content.size() >= 2 && (content[0] == '\0' || content[1] == '\0'))
+    return "expected UTF-8 or ASCII text, found a NUL byte at the start of the file (UTF-16 text without a byte-order mark, or a "
+           "binary file?): save the export as UTF-8 text";
+  const bool has_lf = content.find('\n') != std::string::npos;
+  for (std::size_t p = content.find('\r'); p != std::string::npos; p = content.find('\r', p + 1)) {
+    if (p + 1 < content.size() && content[p + 1] == '\n') continue;
+    if (p + 1 == content.size()) continue;  // (the last line's CR: read as the end of the line)
+    // a stray CR in a comment of a file with LF line ends is not read: on to the next line
+    const std::size_t lf = content.rfind('\n', p);
+    const std::size_t from = lf == std::string::npos ? (content.rfind("\xEF\xBB\xBF", 0) == 0 ? 3 : 0) : lf + 1;
+    const std::size_t text = content.find_first_not_of(" \t", from);
+    if (has_lf && text < p && content[text] == '#') {
+      p = content.find('\n', p);
+      if (p == std::string::npos) break;
+      continue;
+    }
+    *line = 1 + static_cast<int>(std::count(content.begin(), content.begin() + static_cast<std::ptrdiff_t>(p), '\n'));
+    return "expected lines that end in LF or CRLF, found a CR without LF after the text of line " + std::to_string(*line) +
+           " (lines that end in CR only, as classic Mac OS exports write them, 'CSV (Macintosh)'?): the file would read as one "
+           "line; convert its line ends (e.g. tr '\\r' '\\n' < in.csv > out.csv)";
+  }
+  return "";
 }
 
 std::string implausibleMeasuredValue(MeasuredValue kind, double v) {

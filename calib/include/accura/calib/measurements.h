@@ -71,6 +71,15 @@ enum class MeasuredValue { kPositionMm, kAngleDeg, kStd, kWeight, kPayloadKg, kT
 /// corrupted file, not a measurement (a denormal std would make its weight infinite).
 std::string implausibleMeasuredValue(MeasuredValue kind, double v);
 
+/// Why the text of a measurement file (or a mapping) cannot be split into its lines as written,
+/// as "expected ..., found ..." with the 1-based `line` where it shows (the file as a whole: 1);
+/// empty when it can. Both readers refuse such a file as a whole with it, before reading any
+/// line: UTF-16 text (a byte-order mark FF FE or FE FF; a NUL byte as the first or second byte:
+/// UTF-16 without the mark, or a binary file), and a CR that ends a line without an LF (the line ends of
+/// a classic Mac OS export), which would make the whole file one line: a header without rows.
+/// `content`: the file's bytes. Never throws but std::bad_alloc.
+std::string unsplittableText(const std::string& content, int* line);
+
 /// A measured joint value this far beyond a joint limit (deg; mm for a prismatic joint) is
 /// still read: a limit from a URDF in radians is rounded (2.87979 rad is 164.99981 deg, and a
 /// robot measured at its controller's limit of 165 deg is right).
