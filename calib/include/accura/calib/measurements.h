@@ -75,9 +75,11 @@ std::string implausibleMeasuredValue(MeasuredValue kind, double v);
 /// as "expected ..., found ..." with the 1-based `line` where it shows (the file as a whole: 1);
 /// empty when it can. Both readers refuse such a file as a whole with it, before reading any
 /// line: UTF-16 text (a byte-order mark FF FE or FE FF; a NUL byte as the first or second byte:
-/// UTF-16 without the mark, or a binary file), and a CR that ends a line without an LF (the line ends of
-/// a classic Mac OS export), which would make the whole file one line: a header without rows.
-/// `content`: the file's bytes. Never throws but std::bad_alloc.
+/// UTF-16 without the mark, or a binary file), and a CR that ends a line without an LF (the line
+/// ends of a classic Mac OS export), which would make the whole file one line: a header without
+/// rows. A CR inside a '#' comment line of a file with LF line ends is passed over (a pasted note;
+/// the comment is not read), as is a CR that ends the file. `content`: the file's bytes. Never
+/// throws but std::bad_alloc.
 std::string unsplittableText(const std::string& content, int* line);
 
 /// A measured joint value this far beyond a joint limit (deg; mm for a prismatic joint) is
