@@ -691,6 +691,29 @@ TEST(Ik, ConfigurationThatDoesNotExistIsReported) {
   }
 }
 
+// The configuration a solution has instead of the one asked for is said as the arm's posture,
+// which every controller's user reads (an ABB or UR program's error said only "S 6 T 25").
+TEST(Ik, AConfigurationDifferenceIsSaidAsThePosture) {
+  EXPECT_EQ(calib::configurationDifference({2, 2}, {2, 2}), "");
+  EXPECT_EQ(calib::configurationDifference({-1, -1}, {6, 25}), "");
+  EXPECT_EQ(calib::configurationDifference({2, -1}, {7, 25}),
+            "the side of axis 1 the wrist point lies on (overhead area), the wrist flip (the sign of joint 5)");
+  EXPECT_EQ(calib::configurationDifference({0, 0b010010}, {2, 0b000011}),
+            "the elbow (joint 3 on the other side of the stretched arm), the sign of joint 1, the sign of joint 5");
+  EXPECT_EQ(calib::configurationDifference({2, 2}, {-1, -1}), "the Status, the Turn");
+  // in the solver's message, after KUKA's numbers (the KR 16 reached with joint 1 positive where a
+  // negative one was asked for: ConfigurationThatDoesNotExistIsReported's case)
+  const calib::RobotModel m = realModel("kuka_kr16");
+  const calib::KinematicSolver solver(m);
+  Eigen::VectorXd q(6);
+  q << 100, -80, 90, 20, 40, 10;
+  calib::Configuration c = calib::kukaConfiguration(m, q);
+  c.turn |= 1;
+  const calib::IkResult r = solver.inverse(solver.forward(q), c, Eigen::VectorXd(), calib::IkOptions{});
+  ASSERT_EQ(r.status, calib::IkStatus::kNoConfiguration) << r.message;
+  EXPECT_NE(r.message.find("): it differs in the sign of joint 1"), std::string::npos) << r.message;
+}
+
 TEST(Ik, SingularPosesAreReportedWithACorrectSolution) {
   for (const bool real : {false, true}) {
     const calib::RobotModel m = real ? realModel("kuka_kr16") : nominalModel("kuka_kr16");

@@ -796,6 +796,7 @@ TEST(Plugin, TheConfigurationAskedForIsEnforced) {
   EXPECT_EQ(s, ACCURA_ERROR_NO_CONFIGURATION) << lastError(h.m);
   EXPECT_EQ(r.status, s);
   EXPECT_NE(lastError(h.m).find("not with the configuration asked for"), std::string::npos) << lastError(h.m);
+  EXPECT_NE(lastError(h.m).find("): it differs in the sign of joint 1"), std::string::npos) << lastError(h.m);
   // in a list: that pose fails, its neighbours are computed
   const accura_pose list[2] = {t, t};
   const accura_configuration configs[2] = {own, a1_negative};

@@ -55,6 +55,27 @@ bool configurationMatches(const Configuration& asked, const Configuration& actua
   return true;
 }
 
+std::string configurationDifference(const Configuration& asked, const Configuration& actual) {
+  std::string out;
+  const auto add = [&out](const std::string& part) { out += (out.empty() ? "" : ", ") + part; };
+  if (asked.status >= 0 && actual.status >= 0) {
+    const int d = asked.status ^ actual.status;
+    if (d & 1) add("the side of axis 1 the wrist point lies on (overhead area)");
+    if (d & 2) add("the elbow (joint 3 on the other side of the stretched arm)");
+    if (d & 4) add("the wrist flip (the sign of joint 5)");
+  } else if (asked.status >= 0) {
+    add("the Status");
+  }
+  if (asked.turn >= 0 && actual.turn >= 0) {
+    const int d = asked.turn ^ actual.turn;
+    for (int i = 0; i < 30; ++i)
+      if (d & (1 << i)) add("the sign of joint " + std::to_string(i + 1));
+  } else if (asked.turn >= 0) {
+    add("the Turn");
+  }
+  return out;
+}
+
 bool onlyTurnBitsNearZeroDiffer(const Configuration& asked, const Configuration& actual, const Eigen::VectorXd& q,
                                 double band_deg) {
   if (configurationMatches(asked, actual)) return false;

@@ -2,6 +2,7 @@
 #include "accura/postproc/path_job.h"
 
 #include "accura/calib/errors.h"
+#include "accura/calib/ik.h"
 
 namespace accura::postproc {
 
@@ -10,7 +11,8 @@ void enforceConfiguration(const calib::Configuration& asked, PoseCompensation& p
   if (calib::onlyTurnBitsNearZeroDiffer(asked, pc.configuration, pc.q_real)) return;
   pc.status = calib::IkStatus::kNoConfiguration;
   pc.message = "reachable only with S " + std::to_string(pc.configuration.status) + ", T " + std::to_string(pc.configuration.turn) +
-               ", not with the configuration asked for (S " + std::to_string(asked.status) + ", T " + std::to_string(asked.turn) + ")";
+               ", not with the configuration asked for (S " + std::to_string(asked.status) + ", T " + std::to_string(asked.turn) +
+               "): it differs in " + calib::configurationDifference(asked, pc.configuration);
 }
 
 PoseCompensation compensateTarget(const Compensator& comp, const Eigen::Isometry3d& T_world_tcp, const calib::Configuration& asked,

@@ -45,6 +45,12 @@ Configuration kukaConfiguration(const RobotModel& model, const Eigen::VectorXd& 
 /// True when `actual` satisfies `asked` (every part of `asked` that is not -1 is equal).
 bool configurationMatches(const Configuration& asked, const Configuration& actual);
 
+/// What differs between the configuration `asked` and `actual`, said as the arm's posture for
+/// users of any controller (an ABB or UR user does not read KUKA's bits): e.g. "the wrist flip
+/// (the sign of joint 5), the sign of joint 1". Only parts `asked` specifies (not -1); empty when they
+/// match. Never throws but std::bad_alloc.
+std::string configurationDifference(const Configuration& asked, const Configuration& actual);
+
 /// Joints within this band of 0 (deg) may flip their Turn bit by a correction: the same arm
 /// posture, and the controller needs the new sign to find the joints.
 constexpr double kTurnBandDeg = 1.0;
