@@ -402,17 +402,29 @@ struct MappedColumns {
   std::vector<std::string> ignored_absent;  ///< names under `ignore` the header does not have
 };
 
+/// Where the mapping states `key`: "FILE:LINE" (its last statement), or the file alone.
+std::string mappingPlace(const MeasurementMapping& m, const std::string& key) {
+  int line = 0;
+  for (const auto& kl : m.key_lines)
+    if (kl.first == key) line = kl.second;
+  return m.file + (line ? ":" + std::to_string(line) : std::string());
+}
+
+/// The end of an error about a column in degrees read through `key` = rad (joint_unit,
+/// orientation_unit).
+std::string looksLikeDegrees(const MeasurementMapping& m, const std::string& key) {
+  return "the column looks like degrees, not the radians the mapping states (" + key + " = rad in " + mappingPlace(m, key) +
+         "); check the mapping's " + key;
+}
+
 MappedColumns mapColumns(const std::string& path, const MappedHeader& h, const MeasurementMapping& m) {
   MappedColumns c;
   auto col = [&](const std::string& name, const std::string& role) {
     auto it = h.index.find(lower(name));
     if (it == h.index.end()) {
-      int ml = 0;
-      for (const auto& kl : m.key_lines)
-        if (kl.first == role) ml = kl.second;
       throw InputError(path, h.line, 1,
-                       "expected a column '" + name + "' in the header, found none (mapped as " + role + " in " + m.file +
-                           (ml ? ":" + std::to_string(ml) : std::string()) + "; the delimiter is '" +
+                       "expected a column '" + name + "' in the header, found none (mapped as " + role + " in " +
+                           mappingPlace(m, role) + "; the delimiter is '" +
                            (m.delimiter == '\t' ? std::string("tab") : std::string(1, m.delimiter)) + "')");
     }
     const std::vector<int>& same = h.all.at(it->first);
@@ -502,12 +514,8 @@ void readJoints(const MappedRow& row, const std::vector<int>& jc, const RobotDef
       // read as degrees: the column is in degrees, whatever the mapping says
       std::string note = jointTurnNote(js, v);
       if (js.type == JointType::kRevolute && row.m.joint_scale != 1.0 && std::abs(raw) > 2 * kPi && withinJointLimits(js, raw)) {
-        int ml = 0;
-        for (const auto& kl : row.m.key_lines)
-          if (kl.first == "joint_unit") ml = kl.second;
         note = " (" + trimBlanks(row.f[static_cast<size_t>(jc[j])]) + " rad): a joint value beyond a turn in radians, and within the limits "
-               "as degrees: the column looks like degrees, not the radians the mapping states (joint_unit = rad in " + row.m.file +
-               (ml ? ":" + std::to_string(ml) : std::string()) + "); check the mapping's joint_unit";
+               "as degrees: " + looksLikeDegrees(row.m, "joint_unit");
       }
       throw InputError(row.path, row.ln, jc[j] + 1, "column '" + row.header[jc[j]] + "': " + buf + note);
     }
@@ -538,19 +546,15 @@ Eigen::Vector3d readOrientation(const MappedRow& row, const MappedColumns& c, Me
       // orientation_unit = rad and an angle beyond the plausible range that is within a turn read
       // as degrees: the column is in degrees, whatever the mapping says (as for a joint)
       const double raw = row.num(oc[k]);
-      if (m.angle_scale != 1.0 && std::abs(raw) > 2 * kPi && std::abs(raw) <= 360.0 &&
-          !implausibleMeasuredValue(MeasuredValue::kAngleDeg, raw * m.angle_scale).empty()) {
-        int ml = 0;
-        for (const auto& kl : m.key_lines)
-          if (kl.first == "orientation_unit") ml = kl.second;
+      const std::string implausible =
+          m.angle_scale != 1.0 && std::abs(raw) > 2 * kPi && std::abs(raw) <= 360.0 ? implausibleMeasuredValue(MeasuredValue::kAngleDeg, raw * m.angle_scale) : "";
+      if (!implausible.empty()) {
         char buf[160];
-        std::snprintf(buf, sizeof buf, "expected %s, found '%s' (%.6g deg)", implausibleMeasuredValue(MeasuredValue::kAngleDeg, raw * m.angle_scale).c_str(),
+        std::snprintf(buf, sizeof buf, "expected %s, found '%s' (%.6g deg)", implausible.c_str(),
                       trimBlanks(row.f[static_cast<size_t>(oc[k])]).c_str(), raw * m.angle_scale);
         throw InputError(row.path, row.ln, oc[k] + 1,
                          "column '" + row.header[static_cast<size_t>(oc[k])] + "': " + buf +
-                             ": an angle beyond a turn in radians, and within a turn as degrees: the column looks like degrees, not the "
-                             "radians the mapping states (orientation_unit = rad in " + m.file + (ml ? ":" + std::to_string(ml) : std::string()) +
-                             "); check the mapping's orientation_unit");
+                             ": an angle beyond a turn in radians, and within a turn as degrees: " + looksLikeDegrees(m, "orientation_unit"));
       }
       angles_rad[k] = row.value(oc[k], m.angle_scale, MeasuredValue::kAngleDeg, "deg") * kDegToRad;
     }
@@ -632,10 +636,7 @@ MeasurementSet readMappedMeasurements(const std::string& path, const Measurement
   set.ignored_absent_columns = c.ignored_absent;
   {
     const auto stated = [&](const std::string& key, const std::string& unit) {
-      int line = 0;
-      for (const auto& kl : m.key_lines)
-        if (kl.first == key) line = kl.second;
-      set.units.push_back({key, unit, m.file + (line ? ":" + std::to_string(line) : std::string())});
+      set.units.push_back({key, unit, mappingPlace(m, key)});
       return key + " = " + unit + " (" + set.units.back().place + ")";
     };
     const bool prismatic = std::any_of(robot.joints.begin(), robot.joints.end(), [](const JointSpec& j) { return j.type == JointType::kPrismatic; });
