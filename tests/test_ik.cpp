@@ -701,6 +701,11 @@ TEST(Ik, AConfigurationDifferenceIsSaidAsThePosture) {
   EXPECT_EQ(calib::configurationDifference({0, 0b010010}, {2, 0b000011}),
             "the elbow (joint 3 on the other side of the stretched arm), the sign of joint 1, the sign of joint 5");
   EXPECT_EQ(calib::configurationDifference({2, 2}, {-1, -1}), "the Status, the Turn");
+  // with KUKA's numbers, a part left open not written (it said "T -1")
+  EXPECT_EQ(calib::configurationMismatch({2, -1}, {6, 25}),
+            "S 6 T 25, not with the configuration asked for (S 2): it differs in the wrist flip (the sign of joint 5)");
+  EXPECT_EQ(calib::configurationMismatch({-1, 0b10}, {2, 0b11}),
+            "S 2 T 3, not with the configuration asked for (T 2): it differs in the sign of joint 1");
   // in the solver's message, after KUKA's numbers (the KR 16 reached with joint 1 positive where a
   // negative one was asked for: ConfigurationThatDoesNotExistIsReported's case)
   const calib::RobotModel m = realModel("kuka_kr16");

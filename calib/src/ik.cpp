@@ -76,6 +76,17 @@ std::string configurationDifference(const Configuration& asked, const Configurat
   return out;
 }
 
+std::string configurationMismatch(const Configuration& asked, const Configuration& actual) {
+  const auto said = [](const Configuration& c) {
+    std::string out;
+    if (c.status >= 0) out = "S " + std::to_string(c.status);
+    if (c.turn >= 0) out += (out.empty() ? "T " : " T ") + std::to_string(c.turn);
+    return out;
+  };
+  return said(actual) + ", not with the configuration asked for (" + said(asked) + "): it differs in " +
+         configurationDifference(asked, actual);
+}
+
 bool onlyTurnBitsNearZeroDiffer(const Configuration& asked, const Configuration& actual, const Eigen::VectorXd& q,
                                 double band_deg) {
   if (configurationMatches(asked, actual)) return false;

@@ -232,9 +232,7 @@ IkResult KinematicSolver::Impl::inverse(const Eigen::Isometry3d& T_target, const
       IkResult r;
       answer(r, IkStatus::kNoConfiguration);
       r.q = q;
-      r.message = "reached with S " + std::to_string(conf.status) + " T " + std::to_string(conf.turn) +
-                  ", not with the configuration asked for (S " + std::to_string(config.status) + " T " +
-                  std::to_string(config.turn) + "): it differs in " + configurationDifference(config, conf);
+      r.message = "reached with " + configurationMismatch(config, conf);
       other_configuration.push_back(std::move(r));
       return false;
     }

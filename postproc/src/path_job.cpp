@@ -10,9 +10,7 @@ void enforceConfiguration(const calib::Configuration& asked, PoseCompensation& p
   if (pc.status != calib::IkStatus::kOk || !pc.configuration_changed) return;
   if (calib::onlyTurnBitsNearZeroDiffer(asked, pc.configuration, pc.q_real)) return;
   pc.status = calib::IkStatus::kNoConfiguration;
-  pc.message = "reachable only with S " + std::to_string(pc.configuration.status) + ", T " + std::to_string(pc.configuration.turn) +
-               ", not with the configuration asked for (S " + std::to_string(asked.status) + ", T " + std::to_string(asked.turn) +
-               "): it differs in " + calib::configurationDifference(asked, pc.configuration);
+  pc.message = "reachable only with " + calib::configurationMismatch(asked, pc.configuration);
 }
 
 PoseCompensation compensateTarget(const Compensator& comp, const Eigen::Isometry3d& T_world_tcp, const calib::Configuration& asked,

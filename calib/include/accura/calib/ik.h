@@ -51,6 +51,13 @@ bool configurationMatches(const Configuration& asked, const Configuration& actua
 /// match. Never throws but std::bad_alloc.
 std::string configurationDifference(const Configuration& asked, const Configuration& actual);
 
+/// The configuration `actual` said against the one `asked` for, KUKA's numbers and then the
+/// posture: "S 6 T 25, not with the configuration asked for (S 2): it differs in the wrist flip
+/// (the sign of joint 5)". A part `asked` leaves open (-1) is not written. The IK's and the
+/// compensation's messages put it after "reached with " and "reachable only with ". Never
+/// throws but std::bad_alloc.
+std::string configurationMismatch(const Configuration& asked, const Configuration& actual);
+
 /// Joints within this band of 0 (deg) may flip their Turn bit by a correction: the same arm
 /// posture, and the controller needs the new sign to find the joints.
 constexpr double kTurnBandDeg = 1.0;
