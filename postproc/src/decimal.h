@@ -3,12 +3,15 @@
 // all (" " reads as 0 when only the end pointer is checked after skipping blanks).
 #pragma once
 
+#include <algorithm>
 #include <cctype>
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
 #include <string>
 #include <string_view>
+
+#include "excerpt.h"
 
 namespace accura::postproc::detail {
 
@@ -65,6 +68,35 @@ inline size_t scanDecimal(std::string_view s, size_t i, size_t* bad_exponent) {
     j = k;
   }
   return j;
+}
+
+/// A program lexer's number token at s[i] (a digit, or '.' before a digit; scanDecimal): where it
+/// ends, its text and value. A bad exponent or a value beyond a double's range sets `error` (what
+/// was expected and found) and `error_at` (the offset it is said at); the lexer fails there.
+struct LexedNumber {
+  size_t end = 0;
+  std::string text;
+  double value = 0;
+  std::string error;
+  size_t error_at = 0;
+};
+inline LexedNumber lexNumber(std::string_view s, size_t i) {
+  LexedNumber n;
+  size_t e = 0;
+  n.end = scanDecimal(s, i, &e);
+  n.text = std::string(s.substr(i, n.end - i));
+  if (e != std::string_view::npos) {
+    n.error_at = e;
+    n.error = "expected the digits of an exponent, found '" + std::string(s.substr(e, std::min(n.end + 1, s.size()) - e)) + "'" +
+              (n.end >= s.size() ? " and then the end of the file" : "");  // (a file cut short in the number)
+    return n;
+  }
+  n.value = std::strtod(n.text.c_str(), nullptr);
+  if (!std::isfinite(n.value)) {
+    n.error_at = i;
+    n.error = "expected a finite number, found '" + excerpt(n.text) + "'";
+  }
+  return n;
 }
 
 /// A decimal integer [+-]digits of at most 18 digits (no overflow), nothing before or after.

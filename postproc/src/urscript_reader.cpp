@@ -233,16 +233,12 @@ class Reader {
       Tok t;
       t.b = i;
       if (isDigit(c) || (c == '.' && i + 1 < s.size() && isDigit(s[i + 1]))) {
-        size_t e = 0;
-        const size_t j = detail::scanDecimal(s, i, &e);
-        if (e != std::string_view::npos)
-          fail(e, "expected the digits of an exponent, found '" + s.substr(e, std::min<size_t>(j + 1, s.size()) - e) + "'" +
-                  (j >= s.size() ? " and then the end of the file" : ""));  // (a file cut short in the number)
+        const detail::LexedNumber n = detail::lexNumber(s, i);
+        if (!n.error.empty()) fail(n.error_at, n.error);
         t.kind = Tok::Kind::kNumber;
-        t.e = j;
-        t.s = s.substr(i, j - i);
-        t.num = std::strtod(t.s.c_str(), nullptr);
-        if (!std::isfinite(t.num)) fail(i, "expected a finite number, found '" + excerpt(t.s) + "'");
+        t.e = n.end;
+        t.s = n.text;
+        t.num = n.value;
       } else if (isIdentStart(c)) {
         size_t j = i;
         while (j < s.size() && isIdentChar(s[j])) ++j;
