@@ -145,6 +145,7 @@ void readData(const IdentifyArgs& a, IdentifyRun& r) {
     r.validation = readMeasurements(a.validate, a.validate_map.empty() ? a.map : a.validate_map, r.start.nominal);
     calib::refuseValidationInFitData(r.sets, r.validation);
     screenRows(r.validation);
+    if (std::string w = calib::validationLooksLikeFitDataWarning(r.sets, r.validation); !w.empty()) r.data_warnings.push_back(w);
     r.validation_source = a.validate;
     return;
   }

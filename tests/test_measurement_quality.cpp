@@ -4,6 +4,8 @@
 // never moves. Each is refused or said, with the numbers it rests on.
 #include <gtest/gtest.h>
 
+#include <random>
+
 #include <nlohmann/json.hpp>
 
 #include "accura/calib/diagnose.h"
@@ -379,6 +381,49 @@ TEST(MeasurementQuality, AValidationOnTheFitDataIsRefusedAndItsRowsWrittenTwiceC
   EXPECT_EQ(jw["validation"]["n"].get<int>(), 40) << jw["validation"].dump();
   EXPECT_NEAR(jw["validation"]["rms_mm"].get<double>(), jw1["validation"]["rms_mm"].get<double>(), 1e-12);
   std::filesystem::remove_all(dir);
+}
+
+// The fit data exported again (another precision: joints to 1e-4 deg, positions to 1e-3 mm) are
+// not the same bits, so refuseValidationInFitData lets them through; given as --validate they
+// measure the fit. identify and diagnose say so; a real second measurement of the same
+// configurations (tracker noise 0.01 mm) is not taken for one.
+TEST(MeasurementQuality, TheFitDataExportedAgainAsAValidationIsSaidToBeThat) {
+  const std::string dir = test::tempDir("mq_reexport");
+  const Campaign c = campaign(120, 68);
+  (void)roundTrip(c.set, dir + "/A.csv", c.nominal);
+  MeasurementSet again = c.set, remeasured = c.set;
+  std::mt19937 rng(5);
+  std::normal_distribution<double> noise(0, 0.01);
+  for (size_t i = 0; i < again.rows.size(); ++i) {
+    Measurement& r = again.rows[i];
+    for (Eigen::Index j = 0; j < r.q.size(); ++j) r.q[j] = std::round(r.q[j] * 1e4) / 1e4;
+    for (int k = 0; k < 3; ++k) r.p_world_mm[k] = std::round(r.p_world_mm[k] * 1e3) / 1e3;
+    for (int k = 0; k < 3; ++k) remeasured.rows[i].p_world_mm[k] += noise(rng);
+  }
+  (void)roundTrip(again, dir + "/V.csv", c.nominal);
+  (void)roundTrip(remeasured, dir + "/W.csv", c.nominal);
+  const MeasurementSet fit = readMeasurementsCsv(dir + "/A.csv", c.nominal.nominal);
+  const MeasurementSet v = readMeasurementsCsv(dir + "/V.csv", c.nominal.nominal);
+  EXPECT_NO_THROW(refuseValidationInFitData({fit}, v));  // (not the same bits)
+  const std::string said = "120 of the 120 rows of " + dir + "/V.csv are rows of the fit data to within 0.001 deg in every joint and 0.002 "
+                           "mm in every position component (the first: " + dir + "/V.csv:2 = " + dir + "/A.csv:2; at most ";
+  EXPECT_EQ(validationLooksLikeFitDataWarning({fit}, v).rfind(said, 0), 0u) << validationLooksLikeFitDataWarning({fit}, v);
+  EXPECT_EQ(validationLooksLikeFitDataWarning({fit}, readMeasurementsCsv(dir + "/W.csv", c.nominal.nominal)), "");
+  // 59 of 120 rows from the fit: under half, not said; 60: said
+  MeasurementSet half = readMeasurementsCsv(dir + "/W.csv", c.nominal.nominal);
+  for (size_t i = 0; i < 59; ++i) half.rows[i] = v.rows[i];
+  EXPECT_EQ(validationLooksLikeFitDataWarning({fit}, half), "");
+  half.rows[59] = v.rows[59];
+  EXPECT_EQ(validationLooksLikeFitDataWarning({fit}, half).rfind("60 of the 120 rows of", 0), 0u);
+  const std::string robot = "--robot kuka_kr16 --tool 80,40,150 --data " + dir + "/A.csv ";
+  for (const std::string& cmd : {"identify " + robot + "--out " + dir + "/o.xml", "diagnose " + robot + "--json " + dir + "/o.json"}) {
+    CliRun r = test::runAccura(cmd + " --validate " + dir + "/V.csv");
+    EXPECT_EQ(r.code, 0) << cmd << r.err;
+    EXPECT_NE((r.out + r.err).find(said), std::string::npos) << cmd << "\n" << r.out << r.err;
+    r = test::runAccura(cmd + " --validate " + dir + "/W.csv");
+    EXPECT_EQ(r.code, 0) << cmd << r.err;
+    EXPECT_EQ((r.out + r.err).find("are rows of the fit data"), std::string::npos) << cmd << "\n" << r.out << r.err;
+  }
 }
 
 // The number printed right after `label` in `text` (NaN when the label is not there).

@@ -337,12 +337,16 @@ std::vector<RepeatPair> withoutDuplicatedRows(std::vector<MeasurementSet>& sets,
 
 /// The stale readings (staleReadings) of each set and of the validation, as warnings; found
 /// after the rows written twice are out, before the gross rows are (a stale row is often one).
+/// And a validation that is most likely the fit data exported again
+/// (validationLooksLikeFitDataWarning).
 std::vector<std::string> staleReadingWarnings(const std::vector<MeasurementSet>& sets, const MeasurementSet* validation, double tol) {
   std::vector<std::string> out;
   for (const MeasurementSet& s : sets)
     if (std::string w = staleReadingsWarning(s.file, staleReadings(s, tol)); !w.empty()) out.push_back(std::move(w));
-  if (validation)
+  if (validation) {
     if (std::string w = staleReadingsWarning(validation->file, staleReadings(*validation, tol)); !w.empty()) out.push_back(std::move(w));
+    if (std::string w = validationLooksLikeFitDataWarning(sets, *validation); !w.empty()) out.push_back(std::move(w));
+  }
   return out;
 }
 

@@ -1045,6 +1045,52 @@ void refuseValidationInFitData(const std::vector<MeasurementSet>& fit, const Mea
                        "validate on measurements kept apart from the fit data (or use --holdout)");
 }
 
+std::string validationLooksLikeFitDataWarning(const std::vector<MeasurementSet>& fit, const MeasurementSet& validation) {
+  if (validation.rows.empty()) return "";
+  // the fit rows ordered by their first joint; a validation row is compared with those within
+  // the joint tolerance of it there
+  std::vector<std::pair<double, const Measurement*>> by_q1;
+  for (const MeasurementSet& f : fit)
+    for (const Measurement& r : f.rows)
+      if (r.q.size() > 0) by_q1.emplace_back(r.q[0], &r);
+  std::sort(by_q1.begin(), by_q1.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  const auto fileOf = [&fit](const Measurement* r) -> const std::string& {
+    for (const MeasurementSet& f : fit)
+      if (!f.rows.empty() && r >= &f.rows.front() && r <= &f.rows.back()) return f.file;
+    return fit.front().file;
+  };
+  size_t same = 0;
+  const Measurement *first_val = nullptr, *first_fit = nullptr;
+  double worst_q = 0, worst_p_mm = 0;
+  for (const Measurement& v : validation.rows) {
+    if (v.q.size() == 0) continue;
+    auto it = std::lower_bound(by_q1.begin(), by_q1.end(), v.q[0] - kReexportJointTol,
+                               [](const auto& a, double x) { return a.first < x; });
+    for (; it != by_q1.end() && it->first <= v.q[0] + kReexportJointTol; ++it) {
+      const Measurement& f = *it->second;
+      if (f.q.size() != v.q.size() || f.context.payload_kg != v.context.payload_kg) continue;
+      const double dq = (f.q - v.q).cwiseAbs().maxCoeff();
+      const double dp = (f.p_world_mm - v.p_world_mm).cwiseAbs().maxCoeff();
+      if (!(dq <= kReexportJointTol && dp <= kReexportPositionTolMm)) continue;
+      if (same++ == 0) {
+        first_val = &v;
+        first_fit = &f;
+      }
+      worst_q = std::max(worst_q, dq);
+      worst_p_mm = std::max(worst_p_mm, dp);
+      break;
+    }
+  }
+  if (same == 0 || 2 * same < validation.rows.size()) return "";
+  return std::to_string(same) + " of the " + std::to_string(validation.rows.size()) + " rows of " + validation.file +
+         " are rows of the fit data to within " + formatNumber("%g", kReexportJointTol) + " deg in every joint and " +
+         formatNumber("%g", kReexportPositionTolMm) + " mm in every position component (the first: " + validation.file + ":" +
+         std::to_string(first_val->line) + " = " + fileOf(first_fit) + ":" + std::to_string(first_fit->line) + "; at most " +
+         formatNumber("%.2g", worst_q) + " deg and " + formatNumber("%.2g", worst_p_mm) +
+         " mm apart): most likely the fit's measurements exported again (other units or precision), and a validation on "
+         "them measures the fit, not the accuracy on new poses; validate on measurements kept apart from the fit data";
+}
+
 void refuseSharedMeasurements(const std::vector<MeasurementSet>& sets) {
   if (sets.size() < 2) return;
   std::unordered_map<std::string, std::pair<size_t, size_t>> seen;  // key -> (set, row) of its first occurrence

@@ -174,6 +174,23 @@ void refuseSharedMeasurements(const std::vector<MeasurementSet>& sets);
 /// how many rows the two share.
 void refuseValidationInFitData(const std::vector<MeasurementSet>& fit, const MeasurementSet& validation);
 
+/// Joints (deg or mm) and measured position components (mm) of a validation row within these
+/// of a fit row's are the same measurement exported again (validationLooksLikeFitDataWarning):
+/// a re-export in other units or at other precision (radians with 6 decimals: 6e-5 deg; metres
+/// with 6 decimals: 5e-4 mm) moves the values by less; two measurements of one configuration by
+/// a tracker (0.01-0.03 mm apart) rarely come this close in all three components.
+constexpr double kReexportJointTol = 1e-3;
+constexpr double kReexportPositionTolMm = 2e-3;
+
+/// A warning when at least half of the held-out set `validation`'s rows are, to within
+/// kReexportJointTol and kReexportPositionTolMm (the same payload), rows of the fit data `fit`:
+/// most likely the fit's measurements exported again (other units, another precision, another
+/// order of the columns), which refuseValidationInFitData, comparing bits, does not see. A
+/// validation on them measures the fit. It names how many rows, the first pair as FILE:LINE =
+/// FILE:LINE, and the largest difference found; empty otherwise. Never throws but
+/// std::bad_alloc.
+std::string validationLooksLikeFitDataWarning(const std::vector<MeasurementSet>& fit, const MeasurementSet& validation);
+
 /// A joint that never moves in a data set: its 0-based index and the value it is held at (the
 /// mean of its rows; deg or mm).
 struct HeldJoint {
