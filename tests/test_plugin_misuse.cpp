@@ -7,6 +7,12 @@
 // registry is a failure too.
 #include <gtest/gtest.h>
 
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
 #include <filesystem>
 
 #include <atomic>
@@ -386,6 +392,45 @@ TEST(PluginMisuse, FreeWhileOtherThreadsCall) {
   EXPECT_EQ(gone.load(), kThreads);
   accura_pose_result r;
   EXPECT_EQ(accura_compensate_pose(m, &t, nullptr, &r), ACCURA_ERROR_INVALID_ARGUMENT);
+}
+
+// A program that is a named pipe (a FIFO an OLP system left in its export folder):
+// an XML program hung the host for good (the reader opened the pipe and waited for a writer;
+// KRL, URScript and RAPID programs and the cell file were refused as "not a regular file"). Now
+// an .xml program is refused the same way, at once. The test opens the pipe for writing after
+// 2 s, which lets a reader that waits go on (it then read an empty file).
+TEST(PluginMisuse, AProgramThatIsANamedPipeIsRefusedNotWaitedOn) {
+  accura_model* m = loaded();
+  const std::string dir = test::tempDir("plugin_fifo");
+  const std::string fifo = dir + "/weld.xml";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0644), 0);
+  std::atomic<bool> done{false};
+  std::thread unblock([&] {
+    for (int i = 0; i < 20 && !done; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    while (!done) {  // a reader that waits on the pipe: let it go on
+      const int fd = ::open(fifo.c_str(), O_WRONLY | O_NONBLOCK);
+      if (fd >= 0) ::close(fd);
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+  });
+  accura_program_options po;
+  ASSERT_EQ(accura_program_options_init(&po, sizeof(po)), ACCURA_OK);
+  const accura_status compensated = accura_compensate_program(m, fifo.c_str(), (dir + "/out").c_str(), &po, nullptr);
+  const std::string compensate_message = messageOf(m);
+  accura_check_options co;
+  ASSERT_EQ(accura_check_options_init(&co, sizeof(co)), ACCURA_OK);
+  accura_check_summary cs{};
+  const accura_status checked =
+      accura_check_program(m, test::sourcePath("examples/cell/seam_cell.xml").c_str(), fifo.c_str(), &co, &cs, nullptr, 0);
+  const std::string check_message = messageOf(m);
+  done = true;
+  unblock.join();
+  EXPECT_EQ(compensated, ACCURA_ERROR_INPUT);
+  EXPECT_EQ(compensate_message, "accura_compensate_program: " + fifo + ": cannot read the XML program: not a regular file");
+  EXPECT_EQ(checked, ACCURA_ERROR_INPUT);
+  EXPECT_EQ(check_message, "accura_check_program: " + fifo + ": cannot read the XML program: not a regular file");
+  EXPECT_FALSE(std::filesystem::exists(dir + "/out/weld.xml"));
+  accura_model_free(m);
 }
 
 }  // namespace
