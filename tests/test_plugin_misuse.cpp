@@ -394,6 +394,42 @@ TEST(PluginMisuse, FreeWhileOtherThreadsCall) {
   EXPECT_EQ(accura_compensate_pose(m, &t, nullptr, &r), ACCURA_ERROR_INVALID_ARGUMENT);
 }
 
+// A value far out of range is named in a few characters: a target or frame at x = 1e300 was
+// "found 1000000000000000052504760255204420248704468581108159...000.000" (305 characters in a
+// host's error dialog), and a path speed beyond 10 m/s did not say what was found.
+TEST(PluginMisuse, AnAbsurdValueIsNamedInAFewCharacters) {
+  accura_model* m = loaded();
+  Args a;
+  accura_pose far = a.p;
+  far.x_mm = 1e300;
+  EXPECT_EQ(accura_compensate_pose(m, &far, nullptr, &a.r), ACCURA_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(messageOf(m), "accura_compensate_pose: target: expected x, y, z within +-100000 mm, found 1e+300");
+  far = a.p;
+  far.b_deg = -1e20;
+  EXPECT_EQ(accura_compensate_pose(m, &far, nullptr, &a.r), ACCURA_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(messageOf(m), "accura_compensate_pose: target: expected A, B, C within +-360 deg, found -1e+20");
+  far = a.p;
+  far.y_mm = 100000.25;  // just beyond: its decimals are shown
+  EXPECT_EQ(accura_compensate_pose(m, &far, nullptr, &a.r), ACCURA_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(messageOf(m), "accura_compensate_pose: target: expected x, y, z within +-100000 mm, found 100000.250");
+  accura_load_options lo;
+  ASSERT_EQ(accura_load_options_init(&lo, sizeof(lo)), ACCURA_OK);
+  lo.payload_kg = 3e18;
+  EXPECT_EQ(accura_model_load(m, "kuka_kr16", &lo), ACCURA_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(messageOf(m), "accura_model_load: payload_kg: expected a finite mass in [0, 10000] kg, found 3e+18");
+  const std::string dir = test::tempDir("plugin_absurd");
+  accura_program_motion fast = a.pm;
+  fast.type = ACCURA_LIN;
+  fast.vel_m_s = 12.5;
+  EXPECT_EQ(accura_write_program(m, (dir + "/fast.src").c_str(), &fast, 1, &a.wo), ACCURA_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(messageOf(m), "accura_write_program: motions[0].vel_m_s: expected a path speed up to 10 m/s (0: not set), found 12.500");
+  fast.vel_m_s = std::nan("");
+  EXPECT_EQ(accura_write_program(m, (dir + "/fast.src").c_str(), &fast, 1, &a.wo), ACCURA_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(messageOf(m), "accura_write_program: motions[0].vel_m_s: expected a path speed up to 10 m/s (0: not set), found nan");
+  EXPECT_TRUE(std::filesystem::is_empty(dir));
+  accura_model_free(m);
+}
+
 // A program that is a named pipe (a FIFO an OLP system left in its export folder):
 // an XML program hung the host for good (the reader opened the pipe and waited for a writer;
 // KRL, URScript and RAPID programs and the cell file were refused as "not a regular file"). Now
