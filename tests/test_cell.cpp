@@ -12,6 +12,7 @@
 #include "accura/calib/kinematics.h"
 #include "accura/postproc/cell.h"
 #include "accura/postproc/check.h"
+#include "accura_plugin.h"
 #include "test_util.h"
 
 namespace accura::postproc {
@@ -611,6 +612,43 @@ TEST(CellDistance, MotionBoundHoldsOnRandomMoves) {
     }
   }
   EXPECT_GT(tightest, 0.3);  // a bound, but not a uselessly loose one
+}
+
+// A cell file's <link joint="7"> on a six-axis robot (a cell made for a seventh axis, or for
+// another robot): the error was an ArgumentError at the <capsule>'s '<' (3:20), and a plug-in
+// host got ACCURA_ERROR_INVALID_ARGUMENT, the status of its own wrong argument, for a mistake in
+// the user's cell file. Now it is an InputError at the joint attribute (3:9), as joint="0" is,
+// and the plug-in's accura_check_program says ACCURA_ERROR_INPUT.
+TEST(CellDistance, ALinkOfAJointTheRobotLacksIsAnErrorOfTheCellFile) {
+  const std::string dir = test::tempDir("cell_link_joint");
+  const std::string path = writeCell(dir,
+                                     "  <tool><capsule x0_mm=\"0\" y0_mm=\"0\" z0_mm=\"0\" x1_mm=\"0\" y1_mm=\"0\" z1_mm=\"9\" radius_mm=\"5\"/></tool>\n"
+                                     "  <link joint=\"7\"><capsule x0_mm=\"0\" y0_mm=\"0\" z0_mm=\"0\" x1_mm=\"0\" y1_mm=\"0\" z1_mm=\"1\" radius_mm=\"2\"/></link>\n");
+  const Cell cell = readCellFile(path);
+  try {
+    CellGeometry g(cell, kr16());
+    ADD_FAILURE() << "accepted a link of joint 7";
+  } catch (const calib::InputError& e) {
+    EXPECT_EQ(e.file(), path);
+    EXPECT_EQ(e.line(), 4);
+    EXPECT_EQ(e.column(), 9);
+    EXPECT_EQ(e.message(), "<link> joint: expected 1..6 (the robot has 6 joints), found 7");
+  }
+  // the plug-in: an error of the input file
+  const std::string program = dir + "/p.src";
+  test::writeText(program, "DEF p( )\n$TOOL={X 0,Y 0,Z 0,A 0,B 0,C 0}\n$BASE={X 0,Y 0,Z 0,A 0,B 0,C 0}\nPTP {X 1000,Y 0,Z 800,A 0,B 90,C 0}\nEND\n");
+  accura_model* m = nullptr;
+  ASSERT_EQ(accura_model_create(&m), ACCURA_OK);
+  ASSERT_EQ(accura_model_load(m, "kuka_kr16", nullptr), ACCURA_OK);
+  accura_check_options o;
+  ASSERT_EQ(accura_check_options_init(&o, sizeof(o)), ACCURA_OK);
+  accura_check_summary summary{};
+  EXPECT_EQ(accura_check_program(m, path.c_str(), program.c_str(), &o, &summary, nullptr, 0), ACCURA_ERROR_INPUT);
+  const char* message = nullptr;
+  accura_last_error(m, &message);
+  EXPECT_EQ(std::string(message ? message : ""),
+            "accura_check_program: " + path + ":4:9: <link> joint: expected 1..6 (the robot has 6 joints), found 7");
+  accura_model_free(m);
 }
 
 TEST(CellDistance, LinkOutsideTheRobotIsAnError) {

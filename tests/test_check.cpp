@@ -1004,6 +1004,26 @@ struct BeyondCase {
   }
 };
 
+// A joint beyond its limit was "A1 = 190.000 deg is -5.000 deg outside its limits": minus and
+// "outside" said the sign twice (read as 5 deg inside). Now the distance is said once, by the
+// word: 190 - 185 = 5 deg outside, short of the 1 deg margin by 5 + 1 = 6 deg; value keeps its
+// sign (-5).
+TEST(CheckReach, AJointBeyondItsLimitIsSaidOutsideByAPositiveDistance) {
+  const std::string dir = test::tempDir("check_outside");
+  test::writeText(dir + "/out.src", krlProgram("out", {"PTP {A1 190, A2 -90, A3 90, A4 0, A5 30, A6 0}",
+                                                       "PTP {A1 -184.5, A2 -90, A3 90, A4 0, A5 30, A6 0}"}));
+  JobSettings job;
+  job.calibrated = kr16();
+  const CheckReport r = checkProgram(readProgram(dir + "/out.src"), job, Cell{}, CheckOptions{});
+  ASSERT_EQ(r.violations.size(), 2u);
+  EXPECT_EQ(r.violations[0].kind, CheckKind::kJointLimit);
+  EXPECT_NEAR(r.violations[0].value, -5.0, 1e-9);
+  EXPECT_EQ(r.violations[0].message.substr(0, r.violations[0].message.find(" at the end point")),
+            "joint limit: A1 = 190.000 deg is 5.000 deg outside its limits [-185.0, 185.0]; required 1.000 deg inside (short by 6.000 deg)");
+  EXPECT_EQ(r.violations[1].message.substr(0, r.violations[1].message.find(" at the end point")),
+            "joint limit: A1 = -184.500 deg is 0.500 deg inside its limits [-185.0, 185.0]; required 1.000 deg inside (short by 0.500 deg)");
+}
+
 TEST(CheckReach, CompensationPushesAPointBeyondAJointLimit) {
   const BeyondCase bc;
   ASSERT_LT(poseResidual(bc.real, bc.q_real, calib::forwardKinematics(bc.nominal, bc.q_nominal)), 1e-6);

@@ -7,6 +7,12 @@
 // registry is a failure too.
 #include <gtest/gtest.h>
 
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
 #include <filesystem>
 
 #include <atomic>
@@ -386,6 +392,81 @@ TEST(PluginMisuse, FreeWhileOtherThreadsCall) {
   EXPECT_EQ(gone.load(), kThreads);
   accura_pose_result r;
   EXPECT_EQ(accura_compensate_pose(m, &t, nullptr, &r), ACCURA_ERROR_INVALID_ARGUMENT);
+}
+
+// A value far out of range is named in a few characters: a target or frame at x = 1e300 was
+// "found 1000000000000000052504760255204420248704468581108159...000.000" (305 characters in a
+// host's error dialog), and a path speed beyond 10 m/s did not say what was found.
+TEST(PluginMisuse, AnAbsurdValueIsNamedInAFewCharacters) {
+  accura_model* m = loaded();
+  Args a;
+  accura_pose far = a.p;
+  far.x_mm = 1e300;
+  EXPECT_EQ(accura_compensate_pose(m, &far, nullptr, &a.r), ACCURA_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(messageOf(m), "accura_compensate_pose: target: expected x, y, z within +-100000 mm, found 1e+300");
+  far = a.p;
+  far.b_deg = -1e20;
+  EXPECT_EQ(accura_compensate_pose(m, &far, nullptr, &a.r), ACCURA_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(messageOf(m), "accura_compensate_pose: target: expected A, B, C within +-360 deg, found -1e+20");
+  far = a.p;
+  far.y_mm = 100000.25;  // just beyond: its decimals are shown
+  EXPECT_EQ(accura_compensate_pose(m, &far, nullptr, &a.r), ACCURA_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(messageOf(m), "accura_compensate_pose: target: expected x, y, z within +-100000 mm, found 100000.250");
+  accura_load_options lo;
+  ASSERT_EQ(accura_load_options_init(&lo, sizeof(lo)), ACCURA_OK);
+  lo.payload_kg = 3e18;
+  EXPECT_EQ(accura_model_load(m, "kuka_kr16", &lo), ACCURA_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(messageOf(m), "accura_model_load: payload_kg: expected a finite mass in [0, 10000] kg, found 3e+18");
+  const std::string dir = test::tempDir("plugin_absurd");
+  accura_program_motion fast = a.pm;
+  fast.type = ACCURA_LIN;
+  fast.vel_m_s = 12.5;
+  EXPECT_EQ(accura_write_program(m, (dir + "/fast.src").c_str(), &fast, 1, &a.wo), ACCURA_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(messageOf(m), "accura_write_program: motions[0].vel_m_s: expected a path speed up to 10 m/s (0: not set), found 12.500");
+  fast.vel_m_s = std::nan("");
+  EXPECT_EQ(accura_write_program(m, (dir + "/fast.src").c_str(), &fast, 1, &a.wo), ACCURA_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(messageOf(m), "accura_write_program: motions[0].vel_m_s: expected a path speed up to 10 m/s (0: not set), found nan");
+  EXPECT_TRUE(std::filesystem::is_empty(dir));
+  accura_model_free(m);
+}
+
+// A program that is a named pipe (a FIFO an OLP system left in its export folder):
+// an XML program hung the host for good (the reader opened the pipe and waited for a writer;
+// KRL, URScript and RAPID programs and the cell file were refused as "not a regular file"). Now
+// an .xml program is refused the same way, at once. The test opens the pipe for writing after
+// 2 s, which lets a reader that waits go on (it then read an empty file).
+TEST(PluginMisuse, AProgramThatIsANamedPipeIsRefusedNotWaitedOn) {
+  accura_model* m = loaded();
+  const std::string dir = test::tempDir("plugin_fifo");
+  const std::string fifo = dir + "/weld.xml";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0644), 0);
+  std::atomic<bool> done{false};
+  std::thread unblock([&] {
+    for (int i = 0; i < 20 && !done; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    while (!done) {  // a reader that waits on the pipe: let it go on
+      const int fd = ::open(fifo.c_str(), O_WRONLY | O_NONBLOCK);
+      if (fd >= 0) ::close(fd);
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+  });
+  accura_program_options po;
+  ASSERT_EQ(accura_program_options_init(&po, sizeof(po)), ACCURA_OK);
+  const accura_status compensated = accura_compensate_program(m, fifo.c_str(), (dir + "/out").c_str(), &po, nullptr);
+  const std::string compensate_message = messageOf(m);
+  accura_check_options co;
+  ASSERT_EQ(accura_check_options_init(&co, sizeof(co)), ACCURA_OK);
+  accura_check_summary cs{};
+  const accura_status checked =
+      accura_check_program(m, test::sourcePath("examples/cell/seam_cell.xml").c_str(), fifo.c_str(), &co, &cs, nullptr, 0);
+  const std::string check_message = messageOf(m);
+  done = true;
+  unblock.join();
+  EXPECT_EQ(compensated, ACCURA_ERROR_INPUT);
+  EXPECT_EQ(compensate_message, "accura_compensate_program: " + fifo + ": cannot read the XML program: not a regular file");
+  EXPECT_EQ(checked, ACCURA_ERROR_INPUT);
+  EXPECT_EQ(check_message, "accura_check_program: " + fifo + ": cannot read the XML program: not a regular file");
+  EXPECT_FALSE(std::filesystem::exists(dir + "/out/weld.xml"));
+  accura_model_free(m);
 }
 
 }  // namespace

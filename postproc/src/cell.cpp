@@ -44,6 +44,7 @@ class CellReader {
     throw calib::InputError(file_, line, column, msg);
   }
   std::pair<int, int> where(const XMLElement* e) const { return pos_.element(e); }
+  std::pair<int, int> whereAttribute(const XMLElement* e, const std::string& name) const { return pos_.attribute(e, name); }
 
   /// Text in an element of the cell file, which holds none (`<tool>torch<capsule .../></tool>`):
   /// never ignored.
@@ -249,7 +250,10 @@ Cell readCellFile(const std::string& path) {
       if (j < 1 || j != std::floor(j) || j > 64)
         R.failAttribute(e, "joint", "<link> joint: expected the joint number 1..n whose DH frame the link moves with, found " + std::string(e->Attribute("joint")));
       const int joint = static_cast<int>(j);
-      for (auto& s : R.shapes(e, "link " + std::to_string(joint), dir)) cell.link_shapes.emplace_back(joint, std::move(s));
+      for (auto& s : R.shapes(e, "link " + std::to_string(joint), dir)) {
+        cell.link_shapes.emplace_back(joint, std::move(s));
+        cell.link_joint_positions.push_back(R.whereAttribute(e, "joint"));
+      }
     } else if (tag == "tool") {
       R.checkAttributes(e, {"file", "units", "x_mm", "y_mm", "z_mm", "a_deg", "b_deg", "c_deg"});
       for (auto& s : R.shapes(e, "tool", dir)) cell.tool_shapes.push_back(std::move(s));

@@ -183,7 +183,7 @@ class Checker {
       const calib::JointSpec& js = real_.nominal.joints[static_cast<size_t>(joint)];
       v.unit = js.type == calib::JointType::kRevolute ? "deg" : "mm";
       v.joint = joint;
-      v.message = "joint limit: " + js.name + " = " + calib::formatFixed(q[joint], 3) + " " + v.unit + " is " + calib::formatFixed(margin, 3) + " " + v.unit +
+      v.message = "joint limit: " + js.name + " = " + calib::formatFixed(q[joint], 3) + " " + v.unit + " is " + calib::formatFixed(std::abs(margin), 3) + " " + v.unit +
                   (margin < 0 ? " outside" : " inside") + " its limits [" + calib::formatFixed(js.lower, 1) + ", " + calib::formatFixed(js.upper, 1) + "]; required " +
                   calib::formatFixed(t_.joint_margin_deg, 3) + " " + v.unit + " inside (short by " + calib::formatFixed(v.excess, 3) + " " + v.unit + ") " + at(v) +
                   ", joints " + calib::formatList(q, 3);

@@ -81,10 +81,17 @@ CellGeometry::CellGeometry(const Cell& cell, const calib::RobotModel& robot) : i
   Impl& I = *impl_;
   I.robot = robot;
   const int n = robot.dof();
-  for (const auto& ls : cell.link_shapes) {
-    if (ls.first < 1 || ls.first > n)
-      throw calib::ArgumentError(calib::formatLocation(ls.second.file, ls.second.line, ls.second.column) + "<link> joint: expected 1.." + std::to_string(n) +
-                          " (the robot has " + std::to_string(n) + " joints), found " + std::to_string(ls.first));
+  for (size_t k = 0; k < cell.link_shapes.size(); ++k) {
+    const auto& ls = cell.link_shapes[k];
+    if (ls.first < 1 || ls.first > n) {
+      const std::string what = "<link> joint: expected 1.." + std::to_string(n) + " (the robot has " + std::to_string(n) + " joints), found " +
+                               std::to_string(ls.first);
+      // read from a cell file: an error of that file, at the joint attribute (a host's
+      // ACCURA_ERROR_INPUT, not a wrong argument)
+      if (k < cell.link_joint_positions.size() && cell.link_joint_positions[k].first > 0)
+        throw calib::InputError(ls.second.file, cell.link_joint_positions[k].first, cell.link_joint_positions[k].second, what);
+      throw calib::ArgumentError(calib::formatLocation(ls.second.file, ls.second.line, ls.second.column) + what);
+    }
     Impl::Shape s = Impl::make(ls.second);
     s.frame = ls.first;
     I.robot_shapes.push_back(std::move(s));

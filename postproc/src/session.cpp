@@ -49,10 +49,12 @@ thread_local std::string t_unbound_error;
 const char* const kNotLive = "not a live handle (freed by accura_model_free, or not made by accura_model_create)";
 
 /// A value of an option as a message shows it: 3 decimals, or nan / inf / -inf (formatFixed
-/// takes finite numbers only).
+/// takes finite numbers only); a magnitude of 1e15 or more in exponent form ("1e+300": with
+/// 3 decimals it took 305 digits of a host's error dialog).
 std::string shownValue(double v) {
   if (std::isnan(v)) return "nan";
   if (std::isinf(v)) return v > 0 ? "inf" : "-inf";
+  if (std::abs(v) >= 1e15) return calib::formatNumber("%.6g", v);
   return calib::formatFixed(v, 3);
 }
 
@@ -76,11 +78,11 @@ const calib::XyzAbc& checkedPose(const calib::XyzAbc& p, const std::string& what
   for (double x : {p.x_mm, p.y_mm, p.z_mm})
     if (std::abs(x) > kMaxFrameMm)
       throw calib::ArgumentError(what + ": expected x, y, z within +-" + calib::formatFixed(kMaxFrameMm, 0) + " mm, found " +
-                                 calib::formatFixed(x, 3));
+                                 shownValue(x));
   for (double x : {p.a_deg, p.b_deg, p.c_deg})
     if (std::abs(x) > kMaxFrameDeg)
       throw calib::ArgumentError(what + ": expected A, B, C within +-" + calib::formatFixed(kMaxFrameDeg, 0) + " deg, found " +
-                                 calib::formatFixed(x, 3));
+                                 shownValue(x));
   return p;
 }
 
@@ -461,7 +463,7 @@ void writePoseProgram(const std::string& path, const PoseProgram& spec, const Se
       m.aux->setPose(checkedPose(c.aux, w + ".aux"));
     }
     if (c.approximate) m.approximation = {m.type == MotionType::kPtp ? Approximation::kCPtp : Approximation::kCDis};
-    if (!(c.vel_m_s <= 10)) throw calib::ArgumentError(w + ".vel_m_s: expected a path speed up to 10 m/s (0: not set)");
+    if (!(c.vel_m_s <= 10)) throw calib::ArgumentError(w + ".vel_m_s: expected a path speed up to 10 m/s (0: not set), found " + shownValue(c.vel_m_s));
     if (m.type != MotionType::kPtp && c.vel_m_s > 0) m.vel_m_s = c.vel_m_s;
     if (!c.joints.empty() && !session)
       throw calib::ArgumentError(w + ".joints: the configuration needs the robot's geometry: load a model first");

@@ -13,6 +13,7 @@
 #include <tuple>
 
 #include "accura/calib/errors.h"
+#include "accura/calib/file_io.h"
 #include "accura/calib/xml_text.h"
 #include "excerpt.h"
 
@@ -635,6 +636,10 @@ Program parseXmlProgram(const std::string& text, const std::string& file, const 
 }
 
 Program readXmlProgram(const std::string& path, const FrameTables* tables) {
+  // a named pipe is refused before it is opened (opening it waits for a writer), as the KRL,
+  // URScript and RAPID readers refuse it
+  if (const std::string problem = calib::notAFileProblem(path); !problem.empty())
+    throw calib::InputError(path, 0, 0, "cannot read the XML program: " + problem);
   std::ifstream f(path, std::ios::binary);
   if (!f) throw calib::InputError(path, 0, 0, "cannot read the XML program");
   const std::string text((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());

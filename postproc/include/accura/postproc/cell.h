@@ -97,6 +97,11 @@ struct Cell {
   int robot_line = 0, robot_column = 0;
   /// Robot geometry: link_shapes[k].first is the DH frame index (1..n) the shape moves with.
   std::vector<std::pair<int, CellShape>> link_shapes;
+  /// Where the `joint` attribute of link_shapes[k]'s <link> is in the cell file (1-based line
+  /// and column of its name; parallel to link_shapes, empty or {0, 0} when not from a file): a
+  /// joint the robot does not have is only known against the robot (CellGeometry), and is an
+  /// error of the cell file there.
+  std::vector<std::pair<int, int>> link_joint_positions;
   /// Tool geometry in the flange frame (frame n).
   std::vector<CellShape> tool_shapes;
   CheckThresholds thresholds;

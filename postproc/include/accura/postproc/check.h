@@ -138,7 +138,9 @@ struct CheckReport {
 /// triangles), so copies of one CellGeometry may be used by several threads at once.
 class CellGeometry {
  public:
-  /// Throws ArgumentError when a link shape names a frame outside 1..robot.dof().
+  /// Throws InputError (the cell file, line and column of the <link>'s joint attribute) when a
+  /// link shape read from a cell file names a frame outside 1..robot.dof(), ArgumentError for
+  /// such a shape of a Cell built in code.
   CellGeometry(const Cell& cell, const calib::RobotModel& robot);
   ~CellGeometry();
   CellGeometry(const CellGeometry&);

@@ -15,7 +15,8 @@ namespace accura::postproc {
 /// Reads an XML program. `tables` resolves <tool source="data" index="n"/> frames that carry no
 /// values (TOOL_DATA / BASE_DATA from a $config.dat); may be null. Throws InputError
 /// (file:line:column) on malformed XML, an unknown element or attribute, a missing or
-/// non-numeric value, a motion without its target.
+/// non-numeric value, a motion without its target; InputError ("PATH: cannot read the XML
+/// program: not a regular file") for a path that is no regular file (a named pipe is not opened).
 Program readXmlProgram(const std::string& path, const FrameTables* tables = nullptr);
 
 /// The same, from text (`file` names it in error messages).
