@@ -1135,6 +1135,69 @@ TEST(Rapid, CompensatedModuleFollowsTheIntendedPathOnAPerturbedIrb120) {
   }
 }
 
+// RobotWare turns the tool along a MoveC relative to the circle's path frame (CirPathMode
+// \PathFrame, the default: "the reorientation is performed relative to the circular path"),
+// accura's circle in the work object (\ObjectFrame, KUKA's #BASE). The two agree when the turn
+// is about the circle's axis (the seam's constant orientation: its path is checked and split);
+// a target tilted 10 deg about x at the end of a 150 deg arc is not path-checked and not split
+// (points inserted with the work object's orientations would turn the torch by degrees from
+// the path the controller runs), its points compensated, and the warning says by how much the
+// rules differ: the gap computed here independently (rotation powers by angle-axis).
+TEST(Rapid, AMoveCThatTurnsOtherThanAboutItsAxisIsNotPathCheckedUnderObjectFrameRules) {
+  SimulateOptions so;
+  so.effects = {"geometric", "joint_compliance"};
+  so.error_scale = 1;
+  so.set_station = false;
+  so.seed = 1;
+  JobSettings settings = settingsFor(perturbModel(irb120WithTorch(), so));
+  settings.tol_mm = 0.01;
+  // the seam as it is: its MoveC (constant orientation) is path-checked and split
+  const ProgramCompensation plain = compensateProgramReport(parseRapid(example(), "irb120_seam.mod"), settings);
+  ASSERT_TRUE(plain.ok());
+  int circles = 0;
+  for (const SegmentReport& sr : plain.report.segments) circles += sr.instruction == "MoveC" ? 1 : 0;
+  EXPECT_EQ(circles, 1);
+  for (const ProgramIssue& w : plain.report.warnings) EXPECT_EQ(w.message.find("about the circle's axis"), std::string::npos) << w.message;
+  // p50 at 60 deg on the circle about (160, 120) (the arc from p30 at -90 deg: 150 deg), tilted
+  const double A = 150 * kDegToRad, beta = 10 * kDegToRad;
+  const Eigen::Matrix3d R0 = Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitY()).toRotationMatrix();  // [0,0,1,0]
+  const Eigen::Matrix3d R1 = Eigen::AngleAxisd(beta, Eigen::Vector3d::UnitX()).toRotationMatrix() * R0;
+  const Eigen::Quaterniond q1(R1);
+  char p50[200];
+  std::snprintf(p50, sizeof p50, "[[190,171.961524227,20],[%.9f,%.9f,%.9f,%.9f],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]]", q1.w(), q1.x(),
+                q1.y(), q1.z());
+  std::string module = example();
+  const std::string was = "[[160,180,20],[0,0,1,0],[0,0,0,0],[9E9,9E9,9E9,9E9,9E9,9E9]]";
+  ASSERT_NE(module.find(was), std::string::npos);
+  module.replace(module.find(was), was.size(), p50);
+  const ProgramCompensation c = compensateProgramReport(parseRapid(module, "tilted.mod"), settings);
+  ASSERT_TRUE(c.ok()) << c.report.errors.front().message;
+  for (const SegmentReport& sr : c.report.segments) EXPECT_NE(sr.instruction, "MoveC");
+  std::string said;
+  for (const ProgramIssue& w : c.report.warnings)
+    if (w.message.find("turns the tool other than about the circle's axis") != std::string::npos) said = w.message;
+  ASSERT_FALSE(said.empty());
+  EXPECT_EQ(said.rfind("MoveC to p50 turns the tool other than about the circle's axis: RobotWare turns it relative to the circle's path "
+                       "(CirPathMode \\PathFrame, the default), up to ", 0), 0u) << said;
+  // R(s) = Rz(s A) (Rz(-A) R1 R0^T)^s R0 against (R1 R0^T)^s R0, at the 65 points
+  const Eigen::AngleAxisd abb(Eigen::Matrix3d(Eigen::AngleAxisd(-A, Eigen::Vector3d::UnitZ()).toRotationMatrix() * R1 * R0.transpose()));
+  const Eigen::AngleAxisd obj(Eigen::Matrix3d(R1 * R0.transpose()));
+  double gap = 0;
+  for (int k = 0; k <= 64; ++k) {
+    const double s = k / 64.0;
+    const Eigen::Matrix3d Ra = Eigen::AngleAxisd(s * A, Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(s * abb.angle(), abb.axis()) * R0;
+    const Eigen::Matrix3d Ro = Eigen::AngleAxisd(s * obj.angle(), obj.axis()) * R0;
+    gap = std::max(gap, rotationAngleDeg(Ra * Ro.transpose()));
+  }
+  EXPECT_GT(gap, 1.0);
+  const size_t at = said.find("up to ") + 6;
+  EXPECT_NEAR(std::stod(said.substr(at)), gap, 0.006) << said;
+  // the targets are compensated all the same: p50's text changed, no point inserted for the MoveC
+  const std::string written = writeRapid(c.program);
+  EXPECT_EQ(written.find("p40_1"), std::string::npos);
+  EXPECT_EQ(written.find(p50), std::string::npos);
+}
+
 // The golden files (tests/golden/rapid/README.md), byte for byte.
 TEST(Rapid, GoldenFiles) {
   const std::string g = test::sourcePath("tests/golden/rapid/");

@@ -961,8 +961,21 @@ class Job {
     // target's pose is reached as written), a path accura does not predict
     const bool joint_ori = m.type != MotionType::kPtp && (m.ori_type == "#JOINT" || path_circ);
     if (m.type == MotionType::kLin && T_world_flange_intended_ && !joint_ori) warnHalfTurn(m, *c);
-    if (path && q_real_ && !joint_ori) return pathMotion(m, *c, out);
-    if (path && q_real_) {
+    // ABB's MoveC turns the tool relative to the circle's path frame (CirPathMode \PathFrame,
+    // RobotWare's default), the circle as accura interpolates it in the work object (KUKA's
+    // #BASE, CirPathMode \ObjectFrame): the same path when the turn is about the circle's axis
+    const double abb_gap_deg = path && q_real_ && !joint_ori && m.type == MotionType::kCirc && c->aux && T_world_flange_intended_ &&
+                                       motionInstruction(m).rfind("MoveC", 0) == 0
+                                   ? pathFrameOrientationGapDeg(*c)
+                                   : 0.0;
+    if (path && q_real_ && !joint_ori && !(abb_gap_deg > kPathFrameGapDeg)) return pathMotion(m, *c, out);
+    if (path && q_real_ && !joint_ori) {
+      warning(m.where, motionInstruction(m) + " to " + targetLabel(c->end) +
+                           " turns the tool other than about the circle's axis: RobotWare turns it relative to the circle's path "
+                           "(CirPathMode \\PathFrame, the default), up to " + calib::formatFixed(abb_gap_deg, 2) +
+                           " deg from the turn in the work object that accura predicts (CirPathMode \\ObjectFrame): its points "
+                           "are compensated, its path is not checked");
+    } else if (path && q_real_) {
       warning(m.where, motionKeyword(m) + " with " +
                            (m.ori_type == "#JOINT" ? std::string("$ORI_TYPE #JOINT (the controller turns the wrist axes linearly")
                                                    : std::string("$CIRC_TYPE #PATH (the controller turns the orientation with the circle")) +
@@ -978,6 +991,36 @@ class Job {
     }
     pointMotion(m, *c, out);
   }
+
+  /// The largest angle (deg) between the tool's orientation along a circle as RobotWare turns
+  /// it by default (CirPathMode \PathFrame: relative to the path frame, which turns about the
+  /// circle's axis n by the arc A, R(s) = Rot(n, s A) slerp(R0, Rot(n, -A) R1, s)) and as accura
+  /// interpolates it (slerp(R0, R1, s) in the work object; CirPathMode \ObjectFrame, KUKA's
+  /// #BASE), at 65 points of the arc. 0 when R1 R0^T turns about n. The start is where the
+  /// program meant the tool to be; an arc accura cannot build (collinear points) gives 0 (the
+  /// path check says so).
+  double pathFrameOrientationGapDeg(const Cartesian& c) const {
+    PathSegment seg;
+    seg.type = PathType::kCirc;
+    seg.T_world_start = *T_world_flange_intended_ * c.tool;
+    seg.T_world_aux = c.T_world_progbase * calib::toIsometry(c.aux->xyzAbc());
+    seg.T_world_end = c.T_world_end;
+    try {
+      const detail::PathGeometry g(seg);
+      const Eigen::Quaterniond q1_in_path0 = Eigen::Quaterniond(Eigen::AngleAxisd(-g.arc, g.n)) * g.q1;
+      double gap = 0;
+      for (int k = 0; k <= 64; ++k) {
+        const double s = k / 64.0;
+        const Eigen::Quaterniond abb = Eigen::Quaterniond(Eigen::AngleAxisd(s * g.arc, g.n)) * g.q0.slerp(s, q1_in_path0);
+        gap = std::max(gap, calib::rotationAngleDeg(abb.toRotationMatrix() * g.pose(s).linear().transpose()));
+      }
+      return gap;
+    } catch (const calib::NumericalError&) {
+      return 0;
+    }
+  }
+  /// A MoveC whose two orientation rules differ by more than this (deg) is not path-checked.
+  static constexpr double kPathFrameGapDeg = 0.01;
 
   /// A linear move whose orientation turns by about 180 deg: the shortest way round is not
   /// defined there, and a controller may interpolate it either way (the tool swings through
