@@ -133,10 +133,24 @@ bool Diagnoser::carriesOver(const Block& B, std::string* why) const {
     *why = covered + ": " + B.effect + " fitted on less than about half a turn does not carry over to the rest of the range";
     return false;
   }
-  const double beyond = J.upper > J.lower ? std::max(lo - J.lower, J.upper - hi) : 0.0;
+  // How far the joint's limits reach beyond the covered range. A periodic term repeats with each
+  // turn, so an angle counts at its turn nearest the covered range (beyondFitRange, as `check` and
+  // `compensate` judge a gear term's coverage): a UR joint's -360..360 deg limits lie 15 deg beyond
+  // data over -165..165 deg for it (the half turn opposite the range's centre), not 195 deg.
+  double beyond = 0.0;
+  if (J.upper > J.lower) {
+    const JointRange covered_range{lo, hi};
+    const double period = periodic ? 360.0 : 0.0;
+    beyond = std::max(beyondFitRange(covered_range, J.lower, period), beyondFitRange(covered_range, J.upper, period));
+    if (periodic) {  // the farthest angle of a turn: half a turn from the centre, where the limits reach it
+      const double centre = 0.5 * (lo + hi);
+      for (double a = centre + 180.0 - 360.0 * std::ceil((centre + 180.0 - J.lower) / 360.0); a <= J.upper; a += 360.0)
+        if (a >= J.lower) beyond = std::max(beyond, beyondFitRange(covered_range, a, period));
+    }
+  }
   if (beyond > 0.5 * width) {
     *why = covered + " and its limits (" + fmtg("%.0f", J.lower) + ".." + fmtg("%.0f", J.upper) + ") lie up to " +
-           fmtg("%.0f", beyond) + unit + " beyond: " + B.effect +
+           fmtg("%.0f", beyond) + unit + (periodic ? " beyond (modulo a turn)" : " beyond") + ": " + B.effect +
            " would be extrapolated over more than half the covered width (coverage-limited: measure the joint's whole range)";
     return false;
   }
