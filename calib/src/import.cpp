@@ -668,9 +668,7 @@ MeasurementSet readMappedMeasurements(const std::string& path, const Measurement
       bool header = true;
       for (size_t k = 0; header && k < h.names.size(); ++k) header = lower(trimBlanks(again[k])) == lower(h.names[k]);
       if (header)
-        throw InputError(path, row.ln, 1,
-                         "expected a data row, found the header row again (the header is line " + std::to_string(h.line) +
-                             "): two exports joined into one file? Split them, or delete the repeated header");
+        throw InputError(path, row.ln, 1, headerRowAgainMessage(h.line));
     }
     if (row.f.size() != h.names.size()) {
       const bool row_trails = endsWithDelimiter(lines[li]);

@@ -613,8 +613,7 @@ MeasurementSet MeasurementReader::read() {
     // the header again (two exports concatenated, the second one's byte-order mark before it when
     // joined byte for byte): said as such, not as a field that is no number ("found 'q1'")
     if (isHeaderAgain(text)) {
-      fail(line, 1, "expected a data row, found the header row again (the header is line " + std::to_string(header_line_) +
-                        "): two exports joined into one file? Split them, or delete the repeated header");
+      fail(line, 1, headerRowAgainMessage(header_line_));
     }
     set_.rows.push_back(parseRow(text, line));
   }
@@ -657,6 +656,11 @@ std::string jointTurnNote(const JointSpec& joint, double v) {
   const double within = v - 360.0 * std::round(v / 360.0);
   return "; -360..360 deg is also what a joint without limits (a URDF's continuous joint) is given: " + shortest(v) +
          " deg is the pose of " + shortest(within) + " deg, give the value within a turn";
+}
+
+std::string headerRowAgainMessage(int header_line) {
+  return "expected a data row, found the header row again (the header is line " + std::to_string(header_line) +
+         "): two exports joined into one file? Split them, or delete the repeated header";
 }
 
 std::string unsplittableText(const std::string& content, int* line) {
@@ -1049,32 +1053,33 @@ std::string validationLooksLikeFitDataWarning(const std::vector<MeasurementSet>&
   if (validation.rows.empty()) return "";
   // the fit rows ordered by their first joint; a validation row is compared with those within
   // the joint tolerance of it there
-  std::vector<std::pair<double, const Measurement*>> by_q1;
+  struct FitRow {
+    double q1;
+    const Measurement* row;
+    const std::string* file;
+  };
+  std::vector<FitRow> by_q1;
   for (const MeasurementSet& f : fit)
     for (const Measurement& r : f.rows)
-      if (r.q.size() > 0) by_q1.emplace_back(r.q[0], &r);
-  std::sort(by_q1.begin(), by_q1.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
-  const auto fileOf = [&fit](const Measurement* r) -> const std::string& {
-    for (const MeasurementSet& f : fit)
-      if (!f.rows.empty() && r >= &f.rows.front() && r <= &f.rows.back()) return f.file;
-    return fit.front().file;
-  };
+      if (r.q.size() > 0) by_q1.push_back({r.q[0], &r, &f.file});
+  std::sort(by_q1.begin(), by_q1.end(), [](const FitRow& a, const FitRow& b) { return a.q1 < b.q1; });
   size_t same = 0;
-  const Measurement *first_val = nullptr, *first_fit = nullptr;
+  const Measurement* first_val = nullptr;
+  const FitRow* first_fit = nullptr;
   double worst_q = 0, worst_p_mm = 0;
   for (const Measurement& v : validation.rows) {
     if (v.q.size() == 0) continue;
     auto it = std::lower_bound(by_q1.begin(), by_q1.end(), v.q[0] - kReexportJointTol,
-                               [](const auto& a, double x) { return a.first < x; });
-    for (; it != by_q1.end() && it->first <= v.q[0] + kReexportJointTol; ++it) {
-      const Measurement& f = *it->second;
+                               [](const FitRow& a, double x) { return a.q1 < x; });
+    for (; it != by_q1.end() && it->q1 <= v.q[0] + kReexportJointTol; ++it) {
+      const Measurement& f = *it->row;
       if (f.q.size() != v.q.size() || f.context.payload_kg != v.context.payload_kg) continue;
       const double dq = (f.q - v.q).cwiseAbs().maxCoeff();
       const double dp = (f.p_world_mm - v.p_world_mm).cwiseAbs().maxCoeff();
       if (!(dq <= kReexportJointTol && dp <= kReexportPositionTolMm)) continue;
       if (same++ == 0) {
         first_val = &v;
-        first_fit = &f;
+        first_fit = &*it;
       }
       worst_q = std::max(worst_q, dq);
       worst_p_mm = std::max(worst_p_mm, dp);
@@ -1085,7 +1090,7 @@ std::string validationLooksLikeFitDataWarning(const std::vector<MeasurementSet>&
   return std::to_string(same) + " of the " + std::to_string(validation.rows.size()) + " rows of " + validation.file +
          " are rows of the fit data to within " + formatNumber("%g", kReexportJointTol) + " deg in every joint and " +
          formatNumber("%g", kReexportPositionTolMm) + " mm in every position component (the first: " + validation.file + ":" +
-         std::to_string(first_val->line) + " = " + fileOf(first_fit) + ":" + std::to_string(first_fit->line) + "; at most " +
+         std::to_string(first_val->line) + " = " + *first_fit->file + ":" + std::to_string(first_fit->row->line) + "; at most " +
          formatNumber("%.2g", worst_q) + " deg and " + formatNumber("%.2g", worst_p_mm) +
          " mm apart): most likely the fit's measurements exported again (other units or precision), and a validation on "
          "them measures the fit, not the accuracy on new poses; validate on measurements kept apart from the fit data";

@@ -82,6 +82,11 @@ std::string implausibleMeasuredValue(MeasuredValue kind, double v);
 /// throws but std::bad_alloc.
 std::string unsplittableText(const std::string& content, int* line);
 
+/// The error both readers give for a row that names the header's columns again (two exports
+/// joined into one file), the header being on line `header_line`. Never throws but
+/// std::bad_alloc.
+std::string headerRowAgainMessage(int header_line);
+
 /// A measured joint value this far beyond a joint limit (deg; mm for a prismatic joint) is
 /// still read: a limit from a URDF in radians is rounded (2.87979 rad is 164.99981 deg, and a
 /// robot measured at its controller's limit of 165 deg is right).
